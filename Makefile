@@ -1,0 +1,21 @@
+# `make demo` runs the main scenario, `make test` runs the tests; both create .venv when missing.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+
+.PHONY: demo test bench clean-venv
+
+$(BIN)/impactqp: pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
+	touch $@
+
+demo: $(BIN)/impactqp
+	$(BIN)/impactqp demo
+
+test: $(BIN)/impactqp
+	$(BIN)/python -m pytest -n 2 tests
+
+bench: $(BIN)/impactqp
+	$(BIN)/impactqp bench

@@ -1,0 +1,26 @@
+"""Constraints of the impact-aware QP, rows in acceleration units (see ``constraints.constraint``)."""
+
+from .acceleration_limit import AccelerationLimit
+from .constraint import Constraint, ConstraintRows, ControlCycle
+from .impact_model import JUMP_MODEL_CHOICES, ImpactMaps, ImpactModel, jump_model_names
+from .impulsive_torque import ImpulsiveTorqueLimit
+from .position_limit import PositionLimit
+from .post_impact_velocity import PostImpactVelocityLimit
+from .torque_limit import TorqueLimit
+from .velocity_limit import VelocityLimit
+
+__all__ = [
+    "Constraint",
+    "ConstraintRows",
+    "ControlCycle",
+    "AccelerationLimit",
+    "PositionLimit",
+    "VelocityLimit",
+    "TorqueLimit",
+    "ImpactModel",
+    "ImpactMaps",
+    "JUMP_MODEL_CHOICES",
+    "jump_model_names",
+    "PostImpactVelocityLimit",
+    "ImpulsiveTorqueLimit",
+]

@@ -1,0 +1,164 @@
+"""Vectorised jump prediction over many states at once, for datasets.
+
+Pinocchio works one state at a time; for N states the per-call Python overhead dominates.
+:class:`BatchKinematics` reads the kinematic tree and link inertias from the Pinocchio model and
+evaluates, for N joint vectors at once with NumPy, the same terms as ``PandaModel.terms``: the
+contact Jacobian J, the joint-space inertia M = sum_k (Jv_k^T m_k Jv_k + Jw_k^T I_k Jw_k), the
+centre of mass, the moving mass and the locked-robot inertia about the centre of mass. The
+predictors then apply the formulas of :mod:`controller.jump` with batched linear algebra
+(Cholesky solves for M, eq. (6) and (22); no M at all for CRB, eq. (20)-(21)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from .jump import METHODS
+from .robot import NQ, PandaModel
+
+
+@dataclass(frozen=True)
+class BatchTerms:
+    """Model terms of N states (leading axis N), world-aligned as in ``ModelTerms``."""
+
+    J: np.ndarray  # (N, 3, 7) contact-point Jacobian
+    contact_point: np.ndarray  # (N, 3)
+    com: np.ndarray  # (N, 3)
+    mass: float
+    inertia_com: np.ndarray  # (N, 3, 3)
+    joint_axes: np.ndarray  # (N, 7, 3) world axes z_k of the joints
+    joint_origins: np.ndarray  # (N, 7, 3)
+    link_com: np.ndarray  # (N, 7, 3)
+    link_inertia_world: np.ndarray  # (N, 7, 3, 3) about each link's centre of mass
+    link_masses: np.ndarray  # (7,)
+
+    @cached_property
+    def M(self) -> np.ndarray:
+        """M (N, 7, 7) = sum_k Jv_k^T m_k Jv_k + Jw_k^T I_k Jw_k over the links k."""
+        N = self.J.shape[0]
+        lower = np.tril(np.ones((NQ, NQ)))  # [k, j] = 1 when joint j moves link k
+        lever = self.link_com[:, :, None, :] - self.joint_origins[:, None, :, :]  # (N, k, j, 3)
+        axes = np.broadcast_to(self.joint_axes[:, None], (N, NQ, NQ, 3))
+        Jv = np.cross(axes, lever) * lower[None, :, :, None]  # (N, k, j, 3)
+        Jw = axes * lower[None, :, :, None]
+        M = np.einsum("k,nkia,nkja->nij", self.link_masses, Jv, Jv, optimize=True)
+        M += np.einsum("nkia,nkab,nkjb->nij", Jw, self.link_inertia_world, Jw, optimize=True)
+        return M
+
+
+class BatchKinematics:
+    """Forward kinematics and inertial terms of a serial revolute-z chain, for N states."""
+
+    def __init__(self, robot: PandaModel):
+        model = robot.model
+        for i in range(1, model.njoints):
+            if model.joints[i].shortname() != "JointModelRZ" or model.parents[i] != i - 1:
+                raise ValueError("BatchKinematics needs a serial chain of revolute-z joints")
+        self.robot = robot
+        self.R_joint = np.array([model.jointPlacements[i].rotation for i in range(1, model.njoints)])
+        self.p_joint = np.array([model.jointPlacements[i].translation for i in range(1, model.njoints)])
+        self.masses = np.array([model.inertias[i].mass for i in range(1, model.njoints)])
+        self.levers = np.array([model.inertias[i].lever for i in range(1, model.njoints)])
+        self.inertias = np.array([model.inertias[i].inertia for i in range(1, model.njoints)])
+        frame = model.frames[robot.contact_frame_id]
+        if frame.parentJoint != NQ:
+            raise ValueError("the contact frame must be attached to the last joint")
+        self.p_contact = frame.placement.translation.copy()
+        self.total_mass = float(self.masses.sum())
+
+    def terms(self, Q: np.ndarray) -> BatchTerms:
+        Q = np.asarray(Q, dtype=float)
+        if Q.ndim != 2 or Q.shape[1] != NQ:
+            raise ValueError(f"Q must have shape (N, {NQ}), got {Q.shape}")
+        if not np.all(np.isfinite(Q)):
+            raise ValueError("Q contains a non-finite value")
+        N = Q.shape[0]
+        c, s = np.cos(Q), np.sin(Q)
+        Rs = np.empty((N, NQ, 3, 3))
+        ps = np.empty((N, NQ, 3))
+        R, p = np.broadcast_to(np.eye(3), (N, 3, 3)), np.zeros((N, 3))
+        for k in range(NQ):
+            p = p + R @ self.p_joint[k]
+            R = R @ self.R_joint[k]
+            # R Rz(q_k): rotate the first two columns about the third.
+            x, y = R[:, :, 0], R[:, :, 1]
+            ck, sk = c[:, k, None], s[:, k, None]
+            Rs[:, k, :, 0] = ck * x + sk * y
+            Rs[:, k, :, 1] = ck * y - sk * x
+            Rs[:, k, :, 2] = R[:, :, 2]
+            R = Rs[:, k]
+            ps[:, k] = p
+        axes = Rs[:, :, :, 2]
+        link_com = ps + np.einsum("nkab,kb->nka", Rs, self.levers)
+        contact = ps[:, -1] + Rs[:, -1] @ self.p_contact
+        com = np.einsum("k,nka->na", self.masses, link_com) / self.total_mass
+        I_world = Rs @ self.inertias @ np.swapaxes(Rs, 2, 3)
+        r = link_com - com[:, None, :]
+        mr = self.masses[:, None] * r
+        parallel_axis = np.einsum("nka,nka->n", mr, r)[:, None, None] * np.eye(3)
+        parallel_axis -= np.swapaxes(mr, 1, 2) @ r
+        inertia_com = I_world.sum(axis=1) + parallel_axis
+        J = np.swapaxes(np.cross(axes, contact[:, None, :] - ps), 1, 2)
+        return BatchTerms(
+            J, contact, com, self.total_mass, inertia_com, axes, ps, link_com, I_world, self.masses
+        )
+
+
+def _skew_batch(v: np.ndarray) -> np.ndarray:
+    S = np.zeros(v.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
+    return S
+
+
+def predict_batch(
+    kinematics: BatchKinematics,
+    Q: np.ndarray,
+    normals: np.ndarray,
+    pre_impact_velocities: np.ndarray,
+    restitution: float = 0.0,
+    method: str = "crb",
+    impulses: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Jumps (N, 7) and impulses (N, 3) of one predictor for N states.
+
+    ``normals`` and ``pre_impact_velocities`` are (N, 3) or (3,) arrays (world frame); with
+    ``impulses`` (N, 3) the measured impulses replace the predicted ones.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
+    terms = kinematics.terms(Q)
+    N = terms.J.shape[0]
+    n = np.broadcast_to(np.asarray(normals, float), (N, 3))
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    v = np.broadcast_to(np.asarray(pre_impact_velocities, float), (N, 3))
+    J, Jt = terms.J, np.swapaxes(terms.J, 1, 2)
+    if method == "crb":
+        r_hat = _skew_batch(terms.contact_point - terms.com)
+        W = np.eye(3) / terms.mass - r_hat @ np.linalg.solve(terms.inertia_com, r_hat)
+    else:
+        L = np.linalg.cholesky(terms.M)
+        Y = np.linalg.solve(L, Jt)
+        MinvJt = np.linalg.solve(np.swapaxes(L, 1, 2), Y)  # M^-1 J^T by two triangular solves
+        W = J @ MinvJt
+    if impulses is None:
+        if method in ("classical", "classical_normal"):
+            impulse = -(1.0 + restitution) * np.linalg.solve(W, v[..., None])[..., 0]
+            if method == "classical_normal":
+                impulse = np.einsum("na,na->n", n, impulse)[:, None] * n
+        else:
+            nWn = np.einsum("na,nab,nb->n", n, W, n)
+            iota_n = -(1.0 + restitution) * np.einsum("na,na->n", n, v) / nWn
+            impulse = iota_n[:, None] * n
+    else:
+        impulse = np.broadcast_to(np.asarray(impulses, float), (N, 3))
+    if method in ("classical", "classical_normal"):
+        dq = (MinvJt @ impulse[..., None])[..., 0]
+    else:
+        Wi = (W @ impulse[..., None])[..., 0]
+        dq = (Jt @ np.linalg.solve(J @ Jt, Wi[..., None]))[..., 0]
+    return dq, np.array(impulse)

@@ -1,0 +1,185 @@
+"""Impact-induced joint-velocity jump predictors (Wang, Dehio, Kheddar, RA-L 2022).
+
+Every predictor is linear in the pre-impact contact velocity v-. It is written as two maps:
+
+- the *impulse map* G (3x3): iota = G v-, the task-space impulse acting on the robot;
+- the *impulse-to-jump map* K (7x3): ddq = K iota, the joint-velocity jump caused by iota.
+
+so that ddq = K G v- and, with v- = J dq-, ddq = A dq- with the rank-deficient jump matrix
+A = K G J used by the impact-aware constraints of the controller (design.md section 3).
+A measured impulse iota° replaces G v-: ddq = K iota°.
+
+=====================  =====================================  ==============================
+predictor              impulse map G                          impulse-to-jump map K
+=====================  =====================================  ==============================
+classical (5)-(6)      -(1+c_r) W_gm^-1                       M^-1 J^T
+classical_normal       -(1+c_r) n n^T W_gm^-1 (Sec. VI)       M^-1 J^T
+gm (12), (22)-(23)     -(1+c_r) n n^T / (n^T W_gm n)          J+ W_gm
+crb (12), (20)-(21)    -(1+c_r) n n^T / (n^T W_crb n)         J+ W_crb
+=====================  =====================================  ==============================
+
+with W_gm = J M^-1 J^T (22), J+ = J^T (J J^T)^-1 (17), and the composite-rigid-body inverse
+inertia W_crb = (1/m) I3 - [r]x I_c^-1 [r]x (20), r = p - c from the centre of mass c of the
+locked robot to the contact point p. The CRB path never forms or inverts M; the GM and classical
+paths use a Cholesky solve of M.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import cho_solve
+
+from .robot import ModelTerms
+
+METHODS = ("classical", "classical_normal", "gm", "crb")
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """[v]x, the matrix of the cross product v x ."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def crb_inverse_inertia(terms: ModelTerms) -> np.ndarray:
+    """W_crb = (1/m) I3 - [r]x I_c^-1 [r]x, eq. (20), in world axes.
+
+    m is the moving mass of the locked (composite-rigid-body) robot, I_c its rotational inertia
+    about its centre of mass and r the vector from the centre of mass to the contact point.
+    It is the contact-point inverse inertia of the whole arm welded into one free rigid body.
+    """
+    r_hat = skew(terms.contact_point - terms.com)
+    return np.eye(3) / terms.mass - r_hat @ np.linalg.solve(terms.inertia_com, r_hat)
+
+
+def joint_space_inverse_inertia_times_Jt(terms: ModelTerms) -> np.ndarray:
+    """M^-1 J^T (7x3) by a Cholesky solve; M is never inverted."""
+    return cho_solve(terms.M_cholesky, terms.J.T)
+
+
+def gm_inverse_inertia(terms: ModelTerms) -> np.ndarray:
+    """W_gm = J M^-1 J^T, eq. (22): the generalized-momentum inverse inertia at the contact."""
+    W = terms.J @ joint_space_inverse_inertia_times_Jt(terms)
+    return 0.5 * (W + W.T)
+
+
+def normal_impulse_map(W: np.ndarray, normal: np.ndarray, restitution: float) -> np.ndarray:
+    """G = -(1+c_r) n n^T / (n^T W n): iota = G v- is the impulse of eq. (12) along n."""
+    return -(1.0 + restitution) * np.outer(normal, normal) / float(normal @ W @ normal)
+
+
+@dataclass(frozen=True)
+class JumpPrediction:
+    """One predictor's answer: the joint-velocity jump, the impulse on the robot, W if any."""
+
+    method: str
+    dq_jump: np.ndarray
+    impulse: np.ndarray
+    W: np.ndarray | None
+
+
+class JumpModel:
+    """Common interface of the predictors: an impulse map G and an impulse-to-jump map K."""
+
+    name: str = ""
+
+    def inverse_inertia(self, terms: ModelTerms) -> np.ndarray | None:
+        return None
+
+    def impulse_map(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> np.ndarray:
+        raise NotImplementedError
+
+    def impulse_to_jump(self, terms: ModelTerms) -> np.ndarray:
+        raise NotImplementedError
+
+    def jump_matrix(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> np.ndarray:
+        """A = K G J (7x7): the jump ddq = A dq- for a pre-impact joint velocity dq-."""
+        return self.impulse_to_jump(terms) @ (self.impulse_map(terms, normal, restitution) @ terms.J)
+
+    def predict(
+        self,
+        terms: ModelTerms,
+        normal: np.ndarray,
+        pre_impact_velocity: np.ndarray,
+        restitution: float = 0.0,
+        impulse: np.ndarray | None = None,
+    ) -> JumpPrediction:
+        """Predict the jump for the contact velocity v- (world), or from a measured impulse."""
+        if impulse is None:
+            impulse = self.impulse_map(terms, normal, restitution) @ pre_impact_velocity
+        impulse = np.asarray(impulse, dtype=float)
+        return JumpPrediction(
+            self.name, self.impulse_to_jump(terms) @ impulse, impulse, self.inverse_inertia(terms)
+        )
+
+
+class ClassicalJump(JumpModel):
+    """Classical prediction, eqs. (5)-(6): iota_c = W_gm^-1 dv, ddq_c = M^-1 J^T iota_c,
+    with the full 3-D dv = -(1+c_r) v-. It satisfies J ddq_c = dv."""
+
+    name = "classical"
+
+    def impulse_map(self, terms, normal, restitution):
+        return -(1.0 + restitution) * np.linalg.inv(gm_inverse_inertia(terms))
+
+    def impulse_to_jump(self, terms):
+        return joint_space_inverse_inertia_times_Jt(terms)
+
+
+class ClassicalNormalJump(ClassicalJump):
+    """Classical prediction keeping only the normal part n n^T iota_c of the impulse (5),
+    as in the paper's experiments (Sec. VI)."""
+
+    name = "classical_normal"
+
+    def impulse_map(self, terms, normal, restitution):
+        return np.outer(normal, normal) @ super().impulse_map(terms, normal, restitution)
+
+
+class GeneralizedMomentumJump(JumpModel):
+    """Generalized-momentum prediction, eqs. (12), (22)-(23): W = W_gm = J M^-1 J^T,
+    iota_n = -(1+c_r) n.v- / (n^T W n), ddq_gm = J+ W iota."""
+
+    name = "gm"
+
+    def inverse_inertia(self, terms):
+        return gm_inverse_inertia(terms)
+
+    def impulse_map(self, terms, normal, restitution):
+        return normal_impulse_map(self.inverse_inertia(terms), normal, restitution)
+
+    def impulse_to_jump(self, terms):
+        return terms.J_pinv @ self.inverse_inertia(terms)
+
+
+class CompositeRigidBodyJump(GeneralizedMomentumJump):
+    """Composite-rigid-body prediction, eqs. (12), (20)-(21): W = W_crb,
+    iota_n = -(1+c_r) n.v- / (n^T W_crb n), ddq_crb = J+ W_crb iota. No M involved."""
+
+    name = "crb"
+
+    def inverse_inertia(self, terms):
+        return crb_inverse_inertia(terms)
+
+
+JUMP_MODELS: dict[str, JumpModel] = {
+    m.name: m
+    for m in (ClassicalJump(), ClassicalNormalJump(), GeneralizedMomentumJump(), CompositeRigidBodyJump())
+}
+
+
+def jump_model(name: str) -> JumpModel:
+    try:
+        return JUMP_MODELS[name]
+    except KeyError:
+        raise KeyError(f"unknown jump model {name!r}; choose from {', '.join(JUMP_MODELS)}") from None
+
+
+def prediction_error(predicted: np.ndarray, measured: np.ndarray) -> np.ndarray:
+    """Absolute prediction error e = ddq* - ddq°, eq. (25), per joint (last axis)."""
+    return np.asarray(predicted) - np.asarray(measured)
+
+
+def average_prediction_error(predicted: np.ndarray, measured: np.ndarray) -> np.ndarray:
+    """Average prediction error (1/D) sum_i |ddq*_i - ddq°_i|, eq. (26), over the last axis."""
+    return np.mean(np.abs(prediction_error(predicted, measured)), axis=-1)

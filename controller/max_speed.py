@@ -1,0 +1,81 @@
+"""Closed-form highest feasible contact speed of a posture (design.md section 3).
+
+The approach motion is dq- = v d with d = J6+ [-n; 0]: the contact frame translates along -n
+without rotating (J6 the 6x7 world-aligned frame Jacobian, + the pseudo-inverse). Then
+v- = J dq- = -v n, and every quantity below is linear in the speed v:
+
+  (a) velocity_pre:      |dq-_i|               = v |d_i|                 <= dq_max_i
+  (b) velocity_post:     |(I + A) dq-|_i        = v |((I + A) d)_i|       <= dq_max_i
+  (c) impulsive_torque:  |J^T iota|_i / delta_t = v |(J^T G (-n))_i| / delta_t <= tau_max_i
+
+with A = K G J the jump matrix of the chosen model. The maximum feasible speed is the smallest
+ratio limit_i / slope_i over joints and criteria; the arg-min says what binds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .jump import JumpModel
+from .robot import ModelTerms, PandaModel
+
+CRITERIA = ("velocity_pre", "velocity_post", "impulsive_torque")
+DEFAULT_IMPACT_DURATION = 0.015
+
+
+@dataclass(frozen=True)
+class MaxSpeed:
+    speed: float
+    criterion: str
+    joint: int  # 1-based joint index
+
+    def as_dict(self) -> dict:
+        return {"speed": self.speed, "criterion": self.criterion, "joint": self.joint}
+
+
+def approach_direction(terms: ModelTerms, normal: np.ndarray) -> np.ndarray:
+    """d = J6+ [-n; 0]: joint velocity per unit approach speed along -n without rotation."""
+    return np.linalg.pinv(terms.J6) @ np.concatenate([-np.asarray(normal, float), np.zeros(3)])
+
+
+def criterion_slopes(
+    robot: PandaModel,
+    terms: ModelTerms,
+    normal: np.ndarray,
+    model: JumpModel,
+    restitution: float = 0.0,
+    impact_duration: float = DEFAULT_IMPACT_DURATION,
+) -> dict[str, np.ndarray]:
+    """Per-joint ratio to the limit at unit approach speed, for each criterion (a), (b), (c)."""
+    normal = np.asarray(normal, float)
+    d = approach_direction(terms, normal)
+    G = model.impulse_map(terms, normal, restitution)
+    K = model.impulse_to_jump(terms)
+    impulse = G @ (terms.J @ d)
+    post = d + K @ impulse
+    return {
+        "velocity_pre": np.abs(d) / robot.dq_max,
+        "velocity_post": np.abs(post) / robot.dq_max,
+        "impulsive_torque": np.abs(terms.J.T @ impulse) / impact_duration / robot.tau_max,
+    }
+
+
+def closed_form_max_speed(
+    robot: PandaModel,
+    terms: ModelTerms,
+    normal: np.ndarray,
+    model: JumpModel,
+    restitution: float = 0.0,
+    impact_duration: float = DEFAULT_IMPACT_DURATION,
+) -> MaxSpeed:
+    """Highest approach speed v for which (a), (b) and (c) all hold, and what binds it."""
+    slopes = criterion_slopes(robot, terms, normal, model, restitution, impact_duration)
+    best = MaxSpeed(np.inf, "", 0)
+    for criterion in CRITERIA:
+        s = slopes[criterion]
+        j = int(np.argmax(s))
+        if s[j] > 0 and 1.0 / s[j] < best.speed:
+            best = MaxSpeed(float(1.0 / s[j]), criterion, j + 1)
+    return best

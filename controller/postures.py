@@ -1,0 +1,81 @@
+"""The default wall and the named impact postures that face it.
+
+The default wall is the vertical plane x = 0.6 m in front of the robot; its normal points back
+towards the robot, n = (-1, 0, 0). Each named posture puts the tool tip on that wall with the
+hand's axis along -n, so the tip is the first point to touch. The postures differ in their elbow
+and wrist arrangement, like the three configurations of the paper's Fig. 2.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Surface:
+    """A planar rigid surface: a point on it and its unit normal pointing towards the robot."""
+
+    point: np.ndarray
+    normal: np.ndarray
+    friction: float = 0.1123
+
+    def __post_init__(self):
+        point = np.asarray(self.point, dtype=float)
+        normal = np.asarray(self.normal, dtype=float)
+        if point.shape != (3,) or normal.shape != (3,):
+            raise ValueError("a surface needs a 3-D point and a 3-D normal")
+        if not (np.all(np.isfinite(point)) and np.all(np.isfinite(normal))):
+            raise ValueError("surface point and normal must be finite")
+        norm = np.linalg.norm(normal)
+        if norm < 1e-9:
+            raise ValueError("the surface normal must not be zero")
+        if not (np.isfinite(self.friction) and self.friction >= 0.0):
+            raise ValueError("the surface friction must be a finite number >= 0")
+        object.__setattr__(self, "point", point)
+        object.__setattr__(self, "normal", normal / norm)
+
+    def signed_distance(self, p: np.ndarray) -> float:
+        """Distance of p from the plane, positive on the robot's side."""
+        return float(self.normal @ (np.asarray(p) - self.point))
+
+
+DEFAULT_WALL = Surface(point=np.array([0.6, 0.0, 0.0]), normal=np.array([-1.0, 0.0, 0.0]))
+
+
+@dataclass(frozen=True)
+class ImpactPosture:
+    name: str
+    q: np.ndarray
+    description: str
+    surface: Surface = field(default=DEFAULT_WALL)
+
+
+POSTURES: dict[str, ImpactPosture] = {
+    p.name: p
+    for p in (
+        ImpactPosture(
+            "elbow_right",
+            np.array([1.141378, -0.390243, -0.616843, -1.859688, -1.737836, 2.587417, -0.461]),
+            "elbow swung right (q3 < 0), wrist rolled down (q5 < 0); tip at (0.6, 0.2, 0.75)",
+        ),
+        ImpactPosture(
+            "elbow_left",
+            np.array([-1.387445, -0.928934, 0.883828, -1.976312, 1.914563, 2.531826, -1.852]),
+            "elbow swung left (q3 > 0), wrist rolled up (q5 > 0); tip at (0.6, 0.0, 0.75)",
+        ),
+        ImpactPosture(
+            "elbow_up",
+            np.array([0.043817, -0.369231, -0.018765, -2.266834, 0.081754, 3.469656, 0.785]),
+            "elbow up in the sagittal plane, wrist neutral (q5 ~ 0); tip at (0.6, 0.0, 0.7)",
+        ),
+    )
+}
+
+
+def posture(name: str) -> ImpactPosture:
+    try:
+        return POSTURES[name]
+    except KeyError:
+        raise KeyError(f"unknown posture {name!r}; known postures: {', '.join(POSTURES)}") from None

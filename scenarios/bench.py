@@ -1,0 +1,79 @@
+"""The benchmark table of ``impactqp bench``: every tracked speed and accuracy figure.
+
+Each row is ``{"name", "unit", "median", "p99"}``. Times are measured over many repetitions and
+summarised by their median and 99th percentile; for a rate (per second), "p99" is the rate at the
+99th-percentile time, i.e. the slow tail. Goals are printed in the docs, never asserted.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+
+def timing_row(name: str, unit: str, samples_s: np.ndarray, scale: float) -> dict:
+    samples = np.asarray(samples_s) * scale
+    return {"name": name, "unit": unit, "median": float(np.median(samples)), "p99": float(np.percentile(samples, 99))}
+
+
+def rate_row(name: str, unit: str, count: int, samples_s: np.ndarray) -> dict:
+    samples = np.asarray(samples_s)
+    return {
+        "name": name,
+        "unit": unit,
+        "median": float(count / np.median(samples)),
+        "p99": float(count / np.percentile(samples, 99)),
+    }
+
+
+def time_calls(fn: Callable[[], object], repeats: int) -> np.ndarray:
+    samples = np.empty(repeats)
+    for i in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        samples[i] = time.perf_counter() - t0
+    return samples
+
+
+def prediction_rows() -> list[dict]:
+    from controller.batch import BatchKinematics, predict_batch
+    from controller.jump import JUMP_MODELS
+    from controller.postures import POSTURES
+    from controller.robot import PandaModel
+
+    robot = PandaModel()
+    crb = JUMP_MODELS["crb"]
+    posture = next(iter(POSTURES.values()))
+    n = posture.surface.normal
+    v = -0.15 * n
+
+    def single():
+        crb.predict(robot.terms(posture.q), n, v, 0.0)
+
+    for _ in range(200):
+        single()
+    rows = [timing_row("predict.crb.single", "us", time_calls(single, 5000), 1e6)]
+    kinematics = BatchKinematics(robot)
+    Q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (10_000, 7))
+    predict_batch(kinematics, Q, n, v, 0.0, "crb")
+    samples = time_calls(lambda: predict_batch(kinematics, Q, n, v, 0.0, "crb"), 30)
+    rows.append(rate_row("predict.crb.batch", "predictions/s", 10_000, samples))
+    return rows
+
+
+BENCHMARKS: list[tuple[str, Callable[[], list[dict]]]] = [
+    ("predict.", prediction_rows),
+]
+
+
+def run_benchmarks(only: str = "", progress: bool = True) -> list[dict]:
+    rows = []
+    for prefix, fn in BENCHMARKS:
+        if only and not (prefix.startswith(only) or only.startswith(prefix)):
+            continue
+        if progress:
+            print(f"running {prefix}* ...", flush=True)
+        rows.extend(r for r in fn() if r["name"].startswith(only))
+    return rows

@@ -1,0 +1,170 @@
+"""The ``impactqp`` command line.
+
+Every command validates its input; bad input gets one line on stderr and exit code 2, never a
+traceback. ``--json`` prints machine-readable output on stdout.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import click
+import numpy as np
+
+from controller.jump import METHODS
+from controller.postures import POSTURES
+from controller.robot import InvalidStateError, SingularPostureError
+
+EXIT_BAD_INPUT = 2
+
+
+class BadInput(click.ClickException):
+    exit_code = EXIT_BAD_INPUT
+
+
+def parse_vector(text: str, size: int | None, what: str) -> np.ndarray:
+    """Parse 'a,b,c' into a float array, checking the count and finiteness."""
+    try:
+        values = np.array([float(x) for x in text.split(",")], dtype=float)
+    except ValueError:
+        raise BadInput(f"{what} must be comma-separated numbers, got {text!r}") from None
+    if size is not None and values.size != size:
+        raise BadInput(f"{what} must have {size} values, got {values.size}")
+    if not np.all(np.isfinite(values)):
+        raise BadInput(f"{what} contains a non-finite value")
+    return values
+
+
+def parse_list(text: str, what: str) -> list[float]:
+    return parse_vector(text, None, what).tolist()
+
+
+def emit_json(obj) -> None:
+    click.echo(json.dumps(obj, indent=2))
+
+
+@click.group()
+def cli():
+    """Impact-aware QP control of a Franka Panda (Wang, Dehio, Kheddar, RA-L 2022)."""
+
+
+@cli.command()
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON list.")
+def postures(as_json):
+    """List the named impact postures, their contact point and the wall normal."""
+    from controller.robot import PandaModel
+
+    robot = PandaModel()
+    rows = [
+        {
+            "name": p.name,
+            "q": p.q.tolist(),
+            "contact_point": robot.contact_point(p.q).tolist(),
+            "normal": p.surface.normal.tolist(),
+            "description": p.description,
+        }
+        for p in POSTURES.values()
+    ]
+    if as_json:
+        emit_json(rows)
+        return
+    for row in rows:
+        click.echo(f"{row['name']:<12} {row['description']}")
+        click.echo(f"  q             = {np.array2string(np.array(row['q']), precision=4)}")
+        click.echo(f"  contact point = {np.array2string(np.array(row['contact_point']), precision=4)} m")
+        click.echo(f"  normal        = {row['normal']}")
+
+
+@cli.command()
+@click.option("--posture", "posture_name", help="A named posture (see `impactqp postures`).")
+@click.option("--q", "q_text", help="Joint positions Q1,...,Q7 (rad).")
+@click.option("--normal", "normal_text", required=True, help="Surface normal NX,NY,NZ towards the robot.")
+@click.option("--speed", type=float, required=True, help="Approach speed along -normal (m/s), > 0.")
+@click.option("--tangential", "tangential_text", help="Tangential velocity VX,VY,VZ (m/s), orthogonal to the normal.")
+@click.option("--restitution", type=float, default=0.0, show_default=True, help="Coefficient of restitution in [0, 1].")
+@click.option("--method", type=click.Choice([*METHODS, "all"]), default="all", show_default=True)
+@click.option("--json", "as_json", is_flag=True)
+def predict(posture_name, q_text, normal_text, speed, tangential_text, restitution, method, as_json):
+    """Predict the impact-induced joint-velocity jump at a posture."""
+    from controller.prediction import ImpactQuery, predict_all
+
+    if (posture_name is None) == (q_text is None):
+        raise BadInput("give exactly one of --posture NAME or --q Q1,...,Q7")
+    if posture_name is not None:
+        if posture_name not in POSTURES:
+            raise BadInput(f"unknown posture {posture_name!r}; known: {', '.join(POSTURES)}")
+        q = POSTURES[posture_name].q
+    else:
+        q = parse_vector(q_text, 7, "--q")
+    tangential = parse_vector(tangential_text, 3, "--tangential") if tangential_text else np.zeros(3)
+    query = ImpactQuery.from_speed(
+        q, parse_vector(normal_text, 3, "--normal"), speed, tangential, restitution
+    )
+    methods = METHODS if method == "all" else (method,)
+    report = predict_all(query, methods)
+    if as_json:
+        emit_json(report)
+        return
+    click.echo(f"q                   = {np.array2string(np.array(report['q']), precision=4)}")
+    click.echo(f"contact point       = {np.array2string(np.array(report['contact_point']), precision=4)} m")
+    click.echo(f"normal              = {np.array2string(np.array(report['normal']), precision=4)}")
+    click.echo(f"pre-impact velocity = {np.array2string(np.array(report['pre_impact_velocity']), precision=4)} m/s")
+    click.echo(f"restitution         = {report['restitution']}   cond(M) = {report['cond_M']:.0f}")
+    header = f"{'method':<17}" + "".join(f"{f'dq{i}':>9}" for i in range(1, 8)) + "   impulse (N s)"
+    click.echo(header)
+    for name, res in report["methods"].items():
+        dq = "".join(f"{x:9.4f}" for x in res["dq_jump"])
+        imp = " ".join(f"{x:7.4f}" for x in res["impulse"])
+        click.echo(f"{name:<17}{dq}   [{imp}]")
+
+
+@cli.command()
+@click.option("--json", "as_json", is_flag=True, help='Print {"rows": [...]}.')
+@click.option("--only", default="", help="Run only the rows whose name starts with this prefix.")
+def bench(as_json, only):
+    """Benchmark table: median and p99 of every tracked speed and accuracy figure."""
+    from scenarios.bench import run_benchmarks
+
+    rows = run_benchmarks(only, progress=not as_json)
+    if as_json:
+        emit_json({"rows": rows})
+        return
+    click.echo(f"{'name':<32}{'unit':<16}{'median':>14}{'p99':>14}")
+    for row in rows:
+        click.echo(f"{row['name']:<32}{row['unit']:<16}{row['median']:>14.4g}{row['p99']:>14.4g}")
+
+
+@cli.command()
+def demo():
+    """The main scenario: the prediction table of every named posture."""
+    from controller.prediction import ImpactQuery, predict_all
+
+    for p in POSTURES.values():
+        report = predict_all(ImpactQuery.from_speed(p.q, p.surface.normal, 0.15, np.zeros(3), 0.0), METHODS)
+        click.echo(f"\n{p.name}: {p.description}; v_n = 0.15 m/s, c_r = 0, cond(M) = {report['cond_M']:.0f}")
+        click.echo(f"{'method':<17}" + "".join(f"{f'dq{i}':>9}" for i in range(1, 8)) + "  |iota| N s")
+        for name, res in report["methods"].items():
+            click.echo(
+                f"{name:<17}" + "".join(f"{x:9.4f}" for x in res["dq_jump"]) + f"  {np.linalg.norm(res['impulse']):8.4f}"
+            )
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        cli.main(args=argv, prog_name="impactqp", standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("impactqp: aborted", err=True)
+        return 1
+    except click.ClickException as exc:
+        click.echo(f"impactqp: error: {exc.format_message()}", err=True)
+        return EXIT_BAD_INPUT
+    except (InvalidStateError, SingularPostureError, ValueError, KeyError, FileNotFoundError) as exc:
+        message = exc.args[0] if exc.args else str(exc)
+        click.echo(f"impactqp: error: {message}", err=True)
+        return EXIT_BAD_INPUT
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

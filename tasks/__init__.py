@@ -1,0 +1,9 @@
+"""Least-squares tasks of the impact-aware QP (one class per task, see ``tasks.task``)."""
+
+from .contact_approach_task import ContactApproachTask
+from .damping_task import DampingTask
+from .frame_task import FrameTask
+from .posture_task import PostureTask
+from .task import Task, TaskRows
+
+__all__ = ["Task", "TaskRows", "FrameTask", "ContactApproachTask", "PostureTask", "DampingTask"]

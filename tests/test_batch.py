@@ -1,0 +1,63 @@
+"""The vectorised batch API equals the one-state path."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import unit_vectors
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from controller.batch import BatchKinematics, predict_batch
+from controller.jump import JUMP_MODELS, METHODS
+
+
+@pytest.fixture(scope="module")
+def kinematics(robot):
+    return BatchKinematics(robot)
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**31), n=unit_vectors(), cr=st.floats(0.0, 1.0))
+def test_batch_equals_single_state_predictions(robot, kinematics, seed, n, cr):
+    rng = np.random.default_rng(seed)
+    Q = rng.uniform(robot.q_min + 0.1, robot.q_max - 0.1, (20, 7))
+    v_minus = -0.15 * n + 0.04 * np.cross(n, [0.0, 0.0, 1.0])
+    for method in METHODS:
+        dq, impulse = predict_batch(kinematics, Q, n, v_minus, cr, method)
+        for i, q in enumerate(Q):
+            pred = JUMP_MODELS[method].predict(robot.terms(q), n, v_minus, cr)
+            np.testing.assert_allclose(dq[i], pred.dq_jump, rtol=1e-8, atol=1e-10)
+            np.testing.assert_allclose(impulse[i], pred.impulse, rtol=1e-8, atol=1e-10)
+
+
+def test_batch_terms_match_pinocchio(robot, kinematics):
+    Q = np.random.default_rng(1).uniform(robot.q_min, robot.q_max, (10, 7))
+    terms = kinematics.terms(Q)
+    data = robot.model.createData()
+    for i, q in enumerate(Q):
+        np.testing.assert_allclose(terms.M[i], pin.crba(robot.model, data, q), atol=1e-10)
+        ref = robot.terms(q, check_limits=False)
+        np.testing.assert_allclose(terms.J[i], ref.J, atol=1e-12)
+        np.testing.assert_allclose(terms.com[i], ref.com, atol=1e-12)
+        np.testing.assert_allclose(terms.inertia_com[i], ref.inertia_com, atol=1e-12)
+
+
+def test_batch_with_measured_impulses(robot, kinematics):
+    Q = np.random.default_rng(2).uniform(robot.q_min + 0.1, robot.q_max - 0.1, (5, 7))
+    impulses = np.random.default_rng(3).normal(size=(5, 3))
+    n = np.array([-1.0, 0.0, 0.0])
+    for method in METHODS:
+        dq, used = predict_batch(kinematics, Q, n, -0.1 * n, 0.0, method, impulses=impulses)
+        np.testing.assert_array_equal(used, impulses)
+        for i, q in enumerate(Q):
+            expected = JUMP_MODELS[method].predict(robot.terms(q), n, -0.1 * n, 0.0, impulse=impulses[i])
+            np.testing.assert_allclose(dq[i], expected.dq_jump, rtol=1e-8, atol=1e-10)
+
+
+def test_batch_rejects_bad_input(kinematics):
+    with pytest.raises(ValueError, match="shape"):
+        kinematics.terms(np.zeros((3, 6)))
+    with pytest.raises(ValueError, match="non-finite"):
+        kinematics.terms(np.full((2, 7), np.nan))
+    with pytest.raises(ValueError, match="unknown method"):
+        predict_batch(kinematics, np.zeros((1, 7)), [1, 0, 0], [-1, 0, 0], 0.0, "magic")

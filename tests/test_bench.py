@@ -1,0 +1,17 @@
+"""`impactqp bench --json` prints rows of {name, unit, median, p99}."""
+
+import json
+
+from scenarios.cli import main
+
+
+def test_bench_prediction_rows(capsys):
+    assert main(["bench", "--only", "predict.", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    names = {r["name"] for r in rows}
+    assert names == {"predict.crb.single", "predict.crb.batch"}
+    for r in rows:
+        assert set(r) == {"name", "unit", "median", "p99"}
+        assert r["median"] > 0 and r["p99"] > 0
+    single = next(r for r in rows if r["name"] == "predict.crb.single")
+    assert single["p99"] >= single["median"]

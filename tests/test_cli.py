@@ -1,0 +1,98 @@
+"""The command-line contract: JSON keys, readable tables, one-line errors with exit code 2."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from controller.postures import POSTURES
+from scenarios.cli import main
+
+
+def run(capsys, *args):
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_postures_json(capsys):
+    code, out, _ = run(capsys, "postures", "--json")
+    assert code == 0
+    rows = json.loads(out)
+    assert [r["name"] for r in rows] == list(POSTURES)
+    for r in rows:
+        assert {"name", "q", "contact_point", "normal"} <= set(r)
+        assert len(r["q"]) == 7 and len(r["contact_point"]) == 3
+        assert np.linalg.norm(r["normal"]) == pytest.approx(1.0)
+
+
+def test_predict_json_contract(capsys):
+    code, out, _ = run(
+        capsys, "predict", "--posture", "elbow_up", "--normal", "-2,0,0", "--speed", "0.15",
+        "--tangential", "0,0.05,0", "--restitution", "0.2", "--json",
+    )
+    assert code == 0
+    report = json.loads(out)
+    np.testing.assert_allclose(report["normal"], [-1, 0, 0])
+    np.testing.assert_allclose(report["pre_impact_velocity"], [0.15, 0.05, 0.0])
+    assert report["restitution"] == 0.2
+    assert set(report["methods"]) == {"classical", "classical_normal", "gm", "crb"}
+    assert np.array(report["methods"]["crb"]["W"]).shape == (3, 3)
+
+
+def test_predict_with_q_and_one_method(capsys):
+    q = ",".join(str(x) for x in POSTURES["elbow_left"].q)
+    code, out, _ = run(capsys, "predict", "--q", q, "--normal", "-1,0,0", "--speed", "0.1", "--method", "gm", "--json")
+    assert code == 0
+    assert list(json.loads(out)["methods"]) == ["gm"]
+
+
+def test_predict_table(capsys):
+    code, out, _ = run(capsys, "predict", "--posture", "elbow_right", "--normal", "-1,0,0", "--speed", "0.1")
+    assert code == 0
+    for name in ("classical", "classical_normal", "gm", "crb", "cond(M)"):
+        assert name in out
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--q", "0,0,0,-1,0,1.5,nan"], "non-finite"),
+        (["--q", "0,0,0,-1,0,1.5"], "7 values"),
+        (["--q", "0,0,0,-5,0,1.5,0"], "outside the joint limits"),
+        (["--q", "-0.63343,3e-05,1.5708,-0.467,0.0,3.01097,2.8973"], "singular"),
+        (["--posture", "nowhere"], "unknown posture"),
+        (["--posture", "elbow_up", "--normal", "0,0,0"], "zero"),
+        (["--posture", "elbow_up", "--speed", "0"], "> 0"),
+        (["--posture", "elbow_up", "--speed", "-0.1"], "> 0"),
+        (["--posture", "elbow_up", "--restitution", "1.2"], r"\[0, 1\]"),
+        (["--posture", "elbow_up", "--tangential", "0.1,0,0"], "orthogonal"),
+        (["--normal", "-1,0,0", "--speed", "0.1"], "exactly one"),
+    ],
+)
+def test_bad_input_is_one_line_with_exit_code_2(capsys, args, message):
+    defaults = {"--normal": "-1,0,0", "--speed": "0.1"}
+    full = list(args)
+    for flag, value in defaults.items():
+        if flag not in full:
+            full += [flag, value]
+    code, out, err = run(capsys, "predict", *full)
+    assert code == 2
+    assert out == ""
+    assert len(err.strip().splitlines()) == 1
+    assert "Traceback" not in err
+    import re
+
+    assert re.search(message, err)
+
+
+def test_console_script_exit_code():
+    """The installed entry point returns 2 and prints no traceback."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "scenarios.cli", "predict", "--posture", "x", "--normal", "1,0,0", "--speed", "1"],
+        capture_output=True, text=True, check=False,
+    )
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr and "unknown posture" in proc.stderr

@@ -1,0 +1,184 @@
+"""First-principles checks of the jump predictors (controller/jump.py)."""
+
+import dataclasses
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import joint_positions, unit_vectors
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from controller.jump import (
+    JUMP_MODELS,
+    METHODS,
+    average_prediction_error,
+    crb_inverse_inertia,
+    gm_inverse_inertia,
+    prediction_error,
+)
+from controller.robot import PandaModel, SingularPostureError
+
+SETTINGS = settings(max_examples=40, deadline=None)
+speeds = st.floats(0.01, 1.0)
+restitutions = st.floats(0.0, 1.0)
+
+
+def approach(normal, speed, tangent_seed):
+    """v- = -speed n + a tangential part orthogonal to n."""
+    t = np.cross(normal, tangent_seed)
+    return -speed * normal + 0.3 * speed * t
+
+
+def terms_or_skip(robot, q):
+    try:
+        return robot.terms(q)
+    except SingularPostureError:
+        pytest.skip("singular posture drawn")
+
+
+@SETTINGS
+@given(q=joint_positions(), n=unit_vectors(), s=unit_vectors(), v=speeds, cr=restitutions)
+def test_classical_reaches_the_full_velocity_change(robot, q, n, s, v, cr):
+    """Eq. (6) satisfies J ddq_c = dv = -(1+c_r) v- (joint motion constraint (10))."""
+    terms = terms_or_skip(robot, q)
+    v_minus = approach(n, v, s)
+    pred = JUMP_MODELS["classical"].predict(terms, n, v_minus, cr)
+    np.testing.assert_allclose(terms.J @ pred.dq_jump, -(1 + cr) * v_minus, atol=1e-9)
+    # and it is the M-weighted least-squares solution (7): M ddq lies in range(J^T)
+    np.testing.assert_allclose(terms.M @ pred.dq_jump, terms.J.T @ pred.impulse, atol=1e-9)
+
+
+@SETTINGS
+@given(q=joint_positions(), n=unit_vectors(), s=unit_vectors(), v=speeds, cr=restitutions)
+def test_normal_velocity_change_of_gm_and_crb(robot, q, n, s, v, cr):
+    """With (12) and (17): n.J ddq = n.W iota = -(1+c_r) n.v-, and iota is along n."""
+    terms = terms_or_skip(robot, q)
+    v_minus = approach(n, v, s)
+    for name in ("gm", "crb"):
+        pred = JUMP_MODELS[name].predict(terms, n, v_minus, cr)
+        assert n @ terms.J @ pred.dq_jump == pytest.approx(-(1 + cr) * (n @ v_minus), rel=1e-9)
+        np.testing.assert_allclose(np.cross(pred.impulse, n), 0.0, atol=1e-12)
+        assert pred.impulse @ n >= 0.0  # the surface pushes: iota_n >= 0 when approaching
+
+
+def welded_arm_inverse_inertia(robot: PandaModel, q: np.ndarray) -> np.ndarray:
+    """J M^-1 J^T of the arm welded at q into one free-floating rigid body, built independently.
+
+    Every link's spatial inertia is moved to the world frame and summed into one body attached to
+    a free-flyer joint at the world origin; the contact point becomes a frame of that body.
+    """
+    data = robot.model.createData()
+    pin.forwardKinematics(robot.model, data, q)
+    body = pin.Inertia.Zero()
+    for i in range(1, robot.model.njoints):
+        body += data.oMi[i].act(robot.model.inertias[i])
+    free = pin.Model()
+    joint = free.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "welded_arm")
+    free.appendBodyToJoint(joint, body, pin.SE3.Identity())
+    tip = free.addFrame(pin.Frame("tip", joint, 0, robot.contact_frame(q), pin.FrameType.OP_FRAME))
+    fdata = free.createData()
+    q0 = pin.neutral(free)
+    M = pin.crba(free, fdata, q0)
+    M = np.triu(M) + np.triu(M, 1).T
+    J = pin.computeFrameJacobian(free, fdata, q0, tip, pin.LOCAL_WORLD_ALIGNED)[:3]
+    return J @ np.linalg.solve(M, J.T)
+
+
+@SETTINGS
+@given(q=joint_positions())
+def test_crb_inverse_inertia_is_the_welded_arm(robot, q):
+    terms = terms_or_skip(robot, q)
+    np.testing.assert_allclose(crb_inverse_inertia(terms), welded_arm_inverse_inertia(robot, q), atol=1e-12)
+
+
+@SETTINGS
+@given(q=joint_positions())
+def test_inverse_inertias_are_symmetric_positive_definite(robot, q):
+    terms = terms_or_skip(robot, q)
+    for W in (crb_inverse_inertia(terms), gm_inverse_inertia(terms)):
+        np.testing.assert_allclose(W, W.T, atol=1e-12)
+        assert np.linalg.eigvalsh(W)[0] > 0.0
+
+
+@SETTINGS
+@given(q=joint_positions(), n=unit_vectors(), s=unit_vectors(), v=speeds, k=st.floats(0.1, 10.0), cr=restitutions)
+def test_jumps_are_linear_in_speed_and_in_one_plus_restitution(robot, q, n, s, v, k, cr):
+    terms = terms_or_skip(robot, q)
+    v_minus = approach(n, v, s)
+    for name, model in JUMP_MODELS.items():
+        base = model.predict(terms, n, v_minus, 0.0).dq_jump
+        np.testing.assert_allclose(model.predict(terms, n, k * v_minus, 0.0).dq_jump, k * base, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(model.predict(terms, n, v_minus, cr).dq_jump, (1 + cr) * base, rtol=1e-9, atol=1e-12)
+
+
+@settings(max_examples=15, deadline=None)
+@given(q=joint_positions(0.3), n=unit_vectors(), s=unit_vectors(), angle=st.floats(-np.pi, np.pi))
+def test_jump_is_invariant_to_rotating_the_scene_about_the_vertical(robot, q, n, s, angle):
+    """Rotate base, surface normal and velocity about z: same jumps, impulses rotated."""
+    R = pin.utils.rpyToMatrix(0.0, 0.0, angle)
+    rotated = PandaModel(base_placement=pin.SE3(R, np.zeros(3)))
+    terms, rterms = terms_or_skip(robot, q), terms_or_skip(rotated, q)
+    v_minus = approach(n, 0.15, s)
+    for name, model in JUMP_MODELS.items():
+        a = model.predict(terms, n, v_minus, 0.2)
+        b = model.predict(rterms, R @ n, R @ v_minus, 0.2)
+        np.testing.assert_allclose(b.dq_jump, a.dq_jump, atol=1e-9)
+        np.testing.assert_allclose(b.impulse, R @ a.impulse, atol=1e-9)
+
+
+@SETTINGS
+@given(q=joint_positions(), n=unit_vectors(), s=unit_vectors())
+def test_measured_impulse_variant_reproduces_the_prediction(robot, q, n, s):
+    terms = terms_or_skip(robot, q)
+    v_minus = approach(n, 0.12, s)
+    for model in JUMP_MODELS.values():
+        own = model.predict(terms, n, v_minus, 0.1)
+        fed = model.predict(terms, n, v_minus, 0.1, impulse=own.impulse)
+        np.testing.assert_allclose(fed.dq_jump, own.dq_jump, atol=1e-12)
+
+
+@SETTINGS
+@given(q=joint_positions(), n=unit_vectors(), s=unit_vectors())
+def test_jump_matrix_maps_pre_impact_joint_velocity(robot, q, n, s):
+    """A dq- equals the prediction for v- = J dq-."""
+    terms = terms_or_skip(robot, q)
+    dq_minus = terms.J_pinv @ approach(n, 0.1, s) + 0.05 * s[0] * np.ones(7)
+    for model in JUMP_MODELS.values():
+        A = model.jump_matrix(terms, n, 0.3)
+        expected = model.predict(terms, n, terms.J @ dq_minus, 0.3).dq_jump
+        np.testing.assert_allclose(A @ dq_minus, expected, atol=1e-10)
+
+
+def test_classical_normal_keeps_only_the_normal_impulse(robot):
+    q = np.array([0.1, -0.4, 0.2, -2.0, 0.3, 2.2, 0.4])
+    terms = robot.terms(q)
+    n = np.array([-1.0, 0.0, 0.0])
+    full = JUMP_MODELS["classical"].predict(terms, n, -0.1 * n, 0.0)
+    normal = JUMP_MODELS["classical_normal"].predict(terms, n, -0.1 * n, 0.0)
+    np.testing.assert_allclose(normal.impulse, (full.impulse @ n) * n)
+
+
+def test_crb_never_uses_the_joint_space_inertia(robot):
+    """The CRB path runs with M replaced by NaNs: it never forms or inverts M."""
+    q = np.array([0.1, -0.4, 0.2, -2.0, 0.3, 2.2, 0.4])
+    terms = dataclasses.replace(robot.terms(q), M=np.full((7, 7), np.nan))
+    n = np.array([-1.0, 0.0, 0.0])
+    pred = JUMP_MODELS["crb"].predict(terms, n, -0.1 * n, 0.0)
+    assert np.all(np.isfinite(pred.dq_jump))
+    with pytest.raises(ValueError):
+        JUMP_MODELS["gm"].predict(terms, n, -0.1 * n, 0.0)
+
+
+def test_error_metrics_eq25_eq26():
+    measured = np.array([0.1, -0.2, 0.3, 0.0, 0.0, 0.5, -0.1])
+    predicted = measured + np.array([0.07, -0.07, 0.0, 0.0, 0.0, 0.0, 0.0])
+    np.testing.assert_allclose(prediction_error(predicted, measured), predicted - measured)
+    assert average_prediction_error(predicted, measured) == pytest.approx(0.02)
+    assert average_prediction_error(measured, measured) == 0.0
+    batch = average_prediction_error(np.stack([predicted, measured]), measured)
+    np.testing.assert_allclose(batch, [0.02, 0.0])
+
+
+def test_methods_are_registered():
+    assert set(METHODS) == set(JUMP_MODELS) == {"classical", "classical_normal", "gm", "crb"}

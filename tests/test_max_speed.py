@@ -1,0 +1,50 @@
+"""The closed-form highest feasible contact speed (design.md section 3)."""
+
+import numpy as np
+import pytest
+
+from controller.jump import JUMP_MODELS
+from controller.max_speed import approach_direction, closed_form_max_speed
+from controller.postures import POSTURES
+
+
+def criteria_ratios(robot, terms, normal, model, speed, restitution=0.0, impact_duration=0.015):
+    """Largest limit ratio of each criterion, evaluated directly from the predictor at speed v."""
+    dq_minus = speed * approach_direction(terms, normal)
+    pred = model.predict(terms, normal, terms.J @ dq_minus, restitution)
+    return {
+        "velocity_pre": np.max(np.abs(dq_minus) / robot.dq_max),
+        "velocity_post": np.max(np.abs(dq_minus + pred.dq_jump) / robot.dq_max),
+        "impulsive_torque": np.max(np.abs(terms.J.T @ pred.impulse) / impact_duration / robot.tau_max),
+    }
+
+
+@pytest.mark.parametrize("name", list(POSTURES))
+@pytest.mark.parametrize("method", ["classical", "gm", "crb"])
+@pytest.mark.parametrize("restitution", [0.0, 0.6])
+def test_max_speed_is_where_the_first_criterion_reaches_its_limit(robot, name, method, restitution):
+    p = POSTURES[name]
+    terms = robot.terms(p.q)
+    n, model = p.surface.normal, JUMP_MODELS[method]
+    best = closed_form_max_speed(robot, terms, n, model, restitution)
+    at = criteria_ratios(robot, terms, n, model, best.speed, restitution)
+    assert at[best.criterion] == pytest.approx(1.0, rel=1e-9)
+    assert max(at.values()) == pytest.approx(1.0, rel=1e-9)
+    assert max(criteria_ratios(robot, terms, n, model, 0.999 * best.speed, restitution).values()) < 1.0
+    assert max(criteria_ratios(robot, terms, n, model, 1.001 * best.speed, restitution).values()) > 1.0
+    assert 1 <= best.joint <= 7
+
+
+def test_approach_translates_without_rotating(robot):
+    p = POSTURES["elbow_left"]
+    terms = robot.terms(p.q)
+    twist = terms.J6 @ approach_direction(terms, p.surface.normal)
+    np.testing.assert_allclose(twist, np.concatenate([-p.surface.normal, np.zeros(3)]), atol=1e-10)
+
+
+def test_longer_impacts_allow_higher_speeds(robot):
+    p = POSTURES["elbow_up"]
+    terms = robot.terms(p.q)
+    short = closed_form_max_speed(robot, terms, p.surface.normal, JUMP_MODELS["crb"], impact_duration=0.005)
+    long = closed_form_max_speed(robot, terms, p.surface.normal, JUMP_MODELS["crb"], impact_duration=0.05)
+    assert short.speed <= long.speed

@@ -1,0 +1,112 @@
+"""The Panda model: fingers locked, real inertials, contact tool, limits, postures."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import joint_positions
+from hypothesis import given, settings
+
+from controller.postures import POSTURES, DEFAULT_WALL, Surface, posture
+from controller.robot import (
+    CONTACT_FRAME,
+    HAND_FRAME,
+    TOOL_TIP_OFFSET,
+    InvalidStateError,
+    PandaModel,
+    SingularPostureError,
+)
+
+# A posture inside the limits where the contact Jacobian loses rank (found by minimising its
+# smallest singular value).
+SINGULAR_Q = np.array([-0.63343, 3e-05, 1.5708, -0.467, 0.0, 3.01097, 2.8973])
+
+
+def test_model_is_the_seven_dof_arm_with_real_masses(robot):
+    assert robot.model.nq == 7
+    masses = [robot.model.inertias[i].mass for i in range(1, robot.model.njoints)]
+    assert all(m > 0 for m in masses)
+    terms = robot.terms(POSTURES["elbow_up"].q)
+    assert terms.mass == pytest.approx(sum(masses))
+
+
+def test_limits_are_the_datasheet_ones(robot):
+    np.testing.assert_allclose(robot.dq_max, [2.175] * 4 + [2.61] * 3)
+    np.testing.assert_allclose(robot.tau_max, [87] * 4 + [12] * 3)
+    np.testing.assert_allclose(robot.ddq_max, [15, 7.5, 10, 12.5, 15, 20, 20])
+    np.testing.assert_allclose(robot.dddq_max, [7500, 3750, 5000, 6250, 7500, 10000, 10000])
+    assert np.all(robot.q_min < robot.q_max)
+
+
+@settings(max_examples=20, deadline=None)
+@given(q=joint_positions())
+def test_contact_frame_is_on_the_hand_axis(robot, q):
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, q)
+    hand = data.oMf[robot.model.getFrameId(HAND_FRAME)]
+    tip = data.oMf[robot.model.getFrameId(CONTACT_FRAME)]
+    np.testing.assert_allclose(tip.translation, hand.translation + TOOL_TIP_OFFSET * hand.rotation[:, 2], atol=1e-12)
+
+
+@settings(max_examples=20, deadline=None)
+@given(q=joint_positions(), dq=joint_positions(0.0))
+def test_terms_match_pinocchio_and_finite_differences(robot, q, dq):
+    dq = 0.3 * (dq - robot.q_min) / (robot.q_max - robot.q_min) - 0.15
+    terms = robot.terms(q, dq)
+    data = robot.model.createData()
+    np.testing.assert_allclose(terms.M, pin.crba(robot.model, data, q), atol=1e-10)
+    np.testing.assert_allclose(terms.M, terms.M.T)
+    np.testing.assert_allclose(terms.h, pin.rnea(robot.model, data, q, dq, np.zeros(7)), atol=1e-9)
+    np.testing.assert_allclose(terms.J @ dq, terms.J6[:3] @ dq)
+    # contact velocity is J dq, and its derivative along the motion is dJ dq (ddq = 0)
+    eps = 1e-6
+    p_plus, p_minus = robot.contact_point(q + eps * dq), robot.contact_point(q - eps * dq)
+    np.testing.assert_allclose((p_plus - p_minus) / (2 * eps), terms.J @ dq, atol=1e-7)
+    J_plus = robot.contact_jacobian6(q + eps * dq)
+    J_minus = robot.contact_jacobian6(q - eps * dq)
+    np.testing.assert_allclose((J_plus - J_minus) @ dq / (2 * eps), terms.dJ6_dq, atol=1e-6)
+    np.testing.assert_allclose(terms.J @ terms.J_pinv, np.eye(3), atol=1e-9)
+
+
+def test_bad_states_are_rejected(robot):
+    q = POSTURES["elbow_up"].q
+    with pytest.raises(InvalidStateError, match="7 values"):
+        robot.terms(q[:6])
+    with pytest.raises(InvalidStateError, match="non-finite"):
+        robot.terms(np.where(np.arange(7) == 2, np.nan, q))
+    with pytest.raises(InvalidStateError, match="non-finite"):
+        robot.terms(q, np.full(7, np.inf))
+    with pytest.raises(InvalidStateError, match="outside the joint limits"):
+        robot.terms(q + np.array([0, 0, 0, 5.0, 0, 0, 0]))
+    with pytest.raises(SingularPostureError, match="singular"):
+        robot.terms(SINGULAR_Q)
+    assert np.linalg.svd(robot.contact_jacobian6(SINGULAR_Q)[:3], compute_uv=False)[-1] < 1e-6
+
+
+@pytest.mark.parametrize("name", list(POSTURES))
+def test_named_postures_face_the_default_wall(robot, name):
+    p = posture(name)
+    assert p.surface is DEFAULT_WALL
+    assert np.all(p.q - robot.q_min >= 0.1) and np.all(robot.q_max - p.q >= 0.1)
+    terms = robot.terms(p.q)
+    assert abs(p.surface.signed_distance(terms.contact_point)) < 1e-5
+    np.testing.assert_allclose(terms.contact_rotation[:, 2], -p.surface.normal, atol=1e-5)
+    sv = np.linalg.svd(terms.J6, compute_uv=False)
+    assert sv[-1] / sv[0] > 0.02  # non-singular, also for the 6-D frame Jacobian
+
+
+def test_postures_differ_in_elbow_and_wrist(robot):
+    qs = np.array([p.q for p in POSTURES.values()])
+    assert len(qs) >= 3
+    def side(angle):
+        return 0 if abs(angle) < 0.3 else int(np.sign(angle))
+
+    assert {side(q[2]) for q in qs} == {-1, 0, 1}  # elbow swung right, left, centred
+    assert {side(q[4]) for q in qs} == {-1, 0, 1}  # wrist rolled down, up, neutral
+
+
+def test_unknown_posture_and_bad_surface():
+    with pytest.raises(KeyError, match="unknown posture"):
+        posture("nope")
+    with pytest.raises(ValueError, match="zero"):
+        Surface(np.zeros(3), np.zeros(3))
+    assert np.linalg.norm(Surface(np.zeros(3), np.array([0, 0, 2.0])).normal) == 1.0
