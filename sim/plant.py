@@ -1,0 +1,152 @@
+"""Plant parameters: what the simulated robot is made of beyond the URDF's rigid links.
+
+The nominal plant (all defaults) is the clean rigid-body baseline: rigid links exactly as in the
+URDF, no rotor inertia, no joint damping, no payload, and a joint servo whose feedback bandwidth
+(5 rad/s) is far below the impact's (the contact time constant is 7 ms), so that the simulated
+jumps follow the classical prediction M^-1 J^T iota (design.md section 4; ``sim.runner``). Each parameter moves
+the plant away from that baseline in a known direction:
+
+==================  ===========================================================================
+parameter           effect on the MuJoCo model (``sim.scene.build_scene``)
+==================  ===========================================================================
+armature            reflected rotor inertia per joint (kg m^2), ``dof_armature``: M -> M + diag
+joint_damping       viscous joint damping (N m s/rad), ``dof_damping``; replaces the URDF values
+payload_mass        point mass (kg) welded to the hand, a body ``payload``
+payload_com         its position (m) in the contact frame ``impact_tip``
+friction            Coulomb friction of the tool/wall pair; None: the surface's own coefficient
+contact_solref      MuJoCo solref (time constant s, damping ratio) of the tool/wall pair
+contact_solimp      MuJoCo solimp (dmin, dmax, width m, midpoint, power) of the pair
+servo_gain          bandwidth omega (rad/s) of the computed-torque joint servo (``sim.runner``)
+==================  ===========================================================================
+
+Plant parameters are simulation truth: a dataset never records them (``sim.dataset``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+
+import numpy as np
+
+from .atomic import write_text_atomic
+
+NJ = 7
+
+DEFAULT_SOLREF = (0.007, 1.0)
+DEFAULT_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
+DEFAULT_SERVO_GAIN = 5.0
+
+
+class PlantParameterError(ValueError):
+    """A plant parameter (or a plant-parameter file) that cannot be used."""
+
+
+def _vector(name: str, value, size: int) -> tuple[float, ...]:
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise PlantParameterError(f"{name} must be numeric, got {value!r}") from None
+    if array.shape != (size,):
+        raise PlantParameterError(f"{name} needs {size} values, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise PlantParameterError(f"{name} contains a non-finite value")
+    return tuple(float(x) for x in array)
+
+
+def _non_negative(name: str, values: tuple[float, ...]) -> None:
+    negative = [i for i, x in enumerate(values) if x < 0.0]
+    if negative:
+        raise PlantParameterError(f"{name}[{negative[0]}] = {values[negative[0]]} must be >= 0")
+
+
+@dataclass(frozen=True)
+class PlantParameters:
+    """Plant parameters (see the module docstring for units and effects); validated on creation."""
+
+    armature: tuple[float, ...] = (0.0,) * NJ
+    joint_damping: tuple[float, ...] = (0.0,) * NJ
+    payload_mass: float = 0.0
+    payload_com: tuple[float, ...] = (0.0, 0.0, 0.0)
+    friction: float | None = None
+    contact_solref: tuple[float, ...] = DEFAULT_SOLREF
+    contact_solimp: tuple[float, ...] = DEFAULT_SOLIMP
+    servo_gain: float = DEFAULT_SERVO_GAIN
+
+    def __post_init__(self):
+        def set_(name, value):
+            object.__setattr__(self, name, value)
+
+        for name in ("armature", "joint_damping"):
+            values = _vector(name, getattr(self, name), NJ)
+            _non_negative(name, values)
+            set_(name, values)
+        set_("payload_com", _vector("payload_com", self.payload_com, 3))
+        (payload_mass,) = _vector("payload_mass", [self.payload_mass], 1)
+        _non_negative("payload_mass", (payload_mass,))
+        set_("payload_mass", payload_mass)
+        if self.friction is not None:
+            (friction,) = _vector("friction", [self.friction], 1)
+            _non_negative("friction", (friction,))
+            set_("friction", friction)
+        solref = _vector("contact_solref", self.contact_solref, 2)
+        if solref[0] <= 0.0 or solref[1] <= 0.0:
+            raise PlantParameterError(
+                f"contact_solref = {list(solref)} must be (time constant > 0, damping ratio > 0); "
+                "direct stiffness/damping (negative solref) is not supported"
+            )
+        set_("contact_solref", solref)
+        solimp = _vector("contact_solimp", self.contact_solimp, 5)
+        dmin, dmax, width, midpoint, power = solimp
+        if not (0.0 < dmin <= dmax < 1.0 and width > 0.0 and 0.0 < midpoint < 1.0 and power >= 1.0):
+            raise PlantParameterError(
+                f"contact_solimp = {list(solimp)} must satisfy 0 < dmin <= dmax < 1, width > 0, "
+                "0 < midpoint < 1 and power >= 1"
+            )
+        set_("contact_solimp", solimp)
+        (servo_gain,) = _vector("servo_gain", [self.servo_gain], 1)
+        if servo_gain <= 0.0:
+            raise PlantParameterError(f"servo_gain = {servo_gain} rad/s must be > 0")
+        set_("servo_gain", servo_gain)
+
+    # ------------------------------------------------------------------ JSON
+    @classmethod
+    def from_dict(cls, values: dict) -> "PlantParameters":
+        """Defaults overridden by ``values``; an unknown key is an error."""
+        if not isinstance(values, dict):
+            raise PlantParameterError(f"plant parameters must be a JSON object, got {type(values).__name__}")
+        known = [f.name for f in fields(cls)]
+        unknown = sorted(set(values) - set(known))
+        if unknown:
+            raise PlantParameterError(
+                f"unknown plant parameter(s) {', '.join(map(repr, unknown))}; known: {', '.join(known)}"
+            )
+        try:
+            return cls(**values)
+        except (TypeError, ValueError) as error:
+            if isinstance(error, PlantParameterError):
+                raise
+            raise PlantParameterError(str(error)) from error
+
+    @classmethod
+    def from_json(cls, path: str | Path) -> "PlantParameters":
+        path = Path(path)
+        try:
+            values = json.loads(path.read_text())
+        except FileNotFoundError:
+            raise PlantParameterError(f"plant parameter file {path} does not exist") from None
+        except json.JSONDecodeError as error:
+            raise PlantParameterError(f"{path} is not valid JSON: {error}") from None
+        try:
+            return cls.from_dict(values)
+        except PlantParameterError as error:
+            raise PlantParameterError(f"{path}: {error}") from None
+
+    def to_dict(self) -> dict:
+        values = asdict(self)
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in values.items()}
+
+    def to_json(self, path: str | Path) -> None:
+        """Write the parameters atomically (temporary file in the same directory + os.replace)."""
+        write_text_atomic(Path(path), json.dumps(self.to_dict(), indent=2) + "\n")

@@ -1,0 +1,343 @@
+"""Closed-loop trials: a 1 kHz command source drives the MuJoCo Panda through a joint servo.
+
+Loop of one control period dt (default 1 ms), at control step k (t_k = k dt):
+
+1. the command source reads the state (q_k, dq_k) and returns a command whose ``dq_cmd`` is the
+   commanded joint velocity (the QP controller, a :class:`CartesianApproachCommand` or a
+   :class:`CommandReplay` of a logged sequence);
+2. the servo turns it into joint torques, held constant over the period (zero-order hold, like
+   the robot's own 1 kHz torque loop);
+3. MuJoCo advances ``dt / timestep`` substeps; the contact force on the robot is logged at every
+   substep (zero, without a per-substep Python loop, while the tool is too far from the wall to
+   touch it within the period even at 5 m/s).
+
+Servo (the Panda's kinematic control, a plant property): a computed-torque joint PD with
+acceleration feed-forward that tracks the commanded velocity. A command dq_cmd_k is the joint
+velocity to reach at the end of period k, so the reference is piecewise constant in acceleration:
+
+    ddq_ref_k = (dq_cmd_k - dq_ref_k) / dt,   dq_ref_{k+1} = dq_cmd_k,
+    q_ref_{k+1} = q_ref_k + dt (dq_ref_k + dq_cmd_k) / 2,     (q_ref, dq_ref)(0) = (q, dq)(0),
+    tau_k = M(q_k) (ddq_ref_k + omega^2 (q_ref_k - q_k) + 2 omega (dq_ref_k - dq_k)) + h(q_k, dq_k).
+
+Feed-forward makes the joints follow smooth commands exactly (kinematic control) whatever the
+gain; the feedback, critically damped with bandwidth omega = ``PlantParameters.servo_gain``,
+only acts on disturbances such as the impact. Its default, 5 rad/s, is far below the impact's
+(contact time constant 7 ms), so the plain plant jumps like the rigid-body model of the classical
+prediction (design.md section 4): the feedback reacts to the jump itself with an acceleration
+2 omega ddq, which over an impact of duration delta changes the jump by up to 2 omega delta
+(15 % for 15 ms at 5 rad/s; measured 8-9 % on the named postures at 0.08-0.18 m/s, against
+25-45 % at 30 rad/s). M includes the armature and h = Coriolis, centrifugal and gravity
+terms (``qfrc_bias``). ``tau`` in the log is this torque, the "measured joint torque" of a trial.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from controller.postures import Surface
+from controller.robot import NQ, TOOL_RADIUS, PandaModel
+
+from .scene import Scene
+
+DEFAULT_CONTROL_PERIOD = 1e-3
+CLEARANCE_SPEED = 5.0
+
+
+class UnreachableStartError(ValueError):
+    """No joint posture puts the tool at the requested start pose (wall out of reach)."""
+
+
+class JointVelocityCommand(Protocol):
+    dq_cmd: np.ndarray
+
+
+class CommandSource(Protocol):
+    """Anything that maps the measured joint state to a joint-velocity command, once per period."""
+
+    def step(self, q: np.ndarray, dq: np.ndarray) -> JointVelocityCommand: ...
+
+
+@dataclass(frozen=True)
+class VelocityCommand:
+    """A plain joint-velocity command (the ``dq_cmd`` of the sources of this module)."""
+
+    dq_cmd: np.ndarray
+
+
+class CartesianApproachCommand:
+    """Move the contact point at a constant world velocity with the orientation held.
+
+    dq_cmd = J6+ [v_ref; 0], v_ref = -v_n n + v_t, with J6 the 6x7 (linear; angular) Jacobian of
+    the contact frame and J6+ its Moore-Penrose pseudo-inverse (minimum joint-velocity norm). A
+    purely kinematic, open-loop-in-task-space approach: no drift correction, which is harmless
+    over the few centimetres of an impact trial. It never stops: after the impact it keeps
+    commanding motion into the wall (the servo then presses with a slowly growing force).
+    """
+
+    def __init__(
+        self,
+        robot: PandaModel,
+        surface: Surface,
+        normal_speed: float,
+        tangential_velocity: np.ndarray | None = None,
+    ):
+        if not (np.isfinite(normal_speed) and normal_speed > 0.0):
+            raise ValueError(f"normal_speed = {normal_speed} m/s must be > 0 (towards the surface)")
+        v_t = np.zeros(3) if tangential_velocity is None else np.asarray(tangential_velocity, float)
+        if v_t.shape != (3,) or not np.all(np.isfinite(v_t)):
+            raise ValueError("tangential_velocity must be 3 finite values (m/s, world frame)")
+        v_t = v_t - (v_t @ surface.normal) * surface.normal
+        self.robot = robot
+        self.twist = np.concatenate([-normal_speed * surface.normal + v_t, np.zeros(3)])
+
+    def step(self, q: np.ndarray, dq: np.ndarray) -> VelocityCommand:
+        J6 = self.robot.contact_jacobian6(q)
+        return VelocityCommand(np.linalg.lstsq(J6, self.twist, rcond=None)[0])
+
+
+class CommandReplay:
+    """Replay a logged sequence of joint-velocity commands, one row per control step."""
+
+    def __init__(self, dq_cmd: np.ndarray):
+        dq_cmd = np.asarray(dq_cmd, dtype=float)
+        if dq_cmd.ndim != 2 or dq_cmd.shape[1] != NQ or len(dq_cmd) == 0:
+            raise ValueError(f"a command replay needs an (N, {NQ}) array, got shape {dq_cmd.shape}")
+        if not np.all(np.isfinite(dq_cmd)):
+            raise ValueError("the replayed commands contain a non-finite value")
+        self.dq_cmd = dq_cmd
+        self.index = 0
+
+    def __len__(self) -> int:
+        return len(self.dq_cmd)
+
+    def step(self, q: np.ndarray, dq: np.ndarray) -> VelocityCommand:
+        if self.index >= len(self.dq_cmd):
+            raise IndexError(f"the command replay holds only {len(self.dq_cmd)} control steps")
+        command = VelocityCommand(self.dq_cmd[self.index])
+        self.index += 1
+        return command
+
+
+@dataclass
+class TrialLog:
+    """Arrays of one trial.
+
+    Control rate (N samples, sample k at t[k], state measured at the start of period k):
+    ``t`` (N,), ``q``, ``dq``, ``tau`` (servo torque applied over period k), ``dq_cmd`` (N, 7).
+    Physics rate (K samples): ``force_t`` (K,), ``force`` (K, 3), the total contact force on the
+    robot (world frame, N) acting over [force_t[i], force_t[i] + timestep). Empty force arrays
+    mean that the log holds no force measurement (e.g. a robot log without a sensor).
+    ``wall_time`` is the time the simulation took (s), 0 for a log that was not simulated.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+    dq_cmd: np.ndarray
+    force_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    force: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    wall_time: float = 0.0
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @property
+    def has_force(self) -> bool:
+        return len(self.force_t) > 0
+
+    @property
+    def control_period(self) -> float:
+        return float(np.median(np.diff(self.t)))
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated time per wall-clock time (> 1: faster than real time)."""
+        duration = len(self.t) * self.control_period
+        return duration / self.wall_time if self.wall_time > 0.0 else float("inf")
+
+
+class ComputedTorqueServo:
+    """The joint servo of the module docstring, one torque per control period (zero-order hold).
+
+    Uses MuJoCo's own M and h of the current state (``mj_step1`` computes them), so the servo
+    sees the plant's armature and payload exactly.
+    """
+
+    def __init__(self, scene: Scene, gain: float):
+        self.scene = scene
+        self.kp = gain * gain
+        self.kd = 2.0 * gain
+        self.q_ref = np.zeros(NQ)
+        self.dq_ref = np.zeros(NQ)
+        self._acceleration = np.zeros(NQ)
+        self._torque = np.zeros(NQ)
+
+    def reset(self, q: np.ndarray, dq: np.ndarray) -> None:
+        self.q_ref = np.array(q, dtype=float)
+        self.dq_ref = np.array(dq, dtype=float)
+
+    def torque(self, dq_cmd: np.ndarray, dt: float) -> np.ndarray:
+        """Torque for the state in ``scene.data`` (after ``mj_step1``); advances the reference."""
+        data = self.scene.data
+        acceleration = self._acceleration
+        acceleration[:] = (dq_cmd - self.dq_ref) / dt
+        acceleration += self.kp * (self.q_ref - data.qpos) + self.kd * (self.dq_ref - data.qvel)
+        mujoco.mj_mulM(self.scene.model, data, self._torque, acceleration)
+        self._torque += data.qfrc_bias
+        self.q_ref += 0.5 * dt * (self.dq_ref + dq_cmd)
+        self.dq_ref[:] = dq_cmd
+        return self._torque
+
+
+def run_trial(
+    scene: Scene,
+    source: CommandSource,
+    q0: np.ndarray,
+    dq0: np.ndarray,
+    duration: float,
+    *,
+    control_period: float = DEFAULT_CONTROL_PERIOD,
+) -> TrialLog:
+    """Simulate ``duration`` seconds of closed-loop control from the state (q0, dq0).
+
+    The servo gain is the scene's ``plant.servo_gain``; ``control_period`` must be a whole
+    number of physics timesteps.
+    """
+    model, data = scene.model, scene.data
+    substeps = int(round(control_period / scene.timestep))
+    if substeps < 1 or abs(substeps * scene.timestep - control_period) > 1e-9:
+        raise ValueError(
+            f"control period {control_period} s is not a whole number of timesteps ({scene.timestep} s)"
+        )
+    steps = int(round(duration / control_period))
+    if steps < 1:
+        raise ValueError(f"duration {duration} s is shorter than one control period")
+    q0 = np.asarray(q0, dtype=float)
+    dq0 = np.asarray(dq0, dtype=float)
+    if q0.shape != (NQ,) or dq0.shape != (NQ,):
+        raise ValueError(f"the start state needs {NQ} joint positions and velocities")
+
+    t = np.arange(steps) * control_period
+    q = np.empty((steps, NQ))
+    dq = np.empty((steps, NQ))
+    tau = np.empty((steps, NQ))
+    dq_cmd = np.empty((steps, NQ))
+    force = np.zeros((steps * substeps, 3))
+    force_t = np.arange(steps * substeps) * scene.timestep
+    contact_force = np.zeros(6)
+    tool = scene.tool_geom
+    surface = scene.surface
+    # centre-to-wall distance beyond which the tool cannot touch the wall within one period
+    # (at up to CLEARANCE_SPEED m/s)
+    clearance = TOOL_RADIUS + CLEARANCE_SPEED * control_period
+
+    scene.set_state(q0, dq0)
+    servo = ComputedTorqueServo(scene, scene.plant.servo_gain)
+    servo.reset(q0, dq0)
+    start = time.perf_counter()
+    for k in range(steps):
+        q[k] = data.qpos
+        dq[k] = data.qvel
+        command = np.asarray(source.step(q[k].copy(), dq[k].copy()).dq_cmd, dtype=float)
+        if command.shape != (NQ,) or not np.all(np.isfinite(command)):
+            raise ValueError(f"control step {k}: dq_cmd must be {NQ} finite values, got {command}")
+        dq_cmd[k] = command
+        mujoco.mj_step1(model, data)
+        tau[k] = servo.torque(command, control_period)
+        data.qfrc_applied[:] = tau[k]
+        mujoco.mj_step2(model, data)
+        if surface.signed_distance(data.geom_xpos[tool]) > clearance:
+            # the tool cannot reach the wall within this period: no contact force to log
+            mujoco.mj_step(model, data, substeps - 1)
+            continue
+        for i in range(substeps):
+            if i > 0:
+                mujoco.mj_step(model, data)
+            for c in range(data.ncon):
+                mujoco.mj_contactForce(model, data, c, contact_force)
+                contact = data.contact[c]
+                # contact_force[:3] is in the contact frame; +normal pushes geom2 away from geom1
+                on_geom2 = contact.frame.reshape(3, 3).T @ contact_force[:3]
+                force[k * substeps + i] += on_geom2 if contact.geom2 == tool else -on_geom2
+    wall_time = time.perf_counter() - start
+    return TrialLog(t, q, dq, tau, dq_cmd, force_t, force, wall_time)
+
+
+# ---------------------------------------------------------------------------- start state
+def approach_start(
+    robot: PandaModel,
+    q_contact: np.ndarray,
+    surface: Surface,
+    distance: float,
+) -> np.ndarray:
+    """Joint posture with the contact point ``distance`` in front of the surface.
+
+    The target is the posture's contact point projected on the surface plane, moved by
+    ``distance`` along the normal n, with the posture's orientation turned by the smallest
+    rotation that maps its tool axis (hand z) onto -n. It is reached by damped Gauss-Newton
+    steps on the 6-D pose error log(T^-1 T_target) starting from ``q_contact``, within the joint
+    limits. Raises :class:`UnreachableStartError` when no such posture is found.
+    """
+    if not (np.isfinite(distance) and distance >= 0.0):
+        raise ValueError(f"start distance {distance} m must be >= 0")
+    q_contact, _ = robot.check_state(q_contact)
+    start = robot.contact_frame(q_contact)
+    axis = start.rotation[:, 2]
+    target_axis = -surface.normal
+    rotation = _smallest_rotation(axis, target_axis) @ start.rotation
+    point = start.translation - surface.signed_distance(start.translation) * surface.normal
+    target = pin.SE3(rotation, point + distance * surface.normal)
+
+    q = q_contact.copy()
+    for _ in range(100):
+        current = robot.contact_frame(q)
+        error = pin.log6(current.actInv(target)).vector
+        if np.linalg.norm(error[:3]) < 1e-7 and np.linalg.norm(error[3:]) < 1e-6:
+            return q
+        J = pin.computeFrameJacobian(robot.model, robot.data, q, robot.contact_frame_id, pin.LOCAL)
+        J = pin.Jlog6(current.actInv(target)) @ J
+        step = np.linalg.solve(J.T @ J + 1e-6 * np.eye(NQ), J.T @ error)
+        q = np.clip(q + np.clip(step, -0.2, 0.2), robot.q_min, robot.q_max)
+    raise UnreachableStartError(
+        f"the tool cannot reach {np.round(target.translation, 3).tolist()} (m, world) with its axis "
+        f"along {np.round(target_axis, 3).tolist()}: the surface through "
+        f"{np.round(surface.point, 3).tolist()} with normal {np.round(surface.normal, 3).tolist()} "
+        f"is out of reach from this posture (residual {np.linalg.norm(error):.3g})"
+    )
+
+
+def _smallest_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The rotation of smallest angle mapping the unit vector a onto the unit vector b."""
+    quaternion = pin.Quaternion.FromTwoVectors(a, b)
+    return quaternion.toRotationMatrix()
+
+
+def run_approach_trial(
+    scene: Scene,
+    robot: PandaModel,
+    q_contact: np.ndarray,
+    normal_speed: float,
+    *,
+    tangential_velocity: np.ndarray | None = None,
+    start_distance: float = 0.02,
+    after_contact: float = 0.05,
+    control_period: float = DEFAULT_CONTROL_PERIOD,
+) -> TrialLog:
+    """One impact trial driven by :class:`CartesianApproachCommand` on the scene's surface.
+
+    Starts ``start_distance`` in front of the surface (:func:`approach_start` from the posture
+    ``q_contact``), already moving at the reference velocity, and runs until ``after_contact``
+    seconds after the nominal contact time start_distance / normal_speed.
+    """
+    q0 = approach_start(robot, q_contact, scene.surface, start_distance)
+    command = CartesianApproachCommand(robot, scene.surface, normal_speed, tangential_velocity)
+    dq0 = command.step(q0, np.zeros(NQ)).dq_cmd
+    duration = start_distance / normal_speed + after_contact
+    return run_trial(scene, command, q0, dq0, duration, control_period=control_period)

@@ -1,0 +1,121 @@
+"""Plant parameters: validated JSON overrides that change the MuJoCo physics as expected."""
+
+import json
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from controller.jump import JUMP_MODELS
+from controller.postures import DEFAULT_WALL, POSTURES
+from controller.robot import PandaModel
+from sim.impact import measure_impact
+from sim.plant import PlantParameterError, PlantParameters
+from sim.runner import run_approach_trial
+from sim.scene import PAYLOAD_BODY, build_scene
+
+ROBOT = PandaModel()
+Q = POSTURES["elbow_up"].q
+
+
+def test_json_round_trip_is_atomic(tmp_path):
+    plant = PlantParameters(armature=[0.1] * 7, payload_mass=0.4, payload_com=[0.0, 0.0, -0.03],
+                            friction=0.3, servo_gain=12.0)
+    path = tmp_path / "plant.json"
+    plant.to_json(path)
+    assert PlantParameters.from_json(path) == plant
+    assert [p.name for p in tmp_path.iterdir()] == ["plant.json"]
+
+
+def test_partial_file_keeps_the_defaults(tmp_path):
+    path = tmp_path / "plant.json"
+    path.write_text(json.dumps({"payload_mass": 1.5}))
+    plant = PlantParameters.from_json(path)
+    assert plant.payload_mass == 1.5 and plant.armature == PlantParameters().armature
+
+
+@pytest.mark.parametrize(
+    "values, message",
+    [
+        ({"armatur": [0.0] * 7}, "unknown plant parameter.*'armatur'"),
+        ({"armature": [0.1] * 6}, "armature needs 7 values"),
+        ({"joint_damping": [0.1] * 6 + [-0.1]}, r"joint_damping\[6\] = -0.1 must be >= 0"),
+        ({"payload_mass": -1.0}, "payload_mass"),
+        ({"payload_com": [0.0, 0.0]}, "payload_com needs 3 values"),
+        ({"friction": -0.1}, "friction"),
+        ({"contact_solref": [-1000.0, -10.0]}, "negative solref"),
+        ({"contact_solimp": [0.9, 0.95, 0.001]}, "contact_solimp needs 5 values"),
+        ({"contact_solimp": [0.99, 0.9, 0.001, 0.5, 2]}, "dmin <= dmax"),
+        ({"servo_gain": 0.0}, "servo_gain"),
+        ({"armature": "heavy"}, "armature"),
+    ],
+)
+def test_bad_overrides_are_rejected_with_clear_messages(tmp_path, values, message):
+    path = tmp_path / "plant.json"
+    path.write_text(json.dumps(values))
+    with pytest.raises(PlantParameterError, match=message):
+        PlantParameters.from_json(path)
+
+
+def test_unreadable_files_are_rejected(tmp_path):
+    with pytest.raises(PlantParameterError, match="does not exist"):
+        PlantParameters.from_json(tmp_path / "missing.json")
+    (tmp_path / "bad.json").write_text("{armature: 1")
+    with pytest.raises(PlantParameterError, match="not valid JSON"):
+        PlantParameters.from_json(tmp_path / "bad.json")
+    (tmp_path / "list.json").write_text("[1, 2]")
+    with pytest.raises(PlantParameterError, match="JSON object"):
+        PlantParameters.from_json(tmp_path / "list.json")
+
+
+def test_parameters_reach_the_mujoco_model():
+    armature = np.linspace(0.1, 0.7, 7)
+    plant = PlantParameters(armature=armature, joint_damping=[0.5] * 7, payload_mass=0.8,
+                            payload_com=[0.0, 0.01, -0.02], friction=0.4,
+                            contact_solref=(0.01, 1.2), contact_solimp=(0.9, 0.95, 0.002, 0.5, 2.0))
+    scene = build_scene(plant=plant)
+    model = scene.model
+    np.testing.assert_allclose(model.dof_armature, armature)
+    np.testing.assert_allclose(model.dof_damping, 0.5)
+    assert model.body(PAYLOAD_BODY).mass[0] == pytest.approx(0.8)
+    assert model.pair_friction[0][0] == pytest.approx(0.4)
+    np.testing.assert_allclose(model.pair_solref[0], (0.01, 1.2))
+    np.testing.assert_allclose(model.pair_solimp[0], (0.9, 0.95, 0.002, 0.5, 2.0))
+    # M = M_links + diag(armature) + the payload, a point mass on the contact frame
+    scene.set_state(Q, np.zeros(7))
+    M_pin = pin.crba(ROBOT.model, ROBOT.data, Q)
+    M_pin = np.triu(M_pin) + np.triu(M_pin, 1).T
+    hand = ROBOT.contact_frame(Q)
+    payload = hand.translation + hand.rotation @ np.array([0.0, 0.01, -0.02])
+    np.testing.assert_allclose(scene.data.xipos[model.body(PAYLOAD_BODY).id], payload, atol=1e-9)
+    J = pin.computeFrameJacobian(ROBOT.model, ROBOT.data, Q, ROBOT.contact_frame_id,
+                                 pin.LOCAL_WORLD_ALIGNED)
+    offset = hand.rotation @ np.array([0.0, 0.01, -0.02])
+    J_payload = J[:3] - pin.skew(offset) @ J[3:]
+    expected = M_pin + np.diag(armature) + 0.8 * J_payload.T @ J_payload
+    np.testing.assert_allclose(scene.mass_matrix(), expected, atol=1e-9)
+
+
+def _impact(plant):
+    log = run_approach_trial(build_scene(plant=plant), ROBOT, Q, 0.15)
+    return measure_impact(log)
+
+
+def test_armature_shrinks_the_wrist_jumps_relative_to_classical():
+    """Rotor inertia the classical model ignores resists the light wrist joints most."""
+    ratios = []
+    for armature in (0.0, 0.3):
+        impact = _impact(PlantParameters(armature=[armature] * 7))
+        terms = ROBOT.terms(impact.q_pre, impact.dq_pre)
+        classical = JUMP_MODELS["classical"].predict(terms, DEFAULT_WALL.normal, None,
+                                                    impulse=impact.impulse).dq_jump
+        ratios.append(np.abs(impact.dq_jump[4:]) / np.abs(classical[4:]))
+    assert np.all(ratios[0] > 0.8)
+    assert np.all(ratios[1] < 0.6 * ratios[0])
+
+
+def test_payload_raises_the_impulse():
+    bare = _impact(PlantParameters())
+    loaded = _impact(PlantParameters(payload_mass=1.0))
+    n = DEFAULT_WALL.normal
+    assert loaded.impulse @ n > 1.2 * (bare.impulse @ n) > 0.0

@@ -1,0 +1,155 @@
+"""Closed-loop runner: servo tracking, contact speed, logged force, replay, start state."""
+
+import numpy as np
+import pytest
+
+from controller.postures import DEFAULT_WALL, POSTURES, Surface
+from controller.robot import PandaModel
+from sim.impact import measure_impact
+from sim.runner import (
+    CartesianApproachCommand,
+    CommandReplay,
+    UnreachableStartError,
+    approach_start,
+    run_approach_trial,
+    run_trial,
+)
+from sim.scene import build_scene
+
+ROBOT = PandaModel()
+SPEED = 0.15
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return build_scene()
+
+
+@pytest.fixture(scope="module")
+def log(scene):
+    return run_approach_trial(scene, ROBOT, POSTURES["elbow_right"].q, SPEED)
+
+
+def test_start_posture_is_backed_away_along_the_normal_with_the_same_orientation():
+    q_contact = POSTURES["elbow_left"].q
+    q0 = approach_start(ROBOT, q_contact, DEFAULT_WALL, 0.03)
+    contact, start = ROBOT.contact_frame(q_contact), ROBOT.contact_frame(q0)
+    np.testing.assert_allclose(start.translation, contact.translation + 0.03 * DEFAULT_WALL.normal, atol=1e-6)
+    np.testing.assert_allclose(start.rotation, contact.rotation, atol=1e-5)
+    assert np.all((q0 >= ROBOT.q_min) & (q0 <= ROBOT.q_max))
+
+
+def test_start_posture_faces_a_tilted_wall():
+    normal = np.array([-1.0, 0.0, 0.3]) / np.linalg.norm([-1.0, 0.0, 0.3])
+    wall = Surface(point=np.array([0.6, 0.0, 0.7]), normal=normal)
+    q0 = approach_start(ROBOT, POSTURES["elbow_up"].q, wall, 0.02)
+    start = ROBOT.contact_frame(q0)
+    assert wall.signed_distance(start.translation) == pytest.approx(0.02, abs=1e-6)
+    np.testing.assert_allclose(start.rotation[:, 2], -normal, atol=1e-6)
+
+
+def test_unreachable_wall_is_rejected():
+    far = Surface(point=np.array([1.6, 0.0, 0.0]), normal=np.array([-1.0, 0.0, 0.0]))
+    with pytest.raises(UnreachableStartError, match="out of reach"):
+        approach_start(ROBOT, POSTURES["elbow_up"].q, far, 0.02)
+
+
+def test_log_has_one_sample_per_control_period_and_force_at_the_physics_rate(log, scene):
+    n = len(log)
+    assert log.t.shape == (n,) and np.allclose(np.diff(log.t), 1e-3)
+    for array in (log.q, log.dq, log.tau, log.dq_cmd):
+        assert array.shape == (n, 7) and np.all(np.isfinite(array))
+    assert log.force.shape == (4 * n, 3) and np.allclose(np.diff(log.force_t), scene.timestep)
+    assert log.real_time_factor > 1.0
+
+
+def test_servo_tracks_the_commanded_velocity_before_the_impact(log):
+    impact = measure_impact(log)
+    free = slice(0, impact.pre_index)
+    # dq_cmd_k is the velocity to reach at the end of period k: dq_{k+1}
+    error = log.dq[1:][free] - log.dq_cmd[:-1][free]
+    assert np.abs(error).max() < 5e-3 * np.abs(log.dq_cmd[free]).max()
+
+
+def test_contact_speed_is_the_reference_speed(log):
+    impact = measure_impact(log)
+    v = ROBOT.terms(impact.q_pre, impact.dq_pre).J @ impact.dq_pre
+    assert -(DEFAULT_WALL.normal @ v) == pytest.approx(SPEED, rel=0.05)
+    # the contact starts when the tip has covered the 2 cm start distance
+    assert impact.t_contact_start == pytest.approx(0.02 / SPEED, abs=2e-3)
+
+
+def test_logged_force_accounts_for_the_momentum_change(log):
+    """Generalized momentum balance over the contact phase (first principles):
+    M(q+) dq+ - M(q-) dq- = sum_k (tau_k - h_k) dt + J^T iota, with Coriolis terms negligible
+    over ~15 ms, so the logged force is the force the robot received."""
+    impact = measure_impact(log)
+    a, b = impact.pre_index, impact.post_index
+    momentum = [ROBOT.terms(log.q[k], log.dq[k]).M @ log.dq[k] for k in (a, b)]
+    servo = sum((log.tau[k] - ROBOT.terms(log.q[k], log.dq[k]).h) * 1e-3 for k in range(a, b))
+    in_window = (log.force_t >= log.t[a]) & (log.force_t < log.t[b])
+    h = log.force_t[1] - log.force_t[0]
+    contact = np.zeros(7)
+    for i in np.flatnonzero(in_window):
+        k = int(i // 4)
+        contact += ROBOT.terms(log.q[k], log.dq[k]).J.T @ log.force[i] * h
+    change = momentum[1] - momentum[0]
+    assert np.linalg.norm(change - servo - contact) < 0.05 * np.linalg.norm(contact)
+
+
+def test_force_pushes_the_robot_away_from_the_wall(log):
+    n = DEFAULT_WALL.normal
+    touching = np.linalg.norm(log.force, axis=1) > 1.0
+    assert touching.any()
+    normal = log.force[touching] @ n
+    tangential = np.linalg.norm(log.force[touching] - np.outer(normal, n), axis=1)
+    assert np.all(normal > 0.0)
+    assert np.all(tangential <= 0.1123 * normal + 1e-6)  # Coulomb cone, eq. (24)
+
+
+def test_replaying_the_commands_reproduces_the_trial(log, scene):
+    replay = run_trial(scene, CommandReplay(log.dq_cmd), log.q[0], log.dq[0], len(log) * 1e-3)
+    np.testing.assert_allclose(replay.q, log.q, atol=1e-12)
+    np.testing.assert_allclose(replay.tau, log.tau, atol=1e-9)
+    np.testing.assert_allclose(replay.force, log.force, atol=1e-9)
+
+
+def test_replay_beyond_its_length_is_an_error(scene, log):
+    with pytest.raises(IndexError, match="only 3 control steps"):
+        run_trial(scene, CommandReplay(log.dq_cmd[:3]), log.q[0], log.dq[0], 0.01)
+
+
+@pytest.mark.parametrize("dq_cmd", [np.zeros((5, 6)), np.full((5, 7), np.nan), np.zeros((0, 7))])
+def test_bad_replays_are_rejected(dq_cmd):
+    with pytest.raises(ValueError):
+        CommandReplay(dq_cmd)
+
+
+def test_bad_run_arguments_are_rejected(scene, log):
+    source = CartesianApproachCommand(ROBOT, DEFAULT_WALL, SPEED)
+    with pytest.raises(ValueError, match="whole number of timesteps"):
+        run_trial(scene, source, log.q[0], log.dq[0], 0.01, control_period=1.1e-3)
+    with pytest.raises(ValueError, match="7 joint positions"):
+        run_trial(scene, source, log.q[0][:6], log.dq[0], 0.01)
+    with pytest.raises(ValueError, match="normal_speed"):
+        CartesianApproachCommand(ROBOT, DEFAULT_WALL, -0.1)
+
+
+def test_tangential_reference_moves_the_tip_along_the_wall(scene):
+    v_t = np.array([0.0, 0.06, 0.0])
+    log = run_approach_trial(scene, ROBOT, POSTURES["elbow_right"].q, 0.12, tangential_velocity=v_t,
+                             after_contact=0.03)
+    impact = measure_impact(log)
+    v = ROBOT.terms(impact.q_pre, impact.dq_pre).J @ impact.dq_pre
+    np.testing.assert_allclose(v, [0.12, 0.06, 0.0], atol=0.006)
+
+
+def test_runs_the_impact_aware_qp_controller(scene):
+    """run_trial drives any object with step(q, dq) -> .dq_cmd, the QP controller included."""
+    config = pytest.importorskip("controller.config")
+    controller = config.build_controller(config.ControllerConfig.approach(speed=0.15), ROBOT)
+    q0 = approach_start(ROBOT, POSTURES["elbow_up"].q, DEFAULT_WALL, 0.02)
+    log = run_trial(scene, controller, q0, np.zeros(7), 0.3)
+    impact = measure_impact(log)
+    v = ROBOT.terms(impact.q_pre, impact.dq_pre).J @ impact.dq_pre
+    assert -(DEFAULT_WALL.normal @ v) > 0.05

@@ -1,0 +1,92 @@
+"""The MuJoCo scene is the same robot as the Pinocchio model, with one tool/wall contact pair."""
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from controller.postures import DEFAULT_WALL, POSTURES, Surface
+from controller.robot import TOOL_CENTRE_OFFSET, TOOL_RADIUS, PandaModel
+from sim.plant import PlantParameters
+from sim.scene import CONTACT_CONDIM, build_scene
+
+ROBOT = PandaModel()
+SCENE = build_scene()
+
+
+def unit_postures():
+    return st.lists(st.floats(0.0, 1.0), min_size=7, max_size=7).map(
+        lambda u: ROBOT.q_min + np.asarray(u) * (ROBOT.q_max - ROBOT.q_min)
+    )
+
+
+@settings(max_examples=40, deadline=None)
+@given(unit_postures())
+def test_mass_matrix_equals_pinocchio(q):
+    SCENE.set_state(q, np.zeros(7))
+    M_pin = pin.crba(ROBOT.model, ROBOT.data, q)
+    M_pin = np.triu(M_pin) + np.triu(M_pin, 1).T
+    assert np.abs(SCENE.mass_matrix() - M_pin).max() <= 1e-6 * np.abs(M_pin).max()
+
+
+@settings(max_examples=20, deadline=None)
+@given(unit_postures())
+def test_tool_sphere_centre_is_the_pinocchio_tool_centre(q):
+    SCENE.set_state(q, np.zeros(7))
+    hand = ROBOT.contact_frame(q)
+    centre = hand.translation - TOOL_RADIUS * hand.rotation[:, 2]
+    np.testing.assert_allclose(SCENE.tool_centre(), centre, atol=1e-9)
+    # the hand frame is TOOL_CENTRE_OFFSET behind the centre, on the same axis
+    pin.framesForwardKinematics(ROBOT.model, ROBOT.data, q)
+    np.testing.assert_allclose(
+        ROBOT.data.oMf[ROBOT.hand_frame_id].translation + TOOL_CENTRE_OFFSET * hand.rotation[:, 2],
+        centre,
+        atol=1e-9,
+    )
+
+
+def test_only_the_tool_and_the_wall_collide():
+    model = SCENE.model
+    assert not model.geom_contype.any() and not model.geom_conaffinity.any()
+    assert model.npair == 1
+    assert {model.pair_geom1[0], model.pair_geom2[0]} == {SCENE.tool_geom, SCENE.wall_geom}
+    assert model.pair_dim[0] == CONTACT_CONDIM
+    assert model.geom_condim[SCENE.tool_geom] == model.geom_condim[SCENE.wall_geom] == CONTACT_CONDIM
+    assert model.geom_size[SCENE.tool_geom][0] == TOOL_RADIUS
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    assert model.opt.timestep <= 0.5e-3
+
+
+@pytest.mark.parametrize("name", list(POSTURES))
+def test_wall_touches_the_tool_at_the_impact_postures(name):
+    SCENE.set_state(POSTURES[name].q, np.zeros(7))
+    # the posture puts the tip on the wall: the sphere's centre is one radius in front of it
+    assert DEFAULT_WALL.signed_distance(SCENE.tool_centre()) == pytest.approx(TOOL_RADIUS, abs=1e-6)
+
+
+def test_wall_pose_follows_the_surface():
+    surface = Surface(point=np.array([0.0, 0.5, 0.0]), normal=np.array([0.0, -1.0, 0.0]))
+    scene = build_scene(surface)
+    wall = scene.wall_geom
+    scene.set_state(np.zeros(7), np.zeros(7))
+    np.testing.assert_allclose(scene.data.geom_xpos[wall], surface.point)
+    np.testing.assert_allclose(scene.data.geom_xmat[wall].reshape(3, 3)[:, 2], surface.normal, atol=1e-12)
+
+
+def test_friction_and_contact_parameters_default_to_the_papers():
+    model = SCENE.model
+    assert model.pair_friction[0][0] == pytest.approx(0.1123)
+    np.testing.assert_allclose(model.pair_solref[0], PlantParameters().contact_solref)
+
+
+@pytest.mark.parametrize("timestep", [0.0, 1e-3, float("nan")])
+def test_bad_timestep_is_rejected(timestep):
+    with pytest.raises(ValueError, match="timestep"):
+        build_scene(timestep=timestep)
+
+
+def test_contact_time_constant_below_two_timesteps_is_rejected():
+    with pytest.raises(ValueError, match="twice the timestep"):
+        build_scene(plant=PlantParameters(contact_solref=(0.0004, 1.0)))
