@@ -300,14 +300,17 @@ def read_trial(directory: Path, entry: TrialEntry) -> TrialLog:
     return log
 
 
-def read_dataset(directory: str | Path) -> Dataset:
-    """Read a dataset; raises :class:`DatasetError` on the first problem (see :func:`validate`)."""
+def read_dataset(directory: str | Path, skip: frozenset[str] | set[str] = frozenset()) -> Dataset:
+    """Read a dataset, leaving out the trials whose ids are in ``skip``; raises
+    :class:`DatasetError` on the first problem (see :func:`validate`)."""
     directory = Path(directory)
     manifest = _load_manifest(directory / MANIFEST)
     header = _parse_header(manifest)
     trials = []
     for raw in manifest["trials"]:
         entry = _parse_entry(raw)
+        if entry.id in skip:
+            continue
         try:
             trials.append(DatasetTrial(entry, read_trial(directory, entry)))
         except DatasetError as error:

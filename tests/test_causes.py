@@ -1,0 +1,34 @@
+"""Candidate causes map fitted numbers onto plant overrides (sim/causes.py)."""
+
+import numpy as np
+import pytest
+
+from sim.causes import CAUSE_NAMES, default_causes
+from sim.plant import PlantParameters
+
+
+@pytest.mark.parametrize("cause", default_causes(), ids=lambda c: c.name)
+def test_cause_round_trips_and_builds_valid_plants(cause):
+    nominal = PlantParameters()
+    lo, hi = cause.u_bounds()
+    assert np.all(lo < hi) and len(lo) == len(cause.labels) == len(cause.lower)
+    for f in (0.0, 0.3, 1.0):
+        u = lo + f * (hi - lo)
+        np.testing.assert_allclose(cause.to_u(cause.to_theta(u)), u, atol=1e-12)
+        plant = cause.plant(nominal, u)
+        overrides = cause.overrides(cause.to_theta(u))
+        assert set(overrides) <= set(nominal.to_dict())
+        assert PlantParameters.from_dict(overrides)  # valid plant-override file content
+        changed = {k for k, v in plant.to_dict().items() if v != nominal.to_dict()[k]}
+        assert changed <= set(overrides)
+
+
+def test_nominal_value_is_inside_the_bounds():
+    nominal = PlantParameters()
+    for cause in default_causes():
+        theta = cause.nominal_theta(nominal)
+        assert np.all(theta >= np.array(cause.lower)) and np.all(theta <= np.array(cause.upper))
+
+
+def test_every_issue_cause_is_a_candidate():
+    assert set(CAUSE_NAMES) == {"armature", "payload", "friction", "contact", "joint_damping", "servo_gain"}
