@@ -63,8 +63,73 @@ def prediction_rows() -> list[dict]:
     return rows
 
 
+def closed_loop_rows() -> list[dict]:
+    from scenarios.trial import closed_loop_benchmark_rows
+
+    return closed_loop_benchmark_rows()
+
+
+def max_speed_rows() -> list[dict]:
+    from scenarios.max_speed_search import max_speed_benchmark_rows
+
+    return max_speed_benchmark_rows()
+
+
+def diagnosis_rows() -> list[dict]:
+    """diagnose.30_trials (wall s, 2 jobs) and diagnose.accuracy over 10 hidden effects."""
+    import tempfile
+    from pathlib import Path
+
+    import mujoco
+
+    from sim.causes import CAUSE_NAMES, fitted_values, realistic_hidden_effect
+    from sim.diagnosis import diagnose
+    from sim.generation import generate_dataset
+    from sim.plant import PlantParameters
+
+    mujoco.set_mju_user_warning(lambda message: None)
+    rng = np.random.default_rng(2026)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        overrides, _ = realistic_hidden_effect("armature", rng)
+        data = Path(tmp) / "thirty"
+        generate_dataset(data, plant=PlantParameters(**overrides), repeats=2, seed=1, jobs=2)
+        start = time.perf_counter()
+        diagnose(data, jobs=2)
+        elapsed = time.perf_counter() - start
+        rows.append({"name": "diagnose.30_trials", "unit": "s", "median": elapsed, "p99": elapsed})
+        named, errors = [], []
+        for k in range(10):
+            cause = str(rng.choice(CAUSE_NAMES))
+            overrides, tangential = realistic_hidden_effect(cause, rng)
+            data = Path(tmp) / f"hidden{k}"
+            generate_dataset(
+                data, plant=PlantParameters(**overrides), speeds=[0.1, 0.18], tangential=tangential, seed=k, jobs=2
+            )
+            result = diagnose(data, jobs=2).summary()
+            named.append(result["cause"] == cause)
+            truth = fitted_values(cause, overrides)
+            if result["cause"] == cause:
+                errors.append(float(np.max(np.abs(fitted_values(cause, result["parameters"]) / truth - 1))))
+            else:
+                errors.append(float("inf"))
+    rows.append({"name": "diagnose.accuracy.named", "unit": "share", "median": float(np.mean(named)), "p99": float(np.mean(named))})
+    rows.append(
+        {
+            "name": "diagnose.accuracy.parameter_error",
+            "unit": "relative",
+            "median": float(np.median(errors)),
+            "p99": float(np.percentile(errors, 99)),
+        }
+    )
+    return rows
+
+
 BENCHMARKS: list[tuple[str, Callable[[], list[dict]]]] = [
     ("predict.", prediction_rows),
+    ("sim.closed_loop", closed_loop_rows),
+    ("maxspeed.", max_speed_rows),
+    ("diagnose.", diagnosis_rows),
 ]
 
 

@@ -6,7 +6,6 @@ traceback. ``--json`` prints machine-readable output on stdout.
 
 from __future__ import annotations
 
-import json
 import sys
 
 import click
@@ -16,33 +15,7 @@ from controller.jump import METHODS
 from controller.postures import POSTURES
 from controller.robot import InvalidStateError, SingularPostureError
 
-EXIT_BAD_INPUT = 2
-
-
-class BadInput(click.ClickException):
-    exit_code = EXIT_BAD_INPUT
-
-
-def parse_vector(text: str, size: int | None, what: str) -> np.ndarray:
-    """Parse 'a,b,c' into a float array, checking the count and finiteness."""
-    try:
-        values = np.array([float(x) for x in text.split(",")], dtype=float)
-    except ValueError:
-        raise BadInput(f"{what} must be comma-separated numbers, got {text!r}") from None
-    if size is not None and values.size != size:
-        raise BadInput(f"{what} must have {size} values, got {values.size}")
-    if not np.all(np.isfinite(values)):
-        raise BadInput(f"{what} contains a non-finite value")
-    return values
-
-
-def parse_list(text: str, what: str) -> list[float]:
-    return parse_vector(text, None, what).tolist()
-
-
-def emit_json(obj) -> None:
-    click.echo(json.dumps(obj, indent=2))
-
+from scenarios.arguments import EXIT_BAD_INPUT, BadInput, emit_json, parse_vector
 
 @click.group()
 def cli():
@@ -130,29 +103,44 @@ def bench(as_json, only):
     if as_json:
         emit_json({"rows": rows})
         return
-    click.echo(f"{'name':<32}{'unit':<16}{'median':>14}{'p99':>14}")
+    click.echo(f"{'name':<38}{'unit':<16}{'median':>14}{'p99':>14}")
     for row in rows:
-        click.echo(f"{row['name']:<32}{row['unit']:<16}{row['median']:>14.4g}{row['p99']:>14.4g}")
+        click.echo(f"{row['name']:<38}{row['unit']:<16}{row['median']:>14.4g}{row['p99']:>14.4g}")
 
 
 @cli.command()
-def demo():
-    """The main scenario: the prediction table of every named posture."""
-    from controller.prediction import ImpactQuery, predict_all
+@click.option("--out", "out_dir", default="out/demo", show_default=True, help="Output directory.")
+@click.option("--jobs", type=int, default=2, show_default=True, help="Worker processes.")
+def demo(out_dir, jobs):
+    """The main scenario: a short simulated campaign and the maximum speeds of one posture.
 
-    for p in POSTURES.values():
-        report = predict_all(ImpactQuery.from_speed(p.q, p.surface.normal, 0.15, np.zeros(3), 0.0), METHODS)
-        click.echo(f"\n{p.name}: {p.description}; v_n = 0.15 m/s, c_r = 0, cond(M) = {report['cond_M']:.0f}")
-        click.echo(f"{'method':<17}" + "".join(f"{f'dq{i}':>9}" for i in range(1, 8)) + "  |iota| N s")
-        for name, res in report["methods"].items():
-            click.echo(
-                f"{name:<17}" + "".join(f"{x:9.4f}" for x in res["dq_jump"]) + f"  {np.linalg.norm(res['impulse']):8.4f}"
-            )
+    Campaign: 3 postures x 5 normal speeds + 4 tangential speeds, Table I and the figures in
+    --out; then `max-speed --posture elbow_up` (closed form, QP-limited and simulated).
+    """
+    from scenarios.simulation_commands import max_speed_text, run_campaign, run_max_speed
+
+    table = run_campaign(None, None, "0.03,0.06,0.09,0.12", None, jobs, out_dir, True)
+    click.echo(table.text())
+    click.echo(f"dataset, Table I and figures written to {out_dir}\n")
+    report = run_max_speed("elbow_up", "crb", 0.0, 0.015, None, None, None, jobs, 0.005, True)
+    click.echo(max_speed_text(report))
+
+
+from scenarios.simulation_commands import campaign, max_speed, simulate  # noqa: E402
+
+cli.add_command(simulate)
+cli.add_command(campaign)
+cli.add_command(max_speed)
+
+from scenarios.dataset_commands import dataset, diagnose  # noqa: E402
+
+cli.add_command(dataset)
+cli.add_command(diagnose)
 
 
 def main(argv: list[str] | None = None) -> int:
     try:
-        cli.main(args=argv, prog_name="impactqp", standalone_mode=False)
+        code = cli.main(args=argv, prog_name="impactqp", standalone_mode=False)
     except click.exceptions.Abort:
         click.echo("impactqp: aborted", err=True)
         return 1
@@ -163,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
         message = exc.args[0] if exc.args else str(exc)
         click.echo(f"impactqp: error: {message}", err=True)
         return EXIT_BAD_INPUT
-    return 0
+    return code if isinstance(code, int) else 0
 
 
 if __name__ == "__main__":

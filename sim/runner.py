@@ -154,8 +154,11 @@ class TrialLog:
         return len(self.force_t) > 0
 
     def truncated(self, t_end: float) -> "TrialLog":
-        """The log up to (excluding) time ``t_end``."""
-        k, i = np.searchsorted(self.t, t_end), np.searchsorted(self.force_t, t_end)
+        """The log up to the first control sample at or after ``t_end`` (excluded), with the
+        force samples of the kept control periods."""
+        k = int(np.searchsorted(self.t, t_end))
+        t_cut = self.t[k] if k < len(self.t) else np.inf
+        i = int(np.searchsorted(self.force_t, t_cut - 1e-12))
         return TrialLog(
             self.t[:k], self.q[:k], self.dq[:k], self.tau[:k], self.dq_cmd[:k],
             self.force_t[:i], self.force[:i], self.wall_time,

@@ -1,0 +1,23 @@
+"""Joint acceleration and jerk limits (Franka datasheet, design.md section 1)."""
+
+from __future__ import annotations
+
+from controller.robot import ModelTerms
+
+from .constraint import Constraint, ConstraintRows, ControlCycle
+
+
+class AccelerationLimit(Constraint):
+    """|ddq| <= ddq_max and |ddq - ddq_prev| <= dddq_max dt (box on ddq).
+
+    ddq_prev is the acceleration of the previous command, so consecutive commands respect the
+    jerk limits. The interval is the cycle's reachable set (:class:`ControlCycle`); it is never
+    empty because ddq_prev itself satisfies the acceleration limits.
+    """
+
+    name = "joint_acceleration_limit"
+    rows = 7
+    is_box = True
+
+    def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
+        return ConstraintRows(None, cycle.acceleration_lower, cycle.acceleration_upper)

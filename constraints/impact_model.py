@@ -1,0 +1,130 @@
+"""The impact the impact-aware constraints prepare for: surface, jump model and activation rule.
+
+Jump prediction (design.md section 3). With the pre-impact velocity dq- = dq + ddq dt, the
+chosen predictor (``controller.jump``) gives an impulse iota = G J dq- and a joint-velocity jump
+ddq_jump = K iota = A dq-, A = K G J, both linear in dq-:
+
+    crb        (12), (20)-(21)   G = -(1+c_r) n n^T / (n^T W_crb n),   K = J+ W_crb
+    gm         (12), (22)-(23)   G = -(1+c_r) n n^T / (n^T W_gm n),    K = J+ W_gm
+    classical  (5)-(6)           G = -(1+c_r) (J M^-1 J^T)^-1,         K = M^-1 J^T
+
+The post-impact velocity is dq+ = (I + A) dq- and the impulsive joint torque over the impact
+duration delta_t is J^T iota / delta_t = P dq- / delta_t with P = J^T G J.
+
+Activation rule
+---------------
+The constraints only describe an impact that is about to happen. They are active in a cycle
+when the contact point is not leaving the surface (normal velocity n.v <= release_speed, with
+v = J dq) and the surface is near: the signed distance d of the contact point satisfies
+d <= lookahead_distance, or d <= lookahead_time * max(-n.v, 0) (the impact would come within
+lookahead_time at the current speed). ``always_active=True`` bypasses the rule. Because one
+cycle changes the contact velocity by at most |J| ddq_max dt (a few mm/s), a cycle in which the
+rule says inactive cannot command a dangerous approach speed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from controller.jump import GeneralizedMomentumJump, JumpModel, jump_model
+from controller.postures import Surface
+from controller.robot import ModelTerms
+
+JUMP_MODEL_CHOICES = {
+    "crb": ("crb",),
+    "gm": ("gm",),
+    "classical": ("classical",),
+    "classical_normal": ("classical_normal",),
+    "robust": ("crb", "gm", "classical"),
+}
+"""Jump-model settings of the impact-aware constraints; 'robust' satisfies crb, gm and
+classical at once."""
+
+
+def jump_model_names(choice: str) -> tuple[str, ...]:
+    try:
+        return JUMP_MODEL_CHOICES[choice]
+    except KeyError:
+        raise ValueError(
+            f"unknown jump model {choice!r}; choose from {', '.join(JUMP_MODEL_CHOICES)}"
+        ) from None
+
+
+@dataclass(frozen=True)
+class ImpactMaps:
+    """Linear maps of one state: dq_jump = jump_matrix dq-, J^T iota = torque_matrix dq-;
+    ``active`` is the activation rule's answer for that state."""
+
+    jump_matrix: np.ndarray
+    torque_matrix: np.ndarray
+    active: bool
+
+
+class ImpactModel:
+    """An expected impact on ``surface`` predicted with one jump model."""
+
+    def __init__(
+        self,
+        surface: Surface,
+        jump_model_name: str = "crb",
+        restitution: float = 0.0,
+        lookahead_distance: float = 0.10,
+        lookahead_time: float = 0.30,
+        release_speed: float = 0.02,
+        always_active: bool = False,
+    ):
+        if not 0.0 <= restitution <= 1.0:
+            raise ValueError("restitution must be in [0, 1]")
+        if lookahead_distance < 0.0 or lookahead_time < 0.0:
+            raise ValueError("look-ahead distance and time must be >= 0")
+        self.surface = surface
+        self.model: JumpModel = jump_model(jump_model_name)
+        self.restitution = float(restitution)
+        self.lookahead_distance = float(lookahead_distance)
+        self.lookahead_time = float(lookahead_time)
+        self.release_speed = float(release_speed)
+        self.always_active = bool(always_active)
+        self._terms: ModelTerms | None = None
+        self._maps: ImpactMaps | None = None
+
+    @property
+    def name(self) -> str:
+        return self.model.name
+
+    def is_active(self, terms: ModelTerms) -> bool:
+        """The activation rule of the module docstring."""
+        if self.always_active:
+            return True
+        normal = self.surface.normal
+        normal_speed = float(normal @ (terms.J @ terms.dq))
+        if normal_speed > self.release_speed:
+            return False
+        distance = float(normal @ (terms.contact_point - self.surface.point))
+        return distance <= max(self.lookahead_distance, -normal_speed * self.lookahead_time)
+
+    def maps(self, terms: ModelTerms) -> ImpactMaps:
+        """A, P and the activation of this state; computed once per ``terms`` and shared by
+        the constraints and the controller's prediction."""
+        if terms is not self._terms:
+            if isinstance(self.model, GeneralizedMomentumJump):
+                jump_matrix, torque_matrix = self._normal_impulse_maps(terms)
+            else:
+                GJ = self.model.impulse_map(terms, self.surface.normal, self.restitution) @ terms.J
+                jump_matrix, torque_matrix = self.model.impulse_to_jump(terms) @ GJ, terms.J.T @ GJ
+            self._maps = ImpactMaps(jump_matrix, torque_matrix, self.is_active(terms))
+            self._terms = terms
+        return self._maps
+
+    def _normal_impulse_maps(self, terms: ModelTerms) -> tuple[np.ndarray, np.ndarray]:
+        """A and P of the normal-impulse models (12) as rank-one products.
+
+        G = s n n^T with s = -(1+c_r) / (n^T W n) and K = J+ W (21), (23), so
+        A = K G J = s (J+ W n)(J^T n)^T and P = J^T G J = s (J^T n)(J^T n)^T.
+        """
+        normal = self.surface.normal
+        W_normal = self.model.inverse_inertia(terms) @ normal
+        s = -(1.0 + self.restitution) / float(normal @ W_normal)
+        Jt_normal = normal @ terms.J
+        return np.outer(s * (terms.J_pinv @ W_normal), Jt_normal), np.outer(s * Jt_normal, Jt_normal)

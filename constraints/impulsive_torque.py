@@ -1,0 +1,57 @@
+"""Impact-aware bound on the impulsive joint torque (the torque jump alone)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controller.max_speed import DEFAULT_IMPACT_DURATION
+from controller.robot import ModelTerms
+
+from .constraint import Constraint, ConstraintRows, ControlCycle
+from .impact_model import ImpactModel
+
+_UNBOUNDED = np.full(7, np.inf)
+
+
+class ImpulsiveTorqueLimit(Constraint):
+    """-tau_max <= J^T iota(dq + ddq dt) / delta_t <= tau_max, criterion (c) of design.md 3.
+
+    iota = G J dq- is the impulse of the jump model ((12) for crb/gm, (5) for classical) and
+    delta_t the impact duration, so the row is P (dq + ddq dt) / delta_t with P = J^T G J.
+    In acceleration units, written at the jerk horizon h of the cycle like
+    ``PostImpactVelocityLimit`` (recursive feasibility under the jerk limits; holds at dt too),
+    with the row scale s_i = dq_max_i / (tau_max_i delta_t) that makes a torque at its limit
+    read like a joint velocity at its limit:
+
+        s_i P_i ddq in s_i [(-tau_max_i delta_t - P_i dq) / h, (tau_max_i delta_t - P_i dq) / h]
+
+    Rows are unbounded while the impact model's activation rule says no impact is coming.
+    """
+
+    rows = 7
+
+    def __init__(
+        self,
+        impact: ImpactModel,
+        tau_max: np.ndarray,
+        dq_max: np.ndarray,
+        impact_duration: float = DEFAULT_IMPACT_DURATION,
+    ):
+        if impact_duration <= 0.0:
+            raise ValueError("impact_duration must be > 0")
+        self.impact = impact
+        self.impulse_limit = np.asarray(tau_max, dtype=float) * impact_duration
+        self.row_scale = np.asarray(dq_max, dtype=float) / self.impulse_limit
+        self.impact_duration = float(impact_duration)
+        self.name = f"impulsive_torque[{impact.name}]"
+
+    def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
+        maps = self.impact.maps(terms)
+        C = maps.torque_matrix * self.row_scale[:, None]
+        if not maps.active:
+            return ConstraintRows(C, -_UNBOUNDED, _UNBOUNDED)
+        scale = self.row_scale / cycle.horizon
+        pre = maps.torque_matrix @ terms.dq
+        return ConstraintRows(
+            C, (-self.impulse_limit - pre) * scale, (self.impulse_limit - pre) * scale
+        )

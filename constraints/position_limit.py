@@ -1,0 +1,55 @@
+"""Joint position limits with a braking horizon."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controller.robot import ModelTerms
+
+from .constraint import Constraint, ConstraintRows, ControlCycle
+
+
+class PositionLimit(Constraint):
+    """Keep every joint able to stop before its position limit (braking horizon).
+
+    With a = braking_fraction ddq_max the braking deceleration, d = q_max - margin - q the
+    distance to the upper limit, and the commanded motion of one cycle
+    q' = q + dt (dq + dq') / 2, dq' = dq + ddq dt, the joint can still stop within the limit
+    after the cycle if dq'^2 / (2 a) + a dt^2 / 8 <= d' with d' = d - dt (dq + dq') / 2
+    (a dt^2 / 8 bounds the extra travel of the last, partial braking cycle). Solved for dq':
+
+        dq + ddq dt <= sqrt((a dt / 2)^2 + 2 a d_e) - a dt / 2,
+        d_e = max(d - dt dq / 2 - a dt^2 / 8, 0)
+
+    an upper bound on ddq (symmetrically a lower bound at the lower limit). It also keeps the
+    next commanded position inside the limit (d' >= 0). The bounds are then clipped into the
+    reachable accelerations of the cycle (acceleration and jerk limits), so position, velocity
+    and acceleration limits stay mutually feasible near the boundary: a joint that is too fast
+    brakes as hard as it may. braking_fraction < 1 leaves room for the jerk-limited onset of the
+    deceleration and for the other constraints.
+    """
+
+    name = "joint_position_limit"
+    rows = 7
+    is_box = True
+
+    def __init__(self, q_min, q_max, ddq_max, braking_fraction: float = 0.5, margin: float = 0.0):
+        if not 0.0 < braking_fraction <= 1.0:
+            raise ValueError("braking_fraction must be in (0, 1]")
+        if margin < 0.0:
+            raise ValueError("margin must be >= 0")
+        # Row 0 looks at the upper limits, row 1 at the lower ones (sign -1 mirrors them).
+        self._sign = np.array([[1.0], [-1.0]])
+        self._limits = np.vstack([np.asarray(q_max, float) - margin, np.asarray(q_min, float) + margin])
+        self._braking = braking_fraction * np.asarray(ddq_max, dtype=float)
+
+    def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
+        dt = cycle.dt
+        sign = self._sign
+        towards = sign * terms.dq  # velocity towards each limit
+        half_step = (0.5 * dt) * self._braking
+        last_cycle = (0.125 * dt * dt) * self._braking
+        distance = np.maximum(sign * (self._limits - terms.q) - (0.5 * dt) * towards - last_cycle, 0.0)
+        allowed = np.sqrt(half_step * half_step + (2.0 * self._braking) * distance) - half_step - towards
+        allowed *= 1.0 / dt
+        return ConstraintRows(None, *cycle.clip_to_reachable(-allowed[1], allowed[0]))

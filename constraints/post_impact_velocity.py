@@ -1,0 +1,43 @@
+"""Impact-aware joint velocity limits: the predicted post-impact velocity stays in the limits."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controller.robot import ModelTerms
+
+from .constraint import Constraint, ConstraintRows, ControlCycle
+from .impact_model import ImpactModel
+
+_UNBOUNDED = np.full(7, np.inf)
+
+
+class PostImpactVelocityLimit(Constraint):
+    """dq_min <= (I + A)(dq + ddq dt) <= dq_max (design.md section 3), A the jump matrix.
+
+    Criterion (b) of the maximum feasible speed. The rows are written at the jerk horizon h of
+    the cycle (``ControlCycle``: h = 2 ms for the Panda at dt = 1 ms), in acceleration units:
+
+        (I + A) ddq in [(-dq_max - (I + A) dq) / h, (dq_max - (I + A) dq) / h]
+
+    so that they stay feasible from one cycle to the next under the jerk limits; since they
+    held at the previous cycle (s = 0), they also hold at s = dt, the form above. Rows are
+    unbounded while the impact model's activation rule says no impact is coming.
+    """
+
+    rows = 7
+
+    def __init__(self, impact: ImpactModel, dq_max: np.ndarray):
+        self.impact = impact
+        self.dq_max = np.asarray(dq_max, dtype=float)
+        self.name = f"post_impact_velocity[{impact.name}]"
+        self._identity = np.eye(7)
+
+    def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
+        maps = self.impact.maps(terms)
+        C = self._identity + maps.jump_matrix
+        if not maps.active:
+            return ConstraintRows(C, -_UNBOUNDED, _UNBOUNDED)
+        inv_h = 1.0 / cycle.horizon
+        post = C @ terms.dq
+        return ConstraintRows(C, (-self.dq_max - post) * inv_h, (self.dq_max - post) * inv_h)

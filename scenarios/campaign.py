@@ -1,0 +1,319 @@
+"""The paper's experimental campaign (Sec. VI) in simulation: dataset, Table I and figures.
+
+Trials: every posture x every normal speed (paper: 0.08, 0.10, 0.12, 0.15, 0.18 m/s), plus the
+tangential series on the first posture (paper: v_t = 0.03 .. 0.12 m/s at v_n = 0.12 m/s) along the
+surface's tangent closest to the world y axis, t = (e_y - (e_y.n) n) / |e_y - (e_y.n) n|. Each
+trial is one ``scenarios.trial`` run with the jump-aware constraints off, so that the tool hits at
+the requested speed, as in the paper. The simulation is deterministic: one trial per setting
+stands for the paper's ten repeats.
+
+Table I: for each trial and predictor, the average prediction error (26)
+e = (1/7) sum_i |dq*_i - dq°_i| of the predictor's own jump at the pre-impact state against the
+simulated jump dq°, and the reduction 100 (1 - e_crb / e_classical) % of CRB against the classical
+prediction (the paper's 81.98 %); the last row averages every trial.
+
+Figures (PNG): per posture, the simulated jump of every joint against the normal speed (like the
+paper's Fig. 8) and the absolute error |e_i| of classical, gm and crb per joint (Figs. 9-11);
+for the tangential series, the average error of every predictor against v_t (Fig. 12).
+
+Output directory: the dataset (``sim.dataset``: ``dataset.json`` and one CSV pair per trial),
+``table1.json``, ``table1.txt`` and the figures; every file written atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from tqdm import tqdm  # noqa: E402
+
+from controller.jump import METHODS, average_prediction_error  # noqa: E402
+from controller.postures import POSTURES, Surface  # noqa: E402
+from controller.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET  # noqa: E402
+from sim.atomic import write_text_atomic  # noqa: E402
+from sim.dataset import DatasetHeader, DatasetWriter, Tool, TrialEntry  # noqa: E402
+from sim.plant import PlantParameters  # noqa: E402
+from sim.runner import DEFAULT_CONTROL_PERIOD  # noqa: E402
+
+from .trial import TrialPool, TrialResult, TrialSpec  # noqa: E402
+
+PAPER_SPEEDS = (0.08, 0.10, 0.12, 0.15, 0.18)
+PAPER_TANGENTIAL_SPEEDS = tuple(round(0.03 + 0.01 * i, 2) for i in range(10))
+TANGENTIAL_NORMAL_SPEED = 0.12
+FIGURE_METHODS = ("classical", "gm", "crb")
+
+
+def tangent_direction(surface: Surface) -> np.ndarray:
+    """The unit tangent of the surface closest to the world y axis."""
+    axis = np.array([0.0, 1.0, 0.0])
+    tangent = axis - (axis @ surface.normal) * surface.normal
+    if np.linalg.norm(tangent) < 1e-6:  # a floor or ceiling facing y: use x instead
+        axis = np.array([1.0, 0.0, 0.0])
+        tangent = axis - (axis @ surface.normal) * surface.normal
+    return tangent / np.linalg.norm(tangent)
+
+
+def dataset_header(surface: Surface) -> DatasetHeader:
+    """The manifest header of a simulated dataset: the tool tip in the hand frame."""
+    return DatasetHeader(
+        tool=Tool(HAND_FRAME, (0.0, 0.0, TOOL_TIP_OFFSET)),
+        surface=surface,
+        control_period=DEFAULT_CONTROL_PERIOD,
+    )
+
+
+def write_trial(writer: DatasetWriter, result: TrialResult) -> None:
+    """Add one simulated trial (control-rate CSV and force CSV) to a dataset."""
+    spec = result.spec
+    trial_id = spec.trial_id
+    writer.add_trial(
+        TrialEntry(
+            id=trial_id,
+            file=f"{trial_id}.csv",
+            reference_normal_speed=spec.normal_speed,
+            force_file=f"{trial_id}_force.csv",
+            reference_tangential_velocity=tuple(float(v) for v in spec.tangential_velocity),
+            posture=spec.posture,
+            impact_time=result.impact.t_contact_start,
+        ),
+        result.log,
+    )
+
+
+@dataclass(frozen=True)
+class CampaignPlan:
+    """Which trials the campaign runs (module docstring)."""
+
+    postures: tuple[str, ...] = tuple(POSTURES)
+    speeds: tuple[float, ...] = PAPER_SPEEDS
+    tangential_speeds: tuple[float, ...] = PAPER_TANGENTIAL_SPEEDS
+    tangential_normal_speed: float = TANGENTIAL_NORMAL_SPEED
+
+    def __post_init__(self):
+        if not self.postures:
+            raise ValueError("the campaign needs at least one posture")
+        unknown = [name for name in self.postures if name not in POSTURES]
+        if unknown:
+            raise ValueError(f"unknown posture {unknown[0]!r}; known postures: {', '.join(POSTURES)}")
+        if not self.speeds:
+            raise ValueError("the campaign needs at least one speed")
+        bad = [v for v in self.speeds if not (np.isfinite(v) and v > 0.0)]
+        if bad:
+            raise ValueError(f"every speed must be > 0 m/s, got {bad[0]}")
+        if not all(np.isfinite(v) for v in self.tangential_speeds):
+            raise ValueError("the tangential speeds must be finite")
+
+    def specs(self, surface: Surface) -> list[TrialSpec]:
+        specs = [
+            TrialSpec(name, POSTURES[name].q, float(speed))
+            for name in self.postures
+            for speed in self.speeds
+        ]
+        tangent = tangent_direction(surface)
+        first = self.postures[0]
+        specs += [
+            TrialSpec(first, POSTURES[first].q, self.tangential_normal_speed, float(v_t) * tangent)
+            for v_t in self.tangential_speeds
+        ]
+        return specs
+
+
+@dataclass(frozen=True)
+class TableRow:
+    """One trial of Table I: its setting, the contact speed and the error (26) per predictor."""
+
+    trial_id: str
+    posture: str
+    normal_speed: float
+    tangential_speed: float
+    contact_speed: float
+    errors: dict[str, float]
+    measured_jump: np.ndarray = field(repr=False)
+    joint_errors: dict[str, np.ndarray] = field(repr=False)
+
+    @classmethod
+    def of(cls, result: TrialResult) -> TableRow:
+        measured = result.impact.dq_jump
+        return cls(
+            trial_id=result.spec.trial_id,
+            posture=result.spec.posture,
+            normal_speed=result.spec.normal_speed,
+            tangential_speed=float(np.linalg.norm(result.spec.tangential_velocity)),
+            contact_speed=result.contact_speed,
+            errors={m: float(average_prediction_error(result.predicted[m], measured)) for m in METHODS},
+            measured_jump=measured,
+            joint_errors={m: np.abs(result.predicted[m] - measured) for m in METHODS},
+        )
+
+    @property
+    def crb_reduction(self) -> float:
+        """100 (1 - e_crb / e_classical): how much CRB cuts the classical error, in %."""
+        return 100.0 * (1.0 - self.errors["crb"] / self.errors["classical"])
+
+    def to_json(self) -> dict:
+        return {
+            "trial": self.trial_id,
+            "posture": self.posture,
+            "normal_speed": self.normal_speed,
+            "tangential_speed": self.tangential_speed,
+            "contact_speed": self.contact_speed,
+            "average_error": self.errors,
+            "crb_reduction_percent": self.crb_reduction,
+            "measured_jump": self.measured_jump.tolist(),
+        }
+
+
+@dataclass(frozen=True)
+class Table1:
+    rows: list[TableRow]
+
+    def mean_errors(self) -> dict[str, float]:
+        return {m: float(np.mean([r.errors[m] for r in self.rows])) for m in METHODS}
+
+    def mean_crb_reduction(self) -> float:
+        mean = self.mean_errors()
+        return 100.0 * (1.0 - mean["crb"] / mean["classical"])
+
+    def to_json(self) -> dict:
+        return {
+            "methods": list(METHODS),
+            "rows": [r.to_json() for r in self.rows],
+            "mean_average_error": self.mean_errors(),
+            "mean_crb_reduction_percent": self.mean_crb_reduction(),
+        }
+
+    def text(self) -> str:
+        """The table as aligned text (rad/s; the last column in %)."""
+        head = f"{'posture':<12}{'v_n':>6}{'v_t':>6}{'v_c':>8}" + "".join(f"{m:>17}" for m in METHODS)
+        lines = [
+            "Table I (simulation): average prediction error (26), rad/s",
+            head + f"{'crb vs classical':>18}",
+        ]
+        for r in self.rows:
+            lines.append(
+                f"{r.posture:<12}{r.normal_speed:6.3f}{r.tangential_speed:6.3f}{r.contact_speed:8.4f}"
+                + "".join(f"{r.errors[m]:17.4f}" for m in METHODS)
+                + f"{r.crb_reduction:16.1f} %"
+            )
+        mean = self.mean_errors()
+        lines.append(
+            f"{'all trials':<32}" + "".join(f"{mean[m]:17.4f}" for m in METHODS)
+            + f"{self.mean_crb_reduction():16.1f} %"
+        )
+        return "\n".join(lines)
+
+
+class Campaign:
+    """Runs a :class:`CampaignPlan` on one surface and plant and writes its outputs."""
+
+    def __init__(
+        self,
+        plan: CampaignPlan,
+        surface: Surface,
+        plant: PlantParameters | None = None,
+        *,
+        jobs: int = 1,
+        progress: bool = False,
+    ):
+        self.plan = plan
+        self.surface = surface
+        self.plant = plant
+        self.jobs = jobs
+        self.progress = progress
+
+    def run(self, out: str | Path) -> Table1:
+        """Simulate every trial, write the dataset, Table I and the figures to ``out``."""
+        out = Path(out)
+        writer = DatasetWriter(out, dataset_header(self.surface))
+        specs = self.plan.specs(self.surface)
+        rows = []
+        with TrialPool(self.surface, self.plant, self.jobs) as pool:
+            results = tqdm(pool.map(specs), total=len(specs), desc="campaign", unit="trial", disable=not self.progress)
+            for result in results:
+                write_trial(writer, result)
+                rows.append(TableRow.of(result))
+        table = Table1(rows)
+        write_text_atomic(out / "table1.json", json.dumps(table.to_json(), indent=2) + "\n")
+        write_text_atomic(out / "table1.txt", table.text() + "\n")
+        CampaignFigures(table).write(out)
+        return table
+
+
+class CampaignFigures:
+    """The PNG figures of the module docstring."""
+
+    def __init__(self, table: Table1):
+        self.table = table
+
+    def write(self, out: Path) -> list[Path]:
+        paths = []
+        normal_rows = [r for r in self.table.rows if r.tangential_speed == 0.0]
+        for posture in dict.fromkeys(r.posture for r in normal_rows):
+            rows = sorted((r for r in normal_rows if r.posture == posture), key=lambda r: r.normal_speed)
+            paths.append(save_figure(self.jumps_figure(posture, rows), out / f"jumps_{posture}.png"))
+            paths.append(save_figure(self.errors_figure(posture, rows), out / f"errors_{posture}.png"))
+        tangential = sorted((r for r in self.table.rows if r.tangential_speed > 0.0), key=lambda r: r.tangential_speed)
+        if tangential:
+            paths.append(save_figure(self.tangential_figure(tangential), out / "tangential.png"))
+        return paths
+
+    @staticmethod
+    def jumps_figure(posture: str, rows: list[TableRow]):
+        fig, ax = plt.subplots(figsize=(6, 4))
+        speeds = [r.normal_speed for r in rows]
+        jumps = np.array([r.measured_jump for r in rows])
+        for j in range(NQ):
+            ax.plot(speeds, jumps[:, j], "o-", label=f"joint {j + 1}")
+        ax.set(xlabel="normal contact speed (m/s)", ylabel="simulated jump (rad/s)", title=f"Simulated jumps, {posture}")
+        ax.axhline(0.0, color="0.6", lw=0.8)
+        ax.legend(fontsize=7, ncol=2)
+        return fig
+
+    @staticmethod
+    def errors_figure(posture: str, rows: list[TableRow]):
+        fig, axes = plt.subplots(1, len(FIGURE_METHODS), figsize=(12, 3.8), sharey=True)
+        speeds = [r.normal_speed for r in rows]
+        for ax, method in zip(axes, FIGURE_METHODS):
+            errors = np.array([r.joint_errors[method] for r in rows])
+            for j in range(NQ):
+                ax.plot(speeds, errors[:, j], "o-", label=f"joint {j + 1}")
+            ax.set(title=f"{method}, {posture}", xlabel="normal contact speed (m/s)")
+        axes[0].set_ylabel("|predicted - simulated jump| (rad/s)")
+        axes[-1].legend(fontsize=7, ncol=2)
+        fig.tight_layout()
+        return fig
+
+    @staticmethod
+    def tangential_figure(rows: list[TableRow]):
+        fig, ax = plt.subplots(figsize=(6, 4))
+        speeds = [r.tangential_speed for r in rows]
+        for method in METHODS:
+            ax.plot(speeds, [r.errors[method] for r in rows], "o-", label=method)
+        ax.set(
+            xlabel="tangential speed (m/s)", ylabel="average prediction error (26) (rad/s)",
+            title=f"Tangential series, {rows[0].posture}, v_n = {rows[0].normal_speed} m/s",
+        )
+        ax.legend()
+        return fig
+
+
+def save_figure(fig, path: Path) -> Path:
+    """Save a figure as PNG atomically (temporary file in the same directory + os.replace)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".png")
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=100)
+        os.replace(tmp, path)
+    finally:
+        plt.close(fig)
+        Path(tmp).unlink(missing_ok=True)
+    return path

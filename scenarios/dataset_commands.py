@@ -1,0 +1,151 @@
+"""``impactqp dataset validate|generate`` and ``impactqp diagnose``: measured data against the
+simulation (dataset format: ``sim/dataset.py`` and the README)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from scenarios.arguments import BadInput, emit_json, parse_list
+
+
+def load_plant(path: str | None):
+    from sim.plant import PlantParameterError, PlantParameters
+
+    if path is None:
+        return PlantParameters()
+    try:
+        return PlantParameters.from_json(path)
+    except PlantParameterError as error:
+        raise BadInput(str(error)) from None
+
+
+@click.group()
+def dataset():
+    """Impact datasets: validate a log directory, or generate one in simulation."""
+
+
+@dataset.command("validate")
+@click.argument("directory", type=click.Path(file_okay=False))
+@click.option("--json", "as_json", is_flag=True)
+@click.pass_context
+def validate_command(ctx, directory, as_json):
+    """Report every problem per trial; never modifies the data. Exit code 1 when any is found."""
+    from sim.dataset import validate
+
+    if not Path(directory).is_dir():
+        raise BadInput(f"{directory} is not a directory")
+    problems = validate(directory)
+    count = sum(len(v) for v in problems.values())
+    if as_json:
+        emit_json({"valid": count == 0, "problems": problems})
+    else:
+        for key, items in problems.items():
+            if key == "dataset" and not items:
+                continue
+            click.echo(f"{key}: {'ok' if not items else ''}")
+            for item in items:
+                click.echo(f"  - {item}")
+        click.echo(f"{count} problem(s) in {len(problems) - 1} trial(s)")
+    if count:
+        ctx.exit(1)
+
+
+@dataset.command("generate")
+@click.argument("out", type=click.Path(file_okay=False))
+@click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Plant overrides (JSON).")
+@click.option("--postures", help="Comma-separated posture names (default: all).")
+@click.option("--speeds", help="Comma-separated normal speeds, m/s (default 0.08,0.10,0.12,0.15,0.18).")
+@click.option("--tangential", help="Comma-separated tangential speeds, m/s, at v_n = 0.12 (direction n x e_z).")
+@click.option("--repeats", type=int, default=1, show_default=True)
+@click.option("--noise-dq", type=float, default=0.0042, show_default=True, help="Encoder noise std on dq (rad/s).")
+@click.option("--noise-tau", type=float, default=0.05, show_default=True, help="Noise std on tau (N m).")
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--jobs", type=int, default=1, show_default=True)
+@click.option("--json", "as_json", is_flag=True)
+def generate_command(out, plant_file, postures, speeds, tangential, repeats, noise_dq, noise_tau, seed, jobs, as_json):
+    """Simulate a dataset (plant overrides with --plant) in the measured-data format."""
+    from tqdm import tqdm
+
+    from controller.postures import POSTURES
+    from sim.dataset import DatasetError
+    from sim.generation import DEFAULT_SPEEDS, generate_dataset, trial_specs
+
+    plant = load_plant(plant_file)
+    names = [p.strip() for p in postures.split(",")] if postures else list(POSTURES)
+    unknown = [p for p in names if p not in POSTURES]
+    if unknown:
+        raise BadInput(f"unknown posture(s) {', '.join(unknown)}; known: {', '.join(POSTURES)}")
+    speed_list = parse_list(speeds, "--speeds") if speeds else None
+    tangential_list = parse_list(tangential, "--tangential") if tangential else []
+    if jobs < 1:
+        raise BadInput("--jobs must be >= 1")
+    try:
+        specs = trial_specs(
+            names, speed_list or list(DEFAULT_SPEEDS), tangential_list, repeats, POSTURES[names[0]].surface.normal, seed
+        )
+        bar = tqdm(total=len(specs), disable=as_json, desc="trials", unit="trial")
+        entries = generate_dataset(
+            out, plant=plant, postures=names, speeds=speed_list, tangential=tangential_list, repeats=repeats,
+            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed, jobs=jobs, progress=bar.update,
+        )
+        bar.close()
+    except (DatasetError, ValueError) as error:
+        raise BadInput(str(error)) from None
+    if as_json:
+        emit_json({"out": str(out), "trials": [e.to_dict() for e in entries]})
+    else:
+        click.echo(f"wrote {len(entries)} trial(s) to {out}")
+
+
+@click.command()
+@click.argument("directory", type=click.Path(file_okay=False))
+@click.option("--json", "as_json", is_flag=True)
+@click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write report.md and PNG figures here.")
+@click.option("--save-plant", type=click.Path(dir_okay=False), help="Save the fitted plant overrides (JSON).")
+@click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Nominal plant to start from (JSON).")
+@click.option("--jobs", type=int, default=1, show_default=True)
+def diagnose(directory, as_json, report_dir, save_plant, plant_file, jobs):
+    """What the simulation gets wrong on measured impacts, why, and the model change that fixes it."""
+    import mujoco
+
+    from sim.dataset import DatasetError
+    from sim.diagnosis import diagnose as run_diagnosis
+
+    if not Path(directory).is_dir():
+        raise BadInput(f"{directory} is not a directory")
+    if jobs < 1:
+        raise BadInput("--jobs must be >= 1")
+    nominal = load_plant(plant_file)
+    # Unstable candidate plants are detected by MuJoCo's warning counters (sim.diagnosis.replay);
+    # keep the C library from printing each one.
+    mujoco.set_mju_user_warning(lambda message: None)
+    try:
+        result = run_diagnosis(directory, nominal=nominal, jobs=jobs)
+    except DatasetError as error:
+        raise BadInput(str(error)) from None
+    summary = result.summary()
+    if save_plant:
+        from dataclasses import replace
+
+        replace(nominal, **summary["parameters"]).to_json(save_plant)
+    if report_dir:
+        from scenarios.diagnosis_report import write_report
+
+        path = write_report(result, report_dir)
+        if not as_json:
+            click.echo(f"report written to {path}")
+    if as_json:
+        emit_json(summary)
+        return
+    click.echo(summary["message"])
+    click.echo(f"cause: {summary['cause']}  explained: {summary['explained']}  parameters: {json.dumps(summary['parameters'])}")
+    click.echo(f"held-out average error (26): nominal {summary['baseline_error']:.4f}  extended {summary['extended_error']:.4f}  gain {100 * summary['gain']:.1f} %")
+    click.echo(f"{'candidate':<15}{'held-out':>10}{'gain':>9}")
+    for c in summary["candidates"]:
+        click.echo(f"{c['cause']:<15}{c['heldout_error']:>10.4f}{100 * c['gain']:>8.1f}%")
+    click.echo("predictors (average error (26), own impulse): " + ", ".join(f"{k} {v:.4f}" for k, v in summary["predictors"].items()))
+    for s in summary["skipped"]:
+        click.echo(f"skipped {s['id']}: {s['reason']}")

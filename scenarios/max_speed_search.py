@@ -1,0 +1,255 @@
+"""Highest feasible contact speed of a posture: closed form, QP-limited, and simulated.
+
+Three answers to "how fast may the tool hit the surface at this posture?" (design.md section 3,
+criteria (a) pre-impact velocity, (b) post-impact velocity, (c) impulsive torque):
+
+predicted_max_speed
+    ``controller.max_speed.closed_form_max_speed`` at the contact posture q_impact for the
+    classical, gm and crb models (dq- = J6+ [-v n; 0], dq+ = dq- + the model's jump, torque from
+    the model's own impulse over delta_t), with what binds (criterion and joint).
+qp_limited_speed
+    The contact speed the QP controller reaches by itself when asked for 2 m/s with the
+    jump-aware constraints of ``jump_model`` on, starting at rest 5 cm from the surface; with
+    the velocity and impulsive-torque ratios the simulation observed in that run.
+simulated_max_speed
+    The highest reference speed whose simulated impact stays feasible with the jump-aware
+    constraints off (observed criteria of ``scenarios.trial``: max |dq|/dq_max over the 50 ms
+    after the impact and |J^T iota_sim| / delta_t_sim / tau_max). A parallel bisection: each
+    round simulates ``jobs`` reference speeds evenly spaced inside the bracket [lo, hi] (lo
+    feasible, hi violated) and keeps the highest feasible speed below the lowest violated one,
+    until hi - lo <= tolerance. The first bracket is [v_lo, v_a] with v_lo = 0.02 m/s and v_a the
+    speed at which the approach itself brings a joint to its velocity limit (criterion (a), the
+    same for every model; taken 0.1 % below); when v_a is still feasible the answer is v_a, when v_lo is violated
+    it is 0. Feasibility is assumed monotone in the speed (checked by the tests).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from tqdm import tqdm
+
+from controller.jump import JUMP_MODELS
+from controller.max_speed import (
+    DEFAULT_IMPACT_DURATION,
+    MaxSpeed,
+    approach_direction,
+    closed_form_max_speed,
+)
+from controller.postures import ImpactPosture, Surface
+from controller.robot import PandaModel
+from constraints import jump_model_names
+from sim.plant import PlantParameters
+
+from .trial import TrialPool, TrialResult, TrialSpec
+
+PREDICTED_MODELS = ("classical", "gm", "crb")
+QP_REQUEST_SPEED = 2.0
+QP_START_DISTANCE = 0.05
+LOWEST_SPEED = 0.02
+DEFAULT_TOLERANCE = 0.005
+# the top of the first bracket, just below v_a: a start state exactly at a joint velocity limit
+# would read as outside it after rounding
+APPROACH_LIMIT_FRACTION = 0.999
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """One simulated impact of the bisection (reference speed, what happened)."""
+
+    reference_speed: float
+    contact_speed: float
+    max_velocity_ratio: float
+    max_torque_ratio: float
+    violated: bool
+
+    @classmethod
+    def of(cls, result: TrialResult) -> Evaluation:
+        return cls(
+            result.spec.normal_speed, result.contact_speed, result.max_velocity_ratio,
+            result.max_torque_ratio, result.violated,
+        )
+
+    def to_json(self) -> dict:
+        return {
+            "reference_speed": self.reference_speed,
+            "contact_speed": self.contact_speed,
+            "max_velocity_ratio": self.max_velocity_ratio,
+            "max_torque_ratio": self.max_torque_ratio,
+            "violated": self.violated,
+        }
+
+
+@dataclass(frozen=True)
+class MaxSpeedReport:
+    """Everything ``impactqp max-speed --json`` prints."""
+
+    posture: str
+    q_impact: np.ndarray
+    normal: np.ndarray
+    jump_model: str
+    predicted: dict[str, MaxSpeed]
+    qp_limited: TrialResult
+    simulated_max_speed: float
+    evaluations: list[Evaluation]
+
+    def predicted_for_jump_model(self) -> float:
+        """The closed-form maximum the QP should reach: the smallest over the models of
+        ``jump_model`` ('robust': crb, gm and classical)."""
+        return min(self.predicted[name].speed for name in jump_model_names(self.jump_model))
+
+    def to_json(self) -> dict:
+        return {
+            "posture": self.posture,
+            "q_impact": self.q_impact.tolist(),
+            "normal": self.normal.tolist(),
+            "jump_model": self.jump_model,
+            "predicted_max_speed": {name: m.speed for name, m in self.predicted.items()},
+            "binding": {name: {"criterion": m.criterion, "joint": m.joint} for name, m in self.predicted.items()},
+            "qp_limited_speed": self.qp_limited.contact_speed,
+            "qp_max_velocity_ratio": self.qp_limited.max_velocity_ratio,
+            "qp_max_torque_ratio": self.qp_limited.max_torque_ratio,
+            "simulated_max_speed": self.simulated_max_speed,
+            "evaluations": [e.to_json() for e in self.evaluations],
+        }
+
+
+def predicted_max_speeds(
+    robot: PandaModel, q: np.ndarray, normal: np.ndarray, restitution: float, impact_duration: float
+) -> dict[str, MaxSpeed]:
+    """The closed-form maximum speed of classical, gm and crb at q (controller.max_speed)."""
+    terms = robot.terms(q)
+    return {
+        name: closed_form_max_speed(robot, terms, normal, JUMP_MODELS[name], restitution, impact_duration)
+        for name in PREDICTED_MODELS
+    }
+
+
+def approach_velocity_limit(robot: PandaModel, q: np.ndarray, normal: np.ndarray) -> float:
+    """v_a = 1 / max_i |d_i| / dq_max_i: the approach speed at which dq- = v d reaches a joint
+    velocity limit (criterion (a))."""
+    d = approach_direction(robot.terms(q), normal)
+    return float(1.0 / np.max(np.abs(d) / robot.dq_max))
+
+
+class SpeedBisection:
+    """The bracket [lo, hi] of the parallel bisection of the module docstring."""
+
+    def __init__(self, lo: float, hi: float, tolerance: float):
+        if not (np.isfinite(tolerance) and tolerance > 0.0):
+            raise ValueError(f"the bisection tolerance must be > 0 m/s, got {tolerance}")
+        self.lo, self.hi, self.tolerance = lo, hi, tolerance
+        self.evaluations: list[Evaluation] = []
+
+    @property
+    def done(self) -> bool:
+        return self.hi - self.lo <= self.tolerance
+
+    def next_speeds(self, count: int) -> list[float]:
+        """``count`` speeds evenly spaced strictly inside (lo, hi)."""
+        return [float(v) for v in np.linspace(self.lo, self.hi, count + 2)[1:-1]]
+
+    def update(self, evaluations: list[Evaluation]) -> None:
+        """Keep the highest feasible speed below the lowest violated one."""
+        self.evaluations += evaluations
+        for e in sorted(evaluations, key=lambda e: e.reference_speed):
+            if self.lo < e.reference_speed < self.hi:
+                if e.violated:
+                    self.hi = e.reference_speed
+                    break
+                self.lo = e.reference_speed
+
+
+class MaxSpeedSearch:
+    """The three maximum speeds of one posture on one surface and plant (module docstring)."""
+
+    def __init__(
+        self,
+        posture: ImpactPosture,
+        surface: Surface,
+        plant: PlantParameters | None = None,
+        *,
+        jump_model: str = "crb",
+        restitution: float = 0.0,
+        impact_duration: float = DEFAULT_IMPACT_DURATION,
+        tolerance: float = DEFAULT_TOLERANCE,
+        jobs: int = 1,
+        progress: bool = False,
+        robot: PandaModel | None = None,
+    ):
+        jump_model_names(jump_model)
+        if not 0.0 <= restitution <= 1.0:
+            raise ValueError(f"the restitution must lie in [0, 1], got {restitution}")
+        if not (np.isfinite(impact_duration) and impact_duration > 0.0):
+            raise ValueError(f"the impact duration must be > 0 s, got {impact_duration}")
+        self.posture = posture
+        self.surface = surface
+        self.plant = plant
+        self.jump_model = jump_model
+        self.restitution = restitution
+        self.impact_duration = impact_duration
+        self.tolerance = tolerance
+        self.jobs = jobs
+        self.progress = progress
+        self.robot = PandaModel() if robot is None else robot
+
+    def spec(self, speed: float, **changes) -> TrialSpec:
+        return TrialSpec(
+            self.posture.name, self.posture.q, speed, restitution=self.restitution,
+            impact_duration=self.impact_duration, **changes,
+        )
+
+    def run(self) -> MaxSpeedReport:
+        q, normal = self.posture.q, self.surface.normal
+        predicted = predicted_max_speeds(self.robot, q, normal, self.restitution, self.impact_duration)
+        highest = APPROACH_LIMIT_FRACTION * approach_velocity_limit(self.robot, q, normal)
+        bisection = SpeedBisection(LOWEST_SPEED, highest, self.tolerance)
+        qp_spec = self.spec(
+            QP_REQUEST_SPEED, jump_model=self.jump_model, start_at_rest=True, start_distance=QP_START_DISTANCE
+        )
+        # upper bound of the number of trials, for the progress bar
+        width = bisection.hi - bisection.lo
+        rounds = int(np.ceil(np.log(width / self.tolerance) / np.log(self.jobs + 1))) + 1
+        with TrialPool(self.surface, self.plant, self.jobs) as pool, tqdm(
+            total=2 + rounds * self.jobs, desc=f"max-speed {self.posture.name}", unit="trial",
+            disable=not self.progress,
+        ) as bar:
+            first = [qp_spec, self.spec(bisection.lo), self.spec(bisection.hi)]
+            qp_limited, *ends = list(pool.map(first))
+            bar.update(len(first))
+            ends = [Evaluation.of(r) for r in ends]
+            bisection.evaluations += ends
+            if ends[0].violated:
+                simulated = 0.0
+            elif not ends[1].violated:
+                simulated = bisection.hi
+            else:
+                while not bisection.done:
+                    speeds = bisection.next_speeds(self.jobs)
+                    results = [Evaluation.of(r) for r in pool.map([self.spec(v) for v in speeds])]
+                    bisection.update(results)
+                    bar.update(len(results))
+                simulated = bisection.lo
+            bar.total = bar.n
+            bar.refresh()
+        return MaxSpeedReport(
+            posture=self.posture.name,
+            q_impact=q.copy(),
+            normal=normal.copy(),
+            jump_model=self.jump_model,
+            predicted=predicted,
+            qp_limited=qp_limited,
+            simulated_max_speed=float(simulated),
+            evaluations=sorted(bisection.evaluations, key=lambda e: e.reference_speed),
+        )
+
+
+def max_speed_benchmark_rows(repeats: int = 3) -> list[dict]:
+    """``maxspeed.one_posture``: wall seconds of the whole search on elbow_up with 2 jobs."""
+    from controller.postures import DEFAULT_WALL, POSTURES
+
+    from scenarios.bench import time_calls, timing_row
+
+    search = MaxSpeedSearch(POSTURES["elbow_up"], DEFAULT_WALL, jobs=2)
+    return [timing_row("maxspeed.one_posture", "s", time_calls(search.run, repeats), 1.0)]

@@ -1,0 +1,276 @@
+"""The simulation commands of ``impactqp``: ``simulate``, ``campaign`` and ``max-speed``.
+
+Every command validates its input before simulating; bad input (an unknown posture, a speed
+<= 0, a bad plant file, a wall out of reach, ...) ends with one line on stderr and exit code 2
+(``scenarios.cli.main``). Progress bars go to stderr and are off with ``--json``.
+"""
+
+from __future__ import annotations
+
+# First: MuJoCo's OpenGL backend is chosen when MuJoCo is first imported (scenarios.video).
+from scenarios import video  # noqa: F401, I001
+
+from pathlib import Path
+
+import click
+import numpy as np
+
+from constraints import JUMP_MODEL_CHOICES
+from controller.max_speed import DEFAULT_IMPACT_DURATION
+from controller.postures import DEFAULT_WALL, POSTURES, ImpactPosture, Surface
+from scenarios.arguments import BadInput, emit_json, parse_vector
+
+ORTHOGONALITY_TOLERANCE = 1e-6
+SIMULATE_START_DISTANCE = 0.05
+
+
+# ---------------------------------------------------------------------------- shared options
+def named_posture(name: str) -> ImpactPosture:
+    if name not in POSTURES:
+        raise BadInput(f"unknown posture {name!r}; known: {', '.join(POSTURES)}")
+    return POSTURES[name]
+
+
+def wall(point_text: str | None, normal_text: str | None) -> Surface:
+    """The default wall, moved to --wall-point and/or turned to --wall-normal."""
+    point = DEFAULT_WALL.point if point_text is None else parse_vector(point_text, 3, "--wall-point")
+    normal = DEFAULT_WALL.normal if normal_text is None else parse_vector(normal_text, 3, "--wall-normal")
+    if np.linalg.norm(normal) < 1e-9:
+        raise BadInput("--wall-normal must not be zero")
+    return Surface(point, normal, DEFAULT_WALL.friction)
+
+
+def plant_parameters(path: str | None):
+    """The plant of --plant FILE (JSON overrides of ``sim.plant.PlantParameters``), or None."""
+    from sim.plant import PlantParameterError, PlantParameters
+
+    if path is None:
+        return None
+    try:
+        return PlantParameters.from_json(path)
+    except PlantParameterError as error:
+        raise BadInput(f"--plant: {error}") from None
+
+
+def check_reachable(posture: ImpactPosture, surface: Surface, distance: float) -> None:
+    """Reject a wall the posture cannot face (before any process is started)."""
+    from controller.prediction import default_robot
+    from sim.runner import UnreachableStartError, approach_start
+
+    try:
+        approach_start(default_robot(), posture.q, surface, distance)
+    except UnreachableStartError as error:
+        raise BadInput(str(error)) from None
+
+
+def positive(value: float, what: str) -> float:
+    if not (np.isfinite(value) and value > 0.0):
+        raise BadInput(f"{what} must be > 0, got {value}")
+    return value
+
+
+def jobs_option(value: int) -> int:
+    if value < 1:
+        raise BadInput(f"--jobs must be >= 1, got {value}")
+    return value
+
+
+wall_point_option = click.option("--wall-point", "wall_point", help="A point X,Y,Z (m) of the wall; default 0.6,0,0.")
+wall_normal_option = click.option(
+    "--wall-normal", "wall_normal", help="The wall normal NX,NY,NZ towards the robot; default -1,0,0."
+)
+plant_option = click.option("--plant", "plant_file", help="JSON file of plant-parameter overrides (sim.plant).")
+
+
+# ---------------------------------------------------------------------------- simulate
+@click.command()
+@click.option("--posture", "posture_name", required=True, help="A named posture (see `impactqp postures`).")
+@click.option("--speed", type=float, required=True, help="Reference approach speed along -normal (m/s), > 0.")
+@click.option("--tangential", "tangential_text", help="Tangential velocity VX,VY,VZ (m/s), orthogonal to the wall normal.")
+@click.option("--no-jump-constraint", is_flag=True, help="Switch the jump-aware constraints off.")
+@click.option("--jump-model", type=click.Choice(list(JUMP_MODEL_CHOICES)), default="crb", show_default=True)
+@plant_option
+@wall_point_option
+@wall_normal_option
+@click.option("--out", "out_dir", help="Add the trial to the dataset in this directory (sim.dataset format).")
+@click.option("--video", "video_file", help="Render the impact to this animated GIF (needs an offscreen GL backend).")
+@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
+def simulate(
+    posture_name, speed, tangential_text, no_jump_constraint, jump_model, plant_file, wall_point, wall_normal,
+    out_dir, video_file, as_json,
+):
+    """One approach-and-impact trial: the QP controller at 1 kHz drives the MuJoCo Panda.
+
+    The tool starts at rest 5 cm in front of the wall; the controller accelerates it towards the
+    reference velocity (capped by the jump-aware constraints when they are on) until it hits.
+    """
+    from scenarios.campaign import dataset_header, write_trial
+    from scenarios.trial import TrialRunner, TrialSpec
+    from sim.dataset import DatasetWriter
+
+    posture = named_posture(posture_name)
+    positive(speed, "--speed")
+    surface = wall(wall_point, wall_normal)
+    tangential = np.zeros(3) if tangential_text is None else parse_vector(tangential_text, 3, "--tangential")
+    if abs(tangential @ surface.normal) > ORTHOGONALITY_TOLERANCE * max(1.0, np.linalg.norm(tangential)):
+        raise BadInput(f"--tangential must be orthogonal to the wall normal (t.n = {tangential @ surface.normal:.3g})")
+    plant = plant_parameters(plant_file)
+    if video_file is not None:
+        from scenarios.video import offscreen_backend_problem
+
+        if Path(video_file).suffix.lower() != ".gif":
+            raise BadInput(f"--video writes an animated GIF: give a .gif file name, got {video_file!r}")
+        problem = offscreen_backend_problem()
+        if problem is not None:
+            raise BadInput(f"--video: {problem}")
+    check_reachable(posture, surface, SIMULATE_START_DISTANCE)
+
+    spec = TrialSpec(
+        posture.name, posture.q, speed, tangential,
+        jump_model=None if no_jump_constraint else jump_model,
+        start_at_rest=True, start_distance=SIMULATE_START_DISTANCE,
+    )
+    runner = TrialRunner.build(surface, plant)
+    result = runner.run(spec)
+    if out_dir is not None:
+        write_trial(DatasetWriter(out_dir, dataset_header(surface)), result)
+    if video_file is not None:
+        from scenarios.video import render_impact_gif
+
+        render_impact_gif(runner.scene, result.log, result.impact, video_file)
+    report = result.to_json()
+    if as_json:
+        emit_json(report)
+        return
+    click.echo(f"{posture.name}: reference {speed} m/s, jump constraints {report['jump_model'] or 'off'}")
+    click.echo(f"contact speed    {report['contact_speed']:.4f} m/s at t = {report['impact_time']:.4f} s")
+    click.echo(f"impact duration  {report['impact_duration'] * 1e3:.2f} ms")
+    click.echo(f"impulse          {np.array2string(np.array(report['impulse']), precision=4)} N s")
+    click.echo(f"{'':<17}" + "".join(f"{f'dq{i}':>9}" for i in range(1, 8)))
+    click.echo(f"{'simulated jump':<17}" + "".join(f"{x:9.4f}" for x in report["dq_jump"]))
+    for name, jump in report["predicted"].items():
+        click.echo(f"{name:<17}" + "".join(f"{x:9.4f}" for x in jump))
+    click.echo(
+        f"max |dq|/dq_max over 50 ms: {report['max_velocity_ratio']:.3f}   "
+        f"max impulsive torque ratio: {report['max_torque_ratio']:.3f}   "
+        f"violated: {report['violated']}"
+    )
+    if out_dir is not None:
+        click.echo(f"trial {spec.trial_id} written to {out_dir}")
+
+
+# ---------------------------------------------------------------------------- campaign
+def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, progress):
+    """Parse the campaign options, run it and return Table I."""
+    from scenarios.campaign import Campaign, CampaignPlan, PAPER_SPEEDS, PAPER_TANGENTIAL_SPEEDS
+
+    postures = tuple(POSTURES) if postures_text is None else tuple(s.strip() for s in postures_text.split(","))
+    for name in postures:
+        named_posture(name)
+    speeds = PAPER_SPEEDS if speeds_text is None else tuple(parse_vector(speeds_text, None, "--speeds").tolist())
+    for v in speeds:
+        positive(v, "every speed of --speeds")
+    if tangential_text is None:
+        tangential = PAPER_TANGENTIAL_SPEEDS
+    elif tangential_text.strip().lower() == "none":
+        tangential = ()
+    else:
+        tangential = tuple(parse_vector(tangential_text, None, "--tangential").tolist())
+    plan = CampaignPlan(postures, speeds, tangential)
+    plant = plant_parameters(plant_file)
+    return Campaign(plan, DEFAULT_WALL, plant, jobs=jobs_option(jobs), progress=progress).run(out_dir)
+
+
+@click.command()
+@click.option("--postures", "postures_text", help="Comma-separated posture names; default: all.")
+@click.option("--speeds", "speeds_text", help="Comma-separated normal speeds (m/s); default 0.08,0.10,0.12,0.15,0.18.")
+@click.option(
+    "--tangential", "tangential_text",
+    help="Tangential speeds (m/s) of the series at v_n = 0.12 on the first posture; default 0.03..0.12; 'none' skips it.",
+)
+@plant_option
+@click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
+@click.option("--out", "out_dir", default="impactqp-campaign", show_default=True, help="Output directory.")
+@click.option("--json", "as_json", is_flag=True, help="Print Table I as JSON (no progress bar).")
+def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, as_json):
+    """The paper's campaign in simulation: dataset, Table I and figures in --out."""
+    table = run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, not as_json)
+    if as_json:
+        emit_json(table.to_json())
+        return
+    click.echo(table.text())
+    click.echo(f"dataset, table1.json, table1.txt and figures written to {out_dir}")
+
+
+# ---------------------------------------------------------------------------- max-speed
+def run_max_speed(posture_name, jump_model, restitution, impact_duration, plant_file, wall_point, wall_normal,
+                  jobs, tolerance, progress):
+    from scenarios.max_speed_search import QP_START_DISTANCE, MaxSpeedSearch
+
+    posture = named_posture(posture_name)
+    if not (np.isfinite(restitution) and 0.0 <= restitution <= 1.0):
+        raise BadInput(f"--restitution must lie in [0, 1], got {restitution}")
+    positive(impact_duration, "--impact-duration")
+    positive(tolerance, "--tolerance")
+    surface = wall(wall_point, wall_normal)
+    plant = plant_parameters(plant_file)
+    check_reachable(posture, surface, QP_START_DISTANCE)
+    search = MaxSpeedSearch(
+        posture, surface, plant, jump_model=jump_model, restitution=restitution,
+        impact_duration=impact_duration, tolerance=tolerance, jobs=jobs_option(jobs), progress=progress,
+    )
+    return search.run()
+
+
+def max_speed_text(report) -> str:
+    data = report.to_json()
+    lines = [
+        f"{data['posture']}: highest feasible contact speed (m/s), jump constraints {data['jump_model']}",
+        f"{'closed form':<14}{'speed':>8}  binds",
+    ]
+    for name, speed in data["predicted_max_speed"].items():
+        binding = data["binding"][name]
+        lines.append(f"  {name:<12}{speed:8.4f}  {binding['criterion']}, joint {binding['joint']}")
+    lines.append(
+        f"{'QP-limited':<14}{data['qp_limited_speed']:8.4f}  (asked 2 m/s; observed |dq|/dq_max "
+        f"{data['qp_max_velocity_ratio']:.3f}, impulsive torque ratio {data['qp_max_torque_ratio']:.3f})"
+    )
+    lines.append(
+        f"{'simulated':<14}{data['simulated_max_speed']:8.4f}  (jump constraints off, "
+        f"{len(data['evaluations'])} simulated impacts)"
+    )
+    lines.append(f"  {'reference':>10}{'contact':>10}{'|dq| ratio':>12}{'torque ratio':>14}  violated")
+    for e in data["evaluations"]:
+        lines.append(
+            f"  {e['reference_speed']:10.4f}{e['contact_speed']:10.4f}{e['max_velocity_ratio']:12.3f}"
+            f"{e['max_torque_ratio']:14.3f}  {e['violated']}"
+        )
+    return "\n".join(lines)
+
+
+@click.command("max-speed")
+@click.option("--posture", "posture_name", required=True, help="A named posture (see `impactqp postures`).")
+@click.option(
+    "--jump-model", type=click.Choice(["crb", "gm", "classical", "robust"]), default="crb", show_default=True,
+    help="Model of the jump-aware constraints in the QP-limited run.",
+)
+@click.option("--restitution", type=float, default=0.0, show_default=True, help="c_r in [0, 1].")
+@click.option("--impact-duration", type=float, default=DEFAULT_IMPACT_DURATION, show_default=True, help="delta_t (s).")
+@plant_option
+@wall_point_option
+@wall_normal_option
+@click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
+@click.option("--tolerance", type=float, default=0.005, show_default=True, help="Bisection tolerance (m/s).")
+@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (no progress bar).")
+def max_speed(posture_name, jump_model, restitution, impact_duration, plant_file, wall_point, wall_normal, jobs,
+              tolerance, as_json):
+    """Highest feasible contact speed: closed form, reached by the QP, and simulated."""
+    report = run_max_speed(
+        posture_name, jump_model, restitution, impact_duration, plant_file, wall_point, wall_normal, jobs,
+        tolerance, not as_json,
+    )
+    if as_json:
+        emit_json(report.to_json())
+        return
+    click.echo(max_speed_text(report))
+

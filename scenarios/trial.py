@@ -1,0 +1,335 @@
+"""One closed-loop impact trial with the QP controller, and what was observed in it.
+
+Set-up
+------
+The MuJoCo plant (``sim.scene``) is driven by the impact-aware QP controller
+(``controller.config.ControllerConfig.approach``) at 1 kHz through the plant's joint servo
+(``sim.runner.run_trial``). The trial starts ``start_distance`` in front of the surface at the
+posture ``approach_start`` finds for the contact posture, either already moving at the reference
+velocity dq0 = J6+ [-v_n n + v_t; 0] (``start_at_rest=False``, as the paper's constant-velocity
+approach) or at rest (``start_at_rest=True``: the controller accelerates by itself, which is how
+the QP reaches its own highest feasible speed when asked for more).
+
+Controller state: the commanded state, not the measured one
+-----------------------------------------------------------
+A kinematic-controlled robot's QP integrates its own command: at cycle k it is given
+(q_cmd, dq_cmd) of cycle k-1 (the measured state only at the first cycle), as mc_rtc does for a
+position/velocity-controlled robot. The servo alone sees the plant. Feeding it the measured state
+instead (``feedback="measured"``) closes a positive loop through the servo's acceleration
+feed-forward: the controller commands dq_cmd = dq_measured + ddq dt, so the servo's feed-forward
+(dq_cmd_k - dq_cmd_{k-1}) / dt repeats, every period, the acceleration the impact imposed in the
+previous one. Measured here on elbow_right at 0.15 m/s: the contact then lasts 1.75 ms (impulse
+0.22 N s) and joint 6 keeps accelerating past 2 rad/s while the controller reports "ok" with no
+active constraint; with the commanded state the contact lasts 15.75 ms (impulse 1.14 N s) and the
+jump is the one of ``sim.runner.CartesianApproachCommand`` to 3 decimals.
+After the contact the controller keeps its reference: it keeps commanding the approach into the
+wall, like ``CartesianApproachCommand`` (the servo then presses with a slowly growing force).
+
+The controller's posture task weight is 0 (``posture_weight``): with the default 1e-2 it pulls
+the arm back towards the start posture and the contact speed ends 1.5 % below the reference.
+
+Observed criteria (design.md section 3, as measured in the simulation)
+----------------------------------------------------------------------
+With the impact of :func:`sim.impact.measure_impact` (contact start t_c, pre-impact state
+(q-, dq-), contact impulse iota_sim integrated from the contact force, contact duration
+delta_t_sim):
+
+- contact speed         v_c = -n . J(q-) dq-
+- velocity ratio        max over i and t in [t_c, t_c + 50 ms] of |dq_i(t)| / dq_max_i
+- impulsive torque      max_i |J(q-)^T iota_sim|_i / delta_t_sim / tau_max_i
+- violated              either ratio > 1
+- predictions           each predictor's own jump at (q-, dq-), v- = J(q-) dq-
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from controller.config import ControllerConfig, build_controller
+from controller.jump import JUMP_MODELS, METHODS
+from controller.max_speed import DEFAULT_IMPACT_DURATION, closed_form_max_speed
+from controller.postures import Surface
+from controller.qp import Command
+from controller.robot import NQ, PandaModel
+from constraints import jump_model_names
+from sim.impact import ImpactMeasurement, measure_impact
+from sim.plant import PlantParameters
+from sim.runner import CartesianApproachCommand, TrialLog, approach_start, run_trial
+from sim.scene import Scene, build_scene
+
+OBSERVATION_WINDOW = 0.05
+FEEDBACKS = ("commanded", "measured")
+# Time the controller needs, from rest, to reach its approach speed (measured: < 0.15 s).
+ACCELERATION_ALLOWANCE = 0.25
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """One impact trial.
+
+    ``jump_model``: the jump-aware constraints of the controller ('crb', 'gm', 'classical',
+    'classical_normal', 'robust') or None to switch them off. ``restitution`` and
+    ``impact_duration`` are the controller's c_r and delta_t (and c_r of the predictions).
+    ``after_contact``: simulated time after the nominal contact (must hold the 50 ms window).
+    """
+
+    posture: str
+    q_contact: np.ndarray
+    normal_speed: float
+    tangential_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    jump_model: str | None = None
+    restitution: float = 0.0
+    impact_duration: float = DEFAULT_IMPACT_DURATION
+    start_at_rest: bool = False
+    start_distance: float = 0.02
+    after_contact: float = 0.06
+    feedback: str = "commanded"
+
+    def __post_init__(self):
+        if not (np.isfinite(self.normal_speed) and self.normal_speed > 0.0):
+            raise ValueError(f"the approach speed must be > 0 m/s, got {self.normal_speed}")
+        tangential = np.asarray(self.tangential_velocity, dtype=float)
+        if tangential.shape != (3,) or not np.all(np.isfinite(tangential)):
+            raise ValueError("the tangential velocity must be 3 finite numbers (m/s)")
+        object.__setattr__(self, "tangential_velocity", tangential)
+        object.__setattr__(self, "q_contact", np.asarray(self.q_contact, dtype=float))
+        if self.jump_model is not None:
+            jump_model_names(self.jump_model)
+        if not 0.0 <= self.restitution <= 1.0:
+            raise ValueError(f"the restitution must lie in [0, 1], got {self.restitution}")
+        if not self.impact_duration > 0.0:
+            raise ValueError(f"the impact duration must be > 0 s, got {self.impact_duration}")
+        if self.after_contact < OBSERVATION_WINDOW:
+            raise ValueError(f"after_contact must be at least {OBSERVATION_WINDOW} s")
+        if self.feedback not in FEEDBACKS:
+            raise ValueError(f"feedback must be one of {', '.join(FEEDBACKS)}, got {self.feedback!r}")
+
+    @property
+    def trial_id(self) -> str:
+        """A file-name-safe id naming the posture, the speeds (mm/s) and the jump constraints."""
+        text = f"{self.posture}_vn{_mm(self.normal_speed)}"
+        if np.any(self.tangential_velocity != 0.0):
+            text += "_vt" + "_".join(_mm(v) for v in self.tangential_velocity)
+        return text + f"_{self.jump_model or 'free'}"
+
+
+def _mm(value: float) -> str:
+    """A speed in mm/s as an integer string, 'm' for a minus sign."""
+    return f"{round(value * 1000):d}".replace("-", "m")
+
+
+@dataclass(frozen=True)
+class TrialResult:
+    """The log of a trial, its measured impact and the observed criteria (module docstring)."""
+
+    spec: TrialSpec
+    log: TrialLog
+    impact: ImpactMeasurement
+    contact_speed: float
+    predicted: dict[str, np.ndarray]
+    max_velocity_ratio: float
+    max_torque_ratio: float
+    fallback_count: int
+
+    @property
+    def violated(self) -> bool:
+        return bool(self.max_velocity_ratio > 1.0 or self.max_torque_ratio > 1.0)
+
+    def to_json(self) -> dict:
+        """The ``impactqp simulate --json`` report."""
+        return {
+            "posture": self.spec.posture,
+            "reference_normal_speed": self.spec.normal_speed,
+            "reference_tangential_velocity": self.spec.tangential_velocity.tolist(),
+            "jump_model": self.spec.jump_model,
+            "contact_speed": self.contact_speed,
+            "impact_time": self.impact.t_contact_start,
+            "impact_duration": self.impact.duration,
+            "impulse": self.impact.impulse.tolist(),
+            "dq_jump": self.impact.dq_jump.tolist(),
+            "predicted": {name: jump.tolist() for name, jump in self.predicted.items()},
+            "max_velocity_ratio": self.max_velocity_ratio,
+            "max_torque_ratio": self.max_torque_ratio,
+            "violated": self.violated,
+            "controller_fallbacks": self.fallback_count,
+        }
+
+
+class CommandedStateFeedback:
+    """The controller as a command source for ``run_trial``, given its own previous command
+    (q_cmd, dq_cmd) as the state (``feedback="commanded"``, see the module docstring) or the
+    measured state (``feedback="measured"``)."""
+
+    def __init__(self, controller, feedback: str):
+        self.controller = controller
+        self.feedback = feedback
+        self.last: Command | None = None
+
+    def step(self, q: np.ndarray, dq: np.ndarray) -> Command:
+        if self.feedback == "commanded" and self.last is not None:
+            q, dq = self.last.q_cmd, self.last.dq_cmd
+        self.last = self.controller.step(q, dq)
+        return self.last
+
+
+class TrialRunner:
+    """Runs :class:`TrialSpec` trials on one scene (surface and plant) with one robot model."""
+
+    def __init__(self, scene: Scene, robot: PandaModel | None = None):
+        self.scene = scene
+        self.robot = PandaModel() if robot is None else robot
+
+    @classmethod
+    def build(cls, surface: Surface, plant: PlantParameters | None = None) -> TrialRunner:
+        return cls(build_scene(surface, plant))
+
+    @property
+    def surface(self) -> Surface:
+        return self.scene.surface
+
+    def controller_config(self, spec: TrialSpec) -> ControllerConfig:
+        normal = self.surface.normal
+        tangential = spec.tangential_velocity - (spec.tangential_velocity @ normal) * normal
+        return ControllerConfig.approach(
+            self.surface,
+            spec.normal_speed,
+            tangential,
+            jump_model=spec.jump_model,
+            restitution=spec.restitution,
+            impact_duration=spec.impact_duration,
+            posture_weight=0.0,
+        )
+
+    def duration(self, spec: TrialSpec) -> float:
+        """Simulated time: the approach at the expected speed, plus ``after_contact``.
+
+        From rest the expected speed is the reference capped by the closed-form maximum of the
+        controller's jump model(s) at the contact posture, plus the acceleration allowance.
+        """
+        speed = spec.normal_speed
+        if not spec.start_at_rest:
+            return spec.start_distance / speed + spec.after_contact
+        if spec.jump_model is not None:
+            terms = self.robot.terms(spec.q_contact)
+            for name in jump_model_names(spec.jump_model):
+                limit = closed_form_max_speed(
+                    self.robot, terms, self.surface.normal, JUMP_MODELS[name],
+                    spec.restitution, spec.impact_duration,
+                )
+                speed = min(speed, 0.9 * limit.speed)
+        return ACCELERATION_ALLOWANCE + spec.start_distance / speed + spec.after_contact
+
+    def run(self, spec: TrialSpec) -> TrialResult:
+        """Simulate the trial and evaluate it (raises ``ImpactNotFoundError`` without impact,
+        ``UnreachableStartError`` when the surface is out of reach)."""
+        robot, surface = self.robot, self.surface
+        q0 = approach_start(robot, spec.q_contact, surface, spec.start_distance)
+        if spec.start_at_rest:
+            dq0 = np.zeros(NQ)
+        else:
+            approach = CartesianApproachCommand(robot, surface, spec.normal_speed, spec.tangential_velocity)
+            dq0 = approach.step(q0, np.zeros(NQ)).dq_cmd
+        controller = build_controller(self.controller_config(spec), robot)
+        controller.reset(q0, dq0)
+        source = CommandedStateFeedback(controller, spec.feedback)
+        log = run_trial(self.scene, source, q0, dq0, self.duration(spec))
+        return self.evaluate(spec, log, controller.fallback_count)
+
+    def evaluate(self, spec: TrialSpec, log: TrialLog, fallback_count: int = 0) -> TrialResult:
+        """The observed criteria and the predictions of the module docstring."""
+        robot, normal = self.robot, self.surface.normal
+        impact = measure_impact(log)
+        terms = robot.terms(impact.q_pre, impact.dq_pre, check_limits=False)
+        v_pre = terms.J @ impact.dq_pre
+        window = (log.t >= impact.t_contact_start - 1e-9) & (
+            log.t <= impact.t_contact_start + OBSERVATION_WINDOW + 1e-9
+        )
+        if log.t[-1] < impact.t_contact_start + OBSERVATION_WINDOW - 1e-9:
+            raise ValueError(
+                f"the trial ends {log.t[-1] - impact.t_contact_start:.3f} s after the contact, "
+                f"less than the {OBSERVATION_WINDOW * 1e3:.0f} ms observation window"
+            )
+        velocity_ratio = float(np.max(np.abs(log.dq[window]) / robot.dq_max))
+        torque = np.abs(terms.J.T @ impact.impulse) / impact.duration
+        predicted = {
+            name: JUMP_MODELS[name].predict(terms, normal, v_pre, spec.restitution).dq_jump
+            for name in METHODS
+        }
+        return TrialResult(
+            spec=spec,
+            log=log,
+            impact=impact,
+            contact_speed=float(-normal @ v_pre),
+            predicted=predicted,
+            max_velocity_ratio=velocity_ratio,
+            max_torque_ratio=float(np.max(torque / robot.tau_max)),
+            fallback_count=fallback_count,
+        )
+
+
+# ---------------------------------------------------------------------------- processes
+_WORKER: TrialRunner | None = None
+
+
+def _init_worker(surface: Surface, plant: PlantParameters | None) -> None:
+    global _WORKER
+    _WORKER = TrialRunner.build(surface, plant)
+
+
+def _run_in_worker(spec: TrialSpec) -> TrialResult:
+    return _WORKER.run(spec)
+
+
+class TrialPool:
+    """Runs trials on ``jobs`` processes (``ProcessPoolExecutor``); every worker builds its own
+    scene, robot model and controllers. ``jobs=1`` runs in this process."""
+
+    def __init__(self, surface: Surface, plant: PlantParameters | None = None, jobs: int = 1):
+        if jobs < 1:
+            raise ValueError(f"--jobs must be >= 1, got {jobs}")
+        self.surface = surface
+        self.plant = plant
+        self.jobs = jobs
+        self._executor: ProcessPoolExecutor | None = None
+        self._local: TrialRunner | None = None
+
+    def __enter__(self) -> TrialPool:
+        if self.jobs > 1:
+            self._executor = ProcessPoolExecutor(
+                self.jobs, initializer=_init_worker, initargs=(self.surface, self.plant)
+            )
+        else:
+            self._local = TrialRunner.build(self.surface, self.plant)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._executor is not None:
+            self._executor.shutdown(cancel_futures=True)
+            self._executor = None
+
+    def map(self, specs: Iterable[TrialSpec]) -> Iterator[TrialResult]:
+        """Results in the order of ``specs``."""
+        if self._executor is not None:
+            return self._executor.map(_run_in_worker, specs)
+        if self._local is None:
+            raise RuntimeError("use TrialPool as a context manager")
+        return map(self._local.run, specs)
+
+
+# ---------------------------------------------------------------------------- benchmark
+def closed_loop_benchmark_rows(repeats: int = 5) -> list[dict]:
+    """``sim.closed_loop_rtf``: simulated seconds per wall-clock second of a trial with the QP
+    controller in the loop (elbow_up, 0.15 m/s, crb constraints on, moving start)."""
+    from controller.postures import DEFAULT_WALL, POSTURES
+
+    from scenarios.bench import rate_row
+
+    runner = TrialRunner.build(DEFAULT_WALL)
+    spec = TrialSpec("elbow_up", POSTURES["elbow_up"].q, 0.15, jump_model="crb")
+    logs = [runner.run(spec).log for _ in range(repeats)]
+    simulated = len(logs[0]) * logs[0].control_period
+    return [rate_row("sim.closed_loop_rtf", "sim s / wall s", simulated, np.array([log.wall_time for log in logs]))]

@@ -1,0 +1,89 @@
+"""Contact-approach task: move the contact point towards a surface at a reference speed."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controller.robot import ModelTerms
+
+from .task import Task, TaskRows, critical_damping, rotation_error
+
+
+class ContactApproachTask(Task):
+    """Drive the contact point along -n at ``speed`` while holding tangential motion and
+    orientation.
+
+    With v = J dq the contact-point velocity and w the angular velocity of the contact frame,
+    the desired frame acceleration is
+
+        a_lin* = k_v (v* - v),        v* = -speed n + v_t (v_t tangential, n.v_t = 0)
+        a_ang* = k_R log(R* R^T) - d_R w
+
+    and the rows are J6 ddq = a* - dJ6 dq, expressed in the surface frame: one normal row
+    weighted ``normal_weight``, two tangential rows weighted ``tangential_weight``, three
+    orientation rows weighted ``orientation_weight``. With strong tangential and orientation
+    weights the joint velocity stays close to dq = speed d, d = J6+ [-n; 0], the approach
+    direction assumed by the closed-form maximum speed (design.md section 3). The impact-aware
+    constraints cap the normal speed the task actually gets.
+    """
+
+    name = "contact_approach"
+    rows = 6
+
+    def __init__(
+        self,
+        normal,
+        speed: float,
+        tangential_velocity=(0.0, 0.0, 0.0),
+        velocity_gain: float = 20.0,
+        orientation_stiffness: float = 100.0,
+        orientation_damping: float | None = None,
+        normal_weight: float = 1.0,
+        tangential_weight: float = 100.0,
+        orientation_weight: float = 100.0,
+        target_rotation=None,
+    ):
+        normal = np.asarray(normal, dtype=float)
+        normal = normal / np.linalg.norm(normal)
+        tangential_velocity = np.asarray(tangential_velocity, dtype=float)
+        if abs(normal @ tangential_velocity) > 1e-9:
+            raise ValueError("the tangential velocity must be orthogonal to the surface normal")
+        if speed < 0.0:
+            raise ValueError("the approach speed must be >= 0 (it is measured along -n)")
+        # Surface frame: rows of `basis` are n, t1, t2 (world axes).
+        t1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+        t1 /= np.linalg.norm(t1)
+        self.basis = np.vstack([normal, t1, np.cross(normal, t1)])
+        self.normal = normal
+        self.speed = float(speed)
+        self.reference_velocity = -self.speed * normal + tangential_velocity
+        self.velocity_gain = float(velocity_gain)
+        self.orientation_stiffness = float(orientation_stiffness)
+        self.orientation_damping = (
+            critical_damping(orientation_stiffness) if orientation_damping is None else float(orientation_damping)
+        )
+        self.weight = np.array(
+            [normal_weight, tangential_weight, tangential_weight] + [orientation_weight] * 3, dtype=float
+        )
+        self.target_rotation = None if target_rotation is None else np.asarray(target_rotation, float)
+        self._rotation_configured = self.target_rotation is not None
+        self._A = np.empty((6, 7))
+        self._b = np.empty(6)
+
+    def reset(self, terms: ModelTerms) -> None:
+        if not self._rotation_configured:
+            self.target_rotation = terms.contact_rotation.copy()
+
+    def compute(self, terms: ModelTerms) -> TaskRows:
+        twist = terms.J6 @ terms.dq
+        linear = self.velocity_gain * (self.reference_velocity - twist[:3]) - terms.dJ6_dq[:3]
+        angular = (
+            self.orientation_stiffness * rotation_error(self.target_rotation, terms.contact_rotation)
+            - self.orientation_damping * twist[3:]
+            - terms.dJ6_dq[3:]
+        )
+        np.matmul(self.basis, terms.J6[:3], out=self._A[:3])
+        self._A[3:] = terms.J6[3:]
+        np.matmul(self.basis, linear, out=self._b[:3])
+        self._b[3:] = angular
+        return TaskRows(self._A, self._b, self.weight)

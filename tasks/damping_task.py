@@ -1,0 +1,31 @@
+"""Damping / regularisation task."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controller.robot import ModelTerms
+
+from .task import Task, TaskRows
+
+
+class DampingTask(Task):
+    """ddq = -gain dq as 7 rows I ddq = b.
+
+    With gain 0 it is a pure Tikhonov regularisation of ddq; with gain > 0 it also damps the
+    joint velocity, which keeps the redundant motion of the arm from drifting. It makes the
+    Hessian of the QP positive definite.
+    """
+
+    name = "damping"
+    rows = 7
+
+    def __init__(self, gain: float = 1.0, weight: float = 1e-4):
+        if weight <= 0.0:
+            raise ValueError("the damping task weight must be > 0")
+        self.gain = float(gain)
+        self.weight = np.full(7, float(weight))
+        self._identity = np.eye(7)
+
+    def compute(self, terms: ModelTerms) -> TaskRows:
+        return TaskRows(self._identity, -self.gain * terms.dq, self.weight)

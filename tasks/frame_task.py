@@ -1,0 +1,57 @@
+"""Frame task: position and orientation of the contact frame."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controller.robot import ModelTerms
+
+from .task import Task, TaskRows, critical_damping, rotation_error
+
+
+class FrameTask(Task):
+    """Drive the contact frame to a target pose with a PD law in task space.
+
+    Desired frame acceleration (world axes, linear; angular):
+
+        a* = [kp (p* - p) - kd v;  kp log(R* R^T) - kd w],   [v; w] = J6 dq
+
+    and the rows J6 ddq = a* - dJ6 dq (3 position rows weighted ``position_weight``, 3
+    orientation rows weighted ``orientation_weight``). kd defaults to 2 sqrt(kp). A target left
+    as None is the pose at ``reset``.
+    """
+
+    name = "frame"
+    rows = 6
+
+    def __init__(
+        self,
+        target_position=None,
+        target_rotation=None,
+        stiffness: float = 100.0,
+        damping: float | None = None,
+        position_weight: float = 1.0,
+        orientation_weight: float = 1.0,
+    ):
+        self.target_position = None if target_position is None else np.asarray(target_position, float)
+        self.target_rotation = None if target_rotation is None else np.asarray(target_rotation, float)
+        self.stiffness = float(stiffness)
+        self.damping = critical_damping(stiffness) if damping is None else float(damping)
+        self.weight = np.repeat([float(position_weight), float(orientation_weight)], 3)
+        self._configured = (self.target_position is not None, self.target_rotation is not None)
+
+    def reset(self, terms: ModelTerms) -> None:
+        if not self._configured[0]:
+            self.target_position = terms.contact_point.copy()
+        if not self._configured[1]:
+            self.target_rotation = terms.contact_rotation.copy()
+
+    def compute(self, terms: ModelTerms) -> TaskRows:
+        error = np.concatenate(
+            [
+                self.target_position - terms.contact_point,
+                rotation_error(self.target_rotation, terms.contact_rotation),
+            ]
+        )
+        desired = self.stiffness * error - self.damping * (terms.J6 @ terms.dq)
+        return TaskRows(terms.J6, desired - terms.dJ6_dq, self.weight)

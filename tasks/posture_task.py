@@ -1,0 +1,37 @@
+"""Posture task: joint-space PD towards a reference posture."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controller.robot import ModelTerms
+
+from .task import Task, TaskRows, critical_damping
+
+
+class PostureTask(Task):
+    """ddq = kp (q* - q) - kd dq as 7 rows I ddq = b, kd = 2 sqrt(kp) by default.
+
+    A target left as None is the posture at ``reset``. Usually given a small weight, so it
+    only shapes the redundant (null-space) motion of the arm.
+    """
+
+    name = "posture"
+    rows = 7
+
+    def __init__(self, target=None, stiffness: float = 10.0, damping: float | None = None, weight: float = 1e-2):
+        self.target = None if target is None else np.asarray(target, dtype=float)
+        self._target_configured = self.target is not None
+        self.stiffness = float(stiffness)
+        self.damping = critical_damping(stiffness) if damping is None else float(damping)
+        self.weight = np.full(7, float(weight))
+        self._identity = np.eye(7)
+
+    def reset(self, terms: ModelTerms) -> None:
+        if not self._target_configured:
+            self.target = terms.q.copy()
+
+    def compute(self, terms: ModelTerms) -> TaskRows:
+        return TaskRows(
+            self._identity, self.stiffness * (self.target - terms.q) - self.damping * terms.dq, self.weight
+        )

@@ -1,0 +1,50 @@
+"""Common interface of the QP tasks.
+
+A task is a weighted least-squares residual on the joint acceleration ddq:
+
+    cost = sum_i weight_i (A_i ddq - b_i)^2
+
+``compute`` returns the rows (A, b, weight) of one state. Tasks written on a frame use the
+world-aligned frame Jacobian J6 and its drift dJ6 dq (``ModelTerms``), so a desired frame
+acceleration a* gives the rows J6 ddq = a* - dJ6 dq. Targets left unspecified are captured from
+the state given to ``reset`` (the controller calls it at its first cycle and on ``reset``).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import pinocchio as pin
+
+from controller.robot import ModelTerms
+
+
+class TaskRows(NamedTuple):
+    """Residual rows A ddq - b with one weight per row."""
+
+    A: np.ndarray
+    b: np.ndarray
+    weight: np.ndarray
+
+
+class Task:
+    """A named least-squares objective with ``rows`` rows."""
+
+    name: str = ""
+    rows: int = 0
+
+    def reset(self, terms: ModelTerms) -> None:
+        """Capture the targets that were left unspecified from the state ``terms``."""
+
+    def compute(self, terms: ModelTerms) -> TaskRows:
+        raise NotImplementedError
+
+
+def rotation_error(target: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """Rotation vector log(R* R^T) in world axes: the angular displacement from R to R*."""
+    return pin.log3(target @ rotation.T)
+
+
+def critical_damping(stiffness: float) -> float:
+    return 2.0 * float(np.sqrt(stiffness))

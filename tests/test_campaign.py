@@ -1,0 +1,117 @@
+"""The simulated campaign: its plan, the dataset it writes, Table I from first principles and
+the figures."""
+
+import json
+
+import numpy as np
+import pytest
+
+from controller.jump import METHODS
+from controller.postures import DEFAULT_WALL, POSTURES, Surface
+from controller.robot import PandaModel
+from scenarios.campaign import (
+    PAPER_SPEEDS,
+    PAPER_TANGENTIAL_SPEEDS,
+    Campaign,
+    CampaignPlan,
+    Table1,
+    TableRow,
+    tangent_direction,
+)
+from sim.dataset import read_dataset, validate
+from sim.impact import measure_impact
+
+
+def test_default_plan_is_the_papers():
+    specs = CampaignPlan().specs(DEFAULT_WALL)
+    assert PAPER_SPEEDS == (0.08, 0.10, 0.12, 0.15, 0.18)
+    assert PAPER_TANGENTIAL_SPEEDS[0] == 0.03 and PAPER_TANGENTIAL_SPEEDS[-1] == 0.12
+    assert len(specs) == 3 * 5 + 10
+    tangential = specs[15:]
+    assert {s.posture for s in tangential} == {next(iter(POSTURES))}
+    assert all(s.normal_speed == 0.12 for s in tangential)
+    np.testing.assert_allclose([s.tangential_velocity[1] for s in tangential], PAPER_TANGENTIAL_SPEEDS)
+    assert all(s.jump_model is None for s in specs)  # the tool hits at the requested speed
+    assert len({s.trial_id for s in specs}) == len(specs)
+
+
+def test_tangent_is_orthogonal_to_any_wall():
+    np.testing.assert_allclose(tangent_direction(DEFAULT_WALL), [0.0, 1.0, 0.0])
+    for normal in ([0.0, 1.0, 0.0], [-1.0, 0.5, 0.3]):
+        t = tangent_direction(Surface(np.zeros(3), np.array(normal)))
+        assert np.linalg.norm(t) == pytest.approx(1.0)
+        assert abs(t @ np.asarray(normal)) < 1e-12
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"postures": ("nowhere",)}, "unknown posture"),
+        ({"postures": ()}, "at least one posture"),
+        ({"speeds": (0.1, 0.0)}, "> 0"),
+        ({"speeds": ()}, "at least one speed"),
+    ],
+)
+def test_bad_plans_are_rejected(changes, message):
+    with pytest.raises(ValueError, match=message):
+        CampaignPlan(**changes)
+
+
+def row(classical, crb):
+    errors = {m: 1.0 for m in METHODS} | {"classical": classical, "crb": crb}
+    return TableRow("t", "p", 0.1, 0.0, 0.1, errors, np.zeros(7), {m: np.zeros(7) for m in METHODS})
+
+
+def test_crb_reduction_is_relative_to_classical():
+    assert row(0.5, 0.1).crb_reduction == pytest.approx(80.0)
+    table = Table1([row(0.5, 0.1), row(0.3, 0.3)])
+    assert table.mean_errors()["classical"] == pytest.approx(0.4)
+    assert table.mean_crb_reduction() == pytest.approx(50.0)
+
+
+@pytest.fixture(scope="module")
+def campaign_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("campaign")
+    plan = CampaignPlan(("elbow_left",), (0.1, 0.15), (0.05,))
+    Campaign(plan, DEFAULT_WALL).run(out)
+    return out
+
+
+def test_dataset_is_valid_and_complete(campaign_dir):
+    problems = validate(campaign_dir)
+    assert all(not p for p in problems.values()), problems
+    dataset = read_dataset(campaign_dir)
+    assert [t.entry.reference_normal_speed for t in dataset.trials] == [0.1, 0.15, 0.12]
+    assert dataset.trials[2].entry.reference_tangential_velocity == pytest.approx((0.0, 0.05, 0.0))
+    assert all(t.entry.force_file for t in dataset.trials)
+
+
+def test_table1_is_eq26_against_the_jumps_in_the_dataset(campaign_dir):
+    """Recompute every entry of Table I from the written dataset alone."""
+    from controller.jump import JUMP_MODELS
+
+    robot = PandaModel()
+    table = json.loads((campaign_dir / "table1.json").read_text())
+    dataset = read_dataset(campaign_dir)
+    assert len(table["rows"]) == len(dataset.trials) == 3
+    for entry, trial in zip(table["rows"], dataset.trials):
+        impact = measure_impact(trial.log)
+        terms = robot.terms(impact.q_pre, impact.dq_pre)
+        v = terms.J @ impact.dq_pre
+        for name in METHODS:
+            predicted = JUMP_MODELS[name].predict(terms, DEFAULT_WALL.normal, v, 0.0).dq_jump
+            expected = np.mean(np.abs(predicted - impact.dq_jump))
+            assert entry["average_error"][name] == pytest.approx(expected, rel=1e-4, abs=1e-6)
+    text = (campaign_dir / "table1.txt").read_text()
+    assert "crb vs classical" in text and "all trials" in text
+
+
+def test_figures_are_png(campaign_dir):
+    for name in ("jumps_elbow_left.png", "errors_elbow_left.png", "tangential.png"):
+        assert (campaign_dir / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_running_again_into_the_same_directory_changes_nothing(campaign_dir):
+    before = (campaign_dir / "dataset.json").read_text()
+    Campaign(CampaignPlan(("elbow_left",), (0.1, 0.15), (0.05,)), DEFAULT_WALL).run(campaign_dir)
+    assert (campaign_dir / "dataset.json").read_text() == before

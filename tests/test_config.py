@@ -1,0 +1,132 @@
+"""ControllerConfig: files, round trips and the controller it builds."""
+
+import numpy as np
+import pytest
+
+from controller.config import ControllerConfig, TaskConfig, build_controller
+from controller.postures import DEFAULT_WALL, POSTURES, Surface
+from controller.qp import ImpactAwareController
+from tasks import ContactApproachTask, DampingTask, PostureTask
+
+TOML = """
+dt = 0.002
+solver = "daqp"
+
+[[tasks]]
+type = "contact_approach"
+speed = 0.12
+tangential_velocity = [0.0, 0.05, 0.0]
+tangential_weight = 50.0
+
+[[tasks]]
+type = "damping"
+gain = 2.0
+
+[limits]
+torque = false
+velocity_scale = 0.9
+
+[impact]
+jump_model = "robust"
+restitution = 0.3
+impact_duration = 0.02
+
+[surface]
+point = [0.7, 0.0, 0.0]
+normal = [-1.0, 0.0, 0.0]
+"""
+
+YAML = """
+dt: 0.002
+solver: daqp
+tasks:
+  - type: contact_approach
+    speed: 0.12
+    tangential_velocity: [0.0, 0.05, 0.0]
+    tangential_weight: 50.0
+  - type: damping
+    gain: 2.0
+limits:
+  torque: false
+  velocity_scale: 0.9
+impact:
+  jump_model: robust
+  restitution: 0.3
+  impact_duration: 0.02
+surface:
+  point: [0.7, 0.0, 0.0]
+  normal: [-1.0, 0.0, 0.0]
+"""
+
+
+def test_toml_and_yaml_files_give_the_same_configuration(tmp_path):
+    (tmp_path / "c.toml").write_text(TOML)
+    (tmp_path / "c.yaml").write_text(YAML)
+    from_toml = ControllerConfig.from_file(tmp_path / "c.toml")
+    assert from_toml == ControllerConfig.from_file(tmp_path / "c.yaml")
+    assert from_toml.dt == 0.002 and from_toml.impact.jump_model == "robust"
+    assert from_toml.tasks[0] == TaskConfig(
+        "contact_approach", {"speed": 0.12, "tangential_velocity": [0.0, 0.05, 0.0], "tangential_weight": 50.0}
+    )
+
+
+def test_configuration_round_trips_through_a_dict():
+    config = ControllerConfig.approach(DEFAULT_WALL, 0.2, jump_model="gm", restitution=0.4)
+    assert ControllerConfig.from_dict(config.to_dict()) == config
+
+
+def test_build_controller_follows_the_file(robot, tmp_path):
+    (tmp_path / "c.toml").write_text(TOML)
+    controller = build_controller(ControllerConfig.from_file(tmp_path / "c.toml"), robot)
+    names = [c.name for c in controller.constraints]
+    assert "joint_torque_limit" not in names
+    for model in ("crb", "gm", "classical"):
+        assert f"post_impact_velocity[{model}]" in names and f"impulsive_torque[{model}]" in names
+    assert controller.dt == 0.002 and controller.solver.name == "daqp"
+    approach = controller.tasks[0]
+    assert isinstance(approach, ContactApproachTask) and np.allclose(approach.normal, [-1.0, 0.0, 0.0])
+    assert np.allclose(approach.reference_velocity, [0.12, 0.05, 0.0])
+    velocity = next(c for c in controller.constraints if c.name == "joint_velocity_limit")
+    assert np.allclose(velocity.dq_max, 0.9 * robot.dq_max)
+    impulsive = next(c for c in controller.constraints if c.name == "impulsive_torque[gm]")
+    assert impulsive.impact_duration == 0.02 and impulsive.impact.restitution == 0.3
+
+
+def test_default_approach_configuration(robot):
+    surface = Surface([0.65, 0.0, 0.0], [-1.0, 0.0, 0.0])
+    controller = build_controller(ControllerConfig.approach(surface, 0.1), robot)
+    assert isinstance(controller, ImpactAwareController)
+    assert [type(t) for t in controller.tasks] == [ContactApproachTask, PostureTask, DampingTask]
+    assert {c.name for c in controller.constraints} == {
+        "joint_acceleration_limit", "joint_position_limit", "joint_velocity_limit", "joint_torque_limit",
+        "post_impact_velocity[crb]", "impulsive_torque[crb]",
+    }
+    command = controller.step(POSTURES["elbow_up"].q, np.zeros(7))
+    assert command.status == "ok"
+
+
+def test_no_jump_model_switches_the_impact_constraints_off_but_keeps_the_prediction(robot):
+    controller = build_controller(ControllerConfig.approach(DEFAULT_WALL, 0.1, jump_model=None), robot)
+    assert not any("impact" in c.name for c in controller.constraints)
+    assert controller.impact.name == "crb"
+
+
+@pytest.mark.parametrize(
+    "data",
+    [
+        {"unknown": 1},
+        {"impact": {"jump_model": "newton"}},
+        {"limits": {"position": True, "jerk": 2}},
+        {"tasks": [{"type": "teleport"}]},
+        {"tasks": [{"type": "damping", "stiffness": 3.0}]},
+    ],
+)
+def test_bad_configurations_are_rejected_with_a_value_error(robot, data):
+    with pytest.raises(ValueError):
+        build_controller(ControllerConfig.from_dict({"tasks": [{"type": "damping"}]} | data), robot)
+
+
+def test_unsupported_file_type(tmp_path):
+    (tmp_path / "c.json").write_text("{}")
+    with pytest.raises(ValueError):
+        ControllerConfig.from_file(tmp_path / "c.json")

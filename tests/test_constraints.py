@@ -1,0 +1,173 @@
+"""Constraints: every row set is equivalent to the physical limit it stands for."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from constraints import (
+    AccelerationLimit,
+    ControlCycle,
+    ImpactModel,
+    ImpulsiveTorqueLimit,
+    PositionLimit,
+    PostImpactVelocityLimit,
+    TorqueLimit,
+    VelocityLimit,
+)
+from controller.jump import jump_model
+from controller.postures import POSTURES, Surface
+from controller.robot import SingularPostureError
+
+DT = 0.001
+SEEDS = st.integers(0, 2**32 - 1)
+
+
+def cycle(robot, previous_ddq=None):
+    previous = np.zeros(7) if previous_ddq is None else previous_ddq
+    return ControlCycle.after(previous, DT, robot.ddq_max, robot.dddq_max)
+
+
+def random_state(robot, rng, speed=0.5):
+    """A random non-singular state inside the limits; speed is the fraction of dq_max."""
+    span = robot.q_max - robot.q_min
+    while True:
+        q = robot.q_min + span * rng.uniform(0.1, 0.9, 7)
+        try:
+            return robot.terms(q, rng.uniform(-speed, speed, 7) * robot.dq_max)
+        except SingularPostureError:
+            continue
+
+
+def inside(rows, ddq):
+    value = ddq if rows.C is None else rows.C @ ddq
+    return bool(np.all(value >= rows.lower - 1e-9) and np.all(value <= rows.upper + 1e-9))
+
+
+def test_reachable_accelerations_respect_the_acceleration_and_jerk_limits(robot):
+    previous = 0.9 * robot.ddq_max * np.array([1, -1, 1, -1, 1, -1, 1])
+    c = cycle(robot, previous)
+    rows = AccelerationLimit().compute(None, c)
+    assert np.all(rows.lower <= previous) and np.all(previous <= rows.upper)
+    assert np.all(rows.upper <= robot.ddq_max) and np.all(rows.lower >= -robot.ddq_max)
+    assert np.all(rows.upper - previous <= robot.dddq_max * DT + 1e-12)
+    assert np.all(previous - rows.lower <= robot.dddq_max * DT + 1e-12)
+
+
+@settings(max_examples=30, deadline=None)
+@given(SEEDS)
+def test_velocity_box_is_the_commanded_velocity_limit(robot, seed):
+    rng = np.random.default_rng(seed)
+    terms = random_state(robot, rng, speed=0.99)
+    rows = VelocityLimit(robot.dq_max).compute(terms, cycle(robot))
+    assert np.all(rows.lower <= rows.upper)
+    for ddq in rng.uniform(rows.lower, rows.upper, (5, 7)):
+        assert np.all(np.abs(terms.dq + ddq * DT) <= robot.dq_max + 1e-12)
+
+
+def test_velocity_box_brakes_within_the_acceleration_limits_from_an_overspeed(robot):
+    terms = robot.terms(POSTURES["elbow_up"].q, 1.2 * robot.dq_max)
+    c = cycle(robot)
+    rows = VelocityLimit(robot.dq_max).compute(terms, c)
+    assert np.allclose(rows.upper, c.acceleration_lower)  # brake as hard as allowed
+
+
+@pytest.mark.parametrize("joint", [0, 3, 6])
+def test_position_limit_stops_every_joint_before_its_limit(robot, joint):
+    """Push a joint at full speed towards its upper limit, always taking the largest
+    acceleration the position, velocity and acceleration limits allow: it stops inside the
+    limit and the bounds never cross."""
+    constraint = PositionLimit(robot.q_min, robot.q_max, robot.ddq_max)
+    acceleration, velocity = AccelerationLimit(), VelocityLimit(robot.dq_max)
+    q = 0.5 * (robot.q_min + robot.q_max)
+    q[joint] = robot.q_max[joint] - 0.5  # inside the braking horizon at full speed
+    dq = np.zeros(7)
+    dq[joint] = robot.dq_max[joint]
+    ddq = np.zeros(7)
+    for _ in range(1500):
+        terms = robot.terms(q, dq)
+        c = cycle(robot, ddq)
+        boxes = [k.compute(terms, c) for k in (constraint, acceleration, velocity)]
+        lower = np.max([b.lower for b in boxes], axis=0)
+        upper = np.min([b.upper for b in boxes], axis=0)
+        assert np.all(lower <= upper + 1e-12)
+        ddq = upper.copy()
+        dq_next = dq + ddq * DT
+        q = q + 0.5 * DT * (dq + dq_next)
+        dq = dq_next
+        assert q[joint] <= robot.q_max[joint] + 1e-9
+    assert abs(dq[joint]) < 1e-3
+
+
+@settings(max_examples=30, deadline=None)
+@given(SEEDS)
+def test_torque_rows_are_the_inverse_dynamics_limits(robot, seed):
+    rng = np.random.default_rng(seed)
+    terms = random_state(robot, rng)
+    rows = TorqueLimit(robot.tau_max).compute(terms, cycle(robot))
+    for ddq in rng.uniform(-30.0, 30.0, (20, 7)):
+        tau = terms.M @ ddq + terms.h
+        within = np.all(np.abs(tau) <= robot.tau_max)
+        assert within == inside(rows, ddq) or np.min(np.abs(np.abs(tau) - robot.tau_max)) < 1e-6
+
+
+def surface_ahead(terms, gap=0.05):
+    normal = np.array([-1.0, 0.0, 0.0])
+    return Surface(terms.contact_point - gap * normal, normal)
+
+
+@pytest.mark.parametrize("name", ["crb", "gm", "classical", "classical_normal"])
+@pytest.mark.parametrize("restitution", [0.0, 0.5])
+def test_impact_maps_match_the_jump_models(robot, name, restitution):
+    terms = robot.terms(POSTURES["elbow_right"].q, np.full(7, 0.1))
+    surface = surface_ahead(terms)
+    maps = ImpactModel(surface, name, restitution).maps(terms)
+    model = jump_model(name)
+    assert np.allclose(maps.jump_matrix, model.jump_matrix(terms, surface.normal, restitution), atol=1e-10)
+    dq = np.linspace(-0.5, 0.5, 7)
+    impulse = model.predict(terms, surface.normal, terms.J @ dq, restitution).impulse
+    assert np.allclose(maps.torque_matrix @ dq, terms.J.T @ impulse, atol=1e-10)
+
+
+@settings(max_examples=25, deadline=None)
+@given(SEEDS, st.sampled_from(["crb", "gm", "classical"]))
+def test_impact_rows_are_the_post_impact_velocity_and_impulsive_torque_limits(robot, seed, name):
+    """The rows bound the post-impact velocity and impulsive torque at dq + ddq h (h the jerk
+    horizon of the cycle)."""
+    rng = np.random.default_rng(seed)
+    terms = random_state(robot, rng, speed=0.2)
+    surface = surface_ahead(terms)
+    impact = ImpactModel(surface, name, restitution=0.3, always_active=True)
+    c = cycle(robot)
+    velocity_rows = PostImpactVelocityLimit(impact, robot.dq_max).compute(terms, c)
+    torque_rows = ImpulsiveTorqueLimit(impact, robot.tau_max, robot.dq_max, 0.015).compute(terms, c)
+    model = jump_model(name)
+    assert c.horizon == pytest.approx(max(DT, np.max(robot.ddq_max / robot.dddq_max)))
+    for ddq in rng.uniform(-200.0, 200.0, (20, 7)):
+        pre = terms.dq + ddq * c.horizon
+        prediction = model.predict(terms, surface.normal, terms.J @ pre, 0.3)
+        post_ratio = np.max(np.abs(pre + prediction.dq_jump) / robot.dq_max)
+        torque_ratio = np.max(np.abs(terms.J.T @ prediction.impulse) / 0.015 / robot.tau_max)
+        if abs(post_ratio - 1.0) > 1e-9:
+            assert inside(velocity_rows, ddq) == (post_ratio < 1.0)
+        if abs(torque_ratio - 1.0) > 1e-9:
+            assert inside(torque_rows, ddq) == (torque_ratio < 1.0)
+
+
+def test_activation_rule(robot):
+    q = POSTURES["elbow_up"].q
+    at_rest = robot.terms(q)
+    normal = np.array([-1.0, 0.0, 0.0])
+    tip = at_rest.contact_point
+    near = Surface(tip - 0.05 * normal, normal)
+    far = Surface(tip - 0.5 * normal, normal)
+    assert ImpactModel(near).is_active(at_rest)
+    assert not ImpactModel(far).is_active(at_rest)
+    assert ImpactModel(far, always_active=True).is_active(at_rest)
+    direction = np.linalg.pinv(at_rest.J6) @ np.concatenate([-normal, np.zeros(3)])
+    approaching_fast = robot.terms(q, 2.0 * direction)  # 2 m/s: 0.5 m in 0.25 s
+    assert ImpactModel(far, lookahead_time=0.3).is_active(approaching_fast)
+    receding = robot.terms(q, -0.1 * direction)
+    assert not ImpactModel(near).is_active(receding)
+    rows = PostImpactVelocityLimit(ImpactModel(far), robot.dq_max).compute(at_rest, cycle(robot))
+    assert np.all(np.isinf(rows.lower)) and np.all(np.isinf(rows.upper))

@@ -1,0 +1,82 @@
+"""`impactqp dataset validate|generate` and `impactqp diagnose` on the command line."""
+
+import json
+import shutil
+
+import pytest
+
+from scenarios.cli import main
+from sim.plant import PlantParameters
+
+
+def run(capsys, *args):
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def small_dataset(tmp_path_factory):
+    out = tmp_path_factory.mktemp("data") / "armature"
+    plant = tmp_path_factory.mktemp("plant") / "plant.json"
+    plant.write_text(json.dumps({"armature": [0.5] * 7}))
+    assert main(["dataset", "generate", str(out), "--plant", str(plant), "--postures", "elbow_up,elbow_left",
+                 "--speeds", "0.1,0.18", "--seed", "2", "--json"]) == 0
+    return out
+
+
+def test_generate_then_validate(small_dataset, capsys):
+    code, out, _ = run(capsys, "dataset", "validate", small_dataset, "--json")
+    assert code == 0
+    report = json.loads(out)
+    assert report["valid"] and set(report["problems"]) == {"dataset", "t0000", "t0001", "t0002", "t0003"}
+
+
+def test_validate_reports_problems_with_exit_code_1(small_dataset, tmp_path, capsys):
+    broken = tmp_path / "broken"
+    shutil.copytree(small_dataset, broken)
+    (broken / "t0001_force.csv").unlink()
+    code, out, _ = run(capsys, "dataset", "validate", broken, "--json")
+    assert code == 1
+    problems = json.loads(out)["problems"]
+    assert problems["t0001"] and not problems["t0000"]
+
+
+def test_diagnose_json_report_and_saved_plant(small_dataset, tmp_path, capsys):
+    code, out, _ = run(capsys, "diagnose", small_dataset, "--json", "--report", tmp_path / "report",
+                       "--save-plant", tmp_path / "fitted.json", "--jobs", "2")
+    assert code == 0
+    result = json.loads(out)
+    for key in ("cause", "explained", "parameters", "baseline_error", "extended_error", "gain", "candidates",
+                "trials", "skipped", "predictors"):
+        assert key in result
+    assert result["cause"] == "armature" and result["explained"]
+    assert set(result["predictors"]) == {"classical", "classical_normal", "gm", "crb"}
+    fitted = PlantParameters.from_json(tmp_path / "fitted.json")
+    assert fitted.armature[0] == pytest.approx(0.5, rel=0.2)
+    assert (tmp_path / "report" / "report.md").read_text().startswith("# Impact diagnosis")
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["diagnose", "/nonexistent/dataset"], "not a directory"),
+        (["dataset", "validate", "/nonexistent/dataset"], "not a directory"),
+        (["dataset", "generate", "OUT", "--postures", "nowhere"], "unknown posture"),
+        (["dataset", "generate", "OUT", "--speeds", "0.1,-1"], "> 0"),
+        (["dataset", "generate", "OUT", "--plant", "PLANT"], "unknown plant parameter"),
+    ],
+)
+def test_bad_input_is_one_line_with_exit_code_2(tmp_path, capsys, args, message):
+    plant = tmp_path / "plant.json"
+    plant.write_text(json.dumps({"rotor_inertia": 1.0}))
+    args = [str(tmp_path / "out") if a == "OUT" else str(plant) if a == "PLANT" else a for a in args]
+    code, out, err = run(capsys, *args)
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and message in err
+
+
+def test_diagnose_without_a_manifest_is_a_clear_error(tmp_path, capsys):
+    (tmp_path / "t0000.csv").write_text("t,q1\n0,0\n")
+    code, _, err = run(capsys, "diagnose", tmp_path)
+    assert code == 2 and "dataset.json" in err and len(err.strip().splitlines()) == 1

@@ -1,0 +1,94 @@
+"""Maximum feasible speed: the parallel bisection on a known threshold, and one real search in
+closed loop (the QP reaches the closed-form maximum; the bracket of the simulation is sound)."""
+
+import numpy as np
+import pytest
+
+from controller.jump import JUMP_MODELS
+from controller.max_speed import approach_direction, closed_form_max_speed
+from controller.postures import DEFAULT_WALL, POSTURES
+from scenarios.max_speed_search import (
+    Evaluation,
+    MaxSpeedSearch,
+    SpeedBisection,
+    approach_velocity_limit,
+)
+
+
+def oracle(threshold):
+    return lambda v: Evaluation(v, v, v / threshold, 0.0, v > threshold)
+
+
+@pytest.mark.parametrize("jobs", [1, 2, 3])
+def test_bisection_converges_on_a_known_threshold(jobs):
+    feasible_until = oracle(0.237)
+    bisection = SpeedBisection(0.02, 1.0, 0.005)
+    rounds = 0
+    while not bisection.done:
+        speeds = bisection.next_speeds(jobs)
+        assert all(bisection.lo < v < bisection.hi for v in speeds)
+        bisection.update([feasible_until(v) for v in speeds])
+        rounds += 1
+    assert bisection.lo <= 0.237 < bisection.hi
+    assert bisection.hi - bisection.lo <= 0.005
+    # (jobs + 1)-section: the bracket shrinks by jobs + 1 per round
+    assert rounds <= int(np.ceil(np.log(0.98 / 0.005) / np.log(jobs + 1)))
+
+
+def test_approach_velocity_limit_puts_one_joint_at_its_limit(robot):
+    q = POSTURES["elbow_left"].q
+    v_a = approach_velocity_limit(robot, q, DEFAULT_WALL.normal)
+    ratio = np.abs(v_a * approach_direction(robot.terms(q), DEFAULT_WALL.normal)) / robot.dq_max
+    assert ratio.max() == pytest.approx(1.0)
+
+
+@pytest.fixture(scope="module")
+def report():
+    return MaxSpeedSearch(POSTURES["elbow_up"], DEFAULT_WALL, jump_model="crb", tolerance=0.02, jobs=2).run()
+
+
+def test_qp_reaches_the_closed_form_maximum_speed(report, robot):
+    data = report.to_json()
+    terms = robot.terms(POSTURES["elbow_up"].q)
+    for name in ("classical", "gm", "crb"):
+        expected = closed_form_max_speed(robot, terms, DEFAULT_WALL.normal, JUMP_MODELS[name])
+        assert data["predicted_max_speed"][name] == pytest.approx(expected.speed)
+        assert data["binding"][name] == {"criterion": expected.criterion, "joint": expected.joint}
+    assert data["qp_limited_speed"] == pytest.approx(data["predicted_max_speed"]["crb"], rel=0.05)
+    # the QP kept the impact inside what the crb model allows, which the simulation confirms
+    assert data["qp_max_velocity_ratio"] < 1.0
+
+
+def test_bisection_brackets_are_consistent(report):
+    evaluations = report.evaluations
+    speeds = [e.reference_speed for e in evaluations]
+    assert speeds == sorted(speeds)
+    best = report.simulated_max_speed
+    below = [e for e in evaluations if e.reference_speed <= best]
+    above = [e for e in evaluations if e.reference_speed > best]
+    assert below and above
+    assert not any(e.violated for e in below)
+    assert above[0].violated
+    assert above[0].reference_speed - best <= 0.02 + 1e-12
+    for e in evaluations:
+        assert e.violated == (e.max_velocity_ratio > 1.0 or e.max_torque_ratio > 1.0)
+        assert e.contact_speed == pytest.approx(e.reference_speed, rel=0.03)
+
+
+def test_report_json_keys(report):
+    data = report.to_json()
+    assert {
+        "posture", "q_impact", "normal", "predicted_max_speed", "binding", "qp_limited_speed",
+        "qp_max_velocity_ratio", "qp_max_torque_ratio", "simulated_max_speed", "evaluations",
+    } <= set(data)
+    assert len(data["q_impact"]) == 7 and len(data["normal"]) == 3
+    assert set(data["evaluations"][0]) == {
+        "reference_speed", "contact_speed", "max_velocity_ratio", "max_torque_ratio", "violated",
+    }
+
+
+def test_bad_search_settings_are_rejected():
+    with pytest.raises(ValueError, match="unknown jump model"):
+        MaxSpeedSearch(POSTURES["elbow_up"], DEFAULT_WALL, jump_model="magic")
+    with pytest.raises(ValueError, match="tolerance"):
+        SpeedBisection(0.02, 1.0, 0.0)

@@ -1,0 +1,251 @@
+"""ImpactAwareController: hard constraints, closed-form solutions, solver agreement, the
+maximum feasible speed, command continuity and the fallback."""
+
+import numpy as np
+import pytest
+import qpsolvers
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from controller.config import ControllerConfig, TaskConfig, build_controller
+from controller.jump import jump_model
+from controller.postures import POSTURES, Surface
+from controller.qp import Command, ImpactAwareController
+from controller.robot import SingularPostureError
+from constraints import jump_model_names
+from tasks import DampingTask, FrameTask, PostureTask
+
+NORMAL = np.array([-1.0, 0.0, 0.0])
+DT = 0.001
+
+
+def surface_ahead(robot, q, gap):
+    tip = robot.contact_point(q)
+    return Surface(tip - gap * NORMAL, NORMAL)
+
+
+def approach_controller(robot, q, speed=2.0, jump="crb", solver="proxqp", restitution=0.0):
+    config = ControllerConfig.approach(
+        surface_ahead(robot, q, 0.05), speed, jump_model=jump, restitution=restitution,
+        solver=solver, always_active=True, posture_weight=0.0,
+    )
+    controller = build_controller(config, robot)
+    return controller
+
+
+def approach_direction(terms):
+    return np.linalg.pinv(terms.J6) @ np.concatenate([-NORMAL, np.zeros(3)])
+
+
+def state_satisfies_the_limits(robot, terms, models, restitution):
+    """The state itself (ddq = 0) keeps every hard limit, the impact ones included."""
+    if np.any(np.abs(terms.dq) > 0.9 * robot.dq_max):
+        return False
+    for name in models:
+        prediction = jump_model(name).predict(terms, NORMAL, terms.J @ terms.dq, restitution)
+        if np.any(np.abs(terms.dq + prediction.dq_jump) > 0.9 * robot.dq_max):
+            return False
+        if np.any(np.abs(terms.J.T @ prediction.impulse) / 0.015 > 0.9 * robot.tau_max):
+            return False
+    return bool(np.all(np.abs(terms.h) < 0.9 * robot.tau_max))
+
+
+def random_feasible_state(robot, rng, models, restitution):
+    """Random posture, random approach velocity, shrunk until the state keeps every limit."""
+    span = robot.q_max - robot.q_min
+    while True:
+        q = robot.q_min + span * rng.uniform(0.15, 0.85, 7)
+        try:
+            terms = robot.terms(q)
+        except SingularPostureError:
+            continue
+        dq = rng.uniform(0.0, 0.3) * approach_direction(terms) + rng.uniform(-0.05, 0.05, 7)
+        for _ in range(20):
+            if state_satisfies_the_limits(robot, robot.terms(q, dq), models, restitution):
+                return q, dq
+            dq = 0.5 * dq
+
+
+def check_hard_constraints(robot, controller, command, q, dq, previous_ddq, models, restitution, tol=1e-6):
+    terms = robot.terms(q, dq)
+    ddq, dq_cmd = command.ddq, command.dq_cmd
+    assert np.all(np.isfinite(ddq)) and np.all(np.isfinite(dq_cmd)) and np.all(np.isfinite(command.q_cmd))
+    assert np.allclose(dq_cmd, dq + ddq * DT, atol=1e-12)
+    assert np.all(np.abs(ddq) <= robot.ddq_max + tol)
+    assert np.all(np.abs(ddq - previous_ddq) <= robot.dddq_max * DT + tol)
+    assert np.all(np.abs(dq_cmd) <= robot.dq_max + tol)
+    assert np.all(command.q_cmd >= robot.q_min - tol) and np.all(command.q_cmd <= robot.q_max + tol)
+    assert np.all(np.abs(terms.M @ ddq + terms.h) <= robot.tau_max + tol)
+    surface = controller.impact.surface
+    for name in models:
+        prediction = jump_model(name).predict(terms, surface.normal, terms.J @ dq_cmd, restitution)
+        assert np.all(np.abs(dq_cmd + prediction.dq_jump) <= robot.dq_max + tol), name
+        assert np.all(np.abs(terms.J.T @ prediction.impulse) / 0.015 <= robot.tau_max + tol), name
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from(["crb", "gm", "classical", "robust"]), st.sampled_from([0.0, 0.5]))
+def test_solution_satisfies_every_hard_constraint(robot, seed, jump, restitution):
+    rng = np.random.default_rng(seed)
+    q, dq = random_feasible_state(robot, rng, jump_model_names(jump), restitution)
+    controller = approach_controller(robot, q, speed=rng.uniform(0.0, 2.0), jump=jump, restitution=restitution)
+    command = controller.step(q, dq)
+    assert command.status == "ok", command.message
+    check_hard_constraints(robot, controller, command, q, dq, np.zeros(7), jump_model_names(jump), restitution)
+    assert np.allclose(command.predicted_post_impact_velocity, command.dq_cmd + command.predicted_jump)
+
+
+def test_unconstrained_qp_is_the_weighted_least_squares_solution(robot):
+    q = POSTURES["elbow_up"].q
+    dq = np.full(7, 0.01)
+    terms = robot.terms(q, dq)
+    tasks = [
+        FrameTask(terms.contact_point + [0.0, 0.001, 0.0], stiffness=1.0, position_weight=3.0, orientation_weight=0.5),
+        PostureTask(q + 0.001, stiffness=1.0, weight=0.1),
+        DampingTask(gain=0.5, weight=1e-3),
+    ]
+    all_limits = build_controller(ControllerConfig(tasks=[TaskConfig("damping")]), robot).constraints
+    controller = ImpactAwareController(robot, tasks, all_limits, DT)
+    command = controller.step(q, dq)
+    assert command.status == "ok" and command.active_constraints == []
+    rows = [t.compute(terms) for t in tasks]
+    sqrt_w = np.sqrt(np.concatenate([r.weight for r in rows]))
+    A = np.vstack([r.A for r in rows]) * sqrt_w[:, None]
+    b = np.concatenate([r.b for r in rows]) * sqrt_w
+    expected = np.linalg.lstsq(A, b, rcond=None)[0]
+    assert np.allclose(command.ddq, expected, atol=1e-6 * (1.0 + np.abs(expected).max()))
+
+
+def available_backends():
+    return ["proxqp", "daqp"] + [f"qpsolvers:{name}" for name in qpsolvers.available_solvers]
+
+
+@pytest.mark.parametrize("posture", sorted(POSTURES))
+def test_solver_backends_agree(robot, posture):
+    """Same QPs, same answers; three cycles, so that the warm-started proxqp must notice that
+    the jerk box moved (its stale multipliers would otherwise pass the residual checks)."""
+    q = POSTURES[posture].q
+    terms = robot.terms(q)
+    dq = 0.12 * approach_direction(terms)  # near the speed limit: the impact rows bind
+    results = {}
+    for solver in available_backends():
+        controller = approach_controller(robot, q, solver=solver)
+        controller.reset(q, dq)
+        commands = [controller.step(q, dq) for _ in range(3)]
+        assert all(c.status == "ok" for c in commands), solver
+        results[solver] = np.array([c.ddq for c in commands])
+    reference = results["daqp"]
+    for solver, ddq in results.items():
+        assert np.allclose(ddq, reference, atol=1e-5), solver
+
+
+def max_feasible_speed_by_bisection(robot, terms, model, restitution=0.0, impact_duration=0.015):
+    """Largest v with dq- = v d satisfying (a) |dq-| <= dq_max, (b) |dq+| <= dq_max and
+    (c) |J^T iota| / delta_t <= tau_max, found by bisection on the predictor itself."""
+
+    def feasible(v):
+        pre = v * approach_direction(terms)
+        prediction = model.predict(terms, NORMAL, terms.J @ pre, restitution)
+        return (
+            np.all(np.abs(pre) <= robot.dq_max)
+            and np.all(np.abs(pre + prediction.dq_jump) <= robot.dq_max)
+            and np.all(np.abs(terms.J.T @ prediction.impulse) / impact_duration <= robot.tau_max)
+        )
+
+    low, high = 0.0, 10.0
+    for _ in range(60):
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if feasible(middle) else (low, middle)
+    return low
+
+
+@pytest.mark.parametrize("posture", sorted(POSTURES))
+@pytest.mark.parametrize("jump", ["crb", "gm"])
+def test_commanded_speed_settles_at_the_maximum_feasible_speed(robot, posture, jump):
+    """Asked for 2 m/s at a posture (kept fixed), the commanded contact speed settles at the
+    posture's maximum feasible speed."""
+    q = POSTURES[posture].q
+    controller = approach_controller(robot, q, speed=2.0, jump=jump)
+    dq = np.zeros(7)
+    for _ in range(800):
+        command = controller.step(q, dq)
+        assert command.status == "ok", command.message
+        dq = command.dq_cmd
+    terms = robot.terms(q)
+    speed = float(-NORMAL @ (terms.J @ command.dq_cmd))
+    expected = max_feasible_speed_by_bisection(robot, terms, jump_model(jump))
+    assert speed == pytest.approx(expected, rel=0.02)
+    assert any(name.endswith(f"[{jump}]") or name == "joint_velocity_limit" for name in command.active_constraints)
+
+
+def test_closed_loop_commands_are_continuous(robot):
+    """Kinematic closed loop towards the wall: every command keeps the acceleration and jerk
+    limits relative to the previous one, across a reference step."""
+    q = POSTURES["elbow_up"].q.copy()
+    config = ControllerConfig.approach(surface_ahead(robot, q, 0.08), speed=0.05)
+    controller = build_controller(config, robot)
+    dq, previous = np.zeros(7), np.zeros(7)
+    for k in range(400):
+        if k == 150:
+            controller.tasks[0].reference_velocity = -1.5 * NORMAL  # step of the reference
+        command = controller.step(q, dq)
+        assert not command.is_fallback, command.message
+        assert np.all(np.abs(command.ddq) <= robot.ddq_max + 1e-6)
+        assert np.all(np.abs(command.ddq - previous) <= robot.dddq_max * DT + 1e-6)
+        previous, q, dq = command.ddq, command.q_cmd, command.dq_cmd
+    assert command.impact_constraints_active
+
+
+def assert_safe_fallback(robot, controller, command, status, previous_ddq=np.zeros(7)):
+    assert isinstance(command, Command)
+    assert command.status == status and command.is_fallback
+    for value in (command.ddq, command.dq_cmd, command.q_cmd, command.predicted_jump):
+        assert np.all(np.isfinite(value))
+    assert np.all(np.abs(command.ddq) <= robot.ddq_max + 1e-9)
+    assert np.all(np.abs(command.ddq - previous_ddq) <= robot.dddq_max * DT + 1e-9)
+    assert np.all(np.abs(command.dq_cmd) <= robot.dq_max)
+    assert np.all(command.q_cmd >= robot.q_min) and np.all(command.q_cmd <= robot.q_max)
+
+
+def test_nan_state_gives_the_fallback(robot):
+    q = POSTURES["elbow_up"].q
+    controller = approach_controller(robot, q)
+    first = controller.step(q, np.zeros(7))
+    command = controller.step(np.full(7, np.nan), np.zeros(7))
+    assert_safe_fallback(robot, controller, command, "fallback_invalid_state", first.ddq)
+    assert controller.fallback_count == 1
+    fresh = approach_controller(robot, q)
+    assert_safe_fallback(robot, fresh, fresh.step(q, [np.nan] * 7), "fallback_invalid_state")
+    assert_safe_fallback(robot, fresh, fresh.step([1.0, 2.0], None), "fallback_invalid_state")
+    assert fresh.fallback_count == 2
+
+
+def test_state_outside_the_limits_gives_the_fallback(robot):
+    q = POSTURES["elbow_up"].q
+    controller = approach_controller(robot, q)
+    outside = q.copy()
+    outside[3] = robot.q_max[3] + 0.05
+    command = controller.step(outside, np.zeros(7))
+    assert_safe_fallback(robot, controller, command, "fallback_invalid_state")
+    assert command.violated_constraints == ["joint_position_limit"]
+    too_fast = np.zeros(7)
+    too_fast[0] = 1.1 * robot.dq_max[0]
+    command = controller.step(q, too_fast)
+    assert_safe_fallback(robot, controller, command, "fallback_invalid_state", controller.memory.ddq)
+    assert command.violated_constraints == ["joint_velocity_limit"]
+    assert command.dq_cmd[0] < too_fast[0]  # braking
+    assert controller.fallback_count == 2
+
+
+def test_infeasible_request_gives_the_fallback_and_names_the_conflict(robot):
+    """Approaching at 0.6 m/s with the impact constraints on: no acceleration of one cycle can
+    bring the impulsive torque within its limit."""
+    q = POSTURES["elbow_up"].q
+    controller = approach_controller(robot, q)
+    dq = 0.6 * approach_direction(robot.terms(q))
+    command = controller.step(q, dq)
+    assert_safe_fallback(robot, controller, command, "fallback_infeasible")
+    assert "impulsive_torque[crb]" in command.violated_constraints
+    assert len(command.violated_constraints) >= 2  # with a limit on ddq: acceleration or torque
+    assert np.linalg.norm(command.dq_cmd) < np.linalg.norm(dq)
+    assert controller.fallback_count == 1

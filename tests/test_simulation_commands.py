@@ -1,0 +1,154 @@
+"""`impactqp simulate`, `campaign` and `max-speed`: JSON contracts, dataset output, video, and
+one-line errors with exit code 2."""
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scenarios.cli import main
+from sim.dataset import validate
+
+
+def run(capsys, *args):
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    out = tmp_path_factory.mktemp("simulate")
+    code = main(["simulate", "--posture", "elbow_left", "--speed", "0.1", "--out", str(out), "--json"])
+    return code, out
+
+
+def test_simulate_json_contract(simulated, capsys):
+    code, out = simulated
+    code, stdout, _ = run(
+        capsys, "simulate", "--posture", "elbow_left", "--speed", "0.1", "--out", str(out), "--json"
+    )
+    assert code == 0
+    report = json.loads(stdout)
+    assert report["contact_speed"] == pytest.approx(0.1, rel=0.02)
+    assert 0.005 < report["impact_duration"] < 0.05
+    assert len(report["impulse"]) == 3 and len(report["dq_jump"]) == 7
+    assert set(report["predicted"]) == {"classical", "classical_normal", "gm", "crb"}
+    assert all(len(v) == 7 for v in report["predicted"].values())
+    assert report["violated"] == (report["max_velocity_ratio"] > 1 or report["max_torque_ratio"] > 1)
+    assert report["jump_model"] == "crb"
+
+
+def test_simulate_writes_a_valid_dataset(simulated):
+    _, out = simulated
+    problems = validate(out)
+    assert all(not p for p in problems.values()), problems
+    assert "elbow_left_vn100_crb" in problems
+
+
+def test_simulate_without_jump_constraints_and_tangential(capsys):
+    code, stdout, _ = run(
+        capsys, "simulate", "--posture", "elbow_up", "--speed", "0.12", "--tangential", "0,0.05,0",
+        "--no-jump-constraint",
+    )
+    assert code == 0
+    assert "jump constraints off" in stdout and "simulated jump" in stdout
+
+
+def test_max_speed_json_contract(capsys):
+    code, stdout, _ = run(
+        capsys, "max-speed", "--posture", "elbow_left", "--tolerance", "0.05", "--jobs", "2", "--json"
+    )
+    assert code == 0
+    report = json.loads(stdout)
+    assert report["posture"] == "elbow_left"
+    assert set(report["predicted_max_speed"]) == {"classical", "gm", "crb"}
+    for binding in report["binding"].values():
+        assert binding["criterion"] in {"velocity_pre", "velocity_post", "impulsive_torque"}
+        assert 1 <= binding["joint"] <= 7
+    assert report["qp_limited_speed"] == pytest.approx(report["predicted_max_speed"]["crb"], rel=0.05)
+    assert report["evaluations"]
+
+
+def test_campaign_json(capsys, tmp_path):
+    code, stdout, _ = run(
+        capsys, "campaign", "--postures", "elbow_up", "--speeds", "0.1", "--tangential", "none",
+        "--out", str(tmp_path), "--json",
+    )
+    assert code == 0
+    table = json.loads(stdout)
+    assert len(table["rows"]) == 1 and table["rows"][0]["posture"] == "elbow_up"
+    assert (tmp_path / "table1.txt").exists()
+
+
+@pytest.fixture(scope="module")
+def plant_files(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("plants")
+    (directory / "unknown.json").write_text(json.dumps({"rotor_inertia": 1.0}))
+    (directory / "shape.json").write_text(json.dumps({"armature": [0.1, 0.2]}))
+    return directory
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["simulate", "--posture", "nowhere", "--speed", "0.1"], "unknown posture"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0"], "> 0"),
+        (["simulate", "--posture", "elbow_up", "--speed", "-0.1"], "> 0"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{dir}/unknown.json"], "unknown plant parameter"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{dir}/shape.json"], "armature needs 7 values"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{dir}/missing.json"], "does not exist"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--wall-point", "1.6,0,0"], "out of reach"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--wall-normal", "0,0,0"], "zero"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--wall-point", "1,2"], "3 values"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--tangential", "0.1,0,0"], "orthogonal"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--jump-model", "magic"], "magic"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--video", "x.mp4"], "GIF"),
+        (["max-speed", "--posture", "nowhere"], "unknown posture"),
+        (["max-speed", "--posture", "elbow_up", "--wall-point", "1.6,0,0"], "out of reach"),
+        (["max-speed", "--posture", "elbow_up", "--restitution", "1.5"], r"\[0, 1\]"),
+        (["max-speed", "--posture", "elbow_up", "--impact-duration", "0"], "> 0"),
+        (["max-speed", "--posture", "elbow_up", "--jobs", "0"], "--jobs"),
+        (["max-speed", "--posture", "elbow_up", "--plant", "{dir}/unknown.json"], "unknown plant parameter"),
+        (["campaign", "--speeds", "0.1,0"], "> 0"),
+        (["campaign", "--postures", "elbow_up,nowhere"], "unknown posture"),
+    ],
+)
+def test_bad_input_is_one_line_with_exit_code_2(capsys, plant_files, args, message):
+    args = [a.replace("{dir}", str(plant_files)) for a in args]
+    code, out, err = run(capsys, *args)
+    assert code == 2
+    assert out == ""
+    assert len(err.strip().splitlines()) == 1, err
+    assert "Traceback" not in err
+    assert re.search(message, err), err
+
+
+@pytest.mark.parametrize("backend", ["egl", "osmesa", "bogus"])
+def test_video_renders_or_says_clearly_why_not(tmp_path, backend):
+    """With a working backend the GIF is written; without one the command exits with code 2 and
+    one clear line (osmesa is not installed on the development machine)."""
+    video = tmp_path / "impact.gif"
+    env = {k: v for k, v in os.environ.items() if k != "PYOPENGL_PLATFORM"} | {"MUJOCO_GL": backend}
+    proc = subprocess.run(
+        [str(Path(sys.executable).parent / "impactqp"), "simulate", "--posture", "elbow_up", "--speed", "0.15",
+         "--video", str(video)],
+        capture_output=True, text=True, check=False, env=env,
+    )
+    assert "Traceback" not in proc.stderr
+    if proc.returncode == 0:
+        from PIL import Image
+
+        with Image.open(video) as image:
+            assert image.n_frames > 10
+            assert np.asarray(image.convert("RGB")).std() > 1.0  # not a blank picture
+    else:
+        assert proc.returncode == 2
+        assert len(proc.stderr.strip().splitlines()) == 1
+        assert "no offscreen OpenGL backend" in proc.stderr and "MUJOCO_GL" in proc.stderr
+        assert not video.exists()

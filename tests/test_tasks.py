@@ -1,0 +1,90 @@
+"""Tasks: each residual encodes its control law (identities, not copied numbers)."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from controller.postures import POSTURES
+from tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask
+from tasks.task import rotation_error
+
+
+@pytest.fixture(scope="module")
+def terms(robot):
+    q = POSTURES["elbow_up"].q
+    dq = np.linspace(-0.3, 0.3, 7)
+    return robot.terms(q, dq)
+
+
+def frame_acceleration(terms, ddq):
+    return terms.J6 @ ddq + terms.dJ6_dq
+
+
+def exact_solution(rows):
+    return np.linalg.lstsq(rows.A, rows.b, rcond=None)[0]
+
+
+def test_rotation_error_is_the_rotation_vector_from_current_to_target():
+    w = np.array([0.1, -0.2, 0.3])
+    R = pin.exp3(np.array([0.4, 0.1, -0.5]))
+    assert np.allclose(rotation_error(pin.exp3(w) @ R, R), w)
+
+
+def test_frame_task_rows_give_the_pd_frame_acceleration(terms):
+    target_p = terms.contact_point + np.array([0.01, -0.02, 0.03])
+    target_R = pin.exp3(np.array([0.05, 0.0, -0.02])) @ terms.contact_rotation
+    task = FrameTask(target_p, target_R, stiffness=50.0, position_weight=2.0, orientation_weight=3.0)
+    rows = task.compute(terms)
+    twist = terms.J6 @ terms.dq
+    expected = np.concatenate([50.0 * (target_p - terms.contact_point), 50.0 * np.array([0.05, 0.0, -0.02])])
+    expected -= task.damping * twist
+    assert task.damping == pytest.approx(2.0 * np.sqrt(50.0))
+    assert np.allclose(frame_acceleration(terms, exact_solution(rows)), expected, atol=1e-9)
+    assert np.allclose(rows.weight, [2, 2, 2, 3, 3, 3])
+
+
+def test_frame_task_holds_the_pose_captured_at_reset(robot):
+    terms = robot.terms(POSTURES["elbow_left"].q)
+    task = FrameTask()
+    task.reset(terms)
+    assert np.allclose(task.compute(terms).b, -terms.dJ6_dq)
+
+
+def test_contact_approach_rows_track_the_reference_velocity_in_the_surface_frame(terms):
+    normal = np.array([-1.0, 0.0, 0.0])
+    task = ContactApproachTask(normal, speed=0.3, tangential_velocity=[0.0, 0.05, 0.0], velocity_gain=10.0)
+    task.reset(terms)
+    assert np.allclose(task.basis @ task.basis.T, np.eye(3))
+    assert np.allclose(task.basis[0], normal)
+    rows = task.compute(terms)
+    accel = frame_acceleration(terms, exact_solution(rows))
+    v = terms.J @ terms.dq
+    assert np.allclose(accel[:3], 10.0 * (np.array([0.3, 0.05, 0.0]) - v), atol=1e-9)
+    assert np.allclose(accel[3:], -task.orientation_damping * (terms.J6[3:] @ terms.dq), atol=1e-9)
+    assert rows.weight[1] == rows.weight[2] and rows.weight[0] != rows.weight[1]
+
+
+def test_contact_approach_rejects_a_tangential_velocity_along_the_normal():
+    with pytest.raises(ValueError):
+        ContactApproachTask([0.0, 0.0, 1.0], 0.1, tangential_velocity=[0.0, 0.1, 0.1])
+    with pytest.raises(ValueError):
+        ContactApproachTask([0.0, 0.0, 1.0], -0.1)
+
+
+def test_posture_task_is_a_joint_pd(terms):
+    target = terms.q + 0.1
+    task = PostureTask(target, stiffness=4.0, weight=0.5)
+    rows = task.compute(terms)
+    assert np.allclose(rows.A, np.eye(7))
+    assert np.allclose(rows.b, 4.0 * 0.1 - 4.0 * terms.dq)
+    captured = PostureTask()
+    captured.reset(terms)
+    assert np.allclose(captured.compute(terms).b, -captured.damping * terms.dq)
+
+
+def test_damping_task_opposes_the_velocity(terms):
+    rows = DampingTask(gain=3.0, weight=1e-3).compute(terms)
+    assert np.allclose(rows.b, -3.0 * terms.dq)
+    assert np.allclose(rows.weight, 1e-3)
+    with pytest.raises(ValueError):
+        DampingTask(weight=0.0)
