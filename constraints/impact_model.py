@@ -111,8 +111,9 @@ class ImpactModel:
             if isinstance(self.model, GeneralizedMomentumJump):
                 jump_matrix, torque_matrix = self._normal_impulse_maps(terms)
             else:
-                GJ = self.model.impulse_map(terms, self.surface.normal, self.restitution) @ terms.J
-                jump_matrix, torque_matrix = self.model.impulse_to_jump(terms) @ GJ, terms.J.T @ GJ
+                maps = self.model.maps(terms, self.surface.normal, self.restitution)
+                GJ = maps.G @ terms.J
+                jump_matrix, torque_matrix = maps.K @ GJ, terms.J.T @ GJ
             self._maps = ImpactMaps(jump_matrix, torque_matrix, self.is_active(terms))
             self._terms = terms
         return self._maps

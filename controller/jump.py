@@ -78,23 +78,28 @@ class JumpPrediction:
     W: np.ndarray | None
 
 
+@dataclass(frozen=True)
+class JumpMaps:
+    """The maps of one predictor at one state: iota = G v- and ddq = K iota (module docstring);
+    W is the predictor's inverse inertia at the contact (None for the classical ones)."""
+
+    G: np.ndarray
+    K: np.ndarray
+    W: np.ndarray | None
+
+
 class JumpModel:
-    """Common interface of the predictors: an impulse map G and an impulse-to-jump map K."""
+    """Common interface of the predictors: ``maps`` gives G, K (and W) of a state, once."""
 
     name: str = ""
 
-    def inverse_inertia(self, terms: ModelTerms) -> np.ndarray | None:
-        return None
-
-    def impulse_map(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> np.ndarray:
-        raise NotImplementedError
-
-    def impulse_to_jump(self, terms: ModelTerms) -> np.ndarray:
+    def maps(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMaps:
         raise NotImplementedError
 
     def jump_matrix(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> np.ndarray:
         """A = K G J (7x7): the jump ddq = A dq- for a pre-impact joint velocity dq-."""
-        return self.impulse_to_jump(terms) @ (self.impulse_map(terms, normal, restitution) @ terms.J)
+        maps = self.maps(terms, normal, restitution)
+        return maps.K @ (maps.G @ terms.J)
 
     def predict(
         self,
@@ -105,12 +110,9 @@ class JumpModel:
         impulse: np.ndarray | None = None,
     ) -> JumpPrediction:
         """Predict the jump for the contact velocity v- (world), or from a measured impulse."""
-        if impulse is None:
-            impulse = self.impulse_map(terms, normal, restitution) @ pre_impact_velocity
-        impulse = np.asarray(impulse, dtype=float)
-        return JumpPrediction(
-            self.name, self.impulse_to_jump(terms) @ impulse, impulse, self.inverse_inertia(terms)
-        )
+        maps = self.maps(terms, normal, restitution)
+        impulse = maps.G @ pre_impact_velocity if impulse is None else np.asarray(impulse, dtype=float)
+        return JumpPrediction(self.name, maps.K @ impulse, impulse, maps.W)
 
 
 class ClassicalJump(JumpModel):
@@ -119,11 +121,9 @@ class ClassicalJump(JumpModel):
 
     name = "classical"
 
-    def impulse_map(self, terms, normal, restitution):
-        return -(1.0 + restitution) * np.linalg.inv(gm_inverse_inertia(terms))
-
-    def impulse_to_jump(self, terms):
-        return joint_space_inverse_inertia_times_Jt(terms)
+    def maps(self, terms, normal, restitution):
+        MinvJt = joint_space_inverse_inertia_times_Jt(terms)
+        return JumpMaps(-(1.0 + restitution) * np.linalg.inv(terms.J @ MinvJt), MinvJt, None)
 
 
 class ClassicalNormalJump(ClassicalJump):
@@ -132,8 +132,9 @@ class ClassicalNormalJump(ClassicalJump):
 
     name = "classical_normal"
 
-    def impulse_map(self, terms, normal, restitution):
-        return np.outer(normal, normal) @ super().impulse_map(terms, normal, restitution)
+    def maps(self, terms, normal, restitution):
+        classical = super().maps(terms, normal, restitution)
+        return JumpMaps(np.outer(normal, normal) @ classical.G, classical.K, None)
 
 
 class GeneralizedMomentumJump(JumpModel):
@@ -142,14 +143,12 @@ class GeneralizedMomentumJump(JumpModel):
 
     name = "gm"
 
-    def inverse_inertia(self, terms):
+    def inverse_inertia(self, terms: ModelTerms) -> np.ndarray:
         return gm_inverse_inertia(terms)
 
-    def impulse_map(self, terms, normal, restitution):
-        return normal_impulse_map(self.inverse_inertia(terms), normal, restitution)
-
-    def impulse_to_jump(self, terms):
-        return terms.J_pinv @ self.inverse_inertia(terms)
+    def maps(self, terms, normal, restitution):
+        W = self.inverse_inertia(terms)
+        return JumpMaps(normal_impulse_map(W, normal, restitution), terms.J_pinv @ W, W)
 
 
 class CompositeRigidBodyJump(GeneralizedMomentumJump):
@@ -158,7 +157,7 @@ class CompositeRigidBodyJump(GeneralizedMomentumJump):
 
     name = "crb"
 
-    def inverse_inertia(self, terms):
+    def inverse_inertia(self, terms: ModelTerms) -> np.ndarray:
         return crb_inverse_inertia(terms)
 
 

@@ -51,10 +51,9 @@ def criterion_slopes(
     """Per-joint ratio to the limit at unit approach speed, for each criterion (a), (b), (c)."""
     normal = np.asarray(normal, float)
     d = approach_direction(terms, normal)
-    G = model.impulse_map(terms, normal, restitution)
-    K = model.impulse_to_jump(terms)
-    impulse = G @ (terms.J @ d)
-    post = d + K @ impulse
+    maps = model.maps(terms, normal, restitution)
+    impulse = maps.G @ (terms.J @ d)
+    post = d + maps.K @ impulse
     return {
         "velocity_pre": np.abs(d) / robot.dq_max,
         "velocity_post": np.abs(post) / robot.dq_max,

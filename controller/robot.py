@@ -15,6 +15,7 @@ override ``payload_mass``).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -144,24 +145,28 @@ class PandaModel:
         self.tau_max = TORQUE_LIMIT.copy()
         self.ddq_max = ACCELERATION_LIMIT.copy()
         self.dddq_max = JERK_LIMIT.copy()
+        self._zero_velocity = np.zeros(NQ)
+        self._zero_velocity.flags.writeable = False
 
     # ------------------------------------------------------------------ validation
     def check_state(self, q, dq=None, *, check_limits: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Return (q, dq) as float arrays, or raise :class:`InvalidStateError`."""
         q = np.asarray(q, dtype=float)
-        if q.shape != (NQ,):
-            raise InvalidStateError(f"q must have {NQ} values, got shape {q.shape}")
-        if not np.all(np.isfinite(q)):
-            raise InvalidStateError("q contains a non-finite value")
-        dq = np.zeros(NQ) if dq is None else np.asarray(dq, dtype=float)
-        if dq.shape != (NQ,):
-            raise InvalidStateError(f"dq must have {NQ} values, got shape {dq.shape}")
-        if not np.all(np.isfinite(dq)):
-            raise InvalidStateError("dq contains a non-finite value")
+        dq = self._zero_velocity if dq is None else np.asarray(dq, dtype=float)
+        if q.shape != (NQ,) or dq.shape != (NQ,):
+            name, shape = ("q", q.shape) if q.shape != (NQ,) else ("dq", dq.shape)
+            raise InvalidStateError(f"{name} must have {NQ} values, got shape {shape}")
+        # One dot product is non-finite when any entry is (NaN or inf); the precise test only
+        # runs then, to name the culprit.
+        if not math.isfinite(q @ q + dq @ dq):
+            for name, values in (("q", q), ("dq", dq)):
+                if not np.all(np.isfinite(values)):
+                    raise InvalidStateError(f"{name} contains a non-finite value")
+            raise InvalidStateError("the state is too large to be a joint state")
         if check_limits:
-            outside = np.flatnonzero((q < self.q_min) | (q > self.q_max))
-            if outside.size:
-                i = outside[0]
+            outside = (q < self.q_min) | (q > self.q_max)
+            if outside.any():
+                i = int(np.flatnonzero(outside)[0])
                 raise InvalidStateError(
                     f"q{i + 1} = {q[i]:.4f} rad is outside the joint limits "
                     f"[{self.q_min[i]:.4f}, {self.q_max[i]:.4f}]"
@@ -189,13 +194,13 @@ class PandaModel:
                 "singular contact Jacobian at this posture (singular values ratio "
                 f"{np.sqrt(max(eigenvalues[0], 0.0) / eigenvalues[2]):.1e})"
             )
-        if check_limits:
+        if check_limits and ((q < self.q_min) | (q > self.q_max)).any():
             self.check_state(q, dq, check_limits=True)
         placement = data.oMf[fid]
         return ModelTerms(
             q=q,
             dq=dq,
-            M=np.triu(data.M) + np.triu(data.M, 1).T,
+            M=data.M.copy(),  # computeAllTerms fills both triangles of M
             h=data.nle.copy(),
             J=J,
             J6=J6,

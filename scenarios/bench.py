@@ -63,6 +63,12 @@ def prediction_rows() -> list[dict]:
     return rows
 
 
+def controller_rows() -> list[dict]:
+    from scenarios.bench_controller import controller_rows as rows
+
+    return rows()
+
+
 def closed_loop_rows() -> list[dict]:
     from scenarios.trial import closed_loop_benchmark_rows
 
@@ -127,6 +133,7 @@ def diagnosis_rows() -> list[dict]:
 
 BENCHMARKS: list[tuple[str, Callable[[], list[dict]]]] = [
     ("predict.", prediction_rows),
+    ("controller.", controller_rows),
     ("sim.closed_loop", closed_loop_rows),
     ("maxspeed.", max_speed_rows),
     ("diagnose.", diagnosis_rows),

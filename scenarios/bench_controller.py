@@ -17,15 +17,11 @@ import numpy as np
 from controller.config import ControllerConfig, build_controller
 from controller.postures import POSTURES, Surface
 from controller.robot import PandaModel
+from scenarios.bench import timing_row
 
 CYCLES = 3000
 RESTART_EVERY = 500  # cycles; the loop restarts at the posture before reaching the wall
 WALL_GAP = 0.10  # m between the tool tip and the wall at the start
-
-
-def _timing_row(name: str, samples_s: np.ndarray) -> dict:
-    samples = np.asarray(samples_s) * 1e6
-    return {"name": name, "unit": "us", "median": float(np.median(samples)), "p99": float(np.percentile(samples, 99))}
 
 
 def _approach_setup(robot: PandaModel, solver: str):
@@ -87,11 +83,11 @@ def available_backends() -> list[str]:
 def controller_rows() -> list[dict]:
     robot = PandaModel()
     controller_cycle_samples(robot, cycles=300)  # warm-up
-    rows = [_timing_row("controller.cycle", controller_cycle_samples(robot))]
-    rows.append(_timing_row("peer.pink.cycle", pink_cycle_samples(robot)))
+    rows = [timing_row("controller.cycle", "us", controller_cycle_samples(robot), 1e6)]
+    rows.append(timing_row("peer.pink.cycle", "us", pink_cycle_samples(robot), 1e6))
     for backend in available_backends():
         name = "controller.solvers." + backend.replace("qpsolvers:", "qpsolvers_")
-        rows.append(_timing_row(name, controller_cycle_samples(robot, backend, cycles=1000)))
+        rows.append(timing_row(name, "us", controller_cycle_samples(robot, backend, cycles=1000), 1e6))
     return rows
 
 
