@@ -48,7 +48,6 @@ class ControlCycle:
     """
 
     dt: float
-    previous_ddq: np.ndarray
     acceleration_lower: np.ndarray
     acceleration_upper: np.ndarray
     horizon: float
@@ -58,7 +57,6 @@ class ControlCycle:
         step = dddq_max * dt
         return cls(
             dt,
-            previous_ddq,
             np.maximum(-ddq_max, previous_ddq - step),
             np.minimum(ddq_max, previous_ddq + step),
             max(dt, float(np.max(ddq_max / dddq_max))),

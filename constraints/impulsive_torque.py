@@ -37,12 +37,11 @@ class ImpulsiveTorqueLimit(Constraint):
         dq_max: np.ndarray,
         impact_duration: float = DEFAULT_IMPACT_DURATION,
     ):
-        if impact_duration <= 0.0:
+        if not (np.isfinite(impact_duration) and impact_duration > 0.0):
             raise ValueError("impact_duration must be > 0")
         self.impact = impact
         self.impulse_limit = np.asarray(tau_max, dtype=float) * impact_duration
         self.row_scale = np.asarray(dq_max, dtype=float) / self.impulse_limit
-        self.impact_duration = float(impact_duration)
         self.name = f"impulsive_torque[{impact.name}]"
 
     def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:

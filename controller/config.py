@@ -8,6 +8,8 @@ The file format is documented in the project README (section "Controller configu
 
 from __future__ import annotations
 
+import math
+
 import tomllib
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -71,6 +73,14 @@ class LimitsConfig:
     braking_fraction: float = 0.5
     position_margin: float = 0.0
 
+    def __post_init__(self):
+        for name in ("velocity_scale", "acceleration_scale", "jerk_scale", "torque_scale", "braking_fraction"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0.0 < value <= 1.0):
+                raise ValueError(f"limits.{name} = {value} must lie in (0, 1]: the datasheet limits are the robot's")
+        if not (math.isfinite(self.position_margin) and self.position_margin >= 0.0):
+            raise ValueError(f"limits.position_margin = {self.position_margin} rad must be >= 0")
+
 
 @dataclass
 class ImpactConfig:
@@ -91,6 +101,16 @@ class ImpactConfig:
     release_speed: float = 0.02
     always_active: bool = False
     prediction_model: str = "crb"
+
+    def __post_init__(self):
+        if not (math.isfinite(self.restitution) and 0.0 <= self.restitution <= 1.0):
+            raise ValueError(f"impact.restitution = {self.restitution} must lie in [0, 1]")
+        if not (math.isfinite(self.impact_duration) and self.impact_duration > 0.0):
+            raise ValueError(f"impact.impact_duration = {self.impact_duration} s must be > 0")
+        for name in ("lookahead_distance", "lookahead_time", "release_speed"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"impact.{name} = {value} must be a finite number >= 0")
 
 
 @dataclass

@@ -88,8 +88,18 @@ class JumpMaps:
     W: np.ndarray | None
 
 
+def unit(normal: np.ndarray) -> np.ndarray:
+    """n / |n| (ValueError for a zero or non-finite normal)."""
+    normal = np.asarray(normal, dtype=float)
+    norm = float(np.linalg.norm(normal))
+    if not (np.isfinite(norm) and norm > 1e-12):
+        raise ValueError(f"the surface normal must be finite and non-zero, got {normal}")
+    return normal / norm
+
+
 class JumpModel:
-    """Common interface of the predictors: ``maps`` gives G, K (and W) of a state, once."""
+    """Common interface of the predictors: ``maps`` gives G, K (and W) of a state, once;
+    ``maps`` takes a unit normal (``predict`` and ``jump_matrix`` normalise it)."""
 
     name: str = ""
 
@@ -98,7 +108,7 @@ class JumpModel:
 
     def jump_matrix(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> np.ndarray:
         """A = K G J (7x7): the jump ddq = A dq- for a pre-impact joint velocity dq-."""
-        maps = self.maps(terms, normal, restitution)
+        maps = self.maps(terms, unit(normal), restitution)
         return maps.K @ (maps.G @ terms.J)
 
     def predict(
@@ -109,8 +119,9 @@ class JumpModel:
         restitution: float = 0.0,
         impulse: np.ndarray | None = None,
     ) -> JumpPrediction:
-        """Predict the jump for the contact velocity v- (world), or from a measured impulse."""
-        maps = self.maps(terms, normal, restitution)
+        """Predict the jump for the contact velocity v- (world), or from a measured impulse.
+        The normal n is normalised here."""
+        maps = self.maps(terms, unit(normal), restitution)
         impulse = maps.G @ pre_impact_velocity if impulse is None else np.asarray(impulse, dtype=float)
         return JumpPrediction(self.name, maps.K @ impulse, impulse, maps.W)
 

@@ -381,14 +381,22 @@ class ImpactAwareController:
             outcome = self.solver.solve(problem)
         except Exception:  # a backend error must not stop the control loop
             outcome = QpOutcome(None, "failed")
-        if outcome.status == "solved" and problem.violation(outcome.x) <= self.feasibility_tolerance:
+        if self._acceptable(outcome):
             return outcome, self.solver.name
-        if self.verifier is self.solver and outcome.status != "solved":
-            return outcome, self.solver.name
+        if self.verifier is self.solver:
+            return (outcome if outcome.status != "solved" else QpOutcome(None, "failed")), self.solver.name
         second = self.verifier.solve(problem)
-        if second.status == "solved" and problem.violation(second.x) > self.feasibility_tolerance:
+        if second.status == "solved" and not self._acceptable(second):
             second = QpOutcome(None, "failed")
         return second, self.verifier.name
+
+    def _acceptable(self, outcome: QpOutcome) -> bool:
+        """A solution is used only when it is finite and satisfies every row and bound."""
+        return (
+            outcome.status == "solved"
+            and bool(np.all(np.isfinite(outcome.x)))
+            and self.problem.violation(outcome.x) <= self.feasibility_tolerance
+        )
 
     def _active_constraints(self, ddq: np.ndarray) -> list[str]:
         """Names of the constraints with at least one row at a bound."""

@@ -36,3 +36,23 @@ def parse_list(text: str, what: str) -> list[float]:
 
 def emit_json(obj) -> None:
     click.echo(json.dumps(obj, indent=2))
+
+
+def load_plant(path: str | None):
+    """The plant of ``--plant FILE`` (JSON overrides of ``sim.plant.PlantParameters``), or
+    None without a file."""
+    from sim.plant import PlantParameterError, PlantParameters
+
+    if path is None:
+        return None
+    try:
+        return PlantParameters.from_json(path)
+    except PlantParameterError as error:
+        raise BadInput(f"--plant: {error}") from None
+
+
+def check_jobs(value: int) -> int:
+    """``--jobs N``: a number of worker processes, >= 1."""
+    if value < 1:
+        raise BadInput(f"--jobs must be >= 1, got {value}")
+    return value

@@ -2,7 +2,7 @@
 
 Trials: every posture x every normal speed (paper: 0.08, 0.10, 0.12, 0.15, 0.18 m/s), plus the
 tangential series on the first posture (paper: v_t = 0.03 .. 0.12 m/s at v_n = 0.12 m/s) along the
-surface's tangent closest to the world y axis, t = (e_y - (e_y.n) n) / |e_y - (e_y.n) n|. Each
+surface tangent t = normalise(n x e_z) of ``sim.generation`` (+y for the default wall). Each
 trial is one ``scenarios.trial`` run with the jump-aware constraints off, so that the tool hits at
 the requested speed, as in the paper. The simulation is deterministic: one trial per setting
 stands for the paper's ten repeats.
@@ -23,8 +23,6 @@ Output directory: the dataset (``sim.dataset``: ``dataset.json`` and one CSV pai
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,27 +36,18 @@ from tqdm import tqdm  # noqa: E402
 from controller.jump import METHODS, average_prediction_error  # noqa: E402
 from controller.postures import POSTURES, Surface  # noqa: E402
 from controller.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET  # noqa: E402
-from sim.atomic import write_text_atomic  # noqa: E402
+from sim.atomic import write_atomic, write_text_atomic  # noqa: E402
+from sim.generation import DEFAULT_SPEEDS, TANGENTIAL_SERIES_NORMAL_SPEED, tangential_direction  # noqa: E402
 from sim.dataset import DatasetHeader, DatasetWriter, Tool, TrialEntry  # noqa: E402
 from sim.plant import PlantParameters  # noqa: E402
 from sim.runner import DEFAULT_CONTROL_PERIOD  # noqa: E402
 
 from .trial import TrialPool, TrialResult, TrialSpec  # noqa: E402
 
-PAPER_SPEEDS = (0.08, 0.10, 0.12, 0.15, 0.18)
+PAPER_SPEEDS = DEFAULT_SPEEDS
 PAPER_TANGENTIAL_SPEEDS = tuple(round(0.03 + 0.01 * i, 2) for i in range(10))
-TANGENTIAL_NORMAL_SPEED = 0.12
+TANGENTIAL_NORMAL_SPEED = TANGENTIAL_SERIES_NORMAL_SPEED
 FIGURE_METHODS = ("classical", "gm", "crb")
-
-
-def tangent_direction(surface: Surface) -> np.ndarray:
-    """The unit tangent of the surface closest to the world y axis."""
-    axis = np.array([0.0, 1.0, 0.0])
-    tangent = axis - (axis @ surface.normal) * surface.normal
-    if np.linalg.norm(tangent) < 1e-6:  # a floor or ceiling facing y: use x instead
-        axis = np.array([1.0, 0.0, 0.0])
-        tangent = axis - (axis @ surface.normal) * surface.normal
-    return tangent / np.linalg.norm(tangent)
 
 
 def dataset_header(surface: Surface) -> DatasetHeader:
@@ -117,7 +106,7 @@ class CampaignPlan:
             for name in self.postures
             for speed in self.speeds
         ]
-        tangent = tangent_direction(surface)
+        tangent = tangential_direction(surface.normal)
         first = self.postures[0]
         specs += [
             TrialSpec(first, POSTURES[first].q, self.tangential_normal_speed, float(v_t) * tangent)
@@ -306,14 +295,8 @@ class CampaignFigures:
 
 
 def save_figure(fig, path: Path) -> Path:
-    """Save a figure as PNG atomically (temporary file in the same directory + os.replace)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".png")
-    os.close(fd)
+    """Save a figure as PNG atomically (``sim.atomic.write_atomic``) and close it."""
     try:
-        fig.savefig(tmp, dpi=100)
-        os.replace(tmp, path)
+        return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
     finally:
         plt.close(fig)
-        Path(tmp).unlink(missing_ok=True)
-    return path

@@ -8,18 +8,7 @@ from pathlib import Path
 
 import click
 
-from scenarios.arguments import BadInput, emit_json, parse_list
-
-
-def load_plant(path: str | None):
-    from sim.plant import PlantParameterError, PlantParameters
-
-    if path is None:
-        return PlantParameters()
-    try:
-        return PlantParameters.from_json(path)
-    except PlantParameterError as error:
-        raise BadInput(str(error)) from None
+from scenarios.arguments import BadInput, check_jobs, emit_json, load_plant, parse_list
 
 
 @click.group()
@@ -73,15 +62,14 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
     from sim.dataset import DatasetError
     from sim.generation import DEFAULT_SPEEDS, generate_dataset, trial_specs
 
-    plant = load_plant(plant_file)
+    plant = load_plant(plant_file)  # None: the nominal plant
     names = [p.strip() for p in postures.split(",")] if postures else list(POSTURES)
     unknown = [p for p in names if p not in POSTURES]
     if unknown:
         raise BadInput(f"unknown posture(s) {', '.join(unknown)}; known: {', '.join(POSTURES)}")
     speed_list = parse_list(speeds, "--speeds") if speeds else None
     tangential_list = parse_list(tangential, "--tangential") if tangential else []
-    if jobs < 1:
-        raise BadInput("--jobs must be >= 1")
+    check_jobs(jobs)
     try:
         specs = trial_specs(
             names, speed_list or list(DEFAULT_SPEEDS), tangential_list, repeats, POSTURES[names[0]].surface.normal, seed
@@ -116,9 +104,10 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, jobs):
 
     if not Path(directory).is_dir():
         raise BadInput(f"{directory} is not a directory")
-    if jobs < 1:
-        raise BadInput("--jobs must be >= 1")
-    nominal = load_plant(plant_file)
+    check_jobs(jobs)
+    from sim.plant import PlantParameters
+
+    nominal = load_plant(plant_file) or PlantParameters()
     # Unstable candidate plants are detected by MuJoCo's warning counters (sim.diagnosis.replay);
     # keep the C library from printing each one.
     mujoco.set_mju_user_warning(lambda message: None)

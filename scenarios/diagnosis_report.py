@@ -4,15 +4,12 @@ Figures: ``jumps.png`` (measured, nominal-simulation and extended-simulation jum
 mean over each posture's trials), ``error_vs_speed.png`` (average error (26) of the nominal and
 extended simulations and of the predictors against the reference speed) and
 ``predictor_errors.png`` (mean absolute error (25) per joint of every predictor and both
-simulations). The report is written to a temporary directory beside OUT and moved into place,
-so an interrupted run never leaves a half-written report.
+simulations). Every file is written atomically (``sim.atomic``); other files in the
+directory are kept.
 """
 
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -21,6 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from sim.atomic import write_atomic, write_text_atomic  # noqa: E402
 from sim.diagnosis import EXPLAINED_GAIN, Diagnosis  # noqa: E402
 
 JOINTS = np.arange(1, 8)
@@ -50,7 +48,7 @@ def plot_jumps(diagnosis: Diagnosis, path: Path) -> None:
     axes[0][0].set_ylabel("mean jump (rad/s)")
     axes[0][0].legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, format="png")
     plt.close(fig)
 
 
@@ -67,7 +65,7 @@ def plot_error_vs_speed(diagnosis: Diagnosis, path: Path) -> None:
     ax.set_ylabel("average error, eq. (26) (rad/s)")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, format="png")
     plt.close(fig)
 
 
@@ -83,7 +81,7 @@ def plot_predictor_errors(diagnosis: Diagnosis, path: Path) -> None:
     ax.set_xticks(JOINTS)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, format="png")
     plt.close(fig)
 
 
@@ -165,24 +163,13 @@ def markdown(diagnosis: Diagnosis) -> str:
 
 
 def write_report(diagnosis: Diagnosis, out: str | Path) -> Path:
-    """Write ``report.md`` and the figures into the directory ``out`` (replaced atomically)."""
+    """Write ``report.md`` and the three figures into the directory ``out`` (created when
+    missing), each file atomically; other files in ``out`` are left alone."""
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        (staging / "report.md").write_text(markdown(diagnosis))
-        plot_jumps(diagnosis, staging / "jumps.png")
-        plot_error_vs_speed(diagnosis, staging / "error_vs_speed.png")
-        plot_predictor_errors(diagnosis, staging / "predictor_errors.png")
-        if out.exists():
-            previous = out.with_name(f".{out.name}.previous")
-            shutil.rmtree(previous, ignore_errors=True)
-            os.replace(out, previous)
-            os.replace(staging, out)
-            shutil.rmtree(previous, ignore_errors=True)
-        else:
-            os.replace(staging, out)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
-    return out / "report.md"
+    for name, plot in (
+        ("jumps.png", plot_jumps),
+        ("error_vs_speed.png", plot_error_vs_speed),
+        ("predictor_errors.png", plot_predictor_errors),
+    ):
+        write_atomic(out / name, lambda tmp, plot=plot: plot(diagnosis, tmp))
+    return write_text_atomic(out / "report.md", markdown(diagnosis))

@@ -18,7 +18,7 @@ import numpy as np
 from constraints import JUMP_MODEL_CHOICES
 from controller.max_speed import DEFAULT_IMPACT_DURATION
 from controller.postures import DEFAULT_WALL, POSTURES, ImpactPosture, Surface
-from scenarios.arguments import BadInput, emit_json, parse_vector
+from scenarios.arguments import BadInput, check_jobs, emit_json, load_plant, parse_vector
 
 ORTHOGONALITY_TOLERANCE = 1e-6
 SIMULATE_START_DISTANCE = 0.05
@@ -40,18 +40,6 @@ def wall(point_text: str | None, normal_text: str | None) -> Surface:
     return Surface(point, normal, DEFAULT_WALL.friction)
 
 
-def plant_parameters(path: str | None):
-    """The plant of --plant FILE (JSON overrides of ``sim.plant.PlantParameters``), or None."""
-    from sim.plant import PlantParameterError, PlantParameters
-
-    if path is None:
-        return None
-    try:
-        return PlantParameters.from_json(path)
-    except PlantParameterError as error:
-        raise BadInput(f"--plant: {error}") from None
-
-
 def check_reachable(posture: ImpactPosture, surface: Surface, distance: float) -> None:
     """Reject a wall the posture cannot face (before any process is started)."""
     from controller.prediction import default_robot
@@ -66,12 +54,6 @@ def check_reachable(posture: ImpactPosture, surface: Surface, distance: float) -
 def positive(value: float, what: str) -> float:
     if not (np.isfinite(value) and value > 0.0):
         raise BadInput(f"{what} must be > 0, got {value}")
-    return value
-
-
-def jobs_option(value: int) -> int:
-    if value < 1:
-        raise BadInput(f"--jobs must be >= 1, got {value}")
     return value
 
 
@@ -114,7 +96,7 @@ def simulate(
     tangential = np.zeros(3) if tangential_text is None else parse_vector(tangential_text, 3, "--tangential")
     if abs(tangential @ surface.normal) > ORTHOGONALITY_TOLERANCE * max(1.0, np.linalg.norm(tangential)):
         raise BadInput(f"--tangential must be orthogonal to the wall normal (t.n = {tangential @ surface.normal:.3g})")
-    plant = plant_parameters(plant_file)
+    plant = load_plant(plant_file)
     if video_file is not None:
         from scenarios.video import offscreen_backend_problem
 
@@ -177,8 +159,8 @@ def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, 
     else:
         tangential = tuple(parse_vector(tangential_text, None, "--tangential").tolist())
     plan = CampaignPlan(postures, speeds, tangential)
-    plant = plant_parameters(plant_file)
-    return Campaign(plan, DEFAULT_WALL, plant, jobs=jobs_option(jobs), progress=progress).run(out_dir)
+    plant = load_plant(plant_file)
+    return Campaign(plan, DEFAULT_WALL, plant, jobs=check_jobs(jobs), progress=progress).run(out_dir)
 
 
 @click.command()
@@ -213,11 +195,11 @@ def run_max_speed(posture_name, jump_model, restitution, impact_duration, plant_
     positive(impact_duration, "--impact-duration")
     positive(tolerance, "--tolerance")
     surface = wall(wall_point, wall_normal)
-    plant = plant_parameters(plant_file)
+    plant = load_plant(plant_file)
     check_reachable(posture, surface, QP_START_DISTANCE)
     search = MaxSpeedSearch(
         posture, surface, plant, jump_model=jump_model, restitution=restitution,
-        impact_duration=impact_duration, tolerance=tolerance, jobs=jobs_option(jobs), progress=progress,
+        impact_duration=impact_duration, tolerance=tolerance, jobs=check_jobs(jobs), progress=progress,
     )
     return search.run()
 

@@ -38,6 +38,7 @@ except Exception as import_error:  # the GL libraries of MUJOCO_GL are missing
 
 import numpy as np  # noqa: E402
 
+from sim.atomic import write_atomic  # noqa: E402
 from sim.impact import ImpactMeasurement  # noqa: E402
 from sim.runner import TrialLog  # noqa: E402
 from sim.scene import Scene  # noqa: E402
@@ -94,16 +95,12 @@ def render_impact_gif(scene: Scene, log: TrialLog, impact: ImpactMeasurement, pa
             renderer.update_scene(data, camera)
             draw_links(renderer.scene, model, data)
             frames.append(Image.fromarray(renderer.render()))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.gif")
-    try:
-        frames[0].save(
-            tmp, save_all=True, append_images=frames[1:], duration=int(1000 / FRAMES_PER_SECOND), loop=0
-        )
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
+    return write_atomic(
+        path,
+        lambda tmp: frames[0].save(
+            tmp, format="GIF", save_all=True, append_images=frames[1:], duration=int(1000 / FRAMES_PER_SECOND), loop=0
+        ),
+    )
 
 
 def draw_links(scene: mujoco.MjvScene, model: mujoco.MjModel, data: mujoco.MjData) -> None:

@@ -23,6 +23,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from controller.postures import DEFAULT_WALL
 from controller.robot import NQ, TOOL_RADIUS
 
 from .plant import PlantParameters
@@ -93,7 +94,7 @@ class FrictionCause(Cause):
     log_scale = (False,)
     lower, upper = (0.0,), (1.5,)
 
-    def __init__(self, surface_friction: float = 0.1123):
+    def __init__(self, surface_friction: float = DEFAULT_WALL.friction):
         self.surface_friction = surface_friction
 
     def nominal_theta(self, nominal):
@@ -143,7 +144,7 @@ class ServoGainCause(Cause):
         return {"servo_gain": float(theta[0])}
 
 
-def default_causes(surface_friction: float = 0.1123) -> list[Cause]:
+def default_causes(surface_friction: float = DEFAULT_WALL.friction) -> list[Cause]:
     return [
         ArmatureCause(),
         PayloadCause(),

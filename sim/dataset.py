@@ -226,7 +226,9 @@ def _parse_header(manifest: dict) -> DatasetHeader:
             raise DatasetError(f"control_period = {period} s must be > 0")
         return DatasetHeader(
             tool=Tool(str(tool["frame"]), tuple(float(x) for x in point)),
-            surface=Surface(surface["point"], surface["normal"], float(surface.get("friction", 0.1123))),
+            surface=Surface(
+                surface["point"], surface["normal"], *([float(surface["friction"])] if "friction" in surface else [])
+            ),
             control_period=period,
             robot=str(manifest["robot"]),
         )
@@ -360,12 +362,14 @@ def _trial_problems(directory: Path, entry: TrialEntry, control_period: float) -
     except DatasetError as error:
         return [str(error)]
     problems = []
+    needed = int(round((WINDOW_BEFORE + WINDOW_AFTER) / control_period)) + 4
+    if len(log) < 2:
+        return [f"{entry.file} holds {len(log)} samples, fewer than the {needed} of the detection window"]
     period = log.control_period
     if abs(period - control_period) > 0.01 * control_period:
         problems.append(
             f"{entry.file} is sampled every {period:.6g} s, the manifest says {control_period:.6g} s"
         )
-    needed = int(round((WINDOW_BEFORE + WINDOW_AFTER) / period)) + 4
     if len(log) < needed:
         problems.append(
             f"{entry.file} holds {len(log)} samples, fewer than the {needed} of the detection window"

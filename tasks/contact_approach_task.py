@@ -6,7 +6,7 @@ import numpy as np
 
 from controller.robot import ModelTerms
 
-from .task import Task, TaskRows, critical_damping, rotation_error
+from .task import Task, TaskRows, critical_damping, finite_array, non_negative, rotation_error
 
 
 class ContactApproachTask(Task):
@@ -43,13 +43,20 @@ class ContactApproachTask(Task):
         orientation_weight: float = 100.0,
         target_rotation=None,
     ):
-        normal = np.asarray(normal, dtype=float)
+        normal = finite_array("normal", normal, (3,))
+        if np.linalg.norm(normal) < 1e-9:
+            raise ValueError("the surface normal must not be zero")
         normal = normal / np.linalg.norm(normal)
-        tangential_velocity = np.asarray(tangential_velocity, dtype=float)
+        tangential_velocity = finite_array("tangential_velocity", tangential_velocity, (3,))
         if abs(normal @ tangential_velocity) > 1e-9:
             raise ValueError("the tangential velocity must be orthogonal to the surface normal")
-        if speed < 0.0:
-            raise ValueError("the approach speed must be >= 0 (it is measured along -n)")
+        speed = non_negative("the approach speed (along -n)", speed)
+        for label, value in (("velocity_gain", velocity_gain), ("orientation_stiffness", orientation_stiffness),
+                             ("normal_weight", normal_weight), ("tangential_weight", tangential_weight),
+                             ("orientation_weight", orientation_weight)):
+            non_negative(label, value)
+        if orientation_damping is not None:
+            non_negative("orientation_damping", orientation_damping)
         # Surface frame: rows of `basis` are n, t1, t2 (world axes).
         t1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
         t1 /= np.linalg.norm(t1)

@@ -6,7 +6,7 @@ import numpy as np
 
 from controller.robot import ModelTerms
 
-from .task import Task, TaskRows
+from .task import Task, TaskRows, non_negative
 
 
 class DampingTask(Task):
@@ -21,9 +21,9 @@ class DampingTask(Task):
     rows = 7
 
     def __init__(self, gain: float = 1.0, weight: float = 1e-4):
-        if weight <= 0.0:
+        if not non_negative("damping weight", weight) > 0.0:
             raise ValueError("the damping task weight must be > 0")
-        self.gain = float(gain)
+        self.gain = non_negative("damping gain", gain)
         self.weight = np.full(7, float(weight))
         self._identity = np.eye(7)
 

@@ -6,7 +6,7 @@ import numpy as np
 
 from controller.robot import ModelTerms
 
-from .task import Task, TaskRows, critical_damping, rotation_error
+from .task import Task, TaskRows, critical_damping, finite_array, non_negative, rotation_error
 
 
 class FrameTask(Task):
@@ -33,11 +33,17 @@ class FrameTask(Task):
         position_weight: float = 1.0,
         orientation_weight: float = 1.0,
     ):
-        self.target_position = None if target_position is None else np.asarray(target_position, float)
-        self.target_rotation = None if target_rotation is None else np.asarray(target_rotation, float)
-        self.stiffness = float(stiffness)
-        self.damping = critical_damping(stiffness) if damping is None else float(damping)
-        self.weight = np.repeat([float(position_weight), float(orientation_weight)], 3)
+        self.target_position = (
+            None if target_position is None else finite_array("target_position", target_position, (3,))
+        )
+        self.target_rotation = (
+            None if target_rotation is None else finite_array("target_rotation", target_rotation, (3, 3))
+        )
+        self.stiffness = non_negative("frame stiffness", stiffness)
+        self.damping = critical_damping(self.stiffness) if damping is None else non_negative("frame damping", damping)
+        self.weight = np.repeat(
+            [non_negative("position_weight", position_weight), non_negative("orientation_weight", orientation_weight)], 3
+        )
         self._configured = (self.target_position is not None, self.target_rotation is not None)
 
     def reset(self, terms: ModelTerms) -> None:

@@ -6,7 +6,7 @@ import numpy as np
 
 from controller.robot import ModelTerms
 
-from .task import Task, TaskRows, critical_damping
+from .task import Task, TaskRows, critical_damping, finite_array, non_negative
 
 
 class PostureTask(Task):
@@ -20,11 +20,11 @@ class PostureTask(Task):
     rows = 7
 
     def __init__(self, target=None, stiffness: float = 10.0, damping: float | None = None, weight: float = 1e-2):
-        self.target = None if target is None else np.asarray(target, dtype=float)
+        self.target = None if target is None else finite_array("posture target", target, (7,))
         self._target_configured = self.target is not None
-        self.stiffness = float(stiffness)
-        self.damping = critical_damping(stiffness) if damping is None else float(damping)
-        self.weight = np.full(7, float(weight))
+        self.stiffness = non_negative("posture stiffness", stiffness)
+        self.damping = critical_damping(self.stiffness) if damping is None else non_negative("posture damping", damping)
+        self.weight = np.full(7, non_negative("posture weight", weight))
         self._identity = np.eye(7)
 
     def reset(self, terms: ModelTerms) -> None:

@@ -48,3 +48,19 @@ def rotation_error(target: np.ndarray, rotation: np.ndarray) -> np.ndarray:
 
 def critical_damping(stiffness: float) -> float:
     return 2.0 * float(np.sqrt(stiffness))
+
+
+def non_negative(name: str, value) -> float:
+    """``value`` as a float, or ValueError when it is not finite and >= 0 (gains, weights)."""
+    value = float(value)
+    if not (np.isfinite(value) and value >= 0.0):
+        raise ValueError(f"{name} = {value} must be a finite number >= 0")
+    return value
+
+
+def finite_array(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a float array of ``shape``, or ValueError (wrong shape or not finite)."""
+    array = np.asarray(value, dtype=float)
+    if array.shape != shape or not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must be {shape} finite values, got {value!r}")
+    return array

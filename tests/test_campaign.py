@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from controller.jump import METHODS
-from controller.postures import DEFAULT_WALL, POSTURES, Surface
+from controller.postures import DEFAULT_WALL, POSTURES
 from controller.robot import PandaModel
 from scenarios.campaign import (
     PAPER_SPEEDS,
@@ -16,7 +16,6 @@ from scenarios.campaign import (
     CampaignPlan,
     Table1,
     TableRow,
-    tangent_direction,
 )
 from sim.dataset import read_dataset, validate
 from sim.impact import measure_impact
@@ -33,14 +32,6 @@ def test_default_plan_is_the_papers():
     np.testing.assert_allclose([s.tangential_velocity[1] for s in tangential], PAPER_TANGENTIAL_SPEEDS)
     assert all(s.jump_model is None for s in specs)  # the tool hits at the requested speed
     assert len({s.trial_id for s in specs}) == len(specs)
-
-
-def test_tangent_is_orthogonal_to_any_wall():
-    np.testing.assert_allclose(tangent_direction(DEFAULT_WALL), [0.0, 1.0, 0.0])
-    for normal in ([0.0, 1.0, 0.0], [-1.0, 0.5, 0.3]):
-        t = tangent_direction(Surface(np.zeros(3), np.array(normal)))
-        assert np.linalg.norm(t) == pytest.approx(1.0)
-        assert abs(t @ np.asarray(normal)) < 1e-12
 
 
 @pytest.mark.parametrize(

@@ -89,7 +89,8 @@ def test_build_controller_follows_the_file(robot, tmp_path):
     velocity = next(c for c in controller.constraints if c.name == "joint_velocity_limit")
     assert np.allclose(velocity.dq_max, 0.9 * robot.dq_max)
     impulsive = next(c for c in controller.constraints if c.name == "impulsive_torque[gm]")
-    assert impulsive.impact_duration == 0.02 and impulsive.impact.restitution == 0.3
+    np.testing.assert_allclose(impulsive.impulse_limit, robot.tau_max * 0.02)  # tau_max delta_t
+    assert impulsive.impact.restitution == 0.3
 
 
 def test_default_approach_configuration(robot):
@@ -119,6 +120,15 @@ def test_no_jump_model_switches_the_impact_constraints_off_but_keeps_the_predict
         {"limits": {"position": True, "jerk": 2}},
         {"tasks": [{"type": "teleport"}]},
         {"tasks": [{"type": "damping", "stiffness": 3.0}]},
+        {"limits": {"acceleration_scale": 3.0}},
+        {"limits": {"velocity_scale": float("nan")}},
+        {"impact": {"lookahead_distance": float("nan")}},
+        {"impact": {"impact_duration": 0.0}},
+        {"impact": {"restitution": 1.5}},
+        {"tasks": [{"type": "damping"}, {"type": "contact_approach", "speed": float("nan")}]},
+        {"tasks": [{"type": "damping"}, {"type": "posture", "stiffness": float("nan")}]},
+        {"tasks": [{"type": "damping", "gain": float("inf")}]},
+        {"tasks": [{"type": "damping"}, {"type": "frame", "position_weight": -1.0}]},
     ],
 )
 def test_bad_configurations_are_rejected_with_a_value_error(robot, data):

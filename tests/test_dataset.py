@@ -124,6 +124,7 @@ def corrupt_csv(path, edit):
          "NaN"),
         (lambda d: corrupt_csv(d / "slow.csv", lambda ls: ls[:5] + [ls[6], ls[5]] + ls[7:]), "time does not increase"),
         (lambda d: corrupt_csv(d / "slow.csv", lambda ls: ls[:20]), "fewer than the"),
+        (lambda d: corrupt_csv(d / "slow.csv", lambda ls: ls[:2]), "holds 1 samples"),
         (lambda d: corrupt_csv(d / "slow.csv", lambda ls: ls[:120]), "no impact found"),
     ],
 )

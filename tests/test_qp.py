@@ -3,16 +3,17 @@ maximum feasible speed, command continuity and the fallback."""
 
 import numpy as np
 import pytest
-import qpsolvers
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from controller.config import ControllerConfig, TaskConfig, build_controller
 from controller.jump import jump_model
+from controller.max_speed import approach_direction
 from controller.postures import POSTURES, Surface
 from controller.qp import Command, ImpactAwareController
 from controller.robot import SingularPostureError
 from constraints import jump_model_names
+from scenarios.bench_controller import available_backends
 from tasks import DampingTask, FrameTask, PostureTask
 
 NORMAL = np.array([-1.0, 0.0, 0.0])
@@ -31,10 +32,6 @@ def approach_controller(robot, q, speed=2.0, jump="crb", solver="proxqp", restit
     )
     controller = build_controller(config, robot)
     return controller
-
-
-def approach_direction(terms):
-    return np.linalg.pinv(terms.J6) @ np.concatenate([-NORMAL, np.zeros(3)])
 
 
 def state_satisfies_the_limits(robot, terms, models, restitution):
@@ -59,7 +56,7 @@ def random_feasible_state(robot, rng, models, restitution):
             terms = robot.terms(q)
         except SingularPostureError:
             continue
-        dq = rng.uniform(0.0, 0.3) * approach_direction(terms) + rng.uniform(-0.05, 0.05, 7)
+        dq = rng.uniform(0.0, 0.3) * approach_direction(terms, NORMAL) + rng.uniform(-0.05, 0.05, 7)
         for _ in range(20):
             if state_satisfies_the_limits(robot, robot.terms(q, dq), models, restitution):
                 return q, dq
@@ -116,17 +113,13 @@ def test_unconstrained_qp_is_the_weighted_least_squares_solution(robot):
     assert np.allclose(command.ddq, expected, atol=1e-6 * (1.0 + np.abs(expected).max()))
 
 
-def available_backends():
-    return ["proxqp", "daqp"] + [f"qpsolvers:{name}" for name in qpsolvers.available_solvers]
-
-
 @pytest.mark.parametrize("posture", sorted(POSTURES))
 def test_solver_backends_agree(robot, posture):
     """Same QPs, same answers; three cycles, so that the warm-started proxqp must notice that
     the jerk box moved (its stale multipliers would otherwise pass the residual checks)."""
     q = POSTURES[posture].q
     terms = robot.terms(q)
-    dq = 0.12 * approach_direction(terms)  # near the speed limit: the impact rows bind
+    dq = 0.12 * approach_direction(terms, NORMAL)  # near the speed limit: the impact rows bind
     results = {}
     for solver in available_backends():
         controller = approach_controller(robot, q, solver=solver)
@@ -144,7 +137,7 @@ def max_feasible_speed_by_bisection(robot, terms, model, restitution=0.0, impact
     (c) |J^T iota| / delta_t <= tau_max, found by bisection on the predictor itself."""
 
     def feasible(v):
-        pre = v * approach_direction(terms)
+        pre = v * approach_direction(terms, NORMAL)
         prediction = model.predict(terms, NORMAL, terms.J @ pre, restitution)
         return (
             np.all(np.abs(pre) <= robot.dq_max)
@@ -242,7 +235,7 @@ def test_infeasible_request_gives_the_fallback_and_names_the_conflict(robot):
     bring the impulsive torque within its limit."""
     q = POSTURES["elbow_up"].q
     controller = approach_controller(robot, q)
-    dq = 0.6 * approach_direction(robot.terms(q))
+    dq = 0.6 * approach_direction(robot.terms(q), NORMAL)
     command = controller.step(q, dq)
     assert_safe_fallback(robot, controller, command, "fallback_infeasible")
     assert "impulsive_torque[crb]" in command.violated_constraints

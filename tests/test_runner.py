@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from controller.config import ControllerConfig, build_controller
 from controller.postures import DEFAULT_WALL, POSTURES, Surface
 from controller.robot import PandaModel
 from sim.impact import measure_impact
@@ -146,8 +147,7 @@ def test_tangential_reference_moves_the_tip_along_the_wall(scene):
 
 def test_runs_the_impact_aware_qp_controller(scene):
     """run_trial drives any object with step(q, dq) -> .dq_cmd, the QP controller included."""
-    config = pytest.importorskip("controller.config")
-    controller = config.build_controller(config.ControllerConfig.approach(speed=0.15), ROBOT)
+    controller = build_controller(ControllerConfig.approach(speed=0.15), ROBOT)
     q0 = approach_start(ROBOT, POSTURES["elbow_up"].q, DEFAULT_WALL, 0.02)
     log = run_trial(scene, controller, q0, np.zeros(7), 0.3)
     impact = measure_impact(log)
