@@ -62,6 +62,22 @@ class ControlCycle:
             max(dt, float(np.max(ddq_max / dddq_max))),
         )
 
+    def recoverable(self, C: np.ndarray, lower: np.ndarray, upper: np.ndarray):
+        """Rows lower <= C ddq <= upper relaxed, row by row, to what this cycle can reach.
+
+        Over the reachable box of ddq, C_i ddq spans [r_i, R_i] with r_i = sum_j
+        min(C_ij lo_j, C_ij hi_j) (R_i with max). A row that the state already violates
+        (e.g. the contact approaches faster than the impact allows) cannot be met in one cycle;
+        it becomes C_i ddq <= max(upper_i, r_i) (and >= min(lower_i, R_i)), i.e. it asks for the
+        largest correction the acceleration and jerk limits allow, instead of making the QP
+        infeasible. Rows that can be met are unchanged.
+        """
+        low = C * self.acceleration_lower
+        high = C * self.acceleration_upper
+        reach_min = np.minimum(low, high).sum(axis=1)
+        reach_max = np.maximum(low, high).sum(axis=1)
+        return np.minimum(lower, reach_max), np.maximum(upper, reach_min)
+
     def clip_to_reachable(self, lower: np.ndarray, upper: np.ndarray):
         """(lower, upper) clipped into the reachable acceleration interval, in place."""
         lo, hi = self.acceleration_lower, self.acceleration_upper

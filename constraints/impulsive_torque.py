@@ -25,7 +25,9 @@ class ImpulsiveTorqueLimit(Constraint):
 
         s_i P_i ddq in s_i [(-tau_max_i delta_t - P_i dq) / h, (tau_max_i delta_t - P_i dq) / h]
 
-    Rows are unbounded while the impact model's activation rule says no impact is coming.
+    Rows are unbounded while the impact model's activation rule says no impact is coming, and
+    relaxed to the largest correction the cycle allows when the state already violates them
+    (``ControlCycle.recoverable``).
     """
 
     rows = 7
@@ -52,5 +54,5 @@ class ImpulsiveTorqueLimit(Constraint):
         scale = self.row_scale / cycle.horizon
         pre = maps.torque_matrix @ terms.dq
         return ConstraintRows(
-            C, (-self.impulse_limit - pre) * scale, (self.impulse_limit - pre) * scale
+            C, *cycle.recoverable(C, (-self.impulse_limit - pre) * scale, (self.impulse_limit - pre) * scale)
         )

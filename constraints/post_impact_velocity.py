@@ -22,7 +22,9 @@ class PostImpactVelocityLimit(Constraint):
 
     so that they stay feasible from one cycle to the next under the jerk limits; since they
     held at the previous cycle (s = 0), they also hold at s = dt, the form above. Rows are
-    unbounded while the impact model's activation rule says no impact is coming.
+    unbounded while the impact model's activation rule says no impact is coming, and relaxed
+    to the largest correction the cycle allows when the state already violates them
+    (``ControlCycle.recoverable``).
     """
 
     rows = 7
@@ -40,4 +42,4 @@ class PostImpactVelocityLimit(Constraint):
             return ConstraintRows(C, -_UNBOUNDED, _UNBOUNDED)
         inv_h = 1.0 / cycle.horizon
         post = C @ terms.dq
-        return ConstraintRows(C, (-self.dq_max - post) * inv_h, (self.dq_max - post) * inv_h)
+        return ConstraintRows(C, *cycle.recoverable(C, (-self.dq_max - post) * inv_h, (self.dq_max - post) * inv_h))

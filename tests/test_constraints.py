@@ -16,6 +16,7 @@ from constraints import (
     VelocityLimit,
 )
 from controller.jump import jump_model
+from controller.max_speed import approach_direction
 from controller.postures import POSTURES, Surface
 from controller.robot import SingularPostureError
 
@@ -133,12 +134,14 @@ def test_impact_maps_match_the_jump_models(robot, name, restitution):
 @given(SEEDS, st.sampled_from(["crb", "gm", "classical"]))
 def test_impact_rows_are_the_post_impact_velocity_and_impulsive_torque_limits(robot, seed, name):
     """The rows bound the post-impact velocity and impulsive torque at dq + ddq h (h the jerk
-    horizon of the cycle)."""
+    horizon of the cycle). The cycle's reachable accelerations are made wide enough that no
+    row needs the recovery relaxation (tested below)."""
     rng = np.random.default_rng(seed)
     terms = random_state(robot, rng, speed=0.2)
     surface = surface_ahead(terms)
     impact = ImpactModel(surface, name, restitution=0.3, always_active=True)
-    c = cycle(robot)
+    c = ControlCycle.after(np.zeros(7), DT, 1e6 * robot.ddq_max, 1e9 * robot.dddq_max)
+    c = ControlCycle(DT, c.acceleration_lower, c.acceleration_upper, cycle(robot).horizon)
     velocity_rows = PostImpactVelocityLimit(impact, robot.dq_max).compute(terms, c)
     torque_rows = ImpulsiveTorqueLimit(impact, robot.tau_max, robot.dq_max, 0.015).compute(terms, c)
     model = jump_model(name)
@@ -152,6 +155,28 @@ def test_impact_rows_are_the_post_impact_velocity_and_impulsive_torque_limits(ro
             assert inside(velocity_rows, ddq) == (post_ratio < 1.0)
         if abs(torque_ratio - 1.0) > 1e-9:
             assert inside(torque_rows, ddq) == (torque_ratio < 1.0)
+
+
+def test_violated_impact_rows_ask_for_the_largest_reachable_correction(robot):
+    """Approaching far faster than the impact allows: each row is relaxed to the extreme that
+    the cycle's reachable accelerations allow, so it stays feasible on its own; rows that can
+    be met are left as they are."""
+    q = POSTURES["elbow_up"].q
+    terms = robot.terms(q, 0.8 * approach_direction(robot.terms(q), np.array([-1.0, 0.0, 0.0])))
+    impact = ImpactModel(surface_ahead(terms), "crb", always_active=True)
+    c = cycle(robot)
+    rows = ImpulsiveTorqueLimit(impact, robot.tau_max, robot.dq_max, 0.015).compute(terms, c)
+    low, high = rows.C * c.acceleration_lower, rows.C * c.acceleration_upper
+    reach_min, reach_max = np.minimum(low, high).sum(axis=1), np.maximum(low, high).sum(axis=1)
+    assert np.all(rows.lower <= reach_max + 1e-9) and np.all(rows.upper >= reach_min - 1e-9)
+    pre = impact.maps(terms).torque_matrix @ terms.dq
+    violated = np.abs(pre) > robot.tau_max * 0.015
+    assert violated.any()
+    relaxed = rows.upper == reach_min
+    assert np.any(relaxed | (rows.lower == reach_max))
+    unchanged = ~violated
+    scale = robot.dq_max / (robot.tau_max * 0.015) / c.horizon
+    np.testing.assert_allclose(rows.upper[unchanged], ((robot.tau_max * 0.015 - pre) * scale)[unchanged])
 
 
 def test_activation_rule(robot):
