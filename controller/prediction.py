@@ -18,6 +18,11 @@ from .robot import PandaModel
 ORTHOGONALITY_TOLERANCE = 1e-6
 
 
+def is_tangential(velocity: np.ndarray, normal: np.ndarray) -> bool:
+    """True when ``velocity`` is orthogonal to the unit ``normal`` (to ORTHOGONALITY_TOLERANCE)."""
+    return abs(velocity @ normal) <= ORTHOGONALITY_TOLERANCE * max(1.0, float(np.linalg.norm(velocity)))
+
+
 @lru_cache(maxsize=1)
 def default_robot() -> PandaModel:
     return PandaModel()
@@ -47,7 +52,7 @@ class ImpactQuery:
         tangential = np.zeros(3) if tangential is None else np.asarray(tangential, dtype=float)
         if tangential.shape != (3,) or not np.all(np.isfinite(tangential)):
             raise ValueError("the tangential velocity must be 3 finite numbers")
-        if abs(tangential @ normal) > ORTHOGONALITY_TOLERANCE * max(1.0, np.linalg.norm(tangential)):
+        if not is_tangential(tangential, normal):
             raise ValueError(
                 f"the tangential velocity must be orthogonal to the normal (t.n = {tangential @ normal:.3g})"
             )

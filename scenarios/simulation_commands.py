@@ -17,10 +17,10 @@ import numpy as np
 
 from constraints import JUMP_MODEL_CHOICES
 from controller.max_speed import DEFAULT_IMPACT_DURATION
+from controller.prediction import is_tangential
 from controller.postures import DEFAULT_WALL, POSTURES, ImpactPosture, Surface
 from scenarios.arguments import BadInput, check_jobs, emit_json, load_plant, parse_vector
 
-ORTHOGONALITY_TOLERANCE = 1e-6
 SIMULATE_START_DISTANCE = 0.05
 
 
@@ -94,7 +94,7 @@ def simulate(
     positive(speed, "--speed")
     surface = wall(wall_point, wall_normal)
     tangential = np.zeros(3) if tangential_text is None else parse_vector(tangential_text, 3, "--tangential")
-    if abs(tangential @ surface.normal) > ORTHOGONALITY_TOLERANCE * max(1.0, np.linalg.norm(tangential)):
+    if not is_tangential(tangential, surface.normal):
         raise BadInput(f"--tangential must be orthogonal to the wall normal (t.n = {tangential @ surface.normal:.3g})")
     plant = load_plant(plant_file)
     if video_file is not None:

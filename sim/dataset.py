@@ -39,6 +39,7 @@ from controller.robot import NQ
 
 from .atomic import write_text_atomic
 from .impact import WINDOW_AFTER, WINDOW_BEFORE, ImpactNotFoundError, measure_impact
+from .json_file import read_json_object
 from .runner import TrialLog
 
 FORMAT = "impactqp-dataset/1"
@@ -196,14 +197,7 @@ def _force_csv(log: TrialLog) -> str:
 
 # ---------------------------------------------------------------------------- reading
 def _load_manifest(path: Path) -> dict:
-    try:
-        manifest = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise DatasetError(f"{path} does not exist: not a dataset directory") from None
-    except json.JSONDecodeError as error:
-        raise DatasetError(f"{path} is not valid JSON: {error}") from None
-    if not isinstance(manifest, dict):
-        raise DatasetError(f"{path} must hold a JSON object")
+    manifest = read_json_object(path, DatasetError, "{path} does not exist: not a dataset directory")
     missing = MANIFEST_KEYS - set(manifest)
     if missing:
         raise DatasetError(f"{path} lacks the key(s) {', '.join(sorted(missing))}")

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import write_text_atomic
+from .json_file import read_json_object
 
 NJ = 7
 
@@ -132,12 +133,7 @@ class PlantParameters:
     @classmethod
     def from_json(cls, path: str | Path) -> "PlantParameters":
         path = Path(path)
-        try:
-            values = json.loads(path.read_text())
-        except FileNotFoundError:
-            raise PlantParameterError(f"plant parameter file {path} does not exist") from None
-        except json.JSONDecodeError as error:
-            raise PlantParameterError(f"{path} is not valid JSON: {error}") from None
+        values = read_json_object(path, PlantParameterError, "plant parameter file {path} does not exist")
         try:
             return cls.from_dict(values)
         except PlantParameterError as error:
