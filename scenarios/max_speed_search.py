@@ -6,7 +6,8 @@ criteria (a) pre-impact velocity, (b) post-impact velocity, (c) impulsive torque
 predicted_max_speed
     ``controller.max_speed.closed_form_max_speed`` at the contact posture q_impact for the
     classical, gm and crb models (dq- = J6+ [-v n; 0], dq+ = dq- + the model's jump, torque from
-    the model's own impulse over delta_t), with what binds (criterion and joint).
+    the model's own impulse over delta_t), with what binds (criterion and joint); ``robust`` is
+    the smallest of the three (its constraints satisfy all models).
 qp_limited_speed
     The contact speed the QP controller reaches by itself when asked for 2 m/s with the
     jump-aware constraints of ``jump_model`` on, starting at rest 5 cm from the surface; with
@@ -118,12 +119,15 @@ class MaxSpeedReport:
 def predicted_max_speeds(
     robot: PandaModel, q: np.ndarray, normal: np.ndarray, restitution: float, impact_duration: float
 ) -> dict[str, MaxSpeed]:
-    """The closed-form maximum speed of classical, gm and crb at q (controller.max_speed)."""
+    """The closed-form maximum speed of classical, gm and crb at q (controller.max_speed), and
+    of ``robust``, the constraints' setting that satisfies all three: the smallest of them."""
     terms = robot.terms(q)
-    return {
+    maxima = {
         name: closed_form_max_speed(robot, terms, normal, JUMP_MODELS[name], restitution, impact_duration)
         for name in PREDICTED_MODELS
     }
+    maxima["robust"] = min(maxima.values(), key=lambda m: m.speed)
+    return maxima
 
 
 def approach_velocity_limit(robot: PandaModel, q: np.ndarray, normal: np.ndarray) -> float:

@@ -67,7 +67,8 @@ def test_max_speed_json_contract(capsys):
     assert code == 0
     report = json.loads(stdout)
     assert report["posture"] == "elbow_left"
-    assert set(report["predicted_max_speed"]) == {"classical", "gm", "crb"}
+    assert set(report["predicted_max_speed"]) == {"classical", "gm", "crb", "robust"}
+    assert report["predicted_max_speed"]["robust"] == min(report["predicted_max_speed"][m] for m in ("classical", "gm", "crb"))
     for binding in report["binding"].values():
         assert binding["criterion"] in {"velocity_pre", "velocity_post", "impulsive_torque"}
         assert 1 <= binding["joint"] <= 7
