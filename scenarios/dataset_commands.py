@@ -60,7 +60,7 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
 
     from controller.postures import POSTURES
     from sim.dataset import DatasetError
-    from sim.generation import DEFAULT_SPEEDS, generate_dataset, trial_specs
+    from sim.generation import generate_dataset
 
     plant = load_plant(plant_file)  # None: the nominal plant
     names = [p.strip() for p in postures.split(",")] if postures else list(POSTURES)
@@ -70,18 +70,23 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
     speed_list = parse_list(speeds, "--speeds") if speeds else None
     tangential_list = parse_list(tangential, "--tangential") if tangential else []
     check_jobs(jobs)
+    bars = []  # the progress bar appears with the first finished trial, after validation
+
+    def progress(done: int, total: int) -> None:
+        if not bars:
+            bars.append(tqdm(total=total, disable=as_json, desc="trials", unit="trial"))
+        bars[0].update(done - bars[0].n)
+
     try:
-        specs = trial_specs(
-            names, speed_list or list(DEFAULT_SPEEDS), tangential_list, repeats, POSTURES[names[0]].surface.normal, seed
-        )
-        bar = tqdm(total=len(specs), disable=as_json, desc="trials", unit="trial")
         entries = generate_dataset(
             out, plant=plant, postures=names, speeds=speed_list, tangential=tangential_list, repeats=repeats,
-            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed, jobs=jobs, progress=bar.update,
+            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed, jobs=jobs, progress=progress,
         )
-        bar.close()
     except (DatasetError, ValueError) as error:
         raise BadInput(str(error)) from None
+    finally:
+        for bar in bars:
+            bar.close()
     if as_json:
         emit_json({"out": str(out), "trials": [e.to_dict() for e in entries]})
     else:

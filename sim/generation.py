@@ -129,7 +129,7 @@ def generate_dataset(
 
     The surface defaults to the one the first posture faces (all named postures face the
     default wall).
-    ``progress`` is an optional callable invoked once per finished trial.
+    ``progress(done, total)`` is an optional callable invoked once per finished trial.
     """
     plant = plant or PlantParameters()
     postures = list(POSTURES) if postures is None else postures
@@ -161,12 +161,12 @@ def generate_dataset(
                 writer.add_trial(entry, log)
                 entries.append(entry)
                 if progress:
-                    progress()
+                    progress(len(entries), len(specs))
     else:
         for a in args:
             entry, log = simulate_trial(*a)
             writer.add_trial(entry, log)
             entries.append(entry)
             if progress:
-                progress()
+                progress(len(entries), len(specs))
     return entries
