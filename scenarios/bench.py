@@ -88,7 +88,7 @@ def diagnosis_rows() -> list[dict]:
 
     import mujoco
 
-    from sim.causes import CAUSE_NAMES, fitted_values, realistic_hidden_effect
+    from sim.causes import CAUSE_NAMES, cause_named, realistic_hidden_effect
     from sim.diagnosis import diagnose
     from sim.generation import generate_dataset
     from sim.plant import PlantParameters
@@ -114,9 +114,9 @@ def diagnosis_rows() -> list[dict]:
             )
             result = diagnose(data, jobs=2).summary()
             named.append(result["cause"] == cause)
-            truth = fitted_values(cause, overrides)
+            truth = cause_named(cause).theta_of(overrides)
             if result["cause"] == cause:
-                errors.append(float(np.max(np.abs(fitted_values(cause, result["parameters"]) / truth - 1))))
+                errors.append(float(np.max(np.abs(cause_named(cause).theta_of(result["parameters"]) / truth - 1))))
             else:
                 errors.append(float("inf"))
     rows.append({"name": "diagnose.accuracy.named", "unit": "share", "median": float(np.mean(named)), "p99": float(np.mean(named))})

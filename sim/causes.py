@@ -41,10 +41,19 @@ class Cause:
     lower: tuple[float, ...] = ()
     upper: tuple[float, ...] = ()
 
+    # A realistic range of theta and the tangential speeds (m/s, at v_n = 0.12) a dataset needs
+    # for the cause to show, for tests and benchmarks that hide it in simulated data.
+    realistic: tuple[tuple[float, ...], tuple[float, ...]] = ((), ())
+    tangential_speeds_needed: tuple[float, ...] = ()
+
     def nominal_theta(self, nominal: PlantParameters) -> np.ndarray:
         raise NotImplementedError
 
     def overrides(self, theta: np.ndarray) -> dict:
+        raise NotImplementedError
+
+    def theta_of(self, overrides: dict) -> np.ndarray:
+        """The fitted numbers theta read back from plant overrides (inverse of ``overrides``)."""
         raise NotImplementedError
 
     # transformed space -------------------------------------------------------------
@@ -67,6 +76,7 @@ class ArmatureCause(Cause):
     labels = ("armature (kg m^2)",)
     log_scale = (True,)
     lower, upper = (1e-3,), (5.0,)
+    realistic = ((0.2,), (1.5,))
 
     def nominal_theta(self, nominal):
         return np.array([max(float(np.mean(nominal.armature)), self.lower[0])])
@@ -74,12 +84,16 @@ class ArmatureCause(Cause):
     def overrides(self, theta):
         return {"armature": [float(theta[0])] * NQ}
 
+    def theta_of(self, overrides):
+        return np.array([float(np.mean(overrides["armature"]))])
+
 
 class PayloadCause(Cause):
     name = "payload"
     labels = ("payload mass (kg)",)
     log_scale = (False,)
     lower, upper = (0.0,), (5.0,)
+    realistic = ((0.3,), (2.0,))
 
     def nominal_theta(self, nominal):
         return np.array([nominal.payload_mass])
@@ -87,12 +101,18 @@ class PayloadCause(Cause):
     def overrides(self, theta):
         return {"payload_mass": float(theta[0]), "payload_com": list(PAYLOAD_COM)}
 
+    def theta_of(self, overrides):
+        return np.array([float(overrides["payload_mass"])])
+
 
 class FrictionCause(Cause):
     name = "friction"
     labels = ("friction coefficient",)
     log_scale = (False,)
     lower, upper = (0.0,), (1.5,)
+    realistic = ((0.3,), (0.8,))
+    # friction only shows in impacts that keep sliding: tangential speeds of several mu v_n
+    tangential_speeds_needed = (0.3, 0.6)
 
     def __init__(self, surface_friction: float = DEFAULT_WALL.friction):
         self.surface_friction = surface_friction
@@ -103,12 +123,16 @@ class FrictionCause(Cause):
     def overrides(self, theta):
         return {"friction": float(theta[0])}
 
+    def theta_of(self, overrides):
+        return np.array([float(overrides["friction"])])
+
 
 class ContactCause(Cause):
     name = "contact"
     labels = ("solref time constant (s)", "solref damping ratio")
     log_scale = (True, True)
     lower, upper = (1e-3, 0.05), (0.05, 5.0)
+    realistic = ((0.004, 0.3), (0.012, 0.8))
 
     def nominal_theta(self, nominal):
         return np.array(nominal.contact_solref, dtype=float)
@@ -116,18 +140,25 @@ class ContactCause(Cause):
     def overrides(self, theta):
         return {"contact_solref": [float(theta[0]), float(theta[1])]}
 
+    def theta_of(self, overrides):
+        return np.array(overrides["contact_solref"], dtype=float)
+
 
 class JointDampingCause(Cause):
     name = "joint_damping"
     labels = ("joint damping (N m s/rad)",)
     log_scale = (True,)
     lower, upper = (1e-2,), (200.0,)
+    realistic = ((1.0,), (4.0,))
 
     def nominal_theta(self, nominal):
         return np.array([max(float(np.mean(nominal.joint_damping)), self.lower[0])])
 
     def overrides(self, theta):
         return {"joint_damping": [float(theta[0])] * NQ}
+
+    def theta_of(self, overrides):
+        return np.array([float(np.mean(overrides["joint_damping"]))])
 
 
 class ServoGainCause(Cause):
@@ -136,12 +167,16 @@ class ServoGainCause(Cause):
     log_scale = (True,)
     # Above about 300 rad/s the 1 kHz zero-order-hold servo loses its stability margin.
     lower, upper = (1.0,), (300.0,)
+    realistic = ((60.0,), (150.0,))
 
     def nominal_theta(self, nominal):
         return np.array([nominal.servo_gain])
 
     def overrides(self, theta):
         return {"servo_gain": float(theta[0])}
+
+    def theta_of(self, overrides):
+        return np.array([float(overrides["servo_gain"])])
 
 
 def default_causes(surface_friction: float = DEFAULT_WALL.friction) -> list[Cause]:
@@ -158,36 +193,16 @@ def default_causes(surface_friction: float = DEFAULT_WALL.friction) -> list[Caus
 CAUSE_NAMES = tuple(cause.name for cause in default_causes())
 
 
-def realistic_hidden_effect(cause: str, rng: np.random.Generator) -> tuple[dict, list[float]]:
-    """A random realistic value of one cause, for tests and benchmarks that hide an effect.
-
-    Returns the plant overrides and the tangential speeds (m/s, at v_n = 0.12) the dataset needs
-    to make the effect observable: friction only shows in impacts that keep sliding, which needs
-    tangential speeds of several times mu times the normal speed.
-    """
-    if cause == "armature":
-        return {"armature": [rng.uniform(0.2, 1.5)] * NQ}, []
-    if cause == "payload":
-        return {"payload_mass": rng.uniform(0.3, 2.0), "payload_com": [0.0, 0.0, 0.0]}, []
-    if cause == "friction":
-        return {"friction": rng.uniform(0.3, 0.8)}, [0.3, 0.6]
-    if cause == "contact":
-        return {"contact_solref": [rng.uniform(0.004, 0.012), rng.uniform(0.3, 0.8)]}, []
-    if cause == "joint_damping":
-        return {"joint_damping": [rng.uniform(1.0, 4.0)] * NQ}, []
-    if cause == "servo_gain":
-        return {"servo_gain": rng.uniform(60.0, 150.0)}, []
-    raise ValueError(f"unknown cause {cause!r}; known: {', '.join(CAUSE_NAMES)}")
+def cause_named(name: str) -> Cause:
+    for cause in default_causes():
+        if cause.name == name:
+            return cause
+    raise ValueError(f"unknown cause {name!r}; known: {', '.join(CAUSE_NAMES)}")
 
 
-def fitted_values(cause: str, overrides: dict) -> np.ndarray:
-    """The numbers a cause fits, read from plant overrides (for parameter-recovery errors)."""
-    keys = {
-        "armature": ("armature",),
-        "payload": ("payload_mass",),
-        "friction": ("friction",),
-        "contact": ("contact_solref",),
-        "joint_damping": ("joint_damping",),
-        "servo_gain": ("servo_gain",),
-    }[cause]
-    return np.concatenate([np.atleast_1d(np.asarray(overrides[k], dtype=float)) for k in keys])
+def realistic_hidden_effect(name: str, rng: np.random.Generator) -> tuple[dict, list[float]]:
+    """A random realistic value of a cause (uniform in its ``realistic`` range): the plant
+    overrides and the tangential speeds the dataset needs to make the effect observable."""
+    cause = cause_named(name)
+    theta = rng.uniform(*cause.realistic)
+    return cause.overrides(theta), list(cause.tangential_speeds_needed)

@@ -37,7 +37,7 @@ Pipeline (``diagnose``):
 from __future__ import annotations
 
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -91,7 +91,7 @@ class MeasuredTrial:
     torque: np.ndarray
     q_pre: np.ndarray
     dq_pre: np.ndarray
-    torque_window: tuple[int, int] = field(default=(0, 0))
+    torque_window: tuple[int, int]  # samples of the replay whose torque is averaged
 
 
 @dataclass(frozen=True)
@@ -100,11 +100,10 @@ class ReplayFeatures:
     impulse: np.ndarray | None
     duration: float | None
     torque: np.ndarray
-    ok: bool
 
 
-def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict], Surface, float]:
-    """Valid trials ready for replay, the skipped ones with reasons, the surface, the period."""
+def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict], Surface]:
+    """Valid trials ready for replay, the skipped ones with their reasons, and the surface."""
     directory = Path(directory)
     problems = validate(directory)
     bad = {k for k, v in problems.items() if k != "dataset" and v}
@@ -153,7 +152,7 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
                 torque_window=(first - i0, last - i0),
             )
         )
-    return trials, skipped, dataset.header.surface, period
+    return trials, skipped, dataset.header.surface
 
 
 def replay(scene, trial: MeasuredTrial) -> ReplayFeatures:
@@ -175,12 +174,12 @@ def replay(scene, trial: MeasuredTrial) -> ReplayFeatures:
     first, last = trial.torque_window
     torque = log.tau[first:last].mean(axis=0)
     if scene.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0:
-        return ReplayFeatures(np.zeros(7), np.zeros(3), 0.0, torque, False)
+        return ReplayFeatures(np.zeros(7), np.zeros(3), 0.0, torque)
     try:
         impact = measure_impact(log)
     except ImpactNotFoundError:
-        return ReplayFeatures(np.zeros(7), np.zeros(3), 0.0, torque, False)
-    return ReplayFeatures(impact.dq_jump, impact.impulse, impact.duration, torque, True)
+        return ReplayFeatures(np.zeros(7), np.zeros(3), 0.0, torque)
+    return ReplayFeatures(impact.dq_jump, impact.impulse, impact.duration, torque)
 
 
 def replay_all(surface: Surface, plant: PlantParameters, trials: list[MeasuredTrial]) -> list[ReplayFeatures]:
@@ -379,7 +378,7 @@ def diagnose(
     jobs: int = 1,
 ) -> Diagnosis:
     nominal = nominal or PlantParameters()
-    trials, skipped, surface, _ = load_trials(directory)
+    trials, skipped, surface = load_trials(directory)
     if len(trials) < 2:
         raise ValueError(
             f"{directory}: only {len(trials)} usable trial(s); the diagnosis needs at least 2 "

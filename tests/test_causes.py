@@ -23,6 +23,14 @@ def test_cause_round_trips_and_builds_valid_plants(cause):
         assert changed <= set(overrides)
 
 
+@pytest.mark.parametrize("cause", default_causes(), ids=lambda c: c.name)
+def test_overrides_read_back_and_realistic_ranges_lie_inside_the_bounds(cause):
+    lo, hi = np.array(cause.realistic[0]), np.array(cause.realistic[1])
+    assert np.all(np.array(cause.lower) <= lo) and np.all(lo < hi) and np.all(hi <= np.array(cause.upper))
+    theta = 0.5 * (lo + hi)
+    np.testing.assert_allclose(cause.theta_of(cause.overrides(theta)), theta)
+
+
 def test_nominal_value_is_inside_the_bounds():
     nominal = PlantParameters()
     for cause in default_causes():

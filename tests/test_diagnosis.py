@@ -7,7 +7,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from sim.causes import CAUSE_NAMES, PayloadCause, fitted_values, realistic_hidden_effect
+from sim.causes import CAUSE_NAMES, PayloadCause, cause_named, realistic_hidden_effect
 from sim.dataset import read_dataset, validate
 from sim.diagnosis import EXPLAINED_GAIN, diagnose, load_trials, replay_all
 from sim.generation import generate_dataset
@@ -30,7 +30,8 @@ def test_hidden_effect_is_found(tmp_path, cause):
     result = diagnose(tmp_path).summary()
     assert result["cause"] == cause, result["candidates"]
     assert result["explained"]
-    np.testing.assert_allclose(fitted_values(cause, result["parameters"]), fitted_values(cause, overrides), rtol=0.2)
+    fitted = cause_named(cause)
+    np.testing.assert_allclose(fitted.theta_of(result["parameters"]), fitted.theta_of(overrides), rtol=0.2)
     assert result["gain"] >= 0.5
     assert result["gain"] == pytest.approx(1 - result["extended_error"] / result["baseline_error"])
     assert result["trials"] == len(POSTURES) * (len(SPEEDS) + len(tangential)) and result["skipped"] == []
@@ -48,7 +49,7 @@ def test_replay_in_the_generating_plant_reproduces_the_jumps(tmp_path):
     """A noise-free trial replayed in the plant that made it gives back its own jump."""
     plant = PlantParameters(armature=[0.3] * 7)
     generate_dataset(tmp_path, plant=plant, postures=["elbow_left"], speeds=[0.15], noise_dq=0.0, noise_tau=0.0)
-    trials, skipped, surface, _ = load_trials(tmp_path)
+    trials, skipped, surface = load_trials(tmp_path)
     assert skipped == []
     (features,) = replay_all(surface, plant, trials)
     np.testing.assert_allclose(features.jump, trials[0].jump, atol=1e-6)
