@@ -33,6 +33,19 @@ def series(diagnosis: Diagnosis) -> dict[str, np.ndarray]:
     }
 
 
+def absolute_errors(diagnosis: Diagnosis) -> dict[str, np.ndarray]:
+    """|e| of eq. (25) (trials x 7) of both simulations and every predictor."""
+    data = series(diagnosis)
+    measured = data.pop("measured")
+    return {name: np.abs(jumps - measured) for name, jumps in data.items()}
+
+
+def save(fig, path: Path) -> None:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110, format="png")
+    plt.close(fig)
+
+
 def plot_jumps(diagnosis: Diagnosis, path: Path) -> None:
     postures = sorted({t.posture or "unknown" for t in diagnosis.trials})
     data = series(diagnosis)
@@ -47,59 +60,49 @@ def plot_jumps(diagnosis: Diagnosis, path: Path) -> None:
         ax.axhline(0.0, color="k", lw=0.5)
     axes[0][0].set_ylabel("mean jump (rad/s)")
     axes[0][0].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, format="png")
-    plt.close(fig)
+    save(fig, path)
 
 
 def plot_error_vs_speed(diagnosis: Diagnosis, path: Path) -> None:
-    data = series(diagnosis)
-    measured = data.pop("measured")
     speeds = np.array([t.reference_speed for t in diagnosis.trials])
+    levels = np.unique(speeds)
     fig, ax = plt.subplots(figsize=(6, 4))
-    for name, jumps in data.items():
-        errors = np.mean(np.abs(jumps - measured), axis=1)
-        levels = np.unique(speeds)
-        ax.plot(levels, [errors[speeds == v].mean() for v in levels], "o-", label=name)
+    for name, errors in absolute_errors(diagnosis).items():
+        average = errors.mean(axis=1)
+        ax.plot(levels, [average[speeds == v].mean() for v in levels], "o-", label=name)
     ax.set_xlabel("reference normal speed (m/s)")
     ax.set_ylabel("average error, eq. (26) (rad/s)")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, format="png")
-    plt.close(fig)
+    save(fig, path)
 
 
 def plot_predictor_errors(diagnosis: Diagnosis, path: Path) -> None:
-    data = series(diagnosis)
-    measured = data.pop("measured")
+    errors = absolute_errors(diagnosis)
     fig, ax = plt.subplots(figsize=(7, 4))
-    width = 0.8 / len(data)
-    for k, (name, jumps) in enumerate(data.items()):
-        ax.bar(JOINTS + (k - len(data) / 2 + 0.5) * width, np.mean(np.abs(jumps - measured), axis=0), width, label=name)
+    width = 0.8 / len(errors)
+    for k, (name, error) in enumerate(errors.items()):
+        ax.bar(JOINTS + (k - len(errors) / 2 + 0.5) * width, error.mean(axis=0), width, label=name)
     ax.set_xlabel("joint")
     ax.set_ylabel("mean |error|, eq. (25) (rad/s)")
     ax.set_xticks(JOINTS)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, format="png")
-    plt.close(fig)
+    save(fig, path)
 
 
 def table_by_condition(diagnosis: Diagnosis) -> list[str]:
     """The paper's Table I on the user's data: average error (26) per posture and condition."""
-    data = series(diagnosis)
-    measured = data.pop("measured")
+    errors = absolute_errors(diagnosis)
     conditions = sorted(
         {(t.posture or "unknown", t.reference_speed, t.tangential_speed) for t in diagnosis.trials}
     )
-    names = list(data)
+    names = list(errors)
     lines = ["| posture | v_n (m/s) | v_t (m/s) | " + " | ".join(names) + " |", "|" + "---|" * (3 + len(names))]
     for posture, vn, vt in conditions:
         rows = [
             i for i, t in enumerate(diagnosis.trials)
             if (t.posture or "unknown", t.reference_speed, t.tangential_speed) == (posture, vn, vt)
         ]
-        cells = [f"{np.mean(np.abs(data[n][rows] - measured[rows])):.4f}" for n in names]
+        cells = [f"{errors[n][rows].mean():.4f}" for n in names]
         lines.append(f"| {posture} | {vn:.3f} | {vt:.3f} | " + " | ".join(cells) + " |")
     return lines
 
