@@ -42,7 +42,7 @@ QP an irreducible conflicting set, found by a deletion filter with daqp) and
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import daqp
 import numpy as np
@@ -371,8 +371,12 @@ class ImpactAwareController:
             _, box_lower[k], box_upper[k] = constraint.compute(terms, cycle)
         np.max(box_lower, axis=0, out=problem.lb)
         np.min(box_upper, axis=0, out=problem.ub)
+        # General rows see the joint-space box of this cycle (all box constraints intersected)
+        # as the reachable accelerations, so that a row the state violates is relaxed to what
+        # the box really allows (ControlCycle.recoverable).
+        row_cycle = replace(cycle, acceleration_lower=problem.lb, acceleration_upper=problem.ub)
         for constraint, rows in zip(self.row_constraints, self._row_slices):
-            problem.C[rows], problem.l[rows], problem.u[rows] = constraint.compute(terms, cycle)
+            problem.C[rows], problem.l[rows], problem.u[rows] = constraint.compute(terms, row_cycle)
 
     def _solve(self) -> tuple[QpOutcome, str]:
         """Solve with the chosen solver; confirm any failure or inaccurate answer with daqp."""
