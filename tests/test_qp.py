@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from controller.config import ControllerConfig, TaskConfig, build_controller
 from controller.jump import jump_model
-from controller.max_speed import approach_direction
+from controller.max_speed import approach_direction, closed_form_max_speed
 from controller.postures import POSTURES, Surface
 from controller.qp import Command, ImpactAwareController
 from controller.robot import SingularPostureError
@@ -169,6 +169,35 @@ def test_commanded_speed_settles_at_the_maximum_feasible_speed(robot, posture, j
     expected = max_feasible_speed_by_bisection(robot, terms, jump_model(jump))
     assert speed == pytest.approx(expected, rel=0.02)
     assert any(name.endswith(f"[{jump}]") or name == "joint_velocity_limit" for name in command.active_constraints)
+
+
+@pytest.mark.parametrize("posture", ["elbow_up", "elbow_left"])
+def test_fast_approach_from_afar_stays_within_the_impact_limits(robot, posture):
+    """Asked for 2 m/s from 30 cm away, the controller speeds up while the wall is far and slows
+    down to the impact-feasible speed as it enters the activation zone: every command keeps the
+    limits, and the contact speed is at most the crb maximum at the contact posture."""
+    from sim.runner import approach_start
+
+    wall = POSTURES[posture].surface
+    q = approach_start(robot, POSTURES[posture].q, wall, 0.3)
+    controller = build_controller(ControllerConfig.approach(wall, speed=2.0), robot)
+    dq, previous, top_speed = np.zeros(7), np.zeros(7), 0.0
+    for _ in range(3000):
+        command = controller.step(q, dq)
+        assert np.all(np.isfinite(command.dq_cmd)) and np.all(np.abs(command.dq_cmd) <= robot.dq_max)
+        assert np.all(np.abs(command.ddq - previous) <= robot.dddq_max * DT + 1e-6)
+        previous, q, dq = command.ddq, command.q_cmd, command.dq_cmd
+        terms = robot.terms(q, dq)
+        top_speed = max(top_speed, float(-wall.normal @ (terms.J @ dq)))
+        if wall.signed_distance(terms.contact_point) < 0.002:
+            break
+    else:
+        pytest.fail("the tool never reached the wall")
+    contact_speed = float(-wall.normal @ (terms.J @ dq))
+    assert top_speed > 1.5 * contact_speed  # it went faster while the wall was far
+    limit = closed_form_max_speed(robot, terms, wall.normal, jump_model("crb"))
+    assert contact_speed <= 1.02 * limit.speed
+    assert controller.fallback_count <= 10
 
 
 def test_closed_loop_commands_are_continuous(robot):
