@@ -4,14 +4,16 @@ Three answers to "how fast may the tool hit the surface at this posture?" (desig
 criteria (a) pre-impact velocity, (b) post-impact velocity, (c) impulsive torque):
 
 predicted_max_speed
-    ``controller.max_speed.closed_form_max_speed`` at the contact posture q_impact for the
+    ``controller.max_speed.closed_form_max_speed`` at the contact posture q_impact (the joint
+    posture at the impact of the QP-limited run: the named posture moved by its run-up) for the
     classical, gm and crb models (dq- = J6+ [-v n; 0], dq+ = dq- + the model's jump, torque from
     the model's own impulse over delta_t), with what binds (criterion and joint); ``robust`` is
     the smallest of the three (its constraints satisfy all models).
 qp_limited_speed
     The contact speed the QP controller reaches by itself when asked for 2 m/s with the
-    jump-aware constraints of ``jump_model`` on, starting at rest 5 cm from the surface; with
-    the velocity and impulsive-torque ratios the simulation observed in that run.
+    jump-aware constraints of ``jump_model`` on, starting at rest 5 cm from the surface (farther
+    when the predicted maximum needs a longer run-up, ``qp_start_distance``); with the velocity
+    and impulsive-torque ratios the simulation observed in that run.
 simulated_max_speed
     The highest reference speed whose simulated impact stays feasible with the jump-aware
     constraints off (observed criteria of ``scenarios.trial``: max |dq|/dq_max over the 50 ms
@@ -48,6 +50,17 @@ from .trial import TrialPool, TrialResult, TrialSpec
 PREDICTED_MODELS = ("classical", "gm", "crb")
 QP_REQUEST_SPEED = 2.0
 QP_START_DISTANCE = 0.05
+# The QP-limited run starts at rest far enough to reach the predicted maximum: the contact point
+# of the Panda gains about 4 m/s^2 under the joint acceleration and jerk limits (measured on the
+# named postures), and the run-up gets 50 % more than v^2 / (2 a).
+RUN_UP_ACCELERATION = 4.0
+RUN_UP_MARGIN = 1.5
+
+
+def qp_start_distance(predicted_speed: float) -> float:
+    """Start distance of the QP-limited run: QP_START_DISTANCE, or the run-up the predicted
+    maximum speed needs when that is longer."""
+    return max(QP_START_DISTANCE, RUN_UP_MARGIN * predicted_speed**2 / (2.0 * RUN_UP_ACCELERATION))
 LOWEST_SPEED = 0.02
 DEFAULT_TOLERANCE = 0.005
 # the top of the first bracket, just below v_a: a start state exactly at a joint velocity limit
@@ -206,11 +219,14 @@ class MaxSpeedSearch:
 
     def run(self) -> MaxSpeedReport:
         q, normal = self.posture.q, self.surface.normal
+        # at the named posture: only to size the QP run's run-up
         predicted = predicted_max_speeds(self.robot, q, normal, self.restitution, self.impact_duration)
         highest = APPROACH_LIMIT_FRACTION * approach_velocity_limit(self.robot, q, normal)
         bisection = SpeedBisection(LOWEST_SPEED, highest, self.tolerance)
+        target = min(predicted[name].speed for name in jump_model_names(self.jump_model))
         qp_spec = self.spec(
-            QP_REQUEST_SPEED, jump_model=self.jump_model, start_at_rest=True, start_distance=QP_START_DISTANCE
+            QP_REQUEST_SPEED, jump_model=self.jump_model, start_at_rest=True,
+            start_distance=qp_start_distance(target),
         )
         # upper bound of the number of trials, for the progress bar
         width = bisection.hi - bisection.lo
@@ -237,9 +253,11 @@ class MaxSpeedSearch:
                 simulated = bisection.lo
             bar.total = bar.n
             bar.refresh()
+        q_impact = qp_limited.impact.q_pre.copy()
+        predicted = predicted_max_speeds(self.robot, q_impact, normal, self.restitution, self.impact_duration)
         return MaxSpeedReport(
             posture=self.posture.name,
-            q_impact=q.copy(),
+            q_impact=q_impact,
             normal=normal.copy(),
             jump_model=self.jump_model,
             predicted=predicted,
