@@ -82,7 +82,7 @@ def render_impact_gif(scene: Scene, log: TrialLog, impact: ImpactMeasurement, pa
     samples = np.arange(first, last, max(step, 1.0)).astype(int)
 
     camera = mujoco.MjvCamera()
-    camera.lookat[:] = tool_centre(scene, log.q[impact.pre_index])
+    camera.lookat[:] = scene.tool_centre(log.q[impact.pre_index])
     camera.distance = 1.5
     camera.azimuth = 90.0 + float(np.degrees(np.arctan2(scene.surface.normal[1], scene.surface.normal[0])))
     camera.elevation = -15.0
@@ -119,11 +119,3 @@ def draw_links(scene: mujoco.MjvScene, model: mujoco.MjModel, data: mujoco.MjDat
             data.xpos[model.body_parentid[body]], data.xpos[body],
         )
         scene.ngeom += 1
-
-
-def tool_centre(scene: Scene, q: np.ndarray) -> np.ndarray:
-    """World position of the tool centre at the joint positions q."""
-    data = mujoco.MjData(scene.model)
-    data.qpos[:] = q
-    mujoco.mj_kinematics(scene.model, data)
-    return data.geom_xpos[scene.tool_geom].copy()

@@ -126,8 +126,15 @@ class Scene:
         mujoco.mj_fullM(self.model, self.data, M)
         return M
 
-    def tool_centre(self) -> np.ndarray:
-        return self.data.geom_xpos[self.tool_geom].copy()
+    def tool_centre(self, q: np.ndarray | None = None) -> np.ndarray:
+        """World position of the tool sphere's centre: in the current state, or at the joint
+        positions q (computed on scratch data, the simulation state is left alone)."""
+        if q is None:
+            return self.data.geom_xpos[self.tool_geom].copy()
+        data = mujoco.MjData(self.model)
+        data.qpos[:] = q
+        mujoco.mj_kinematics(self.model, data)
+        return data.geom_xpos[self.tool_geom].copy()
 
 
 def build_scene(

@@ -38,6 +38,9 @@ def test_tool_sphere_centre_is_the_pinocchio_tool_centre(q):
     hand = ROBOT.contact_frame(q)
     centre = hand.translation - TOOL_RADIUS * hand.rotation[:, 2]
     np.testing.assert_allclose(SCENE.tool_centre(), centre, atol=1e-9)
+    np.testing.assert_allclose(SCENE.tool_centre(q + 0.1), ROBOT.contact_frame(q + 0.1).translation
+                               - TOOL_RADIUS * ROBOT.contact_frame(q + 0.1).rotation[:, 2], atol=1e-9)
+    np.testing.assert_allclose(SCENE.tool_centre(), centre, atol=1e-9)  # the state is untouched
     # the hand frame is TOOL_CENTRE_OFFSET behind the centre, on the same axis
     pin.framesForwardKinematics(ROBOT.model, ROBOT.data, q)
     np.testing.assert_allclose(
