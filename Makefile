@@ -15,6 +15,7 @@ demo: $(BIN)/impactqp
 	$(BIN)/impactqp demo
 
 test: $(BIN)/impactqp
+	$(BIN)/lint-imports
 	$(BIN)/python -m pytest -n 2 tests
 
 bench: $(BIN)/impactqp

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from controller.robot import ModelTerms
+from impactqp.controller.model.robot import ModelTerms
 
 from .constraint import Constraint, ConstraintRows, ControlCycle
 

@@ -18,7 +18,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from controller.robot import ModelTerms
+from impactqp.controller.model.robot import ModelTerms
 
 
 class ConstraintRows(NamedTuple):

@@ -28,9 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controller.jump import GeneralizedMomentumJump, JumpModel, jump_model
-from controller.postures import Surface
-from controller.robot import ModelTerms
+from impactqp.controller.model.jump import GeneralizedMomentumJump, JumpModel, jump_model
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot import ModelTerms
 
 JUMP_MODEL_CHOICES = {
     "crb": ("crb",),

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from controller.max_speed import DEFAULT_IMPACT_DURATION
-from controller.robot import ModelTerms
+from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
+from impactqp.controller.model.robot import ModelTerms
 
 from .constraint import Constraint, ConstraintRows, ControlCycle
 from .impact_model import ImpactModel

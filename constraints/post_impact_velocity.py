@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from controller.robot import ModelTerms
+from impactqp.controller.model.robot import ModelTerms
 
 from .constraint import Constraint, ConstraintRows, ControlCycle
 from .impact_model import ImpactModel

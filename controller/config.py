@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from constraints import (
+from impactqp.constraints import (
     AccelerationLimit,
     ImpactModel,
     ImpulsiveTorqueLimit,
@@ -26,12 +26,12 @@ from constraints import (
     VelocityLimit,
     jump_model_names,
 )
-from tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask
+from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask
 
-from .max_speed import DEFAULT_IMPACT_DURATION
-from .postures import DEFAULT_WALL, Surface
+from .model.max_speed import DEFAULT_IMPACT_DURATION
+from .model.postures import DEFAULT_WALL, Surface
 from .qp import ImpactAwareController
-from .robot import PandaModel
+from .model.robot import PandaModel
 
 TASK_TYPES = {
     "frame": FrameTask,

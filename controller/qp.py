@@ -48,10 +48,10 @@ import daqp
 import numpy as np
 import proxsuite
 
-from constraints import AccelerationLimit, Constraint, ControlCycle, ImpactModel
-from tasks import Task
+from impactqp.constraints import AccelerationLimit, Constraint, ControlCycle, ImpactModel
+from impactqp.tasks import Task
 
-from .robot import NQ, InvalidStateError, ModelTerms, PandaModel, SingularPostureError
+from .model.robot import NQ, InvalidStateError, ModelTerms, PandaModel, SingularPostureError
 
 STATUS_OK = "ok"
 STATUS_FALLBACK_INFEASIBLE = "fallback_infeasible"

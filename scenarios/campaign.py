@@ -33,14 +33,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from controller.jump import METHODS, average_prediction_error  # noqa: E402
-from controller.postures import POSTURES, Surface  # noqa: E402
-from controller.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET  # noqa: E402
-from sim.atomic import write_atomic, write_text_atomic  # noqa: E402
-from sim.generation import DEFAULT_SPEEDS, TANGENTIAL_SERIES_NORMAL_SPEED, tangential_direction  # noqa: E402
-from sim.dataset import DatasetHeader, DatasetWriter, Tool, TrialEntry  # noqa: E402
-from sim.plant import PlantParameters  # noqa: E402
-from sim.runner import DEFAULT_CONTROL_PERIOD  # noqa: E402
+from impactqp.controller.model.jump import METHODS, average_prediction_error  # noqa: E402
+from impactqp.controller.model.postures import POSTURES, Surface  # noqa: E402
+from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET  # noqa: E402
+from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
+from impactqp.sim.generation import DEFAULT_SPEEDS, TANGENTIAL_SERIES_NORMAL_SPEED, tangential_direction  # noqa: E402
+from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, Tool, TrialEntry  # noqa: E402
+from impactqp.sim.plant import PlantParameters  # noqa: E402
+from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD  # noqa: E402
 
 from .trial import TrialPool, TrialResult, TrialSpec  # noqa: E402
 

@@ -18,8 +18,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from sim.atomic import write_atomic, write_text_atomic  # noqa: E402
-from sim.diagnosis import EXPLAINED_GAIN, Diagnosis  # noqa: E402
+from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
+from impactqp.sim.diagnosis import EXPLAINED_GAIN, Diagnosis  # noqa: E402
 
 JOINTS = np.arange(1, 8)
 

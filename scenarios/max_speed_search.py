@@ -33,17 +33,17 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
-from controller.jump import JUMP_MODELS
-from controller.max_speed import (
+from impactqp.controller.model.jump import JUMP_MODELS
+from impactqp.controller.model.max_speed import (
     DEFAULT_IMPACT_DURATION,
     MaxSpeed,
     approach_direction,
     closed_form_max_speed,
 )
-from controller.postures import ImpactPosture, Surface
-from controller.robot import PandaModel
-from constraints import jump_model_names
-from sim.plant import PlantParameters
+from impactqp.controller.model.postures import ImpactPosture, Surface
+from impactqp.controller.model.robot import PandaModel
+from impactqp.constraints import jump_model_names
+from impactqp.sim.plant import PlantParameters
 
 from .trial import TrialPool, TrialResult, TrialSpec
 
@@ -269,9 +269,9 @@ class MaxSpeedSearch:
 
 def max_speed_benchmark_rows(repeats: int = 3) -> list[dict]:
     """``maxspeed.one_posture``: wall seconds of the whole search on elbow_up with 2 jobs."""
-    from controller.postures import DEFAULT_WALL, POSTURES
+    from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
 
-    from scenarios.bench import time_calls, timing_row
+    from impactqp.scenarios.bench import time_calls, timing_row
 
     search = MaxSpeedSearch(POSTURES["elbow_up"], DEFAULT_WALL, jobs=2)
     return [timing_row("maxspeed.one_posture", "s", time_calls(search.run, repeats), 1.0)]

@@ -49,17 +49,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controller.config import ControllerConfig, build_controller
-from controller.jump import JUMP_MODELS, METHODS
-from controller.max_speed import DEFAULT_IMPACT_DURATION, closed_form_max_speed
-from controller.postures import Surface
-from controller.qp import Command
-from controller.robot import NQ, PandaModel
-from constraints import jump_model_names
-from sim.impact import ImpactMeasurement, measure_impact
-from sim.plant import PlantParameters
-from sim.runner import CartesianApproachCommand, TrialLog, approach_start, run_trial
-from sim.scene import Scene, build_scene
+from impactqp.controller.config import ControllerConfig, build_controller
+from impactqp.controller.model.jump import JUMP_MODELS, METHODS
+from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION, closed_form_max_speed
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.qp import Command
+from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.constraints import jump_model_names
+from impactqp.controller.measured.impact import ImpactMeasurement, measure_impact
+from impactqp.sim.plant import PlantParameters
+from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.sim.runner import CartesianApproachCommand, approach_start, run_trial
+from impactqp.sim.scene import Scene, build_scene
 
 OBSERVATION_WINDOW = 0.05
 FEEDBACKS = ("commanded", "measured")
@@ -324,9 +325,9 @@ class TrialPool:
 def closed_loop_benchmark_rows(repeats: int = 5) -> list[dict]:
     """``sim.closed_loop_rtf``: simulated seconds per wall-clock second of a trial with the QP
     controller in the loop (elbow_up, 0.15 m/s, crb constraints on, moving start)."""
-    from controller.postures import DEFAULT_WALL, POSTURES
+    from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
 
-    from scenarios.bench import rate_row
+    from impactqp.scenarios.bench import rate_row
 
     runner = TrialRunner.build(DEFAULT_WALL)
     spec = TrialSpec("elbow_up", POSTURES["elbow_up"].q, 0.15, jump_model="crb")

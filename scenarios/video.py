@@ -38,10 +38,10 @@ except Exception as import_error:  # the GL libraries of MUJOCO_GL are missing
 
 import numpy as np  # noqa: E402
 
-from sim.atomic import write_atomic  # noqa: E402
-from sim.impact import ImpactMeasurement  # noqa: E402
-from sim.runner import TrialLog  # noqa: E402
-from sim.scene import Scene  # noqa: E402
+from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
+from impactqp.controller.measured.impact import ImpactMeasurement  # noqa: E402
+from impactqp.controller.measured.trial_log import TrialLog  # noqa: E402
+from impactqp.sim.scene import Scene  # noqa: E402
 
 FRAME_SIZE = (360, 480)  # height, width
 SPAN = 0.06

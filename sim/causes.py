@@ -23,8 +23,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from controller.postures import DEFAULT_WALL
-from controller.robot import NQ, TOOL_RADIUS
+from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.controller.model.robot import NQ, TOOL_RADIUS
 
 from .plant import PlantParameters
 

@@ -44,13 +44,13 @@ import mujoco
 import numpy as np
 from scipy.optimize import minimize
 
-from controller.jump import JUMP_MODELS, METHODS, average_prediction_error
-from controller.postures import Surface
-from controller.robot import PandaModel
+from impactqp.controller.model.jump import JUMP_MODELS, METHODS, average_prediction_error
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot import PandaModel
 
 from .causes import Cause, default_causes
-from .dataset import read_dataset, validate
-from .impact import ImpactNotFoundError, measure_impact
+from impactqp.controller.measured.dataset import read_dataset, validate
+from impactqp.controller.measured.impact import ImpactNotFoundError, measure_impact
 from .plant import PlantParameters
 from .runner import CommandReplay, run_trial, servo_reference_from_commands
 from .scene import build_scene

@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from controller.postures import POSTURES, Surface
-from controller.robot import TOOL_TIP_OFFSET, PandaModel
+from impactqp.controller.model.postures import POSTURES, Surface
+from impactqp.controller.model.robot import TOOL_TIP_OFFSET, PandaModel
 
-from .dataset import DatasetHeader, DatasetWriter, Tool, TrialEntry
+from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, Tool, TrialEntry
 from .plant import PlantParameters
 from .runner import run_approach_trial
 from .scene import build_scene

@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import write_text_atomic
-from .json_file import read_json_object
+from impactqp.controller.measured.atomic import write_text_atomic
+from impactqp.controller.measured.json_file import read_json_object
 
 NJ = 7
 

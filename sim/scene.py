@@ -44,8 +44,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from controller.postures import DEFAULT_WALL, Surface
-from controller.robot import (
+from impactqp.controller.model.postures import DEFAULT_WALL, Surface
+from impactqp.controller.model.robot import (
     FINGER_JOINTS,
     NQ,
     TOOL_CENTRE_OFFSET,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from controller.robot import ModelTerms
+from impactqp.controller.model.robot import ModelTerms
 
 from .task import Task, TaskRows, critical_damping, finite_array, non_negative
 

@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
-from controller.robot import ModelTerms
+from impactqp.controller.model.robot import ModelTerms
 
 
 class TaskRows(NamedTuple):

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from hypothesis import strategies as st
 
-from controller.robot import PandaModel
+from impactqp.controller.model.robot import PandaModel
 
 
 @pytest.fixture(scope="session")

@@ -7,8 +7,8 @@ from conftest import unit_vectors
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from controller.batch import BatchKinematics, predict_batch
-from controller.jump import JUMP_MODELS, METHODS
+from impactqp.controller.model.batch import BatchKinematics, predict_batch
+from impactqp.controller.model.jump import JUMP_MODELS, METHODS
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,7 @@
 
 import json
 
-from scenarios.cli import main
+from impactqp.scenarios.cli import main
 
 
 def test_bench_prediction_rows(capsys):

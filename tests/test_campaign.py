@@ -6,10 +6,10 @@ import json
 import numpy as np
 import pytest
 
-from controller.jump import METHODS
-from controller.postures import DEFAULT_WALL, POSTURES
-from controller.robot import PandaModel
-from scenarios.campaign import (
+from impactqp.controller.model.jump import METHODS
+from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.controller.model.robot import PandaModel
+from impactqp.scenarios.campaign import (
     PAPER_SPEEDS,
     PAPER_TANGENTIAL_SPEEDS,
     Campaign,
@@ -17,8 +17,8 @@ from scenarios.campaign import (
     Table1,
     TableRow,
 )
-from sim.dataset import read_dataset, validate
-from sim.impact import measure_impact
+from impactqp.controller.measured.dataset import read_dataset, validate
+from impactqp.controller.measured.impact import measure_impact
 
 
 def test_default_plan_is_the_papers():
@@ -79,7 +79,7 @@ def test_dataset_is_valid_and_complete(campaign_dir):
 
 def test_table1_is_eq26_against_the_jumps_in_the_dataset(campaign_dir):
     """Recompute every entry of Table I from the written dataset alone."""
-    from controller.jump import JUMP_MODELS
+    from impactqp.controller.model.jump import JUMP_MODELS
 
     robot = PandaModel()
     table = json.loads((campaign_dir / "table1.json").read_text())

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from sim.causes import CAUSE_NAMES, default_causes
-from sim.plant import PlantParameters
+from impactqp.sim.causes import CAUSE_NAMES, default_causes
+from impactqp.sim.plant import PlantParameters
 
 
 @pytest.mark.parametrize("cause", default_causes(), ids=lambda c: c.name)

@@ -7,8 +7,8 @@ import sys
 import numpy as np
 import pytest
 
-from controller.postures import POSTURES
-from scenarios.cli import main
+from impactqp.controller.model.postures import POSTURES
+from impactqp.scenarios.cli import main
 
 
 def run(capsys, *args):
@@ -91,7 +91,7 @@ def test_bad_input_is_one_line_with_exit_code_2(capsys, args, message):
 def test_console_script_exit_code():
     """The installed entry point returns 2 and prints no traceback."""
     proc = subprocess.run(
-        [sys.executable, "-m", "scenarios.cli", "predict", "--posture", "x", "--normal", "1,0,0", "--speed", "1"],
+        [sys.executable, "-m", "impactqp", "predict", "--posture", "x", "--normal", "1,0,0", "--speed", "1"],
         capture_output=True, text=True, check=False,
     )
     assert proc.returncode == 2

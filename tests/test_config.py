@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from controller.config import ControllerConfig, TaskConfig, build_controller
-from controller.postures import DEFAULT_WALL, POSTURES, Surface
-from controller.qp import ImpactAwareController
-from tasks import ContactApproachTask, DampingTask, PostureTask
+from impactqp.controller.config import ControllerConfig, TaskConfig, build_controller
+from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
+from impactqp.controller.qp import ImpactAwareController
+from impactqp.tasks import ContactApproachTask, DampingTask, PostureTask
 
 TOML = """
 dt = 0.002

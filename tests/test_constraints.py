@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from constraints import (
+from impactqp.constraints import (
     AccelerationLimit,
     ControlCycle,
     ImpactModel,
@@ -15,10 +15,10 @@ from constraints import (
     TorqueLimit,
     VelocityLimit,
 )
-from controller.jump import jump_model
-from controller.max_speed import approach_direction
-from controller.postures import POSTURES, Surface
-from controller.robot import SingularPostureError
+from impactqp.controller.model.jump import jump_model
+from impactqp.controller.model.max_speed import approach_direction
+from impactqp.controller.model.postures import POSTURES, Surface
+from impactqp.controller.model.robot import SingularPostureError
 
 DT = 0.001
 SEEDS = st.integers(0, 2**32 - 1)

@@ -7,9 +7,9 @@ import re
 import numpy as np
 import pytest
 
-from controller.postures import DEFAULT_WALL, POSTURES, Surface
-from controller.robot import TOOL_TIP_OFFSET, PandaModel
-from sim.dataset import (
+from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
+from impactqp.controller.model.robot import TOOL_TIP_OFFSET, PandaModel
+from impactqp.controller.measured.dataset import (
     FORMAT,
     DatasetError,
     DatasetHeader,
@@ -19,10 +19,10 @@ from sim.dataset import (
     read_dataset,
     validate,
 )
-from sim.impact import measure_impact
-from sim.plant import PlantParameters
-from sim.runner import run_approach_trial
-from sim.scene import build_scene
+from impactqp.controller.measured.impact import measure_impact
+from impactqp.sim.plant import PlantParameters
+from impactqp.sim.runner import run_approach_trial
+from impactqp.sim.scene import build_scene
 
 ROBOT = PandaModel()
 HEADER = DatasetHeader(Tool("panda_hand", (0.0, 0.0, TOOL_TIP_OFFSET)), DEFAULT_WALL, 1e-3)

@@ -5,8 +5,8 @@ import shutil
 
 import pytest
 
-from scenarios.cli import main
-from sim.plant import PlantParameters
+from impactqp.scenarios.cli import main
+from impactqp.sim.plant import PlantParameters
 
 
 def run(capsys, *args):

@@ -7,11 +7,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from sim.causes import CAUSE_NAMES, PayloadCause, cause_named, realistic_hidden_effect
-from sim.dataset import read_dataset, validate
-from sim.diagnosis import EXPLAINED_GAIN, diagnose, load_trials, replay_all
-from sim.generation import generate_dataset
-from sim.plant import PlantParameters
+from impactqp.sim.causes import CAUSE_NAMES, PayloadCause, cause_named, realistic_hidden_effect
+from impactqp.controller.measured.dataset import read_dataset, validate
+from impactqp.sim.diagnosis import EXPLAINED_GAIN, diagnose, load_trials, replay_all
+from impactqp.sim.generation import generate_dataset
+from impactqp.sim.plant import PlantParameters
 
 POSTURES = ["elbow_up", "elbow_left", "elbow_right"]
 SPEEDS = [0.1, 0.18]

@@ -2,10 +2,10 @@
 
 import mujoco
 
-from scenarios.diagnosis_report import write_report
-from sim.causes import PayloadCause
-from sim.diagnosis import diagnose
-from sim.generation import generate_dataset
+from impactqp.scenarios.diagnosis_report import write_report
+from impactqp.sim.causes import PayloadCause
+from impactqp.sim.diagnosis import diagnose
+from impactqp.sim.generation import generate_dataset
 
 
 def test_report_is_written_without_touching_other_files(tmp_path):

@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from sim.dataset import read_dataset, validate
-from sim.generation import START_DISTANCE, generate_dataset, tangential_direction, trial_specs
-from sim.plant import PlantParameters
+from impactqp.controller.measured.dataset import read_dataset, validate
+from impactqp.sim.generation import START_DISTANCE, generate_dataset, tangential_direction, trial_specs
+from impactqp.sim.plant import PlantParameters
 
 
 def test_trial_grid_and_tangential_direction():

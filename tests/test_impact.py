@@ -5,12 +5,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from controller.jump import JUMP_MODELS
-from controller.postures import DEFAULT_WALL, POSTURES
-from controller.robot import PandaModel
-from sim.impact import ImpactNotFoundError, measure_impact, torque_residual, trend_filter
-from sim.runner import run_approach_trial
-from sim.scene import build_scene
+from impactqp.controller.model.jump import JUMP_MODELS
+from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.measured.impact import ImpactNotFoundError, measure_impact, torque_residual, trend_filter
+from impactqp.sim.runner import run_approach_trial
+from impactqp.sim.scene import build_scene
 
 ROBOT = PandaModel()
 SCENE = build_scene()

@@ -9,7 +9,7 @@ from conftest import joint_positions, unit_vectors
 from hypothesis import given, reject, settings
 from hypothesis import strategies as st
 
-from controller.jump import (
+from impactqp.controller.model.jump import (
     JUMP_MODELS,
     METHODS,
     average_prediction_error,
@@ -17,7 +17,7 @@ from controller.jump import (
     gm_inverse_inertia,
     prediction_error,
 )
-from controller.robot import PandaModel, SingularPostureError
+from impactqp.controller.model.robot import PandaModel, SingularPostureError
 
 SETTINGS = settings(max_examples=40, deadline=None)
 speeds = st.floats(0.01, 1.0)

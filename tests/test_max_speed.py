@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from controller.jump import JUMP_MODELS
-from controller.max_speed import approach_direction, closed_form_max_speed
-from controller.postures import POSTURES
+from impactqp.controller.model.jump import JUMP_MODELS
+from impactqp.controller.model.max_speed import approach_direction, closed_form_max_speed
+from impactqp.controller.model.postures import POSTURES
 
 
 def criteria_ratios(robot, terms, normal, model, speed, restitution=0.0, impact_duration=0.015):

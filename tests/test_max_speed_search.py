@@ -4,10 +4,10 @@ closed loop (the QP reaches the closed-form maximum; the bracket of the simulati
 import numpy as np
 import pytest
 
-from controller.jump import JUMP_MODELS
-from controller.max_speed import approach_direction, closed_form_max_speed
-from controller.postures import DEFAULT_WALL, POSTURES
-from scenarios.max_speed_search import (
+from impactqp.controller.model.jump import JUMP_MODELS
+from impactqp.controller.model.max_speed import approach_direction, closed_form_max_speed
+from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.scenarios.max_speed_search import (
     Evaluation,
     MaxSpeedSearch,
     SpeedBisection,

@@ -6,13 +6,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from controller.jump import JUMP_MODELS
-from controller.postures import DEFAULT_WALL, POSTURES
-from controller.robot import PandaModel
-from sim.impact import measure_impact
-from sim.plant import PlantParameterError, PlantParameters
-from sim.runner import run_approach_trial
-from sim.scene import PAYLOAD_BODY, build_scene
+from impactqp.controller.model.jump import JUMP_MODELS
+from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.measured.impact import measure_impact
+from impactqp.sim.plant import PlantParameterError, PlantParameters
+from impactqp.sim.runner import run_approach_trial
+from impactqp.sim.scene import PAYLOAD_BODY, build_scene
 
 ROBOT = PandaModel()
 Q = POSTURES["elbow_up"].q

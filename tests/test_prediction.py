@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from controller.jump import JUMP_MODELS, METHODS
-from controller.postures import POSTURES
-from controller.prediction import ImpactQuery, predict_all
+from impactqp.controller.model.jump import JUMP_MODELS, METHODS
+from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.prediction import ImpactQuery, predict_all
 
 
 def test_query_builds_the_pre_impact_velocity():

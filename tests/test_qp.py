@@ -6,15 +6,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from controller.config import ControllerConfig, TaskConfig, build_controller
-from controller.jump import jump_model
-from controller.max_speed import approach_direction, closed_form_max_speed
-from controller.postures import POSTURES, Surface
-from controller.qp import Command, ImpactAwareController
-from controller.robot import SingularPostureError
-from constraints import jump_model_names
-from scenarios.bench_controller import available_backends
-from tasks import DampingTask, FrameTask, PostureTask
+from impactqp.controller.config import ControllerConfig, TaskConfig, build_controller
+from impactqp.controller.model.jump import jump_model
+from impactqp.controller.model.max_speed import approach_direction, closed_form_max_speed
+from impactqp.controller.model.postures import POSTURES, Surface
+from impactqp.controller.qp import Command, ImpactAwareController
+from impactqp.controller.model.robot import SingularPostureError
+from impactqp.constraints import jump_model_names
+from impactqp.scenarios.bench.controller import available_backends
+from impactqp.tasks import DampingTask, FrameTask, PostureTask
 
 NORMAL = np.array([-1.0, 0.0, 0.0])
 DT = 0.001
@@ -176,7 +176,7 @@ def test_fast_approach_from_afar_stays_within_the_impact_limits(robot, posture):
     """Asked for 2 m/s from 30 cm away, the controller speeds up while the wall is far and slows
     down to the impact-feasible speed as it enters the activation zone: every command keeps the
     limits, and the contact speed is at most the crb maximum at the contact posture."""
-    from sim.runner import approach_start
+    from impactqp.sim.runner import approach_start
 
     wall = POSTURES[posture].surface
     q = approach_start(robot, POSTURES[posture].q, wall, 0.3)

@@ -6,8 +6,8 @@ import pytest
 from conftest import joint_positions
 from hypothesis import given, settings
 
-from controller.postures import POSTURES, DEFAULT_WALL, Surface, posture
-from controller.robot import (
+from impactqp.controller.model.postures import POSTURES, DEFAULT_WALL, Surface, posture
+from impactqp.controller.model.robot import (
     CONTACT_FRAME,
     HAND_FRAME,
     TOOL_TIP_OFFSET,

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from controller.config import ControllerConfig, build_controller
-from controller.postures import DEFAULT_WALL, POSTURES, Surface
-from controller.robot import PandaModel
-from sim.impact import measure_impact
-from sim.runner import (
+from impactqp.controller.config import ControllerConfig, build_controller
+from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
+from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.measured.impact import measure_impact
+from impactqp.sim.runner import (
     CartesianApproachCommand,
     CommandReplay,
     UnreachableStartError,
@@ -15,7 +15,7 @@ from sim.runner import (
     run_approach_trial,
     run_trial,
 )
-from sim.scene import build_scene
+from impactqp.sim.scene import build_scene
 
 ROBOT = PandaModel()
 SPEED = 0.15

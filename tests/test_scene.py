@@ -7,10 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from controller.postures import DEFAULT_WALL, POSTURES, Surface
-from controller.robot import TOOL_CENTRE_OFFSET, TOOL_RADIUS, PandaModel
-from sim.plant import PlantParameters
-from sim.scene import CONTACT_CONDIM, build_scene
+from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
+from impactqp.controller.model.robot import TOOL_CENTRE_OFFSET, TOOL_RADIUS, PandaModel
+from impactqp.sim.plant import PlantParameters
+from impactqp.sim.scene import CONTACT_CONDIM, build_scene
 
 ROBOT = PandaModel()
 SCENE = build_scene()

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenarios.cli import main
-from sim.dataset import validate
+from impactqp.scenarios.cli import main
+from impactqp.controller.measured.dataset import validate
 
 
 def run(capsys, *args):

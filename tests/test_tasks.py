@@ -4,9 +4,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from controller.postures import POSTURES
-from tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask
-from tasks.task import rotation_error
+from impactqp.controller.model.postures import POSTURES
+from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask
+from impactqp.tasks.task import rotation_error
 
 
 @pytest.fixture(scope="module")

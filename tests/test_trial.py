@@ -4,11 +4,11 @@ criteria and predictions, process pool."""
 import numpy as np
 import pytest
 
-from controller.jump import JUMP_MODELS, METHODS
-from controller.postures import DEFAULT_WALL, POSTURES
-from sim.impact import measure_impact
-from sim.runner import run_approach_trial
-from scenarios.trial import OBSERVATION_WINDOW, TrialPool, TrialRunner, TrialSpec
+from impactqp.controller.model.jump import JUMP_MODELS, METHODS
+from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.controller.measured.impact import measure_impact
+from impactqp.sim.runner import run_approach_trial
+from impactqp.scenarios.trial import OBSERVATION_WINDOW, TrialPool, TrialRunner, TrialSpec
 
 POSTURE = "elbow_right"
 Q = POSTURES[POSTURE].q

@@ -34,13 +34,13 @@ from pathlib import Path
 
 import numpy as np
 
-from controller.postures import Surface
-from controller.robot import NQ
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot import NQ
 
 from .atomic import write_text_atomic
 from .impact import WINDOW_AFTER, WINDOW_BEFORE, ImpactNotFoundError, measure_impact
 from .json_file import read_json_object
-from .runner import TrialLog
+from .trial_log import TrialLog
 
 FORMAT = "impactqp-dataset/1"
 MANIFEST = "dataset.json"

@@ -14,10 +14,10 @@ import time
 
 import numpy as np
 
-from controller.config import ControllerConfig, build_controller
-from controller.postures import POSTURES, Surface
-from controller.robot import PandaModel
-from scenarios.bench import timing_row
+from impactqp.controller.config import ControllerConfig, build_controller
+from impactqp.controller.model.postures import POSTURES, Surface
+from impactqp.controller.model.robot import PandaModel
+from impactqp.scenarios.bench import timing_row
 
 CYCLES = 3000
 RESTART_EVERY = 500  # cycles; the loop restarts at the posture before reaching the wall
@@ -90,7 +90,3 @@ def controller_rows() -> list[dict]:
         rows.append(timing_row(name, "us", controller_cycle_samples(robot, backend, cycles=1000), 1e6))
     return rows
 
-
-if __name__ == "__main__":
-    for row in controller_rows():
-        print(f"{row['name']:<40} median {row['median']:8.1f} {row['unit']}   p99 {row['p99']:8.1f} {row['unit']}")

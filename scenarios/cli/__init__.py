@@ -11,11 +11,11 @@ import sys
 import click
 import numpy as np
 
-from controller.jump import METHODS
-from controller.postures import POSTURES
-from controller.robot import InvalidStateError, SingularPostureError
+from impactqp.controller.model.jump import METHODS
+from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot import InvalidStateError, SingularPostureError
 
-from scenarios.arguments import EXIT_BAD_INPUT, BadInput, emit_json, parse_vector
+from impactqp.scenarios.cli.arguments import EXIT_BAD_INPUT, BadInput, emit_json, parse_vector
 
 @click.group()
 def cli():
@@ -26,7 +26,7 @@ def cli():
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list.")
 def postures(as_json):
     """List the named impact postures, their contact point and the wall normal."""
-    from controller.robot import PandaModel
+    from impactqp.controller.model.robot import PandaModel
 
     robot = PandaModel()
     rows = [
@@ -60,7 +60,7 @@ def postures(as_json):
 @click.option("--json", "as_json", is_flag=True)
 def predict(posture_name, q_text, normal_text, speed, tangential_text, restitution, method, as_json):
     """Predict the impact-induced joint-velocity jump at a posture."""
-    from controller.prediction import ImpactQuery, predict_all
+    from impactqp.controller.model.prediction import ImpactQuery, predict_all
 
     if (posture_name is None) == (q_text is None):
         raise BadInput("give exactly one of --posture NAME or --q Q1,...,Q7")
@@ -97,7 +97,7 @@ def predict(posture_name, q_text, normal_text, speed, tangential_text, restituti
 @click.option("--only", default="", help="Run only the rows whose name starts with this prefix.")
 def bench(as_json, only):
     """Benchmark table: median and p99 of every tracked speed and accuracy figure."""
-    from scenarios.bench import run_benchmarks
+    from impactqp.scenarios.bench import run_benchmarks
 
     rows = run_benchmarks(only, progress=not as_json)
     if as_json:
@@ -117,7 +117,7 @@ def demo(out_dir, jobs):
     Campaign: 3 postures x 5 normal speeds + 4 tangential speeds, Table I and the figures in
     --out; then `max-speed --posture elbow_up` (closed form, QP-limited and simulated).
     """
-    from scenarios.simulation_commands import max_speed_text, run_campaign, run_max_speed
+    from impactqp.scenarios.cli.simulation_commands import max_speed_text, run_campaign, run_max_speed
 
     table = run_campaign(None, None, "0.03,0.06,0.09,0.12", None, jobs, out_dir, True)
     click.echo(table.text())
@@ -126,13 +126,13 @@ def demo(out_dir, jobs):
     click.echo(max_speed_text(report))
 
 
-from scenarios.simulation_commands import campaign, max_speed, simulate  # noqa: E402
+from impactqp.scenarios.cli.simulation_commands import campaign, max_speed, simulate  # noqa: E402
 
 cli.add_command(simulate)
 cli.add_command(campaign)
 cli.add_command(max_speed)
 
-from scenarios.dataset_commands import dataset, diagnose  # noqa: E402
+from impactqp.scenarios.cli.dataset_commands import dataset, diagnose  # noqa: E402
 
 cli.add_command(dataset)
 cli.add_command(diagnose)
@@ -153,6 +153,3 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     return code if isinstance(code, int) else 0
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -8,18 +8,18 @@ Every command validates its input before simulating; bad input (an unknown postu
 from __future__ import annotations
 
 # First: MuJoCo's OpenGL backend is chosen when MuJoCo is first imported (scenarios.video).
-from scenarios import video  # noqa: F401, I001
+from impactqp.scenarios import video  # noqa: F401, I001
 
 from pathlib import Path
 
 import click
 import numpy as np
 
-from constraints import JUMP_MODEL_CHOICES
-from controller.max_speed import DEFAULT_IMPACT_DURATION
-from controller.prediction import is_tangential
-from controller.postures import DEFAULT_WALL, POSTURES, ImpactPosture, Surface
-from scenarios.arguments import BadInput, check_jobs, emit_json, load_plant, parse_vector
+from impactqp.constraints import JUMP_MODEL_CHOICES
+from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
+from impactqp.controller.model.prediction import is_tangential
+from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, ImpactPosture, Surface
+from impactqp.scenarios.cli.arguments import BadInput, check_jobs, emit_json, load_plant, parse_vector
 
 SIMULATE_START_DISTANCE = 0.05
 
@@ -42,8 +42,8 @@ def wall(point_text: str | None, normal_text: str | None) -> Surface:
 
 def check_reachable(posture: ImpactPosture, surface: Surface, distance: float) -> None:
     """Reject a wall the posture cannot face (before any process is started)."""
-    from controller.prediction import default_robot
-    from sim.runner import UnreachableStartError, approach_start
+    from impactqp.controller.model.prediction import default_robot
+    from impactqp.sim.runner import UnreachableStartError, approach_start
 
     try:
         approach_start(default_robot(), posture.q, surface, distance)
@@ -86,9 +86,9 @@ def simulate(
     The tool starts at rest 5 cm in front of the wall; the controller accelerates it towards the
     reference velocity (capped by the jump-aware constraints when they are on) until it hits.
     """
-    from scenarios.campaign import dataset_header, write_trial
-    from scenarios.trial import TrialRunner, TrialSpec
-    from sim.dataset import DatasetWriter
+    from impactqp.scenarios.campaign import dataset_header, write_trial
+    from impactqp.scenarios.trial import TrialRunner, TrialSpec
+    from impactqp.controller.measured.dataset import DatasetWriter
 
     posture = named_posture(posture_name)
     positive(speed, "--speed")
@@ -98,7 +98,7 @@ def simulate(
         raise BadInput(f"--tangential must be orthogonal to the wall normal (t.n = {tangential @ surface.normal:.3g})")
     plant = load_plant(plant_file)
     if video_file is not None:
-        from scenarios.video import offscreen_backend_problem
+        from impactqp.scenarios.video import offscreen_backend_problem
 
         if Path(video_file).suffix.lower() != ".gif":
             raise BadInput(f"--video writes an animated GIF: give a .gif file name, got {video_file!r}")
@@ -117,7 +117,7 @@ def simulate(
     if out_dir is not None:
         write_trial(DatasetWriter(out_dir, dataset_header(surface)), result)
     if video_file is not None:
-        from scenarios.video import render_impact_gif
+        from impactqp.scenarios.video import render_impact_gif
 
         render_impact_gif(runner.scene, result.log, result.impact, video_file)
     report = result.to_json()
@@ -144,7 +144,7 @@ def simulate(
 # ---------------------------------------------------------------------------- campaign
 def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, progress):
     """Parse the campaign options, run it and return Table I."""
-    from scenarios.campaign import Campaign, CampaignPlan, PAPER_SPEEDS, PAPER_TANGENTIAL_SPEEDS
+    from impactqp.scenarios.campaign import Campaign, CampaignPlan, PAPER_SPEEDS, PAPER_TANGENTIAL_SPEEDS
 
     postures = tuple(POSTURES) if postures_text is None else tuple(s.strip() for s in postures_text.split(","))
     for name in postures:
@@ -187,7 +187,7 @@ def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_
 # ---------------------------------------------------------------------------- max-speed
 def run_max_speed(posture_name, jump_model, restitution, impact_duration, plant_file, wall_point, wall_normal,
                   jobs, tolerance, progress):
-    from scenarios.max_speed_search import QP_START_DISTANCE, MaxSpeedSearch
+    from impactqp.scenarios.max_speed_search import QP_START_DISTANCE, MaxSpeedSearch
 
     posture = named_posture(posture_name)
     if not (np.isfinite(restitution) and 0.0 <= restitution <= 1.0):

@@ -41,7 +41,7 @@ def emit_json(obj) -> None:
 def load_plant(path: str | None):
     """The plant of ``--plant FILE`` (JSON overrides of ``sim.plant.PlantParameters``), or
     None without a file."""
-    from sim.plant import PlantParameterError, PlantParameters
+    from impactqp.sim.plant import PlantParameterError, PlantParameters
 
     if path is None:
         return None

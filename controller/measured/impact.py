@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .runner import TrialLog
+from .trial_log import TrialLog
 
 WINDOW_BEFORE = 5e-3
 WINDOW_AFTER = 20e-3

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from scenarios.arguments import BadInput, check_jobs, emit_json, load_plant, parse_list
+from impactqp.scenarios.cli.arguments import BadInput, check_jobs, emit_json, load_plant, parse_list
 
 
 @click.group()
@@ -22,7 +22,7 @@ def dataset():
 @click.pass_context
 def validate_command(ctx, directory, as_json):
     """Report every problem per trial; never modifies the data. Exit code 1 when any is found."""
-    from sim.dataset import validate
+    from impactqp.controller.measured.dataset import validate
 
     if not Path(directory).is_dir():
         raise BadInput(f"{directory} is not a directory")
@@ -58,9 +58,9 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
     """Simulate a dataset (plant overrides with --plant) in the measured-data format."""
     from tqdm import tqdm
 
-    from controller.postures import POSTURES
-    from sim.dataset import DatasetError
-    from sim.generation import generate_dataset
+    from impactqp.controller.model.postures import POSTURES
+    from impactqp.controller.measured.dataset import DatasetError
+    from impactqp.sim.generation import generate_dataset
 
     plant = load_plant(plant_file)  # None: the nominal plant
     names = [p.strip() for p in postures.split(",")] if postures else list(POSTURES)
@@ -104,13 +104,13 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, jobs):
     """What the simulation gets wrong on measured impacts, why, and the model change that fixes it."""
     import mujoco
 
-    from sim.dataset import DatasetError
-    from sim.diagnosis import diagnose as run_diagnosis
+    from impactqp.controller.measured.dataset import DatasetError
+    from impactqp.sim.diagnosis import diagnose as run_diagnosis
 
     if not Path(directory).is_dir():
         raise BadInput(f"{directory} is not a directory")
     check_jobs(jobs)
-    from sim.plant import PlantParameters
+    from impactqp.sim.plant import PlantParameters
 
     nominal = load_plant(plant_file) or PlantParameters()
     # Unstable candidate plants are detected by MuJoCo's warning counters (sim.diagnosis.replay);
@@ -126,7 +126,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, jobs):
 
         replace(nominal, **summary["parameters"]).to_json(save_plant)
     if report_dir:
-        from scenarios.diagnosis_report import write_report
+        from impactqp.scenarios.diagnosis_report import write_report
 
         path = write_report(result, report_dir)
         if not as_json:

@@ -38,10 +38,10 @@ def time_calls(fn: Callable[[], object], repeats: int) -> np.ndarray:
 
 
 def prediction_rows() -> list[dict]:
-    from controller.batch import BatchKinematics, predict_batch
-    from controller.jump import JUMP_MODELS
-    from controller.postures import POSTURES
-    from controller.robot import PandaModel
+    from impactqp.controller.model.batch import BatchKinematics, predict_batch
+    from impactqp.controller.model.jump import JUMP_MODELS
+    from impactqp.controller.model.postures import POSTURES
+    from impactqp.controller.model.robot import PandaModel
 
     robot = PandaModel()
     crb = JUMP_MODELS["crb"]
@@ -64,19 +64,19 @@ def prediction_rows() -> list[dict]:
 
 
 def controller_rows() -> list[dict]:
-    from scenarios.bench_controller import controller_rows as rows
+    from impactqp.scenarios.bench.controller import controller_rows as rows
 
     return rows()
 
 
 def closed_loop_rows() -> list[dict]:
-    from scenarios.trial import closed_loop_benchmark_rows
+    from impactqp.scenarios.trial import closed_loop_benchmark_rows
 
     return closed_loop_benchmark_rows()
 
 
 def max_speed_rows() -> list[dict]:
-    from scenarios.max_speed_search import max_speed_benchmark_rows
+    from impactqp.scenarios.max_speed_search import max_speed_benchmark_rows
 
     return max_speed_benchmark_rows()
 
@@ -88,10 +88,10 @@ def diagnosis_rows() -> list[dict]:
 
     import mujoco
 
-    from sim.causes import CAUSE_NAMES, cause_named, realistic_hidden_effect
-    from sim.diagnosis import diagnose
-    from sim.generation import generate_dataset
-    from sim.plant import PlantParameters
+    from impactqp.sim.causes import CAUSE_NAMES, cause_named, realistic_hidden_effect
+    from impactqp.sim.diagnosis import diagnose
+    from impactqp.sim.generation import generate_dataset
+    from impactqp.sim.plant import PlantParameters
 
     mujoco.set_mju_user_warning(lambda message: None)
     rng = np.random.default_rng(2026)
