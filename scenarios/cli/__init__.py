@@ -6,7 +6,6 @@ traceback. ``--json`` prints machine-readable output on stdout.
 
 from __future__ import annotations
 
-import sys
 
 import click
 import numpy as np
