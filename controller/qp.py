@@ -222,6 +222,13 @@ class QpsolversSolver:
         return QpOutcome(None, "failed")
 
 
+def available_backends() -> list[str]:
+    """Every solver name ``make_solver`` accepts on this machine."""
+    import qpsolvers
+
+    return ["proxqp", "daqp"] + [f"qpsolvers:{name}" for name in qpsolvers.available_solvers]
+
+
 def make_solver(name: str, rows: int):
     """The QP backend called ``name`` (see the module docstring)."""
     if name == "proxqp":

@@ -265,13 +265,3 @@ class MaxSpeedSearch:
             simulated_max_speed=float(simulated),
             evaluations=sorted(bisection.evaluations, key=lambda e: e.reference_speed),
         )
-
-
-def max_speed_benchmark_rows(repeats: int = 3) -> list[dict]:
-    """``maxspeed.one_posture``: wall seconds of the whole search on elbow_up with 2 jobs."""
-    from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
-
-    from impactqp.scenarios.bench import time_calls, timing_row
-
-    search = MaxSpeedSearch(POSTURES["elbow_up"], DEFAULT_WALL, jobs=2)
-    return [timing_row("maxspeed.one_posture", "s", time_calls(search.run, repeats), 1.0)]

@@ -319,18 +319,3 @@ class TrialPool:
         if self._local is None:
             raise RuntimeError("use TrialPool as a context manager")
         return map(self._local.run, specs)
-
-
-# ---------------------------------------------------------------------------- benchmark
-def closed_loop_benchmark_rows(repeats: int = 5) -> list[dict]:
-    """``sim.closed_loop_rtf``: simulated seconds per wall-clock second of a trial with the QP
-    controller in the loop (elbow_up, 0.15 m/s, crb constraints on, moving start)."""
-    from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
-
-    from impactqp.scenarios.bench import rate_row
-
-    runner = TrialRunner.build(DEFAULT_WALL)
-    spec = TrialSpec("elbow_up", POSTURES["elbow_up"].q, 0.15, jump_model="crb")
-    logs = [runner.run(spec).log for _ in range(repeats)]
-    simulated = len(logs[0]) * logs[0].control_period
-    return [rate_row("sim.closed_loop_rtf", "sim s / wall s", simulated, np.array([log.wall_time for log in logs]))]

@@ -13,7 +13,7 @@ from impactqp.controller.model.postures import POSTURES, Surface
 from impactqp.controller.qp import Command, ImpactAwareController
 from impactqp.controller.model.robot import SingularPostureError
 from impactqp.constraints import jump_model_names
-from impactqp.scenarios.bench.controller import available_backends
+from impactqp.controller.qp import available_backends
 from impactqp.tasks import DampingTask, FrameTask, PostureTask
 
 NORMAL = np.array([-1.0, 0.0, 0.0])

@@ -17,7 +17,8 @@ import numpy as np
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.model.postures import POSTURES, Surface
 from impactqp.controller.model.robot import PandaModel
-from impactqp.scenarios.bench import timing_row
+from impactqp.controller.qp import available_backends
+from .base import timing_row
 
 CYCLES = 3000
 RESTART_EVERY = 500  # cycles; the loop restarts at the posture before reaching the wall
@@ -72,12 +73,6 @@ def pink_cycle_samples(robot: PandaModel, cycles: int = CYCLES) -> np.ndarray:
         configuration.integrate_inplace(velocity, dt)
         samples[k] = time.perf_counter() - start
     return samples
-
-
-def available_backends() -> list[str]:
-    import qpsolvers
-
-    return ["proxqp", "daqp"] + [f"qpsolvers:{name}" for name in qpsolvers.available_solvers]
 
 
 def controller_rows() -> list[dict]:

@@ -1,0 +1,35 @@
+"""Benchmark rows of the jump predictors: ``predict.crb.single`` (one full CRB prediction from q)
+and ``predict.crb.batch`` (predictions per second of the vectorised batch API)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from impactqp.controller.model.batch import BatchKinematics, predict_batch
+from impactqp.controller.model.jump import JUMP_MODELS
+from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot import PandaModel
+
+from .base import rate_row, time_calls, timing_row
+
+
+def rows() -> list[dict]:
+
+    robot = PandaModel()
+    crb = JUMP_MODELS["crb"]
+    posture = next(iter(POSTURES.values()))
+    n = posture.surface.normal
+    v = -0.15 * n
+
+    def single():
+        crb.predict(robot.terms(posture.q), n, v, 0.0)
+
+    for _ in range(200):
+        single()
+    rows = [timing_row("predict.crb.single", "us", time_calls(single, 5000), 1e6)]
+    kinematics = BatchKinematics(robot)
+    Q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (10_000, 7))
+    predict_batch(kinematics, Q, n, v, 0.0, "crb")
+    samples = time_calls(lambda: predict_batch(kinematics, Q, n, v, 0.0, "crb"), 30)
+    rows.append(rate_row("predict.crb.batch", "predictions/s", 10_000, samples))
+    return rows
