@@ -1,4 +1,4 @@
-"""Joint acceleration and jerk limits (Franka datasheet, design.md section 1)."""
+"""Joint acceleration and jerk limits (Franka datasheet, docs/predictors.md, Conventions)."""
 
 from __future__ import annotations
 

@@ -5,7 +5,7 @@ Every constraint bounds the decision variable of the QP, the joint acceleration 
     lower <= C ddq <= upper
 
 written in ACCELERATION units (rad/s^2), so that all rows of the QP have comparable scales
-(design.md section 4: rows written as dt-scaled velocity bounds made the warm-started proxsuite
+(docs/qp-constraints.md: rows written as dt-scaled velocity bounds made the warm-started proxsuite
 report false infeasibilities). A constraint whose ``C`` is ``None`` is a box on ddq (C = I).
 A constraint has a fixed number of rows; when it does not apply in a cycle it returns infinite
 bounds for them, so the QP keeps its dimensions and can stay warm-started.

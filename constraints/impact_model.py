@@ -1,7 +1,7 @@
 """The impact the impact-aware constraints prepare for: surface, jump model and activation rule.
 
-Jump prediction (design.md section 3). With the pre-impact velocity dq- = dq + ddq dt, the
-chosen predictor (``controller.jump``) gives an impulse iota = G J dq- and a joint-velocity jump
+Jump prediction (docs/qp-constraints.md). With the pre-impact velocity dq- = dq + ddq dt, the
+chosen predictor (``controller.model.jump``) gives an impulse iota = G J dq- and a joint-velocity jump
 ddq_jump = K iota = A dq-, A = K G J, both linear in dq-:
 
     crb        (12), (20)-(21)   G = -(1+c_r) n n^T / (n^T W_crb n),   K = J+ W_crb

@@ -14,7 +14,7 @@ _UNBOUNDED = np.full(7, np.inf)
 
 
 class ImpulsiveTorqueLimit(Constraint):
-    """-tau_max <= J^T iota(dq + ddq dt) / delta_t <= tau_max, criterion (c) of design.md 3.
+    """-tau_max <= J^T iota(dq + ddq dt) / delta_t <= tau_max, criterion (c) of docs/qp-constraints.md.
 
     iota = G J dq- is the impulse of the jump model ((12) for crb/gm, (5) for classical) and
     delta_t the impact duration, so the row is P (dq + ddq dt) / delta_t with P = J^T G J.

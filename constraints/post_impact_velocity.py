@@ -13,7 +13,7 @@ _UNBOUNDED = np.full(7, np.inf)
 
 
 class PostImpactVelocityLimit(Constraint):
-    """dq_min <= (I + A)(dq + ddq dt) <= dq_max (design.md section 3), A the jump matrix.
+    """dq_min <= (I + A)(dq + ddq dt) <= dq_max (docs/qp-constraints.md), A the jump matrix.
 
     Criterion (b) of the maximum feasible speed. The rows are written at the jerk horizon h of
     the cycle (``ControlCycle``: h = 2 ms for the Panda at dt = 1 ms), in acceleration units:

@@ -84,7 +84,7 @@ class LimitsConfig:
 
 @dataclass
 class ImpactConfig:
-    """The impact-aware constraints (design.md section 3).
+    """The impact-aware constraints (docs/qp-constraints.md).
 
     jump_model: 'crb', 'gm', 'classical', 'classical_normal', 'robust' (crb + gm + classical),
     or None to switch the impact-aware constraints off (the prediction in ``Command`` then uses

@@ -21,7 +21,7 @@ warm-started every cycle. ``solver="daqp"``: daqp called directly. Any other nam
 through ``qpsolvers.solve_qp(..., solver=name)``; ``"qpsolvers:proxqp"`` forces proxqp through
 qpsolvers. A solution is accepted only when it satisfies every row to ``feasibility_tolerance``
 (acceleration units). Warm-started proxsuite 0.8 sometimes reports a feasible QP as infeasible
-(design.md section 4), so any failed or inaccurate solve is repeated with daqp before the QP
+(docs/qp-constraints.md), so any failed or inaccurate solve is repeated with daqp before the QP
 is declared infeasible: the controller never brakes on one solver's false alarm.
 
 Fallback (safe command)

@@ -16,7 +16,7 @@ Figures (PNG): per posture, the simulated jump of every joint against the normal
 paper's Fig. 8) and the absolute error |e_i| of classical, gm and crb per joint (Figs. 9-11);
 for the tangential series, the average error of every predictor against v_t (Fig. 12).
 
-Output directory: the dataset (``sim.dataset``: ``dataset.json`` and one CSV pair per trial),
+Output directory: the dataset (``controller.measured.dataset``: ``dataset.json`` and one CSV pair per trial),
 ``table1.json``, ``table1.txt`` and the figures; every file written atomically.
 """
 
@@ -295,7 +295,7 @@ class CampaignFigures:
 
 
 def save_figure(fig, path: Path) -> Path:
-    """Save a figure as PNG atomically (``sim.atomic.write_atomic``) and close it."""
+    """Save a figure as PNG atomically (``controller.measured.atomic.write_atomic``) and close it."""
     try:
         return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
     finally:

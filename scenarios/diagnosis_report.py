@@ -4,7 +4,7 @@ Figures: ``jumps.png`` (measured, nominal-simulation and extended-simulation jum
 mean over each posture's trials), ``error_vs_speed.png`` (average error (26) of the nominal and
 extended simulations and of the predictors against the reference speed) and
 ``predictor_errors.png`` (mean absolute error (25) per joint of every predictor and both
-simulations). Every file is written atomically (``sim.atomic``); other files in the
+simulations). Every file is written atomically (``controller.measured.atomic``); other files in the
 directory are kept.
 """
 

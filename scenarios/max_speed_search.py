@@ -1,10 +1,10 @@
 """Highest feasible contact speed of a posture: closed form, QP-limited, and simulated.
 
-Three answers to "how fast may the tool hit the surface at this posture?" (design.md section 3,
+Three answers to "how fast may the tool hit the surface at this posture?" (docs/max-speed.md,
 criteria (a) pre-impact velocity, (b) post-impact velocity, (c) impulsive torque):
 
 predicted_max_speed
-    ``controller.max_speed.closed_form_max_speed`` at the contact posture q_impact (the joint
+    ``controller.model.max_speed.closed_form_max_speed`` at the contact posture q_impact (the joint
     posture at the impact of the QP-limited run: the named posture moved by its run-up) for the
     classical, gm and crb models (dq- = J6+ [-v n; 0], dq+ = dq- + the model's jump, torque from
     the model's own impulse over delta_t), with what binds (criterion and joint); ``robust`` is
@@ -132,7 +132,7 @@ class MaxSpeedReport:
 def predicted_max_speeds(
     robot: PandaModel, q: np.ndarray, normal: np.ndarray, restitution: float, impact_duration: float
 ) -> dict[str, MaxSpeed]:
-    """The closed-form maximum speed of classical, gm and crb at q (controller.max_speed), and
+    """The closed-form maximum speed of classical, gm and crb at q (controller.model.max_speed), and
     of ``robust``, the constraints' setting that satisfies all three: the smallest of them."""
     terms = robot.terms(q)
     maxima = {

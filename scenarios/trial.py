@@ -28,9 +28,9 @@ wall, like ``CartesianApproachCommand`` (the servo then presses with a slowly gr
 The controller's posture task weight is 0 (``posture_weight``): with the default 1e-2 it pulls
 the arm back towards the start posture and the contact speed ends 1.5 % below the reference.
 
-Observed criteria (design.md section 3, as measured in the simulation)
+Observed criteria (docs/max-speed.md, as measured in the simulation)
 ----------------------------------------------------------------------
-With the impact of :func:`sim.impact.measure_impact` (contact start t_c, pre-impact state
+With the impact of :func:`controller.measured.impact.measure_impact` (contact start t_c, pre-impact state
 (q-, dq-), contact impulse iota_sim integrated from the contact force, contact duration
 delta_t_sim):
 

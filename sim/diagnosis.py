@@ -2,9 +2,9 @@
 
 Pipeline (``diagnose``):
 
-1. **Measure.** Every trial of the dataset is checked (``sim.dataset.validate``); bad trials are
+1. **Measure.** Every trial of the dataset is checked (``controller.measured.dataset.validate``); bad trials are
    skipped with their reasons. The impact is detected and the jump extracted with the same
-   function as for simulated data (``sim.impact.measure_impact``); the impulse is integrated
+   function as for simulated data (``controller.measured.impact.measure_impact``); the impulse is integrated
    where a force log exists.
 2. **Replay.** Each trial is replayed in the simulation from the logged state ``REPLAY_LEAD``
    control steps before the impact (q, and dq averaged over 5 samples against encoder noise),

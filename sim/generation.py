@@ -1,4 +1,4 @@
-"""Datasets generated in simulation, in the format of a real robot log (``sim.dataset``).
+"""Datasets generated in simulation, in the format of a real robot log (``controller.measured.dataset``).
 
 Each trial is an approach-and-impact of :func:`sim.runner.run_approach_trial`: the contact point
 starts ``START_DISTANCE`` in front of the surface, already moving at the reference velocity

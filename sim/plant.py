@@ -3,7 +3,7 @@
 The nominal plant (all defaults) is the clean rigid-body baseline: rigid links exactly as in the
 URDF, no rotor inertia, no joint damping, no payload, and a joint servo whose feedback bandwidth
 (5 rad/s) is far below the impact's (the contact time constant is 7 ms), so that the simulated
-jumps follow the classical prediction M^-1 J^T iota (design.md section 4; ``sim.runner``). Each parameter moves
+jumps follow the classical prediction M^-1 J^T iota (docs/simulation.md; ``sim.runner``). Each parameter moves
 the plant away from that baseline in a known direction:
 
 ==================  ===========================================================================
@@ -19,7 +19,7 @@ contact_solimp      MuJoCo solimp (dmin, dmax, width m, midpoint, power) of the 
 servo_gain          bandwidth omega (rad/s) of the computed-torque joint servo (``sim.runner``)
 ==================  ===========================================================================
 
-Plant parameters are simulation truth: a dataset never records them (``sim.dataset``).
+Plant parameters are simulation truth: a dataset never records them (``controller.measured.dataset``).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The MuJoCo scene: the same example-robot-data Panda URDF as Pinocchio, a tool and a wall.
 
-The MuJoCo model is built in code from the URDF file that ``controller.robot.PandaModel`` loads,
-with the edits of design.md section 4: the visual elements and the ``package://`` prefixes go
+The MuJoCo model is built in code from the URDF file that ``controller.model.robot.PandaModel`` loads,
+with the edits of docs/simulation.md: the visual elements and the ``package://`` prefixes go
 (MuJoCo reads the STL collision meshes), the fingers are welded (their joints become fixed and
 the mimic coupling goes) and inertias are taken exactly from the URDF (``inertiafromgeom``
 false, ``balanceinertia`` false, ``fusestatic`` false). MuJoCo's joint-space inertia matrix
@@ -10,7 +10,7 @@ then equals Pinocchio's to rounding error.
 Added in code (``mujoco.MjSpec``):
 
 - the tool: a sphere of radius ``TOOL_RADIUS`` centred on the hand's z axis at
-  ``TOOL_CENTRE_OFFSET`` (the massless contact tool of ``controller.robot``);
+  ``TOOL_CENTRE_OFFSET`` (the massless contact tool of ``controller.model.robot``);
 - the wall: a MuJoCo plane through ``surface.point`` whose z axis is ``surface.normal``
   (the solid half-space lies behind the plane, away from the robot);
 - one explicit contact pair tool/wall. Every geom has contype = conaffinity = 0, so the pair is

@@ -23,7 +23,7 @@ class ContactApproachTask(Task):
     weighted ``normal_weight``, two tangential rows weighted ``tangential_weight``, three
     orientation rows weighted ``orientation_weight``. With strong tangential and orientation
     weights the joint velocity stays close to dq = speed d, d = J6+ [-n; 0], the approach
-    direction assumed by the closed-form maximum speed (design.md section 3). The impact-aware
+    direction assumed by the closed-form maximum speed (docs/qp-constraints.md). The impact-aware
     constraints cap the normal speed the task actually gets.
     """
 

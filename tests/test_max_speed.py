@@ -1,4 +1,4 @@
-"""The closed-form highest feasible contact speed (design.md section 3)."""
+"""The closed-form highest feasible contact speed (docs/max-speed.md)."""
 
 import numpy as np
 import pytest

@@ -321,7 +321,7 @@ def validate(directory: str | Path) -> dict[str, list[str]]:
     Checks: the manifest (format, keys, header, duplicate ids, CSV files it does not list),
     per trial the files and their columns, non-finite values, increasing time, the sampling
     period against ``control_period``, a length that holds the detection window, an impact
-    found by :func:`sim.impact.measure_impact`, and ``impact_time`` against the detected impact.
+    found by :func:`controller.measured.impact.measure_impact`, and ``impact_time`` against the detected impact.
     An empty list means no problem. Never modifies any file.
     """
     directory = Path(directory)

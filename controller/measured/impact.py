@@ -1,6 +1,6 @@
 """Impact detection and jump extraction (paper Sec. V-A), for simulated and measured logs alike.
 
-:func:`measure_impact` reads one trial log (:class:`sim.runner.TrialLog`: control-rate t, q, dq,
+:func:`measure_impact` reads one trial log (:class:`controller.measured.trial_log.TrialLog`: control-rate t, q, dq,
 tau, dq_cmd and, when present, a contact-force log) and applies these rules:
 
 Detection

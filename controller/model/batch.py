@@ -5,7 +5,7 @@ Pinocchio works one state at a time; for N states the per-call Python overhead d
 evaluates, for N joint vectors at once with NumPy, the same terms as ``PandaModel.terms``: the
 contact Jacobian J, the joint-space inertia M = sum_k (Jv_k^T m_k Jv_k + Jw_k^T I_k Jw_k), the
 centre of mass, the moving mass and the locked-robot inertia about the centre of mass. The
-predictors then apply the formulas of :mod:`controller.jump` with batched linear algebra
+predictors then apply the formulas of :mod:`controller.model.jump` with batched linear algebra
 (Cholesky solves for M, eq. (6) and (22); no M at all for CRB, eq. (20)-(21)).
 """
 

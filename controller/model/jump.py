@@ -6,7 +6,7 @@ Every predictor is linear in the pre-impact contact velocity v-. It is written a
 - the *impulse-to-jump map* K (7x3): ddq = K iota, the joint-velocity jump caused by iota.
 
 so that ddq = K G v- and, with v- = J dq-, ddq = A dq- with the rank-deficient jump matrix
-A = K G J used by the impact-aware constraints of the controller (design.md section 3).
+A = K G J used by the impact-aware constraints of the controller (docs/predictors.md).
 A measured impulse iota° replaces G v-: ddq = K iota°.
 
 =====================  =====================================  ==============================

@@ -1,4 +1,4 @@
-"""Closed-form highest feasible contact speed of a posture (design.md section 3).
+"""Closed-form highest feasible contact speed of a posture (docs/max-speed.md).
 
 The approach motion is dq- = v d with d = J6+ [-n; 0]: the contact frame translates along -n
 without rotating (J6 the 6x7 world-aligned frame Jacobian, + the pseudo-inverse). Then

@@ -74,7 +74,7 @@ plant_option = click.option("--plant", "plant_file", help="JSON file of plant-pa
 @plant_option
 @wall_point_option
 @wall_normal_option
-@click.option("--out", "out_dir", help="Add the trial to the dataset in this directory (sim.dataset format).")
+@click.option("--out", "out_dir", help="Add the trial to the dataset in this directory (controller.measured.dataset format).")
 @click.option("--video", "video_file", help="Render the impact to this animated GIF (needs an offscreen GL backend).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 def simulate(
