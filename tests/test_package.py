@@ -1,0 +1,90 @@
+"""The package as a user installs it: one import name, its first names, and acyclic layers."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import grimp
+
+import impactqp
+
+TESTS = Path(__file__).parent
+
+
+def test_import_impactqp_exposes_the_first_names():
+    for name in ("PandaModel", "JUMP_MODELS", "jump_model", "ImpactAwareController", "ControllerConfig"):
+        assert hasattr(impactqp, name), name
+    assert impactqp.__version__ and impactqp.__version__[0].isdigit()
+
+
+def test_only_impactqp_is_importable_outside_the_checkout(tmp_path):
+    code = "import impactqp\ntry:\n    import controller\nexcept ModuleNotFoundError:\n    print('absent')\n"
+    out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "absent"
+
+
+def _strongly_connected(graph: dict[str, set[str]]) -> list[set[str]]:
+    """Tarjan's strongly connected components of a directed graph (iterative)."""
+    index, low, on_stack, stack, components, counter = {}, {}, set(), [], [], [0]
+    for root in graph:
+        if root in index:
+            continue
+        work = [(root, iter(graph[root]))]
+        index[root] = low[root] = counter[0]
+        counter[0] += 1
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is None:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[node])
+                if low[node] == index[node]:
+                    component = set()
+                    while True:
+                        member = stack.pop()
+                        on_stack.discard(member)
+                        component.add(member)
+                        if member == node:
+                            break
+                    components.append(component)
+            elif child not in index:
+                index[child] = low[child] = counter[0]
+                counter[0] += 1
+                stack.append(child)
+                on_stack.add(child)
+                work.append((child, iter(graph[child])))
+            elif child in on_stack:
+                low[node] = min(low[node], index[child])
+    return components
+
+
+def test_strongly_connected_components_find_a_cycle():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
+    assert sorted(map(sorted, _strongly_connected(graph))) == [["a", "b", "c"], ["d"]]
+
+
+def test_no_import_cycle_between_modules_counting_imports_inside_functions():
+    graph = grimp.build_graph("impactqp")  # grimp records imports made inside functions too
+    edges = {m: set(graph.find_modules_directly_imported_by(m)) for m in graph.modules}
+    cycles = [c for c in _strongly_connected(edges) if len(c) > 1]
+    assert cycles == []
+
+
+def test_tests_do_not_import_benchmark_code():
+    offenders = []
+    for path in TESTS.glob("test_*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = []
+            if isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            if any(n.startswith("impactqp.scenarios.bench") for n in names):
+                offenders.append(path.name)
+    assert offenders == []
