@@ -31,6 +31,7 @@ import numpy as np
 from impactqp.controller.model.jump import GeneralizedMomentumJump, JumpModel, jump_model
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.validation import BadInputError
 
 JUMP_MODEL_CHOICES = {
     "crb": ("crb",),
@@ -47,7 +48,7 @@ def jump_model_names(choice: str) -> tuple[str, ...]:
     try:
         return JUMP_MODEL_CHOICES[choice]
     except KeyError:
-        raise ValueError(
+        raise BadInputError(
             f"unknown jump model {choice!r}; choose from {', '.join(JUMP_MODEL_CHOICES)}"
         ) from None
 
@@ -76,9 +77,9 @@ class ImpactModel:
         always_active: bool = False,
     ):
         if not 0.0 <= restitution <= 1.0:
-            raise ValueError("restitution must be in [0, 1]")
+            raise BadInputError("restitution must be in [0, 1]")
         if lookahead_distance < 0.0 or lookahead_time < 0.0:
-            raise ValueError("look-ahead distance and time must be >= 0")
+            raise BadInputError("look-ahead distance and time must be >= 0")
         self.surface = surface
         self.model: JumpModel = jump_model(jump_model_name)
         self.restitution = float(restitution)

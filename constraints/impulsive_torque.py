@@ -9,6 +9,7 @@ from impactqp.controller.model.robot import ModelTerms
 
 from .constraint import Constraint, ConstraintRows, ControlCycle
 from .impact_model import ImpactModel
+from impactqp.controller.model.validation import BadInputError
 
 _UNBOUNDED = np.full(7, np.inf)
 
@@ -40,7 +41,7 @@ class ImpulsiveTorqueLimit(Constraint):
         impact_duration: float = DEFAULT_IMPACT_DURATION,
     ):
         if not (np.isfinite(impact_duration) and impact_duration > 0.0):
-            raise ValueError("impact_duration must be > 0")
+            raise BadInputError("impact_duration must be > 0")
         self.impact = impact
         self.impulse_limit = np.asarray(tau_max, dtype=float) * impact_duration
         self.row_scale = np.asarray(dq_max, dtype=float) / self.impulse_limit

@@ -7,6 +7,7 @@ import numpy as np
 from impactqp.controller.model.robot import ModelTerms
 
 from .constraint import Constraint, ConstraintRows, ControlCycle
+from impactqp.controller.model.validation import BadInputError
 
 
 class PositionLimit(Constraint):
@@ -35,9 +36,9 @@ class PositionLimit(Constraint):
 
     def __init__(self, q_min, q_max, ddq_max, braking_fraction: float = 0.5, margin: float = 0.0):
         if not 0.0 < braking_fraction <= 1.0:
-            raise ValueError("braking_fraction must be in (0, 1]")
+            raise BadInputError("braking_fraction must be in (0, 1]")
         if margin < 0.0:
-            raise ValueError("margin must be >= 0")
+            raise BadInputError("margin must be >= 0")
         # Row 0 looks at the upper limits, row 1 at the lower ones (sign -1 mirrors them).
         self._sign = np.array([[1.0], [-1.0]])
         self._limits = np.vstack([np.asarray(q_max, float) - margin, np.asarray(q_min, float) + margin])

@@ -32,6 +32,8 @@ from .model.max_speed import DEFAULT_IMPACT_DURATION
 from .model.postures import DEFAULT_WALL, Surface
 from .qp import ImpactAwareController
 from .model.robot import PandaModel
+from .model import validation
+from .model.validation import BadInputError
 
 TASK_TYPES = {
     "frame": FrameTask,
@@ -53,7 +55,7 @@ class TaskConfig:
 
     def __post_init__(self):
         if self.type not in TASK_TYPES:
-            raise ValueError(f"unknown task type {self.type!r}; choose from {', '.join(TASK_TYPES)}")
+            raise BadInputError(f"unknown task type {self.type!r}; choose from {', '.join(TASK_TYPES)}")
 
 
 @dataclass
@@ -77,9 +79,9 @@ class LimitsConfig:
         for name in ("velocity_scale", "acceleration_scale", "jerk_scale", "torque_scale", "braking_fraction"):
             value = getattr(self, name)
             if not (math.isfinite(value) and 0.0 < value <= 1.0):
-                raise ValueError(f"limits.{name} = {value} must lie in (0, 1]: the datasheet limits are the robot's")
+                raise BadInputError(f"limits.{name} = {value} must lie in (0, 1]: the datasheet limits are the robot's")
         if not (math.isfinite(self.position_margin) and self.position_margin >= 0.0):
-            raise ValueError(f"limits.position_margin = {self.position_margin} rad must be >= 0")
+            raise BadInputError(f"limits.position_margin = {self.position_margin} rad must be >= 0")
 
 
 @dataclass
@@ -103,14 +105,13 @@ class ImpactConfig:
     prediction_model: str = "crb"
 
     def __post_init__(self):
-        if not (math.isfinite(self.restitution) and 0.0 <= self.restitution <= 1.0):
-            raise ValueError(f"impact.restitution = {self.restitution} must lie in [0, 1]")
+        validation.restitution(self.restitution, "impact.restitution")
         if not (math.isfinite(self.impact_duration) and self.impact_duration > 0.0):
-            raise ValueError(f"impact.impact_duration = {self.impact_duration} s must be > 0")
+            raise BadInputError(f"impact.impact_duration = {self.impact_duration} s must be > 0")
         for name in ("lookahead_distance", "lookahead_time", "release_speed"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"impact.{name} = {value} must be a finite number >= 0")
+                raise BadInputError(f"impact.{name} = {value} must be a finite number >= 0")
 
 
 @dataclass
@@ -182,12 +183,12 @@ class ControllerConfig:
         data = dict(data)
         unknown = set(data) - {f.name for f in fields(cls)}
         if unknown:
-            raise ValueError(f"unknown configuration keys: {', '.join(sorted(unknown))}")
+            raise BadInputError(f"unknown configuration keys: {', '.join(sorted(unknown))}")
         tasks = []
         for entry in data.pop("tasks", []):
             entry = dict(entry)
             if "type" not in entry:
-                raise ValueError(f"a task needs a 'type': {entry}")
+                raise BadInputError(f"a task needs a 'type': {entry}")
             task_type = entry.pop("type")
             tasks.append(TaskConfig(task_type, entry.pop("params", {}) | entry))
         sections = {"limits": LimitsConfig, "impact": ImpactConfig, "surface": SurfaceConfig}
@@ -205,7 +206,7 @@ class ControllerConfig:
 
             data = yaml.safe_load(path.read_text()) or {}
         else:
-            raise ValueError(f"unsupported configuration file {path.name}: use .toml, .yaml or .yml")
+            raise BadInputError(f"unsupported configuration file {path.name}: use .toml, .yaml or .yml")
         return cls.from_dict(data)
 
     def to_dict(self) -> dict:
@@ -220,7 +221,7 @@ def _section(kind, values: dict, name: str):
         return kind()
     unknown = set(values) - {f.name for f in fields(kind)}
     if unknown:
-        raise ValueError(f"unknown keys in [{name}]: {', '.join(sorted(unknown))}")
+        raise BadInputError(f"unknown keys in [{name}]: {', '.join(sorted(unknown))}")
     return kind(**values)
 
 
@@ -238,7 +239,7 @@ def build_controller(config: ControllerConfig, robot: PandaModel | None = None) 
         try:
             tasks.append(TASK_TYPES[task.type](**params))
         except TypeError as error:
-            raise ValueError(f"bad parameters for the {task.type} task: {error}") from None
+            raise BadInputError(f"bad parameters for the {task.type} task: {error}") from None
 
     dq_max = robot.dq_max * limits.velocity_scale
     tau_max = robot.tau_max * limits.torque_scale

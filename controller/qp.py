@@ -52,6 +52,7 @@ from impactqp.constraints import AccelerationLimit, Constraint, ControlCycle, Im
 from impactqp.tasks import Task
 
 from .model.robot import NQ, InvalidStateError, ModelTerms, PandaModel, SingularPostureError
+from .model.validation import BadInputError
 
 STATUS_OK = "ok"
 STATUS_FALLBACK_INFEASIBLE = "fallback_infeasible"
@@ -199,7 +200,7 @@ class QpsolversSolver:
         import qpsolvers
 
         if backend not in qpsolvers.available_solvers:
-            raise ValueError(
+            raise BadInputError(
                 f"QP solver {backend!r} is not available; available: "
                 f"proxqp (direct, warm-started), daqp (direct), "
                 f"{', '.join(qpsolvers.available_solvers)} (through qpsolvers)"
@@ -276,15 +277,15 @@ class ImpactAwareController:
         jerk_limit: np.ndarray | None = None,
     ):
         if not tasks:
-            raise ValueError("the controller needs at least one task")
+            raise BadInputError("the controller needs at least one task")
         if not dt > 0.0:
-            raise ValueError("dt must be > 0")
+            raise BadInputError("dt must be > 0")
         constraints = list(constraints)
         if not any(isinstance(c, AccelerationLimit) for c in constraints):
             constraints.insert(0, AccelerationLimit())
         names = [c.name for c in constraints]
         if len(set(names)) != len(names):
-            raise ValueError(f"constraint names must be unique, got {names}")
+            raise BadInputError(f"constraint names must be unique, got {names}")
         self.robot = robot
         self.tasks = list(tasks)
         self.constraints = constraints

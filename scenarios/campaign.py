@@ -43,6 +43,7 @@ from impactqp.sim.plant import PlantParameters  # noqa: E402
 from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD  # noqa: E402
 
 from .trial import TrialPool, TrialResult, TrialSpec  # noqa: E402
+from impactqp.controller.model.validation import BadInputError
 
 PAPER_SPEEDS = DEFAULT_SPEEDS
 PAPER_TANGENTIAL_SPEEDS = tuple(round(0.03 + 0.01 * i, 2) for i in range(10))
@@ -88,17 +89,17 @@ class CampaignPlan:
 
     def __post_init__(self):
         if not self.postures:
-            raise ValueError("the campaign needs at least one posture")
+            raise BadInputError("the campaign needs at least one posture")
         unknown = [name for name in self.postures if name not in POSTURES]
         if unknown:
-            raise ValueError(f"unknown posture {unknown[0]!r}; known postures: {', '.join(POSTURES)}")
+            raise BadInputError(f"unknown posture {unknown[0]!r}; known postures: {', '.join(POSTURES)}")
         if not self.speeds:
-            raise ValueError("the campaign needs at least one speed")
+            raise BadInputError("the campaign needs at least one speed")
         bad = [v for v in self.speeds if not (np.isfinite(v) and v > 0.0)]
         if bad:
-            raise ValueError(f"every speed must be > 0 m/s, got {bad[0]}")
+            raise BadInputError(f"every speed must be > 0 m/s, got {bad[0]}")
         if not all(np.isfinite(v) for v in self.tangential_speeds):
-            raise ValueError("the tangential speeds must be finite")
+            raise BadInputError("the tangential speeds must be finite")
 
     def specs(self, surface: Surface) -> list[TrialSpec]:
         specs = [

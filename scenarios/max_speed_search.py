@@ -42,10 +42,12 @@ from impactqp.controller.model.max_speed import (
 )
 from impactqp.controller.model.postures import ImpactPosture, Surface
 from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.model.validation import restitution as restitution_coefficient
 from impactqp.constraints import jump_model_names
 from impactqp.sim.plant import PlantParameters
 
 from .trial import TrialPool, TrialResult, TrialSpec
+from impactqp.controller.model.validation import BadInputError
 
 PREDICTED_MODELS = ("classical", "gm", "crb")
 QP_REQUEST_SPEED = 2.0
@@ -155,7 +157,7 @@ class SpeedBisection:
 
     def __init__(self, lo: float, hi: float, tolerance: float):
         if not (np.isfinite(tolerance) and tolerance > 0.0):
-            raise ValueError(f"the bisection tolerance must be > 0 m/s, got {tolerance}")
+            raise BadInputError(f"the bisection tolerance must be > 0 m/s, got {tolerance}")
         self.lo, self.hi, self.tolerance = lo, hi, tolerance
         self.evaluations: list[Evaluation] = []
 
@@ -196,10 +198,9 @@ class MaxSpeedSearch:
         robot: PandaModel | None = None,
     ):
         jump_model_names(jump_model)
-        if not 0.0 <= restitution <= 1.0:
-            raise ValueError(f"the restitution must lie in [0, 1], got {restitution}")
+        restitution = restitution_coefficient(restitution)
         if not (np.isfinite(impact_duration) and impact_duration > 0.0):
-            raise ValueError(f"the impact duration must be > 0 s, got {impact_duration}")
+            raise BadInputError(f"the impact duration must be > 0 s, got {impact_duration}")
         self.posture = posture
         self.surface = surface
         self.plant = plant

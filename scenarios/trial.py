@@ -61,6 +61,7 @@ from impactqp.sim.plant import PlantParameters
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.sim.runner import CartesianApproachCommand, approach_start, run_trial
 from impactqp.sim.scene import Scene, build_scene
+from impactqp.controller.model.validation import BadInputError
 
 OBSERVATION_WINDOW = 0.05
 FEEDBACKS = ("commanded", "measured")
@@ -92,22 +93,22 @@ class TrialSpec:
 
     def __post_init__(self):
         if not (np.isfinite(self.normal_speed) and self.normal_speed > 0.0):
-            raise ValueError(f"the approach speed must be > 0 m/s, got {self.normal_speed}")
+            raise BadInputError(f"the approach speed must be > 0 m/s, got {self.normal_speed}")
         tangential = np.asarray(self.tangential_velocity, dtype=float)
         if tangential.shape != (3,) or not np.all(np.isfinite(tangential)):
-            raise ValueError("the tangential velocity must be 3 finite numbers (m/s)")
+            raise BadInputError("the tangential velocity must be 3 finite numbers (m/s)")
         object.__setattr__(self, "tangential_velocity", tangential)
         object.__setattr__(self, "q_contact", np.asarray(self.q_contact, dtype=float))
         if self.jump_model is not None:
             jump_model_names(self.jump_model)
         if not 0.0 <= self.restitution <= 1.0:
-            raise ValueError(f"the restitution must lie in [0, 1], got {self.restitution}")
+            raise BadInputError(f"the restitution must lie in [0, 1], got {self.restitution}")
         if not self.impact_duration > 0.0:
-            raise ValueError(f"the impact duration must be > 0 s, got {self.impact_duration}")
+            raise BadInputError(f"the impact duration must be > 0 s, got {self.impact_duration}")
         if self.after_contact < OBSERVATION_WINDOW:
-            raise ValueError(f"after_contact must be at least {OBSERVATION_WINDOW} s")
+            raise BadInputError(f"after_contact must be at least {OBSERVATION_WINDOW} s")
         if self.feedback not in FEEDBACKS:
-            raise ValueError(f"feedback must be one of {', '.join(FEEDBACKS)}, got {self.feedback!r}")
+            raise BadInputError(f"feedback must be one of {', '.join(FEEDBACKS)}, got {self.feedback!r}")
 
     @property
     def trial_id(self) -> str:
@@ -291,7 +292,7 @@ class TrialPool:
 
     def __init__(self, surface: Surface, plant: PlantParameters | None = None, jobs: int = 1):
         if jobs < 1:
-            raise ValueError(f"--jobs must be >= 1, got {jobs}")
+            raise BadInputError(f"--jobs must be >= 1, got {jobs}")
         self.surface = surface
         self.plant = plant
         self.jobs = jobs

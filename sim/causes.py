@@ -27,6 +27,7 @@ from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot import NQ, TOOL_RADIUS
 
 from .plant import PlantParameters
+from impactqp.controller.model.validation import BadInputError
 
 # The payload sits at the tool's centre: the contact point moved back by the sphere radius.
 PAYLOAD_COM = (0.0, 0.0, -TOOL_RADIUS)
@@ -197,7 +198,7 @@ def cause_named(name: str) -> Cause:
     for cause in default_causes():
         if cause.name == name:
             return cause
-    raise ValueError(f"unknown cause {name!r}; known: {', '.join(CAUSE_NAMES)}")
+    raise BadInputError(f"unknown cause {name!r}; known: {', '.join(CAUSE_NAMES)}")
 
 
 def realistic_hidden_effect(name: str, rng: np.random.Generator) -> tuple[dict, list[float]]:

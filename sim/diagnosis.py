@@ -54,6 +54,7 @@ from impactqp.controller.measured.impact import ImpactNotFoundError, measure_imp
 from .plant import PlantParameters
 from .runner import CommandReplay, run_trial, servo_reference_from_commands
 from .scene import build_scene
+from impactqp.controller.model.validation import BadInputError
 
 REPLAY_LEAD = 40
 REPLAY_TAIL = 30
@@ -380,7 +381,7 @@ def diagnose(
     nominal = nominal or PlantParameters()
     trials, skipped, surface = load_trials(directory)
     if len(trials) < 2:
-        raise ValueError(
+        raise BadInputError(
             f"{directory}: only {len(trials)} usable trial(s); the diagnosis needs at least 2 "
             f"(skipped: {skipped})"
         )

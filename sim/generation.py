@@ -32,6 +32,7 @@ from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, T
 from .plant import PlantParameters
 from .runner import run_approach_trial
 from .scene import build_scene
+from impactqp.controller.model.validation import BadInputError
 
 DEFAULT_SPEEDS = (0.08, 0.10, 0.12, 0.15, 0.18)
 TANGENTIAL_SERIES_NORMAL_SPEED = 0.12
@@ -63,11 +64,11 @@ def trial_specs(
     postures: list[str], speeds: list[float], tangential: list[float], repeats: int, normal: np.ndarray, seed: int
 ) -> list[TrialSpec]:
     if any(not (np.isfinite(v) and v > 0) for v in speeds):
-        raise ValueError("every normal speed must be > 0 m/s")
+        raise BadInputError("every normal speed must be > 0 m/s")
     if any(not np.isfinite(v) for v in tangential):
-        raise ValueError("every tangential speed must be finite")
+        raise BadInputError("every tangential speed must be finite")
     if repeats < 1:
-        raise ValueError("repeats must be >= 1")
+        raise BadInputError("repeats must be >= 1")
     t = tangential_direction(normal)
     conditions = [(p, v, np.zeros(3)) for p in postures for v in speeds]
     conditions += [(p, TANGENTIAL_SERIES_NORMAL_SPEED, vt * t) for p in postures for vt in tangential]
@@ -135,10 +136,10 @@ def generate_dataset(
     postures = list(POSTURES) if postures is None else postures
     unknown = [p for p in postures if p not in POSTURES]
     if unknown or not postures:
-        raise ValueError(f"unknown posture(s) {', '.join(unknown)}; known: {', '.join(POSTURES)}")
+        raise BadInputError(f"unknown posture(s) {', '.join(unknown)}; known: {', '.join(POSTURES)}")
     surface = POSTURES[postures[0]].surface if surface is None else surface
     if not (np.isfinite(noise_dq) and noise_dq >= 0 and np.isfinite(noise_tau) and noise_tau >= 0):
-        raise ValueError("noise standard deviations must be finite and >= 0")
+        raise BadInputError("noise standard deviations must be finite and >= 0")
     specs = trial_specs(
         postures,
         list(DEFAULT_SPEEDS if speeds is None else speeds),

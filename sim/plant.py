@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from impactqp.controller.measured.atomic import write_text_atomic
+from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.measured.json_file import read_json_object
 
 NJ = 7
@@ -40,7 +41,7 @@ DEFAULT_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
 DEFAULT_SERVO_GAIN = 5.0
 
 
-class PlantParameterError(ValueError):
+class PlantParameterError(BadInputError):
     """A plant parameter (or a plant-parameter file) that cannot be used."""
 
 

@@ -45,13 +45,14 @@ from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import NQ, TOOL_RADIUS, PandaModel
 
 from .scene import Scene
+from impactqp.controller.model.validation import BadInputError
 
 DEFAULT_CONTROL_PERIOD = 1e-3
 CLEARANCE_SPEED = 5.0
 LAG_ALLOWANCE = 3.0
 
 
-class UnreachableStartError(ValueError):
+class UnreachableStartError(BadInputError):
     """No joint posture puts the tool at the requested start pose (wall out of reach)."""
 
 
@@ -90,10 +91,10 @@ class CartesianApproachCommand:
         tangential_velocity: np.ndarray | None = None,
     ):
         if not (np.isfinite(normal_speed) and normal_speed > 0.0):
-            raise ValueError(f"normal_speed = {normal_speed} m/s must be > 0 (towards the surface)")
+            raise BadInputError(f"normal_speed = {normal_speed} m/s must be > 0 (towards the surface)")
         v_t = np.zeros(3) if tangential_velocity is None else np.asarray(tangential_velocity, float)
         if v_t.shape != (3,) or not np.all(np.isfinite(v_t)):
-            raise ValueError("tangential_velocity must be 3 finite values (m/s, world frame)")
+            raise BadInputError("tangential_velocity must be 3 finite values (m/s, world frame)")
         v_t = v_t - (v_t @ surface.normal) * surface.normal
         self.robot = robot
         self.twist = np.concatenate([-normal_speed * surface.normal + v_t, np.zeros(3)])
@@ -109,9 +110,9 @@ class CommandReplay:
     def __init__(self, dq_cmd: np.ndarray):
         dq_cmd = np.asarray(dq_cmd, dtype=float)
         if dq_cmd.ndim != 2 or dq_cmd.shape[1] != NQ or len(dq_cmd) == 0:
-            raise ValueError(f"a command replay needs an (N, {NQ}) array, got shape {dq_cmd.shape}")
+            raise BadInputError(f"a command replay needs an (N, {NQ}) array, got shape {dq_cmd.shape}")
         if not np.all(np.isfinite(dq_cmd)):
-            raise ValueError("the replayed commands contain a non-finite value")
+            raise BadInputError("the replayed commands contain a non-finite value")
         self.dq_cmd = dq_cmd
         self.index = 0
 
@@ -179,16 +180,16 @@ def run_trial(
     model, data = scene.model, scene.data
     substeps = int(round(control_period / scene.timestep))
     if substeps < 1 or abs(substeps * scene.timestep - control_period) > 1e-9:
-        raise ValueError(
+        raise BadInputError(
             f"control period {control_period} s is not a whole number of timesteps ({scene.timestep} s)"
         )
     steps = int(round(duration / control_period))
     if steps < 1:
-        raise ValueError(f"duration {duration} s is shorter than one control period")
+        raise BadInputError(f"duration {duration} s is shorter than one control period")
     q0 = np.asarray(q0, dtype=float)
     dq0 = np.asarray(dq0, dtype=float)
     if q0.shape != (NQ,) or dq0.shape != (NQ,):
-        raise ValueError(f"the start state needs {NQ} joint positions and velocities")
+        raise BadInputError(f"the start state needs {NQ} joint positions and velocities")
 
     t = np.arange(steps) * control_period
     q = np.empty((steps, NQ))
@@ -269,7 +270,7 @@ def approach_start(
     limits. Raises :class:`UnreachableStartError` when no such posture is found.
     """
     if not (np.isfinite(distance) and distance >= 0.0):
-        raise ValueError(f"start distance {distance} m must be >= 0")
+        raise BadInputError(f"start distance {distance} m must be >= 0")
     q_contact, _ = robot.check_state(q_contact)
     start = robot.contact_frame(q_contact)
     axis = start.rotation[:, 2]

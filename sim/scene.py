@@ -55,6 +55,7 @@ from impactqp.controller.model.robot import (
 )
 
 from .plant import PlantParameters
+from impactqp.controller.model.validation import BadInputError
 
 DEFAULT_TIMESTEP = 0.25e-3
 HAND_BODY = "panda_hand"
@@ -147,9 +148,9 @@ def build_scene(
     """Build and compile the scene: Panda from the URDF, tool, wall, contact pair and plant."""
     plant = PlantParameters() if plant is None else plant
     if not (np.isfinite(timestep) and 0.0 < timestep <= 0.5e-3):
-        raise ValueError(f"timestep = {timestep} s must be in (0, 0.5 ms]")
+        raise BadInputError(f"timestep = {timestep} s must be in (0, 0.5 ms]")
     if plant.contact_solref[0] < 2.0 * timestep:
-        raise ValueError(
+        raise BadInputError(
             f"contact_solref time constant {plant.contact_solref[0]} s must be at least twice the "
             f"timestep {timestep} s (MuJoCo would silently stiffen nothing below that)"
         )

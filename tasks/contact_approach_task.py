@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
+from impactqp.controller.model.validation import unit_normal
 
 from .task import Task, TaskRows, critical_damping, finite_array, non_negative, rotation_error
 
@@ -43,13 +45,8 @@ class ContactApproachTask(Task):
         orientation_weight: float = 100.0,
         target_rotation=None,
     ):
-        normal = finite_array("normal", normal, (3,))
-        if np.linalg.norm(normal) < 1e-9:
-            raise ValueError("the surface normal must not be zero")
-        normal = normal / np.linalg.norm(normal)
-        tangential_velocity = finite_array("tangential_velocity", tangential_velocity, (3,))
-        if abs(normal @ tangential_velocity) > 1e-9:
-            raise ValueError("the tangential velocity must be orthogonal to the surface normal")
+        normal = unit_normal(normal)
+        tangential_velocity = tangential_velocity_along(tangential_velocity, normal)
         speed = non_negative("the approach speed (along -n)", speed)
         for label, value in (("velocity_gain", velocity_gain), ("orientation_stiffness", orientation_stiffness),
                              ("normal_weight", normal_weight), ("tangential_weight", tangential_weight),

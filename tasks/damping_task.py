@@ -7,6 +7,7 @@ import numpy as np
 from impactqp.controller.model.robot import ModelTerms
 
 from .task import Task, TaskRows, non_negative
+from impactqp.controller.model.validation import BadInputError
 
 
 class DampingTask(Task):
@@ -22,7 +23,7 @@ class DampingTask(Task):
 
     def __init__(self, gain: float = 1.0, weight: float = 1e-4):
         if not non_negative("damping weight", weight) > 0.0:
-            raise ValueError("the damping task weight must be > 0")
+            raise BadInputError("the damping task weight must be > 0")
         self.gain = non_negative("damping gain", gain)
         self.weight = np.full(7, float(weight))
         self._identity = np.eye(7)

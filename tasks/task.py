@@ -18,6 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.validation import BadInputError
 
 
 class TaskRows(NamedTuple):
@@ -54,7 +55,7 @@ def non_negative(name: str, value) -> float:
     """``value`` as a float, or ValueError when it is not finite and >= 0 (gains, weights)."""
     value = float(value)
     if not (np.isfinite(value) and value >= 0.0):
-        raise ValueError(f"{name} = {value} must be a finite number >= 0")
+        raise BadInputError(f"{name} = {value} must be a finite number >= 0")
     return value
 
 
@@ -62,5 +63,5 @@ def finite_array(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
     """``value`` as a float array of ``shape``, or ValueError (wrong shape or not finite)."""
     array = np.asarray(value, dtype=float)
     if array.shape != shape or not np.all(np.isfinite(array)):
-        raise ValueError(f"{name} must be {shape} finite values, got {value!r}")
+        raise BadInputError(f"{name} must be {shape} finite values, got {value!r}")
     return array

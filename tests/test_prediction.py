@@ -25,7 +25,7 @@ def test_query_builds_the_pre_impact_velocity():
         ({"restitution": 1.5}, r"\[0, 1\]"),
         ({"restitution": -0.1}, r"\[0, 1\]"),
         ({"tangential": [0.1, 0, 0]}, "orthogonal"),
-        ({"normal": [1, 0]}, "3 finite"),
+        ({"normal": [1, 0]}, "3 numbers"),
     ],
 )
 def test_bad_queries_are_rejected(kwargs, message):

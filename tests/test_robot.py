@@ -6,6 +6,7 @@ import pytest
 from conftest import joint_positions
 from hypothesis import given, settings
 
+from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.model.postures import POSTURES, DEFAULT_WALL, Surface, posture
 from impactqp.controller.model.robot import (
     CONTACT_FRAME,
@@ -103,7 +104,7 @@ def test_postures_differ_in_elbow_and_wrist(robot):
 
 
 def test_unknown_posture_and_bad_surface():
-    with pytest.raises(KeyError, match="unknown posture"):
+    with pytest.raises(BadInputError, match="unknown posture"):
         posture("nope")
     with pytest.raises(ValueError, match="zero"):
         Surface(np.zeros(3), np.zeros(3))

@@ -36,6 +36,7 @@ import numpy as np
 
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.validation import BadInputError
 
 from .atomic import write_text_atomic
 from .impact import WINDOW_AFTER, WINDOW_BEFORE, ImpactNotFoundError, measure_impact
@@ -57,7 +58,7 @@ TRIAL_KEYS = {"id", "file", "reference_normal_speed"}
 OPTIONAL_TRIAL_KEYS = {"force_file", "reference_tangential_velocity", "posture", "impact_time"}
 
 
-class DatasetError(ValueError):
+class DatasetError(BadInputError):
     """A dataset that cannot be read or written as asked."""
 
 

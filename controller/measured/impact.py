@@ -40,6 +40,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from impactqp.controller.model.validation import BadInputError
+
 from .trial_log import TrialLog
 
 WINDOW_BEFORE = 5e-3
@@ -52,7 +54,7 @@ DEFAULT_TORQUE_THRESHOLD = 0.3
 NOISE_SIGMAS = 6.0
 
 
-class ImpactNotFoundError(ValueError):
+class ImpactNotFoundError(BadInputError):
     """The log holds no detectable impact, or too little data around it."""
 
 

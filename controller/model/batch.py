@@ -18,6 +18,7 @@ import numpy as np
 
 from .jump import METHODS
 from .robot import NQ, PandaModel
+from .validation import BadInputError
 
 
 @dataclass(frozen=True)
@@ -72,9 +73,9 @@ class BatchKinematics:
     def terms(self, Q: np.ndarray) -> BatchTerms:
         Q = np.asarray(Q, dtype=float)
         if Q.ndim != 2 or Q.shape[1] != NQ:
-            raise ValueError(f"Q must have shape (N, {NQ}), got {Q.shape}")
+            raise BadInputError(f"Q must have shape (N, {NQ}), got {Q.shape}")
         if not np.all(np.isfinite(Q)):
-            raise ValueError("Q contains a non-finite value")
+            raise BadInputError("Q contains a non-finite value")
         N = Q.shape[0]
         c, s = np.cos(Q), np.sin(Q)
         Rs = np.empty((N, NQ, 3, 3))
@@ -130,7 +131,7 @@ def predict_batch(
     ``impulses`` (N, 3) the measured impulses replace the predicted ones.
     """
     if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
+        raise BadInputError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
     terms = kinematics.terms(Q)
     N = terms.J.shape[0]
     n = np.broadcast_to(np.asarray(normals, float), (N, 3))

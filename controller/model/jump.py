@@ -32,6 +32,7 @@ import numpy as np
 from scipy.linalg import cho_solve
 
 from .robot import ModelTerms
+from .validation import BadInputError, unit_normal
 
 METHODS = ("classical", "classical_normal", "gm", "crb")
 
@@ -89,12 +90,8 @@ class JumpMaps:
 
 
 def unit(normal: np.ndarray) -> np.ndarray:
-    """n / |n| (ValueError for a zero or non-finite normal)."""
-    normal = np.asarray(normal, dtype=float)
-    norm = float(np.linalg.norm(normal))
-    if not (np.isfinite(norm) and norm > 1e-12):
-        raise ValueError(f"the surface normal must be finite and non-zero, got {normal}")
-    return normal / norm
+    """n / |n| (``validation.unit_normal``)."""
+    return unit_normal(normal)
 
 
 class JumpModel:
@@ -182,7 +179,7 @@ def jump_model(name: str) -> JumpModel:
     try:
         return JUMP_MODELS[name]
     except KeyError:
-        raise KeyError(f"unknown jump model {name!r}; choose from {', '.join(JUMP_MODELS)}") from None
+        raise BadInputError(f"unknown jump model {name!r}; choose from {', '.join(JUMP_MODELS)}") from None
 
 
 def prediction_error(predicted: np.ndarray, measured: np.ndarray) -> np.ndarray:

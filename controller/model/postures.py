@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .validation import BadInputError, finite_vector, unit_normal
+
 
 @dataclass(frozen=True)
 class Surface:
@@ -22,19 +24,12 @@ class Surface:
     friction: float = 0.1123
 
     def __post_init__(self):
-        point = np.asarray(self.point, dtype=float)
-        normal = np.asarray(self.normal, dtype=float)
-        if point.shape != (3,) or normal.shape != (3,):
-            raise ValueError("a surface needs a 3-D point and a 3-D normal")
-        if not (np.all(np.isfinite(point)) and np.all(np.isfinite(normal))):
-            raise ValueError("surface point and normal must be finite")
-        norm = np.linalg.norm(normal)
-        if norm < 1e-9:
-            raise ValueError("the surface normal must not be zero")
-        if not (np.isfinite(self.friction) and self.friction >= 0.0):
-            raise ValueError("the surface friction must be a finite number >= 0")
+        point = finite_vector(self.point, 3, "the surface point")
+        normal = unit_normal(self.normal)
+        if isinstance(self.friction, bool) or not (np.isfinite(self.friction) and self.friction >= 0.0):
+            raise BadInputError(f"the surface friction must be a finite number >= 0, got {self.friction!r}")
         object.__setattr__(self, "point", point)
-        object.__setattr__(self, "normal", normal / norm)
+        object.__setattr__(self, "normal", normal)
 
     def signed_distance(self, p: np.ndarray) -> float:
         """Distance of p from the plane, positive on the robot's side."""
@@ -78,4 +73,4 @@ def posture(name: str) -> ImpactPosture:
     try:
         return POSTURES[name]
     except KeyError:
-        raise KeyError(f"unknown posture {name!r}; known postures: {', '.join(POSTURES)}") from None
+        raise BadInputError(f"unknown posture {name!r}; known postures: {', '.join(POSTURES)}") from None

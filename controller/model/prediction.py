@@ -14,14 +14,8 @@ import numpy as np
 
 from .jump import JUMP_MODELS, METHODS
 from .robot import PandaModel
-
-ORTHOGONALITY_TOLERANCE = 1e-6
-
-
-def is_tangential(velocity: np.ndarray, normal: np.ndarray) -> bool:
-    """True when ``velocity`` is orthogonal to the unit ``normal`` (to ORTHOGONALITY_TOLERANCE)."""
-    return abs(velocity @ normal) <= ORTHOGONALITY_TOLERANCE * max(1.0, float(np.linalg.norm(velocity)))
-
+from .validation import approach_speed, finite_vector, tangential_velocity, unit_normal
+from .validation import restitution as restitution_coefficient
 
 @lru_cache(maxsize=1)
 def default_robot() -> PandaModel:
@@ -38,25 +32,11 @@ class ImpactQuery:
     @classmethod
     def from_speed(cls, q, normal, speed: float, tangential=None, restitution: float = 0.0):
         """v- = -speed * n + tangential, with n normalised and tangential orthogonal to n."""
-        normal = np.asarray(normal, dtype=float)
-        if normal.shape != (3,) or not np.all(np.isfinite(normal)):
-            raise ValueError("the normal must be 3 finite numbers")
-        norm = np.linalg.norm(normal)
-        if norm < 1e-9:
-            raise ValueError("the normal must not be zero")
-        normal = normal / norm
-        if not (np.isfinite(speed) and speed > 0.0):
-            raise ValueError(f"the approach speed must be > 0 m/s, got {speed}")
-        if not (np.isfinite(restitution) and 0.0 <= restitution <= 1.0):
-            raise ValueError(f"the restitution must lie in [0, 1], got {restitution}")
-        tangential = np.zeros(3) if tangential is None else np.asarray(tangential, dtype=float)
-        if tangential.shape != (3,) or not np.all(np.isfinite(tangential)):
-            raise ValueError("the tangential velocity must be 3 finite numbers")
-        if not is_tangential(tangential, normal):
-            raise ValueError(
-                f"the tangential velocity must be orthogonal to the normal (t.n = {tangential @ normal:.3g})"
-            )
-        return cls(np.asarray(q, dtype=float), normal, -speed * normal + tangential, float(restitution))
+        normal = unit_normal(normal)
+        speed = approach_speed(speed)
+        c_r = restitution_coefficient(restitution)
+        tangential = np.zeros(3) if tangential is None else tangential_velocity(tangential, normal)
+        return cls(finite_vector(q, 7, "the joint positions q"), normal, -speed * normal + tangential, c_r)
 
 
 def predict_all(query: ImpactQuery, methods=METHODS, robot: PandaModel | None = None) -> dict:

@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from .validation import BadInputError
+
 NQ = 7
 HAND_FRAME = "panda_hand"
 CONTACT_FRAME = "impact_tip"
@@ -40,11 +42,11 @@ ACCELERATION_LIMIT = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0])
 JERK_LIMIT = np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0])
 
 
-class InvalidStateError(ValueError):
+class InvalidStateError(BadInputError):
     """A joint state that cannot be used: wrong shape, not finite, or outside the limits."""
 
 
-class SingularPostureError(ValueError):
+class SingularPostureError(BadInputError):
     """The contact Jacobian is (numerically) rank deficient at this posture."""
 
 

@@ -62,6 +62,19 @@ def restitution(value, what: str = "the restitution") -> float:
     return c_r
 
 
+def approach_speed(value, what: str = "the approach speed") -> float:
+    """An approach speed along -n in m/s: finite and > 0."""
+    if isinstance(value, bool):
+        raise BadInputError(f"{what} must be a number of m/s, got {value!r}")
+    try:
+        speed = float(value)
+    except (TypeError, ValueError) as exc:
+        raise BadInputError(f"{what} must be a number of m/s, got {value!r}") from exc
+    if not (math.isfinite(speed) and speed > 0.0):
+        raise BadInputError(f"{what} must be > 0 m/s, got {speed}")
+    return speed
+
+
 def tangential_velocity(velocity, normal: np.ndarray, what: str = "the tangential velocity") -> np.ndarray:
     """A tangential contact velocity (m/s) orthogonal to the unit ``normal``.
 

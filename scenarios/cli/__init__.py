@@ -1,23 +1,36 @@
-"""The ``impactqp`` command line.
+"""The ``impactqp`` command line: it parses options and calls the library, nothing more.
 
-Every command validates its input; bad input gets one line on stderr and exit code 2, never a
-traceback. ``--json`` prints machine-readable output on stdout.
+One error boundary (:func:`main`):
+
+- bad input (``BadInputError`` from the one validation module, a usage error, or an ``OSError``
+  on a path the user gave) gets one line on stderr and exit code 2, never a traceback;
+- anything else is an internal error: exit code 1 and one line that asks for a report; the
+  traceback only with ``impactqp --debug``;
+- Ctrl-C ends with exit code 130.
+
+``--json`` prints machine-readable output on stdout.
 """
 
 from __future__ import annotations
 
+import sys
+import traceback
 
 import click
 import numpy as np
 
 from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.postures import POSTURES
-from impactqp.controller.model.robot import InvalidStateError, SingularPostureError
+from impactqp.controller.model.validation import BadInputError
+from impactqp.scenarios.cli.arguments import EXIT_BAD_INPUT, emit_json, output_directory, parse_vector
 
-from impactqp.scenarios.cli.arguments import EXIT_BAD_INPUT, BadInput, emit_json, parse_vector
+EXIT_INTERNAL_ERROR = 1
+EXIT_INTERRUPTED = 130
+
 
 @click.group()
-def cli():
+@click.option("--debug", is_flag=True, help="Show the traceback of an internal error.")
+def cli(debug):
     """Impact-aware QP control of a Franka Panda (Wang, Dehio, Kheddar, RA-L 2022)."""
 
 
@@ -62,10 +75,10 @@ def predict(posture_name, q_text, normal_text, speed, tangential_text, restituti
     from impactqp.controller.model.prediction import ImpactQuery, predict_all
 
     if (posture_name is None) == (q_text is None):
-        raise BadInput("give exactly one of --posture NAME or --q Q1,...,Q7")
+        raise BadInputError("give exactly one of --posture NAME or --q Q1,...,Q7")
     if posture_name is not None:
         if posture_name not in POSTURES:
-            raise BadInput(f"unknown posture {posture_name!r}; known: {', '.join(POSTURES)}")
+            raise BadInputError(f"unknown posture {posture_name!r}; known: {', '.join(POSTURES)}")
         q = POSTURES[posture_name].q
     else:
         q = parse_vector(q_text, 7, "--q")
@@ -116,12 +129,18 @@ def demo(out_dir, jobs):
     Campaign: 3 postures x 5 normal speeds + 4 tangential speeds, Table I and the figures in
     --out; then `max-speed --posture elbow_up` (closed form, QP-limited and simulated).
     """
-    from impactqp.scenarios.cli.simulation_commands import max_speed_text, run_campaign, run_max_speed
+    from impactqp.controller.model.postures import DEFAULT_WALL
+    from impactqp.scenarios.campaign import PAPER_SPEEDS, Campaign, CampaignPlan
+    from impactqp.scenarios.cli.arguments import check_jobs
+    from impactqp.scenarios.cli.simulation_commands import max_speed_text
+    from impactqp.scenarios.max_speed_search import MaxSpeedSearch
 
-    table = run_campaign(None, None, "0.03,0.06,0.09,0.12", None, jobs, out_dir, True)
+    output_directory(out_dir, "--out")
+    plan = CampaignPlan(tuple(POSTURES), PAPER_SPEEDS, (0.03, 0.06, 0.09, 0.12))
+    table = Campaign(plan, DEFAULT_WALL, None, jobs=check_jobs(jobs), progress=True).run(out_dir)
     click.echo(table.text())
     click.echo(f"dataset, Table I and figures written to {out_dir}\n")
-    report = run_max_speed("elbow_up", "crb", 0.0, 0.015, None, None, None, jobs, 0.005, True)
+    report = MaxSpeedSearch(POSTURES["elbow_up"], DEFAULT_WALL, jobs=jobs, progress=True).run()
     click.echo(max_speed_text(report))
 
 
@@ -138,17 +157,35 @@ cli.add_command(diagnose)
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line; the exit code: 0 done, 1 internal error, 2 bad input, 130 Ctrl-C."""
+    args = sys.argv[1:] if argv is None else list(argv)
     try:
-        code = cli.main(args=argv, prog_name="impactqp", standalone_mode=False)
-    except click.exceptions.Abort:
-        click.echo("impactqp: aborted", err=True)
-        return 1
+        code = cli.main(args=args, prog_name="impactqp", standalone_mode=False)
+    except (KeyboardInterrupt, click.exceptions.Abort):
+        click.echo("impactqp: interrupted", err=True)
+        return EXIT_INTERRUPTED
     except click.ClickException as exc:
         click.echo(f"impactqp: error: {exc.format_message()}", err=True)
         return EXIT_BAD_INPUT
-    except (InvalidStateError, SingularPostureError, ValueError, KeyError, FileNotFoundError) as exc:
-        message = exc.args[0] if exc.args else str(exc)
-        click.echo(f"impactqp: error: {message}", err=True)
+    except BadInputError as exc:
+        click.echo(f"impactqp: error: {_one_line(exc)}", err=True)
         return EXIT_BAD_INPUT
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        click.echo(f"impactqp: error: {where}{exc.strerror or _one_line(exc)}", err=True)
+        return EXIT_BAD_INPUT
+    except Exception as exc:  # noqa: BLE001 - the boundary: anything else is our bug
+        if "--debug" in args[: args.index("--") if "--" in args else len(args)]:
+            traceback.print_exc()
+        click.echo(
+            f"impactqp: internal error ({type(exc).__name__}: {_one_line(exc)}); please report it, "
+            "with the output of the same command run as `impactqp --debug ...`",
+            err=True,
+        )
+        return EXIT_INTERNAL_ERROR
     return code if isinstance(code, int) else 0
 
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc.args[0]) if exc.args else str(exc)
+    return " ".join(text.split()) or type(exc).__name__

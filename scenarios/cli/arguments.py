@@ -1,20 +1,22 @@
 """Command-line arguments and output shared by the ``impactqp`` commands.
 
-Bad input raises :class:`BadInput`: one line on stderr and exit code 2 (``scenarios.cli.main``).
+Parsing errors raise ``BadInputError`` (``controller/model/validation.py``): one line on stderr and
+exit code 2 (``scenarios.cli.main``). Every file or directory argument is checked here, before
+any work starts.
 """
 
 from __future__ import annotations
 
 import json
+import os
+from pathlib import Path
 
 import click
 import numpy as np
 
+from impactqp.controller.model.validation import BadInputError
+
 EXIT_BAD_INPUT = 2
-
-
-class BadInput(click.ClickException):
-    exit_code = EXIT_BAD_INPUT
 
 
 def parse_vector(text: str, size: int | None, what: str) -> np.ndarray:
@@ -22,11 +24,11 @@ def parse_vector(text: str, size: int | None, what: str) -> np.ndarray:
     try:
         values = np.array([float(x) for x in text.split(",")], dtype=float)
     except ValueError:
-        raise BadInput(f"{what} must be comma-separated numbers, got {text!r}") from None
+        raise BadInputError(f"{what} must be comma-separated numbers, got {text!r}") from None
     if size is not None and values.size != size:
-        raise BadInput(f"{what} must have {size} values, got {values.size}")
+        raise BadInputError(f"{what} must have {size} values, got {values.size}")
     if not np.all(np.isfinite(values)):
-        raise BadInput(f"{what} contains a non-finite value")
+        raise BadInputError(f"{what} contains a non-finite value")
     return values
 
 
@@ -35,7 +37,62 @@ def parse_list(text: str, what: str) -> list[float]:
 
 
 def emit_json(obj) -> None:
-    click.echo(json.dumps(obj, indent=2))
+    """Strict JSON on stdout: a non-finite number is an internal error, never printed as NaN."""
+    click.echo(json.dumps(obj, indent=2, allow_nan=False))
+
+
+def input_file(path: str, what: str) -> Path:
+    """An existing, readable regular file."""
+    p = Path(path)
+    if not p.exists():
+        raise BadInputError(f"{what}: {path} does not exist")
+    if not p.is_file():
+        raise BadInputError(f"{what}: {path} is not a regular file")
+    if not os.access(p, os.R_OK):
+        raise BadInputError(f"{what}: {path} is not readable")
+    return p
+
+
+def input_directory(path: str, what: str) -> Path:
+    """An existing, readable directory."""
+    p = Path(path)
+    if not p.is_dir():
+        raise BadInputError(f"{what}: {path} is not a directory")
+    if not os.access(p, os.R_OK | os.X_OK):
+        raise BadInputError(f"{what}: {path} is not readable")
+    return p
+
+
+def _writable_parent(p: Path, what: str) -> None:
+    parent = p.parent if str(p.parent) else Path(".")
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise BadInputError(f"{what}: {p} lies under {parent}, which is not a directory")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise BadInputError(f"{what}: cannot write under {parent} (permission denied)")
+
+
+def output_directory(path: str, what: str) -> Path:
+    """A directory that exists and is writable, or can be created."""
+    p = Path(path)
+    if p.exists():
+        if not p.is_dir():
+            raise BadInputError(f"{what}: {path} exists and is not a directory")
+        if not os.access(p, os.W_OK | os.X_OK):
+            raise BadInputError(f"{what}: {path} is not writable")
+        return p
+    _writable_parent(p, what)
+    return p
+
+
+def output_file(path: str, what: str) -> Path:
+    """A file that can be written atomically: not a directory, in a writable directory."""
+    p = Path(path)
+    if p.is_dir():
+        raise BadInputError(f"{what}: {path} is a directory")
+    _writable_parent(p, what)
+    return p
 
 
 def load_plant(path: str | None):
@@ -45,14 +102,15 @@ def load_plant(path: str | None):
 
     if path is None:
         return None
+    input_file(path, "--plant")
     try:
         return PlantParameters.from_json(path)
     except PlantParameterError as error:
-        raise BadInput(f"--plant: {error}") from None
+        raise BadInputError(f"--plant: {error}") from None
 
 
 def check_jobs(value: int) -> int:
     """``--jobs N``: a number of worker processes, >= 1."""
     if value < 1:
-        raise BadInput(f"--jobs must be >= 1, got {value}")
+        raise BadInputError(f"--jobs must be >= 1, got {value}")
     return value

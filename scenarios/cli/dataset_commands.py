@@ -4,11 +4,19 @@ simulation (dataset format: ``sim/dataset.py`` and the README)."""
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import click
 
-from impactqp.scenarios.cli.arguments import BadInput, check_jobs, emit_json, load_plant, parse_list
+from impactqp.controller.model.validation import BadInputError
+from impactqp.scenarios.cli.arguments import (
+    check_jobs,
+    emit_json,
+    input_directory,
+    load_plant,
+    output_directory,
+    output_file,
+    parse_list,
+)
 
 
 @click.group()
@@ -24,8 +32,7 @@ def validate_command(ctx, directory, as_json):
     """Report every problem per trial; never modifies the data. Exit code 1 when any is found."""
     from impactqp.controller.measured.dataset import validate
 
-    if not Path(directory).is_dir():
-        raise BadInput(f"{directory} is not a directory")
+    input_directory(directory, "DIRECTORY")
     problems = validate(directory)
     count = sum(len(v) for v in problems.values())
     if as_json:
@@ -59,14 +66,14 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
     from tqdm import tqdm
 
     from impactqp.controller.model.postures import POSTURES
-    from impactqp.controller.measured.dataset import DatasetError
     from impactqp.sim.generation import generate_dataset
 
+    output_directory(out, "OUT")
     plant = load_plant(plant_file)  # None: the nominal plant
     names = [p.strip() for p in postures.split(",")] if postures else list(POSTURES)
     unknown = [p for p in names if p not in POSTURES]
     if unknown:
-        raise BadInput(f"unknown posture(s) {', '.join(unknown)}; known: {', '.join(POSTURES)}")
+        raise BadInputError(f"unknown posture(s) {', '.join(unknown)}; known: {', '.join(POSTURES)}")
     speed_list = parse_list(speeds, "--speeds") if speeds else None
     tangential_list = parse_list(tangential, "--tangential") if tangential else []
     check_jobs(jobs)
@@ -82,8 +89,6 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
             out, plant=plant, postures=names, speeds=speed_list, tangential=tangential_list, repeats=repeats,
             noise_dq=noise_dq, noise_tau=noise_tau, seed=seed, jobs=jobs, progress=progress,
         )
-    except (DatasetError, ValueError) as error:
-        raise BadInput(str(error)) from None
     finally:
         for bar in bars:
             bar.close()
@@ -104,22 +109,21 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, jobs):
     """What the simulation gets wrong on measured impacts, why, and the model change that fixes it."""
     import mujoco
 
-    from impactqp.controller.measured.dataset import DatasetError
     from impactqp.sim.diagnosis import diagnose as run_diagnosis
 
-    if not Path(directory).is_dir():
-        raise BadInput(f"{directory} is not a directory")
-    check_jobs(jobs)
     from impactqp.sim.plant import PlantParameters
 
+    input_directory(directory, "DIRECTORY")
+    check_jobs(jobs)
+    if report_dir:
+        output_directory(report_dir, "--report")
+    if save_plant:
+        output_file(save_plant, "--save-plant")
     nominal = load_plant(plant_file) or PlantParameters()
     # Unstable candidate plants are detected by MuJoCo's warning counters (sim.diagnosis.replay);
     # keep the C library from printing each one.
     mujoco.set_mju_user_warning(lambda message: None)
-    try:
-        result = run_diagnosis(directory, nominal=nominal, jobs=jobs)
-    except DatasetError as error:
-        raise BadInput(str(error)) from None
+    result = run_diagnosis(directory, nominal=nominal, jobs=jobs)
     summary = result.summary()
     if save_plant:
         from dataclasses import replace

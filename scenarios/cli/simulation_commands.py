@@ -17,9 +17,17 @@ import numpy as np
 
 from impactqp.constraints import JUMP_MODEL_CHOICES
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
-from impactqp.controller.model.prediction import is_tangential
 from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, ImpactPosture, Surface
-from impactqp.scenarios.cli.arguments import BadInput, check_jobs, emit_json, load_plant, parse_vector
+from impactqp.controller.model.validation import BadInputError, tangential_velocity, unit_normal
+from impactqp.controller.model.validation import restitution as restitution_coefficient
+from impactqp.scenarios.cli.arguments import (
+    check_jobs,
+    emit_json,
+    load_plant,
+    output_directory,
+    output_file,
+    parse_vector,
+)
 
 SIMULATE_START_DISTANCE = 0.05
 
@@ -27,16 +35,14 @@ SIMULATE_START_DISTANCE = 0.05
 # ---------------------------------------------------------------------------- shared options
 def named_posture(name: str) -> ImpactPosture:
     if name not in POSTURES:
-        raise BadInput(f"unknown posture {name!r}; known: {', '.join(POSTURES)}")
+        raise BadInputError(f"unknown posture {name!r}; known: {', '.join(POSTURES)}")
     return POSTURES[name]
 
 
 def wall(point_text: str | None, normal_text: str | None) -> Surface:
     """The default wall, moved to --wall-point and/or turned to --wall-normal."""
     point = DEFAULT_WALL.point if point_text is None else parse_vector(point_text, 3, "--wall-point")
-    normal = DEFAULT_WALL.normal if normal_text is None else parse_vector(normal_text, 3, "--wall-normal")
-    if np.linalg.norm(normal) < 1e-9:
-        raise BadInput("--wall-normal must not be zero")
+    normal = DEFAULT_WALL.normal if normal_text is None else unit_normal(parse_vector(normal_text, 3, "--wall-normal"), "--wall-normal")
     return Surface(point, normal, DEFAULT_WALL.friction)
 
 
@@ -48,12 +54,12 @@ def check_reachable(posture: ImpactPosture, surface: Surface, distance: float) -
     try:
         approach_start(default_robot(), posture.q, surface, distance)
     except UnreachableStartError as error:
-        raise BadInput(str(error)) from None
+        raise BadInputError(str(error)) from None
 
 
 def positive(value: float, what: str) -> float:
     if not (np.isfinite(value) and value > 0.0):
-        raise BadInput(f"{what} must be > 0, got {value}")
+        raise BadInputError(f"{what} must be > 0, got {value}")
     return value
 
 
@@ -93,18 +99,22 @@ def simulate(
     posture = named_posture(posture_name)
     positive(speed, "--speed")
     surface = wall(wall_point, wall_normal)
-    tangential = np.zeros(3) if tangential_text is None else parse_vector(tangential_text, 3, "--tangential")
-    if not is_tangential(tangential, surface.normal):
-        raise BadInput(f"--tangential must be orthogonal to the wall normal (t.n = {tangential @ surface.normal:.3g})")
+    tangential = (
+        np.zeros(3) if tangential_text is None
+        else tangential_velocity(parse_vector(tangential_text, 3, "--tangential"), surface.normal, "--tangential")
+    )
     plant = load_plant(plant_file)
+    if out_dir is not None:
+        output_directory(out_dir, "--out")
     if video_file is not None:
+        output_file(video_file, "--video")
         from impactqp.scenarios.video import offscreen_backend_problem
 
         if Path(video_file).suffix.lower() != ".gif":
-            raise BadInput(f"--video writes an animated GIF: give a .gif file name, got {video_file!r}")
+            raise BadInputError(f"--video writes an animated GIF: give a .gif file name, got {video_file!r}")
         problem = offscreen_backend_problem()
         if problem is not None:
-            raise BadInput(f"--video: {problem}")
+            raise BadInputError(f"--video: {problem}")
     check_reachable(posture, surface, SIMULATE_START_DISTANCE)
 
     spec = TrialSpec(
@@ -160,6 +170,7 @@ def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, 
         tangential = tuple(parse_vector(tangential_text, None, "--tangential").tolist())
     plan = CampaignPlan(postures, speeds, tangential)
     plant = load_plant(plant_file)
+    output_directory(out_dir, "--out")
     return Campaign(plan, DEFAULT_WALL, plant, jobs=check_jobs(jobs), progress=progress).run(out_dir)
 
 
@@ -190,8 +201,7 @@ def run_max_speed(posture_name, jump_model, restitution, impact_duration, plant_
     from impactqp.scenarios.max_speed_search import QP_START_DISTANCE, MaxSpeedSearch
 
     posture = named_posture(posture_name)
-    if not (np.isfinite(restitution) and 0.0 <= restitution <= 1.0):
-        raise BadInput(f"--restitution must lie in [0, 1], got {restitution}")
+    restitution_coefficient(restitution, "--restitution")
     positive(impact_duration, "--impact-duration")
     positive(tolerance, "--tolerance")
     surface = wall(wall_point, wall_normal)
