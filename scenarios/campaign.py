@@ -43,7 +43,7 @@ from impactqp.sim.plant import PlantParameters  # noqa: E402
 from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD  # noqa: E402
 
 from .trial import TrialPool, TrialResult, TrialSpec  # noqa: E402
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import BadInputError, approach_speed
 
 PAPER_SPEEDS = DEFAULT_SPEEDS
 PAPER_TANGENTIAL_SPEEDS = tuple(round(0.03 + 0.01 * i, 2) for i in range(10))
@@ -95,11 +95,10 @@ class CampaignPlan:
             raise BadInputError(f"unknown posture {unknown[0]!r}; known postures: {', '.join(POSTURES)}")
         if not self.speeds:
             raise BadInputError("the campaign needs at least one speed")
-        bad = [v for v in self.speeds if not (np.isfinite(v) and v > 0.0)]
-        if bad:
-            raise BadInputError(f"every speed must be > 0 m/s, got {bad[0]}")
-        if not all(np.isfinite(v) for v in self.tangential_speeds):
-            raise BadInputError("the tangential speeds must be finite")
+        for v in self.speeds:
+            approach_speed(v, "every normal speed")
+        for v in self.tangential_speeds:
+            approach_speed(abs(v) if v else 1.0, "every tangential speed")
 
     def specs(self, surface: Surface) -> list[TrialSpec]:
         specs = [

@@ -61,7 +61,7 @@ from impactqp.sim.plant import PlantParameters
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.sim.runner import CartesianApproachCommand, approach_start, run_trial
 from impactqp.sim.scene import Scene, build_scene
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import BadInputError, approach_speed, finite_vector, tangential_velocity
 
 OBSERVATION_WINDOW = 0.05
 FEEDBACKS = ("commanded", "measured")
@@ -92,11 +92,8 @@ class TrialSpec:
     feedback: str = "commanded"
 
     def __post_init__(self):
-        if not (np.isfinite(self.normal_speed) and self.normal_speed > 0.0):
-            raise BadInputError(f"the approach speed must be > 0 m/s, got {self.normal_speed}")
-        tangential = np.asarray(self.tangential_velocity, dtype=float)
-        if tangential.shape != (3,) or not np.all(np.isfinite(tangential)):
-            raise BadInputError("the tangential velocity must be 3 finite numbers (m/s)")
+        approach_speed(self.normal_speed)
+        tangential = finite_vector(self.tangential_velocity, 3, "the tangential velocity")
         object.__setattr__(self, "tangential_velocity", tangential)
         object.__setattr__(self, "q_contact", np.asarray(self.q_contact, dtype=float))
         if self.jump_model is not None:
@@ -195,7 +192,7 @@ class TrialRunner:
 
     def controller_config(self, spec: TrialSpec) -> ControllerConfig:
         normal = self.surface.normal
-        tangential = spec.tangential_velocity - (spec.tangential_velocity @ normal) * normal
+        tangential = tangential_velocity(spec.tangential_velocity, normal)
         return ControllerConfig.approach(
             self.surface,
             spec.normal_speed,

@@ -32,7 +32,7 @@ from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, T
 from .plant import PlantParameters
 from .runner import run_approach_trial
 from .scene import build_scene
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import BadInputError, approach_speed
 
 DEFAULT_SPEEDS = (0.08, 0.10, 0.12, 0.15, 0.18)
 TANGENTIAL_SERIES_NORMAL_SPEED = 0.12
@@ -63,10 +63,10 @@ class TrialSpec:
 def trial_specs(
     postures: list[str], speeds: list[float], tangential: list[float], repeats: int, normal: np.ndarray, seed: int
 ) -> list[TrialSpec]:
-    if any(not (np.isfinite(v) and v > 0) for v in speeds):
-        raise BadInputError("every normal speed must be > 0 m/s")
-    if any(not np.isfinite(v) for v in tangential):
-        raise BadInputError("every tangential speed must be finite")
+    for v in speeds:
+        approach_speed(v, "every normal speed")
+    for v in tangential:
+        approach_speed(abs(v) if v else 1.0, "every tangential speed")
     if repeats < 1:
         raise BadInputError("repeats must be >= 1")
     t = tangential_direction(normal)

@@ -45,7 +45,8 @@ from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import NQ, TOOL_RADIUS, PandaModel
 
 from .scene import Scene
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import BadInputError, approach_speed
+from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 
 DEFAULT_CONTROL_PERIOD = 1e-3
 CLEARANCE_SPEED = 5.0
@@ -90,12 +91,8 @@ class CartesianApproachCommand:
         normal_speed: float,
         tangential_velocity: np.ndarray | None = None,
     ):
-        if not (np.isfinite(normal_speed) and normal_speed > 0.0):
-            raise BadInputError(f"normal_speed = {normal_speed} m/s must be > 0 (towards the surface)")
-        v_t = np.zeros(3) if tangential_velocity is None else np.asarray(tangential_velocity, float)
-        if v_t.shape != (3,) or not np.all(np.isfinite(v_t)):
-            raise BadInputError("tangential_velocity must be 3 finite values (m/s, world frame)")
-        v_t = v_t - (v_t @ surface.normal) * surface.normal
+        approach_speed(normal_speed, "normal_speed")
+        v_t = np.zeros(3) if tangential_velocity is None else tangential_velocity_along(tangential_velocity, surface.normal)
         self.robot = robot
         self.twist = np.concatenate([-normal_speed * surface.normal + v_t, np.zeros(3)])
 

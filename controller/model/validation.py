@@ -15,6 +15,9 @@ import numpy as np
 NORMAL_MIN_NORM = 1e-9
 """A normal shorter than this cannot be normalised."""
 
+MAX_CONTACT_SPEED = 3.0
+"""Largest contact speed (m/s) accepted anywhere: the Panda's end effector tops out near 2 m/s."""
+
 ORTHOGONALITY_TOLERANCE = 1e-6
 """Largest |v_t . n| (m/s) accepted for a tangential velocity; larger is rejected, never projected."""
 
@@ -63,15 +66,15 @@ def restitution(value, what: str = "the restitution") -> float:
 
 
 def approach_speed(value, what: str = "the approach speed") -> float:
-    """An approach speed along -n in m/s: finite and > 0."""
+    """An approach speed along -n in m/s, in (0, MAX_CONTACT_SPEED]."""
     if isinstance(value, bool):
         raise BadInputError(f"{what} must be a number of m/s, got {value!r}")
     try:
         speed = float(value)
     except (TypeError, ValueError) as exc:
         raise BadInputError(f"{what} must be a number of m/s, got {value!r}") from exc
-    if not (math.isfinite(speed) and speed > 0.0):
-        raise BadInputError(f"{what} must be > 0 m/s, got {speed}")
+    if not (math.isfinite(speed) and 0.0 < speed <= MAX_CONTACT_SPEED):
+        raise BadInputError(f"{what} must be > 0 and at most {MAX_CONTACT_SPEED} m/s, got {speed}")
     return speed
 
 
@@ -82,6 +85,8 @@ def tangential_velocity(velocity, normal: np.ndarray, what: str = "the tangentia
     the offending component in the message; it is never silently projected away.
     """
     v_t = finite_vector(velocity, 3, what)
+    if float(np.linalg.norm(v_t)) > MAX_CONTACT_SPEED:
+        raise BadInputError(f"{what} must be at most {MAX_CONTACT_SPEED} m/s, got {np.linalg.norm(v_t):.3g} m/s")
     along = float(v_t @ normal)
     if abs(along) > ORTHOGONALITY_TOLERANCE:
         raise BadInputError(
