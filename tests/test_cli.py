@@ -96,3 +96,52 @@ def test_console_script_exit_code():
     )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and "unknown posture" in proc.stderr
+
+
+def one_line_bad_input(code, out, err, fragment):
+    assert code == 2, err
+    assert "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+    assert fragment in err
+
+
+def test_plant_that_is_a_directory_is_bad_input(capsys, tmp_path):
+    code, out, err = run(capsys, "max-speed", "--posture", "elbow_up", "--plant", str(tmp_path))
+    one_line_bad_input(code, out, err, "not a regular file")
+
+
+def test_output_directory_that_is_a_file_is_bad_input(capsys, tmp_path):
+    existing = tmp_path / "taken"
+    existing.write_text("keep me")
+    code, out, err = run(capsys, "campaign", "--out", str(existing), "--speeds", "0.1", "--tangential", "none")
+    one_line_bad_input(code, out, err, "not a directory")
+    assert existing.read_text() == "keep me"
+
+
+def test_output_under_a_file_is_bad_input(capsys, tmp_path):
+    existing = tmp_path / "file"
+    existing.write_text("x")
+    code, out, err = run(capsys, "dataset", "generate", str(existing / "sub"), "--speeds", "0.1")
+    one_line_bad_input(code, out, err, "not a directory")
+
+
+@pytest.mark.parametrize("speed", ["1e308", "50", "-1", "nan"])
+def test_speed_outside_the_physical_range_is_bad_input(capsys, speed):
+    code, out, err = run(capsys, "predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", speed, "--json")
+    one_line_bad_input(code, out, err, "m/s")
+    assert out == ""
+
+
+def test_an_internal_error_is_not_reported_as_bad_input(capsys, monkeypatch):
+    import impactqp.controller.model.prediction as prediction
+
+    def broken(*args, **kwargs):
+        raise ZeroDivisionError("a bug")
+
+    monkeypatch.setattr(prediction, "predict_all", broken)
+    code, out, err = run(capsys, "predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1")
+    assert code == 1
+    assert "internal error" in err and "--debug" in err and "Traceback" not in err
+    code, out, err = run(capsys, "--debug", "predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1")
+    assert code == 1
+    assert "Traceback" in err and "ZeroDivisionError" in err
