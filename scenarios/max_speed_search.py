@@ -110,11 +110,6 @@ class MaxSpeedReport:
     simulated_max_speed: float
     evaluations: list[Evaluation]
 
-    def predicted_for_jump_model(self) -> float:
-        """The closed-form maximum the QP should reach: the smallest over the models of
-        ``jump_model`` ('robust': crb, gm and classical)."""
-        return min(self.predicted[name].speed for name in jump_model_names(self.jump_model))
-
     def to_json(self) -> dict:
         return {
             "posture": self.posture,

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from impactqp.controller.model.postures import POSTURES, Surface
-from impactqp.controller.model.robot import TOOL_TIP_OFFSET, PandaModel
+from impactqp.controller.model.robot import NQ, TOOL_TIP_OFFSET, PandaModel
 
 from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, Tool, TrialEntry
 from .plant import PlantParameters
@@ -86,7 +86,7 @@ def simulate_trial(spec: TrialSpec, plant: PlantParameters, surface: Surface, no
     rng = np.random.default_rng(spec.seed)
     robot = PandaModel()
     scene = build_scene(surface, plant)
-    q_contact = POSTURES[spec.posture].q + rng.normal(0.0, START_POSTURE_STD, 7)
+    q_contact = POSTURES[spec.posture].q + rng.normal(0.0, START_POSTURE_STD, NQ)
     q_contact = np.clip(q_contact, robot.q_min, robot.q_max)
     distance = START_DISTANCE + rng.uniform(-START_DISTANCE_SPREAD, START_DISTANCE_SPREAD)
     log = run_approach_trial(

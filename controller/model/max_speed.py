@@ -31,9 +31,6 @@ class MaxSpeed:
     criterion: str
     joint: int  # 1-based joint index
 
-    def as_dict(self) -> dict:
-        return {"speed": self.speed, "criterion": self.criterion, "joint": self.joint}
-
 
 def approach_direction(terms: ModelTerms, normal: np.ndarray) -> np.ndarray:
     """d = J6+ [-n; 0]: joint velocity per unit approach speed along -n without rotation."""

@@ -21,6 +21,7 @@ import numpy as np
 
 from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
 from impactqp.scenarios.cli.arguments import EXIT_BAD_INPUT, emit_json, output_directory, parse_vector
 
@@ -30,7 +31,7 @@ EXIT_INTERRUPTED = 130
 
 @click.group()
 @click.option("--debug", is_flag=True, help="Show the traceback of an internal error.")
-def cli(debug):
+def cli(debug):  # noqa: ARG001 - read by main(), which owns the error boundary
     """Impact-aware QP control of a Franka Panda (Wang, Dehio, Kheddar, RA-L 2022)."""
 
 
@@ -81,7 +82,7 @@ def predict(posture_name, q_text, normal_text, speed, tangential_text, restituti
             raise BadInputError(f"unknown posture {posture_name!r}; known: {', '.join(POSTURES)}")
         q = POSTURES[posture_name].q
     else:
-        q = parse_vector(q_text, 7, "--q")
+        q = parse_vector(q_text, NQ, "--q")
     tangential = parse_vector(tangential_text, 3, "--tangential") if tangential_text else np.zeros(3)
     query = ImpactQuery.from_speed(
         q, parse_vector(normal_text, 3, "--normal"), speed, tangential, restitution
