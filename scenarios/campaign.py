@@ -35,12 +35,12 @@ from tqdm import tqdm  # noqa: E402
 
 from impactqp.controller.model.jump import METHODS, average_prediction_error  # noqa: E402
 from impactqp.controller.model.postures import POSTURES, Surface  # noqa: E402
-from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET  # noqa: E402
+from impactqp.controller.model.robot import NQ  # noqa: E402
 from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
 from impactqp.sim.generation import DEFAULT_SPEEDS, TANGENTIAL_SERIES_NORMAL_SPEED, tangential_direction  # noqa: E402
-from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, Tool, TrialEntry  # noqa: E402
+from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry  # noqa: E402
 from impactqp.sim.plant import PlantParameters  # noqa: E402
-from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD  # noqa: E402
+from impactqp.sim.runner import dataset_header  # noqa: E402
 
 from .trial import TrialPool, TrialResult, TrialSpec  # noqa: E402
 from impactqp.controller.model.validation import BadInputError, approach_speed
@@ -49,15 +49,6 @@ PAPER_SPEEDS = DEFAULT_SPEEDS
 PAPER_TANGENTIAL_SPEEDS = tuple(round(0.03 + 0.01 * i, 2) for i in range(10))
 TANGENTIAL_NORMAL_SPEED = TANGENTIAL_SERIES_NORMAL_SPEED
 FIGURE_METHODS = ("classical", "gm", "crb")
-
-
-def dataset_header(surface: Surface) -> DatasetHeader:
-    """The manifest header of a simulated dataset: the tool tip in the hand frame."""
-    return DatasetHeader(
-        tool=Tool(HAND_FRAME, (0.0, 0.0, TOOL_TIP_OFFSET)),
-        surface=surface,
-        control_period=DEFAULT_CONTROL_PERIOD,
-    )
 
 
 def write_trial(writer: DatasetWriter, result: TrialResult) -> None:

@@ -26,11 +26,11 @@ from pathlib import Path
 import numpy as np
 
 from impactqp.controller.model.postures import POSTURES, Surface
-from impactqp.controller.model.robot import NQ, TOOL_TIP_OFFSET, PandaModel
+from impactqp.controller.model.robot import NQ, PandaModel
 
-from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, Tool, TrialEntry
+from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry
 from .plant import PlantParameters
-from .runner import run_approach_trial
+from .runner import dataset_header, run_approach_trial
 from .scene import build_scene
 from impactqp.controller.model.validation import BadInputError, approach_speed
 
@@ -148,11 +148,8 @@ def generate_dataset(
         surface.normal,
         seed,
     )
-    header = DatasetHeader(
-        tool=Tool("panda_hand", (0.0, 0.0, TOOL_TIP_OFFSET)), surface=surface, control_period=1e-3
-    )
     Path(out).mkdir(parents=True, exist_ok=True)
-    writer = DatasetWriter(out, header)
+    writer = DatasetWriter(out, dataset_header(surface))
     args = [(s, plant, surface, noise_dq, noise_tau) for s in specs]
     entries = []
     if jobs > 1:

@@ -33,7 +33,7 @@ terms (``qfrc_bias``). ``tau`` in the log is this torque, the "measured joint to
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Protocol
 
 import mujoco
@@ -42,7 +42,8 @@ import pinocchio as pin
 
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import NQ, TOOL_RADIUS, PandaModel
+from impactqp.controller.measured.dataset import DatasetHeader, Tool
+from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_RADIUS, TOOL_TIP_OFFSET, PandaModel
 
 from .scene import Scene
 from impactqp.controller.model.validation import BadInputError, approach_speed
@@ -298,6 +299,14 @@ def _smallest_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The rotation of smallest angle mapping the unit vector a onto the unit vector b."""
     quaternion = pin.Quaternion.FromTwoVectors(a, b)
     return quaternion.toRotationMatrix()
+
+
+def dataset_header(surface: Surface) -> DatasetHeader:
+    """The manifest header of a simulated dataset: the tool tip in the hand frame, the runner's
+    control period."""
+    return DatasetHeader(
+        tool=Tool(HAND_FRAME, (0.0, 0.0, TOOL_TIP_OFFSET)), surface=surface, control_period=DEFAULT_CONTROL_PERIOD
+    )
 
 
 def run_approach_trial(

@@ -8,7 +8,7 @@ from impactqp.controller.model.robot import ModelTerms
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 from impactqp.controller.model.validation import unit_normal
 
-from .task import Task, TaskRows, critical_damping, finite_array, non_negative, rotation_error
+from .task import Task, TaskRows, critical_damping, non_negative, rotation_error
 
 
 class ContactApproachTask(Task):

@@ -92,7 +92,8 @@ def simulate(
     The tool starts at rest 5 cm in front of the wall; the controller accelerates it towards the
     reference velocity (capped by the jump-aware constraints when they are on) until it hits.
     """
-    from impactqp.scenarios.campaign import dataset_header, write_trial
+    from impactqp.scenarios.campaign import write_trial
+    from impactqp.sim.runner import dataset_header
     from impactqp.scenarios.trial import TrialRunner, TrialSpec
     from impactqp.controller.measured.dataset import DatasetWriter
 
