@@ -40,19 +40,18 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
-import mujoco
 import numpy as np
 from scipy.optimize import minimize
 
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS, average_prediction_error
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.model.robot import NQ, PandaModel
 
 from .causes import Cause, default_causes
 from impactqp.controller.measured.dataset import read_dataset, validate
 from impactqp.controller.measured.impact import ImpactNotFoundError, measure_impact
 from .plant import PlantParameters
-from .runner import CommandReplay, run_trial, servo_reference_from_commands
+from .runner import CommandReplay, SimulationUnstableError, run_trial, servo_reference_from_commands
 from .scene import build_scene
 from impactqp.controller.model.validation import BadInputError
 
@@ -108,7 +107,7 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
     directory = Path(directory)
     problems = validate(directory)
     bad = {k for k, v in problems.items() if k != "dataset" and v}
-    dataset = read_dataset(directory, skip=bad)
+    dataset = read_dataset(directory, skip=bad, strict=False)
     skipped = [{"id": k, "reason": "; ".join(problems[k])} for k in sorted(bad)]
     skipped += [{"id": "dataset", "reason": p} for p in problems["dataset"]]
     trials = []
@@ -163,19 +162,20 @@ def replay(scene, trial: MeasuredTrial) -> ReplayFeatures:
     servo gain beyond what the 1 kHz loop can hold), is marked failed: its jump and impulse are
     zero, so the fit's residuals push away from it.
     """
-    log = run_trial(
-        scene,
-        CommandReplay(trial.dq_cmd),
-        trial.q0,
-        trial.dq0,
-        len(trial.dq_cmd) * trial.control_period,
-        control_period=trial.control_period,
-        servo_reference=trial.servo_reference,
-    )
+    try:
+        log = run_trial(
+            scene,
+            CommandReplay(trial.dq_cmd),
+            trial.q0,
+            trial.dq0,
+            len(trial.dq_cmd) * trial.control_period,
+            control_period=trial.control_period,
+            servo_reference=trial.servo_reference,
+        )
+    except SimulationUnstableError:
+        return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, np.zeros(NQ))
     first, last = trial.torque_window
     torque = log.tau[first:last].mean(axis=0)
-    if scene.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0:
-        return ReplayFeatures(np.zeros(7), np.zeros(3), 0.0, torque)
     try:
         impact = measure_impact(log)
     except ImpactNotFoundError:

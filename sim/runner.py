@@ -43,7 +43,7 @@ import pinocchio as pin
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.measured.dataset import DatasetHeader, Tool
-from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_RADIUS, TOOL_TIP_OFFSET, PandaModel
+from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_RADIUS, TOOL_TIP_OFFSET, VELOCITY_LIMIT, PandaModel
 
 from .scene import Scene
 from impactqp.controller.model.validation import BadInputError, approach_speed
@@ -52,6 +52,16 @@ from impactqp.controller.model.validation import tangential_velocity as tangenti
 DEFAULT_CONTROL_PERIOD = 1e-3
 CLEARANCE_SPEED = 5.0
 LAG_ALLOWANCE = 3.0
+
+
+UNSTABLE_VELOCITY_FACTOR = 5.0
+"""A trial whose |dq| exceeds this many times the velocity limits has diverged: no impact of a
+real Panda comes near it, and the data would be garbage."""
+
+
+class SimulationUnstableError(BadInputError):
+    """The simulated state diverged (non-finite, or |dq| far above the limits): the plant or the
+    request lies outside what the model simulates faithfully. Such a trial is never data."""
 
 
 class UnreachableStartError(BadInputError):
@@ -232,7 +242,24 @@ def run_trial(
                 on_geom2 = contact.frame.reshape(3, 3).T @ contact_force[:3]
                 force[k * substeps + i] += on_geom2 if contact.geom2 == tool else -on_geom2
     wall_time = time.perf_counter() - start
+    _check_stable(scene, t, dq)
     return TrialLog(t, q, dq, tau, dq_cmd, force_t, force, wall_time)
+
+
+def _check_stable(scene: Scene, t: np.ndarray, dq: np.ndarray) -> None:
+    """Raise :class:`SimulationUnstableError` when the trial diverged: a non-finite or huge joint
+    velocity, or MuJoCo's own reset after a bad acceleration."""
+    limit = UNSTABLE_VELOCITY_FACTOR * VELOCITY_LIMIT
+    bad = ~np.all(np.isfinite(dq) & (np.abs(dq) <= limit), axis=1)
+    resets = scene.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+    if np.any(bad) or resets:
+        k = int(np.flatnonzero(bad)[0]) if np.any(bad) else len(t) - 1
+        peak = float(np.max(np.abs(dq[k]))) if np.all(np.isfinite(dq[k])) else float("inf")
+        raise SimulationUnstableError(
+            f"the simulation became unstable at t = {t[k]:.3f} s (|dq| = {peak:.3g} rad/s, more than "
+            f"{UNSTABLE_VELOCITY_FACTOR:g} times the limits, or a MuJoCo reset): the plant or the requested "
+            "motion lies outside what the model simulates; nothing was written"
+        )
 
 
 def servo_reference_from_commands(

@@ -1,4 +1,10 @@
-"""Atomic file writes: a reader sees the old file or the new one, never a partial file."""
+"""Atomic file writes: a reader sees the old file or the new one, never a partial file.
+
+The temporary file lives beside the target and is removed on every exit path: an error, Ctrl-C
+(KeyboardInterrupt) or a SIGTERM that the command line turns into an exception. Only SIGKILL can
+leave one behind, named ``.<target>.<random><suffix>``. The written file gets the permissions a
+plain ``open(path, "w")`` would give it: 0666 less the process umask.
+"""
 
 from __future__ import annotations
 
@@ -8,22 +14,32 @@ from collections.abc import Callable
 from pathlib import Path
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def write_atomic(path: Path, write: Callable[[Path], None]) -> Path:
     """Let ``write`` fill a temporary file in the same directory as ``path``, flush it to disk
-    and move it onto ``path`` with os.replace; on any error the temporary file is removed and
-    ``path`` is left as it was."""
+    and move it onto ``path`` with os.replace; on any error or interruption the temporary file is
+    removed and ``path`` is left as it was."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix or ".tmp")
-    os.close(fd)
+    tmp: Path | None = None
     try:
-        write(Path(tmp))
+        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix or ".tmp")
+        tmp = Path(name)
+        os.close(fd)
+        write(tmp)
         with open(tmp, "rb+") as stream:
             os.fsync(stream.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        tmp = None
+    finally:
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
     return path
 
 

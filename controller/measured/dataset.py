@@ -35,8 +35,9 @@ from pathlib import Path
 import numpy as np
 
 from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.prediction import default_robot
 from impactqp.controller.model.robot import NQ
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import BadInputError, approach_speed
 
 from .atomic import write_text_atomic
 from .impact import WINDOW_AFTER, WINDOW_BEFORE, ImpactNotFoundError, measure_impact
@@ -53,6 +54,16 @@ TRIAL_COLUMNS = (
     + [f"dq_cmd{i}" for i in range(1, NQ + 1)]
 )
 FORCE_COLUMNS = ["t", "fx", "fy", "fz"]
+ROBOTS = ("panda",)
+"""The robots the package models; a manifest naming another one is refused."""
+RESERVED_ID = "dataset"
+"""The key of the manifest's own problems in :func:`validate`; no trial may use it."""
+POSITION_TOLERANCE = 1e-3
+"""rad a logged joint position may lie outside the URDF limits (encoder and rounding)."""
+MAX_TOOL_LENGTH = 0.5
+"""m: the farthest a contact point may lie from its tool frame."""
+MIN_CONTROL_PERIOD, MAX_CONTROL_PERIOD = 1e-4, 1e-2
+"""s: the control periods a log may have (10 kHz to 100 Hz)."""
 MANIFEST_KEYS = {"format", "robot", "tool", "surface", "control_period", "trials"}
 TRIAL_KEYS = {"id", "file", "reference_normal_speed"}
 OPTIONAL_TRIAL_KEYS = {"force_file", "reference_tangential_velocity", "posture", "impact_time"}
@@ -203,72 +214,121 @@ def _load_manifest(path: Path) -> dict:
     if missing:
         raise DatasetError(f"{path} lacks the key(s) {', '.join(sorted(missing))}")
     if manifest["format"] != FORMAT:
-        raise DatasetError(f"{path}: format {manifest['format']!r} is not {FORMAT!r}")
+        raise DatasetError(f"{path}: the format must be {FORMAT!r}")
+    if manifest["robot"] not in ROBOTS:
+        raise DatasetError(f"{path}: 'robot' must be one of the robots we model ({', '.join(ROBOTS)})")
     if not isinstance(manifest["trials"], list):
         raise DatasetError(f"{path}: 'trials' must be a list")
     return manifest
 
 
+def _number(value, where: str) -> float:
+    """A JSON number (not a boolean, not a string) as a float."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise DatasetError(f"{where} must be a number, got a {type(value).__name__}")
+    return float(value)
+
+
+def _string(value, where: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise DatasetError(f"{where} must be a non-empty string, got a {type(value).__name__}")
+    return value
+
+
+def _numbers(value, count: int, where: str) -> tuple[float, ...]:
+    if not isinstance(value, list) or len(value) != count:
+        raise DatasetError(f"{where} must be a list of {count} numbers")
+    return tuple(_number(x, f"{where}[{i}]") for i, x in enumerate(value))
+
+
+def _file_name(value, where: str) -> str:
+    """A file of the dataset: a plain relative path that stays inside the dataset directory."""
+    name = _string(value, where)
+    path = Path(name)
+    if path.is_absolute() or ".." in path.parts or name.startswith("~"):
+        raise DatasetError(f"{where} must name a file inside the dataset directory")
+    return name
+
+
 def _parse_header(manifest: dict) -> DatasetHeader:
-    try:
-        tool = manifest["tool"]
-        point = np.asarray(tool["contact_point"], dtype=float)
-        if point.shape != (3,):
-            raise DatasetError("tool.contact_point needs 3 values")
-        surface = manifest["surface"]
-        period = float(manifest["control_period"])
-        if not (np.isfinite(period) and period > 0.0):
-            raise DatasetError(f"control_period = {period} s must be > 0")
-        return DatasetHeader(
-            tool=Tool(str(tool["frame"]), tuple(float(x) for x in point)),
-            surface=Surface(
-                surface["point"], surface["normal"], *([float(surface["friction"])] if "friction" in surface else [])
-            ),
-            control_period=period,
-            robot=str(manifest["robot"]),
+    tool, surface = manifest["tool"], manifest["surface"]
+    if not isinstance(tool, dict) or set(tool) != {"frame", "contact_point"}:
+        raise DatasetError("'tool' must be an object with the keys frame and contact_point")
+    if not isinstance(surface, dict) or not {"point", "normal"} <= set(surface) <= {"point", "normal", "friction"}:
+        raise DatasetError("'surface' must be an object with the keys point, normal and optionally friction")
+    frame = _string(tool["frame"], "tool.frame")
+    contact_point = _numbers(tool["contact_point"], 3, "tool.contact_point")
+    if not all(np.isfinite(contact_point)) or np.linalg.norm(contact_point) > MAX_TOOL_LENGTH:
+        raise DatasetError(f"tool.contact_point must be finite and within {MAX_TOOL_LENGTH} m of its frame")
+    period = _number(manifest["control_period"], "control_period")
+    if not (np.isfinite(period) and MIN_CONTROL_PERIOD <= period <= MAX_CONTROL_PERIOD):
+        raise DatasetError(
+            f"control_period must lie in [{MIN_CONTROL_PERIOD}, {MAX_CONTROL_PERIOD}] s, got {period}"
         )
-    except (KeyError, TypeError, ValueError) as error:
-        if isinstance(error, DatasetError):
-            raise
-        raise DatasetError(f"bad tool, surface or control_period in the manifest: {error!r}") from None
+    friction = [_number(surface["friction"], "surface.friction")] if "friction" in surface else []
+    try:
+        plane = Surface(
+            _numbers(surface["point"], 3, "surface.point"), _numbers(surface["normal"], 3, "surface.normal"), *friction
+        )
+    except DatasetError:
+        raise
+    except BadInputError as error:
+        raise DatasetError(f"surface: {error}") from None
+    return DatasetHeader(tool=Tool(frame, contact_point), surface=plane, control_period=period, robot=manifest["robot"])
 
 
 def _parse_entry(entry: dict) -> TrialEntry:
+    """One trial of the manifest, every value type-checked; messages name the trial and the key."""
     if not isinstance(entry, dict):
-        raise DatasetError(f"a trial entry must be an object, got {entry!r}")
+        raise DatasetError(f"a trial entry must be an object, got a {type(entry).__name__}")
+    trial_id = entry.get("id")
+    label = f"trial {trial_id!r}" if isinstance(trial_id, str) else "a trial entry"
     missing = TRIAL_KEYS - set(entry)
     if missing:
-        raise DatasetError(f"trial entry {entry.get('id', '?')!r} lacks {', '.join(sorted(missing))}")
+        raise DatasetError(f"{label} lacks {', '.join(sorted(missing))}")
     unknown = set(entry) - TRIAL_KEYS - OPTIONAL_TRIAL_KEYS
     if unknown:
-        raise DatasetError(f"trial entry {entry['id']!r} has unknown key(s) {', '.join(sorted(unknown))}")
+        raise DatasetError(f"{label} has unknown key(s) {', '.join(sorted(map(str, unknown)))}")
+    trial_id = _string(trial_id, "a trial's id")
+    if trial_id == RESERVED_ID:
+        raise DatasetError(f"the trial id {RESERVED_ID!r} is reserved for the manifest's own problems")
+    speed = _number(entry["reference_normal_speed"], f"{label}: reference_normal_speed")
+    try:
+        approach_speed(speed, f"{label}: reference_normal_speed")
+    except BadInputError as error:
+        raise DatasetError(str(error)) from None
     tangential = entry.get("reference_tangential_velocity")
     if tangential is not None:
-        tangential = tuple(float(x) for x in tangential)
-        if len(tangential) != 3:
-            raise DatasetError(f"trial {entry['id']!r}: reference_tangential_velocity needs 3 values")
+        tangential = _numbers(tangential, 3, f"{label}: reference_tangential_velocity")
+        if not all(np.isfinite(tangential)):
+            raise DatasetError(f"{label}: reference_tangential_velocity must be finite")
     impact_time = entry.get("impact_time")
+    posture = entry.get("posture")
+    force_file = entry.get("force_file")
     return TrialEntry(
-        id=str(entry["id"]),
-        file=str(entry["file"]),
-        reference_normal_speed=float(entry["reference_normal_speed"]),
-        force_file=entry.get("force_file"),
+        id=trial_id,
+        file=_file_name(entry["file"], f"{label}: file"),
+        reference_normal_speed=speed,
+        force_file=None if force_file is None else _file_name(force_file, f"{label}: force_file"),
         reference_tangential_velocity=tangential,
-        posture=entry.get("posture"),
-        impact_time=None if impact_time is None else float(impact_time),
+        posture=None if posture is None else _string(posture, f"{label}: posture"),
+        impact_time=None if impact_time is None else _number(impact_time, f"{label}: impact_time"),
     )
 
 
 def _read_table(path: Path, columns: list[str]) -> np.ndarray:
     """The table of a CSV file with exactly-named columns, in ``columns`` order."""
     try:
-        with path.open() as stream:
+        with path.open(encoding="utf-8-sig") as stream:  # a byte-order mark is not part of a name
             header = stream.readline().strip().split(",")
             table = np.loadtxt(stream, delimiter=",", ndmin=2)
     except FileNotFoundError:
         raise DatasetError(f"{path.name} does not exist") from None
-    except ValueError as error:
-        raise DatasetError(f"{path.name} is not a numeric CSV: {error}") from None
+    except IsADirectoryError:
+        raise DatasetError(f"{path.name} is a directory, not a CSV file") from None
+    except (ValueError, UnicodeDecodeError):
+        # never echo the file's content: it may be anything the manifest pointed at
+        raise DatasetError(f"{path.name} is not a numeric CSV file") from None
     header = [name.strip() for name in header]
     missing = [c for c in columns if c not in header]
     if missing:
@@ -287,25 +347,41 @@ def _read_table(path: Path, columns: list[str]) -> np.ndarray:
     return table
 
 
+def _inside(directory: Path, name: str) -> Path:
+    """``directory / name``, refused when a link leads it outside the dataset directory."""
+    path = directory / name
+    if not path.resolve().is_relative_to(directory.resolve()):
+        raise DatasetError(f"{name} leads outside the dataset directory")
+    return path
+
+
 def read_trial(directory: Path, entry: TrialEntry) -> TrialLog:
-    table = _read_table(directory / entry.file, TRIAL_COLUMNS)
+    table = _read_table(_inside(directory, entry.file), TRIAL_COLUMNS)
     t, q, dq, tau, dq_cmd = (table[:, 0], *np.split(table[:, 1:], 4, axis=1))
     log = TrialLog(t, q, dq, tau, dq_cmd)
     if entry.force_file is not None:
-        force = _read_table(directory / entry.force_file, FORCE_COLUMNS)
+        force = _read_table(_inside(directory, entry.force_file), FORCE_COLUMNS)
         log.force_t, log.force = force[:, 0], force[:, 1:]
     return log
 
 
-def read_dataset(directory: str | Path, skip: frozenset[str] | set[str] = frozenset()) -> Dataset:
+def read_dataset(
+    directory: str | Path, skip: frozenset[str] | set[str] = frozenset(), strict: bool = True
+) -> Dataset:
     """Read a dataset, leaving out the trials whose ids are in ``skip``; raises
-    :class:`DatasetError` on the first problem (see :func:`validate`)."""
+    :class:`DatasetError` on the first problem (see :func:`validate`). With ``strict=False`` a trial
+    entry that cannot be parsed is left out too (:func:`validate` reports it)."""
     directory = Path(directory)
     manifest = _load_manifest(directory / MANIFEST)
     header = _parse_header(manifest)
     trials = []
     for raw in manifest["trials"]:
-        entry = _parse_entry(raw)
+        try:
+            entry = _parse_entry(raw)
+        except DatasetError:
+            if strict:
+                raise
+            continue
         if entry.id in skip:
             continue
         try:
@@ -357,6 +433,15 @@ def _trial_problems(directory: Path, entry: TrialEntry, control_period: float) -
     except DatasetError as error:
         return [str(error)]
     problems = []
+    robot = default_robot()
+    outside = (log.q < robot.q_min - POSITION_TOLERANCE) | (log.q > robot.q_max + POSITION_TOLERANCE)
+    if np.any(outside):
+        row, joint = (int(i) for i in np.argwhere(outside)[0])
+        problems.append(
+            f"{entry.file}: q{joint + 1} = {log.q[row, joint]:.4f} rad at data row {row + 1} lies outside "
+            f"the joint limits [{robot.q_min[joint]:.4f}, {robot.q_max[joint]:.4f}]"
+        )
+        return problems
     needed = int(round((WINDOW_BEFORE + WINDOW_AFTER) / control_period)) + 4
     if len(log) < 2:
         return [f"{entry.file} holds {len(log)} samples, fewer than the {needed} of the detection window"]

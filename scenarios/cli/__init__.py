@@ -13,6 +13,7 @@ One error boundary (:func:`main`):
 
 from __future__ import annotations
 
+import signal
 import sys
 import traceback
 
@@ -160,6 +161,7 @@ cli.add_command(diagnose)
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; the exit code: 0 done, 1 internal error, 2 bad input, 130 Ctrl-C."""
     args = sys.argv[1:] if argv is None else list(argv)
+    previous = signal.signal(signal.SIGTERM, _interrupt)  # so that cleanup runs on SIGTERM too
     try:
         code = cli.main(args=args, prog_name="impactqp", standalone_mode=False)
     except (KeyboardInterrupt, click.exceptions.Abort):
@@ -184,7 +186,13 @@ def main(argv: list[str] | None = None) -> int:
             err=True,
         )
         return EXIT_INTERNAL_ERROR
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     return code if isinstance(code, int) else 0
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
 
 
 def _one_line(exc: BaseException) -> str:
