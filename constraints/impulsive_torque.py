@@ -9,7 +9,7 @@ from impactqp.controller.model.robot import ModelTerms
 
 from .constraint import Constraint, ConstraintRows, ControlCycle
 from .impact_model import ImpactModel
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import impact_duration as check_impact_duration
 
 _UNBOUNDED = np.full(7, np.inf)
 
@@ -40,8 +40,7 @@ class ImpulsiveTorqueLimit(Constraint):
         dq_max: np.ndarray,
         impact_duration: float = DEFAULT_IMPACT_DURATION,
     ):
-        if not (np.isfinite(impact_duration) and impact_duration > 0.0):
-            raise BadInputError("impact_duration must be > 0")
+        impact_duration = check_impact_duration(impact_duration)
         self.impact = impact
         self.impulse_limit = np.asarray(tau_max, dtype=float) * impact_duration
         self.row_scale = np.asarray(dq_max, dtype=float) / self.impulse_limit

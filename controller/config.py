@@ -106,8 +106,7 @@ class ImpactConfig:
 
     def __post_init__(self):
         validation.restitution(self.restitution, "impact.restitution")
-        if not (math.isfinite(self.impact_duration) and self.impact_duration > 0.0):
-            raise BadInputError(f"impact.impact_duration = {self.impact_duration} s must be > 0")
+        validation.impact_duration(self.impact_duration, "impact.impact_duration")
         for name in ("lookahead_distance", "lookahead_time", "release_speed"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):

@@ -42,6 +42,7 @@ from impactqp.controller.model.max_speed import (
 )
 from impactqp.controller.model.postures import ImpactPosture, Surface
 from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.controller.model.validation import restitution as restitution_coefficient
 from impactqp.constraints import jump_model_names
 from impactqp.sim.plant import PlantParameters
@@ -194,8 +195,7 @@ class MaxSpeedSearch:
     ):
         jump_model_names(jump_model)
         restitution = restitution_coefficient(restitution)
-        if not (np.isfinite(impact_duration) and impact_duration > 0.0):
-            raise BadInputError(f"the impact duration must be > 0 s, got {impact_duration}")
+        impact_duration = check_impact_duration(impact_duration)
         self.posture = posture
         self.surface = surface
         self.plant = plant

@@ -61,7 +61,14 @@ from impactqp.sim.plant import PlantParameters
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.sim.runner import CartesianApproachCommand, approach_start, run_trial
 from impactqp.sim.scene import Scene, build_scene
-from impactqp.controller.model.validation import BadInputError, approach_speed, finite_vector, tangential_velocity
+from impactqp.controller.model.validation import (
+    BadInputError,
+    approach_speed,
+    finite_vector,
+    tangential_velocity,
+)
+from impactqp.controller.model.validation import impact_duration as check_impact_duration
+from impactqp.controller.model.validation import restitution as check_restitution
 
 OBSERVATION_WINDOW = 0.05
 FEEDBACKS = ("commanded", "measured")
@@ -98,10 +105,8 @@ class TrialSpec:
         object.__setattr__(self, "q_contact", np.asarray(self.q_contact, dtype=float))
         if self.jump_model is not None:
             jump_model_names(self.jump_model)
-        if not 0.0 <= self.restitution <= 1.0:
-            raise BadInputError(f"the restitution must lie in [0, 1], got {self.restitution}")
-        if not self.impact_duration > 0.0:
-            raise BadInputError(f"the impact duration must be > 0 s, got {self.impact_duration}")
+        check_restitution(self.restitution)
+        check_impact_duration(self.impact_duration)
         if self.after_contact < OBSERVATION_WINDOW:
             raise BadInputError(f"after_contact must be at least {OBSERVATION_WINDOW} s")
         if self.feedback not in FEEDBACKS:

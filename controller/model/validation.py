@@ -78,6 +78,27 @@ def approach_speed(value, what: str = "the approach speed") -> float:
     return speed
 
 
+MIN_IMPACT_DURATION, MAX_IMPACT_DURATION = 1e-3, 0.1
+"""s: an impact lasts at least one 1 kHz control period and far less than 0.1 s (the paper's
+impacts last about 15 ms, 25 ms at most)."""
+
+
+def impact_duration(value, what: str = "the impact duration") -> float:
+    """The impact duration delta_t (s) of the impulsive-torque bound, in [1 ms, 100 ms]."""
+    if isinstance(value, bool):
+        raise BadInputError(f"{what} must be a number of seconds, got {value!r}")
+    try:
+        duration = float(value)
+    except (TypeError, ValueError) as exc:
+        raise BadInputError(f"{what} must be a number of seconds, got {value!r}") from exc
+    if not (math.isfinite(duration) and MIN_IMPACT_DURATION <= duration <= MAX_IMPACT_DURATION):
+        raise BadInputError(
+            f"{what} must lie in [{MIN_IMPACT_DURATION}, {MAX_IMPACT_DURATION}] s (one control period to "
+            f"100 ms), got {duration}"
+        )
+    return duration
+
+
 def tangential_velocity(velocity, normal: np.ndarray, what: str = "the tangential velocity") -> np.ndarray:
     """A tangential contact velocity (m/s) orthogonal to the unit ``normal``.
 

@@ -19,7 +19,8 @@ from impactqp.constraints import JUMP_MODEL_CHOICES
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
 from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, ImpactPosture, Surface
 from impactqp.controller.model.validation import BadInputError, tangential_velocity, unit_normal
-from impactqp.controller.model.validation import restitution as restitution_coefficient
+from impactqp.controller.model.validation import approach_speed, restitution as restitution_coefficient
+from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.scenarios.cli.arguments import (
     check_jobs,
     emit_json,
@@ -98,7 +99,7 @@ def simulate(
     from impactqp.controller.measured.dataset import DatasetWriter
 
     posture = named_posture(posture_name)
-    positive(speed, "--speed")
+    approach_speed(speed, "--speed")
     surface = wall(wall_point, wall_normal)
     tangential = (
         np.zeros(3) if tangential_text is None
@@ -162,7 +163,7 @@ def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, 
         named_posture(name)
     speeds = PAPER_SPEEDS if speeds_text is None else tuple(parse_vector(speeds_text, None, "--speeds").tolist())
     for v in speeds:
-        positive(v, "every speed of --speeds")
+        approach_speed(v, "every speed of --speeds")
     if tangential_text is None:
         tangential = PAPER_TANGENTIAL_SPEEDS
     elif tangential_text.strip().lower() == "none":
@@ -203,7 +204,7 @@ def run_max_speed(posture_name, jump_model, restitution, impact_duration, plant_
 
     posture = named_posture(posture_name)
     restitution_coefficient(restitution, "--restitution")
-    positive(impact_duration, "--impact-duration")
+    check_impact_duration(impact_duration, "--impact-duration")
     positive(tolerance, "--tolerance")
     surface = wall(wall_point, wall_normal)
     plant = load_plant(plant_file)
