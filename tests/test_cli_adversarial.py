@@ -1,0 +1,170 @@
+"""Adversarial input for every command: exit code, one line naming the problem, input bytes intact.
+
+Each row is (command line, expected exit code, fragment of the message). ``{data}`` stands for a
+valid small dataset, ``{bad}`` for a dataset directory that the row's ``mutate`` breaks, and
+``{tmp}`` for an empty scratch directory. Exit code 2 is bad input (one line on stderr), 1 a
+validation report (``dataset validate``) that lists the problem on stdout.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from impactqp.scenarios.cli import main
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("adversarial") / "data"
+    assert main(["dataset", "generate", str(out), "--postures", "elbow_up", "--speeds", "0.1,0.15", "--json"]) == 0
+    return out
+
+
+def snapshot(root: Path) -> dict[str, str]:
+    return {
+        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(root.rglob("*"))
+        if p.is_file()
+    }
+
+
+def manifest_edit(edit):
+    def mutate(directory: Path) -> None:
+        path = directory / "dataset.json"
+        manifest = json.loads(path.read_text())
+        edit(manifest)
+        path.write_text(json.dumps(manifest))
+
+    return mutate
+
+
+def set_trial(key, value, index=0):
+    return manifest_edit(lambda m: m["trials"][index].__setitem__(key, value))
+
+
+def write(name: str, text: str | bytes):
+    def mutate(directory: Path) -> None:
+        path = directory / name
+        path.write_bytes(text if isinstance(text, bytes) else text.encode())
+
+    return mutate
+
+
+def shift_joint(row_value: float):
+    def mutate(directory: Path) -> None:
+        path = directory / "t0000.csv"
+        lines = path.read_text().splitlines()
+        cells = lines[5].split(",")
+        cells[1] = str(row_value)  # q1 of the fifth sample
+        lines[5] = ",".join(cells)
+        path.write_text("\n".join(lines) + "\n")
+
+    return mutate
+
+
+def replace_by_directory(name: str):
+    def mutate(directory: Path) -> None:
+        (directory / name).unlink()
+        (directory / name).mkdir()
+
+    return mutate
+
+
+def nested_manifest(directory: Path) -> None:
+    (directory / "dataset.json").write_text("[" * 100_000 + "]" * 100_000)
+
+
+ROWS = [
+    # predict
+    (["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "1e308", "--json"], None, 2, "m/s"),
+    (["predict", "--q", "0,0,0", "--normal", "-1,0,0", "--speed", "0.1"], None, 2, "7 values"),
+    (["predict", "--posture", "elbow_up", "--normal", "0,0,0", "--speed", "0.1"], None, 2, "non-zero"),
+    (["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1", "--tangential", "0.1,0,0"],
+     None, 2, "orthogonal"),
+    (["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1", "--restitution", "nan"],
+     None, 2, "[0, 1]"),
+    # postures: no input but its options
+    (["postures", "--bogus"], None, 2, "No such option"),
+    # simulate
+    (["simulate", "--posture", "elbow_up", "--speed", "1e9"], None, 2, "at most"),
+    (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{tmp}"], None, 2, "not a regular file"),
+    (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--out", "{data}/t0000.csv"], None, 2,
+     "not a directory"),
+    (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--video", "{data}/t0000.csv/x.gif"], None, 2,
+     "not a directory"),
+    # campaign
+    (["campaign", "--speeds", "50"], None, 2, "at most"),
+    (["campaign", "--out", "{data}/dataset.json", "--speeds", "0.1"], None, 2, "not a directory"),
+    (["campaign", "--postures", "nowhere"], None, 2, "unknown posture"),
+    # max-speed
+    (["max-speed", "--posture", "elbow_up", "--impact-duration", "1e-9"], None, 2, "one control period"),
+    (["max-speed", "--posture", "elbow_up", "--plant", "{tmp}"], None, 2, "not a regular file"),
+    (["max-speed", "--posture", "elbow_up", "--wall-normal", "nan,0,0"], None, 2, "non-finite"),
+    # dataset validate: a report with exit code 1 that names the problem
+    (["dataset", "validate", "{bad}"], set_trial("file", "../../../../etc/passwd"), 1, "inside the dataset"),
+    (["dataset", "validate", "{bad}"], set_trial("reference_normal_speed", float("nan")), 1, "reference_normal_speed"),
+    (["dataset", "validate", "{bad}"], set_trial("reference_normal_speed", -0.1), 1, "reference_normal_speed"),
+    (["dataset", "validate", "{bad}"], set_trial("reference_normal_speed", "soon"), 1,
+     "trial 't0000': reference_normal_speed must be a number"),
+    (["dataset", "validate", "{bad}"], set_trial("force_file", 5), 1, "force_file must be a non-empty string"),
+    (["dataset", "validate", "{bad}"], set_trial("posture", ["elbow_up"]), 1, "posture must be a non-empty string"),
+    (["dataset", "validate", "{bad}"], set_trial("id", "dataset"), 1, "reserved"),
+    (["dataset", "validate", "{bad}"], shift_joint(5.0), 1, "outside the joint limits"),
+    (["dataset", "validate", "{bad}"], replace_by_directory("t0000.csv"), 1, "is a directory"),
+    (["dataset", "validate", "{bad}"], write("t0000.csv", "root:x:0:0:root:/root:/bin/bash\n"), 1,
+     "lacks the column"),
+    (["dataset", "validate", "{bad}"], manifest_edit(lambda m: m.__setitem__("robot", "ur5")), 1,
+     "robots we model"),
+    (["dataset", "validate", "{bad}"], nested_manifest, 1, "nested too deeply"),
+    (["dataset", "validate", "{data}/t0000.csv"], None, 2, "is a file"),
+    # dataset generate
+    (["dataset", "generate", "{tmp}/out", "--speeds", "50"], None, 2, "at most"),
+    (["dataset", "generate", "{data}/t0000.csv", "--speeds", "0.1"], None, 2, "is a file"),
+    (["dataset", "generate", "{tmp}/out", "--plant", "{data}"], None, 2, "is a directory"),
+    # diagnose
+    (["diagnose", "{bad}"], manifest_edit(lambda m: m.__setitem__("robot", "ur5")), 2, "robots we model"),
+    (["diagnose", "{data}", "--save-plant", "{tmp}"], None, 2, "is a directory"),
+    (["diagnose", "{data}", "--report", "{data}/dataset.json"], None, 2, "is a file"),
+    (["diagnose", "{data}", "--jobs", "0"], None, 2, "--jobs"),
+    # demo
+    (["demo", "--out", "{data}/dataset.json"], None, 2, "not a directory"),
+]
+
+
+@pytest.mark.parametrize("args, mutate, code, fragment", ROWS, ids=[" ".join(r[0][:3]) for r in ROWS])
+def test_adversarial_input(dataset, tmp_path, capsys, args, mutate, code, fragment):
+    bad = tmp_path / "bad"
+    shutil.copytree(dataset, bad)
+    if mutate is not None:
+        mutate(bad)
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    before, before_bad = snapshot(dataset), snapshot(bad)
+    argv = [a.format(data=dataset, bad=bad, tmp=scratch) for a in args]
+    assert main(argv) == code
+    out, err = capsys.readouterr()
+    assert "Traceback" not in err
+    if code == 2:
+        assert len(err.strip().splitlines()) == 1, err
+        assert fragment in err, err
+    else:
+        assert fragment in out, out
+        assert "root:x" not in out + err  # foreign content is never echoed
+    assert snapshot(dataset) == before and snapshot(bad) == before_bad
+    assert not list(scratch.rglob(".*.tmp")) and not list(dataset.rglob(".*"))
+
+
+def test_written_files_follow_the_umask(tmp_path):
+    previous = os.umask(0o027)
+    try:
+        assert main(["dataset", "generate", str(tmp_path / "d"), "--postures", "elbow_up", "--speeds", "0.1"]) == 0
+    finally:
+        os.umask(previous)
+    modes = {p.name: p.stat().st_mode & 0o777 for p in (tmp_path / "d").iterdir()}
+    assert set(modes.values()) == {0o640}, modes
