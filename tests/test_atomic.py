@@ -1,0 +1,56 @@
+"""Atomic writes: the old file or the new one, never a partial one, and no temporary file left."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from impactqp.controller.measured.atomic import write_atomic, write_text_atomic
+
+
+def test_an_interrupted_write_leaves_the_old_file_and_no_temporary_file(tmp_path):
+    target = tmp_path / "dataset.json"
+    target.write_text("old")
+
+    def interrupted(tmp):
+        tmp.write_text("half")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        write_atomic(target, interrupted)
+    assert target.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["dataset.json"]
+
+
+def test_a_written_file_follows_the_umask(tmp_path):
+    previous = os.umask(0o002)
+    try:
+        write_text_atomic(tmp_path / "a.txt", "x")
+    finally:
+        os.umask(previous)
+    assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o664
+
+
+def test_sigterm_during_a_campaign_leaves_a_consistent_dataset(tmp_path):
+    out = tmp_path / "campaign"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "impactqp", "campaign", "--postures", "elbow_up", "--speeds",
+         "0.08,0.1,0.12,0.15,0.18", "--tangential", "none", "--out", str(out), "--json"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+    )
+    deadline = time.monotonic() + 120
+    while not (out / "dataset.json").exists() and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode in (0, 130), err
+    assert not [p.name for p in out.iterdir() if p.name.startswith(".")]
+    manifest = json.loads((out / "dataset.json").read_text())
+    for trial in manifest["trials"]:
+        assert (out / trial["file"]).stat().st_size > 0 and (out / trial["force_file"]).stat().st_size > 0
