@@ -42,7 +42,9 @@ from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry  # no
 from impactqp.sim.plant import PlantParameters  # noqa: E402
 from impactqp.sim.runner import dataset_header  # noqa: E402
 
-from .trial import TrialPool, TrialResult, TrialSpec  # noqa: E402
+from impactqp.sim.runner import TrialSpec  # noqa: E402
+
+from .trial import TrialPool, TrialResult  # noqa: E402
 from impactqp.controller.model.validation import BadInputError, approach_speed
 
 PAPER_SPEEDS = DEFAULT_SPEEDS

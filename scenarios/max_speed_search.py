@@ -47,7 +47,9 @@ from impactqp.controller.model.validation import restitution as restitution_coef
 from impactqp.constraints import jump_model_names
 from impactqp.sim.plant import PlantParameters
 
-from .trial import TrialPool, TrialResult, TrialSpec
+from impactqp.sim.runner import TrialSpec
+
+from .trial import TrialPool, TrialResult
 from impactqp.controller.model.validation import BadInputError
 
 PREDICTED_MODELS = ("classical", "gm", "crb")

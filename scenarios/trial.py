@@ -45,85 +45,29 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
-from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION, closed_form_max_speed
+from impactqp.controller.model.max_speed import closed_form_max_speed
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.qp import Command
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.robot import PandaModel
 from impactqp.constraints import jump_model_names
 from impactqp.controller.measured.impact import ImpactMeasurement, measure_impact
 from impactqp.sim.plant import PlantParameters
 from impactqp.controller.measured.trial_log import TrialLog
-from impactqp.sim.runner import CartesianApproachCommand, approach_start, run_trial
+from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach
 from impactqp.sim.scene import Scene, build_scene
 from impactqp.controller.model.validation import (
     BadInputError,
-    approach_speed,
-    finite_vector,
     tangential_velocity,
 )
-from impactqp.controller.model.validation import impact_duration as check_impact_duration
-from impactqp.controller.model.validation import restitution as check_restitution
 
-OBSERVATION_WINDOW = 0.05
-FEEDBACKS = ("commanded", "measured")
 # Time the controller needs, from rest, to reach its approach speed (measured: < 0.15 s).
 ACCELERATION_ALLOWANCE = 0.25
-
-
-@dataclass(frozen=True)
-class TrialSpec:
-    """One impact trial.
-
-    ``jump_model``: the jump-aware constraints of the controller ('crb', 'gm', 'classical',
-    'classical_normal', 'robust') or None to switch them off. ``restitution`` and
-    ``impact_duration`` are the controller's c_r and delta_t (and c_r of the predictions).
-    ``after_contact``: simulated time after the nominal contact (must hold the 50 ms window).
-    """
-
-    posture: str
-    q_contact: np.ndarray
-    normal_speed: float
-    tangential_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    jump_model: str | None = None
-    restitution: float = 0.0
-    impact_duration: float = DEFAULT_IMPACT_DURATION
-    start_at_rest: bool = False
-    start_distance: float = 0.02
-    after_contact: float = 0.06
-    feedback: str = "commanded"
-
-    def __post_init__(self):
-        approach_speed(self.normal_speed)
-        tangential = finite_vector(self.tangential_velocity, 3, "the tangential velocity")
-        object.__setattr__(self, "tangential_velocity", tangential)
-        object.__setattr__(self, "q_contact", np.asarray(self.q_contact, dtype=float))
-        if self.jump_model is not None:
-            jump_model_names(self.jump_model)
-        check_restitution(self.restitution)
-        check_impact_duration(self.impact_duration)
-        if self.after_contact < OBSERVATION_WINDOW:
-            raise BadInputError(f"after_contact must be at least {OBSERVATION_WINDOW} s")
-        if self.feedback not in FEEDBACKS:
-            raise BadInputError(f"feedback must be one of {', '.join(FEEDBACKS)}, got {self.feedback!r}")
-
-    @property
-    def trial_id(self) -> str:
-        """A file-name-safe id naming the posture, the speeds (mm/s) and the jump constraints."""
-        text = f"{self.posture}_vn{_mm(self.normal_speed)}"
-        if np.any(self.tangential_velocity != 0.0):
-            text += "_vt" + "_".join(_mm(v) for v in self.tangential_velocity)
-        return text + f"_{self.jump_model or 'free'}"
-
-
-def _mm(value: float) -> str:
-    """A speed in mm/s as an integer string, 'm' for a minus sign."""
-    return f"{round(value * 1000):d}".replace("-", "m")
 
 
 @dataclass(frozen=True)
@@ -228,20 +172,19 @@ class TrialRunner:
         return ACCELERATION_ALLOWANCE + spec.start_distance / speed + spec.after_contact
 
     def run(self, spec: TrialSpec) -> TrialResult:
-        """Simulate the trial and evaluate it (raises ``ImpactNotFoundError`` without impact,
-        ``UnreachableStartError`` when the surface is out of reach)."""
-        robot, surface = self.robot, self.surface
-        q0 = approach_start(robot, spec.q_contact, surface, spec.start_distance)
-        if spec.start_at_rest:
-            dq0 = np.zeros(NQ)
-        else:
-            approach = CartesianApproachCommand(robot, surface, spec.normal_speed, spec.tangential_velocity)
-            dq0 = approach.step(q0, np.zeros(NQ)).dq_cmd
-        controller = build_controller(self.controller_config(spec), robot)
-        controller.reset(q0, dq0)
-        source = CommandedStateFeedback(controller, spec.feedback)
-        log = run_trial(self.scene, source, q0, dq0, self.duration(spec))
-        return self.evaluate(spec, log, controller.fallback_count)
+        """Simulate the trial with the QP controller in the loop (``sim.runner.run_approach``) and
+        evaluate it (raises ``ImpactNotFoundError`` without impact, ``UnreachableStartError``
+        when the surface is out of reach)."""
+        controllers = []
+
+        def qp_source(q0: np.ndarray, dq0: np.ndarray) -> CommandedStateFeedback:
+            controller = build_controller(self.controller_config(spec), self.robot)
+            controller.reset(q0, dq0)
+            controllers.append(controller)
+            return CommandedStateFeedback(controller, spec.feedback)
+
+        log = run_approach(self.scene, self.robot, spec, qp_source, self.duration(spec))
+        return self.evaluate(spec, log, controllers[0].fallback_count)
 
     def evaluate(self, spec: TrialSpec, log: TrialLog, fallback_count: int = 0) -> TrialResult:
         """The observed criteria and the predictions of the module docstring."""

@@ -79,7 +79,8 @@ def render_impact_gif(scene: Scene, log: TrialLog, impact: ImpactMeasurement, pa
     t_c = impact.t_contact_start
     first = int(np.searchsorted(log.t, t_c - SPAN))
     last = int(np.searchsorted(log.t, t_c + SPAN))
-    samples = np.arange(first, last, max(step, 1.0)).astype(int)
+    # integer frame indices: a float arange can overshoot its stop by one rounding error
+    samples = np.unique(np.minimum(np.arange(first, last, max(step, 1.0)).astype(int), last - 1))
 
     camera = mujoco.MjvCamera()
     camera.lookat[:] = scene.tool_centre(log.q[impact.pre_index])

@@ -1,6 +1,6 @@
 """Datasets generated in simulation, in the format of a real robot log (``controller.measured.dataset``).
 
-Each trial is an approach-and-impact of :func:`sim.runner.run_approach_trial`: the contact point
+Each trial is an approach-and-impact of :func:`sim.runner.run_approach`: the contact point
 starts ``START_DISTANCE`` in front of the surface, already moving at the reference velocity
 (:class:`sim.runner.CartesianApproachCommand`, the kinematic control of the paper's
 experiments), hits the surface and keeps commanding the approach for ``AFTER_CONTACT`` s.
@@ -20,7 +20,7 @@ noise-free. The plant parameters that produced the data are never written.
 from __future__ import annotations
 
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +30,7 @@ from impactqp.controller.model.robot import NQ, PandaModel
 
 from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry
 from .plant import PlantParameters
-from .runner import dataset_header, run_approach_trial
+from .runner import TrialSpec, dataset_header, run_approach
 from .scene import build_scene
 from impactqp.controller.model.validation import BadInputError, approach_speed
 
@@ -52,60 +52,54 @@ def tangential_direction(normal: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class TrialSpec:
+class PlannedTrial:
+    """A trial of the dataset to generate: its id, its noise seed, and the nominal trial."""
+
     id: str
-    posture: str
-    normal_speed: float
-    tangential_velocity: tuple[float, float, float]
     seed: int
+    spec: TrialSpec
 
 
 def trial_specs(
     postures: list[str], speeds: list[float], tangential: list[float], repeats: int, normal: np.ndarray, seed: int
-) -> list[TrialSpec]:
-    for v in speeds:
-        approach_speed(v, "every normal speed")
-    for v in tangential:
-        approach_speed(abs(v) if v else 1.0, "every tangential speed")
+) -> list[PlannedTrial]:
     if repeats < 1:
         raise BadInputError("repeats must be >= 1")
+    for v in tangential:
+        approach_speed(abs(v) if v else 1.0, "every tangential speed")
     t = tangential_direction(normal)
     conditions = [(p, v, np.zeros(3)) for p in postures for v in speeds]
     conditions += [(p, TANGENTIAL_SERIES_NORMAL_SPEED, vt * t) for p in postures for vt in tangential]
     seeds = np.random.SeedSequence(seed).generate_state(len(conditions) * repeats)
-    specs = []
+    planned = []
     for c, (posture, v, vt) in enumerate(conditions):
+        spec = TrialSpec(
+            posture, POSTURES[posture].q, float(v), vt, start_distance=START_DISTANCE, after_contact=AFTER_CONTACT
+        )
         for r in range(repeats):
             index = c * repeats + r
-            specs.append(TrialSpec(f"t{index:04d}", posture, float(v), tuple(vt.tolist()), int(seeds[index])))
-    return specs
+            planned.append(PlannedTrial(f"t{index:04d}", int(seeds[index]), spec))
+    return planned
 
 
-def simulate_trial(spec: TrialSpec, plant: PlantParameters, surface: Surface, noise_dq: float, noise_tau: float):
-    """Run one trial and add the measurement noise; returns (entry, log)."""
-    rng = np.random.default_rng(spec.seed)
+def simulate_trial(planned: PlannedTrial, plant: PlantParameters, surface: Surface, noise_dq: float, noise_tau: float):
+    """Run one trial from a randomly perturbed start and add the measurement noise; returns
+    (entry, log)."""
+    rng = np.random.default_rng(planned.seed)
     robot = PandaModel()
     scene = build_scene(surface, plant)
-    q_contact = POSTURES[spec.posture].q + rng.normal(0.0, START_POSTURE_STD, NQ)
-    q_contact = np.clip(q_contact, robot.q_min, robot.q_max)
-    distance = START_DISTANCE + rng.uniform(-START_DISTANCE_SPREAD, START_DISTANCE_SPREAD)
-    log = run_approach_trial(
-        scene,
-        robot,
-        q_contact,
-        spec.normal_speed,
-        tangential_velocity=np.array(spec.tangential_velocity),
-        start_distance=distance,
-        after_contact=AFTER_CONTACT,
-    )
+    spec = planned.spec
+    q_contact = np.clip(spec.q_contact + rng.normal(0.0, START_POSTURE_STD, NQ), robot.q_min, robot.q_max)
+    distance = spec.start_distance + rng.uniform(-START_DISTANCE_SPREAD, START_DISTANCE_SPREAD)
+    log = run_approach(scene, robot, replace(spec, q_contact=q_contact, start_distance=distance))
     log.dq = log.dq + rng.normal(0.0, noise_dq, log.dq.shape)
     log.tau = log.tau + rng.normal(0.0, noise_tau, log.tau.shape)
     entry = TrialEntry(
-        id=spec.id,
-        file=f"{spec.id}.csv",
+        id=planned.id,
+        file=f"{planned.id}.csv",
         reference_normal_speed=spec.normal_speed,
-        force_file=f"{spec.id}_force.csv",
-        reference_tangential_velocity=spec.tangential_velocity,
+        force_file=f"{planned.id}_force.csv",
+        reference_tangential_velocity=tuple(spec.tangential_velocity.tolist()),
         posture=spec.posture,
     )
     return entry, log

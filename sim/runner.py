@@ -33,23 +33,38 @@ terms (``qfrc_bias``). ``tau`` in the log is this torque, the "measured joint to
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import mujoco
 import numpy as np
 import pinocchio as pin
 
-from impactqp.controller.measured.trial_log import TrialLog
-from impactqp.controller.model.postures import Surface
+from impactqp.constraints import jump_model_names
 from impactqp.controller.measured.dataset import DatasetHeader, Tool
-from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_RADIUS, TOOL_TIP_OFFSET, VELOCITY_LIMIT, PandaModel
-
-from .scene import Scene
-from impactqp.controller.model.validation import BadInputError, approach_speed
+from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot import (
+    HAND_FRAME,
+    NQ,
+    TOOL_RADIUS,
+    TOOL_TIP_OFFSET,
+    VELOCITY_LIMIT,
+    PandaModel,
+)
+from impactqp.controller.model.validation import BadInputError, approach_speed, finite_vector
+from impactqp.controller.model.validation import impact_duration as check_impact_duration
+from impactqp.controller.model.validation import restitution as check_restitution
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 
+from .scene import Scene
+
 DEFAULT_CONTROL_PERIOD = 1e-3
+OBSERVATION_WINDOW = 0.05
+"""s after the contact start in which a trial's velocities are observed (``docs/max-speed.md``)."""
+FEEDBACKS = ("commanded", "measured")
 CLEARANCE_SPEED = 5.0
 LAG_ALLOWANCE = 3.0
 
@@ -133,6 +148,59 @@ class CommandReplay:
         command = VelocityCommand(self.dq_cmd[self.index])
         self.index += 1
         return command
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """One approach-and-impact trial: where it hits, how fast, and how it is controlled.
+
+    The trial starts ``start_distance`` in front of the surface at the posture that
+    :func:`approach_start` finds for ``q_contact``, at rest (``start_at_rest``) or already moving
+    at the reference velocity, and lasts until ``after_contact`` seconds after the first contact.
+    ``jump_model``: the jump-aware constraints of the controller ('crb', 'gm', 'classical',
+    'classical_normal', 'robust') or None to switch them off. ``restitution`` and
+    ``impact_duration`` are the controller's c_r and delta_t (and c_r of the predictions).
+    ``after_contact``: simulated time after the nominal contact (must hold the 50 ms window).
+    """
+
+    posture: str
+    q_contact: np.ndarray
+    normal_speed: float
+    tangential_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    jump_model: str | None = None
+    restitution: float = 0.0
+    impact_duration: float = DEFAULT_IMPACT_DURATION
+    start_at_rest: bool = False
+    start_distance: float = 0.02
+    after_contact: float = 0.06
+    feedback: str = "commanded"
+
+    def __post_init__(self):
+        approach_speed(self.normal_speed)
+        tangential = finite_vector(self.tangential_velocity, 3, "the tangential velocity")
+        object.__setattr__(self, "tangential_velocity", tangential)
+        object.__setattr__(self, "q_contact", np.asarray(self.q_contact, dtype=float))
+        if self.jump_model is not None:
+            jump_model_names(self.jump_model)
+        check_restitution(self.restitution)
+        check_impact_duration(self.impact_duration)
+        if self.after_contact < OBSERVATION_WINDOW:
+            raise BadInputError(f"after_contact must be at least {OBSERVATION_WINDOW} s")
+        if self.feedback not in FEEDBACKS:
+            raise BadInputError(f"feedback must be one of {', '.join(FEEDBACKS)}, got {self.feedback!r}")
+
+    @property
+    def trial_id(self) -> str:
+        """A file-name-safe id naming the posture, the speeds (mm/s) and the jump constraints."""
+        text = f"{self.posture}_vn{_mm(self.normal_speed)}"
+        if np.any(self.tangential_velocity != 0.0):
+            text += "_vt" + "_".join(_mm(v) for v in self.tangential_velocity)
+        return text + f"_{self.jump_model or 'free'}"
+
+
+def _mm(value: float) -> str:
+    """A speed in mm/s as an integer string, 'm' for a minus sign."""
+    return f"{round(value * 1000):d}".replace("-", "m")
 
 
 class ComputedTorqueServo:
@@ -336,31 +404,32 @@ def dataset_header(surface: Surface) -> DatasetHeader:
     )
 
 
-def run_approach_trial(
+def run_approach(
     scene: Scene,
     robot: PandaModel,
-    q_contact: np.ndarray,
-    normal_speed: float,
-    *,
-    tangential_velocity: np.ndarray | None = None,
-    start_distance: float = 0.02,
-    after_contact: float = 0.05,
-    control_period: float = DEFAULT_CONTROL_PERIOD,
+    spec: TrialSpec,
+    source: Callable[[np.ndarray, np.ndarray], CommandSource] | None = None,
+    duration: float | None = None,
 ) -> TrialLog:
-    """One impact trial driven by :class:`CartesianApproachCommand` on the scene's surface.
+    """The one approach runner: the trial ``spec`` on the scene's surface.
 
-    Starts ``start_distance`` in front of the surface (:func:`approach_start` from the posture
-    ``q_contact``), already moving at the reference velocity, and ends ``after_contact`` seconds
-    after the first contact. A plant that lags behind the command (joint damping against a soft
-    servo) touches later than the nominal time start_distance / normal_speed: the trial waits
-    up to ``LAG_ALLOWANCE`` times that long; without any contact it ends there.
+    Starts ``spec.start_distance`` in front of the surface (:func:`approach_start` from
+    ``spec.q_contact``), at rest or moving at the reference velocity of
+    :class:`CartesianApproachCommand`. The command source is that Cartesian command, or
+    ``source(q0, dq0)`` (the QP controller of a scenario trial). The trial lasts ``duration``; by
+    default the nominal time to contact with a ``LAG_ALLOWANCE`` margin (a plant that lags behind
+    the command, e.g. joint damping against a soft servo, touches later). It ends
+    ``spec.after_contact`` seconds after the first contact; without any contact it ends at the
+    duration.
     """
-    q0 = approach_start(robot, q_contact, scene.surface, start_distance)
-    command = CartesianApproachCommand(robot, scene.surface, normal_speed, tangential_velocity)
-    dq0 = command.step(q0, np.zeros(NQ)).dq_cmd
-    duration = LAG_ALLOWANCE * start_distance / normal_speed + after_contact
-    log = run_trial(scene, command, q0, dq0, duration, control_period=control_period)
+    q0 = approach_start(robot, spec.q_contact, scene.surface, spec.start_distance)
+    approach = CartesianApproachCommand(robot, scene.surface, spec.normal_speed, spec.tangential_velocity)
+    dq0 = np.zeros(NQ) if spec.start_at_rest else approach.step(q0, np.zeros(NQ)).dq_cmd
+    command = approach if source is None else source(q0, dq0)
+    if duration is None:
+        duration = LAG_ALLOWANCE * spec.start_distance / spec.normal_speed + spec.after_contact
+    log = run_trial(scene, command, q0, dq0, duration)
     touching = np.flatnonzero(np.linalg.norm(log.force, axis=1) > 0.0)
     if touching.size == 0:
         return log
-    return log.truncated(log.force_t[touching[0]] + after_contact)
+    return log.truncated(log.force_t[touching[0]] + spec.after_contact)

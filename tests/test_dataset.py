@@ -21,7 +21,7 @@ from impactqp.controller.measured.dataset import (
 )
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.sim.plant import PlantParameters
-from impactqp.sim.runner import run_approach_trial
+from impactqp.sim.runner import TrialSpec, run_approach
 from impactqp.sim.scene import build_scene
 
 ROBOT = PandaModel()
@@ -32,7 +32,7 @@ HEADER = DatasetHeader(Tool("panda_hand", (0.0, 0.0, TOOL_TIP_OFFSET)), DEFAULT_
 def logs():
     scene = build_scene(plant=PlantParameters(armature=[0.2] * 7))
     return {
-        speed: run_approach_trial(scene, ROBOT, POSTURES["elbow_left"].q, speed, after_contact=0.03)
+        speed: run_approach(scene, ROBOT, TrialSpec("elbow_left", POSTURES["elbow_left"].q, speed, after_contact=0.05))
         for speed in (0.1, 0.15)
     }
 

@@ -15,7 +15,7 @@ def test_trial_grid_and_tangential_direction():
     specs = trial_specs(["elbow_up", "elbow_left"], [0.1, 0.2], [0.05], 3, n, seed=1)
     assert len(specs) == (2 * 2 + 2 * 1) * 3
     assert len({s.id for s in specs}) == len(specs) and len({s.seed for s in specs}) == len(specs)
-    tangential = [s for s in specs if np.any(s.tangential_velocity)]
+    tangential = [s.spec for s in specs if np.any(s.spec.tangential_velocity)]
     assert all(s.normal_speed == 0.12 for s in tangential)
     np.testing.assert_allclose(tangential[0].tangential_velocity, [0.0, 0.05, 0.0], atol=1e-15)
     for normal in (n, np.array([0.0, 0.0, 1.0]), np.array([0.3, -0.4, 0.866])):

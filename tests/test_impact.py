@@ -9,7 +9,7 @@ from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.measured.impact import ImpactNotFoundError, measure_impact, torque_residual, trend_filter
-from impactqp.sim.runner import run_approach_trial
+from impactqp.sim.runner import TrialSpec, run_approach
 from impactqp.sim.scene import build_scene
 
 ROBOT = PandaModel()
@@ -18,7 +18,7 @@ N = DEFAULT_WALL.normal
 
 
 def simulate(posture, speed):
-    return run_approach_trial(SCENE, ROBOT, POSTURES[posture].q, speed, after_contact=0.04)
+    return run_approach(SCENE, ROBOT, TrialSpec(posture, POSTURES[posture].q, speed, after_contact=0.05))
 
 
 @pytest.fixture(scope="module")

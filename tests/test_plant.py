@@ -11,7 +11,7 @@ from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.sim.plant import PlantParameterError, PlantParameters
-from impactqp.sim.runner import run_approach_trial
+from impactqp.sim.runner import TrialSpec, run_approach
 from impactqp.sim.scene import PAYLOAD_BODY, build_scene
 
 ROBOT = PandaModel()
@@ -97,7 +97,7 @@ def test_parameters_reach_the_mujoco_model():
 
 
 def _impact(plant):
-    log = run_approach_trial(build_scene(plant=plant), ROBOT, Q, 0.15)
+    log = run_approach(build_scene(plant=plant), ROBOT, TrialSpec("test", Q, 0.15))
     return measure_impact(log)
 
 

@@ -12,7 +12,8 @@ from impactqp.sim.runner import (
     CommandReplay,
     UnreachableStartError,
     approach_start,
-    run_approach_trial,
+    TrialSpec,
+    run_approach,
     run_trial,
 )
 from impactqp.sim.scene import build_scene
@@ -28,7 +29,7 @@ def scene():
 
 @pytest.fixture(scope="module")
 def log(scene):
-    return run_approach_trial(scene, ROBOT, POSTURES["elbow_right"].q, SPEED)
+    return run_approach(scene, ROBOT, TrialSpec("elbow_right", POSTURES["elbow_right"].q, SPEED))
 
 
 def test_start_posture_is_backed_away_along_the_normal_with_the_same_orientation():
@@ -138,8 +139,7 @@ def test_bad_run_arguments_are_rejected(scene, log):
 
 def test_tangential_reference_moves_the_tip_along_the_wall(scene):
     v_t = np.array([0.0, 0.06, 0.0])
-    log = run_approach_trial(scene, ROBOT, POSTURES["elbow_right"].q, 0.12, tangential_velocity=v_t,
-                             after_contact=0.03)
+    log = run_approach(scene, ROBOT, TrialSpec("elbow_right", POSTURES["elbow_right"].q, 0.12, v_t, after_contact=0.05))
     impact = measure_impact(log)
     v = ROBOT.terms(impact.q_pre, impact.dq_pre).J @ impact.dq_pre
     np.testing.assert_allclose(v, [0.12, 0.06, 0.0], atol=0.006)

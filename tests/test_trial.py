@@ -7,8 +7,8 @@ import pytest
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
 from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
 from impactqp.controller.measured.impact import measure_impact
-from impactqp.sim.runner import run_approach_trial
-from impactqp.scenarios.trial import OBSERVATION_WINDOW, TrialPool, TrialRunner, TrialSpec
+from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach
+from impactqp.scenarios.trial import TrialPool, TrialRunner
 
 POSTURE = "elbow_right"
 Q = POSTURES[POSTURE].q
@@ -27,7 +27,7 @@ def result(runner):
 def test_commanded_state_feedback_reproduces_the_kinematic_approach(runner, result):
     """Fed its own command, the controller at constant speed hits like the sim core's
     Cartesian approach command: same jump, same contact duration."""
-    baseline = measure_impact(run_approach_trial(runner.scene, runner.robot, Q, 0.15))
+    baseline = measure_impact(run_approach(runner.scene, runner.robot, TrialSpec(POSTURE, Q, 0.15)))
     np.testing.assert_allclose(result.impact.dq_jump, baseline.dq_jump, atol=5e-3)
     assert result.impact.duration == pytest.approx(baseline.duration, abs=1e-3)
     assert result.impact.duration > 0.010

@@ -7,7 +7,8 @@ import numpy as np
 
 from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
 from impactqp.scenarios.max_speed_search import MaxSpeedSearch
-from impactqp.scenarios.trial import TrialRunner, TrialSpec
+from impactqp.scenarios.trial import TrialRunner
+from impactqp.sim.runner import TrialSpec
 
 from .base import rate_row, time_calls, timing_row
 

@@ -95,7 +95,8 @@ def simulate(
     """
     from impactqp.scenarios.campaign import write_trial
     from impactqp.sim.runner import dataset_header
-    from impactqp.scenarios.trial import TrialRunner, TrialSpec
+    from impactqp.scenarios.trial import TrialRunner
+    from impactqp.sim.runner import TrialSpec
     from impactqp.controller.measured.dataset import DatasetWriter
 
     posture = named_posture(posture_name)
