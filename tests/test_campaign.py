@@ -39,7 +39,7 @@ def test_default_plan_is_the_papers():
     [
         ({"postures": ("nowhere",)}, "unknown posture"),
         ({"postures": ()}, "at least one posture"),
-        ({"speeds": (0.1, 0.0)}, "> 0"),
+        ({"speeds": (0.1, 0.0)}, r"\(0, 3\] m/s"),
         ({"speeds": ()}, "at least one speed"),
     ],
 )

@@ -92,14 +92,14 @@ ROWS = [
     # postures: no input but its options
     (["postures", "--bogus"], None, 2, "No such option"),
     # simulate
-    (["simulate", "--posture", "elbow_up", "--speed", "1e9"], None, 2, "at most"),
+    (["simulate", "--posture", "elbow_up", "--speed", "1e9"], None, 2, "(0, 3] m/s"),
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{tmp}"], None, 2, "not a regular file"),
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--out", "{data}/t0000.csv"], None, 2,
      "not a directory"),
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--video", "{data}/t0000.csv/x.gif"], None, 2,
      "not a directory"),
     # campaign
-    (["campaign", "--speeds", "50"], None, 2, "at most"),
+    (["campaign", "--speeds", "50"], None, 2, "(0, 3] m/s"),
     (["campaign", "--out", "{data}/dataset.json", "--speeds", "0.1"], None, 2, "not a directory"),
     (["campaign", "--postures", "nowhere"], None, 2, "unknown posture"),
     # max-speed
@@ -124,7 +124,7 @@ ROWS = [
     (["dataset", "validate", "{bad}"], nested_manifest, 1, "nested too deeply"),
     (["dataset", "validate", "{data}/t0000.csv"], None, 2, "is a file"),
     # dataset generate
-    (["dataset", "generate", "{tmp}/out", "--speeds", "50"], None, 2, "at most"),
+    (["dataset", "generate", "{tmp}/out", "--speeds", "50"], None, 2, "(0, 3] m/s"),
     (["dataset", "generate", "{data}/t0000.csv", "--speeds", "0.1"], None, 2, "is a file"),
     (["dataset", "generate", "{tmp}/out", "--plant", "{data}"], None, 2, "is a directory"),
     # diagnose

@@ -63,7 +63,7 @@ def test_diagnose_json_report_and_saved_plant(small_dataset, tmp_path, capsys):
         (["diagnose", "/nonexistent/dataset"], "not a directory"),
         (["dataset", "validate", "/nonexistent/dataset"], "not a directory"),
         (["dataset", "generate", "OUT", "--postures", "nowhere"], "unknown posture"),
-        (["dataset", "generate", "OUT", "--speeds", "0.1,-1"], "> 0"),
+        (["dataset", "generate", "OUT", "--speeds", "0.1,-1"], "(0, 3] m/s"),
         (["dataset", "generate", "OUT", "--plant", "PLANT"], "unknown plant parameter"),
     ],
 )

@@ -26,7 +26,7 @@ def test_trial_grid_and_tangential_direction():
 
 @pytest.mark.parametrize(
     "kwargs, message",
-    [({"postures": ["nowhere"]}, "unknown posture"), ({"speeds": [0.0]}, "> 0"), ({"repeats": 0}, "repeats")],
+    [({"postures": ["nowhere"]}, "unknown posture"), ({"speeds": [0.0]}, r"\(0, 3\] m/s"), ({"repeats": 0}, "repeats")],
 )
 def test_bad_requests_are_rejected(tmp_path, kwargs, message):
     with pytest.raises(ValueError, match=message):

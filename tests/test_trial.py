@@ -77,8 +77,8 @@ def test_json_report_shapes(result):
 @pytest.mark.parametrize(
     "changes, message",
     [
-        ({"normal_speed": 0.0}, "> 0"),
-        ({"normal_speed": -0.1}, "> 0"),
+        ({"normal_speed": 0.0}, r"\(0, 3\] m/s"),
+        ({"normal_speed": -0.1}, r"\(0, 3\] m/s"),
         ({"jump_model": "magic"}, "unknown jump model"),
         ({"feedback": "psychic"}, "feedback"),
         ({"after_contact": 0.01}, "after_contact"),

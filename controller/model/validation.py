@@ -52,30 +52,27 @@ def unit_normal(normal, what: str = "the surface normal") -> np.ndarray:
     return n / norm
 
 
+def number_in_range(value, low: float, high: float, what: str, unit: str = "", low_open: bool = False) -> float:
+    """``value`` as a finite float in [low, high] ((low, high] with ``low_open``); a boolean, a
+    string or anything outside the range is bad input, and the message gives the range."""
+    span = f"{'(' if low_open else '['}{low:g}, {high:g}]{' ' + unit if unit else ''}"
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise BadInputError(f"{what} must be a number in {span}, got {value!r}")
+    number = float(value)
+    inside = (low < number if low_open else low <= number) and number <= high
+    if not (math.isfinite(number) and inside):
+        raise BadInputError(f"{what} must lie in {span}, got {number}")
+    return number
+
+
 def restitution(value, what: str = "the restitution") -> float:
     """The coefficient of restitution c_r, in [0, 1] (0: the contact sticks, 1: elastic)."""
-    if isinstance(value, bool):
-        raise BadInputError(f"{what} must be a number in [0, 1], got {value!r}")
-    try:
-        c_r = float(value)
-    except (TypeError, ValueError) as exc:
-        raise BadInputError(f"{what} must be a number in [0, 1], got {value!r}") from exc
-    if not (math.isfinite(c_r) and 0.0 <= c_r <= 1.0):
-        raise BadInputError(f"{what} must lie in [0, 1], got {c_r}")
-    return c_r
+    return number_in_range(value, 0.0, 1.0, what)
 
 
 def approach_speed(value, what: str = "the approach speed") -> float:
     """An approach speed along -n in m/s, in (0, MAX_CONTACT_SPEED]."""
-    if isinstance(value, bool):
-        raise BadInputError(f"{what} must be a number of m/s, got {value!r}")
-    try:
-        speed = float(value)
-    except (TypeError, ValueError) as exc:
-        raise BadInputError(f"{what} must be a number of m/s, got {value!r}") from exc
-    if not (math.isfinite(speed) and 0.0 < speed <= MAX_CONTACT_SPEED):
-        raise BadInputError(f"{what} must be > 0 and at most {MAX_CONTACT_SPEED} m/s, got {speed}")
-    return speed
+    return number_in_range(value, 0.0, MAX_CONTACT_SPEED, what, "m/s", low_open=True)
 
 
 MIN_IMPACT_DURATION, MAX_IMPACT_DURATION = 1e-3, 0.1
@@ -84,19 +81,8 @@ impacts last about 15 ms, 25 ms at most)."""
 
 
 def impact_duration(value, what: str = "the impact duration") -> float:
-    """The impact duration delta_t (s) of the impulsive-torque bound, in [1 ms, 100 ms]."""
-    if isinstance(value, bool):
-        raise BadInputError(f"{what} must be a number of seconds, got {value!r}")
-    try:
-        duration = float(value)
-    except (TypeError, ValueError) as exc:
-        raise BadInputError(f"{what} must be a number of seconds, got {value!r}") from exc
-    if not (math.isfinite(duration) and MIN_IMPACT_DURATION <= duration <= MAX_IMPACT_DURATION):
-        raise BadInputError(
-            f"{what} must lie in [{MIN_IMPACT_DURATION}, {MAX_IMPACT_DURATION}] s (one control period to "
-            f"100 ms), got {duration}"
-        )
-    return duration
+    """The impact duration delta_t (s) of the impulsive-torque bound: one control period to 100 ms."""
+    return number_in_range(value, MIN_IMPACT_DURATION, MAX_IMPACT_DURATION, what, "s (one control period to 100 ms)")
 
 
 def tangential_velocity(velocity, normal: np.ndarray, what: str = "the tangential velocity") -> np.ndarray:
