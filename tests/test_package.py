@@ -88,3 +88,17 @@ def test_tests_do_not_import_benchmark_code():
             if any(n.startswith("impactqp.scenarios.bench") for n in names):
                 offenders.append(path.name)
     assert offenders == []
+
+
+def test_every_subpackage_is_installed():
+    """Every folder with an __init__.py is a package listed in pyproject.toml (else a wheel drops it)."""
+    import tomllib
+
+    root = TESTS.parent
+    listed = set(tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {"impactqp"} | {
+        "impactqp." + ".".join(init.parent.relative_to(root).parts)
+        for init in root.glob("*/**/__init__.py")
+        if not {".venv", "tests", "build"} & set(init.parts)
+    }
+    assert found == listed
