@@ -84,6 +84,7 @@ class Command:
     impact_constraints_active: bool = False
     solver: str = ""
     message: str = ""
+    phase: str = "approach"
 
     @property
     def is_fallback(self) -> bool:
