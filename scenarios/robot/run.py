@@ -46,7 +46,7 @@ class RunRequest:
     dataset: str | None = None
     trial: str | None = None
     paced: bool = True
-    deadline: float | None = None
+    deadline: float | None = None  # None: the period, or no deadline offline (replay, unpaced sim)
     max_overruns: int = 5
 
 
@@ -119,9 +119,11 @@ def run(request: RunRequest) -> tuple[dict, LoopResult]:
     model = PandaModel()
     robot, config, duration = build_backend(request, model)
     session = ImpactSession(config, model)
+    deadline = request.deadline
+    if deadline is None and (request.backend == "replay" or not request.paced):
+        deadline = float("inf")  # offline: the plant waits for the controller
     loop = ControlLoop(
-        robot, session, CommandFilter.for_robot(model, config.dt),
-        deadline=request.deadline, max_overruns=request.max_overruns,
+        robot, session, CommandFilter.for_robot(model, config.dt), deadline=deadline, max_overruns=request.max_overruns
     )
     previous = signal.signal(signal.SIGINT, lambda *_: loop.request_stop())
     try:
