@@ -70,7 +70,8 @@ class Command:
     ``predicted_jump`` is the joint-velocity jump an impact would cause at the commanded
     velocity (dq- = dq_cmd) with the controller's prediction model, and
     ``predicted_post_impact_velocity`` = dq_cmd + predicted_jump; both are zero when the
-    controller has no impact model or the state was unusable.
+    controller has no impact model or the state was unusable. ``phase`` is the phase of the
+    impact session that issued the command (``docs/robot-loop.md``).
     """
 
     ddq: np.ndarray
