@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -74,24 +74,35 @@ class Watchdog:
             self.trip(f"{self.consecutive_overruns} overruns in a row")
 
 
-@dataclass
 class LoopLog:
-    """Per-cycle records (lists, appended once per cycle; turned into arrays at the end)."""
+    """Per-cycle records in arrays preallocated for ``capacity`` cycles (no allocation per cycle)."""
 
-    t: list = field(default_factory=list)
-    q: list = field(default_factory=list)
-    dq: list = field(default_factory=list)
-    tau: list = field(default_factory=list)
-    dq_cmd: list = field(default_factory=list)
-    phase: list = field(default_factory=list)
-    cycle_time: list = field(default_factory=list)
-    read_time: list = field(default_factory=list)
+    def __init__(self, capacity: int):
+        self.size = 0
+        self.t = np.zeros(capacity)
+        self.q = np.zeros((capacity, NQ))
+        self.dq = np.zeros((capacity, NQ))
+        self.tau = np.zeros((capacity, NQ))
+        self.dq_cmd = np.zeros((capacity, NQ))
+        self.cycle_time = np.zeros(capacity)
+        self.start_time = np.zeros(capacity)
+        self.phase: list[str] = []
+
+    def record(self, state: RobotState, dq_cmd: np.ndarray, phase: str, cycle_time: float, start_time: float) -> None:
+        k = self.size
+        self.t[k] = state.t
+        self.q[k] = state.q
+        self.dq[k] = state.dq
+        self.tau[k] = state.tau
+        self.dq_cmd[k] = dq_cmd
+        self.cycle_time[k] = cycle_time
+        self.start_time[k] = start_time
+        self.phase.append(phase)
+        self.size = k + 1
 
     def trial_log(self, force: tuple[np.ndarray, np.ndarray] | None) -> TrialLog:
-        log = TrialLog(
-            np.asarray(self.t), np.asarray(self.q).reshape(-1, NQ), np.asarray(self.dq).reshape(-1, NQ),
-            np.asarray(self.tau).reshape(-1, NQ), np.asarray(self.dq_cmd).reshape(-1, NQ),
-        )
+        n = self.size
+        log = TrialLog(self.t[:n], self.q[:n], self.dq[:n], self.tau[:n], self.dq_cmd[:n])
         if force is not None:
             log.force_t, log.force = force
         return log
@@ -145,7 +156,7 @@ class ControlLoop:
         self.watchdog = Watchdog(max_overruns)
         self.stop_requested = False
         self.overruns = 0
-        self.log = LoopLog()
+        self.log: LoopLog | None = None
 
     def request_stop(self) -> None:
         """Brake to a stop at the next cycle (a signal handler may call it)."""
@@ -154,6 +165,7 @@ class ControlLoop:
     def run(self, duration: float) -> LoopResult:
         robot, session, watchdog = self.robot, self.session, self.watchdog
         cycles = int(round(duration / robot.period))
+        self.log = LoopLog(cycles + MAX_STOP_CYCLES + 1)
         state = robot.read()
         watchdog.check_state(state)
         if not watchdog.tripped:
@@ -182,7 +194,7 @@ class ControlLoop:
             self.overruns += overrun
             if not stopping:
                 watchdog.record_cycle(overrun)
-            self._record(state, dq_cmd, phase, elapsed, started)
+            self.log.record(state, dq_cmd, phase, elapsed, started)
             k += 1
             if stopping and (np.max(np.abs(dq_cmd)) <= STOPPED_SPEED or stop_cycles >= MAX_STOP_CYCLES):
                 break
@@ -194,24 +206,13 @@ class ControlLoop:
         robot.stop()
         return self._result()
 
-    def _record(self, state, dq_cmd, phase, elapsed, started) -> None:
-        log = self.log
-        log.t.append(state.t)
-        log.q.append(state.q)
-        log.dq.append(state.dq)
-        log.tau.append(state.tau)
-        log.dq_cmd.append(dq_cmd)
-        log.phase.append(phase)
-        log.cycle_time.append(elapsed)
-        log.read_time.append(started)
-
     def _result(self) -> LoopResult:
         log = self.log
-        intervals = np.diff(np.asarray(log.read_time))
+        intervals = np.diff(log.start_time[: log.size])
         return LoopResult(
-            cycles=len(log.t),
+            cycles=log.size,
             overruns=int(self.overruns),
-            cycle_us=cycle_statistics(np.asarray(log.cycle_time)),
+            cycle_us=cycle_statistics(log.cycle_time[: log.size]),
             period_error_us=np.abs(intervals - self.robot.period) * 1e6,
             watchdog_trips=self.watchdog.trips,
             watchdog_reason=self.watchdog.reason,

@@ -10,6 +10,7 @@ report of ``impactqp run --json``. Bad input raises ``BadInputError``.
 from __future__ import annotations
 
 import signal
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -125,11 +126,14 @@ def run(request: RunRequest) -> tuple[dict, LoopResult]:
     loop = ControlLoop(
         robot, session, CommandFilter.for_robot(model, config.dt), deadline=deadline, max_overruns=request.max_overruns
     )
-    previous = signal.signal(signal.SIGINT, lambda *_: loop.request_stop())
-    try:
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGINT, lambda *_: loop.request_stop())
+        try:
+            result = loop.run(duration)
+        finally:
+            signal.signal(signal.SIGINT, previous)
+    else:  # signal handlers can only be set in the main thread
         result = loop.run(duration)
-    finally:
-        signal.signal(signal.SIGINT, previous)
     log_path = write_log(request, config, result) if request.log_dir else None
     return report(result, config, log_path), result
 
