@@ -93,6 +93,8 @@ class FaultySim(RobotInterface):
         state = self.robot.read()
         self.reads += 1
         if self.reads - 1 == self.at:
+            if self.fault == "robot_error":
+                raise ConnectionError("injected: the robot stopped")
             if self.fault == "nan":
                 state = replace(state, q=np.full(NQ, np.nan))
             elif self.fault == "stale":
@@ -164,3 +166,14 @@ def test_the_default_configuration_approaches_the_posture_wall():
     config = controller_config(RunRequest(posture="elbow_up", speed=0.1))
     assert config.post_impact.mode == "retract"
     assert config.tasks[0].params["speed"] == 0.1
+
+
+def test_a_backend_failure_ends_the_run_and_keeps_the_log(model):
+    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, paced=False), model)
+    loop = ControlLoop(
+        FaultySim(sim, "robot_error", 100), ImpactSession(config, model), CommandFilter.for_robot(model, DT),
+        deadline=float("inf"),
+    )
+    result = loop.run(0.3)
+    assert result.watchdog_trips == 1 and "robot error" in result.watchdog_reason
+    assert result.cycles == 100 and len(result.log) == 100

@@ -83,7 +83,10 @@ class FrankaRobot(RobotInterface):
 
     def read(self) -> RobotState:
         if self.control is None:
-            self.control = self.robot.start_joint_velocity_control(self.franka.ControllerMode.JointImpedance)
+            try:
+                self.control = self.robot.start_joint_velocity_control(self.franka.ControllerMode.JointImpedance)
+            except self.franka.FrankaException as error:
+                raise BadInputError(f"the robot refused joint-velocity control: {error}") from None
         state, _ = self.control.readOnce()
         return state_from_franka(state)
 

@@ -13,7 +13,9 @@ The watchdog latches: after a trip every command is the filter's braking command
 commanded velocity to zero within the velocity, acceleration and jerk limits
 (``controller.command_filter``), so the commands stay continuous. At the end of the run (the
 duration, a stop request such as Ctrl-C, or a replay's last state) the loop brakes the same way
-until the command is zero, then calls ``robot.stop()``. Every cycle is logged (t, q, dq, tau and
+until the command is zero, then calls ``robot.stop()``. A backend that fails mid-run (a robot
+that stopped on its own reflex) ends the run: the watchdog reason says why and the log is kept.
+Every cycle is logged (t, q, dq, tau and
 the command actually sent) for the dataset format.
 """
 
@@ -155,6 +157,7 @@ class ControlLoop:
         self.deadline = robot.period if deadline is None else float(deadline)
         self.watchdog = Watchdog(max_overruns)
         self.stop_requested = False
+        self.robot_failed = False
         self.overruns = 0
         self.log: LoopLog | None = None
 
@@ -188,7 +191,12 @@ class ControlLoop:
                 except Exception as error:  # the robot must keep getting commands
                     watchdog.trip(f"controller exception: {type(error).__name__}: {error}")
                     dq_cmd, phase = self.filter.brake(), BRAKING
-            robot.write(dq_cmd)
+            try:
+                robot.write(dq_cmd)
+            except Exception as error:  # the robot stopped by itself (e.g. its own reflex)
+                self._robot_error(error)
+                self.log.record(state, dq_cmd, phase, time.perf_counter() - started, started)
+                break
             elapsed = time.perf_counter() - started
             overrun = elapsed > self.deadline
             self.overruns += overrun
@@ -200,11 +208,22 @@ class ControlLoop:
                 break
             if robot.finished:
                 break
-            state = robot.read()
+            try:
+                state = robot.read()
+            except Exception as error:
+                self._robot_error(error)
+                break
             if not stopping:
                 watchdog.check_state(state)
-        robot.stop()
+        if not self.robot_failed:
+            robot.stop()
         return self._result()
+
+    def _robot_error(self, error: Exception) -> None:
+        """The backend failed: no command can reach the robot any more; the run ends, its log
+        is kept and the watchdog says why."""
+        self.robot_failed = True
+        self.watchdog.trip(f"robot error: {type(error).__name__}: {error}")
 
     def _result(self) -> LoopResult:
         log = self.log
