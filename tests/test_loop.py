@@ -177,3 +177,24 @@ def test_a_backend_failure_ends_the_run_and_keeps_the_log(model):
     result = loop.run(0.3)
     assert result.watchdog_trips == 1 and "robot error" in result.watchdog_reason
     assert result.cycles == 100 and len(result.log) == 100
+
+
+@pytest.mark.parametrize("mode", ["hold", "continue"])
+def test_other_post_impact_modes_switch_the_impact_constraints_off(mode, model, tmp_path):
+    config_file = tmp_path / "c.toml"
+    config_file.write_text(
+        '[[tasks]]\ntype = "contact_approach"\nspeed = 0.15\n[[tasks]]\ntype = "damping"\n'
+        f'[post_impact]\nmode = "{mode}"\n'
+    )
+    report, result = run(RunRequest(config_file=str(config_file), duration=0.5, paced=False))
+    session = result.session
+    assert report["impact"]["detected"] and session.controller is session.post_impact
+    assert mode in result.phases and report["watchdog_trips"] == 0
+    impact_aware = ("post_impact_velocity", "impulsive_torque")
+    assert any(c.name.startswith(impact_aware) for c in session.approach.constraints)
+    assert not any(c.name.startswith(impact_aware) for c in session.post_impact.constraints)
+    assert_continuous_within_limits(result.log.dq_cmd)
+    in_contact = np.linalg.norm(result.log.force, axis=1) > 0.0
+    phases = int(in_contact[0]) + int(np.sum(np.diff(in_contact.astype(int)) == 1))
+    if mode == "continue":
+        assert phases > 1  # it keeps commanding the approach: the tool re-contacts the wall
