@@ -35,7 +35,6 @@ class RobotInterface:
 
     period: float = 1e-3
     finished: bool = False
-    has_contact_truth: bool = False
 
     def read(self) -> RobotState:
         raise NotImplementedError

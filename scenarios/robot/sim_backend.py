@@ -25,8 +25,6 @@ SPIN_TIME = 2e-4
 class SimRobot(RobotInterface):
     """The simulated Panda of ``scene`` started at (q0, dq0), stepped one period per command."""
 
-    has_contact_truth = True
-
     def __init__(self, scene: Scene, q0: np.ndarray, dq0: np.ndarray, period: float = 1e-3, paced: bool = False):
         self.plant = ServoedPlant(scene, period)
         self.plant.reset(np.asarray(q0, float), np.asarray(dq0, float))
