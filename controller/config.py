@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 import tomllib
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +26,7 @@ from impactqp.constraints import (
     VelocityLimit,
     jump_model_names,
 )
-from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask
+from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
 
 from .model.max_speed import DEFAULT_IMPACT_DURATION
 from .model.postures import DEFAULT_WALL, Surface
@@ -40,6 +40,7 @@ TASK_TYPES = {
     "contact_approach": ContactApproachTask,
     "posture": PostureTask,
     "damping": DampingTask,
+    "surface_offset": SurfaceOffsetTask,
 }
 
 
@@ -113,6 +114,37 @@ class ImpactConfig:
                 raise BadInputError(f"impact.{name} = {value} must be a finite number >= 0")
 
 
+POST_IMPACT_MODES = ("retract", "hold", "continue")
+
+
+@dataclass
+class PostImpactConfig:
+    """What the controller does once the impact is detected (``docs/robot-loop.md``).
+
+    ``retract``: pull the contact point back along the surface normal to ``retract_distance``
+    (m) from the surface, at most at ``max_speed`` (m/s) (``tasks.SurfaceOffsetTask``);
+    ``hold``: stay on the surface, the contact point held at depth ``hold_depth`` (m), so the
+    normal force stays the joint servo's response to that depth; ``continue``: keep the
+    approach tasks. In every mode the impact-aware constraints are off after the impact and
+    every joint limit still applies.
+    """
+
+    mode: str = "retract"
+    retract_distance: float = 0.05
+    max_speed: float = 0.1
+    hold_depth: float = 0.0
+
+    def __post_init__(self):
+        if self.mode not in POST_IMPACT_MODES:
+            raise ValueError(f"post_impact.mode = {self.mode!r}; choose from {', '.join(POST_IMPACT_MODES)}")
+        for name in ("retract_distance", "max_speed", "hold_depth"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"post_impact.{name} = {value} must be a finite number >= 0")
+        if self.mode == "retract" and not (self.retract_distance > 0.0 and self.max_speed > 0.0):
+            raise ValueError("post_impact: a retract needs retract_distance > 0 and max_speed > 0")
+
+
 @dataclass
 class SurfaceConfig:
     point: list[float] = field(default_factory=lambda: DEFAULT_WALL.point.tolist())
@@ -137,6 +169,7 @@ class ControllerConfig:
     limits: LimitsConfig = field(default_factory=LimitsConfig)
     impact: ImpactConfig = field(default_factory=ImpactConfig)
     surface: SurfaceConfig = field(default_factory=SurfaceConfig)
+    post_impact: PostImpactConfig = field(default_factory=PostImpactConfig)
 
     @classmethod
     def approach(
@@ -190,7 +223,9 @@ class ControllerConfig:
                 raise BadInputError(f"a task needs a 'type': {entry}")
             task_type = entry.pop("type")
             tasks.append(TaskConfig(task_type, entry.pop("params", {}) | entry))
-        sections = {"limits": LimitsConfig, "impact": ImpactConfig, "surface": SurfaceConfig}
+        sections = {
+            "limits": LimitsConfig, "impact": ImpactConfig, "surface": SurfaceConfig, "post_impact": PostImpactConfig,
+        }
         parsed = {name: _section(kind, data.pop(name, {}), name) for name, kind in sections.items()}
         return cls(tasks=tasks, **parsed, **data)
 
@@ -276,3 +311,21 @@ def build_controller(config: ControllerConfig, robot: PandaModel | None = None) 
         robot, tasks, constraints, config.dt, config.solver, prediction,
         acceleration_limit=ddq_max, jerk_limit=dddq_max,
     )
+
+
+def post_impact_config(config: ControllerConfig) -> ControllerConfig:
+    """The configuration of the controller after the impact (``config.post_impact``): the
+    impact-aware constraints off; for ``retract`` and ``hold`` the contact-approach and frame
+    tasks replaced by one ``surface_offset`` task, the other tasks and every limit kept."""
+    post = config.post_impact
+    impact = replace(config.impact, jump_model=None)
+    if post.mode == "continue":
+        return replace(config, impact=impact)
+    offset = post.retract_distance if post.mode == "retract" else -post.hold_depth
+    surface = config.surface
+    offset_task = TaskConfig(
+        "surface_offset",
+        {"normal": surface.normal, "surface_point": surface.point, "offset": offset, "max_speed": post.max_speed},
+    )
+    kept = [t for t in config.tasks if t.type not in ("contact_approach", "frame")]
+    return replace(config, tasks=[offset_task, *kept], impact=impact)

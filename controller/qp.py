@@ -71,7 +71,8 @@ class Command:
     ``predicted_jump`` is the joint-velocity jump an impact would cause at the commanded
     velocity (dq- = dq_cmd) with the controller's prediction model, and
     ``predicted_post_impact_velocity`` = dq_cmd + predicted_jump; both are zero when the
-    controller has no impact model or the state was unusable.
+    controller has no impact model or the state was unusable. ``phase`` is the phase of the
+    impact session that issued the command (``docs/robot-loop.md``).
     """
 
     ddq: np.ndarray
@@ -85,6 +86,7 @@ class Command:
     impact_constraints_active: bool = False
     solver: str = ""
     message: str = ""
+    phase: str = "approach"
 
     @property
     def is_fallback(self) -> bool:

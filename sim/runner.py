@@ -236,6 +236,58 @@ class ComputedTorqueServo:
         return self._torque
 
 
+class ServoedPlant:
+    """The scene's plant under the joint servo, advanced one control period per command
+    (steps 2 and 3 of the module docstring); shared by :func:`run_trial` and the robot loop's
+    sim backend."""
+
+    def __init__(self, scene: Scene, control_period: float):
+        substeps = int(round(control_period / scene.timestep))
+        if substeps < 1 or abs(substeps * scene.timestep - control_period) > 1e-9:
+            raise BadInputError(
+                f"control period {control_period} s is not a whole number of timesteps ({scene.timestep} s)"
+            )
+        self.scene = scene
+        self.control_period = control_period
+        self.substeps = substeps
+        self.servo = ComputedTorqueServo(scene, scene.plant.servo_gain)
+        # centre-to-wall distance beyond which the tool cannot touch the wall within one period
+        # (at up to CLEARANCE_SPEED m/s)
+        self.clearance = TOOL_RADIUS + CLEARANCE_SPEED * control_period
+        self._contact_force = np.zeros(6)
+
+    def reset(self, q0: np.ndarray, dq0: np.ndarray, servo_reference=None) -> None:
+        """Put the plant at (q0, dq0); the servo reference at the state or at ``servo_reference``."""
+        self.scene.set_state(q0, dq0)
+        self.servo.reset(*(servo_reference if servo_reference is not None else (q0, dq0)))
+
+    def advance(self, dq_cmd: np.ndarray, force: np.ndarray) -> np.ndarray:
+        """One period under the command; adds the contact force on the robot (world frame) of
+        each substep to the rows of ``force`` (substeps, 3); returns the servo torque (the
+        servo's buffer: copy it to keep it)."""
+        scene = self.scene
+        model, data, tool = scene.model, scene.data, scene.tool_geom
+        mujoco.mj_step1(model, data)
+        torque = self.servo.torque(dq_cmd, self.control_period)
+        data.qfrc_applied[:] = torque
+        mujoco.mj_step2(model, data)
+        if scene.surface.signed_distance(data.geom_xpos[tool]) > self.clearance:
+            # the tool cannot reach the wall within this period: no contact force to log
+            mujoco.mj_step(model, data, self.substeps - 1)
+            return torque
+        contact_force = self._contact_force
+        for i in range(self.substeps):
+            if i > 0:
+                mujoco.mj_step(model, data)
+            for c in range(data.ncon):
+                mujoco.mj_contactForce(model, data, c, contact_force)
+                contact = data.contact[c]
+                # contact_force[:3] is in the contact frame; +normal pushes geom2 away from geom1
+                on_geom2 = contact.frame.reshape(3, 3).T @ contact_force[:3]
+                force[i] += on_geom2 if contact.geom2 == tool else -on_geom2
+        return torque
+
+
 def run_trial(
     scene: Scene,
     source: CommandSource,
@@ -253,12 +305,9 @@ def run_trial(
     The servo gain is the scene's ``plant.servo_gain``; ``control_period`` must be a whole
     number of physics timesteps.
     """
-    model, data = scene.model, scene.data
-    substeps = int(round(control_period / scene.timestep))
-    if substeps < 1 or abs(substeps * scene.timestep - control_period) > 1e-9:
-        raise BadInputError(
-            f"control period {control_period} s is not a whole number of timesteps ({scene.timestep} s)"
-        )
+    data = scene.data
+    plant = ServoedPlant(scene, control_period)
+    substeps = plant.substeps
     steps = int(round(duration / control_period))
     if steps < 1:
         raise BadInputError(f"duration {duration} s is shorter than one control period")
@@ -274,16 +323,7 @@ def run_trial(
     dq_cmd = np.empty((steps, NQ))
     force = np.zeros((steps * substeps, 3))
     force_t = np.arange(steps * substeps) * scene.timestep
-    contact_force = np.zeros(6)
-    tool = scene.tool_geom
-    surface = scene.surface
-    # centre-to-wall distance beyond which the tool cannot touch the wall within one period
-    # (at up to CLEARANCE_SPEED m/s)
-    clearance = TOOL_RADIUS + CLEARANCE_SPEED * control_period
-
-    scene.set_state(q0, dq0)
-    servo = ComputedTorqueServo(scene, scene.plant.servo_gain)
-    servo.reset(*(servo_reference if servo_reference is not None else (q0, dq0)))
+    plant.reset(q0, dq0, servo_reference)
     start = time.perf_counter()
     for k in range(steps):
         q[k] = data.qpos
@@ -292,23 +332,7 @@ def run_trial(
         if command.shape != (NQ,) or not np.all(np.isfinite(command)):
             raise ValueError(f"control step {k}: dq_cmd must be {NQ} finite values, got {command}")
         dq_cmd[k] = command
-        mujoco.mj_step1(model, data)
-        tau[k] = servo.torque(command, control_period)
-        data.qfrc_applied[:] = tau[k]
-        mujoco.mj_step2(model, data)
-        if surface.signed_distance(data.geom_xpos[tool]) > clearance:
-            # the tool cannot reach the wall within this period: no contact force to log
-            mujoco.mj_step(model, data, substeps - 1)
-            continue
-        for i in range(substeps):
-            if i > 0:
-                mujoco.mj_step(model, data)
-            for c in range(data.ncon):
-                mujoco.mj_contactForce(model, data, c, contact_force)
-                contact = data.contact[c]
-                # contact_force[:3] is in the contact frame; +normal pushes geom2 away from geom1
-                on_geom2 = contact.frame.reshape(3, 3).T @ contact_force[:3]
-                force[k * substeps + i] += on_geom2 if contact.geom2 == tool else -on_geom2
+        tau[k] = plant.advance(command, force[k * substeps : (k + 1) * substeps])
     wall_time = time.perf_counter() - start
     _check_stable(scene, t, dq)
     return TrialLog(t, q, dq, tau, dq_cmd, force_t, force, wall_time)

@@ -4,6 +4,7 @@ from .contact_approach_task import ContactApproachTask
 from .damping_task import DampingTask
 from .frame_task import FrameTask
 from .posture_task import PostureTask
+from .surface_offset_task import SurfaceOffsetTask
 from .task import Task, TaskRows
 
-__all__ = ["Task", "TaskRows", "FrameTask", "ContactApproachTask", "PostureTask", "DampingTask"]
+__all__ = ["Task", "TaskRows", "FrameTask", "ContactApproachTask", "PostureTask", "DampingTask", "SurfaceOffsetTask"]

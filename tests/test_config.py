@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from impactqp.controller.config import ControllerConfig, TaskConfig, build_controller
+from impactqp.controller.config import ControllerConfig, TaskConfig, build_controller, post_impact_config
 from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
 from impactqp.controller.qp import ImpactAwareController
 from impactqp.tasks import ContactApproachTask, DampingTask, PostureTask
@@ -140,3 +140,35 @@ def test_unsupported_file_type(tmp_path):
     (tmp_path / "c.json").write_text("{}")
     with pytest.raises(ValueError):
         ControllerConfig.from_file(tmp_path / "c.json")
+
+
+def test_post_impact_section_loads_and_is_validated(tmp_path):
+    path = tmp_path / "c.toml"
+    path.write_text('[post_impact]\nmode = "hold"\nhold_depth = 0.0005\n')
+    config = ControllerConfig.from_file(path)
+    assert config.post_impact.mode == "hold" and config.post_impact.hold_depth == 0.0005
+    assert ControllerConfig.from_dict(config.to_dict()) == config
+    for bad in ({"mode": "bounce"}, {"retract_distance": -0.01}, {"max_speed": float("nan")}):
+        with pytest.raises(ValueError, match="post_impact"):
+            ControllerConfig.from_dict({"post_impact": bad})
+
+
+@pytest.mark.parametrize("mode", ["retract", "hold", "continue"])
+def test_post_impact_controller_has_no_impact_constraints_and_keeps_the_limits(robot, mode):
+    config = ControllerConfig.approach(DEFAULT_WALL, 0.15)
+    config.post_impact.mode = mode
+    post = post_impact_config(config)
+    assert post.impact.jump_model is None and post.limits == config.limits
+    names = [c.name for c in build_controller(post, robot).constraints]
+    before = [c.name for c in build_controller(config, robot).constraints]
+    impact_aware = ("post_impact_velocity", "impulsive_torque")
+    assert any(name.startswith(impact_aware) for name in before)
+    assert not any(name.startswith(impact_aware) for name in names)
+    assert "joint_velocity_limit" in names
+    types = [t.type for t in post.tasks]
+    if mode == "continue":
+        assert types == [t.type for t in config.tasks]
+    else:
+        assert types[0] == "surface_offset" and "contact_approach" not in types
+        offset = post.tasks[0].params["offset"]
+        assert offset == (config.post_impact.retract_distance if mode == "retract" else -config.post_impact.hold_depth)

@@ -5,7 +5,7 @@ import pinocchio as pin
 import pytest
 
 from impactqp.controller.model.postures import POSTURES
-from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask
+from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
 from impactqp.tasks.task import rotation_error
 
 
@@ -88,3 +88,29 @@ def test_damping_task_opposes_the_velocity(terms):
     assert np.allclose(rows.weight, 1e-3)
     with pytest.raises(ValueError):
         DampingTask(weight=0.0)
+
+
+@pytest.mark.parametrize("offset", [0.05, 0.0, -0.001])
+def test_surface_offset_target_is_at_the_offset_along_the_normal_through_the_reset_point(terms, offset):
+    surface = POSTURES["elbow_up"].surface
+    task = SurfaceOffsetTask(surface.normal, surface.point, offset)
+    task.reset(terms)
+    assert surface.signed_distance(task.target_position) == pytest.approx(offset, abs=1e-12)
+    # the target differs from the reset point only along the normal
+    shift = task.target_position - terms.contact_point
+    assert np.allclose(shift - (shift @ surface.normal) * surface.normal, 0.0, atol=1e-12)
+    assert np.allclose(task.target_rotation, terms.contact_rotation)
+
+
+def test_surface_offset_rows_give_the_saturated_velocity_law(terms):
+    surface = POSTURES["elbow_up"].surface
+    task = SurfaceOffsetTask(surface.normal, surface.point, 0.05, max_speed=0.1, position_gain=20.0, velocity_gain=40.0)
+    task.reset(terms)
+    task.target_position = terms.contact_point + np.array([-0.2, 0.0, 0.0])  # far: the speed saturates
+    accel = frame_acceleration(terms, exact_solution(task.compute(terms)))
+    v = terms.J @ terms.dq
+    assert np.allclose(accel[:3], 40.0 * (np.array([-0.1, 0.0, 0.0]) - v), atol=1e-9)
+    assert np.allclose(accel[3:], -task.orientation_damping * (terms.J6[3:] @ terms.dq), atol=1e-9)
+    task.target_position = terms.contact_point + np.array([-0.001, 0.0, 0.0])  # near: proportional
+    accel = frame_acceleration(terms, exact_solution(task.compute(terms)))
+    assert np.allclose(accel[:3], 40.0 * (20.0 * np.array([-0.001, 0.0, 0.0]) - v), atol=1e-9)

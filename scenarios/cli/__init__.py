@@ -157,6 +157,10 @@ from impactqp.scenarios.cli.dataset_commands import dataset, diagnose  # noqa: E
 cli.add_command(dataset)
 cli.add_command(diagnose)
 
+from impactqp.scenarios.cli.run_command import run_command  # noqa: E402
+
+cli.add_command(run_command)
+
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; the exit code: 0 done, 1 internal error, 2 bad input, 130 Ctrl-C."""

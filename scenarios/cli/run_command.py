@@ -1,0 +1,52 @@
+"""``impactqp run``: the impact session in a 1 kHz robot loop (``scenarios.robot.run``)."""
+
+from __future__ import annotations
+
+import click
+
+from impactqp.scenarios.cli.arguments import emit_json
+
+
+@click.command("run")
+@click.option("--backend", type=click.Choice(["sim", "franka", "replay"]), default="sim", show_default=True)
+@click.option("--robot-ip", help="The robot's address (franka backend).")
+@click.option("--config", "config_file", help="Controller configuration (.toml, .yaml); default: approach at --speed.")
+@click.option("--plant", "plant_file", help="JSON plant-parameter overrides (sim backend).")
+@click.option("--posture", default="elbow_up", show_default=True, help="Start posture (sim backend).")
+@click.option("--speed", type=float, default=0.15, show_default=True, help="Approach speed (m/s) of the default configuration.")
+@click.option("--duration", type=float, default=1.0, show_default=True, help="Control time (s) before braking to a stop.")
+@click.option("--log", "log_dir", default="out/run", show_default=True, help="Dataset directory the run is added to.")
+@click.option("--dataset", help="Dataset directory of the trial to replay (replay backend).")
+@click.option("--trial", help="Trial id to replay (default: the first).")
+@click.option("--unpaced", is_flag=True, help="Run the sim backend as fast as it goes (no wall-clock pacing).")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+def run_command(backend, robot_ip, config_file, plant_file, posture, speed, duration, log_dir, dataset, trial, unpaced, as_json):
+    """Run the impact-aware controller in a 1 kHz loop on a robot: approach, detect the impact,
+    post-impact phase, brake to a stop. Ctrl-C brakes to a stop and keeps the log."""
+    from impactqp.scenarios.robot.run import RunRequest, run
+
+    request = RunRequest(
+        backend=backend, robot_ip=robot_ip, config_file=config_file, plant_file=plant_file, posture=posture,
+        speed=speed, duration=duration, log_dir=log_dir, dataset=dataset, trial=trial, paced=not unpaced,
+    )
+    report, _ = run(request)
+    if as_json:
+        emit_json(report)
+        return
+    impact = report["impact"]
+    cycle = report["cycle_us"]
+    click.echo(
+        f"{report['cycles']} cycles, {report['overruns']} overruns, cycle time p50 {cycle['p50']:.0f} us, "
+        f"p99 {cycle['p99']:.0f} us, max {cycle['max']:.0f} us"
+    )
+    click.echo(f"watchdog trips: {report['watchdog_trips']} {report['watchdog_reason']}".rstrip())
+    if impact["detected"]:
+        latency = impact["detection_latency_ms"]
+        click.echo(
+            f"impact detected at t = {impact['time']:.4f} s"
+            + (f" ({latency:.1f} ms after the contact start)" if latency is not None else "")
+            + f", contact speed {impact['contact_speed']:.3f} m/s"
+        )
+    else:
+        click.echo("no impact detected")
+    click.echo(f"final phase: {report['phase']}; log: {report['log']}")

@@ -1,0 +1,51 @@
+"""The robot interface of the control loop: read the state, send a joint-velocity command, stop.
+
+A backend (``sim_backend``, ``franka_backend``, ``replay_backend``) implements
+:class:`RobotInterface`; the loop runner (``scenarios.robot.loop``) makes every decision, so a
+backend only maps its robot's state and command types.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """One sample of the robot: time t (s, the robot's clock), joint positions q (rad),
+    velocities dq (rad/s), measured joint torques tau (N m), and the robot's own external-torque
+    estimate tau_ext (N m) when it gives one (None otherwise)."""
+
+    t: float
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+    tau_ext: np.ndarray | None = None
+
+
+class RobotInterface:
+    """A robot driven at a fixed period by joint-velocity commands.
+
+    ``read`` returns the next state (a paced backend blocks until the next period), ``write``
+    sends the command of that cycle, ``stop`` ends the motion (after the loop brought the
+    command to zero). ``finished`` is True when the backend has no more states (a replay).
+    """
+
+    period: float = 1e-3
+    finished: bool = False
+
+    def read(self) -> RobotState:
+        raise NotImplementedError
+
+    def write(self, dq_cmd: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def stop(self) -> None:
+        """End the motion; the default has nothing to release."""
+
+    def force_log(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(force_t, force): the contact force on the robot (world frame, N) when the backend
+        measures it (the simulation), else None."""
+        return None

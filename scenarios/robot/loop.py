@@ -1,0 +1,242 @@
+"""The loop runner: one fixed-period cycle, a deadline check, the command filter and a watchdog.
+
+One cycle::
+
+    state = robot.read()                       (a paced backend blocks until the period starts)
+    watchdog: NaN state? stale state (time not increasing)?     -> trip
+    command = session.step(state)              (an exception    -> trip)
+    dq_cmd = filter(command.dq_cmd)            (or filter.brake() once tripped or stopping)
+    robot.write(dq_cmd)
+    cycle time = write done - read returned;  > deadline: overrun;  N overruns in a row -> trip
+
+The watchdog latches: after a trip every command is the filter's braking command, which ramps the
+commanded velocity to zero within the velocity, acceleration and jerk limits
+(``controller.command_filter``), so the commands stay continuous. At the end of the run (the
+duration, a stop request such as Ctrl-C, or a replay's last state) the loop brakes the same way
+until the command is zero, then calls ``robot.stop()``. A backend that fails mid-run (a robot
+that stopped on its own reflex) ends the run: the watchdog reason says why and the log is kept.
+Every cycle is logged (t, q, dq, tau and
+the command actually sent) for the dataset format.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from impactqp.controller.command_filter import CommandFilter
+from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.validation import BadInputError
+
+from .interface import RobotInterface, RobotState
+from .session import ImpactSession
+
+DEFAULT_MAX_OVERRUNS = 5
+BRAKING = "brake"
+STOPPING = "stop"
+STOPPED_SPEED = 1e-9
+MAX_STOP_CYCLES = 2000
+
+
+class Watchdog:
+    """Trips on a NaN state, a stale state, a controller exception or ``max_overruns``
+    consecutive overruns; latched until the end of the run. ``reason`` says why."""
+
+    def __init__(self, max_overruns: int = DEFAULT_MAX_OVERRUNS):
+        if max_overruns < 1:
+            raise BadInputError(f"max_overruns = {max_overruns} must be >= 1")
+        self.max_overruns = int(max_overruns)
+        self.consecutive_overruns = 0
+        self.tripped = False
+        self.reason = ""
+        self.trips = 0
+        self._last_t = -math.inf
+
+    def trip(self, reason: str) -> None:
+        if not self.tripped:
+            self.tripped = True
+            self.reason = reason
+            self.trips += 1
+
+    def check_state(self, state: RobotState) -> None:
+        finite = all(np.all(np.isfinite(x)) for x in (state.q, state.dq, state.tau)) and math.isfinite(state.t)
+        if not finite:
+            self.trip(f"non-finite state at t = {state.t}")
+        elif state.t <= self._last_t:
+            self.trip(f"stale state: time {state.t} s does not increase")
+        if math.isfinite(state.t):
+            self._last_t = max(self._last_t, state.t)
+
+    def record_cycle(self, overrun: bool) -> None:
+        self.consecutive_overruns = self.consecutive_overruns + 1 if overrun else 0
+        if self.consecutive_overruns >= self.max_overruns:
+            self.trip(f"{self.consecutive_overruns} overruns in a row")
+
+
+class LoopLog:
+    """Per-cycle records in arrays preallocated for ``capacity`` cycles (no allocation per cycle)."""
+
+    def __init__(self, capacity: int):
+        self.size = 0
+        self.t = np.zeros(capacity)
+        self.q = np.zeros((capacity, NQ))
+        self.dq = np.zeros((capacity, NQ))
+        self.tau = np.zeros((capacity, NQ))
+        self.dq_cmd = np.zeros((capacity, NQ))
+        self.cycle_time = np.zeros(capacity)
+        self.start_time = np.zeros(capacity)
+        self.phase: list[str] = []
+
+    def record(self, state: RobotState, dq_cmd: np.ndarray, phase: str, cycle_time: float, start_time: float) -> None:
+        k = self.size
+        self.t[k] = state.t
+        self.q[k] = state.q
+        self.dq[k] = state.dq
+        self.tau[k] = state.tau
+        self.dq_cmd[k] = dq_cmd
+        self.cycle_time[k] = cycle_time
+        self.start_time[k] = start_time
+        self.phase.append(phase)
+        self.size = k + 1
+
+    def trial_log(self, force: tuple[np.ndarray, np.ndarray] | None) -> TrialLog:
+        n = self.size
+        log = TrialLog(self.t[:n], self.q[:n], self.dq[:n], self.tau[:n], self.dq_cmd[:n])
+        if force is not None:
+            log.force_t, log.force = force
+        return log
+
+
+@dataclass(frozen=True)
+class LoopResult:
+    """What one run did: cycle statistics, watchdog, impact and the log."""
+
+    cycles: int
+    overruns: int
+    cycle_us: dict
+    period_error_us: np.ndarray
+    watchdog_trips: int
+    watchdog_reason: str
+    phases: list[str]
+    log: TrialLog
+    session: ImpactSession
+
+    @property
+    def phase(self) -> str:
+        return self.phases[-1] if self.phases else ""
+
+
+def cycle_statistics(cycle_time_s: np.ndarray) -> dict:
+    us = np.asarray(cycle_time_s) * 1e6
+    if us.size == 0:
+        return {"p50": 0.0, "p99": 0.0, "max": 0.0}
+    return {"p50": float(np.median(us)), "p99": float(np.percentile(us, 99)), "max": float(us.max())}
+
+
+class ControlLoop:
+    """Runs an :class:`ImpactSession` on a :class:`RobotInterface` (module docstring).
+
+    ``deadline``: the longest cycle time (s) that is not an overrun (default: the period).
+    """
+
+    def __init__(
+        self,
+        robot: RobotInterface,
+        session: ImpactSession,
+        command_filter: CommandFilter,
+        *,
+        deadline: float | None = None,
+        max_overruns: int = DEFAULT_MAX_OVERRUNS,
+    ):
+        self.robot = robot
+        self.session = session
+        self.filter = command_filter
+        self.deadline = robot.period if deadline is None else float(deadline)
+        self.watchdog = Watchdog(max_overruns)
+        self.stop_requested = False
+        self.robot_failed = False
+        self.overruns = 0
+        self.log: LoopLog | None = None
+
+    def request_stop(self) -> None:
+        """Brake to a stop at the next cycle (a signal handler may call it)."""
+        self.stop_requested = True
+
+    def run(self, duration: float) -> LoopResult:
+        robot, session, watchdog = self.robot, self.session, self.watchdog
+        cycles = int(round(duration / robot.period))
+        self.log = LoopLog(cycles + MAX_STOP_CYCLES + 1)
+        state = robot.read()
+        watchdog.check_state(state)
+        if not watchdog.tripped:
+            session.start(state)
+            self.filter.reset(state.dq)
+        k = 0
+        stop_cycles = 0
+        while True:
+            started = time.perf_counter()
+            stopping = self.stop_requested or k >= cycles
+            if stopping:
+                dq_cmd, phase = self.filter.brake(), STOPPING
+                stop_cycles += 1
+            elif watchdog.tripped:
+                dq_cmd, phase = self.filter.brake(), BRAKING
+            else:
+                try:
+                    command = session.step(state)
+                    dq_cmd, phase = self.filter(command.dq_cmd), command.phase
+                except Exception as error:  # the robot must keep getting commands
+                    watchdog.trip(f"controller exception: {type(error).__name__}: {error}")
+                    dq_cmd, phase = self.filter.brake(), BRAKING
+            try:
+                robot.write(dq_cmd)
+            except Exception as error:  # the robot stopped by itself (e.g. its own reflex)
+                self._robot_error(error)
+                self.log.record(state, dq_cmd, phase, time.perf_counter() - started, started)
+                break
+            elapsed = time.perf_counter() - started
+            overrun = elapsed > self.deadline
+            self.overruns += overrun
+            if not stopping:
+                watchdog.record_cycle(overrun)
+            self.log.record(state, dq_cmd, phase, elapsed, started)
+            k += 1
+            if stopping and (np.max(np.abs(dq_cmd)) <= STOPPED_SPEED or stop_cycles >= MAX_STOP_CYCLES):
+                break
+            if robot.finished:
+                break
+            try:
+                state = robot.read()
+            except Exception as error:
+                self._robot_error(error)
+                break
+            if not stopping:
+                watchdog.check_state(state)
+        if not self.robot_failed:
+            robot.stop()
+        return self._result()
+
+    def _robot_error(self, error: Exception) -> None:
+        """The backend failed: no command can reach the robot any more; the run ends, its log
+        is kept and the watchdog says why."""
+        self.robot_failed = True
+        self.watchdog.trip(f"robot error: {type(error).__name__}: {error}")
+
+    def _result(self) -> LoopResult:
+        log = self.log
+        intervals = np.diff(log.start_time[: log.size])
+        return LoopResult(
+            cycles=log.size,
+            overruns=int(self.overruns),
+            cycle_us=cycle_statistics(log.cycle_time[: log.size]),
+            period_error_us=np.abs(intervals - self.robot.period) * 1e6,
+            watchdog_trips=self.watchdog.trips,
+            watchdog_reason=self.watchdog.reason,
+            phases=list(log.phase),
+            log=log.trial_log(self.robot.force_log()),
+            session=self.session,
+        )

@@ -1,0 +1,94 @@
+"""The impact session: the controller of each phase, online impact detection and the switch.
+
+Phases: ``approach`` (the configured controller with its impact-aware constraints) until the
+impact is detected (``controller.measured.impact_detector``: the robot's external-torque
+estimate when it gives one, else the momentum observer on the measured torque), then the
+post-impact phase of ``config.post_impact`` (``retract``, ``hold`` or ``continue``: the
+controller of ``controller.config.post_impact_config``, impact-aware constraints off).
+
+Both controllers are built at the start, so the switch costs one ``reset``. The post-impact
+controller starts from the approach controller's command memory (previous q_cmd, dq_cmd and
+ddq), so its first command obeys the jerk limits around the last one. As in ``impactqp
+simulate`` the controller is fed its own previous command (q_cmd, dq_cmd), the measured state
+only at the start (``scenarios.trial``, "Controller state").
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from impactqp.controller.config import ControllerConfig, build_controller, post_impact_config
+from impactqp.controller.measured.impact_detector import ImpactDetector, MomentumObserver
+from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.qp import Command
+
+from .interface import RobotState
+
+APPROACH = "approach"
+
+
+class ImpactSession:
+    """``start(state)`` once, then ``step(state) -> Command`` every period (``Command.phase``)."""
+
+    def __init__(self, config: ControllerConfig, robot: PandaModel | None = None):
+        robot = PandaModel() if robot is None else robot
+        self.robot = robot
+        self.config = config
+        self.approach = build_controller(config, robot)
+        self.post_impact = build_controller(post_impact_config(config), robot)
+        self.observer = MomentumObserver(robot, config.dt)
+        self.detector = ImpactDetector()
+        self.controller = self.approach
+        self.phase = APPROACH
+        self.last: Command | None = None
+        self.detection_state: RobotState | None = None
+        self.pre_impact_state: RobotState | None = None
+        self._previous_state: RobotState | None = None
+
+    def start(self, state: RobotState) -> None:
+        """Reset at the first state; one discarded step of each controller first, so that the
+        solvers' set-up does not fall into the first control cycles."""
+        for controller in (self.post_impact, self.approach):
+            controller.reset(state.q, state.dq)
+            controller.step(state.q, state.dq)
+            controller.reset(state.q, state.dq)
+            controller.fallback_count = 0
+        self.observer.reset(state.q, state.dq)
+        self._previous_state = state
+
+    def residual(self, state: RobotState) -> np.ndarray:
+        """The joint-torque residual of the detector: the robot's estimate or the observer's."""
+        if state.tau_ext is not None:
+            return state.tau_ext
+        return self.observer.update(state.q, state.dq, state.tau)
+
+    def step(self, state: RobotState) -> Command:
+        if self.phase == APPROACH and self.detector.update(state.t, self.residual(state)):
+            self._switch(state)
+        if self.last is None:
+            q, dq = state.q, state.dq
+        else:
+            q, dq = self.last.q_cmd, self.last.dq_cmd
+        self.last = replace(self.controller.step(q, dq), phase=self.phase)
+        self._previous_state = state
+        return self.last
+
+    def _switch(self, state: RobotState) -> None:
+        memory = self.approach.memory
+        self.post_impact.reset(memory.q_cmd, memory.dq_cmd)
+        self.post_impact.memory = replace(memory)
+        self.controller = self.post_impact
+        self.phase = self.config.post_impact.mode
+        self.detection_state = state
+        self.pre_impact_state = self._previous_state
+
+    def contact_speed(self) -> float | None:
+        """-n . J(q) dq (m/s) of the last sample before the detection, None without one."""
+        state = self.pre_impact_state
+        if state is None:
+            return None
+        normal = np.asarray(self.config.surface.normal, float)
+        J = self.robot.terms(state.q, state.dq, check_limits=False).J
+        return float(-normal @ (J @ state.dq))

@@ -1,0 +1,60 @@
+"""The ``sim`` backend: the MuJoCo plant (``sim``) behind the robot interface.
+
+One ``write`` advances the plant by one period as ``sim.runner.run_trial`` does
+(``sim.runner.ServoedPlant``): the computed-torque joint servo turns the command into a torque
+held over the period, MuJoCo runs its substeps, and the contact force on the tool is logged at
+every substep. ``read`` returns the state at the start of the next period; its ``tau`` is the
+torque that acted over the previous period (the last measured joint torque of a robot). Paced, ``read`` waits for the wall-clock time
+t0 + k period (sleep, then spin for the last ``SPIN_TIME``); unpaced, it returns at once.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from impactqp.sim.runner import ServoedPlant
+from impactqp.sim.scene import Scene
+
+from .interface import RobotInterface, RobotState
+
+SPIN_TIME = 2e-4
+
+
+class SimRobot(RobotInterface):
+    """The simulated Panda of ``scene`` started at (q0, dq0), stepped one period per command."""
+
+    def __init__(self, scene: Scene, q0: np.ndarray, dq0: np.ndarray, period: float = 1e-3, paced: bool = False):
+        self.plant = ServoedPlant(scene, period)
+        self.plant.reset(np.asarray(q0, float), np.asarray(dq0, float))
+        self.scene = scene
+        self.period = float(period)
+        self.paced = paced
+        self.tau = scene.data.qfrc_bias.copy()
+        self.steps = 0
+        self._force: list[np.ndarray] = []
+        self._start: float | None = None
+
+    def read(self) -> RobotState:
+        if self.paced:
+            now = time.perf_counter()
+            if self._start is None:
+                self._start = now
+            deadline = self._start + self.steps * self.period
+            if deadline - now > SPIN_TIME:
+                time.sleep(deadline - now - SPIN_TIME)
+            while time.perf_counter() < deadline:
+                pass
+        data = self.scene.data
+        return RobotState(self.steps * self.period, data.qpos.copy(), data.qvel.copy(), self.tau.copy())
+
+    def write(self, dq_cmd: np.ndarray) -> None:
+        force = np.zeros((self.plant.substeps, 3))
+        self.tau = self.plant.advance(np.asarray(dq_cmd, float), force).copy()
+        self._force.append(force)
+        self.steps += 1
+
+    def force_log(self) -> tuple[np.ndarray, np.ndarray]:
+        force = np.concatenate(self._force) if self._force else np.zeros((0, 3))
+        return np.arange(len(force)) * self.scene.timestep, force

@@ -1,0 +1,73 @@
+"""The command filter never lets a velocity, acceleration or jerk step above the limits through."""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from impactqp.controller.command_filter import CommandFilter
+from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT
+
+DT = 1e-3
+TOL = 1e-9
+
+
+def make_filter():
+    return CommandFilter(DT, VELOCITY_LIMIT, ACCELERATION_LIMIT, JERK_LIMIT)
+
+
+def assert_within_limits(commands, start):
+    dq = np.vstack([start, start, commands])
+    ddq = np.diff(dq, axis=0) / DT
+    jerk = np.diff(ddq, axis=0) / DT
+    assert np.all(np.abs(dq) <= VELOCITY_LIMIT * (1 + TOL))
+    assert np.all(np.abs(ddq) <= ACCELERATION_LIMIT * (1 + TOL))
+    assert np.all(np.abs(jerk) <= JERK_LIMIT * (1 + TOL))
+
+
+requests = st.lists(
+    st.one_of(
+        st.lists(st.floats(-100.0, 100.0), min_size=NQ, max_size=NQ),
+        st.just([float("nan")] * NQ),
+        st.just([float("inf")] * NQ),
+    ),
+    min_size=1,
+    max_size=120,
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(requests, st.integers(1, 12))
+def test_adversarial_requests_never_exceed_the_limits(sequence, hold):
+    command_filter = make_filter()
+    commands = [command_filter(np.array(request)) for request in sequence for _ in range(hold)]
+    assert np.all(np.isfinite(commands))
+    assert_within_limits(np.array(commands), np.zeros(NQ))
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(-1.0, 1.0), min_size=NQ, max_size=NQ))
+def test_a_feasible_constant_request_is_reached_exactly_without_overshoot(fraction):
+    target = np.array(fraction) * VELOCITY_LIMIT
+    command_filter = make_filter()
+    commands = np.array([command_filter(target) for _ in range(600)])
+    assert np.allclose(commands[-1], target, atol=1e-12)
+    # no overshoot: every joint moves monotonically towards its target
+    assert np.all(np.diff(commands, axis=0) * np.sign(target) >= -1e-12)
+
+
+def test_brake_from_full_speed_stops_within_the_limits():
+    command_filter = make_filter()
+    command_filter.reset(VELOCITY_LIMIT * 0.9)
+    commands = np.array([command_filter.brake() for _ in range(400)])
+    assert np.all(commands[-1] == 0.0)
+    assert_within_limits(commands, VELOCITY_LIMIT * 0.9)
+
+
+def test_velocity_change_and_its_inverse_agree():
+    command_filter = make_filter()
+    a = np.linspace(-3.0, 3.0, 61)[:, None] * ACCELERATION_LIMIT
+    assert np.allclose(command_filter.acceleration_for(command_filter.velocity_change(a)), a, rtol=1e-12, atol=1e-9)
+    # g(a) = dt (a + (a - s) + ...) directly for one value
+    s = JERK_LIMIT * DT
+    a1 = 2.5 * s
+    assert np.allclose(command_filter.velocity_change(a1), DT * (a1 + (a1 - s) + (a1 - 2 * s)))
