@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from impactqp.scenarios.cli.arguments import BadInput, check_jobs, emit_json, load_plant, parse_list
+from impactqp.scenarios.cli.arguments import BadInput, check_jobs, emit_json, load_plant, parse_list, parse_vector
 
 
 @click.group()
@@ -91,6 +91,36 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
         emit_json({"out": str(out), "trials": [e.to_dict() for e in entries]})
     else:
         click.echo(f"wrote {len(entries)} trial(s) to {out}")
+
+
+@dataset.command("import-franka")
+@click.argument("out", type=click.Path(file_okay=False))
+@click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--surface-point", required=True, help="A point X,Y,Z (m, world) of the surface hit.")
+@click.option("--surface-normal", required=True, help="The surface normal NX,NY,NZ, towards the robot.")
+@click.option("--tool-frame", default="panda_hand", show_default=True, help="Robot frame of the contact point.")
+@click.option("--contact-point", help="Contact point X,Y,Z (m) in the tool frame (default: the impact tool's tip).")
+@click.option("--reference-speed", type=float, help="Reference normal speed (m/s) of every log (default: estimated).")
+@click.option("--json", "as_json", is_flag=True)
+def import_franka_command(out, logs, surface_point, surface_normal, tool_frame, contact_point, reference_speed, as_json):
+    """Import libfranka logs (franka::logToCSV, one log per trial) as a dataset in OUT."""
+    from impactqp.controller.measured.franka_log import import_franka_logs
+    from impactqp.controller.model.postures import Surface
+    from impactqp.controller.model.robot import TOOL_TIP_OFFSET
+    from impactqp.controller.model.validation import unit_normal
+
+    surface = Surface(parse_vector(surface_point, 3, "--surface-point"), unit_normal(
+        parse_vector(surface_normal, 3, "--surface-normal"), "--surface-normal"))
+    point = parse_vector(contact_point, 3, "--contact-point") if contact_point else (0.0, 0.0, TOOL_TIP_OFFSET)
+    entries = import_franka_logs(
+        out, list(logs), surface, tool_frame=tool_frame, contact_point=point, reference_speed=reference_speed
+    )
+    if as_json:
+        emit_json({"out": str(out), "trials": [e.to_dict() for e in entries]})
+        return
+    for e in entries:
+        click.echo(f"{e.id}: reference normal speed {e.reference_normal_speed:.3f} m/s, posture {e.posture or '-'}")
+    click.echo(f"wrote {len(entries)} trial(s) to {out}")
 
 
 @click.command()
