@@ -20,7 +20,12 @@ from impactqp.controller.measured.impact import measure_impact
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.validation import BadInputError
+from impactqp.sim.causes import ArmatureCause, per_group
+from impactqp.sim.diagnosis import diagnose
 from impactqp.sim.generation import generate_dataset
+from impactqp.sim.plant import PlantParameters
+
+ARMATURE = (0.5, 0.15)
 
 ARRAYS = [
     ("state.q", 7), ("state.q_d", 7), ("state.dq", 7), ("state.dq_d", 7), ("state.tau_J", 7),
@@ -50,9 +55,11 @@ def libfranka_csv(log: TrialLog, separator: str) -> str:
 
 @pytest.fixture(scope="module")
 def source(tmp_path_factory):
-    """Two simulated trials (no force sensor is read by the import) and their libfranka logs."""
+    """Two simulated trials of a plant with armature (no force sensor is read by the import) and
+    their libfranka logs."""
     directory = tmp_path_factory.mktemp("source")
-    generate_dataset(directory, postures=["elbow_up", "elbow_left"], speeds=[0.12], seed=5)
+    plant = PlantParameters(armature=per_group(ARMATURE))
+    generate_dataset(directory, plant=plant, postures=["elbow_up", "elbow_left"], speeds=[0.12], seed=5)
     dataset = read_dataset(directory)
     logs = {}
     for separator, tag in ((", ", "old"), (",", "new")):
@@ -90,6 +97,20 @@ def test_import_gives_back_the_trials_it_came_from(source, tmp_path, tag):
         # the impact measured on the import is the one the robot's own torques show in the source
         expected = measure_impact(source_log, use_force=False)
         np.testing.assert_allclose(measure_impact(log).dq_jump, expected.dq_jump, atol=1e-5)
+
+
+def test_imported_logs_diagnose_like_the_dataset_they_came_from(source, tmp_path):
+    """Same cause, same fitted armature per group (the import has no force log, so no impulse
+    residuals: the fits agree to a few per cent, not exactly)."""
+    dataset, logs = source
+    import_franka_logs(tmp_path, [logs["old", t.entry.id] for t in dataset.trials], DEFAULT_WALL)
+    imported = diagnose(tmp_path, causes=[ArmatureCause()]).summary()
+    original = diagnose(dataset.directory, causes=[ArmatureCause()]).summary()
+    assert imported["causes"] == original["causes"] == ["armature"]
+    fitted = ArmatureCause().theta_of(imported["parameters"])
+    np.testing.assert_allclose(fitted, ArmatureCause().theta_of(original["parameters"]), rtol=0.1)
+    np.testing.assert_allclose(fitted, ARMATURE, rtol=0.2)
+    assert imported["baseline_error"] == pytest.approx(original["baseline_error"], rel=0.1)
 
 
 def test_given_reference_speed_is_used_as_is(source, tmp_path):

@@ -1,4 +1,4 @@
-"""``impactqp dataset validate|generate`` and ``impactqp diagnose``: measured data against the
+"""``impactqp dataset validate|generate|import-franka`` and ``impactqp diagnose``: measured data against the
 simulation (dataset format: ``sim/dataset.py`` and the README)."""
 
 from __future__ import annotations
@@ -129,13 +129,16 @@ def import_franka_command(out, logs, surface_point, surface_normal, tool_frame, 
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write report.md and PNG figures here.")
 @click.option("--save-plant", type=click.Path(dir_okay=False), help="Save the fitted plant overrides (JSON).")
 @click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Nominal plant to start from (JSON).")
+@click.option("--max-speed", "max_speed", is_flag=True,
+              help="Also simulate the highest feasible contact speed per posture, nominal and extended plant.")
 @click.option("--jobs", type=int, default=1, show_default=True)
-def diagnose(directory, as_json, report_dir, save_plant, plant_file, jobs):
+def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, jobs):
     """What the simulation gets wrong on measured impacts, why, and the model change that fixes it."""
     import mujoco
 
     from impactqp.controller.measured.dataset import DatasetError
     from impactqp.sim.diagnosis import diagnose as run_diagnosis
+    from impactqp.sim.diagnosis import interval_text
 
     if not Path(directory).is_dir():
         raise BadInput(f"{directory} is not a directory")
@@ -151,6 +154,12 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, jobs):
     except DatasetError as error:
         raise BadInput(str(error)) from None
     summary = result.summary()
+    speeds = None
+    if max_speed:
+        from impactqp.scenarios.diagnosis_report import feasible_speeds
+
+        speeds = feasible_speeds(result, nominal, jobs=jobs)
+        summary["max_speeds"] = [r.to_json() for r in speeds]
     if save_plant:
         from dataclasses import replace
 
@@ -158,18 +167,24 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, jobs):
     if report_dir:
         from impactqp.scenarios.diagnosis_report import write_report
 
-        path = write_report(result, report_dir)
+        path = write_report(result, report_dir, speeds)
         if not as_json:
             click.echo(f"report written to {path}")
     if as_json:
         emit_json(summary)
         return
     click.echo(summary["message"])
-    click.echo(f"cause: {summary['cause']}  explained: {summary['explained']}  parameters: {json.dumps(summary['parameters'])}")
+    click.echo(f"causes: {', '.join(summary['causes']) or 'none'}  explained: {summary['explained']}  parameters: {json.dumps(summary['parameters'])}")
     click.echo(f"held-out average error (26): nominal {summary['baseline_error']:.4f}  extended {summary['extended_error']:.4f}  gain {100 * summary['gain']:.1f} %")
+    for k, step in enumerate(summary["steps"], start=1):
+        click.echo(f"step {k}: {step['cause']:<14} held-out {step['heldout_error']:.4f}  gain {100 * step['gain']:5.1f} %  {'selected' if step['selected'] else 'not selected'}")
+    for p in summary["parameter_intervals"]:
+        click.echo(f"  {p['parameter']:<40} {p['value']:10.4g}  95 %: {interval_text(p['interval'])}")
     click.echo(f"{'candidate':<15}{'held-out':>10}{'gain':>9}")
     for c in summary["candidates"]:
         click.echo(f"{c['cause']:<15}{c['heldout_error']:>10.4f}{100 * c['gain']:>8.1f}%")
     click.echo("predictors (average error (26), own impulse): " + ", ".join(f"{k} {v:.4f}" for k, v in summary["predictors"].items()))
+    for r in speeds or []:
+        click.echo(r.sentence())
     for s in summary["skipped"]:
         click.echo(f"skipped {s['id']}: {s['reason']}")
