@@ -9,7 +9,7 @@ import pytest
 
 from impactqp.sim.causes import CAUSE_NAMES, FrictionCause, PayloadCause, cause_named, per_group, realistic_hidden_effect
 from impactqp.controller.measured.dataset import read_dataset, validate
-from impactqp.sim.diagnosis import EXPLAINED_GAIN, diagnose, load_trials, replay_all
+from impactqp.sim.diagnosis import EXPLAINED_GAIN, STEP_GAIN, diagnose, load_trials, replay_all
 from impactqp.sim.generation import generate_dataset
 from impactqp.sim.plant import PlantParameters
 
@@ -84,7 +84,7 @@ def test_two_hidden_effects_are_both_named_each_within_its_interval(tmp_path):
     payload = PayloadCause()
     theta = payload.theta_of(truth)
     assert np.all(np.abs(payload.theta_of(result["parameters"]) - theta) <= tolerance(payload, theta))
-    assert [s["gain"] > 0.15 for s in result["steps"][:2]] == [True, True]
+    assert [s["selected"] and s["gain"] >= STEP_GAIN for s in result["steps"][:2]] == [True, True]
 
 
 def test_impacts_that_only_stick_leave_friction_open_above(tmp_path):
