@@ -4,8 +4,12 @@ Figures: ``jumps.png`` (measured, nominal-simulation and extended-simulation jum
 mean over each posture's trials), ``error_vs_speed.png`` (average error (26) of the nominal and
 extended simulations and of the predictors against the reference speed) and
 ``predictor_errors.png`` (mean absolute error (25) per joint of every predictor and both
-simulations). Every file is written atomically (``controller.measured.atomic``); other files in the
-directory are kept.
+simulations). Every file is written atomically (``controller.measured.atomic``); other files
+in the directory are kept.
+
+What it means for the user (:func:`feasible_speeds`): for each named posture of the data, the
+highest feasible contact speed simulated with the nominal plant and with the extended plant
+(the diagnosed causes), beside the CRB closed form (``scenarios.max_speed_search``).
 """
 
 from __future__ import annotations
@@ -18,10 +22,73 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from dataclasses import dataclass  # noqa: E402
+
 from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
-from impactqp.sim.diagnosis import EXPLAINED_GAIN, Diagnosis  # noqa: E402
+from impactqp.controller.model.postures import POSTURES  # noqa: E402
+from impactqp.scenarios.max_speed_search import DEFAULT_TOLERANCE, MaxSpeedSearch  # noqa: E402
+from impactqp.sim.diagnosis import EXPLAINED_GAIN, STEP_GAIN, Diagnosis, interval_text  # noqa: E402
+from impactqp.sim.plant import PlantParameters  # noqa: E402
 
 JOINTS = np.arange(1, 8)
+
+
+@dataclass(frozen=True)
+class FeasibleSpeed:
+    """Highest feasible contact speed (m/s) of one posture: CRB closed form, and simulated with
+    the nominal and with the extended (diagnosed) plant."""
+
+    posture: str
+    crb_closed_form: float
+    nominal_plant: float
+    extended_plant: float
+
+    def sentence(self) -> str:
+        return (
+            f"At {self.posture}, your robot can hit at {self.extended_plant:.3f} m/s, not "
+            f"{self.nominal_plant:.3f} m/s (the nominal simulation's answer; CRB closed form "
+            f"{self.crb_closed_form:.3f} m/s)."
+        )
+
+    def to_json(self) -> dict:
+        return {
+            "posture": self.posture,
+            "crb_closed_form": self.crb_closed_form,
+            "nominal_plant": self.nominal_plant,
+            "extended_plant": self.extended_plant,
+        }
+
+
+def feasible_speeds(
+    diagnosis: Diagnosis,
+    nominal: PlantParameters | None = None,
+    *,
+    postures: list[str] | None = None,
+    jobs: int = 1,
+    tolerance: float = DEFAULT_TOLERANCE,
+    progress: bool = False,
+) -> list[FeasibleSpeed]:
+    """For each named posture of the diagnosed trials (trials without a named posture are left
+    out; only ``postures`` when given), the simulated highest feasible speed with ``nominal`` and
+    with the extended plant, and the CRB closed form at the contact posture (``MaxSpeedSearch``)."""
+    nominal = nominal or PlantParameters()
+    names = sorted({t.posture for t in diagnosis.trials if t.posture in POSTURES})
+    if postures is not None:
+        names = [n for n in names if n in postures]
+    rows = []
+    for name in names:
+        reports = [
+            MaxSpeedSearch(
+                POSTURES[name], diagnosis.surface, plant, jobs=jobs, tolerance=tolerance, progress=progress
+            ).run()
+            for plant in (nominal, diagnosis.extended_plant)
+        ]
+        rows.append(
+            FeasibleSpeed(
+                name, reports[1].predicted["crb"].speed, reports[0].simulated_max_speed, reports[1].simulated_max_speed
+            )
+        )
+    return rows
 
 
 def series(diagnosis: Diagnosis) -> dict[str, np.ndarray]:
@@ -107,7 +174,7 @@ def table_by_condition(diagnosis: Diagnosis) -> list[str]:
     return lines
 
 
-def markdown(diagnosis: Diagnosis) -> str:
+def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) -> str:
     s = diagnosis.summary()
     a = s["analysis"]
     lines = [
@@ -116,10 +183,45 @@ def markdown(diagnosis: Diagnosis) -> str:
         s["message"],
         "",
         f"- trials used: {s['trials']}, skipped: {len(s['skipped'])}",
-        f"- cause: **{s['cause']}** (explained: {s['explained']}, threshold {100 * EXPLAINED_GAIN:.0f} % held-out gain)",
+        f"- causes: **{', '.join(s['causes']) or 'none'}** (explained: {s['explained']}; thresholds: first cause "
+        f"{100 * EXPLAINED_GAIN:.0f} % held-out gain, each further cause {100 * STEP_GAIN:.0f} %)",
         f"- parameters: `{s['parameters']}`",
         f"- average error (26), held-out: nominal simulation {s['baseline_error']:.4f} rad/s, "
         f"extended simulation {s['extended_error']:.4f} rad/s, gain {100 * s['gain']:.1f} %",
+        "",
+        "## Selection steps",
+        "",
+        "| step | cause | held-out error (rad/s) | gain over the step before | selected |",
+        "|---|---|---|---|---|",
+    ]
+    for k, step in enumerate(s["steps"], start=1):
+        lines.append(
+            f"| {k} | {step['cause']} | {step['heldout_error']:.4f} | {100 * step['gain']:.1f} % | {step['selected']} |"
+        )
+    lines += [
+        "",
+        "## Fitted parameters and 95 % intervals",
+        "",
+        "| cause | parameter | value | 95 % interval |",
+        "|---|---|---|---|",
+    ]
+    for p in s["parameter_intervals"]:
+        lines.append(f"| {p['cause']} | {p['parameter']} | {p['value']:.4g} | {interval_text(p['interval'])} |")
+    for o in s["open_sides"]:
+        lines.append(f"\nThe data cannot bound {o['parameter']} {o['side']}: {o['trials_needed']}.")
+    if speeds:
+        lines += [
+            "",
+            "## What it means for your robot: highest feasible contact speed (m/s)",
+            "",
+            "| posture | CRB closed form | nominal simulation | extended simulation |",
+            "|---|---|---|---|",
+        ]
+        lines += [
+            f"| {r.posture} | {r.crb_closed_form:.3f} | {r.nominal_plant:.3f} | {r.extended_plant:.3f} |" for r in speeds
+        ]
+        lines += [""] + [r.sentence() for r in speeds]
+    lines += [
         "",
         "## What the nominal simulation gets wrong",
         "",
@@ -165,9 +267,10 @@ def markdown(diagnosis: Diagnosis) -> str:
     return "\n".join(lines)
 
 
-def write_report(diagnosis: Diagnosis, out: str | Path) -> Path:
-    """Write ``report.md`` and the three figures into the directory ``out`` (created when
-    missing), each file atomically; other files in ``out`` are left alone."""
+def write_report(diagnosis: Diagnosis, out: str | Path, speeds: list[FeasibleSpeed] | None = None) -> Path:
+    """Write ``report.md`` (with the feasible speeds when given) and the three figures into the
+    directory ``out`` (created when missing), each file atomically; other files in ``out`` are
+    left alone."""
     out = Path(out)
     for name, plot in (
         ("jumps.png", plot_jumps),
@@ -175,4 +278,4 @@ def write_report(diagnosis: Diagnosis, out: str | Path) -> Path:
         ("predictor_errors.png", plot_predictor_errors),
     ):
         write_atomic(out / name, lambda tmp, plot=plot: plot(diagnosis, tmp))
-    return write_text_atomic(out / "report.md", markdown(diagnosis))
+    return write_text_atomic(out / "report.md", markdown(diagnosis, speeds))

@@ -3,18 +3,23 @@ theta onto plant overrides (``sim.plant.PlantParameters``).
 
 Every cause is fitted in a transformed space u where the least-squares problem is well scaled:
 u = log(theta) for positive quantities that span decades (inertia, damping, gains, time
-constants), u = theta otherwise. A new cause is one more subclass registered in ``CAUSES``.
+constants), u = theta otherwise. A new cause (a user's own) is one more subclass of
+:class:`Cause` passed to ``sim.diagnosis.diagnose(causes=...)``; it must only touch plant keys
+that no other selected cause touches. Method and rules: ``docs/diagnosis.md``.
 
-============  ===========================================  =====================================
-cause         fitted parameters                             plant override keys
-============  ===========================================  =====================================
-armature      one reflected rotor inertia a for all joints  ``armature`` = [a] * 7
-payload       payload mass m at the tool centre             ``payload_mass``, ``payload_com``
-friction      tool/wall Coulomb coefficient mu              ``friction``
-contact       solref time constant and damping ratio        ``contact_solref``
-joint_damping one viscous damping b for all joints          ``joint_damping`` = [b] * 7
-servo_gain    joint-servo bandwidth omega                   ``servo_gain``
-============  ===========================================  =====================================
+=============  ==============================================  ================================
+cause          fitted parameters                               plant override keys
+=============  ==============================================  ================================
+armature       reflected rotor inertia per joint group:        ``armature`` (7 values)
+               a_1 (joints 1-4, large motors),
+               a_2 (joints 5-7, small motors)
+payload        payload mass m and its centre of mass c in the  ``payload_mass``, ``payload_com``
+               tool's contact frame ``impact_tip``
+friction       tool/wall Coulomb coefficient mu                ``friction``
+contact        solref time constant and damping ratio          ``contact_solref``
+joint_damping  viscous damping per joint group (1-4, 5-7)      ``joint_damping`` (7 values)
+servo_gain     joint-servo bandwidth omega                     ``servo_gain``
+=============  ==============================================  ================================
 """
 
 from __future__ import annotations
@@ -29,8 +34,25 @@ from impactqp.controller.model.robot import NQ, TOOL_RADIUS
 from .plant import PlantParameters
 from impactqp.controller.model.validation import BadInputError
 
-# The payload sits at the tool's centre: the contact point moved back by the sphere radius.
+# The payload sits at the tool's centre by default: the contact point moved back by the radius.
 PAYLOAD_COM = (0.0, 0.0, -TOOL_RADIUS)
+# Joint groups of the Panda's drives: large motors on joints 1-4, small ones on joints 5-7.
+JOINT_GROUPS = ((0, 1, 2, 3), (4, 5, 6))
+GRID_POINTS = {1: 7, 2: 5}
+
+
+def per_group(values: tuple[float, ...]) -> list[float]:
+    """The 7 joint values of one value per joint group."""
+    out = [0.0] * NQ
+    for group, value in zip(JOINT_GROUPS, values):
+        for j in group:
+            out[j] = float(value)
+    return out
+
+
+def group_means(values) -> np.ndarray:
+    values = np.asarray(values, dtype=float)
+    return np.array([values[list(group)].mean() for group in JOINT_GROUPS])
 
 
 class Cause:
@@ -49,6 +71,20 @@ class Cause:
 
     def nominal_theta(self, nominal: PlantParameters) -> np.ndarray:
         raise NotImplementedError
+
+    def grid(self, nominal: PlantParameters) -> list[np.ndarray]:
+        """Start points of the fit (in u): the nominal value and a regular grid over the bounds
+        (``GRID_POINTS`` per axis); a cause with more parameters gives its own."""
+        lo, hi = self.u_bounds()
+        axes = [np.linspace(a, b, GRID_POINTS[len(lo)]) for a, b in zip(lo, hi)]
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(lo))
+        return [self.to_u(self.nominal_theta(nominal))] + [np.array(p) for p in grid]
+
+    def settling_trials(self, index: int, side: str, known: float) -> str:
+        """Plain words for the trials that would bound parameter ``index`` on ``side`` ("below"
+        or "above") when the data leave it open there; ``known`` is the closed end of its
+        interval (the fitted value when both ends are open)."""
+        return "more trials: other postures and a wider range of normal speeds"
 
     def overrides(self, theta: np.ndarray) -> dict:
         raise NotImplementedError
@@ -73,37 +109,61 @@ class Cause:
 
 
 class ArmatureCause(Cause):
+    """Reflected rotor inertia, one value per joint group (the drives of joints 1-4 and 5-7)."""
+
     name = "armature"
-    labels = ("armature (kg m^2)",)
-    log_scale = (True,)
-    lower, upper = (1e-3,), (5.0,)
-    realistic = ((0.2,), (1.5,))
+    labels = ("armature joints 1-4 (kg m^2)", "armature joints 5-7 (kg m^2)")
+    log_scale = (True, True)
+    lower, upper = (1e-3, 1e-3), (5.0, 5.0)
+    realistic = ((0.2, 0.05), (1.5, 0.4))
 
     def nominal_theta(self, nominal):
-        return np.array([max(float(np.mean(nominal.armature)), self.lower[0])])
+        return np.maximum(group_means(nominal.armature), self.lower)
 
     def overrides(self, theta):
-        return {"armature": [float(theta[0])] * NQ}
+        return {"armature": per_group(theta)}
 
     def theta_of(self, overrides):
-        return np.array([float(np.mean(overrides["armature"]))])
+        return group_means(overrides["armature"])
+
+    def settling_trials(self, index, side, known):
+        joints = "1-4" if index == 0 else "5-7"
+        return (
+            f"faster impacts (higher normal speeds) at postures whose jump loads joints {joints}, "
+            "e.g. the contact normal across those joints' axes"
+        )
 
 
 class PayloadCause(Cause):
+    """A point mass m on the hand at c, in the tool's contact frame ``impact_tip`` (the hand's
+    axes, origin at the tool tip; the tool points along +z, so the hand side is z < 0)."""
+
     name = "payload"
-    labels = ("payload mass (kg)",)
-    log_scale = (False,)
-    lower, upper = (0.0,), (5.0,)
-    realistic = ((0.3,), (2.0,))
+    labels = ("payload mass (kg)", "payload CoM x (m)", "payload CoM y (m)", "payload CoM z (m)")
+    log_scale = (False, False, False, False)
+    lower, upper = (0.0, -0.1, -0.1, -0.3), (5.0, 0.1, 0.1, 0.05)
+    realistic = ((0.3, -0.02, -0.02, -0.10), (2.0, 0.02, 0.02, -0.02))
+    MASS_GRID = 7
 
     def nominal_theta(self, nominal):
-        return np.array([nominal.payload_mass])
+        com = nominal.payload_com if nominal.payload_mass > 0.0 else PAYLOAD_COM
+        return np.array([nominal.payload_mass, *com])
+
+    def grid(self, nominal):
+        """The nominal value, then masses over the bounds with the CoM at the tool's centre."""
+        masses = np.linspace(self.lower[0], self.upper[0], self.MASS_GRID)
+        return [self.to_u(self.nominal_theta(nominal))] + [np.array([m, *PAYLOAD_COM]) for m in masses]
 
     def overrides(self, theta):
-        return {"payload_mass": float(theta[0]), "payload_com": list(PAYLOAD_COM)}
+        return {"payload_mass": float(theta[0]), "payload_com": [float(x) for x in theta[1:4]]}
 
     def theta_of(self, overrides):
-        return np.array([float(overrides["payload_mass"])])
+        return np.array([float(overrides["payload_mass"]), *map(float, overrides["payload_com"])])
+
+    def settling_trials(self, index, side, known):
+        if index == 0:
+            return "trials at more postures, with the hand in other orientations against gravity"
+        return "trials at postures that turn the hand about each axis, so gravity acts on the payload's lever arm"
 
 
 class FrictionCause(Cause):
@@ -120,6 +180,16 @@ class FrictionCause(Cause):
 
     def nominal_theta(self, nominal):
         return np.array([self.surface_friction if nominal.friction is None else nominal.friction])
+
+    def settling_trials(self, index, side, known):
+        speeds = ", ".join(f"{k * max(known, 0.1) * 0.12:.2f}" for k in (3, 6))
+        if side == "above":
+            return (
+                f"every impact sticks, so mu is only known to be at least {known:.2f}: trials with tangential "
+                f"speeds of several mu times the normal speed (e.g. {speeds} m/s at v_n = 0.12 m/s) would "
+                "make the tool slide and bound it"
+            )
+        return "trials with a small tangential speed, whose impacts stick for a moderate mu"
 
     def overrides(self, theta):
         return {"friction": float(theta[0])}
@@ -146,20 +216,26 @@ class ContactCause(Cause):
 
 
 class JointDampingCause(Cause):
+    """Viscous joint damping, one value per joint group (joints 1-4 and 5-7)."""
+
     name = "joint_damping"
-    labels = ("joint damping (N m s/rad)",)
-    log_scale = (True,)
-    lower, upper = (1e-2,), (200.0,)
-    realistic = ((1.0,), (4.0,))
+    labels = ("joint damping joints 1-4 (N m s/rad)", "joint damping joints 5-7 (N m s/rad)")
+    log_scale = (True, True)
+    lower, upper = (1e-2, 1e-2), (200.0, 200.0)
+    realistic = ((1.0, 0.3), (4.0, 1.5))
 
     def nominal_theta(self, nominal):
-        return np.array([max(float(np.mean(nominal.joint_damping)), self.lower[0])])
+        return np.maximum(group_means(nominal.joint_damping), self.lower)
 
     def overrides(self, theta):
-        return {"joint_damping": [float(theta[0])] * NQ}
+        return {"joint_damping": per_group(theta)}
 
     def theta_of(self, overrides):
-        return np.array([float(np.mean(overrides["joint_damping"]))])
+        return group_means(overrides["joint_damping"])
+
+    def settling_trials(self, index, side, known):
+        joints = "1-4" if index == 0 else "5-7"
+        return f"trials that move joints {joints} faster before the impact (higher approach speeds)"
 
 
 class ServoGainCause(Cause):

@@ -18,20 +18,21 @@ Pipeline (``diagnose``):
    and speed; their sign (the least-squares ratio of simulated to measured jump per joint,
    > 1: the simulation overshoots) and their scaling with speed (slope of (26) against the
    reference speed); the share of the error carried by each joint.
-4. **Extend.** Each candidate cause (``sim.causes``) is fitted by bounded least squares over
-   the replays (sum of squared residuals minimised by ``scipy.optimize.minimize``, Powell), with K-fold cross-validation over trials
-   (K = min(3, trials)). The fit's residuals per trial are the jump error (7) / SIGMA_JUMP, the
-   error of the mean joint torque over the ``TORQUE_WINDOW`` samples before contact (7) /
-   SIGMA_TORQUE, and, with force data, the impulse error (3) / SIGMA_IMPULSE and the contact
-   duration error / SIGMA_DURATION. The nominal value and a coarse grid
-   over the bounds, evaluated once on all trials, give each fold's starting point.
-5. **Name the cause.** The held-out error of a candidate is the mean over trials of (26) between
-   the replay with the parameters fitted without that trial's fold and the measured jump. Its
-   gain is 1 - heldout / baseline, the baseline being the nominal replay's (26). The cause is the
-   candidate with the largest gain; ``explained`` is true only when that gain reaches
-   ``EXPLAINED_GAIN`` (30 %).
-6. **Measure the gain.** ``baseline_error`` and ``extended_error`` (the cause's held-out error).
-   The cause's parameters are refitted on all trials (plant-override keys).
+4. **Extend.** Candidate causes (``sim.causes``) are fitted by bounded least squares over the
+   replays (sum of squared residuals minimised by ``scipy.optimize.minimize``, Powell, from the
+   best point of each cause's grid). The residuals per trial are the jump error (7) /
+   SIGMA_JUMP, the error of the mean joint torque over the ``TORQUE_WINDOW`` samples before
+   contact (7) / SIGMA_TORQUE, and, with force data, the impulse error (3) / SIGMA_IMPULSE and
+   the contact duration error / SIGMA_DURATION.
+5. **Select the causes** (``select_causes``): forward selection on the held-out average error
+   (26) of K-fold cross-validation over trials (K = min(3, trials)). Each step adds the
+   candidate that lowers the held-out error most; the first must gain ``EXPLAINED_GAIN`` over
+   the nominal replay (else ``explained`` is false), each further one ``STEP_GAIN`` over the
+   causes before it; the chosen causes are refitted jointly after each step.
+6. **Bound the parameters** (``parameter_intervals``): Gauss-Newton polish of the joint fit, then
+   per parameter the union of a profile-likelihood interval and a one-step bootstrap over
+   trials; a side where the profile reaches the fit's bound inside the 95 % region is open
+   (None), and the causes say which trials would settle it. Method: ``docs/diagnosis.md``.
 """
 
 from __future__ import annotations
@@ -64,12 +65,22 @@ SIGMA_JUMP = 0.005
 SIGMA_TORQUE = 0.05
 SIGMA_IMPULSE = 0.02
 SIGMA_DURATION = 1e-3
-EXPLAINED_GAIN = 0.30
-GRID_POINTS = {1: 7, 2: 5}
+EXPLAINED_GAIN = 0.30  # the first cause must lower the held-out error (26) by 30 % of the nominal's
+STEP_GAIN = 0.20  # every further cause by 20 % of the held-out error of the causes before it
+MAX_CAUSES = 3
 MAX_FOLDS = 3
 FIT_XTOL = 2e-3
-FIT_MAX_EVALUATIONS = 30  # per fitted parameter, for the fit on all trials
-FOLD_MAX_EVALUATIONS = 15  # per fitted parameter, for each cross-validation fold
+POWELL_STEPS = 6  # Powell's first step along each parameter: its range / 6
+FIT_MAX_EVALUATIONS = 20  # per fitted parameter, for the fit on all trials
+FOLD_MAX_EVALUATIONS = 10  # per fitted parameter, for each cross-validation fold
+JOINT_MAX_EVALUATIONS = 15  # per fitted parameter, for the joint refit of the chosen causes
+CHI2_95 = 3.841  # 95 % quantile of chi^2 with 1 degree of freedom
+SCAN_FIRST_STEP = 1.0 / 40.0
+JACOBIAN_STEP = 0.01
+POLISH_ITERATIONS = 3
+BOOTSTRAP_SAMPLES = 1000
+BOOTSTRAP_SEED = 0
+SCAN_BISECTIONS = 2
 
 
 @dataclass
@@ -199,37 +210,66 @@ def residuals(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> np
     return np.concatenate(parts)
 
 
+def residual_sizes(trials: list[MeasuredTrial]) -> list[int]:
+    """How many residuals each trial contributes (``residuals``)."""
+    return [14 + (4 if t.impulse is not None else 0) for t in trials]
+
+
 def jump_errors(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> np.ndarray:
     """Average error (26) of each replayed jump against the measured one."""
     return np.array([average_prediction_error(f.jump, t.jump) for f, t in zip(features, trials)])
 
 
 # ---------------------------------------------------------------------------- fitting
-def cause_grid(cause: Cause, nominal: PlantParameters) -> list[np.ndarray]:
-    """The nominal value and a regular grid over the bounds (in the fitted space u)."""
-    lo, hi = cause.u_bounds()
-    n = GRID_POINTS[len(lo)]
-    axes = [np.linspace(a, b, n) for a, b in zip(lo, hi)]
-    grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(lo))
-    return [cause.to_u(cause.nominal_theta(nominal))] + [np.array(p) for p in grid]
+@dataclass(frozen=True)
+class FittedCauses:
+    """Causes with their fitted vectors u, applied in order on top of a plant."""
+
+    causes: tuple[Cause, ...] = ()
+    u: tuple[np.ndarray, ...] = ()
+
+    def plant(self, nominal: PlantParameters) -> PlantParameters:
+        for cause, u in zip(self.causes, self.u):
+            nominal = cause.plant(nominal, u)
+        return nominal
+
+    def plus(self, cause: Cause, u: np.ndarray) -> "FittedCauses":
+        return FittedCauses(self.causes + (cause,), self.u + (np.asarray(u, float),))
+
+    def with_vector(self, u_all: np.ndarray) -> "FittedCauses":
+        """The same causes with the concatenated vector ``u_all`` split back per cause."""
+        sizes = np.cumsum([len(u) for u in self.u])[:-1]
+        return FittedCauses(self.causes, tuple(np.split(np.asarray(u_all, float), sizes)))
+
+    def vector(self) -> np.ndarray:
+        return np.concatenate(self.u) if self.u else np.zeros(0)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lo, hi = zip(*(c.u_bounds() for c in self.causes))
+        return np.concatenate(lo), np.concatenate(hi)
+
+    def overrides(self) -> dict:
+        merged: dict = {}
+        for cause, u in zip(self.causes, self.u):
+            merged.update(cause.overrides(cause.to_theta(u)))
+        return merged
 
 
-def evaluate_grid(cause: Cause, nominal: PlantParameters, surface: Surface, trials):
-    """Replay features of every trial at every grid point of the cause."""
-    points = cause_grid(cause, nominal)
-    return points, [replay_all(surface, cause.plant(nominal, u), trials) for u in points]
+def cost_of(plant: PlantParameters, surface: Surface, trials) -> float:
+    return float(np.sum(residuals(replay_all(surface, plant, trials), trials) ** 2))
 
 
-def fit_cause(cause: Cause, nominal, surface, trials, start: np.ndarray, max_evaluations: int) -> np.ndarray:
-    """Least squares over the replays of ``trials``: minimise the sum of squared residuals from
-    ``start`` within the bounds, with Powell's derivative-free method (the replayed features are
+def fit(model: FittedCauses, base: PlantParameters, surface, trials, max_evaluations: int) -> FittedCauses:
+    """Least squares over the replays of ``trials``: minimise the sum of squared residuals over
+    the vectors of ``model`` (its current vectors are the start), with the plant ``base`` under
+    them, within the bounds, with Powell's derivative-free method (the replayed features are
     only piecewise smooth in the parameters: the jump is read at a sample index that can switch,
-    which defeats finite-difference Jacobians). Returns the best u evaluated."""
-    lo, hi = cause.u_bounds()
-    best = {"cost": np.inf, "u": np.clip(start, lo, hi)}
+    which defeats finite-difference Jacobians). Returns the best point evaluated."""
+    lo, hi = model.bounds()
+    best = {"cost": np.inf, "u": np.clip(model.vector(), lo, hi)}
 
     def cost(u):
-        value = float(np.sum(residuals(replay_all(surface, cause.plant(nominal, u), trials), trials) ** 2))
+        value = cost_of(model.with_vector(u).plant(base), surface, trials)
         if value < best["cost"]:
             best.update(cost=value, u=np.array(u))
         return value
@@ -243,10 +283,10 @@ def fit_cause(cause: Cause, nominal, surface, trials, start: np.ndarray, max_eva
             "xtol": FIT_XTOL,
             "ftol": 1e-6,
             "maxfev": max_evaluations * len(lo),
-            "direc": np.diag((hi - lo) / GRID_POINTS[len(lo)]),
+            "direc": np.diag((hi - lo) / POWELL_STEPS),
         },
     )
-    return best["u"]
+    return model.with_vector(best["u"])
 
 
 def fold_of(trials: list[MeasuredTrial]) -> np.ndarray:
@@ -254,22 +294,346 @@ def fold_of(trials: list[MeasuredTrial]) -> np.ndarray:
     return np.arange(len(trials)) % k
 
 
+def best_start(cause: Cause, base: PlantParameters, surface, trials, features_of_grid=None):
+    """The grid point of ``cause`` (on top of ``base``) with the least cost over ``trials``:
+    (its index, the grid, the replay features at every grid point)."""
+    points = cause.grid(base)
+    if features_of_grid is None:
+        features_of_grid = [replay_all(surface, cause.plant(base, u), trials) for u in points]
+    costs = [np.sum(residuals(f, trials) ** 2) for f in features_of_grid]
+    return int(np.argmin(costs)), points, features_of_grid
+
+
 def cross_validate_cause(args) -> dict:
-    """Held-out errors of one cause (one process task): grid once, then a fit per fold + all."""
-    cause, nominal, surface, trials = args
-    points, grid = evaluate_grid(cause, nominal, surface, trials)
+    """Held-out errors of one candidate added to the causes already chosen (one process task).
+
+    ``bases[k]`` is the plant of the chosen causes fitted without fold k, ``base_all`` the one
+    fitted on all trials. Per fold: the best grid point on the training trials starts a fit of
+    the candidate on them, and its replay of the held-out trials gives their errors (26). Then
+    the candidate is fitted on all trials on top of ``base_all``."""
+    cause, bases, base_all, surface, trials = args
     folds = fold_of(trials)
     heldout = np.empty(len(trials))
+    u_folds = []
+    shared = None  # grid features on all trials, when every fold shares the base (first step)
+    if all(b == base_all for b in bases):
+        _, _, shared = best_start(cause, base_all, surface, trials)
     for k in np.unique(folds):
-        train = [t for t, f in zip(trials, folds) if f != k]
-        test = [t for t, f in zip(trials, folds) if f == k]
         train_idx = [i for i, f in enumerate(folds) if f != k]
-        costs = [np.sum(residuals([g[i] for i in train_idx], train) ** 2) for g in grid]
-        u = fit_cause(cause, nominal, surface, train, points[int(np.argmin(costs))], FOLD_MAX_EVALUATIONS)
-        heldout[folds == k] = jump_errors(replay_all(surface, cause.plant(nominal, u), test), test)
-    costs = [np.sum(residuals(g, trials) ** 2) for g in grid]
-    u_all = fit_cause(cause, nominal, surface, trials, points[int(np.argmin(costs))], FIT_MAX_EVALUATIONS)
-    return {"cause": cause.name, "u": u_all, "heldout": heldout}
+        train = [trials[i] for i in train_idx]
+        test = [t for t, f in zip(trials, folds) if f == k]
+        grid = [[g[i] for i in train_idx] for g in shared] if shared is not None else None
+        i, points, _ = best_start(cause, bases[k], surface, train, grid)
+        fitted = fit(FittedCauses((cause,), (points[i],)), bases[k], surface, train, FOLD_MAX_EVALUATIONS)
+        u_folds.append(fitted.u[0])
+        heldout[folds == k] = jump_errors(replay_all(surface, fitted.plant(bases[k]), test), test)
+    i, points, _ = best_start(cause, base_all, surface, trials, shared)
+    u_all = fit(FittedCauses((cause,), (points[i],)), base_all, surface, trials, FIT_MAX_EVALUATIONS).u[0]
+    return {"cause": cause.name, "u": u_all, "u_folds": u_folds, "heldout": heldout}
+
+
+def screen_cause(args) -> float:
+    """In-sample average error (26) of the best grid point of a candidate added on top of
+    ``base`` (a cheap screen before its cross-validation)."""
+    cause, base, surface, trials = args
+    index, _, features = best_start(cause, base, surface, trials)
+    return float(np.mean(jump_errors(features[index], trials)))
+
+
+def run_tasks(function, tasks: list, jobs: int) -> list:
+    if jobs > 1 and len(tasks) > 1:
+        with ProcessPoolExecutor(min(jobs, len(tasks))) as pool:
+            return list(pool.map(function, tasks))
+    return [function(t) for t in tasks]
+
+
+@dataclass
+class Selection:
+    """The result of the forward selection (``select_causes``)."""
+
+    candidates: list[dict]  # the first step: every candidate alone
+    steps: list[dict]  # one entry per step: the best candidate, its held-out error and gain
+    model: FittedCauses  # the selected causes, refitted jointly on all trials
+    best: FittedCauses  # the best first-step candidate alone (the report when nothing explains)
+    heldout_errors: np.ndarray  # per trial, of the last selected step (or of the best candidate)
+
+
+def select_causes(
+    causes: list[Cause], nominal: PlantParameters, surface: Surface, trials, baseline: float, jobs: int
+) -> Selection:
+    """Forward selection on held-out error (``docs/diagnosis.md``).
+
+    Step s cross-validates every remaining candidate added to the s - 1 causes chosen so far
+    (each fold on top of the chosen causes fitted without that fold) and picks the one with the
+    lowest held-out average error (26). Its gain is 1 - heldout_s / heldout_(s-1), heldout_0
+    being the nominal simulation's. The first step must reach ``EXPLAINED_GAIN``, every later
+    one ``STEP_GAIN``; otherwise the selection stops (at most ``MAX_CAUSES`` causes). After each
+    accepted step the chosen causes are refitted jointly on all trials. From the second step on,
+    a candidate whose best grid point does not lower the in-sample error (26) by ``STEP_GAIN / 2``
+    is not cross-validated (its held-out gain could not reach ``STEP_GAIN``).
+    """
+    folds = len(np.unique(fold_of(trials)))
+    bases = [nominal] * folds
+    model = FittedCauses()
+    remaining = list(causes)
+    previous = baseline
+    steps: list[dict] = []
+    candidates: list[dict] = []
+    best_alone = None
+    heldout_errors = None
+    while remaining and len(model.causes) < MAX_CAUSES:
+        base_all = model.plant(nominal)
+        pool = remaining
+        if model.causes:
+            current = float(np.mean(jump_errors(replay_all(surface, base_all, trials), trials)))
+            screened = run_tasks(screen_cause, [(c, base_all, surface, trials) for c in remaining], jobs)
+            pool = [c for c, e in zip(remaining, screened) if e <= (1.0 - STEP_GAIN / 2) * current]
+            if not pool:
+                break
+        results = run_tasks(cross_validate_cause, [(c, bases, base_all, surface, trials) for c in pool], jobs)
+        errors = [float(np.mean(r["heldout"])) for r in results]
+        i = int(np.argmin(errors))
+        gain = 1.0 - errors[i] / previous if previous > 0 else 0.0
+        if not model.causes:
+            candidates = [
+                {
+                    "cause": c.name,
+                    "parameters": c.overrides(c.to_theta(r["u"])),
+                    "heldout_error": e,
+                    "gain": 1.0 - e / baseline if baseline > 0 else 0.0,
+                }
+                for c, r, e in zip(pool, results, errors)
+            ]
+            best_alone = FittedCauses((pool[i],), (results[i]["u"],))
+            heldout_errors = results[i]["heldout"]
+        accepted = gain >= (STEP_GAIN if model.causes else EXPLAINED_GAIN)
+        steps.append({"cause": pool[i].name, "heldout_error": errors[i], "gain": gain, "selected": accepted})
+        if not accepted:
+            break
+        cause = pool[i]
+        bases = [cause.plant(b, u) for b, u in zip(bases, results[i]["u_folds"])]
+        model = model.plus(cause, results[i]["u"])
+        if len(model.causes) > 1:
+            model = fit(model, nominal, surface, trials, JOINT_MAX_EVALUATIONS)
+        remaining.remove(cause)
+        previous = errors[i]
+        heldout_errors = results[i]["heldout"]
+    return Selection(candidates, steps, model, best_alone, heldout_errors)
+
+
+# ---------------------------------------------------------------------------- intervals
+def residual_jacobian(model: FittedCauses, nominal, surface, trials) -> tuple[np.ndarray, np.ndarray]:
+    """The residual vector at the fit and its Jacobian in u, by central differences of
+    ``JACOBIAN_STEP`` of each parameter's range (one-sided at a bound)."""
+    u0 = model.vector()
+    lo, hi = model.bounds()
+
+    def r(u):
+        return residuals(replay_all(surface, model.with_vector(u).plant(nominal), trials), trials)
+
+    r0 = r(u0)
+    J = np.empty((len(r0), len(u0)))
+    for j in range(len(u0)):
+        h = JACOBIAN_STEP * (hi[j] - lo[j])
+        up, down = u0.copy(), u0.copy()
+        up[j], down[j] = min(u0[j] + h, hi[j]), max(u0[j] - h, lo[j])
+        J[:, j] = (r(up) - r(down)) / (up[j] - down[j])
+    return r0, J
+
+
+def gauss_newton_polish(model: FittedCauses, nominal, surface, trials):
+    """Up to ``POLISH_ITERATIONS`` Gauss-Newton steps from the derivative-free fit (each full,
+    else half, kept only when it lowers the cost); returns the model, its residuals and their
+    Jacobian (for the profile directions and the bootstrap)."""
+    lo, hi = model.bounds()
+    r0, J = residual_jacobian(model, nominal, surface, trials)
+    for _ in range(POLISH_ITERATIONS):
+        step = np.linalg.lstsq(J, -r0, rcond=None)[0]
+        for fraction in (1.0, 0.5):
+            u = np.clip(model.vector() + fraction * step, lo, hi)
+            if cost_of(model.with_vector(u).plant(nominal), surface, trials) < float(r0 @ r0):
+                model = model.with_vector(u)
+                r0, J = residual_jacobian(model, nominal, surface, trials)
+                break
+        else:
+            break
+    return model, r0, J
+
+
+def bootstrap_intervals(model: FittedCauses, r: np.ndarray, J: np.ndarray, sizes: list[int]) -> np.ndarray:
+    """Percentile 95 % intervals in u of a one-step bootstrap over trials: ``BOOTSTRAP_SAMPLES``
+    resamples of the trials (with replacement), each refitted by the Gauss-Newton step from
+    the fit, u_b = u* - pinv(J_b) r_b, with the residual blocks and Jacobian rows of the drawn
+    trials. Returns (parameters, 2)."""
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    edges = np.concatenate([[0], np.cumsum(sizes)])
+    blocks = [np.arange(a, b) for a, b in zip(edges[:-1], edges[1:])]
+    lo, hi = model.bounds()
+    u0 = model.vector()
+    samples = np.empty((BOOTSTRAP_SAMPLES, len(u0)))
+    for b in range(BOOTSTRAP_SAMPLES):
+        rows = np.concatenate([blocks[i] for i in rng.integers(0, len(blocks), len(blocks))])
+        samples[b] = np.clip(u0 - np.linalg.lstsq(J[rows], r[rows], rcond=None)[0], lo, hi)
+    return np.percentile(samples, [2.5, 97.5], axis=0).T
+
+
+def profile_direction(J: np.ndarray, index: int) -> np.ndarray:
+    """Direction in u along which parameter ``index`` moves by 1 while the others follow the
+    linearised profile: d_o = -pinv(J_o) J_i, the least-squares re-fit of the others."""
+    others = [j for j in range(J.shape[1]) if j != index]
+    d = np.zeros(J.shape[1])
+    d[index] = 1.0
+    if others:
+        d[others] = -np.linalg.lstsq(J[:, others], J[:, index], rcond=None)[0]
+    return d
+
+
+def scan_side(args) -> float | None:
+    """Where the cost leaves the 95 % region along one parameter's profile path, on one side
+    (one process task).
+
+    From the fitted u, the parameter moves in steps that double (``SCAN_FIRST_STEP`` of its
+    range first) along ``direction`` (the others follow their linearised profile, clipped to
+    their bounds) until the cost exceeds ``threshold`` above the fitted cost; the crossing is
+    refined by ``SCAN_BISECTIONS`` bisections and a linear interpolation. Returns the theta of
+    the crossing, or None when the parameter reaches its bound inside the region (open side)."""
+    model, index, sign, direction, nominal, surface, trials, cost0, threshold = args
+    u0 = model.vector()
+    lo, hi = model.bounds()
+    limit = hi[index] if sign > 0 else lo[index]
+
+    def excess(x):
+        u = np.clip(u0 + (x - u0[index]) * direction, lo, hi)
+        return cost_of(model.with_vector(u).plant(nominal), surface, trials) - cost0
+
+    inside, inside_excess = u0[index], 0.0
+    step = SCAN_FIRST_STEP * (hi[index] - lo[index])
+    while True:
+        x = u0[index] + sign * step
+        x = min(x, limit) if sign > 0 else max(x, limit)
+        value = excess(x)
+        if value >= threshold:
+            outside, outside_excess = x, value
+            break
+        if x == limit:
+            return None
+        inside, inside_excess = x, max(value, 0.0)
+        step *= 2.0
+    for _ in range(SCAN_BISECTIONS):
+        middle = 0.5 * (inside + outside)
+        value = excess(middle)
+        if value >= threshold:
+            outside, outside_excess = middle, value
+        else:
+            inside, inside_excess = middle, max(value, 0.0)
+    fraction = (threshold - inside_excess) / max(outside_excess - inside_excess, 1e-12)
+    x = inside + fraction * (outside - inside)
+    cause_index, local = parameter_owner(model, index)
+    u = model.u[cause_index].copy()
+    u[local] = x
+    return float(model.causes[cause_index].to_theta(u)[local])
+
+
+def parameter_owner(model: FittedCauses, index: int) -> tuple[int, int]:
+    """(cause index, parameter index within the cause) of entry ``index`` of the vector."""
+    for k, u in enumerate(model.u):
+        if index < len(u):
+            return k, index
+        index -= len(u)
+    raise IndexError(index)
+
+
+def parameter_intervals(model: FittedCauses, nominal, surface, trials, jobs: int) -> tuple[FittedCauses, list[list]]:
+    """The fit polished by Gauss-Newton, and 95 % intervals of every fitted parameter theta
+    (per cause, per parameter, [low, high], None for an open side).
+
+    Each interval is the union of two: the profile-likelihood interval (``scan_side``: with
+    Gaussian residuals of unknown common scale s, the region cost - cost_min <= CHI2_95 s^2,
+    s^2 = cost_min / (residuals - parameters)) and the percentile interval of a one-step
+    bootstrap over trials (``bootstrap_intervals``), which also carries the trial-to-trial
+    errors that the residual scale misses (e.g. of the replay's start state). A side is open
+    when the profile scan reaches the bound of the fit still inside the region: the data do
+    not bound the parameter there (``docs/diagnosis.md``)."""
+    if not model.causes:
+        return model, []
+    model, r, J = gauss_newton_polish(model, nominal, surface, trials)
+    cost0 = float(r @ r)
+    threshold = CHI2_95 * cost0 / max(len(r) - len(model.vector()), 1)
+    tasks = [
+        (model, i, sign, profile_direction(J, i), nominal, surface, trials, cost0, threshold)
+        for i in range(len(model.vector()))
+        for sign in (-1.0, 1.0)
+    ]
+    ends = run_tasks(scan_side, tasks, jobs)
+    boot = bootstrap_intervals(model, r, J, residual_sizes(trials))
+    out, k = [], 0
+    for cause, u in zip(model.causes, model.u):
+        intervals = []
+        for j in range(len(u)):
+            low, high = ends[k + 2 * j], ends[k + 2 * j + 1]
+            at = u.copy()
+            at[j] = boot[k // 2 + j, 0]
+            boot_low = float(cause.to_theta(at)[j])
+            at[j] = boot[k // 2 + j, 1]
+            boot_high = float(cause.to_theta(at)[j])
+            intervals.append([
+                None if low is None else min(low, boot_low),
+                None if high is None else max(high, boot_high),
+            ])
+        out.append(intervals)
+        k += 2 * len(u)
+    return model, out
+
+
+def override_intervals(model: FittedCauses, theta_intervals: list[list]) -> dict:
+    """Intervals of the plant override keys: for each key, [low, high] (a list of them for a
+    vector); each entry takes the interval of the fitted parameter that moves it (an entry no
+    parameter moves gets [value, value]); None for an open side."""
+    result: dict = {}
+    for cause, u, intervals in zip(model.causes, model.u, theta_intervals):
+        theta = cause.to_theta(u)
+        base = cause.overrides(theta)
+        entries = {k: [[v, v] for v in np.atleast_1d(value).tolist()] for k, value in base.items()}
+        for j, (low, high) in enumerate(intervals):
+            moved = theta.copy()
+            moved[j] = theta[j] + max(1e-3 * abs(theta[j]), 1e-6)
+            changed = cause.overrides(moved)
+            for key, value in changed.items():
+                for e, (old, new) in enumerate(zip(np.atleast_1d(base[key]), np.atleast_1d(value))):
+                    if old != new:
+                        ends = []
+                        for end in (low, high):
+                            if end is None:
+                                ends.append(None)
+                            else:
+                                at = theta.copy()
+                                at[j] = end
+                                ends.append(float(np.atleast_1d(cause.overrides(at)[key])[e]))
+                        entries[key][e] = ends
+        for key, value in base.items():
+            result[key] = entries[key] if isinstance(value, list) else entries[key][0]
+    return result
+
+
+def open_sides(model: FittedCauses, theta_intervals: list[list]) -> list[dict]:
+    """Every parameter the data leave open on a side, with the trials that would settle it."""
+    found = []
+    for cause, u, intervals in zip(model.causes, model.u, theta_intervals):
+        for j, (low, high) in enumerate(intervals):
+            for side, end, other in (("below", low, high), ("above", high, low)):
+                # what the data do tell: the closed end of the interval, else the fitted value
+                known = float(cause.to_theta(u)[j]) if other is None else float(other)
+                if end is None:
+                    found.append(
+                        {
+                            "cause": cause.name,
+                            "parameter": cause.labels[j],
+                            "side": side,
+                            "fitted": float(cause.to_theta(u)[j]),
+                            "trials_needed": cause.settling_trials(j, side, known),
+                        }
+                    )
+    return found
 
 
 # ---------------------------------------------------------------------------- predictors
@@ -314,17 +678,29 @@ class Diagnosis:
     predictors_measured_impulse: dict
     predictions: dict
     analysis: dict
+    causes: list[str]
+    steps: list[dict]
+    intervals: dict
+    parameter_intervals: list[dict]
+    open_sides: list[dict]
+    extended_error: float
+    extended_plant: PlantParameters
+    surface: Surface
 
     def summary(self) -> dict:
-        best = next(c for c in self.candidates if c["cause"] == self.cause)
         baseline = float(np.mean(self.baseline_errors))
         return {
             "cause": self.cause,
+            "causes": self.causes,
             "explained": self.explained,
             "parameters": self.parameters,
+            "intervals": self.intervals,
+            "parameter_intervals": self.parameter_intervals,
+            "open_sides": self.open_sides,
+            "steps": self.steps,
             "baseline_error": baseline,
-            "extended_error": best["heldout_error"],
-            "gain": best["gain"],
+            "extended_error": self.extended_error,
+            "gain": 1.0 - self.extended_error / baseline if baseline > 0 else 0.0,
             "candidates": self.candidates,
             "trials": len(self.trials),
             "skipped": self.skipped,
@@ -335,18 +711,41 @@ class Diagnosis:
         }
 
     def message(self) -> str:
-        best = next(c for c in self.candidates if c["cause"] == self.cause)
+        baseline = float(np.mean(self.baseline_errors))
+        gain = 1.0 - self.extended_error / baseline if baseline > 0 else 0.0
         if self.explained:
-            return (
-                f"The simulation's jump error is explained by '{self.cause}': fitting it lowers the "
-                f"held-out average error from {np.mean(self.baseline_errors):.4f} to "
-                f"{best['heldout_error']:.4f} rad/s ({100 * best['gain']:.0f} % gain)."
+            named = " + ".join(f"'{c}'" for c in self.causes)
+            text = (
+                f"The simulation's jump error is explained by {named}: fitting "
+                f"{'it' if len(self.causes) == 1 else 'them'} lowers the held-out average error from "
+                f"{baseline:.4f} to {self.extended_error:.4f} rad/s ({100 * gain:.0f} % gain)."
             )
-        return (
-            f"No candidate cause explains the gap: the best one, '{self.cause}', lowers the held-out "
-            f"average error by only {100 * best['gain']:.0f} % (threshold {100 * EXPLAINED_GAIN:.0f} %); "
-            "the nominal simulation is as good as the candidates allow."
-        )
+        else:
+            text = (
+                f"No candidate cause explains the gap: the best one, '{self.cause}', lowers the held-out "
+                f"average error by only {100 * gain:.0f} % (threshold {100 * EXPLAINED_GAIN:.0f} %); "
+                "the nominal simulation is as good as the candidates allow."
+            )
+        if not self.explained:
+            return text
+        for p in self.parameter_intervals:
+            text += f" {p['parameter']}: {p['value']:.4g}, 95 % interval {interval_text(p['interval'])}."
+        for o in self.open_sides:
+            text += (
+                f" The data cannot bound {o['parameter']} {o['side']}: {o['trials_needed']}."
+            )
+        return text
+
+
+def interval_text(interval) -> str:
+    low, high = interval
+    if low is None and high is None:
+        return "unbounded both ways"
+    if low is None:
+        return f"at most {high:.4g} (open below)"
+    if high is None:
+        return f"at least {low:.4g} (open above)"
+    return f"[{low:.4g}, {high:.4g}]"
 
 
 def error_analysis(trials: list[MeasuredTrial], nominal_jumps: np.ndarray) -> dict:
@@ -378,6 +777,7 @@ def diagnose(
     causes: list[Cause] | None = None,
     jobs: int = 1,
 ) -> Diagnosis:
+    """Measure, replay, compare, select the causes, bound their parameters (module docstring)."""
     nominal = nominal or PlantParameters()
     trials, skipped, surface = load_trials(directory)
     if len(trials) < 2:
@@ -386,44 +786,45 @@ def diagnose(
             f"(skipped: {skipped})"
         )
     causes = causes if causes is not None else default_causes(surface.friction)
+    names = [c.name for c in causes]
+    if len(set(names)) != len(names):
+        raise ValueError(f"candidate causes must have distinct names, got {names}")
     nominal_features = replay_all(surface, nominal, trials)
     nominal_jumps = np.array([f.jump for f in nominal_features])
     baseline_errors = jump_errors(nominal_features, trials)
     baseline = float(np.mean(baseline_errors))
-    tasks = [(cause, nominal, surface, trials) for cause in causes]
-    if jobs > 1:
-        with ProcessPoolExecutor(jobs) as pool:
-            results = list(pool.map(cross_validate_cause, tasks))
-    else:
-        results = [cross_validate_cause(t) for t in tasks]
-    candidates = []
-    for cause, result in zip(causes, results):
-        heldout = float(np.mean(result["heldout"]))
-        candidates.append(
-            {
-                "cause": cause.name,
-                "parameters": cause.overrides(cause.to_theta(result["u"])),
-                "heldout_error": heldout,
-                "gain": 1.0 - heldout / baseline if baseline > 0 else 0.0,
-            }
-        )
-    best_index = int(np.argmax([c["gain"] for c in candidates]))
-    best = candidates[best_index]
-    extended_plant = causes[best_index].plant(nominal, results[best_index]["u"])
+    selection = select_causes(causes, nominal, surface, trials, baseline, jobs)
+    explained = bool(selection.model.causes)
+    model = selection.model if explained else selection.best
+    model, theta_intervals = parameter_intervals(model, nominal, surface, trials, jobs)
+    extended_plant = model.plant(nominal)
     extended_jumps = np.array([f.jump for f in replay_all(surface, extended_plant, trials)])
     predictors, predictors_measured_impulse, predictions = predictor_errors(trials, surface)
+    per_parameter = [
+        {"cause": c.name, "parameter": label, "value": float(value), "interval": interval}
+        for c, u, intervals in zip(model.causes, model.u, theta_intervals)
+        for label, value, interval in zip(c.labels, c.to_theta(u), intervals)
+    ]
     return Diagnosis(
         trials=trials,
         skipped=skipped,
         nominal_jumps=nominal_jumps,
         extended_jumps=extended_jumps,
         baseline_errors=baseline_errors,
-        candidates=candidates,
-        cause=best["cause"],
-        explained=best["gain"] >= EXPLAINED_GAIN,
-        parameters=best["parameters"],
+        candidates=selection.candidates,
+        cause=model.causes[0].name,
+        explained=explained,
+        parameters=model.overrides(),
         predictors=predictors,
         predictors_measured_impulse=predictors_measured_impulse,
         predictions=predictions,
         analysis=error_analysis(trials, nominal_jumps),
+        causes=[c.name for c in selection.model.causes],
+        steps=selection.steps,
+        intervals=override_intervals(model, theta_intervals),
+        parameter_intervals=per_parameter,
+        open_sides=open_sides(model, theta_intervals),
+        extended_error=float(np.mean(selection.heldout_errors)),
+        extended_plant=extended_plant,
+        surface=surface,
     )

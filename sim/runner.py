@@ -61,6 +61,10 @@ from impactqp.controller.model.validation import tangential_velocity as tangenti
 
 from .scene import Scene
 
+# A diverging simulation is detected from MuJoCo's warning counters and raised as
+# SimulationUnstableError (_check_stable); the C library must not also print each warning.
+mujoco.set_mju_user_warning(lambda message: None)
+
 DEFAULT_CONTROL_PERIOD = 1e-3
 OBSERVATION_WINDOW = 0.05
 """s after the contact start in which a trial's velocities are observed (``docs/max-speed.md``)."""

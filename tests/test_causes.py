@@ -2,8 +2,18 @@
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
-from impactqp.sim.causes import CAUSE_NAMES, default_causes
+from impactqp.sim.causes import (
+    CAUSE_NAMES,
+    ArmatureCause,
+    JointDampingCause,
+    PayloadCause,
+    default_causes,
+    group_means,
+    per_group,
+)
 from impactqp.sim.plant import PlantParameters
 
 
@@ -40,3 +50,38 @@ def test_nominal_value_is_inside_the_bounds():
 
 def test_every_issue_cause_is_a_candidate():
     assert set(CAUSE_NAMES) == {"armature", "payload", "friction", "contact", "joint_damping", "servo_gain"}
+
+
+@given(st.lists(st.floats(0.0, 10.0, allow_nan=False), min_size=2, max_size=2))
+def test_group_values_round_trip(values):
+    joints = per_group(values)
+    assert len(joints) == 7 and joints[:4] == [values[0]] * 4 and joints[4:] == [values[1]] * 3
+    np.testing.assert_allclose(group_means(joints), values)
+
+
+def test_armature_and_damping_are_fitted_per_joint_group():
+    for cause in (ArmatureCause(), JointDampingCause()):
+        key = next(iter(cause.overrides(np.array([1.0, 1.0]))))
+        values = cause.overrides(np.array([0.7, 0.2]))[key]
+        assert values == [0.7] * 4 + [0.2] * 3
+
+
+def test_payload_fits_mass_and_centre_of_mass():
+    cause = PayloadCause()
+    theta = np.array([1.2, 0.01, -0.02, -0.05])
+    overrides = cause.overrides(theta)
+    assert overrides == {"payload_mass": 1.2, "payload_com": [0.01, -0.02, -0.05]}
+    plant = cause.plant(PlantParameters(), cause.to_u(theta))
+    assert plant.payload_mass == 1.2 and plant.payload_com == (0.01, -0.02, -0.05)
+    assert all(len(p) == 4 for p in cause.grid(PlantParameters()))
+
+
+@pytest.mark.parametrize("cause", default_causes(), ids=lambda c: c.name)
+def test_grid_starts_at_the_nominal_value_inside_the_bounds(cause):
+    lo, hi = cause.u_bounds()
+    grid = cause.grid(PlantParameters())
+    np.testing.assert_allclose(grid[0], cause.to_u(cause.nominal_theta(PlantParameters())))
+    assert all(np.all(lo - 1e-12 <= p) and np.all(p <= hi + 1e-12) for p in grid)
+    for j in range(len(cause.labels)):
+        for side in ("below", "above"):
+            assert cause.settling_trials(j, side, float(cause.to_theta(grid[0])[j])).strip()

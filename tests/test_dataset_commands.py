@@ -48,9 +48,11 @@ def test_diagnose_json_report_and_saved_plant(small_dataset, tmp_path, capsys):
     assert code == 0
     result = json.loads(out)
     for key in ("cause", "explained", "parameters", "baseline_error", "extended_error", "gain", "candidates",
-                "trials", "skipped", "predictors"):
+                "trials", "skipped", "predictors", "causes", "intervals", "steps"):
         assert key in result
-    assert result["cause"] == "armature" and result["explained"]
+    assert result["cause"] == "armature" and result["explained"] and result["causes"][0] == "armature"
+    assert set(result["intervals"]) == set(result["parameters"])
+    assert result["steps"][0] == {**result["steps"][0], "cause": "armature", "selected": True}
     assert set(result["predictors"]) == {"classical", "classical_normal", "gm", "crb"}
     fitted = PlantParameters.from_json(tmp_path / "fitted.json")
     assert fitted.armature[0] == pytest.approx(0.5, rel=0.2)
@@ -65,6 +67,14 @@ def test_diagnose_json_report_and_saved_plant(small_dataset, tmp_path, capsys):
         (["dataset", "generate", "OUT", "--postures", "nowhere"], "unknown posture"),
         (["dataset", "generate", "OUT", "--speeds", "0.1,-1"], "(0, 3] m/s"),
         (["dataset", "generate", "OUT", "--plant", "PLANT"], "unknown plant parameter"),
+        (["dataset", "import-franka", "OUT", "PLANT", "--surface-point", "0.6,0,0", "--surface-normal", "-1,0,0"],
+         "not a libfranka"),
+        (["dataset", "import-franka", "OUT", "/nonexistent.csv", "--surface-point", "0.6,0,0",
+          "--surface-normal", "-1,0,0"], "no such libfranka log"),
+        (["dataset", "import-franka", "OUT", "PLANT", "--surface-point", "0.6,0", "--surface-normal", "-1,0,0"],
+         "--surface-point"),
+        (["dataset", "import-franka", "OUT", "PLANT", "--surface-point", "0.6,0,0", "--surface-normal", "0,0,0"],
+         "--surface-normal"),
     ],
 )
 def test_bad_input_is_one_line_with_exit_code_2(tmp_path, capsys, args, message):

@@ -3,13 +3,12 @@
 import hashlib
 from pathlib import Path
 
-import mujoco
 import numpy as np
 import pytest
 
-from impactqp.sim.causes import CAUSE_NAMES, PayloadCause, cause_named, realistic_hidden_effect
+from impactqp.sim.causes import CAUSE_NAMES, FrictionCause, PayloadCause, cause_named, per_group, realistic_hidden_effect
 from impactqp.controller.measured.dataset import read_dataset, validate
-from impactqp.sim.diagnosis import EXPLAINED_GAIN, diagnose, load_trials, replay_all
+from impactqp.sim.diagnosis import EXPLAINED_GAIN, STEP_GAIN, diagnose, load_trials, replay_all
 from impactqp.sim.generation import generate_dataset
 from impactqp.sim.plant import PlantParameters
 
@@ -17,32 +16,93 @@ POSTURES = ["elbow_up", "elbow_left", "elbow_right"]
 SPEEDS = [0.1, 0.18]
 
 
-@pytest.fixture(autouse=True)
-def quiet_mujoco():
-    mujoco.set_mju_user_warning(lambda message: None)
+def inside(value: float, interval) -> bool:
+    low, high = interval
+    return (low is None or low <= value) and (high is None or value <= high)
+
+
+def check_contract(result: dict) -> None:
+    """The JSON contract of ``diagnose --json``: intervals per parameter key, steps, causes."""
+    assert set(result["intervals"]) == set(result["parameters"])
+    for key, value in result["parameters"].items():
+        interval = result["intervals"][key]
+        if isinstance(value, list):
+            assert len(interval) == len(value) and all(len(pair) == 2 for pair in interval)
+            assert all(inside(v, pair) for v, pair in zip(value, interval))
+        else:
+            assert len(interval) == 2 and inside(value, interval)
+    assert [s["cause"] for s in result["steps"] if s["selected"]] == result["causes"]
+    assert result["cause"] == (result["causes"][0] if result["causes"] else result["cause"])
+    PlantParameters.from_dict(result["parameters"])  # usable with --plant
+
+
+def tolerance(cause, truth: np.ndarray) -> np.ndarray:
+    """20 % of each value, at least 2 % of its bounds' span (a CoM coordinate near 0)."""
+    return 0.2 * np.maximum(np.abs(truth), 0.1 * (np.array(cause.upper) - np.array(cause.lower)))
 
 
 @pytest.mark.parametrize("cause", CAUSE_NAMES)
 def test_hidden_effect_is_found(tmp_path, cause):
+    """One realistic effect hidden (per group for armature and damping): it alone is named and
+    every fitted parameter recovered."""
     overrides, tangential = realistic_hidden_effect(cause, np.random.default_rng(sum(map(ord, cause))))
     plant = PlantParameters(**overrides)
     generate_dataset(tmp_path, plant=plant, postures=POSTURES, speeds=SPEEDS, tangential=tangential, seed=7)
-    result = diagnose(tmp_path).summary()
-    assert result["cause"] == cause, result["candidates"]
-    assert result["explained"]
+    result = diagnose(tmp_path, jobs=2).summary()
+    assert result["causes"] == [cause], result["steps"]
+    assert result["cause"] == cause and result["explained"]
     fitted = cause_named(cause)
-    np.testing.assert_allclose(fitted.theta_of(result["parameters"]), fitted.theta_of(overrides), rtol=0.2)
+    truth = fitted.theta_of(overrides)
+    assert np.all(np.abs(fitted.theta_of(result["parameters"]) - truth) <= tolerance(fitted, truth))
     assert result["gain"] >= 0.5
     assert result["gain"] == pytest.approx(1 - result["extended_error"] / result["baseline_error"])
     assert result["trials"] == len(POSTURES) * (len(SPEEDS) + len(tangential)) and result["skipped"] == []
+    check_contract(result)
+
+
+def test_two_hidden_effects_are_both_named_each_within_its_interval(tmp_path):
+    """Armature per group and a payload hidden at once: both are named, the two refitted jointly.
+
+    The armature of each group lies within its interval. The payload mass does not: the
+    measured jump is read at the sample of largest change (controller/measured/impact.py), which
+    encoder noise biases upwards; the replay is noise-free, so the fit trades mass for it (a
+    bias of about 1 %, larger than the spread an interval carries). The mass and CoM are
+    checked against the truth within the tolerance of ``tolerance`` instead.
+    """
+    truth = {"armature": per_group((0.6, 0.15)), "payload_mass": 1.0, "payload_com": [0.01, -0.01, -0.06]}
+    generate_dataset(tmp_path, plant=PlantParameters(**truth), postures=POSTURES, speeds=SPEEDS, seed=7, jobs=2)
+    result = diagnose(tmp_path, jobs=2).summary()
+    assert result["causes"] == ["armature", "payload"], result["steps"]
+    check_contract(result)
+    assert all(inside(v, pair) for v, pair in zip(truth["armature"], result["intervals"]["armature"]))
+    payload = PayloadCause()
+    theta = payload.theta_of(truth)
+    assert np.all(np.abs(payload.theta_of(result["parameters"]) - theta) <= tolerance(payload, theta))
+    assert [s["selected"] and s["gain"] >= STEP_GAIN for s in result["steps"][:2]] == [True, True]
+
+
+def test_impacts_that_only_stick_leave_friction_open_above(tmp_path):
+    """mu = 0.6 and a tangential speed of 0.03 m/s at v_n = 0.12 m/s: every impact sticks, so the
+    data bound mu from below only; the message says so and names the trials that would settle it."""
+    generate_dataset(tmp_path, plant=PlantParameters(friction=0.6), postures=POSTURES[:2], speeds=[0.12],
+                     tangential=[0.03], seed=3)
+    result = diagnose(tmp_path, causes=[FrictionCause()]).summary()
+    assert result["causes"] == ["friction"]
+    low, high = result["intervals"]["friction"]
+    assert high is None and low is not None and low <= 0.6
+    assert [(o["parameter"], o["side"]) for o in result["open_sides"]] == [("friction coefficient", "above")]
+    assert "cannot bound friction coefficient above" in result["message"]
+    assert "tangential speeds of several mu times the normal speed" in result["message"]
 
 
 def test_nominal_plant_with_noise_is_not_explained(tmp_path):
     generate_dataset(tmp_path, postures=POSTURES, speeds=SPEEDS, tangential=[0.05], seed=11)
-    result = diagnose(tmp_path).summary()
-    assert not result["explained"]
+    result = diagnose(tmp_path, jobs=2).summary()
+    assert not result["explained"] and result["causes"] == []
     assert max(c["gain"] for c in result["candidates"]) < EXPLAINED_GAIN
+    assert result["steps"] and not result["steps"][0]["selected"]
     assert "No candidate" in result["message"]
+    check_contract(result)
 
 
 def test_replay_in_the_generating_plant_reproduces_the_jumps(tmp_path):

@@ -1,4 +1,4 @@
-"""``impactqp dataset validate|generate`` and ``impactqp diagnose``: measured data against the
+"""``impactqp dataset validate|generate|import-franka`` and ``impactqp diagnose``: measured data against the
 simulation (dataset format: ``sim/dataset.py`` and the README)."""
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from impactqp.scenarios.cli.arguments import (
     output_directory,
     output_file,
     parse_list,
+    parse_vector,
 )
 
 
@@ -98,18 +99,50 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
         click.echo(f"wrote {len(entries)} trial(s) to {out}")
 
 
+@dataset.command("import-franka")
+@click.argument("out", type=click.Path(file_okay=False))
+@click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--surface-point", required=True, help="A point X,Y,Z (m, world) of the surface hit.")
+@click.option("--surface-normal", required=True, help="The surface normal NX,NY,NZ, towards the robot.")
+@click.option("--tool-frame", default="panda_hand", show_default=True, help="Robot frame of the contact point.")
+@click.option("--contact-point", help="Contact point X,Y,Z (m) in the tool frame (default: the impact tool's tip).")
+@click.option("--reference-speed", type=float, help="Reference normal speed (m/s) of every log (default: estimated).")
+@click.option("--json", "as_json", is_flag=True)
+def import_franka_command(out, logs, surface_point, surface_normal, tool_frame, contact_point, reference_speed, as_json):
+    """Import libfranka logs (franka::logToCSV, one log per trial) as a dataset in OUT."""
+    from impactqp.controller.measured.franka_log import import_franka_logs
+    from impactqp.controller.model.postures import Surface
+    from impactqp.controller.model.robot import TOOL_TIP_OFFSET
+    from impactqp.controller.model.validation import unit_normal
+
+    surface = Surface(parse_vector(surface_point, 3, "--surface-point"), unit_normal(
+        parse_vector(surface_normal, 3, "--surface-normal"), "--surface-normal"))
+    point = parse_vector(contact_point, 3, "--contact-point") if contact_point else (0.0, 0.0, TOOL_TIP_OFFSET)
+    entries = import_franka_logs(
+        out, list(logs), surface, tool_frame=tool_frame, contact_point=point, reference_speed=reference_speed
+    )
+    if as_json:
+        emit_json({"out": str(out), "trials": [e.to_dict() for e in entries]})
+        return
+    for e in entries:
+        click.echo(f"{e.id}: reference normal speed {e.reference_normal_speed:.3f} m/s, posture {e.posture or '-'}")
+    click.echo(f"wrote {len(entries)} trial(s) to {out}")
+
+
 @click.command()
 @click.argument("directory", type=click.Path(file_okay=False))
 @click.option("--json", "as_json", is_flag=True)
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write report.md and PNG figures here.")
 @click.option("--save-plant", type=click.Path(dir_okay=False), help="Save the fitted plant overrides (JSON).")
 @click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Nominal plant to start from (JSON).")
+@click.option("--max-speed", "max_speed", is_flag=True,
+              help="Also simulate the highest feasible contact speed per posture, nominal and extended plant.")
 @click.option("--jobs", type=int, default=1, show_default=True)
-def diagnose(directory, as_json, report_dir, save_plant, plant_file, jobs):
+def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, jobs):
     """What the simulation gets wrong on measured impacts, why, and the model change that fixes it."""
-    import mujoco
 
     from impactqp.sim.diagnosis import diagnose as run_diagnosis
+    from impactqp.sim.diagnosis import interval_text
 
     from impactqp.sim.plant import PlantParameters
 
@@ -120,11 +153,14 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, jobs):
     if save_plant:
         output_file(save_plant, "--save-plant")
     nominal = load_plant(plant_file) or PlantParameters()
-    # Unstable candidate plants are detected by MuJoCo's warning counters (sim.diagnosis.replay);
-    # keep the C library from printing each one.
-    mujoco.set_mju_user_warning(lambda message: None)
     result = run_diagnosis(directory, nominal=nominal, jobs=jobs)
     summary = result.summary()
+    speeds = None
+    if max_speed:
+        from impactqp.scenarios.diagnosis_report import feasible_speeds
+
+        speeds = feasible_speeds(result, nominal, jobs=jobs)
+        summary["max_speeds"] = [r.to_json() for r in speeds]
     if save_plant:
         from dataclasses import replace
 
@@ -132,18 +168,24 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, jobs):
     if report_dir:
         from impactqp.scenarios.diagnosis_report import write_report
 
-        path = write_report(result, report_dir)
+        path = write_report(result, report_dir, speeds)
         if not as_json:
             click.echo(f"report written to {path}")
     if as_json:
         emit_json(summary)
         return
     click.echo(summary["message"])
-    click.echo(f"cause: {summary['cause']}  explained: {summary['explained']}  parameters: {json.dumps(summary['parameters'])}")
+    click.echo(f"causes: {', '.join(summary['causes']) or 'none'}  explained: {summary['explained']}  parameters: {json.dumps(summary['parameters'])}")
     click.echo(f"held-out average error (26): nominal {summary['baseline_error']:.4f}  extended {summary['extended_error']:.4f}  gain {100 * summary['gain']:.1f} %")
+    for k, step in enumerate(summary["steps"], start=1):
+        click.echo(f"step {k}: {step['cause']:<14} held-out {step['heldout_error']:.4f}  gain {100 * step['gain']:5.1f} %  {'selected' if step['selected'] else 'not selected'}")
+    for p in summary["parameter_intervals"]:
+        click.echo(f"  {p['parameter']:<40} {p['value']:10.4g}  95 %: {interval_text(p['interval'])}")
     click.echo(f"{'candidate':<15}{'held-out':>10}{'gain':>9}")
     for c in summary["candidates"]:
         click.echo(f"{c['cause']:<15}{c['heldout_error']:>10.4f}{100 * c['gain']:>8.1f}%")
     click.echo("predictors (average error (26), own impulse): " + ", ".join(f"{k} {v:.4f}" for k, v in summary["predictors"].items()))
+    for r in speeds or []:
+        click.echo(r.sentence())
     for s in summary["skipped"]:
         click.echo(f"skipped {s['id']}: {s['reason']}")

@@ -1,0 +1,285 @@
+"""Real robot logs: libfranka's ``franka::logToCSV`` files turned into an impact dataset
+(``impactqp dataset import-franka``; dataset format in ``docs/dataset.md``).
+
+The CSV format (libfranka ``src/log.cpp``): one header line, then one line per control cycle.
+The header names are ``time, success_rate``, then per array ``name[0], ..., name[N-1]``::
+
+    state.q[7]  state.q_d[7]  state.dq[7]  state.dq_d[7]  state.tau_J[7]
+    state.tau_ext_hat_filtered[7]
+    cmd.q_d[7]  cmd.dq_d[7]  cmd.O_T_EE_d[16]  cmd.O_dP_EE_d[6]  cmd.tau_J_d[7]
+
+87 columns in all. Older libfranka separates header names by ", ", newer by ","; both are read
+(values are always separated by ","). ``time`` is the robot's clock in milliseconds.
+
+One row holds the robot state of cycle n+1 and the command of cycle n (libfranka's
+``franka::Record``). The dataset's ``dq_cmd[k]`` is the command applied after the state k was
+measured, so it is the ``cmd.dq_d`` of the *next* row; the last row, whose following command is
+not logged, is dropped. Mapping: ``t = (time - time[0]) / 1000`` (s), ``q = state.q``,
+``dq = state.dq``, ``tau = state.tau_J`` (measured joint torques), ``dq_cmd = cmd.dq_d``.
+
+One log is one trial. Without a given reference speed, it is estimated from the log: the
+impact is detected from the torque residual (``controller.measured.impact``, no force sensor),
+and the reference velocity is the commanded velocity of the contact point, v = J(q) dq_cmd,
+averaged over the ``REFERENCE_WINDOW`` cycles that end ``REFERENCE_GAP`` cycles before the
+detected impact (the measured dq when every command is zero, e.g. under torque control). Its
+component along -n is the reference normal speed; the rest is the reference tangential
+velocity. Both are rounded to ``REFERENCE_ROUNDING`` m/s so that repeated trials share a
+condition. A trial whose impact configuration is within ``POSTURE_TOLERANCE`` rad (every joint)
+of a named posture is labelled with it.
+
+Bad or foreign files raise :class:`BadInputError` with one line naming the file; every log is
+read and checked before anything is written, and the logs are only read.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from impactqp.controller.model.postures import POSTURES, Surface
+from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET, PandaModel
+from impactqp.controller.model.validation import BadInputError
+
+from .dataset import DatasetError, DatasetHeader, DatasetWriter, Tool, TrialEntry
+from .impact import ImpactNotFoundError, measure_impact
+from .trial_log import TrialLog
+
+FRANKA_ARRAYS = (
+    ("state.q", NQ),
+    ("state.q_d", NQ),
+    ("state.dq", NQ),
+    ("state.dq_d", NQ),
+    ("state.tau_J", NQ),
+    ("state.tau_ext_hat_filtered", NQ),
+    ("cmd.q_d", NQ),
+    ("cmd.dq_d", NQ),
+    ("cmd.O_T_EE_d", 16),
+    ("cmd.O_dP_EE_d", 6),
+    ("cmd.tau_J_d", NQ),
+)
+FRANKA_COLUMNS = ("time", "success_rate") + tuple(
+    f"{name}[{i}]" for name, size in FRANKA_ARRAYS for i in range(size)
+)
+MIN_ROWS = 50
+REFERENCE_WINDOW = 20
+REFERENCE_GAP = 3
+REFERENCE_ROUNDING = 1e-3
+POSTURE_TOLERANCE = 0.1
+_INDEXED = re.compile(r"^(?P<name>[A-Za-z_.]+)\[(?P<index>\d+)\]$")
+
+
+@dataclass(frozen=True)
+class FrankaTrial:
+    """One imported log: the trial arrays and the reference velocity of its approach."""
+
+    source: Path
+    log: TrialLog
+    reference_normal_speed: float
+    reference_tangential_velocity: tuple[float, float, float]
+    posture: str | None
+    impact_time: float | None
+
+
+def _columns(path: Path, header: str) -> dict[str, int]:
+    names = [name.strip() for name in header.split(",")]
+    if tuple(names) != FRANKA_COLUMNS:
+        missing = [c for c in FRANKA_COLUMNS if c not in names]
+        if names[:2] != ["time", "success_rate"] or not all(_INDEXED.match(n) for n in names[2:]):
+            raise BadInputError(
+                f"{path}: not a libfranka logToCSV file (the header must start with 'time, success_rate, "
+                f"state.q[0]'; got {header[:60]!r})"
+            )
+        if missing:
+            raise BadInputError(
+                f"{path}: libfranka log lacks the column(s) {', '.join(missing[:3])}"
+                + (f" and {len(missing) - 3} more" if len(missing) > 3 else "")
+            )
+    return {name: i for i, name in enumerate(names)}
+
+
+def read_franka_csv(path: str | Path) -> dict[str, np.ndarray]:
+    """The columns of a ``franka::logToCSV`` file: ``time`` (ms) and one (rows, size) array per
+    logged array name (e.g. ``"state.q"``). Raises :class:`BadInputError` for a missing, empty,
+    foreign, truncated or non-numeric file."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise BadInputError(f"{path}: no such libfranka log") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise BadInputError(f"{path}: cannot be read as a libfranka log ({error.__class__.__name__})") from None
+    lines = text.splitlines()
+    if not lines or not lines[0].strip():
+        raise BadInputError(f"{path}: empty file, not a libfranka log")
+    index = _columns(path, lines[0])
+    if not text.endswith("\n"):
+        raise BadInputError(f"{path}: the last line is incomplete (libfranka ends every line): truncated file")
+    rows = [line for line in lines[1:] if line.strip()]
+    table = np.empty((len(rows), len(index)))
+    for k, line in enumerate(rows):
+        cells = line.split(",")
+        if len(cells) != len(index):
+            raise BadInputError(
+                f"{path}: line {k + 2} has {len(cells)} values, the header {len(index)} (truncated file?)"
+            )
+        try:
+            table[k] = [float(c) for c in cells]
+        except ValueError:
+            raise BadInputError(f"{path}: line {k + 2} holds a value that is not a number") from None
+    if len(rows) < MIN_ROWS:
+        raise BadInputError(f"{path}: only {len(rows)} samples; an impact trial needs at least {MIN_ROWS}")
+    if not np.all(np.isfinite(table)):
+        k = int(np.argwhere(~np.isfinite(table))[0, 0])
+        raise BadInputError(f"{path}: line {k + 2} holds a NaN or infinite value")
+    columns = {"time": table[:, index["time"]]}
+    for name, size in FRANKA_ARRAYS:
+        columns[name] = table[:, [index[f"{name}[{i}]"] for i in range(size)]]
+    return columns
+
+
+def trial_log_of(path: str | Path, columns: dict[str, np.ndarray]) -> TrialLog:
+    """The dataset's arrays of one libfranka log (mapping in the module docstring)."""
+    time = columns["time"]
+    if np.any(np.diff(time) <= 0.0):
+        k = int(np.argmax(np.diff(time) <= 0.0))
+        raise BadInputError(f"{path}: time does not increase at line {k + 3}")
+    return TrialLog(
+        t=(time[:-1] - time[0]) / 1000.0,
+        q=columns["state.q"][:-1].copy(),
+        dq=columns["state.dq"][:-1].copy(),
+        tau=columns["state.tau_J"][:-1].copy(),
+        dq_cmd=columns["cmd.dq_d"][1:].copy(),
+    )
+
+
+def contact_velocity(robot: PandaModel, frame: str, point: np.ndarray, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """World velocity (m/s) of the point ``point`` (m, in ``frame``) at the state (q, dq)."""
+    model, data = robot.model, robot.data
+    pin.forwardKinematics(model, data, q, dq)
+    frame_id = model.getFrameId(frame)
+    placement = pin.updateFramePlacement(model, data, frame_id)
+    twist = pin.getFrameVelocity(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)
+    return twist.linear + np.cross(twist.angular, placement.rotation @ point)
+
+
+def nearest_posture(q: np.ndarray) -> str | None:
+    for name, posture in POSTURES.items():
+        if np.max(np.abs(q - posture.q)) <= POSTURE_TOLERANCE:
+            return name
+    return None
+
+
+def import_trial(
+    path: str | Path,
+    surface: Surface,
+    *,
+    robot: PandaModel,
+    tool_frame: str = HAND_FRAME,
+    contact_point=(0.0, 0.0, TOOL_TIP_OFFSET),
+    reference_speed: float | None = None,
+) -> FrankaTrial:
+    """Read one libfranka log and estimate its reference velocity (module docstring)."""
+    path = Path(path)
+    log = trial_log_of(path, read_franka_csv(path))
+    try:
+        impact = measure_impact(log)
+    except ImpactNotFoundError as error:
+        if reference_speed is None:
+            raise BadInputError(f"{path}: no impact found ({error}); give --reference-speed to import it anyway") from None
+        impact = None
+    tangential = np.zeros(3)
+    speed = reference_speed
+    if impact is not None:
+        last = max(impact.pre_index - REFERENCE_GAP, 1)
+        first = max(last - REFERENCE_WINDOW, 0)
+        dq = log.dq_cmd if np.any(log.dq_cmd[first:last] != 0.0) else log.dq
+        point = np.asarray(contact_point, dtype=float)
+        velocity = np.mean(
+            [contact_velocity(robot, tool_frame, point, log.q[k], dq[k]) for k in range(first, last)], axis=0
+        )
+        normal_speed = float(-surface.normal @ velocity)
+        tangential = velocity + normal_speed * surface.normal
+        tangential = np.round(tangential / REFERENCE_ROUNDING) * REFERENCE_ROUNDING + 0.0
+        if speed is None:
+            speed = round(normal_speed / REFERENCE_ROUNDING) * REFERENCE_ROUNDING
+            if not speed > 0.0:
+                raise BadInputError(
+                    f"{path}: the contact point does not approach the surface before the impact "
+                    f"(normal speed {normal_speed:+.4f} m/s); check --surface-normal or give --reference-speed"
+                )
+    return FrankaTrial(
+        source=path,
+        log=log,
+        reference_normal_speed=float(speed),
+        reference_tangential_velocity=tuple(float(x) for x in tangential),
+        posture=nearest_posture(log.q[impact.pre_index]) if impact is not None else None,
+        impact_time=float(log.t[impact.pre_index]) if impact is not None else None,
+    )
+
+
+def _trial_ids(paths: list[Path]) -> list[str]:
+    ids: list[str] = []
+    for path in paths:
+        stem = re.sub(r"[^A-Za-z0-9_.-]", "_", path.stem) or "log"
+        name, k = stem, 1
+        while name in ids:
+            k += 1
+            name = f"{stem}_{k}"
+        ids.append(name)
+    return ids
+
+
+def import_franka_logs(
+    out: str | Path,
+    logs: list[str | Path],
+    surface: Surface,
+    *,
+    tool_frame: str = HAND_FRAME,
+    contact_point=(0.0, 0.0, TOOL_TIP_OFFSET),
+    reference_speed: float | None = None,
+) -> list[TrialEntry]:
+    """Write the libfranka logs ``logs`` as a dataset in ``out`` (one trial per log) and return
+    the trial entries. Every log is read and checked before the first file is written."""
+    if not logs:
+        raise BadInputError("give at least one libfranka log")
+    if reference_speed is not None and not (np.isfinite(reference_speed) and reference_speed > 0.0):
+        raise BadInputError(f"--reference-speed must be > 0 m/s, got {reference_speed}")
+    point = np.asarray(contact_point, dtype=float)
+    if point.shape != (3,) or not np.all(np.isfinite(point)):
+        raise BadInputError(f"the contact point must be 3 finite numbers, got {contact_point!r}")
+    robot = PandaModel()
+    if not robot.model.existFrame(tool_frame):
+        raise BadInputError(f"--tool-frame {tool_frame!r} is not a frame of the Panda model (e.g. {HAND_FRAME!r})")
+    paths = [Path(p) for p in logs]
+    trials = [
+        import_trial(p, surface, robot=robot, tool_frame=tool_frame, contact_point=point, reference_speed=reference_speed)
+        for p in paths
+    ]
+    periods = [t.log.control_period for t in trials]
+    if np.ptp(periods) > 1e-6:
+        raise BadInputError(f"the logs have different control periods: {sorted(set(np.round(periods, 6)))} s")
+    header = DatasetHeader(
+        tool=Tool(tool_frame, tuple(float(x) for x in point)), surface=surface, control_period=float(periods[0])
+    )
+    Path(out).mkdir(parents=True, exist_ok=True)
+    try:
+        writer = DatasetWriter(out, header)
+        entries = []
+        for trial_id, trial in zip(_trial_ids(paths), trials):
+            entry = TrialEntry(
+                id=trial_id,
+                file=f"{trial_id}.csv",
+                reference_normal_speed=trial.reference_normal_speed,
+                reference_tangential_velocity=trial.reference_tangential_velocity,
+                posture=trial.posture,
+                impact_time=trial.impact_time,
+            )
+            writer.add_trial(entry, trial.log)
+            entries.append(entry)
+    except DatasetError as error:
+        raise BadInputError(str(error)) from None
+    return entries
