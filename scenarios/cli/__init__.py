@@ -136,6 +136,10 @@ from impactqp.scenarios.cli.dataset_commands import dataset, diagnose  # noqa: E
 cli.add_command(dataset)
 cli.add_command(diagnose)
 
+from impactqp.scenarios.cli.sweep_command import sweep  # noqa: E402
+
+cli.add_command(sweep)
+
 
 def main(argv: list[str] | None = None) -> int:
     try:
