@@ -49,7 +49,7 @@ def run_sweep(
 ) -> SweepSummary:
     """Evaluate every cell of ``config`` into ``out`` on a pool of ``jobs`` processes."""
     start = time.perf_counter()
-    store.prepare(out, config, resume)
+    store.prepare(out, config, resume, chunk_size)
     n_cells = config.cell_count()
     n_chunks = -(-n_cells // chunk_size)
     done = store.done_chunks(out, n_chunks)

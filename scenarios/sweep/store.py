@@ -35,8 +35,8 @@ def chunk_path(out: Path, chunk: int) -> Path:
     return Path(out) / f"chunk-{chunk:06d}.parquet"
 
 
-def prepare(out: Path, config: SweepConfig, resume: bool) -> None:
-    """Claim ``out`` for ``config``; on resume, refuse a directory of another config."""
+def prepare(out: Path, config: SweepConfig, resume: bool, chunk_size: int) -> None:
+    """Claim ``out`` for ``config``; on resume, refuse a directory of another config or chunking."""
     out = Path(out)
     stored = out / CONFIG_FILE
     if stored.exists():
@@ -44,9 +44,13 @@ def prepare(out: Path, config: SweepConfig, resume: bool) -> None:
             raise BadInputError(f"{out} already holds a sweep; pass --resume or choose another --out")
         if json.loads(stored.read_text())["config"] != json.loads(config.canonical_json()):
             raise BadInputError(f"the config differs from the one of the sweep in {out}; cannot --resume")
+        if json.loads(stored.read_text())["chunk_size"] != chunk_size:
+            raise BadInputError(f"the sweep in {out} was written in chunks of another size; cannot --resume")
         return
     out.mkdir(parents=True, exist_ok=True)
-    text = json.dumps({"config": json.loads(config.canonical_json()), "version": package_version()})
+    text = json.dumps(
+        {"config": json.loads(config.canonical_json()), "version": package_version(), "chunk_size": chunk_size}
+    )
     write_text_atomic(stored, text)
 
 
