@@ -17,6 +17,7 @@ FAMILIES: list[tuple[str, str, str]] = [
     ("sim.closed_loop", "simulation", "closed_loop_benchmark_rows"),
     ("maxspeed.", "simulation", "max_speed_benchmark_rows"),
     ("diagnose.", "diagnosis", "rows"),
+    ("sweep.", "sweep", "rows"),
 ]
 
 
