@@ -12,6 +12,7 @@ from tqdm import tqdm
 from . import store
 from .cells import evaluate_cells
 from .config import SweepConfig
+from .plots import write_plots
 
 DEFAULT_CHUNK_SIZE = 64
 
@@ -24,6 +25,7 @@ class SweepSummary:
     chunks_skipped: int
     cells_reachable: int
     wall_time_s: float
+    figures: list[str]
 
     def as_dict(self) -> dict:
         return dict(self.__dict__)
@@ -46,6 +48,7 @@ def run_sweep(
     resume: bool = False,
     chunk_size: int = DEFAULT_CHUNK_SIZE,
     progress: bool = True,
+    plots: bool = True,
 ) -> SweepSummary:
     """Evaluate every cell of ``config`` into ``out`` on a pool of ``jobs`` processes."""
     start = time.perf_counter()
@@ -66,6 +69,7 @@ def run_sweep(
                 bar.update(future.result())
     bar.close()
     table = store.read_table(out)
+    figures = write_plots(config, table, Path(out)) if plots else []
     return SweepSummary(
         out=str(out),
         cells=table.num_rows,
@@ -73,4 +77,5 @@ def run_sweep(
         chunks_skipped=len(done),
         cells_reachable=int(sum(table.column("reachable").to_pylist())),
         wall_time_s=time.perf_counter() - start,
+        figures=[str(p) for p in figures],
     )
