@@ -31,7 +31,7 @@ def rows() -> list[dict]:
         for i in range(REPEATS):
             with tempfile.TemporaryDirectory() as tmp:
                 t0 = time.perf_counter()
-                run_sweep(config, Path(tmp) / "sweep", jobs=jobs, progress=False)
+                run_sweep(config, Path(tmp) / "sweep", jobs=jobs, progress=False, plots=False)
                 samples[i] = time.perf_counter() - t0
         out.append(
             {
