@@ -19,6 +19,7 @@ FAMILIES: list[tuple[str, str, str]] = [
     ("diagnose.", "diagnosis", "rows"),
     ("loop.", "loop", "rows"),
     ("impact.", "loop", "detection_rows"),
+    ("sweep.", "sweep", "rows"),
 ]
 
 

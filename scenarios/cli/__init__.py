@@ -186,6 +186,10 @@ from impactqp.scenarios.cli.run_command import run_command  # noqa: E402
 
 cli.add_command(run_command)
 
+from impactqp.scenarios.cli.sweep_command import sweep  # noqa: E402
+
+cli.add_command(sweep)
+
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; the exit code: 0 done, 1 internal error, 2 bad input, 130 Ctrl-C."""

@@ -1,0 +1,40 @@
+"""``impactqp sweep``: a feasibility map over contact points and settings (docs/sweep.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from impactqp.scenarios.cli.arguments import emit_json
+
+
+@click.command()
+@click.argument("config_path", required=False, type=click.Path(path_type=Path))
+@click.option("--backend", type=click.Choice(["local", "ray"]), default="local", show_default=True,
+              help="local: a process pool; ray: the cluster at RAY_ADDRESS, else a local Ray.")
+@click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True, help="Worker processes.")
+@click.option("--out", type=click.Path(path_type=Path), default=Path("sweep-out"), show_default=True)
+@click.option("--resume", is_flag=True, help="Skip the chunks already in --out (same config only).")
+@click.option("--example", is_flag=True, help="Print a small runnable config and exit.")
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON summary instead of a progress bar.")
+def sweep(config_path, backend, jobs, out, resume, example, as_json):
+    """Highest feasible contact speed over a grid of contact points and settings (Parquet in --out)."""
+    from impactqp.scenarios.sweep.config import EXAMPLE, load_config
+
+    if example:
+        click.echo(EXAMPLE, nl=False)
+        return
+    if config_path is None:
+        raise click.UsageError("give a CONFIG.toml (or --example)")
+    from impactqp.scenarios.sweep.backends import run_sweep
+
+    config = load_config(config_path)
+    summary = run_sweep(config, out, jobs=jobs, backend=backend, resume=resume, progress=not as_json)
+    if as_json:
+        emit_json(summary.as_dict())
+    else:
+        click.echo(
+            f"{summary.cells} cells ({summary.cells_reachable} reachable) in {out}, "
+            f"{summary.chunks_skipped} of {summary.chunks} chunks resumed"
+        )

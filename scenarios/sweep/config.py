@@ -1,0 +1,180 @@
+"""The sweep configuration (TOML): a rectangle of contact points on a plane and the settings to vary.
+
+The grid is the product points x normals x restitution values; every cell evaluates all the
+listed jump models. Every key is checked before any work starts: an unknown key, a malformed
+value, an empty grid or a spacing <= 0 raises :class:`BadInputError` (docs/sweep.md).
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from impactqp.controller.model.jump import JUMP_MODELS
+from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.validation import BadInputError, finite_vector, restitution, unit_normal
+
+EXAMPLE = """\
+# impactqp sweep: a feasibility map of the highest safe contact speed (docs/sweep.md).
+
+[grid]
+# A corner of the rectangle of contact points (m, world frame).
+origin = [0.6, -0.2, 0.5]
+# The two edge directions of the rectangle (normalised; need not be unit length here).
+u = [0.0, 1.0, 0.0]
+v = [0.0, 0.0, 1.0]
+# Edge lengths along u and v (m), >= 0.
+size = [0.4, 0.3]
+# Distance between neighbouring points along u and v (m), > 0.
+spacing = 0.1
+
+[settings]
+# Surface normals, pointing towards the robot; the tool axis is placed along -n.
+normals = [[-1.0, 0.0, 0.0]]
+# Coefficients of restitution in [0, 1].
+restitution = [0.0]
+# Jump models to evaluate in every cell: classical, classical_normal, gm, crb.
+jump_models = ["gm", "crb"]
+# Impact duration delta_t (s) of the impulsive-torque criterion, > 0.
+impact_duration = 0.015
+# Seed posture of the inverse kinematics: a named posture (impactqp postures).
+seed_posture = "elbow_up"
+"""
+
+GRID_KEYS = {"origin", "u", "v", "size", "spacing"}
+SETTINGS_KEYS = {"normals", "restitution", "jump_models", "impact_duration", "seed_posture"}
+MAX_CELLS = 10_000_000
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    origin: tuple[float, float, float]
+    u: tuple[float, float, float]
+    v: tuple[float, float, float]
+    size: tuple[float, float]
+    spacing: float
+    normals: tuple[tuple[float, float, float], ...]
+    restitution: tuple[float, ...]
+    jump_models: tuple[str, ...]
+    impact_duration: float
+    seed_posture: str
+
+    def canonical_json(self) -> str:
+        """The configuration as sorted JSON: two configs are the same sweep when this is equal."""
+        return json.dumps(asdict(self), sort_keys=True)
+
+    @property
+    def seed(self) -> np.ndarray:
+        return POSTURES[self.seed_posture].q.copy()
+
+    def points(self) -> np.ndarray:
+        """The contact points (P, 3): origin + i spacing u + j spacing v, row-major in (i, j)."""
+        u = np.asarray(self.u) / np.linalg.norm(self.u)
+        v = np.asarray(self.v) / np.linalg.norm(self.v)
+        nu = int(np.floor(self.size[0] / self.spacing + 1e-9)) + 1
+        nv = int(np.floor(self.size[1] / self.spacing + 1e-9)) + 1
+        i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
+        return (
+            np.asarray(self.origin)
+            + (i.ravel()[:, None] * self.spacing) * u
+            + (j.ravel()[:, None] * self.spacing) * v
+        )
+
+    def cell_count(self) -> int:
+        return len(self.points()) * len(self.normals) * len(self.restitution)
+
+
+def _table(data: dict, name: str, keys: set[str]) -> dict:
+    table = data.get(name)
+    if not isinstance(table, dict):
+        raise BadInputError(f"the sweep config needs a [{name}] table")
+    unknown = sorted(set(table) - keys)
+    if unknown:
+        raise BadInputError(f"unknown key {name}.{unknown[0]} in the sweep config")
+    missing = sorted(keys - set(table))
+    if missing:
+        raise BadInputError(f"missing key {name}.{missing[0]} in the sweep config")
+    return table
+
+
+def _positive(value, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise BadInputError(f"{what} must be a number, got {value!r}")
+    if not (np.isfinite(value) and value > 0.0):
+        raise BadInputError(f"{what} must be > 0, got {value}")
+    return float(value)
+
+
+def _nonempty_list(value, what: str) -> list:
+    if not isinstance(value, list) or not value:
+        raise BadInputError(f"{what} must be a non-empty list (the grid would be empty)")
+    return value
+
+
+def parse_config(data: dict) -> SweepConfig:
+    """A validated :class:`SweepConfig` from the parsed TOML ``data``."""
+    unknown = sorted(set(data) - {"grid", "settings"})
+    if unknown:
+        raise BadInputError(f"unknown key {unknown[0]} in the sweep config")
+    grid = _table(data, "grid", GRID_KEYS)
+    settings = _table(data, "settings", SETTINGS_KEYS)
+    origin = finite_vector(grid["origin"], 3, "grid.origin")
+    u = unit_normal(grid["u"], "grid.u")
+    v = unit_normal(grid["v"], "grid.v")
+    size = finite_vector(grid["size"], 2, "grid.size")
+    if np.any(size < 0.0):
+        raise BadInputError(f"grid.size must be >= 0, got {size.tolist()}")
+    spacing = _positive(grid["spacing"], "grid.spacing")
+    normals = [
+        tuple(unit_normal(n, f"settings.normals[{k}]").tolist())
+        for k, n in enumerate(_nonempty_list(settings["normals"], "settings.normals"))
+    ]
+    restitutions = [
+        restitution(c, f"settings.restitution[{k}]")
+        for k, c in enumerate(_nonempty_list(settings["restitution"], "settings.restitution"))
+    ]
+    models = _nonempty_list(settings["jump_models"], "settings.jump_models")
+    for name in models:
+        if name not in JUMP_MODELS:
+            raise BadInputError(
+                f"unknown jump model {name!r} in settings.jump_models; choose from {', '.join(JUMP_MODELS)}"
+            )
+    if len(set(models)) != len(models):
+        raise BadInputError("settings.jump_models lists a model twice")
+    seed = settings["seed_posture"]
+    if seed not in POSTURES:
+        raise BadInputError(
+            f"unknown settings.seed_posture {seed!r}; choose from {', '.join(POSTURES)}"
+        )
+    config = SweepConfig(
+        origin=tuple(origin.tolist()),
+        u=tuple(u.tolist()),
+        v=tuple(v.tolist()),
+        size=tuple(size.tolist()),
+        spacing=spacing,
+        normals=tuple(normals),
+        restitution=tuple(restitutions),
+        jump_models=tuple(models),
+        impact_duration=_positive(settings["impact_duration"], "settings.impact_duration"),
+        seed_posture=seed,
+    )
+    if max(size) / spacing > MAX_CELLS:
+        raise BadInputError(f"grid.spacing {spacing} m is too fine for grid.size {size.tolist()}")
+    return config
+
+
+def load_config(path: Path) -> SweepConfig:
+    """Read and validate the TOML file ``path``."""
+    try:
+        text = Path(path).read_text()
+    except OSError as exc:
+        raise BadInputError(f"cannot read the sweep config {path}: {exc.strerror}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise BadInputError(f"malformed sweep config {path}: {exc}") from None
+    return parse_config(data)

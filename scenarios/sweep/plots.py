@@ -1,0 +1,94 @@
+"""Feasibility-map figures (PNG, matplotlib Agg) of a finished sweep.
+
+For each normal and restitution value: a heat map of the closed-form highest feasible speed over
+the grid of contact points for each jump model, one of the binding criterion and joint, and the
+difference between the first two models. Unreachable or singular cells are left blank (NaN).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pyarrow as pa  # noqa: E402
+
+from impactqp.controller.model.max_speed import CRITERIA  # noqa: E402
+
+from .config import SweepConfig  # noqa: E402
+
+
+def _grid_shape(config: SweepConfig) -> tuple[int, int]:
+    nu = int(np.floor(config.size[0] / config.spacing + 1e-9)) + 1
+    nv = int(np.floor(config.size[1] / config.spacing + 1e-9)) + 1
+    return nu, nv
+
+
+def write_plots(config: SweepConfig, table: pa.Table, out: Path) -> list[Path]:
+    """Write the figures into ``out`` and return their paths."""
+    columns = table.to_pydict()
+    nu, nv = _grid_shape(config)
+    n_n, n_r = len(config.normals), len(config.restitution)
+    h = config.spacing / 2.0  # cells centred on their contact points
+    extent = [-h, config.size[0] + h, -h, config.size[1] + h]
+    paths = []
+    for k in range(n_n):
+        for r in range(n_r):
+            select = np.arange(k * n_r + r, nu * nv * n_n * n_r, n_n * n_r)  # cell order: point, normal, c_r
+
+            def grid(name, dtype=float):
+                return np.asarray(columns[name], dtype=dtype)[select].reshape(nu, nv).T
+
+            suffix = f"normal{k}_restitution{r}"
+            models = config.jump_models
+            panels = len(models) + (1 if len(models) > 1 else 0)
+            fig, axes = plt.subplots(1, panels, figsize=(4 * panels, 3.5), squeeze=False)
+            for ax, name in zip(axes[0], models):
+                image = ax.imshow(grid(f"speed_{name}"), origin="lower", extent=extent, aspect="auto")
+                fig.colorbar(image, ax=ax, label="m/s")
+                ax.set_title(f"highest feasible speed, {name}")
+            if len(models) > 1:
+                diff = grid(f"speed_{models[1]}") - grid(f"speed_{models[0]}")
+                image = axes[0][-1].imshow(diff, origin="lower", extent=extent, aspect="auto", cmap="coolwarm")
+                fig.colorbar(image, ax=axes[0][-1], label="m/s")
+                axes[0][-1].set_title(f"{models[1]} - {models[0]}")
+            for ax in axes[0]:
+                ax.set_xlabel("u (m)")
+                ax.set_ylabel("v (m)")
+            fig.suptitle(f"n = {np.round(config.normals[k], 3).tolist()}, c_r = {config.restitution[r]}")
+            fig.tight_layout()
+            path = Path(out) / f"speed_{suffix}.png"
+            fig.savefig(path, dpi=80)
+            plt.close(fig)
+            paths.append(path)
+
+            fig, axes = plt.subplots(1, len(models), figsize=(4 * len(models), 3.5), squeeze=False)
+            for ax, name in zip(axes[0], models):
+                criterion = np.array(columns[f"criterion_{name}"], dtype=object)[select].reshape(nu, nv).T
+                joint = grid(f"joint_{name}", int)
+                code = np.full(criterion.shape, np.nan)
+                for c, label in enumerate(CRITERIA):
+                    code[criterion == label] = c
+                ax.imshow(code, origin="lower", extent=extent, aspect="auto", vmin=0, vmax=len(CRITERIA) - 1,
+                          cmap="viridis")
+                du, dv = config.spacing, config.spacing
+                for i in range(nv):
+                    for j in range(nu):
+                        if joint[i, j]:
+                            ax.text(j * du, i * dv, str(joint[i, j]), ha="center", va="center", fontsize=7,
+                                    color="black")
+                ax.set_title(f"binding criterion and joint, {name}")
+                ax.set_xlabel("u (m)")
+                ax.set_ylabel("v (m)")
+            handles = [plt.Rectangle((0, 0), 1, 1, color=plt.cm.viridis(c / (len(CRITERIA) - 1)))
+                       for c in range(len(CRITERIA))]
+            fig.legend(handles, CRITERIA, loc="lower center", ncol=len(CRITERIA), fontsize=7)
+            fig.tight_layout(rect=(0, 0.08, 1, 1))
+            path = Path(out) / f"binding_{suffix}.png"
+            fig.savefig(path, dpi=80)
+            plt.close(fig)
+            paths.append(path)
+    return paths
