@@ -87,6 +87,7 @@ class ImpactModel:
         self.lookahead_time = float(lookahead_time)
         self.release_speed = float(release_speed)
         self.always_active = bool(always_active)
+        self.switched_on = True  # False: the constraints are off whatever the state
         self._terms: ModelTerms | None = None
         self._maps: ImpactMaps | None = None
 
@@ -95,7 +96,9 @@ class ImpactModel:
         return self.model.name
 
     def is_active(self, terms: ModelTerms) -> bool:
-        """The activation rule of the module docstring."""
+        """The activation rule of the module docstring (always False when switched off)."""
+        if not self.switched_on:
+            return False
         if self.always_active:
             return True
         normal = self.surface.normal

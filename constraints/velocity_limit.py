@@ -10,11 +10,18 @@ from .constraint import Constraint, ConstraintRows, ControlCycle
 
 
 class VelocityLimit(Constraint):
-    """-dq_max <= dq + ddq dt <= dq_max, as the box (-dq_max - dq)/dt <= ddq <= (dq_max - dq)/dt.
+    """-dq_max <= dq + ddq s <= dq_max for s = dt and s = h, as the box
+    (-dq_max - dq)/h <= ddq <= (dq_max - dq)/h, with h >= dt the cycle's horizon.
 
-    The box is clipped into the reachable accelerations of the cycle: from a velocity outside
-    the limits the constraint asks for the strongest allowed deceleration instead of making the
-    QP infeasible.
+    The velocity limit is a row of the QP, next to the acceleration and jerk rows, so nothing is
+    clipped after the QP. Bounding dq + ddq h (and, by convexity, dq_cmd = dq + ddq dt) keeps
+    the limit recursively feasible under the jerk limits (:class:`ControlCycle`, ``horizon``):
+    at the next cycle ddq' = (1 - dt/h) ddq is reachable and keeps dq' + ddq' h = dq + ddq h.
+    A bound of dq_cmd alone is not: a joint accelerating towards its limit could not brake in
+    time, and the command had to be clipped after the QP (breaking ddq = (dq_cmd - dq)/dt and
+    the jerk limit). The box is clipped into the reachable accelerations of the cycle: from a
+    velocity outside the limits the constraint asks for the strongest allowed deceleration
+    instead of making the QP infeasible.
     """
 
     name = "joint_velocity_limit"
@@ -25,7 +32,7 @@ class VelocityLimit(Constraint):
         self.dq_max = np.asarray(dq_max, dtype=float)
 
     def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
-        inv_dt = 1.0 / cycle.dt
-        lower = (-self.dq_max - terms.dq) * inv_dt
-        upper = (self.dq_max - terms.dq) * inv_dt
+        inv_h = 1.0 / cycle.horizon
+        lower = (-self.dq_max - terms.dq) * inv_h
+        upper = (self.dq_max - terms.dq) * inv_h
         return ConstraintRows(None, *cycle.clip_to_reachable(lower, upper))

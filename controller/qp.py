@@ -35,9 +35,25 @@ joint-wise brake within the acceleration and jerk limits::
 
 For a non-finite state the previous command stands in for (q, dq) (or, before any command, the
 finite entries of q with zero velocity, mid-range for non-finite entries). The status says
-why, ``violated_constraints`` names the conflicting or violated constraints (for an infeasible
-QP an irreducible conflicting set, found by a deletion filter with daqp) and
+why, ``violated_constraints`` names the conflicting or violated constraints and
 ``fallback_count`` counts fallbacks. A fallback never raises and never returns a NaN.
+
+For an infeasible QP, ``step`` stays bounded: ``violated_constraints`` is a conflicting set
+found with one vectorised interval test (the general constraints whose rows cannot be met
+anywhere in the joint-space box, plus the box constraints that shape that box; when no single
+general constraint conflicts with the box, every constraint with rows). The irreducible
+conflicting set (a deletion filter: one daqp solve per constraint) is computed only on demand,
+after the fact, by ``conflicting_constraints()``, from the rows stored by the last infeasible
+cycle.
+
+Velocity limit
+--------------
+The velocity limit on dq_cmd is a row of the QP (``VelocityLimit``, at the jerk horizon), so in
+a closed loop the QP's answer needs no clipping. When the measured state makes clipping
+unavoidable (dq_cmd past its limit), dq_cmd is clipped, ``ddq`` is set to (dq_cmd - dq) / dt so
+that the command stays consistent, and the status is ``ok_velocity_clipped``. (A fallback from
+a state already outside the velocity limits cannot keep both: it keeps ddq within the
+acceleration and jerk limits and clips dq_cmd; its status says it is a fallback.)
 """
 
 from __future__ import annotations
@@ -55,6 +71,7 @@ from .model.robot import NQ, InvalidStateError, ModelTerms, PandaModel, Singular
 from .model.validation import BadInputError
 
 STATUS_OK = "ok"
+STATUS_VELOCITY_CLIPPED = "ok_velocity_clipped"
 STATUS_FALLBACK_INFEASIBLE = "fallback_infeasible"
 STATUS_FALLBACK_INVALID_STATE = "fallback_invalid_state"
 STATUS_FALLBACK_SINGULAR = "fallback_singular_posture"
@@ -90,7 +107,7 @@ class Command:
 
     @property
     def is_fallback(self) -> bool:
-        return self.status != STATUS_OK
+        return self.status not in (STATUS_OK, STATUS_VELOCITY_CLIPPED)
 
 
 @dataclass
@@ -315,6 +332,25 @@ class ImpactAwareController:
         self.fallback_count = 0
         self.memory = CommandMemory()
         self._targets_set = False
+        self._last_infeasible: tuple[ModelTerms, ControlCycle] | None = None
+        self.phase = "approach"
+
+    def set_impact_constraints(self, active: bool) -> None:
+        """Switch the impact-aware constraints on or off (off: their rows are unbounded, e.g.
+        after the impact); the prediction in ``Command`` follows the same switch."""
+        models = {id(c.impact): c.impact for c in self.constraints if isinstance(getattr(c, "impact", None), ImpactModel)}
+        if self.impact is not None:
+            models[id(self.impact)] = self.impact
+        for model in models.values():
+            model.switched_on = bool(active)
+            model._terms = None  # drop the cached activation
+
+    def conflicting_constraints(self) -> list[str]:
+        """The irreducible conflicting set of the last infeasible cycle (deletion filter with
+        daqp, computed now, off the control cycle); [] when no cycle was infeasible."""
+        if self._last_infeasible is None:
+            return []
+        return self._irreducible_conflict(*self._last_infeasible)
 
     # ------------------------------------------------------------------ public API
     def reset(self, q, dq=None) -> None:
@@ -359,10 +395,14 @@ class ImpactAwareController:
         ddq = outcome.x
         robot = self.robot
         dq_cmd = terms.dq + ddq * self.dt
-        np.minimum(np.maximum(dq_cmd, -robot.dq_max, out=dq_cmd), robot.dq_max, out=dq_cmd)
+        status = STATUS_OK
+        if (np.abs(dq_cmd) > robot.dq_max).any():  # only off the closed loop: see the docstring
+            np.minimum(np.maximum(dq_cmd, -robot.dq_max, out=dq_cmd), robot.dq_max, out=dq_cmd)
+            ddq = (dq_cmd - terms.dq) * (1.0 / self.dt)
+            status = STATUS_VELOCITY_CLIPPED
         q_cmd = terms.q + (0.5 * self.dt) * (terms.dq + dq_cmd)
         np.minimum(np.maximum(q_cmd, robot.q_min, out=q_cmd), robot.q_max, out=q_cmd)
-        return self._emit(terms, ddq, dq_cmd, q_cmd, STATUS_OK, self._active_constraints(ddq), [], solver_name)
+        return self._emit(terms, ddq, dq_cmd, q_cmd, status, self._active_constraints(ddq), [], solver_name)
 
     # ------------------------------------------------------------------ one cycle
     def _assemble(self, terms: ModelTerms, cycle: ControlCycle) -> None:
@@ -426,12 +466,32 @@ class ImpactAwareController:
         return active
 
     def _infeasible(self, q, dq, terms, cycle, message) -> Command:
-        conflict = self._conflicting_constraints(terms, cycle)
+        self._last_infeasible = (terms, cycle)
+        conflict = self._bounded_conflict()
         return self._fallback(
             q, dq, STATUS_FALLBACK_INFEASIBLE, conflict, f"{message}; conflict: {', '.join(conflict)}", terms
         )
 
-    def _conflicting_constraints(self, terms: ModelTerms, cycle: ControlCycle) -> list[str]:
+    def _bounded_conflict(self) -> list[str]:
+        """A conflicting set from one interval test (module docstring): over the box
+        lb <= ddq <= ub, C_i ddq spans [r_i, R_i]; a row with u_i < r_i or l_i > R_i conflicts
+        with the box."""
+        p = self.problem
+        boxes = [
+            c.name for c, lower, upper in zip(self.box_constraints, self._box_lower, self._box_upper)
+            if (lower == p.lb).any() or (upper == p.ub).any()
+        ]
+        if (p.lb > p.ub).any() or not self._row_slices:
+            return boxes
+        low, high = p.C * p.lb, p.C * p.ub
+        reach_min = np.minimum(low, high).sum(axis=1)
+        reach_max = np.maximum(low, high).sum(axis=1)
+        unreachable = (p.u < reach_min) | (p.l > reach_max)
+        per_constraint = np.logical_or.reduceat(unreachable, self._row_starts)
+        rows = [c.name for c, hit in zip(self.row_constraints, per_constraint) if hit]
+        return (rows or [c.name for c in self.row_constraints]) + boxes
+
+    def _irreducible_conflict(self, terms: ModelTerms, cycle: ControlCycle) -> list[str]:
         """An irreducible infeasible subset of the constraints (deletion filter, daqp)."""
         rows = {c.name: c.compute(terms, cycle) for c in self.constraints}
 
@@ -495,7 +555,8 @@ class ImpactAwareController:
         else:
             jump = np.zeros(NQ)
         return Command(
-            ddq, dq_cmd, q_cmd, status, active, violated, jump, dq_cmd + jump, impact_active, solver, message
+            ddq, dq_cmd, q_cmd, status, active, violated, jump, dq_cmd + jump, impact_active, solver, message,
+            self.phase,
         )
 
 

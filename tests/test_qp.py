@@ -271,3 +271,43 @@ def test_infeasible_request_gives_the_fallback_and_names_the_conflict(robot):
     assert len(command.violated_constraints) >= 2  # with a limit on ddq: acceleration or torque
     assert np.linalg.norm(command.dq_cmd) < np.linalg.norm(dq)
     assert controller.fallback_count == 1
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.05, 2.0))
+def test_closed_loop_command_sequence_keeps_every_limit(robot, seed, speed):
+    """A kinematic closed loop (q, dq <- q_cmd, dq_cmd) from a random state and target: every
+    command is finite, ddq = (dq_cmd - dq)/dt, and every consecutive pair keeps the velocity,
+    acceleration and jerk limits (the velocity limit is a row of the QP, nothing is clipped
+    after it)."""
+    rng = np.random.default_rng(seed)
+    span = robot.q_max - robot.q_min
+    q = robot.q_min + span * rng.uniform(0.2, 0.8, 7)
+    dq = rng.uniform(-0.9, 0.9, 7) * robot.dq_max
+    config = ControllerConfig.approach(surface_ahead(robot, q, rng.uniform(0.02, 0.2)), speed)
+    controller = build_controller(config, robot)
+    controller.reset(q, dq)
+    controller.tasks[0].reference_velocity = speed * rng.uniform(-1.0, 1.0, 3)
+    previous = np.zeros(7)
+    for _ in range(150):
+        command = controller.step(q, dq)
+        for value in (command.ddq, command.dq_cmd, command.q_cmd):
+            assert np.all(np.isfinite(value))
+        assert np.allclose(command.ddq, (command.dq_cmd - dq) / DT, atol=1e-6)
+        assert np.all(np.abs(command.dq_cmd) <= robot.dq_max + 1e-9)
+        assert np.all(np.abs(command.ddq) <= robot.ddq_max + 1e-6)
+        assert np.all(np.abs(command.ddq - previous) <= robot.dddq_max * DT + 1e-6)
+        previous, q, dq = command.ddq, command.q_cmd, command.dq_cmd
+
+
+def test_the_irreducible_conflict_is_computed_on_demand(robot):
+    """``step`` names a bounded conflicting set; the irreducible one (deletion filter) is
+    computed only when asked for, after the fact."""
+    q = POSTURES["elbow_up"].q
+    controller = approach_controller(robot, q)
+    assert controller.conflicting_constraints() == []  # no infeasible cycle yet
+    command = controller.step(q, 0.6 * approach_direction(robot.terms(q), NORMAL))
+    assert command.status == "fallback_infeasible"
+    irreducible = controller.conflicting_constraints()
+    assert "impulsive_torque[crb]" in irreducible and len(irreducible) >= 2
+    assert set(irreducible) <= {c.name for c in controller.constraints}

@@ -17,6 +17,12 @@ def timing_row(name: str, unit: str, samples_s: np.ndarray, scale: float) -> dic
     return {"name": name, "unit": unit, "median": float(np.median(samples)), "p99": float(np.percentile(samples, 99))}
 
 
+def missing_row(name: str, unit: str, note: str) -> dict:
+    """A row that could not be measured on this machine: median and p99 are None (null in
+    JSON), ``note`` says why."""
+    return {"name": name, "unit": unit, "median": None, "p99": None, "note": note}
+
+
 def rate_row(name: str, unit: str, count: int, samples_s: np.ndarray) -> dict:
     samples = np.asarray(samples_s)
     return {

@@ -1,9 +1,11 @@
 """Benchmark rows of the jump predictors: ``predict.crb.single`` (one full CRB prediction from q)
-and ``predict.crb.batch`` (predictions per second of the vectorised batch API)."""
+and ``predict.crb.batch`` (predictions per second of the vectorised batch API);
+``floor.pinocchio.all_terms`` (one ``computeAllTerms`` call, the floor of a prediction from q)."""
 
 from __future__ import annotations
 
 import numpy as np
+import pinocchio
 
 from impactqp.controller.model.batch import BatchKinematics, predict_batch
 from impactqp.controller.model.jump import JUMP_MODELS
@@ -27,6 +29,12 @@ def rows() -> list[dict]:
     for _ in range(200):
         single()
     rows = [timing_row("predict.crb.single", "us", time_calls(single, 5000), 1e6)]
+    data = robot.model.createData()
+    q, dq = posture.q, np.zeros(7)
+    rows.append(timing_row(
+        "floor.pinocchio.all_terms", "us",
+        time_calls(lambda: pinocchio.computeAllTerms(robot.model, data, q, dq), 5000), 1e6,
+    ))
     kinematics = BatchKinematics(robot)
     Q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (10_000, 7))
     predict_batch(kinematics, Q, n, v, 0.0, "crb")
