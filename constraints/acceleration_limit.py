@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from impactqp.controller.model.robot import ModelTerms
 
-from .constraint import Constraint, ConstraintRows, ControlCycle
+from .constraint import Constraint, ControlCycle
 
 
 class AccelerationLimit(Constraint):
@@ -19,5 +19,6 @@ class AccelerationLimit(Constraint):
     rows = 7
     is_box = True
 
-    def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
-        return ConstraintRows(None, cycle.acceleration_lower, cycle.acceleration_upper)
+    def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
+        lower[:] = cycle.acceleration_lower
+        upper[:] = cycle.acceleration_upper

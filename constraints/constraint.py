@@ -29,7 +29,7 @@ class ConstraintRows(NamedTuple):
     upper: np.ndarray
 
 
-@dataclass(frozen=True)
+@dataclass(eq=False)
 class ControlCycle:
     """What a constraint needs to know about the current control cycle besides the model terms.
 
@@ -45,6 +45,8 @@ class ControlCycle:
     change per joint is at most dt |ddq_i| / h <= dddq_max_i dt) and gives
     dq' + ddq' h = dq + ddq h: the same, feasible, value. By convexity the rows also hold at
     s = dt, i.e. for the commanded velocity dq_cmd = dq + ddq dt.
+
+    A controller keeps one ControlCycle and moves it forward in place (``advance``).
     """
 
     dt: float
@@ -62,6 +64,15 @@ class ControlCycle:
             max(dt, float(np.max(ddq_max / dddq_max))),
         )
 
+    def advance(self, previous_ddq: np.ndarray, ddq_max: np.ndarray, jerk_step: np.ndarray) -> None:
+        """The reachable interval of the next cycle (``after``), written in place;
+        ``jerk_step`` = dddq_max dt."""
+        lower, upper = self.acceleration_lower, self.acceleration_upper
+        np.subtract(previous_ddq, jerk_step, out=lower)
+        np.maximum(lower, -ddq_max, out=lower)
+        np.add(previous_ddq, jerk_step, out=upper)
+        np.minimum(upper, ddq_max, out=upper)
+
     def recoverable(self, C: np.ndarray, lower: np.ndarray, upper: np.ndarray):
         """Rows lower <= C ddq <= upper relaxed, row by row, to what this cycle can reach.
 
@@ -70,13 +81,15 @@ class ControlCycle:
         (e.g. the contact approaches faster than the impact allows) cannot be met in one cycle;
         it becomes C_i ddq <= max(upper_i, r_i) (and >= min(lower_i, R_i)), i.e. it asks for the
         largest correction the acceleration and jerk limits allow, instead of making the QP
-        infeasible. Rows that can be met are unchanged.
+        infeasible. Rows that can be met are unchanged. With the box's centre c and half-width
+        w, r = C c - |C| w and R = C c + |C| w. ``lower`` and ``upper`` are relaxed in place.
         """
-        low = C * self.acceleration_lower
-        high = C * self.acceleration_upper
-        reach_min = np.minimum(low, high).sum(axis=1)
-        reach_max = np.maximum(low, high).sum(axis=1)
-        return np.minimum(lower, reach_max), np.maximum(upper, reach_min)
+        lo, hi = self.acceleration_lower, self.acceleration_upper
+        centre = C @ (0.5 * (lo + hi))
+        spread = np.abs(C) @ (0.5 * (hi - lo))
+        np.minimum(lower, centre + spread, out=lower)
+        np.maximum(upper, centre - spread, out=upper)
+        return lower, upper
 
     def clip_to_reachable(self, lower: np.ndarray, upper: np.ndarray):
         """(lower, upper) clipped into the reachable acceleration interval, in place."""
@@ -87,11 +100,32 @@ class ControlCycle:
 
 
 class Constraint:
-    """A named set of ``rows`` linear rows on ddq (acceleration units)."""
+    """A named set of ``rows`` linear rows on ddq (acceleration units).
+
+    A constraint writes its rows into arrays it is given (``compute_into``): a controller hands
+    it views of the stacked QP data, so nothing is copied. Box bounds are then clipped into the
+    cycle's reachable accelerations (``ControlCycle.clip_to_reachable``) and the rows of a
+    ``relaxed`` constraint, which the state may already violate, are relaxed to the largest
+    correction the cycle allows (``ControlCycle.recoverable``); the controller does both for all
+    constraints at once, ``compute`` does them for one.
+    """
 
     name: str = ""
     rows: int = 0
     is_box: bool = False
+    relaxed: bool = False
+
+    def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower: np.ndarray, upper: np.ndarray) -> None:
+        """Write the raw rows of this state: C (rows x 7; None for a box), lower and upper."""
+        raise NotImplementedError
 
     def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
-        raise NotImplementedError
+        """The rows of this state in new arrays, clipped or relaxed as the class says."""
+        C = None if self.is_box else np.empty((self.rows, terms.q.shape[0]))
+        lower, upper = np.empty(self.rows), np.empty(self.rows)
+        self.compute_into(terms, cycle, C, lower, upper)
+        if self.is_box:
+            cycle.clip_to_reachable(lower, upper)
+        elif self.relaxed:
+            cycle.recoverable(C, lower, upper)
+        return ConstraintRows(C, lower, upper)

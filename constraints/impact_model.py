@@ -24,7 +24,7 @@ rule says inactive cannot command a dangerous approach speed.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -53,8 +53,7 @@ def jump_model_names(choice: str) -> tuple[str, ...]:
         ) from None
 
 
-@dataclass(frozen=True)
-class ImpactMaps:
+class ImpactMaps(NamedTuple):
     """Linear maps of one state: dq_jump = jump_matrix dq-, J^T iota = torque_matrix dq-;
     ``active`` is the activation rule's answer for that state."""
 
@@ -87,8 +86,9 @@ class ImpactModel:
         self.lookahead_time = float(lookahead_time)
         self.release_speed = float(release_speed)
         self.always_active = bool(always_active)
+        self._surface_offset = float(surface.normal @ surface.point)  # n.s: distance = n.p - n.s
         self.switched_on = True  # False: the constraints are off whatever the state
-        self._terms: ModelTerms | None = None
+        self._stamp = 0  # ModelTerms.stamp of the cached maps
         self._maps: ImpactMaps | None = None
 
     @property
@@ -101,35 +101,40 @@ class ImpactModel:
             return False
         if self.always_active:
             return True
-        normal = self.surface.normal
-        normal_speed = float(normal @ (terms.J @ terms.dq))
+        return self._is_active(terms, self.surface.normal @ terms.J)
+
+    def _is_active(self, terms: ModelTerms, Jt_normal: np.ndarray) -> bool:
+        """The rule with n^T J given: n.v = (n^T J) dq."""
+        normal_speed = float(Jt_normal @ terms.dq)
         if normal_speed > self.release_speed:
             return False
-        distance = float(normal @ (terms.contact_point - self.surface.point))
+        distance = float(self.surface.normal @ terms.contact_point) - self._surface_offset
         return distance <= max(self.lookahead_distance, -normal_speed * self.lookahead_time)
 
     def maps(self, terms: ModelTerms) -> ImpactMaps:
-        """A, P and the activation of this state; computed once per ``terms`` and shared by
-        the constraints and the controller's prediction."""
-        if terms is not self._terms:
+        """A, P and the activation of this state; computed once per fill of ``terms``
+        (``ModelTerms.stamp``) and shared by the constraints and the controller's prediction."""
+        if terms.stamp != self._stamp:
+            Jt_normal = self.surface.normal @ terms.J
             if isinstance(self.model, GeneralizedMomentumJump):
-                jump_matrix, torque_matrix = self._normal_impulse_maps(terms)
+                jump_matrix, torque_matrix = self._normal_impulse_maps(terms, Jt_normal)
             else:
                 maps = self.model.maps(terms, self.surface.normal, self.restitution)
                 GJ = maps.G @ terms.J
                 jump_matrix, torque_matrix = maps.K @ GJ, terms.J.T @ GJ
-            self._maps = ImpactMaps(jump_matrix, torque_matrix, self.is_active(terms))
-            self._terms = terms
+            active = self.switched_on and (self.always_active or self._is_active(terms, Jt_normal))
+            self._maps = ImpactMaps(jump_matrix, torque_matrix, active)
+            self._stamp = terms.stamp
         return self._maps
 
-    def _normal_impulse_maps(self, terms: ModelTerms) -> tuple[np.ndarray, np.ndarray]:
+    def _normal_impulse_maps(self, terms: ModelTerms, Jt_normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A and P of the normal-impulse models (12) as rank-one products.
 
-        G = s n n^T with s = -(1+c_r) / (n^T W n) and K = J+ W (21), (23), so
-        A = K G J = s (J+ W n)(J^T n)^T and P = J^T G J = s (J^T n)(J^T n)^T.
+        G = s n n^T with s = -(1+c_r) / (n^T W n) and K = J+ W = J^T (J J^T)^-1 W (17), (21),
+        (23), so A = K G J = s (J^T (J J^T)^-1 W n)(J^T n)^T and P = J^T G J = s (J^T n)(J^T n)^T.
         """
         normal = self.surface.normal
-        W_normal = self.model.inverse_inertia(terms) @ normal
+        W_normal = self.model.inverse_inertia_times(terms, normal)
         s = -(1.0 + self.restitution) / float(normal @ W_normal)
-        Jt_normal = normal @ terms.J
-        return np.outer(s * (terms.J_pinv @ W_normal), Jt_normal), np.outer(s * Jt_normal, Jt_normal)
+        jump_direction = terms.J.T @ (terms.JJt_inv @ (s * W_normal))
+        return jump_direction[:, None] * Jt_normal, (s * Jt_normal)[:, None] * Jt_normal

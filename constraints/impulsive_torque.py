@@ -5,13 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.robot import NQ, ModelTerms
 
-from .constraint import Constraint, ConstraintRows, ControlCycle
+from .constraint import Constraint, ControlCycle
 from .impact_model import ImpactModel
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
-
-_UNBOUNDED = np.full(7, np.inf)
 
 
 class ImpulsiveTorqueLimit(Constraint):
@@ -31,7 +29,8 @@ class ImpulsiveTorqueLimit(Constraint):
     (``ControlCycle.recoverable``).
     """
 
-    rows = 7
+    rows = NQ
+    relaxed = True
 
     def __init__(
         self,
@@ -44,15 +43,20 @@ class ImpulsiveTorqueLimit(Constraint):
         self.impact = impact
         self.impulse_limit = np.asarray(tau_max, dtype=float) * impact_duration
         self.row_scale = np.asarray(dq_max, dtype=float) / self.impulse_limit
+        self._scaled_limit = self.row_scale * self.impulse_limit
         self.name = f"impulsive_torque[{impact.name}]"
+        self._row_scale_column = self.row_scale[:, None].copy()
+        self._scaled_limit = self.row_scale * self.impulse_limit
 
-    def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
+    def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         maps = self.impact.maps(terms)
-        C = maps.torque_matrix * self.row_scale[:, None]
+        np.multiply(maps.torque_matrix, self._row_scale_column, out=C)
         if not maps.active:
-            return ConstraintRows(C, -_UNBOUNDED, _UNBOUNDED)
-        scale = self.row_scale / cycle.horizon
-        pre = maps.torque_matrix @ terms.dq
-        return ConstraintRows(
-            C, *cycle.recoverable(C, (-self.impulse_limit - pre) * scale, (self.impulse_limit - pre) * scale)
-        )
+            lower.fill(-np.inf)
+            upper.fill(np.inf)
+            return
+        inv_h = 1.0 / cycle.horizon
+        pre = inv_h * (C @ terms.dq)  # s_i P_i dq / h, and s_i tau_max_i delta_t = dq_max_i
+        scaled_limit = inv_h * self._scaled_limit
+        np.subtract(-scaled_limit, pre, out=lower)
+        np.subtract(scaled_limit, pre, out=upper)

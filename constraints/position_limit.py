@@ -6,7 +6,7 @@ import numpy as np
 
 from impactqp.controller.model.robot import ModelTerms
 
-from .constraint import Constraint, ConstraintRows, ControlCycle
+from .constraint import Constraint, ControlCycle
 from impactqp.controller.model.validation import BadInputError
 
 
@@ -43,14 +43,26 @@ class PositionLimit(Constraint):
         self._sign = np.array([[1.0], [-1.0]])
         self._limits = np.vstack([np.asarray(q_max, float) - margin, np.asarray(q_min, float) + margin])
         self._braking = braking_fraction * np.asarray(ddq_max, dtype=float)
+        self._dt = None
 
-    def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
+    def _constants(self, dt: float) -> None:
+        """The terms that depend only on dt: a dt / 2, (a dt / 2)^2, 2 a and the signed
+        limits less the last cycle's travel a dt^2 / 8."""
+        self._dt = dt
+        self._half_step = (0.5 * dt) * self._braking
+        self._half_step_squared = self._half_step * self._half_step
+        self._twice_braking = 2.0 * self._braking
+        self._signed_limits = self._sign * self._limits - (0.125 * dt * dt) * self._braking
+
+    def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         dt = cycle.dt
-        sign = self._sign
-        towards = sign * terms.dq  # velocity towards each limit
-        half_step = (0.5 * dt) * self._braking
-        last_cycle = (0.125 * dt * dt) * self._braking
-        distance = np.maximum(sign * (self._limits - terms.q) - (0.5 * dt) * towards - last_cycle, 0.0)
-        allowed = np.sqrt(half_step * half_step + (2.0 * self._braking) * distance) - half_step - towards
+        if dt != self._dt:
+            self._constants(dt)
+        towards = self._sign * terms.dq  # velocity towards each limit
+        # d_e = max(sign (limit - q) - dt/2 sign dq - a dt^2/8, 0)
+        distance = np.maximum(self._signed_limits - self._sign * (terms.q + (0.5 * dt) * terms.dq), 0.0)
+        allowed = np.sqrt(self._half_step_squared + self._twice_braking * distance)
+        allowed -= self._half_step + towards
         allowed *= 1.0 / dt
-        return ConstraintRows(None, *cycle.clip_to_reachable(-allowed[1], allowed[0]))
+        np.negative(allowed[1], out=lower)
+        upper[:] = allowed[0]

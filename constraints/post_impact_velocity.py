@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.robot import NQ, ModelTerms
 
-from .constraint import Constraint, ConstraintRows, ControlCycle
+from .constraint import Constraint, ControlCycle
 from .impact_model import ImpactModel
-
-_UNBOUNDED = np.full(7, np.inf)
 
 
 class PostImpactVelocityLimit(Constraint):
@@ -27,19 +25,24 @@ class PostImpactVelocityLimit(Constraint):
     (``ControlCycle.recoverable``).
     """
 
-    rows = 7
+    rows = NQ
+    relaxed = True
 
     def __init__(self, impact: ImpactModel, dq_max: np.ndarray):
         self.impact = impact
         self.dq_max = np.asarray(dq_max, dtype=float)
         self.name = f"post_impact_velocity[{impact.name}]"
-        self._identity = np.eye(7)
+        self._identity = np.eye(NQ)
 
-    def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
+    def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         maps = self.impact.maps(terms)
-        C = self._identity + maps.jump_matrix
+        np.add(self._identity, maps.jump_matrix, out=C)
         if not maps.active:
-            return ConstraintRows(C, -_UNBOUNDED, _UNBOUNDED)
+            lower.fill(-np.inf)
+            upper.fill(np.inf)
+            return
         inv_h = 1.0 / cycle.horizon
-        post = C @ terms.dq
-        return ConstraintRows(C, *cycle.recoverable(C, (-self.dq_max - post) * inv_h, (self.dq_max - post) * inv_h))
+        post = inv_h * (C @ terms.dq)
+        scaled_limit = inv_h * self.dq_max
+        np.subtract(-scaled_limit, post, out=lower)
+        np.subtract(scaled_limit, post, out=upper)

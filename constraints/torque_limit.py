@@ -6,7 +6,7 @@ import numpy as np
 
 from impactqp.controller.model.robot import ModelTerms
 
-from .constraint import Constraint, ConstraintRows, ControlCycle
+from .constraint import Constraint, ControlCycle
 
 
 class TorqueLimit(Constraint):
@@ -21,11 +21,11 @@ class TorqueLimit(Constraint):
 
     def __init__(self, tau_max: np.ndarray):
         self.tau_max = np.asarray(tau_max, dtype=float)
+        self._inv_diag = np.empty((len(self.tau_max), 1))
 
-    def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
-        inv_diag = 1.0 / np.diagonal(terms.M)
-        return ConstraintRows(
-            terms.M * inv_diag[:, None],
-            (-self.tau_max - terms.h) * inv_diag,
-            (self.tau_max - terms.h) * inv_diag,
-        )
+    def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
+        inv_diag = np.divide(1.0, np.diagonal(terms.M)[:, None], out=self._inv_diag)
+        np.multiply(terms.M, inv_diag, out=C)
+        inv = inv_diag[:, 0]
+        np.multiply(-self.tau_max - terms.h, inv, out=lower)
+        np.multiply(self.tau_max - terms.h, inv, out=upper)

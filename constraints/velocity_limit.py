@@ -6,7 +6,7 @@ import numpy as np
 
 from impactqp.controller.model.robot import ModelTerms
 
-from .constraint import Constraint, ConstraintRows, ControlCycle
+from .constraint import Constraint, ControlCycle
 
 
 class VelocityLimit(Constraint):
@@ -31,8 +31,9 @@ class VelocityLimit(Constraint):
     def __init__(self, dq_max: np.ndarray):
         self.dq_max = np.asarray(dq_max, dtype=float)
 
-    def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
+    def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         inv_h = 1.0 / cycle.horizon
-        lower = (-self.dq_max - terms.dq) * inv_h
-        upper = (self.dq_max - terms.dq) * inv_h
-        return ConstraintRows(None, *cycle.clip_to_reachable(lower, upper))
+        dq = inv_h * terms.dq
+        scaled_limit = inv_h * self.dq_max
+        np.subtract(-scaled_limit, dq, out=lower)
+        np.subtract(scaled_limit, dq, out=upper)

@@ -164,7 +164,7 @@ class ControllerConfig:
     """Everything ``build_controller`` needs: tasks, limits, impact model, surface, solver."""
 
     dt: float = 0.001
-    solver: str = "proxqp"
+    solver: str = "daqp"
     tasks: list[TaskConfig] = field(default_factory=list)
     limits: LimitsConfig = field(default_factory=LimitsConfig)
     impact: ImpactConfig = field(default_factory=ImpactConfig)
@@ -180,7 +180,7 @@ class ControllerConfig:
         jump_model: str | None = "crb",
         restitution: float = 0.0,
         impact_duration: float = DEFAULT_IMPACT_DURATION,
-        solver: str = "proxqp",
+        solver: str = "daqp",
         dt: float = 0.001,
         posture_weight: float = 1e-2,
         always_active: bool = False,

@@ -16,13 +16,24 @@ limits between consecutive commands always apply (``AccelerationLimit`` is added
 
 Solvers
 -------
-``solver="proxqp"`` (default): proxsuite dense, initialised once and then updated and
-warm-started every cycle. ``solver="daqp"``: daqp called directly. Any other name is solved
-through ``qpsolvers.solve_qp(..., solver=name)``; ``"qpsolvers:proxqp"`` forces proxqp through
-qpsolvers. A solution is accepted only when it satisfies every row to ``feasibility_tolerance``
-(acceleration units). Warm-started proxsuite 0.8 sometimes reports a feasible QP as infeasible
-(docs/qp-constraints.md), so any failed or inaccurate solve is repeated with daqp before the QP
-is declared infeasible: the controller never brakes on one solver's false alarm.
+``solver="daqp"`` (default): daqp (dual active set) called directly on the preallocated data.
+``solver="proxqp"``: proxsuite dense, initialised once and then updated and warm-started every
+cycle. Any other name is solved through ``qpsolvers.solve_problem(..., solver=name)``;
+``"qpsolvers:proxqp"`` forces proxqp through qpsolvers. The choice of the default is measured in
+the README (solver table). A solution is accepted only when it is finite and satisfies every
+row to ``feasibility_tolerance`` (acceleration units). A second, independent solver confirms any
+failed or inaccurate solve before the QP is declared infeasible (quadprog, Goldfarb-Idnani, for
+daqp; daqp for every other backend), so the controller never brakes on one solver's false alarm
+(warm-started proxsuite 0.8 reports some feasible QPs as infeasible: docs/qp-constraints.md).
+
+Cycle time
+----------
+Everything a cycle touches is allocated once: the model terms are refilled in place
+(``PandaModel.update_terms``), the control cycle is advanced in place, tasks and constraints
+write into their own buffers, and the QP data live in two stacked bound vectors
+[box; rows] that the solver and the feasibility check read without copies. The jump maps are
+computed once per cycle (``ImpactModel.maps``) and shared by the impact constraints and the
+Command's prediction.
 
 Fallback (safe command)
 -----------------------
@@ -58,11 +69,12 @@ acceleration and jerk limits and clips dq_cmd; its status says it is a fallback.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import daqp
 import numpy as np
 import proxsuite
+import quadprog
 
 from impactqp.constraints import AccelerationLimit, Constraint, ControlCycle, ImpactModel
 from impactqp.tasks import Task
@@ -77,11 +89,10 @@ STATUS_FALLBACK_INVALID_STATE = "fallback_invalid_state"
 STATUS_FALLBACK_SINGULAR = "fallback_singular_posture"
 STATUS_FALLBACK_SOLVER_ERROR = "fallback_solver_error"
 
+SOLVED, INFEASIBLE, FAILED = "solved", "infeasible", "failed"
 _PROXQP_INFINITY = 1e20
-_DAQP_INFINITY = 1e30
 
 
-@dataclass(frozen=True)
 class Command:
     """The output of one control cycle for a kinematic-controlled robot.
 
@@ -89,61 +100,79 @@ class Command:
     velocity (dq- = dq_cmd) with the controller's prediction model, and
     ``predicted_post_impact_velocity`` = dq_cmd + predicted_jump; both are zero when the
     controller has no impact model or the state was unusable. ``phase`` is the phase of the
-    impact session that issued the command (``docs/robot-loop.md``).
+    impact session that issued the command (``docs/robot-loop.md``). A plain slotted class:
+    one is made per cycle, so it must cost little.
     """
 
-    ddq: np.ndarray
-    dq_cmd: np.ndarray
-    q_cmd: np.ndarray
-    status: str
-    active_constraints: list[str]
-    violated_constraints: list[str]
-    predicted_jump: np.ndarray
-    predicted_post_impact_velocity: np.ndarray
-    impact_constraints_active: bool = False
-    solver: str = ""
-    message: str = ""
-    phase: str = "approach"
+    __slots__ = (
+        "ddq", "dq_cmd", "q_cmd", "status", "active_constraints", "violated_constraints", "predicted_jump",
+        "predicted_post_impact_velocity", "impact_constraints_active", "solver", "message", "phase",
+    )
+
+    def __init__(
+        self, ddq, dq_cmd, q_cmd, status, active_constraints, violated_constraints, predicted_jump,
+        predicted_post_impact_velocity, impact_constraints_active=False, solver="", message="", phase="approach",
+    ):
+        self.ddq = ddq
+        self.dq_cmd = dq_cmd
+        self.q_cmd = q_cmd
+        self.status = status
+        self.active_constraints = active_constraints
+        self.violated_constraints = violated_constraints
+        self.predicted_jump = predicted_jump
+        self.predicted_post_impact_velocity = predicted_post_impact_velocity
+        self.impact_constraints_active = impact_constraints_active
+        self.solver = solver
+        self.message = message
+        self.phase = phase
 
     @property
     def is_fallback(self) -> bool:
         return self.status not in (STATUS_OK, STATUS_VELOCITY_CLIPPED)
 
+    def __repr__(self) -> str:
+        return f"Command(status={self.status!r}, phase={self.phase!r}, dq_cmd={self.dq_cmd!r})"
 
-@dataclass
+
 class QpProblem:
-    """Preallocated QP data: cost 1/2 x^T H x + g^T x, box lb <= x <= ub, rows l <= C x <= u."""
+    """Preallocated QP data: cost 1/2 x^T H x + g^T x, box lb <= x <= ub, rows l <= C x <= u.
 
-    H: np.ndarray
-    g: np.ndarray
-    C: np.ndarray
-    l: np.ndarray
-    u: np.ndarray
-    lb: np.ndarray
-    ub: np.ndarray
+    The bounds live in two stacked vectors ``lower`` = [lb; l] and ``upper`` = [ub; u] (lb, l,
+    ub and u are views of them), the layout daqp reads directly; infinite entries are unbounded.
+    """
+
+    def __init__(self, H, g, C, l, u, lb, ub):
+        rows = C.shape[0]
+        self.H, self.g, self.C = H, g, C
+        self.lower, self.upper = np.concatenate([lb, l]), np.concatenate([ub, u])
+        self.lb, self.l = self.lower[:NQ], self.lower[NQ:]
+        self.ub, self.u = self.upper[:NQ], self.upper[NQ:]
+        self._stacked = np.zeros(NQ + rows)  # [x; C x]
+        self.lower_gap = np.zeros(NQ + rows)  # [x; C x] - lower, of the last ``violation``
+        self.upper_gap = np.zeros(NQ + rows)  # upper - [x; C x]
 
     @classmethod
     def empty(cls, rows: int) -> QpProblem:
-        return cls(
-            np.zeros((NQ, NQ)), np.zeros(NQ), np.zeros((rows, NQ)), np.zeros(rows), np.zeros(rows),
-            np.zeros(NQ), np.zeros(NQ),
-        )
+        return cls(np.zeros((NQ, NQ)), np.zeros(NQ), np.zeros((rows, NQ)), np.zeros(rows), np.zeros(rows),
+                   np.zeros(NQ), np.zeros(NQ))
+
+    def copy(self) -> QpProblem:
+        return QpProblem(self.H.copy(), self.g.copy(), self.C.copy(), self.l, self.u, self.lb, self.ub)
+
+    def stacked(self, x: np.ndarray) -> np.ndarray:
+        """[x; C x] in a preallocated vector (valid until the next call)."""
+        z = self._stacked
+        z[:NQ] = x
+        np.matmul(self.C, x, out=z[NQ:])
+        return z
 
     def violation(self, x: np.ndarray) -> float:
-        """Largest violation of a bound or row by x (0 when x is feasible)."""
-        Cx = self.C @ x
-        return max(
-            (self.lb - x).max(), (x - self.ub).max(), (self.l - Cx).max(initial=0.0),
-            (Cx - self.u).max(initial=0.0), 0.0,
-        )
-
-
-@dataclass(frozen=True)
-class QpOutcome:
-    """x is None unless ``status == 'solved'``; status is 'solved', 'infeasible' or 'failed'."""
-
-    x: np.ndarray | None
-    status: str
+        """Largest violation of a bound or row by x (0 when x is feasible); the gaps to the
+        bounds stay in ``lower_gap`` and ``upper_gap``."""
+        z = self.stacked(x)
+        below = np.subtract(z, self.lower, out=self.lower_gap).min()
+        above = np.subtract(self.upper, z, out=self.upper_gap).min()
+        return max(-below, -above, 0.0)
 
 
 class ProxqpDenseSolver:
@@ -154,7 +183,7 @@ class ProxqpDenseSolver:
     def __init__(self, rows: int, tolerance: float = 1e-7, max_iterations: int = 200):
         self.qp = proxsuite.proxqp.dense.QP(NQ, 0, rows, True)
         settings = self.qp.settings
-        settings.max_iter = max_iterations  # bounded cycle time; daqp confirms any failure
+        settings.max_iter = max_iterations  # bounded cycle time; a second solver confirms any failure
         settings.max_iter_in = max_iterations
         settings.eps_abs = tolerance
         settings.eps_rel = 0.0
@@ -169,7 +198,7 @@ class ProxqpDenseSolver:
         self._l = np.zeros(rows)
         self._u = np.zeros(rows)
 
-    def solve(self, problem: QpProblem) -> QpOutcome:
+    def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
         l = np.maximum(problem.l, -_PROXQP_INFINITY, out=self._l)
         u = np.minimum(problem.u, _PROXQP_INFINITY, out=self._u)
         if self.initialized:
@@ -180,35 +209,53 @@ class ProxqpDenseSolver:
         self.qp.solve()
         status = self.qp.results.info.status
         if status == proxsuite.proxqp.PROXQP_SOLVED:
-            return QpOutcome(self.qp.results.x.copy(), "solved")
+            return SOLVED, self.qp.results.x.copy()
         self.initialized = False  # start the next cycle from a fresh init
         if status == proxsuite.proxqp.PROXQP_PRIMAL_INFEASIBLE:
-            return QpOutcome(None, "infeasible")
-        return QpOutcome(None, "failed")
+            return INFEASIBLE, None
+        return FAILED, None
 
 
 class DaqpSolver:
-    """daqp called directly: simple bounds first, then the general rows."""
+    """daqp called directly on the stacked bounds [lb; l] <= [x; C x] <= [ub; u]."""
 
     name = "daqp"
 
     def __init__(self, rows: int):
-        self._upper = np.zeros(NQ + rows)
-        self._lower = np.zeros(NQ + rows)
         self._sense = np.zeros(NQ + rows, dtype=np.int32)
 
-    def solve(self, problem: QpProblem) -> QpOutcome:
-        upper, lower = self._upper, self._lower
-        upper[:NQ], upper[NQ:] = problem.ub, problem.u
-        lower[:NQ], lower[NQ:] = problem.lb, problem.l
-        np.clip(upper, -_DAQP_INFINITY, _DAQP_INFINITY, out=upper)
-        np.clip(lower, -_DAQP_INFINITY, _DAQP_INFINITY, out=lower)
-        x, _, exitflag, _ = daqp.solve(problem.H, problem.g, problem.C, upper, lower, self._sense)
+    def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
+        sense = self._sense
+        sense.fill(0)  # daqp writes the working set into it
+        x, _, exitflag, _ = daqp.solve(problem.H, problem.g, problem.C, problem.upper, problem.lower, sense)
         if exitflag >= 1:
-            return QpOutcome(np.asarray(x, dtype=float), "solved")
-        if exitflag == -1:
-            return QpOutcome(None, "infeasible")
-        return QpOutcome(None, "failed")
+            return SOLVED, x
+        return (INFEASIBLE if exitflag == -1 else FAILED), None
+
+
+class QuadprogSolver:
+    """quadprog (Goldfarb-Idnani dual active set), the independent second opinion for daqp.
+
+    It solves min 1/2 x^T H x - a^T x s.t. A^T x >= b, so every finite bound becomes one
+    inequality. quadprog reports an infeasible problem only by a ValueError whose text says the
+    constraints are inconsistent; any other error is a failure.
+    """
+
+    name = "quadprog"
+
+    def __init__(self, rows: int):
+        del rows  # quadprog takes the problem as it comes
+
+    def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
+        upper, lower = np.isfinite(problem.upper), np.isfinite(problem.lower)
+        identity_and_rows = np.vstack([np.eye(NQ), problem.C])
+        A = np.vstack([-identity_and_rows[upper], identity_and_rows[lower]])
+        b = np.concatenate([-problem.upper[upper], problem.lower[lower]])
+        try:
+            x = quadprog.solve_qp(problem.H, -problem.g, A.T, b, 0)[0]
+        except ValueError as error:
+            return (INFEASIBLE if "inconsistent" in str(error) else FAILED), None
+        return SOLVED, x
 
 
 class QpsolversSolver:
@@ -221,13 +268,13 @@ class QpsolversSolver:
         if backend not in qpsolvers.available_solvers:
             raise BadInputError(
                 f"QP solver {backend!r} is not available; available: "
-                f"proxqp (direct, warm-started), daqp (direct), "
+                f"daqp (direct), proxqp (direct, warm-started), "
                 f"{', '.join(qpsolvers.available_solvers)} (through qpsolvers)"
             )
         self.backend = backend
         self.name = f"qpsolvers:{backend}"
 
-    def solve(self, problem: QpProblem) -> QpOutcome:
+    def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
         import qpsolvers
 
         G = np.vstack([problem.C, -problem.C])
@@ -238,15 +285,15 @@ class QpsolversSolver:
             solver=self.backend,
         )
         if solution.found and solution.x is not None and np.all(np.isfinite(solution.x)):
-            return QpOutcome(np.asarray(solution.x, dtype=float), "solved")
-        return QpOutcome(None, "failed")
+            return SOLVED, np.asarray(solution.x, dtype=float)
+        return FAILED, None
 
 
 def available_backends() -> list[str]:
     """Every solver name ``make_solver`` accepts on this machine."""
     import qpsolvers
 
-    return ["proxqp", "daqp"] + [f"qpsolvers:{name}" for name in qpsolvers.available_solvers]
+    return ["daqp", "proxqp"] + [f"qpsolvers:{name}" for name in qpsolvers.available_solvers]
 
 
 def make_solver(name: str, rows: int):
@@ -277,7 +324,7 @@ class ImpactAwareController:
         cost strictly convex (a ``DampingTask`` does).
     constraints : constraints (``constraints``); an ``AccelerationLimit`` is added when missing.
     dt : control period (s).
-    solver : "proxqp" (default), "daqp", or any qpsolvers backend name.
+    solver : "daqp" (default), "proxqp", or any qpsolvers backend name.
     impact : the impact model used for ``Command.predicted_jump`` (None: no prediction).
     feasibility_tolerance : largest accepted row violation of a solution (acceleration units).
     acceleration_limit, jerk_limit : ddq_max and dddq_max (default: the robot's datasheet values).
@@ -289,7 +336,7 @@ class ImpactAwareController:
         tasks: list[Task],
         constraints: list[Constraint],
         dt: float,
-        solver: str = "proxqp",
+        solver: str = "daqp",
         impact: ImpactModel | None = None,
         feasibility_tolerance: float = 1e-6,
         acceleration_limit: np.ndarray | None = None,
@@ -309,7 +356,8 @@ class ImpactAwareController:
         self.tasks = list(tasks)
         self.constraints = constraints
         self.box_constraints = [c for c in constraints if c.is_box]
-        self.row_constraints = [c for c in constraints if not c.is_box]
+        # Relaxed rows last, in one block that ControlCycle.recoverable relaxes at once.
+        self.row_constraints = sorted((c for c in constraints if not c.is_box), key=lambda c: c.relaxed)
         self.dt = float(dt)
         self.ddq_max = robot.ddq_max if acceleration_limit is None else np.asarray(acceleration_limit, float)
         self.dddq_max = robot.dddq_max if jerk_limit is None else np.asarray(jerk_limit, float)
@@ -320,30 +368,48 @@ class ImpactAwareController:
         n_task_rows = sum(t.rows for t in self.tasks)
         self._task_A = np.zeros((n_task_rows, NQ))
         self._task_b = np.zeros(n_task_rows)
-        self._task_w = np.zeros(n_task_rows)
+        self._task_w = np.zeros((n_task_rows, 1))
+        self._weighted_A = np.zeros((n_task_rows, NQ))
         self._row_slices = _consecutive_slices([c.rows for c in self.row_constraints])
         self._row_starts = np.array([s.start for s in self._row_slices], dtype=int)
         self.problem = QpProblem.empty(sum(c.rows for c in self.row_constraints))
-        self._box_lower = np.zeros((len(self.box_constraints), NQ))
-        self._box_upper = np.zeros((len(self.box_constraints), NQ))
+        # Box bounds interleaved: rows 2k and 2k+1 are the lower and upper bounds of box k.
+        self._box_bounds = np.zeros((2 * len(self.box_constraints), NQ))
+        self._box_lower = self._box_bounds[0::2]
+        self._box_upper = self._box_bounds[1::2]
+        first_relaxed = sum(c.rows for c in self.row_constraints if not c.relaxed)
+        p = self.problem
+        self._task_views = [(task, self._task_A[s], self._task_b[s], self._task_w[s, 0]) for task, s in zip(self.tasks, self._task_slices)]
+        self._row_views = [(c, p.C[s], p.l[s], p.u[s]) for c, s in zip(self.row_constraints, self._row_slices)]
+        self._relaxed_rows = (p.C[first_relaxed:], p.l[first_relaxed:], p.u[first_relaxed:])
 
-        self.solver = make_solver(solver, self.problem.C.shape[0])
-        self.verifier = self.solver if self.solver.name == "daqp" else DaqpSolver(self.problem.C.shape[0])
+        rows = self.problem.C.shape[0]
+        self.solver = make_solver(solver, rows)
+        self.verifier = QuadprogSolver(rows) if self.solver.name == "daqp" else DaqpSolver(rows)
         self.fallback_count = 0
         self.memory = CommandMemory()
         self._targets_set = False
-        self._last_infeasible: tuple[ModelTerms, ControlCycle] | None = None
+        self._last_infeasible: tuple[QpProblem, np.ndarray, np.ndarray] | None = None
         self.phase = "approach"
+
+        self._terms: ModelTerms | None = None  # refilled in place every cycle
+        self._jerk_step = self.dddq_max * self.dt
+        horizon = max(self.dt, float(np.max(self.ddq_max / self.dddq_max)))
+        self._cycle = ControlCycle(self.dt, np.zeros(NQ), np.zeros(NQ), horizon)
+        # General rows see the joint-space box of the cycle (all box constraints intersected)
+        # as the reachable accelerations, so that a row the state violates is relaxed to what
+        # the box really allows (ControlCycle.recoverable): the arrays are the problem's own.
+        self._row_cycle = ControlCycle(self.dt, self.problem.lb, self.problem.ub, horizon)
+        self._impact_models = [
+            c.impact for c in constraints if isinstance(getattr(c, "impact", None), ImpactModel)
+        ] + ([impact] if impact is not None else [])
 
     def set_impact_constraints(self, active: bool) -> None:
         """Switch the impact-aware constraints on or off (off: their rows are unbounded, e.g.
         after the impact); the prediction in ``Command`` follows the same switch."""
-        models = {id(c.impact): c.impact for c in self.constraints if isinstance(getattr(c, "impact", None), ImpactModel)}
-        if self.impact is not None:
-            models[id(self.impact)] = self.impact
-        for model in models.values():
+        for model in self._impact_models:
             model.switched_on = bool(active)
-            model._terms = None  # drop the cached activation
+            model._stamp = 0  # drop the cached activation
 
     def conflicting_constraints(self) -> list[str]:
         """The irreducible conflicting set of the last infeasible cycle (deletion filter with
@@ -365,14 +431,19 @@ class ImpactAwareController:
     def step(self, q, dq) -> Command:
         """One control cycle. Never raises on a bad state or a solver failure: see the module
         docstring for the fallback."""
+        robot = self.robot
         try:
-            terms = self.robot.terms(q, dq)
+            if self._terms is None:
+                self._terms = robot.terms(q, dq)
+            else:
+                robot.update_terms(self._terms, q, dq)
         except InvalidStateError as error:
-            return self._fallback(q, dq, STATUS_FALLBACK_INVALID_STATE, [_state_constraint(error)], str(error))
+            return self._fallback(q, dq, STATUS_FALLBACK_INVALID_STATE, [error.constraint], str(error))
         except SingularPostureError as error:
             return self._fallback(q, dq, STATUS_FALLBACK_SINGULAR, [], str(error))
-        if (np.abs(terms.dq) > self.robot.dq_max).any():
-            over = np.flatnonzero(np.abs(terms.dq) > self.robot.dq_max)
+        terms = self._terms
+        if (np.abs(terms.dq) > robot.dq_max).any():
+            over = np.flatnonzero(np.abs(terms.dq) > robot.dq_max)
             message = f"dq{over[0] + 1} = {terms.dq[over[0]]:.4f} rad/s is outside the velocity limits"
             return self._fallback(q, dq, STATUS_FALLBACK_INVALID_STATE, ["joint_velocity_limit"], message, terms)
         if not self._targets_set:
@@ -380,93 +451,100 @@ class ImpactAwareController:
                 task.reset(terms)
             self._targets_set = True
 
-        cycle = ControlCycle.after(self.memory.ddq, self.dt, self.ddq_max, self.dddq_max)
-        self._assemble(terms, cycle)
+        self._cycle.advance(self.memory.ddq, self.ddq_max, self._jerk_step)
+        self._assemble(terms, self._cycle)
         problem = self.problem
-        if np.any(problem.lb > problem.ub):
-            return self._infeasible(q, dq, terms, cycle, "the joint-space bounds conflict")
+        if (problem.lb > problem.ub).any():
+            return self._infeasible(q, dq, terms, "the joint-space bounds conflict")
 
-        outcome, solver_name = self._solve()
-        if outcome.status == "infeasible":
-            return self._infeasible(q, dq, terms, cycle, "the QP is infeasible (confirmed by daqp)")
-        if outcome.status != "solved":
+        status, ddq, solver_name = self._solve()
+        if status == INFEASIBLE:
+            return self._infeasible(q, dq, terms, f"the QP is infeasible (confirmed by {solver_name})")
+        if status != SOLVED:
             return self._fallback(q, dq, STATUS_FALLBACK_SOLVER_ERROR, [], "no solver found a solution", terms)
 
-        ddq = outcome.x
-        robot = self.robot
-        dq_cmd = terms.dq + ddq * self.dt
+        dt = self.dt
+        dq_cmd = terms.dq + dt * ddq
         status = STATUS_OK
         if (np.abs(dq_cmd) > robot.dq_max).any():  # only off the closed loop: see the docstring
             np.minimum(np.maximum(dq_cmd, -robot.dq_max, out=dq_cmd), robot.dq_max, out=dq_cmd)
-            ddq = (dq_cmd - terms.dq) * (1.0 / self.dt)
+            ddq = (dq_cmd - terms.dq) * (1.0 / dt)
             status = STATUS_VELOCITY_CLIPPED
-        q_cmd = terms.q + (0.5 * self.dt) * (terms.dq + dq_cmd)
+            self.problem.violation(ddq)  # the gaps of the ddq actually commanded
+        q_cmd = terms.q + (0.5 * dt) * (terms.dq + dq_cmd)
         np.minimum(np.maximum(q_cmd, robot.q_min, out=q_cmd), robot.q_max, out=q_cmd)
         return self._emit(terms, ddq, dq_cmd, q_cmd, status, self._active_constraints(ddq), [], solver_name)
 
     # ------------------------------------------------------------------ one cycle
     def _assemble(self, terms: ModelTerms, cycle: ControlCycle) -> None:
         """Fill the preallocated QP data from the tasks and constraints of this state."""
-        A, b, w = self._task_A, self._task_b, self._task_w
-        for task, rows in zip(self.tasks, self._task_slices):
-            A[rows], b[rows], w[rows] = task.compute(terms)
+        self._assemble_tasks(terms)
+        self._assemble_constraints(terms, cycle)
+
+    def _assemble_tasks(self, terms: ModelTerms) -> None:
+        """Cost: H = A^T W A and g = -A^T W b over the stacked rows of every task."""
+        for task, A, b, w in self._task_views:
+            task.compute_into(terms, A, b)
+            w[:] = task.weight
         problem = self.problem
-        WA = A * w[:, None]
+        A, b = self._task_A, self._task_b
+        WA = np.multiply(A, self._task_w, out=self._weighted_A)
         np.matmul(A.T, WA, out=problem.H)
         np.matmul(b, WA, out=problem.g)
         np.negative(problem.g, out=problem.g)
 
+    def _assemble_constraints(self, terms: ModelTerms, cycle: ControlCycle) -> None:
+        """Bounds: the box constraints intersected and clipped into the cycle's reachable
+        accelerations, then the general rows, the relaxed ones relaxed in one block."""
+        problem = self.problem
         box_lower, box_upper = self._box_lower, self._box_upper
         for k, constraint in enumerate(self.box_constraints):
-            _, box_lower[k], box_upper[k] = constraint.compute(terms, cycle)
-        np.max(box_lower, axis=0, out=problem.lb)
-        np.min(box_upper, axis=0, out=problem.ub)
-        # General rows see the joint-space box of this cycle (all box constraints intersected)
-        # as the reachable accelerations, so that a row the state violates is relaxed to what
-        # the box really allows (ControlCycle.recoverable).
-        row_cycle = replace(cycle, acceleration_lower=problem.lb, acceleration_upper=problem.ub)
-        for constraint, rows in zip(self.row_constraints, self._row_slices):
-            problem.C[rows], problem.l[rows], problem.u[rows] = constraint.compute(terms, row_cycle)
+            constraint.compute_into(terms, cycle, None, box_lower[k], box_upper[k])
+        # Clipping each box into the reachable interval, then intersecting, equals intersecting
+        # then clipping (clipping is monotone): two vectors are clipped instead of every box.
+        cycle.clip_to_reachable(np.max(box_lower, axis=0, out=problem.lb), np.min(box_upper, axis=0, out=problem.ub))
+        row_cycle = self._row_cycle  # its bounds are problem.lb and problem.ub, filled above
+        for constraint, C, lower, upper in self._row_views:
+            constraint.compute_into(terms, row_cycle, C, lower, upper)
+        row_cycle.recoverable(*self._relaxed_rows)
 
-    def _solve(self) -> tuple[QpOutcome, str]:
-        """Solve with the chosen solver; confirm any failure or inaccurate answer with daqp."""
+    def _solve(self) -> tuple[str, np.ndarray | None, str]:
+        """Solve with the chosen solver; a second solver confirms any failure or inaccurate
+        answer. Returns (status, ddq, name of the solver whose answer counts)."""
         problem = self.problem
         try:
-            outcome = self.solver.solve(problem)
+            status, x = self.solver.solve(problem)
         except Exception:  # a backend error must not stop the control loop
-            outcome = QpOutcome(None, "failed")
-        if self._acceptable(outcome):
-            return outcome, self.solver.name
-        if self.verifier is self.solver:
-            return (outcome if outcome.status != "solved" else QpOutcome(None, "failed")), self.solver.name
-        second = self.verifier.solve(problem)
-        if second.status == "solved" and not self._acceptable(second):
-            second = QpOutcome(None, "failed")
-        return second, self.verifier.name
+            status, x = FAILED, None
+        if status == SOLVED and self._acceptable(x):
+            return SOLVED, x, self.solver.name
+        try:
+            status, x = self.verifier.solve(problem)
+        except Exception:
+            status, x = FAILED, None
+        if status == SOLVED and not self._acceptable(x):
+            status, x = FAILED, None
+        return status, x, self.verifier.name
 
-    def _acceptable(self, outcome: QpOutcome) -> bool:
+    def _acceptable(self, x: np.ndarray) -> bool:
         """A solution is used only when it is finite and satisfies every row and bound."""
-        return (
-            outcome.status == "solved"
-            and bool(np.all(np.isfinite(outcome.x)))
-            and self.problem.violation(outcome.x) <= self.feasibility_tolerance
-        )
+        return bool(np.isfinite(x).all()) and self.problem.violation(x) <= self.feasibility_tolerance
 
     def _active_constraints(self, ddq: np.ndarray) -> list[str]:
-        """Names of the constraints with at least one row at a bound."""
+        """Names of the constraints with at least one row at a bound (the gaps of the
+        accepted solution's feasibility check; box constraints by their own, unclipped bounds)."""
         tol = self.feasibility_tolerance * 10.0
-        box_tight = ((ddq - self._box_lower) <= tol) | ((self._box_upper - ddq) <= tol)
-        active = [c.name for c, hit in zip(self.box_constraints, box_tight.any(axis=1)) if hit]
+        box_tight = (np.abs(self._box_bounds - ddq) <= tol).any(axis=1)
+        active = [c.name for c, lower, upper in zip(self.box_constraints, box_tight[0::2], box_tight[1::2]) if lower or upper]
         if self._row_slices:
             p = self.problem
-            Cx = p.C @ ddq
-            tight = ((Cx - p.l) <= tol) | ((p.u - Cx) <= tol)
+            tight = np.minimum(p.lower_gap[NQ:], p.upper_gap[NQ:]) <= tol
             per_constraint = np.logical_or.reduceat(tight, self._row_starts)
             active += [c.name for c, hit in zip(self.row_constraints, per_constraint) if hit]
         return active
 
-    def _infeasible(self, q, dq, terms, cycle, message) -> Command:
-        self._last_infeasible = (terms, cycle)
+    def _infeasible(self, q, dq, terms, message) -> Command:
+        self._last_infeasible = (self.problem.copy(), self._box_lower.copy(), self._box_upper.copy())
         conflict = self._bounded_conflict()
         return self._fallback(
             q, dq, STATUS_FALLBACK_INFEASIBLE, conflict, f"{message}; conflict: {', '.join(conflict)}", terms
@@ -491,29 +569,32 @@ class ImpactAwareController:
         rows = [c.name for c, hit in zip(self.row_constraints, per_constraint) if hit]
         return (rows or [c.name for c in self.row_constraints]) + boxes
 
-    def _irreducible_conflict(self, terms: ModelTerms, cycle: ControlCycle) -> list[str]:
-        """An irreducible infeasible subset of the constraints (deletion filter, daqp)."""
-        rows = {c.name: c.compute(terms, cycle) for c in self.constraints}
+    def _irreducible_conflict(self, problem: QpProblem, box_lower: np.ndarray, box_upper: np.ndarray) -> list[str]:
+        """An irreducible infeasible subset of the constraints of a stored infeasible cycle
+        (deletion filter: one daqp feasibility solve per constraint)."""
+        rows = {c.name: (None, lower, upper) for c, lower, upper in zip(self.box_constraints, box_lower, box_upper)}
+        for c, s in zip(self.row_constraints, self._row_slices):
+            rows[c.name] = (problem.C[s], problem.l[s], problem.u[s])
 
         def feasible(names: list[str]) -> bool:
-            lb, ub = np.full(NQ, -_DAQP_INFINITY), np.full(NQ, _DAQP_INFINITY)
+            lb, ub = np.full(NQ, -np.inf), np.full(NQ, np.inf)
             C, l, u = [np.zeros((0, NQ))], [np.zeros(0)], [np.zeros(0)]
             for name in names:
-                r = rows[name]
-                if r.C is None:
-                    lb, ub = np.maximum(lb, r.lower), np.minimum(ub, r.upper)
+                C_rows, lower, upper = rows[name]
+                if C_rows is None:
+                    lb, ub = np.maximum(lb, lower), np.minimum(ub, upper)
                 else:
-                    C.append(r.C)
-                    l.append(r.lower)
-                    u.append(r.upper)
+                    C.append(C_rows)
+                    l.append(lower)
+                    u.append(upper)
             if np.any(lb > ub):
                 return False
             C = np.vstack(C)
             check = QpProblem(np.eye(NQ), np.zeros(NQ), C, np.concatenate(l), np.concatenate(u), lb, ub)
-            return DaqpSolver(C.shape[0]).solve(check).status == "solved"
+            return DaqpSolver(C.shape[0]).solve(check)[0] == SOLVED
 
-        kept = list(rows)
-        for name in list(rows):
+        kept = [c.name for c in self.constraints]
+        for name in list(kept):
             trial = [n for n in kept if n != name]
             if not feasible(trial):
                 kept = trial
@@ -545,15 +626,17 @@ class ImpactAwareController:
         return np.where(np.isfinite(q), q, mid_range), np.zeros(NQ)
 
     def _emit(self, terms, ddq, dq_cmd, q_cmd, status, active, violated, solver, message="") -> Command:
-        """Record the command in the memory and package it with the impact prediction."""
-        self.memory = CommandMemory(q_cmd, dq_cmd, ddq)
-        impact_active = False
+        """Record the command in the memory and package it with the impact prediction (the
+        maps of this cycle, already computed for the impact constraints)."""
+        memory = self.memory
+        memory.q_cmd, memory.dq_cmd, memory.ddq = q_cmd, dq_cmd, ddq
         if self.impact is not None and terms is not None:
             maps = self.impact.maps(terms)
             jump = maps.jump_matrix @ dq_cmd
             impact_active = maps.active
         else:
             jump = np.zeros(NQ)
+            impact_active = False
         return Command(
             ddq, dq_cmd, q_cmd, status, active, violated, jump, dq_cmd + jump, impact_active, solver, message,
             self.phase,
@@ -563,8 +646,3 @@ class ImpactAwareController:
 def _consecutive_slices(sizes: list[int]) -> list[slice]:
     ends = np.cumsum(sizes, dtype=int)
     return [slice(int(end - size), int(end)) for size, end in zip(sizes, ends)]
-
-
-def _state_constraint(error: InvalidStateError) -> str:
-    """The limit an invalid state violates, or 'finite_state' for a malformed state."""
-    return "joint_position_limit" if "outside the joint limits" in str(error) else "finite_state"

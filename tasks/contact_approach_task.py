@@ -8,7 +8,7 @@ from impactqp.controller.model.robot import ModelTerms
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 from impactqp.controller.model.validation import unit_normal
 
-from .task import Task, TaskRows, critical_damping, non_negative, rotation_error
+from .task import Task, critical_damping, non_negative, rotation_error
 
 
 class ContactApproachTask(Task):
@@ -70,24 +70,20 @@ class ContactApproachTask(Task):
             [normal_weight, tangential_weight, tangential_weight] + [orientation_weight] * 3, dtype=float
         )
         self.target_rotation = None if target_rotation is None else np.asarray(target_rotation, float)
+        self._twist_gain = np.repeat([-self.velocity_gain, -self.orientation_damping], 3)
+        self._reference_acceleration = self.velocity_gain * self.reference_velocity
         self._rotation_configured = self.target_rotation is not None
-        self._A = np.empty((6, 7))
-        self._b = np.empty(6)
 
     def reset(self, terms: ModelTerms) -> None:
         if not self._rotation_configured:
             self.target_rotation = terms.contact_rotation.copy()
 
-    def compute(self, terms: ModelTerms) -> TaskRows:
-        twist = terms.J6 @ terms.dq
-        linear = self.velocity_gain * (self.reference_velocity - twist[:3]) - terms.dJ6_dq[:3]
-        angular = (
-            self.orientation_stiffness * rotation_error(self.target_rotation, terms.contact_rotation)
-            - self.orientation_damping * twist[3:]
-            - terms.dJ6_dq[3:]
-        )
-        np.matmul(self.basis, terms.J6[:3], out=self._A[:3])
-        self._A[3:] = terms.J6[3:]
-        np.matmul(self.basis, linear, out=self._b[:3])
-        self._b[3:] = angular
-        return TaskRows(self._A, self._b, self.weight)
+    def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
+        # b = [k_v (v* - v); k_R log(R* R^T) - d_R w] - dJ6 dq, its linear part in the surface frame
+        np.multiply(self._twist_gain, terms.J6 @ terms.dq, out=b)
+        b[:3] += self._reference_acceleration
+        b[3:] += self.orientation_stiffness * rotation_error(self.target_rotation, terms.contact_rotation)
+        b -= terms.dJ6_dq
+        b[:3] = self.basis @ b[:3]
+        np.matmul(self.basis, terms.J6[:3], out=A[:3])
+        A[3:] = terms.J6[3:]

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.robot import NQ, ModelTerms
 
-from .task import Task, TaskRows, non_negative
+from .task import Task, non_negative
 from impactqp.controller.model.validation import BadInputError
+
+_IDENTITY = np.eye(NQ)
 
 
 class DampingTask(Task):
@@ -19,14 +21,14 @@ class DampingTask(Task):
     """
 
     name = "damping"
-    rows = 7
+    rows = NQ
 
     def __init__(self, gain: float = 1.0, weight: float = 1e-4):
         if not non_negative("damping weight", weight) > 0.0:
             raise BadInputError("the damping task weight must be > 0")
         self.gain = non_negative("damping gain", gain)
-        self.weight = np.full(7, float(weight))
-        self._identity = np.eye(7)
+        self.weight = np.full(NQ, float(weight))
 
-    def compute(self, terms: ModelTerms) -> TaskRows:
-        return TaskRows(self._identity, -self.gain * terms.dq, self.weight)
+    def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
+        A[:] = _IDENTITY
+        np.multiply(-self.gain, terms.dq, out=b)

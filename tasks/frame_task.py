@@ -6,7 +6,7 @@ import numpy as np
 
 from impactqp.controller.model.robot import ModelTerms
 
-from .task import Task, TaskRows, critical_damping, finite_array, non_negative, rotation_error
+from .task import Task, critical_damping, finite_array, non_negative, rotation_error
 
 
 class FrameTask(Task):
@@ -52,12 +52,9 @@ class FrameTask(Task):
         if not self._configured[1]:
             self.target_rotation = terms.contact_rotation.copy()
 
-    def compute(self, terms: ModelTerms) -> TaskRows:
-        error = np.concatenate(
-            [
-                self.target_position - terms.contact_point,
-                rotation_error(self.target_rotation, terms.contact_rotation),
-            ]
-        )
-        desired = self.stiffness * error - self.damping * (terms.J6 @ terms.dq)
-        return TaskRows(terms.J6, desired - terms.dJ6_dq, self.weight)
+    def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
+        A[:] = terms.J6
+        b[:3] = self.target_position - terms.contact_point
+        b[3:] = rotation_error(self.target_rotation, terms.contact_rotation)
+        b *= self.stiffness
+        b -= self.damping * (terms.J6 @ terms.dq) + terms.dJ6_dq

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.robot import NQ, ModelTerms
 
-from .task import Task, TaskRows, critical_damping, finite_array, non_negative
+from .task import Task, critical_damping, finite_array, non_negative
+
+_IDENTITY = np.eye(NQ)
 
 
 class PostureTask(Task):
@@ -17,21 +19,19 @@ class PostureTask(Task):
     """
 
     name = "posture"
-    rows = 7
+    rows = NQ
 
     def __init__(self, target=None, stiffness: float = 10.0, damping: float | None = None, weight: float = 1e-2):
-        self.target = None if target is None else finite_array("posture target", target, (7,))
+        self.target = None if target is None else finite_array("posture target", target, (NQ,))
         self._target_configured = self.target is not None
         self.stiffness = non_negative("posture stiffness", stiffness)
         self.damping = critical_damping(self.stiffness) if damping is None else non_negative("posture damping", damping)
-        self.weight = np.full(7, non_negative("posture weight", weight))
-        self._identity = np.eye(7)
+        self.weight = np.full(NQ, non_negative("posture weight", weight))
 
     def reset(self, terms: ModelTerms) -> None:
         if not self._target_configured:
             self.target = terms.q.copy()
 
-    def compute(self, terms: ModelTerms) -> TaskRows:
-        return TaskRows(
-            self._identity, self.stiffness * (self.target - terms.q) - self.damping * terms.dq, self.weight
-        )
+    def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
+        A[:] = _IDENTITY
+        np.subtract(self.stiffness * (self.target - terms.q), self.damping * terms.dq, out=b)

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from impactqp.controller.model.robot import ModelTerms
 from impactqp.controller.model.validation import BadInputError, unit_normal
 
-from .task import Task, TaskRows, critical_damping, finite_array, non_negative, rotation_error
+from .task import Task, critical_damping, finite_array, non_negative, rotation_error
 
 
 class SurfaceOffsetTask(Task):
@@ -62,7 +64,6 @@ class SurfaceOffsetTask(Task):
         )
         self.target_position: np.ndarray | None = None
         self.target_rotation: np.ndarray | None = None
-        self._b = np.empty(6)
 
     def reset(self, terms: ModelTerms) -> None:
         p0 = terms.contact_point
@@ -70,16 +71,16 @@ class SurfaceOffsetTask(Task):
         self.target_position = p0 - depth * self.normal
         self.target_rotation = terms.contact_rotation.copy()
 
-    def compute(self, terms: ModelTerms) -> TaskRows:
+    def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
+        A[:] = terms.J6
         twist = terms.J6 @ terms.dq
         velocity = self.position_gain * (self.target_position - terms.contact_point)
-        speed = float(np.linalg.norm(velocity))
+        speed = math.sqrt(velocity @ velocity)
         if speed > self.max_speed:
             velocity *= self.max_speed / speed
-        self._b[:3] = self.velocity_gain * (velocity - twist[:3]) - terms.dJ6_dq[:3]
-        self._b[3:] = (
+        b[:3] = self.velocity_gain * (velocity - twist[:3]) - terms.dJ6_dq[:3]
+        b[3:] = (
             self.orientation_stiffness * rotation_error(self.target_rotation, terms.contact_rotation)
             - self.orientation_damping * twist[3:]
             - terms.dJ6_dq[3:]
         )
-        return TaskRows(terms.J6, self._b, self.weight)

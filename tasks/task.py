@@ -30,16 +30,28 @@ class TaskRows(NamedTuple):
 
 
 class Task:
-    """A named least-squares objective with ``rows`` rows."""
+    """A named least-squares objective with ``rows`` rows and one weight per row (``weight``).
+
+    A task writes its rows into arrays it is given (``compute_into``): a controller hands it
+    views of the stacked task data, so nothing is copied; ``compute`` returns them in new
+    arrays.
+    """
 
     name: str = ""
     rows: int = 0
+    weight: np.ndarray
 
     def reset(self, terms: ModelTerms) -> None:
         """Capture the targets that were left unspecified from the state ``terms``."""
 
-    def compute(self, terms: ModelTerms) -> TaskRows:
+    def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
+        """Write the rows A (rows x 7) and b of this state."""
         raise NotImplementedError
+
+    def compute(self, terms: ModelTerms) -> TaskRows:
+        A, b = np.empty((self.rows, terms.q.shape[0])), np.empty(self.rows)
+        self.compute_into(terms, A, b)
+        return TaskRows(A, b, self.weight)
 
 
 def rotation_error(target: np.ndarray, rotation: np.ndarray) -> np.ndarray:

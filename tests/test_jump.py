@@ -195,3 +195,17 @@ def test_error_metrics_eq25_eq26():
 
 def test_methods_are_registered():
     assert set(METHODS) == set(JUMP_MODELS) == {"classical", "classical_normal", "gm", "crb"}
+
+
+@SETTINGS
+@given(q=joint_positions(), normal=unit_vectors())
+def test_inverse_inertia_along_the_normal_is_W_times_n(robot, q, normal):
+    """The closed forms of W n used by the controller equal the full W (20), (22) times n."""
+    terms = terms_or_skip(robot, q)
+    np.testing.assert_allclose(
+        JUMP_MODELS["crb"].inverse_inertia_times(terms, normal), crb_inverse_inertia(terms) @ normal, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        JUMP_MODELS["gm"].inverse_inertia_times(terms, normal), gm_inverse_inertia(terms) @ normal,
+        rtol=1e-8, atol=1e-12,
+    )

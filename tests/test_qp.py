@@ -10,7 +10,8 @@ from impactqp.controller.config import ControllerConfig, TaskConfig, build_contr
 from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.max_speed import approach_direction, closed_form_max_speed
 from impactqp.controller.model.postures import POSTURES, Surface
-from impactqp.controller.qp import Command, ImpactAwareController
+from impactqp.constraints import ControlCycle
+from impactqp.controller.qp import Command, DaqpSolver, ImpactAwareController, QuadprogSolver
 from impactqp.controller.model.robot import SingularPostureError
 from impactqp.constraints import jump_model_names
 from impactqp.controller.qp import available_backends
@@ -311,3 +312,61 @@ def test_the_irreducible_conflict_is_computed_on_demand(robot):
     irreducible = controller.conflicting_constraints()
     assert "impulsive_torque[crb]" in irreducible and len(irreducible) >= 2
     assert set(irreducible) <= {c.name for c in controller.constraints}
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), jump=st.sampled_from(["crb", "gm", "classical", "robust"]))
+def test_stacked_qp_data_are_the_rows_of_every_task_and_constraint(robot, seed, jump):
+    """The controller writes every row in place into one stacked QP; it must equal what each
+    task and constraint gives on its own (``compute``): H = sum A^T W A, g = -sum A^T W b, the
+    box = the intersection of the clipped boxes, and each constraint's rows (relaxed where the
+    class says so)."""
+    rng = np.random.default_rng(seed)
+    q, dq = random_feasible_state(robot, rng, jump_model_names(jump), 0.0)
+    controller = approach_controller(robot, q, jump=jump, solver="daqp")
+    controller.step(q, dq)  # a first cycle, so the memory holds a non-zero acceleration
+    terms = robot.terms(q, dq)
+    controller._cycle.advance(controller.memory.ddq, controller.ddq_max, controller._jerk_step)
+    controller._assemble(terms, controller._cycle)
+    p = controller.problem
+
+    H, g = np.zeros((7, 7)), np.zeros(7)
+    for task in controller.tasks:
+        rows = task.compute(terms)
+        H += rows.A.T @ (rows.weight[:, None] * rows.A)
+        g -= rows.A.T @ (rows.weight * rows.b)
+    np.testing.assert_allclose(p.H, H, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(p.g, g, rtol=1e-12, atol=1e-9)
+
+    cycle = ControlCycle.after(controller.memory.ddq, DT, robot.ddq_max, robot.dddq_max)
+    boxes = [c.compute(terms, cycle) for c in controller.box_constraints]
+    np.testing.assert_allclose(p.lb, np.max([b.lower for b in boxes], axis=0), atol=1e-12)
+    np.testing.assert_allclose(p.ub, np.min([b.upper for b in boxes], axis=0), atol=1e-12)
+    row_cycle = ControlCycle(DT, p.lb.copy(), p.ub.copy(), cycle.horizon)
+    for constraint, rows in zip(controller.row_constraints, controller._row_slices):
+        expected = constraint.compute(terms, row_cycle)
+        np.testing.assert_allclose(p.C[rows], expected.C, atol=1e-12, err_msg=constraint.name)
+        np.testing.assert_allclose(p.l[rows], expected.lower, rtol=1e-12, atol=1e-9, err_msg=constraint.name)
+        np.testing.assert_allclose(p.u[rows], expected.upper, rtol=1e-12, atol=1e-9, err_msg=constraint.name)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_the_confirming_solver_agrees_with_daqp(robot, seed):
+    """quadprog, the second opinion behind daqp, finds the same optimum on feasible QPs of the
+    controller, and both call a QP with an empty row interval infeasible."""
+    rng = np.random.default_rng(seed)
+    q, dq = random_feasible_state(robot, rng, ("crb",), 0.0)
+    controller = approach_controller(robot, q, solver="daqp")
+    controller.step(q, dq)
+    problem = controller.problem
+    rows = problem.C.shape[0]
+    status_daqp, x_daqp = DaqpSolver(rows).solve(problem)
+    status_quadprog, x_quadprog = QuadprogSolver(rows).solve(problem)
+    assert status_daqp == status_quadprog
+    if status_daqp == "solved":
+        np.testing.assert_allclose(x_quadprog, x_daqp, atol=1e-6)
+    infeasible = problem.copy()
+    infeasible.l[0], infeasible.u[0] = 1.0, -1.0  # l > u: no ddq can satisfy row 0
+    assert DaqpSolver(rows).solve(infeasible)[0] == "infeasible"
+    assert QuadprogSolver(rows).solve(infeasible)[0] == "infeasible"

@@ -109,3 +109,46 @@ def test_unknown_posture_and_bad_surface():
     with pytest.raises(ValueError, match="zero"):
         Surface(np.zeros(3), np.zeros(3))
     assert np.linalg.norm(Surface(np.zeros(3), np.array([0, 0, 2.0])).normal) == 1.0
+
+
+@settings(max_examples=30, deadline=None)
+@given(q_a=joint_positions(), q_b=joint_positions())
+def test_refilled_terms_equal_fresh_terms(robot, q_a, q_b):
+    """update_terms rewrites a ModelTerms buffer into exactly what terms() computes, with a new
+    stamp and the derived quantities (J+, cond M) of the new state, not the old one."""
+    rng = np.random.default_rng(0)
+    dq_a, dq_b = rng.uniform(-1, 1, 7), rng.uniform(-1, 1, 7)
+    try:
+        buffer = robot.terms(q_a, dq_a, check_limits=False)
+        fresh = robot.terms(q_b, dq_b, check_limits=False)
+    except SingularPostureError:
+        return
+    buffer.J_pinv, buffer.cond_M  # cache the derived quantities of state a
+    stamp = buffer.stamp
+    assert robot.update_terms(buffer, q_b, dq_b, check_limits=False) is buffer
+    assert buffer.stamp != stamp
+    for name in ("q", "dq", "M", "h", "J", "J6", "dJ6_dq", "JJt_inv", "contact_point", "contact_rotation",
+                 "com", "inertia_com"):
+        np.testing.assert_allclose(getattr(buffer, name), getattr(fresh, name), rtol=1e-12, atol=1e-12)
+    assert buffer.mass == fresh.mass
+    np.testing.assert_allclose(buffer.J_pinv, np.linalg.pinv(fresh.J), atol=1e-9)
+    assert buffer.cond_M == pytest.approx(np.linalg.cond(fresh.M))
+
+
+@settings(max_examples=50, deadline=None)
+@given(q=joint_positions())
+def test_closed_form_inverse_of_J_Jt(robot, q):
+    """(J J^T)^-1 by the adjugate times J J^T is the identity."""
+    try:
+        terms = robot.terms(q, check_limits=False)
+    except SingularPostureError:
+        return
+    np.testing.assert_allclose(terms.JJt_inv @ (terms.J @ terms.J.T), np.eye(3), atol=1e-8)
+
+
+def test_singularity_is_detected_by_refill_too(robot):
+    buffer = robot.terms(POSTURES["elbow_up"].q)
+    stamp = buffer.stamp
+    with pytest.raises(SingularPostureError):
+        robot.update_terms(buffer, SINGULAR_Q, np.zeros(7))
+    assert buffer.stamp == stamp  # a refused state leaves the buffer as it was

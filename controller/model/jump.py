@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import cho_solve
 
-from .robot import ModelTerms
+from .robot import ModelTerms, symmetric_inverse3
 from .validation import BadInputError, unit_normal
 
 METHODS = ("classical", "classical_normal", "gm", "crb")
@@ -154,6 +154,11 @@ class GeneralizedMomentumJump(JumpModel):
     def inverse_inertia(self, terms: ModelTerms) -> np.ndarray:
         return gm_inverse_inertia(terms)
 
+    def inverse_inertia_times(self, terms: ModelTerms, normal: np.ndarray) -> np.ndarray:
+        """W n, the only product of W that the normal-impulse model (12) needs along n:
+        J M^-1 (J^T n), one linear solve with M."""
+        return terms.J @ np.linalg.solve(terms.M, normal @ terms.J)
+
     def maps(self, terms, normal, restitution):
         W = self.inverse_inertia(terms)
         return JumpMaps(normal_impulse_map(W, normal, restitution), terms.J_pinv @ W, W)
@@ -167,6 +172,21 @@ class CompositeRigidBodyJump(GeneralizedMomentumJump):
 
     def inverse_inertia(self, terms: ModelTerms) -> np.ndarray:
         return crb_inverse_inertia(terms)
+
+    def inverse_inertia_times(self, terms: ModelTerms, normal: np.ndarray) -> np.ndarray:
+        """W_crb n = n / m - r x (I_c^-1 (r x n)), eq. (20) applied to n, in plain floats
+        (([r]x)^T = -[r]x, so -[r]x I_c^-1 [r]x n is the expression above)."""
+        rx, ry, rz = (terms.contact_point - terms.com).tolist()
+        nx, ny, nz = normal.tolist()
+        ax, ay, az = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx  # r x n
+        inverse, _ = symmetric_inverse3(terms.inertia_com)
+        bx = inverse[0][0] * ax + inverse[0][1] * ay + inverse[0][2] * az
+        by = inverse[1][0] * ax + inverse[1][1] * ay + inverse[1][2] * az
+        bz = inverse[2][0] * ax + inverse[2][1] * ay + inverse[2][2] * az
+        m = 1.0 / terms.mass
+        return np.array([
+            nx * m - (ry * bz - rz * by), ny * m - (rz * bx - rx * bz), nz * m - (rx * by - ry * bx)
+        ])
 
 
 JUMP_MODELS: dict[str, JumpModel] = {

@@ -15,9 +15,9 @@ override ``payload_mass``).
 
 from __future__ import annotations
 
+import itertools
 import math
-from dataclasses import dataclass
-from functools import cached_property
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -43,7 +43,15 @@ JERK_LIMIT = np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0]
 
 
 class InvalidStateError(BadInputError):
-    """A joint state that cannot be used: wrong shape, not finite, or outside the limits."""
+    """A joint state that cannot be used: wrong shape, not finite, or outside the limits.
+
+    ``constraint`` names what the state breaks: ``"finite_state"`` (shape or non-finite value)
+    or ``"joint_position_limit"``.
+    """
+
+    def __init__(self, message: str, constraint: str = "finite_state"):
+        super().__init__(message)
+        self.constraint = constraint
 
 
 class SingularPostureError(BadInputError):
@@ -58,7 +66,10 @@ def panda_urdf_path() -> Path:
     return (Path(example_robot_data.getModelPath(subpath)) / subpath).resolve()
 
 
-@dataclass(frozen=True)
+_FILLS = itertools.count(1)
+
+
+@dataclass(eq=False)
 class ModelTerms:
     """Every model quantity of one joint state, computed once (``PandaModel.terms``).
 
@@ -67,6 +78,11 @@ class ModelTerms:
     matrix, ``h`` the bias forces (Coriolis, centrifugal, gravity), ``com`` the centre of mass of
     the moving links, ``mass`` their total mass and ``inertia_com`` the rotational inertia of the
     locked robot about ``com`` (world axes), used by the composite-rigid-body model (20).
+    ``JJt_inv`` is (J J^T)^-1, so that the right inverse of (17) is J+ = J^T (J J^T)^-1.
+
+    A controller refills one ModelTerms per cycle (``PandaModel.update_terms``); ``stamp``
+    changes at every fill (and for a ``dataclasses.replace`` copy), so anything cached per
+    state keys on it. The derived quantities below are computed on first use, once per fill.
     """
 
     q: np.ndarray
@@ -76,23 +92,52 @@ class ModelTerms:
     J: np.ndarray
     J6: np.ndarray
     dJ6_dq: np.ndarray  # dJ6/dt dq: contact-frame acceleration at ddq = 0
-    J_pinv: np.ndarray  # J+ = J^T (J J^T)^-1, the right inverse of J used in (17)
+    JJt_inv: np.ndarray
     contact_point: np.ndarray
     contact_rotation: np.ndarray
     com: np.ndarray
     mass: float
     inertia_com: np.ndarray
+    stamp: int = field(init=False, repr=False)
+    _derived: dict = field(init=False, repr=False)
 
-    @cached_property
+    def __post_init__(self):
+        self.stamp = next(_FILLS)
+        self._derived = {}
+
+    @property
+    def J_pinv(self) -> np.ndarray:
+        """J+ = J^T (J J^T)^-1, the right inverse of J used in (17)."""
+        if "J_pinv" not in self._derived:
+            self._derived["J_pinv"] = self.J.T @ self.JJt_inv
+        return self._derived["J_pinv"]
+
+    @property
     def M_cholesky(self):
         """Cholesky factor of M (scipy ``cho_factor``): M is never inverted explicitly."""
-        from scipy.linalg import cho_factor
+        if "M_cholesky" not in self._derived:
+            from scipy.linalg import cho_factor
 
-        return cho_factor(self.M)
+            self._derived["M_cholesky"] = cho_factor(self.M)
+        return self._derived["M_cholesky"]
 
-    @cached_property
+    @property
     def cond_M(self) -> float:
-        return float(np.linalg.cond(self.M))
+        if "cond_M" not in self._derived:
+            self._derived["cond_M"] = float(np.linalg.cond(self.M))
+        return self._derived["cond_M"]
+
+
+def symmetric_inverse3(S: np.ndarray) -> tuple[list[list[float]], float]:
+    """The inverse of a symmetric 3x3 matrix by its adjugate, in plain floats (no LAPACK call,
+    which costs more than the arithmetic at this size), and its determinant."""
+    (a, b, c), (_, d, e), (_, _, f) = S.tolist()
+    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
+    det = a * A + b * B + c * C
+    inv = 1.0 / det
+    D, E, F = (a * f - c * c) * inv, (b * c - a * e) * inv, (a * d - b * b) * inv
+    A, B, C = A * inv, B * inv, C * inv
+    return [[A, B, C], [B, D, E], [C, E, F]], det
 
 
 class PandaModel:
@@ -171,7 +216,8 @@ class PandaModel:
                 i = int(np.flatnonzero(outside)[0])
                 raise InvalidStateError(
                     f"q{i + 1} = {q[i]:.4f} rad is outside the joint limits "
-                    f"[{self.q_min[i]:.4f}, {self.q_max[i]:.4f}]"
+                    f"[{self.q_min[i]:.4f}, {self.q_max[i]:.4f}]",
+                    constraint="joint_position_limit",
                 )
         return q, dq
 
@@ -184,36 +230,49 @@ class PandaModel:
         the joint limits, and :class:`InvalidStateError` for a bad or out-of-limit state.
         """
         q, dq = self.check_state(q, dq, check_limits=False)
+        return self._fill(None, q, dq, check_limits)
+
+    def update_terms(self, terms: ModelTerms, q, dq, *, check_limits: bool = True) -> ModelTerms:
+        """``terms(q, dq)`` written into an existing ModelTerms (a controller's per-cycle
+        buffer: no new object), with a new ``stamp``. Raises like ``terms``."""
+        q, dq = self.check_state(q, dq, check_limits=False)
+        return self._fill(terms, q, dq, check_limits)
+
+    def _fill(self, terms: ModelTerms | None, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
         model, data, fid = self.model, self.data, self.contact_frame_id
         pin.computeAllTerms(model, data, q, dq)
         pin.updateFramePlacement(model, data, fid)
         J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-        dJ6 = pin.getFrameJacobianTimeVariation(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
         J = J6[:3]
-        eigenvalues, eigenvectors = np.linalg.eigh(J @ J.T)
-        if eigenvalues[0] < (SINGULAR_RATIO**2) * eigenvalues[2]:
-            raise SingularPostureError(
-                "singular contact Jacobian at this posture (singular values ratio "
-                f"{np.sqrt(max(eigenvalues[0], 0.0) / eigenvalues[2]):.1e})"
-            )
+        JJt = J @ J.T
+        JJt_inv, det = symmetric_inverse3(JJt)
+        # With eigenvalues l1 <= l2 <= l3 of J J^T (the squared singular values of J),
+        # l1 / l3 >= det / trace^3, so the eigenvalues are only computed near a singularity.
+        trace = float(JJt[0, 0] + JJt[1, 1] + JJt[2, 2])
+        if not det >= (SINGULAR_RATIO**2) * trace**3:
+            eigenvalues = np.linalg.eigvalsh(JJt)
+            if not eigenvalues[0] >= (SINGULAR_RATIO**2) * eigenvalues[2]:
+                raise SingularPostureError(
+                    "singular contact Jacobian at this posture (singular values ratio "
+                    f"{np.sqrt(max(eigenvalues[0], 0.0) / eigenvalues[2]):.1e})"
+                )
         if check_limits and ((q < self.q_min) | (q > self.q_max)).any():
             self.check_state(q, dq, check_limits=True)
+        dJ6_dq = pin.getFrameJacobianTimeVariation(model, data, fid, pin.LOCAL_WORLD_ALIGNED) @ dq
         placement = data.oMf[fid]
-        return ModelTerms(
-            q=q,
-            dq=dq,
-            M=data.M.copy(),  # computeAllTerms fills both triangles of M
-            h=data.nle.copy(),
-            J=J,
-            J6=J6,
-            dJ6_dq=dJ6 @ dq,
-            J_pinv=J.T @ ((eigenvectors / eigenvalues) @ eigenvectors.T),
-            contact_point=placement.translation.copy(),
-            contact_rotation=placement.rotation.copy(),
-            com=data.com[0].copy(),
-            mass=float(data.Ig.mass),
-            inertia_com=data.Ig.inertia.copy(),
-        )
+        centroidal = data.Ig
+        fields = (
+            q, dq, data.M.copy(), data.nle.copy(), J, J6, dJ6_dq, np.array(JJt_inv),
+            placement.translation.copy(), placement.rotation.copy(), data.com[0].copy(),
+            float(centroidal.mass), centroidal.inertia.copy(),
+        )  # computeAllTerms fills both triangles of M
+        if terms is None:
+            return ModelTerms(*fields)
+        (terms.q, terms.dq, terms.M, terms.h, terms.J, terms.J6, terms.dJ6_dq, terms.JJt_inv,
+         terms.contact_point, terms.contact_rotation, terms.com, terms.mass, terms.inertia_com) = fields
+        terms.stamp = next(_FILLS)
+        terms._derived.clear()
+        return terms
 
     def contact_point(self, q) -> np.ndarray:
         """World position of the contact point (forward kinematics only)."""

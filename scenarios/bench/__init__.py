@@ -13,7 +13,7 @@ from importlib import import_module
 FAMILIES: list[tuple[str, str, str]] = [
     # (row-name prefix, module, function returning the rows)
     ("predict.", "prediction", "rows"),
-    ("controller.", "controller", "controller_rows"),
+    ("controller.", "controller", "controller_rows"),  # with its peer.* rows
     ("sim.closed_loop", "simulation", "closed_loop_benchmark_rows"),
     ("maxspeed.", "simulation", "max_speed_benchmark_rows"),
     ("diagnose.", "diagnosis", "rows"),
@@ -35,5 +35,16 @@ def run_benchmarks(only: str = "", progress: bool = True) -> list[dict]:
             continue
         if progress:
             print(f"running {prefix}* ...", flush=True)
-        rows.extend(r for r in _family(module, function)() if r["name"].startswith(only))
+        rows.extend(r for r in _family(module, function)() if _selected(r["name"], only, prefix))
     return rows
+
+
+# Reference rows timed inside a family, so that the family's goals are ratios within one run:
+# they are kept with the family's own rows (``--only controller`` keeps the peers).
+COMPANION_PREFIXES = ("peer.", "floor.")
+
+
+def _selected(name: str, only: str, family_prefix: str) -> bool:
+    if name.startswith(only):
+        return True
+    return family_prefix.startswith(only) and name.startswith(COMPANION_PREFIXES)

@@ -117,12 +117,13 @@ def bench(as_json, only):
     if as_json:
         emit_json({"rows": rows})
         return
-    click.echo(f"{'name':<38}{'unit':<16}{'median':>14}{'p99':>14}")
+    width = max([len(row["name"]) for row in rows] + [38]) + 2
+    click.echo(f"{'name':<{width}}{'unit':<16}{'median':>14}{'p99':>14}")
     for row in rows:
         if row["median"] is None:  # a row that could not be measured says why
-            click.echo(f"{row['name']:<38}{row['unit']:<16}{'n/a':>14}{'n/a':>14}  {row.get('note', '')}")
+            click.echo(f"{row['name']:<{width}}{row['unit']:<16}{'n/a':>14}{'n/a':>14}  {row.get('note', '')}")
             continue
-        click.echo(f"{row['name']:<38}{row['unit']:<16}{row['median']:>14.4g}{row['p99']:>14.4g}")
+        click.echo(f"{row['name']:<{width}}{row['unit']:<16}{row['median']:>14.4g}{row['p99']:>14.4g}")
 
 
 @cli.command()

@@ -71,7 +71,7 @@ class ImpactSession:
             q, dq = state.q, state.dq
         else:
             q, dq = self.last.q_cmd, self.last.dq_cmd
-        self.last = replace(self.controller.step(q, dq), phase=self.phase)
+        self.last = self.controller.step(q, dq)
         self._previous_state = state
         return self.last
 
@@ -80,7 +80,7 @@ class ImpactSession:
         self.post_impact.reset(memory.q_cmd, memory.dq_cmd)
         self.post_impact.memory = replace(memory)
         self.controller = self.post_impact
-        self.phase = self.config.post_impact.mode
+        self.phase = self.post_impact.phase = self.config.post_impact.mode
         self.detection_state = state
         self.pre_impact_state = self._previous_state
 
