@@ -86,7 +86,7 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
         from .franka_backend import FrankaRobot
 
         config = controller_config(request)
-        return FrankaRobot(request.robot_ip), config, request.duration
+        return FrankaRobot.connect(request.robot_ip), config, request.duration
     if request.backend == "replay":
         from .replay_backend import ReplayRobot, load_trial
 
