@@ -129,6 +129,7 @@ class LoopResult:
     phases: list[str]
     log: TrialLog
     session: ImpactSession
+    interrupted: bool = False  # a stop request (Ctrl-C, SIGTERM) ended the run
 
     @property
     def phase(self) -> str:
@@ -253,4 +254,5 @@ class ControlLoop:
             phases=list(log.phase),
             log=log.trial_log(self.robot.force_log()),
             session=self.session,
+            interrupted=self.stop_requested,
         )
