@@ -44,6 +44,17 @@ def test_adversarial_requests_never_exceed_the_limits(sequence, hold):
     assert_within_limits(np.array(commands), np.zeros(NQ))
 
 
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.floats(-1.0, 1.0), min_size=NQ, max_size=NQ), requests)
+def test_from_any_velocity_inside_the_limits_adversarial_requests_never_exceed_them(fraction, sequence):
+    # the loop starts the filter at the measured velocity, with zero acceleration
+    start = np.array(fraction) * VELOCITY_LIMIT
+    command_filter = make_filter()
+    command_filter.reset(start)
+    commands = np.array([command_filter(np.array(request)) for request in sequence])
+    assert_within_limits(commands, start)
+
+
 @settings(max_examples=50, deadline=None)
 @given(st.lists(st.floats(-1.0, 1.0), min_size=NQ, max_size=NQ))
 def test_a_feasible_constant_request_is_reached_exactly_without_overshoot(fraction):

@@ -1,13 +1,26 @@
-"""The franka adapter maps pylibfranka's RobotState and JointVelocities faithfully."""
+"""The franka adapter maps pylibfranka's RobotState and JointVelocities faithfully and follows
+libfranka's protocol: the controller is prepared before real-time control starts, and every
+writeOnce follows one readOnce."""
 
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from impactqp.controller.model.robot import NQ
+from impactqp.controller.command_filter import CommandFilter
+from impactqp.controller.config import ControllerConfig
+from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT, PandaModel
 from impactqp.controller.model.validation import BadInputError
-from impactqp.scenarios.robot.franka_backend import CollisionThresholds, FrankaRobot, franka_command, state_from_franka
+from impactqp.scenarios.robot.franka_backend import (
+    CollisionThresholds,
+    FrankaRobot,
+    franka_command,
+    franka_errors,
+    state_from_franka,
+)
+from impactqp.scenarios.robot.loop import ControlLoop
+from impactqp.scenarios.robot.session import ImpactSession
 
 pylibfranka = pytest.importorskip("pylibfranka", reason="pylibfranka is not installed: pip install -e '.[franka]'")
 
@@ -55,4 +68,106 @@ def test_collision_thresholds_have_the_sizes_set_collision_behavior_takes():
 
 def test_no_robot_at_the_address_is_bad_input():
     with pytest.raises(BadInputError, match="no robot answers at 127.0.0.1"):
-        FrankaRobot("127.0.0.1")
+        FrankaRobot.connect("127.0.0.1")
+
+
+def test_every_exception_of_the_bindings_is_caught():
+    # they share no base class: ControlException (a reflex mid-run) is not a FrankaException
+    assert not issubclass(pylibfranka.ControlException, pylibfranka.FrankaException)
+    exported = {v for n, v in vars(pylibfranka).items() if isinstance(v, type) and issubclass(v, BaseException)}
+    assert exported and set(franka_errors(pylibfranka)) == exported
+
+
+class ProtocolError(AssertionError):
+    pass
+
+
+class FciRobot:
+    """Stands in for ``pylibfranka.Robot`` (no robot here) with libfranka's rules: no motion
+    before ``start_joint_velocity_control``, ``read_once`` only without one, every ``writeOnce``
+    after exactly one ``readOnce``, a ``JointVelocities`` command, the motion over once
+    ``motion_finished``. The arm tracks the commanded velocity exactly; time advances 1 ms per
+    ``readOnce``. Its method names are checked against the real classes below."""
+
+    def __init__(self, q0, events):
+        self.q, self.dq, self.t, self.events = np.array(q0, float), np.zeros(NQ), 0.0, events
+        self.running = self.finished = self.read_pending = False
+        self.commands = []
+
+    def _state(self):
+        t = self.t
+        zeros = [0.0] * NQ
+        return SimpleNamespace(
+            time=SimpleNamespace(to_sec=lambda: t), q=list(self.q), dq=list(self.dq),
+            tau_J=zeros, tau_ext_hat_filtered=zeros, O_F_ext_hat_K=[0.0] * 6,
+        )
+
+    def read_once(self):
+        if self.running:
+            raise ProtocolError("Robot.read_once during a motion")
+        self.events.append("read_once")
+        return self._state()
+
+    def start_joint_velocity_control(self, mode):
+        if self.running or self.finished:
+            raise ProtocolError("a second motion")
+        assert mode == pylibfranka.ControllerMode.JointImpedance
+        self.events.append("start")
+        self.running = True
+        return self
+
+    def readOnce(self):
+        if not self.running or self.read_pending:
+            raise ProtocolError("readOnce without a motion, or twice without a writeOnce")
+        self.read_pending = True
+        self.t += 1e-3
+        return self._state(), SimpleNamespace(to_sec=lambda: 1e-3)
+
+    def writeOnce(self, command):
+        if not (self.running and self.read_pending) or not isinstance(command, pylibfranka.JointVelocities):
+            raise ProtocolError("writeOnce without its readOnce, or not a JointVelocities")
+        self.read_pending = False
+        self.commands.append(np.array(command.dq))
+        self.dq = np.array(command.dq)
+        self.q = self.q + 1e-3 * self.dq
+        if command.motion_finished:
+            self.events.append("finished")
+            self.running, self.finished = False, True
+
+
+def test_fci_stand_in_uses_only_names_of_the_real_classes():
+    for name in ("read_once", "start_joint_velocity_control", "set_collision_behavior"):
+        assert hasattr(pylibfranka.Robot, name)
+    for name in ("readOnce", "writeOnce"):
+        assert hasattr(pylibfranka.ActiveControlBase, name)
+
+
+class RecordingSession(ImpactSession):
+    def __init__(self, config, model, events):
+        super().__init__(config, model)
+        self.events = events
+
+    def start(self, state):
+        self.events.append("prepare controller")
+        super().start(state)
+
+
+def test_the_controller_is_prepared_before_real_time_and_the_protocol_holds():
+    model, events = PandaModel(), []
+    fci = FciRobot(POSTURES["elbow_up"].q, events)
+    config = ControllerConfig.approach(POSTURES["elbow_up"].surface, 0.15, posture_weight=0.0)
+    loop = ControlLoop(
+        FrankaRobot(fci, pylibfranka), RecordingSession(config, model, events),
+        CommandFilter.for_robot(model, config.dt), deadline=float("inf"),
+    )
+    result = loop.run(0.1)
+    assert events == ["read_once", "prepare controller", "start", "finished"]
+    assert result.watchdog_trips == 0 and np.all(np.diff(result.log.t) > 0.0)
+    commands = np.array(fci.commands)  # every command sent, the last one finishing the motion
+    assert np.max(np.abs(commands[len(commands) // 2])) > 0.01 and np.all(commands[-1] == 0.0)
+    dq = np.vstack([np.zeros((2, NQ)), commands])
+    ddq = np.diff(dq, axis=0) / 1e-3
+    jerk = np.diff(ddq, axis=0) / 1e-3
+    assert np.all(np.abs(dq) <= VELOCITY_LIMIT * (1 + 1e-9))
+    assert np.all(np.abs(ddq) <= ACCELERATION_LIMIT * (1 + 1e-9))
+    assert np.all(np.abs(jerk) <= JERK_LIMIT * (1 + 1e-9))

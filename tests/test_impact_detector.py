@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from impactqp.controller.measured.impact import DEFAULT_TORQUE_THRESHOLD, NOISE_SIGMAS
+from impactqp.controller.measured.impact import DEFAULT_TORQUE_THRESHOLD
 from impactqp.controller.measured.impact_detector import ImpactDetector, MomentumObserver
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import NQ, PandaModel
@@ -68,22 +68,73 @@ def test_observer_residual_follows_an_external_torque_step_as_a_first_order_filt
     assert np.allclose(residual[-1], step, atol=0.05)
 
 
+CALIBRATION = 100
+SETTLE = 25
+
+
+def feed(detector, residual):
+    return [detector.update(DT * k, r) for k, r in enumerate(residual)]
+
+
 @settings(max_examples=60, deadline=None)
-@given(st.floats(0.001, 0.04), st.integers(0, 299), st.floats(2.0, 20.0))
-def test_detector_fires_once_at_the_first_sample_above_the_threshold(noise, onset, jump):
+@given(
+    st.floats(0.001, 0.05),
+    st.lists(st.floats(-20.0, 20.0), min_size=NQ, max_size=NQ),
+    st.integers(0, 199),
+    st.integers(0, NQ - 1),
+    st.sampled_from([-1.0, 1.0]),
+)
+def test_detector_fires_once_at_a_step_whatever_the_offset(amplitude, offset, onset, joint, sign):
+    # bounded noise |u| <= a: after calibration sigma ~ 1.4826 a / 2, so the threshold
+    # max(floor, 6 sigma) is above every noise sample and below a step of 20 a + 2 floor
     rng = np.random.default_rng(0)
-    detector = ImpactDetector(calibration_samples=100)
-    residual = rng.normal(0.0, noise, size=(400, NQ))
-    residual[100 + onset :, 2] += jump * max(DEFAULT_TORQUE_THRESHOLD, NOISE_SIGMAS * noise * 1.5)
-    fired = [detector.update(0.001 * k, r) for k, r in enumerate(residual)]
-    assert sum(fired) == 1
-    first = fired.index(True)
-    assert first <= 100 + onset
-    # the threshold after calibration is the offline rule's: max(floor, 6 sigma)
+    residual = rng.uniform(-amplitude, amplitude, size=(SETTLE + CALIBRATION + 200, NQ)) + np.array(offset)
+    start = SETTLE + CALIBRATION + onset
+    residual[start:, joint] += sign * (20.0 * amplitude + 2.0 * DEFAULT_TORQUE_THRESHOLD)
+    detector = ImpactDetector(calibration_samples=CALIBRATION, settle_samples=SETTLE)
+    fired = feed(detector, residual)
+    assert sum(fired) == 1 and fired.index(True) == start
+    assert detector.joint == joint and detector.t_detect == pytest.approx(DT * start)
     assert np.all(detector.threshold >= DEFAULT_TORQUE_THRESHOLD)
-    if first >= 100:
-        assert np.all(np.abs(residual[100:first]) <= detector.threshold)
-        assert np.any(np.abs(residual[first]) > detector.threshold)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(0.001, 0.2), st.lists(st.floats(-50.0, 50.0), min_size=NQ, max_size=NQ), st.integers(0, 2**32 - 1))
+def test_detection_does_not_depend_on_a_constant_offset(noise, offset, seed):
+    """A constant offset of the residual (an unmodelled load) changes neither the detection
+    sample nor the threshold: the rule reads r - median(r) over the calibration window."""
+    rng = np.random.default_rng(seed)
+    residual = rng.normal(0.0, noise, size=(SETTLE + CALIBRATION + 300, NQ))
+    residual[SETTLE + CALIBRATION + 150 :, 3] += 1.0
+    plain, shifted = ImpactDetector(settle_samples=SETTLE), ImpactDetector(settle_samples=SETTLE)
+    assert feed(plain, residual) == feed(shifted, residual + np.array(offset))
+    assert np.allclose(plain.threshold, shifted.threshold, rtol=1e-9, atol=1e-9)
+
+
+def test_nothing_is_detected_while_settling_and_calibrating():
+    detector = ImpactDetector(calibration_samples=CALIBRATION, settle_samples=SETTLE)
+    huge = np.full((SETTLE + CALIBRATION, NQ), 1e3)
+    assert not any(feed(detector, huge)) and detector.calibrated
+
+
+def test_an_unmodelled_load_is_not_an_impact_and_a_later_contact_is(robot):
+    """The observer converges to a constant external torque (a load the model lacks) within
+    its settle time; the detector takes it as the bias and fires at a later torque step within
+    the first-order filter's rise time to the threshold."""
+    load = np.array([0.0, 4.0, 0.5, -3.0, 0.8, 0.6, 0.1])
+    step = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 3.0, 0.0])
+    onset = 300
+    residual = run_observer(robot, lambda k: load + (step if k >= onset else 0.0), onset + 60)
+    observer = MomentumObserver(robot, DT)
+    detector = ImpactDetector(settle_samples=observer.settle_samples)
+    fired = feed(detector, residual)
+    assert sum(fired) == 1
+    detected = fired.index(True)
+    # r_j - b_j after the step is |step_j| (1 - (1 - K dt)^n) (n periods of the filter)
+    gain = 200.0
+    threshold = detector.threshold[5]
+    rise = int(np.ceil(np.log(1.0 - threshold / step[5]) / np.log(1.0 - gain * DT)))
+    assert onset <= detected <= onset + rise + 1 and detector.joint == 5
 
 
 def test_detector_ignores_a_non_finite_residual():

@@ -2,11 +2,16 @@
 
 import importlib.util
 import json
+import signal
 import sys
 
+import numpy as np
 import pytest
 
+from impactqp.controller.measured.dataset import read_dataset
 from impactqp.scenarios.cli import main
+from impactqp.scenarios.robot import run as run_module
+from impactqp.scenarios.robot.interface import RobotInterface
 
 HAS_PYLIBFRANKA = importlib.util.find_spec("pylibfranka") is not None
 
@@ -54,3 +59,71 @@ def test_bad_input_gets_one_line(tmp_path, capsys):
     assert "needs --robot-ip" in one_error_line(capsys, ["run", "--backend", "franka"])
     assert "dataset.json" in one_error_line(capsys, ["run", "--backend", "replay", "--dataset", str(tmp_path)])
     assert "--speed" in one_error_line(capsys, ["run", "--speed", "-1"])
+
+
+class SignalAt(RobotInterface):
+    """A backend that delivers ``sig`` to this process when its state ``at`` is read (the user
+    pressing Ctrl-C, or a supervisor sending SIGTERM, mid-run)."""
+
+    def __init__(self, robot, sig, at):
+        self.robot, self.sig, self.at, self.reads = robot, sig, at, 0
+        self.period = robot.period
+
+    def read(self):
+        self.reads += 1
+        if self.reads == self.at:
+            signal.raise_signal(self.sig)
+        return self.robot.read()
+
+    def start(self):
+        return self.robot.start()
+
+    def write(self, dq_cmd):
+        self.robot.write(dq_cmd)
+
+    def force_log(self):
+        return self.robot.force_log()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_stop_signal_brakes_keeps_the_log_and_exits_130(sig, tmp_path, capsys, monkeypatch):
+    build = run_module.build_backend
+
+    def build_with_signal(request, model):
+        robot, config, duration = build(request, model)
+        return SignalAt(robot, sig, at=150), config, duration
+
+    monkeypatch.setattr(run_module, "build_backend", build_with_signal)
+    code = main(["run", "--unpaced", "--duration", "5", "--log", str(tmp_path), "--json"])
+    out, err = capsys.readouterr()
+    assert code == 130 and "interrupted" in err and len(err.strip().splitlines()) == 1
+    report = json.loads(out)
+    assert report["phase"] == "stop" and 150 < report["cycles"] < 5000
+    trial = read_dataset(tmp_path).trials[0]
+    assert len(trial.log) == report["cycles"]
+    assert np.max(np.abs(trial.log.dq_cmd[149])) > 0.01 and np.all(trial.log.dq_cmd[-1] == 0.0)
+
+
+def test_an_unusable_log_directory_is_refused_before_the_robot_moves(tmp_path, capsys, monkeypatch):
+    moved = []
+    build = run_module.build_backend
+
+    def build_and_watch(request, model):
+        robot, config, duration = build(request, model)
+        robot.write = lambda dq_cmd, write=robot.write: (moved.append(1), write(dq_cmd))
+        return robot, config, duration
+
+    monkeypatch.setattr(run_module, "build_backend", build_and_watch)
+    blocker = tmp_path / "a file"
+    blocker.write_text("x")
+    assert "--log" in one_error_line(capsys, ["run", "--unpaced", "--duration", "0.2", "--log", str(blocker / "d")])
+    assert moved == []
+    other = tmp_path / "other"
+    assert main(["run", "--unpaced", "--duration", "0.05", "--log", str(other)]) == 0
+    header = json.loads((other / "dataset.json").read_text())
+    header["control_period"] = 0.002
+    (other / "dataset.json").write_text(json.dumps(header))
+    moved.clear()
+    capsys.readouterr()
+    assert "another header" in one_error_line(capsys, ["run", "--unpaced", "--duration", "0.05", "--log", str(other)])
+    assert moved == []

@@ -24,10 +24,9 @@ from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
-from impactqp.scenarios.cli.arguments import EXIT_BAD_INPUT, emit_json, output_directory, parse_vector
+from impactqp.scenarios.cli.arguments import EXIT_BAD_INPUT, EXIT_INTERRUPTED, emit_json, output_directory, parse_vector
 
 EXIT_INTERNAL_ERROR = 1
-EXIT_INTERRUPTED = 130
 
 
 @click.group()

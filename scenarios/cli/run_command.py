@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from impactqp.scenarios.cli.arguments import emit_json
+from impactqp.scenarios.cli.arguments import EXIT_INTERRUPTED, emit_json
 
 
 @click.command("run")
@@ -22,17 +22,25 @@ from impactqp.scenarios.cli.arguments import emit_json
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 def run_command(backend, robot_ip, config_file, plant_file, posture, speed, duration, log_dir, dataset, trial, unpaced, as_json):
     """Run the impact-aware controller in a 1 kHz loop on a robot: approach, detect the impact,
-    post-impact phase, brake to a stop. Ctrl-C brakes to a stop and keeps the log."""
+    post-impact phase, brake to a stop. Ctrl-C (or SIGTERM) brakes to a stop, keeps the log and
+    exits with code 130."""
     from impactqp.scenarios.robot.run import RunRequest, run
 
     request = RunRequest(
         backend=backend, robot_ip=robot_ip, config_file=config_file, plant_file=plant_file, posture=posture,
         speed=speed, duration=duration, log_dir=log_dir, dataset=dataset, trial=trial, paced=not unpaced,
     )
-    report, _ = run(request)
+    report, result = run(request)
     if as_json:
         emit_json(report)
-        return
+    else:
+        print_report(report)
+    if result.interrupted:
+        click.echo(f"impactqp: interrupted: braked to a stop; log: {report['log']}", err=True)
+        click.get_current_context().exit(EXIT_INTERRUPTED)
+
+
+def print_report(report: dict) -> None:
     impact = report["impact"]
     cycle = report["cycle_us"]
     click.echo(

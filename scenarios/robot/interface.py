@@ -28,7 +28,8 @@ class RobotState:
 class RobotInterface:
     """A robot driven at a fixed period by joint-velocity commands.
 
-    ``read`` returns the next state (a paced backend blocks until the next period), ``write``
+    ``read`` returns the next state (a paced backend blocks until the next period), ``start``
+    begins real time once the loop has prepared its controller from the first state, ``write``
     sends the command of that cycle, ``stop`` ends the motion (after the loop brought the
     command to zero). ``finished`` is True when the backend has no more states (a replay).
     """
@@ -38,6 +39,11 @@ class RobotInterface:
 
     def read(self) -> RobotState:
         raise NotImplementedError
+
+    def start(self) -> RobotState | None:
+        """Begin real time: from now on a command is due every period. A backend whose state
+        moved on while it started returns its newest state (the first cycle's), else None."""
+        return None
 
     def write(self, dq_cmd: np.ndarray) -> None:
         raise NotImplementedError

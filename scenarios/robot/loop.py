@@ -1,5 +1,9 @@
 """The loop runner: one fixed-period cycle, a deadline check, the command filter and a watchdog.
 
+Start: the first state is read, the session prepares its controllers from it (their solvers'
+set-up), and only then ``robot.start()`` begins real time (a robot expects a command every
+period from there on; a backend whose state moved on meanwhile returns its newest state).
+
 One cycle::
 
     state = robot.read()                       (a paced backend blocks until the period starts)
@@ -11,12 +15,12 @@ One cycle::
 
 The watchdog latches: after a trip every command is the filter's braking command, which ramps the
 commanded velocity to zero within the velocity, acceleration and jerk limits
-(``controller.command_filter``), so the commands stay continuous. At the end of the run (the
-duration, a stop request such as Ctrl-C, or a replay's last state) the loop brakes the same way
-until the command is zero, then calls ``robot.stop()``. A backend that fails mid-run (a robot
-that stopped on its own reflex) ends the run: the watchdog reason says why and the log is kept.
-Every cycle is logged (t, q, dq, tau and
-the command actually sent) for the dataset format.
+(``controller.command_filter``), so the commands stay continuous; the run ends when the command
+is zero. At the end of the run (the duration, a stop request such as Ctrl-C, or a replay's last
+state) the loop brakes the same way until the command is zero, then calls ``robot.stop()``. A
+backend that fails mid-run (a robot that stopped on its own reflex) ends the run: the watchdog
+reason says why and the log is kept. Every cycle is logged (t, q, dq, tau and the command
+actually sent) for the dataset format.
 """
 
 from __future__ import annotations
@@ -43,7 +47,7 @@ MAX_STOP_CYCLES = 2000
 
 
 class Watchdog:
-    """Trips on a NaN state, a stale state, a controller exception or ``max_overruns``
+    """Trips on a non-finite state (t, q, dq, tau or tau_ext), a stale state, a controller exception or ``max_overruns``
     consecutive overruns; latched until the end of the run. ``reason`` says why."""
 
     def __init__(self, max_overruns: int = DEFAULT_MAX_OVERRUNS):
@@ -63,7 +67,8 @@ class Watchdog:
             self.trips += 1
 
     def check_state(self, state: RobotState) -> None:
-        finite = all(np.all(np.isfinite(x)) for x in (state.q, state.dq, state.tau)) and math.isfinite(state.t)
+        parts = [state.q, state.dq, state.tau] + ([] if state.tau_ext is None else [state.tau_ext])
+        finite = all(np.all(np.isfinite(x)) for x in parts) and math.isfinite(state.t)
         if not finite:
             self.trip(f"non-finite state at t = {state.t}")
         elif state.t <= self._last_t:
@@ -124,6 +129,7 @@ class LoopResult:
     phases: list[str]
     log: TrialLog
     session: ImpactSession
+    interrupted: bool = False  # a stop request (Ctrl-C, SIGTERM) ended the run
 
     @property
     def phase(self) -> str:
@@ -175,6 +181,10 @@ class ControlLoop:
         if not watchdog.tripped:
             session.start(state)
             self.filter.reset(state.dq)
+        newest = robot.start()
+        if newest is not None:
+            state = newest
+            watchdog.check_state(state)
         k = 0
         stop_cycles = 0
         while True:
@@ -205,7 +215,9 @@ class ControlLoop:
                 watchdog.record_cycle(overrun)
             self.log.record(state, dq_cmd, phase, elapsed, started)
             k += 1
-            if stopping and (np.max(np.abs(dq_cmd)) <= STOPPED_SPEED or stop_cycles >= MAX_STOP_CYCLES):
+            if stopping and stop_cycles >= MAX_STOP_CYCLES:
+                break
+            if (stopping or watchdog.tripped) and np.max(np.abs(dq_cmd)) <= STOPPED_SPEED:
                 break
             if robot.finished:
                 break
@@ -217,7 +229,10 @@ class ControlLoop:
             if not stopping:
                 watchdog.check_state(state)
         if not self.robot_failed:
-            robot.stop()
+            try:
+                robot.stop()
+            except Exception as error:
+                self._robot_error(error)
         return self._result()
 
     def _robot_error(self, error: Exception) -> None:
@@ -239,4 +254,5 @@ class ControlLoop:
             phases=list(log.phase),
             log=log.trial_log(self.robot.force_log()),
             session=self.session,
+            interrupted=self.stop_requested,
         )

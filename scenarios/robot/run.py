@@ -18,7 +18,7 @@ import numpy as np
 
 from impactqp.controller.command_filter import CommandFilter
 from impactqp.controller.config import ControllerConfig
-from impactqp.controller.measured.dataset import DatasetError, DatasetHeader, DatasetWriter, Tool, TrialEntry
+from impactqp.controller.measured.dataset import DatasetHeader, Tool
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET, PandaModel
@@ -26,6 +26,7 @@ from impactqp.controller.model.validation import BadInputError
 
 from .interface import RobotInterface
 from .loop import ControlLoop, LoopResult
+from .run_log import RunLog
 from .session import ImpactSession
 
 BACKENDS = ("sim", "franka", "replay")
@@ -86,7 +87,7 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
         from .franka_backend import FrankaRobot
 
         config = controller_config(request)
-        return FrankaRobot(request.robot_ip), config, request.duration
+        return FrankaRobot.connect(request.robot_ip), config, request.duration
     if request.backend == "replay":
         from .replay_backend import ReplayRobot, load_trial
 
@@ -114,11 +115,16 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
     return robot, config, request.duration
 
 
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
 def run(request: RunRequest) -> tuple[dict, LoopResult]:
-    """Run the request (Ctrl-C brakes to a stop and keeps the log); (report, result)."""
+    """Run the request; (report, result). Ctrl-C or SIGTERM brakes to a stop and keeps the log
+    (``result.interrupted``). The log directory is checked before the robot moves."""
     check_request(request)
     model = PandaModel()
     robot, config, duration = build_backend(request, model)
+    run_log = RunLog(request.log_dir, log_header(config)) if request.log_dir else None
     session = ImpactSession(config, model)
     deadline = request.deadline
     if deadline is None and (request.backend == "replay" or not request.paced):
@@ -127,14 +133,15 @@ def run(request: RunRequest) -> tuple[dict, LoopResult]:
         robot, session, CommandFilter.for_robot(model, config.dt), deadline=deadline, max_overruns=request.max_overruns
     )
     if threading.current_thread() is threading.main_thread():
-        previous = signal.signal(signal.SIGINT, lambda *_: loop.request_stop())
+        previous = {sig: signal.signal(sig, lambda *_: loop.request_stop()) for sig in STOP_SIGNALS}
         try:
             result = loop.run(duration)
         finally:
-            signal.signal(signal.SIGINT, previous)
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
     else:  # signal handlers can only be set in the main thread
         result = loop.run(duration)
-    log_path = write_log(request, config, result) if request.log_dir else None
+    log_path = write_log(run_log, request, config, result) if run_log is not None else None
     return report(result, config, log_path), result
 
 
@@ -172,31 +179,23 @@ def report(result: LoopResult, config: ControllerConfig, log_path: str | None) -
     }
 
 
-def write_log(request: RunRequest, config: ControllerConfig, result: LoopResult) -> str:
-    """Add the run as one trial to the dataset in ``request.log_dir``; the trial file's path."""
-    header = DatasetHeader(
+def log_header(config: ControllerConfig) -> DatasetHeader:
+    return DatasetHeader(
         tool=Tool(HAND_FRAME, (0.0, 0.0, TOOL_TIP_OFFSET)),
         surface=config.surface.surface(),
         control_period=config.dt,
     )
+
+
+def write_log(run_log: RunLog, request: RunRequest, config: ControllerConfig, result: LoopResult) -> str:
+    """Add the run as one trial to its dataset; the trial file's path."""
     speed = next(
         (float(t.params.get("speed", 0.0)) for t in config.tasks if t.type == "contact_approach"), request.speed
     )
-    try:
-        writer = DatasetWriter(request.log_dir, header)
-        trial_id = f"run{len(writer.entries):04d}"
-        log = result.log
-        detector = result.session.detector
-        entry = TrialEntry(
-            id=trial_id,
-            file=f"{trial_id}.csv",
-            reference_normal_speed=speed,
-            force_file=f"{trial_id}_force.csv" if log.has_force else None,
-            posture=request.posture if request.backend == "sim" else None,
-            impact_time=contact_start(result) if log.has_force else detector.t_detect,
-        )
-        writer.add_trial(entry, log)
-    except (DatasetError, OSError) as error:
-        raise BadInputError(f"--log {request.log_dir}: {error}") from None
-    return str(Path(request.log_dir) / entry.file)
-
+    log = result.log
+    return run_log.add(
+        log,
+        speed,
+        posture=request.posture if request.backend == "sim" else None,
+        impact_time=contact_start(result) if log.has_force else result.session.detector.t_detect,
+    )

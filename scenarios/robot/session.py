@@ -39,13 +39,14 @@ class ImpactSession:
         self.approach = build_controller(config, robot)
         self.post_impact = build_controller(post_impact_config(config), robot)
         self.observer = MomentumObserver(robot, config.dt)
-        self.detector = ImpactDetector()
+        self.detector = ImpactDetector(settle_samples=self.observer.settle_samples)
         self.controller = self.approach
         self.phase = APPROACH
         self.last: Command | None = None
         self.detection_state: RobotState | None = None
         self.pre_impact_state: RobotState | None = None
         self._previous_state: RobotState | None = None
+        self._start_t: float | None = None
 
     def start(self, state: RobotState) -> None:
         """Reset at the first state; one discarded step of each controller first, so that the
@@ -57,11 +58,16 @@ class ImpactSession:
             controller.fallback_count = 0
         self.observer.reset(state.q, state.dq)
         self._previous_state = state
+        self._start_t = state.t
 
     def residual(self, state: RobotState) -> np.ndarray:
-        """The joint-torque residual of the detector: the robot's estimate or the observer's."""
+        """The joint-torque residual of the detector: the robot's estimate or the observer's.
+        The observer starts at the start state (r = 0 there): its ``tau`` acted before the
+        start, over no period that p - p_0 saw, so it is not integrated."""
         if state.tau_ext is not None:
             return state.tau_ext
+        if state.t == self._start_t:
+            return self.observer.residual
         return self.observer.update(state.q, state.dq, state.tau)
 
     def step(self, state: RobotState) -> Command:

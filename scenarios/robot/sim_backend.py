@@ -4,8 +4,9 @@ One ``write`` advances the plant by one period as ``sim.runner.run_trial`` does
 (``sim.runner.ServoedPlant``): the computed-torque joint servo turns the command into a torque
 held over the period, MuJoCo runs its substeps, and the contact force on the tool is logged at
 every substep. ``read`` returns the state at the start of the next period; its ``tau`` is the
-torque that acted over the previous period (the last measured joint torque of a robot). Paced, ``read`` waits for the wall-clock time
-t0 + k period (sleep, then spin for the last ``SPIN_TIME``); unpaced, it returns at once.
+torque that acted over the previous period (the last measured joint torque of a robot). Paced,
+``read`` waits for the wall-clock time t0 + k period, t0 the time of ``start`` (sleep, then spin
+for the last ``SPIN_TIME``); unpaced, it returns at once.
 """
 
 from __future__ import annotations
@@ -48,6 +49,10 @@ class SimRobot(RobotInterface):
                 pass
         data = self.scene.data
         return RobotState(self.steps * self.period, data.qpos.copy(), data.qvel.copy(), self.tau.copy())
+
+    def start(self) -> None:
+        """Start the wall clock of the pacing at this cycle."""
+        self._start = time.perf_counter() - self.steps * self.period
 
     def write(self, dq_cmd: np.ndarray) -> None:
         force = np.zeros((self.plant.substeps, 3))

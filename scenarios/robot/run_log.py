@@ -1,0 +1,46 @@
+"""The dataset a run is added to (``impactqp run --log DIR``), opened before the run.
+
+Opening checks everything that could refuse the log (the directory can be created and written,
+an existing dataset there has the same header), so that a robot never moves for a log that
+cannot be kept; ``add`` then writes the run as one trial ``runNNNN`` (``docs/dataset.md``).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from impactqp.controller.measured.dataset import DatasetError, DatasetHeader, DatasetWriter, TrialEntry
+from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.validation import BadInputError
+
+
+class RunLog:
+    """One trial to add to the dataset in ``directory`` with ``header``."""
+
+    def __init__(self, directory: str, header: DatasetHeader):
+        self.directory = Path(directory)
+        try:
+            self.directory.mkdir(parents=True, exist_ok=True)
+            if not os.access(self.directory, os.W_OK | os.X_OK):
+                raise BadInputError(f"--log {directory}: the directory is not writable")
+            self.writer = DatasetWriter(self.directory, header)
+        except (DatasetError, OSError) as error:
+            raise BadInputError(f"--log {directory}: {error}") from None
+        self.trial_id = f"run{len(self.writer.entries):04d}"
+
+    def add(self, log: TrialLog, speed: float, posture: str | None, impact_time: float | None) -> str:
+        """Write the trial; the path of its CSV."""
+        entry = TrialEntry(
+            id=self.trial_id,
+            file=f"{self.trial_id}.csv",
+            reference_normal_speed=speed,
+            force_file=f"{self.trial_id}_force.csv" if log.has_force else None,
+            posture=posture,
+            impact_time=impact_time,
+        )
+        try:
+            self.writer.add_trial(entry, log)
+        except (DatasetError, OSError) as error:
+            raise BadInputError(f"--log {self.directory}: {error}") from None
+        return str(self.directory / entry.file)
