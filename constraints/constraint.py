@@ -18,6 +18,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from numba import njit
+
 from impactqp.controller.model.robot import ModelTerms
 
 
@@ -67,11 +69,7 @@ class ControlCycle:
     def advance(self, previous_ddq: np.ndarray, ddq_max: np.ndarray, jerk_step: np.ndarray) -> None:
         """The reachable interval of the next cycle (``after``), written in place;
         ``jerk_step`` = dddq_max dt."""
-        lower, upper = self.acceleration_lower, self.acceleration_upper
-        np.subtract(previous_ddq, jerk_step, out=lower)
-        np.maximum(lower, -ddq_max, out=lower)
-        np.add(previous_ddq, jerk_step, out=upper)
-        np.minimum(upper, ddq_max, out=upper)
+        reachable_interval(previous_ddq, ddq_max, jerk_step, self.acceleration_lower, self.acceleration_upper)
 
     def recoverable(self, C: np.ndarray, lower: np.ndarray, upper: np.ndarray):
         """Rows lower <= C ddq <= upper relaxed, row by row, to what this cycle can reach.
@@ -84,6 +82,11 @@ class ControlCycle:
         infeasible. Rows that can be met are unchanged. With the box's centre c and half-width
         w, r = C c - |C| w and R = C c + |C| w. ``lower`` and ``upper`` are relaxed in place.
         """
+        relax_to_reachable(C, lower, upper, self.acceleration_lower, self.acceleration_upper)
+        return lower, upper
+
+    def reference_recoverable(self, C: np.ndarray, lower: np.ndarray, upper: np.ndarray):
+        """``recoverable`` in plain numpy (the reference of its kernel)."""
         lo, hi = self.acceleration_lower, self.acceleration_upper
         centre = C @ (0.5 * (lo + hi))
         spread = np.abs(C) @ (0.5 * (hi - lo))
@@ -103,7 +106,9 @@ class Constraint:
     """A named set of ``rows`` linear rows on ddq (acceleration units).
 
     A constraint writes its rows into arrays it is given (``compute_into``): a controller hands
-    it views of the stacked QP data, so nothing is copied. Box bounds are then clipped into the
+    it views of the stacked QP data, so nothing is copied. Where a class has a compiled kernel
+    (numba), ``compute_into`` calls it and ``reference_into`` states the same rows in plain
+    numpy: the reference the tests compare the kernel with. Box bounds are then clipped into the
     cycle's reachable accelerations (``ControlCycle.clip_to_reachable``) and the rows of a
     ``relaxed`` constraint, which the state may already violate, are relaxed to the largest
     correction the cycle allows (``ControlCycle.recoverable``); the controller does both for all
@@ -119,6 +124,10 @@ class Constraint:
         """Write the raw rows of this state: C (rows x 7; None for a box), lower and upper."""
         raise NotImplementedError
 
+    def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower: np.ndarray, upper: np.ndarray) -> None:
+        """``compute_into`` in plain numpy (the same method for a class without a kernel)."""
+        self.compute_into(terms, cycle, C, lower, upper)
+
     def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
         """The rows of this state in new arrays, clipped or relaxed as the class says."""
         C = None if self.is_box else np.empty((self.rows, terms.q.shape[0]))
@@ -129,3 +138,27 @@ class Constraint:
         elif self.relaxed:
             cycle.recoverable(C, lower, upper)
         return ConstraintRows(C, lower, upper)
+
+
+@njit(cache=True)
+def relax_to_reachable(C, lower, upper, lo, hi):
+    """Kernel of ``ControlCycle.recoverable``: row i spans [c_i - s_i, c_i + s_i] over the box
+    [lo, hi], c_i = C_i (lo + hi) / 2 and s_i = |C_i| (hi - lo) / 2; lower_i <= c_i + s_i and
+    upper_i >= c_i - s_i after it, in place."""
+    for i in range(C.shape[0]):
+        centre = 0.0
+        spread = 0.0
+        for j in range(C.shape[1]):
+            centre += C[i, j] * 0.5 * (lo[j] + hi[j])
+            spread += abs(C[i, j]) * 0.5 * (hi[j] - lo[j])
+        lower[i] = min(lower[i], centre + spread)
+        upper[i] = max(upper[i], centre - spread)
+
+
+@njit(cache=True)
+def reachable_interval(previous_ddq, ddq_max, jerk_step, lower, upper):
+    """Kernel of ``ControlCycle.advance``: max(-ddq_max, ddq_prev - step) <= ddq <=
+    min(ddq_max, ddq_prev + step)."""
+    for i in range(previous_ddq.shape[0]):
+        lower[i] = max(-ddq_max[i], previous_ddq[i] - jerk_step[i])
+        upper[i] = min(ddq_max[i], previous_ddq[i] + jerk_step[i])

@@ -27,6 +27,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
 from impactqp.controller.model.jump import GeneralizedMomentumJump, JumpModel, jump_model
 from impactqp.controller.model.postures import Surface
@@ -101,40 +102,76 @@ class ImpactModel:
             return False
         if self.always_active:
             return True
-        return self._is_active(terms, self.surface.normal @ terms.J)
+        normal = self.surface.normal
+        return self._rule(float(normal @ (terms.J @ terms.dq)), float(normal @ terms.contact_point))
 
-    def _is_active(self, terms: ModelTerms, Jt_normal: np.ndarray) -> bool:
-        """The rule with n^T J given: n.v = (n^T J) dq."""
-        normal_speed = float(Jt_normal @ terms.dq)
+    def _rule(self, normal_speed: float, normal_position: float) -> bool:
+        """The rule from n.v and n.p (the distance is n.p - n.s)."""
         if normal_speed > self.release_speed:
             return False
-        distance = float(self.surface.normal @ terms.contact_point) - self._surface_offset
+        distance = normal_position - self._surface_offset
         return distance <= max(self.lookahead_distance, -normal_speed * self.lookahead_time)
 
     def maps(self, terms: ModelTerms) -> ImpactMaps:
         """A, P and the activation of this state; computed once per fill of ``terms``
         (``ModelTerms.stamp``) and shared by the constraints and the controller's prediction."""
         if terms.stamp != self._stamp:
-            Jt_normal = self.surface.normal @ terms.J
+            normal = self.surface.normal
             if isinstance(self.model, GeneralizedMomentumJump):
-                jump_matrix, torque_matrix = self._normal_impulse_maps(terms, Jt_normal)
+                jump_matrix, torque_matrix, normal_speed, normal_position = self._normal_impulse_maps(terms)
             else:
-                maps = self.model.maps(terms, self.surface.normal, self.restitution)
+                maps = self.model.maps(terms, normal, self.restitution)
                 GJ = maps.G @ terms.J
                 jump_matrix, torque_matrix = maps.K @ GJ, terms.J.T @ GJ
-            active = self.switched_on and (self.always_active or self._is_active(terms, Jt_normal))
+                normal_speed, normal_position = float(normal @ (terms.J @ terms.dq)), float(normal @ terms.contact_point)
+            active = self.switched_on and (self.always_active or self._rule(normal_speed, normal_position))
             self._maps = ImpactMaps(jump_matrix, torque_matrix, active)
             self._stamp = terms.stamp
         return self._maps
 
-    def _normal_impulse_maps(self, terms: ModelTerms, Jt_normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _normal_impulse_maps(self, terms: ModelTerms):
         """A and P of the normal-impulse models (12) as rank-one products.
 
         G = s n n^T with s = -(1+c_r) / (n^T W n) and K = J+ W = J^T (J J^T)^-1 W (17), (21),
         (23), so A = K G J = s (J^T (J J^T)^-1 W n)(J^T n)^T and P = J^T G J = s (J^T n)(J^T n)^T.
         """
+        n = terms.J.shape[1]
+        jump_matrix, torque_matrix = np.empty((n, n)), np.empty((n, n))
         normal = self.surface.normal
+        normal_speed, normal_position = rank_one_impulse_maps(
+            terms.J, terms.JJt_inv, self.model.inverse_inertia_times(terms, normal), normal, terms.contact_point,
+            terms.dq, self.restitution, jump_matrix, torque_matrix,
+        )
+        return jump_matrix, torque_matrix, normal_speed, normal_position
+
+    def reference_normal_impulse_maps(self, terms: ModelTerms):
+        """``_normal_impulse_maps`` in plain numpy (the reference of its kernel)."""
+        normal = self.surface.normal
+        Jt_normal = normal @ terms.J
         W_normal = self.model.inverse_inertia_times(terms, normal)
         s = -(1.0 + self.restitution) / float(normal @ W_normal)
         jump_direction = terms.J.T @ (terms.JJt_inv @ (s * W_normal))
-        return jump_direction[:, None] * Jt_normal, (s * Jt_normal)[:, None] * Jt_normal
+        return (
+            jump_direction[:, None] * Jt_normal, (s * Jt_normal)[:, None] * Jt_normal,
+            float(Jt_normal @ terms.dq), float(normal @ terms.contact_point),
+        )
+
+
+@njit(cache=True)
+def rank_one_impulse_maps(J, JJt_inv, W_normal, normal, contact_point, dq, restitution, jump_matrix, torque_matrix):
+    """Kernel of ``ImpactModel._normal_impulse_maps``: A = s (J^T (J J^T)^-1 W n)(J^T n)^T and
+    P = s (J^T n)(J^T n)^T with s = -(1+c_r) / (n^T W n); returns n.(J dq) and n.p, the inputs
+    of the activation rule."""
+    s = -(1.0 + restitution) / (normal[0] * W_normal[0] + normal[1] * W_normal[1] + normal[2] * W_normal[2])
+    y = JJt_inv @ (s * W_normal)
+    direction = J.T @ y
+    Jt_normal = normal @ J
+    normal_speed = 0.0
+    for j in range(J.shape[1]):
+        normal_speed += Jt_normal[j] * dq[j]
+    normal_position = normal[0] * contact_point[0] + normal[1] * contact_point[1] + normal[2] * contact_point[2]
+    for i in range(J.shape[1]):
+        for j in range(J.shape[1]):
+            jump_matrix[i, j] = direction[i] * Jt_normal[j]
+            torque_matrix[i, j] = s * Jt_normal[i] * Jt_normal[j]
+    return normal_speed, normal_position

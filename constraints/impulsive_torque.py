@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
 from impactqp.controller.model.robot import NQ, ModelTerms
@@ -50,6 +51,13 @@ class ImpulsiveTorqueLimit(Constraint):
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         maps = self.impact.maps(terms)
+        scaled_impulse_rows(
+            maps.torque_matrix, self.row_scale, self._scaled_limit, terms.dq, 1.0 / cycle.horizon, maps.active,
+            C, lower, upper,
+        )
+
+    def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
+        maps = self.impact.maps(terms)
         np.multiply(maps.torque_matrix, self._row_scale_column, out=C)
         if not maps.active:
             lower.fill(-np.inf)
@@ -60,3 +68,21 @@ class ImpulsiveTorqueLimit(Constraint):
         scaled_limit = inv_h * self._scaled_limit
         np.subtract(-scaled_limit, pre, out=lower)
         np.subtract(scaled_limit, pre, out=upper)
+
+
+@njit(cache=True)
+def scaled_impulse_rows(torque_matrix, row_scale, scaled_limit, dq, inv_h, active, C, lower, upper):
+    """Kernel: C = diag(s) P; bounds (+-s tau_max delta_t - C dq) / h when active, unbounded
+    otherwise."""
+    n = dq.shape[0]
+    for i in range(n):
+        pre = 0.0
+        for j in range(n):
+            C[i, j] = torque_matrix[i, j] * row_scale[i]
+            pre += C[i, j] * dq[j]
+        if active:
+            lower[i] = (-scaled_limit[i] - pre) * inv_h
+            upper[i] = (scaled_limit[i] - pre) * inv_h
+        else:
+            lower[i] = -np.inf
+            upper[i] = np.inf

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 from impactqp.controller.model.robot import ModelTerms
 
@@ -58,6 +61,15 @@ class PositionLimit(Constraint):
         dt = cycle.dt
         if dt != self._dt:
             self._constants(dt)
+        braking_bounds(
+            terms.q, terms.dq, self._signed_limits, self._half_step, self._half_step_squared, self._twice_braking,
+            dt, lower, upper,
+        )
+
+    def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
+        dt = cycle.dt
+        if dt != self._dt:
+            self._constants(dt)
         towards = self._sign * terms.dq  # velocity towards each limit
         # d_e = max(sign (limit - q) - dt/2 sign dq - a dt^2/8, 0)
         distance = np.maximum(self._signed_limits - self._sign * (terms.q + (0.5 * dt) * terms.dq), 0.0)
@@ -66,3 +78,17 @@ class PositionLimit(Constraint):
         allowed *= 1.0 / dt
         np.negative(allowed[1], out=lower)
         upper[:] = allowed[0]
+
+
+@njit(cache=True)
+def braking_bounds(q, dq, signed_limits, half_step, half_step_squared, twice_braking, dt, lower, upper):
+    """Kernel of ``PositionLimit``: with p = q + dq dt / 2, d_up = max(L_up - p, 0) and
+    d_low = max(L_low + p, 0) (L the signed limits less a dt^2 / 8), the commanded velocity
+    dq + ddq dt stays within +-(sqrt((a dt / 2)^2 + 2 a d) - a dt / 2)."""
+    inv_dt = 1.0 / dt
+    for j in range(q.shape[0]):
+        p = q[j] + 0.5 * dt * dq[j]
+        up = max(signed_limits[0, j] - p, 0.0)
+        low = max(signed_limits[1, j] + p, 0.0)
+        upper[j] = (math.sqrt(half_step_squared[j] + twice_braking[j] * up) - half_step[j] - dq[j]) * inv_dt
+        lower[j] = -(math.sqrt(half_step_squared[j] + twice_braking[j] * low) - half_step[j] + dq[j]) * inv_dt

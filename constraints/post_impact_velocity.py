@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from impactqp.controller.model.robot import NQ, ModelTerms
 
@@ -36,6 +37,10 @@ class PostImpactVelocityLimit(Constraint):
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         maps = self.impact.maps(terms)
+        post_impact_velocity_rows(maps.jump_matrix, terms.dq, self.dq_max, 1.0 / cycle.horizon, maps.active, C, lower, upper)
+
+    def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
+        maps = self.impact.maps(terms)
         np.add(self._identity, maps.jump_matrix, out=C)
         if not maps.active:
             lower.fill(-np.inf)
@@ -46,3 +51,20 @@ class PostImpactVelocityLimit(Constraint):
         scaled_limit = inv_h * self.dq_max
         np.subtract(-scaled_limit, post, out=lower)
         np.subtract(scaled_limit, post, out=upper)
+
+
+@njit(cache=True)
+def post_impact_velocity_rows(jump_matrix, dq, dq_max, inv_h, active, C, lower, upper):
+    """Kernel: C = I + A; bounds (+-dq_max - C dq) / h when active, unbounded otherwise."""
+    n = dq.shape[0]
+    for i in range(n):
+        post = 0.0
+        for j in range(n):
+            C[i, j] = jump_matrix[i, j] + (1.0 if i == j else 0.0)
+            post += C[i, j] * dq[j]
+        if active:
+            lower[i] = (-dq_max[i] - post) * inv_h
+            upper[i] = (dq_max[i] - post) * inv_h
+        else:
+            lower[i] = -np.inf
+            upper[i] = np.inf

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from impactqp.controller.model.robot import ModelTerms
 
@@ -24,8 +25,22 @@ class TorqueLimit(Constraint):
         self._inv_diag = np.empty((len(self.tau_max), 1))
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
+        normalised_torque_rows(terms.M, terms.h, self.tau_max, C, lower, upper)
+
+    def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         inv_diag = np.divide(1.0, np.diagonal(terms.M)[:, None], out=self._inv_diag)
         np.multiply(terms.M, inv_diag, out=C)
         inv = inv_diag[:, 0]
         np.multiply(-self.tau_max - terms.h, inv, out=lower)
         np.multiply(self.tau_max - terms.h, inv, out=upper)
+
+
+@njit(cache=True)
+def normalised_torque_rows(M, h, tau_max, C, lower, upper):
+    """Kernel: row i of -tau_max <= M ddq + h <= tau_max divided by M_ii."""
+    for i in range(M.shape[0]):
+        inv = 1.0 / M[i, i]
+        for j in range(M.shape[1]):
+            C[i, j] = M[i, j] * inv
+        lower[i] = (-tau_max[i] - h[i]) * inv
+        upper[i] = (tau_max[i] - h[i]) * inv

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from impactqp.controller.model.robot import ModelTerms
 
@@ -32,8 +33,19 @@ class VelocityLimit(Constraint):
         self.dq_max = np.asarray(dq_max, dtype=float)
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
+        symmetric_velocity_bounds(terms.dq, self.dq_max, 1.0 / cycle.horizon, lower, upper)
+
+    def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         inv_h = 1.0 / cycle.horizon
         dq = inv_h * terms.dq
         scaled_limit = inv_h * self.dq_max
         np.subtract(-scaled_limit, dq, out=lower)
         np.subtract(scaled_limit, dq, out=upper)
+
+
+@njit(cache=True)
+def symmetric_velocity_bounds(velocity, limit, inv_h, lower, upper):
+    """Kernel: (-limit - velocity) / h <= ddq <= (limit - velocity) / h, per row."""
+    for i in range(velocity.shape[0]):
+        lower[i] = (-limit[i] - velocity[i]) * inv_h
+        upper[i] = (limit[i] - velocity[i]) * inv_h

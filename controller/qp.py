@@ -75,6 +75,7 @@ import daqp
 import numpy as np
 import proxsuite
 import quadprog
+from numba import njit
 
 from impactqp.constraints import AccelerationLimit, Constraint, ControlCycle, ImpactModel
 from impactqp.tasks import Task
@@ -167,8 +168,14 @@ class QpProblem:
         return z
 
     def violation(self, x: np.ndarray) -> float:
-        """Largest violation of a bound or row by x (0 when x is feasible); the gaps to the
-        bounds stay in ``lower_gap`` and ``upper_gap``."""
+        """Largest violation of a bound or row by x (0 when x is feasible, inf when x is not
+        finite); the gaps to the bounds stay in ``lower_gap`` and ``upper_gap``."""
+        return stacked_violation(self.C, x, self.lower, self.upper, self.lower_gap, self.upper_gap)
+
+    def reference_violation(self, x: np.ndarray) -> float:
+        """``violation`` in plain numpy (the reference of its kernel)."""
+        if not np.isfinite(x).all():
+            return np.inf
         z = self.stacked(x)
         below = np.subtract(z, self.lower, out=self.lower_gap).min()
         above = np.subtract(self.upper, z, out=self.upper_gap).min()
@@ -369,9 +376,11 @@ class ImpactAwareController:
         self._task_A = np.zeros((n_task_rows, NQ))
         self._task_b = np.zeros(n_task_rows)
         self._task_w = np.zeros((n_task_rows, 1))
-        self._weighted_A = np.zeros((n_task_rows, NQ))
         self._row_slices = _consecutive_slices([c.rows for c in self.row_constraints])
         self._row_starts = np.array([s.start for s in self._row_slices], dtype=int)
+        self._row_ends = np.array([s.stop for s in self._row_slices], dtype=np.int64)
+        self._flag_names = [c.name for c in self.box_constraints] + [c.name for c in self.row_constraints]
+        self._active_flags = np.zeros(len(self._flag_names), dtype=np.bool_)
         self.problem = QpProblem.empty(sum(c.rows for c in self.row_constraints))
         # Box bounds interleaved: rows 2k and 2k+1 are the lower and upper bounds of box k.
         self._box_bounds = np.zeros((2 * len(self.box_constraints), NQ))
@@ -442,7 +451,7 @@ class ImpactAwareController:
         except SingularPostureError as error:
             return self._fallback(q, dq, STATUS_FALLBACK_SINGULAR, [], str(error))
         terms = self._terms
-        if (np.abs(terms.dq) > robot.dq_max).any():
+        if first_outside(terms.dq, robot.dq_max) >= 0:
             over = np.flatnonzero(np.abs(terms.dq) > robot.dq_max)
             message = f"dq{over[0] + 1} = {terms.dq[over[0]]:.4f} rad/s is outside the velocity limits"
             return self._fallback(q, dq, STATUS_FALLBACK_INVALID_STATE, ["joint_velocity_limit"], message, terms)
@@ -452,9 +461,7 @@ class ImpactAwareController:
             self._targets_set = True
 
         self._cycle.advance(self.memory.ddq, self.ddq_max, self._jerk_step)
-        self._assemble(terms, self._cycle)
-        problem = self.problem
-        if (problem.lb > problem.ub).any():
+        if not self._assemble(terms, self._cycle):
             return self._infeasible(q, dq, terms, "the joint-space bounds conflict")
 
         status, ddq, solver_name = self._solve()
@@ -463,50 +470,48 @@ class ImpactAwareController:
         if status != SOLVED:
             return self._fallback(q, dq, STATUS_FALLBACK_SOLVER_ERROR, [], "no solver found a solution", terms)
 
-        dt = self.dt
-        dq_cmd = terms.dq + dt * ddq
+        dq_cmd, q_cmd = np.empty(NQ), np.empty(NQ)
         status = STATUS_OK
-        if (np.abs(dq_cmd) > robot.dq_max).any():  # only off the closed loop: see the docstring
-            np.minimum(np.maximum(dq_cmd, -robot.dq_max, out=dq_cmd), robot.dq_max, out=dq_cmd)
-            ddq = (dq_cmd - terms.dq) * (1.0 / dt)
+        # dq_cmd = dq + ddq dt (clipped only off the closed loop: see the docstring) and
+        # q_cmd = q + (dq + dq_cmd) dt / 2 within the position limits
+        if integrate_command(terms.q, terms.dq, ddq, self.dt, robot.dq_max, robot.q_min, robot.q_max, dq_cmd, q_cmd):
+            ddq = (dq_cmd - terms.dq) * (1.0 / self.dt)
             status = STATUS_VELOCITY_CLIPPED
             self.problem.violation(ddq)  # the gaps of the ddq actually commanded
-        q_cmd = terms.q + (0.5 * dt) * (terms.dq + dq_cmd)
-        np.minimum(np.maximum(q_cmd, robot.q_min, out=q_cmd), robot.q_max, out=q_cmd)
         return self._emit(terms, ddq, dq_cmd, q_cmd, status, self._active_constraints(ddq), [], solver_name)
 
     # ------------------------------------------------------------------ one cycle
-    def _assemble(self, terms: ModelTerms, cycle: ControlCycle) -> None:
-        """Fill the preallocated QP data from the tasks and constraints of this state."""
+    def _assemble(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
+        """Fill the preallocated QP data from the tasks and constraints of this state; False
+        when the joint-space bounds conflict (lb > ub somewhere)."""
         self._assemble_tasks(terms)
-        self._assemble_constraints(terms, cycle)
+        return self._assemble_constraints(terms, cycle)
 
     def _assemble_tasks(self, terms: ModelTerms) -> None:
         """Cost: H = A^T W A and g = -A^T W b over the stacked rows of every task."""
         for task, A, b, w in self._task_views:
             task.compute_into(terms, A, b)
             w[:] = task.weight
-        problem = self.problem
-        A, b = self._task_A, self._task_b
-        WA = np.multiply(A, self._task_w, out=self._weighted_A)
-        np.matmul(A.T, WA, out=problem.H)
-        np.matmul(b, WA, out=problem.g)
-        np.negative(problem.g, out=problem.g)
+        weighted_least_squares(self._task_A, self._task_b, self._task_w[:, 0], self.problem.H, self.problem.g)
 
-    def _assemble_constraints(self, terms: ModelTerms, cycle: ControlCycle) -> None:
+    def _assemble_constraints(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
         """Bounds: the box constraints intersected and clipped into the cycle's reachable
-        accelerations, then the general rows, the relaxed ones relaxed in one block."""
+        accelerations, then the general rows, the relaxed ones relaxed in one block. False when
+        the box bounds conflict."""
         problem = self.problem
         box_lower, box_upper = self._box_lower, self._box_upper
         for k, constraint in enumerate(self.box_constraints):
             constraint.compute_into(terms, cycle, None, box_lower[k], box_upper[k])
         # Clipping each box into the reachable interval, then intersecting, equals intersecting
         # then clipping (clipping is monotone): two vectors are clipped instead of every box.
-        cycle.clip_to_reachable(np.max(box_lower, axis=0, out=problem.lb), np.min(box_upper, axis=0, out=problem.ub))
+        consistent = intersect_boxes(
+            box_lower, box_upper, cycle.acceleration_lower, cycle.acceleration_upper, problem.lb, problem.ub
+        )
         row_cycle = self._row_cycle  # its bounds are problem.lb and problem.ub, filled above
         for constraint, C, lower, upper in self._row_views:
             constraint.compute_into(terms, row_cycle, C, lower, upper)
         row_cycle.recoverable(*self._relaxed_rows)
+        return consistent
 
     def _solve(self) -> tuple[str, np.ndarray | None, str]:
         """Solve with the chosen solver; a second solver confirms any failure or inaccurate
@@ -528,11 +533,18 @@ class ImpactAwareController:
 
     def _acceptable(self, x: np.ndarray) -> bool:
         """A solution is used only when it is finite and satisfies every row and bound."""
-        return bool(np.isfinite(x).all()) and self.problem.violation(x) <= self.feasibility_tolerance
+        return self.problem.violation(x) <= self.feasibility_tolerance
 
     def _active_constraints(self, ddq: np.ndarray) -> list[str]:
         """Names of the constraints with at least one row at a bound (the gaps of the
         accepted solution's feasibility check; box constraints by their own, unclipped bounds)."""
+        p = self.problem
+        flags = self._active_flags
+        tight_constraints(ddq, self._box_bounds, p.lower_gap, p.upper_gap, self._row_ends, self.feasibility_tolerance * 10.0, flags)
+        return [name for name, hit in zip(self._flag_names, flags) if hit]
+
+    def reference_active_constraints(self, ddq: np.ndarray) -> list[str]:
+        """``_active_constraints`` in plain numpy (the reference of its kernel)."""
         tol = self.feasibility_tolerance * 10.0
         box_tight = (np.abs(self._box_bounds - ddq) <= tol).any(axis=1)
         active = [c.name for c, lower, upper in zip(self.box_constraints, box_tight[0::2], box_tight[1::2]) if lower or upper]
@@ -646,3 +658,110 @@ class ImpactAwareController:
 def _consecutive_slices(sizes: list[int]) -> list[slice]:
     ends = np.cumsum(sizes, dtype=int)
     return [slice(int(end - size), int(end)) for size, end in zip(sizes, ends)]
+
+
+@njit(cache=True)
+def weighted_least_squares(A, b, w, H, g):
+    """Kernel: H = A^T diag(w) A and g = -A^T diag(w) b, the QP cost of the stacked task rows."""
+    rows, n = A.shape
+    for i in range(n):
+        g[i] = 0.0
+        for j in range(n):
+            H[i, j] = 0.0
+    for r in range(rows):
+        for i in range(n):
+            wa = w[r] * A[r, i]
+            g[i] -= wa * b[r]
+            for j in range(i, n):
+                H[i, j] += wa * A[r, j]
+    for i in range(n):
+        for j in range(i):
+            H[i, j] = H[j, i]
+
+
+@njit(cache=True)
+def intersect_boxes(box_lower, box_upper, reachable_lower, reachable_upper, lb, ub):
+    """Kernel: lb = max_k box_lower[k] and ub = min_k box_upper[k], each clipped into the
+    reachable interval [reachable_lower, reachable_upper]; False when lb > ub somewhere."""
+    consistent = True
+    for j in range(lb.shape[0]):
+        low, high = -np.inf, np.inf
+        for k in range(box_lower.shape[0]):
+            low = max(low, box_lower[k, j])
+            high = min(high, box_upper[k, j])
+        lb[j] = min(max(low, reachable_lower[j]), reachable_upper[j])
+        ub[j] = min(max(high, reachable_lower[j]), reachable_upper[j])
+        if lb[j] > ub[j]:
+            consistent = False
+    return consistent
+
+
+@njit(cache=True)
+def first_outside(values, limit):
+    """Kernel: the first index with |values_i| > limit_i, -1 when there is none."""
+    for i in range(values.shape[0]):
+        if abs(values[i]) > limit[i]:
+            return i
+    return -1
+
+
+@njit(cache=True)
+def integrate_command(q, dq, ddq, dt, dq_max, q_min, q_max, dq_cmd, q_cmd):
+    """Kernel: dq_cmd = clip(dq + ddq dt, +-dq_max), q_cmd = clip(q + (dq + dq_cmd) dt / 2,
+    q_min, q_max); True when dq_cmd had to be clipped."""
+    clipped = False
+    for i in range(q.shape[0]):
+        v = dq[i] + ddq[i] * dt
+        if v > dq_max[i]:
+            v, clipped = dq_max[i], True
+        elif v < -dq_max[i]:
+            v, clipped = -dq_max[i], True
+        dq_cmd[i] = v
+        q_cmd[i] = min(max(q[i] + 0.5 * dt * (dq[i] + v), q_min[i]), q_max[i])
+    return clipped
+
+
+@njit(cache=True)
+def stacked_violation(C, x, lower, upper, lower_gap, upper_gap):
+    """Kernel of ``QpProblem.violation``: with z = [x; C x], lower_gap = z - lower and
+    upper_gap = upper - z; the largest violation max(0, -min gaps), inf for a non-finite x."""
+    n = x.shape[0]
+    worst = 0.0
+    for i in range(n + C.shape[0]):
+        if i < n:
+            z = x[i]
+        else:
+            z = 0.0
+            for j in range(n):
+                z += C[i - n, j] * x[j]
+        if not np.isfinite(z):
+            return np.inf
+        lower_gap[i] = z - lower[i]
+        upper_gap[i] = upper[i] - z
+        worst = max(worst, -lower_gap[i], -upper_gap[i])
+    return worst
+
+
+@njit(cache=True)
+def tight_constraints(x, box_bounds, lower_gap, upper_gap, row_ends, tol, flags):
+    """Kernel: flags[k] for box k (bounds in rows 2k, 2k+1 of box_bounds) when x is within tol
+    of one of its bounds, then flags of the general constraints (rows ending at row_ends) when
+    one of their rows has a gap <= tol."""
+    boxes = box_bounds.shape[0] // 2
+    n = x.shape[0]
+    for k in range(boxes):
+        hit = False
+        for j in range(n):
+            if abs(box_bounds[2 * k, j] - x[j]) <= tol or abs(box_bounds[2 * k + 1, j] - x[j]) <= tol:
+                hit = True
+                break
+        flags[k] = hit
+    start = 0
+    for c in range(row_ends.shape[0]):
+        hit = False
+        for r in range(start, row_ends[c]):
+            if min(lower_gap[n + r], upper_gap[n + r]) <= tol:
+                hit = True
+                break
+        flags[boxes + c] = hit
+        start = row_ends[c]

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from impactqp.controller.model.robot import ModelTerms
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 from impactqp.controller.model.validation import unit_normal
 
-from .task import Task, critical_damping, non_negative, rotation_error
+from .task import Task, critical_damping, non_negative, rotation_error, rotation_log
 
 
 class ContactApproachTask(Task):
@@ -79,6 +80,12 @@ class ContactApproachTask(Task):
             self.target_rotation = terms.contact_rotation.copy()
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
+        surface_frame_approach_rows(
+            terms.J6, terms.dq, terms.dJ6_dq, terms.contact_rotation, self.target_rotation, self.basis,
+            self._twist_gain, self._reference_acceleration, self.orientation_stiffness, A, b,
+        )
+
+    def reference_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         # b = [k_v (v* - v); k_R log(R* R^T) - d_R w] - dJ6 dq, its linear part in the surface frame
         np.multiply(self._twist_gain, terms.J6 @ terms.dq, out=b)
         b[:3] += self._reference_acceleration
@@ -87,3 +94,23 @@ class ContactApproachTask(Task):
         b[:3] = self.basis @ b[:3]
         np.matmul(self.basis, terms.J6[:3], out=A[:3])
         A[3:] = terms.J6[3:]
+
+
+@njit(cache=True)
+def surface_frame_approach_rows(
+    J6, dq, dJ6_dq, rotation, target_rotation, basis, twist_gain, reference_acceleration, orientation_stiffness, A, b
+):
+    """Kernel of ``ContactApproachTask``: b = gain * (J6 dq) + [k_v v*; k_R log(R* R^T)] - dJ6 dq,
+    then the linear rows (of A = J6 and b) expressed in the surface frame (``basis``)."""
+    twist = J6 @ dq
+    log = np.empty(3)
+    rotation_log(target_rotation, rotation, log)
+    linear = np.empty(3)
+    for i in range(3):
+        linear[i] = twist_gain[i] * twist[i] + reference_acceleration[i] - dJ6_dq[i]
+        b[3 + i] = twist_gain[3 + i] * twist[3 + i] + orientation_stiffness * log[i] - dJ6_dq[3 + i]
+    for i in range(3):
+        b[i] = basis[i, 0] * linear[0] + basis[i, 1] * linear[1] + basis[i, 2] * linear[2]
+        for j in range(J6.shape[1]):
+            A[i, j] = basis[i, 0] * J6[0, j] + basis[i, 1] * J6[1, j] + basis[i, 2] * J6[2, j]
+            A[3 + i, j] = J6[3 + i, j]

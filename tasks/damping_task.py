@@ -6,6 +6,7 @@ import numpy as np
 
 from impactqp.controller.model.robot import NQ, ModelTerms
 
+from .posture_task import joint_pd_rows
 from .task import Task, non_negative
 from impactqp.controller.model.validation import BadInputError
 
@@ -30,5 +31,8 @@ class DampingTask(Task):
         self.weight = np.full(NQ, float(weight))
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
+        joint_pd_rows(terms.q, terms.dq, terms.q, 0.0, self.gain, A, b)
+
+    def reference_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         A[:] = _IDENTITY
         np.multiply(-self.gain, terms.dq, out=b)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from impactqp.controller.model.robot import NQ, ModelTerms
 
@@ -33,5 +34,18 @@ class PostureTask(Task):
             self.target = terms.q.copy()
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
+        joint_pd_rows(terms.q, terms.dq, self.target, self.stiffness, self.damping, A, b)
+
+    def reference_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         A[:] = _IDENTITY
         np.subtract(self.stiffness * (self.target - terms.q), self.damping * terms.dq, out=b)
+
+
+@njit(cache=True)
+def joint_pd_rows(q, dq, target, stiffness, damping, A, b):
+    """Kernel: A = I, b = kp (q* - q) - kd dq (with target = q and kp = 0: the damping rows)."""
+    n = q.shape[0]
+    for i in range(n):
+        for j in range(n):
+            A[i, j] = 1.0 if i == j else 0.0
+        b[i] = stiffness * (target[i] - q[i]) - damping * dq[i]

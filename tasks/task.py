@@ -14,8 +14,11 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import math
+
 import numpy as np
 import pinocchio as pin
+from numba import njit
 
 from impactqp.controller.model.robot import ModelTerms
 from impactqp.controller.model.validation import BadInputError
@@ -34,7 +37,8 @@ class Task:
 
     A task writes its rows into arrays it is given (``compute_into``): a controller hands it
     views of the stacked task data, so nothing is copied; ``compute`` returns them in new
-    arrays.
+    arrays. Where a class has a compiled kernel (numba), ``compute_into`` calls it and
+    ``reference_into`` states the same rows in plain numpy, the reference of the tests.
     """
 
     name: str = ""
@@ -47,6 +51,10 @@ class Task:
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         """Write the rows A (rows x 7) and b of this state."""
         raise NotImplementedError
+
+    def reference_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
+        """``compute_into`` in plain numpy (the same method for a class without a kernel)."""
+        self.compute_into(terms, A, b)
 
     def compute(self, terms: ModelTerms) -> TaskRows:
         A, b = np.empty((self.rows, terms.q.shape[0])), np.empty(self.rows)
@@ -77,3 +85,41 @@ def finite_array(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
     if array.shape != shape or not np.all(np.isfinite(array)):
         raise BadInputError(f"{name} must be {shape} finite values, got {value!r}")
     return array
+
+
+@njit(cache=True)
+def rotation_log(target, rotation, out):
+    """Kernel of ``rotation_error``: the rotation vector of R = R* R^T into ``out``.
+
+    With c = (tr R - 1) / 2 = cos(theta) and v = vee(R - R^T) = 2 sin(theta) a (a the unit
+    axis): theta = atan2(|v| / 2, c); log R = theta / (2 sin theta) v, or v / 2 to third order
+    near the identity. Near theta = pi, where v vanishes, the axis comes from
+    (R + R^T) / 2 - c I = (1 - c) a a^T (its largest diagonal entry), signed along v.
+    """
+    R = target @ rotation.T
+    c = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)
+    vx, vy, vz = R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]
+    s = 0.5 * math.sqrt(vx * vx + vy * vy + vz * vz)
+    theta = math.atan2(s, c)
+    if theta < 1e-6:
+        out[0], out[1], out[2] = 0.5 * vx, 0.5 * vy, 0.5 * vz
+    elif c > -0.7:
+        factor = 0.5 * theta / s
+        out[0], out[1], out[2] = factor * vx, factor * vy, factor * vz
+    else:
+        B = 0.5 * (R + R.T)
+        k = 0
+        for i in range(1, 3):
+            if B[i, i] > B[k, k]:
+                k = i
+        scale = 1.0 / math.sqrt((B[k, k] - c) * (1.0 - c))
+        ax, ay, az = B[0, k] * scale, B[1, k] * scale, B[2, k] * scale
+        if k == 0:
+            ax = (B[0, 0] - c) * scale
+        elif k == 1:
+            ay = (B[1, 1] - c) * scale
+        else:
+            az = (B[2, 2] - c) * scale
+        if ax * vx + ay * vy + az * vz < 0.0:
+            ax, ay, az = -ax, -ay, -az
+        out[0], out[1], out[2] = theta * ax, theta * ay, theta * az

@@ -208,3 +208,50 @@ def test_advancing_the_cycle_in_place_equals_a_new_cycle(robot, previous):
     c.advance(previous, robot.ddq_max, robot.dddq_max * DT)
     np.testing.assert_array_equal(c.acceleration_lower, expected.acceleration_lower)
     np.testing.assert_array_equal(c.acceleration_upper, expected.acceleration_upper)
+
+
+def _rows_of(constraint, terms, c, reference):
+    C = None if constraint.is_box else np.full((constraint.rows, 7), np.nan)
+    lower, upper = np.full(constraint.rows, np.nan), np.full(constraint.rows, np.nan)
+    (constraint.reference_into if reference else constraint.compute_into)(terms, c, C, lower, upper)
+    return C, lower, upper
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=SEEDS, jump=st.sampled_from(["crb", "gm", "classical"]), always=st.booleans(),
+       restitution=st.floats(0.0, 1.0))
+def test_compiled_rows_equal_the_numpy_reference(robot, seed, jump, always, restitution):
+    """Every constraint's compiled kernel (compute_into) writes the rows its plain-numpy
+    statement (reference_into) gives, active or not; so does the relaxation kernel."""
+    rng = np.random.default_rng(seed)
+    terms = random_state(robot, rng)
+    c = cycle(robot, rng.uniform(-0.5, 0.5, 7) * robot.ddq_max)
+    surface = Surface(terms.contact_point - rng.uniform(0.0, 0.2) * np.array([-1.0, 0.0, 0.0]), [-1.0, 0.0, 0.0])
+    impact = ImpactModel(surface, jump, restitution, always_active=always)
+    constraints = [
+        AccelerationLimit(), PositionLimit(robot.q_min, robot.q_max, robot.ddq_max, 0.5, 0.01),
+        VelocityLimit(robot.dq_max), TorqueLimit(robot.tau_max), PostImpactVelocityLimit(impact, robot.dq_max),
+        ImpulsiveTorqueLimit(impact, robot.tau_max, robot.dq_max, 0.015),
+    ]
+    for constraint in constraints:
+        fast, reference = _rows_of(constraint, terms, c, False), _rows_of(constraint, terms, c, True)
+        for a, b in zip(fast, reference):
+            if a is not None:
+                np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-9, err_msg=constraint.name)
+        if constraint.relaxed:
+            C, lower, upper = fast
+            lower_ref, upper_ref = lower.copy(), upper.copy()
+            c.recoverable(C, lower, upper)
+            c.reference_recoverable(C, lower_ref, upper_ref)
+            np.testing.assert_allclose(lower, lower_ref, rtol=1e-12, atol=1e-9)
+            np.testing.assert_allclose(upper, upper_ref, rtol=1e-12, atol=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=SEEDS, jump=st.sampled_from(["crb", "gm"]), restitution=st.floats(0.0, 1.0))
+def test_compiled_jump_maps_equal_the_numpy_reference(robot, seed, jump, restitution):
+    rng = np.random.default_rng(seed)
+    terms = random_state(robot, rng)
+    impact = ImpactModel(Surface([0.6, 0.0, 0.0], rng.normal(size=3)), jump, restitution)
+    for fast, reference in zip(impact._normal_impulse_maps(terms), impact.reference_normal_impulse_maps(terms)):
+        np.testing.assert_allclose(fast, reference, rtol=1e-10, atol=1e-12)

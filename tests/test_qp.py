@@ -370,3 +370,23 @@ def test_the_confirming_solver_agrees_with_daqp(robot, seed):
     infeasible.l[0], infeasible.u[0] = 1.0, -1.0  # l > u: no ddq can satisfy row 0
     assert DaqpSolver(rows).solve(infeasible)[0] == "infeasible"
     assert QuadprogSolver(rows).solve(infeasible)[0] == "infeasible"
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), jump=st.sampled_from(["crb", "gm", "robust"]))
+def test_compiled_check_and_active_set_equal_the_numpy_reference(robot, seed, jump):
+    """The feasibility check and the active constraints of the cycle (compiled) agree with
+    their plain-numpy statements, on the solution and on perturbed points around it."""
+    rng = np.random.default_rng(seed)
+    q, dq = random_feasible_state(robot, rng, jump_model_names(jump), 0.0)
+    controller = approach_controller(robot, q, jump=jump, solver="daqp")
+    command = controller.step(q, dq)
+    problem = controller.problem
+    for x in (command.ddq, command.ddq + rng.normal(0.0, 1e-3, 7), command.ddq + rng.normal(0.0, 1.0, 7)):
+        fast = problem.violation(x)
+        gaps = (problem.lower_gap.copy(), problem.upper_gap.copy())
+        assert fast == pytest.approx(problem.reference_violation(x), rel=1e-12, abs=1e-12)
+        np.testing.assert_allclose(gaps[0], problem.lower_gap, rtol=1e-12, atol=1e-12)
+        problem.violation(x)
+        assert controller._active_constraints(x) == controller.reference_active_constraints(x)
+    assert problem.violation(np.full(7, np.nan)) == np.inf

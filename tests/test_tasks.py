@@ -3,10 +3,12 @@
 import numpy as np
 import pinocchio as pin
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from impactqp.controller.model.postures import POSTURES
 from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
-from impactqp.tasks.task import rotation_error
+from impactqp.tasks.task import rotation_error, rotation_log
 
 
 @pytest.fixture(scope="module")
@@ -114,3 +116,50 @@ def test_surface_offset_rows_give_the_saturated_velocity_law(terms):
     task.target_position = terms.contact_point + np.array([-0.001, 0.0, 0.0])  # near: proportional
     accel = frame_acceleration(terms, exact_solution(task.compute(terms)))
     assert np.allclose(accel[:3], 40.0 * (20.0 * np.array([-0.001, 0.0, 0.0]) - v), atol=1e-9)
+
+
+ROTATIONS = st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3).map(np.array).filter(lambda v: np.linalg.norm(v) > 1e-3)
+
+
+@settings(max_examples=200, deadline=None)
+@given(axis=ROTATIONS, angle=st.one_of(st.floats(0.0, np.pi), st.floats(np.pi - 1e-3, np.pi), st.floats(0.0, 1e-5)),
+       base=ROTATIONS)
+def test_compiled_rotation_log_is_pinocchio_log3(axis, angle, base):
+    """The kernel's log(R* R^T) equals pinocchio's log3 over all angles, near 0 and near pi
+    included (at exactly pi both signs of the axis are the same rotation)."""
+    R = pin.exp3(base)
+    target = pin.exp3(angle * axis / np.linalg.norm(axis)) @ R
+    out = np.empty(3)
+    rotation_log(target, R, out)
+    expected = pin.log3(target @ R.T)
+    if np.pi - np.linalg.norm(expected) < 1e-6:
+        assert np.allclose(out, expected, atol=1e-6) or np.allclose(out, -expected, atol=1e-6)
+    else:
+        np.testing.assert_allclose(out, expected, atol=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_compiled_task_rows_equal_the_numpy_reference(robot, seed):
+    """Every task's compute_into (compiled where the class has a kernel) writes the rows of its
+    plain-numpy reference_into."""
+    rng = np.random.default_rng(seed)
+    q = POSTURES["elbow_up"].q + rng.uniform(-0.3, 0.3, 7)
+    terms = robot.terms(q, rng.uniform(-1.0, 1.0, 7), check_limits=False)
+    normal = rng.normal(size=3)
+    normal /= np.linalg.norm(normal)
+    tasks = [
+        ContactApproachTask(normal, 0.2, velocity_gain=15.0, orientation_stiffness=80.0),
+        PostureTask(target=q + rng.uniform(-0.2, 0.2, 7), stiffness=12.0),
+        DampingTask(gain=2.0),
+        FrameTask(terms.contact_point + 0.01, pin.exp3(rng.uniform(-1, 1, 3))),
+        SurfaceOffsetTask(normal, terms.contact_point, 0.05),
+    ]
+    for task in tasks:
+        task.reset(robot.terms(q + rng.uniform(-0.2, 0.2, 7), check_limits=False))
+        A, b = np.full((task.rows, 7), np.nan), np.full(task.rows, np.nan)
+        A_ref, b_ref = np.full((task.rows, 7), np.nan), np.full(task.rows, np.nan)
+        task.compute_into(terms, A, b)
+        task.reference_into(terms, A_ref, b_ref)
+        np.testing.assert_allclose(A, A_ref, rtol=1e-12, atol=1e-12, err_msg=task.name)
+        np.testing.assert_allclose(b, b_ref, rtol=1e-10, atol=1e-9, err_msg=task.name)

@@ -29,6 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.linalg import cho_solve
 
 from .robot import ModelTerms, symmetric_inverse3
@@ -174,8 +175,12 @@ class CompositeRigidBodyJump(GeneralizedMomentumJump):
         return crb_inverse_inertia(terms)
 
     def inverse_inertia_times(self, terms: ModelTerms, normal: np.ndarray) -> np.ndarray:
-        """W_crb n = n / m - r x (I_c^-1 (r x n)), eq. (20) applied to n, in plain floats
-        (([r]x)^T = -[r]x, so -[r]x I_c^-1 [r]x n is the expression above)."""
+        """W_crb n = n / m - r x (I_c^-1 (r x n)), eq. (20) applied to n
+        (([r]x)^T = -[r]x, so -[r]x I_c^-1 [r]x n is the expression above); compiled."""
+        return crb_inverse_inertia_times(terms.contact_point, terms.com, terms.inertia_com, terms.mass, normal)
+
+    def reference_inverse_inertia_times(self, terms: ModelTerms, normal: np.ndarray) -> np.ndarray:
+        """``inverse_inertia_times`` in plain floats (the reference of its kernel)."""
         rx, ry, rz = (terms.contact_point - terms.com).tolist()
         nx, ny, nz = normal.tolist()
         ax, ay, az = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx  # r x n
@@ -210,3 +215,25 @@ def prediction_error(predicted: np.ndarray, measured: np.ndarray) -> np.ndarray:
 def average_prediction_error(predicted: np.ndarray, measured: np.ndarray) -> np.ndarray:
     """Average prediction error (1/D) sum_i |ddq*_i - ddq°_i|, eq. (26), over the last axis."""
     return np.mean(np.abs(prediction_error(predicted, measured)), axis=-1)
+
+
+@njit(cache=True)
+def crb_inverse_inertia_times(contact_point, com, inertia_com, mass, normal):
+    """Kernel of ``CompositeRigidBodyJump.inverse_inertia_times``: W_crb n (20), with I_c^-1
+    applied by a 3x3 linear solve."""
+    rx, ry, rz = contact_point[0] - com[0], contact_point[1] - com[1], contact_point[2] - com[2]
+    nx, ny, nz = normal[0], normal[1], normal[2]
+    ax, ay, az = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx  # r x n
+    I = inertia_com  # symmetric: I_c^-1 a by the adjugate
+    p, q, u, d, e, f = I[0, 0], I[0, 1], I[0, 2], I[1, 1], I[1, 2], I[2, 2]
+    A, B, C = d * f - e * e, u * e - q * f, q * e - u * d
+    inv = 1.0 / (p * A + q * B + u * C)
+    D, E, F = p * f - u * u, q * u - p * e, p * d - q * q
+    bx = (A * ax + B * ay + C * az) * inv
+    by = (B * ax + D * ay + E * az) * inv
+    bz = (C * ax + E * ay + F * az) * inv
+    out = np.empty(3)
+    out[0] = nx / mass - (ry * bz - rz * by)
+    out[1] = ny / mass - (rz * bx - rx * bz)
+    out[2] = nz / mass - (rx * by - ry * bx)
+    return out

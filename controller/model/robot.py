@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from numba import njit
 
 from .validation import BadInputError
 
@@ -244,25 +245,24 @@ class PandaModel:
         pin.updateFramePlacement(model, data, fid)
         J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
         J = J6[:3]
-        JJt = J @ J.T
-        JJt_inv, det = symmetric_inverse3(JJt)
-        # With eigenvalues l1 <= l2 <= l3 of J J^T (the squared singular values of J),
-        # l1 / l3 >= det / trace^3, so the eigenvalues are only computed near a singularity.
-        trace = float(JJt[0, 0] + JJt[1, 1] + JJt[2, 2])
-        if not det >= (SINGULAR_RATIO**2) * trace**3:
-            eigenvalues = np.linalg.eigvalsh(JJt)
+        JJt_inv = np.empty((3, 3))
+        status = contact_jacobian_status(J, q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO**2, JJt_inv)
+        if status == _NEAR_SINGULAR:
+            eigenvalues = np.linalg.eigvalsh(J @ J.T)
             if not eigenvalues[0] >= (SINGULAR_RATIO**2) * eigenvalues[2]:
                 raise SingularPostureError(
                     "singular contact Jacobian at this posture (singular values ratio "
                     f"{np.sqrt(max(eigenvalues[0], 0.0) / eigenvalues[2]):.1e})"
                 )
-        if check_limits and ((q < self.q_min) | (q > self.q_max)).any():
-            self.check_state(q, dq, check_limits=True)
-        dJ6_dq = pin.getFrameJacobianTimeVariation(model, data, fid, pin.LOCAL_WORLD_ALIGNED) @ dq
+        if status == _OUTSIDE_LIMITS or (status == _NEAR_SINGULAR and check_limits):
+            self.check_state(q, dq, check_limits=True)  # raises, naming the joint, when outside
+        # dJ6/dt dq (world-aligned) is the frame's classical acceleration at ddq = 0, which
+        # computeAllTerms leaves in the data.
+        dJ6_dq = pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector.copy()
         placement = data.oMf[fid]
         centroidal = data.Ig
         fields = (
-            q, dq, data.M.copy(), data.nle.copy(), J, J6, dJ6_dq, np.array(JJt_inv),
+            q, dq, data.M.copy(), data.nle.copy(), J, J6, dJ6_dq, JJt_inv,
             placement.translation.copy(), placement.rotation.copy(), data.com[0].copy(),
             float(centroidal.mass), centroidal.inertia.copy(),
         )  # computeAllTerms fills both triangles of M
@@ -290,3 +290,31 @@ class PandaModel:
         return pin.computeFrameJacobian(
             self.model, self.data, q, self.contact_frame_id, pin.LOCAL_WORLD_ALIGNED
         )
+
+
+_ACCEPTED, _NEAR_SINGULAR, _OUTSIDE_LIMITS = 0, 1, 2
+
+
+@njit(cache=True)
+def contact_jacobian_status(J, q, q_min, q_max, check_limits, singular_ratio_squared, JJt_inv):
+    """Kernel of the per-state checks: (J J^T)^-1 by its adjugate into ``JJt_inv``, then
+    _NEAR_SINGULAR when det(J J^T) < ratio^2 trace^3 (with eigenvalues l1 <= l2 <= l3 of J J^T,
+    the squared singular values of J, l1 / l3 >= det / trace^3: only then is the exact test
+    needed), else _OUTSIDE_LIMITS when ``check_limits`` and q leaves [q_min, q_max], else
+    _ACCEPTED."""
+    S = J @ J.T
+    a, b, c, d, e, f = S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
+    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
+    det = a * A + b * B + c * C
+    trace = a + d + f
+    inv = 1.0 / det if det != 0.0 else 0.0
+    JJt_inv[0, 0], JJt_inv[0, 1], JJt_inv[0, 2] = A * inv, B * inv, C * inv
+    JJt_inv[1, 0], JJt_inv[1, 1], JJt_inv[1, 2] = B * inv, (a * f - c * c) * inv, (b * c - a * e) * inv
+    JJt_inv[2, 0], JJt_inv[2, 1], JJt_inv[2, 2] = C * inv, (b * c - a * e) * inv, (a * d - b * b) * inv
+    if not det >= singular_ratio_squared * trace * trace * trace:
+        return _NEAR_SINGULAR
+    if check_limits:
+        for j in range(q.shape[0]):
+            if q[j] < q_min[j] or q[j] > q_max[j]:
+                return _OUTSIDE_LIMITS
+    return _ACCEPTED
