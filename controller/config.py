@@ -123,26 +123,31 @@ class PostImpactConfig:
 
     ``retract``: pull the contact point back along the surface normal to ``retract_distance``
     (m) from the surface, at most at ``max_speed`` (m/s) (``tasks.SurfaceOffsetTask``);
-    ``hold``: stay on the surface, the contact point held at depth ``hold_depth`` (m), so the
-    normal force stays the joint servo's response to that depth; ``continue``: keep the
-    approach tasks. In every mode the impact-aware constraints are off after the impact and
-    every joint limit still applies.
+    ``hold``: come back to the surface and press on it: the target is at depth ``hold_depth``
+    (m) behind the surface, approached at most at ``hold_speed`` (m/s), so once in contact the
+    commanded normal velocity saturates at ``hold_speed`` and the normal force is the joint
+    servo's bounded response to it (proportional to ``hold_speed`` while position_gain x
+    hold_depth >= hold_speed); ``continue``: keep the approach tasks. In every mode the
+    impact-aware constraints are off after the impact and every joint limit still applies.
     """
 
     mode: str = "retract"
     retract_distance: float = 0.05
     max_speed: float = 0.1
-    hold_depth: float = 0.0
+    hold_depth: float = 0.002
+    hold_speed: float = 0.02
 
     def __post_init__(self):
         if self.mode not in POST_IMPACT_MODES:
             raise ValueError(f"post_impact.mode = {self.mode!r}; choose from {', '.join(POST_IMPACT_MODES)}")
-        for name in ("retract_distance", "max_speed", "hold_depth"):
+        for name in ("retract_distance", "max_speed", "hold_depth", "hold_speed"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"post_impact.{name} = {value} must be a finite number >= 0")
         if self.mode == "retract" and not (self.retract_distance > 0.0 and self.max_speed > 0.0):
             raise ValueError("post_impact: a retract needs retract_distance > 0 and max_speed > 0")
+        if self.mode == "hold" and not (self.hold_depth > 0.0 and self.hold_speed > 0.0):
+            raise ValueError("post_impact: a hold needs hold_depth > 0 and hold_speed > 0")
 
 
 @dataclass
@@ -321,11 +326,14 @@ def post_impact_config(config: ControllerConfig) -> ControllerConfig:
     impact = replace(config.impact, jump_model=None)
     if post.mode == "continue":
         return replace(config, impact=impact)
-    offset = post.retract_distance if post.mode == "retract" else -post.hold_depth
+    if post.mode == "retract":
+        offset, speed = post.retract_distance, post.max_speed
+    else:
+        offset, speed = -post.hold_depth, post.hold_speed
     surface = config.surface
     offset_task = TaskConfig(
         "surface_offset",
-        {"normal": surface.normal, "surface_point": surface.point, "offset": offset, "max_speed": post.max_speed},
+        {"normal": surface.normal, "surface_point": surface.point, "offset": offset, "max_speed": speed},
     )
     kept = [t for t in config.tasks if t.type not in ("contact_approach", "frame")]
     return replace(config, tasks=[offset_task, *kept], impact=impact)

@@ -148,7 +148,11 @@ def test_post_impact_section_loads_and_is_validated(tmp_path):
     config = ControllerConfig.from_file(path)
     assert config.post_impact.mode == "hold" and config.post_impact.hold_depth == 0.0005
     assert ControllerConfig.from_dict(config.to_dict()) == config
-    for bad in ({"mode": "bounce"}, {"retract_distance": -0.01}, {"max_speed": float("nan")}):
+    bad_sections = (
+        {"mode": "bounce"}, {"retract_distance": -0.01}, {"max_speed": float("nan")},
+        {"mode": "hold", "hold_depth": 0.0}, {"mode": "hold", "hold_speed": 0.0}, {"hold_speed": float("inf")},
+    )
+    for bad in bad_sections:
         with pytest.raises(ValueError, match="post_impact"):
             ControllerConfig.from_dict({"post_impact": bad})
 
@@ -170,5 +174,8 @@ def test_post_impact_controller_has_no_impact_constraints_and_keeps_the_limits(r
         assert types == [t.type for t in config.tasks]
     else:
         assert types[0] == "surface_offset" and "contact_approach" not in types
-        offset = post.tasks[0].params["offset"]
-        assert offset == (config.post_impact.retract_distance if mode == "retract" else -config.post_impact.hold_depth)
+        params, post_impact = post.tasks[0].params, config.post_impact
+        if mode == "retract":
+            assert (params["offset"], params["max_speed"]) == (post_impact.retract_distance, post_impact.max_speed)
+        else:
+            assert (params["offset"], params["max_speed"]) == (-post_impact.hold_depth, post_impact.hold_speed)

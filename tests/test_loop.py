@@ -220,3 +220,28 @@ def test_other_post_impact_modes_switch_the_impact_constraints_off(mode, model, 
     phases = int(in_contact[0]) + int(np.sum(np.diff(in_contact.astype(int)) == 1))
     if mode == "continue":
         assert phases > 1  # it keeps commanding the approach: the tool re-contacts the wall
+
+
+def hold_run(tmp_path, hold_speed: float):
+    config_file = tmp_path / f"hold-{hold_speed}.toml"
+    config_file.write_text(
+        '[[tasks]]\ntype = "contact_approach"\nspeed = 0.15\n[[tasks]]\ntype = "damping"\n'
+        f'[post_impact]\nmode = "hold"\nhold_speed = {hold_speed}\n'
+    )
+    report, result = run(RunRequest(config_file=str(config_file), duration=1.5, paced=False))
+    assert report["impact"]["detected"] and report["watchdog_trips"] == 0
+    assert_continuous_within_limits(result.log.dq_cmd)
+    log = result.log
+    holding = np.array(result.phases) == "hold"
+    t_end = log.t[holding][-1]
+    window = (log.force_t > t_end - 0.3) & (log.force_t <= t_end)
+    return np.linalg.norm(log.force[window], axis=1)
+
+
+def test_hold_comes_back_to_the_wall_and_presses_with_a_force_linear_in_the_hold_speed(tmp_path):
+    # the servo answers a commanded normal velocity v into the wall with a force proportional
+    # to v: over the last 0.3 s of the hold the tool never leaves the wall, and doubling
+    # hold_speed doubles the mean force
+    slow, fast = (hold_run(tmp_path, speed) for speed in (0.02, 0.04))
+    assert np.all(slow > 0.0) and np.all(fast > 0.0)
+    assert fast.mean() / slow.mean() == pytest.approx(2.0, rel=0.2)

@@ -191,17 +191,17 @@ class ControlLoop:
             started = time.perf_counter()
             stopping = self.stop_requested or k >= cycles
             if stopping:
-                dq_cmd, phase = self.filter.brake(), STOPPING
+                dq_cmd, phase = self.brake(), STOPPING
                 stop_cycles += 1
             elif watchdog.tripped:
-                dq_cmd, phase = self.filter.brake(), BRAKING
+                dq_cmd, phase = self.brake(), BRAKING
             else:
                 try:
                     command = session.step(state)
                     dq_cmd, phase = self.filter(command.dq_cmd), command.phase
                 except Exception as error:  # the robot must keep getting commands
                     watchdog.trip(f"controller exception: {type(error).__name__}: {error}")
-                    dq_cmd, phase = self.filter.brake(), BRAKING
+                    dq_cmd, phase = self.brake(), BRAKING
             try:
                 robot.write(dq_cmd)
             except Exception as error:  # the robot stopped by itself (e.g. its own reflex)
@@ -234,6 +234,14 @@ class ControlLoop:
             except Exception as error:
                 self._robot_error(error)
         return self._result()
+
+    def brake(self) -> np.ndarray:
+        """The filter's next braking command; a residue below ``STOPPED_SPEED`` (rounding of the
+        jerk-limited ramp) is sent as exactly zero, a step far inside every limit."""
+        dq_cmd = self.filter.brake()
+        if np.max(np.abs(dq_cmd)) <= STOPPED_SPEED:
+            dq_cmd[:] = 0.0
+        return dq_cmd
 
     def _robot_error(self, error: Exception) -> None:
         """The backend failed: no command can reach the robot any more; the run ends, its log

@@ -9,8 +9,11 @@ controller of ``controller.config.post_impact_config``, impact-aware constraints
 Both controllers are built at the start, so the switch costs one ``reset``. The post-impact
 controller starts from the approach controller's command memory (previous q_cmd, dq_cmd and
 ddq), so its first command obeys the jerk limits around the last one. As in ``impactqp
-simulate`` the controller is fed its own previous command (q_cmd, dq_cmd), the measured state
-only at the start (``scenarios.trial``, "Controller state").
+simulate`` the approach controller is fed its own previous command (q_cmd, dq_cmd), the measured
+state only at the start (``scenarios.trial``, "Controller state"). After the impact of a
+``retract`` or ``hold`` it is fed the measured q with the commanded dq: the task is a position
+relative to the surface and the bounce moved the tool off the commanded one
+(``docs/robot-loop.md``, "Which state the controller sees").
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from impactqp.controller.qp import Command
 from .interface import RobotState
 
 APPROACH = "approach"
+MEASURED_POSITION_PHASES = ("hold", "retract")
 
 
 class ImpactSession:
@@ -75,6 +79,8 @@ class ImpactSession:
             self._switch(state)
         if self.last is None:
             q, dq = state.q, state.dq
+        elif self.phase in MEASURED_POSITION_PHASES:
+            q, dq = state.q, self.last.dq_cmd
         else:
             q, dq = self.last.q_cmd, self.last.dq_cmd
         self.last = self.controller.step(q, dq)
