@@ -209,3 +209,15 @@ def test_inverse_inertia_along_the_normal_is_W_times_n(robot, q, normal):
         JUMP_MODELS["gm"].inverse_inertia_times(terms, normal), gm_inverse_inertia(terms) @ normal,
         rtol=1e-8, atol=1e-12,
     )
+
+
+@SETTINGS
+@given(q=joint_positions(), normal=unit_vectors(), cr=restitutions)
+def test_compiled_crb_maps_equal_the_numpy_reference(robot, q, normal, cr):
+    """The compiled G, K and W of the CRB model equal eq. (20) then (12) and (21) in numpy."""
+    terms = terms_or_skip(robot, q)
+    crb = JUMP_MODELS["crb"]
+    for fast, reference in zip(
+        dataclasses.astuple(crb.maps(terms, normal, cr)), dataclasses.astuple(crb.reference_maps(terms, normal, cr))
+    ):
+        np.testing.assert_allclose(fast, reference, rtol=1e-9, atol=1e-12)

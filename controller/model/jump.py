@@ -174,6 +174,17 @@ class CompositeRigidBodyJump(GeneralizedMomentumJump):
     def inverse_inertia(self, terms: ModelTerms) -> np.ndarray:
         return crb_inverse_inertia(terms)
 
+    def maps(self, terms, normal, restitution):
+        """G, K = J+ W_crb and W_crb in one compiled call (``crb_maps``)."""
+        G, K, W = crb_maps(
+            terms.contact_point, terms.com, terms.inertia_com, terms.mass, terms.J, terms.JJt_inv, normal, restitution
+        )
+        return JumpMaps(G, K, W)
+
+    def reference_maps(self, terms, normal, restitution):
+        """``maps`` in plain numpy: eq. (20), then (12) and (21) as for the GM model."""
+        return super().maps(terms, normal, restitution)
+
     def inverse_inertia_times(self, terms: ModelTerms, normal: np.ndarray) -> np.ndarray:
         """W_crb n = n / m - r x (I_c^-1 (r x n)), eq. (20) applied to n
         (([r]x)^T = -[r]x, so -[r]x I_c^-1 [r]x n is the expression above); compiled."""
@@ -237,3 +248,33 @@ def crb_inverse_inertia_times(contact_point, com, inertia_com, mass, normal):
     out[1] = ny / mass - (rz * bx - rx * bz)
     out[2] = nz / mass - (rx * by - ry * bx)
     return out
+
+
+@njit(cache=True)
+def crb_maps(contact_point, com, inertia_com, mass, J, JJt_inv, normal, restitution):
+    """Kernel of ``CompositeRigidBodyJump.maps``: W_crb = I3 / m - [r]x I_c^-1 [r]x (20), with
+    I_c^-1 by the adjugate; G = -(1+c_r) n n^T / (n^T W_crb n) (12); K = J^T (J J^T)^-1 W_crb (21).
+    Returns (G, K, W)."""
+    r = contact_point - com
+    R = np.zeros((3, 3))
+    R[0, 1], R[0, 2], R[1, 0], R[1, 2], R[2, 0], R[2, 1] = -r[2], r[1], r[2], -r[0], -r[1], r[0]
+    I = inertia_com
+    p, q, u, d, e, f = I[0, 0], I[0, 1], I[0, 2], I[1, 1], I[1, 2], I[2, 2]
+    A, B, C = d * f - e * e, u * e - q * f, q * e - u * d
+    inv = 1.0 / (p * A + q * B + u * C)
+    Iinv = np.empty((3, 3))
+    Iinv[0, 0], Iinv[0, 1], Iinv[0, 2] = A * inv, B * inv, C * inv
+    Iinv[1, 0], Iinv[1, 1], Iinv[1, 2] = B * inv, (p * f - u * u) * inv, (q * u - p * e) * inv
+    Iinv[2, 0], Iinv[2, 1], Iinv[2, 2] = C * inv, (q * u - p * e) * inv, (p * d - q * q) * inv
+    W = -(R @ Iinv @ R)
+    for i in range(3):
+        W[i, i] += 1.0 / mass
+    W = 0.5 * (W + W.T)
+    Wn = W @ normal
+    scale = -(1.0 + restitution) / (normal @ Wn)
+    G = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            G[i, j] = scale * normal[i] * normal[j]
+    K = J.T @ (JJt_inv @ W)
+    return G, K, W

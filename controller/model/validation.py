@@ -38,7 +38,9 @@ def finite_vector(value, size: int | None, what: str) -> np.ndarray:
     if array.ndim != 1 or (size is not None and array.shape[0] != size):
         expected = f"{size} numbers" if size is not None else "a flat list of numbers"
         raise BadInputError(f"{what} must be {expected}, got shape {array.shape}")
-    if not np.all(np.isfinite(array)):
+    # one dot product is finite when every entry is; the entry-wise test only runs otherwise
+    # (a dot product of large finite entries can overflow)
+    if not math.isfinite(float(array @ array)) and not np.all(np.isfinite(array)):
         raise BadInputError(f"{what} must be finite, got {array.tolist()}")
     return array
 
@@ -46,7 +48,7 @@ def finite_vector(value, size: int | None, what: str) -> np.ndarray:
 def unit_normal(normal, what: str = "the surface normal") -> np.ndarray:
     """The normalised 3-vector ``normal``; a non-finite or (near-)zero normal is bad input."""
     n = finite_vector(normal, 3, what)
-    norm = float(np.linalg.norm(n))
+    norm = math.hypot(*n.tolist())
     if norm < NORMAL_MIN_NORM:
         raise BadInputError(f"{what} must be non-zero, got {n.tolist()}")
     return n / norm
