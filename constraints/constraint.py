@@ -140,6 +140,19 @@ class Constraint:
         return ConstraintRows(C, lower, upper)
 
 
+def symmetric_rows_into(C, dq, limit, inv_h, active, lower, upper) -> None:
+    """Bounds of the rows C ddq that keep |C (dq + h ddq)| <= limit: (+-limit - C dq) / h when the
+    rows are ``active``, unbounded otherwise (the numpy reference of the impact-aware kernels)."""
+    if not active:
+        lower.fill(-np.inf)
+        upper.fill(np.inf)
+        return
+    centre = inv_h * (C @ dq)
+    scaled_limit = inv_h * limit
+    np.subtract(-scaled_limit, centre, out=lower)
+    np.subtract(scaled_limit, centre, out=upper)
+
+
 @njit(cache=True)
 def relax_to_reachable(C, lower, upper, lo, hi):
     """Kernel of ``ControlCycle.recoverable``: row i spans [c_i - s_i, c_i + s_i] over the box

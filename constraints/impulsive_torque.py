@@ -8,7 +8,7 @@ from numba import njit
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
 from impactqp.controller.model.robot import NQ, ModelTerms
 
-from .constraint import Constraint, ControlCycle
+from .constraint import Constraint, ControlCycle, symmetric_rows_into
 from .impact_model import ImpactModel
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 
@@ -47,7 +47,6 @@ class ImpulsiveTorqueLimit(Constraint):
         self._scaled_limit = self.row_scale * self.impulse_limit
         self.name = f"impulsive_torque[{impact.name}]"
         self._row_scale_column = self.row_scale[:, None].copy()
-        self._scaled_limit = self.row_scale * self.impulse_limit
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         maps = self.impact.maps(terms)
@@ -58,16 +57,9 @@ class ImpulsiveTorqueLimit(Constraint):
 
     def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         maps = self.impact.maps(terms)
-        np.multiply(maps.torque_matrix, self._row_scale_column, out=C)
-        if not maps.active:
-            lower.fill(-np.inf)
-            upper.fill(np.inf)
-            return
-        inv_h = 1.0 / cycle.horizon
-        pre = inv_h * (C @ terms.dq)  # s_i P_i dq / h, and s_i tau_max_i delta_t = dq_max_i
-        scaled_limit = inv_h * self._scaled_limit
-        np.subtract(-scaled_limit, pre, out=lower)
-        np.subtract(scaled_limit, pre, out=upper)
+        np.multiply(maps.torque_matrix, self._row_scale_column, out=C)  # rows s_i P_i
+        # s_i tau_max_i delta_t = dq_max_i
+        symmetric_rows_into(C, terms.dq, self._scaled_limit, 1.0 / cycle.horizon, maps.active, lower, upper)
 
 
 @njit(cache=True)

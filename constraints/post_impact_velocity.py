@@ -7,7 +7,7 @@ from numba import njit
 
 from impactqp.controller.model.robot import NQ, ModelTerms
 
-from .constraint import Constraint, ControlCycle
+from .constraint import Constraint, ControlCycle, symmetric_rows_into
 from .impact_model import ImpactModel
 
 
@@ -41,16 +41,8 @@ class PostImpactVelocityLimit(Constraint):
 
     def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         maps = self.impact.maps(terms)
-        np.add(self._identity, maps.jump_matrix, out=C)
-        if not maps.active:
-            lower.fill(-np.inf)
-            upper.fill(np.inf)
-            return
-        inv_h = 1.0 / cycle.horizon
-        post = inv_h * (C @ terms.dq)
-        scaled_limit = inv_h * self.dq_max
-        np.subtract(-scaled_limit, post, out=lower)
-        np.subtract(scaled_limit, post, out=upper)
+        np.add(self._identity, maps.jump_matrix, out=C)  # dq+ = (I + A) dq-
+        symmetric_rows_into(C, terms.dq, self.dq_max, 1.0 / cycle.horizon, maps.active, lower, upper)
 
 
 @njit(cache=True)
