@@ -68,9 +68,11 @@ class BatchKinematics:
         if frame.parentJoint != NQ:
             raise ValueError("the contact frame must be attached to the last joint")
         self.p_contact = frame.placement.translation.copy()
+        self.R_contact = frame.placement.rotation.copy()
         self.total_mass = float(self.masses.sum())
 
-    def terms(self, Q: np.ndarray) -> BatchTerms:
+    def _chain(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Joint frames of N states: rotations Rs (N, 7, 3, 3) and origins ps (N, 7, 3)."""
         Q = np.asarray(Q, dtype=float)
         if Q.ndim != 2 or Q.shape[1] != NQ:
             raise BadInputError(f"Q must have shape (N, {NQ}), got {Q.shape}")
@@ -92,6 +94,22 @@ class BatchKinematics:
             Rs[:, k, :, 2] = R[:, :, 2]
             R = Rs[:, k]
             ps[:, k] = p
+        return Rs, ps
+
+    def contact_frames(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Contact point p (N, 3), tool axis z (N, 3) (hand z) and world-aligned frame Jacobian
+        J6 = [Jv; Jw] (N, 6, 7) of N states: Jv_k = z_k x (p - o_k), Jw_k = z_k."""
+        Rs, ps = self._chain(Q)
+        axes = Rs[:, :, :, 2]
+        contact = ps[:, -1] + Rs[:, -1] @ self.p_contact
+        tool_axis = Rs[:, -1] @ self.R_contact[:, 2]
+        J6 = np.concatenate(
+            [np.swapaxes(np.cross(axes, contact[:, None, :] - ps), 1, 2), np.swapaxes(axes, 1, 2)], axis=1
+        )
+        return contact, tool_axis, J6
+
+    def terms(self, Q: np.ndarray) -> BatchTerms:
+        Rs, ps = self._chain(Q)
         axes = Rs[:, :, :, 2]
         link_com = ps + np.einsum("nkab,kb->nka", Rs, self.levers)
         contact = ps[:, -1] + Rs[:, -1] @ self.p_contact
@@ -108,7 +126,7 @@ class BatchKinematics:
         )
 
 
-def _skew_batch(v: np.ndarray) -> np.ndarray:
+def skew_batch(v: np.ndarray) -> np.ndarray:
     S = np.zeros(v.shape[:-1] + (3, 3))
     S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
     S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
@@ -139,7 +157,7 @@ def predict_batch(
     v = np.broadcast_to(np.asarray(pre_impact_velocities, float), (N, 3))
     J, Jt = terms.J, np.swapaxes(terms.J, 1, 2)
     if method == "crb":
-        r_hat = _skew_batch(terms.contact_point - terms.com)
+        r_hat = skew_batch(terms.contact_point - terms.com)
         W = np.eye(3) / terms.mass - r_hat @ np.linalg.solve(terms.inertia_com, r_hat)
     else:
         L = np.linalg.cholesky(terms.M)

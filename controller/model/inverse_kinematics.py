@@ -13,6 +13,10 @@ Each damped least-squares step solves dq = A^T (A A^T + lambda^2 I)^-1 e with A 
 and e = [e_p; e_z], limited to ``MAX_STEP`` rad per joint and clipped to the joint limits. The
 seed posture is the start; the solution is the posture of the nearest local minimum, which is
 why a sweep documents its seed (docs/sweep.md).
+
+:func:`contact_postures` runs the same iteration for N targets at once on the vectorised
+kinematics of ``controller.model.batch`` (every target from the same seed, each one stopped at
+its own convergence), so it reaches the postures of :func:`contact_posture` up to rounding.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from .batch import BatchKinematics
 from .robot import PandaModel
 
 POSITION_TOLERANCE = 1e-6
@@ -87,3 +92,67 @@ def contact_posture(
         step = A.T @ np.linalg.solve(A @ A.T + damping, e)
         q = np.clip(q + np.clip(step, -MAX_STEP, MAX_STEP), robot.q_min, robot.q_max)
     return ContactPosture(q, False, position_error, axis_error, max_iterations)
+
+
+@dataclass(frozen=True)
+class ContactPostures:
+    """The result of :func:`contact_postures`: one row per target, as in :class:`ContactPosture`."""
+
+    q: np.ndarray  # (N, 7)
+    reachable: np.ndarray  # (N,) bool
+    position_error: np.ndarray  # (N,) m
+    axis_error: np.ndarray  # (N,)
+
+
+def contact_postures(
+    kinematics: BatchKinematics,
+    points,
+    normals,
+    seed,
+    max_iterations: int = MAX_ITERATIONS,
+) -> ContactPostures:
+    """:func:`contact_posture` for N targets (``points`` and unit ``normals``, (N, 3)) at once.
+
+    Each iteration evaluates the frames of the targets still unsolved, tests them with the same
+    tolerances and takes the same damped least-squares step (batched 6x6 solves).
+    """
+    robot = kinematics.robot
+    targets = np.asarray(points, dtype=float).reshape(-1, 3)
+    axis_targets = -np.asarray(normals, dtype=float).reshape(-1, 3)
+    n_targets = targets.shape[0]
+    Q = np.tile(np.clip(np.asarray(seed, dtype=float), robot.q_min, robot.q_max), (n_targets, 1))
+    reachable = np.zeros(n_targets, dtype=bool)
+    position_error = np.full(n_targets, np.inf)
+    axis_error = np.full(n_targets, np.inf)
+    active = np.arange(n_targets)
+    damping = DAMPING**2 * np.eye(6)
+    for iteration in range(max_iterations + 1):
+        if active.size == 0:
+            break
+        q = Q[active]
+        p, z, J6 = kinematics.contact_frames(q)
+        axis_target = axis_targets[active]
+        e = np.empty((active.size, 6))
+        e[:, :3] = targets[active] - p
+        e[:, 3:] = np.cross(z, axis_target)
+        position_error[active] = np.linalg.norm(e[:, :3], axis=1)
+        axis_error[active] = np.linalg.norm(e[:, 3:], axis=1)
+        aligned = np.einsum("na,na->n", z, axis_target) > 0.0
+        solved = (position_error[active] < POSITION_TOLERANCE) & (axis_error[active] < AXIS_TOLERANCE) & aligned
+        reachable[active[solved]] = True
+        if iteration == max_iterations:
+            break
+        keep = ~solved
+        active, q, z, J6, e, aligned, axis_target = (
+            active[keep], q[keep], z[keep], J6[keep], e[keep], aligned[keep], axis_target[keep]
+        )
+        away = ~aligned
+        if np.any(away):
+            # Pointing away: the cross product vanishes at 180 degrees; turn about any normal axis.
+            za = z[away]
+            e[away, 3:] = np.cross(za, axis_target[away] + 0.5 * np.cross(za, np.roll(za, 1, axis=1)))
+        A = J6.copy()
+        A[:, 3:] -= z[:, :, None] * np.einsum("na,nak->nk", z, J6[:, 3:])[:, None, :]
+        step = np.einsum("nak,na->nk", A, np.linalg.solve(A @ np.swapaxes(A, 1, 2) + damping, e[:, :, None])[..., 0])
+        Q[active] = np.clip(q + np.clip(step, -MAX_STEP, MAX_STEP), robot.q_min, robot.q_max)
+    return ContactPostures(Q, reachable, position_error, axis_error)

@@ -10,6 +10,10 @@ v- = J dq- = -v n, and every quantity below is linear in the speed v:
 
 with A = K G J the jump matrix of the chosen model. The maximum feasible speed is the smallest
 ratio limit_i / slope_i over joints and criteria; the arg-min says what binds.
+
+:func:`closed_form_max_speeds` evaluates the same for N postures at once on the batched terms of
+``controller.model.batch`` (stacked pseudo-inverses, Cholesky solves with M), with the maps of
+each model written out as in ``controller.model.jump``.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .batch import BatchTerms, skew_batch
 from .jump import JumpModel
 from .robot import ModelTerms, PandaModel
 
@@ -75,3 +80,77 @@ def closed_form_max_speed(
         if s[j] > 0 and 1.0 / s[j] < best.speed:
             best = MaxSpeed(float(1.0 / s[j]), criterion, j + 1)
     return best
+
+
+@dataclass(frozen=True)
+class MaxSpeeds:
+    """:class:`MaxSpeed` of N postures: speed (N,), index into CRITERIA (N,; -1 when nothing
+    binds) and 1-based joint (N,; 0 when nothing binds)."""
+
+    speed: np.ndarray
+    criterion: np.ndarray
+    joint: np.ndarray
+
+
+def _batch_impulse_and_jump(
+    terms: BatchTerms, normals: np.ndarray, v: np.ndarray, model: str, restitution: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """iota = G v- (N, 3) and ddq = K iota (N, 7) of ``model`` (the table of controller.model.jump)."""
+    J, Jt = terms.J, np.swapaxes(terms.J, 1, 2)
+    if model in ("classical", "classical_normal", "gm"):
+        L = np.linalg.cholesky(terms.M)
+        MinvJt = np.linalg.solve(np.swapaxes(L, 1, 2), np.linalg.solve(L, Jt))
+        W = J @ MinvJt
+    if model in ("classical", "classical_normal"):
+        impulse = -(1.0 + restitution) * np.linalg.solve(W, v[..., None])[..., 0]
+        if model == "classical_normal":
+            impulse = np.einsum("na,na->n", normals, impulse)[:, None] * normals
+        return impulse, (MinvJt @ impulse[..., None])[..., 0]
+    if model == "gm":
+        W = 0.5 * (W + np.swapaxes(W, 1, 2))
+    else:  # crb, eq. (20)
+        r_hat = skew_batch(terms.contact_point - terms.com)
+        W = np.eye(3) / terms.mass - r_hat @ np.linalg.solve(terms.inertia_com, r_hat)
+    nWn = np.einsum("na,nab,nb->n", normals, W, normals)
+    impulse = (-(1.0 + restitution) * np.einsum("na,na->n", normals, v) / nWn)[:, None] * normals
+    Wi = (W @ impulse[..., None])[..., 0]
+    return impulse, (Jt @ np.linalg.solve(J @ Jt, Wi[..., None]))[..., 0]  # J+ W iota
+
+
+def closed_form_max_speeds(
+    robot: PandaModel,
+    terms: BatchTerms,
+    normals: np.ndarray,
+    model: str,
+    restitution: float = 0.0,
+    impact_duration: float = DEFAULT_IMPACT_DURATION,
+) -> MaxSpeeds:
+    """:func:`closed_form_max_speed` of N postures (``terms``) and unit ``normals`` (N, 3)."""
+    normals = np.broadcast_to(np.asarray(normals, float), terms.J.shape[:1] + (3,))
+    J6 = np.concatenate([terms.J, np.swapaxes(terms.joint_axes, 1, 2)], axis=1)
+    target = np.concatenate([-normals, np.zeros_like(normals)], axis=1)
+    d = (np.linalg.pinv(J6) @ target[..., None])[..., 0]  # d = J6+ [-n; 0]
+    v = (terms.J @ d[..., None])[..., 0]
+    impulse, jump = _batch_impulse_and_jump(terms, normals, v, model, restitution)
+    Jt_impulse = (np.swapaxes(terms.J, 1, 2) @ impulse[..., None])[..., 0]
+    slopes = np.stack(
+        [
+            np.abs(d) / robot.dq_max,
+            np.abs(d + jump) / robot.dq_max,
+            np.abs(Jt_impulse) / impact_duration / robot.tau_max,
+        ],
+        axis=1,
+    )  # (N, criterion, joint), in the order of CRITERIA
+    joint = np.argmax(slopes, axis=2)
+    rate = np.take_along_axis(slopes, joint[..., None], axis=2)[..., 0]
+    with np.errstate(divide="ignore"):
+        speeds = np.where(rate > 0.0, 1.0 / rate, np.inf)
+    criterion = np.argmin(speeds, axis=1)
+    rows = np.arange(len(criterion))
+    speed = speeds[rows, criterion]
+    binds = np.isfinite(speed)
+    return MaxSpeeds(
+        speed,
+        np.where(binds, criterion, -1),
+        np.where(binds, joint[rows, criterion] + 1, 0),
+    )
