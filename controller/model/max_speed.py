@@ -117,6 +117,14 @@ def _batch_impulse_and_jump(
     return impulse, (Jt @ np.linalg.solve(J @ Jt, Wi[..., None]))[..., 0]  # J+ W iota
 
 
+def approach_directions(terms: BatchTerms, normals: np.ndarray) -> np.ndarray:
+    """:func:`approach_direction` of N postures: d = J6+ [-n; 0] (N, 7), J6 = [J; joint axes]."""
+    normals = np.broadcast_to(np.asarray(normals, float), terms.J.shape[:1] + (3,))
+    J6 = np.concatenate([terms.J, np.swapaxes(terms.joint_axes, 1, 2)], axis=1)
+    target = np.concatenate([-normals, np.zeros_like(normals)], axis=1)
+    return (np.linalg.pinv(J6) @ target[..., None])[..., 0]
+
+
 def closed_form_max_speeds(
     robot: PandaModel,
     terms: BatchTerms,
@@ -124,12 +132,13 @@ def closed_form_max_speeds(
     model: str,
     restitution: float = 0.0,
     impact_duration: float = DEFAULT_IMPACT_DURATION,
+    directions: np.ndarray | None = None,
 ) -> MaxSpeeds:
-    """:func:`closed_form_max_speed` of N postures (``terms``) and unit ``normals`` (N, 3)."""
+    """:func:`closed_form_max_speed` of N postures (``terms``) and unit ``normals`` (N, 3);
+    ``directions``: their :func:`approach_directions`, when already known (they depend on
+    neither the model, nor the restitution, nor the impact duration)."""
     normals = np.broadcast_to(np.asarray(normals, float), terms.J.shape[:1] + (3,))
-    J6 = np.concatenate([terms.J, np.swapaxes(terms.joint_axes, 1, 2)], axis=1)
-    target = np.concatenate([-normals, np.zeros_like(normals)], axis=1)
-    d = (np.linalg.pinv(J6) @ target[..., None])[..., 0]  # d = J6+ [-n; 0]
+    d = approach_directions(terms, normals) if directions is None else directions
     v = (terms.J @ d[..., None])[..., 0]
     impulse, jump = _batch_impulse_and_jump(terms, normals, v, model, restitution)
     Jt_impulse = (np.swapaxes(terms.J, 1, 2) @ impulse[..., None])[..., 0]

@@ -33,7 +33,7 @@ import numpy as np
 from impactqp.controller.measured.impact import ImpactNotFoundError
 from impactqp.controller.model.batch import BatchKinematics
 from impactqp.controller.model.inverse_kinematics import contact_postures
-from impactqp.controller.model.max_speed import CRITERIA, closed_form_max_speeds
+from impactqp.controller.model.max_speed import CRITERIA, approach_directions, closed_form_max_speeds
 from impactqp.controller.model.postures import DEFAULT_WALL, ImpactPosture, Surface
 from impactqp.controller.model.robot import NQ, SINGULAR_RATIO, PandaModel
 from impactqp.scenarios.max_speed_search import MaxSpeedSearch
@@ -100,7 +100,8 @@ def evaluate_cells(config: SweepConfig, cells: range, simulation: Simulation | N
     reached = np.flatnonzero(solved.reachable)
     terms = kinematics.terms(solved.q[reached]) if reached.size else None
     if terms is not None:
-        cond_M[reached] = np.linalg.cond(terms.M)
+        eigenvalues = np.linalg.eigvalsh(terms.M)  # M is symmetric positive definite
+        cond_M[reached] = eigenvalues[:, -1] / eigenvalues[:, 0]
         s = np.linalg.svd(terms.J, compute_uv=False)
         sv_ratio[reached] = s[:, -1] / s[:, 0]
     singular = solved.reachable & ~(sv_ratio >= SINGULAR_RATIO)
@@ -132,6 +133,9 @@ def evaluate_cells(config: SweepConfig, cells: range, simulation: Simulation | N
     regular_index = np.full(n_pairs, -1)
     regular_index[reached[regular_in_reached]] = np.arange(int(regular_in_reached.sum()))
     cell_regular = regular_index[posture_of_cell]
+    if regular_terms is not None:
+        regular_normals = normals[pairs[regular_index >= 0, 1]]
+        directions = approach_directions(regular_terms, regular_normals)
     for name in config.jump_models:
         speed = np.full(cell.size, np.nan)
         criterion = np.full(cell.size, -1)
@@ -142,8 +146,8 @@ def evaluate_cells(config: SweepConfig, cells: range, simulation: Simulation | N
                 if not select.any():
                     continue
                 best = closed_form_max_speeds(
-                    robot, regular_terms, normals[pairs[regular_index >= 0, 1]], name,
-                    float(restitution[ri]), float(impact_duration[ti]),
+                    robot, regular_terms, regular_normals, name, float(restitution[ri]), float(impact_duration[ti]),
+                    directions,
                 )
                 rows = cell_regular[select]
                 speed[select], criterion[select], joint[select] = best.speed[rows], best.criterion[rows], best.joint[rows]

@@ -4,8 +4,9 @@
 simulated and the plant of ``--plant``, :func:`identity`), the package version and the chunk size;
 ``DIR/chunk-NNNNNN.parquet`` holds the rows of cells [NNNNNN * chunk_size, ...). Each chunk is
 written to a temporary file and moved into place (``controller.measured.atomic``), so a chunk on
-disk is complete: resume skips it and a killed sweep loses or duplicates no row. The Parquet
-metadata carries the identity and the package version.
+disk is complete: resume skips it (and removes the temporary file a kill may leave) and a killed
+sweep loses or duplicates no row. The Parquet metadata carries the identity and the package
+version.
 """
 
 from __future__ import annotations
@@ -61,6 +62,8 @@ def prepare(out: Path, config: SweepConfig, simulation: Simulation | None, resum
                 raise BadInputError(f"{what} differs from the one of the sweep in {out}; cannot --resume")
         if theirs.get("chunk_size") != chunk_size:
             raise BadInputError(f"the sweep in {out} was written in chunks of another size; cannot --resume")
+        for leftover in out.glob(".chunk-*"):  # the temporary file of a chunk being written when killed
+            leftover.unlink()
         return
     out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(stored, json.dumps(ours | {"version": package_version(), "chunk_size": chunk_size}))
