@@ -18,17 +18,17 @@ REPEATS = 3
 
 
 def _closed_form_config():
-    """41 x 41 points (about half of them reachable) x 2 restitution values, 3 jump models."""
+    """81 x 81 points (about half of them reachable) x 2 restitution values, 3 jump models."""
     data = tomllib.loads(EXAMPLE)
-    data["grid"].update(size=[0.4, 0.4], spacing=0.01)
+    data["grid"].update(size=[0.4, 0.4], spacing=0.005)
     data["settings"].update(restitution=[0.0, 0.5], jump_models=["classical", "gm", "crb"])
     return parse_config(data)
 
 
 def _simulated_config():
-    """Two reachable contact points near the tip of elbow_up, the default tolerance."""
+    """3 x 3 reachable contact points below and beside the tip of elbow_up, the default tolerance."""
     data = tomllib.loads(EXAMPLE)
-    data["grid"].update(origin=[0.6, 0.0, 0.7], size=[0.1, 0.0], spacing=0.1)
+    data["grid"].update(origin=[0.6, -0.1, 0.6], size=[0.1, 0.1], spacing=0.05)
     return parse_config(data)
 
 
