@@ -150,7 +150,9 @@ def evaluate_cells(config: SweepConfig, cells: range, simulation: Simulation | N
                     directions,
                 )
                 rows = cell_regular[select]
-                speed[select], criterion[select], joint[select] = best.speed[rows], best.criterion[rows], best.joint[rows]
+                speed[select], criterion[select], joint[select] = (
+                    best.speed[rows], best.criterion[rows], best.joint[rows]
+                )
         columns[f"speed_{name}"] = speed
         columns[f"criterion_{name}"] = [CRITERIA[i] if i >= 0 else "" for i in criterion]
         columns[f"joint_{name}"] = joint

@@ -39,8 +39,8 @@ def chunk_path(out: Path, chunk: int) -> Path:
 
 
 def identity(config: SweepConfig, simulation: Simulation | None) -> dict:
-    """What makes two sweeps the same: the config, ``--simulate`` and the ``--plant`` overrides
-    (the full parameter set, so a file of defaults equals no file only when it says so)."""
+    """What makes two sweeps the same: the config, ``--simulate`` and the plant of ``--plant``
+    (all its parameters; None for the nominal plant)."""
     plant = None if simulation is None or simulation.plant is None else simulation.plant.to_dict()
     return {"config": json.loads(config.canonical_json()), "simulate": simulation is not None, "plant": plant}
 
