@@ -68,3 +68,20 @@ def test_unreachable_cells_keep_their_row_with_no_speed_and_are_not_simulated():
         assert np.all(np.isnan(columns[f"speed_{m}"])) and not np.any(columns[f"joint_{m}"])
     assert set(columns["simulated_status"]) == {"unreachable"}
     assert np.all(np.isnan(columns["simulated_max_speed"])) and np.all(np.isnan(columns["qp_limited_speed"]))
+
+
+def test_the_controller_jump_model_feeds_the_qp_limited_run_and_not_the_bisection():
+    """One point (the tip of elbow_up), the controller's constraints with crb and with gm (whose
+    closed-form speeds differ by more than 2x there): the QP-limited speeds differ, the simulated
+    highest speed (jump-aware constraints off) is the same."""
+    data = tomllib.loads(EXAMPLE)
+    data["grid"].update(origin=[0.6, 0.0, 0.7], size=[0.0, 0.0])
+    data["controller"].update(jump_model=["crb", "gm"])
+    data["simulate"].update(tolerance=0.1)
+    config = parse_config(data)
+    columns = evaluate_cells(config, range(config.cell_count()), Simulation())
+    assert columns["controller_jump_model"] == ["crb", "gm"]
+    assert columns["simulated_status"] == ["simulated", "simulated"]
+    assert columns["simulated_max_speed"][0] == columns["simulated_max_speed"][1]
+    crb, gm = columns["qp_limited_speed"]
+    assert crb < gm
