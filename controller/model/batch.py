@@ -126,7 +126,7 @@ class BatchKinematics:
         )
 
 
-def skew_batch(v: np.ndarray) -> np.ndarray:
+def _skew_batch(v: np.ndarray) -> np.ndarray:
     S = np.zeros(v.shape[:-1] + (3, 3))
     S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
     S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
@@ -148,16 +148,27 @@ def predict_batch(
     ``normals`` and ``pre_impact_velocities`` are (N, 3) or (3,) arrays (world frame); with
     ``impulses`` (N, 3) the measured impulses replace the predicted ones.
     """
+    return predict_from_terms(kinematics.terms(Q), normals, pre_impact_velocities, restitution, method, impulses)
+
+
+def predict_from_terms(
+    terms: BatchTerms,
+    normals: np.ndarray,
+    pre_impact_velocities: np.ndarray,
+    restitution: float = 0.0,
+    method: str = "crb",
+    impulses: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`predict_batch` on terms already evaluated (``BatchKinematics.terms``)."""
     if method not in METHODS:
         raise BadInputError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
-    terms = kinematics.terms(Q)
     N = terms.J.shape[0]
     n = np.broadcast_to(np.asarray(normals, float), (N, 3))
     n = n / np.linalg.norm(n, axis=1, keepdims=True)
     v = np.broadcast_to(np.asarray(pre_impact_velocities, float), (N, 3))
     J, Jt = terms.J, np.swapaxes(terms.J, 1, 2)
     if method == "crb":
-        r_hat = skew_batch(terms.contact_point - terms.com)
+        r_hat = _skew_batch(terms.contact_point - terms.com)
         W = np.eye(3) / terms.mass - r_hat @ np.linalg.solve(terms.inertia_com, r_hat)
     else:
         L = np.linalg.cholesky(terms.M)

@@ -11,9 +11,8 @@ v- = J dq- = -v n, and every quantity below is linear in the speed v:
 with A = K G J the jump matrix of the chosen model. The maximum feasible speed is the smallest
 ratio limit_i / slope_i over joints and criteria; the arg-min says what binds.
 
-:func:`closed_form_max_speeds` evaluates the same for N postures at once on the batched terms of
-``controller.model.batch`` (stacked pseudo-inverses, Cholesky solves with M), with the maps of
-each model written out as in ``controller.model.jump``.
+:func:`closed_form_max_speeds` evaluates the same for N postures at once on the batched terms and
+predictors of ``controller.model.batch`` (stacked pseudo-inverses, Cholesky solves with M).
 """
 
 from __future__ import annotations
@@ -22,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .batch import BatchTerms, skew_batch
+from .batch import BatchTerms, predict_from_terms
 from .jump import JumpModel
 from .robot import ModelTerms, PandaModel
 
@@ -92,31 +91,6 @@ class MaxSpeeds:
     joint: np.ndarray
 
 
-def _batch_impulse_and_jump(
-    terms: BatchTerms, normals: np.ndarray, v: np.ndarray, model: str, restitution: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """iota = G v- (N, 3) and ddq = K iota (N, 7) of ``model`` (the table of controller.model.jump)."""
-    J, Jt = terms.J, np.swapaxes(terms.J, 1, 2)
-    if model in ("classical", "classical_normal", "gm"):
-        L = np.linalg.cholesky(terms.M)
-        MinvJt = np.linalg.solve(np.swapaxes(L, 1, 2), np.linalg.solve(L, Jt))
-        W = J @ MinvJt
-    if model in ("classical", "classical_normal"):
-        impulse = -(1.0 + restitution) * np.linalg.solve(W, v[..., None])[..., 0]
-        if model == "classical_normal":
-            impulse = np.einsum("na,na->n", normals, impulse)[:, None] * normals
-        return impulse, (MinvJt @ impulse[..., None])[..., 0]
-    if model == "gm":
-        W = 0.5 * (W + np.swapaxes(W, 1, 2))
-    else:  # crb, eq. (20)
-        r_hat = skew_batch(terms.contact_point - terms.com)
-        W = np.eye(3) / terms.mass - r_hat @ np.linalg.solve(terms.inertia_com, r_hat)
-    nWn = np.einsum("na,nab,nb->n", normals, W, normals)
-    impulse = (-(1.0 + restitution) * np.einsum("na,na->n", normals, v) / nWn)[:, None] * normals
-    Wi = (W @ impulse[..., None])[..., 0]
-    return impulse, (Jt @ np.linalg.solve(J @ Jt, Wi[..., None]))[..., 0]  # J+ W iota
-
-
 def approach_directions(terms: BatchTerms, normals: np.ndarray) -> np.ndarray:
     """:func:`approach_direction` of N postures: d = J6+ [-n; 0] (N, 7), J6 = [J; joint axes]."""
     normals = np.broadcast_to(np.asarray(normals, float), terms.J.shape[:1] + (3,))
@@ -140,7 +114,7 @@ def closed_form_max_speeds(
     normals = np.broadcast_to(np.asarray(normals, float), terms.J.shape[:1] + (3,))
     d = approach_directions(terms, normals) if directions is None else directions
     v = (terms.J @ d[..., None])[..., 0]
-    impulse, jump = _batch_impulse_and_jump(terms, normals, v, model, restitution)
+    jump, impulse = predict_from_terms(terms, normals, v, restitution, model)
     Jt_impulse = (np.swapaxes(terms.J, 1, 2) @ impulse[..., None])[..., 0]
     slopes = np.stack(
         [
