@@ -42,6 +42,16 @@ def test_batch_terms_match_pinocchio(robot, kinematics):
         np.testing.assert_allclose(terms.inertia_com[i], ref.inertia_com, atol=1e-12)
 
 
+def test_batch_contact_frames_match_pinocchio(robot, kinematics):
+    Q = np.random.default_rng(2).uniform(robot.q_min, robot.q_max, (10, 7))
+    points, axes, J6 = kinematics.contact_frames(Q)
+    for i, q in enumerate(Q):
+        frame = robot.contact_frame(q)
+        np.testing.assert_allclose(points[i], frame.translation, atol=1e-12)
+        np.testing.assert_allclose(axes[i], frame.rotation[:, 2], atol=1e-12)
+        np.testing.assert_allclose(J6[i], robot.contact_jacobian6(q), atol=1e-12)
+
+
 def test_batch_with_measured_impulses(robot, kinematics):
     Q = np.random.default_rng(2).uniform(robot.q_min + 0.1, robot.q_max - 0.1, (5, 7))
     impulses = np.random.default_rng(3).normal(size=(5, 3))

@@ -4,7 +4,17 @@ import numpy as np
 import pytest
 
 from impactqp.controller.model.jump import JUMP_MODELS
-from impactqp.controller.model.max_speed import approach_direction, closed_form_max_speed
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from impactqp.controller.model.batch import BatchKinematics
+from impactqp.controller.model.max_speed import (
+    CRITERIA,
+    approach_direction,
+    closed_form_max_speed,
+    closed_form_max_speeds,
+    criterion_slopes,
+)
 from impactqp.controller.model.postures import POSTURES
 
 
@@ -48,3 +58,22 @@ def test_longer_impacts_allow_higher_speeds(robot):
     short = closed_form_max_speed(robot, terms, p.surface.normal, JUMP_MODELS["crb"], impact_duration=0.005)
     long = closed_form_max_speed(robot, terms, p.surface.normal, JUMP_MODELS["crb"], impact_duration=0.05)
     assert short.speed <= long.speed
+
+
+@settings(max_examples=5, deadline=None)
+@given(seed=st.integers(0, 2**31), restitution=st.floats(0.0, 1.0), impact_duration=st.floats(0.002, 0.05))
+def test_the_batched_closed_form_equals_the_one_posture_closed_form(robot, seed, restitution, impact_duration):
+    rng = np.random.default_rng(seed)
+    Q = rng.uniform(robot.q_min + 0.1, robot.q_max - 0.1, (12, 7))
+    normals = rng.normal(size=(12, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    terms = BatchKinematics(robot).terms(Q)
+    for name, model in JUMP_MODELS.items():
+        batch = closed_form_max_speeds(robot, terms, normals, name, restitution, impact_duration)
+        for i, q in enumerate(Q):
+            terms_i = robot.terms(q)
+            one = closed_form_max_speed(robot, terms_i, normals[i], model, restitution, impact_duration)
+            assert batch.speed[i] == pytest.approx(one.speed, rel=1e-9)
+            # what binds is the same, or binds at the same speed (a tie to rounding)
+            slopes = criterion_slopes(robot, terms_i, normals[i], model, restitution, impact_duration)
+            assert 1.0 / slopes[CRITERIA[batch.criterion[i]]][batch.joint[i] - 1] == pytest.approx(one.speed, rel=1e-9)

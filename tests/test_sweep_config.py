@@ -18,6 +18,27 @@ def test_the_example_config_is_valid_and_its_grid_has_the_product_of_its_axes():
     assert config.cell_count() == nu * nv * len(config.normals) * len(config.restitution)
 
 
+def test_every_list_of_settings_and_of_controller_settings_is_an_axis_of_the_grid():
+    data = example()
+    data["settings"].update(normals=[[-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]], restitution=[0.0, 0.2, 0.4])
+    data["controller"].update(jump_model=["crb", "gm"], impact_duration=[0.01, 0.02])
+    config = parse_config(data)
+    points = len(config.points())
+    assert config.cell_count() == points * 2 * 3 * 2 * 2
+    keys = set(zip(*(axis.tolist() for axis in config.cell_axes(range(config.cell_count())))))
+    assert len(keys) == config.cell_count()  # every cell a distinct combination
+
+
+def test_every_line_of_the_example_that_sets_a_key_follows_a_comment():
+    lines = EXAMPLE.splitlines()
+    for i, line in enumerate(lines):
+        if "=" in line and not line.startswith("#"):
+            j = i - 1
+            while j >= 0 and lines[j] and not lines[j].startswith(("#", "[")) and "=" in lines[j]:
+                j -= 1  # keys sharing one comment (u and v)
+            assert lines[j].startswith("#"), line
+
+
 @pytest.mark.parametrize(
     "edit, message",
     [
@@ -31,6 +52,13 @@ def test_the_example_config_is_valid_and_its_grid_has_the_product_of_its_axes():
         (lambda d: d["settings"].update(normals=[[0.0, 0.0, 0.0]]), "settings.normals[0]"),
         (lambda d: d["settings"].update(jump_models=["nope"]), "unknown jump model"),
         (lambda d: d["settings"].pop("seed_posture"), "missing key settings.seed_posture"),
+        (lambda d: d["controller"].update(gain=1.0), "unknown key controller.gain"),
+        (lambda d: d["controller"].update(jump_model=[]), "empty"),
+        (lambda d: d["controller"].update(jump_model=["nope"]), "controller.jump_model"),
+        (lambda d: d["controller"].update(impact_duration=[0.0]), "controller.impact_duration[0]"),
+        (lambda d: d["controller"].update(impact_duration=[0.01, 0.01]), "twice"),
+        (lambda d: d["simulate"].update(tolerance=0.0), "simulate.tolerance must be > 0"),
+        (lambda d: d.pop("simulate"), r"needs a [simulate] table"),
     ],
 )
 def test_bad_configs_are_refused_with_a_message_naming_the_key(edit, message):

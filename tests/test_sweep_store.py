@@ -1,3 +1,4 @@
+import json
 import signal
 import subprocess
 import sys
@@ -10,14 +11,14 @@ import pytest
 from impactqp.controller.model.validation import BadInputError
 from impactqp.scenarios.sweep import store
 from impactqp.scenarios.sweep.backends import run_sweep
+from impactqp.scenarios.sweep.cells import Simulation
 from impactqp.scenarios.sweep.config import EXAMPLE, parse_config
+from impactqp.sim.plant import PlantParameters
 
-CHUNK = 4
+CHUNK = 4  # 168 chunks of the grid below: the kill lands midway even on a loaded machine
 DATA = tomllib.loads(EXAMPLE)
-DATA["grid"].update(spacing=0.05)
+DATA["grid"].update(spacing=0.02)
 DATA["settings"].update(restitution=[0.0, 0.3])
-
-
 
 def test_a_sweep_killed_midway_and_resumed_equals_an_uninterrupted_run(tmp_path):
     config = parse_config(DATA)
@@ -26,7 +27,7 @@ def test_a_sweep_killed_midway_and_resumed_equals_an_uninterrupted_run(tmp_path)
     code = (
         "from impactqp.scenarios.sweep.backends import run_sweep\n"
         "from impactqp.scenarios.sweep.config import parse_config\n"
-        f"run_sweep(parse_config({DATA!r}), {str(killed)!r}, chunk_size={CHUNK}, progress=False)\n"
+        f"run_sweep(parse_config({DATA!r}), {str(killed)!r}, chunk_size={CHUNK}, progress=False, plots=False)\n"
     )
     process = subprocess.Popen([sys.executable, "-c", code])
     deadline = time.monotonic() + 60.0
@@ -36,30 +37,48 @@ def test_a_sweep_killed_midway_and_resumed_equals_an_uninterrupted_run(tmp_path)
     process.wait()
     written = len(list(killed.glob("chunk-*.parquet")))
     assert 1 <= written < n_chunks  # killed midway
-    summary = run_sweep(config, killed, resume=True, chunk_size=CHUNK, progress=False)
+    summary = run_sweep(config, killed, resume=True, chunk_size=CHUNK, progress=False, plots=False)
     assert summary.chunks_skipped == written
     whole = tmp_path / "whole"
-    run_sweep(config, whole, chunk_size=CHUNK, progress=False)
+    run_sweep(config, whole, chunk_size=CHUNK, progress=False, plots=False)
     resumed, uninterrupted = store.read_table(killed), store.read_table(whole)
     assert resumed.column("cell").to_pylist() == list(range(config.cell_count()))
     assert repr(resumed.to_pylist()) == repr(uninterrupted.to_pylist())  # exact, NaN == NaN
-    assert not list(killed.glob(".*"))  # no temporary chunk left behind
+    assert not list(killed.glob(".*"))  # resume removed a temporary chunk the kill left behind
 
 
 def test_resume_refuses_another_config_and_a_second_run_needs_resume(tmp_path):
     small = dict(DATA, grid=dict(DATA["grid"], size=[0.1, 0.0], spacing=0.1))
     config = parse_config(small)
-    run_sweep(config, tmp_path, chunk_size=CHUNK, progress=False)
+    run_sweep(config, tmp_path, chunk_size=CHUNK, progress=False, plots=False)
     with pytest.raises(BadInputError, match="--resume"):
-        run_sweep(config, tmp_path, chunk_size=CHUNK, progress=False)
+        run_sweep(config, tmp_path, chunk_size=CHUNK, progress=False, plots=False)
     other = parse_config(dict(small, settings=dict(small["settings"], restitution=[0.1])))
     with pytest.raises(BadInputError, match="config differs"):
-        run_sweep(other, tmp_path, resume=True, chunk_size=CHUNK, progress=False)
+        run_sweep(other, tmp_path, resume=True, chunk_size=CHUNK, progress=False, plots=False)
+
+
+def test_resume_refuses_another_simulate_flag_or_plant(tmp_path):
+    """Out of reach: the simulated cells are recorded unreachable, so no trial runs."""
+    config = parse_config(dict(DATA, grid=dict(DATA["grid"], origin=[1.5, 0.0, 0.5], size=[0.1, 0.0], spacing=0.1)))
+    heavy = Simulation(PlantParameters(payload_mass=1.0))
+    summary = run_sweep(config, tmp_path, chunk_size=CHUNK, progress=False, plots=False, simulation=heavy)
+    assert summary.cells == config.cell_count() and summary.cells_simulated == 0
+    for other, message in (
+        (Simulation(), "the --plant file differs"),
+        (Simulation(PlantParameters(payload_mass=2.0)), "the --plant file differs"),
+        (None, "--simulate differs"),
+    ):
+        with pytest.raises(BadInputError, match=message):
+            run_sweep(config, tmp_path, resume=True, chunk_size=CHUNK, progress=False, plots=False, simulation=other)
+    again = run_sweep(config, tmp_path, resume=True, chunk_size=CHUNK, progress=False, plots=False, simulation=heavy)
+    assert again.chunks_skipped == again.chunks
 
 
 def test_chunks_carry_the_config_and_the_package_version(tmp_path):
     config = parse_config(dict(DATA, grid=dict(DATA["grid"], size=[0.1, 0.0], spacing=0.1)))
-    run_sweep(config, tmp_path, chunk_size=CHUNK, progress=False)
+    run_sweep(config, tmp_path, chunk_size=CHUNK, progress=False, plots=False)
     metadata = pq.read_schema(store.chunk_path(tmp_path, 0)).metadata
-    assert metadata[b"impactqp.sweep.config"].decode() == config.canonical_json()
+    identity = json.loads(metadata[b"impactqp.sweep"])
+    assert identity == {"config": json.loads(config.canonical_json()), "simulate": False, "plant": None}
     assert metadata[b"impactqp.version"].decode() == store.package_version()

@@ -68,9 +68,11 @@ class BatchKinematics:
         if frame.parentJoint != NQ:
             raise ValueError("the contact frame must be attached to the last joint")
         self.p_contact = frame.placement.translation.copy()
+        self.R_contact = frame.placement.rotation.copy()
         self.total_mass = float(self.masses.sum())
 
-    def terms(self, Q: np.ndarray) -> BatchTerms:
+    def _chain(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Joint frames of N states: rotations Rs (N, 7, 3, 3) and origins ps (N, 7, 3)."""
         Q = np.asarray(Q, dtype=float)
         if Q.ndim != 2 or Q.shape[1] != NQ:
             raise BadInputError(f"Q must have shape (N, {NQ}), got {Q.shape}")
@@ -92,6 +94,22 @@ class BatchKinematics:
             Rs[:, k, :, 2] = R[:, :, 2]
             R = Rs[:, k]
             ps[:, k] = p
+        return Rs, ps
+
+    def contact_frames(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Contact point p (N, 3), tool axis z (N, 3) (hand z) and world-aligned frame Jacobian
+        J6 = [Jv; Jw] (N, 6, 7) of N states: Jv_k = z_k x (p - o_k), Jw_k = z_k."""
+        Rs, ps = self._chain(Q)
+        axes = Rs[:, :, :, 2]
+        contact = ps[:, -1] + Rs[:, -1] @ self.p_contact
+        tool_axis = Rs[:, -1] @ self.R_contact[:, 2]
+        J6 = np.concatenate(
+            [np.swapaxes(np.cross(axes, contact[:, None, :] - ps), 1, 2), np.swapaxes(axes, 1, 2)], axis=1
+        )
+        return contact, tool_axis, J6
+
+    def terms(self, Q: np.ndarray) -> BatchTerms:
+        Rs, ps = self._chain(Q)
         axes = Rs[:, :, :, 2]
         link_com = ps + np.einsum("nkab,kb->nka", Rs, self.levers)
         contact = ps[:, -1] + Rs[:, -1] @ self.p_contact
@@ -130,9 +148,20 @@ def predict_batch(
     ``normals`` and ``pre_impact_velocities`` are (N, 3) or (3,) arrays (world frame); with
     ``impulses`` (N, 3) the measured impulses replace the predicted ones.
     """
+    return predict_from_terms(kinematics.terms(Q), normals, pre_impact_velocities, restitution, method, impulses)
+
+
+def predict_from_terms(
+    terms: BatchTerms,
+    normals: np.ndarray,
+    pre_impact_velocities: np.ndarray,
+    restitution: float = 0.0,
+    method: str = "crb",
+    impulses: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`predict_batch` on terms already evaluated (``BatchKinematics.terms``)."""
     if method not in METHODS:
         raise BadInputError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
-    terms = kinematics.terms(Q)
     N = terms.J.shape[0]
     n = np.broadcast_to(np.asarray(normals, float), (N, 3))
     n = n / np.linalg.norm(n, axis=1, keepdims=True)

@@ -10,6 +10,9 @@ v- = J dq- = -v n, and every quantity below is linear in the speed v:
 
 with A = K G J the jump matrix of the chosen model. The maximum feasible speed is the smallest
 ratio limit_i / slope_i over joints and criteria; the arg-min says what binds.
+
+:func:`closed_form_max_speeds` evaluates the same for N postures at once on the batched terms and
+predictors of ``controller.model.batch`` (stacked pseudo-inverses, Cholesky solves with M).
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .batch import BatchTerms, predict_from_terms
 from .jump import JumpModel
 from .robot import ModelTerms, PandaModel
 
@@ -75,3 +79,61 @@ def closed_form_max_speed(
         if s[j] > 0 and 1.0 / s[j] < best.speed:
             best = MaxSpeed(float(1.0 / s[j]), criterion, j + 1)
     return best
+
+
+@dataclass(frozen=True)
+class MaxSpeeds:
+    """:class:`MaxSpeed` of N postures: speed (N,), index into CRITERIA (N,; -1 when nothing
+    binds) and 1-based joint (N,; 0 when nothing binds)."""
+
+    speed: np.ndarray
+    criterion: np.ndarray
+    joint: np.ndarray
+
+
+def approach_directions(terms: BatchTerms, normals: np.ndarray) -> np.ndarray:
+    """:func:`approach_direction` of N postures: d = J6+ [-n; 0] (N, 7), J6 = [J; joint axes]."""
+    normals = np.broadcast_to(np.asarray(normals, float), terms.J.shape[:1] + (3,))
+    J6 = np.concatenate([terms.J, np.swapaxes(terms.joint_axes, 1, 2)], axis=1)
+    target = np.concatenate([-normals, np.zeros_like(normals)], axis=1)
+    return (np.linalg.pinv(J6) @ target[..., None])[..., 0]
+
+
+def closed_form_max_speeds(
+    robot: PandaModel,
+    terms: BatchTerms,
+    normals: np.ndarray,
+    model: str,
+    restitution: float = 0.0,
+    impact_duration: float = DEFAULT_IMPACT_DURATION,
+    directions: np.ndarray | None = None,
+) -> MaxSpeeds:
+    """:func:`closed_form_max_speed` of N postures (``terms``) and unit ``normals`` (N, 3);
+    ``directions``: their :func:`approach_directions`, when already known (they depend on
+    neither the model, nor the restitution, nor the impact duration)."""
+    normals = np.broadcast_to(np.asarray(normals, float), terms.J.shape[:1] + (3,))
+    d = approach_directions(terms, normals) if directions is None else directions
+    v = (terms.J @ d[..., None])[..., 0]
+    jump, impulse = predict_from_terms(terms, normals, v, restitution, model)
+    Jt_impulse = (np.swapaxes(terms.J, 1, 2) @ impulse[..., None])[..., 0]
+    slopes = np.stack(
+        [
+            np.abs(d) / robot.dq_max,
+            np.abs(d + jump) / robot.dq_max,
+            np.abs(Jt_impulse) / impact_duration / robot.tau_max,
+        ],
+        axis=1,
+    )  # (N, criterion, joint), in the order of CRITERIA
+    joint = np.argmax(slopes, axis=2)
+    rate = np.take_along_axis(slopes, joint[..., None], axis=2)[..., 0]
+    with np.errstate(divide="ignore"):
+        speeds = np.where(rate > 0.0, 1.0 / rate, np.inf)
+    criterion = np.argmin(speeds, axis=1)
+    rows = np.arange(len(criterion))
+    speed = speeds[rows, criterion]
+    binds = np.isfinite(speed)
+    return MaxSpeeds(
+        speed,
+        np.where(binds, criterion, -1),
+        np.where(binds, joint[rows, criterion] + 1, 0),
+    )

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import click
 
-from impactqp.scenarios.cli.arguments import emit_json
+from impactqp.controller.model.validation import BadInputError
+from impactqp.scenarios.cli.arguments import emit_json, load_plant, output_directory
 
 
 @click.command()
@@ -15,10 +16,13 @@ from impactqp.scenarios.cli.arguments import emit_json
               help="local: a process pool; ray: the cluster at RAY_ADDRESS, else a local Ray.")
 @click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True, help="Worker processes.")
 @click.option("--out", type=click.Path(path_type=Path), default=Path("sweep-out"), show_default=True)
-@click.option("--resume", is_flag=True, help="Skip the chunks already in --out (same config only).")
+@click.option("--resume", is_flag=True, help="Skip the chunks already in --out (same config, --simulate, --plant).")
+@click.option("--simulate", is_flag=True,
+              help="Also search each cell's simulated highest feasible speed (the bisection of max-speed).")
+@click.option("--plant", "plant_file", help="JSON file of plant-parameter overrides for --simulate (sim.plant).")
 @click.option("--example", is_flag=True, help="Print a small runnable config and exit.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary instead of a progress bar.")
-def sweep(config_path, backend, jobs, out, resume, example, as_json):
+def sweep(config_path, backend, jobs, out, resume, simulate, plant_file, example, as_json):
     """Highest feasible contact speed over a grid of contact points and settings (Parquet in --out)."""
     from impactqp.scenarios.sweep.config import EXAMPLE, load_config
 
@@ -28,13 +32,22 @@ def sweep(config_path, backend, jobs, out, resume, example, as_json):
     if config_path is None:
         raise click.UsageError("give a CONFIG.toml (or --example)")
     from impactqp.scenarios.sweep.backends import run_sweep
+    from impactqp.scenarios.sweep.cells import Simulation
 
     config = load_config(config_path)
-    summary = run_sweep(config, out, jobs=jobs, backend=backend, resume=resume, progress=not as_json)
+    if plant_file is not None and not simulate:
+        raise BadInputError("--plant sets the plant of the simulated cells: add --simulate")
+    simulation = Simulation(load_plant(plant_file)) if simulate else None
+    output_directory(str(out), "--out")
+    summary = run_sweep(
+        config, out, jobs=jobs, backend=backend, resume=resume, progress=not as_json, simulation=simulation
+    )
     if as_json:
         emit_json(summary.as_dict())
     else:
         click.echo(
-            f"{summary.cells} cells ({summary.cells_reachable} reachable) in {out}, "
+            f"{summary.cells} cells ({summary.cells_reachable} reachable"
+            + (f", {summary.cells_simulated} simulated" if simulate else "")
+            + f") in {out}, "
             f"{summary.chunks_skipped} of {summary.chunks} chunks resumed"
         )

@@ -17,11 +17,18 @@ from tqdm import tqdm
 from impactqp.controller.model.validation import BadInputError
 
 from . import store
-from .cells import evaluate_cells
+from .cells import Simulation, evaluate_cells
 from .config import SweepConfig
 from .plots import write_plots
 
-DEFAULT_CHUNK_SIZE = 64
+CLOSED_FORM_CHUNK_SIZE = 1024
+"""Cells per chunk of a closed-form sweep: one batch of the vectorised inverse kinematics."""
+SIMULATED_CHUNK_SIZE = 1
+"""Cells per chunk with ``--simulate``: a simulated cell takes seconds, so each is its own task."""
+
+
+def default_chunk_size(simulation: Simulation | None) -> int:
+    return CLOSED_FORM_CHUNK_SIZE if simulation is None else SIMULATED_CHUNK_SIZE
 
 
 @dataclass(frozen=True)
@@ -31,6 +38,7 @@ class SweepSummary:
     chunks: int
     chunks_skipped: int
     cells_reachable: int
+    cells_simulated: int  # with simulated_status "simulated"; 0 without --simulate
     wall_time_s: float
     figures: list[str]
 
@@ -45,24 +53,26 @@ def _chunk_cells(config: SweepConfig, chunk: int, chunk_size: int) -> range:
 BACKENDS = ("local", "ray")
 
 
-def _evaluate_chunk(config: SweepConfig, chunk: int, chunk_size: int) -> tuple[int, list[dict]]:
-    return chunk, evaluate_cells(config, _chunk_cells(config, chunk, chunk_size))
+def _evaluate_chunk(
+    config: SweepConfig, simulation: Simulation | None, chunk: int, chunk_size: int
+) -> tuple[int, dict]:
+    return chunk, evaluate_cells(config, _chunk_cells(config, chunk, chunk_size), simulation)
 
 
-def _local(config: SweepConfig, todo: list[int], chunk_size: int, jobs: int):
-    """Yield (chunk, rows) as they finish, on a pool of ``jobs`` processes (in-process for 1)."""
+def _local(config: SweepConfig, simulation: Simulation | None, todo: list[int], chunk_size: int, jobs: int):
+    """Yield (chunk, columns) as they finish, on a pool of ``jobs`` processes (in-process for 1)."""
     if jobs <= 1:
         for c in todo:
-            yield _evaluate_chunk(config, c, chunk_size)
+            yield _evaluate_chunk(config, simulation, c, chunk_size)
         return
     with ProcessPoolExecutor(max_workers=jobs) as pool:
-        futures = [pool.submit(_evaluate_chunk, config, c, chunk_size) for c in todo]
+        futures = [pool.submit(_evaluate_chunk, config, simulation, c, chunk_size) for c in todo]
         for future in as_completed(futures):
             yield future.result()
 
 
-def _ray(config: SweepConfig, todo: list[int], chunk_size: int, jobs: int):
-    """Yield (chunk, rows) as they finish on Ray: the cluster at RAY_ADDRESS, else a local Ray."""
+def _ray(config: SweepConfig, simulation: Simulation | None, todo: list[int], chunk_size: int, jobs: int):
+    """Yield (chunk, columns) as they finish on Ray: the cluster at RAY_ADDRESS, else a local Ray."""
     import ray
 
     started = not ray.is_initialized()
@@ -73,8 +83,8 @@ def _ray(config: SweepConfig, todo: list[int], chunk_size: int, jobs: int):
             ray.init(num_cpus=jobs, include_dashboard=False, log_to_driver=False)
     try:
         remote = ray.remote(num_cpus=1)(_evaluate_chunk)
-        config_ref = ray.put(config)
-        pending = [remote.remote(config_ref, c, chunk_size) for c in todo]
+        config_ref, simulation_ref = ray.put(config), ray.put(simulation)
+        pending = [remote.remote(config_ref, simulation_ref, c, chunk_size) for c in todo]
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)
             yield ray.get(ready[0])
@@ -89,11 +99,16 @@ def run_sweep(
     jobs: int = 1,
     backend: str = "local",
     resume: bool = False,
-    chunk_size: int = DEFAULT_CHUNK_SIZE,
+    chunk_size: int | None = None,
     progress: bool = True,
     plots: bool = True,
+    simulation: Simulation | None = None,
 ) -> SweepSummary:
-    """Evaluate every cell of ``config`` into ``out`` with ``jobs`` workers of ``backend``."""
+    """Evaluate every cell of ``config`` into ``out`` with ``jobs`` workers of ``backend``, simulated
+    with ``simulation`` (``--simulate``), in chunks of ``chunk_size`` cells (by default
+    ``default_chunk_size``). The progress bar (stderr) shows cells done, cells/s and the time left."""
+    if chunk_size is None:
+        chunk_size = default_chunk_size(simulation)
     if backend not in BACKENDS:
         raise BadInputError(f"unknown backend {backend!r}; choose from {', '.join(BACKENDS)}")
     if backend == "ray":
@@ -102,7 +117,8 @@ def run_sweep(
         except ImportError:
             raise BadInputError("the ray backend needs Ray: pip install -e '.[ray]'") from None
     start = time.perf_counter()
-    store.prepare(out, config, resume, chunk_size)
+    store.prepare(out, config, simulation, resume, chunk_size)
+    sweep_identity = store.identity(config, simulation)
     n_cells = config.cell_count()
     n_chunks = -(-n_cells // chunk_size)
     done = store.done_chunks(out, n_chunks)
@@ -110,9 +126,9 @@ def run_sweep(
     bar = tqdm(total=n_cells, initial=n_cells - sum(len(_chunk_cells(config, c, chunk_size)) for c in todo),
                unit="cell", disable=not progress)
     run = _ray if backend == "ray" else _local
-    for chunk, rows in run(config, todo, chunk_size, jobs):
-        store.write_chunk(Path(out), chunk, rows, config)
-        bar.update(len(rows))
+    for chunk, columns in run(config, simulation, todo, chunk_size, jobs):
+        store.write_chunk(Path(out), chunk, columns, sweep_identity)
+        bar.update(len(columns["cell"]))
     bar.close()
     table = store.read_table(out)
     figures = write_plots(config, table, Path(out)) if plots else []
@@ -122,6 +138,9 @@ def run_sweep(
         chunks=n_chunks,
         chunks_skipped=len(done),
         cells_reachable=int(sum(table.column("reachable").to_pylist())),
+        cells_simulated=(
+            table.column("simulated_status").to_pylist().count("simulated") if simulation is not None else 0
+        ),
         wall_time_s=time.perf_counter() - start,
         figures=[str(p) for p in figures],
     )

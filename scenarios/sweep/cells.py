@@ -1,95 +1,194 @@
-"""Evaluation of sweep cells: contact posture by inverse kinematics, conditioning, closed form.
+"""Evaluation of sweep cells: contact posture by inverse kinematics, conditioning, closed form,
+and with ``--simulate`` the simulated highest feasible speed.
 
-A cell is (point, normal, restitution). Its row holds the reachability of the contact posture
-(:func:`controller.model.inverse_kinematics.contact_posture` from the config's seed), cond(M),
-the contact Jacobian's singular-value ratio sigma_min / sigma_max and, for every jump model, the
-closed-form highest feasible speed and what binds it (``closed_form_max_speed``). An unreachable
-or singular cell keeps its row, with NaN speeds, an empty criterion and joint 0.
+A cell is (point, normal, restitution, impact duration, controller jump model). The cells of a
+chunk are evaluated together, on the vectorised kinematics of ``controller.model.batch``:
+
+1. the contact posture of every distinct (point, normal) of the chunk, by the batched damped
+   least squares of :func:`controller.model.inverse_kinematics.contact_postures` from the
+   config's seed posture (the same for every cell);
+2. at the reachable postures, cond(M) and the contact Jacobian's singular-value ratio
+   sigma_min / sigma_max; a ratio below ``SINGULAR_RATIO`` marks the posture singular, as
+   ``PandaModel.terms`` does;
+3. for every jump model, the closed-form highest feasible speed and what binds it
+   (:func:`controller.model.max_speed.closed_form_max_speeds`, at each restitution and impact
+   duration of the chunk);
+4. with a :class:`Simulation`, one ``max-speed`` search per cell
+   (:class:`scenarios.max_speed_search.MaxSpeedSearch` at the cell's posture, on the plane through
+   its point with its normal, with the plant, the cell's restitution, impact duration and
+   controller jump model, and the config's tolerance): ``simulated_max_speed`` (the bisection,
+   jump-aware constraints off, so it depends on the posture, the surface and the plant only)
+   and ``qp_limited_speed`` (the speed the QP reaches with the controller's jump-aware
+   constraints on).
+
+An unreachable or singular cell keeps its row, with NaN speeds, an empty criterion and joint 0.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from impactqp.controller.model.inverse_kinematics import contact_posture
-from impactqp.controller.model.jump import jump_model
-from impactqp.controller.model.max_speed import closed_form_max_speed
-from impactqp.controller.model.robot import NQ, PandaModel, SingularPostureError
+from impactqp.controller.measured.impact import ImpactNotFoundError
+from impactqp.controller.model.batch import BatchKinematics
+from impactqp.controller.model.inverse_kinematics import contact_postures
+from impactqp.controller.model.max_speed import CRITERIA, approach_directions, closed_form_max_speeds
+from impactqp.controller.model.postures import DEFAULT_WALL, ImpactPosture, Surface
+from impactqp.controller.model.robot import NQ, SINGULAR_RATIO, PandaModel
+from impactqp.scenarios.max_speed_search import MaxSpeedSearch
+from impactqp.sim.plant import PlantParameters
+from impactqp.sim.runner import UnreachableStartError
 
 from .config import SweepConfig
 
-_ROBOT: PandaModel | None = None
+_KINEMATICS: BatchKinematics | None = None
+
+SIMULATED_STATUS = ("simulated", "unreachable", "no_start", "no_impact")
+"""``simulated_status``: searched; unreachable or singular posture (not searched); no start
+posture in front of the surface (``sim.runner.approach_start``); no impact in a trial."""
 
 
-def _robot() -> PandaModel:
-    """One Pinocchio model per process (workers build theirs once)."""
-    global _ROBOT
-    if _ROBOT is None:
-        _ROBOT = PandaModel()
-    return _ROBOT
+@dataclass(frozen=True)
+class Simulation:
+    """``--simulate``: search the simulated highest feasible speed of every cell on ``plant``
+    (None: the nominal plant)."""
+
+    plant: PlantParameters | None = None
 
 
-def cell_settings(config: SweepConfig, cell: int) -> tuple[np.ndarray, np.ndarray, float]:
-    """(point, normal, restitution) of cell index ``cell``; restitution varies fastest."""
-    n_r, n_n = len(config.restitution), len(config.normals)
-    r = cell % n_r
-    k = (cell // n_r) % n_n
-    p = cell // (n_r * n_n)
-    return config.points()[p], np.asarray(config.normals[k]), config.restitution[r]
+def _kinematics() -> BatchKinematics:
+    """One Pinocchio model and its batch kinematics per process (workers build theirs once)."""
+    global _KINEMATICS
+    if _KINEMATICS is None:
+        _KINEMATICS = BatchKinematics(PandaModel())
+    return _KINEMATICS
 
 
-def evaluate_cells(config: SweepConfig, cells: range) -> list[dict]:
-    """The rows of ``cells`` (a contiguous range of cell indices), in order."""
-    robot = _robot()
+def cell_settings(config: SweepConfig, cell: int) -> dict:
+    """The settings of cell index ``cell`` (the row-major order of ``SweepConfig.axes_shape``)."""
+    p, k, r, t, c = (int(i) for i in config.cell_axes(cell))
+    return {
+        "point": config.points()[p],
+        "normal": np.asarray(config.normals[k]),
+        "restitution": config.restitution[r],
+        "impact_duration": config.impact_duration[t],
+        "controller_jump_model": config.controller_jump_model[c],
+    }
+
+
+def evaluate_cells(config: SweepConfig, cells: range, simulation: Simulation | None = None) -> dict[str, list]:
+    """The columns of the rows of ``cells`` (a contiguous range of cell indices), in order."""
+    kinematics = _kinematics()
+    robot = kinematics.robot
+    cell = np.arange(cells.start, cells.stop)
+    p, k, r, t, c = config.cell_axes(cell)
     points = config.points()
-    n_r, n_n = len(config.restitution), len(config.normals)
-    rows = []
-    posture_cache: dict[tuple[int, int], tuple] = {}
-    for cell in cells:
-        p, k, r = cell // (n_r * n_n), (cell // n_r) % n_n, cell % n_r
-        point, normal, c_r = points[p], np.asarray(config.normals[k]), config.restitution[r]
-        if (p, k) not in posture_cache:
-            solved = contact_posture(robot, point, normal, config.seed)
-            terms = None
-            if solved.reachable:
-                try:
-                    terms = robot.terms(solved.q)
-                except SingularPostureError:
-                    terms = None
-            posture_cache[(p, k)] = (solved, terms)
-        solved, terms = posture_cache[(p, k)]
-        row = {
-            "cell": cell,
-            "point_x": float(point[0]),
-            "point_y": float(point[1]),
-            "point_z": float(point[2]),
-            "normal_x": float(normal[0]),
-            "normal_y": float(normal[1]),
-            "normal_z": float(normal[2]),
-            "restitution": float(c_r),
-            "reachable": bool(solved.reachable),
-            "singular": bool(solved.reachable and terms is None),
-            "position_error": solved.position_error,
-            "axis_error": solved.axis_error,
-        }
-        for j in range(NQ):
-            row[f"q{j + 1}"] = float(solved.q[j])
-        if terms is not None:
-            s = np.linalg.svd(terms.J, compute_uv=False)
-            row["cond_M"] = terms.cond_M
-            row["jacobian_sv_ratio"] = float(s[-1] / s[0])
-        else:
-            row["cond_M"] = row["jacobian_sv_ratio"] = float("nan")
-        for name in config.jump_models:
-            if terms is not None:
-                best = closed_form_max_speed(
-                    robot, terms, normal, jump_model(name), c_r, config.impact_duration
+    normals = np.asarray(config.normals, dtype=float)
+    restitution = np.asarray(config.restitution)
+    impact_duration = np.asarray(config.impact_duration)
+
+    # 1. one posture per distinct (point, normal)
+    pairs, posture_of_cell = np.unique(np.stack([p, k], axis=1), axis=0, return_inverse=True)
+    posture_of_cell = posture_of_cell.ravel()
+    solved = contact_postures(kinematics, points[pairs[:, 0]], normals[pairs[:, 1]], config.seed)
+
+    # 2. conditioning of the reachable postures
+    n_pairs = len(pairs)
+    cond_M = np.full(n_pairs, np.nan)
+    sv_ratio = np.full(n_pairs, np.nan)
+    reached = np.flatnonzero(solved.reachable)
+    terms = kinematics.terms(solved.q[reached]) if reached.size else None
+    if terms is not None:
+        eigenvalues = np.linalg.eigvalsh(terms.M)  # M is symmetric positive definite
+        cond_M[reached] = eigenvalues[:, -1] / eigenvalues[:, 0]
+        s = np.linalg.svd(terms.J, compute_uv=False)
+        sv_ratio[reached] = s[:, -1] / s[:, 0]
+    singular = solved.reachable & ~(sv_ratio >= SINGULAR_RATIO)
+    regular = solved.reachable & ~singular  # postures with a closed form
+
+    columns = {
+        "cell": cell,
+        "point_x": points[p, 0], "point_y": points[p, 1], "point_z": points[p, 2],
+        "normal_x": normals[k, 0], "normal_y": normals[k, 1], "normal_z": normals[k, 2],
+        "restitution": restitution[r],
+        "impact_duration": impact_duration[t],
+        "controller_jump_model": [config.controller_jump_model[i] for i in c],
+        "reachable": solved.reachable[posture_of_cell],
+        "singular": singular[posture_of_cell],
+        "position_error": solved.position_error[posture_of_cell],
+        "axis_error": solved.axis_error[posture_of_cell],
+    }
+    q = solved.q[posture_of_cell]
+    for j in range(NQ):
+        columns[f"q{j + 1}"] = q[:, j]
+    columns["cond_M"] = cond_M[posture_of_cell]
+    columns["jacobian_sv_ratio"] = sv_ratio[posture_of_cell]
+
+    # 3. closed form of every model, for each (restitution, impact duration) of the chunk
+    regular_in_reached = regular[reached]
+    regular_terms = None
+    if terms is not None and regular_in_reached.any():
+        regular_terms = kinematics.terms(solved.q[reached[regular_in_reached]])
+    regular_index = np.full(n_pairs, -1)
+    regular_index[reached[regular_in_reached]] = np.arange(int(regular_in_reached.sum()))
+    cell_regular = regular_index[posture_of_cell]
+    if regular_terms is not None:
+        regular_normals = normals[pairs[regular_index >= 0, 1]]
+        directions = approach_directions(regular_terms, regular_normals)
+    for name in config.jump_models:
+        speed = np.full(cell.size, np.nan)
+        criterion = np.full(cell.size, -1)
+        joint = np.zeros(cell.size, dtype=np.int64)
+        if regular_terms is not None:
+            for ri, ti in sorted(set(zip(r.tolist(), t.tolist()))):
+                select = (r == ri) & (t == ti) & (cell_regular >= 0)
+                if not select.any():
+                    continue
+                best = closed_form_max_speeds(
+                    robot, regular_terms, regular_normals, name, float(restitution[ri]), float(impact_duration[ti]),
+                    directions,
                 )
-                speed, criterion, joint = best.speed, best.criterion, best.joint
-            else:
-                speed, criterion, joint = float("nan"), "", 0
-            row[f"speed_{name}"] = float(speed)
-            row[f"criterion_{name}"] = criterion
-            row[f"joint_{name}"] = int(joint)
-        rows.append(row)
-    return rows
+                rows = cell_regular[select]
+                speed[select], criterion[select], joint[select] = (
+                    best.speed[rows], best.criterion[rows], best.joint[rows]
+                )
+        columns[f"speed_{name}"] = speed
+        columns[f"criterion_{name}"] = [CRITERIA[i] if i >= 0 else "" for i in criterion]
+        columns[f"joint_{name}"] = joint
+
+    # 4. --simulate
+    if simulation is not None:
+        columns.update(_simulate(config, simulation, robot, cell, columns, q, regular[posture_of_cell]))
+    return columns
+
+
+def _simulate(config, simulation, robot, cell, columns, q, regular) -> dict[str, list]:
+    simulated, qp_limited, impacts, status = [], [], [], []
+    for i in range(cell.size):
+        point = np.array([columns["point_x"][i], columns["point_y"][i], columns["point_z"][i]])
+        normal = np.array([columns["normal_x"][i], columns["normal_y"][i], columns["normal_z"][i]])
+        result = (float("nan"), float("nan"), 0, "unreachable")
+        if regular[i]:
+            surface = Surface(point, normal, DEFAULT_WALL.friction)
+            search = MaxSpeedSearch(
+                ImpactPosture(f"cell{cell[i]}", q[i].copy(), "sweep cell", surface), surface, simulation.plant,
+                jump_model=columns["controller_jump_model"][i], restitution=float(columns["restitution"][i]),
+                impact_duration=float(columns["impact_duration"][i]), tolerance=config.tolerance, robot=robot,
+            )
+            try:
+                report = search.run()
+                result = (report.simulated_max_speed, report.qp_limited.contact_speed, len(report.evaluations),
+                          "simulated")
+            except UnreachableStartError:
+                result = (float("nan"), float("nan"), 0, "no_start")
+            except ImpactNotFoundError:
+                result = (float("nan"), float("nan"), 0, "no_impact")
+        for column, value in zip((simulated, qp_limited, impacts, status), result):
+            column.append(value)
+    return {
+        "simulated_max_speed": simulated,
+        "qp_limited_speed": qp_limited,
+        "simulated_impacts": impacts,
+        "simulated_status": status,
+    }

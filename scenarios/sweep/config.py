@@ -1,8 +1,9 @@
 """The sweep configuration (TOML): a rectangle of contact points on a plane and the settings to vary.
 
-The grid is the product points x normals x restitution values; every cell evaluates all the
-listed jump models. Every key is checked before any work starts: an unknown key, a malformed
-value, an empty grid or a spacing <= 0 raises :class:`BadInputError` (docs/sweep.md).
+The grid is the product points x normals x restitution values x the controller settings
+(impact durations x controller jump models); every cell evaluates all the listed jump models in
+closed form. Every key is checked before any work starts: an unknown key, a malformed value, an
+empty grid or a spacing <= 0 raises :class:`BadInputError` (docs/sweep.md).
 """
 
 from __future__ import annotations
@@ -16,10 +17,18 @@ import numpy as np
 
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.postures import POSTURES
-from impactqp.controller.model.validation import BadInputError, finite_vector, restitution, unit_normal
+from impactqp.constraints import JUMP_MODEL_CHOICES
+from impactqp.controller.model.validation import (
+    BadInputError,
+    finite_vector,
+    impact_duration,
+    restitution,
+    unit_normal,
+)
 
 EXAMPLE = """\
 # impactqp sweep: a feasibility map of the highest safe contact speed (docs/sweep.md).
+# Every list below is an axis of the grid; a cell is one combination of their values.
 
 [grid]
 # A corner of the rectangle of contact points (m, world frame).
@@ -35,18 +44,30 @@ spacing = 0.1
 [settings]
 # Surface normals, pointing towards the robot; the tool axis is placed along -n.
 normals = [[-1.0, 0.0, 0.0]]
-# Coefficients of restitution in [0, 1].
+# Coefficients of restitution in [0, 1] (the closed form's and the controller's c_r).
 restitution = [0.0]
-# Jump models to evaluate in every cell: classical, classical_normal, gm, crb.
+# Jump models of the closed form, evaluated in every cell: classical, classical_normal, gm, crb.
 jump_models = ["gm", "crb"]
-# Impact duration delta_t (s) of the impulsive-torque criterion, > 0.
-impact_duration = 0.015
-# Seed posture of the inverse kinematics: a named posture (impactqp postures).
+# Seed posture of the inverse kinematics, the same for every cell: a named posture (impactqp postures).
 seed_posture = "elbow_up"
+
+[controller]
+# Jump-aware constraints of the controller in the simulated QP-limited run (--simulate):
+# crb, gm, classical, classical_normal or robust. Closed-form values do not depend on it.
+jump_model = ["crb"]
+# Impact duration delta_t (s) of the impulsive-torque criterion and constraint, in [0.001, 0.1].
+impact_duration = [0.015]
+
+[simulate]
+# Bisection tolerance (m/s) of the simulated highest feasible speed (--simulate only), > 0.
+tolerance = 0.005
 """
 
 GRID_KEYS = {"origin", "u", "v", "size", "spacing"}
-SETTINGS_KEYS = {"normals", "restitution", "jump_models", "impact_duration", "seed_posture"}
+SETTINGS_KEYS = {"normals", "restitution", "jump_models", "seed_posture"}
+CONTROLLER_KEYS = {"jump_model", "impact_duration"}
+SIMULATE_KEYS = {"tolerance"}
+TABLES = {"grid": GRID_KEYS, "settings": SETTINGS_KEYS, "controller": CONTROLLER_KEYS, "simulate": SIMULATE_KEYS}
 MAX_CELLS = 10_000_000
 
 
@@ -60,8 +81,10 @@ class SweepConfig:
     normals: tuple[tuple[float, float, float], ...]
     restitution: tuple[float, ...]
     jump_models: tuple[str, ...]
-    impact_duration: float
     seed_posture: str
+    controller_jump_model: tuple[str, ...]
+    impact_duration: tuple[float, ...]
+    tolerance: float
 
     def canonical_json(self) -> str:
         """The configuration as sorted JSON: two configs are the same sweep when this is equal."""
@@ -75,8 +98,7 @@ class SweepConfig:
         """The contact points (P, 3): origin + i spacing u + j spacing v, row-major in (i, j)."""
         u = np.asarray(self.u) / np.linalg.norm(self.u)
         v = np.asarray(self.v) / np.linalg.norm(self.v)
-        nu = int(np.floor(self.size[0] / self.spacing + 1e-9)) + 1
-        nv = int(np.floor(self.size[1] / self.spacing + 1e-9)) + 1
+        nu, nv = self.grid_shape()
         i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
         return (
             np.asarray(self.origin)
@@ -84,8 +106,26 @@ class SweepConfig:
             + (j.ravel()[:, None] * self.spacing) * v
         )
 
+    def grid_shape(self) -> tuple[int, int]:
+        """Points along u and along v."""
+        return tuple(int(np.floor(size / self.spacing + 1e-9)) + 1 for size in self.size)
+
+    def axes_shape(self) -> tuple[int, int, int, int, int]:
+        """Lengths of the axes (points, normals, restitution, impact_duration, controller
+        jump model), slowest first: the cell index is their row-major (C-order) index."""
+        nu, nv = self.grid_shape()
+        return (
+            nu * nv, len(self.normals), len(self.restitution), len(self.impact_duration),
+            len(self.controller_jump_model),
+        )
+
     def cell_count(self) -> int:
-        return len(self.points()) * len(self.normals) * len(self.restitution)
+        return int(np.prod(self.axes_shape()))
+
+    def cell_axes(self, cells: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Axis indices (point, normal, restitution, impact_duration, controller jump model) of
+        the cell indices ``cells``."""
+        return np.unravel_index(np.asarray(cells), self.axes_shape())
 
 
 def _table(data: dict, name: str, keys: set[str]) -> dict:
@@ -117,11 +157,10 @@ def _nonempty_list(value, what: str) -> list:
 
 def parse_config(data: dict) -> SweepConfig:
     """A validated :class:`SweepConfig` from the parsed TOML ``data``."""
-    unknown = sorted(set(data) - {"grid", "settings"})
+    unknown = sorted(set(data) - set(TABLES))
     if unknown:
         raise BadInputError(f"unknown key {unknown[0]} in the sweep config")
-    grid = _table(data, "grid", GRID_KEYS)
-    settings = _table(data, "settings", SETTINGS_KEYS)
+    grid, settings, controller, simulate = (_table(data, name, keys) for name, keys in TABLES.items())
     origin = finite_vector(grid["origin"], 3, "grid.origin")
     u = unit_normal(grid["u"], "grid.u")
     v = unit_normal(grid["v"], "grid.v")
@@ -150,6 +189,19 @@ def parse_config(data: dict) -> SweepConfig:
         raise BadInputError(
             f"unknown settings.seed_posture {seed!r}; choose from {', '.join(POSTURES)}"
         )
+    controller_models = _nonempty_list(controller["jump_model"], "controller.jump_model")
+    for name in controller_models:
+        if name not in JUMP_MODEL_CHOICES:
+            raise BadInputError(
+                f"unknown jump model {name!r} in controller.jump_model; choose from {', '.join(JUMP_MODEL_CHOICES)}"
+            )
+    durations = [
+        impact_duration(value, f"controller.impact_duration[{k}]")
+        for k, value in enumerate(_nonempty_list(controller["impact_duration"], "controller.impact_duration"))
+    ]
+    for name, values in (("controller.jump_model", controller_models), ("controller.impact_duration", durations)):
+        if len(set(values)) != len(values):
+            raise BadInputError(f"{name} lists a value twice")
     config = SweepConfig(
         origin=tuple(origin.tolist()),
         u=tuple(u.tolist()),
@@ -159,8 +211,10 @@ def parse_config(data: dict) -> SweepConfig:
         normals=tuple(normals),
         restitution=tuple(restitutions),
         jump_models=tuple(models),
-        impact_duration=_positive(settings["impact_duration"], "settings.impact_duration"),
         seed_posture=seed,
+        controller_jump_model=tuple(controller_models),
+        impact_duration=tuple(durations),
+        tolerance=_positive(simulate["tolerance"], "simulate.tolerance"),
     )
     if max(size) / spacing > MAX_CELLS:
         raise BadInputError(f"grid.spacing {spacing} m is too fine for grid.size {size.tolist()}")

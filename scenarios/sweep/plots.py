@@ -1,8 +1,11 @@
 """Feasibility-map figures (PNG, matplotlib Agg) of a finished sweep.
 
-For each normal and restitution value: a heat map of the closed-form highest feasible speed over
-the grid of contact points for each jump model, one of the binding criterion and joint, and the
-difference between the first two models. Unreachable or singular cells are left blank (NaN).
+For each normal, restitution value and impact duration: a heat map of the closed-form highest
+feasible speed over the grid of contact points for each jump model, one of the binding criterion
+and joint, and the difference between the first two models (the closed form does not depend on
+the controller's jump model: the cells of the first one are drawn). With ``--simulate``, also for
+each controller jump model: the simulated highest feasible speed and the QP-limited speed.
+Unreachable or singular cells are left blank (NaN).
 """
 
 from __future__ import annotations
@@ -21,28 +24,47 @@ from impactqp.controller.model.max_speed import CRITERIA  # noqa: E402
 from .config import SweepConfig  # noqa: E402
 
 
-def _grid_shape(config: SweepConfig) -> tuple[int, int]:
-    nu = int(np.floor(config.size[0] / config.spacing + 1e-9)) + 1
-    nv = int(np.floor(config.size[1] / config.spacing + 1e-9)) + 1
-    return nu, nv
-
-
 def write_plots(config: SweepConfig, table: pa.Table, out: Path) -> list[Path]:
     """Write the figures into ``out`` and return their paths."""
     columns = table.to_pydict()
-    nu, nv = _grid_shape(config)
-    n_n, n_r = len(config.normals), len(config.restitution)
+    nu, nv = config.grid_shape()
+    shape = config.axes_shape()
+    cells = np.arange(config.cell_count()).reshape(shape)
     h = config.spacing / 2.0  # cells centred on their contact points
     extent = [-h, config.size[0] + h, -h, config.size[1] + h]
     paths = []
-    for k in range(n_n):
-        for r in range(n_r):
-            select = np.arange(k * n_r + r, nu * nv * n_n * n_r, n_n * n_r)  # cell order: point, normal, c_r
+    for k, r, t in np.ndindex(*shape[1:4]):
+        for c in range(shape[4]):
+            if c > 0 and "simulated_max_speed" not in columns:
+                break
+            select = cells[:, k, r, t, c]
 
             def grid(name, dtype=float):
                 return np.asarray(columns[name], dtype=dtype)[select].reshape(nu, nv).T
 
-            suffix = f"normal{k}_restitution{r}"
+            title = (f"n = {np.round(config.normals[k], 3).tolist()}, c_r = {config.restitution[r]}, "
+                     f"delta_t = {config.impact_duration[t]}")
+            suffix = f"normal{k}_restitution{r}_duration{t}"
+            if "simulated_max_speed" in columns:
+                controller = config.controller_jump_model[c]
+                fig, axes = plt.subplots(1, 2, figsize=(8, 3.5), squeeze=False)
+                for ax, name, label in zip(
+                    axes[0], ("simulated_max_speed", "qp_limited_speed"),
+                    ("simulated highest feasible speed", f"QP-limited speed, {controller} constraints"),
+                ):
+                    image = ax.imshow(grid(name), origin="lower", extent=extent, aspect="auto")
+                    fig.colorbar(image, ax=ax, label="m/s")
+                    ax.set_title(label, fontsize=9)
+                    ax.set_xlabel("u (m)")
+                    ax.set_ylabel("v (m)")
+                fig.suptitle(title)
+                fig.tight_layout()
+                path = Path(out) / f"simulated_{suffix}_controller{c}.png"
+                fig.savefig(path, dpi=80)
+                plt.close(fig)
+                paths.append(path)
+            if c > 0:
+                continue
             models = config.jump_models
             panels = len(models) + (1 if len(models) > 1 else 0)
             fig, axes = plt.subplots(1, panels, figsize=(4 * panels, 3.5), squeeze=False)
@@ -58,7 +80,7 @@ def write_plots(config: SweepConfig, table: pa.Table, out: Path) -> list[Path]:
             for ax in axes[0]:
                 ax.set_xlabel("u (m)")
                 ax.set_ylabel("v (m)")
-            fig.suptitle(f"n = {np.round(config.normals[k], 3).tolist()}, c_r = {config.restitution[r]}")
+            fig.suptitle(title)
             fig.tight_layout()
             path = Path(out) / f"speed_{suffix}.png"
             fig.savefig(path, dpi=80)
