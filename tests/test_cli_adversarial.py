@@ -76,6 +76,13 @@ def replace_by_directory(name: str):
     return mutate
 
 
+def replace_by_directory_new(name: str):
+    def mutate(directory: Path) -> None:
+        (directory / name).mkdir()
+
+    return mutate
+
+
 def nested_manifest(directory: Path) -> None:
     (directory / "dataset.json").write_text("[" * 100_000 + "]" * 100_000)
 
@@ -132,6 +139,23 @@ ROWS = [
     (["diagnose", "{data}", "--save-plant", "{tmp}"], None, 2, "is a directory"),
     (["diagnose", "{data}", "--report", "{data}/dataset.json"], None, 2, "is a file"),
     (["diagnose", "{data}", "--jobs", "0"], None, 2, "--jobs"),
+    # run: a controller configuration is read and checked before the robot moves
+    (["run", "--config", "{bad}/c.toml", "--log", "{tmp}/log"], write("c.toml", "dt = nan\n"), 2,
+     "dt must lie in [0.0001, 0.01] s"),
+    (["run", "--config", "{bad}/c.toml", "--log", "{tmp}/log"], write("c.toml", 'dt = "fast"\n'), 2,
+     "dt must be a number"),
+    (["run", "--config", "{bad}/c.toml", "--log", "{tmp}/log"], write("c.toml", "[limits]\njerk_scale = 1e-300\n"),
+     2, "limits.jerk_scale"),
+    (["run", "--config", "{bad}/c.yaml", "--log", "{tmp}/log"], write("c.yaml", "dt: [1\n"), 2, "not valid YAML"),
+    (["run", "--config", "{bad}/c.yaml", "--log", "{tmp}/log"], write("c.yaml", b"\xff\xfe\x00"), 2, "not a UTF-8"),
+    (["run", "--config", "{bad}/c.yaml", "--log", "{tmp}/log"],
+     write("c.yaml", "x: " + "[" * 100_000 + "]" * 100_000), 2, "nested too deeply"),
+    (["run", "--config", "{tmp}", "--log", "{tmp}/log"], None, 2, "unsupported configuration file"),
+    (["run", "--config", "{bad}/c.toml", "--log", "{tmp}/log"], replace_by_directory_new("c.toml"), 2,
+     "Is a directory"),
+    (["run", "--speed", "1e9", "--log", "{tmp}/log"], None, 2, "(0, 3] m/s"),
+    (["run", "--duration", "1e9", "--log", "{tmp}/log"], None, 2, "--duration must lie in (0, 60] s"),
+    (["run", "--log", "{data}/t0000.csv"], None, 2, "--log"),
     # demo
     (["demo", "--out", "{data}/dataset.json"], None, 2, "not a directory"),
 ]

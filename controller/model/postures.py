@@ -12,7 +12,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .validation import BadInputError, finite_vector, unit_normal
+from .validation import BadInputError, finite_vector, number_in_range, unit_normal
+
+
+MAX_FRICTION = 2.0
+"""Largest Coulomb friction coefficient of a surface: rubber on dry rough surfaces stays below 2."""
 
 
 @dataclass(frozen=True)
@@ -26,8 +30,7 @@ class Surface:
     def __post_init__(self):
         point = finite_vector(self.point, 3, "the surface point")
         normal = unit_normal(self.normal)
-        if isinstance(self.friction, bool) or not (np.isfinite(self.friction) and self.friction >= 0.0):
-            raise BadInputError(f"the surface friction must be a finite number >= 0, got {self.friction!r}")
+        number_in_range(self.friction, 0.0, MAX_FRICTION, "the surface friction")
         object.__setattr__(self, "point", point)
         object.__setattr__(self, "normal", normal)
 

@@ -65,6 +65,20 @@ def number_in_range(value, low: float, high: float, what: str, unit: str = "", l
     return number
 
 
+def boolean(value, what: str) -> bool:
+    """``value`` as a bool; only ``true``/``false`` are accepted (never 1, "yes" or a string)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise BadInputError(f"{what} must be true or false, got {value!r}")
+    return bool(value)
+
+
+def name_in(value, choices, what: str) -> str:
+    """``value`` as one of the string ``choices``; the message lists them."""
+    if not isinstance(value, str) or value not in choices:
+        raise BadInputError(f"{what} = {value!r}; choose from {', '.join(choices)}")
+    return value
+
+
 def restitution(value, what: str = "the restitution") -> float:
     """The coefficient of restitution c_r, in [0, 1] (0: the contact sticks, 1: elastic)."""
     return number_in_range(value, 0.0, 1.0, what)
