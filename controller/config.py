@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from impactqp.constraints.impact_model import MAX_LOOKAHEAD_DISTANCE, MAX_LOOKAHEAD_TIME
 from impactqp.constraints import (
     JUMP_MODEL_CHOICES,
     AccelerationLimit,
@@ -68,9 +69,6 @@ MIN_LIMIT_SCALE = 0.01
 
 MAX_POSITION_MARGIN = 0.5
 """rad: a joint-limit margin beyond half a radian leaves some Panda joints no range at all."""
-
-MAX_LOOKAHEAD_DISTANCE, MAX_LOOKAHEAD_TIME = 1.0, 10.0
-"""m and s: the impact-aware constraints switch on within a metre or ten seconds of the surface."""
 
 MAX_RETRACT_DISTANCE, MAX_HOLD_DEPTH = 0.5, 0.01
 """m: a retract within the workspace, and a hold depth within the compliance of a real contact."""
