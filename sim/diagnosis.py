@@ -190,7 +190,7 @@ def replay(scene, trial: MeasuredTrial) -> ReplayFeatures:
     try:
         impact = measure_impact(log)
     except ImpactNotFoundError:
-        return ReplayFeatures(np.zeros(7), np.zeros(3), 0.0, torque)
+        return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, torque)
     return ReplayFeatures(impact.dq_jump, impact.impulse, impact.duration, torque)
 
 

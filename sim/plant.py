@@ -31,10 +31,9 @@ from pathlib import Path
 import numpy as np
 
 from impactqp.controller.measured.atomic import write_text_atomic
-from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.measured.json_file import read_json_object
-
-NJ = 7
+from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.validation import BadInputError
 
 DEFAULT_SOLREF = (0.007, 1.0)
 DEFAULT_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
@@ -67,8 +66,8 @@ def _non_negative(name: str, values: tuple[float, ...]) -> None:
 class PlantParameters:
     """Plant parameters (see the module docstring for units and effects); validated on creation."""
 
-    armature: tuple[float, ...] = (0.0,) * NJ
-    joint_damping: tuple[float, ...] = (0.0,) * NJ
+    armature: tuple[float, ...] = (0.0,) * NQ
+    joint_damping: tuple[float, ...] = (0.0,) * NQ
     payload_mass: float = 0.0
     payload_com: tuple[float, ...] = (0.0, 0.0, 0.0)
     friction: float | None = None
@@ -81,7 +80,7 @@ class PlantParameters:
             object.__setattr__(self, name, value)
 
         for name in ("armature", "joint_damping"):
-            values = _vector(name, getattr(self, name), NJ)
+            values = _vector(name, getattr(self, name), NQ)
             _non_negative(name, values)
             set_(name, values)
         set_("payload_com", _vector("payload_com", self.payload_com, 3))
