@@ -136,6 +136,13 @@ ROWS = [
     (["dataset", "generate", "{tmp}/out", "--plant", "{data}"], None, 2, "is a directory"),
     # diagnose
     (["diagnose", "{bad}"], manifest_edit(lambda m: m.__setitem__("robot", "ur5")), 2, "robots we model"),
+    (["diagnose", "{bad}"], manifest_edit(lambda m: m["tool"].__setitem__("contact_point", [0.0, 0.0, 0.2])), 2,
+     "is not the modelled impact tool"),
+    (["diagnose", "{bad}"], manifest_edit(lambda m: m["tool"].__setitem__("frame", "panda_link7")), 2,
+     "is not the modelled impact tool"),
+    (["run", "--backend", "replay", "--dataset", "{bad}", "--log", "{tmp}/log"],
+     manifest_edit(lambda m: m["tool"].__setitem__("contact_point", [0.0, 0.0, 0.2])), 2,
+     "is not the modelled impact tool"),
     (["diagnose", "{data}", "--save-plant", "{tmp}"], None, 2, "is a directory"),
     (["diagnose", "{data}", "--report", "{data}/dataset.json"], None, 2, "is a file"),
     (["diagnose", "{data}", "--jobs", "0"], None, 2, "--jobs"),

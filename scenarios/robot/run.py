@@ -17,10 +17,10 @@ import numpy as np
 
 from impactqp.controller.command_filter import CommandFilter
 from impactqp.controller.config import ControllerConfig
-from impactqp.controller.measured.dataset import DatasetHeader, Tool
+from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD
 from impactqp.controller.model.postures import POSTURES
-from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET, PandaModel
+from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
 
 from .interface import RobotInterface
@@ -177,7 +177,7 @@ def report(result: LoopResult, config: ControllerConfig, log_path: str | None) -
 
 def log_header(config: ControllerConfig) -> DatasetHeader:
     return DatasetHeader(
-        tool=Tool(HAND_FRAME, (0.0, 0.0, TOOL_TIP_OFFSET)),
+        tool=MODELLED_TOOL,
         surface=config.surface.surface(),
         control_period=config.dt,
     )
