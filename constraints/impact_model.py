@@ -92,7 +92,6 @@ class ImpactModel:
         )
         self.always_active = validation.boolean(always_active, "always_active")
         self._surface_offset = float(surface.normal @ surface.point)  # n.s: distance = n.p - n.s
-        self.switched_on = True  # False: the constraints are off whatever the state
         self._stamp = 0  # ModelTerms.stamp of the cached maps
         self._maps: ImpactMaps | None = None
 
@@ -101,9 +100,7 @@ class ImpactModel:
         return self.model.name
 
     def is_active(self, terms: ModelTerms) -> bool:
-        """The activation rule of the module docstring (always False when switched off)."""
-        if not self.switched_on:
-            return False
+        """The activation rule of the module docstring."""
         if self.always_active:
             return True
         normal = self.surface.normal
@@ -128,7 +125,7 @@ class ImpactModel:
                 GJ = maps.G @ terms.J
                 jump_matrix, torque_matrix = maps.K @ GJ, terms.J.T @ GJ
                 normal_speed, normal_position = float(normal @ (terms.J @ terms.dq)), float(normal @ terms.contact_point)
-            active = self.switched_on and (self.always_active or self._rule(normal_speed, normal_position))
+            active = self.always_active or self._rule(normal_speed, normal_position)
             self._maps = ImpactMaps(jump_matrix, torque_matrix, active)
             self._stamp = terms.stamp
         return self._maps

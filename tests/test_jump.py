@@ -207,6 +207,10 @@ def test_inverse_inertia_along_the_normal_is_W_times_n(robot, q, normal):
     np.testing.assert_allclose(
         JUMP_MODELS["crb"].inverse_inertia_times(terms, normal), crb_inverse_inertia(terms) @ normal, atol=1e-12
     )
+    np.testing.assert_allclose(  # the kernel's plain-float reference
+        JUMP_MODELS["crb"].reference_inverse_inertia_times(terms, normal), crb_inverse_inertia(terms) @ normal,
+        atol=1e-12,
+    )
     np.testing.assert_allclose(
         JUMP_MODELS["gm"].inverse_inertia_times(terms, normal), gm_inverse_inertia(terms) @ normal,
         rtol=1e-8, atol=1e-12,
