@@ -111,11 +111,11 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
     return robot, config, request.duration
 
 
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def run(request: RunRequest) -> tuple[dict, LoopResult]:
-    """Run the request; (report, result). Ctrl-C or SIGTERM brakes to a stop and keeps the log
+    """Run the request; (report, result). Ctrl-C, SIGTERM or SIGHUP brakes to a stop and keeps the log
     (``result.interrupted``). The log directory is checked before the robot moves."""
     check_request(request)
     model = PandaModel()

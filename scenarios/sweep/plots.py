@@ -16,6 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pyarrow as pa  # noqa: E402
 
+from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.model.max_speed import CRITERIA  # noqa: E402
 
 from .config import SweepConfig  # noqa: E402
@@ -61,7 +62,7 @@ def write_plots(config: SweepConfig, table: pa.Table, out: Path) -> list[Path]:
             fig.suptitle(f"n = {np.round(config.normals[k], 3).tolist()}, c_r = {config.restitution[r]}")
             fig.tight_layout()
             path = Path(out) / f"speed_{suffix}.png"
-            fig.savefig(path, dpi=80)
+            write_atomic(path, lambda tmp, fig=fig: fig.savefig(tmp, dpi=80, format="png"))
             plt.close(fig)
             paths.append(path)
 
@@ -88,7 +89,7 @@ def write_plots(config: SweepConfig, table: pa.Table, out: Path) -> list[Path]:
             fig.legend(handles, CRITERIA, loc="lower center", ncol=len(CRITERIA), fontsize=7)
             fig.tight_layout(rect=(0, 0.08, 1, 1))
             path = Path(out) / f"binding_{suffix}.png"
-            fig.savefig(path, dpi=80)
+            write_atomic(path, lambda tmp, fig=fig: fig.savefig(tmp, dpi=80, format="png"))
             plt.close(fig)
             paths.append(path)
     return paths
