@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from impactqp.scenarios.cli import main
+from impactqp.scenarios.sweep.config import EXAMPLE as SWEEP_EXAMPLE
 
 
 @pytest.fixture(scope="module")
@@ -64,6 +65,14 @@ def shift_joint(row_value: float):
         cells[1] = str(row_value)  # q1 of the fifth sample
         lines[5] = ",".join(cells)
         path.write_text("\n".join(lines) + "\n")
+
+    return mutate
+
+
+def header_only(name: str):
+    def mutate(directory: Path) -> None:
+        path = directory / name
+        path.write_text(path.read_text().splitlines()[0] + "\n")
 
     return mutate
 
@@ -126,6 +135,7 @@ ROWS = [
     (["dataset", "validate", "{bad}"], replace_by_directory("t0000.csv"), 1, "is a directory"),
     (["dataset", "validate", "{bad}"], write("t0000.csv", "root:x:0:0:root:/root:/bin/bash\n"), 1,
      "lacks the column"),
+    (["dataset", "validate", "{bad}"], header_only("t0000.csv"), 1, "holds no samples"),
     (["dataset", "validate", "{bad}"], manifest_edit(lambda m: m.__setitem__("robot", "ur5")), 1,
      "robots we model"),
     (["dataset", "validate", "{bad}"], nested_manifest, 1, "nested too deeply"),
@@ -163,11 +173,19 @@ ROWS = [
     (["run", "--speed", "1e9", "--log", "{tmp}/log"], None, 2, "(0, 3] m/s"),
     (["run", "--duration", "1e9", "--log", "{tmp}/log"], None, 2, "--duration must lie in (0, 60] s"),
     (["run", "--log", "{data}/t0000.csv"], None, 2, "--log"),
+    # sweep and import-franka: the output directory is checked before any work
+    (["sweep", "{bad}/c.toml", "--out", "{data}/dataset.json"], write("c.toml", SWEEP_EXAMPLE), 2,
+     "--out: {data}/dataset.json exists and is not a directory"),
+    (["sweep", "{bad}/c.toml", "--out", "{data}/dataset.json/x"], write("c.toml", SWEEP_EXAMPLE), 2,
+     "which is not a directory"),
+    (["dataset", "import-franka", "{data}/t0000.csv/x", "{data}/t0000.csv", "--surface-point", "0.6,0,0",
+      "--surface-normal", "-1,0,0"], None, 2, "which is not a directory"),
     # demo
     (["demo", "--out", "{data}/dataset.json"], None, 2, "not a directory"),
 ]
 
 
+@pytest.mark.filterwarnings("error")  # a warning would print more than the one line
 @pytest.mark.parametrize("args, mutate, code, fragment", ROWS, ids=[" ".join(r[0][:3]) for r in ROWS])
 def test_adversarial_input(dataset, tmp_path, capsys, args, mutate, code, fragment):
     bad = tmp_path / "bad"
@@ -178,6 +196,7 @@ def test_adversarial_input(dataset, tmp_path, capsys, args, mutate, code, fragme
     scratch.mkdir()
     before, before_bad = snapshot(dataset), snapshot(bad)
     argv = [a.format(data=dataset, bad=bad, tmp=scratch) for a in args]
+    fragment = fragment.format(data=dataset)
     assert main(argv) == code
     out, err = capsys.readouterr()
     assert "Traceback" not in err

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import io
 import json
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -339,7 +340,9 @@ def _read_table(path: Path, columns: list[str]) -> np.ndarray:
     try:
         with path.open(encoding="utf-8-sig") as stream:  # a byte-order mark is not part of a name
             header = stream.readline().strip().split(",")
-            table = np.loadtxt(stream, delimiter=",", ndmin=2)
+            with warnings.catch_warnings():  # no rows: reported below as "holds no samples"
+                warnings.simplefilter("ignore", UserWarning)
+                table = np.loadtxt(stream, delimiter=",", ndmin=2)
     except FileNotFoundError:
         raise DatasetError(f"{path.name} does not exist") from None
     except IsADirectoryError:

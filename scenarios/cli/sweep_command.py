@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from impactqp.scenarios.cli.arguments import emit_json
+from impactqp.scenarios.cli.arguments import emit_json, output_directory
 
 
 @click.command()
@@ -29,6 +29,7 @@ def sweep(config_path, backend, jobs, out, resume, example, as_json):
         raise click.UsageError("give a CONFIG.toml (or --example)")
     from impactqp.scenarios.sweep.backends import run_sweep
 
+    output_directory(str(out), "--out")
     config = load_config(config_path)
     summary = run_sweep(config, out, jobs=jobs, backend=backend, resume=resume, progress=not as_json)
     if as_json:
