@@ -126,6 +126,8 @@ ROWS = [
     (["max-speed", "--posture", "elbow_up", "--impact-duration", "1e-9"], None, 2, "one control period"),
     (["max-speed", "--posture", "elbow_up", "--plant", "{tmp}"], None, 2, "not a regular file"),
     (["max-speed", "--posture", "elbow_up", "--wall-normal", "nan,0,0"], None, 2, "non-finite"),
+    (["max-speed", "--posture", "elbow_up", "--tolerance", "1e-300"], None, 2,
+     "the bisection tolerance must lie in [0.0001, 0.5] m/s"),
     # dataset validate: a report with exit code 1 that names the problem
     (["dataset", "validate", "{bad}"], set_trial("file", "../../../../etc/passwd"), 1, "inside the dataset"),
     (["dataset", "validate", "{bad}"], set_trial("reference_normal_speed", float("nan")), 1, "reference_normal_speed"),
@@ -147,6 +149,10 @@ ROWS = [
     # dataset generate
     (["dataset", "generate", "{tmp}/out", "--speeds", "50"], None, 2, "(0, 3] m/s"),
     (["dataset", "generate", "{data}/t0000.csv", "--speeds", "0.1"], None, 2, "is a file"),
+    (["dataset", "generate", "{tmp}/out", "--speeds", "0.1", "--repeats", "1000000"], None, 2,
+     "repeats must be a whole number in [1, 100]"),
+    (["dataset", "generate", "{tmp}/out", "--speeds", "0.1", "--noise-dq", "1e9"], None, 2, "--noise-dq"),
+    (["dataset", "generate", "{tmp}/out", "--speeds", "0.1", "--jobs", "1000000"], None, 2, "--jobs must lie in"),
     (["dataset", "generate", "{tmp}/out", "--plant", "{data}"], None, 2, "is a directory"),
     # diagnose
     (["diagnose", "{bad}"], manifest_edit(lambda m: m.__setitem__("robot", "ur5")), 2, "robots we model"),
