@@ -118,6 +118,8 @@ ROWS = [
      write("p.json", '{"payload_mass": 1e6}'), 2, "payload_mass = 1000000.0 must lie in [0, 5] kg"),
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{bad}/p.json"],
      write("p.json", '{"payload_mass": true}'), 2, "payload_mass must be numeric"),
+    (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--wall-point", "1e10,0,0"], None, 2,
+     "must lie within 10 m of the robot's base"),
     # campaign
     (["campaign", "--speeds", "50"], None, 2, "(0, 3] m/s"),
     (["campaign", "--out", "{data}/dataset.json", "--speeds", "0.1"], None, 2, "not a directory"),
