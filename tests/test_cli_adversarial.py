@@ -186,6 +186,9 @@ ROWS = [
     (["run", "--duration", "1e9", "--log", "{tmp}/log"], None, 2, "--duration must lie in (0, 60] s"),
     (["run", "--log", "{data}/t0000.csv"], None, 2, "--log"),
     # sweep and import-franka: the output directory is checked before any work
+    (["sweep", "{bad}/c.toml", "--out", "{tmp}/s"], write("c.toml", b"\xff\xfe"), 2, "not a UTF-8 text file"),
+    (["sweep", "{bad}/c.toml", "--out", "{tmp}/s"], write("c.toml", "x = " + "[" * 100_000 + "]" * 100_000), 2,
+     "nested too deeply"),
     (["sweep", "{bad}/c.toml", "--out", "{data}/dataset.json"], write("c.toml", SWEEP_EXAMPLE), 2,
      "--out: {data}/dataset.json exists and is not a directory"),
     (["sweep", "{bad}/c.toml", "--out", "{data}/dataset.json/x"], write("c.toml", SWEEP_EXAMPLE), 2,
