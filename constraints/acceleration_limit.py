@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.robot import NQ, ModelTerms
 
 from .constraint import Constraint, ControlCycle
 
@@ -16,7 +16,7 @@ class AccelerationLimit(Constraint):
     """
 
     name = "joint_acceleration_limit"
-    rows = 7
+    rows = NQ
     is_box = True
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:

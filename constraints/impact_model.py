@@ -32,7 +32,11 @@ from numba import njit
 from impactqp.controller.model.jump import GeneralizedMomentumJump, JumpModel, jump_model
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model import validation
 from impactqp.controller.model.validation import BadInputError
+
+MAX_LOOKAHEAD_DISTANCE, MAX_LOOKAHEAD_TIME = 1.0, 10.0
+"""m and s: the impact-aware constraints switch on within a metre or ten seconds of the surface."""
 
 JUMP_MODEL_CHOICES = {
     "crb": ("crb",),
@@ -76,19 +80,18 @@ class ImpactModel:
         release_speed: float = 0.02,
         always_active: bool = False,
     ):
-        if not 0.0 <= restitution <= 1.0:
-            raise BadInputError("restitution must be in [0, 1]")
-        if lookahead_distance < 0.0 or lookahead_time < 0.0:
-            raise BadInputError("look-ahead distance and time must be >= 0")
         self.surface = surface
         self.model: JumpModel = jump_model(jump_model_name)
-        self.restitution = float(restitution)
-        self.lookahead_distance = float(lookahead_distance)
-        self.lookahead_time = float(lookahead_time)
-        self.release_speed = float(release_speed)
-        self.always_active = bool(always_active)
+        self.restitution = validation.restitution(restitution)
+        self.lookahead_distance = validation.number_in_range(
+            lookahead_distance, 0.0, MAX_LOOKAHEAD_DISTANCE, "the look-ahead distance", "m"
+        )
+        self.lookahead_time = validation.number_in_range(lookahead_time, 0.0, MAX_LOOKAHEAD_TIME, "the look-ahead time", "s")
+        self.release_speed = validation.number_in_range(
+            release_speed, 0.0, validation.MAX_CONTACT_SPEED, "the release speed", "m/s"
+        )
+        self.always_active = validation.boolean(always_active, "always_active")
         self._surface_offset = float(surface.normal @ surface.point)  # n.s: distance = n.p - n.s
-        self.switched_on = True  # False: the constraints are off whatever the state
         self._stamp = 0  # ModelTerms.stamp of the cached maps
         self._maps: ImpactMaps | None = None
 
@@ -97,9 +100,7 @@ class ImpactModel:
         return self.model.name
 
     def is_active(self, terms: ModelTerms) -> bool:
-        """The activation rule of the module docstring (always False when switched off)."""
-        if not self.switched_on:
-            return False
+        """The activation rule of the module docstring."""
         if self.always_active:
             return True
         normal = self.surface.normal
@@ -120,11 +121,11 @@ class ImpactModel:
             if isinstance(self.model, GeneralizedMomentumJump):
                 jump_matrix, torque_matrix, normal_speed, normal_position = self._normal_impulse_maps(terms)
             else:
-                maps = self.model.maps(terms, normal, self.restitution)
+                maps = self.model.unit_maps(terms, normal, self.restitution)  # both checked once, above
                 GJ = maps.G @ terms.J
                 jump_matrix, torque_matrix = maps.K @ GJ, terms.J.T @ GJ
                 normal_speed, normal_position = float(normal @ (terms.J @ terms.dq)), float(normal @ terms.contact_point)
-            active = self.switched_on and (self.always_active or self._rule(normal_speed, normal_position))
+            active = self.always_active or self._rule(normal_speed, normal_position)
             self._maps = ImpactMaps(jump_matrix, torque_matrix, active)
             self._stamp = terms.stamp
         return self._maps

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import njit
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.robot import NQ, ModelTerms
 
 from .constraint import Constraint, ControlCycle
 from impactqp.controller.model.validation import BadInputError
@@ -34,7 +34,7 @@ class PositionLimit(Constraint):
     """
 
     name = "joint_position_limit"
-    rows = 7
+    rows = NQ
     is_box = True
 
     def __init__(self, q_min, q_max, ddq_max, braking_fraction: float = 0.5, margin: float = 0.0):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.robot import NQ, ModelTerms
 
 from .constraint import Constraint, ControlCycle
 
@@ -18,7 +18,7 @@ class TorqueLimit(Constraint):
     """
 
     name = "joint_torque_limit"
-    rows = 7
+    rows = NQ
 
     def __init__(self, tau_max: np.ndarray):
         self.tau_max = np.asarray(tau_max, dtype=float)

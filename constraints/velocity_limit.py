@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.robot import NQ, ModelTerms
 
 from .constraint import Constraint, ControlCycle
 
@@ -26,7 +26,7 @@ class VelocityLimit(Constraint):
     """
 
     name = "joint_velocity_limit"
-    rows = 7
+    rows = NQ
     is_box = True
 
     def __init__(self, dq_max: np.ndarray):

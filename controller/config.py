@@ -8,15 +8,15 @@ The file format is documented in the project README (section "Controller configu
 
 from __future__ import annotations
 
-import math
-
+import inspect
 import tomllib
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
-import numpy as np
 
+from impactqp.constraints.impact_model import MAX_LOOKAHEAD_DISTANCE, MAX_LOOKAHEAD_TIME
 from impactqp.constraints import (
+    JUMP_MODEL_CHOICES,
     AccelerationLimit,
     ImpactModel,
     ImpulsiveTorqueLimit,
@@ -28,6 +28,7 @@ from impactqp.constraints import (
 )
 from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
 
+from .model.jump import METHODS
 from .model.max_speed import DEFAULT_IMPACT_DURATION
 from .model.postures import DEFAULT_WALL, Surface
 from .qp import ImpactAwareController
@@ -55,8 +56,21 @@ class TaskConfig:
     params: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        if self.type not in TASK_TYPES:
-            raise BadInputError(f"unknown task type {self.type!r}; choose from {', '.join(TASK_TYPES)}")
+        validation.name_in(self.type, TASK_TYPES, "task type")
+
+
+MIN_DT, MAX_DT = 1e-4, 0.01
+"""s: the control period, from 10 kHz to 100 Hz (the Panda's own loop runs at 1 kHz); the QP's
+one-step discretisation of the acceleration, velocity and jerk limits holds in this range."""
+
+MIN_LIMIT_SCALE = 0.01
+"""Smallest scale of a datasheet limit: below 1 % the robot can neither move nor brake usefully."""
+
+MAX_POSITION_MARGIN = 0.5
+"""rad: a joint-limit margin beyond half a radian leaves some Panda joints no range at all."""
+
+MAX_RETRACT_DISTANCE, MAX_HOLD_DEPTH, MAX_HOLD_SPEED = 0.5, 0.01, 0.5
+"""m: a retract within the workspace, and a hold depth within the compliance of a real contact."""
 
 
 @dataclass
@@ -77,12 +91,13 @@ class LimitsConfig:
     position_margin: float = 0.0
 
     def __post_init__(self):
+        for name in ("position", "velocity", "torque"):
+            validation.boolean(getattr(self, name), f"limits.{name}")
         for name in ("velocity_scale", "acceleration_scale", "jerk_scale", "torque_scale", "braking_fraction"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and 0.0 < value <= 1.0):
-                raise BadInputError(f"limits.{name} = {value} must lie in (0, 1]: the datasheet limits are the robot's")
-        if not (math.isfinite(self.position_margin) and self.position_margin >= 0.0):
-            raise BadInputError(f"limits.position_margin = {self.position_margin} rad must be >= 0")
+            validation.number_in_range(
+                getattr(self, name), MIN_LIMIT_SCALE, 1.0, f"limits.{name}", "(of the Franka datasheet limit)"
+            )
+        validation.number_in_range(self.position_margin, 0.0, MAX_POSITION_MARGIN, "limits.position_margin", "rad")
 
 
 @dataclass
@@ -106,12 +121,18 @@ class ImpactConfig:
     prediction_model: str = "crb"
 
     def __post_init__(self):
+        if self.jump_model is not None:
+            validation.name_in(self.jump_model, JUMP_MODEL_CHOICES, "impact.jump_model")
+        validation.name_in(self.prediction_model, METHODS, "impact.prediction_model")
         validation.restitution(self.restitution, "impact.restitution")
         validation.impact_duration(self.impact_duration, "impact.impact_duration")
-        for name in ("lookahead_distance", "lookahead_time", "release_speed"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise BadInputError(f"impact.{name} = {value} must be a finite number >= 0")
+        for name in ("post_impact_velocity", "impulsive_torque", "always_active"):
+            validation.boolean(getattr(self, name), f"impact.{name}")
+        validation.number_in_range(self.lookahead_distance, 0.0, MAX_LOOKAHEAD_DISTANCE, "impact.lookahead_distance", "m")
+        validation.number_in_range(self.lookahead_time, 0.0, MAX_LOOKAHEAD_TIME, "impact.lookahead_time", "s")
+        validation.number_in_range(
+            self.release_speed, 0.0, validation.MAX_CONTACT_SPEED, "impact.release_speed", "m/s"
+        )
 
 
 POST_IMPACT_MODES = ("retract", "hold", "continue")
@@ -138,16 +159,15 @@ class PostImpactConfig:
     hold_speed: float = 0.02
 
     def __post_init__(self):
-        if self.mode not in POST_IMPACT_MODES:
-            raise ValueError(f"post_impact.mode = {self.mode!r}; choose from {', '.join(POST_IMPACT_MODES)}")
-        for name in ("retract_distance", "max_speed", "hold_depth", "hold_speed"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"post_impact.{name} = {value} must be a finite number >= 0")
+        validation.name_in(self.mode, POST_IMPACT_MODES, "post_impact.mode")
+        validation.number_in_range(self.retract_distance, 0.0, MAX_RETRACT_DISTANCE, "post_impact.retract_distance", "m")
+        validation.number_in_range(self.max_speed, 0.0, validation.MAX_CONTACT_SPEED, "post_impact.max_speed", "m/s")
+        validation.number_in_range(self.hold_depth, 0.0, MAX_HOLD_DEPTH, "post_impact.hold_depth", "m")
+        validation.number_in_range(self.hold_speed, 0.0, MAX_HOLD_SPEED, "post_impact.hold_speed", "m/s")
         if self.mode == "retract" and not (self.retract_distance > 0.0 and self.max_speed > 0.0):
-            raise ValueError("post_impact: a retract needs retract_distance > 0 and max_speed > 0")
+            raise BadInputError("post_impact: a retract needs retract_distance > 0 and max_speed > 0")
         if self.mode == "hold" and not (self.hold_depth > 0.0 and self.hold_speed > 0.0):
-            raise ValueError("post_impact: a hold needs hold_depth > 0 and hold_speed > 0")
+            raise BadInputError("post_impact: a hold needs hold_depth > 0 and hold_speed > 0")
 
 
 @dataclass
@@ -156,8 +176,11 @@ class SurfaceConfig:
     normal: list[float] = field(default_factory=lambda: DEFAULT_WALL.normal.tolist())
     friction: float = DEFAULT_WALL.friction
 
+    def __post_init__(self):
+        self.surface()  # the surface's own checks, as soon as the file is read
+
     def surface(self) -> Surface:
-        return Surface(np.asarray(self.point, float), np.asarray(self.normal, float), self.friction)
+        return Surface(self.point, self.normal, self.friction)
 
     @classmethod
     def of(cls, surface: Surface) -> SurfaceConfig:
@@ -175,6 +198,11 @@ class ControllerConfig:
     impact: ImpactConfig = field(default_factory=ImpactConfig)
     surface: SurfaceConfig = field(default_factory=SurfaceConfig)
     post_impact: PostImpactConfig = field(default_factory=PostImpactConfig)
+
+    def __post_init__(self):
+        validation.number_in_range(self.dt, MIN_DT, MAX_DT, "dt", "s (10 kHz to 100 Hz)")
+        if not isinstance(self.solver, str) or not self.solver:
+            raise BadInputError(f"solver must be a QP solver name, got {self.solver!r}")
 
     @classmethod
     def approach(
@@ -217,36 +245,57 @@ class ControllerConfig:
 
     @classmethod
     def from_dict(cls, data: dict) -> ControllerConfig:
-        data = dict(data)
+        """The configuration of a parsed file; every key and value is checked (bad input:
+        ``BadInputError``, one line naming the key)."""
+        data = dict(_mapping(data, "the configuration"))
         unknown = set(data) - {f.name for f in fields(cls)}
         if unknown:
-            raise BadInputError(f"unknown configuration keys: {', '.join(sorted(unknown))}")
-        tasks = []
-        for entry in data.pop("tasks", []):
-            entry = dict(entry)
+            raise BadInputError(f"unknown configuration keys: {', '.join(sorted(map(str, unknown)))}")
+        tasks = data.pop("tasks", None) or []
+        if not isinstance(tasks, list):
+            raise BadInputError(f"tasks must be a list of tables, got {tasks!r}")
+        parsed_tasks = []
+        for index, entry in enumerate(tasks):
+            entry = dict(_mapping(entry, f"tasks[{index}]"))
             if "type" not in entry:
-                raise BadInputError(f"a task needs a 'type': {entry}")
+                raise BadInputError(f"tasks[{index}] needs a 'type'")
             task_type = entry.pop("type")
-            tasks.append(TaskConfig(task_type, entry.pop("params", {}) | entry))
+            params = _mapping(entry.pop("params", None) or {}, f"tasks[{index}].params")
+            parsed_tasks.append(TaskConfig(task_type, dict(params) | entry))
         sections = {
             "limits": LimitsConfig, "impact": ImpactConfig, "surface": SurfaceConfig, "post_impact": PostImpactConfig,
         }
-        parsed = {name: _section(kind, data.pop(name, {}), name) for name, kind in sections.items()}
-        return cls(tasks=tasks, **parsed, **data)
+        parsed = {name: _section(kind, data.pop(name, None), name) for name, kind in sections.items()}
+        return cls(tasks=parsed_tasks, **parsed, **data)
 
     @classmethod
     def from_file(cls, path: str | Path) -> ControllerConfig:
+        """Read a ``.toml``, ``.yaml`` or ``.yml`` file. An unreadable, undecodable, malformed or
+        out-of-range file is bad input (``BadInputError``) whose one line names the file."""
         path = Path(path)
-        if path.suffix == ".toml":
-            with path.open("rb") as file:
-                data = tomllib.load(file)
-        elif path.suffix in (".yaml", ".yml"):
-            import yaml
-
-            data = yaml.safe_load(path.read_text()) or {}
-        else:
+        if path.suffix not in (".toml", ".yaml", ".yml"):
             raise BadInputError(f"unsupported configuration file {path.name}: use .toml, .yaml or .yml")
-        return cls.from_dict(data)
+        try:
+            text = path.read_bytes().decode("utf-8-sig")
+        except UnicodeDecodeError:
+            raise BadInputError(f"{path}: not a UTF-8 text file") from None
+        except OSError as error:
+            raise BadInputError(f"{path}: {error.strerror or error}") from None
+        try:
+            if path.suffix == ".toml":
+                data = tomllib.loads(text)
+            else:
+                import yaml
+
+                data = yaml.safe_load(text)
+        except RecursionError:
+            raise BadInputError(f"{path}: nested too deeply") from None
+        except (tomllib.TOMLDecodeError, _yaml_error()) as error:
+            raise BadInputError(f"{path}: not valid {path.suffix[1:].upper()}: {' '.join(str(error).split())}") from None
+        try:
+            return cls.from_dict(data or {})
+        except BadInputError as error:
+            raise BadInputError(f"{path}: {error}") from None
 
     def to_dict(self) -> dict:
         """Plain data (tasks flattened), such that ``from_dict(to_dict())`` round-trips."""
@@ -255,13 +304,25 @@ class ControllerConfig:
         return data
 
 
-def _section(kind, values: dict, name: str):
+def _mapping(value, what: str) -> dict:
+    if not isinstance(value, dict):
+        raise BadInputError(f"{what} must be a table of keys and values, got {type(value).__name__}")
+    return value
+
+
+def _section(kind, values, name: str):
     if values is None:
         return kind()
-    unknown = set(values) - {f.name for f in fields(kind)}
+    unknown = set(_mapping(values, f"[{name}]")) - {f.name for f in fields(kind)}
     if unknown:
-        raise BadInputError(f"unknown keys in [{name}]: {', '.join(sorted(unknown))}")
+        raise BadInputError(f"unknown keys in [{name}]: {', '.join(sorted(map(str, unknown)))}")
     return kind(**values)
+
+
+def _yaml_error() -> type[Exception]:
+    import yaml
+
+    return yaml.YAMLError
 
 
 def build_controller(config: ControllerConfig, robot: PandaModel | None = None) -> ImpactAwareController:
@@ -275,10 +336,12 @@ def build_controller(config: ControllerConfig, robot: PandaModel | None = None) 
         params = dict(task.params)
         if task.type == "contact_approach":
             params.setdefault("normal", surface.normal)
+        kind = TASK_TYPES[task.type]
         try:
-            tasks.append(TASK_TYPES[task.type](**params))
+            inspect.signature(kind).bind(**params)
         except TypeError as error:
             raise BadInputError(f"bad parameters for the {task.type} task: {error}") from None
+        tasks.append(kind(**params))
 
     dq_max = robot.dq_max * limits.velocity_scale
     tau_max = robot.tau_max * limits.torque_scale

@@ -409,16 +409,6 @@ class ImpactAwareController:
         # as the reachable accelerations, so that a row the state violates is relaxed to what
         # the box really allows (ControlCycle.recoverable): the arrays are the problem's own.
         self._row_cycle = ControlCycle(self.dt, self.problem.lb, self.problem.ub, horizon)
-        self._impact_models = [
-            c.impact for c in constraints if isinstance(getattr(c, "impact", None), ImpactModel)
-        ] + ([impact] if impact is not None else [])
-
-    def set_impact_constraints(self, active: bool) -> None:
-        """Switch the impact-aware constraints on or off (off: their rows are unbounded, e.g.
-        after the impact); the prediction in ``Command`` follows the same switch."""
-        for model in self._impact_models:
-            model.switched_on = bool(active)
-            model._stamp = 0  # drop the cached activation
 
     def conflicting_constraints(self) -> list[str]:
         """The irreducible conflicting set of the last infeasible cycle (deletion filter with

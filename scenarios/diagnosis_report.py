@@ -26,6 +26,7 @@ from dataclasses import dataclass  # noqa: E402
 
 from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
 from impactqp.controller.model.postures import POSTURES  # noqa: E402
+from impactqp.controller.model.robot import NQ  # noqa: E402
 from impactqp.scenarios.max_speed_search import DEFAULT_TOLERANCE, MaxSpeedSearch  # noqa: E402
 from impactqp.sim.diagnosis import EXPLAINED_GAIN, STEP_GAIN, Diagnosis, interval_text  # noqa: E402
 from impactqp.sim.plant import PlantParameters  # noqa: E402
@@ -228,7 +229,7 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         "| joint | mean error (25) | mean abs error | sim / measured | share of error |",
         "|---|---|---|---|---|",
     ]
-    for j in range(7):
+    for j in range(NQ):
         lines.append(
             f"| {j + 1} | {a['per_joint_mean_error'][j]:+.4f} | {a['per_joint_mean_abs_error'][j]:.4f} | "
             f"{a['per_joint_sim_to_measured_ratio'][j]:.3f} | {100 * a['per_joint_error_share'][j]:.1f} % |"

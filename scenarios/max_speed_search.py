@@ -50,7 +50,7 @@ from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import TrialSpec
 
 from .trial import TrialPool, TrialResult
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import number_in_range
 
 PREDICTED_MODELS = ("classical", "gm", "crb")
 QP_REQUEST_SPEED = 2.0
@@ -68,6 +68,9 @@ def qp_start_distance(predicted_speed: float) -> float:
     return max(QP_START_DISTANCE, RUN_UP_MARGIN * predicted_speed**2 / (2.0 * RUN_UP_ACCELERATION))
 LOWEST_SPEED = 0.02
 DEFAULT_TOLERANCE = 0.005
+MIN_TOLERANCE, MAX_TOLERANCE = 1e-4, 0.5
+"""m/s: below 0.1 mm/s the bisection resolves nothing a simulated impact can tell apart, and the
+number of simulated impacts grows as log(1 / tolerance)."""
 # the top of the first bracket, just below v_a: a start state exactly at a joint velocity limit
 # would read as outside it after rounding
 APPROACH_LIMIT_FRACTION = 0.999
@@ -154,8 +157,7 @@ class SpeedBisection:
     """The bracket [lo, hi] of the parallel bisection of the module docstring."""
 
     def __init__(self, lo: float, hi: float, tolerance: float):
-        if not (np.isfinite(tolerance) and tolerance > 0.0):
-            raise BadInputError(f"the bisection tolerance must be > 0 m/s, got {tolerance}")
+        tolerance = number_in_range(tolerance, MIN_TOLERANCE, MAX_TOLERANCE, "the bisection tolerance", "m/s")
         self.lo, self.hi, self.tolerance = lo, hi, tolerance
         self.evaluations: list[Evaluation] = []
 

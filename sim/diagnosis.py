@@ -119,6 +119,7 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
     problems = validate(directory)
     bad = {k for k, v in problems.items() if k != "dataset" and v}
     dataset = read_dataset(directory, skip=bad, strict=False)
+    dataset.header.tool.require_modelled(str(directory))
     skipped = [{"id": k, "reason": "; ".join(problems[k])} for k in sorted(bad)]
     skipped += [{"id": "dataset", "reason": p} for p in problems["dataset"]]
     trials = []
@@ -190,7 +191,7 @@ def replay(scene, trial: MeasuredTrial) -> ReplayFeatures:
     try:
         impact = measure_impact(log)
     except ImpactNotFoundError:
-        return ReplayFeatures(np.zeros(7), np.zeros(3), 0.0, torque)
+        return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, torque)
     return ReplayFeatures(impact.dq_jump, impact.impulse, impact.duration, torque)
 
 

@@ -32,7 +32,7 @@ from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry
 from .plant import PlantParameters
 from .runner import TrialSpec, dataset_header, run_approach
 from .scene import build_scene
-from impactqp.controller.model.validation import BadInputError, approach_speed
+from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
 
 DEFAULT_SPEEDS = (0.08, 0.10, 0.12, 0.15, 0.18)
 TANGENTIAL_SERIES_NORMAL_SPEED = 0.12
@@ -42,6 +42,10 @@ START_POSTURE_STD = 0.000954
 START_DISTANCE = 0.02
 START_DISTANCE_SPREAD = 0.001
 AFTER_CONTACT = 0.05
+MAX_REPEATS = 100
+"""Repeats per condition: the paper repeats each impact a handful of times; 100 bounds the run."""
+MAX_NOISE_DQ, MAX_NOISE_TAU = 1.0, 10.0
+"""rad/s and N m: noise far above a Panda's encoders (~0.004 rad/s) and torque sensors (~0.05 N m)."""
 
 
 def tangential_direction(normal: np.ndarray) -> np.ndarray:
@@ -63,8 +67,8 @@ class PlannedTrial:
 def trial_specs(
     postures: list[str], speeds: list[float], tangential: list[float], repeats: int, normal: np.ndarray, seed: int
 ) -> list[PlannedTrial]:
-    if repeats < 1:
-        raise BadInputError("repeats must be >= 1")
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or not 1 <= repeats <= MAX_REPEATS:
+        raise BadInputError(f"repeats must be a whole number in [1, {MAX_REPEATS}], got {repeats!r}")
     for v in tangential:
         approach_speed(abs(v) if v else 1.0, "every tangential speed")
     t = tangential_direction(normal)
@@ -132,8 +136,8 @@ def generate_dataset(
     if unknown or not postures:
         raise BadInputError(f"unknown posture(s) {', '.join(unknown)}; known: {', '.join(POSTURES)}")
     surface = POSTURES[postures[0]].surface if surface is None else surface
-    if not (np.isfinite(noise_dq) and noise_dq >= 0 and np.isfinite(noise_tau) and noise_tau >= 0):
-        raise BadInputError("noise standard deviations must be finite and >= 0")
+    number_in_range(noise_dq, 0.0, MAX_NOISE_DQ, "the encoder noise std --noise-dq", "rad/s")
+    number_in_range(noise_tau, 0.0, MAX_NOISE_TAU, "the torque noise std --noise-tau", "N m")
     specs = trial_specs(
         postures,
         list(DEFAULT_SPEEDS if speeds is None else speeds),

@@ -31,10 +31,9 @@ from pathlib import Path
 import numpy as np
 
 from impactqp.controller.measured.atomic import write_text_atomic
-from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.measured.json_file import read_json_object
-
-NJ = 7
+from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.validation import BadInputError
 
 DEFAULT_SOLREF = (0.007, 1.0)
 DEFAULT_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
@@ -45,7 +44,35 @@ class PlantParameterError(BadInputError):
     """A plant parameter (or a plant-parameter file) that cannot be used."""
 
 
+RANGES = {
+    "armature": (0.0, 10.0, "kg m^2"),
+    "joint_damping": (0.0, 500.0, "N m s/rad"),
+    "payload_mass": (0.0, 5.0, "kg"),
+    "payload_com": (-0.5, 0.5, "m"),
+    "friction": (0.0, 2.0, ""),
+    "servo_gain": (0.1, 1000.0, "rad/s"),
+}
+"""Physical ranges of the plant parameters (per entry of a vector): reflected rotor inertias and
+viscous damping well above a Panda's (the diagnosis fits up to 5 kg m^2 and 200 N m s/rad), a
+payload within the Panda's 3 kg rating plus margin (the fit's 5 kg) with its centre of mass
+within half a metre of the tool tip, a Coulomb coefficient up to 2 (``postures.MAX_FRICTION``) and
+a servo bandwidth up to 1000 rad/s (the 1 kHz loop)."""
+
+MAX_SOLREF = (1.0, 10.0)
+"""Largest contact time constant (s) and damping ratio of ``contact_solref``."""
+
+
+def _in_range(name: str, values: tuple[float, ...]) -> None:
+    low, high, unit = RANGES[name]
+    for i, x in enumerate(values):
+        if not low <= x <= high:
+            where = f"{name}[{i}]" if len(values) > 1 or name in ("armature", "joint_damping", "payload_com") else name
+            raise PlantParameterError(f"{where} = {x} must lie in [{low:g}, {high:g}]{' ' + unit if unit else ''}")
+
+
 def _vector(name: str, value, size: int) -> tuple[float, ...]:
+    if isinstance(value, bool) or (isinstance(value, (list, tuple)) and any(isinstance(x, bool) for x in value)):
+        raise PlantParameterError(f"{name} must be numeric, got {value!r}")
     try:
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
@@ -57,18 +84,12 @@ def _vector(name: str, value, size: int) -> tuple[float, ...]:
     return tuple(float(x) for x in array)
 
 
-def _non_negative(name: str, values: tuple[float, ...]) -> None:
-    negative = [i for i, x in enumerate(values) if x < 0.0]
-    if negative:
-        raise PlantParameterError(f"{name}[{negative[0]}] = {values[negative[0]]} must be >= 0")
-
-
 @dataclass(frozen=True)
 class PlantParameters:
     """Plant parameters (see the module docstring for units and effects); validated on creation."""
 
-    armature: tuple[float, ...] = (0.0,) * NJ
-    joint_damping: tuple[float, ...] = (0.0,) * NJ
+    armature: tuple[float, ...] = (0.0,) * NQ
+    joint_damping: tuple[float, ...] = (0.0,) * NQ
     payload_mass: float = 0.0
     payload_com: tuple[float, ...] = (0.0, 0.0, 0.0)
     friction: float | None = None
@@ -81,22 +102,24 @@ class PlantParameters:
             object.__setattr__(self, name, value)
 
         for name in ("armature", "joint_damping"):
-            values = _vector(name, getattr(self, name), NJ)
-            _non_negative(name, values)
+            values = _vector(name, getattr(self, name), NQ)
+            _in_range(name, values)
             set_(name, values)
-        set_("payload_com", _vector("payload_com", self.payload_com, 3))
+        payload_com = _vector("payload_com", self.payload_com, 3)
+        _in_range("payload_com", payload_com)
+        set_("payload_com", payload_com)
         (payload_mass,) = _vector("payload_mass", [self.payload_mass], 1)
-        _non_negative("payload_mass", (payload_mass,))
+        _in_range("payload_mass", (payload_mass,))
         set_("payload_mass", payload_mass)
         if self.friction is not None:
             (friction,) = _vector("friction", [self.friction], 1)
-            _non_negative("friction", (friction,))
+            _in_range("friction", (friction,))
             set_("friction", friction)
         solref = _vector("contact_solref", self.contact_solref, 2)
-        if solref[0] <= 0.0 or solref[1] <= 0.0:
+        if not (0.0 < solref[0] <= MAX_SOLREF[0] and 0.0 < solref[1] <= MAX_SOLREF[1]):
             raise PlantParameterError(
-                f"contact_solref = {list(solref)} must be (time constant > 0, damping ratio > 0); "
-                "direct stiffness/damping (negative solref) is not supported"
+                f"contact_solref = {list(solref)} must be (time constant in (0, {MAX_SOLREF[0]:g}] s, damping "
+                f"ratio in (0, {MAX_SOLREF[1]:g}]); direct stiffness/damping (negative solref) is not supported"
             )
         set_("contact_solref", solref)
         solimp = _vector("contact_solimp", self.contact_solimp, 5)
@@ -108,8 +131,7 @@ class PlantParameters:
             )
         set_("contact_solimp", solimp)
         (servo_gain,) = _vector("servo_gain", [self.servo_gain], 1)
-        if servo_gain <= 0.0:
-            raise PlantParameterError(f"servo_gain = {servo_gain} rad/s must be > 0")
+        _in_range("servo_gain", (servo_gain,))
         set_("servo_gain", servo_gain)
 
     # ------------------------------------------------------------------ JSON

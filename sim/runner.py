@@ -42,15 +42,13 @@ import numpy as np
 import pinocchio as pin
 
 from impactqp.constraints import jump_model_names
-from impactqp.controller.measured.dataset import DatasetHeader, Tool
+from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import (
-    HAND_FRAME,
     NQ,
     TOOL_RADIUS,
-    TOOL_TIP_OFFSET,
     VELOCITY_LIMIT,
     PandaModel,
 )
@@ -428,7 +426,7 @@ def dataset_header(surface: Surface) -> DatasetHeader:
     """The manifest header of a simulated dataset: the tool tip in the hand frame, the runner's
     control period."""
     return DatasetHeader(
-        tool=Tool(HAND_FRAME, (0.0, 0.0, TOOL_TIP_OFFSET)), surface=surface, control_period=DEFAULT_CONTROL_PERIOD
+        tool=MODELLED_TOOL, surface=surface, control_period=DEFAULT_CONTROL_PERIOD
     )
 
 

@@ -7,9 +7,9 @@ from numba import njit
 
 from impactqp.controller.model.robot import ModelTerms
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
-from impactqp.controller.model.validation import unit_normal
+from impactqp.controller.model.validation import MAX_CONTACT_SPEED, number_in_range, unit_normal
 
-from .task import Task, critical_damping, non_negative, rotation_error, rotation_log
+from .task import Task, critical_damping, finite_array, non_negative, rotation_error, rotation_log
 
 
 class ContactApproachTask(Task):
@@ -48,7 +48,7 @@ class ContactApproachTask(Task):
     ):
         normal = unit_normal(normal)
         tangential_velocity = tangential_velocity_along(tangential_velocity, normal)
-        speed = non_negative("the approach speed (along -n)", speed)
+        speed = number_in_range(speed, 0.0, MAX_CONTACT_SPEED, "the approach speed (along -n)", "m/s")
         for label, value in (("velocity_gain", velocity_gain), ("orientation_stiffness", orientation_stiffness),
                              ("normal_weight", normal_weight), ("tangential_weight", tangential_weight),
                              ("orientation_weight", orientation_weight)):
@@ -70,7 +70,9 @@ class ContactApproachTask(Task):
         self.weight = np.array(
             [normal_weight, tangential_weight, tangential_weight] + [orientation_weight] * 3, dtype=float
         )
-        self.target_rotation = None if target_rotation is None else np.asarray(target_rotation, float)
+        self.target_rotation = (
+            None if target_rotation is None else finite_array("target_rotation", target_rotation, (3, 3))
+        )
         self._twist_gain = np.repeat([-self.velocity_gain, -self.orientation_damping], 3)
         self._reference_acceleration = self.velocity_gain * self.reference_velocity
         self._rotation_configured = self.target_rotation is not None

@@ -7,9 +7,12 @@ import math
 import numpy as np
 
 from impactqp.controller.model.robot import ModelTerms
-from impactqp.controller.model.validation import BadInputError, unit_normal
+from impactqp.controller.model.validation import number_in_range, unit_normal
 
 from .task import Task, critical_damping, finite_array, non_negative, rotation_error
+
+MAX_OFFSET = 0.5
+"""Largest |offset| (m): a retract or a hold depth beyond half a metre leaves the contact task."""
 
 
 class SurfaceOffsetTask(Task):
@@ -47,9 +50,7 @@ class SurfaceOffsetTask(Task):
     ):
         self.normal = unit_normal(normal)
         self.surface_point = finite_array("surface_point", surface_point, (3,))
-        self.offset = float(offset)
-        if not np.isfinite(self.offset):
-            raise BadInputError(f"offset = {offset} m must be finite")
+        self.offset = number_in_range(offset, -MAX_OFFSET, MAX_OFFSET, "offset", "m")
         self.max_speed = non_negative("max_speed", max_speed)
         self.position_gain = non_negative("position_gain", position_gain)
         self.velocity_gain = non_negative("velocity_gain", velocity_gain)

@@ -37,7 +37,8 @@ def test_a_written_file_follows_the_umask(tmp_path):
     assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o664
 
 
-def test_sigterm_during_a_campaign_leaves_a_consistent_dataset(tmp_path):
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
+def test_a_signal_during_a_campaign_leaves_a_consistent_dataset(tmp_path, signum):
     out = tmp_path / "campaign"
     proc = subprocess.Popen(
         [sys.executable, "-m", "impactqp", "campaign", "--postures", "elbow_up", "--speeds",
@@ -47,10 +48,38 @@ def test_sigterm_during_a_campaign_leaves_a_consistent_dataset(tmp_path):
     deadline = time.monotonic() + 120
     while not (out / "dataset.json").exists() and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.05)
-    proc.send_signal(signal.SIGTERM)
+    proc.send_signal(signum)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode in (0, 130), err
     assert not [p.name for p in out.iterdir() if p.name.startswith(".")]
     manifest = json.loads((out / "dataset.json").read_text())
     for trial in manifest["trials"]:
         assert (out / trial["file"]).stat().st_size > 0 and (out / trial["force_file"]).stat().st_size > 0
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
+def test_a_signal_right_after_the_temporary_file_is_created_leaves_no_temporary_file(tmp_path, monkeypatch, signum):
+    """A real signal to this process the moment the temporary file exists (right after the real
+    os.open that creates it returns): the window of issue 13, where a 0-byte
+    ``.dataset.json.*.json`` survived a Ctrl-C."""
+    real_open = os.open
+
+    def open_then_signal(file, flags, *args, **kwargs):
+        fd = real_open(file, flags, *args, **kwargs)
+        if str(file).startswith(str(tmp_path)) and flags & os.O_CREAT:
+            os.kill(os.getpid(), signum)
+        return fd
+
+    def interrupt(*_):
+        raise KeyboardInterrupt
+
+    previous = {sig: signal.signal(sig, interrupt) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    monkeypatch.setattr(os, "open", open_then_signal)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            write_text_atomic(tmp_path / "dataset.json", "{}")
+    finally:
+        monkeypatch.undo()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    assert list(tmp_path.iterdir()) == []

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from impactqp.controller.model.batch import BatchKinematics, predict_batch
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
+from impactqp.controller.model.validation import BadInputError
 
 
 @pytest.fixture(scope="module")
@@ -71,3 +72,13 @@ def test_batch_rejects_bad_input(kinematics):
         kinematics.terms(np.full((2, 7), np.nan))
     with pytest.raises(ValueError, match="unknown method"):
         predict_batch(kinematics, np.zeros((1, 7)), [1, 0, 0], [-1, 0, 0], 0.0, "magic")
+
+
+def test_batch_refuses_bad_normals_and_restitution_like_the_single_state_predictors(kinematics):
+    q = np.zeros((2, 7))
+    for normals in ([0.0, 0.0, 0.0], [[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]], [np.nan, 0.0, 1.0], [1.0, 0.0]):
+        with pytest.raises(BadInputError, match="normals"):
+            predict_batch(kinematics, q, normals, [-0.1, 0, 0], 0.0, "crb")
+    for restitution in (-0.1, 1.5, float("nan")):
+        with pytest.raises(BadInputError, match=r"\[0, 1\]"):
+            predict_batch(kinematics, q, [1.0, 0, 0], [-0.1, 0, 0], restitution, "gm")

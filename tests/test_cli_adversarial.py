@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from impactqp.scenarios.cli import main
+from impactqp.scenarios.sweep.config import EXAMPLE as SWEEP_EXAMPLE
 
 
 @pytest.fixture(scope="module")
@@ -68,9 +69,24 @@ def shift_joint(row_value: float):
     return mutate
 
 
+def header_only(name: str):
+    def mutate(directory: Path) -> None:
+        path = directory / name
+        path.write_text(path.read_text().splitlines()[0] + "\n")
+
+    return mutate
+
+
 def replace_by_directory(name: str):
     def mutate(directory: Path) -> None:
         (directory / name).unlink()
+        (directory / name).mkdir()
+
+    return mutate
+
+
+def replace_by_directory_new(name: str):
+    def mutate(directory: Path) -> None:
         (directory / name).mkdir()
 
     return mutate
@@ -98,6 +114,12 @@ ROWS = [
      "not a directory"),
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--video", "{data}/t0000.csv/x.gif"], None, 2,
      "not a directory"),
+    (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{bad}/p.json"],
+     write("p.json", '{"payload_mass": 1e6}'), 2, "payload_mass = 1000000.0 must lie in [0, 5] kg"),
+    (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{bad}/p.json"],
+     write("p.json", '{"payload_mass": true}'), 2, "payload_mass must be numeric"),
+    (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--wall-point", "1e10,0,0"], None, 2,
+     "must lie within 10 m of the robot's base"),
     # campaign
     (["campaign", "--speeds", "50"], None, 2, "(0, 3] m/s"),
     (["campaign", "--out", "{data}/dataset.json", "--speeds", "0.1"], None, 2, "not a directory"),
@@ -106,6 +128,8 @@ ROWS = [
     (["max-speed", "--posture", "elbow_up", "--impact-duration", "1e-9"], None, 2, "one control period"),
     (["max-speed", "--posture", "elbow_up", "--plant", "{tmp}"], None, 2, "not a regular file"),
     (["max-speed", "--posture", "elbow_up", "--wall-normal", "nan,0,0"], None, 2, "non-finite"),
+    (["max-speed", "--posture", "elbow_up", "--tolerance", "1e-300"], None, 2,
+     "the bisection tolerance must lie in [0.0001, 0.5] m/s"),
     # dataset validate: a report with exit code 1 that names the problem
     (["dataset", "validate", "{bad}"], set_trial("file", "../../../../etc/passwd"), 1, "inside the dataset"),
     (["dataset", "validate", "{bad}"], set_trial("reference_normal_speed", float("nan")), 1, "reference_normal_speed"),
@@ -119,6 +143,7 @@ ROWS = [
     (["dataset", "validate", "{bad}"], replace_by_directory("t0000.csv"), 1, "is a directory"),
     (["dataset", "validate", "{bad}"], write("t0000.csv", "root:x:0:0:root:/root:/bin/bash\n"), 1,
      "lacks the column"),
+    (["dataset", "validate", "{bad}"], header_only("t0000.csv"), 1, "holds no samples"),
     (["dataset", "validate", "{bad}"], manifest_edit(lambda m: m.__setitem__("robot", "ur5")), 1,
      "robots we model"),
     (["dataset", "validate", "{bad}"], nested_manifest, 1, "nested too deeply"),
@@ -126,17 +151,56 @@ ROWS = [
     # dataset generate
     (["dataset", "generate", "{tmp}/out", "--speeds", "50"], None, 2, "(0, 3] m/s"),
     (["dataset", "generate", "{data}/t0000.csv", "--speeds", "0.1"], None, 2, "is a file"),
+    (["dataset", "generate", "{tmp}/out", "--speeds", "0.1", "--repeats", "1000000"], None, 2,
+     "repeats must be a whole number in [1, 100]"),
+    (["dataset", "generate", "{tmp}/out", "--speeds", "0.1", "--noise-dq", "1e9"], None, 2, "--noise-dq"),
+    (["dataset", "generate", "{tmp}/out", "--speeds", "0.1", "--jobs", "1000000"], None, 2, "--jobs must lie in"),
     (["dataset", "generate", "{tmp}/out", "--plant", "{data}"], None, 2, "is a directory"),
     # diagnose
     (["diagnose", "{bad}"], manifest_edit(lambda m: m.__setitem__("robot", "ur5")), 2, "robots we model"),
+    (["diagnose", "{bad}"], manifest_edit(lambda m: m["tool"].__setitem__("contact_point", [0.0, 0.0, 0.2])), 2,
+     "is not the modelled impact tool"),
+    (["diagnose", "{bad}"], manifest_edit(lambda m: m["tool"].__setitem__("frame", "panda_link7")), 2,
+     "is not the modelled impact tool"),
+    (["run", "--backend", "replay", "--dataset", "{bad}", "--log", "{tmp}/log"],
+     manifest_edit(lambda m: m["tool"].__setitem__("contact_point", [0.0, 0.0, 0.2])), 2,
+     "is not the modelled impact tool"),
     (["diagnose", "{data}", "--save-plant", "{tmp}"], None, 2, "is a directory"),
     (["diagnose", "{data}", "--report", "{data}/dataset.json"], None, 2, "is a file"),
     (["diagnose", "{data}", "--jobs", "0"], None, 2, "--jobs"),
+    # run: a controller configuration is read and checked before the robot moves
+    (["run", "--config", "{bad}/c.toml", "--log", "{tmp}/log"], write("c.toml", "dt = nan\n"), 2,
+     "dt must lie in [0.0001, 0.01] s"),
+    (["run", "--config", "{bad}/c.toml", "--log", "{tmp}/log"], write("c.toml", 'dt = "fast"\n'), 2,
+     "dt must be a number"),
+    (["run", "--config", "{bad}/c.toml", "--log", "{tmp}/log"], write("c.toml", "[limits]\njerk_scale = 1e-300\n"),
+     2, "limits.jerk_scale"),
+    (["run", "--config", "{bad}/c.yaml", "--log", "{tmp}/log"], write("c.yaml", "dt: [1\n"), 2, "not valid YAML"),
+    (["run", "--config", "{bad}/c.yaml", "--log", "{tmp}/log"], write("c.yaml", b"\xff\xfe\x00"), 2, "not a UTF-8"),
+    (["run", "--config", "{bad}/c.yaml", "--log", "{tmp}/log"],
+     write("c.yaml", "x: " + "[" * 100_000 + "]" * 100_000), 2, "nested too deeply"),
+    (["run", "--config", "{tmp}", "--log", "{tmp}/log"], None, 2, "unsupported configuration file"),
+    (["run", "--config", "{bad}/c.toml", "--log", "{tmp}/log"], replace_by_directory_new("c.toml"), 2,
+     "Is a directory"),
+    (["run", "--speed", "1e9", "--log", "{tmp}/log"], None, 2, "(0, 3] m/s"),
+    (["run", "--duration", "1e9", "--log", "{tmp}/log"], None, 2, "--duration must lie in (0, 60] s"),
+    (["run", "--log", "{data}/t0000.csv"], None, 2, "--log"),
+    # sweep and import-franka: the output directory is checked before any work
+    (["sweep", "{bad}/c.toml", "--out", "{tmp}/s"], write("c.toml", b"\xff\xfe"), 2, "not a UTF-8 text file"),
+    (["sweep", "{bad}/c.toml", "--out", "{tmp}/s"], write("c.toml", "x = " + "[" * 100_000 + "]" * 100_000), 2,
+     "nested too deeply"),
+    (["sweep", "{bad}/c.toml", "--out", "{data}/dataset.json"], write("c.toml", SWEEP_EXAMPLE), 2,
+     "--out: {data}/dataset.json exists and is not a directory"),
+    (["sweep", "{bad}/c.toml", "--out", "{data}/dataset.json/x"], write("c.toml", SWEEP_EXAMPLE), 2,
+     "which is not a directory"),
+    (["dataset", "import-franka", "{data}/t0000.csv/x", "{data}/t0000.csv", "--surface-point", "0.6,0,0",
+      "--surface-normal", "-1,0,0"], None, 2, "which is not a directory"),
     # demo
     (["demo", "--out", "{data}/dataset.json"], None, 2, "not a directory"),
 ]
 
 
+@pytest.mark.filterwarnings("error")  # a warning would print more than the one line
 @pytest.mark.parametrize("args, mutate, code, fragment", ROWS, ids=[" ".join(r[0][:3]) for r in ROWS])
 def test_adversarial_input(dataset, tmp_path, capsys, args, mutate, code, fragment):
     bad = tmp_path / "bad"
@@ -147,6 +211,7 @@ def test_adversarial_input(dataset, tmp_path, capsys, args, mutate, code, fragme
     scratch.mkdir()
     before, before_bad = snapshot(dataset), snapshot(bad)
     argv = [a.format(data=dataset, bad=bad, tmp=scratch) for a in args]
+    fragment = fragment.format(data=dataset)
     assert main(argv) == code
     out, err = capsys.readouterr()
     assert "Traceback" not in err

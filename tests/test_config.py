@@ -5,6 +5,7 @@ import pytest
 
 from impactqp.controller.config import ControllerConfig, TaskConfig, build_controller, post_impact_config
 from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
+from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.qp import ImpactAwareController
 from impactqp.tasks import ContactApproachTask, DampingTask, PostureTask
 
@@ -134,6 +135,74 @@ def test_no_jump_model_switches_the_impact_constraints_off_but_keeps_the_predict
 def test_bad_configurations_are_rejected_with_a_value_error(robot, data):
     with pytest.raises(ValueError):
         build_controller(ControllerConfig.from_dict({"tasks": [{"type": "damping"}]} | data), robot)
+
+
+@pytest.mark.parametrize(
+    "data, fragment",
+    [
+        ({"dt": float("nan")}, "dt must lie in [0.0001, 0.01] s"),
+        ({"dt": "fast"}, "dt must be a number"),
+        ({"dt": 10}, "dt must lie in"),
+        ({"dt": True}, "dt must be a number"),
+        ({"limits": {"jerk_scale": 1e-300}}, "limits.jerk_scale must lie in [0.01, 1]"),
+        ({"limits": {"position": "yes"}}, "limits.position must be true or false"),
+        ({"limits": {"position_margin": 3.0}}, "limits.position_margin"),
+        ({"impact": {"jump_model": 5}}, "impact.jump_model"),
+        ({"impact": {"lookahead_time": 1e9}}, "impact.lookahead_time"),
+        ({"impact": {"always_active": 1}}, "impact.always_active"),
+        ({"post_impact": {"hold_depth": 1.0}}, "post_impact.hold_depth"),
+        ({"surface": {"friction": "x"}}, "the surface friction"),
+        ({"surface": {"point": "abc"}}, "the surface point"),
+        ({"solver": 5}, "solver"),
+        ({"tasks": 5}, "tasks must be a list"),
+        ({"tasks": [5]}, "tasks[0] must be a table"),
+        ({"tasks": [{"type": ["damping"]}]}, "task type"),
+        ({"tasks": [{"type": "damping", "params": 5}]}, "tasks[0].params must be a table"),
+        ({"limits": 5}, "[limits] must be a table"),
+    ],
+)
+def test_bad_values_are_bad_input_that_names_the_key(data, fragment):
+    with pytest.raises(BadInputError) as caught:
+        ControllerConfig.from_dict(data)
+    assert fragment in str(caught.value)
+
+
+@pytest.mark.parametrize(
+    "name, content, fragment",
+    [
+        ("c.yaml", b"dt: [1\n", "not valid YAML"),
+        ("c.toml", b"dt = \n", "not valid TOML"),
+        ("c.yaml", b"\xff\xfe\x00bad", "not a UTF-8 text file"),
+        ("c.yaml", b"- 1\n- 2\n", "must be a table"),
+        ("c.yaml", b"x: " + b"[" * 100_000 + b"]" * 100_000, "nested too deeply"),
+        ("c.toml", b"[limits]\njerk_scale = 1e-300\n", "limits.jerk_scale"),
+    ],
+)
+def test_bad_files_are_bad_input_that_names_the_file(tmp_path, name, content, fragment):
+    path = tmp_path / name
+    path.write_bytes(content)
+    with pytest.raises(BadInputError) as caught:
+        ControllerConfig.from_file(path)
+    assert fragment in str(caught.value) and str(path) in str(caught.value)
+    assert path.read_bytes() == content
+
+
+def test_a_directory_or_a_missing_file_is_bad_input(tmp_path):
+    (tmp_path / "d.toml").mkdir()
+    for path in (tmp_path / "d.toml", tmp_path / "missing.yaml"):
+        with pytest.raises(BadInputError, match=str(path)):
+            ControllerConfig.from_file(path)
+
+
+def test_a_byte_order_mark_is_read_as_utf8(tmp_path):
+    (tmp_path / "c.toml").write_bytes(b"\xef\xbb\xbf" + TOML.encode())
+    assert ControllerConfig.from_file(tmp_path / "c.toml").dt == 0.002
+
+
+def test_task_parameters_of_the_wrong_type_are_bad_input(robot):
+    for params in ({"gain": "x"}, {"gain": 1e300}, {"stiffness": 1.0}):
+        with pytest.raises(BadInputError, match="damping"):
+            build_controller(ControllerConfig.from_dict({"tasks": [{"type": "damping", **params}]}), robot)
 
 
 def test_unsupported_file_type(tmp_path):

@@ -19,6 +19,7 @@ from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.max_speed import approach_direction
 from impactqp.controller.model.postures import POSTURES, Surface
 from impactqp.controller.model.robot import SingularPostureError
+from impactqp.controller.model.validation import BadInputError
 
 DT = 0.001
 SEEDS = st.integers(0, 2**32 - 1)
@@ -255,3 +256,21 @@ def test_compiled_jump_maps_equal_the_numpy_reference(robot, seed, jump, restitu
     impact = ImpactModel(Surface([0.6, 0.0, 0.0], rng.normal(size=3)), jump, restitution)
     for fast, reference in zip(impact._normal_impulse_maps(terms), impact.reference_normal_impulse_maps(terms)):
         np.testing.assert_allclose(fast, reference, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "keyword, value, fragment",
+    [
+        ("restitution", 1.5, "the restitution must lie in [0, 1]"),
+        ("restitution", float("nan"), "the restitution must lie in [0, 1]"),
+        ("restitution", "0.3", "the restitution must be a number in [0, 1]"),
+        ("lookahead_distance", -0.1, "the look-ahead distance"),
+        ("lookahead_time", float("inf"), "the look-ahead time"),
+        ("release_speed", 1e9, "the release speed"),
+        ("always_active", "yes", "always_active"),
+    ],
+)
+def test_impact_model_checks_its_inputs_with_the_validation_module(keyword, value, fragment):
+    with pytest.raises(BadInputError) as caught:
+        ImpactModel(POSTURES["elbow_up"].surface, "crb", **{keyword: value})
+    assert fragment in str(caught.value)

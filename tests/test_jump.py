@@ -17,7 +17,9 @@ from impactqp.controller.model.jump import (
     gm_inverse_inertia,
     prediction_error,
 )
+from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import PandaModel, SingularPostureError
+from impactqp.controller.model.validation import BadInputError
 
 SETTINGS = settings(max_examples=40, deadline=None)
 speeds = st.floats(0.01, 1.0)
@@ -205,6 +207,10 @@ def test_inverse_inertia_along_the_normal_is_W_times_n(robot, q, normal):
     np.testing.assert_allclose(
         JUMP_MODELS["crb"].inverse_inertia_times(terms, normal), crb_inverse_inertia(terms) @ normal, atol=1e-12
     )
+    np.testing.assert_allclose(  # the kernel's plain-float reference
+        JUMP_MODELS["crb"].reference_inverse_inertia_times(terms, normal), crb_inverse_inertia(terms) @ normal,
+        atol=1e-12,
+    )
     np.testing.assert_allclose(
         JUMP_MODELS["gm"].inverse_inertia_times(terms, normal), gm_inverse_inertia(terms) @ normal,
         rtol=1e-8, atol=1e-12,
@@ -218,6 +224,33 @@ def test_compiled_crb_maps_equal_the_numpy_reference(robot, q, normal, cr):
     terms = terms_or_skip(robot, q)
     crb = JUMP_MODELS["crb"]
     for fast, reference in zip(
-        dataclasses.astuple(crb.maps(terms, normal, cr)), dataclasses.astuple(crb.reference_maps(terms, normal, cr))
+        dataclasses.astuple(crb.unit_maps(terms, normal, cr)),
+        dataclasses.astuple(crb.reference_unit_maps(terms, normal, cr)),
     ):
         np.testing.assert_allclose(fast, reference, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", METHODS)
+@pytest.mark.parametrize("restitution", [-0.1, 1.5, float("nan"), "0.3", True])
+def test_every_entry_point_refuses_a_restitution_outside_zero_one(robot, name, restitution):
+    terms = robot.terms(POSTURES["elbow_up"].q)
+    model = JUMP_MODELS[name]
+    normal, v = np.array([-1.0, 0.0, 0.0]), np.array([0.1, 0.0, 0.0])
+    for call in (
+        lambda: model.maps(terms, normal, restitution),
+        lambda: model.jump_matrix(terms, normal, restitution),
+        lambda: model.predict(terms, normal, v, restitution),
+    ):
+        with pytest.raises(BadInputError, match=r"\[0, 1\]"):
+            call()
+
+
+@pytest.mark.parametrize("name", METHODS)
+def test_every_entry_point_refuses_a_zero_or_non_finite_normal(robot, name):
+    terms = robot.terms(POSTURES["elbow_up"].q)
+    model = JUMP_MODELS[name]
+    for normal in ([0.0, 0.0, 0.0], [np.nan, 0.0, 1.0]):
+        with pytest.raises(BadInputError, match="the surface normal"):
+            model.maps(terms, normal, 0.0)
+        with pytest.raises(BadInputError, match="the surface normal"):
+            model.predict(terms, normal, np.zeros(3), 0.0)

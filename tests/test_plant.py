@@ -39,7 +39,7 @@ def test_partial_file_keeps_the_defaults(tmp_path):
     [
         ({"armatur": [0.0] * 7}, "unknown plant parameter.*'armatur'"),
         ({"armature": [0.1] * 6}, "armature needs 7 values"),
-        ({"joint_damping": [0.1] * 6 + [-0.1]}, r"joint_damping\[6\] = -0.1 must be >= 0"),
+        ({"joint_damping": [0.1] * 6 + [-0.1]}, r"joint_damping\[6\] = -0.1 must lie in \[0, 500\] N m s/rad"),
         ({"payload_mass": -1.0}, "payload_mass"),
         ({"payload_com": [0.0, 0.0]}, "payload_com needs 3 values"),
         ({"friction": -0.1}, "friction"),
@@ -48,6 +48,16 @@ def test_partial_file_keeps_the_defaults(tmp_path):
         ({"contact_solimp": [0.99, 0.9, 0.001, 0.5, 2]}, "dmin <= dmax"),
         ({"servo_gain": 0.0}, "servo_gain"),
         ({"armature": "heavy"}, "armature"),
+        # physical ranges (issue 13): a Panda's payload rating plus margin, bounded gains and damping
+        ({"payload_mass": 1e6}, r"payload_mass = 1000000.0 must lie in \[0, 5\] kg"),
+        ({"payload_mass": True}, "payload_mass must be numeric"),
+        ({"armature": [True] + [0.0] * 6}, "armature must be numeric"),
+        ({"armature": [1e9] + [0.0] * 6}, r"armature\[0\] = 1000000000.0 must lie in \[0, 10\]"),
+        ({"joint_damping": [1e6] * 7}, r"joint_damping\[0\]"),
+        ({"payload_com": [0.0, 0.0, 5.0]}, r"payload_com\[2\]"),
+        ({"friction": 1e9}, r"friction = 1000000000.0 must lie in \[0, 2\]"),
+        ({"servo_gain": 1e9}, "servo_gain"),
+        ({"contact_solref": [100.0, 1.0]}, "time constant in"),
     ],
 )
 def test_bad_overrides_are_rejected_with_clear_messages(tmp_path, values, message):

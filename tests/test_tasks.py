@@ -3,12 +3,14 @@
 import numpy as np
 import pinocchio as pin
 import pytest
-from hypothesis import given, settings
+from conftest import joint_positions, unit_vectors
+from hypothesis import given, reject, settings
 from hypothesis import strategies as st
 
 from impactqp.controller.model.postures import POSTURES
 from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
-from impactqp.tasks.task import rotation_error, rotation_log
+from impactqp.controller.model.robot import SingularPostureError
+from impactqp.tasks.task import Task, rotation_error, rotation_log
 
 
 @pytest.fixture(scope="module")
@@ -163,3 +165,66 @@ def test_compiled_task_rows_equal_the_numpy_reference(robot, seed):
         task.reference_into(terms, A_ref, b_ref)
         np.testing.assert_allclose(A, A_ref, rtol=1e-12, atol=1e-12, err_msg=task.name)
         np.testing.assert_allclose(b, b_ref, rtol=1e-10, atol=1e-9, err_msg=task.name)
+
+
+# ---------------------------------------------------------------- Jacobians by finite differences
+# Every task's rows are A ddq = b with A the Jacobian of the quantity the task controls, as in
+# mink's tests/test_jacobians.py: A(q) dq must equal the rate of that quantity along dq, taken by
+# central finite differences of Pinocchio's forward kinematics (never of the Jacobian itself).
+# ``controlled_rate`` names the quantity of each task class; the table must cover them all.
+FD_STEP = 1e-6
+
+
+def frame_rate(robot, q, dq):
+    """[dp/dt; w] of the contact frame along dq (world axes): p and log3(R+ R-^T) / 2h."""
+    after, before = robot.contact_frame(q + FD_STEP * dq), robot.contact_frame(q - FD_STEP * dq)
+    linear = (after.translation - before.translation) / (2 * FD_STEP)
+    angular = pin.log3(after.rotation @ before.rotation.T) / (2 * FD_STEP)
+    return np.concatenate([linear, angular])
+
+
+def approach_rate(robot, task, q, dq):
+    rate = frame_rate(robot, q, dq)
+    return np.concatenate([task.basis @ rate[:3], rate[3:]])
+
+
+CONTROLLED_RATE = {
+    FrameTask: lambda robot, task, q, dq: frame_rate(robot, q, dq),
+    SurfaceOffsetTask: lambda robot, task, q, dq: frame_rate(robot, q, dq),
+    ContactApproachTask: approach_rate,
+    PostureTask: lambda robot, task, q, dq: dq,  # joint positions
+    DampingTask: lambda robot, task, q, dq: dq,
+}
+
+
+def all_task_classes(kind=Task):
+    return {sub for direct in kind.__subclasses__() for sub in {direct} | all_task_classes(direct)}
+
+
+def test_the_jacobian_table_covers_every_task():
+    assert all_task_classes() == set(CONTROLLED_RATE)
+
+
+def one_task_of_each_class(normal, terms):
+    return [
+        FrameTask(),
+        SurfaceOffsetTask(normal, terms.contact_point - 0.01 * normal, 0.02),
+        ContactApproachTask(normal, 0.1, tangential_velocity=0.05 * np.cross(normal, [0.0, 0.0, 1.0])),
+        PostureTask(),
+        DampingTask(),
+    ]
+
+
+@settings(max_examples=40, deadline=None)
+@given(q=joint_positions(0.05), direction=st.lists(st.floats(-1.0, 1.0), min_size=7, max_size=7), normal=unit_vectors())
+def test_every_task_jacobian_matches_finite_differences_of_what_it_controls(robot, q, direction, normal):
+    dq = np.asarray(direction)
+    try:
+        terms = robot.terms(q, dq)
+    except SingularPostureError:
+        reject()
+    for task in one_task_of_each_class(normal, terms):
+        task.reset(terms)
+        A = task.compute(terms).A
+        expected = CONTROLLED_RATE[type(task)](robot, task, q, dq)
+        np.testing.assert_allclose(A @ dq, expected, atol=1e-6, err_msg=task.name)

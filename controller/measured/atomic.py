@@ -1,15 +1,16 @@
 """Atomic file writes: a reader sees the old file or the new one, never a partial file.
 
 The temporary file lives beside the target and is removed on every exit path: an error, Ctrl-C
-(KeyboardInterrupt) or a SIGTERM that the command line turns into an exception. Only SIGKILL can
-leave one behind, named ``.<target>.<random><suffix>``. The written file gets the permissions a
+(KeyboardInterrupt) or a SIGTERM or SIGHUP that the command line turns into an exception. The
+signals are held back while the file is created and its name recorded, so that none can land in
+between. Only SIGKILL can leave one behind, named ``.<target>.<random><suffix>``. The written file gets the permissions a
 plain ``open(path, "w")`` would give it: 0666 less the process umask.
 """
 
 from __future__ import annotations
 
 import os
-import tempfile
+import secrets
 from collections.abc import Callable
 from pathlib import Path
 
@@ -28,9 +29,13 @@ def write_atomic(path: Path, write: Callable[[Path], None]) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp: Path | None = None
     try:
-        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix or ".tmp")
-        tmp = Path(name)
-        os.close(fd)
+        while True:  # the name first, then the file: ``finally`` can always remove it
+            tmp = path.parent / f".{path.name}.{secrets.token_hex(8)}{path.suffix or '.tmp'}"
+            try:
+                os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+                break
+            except FileExistsError:
+                continue
         write(tmp)
         with open(tmp, "rb+") as stream:
             os.fsync(stream.fileno())

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import io
 import json
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,7 +37,7 @@ import numpy as np
 
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.prediction import default_robot
-from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET
 from impactqp.controller.model.validation import BadInputError, approach_speed
 
 from .atomic import write_text_atomic
@@ -79,6 +80,24 @@ class Tool:
 
     frame: str
     contact_point: tuple[float, float, float]
+
+    def require_modelled(self, what: str) -> None:
+        """Bad input unless this is the tool that ``PandaModel`` and the simulated scene model
+        (``MODELLED_TOOL``): a result computed with another tool would ignore the manifest."""
+        same_point = np.allclose(self.contact_point, MODELLED_TOOL.contact_point, rtol=0.0, atol=TOOL_TOLERANCE)
+        if self.frame != MODELLED_TOOL.frame or not same_point:
+            raise DatasetError(
+                f"{what}: the manifest's tool (frame {self.frame!r}, contact point "
+                f"{[round(float(x), 6) for x in self.contact_point]} m) is not the modelled impact tool "
+                f"(frame {MODELLED_TOOL.frame!r}, contact point {list(MODELLED_TOOL.contact_point)} m)"
+            )
+
+
+MODELLED_TOOL = Tool(HAND_FRAME, (0.0, 0.0, TOOL_TIP_OFFSET))
+"""The impact tool of ``PandaModel`` and of the MuJoCo scene: a sphere on the hand's axis."""
+
+TOOL_TOLERANCE = 1e-6
+"""m: a contact point this close to the modelled one is the modelled tool (JSON round trips)."""
 
 
 @dataclass(frozen=True)
@@ -321,7 +340,9 @@ def _read_table(path: Path, columns: list[str]) -> np.ndarray:
     try:
         with path.open(encoding="utf-8-sig") as stream:  # a byte-order mark is not part of a name
             header = stream.readline().strip().split(",")
-            table = np.loadtxt(stream, delimiter=",", ndmin=2)
+            with warnings.catch_warnings():  # no rows: reported below as "holds no samples"
+                warnings.simplefilter("ignore", UserWarning)
+                table = np.loadtxt(stream, delimiter=",", ndmin=2)
     except FileNotFoundError:
         raise DatasetError(f"{path.name} does not exist") from None
     except IsADirectoryError:

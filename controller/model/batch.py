@@ -18,6 +18,7 @@ import numpy as np
 
 from .jump import METHODS
 from .robot import NQ, PandaModel
+from . import validation
 from .validation import BadInputError
 
 
@@ -163,8 +164,8 @@ def predict_from_terms(
     if method not in METHODS:
         raise BadInputError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
     N = terms.J.shape[0]
-    n = np.broadcast_to(np.asarray(normals, float), (N, 3))
-    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.broadcast_to(validation.unit_normals(normals), (N, 3))
+    restitution = validation.restitution(restitution)
     v = np.broadcast_to(np.asarray(pre_impact_velocities, float), (N, 3))
     J, Jt = terms.J, np.swapaxes(terms.J, 1, 2)
     if method == "crb":

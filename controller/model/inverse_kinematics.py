@@ -52,7 +52,6 @@ class ContactPosture:
     reachable: bool
     position_error: float  # m
     axis_error: float  # sin of the angle between the tool axis and -n
-    iterations: int
 
 
 def contact_posture(
@@ -85,7 +84,7 @@ def contact_posture(
         axis_error = float(np.linalg.norm(e[3:]))
         aligned = float(z @ axis_target) > 0.0
         if position_error < POSITION_TOLERANCE and axis_error < AXIS_TOLERANCE and aligned:
-            return ContactPosture(q, True, position_error, axis_error, iteration)
+            return ContactPosture(q, True, position_error, axis_error)
         if iteration == max_iterations:
             break
         if not aligned:
@@ -95,7 +94,7 @@ def contact_posture(
         A[3:] = J6[3:] - np.outer(z, z @ J6[3:])
         step = A.T @ np.linalg.solve(A @ A.T + damping, e)
         q = np.clip(q + np.clip(step, -MAX_STEP, MAX_STEP), robot.q_min, robot.q_max)
-    return ContactPosture(q, False, position_error, axis_error, max_iterations)
+    return ContactPosture(q, False, position_error, axis_error)
 
 
 @dataclass(frozen=True)

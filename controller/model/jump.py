@@ -33,6 +33,7 @@ from numba import njit
 from scipy.linalg import cho_solve
 
 from .robot import ModelTerms, symmetric_inverse3
+from . import validation
 from .validation import BadInputError, unit_normal
 
 METHODS = ("classical", "classical_normal", "gm", "crb")
@@ -90,23 +91,26 @@ class JumpMaps:
     W: np.ndarray | None
 
 
-def unit(normal: np.ndarray) -> np.ndarray:
-    """n / |n| (``validation.unit_normal``)."""
-    return unit_normal(normal)
-
-
 class JumpModel:
-    """Common interface of the predictors: ``maps`` gives G, K (and W) of a state, once;
-    ``maps`` takes a unit normal (``predict`` and ``jump_matrix`` normalise it)."""
+    """Common interface of the predictors: ``maps`` gives G, K (and W) of a state, once.
+
+    ``maps``, ``jump_matrix`` and ``predict`` check their inputs (the normal is normalised,
+    the restitution must lie in [0, 1]; ``validation.py``) and call ``unit_maps``, which each
+    predictor implements for a unit normal and a valid restitution. A caller that has checked
+    both once (``constraints.ImpactModel``) calls ``unit_maps`` every cycle."""
 
     name: str = ""
 
-    def maps(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMaps:
+    def unit_maps(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMaps:
         raise NotImplementedError
+
+    def maps(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMaps:
+        """G, K (and W) for the surface normal ``normal`` and the restitution c_r."""
+        return self.unit_maps(terms, unit_normal(normal), validation.restitution(restitution))
 
     def jump_matrix(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> np.ndarray:
         """A = K G J (7x7): the jump ddq = A dq- for a pre-impact joint velocity dq-."""
-        maps = self.maps(terms, unit(normal), restitution)
+        maps = self.maps(terms, normal, restitution)
         return maps.K @ (maps.G @ terms.J)
 
     def predict(
@@ -119,7 +123,7 @@ class JumpModel:
     ) -> JumpPrediction:
         """Predict the jump for the contact velocity v- (world), or from a measured impulse.
         The normal n is normalised here."""
-        maps = self.maps(terms, unit(normal), restitution)
+        maps = self.maps(terms, normal, restitution)
         impulse = maps.G @ pre_impact_velocity if impulse is None else np.asarray(impulse, dtype=float)
         return JumpPrediction(self.name, maps.K @ impulse, impulse, maps.W)
 
@@ -130,7 +134,7 @@ class ClassicalJump(JumpModel):
 
     name = "classical"
 
-    def maps(self, terms, normal, restitution):
+    def unit_maps(self, terms, normal, restitution):
         MinvJt = joint_space_inverse_inertia_times_Jt(terms)
         return JumpMaps(-(1.0 + restitution) * np.linalg.inv(terms.J @ MinvJt), MinvJt, None)
 
@@ -141,8 +145,8 @@ class ClassicalNormalJump(ClassicalJump):
 
     name = "classical_normal"
 
-    def maps(self, terms, normal, restitution):
-        classical = super().maps(terms, normal, restitution)
+    def unit_maps(self, terms, normal, restitution):
+        classical = super().unit_maps(terms, normal, restitution)
         return JumpMaps(np.outer(normal, normal) @ classical.G, classical.K, None)
 
 
@@ -160,7 +164,7 @@ class GeneralizedMomentumJump(JumpModel):
         J M^-1 (J^T n), one linear solve with M."""
         return terms.J @ np.linalg.solve(terms.M, normal @ terms.J)
 
-    def maps(self, terms, normal, restitution):
+    def unit_maps(self, terms, normal, restitution):
         W = self.inverse_inertia(terms)
         return JumpMaps(normal_impulse_map(W, normal, restitution), terms.J_pinv @ W, W)
 
@@ -174,16 +178,16 @@ class CompositeRigidBodyJump(GeneralizedMomentumJump):
     def inverse_inertia(self, terms: ModelTerms) -> np.ndarray:
         return crb_inverse_inertia(terms)
 
-    def maps(self, terms, normal, restitution):
+    def unit_maps(self, terms, normal, restitution):
         """G, K = J+ W_crb and W_crb in one compiled call (``crb_maps``)."""
         G, K, W = crb_maps(
             terms.contact_point, terms.com, terms.inertia_com, terms.mass, terms.J, terms.JJt_inv, normal, restitution
         )
         return JumpMaps(G, K, W)
 
-    def reference_maps(self, terms, normal, restitution):
-        """``maps`` in plain numpy: eq. (20), then (12) and (21) as for the GM model."""
-        return super().maps(terms, normal, restitution)
+    def reference_unit_maps(self, terms, normal, restitution):
+        """``unit_maps`` in plain numpy: eq. (20), then (12) and (21) as for the GM model."""
+        return super().unit_maps(terms, normal, restitution)
 
     def inverse_inertia_times(self, terms: ModelTerms, normal: np.ndarray) -> np.ndarray:
         """W_crb n = n / m - r x (I_c^-1 (r x n)), eq. (20) applied to n

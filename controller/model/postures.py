@@ -12,7 +12,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .validation import BadInputError, finite_vector, unit_normal
+from .validation import BadInputError, finite_vector, number_in_range, unit_normal
+
+
+MAX_FRICTION = 2.0
+"""Largest Coulomb friction coefficient of a surface: rubber on dry rough surfaces stays below 2."""
+
+MAX_SURFACE_DISTANCE = 10.0
+"""m: the largest distance of a surface's point from the robot's base (the Panda reaches 0.855 m)."""
 
 
 @dataclass(frozen=True)
@@ -25,9 +32,12 @@ class Surface:
 
     def __post_init__(self):
         point = finite_vector(self.point, 3, "the surface point")
+        if float(np.linalg.norm(point)) > MAX_SURFACE_DISTANCE:
+            raise BadInputError(
+                f"the surface point {point.tolist()} must lie within {MAX_SURFACE_DISTANCE:g} m of the robot's base"
+            )
         normal = unit_normal(self.normal)
-        if isinstance(self.friction, bool) or not (np.isfinite(self.friction) and self.friction >= 0.0):
-            raise BadInputError(f"the surface friction must be a finite number >= 0, got {self.friction!r}")
+        number_in_range(self.friction, 0.0, MAX_FRICTION, "the surface friction")
         object.__setattr__(self, "point", point)
         object.__setattr__(self, "normal", normal)
 

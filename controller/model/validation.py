@@ -54,6 +54,22 @@ def unit_normal(normal, what: str = "the surface normal") -> np.ndarray:
     return n / norm
 
 
+def unit_normals(normals, what: str = "the surface normals") -> np.ndarray:
+    """A (3,) normal or (N, 3) normals, each normalised: ``unit_normal`` row by row, vectorised."""
+    try:
+        array = np.asarray(normals, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise BadInputError(f"{what} must be an array of numbers") from exc
+    if array.ndim not in (1, 2) or array.shape[-1] != 3:
+        raise BadInputError(f"{what} must be (3,) or (N, 3), got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise BadInputError(f"{what} must be finite")
+    norms = np.linalg.norm(array, axis=-1, keepdims=True)
+    if np.any(norms < NORMAL_MIN_NORM):
+        raise BadInputError(f"{what} must be non-zero")
+    return array / norms
+
+
 def number_in_range(value, low: float, high: float, what: str, unit: str = "", low_open: bool = False) -> float:
     """``value`` as a finite float in [low, high] ((low, high] with ``low_open``); a boolean, a
     string or anything outside the range is bad input, and the message gives the range."""
@@ -65,6 +81,20 @@ def number_in_range(value, low: float, high: float, what: str, unit: str = "", l
     if not (math.isfinite(number) and inside):
         raise BadInputError(f"{what} must lie in {span}, got {number}")
     return number
+
+
+def boolean(value, what: str) -> bool:
+    """``value`` as a bool; only ``true``/``false`` are accepted (never 1, "yes" or a string)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise BadInputError(f"{what} must be true or false, got {value!r}")
+    return bool(value)
+
+
+def name_in(value, choices, what: str) -> str:
+    """``value`` as one of the string ``choices``; the message lists them."""
+    if not isinstance(value, str) or value not in choices:
+        raise BadInputError(f"{what} = {value!r}; choose from {', '.join(choices)}")
+    return value
 
 
 def restitution(value, what: str = "the restitution") -> float:

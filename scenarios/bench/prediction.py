@@ -10,7 +10,7 @@ import pinocchio
 from impactqp.controller.model.batch import BatchKinematics, predict_batch
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.postures import POSTURES
-from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.model.robot import NQ, PandaModel
 
 from .base import rate_row, time_calls, timing_row
 
@@ -30,13 +30,13 @@ def rows() -> list[dict]:
         single()
     rows = [timing_row("predict.crb.single", "us", time_calls(single, 5000), 1e6)]
     data = robot.model.createData()
-    q, dq = posture.q, np.zeros(7)
+    q, dq = posture.q, np.zeros(NQ)
     rows.append(timing_row(
         "floor.pinocchio.all_terms", "us",
         time_calls(lambda: pinocchio.computeAllTerms(robot.model, data, q, dq), 5000), 1e6,
     ))
     kinematics = BatchKinematics(robot)
-    Q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (10_000, 7))
+    Q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (10_000, NQ))
     predict_batch(kinematics, Q, n, v, 0.0, "crb")
     samples = time_calls(lambda: predict_batch(kinematics, Q, n, v, 0.0, "crb"), 30)
     rows.append(rate_row("predict.crb.batch", "predictions/s", 10_000, samples))

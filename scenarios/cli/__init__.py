@@ -6,7 +6,7 @@ One error boundary (:func:`main`):
   on a path the user gave) gets one line on stderr and exit code 2, never a traceback;
 - anything else is an internal error: exit code 1 and one line that asks for a report; the
   traceback only with ``impactqp --debug``;
-- Ctrl-C ends with exit code 130.
+- Ctrl-C, SIGTERM or SIGHUP ends with exit code 130.
 
 ``--json`` prints machine-readable output on stdout.
 """
@@ -197,7 +197,8 @@ cli.add_command(sweep)
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; the exit code: 0 done, 1 internal error, 2 bad input, 130 Ctrl-C."""
     args = sys.argv[1:] if argv is None else list(argv)
-    previous = signal.signal(signal.SIGTERM, _interrupt)  # so that cleanup runs on SIGTERM too
+    # so that cleanup (temporary files, the robot brake) runs on SIGTERM and SIGHUP too
+    previous = {sig: signal.signal(sig, _interrupt) for sig in (signal.SIGTERM, signal.SIGHUP)}
     try:
         code = cli.main(args=args, prog_name="impactqp", standalone_mode=False)
     except (KeyboardInterrupt, click.exceptions.Abort):
@@ -223,7 +224,8 @@ def main(argv: list[str] | None = None) -> int:
         )
         return EXIT_INTERNAL_ERROR
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return code if isinstance(code, int) else 0
 
 

@@ -110,8 +110,13 @@ def load_plant(path: str | None):
         raise BadInputError(f"--plant: {error}") from None
 
 
+def max_jobs() -> int:
+    """Most worker processes a command starts: four per core (each holds a model and a scene)."""
+    return 4 * (os.cpu_count() or 1)
+
+
 def check_jobs(value: int) -> int:
-    """``--jobs N``: a number of worker processes, >= 1."""
-    if value < 1:
-        raise BadInputError(f"--jobs must be >= 1, got {value}")
+    """``--jobs N``: a number of worker processes in [1, max_jobs()]."""
+    if not 1 <= value <= max_jobs():
+        raise BadInputError(f"--jobs must lie in [1, {max_jobs()}] (four per core), got {value}")
     return value

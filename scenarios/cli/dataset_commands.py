@@ -115,6 +115,7 @@ def import_franka_command(out, logs, surface_point, surface_normal, tool_frame, 
     from impactqp.controller.model.robot import TOOL_TIP_OFFSET
     from impactqp.controller.model.validation import unit_normal
 
+    output_directory(out, "OUT")
     surface = Surface(parse_vector(surface_point, 3, "--surface-point"), unit_normal(
         parse_vector(surface_normal, 3, "--surface-normal"), "--surface-normal"))
     point = parse_vector(contact_point, 3, "--contact-point") if contact_point else (0.0, 0.0, TOOL_TIP_OFFSET)

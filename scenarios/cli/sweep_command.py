@@ -34,11 +34,11 @@ def sweep(config_path, backend, jobs, out, resume, simulate, plant_file, example
     from impactqp.scenarios.sweep.backends import run_sweep
     from impactqp.scenarios.sweep.cells import Simulation
 
+    output_directory(str(out), "--out")
     config = load_config(config_path)
     if plant_file is not None and not simulate:
         raise BadInputError("--plant sets the plant of the simulated cells: add --simulate")
     simulation = Simulation(load_plant(plant_file)) if simulate else None
-    output_directory(str(out), "--out")
     summary = run_sweep(
         config, out, jobs=jobs, backend=backend, resume=resume, progress=not as_json, simulation=simulation
     )

@@ -20,6 +20,7 @@ def load_trial(directory, trial_id: str | None) -> tuple[DatasetTrial, object]:
         dataset = read_dataset(directory)
     except DatasetError as error:
         raise BadInputError(f"replay dataset {directory}: {error}") from None
+    dataset.header.tool.require_modelled(f"replay dataset {directory}")
     if not dataset.trials:
         raise BadInputError(f"replay dataset {directory} holds no trial")
     if trial_id is None:

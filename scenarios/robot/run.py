@@ -12,17 +12,16 @@ from __future__ import annotations
 import signal
 import threading
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from impactqp.controller.command_filter import CommandFilter
 from impactqp.controller.config import ControllerConfig
-from impactqp.controller.measured.dataset import DatasetHeader, Tool
+from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD
 from impactqp.controller.model.postures import POSTURES
-from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET, PandaModel
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
 
 from .interface import RobotInterface
 from .loop import ControlLoop, LoopResult
@@ -31,6 +30,8 @@ from .session import ImpactSession
 
 BACKENDS = ("sim", "franka", "replay")
 SIM_START_DISTANCE = 0.05
+MAX_DURATION = 60.0
+"""s: one impact session (approach, impact, post-impact phase) lasts seconds; a minute bounds it."""
 
 
 @dataclass(frozen=True)
@@ -54,13 +55,10 @@ class RunRequest:
 
 def controller_config(request: RunRequest, surface=None) -> ControllerConfig:
     if request.config_file is not None:
-        path = Path(request.config_file)
-        if not path.is_file():
-            raise BadInputError(f"--config {path}: no such file")
         try:
-            return ControllerConfig.from_file(path)
-        except (ValueError, TypeError) as error:
-            raise BadInputError(f"--config {path}: {error}") from None
+            return ControllerConfig.from_file(request.config_file)
+        except BadInputError as error:
+            raise BadInputError(f"--config {error}") from None
     if surface is None:
         surface = POSTURES[request.posture].surface
     return ControllerConfig.approach(surface, request.speed, posture_weight=0.0)
@@ -71,10 +69,8 @@ def check_request(request: RunRequest) -> None:
         raise BadInputError(f"--backend {request.backend!r}: choose from {', '.join(BACKENDS)}")
     if request.posture not in POSTURES:
         raise BadInputError(f"--posture {request.posture!r} is unknown; known: {', '.join(POSTURES)}")
-    if not (np.isfinite(request.speed) and request.speed > 0.0):
-        raise BadInputError(f"--speed must be > 0 m/s, got {request.speed}")
-    if not (np.isfinite(request.duration) and request.duration > 0.0):
-        raise BadInputError(f"--duration must be > 0 s, got {request.duration}")
+    approach_speed(request.speed, "--speed")
+    number_in_range(request.duration, 0.0, MAX_DURATION, "--duration", "s", low_open=True)
     if request.backend == "franka" and not request.robot_ip:
         raise BadInputError("--backend franka needs --robot-ip IP")
     if request.backend == "replay" and not request.dataset:
@@ -115,11 +111,11 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
     return robot, config, request.duration
 
 
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def run(request: RunRequest) -> tuple[dict, LoopResult]:
-    """Run the request; (report, result). Ctrl-C or SIGTERM brakes to a stop and keeps the log
+    """Run the request; (report, result). Ctrl-C, SIGTERM or SIGHUP brakes to a stop and keeps the log
     (``result.interrupted``). The log directory is checked before the robot moves."""
     check_request(request)
     model = PandaModel()
@@ -181,7 +177,7 @@ def report(result: LoopResult, config: ControllerConfig, log_path: str | None) -
 
 def log_header(config: ControllerConfig) -> DatasetHeader:
     return DatasetHeader(
-        tool=Tool(HAND_FRAME, (0.0, 0.0, TOOL_TIP_OFFSET)),
+        tool=MODELLED_TOOL,
         surface=config.surface.surface(),
         control_period=config.dt,
     )

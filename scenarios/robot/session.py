@@ -47,7 +47,6 @@ class ImpactSession:
         self.controller = self.approach
         self.phase = APPROACH
         self.last: Command | None = None
-        self.detection_state: RobotState | None = None
         self.pre_impact_state: RobotState | None = None
         self._previous_state: RobotState | None = None
         self._start_t: float | None = None
@@ -93,7 +92,6 @@ class ImpactSession:
         self.post_impact.memory = replace(memory)
         self.controller = self.post_impact
         self.phase = self.post_impact.phase = self.config.post_impact.mode
-        self.detection_state = state
         self.pre_impact_state = self._previous_state
 
     def contact_speed(self) -> float | None:

@@ -224,11 +224,15 @@ def parse_config(data: dict) -> SweepConfig:
 def load_config(path: Path) -> SweepConfig:
     """Read and validate the TOML file ``path``."""
     try:
-        text = Path(path).read_text()
+        text = Path(path).read_bytes().decode("utf-8-sig")
     except OSError as exc:
         raise BadInputError(f"cannot read the sweep config {path}: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise BadInputError(f"the sweep config {path} is not a UTF-8 text file") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise BadInputError(f"malformed sweep config {path}: {exc}") from None
+    except RecursionError:
+        raise BadInputError(f"the sweep config {path} is nested too deeply") from None
     return parse_config(data)

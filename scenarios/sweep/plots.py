@@ -19,6 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pyarrow as pa  # noqa: E402
 
+from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.model.max_speed import CRITERIA  # noqa: E402
 
 from .config import SweepConfig  # noqa: E402
@@ -83,7 +84,7 @@ def write_plots(config: SweepConfig, table: pa.Table, out: Path) -> list[Path]:
             fig.suptitle(title)
             fig.tight_layout()
             path = Path(out) / f"speed_{suffix}.png"
-            fig.savefig(path, dpi=80)
+            write_atomic(path, lambda tmp, fig=fig: fig.savefig(tmp, dpi=80, format="png"))
             plt.close(fig)
             paths.append(path)
 
@@ -110,7 +111,7 @@ def write_plots(config: SweepConfig, table: pa.Table, out: Path) -> list[Path]:
             fig.legend(handles, CRITERIA, loc="lower center", ncol=len(CRITERIA), fontsize=7)
             fig.tight_layout(rect=(0, 0.08, 1, 1))
             path = Path(out) / f"binding_{suffix}.png"
-            fig.savefig(path, dpi=80)
+            write_atomic(path, lambda tmp, fig=fig: fig.savefig(tmp, dpi=80, format="png"))
             plt.close(fig)
             paths.append(path)
     return paths
