@@ -69,6 +69,7 @@ acceleration and jerk limits and clips dq_cmd; its status says it is a fallback.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import daqp
@@ -555,21 +556,37 @@ class ImpactAwareController:
     def _bounded_conflict(self) -> list[str]:
         """A conflicting set from one interval test (module docstring): over the box
         lb <= ddq <= ub, C_i ddq spans [r_i, R_i]; a row with u_i < r_i or l_i > R_i conflicts
-        with the box."""
+        with the box. Compiled (``interval_conflicts``)."""
         p = self.problem
-        boxes = [
-            c.name for c, lower, upper in zip(self.box_constraints, self._box_lower, self._box_upper)
-            if (lower == p.lb).any() or (upper == p.ub).any()
-        ]
-        if (p.lb > p.ub).any() or not self._row_slices:
+        flags = self._active_flags
+        consistent = interval_conflicts(self._box_bounds, p.lb, p.ub, p.C, p.l, p.u, self._row_ends, flags)
+        return self._conflict_names(flags, consistent)
+
+    def reference_interval_conflicts(self, flags: np.ndarray) -> bool:
+        """``interval_conflicts`` on this cycle's problem in plain numpy (the reference of its
+        kernel): the same flags and the same return value."""
+        p = self.problem
+        n_boxes = len(self.box_constraints)
+        flags[:n_boxes] = ((self._box_lower == p.lb) | (self._box_upper == p.ub)).any(axis=1)
+        flags[n_boxes:] = False
+        if (p.lb > p.ub).any():
+            return False
+        if self._row_slices:
+            low, high = p.C * p.lb, p.C * p.ub
+            unreachable = (p.u < np.minimum(low, high).sum(axis=1)) | (p.l > np.maximum(low, high).sum(axis=1))
+            flags[n_boxes:] = np.logical_or.reduceat(unreachable, self._row_starts)
+        return True
+
+    def _conflict_names(self, flags: np.ndarray, box_consistent: bool) -> list[str]:
+        """The names of ``interval_conflicts``' flags: the conflicting rows (every general
+        constraint when none is flagged) then the boxes that set a bound; the boxes alone when
+        the box itself is empty or there are no general rows."""
+        n_boxes = len(self.box_constraints)
+        boxes = [name for name, hit in zip(self._flag_names[:n_boxes], flags[:n_boxes]) if hit]
+        if not box_consistent or not self._row_slices:
             return boxes
-        low, high = p.C * p.lb, p.C * p.ub
-        reach_min = np.minimum(low, high).sum(axis=1)
-        reach_max = np.maximum(low, high).sum(axis=1)
-        unreachable = (p.u < reach_min) | (p.l > reach_max)
-        per_constraint = np.logical_or.reduceat(unreachable, self._row_starts)
-        rows = [c.name for c, hit in zip(self.row_constraints, per_constraint) if hit]
-        return (rows or [c.name for c in self.row_constraints]) + boxes
+        rows = [name for name, hit in zip(self._flag_names[n_boxes:], flags[n_boxes:]) if hit]
+        return (rows or self._flag_names[n_boxes:]) + boxes
 
     def _irreducible_conflict(self, problem: QpProblem, box_lower: np.ndarray, box_upper: np.ndarray) -> list[str]:
         """An irreducible infeasible subset of the constraints of a stored infeasible cycle
@@ -607,11 +624,21 @@ class ImpactAwareController:
         self.fallback_count += 1
         robot = self.robot
         q, dq = self._usable_state(q, dq)
+        ddq, dq_cmd, q_cmd = np.empty(NQ), np.empty(NQ), np.empty(NQ)
+        braking_command(
+            q, dq, self.memory.ddq, self.ddq_max, self._jerk_step, self.dt, robot.dq_max, robot.q_min, robot.q_max,
+            ddq, dq_cmd, q_cmd,
+        )
+        return self._emit(terms, ddq, dq_cmd, q_cmd, status, [], list(violated), "", message)
+
+    def reference_braking_command(self, q, dq) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``braking_command`` in plain numpy (the reference of its kernel): ddq, dq_cmd, q_cmd."""
+        robot = self.robot
         cycle = ControlCycle.after(self.memory.ddq, self.dt, self.ddq_max, self.dddq_max)
         ddq = np.clip(-dq / self.dt, cycle.acceleration_lower, cycle.acceleration_upper)
         dq_cmd = np.clip(dq + ddq * self.dt, -robot.dq_max, robot.dq_max)
         q_cmd = np.clip(q + (0.5 * self.dt) * (dq + dq_cmd), robot.q_min, robot.q_max)
-        return self._emit(terms, ddq, dq_cmd, q_cmd, status, [], list(violated), "", message)
+        return ddq, dq_cmd, q_cmd
 
     def _usable_state(self, q, dq) -> tuple[np.ndarray, np.ndarray]:
         """(q, dq) if finite with the right shapes, else the previous command."""
@@ -620,7 +647,7 @@ class ImpactAwareController:
             dq = np.asarray(dq, dtype=float).reshape(NQ)
         except (TypeError, ValueError):
             q = dq = np.full(NQ, np.nan)
-        if np.all(np.isfinite(q)) and np.all(np.isfinite(dq)):
+        if math.isfinite(q @ q + dq @ dq) or (np.all(np.isfinite(q)) and np.all(np.isfinite(dq))):
             return q, dq
         if self.memory.q_cmd is not None:
             return self.memory.q_cmd, self.memory.dq_cmd
@@ -755,3 +782,56 @@ def tight_constraints(x, box_bounds, lower_gap, upper_gap, row_ends, tol, flags)
                 break
         flags[boxes + c] = hit
         start = row_ends[c]
+
+
+@njit(cache=True)
+def interval_conflicts(box_bounds, lb, ub, C, l, u, row_ends, flags):
+    """Kernel of the interval test of an infeasible cycle: flags[k] for box k when one of its
+    bounds (rows 2k, 2k+1 of box_bounds) sets the intersected box [lb, ub]; then, when that box
+    is not empty, flags of the general constraints (rows ending at row_ends) when one of their
+    rows has u_i < r_i or l_i > R_i, [r_i, R_i] the span of C_i x over the box. Returns whether
+    the box is consistent (lb <= ub)."""
+    boxes = box_bounds.shape[0] // 2
+    n = lb.shape[0]
+    for k in range(boxes):
+        hit = False
+        for j in range(n):
+            if box_bounds[2 * k, j] == lb[j] or box_bounds[2 * k + 1, j] == ub[j]:
+                hit = True
+                break
+        flags[k] = hit
+    for c in range(row_ends.shape[0]):
+        flags[boxes + c] = False
+    for j in range(n):
+        if lb[j] > ub[j]:
+            return False
+    start = 0
+    for c in range(row_ends.shape[0]):
+        hit = False
+        for i in range(start, row_ends[c]):
+            low = 0.0
+            high = 0.0
+            for j in range(n):
+                a = C[i, j] * lb[j]
+                b = C[i, j] * ub[j]
+                low += min(a, b)
+                high += max(a, b)
+            if u[i] < low or l[i] > high:
+                hit = True
+                break
+        flags[boxes + c] = hit
+        start = row_ends[c]
+    return True
+
+
+@njit(cache=True)
+def braking_command(q, dq, previous_ddq, ddq_max, jerk_step, dt, dq_max, q_min, q_max, ddq, dq_cmd, q_cmd):
+    """Kernel of the fallback: ddq = -dq / dt clipped into the reachable interval
+    [max(-ddq_max, ddq_prev - s), min(ddq_max, ddq_prev + s)] (s = dddq_max dt), dq_cmd = dq + ddq dt
+    within +-dq_max and q_cmd = q + (dq + dq_cmd) dt / 2 within [q_min, q_max]."""
+    for j in range(q.shape[0]):
+        lower = max(-ddq_max[j], previous_ddq[j] - jerk_step[j])
+        upper = min(ddq_max[j], previous_ddq[j] + jerk_step[j])
+        ddq[j] = min(max(-dq[j] / dt, lower), upper)
+        dq_cmd[j] = min(max(dq[j] + ddq[j] * dt, -dq_max[j]), dq_max[j])
+        q_cmd[j] = min(max(q[j] + 0.5 * dt * (dq[j] + dq_cmd[j]), q_min[j]), q_max[j])

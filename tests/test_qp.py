@@ -14,7 +14,7 @@ from impactqp.constraints import ControlCycle
 from impactqp.controller.qp import Command, DaqpSolver, ImpactAwareController, QuadprogSolver
 from impactqp.controller.model.robot import SingularPostureError
 from impactqp.constraints import jump_model_names
-from impactqp.controller.qp import available_backends
+from impactqp.controller.qp import available_backends, interval_conflicts
 from impactqp.tasks import DampingTask, FrameTask, PostureTask
 
 NORMAL = np.array([-1.0, 0.0, 0.0])
@@ -390,3 +390,54 @@ def test_compiled_check_and_active_set_equal_the_numpy_reference(robot, seed, ju
         problem.violation(x)
         assert controller._active_constraints(x) == controller.reference_active_constraints(x)
     assert problem.violation(np.full(7, np.nan)) == np.inf
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), jump=st.sampled_from(["crb", "gm", "robust"]), speed=st.floats(0.3, 0.8))
+def test_compiled_conflict_and_braking_equal_the_numpy_reference(robot, seed, jump, speed):
+    """On an infeasible cycle (a fast approach with the impact constraints on), the compiled
+    interval test names the same conflicting set as its numpy statement, and the compiled
+    braking command equals its numpy statement from random states and previous accelerations."""
+    rng = np.random.default_rng(seed)
+    q = POSTURES["elbow_up"].q
+    controller = approach_controller(robot, q, jump=jump)
+    dq = speed * approach_direction(robot.terms(q), NORMAL)
+    command = controller.step(q, dq)
+    if command.status == "fallback_infeasible":
+        problem = controller.problem
+        fast, reference = np.zeros_like(controller._active_flags), np.ones_like(controller._active_flags)
+        args = (controller._box_bounds, problem.lb, problem.ub, problem.C, problem.l, problem.u, controller._row_ends)
+        assert interval_conflicts(*args, fast) == controller.reference_interval_conflicts(reference)
+        np.testing.assert_array_equal(fast, reference)
+        assert command.violated_constraints == controller._conflict_names(reference, True)
+    for _ in range(5):
+        q = robot.q_min + (robot.q_max - robot.q_min) * rng.uniform(-0.1, 1.1, 7)
+        dq = rng.uniform(-1.2, 1.2, 7) * robot.dq_max
+        controller.memory.ddq = rng.uniform(-1.0, 1.0, 7) * robot.ddq_max
+        expected = controller.reference_braking_command(q, dq)
+        command = controller._fallback(q, dq, "fallback_infeasible", [], "")
+        for fast, reference in zip((command.ddq, command.dq_cmd, command.q_cmd), expected):
+            np.testing.assert_allclose(fast, reference, rtol=1e-12, atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_interval_test_flags_exactly_the_rows_no_point_of_the_box_satisfies(seed):
+    """The span of C_i x over the box is attained at its vertices: a row is flagged exactly when
+    every one of the 2^7 vertices gives C_i x above u_i or every one below l_i."""
+    rng = np.random.default_rng(seed)
+    lb = rng.uniform(-2.0, 0.0, 7)
+    ub = lb + rng.uniform(0.0, 2.0, 7)
+    C = rng.normal(size=(6, 7))
+    centre = rng.normal(0.0, 4.0, 6)
+    l, u = centre - rng.uniform(0.0, 1.0, 6), centre + rng.uniform(0.0, 1.0, 6)
+    vertices = np.array(np.meshgrid(*zip(lb, ub), indexing="ij")).reshape(7, -1)
+    values = C @ vertices
+    unreachable = (values > u[:, None]).all(axis=1) | (values < l[:, None]).all(axis=1)
+    row_ends = np.array([2, 3, 6])  # three constraints of 2, 1 and 3 rows
+    box_bounds = np.vstack([lb, ub, lb - 1.0, ub + 1.0])  # box 0 sets [lb, ub], box 1 does not
+    flags = np.zeros(5, dtype=np.bool_)
+    assert interval_conflicts(box_bounds, lb, ub, C, l, u, row_ends, flags)
+    expected = [unreachable[0:2].any(), unreachable[2:3].any(), unreachable[3:6].any()]
+    np.testing.assert_array_equal(flags, [True, False, *expected])
+    assert not interval_conflicts(box_bounds, ub + 1.0, lb, C, l, u, row_ends, flags)
