@@ -8,7 +8,7 @@ Wang, Dehio and Kheddar (RA-L 2022), beside the classical and generalized-moment
 The names a user needs first are exported here; the layers of the package are listed in the README.
 """
 
-from importlib.metadata import PackageNotFoundError, version
+from importlib import metadata
 
 from impactqp.controller import Command, ControllerConfig, ImpactAwareController, build_controller
 from impactqp.controller.model.jump import JUMP_MODELS, JumpModel, jump_model
@@ -16,8 +16,8 @@ from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
 from impactqp.controller.model.robot import PandaModel
 
 try:
-    __version__ = version("impactqp")
-except PackageNotFoundError:  # pragma: no cover - running from a tree that was never installed
+    __version__ = metadata.version("impactqp")
+except metadata.PackageNotFoundError:  # pragma: no cover - running from a tree that was never installed
     __version__ = "0+unknown"
 
 __all__ = [
