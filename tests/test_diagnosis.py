@@ -70,7 +70,8 @@ def test_two_hidden_effects_are_both_named_each_within_its_interval(tmp_path):
     check_contract(result)
     for key, value in truth.items():
         pairs = result["intervals"][key]
-        assert all(inside(v, pair) for v, pair in zip(value, pairs)) if isinstance(value, list) else inside(value, pairs)
+        values, pairs = (value, pairs) if isinstance(value, list) else ([value], [pairs])
+        assert all(inside(v, pair) for v, pair in zip(values, pairs)), key
     payload = PayloadCause()
     theta = payload.theta_of(truth)
     assert np.all(np.abs(payload.theta_of(result["parameters"]) - theta) <= tolerance(payload, theta))

@@ -1,8 +1,8 @@
 """The ``replay`` backend: a recorded dataset trial (``controller.measured.dataset``) played
 through the loop, for offline checks of the controller, the detector and the watchdog against
 real logs. ``read`` returns the logged samples one by one (t, q, dq, and the torque of the period
-before, tau[k - 1]; no external-torque estimate); ``write`` keeps the commands; the robot does not move with them. The trial's force
-log, when it has one, is the backend's force log."""
+before, tau[k - 1]; no external-torque estimate); ``write`` keeps the commands; the robot does
+not move with them. The trial's force log, when it has one, is the backend's force log."""
 
 from __future__ import annotations
 
