@@ -184,8 +184,8 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         s["message"],
         "",
         f"- trials used: {s['trials']}, skipped: {len(s['skipped'])}",
-        f"- causes: **{', '.join(s['causes']) or 'none'}** (explained: {s['explained']}; thresholds: first cause "
-        f"{100 * EXPLAINED_GAIN:.0f} % held-out gain, each further cause {100 * STEP_GAIN:.0f} %)",
+        f"- causes: **{', '.join(s['causes']) or 'none'}** (explained: {s['explained']}; thresholds: every step "
+        f"{100 * STEP_GAIN:.0f} % held-out gain, the causes together {100 * EXPLAINED_GAIN:.0f} %)",
         f"- parameters: `{s['parameters']}`",
         f"- average error (26), held-out: nominal simulation {s['baseline_error']:.4f} rad/s, "
         f"extended simulation {s['extended_error']:.4f} rad/s, gain {100 * s['gain']:.1f} %",

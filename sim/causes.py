@@ -64,8 +64,9 @@ class Cause:
     lower: tuple[float, ...] = ()
     upper: tuple[float, ...] = ()
 
-    # A realistic range of theta and the tangential speeds (m/s, at v_n = 0.12) a dataset needs
-    # for the cause to show, for tests and benchmarks that hide it in simulated data.
+    # A realistic range of theta and the tangential speeds (m/s; ``dataset generate`` runs them
+    # at its tangential series' normal speed) a dataset needs for the cause to show, for tests
+    # and benchmarks that hide it in simulated data.
     realistic: tuple[tuple[float, ...], tuple[float, ...]] = ((), ())
     tangential_speeds_needed: tuple[float, ...] = ()
 
@@ -80,10 +81,11 @@ class Cause:
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(lo))
         return [self.to_u(self.nominal_theta(nominal))] + [np.array(p) for p in grid]
 
-    def settling_trials(self, index: int, side: str, known: float) -> str:
+    def settling_trials(self, index: int, side: str, known: float, normal_speeds: np.ndarray) -> str:
         """Plain words for the trials that would bound parameter ``index`` on ``side`` ("below"
         or "above") when the data leave it open there; ``known`` is the closed end of its
-        interval (the fitted value when both ends are open)."""
+        interval (the fitted value when both ends are open), ``normal_speeds`` the reference
+        normal speeds (m/s) of the dataset's trials."""
         return "more trials: other postures and a wider range of normal speeds"
 
     def overrides(self, theta: np.ndarray) -> dict:
@@ -126,7 +128,7 @@ class ArmatureCause(Cause):
     def theta_of(self, overrides):
         return group_means(overrides["armature"])
 
-    def settling_trials(self, index, side, known):
+    def settling_trials(self, index, side, known, normal_speeds):
         joints = "1-4" if index == 0 else "5-7"
         return (
             f"faster impacts (higher normal speeds) at postures whose jump loads joints {joints}, "
@@ -160,7 +162,7 @@ class PayloadCause(Cause):
     def theta_of(self, overrides):
         return np.array([float(overrides["payload_mass"]), *map(float, overrides["payload_com"])])
 
-    def settling_trials(self, index, side, known):
+    def settling_trials(self, index, side, known, normal_speeds):
         if index == 0:
             return "trials at more postures, with the hand in other orientations against gravity"
         return "trials at postures that turn the hand about each axis, so gravity acts on the payload's lever arm"
@@ -174,6 +176,8 @@ class FrictionCause(Cause):
     realistic = ((0.3,), (0.8,))
     # friction only shows in impacts that keep sliding: tangential speeds of several mu v_n
     tangential_speeds_needed = (0.3, 0.6)
+    SLIDING_FACTORS = (3.0, 6.0)
+    MIN_MU_FOR_ADVICE = 0.1
 
     def __init__(self, surface_friction: float = DEFAULT_WALL.friction):
         self.surface_friction = surface_friction
@@ -181,13 +185,20 @@ class FrictionCause(Cause):
     def nominal_theta(self, nominal):
         return np.array([self.surface_friction if nominal.friction is None else nominal.friction])
 
-    def settling_trials(self, index, side, known):
-        speeds = ", ".join(f"{k * max(known, 0.1) * 0.12:.2f}" for k in (3, 6))
+    def settling_trials(self, index, side, known, normal_speeds):
+        """Open above: the impacts stick, so mu >= ``known`` only. The tool slides through an
+        impact when its tangential speed exceeds about mu times the normal speed (the tangential
+        impulse is capped at mu times the normal one), so trials at SLIDING_FACTORS times
+        ``known`` times the dataset's normal speeds make it slide."""
+        mu = max(known, self.MIN_MU_FOR_ADVICE)
+        low, high = (float(np.min(normal_speeds)), float(np.max(normal_speeds))) if len(normal_speeds) else (0.1, 0.1)
+        speeds = f"{self.SLIDING_FACTORS[0] * mu * low:.2f} to {self.SLIDING_FACTORS[1] * mu * high:.2f} m/s"
+        normal = f"{low:.2f} m/s" if high - low < 5e-3 else f"{low:.2f} to {high:.2f} m/s"
         if side == "above":
             return (
                 f"every impact sticks, so mu is only known to be at least {known:.2f}: trials with tangential "
-                f"speeds of several mu times the normal speed (e.g. {speeds} m/s at v_n = 0.12 m/s) would "
-                "make the tool slide and bound it"
+                f"speeds of several mu times the normal speed ({speeds} at this dataset's normal speeds of "
+                f"{normal}) would make the tool slide and bound it"
             )
         return "trials with a small tangential speed, whose impacts stick for a moderate mu"
 
@@ -233,7 +244,7 @@ class JointDampingCause(Cause):
     def theta_of(self, overrides):
         return group_means(overrides["joint_damping"])
 
-    def settling_trials(self, index, side, known):
+    def settling_trials(self, index, side, known, normal_speeds):
         joints = "1-4" if index == 0 else "5-7"
         return f"trials that move joints {joints} faster before the impact (higher approach speeds)"
 

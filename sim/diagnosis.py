@@ -26,9 +26,12 @@ Pipeline (``diagnose``):
    the contact duration error / SIGMA_DURATION.
 5. **Select the causes** (``select_causes``): forward selection on the held-out average error
    (26) of K-fold cross-validation over trials (K = min(3, trials)). Each step adds the
-   candidate that lowers the held-out error most; the first must gain ``EXPLAINED_GAIN`` over
-   the nominal replay (else ``explained`` is false), each further one ``STEP_GAIN`` over the
-   causes before it; the chosen causes are refitted jointly after each step.
+   candidate that lowers the held-out error most and must gain ``STEP_GAIN`` over the causes
+   before it; the chosen causes are refitted jointly after each step; first steps within
+   ``BRANCH_MARGIN`` of the best each start a path, and the path with the lowest held-out error
+   is kept. The causes explain the gap when together they gain ``EXPLAINED_GAIN`` over the
+   nominal replay (else ``explained`` is false). Jumps are compared at fixed samples per trial
+   (``locate_jump_samples``).
 6. **Bound the parameters** (``parameter_intervals``): Gauss-Newton polish of the joint fit, then
    per parameter the union of a profile-likelihood interval and a one-step bootstrap over
    trials; a side where the profile reaches the fit's bound inside the 95 % region is open
@@ -38,11 +41,12 @@ Pipeline (``diagnose``):
 from __future__ import annotations
 
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from scipy.optimize import minimize
+from scipy.stats import t as student_t
 
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS, average_prediction_error
 from impactqp.controller.model.postures import Surface
@@ -50,7 +54,12 @@ from impactqp.controller.model.robot import NQ, PandaModel
 
 from .causes import Cause, default_causes
 from impactqp.controller.measured.dataset import read_dataset, validate
-from impactqp.controller.measured.impact import ImpactNotFoundError, measure_impact
+from impactqp.controller.measured.impact import (
+    POST_HALF_WIDTH,
+    PRE_SAMPLES,
+    ImpactNotFoundError,
+    measure_impact,
+)
 from .plant import PlantParameters
 from .runner import CommandReplay, SimulationUnstableError, run_trial, servo_reference_from_commands
 from .scene import build_scene
@@ -68,6 +77,8 @@ SIGMA_DURATION = 1e-3
 EXPLAINED_GAIN = 0.30  # the first cause must lower the held-out error (26) by 30 % of the nominal's
 STEP_GAIN = 0.20  # every further cause by 20 % of the held-out error of the causes before it
 MAX_CAUSES = 3
+BRANCH_MARGIN = 0.10  # first-step candidates within 10 % of the best held-out error start their own path
+MAX_BRANCHES = 3
 MAX_FOLDS = 3
 FIT_XTOL = 2e-3
 POWELL_STEPS = 6  # Powell's first step along each parameter: its range / 6
@@ -103,14 +114,34 @@ class MeasuredTrial:
     q_pre: np.ndarray
     dq_pre: np.ndarray
     torque_window: tuple[int, int]  # samples of the replay whose torque is averaged
+    dq_log: np.ndarray  # the measured dq over the replay's span (replay sample k is dq_log[k])
+    jump_samples: tuple[int, int]  # replay samples (pre, post) where the fit reads the jumps
+
+    @property
+    def reference(self) -> np.ndarray:
+        """The measured jump read at ``jump_samples`` (``jump_at``): what the fit compares."""
+        return jump_at(self.dq_log, *self.jump_samples)
+
+
+def jump_at(dq: np.ndarray, pre: int, post: int) -> np.ndarray:
+    """The jump of the velocities ``dq`` read at the samples (pre, post) with the averages of
+    ``controller.measured.impact``: the mean of 2 h + 1 samples about ``post`` minus the mean of
+    the ``PRE_SAMPLES`` ending at ``pre``."""
+    dq_pre = dq[pre - PRE_SAMPLES + 1 : pre + 1].mean(axis=0)
+    return dq[post - POST_HALF_WIDTH : post + POST_HALF_WIDTH + 1].mean(axis=0) - dq_pre
 
 
 @dataclass(frozen=True)
 class ReplayFeatures:
+    """What a replay gives: its jump read at the trial's ``jump_samples`` (compared with the
+    trial's ``reference``), its impulse, contact duration and pre-impact torque, and its jump
+    as ``controller.measured.impact`` detects and reads it (for the report)."""
+
     jump: np.ndarray
     impulse: np.ndarray | None
     duration: float | None
     torque: np.ndarray
+    detected_jump: np.ndarray
 
 
 def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict], Surface]:
@@ -162,37 +193,71 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
                 q_pre=impact.q_pre,
                 dq_pre=impact.dq_pre,
                 torque_window=(first - i0, last - i0),
+                dq_log=log.dq[i0:i1].copy(),
+                jump_samples=(impact.pre_index - i0, impact.post_index - i0),
             )
         )
     return trials, skipped, dataset.header.surface
 
 
-def replay(scene, trial: MeasuredTrial) -> ReplayFeatures:
-    """Replay one trial in ``scene`` and measure it like the real one.
+def replay_log(scene, trial: MeasuredTrial):
+    """The simulated log of ``trial`` replayed in ``scene``: from its start state, the servo
+    reference rebuilt from its commands, driven by its logged commands."""
+    return run_trial(
+        scene,
+        CommandReplay(trial.dq_cmd),
+        trial.q0,
+        trial.dq0,
+        len(trial.dq_cmd) * trial.control_period,
+        control_period=trial.control_period,
+        servo_reference=trial.servo_reference,
+    )
 
-    A replay that finds no impact, or that MuJoCo flags as unstable (bad accelerations, e.g. a
-    servo gain beyond what the 1 kHz loop can hold), is marked failed: its jump and impulse are
-    zero, so the fit's residuals push away from it.
+
+def replay(scene, trial: MeasuredTrial) -> ReplayFeatures:
+    """Replay one trial in ``scene`` and measure it like the real one: its jump at the trial's
+    ``jump_samples``, its impulse and duration from its contact force.
+
+    A replay that MuJoCo flags as unstable (bad accelerations, e.g. a servo gain beyond what the
+    1 kHz loop can hold) is marked failed: its jump and impulse are zero, so the fit's residuals
+    push away from it; so are the impulse and the detected jump of a replay without an impact.
     """
     try:
-        log = run_trial(
-            scene,
-            CommandReplay(trial.dq_cmd),
-            trial.q0,
-            trial.dq0,
-            len(trial.dq_cmd) * trial.control_period,
-            control_period=trial.control_period,
-            servo_reference=trial.servo_reference,
-        )
+        log = replay_log(scene, trial)
     except SimulationUnstableError:
-        return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, np.zeros(NQ))
+        return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, np.zeros(NQ), np.zeros(NQ))
     first, last = trial.torque_window
     torque = log.tau[first:last].mean(axis=0)
+    jump = jump_at(log.dq, *trial.jump_samples)
     try:
         impact = measure_impact(log)
     except ImpactNotFoundError:
-        return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, torque)
-    return ReplayFeatures(impact.dq_jump, impact.impulse, impact.duration, torque)
+        return ReplayFeatures(jump, np.zeros(3), 0.0, torque, np.zeros(NQ))
+    return ReplayFeatures(jump, impact.impulse, impact.duration, torque, impact.dq_jump)
+
+
+def locate_jump_samples(trials: list[MeasuredTrial], surface: Surface, plant: PlantParameters) -> list[MeasuredTrial]:
+    """The trials with the post-impact sample of their ``jump_samples`` taken from their replay
+    in ``plant`` (the nominal one) instead of the measured velocities.
+
+    ``controller.measured.impact`` reads the jump at the sample of largest change, which encoder
+    noise biases towards larger jumps when the velocities are noisy (a positive noise sample is
+    likelier to be the largest). The replay is noise-free, so its sample is chosen without the
+    measured noise, the measured jump read there is unbiased, and the fit reads every replay at
+    the same fixed samples: no cause can move the sample the data are read at, and the read
+    jump is smooth in the parameters (``docs/diagnosis.md``). A trial whose replay finds no
+    impact keeps its measured samples."""
+    scene = build_scene(surface, plant)
+    located = []
+    for trial in trials:
+        try:
+            post = measure_impact(replay_log(scene, trial)).post_index
+        except (SimulationUnstableError, ImpactNotFoundError):
+            located.append(trial)
+            continue
+        pre = trial.jump_samples[0]
+        located.append(replace(trial, jump_samples=(pre, max(post, pre + 1))))
+    return located
 
 
 def replay_all(surface: Surface, plant: PlantParameters, trials: list[MeasuredTrial]) -> list[ReplayFeatures]:
@@ -203,11 +268,12 @@ def replay_all(surface: Surface, plant: PlantParameters, trials: list[MeasuredTr
 def residuals(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> np.ndarray:
     parts = []
     for f, trial in zip(features, trials):
-        parts.append((f.jump - trial.jump) / SIGMA_JUMP)
+        parts.append((f.jump - trial.reference) / SIGMA_JUMP)
         parts.append((f.torque - trial.torque) / SIGMA_TORQUE)
-        if trial.impulse is not None and f.impulse is not None:
-            parts.append((f.impulse - trial.impulse) / SIGMA_IMPULSE)
-            parts.append([(f.duration - trial.duration) / SIGMA_DURATION])
+        if trial.impulse is not None:  # a replay without a force contact counts as a zero impulse
+            impulse, duration = (np.zeros(3), 0.0) if f.impulse is None else (f.impulse, f.duration)
+            parts.append((impulse - trial.impulse) / SIGMA_IMPULSE)
+            parts.append([(duration - trial.duration) / SIGMA_DURATION])
     return np.concatenate(parts)
 
 
@@ -217,8 +283,9 @@ def residual_sizes(trials: list[MeasuredTrial]) -> list[int]:
 
 
 def jump_errors(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> np.ndarray:
-    """Average error (26) of each replayed jump against the measured one."""
-    return np.array([average_prediction_error(f.jump, t.jump) for f, t in zip(features, trials)])
+    """Average error (26) of each replayed jump against the measured one, both read at the
+    trial's ``jump_samples``."""
+    return np.array([average_prediction_error(f.jump, t.reference) for f, t in zip(features, trials)])
 
 
 # ---------------------------------------------------------------------------- fitting
@@ -264,8 +331,9 @@ def fit(model: FittedCauses, base: PlantParameters, surface, trials, max_evaluat
     """Least squares over the replays of ``trials``: minimise the sum of squared residuals over
     the vectors of ``model`` (its current vectors are the start), with the plant ``base`` under
     them, within the bounds, with Powell's derivative-free method (the replayed features are
-    only piecewise smooth in the parameters: the jump is read at a sample index that can switch,
-    which defeats finite-difference Jacobians). Returns the best point evaluated."""
+    only piecewise smooth in the parameters: the contact duration and impulse end at a force
+    sample that can switch, which defeats finite-difference Jacobians). Returns the best point
+    evaluated."""
     lo, hi = model.bounds()
     best = {"cost": np.inf, "u": np.clip(model.vector(), lo, hi)}
 
@@ -359,67 +427,121 @@ class Selection:
     heldout_errors: np.ndarray  # per trial, of the last selected step (or of the best candidate)
 
 
+@dataclass
+class Branch:
+    """One path of the forward selection: the chosen causes fitted jointly on all trials
+    (``model``), fitted without each fold (``bases``), the steps taken and the held-out errors
+    per trial of the last one (of the nominal replay before any step)."""
+
+    model: FittedCauses
+    bases: list[PlantParameters]
+    steps: list[dict]
+    heldout: np.ndarray
+
+    @property
+    def error(self) -> float:
+        return float(np.mean(self.heldout))
+
+
+def take_step(branch: Branch, cause: Cause, result: dict, nominal, surface, trials) -> Branch:
+    """``branch`` with ``cause`` added (its cross-validation ``result``), refitted jointly."""
+    model = branch.model.plus(cause, result["u"])
+    if len(model.causes) > 1:
+        model = fit(model, nominal, surface, trials, JOINT_MAX_EVALUATIONS)
+    bases = [cause.plant(b, u) for b, u in zip(branch.bases, result["u_folds"])]
+    return Branch(model, bases, branch.steps, result["heldout"])
+
+
+def cross_validate_step(branch: Branch, causes: list[Cause], nominal, surface, trials, jobs: int):
+    """The remaining candidates of ``branch`` worth cross-validating, and their results.
+
+    From the second step on, a candidate whose best grid point does not lower the in-sample
+    error (26) by ``STEP_GAIN / 2`` is left out (its held-out gain could not reach
+    ``STEP_GAIN``)."""
+    chosen = {c.name for c in branch.model.causes}
+    pool = [c for c in causes if c.name not in chosen]
+    base_all = branch.model.plant(nominal)
+    if branch.model.causes and pool:
+        current = float(np.mean(jump_errors(replay_all(surface, base_all, trials), trials)))
+        screened = run_tasks(screen_cause, [(c, base_all, surface, trials) for c in pool], jobs)
+        pool = [c for c, e in zip(pool, screened) if e <= (1.0 - STEP_GAIN / 2) * current]
+    results = run_tasks(cross_validate_cause, [(c, branch.bases, base_all, surface, trials) for c in pool], jobs)
+    return pool, results
+
+
+def forward(branch: Branch, causes: list[Cause], nominal, surface, trials, jobs: int) -> Branch:
+    """Greedy forward steps from ``branch`` until a step gains less than ``STEP_GAIN`` or
+    ``MAX_CAUSES`` are chosen; the rejected last step is recorded (``selected`` false)."""
+    while len(branch.model.causes) < MAX_CAUSES:
+        pool, results = cross_validate_step(branch, causes, nominal, surface, trials, jobs)
+        if not pool:
+            break
+        errors = [float(np.mean(r["heldout"])) for r in results]
+        i = int(np.argmin(errors))
+        gain = 1.0 - errors[i] / branch.error if branch.error > 0 else 0.0
+        step = {"cause": pool[i].name, "heldout_error": errors[i], "gain": gain, "selected": gain >= STEP_GAIN}
+        if not step["selected"]:
+            branch.steps = branch.steps + [step]
+            break
+        branch = take_step(Branch(branch.model, branch.bases, branch.steps + [step], branch.heldout),
+                           pool[i], results[i], nominal, surface, trials)
+    return branch
+
+
 def select_causes(
-    causes: list[Cause], nominal: PlantParameters, surface: Surface, trials, baseline: float, jobs: int
+    causes: list[Cause], nominal: PlantParameters, surface: Surface, trials, baseline_errors, jobs: int
 ) -> Selection:
     """Forward selection on held-out error (``docs/diagnosis.md``).
 
     Step s cross-validates every remaining candidate added to the s - 1 causes chosen so far
-    (each fold on top of the chosen causes fitted without that fold) and picks the one with the
+    (each fold on top of the chosen causes fitted without that fold) and takes the one with the
     lowest held-out average error (26). Its gain is 1 - heldout_s / heldout_(s-1), heldout_0
-    being the nominal simulation's. The first step must reach ``EXPLAINED_GAIN``, every later
-    one ``STEP_GAIN``; otherwise the selection stops (at most ``MAX_CAUSES`` causes). After each
-    accepted step the chosen causes are refitted jointly on all trials. From the second step on,
-    a candidate whose best grid point does not lower the in-sample error (26) by ``STEP_GAIN / 2``
-    is not cross-validated (its held-out gain could not reach ``STEP_GAIN``).
+    being the nominal simulation's; a step must gain ``STEP_GAIN``, else the selection stops
+    (at most ``MAX_CAUSES`` causes). After each step the chosen causes are refitted jointly on
+    all trials. The causes explain the gap when together they gain ``EXPLAINED_GAIN`` over the
+    nominal simulation; otherwise none is selected.
+
+    Two effects at once can leave their first steps close (each alone explains part of the
+    gap, and a third cause can mimic a part of both): every first-step candidate whose held-out
+    error is within ``BRANCH_MARGIN`` of the best one's starts its own path (at most
+    ``MAX_BRANCHES``), and the path with the lowest final held-out error is kept.
     """
     folds = len(np.unique(fold_of(trials)))
-    bases = [nominal] * folds
-    model = FittedCauses()
-    remaining = list(causes)
-    previous = baseline
-    steps: list[dict] = []
-    candidates: list[dict] = []
-    best_alone = None
-    heldout_errors = None
-    while remaining and len(model.causes) < MAX_CAUSES:
-        base_all = model.plant(nominal)
-        pool = remaining
-        if model.causes:
-            current = float(np.mean(jump_errors(replay_all(surface, base_all, trials), trials)))
-            screened = run_tasks(screen_cause, [(c, base_all, surface, trials) for c in remaining], jobs)
-            pool = [c for c, e in zip(remaining, screened) if e <= (1.0 - STEP_GAIN / 2) * current]
-            if not pool:
-                break
-        results = run_tasks(cross_validate_cause, [(c, bases, base_all, surface, trials) for c in pool], jobs)
-        errors = [float(np.mean(r["heldout"])) for r in results]
-        i = int(np.argmin(errors))
-        gain = 1.0 - errors[i] / previous if previous > 0 else 0.0
-        if not model.causes:
-            candidates = [
-                {
-                    "cause": c.name,
-                    "parameters": c.overrides(c.to_theta(r["u"])),
-                    "heldout_error": e,
-                    "gain": 1.0 - e / baseline if baseline > 0 else 0.0,
-                }
-                for c, r, e in zip(pool, results, errors)
-            ]
-            best_alone = FittedCauses((pool[i],), (results[i]["u"],))
-            heldout_errors = results[i]["heldout"]
-        accepted = gain >= (STEP_GAIN if model.causes else EXPLAINED_GAIN)
-        steps.append({"cause": pool[i].name, "heldout_error": errors[i], "gain": gain, "selected": accepted})
-        if not accepted:
+    start = Branch(FittedCauses(), [nominal] * folds, [], np.asarray(baseline_errors, float))
+    baseline = start.error
+    pool, results = cross_validate_step(start, causes, nominal, surface, trials, jobs)
+    errors = [float(np.mean(r["heldout"])) for r in results]
+    candidates = [
+        {
+            "cause": c.name,
+            "parameters": c.overrides(c.to_theta(r["u"])),
+            "heldout_error": e,
+            "gain": 1.0 - e / baseline if baseline > 0 else 0.0,
+        }
+        for c, r, e in zip(pool, results, errors)
+    ]
+    order = np.argsort(errors, kind="stable")
+    best = int(order[0])
+    best_alone = FittedCauses((pool[best],), (results[best]["u"],))
+    branches = []
+    for i in order[:MAX_BRANCHES]:
+        i = int(i)
+        if i != best and errors[i] > (1.0 + BRANCH_MARGIN) * errors[best]:
             break
-        cause = pool[i]
-        bases = [cause.plant(b, u) for b, u in zip(bases, results[i]["u_folds"])]
-        model = model.plus(cause, results[i]["u"])
-        if len(model.causes) > 1:
-            model = fit(model, nominal, surface, trials, JOINT_MAX_EVALUATIONS)
-        remaining.remove(cause)
-        previous = errors[i]
-        heldout_errors = results[i]["heldout"]
-    return Selection(candidates, steps, model, best_alone, heldout_errors)
+        gain = 1.0 - errors[i] / baseline if baseline > 0 else 0.0
+        step = {"cause": pool[i].name, "heldout_error": errors[i], "gain": gain, "selected": gain >= STEP_GAIN}
+        if not step["selected"]:
+            branches.append(Branch(FittedCauses(), start.bases, [step], start.heldout))
+            continue
+        first = take_step(Branch(start.model, start.bases, [step], start.heldout), pool[i], results[i],
+                          nominal, surface, trials)
+        branches.append(forward(first, causes, nominal, surface, trials, jobs))
+    chosen = min(branches, key=lambda b: b.error)
+    if chosen.model.causes and baseline > 0 and 1.0 - chosen.error / baseline >= EXPLAINED_GAIN:
+        return Selection(candidates, chosen.steps, chosen.model, best_alone, chosen.heldout)
+    # the causes of the best path together do not explain the gap: none is selected
+    steps = [{**step, "selected": False} for step in branches[0].steps]
+    return Selection(candidates, steps, FittedCauses(), best_alone, results[best]["heldout"])
 
 
 # ---------------------------------------------------------------------------- intervals
@@ -462,10 +584,14 @@ def gauss_newton_polish(model: FittedCauses, nominal, surface, trials):
 
 
 def bootstrap_intervals(model: FittedCauses, r: np.ndarray, J: np.ndarray, sizes: list[int]) -> np.ndarray:
-    """Percentile 95 % intervals in u of a one-step bootstrap over trials: ``BOOTSTRAP_SAMPLES``
+    """95 % intervals in u from a one-step bootstrap over trials: ``BOOTSTRAP_SAMPLES``
     resamples of the trials (with replacement), each refitted by the Gauss-Newton step from
     the fit, u_b = u* - pinv(J_b) r_b, with the residual blocks and Jacobian rows of the drawn
-    trials. Returns (parameters, 2)."""
+    trials. Returns (parameters, 2): the union of the percentile interval and
+    u* +- t_0.975(n - p) sqrt(n / (n - 1)) sd(u_b), n trials and p parameters: with a dozen
+    trials the bootstrap spread underestimates the sampling spread, and the Student quantile
+    and the n / (n - 1) factor are the small-sample corrections of a trial-clustered standard
+    error."""
     rng = np.random.default_rng(BOOTSTRAP_SEED)
     edges = np.concatenate([[0], np.cumsum(sizes)])
     blocks = [np.arange(a, b) for a, b in zip(edges[:-1], edges[1:])]
@@ -475,7 +601,10 @@ def bootstrap_intervals(model: FittedCauses, r: np.ndarray, J: np.ndarray, sizes
     for b in range(BOOTSTRAP_SAMPLES):
         rows = np.concatenate([blocks[i] for i in rng.integers(0, len(blocks), len(blocks))])
         samples[b] = np.clip(u0 - np.linalg.lstsq(J[rows], r[rows], rcond=None)[0], lo, hi)
-    return np.percentile(samples, [2.5, 97.5], axis=0).T
+    n = len(blocks)
+    half = student_t.ppf(0.975, max(n - len(u0), 1)) * np.sqrt(n / max(n - 1, 1)) * samples.std(axis=0)
+    low, high = np.percentile(samples, [2.5, 97.5], axis=0)
+    return np.stack([np.maximum(np.minimum(low, u0 - half), lo), np.minimum(np.maximum(high, u0 + half), hi)], axis=1)
 
 
 def profile_direction(J: np.ndarray, index: int) -> np.ndarray:
@@ -616,8 +745,10 @@ def override_intervals(model: FittedCauses, theta_intervals: list[list]) -> dict
     return result
 
 
-def open_sides(model: FittedCauses, theta_intervals: list[list]) -> list[dict]:
-    """Every parameter the data leave open on a side, with the trials that would settle it."""
+def open_sides(model: FittedCauses, theta_intervals: list[list], trials: list[MeasuredTrial]) -> list[dict]:
+    """Every parameter the data leave open on a side, with the trials that would settle it
+    (in terms of the normal speeds of ``trials``)."""
+    normal_speeds = np.array([t.reference_speed for t in trials])
     found = []
     for cause, u, intervals in zip(model.causes, model.u, theta_intervals):
         for j, (low, high) in enumerate(intervals):
@@ -631,7 +762,7 @@ def open_sides(model: FittedCauses, theta_intervals: list[list]) -> list[dict]:
                             "parameter": cause.labels[j],
                             "side": side,
                             "fitted": float(cause.to_theta(u)[j]),
-                            "trials_needed": cause.settling_trials(j, side, known),
+                            "trials_needed": cause.settling_trials(j, side, known, normal_speeds),
                         }
                     )
     return found
@@ -790,16 +921,16 @@ def diagnose(
     names = [c.name for c in causes]
     if len(set(names)) != len(names):
         raise ValueError(f"candidate causes must have distinct names, got {names}")
+    trials = locate_jump_samples(trials, surface, nominal)
     nominal_features = replay_all(surface, nominal, trials)
-    nominal_jumps = np.array([f.jump for f in nominal_features])
+    nominal_jumps = np.array([f.detected_jump for f in nominal_features])
     baseline_errors = jump_errors(nominal_features, trials)
-    baseline = float(np.mean(baseline_errors))
-    selection = select_causes(causes, nominal, surface, trials, baseline, jobs)
+    selection = select_causes(causes, nominal, surface, trials, baseline_errors, jobs)
     explained = bool(selection.model.causes)
     model = selection.model if explained else selection.best
     model, theta_intervals = parameter_intervals(model, nominal, surface, trials, jobs)
     extended_plant = model.plant(nominal)
-    extended_jumps = np.array([f.jump for f in replay_all(surface, extended_plant, trials)])
+    extended_jumps = np.array([f.detected_jump for f in replay_all(surface, extended_plant, trials)])
     predictors, predictors_measured_impulse, predictions = predictor_errors(trials, surface)
     per_parameter = [
         {"cause": c.name, "parameter": label, "value": float(value), "interval": interval}
@@ -824,7 +955,7 @@ def diagnose(
         steps=selection.steps,
         intervals=override_intervals(model, theta_intervals),
         parameter_intervals=per_parameter,
-        open_sides=open_sides(model, theta_intervals),
+        open_sides=open_sides(model, theta_intervals, trials),
         extended_error=float(np.mean(selection.heldout_errors)),
         extended_plant=extended_plant,
         surface=surface,

@@ -84,4 +84,4 @@ def test_grid_starts_at_the_nominal_value_inside_the_bounds(cause):
     assert all(np.all(lo - 1e-12 <= p) and np.all(p <= hi + 1e-12) for p in grid)
     for j in range(len(cause.labels)):
         for side in ("below", "above"):
-            assert cause.settling_trials(j, side, float(cause.to_theta(grid[0])[j])).strip()
+            assert cause.settling_trials(j, side, float(cause.to_theta(grid[0])[j]), np.array([0.1, 0.2])).strip()

@@ -3,7 +3,7 @@
 The logs are written here from simulated trials in libfranka's own format, as ``src/log.cpp``
 writes them: header names ``name[i]`` separated by ", " inside an array (older libfranka) or ","
 (newer), values with the ostream default of 6 significant digits, time in ms, and each row
-holding the state of cycle n+1 with the command of cycle n.
+holding the state of cycle n+1 (its joint torques those of period n) with the command of cycle n.
 """
 
 import hashlib
@@ -44,9 +44,11 @@ def libfranka_header(separator: str) -> str:
 def libfranka_csv(log: TrialLog, separator: str) -> str:
     n = len(log)
     command = np.vstack([np.zeros((1, 7)), log.dq_cmd[:-1]])  # row k: state k with the command of k - 1
+    # the state of cycle k measures the torque applied over period k - 1 (the dataset's tau[k - 1])
+    measured_torque = np.vstack([log.tau[:1], log.tau[:-1]])
     pose = np.tile(np.eye(4).T.ravel(), (n, 1))
     table = np.column_stack([
-        np.round(log.t * 1000.0), np.ones(n), log.q, log.q, log.dq, log.dq, log.tau, np.zeros((n, 7)),
+        np.round(log.t * 1000.0), np.ones(n), log.q, log.q, log.dq, log.dq, measured_torque, np.zeros((n, 7)),
         log.q, command, pose, np.zeros((n, 6)), log.tau,
     ])
     rows = [",".join(f"{x:.6g}" for x in row) for row in table]

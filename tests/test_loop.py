@@ -15,6 +15,8 @@ from impactqp.scenarios.robot.interface import RobotInterface
 from impactqp.scenarios.robot.loop import BRAKING, ControlLoop
 from impactqp.scenarios.robot.run import RunRequest, build_backend, contact_start, controller_config, run
 from impactqp.scenarios.robot.session import ImpactSession
+from impactqp.sim.runner import CommandReplay, run_trial
+from impactqp.sim.scene import build_scene
 
 DT = 1e-3
 TOL = 1e-9
@@ -91,7 +93,23 @@ def test_a_replayed_trial_reproduces_the_logged_commands(retract_run):
     controlled = np.array([p not in ("stop", BRAKING) for p in original.phases])
     # the CSV keeps 10 significant digits of every logged state
     assert np.allclose(replayed.log.dq_cmd[controlled], original.log.dq_cmd[controlled], rtol=0.0, atol=1e-6)
+    # the replay reports each logged torque with the next state, so its own log has the same rows
+    n = len(original.log) - 1
+    assert np.allclose(replayed.log.tau[:n], original.log.tau[:n], rtol=1e-9, atol=1e-6)
     assert report["impact"]["time"] == pytest.approx(original.session.detector.t_detect)
+
+
+def test_the_run_log_keeps_the_dataset_torque_timing(retract_run):
+    """Row k's tau is the torque applied over period k (docs/dataset.md), as in the logs of
+    sim.runner.run_trial: the run's commands replayed by run_trial from the run's start give
+    the run's states and torques (the last row keeps the torque read with its own state)."""
+    _, result, _ = retract_run
+    log = result.log
+    surface = POSTURES["elbow_up"].surface
+    again = run_trial(build_scene(surface), CommandReplay(log.dq_cmd), log.q[0], log.dq[0], len(log) * DT)
+    np.testing.assert_allclose(again.dq, log.dq, rtol=0.0, atol=1e-9)
+    np.testing.assert_allclose(again.tau[:-1], log.tau[:-1], rtol=0.0, atol=1e-9)
+    np.testing.assert_array_equal(log.tau[-1], log.tau[-2])
 
 
 class FaultySim(RobotInterface):

@@ -13,9 +13,11 @@ The header names are ``time, success_rate``, then per array ``name[0], ..., name
 
 One row holds the robot state of cycle n+1 and the command of cycle n (libfranka's
 ``franka::Record``). The dataset's ``dq_cmd[k]`` is the command applied after the state k was
-measured, so it is the ``cmd.dq_d`` of the *next* row; the last row, whose following command is
-not logged, is dropped. Mapping: ``t = (time - time[0]) / 1000`` (s), ``q = state.q``,
-``dq = state.dq``, ``tau = state.tau_J`` (measured joint torques), ``dq_cmd = cmd.dq_d``.
+measured, so it is the ``cmd.dq_d`` of the *next* row. The dataset's ``tau[k]`` is the joint
+torque applied over period k (``docs/dataset.md``), which the robot measures at the end of that
+period: the ``state.tau_J`` of the next row as well. The last row, whose following row is not
+logged, is dropped. Mapping: ``t = (time - time[0]) / 1000`` (s), ``q = state.q``,
+``dq = state.dq`` (row k), ``tau = state.tau_J`` and ``dq_cmd = cmd.dq_d`` (row k + 1).
 
 One log is one trial. Without a given reference speed, it is estimated from the log: the
 impact is detected from the torque residual (``controller.measured.impact``, no force sensor),
@@ -151,7 +153,7 @@ def trial_log_of(path: str | Path, columns: dict[str, np.ndarray]) -> TrialLog:
         t=(time[:-1] - time[0]) / 1000.0,
         q=columns["state.q"][:-1].copy(),
         dq=columns["state.dq"][:-1].copy(),
-        tau=columns["state.tau_J"][:-1].copy(),
+        tau=columns["state.tau_J"][1:].copy(),
         dq_cmd=columns["cmd.dq_d"][1:].copy(),
     )
 

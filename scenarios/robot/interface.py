@@ -15,8 +15,9 @@ import numpy as np
 @dataclass(frozen=True)
 class RobotState:
     """One sample of the robot: time t (s, the robot's clock), joint positions q (rad),
-    velocities dq (rad/s), measured joint torques tau (N m), and the robot's own external-torque
-    estimate tau_ext (N m) when it gives one (None otherwise)."""
+    velocities dq (rad/s), the last measured joint torques tau (N m: the torque that acted over
+    the period before this sample), and the robot's own external-torque estimate tau_ext (N m)
+    when it gives one (None otherwise)."""
 
     t: float
     q: np.ndarray

@@ -20,7 +20,8 @@ is zero. At the end of the run (the duration, a stop request such as Ctrl-C, or 
 state) the loop brakes the same way until the command is zero, then calls ``robot.stop()``. A
 backend that fails mid-run (a robot that stopped on its own reflex) ends the run: the watchdog
 reason says why and the log is kept. Every cycle is logged (t, q, dq, tau and the command
-actually sent) for the dataset format.
+actually sent) in the dataset format: row k's tau is the torque applied over period k, which the
+state of cycle k + 1 reports (``LoopLog.record``).
 """
 
 from __future__ import annotations
@@ -101,6 +102,12 @@ class LoopLog:
         self.t[k] = state.t
         self.q[k] = state.q
         self.dq[k] = state.dq
+        # A state's tau is the torque of the period before it (``RobotState``), while the
+        # dataset's tau[k] is the torque applied over period k (docs/dataset.md): the read of
+        # cycle k fills row k - 1. The last row keeps the torque read with its own state (no
+        # later read reports its period).
+        if k > 0:
+            self.tau[k - 1] = state.tau
         self.tau[k] = state.tau
         self.dq_cmd[k] = dq_cmd
         self.cycle_time[k] = cycle_time

@@ -1,8 +1,8 @@
 """The ``replay`` backend: a recorded dataset trial (``controller.measured.dataset``) played
 through the loop, for offline checks of the controller, the detector and the watchdog against
-real logs. ``read`` returns the logged samples one by one (t, q, dq, tau; no external-torque
-estimate); ``write`` keeps the commands; the robot does not move with them. The trial's force
-log, when it has one, is the backend's force log."""
+real logs. ``read`` returns the logged samples one by one (t, q, dq, and the torque of the period
+before, tau[k - 1]; no external-torque estimate); ``write`` keeps the commands; the robot does
+not move with them. The trial's force log, when it has one, is the backend's force log."""
 
 from __future__ import annotations
 
@@ -49,7 +49,8 @@ class ReplayRobot(RobotInterface):
         log = self.trial.log
         k = self.index
         self.index += 1
-        return RobotState(float(log.t[k]), log.q[k].copy(), log.dq[k].copy(), log.tau[k].copy())
+        # a state reports the torque of the period before it: the log's tau[k - 1]
+        return RobotState(float(log.t[k]), log.q[k].copy(), log.dq[k].copy(), log.tau[max(k - 1, 0)].copy())
 
     def write(self, dq_cmd: np.ndarray) -> None:
         self.commands.append(np.array(dq_cmd, dtype=float))
