@@ -3,6 +3,7 @@ import pytest
 from hypothesis import strategies as st
 
 from impactqp.controller.model.robot import PandaModel
+from impactqp.scenarios.robot.interface import RobotInterface
 
 
 @pytest.fixture(scope="session")
@@ -24,3 +25,24 @@ def unit_vectors():
         .filter(lambda v: np.linalg.norm(v) > 0.2)
         .map(lambda v: v / np.linalg.norm(v))
     )
+
+
+class ForwardingRobot(RobotInterface):
+    """A robot interface that forwards every call to ``robot`` (a real backend); a test
+    subclass overrides ``read`` to inject what it needs at a given cycle."""
+
+    def __init__(self, robot: RobotInterface):
+        self.robot = robot
+        self.period = robot.period
+
+    def read(self):
+        return self.robot.read()
+
+    def start(self):
+        return self.robot.start()
+
+    def write(self, dq_cmd):
+        self.robot.write(dq_cmd)
+
+    def force_log(self):
+        return self.robot.force_log()

@@ -11,7 +11,7 @@ import pytest
 from impactqp.controller.command_filter import CommandFilter
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT, PandaModel
-from impactqp.scenarios.robot.interface import RobotInterface
+from conftest import ForwardingRobot
 from impactqp.scenarios.robot.loop import BRAKING, ControlLoop
 from impactqp.scenarios.robot.run import RunRequest, build_backend, contact_start, controller_config, run
 from impactqp.scenarios.robot.session import ImpactSession
@@ -112,12 +112,12 @@ def test_the_run_log_keeps_the_dataset_torque_timing(retract_run):
     np.testing.assert_array_equal(log.tau[-1], log.tau[-2])
 
 
-class FaultySim(RobotInterface):
+class FaultySim(ForwardingRobot):
     """The simulated Panda with one fault injected in the state read at cycle ``at``."""
 
     def __init__(self, robot, fault: str, at: int):
-        self.robot, self.fault, self.at, self.reads = robot, fault, at, 0
-        self.period = robot.period
+        super().__init__(robot)
+        self.fault, self.at, self.reads = fault, at, 0
 
     def read(self):
         state = self.robot.read()
@@ -133,14 +133,6 @@ class FaultySim(RobotInterface):
                 state = replace(state, t=state.t - self.period)
         return state
 
-    def start(self):
-        return self.robot.start()
-
-    def write(self, dq_cmd):
-        self.robot.write(dq_cmd)
-
-    def force_log(self):
-        return self.robot.force_log()
 
 
 class FaultySession(ImpactSession):

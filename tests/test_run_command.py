@@ -11,7 +11,7 @@ import pytest
 from impactqp.controller.measured.dataset import read_dataset
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.robot import run as run_module
-from impactqp.scenarios.robot.interface import RobotInterface
+from conftest import ForwardingRobot
 
 HAS_PYLIBFRANKA = importlib.util.find_spec("pylibfranka") is not None
 
@@ -61,28 +61,19 @@ def test_bad_input_gets_one_line(tmp_path, capsys):
     assert "--speed" in one_error_line(capsys, ["run", "--speed", "-1"])
 
 
-class SignalAt(RobotInterface):
+class SignalAt(ForwardingRobot):
     """A backend that delivers ``sig`` to this process when its state ``at`` is read (the user
     pressing Ctrl-C, or a supervisor sending SIGTERM, mid-run)."""
 
     def __init__(self, robot, sig, at):
-        self.robot, self.sig, self.at, self.reads = robot, sig, at, 0
-        self.period = robot.period
+        super().__init__(robot)
+        self.sig, self.at, self.reads = sig, at, 0
 
     def read(self):
         self.reads += 1
         if self.reads == self.at:
             signal.raise_signal(self.sig)
         return self.robot.read()
-
-    def start(self):
-        return self.robot.start()
-
-    def write(self, dq_cmd):
-        self.robot.write(dq_cmd)
-
-    def force_log(self):
-        return self.robot.force_log()
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])

@@ -107,6 +107,18 @@ class ContactPostures:
     axis_error: np.ndarray  # (N,)
 
 
+def _start(robot, points, normals, seed):
+    """The targets (N, 3), the tool-axis targets -n (N, 3), the seeds (N, 7) clipped into the
+    limits, and the result arrays (not reachable, infinite errors) of a batch of targets."""
+    targets = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
+    axis_targets = -np.ascontiguousarray(normals, dtype=float).reshape(-1, 3)
+    n_targets = targets.shape[0]
+    Q = np.tile(np.clip(np.asarray(seed, dtype=float), robot.q_min, robot.q_max), (n_targets, 1))
+    return (
+        targets, axis_targets, Q, np.zeros(n_targets, dtype=bool), np.full(n_targets, np.inf), np.full(n_targets, np.inf)
+    )
+
+
 def contact_postures(
     kinematics: BatchKinematics,
     points,
@@ -116,13 +128,7 @@ def contact_postures(
 ) -> ContactPostures:
     """:func:`contact_posture` for N targets (``points`` and unit ``normals``, (N, 3)), compiled."""
     robot = kinematics.robot
-    targets = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
-    axis_targets = -np.ascontiguousarray(normals, dtype=float).reshape(-1, 3)
-    n_targets = targets.shape[0]
-    Q = np.tile(np.clip(np.asarray(seed, dtype=float), robot.q_min, robot.q_max), (n_targets, 1))
-    reachable = np.zeros(n_targets, dtype=bool)
-    position_error = np.full(n_targets, np.inf)
-    axis_error = np.full(n_targets, np.inf)
+    targets, axis_targets, Q, reachable, position_error, axis_error = _start(robot, points, normals, seed)
     contact_postures_kernel(
         Q, targets, axis_targets, kinematics.R_joint, kinematics.p_joint, kinematics.p_contact,
         np.ascontiguousarray(kinematics.R_contact[:, 2]), robot.q_min, robot.q_max, max_iterations,
@@ -144,14 +150,8 @@ def reference_contact_postures(
     tolerances and takes the same damped least-squares step (batched 6x6 solves).
     """
     robot = kinematics.robot
-    targets = np.asarray(points, dtype=float).reshape(-1, 3)
-    axis_targets = -np.asarray(normals, dtype=float).reshape(-1, 3)
-    n_targets = targets.shape[0]
-    Q = np.tile(np.clip(np.asarray(seed, dtype=float), robot.q_min, robot.q_max), (n_targets, 1))
-    reachable = np.zeros(n_targets, dtype=bool)
-    position_error = np.full(n_targets, np.inf)
-    axis_error = np.full(n_targets, np.inf)
-    active = np.arange(n_targets)
+    targets, axis_targets, Q, reachable, position_error, axis_error = _start(robot, points, normals, seed)
+    active = np.arange(targets.shape[0])
     damping = DAMPING**2 * np.eye(6)
     for iteration in range(max_iterations + 1):
         if active.size == 0:
