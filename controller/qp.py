@@ -50,7 +50,7 @@ why, ``violated_constraints`` names the conflicting or violated constraints and
 ``fallback_count`` counts fallbacks. A fallback never raises and never returns a NaN.
 
 For an infeasible QP, ``step`` stays bounded: ``violated_constraints`` is a conflicting set
-found with one vectorised interval test (the general constraints whose rows cannot be met
+found with one compiled interval test (the general constraints whose rows cannot be met
 anywhere in the joint-space box, plus the box constraints that shape that box; when no single
 general constraint conflicts with the box, every constraint with rows). The irreducible
 conflicting set (a deletion filter: one daqp solve per constraint) is computed only on demand,
