@@ -82,3 +82,16 @@ def test_batch_refuses_bad_normals_and_restitution_like_the_single_state_predict
     for restitution in (-0.1, 1.5, float("nan")):
         with pytest.raises(BadInputError, match=r"\[0, 1\]"):
             predict_batch(kinematics, q, [1.0, 0, 0], [-0.1, 0, 0], restitution, "gm")
+
+
+def test_rows_of_batch_terms_equal_the_terms_of_those_states(robot):
+    """Selecting states from evaluated terms gives what evaluating those states gives."""
+    kinematics = BatchKinematics(robot)
+    Q = np.random.default_rng(3).uniform(robot.q_min, robot.q_max, (6, 7))
+    terms = kinematics.terms(Q)
+    terms.M  # computed before the selection: it comes along
+    keep = np.array([True, False, True, True, False, True])
+    subset, direct = terms.rows(keep), kinematics.terms(Q[keep])
+    for name in ("J", "contact_point", "com", "inertia_com", "joint_axes", "joint_origins", "link_com", "M"):
+        np.testing.assert_allclose(getattr(subset, name), getattr(direct, name), rtol=1e-12, atol=1e-12)
+    assert subset.mass == direct.mass

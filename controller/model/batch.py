@@ -11,7 +11,7 @@ predictors then apply the formulas of :mod:`controller.model.jump` with batched 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from functools import cached_property
 
 import numpy as np
@@ -36,6 +36,17 @@ class BatchTerms:
     link_com: np.ndarray  # (N, 7, 3)
     link_inertia_world: np.ndarray  # (N, 7, 3, 3) about each link's centre of mass
     link_masses: np.ndarray  # (7,)
+
+    def rows(self, index: np.ndarray) -> BatchTerms:
+        """The terms of the states ``index`` (an index or mask along N), without evaluating
+        them again; M comes along when it was already computed."""
+        per_state = {
+            f.name: getattr(self, f.name)[index] for f in fields(self) if f.name not in ("mass", "link_masses")
+        }
+        subset = BatchTerms(mass=self.mass, link_masses=self.link_masses, **per_state)
+        if "M" in self.__dict__:
+            subset.__dict__["M"] = self.M[index]
+        return subset
 
     @cached_property
     def M(self) -> np.ndarray:

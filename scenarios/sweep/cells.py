@@ -129,7 +129,7 @@ def evaluate_cells(config: SweepConfig, cells: range, simulation: Simulation | N
     regular_in_reached = regular[reached]
     regular_terms = None
     if terms is not None and regular_in_reached.any():
-        regular_terms = kinematics.terms(solved.q[reached[regular_in_reached]])
+        regular_terms = terms.rows(regular_in_reached)
     regular_index = np.full(n_pairs, -1)
     regular_index[reached[regular_in_reached]] = np.arange(int(regular_in_reached.sum()))
     cell_regular = regular_index[posture_of_cell]
