@@ -442,9 +442,9 @@ class ImpactAwareController:
         except SingularPostureError as error:
             return self._fallback(q, dq, STATUS_FALLBACK_SINGULAR, [], str(error))
         terms = self._terms
-        if first_outside(terms.dq, robot.dq_max) >= 0:
-            over = np.flatnonzero(np.abs(terms.dq) > robot.dq_max)
-            message = f"dq{over[0] + 1} = {terms.dq[over[0]]:.4f} rad/s is outside the velocity limits"
+        over = first_outside(terms.dq, robot.dq_max)
+        if over >= 0:
+            message = f"dq{over + 1} = {terms.dq[over]:.4f} rad/s is outside the velocity limits"
             return self._fallback(q, dq, STATUS_FALLBACK_INVALID_STATE, ["joint_velocity_limit"], message, terms)
         if not self._targets_set:
             for task in self.tasks:
