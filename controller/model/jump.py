@@ -32,7 +32,7 @@ import numpy as np
 from numba import njit
 from scipy.linalg import cho_solve
 
-from .robot import ModelTerms, symmetric_inverse3
+from .robot import ModelTerms, symmetric_inverse3, symmetric_inverse3_into
 from . import validation
 from .validation import BadInputError, unit_normal
 
@@ -235,18 +235,15 @@ def average_prediction_error(predicted: np.ndarray, measured: np.ndarray) -> np.
 @njit(cache=True)
 def crb_inverse_inertia_times(contact_point, com, inertia_com, mass, normal):
     """Kernel of ``CompositeRigidBodyJump.inverse_inertia_times``: W_crb n (20), with I_c^-1
-    applied by a 3x3 linear solve."""
+    by the adjugate (``symmetric_inverse3_into``)."""
     rx, ry, rz = contact_point[0] - com[0], contact_point[1] - com[1], contact_point[2] - com[2]
     nx, ny, nz = normal[0], normal[1], normal[2]
     ax, ay, az = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx  # r x n
-    I = inertia_com  # symmetric: I_c^-1 a by the adjugate
-    p, q, u, d, e, f = I[0, 0], I[0, 1], I[0, 2], I[1, 1], I[1, 2], I[2, 2]
-    A, B, C = d * f - e * e, u * e - q * f, q * e - u * d
-    inv = 1.0 / (p * A + q * B + u * C)
-    D, E, F = p * f - u * u, q * u - p * e, p * d - q * q
-    bx = (A * ax + B * ay + C * az) * inv
-    by = (B * ax + D * ay + E * az) * inv
-    bz = (C * ax + E * ay + F * az) * inv
+    Iinv = np.empty((3, 3))
+    symmetric_inverse3_into(inertia_com, Iinv)
+    bx = Iinv[0, 0] * ax + Iinv[0, 1] * ay + Iinv[0, 2] * az
+    by = Iinv[1, 0] * ax + Iinv[1, 1] * ay + Iinv[1, 2] * az
+    bz = Iinv[2, 0] * ax + Iinv[2, 1] * ay + Iinv[2, 2] * az
     out = np.empty(3)
     out[0] = nx / mass - (ry * bz - rz * by)
     out[1] = ny / mass - (rz * bx - rx * bz)
@@ -262,14 +259,8 @@ def crb_maps(contact_point, com, inertia_com, mass, J, JJt_inv, normal, restitut
     r = contact_point - com
     R = np.zeros((3, 3))
     R[0, 1], R[0, 2], R[1, 0], R[1, 2], R[2, 0], R[2, 1] = -r[2], r[1], r[2], -r[0], -r[1], r[0]
-    I = inertia_com
-    p, q, u, d, e, f = I[0, 0], I[0, 1], I[0, 2], I[1, 1], I[1, 2], I[2, 2]
-    A, B, C = d * f - e * e, u * e - q * f, q * e - u * d
-    inv = 1.0 / (p * A + q * B + u * C)
     Iinv = np.empty((3, 3))
-    Iinv[0, 0], Iinv[0, 1], Iinv[0, 2] = A * inv, B * inv, C * inv
-    Iinv[1, 0], Iinv[1, 1], Iinv[1, 2] = B * inv, (p * f - u * u) * inv, (q * u - p * e) * inv
-    Iinv[2, 0], Iinv[2, 1], Iinv[2, 2] = C * inv, (q * u - p * e) * inv, (p * d - q * q) * inv
+    symmetric_inverse3_into(inertia_com, Iinv)
     W = -(R @ Iinv @ R)
     for i in range(3):
         W[i, i] += 1.0 / mass

@@ -141,6 +141,22 @@ def symmetric_inverse3(S: np.ndarray) -> tuple[list[list[float]], float]:
     return [[A, B, C], [B, D, E], [C, E, F]], det
 
 
+@njit(cache=True)
+def symmetric_inverse3_into(S, out):
+    """Compiled ``symmetric_inverse3`` (for kernels): the inverse of the symmetric 3x3 ``S`` by
+    its adjugate into ``out`` (zeros when S is singular); returns det S."""
+    a, b, c, d, e, f = S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
+    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
+    det = a * A + b * B + c * C
+    inv = 1.0 / det if det != 0.0 else 0.0
+    D, E, F = (a * f - c * c) * inv, (b * c - a * e) * inv, (a * d - b * b) * inv
+    A, B, C = A * inv, B * inv, C * inv
+    out[0, 0], out[0, 1], out[0, 2] = A, B, C
+    out[1, 0], out[1, 1], out[1, 2] = B, D, E
+    out[2, 0], out[2, 1], out[2, 2] = C, E, F
+    return det
+
+
 class PandaModel:
     """The 7-DoF Panda (fingers locked) with the spherical contact tool.
 
@@ -303,14 +319,8 @@ def contact_jacobian_status(J, q, q_min, q_max, check_limits, singular_ratio_squ
     needed), else _OUTSIDE_LIMITS when ``check_limits`` and q leaves [q_min, q_max], else
     _ACCEPTED."""
     S = J @ J.T
-    a, b, c, d, e, f = S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
-    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
-    det = a * A + b * B + c * C
-    trace = a + d + f
-    inv = 1.0 / det if det != 0.0 else 0.0
-    JJt_inv[0, 0], JJt_inv[0, 1], JJt_inv[0, 2] = A * inv, B * inv, C * inv
-    JJt_inv[1, 0], JJt_inv[1, 1], JJt_inv[1, 2] = B * inv, (a * f - c * c) * inv, (b * c - a * e) * inv
-    JJt_inv[2, 0], JJt_inv[2, 1], JJt_inv[2, 2] = C * inv, (b * c - a * e) * inv, (a * d - b * b) * inv
+    det = symmetric_inverse3_into(S, JJt_inv)
+    trace = S[0, 0] + S[1, 1] + S[2, 2]
     if not det >= singular_ratio_squared * trace * trace * trace:
         return _NEAR_SINGULAR
     if check_limits:
