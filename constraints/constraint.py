@@ -154,6 +154,21 @@ def symmetric_rows_into(C, dq, limit, inv_h, active, lower, upper) -> None:
 
 
 @njit(cache=True)
+def symmetric_row_bounds(C, dq, limit, inv_h, active, lower, upper):
+    """Compiled ``symmetric_rows_into`` (for the constraint kernels, with C already written)."""
+    for i in range(C.shape[0]):
+        if not active:
+            lower[i] = -np.inf
+            upper[i] = np.inf
+            continue
+        centre = 0.0
+        for j in range(C.shape[1]):
+            centre += C[i, j] * dq[j]
+        lower[i] = (-limit[i] - centre) * inv_h
+        upper[i] = (limit[i] - centre) * inv_h
+
+
+@njit(cache=True)
 def relax_to_reachable(C, lower, upper, lo, hi):
     """Kernel of ``ControlCycle.recoverable``: row i spans [c_i - s_i, c_i + s_i] over the box
     [lo, hi], c_i = C_i (lo + hi) / 2 and s_i = |C_i| (hi - lo) / 2; lower_i <= c_i + s_i and

@@ -8,7 +8,7 @@ from numba import njit
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
 from impactqp.controller.model.robot import NQ, ModelTerms
 
-from .constraint import Constraint, ControlCycle, symmetric_rows_into
+from .constraint import Constraint, ControlCycle, symmetric_row_bounds, symmetric_rows_into
 from .impact_model import ImpactModel
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 
@@ -68,13 +68,6 @@ def scaled_impulse_rows(torque_matrix, row_scale, scaled_limit, dq, inv_h, activ
     otherwise."""
     n = dq.shape[0]
     for i in range(n):
-        pre = 0.0
         for j in range(n):
             C[i, j] = torque_matrix[i, j] * row_scale[i]
-            pre += C[i, j] * dq[j]
-        if active:
-            lower[i] = (-scaled_limit[i] - pre) * inv_h
-            upper[i] = (scaled_limit[i] - pre) * inv_h
-        else:
-            lower[i] = -np.inf
-            upper[i] = np.inf
+    symmetric_row_bounds(C, dq, scaled_limit, inv_h, active, lower, upper)

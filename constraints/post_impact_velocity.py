@@ -7,7 +7,7 @@ from numba import njit
 
 from impactqp.controller.model.robot import NQ, ModelTerms
 
-from .constraint import Constraint, ControlCycle, symmetric_rows_into
+from .constraint import Constraint, ControlCycle, symmetric_row_bounds, symmetric_rows_into
 from .impact_model import ImpactModel
 
 
@@ -50,13 +50,6 @@ def post_impact_velocity_rows(jump_matrix, dq, dq_max, inv_h, active, C, lower, 
     """Kernel: C = I + A; bounds (+-dq_max - C dq) / h when active, unbounded otherwise."""
     n = dq.shape[0]
     for i in range(n):
-        post = 0.0
         for j in range(n):
             C[i, j] = jump_matrix[i, j] + (1.0 if i == j else 0.0)
-            post += C[i, j] * dq[j]
-        if active:
-            lower[i] = (-dq_max[i] - post) * inv_h
-            upper[i] = (dq_max[i] - post) * inv_h
-        else:
-            lower[i] = -np.inf
-            upper[i] = np.inf
+    symmetric_row_bounds(C, dq, dq_max, inv_h, active, lower, upper)
