@@ -13,8 +13,6 @@ import tomllib
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
-
-from impactqp.constraints.impact_model import MAX_LOOKAHEAD_DISTANCE, MAX_LOOKAHEAD_TIME
 from impactqp.constraints import (
     JUMP_MODEL_CHOICES,
     AccelerationLimit,
@@ -26,6 +24,7 @@ from impactqp.constraints import (
     VelocityLimit,
     jump_model_names,
 )
+from impactqp.constraints.impact_model import MAX_LOOKAHEAD_DISTANCE, MAX_LOOKAHEAD_TIME
 from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
 
 from .model.jump import METHODS
@@ -70,7 +69,8 @@ MAX_POSITION_MARGIN = 0.5
 """rad: a joint-limit margin beyond half a radian leaves some Panda joints no range at all."""
 
 MAX_RETRACT_DISTANCE, MAX_HOLD_DEPTH, MAX_HOLD_SPEED = 0.5, 0.01, 0.5
-"""m: a retract within the workspace, and a hold depth within the compliance of a real contact."""
+"""A retract within the workspace (m), a hold depth within the compliance of a real contact (m),
+and a hold speed (m/s) far below an impact's: a hold presses, it does not strike."""
 
 
 @dataclass

@@ -1,10 +1,11 @@
 """Atomic file writes: a reader sees the old file or the new one, never a partial file.
 
 The temporary file lives beside the target and is removed on every exit path: an error, Ctrl-C
-(KeyboardInterrupt) or a SIGTERM or SIGHUP that the command line turns into an exception. The
-signals are held back while the file is created and its name recorded, so that none can land in
-between. Only SIGKILL can leave one behind, named ``.<target>.<random><suffix>``. The written file gets the permissions a
-plain ``open(path, "w")`` would give it: 0666 less the process umask.
+(KeyboardInterrupt) or a SIGTERM or SIGHUP that the command line turns into an exception. Its
+name is recorded before the file is created (exclusively), so a signal can never land between the
+creation and the record. Only SIGKILL can leave one behind, named ``.<target>.<random><suffix>``.
+The written file gets the permissions a plain ``open(path, "w")`` would give it: 0666 less the
+process umask.
 """
 
 from __future__ import annotations
