@@ -69,7 +69,6 @@ acceleration and jerk limits and clips dq_cmd; its status says it is a fallback.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import daqp
@@ -82,7 +81,7 @@ from impactqp.constraints import AccelerationLimit, Constraint, ControlCycle, Im
 from impactqp.tasks import Task
 
 from .model.robot import NQ, InvalidStateError, ModelTerms, PandaModel, SingularPostureError
-from .model.validation import BadInputError
+from .model.validation import BadInputError, all_finite
 
 STATUS_OK = "ok"
 STATUS_VELOCITY_CLIPPED = "ok_velocity_clipped"
@@ -647,7 +646,7 @@ class ImpactAwareController:
             dq = np.asarray(dq, dtype=float).reshape(NQ)
         except (TypeError, ValueError):
             q = dq = np.full(NQ, np.nan)
-        if math.isfinite(q @ q + dq @ dq) or (np.all(np.isfinite(q)) and np.all(np.isfinite(dq))):
+        if all_finite(q, dq):
             return q, dq
         if self.memory.q_cmd is not None:
             return self.memory.q_cmd, self.memory.dq_cmd

@@ -443,13 +443,26 @@ class Branch:
         return float(np.mean(self.heldout))
 
 
-def take_step(branch: Branch, cause: Cause, result: dict, nominal, surface, trials) -> Branch:
-    """``branch`` with ``cause`` added (its cross-validation ``result``), refitted jointly."""
+def relative_gain(error: float, reference: float) -> float:
+    """1 - error / reference: the share of the ``reference`` error removed (0 without one)."""
+    return 1.0 - error / reference if reference > 0 else 0.0
+
+
+def selection_step(cause: Cause, heldout_error: float, previous_error: float) -> dict:
+    """One entry of ``steps``: the cause, its held-out error, its gain over the error before it,
+    and whether that gain reaches ``STEP_GAIN``."""
+    gain = relative_gain(heldout_error, previous_error)
+    return {"cause": cause.name, "heldout_error": heldout_error, "gain": gain, "selected": gain >= STEP_GAIN}
+
+
+def take_step(branch: Branch, step: dict, cause: Cause, result: dict, nominal, surface, trials) -> Branch:
+    """``branch`` after the accepted ``step``: ``cause`` added (its cross-validation
+    ``result``) and the chosen causes refitted jointly."""
     model = branch.model.plus(cause, result["u"])
     if len(model.causes) > 1:
         model = fit(model, nominal, surface, trials, JOINT_MAX_EVALUATIONS)
     bases = [cause.plant(b, u) for b, u in zip(branch.bases, result["u_folds"])]
-    return Branch(model, bases, branch.steps, result["heldout"])
+    return Branch(model, bases, branch.steps + [step], result["heldout"])
 
 
 def cross_validate_step(branch: Branch, causes: list[Cause], nominal, surface, trials, jobs: int):
@@ -478,13 +491,11 @@ def forward(branch: Branch, causes: list[Cause], nominal, surface, trials, jobs:
             break
         errors = [float(np.mean(r["heldout"])) for r in results]
         i = int(np.argmin(errors))
-        gain = 1.0 - errors[i] / branch.error if branch.error > 0 else 0.0
-        step = {"cause": pool[i].name, "heldout_error": errors[i], "gain": gain, "selected": gain >= STEP_GAIN}
+        step = selection_step(pool[i], errors[i], branch.error)
         if not step["selected"]:
             branch.steps = branch.steps + [step]
             break
-        branch = take_step(Branch(branch.model, branch.bases, branch.steps + [step], branch.heldout),
-                           pool[i], results[i], nominal, surface, trials)
+        branch = take_step(branch, step, pool[i], results[i], nominal, surface, trials)
     return branch
 
 
@@ -516,7 +527,7 @@ def select_causes(
             "cause": c.name,
             "parameters": c.overrides(c.to_theta(r["u"])),
             "heldout_error": e,
-            "gain": 1.0 - e / baseline if baseline > 0 else 0.0,
+            "gain": relative_gain(e, baseline),
         }
         for c, r, e in zip(pool, results, errors)
     ]
@@ -528,16 +539,14 @@ def select_causes(
         i = int(i)
         if i != best and errors[i] > (1.0 + BRANCH_MARGIN) * errors[best]:
             break
-        gain = 1.0 - errors[i] / baseline if baseline > 0 else 0.0
-        step = {"cause": pool[i].name, "heldout_error": errors[i], "gain": gain, "selected": gain >= STEP_GAIN}
+        step = selection_step(pool[i], errors[i], baseline)
         if not step["selected"]:
             branches.append(Branch(FittedCauses(), start.bases, [step], start.heldout))
             continue
-        first = take_step(Branch(start.model, start.bases, [step], start.heldout), pool[i], results[i],
-                          nominal, surface, trials)
+        first = take_step(start, step, pool[i], results[i], nominal, surface, trials)
         branches.append(forward(first, causes, nominal, surface, trials, jobs))
     chosen = min(branches, key=lambda b: b.error)
-    if chosen.model.causes and baseline > 0 and 1.0 - chosen.error / baseline >= EXPLAINED_GAIN:
+    if chosen.model.causes and relative_gain(chosen.error, baseline) >= EXPLAINED_GAIN:
         return Selection(candidates, chosen.steps, chosen.model, best_alone, chosen.heldout)
     # the causes of the best path together do not explain the gap: none is selected
     steps = [{**step, "selected": False} for step in branches[0].steps]
@@ -832,7 +841,7 @@ class Diagnosis:
             "steps": self.steps,
             "baseline_error": baseline,
             "extended_error": self.extended_error,
-            "gain": 1.0 - self.extended_error / baseline if baseline > 0 else 0.0,
+            "gain": relative_gain(self.extended_error, baseline),
             "candidates": self.candidates,
             "trials": len(self.trials),
             "skipped": self.skipped,
@@ -844,7 +853,7 @@ class Diagnosis:
 
     def message(self) -> str:
         baseline = float(np.mean(self.baseline_errors))
-        gain = 1.0 - self.extended_error / baseline if baseline > 0 else 0.0
+        gain = relative_gain(self.extended_error, baseline)
         if self.explained:
             named = " + ".join(f"'{c}'" for c in self.causes)
             text = (
