@@ -32,7 +32,7 @@ from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry
 from .plant import PlantParameters
 from .runner import TrialSpec, dataset_header, run_approach
 from .scene import build_scene
-from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
+from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range, whole_number
 
 DEFAULT_SPEEDS = (0.08, 0.10, 0.12, 0.15, 0.18)
 TANGENTIAL_SERIES_NORMAL_SPEED = 0.12
@@ -67,8 +67,8 @@ class PlannedTrial:
 def trial_specs(
     postures: list[str], speeds: list[float], tangential: list[float], repeats: int, normal: np.ndarray, seed: int
 ) -> list[PlannedTrial]:
-    if isinstance(repeats, bool) or not isinstance(repeats, int) or not 1 <= repeats <= MAX_REPEATS:
-        raise BadInputError(f"repeats must be a whole number in [1, {MAX_REPEATS}], got {repeats!r}")
+    whole_number(repeats, 1, MAX_REPEATS, "repeats")
+    whole_number(seed, 0, None, "the seed --seed")
     for v in tangential:
         approach_speed(abs(v) if v else 1.0, "every tangential speed")
     t = tangential_direction(normal)

@@ -16,7 +16,6 @@ override ``payload_mass``).
 from __future__ import annotations
 
 import itertools
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,7 +23,7 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
-from .validation import BadInputError
+from .validation import BadInputError, all_finite
 
 NQ = 7
 HAND_FRAME = "panda_hand"
@@ -37,6 +36,10 @@ SINGULAR_RATIO = 1e-3
 FINGER_JOINTS = ("panda_finger_joint1", "panda_finger_joint2")
 
 # Franka datasheet limits (docs/predictors.md, Conventions).
+MAX_STATE_ENTRY = 1e100
+"""Largest |q_i| (rad) or |dq_i| (rad/s) of a joint state: far above any robot's, far enough
+below the float range that the model's products of entries (kinetic energy, Coriolis terms)
+cannot overflow."""
 VELOCITY_LIMIT = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
 TORQUE_LIMIT = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
 ACCELERATION_LIMIT = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0])
@@ -220,13 +223,19 @@ class PandaModel:
         if q.shape != (NQ,) or dq.shape != (NQ,):
             name, shape = ("q", q.shape) if q.shape != (NQ,) else ("dq", dq.shape)
             raise InvalidStateError(f"{name} must have {NQ} values, got shape {shape}")
-        # One dot product is non-finite when any entry is (NaN or inf); the precise test only
-        # runs then, to name the culprit.
-        if not math.isfinite(q @ q + dq @ dq):
+        # One sum of |entries| in plain floats (it cannot overflow into a warning, as a dot
+        # product of large entries would) exceeds the bound when any entry is NaN, infinite or
+        # too large; the precise test only runs then, to name the culprit.
+        if not sum(map(abs, q.tolist())) + sum(map(abs, dq.tolist())) <= 2 * NQ * MAX_STATE_ENTRY:
             for name, values in (("q", q), ("dq", dq)):
-                if not np.all(np.isfinite(values)):
+                if not all_finite(values):
                     raise InvalidStateError(f"{name} contains a non-finite value")
-            raise InvalidStateError("the state is too large to be a joint state")
+            for name, values in (("q", q), ("dq", dq)):
+                i = int(np.argmax(np.abs(values)))
+                if abs(values[i]) > MAX_STATE_ENTRY:
+                    raise InvalidStateError(
+                        f"the state is too large to be a joint state: {name}{i + 1} = {values[i]:g}"
+                    )
         if check_limits:
             outside = (q < self.q_min) | (q > self.q_max)
             if outside.any():
