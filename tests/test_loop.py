@@ -200,15 +200,131 @@ def test_the_default_configuration_approaches_the_posture_wall():
     assert config.tasks[0].params["speed"] == 0.1
 
 
-def test_a_backend_failure_ends_the_run_and_keeps_the_log(model):
+class BrokenSim(ForwardingRobot):
+    """The simulated Panda whose read returns a malformed state, NaN or raises at read ``at``
+    (a backend bug), or whose write raises from cycle ``at`` on (a robot that stopped on its own
+    reflex); it counts the calls of ``stop``."""
+
+    def __init__(self, robot, fault: str, at: int):
+        super().__init__(robot)
+        self.fault, self.at, self.reads, self.writes, self.stops = fault, at, 0, 0, 0
+
+    def read(self):
+        state = self.robot.read()
+        self.reads += 1
+        if self.reads - 1 != self.at:
+            return state
+        return {
+            "short_q": lambda: replace(state, q=state.q[:6]),
+            "long_dq": lambda: replace(state, dq=np.zeros(NQ + 1)),
+            "tau_missing": lambda: replace(state, tau=None),
+            "matrix_tau_ext": lambda: replace(state, tau_ext=np.zeros((NQ, 1))),
+            "text_time": lambda: replace(state, t="soon"),
+            "no_state": lambda: None,
+            "nan_dq": lambda: replace(state, dq=np.full(NQ, np.nan)),
+            "raise": lambda: (_ for _ in ()).throw(ConnectionError("injected: no state")),
+        }[self.fault]()
+
+    def write(self, dq_cmd):
+        self.writes += 1
+        if self.fault == "write" and self.writes > self.at:
+            raise ConnectionError("injected: the robot stopped")
+        self.robot.write(dq_cmd)
+
+    def stop(self):
+        self.stops += 1
+        self.robot.stop()
+
+
+READ_FAULTS = ["short_q", "long_dq", "tau_missing", "matrix_tau_ext", "text_time", "no_state", "nan_dq", "raise"]
+
+
+@pytest.mark.parametrize("at", [1, 2, 150])
+@pytest.mark.parametrize("fault", READ_FAULTS)
+def test_any_read_failure_brakes_to_a_stop_and_calls_stop(fault, at, model):
     sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, paced=False), model)
-    loop = ControlLoop(
-        FaultySim(sim, "robot_error", 100), ImpactSession(config, model), CommandFilter.for_robot(model, DT),
-        deadline=float("inf"),
-    )
+    robot = BrokenSim(sim, fault, at)
+    loop = ControlLoop(robot, ImpactSession(config, model), CommandFilter.for_robot(model, DT), deadline=float("inf"))
+    result = loop.run(0.3)
+    assert robot.stops == 1
+    assert result.watchdog_trips == 1
+    reason = {"nan_dq": "non-finite", "raise": "cannot be read"}.get(fault, "malformed state")
+    assert reason in result.watchdog_reason, result.watchdog_reason
+    phases = np.array(result.phases)
+    assert np.all(phases[:at] != BRAKING) and np.all(phases[at:] == BRAKING)
+    assert_continuous_within_limits(result.log.dq_cmd)
+    assert np.all(result.log.dq_cmd[-1] == 0.0) and result.cycles == robot.writes < 300
+    # one row per cycle, time increasing; the bad cycle logs no measurement (NaN), the others theirs
+    assert len(result.log) == result.cycles and np.all(np.diff(result.log.t) > 0.0)
+    assert np.all(np.isnan(result.log.dq[at])) and np.all(np.isfinite(np.delete(result.log.dq, at, axis=0)))
+
+
+@pytest.mark.parametrize("fault", ["short_q", "no_state", "nan_dq"])
+def test_a_bad_first_state_starts_nothing_but_stops(fault, model):
+    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, paced=False), model)
+    robot = BrokenSim(sim, fault, 0)
+    result = ControlLoop(robot, ImpactSession(config, model), CommandFilter.for_robot(model, DT)).run(0.3)
+    assert robot.stops == 1 and result.watchdog_trips == 1
+    assert np.all(result.log.dq_cmd == 0.0) and set(result.phases) == {BRAKING}
+
+
+def test_a_robot_that_stops_taking_commands_ends_the_run_keeps_the_log_and_is_stopped(model):
+    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, paced=False), model)
+    robot = BrokenSim(sim, "write", 100)
+    loop = ControlLoop(robot, ImpactSession(config, model), CommandFilter.for_robot(model, DT), deadline=float("inf"))
     result = loop.run(0.3)
     assert result.watchdog_trips == 1 and "robot error" in result.watchdog_reason
-    assert result.cycles == 100 and len(result.log) == 100
+    assert result.cycles == 101 and len(result.log) == 101 and robot.stops == 1
+
+
+class BrokenFilter(CommandFilter):
+    """The command filter, raising from call ``at`` on in every command but the braking ones
+    (``part="command"``) or in every command (``part="brake"``)."""
+
+    def __init__(self, base: CommandFilter, part: str, at: int):
+        self.__dict__.update(base.__dict__)
+        self.part, self.at, self.calls = part, at, 0
+
+    def __call__(self, dq_desired):
+        self.calls += 1
+        braking = np.all(np.asarray(dq_desired) == 0.0)
+        if self.calls > self.at and (self.part == "brake" or not braking):
+            raise FloatingPointError("injected")
+        return super().__call__(dq_desired)
+
+
+@pytest.mark.parametrize("part", ["command", "brake"])
+def test_a_filter_failure_brakes_when_it_can_and_always_stops(part, model):
+    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, paced=False), model)
+    robot = BrokenSim(sim, "none", -1)
+    command_filter = BrokenFilter(CommandFilter.for_robot(model, DT), part, 150)
+    result = ControlLoop(robot, ImpactSession(config, model), command_filter, deadline=float("inf")).run(0.3)
+    assert robot.stops == 1 and result.watchdog_trips == 1 and "controller exception" in result.watchdog_reason
+    if part == "command":  # the braking command still comes: the ramp to zero
+        assert np.all(result.log.dq_cmd[-1] == 0.0) and result.phase == BRAKING
+        assert_continuous_within_limits(result.log.dq_cmd)
+    else:  # no braking command can be computed: the robot is stopped at once
+        assert result.cycles == 150
+
+
+def test_a_log_failure_brakes_to_a_stop(model, monkeypatch):
+    from impactqp.scenarios.robot import loop as loop_module
+
+    record = loop_module.LoopLog.record
+    failures = []
+
+    def failing(self, state, *args):
+        if self.size == 150 and not failures:
+            failures.append(1)
+            raise MemoryError("injected")
+        record(self, state, *args)
+
+    monkeypatch.setattr(loop_module.LoopLog, "record", failing)
+    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, paced=False), model)
+    robot = BrokenSim(sim, "none", -1)
+    result = ControlLoop(robot, ImpactSession(config, model), CommandFilter.for_robot(model, DT)).run(0.3)
+    assert robot.stops == 1 and result.watchdog_trips == 1 and "log error" in result.watchdog_reason
+    assert result.phase == BRAKING and np.all(result.log.dq_cmd[-1] == 0.0)
 
 
 @pytest.mark.parametrize("mode", ["hold", "continue"])
