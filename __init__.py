@@ -5,32 +5,45 @@ Wang, Dehio and Kheddar (RA-L 2022), beside the classical and generalized-moment
 (``docs/predictors.md``), embeds it in a task-space QP as linear joint-velocity-limit constraints
 (``docs/qp-constraints.md``), and exercises both on a MuJoCo Panda (``docs/simulation.md``).
 
-The names a user needs first are exported here; the layers of the package are listed in the README.
+The names a user needs first are exported here, lazily (PEP 562): ``import impactqp`` loads
+nothing heavy, so the command line installs its signal handlers before numpy, Pinocchio or MuJoCo
+load. The layers of the package are listed in the README.
 """
 
-from importlib import metadata
+from importlib import import_module
 
-from impactqp.controller import Command, ControllerConfig, ImpactAwareController, build_controller
-from impactqp.controller.model.jump import JUMP_MODELS, JumpModel, jump_model
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
-from impactqp.controller.model.robot import PandaModel
+_EXPORTS = {
+    "PandaModel": "impactqp.controller.model.robot",
+    "Surface": "impactqp.controller.model.postures",
+    "DEFAULT_WALL": "impactqp.controller.model.postures",
+    "POSTURES": "impactqp.controller.model.postures",
+    "JumpModel": "impactqp.controller.model.jump",
+    "JUMP_MODELS": "impactqp.controller.model.jump",
+    "jump_model": "impactqp.controller.model.jump",
+    "ImpactAwareController": "impactqp.controller",
+    "Command": "impactqp.controller",
+    "ControllerConfig": "impactqp.controller",
+    "build_controller": "impactqp.controller",
+}
 
-try:
-    __version__ = metadata.version("impactqp")
-except metadata.PackageNotFoundError:  # pragma: no cover - running from a tree that was never installed
-    __version__ = "0+unknown"
+__all__ = [*_EXPORTS, "__version__"]
 
-__all__ = [
-    "PandaModel",
-    "Surface",
-    "DEFAULT_WALL",
-    "POSTURES",
-    "JumpModel",
-    "JUMP_MODELS",
-    "jump_model",
-    "ImpactAwareController",
-    "Command",
-    "ControllerConfig",
-    "build_controller",
-    "__version__",
-]
+
+def __getattr__(name: str):
+    if name == "__version__":
+        from importlib import metadata
+
+        try:
+            value = metadata.version("impactqp")
+        except metadata.PackageNotFoundError:  # pragma: no cover - a tree that was never installed
+            value = "0+unknown"
+    elif name in _EXPORTS:
+        value = getattr(import_module(_EXPORTS[name]), name)
+    else:
+        raise AttributeError(f"module 'impactqp' has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

@@ -7,12 +7,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from impactqp.controller.command_filter import CommandFilter
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT, PandaModel
 from conftest import ForwardingRobot
-from impactqp.scenarios.robot.loop import BRAKING, ControlLoop
+from impactqp.scenarios.robot.loop import BRAKING, ControlLoop, missed_in_a_row
 from impactqp.scenarios.robot.run import RunRequest, build_backend, contact_start, controller_config, run
 from impactqp.scenarios.robot.session import ImpactSession
 from impactqp.sim.runner import CommandReplay, run_trial
@@ -371,3 +373,36 @@ def test_hold_comes_back_to_the_wall_and_presses_with_a_force_linear_in_the_hold
     slow, fast = (hold_run(tmp_path, speed) for speed in (0.02, 0.04))
     assert np.all(slow > 0.0) and np.all(fast > 0.0)
     assert fast.mean() / slow.mean() == pytest.approx(2.0, rel=0.2)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(0.0, 0.05), max_size=60))
+def test_missed_commands_count_every_period_an_overrun_ran_through(cycle_time):
+    """Each overrun cycle misses at least one command (the watchdog's count) and one per full
+    period beyond the first it lasted; a cycle on time ends the streak."""
+    deadline = period = DT
+    over = [c > deadline for c in cycle_time]
+    longest_run = max((len(run) for run in "".join("x" if o else " " for o in over).split()), default=0)
+    missed = missed_in_a_row(np.array(cycle_time), deadline, period)
+    assert longest_run <= missed <= sum(int(np.ceil(c / period)) for c in cycle_time if c > deadline)
+    assert missed_in_a_row(np.array([2.5e-3, 2.5e-3, 0.5e-3, 3.5e-3]), deadline, period) == 4
+    assert missed_in_a_row(np.array([0.9e-3] * 5), deadline, period) == 0
+
+
+def test_a_long_cycle_is_what_a_real_robot_would_stop_on(model):
+    """A paced run whose one cycle takes 7 periods: the watchdog (it counts overrun cycles) lets
+    the simulation go on, the result says a real robot would have stopped."""
+    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, paced=True), model)
+
+    class OneLongCycle(ForwardingRobot):
+        writes = 0
+
+        def write(self, dq_cmd):
+            self.writes += 1
+            if self.writes == 100:
+                time.sleep(7 * DT)
+            self.robot.write(dq_cmd)
+
+    loop = ControlLoop(OneLongCycle(sim), ImpactSession(config, model), CommandFilter.for_robot(model, DT))
+    result = loop.run(0.3)
+    assert result.missed_in_a_row >= 6 and result.robot_stop_reason

@@ -4,12 +4,15 @@ import importlib.util
 import json
 import signal
 import sys
+import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from impactqp.controller.measured.dataset import read_dataset
 from impactqp.scenarios.cli import main
+from impactqp.scenarios.cli.exit_codes import EXIT_ROBOT_WOULD_STOP
 from impactqp.scenarios.robot import run as run_module
 from conftest import ForwardingRobot
 
@@ -118,3 +121,45 @@ def test_an_unusable_log_directory_is_refused_before_the_robot_moves(tmp_path, c
     capsys.readouterr()
     assert "another header" in one_error_line(capsys, ["run", "--unpaced", "--duration", "0.05", "--log", str(other)])
     assert moved == []
+
+
+class LateOrBroken(ForwardingRobot):
+    """A backend whose cycle ``at`` takes 7 periods (``fault="late"``) or whose state ``at`` is
+    NaN (``fault="nan"``)."""
+
+    def __init__(self, robot, fault, at):
+        super().__init__(robot)
+        self.fault, self.at, self.reads = fault, at, 0
+
+    def read(self):
+        self.reads += 1
+        state = self.robot.read()
+        if self.reads == self.at and self.fault == "nan":
+            state = replace(state, dq=np.full(7, np.nan))
+        return state
+
+    def write(self, dq_cmd):
+        if self.reads == self.at and self.fault == "late":
+            time.sleep(7 * self.period)
+        self.robot.write(dq_cmd)
+
+
+@pytest.mark.parametrize("fault, options", [("late", []), ("nan", ["--unpaced"])])
+def test_a_run_a_real_robot_would_not_have_finished_exits_3_and_says_why(fault, options, tmp_path, capsys, monkeypatch):
+    build = run_module.build_backend
+
+    def build_faulty(request, model):
+        robot, config, duration = build(request, model)
+        return LateOrBroken(robot, fault, 100), config, duration
+
+    monkeypatch.setattr(run_module, "build_backend", build_faulty)
+    code = main(["run", *options, "--duration", "0.3", "--log", str(tmp_path), "--json"])
+    out, err = capsys.readouterr()
+    report = json.loads(out)
+    assert code == EXIT_ROBOT_WOULD_STOP
+    assert err.strip().splitlines() == [err.strip()] and "would have stopped a real robot" in err
+    assert report["robot_stop_reason"] and report["robot_stop_reason"] in err
+    if fault == "late":
+        assert report["missed_in_a_row"] >= 6 and report["overruns"] >= 1
+    else:
+        assert "non-finite" in report["watchdog_reason"]

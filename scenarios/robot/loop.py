@@ -174,10 +174,39 @@ class LoopResult:
     log: TrialLog
     session: ImpactSession
     interrupted: bool = False  # a stop request (Ctrl-C, SIGTERM) ended the run
+    missed_in_a_row: int = 0  # the longest streak of periods without a command on time
+    max_overruns: int = DEFAULT_MAX_OVERRUNS  # the watchdog's budget of overruns in a row
 
     @property
     def phase(self) -> str:
         return self.phases[-1] if self.phases else ""
+
+    @property
+    def robot_stop_reason(self) -> str:
+        """Why a real robot would have stopped on this run ("" when it would not): a watchdog
+        trip, or ``max_overruns`` commands in a row that missed their period. The watchdog counts
+        overrun cycles, so a paced simulation goes on after one long cycle, while a robot would
+        have gone without a command for every period of it (libfranka:
+        ``communication_constraints_violation``)."""
+        if self.watchdog_trips:
+            return f"the watchdog tripped ({self.watchdog_reason})"
+        if self.missed_in_a_row >= self.max_overruns:
+            return (
+                f"{self.missed_in_a_row} periods in a row without a command on time "
+                f"(the budget is {self.max_overruns - 1})"
+            )
+        return ""
+
+
+def missed_in_a_row(cycle_time: np.ndarray, deadline: float, period: float) -> int:
+    """The longest streak of periods without a command on time: a cycle longer than the
+    deadline misses max(1, ceil(cycle time / period) - 1) commands (the robot's periods it ran
+    through), and a cycle within the deadline ends the streak."""
+    streak = longest = 0
+    for c in np.asarray(cycle_time, dtype=float).tolist():
+        streak = streak + max(1, math.ceil(c / period) - 1) if c > deadline else 0
+        longest = max(longest, streak)
+    return longest
 
 
 def cycle_statistics(cycle_time_s: np.ndarray) -> dict:
@@ -338,4 +367,6 @@ class ControlLoop:
             log=log.trial_log(self.robot.force_log()),
             session=self.session,
             interrupted=self.stop_requested,
+            missed_in_a_row=missed_in_a_row(log.cycle_time[: log.size], self.deadline, self.robot.period),
+            max_overruns=self.watchdog.max_overruns,
         )
