@@ -4,6 +4,7 @@ simulation (dataset format: ``sim/dataset.py`` and the README)."""
 from __future__ import annotations
 
 import json
+import sys
 
 import click
 
@@ -19,6 +20,10 @@ from impactqp.scenarios.cli.arguments import (
     parse_vector,
 )
 
+LONG_MANIFEST = 100
+"""Trial entries from which ``dataset validate`` shows its progress bar even when stderr is not a
+terminal."""
+
 
 @click.group()
 def dataset():
@@ -31,10 +36,24 @@ def dataset():
 @click.pass_context
 def validate_command(ctx, directory, as_json):
     """Report every problem per trial; never modifies the data. Exit code 1 when any is found."""
+    from tqdm import tqdm
+
     from impactqp.controller.measured.dataset import validate
 
     input_directory(directory, "DIRECTORY")
-    problems = validate(directory)
+    bars = []  # on stderr: on a terminal, or for a long manifest (a log shows it is not stuck)
+
+    def progress(done: int, total: int) -> None:
+        if not bars:
+            shown = sys.stderr.isatty() or total >= LONG_MANIFEST
+            bars.append(tqdm(total=total, disable=not shown, desc="trials", unit="trial", file=sys.stderr))
+        bars[0].update(done - bars[0].n)
+
+    try:
+        problems = validate(directory, progress=progress)
+    finally:
+        for bar in bars:
+            bar.close()
     count = sum(len(v) for v in problems.values())
     if as_json:
         emit_json({"valid": count == 0, "problems": problems})
