@@ -137,12 +137,22 @@ class FaultySim(ForwardingRobot):
 
 
 
-class FaultySession(ImpactSession):
-    """The impact session, raising or running late from cycle ``at`` on."""
+class Clock:
+    """A clock that only moves when told: the cycle times of a test do not depend on the machine."""
 
-    def __init__(self, config, model, fault: str, at: int):
+    def __init__(self):
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+class FaultySession(ImpactSession):
+    """The impact session, raising or running late (2.5 periods on ``clock``) from cycle ``at`` on."""
+
+    def __init__(self, config, model, fault: str, at: int, clock: Clock):
         super().__init__(config, model)
-        self.fault, self.at, self.steps = fault, at, 0
+        self.fault, self.at, self.steps, self.clock = fault, at, 0, clock
 
     def step(self, state):
         self.steps += 1
@@ -150,7 +160,7 @@ class FaultySession(ImpactSession):
             if self.fault == "exception":
                 raise RuntimeError("injected")
             if self.fault == "overrun":
-                time.sleep(2.5 * DT)
+                self.clock.now += 2.5 * DT
         return super().step(state)
 
 
@@ -160,11 +170,12 @@ def test_each_fault_trips_the_watchdog_and_the_commands_stay_continuous(fault, m
     sim, config, _ = build_backend(request, model)
     at = 200  # mid-approach, moving at speed
     robot = FaultySim(sim, fault, at) if fault in ("nan", "nan_tau_ext", "stale") else sim
+    clock = Clock()  # every cycle takes no time, but the late ones
     session = (
-        FaultySession(config, model, fault, at) if fault in ("exception", "overrun") else ImpactSession(config, model)
+        FaultySession(config, model, fault, at, clock) if fault in ("exception", "overrun")
+        else ImpactSession(config, model)
     )
-    deadline = DT if fault == "overrun" else float("inf")
-    loop = ControlLoop(robot, session, CommandFilter.for_robot(model, DT), deadline=deadline, max_overruns=3)
+    loop = ControlLoop(robot, session, CommandFilter.for_robot(model, DT), deadline=DT, max_overruns=3, clock=clock)
     result = loop.run(0.3)
     assert result.watchdog_trips == 1
     expected = {
@@ -324,7 +335,8 @@ def test_a_log_failure_brakes_to_a_stop(model, monkeypatch):
     monkeypatch.setattr(loop_module.LoopLog, "record", failing)
     sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, paced=False), model)
     robot = BrokenSim(sim, "none", -1)
-    result = ControlLoop(robot, ImpactSession(config, model), CommandFilter.for_robot(model, DT)).run(0.3)
+    loop = ControlLoop(robot, ImpactSession(config, model), CommandFilter.for_robot(model, DT), deadline=float("inf"))
+    result = loop.run(0.3)
     assert robot.stops == 1 and result.watchdog_trips == 1 and "log error" in result.watchdog_reason
     assert result.phase == BRAKING and np.all(result.log.dq_cmd[-1] == 0.0)
 

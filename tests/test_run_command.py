@@ -45,7 +45,8 @@ def one_error_line(capsys, argv):
 @pytest.mark.skipif(not HAS_PYLIBFRANKA, reason="pylibfranka is not installed: pip install -e '.[franka]'")
 def test_franka_without_a_robot_fails_with_one_line(capsys):
     err = one_error_line(capsys, ["run", "--backend", "franka", "--robot-ip", "127.0.0.1"])
-    assert "no robot answers at 127.0.0.1" in err
+    # either legitimate error: which one libfranka raises first depends on the machine, not on us
+    assert "no robot answers at 127.0.0.1" in err or "real-time scheduling is not available" in err
 
 
 def test_franka_without_pylibfranka_says_how_to_install_it(capsys, monkeypatch):

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -219,7 +220,8 @@ def cycle_statistics(cycle_time_s: np.ndarray) -> dict:
 class ControlLoop:
     """Runs an :class:`ImpactSession` on a :class:`RobotInterface` (module docstring).
 
-    ``deadline``: the longest cycle time (s) that is not an overrun (default: the period).
+    ``deadline``: the longest cycle time (s) that is not an overrun (default: the period);
+    ``clock``: the clock (s) that measures the cycle times.
     """
 
     def __init__(
@@ -230,7 +232,9 @@ class ControlLoop:
         *,
         deadline: float | None = None,
         max_overruns: int = DEFAULT_MAX_OVERRUNS,
+        clock: Callable[[], float] = time.perf_counter,
     ):
+        self.clock = clock
         self.robot = robot
         self.session = session
         self.filter = command_filter
@@ -280,7 +284,7 @@ class ControlLoop:
         k = 0
         stop_cycles = 0
         while True:
-            started = time.perf_counter()
+            started = self.clock()
             stopping = self.stop_requested or k >= cycles
             if stopping:
                 dq_cmd, phase = self.brake(), STOPPING
@@ -298,9 +302,9 @@ class ControlLoop:
                 robot.write(dq_cmd)
             except Exception as error:  # the robot stopped by itself (e.g. its own reflex)
                 self._robot_error(error)
-                self._record(state, dq_cmd, phase, time.perf_counter() - started, started)
+                self._record(state, dq_cmd, phase, self.clock() - started, started)
                 return
-            elapsed = time.perf_counter() - started
+            elapsed = self.clock() - started
             overrun = elapsed > self.deadline
             self.overruns += overrun
             if not stopping:
