@@ -35,7 +35,9 @@ def dataset():
 @click.option("--json", "as_json", is_flag=True)
 @click.pass_context
 def validate_command(ctx, directory, as_json):
-    """Report every problem per trial; never modifies the data. Exit code 1 when any is found."""
+    """Report every problem per trial; never modifies the data. Exit code 1 when any is found.
+    Each file is read once, however many entries name it; a progress bar goes to stderr on a
+    terminal or for a long manifest."""
     from tqdm import tqdm
 
     from impactqp.controller.measured.dataset import validate
