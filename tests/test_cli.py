@@ -228,3 +228,19 @@ def test_a_stop_signal_during_start_up_exits_130_without_a_traceback_or_partial_
     assert not [p for p in tmp_path.rglob("*") if p.name.startswith(".")]  # no temporary file left
     if (out / "dataset.json").exists():  # every trial the manifest lists is complete
         assert main(["dataset", "validate", str(out), "--json"]) == 0
+
+
+def test_a_stop_signal_that_an_extension_wrapped_is_still_an_interruption(capsys, monkeypatch):
+    """A signal in the initialisation of a C extension (MuJoCo's, pybind11) comes out as an
+    ImportError("initialization failed") whose context is the KeyboardInterrupt: exit code 130."""
+    import impactqp.controller.model.prediction as prediction
+
+    def wrapped(*args, **kwargs):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise ImportError("initialization failed")  # noqa: B904 - as the extension does
+
+    monkeypatch.setattr(prediction, "predict_all", wrapped)
+    code, out, err = run(capsys, "predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1")
+    assert code == EXIT_INTERRUPTED and err.strip() == "impactqp: interrupted" and out == ""

@@ -43,7 +43,12 @@ def main(argv: list[str] | None = None) -> int:
         if handler is not signal.SIG_IGN:
             signal.signal(sig, _interrupt)
     try:
-        return _run(args)
+        try:
+            return _run(args)
+        except Exception as exc:  # noqa: BLE001 - the boundary
+            if not interrupted(exc):
+                return _report(exc, args)
+            raise KeyboardInterrupt from None
     except KeyboardInterrupt:
         for sig in STOP_SIGNALS:  # a second signal must not interrupt the last line
             signal.signal(sig, signal.SIG_IGN)
@@ -56,37 +61,57 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args: list[str]) -> int:
-    """The error boundary around the commands."""
+    """The command of ``args``; its exit code."""
     # the command line's lazy loading: click, numpy and the commands load after the handlers
     import click
 
-    from impactqp.controller.model.validation import BadInputError
     from impactqp.scenarios.cli.commands import cli
 
     try:
         code = cli.main(args=args, prog_name="impactqp", standalone_mode=False)
     except click.exceptions.Abort:  # click's form of a KeyboardInterrupt
         raise KeyboardInterrupt from None
-    except click.ClickException as exc:
+    return code if isinstance(code, int) else 0
+
+
+def _report(exc: Exception, args: list[str]) -> int:
+    """One line on stderr for an error that ended a command; its exit code."""
+    import click
+    from impactqp.controller.model.validation import BadInputError
+
+    if isinstance(exc, click.ClickException):
         click.echo(f"impactqp: error: {exc.format_message()}", err=True)
         return EXIT_BAD_INPUT
-    except BadInputError as exc:
+    if isinstance(exc, BadInputError):
         click.echo(f"impactqp: error: {_one_line(exc)}", err=True)
         return EXIT_BAD_INPUT
-    except OSError as exc:
+    if isinstance(exc, OSError):
         where = f"{exc.filename}: " if exc.filename else ""
         click.echo(f"impactqp: error: {where}{exc.strerror or _one_line(exc)}", err=True)
         return EXIT_BAD_INPUT
-    except Exception as exc:  # noqa: BLE001 - the boundary: anything else is our bug
-        if "--debug" in args[: args.index("--") if "--" in args else len(args)]:
-            traceback.print_exc()
-        click.echo(
-            f"impactqp: internal error ({type(exc).__name__}: {_one_line(exc)}); please report it, "
-            "with the output of the same command run as `impactqp --debug ...`",
-            err=True,
-        )
-        return EXIT_INTERNAL_ERROR
-    return code if isinstance(code, int) else 0
+    # anything else is our bug
+    if "--debug" in args[: args.index("--") if "--" in args else len(args)]:
+        traceback.print_exception(exc)
+    click.echo(
+        f"impactqp: internal error ({type(exc).__name__}: {_one_line(exc)}); please report it, "
+        "with the output of the same command run as `impactqp --debug ...`",
+        err=True,
+    )
+    return EXIT_INTERNAL_ERROR
+
+
+def interrupted(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt (a stop signal) is in the chain of ``exc``: a C extension
+    whose initialisation a signal interrupts turns it into an ImportError ("initialization
+    failed"), and cleanup code may raise while one unwinds."""
+    seen: set[int] = set()
+    cause: BaseException | None = exc
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt):
+            return True
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return False
 
 
 def _interrupt(signum, frame):
