@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from impactqp.controller.measured.dataset import read_dataset
+from impactqp.scenarios import run as run_module
 from impactqp.scenarios.cli import main
-from impactqp.scenarios.robot import run as run_module
 from conftest import ForwardingRobot
 
 HAS_PYLIBFRANKA = importlib.util.find_spec("pylibfranka") is not None

@@ -1,4 +1,4 @@
-"""Benchmark rows of the robot loop (``scenarios.robot``).
+"""Benchmark rows of the robot loop (``scenarios.run``).
 
 ``loop.sim_paced.p99``: cycle time (read returned -> command written, us) of the controller and
 the sim backend in a paced 1 kHz run (approach, impact, retract; goal p99 <= 500 us).
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from impactqp.controller.model.postures import POSTURES
-from impactqp.scenarios.robot.run import SIM_START_DISTANCE, RunRequest, run
+from impactqp.scenarios.run import SIM_START_DISTANCE, RunRequest, run
 
 NO_OVERRUN_TRIP = 10**9
 CAMPAIGN_SPEEDS = (0.1, 0.15)

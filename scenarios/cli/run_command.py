@@ -1,4 +1,4 @@
-"""``impactqp run``: the impact session in a 1 kHz robot loop (``scenarios.robot.run``)."""
+"""``impactqp run``: the impact session in a 1 kHz robot loop (``scenarios.run``)."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ def run_command(backend, robot_ip, config_file, plant_file, posture, speed, dura
     """Run the impact-aware controller in a 1 kHz loop on a robot: approach, detect the impact,
     post-impact phase, brake to a stop. Ctrl-C (or SIGTERM) brakes to a stop, keeps the log and
     exits with code 130."""
-    from impactqp.scenarios.robot.run import RunRequest, run
+    from impactqp.scenarios.run import RunRequest, run  # lazy: the command line loads an experiment when it runs
 
     request = RunRequest(
         backend=backend, robot_ip=robot_ip, config_file=config_file, plant_file=plant_file, posture=posture,

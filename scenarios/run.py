@@ -15,18 +15,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactqp.controller.command_filter import CommandFilter
 from impactqp.controller.config import ControllerConfig
 from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
-
-from .interface import RobotInterface
-from .loop import ControlLoop, LoopResult
-from .run_log import RunLog
-from .session import ImpactSession
+from impactqp.controller.runtime.command_filter import CommandFilter
+from impactqp.controller.runtime.franka_backend import FrankaRobot
+from impactqp.controller.runtime.interface import RobotInterface
+from impactqp.controller.runtime.loop import ControlLoop, LoopResult
+from impactqp.controller.runtime.replay_backend import ReplayRobot, load_trial
+from impactqp.controller.runtime.run_log import RunLog
+from impactqp.controller.runtime.session import ImpactSession
+from impactqp.sim.plant import PlantParameterError, PlantParameters
+from impactqp.sim.runner import UnreachableStartError, approach_start
+from impactqp.sim.scene import build_scene
+from impactqp.sim.sim_backend import SimRobot
 
 BACKENDS = ("sim", "franka", "replay")
 SIM_START_DISTANCE = 0.05
@@ -80,21 +85,13 @@ def check_request(request: RunRequest) -> None:
 def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterface, ControllerConfig, float]:
     """(backend, controller configuration, duration) of the request."""
     if request.backend == "franka":
-        from .franka_backend import FrankaRobot
-
         config = controller_config(request)
         return FrankaRobot.connect(request.robot_ip), config, request.duration
     if request.backend == "replay":
-        from .replay_backend import ReplayRobot, load_trial
-
         trial, header = load_trial(request.dataset, request.trial)
         speed = trial.entry.reference_normal_speed
         config = controller_config(RunRequest(**{**request.__dict__, "speed": speed}), header.surface)
         return ReplayRobot(trial, header.control_period), config, len(trial.log) * header.control_period
-    from impactqp.sim.plant import PlantParameterError, PlantParameters
-    from impactqp.sim.runner import UnreachableStartError, approach_start
-    from impactqp.sim.scene import build_scene
-
     config = controller_config(request)
     try:
         plant = None if request.plant_file is None else PlantParameters.from_json(request.plant_file)
@@ -105,8 +102,6 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
         q0 = approach_start(model, POSTURES[request.posture].q, surface, SIM_START_DISTANCE)
     except UnreachableStartError as error:
         raise BadInputError(str(error)) from None
-    from .sim_backend import SimRobot
-
     robot = SimRobot(build_scene(surface, plant), q0, np.zeros(NQ), config.dt, paced=request.paced)
     return robot, config, request.duration
 

@@ -24,8 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model.robot import NQ
-from .model.validation import BadInputError
+from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.validation import BadInputError
 
 
 class CommandFilter:

@@ -39,7 +39,7 @@ import pinocchio as pin
 from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError
 
-from .impact import DEFAULT_TORQUE_THRESHOLD, NOISE_SIGMAS
+from impactqp.controller.measured.impact import DEFAULT_TORQUE_THRESHOLD, NOISE_SIGMAS
 
 DEFAULT_OBSERVER_GAIN = 200.0
 DEFAULT_CALIBRATION_SAMPLES = 100
