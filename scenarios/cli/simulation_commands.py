@@ -50,7 +50,7 @@ def wall(point_text: str | None, normal_text: str | None) -> Surface:
 def check_reachable(posture: ImpactPosture, surface: Surface, distance: float) -> None:
     """Reject a wall the posture cannot face (before any process is started)."""
     from impactqp.controller.model.prediction import default_robot
-    from impactqp.sim.runner import UnreachableStartError, approach_start
+    from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
 
     try:
         approach_start(default_robot(), posture.q, surface, distance)

@@ -92,7 +92,7 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
         config = controller_config(RunRequest(**{**request.__dict__, "speed": speed}), header.surface)
         return ReplayRobot(trial, header.control_period), config, len(trial.log) * header.control_period
     from impactqp.sim.plant import PlantParameterError, PlantParameters
-    from impactqp.sim.runner import UnreachableStartError, approach_start
+    from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
     from impactqp.sim.scene import build_scene
 
     config = controller_config(request)
