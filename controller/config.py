@@ -9,7 +9,6 @@ The file format is documented in the project README (section "Controller configu
 from __future__ import annotations
 
 import inspect
-import tomllib
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
@@ -27,6 +26,7 @@ from impactqp.constraints import (
 from impactqp.constraints.impact_model import MAX_LOOKAHEAD_DISTANCE, MAX_LOOKAHEAD_TIME
 from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
 
+from .model.files import read_mapping
 from .model.jump import METHODS
 from .model.max_speed import DEFAULT_IMPACT_DURATION
 from .model.postures import DEFAULT_WALL, Surface
@@ -275,25 +275,9 @@ class ControllerConfig:
         path = Path(path)
         if path.suffix not in (".toml", ".yaml", ".yml"):
             raise BadInputError(f"unsupported configuration file {path.name}: use .toml, .yaml or .yml")
+        data = read_mapping(path, "the controller configuration")
         try:
-            text = path.read_bytes().decode("utf-8-sig")
-        except UnicodeDecodeError:
-            raise BadInputError(f"{path}: not a UTF-8 text file") from None
-        except OSError as error:
-            raise BadInputError(f"{path}: {error.strerror or error}") from None
-        try:
-            if path.suffix == ".toml":
-                data = tomllib.loads(text)
-            else:
-                import yaml
-
-                data = yaml.safe_load(text)
-        except RecursionError:
-            raise BadInputError(f"{path}: nested too deeply") from None
-        except (tomllib.TOMLDecodeError, _yaml_error()) as error:
-            raise BadInputError(f"{path}: not valid {path.suffix[1:].upper()}: {' '.join(str(error).split())}") from None
-        try:
-            return cls.from_dict(data or {})
+            return cls.from_dict(data)
         except BadInputError as error:
             raise BadInputError(f"{path}: {error}") from None
 
@@ -317,12 +301,6 @@ def _section(kind, values, name: str):
     if unknown:
         raise BadInputError(f"unknown keys in [{name}]: {', '.join(sorted(map(str, unknown)))}")
     return kind(**values)
-
-
-def _yaml_error() -> type[Exception]:
-    import yaml
-
-    return yaml.YAMLError
 
 
 def build_controller(config: ControllerConfig, robot: PandaModel | None = None) -> ImpactAwareController:

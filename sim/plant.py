@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from impactqp.controller.measured.atomic import write_text_atomic
-from impactqp.controller.measured.json_file import read_json_object
+from impactqp.controller.model.files import read_mapping
 from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
 
@@ -156,7 +156,7 @@ class PlantParameters:
     @classmethod
     def from_json(cls, path: str | Path) -> "PlantParameters":
         path = Path(path)
-        values = read_json_object(path, PlantParameterError, "plant parameter file {path} does not exist")
+        values = read_mapping(path, "plant parameter file", "json", PlantParameterError)
         try:
             return cls.from_dict(values)
         except PlantParameterError as error:

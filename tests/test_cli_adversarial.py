@@ -181,7 +181,7 @@ ROWS = [
      write("c.yaml", "x: " + "[" * 100_000 + "]" * 100_000), 2, "nested too deeply"),
     (["run", "--config", "{tmp}", "--log", "{tmp}/log"], None, 2, "unsupported configuration file"),
     (["run", "--config", "{bad}/c.toml", "--log", "{tmp}/log"], replace_by_directory_new("c.toml"), 2,
-     "Is a directory"),
+     "is a directory"),
     (["run", "--speed", "1e9", "--log", "{tmp}/log"], None, 2, "(0, 3] m/s"),
     (["run", "--duration", "1e9", "--log", "{tmp}/log"], None, 2, "--duration must lie in (0, 60] s"),
     (["run", "--log", "{data}/t0000.csv"], None, 2, "--log"),

@@ -38,11 +38,11 @@ import numpy as np
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.prediction import default_robot
 from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET
+from impactqp.controller.model.files import read_mapping
 from impactqp.controller.model.validation import BadInputError, approach_speed
 
 from .atomic import write_text_atomic
 from .impact import WINDOW_AFTER, WINDOW_BEFORE, ImpactNotFoundError, measure_impact
-from .json_file import read_json_object
 from .trial_log import TrialLog
 
 FORMAT = "impactqp-dataset/1"
@@ -228,7 +228,7 @@ def _force_csv(log: TrialLog) -> str:
 
 # ---------------------------------------------------------------------------- reading
 def _load_manifest(path: Path) -> dict:
-    manifest = read_json_object(path, DatasetError, "{path} does not exist: not a dataset directory")
+    manifest = read_mapping(path, "the dataset manifest", "json", DatasetError)
     missing = MANIFEST_KEYS - set(manifest)
     if missing:
         raise DatasetError(f"{path} lacks the key(s) {', '.join(sorted(missing))}")

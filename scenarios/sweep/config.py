@@ -9,7 +9,6 @@ empty grid or a spacing <= 0 raises :class:`BadInputError` (docs/sweep.md).
 from __future__ import annotations
 
 import json
-import tomllib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -18,6 +17,7 @@ import numpy as np
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.postures import POSTURES
 from impactqp.constraints import JUMP_MODEL_CHOICES
+from impactqp.controller.model.files import read_mapping
 from impactqp.controller.model.validation import (
     BadInputError,
     finite_vector,
@@ -223,16 +223,4 @@ def parse_config(data: dict) -> SweepConfig:
 
 def load_config(path: Path) -> SweepConfig:
     """Read and validate the TOML file ``path``."""
-    try:
-        text = Path(path).read_bytes().decode("utf-8-sig")
-    except OSError as exc:
-        raise BadInputError(f"cannot read the sweep config {path}: {exc.strerror}") from None
-    except UnicodeDecodeError:
-        raise BadInputError(f"the sweep config {path} is not a UTF-8 text file") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise BadInputError(f"malformed sweep config {path}: {exc}") from None
-    except RecursionError:
-        raise BadInputError(f"the sweep config {path} is nested too deeply") from None
-    return parse_config(data)
+    return parse_config(read_mapping(path, "the sweep config", "toml"))
