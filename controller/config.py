@@ -247,7 +247,7 @@ class ControllerConfig:
     def from_dict(cls, data: dict) -> ControllerConfig:
         """The configuration of a parsed file; every key and value is checked (bad input:
         ``BadInputError``, one line naming the key)."""
-        data = dict(_mapping(data, "the configuration"))
+        data = dict(validation.table(data, "the configuration"))
         unknown = set(data) - {f.name for f in fields(cls)}
         if unknown:
             raise BadInputError(f"unknown configuration keys: {', '.join(sorted(map(str, unknown)))}")
@@ -256,11 +256,11 @@ class ControllerConfig:
             raise BadInputError(f"tasks must be a list of tables, got {tasks!r}")
         parsed_tasks = []
         for index, entry in enumerate(tasks):
-            entry = dict(_mapping(entry, f"tasks[{index}]"))
+            entry = dict(validation.table(entry, f"tasks[{index}]"))
             if "type" not in entry:
                 raise BadInputError(f"tasks[{index}] needs a 'type'")
             task_type = entry.pop("type")
-            params = _mapping(entry.pop("params", None) or {}, f"tasks[{index}].params")
+            params = validation.table(entry.pop("params", None) or {}, f"tasks[{index}].params")
             parsed_tasks.append(TaskConfig(task_type, dict(params) | entry))
         sections = {
             "limits": LimitsConfig, "impact": ImpactConfig, "surface": SurfaceConfig, "post_impact": PostImpactConfig,
@@ -288,16 +288,10 @@ class ControllerConfig:
         return data
 
 
-def _mapping(value, what: str) -> dict:
-    if not isinstance(value, dict):
-        raise BadInputError(f"{what} must be a table of keys and values, got {type(value).__name__}")
-    return value
-
-
 def _section(kind, values, name: str):
     if values is None:
         return kind()
-    unknown = set(_mapping(values, f"[{name}]")) - {f.name for f in fields(kind)}
+    unknown = set(validation.table(values, f"[{name}]")) - {f.name for f in fields(kind)}
     if unknown:
         raise BadInputError(f"unknown keys in [{name}]: {', '.join(sorted(map(str, unknown)))}")
     return kind(**values)

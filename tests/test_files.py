@@ -32,7 +32,10 @@ def test_anything_but_a_regular_file_is_one_line_of_the_callers_kind_without_ope
     """A FIFO is refused before it is opened (opening it would block until a writer comes)."""
     path = tmp_path / "c.toml"
     make(path)
-    for read in (lambda: regular_file(path, "the sweep config", OwnError), lambda: read_mapping(path, "the sweep config", error=OwnError)):
+    for read in (
+        lambda: regular_file(path, "the sweep config", OwnError),
+        lambda: read_mapping(path, "the sweep config", error=OwnError),
+    ):
         with pytest.raises(OwnError) as caught:
             read()
         message = str(caught.value)
@@ -101,10 +104,11 @@ def test_an_empty_yaml_document_is_an_empty_table(tmp_path):
     assert read_mapping(path, "the file") == {}
 
 
-keys = st.text(st.characters(codec="utf-8", exclude_categories=("Cs", "Cc")), min_size=1, max_size=8)
+words = st.characters(whitelist_categories=("L", "Nd", "Zs"))  # YAML folds some control characters
+keys = st.text(words, min_size=1, max_size=8)
 values = st.recursive(
     st.none() | st.booleans() | st.integers(-(2**40), 2**40) | st.floats(allow_nan=False, allow_infinity=False)
-    | st.text(max_size=8),
+    | st.text(words, max_size=8),
     lambda children: st.lists(children, max_size=3) | st.dictionaries(keys, children, max_size=3),
     max_leaves=10,
 )
