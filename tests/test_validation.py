@@ -10,9 +10,11 @@ from impactqp.controller.model.validation import (
     MAX_GAIN,
     BadInputError,
     all_finite,
+    boolean,
     file_inside,
     finite_array,
     finite_vector,
+    name_in,
     non_empty_list,
     non_empty_string,
     number,
@@ -59,7 +61,7 @@ not_numbers = st.one_of(st.booleans(), st.text(max_size=3), st.none(), st.lists(
 @given(st.one_of(st.integers(-(2**60), 2**60), st.floats(allow_nan=True, allow_infinity=True)))
 def test_a_number_is_any_int_or_float_as_a_float(value):
     result = number(value, "x")
-    assert isinstance(result, float) and (result == value or np.isnan(value))
+    assert isinstance(result, float) and (result == float(value) or np.isnan(value))
 
 
 @given(not_numbers)
@@ -154,4 +156,23 @@ def test_a_relative_file_name_stays_inside_its_directory(parts):
     for escape in ("/" + name, "../" + name, name + "/../../x", "~/" + name):
         with pytest.raises(BadInputError, match="file must name a file inside the dataset directory"):
             file_inside(escape, "file", "the dataset directory")
+
+
+@given(st.one_of(st.text(max_size=6), st.integers(), st.none()))
+def test_name_in_accepts_only_one_of_the_choices(value):
+    choices = ("crb", "gm", "classical")
+    if value in choices:
+        assert name_in(value, choices, "the model") == value
+    else:
+        with pytest.raises(BadInputError, match="the model = .*; choose from crb, gm, classical"):
+            name_in(value, choices, "the model")
+
+
+@given(st.one_of(st.booleans(), st.integers(0, 1), st.text(max_size=3), st.none()))
+def test_boolean_accepts_only_true_and_false(value):
+    if isinstance(value, bool):
+        assert boolean(value, "flag") is value
+    else:
+        with pytest.raises(BadInputError, match="flag must be true or false"):
+            boolean(value, "flag")
 
