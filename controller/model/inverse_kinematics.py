@@ -73,6 +73,7 @@ APPROACH_STOP = Stop(1e-7, 1e-6, 100)
 """The approach start is placed ten times tighter (m, rad) than a contact posture: the start
 distance and the tool orientation of every simulated trial come from it."""
 
+
 class UnreachableStartError(BadInputError):
     """No joint posture puts the tool at the requested start pose (wall out of reach)."""
 
