@@ -275,7 +275,7 @@ class ControllerConfig:
         path = Path(path)
         if path.suffix not in (".toml", ".yaml", ".yml"):
             raise BadInputError(f"unsupported configuration file {path.name}: use .toml, .yaml or .yml")
-        data = read_mapping(path, "the controller configuration")
+        data = read_mapping(path, "file")
         try:
             return cls.from_dict(data)
         except BadInputError as error:

@@ -170,7 +170,7 @@ def test_bad_values_are_bad_input_that_names_the_key(data, fragment):
 @pytest.mark.parametrize(
     "name, content, fragment",
     [
-        ("c.yaml", b"- 1\n- 2\n", "the controller configuration"),  # the reader's failures (tests/test_files.py)
+        ("c.yaml", b"- 1\n- 2\n", "must be a table"),  # the reader's failures (tests/test_files.py)
         ("c.toml", b"[limits]\njerk_scale = 1e-300\n", "limits.jerk_scale"),
     ],
 )
