@@ -29,7 +29,7 @@ from impactqp.controller.runtime.replay_backend import ReplayRobot, load_trial
 from impactqp.controller.runtime.run_log import RunLog
 from impactqp.controller.runtime.session import ImpactSession
 from impactqp.sim.plant import PlantParameterError, PlantParameters
-from impactqp.sim.runner import UnreachableStartError, approach_start
+from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
 from impactqp.sim.scene import build_scene
 from impactqp.sim.sim_backend import SimRobot
 

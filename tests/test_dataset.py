@@ -153,7 +153,7 @@ def test_validation_reports_a_manifest_disagreeing_with_the_files(dataset):
 
 
 def test_validation_reports_a_broken_manifest(tmp_path):
-    assert validate(tmp_path)["dataset"] == [f"{tmp_path / 'dataset.json'} does not exist: not a dataset directory"]
+    assert validate(tmp_path)["dataset"] == [f"the dataset manifest {tmp_path / 'dataset.json'} does not exist"]
     (tmp_path / "dataset.json").write_text(json.dumps({"format": "other/1"}))
     assert "lacks the key" in validate(tmp_path)["dataset"][0]
     with pytest.raises(DatasetError):

@@ -52,7 +52,7 @@ def test_franka_without_pylibfranka_says_how_to_install_it(capsys, monkeypatch):
 
 
 def test_bad_input_gets_one_line(tmp_path, capsys):
-    assert "No such file" in one_error_line(capsys, ["run", "--config", str(tmp_path / "missing.toml")])
+    assert "does not exist" in one_error_line(capsys, ["run", "--config", str(tmp_path / "missing.toml")])
     bad = tmp_path / "bad.toml"
     bad.write_text("nonsense_key = 1\n")
     assert "unknown configuration keys" in one_error_line(capsys, ["run", "--config", str(bad)])

@@ -44,7 +44,7 @@ import pinocchio as pin
 
 from impactqp.controller.model.postures import POSTURES, Surface
 from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET, PandaModel
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import BadInputError, finite_vector, positive
 
 from .dataset import DatasetError, DatasetHeader, DatasetWriter, Tool, TrialEntry
 from .impact import ImpactNotFoundError, measure_impact
@@ -248,11 +248,9 @@ def import_franka_logs(
     the trial entries. Every log is read and checked before the first file is written."""
     if not logs:
         raise BadInputError("give at least one libfranka log")
-    if reference_speed is not None and not (np.isfinite(reference_speed) and reference_speed > 0.0):
-        raise BadInputError(f"--reference-speed must be > 0 m/s, got {reference_speed}")
-    point = np.asarray(contact_point, dtype=float)
-    if point.shape != (3,) or not np.all(np.isfinite(point)):
-        raise BadInputError(f"the contact point must be 3 finite numbers, got {contact_point!r}")
+    if reference_speed is not None:
+        positive(reference_speed, "--reference-speed", "m/s")
+    point = finite_vector(contact_point, 3, "the contact point")
     robot = PandaModel()
     if not robot.model.existFrame(tool_frame):
         raise BadInputError(f"--tool-frame {tool_frame!r} is not a frame of the Panda model (e.g. {HAND_FRAME!r})")

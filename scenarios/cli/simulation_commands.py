@@ -18,7 +18,7 @@ import numpy as np
 from impactqp.constraints import JUMP_MODEL_CHOICES
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
 from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, ImpactPosture, Surface
-from impactqp.controller.model.validation import BadInputError, tangential_velocity, unit_normal
+from impactqp.controller.model.validation import BadInputError, positive, tangential_velocity, unit_normal
 from impactqp.controller.model.validation import approach_speed, restitution as restitution_coefficient
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.scenarios.cli.arguments import (
@@ -50,18 +50,12 @@ def wall(point_text: str | None, normal_text: str | None) -> Surface:
 def check_reachable(posture: ImpactPosture, surface: Surface, distance: float) -> None:
     """Reject a wall the posture cannot face (before any process is started)."""
     from impactqp.controller.model.prediction import default_robot
-    from impactqp.sim.runner import UnreachableStartError, approach_start
+    from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
 
     try:
         approach_start(default_robot(), posture.q, surface, distance)
     except UnreachableStartError as error:
         raise BadInputError(str(error)) from None
-
-
-def positive(value: float, what: str) -> float:
-    if not (np.isfinite(value) and value > 0.0):
-        raise BadInputError(f"{what} must be > 0, got {value}")
-    return value
 
 
 wall_point_option = click.option("--wall-point", "wall_point", help="A point X,Y,Z (m) of the wall; default 0.6,0,0.")
