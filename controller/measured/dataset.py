@@ -127,12 +127,15 @@ class TrialEntry:
 
 @dataclass(frozen=True)
 class DatasetHeader:
-    """Everything of the manifest but the trial list."""
+    """Everything of the manifest but the trial list. ``friction_known`` is false when the data
+    do not know the surface's friction coefficient (a real robot's log; the manifest leaves
+    ``surface.friction`` out and ``surface`` holds the default)."""
 
     tool: Tool
     surface: Surface
     control_period: float
     robot: str = "panda"
+    friction_known: bool = True
 
     def to_dict(self) -> dict:
         return {
@@ -142,7 +145,7 @@ class DatasetHeader:
             "surface": {
                 "point": self.surface.point.tolist(),
                 "normal": self.surface.normal.tolist(),
-                "friction": self.surface.friction,
+                **({"friction": self.surface.friction} if self.friction_known else {}),
             },
             "control_period": self.control_period,
         }
@@ -293,7 +296,10 @@ def _parse_header(manifest: dict) -> DatasetHeader:
         raise
     except BadInputError as error:
         raise DatasetError(f"surface: {error}") from None
-    return DatasetHeader(tool=Tool(frame, contact_point), surface=plane, control_period=period, robot=manifest["robot"])
+    return DatasetHeader(
+        tool=Tool(frame, contact_point), surface=plane, control_period=period, robot=manifest["robot"],
+        friction_known=bool(friction),
+    )
 
 
 def _parse_entry(entry: dict) -> TrialEntry:
