@@ -32,7 +32,7 @@ def model():
 @pytest.fixture(scope="module")
 def retract_run(tmp_path_factory):
     log_dir = tmp_path_factory.mktemp("run")
-    report, result = run(RunRequest(speed=0.15, duration=0.6, paced=False, log_dir=str(log_dir)))
+    report, result = run(RunRequest(speed=0.15, duration=0.6, unpaced=True, log=str(log_dir)))
     return report, result, log_dir
 
 
@@ -59,7 +59,7 @@ def test_an_unmodelled_payload_is_not_taken_for_the_impact(tmp_path):
     # observer's residual, which the detector takes as its bias
     plant = tmp_path / "payload.json"
     plant.write_text(json.dumps({"payload_mass": 0.5, "payload_com": [0.0, 0.0, 0.05]}))
-    report, result = run(RunRequest(plant_file=str(plant), speed=0.15, duration=0.6, paced=False))
+    report, result = run(RunRequest(plant_file=str(plant), speed=0.15, duration=0.6, unpaced=True))
     t_contact = contact_start(result)
     assert t_contact is not None and report["impact"]["detected"]
     assert 0.0 <= report["impact"]["time"] - t_contact <= DETECTION_WINDOW
@@ -89,7 +89,7 @@ def test_retract_leaves_the_wall_within_50_ms_without_recontact(retract_run, mod
 
 def test_a_replayed_trial_reproduces_the_logged_commands(retract_run):
     _, original, log_dir = retract_run
-    report, replayed = run(RunRequest(backend="replay", dataset=str(log_dir), log_dir=None))
+    report, replayed = run(RunRequest(backend="replay", dataset=str(log_dir), log=None))
     controlled = np.array([p not in ("stop", BRAKING) for p in original.phases])
     # the CSV keeps 10 significant digits of every logged state
     assert np.allclose(replayed.log.dq_cmd[controlled], original.log.dq_cmd[controlled], rtol=0.0, atol=1e-6)
@@ -154,7 +154,7 @@ class FaultySession(ImpactSession):
 
 @pytest.mark.parametrize("fault", ["nan", "nan_tau_ext", "stale", "exception", "overrun"])
 def test_each_fault_trips_the_watchdog_and_the_commands_stay_continuous(fault, model):
-    request = RunRequest(speed=0.15, duration=0.3, paced=False)
+    request = RunRequest(speed=0.15, duration=0.3, unpaced=True)
     sim, config, _ = build_backend(request, model)
     at = 200  # mid-approach, moving at speed
     robot = FaultySim(sim, fault, at) if fault in ("nan", "nan_tau_ext", "stale") else sim
@@ -183,7 +183,7 @@ def test_each_fault_trips_the_watchdog_and_the_commands_stay_continuous(fault, m
 
 def test_two_seconds_of_paced_control_report_cycle_statistics(model, capsys):
     # the overrun trip is off: the run measures 2 s of control (the watchdog tests trip it)
-    report, result = run(RunRequest(speed=0.15, duration=2.0, paced=True, log_dir=None, max_overruns=10**9))
+    report, result = run(RunRequest(speed=0.15, duration=2.0, unpaced=False, log=None, max_overruns=10**9))
     print(f"paced sim: {report['cycles']} cycles, {report['overruns']} overruns, cycle_us {report['cycle_us']}, "
           f"period error p99 {np.percentile(result.period_error_us, 99):.0f} us, trips {report['watchdog_trips']}")
     assert report["cycles"] >= 2000
@@ -201,7 +201,7 @@ def test_the_default_configuration_approaches_the_posture_wall():
 
 
 def test_a_backend_failure_ends_the_run_and_keeps_the_log(model):
-    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, paced=False), model)
+    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True), model)
     loop = ControlLoop(
         FaultySim(sim, "robot_error", 100), ImpactSession(config, model), CommandFilter.for_robot(model, DT),
         deadline=float("inf"),
@@ -218,7 +218,7 @@ def test_other_post_impact_modes_switch_the_impact_constraints_off(mode, model, 
         '[[tasks]]\ntype = "contact_approach"\nspeed = 0.15\n[[tasks]]\ntype = "damping"\n'
         f'[post_impact]\nmode = "{mode}"\n'
     )
-    report, result = run(RunRequest(config_file=str(config_file), duration=0.5, paced=False))
+    report, result = run(RunRequest(config_file=str(config_file), duration=0.5, unpaced=True))
     session = result.session
     assert report["impact"]["detected"] and session.controller is session.post_impact
     assert mode in result.phases and report["watchdog_trips"] == 0
@@ -238,7 +238,7 @@ def hold_run(tmp_path, hold_speed: float):
         '[[tasks]]\ntype = "contact_approach"\nspeed = 0.15\n[[tasks]]\ntype = "damping"\n'
         f'[post_impact]\nmode = "hold"\nhold_speed = {hold_speed}\n'
     )
-    report, result = run(RunRequest(config_file=str(config_file), duration=1.5, paced=False))
+    report, result = run(RunRequest(config_file=str(config_file), duration=1.5, unpaced=True))
     assert report["impact"]["detected"] and report["watchdog_trips"] == 0
     assert_continuous_within_limits(result.log.dq_cmd)
     log = result.log
