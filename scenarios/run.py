@@ -41,7 +41,39 @@ MAX_DURATION = 60.0
 
 @dataclass(frozen=True)
 class RunRequest:
-    """The options of ``impactqp run`` (``docs/robot-loop.md``)."""
+    """The options of ``impactqp run`` (``docs/robot-loop.md``); each field is named after its
+    option.
+
+    backend
+        ``--backend``: ``sim`` (MuJoCo), ``franka`` (a real Panda through libfranka) or
+        ``replay`` (a dataset trial played back).
+    robot_ip
+        ``--robot-ip``: the robot's address (franka backend).
+    config_file
+        ``--config``: a controller configuration file (.toml, .yaml); None: the default approach
+        to ``posture``'s wall at ``speed``.
+    plant_file
+        ``--plant``: a JSON file of plant-parameter overrides (sim backend); None: nominal.
+    posture
+        ``--posture``: the named start posture (sim backend).
+    speed
+        ``--speed``: approach speed (m/s) of the default configuration.
+    duration
+        ``--duration``: control time (s) before braking to a stop, in (0, ``MAX_DURATION``].
+    log
+        ``--log``: the dataset directory the run is added to as one trial; None: no log.
+    dataset
+        ``--dataset``: the dataset directory of the trial to replay (replay backend).
+    trial
+        ``--trial``: the id of the trial to replay; None: the first.
+    unpaced
+        ``--unpaced``: run the sim backend as fast as it goes, without wall-clock pacing.
+    deadline
+        Time (s) from a state read to its command after which a cycle counts as an overrun;
+        None: the control period, and no deadline offline (replay, unpaced sim). No option.
+    max_overruns
+        Overruns in a row that trip the watchdog. No option.
+    """
 
     backend: str = "sim"
     robot_ip: str | None = None
@@ -50,11 +82,11 @@ class RunRequest:
     posture: str = "elbow_up"
     speed: float = 0.15
     duration: float = 1.0
-    log_dir: str | None = None
+    log: str | None = None
     dataset: str | None = None
     trial: str | None = None
-    paced: bool = True
-    deadline: float | None = None  # None: the period, or no deadline offline (replay, unpaced sim)
+    unpaced: bool = False
+    deadline: float | None = None
     max_overruns: int = 5
 
 
@@ -102,7 +134,7 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
         q0 = approach_start(model, POSTURES[request.posture].q, surface, SIM_START_DISTANCE)
     except UnreachableStartError as error:
         raise BadInputError(str(error)) from None
-    robot = SimRobot(build_scene(surface, plant), q0, np.zeros(NQ), config.dt, paced=request.paced)
+    robot = SimRobot(build_scene(surface, plant), q0, np.zeros(NQ), config.dt, paced=not request.unpaced)
     return robot, config, request.duration
 
 
@@ -115,10 +147,10 @@ def run(request: RunRequest) -> tuple[dict, LoopResult]:
     check_request(request)
     model = PandaModel()
     robot, config, duration = build_backend(request, model)
-    run_log = RunLog(request.log_dir, log_header(config)) if request.log_dir else None
+    run_log = RunLog(request.log, log_header(config)) if request.log else None
     session = ImpactSession(config, model)
     deadline = request.deadline
-    if deadline is None and (request.backend == "replay" or not request.paced):
+    if deadline is None and (request.backend == "replay" or request.unpaced):
         deadline = float("inf")  # offline: the plant waits for the controller
     loop = ControlLoop(
         robot, session, CommandFilter.for_robot(model, config.dt), deadline=deadline, max_overruns=request.max_overruns

@@ -57,7 +57,7 @@ def retract_run(tmp_path_factory):
     """(report, result, log directory) of one logged unpaced run of ``impactqp run``'s default on
     the sim backend: approach at 0.15 m/s, impact, retract."""
     log_dir = tmp_path_factory.mktemp("run")
-    report, result = run(RunRequest(speed=0.15, duration=0.6, paced=False, log_dir=str(log_dir)))
+    report, result = run(RunRequest(speed=0.15, duration=0.6, unpaced=True, log=str(log_dir)))
     return report, result, log_dir
 
 

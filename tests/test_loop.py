@@ -65,7 +65,7 @@ class FaultySession(ImpactSession):
 
 @pytest.mark.parametrize("fault", ["nan", "nan_tau_ext", "stale", "exception", "overrun"])
 def test_each_fault_trips_the_watchdog_and_the_commands_stay_continuous(fault, model):
-    request = RunRequest(speed=0.15, duration=0.3, paced=False)
+    request = RunRequest(speed=0.15, duration=0.3, unpaced=True)
     sim, config, _ = build_backend(request, model)
     at = 200  # mid-approach, moving at speed
     robot = FaultySim(sim, fault, at) if fault in ("nan", "nan_tau_ext", "stale") else sim
@@ -93,7 +93,7 @@ def test_each_fault_trips_the_watchdog_and_the_commands_stay_continuous(fault, m
 
 
 def test_a_backend_failure_ends_the_run_and_keeps_the_log(model):
-    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, paced=False), model)
+    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True), model)
     loop = ControlLoop(
         FaultySim(sim, "robot_error", 100), ImpactSession(config, model), CommandFilter.for_robot(model, DT),
         deadline=float("inf"),
@@ -105,7 +105,7 @@ def test_a_backend_failure_ends_the_run_and_keeps_the_log(model):
 
 def test_two_seconds_of_paced_control_report_cycle_statistics(model, capsys):
     # the overrun trip is off: the run measures 2 s of control (the watchdog tests trip it)
-    report, result = run(RunRequest(speed=0.15, duration=2.0, paced=True, log_dir=None, max_overruns=10**9))
+    report, result = run(RunRequest(speed=0.15, duration=2.0, unpaced=False, log=None, max_overruns=10**9))
     print(f"paced sim: {report['cycles']} cycles, {report['overruns']} overruns, cycle_us {report['cycle_us']}, "
           f"period error p99 {np.percentile(result.period_error_us, 99):.0f} us, trips {report['watchdog_trips']}")
     assert report["cycles"] >= 2000

@@ -10,7 +10,7 @@ from impactqp.scenarios.run import RunRequest, run
 
 def test_a_replayed_trial_reproduces_the_logged_commands(retract_run):
     _, original, log_dir = retract_run
-    report, replayed = run(RunRequest(backend="replay", dataset=str(log_dir), log_dir=None))
+    report, replayed = run(RunRequest(backend="replay", dataset=str(log_dir), log=None))
     controlled = np.array([p not in ("stop", BRAKING) for p in original.phases])
     # the CSV keeps 10 significant digits of every logged state
     assert np.allclose(replayed.log.dq_cmd[controlled], original.log.dq_cmd[controlled], rtol=0.0, atol=1e-6)

@@ -118,3 +118,17 @@ def test_an_unusable_log_directory_is_refused_before_the_robot_moves(tmp_path, c
     capsys.readouterr()
     assert "another header" in one_error_line(capsys, ["run", "--unpaced", "--duration", "0.05", "--log", str(other)])
     assert moved == []
+
+
+def test_every_option_of_run_is_a_request_field_of_the_same_name_and_every_field_is_documented():
+    from dataclasses import fields
+
+    from impactqp.scenarios.cli.run_command import run_command
+    from impactqp.scenarios.run import RunRequest
+
+    names = {f.name for f in fields(RunRequest)}
+    options = {p.name for p in run_command.params} - {"as_json"}
+    assert options <= names
+    for name in names:
+        assert f"\n    {name}\n" in RunRequest.__doc__, name
+    assert RunRequest().unpaced is False and RunRequest().log is None

@@ -34,7 +34,7 @@ def test_an_unmodelled_payload_is_not_taken_for_the_impact(tmp_path):
     # observer's residual, which the detector takes as its bias
     plant = tmp_path / "payload.json"
     plant.write_text(json.dumps({"payload_mass": 0.5, "payload_com": [0.0, 0.0, 0.05]}))
-    report, result = run(RunRequest(plant_file=str(plant), speed=0.15, duration=0.6, paced=False))
+    report, result = run(RunRequest(plant_file=str(plant), speed=0.15, duration=0.6, unpaced=True))
     t_contact = contact_start(result)
     assert t_contact is not None and report["impact"]["detected"]
     assert 0.0 <= report["impact"]["time"] - t_contact <= DETECTION_WINDOW
@@ -69,7 +69,7 @@ def test_other_post_impact_modes_switch_the_impact_constraints_off(mode, model, 
         '[[tasks]]\ntype = "contact_approach"\nspeed = 0.15\n[[tasks]]\ntype = "damping"\n'
         f'[post_impact]\nmode = "{mode}"\n'
     )
-    report, result = run(RunRequest(config_file=str(config_file), duration=0.5, paced=False))
+    report, result = run(RunRequest(config_file=str(config_file), duration=0.5, unpaced=True))
     session = result.session
     assert report["impact"]["detected"] and session.controller is session.post_impact
     assert mode in result.phases and report["watchdog_trips"] == 0
@@ -89,7 +89,7 @@ def hold_run(tmp_path, hold_speed: float):
         '[[tasks]]\ntype = "contact_approach"\nspeed = 0.15\n[[tasks]]\ntype = "damping"\n'
         f'[post_impact]\nmode = "hold"\nhold_speed = {hold_speed}\n'
     )
-    report, result = run(RunRequest(config_file=str(config_file), duration=1.5, paced=False))
+    report, result = run(RunRequest(config_file=str(config_file), duration=1.5, unpaced=True))
     assert report["impact"]["detected"] and report["watchdog_trips"] == 0
     assert_continuous_within_limits(result.log.dq_cmd)
     log = result.log

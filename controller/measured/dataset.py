@@ -140,12 +140,15 @@ class TrialEntry:
 
 @dataclass(frozen=True)
 class DatasetHeader:
-    """Everything of the manifest but the trial list."""
+    """Everything of the manifest but the trial list. ``friction_known`` is false when the data
+    do not know the surface's friction coefficient (a real robot's log; the manifest leaves
+    ``surface.friction`` out and ``surface`` holds the default)."""
 
     tool: Tool
     surface: Surface
     control_period: float
     robot: str = "panda"
+    friction_known: bool = True
 
     def to_dict(self) -> dict:
         return {
@@ -155,7 +158,7 @@ class DatasetHeader:
             "surface": {
                 "point": self.surface.point.tolist(),
                 "normal": self.surface.normal.tolist(),
-                "friction": self.surface.friction,
+                **({"friction": self.surface.friction} if self.friction_known else {}),
             },
             "control_period": self.control_period,
         }
@@ -292,7 +295,10 @@ def _parse_header(manifest: dict) -> DatasetHeader:
         plane = Surface(point, normal, *friction)
     except BadInputError as error:
         raise DatasetError(f"surface: {error}") from None
-    return DatasetHeader(tool=Tool(frame, contact_point), surface=plane, control_period=period, robot=manifest["robot"])
+    return DatasetHeader(
+        tool=Tool(frame, contact_point), surface=plane, control_period=period, robot=manifest["robot"],
+        friction_known=bool(friction),
+    )
 
 
 @_dataset_errors

@@ -92,6 +92,7 @@ def simulate(
     from impactqp.scenarios.trial import TrialRunner
     from impactqp.sim.runner import TrialSpec
     from impactqp.controller.measured.dataset import DatasetWriter
+    from impactqp.scenarios.readable import fixed
 
     posture = named_posture(posture_name)
     approach_speed(speed, "--speed")
@@ -134,7 +135,7 @@ def simulate(
     click.echo(f"{posture.name}: reference {speed} m/s, jump constraints {report['jump_model'] or 'off'}")
     click.echo(f"contact speed    {report['contact_speed']:.4f} m/s at t = {report['impact_time']:.4f} s")
     click.echo(f"impact duration  {report['impact_duration'] * 1e3:.2f} ms")
-    click.echo(f"impulse          {np.array2string(np.array(report['impulse']), precision=4)} N s")
+    click.echo(f"impulse          {fixed(report['impulse'])} N s")
     click.echo(f"{'':<17}" + "".join(f"{f'dq{i}':>9}" for i in range(1, 8)))
     click.echo(f"{'simulated jump':<17}" + "".join(f"{x:9.4f}" for x in report["dq_jump"]))
     for name, jump in report["predicted"].items():
