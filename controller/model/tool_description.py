@@ -87,8 +87,7 @@ class Sphere:
 class Pad:
     """A flat pad: a box of full lengths ``size`` = (a, b, thickness) centred at ``centre``, whose
     thickness runs along the unit ``normal`` of its contact face (the face at centre + normal
-    thickness / 2). Its axes are :attr:`rotation`: the smallest rotation taking the frame's z
-    axis onto ``normal`` (the frame's own axes when the normal is z)."""
+    thickness / 2). Its axes are :attr:`rotation` (the frame's own axes when the normal is z)."""
 
     size: np.ndarray
     centre: np.ndarray
@@ -106,8 +105,15 @@ class Pad:
 
     @property
     def rotation(self) -> np.ndarray:
-        """The pad's axes in the tool frame (columns x, y, normal)."""
-        return pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), self.normal).matrix()
+        """The pad's axes in the tool frame (columns x, y, normal): the smallest rotation taking
+        the frame's z axis onto the normal, R = I + [v]x + [v]x^2 / (1 + c) with v = z x n and
+        c = z.n; a normal with c < 0 is reached from -z after a half turn about x, which keeps
+        1 + c away from zero."""
+        half_turn = np.diag([1.0, -1.0, -1.0])
+        start = np.array([0.0, 0.0, 1.0]) if self.normal[2] >= 0.0 else np.array([0.0, 0.0, -1.0])
+        v = pin.skew(np.cross(start, self.normal))
+        R = np.eye(3) + v + v @ v / (1.0 + float(start @ self.normal))
+        return R if self.normal[2] >= 0.0 else R @ half_turn
 
     @property
     def bounding_radius(self) -> float:
