@@ -5,12 +5,17 @@ Wang, Dehio and Kheddar (RA-L 2022), beside the classical and generalized-moment
 (``docs/predictors.md``), embeds it in a task-space QP as linear joint-velocity-limit constraints
 (``docs/qp-constraints.md``), and exercises both on a MuJoCo Panda (``docs/simulation.md``).
 
-The names a user needs first are exported here, lazily (PEP 562): ``import impactqp`` loads
-nothing heavy, so the command line installs its signal handlers before numpy, Pinocchio or MuJoCo
-load. The layers of the package are listed in the README.
+The names a user needs first are exported here, lazily (PEP 562): ``import impactqp`` loads none
+of them, and importing one module (say ``impactqp.controller.model.robot``) loads only what that
+module imports, never the QP or MuJoCo. The layers of the package are listed in the README.
 """
 
-from importlib import import_module
+from importlib import import_module, metadata
+
+try:
+    __version__ = metadata.version("impactqp")
+except metadata.PackageNotFoundError:  # pragma: no cover - running from a tree that was never installed
+    __version__ = "0+unknown"
 
 _EXPORTS = {
     "PandaModel": "impactqp.controller.model.robot",
@@ -30,20 +35,13 @@ __all__ = [*_EXPORTS, "__version__"]
 
 
 def __getattr__(name: str):
-    if name == "__version__":
-        from importlib import metadata
-
-        try:
-            value = metadata.version("impactqp")
-        except metadata.PackageNotFoundError:  # pragma: no cover - a tree that was never installed
-            value = "0+unknown"
-    elif name in _EXPORTS:
-        value = getattr(import_module(_EXPORTS[name]), name)
-    else:
-        raise AttributeError(f"module 'impactqp' has no attribute {name!r}")
+    """The exported name ``name``, imported from its module on first use (PEP 562)."""
+    if name not in _EXPORTS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(_EXPORTS[name]), name)
     globals()[name] = value
     return value
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+    return sorted({*globals(), *_EXPORTS})

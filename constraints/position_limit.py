@@ -10,7 +10,7 @@ from numba import njit
 from impactqp.controller.model.robot import NQ, ModelTerms
 
 from .constraint import Constraint, ControlCycle
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import number_in_range
 
 
 class PositionLimit(Constraint):
@@ -38,10 +38,8 @@ class PositionLimit(Constraint):
     is_box = True
 
     def __init__(self, q_min, q_max, ddq_max, braking_fraction: float = 0.5, margin: float = 0.0):
-        if not 0.0 < braking_fraction <= 1.0:
-            raise BadInputError("braking_fraction must be in (0, 1]")
-        if margin < 0.0:
-            raise BadInputError("margin must be >= 0")
+        braking_fraction = number_in_range(braking_fraction, 0.0, 1.0, "braking_fraction", low_open=True)
+        margin = number_in_range(margin, 0.0, math.inf, "margin", "rad")
         # Row 0 looks at the upper limits, row 1 at the lower ones (sign -1 mirrors them).
         self._sign = np.array([[1.0], [-1.0]])
         self._limits = np.vstack([np.asarray(q_max, float) - margin, np.asarray(q_min, float) + margin])

@@ -7,9 +7,10 @@ from numba import njit
 
 from impactqp.controller.model.robot import ModelTerms
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
-from impactqp.controller.model.validation import MAX_CONTACT_SPEED, number_in_range, unit_normal
+from impactqp.controller.model.validation import MAX_CONTACT_SPEED, finite_array, number_in_range, task_gain
+from impactqp.controller.model.validation import unit_normal
 
-from .task import Task, critical_damping, finite_array, non_negative, rotation_error, rotation_log
+from .task import Task, critical_damping, rotation_error, rotation_log
 
 
 class ContactApproachTask(Task):
@@ -52,9 +53,9 @@ class ContactApproachTask(Task):
         for label, value in (("velocity_gain", velocity_gain), ("orientation_stiffness", orientation_stiffness),
                              ("normal_weight", normal_weight), ("tangential_weight", tangential_weight),
                              ("orientation_weight", orientation_weight)):
-            non_negative(label, value)
+            task_gain(value, label)
         if orientation_damping is not None:
-            non_negative("orientation_damping", orientation_damping)
+            task_gain(orientation_damping, "orientation_damping")
         # Surface frame: rows of `basis` are n, t1, t2 (world axes).
         t1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
         t1 /= np.linalg.norm(t1)
@@ -71,7 +72,7 @@ class ContactApproachTask(Task):
             [normal_weight, tangential_weight, tangential_weight] + [orientation_weight] * 3, dtype=float
         )
         self.target_rotation = (
-            None if target_rotation is None else finite_array("target_rotation", target_rotation, (3, 3))
+            None if target_rotation is None else finite_array(target_rotation, (3, 3), "target_rotation")
         )
         self._twist_gain = np.repeat([-self.velocity_gain, -self.orientation_damping], 3)
         self._reference_acceleration = self.velocity_gain * self.reference_velocity

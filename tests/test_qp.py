@@ -177,7 +177,7 @@ def test_fast_approach_from_afar_stays_within_the_impact_limits(robot, posture):
     """Asked for 2 m/s from 30 cm away, the controller speeds up while the wall is far and slows
     down to the impact-feasible speed as it enters the activation zone: every command keeps the
     limits, and the contact speed is at most the crb maximum at the contact posture."""
-    from impactqp.sim.runner import approach_start
+    from impactqp.controller.model.inverse_kinematics import approach_start
 
     wall = POSTURES[posture].surface
     q = approach_start(robot, POSTURES[posture].q, wall, 0.3)

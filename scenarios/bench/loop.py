@@ -1,4 +1,4 @@
-"""Benchmark rows of the robot loop (``scenarios.robot``).
+"""Benchmark rows of the robot loop (``scenarios.run``).
 
 ``loop.sim_paced.p99``: cycle time (read returned -> command written, us) of the controller and
 the sim backend in a paced 1 kHz run (approach, impact, retract; goal p99 <= 500 us).
@@ -13,14 +13,14 @@ from __future__ import annotations
 import numpy as np
 
 from impactqp.controller.model.postures import POSTURES
-from impactqp.scenarios.robot.run import SIM_START_DISTANCE, RunRequest, run
+from impactqp.scenarios.run import SIM_START_DISTANCE, RunRequest, run
 
 NO_OVERRUN_TRIP = 10**9
 CAMPAIGN_SPEEDS = (0.1, 0.15)
 
 
 def rows(duration: float = 1.0) -> list[dict]:
-    _, result = run(RunRequest(speed=0.15, duration=duration, paced=True, max_overruns=NO_OVERRUN_TRIP))
+    _, result = run(RunRequest(speed=0.15, duration=duration, unpaced=False, max_overruns=NO_OVERRUN_TRIP))
     stats = result.cycle_us
     jitter = result.period_error_us
     return [
@@ -39,7 +39,7 @@ def detection_rows() -> list[dict]:
     for posture in POSTURES:
         for speed in CAMPAIGN_SPEEDS:
             duration = SIM_START_DISTANCE / speed + 0.1  # from rest: the contact comes after the nominal time
-            report, _ = run(RunRequest(posture=posture, speed=speed, duration=duration, paced=False))
+            report, _ = run(RunRequest(posture=posture, speed=speed, duration=duration, unpaced=True))
             latency = report["impact"]["detection_latency_ms"]
             latencies.append(np.inf if latency is None else latency)
     return [

@@ -15,18 +15,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactqp.controller.command_filter import CommandFilter
 from impactqp.controller.config import ControllerConfig
 from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
-
-from .interface import RobotInterface
-from .loop import ControlLoop, LoopResult
-from .run_log import RunLog
-from .session import ImpactSession
+from impactqp.controller.runtime.command_filter import CommandFilter
+from impactqp.controller.runtime.franka_backend import FrankaRobot
+from impactqp.controller.runtime.interface import RobotInterface
+from impactqp.controller.runtime.loop import ControlLoop, LoopResult
+from impactqp.controller.runtime.replay_backend import ReplayRobot, load_trial
+from impactqp.controller.runtime.run_log import RunLog
+from impactqp.controller.runtime.session import ImpactSession
+from impactqp.sim.plant import PlantParameterError, PlantParameters
+from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
+from impactqp.sim.scene import build_scene
+from impactqp.sim.sim_backend import SimRobot
 
 BACKENDS = ("sim", "franka", "replay")
 SIM_START_DISTANCE = 0.05
@@ -36,7 +41,39 @@ MAX_DURATION = 60.0
 
 @dataclass(frozen=True)
 class RunRequest:
-    """The options of ``impactqp run`` (``docs/robot-loop.md``)."""
+    """The options of ``impactqp run`` (``docs/robot-loop.md``); each field is named after its
+    option.
+
+    backend
+        ``--backend``: ``sim`` (MuJoCo), ``franka`` (a real Panda through libfranka) or
+        ``replay`` (a dataset trial played back).
+    robot_ip
+        ``--robot-ip``: the robot's address (franka backend).
+    config_file
+        ``--config``: a controller configuration file (.toml, .yaml); None: the default approach
+        to ``posture``'s wall at ``speed``.
+    plant_file
+        ``--plant``: a JSON file of plant-parameter overrides (sim backend); None: nominal.
+    posture
+        ``--posture``: the named start posture (sim backend).
+    speed
+        ``--speed``: approach speed (m/s) of the default configuration.
+    duration
+        ``--duration``: control time (s) before braking to a stop, in (0, ``MAX_DURATION``].
+    log
+        ``--log``: the dataset directory the run is added to as one trial; None: no log.
+    dataset
+        ``--dataset``: the dataset directory of the trial to replay (replay backend).
+    trial
+        ``--trial``: the id of the trial to replay; None: the first.
+    unpaced
+        ``--unpaced``: run the sim backend as fast as it goes, without wall-clock pacing.
+    deadline
+        Time (s) from a state read to its command after which a cycle counts as an overrun;
+        None: the control period, and no deadline offline (replay, unpaced sim). No option.
+    max_overruns
+        Overruns in a row that trip the watchdog. No option.
+    """
 
     backend: str = "sim"
     robot_ip: str | None = None
@@ -45,11 +82,11 @@ class RunRequest:
     posture: str = "elbow_up"
     speed: float = 0.15
     duration: float = 1.0
-    log_dir: str | None = None
+    log: str | None = None
     dataset: str | None = None
     trial: str | None = None
-    paced: bool = True
-    deadline: float | None = None  # None: the period, or no deadline offline (replay, unpaced sim)
+    unpaced: bool = False
+    deadline: float | None = None
     max_overruns: int = 5
 
 
@@ -80,21 +117,13 @@ def check_request(request: RunRequest) -> None:
 def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterface, ControllerConfig, float]:
     """(backend, controller configuration, duration) of the request."""
     if request.backend == "franka":
-        from .franka_backend import FrankaRobot
-
         config = controller_config(request)
         return FrankaRobot.connect(request.robot_ip), config, request.duration
     if request.backend == "replay":
-        from .replay_backend import ReplayRobot, load_trial
-
         trial, header = load_trial(request.dataset, request.trial)
         speed = trial.entry.reference_normal_speed
         config = controller_config(RunRequest(**{**request.__dict__, "speed": speed}), header.surface)
         return ReplayRobot(trial, header.control_period), config, len(trial.log) * header.control_period
-    from impactqp.sim.plant import PlantParameterError, PlantParameters
-    from impactqp.sim.runner import UnreachableStartError, approach_start
-    from impactqp.sim.scene import build_scene
-
     config = controller_config(request)
     try:
         plant = None if request.plant_file is None else PlantParameters.from_json(request.plant_file)
@@ -105,9 +134,7 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
         q0 = approach_start(model, POSTURES[request.posture].q, surface, SIM_START_DISTANCE)
     except UnreachableStartError as error:
         raise BadInputError(str(error)) from None
-    from .sim_backend import SimRobot
-
-    robot = SimRobot(build_scene(surface, plant), q0, np.zeros(NQ), config.dt, paced=request.paced)
+    robot = SimRobot(build_scene(surface, plant), q0, np.zeros(NQ), config.dt, paced=not request.unpaced)
     return robot, config, request.duration
 
 
@@ -120,10 +147,10 @@ def run(request: RunRequest) -> tuple[dict, LoopResult]:
     check_request(request)
     model = PandaModel()
     robot, config, duration = build_backend(request, model)
-    run_log = RunLog(request.log_dir, log_header(config)) if request.log_dir else None
+    run_log = RunLog(request.log, log_header(config)) if request.log else None
     session = ImpactSession(config, model)
     deadline = request.deadline
-    if deadline is None and (request.backend == "replay" or not request.paced):
+    if deadline is None and (request.backend == "replay" or request.unpaced):
         deadline = float("inf")  # offline: the plant waits for the controller
     loop = ControlLoop(
         robot, session, CommandFilter.for_robot(model, config.dt), deadline=deadline, max_overruns=request.max_overruns

@@ -40,7 +40,7 @@ class CollisionThresholds:
 
 def import_pylibfranka():
     try:
-        import pylibfranka
+        import pylibfranka  # optional dependency (the franka extra): imported only when the backend is chosen
     except ImportError:
         raise BadInputError(f"--backend franka needs pylibfranka, which is not installed: {INSTALL_HINT}") from None
     return pylibfranka

@@ -15,7 +15,7 @@ One cycle::
 
 The watchdog latches: after a trip every command is the filter's braking command, which ramps the
 commanded velocity to zero within the velocity, acceleration and jerk limits
-(``controller.command_filter``), so the commands stay continuous; the run ends when the command
+(``controller.runtime.command_filter``), so the commands stay continuous; the run ends when the command
 is zero. At the end of the run (the duration, a stop request such as Ctrl-C, or a replay's last
 state) the loop brakes the same way until the command is zero, then calls ``robot.stop()``.
 
@@ -40,11 +40,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactqp.controller.command_filter import CommandFilter
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
 
+from .command_filter import CommandFilter
 from .interface import RobotInterface, RobotState
 from .session import ImpactSession
 
