@@ -35,11 +35,11 @@ TOOL_TIP_OFFSET = TOOL_CENTRE_OFFSET + TOOL_RADIUS
 SINGULAR_RATIO = 1e-3
 FINGER_JOINTS = ("panda_finger_joint1", "panda_finger_joint2")
 
-# Franka datasheet limits (docs/predictors.md, Conventions).
 MAX_STATE_ENTRY = 1e100
 """Largest |q_i| (rad) or |dq_i| (rad/s) of a joint state: far above any robot's, far enough
 below the float range that the model's products of entries (kinetic energy, Coriolis terms)
 cannot overflow."""
+# Franka datasheet limits (docs/predictors.md, Conventions).
 VELOCITY_LIMIT = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
 TORQUE_LIMIT = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
 ACCELERATION_LIMIT = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0])
