@@ -66,19 +66,6 @@ class PositionLimit(Constraint):
             dt, lower, upper,
         )
 
-    def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
-        dt = cycle.dt
-        if dt != self._dt:
-            self._constants(dt)
-        towards = self._sign * terms.dq  # velocity towards each limit
-        # d_e = max(sign (limit - q) - dt/2 sign dq - a dt^2/8, 0)
-        distance = np.maximum(self._signed_limits - self._sign * (terms.q + (0.5 * dt) * terms.dq), 0.0)
-        allowed = np.sqrt(self._half_step_squared + self._twice_braking * distance)
-        allowed -= self._half_step + towards
-        allowed *= 1.0 / dt
-        np.negative(allowed[1], out=lower)
-        upper[:] = allowed[0]
-
 
 @njit(cache=True)
 def braking_bounds(q, dq, signed_limits, half_step, half_step_squared, twice_braking, dt, lower, upper):

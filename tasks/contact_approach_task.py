@@ -9,7 +9,7 @@ from impactqp.controller.model.robot import ModelTerms
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 from impactqp.controller.model.validation import MAX_CONTACT_SPEED, number_in_range, unit_normal
 
-from .task import Task, critical_damping, finite_array, non_negative, rotation_error, rotation_log
+from .task import Task, critical_damping, finite_array, non_negative, rotation_log
 
 
 class ContactApproachTask(Task):
@@ -86,16 +86,6 @@ class ContactApproachTask(Task):
             terms.J6, terms.dq, terms.dJ6_dq, terms.contact_rotation, self.target_rotation, self.basis,
             self._twist_gain, self._reference_acceleration, self.orientation_stiffness, A, b,
         )
-
-    def reference_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        # b = [k_v (v* - v); k_R log(R* R^T) - d_R w] - dJ6 dq, its linear part in the surface frame
-        np.multiply(self._twist_gain, terms.J6 @ terms.dq, out=b)
-        b[:3] += self._reference_acceleration
-        b[3:] += self.orientation_stiffness * rotation_error(self.target_rotation, terms.contact_rotation)
-        b -= terms.dJ6_dq
-        b[:3] = self.basis @ b[:3]
-        np.matmul(self.basis, terms.J6[:3], out=A[:3])
-        A[3:] = terms.J6[3:]
 
 
 @njit(cache=True)
