@@ -44,22 +44,22 @@ class ImpulsiveTorqueLimit(Constraint):
         self.impact = impact
         self.impulse_limit = np.asarray(tau_max, dtype=float) * impact_duration
         self.row_scale = np.asarray(dq_max, dtype=float) / self.impulse_limit
-        self._scaled_limit = self.row_scale * self.impulse_limit
+        self._scaling = np.vstack([self.row_scale, self.row_scale * self.impulse_limit])  # s_i; s_i tau_max_i delta_t
         self.name = f"impulsive_torque[{impact.name}]"
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         scaled_impulse_rows(
-            self.impact.matrices(terms).torque_matrix, self.row_scale, self._scaled_limit, terms.dq,
-            1.0 / cycle.horizon, self.impact.is_active(terms), C, lower, upper,
+            self.impact.matrices(terms).torque_matrix, self._scaling, terms.dq, 1.0 / cycle.horizon,
+            self.impact.is_active(terms), C, lower, upper,
         )
 
 
 @njit(cache=True)
-def scaled_impulse_rows(torque_matrix, row_scale, scaled_limit, dq, inv_h, active, C, lower, upper):
+def scaled_impulse_rows(torque_matrix, scaling, dq, inv_h, active, C, lower, upper):
     """Kernel: C = diag(s) P; bounds (+-s tau_max delta_t - C dq) / h when active, unbounded
-    otherwise."""
+    otherwise (``scaling`` rows: s, then s tau_max delta_t)."""
     n = dq.shape[0]
     for i in range(n):
         for j in range(n):
-            C[i, j] = torque_matrix[i, j] * row_scale[i]
-    symmetric_row_bounds(C, dq, scaled_limit, inv_h, active, lower, upper)
+            C[i, j] = torque_matrix[i, j] * scaling[0, i]
+    symmetric_row_bounds(C, dq, scaling[1], inv_h, active, lower, upper)

@@ -61,8 +61,8 @@ class ContactApproachTask(Task):
         self.basis = np.vstack([normal, t1, np.cross(normal, t1)])
         self.normal = normal
         self.speed = float(speed)
-        self.reference_velocity = -self.speed * normal + tangential_velocity
         self.velocity_gain = float(velocity_gain)
+        self.reference_velocity = -self.speed * normal + tangential_velocity
         self.orientation_stiffness = float(orientation_stiffness)
         self.orientation_damping = (
             critical_damping(orientation_stiffness) if orientation_damping is None else float(orientation_damping)
@@ -74,8 +74,17 @@ class ContactApproachTask(Task):
             None if target_rotation is None else finite_array("target_rotation", target_rotation, (3, 3))
         )
         self._twist_gain = np.repeat([-self.velocity_gain, -self.orientation_damping], 3)
-        self._reference_acceleration = self.velocity_gain * self.reference_velocity
         self._rotation_configured = self.target_rotation is not None
+
+    @property
+    def reference_velocity(self) -> np.ndarray:
+        """v* (world, m/s); setting it also sets the feed-forward k_v v* of the rows."""
+        return self._reference_velocity
+
+    @reference_velocity.setter
+    def reference_velocity(self, value) -> None:
+        self._reference_velocity = finite_array("reference_velocity", value, (3,))
+        self._reference_acceleration = self.velocity_gain * self._reference_velocity
 
     def reset(self, terms: ModelTerms) -> None:
         if not self._rotation_configured:

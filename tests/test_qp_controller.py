@@ -18,7 +18,8 @@ from impactqp.sim.runner import approach_start
 from impactqp.tasks import DampingTask, FrameTask, PostureTask
 
 
-def check_hard_constraints(robot, controller, command, q, dq, previous_ddq, models, restitution, tol=1e-6):
+def check_hard_constraints(robot, controller, command, q, dq, previous_ddq, models, restitution):
+    tol = 1e-6
     terms = robot.terms(q, dq)
     ddq, dq_cmd = command.ddq, command.dq_cmd
     assert np.all(np.isfinite(ddq)) and np.all(np.isfinite(dq_cmd)) and np.all(np.isfinite(command.q_cmd))

@@ -141,6 +141,20 @@ def test_compiled_rotation_log_is_pinocchio_log3(axis, angle, base):
         np.testing.assert_allclose(out, expected, atol=1e-9)
 
 
+def test_setting_the_reference_velocity_moves_the_rows_by_its_feed_forward(terms):
+    """v* is a public attribute: changing it changes the linear rows by k_v (v*' - v*) in the
+    surface frame, and nothing else."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    task = ContactApproachTask(normal, speed=0.1, velocity_gain=10.0)
+    task.reset(terms)
+    before = task.compute(terms).b
+    old, new = task.reference_velocity.copy(), np.array([0.05, 0.2, -0.1])
+    task.reference_velocity = new
+    after = task.compute(terms).b
+    np.testing.assert_allclose(after[:3] - before[:3], 10.0 * task.basis @ (new - old), atol=1e-12)
+    np.testing.assert_array_equal(after[3:], before[3:])
+
+
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
 def test_compiled_task_rows_equal_the_numpy_reference(robot, seed):

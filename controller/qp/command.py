@@ -8,7 +8,7 @@ from enum import Enum
 
 import numpy as np
 
-from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.robot import NQ, PandaModel
 
 
 class Status(str, Enum):
@@ -61,6 +61,16 @@ class Command:
 
     def __repr__(self) -> str:
         return f"Command(status={self.status!r}, phase={self.phase!r}, dq_cmd={self.dq_cmd!r})"
+
+
+DQ_MAX, Q_MIN, Q_MAX, DDQ_MAX, JERK_STEP = range(5)
+"""Rows of ``command_limits``."""
+
+
+def command_limits(robot: PandaModel, ddq_max: np.ndarray, jerk_step: np.ndarray) -> np.ndarray:
+    """The joint limits every command keeps, stacked (5, 7) for the compiled kernels: rows
+    dq_max, q_min, q_max, ddq_max and jerk_step = dddq_max dt (indices DQ_MAX ... JERK_STEP)."""
+    return np.vstack([robot.dq_max, robot.q_min, robot.q_max, ddq_max, jerk_step]).astype(float)
 
 
 @dataclass

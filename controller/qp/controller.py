@@ -50,7 +50,7 @@ from impactqp.controller.model.robot import NQ, InvalidStateError, ModelTerms, P
 from impactqp.controller.model.validation import BadInputError
 from impactqp.tasks import Task
 
-from .command import Command, CommandMemory, Status
+from .command import DQ_MAX, Q_MAX, Q_MIN, Command, CommandMemory, Status, command_limits
 from .fallback import bounded_conflict, brake, irreducible_conflict, usable_state
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
 from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
@@ -133,6 +133,7 @@ class ImpactAwareController:
         self._relaxed_rows = (p.C[first:], p.l[first:], p.u[first:])
         self._terms: ModelTerms | None = None  # refilled in place every cycle
         self._jerk_step = self.dddq_max * self.dt
+        self._limits = command_limits(self.robot, self.ddq_max, self._jerk_step)
         horizon = max(self.dt, float(np.max(self.ddq_max / self.dddq_max)))
         self._cycle = ControlCycle(self.dt, np.zeros(NQ), np.zeros(NQ), horizon)
         # General rows see the joint-space box of the cycle (all box constraints intersected)
@@ -203,7 +204,7 @@ class ImpactAwareController:
         status = Status.OK
         # dq_cmd = dq + ddq dt (clipped only off the closed loop: see the docstring) and
         # q_cmd = q + (dq + dq_cmd) dt / 2 within the position limits
-        if integrate_command(terms.q, terms.dq, ddq, self.dt, robot.dq_max, robot.q_min, robot.q_max, dq_cmd, q_cmd):
+        if integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, dq_cmd, q_cmd):
             ddq = (dq_cmd - terms.dq) * (1.0 / self.dt)
             status = Status.VELOCITY_CLIPPED
             self.problem.violation(ddq)  # the gaps of the ddq actually commanded
@@ -284,7 +285,7 @@ class ImpactAwareController:
         """Joint-wise braking within the acceleration and jerk limits (``fallback``)."""
         self.fallback_count += 1
         q, dq = usable_state(q, dq, self.memory, self.robot)
-        ddq, dq_cmd, q_cmd = brake(q, dq, self.memory.ddq, self.ddq_max, self._jerk_step, self.dt, self.robot)
+        ddq, dq_cmd, q_cmd = brake(q, dq, self.memory.ddq, self.dt, self._limits)
         return self._emit(terms, ddq, dq_cmd, q_cmd, status, [], list(violated), "", message)
 
     def _emit(self, terms, ddq, dq_cmd, q_cmd, status, active, violated, solver, message="") -> Command:
@@ -350,18 +351,20 @@ def first_outside(values, limit):
 
 
 @njit(cache=True)
-def integrate_command(q, dq, ddq, dt, dq_max, q_min, q_max, dq_cmd, q_cmd):
+def integrate_command(q, dq, ddq, dt, limits, dq_cmd, q_cmd):
     """Kernel: dq_cmd = clip(dq + ddq dt, +-dq_max), q_cmd = clip(q + (dq + dq_cmd) dt / 2,
-    q_min, q_max); True when dq_cmd had to be clipped."""
+    q_min, q_max) (``limits``: the stacked ``command_limits``); True when dq_cmd had to be
+    clipped."""
     clipped = False
     for i in range(q.shape[0]):
         v = dq[i] + ddq[i] * dt
-        if v > dq_max[i]:
-            v, clipped = dq_max[i], True
-        elif v < -dq_max[i]:
-            v, clipped = -dq_max[i], True
+        dq_max = limits[DQ_MAX, i]
+        if v > dq_max:
+            v, clipped = dq_max, True
+        elif v < -dq_max:
+            v, clipped = -dq_max, True
         dq_cmd[i] = v
-        q_cmd[i] = min(max(q[i] + 0.5 * dt * (dq[i] + v), q_min[i]), q_max[i])
+        q_cmd[i] = min(max(q[i] + 0.5 * dt * (dq[i] + v), limits[Q_MIN, i]), limits[Q_MAX, i])
     return clipped
 
 

@@ -25,7 +25,7 @@ from numba import njit
 from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import all_finite
 
-from .command import CommandMemory
+from .command import DDQ_MAX, DQ_MAX, JERK_STEP, Q_MAX, Q_MIN, CommandMemory
 from .problem import ConstraintLayout, QpProblem
 from .solvers import SOLVED, DaqpSolver
 
@@ -45,12 +45,11 @@ def usable_state(q, dq, memory: CommandMemory, robot: PandaModel) -> tuple[np.nd
     return np.where(np.isfinite(q), q, mid_range), np.zeros(NQ)
 
 
-def brake(q, dq, previous_ddq, ddq_max, jerk_step, dt, robot: PandaModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The braking command (ddq, dq_cmd, q_cmd) from a usable state; ``jerk_step`` = dddq_max dt."""
+def brake(q, dq, previous_ddq, dt, limits: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The braking command (ddq, dq_cmd, q_cmd) from a usable state; ``limits`` are the
+    ``command.command_limits``."""
     ddq, dq_cmd, q_cmd = np.empty(NQ), np.empty(NQ), np.empty(NQ)
-    braking_command(
-        q, dq, previous_ddq, ddq_max, jerk_step, dt, robot.dq_max, robot.q_min, robot.q_max, ddq, dq_cmd, q_cmd,
-    )
+    braking_command(q, dq, previous_ddq, dt, limits, ddq, dq_cmd, q_cmd)
     return ddq, dq_cmd, q_cmd
 
 
@@ -151,13 +150,15 @@ def interval_conflicts(box_bounds, lb, ub, C, l, u, row_ends, flags):
 
 
 @njit(cache=True)
-def braking_command(q, dq, previous_ddq, ddq_max, jerk_step, dt, dq_max, q_min, q_max, ddq, dq_cmd, q_cmd):
+def braking_command(q, dq, previous_ddq, dt, limits, ddq, dq_cmd, q_cmd):
     """Kernel of the fallback: ddq = -dq / dt clipped into the reachable interval
     [max(-ddq_max, ddq_prev - s), min(ddq_max, ddq_prev + s)] (s = dddq_max dt), dq_cmd = dq + ddq dt
-    within +-dq_max and q_cmd = q + (dq + dq_cmd) dt / 2 within [q_min, q_max]."""
+    within +-dq_max and q_cmd = q + (dq + dq_cmd) dt / 2 within [q_min, q_max] (``limits``: the
+    stacked ``command_limits``)."""
     for j in range(q.shape[0]):
-        lower = max(-ddq_max[j], previous_ddq[j] - jerk_step[j])
-        upper = min(ddq_max[j], previous_ddq[j] + jerk_step[j])
+        ddq_max, jerk_step, dq_max = limits[DDQ_MAX, j], limits[JERK_STEP, j], limits[DQ_MAX, j]
+        lower = max(-ddq_max, previous_ddq[j] - jerk_step)
+        upper = min(ddq_max, previous_ddq[j] + jerk_step)
         ddq[j] = min(max(-dq[j] / dt, lower), upper)
-        dq_cmd[j] = min(max(dq[j] + ddq[j] * dt, -dq_max[j]), dq_max[j])
-        q_cmd[j] = min(max(q[j] + 0.5 * dt * (dq[j] + dq_cmd[j]), q_min[j]), q_max[j])
+        dq_cmd[j] = min(max(dq[j] + ddq[j] * dt, -dq_max), dq_max)
+        q_cmd[j] = min(max(q[j] + 0.5 * dt * (dq[j] + dq_cmd[j]), limits[Q_MIN, j]), limits[Q_MAX, j])

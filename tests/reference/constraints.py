@@ -30,11 +30,12 @@ def _position_rows(c: PositionLimit, terms, cycle, lower, upper) -> None:
     dt = cycle.dt
     if dt != c._dt:
         c._constants(dt)
+    half_step, half_step_squared, twice_braking = c._braking_terms
     towards = c._sign * terms.dq  # velocity towards each limit
     # d_e = max(sign (limit - q) - dt/2 sign dq - a dt^2/8, 0)
     distance = np.maximum(c._signed_limits - c._sign * (terms.q + (0.5 * dt) * terms.dq), 0.0)
-    allowed = np.sqrt(c._half_step_squared + c._twice_braking * distance)
-    allowed -= c._half_step + towards
+    allowed = np.sqrt(half_step_squared + twice_braking * distance)
+    allowed -= half_step + towards
     allowed *= 1.0 / dt
     np.negative(allowed[1], out=lower)
     upper[:] = allowed[0]
@@ -62,7 +63,8 @@ def reference_rows(constraint, terms, cycle, C, lower, upper) -> None:
         impact = constraint.impact
         np.multiply(impact.matrices(terms).torque_matrix, constraint.row_scale[:, None], out=C)  # rows s_i P_i
         # s_i tau_max_i delta_t = dq_max_i
-        symmetric_rows_into(C, terms.dq, constraint._scaled_limit, inv_h, impact.is_active(terms), lower, upper)
+        scaled_limit = constraint.row_scale * constraint.impulse_limit
+        symmetric_rows_into(C, terms.dq, scaled_limit, inv_h, impact.is_active(terms), lower, upper)
     else:
         constraint.compute_into(terms, cycle, C, lower, upper)
 
