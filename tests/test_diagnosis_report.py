@@ -4,11 +4,11 @@
 from impactqp.scenarios.diagnosis_report import FeasibleSpeed, write_report
 from impactqp.sim.causes import PayloadCause
 from impactqp.sim.diagnosis import diagnose
-from impactqp.sim.generation import generate_dataset
+from impactqp.sim.generation import DatasetRequest, generate_dataset
 
 
 def test_report_is_written_without_touching_other_files(tmp_path):
-    generate_dataset(tmp_path / "data", postures=["elbow_up", "elbow_left"], speeds=[0.12], seed=1)
+    generate_dataset(tmp_path / "data", DatasetRequest(postures=["elbow_up", "elbow_left"], speeds=[0.12], seed=1))
     result = diagnose(tmp_path / "data", causes=[PayloadCause()])
     path = write_report(result, tmp_path / "report")
     text = path.read_text()
