@@ -22,10 +22,12 @@ from typing import Any
 
 
 def _start_worker(initializer: Callable[..., None] | None, initargs: tuple) -> None:
-    """Every worker: leave SIGINT (and the command line's SIGTERM handler) to the parent, which
-    stops the workers itself, then run the caller's initializer."""
+    """Every worker: leave SIGINT to the parent, which stops the workers itself, and drop the
+    command line's SIGTERM and SIGHUP handlers (inherited by a forked worker), then run the
+    caller's initializer."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
     if initializer is not None:
         initializer(*initargs)
 

@@ -79,11 +79,11 @@ def test_map_outside_the_with_block_is_refused():
 
 CTRL_C = textwrap.dedent(
     """
-    import sys, time
+    import os, sys, time
     from impactqp.sim.process_pool import map_in_processes
 
     def nap(task):
-        print("running", flush=True)
+        os.write(1, b"running\\n")  # one write: the two workers' lines never interleave
         time.sleep(600)
 
     if __name__ == "__main__":
