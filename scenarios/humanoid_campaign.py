@@ -27,9 +27,15 @@ def run_campaign(
     stances: Iterable[str] = tuple(STANCES),
     speeds: Iterable[float] = DEFAULT_SPEEDS,
     gain: float = SERVO_GAIN,
+    armature: float = 0.0,
 ) -> list[ImpactTrial]:
-    """One trial per stance and commanded hand speed (m/s)."""
-    return [run_impact_trial(robot, STANCES[name], speed, gain=gain) for name in stances for speed in speeds]
+    """One trial per stance and commanded hand speed (m/s); ``gain`` is the servo bandwidth (rad/s),
+    ``armature`` the rotor inertia (kg m^2) the plant adds to every joint."""
+    return [
+        run_impact_trial(robot, STANCES[name], speed, gain=gain, armature=armature)
+        for name in stances
+        for speed in speeds
+    ]
 
 
 def mean_errors(trials: list[ImpactTrial]) -> dict[str, float]:

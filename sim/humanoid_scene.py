@@ -89,8 +89,11 @@ def to_pinocchio(qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.nda
     return q, v
 
 
-def build_humanoid_scene(robot: FloatingBaseModel, wall_x: float, *, timestep: float = TIMESTEP) -> HumanoidScene:
-    """Compile the scene with the wall plane at x = ``wall_x`` (normal -x, towards the robot)."""
+def build_humanoid_scene(
+    robot: FloatingBaseModel, wall_x: float, *, timestep: float = TIMESTEP, armature: float = 0.0
+) -> HumanoidScene:
+    """Compile the scene with the wall plane at x = ``wall_x`` (normal -x, towards the robot);
+    ``armature`` (kg m^2) is a reflected rotor inertia added to every one of the 29 joints."""
     spec = mujoco.MjSpec.from_string(mujoco_urdf(robot))
     spec.option.timestep = timestep
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
@@ -118,6 +121,9 @@ def build_humanoid_scene(robot: FloatingBaseModel, wall_x: float, *, timestep: f
             geom.name = geom.name or f"{name}_sole{i}"
             spec.add_pair(geomname1=geom.name, geomname2=FLOOR_GEOM,
                           friction=[FOOT_FRICTION, FOOT_FRICTION, 0, 0, 0], **pair)
+    for joint in spec.joints:
+        if joint.type == mujoco.mjtJoint.mjJNT_HINGE:
+            joint.armature = armature
     model = spec.compile()
     names = [model.joint(i).name for i in range(1, model.njnt)]
     if names != robot.joint_names:

@@ -110,11 +110,11 @@ class _Servo:
 
 
 def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, gain: float = SERVO_GAIN,
-                     q0: np.ndarray | None = None) -> ImpactTrial:
+                     armature: float = 0.0, q0: np.ndarray | None = None) -> ImpactTrial:
     """Simulate one trial (module docstring) and compare the jump with the predictors."""
     q0 = stance_posture(robot, stance) if q0 is None else q0
     contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
-    scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + GAP)
+    scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + GAP, armature=armature)
     start = q0.copy()
     start[2] -= SINK  # the soft floor contact carries the weight from the first step
     scene.set_state(start)

@@ -66,3 +66,15 @@ def test_hand_sphere_pole_is_the_contact_point(setup):
     placement = robot.frame_placements(q)[CONTACT_FRAME]
     pole = scene.data.geom_xpos[scene.hand_geom] + HAND_RADIUS * scene.data.geom_xmat[scene.hand_geom].reshape(3, 3)[:, 0]
     np.testing.assert_allclose(pole, placement.translation, atol=1e-10)
+
+
+def test_armature_adds_rotor_inertia_to_the_joints_only(setup):
+    robot, q, _ = setup
+    scene = build_humanoid_scene(robot, wall_x=0.6, armature=0.05)
+    scene.set_state(q)
+    M = np.empty((scene.model.nv, scene.model.nv))
+    mujoco.mj_fullM(scene.model, scene.data, M)
+    T = np.eye(scene.model.nv)
+    T[:3, :3] = pin.Quaternion(q[3:7]).matrix().T
+    rotor = np.diag(np.r_[np.zeros(6), np.full(scene.model.nv - 6, 0.05)])
+    np.testing.assert_allclose(M, T.T @ robot.terms(q).M @ T + rotor, atol=1e-10)
