@@ -87,7 +87,7 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
     from tqdm import tqdm
 
     from impactqp.controller.model.postures import POSTURES
-    from impactqp.sim.generation import generate_dataset
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
 
     output_directory(out, "OUT")
     plant = load_plant(plant_file)  # None: the nominal plant
@@ -106,10 +106,11 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
         bars[0].update(done - bars[0].n)
 
     try:
-        entries = generate_dataset(
-            out, plant=plant, postures=names, speeds=speed_list, tangential=tangential_list, repeats=repeats,
-            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed, jobs=jobs, progress=progress,
+        request = DatasetRequest(
+            plant=plant, postures=names, speeds=speed_list, tangential=tangential_list, repeats=repeats,
+            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed,
         )
+        entries = generate_dataset(out, request, jobs=jobs, progress=progress)
     finally:
         for bar in bars:
             bar.close()
