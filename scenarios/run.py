@@ -191,6 +191,8 @@ def report(result: LoopResult, config: ControllerConfig, log_path: str | None) -
         "cycle_us": result.cycle_us,
         "watchdog_trips": result.watchdog_trips,
         "watchdog_reason": result.watchdog_reason,
+        "missed_in_a_row": result.missed_in_a_row,
+        "robot_stop_reason": result.robot_stop_reason,
         "impact": {
             "detected": detector.detected,
             "time": detector.t_detect,

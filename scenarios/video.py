@@ -27,6 +27,11 @@ try:
 
     BACKEND_IMPORT_PROBLEM: str | None = None
 except Exception as import_error:  # the GL libraries of MUJOCO_GL are missing
+    cause: BaseException | None = import_error
+    while cause is not None and not isinstance(cause, KeyboardInterrupt):
+        cause = cause.__cause__ or cause.__context__
+    if cause is not None:  # a stop signal during the import, which an extension's init wrapped
+        raise cause from None
     BACKEND_IMPORT_PROBLEM = f"{type(import_error).__name__}: {import_error}"
     for module in [m for m in sys.modules if m.split(".")[0] in ("mujoco", "OpenGL")]:
         del sys.modules[module]

@@ -29,7 +29,7 @@ from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.postures import POSTURES, Surface
 from impactqp.controller.model.robot import NQ, PandaModel
-from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
+from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range, whole_number
 
 from .plant import PlantParameters
 from .process_pool import ProcessPool
@@ -69,8 +69,8 @@ class PlannedTrial:
 def trial_specs(
     postures: list[str], speeds: list[float], tangential: list[float], repeats: int, normal: np.ndarray, seed: int
 ) -> list[PlannedTrial]:
-    if isinstance(repeats, bool) or not isinstance(repeats, int) or not 1 <= repeats <= MAX_REPEATS:
-        raise BadInputError(f"repeats must be a whole number in [1, {MAX_REPEATS}], got {repeats!r}")
+    whole_number(repeats, 1, MAX_REPEATS, "repeats")
+    whole_number(seed, 0, None, "the seed --seed")
     for v in tangential:
         approach_speed(abs(v) if v else 1.0, "every tangential speed")
     t = tangential_direction(normal)

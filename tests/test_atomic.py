@@ -45,8 +45,7 @@ def test_a_signal_during_a_campaign_leaves_a_consistent_dataset(tmp_path, signum
          "0.08,0.1,0.12,0.15,0.18", "--tangential", "none", "--out", str(out), "--json"],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
     )
-    deadline = time.monotonic() + 120
-    while not (out / "dataset.json").exists() and time.monotonic() < deadline and proc.poll() is None:
+    while not (out / "dataset.json").exists() and proc.poll() is None:  # however slow the machine
         time.sleep(0.05)
     proc.send_signal(signum)
     _, err = proc.communicate(timeout=60)

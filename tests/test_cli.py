@@ -1,14 +1,18 @@
 """The command-line contract: JSON keys, readable tables, one-line errors with exit code 2."""
 
 import json
+import signal
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from impactqp.controller.model.postures import POSTURES
 from impactqp.scenarios.cli import main
+from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED
 
 
 def run(capsys, *args):
@@ -163,6 +167,101 @@ def test_an_internal_error_is_not_reported_as_bad_input(capsys, monkeypatch):
     code, out, err = run(capsys, "--debug", "predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1")
     assert code == 1
     assert "Traceback" in err and "ZeroDivisionError" in err
+
+
+def test_version_is_the_installed_one(capsys):
+    from importlib import metadata
+
+    code, out, _ = run(capsys, "--version")
+    assert code == 0 and out.strip() == f"impactqp, version {metadata.version('impactqp')}"
+
+
+HEAVY = ("numpy", "click", "scipy", "pinocchio", "numba", "mujoco", "impactqp.controller")
+
+
+def test_the_entry_point_installs_its_handlers_before_any_heavy_import():
+    """What the console script does (import main, call it), with signal.signal watched: when the
+    SIGTERM handler goes in, none of the seconds of imports has run yet."""
+    code = (
+        "import signal, sys\n"
+        "real, seen = signal.signal, []\n"
+        "def watch(sig, handler):\n"
+        f"    if sig == signal.SIGTERM and not seen: seen.append([m for m in {HEAVY!r} if m in sys.modules])\n"
+        "    return real(sig, handler)\n"
+        "signal.signal = watch\n"
+        "from impactqp.scenarios.cli import main\n"
+        "assert main(['--version']) == 0\n"
+        "print(seen[0])\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert proc.stdout.strip().splitlines()[-1] == "[]", proc.stdout
+
+
+def _caught_signals(pid: int) -> int:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("SigCgt:"):
+            return int(line.split()[1], 16)
+    return 0
+
+
+def _mapped(pid: int, name: str) -> bool:
+    return name in Path(f"/proc/{pid}/maps").read_text()
+
+
+# Moments of the start-up, each observed in the process rather than guessed from a clock: its
+# handlers are in (the earliest moment the contract covers: before, Python itself is starting),
+# numpy's or MuJoCo's library is being loaded, the output directory exists (trials are running).
+MOMENTS = {
+    "handlers": lambda pid, out: _caught_signals(pid) & (1 << (signal.SIGTERM - 1)) != 0,
+    "numpy": lambda pid, out: _mapped(pid, "numpy"),
+    "mujoco": lambda pid, out: _mapped(pid, "mujoco"),
+    "writing": lambda pid, out: out.exists(),
+}
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads the process state in /proc")
+@pytest.mark.parametrize("moment", list(MOMENTS))
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_stop_signal_during_start_up_exits_130_without_a_traceback_or_partial_output(tmp_path, sig, moment):
+    out = tmp_path / "d"
+    script = Path(sys.executable).with_name("impactqp")
+    command = [str(script)] if script.exists() else [sys.executable, "-m", "impactqp"]
+    proc = subprocess.Popen(
+        [*command, "dataset", "generate", str(out), "--postures", "elbow_up", "--speeds", "0.08,0.1,0.12,0.15,0.18",
+         "--repeats", "3", "--jobs", "1", "--json"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # not the test runner's disposition
+    )
+    try:
+        while not MOMENTS[moment](proc.pid, out):
+            assert proc.poll() is None, f"the command ended before the moment {moment!r}: {proc.stderr.read()}"
+            time.sleep(0.002)
+        proc.send_signal(sig)
+        stdout, stderr = proc.communicate(timeout=300)
+    finally:
+        proc.kill()
+    assert proc.returncode == EXIT_INTERRUPTED, stderr
+    assert "Traceback" not in stderr and stderr.strip().splitlines() == ["impactqp: interrupted"], stderr
+    assert stdout == ""
+    assert not [p for p in tmp_path.rglob("*") if p.name.startswith(".")]  # no temporary file left
+    if (out / "dataset.json").exists():  # every trial the manifest lists is complete
+        assert main(["dataset", "validate", str(out), "--json"]) == 0
+
+
+def test_a_stop_signal_that_an_extension_wrapped_is_still_an_interruption(capsys, monkeypatch):
+    """A signal in the initialisation of a C extension (MuJoCo's, pybind11) comes out as an
+    ImportError("initialization failed") whose context is the KeyboardInterrupt: exit code 130."""
+    import impactqp.controller.model.prediction as prediction
+
+    def wrapped(*args, **kwargs):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise ImportError("initialization failed")  # noqa: B904 - as the extension does
+
+    monkeypatch.setattr(prediction, "predict_all", wrapped)
+    code, out, err = run(capsys, "predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1")
+    assert code == EXIT_INTERRUPTED and err.strip() == "impactqp: interrupted" and out == ""
 
 
 def test_the_progress_callback_drives_a_tqdm_bar():

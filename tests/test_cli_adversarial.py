@@ -105,6 +105,12 @@ ROWS = [
      None, 2, "orthogonal"),
     (["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1", "--restitution", "nan"],
      None, 2, "[0, 1]"),
+    # numbers near the end of the float range: no overflow warning, the message shows the number given
+    (["predict", "--normal", "-1,0,0", "--speed", "0.15", "--q", "1e308,0,0,-2,0,2,0"], None, 2, "q1 = 1e+308"),
+    (["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.15", "--tangential", "0,1e308,0"],
+     None, 2, "got 1e+308 m/s"),
+    (["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.15", "--tangential", "0,1.7e308,1.7e308"],
+     None, 2, "got 1.7e+308 m/s"),
     # postures: no input but its options
     (["postures", "--bogus"], None, 2, "No such option"),
     # simulate
@@ -119,6 +125,8 @@ ROWS = [
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{bad}/p.json"],
      write("p.json", '{"payload_mass": true}'), 2, "payload_mass must be a number"),
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--wall-point", "1e10,0,0"], None, 2,
+     "must lie within 10 m of the robot's base"),
+    (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--wall-point", "1e308,1e308,0"], None, 2,
      "must lie within 10 m of the robot's base"),
     # campaign
     (["campaign", "--speeds", "50"], None, 2, "(0, 3] m/s"),
@@ -155,6 +163,12 @@ ROWS = [
      "repeats must be a whole number in [1, 100]"),
     (["dataset", "generate", "{tmp}/out", "--speeds", "0.1", "--noise-dq", "1e9"], None, 2, "--noise-dq"),
     (["dataset", "generate", "{tmp}/out", "--speeds", "0.1", "--jobs", "1000000"], None, 2, "--jobs must lie in"),
+    (["dataset", "generate", "{tmp}/out", "--postures", "elbow_up", "--speeds", "0.1", "--jobs", "1", "--seed", "-1"],
+     None, 2, "the seed --seed must be a whole number >= 0, got -1"),
+    (["dataset", "generate", "{tmp}/out", "--speeds", "0.1", "--repeats", "-1"], None, 2,
+     "repeats must be a whole number in [1, 100]"),
+    (["dataset", "generate", "{tmp}/out", "--speeds", "0.1", "--seed", "0.5"], None, 2, "'0.5' is not a valid integer"),
+    (["dataset", "generate", "{tmp}/out", "--speeds", "0.1", "--jobs", "-1"], None, 2, "--jobs must lie in"),
     (["dataset", "generate", "{tmp}/out", "--plant", "{data}"], None, 2, "is a directory"),
     # diagnose
     (["diagnose", "{bad}"], manifest_edit(lambda m: m.__setitem__("robot", "ur5")), 2, "robots we model"),
@@ -187,6 +201,13 @@ ROWS = [
     (["run", "--log", "{data}/t0000.csv"], None, 2, "--log"),
     # sweep and import-franka: the output directory is checked before any work
     (["sweep", "{bad}/c.toml", "--out", "{tmp}/s"], write("c.toml", b"\xff\xfe"), 2, "not a UTF-8 text file"),
+    (["sweep", "{bad}/c.toml", "--out", "{tmp}/s", "--jobs", "1000000"], write("c.toml", SWEEP_EXAMPLE), 2,
+     "--jobs must lie in"),
+    (["sweep", "{bad}/c.toml", "--out", "{tmp}/s", "--jobs", "0"], write("c.toml", SWEEP_EXAMPLE), 2,
+     "--jobs must lie in"),
+    (["demo", "--out", "{tmp}/demo", "--jobs", "0"], None, 2, "--jobs must lie in"),
+    (["campaign", "--out", "{tmp}/c", "--jobs", "0"], None, 2, "--jobs must lie in"),
+    (["max-speed", "--posture", "elbow_up", "--jobs", "-3"], None, 2, "--jobs must lie in"),
     (["sweep", "{bad}/c.toml", "--out", "{tmp}/s"], write("c.toml", "x = " + "[" * 100_000 + "]" * 100_000), 2,
      "nested too deeply"),
     (["sweep", "{bad}/c.toml", "--out", "{data}/dataset.json"], write("c.toml", SWEEP_EXAMPLE), 2,

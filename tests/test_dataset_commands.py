@@ -2,6 +2,7 @@
 
 import json
 import shutil
+from collections import Counter
 
 import pytest
 
@@ -40,6 +41,32 @@ def test_validate_reports_problems_with_exit_code_1(small_dataset, tmp_path, cap
     assert code == 1
     problems = json.loads(out)["problems"]
     assert problems["t0001"] and not problems["t0000"]
+
+
+def test_validating_a_huge_manifest_reads_each_file_once_and_shows_progress(small_dataset, tmp_path, capsys,
+                                                                            monkeypatch):
+    """3,000 entries naming the same trial files: each file is read and its impact measured once
+    (the work per entry is constant), the progress bar goes to stderr, stdout is the JSON alone."""
+    from impactqp.controller.measured import dataset as dataset_module
+
+    huge = tmp_path / "huge"
+    shutil.copytree(small_dataset, huge)
+    manifest = json.loads((huge / "dataset.json").read_text())
+    first = manifest["trials"][0]
+    manifest["trials"] = [{**first, "id": f"x{i}"} for i in range(3000)] + manifest["trials"][1:]
+    (huge / "dataset.json").write_text(json.dumps(manifest))
+    reads, impacts = Counter(), []
+    read_table, measure_impact = dataset_module._read_table, dataset_module.measure_impact
+    monkeypatch.setattr(dataset_module, "_read_table", lambda path, columns: (reads.update([path.name]),
+                                                                              read_table(path, columns))[1])
+    monkeypatch.setattr(dataset_module, "measure_impact", lambda log: (impacts.append(1), measure_impact(log))[1])
+    code, out, err = run(capsys, "dataset", "validate", huge, "--json")
+    assert code == 0 and json.loads(out)["valid"]
+    files = {name for t in manifest["trials"] for name in (t["file"], t["force_file"])}
+    assert reads == Counter(files) and len(impacts) == len(manifest["trials"]) - 2999
+    assert "3003/3003" in err and "Traceback" not in err
+    code, _, err = run(capsys, "dataset", "validate", small_dataset)  # short, not a terminal: no bar
+    assert code == 0 and err == ""
 
 
 def test_diagnose_json_report_and_saved_plant(small_dataset, tmp_path, capsys):

@@ -67,8 +67,14 @@ def test_collision_thresholds_have_the_sizes_set_collision_behavior_takes():
     assert all(lo <= hi for lo, hi in zip(thresholds.lower_torque, thresholds.upper_torque))
 
 
+NO_ROBOT_HERE = r"no robot answers at 127\.0\.0\.1|real-time scheduling is not available"
+"""The two legitimate errors of connecting to 127.0.0.1 on a machine without a real-time kernel:
+which one libfranka raises first depends on the machine (and on what listens at the address), not
+on us, and both are the user's to fix."""
+
+
 def test_no_robot_at_the_address_is_bad_input():
-    with pytest.raises(BadInputError, match="no robot answers at 127.0.0.1"):
+    with pytest.raises(BadInputError, match=NO_ROBOT_HERE):
         FrankaRobot.connect("127.0.0.1")
 
 

@@ -110,3 +110,13 @@ def test_every_subpackage_is_installed():
         if not {".venv", "tests", "build"} & set(init.parts)
     }
     assert found == listed
+
+
+def test_the_license_and_the_typing_marker_ship_with_the_package():
+    import tomllib
+
+    root = Path(impactqp.__file__).parent
+    project = tomllib.loads((root / "pyproject.toml").read_text())
+    assert (root / "py.typed").is_file() and "py.typed" in project["tool"]["setuptools"]["package-data"]["impactqp"]
+    assert project["project"]["license-files"] == ["LICENSE"]
+    assert (root / "LICENSE").read_text().startswith("BSD 3-Clause License")

@@ -30,8 +30,7 @@ def test_a_sweep_killed_midway_and_resumed_equals_an_uninterrupted_run(tmp_path)
         f"run_sweep(parse_config({DATA!r}), {str(killed)!r}, chunk_size={CHUNK}, progress=False, plots=False)\n"
     )
     process = subprocess.Popen([sys.executable, "-c", code])
-    deadline = time.monotonic() + 60.0
-    while not list(killed.glob("chunk-*.parquet")) and time.monotonic() < deadline:
+    while not list(killed.glob("chunk-*.parquet")) and process.poll() is None:  # however slow the machine
         time.sleep(0.005)
     process.send_signal(signal.SIGKILL)
     process.wait()

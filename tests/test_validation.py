@@ -1,5 +1,7 @@
 """The one validation module (controller/model/validation.py)."""
 
+import re
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -22,8 +24,10 @@ from impactqp.controller.model.validation import (
     positive,
     positive_vector,
     table,
+    tangential_velocity,
     task_gain,
     unit_normal,
+    unit_normals,
     vector_in_range,
 )
 
@@ -53,6 +57,21 @@ def test_bad_normals_are_bad_input(bad):
     if bad != [0, 0, 0]:
         with pytest.raises(BadInputError):
             finite_vector(bad, 3, "the surface normal")
+
+
+@pytest.mark.filterwarnings("error")  # an overflow warning would print beside the one error line
+@settings(max_examples=100, deadline=None)
+@given(arrays(np.float64, (4, 3), elements=st.floats(-1.7e308, 1.7e308)).filter(lambda n: np.all(np.abs(n).max(axis=1) > 1e-6)))
+def test_unit_normals_are_the_rows_unit_normal_up_to_the_float_range(normals):
+    np.testing.assert_allclose(unit_normals(normals), [unit_normal(n) for n in normals], rtol=0.0, atol=1e-15)
+
+
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("velocity, given", [([0.0, 1e308, 0.0], "1e+308"), ([0.0, 1.7e308, 1.7e308], "1.7e+308"),
+                                             ([0.0, 4.0, 0.0], "4")])
+def test_a_too_fast_tangential_velocity_names_the_number_given(velocity, given):
+    with pytest.raises(BadInputError, match=re.escape(f"at most 3.0 m/s, got {given} m/s")):
+        tangential_velocity(velocity, np.array([-1.0, 0.0, 0.0]))
 
 
 not_numbers = st.one_of(st.booleans(), st.text(max_size=3), st.none(), st.lists(st.integers(), max_size=2))

@@ -416,7 +416,7 @@ def read_dataset(
 
 
 # ---------------------------------------------------------------------------- validation
-def validate(directory: str | Path) -> dict[str, list[str]]:
+def validate(directory: str | Path, progress=None) -> dict[str, list[str]]:
     """Problems of a dataset, per trial id (key ``"dataset"`` for the manifest itself).
 
     Checks: the manifest (format, keys, header, duplicate ids, CSV files it does not list),
@@ -424,6 +424,10 @@ def validate(directory: str | Path) -> dict[str, list[str]]:
     period against ``control_period``, a length that holds the detection window, an impact
     found by :func:`controller.measured.impact.measure_impact`, and ``impact_time`` against the detected impact.
     An empty list means no problem. Never modifies any file.
+
+    Each file is read and checked once, however many trial entries name it, so the work grows
+    linearly with the entries. ``progress(done, total)`` is an optional callable invoked once per
+    trial entry.
     """
     directory = Path(directory)
     problems: dict[str, list[str]] = {"dataset": []}
@@ -434,7 +438,11 @@ def validate(directory: str | Path) -> dict[str, list[str]]:
         problems["dataset"].append(str(error))
         return problems
     listed = set()
+    checked: dict[tuple[str, str | None], tuple[list[str], float | None]] = {}
+    total = len(manifest["trials"])
     for index, raw in enumerate(manifest["trials"]):
+        if progress:
+            progress(index, total)
         try:
             entry = _parse_entry(raw)
         except (DatasetError, TypeError, ValueError) as error:
@@ -444,18 +452,37 @@ def validate(directory: str | Path) -> dict[str, list[str]]:
             problems["dataset"].append(f"trial id {entry.id!r} appears more than once")
             continue
         listed |= {entry.file, entry.force_file}
-        problems[entry.id] = _trial_problems(directory, entry, header.control_period)
+        files = (entry.file, entry.force_file)
+        if files not in checked:
+            checked[files] = _log_problems(directory, entry, header.control_period)
+        problems[entry.id] = _trial_problems(entry, *checked[files])
+    if progress:
+        progress(total, total)
     unlisted = sorted(p.name for p in directory.glob("*.csv") if p.name not in listed)
     if unlisted:
         problems["dataset"].append(f"CSV file(s) not listed in the manifest: {', '.join(unlisted)}")
     return problems
 
 
-def _trial_problems(directory: Path, entry: TrialEntry, control_period: float) -> list[str]:
+def _trial_problems(entry: TrialEntry, log_problems: list[str], impact_start: float | None) -> list[str]:
+    """The problems of one trial entry: those of its files, and its ``impact_time`` against the
+    impact found in them."""
+    problems = list(log_problems)
+    if impact_start is not None and entry.impact_time is not None:
+        if abs(entry.impact_time - impact_start) > WINDOW_BEFORE:
+            problems.append(
+                f"impact_time {entry.impact_time:.4f} s disagrees with the impact found at {impact_start:.4f} s"
+            )
+    return problems
+
+
+def _log_problems(directory: Path, entry: TrialEntry, control_period: float) -> tuple[list[str], float | None]:
+    """The problems of the files of ``entry`` (its CSV and force CSV) and the start of the impact
+    found in them (None when none is found)."""
     try:
         log = read_trial(directory, entry)
     except DatasetError as error:
-        return [str(error)]
+        return [str(error)], None
     problems = []
     robot = default_robot()
     outside = (log.q < robot.q_min - POSITION_TOLERANCE) | (log.q > robot.q_max + POSITION_TOLERANCE)
@@ -465,10 +492,10 @@ def _trial_problems(directory: Path, entry: TrialEntry, control_period: float) -
             f"{entry.file}: q{joint + 1} = {log.q[row, joint]:.4f} rad at data row {row + 1} lies outside "
             f"the joint limits [{robot.q_min[joint]:.4f}, {robot.q_max[joint]:.4f}]"
         )
-        return problems
+        return problems, None
     needed = int(round((WINDOW_BEFORE + WINDOW_AFTER) / control_period)) + 4
     if len(log) < 2:
-        return [f"{entry.file} holds {len(log)} samples, fewer than the {needed} of the detection window"]
+        return [f"{entry.file} holds {len(log)} samples, fewer than the {needed} of the detection window"], None
     period = log.control_period
     if abs(period - control_period) > 0.01 * control_period:
         problems.append(
@@ -478,15 +505,10 @@ def _trial_problems(directory: Path, entry: TrialEntry, control_period: float) -
         problems.append(
             f"{entry.file} holds {len(log)} samples, fewer than the {needed} of the detection window"
         )
-        return problems
+        return problems, None
     try:
         impact = measure_impact(log)
     except ImpactNotFoundError as error:
         problems.append(f"no impact found: {error}")
-        return problems
-    if entry.impact_time is not None and abs(entry.impact_time - impact.t_contact_start) > WINDOW_BEFORE:
-        problems.append(
-            f"impact_time {entry.impact_time:.4f} s disagrees with the impact found at "
-            f"{impact.t_contact_start:.4f} s"
-        )
-    return problems
+        return problems, None
+    return problems, impact.t_contact_start

@@ -8,6 +8,7 @@ and wrist arrangement, like the three configurations of the paper's Fig. 2.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,7 +33,7 @@ class Surface:
 
     def __post_init__(self):
         point = finite_vector(self.point, 3, "the surface point")
-        if float(np.linalg.norm(point)) > MAX_SURFACE_DISTANCE:
+        if math.hypot(*point.tolist()) > MAX_SURFACE_DISTANCE:  # no overflow of a squared entry
             raise BadInputError(
                 f"the surface point {point.tolist()} must lie within {MAX_SURFACE_DISTANCE:g} m of the robot's base"
             )

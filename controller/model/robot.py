@@ -22,7 +22,6 @@ of radius :data:`TOOL_RADIUS` whose centre sits on the hand's z axis (the axis o
 from __future__ import annotations
 
 import itertools
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,7 +31,7 @@ from numba import njit
 
 from .robot_description import PANDA, RobotDescription, model_urdf, robot_description
 from .tool_description import TOOLS, ToolDescription, tool_description
-from .validation import BadInputError
+from .validation import BadInputError, all_finite
 
 NQ = 7
 CONTACT_FRAME = "impact_tip"
@@ -48,6 +47,10 @@ TOOL_TIP_OFFSET = float(TOOLS["impact_tip"].contact_point[2])
 # The contact Jacobian counts as singular when sigma_min / sigma_max falls below this ratio.
 SINGULAR_RATIO = 1e-3
 
+MAX_STATE_ENTRY = 1e100
+"""Largest |q_i| (rad) or |dq_i| (rad/s) of a joint state: far above any robot's, far enough
+below the float range that the model's products of entries (kinetic energy, Coriolis terms)
+cannot overflow."""
 # The Panda's datasheet limits (robot_description.PANDA, docs/robots.md).
 VELOCITY_LIMIT = PANDA.dq_max
 TORQUE_LIMIT = PANDA.tau_max
@@ -250,13 +253,19 @@ class RobotModel:
         if q.shape != (NQ,) or dq.shape != (NQ,):
             name, shape = ("q", q.shape) if q.shape != (NQ,) else ("dq", dq.shape)
             raise InvalidStateError(f"{name} must have {NQ} values, got shape {shape}")
-        # One dot product is non-finite when any entry is (NaN or inf); the precise test only
-        # runs then, to name the culprit.
-        if not math.isfinite(q @ q + dq @ dq):
+        # One sum of |entries| in plain floats (it cannot overflow into a warning, as a dot
+        # product of large entries would) exceeds the bound when any entry is NaN, infinite or
+        # too large; the precise test only runs then, to name the culprit.
+        if not sum(map(abs, q.tolist())) + sum(map(abs, dq.tolist())) <= 2 * NQ * MAX_STATE_ENTRY:
             for name, values in (("q", q), ("dq", dq)):
-                if not np.all(np.isfinite(values)):
+                if not all_finite(values):
                     raise InvalidStateError(f"{name} contains a non-finite value")
-            raise InvalidStateError("the state is too large to be a joint state")
+            for name, values in (("q", q), ("dq", dq)):
+                i = int(np.argmax(np.abs(values)))
+                if abs(values[i]) > MAX_STATE_ENTRY:
+                    raise InvalidStateError(
+                        f"the state is too large to be a joint state: {name}{i + 1} = {values[i]:g}"
+                    )
         if check_limits:
             outside = (q < self.q_min) | (q > self.q_max)
             if outside.any():

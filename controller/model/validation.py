@@ -99,10 +99,14 @@ def positive_vector(value, size: int, what: str) -> np.ndarray:
 def unit_normal(normal, what: str = "the surface normal") -> np.ndarray:
     """The normalised 3-vector ``normal``; a non-finite or (near-)zero normal is bad input."""
     n = finite_vector(normal, 3, what)
-    norm = math.hypot(*n.tolist())
-    if norm < NORMAL_MIN_NORM:
+    # |n| = s |n / s| with s = max |n_i|: the norm of n / s lies in [1, sqrt(3)], so neither it
+    # nor the division overflows for any finite n (|n| itself may exceed the float range)
+    scale = max(map(abs, n.tolist()))
+    scaled = n / scale if scale > 0.0 else n
+    norm = math.hypot(*scaled.tolist())
+    if scale * norm < NORMAL_MIN_NORM:
         raise BadInputError(f"{what} must be non-zero, got {n.tolist()}")
-    return n / norm
+    return scaled / norm
 
 
 def unit_normals(normals, what: str = "the surface normals") -> np.ndarray:
@@ -115,10 +119,15 @@ def unit_normals(normals, what: str = "the surface normals") -> np.ndarray:
         raise BadInputError(f"{what} must be (3,) or (N, 3), got shape {array.shape}")
     if not np.all(np.isfinite(array)):
         raise BadInputError(f"{what} must be finite")
-    norms = np.linalg.norm(array, axis=-1, keepdims=True)
-    if np.any(norms < NORMAL_MIN_NORM):
+    # Scaled norms, |n| = s |n / s| with s = max |n_i|: no square of a large entry can overflow.
+    scale = np.abs(array).max(axis=-1, keepdims=True)
+    if np.any(scale == 0.0):
         raise BadInputError(f"{what} must be non-zero")
-    return array / norms
+    scaled = array / scale
+    norms = np.linalg.norm(scaled, axis=-1, keepdims=True)  # in [1, sqrt(3)]
+    if np.any(scale < NORMAL_MIN_NORM / norms):
+        raise BadInputError(f"{what} must be non-zero")
+    return scaled / norms
 
 
 def number_in_range(value, low: float, high: float, what: str, unit: str = "", low_open: bool = False) -> float:
@@ -132,6 +141,16 @@ def number_in_range(value, low: float, high: float, what: str, unit: str = "", l
     if not (math.isfinite(number) and inside):
         raise BadInputError(f"{what} must lie in {span}, got {number}")
     return number
+
+
+def whole_number(value, low: int, high: int | None, what: str) -> int:
+    """``value`` as an int in [low, high] ([low, inf) when ``high`` is None); a boolean, a float
+    or anything outside the range is bad input, and the message gives the range."""
+    span = f"in [{low}, {high}]" if high is not None else f">= {low}"
+    inside = isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+    if not (inside and low <= value and (high is None or value <= high)):
+        raise BadInputError(f"{what} must be a whole number {span}, got {value!r}")
+    return int(value)
 
 
 def boolean(value, what: str) -> bool:
@@ -236,8 +255,11 @@ def tangential_velocity(velocity, normal: np.ndarray, what: str = "the tangentia
     the offending component in the message; it is never silently projected away.
     """
     v_t = finite_vector(velocity, 3, what)
-    if float(np.linalg.norm(v_t)) > MAX_CONTACT_SPEED:
-        raise BadInputError(f"{what} must be at most {MAX_CONTACT_SPEED} m/s, got {np.linalg.norm(v_t):.3g} m/s")
+    speed = math.hypot(*v_t.tolist())  # scaled: no overflow for any finite speed up to the float range
+    if speed > MAX_CONTACT_SPEED:
+        # beyond the float range the largest component is the number the user gave
+        given = speed if math.isfinite(speed) else max(map(abs, v_t.tolist()))
+        raise BadInputError(f"{what} must be at most {MAX_CONTACT_SPEED} m/s, got {given:.3g} m/s")
     along = float(v_t @ normal)
     if abs(along) > ORTHOGONALITY_TOLERANCE:
         raise BadInputError(

@@ -7,7 +7,7 @@ period from there on; a backend whose state moved on meanwhile returns its newes
 One cycle::
 
     state = robot.read()                       (a paced backend blocks until the period starts)
-    watchdog: NaN state? stale state (time not increasing)?     -> trip
+    watchdog: read failed? malformed, NaN or stale state?      -> trip
     command = session.step(state)              (an exception    -> trip)
     dq_cmd = filter(command.dq_cmd)            (or filter.brake() once tripped or stopping)
     robot.write(dq_cmd)
@@ -17,17 +17,25 @@ The watchdog latches: after a trip every command is the filter's braking command
 commanded velocity to zero within the velocity, acceleration and jerk limits
 (``controller.runtime.command_filter``), so the commands stay continuous; the run ends when the command
 is zero. At the end of the run (the duration, a stop request such as Ctrl-C, or a replay's last
-state) the loop brakes the same way until the command is zero, then calls ``robot.stop()``. A
-backend that fails mid-run (a robot that stopped on its own reflex) ends the run: the watchdog
-reason says why and the log is kept. Every cycle is logged (t, q, dq, tau and the command
-actually sent) in the dataset format: row k's tau is the torque applied over period k, which the
-state of cycle k + 1 reports (``LoopLog.record``).
+state) the loop brakes the same way until the command is zero, then calls ``robot.stop()``.
+
+Failures: a read that raises or returns a malformed state (wrong type or shape: a backend bug)
+trips the watchdog like a NaN state, and the cycle logs NaN values; an exception of the
+controller, the filter or the log trips it too, and braking goes on. Only two failures end the
+run at once: a write that raises (a robot that stopped on its own reflex: no command reaches it
+any more) and a braking command that cannot be computed. ``robot.stop()`` is called on every way
+out, the watchdog reason says why and the log is kept.
+
+Every cycle is logged (t, q, dq, tau and the command actually sent) in the dataset format: row
+k's tau is the torque applied over period k, which the state of cycle k + 1 reports
+(``LoopLog.record``).
 """
 
 from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,7 +75,13 @@ class Watchdog:
             self.reason = reason
             self.trips += 1
 
-    def check_state(self, state: RobotState) -> None:
+    def check_state(self, state: RobotState) -> bool:
+        """Trip on a malformed (wrong type or shape), non-finite or stale state; whether the
+        state is well-formed, i.e. safe to log."""
+        problem = malformed(state)
+        if problem:
+            self.trip(f"malformed state: {problem}")
+            return False
         parts = [state.q, state.dq, state.tau] + ([] if state.tau_ext is None else [state.tau_ext])
         finite = all(np.all(np.isfinite(x)) for x in parts) and math.isfinite(state.t)
         if not finite:
@@ -76,11 +90,35 @@ class Watchdog:
             self.trip(f"stale state: time {state.t} s does not increase")
         if math.isfinite(state.t):
             self._last_t = max(self._last_t, state.t)
+        return True
 
     def record_cycle(self, overrun: bool) -> None:
         self.consecutive_overruns = self.consecutive_overruns + 1 if overrun else 0
         if self.consecutive_overruns >= self.max_overruns:
             self.trip(f"{self.consecutive_overruns} overruns in a row")
+
+
+def malformed(state) -> str:
+    """What makes ``state`` unusable as a :class:`RobotState` of NQ joints ("" when nothing):
+    a backend bug, never a value the watchdog can judge."""
+    if not isinstance(state, RobotState):
+        return f"a {type(state).__name__}, not a RobotState"
+    if isinstance(state.t, bool) or not isinstance(state.t, (int, float, np.integer, np.floating)):
+        return f"t is a {type(state.t).__name__}"
+    named = [("q", state.q), ("dq", state.dq), ("tau", state.tau)]
+    named += [] if state.tau_ext is None else [("tau_ext", state.tau_ext)]
+    for name, value in named:
+        if not isinstance(value, np.ndarray) or value.shape != (NQ,) or value.dtype.kind not in "fiu":
+            shape = getattr(value, "shape", None)
+            return f"{name} is {'a ' + type(value).__name__ if shape is None else f'of shape {shape}'}, not {NQ} numbers"
+    return ""
+
+
+def placeholder(t: float, period: float) -> RobotState:
+    """The state logged for a cycle whose read failed or was malformed: the next period's time
+    and NaN values (no measurement), so the log stays one row per cycle with increasing time."""
+    nan = np.full(NQ, np.nan)
+    return RobotState(t + period, nan, nan, nan)
 
 
 class LoopLog:
@@ -137,10 +175,39 @@ class LoopResult:
     log: TrialLog
     session: ImpactSession
     interrupted: bool = False  # a stop request (Ctrl-C, SIGTERM) ended the run
+    missed_in_a_row: int = 0  # the longest streak of periods without a command on time
+    max_overruns: int = DEFAULT_MAX_OVERRUNS  # the watchdog's budget of overruns in a row
 
     @property
     def phase(self) -> str:
         return self.phases[-1] if self.phases else ""
+
+    @property
+    def robot_stop_reason(self) -> str:
+        """Why a real robot would have stopped on this run ("" when it would not): a watchdog
+        trip, or ``max_overruns`` commands in a row that missed their period. The watchdog counts
+        overrun cycles, so a paced simulation goes on after one long cycle, while a robot would
+        have gone without a command for every period of it (libfranka:
+        ``communication_constraints_violation``)."""
+        if self.watchdog_trips:
+            return f"the watchdog tripped ({self.watchdog_reason})"
+        if self.missed_in_a_row >= self.max_overruns:
+            return (
+                f"{self.missed_in_a_row} periods in a row without a command on time "
+                f"(the budget is {self.max_overruns - 1})"
+            )
+        return ""
+
+
+def missed_in_a_row(cycle_time: np.ndarray, deadline: float, period: float) -> int:
+    """The longest streak of periods without a command on time: a cycle longer than the
+    deadline misses max(1, ceil(cycle time / period) - 1) commands (the robot's periods it ran
+    through), and a cycle within the deadline ends the streak."""
+    streak = longest = 0
+    for c in np.asarray(cycle_time, dtype=float).tolist():
+        streak = streak + max(1, math.ceil(c / period) - 1) if c > deadline else 0
+        longest = max(longest, streak)
+    return longest
 
 
 def cycle_statistics(cycle_time_s: np.ndarray) -> dict:
@@ -153,7 +220,8 @@ def cycle_statistics(cycle_time_s: np.ndarray) -> dict:
 class ControlLoop:
     """Runs an :class:`ImpactSession` on a :class:`RobotInterface` (module docstring).
 
-    ``deadline``: the longest cycle time (s) that is not an overrun (default: the period).
+    ``deadline``: the longest cycle time (s) that is not an overrun (default: the period);
+    ``clock``: the clock (s) that measures the cycle times.
     """
 
     def __init__(
@@ -164,14 +232,15 @@ class ControlLoop:
         *,
         deadline: float | None = None,
         max_overruns: int = DEFAULT_MAX_OVERRUNS,
+        clock: Callable[[], float] = time.perf_counter,
     ):
+        self.clock = clock
         self.robot = robot
         self.session = session
         self.filter = command_filter
         self.deadline = robot.period if deadline is None else float(deadline)
         self.watchdog = Watchdog(max_overruns)
         self.stop_requested = False
-        self.robot_failed = False
         self.overruns = 0
         self.log: LoopLog | None = None
 
@@ -180,22 +249,42 @@ class ControlLoop:
         self.stop_requested = True
 
     def run(self, duration: float) -> LoopResult:
-        robot, session, watchdog = self.robot, self.session, self.watchdog
+        """Run for ``duration`` s, then brake to a stop. Whatever fails after the first read (a
+        read, a malformed state, the controller, the filter, the log) trips the watchdog and
+        ends in the braking sequence; ``robot.stop()`` is called on every way out."""
+        robot, watchdog = self.robot, self.watchdog
         cycles = int(round(duration / robot.period))
         self.log = LoopLog(cycles + MAX_STOP_CYCLES + 1)
-        state = robot.read()
-        watchdog.check_state(state)
-        if not watchdog.tripped:
-            session.start(state)
+        state = robot.read()  # before real time: nothing moves yet, a failure is reported as it is
+        if not watchdog.check_state(state):
+            state = placeholder(0.0, robot.period)
+        elif not watchdog.tripped:
+            self.session.start(state)
             self.filter.reset(state.dq)
-        newest = robot.start()
-        if newest is not None:
-            state = newest
-            watchdog.check_state(state)
+        try:
+            newest = robot.start()
+            if newest is not None and watchdog.check_state(newest):
+                state = newest
+            elif newest is not None:
+                state = placeholder(state.t, robot.period)
+        except BaseException:
+            self._stop()
+            raise
+        try:
+            self._cycle(state, cycles)
+        except Exception as error:  # e.g. no braking command can be computed: stop() is all that is left
+            watchdog.trip(f"loop failure: {type(error).__name__}: {error}")
+        finally:
+            self._stop()
+        return self._result()
+
+    def _cycle(self, state: RobotState, cycles: int) -> None:
+        """The cycles of the run (module docstring), from the first state to the end of braking."""
+        robot, session, watchdog = self.robot, self.session, self.watchdog
         k = 0
         stop_cycles = 0
         while True:
-            started = time.perf_counter()
+            started = self.clock()
             stopping = self.stop_requested or k >= cycles
             if stopping:
                 dq_cmd, phase = self.brake(), STOPPING
@@ -213,34 +302,48 @@ class ControlLoop:
                 robot.write(dq_cmd)
             except Exception as error:  # the robot stopped by itself (e.g. its own reflex)
                 self._robot_error(error)
-                self.log.record(state, dq_cmd, phase, time.perf_counter() - started, started)
-                break
-            elapsed = time.perf_counter() - started
+                self._record(state, dq_cmd, phase, self.clock() - started, started)
+                return
+            elapsed = self.clock() - started
             overrun = elapsed > self.deadline
             self.overruns += overrun
             if not stopping:
                 watchdog.record_cycle(overrun)
-            self.log.record(state, dq_cmd, phase, elapsed, started)
+            self._record(state, dq_cmd, phase, elapsed, started)
             k += 1
             if stopping and stop_cycles >= MAX_STOP_CYCLES:
-                break
+                return
             if (stopping or watchdog.tripped) and np.max(np.abs(dq_cmd)) <= STOPPED_SPEED:
-                break
+                return
             if robot.finished:
-                break
-            try:
-                state = robot.read()
-            except Exception as error:
-                self._robot_error(error)
-                break
-            if not stopping:
-                watchdog.check_state(state)
-        if not self.robot_failed:
-            try:
-                robot.stop()
-            except Exception as error:
-                self._robot_error(error)
-        return self._result()
+                return
+            state = self._read(state, check=not stopping)
+
+    def _read(self, previous: RobotState, check: bool) -> RobotState:
+        """The next state; a read that raises or returns a malformed state trips the watchdog
+        (braking goes on, and a placeholder of NaN values is logged for the cycle)."""
+        try:
+            state = self.robot.read()
+        except Exception as error:
+            self.watchdog.trip(f"robot error: the state cannot be read: {type(error).__name__}: {error}")
+            return placeholder(previous.t, self.robot.period)
+        if check:
+            return state if self.watchdog.check_state(state) else placeholder(previous.t, self.robot.period)
+        return state if not malformed(state) else placeholder(previous.t, self.robot.period)
+
+    def _record(self, state: RobotState, dq_cmd: np.ndarray, phase: str, elapsed: float, started: float) -> None:
+        """Log the cycle; a failure of the log trips the watchdog (the commands matter more)."""
+        try:
+            self.log.record(state, dq_cmd, phase, elapsed, started)
+        except Exception as error:
+            self.watchdog.trip(f"log error: {type(error).__name__}: {error}")
+
+    def _stop(self) -> None:
+        """``robot.stop()``, its failure recorded as a robot error."""
+        try:
+            self.robot.stop()
+        except Exception as error:
+            self._robot_error(error)
 
     def brake(self) -> np.ndarray:
         """The filter's next braking command; a residue below ``STOPPED_SPEED`` (rounding of the
@@ -251,9 +354,7 @@ class ControlLoop:
         return dq_cmd
 
     def _robot_error(self, error: Exception) -> None:
-        """The backend failed: no command can reach the robot any more; the run ends, its log
-        is kept and the watchdog says why."""
-        self.robot_failed = True
+        """The backend failed to take a command or to stop: the watchdog says why."""
         self.watchdog.trip(f"robot error: {type(error).__name__}: {error}")
 
     def _result(self) -> LoopResult:
@@ -270,4 +371,6 @@ class ControlLoop:
             log=log.trial_log(self.robot.force_log()),
             session=self.session,
             interrupted=self.stop_requested,
+            missed_in_a_row=missed_in_a_row(log.cycle_time[: log.size], self.deadline, self.robot.period),
+            max_overruns=self.watchdog.max_overruns,
         )

@@ -16,9 +16,6 @@ import numpy as np
 
 from impactqp.controller.model.validation import BadInputError
 
-EXIT_BAD_INPUT = 2
-EXIT_INTERRUPTED = 130
-
 
 def parse_vector(text: str, size: int | None, what: str) -> np.ndarray:
     """Parse 'a,b,c' into a float array, checking the count and finiteness."""

@@ -3,6 +3,8 @@ simulation (dataset format: ``sim/dataset.py`` and the README)."""
 
 from __future__ import annotations
 
+import sys
+
 import click
 
 from impactqp.controller.model.validation import BadInputError
@@ -17,6 +19,10 @@ from impactqp.scenarios.cli.arguments import (
     parse_vector,
 )
 
+LONG_MANIFEST = 100
+"""Trial entries from which ``dataset validate`` shows its progress bar even when stderr is not a
+terminal."""
+
 
 @click.group()
 def dataset():
@@ -28,11 +34,27 @@ def dataset():
 @click.option("--json", "as_json", is_flag=True)
 @click.pass_context
 def validate_command(ctx, directory, as_json):
-    """Report every problem per trial; never modifies the data. Exit code 1 when any is found."""
+    """Report every problem per trial; never modifies the data. Exit code 1 when any is found.
+    Each file is read once, however many entries name it; a progress bar goes to stderr on a
+    terminal or for a long manifest."""
+    from tqdm import tqdm
+
     from impactqp.controller.measured.dataset import validate
 
     input_directory(directory, "DIRECTORY")
-    problems = validate(directory)
+    bars = []  # on stderr: on a terminal, or for a long manifest (a log shows it is not stuck)
+
+    def progress(done: int, total: int) -> None:
+        if not bars:
+            shown = sys.stderr.isatty() or total >= LONG_MANIFEST
+            bars.append(tqdm(total=total, disable=not shown, desc="trials", unit="trial", file=sys.stderr))
+        bars[0].update(done - bars[0].n)
+
+    try:
+        problems = validate(directory, progress=progress)
+    finally:
+        for bar in bars:
+            bar.close()
     count = sum(len(v) for v in problems.values())
     if as_json:
         emit_json({"valid": count == 0, "problems": problems})

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import click
 
-from impactqp.scenarios.cli.arguments import EXIT_INTERRUPTED, emit_json
+from impactqp.scenarios.cli.arguments import emit_json
+from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED, EXIT_ROBOT_WOULD_STOP
 
 
 @click.command("run")
@@ -23,7 +24,8 @@ from impactqp.scenarios.cli.arguments import EXIT_INTERRUPTED, emit_json
 def run_command(backend, robot_ip, config_file, plant_file, posture, speed, duration, log, dataset, trial, unpaced, as_json):
     """Run the impact-aware controller in a 1 kHz loop on a robot: approach, detect the impact,
     post-impact phase, brake to a stop. Ctrl-C (or SIGTERM) brakes to a stop, keeps the log and
-    exits with code 130."""
+    exits with code 130. Overruns are reported on stderr; exit code 3 when the watchdog tripped or
+    the overruns would have stopped a real robot."""
     from impactqp.scenarios.run import RunRequest, run  # lazy: the command line loads an experiment when it runs
 
     request = RunRequest(
@@ -38,6 +40,21 @@ def run_command(backend, robot_ip, config_file, plant_file, posture, speed, dura
     if result.interrupted:
         click.echo(f"impactqp: interrupted: braked to a stop; log: {report['log']}", err=True)
         click.get_current_context().exit(EXIT_INTERRUPTED)
+    cycle = report["cycle_us"]
+    timing = (
+        f"{report['overruns']} overrun(s) in {report['cycles']} cycles, cycle time p99 {cycle['p99']:.0f} us, "
+        f"max {cycle['max']:.0f} us"
+    )
+    if result.robot_stop_reason:
+        who = "stopped the robot" if backend == "franka" else "would have stopped a real robot"
+        click.echo(f"impactqp: the run {who}: {result.robot_stop_reason}; {timing}", err=True)
+        click.get_current_context().exit(EXIT_ROBOT_WOULD_STOP)
+    if report["overruns"]:
+        click.echo(
+            f"impactqp: warning: {timing}; at most {report['missed_in_a_row']} period(s) in a row without a "
+            f"command on time, within the budget of {result.max_overruns - 1}",
+            err=True,
+        )
 
 
 def print_report(report: dict) -> None:

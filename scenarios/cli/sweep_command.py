@@ -7,14 +7,14 @@ from pathlib import Path
 import click
 
 from impactqp.controller.model.validation import BadInputError
-from impactqp.scenarios.cli.arguments import emit_json, load_plant, output_directory
+from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, output_directory
 
 
 @click.command()
 @click.argument("config_path", required=False, type=click.Path(path_type=Path))
 @click.option("--backend", type=click.Choice(["local", "ray"]), default="local", show_default=True,
               help="local: a process pool; ray: the cluster at RAY_ADDRESS, else a local Ray.")
-@click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True, help="Worker processes.")
+@click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
 @click.option("--out", type=click.Path(path_type=Path), default=Path("sweep-out"), show_default=True)
 @click.option("--resume", is_flag=True, help="Skip the chunks already in --out (same config, --simulate, --plant).")
 @click.option("--simulate", is_flag=True,
@@ -35,6 +35,7 @@ def sweep(config_path, backend, jobs, out, resume, simulate, plant_file, example
     from impactqp.scenarios.sweep.cells import Simulation
 
     output_directory(str(out), "--out")
+    check_jobs(jobs)
     config = load_config(config_path)
     if plant_file is not None and not simulate:
         raise BadInputError("--plant sets the plant of the simulated cells: add --simulate")

@@ -1,0 +1,197 @@
+"""The ``impactqp`` commands: the click group and the small commands (``postures``, ``predict``,
+``bench``, ``demo``); the others live beside it. They parse options and call the library,
+nothing more; the error boundary and the exit codes are ``scenarios.cli.main``'s.
+"""
+
+from __future__ import annotations
+
+import click
+import numpy as np
+
+from impactqp.controller.model.jump import METHODS
+from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.validation import BadInputError
+from impactqp.scenarios.cli.arguments import emit_json, output_directory, parse_vector
+
+
+@click.group()
+@click.version_option(package_name="impactqp", prog_name="impactqp")
+@click.option("--debug", is_flag=True, help="Show the traceback of an internal error.")
+def cli(debug):  # noqa: ARG001 - read by main(), which owns the error boundary
+    """Impact-aware QP control of a Franka Panda (Wang, Dehio, Kheddar, RA-L 2022)."""
+
+
+@cli.command()
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON list.")
+def postures(as_json):
+    """List the named impact postures, their contact point and the wall normal."""
+    from impactqp.controller.model.robot import PandaModel
+    from impactqp.scenarios.readable import fixed
+
+    robot = PandaModel()
+    rows = [
+        {
+            "name": p.name,
+            "q": p.q.tolist(),
+            "contact_point": robot.contact_point(p.q).tolist(),
+            "normal": p.surface.normal.tolist(),
+            "description": p.description,
+        }
+        for p in POSTURES.values()
+    ]
+    if as_json:
+        emit_json(rows)
+        return
+    for row in rows:
+        click.echo(f"{row['name']:<12} {row['description']}")
+        click.echo(f"  q             = {fixed(row['q'])} rad")
+        click.echo(f"  contact point = {fixed(row['contact_point'])} m")
+        click.echo(f"  normal        = {fixed(row['normal'])}")
+
+
+@cli.command()
+@click.option("--posture", "posture_name", help="A named posture (see `impactqp postures`).")
+@click.option("--q", "q_text", help="Joint positions Q1,...,Q7 (rad).")
+@click.option("--normal", "normal_text", required=True, help="Surface normal NX,NY,NZ towards the robot.")
+@click.option("--speed", type=float, required=True, help="Approach speed along -normal (m/s), > 0.")
+@click.option("--tangential", "tangential_text", help="Tangential velocity VX,VY,VZ (m/s), orthogonal to the normal.")
+@click.option("--restitution", type=float, default=0.0, show_default=True, help="Coefficient of restitution in [0, 1].")
+@click.option("--method", type=click.Choice([*METHODS, "all"]), default="all", show_default=True)
+@click.option("--json", "as_json", is_flag=True)
+def predict(posture_name, q_text, normal_text, speed, tangential_text, restitution, method, as_json):
+    """Predict the impact-induced joint-velocity jump at a posture."""
+    from impactqp.controller.model.prediction import ImpactQuery, predict_all
+    from impactqp.scenarios.readable import fixed
+
+    if (posture_name is None) == (q_text is None):
+        raise BadInputError("give exactly one of --posture NAME or --q Q1,...,Q7")
+    if posture_name is not None:
+        if posture_name not in POSTURES:
+            raise BadInputError(f"unknown posture {posture_name!r}; known: {', '.join(POSTURES)}")
+        q = POSTURES[posture_name].q
+    else:
+        q = parse_vector(q_text, NQ, "--q")
+    tangential = parse_vector(tangential_text, 3, "--tangential") if tangential_text else np.zeros(3)
+    query = ImpactQuery.from_speed(
+        q, parse_vector(normal_text, 3, "--normal"), speed, tangential, restitution
+    )
+    methods = METHODS if method == "all" else (method,)
+    report = predict_all(query, methods)
+    if as_json:
+        emit_json(report)
+        return
+    click.echo(f"q                   = {fixed(report['q'])} rad")
+    click.echo(f"contact point       = {fixed(report['contact_point'])} m")
+    click.echo(f"normal              = {fixed(report['normal'])}")
+    click.echo(f"pre-impact velocity = {fixed(report['pre_impact_velocity'])} m/s")
+    click.echo(f"restitution         = {report['restitution']}   cond(M) = {report['cond_M']:.0f}")
+    header = f"{'method':<17}" + "".join(f"{f'dq{i}':>9}" for i in range(1, 8)) + "   impulse (N s)"
+    click.echo(header)
+    for name, res in report["methods"].items():
+        dq = "".join(f"{x:9.4f}" for x in res["dq_jump"])
+        imp = " ".join(f"{x:7.4f}" for x in res["impulse"])
+        click.echo(f"{name:<17}{dq}   [{imp}]")
+
+
+@cli.command()
+@click.option("--json", "as_json", is_flag=True, help='Print {"rows": [...]}.')
+@click.option("--only", default="", help="Run only the rows whose name starts with this prefix.")
+def bench(as_json, only):
+    """Benchmark table: median and p99 of every tracked speed and accuracy figure."""
+    from impactqp.scenarios.bench import run_benchmarks
+
+    rows = run_benchmarks(only, progress=not as_json)
+    if as_json:
+        emit_json({"rows": rows})
+        return
+    width = max([len(row["name"]) for row in rows] + [38]) + 2
+    click.echo(f"{'name':<{width}}{'unit':<16}{'median':>14}{'p99':>14}")
+    for row in rows:
+        if row["median"] is None:  # a row that could not be measured says why
+            click.echo(f"{row['name']:<{width}}{row['unit']:<16}{'n/a':>14}{'n/a':>14}  {row.get('note', '')}")
+            continue
+        click.echo(f"{row['name']:<{width}}{row['unit']:<16}{row['median']:>14.4g}{row['p99']:>14.4g}")
+
+
+@cli.command()
+@click.option("--out", "out_dir", default="out/demo", show_default=True, help="Output directory.")
+@click.option("--jobs", type=int, default=2, show_default=True, help="Worker processes.")
+def demo(out_dir, jobs):
+    """The whole story in under 2 minutes: simulate, measure, diagnose, calibrate, decide.
+
+    1. The nominal campaign (3 postures x 5 normal speeds + 4 tangential speeds) and its Table I.
+    2. A "measured" dataset from a stiff plant: drives with reflected rotor inertia (1.2 kg m^2
+       on joints 1-4, 0.3 on joints 5-7), 3 postures x 2 speeds, with encoder and torque noise.
+    3. The diagnosis of that dataset: the cause, its gain and Table I on the measured data, on
+       which the CRB predictor wins.
+    4. The highest feasible contact speed of elbow_up with the calibrated plant, and which answer
+       to trust.
+
+    Progress bars (stderr) show the simulated trials of stages 1, 2 and 4.
+    """
+    from tqdm import tqdm
+
+    from impactqp.controller.model.postures import DEFAULT_WALL
+    from impactqp.scenarios.campaign import Campaign, CampaignPlan
+    from impactqp.scenarios.cli.arguments import bar_progress, check_jobs
+    from impactqp.scenarios.diagnosis_report import (
+        feasible_speeds,
+        table_by_condition,
+        trusted_speed_text,
+        write_report,
+    )
+    from impactqp.sim.causes import per_group
+    from impactqp.sim.diagnosis import diagnose
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
+    from impactqp.sim.plant import PlantParameters
+
+    out = output_directory(out_dir, "--out")
+    jobs = check_jobs(jobs)
+    plan = CampaignPlan(tangential_speeds=(0.03, 0.06, 0.09, 0.12))
+    table = Campaign(plan, DEFAULT_WALL, None, jobs=jobs, progress=True).run(out / "nominal")
+    click.echo("1. Nominal simulation, Table I:")
+    click.echo(table.text())
+    stiff = PlantParameters(armature=per_group((1.2, 0.3)))
+    with tqdm(desc="measured dataset", unit="trial") as bar:
+        generate_dataset(
+            out / "measured",
+            DatasetRequest(plant=stiff, postures=["elbow_up", "elbow_left", "elbow_right"], speeds=[0.1, 0.18], seed=1),
+            jobs=jobs,
+            progress=bar_progress(bar),
+        )
+    click.echo(f"\n2. 'Measured' dataset from a stiff plant (hidden armature 1.2 / 0.3 kg m^2): {out / 'measured'}")
+    result = diagnose(out / "measured", jobs=jobs)
+    summary = result.summary()
+    click.echo("\n3. Diagnosis:")
+    click.echo(summary["message"])
+    click.echo(f"causes: {', '.join(summary['causes']) or 'none'}, held-out gain {100 * summary['gain']:.0f} %")
+    click.echo("Table I on the measured data (average error (26), rad/s):")
+    click.echo("\n".join(table_by_condition(result)))
+    speeds = feasible_speeds(result, PlantParameters(), postures=["elbow_up"], jobs=jobs, progress=True)
+    path = write_report(result, out / "diagnosis", speeds)
+    click.echo("\n4. Highest feasible contact speed with the calibrated plant:")
+    for row in speeds:
+        click.echo(row.sentence())
+    click.echo(trusted_speed_text(result, speeds))
+    click.echo(f"\nreport: {path}")
+
+
+from impactqp.scenarios.cli.simulation_commands import campaign, max_speed, simulate  # noqa: E402
+
+cli.add_command(simulate)
+cli.add_command(campaign)
+cli.add_command(max_speed)
+
+from impactqp.scenarios.cli.dataset_commands import dataset, diagnose  # noqa: E402
+
+cli.add_command(dataset)
+cli.add_command(diagnose)
+
+from impactqp.scenarios.cli.run_command import run_command  # noqa: E402
+
+cli.add_command(run_command)
+
+from impactqp.scenarios.cli.sweep_command import sweep  # noqa: E402
+
+cli.add_command(sweep)
