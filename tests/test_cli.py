@@ -129,7 +129,7 @@ def one_line_bad_input(code, out, err, fragment):
 
 def test_plant_that_is_a_directory_is_bad_input(capsys, tmp_path):
     code, out, err = run(capsys, "max-speed", "--posture", "elbow_up", "--plant", str(tmp_path))
-    one_line_bad_input(code, out, err, "not a regular file")
+    one_line_bad_input(code, out, err, "is a directory, not a file")
 
 
 def test_output_directory_that_is_a_file_is_bad_input(capsys, tmp_path):

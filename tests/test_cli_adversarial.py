@@ -115,7 +115,7 @@ ROWS = [
     (["postures", "--bogus"], None, 2, "No such option"),
     # simulate
     (["simulate", "--posture", "elbow_up", "--speed", "1e9"], None, 2, "(0, 3] m/s"),
-    (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{tmp}"], None, 2, "not a regular file"),
+    (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{tmp}"], None, 2, "is a directory, not a file"),
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--out", "{data}/t0000.csv"], None, 2,
      "not a directory"),
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--video", "{data}/t0000.csv/x.gif"], None, 2,
@@ -134,7 +134,7 @@ ROWS = [
     (["campaign", "--postures", "nowhere"], None, 2, "unknown posture"),
     # max-speed
     (["max-speed", "--posture", "elbow_up", "--impact-duration", "1e-9"], None, 2, "one control period"),
-    (["max-speed", "--posture", "elbow_up", "--plant", "{tmp}"], None, 2, "not a regular file"),
+    (["max-speed", "--posture", "elbow_up", "--plant", "{tmp}"], None, 2, "is a directory, not a file"),
     (["max-speed", "--posture", "elbow_up", "--wall-normal", "nan,0,0"], None, 2, "non-finite"),
     (["max-speed", "--posture", "elbow_up", "--tolerance", "1e-300"], None, 2,
      "the bisection tolerance must lie in [0.0001, 0.5] m/s"),

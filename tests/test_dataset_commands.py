@@ -144,3 +144,48 @@ def test_diagnose_text_is_readable(small_dataset, capsys, monkeypatch):
     assert "armature (kg m^2): joints 1-4 = 1.2, joints 5-7 = 0.3" in out
     table = out.split("candidate")[1].splitlines()[1:4]
     assert [line.split()[0] for line in table] == ["armature", "contact", "payload"]
+
+
+def run_guarded(*args):
+    """The command in its own interpreter: a regression that blocks on a FIFO fails the test at
+    the guard instead of hanging the suite (the guard is not a timing requirement)."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "impactqp", *map(str, args)], capture_output=True, text=True,
+                          timeout=300, stdin=subprocess.DEVNULL)
+    return done.returncode, done.stdout, done.stderr
+
+
+def test_a_fifo_in_place_of_a_trial_csv_is_a_problem_not_a_hang(small_dataset, tmp_path):
+    import os
+
+    data = tmp_path / "fifo"
+    shutil.copytree(small_dataset, data)
+    (data / "t0001.csv").unlink()
+    os.mkfifo(data / "t0001.csv")
+    code, out, err = run_guarded("dataset", "validate", data, "--json")
+    assert code == 1 and err == ""
+    problems = json.loads(out)["problems"]["t0001"]
+    assert any("not a regular file" in p for p in problems)
+
+
+def test_a_fifo_given_to_import_franka_is_bad_input(tmp_path):
+    import os
+
+    log = tmp_path / "log.csv"
+    os.mkfifo(log)
+    code, out, err = run_guarded("dataset", "import-franka", tmp_path / "out", log, "--surface-point", "0.6,0,0",
+                                 "--surface-normal", "-1,0,0")
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "not a regular file" in err
+
+
+def test_a_fifo_as_plant_file_is_bad_input(tmp_path):
+    import os
+
+    plant = tmp_path / "plant.json"
+    os.mkfifo(plant)
+    code, out, err = run_guarded("dataset", "generate", tmp_path / "out", "--plant", plant, "--postures", "elbow_up",
+                                 "--speeds", "0.1")
+    assert code == 2 and err.count("\n") == 1 and "not a regular file" in err

@@ -41,7 +41,7 @@ import numpy as np
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.prediction import default_robot
 from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET
-from impactqp.controller.model.files import read_mapping
+from impactqp.controller.model.files import read_mapping, regular_file
 from impactqp.controller.model.validation import (
     BadInputError,
     approach_speed,
@@ -340,6 +340,7 @@ def _parse_entry(entry: dict) -> TrialEntry:
 
 def _read_table(path: Path, columns: list[str]) -> np.ndarray:
     """The table of a CSV file with exactly-named columns, in ``columns`` order."""
+    regular_file(path, "", DatasetError, shown=path.name)  # never open a FIFO or a device: it could block
     try:
         with path.open(encoding="utf-8-sig") as stream:  # a byte-order mark is not part of a name
             header = stream.readline().strip().split(",")

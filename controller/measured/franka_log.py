@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from impactqp.controller.model.files import regular_file
 from impactqp.controller.model.postures import POSTURES, Surface
 from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET, PandaModel
 from impactqp.controller.model.validation import BadInputError, finite_vector, positive
@@ -115,10 +116,11 @@ def read_franka_csv(path: str | Path) -> dict[str, np.ndarray]:
     logged array name (e.g. ``"state.q"``). Raises :class:`BadInputError` for a missing, empty,
     foreign, truncated or non-numeric file."""
     path = Path(path)
+    if not path.exists():
+        raise BadInputError(f"{path}: no such libfranka log")
+    regular_file(path, "the libfranka log")  # never open a FIFO or a device: it could block
     try:
         text = path.read_text()
-    except FileNotFoundError:
-        raise BadInputError(f"{path}: no such libfranka log") from None
     except (OSError, UnicodeDecodeError) as error:
         raise BadInputError(f"{path}: cannot be read as a libfranka log ({error.__class__.__name__})") from None
     lines = text.splitlines()

@@ -31,22 +31,26 @@ MAPPING = {"json": "a JSON object", "toml": "a table of keys and values", "yaml"
 _PARSE_ERRORS = (json.JSONDecodeError, tomllib.TOMLDecodeError, yaml.YAMLError)
 
 
-def regular_file(path: str | Path, what: str, error: type[BadInputError] = BadInputError) -> Path:
+def regular_file(
+    path: str | Path, what: str, error: type[BadInputError] = BadInputError, shown: str | None = None
+) -> Path:
     """``path`` as a Path after checking, without opening it, that it names a regular file;
-    else ``error`` (a :class:`BadInputError`) whose message starts with ``what`` and the path."""
+    else ``error`` (a :class:`BadInputError`) whose message starts with ``what`` and the path
+    (or ``shown`` in its place)."""
     path = Path(path)
+    name = f"{what} {path if shown is None else shown}".strip()
     try:
         mode = os.stat(path).st_mode
     except FileNotFoundError:
-        raise error(f"{what} {path} does not exist") from None
+        raise error(f"{name} does not exist") from None
     except NotADirectoryError:
-        raise error(f"{what} {path} does not exist (a parent is not a directory)") from None
+        raise error(f"{name} does not exist (a parent is not a directory)") from None
     except OSError as failure:
-        raise error(f"cannot read {what} {path}: {failure.strerror or failure}") from None
+        raise error(f"cannot read {name}: {failure.strerror or failure}") from None
     if stat.S_ISDIR(mode):
-        raise error(f"{what} {path} is a directory, not a file")
+        raise error(f"{name} is a directory, not a file")
     if not stat.S_ISREG(mode):
-        raise error(f"{what} {path} is not a regular file (a FIFO, a socket or a device)")
+        raise error(f"{name} is not a regular file (a FIFO, a socket or a device)")
     return path
 
 

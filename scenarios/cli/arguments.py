@@ -14,6 +14,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from impactqp.controller.model.files import regular_file
 from impactqp.controller.model.validation import BadInputError
 
 
@@ -52,11 +53,7 @@ def bar_progress(bar):
 
 def input_file(path: str, what: str) -> Path:
     """An existing, readable regular file."""
-    p = Path(path)
-    if not p.exists():
-        raise BadInputError(f"{what}: {path} does not exist")
-    if not p.is_file():
-        raise BadInputError(f"{what}: {path} is not a regular file")
+    p = regular_file(path, f"{what}:")
     if not os.access(p, os.R_OK):
         raise BadInputError(f"{what}: {path} is not readable")
     return p
