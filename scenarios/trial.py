@@ -43,7 +43,6 @@ delta_t_sim):
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,6 +56,7 @@ from impactqp.controller.model.robot import PandaModel
 from impactqp.constraints import jump_model_names
 from impactqp.controller.measured.impact import ImpactMeasurement, measure_impact
 from impactqp.sim.plant import PlantParameters
+from impactqp.sim.process_pool import ProcessPool
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach
 from impactqp.sim.scene import Scene, build_scene
@@ -230,37 +230,15 @@ def _run_in_worker(spec: TrialSpec) -> TrialResult:
     return _WORKER.run(spec)
 
 
-class TrialPool:
-    """Runs trials on ``jobs`` processes (``ProcessPoolExecutor``); every worker builds its own
-    scene, robot model and controllers. ``jobs=1`` runs in this process."""
+class TrialPool(ProcessPool):
+    """Runs trials on ``jobs`` processes (``sim.process_pool.ProcessPool``); every worker builds
+    its own scene, robot model and controllers. ``jobs=1`` runs in this process."""
 
     def __init__(self, surface: Surface, plant: PlantParameters | None = None, jobs: int = 1):
         if jobs < 1:
             raise BadInputError(f"--jobs must be >= 1, got {jobs}")
-        self.surface = surface
-        self.plant = plant
-        self.jobs = jobs
-        self._executor: ProcessPoolExecutor | None = None
-        self._local: TrialRunner | None = None
-
-    def __enter__(self) -> TrialPool:
-        if self.jobs > 1:
-            self._executor = ProcessPoolExecutor(
-                self.jobs, initializer=_init_worker, initargs=(self.surface, self.plant)
-            )
-        else:
-            self._local = TrialRunner.build(self.surface, self.plant)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if self._executor is not None:
-            self._executor.shutdown(cancel_futures=True)
-            self._executor = None
+        super().__init__(jobs, initializer=_init_worker, initargs=(surface, plant))
 
     def map(self, specs: Iterable[TrialSpec]) -> Iterator[TrialResult]:
         """Results in the order of ``specs``."""
-        if self._executor is not None:
-            return self._executor.map(_run_in_worker, specs)
-        if self._local is None:
-            raise RuntimeError("use TrialPool as a context manager")
-        return map(self._local.run, specs)
+        return super().map(_run_in_worker, specs)
