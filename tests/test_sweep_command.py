@@ -100,7 +100,7 @@ def test_bad_config_is_one_line_and_exit_code_2_before_any_work(tmp_path, capsys
     "args, message",
     [
         (["--simulate", "--plant", "{tmp}/missing.json"], "does not exist"),
-        (["--simulate", "--plant", "{tmp}"], "not a regular file"),
+        (["--simulate", "--plant", "{tmp}"], "is a directory, not a file"),
         (["--simulate", "--plant", "{tmp}/unknown.json"], "unknown plant parameter"),
         (["--simulate", "--plant", "{tmp}/negative.json"], "payload_mass"),
         (["--simulate", "--plant", "{tmp}/broken.json"], "--plant"),

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
 from tqdm import tqdm
 
 from impactqp.controller.model.validation import BadInputError
+from impactqp.sim.process_pool import ProcessPool
 
 from . import store
 from .cells import Simulation, evaluate_cells
@@ -53,27 +53,36 @@ def _chunk_cells(config: SweepConfig, chunk: int, chunk_size: int) -> range:
 BACKENDS = ("local", "ray")
 
 
-def _evaluate_chunk(
-    config: SweepConfig, simulation: Simulation | None, chunk: int, chunk_size: int
-) -> tuple[int, dict]:
-    return chunk, evaluate_cells(config, _chunk_cells(config, chunk, chunk_size), simulation)
+@dataclass(frozen=True)
+class ChunkTask:
+    """One chunk of cells to evaluate on a worker."""
+
+    config: SweepConfig
+    simulation: Simulation | None
+    chunk: int
+    chunk_size: int
+
+
+def _evaluate_chunk(task: ChunkTask) -> tuple[int, dict]:
+    cells = _chunk_cells(task.config, task.chunk, task.chunk_size)
+    return task.chunk, evaluate_cells(task.config, cells, task.simulation)
+
+
+def _evaluate_chunk_parts(config: SweepConfig, simulation: Simulation | None, chunk: int, chunk_size: int):
+    """``_evaluate_chunk`` for Ray, which resolves object references passed as arguments only."""
+    return _evaluate_chunk(ChunkTask(config, simulation, chunk, chunk_size))
 
 
 def _local(config: SweepConfig, simulation: Simulation | None, todo: list[int], chunk_size: int, jobs: int):
-    """Yield (chunk, columns) as they finish, on a pool of ``jobs`` processes (in-process for 1)."""
-    if jobs <= 1:
-        for c in todo:
-            yield _evaluate_chunk(config, simulation, c, chunk_size)
-        return
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        futures = [pool.submit(_evaluate_chunk, config, simulation, c, chunk_size) for c in todo]
-        for future in as_completed(futures):
-            yield future.result()
+    """Yield (chunk, columns) in chunk order, on the project's process pool of ``jobs`` processes
+    (in-process for 1); each chunk is written as soon as it and the ones before it are done."""
+    with ProcessPool(max(1, min(jobs, len(todo)))) as pool:
+        yield from pool.map(_evaluate_chunk, [ChunkTask(config, simulation, c, chunk_size) for c in todo])
 
 
 def _ray(config: SweepConfig, simulation: Simulation | None, todo: list[int], chunk_size: int, jobs: int):
     """Yield (chunk, columns) as they finish on Ray: the cluster at RAY_ADDRESS, else a local Ray."""
-    import ray
+    import ray  # optional dependency (the ray extra): loaded only for this backend
 
     started = not ray.is_initialized()
     if started:
@@ -82,7 +91,7 @@ def _ray(config: SweepConfig, simulation: Simulation | None, todo: list[int], ch
         else:
             ray.init(num_cpus=jobs, include_dashboard=False, log_to_driver=False)
     try:
-        remote = ray.remote(num_cpus=1)(_evaluate_chunk)
+        remote = ray.remote(num_cpus=1)(_evaluate_chunk_parts)
         config_ref, simulation_ref = ray.put(config), ray.put(simulation)
         pending = [remote.remote(config_ref, simulation_ref, c, chunk_size) for c in todo]
         while pending:
@@ -113,7 +122,7 @@ def run_sweep(
         raise BadInputError(f"unknown backend {backend!r}; choose from {', '.join(BACKENDS)}")
     if backend == "ray":
         try:
-            import ray  # noqa: F401
+            import ray  # noqa: F401  # optional dependency: checked before any work
         except ImportError:
             raise BadInputError("the ray backend needs Ray: pip install -e '.[ray]'") from None
     start = time.perf_counter()
