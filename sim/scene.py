@@ -168,6 +168,47 @@ class Scene:
         return data.geom_xpos[self.tool_geom].copy()
 
 
+def _add_wall(spec, surface: Surface, contact: dict, friction: float) -> None:
+    """The wall plane and the tool/wall contact pair (the only pair that collides)."""
+    wall_quat = np.zeros(4)
+    mujoco.mju_quatZ2Vec(wall_quat, surface.normal)
+    spec.worldbody.add_geom(
+        name=WALL_GEOM,
+        type=mujoco.mjtGeom.mjGEOM_PLANE,
+        size=[0.5, 0.5, 0.01],
+        pos=list(surface.point),
+        quat=list(wall_quat),
+        contype=0,
+        conaffinity=0,
+        rgba=[0.6, 0.6, 0.7, 0.5],
+        **contact,
+    )
+    spec.add_pair(
+        name=CONTACT_PAIR,
+        geomname1=TOOL_GEOM,
+        geomname2=WALL_GEOM,
+        **{**contact, "friction": [friction, friction, 0.0, 0.0, 0.0]},
+    )
+
+
+def _apply_plant(spec, mount, robot: RobotDescription, tool: ToolDescription, plant: PlantParameters) -> None:
+    """The plant's drive armature, joint damping and payload (a point mass at the contact point
+    with its centre of mass offset) on the robot before it is compiled."""
+    for name, armature, damping in zip(robot.joints, plant.armature, plant.joint_damping):
+        joint = spec.joint(name)
+        joint.armature = armature
+        joint.damping = [damping, 0.0, 0.0]
+    if plant.payload_mass > 0.0:
+        mount.add_body(
+            name=PAYLOAD_BODY,
+            pos=tool.contact_point.tolist(),
+            mass=plant.payload_mass,
+            ipos=list(plant.payload_com),
+            inertia=[0.0, 0.0, 0.0],
+            explicitinertial=True,
+        )
+
+
 def build_scene(
     surface: Surface = DEFAULT_WALL,
     plant: PlantParameters | None = None,
@@ -205,39 +246,8 @@ def build_scene(
     )
     mount = spec.body(robot.frame_of(tool))
     _add_tool(mount, tool, contact)
-    wall_quat = np.zeros(4)
-    mujoco.mju_quatZ2Vec(wall_quat, surface.normal)
-    spec.worldbody.add_geom(
-        name=WALL_GEOM,
-        type=mujoco.mjtGeom.mjGEOM_PLANE,
-        size=[0.5, 0.5, 0.01],
-        pos=list(surface.point),
-        quat=list(wall_quat),
-        contype=0,
-        conaffinity=0,
-        rgba=[0.6, 0.6, 0.7, 0.5],
-        **contact,
-    )
-    spec.add_pair(
-        name=CONTACT_PAIR,
-        geomname1=TOOL_GEOM,
-        geomname2=WALL_GEOM,
-        **{**contact, "friction": [friction, friction, 0.0, 0.0, 0.0]},
-    )
-
-    for name, armature, damping in zip(robot.joints, plant.armature, plant.joint_damping):
-        joint = spec.joint(name)
-        joint.armature = armature
-        joint.damping = [damping, 0.0, 0.0]
-    if plant.payload_mass > 0.0:
-        mount.add_body(
-            name=PAYLOAD_BODY,
-            pos=tool.contact_point.tolist(),
-            mass=plant.payload_mass,
-            ipos=list(plant.payload_com),
-            inertia=[0.0, 0.0, 0.0],
-            explicitinertial=True,
-        )
+    _add_wall(spec, surface, contact, friction)
+    _apply_plant(spec, mount, robot, tool, plant)
 
     model = spec.compile()
     if tuple(model.joint(i).name for i in range(model.njnt)) != robot.joints:
