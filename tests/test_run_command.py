@@ -22,7 +22,7 @@ def test_sim_run_prints_the_report_and_writes_a_dataset(tmp_path, capsys):
     report = json.loads(capsys.readouterr().out)
     assert set(report) >= {"cycles", "overruns", "cycle_us", "watchdog_trips", "impact", "phase", "log"}
     assert set(report["cycle_us"]) == {"p50", "p99", "max"}
-    assert set(report["impact"]) == {"detected", "time", "detection_latency_ms", "contact_speed"}
+    assert set(report["impact"]) == {"detected", "time", "detection_latency_ms", "contact_speed", "residual"}
     assert report["impact"]["detected"]
     assert (tmp_path / "dataset.json").exists() and report["log"].endswith("run0000.csv")
     assert main(["dataset", "validate", str(tmp_path)]) == 0

@@ -19,6 +19,7 @@ from impactqp.controller.command_filter import CommandFilter
 from impactqp.controller.config import ControllerConfig
 from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD
+from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
@@ -169,6 +170,7 @@ def report(result: LoopResult, config: ControllerConfig, log_path: str | None) -
             "time": detector.t_detect,
             "detection_latency_ms": latency,
             "contact_speed": session.contact_speed(),
+            "residual": session.residual_source,
         },
         "phase": result.phase,
         "log": log_path,
@@ -183,12 +185,26 @@ def log_header(config: ControllerConfig) -> DatasetHeader:
     )
 
 
+def after(log: TrialLog, t_start: float) -> TrialLog:
+    """The samples of a log without force from ``t_start`` on."""
+    k = int(np.searchsorted(log.t, t_start))
+    return TrialLog(log.t[k:], log.q[k:], log.dq[k:], log.tau[k:], log.dq_cmd[k:])
+
+
 def write_log(run_log: RunLog, request: RunRequest, config: ControllerConfig, result: LoopResult) -> str:
-    """Add the run as one trial to its dataset; the trial file's path."""
+    """Add the run as one trial to its dataset; the trial file's path.
+
+    A log without a force measurement (a robot's) is written from the end of the detector's
+    contact-free reference window on: the offline torque rule (``controller.measured.impact``)
+    reads a trial that starts in the approach, and would take the start-up of a velocity-servoed
+    arm from rest (the joint torque following the commanded acceleration) for an impact."""
     speed = next(
         (float(t.params.get("speed", 0.0)) for t in config.tasks if t.type == "contact_approach"), request.speed
     )
     log = result.log
+    t_reference = result.session.detector.t_calibrated
+    if not log.has_force and t_reference is not None:
+        log = after(log, t_reference)
     return run_log.add(
         log,
         speed,

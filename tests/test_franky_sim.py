@@ -1,0 +1,122 @@
+"""The whole impact session through the real Franka network protocol: our ``franka`` backend
+(``pylibfranka``) against a franky-sim server (MuJoCo FR3 behind libfranka's TCP/UDP protocol)
+with a wall and the contact tool in its scene, in its own process group.
+
+The server runs slower than real time on a loaded machine, so every bound here counts control
+cycles, never wall time, and nothing about timing is asserted. The fixture owns the server
+processes and kills them in its finalizer, also when a test fails.
+"""
+
+import numpy as np
+import pytest
+
+from impactqp.controller.command_filter import CommandFilter
+from impactqp.controller.config import ControllerConfig
+from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot import PandaModel
+from impactqp.scenarios.cli import main
+from impactqp.scenarios.robot.franka_backend import FrankaRobot
+from impactqp.scenarios.robot.loop import ControlLoop, STOPPING
+from impactqp.scenarios.robot.run import log_header, write_log, RunRequest
+from impactqp.scenarios.robot.run_log import RunLog
+from impactqp.scenarios.robot.session import OBSERVER, ImpactSession
+from impactqp.sim.runner import approach_start
+from conftest import ForwardingRobot
+from franky_sim_server import FrankySimServer
+
+pytest.importorskip("pylibfranka", reason="pylibfranka is not installed: pip install -e '.[franka]'")
+pytest.importorskip("franky_sim", reason="franky-sim is not installed: pip install -e '.[test]'")
+
+POSTURE = POSTURES["elbow_up"]
+START_DISTANCE = 0.05
+SPEED = 0.15
+WALL_TOLERANCE = 0.005  # m: the tool's predicted contact point at the detection vs the wall
+
+
+@pytest.fixture
+def franky_sim(tmp_path):
+    """``start(q0)`` -> a listening server with the posture's wall; every one is killed at teardown."""
+    servers = []
+
+    def start(q0):
+        server = FrankySimServer(tmp_path / f"server{len(servers)}", POSTURE.surface.point, POSTURE.surface.normal, q0)
+        server.directory.mkdir()
+        servers.append(server)
+        server.start()
+        return server
+
+    yield start
+    for server in servers:
+        server.stop()
+
+
+@pytest.fixture(scope="module")
+def model():
+    return PandaModel()
+
+
+def session_loop(robot, model):
+    config = ControllerConfig.approach(POSTURE.surface, SPEED, posture_weight=0.0)
+    session = ImpactSession(config, model)
+    return config, ControlLoop(robot, session, CommandFilter.for_robot(model, config.dt), deadline=float("inf"))
+
+
+def test_the_session_detects_the_wall_retracts_and_logs_through_the_franka_protocol(franky_sim, model, tmp_path, capsys):
+    q0 = approach_start(model, POSTURE.q, POSTURE.surface, START_DISTANCE)
+    server = franky_sim(q0)
+    robot = FrankaRobot.connect(server.hostname, realtime=False)
+    config, loop = session_loop(robot, model)
+    run_log = RunLog(str(tmp_path / "log"), log_header(config))
+    result = loop.run(1.0)
+    session = result.session
+    assert result.watchdog_trips == 0, result.watchdog_reason
+    assert session.residual_source == OBSERVER  # franky-sim reports tau_J as tau_ext_hat_filtered
+    assert session.detector.detected and result.phase == STOPPING
+    assert "retract" in result.phases
+    log = result.log
+    distance = np.array([POSTURE.surface.signed_distance(model.contact_point(q)) for q in log.q])
+    detected = int(np.searchsorted(log.t, session.detector.t_detect))
+    assert abs(distance[detected]) <= WALL_TOLERANCE
+    assert np.all(distance[:detected] > -WALL_TOLERANCE)  # no earlier contact went unnoticed
+    assert distance[-1] > distance[detected] + WALL_TOLERANCE  # retracted
+    assert 0.5 * SPEED < session.contact_speed() <= SPEED * 1.05
+    write_log(run_log, RunRequest(backend="franka", robot_ip=server.hostname, speed=SPEED), config, result)
+    capsys.readouterr()
+    assert main(["dataset", "validate", str(tmp_path / "log")]) == 0, capsys.readouterr().err
+
+
+class ServerDiesAt(ForwardingRobot):
+    """Kills the server before the read of cycle ``cycle``: the connection is lost mid-session."""
+
+    def __init__(self, robot, server, cycle):
+        super().__init__(robot)
+        self.server, self.cycle, self.reads = server, cycle, 0
+
+    def read(self):
+        self.reads += 1
+        if self.reads == self.cycle:
+            self.server.stop()
+        return self.robot.read()
+
+    def start(self):
+        self.reads += 1
+        return self.robot.start()
+
+    def write(self, dq_cmd):
+        self.robot.write(dq_cmd)
+
+    def stop(self):
+        self.robot.stop()
+
+
+def test_a_lost_connection_ends_the_run_in_one_line_and_keeps_the_log(franky_sim, model):
+    q0 = approach_start(model, POSTURE.q, POSTURE.surface, START_DISTANCE)
+    server = franky_sim(q0)
+    robot = ServerDiesAt(FrankaRobot.connect(server.hostname, realtime=False), server, cycle=150)
+    _, loop = session_loop(robot, model)
+    result = loop.run(1.0)
+    assert not server.alive and loop.robot_failed
+    assert result.watchdog_trips == 1 and result.watchdog_reason.startswith("robot error: ")
+    assert "\n" not in result.watchdog_reason
+    assert result.cycles == 150 - 2  # every cycle before the lost read is logged
+    assert np.all(np.diff(result.log.t) > 0.0)
