@@ -7,6 +7,8 @@ cycles, never wall time, and nothing about timing is asserted. The fixture owns 
 processes and kills them in its finalizer, also when a test fails.
 """
 
+import json
+
 import numpy as np
 import pytest
 
@@ -17,7 +19,7 @@ from impactqp.controller.model.robot import PandaModel
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.robot.franka_backend import FrankaRobot
 from impactqp.scenarios.robot.loop import ControlLoop, STOPPING
-from impactqp.scenarios.robot.run import log_header, write_log, RunRequest
+from impactqp.scenarios.robot.run import RunRequest, log_header, start_posture, write_log
 from impactqp.scenarios.robot.run_log import RunLog
 from impactqp.scenarios.robot.session import OBSERVER, ImpactSession
 from impactqp.sim.runner import approach_start
@@ -31,6 +33,8 @@ POSTURE = POSTURES["elbow_up"]
 START_DISTANCE = 0.05
 SPEED = 0.15
 WALL_TOLERANCE = 0.005  # m: the tool's predicted contact point at the detection vs the wall
+WRIST_DRIFT = 0.05  # rad: the posture task holds the wrist near the start posture
+AWAY = 0.25  # m: the server's arm starts facing the wall this far from it, the run moves it closer
 
 
 @pytest.fixture
@@ -120,3 +124,34 @@ def test_a_lost_connection_ends_the_run_in_one_line_and_keeps_the_log(franky_sim
     assert "\n" not in result.watchdog_reason
     assert result.cycles == 150 - 2  # every cycle before the lost read is logged
     assert np.all(np.diff(result.log.t) > 0.0)
+
+
+def test_impactqp_run_moves_to_the_start_then_runs_the_session_against_the_server(franky_sim, model, tmp_path, capsys):
+    server = franky_sim(approach_start(model, POSTURE.q, POSTURE.surface, AWAY))
+    argv = ["run", "--backend", "franka", "--robot-ip", server.hostname, "--realtime", "ignore", "--json"]
+    # our Panda model is not the FR3's: the model check refuses it, in one line, before any motion
+    assert main(argv + ["--log", str(tmp_path / "refused")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "mass matrix differs" in err and "max_model_difference" in err
+    config = tmp_path / "robot.toml"
+    tasks = "".join(f'[[tasks]]\ntype = "{t}"\n{p}' for t, p in (
+        ("contact_approach", f"speed = {SPEED}\n"), ("posture", "weight = 0.01\n"), ("damping", ""),
+    ))
+    config.write_text(tasks + "[robot]\nmax_model_difference = 0.1\n")
+    code = main(argv + ["--config", str(config), "--log", str(tmp_path / "log"), "--duration", "1.0"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    report = json.loads(out)
+    assert report["watchdog_trips"] == 0, report["watchdog_reason"]
+    assert report["impact"]["detected"] and report["impact"]["residual"] == OBSERVER
+    assert report["phase"] == STOPPING
+    robot = report["robot"]
+    assert 0.0 < robot["model_difference"] <= 0.1 and robot["reflex"] == [] and not robot["recovered"]
+    assert robot["command_success_rate"] == 1.0 and robot["missed_packets"] >= 0
+    q_start = start_posture(RunRequest(backend="franka"), model, ControllerConfig.approach(POSTURE.surface))
+    move = report["start_move"]
+    assert move["cycles"] >= int(move["duration"] / 1e-3) and move["final_error"] < 0.01
+    log = np.loadtxt(report["log"], delimiter=",", skiprows=1)
+    q_end = log[-1, 1:8]
+    assert np.all(np.abs(q_end - q_start)[[4, 6]] < WRIST_DRIFT)
+    assert main(["dataset", "validate", str(tmp_path / "log")]) == 0, capsys.readouterr().out

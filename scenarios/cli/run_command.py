@@ -10,6 +10,10 @@ from impactqp.scenarios.cli.arguments import EXIT_INTERRUPTED, emit_json
 @click.command("run")
 @click.option("--backend", type=click.Choice(["sim", "franka", "replay"]), default="sim", show_default=True)
 @click.option("--robot-ip", help="The robot's address (franka backend).")
+@click.option(
+    "--realtime", type=click.Choice(["enforce", "ignore"]), default="enforce", show_default=True,
+    help="franka backend: require a real-time kernel (enforce) or run without one (ignore: a simulator, tests).",
+)
 @click.option("--config", "config_file", help="Controller configuration (.toml, .yaml); default: approach at --speed.")
 @click.option("--plant", "plant_file", help="JSON plant-parameter overrides (sim backend).")
 @click.option("--posture", default="elbow_up", show_default=True, help="Start posture (sim backend).")
@@ -20,7 +24,7 @@ from impactqp.scenarios.cli.arguments import EXIT_INTERRUPTED, emit_json
 @click.option("--trial", help="Trial id to replay (default: the first).")
 @click.option("--unpaced", is_flag=True, help="Run the sim backend as fast as it goes (no wall-clock pacing).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-def run_command(backend, robot_ip, config_file, plant_file, posture, speed, duration, log_dir, dataset, trial, unpaced, as_json):
+def run_command(backend, robot_ip, realtime, config_file, plant_file, posture, speed, duration, log_dir, dataset, trial, unpaced, as_json):
     """Run the impact-aware controller in a 1 kHz loop on a robot: approach, detect the impact,
     post-impact phase, brake to a stop. Ctrl-C (or SIGTERM) brakes to a stop, keeps the log and
     exits with code 130."""
@@ -29,6 +33,7 @@ def run_command(backend, robot_ip, config_file, plant_file, posture, speed, dura
     request = RunRequest(
         backend=backend, robot_ip=robot_ip, config_file=config_file, plant_file=plant_file, posture=posture,
         speed=speed, duration=duration, log_dir=log_dir, dataset=dataset, trial=trial, paced=not unpaced,
+        realtime=realtime == "enforce",
     )
     report, result = run(request)
     if as_json:
@@ -58,3 +63,22 @@ def print_report(report: dict) -> None:
     else:
         click.echo("no impact detected")
     click.echo(f"final phase: {report['phase']}; log: {report['log']}")
+    print_robot(report)
+
+
+def print_robot(report: dict) -> None:
+    """The robot backends' lines: the move to the start, the connection, a reflex."""
+    move, robot = report.get("start_move"), report.get("robot")
+    if move:
+        click.echo(
+            f"moved to the start posture in {move['duration']:.2f} s ({move['cycles']} cycles), "
+            f"final error {move['final_error']:.4f} rad"
+        )
+    if robot:
+        click.echo(
+            f"robot: command success rate {robot['command_success_rate']:.3f}, {robot['missed_packets']} missed packets, "
+            f"mass matrix {100 * robot['model_difference']:.1f} % from our model"
+        )
+        if robot["reflex"]:
+            recovered = "; error state cleared (automatic_error_recovery)" if robot["recovered"] else ""
+            click.echo(f"robot reflex: {', '.join(robot['reflex'])}{recovered}")

@@ -52,6 +52,15 @@ class RobotInterface:
     def stop(self) -> None:
         """End the motion; the default has nothing to release."""
 
+    def failed(self, error: BaseException) -> None:
+        """The run ended on this error of the backend (the loop can no longer command the
+        robot); a robot may name its reflex and recover. The default has nothing to do."""
+
+    def report(self) -> dict:
+        """What the backend measured of the connection (command success rate, missed packets,
+        reflex) for the run's report; empty by default."""
+        return {}
+
     def force_log(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(force_t, force): the contact force on the robot (world frame, N) when the backend
         measures it (the simulation), else None."""

@@ -254,7 +254,9 @@ class ControlLoop:
         """The backend failed: no command can reach the robot any more; the run ends, its log
         is kept and the watchdog says why."""
         self.robot_failed = True
-        self.watchdog.trip(f"robot error: {type(error).__name__}: {error}")
+        message = " ".join(str(error).split())  # one line, whatever the bindings' message holds
+        self.watchdog.trip(f"robot error: {type(error).__name__}: {message}")
+        self.robot.failed(error)
 
     def _result(self) -> LoopResult:
         log = self.log

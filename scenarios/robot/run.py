@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import signal
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from impactqp.controller.command_filter import CommandFilter
-from impactqp.controller.config import ControllerConfig
+from impactqp.controller.config import ControllerConfig, TaskConfig
 from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD
 from impactqp.controller.measured.trial_log import TrialLog
@@ -30,6 +30,7 @@ from .run_log import RunLog
 from .session import ImpactSession
 
 BACKENDS = ("sim", "franka", "replay")
+ROBOT_BACKENDS = ("franka",)  # a real robot: connect, check the model, move to the start posture
 SIM_START_DISTANCE = 0.05
 MAX_DURATION = 60.0
 """s: one impact session (approach, impact, post-impact phase) lasts seconds; a minute bounds it."""
@@ -50,8 +51,21 @@ class RunRequest:
     dataset: str | None = None
     trial: str | None = None
     paced: bool = True
+    realtime: bool = True  # robot backends: False runs libfranka without a real-time kernel
     deadline: float | None = None  # None: the period, or no deadline offline (replay, unpaced sim)
     max_overruns: int = 5
+
+
+def with_posture_target(config: ControllerConfig, q) -> ControllerConfig:
+    """``config`` with ``q`` the target of every posture task that has none, so that the task
+    holds the start posture for the whole session (without a target it would take the posture
+    at each controller's reset, the impact's for the post-impact controller)."""
+    tasks = [
+        TaskConfig(t.type, {**t.params, "target": [float(x) for x in q]})
+        if t.type == "posture" and t.params.get("target") is None else t
+        for t in config.tasks
+    ]
+    return replace(config, tasks=tasks)
 
 
 def controller_config(request: RunRequest, surface=None) -> ControllerConfig:
@@ -62,6 +76,8 @@ def controller_config(request: RunRequest, surface=None) -> ControllerConfig:
             raise BadInputError(f"--config {error}") from None
     if surface is None:
         surface = POSTURES[request.posture].surface
+    if request.backend in ROBOT_BACKENDS:  # a weak posture task keeps the wrist where the start put it
+        return ControllerConfig.approach(surface, request.speed)
     return ControllerConfig.approach(surface, request.speed, posture_weight=0.0)
 
 
@@ -78,13 +94,27 @@ def check_request(request: RunRequest) -> None:
         raise BadInputError("--backend replay needs --dataset DIR (and optionally --trial ID)")
 
 
+def start_posture(request: RunRequest, model: PandaModel, config: ControllerConfig) -> np.ndarray:
+    """The posture's configuration with the contact point ``SIM_START_DISTANCE`` in front of the surface."""
+    from impactqp.sim.runner import UnreachableStartError, approach_start
+
+    try:
+        return approach_start(model, POSTURES[request.posture].q, config.surface.surface(), SIM_START_DISTANCE)
+    except UnreachableStartError as error:
+        raise BadInputError(str(error)) from None
+
+
 def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterface, ControllerConfig, float]:
-    """(backend, controller configuration, duration) of the request."""
-    if request.backend == "franka":
+    """(backend, controller configuration, duration) of the request. A robot is connected,
+    configured (``[robot]``) and its model checked here; its posture task holds the start posture."""
+    if request.backend in ROBOT_BACKENDS:
         from .franka_backend import FrankaRobot
 
         config = controller_config(request)
-        return FrankaRobot.connect(request.robot_ip), config, request.duration
+        q_start = start_posture(request, model, config)
+        robot = FrankaRobot.connect(request.robot_ip, config.robot, realtime=request.realtime)
+        robot.check_model(model)
+        return robot, with_posture_target(config, q_start), request.duration
     if request.backend == "replay":
         from .replay_backend import ReplayRobot, load_trial
 
@@ -93,7 +123,6 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
         config = controller_config(RunRequest(**{**request.__dict__, "speed": speed}), header.surface)
         return ReplayRobot(trial, header.control_period), config, len(trial.log) * header.control_period
     from impactqp.sim.plant import PlantParameterError, PlantParameters
-    from impactqp.sim.runner import UnreachableStartError, approach_start
     from impactqp.sim.scene import build_scene
 
     config = controller_config(request)
@@ -101,45 +130,79 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
         plant = None if request.plant_file is None else PlantParameters.from_json(request.plant_file)
     except PlantParameterError as error:
         raise BadInputError(f"--plant: {error}") from None
-    surface = config.surface.surface()
-    try:
-        q0 = approach_start(model, POSTURES[request.posture].q, surface, SIM_START_DISTANCE)
-    except UnreachableStartError as error:
-        raise BadInputError(str(error)) from None
+    q0 = start_posture(request, model, config)
     from .sim_backend import SimRobot
 
-    robot = SimRobot(build_scene(surface, plant), q0, np.zeros(NQ), config.dt, paced=request.paced)
+    robot = SimRobot(build_scene(config.surface.surface(), plant), q0, np.zeros(NQ), config.dt, paced=request.paced)
     return robot, config, request.duration
 
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
-def run(request: RunRequest) -> tuple[dict, LoopResult]:
-    """Run the request; (report, result). Ctrl-C, SIGTERM or SIGHUP brakes to a stop and keeps the log
-    (``result.interrupted``). The log directory is checked before the robot moves."""
+class StopSignals:
+    """While active (in the main thread only: signal handlers can be set nowhere else), Ctrl-C,
+    SIGTERM or SIGHUP asks the current ``loop`` to brake to a stop."""
+
+    def __init__(self):
+        self.loop: ControlLoop | None = None
+        self.previous: dict = {}
+
+    def request_stop(self, *_) -> None:
+        if self.loop is not None:
+            self.loop.request_stop()
+
+    def __enter__(self) -> StopSignals:
+        if threading.current_thread() is threading.main_thread():
+            self.previous = {sig: signal.signal(sig, self.request_stop) for sig in STOP_SIGNALS}
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self.previous.items():
+            signal.signal(sig, handler)
+
+
+def move_to_start(robot: RobotInterface, model: PandaModel, config: ControllerConfig, q_start, signals: StopSignals) -> dict:
+    """Run the move to ``q_start`` (``start_move``); its report. A move that does not end at
+    rest on its own (watchdog, robot error, stop request) ends the run before the session."""
+    from .start_move import StartMove
+
+    move = StartMove(q_start, model, config.dt, robot.read(), config.surface.surface())
+    loop = ControlLoop(robot, move, CommandFilter.for_robot(model, config.dt), deadline=float("inf"))
+    signals.loop = loop
+    result = loop.run(move.duration)
+    if result.watchdog_trips or result.interrupted:
+        reason = result.watchdog_reason or "stop requested"
+        raise BadInputError(f"the move to the start posture ended early ({reason}); the robot braked to a stop")
+    return {"duration": move.duration, "cycles": result.cycles, "final_error": move.final_error(result.log.q[-1])}
+
+
+def run(request: RunRequest, model: PandaModel | None = None) -> tuple[dict, LoopResult]:
+    """Run the request with the robot ``model`` (default: the Panda); (report, result). Ctrl-C,
+    SIGTERM or SIGHUP brakes to a stop and keeps the log (``result.interrupted``). The log
+    directory is checked before the robot moves; a robot moves to the start posture first."""
     check_request(request)
-    model = PandaModel()
+    model = PandaModel() if model is None else model
     robot, config, duration = build_backend(request, model)
+    q_start = start_posture(request, model, config) if request.backend in ROBOT_BACKENDS else None
     run_log = RunLog(request.log_dir, log_header(config)) if request.log_dir else None
-    session = ImpactSession(config, model)
     deadline = request.deadline
     if deadline is None and (request.backend == "replay" or not request.paced):
         deadline = float("inf")  # offline: the plant waits for the controller
-    loop = ControlLoop(
-        robot, session, CommandFilter.for_robot(model, config.dt), deadline=deadline, max_overruns=request.max_overruns
-    )
-    if threading.current_thread() is threading.main_thread():
-        previous = {sig: signal.signal(sig, lambda *_: loop.request_stop()) for sig in STOP_SIGNALS}
-        try:
-            result = loop.run(duration)
-        finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
-    else:  # signal handlers can only be set in the main thread
+    with StopSignals() as signals:
+        start_move = None if q_start is None else move_to_start(robot, model, config, q_start, signals)
+        session = ImpactSession(config, model)
+        loop = ControlLoop(
+            robot, session, CommandFilter.for_robot(model, config.dt), deadline=deadline,
+            max_overruns=request.max_overruns,
+        )
+        signals.loop = loop
         result = loop.run(duration)
     log_path = write_log(run_log, request, config, result) if run_log is not None else None
-    return report(result, config, log_path), result
+    report_ = report(result, config, log_path)
+    report_["robot"] = robot.report()
+    report_["start_move"] = start_move
+    return report_, result
 
 
 def contact_start(result: LoopResult) -> float | None:

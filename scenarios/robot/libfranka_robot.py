@@ -1,0 +1,118 @@
+"""What the two libfranka backends share (``franka``: pylibfranka for the FR3; ``panda``:
+panda-python's libfranka 0.9 for the Panda): the robot's settings of the ``[robot]`` table
+applied on connect, the check of the robot's own dynamic model against ours, the statistics
+of the connection and the naming of a reflex.
+
+Model check: at the state on connect, with M_r the robot's mass matrix (``Model.mass``) and M
+ours, the relative difference ||M_r - M||_F / ||M_r||_F above ``max_model_difference`` refuses
+the robot (wrong robot, wrong tool or wrong model). Statistics: the smallest
+``control_command_success_rate`` of the run and the packets missed, counted from the time each
+read covers (``Duration`` of ``readOnce``, one period when no packet was missed).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.robot_config import RobotConfig
+
+from .interface import RobotInterface
+
+REFLEX_EXCEPTION = "ControlException"  # libfranka's exception for a motion aborted by a reflex
+
+
+def error_names(errors) -> list[str]:
+    """The names of the flags set in a libfranka ``Errors`` (e.g. ``joint_reflex``)."""
+    return sorted(name for name in dir(errors) if not name.startswith("_") and getattr(errors, name) is True)
+
+
+def model_difference(mass_matrix, model: PandaModel, q) -> float:
+    """||M_r - M(q)||_F / ||M_r||_F for the robot's mass matrix M_r (7x7 or its 49 entries:
+    M is symmetric, so the storage order does not matter)."""
+    robot_M = np.asarray(mass_matrix, dtype=float).reshape(NQ, NQ)
+    ours = model.terms(np.asarray(q, dtype=float), np.zeros(NQ), check_limits=False).M
+    return float(np.linalg.norm(robot_M - ours) / np.linalg.norm(robot_M))
+
+
+def missed_packets(read_duration: float, period: float) -> int:
+    """Packets missed before a read that covers ``read_duration`` seconds of the robot's time."""
+    return max(0, int(round(read_duration / period)) - 1)
+
+
+class LibfrankaRobot(RobotInterface):
+    """A connected libfranka ``Robot``: ``robot`` (the bindings' object), ``errors`` (the
+    bindings' exception classes) and the ``[robot]`` settings."""
+
+    def __init__(self, robot, errors: tuple[type[BaseException], ...], settings: RobotConfig):
+        self.robot = robot
+        self.errors = errors
+        self.settings = settings
+        self.success_rate = 1.0
+        self.missed_packets = 0
+        self.reflex: list[str] = []
+        self.recovered = False
+        self.model_difference: float | None = None
+
+    def configure(self, ip: str) -> None:
+        """Set the collision reflex, the joint impedance and the load of ``settings``."""
+        s = self.settings
+        steps = (
+            ("collision thresholds", lambda: self.robot.set_collision_behavior(
+                s.lower_torque_thresholds, s.upper_torque_thresholds, s.lower_force_thresholds, s.upper_force_thresholds
+            )),
+            ("joint impedance", lambda: self.robot.set_joint_impedance(s.joint_impedance)),
+            ("load", lambda: self.robot.set_load(s.load_mass, s.load_com, s.load_inertia)),
+        )
+        for what, step in steps:
+            try:
+                step()
+            except self.errors as error:
+                raise BadInputError(f"the robot at {ip} refused the {what}: {error}") from None
+
+    def check_model(self, model: PandaModel) -> float:
+        """The model difference (module docstring); bad input above ``max_model_difference``."""
+        try:
+            state = self.robot.read_once()
+            mass = self.robot.load_model().mass(state)
+        except self.errors as error:
+            raise BadInputError(f"the robot's dynamic model cannot be read: {error}") from None
+        difference = model_difference(mass, model, state.q)
+        self.model_difference = difference
+        limit = self.settings.max_model_difference
+        if difference > limit:
+            raise BadInputError(
+                f"the robot's mass matrix differs from our model's by {100 * difference:.1f} % "
+                f"(limit {100 * limit:.1f} %): another robot, tool or model? "
+                "Raise [robot] max_model_difference to accept it"
+            )
+        return difference
+
+    def record(self, success_rate: float, read_duration: float) -> None:
+        """Count one real-time read."""
+        self.success_rate = min(self.success_rate, float(success_rate))
+        self.missed_packets += missed_packets(read_duration, self.period)
+
+    def failed(self, error: BaseException) -> None:
+        """After a reflex: name it from the robot's errors and, when ``automatic_error_recovery``
+        is set, clear the robot's error state."""
+        if type(error).__name__ != REFLEX_EXCEPTION:
+            return
+        try:
+            state = self.robot.read_once()
+            self.reflex = error_names(state.last_motion_errors) or error_names(state.current_errors)
+            if self.settings.automatic_error_recovery:
+                self.robot.automatic_error_recovery()
+                self.recovered = True
+        except self.errors:
+            pass  # the connection is gone as well: the run's watchdog reason says why it ended
+
+    def report(self) -> dict:
+        return {
+            "command_success_rate": self.success_rate,
+            "missed_packets": self.missed_packets,
+            "reflex": self.reflex,
+            "recovered": self.recovered,
+            "model_difference": self.model_difference,
+        }
