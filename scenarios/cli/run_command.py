@@ -8,11 +8,14 @@ from impactqp.scenarios.cli.arguments import EXIT_INTERRUPTED, emit_json
 
 
 @click.command("run")
-@click.option("--backend", type=click.Choice(["sim", "franka", "replay"]), default="sim", show_default=True)
-@click.option("--robot-ip", help="The robot's address (franka backend).")
+@click.option(
+    "--backend", type=click.Choice(["sim", "franka", "panda", "replay"]), default="sim", show_default=True,
+    help="sim: MuJoCo; franka: an FR3 (pylibfranka); panda: a Panda (panda-python's libfranka 0.9); replay: a logged trial.",
+)
+@click.option("--robot-ip", help="The robot's address (franka and panda backends).")
 @click.option(
     "--realtime", type=click.Choice(["enforce", "ignore"]), default="enforce", show_default=True,
-    help="franka backend: require a real-time kernel (enforce) or run without one (ignore: a simulator, tests).",
+    help="franka and panda backends: require a real-time kernel (enforce) or run without one (ignore: a simulator).",
 )
 @click.option("--config", "config_file", help="Controller configuration (.toml, .yaml); default: approach at --speed.")
 @click.option("--plant", "plant_file", help="JSON plant-parameter overrides (sim backend).")

@@ -22,7 +22,7 @@ from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 
 from .interface import RobotState
-from .libfranka_robot import LibfrankaRobot
+from .libfranka_robot import LibfrankaRobot, state_from_franka
 
 INSTALL_HINT = "pip install -e '.[franka]'"
 
@@ -33,18 +33,6 @@ def import_pylibfranka():
     except ImportError:
         raise BadInputError(f"--backend franka needs pylibfranka, which is not installed: {INSTALL_HINT}") from None
     return pylibfranka
-
-
-def state_from_franka(state) -> RobotState:
-    """Our :class:`RobotState` from a ``pylibfranka.RobotState`` (or anything with its names)."""
-    t = state.time
-    return RobotState(
-        float(t.to_sec()) if hasattr(t, "to_sec") else float(t),
-        np.array(state.q, dtype=float),
-        np.array(state.dq, dtype=float),
-        np.array(state.tau_J, dtype=float),
-        np.array(state.tau_ext_hat_filtered, dtype=float),
-    )
 
 
 def franka_command(pylibfranka, dq_cmd: np.ndarray, finished: bool = False):
@@ -68,7 +56,8 @@ class FrankaRobot(LibfrankaRobot):
     """A connected ``pylibfranka.Robot`` (``connect``) in joint-velocity control."""
 
     def __init__(self, robot, pylibfranka, settings: RobotConfig | None = None):
-        super().__init__(robot, franka_errors(pylibfranka), RobotConfig() if settings is None else settings)
+        settings = RobotConfig() if settings is None else settings
+        super().__init__(robot, franka_errors(pylibfranka), (pylibfranka.ControlException,), settings)
         self.franka = pylibfranka
         self.control = None
 

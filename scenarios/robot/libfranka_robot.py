@@ -18,9 +18,18 @@ from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 
-from .interface import RobotInterface
+from .interface import RobotInterface, RobotState
 
-REFLEX_EXCEPTION = "ControlException"  # libfranka's exception for a motion aborted by a reflex
+def state_from_franka(state) -> RobotState:
+    """Our :class:`RobotState` from a ``pylibfranka.RobotState`` (or anything with its names)."""
+    t = state.time
+    return RobotState(
+        float(t.to_sec()) if hasattr(t, "to_sec") else float(t),
+        np.array(state.q, dtype=float),
+        np.array(state.dq, dtype=float),
+        np.array(state.tau_J, dtype=float),
+        np.array(state.tau_ext_hat_filtered, dtype=float),
+    )
 
 
 def error_names(errors) -> list[str]:
@@ -43,11 +52,13 @@ def missed_packets(read_duration: float, period: float) -> int:
 
 class LibfrankaRobot(RobotInterface):
     """A connected libfranka ``Robot``: ``robot`` (the bindings' object), ``errors`` (the
-    bindings' exception classes) and the ``[robot]`` settings."""
+    bindings' exception classes), ``reflex_errors`` (those a motion aborted by a reflex raises)
+    and the ``[robot]`` settings."""
 
-    def __init__(self, robot, errors: tuple[type[BaseException], ...], settings: RobotConfig):
+    def __init__(self, robot, errors: tuple[type[BaseException], ...], reflex_errors: tuple, settings: RobotConfig):
         self.robot = robot
         self.errors = errors
+        self.reflex_errors = reflex_errors
         self.settings = settings
         self.success_rate = 1.0
         self.missed_packets = 0
@@ -97,7 +108,7 @@ class LibfrankaRobot(RobotInterface):
     def failed(self, error: BaseException) -> None:
         """After a reflex: name it from the robot's errors and, when ``automatic_error_recovery``
         is set, clear the robot's error state."""
-        if type(error).__name__ != REFLEX_EXCEPTION:
+        if not isinstance(error, self.reflex_errors):
             return
         try:
             state = self.robot.read_once()

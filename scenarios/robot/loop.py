@@ -4,7 +4,8 @@ Start: the first state is read, the session prepares its controllers from it (th
 set-up), and only then ``robot.start()`` begins real time (a robot expects a command every
 period from there on; a backend whose state moved on meanwhile returns its newest state).
 
-One cycle::
+One cycle (``command`` then ``record``; a robot that calls us every period, such as libfranka's
+callback API, runs the same two in ``callback_cycle``, the robot doing the read and the write)::
 
     state = robot.read()                       (a paced backend blocks until the period starts)
     watchdog: NaN state? stale state (time not increasing)?     -> trip
@@ -174,6 +175,8 @@ class ControlLoop:
         self.robot_failed = False
         self.overruns = 0
         self.log: LoopLog | None = None
+        self.cycles = self.k = self.stop_cycles = 0
+        self.stopping = False
 
     def request_stop(self) -> None:
         """Brake to a stop at the next cycle (a signal handler may call it)."""
@@ -181,59 +184,40 @@ class ControlLoop:
 
     def run(self, duration: float) -> LoopResult:
         robot, session, watchdog = self.robot, self.session, self.watchdog
-        cycles = int(round(duration / robot.period))
-        self.log = LoopLog(cycles + MAX_STOP_CYCLES + 1)
+        self.cycles = int(round(duration / robot.period))
+        self.log = LoopLog(self.cycles + MAX_STOP_CYCLES + 1)
         state = robot.read()
         watchdog.check_state(state)
         if not watchdog.tripped:
             session.start(state)
             self.filter.reset(state.dq)
+        if robot.drives_cycles:  # the robot calls ``callback_cycle`` once per period
+            try:
+                robot.drive(self.callback_cycle)
+            except Exception as error:  # the robot stopped by itself (e.g. its own reflex)
+                self._robot_error(error)
+            return self._result()
         newest = robot.start()
         if newest is not None:
             state = newest
             watchdog.check_state(state)
-        k = 0
-        stop_cycles = 0
         while True:
             started = time.perf_counter()
-            stopping = self.stop_requested or k >= cycles
-            if stopping:
-                dq_cmd, phase = self.brake(), STOPPING
-                stop_cycles += 1
-            elif watchdog.tripped:
-                dq_cmd, phase = self.brake(), BRAKING
-            else:
-                try:
-                    command = session.step(state)
-                    dq_cmd, phase = self.filter(command.dq_cmd), command.phase
-                except Exception as error:  # the robot must keep getting commands
-                    watchdog.trip(f"controller exception: {type(error).__name__}: {error}")
-                    dq_cmd, phase = self.brake(), BRAKING
+            dq_cmd, phase = self.command(state)
             try:
                 robot.write(dq_cmd)
             except Exception as error:  # the robot stopped by itself (e.g. its own reflex)
                 self._robot_error(error)
                 self.log.record(state, dq_cmd, phase, time.perf_counter() - started, started)
                 break
-            elapsed = time.perf_counter() - started
-            overrun = elapsed > self.deadline
-            self.overruns += overrun
-            if not stopping:
-                watchdog.record_cycle(overrun)
-            self.log.record(state, dq_cmd, phase, elapsed, started)
-            k += 1
-            if stopping and stop_cycles >= MAX_STOP_CYCLES:
-                break
-            if (stopping or watchdog.tripped) and np.max(np.abs(dq_cmd)) <= STOPPED_SPEED:
-                break
-            if robot.finished:
+            if self.record(state, dq_cmd, phase, started):
                 break
             try:
                 state = robot.read()
             except Exception as error:
                 self._robot_error(error)
                 break
-            if not stopping:
+            if not self.stopping:
                 watchdog.check_state(state)
         if not self.robot_failed:
             try:
@@ -241,6 +225,47 @@ class ControlLoop:
             except Exception as error:
                 self._robot_error(error)
         return self._result()
+
+    def command(self, state: RobotState) -> tuple[np.ndarray, str]:
+        """The command of the cycle of ``state`` and its phase: the session's, filtered; the
+        filter's braking command once tripped or stopping."""
+        self.stopping = self.stop_requested or self.k >= self.cycles
+        if self.stopping:
+            self.stop_cycles += 1
+            return self.brake(), STOPPING
+        if self.watchdog.tripped:
+            return self.brake(), BRAKING
+        try:
+            command = self.session.step(state)
+            return self.filter(command.dq_cmd), command.phase
+        except Exception as error:  # the robot must keep getting commands
+            self.watchdog.trip(f"controller exception: {type(error).__name__}: {error}")
+            return self.brake(), BRAKING
+
+    def record(self, state: RobotState, dq_cmd: np.ndarray, phase: str, started: float) -> bool:
+        """Account and log the cycle that began at ``started`` once its command is out; True when
+        the run is over (stopped, braked to zero, or the backend has no more states)."""
+        elapsed = time.perf_counter() - started
+        overrun = elapsed > self.deadline
+        self.overruns += overrun
+        if not self.stopping:
+            self.watchdog.record_cycle(overrun)
+        self.log.record(state, dq_cmd, phase, elapsed, started)
+        self.k += 1
+        if self.stopping and self.stop_cycles >= MAX_STOP_CYCLES:
+            return True
+        if (self.stopping or self.watchdog.tripped) and np.max(np.abs(dq_cmd)) <= STOPPED_SPEED:
+            return True
+        return self.robot.finished
+
+    def callback_cycle(self, state: RobotState) -> tuple[np.ndarray, bool]:
+        """One cycle for a robot that calls us every period (``RobotInterface.drive``): the
+        watchdog's state check, the command, its accounting; (command, run over)."""
+        started = time.perf_counter()
+        if not self.stopping:
+            self.watchdog.check_state(state)
+        dq_cmd, phase = self.command(state)
+        return dq_cmd, self.record(state, dq_cmd, phase, started)
 
     def brake(self) -> np.ndarray:
         """The filter's next braking command; a residue below ``STOPPED_SPEED`` (rounding of the

@@ -29,8 +29,8 @@ from .loop import ControlLoop, LoopResult
 from .run_log import RunLog
 from .session import ImpactSession
 
-BACKENDS = ("sim", "franka", "replay")
-ROBOT_BACKENDS = ("franka",)  # a real robot: connect, check the model, move to the start posture
+BACKENDS = ("sim", "franka", "panda", "replay")
+ROBOT_BACKENDS = ("franka", "panda")  # a real robot: connect, check the model, move to the start posture
 SIM_START_DISTANCE = 0.05
 MAX_DURATION = 60.0
 """s: one impact session (approach, impact, post-impact phase) lasts seconds; a minute bounds it."""
@@ -88,8 +88,8 @@ def check_request(request: RunRequest) -> None:
         raise BadInputError(f"--posture {request.posture!r} is unknown; known: {', '.join(POSTURES)}")
     approach_speed(request.speed, "--speed")
     number_in_range(request.duration, 0.0, MAX_DURATION, "--duration", "s", low_open=True)
-    if request.backend == "franka" and not request.robot_ip:
-        raise BadInputError("--backend franka needs --robot-ip IP")
+    if request.backend in ROBOT_BACKENDS and not request.robot_ip:
+        raise BadInputError(f"--backend {request.backend} needs --robot-ip IP")
     if request.backend == "replay" and not request.dataset:
         raise BadInputError("--backend replay needs --dataset DIR (and optionally --trial ID)")
 
@@ -108,11 +108,14 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
     """(backend, controller configuration, duration) of the request. A robot is connected,
     configured (``[robot]``) and its model checked here; its posture task holds the start posture."""
     if request.backend in ROBOT_BACKENDS:
-        from .franka_backend import FrankaRobot
+        if request.backend == "franka":
+            from .franka_backend import FrankaRobot as Robot
+        else:
+            from .panda_backend import PandaRobot as Robot
 
         config = controller_config(request)
         q_start = start_posture(request, model, config)
-        robot = FrankaRobot.connect(request.robot_ip, config.robot, realtime=request.realtime)
+        robot = Robot.connect(request.robot_ip, config.robot, realtime=request.realtime)
         robot.check_model(model)
         return robot, with_posture_target(config, q_start), request.duration
     if request.backend == "replay":
