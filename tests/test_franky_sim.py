@@ -14,6 +14,7 @@ import pytest
 
 from impactqp.controller.command_filter import CommandFilter
 from impactqp.controller.config import ControllerConfig
+from impactqp.controller.measured.impact import WINDOW_AFTER
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import PandaModel
 from impactqp.scenarios.cli import main
@@ -24,7 +25,7 @@ from impactqp.scenarios.robot.run_log import RunLog
 from impactqp.scenarios.robot.session import OBSERVER, ImpactSession
 from impactqp.sim.runner import approach_start
 from conftest import ForwardingRobot
-from franky_sim_server import FrankySimServer
+from impactqp.scenarios.bench.franky_sim import FrankySimServer
 
 pytest.importorskip("pylibfranka", reason="pylibfranka is not installed: pip install -e '.[franka]'")
 pytest.importorskip("franky_sim", reason="franky-sim is not installed: pip install -e '.[test]'")
@@ -44,7 +45,6 @@ def franky_sim(tmp_path):
 
     def start(q0):
         server = FrankySimServer(tmp_path / f"server{len(servers)}", POSTURE.surface.point, POSTURE.surface.normal, q0)
-        server.directory.mkdir()
         servers.append(server)
         server.start()
         return server
@@ -84,6 +84,8 @@ def test_the_session_detects_the_wall_retracts_and_logs_through_the_franka_proto
     assert np.all(distance[:detected] > -WALL_TOLERANCE)  # no earlier contact went unnoticed
     assert distance[-1] > distance[detected] + WALL_TOLERANCE  # retracted
     assert 0.5 * SPEED < session.contact_speed() <= SPEED * 1.05
+    t_contact = server.contact_time()  # the server's first wall contact, on the states' clock
+    assert t_contact is not None and t_contact <= session.detector.t_detect <= t_contact + WINDOW_AFTER
     write_log(run_log, RunRequest(backend="franka", robot_ip=server.hostname, speed=SPEED), config, result)
     capsys.readouterr()
     assert main(["dataset", "validate", str(tmp_path / "log")]) == 0, capsys.readouterr().err

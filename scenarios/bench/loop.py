@@ -5,18 +5,36 @@ the sim backend in a paced 1 kHz run (approach, impact, retract; goal p99 <= 500
 ``loop.period_jitter.p99``: |interval between consecutive cycle starts - period| (us) of that run.
 ``impact.detection_latency``: ms from the contact start (first force sample above 1 N) to the
 online detection, over a short campaign of unpaced simulated approaches (goal <= 5 ms).
+``loop.franka_sim.p99``: cycle time (us, in our process) of ``impactqp run --backend franka``
+through pylibfranka and the real network protocol against franky-sim (an FR3 in MuJoCo, with the
+wall and the tool in its scene); ``impact.detection_latency.franka_sim``: ms from the server's
+first wall contact to our detection in that run, both on the states' clock. They need the
+``franka`` and ``test`` extras and are left out without them.
 The overrun watchdog is off in these runs (they measure, they do not protect).
 """
 
 from __future__ import annotations
 
-import numpy as np
+import functools
+import importlib.util
+import tempfile
+from dataclasses import replace
+from pathlib import Path
 
+import numpy as np
+import yaml
+
+from impactqp.controller.config import ControllerConfig
 from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot import PandaModel
 from impactqp.scenarios.robot.run import SIM_START_DISTANCE, RunRequest, run
+
+from .franky_sim import FrankySimServer
 
 NO_OVERRUN_TRIP = 10**9
 CAMPAIGN_SPEEDS = (0.1, 0.15)
+FRANKA_SIM_POSTURE = "elbow_up"
+FRANKA_SIM_MODEL_DIFFERENCE = 0.1  # our Panda model drives franky-sim's FR3 (docs/robot-loop.md)
 
 
 def rows(duration: float = 1.0) -> list[dict]:
@@ -50,3 +68,45 @@ def detection_rows() -> list[dict]:
             "p99": float(np.percentile(latencies, 99)),
         }
     ]
+
+
+@functools.cache
+def franka_sim_run() -> tuple[dict, float | None] | None:
+    """(report, the server's contact time) of one session against franky-sim, started at the
+    posture's start; None without pylibfranka or franky-sim."""
+    if importlib.util.find_spec("pylibfranka") is None or importlib.util.find_spec("franky_sim") is None:
+        return None
+    from impactqp.sim.runner import approach_start
+
+    posture = POSTURES[FRANKA_SIM_POSTURE]
+    q0 = approach_start(PandaModel(), posture.q, posture.surface, SIM_START_DISTANCE)
+    config = ControllerConfig.approach(posture.surface, 0.15)
+    config.robot = replace(config.robot, max_model_difference=FRANKA_SIM_MODEL_DIFFERENCE)
+    with tempfile.TemporaryDirectory() as directory:
+        config_file = Path(directory) / "config.yaml"
+        config_file.write_text(yaml.safe_dump(config.to_dict()))
+        with FrankySimServer(Path(directory) / "server", posture.surface.point, posture.surface.normal, q0) as server:
+            request = RunRequest(
+                backend="franka", robot_ip=server.hostname, realtime=False, config_file=str(config_file),
+                posture=FRANKA_SIM_POSTURE, duration=1.0, max_overruns=NO_OVERRUN_TRIP,
+            )
+            report, _ = run(request)
+            return report, server.contact_time()
+
+
+def franka_sim_loop_rows() -> list[dict]:
+    outcome = franka_sim_run()
+    if outcome is None:
+        return []
+    stats = outcome[0]["cycle_us"]
+    return [{"name": "loop.franka_sim.p99", "unit": "us", "median": stats["p50"], "p99": stats["p99"]}]
+
+
+def franka_sim_detection_rows() -> list[dict]:
+    outcome = franka_sim_run()
+    if outcome is None:
+        return []
+    report, t_contact = outcome
+    t_detect = report["impact"]["time"]
+    latency = np.inf if t_detect is None or t_contact is None else (t_detect - t_contact) * 1e3
+    return [{"name": "impact.detection_latency.franka_sim", "unit": "ms", "median": latency, "p99": latency}]
