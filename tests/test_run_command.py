@@ -118,3 +118,27 @@ def test_an_unusable_log_directory_is_refused_before_the_robot_moves(tmp_path, c
     capsys.readouterr()
     assert "another header" in one_error_line(capsys, ["run", "--unpaced", "--duration", "0.05", "--log", str(other)])
     assert moved == []
+
+
+def test_a_robot_run_keeps_a_posture_task_on_the_start_posture_in_both_phases():
+    from impactqp.controller.config import post_impact_config
+
+    q_start = np.linspace(-0.5, 0.5, 7)
+    config = run_module.with_posture_target(run_module.controller_config(run_module.RunRequest(backend="franka")), q_start)
+    for phase in (config, post_impact_config(config)):
+        (posture,) = [t for t in phase.tasks if t.type == "posture"]
+        assert posture.params["weight"] > 0.0 and posture.params["target"] == q_start.tolist()
+    sim = run_module.controller_config(run_module.RunRequest(backend="sim"))
+    assert [t.params["weight"] for t in sim.tasks if t.type == "posture"] == [0.0]  # the sim run as before
+    kept = [0.1] * 7  # a configured target is the user's
+    configured = run_module.with_posture_target(replace_posture_target(config, kept), q_start)
+    assert [t.params["target"] for t in configured.tasks if t.type == "posture"] == [kept]
+
+
+def replace_posture_target(config, target):
+    from dataclasses import replace
+
+    from impactqp.controller.config import TaskConfig
+
+    tasks = [TaskConfig(t.type, {**t.params, "target": target}) if t.type == "posture" else t for t in config.tasks]
+    return replace(config, tasks=tasks)
