@@ -25,7 +25,7 @@ from impactqp.scenarios.robot.run_log import RunLog
 from impactqp.scenarios.robot.session import OBSERVER, ImpactSession
 from impactqp.sim.runner import approach_start
 from conftest import ForwardingRobot
-from impactqp.scenarios.bench.franky_sim import FrankySimServer
+from impactqp.sim.franky_sim import FrankySimServer
 
 pytest.importorskip("pylibfranka", reason="pylibfranka is not installed: pip install -e '.[franka]'")
 pytest.importorskip("franky_sim", reason="franky-sim is not installed: pip install -e '.[test]'")

@@ -29,7 +29,7 @@ from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import PandaModel
 from impactqp.scenarios.robot.run import SIM_START_DISTANCE, RunRequest, run
 
-from .franky_sim import FrankySimServer
+from impactqp.sim.franky_sim import FrankySimServer
 
 NO_OVERRUN_TRIP = 10**9
 CAMPAIGN_SPEEDS = (0.1, 0.15)

@@ -2,13 +2,13 @@
 the contact tool in its scene, in its own process group, for the tests and the benchmark rows
 that drive a robot through the real protocol (``pip install -e '.[test]'``).
 
-``FrankySimServer`` (the parent side) starts ``python -m impactqp.scenarios.bench.franky_sim``,
+``FrankySimServer`` (the parent side) starts ``python -m impactqp.sim.franky_sim``,
 waits until its sockets listen (polling its ready file a bounded number of times, failing with
 the server's own output when it does not come up) and always stops it: ``stop`` kills the whole
 process group and reaps it; ``__exit__`` and the tests' fixture finalizers call it, so a failing
 run leaves no server behind.
 
-``main`` (the server process): usage ``python -m impactqp.scenarios.bench.franky_sim READY_FILE
+``main`` (the server process): usage ``python -m impactqp.sim.franky_sim READY_FILE
 WALL_POINT WALL_NORMAL Q0 [TOOL_CENTRE TOOL_RADIUS]`` (vectors as comma-separated numbers). The
 server binds the first free loopback address and writes it to READY_FILE once it listens, and
 writes to READY_FILE.contact the robot time (s) of the first state sent after a physics step with
