@@ -9,14 +9,13 @@ The file format is documented in the project README (section "Controller configu
 from __future__ import annotations
 
 import inspect
-import tomllib
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 from impactqp.constraints import (
     JUMP_MODEL_CHOICES,
     AccelerationLimit,
-    ImpactModel,
+    ExpectedImpact,
     ImpulsiveTorqueLimit,
     PositionLimit,
     PostImpactVelocityLimit,
@@ -27,6 +26,7 @@ from impactqp.constraints import (
 from impactqp.constraints.impact_model import MAX_LOOKAHEAD_DISTANCE, MAX_LOOKAHEAD_TIME
 from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
 
+from .model.files import read_mapping
 from .model.jump import METHODS
 from .model.max_speed import DEFAULT_IMPACT_DURATION
 from .model.postures import DEFAULT_WALL, Surface
@@ -249,7 +249,7 @@ class ControllerConfig:
     def from_dict(cls, data: dict) -> ControllerConfig:
         """The configuration of a parsed file; every key and value is checked (bad input:
         ``BadInputError``, one line naming the key)."""
-        data = dict(_mapping(data, "the configuration"))
+        data = dict(validation.table(data, "the configuration"))
         unknown = set(data) - {f.name for f in fields(cls)}
         if unknown:
             raise BadInputError(f"unknown configuration keys: {', '.join(sorted(map(str, unknown)))}")
@@ -258,11 +258,11 @@ class ControllerConfig:
             raise BadInputError(f"tasks must be a list of tables, got {tasks!r}")
         parsed_tasks = []
         for index, entry in enumerate(tasks):
-            entry = dict(_mapping(entry, f"tasks[{index}]"))
+            entry = dict(validation.table(entry, f"tasks[{index}]"))
             if "type" not in entry:
                 raise BadInputError(f"tasks[{index}] needs a 'type'")
             task_type = entry.pop("type")
-            params = _mapping(entry.pop("params", None) or {}, f"tasks[{index}].params")
+            params = validation.table(entry.pop("params", None) or {}, f"tasks[{index}].params")
             parsed_tasks.append(TaskConfig(task_type, dict(params) | entry))
         sections = {
             "limits": LimitsConfig, "impact": ImpactConfig, "surface": SurfaceConfig, "post_impact": PostImpactConfig,
@@ -278,25 +278,9 @@ class ControllerConfig:
         path = Path(path)
         if path.suffix not in (".toml", ".yaml", ".yml"):
             raise BadInputError(f"unsupported configuration file {path.name}: use .toml, .yaml or .yml")
+        data = read_mapping(path, "file")
         try:
-            text = path.read_bytes().decode("utf-8-sig")
-        except UnicodeDecodeError:
-            raise BadInputError(f"{path}: not a UTF-8 text file") from None
-        except OSError as error:
-            raise BadInputError(f"{path}: {error.strerror or error}") from None
-        try:
-            if path.suffix == ".toml":
-                data = tomllib.loads(text)
-            else:
-                import yaml
-
-                data = yaml.safe_load(text)
-        except RecursionError:
-            raise BadInputError(f"{path}: nested too deeply") from None
-        except (tomllib.TOMLDecodeError, _yaml_error()) as error:
-            raise BadInputError(f"{path}: not valid {path.suffix[1:].upper()}: {' '.join(str(error).split())}") from None
-        try:
-            return cls.from_dict(data or {})
+            return cls.from_dict(data)
         except BadInputError as error:
             raise BadInputError(f"{path}: {error}") from None
 
@@ -307,25 +291,13 @@ class ControllerConfig:
         return data
 
 
-def _mapping(value, what: str) -> dict:
-    if not isinstance(value, dict):
-        raise BadInputError(f"{what} must be a table of keys and values, got {type(value).__name__}")
-    return value
-
-
 def _section(kind, values, name: str):
     if values is None:
         return kind()
-    unknown = set(_mapping(values, f"[{name}]")) - {f.name for f in fields(kind)}
+    unknown = set(validation.table(values, f"[{name}]")) - {f.name for f in fields(kind)}
     if unknown:
         raise BadInputError(f"unknown keys in [{name}]: {', '.join(sorted(map(str, unknown)))}")
     return kind(**values)
-
-
-def _yaml_error() -> type[Exception]:
-    import yaml
-
-    return yaml.YAMLError
 
 
 def build_controller(config: ControllerConfig, robot: PandaModel | None = None) -> ImpactAwareController:
@@ -360,8 +332,8 @@ def build_controller(config: ControllerConfig, robot: PandaModel | None = None) 
     if limits.torque:
         constraints.append(TorqueLimit(tau_max))
 
-    def impact_model(name: str) -> ImpactModel:
-        return ImpactModel(
+    def impact_model(name: str) -> ExpectedImpact:
+        return ExpectedImpact(
             surface,
             name,
             impact.restitution,

@@ -13,8 +13,9 @@ simulated jump dq°, and the reduction 100 (1 - e_crb / e_classical) % of CRB ag
 prediction (the paper's 81.98 %); the last row averages every trial.
 
 Figures (PNG): per posture, the simulated jump of every joint against the normal speed (like the
-paper's Fig. 8) and the absolute error |e_i| of classical, gm and crb per joint (Figs. 9-11);
-for the tangential series, the average error of every predictor against v_t (Fig. 12).
+paper's Fig. 8) and the absolute error |e_i| of every predictor of Table I per joint (Figs. 9-11),
+each kind on one y scale for all postures; for the tangential series, the average error of
+every predictor against v_t (Fig. 12).
 
 Output directory: the dataset (``controller.measured.dataset``: ``dataset.json`` and one CSV pair per trial),
 ``table1.json``, ``table1.txt`` and the figures; every file written atomically.
@@ -50,7 +51,6 @@ from impactqp.controller.model.validation import BadInputError, approach_speed
 PAPER_SPEEDS = DEFAULT_SPEEDS
 PAPER_TANGENTIAL_SPEEDS = tuple(round(0.03 + 0.01 * i, 2) for i in range(10))
 TANGENTIAL_NORMAL_SPEED = TANGENTIAL_SERIES_NORMAL_SPEED
-FIGURE_METHODS = ("classical", "gm", "crb")
 
 
 def write_trial(writer: DatasetWriter, result: TrialResult) -> None:
@@ -230,7 +230,9 @@ class Campaign:
 
 
 class CampaignFigures:
-    """The PNG figures of the module docstring."""
+    """The PNG figures of the module docstring. Each point is one simulated trial (one per
+    setting, the simulation is deterministic); the figures of the postures share their y scale so
+    that they compare, and the error panels show every predictor of Table I."""
 
     def __init__(self, table: Table1):
         self.table = table
@@ -238,53 +240,82 @@ class CampaignFigures:
     def write(self, out: Path) -> list[Path]:
         paths = []
         normal_rows = [r for r in self.table.rows if r.tangential_speed == 0.0]
+        jump_limits = y_limits([r.measured_jump for r in normal_rows])
+        error_limits = y_limits([r.joint_errors[m] for r in normal_rows for m in METHODS], zero=True)
         for posture in dict.fromkeys(r.posture for r in normal_rows):
             rows = sorted((r for r in normal_rows if r.posture == posture), key=lambda r: r.normal_speed)
-            paths.append(save_figure(self.jumps_figure(posture, rows), out / f"jumps_{posture}.png"))
-            paths.append(save_figure(self.errors_figure(posture, rows), out / f"errors_{posture}.png"))
+            jumps = self.jumps_figure(posture, rows, jump_limits)
+            paths.append(save_figure(jumps, out / f"jumps_{posture}.png"))
+            paths.append(save_figure(self.errors_figure(posture, rows, error_limits), out / f"errors_{posture}.png"))
         tangential = sorted((r for r in self.table.rows if r.tangential_speed > 0.0), key=lambda r: r.tangential_speed)
         if tangential:
             paths.append(save_figure(self.tangential_figure(tangential), out / "tangential.png"))
         return paths
 
     @staticmethod
-    def jumps_figure(posture: str, rows: list[TableRow]):
-        fig, ax = plt.subplots(figsize=(6, 4))
+    def jumps_figure(posture: str, rows: list[TableRow], ylim: tuple[float, float] | None = None):
+        fig, ax = plt.subplots(figsize=(6.4, 4.4))
         speeds = [r.normal_speed for r in rows]
         jumps = np.array([r.measured_jump for r in rows])
         for j in range(NQ):
             ax.plot(speeds, jumps[:, j], "o-", label=f"joint {j + 1}")
-        ax.set(xlabel="normal contact speed (m/s)", ylabel="simulated jump (rad/s)", title=f"Simulated jumps, {posture}")
+        ax.set(
+            xlabel="normal contact speed (m/s)", ylabel="simulated jump dq+ - dq- (rad/s)",
+            title=f"Simulated joint-velocity jumps at {posture}\n(one trial per speed, no tangential velocity)",
+        )
+        if ylim is not None:
+            ax.set_ylim(ylim)
         ax.axhline(0.0, color="0.6", lw=0.8)
         ax.legend(fontsize=7, ncol=2)
+        fig.tight_layout()
         return fig
 
     @staticmethod
-    def errors_figure(posture: str, rows: list[TableRow]):
-        fig, axes = plt.subplots(1, len(FIGURE_METHODS), figsize=(12, 3.8), sharey=True)
+    def errors_figure(posture: str, rows: list[TableRow], ylim: tuple[float, float] | None = None):
+        fig, axes = plt.subplots(1, len(METHODS), figsize=(3.6 * len(METHODS), 4.0), sharey=True)
         speeds = [r.normal_speed for r in rows]
-        for ax, method in zip(axes, FIGURE_METHODS):
+        for ax, method in zip(axes, METHODS):
             errors = np.array([r.joint_errors[method] for r in rows])
             for j in range(NQ):
                 ax.plot(speeds, errors[:, j], "o-", label=f"joint {j + 1}")
-            ax.set(title=f"{method}, {posture}", xlabel="normal contact speed (m/s)")
-        axes[0].set_ylabel("|predicted - simulated jump| (rad/s)")
+            ax.set(title=method, xlabel="normal contact speed (m/s)", ylabel="|e_i|, eq. (25) (rad/s)")
+            ax.yaxis.set_tick_params(labelleft=True)
+        if ylim is not None:
+            axes[0].set_ylim(ylim)
         axes[-1].legend(fontsize=7, ncol=2)
+        fig.suptitle(
+            f"Absolute prediction error per joint at {posture}: each predictor's own jump against the "
+            "simulated one (one trial per speed)", fontsize=10,
+        )
         fig.tight_layout()
         return fig
 
     @staticmethod
     def tangential_figure(rows: list[TableRow]):
-        fig, ax = plt.subplots(figsize=(6, 4))
+        fig, ax = plt.subplots(figsize=(6.4, 4.4))
         speeds = [r.tangential_speed for r in rows]
         for method in METHODS:
             ax.plot(speeds, [r.errors[method] for r in rows], "o-", label=method)
         ax.set(
-            xlabel="tangential speed (m/s)", ylabel="average prediction error (26) (rad/s)",
-            title=f"Tangential series, {rows[0].posture}, v_n = {rows[0].normal_speed} m/s",
+            xlabel="tangential speed v_t (m/s)", ylabel="average prediction error, eq. (26) (rad/s)",
+            title=f"Tangential series at {rows[0].posture}, v_n = {rows[0].normal_speed:g} m/s\n"
+            "(error averaged over the 7 joints, one trial per v_t)",
         )
+        ax.set_ylim(bottom=0.0)
         ax.legend()
+        fig.tight_layout()
         return fig
+
+
+def y_limits(values: list[np.ndarray], zero: bool = False) -> tuple[float, float] | None:
+    """A y range that holds every value (and 0 when ``zero``), with a 5 % margin; None without
+    values."""
+    if not values:
+        return None
+    data = np.concatenate([np.ravel(v) for v in values] + ([np.zeros(1)] if zero else []))
+    low, high = float(data.min()), float(data.max())
+    margin = 0.05 * (high - low) or 0.05
+    return (0.0 if zero else low - margin, high + margin)
 
 
 def save_figure(fig, path: Path) -> Path:

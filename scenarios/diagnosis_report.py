@@ -1,15 +1,22 @@
 """The diagnosis report: Markdown plus PNG figures (``impactqp diagnose --report OUT``).
 
 Figures: ``jumps.png`` (measured, nominal-simulation and extended-simulation jumps per joint,
-mean over each posture's trials), ``error_vs_speed.png`` (average error (26) of the nominal and
-extended simulations and of the predictors against the reference speed) and
-``predictor_errors.png`` (mean absolute error (25) per joint of every predictor and both
-simulations). Every file is written atomically (``controller.measured.atomic``); other files
-in the directory are kept.
+mean over each posture's trials, one y scale for all postures), ``error_vs_speed.png`` (average
+error (26) of the nominal and extended simulations and of the predictors against the reference
+speed, mean over the trials at each speed) and ``predictor_errors.png`` (mean absolute error
+(25) per joint of every predictor and both simulations over all trials). Every file is written
+atomically (``controller.measured.atomic``); other files in the directory are kept.
+
+Numbers are written as a person reads them (``scenarios.readable``): plant parameters grouped
+as the diagnosis fits them, booleans as ``true`` / ``false``. The ratio of simulated to measured
+jump of a joint is left out when the measured jump is near zero: its root mean square over the
+trials below ``NEAR_ZERO_STDS`` times the noise std of a jump (:func:`jump_noise_std`), where
+the ratio divides by noise.
 
 What it means for the user (:func:`feasible_speeds`): for each named posture of the data, the
 highest feasible contact speed simulated with the nominal plant and with the extended plant
-(the diagnosed causes), beside the CRB closed form (``scenarios.max_speed_search``).
+(the diagnosed causes), beside the CRB closed form (``scenarios.max_speed_search``), and which
+of them to trust (:func:`trusted_speed_text`).
 """
 
 from __future__ import annotations
@@ -25,13 +32,18 @@ import numpy as np  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
 
 from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
+from impactqp.controller.measured.impact import POST_HALF_WIDTH, PRE_SAMPLES  # noqa: E402
+from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION  # noqa: E402
 from impactqp.controller.model.postures import POSTURES  # noqa: E402
 from impactqp.controller.model.robot import NQ  # noqa: E402
 from impactqp.scenarios.max_speed_search import DEFAULT_TOLERANCE, MaxSpeedSearch  # noqa: E402
 from impactqp.sim.diagnosis import EXPLAINED_GAIN, STEP_GAIN, Diagnosis, interval_text  # noqa: E402
 from impactqp.sim.plant import PlantParameters  # noqa: E402
 
+from .readable import boolean, number, parameters_text  # noqa: E402
+
 JOINTS = np.arange(1, 8)
+NEAR_ZERO_STDS = 3.0
 
 
 @dataclass(frozen=True)
@@ -92,6 +104,61 @@ def feasible_speeds(
     return rows
 
 
+def trusted_speed_text(diagnosis: Diagnosis, speeds: list[FeasibleSpeed]) -> str:
+    """Which highest feasible speed to trust, and why: the simulation with the extended plant when
+    the diagnosed causes explain the measured jumps, else the nominal simulation; never the
+    closed form alone, which knows only the rigid nominal model (no drive, servo or contact
+    dynamics) and assumes the impact duration."""
+    if diagnosis.explained:
+        named = " + ".join(diagnosis.causes)
+        which, column = "the extended simulation", "extended_plant"
+        why = (
+            f"the diagnosed causes ({named}) explain the measured jumps, and only the simulation with them "
+            "reproduces what the measured impacts showed"
+        )
+    else:
+        which, column = "the nominal simulation", "nominal_plant"
+        why = "no candidate cause explains the measured jumps, so the extended plant is no better than the nominal one"
+    text = (
+        f"Trust {which}: {why}. The CRB closed form knows only the rigid nominal model (no drive, servo or "
+        f"contact dynamics) and assumes a {1e3 * DEFAULT_IMPACT_DURATION:g} ms impact, so it is an estimate."
+    )
+    for row in speeds:
+        trusted = getattr(row, column)
+        side = "above" if row.crb_closed_form > trusted else "below"
+        consequence = "would hit too fast" if side == "above" else "is conservative"
+        text += (
+            f" At {row.posture} the closed form ({row.crb_closed_form:.3f} m/s) is {side} the trusted "
+            f"{trusted:.3f} m/s: relying on it {consequence}."
+        )
+    return text
+
+
+def jump_noise_std(diagnosis: Diagnosis) -> np.ndarray:
+    """Noise std (rad/s) of a measured jump per joint. The per-sample velocity noise sigma is
+    read from each trial's samples before the jump window: second differences remove a smooth
+    motion and leave 6 sigma^2 of white noise; a jump (``controller.measured.impact``) is a mean
+    of 2 POST_HALF_WIDTH + 1 samples minus a mean of PRE_SAMPLES, so its std is
+    sigma sqrt(1 / PRE_SAMPLES + 1 / (2 POST_HALF_WIDTH + 1)); the variances are pooled over
+    the trials."""
+    variances = []
+    for trial in diagnosis.trials:
+        before = trial.dq_log[: trial.jump_samples[0] - PRE_SAMPLES + 1]
+        if len(before) < 3:
+            continue
+        second = before[2:] - 2.0 * before[1:-1] + before[:-2]
+        variances.append(np.mean(second**2, axis=0) / 6.0)
+    sample_variance = np.mean(variances, axis=0) if variances else np.zeros(NQ)
+    return np.sqrt(sample_variance * (1.0 / PRE_SAMPLES + 1.0 / (2 * POST_HALF_WIDTH + 1)))
+
+
+def near_zero_jumps(diagnosis: Diagnosis) -> np.ndarray:
+    """Joints (bool, 7) whose measured jump is near zero: root mean square over the trials below
+    ``NEAR_ZERO_STDS`` noise stds of a jump."""
+    measured = np.array([t.jump for t in diagnosis.trials])
+    return np.sqrt(np.mean(measured**2, axis=0)) < NEAR_ZERO_STDS * jump_noise_std(diagnosis)
+
+
 def series(diagnosis: Diagnosis) -> dict[str, np.ndarray]:
     return {
         "measured": np.array([t.jump for t in diagnosis.trials]),
@@ -117,17 +184,19 @@ def save(fig, path: Path) -> None:
 def plot_jumps(diagnosis: Diagnosis, path: Path) -> None:
     postures = sorted({t.posture or "unknown" for t in diagnosis.trials})
     data = series(diagnosis)
-    fig, axes = plt.subplots(1, len(postures), figsize=(5 * len(postures), 3.6), squeeze=False)
+    fig, axes = plt.subplots(1, len(postures), figsize=(5 * len(postures), 4.0), squeeze=False, sharey=True)
     for ax, posture in zip(axes[0], postures):
         rows = [i for i, t in enumerate(diagnosis.trials) if (t.posture or "unknown") == posture]
         for k, name in enumerate(("measured", "nominal sim", "extended sim")):
             ax.bar(JOINTS + (k - 1) * 0.27, data[name][rows].mean(axis=0), width=0.27, label=name)
         ax.set_title(f"{posture} ({len(rows)} trials)")
         ax.set_xlabel("joint")
+        ax.set_ylabel("mean jump dq+ - dq- (rad/s)")
+        ax.yaxis.set_tick_params(labelleft=True)
         ax.set_xticks(JOINTS)
         ax.axhline(0.0, color="k", lw=0.5)
-    axes[0][0].set_ylabel("mean jump (rad/s)")
     axes[0][0].legend(fontsize=8)
+    fig.suptitle("Joint-velocity jump per joint, mean over each posture's trials (all speeds pooled)")
     save(fig, path)
 
 
@@ -140,6 +209,8 @@ def plot_error_vs_speed(diagnosis: Diagnosis, path: Path) -> None:
         ax.plot(levels, [average[speeds == v].mean() for v in levels], "o-", label=name)
     ax.set_xlabel("reference normal speed (m/s)")
     ax.set_ylabel("average error, eq. (26) (rad/s)")
+    ax.set_ylim(bottom=0.0)
+    ax.set_title("Error against the measured jump, mean over the trials\nat each speed (postures pooled)", fontsize=10)
     ax.legend(fontsize=8)
     save(fig, path)
 
@@ -153,6 +224,9 @@ def plot_predictor_errors(diagnosis: Diagnosis, path: Path) -> None:
     ax.set_xlabel("joint")
     ax.set_ylabel("mean |error|, eq. (25) (rad/s)")
     ax.set_xticks(JOINTS)
+    ax.set_title(
+        f"Error against the measured jump per joint, mean over all {len(diagnosis.trials)} trials", fontsize=10
+    )
     ax.legend(fontsize=8)
     save(fig, path)
 
@@ -184,9 +258,10 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         s["message"],
         "",
         f"- trials used: {s['trials']}, skipped: {len(s['skipped'])}",
-        f"- causes: **{', '.join(s['causes']) or 'none'}** (explained: {s['explained']}; thresholds: every step "
+        f"- causes: **{', '.join(s['causes']) or 'none'}** (explained: {boolean(s['explained'])}; "
+        f"thresholds: every step "
         f"{100 * STEP_GAIN:.0f} % held-out gain, the causes together {100 * EXPLAINED_GAIN:.0f} %)",
-        f"- parameters: `{s['parameters']}`",
+        f"- parameters: {parameters_text(s['parameters'])}",
         f"- average error (26), held-out: nominal simulation {s['baseline_error']:.4f} rad/s, "
         f"extended simulation {s['extended_error']:.4f} rad/s, gain {100 * s['gain']:.1f} %",
         "",
@@ -197,7 +272,8 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
     ]
     for k, step in enumerate(s["steps"], start=1):
         lines.append(
-            f"| {k} | {step['cause']} | {step['heldout_error']:.4f} | {100 * step['gain']:.1f} % | {step['selected']} |"
+            f"| {k} | {step['cause']} | {step['heldout_error']:.4f} | {100 * step['gain']:.1f} % | "
+            f"{boolean(step['selected'])} |"
         )
     lines += [
         "",
@@ -207,7 +283,7 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         "|---|---|---|---|",
     ]
     for p in s["parameter_intervals"]:
-        lines.append(f"| {p['cause']} | {p['parameter']} | {p['value']:.4g} | {interval_text(p['interval'])} |")
+        lines.append(f"| {p['cause']} | {p['parameter']} | {number(p['value'])} | {interval_text(p['interval'])} |")
     for o in s["open_sides"]:
         lines.append(f"\nThe data cannot bound {o['parameter']} {o['side']}: {o['trials_needed']}.")
     if speeds:
@@ -221,7 +297,7 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         lines += [
             f"| {r.posture} | {r.crb_closed_form:.3f} | {r.nominal_plant:.3f} | {r.extended_plant:.3f} |" for r in speeds
         ]
-        lines += [""] + [r.sentence() for r in speeds]
+        lines += [""] + [r.sentence() for r in speeds] + ["", trusted_speed_text(diagnosis, speeds)]
     lines += [
         "",
         "## What the nominal simulation gets wrong",
@@ -229,15 +305,18 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         "| joint | mean error (25) | mean abs error | sim / measured | share of error |",
         "|---|---|---|---|---|",
     ]
+    near_zero = near_zero_jumps(diagnosis)
     for j in range(NQ):
+        ratio = "-" if near_zero[j] else f"{a['per_joint_sim_to_measured_ratio'][j]:.3f}"
         lines.append(
             f"| {j + 1} | {a['per_joint_mean_error'][j]:+.4f} | {a['per_joint_mean_abs_error'][j]:.4f} | "
-            f"{a['per_joint_sim_to_measured_ratio'][j]:.3f} | {100 * a['per_joint_error_share'][j]:.1f} % |"
+            f"{ratio} | {100 * a['per_joint_error_share'][j]:.1f} % |"
         )
     lines += [
         "",
         f"Average error (26) grows by {a['error_vs_speed_slope']:.3f} (rad/s) per m/s of reference speed. "
-        "A sim / measured ratio above 1 means the simulation overshoots that joint's jump.",
+        "A sim / measured ratio above 1 means the simulation overshoots that joint's jump; it is left out (-) "
+        f"where the measured jump is near zero (root mean square below {NEAR_ZERO_STDS:g} noise stds of a jump).",
         "",
         "## Candidate causes (cross-validated over trials)",
         "",
@@ -245,7 +324,9 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         "|---|---|---|---|",
     ]
     for c in sorted(s["candidates"], key=lambda c: -c["gain"]):
-        lines.append(f"| {c['cause']} | {c['heldout_error']:.4f} | {100 * c['gain']:.1f} % | `{c['parameters']}` |")
+        lines.append(
+            f"| {c['cause']} | {c['heldout_error']:.4f} | {100 * c['gain']:.1f} % | {parameters_text(c['parameters'])} |"
+        )
     lines += ["", "## Predictors and simulations per condition (average error (26), rad/s)", ""]
     lines += table_by_condition(diagnosis)
     lines += ["", "| predictor | own impulse | measured impulse |", "|---|---|---|"]

@@ -55,9 +55,9 @@ from impactqp.controller.model.validation import number_in_range
 PREDICTED_MODELS = ("classical", "gm", "crb")
 QP_REQUEST_SPEED = 2.0
 QP_START_DISTANCE = 0.05
-# The QP-limited run starts at rest far enough to reach the predicted maximum: the contact point
-# of the Panda gains about 4 m/s^2 under the joint acceleration and jerk limits (measured on the
-# named postures), and the run-up gets 50 % more than v^2 / (2 a).
+# The QP-limited run starts at rest far enough to reach the predicted maximum at the contact
+# point's acceleration a under the joint acceleration and jerk limits (docs/max-speed.md, "In
+# simulation"), with a run-up 50 % longer than v^2 / (2 a).
 RUN_UP_ACCELERATION = 4.0
 RUN_UP_MARGIN = 1.5
 

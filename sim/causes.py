@@ -32,7 +32,7 @@ from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot import NQ, TOOL_RADIUS
 
 from .plant import PlantParameters
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import name_in
 
 # The payload sits at the tool's centre by default: the contact point moved back by the radius.
 PAYLOAD_COM = (0.0, 0.0, -TOOL_RADIUS)
@@ -282,10 +282,8 @@ CAUSE_NAMES = tuple(cause.name for cause in default_causes())
 
 
 def cause_named(name: str) -> Cause:
-    for cause in default_causes():
-        if cause.name == name:
-            return cause
-    raise BadInputError(f"unknown cause {name!r}; known: {', '.join(CAUSE_NAMES)}")
+    name_in(name, CAUSE_NAMES, "the cause")
+    return next(cause for cause in default_causes() if cause.name == name)
 
 
 def realistic_hidden_effect(name: str, rng: np.random.Generator) -> tuple[dict, list[float]]:

@@ -28,12 +28,10 @@ import json
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
-import numpy as np
-
 from impactqp.controller.measured.atomic import write_text_atomic
-from impactqp.controller.measured.json_file import read_json_object
+from impactqp.controller.model.files import read_mapping
 from impactqp.controller.model.robot import NQ
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import BadInputError, finite_vector, number_in_range, vector_in_range
 
 DEFAULT_SOLREF = (0.007, 1.0)
 DEFAULT_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
@@ -62,28 +60,6 @@ MAX_SOLREF = (1.0, 10.0)
 """Largest contact time constant (s) and damping ratio of ``contact_solref``."""
 
 
-def _in_range(name: str, values: tuple[float, ...]) -> None:
-    low, high, unit = RANGES[name]
-    for i, x in enumerate(values):
-        if not low <= x <= high:
-            where = f"{name}[{i}]" if len(values) > 1 or name in ("armature", "joint_damping", "payload_com") else name
-            raise PlantParameterError(f"{where} = {x} must lie in [{low:g}, {high:g}]{' ' + unit if unit else ''}")
-
-
-def _vector(name: str, value, size: int) -> tuple[float, ...]:
-    if isinstance(value, bool) or (isinstance(value, (list, tuple)) and any(isinstance(x, bool) for x in value)):
-        raise PlantParameterError(f"{name} must be numeric, got {value!r}")
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise PlantParameterError(f"{name} must be numeric, got {value!r}") from None
-    if array.shape != (size,):
-        raise PlantParameterError(f"{name} needs {size} values, got shape {array.shape}")
-    if not np.all(np.isfinite(array)):
-        raise PlantParameterError(f"{name} contains a non-finite value")
-    return tuple(float(x) for x in array)
-
-
 @dataclass(frozen=True)
 class PlantParameters:
     """Plant parameters (see the module docstring for units and effects); validated on creation."""
@@ -98,31 +74,41 @@ class PlantParameters:
     servo_gain: float = DEFAULT_SERVO_GAIN
 
     def __post_init__(self):
+        try:
+            self._check()
+        except PlantParameterError:
+            raise
+        except BadInputError as error:
+            raise PlantParameterError(str(error)) from None
+
+    def _check(self) -> None:
+        """Each value within its physical range (``RANGES``, ``MAX_SOLREF``), stored as floats."""
+
         def set_(name, value):
             object.__setattr__(self, name, value)
 
+        def vector(name: str, size: int) -> tuple[float, ...]:
+            low, high, unit = RANGES[name]
+            return tuple(vector_in_range(getattr(self, name), size, low, high, name, unit).tolist())
+
+        def scalar(name: str) -> float:
+            low, high, unit = RANGES[name]
+            return number_in_range(getattr(self, name), low, high, name, unit)
+
         for name in ("armature", "joint_damping"):
-            values = _vector(name, getattr(self, name), NQ)
-            _in_range(name, values)
-            set_(name, values)
-        payload_com = _vector("payload_com", self.payload_com, 3)
-        _in_range("payload_com", payload_com)
-        set_("payload_com", payload_com)
-        (payload_mass,) = _vector("payload_mass", [self.payload_mass], 1)
-        _in_range("payload_mass", (payload_mass,))
-        set_("payload_mass", payload_mass)
+            set_(name, vector(name, NQ))
+        set_("payload_com", vector("payload_com", 3))
+        set_("payload_mass", scalar("payload_mass"))
         if self.friction is not None:
-            (friction,) = _vector("friction", [self.friction], 1)
-            _in_range("friction", (friction,))
-            set_("friction", friction)
-        solref = _vector("contact_solref", self.contact_solref, 2)
+            set_("friction", scalar("friction"))
+        solref = tuple(finite_vector(self.contact_solref, 2, "contact_solref").tolist())
         if not (0.0 < solref[0] <= MAX_SOLREF[0] and 0.0 < solref[1] <= MAX_SOLREF[1]):
             raise PlantParameterError(
                 f"contact_solref = {list(solref)} must be (time constant in (0, {MAX_SOLREF[0]:g}] s, damping "
                 f"ratio in (0, {MAX_SOLREF[1]:g}]); direct stiffness/damping (negative solref) is not supported"
             )
         set_("contact_solref", solref)
-        solimp = _vector("contact_solimp", self.contact_solimp, 5)
+        solimp = tuple(finite_vector(self.contact_solimp, 5, "contact_solimp").tolist())
         dmin, dmax, width, midpoint, power = solimp
         if not (0.0 < dmin <= dmax < 1.0 and width > 0.0 and 0.0 < midpoint < 1.0 and power >= 1.0):
             raise PlantParameterError(
@@ -130,9 +116,7 @@ class PlantParameters:
                 "0 < midpoint < 1 and power >= 1"
             )
         set_("contact_solimp", solimp)
-        (servo_gain,) = _vector("servo_gain", [self.servo_gain], 1)
-        _in_range("servo_gain", (servo_gain,))
-        set_("servo_gain", servo_gain)
+        set_("servo_gain", scalar("servo_gain"))
 
     # ------------------------------------------------------------------ JSON
     @classmethod
@@ -156,7 +140,7 @@ class PlantParameters:
     @classmethod
     def from_json(cls, path: str | Path) -> "PlantParameters":
         path = Path(path)
-        values = read_json_object(path, PlantParameterError, "plant parameter file {path} does not exist")
+        values = read_mapping(path, "plant parameter file", "json", PlantParameterError)
         try:
             return cls.from_dict(values)
         except PlantParameterError as error:

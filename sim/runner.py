@@ -39,11 +39,11 @@ from typing import Protocol
 
 import mujoco
 import numpy as np
-import pinocchio as pin
 
 from impactqp.constraints import jump_model_names
 from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
 from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import (
@@ -79,10 +79,6 @@ real Panda comes near it, and the data would be garbage."""
 class SimulationUnstableError(BadInputError):
     """The simulated state diverged (non-finite, or |dq| far above the limits): the plant or the
     request lies outside what the model simulates faithfully. Such a trial is never data."""
-
-
-class UnreachableStartError(BadInputError):
-    """No joint posture puts the tool at the requested start pose (wall out of reach)."""
 
 
 class JointVelocityCommand(Protocol):
@@ -157,8 +153,8 @@ class TrialSpec:
     """One approach-and-impact trial: where it hits, how fast, and how it is controlled.
 
     The trial starts ``start_distance`` in front of the surface at the posture that
-    :func:`approach_start` finds for ``q_contact``, at rest (``start_at_rest``) or already moving
-    at the reference velocity, and lasts until ``after_contact`` seconds after the first contact.
+    ``controller.model.inverse_kinematics.approach_start`` finds for ``q_contact``, at rest
+    (``start_at_rest``) or already moving at the reference velocity, and lasts until ``after_contact`` seconds after the first contact.
     ``jump_model``: the jump-aware constraints of the controller ('crb', 'gm', 'classical',
     'classical_normal', 'robust') or None to switch them off. ``restitution`` and
     ``impact_duration`` are the controller's c_r and delta_t (and c_r of the predictions).
@@ -373,55 +369,6 @@ def servo_reference_from_commands(
     return q_ref, dq_cmd[-1].copy()
 
 
-# ---------------------------------------------------------------------------- start state
-def approach_start(
-    robot: PandaModel,
-    q_contact: np.ndarray,
-    surface: Surface,
-    distance: float,
-) -> np.ndarray:
-    """Joint posture with the contact point ``distance`` in front of the surface.
-
-    The target is the posture's contact point projected on the surface plane, moved by
-    ``distance`` along the normal n, with the posture's orientation turned by the smallest
-    rotation that maps its tool axis (hand z) onto -n. It is reached by damped Gauss-Newton
-    steps on the 6-D pose error log(T^-1 T_target) starting from ``q_contact``, within the joint
-    limits. Raises :class:`UnreachableStartError` when no such posture is found.
-    """
-    if not (np.isfinite(distance) and distance >= 0.0):
-        raise BadInputError(f"start distance {distance} m must be >= 0")
-    q_contact, _ = robot.check_state(q_contact)
-    start = robot.contact_frame(q_contact)
-    axis = start.rotation[:, 2]
-    target_axis = -surface.normal
-    rotation = _smallest_rotation(axis, target_axis) @ start.rotation
-    point = start.translation - surface.signed_distance(start.translation) * surface.normal
-    target = pin.SE3(rotation, point + distance * surface.normal)
-
-    q = q_contact.copy()
-    for _ in range(100):
-        current = robot.contact_frame(q)
-        error = pin.log6(current.actInv(target)).vector
-        if np.linalg.norm(error[:3]) < 1e-7 and np.linalg.norm(error[3:]) < 1e-6:
-            return q
-        J = pin.computeFrameJacobian(robot.model, robot.data, q, robot.contact_frame_id, pin.LOCAL)
-        J = pin.Jlog6(current.actInv(target)) @ J
-        step = np.linalg.solve(J.T @ J + 1e-6 * np.eye(NQ), J.T @ error)
-        q = np.clip(q + np.clip(step, -0.2, 0.2), robot.q_min, robot.q_max)
-    raise UnreachableStartError(
-        f"the tool cannot reach {np.round(target.translation, 3).tolist()} (m, world) with its axis "
-        f"along {np.round(target_axis, 3).tolist()}: the surface through "
-        f"{np.round(surface.point, 3).tolist()} with normal {np.round(surface.normal, 3).tolist()} "
-        f"is out of reach from this posture (residual {np.linalg.norm(error):.3g})"
-    )
-
-
-def _smallest_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The rotation of smallest angle mapping the unit vector a onto the unit vector b."""
-    quaternion = pin.Quaternion.FromTwoVectors(a, b)
-    return quaternion.toRotationMatrix()
-
-
 def dataset_header(surface: Surface) -> DatasetHeader:
     """The manifest header of a simulated dataset: the tool tip in the hand frame, the runner's
     control period."""
@@ -439,8 +386,8 @@ def run_approach(
 ) -> TrialLog:
     """The one approach runner: the trial ``spec`` on the scene's surface.
 
-    Starts ``spec.start_distance`` in front of the surface (:func:`approach_start` from
-    ``spec.q_contact``), at rest or moving at the reference velocity of
+    Starts ``spec.start_distance`` in front of the surface (``inverse_kinematics.approach_start``
+    from ``spec.q_contact``), at rest or moving at the reference velocity of
     :class:`CartesianApproachCommand`. The command source is that Cartesian command, or
     ``source(q0, dq0)`` (the QP controller of a scenario trial). The trial lasts ``duration``; by
     default the nominal time to contact with a ``LAG_ALLOWANCE`` margin (a plant that lags behind

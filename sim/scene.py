@@ -1,7 +1,9 @@
-"""The MuJoCo scene: the same example-robot-data Panda URDF as Pinocchio, a tool and a wall.
+"""The MuJoCo scene: the same robot URDF and tool as Pinocchio, and a wall.
 
-The MuJoCo model is built in code from the URDF file that ``controller.model.robot.PandaModel`` loads,
-with the edits of docs/simulation.md: the visual elements and the ``package://`` prefixes go
+The MuJoCo model is built in code from the URDF text that ``controller.model.robot.RobotModel``
+loads for a robot and a tool (``robot_description.model_urdf``: the Panda of example-robot-data or
+franka_description's FR3, the Franka Hand removed when the tool replaces it), with the edits of
+docs/simulation.md: the visual elements and the ``package://`` prefixes go
 (MuJoCo reads the STL collision meshes), the fingers are welded (their joints become fixed and
 the mimic coupling goes) and inertias are taken exactly from the URDF (``inertiafromgeom``
 false, ``balanceinertia`` false, ``fusestatic`` false). MuJoCo's joint-space inertia matrix
@@ -9,8 +11,9 @@ then equals Pinocchio's to rounding error.
 
 Added in code (``mujoco.MjSpec``):
 
-- the tool: a sphere of radius ``TOOL_RADIUS`` centred on the hand's z axis at
-  ``TOOL_CENTRE_OFFSET`` (the massless contact tool of ``controller.model.robot``);
+- the tool (``controller.model.tool_description``): its contact geometry, a sphere or a box pad,
+  on the body of the frame it is fixed to, and, for a tool with a mass, a welded body ``tool``
+  with its mass, centre of mass and inertia (so MuJoCo's M stays Pinocchio's);
 - the wall: a MuJoCo plane through ``surface.point`` whose z axis is ``surface.normal``
   (the solid half-space lies behind the plane, away from the robot);
 - one explicit contact pair tool/wall. Every geom has contype = conaffinity = 0, so the pair is
@@ -45,39 +48,37 @@ import mujoco
 import numpy as np
 
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
-from impactqp.controller.model.robot import (
-    FINGER_JOINTS,
-    NQ,
-    TOOL_CENTRE_OFFSET,
-    TOOL_RADIUS,
-    TOOL_TIP_OFFSET,
-    panda_urdf_path,
-)
+from impactqp.controller.model.robot import NQ, TOOL_BODY
+from impactqp.controller.model.robot_description import RobotDescription, model_urdf, robot_description
+from impactqp.controller.model.tool_description import Pad, ToolDescription, tool_description
 
 from .plant import PlantParameters
 from impactqp.controller.model.validation import BadInputError
 
 DEFAULT_TIMESTEP = 0.25e-3
-HAND_BODY = "panda_hand"
 TOOL_GEOM = "impact_tool"
 WALL_GEOM = "wall"
 CONTACT_PAIR = "tool_wall"
 PAYLOAD_BODY = "payload"
-ARM_JOINTS = tuple(f"panda_joint{i}" for i in range(1, NQ + 1))
 CONTACT_CONDIM = 3
 
 
-def mujoco_urdf(urdf_path: str | Path | None = None) -> str:
-    """The Panda URDF edited for MuJoCo's importer (see the module docstring), as a string."""
-    urdf_path = Path(urdf_path) if urdf_path is not None else panda_urdf_path()
-    root = ET.parse(urdf_path).getroot()
+def mujoco_urdf(
+    robot: str | RobotDescription = "panda",
+    tool: str | Path | ToolDescription = "impact_tip",
+    urdf_path: str | Path | None = None,
+) -> str:
+    """The robot's URDF for the tool (``model_urdf``), edited for MuJoCo's importer (see the
+    module docstring), as a string."""
+    robot, tool = robot_description(robot), tool_description(tool)
+    root = ET.fromstring(model_urdf(robot, tool, urdf_path))
     for link in root.findall("link"):
         for visual in link.findall("visual"):
             link.remove(visual)
     for mesh in root.iter("mesh"):
         mesh.set("filename", mesh.get("filename").rsplit("/", 1)[-1])
     for joint in root.findall("joint"):
-        if joint.get("name") in FINGER_JOINTS:
+        if joint.get("name") in robot.finger_joints:
             joint.set("type", "fixed")
             for tag in ("mimic", "limit", "dynamics", "axis"):
                 for child in joint.findall(tag):
@@ -86,7 +87,7 @@ def mujoco_urdf(urdf_path: str | Path | None = None) -> str:
     ET.SubElement(
         extension,
         "compiler",
-        meshdir=str(urdf_path.parent.parent / "meshes" / "collision"),
+        meshdir=str(robot.mesh_dir()),
         discardvisual="true",
         fusestatic="false",
         balanceinertia="false",
@@ -96,11 +97,38 @@ def mujoco_urdf(urdf_path: str | Path | None = None) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
+def _add_tool(mount, tool: ToolDescription, contact: dict) -> None:
+    """The tool's contact geometry (a sphere or a box pad) on the body ``mount`` of its frame
+    and, for a tool with a mass, a welded body ``tool`` carrying its mass, centre of mass and
+    inertia (as principal moments and axes, which MuJoCo accepts for a point mass too)."""
+    geometry = tool.geometry
+    if isinstance(geometry, Pad):
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, geometry.rotation.flatten())
+        shape = dict(type=mujoco.mjtGeom.mjGEOM_BOX, size=(geometry.size / 2.0).tolist(), quat=quat.tolist())
+    else:
+        shape = dict(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[geometry.radius, 0.0, 0.0])
+    mount.add_geom(
+        name=TOOL_GEOM, pos=geometry.centre.tolist(), contype=0, conaffinity=0, rgba=[0.9, 0.4, 0.1, 1.0],
+        **shape, **contact,
+    )
+    if tool.mass > 0.0:
+        moments, axes = np.linalg.eigh(tool.inertia)
+        axes[:, 2] *= np.linalg.det(axes)  # a rotation: principal axes right-handed
+        iquat = np.zeros(4)
+        mujoco.mju_mat2Quat(iquat, axes.flatten())
+        mount.add_body(
+            name=TOOL_BODY, mass=tool.mass, ipos=tool.com.tolist(), iquat=iquat.tolist(),
+            inertia=moments.tolist(), explicitinertial=True,
+        )
+
+
 @dataclass
 class Scene:
     """A compiled scene and its data, with the ids the runner needs.
 
-    ``surface`` is the wall's pose, ``plant`` the plant parameters the model was built with.
+    ``surface`` is the wall's pose, ``plant`` the plant parameters the model was built with,
+    ``robot`` and ``tool`` the descriptions it was built from.
     """
 
     model: mujoco.MjModel
@@ -109,6 +137,8 @@ class Scene:
     plant: PlantParameters
     tool_geom: int
     wall_geom: int
+    robot: RobotDescription
+    tool: ToolDescription
 
     @property
     def timestep(self) -> float:
@@ -128,7 +158,7 @@ class Scene:
         return M
 
     def tool_centre(self, q: np.ndarray | None = None) -> np.ndarray:
-        """World position of the tool sphere's centre: in the current state, or at the joint
+        """World position of the tool geometry's centre: in the current state, or at the joint
         positions q (computed on scratch data, the simulation state is left alone)."""
         if q is None:
             return self.data.geom_xpos[self.tool_geom].copy()
@@ -144,9 +174,13 @@ def build_scene(
     *,
     timestep: float = DEFAULT_TIMESTEP,
     urdf_path: str | Path | None = None,
+    robot: str | RobotDescription = "panda",
+    tool: str | Path | ToolDescription = "impact_tip",
 ) -> Scene:
-    """Build and compile the scene: Panda from the URDF, tool, wall, contact pair and plant."""
+    """Build and compile the scene: the robot from its URDF, the tool, the wall, the contact pair
+    and the plant."""
     plant = PlantParameters() if plant is None else plant
+    robot, tool = robot_description(robot), tool_description(tool)
     if not (np.isfinite(timestep) and 0.0 < timestep <= 0.5e-3):
         raise BadInputError(f"timestep = {timestep} s must be in (0, 0.5 ms]")
     if plant.contact_solref[0] < 2.0 * timestep:
@@ -154,7 +188,7 @@ def build_scene(
             f"contact_solref time constant {plant.contact_solref[0]} s must be at least twice the "
             f"timestep {timestep} s (MuJoCo would silently stiffen nothing below that)"
         )
-    spec = mujoco.MjSpec.from_string(mujoco_urdf(urdf_path))
+    spec = mujoco.MjSpec.from_string(mujoco_urdf(robot, tool, urdf_path))
     spec.option.timestep = timestep
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
@@ -169,17 +203,8 @@ def build_scene(
         solref=list(plant.contact_solref),
         solimp=list(plant.contact_solimp),
     )
-    hand = spec.body(HAND_BODY)
-    hand.add_geom(
-        name=TOOL_GEOM,
-        type=mujoco.mjtGeom.mjGEOM_SPHERE,
-        size=[TOOL_RADIUS, 0.0, 0.0],
-        pos=[0.0, 0.0, TOOL_CENTRE_OFFSET],
-        contype=0,
-        conaffinity=0,
-        rgba=[0.9, 0.4, 0.1, 1.0],
-        **contact,
-    )
+    mount = spec.body(robot.frame_of(tool))
+    _add_tool(mount, tool, contact)
     wall_quat = np.zeros(4)
     mujoco.mju_quatZ2Vec(wall_quat, surface.normal)
     spec.worldbody.add_geom(
@@ -200,14 +225,14 @@ def build_scene(
         **{**contact, "friction": [friction, friction, 0.0, 0.0, 0.0]},
     )
 
-    for name, armature, damping in zip(ARM_JOINTS, plant.armature, plant.joint_damping):
+    for name, armature, damping in zip(robot.joints, plant.armature, plant.joint_damping):
         joint = spec.joint(name)
         joint.armature = armature
         joint.damping = [damping, 0.0, 0.0]
     if plant.payload_mass > 0.0:
-        hand.add_body(
+        mount.add_body(
             name=PAYLOAD_BODY,
-            pos=[0.0, 0.0, TOOL_TIP_OFFSET],
+            pos=tool.contact_point.tolist(),
             mass=plant.payload_mass,
             ipos=list(plant.payload_com),
             inertia=[0.0, 0.0, 0.0],
@@ -215,8 +240,8 @@ def build_scene(
         )
 
     model = spec.compile()
-    if tuple(model.joint(i).name for i in range(model.njnt)) != ARM_JOINTS:
-        raise RuntimeError("the MuJoCo Panda must have exactly the seven arm joints, in order")
+    if tuple(model.joint(i).name for i in range(model.njnt)) != robot.joints:
+        raise RuntimeError(f"the MuJoCo {robot.name} must have exactly the seven arm joints, in order")
     data = mujoco.MjData(model)
     return Scene(
         model=model,
@@ -225,4 +250,6 @@ def build_scene(
         plant=plant,
         tool_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, TOOL_GEOM),
         wall_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, WALL_GEOM),
+        robot=robot,
+        tool=tool,
     )

@@ -7,10 +7,8 @@ import numpy as np
 from impactqp.controller.model.robot import NQ, ModelTerms
 
 from .posture_task import joint_pd_rows
-from .task import Task, non_negative
-from impactqp.controller.model.validation import BadInputError
-
-_IDENTITY = np.eye(NQ)
+from .task import Task
+from impactqp.controller.model.validation import BadInputError, task_gain
 
 
 class DampingTask(Task):
@@ -25,14 +23,10 @@ class DampingTask(Task):
     rows = NQ
 
     def __init__(self, gain: float = 1.0, weight: float = 1e-4):
-        if not non_negative("damping weight", weight) > 0.0:
+        if not task_gain(weight, "damping weight") > 0.0:
             raise BadInputError("the damping task weight must be > 0")
-        self.gain = non_negative("damping gain", gain)
+        self.gain = task_gain(gain, "damping gain")
         self.weight = np.full(NQ, float(weight))
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         joint_pd_rows(terms.q, terms.dq, terms.q, 0.0, self.gain, A, b)
-
-    def reference_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        A[:] = _IDENTITY
-        np.multiply(-self.gain, terms.dq, out=b)

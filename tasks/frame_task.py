@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.validation import finite_array, finite_vector, task_gain
 
-from .task import Task, critical_damping, finite_array, non_negative, rotation_error
+from .task import Task, critical_damping, rotation_error
 
 
 class FrameTask(Task):
@@ -34,15 +35,15 @@ class FrameTask(Task):
         orientation_weight: float = 1.0,
     ):
         self.target_position = (
-            None if target_position is None else finite_array("target_position", target_position, (3,))
+            None if target_position is None else finite_vector(target_position, 3, "target_position")
         )
         self.target_rotation = (
-            None if target_rotation is None else finite_array("target_rotation", target_rotation, (3, 3))
+            None if target_rotation is None else finite_array(target_rotation, (3, 3), "target_rotation")
         )
-        self.stiffness = non_negative("frame stiffness", stiffness)
-        self.damping = critical_damping(self.stiffness) if damping is None else non_negative("frame damping", damping)
+        self.stiffness = task_gain(stiffness, "frame stiffness")
+        self.damping = critical_damping(self.stiffness) if damping is None else task_gain(damping, "frame damping")
         self.weight = np.repeat(
-            [non_negative("position_weight", position_weight), non_negative("orientation_weight", orientation_weight)], 3
+            [task_gain(position_weight, "position_weight"), task_gain(orientation_weight, "orientation_weight")], 3
         )
         self._configured = (self.target_position is not None, self.target_rotation is not None)
 

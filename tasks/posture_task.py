@@ -6,10 +6,9 @@ import numpy as np
 from numba import njit
 
 from impactqp.controller.model.robot import NQ, ModelTerms
+from impactqp.controller.model.validation import finite_vector, task_gain
 
-from .task import Task, critical_damping, finite_array, non_negative
-
-_IDENTITY = np.eye(NQ)
+from .task import Task, critical_damping
 
 
 class PostureTask(Task):
@@ -23,11 +22,11 @@ class PostureTask(Task):
     rows = NQ
 
     def __init__(self, target=None, stiffness: float = 10.0, damping: float | None = None, weight: float = 1e-2):
-        self.target = None if target is None else finite_array("posture target", target, (NQ,))
+        self.target = None if target is None else finite_vector(target, NQ, "posture target")
         self._target_configured = self.target is not None
-        self.stiffness = non_negative("posture stiffness", stiffness)
-        self.damping = critical_damping(self.stiffness) if damping is None else non_negative("posture damping", damping)
-        self.weight = np.full(NQ, non_negative("posture weight", weight))
+        self.stiffness = task_gain(stiffness, "posture stiffness")
+        self.damping = critical_damping(self.stiffness) if damping is None else task_gain(damping, "posture damping")
+        self.weight = np.full(NQ, task_gain(weight, "posture weight"))
 
     def reset(self, terms: ModelTerms) -> None:
         if not self._target_configured:
@@ -35,10 +34,6 @@ class PostureTask(Task):
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         joint_pd_rows(terms.q, terms.dq, self.target, self.stiffness, self.damping, A, b)
-
-    def reference_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        A[:] = _IDENTITY
-        np.subtract(self.stiffness * (self.target - terms.q), self.damping * terms.dq, out=b)
 
 
 @njit(cache=True)

@@ -7,9 +7,9 @@ import math
 import numpy as np
 
 from impactqp.controller.model.robot import ModelTerms
-from impactqp.controller.model.validation import number_in_range, unit_normal
+from impactqp.controller.model.validation import finite_vector, task_gain, number_in_range, unit_normal
 
-from .task import Task, critical_damping, finite_array, non_negative, rotation_error
+from .task import Task, critical_damping, rotation_error
 
 MAX_OFFSET = 0.5
 """Largest |offset| (m): a retract or a hold depth beyond half a metre leaves the contact task."""
@@ -49,19 +49,19 @@ class SurfaceOffsetTask(Task):
         orientation_weight: float = 100.0,
     ):
         self.normal = unit_normal(normal)
-        self.surface_point = finite_array("surface_point", surface_point, (3,))
+        self.surface_point = finite_vector(surface_point, 3, "surface_point")
         self.offset = number_in_range(offset, -MAX_OFFSET, MAX_OFFSET, "offset", "m")
-        self.max_speed = non_negative("max_speed", max_speed)
-        self.position_gain = non_negative("position_gain", position_gain)
-        self.velocity_gain = non_negative("velocity_gain", velocity_gain)
-        self.orientation_stiffness = non_negative("orientation_stiffness", orientation_stiffness)
+        self.max_speed = task_gain(max_speed, "max_speed")
+        self.position_gain = task_gain(position_gain, "position_gain")
+        self.velocity_gain = task_gain(velocity_gain, "velocity_gain")
+        self.orientation_stiffness = task_gain(orientation_stiffness, "orientation_stiffness")
         self.orientation_damping = (
             critical_damping(orientation_stiffness)
             if orientation_damping is None
-            else non_negative("orientation_damping", orientation_damping)
+            else task_gain(orientation_damping, "orientation_damping")
         )
         self.weight = np.repeat(
-            [non_negative("position_weight", position_weight), non_negative("orientation_weight", orientation_weight)], 3
+            [task_gain(position_weight, "position_weight"), task_gain(orientation_weight, "orientation_weight")], 3
         )
         self.target_position: np.ndarray | None = None
         self.target_rotation: np.ndarray | None = None

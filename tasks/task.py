@@ -21,7 +21,6 @@ import pinocchio as pin
 from numba import njit
 
 from impactqp.controller.model.robot import ModelTerms
-from impactqp.controller.model.validation import BadInputError, number_in_range
 
 
 class TaskRows(NamedTuple):
@@ -37,8 +36,8 @@ class Task:
 
     A task writes its rows into arrays it is given (``compute_into``): a controller hands it
     views of the stacked task data, so nothing is copied; ``compute`` returns them in new
-    arrays. Where a class has a compiled kernel (numba), ``compute_into`` calls it and
-    ``reference_into`` states the same rows in plain numpy, the reference of the tests.
+    arrays. Where a class has a compiled kernel (numba), ``compute_into`` calls it (its
+    plain-numpy statement is in the tests, ``tests/reference/tasks.py``).
     """
 
     name: str = ""
@@ -51,10 +50,6 @@ class Task:
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         """Write the rows A (rows x 7) and b of this state."""
         raise NotImplementedError
-
-    def reference_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        """``compute_into`` in plain numpy (the same method for a class without a kernel)."""
-        self.compute_into(terms, A, b)
 
     def compute(self, terms: ModelTerms) -> TaskRows:
         A, b = np.empty((self.rows, terms.q.shape[0])), np.empty(self.rows)
@@ -69,27 +64,6 @@ def rotation_error(target: np.ndarray, rotation: np.ndarray) -> np.ndarray:
 
 def critical_damping(stiffness: float) -> float:
     return 2.0 * float(np.sqrt(stiffness))
-
-
-MAX_GAIN = 1e6
-"""Largest task gain, weight or speed accepted: beyond it the task's rows outweigh the damping
-task (weight 1e-4) by more than 1e10 and the QP's Hessian loses every other objective."""
-
-
-def non_negative(name: str, value) -> float:
-    """``value`` as a float in [0, MAX_GAIN] (gains, weights, speeds); else bad input."""
-    return number_in_range(value, 0.0, MAX_GAIN, name)
-
-
-def finite_array(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
-    """``value`` as a finite float array of ``shape``; else bad input."""
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise BadInputError(f"{name} must be {shape} finite values, got {value!r}") from None
-    if array.shape != shape or not np.all(np.isfinite(array)):
-        raise BadInputError(f"{name} must be {shape} finite values, got {value!r}")
-    return array
 
 
 @njit(cache=True)

@@ -2,8 +2,12 @@ import numpy as np
 import pytest
 from hypothesis import strategies as st
 
-from impactqp.controller.model.robot import PandaModel
-from impactqp.scenarios.robot.interface import RobotInterface
+from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT, PandaModel
+from impactqp.controller.runtime.interface import RobotInterface
+from impactqp.scenarios.run import RunRequest, run
+
+CONTROL_PERIOD = 1e-3
+LIMIT_TOLERANCE = 1e-9
 
 
 @pytest.fixture(scope="session")
@@ -46,3 +50,23 @@ class ForwardingRobot(RobotInterface):
 
     def force_log(self):
         return self.robot.force_log()
+
+
+@pytest.fixture(scope="session")
+def retract_run(tmp_path_factory):
+    """(report, result, log directory) of one logged unpaced run of ``impactqp run``'s default on
+    the sim backend: approach at 0.15 m/s, impact, retract."""
+    log_dir = tmp_path_factory.mktemp("run")
+    report, result = run(RunRequest(speed=0.15, duration=0.6, unpaced=True, log=str(log_dir)))
+    return report, result, log_dir
+
+
+def assert_continuous_within_limits(dq_cmd):
+    """Velocity, acceleration and jerk of commands sent from rest stay inside the datasheet limits."""
+    dq = np.vstack([np.zeros((2, NQ)), dq_cmd])
+    ddq = np.diff(dq, axis=0) / CONTROL_PERIOD
+    jerk = np.diff(ddq, axis=0) / CONTROL_PERIOD
+    assert np.all(np.isfinite(dq))
+    assert np.all(np.abs(dq) <= VELOCITY_LIMIT * (1 + LIMIT_TOLERANCE))
+    assert np.all(np.abs(ddq) <= ACCELERATION_LIMIT * (1 + LIMIT_TOLERANCE))
+    assert np.all(np.abs(jerk) <= JERK_LIMIT * (1 + LIMIT_TOLERANCE))

@@ -13,9 +13,11 @@ from impactqp.scenarios.campaign import (
     PAPER_SPEEDS,
     PAPER_TANGENTIAL_SPEEDS,
     Campaign,
+    CampaignFigures,
     CampaignPlan,
     Table1,
     TableRow,
+    y_limits,
 )
 from impactqp.controller.measured.dataset import read_dataset, validate
 from impactqp.controller.measured.impact import measure_impact
@@ -100,6 +102,50 @@ def test_table1_is_eq26_against_the_jumps_in_the_dataset(campaign_dir):
 def test_figures_are_png(campaign_dir):
     for name in ("jumps_elbow_left.png", "errors_elbow_left.png", "tangential.png"):
         assert (campaign_dir / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def posture_rows(posture, scale, seed):
+    rng = np.random.default_rng(seed)
+    return [
+        TableRow(f"{posture}{k}", posture, v, 0.0, v, {m: 0.1 for m in METHODS}, scale * rng.normal(size=7),
+                 {m: scale * rng.random(7) for m in METHODS})
+        for k, v in enumerate((0.1, 0.15))
+    ]
+
+
+def test_every_figure_panel_is_labelled_and_the_postures_share_their_y_scale(tmp_path, monkeypatch):
+    """Two postures with jumps 10 times apart: their figures still share the y range; the error
+    figure has a panel for every predictor of Table I (classical_normal included)."""
+    import matplotlib.pyplot as plt
+
+    import impactqp.scenarios.campaign as campaign
+
+    figures = []
+    monkeypatch.setattr(campaign, "save_figure", lambda fig, path: figures.append((path.name, fig)) or path)
+    rows = posture_rows("elbow_up", 1.0, 0) + posture_rows("elbow_left", 0.1, 1)
+    CampaignFigures(Table1(rows)).write(tmp_path)
+    by_name = dict(figures)
+    assert sorted(by_name) == [
+        "errors_elbow_left.png", "errors_elbow_up.png", "jumps_elbow_left.png", "jumps_elbow_up.png"
+    ]
+    for kind in ("jumps", "errors"):
+        limits = [by_name[f"{kind}_{p}.png"].axes[0].get_ylim() for p in ("elbow_up", "elbow_left")]
+        assert limits[0] == limits[1]
+    errors = by_name["errors_elbow_up.png"]
+    assert [ax.get_title() for ax in errors.axes] == list(METHODS) and "classical_normal" in METHODS
+    assert "elbow_up" in errors._suptitle.get_text()
+    for name, fig in figures:
+        for ax in fig.axes:
+            assert "(m/s)" in ax.get_xlabel() and "(rad/s)" in ax.get_ylabel(), name
+        plt.close(fig)
+    assert "elbow_up" in by_name["jumps_elbow_up.png"].axes[0].get_title()
+
+
+def test_y_limits_hold_every_value():
+    low, high = y_limits([np.array([-1.0, 2.0]), np.array([0.5])])
+    assert low < -1.0 and high > 2.0
+    assert y_limits([np.array([0.2, 0.3])], zero=True)[0] == 0.0
+    assert y_limits([]) is None
 
 
 def test_running_again_into_the_same_directory_changes_nothing(campaign_dir):

@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 from impactqp.sim.causes import (
     CAUSE_NAMES,
     ArmatureCause,
+    cause_named,
     JointDampingCause,
     PayloadCause,
     default_causes,
@@ -15,6 +16,7 @@ from impactqp.sim.causes import (
     per_group,
 )
 from impactqp.sim.plant import PlantParameters
+from impactqp.controller.model.validation import BadInputError
 
 
 @pytest.mark.parametrize("cause", default_causes(), ids=lambda c: c.name)
@@ -85,3 +87,10 @@ def test_grid_starts_at_the_nominal_value_inside_the_bounds(cause):
     for j in range(len(cause.labels)):
         for side in ("below", "above"):
             assert cause.settling_trials(j, side, float(cause.to_theta(grid[0])[j]), np.array([0.1, 0.2])).strip()
+
+
+def test_a_cause_is_found_by_its_name_and_an_unknown_name_is_bad_input():
+    for name in CAUSE_NAMES:
+        assert cause_named(name).name == name
+    with pytest.raises(BadInputError, match="the cause = 'gravity'; choose from armature"):
+        cause_named("gravity")

@@ -54,6 +54,24 @@ def test_predict_table(capsys):
     assert code == 0
     for name in ("classical", "classical_normal", "gm", "crb", "cond(M)"):
         assert name in out
+    assert "e-0" not in out and "e+0" not in out
+
+
+@pytest.mark.parametrize(
+    "command", [["postures"], ["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1"]]
+)
+def test_contact_points_are_written_with_four_decimals(capsys, command):
+    """The JSON keeps full precision; the text shows each coordinate to 0.1 mm, never 7.9491e-08."""
+    code, out, _ = run(capsys, *command, "--json")
+    points = [r["contact_point"] for r in (json.loads(out) if command == ["postures"] else [json.loads(out)])]
+    code, out, _ = run(capsys, *command)
+    assert code == 0
+    lines = [line for line in out.splitlines() if "contact point" in line]
+    assert len(lines) == len(points)
+    for line, point in zip(lines, points):
+        cells = line.split("[")[1].split("]")[0].split(", ")
+        assert all(len(cell.split(".")[1]) == 4 for cell in cells)
+        np.testing.assert_allclose([float(c) for c in cells], point, atol=0.5e-4)
 
 
 @pytest.mark.parametrize(
@@ -145,3 +163,18 @@ def test_an_internal_error_is_not_reported_as_bad_input(capsys, monkeypatch):
     code, out, err = run(capsys, "--debug", "predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1")
     assert code == 1
     assert "Traceback" in err and "ZeroDivisionError" in err
+
+
+def test_the_progress_callback_drives_a_tqdm_bar():
+    """``bar_progress``: the demo's stage-2 bar follows generate_dataset's progress(done, total)."""
+    import io
+
+    from tqdm import tqdm
+
+    from impactqp.scenarios.cli.arguments import bar_progress
+
+    with tqdm(file=io.StringIO()) as bar:
+        progress = bar_progress(bar)
+        for done in (1, 2, 6):
+            progress(done, 6)
+            assert (bar.n, bar.total) == (done, 6)

@@ -4,8 +4,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from impactqp.controller.command_filter import CommandFilter
 from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT
+from impactqp.controller.runtime.command_filter import CommandFilter
 
 DT = 1e-3
 TOL = 1e-9

@@ -89,6 +89,21 @@ def test_manifest_holds_what_a_robot_log_holds_and_no_plant_parameter(dataset):
     assert not [p for p in dataset.iterdir() if p.name.endswith(".tmp")]
 
 
+def test_an_unknown_friction_stays_out_of_the_manifest(tmp_path, logs):
+    """A header without a known friction (a real robot's log) writes no ``surface.friction`` and
+    reads back as such; the surface then holds the default coefficient."""
+    from dataclasses import replace
+
+    unknown = replace(HEADER, friction_known=False)
+    DatasetWriter(tmp_path, unknown).add_trial(entry("fast", 0.15, logs[0.15]), logs[0.15])
+    manifest = json.loads((tmp_path / "dataset.json").read_text())
+    assert set(manifest["surface"]) == {"point", "normal"}
+    header = read_dataset(tmp_path).header
+    assert header.friction_known is False and header.to_dict() == unknown.to_dict()
+    assert header.surface.friction == DEFAULT_WALL.friction
+    assert validate(tmp_path) == {"dataset": [], "fast": []}
+
+
 def test_valid_dataset_has_no_problem(dataset):
     before = digest(dataset)
     assert validate(dataset) == {"dataset": [], "fast": [], "slow": []}
@@ -153,7 +168,7 @@ def test_validation_reports_a_manifest_disagreeing_with_the_files(dataset):
 
 
 def test_validation_reports_a_broken_manifest(tmp_path):
-    assert validate(tmp_path)["dataset"] == [f"{tmp_path / 'dataset.json'} does not exist: not a dataset directory"]
+    assert validate(tmp_path)["dataset"] == [f"the dataset manifest {tmp_path / 'dataset.json'} does not exist"]
     (tmp_path / "dataset.json").write_text(json.dumps({"format": "other/1"}))
     assert "lacks the key" in validate(tmp_path)["dataset"][0]
     with pytest.raises(DatasetError):

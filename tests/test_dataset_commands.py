@@ -90,3 +90,30 @@ def test_diagnose_without_a_manifest_is_a_clear_error(tmp_path, capsys):
     (tmp_path / "t0000.csv").write_text("t,q1\n0,0\n")
     code, _, err = run(capsys, "diagnose", tmp_path)
     assert code == 2 and "dataset.json" in err and len(err.strip().splitlines()) == 1
+
+
+def test_diagnose_text_is_readable(small_dataset, capsys, monkeypatch):
+    """Booleans as JSON writes them, parameters by joint group, the candidates sorted by gain."""
+    import impactqp.sim.diagnosis as diagnosis
+
+    armature = [1.2] * 4 + [0.3] * 3
+    summary = {
+        "message": "explained", "causes": ["armature"], "explained": True, "parameters": {"armature": armature},
+        "baseline_error": 0.15, "extended_error": 0.003, "gain": 0.98,
+        "steps": [{"cause": "armature", "heldout_error": 0.003, "gain": 0.98, "selected": True}],
+        "parameter_intervals": [{"parameter": "armature joints 1-4 (kg m^2)", "value": 1.2, "interval": [1.1, 1.3]}],
+        "candidates": [
+            {"cause": cause, "heldout_error": 0.1, "gain": gain, "parameters": {}}
+            for cause, gain in (("payload", 0.03), ("armature", 0.98), ("contact", 0.36))
+        ],
+        "predictors": {"crb": 0.07}, "skipped": [],
+    }
+    fake = type("Result", (), {"summary": lambda self: summary})()
+    monkeypatch.setattr(diagnosis, "diagnose", lambda *args, **kwargs: fake)
+    capsys.readouterr()  # the output of the fixture, when it runs first
+    code, out, _ = run(capsys, "diagnose", small_dataset)
+    assert code == 0
+    assert "explained: true" in out and "True" not in out
+    assert "armature (kg m^2): joints 1-4 = 1.2, joints 5-7 = 0.3" in out
+    table = out.split("candidate")[1].splitlines()[1:4]
+    assert [line.split()[0] for line in table] == ["armature", "contact", "payload"]

@@ -7,21 +7,22 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from impactqp.controller.command_filter import CommandFilter
+from conftest import assert_continuous_within_limits
 from impactqp.controller.config import ControllerConfig
 from impactqp.controller.model.postures import POSTURES
-from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT, PandaModel
+from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
-from impactqp.scenarios.robot.franka_backend import (
+from impactqp.controller.runtime.command_filter import CommandFilter
+from impactqp.controller.runtime.franka_backend import (
     FrankaRobot,
     franka_command,
     franka_errors,
     state_from_franka,
 )
-from impactqp.scenarios.robot.libfranka_robot import error_names
-from impactqp.scenarios.robot.loop import ControlLoop
-from impactqp.scenarios.robot.session import ImpactSession
+from impactqp.controller.runtime.libfranka_robot import error_names
+from impactqp.controller.runtime.loop import ControlLoop
+from impactqp.controller.runtime.session import ImpactSession
 
 pylibfranka = pytest.importorskip("pylibfranka", reason="pylibfranka is not installed: pip install -e '.[franka]'")
 
@@ -176,12 +177,7 @@ def test_the_controller_is_prepared_before_real_time_and_the_protocol_holds():
     assert result.watchdog_trips == 0 and np.all(np.diff(result.log.t) > 0.0)
     commands = np.array(fci.commands)  # every command sent, the last one finishing the motion
     assert np.max(np.abs(commands[len(commands) // 2])) > 0.01 and np.all(commands[-1] == 0.0)
-    dq = np.vstack([np.zeros((2, NQ)), commands])
-    ddq = np.diff(dq, axis=0) / 1e-3
-    jerk = np.diff(ddq, axis=0) / 1e-3
-    assert np.all(np.abs(dq) <= VELOCITY_LIMIT * (1 + 1e-9))
-    assert np.all(np.abs(ddq) <= ACCELERATION_LIMIT * (1 + 1e-9))
-    assert np.all(np.abs(jerk) <= JERK_LIMIT * (1 + 1e-9))
+    assert_continuous_within_limits(commands)
 
 
 def run_fci(fci, settings=None, duration=0.1):

@@ -15,14 +15,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from impactqp.controller.measured.dataset import read_dataset, validate
-from impactqp.controller.measured.franka_log import import_franka_logs, read_franka_csv
+from impactqp.controller.measured.franka_log import import_franka_logs, logged_period, read_franka_csv
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.validation import BadInputError
 from impactqp.sim.causes import ArmatureCause, per_group
 from impactqp.sim.diagnosis import diagnose
-from impactqp.sim.generation import generate_dataset
+from impactqp.sim.generation import DatasetRequest, generate_dataset
 from impactqp.sim.plant import PlantParameters
 
 ARMATURE = (0.5, 0.15)
@@ -61,7 +61,7 @@ def source(tmp_path_factory):
     their libfranka logs."""
     directory = tmp_path_factory.mktemp("source")
     plant = PlantParameters(armature=per_group(ARMATURE))
-    generate_dataset(directory, plant=plant, postures=["elbow_up", "elbow_left"], speeds=[0.12], seed=5)
+    generate_dataset(directory, DatasetRequest(plant=plant, postures=["elbow_up", "elbow_left"], speeds=[0.12], seed=5))
     dataset = read_dataset(directory)
     logs = {}
     for separator, tag in ((", ", "old"), (",", "new")):
@@ -113,6 +113,31 @@ def test_imported_logs_diagnose_like_the_dataset_they_came_from(source, tmp_path
     np.testing.assert_allclose(fitted, ArmatureCause().theta_of(original["parameters"]), rtol=0.1)
     np.testing.assert_allclose(fitted, ARMATURE, rtol=0.2)
     assert imported["baseline_error"] == pytest.approx(original["baseline_error"], rel=0.1)
+
+
+def test_the_manifest_holds_the_logged_period_and_no_invented_friction(source, tmp_path):
+    """A 1 ms clock is written as 0.001 s, and a robot log does not know the surface's friction."""
+    import json
+
+    dataset, logs = source
+    import_franka_logs(tmp_path, [logs["new", t.entry.id] for t in dataset.trials], DEFAULT_WALL)
+    text = (tmp_path / "dataset.json").read_text()
+    manifest = json.loads(text)
+    assert manifest["control_period"] == 0.001 and '"control_period": 0.001,' in text
+    assert "friction" not in manifest["surface"]
+    assert read_dataset(tmp_path).header.friction_known is False
+
+
+@given(
+    st.sampled_from([1.0, 0.5, 0.25, 2.0, 4.0, 0.1]),
+    st.integers(min_value=0, max_value=10**9),
+    st.integers(min_value=10, max_value=400),
+)
+def test_the_logged_period_is_the_clock_step_without_rounding_error(step_ms, start_ms, samples):
+    time = start_ms + step_ms * np.arange(samples)
+    period = logged_period(time)
+    assert period == float(f"{step_ms / 1000.0:.6g}")
+    assert len(repr(period)) <= 8  # e.g. 0.00025, never 0.0010000000000000009
 
 
 def test_given_reference_speed_is_used_as_is(source, tmp_path):

@@ -12,18 +12,18 @@ import json
 import numpy as np
 import pytest
 
-from impactqp.controller.command_filter import CommandFilter
+from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.config import ControllerConfig
 from impactqp.controller.measured.impact import WINDOW_AFTER
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import PandaModel
 from impactqp.scenarios.cli import main
-from impactqp.scenarios.robot.franka_backend import FrankaRobot
-from impactqp.scenarios.robot.loop import ControlLoop, STOPPING
-from impactqp.scenarios.robot.run import RunRequest, log_header, start_posture, write_log
-from impactqp.scenarios.robot.run_log import RunLog
-from impactqp.scenarios.robot.session import OBSERVER, ImpactSession
-from impactqp.sim.runner import approach_start
+from impactqp.controller.runtime.franka_backend import FrankaRobot
+from impactqp.controller.runtime.loop import ControlLoop, STOPPING
+from impactqp.scenarios.run import RunRequest, log_header, start_posture, write_log
+from impactqp.controller.runtime.run_log import RunLog
+from impactqp.controller.runtime.session import OBSERVER, ImpactSession
+from impactqp.controller.model.inverse_kinematics import approach_start
 from conftest import ForwardingRobot
 from impactqp.sim.franky_sim import FrankySimServer
 

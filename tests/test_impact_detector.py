@@ -7,9 +7,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from impactqp.controller.measured.impact import DEFAULT_TORQUE_THRESHOLD
-from impactqp.controller.measured.impact_detector import ImpactDetector, MomentumObserver
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.runtime.impact_detector import ImpactDetector, MomentumObserver
 
 DT = 1e-3
 

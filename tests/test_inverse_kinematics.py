@@ -1,18 +1,22 @@
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from impactqp.controller.model.inverse_kinematics import (
     AXIS_TOLERANCE,
     POSITION_TOLERANCE,
+    UnreachableStartError,
+    approach_start,
     contact_posture,
     contact_postures,
-    reference_contact_postures,
 )
 from impactqp.controller.model.batch import BatchKinematics
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
+from impactqp.controller.model.validation import BadInputError
 
 from conftest import joint_positions
+from reference.inverse_kinematics import reference_contact_postures
 
 
 @settings(max_examples=15, deadline=None)
@@ -77,3 +81,48 @@ def test_batched_postures_reach_their_targets_and_follow_the_one_target_iteratio
             assert np.linalg.norm(reached.translation - point) <= POSITION_TOLERANCE
             assert np.linalg.norm(np.cross(reached.rotation[:, 2], -normal)) <= AXIS_TOLERANCE
             assert reached.rotation[:, 2] @ -normal > 0.0
+
+
+def test_start_posture_is_backed_away_along_the_normal_with_the_same_orientation(robot):
+    q_contact = POSTURES["elbow_left"].q
+    q0 = approach_start(robot, q_contact, DEFAULT_WALL, 0.03)
+    contact, start = robot.contact_frame(q_contact), robot.contact_frame(q0)
+    np.testing.assert_allclose(start.translation, contact.translation + 0.03 * DEFAULT_WALL.normal, atol=1e-6)
+    np.testing.assert_allclose(start.rotation, contact.rotation, atol=1e-5)
+    assert np.all((q0 >= robot.q_min) & (q0 <= robot.q_max))
+
+
+def test_start_posture_faces_a_tilted_wall(robot):
+    normal = np.array([-1.0, 0.0, 0.3]) / np.linalg.norm([-1.0, 0.0, 0.3])
+    wall = Surface(point=np.array([0.6, 0.0, 0.7]), normal=normal)
+    q0 = approach_start(robot, POSTURES["elbow_up"].q, wall, 0.02)
+    start = robot.contact_frame(q0)
+    assert wall.signed_distance(start.translation) == pytest.approx(0.02, abs=1e-6)
+    np.testing.assert_allclose(start.rotation[:, 2], -normal, atol=1e-6)
+
+
+def test_unreachable_wall_is_rejected(robot):
+    far = Surface(point=np.array([1.6, 0.0, 0.0]), normal=np.array([-1.0, 0.0, 0.0]))
+    with pytest.raises(UnreachableStartError, match="out of reach"):
+        approach_start(robot, POSTURES["elbow_up"].q, far, 0.02)
+
+
+@settings(max_examples=10, deadline=None)
+@given(name=st.sampled_from(sorted(POSTURES)), distance=st.floats(0.0, 0.1))
+def test_an_approach_start_is_a_contact_posture_on_the_plane_moved_back_by_the_distance(robot, name, distance):
+    """The two uses of the one iteration agree: the start posture, a whole-pose target, already
+    solves the tip-and-axis target of its own point and the surface normal (no step taken)."""
+    posture = POSTURES[name]
+    q0 = approach_start(robot, posture.q, posture.surface, distance)
+    point = robot.contact_point(q0)
+    assert posture.surface.signed_distance(point) == pytest.approx(distance, abs=1e-6)
+    solved = contact_posture(robot, point, posture.surface.normal, q0)
+    assert solved.reachable
+    np.testing.assert_array_equal(solved.q, q0)
+
+
+@pytest.mark.parametrize("distance", [-0.01, float("nan"), float("inf")])
+def test_a_negative_or_non_finite_start_distance_is_bad_input(robot, distance):
+    with pytest.raises(BadInputError, match="start distance"):
+        approach_start(robot, POSTURES["elbow_up"].q, DEFAULT_WALL, distance)
+

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import grimp
+import pytest
 
 import impactqp
 
@@ -18,6 +19,13 @@ def test_import_impactqp_exposes_the_first_names():
     for name in ("PandaModel", "JUMP_MODELS", "jump_model", "ImpactAwareController", "ControllerConfig"):
         assert hasattr(impactqp, name), name
     assert impactqp.__version__ and impactqp.__version__[0].isdigit()
+
+
+def test_the_first_names_are_listed_and_an_unknown_name_is_an_attribute_error():
+    assert set(impactqp.__all__) <= set(dir(impactqp))
+    assert impactqp.PandaModel is impactqp.controller.model.robot.PandaModel
+    with pytest.raises(AttributeError, match="no_such_name"):
+        impactqp.no_such_name
 
 
 def test_only_impactqp_is_importable_outside_the_checkout(tmp_path):

@@ -8,16 +8,16 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from impactqp.controller.command_filter import CommandFilter
+from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.config import ControllerConfig
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT, PandaModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 from impactqp.scenarios.cli import main
-from impactqp.scenarios.robot.loop import ControlLoop
-from impactqp.scenarios.robot.panda_backend import PandaRobot
-from impactqp.scenarios.robot.session import ImpactSession
+from impactqp.controller.runtime.loop import ControlLoop
+from impactqp.controller.runtime.panda_backend import PandaRobot
+from impactqp.controller.runtime.session import ImpactSession
 
 libfranka = pytest.importorskip("panda_py.libfranka", reason="panda-python is not installed: pip install -e '.[panda]'")
 

@@ -38,24 +38,24 @@ def test_partial_file_keeps_the_defaults(tmp_path):
     "values, message",
     [
         ({"armatur": [0.0] * 7}, "unknown plant parameter.*'armatur'"),
-        ({"armature": [0.1] * 6}, "armature needs 7 values"),
-        ({"joint_damping": [0.1] * 6 + [-0.1]}, r"joint_damping\[6\] = -0.1 must lie in \[0, 500\] N m s/rad"),
+        ({"armature": [0.1] * 6}, "armature must be 7 numbers"),
+        ({"joint_damping": [0.1] * 6 + [-0.1]}, r"joint_damping\[6\] must lie in \[0, 500\] N m s/rad, got -0.1"),
         ({"payload_mass": -1.0}, "payload_mass"),
-        ({"payload_com": [0.0, 0.0]}, "payload_com needs 3 values"),
+        ({"payload_com": [0.0, 0.0]}, "payload_com must be 3 numbers"),
         ({"friction": -0.1}, "friction"),
         ({"contact_solref": [-1000.0, -10.0]}, "negative solref"),
-        ({"contact_solimp": [0.9, 0.95, 0.001]}, "contact_solimp needs 5 values"),
+        ({"contact_solimp": [0.9, 0.95, 0.001]}, "contact_solimp must be 5 numbers"),
         ({"contact_solimp": [0.99, 0.9, 0.001, 0.5, 2]}, "dmin <= dmax"),
         ({"servo_gain": 0.0}, "servo_gain"),
         ({"armature": "heavy"}, "armature"),
         # physical ranges (issue 13): a Panda's payload rating plus margin, bounded gains and damping
-        ({"payload_mass": 1e6}, r"payload_mass = 1000000.0 must lie in \[0, 5\] kg"),
-        ({"payload_mass": True}, "payload_mass must be numeric"),
-        ({"armature": [True] + [0.0] * 6}, "armature must be numeric"),
-        ({"armature": [1e9] + [0.0] * 6}, r"armature\[0\] = 1000000000.0 must lie in \[0, 10\]"),
+        ({"payload_mass": 1e6}, r"payload_mass must lie in \[0, 5\] kg, got 1000000.0"),
+        ({"payload_mass": True}, "payload_mass must be a number"),
+        ({"armature": [True] + [0.0] * 6}, "armature must be a vector of numbers"),
+        ({"armature": [1e9] + [0.0] * 6}, r"armature\[0\] must lie in \[0, 10\] kg m\^2, got 1000000000.0"),
         ({"joint_damping": [1e6] * 7}, r"joint_damping\[0\]"),
         ({"payload_com": [0.0, 0.0, 5.0]}, r"payload_com\[2\]"),
-        ({"friction": 1e9}, r"friction = 1000000000.0 must lie in \[0, 2\]"),
+        ({"friction": 1e9}, r"friction must lie in \[0, 2\], got 1000000000.0"),
         ({"servo_gain": 1e9}, "servo_gain"),
         ({"contact_solref": [100.0, 1.0]}, "time constant in"),
     ],
@@ -67,12 +67,10 @@ def test_bad_overrides_are_rejected_with_clear_messages(tmp_path, values, messag
         PlantParameters.from_json(path)
 
 
-def test_unreadable_files_are_rejected(tmp_path):
-    with pytest.raises(PlantParameterError, match="does not exist"):
+def test_unreadable_files_are_plant_parameter_errors(tmp_path):
+    """The reader's failures (tests/test_files.py) come as the plant's own kind of bad input."""
+    with pytest.raises(PlantParameterError, match="plant parameter file .* does not exist"):
         PlantParameters.from_json(tmp_path / "missing.json")
-    (tmp_path / "bad.json").write_text("{armature: 1")
-    with pytest.raises(PlantParameterError, match="not valid JSON"):
-        PlantParameters.from_json(tmp_path / "bad.json")
     (tmp_path / "list.json").write_text("[1, 2]")
     with pytest.raises(PlantParameterError, match="JSON object"):
         PlantParameters.from_json(tmp_path / "list.json")

@@ -1,10 +1,17 @@
-"""The Panda model: fingers locked, real inertials, contact tool, limits, postures."""
+"""The robot model: fingers locked, real inertials, contact tool, limits, postures; every robot
+with every tool."""
+
+import xml.etree.ElementTree as ET
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import joint_positions
 from hypothesis import given, settings
+from hypothesis import strategies as st
+from test_jump import welded_arm_inverse_inertia
 
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.model.postures import POSTURES, DEFAULT_WALL, Surface, posture
@@ -13,8 +20,12 @@ from impactqp.controller.model.robot import (
     HAND_FRAME,
     TOOL_TIP_OFFSET,
     InvalidStateError,
+    RobotModel,
     SingularPostureError,
 )
+from impactqp.controller.model.jump import crb_inverse_inertia
+from impactqp.controller.model.robot_description import ROBOTS
+from impactqp.controller.model.tool_description import TOOLS
 
 # A posture inside the limits where the contact Jacobian loses rank (found by minimising its
 # smallest singular value).
@@ -152,3 +163,134 @@ def test_singularity_is_detected_by_refill_too(robot):
     with pytest.raises(SingularPostureError):
         robot.update_terms(buffer, SINGULAR_Q, np.zeros(7))
     assert buffer.stamp == stamp  # a refused state leaves the buffer as it was
+
+
+# ---------------------------------------------------------------- every robot with every tool
+ROBOT_TOOLS = [(robot, tool) for robot in ROBOTS for tool in TOOLS]
+
+
+@pytest.fixture(scope="module", params=ROBOT_TOOLS, ids=lambda pair: "-".join(pair))
+def model(request):
+    return RobotModel(*request.param)
+
+
+def model_positions(model, u):
+    return model.q_min + 0.1 + np.asarray(u) * (model.q_max - model.q_min - 0.2)
+
+
+unit_cube = st.lists(st.floats(0.0, 1.0), min_size=7, max_size=7)
+
+
+@settings(max_examples=15, deadline=None)
+@given(u=unit_cube)
+def test_crb_inverse_inertia_is_the_welded_body_for_every_robot_and_tool(model, u):
+    q = model_positions(model, u)
+    try:
+        terms = model.terms(q)
+    except SingularPostureError:
+        return
+    np.testing.assert_allclose(crb_inverse_inertia(terms), welded_arm_inverse_inertia(model, q), atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def loaded_and_bare(model):
+    """The model's tool (given a mass when it has none) and the same tool without mass."""
+    tool = model.tool
+    if tool.mass == 0.0:
+        tool = replace(tool, mass=1.2, com=tool.contact_point, inertia=np.diag([2e-3, 2e-3, 1e-3]))
+    bare = replace(tool, mass=0.0, com=np.zeros(3), inertia=np.zeros((3, 3)))
+    return RobotModel(model.description, tool), RobotModel(model.description, bare)
+
+
+@settings(max_examples=15, deadline=None)
+@given(u=unit_cube)
+def test_a_tools_mass_is_a_payload_of_its_link(loaded_and_bare, u):
+    """The tool adds exactly a rigid body on its frame: to M its J_b^T I J_b (J_b the body
+    Jacobian of the frame, I the tool's spatial inertia there), and to the locked inertia of the
+    CRB model (20) its inertia moved to the world."""
+    loaded_model, bare = loaded_and_bare
+    tool = loaded_model.tool
+    q = model_positions(bare, u)
+    loaded, empty = loaded_model.terms(q, check_limits=False), bare.terms(q, check_limits=False)
+    Jb = pin.computeFrameJacobian(bare.model, bare.data, q, bare.tool_frame_id, pin.LOCAL)
+    np.testing.assert_allclose(loaded.M, empty.M + Jb.T @ tool.spatial_inertia.matrix() @ Jb, atol=1e-12)
+    pin.framesForwardKinematics(bare.model, bare.data, q)
+    world_tool = bare.data.oMf[bare.tool_frame_id].act(tool.spatial_inertia)
+    expected = pin.Inertia(empty.mass, empty.com, empty.inertia_com) + world_tool
+    assert loaded.mass == pytest.approx(empty.mass + tool.mass, abs=1e-12)
+    np.testing.assert_allclose(loaded.com, expected.lever, atol=1e-12)
+    np.testing.assert_allclose(loaded.inertia_com, expected.inertia, atol=1e-12)
+
+
+def test_contact_frame_is_the_tools_contact_point(model):
+    q = model.description.postures["elbow_up"].q
+    mount = model.model.frames[model.tool_frame_id]
+    assert mount.name == model.description.frame_of(model.tool)
+    pin.framesForwardKinematics(model.model, model.data, q)
+    frame = model.data.oMf[model.tool_frame_id]
+    np.testing.assert_allclose(model.contact_point(q), frame.act(model.tool.contact_point), atol=1e-12)
+    np.testing.assert_allclose(model.contact_frame(q).rotation, frame.rotation, atol=1e-12)
+
+
+def urdf_inertia(link) -> pin.Inertia:
+    """A URDF link's inertial element as a Pinocchio inertia in the link frame."""
+    inertial = link.find("inertial")
+    origin = inertial.find("origin")
+    assert origin.get("rpy", "0 0 0").split() == ["0", "0", "0"]
+    i = {k: float(v) for k, v in inertial.find("inertia").attrib.items()}
+    I = np.array([[i["ixx"], i["ixy"], i["ixz"]], [i["ixy"], i["iyy"], i["iyz"]], [i["ixz"], i["iyz"], i["izz"]]])
+    com = np.array(list(map(float, origin.get("xyz").split())))
+    return pin.Inertia(float(inertial.find("mass").get("value")), com, I)
+
+
+def test_fr3_links_are_franka_descriptions():
+    """franky-sim's fr3.urdf is franka_description's FR3 (its NOTICE): the model's link inertias
+    are that file's, read here independently of Pinocchio's parser."""
+    model = RobotModel("fr3", "pad")  # the bare arm: link 7 carries the pad only
+    root = ET.parse(model.description.urdf_path()).getroot()
+    links = {link.get("name"): link for link in root.findall("link")}
+    for i in range(1, 7):
+        assert model.model.inertias[i].isApprox(urdf_inertia(links[f"fr3_link{i}"]), 1e-12)
+    flange = model.model.frames[model.tool_frame_id].placement
+    expected7 = urdf_inertia(links["fr3_link7"]) + flange.act(model.tool.spatial_inertia)
+    assert model.model.inertias[7].isApprox(expected7, 1e-12)
+
+
+def test_fr3_inverse_inertia_agrees_with_the_menagerie_fr3():
+    """A second source: MuJoCo Menagerie's FR3 with the Franka Hand (franky-sim's fr3.xml, its
+    inertias rounded and diagonalised independently) gives the Franka Hand's contact-point
+    inverse inertia J M^-1 J^T within 5 % of ours (arm block of M: locking the fingers removes
+    their rows; rotor armature set to zero, the URDF has none)."""
+    import importlib.util
+
+    import mujoco
+
+    xml = Path(importlib.util.find_spec("franky_sim").origin).parent / "assets" / "fr3.xml"
+    spec = mujoco.MjSpec.from_file(str(xml))
+    spec.meshdir = str(xml.parent / "meshes")
+    menagerie = spec.compile()
+    menagerie.dof_armature[:] = 0.0
+    data = mujoco.MjData(menagerie)
+    ours = RobotModel("fr3", "franka_hand")
+    hand = mujoco.mj_name2id(menagerie, mujoco.mjtObj.mjOBJ_BODY, "hand")
+    for posture in ours.description.postures.values():
+        data.qpos[:] = 0.0
+        data.qpos[:7] = posture.q
+        mujoco.mj_forward(menagerie, data)
+        M = np.zeros((menagerie.nv, menagerie.nv))
+        mujoco.mj_fullM(menagerie, data, M)
+        point = data.xpos[hand] + data.xmat[hand].reshape(3, 3) @ ours.tool.contact_point
+        J = np.zeros((3, menagerie.nv))
+        mujoco.mj_jac(menagerie, data, J, None, point, hand)
+        W = J[:, :7] @ np.linalg.solve(M[:7, :7], J[:, :7].T)
+        terms = ours.terms(posture.q)
+        np.testing.assert_allclose(terms.contact_point, point, atol=1e-9)
+        W_ours = terms.J @ np.linalg.solve(terms.M, terms.J.T)
+        assert np.linalg.norm(W - W_ours) <= 0.05 * np.linalg.norm(W_ours)
+
+
+def test_unknown_robot_or_tool_is_bad_input():
+    with pytest.raises(BadInputError, match="unknown robot"):
+        RobotModel("kuka")
+    with pytest.raises(BadInputError, match="unknown tool"):
+        RobotModel("fr3", "hammer")

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from impactqp.controller.measured.dataset import read_dataset
+from impactqp.scenarios import run as run_module
 from impactqp.scenarios.cli import main
-from impactqp.scenarios.robot import run as run_module
 from conftest import ForwardingRobot
 
 HAS_PYLIBFRANKA = importlib.util.find_spec("pylibfranka") is not None
@@ -52,7 +52,7 @@ def test_franka_without_pylibfranka_says_how_to_install_it(capsys, monkeypatch):
 
 
 def test_bad_input_gets_one_line(tmp_path, capsys):
-    assert "No such file" in one_error_line(capsys, ["run", "--config", str(tmp_path / "missing.toml")])
+    assert "does not exist" in one_error_line(capsys, ["run", "--config", str(tmp_path / "missing.toml")])
     bad = tmp_path / "bad.toml"
     bad.write_text("nonsense_key = 1\n")
     assert "unknown configuration keys" in one_error_line(capsys, ["run", "--config", str(bad)])
@@ -142,3 +142,17 @@ def replace_posture_target(config, target):
 
     tasks = [TaskConfig(t.type, {**t.params, "target": target}) if t.type == "posture" else t for t in config.tasks]
     return replace(config, tasks=tasks)
+
+
+def test_every_option_of_run_is_a_request_field_of_the_same_name_and_every_field_is_documented():
+    from dataclasses import fields
+
+    from impactqp.scenarios.cli.run_command import run_command
+    from impactqp.scenarios.run import RunRequest
+
+    names = {f.name for f in fields(RunRequest)}
+    options = {p.name for p in run_command.params} - {"as_json"}
+    assert options <= names
+    for name in names:
+        assert f"\n    {name}\n" in RunRequest.__doc__, name
+    assert RunRequest().unpaced is False and RunRequest().log is None

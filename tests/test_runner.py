@@ -4,14 +4,13 @@ import numpy as np
 import pytest
 
 from impactqp.controller.config import ControllerConfig, build_controller
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
+from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.measured.impact import measure_impact
+from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.sim.runner import (
     CartesianApproachCommand,
     CommandReplay,
-    UnreachableStartError,
-    approach_start,
     TrialSpec,
     run_approach,
     run_trial,
@@ -30,30 +29,6 @@ def scene():
 @pytest.fixture(scope="module")
 def log(scene):
     return run_approach(scene, ROBOT, TrialSpec("elbow_right", POSTURES["elbow_right"].q, SPEED))
-
-
-def test_start_posture_is_backed_away_along_the_normal_with_the_same_orientation():
-    q_contact = POSTURES["elbow_left"].q
-    q0 = approach_start(ROBOT, q_contact, DEFAULT_WALL, 0.03)
-    contact, start = ROBOT.contact_frame(q_contact), ROBOT.contact_frame(q0)
-    np.testing.assert_allclose(start.translation, contact.translation + 0.03 * DEFAULT_WALL.normal, atol=1e-6)
-    np.testing.assert_allclose(start.rotation, contact.rotation, atol=1e-5)
-    assert np.all((q0 >= ROBOT.q_min) & (q0 <= ROBOT.q_max))
-
-
-def test_start_posture_faces_a_tilted_wall():
-    normal = np.array([-1.0, 0.0, 0.3]) / np.linalg.norm([-1.0, 0.0, 0.3])
-    wall = Surface(point=np.array([0.6, 0.0, 0.7]), normal=normal)
-    q0 = approach_start(ROBOT, POSTURES["elbow_up"].q, wall, 0.02)
-    start = ROBOT.contact_frame(q0)
-    assert wall.signed_distance(start.translation) == pytest.approx(0.02, abs=1e-6)
-    np.testing.assert_allclose(start.rotation[:, 2], -normal, atol=1e-6)
-
-
-def test_unreachable_wall_is_rejected():
-    far = Surface(point=np.array([1.6, 0.0, 0.0]), normal=np.array([-1.0, 0.0, 0.0]))
-    with pytest.raises(UnreachableStartError, match="out of reach"):
-        approach_start(ROBOT, POSTURES["elbow_up"].q, far, 0.02)
 
 
 def test_log_has_one_sample_per_control_period_and_force_at_the_physics_rate(log, scene):

@@ -1,5 +1,7 @@
 """The MuJoCo scene is the same robot as the Pinocchio model, with one tool/wall contact pair."""
 
+from dataclasses import replace
+
 import mujoco
 import numpy as np
 import pinocchio as pin
@@ -8,7 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
-from impactqp.controller.model.robot import TOOL_CENTRE_OFFSET, TOOL_RADIUS, PandaModel
+from impactqp.controller.model.robot import TOOL_CENTRE_OFFSET, TOOL_RADIUS, PandaModel, RobotModel
+from impactqp.controller.model.robot_description import ROBOTS
+from impactqp.controller.model.tool_description import TOOLS, Sphere
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.scene import CONTACT_CONDIM, build_scene
 
@@ -93,3 +97,55 @@ def test_bad_timestep_is_rejected(timestep):
 def test_contact_time_constant_below_two_timesteps_is_rejected():
     with pytest.raises(ValueError, match="twice the timestep"):
         build_scene(plant=PlantParameters(contact_solref=(0.0004, 1.0)))
+
+
+# ---------------------------------------------------------------- every robot with every tool
+SCENES = {(robot, tool): (build_scene(robot=robot, tool=tool), RobotModel(robot, tool))
+          for robot in ROBOTS for tool in TOOLS}
+
+
+@pytest.mark.parametrize("robot, tool", list(SCENES), ids=[f"{r}-{t}" for r, t in SCENES])
+@settings(max_examples=10, deadline=None)
+@given(u=st.lists(st.floats(0.0, 1.0), min_size=7, max_size=7))
+def test_mass_matrix_equals_pinocchio_for_every_robot_and_tool(robot, tool, u):
+    scene, model = SCENES[robot, tool]
+    q = model.q_min + np.asarray(u) * (model.q_max - model.q_min)
+    scene.set_state(q, np.zeros(7))
+    M = pin.crba(model.model, model.data, q)
+    M = np.triu(M) + np.triu(M, 1).T
+    assert np.abs(scene.mass_matrix() - M).max() <= 1e-6 * np.abs(M).max()
+    assert scene.model.body_mass.sum() == pytest.approx(sum(i.mass for i in model.model.inertias), abs=1e-9)
+
+
+@pytest.mark.parametrize("robot, tool", list(SCENES), ids=[f"{r}-{t}" for r, t in SCENES])
+def test_tool_geometry_sits_where_the_model_puts_it(robot, tool):
+    scene, model = SCENES[robot, tool]
+    geometry = model.tool.geometry
+    q = model.description.postures["elbow_left"].q
+    pin.framesForwardKinematics(model.model, model.data, q)
+    frame = model.data.oMf[model.tool_frame_id]
+    np.testing.assert_allclose(scene.tool_centre(q), frame.act(geometry.centre), atol=1e-9)
+    if isinstance(geometry, Sphere):
+        assert scene.model.geom_type[scene.tool_geom] == mujoco.mjtGeom.mjGEOM_SPHERE
+        assert scene.model.geom_size[scene.tool_geom][0] == geometry.radius
+    else:
+        assert scene.model.geom_type[scene.tool_geom] == mujoco.mjtGeom.mjGEOM_BOX
+        np.testing.assert_allclose(scene.model.geom_size[scene.tool_geom], geometry.size / 2)
+        data = mujoco.MjData(scene.model)
+        data.qpos[:] = q
+        mujoco.mj_kinematics(scene.model, data)
+        np.testing.assert_allclose(data.geom_xmat[scene.tool_geom].reshape(3, 3), frame.rotation @ geometry.rotation,
+                                   atol=1e-9)
+
+
+@pytest.mark.parametrize("robot", list(ROBOTS))
+def test_a_point_mass_tool_is_the_plants_payload(robot):
+    """The tool's mass in the scene is the plant's payload of the same mass at the same place."""
+    tip = TOOLS["impact_tip"]
+    heavy = replace(tip, mass=0.8, com=tip.contact_point + [0.0, 0.0, 0.01])
+    with_tool = build_scene(robot=robot, tool=heavy)
+    with_payload = build_scene(robot=robot, plant=PlantParameters(payload_mass=0.8, payload_com=(0.0, 0.0, 0.01)))
+    q = ROBOTS[robot].postures["elbow_right"].q
+    for scene in (with_tool, with_payload):
+        scene.set_state(q, np.zeros(7))
+    np.testing.assert_allclose(with_tool.mass_matrix(), with_payload.mass_matrix(), atol=1e-12)

@@ -102,7 +102,7 @@ def plant_files(tmp_path_factory):
         (["simulate", "--posture", "elbow_up", "--speed", "0"], r"\(0, 3\] m/s"),
         (["simulate", "--posture", "elbow_up", "--speed", "-0.1"], r"\(0, 3\] m/s"),
         (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{dir}/unknown.json"], "unknown plant parameter"),
-        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{dir}/shape.json"], "armature needs 7 values"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{dir}/shape.json"], "armature must be 7 numbers"),
         (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{dir}/missing.json"], "does not exist"),
         (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--wall-point", "1.6,0,0"], "out of reach"),
         (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--wall-normal", "0,0,0"], "zero"),

@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError
-from impactqp.scenarios.robot.interface import RobotState
-from impactqp.scenarios.robot.start_move import START_MOVE_SCALE, StartMove
-from impactqp.sim.runner import approach_start
+from impactqp.controller.runtime.interface import RobotState
+from impactqp.controller.runtime.start_move import START_MOVE_SCALE, StartMove
+from impactqp.controller.model.inverse_kinematics import approach_start
 from conftest import joint_positions
 
 pytest.importorskip("ruckig", reason="ruckig is not installed: pip install -e '.[franka]'")

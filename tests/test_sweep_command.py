@@ -75,7 +75,7 @@ def test_a_simulated_cell_is_the_highest_feasible_speed_on_the_plant_of_the_plan
 
 
 BAD_CONFIGS = [
-    ("[grid\n", "malformed"),
+    ("[grid\n", "not valid TOML"),
     ("[grid]\nfoo = 1\n", "unknown key grid.foo"),
     ("", "needs a [grid] table"),
     (EXAMPLE.replace('normals = [[-1.0, 0.0, 0.0]]', "normals = []"), "empty"),

@@ -71,5 +71,5 @@ def test_bad_configs_are_refused_with_a_message_naming_the_key(edit, message):
 def test_a_malformed_file_is_bad_input(tmp_path):
     path = tmp_path / "c.toml"
     path.write_text("[grid\n")
-    with pytest.raises(BadInputError, match="malformed"):
+    with pytest.raises(BadInputError, match="the sweep config .* is not valid TOML"):
         load_config(path)

@@ -27,22 +27,32 @@ existing, different manifest or trial file silently. :func:`validate` only reads
 
 from __future__ import annotations
 
+import functools
 import io
 import json
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.prediction import default_robot
 from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET
-from impactqp.controller.model.validation import BadInputError, approach_speed
+from impactqp.controller.model.files import read_mapping
+from impactqp.controller.model.validation import (
+    BadInputError,
+    approach_speed,
+    file_inside,
+    non_empty_string,
+    number,
+    numbers,
+)
 
 from .atomic import write_text_atomic
 from .impact import WINDOW_AFTER, WINDOW_BEFORE, ImpactNotFoundError, measure_impact
-from .json_file import read_json_object
 from .trial_log import TrialLog
 
 FORMAT = "impactqp-dataset/1"
@@ -65,6 +75,9 @@ MAX_TOOL_LENGTH = 0.5
 """m: the farthest a contact point may lie from its tool frame."""
 MIN_CONTROL_PERIOD, MAX_CONTROL_PERIOD = 1e-4, 1e-2
 """s: the control periods a log may have (10 kHz to 100 Hz)."""
+DIRECTORY = "the dataset directory"
+"""Where every file a manifest names must lie."""
+T = TypeVar("T")
 MANIFEST_KEYS = {"format", "robot", "tool", "surface", "control_period", "trials"}
 TRIAL_KEYS = {"id", "file", "reference_normal_speed"}
 OPTIONAL_TRIAL_KEYS = {"force_file", "reference_tangential_velocity", "posture", "impact_time"}
@@ -127,12 +140,15 @@ class TrialEntry:
 
 @dataclass(frozen=True)
 class DatasetHeader:
-    """Everything of the manifest but the trial list."""
+    """Everything of the manifest but the trial list. ``friction_known`` is false when the data
+    do not know the surface's friction coefficient (a real robot's log; the manifest leaves
+    ``surface.friction`` out and ``surface`` holds the default)."""
 
     tool: Tool
     surface: Surface
     control_period: float
     robot: str = "panda"
+    friction_known: bool = True
 
     def to_dict(self) -> dict:
         return {
@@ -142,7 +158,7 @@ class DatasetHeader:
             "surface": {
                 "point": self.surface.point.tolist(),
                 "normal": self.surface.normal.tolist(),
-                "friction": self.surface.friction,
+                **({"friction": self.surface.friction} if self.friction_known else {}),
             },
             "control_period": self.control_period,
         }
@@ -228,7 +244,7 @@ def _force_csv(log: TrialLog) -> str:
 
 # ---------------------------------------------------------------------------- reading
 def _load_manifest(path: Path) -> dict:
-    manifest = read_json_object(path, DatasetError, "{path} does not exist: not a dataset directory")
+    manifest = read_mapping(path, "the dataset manifest", "json", DatasetError)
     missing = MANIFEST_KEYS - set(manifest)
     if missing:
         raise DatasetError(f"{path} lacks the key(s) {', '.join(sorted(missing))}")
@@ -241,61 +257,51 @@ def _load_manifest(path: Path) -> dict:
     return manifest
 
 
-def _number(value, where: str) -> float:
-    """A JSON number (not a boolean, not a string) as a float."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise DatasetError(f"{where} must be a number, got a {type(value).__name__}")
-    return float(value)
+def _dataset_errors(parse: Callable[[dict], T]) -> Callable[[dict], T]:
+    """``parse`` with the bad input of the shared validators raised as :class:`DatasetError`
+    (``validate`` reports a dataset's problems, it does not stop at them)."""
+
+    @functools.wraps(parse)
+    def parse_dataset(value: dict) -> T:
+        try:
+            return parse(value)
+        except DatasetError:
+            raise
+        except BadInputError as error:
+            raise DatasetError(str(error)) from None
+
+    return parse_dataset
 
 
-def _string(value, where: str) -> str:
-    if not isinstance(value, str) or not value:
-        raise DatasetError(f"{where} must be a non-empty string, got a {type(value).__name__}")
-    return value
-
-
-def _numbers(value, count: int, where: str) -> tuple[float, ...]:
-    if not isinstance(value, list) or len(value) != count:
-        raise DatasetError(f"{where} must be a list of {count} numbers")
-    return tuple(_number(x, f"{where}[{i}]") for i, x in enumerate(value))
-
-
-def _file_name(value, where: str) -> str:
-    """A file of the dataset: a plain relative path that stays inside the dataset directory."""
-    name = _string(value, where)
-    path = Path(name)
-    if path.is_absolute() or ".." in path.parts or name.startswith("~"):
-        raise DatasetError(f"{where} must name a file inside the dataset directory")
-    return name
-
-
+@_dataset_errors
 def _parse_header(manifest: dict) -> DatasetHeader:
     tool, surface = manifest["tool"], manifest["surface"]
     if not isinstance(tool, dict) or set(tool) != {"frame", "contact_point"}:
         raise DatasetError("'tool' must be an object with the keys frame and contact_point")
     if not isinstance(surface, dict) or not {"point", "normal"} <= set(surface) <= {"point", "normal", "friction"}:
         raise DatasetError("'surface' must be an object with the keys point, normal and optionally friction")
-    frame = _string(tool["frame"], "tool.frame")
-    contact_point = _numbers(tool["contact_point"], 3, "tool.contact_point")
+    frame = non_empty_string(tool["frame"], "tool.frame")
+    contact_point = numbers(tool["contact_point"], 3, "tool.contact_point")
     if not all(np.isfinite(contact_point)) or np.linalg.norm(contact_point) > MAX_TOOL_LENGTH:
         raise DatasetError(f"tool.contact_point must be finite and within {MAX_TOOL_LENGTH} m of its frame")
-    period = _number(manifest["control_period"], "control_period")
+    period = number(manifest["control_period"], "control_period")
     if not (np.isfinite(period) and MIN_CONTROL_PERIOD <= period <= MAX_CONTROL_PERIOD):
         raise DatasetError(
             f"control_period must lie in [{MIN_CONTROL_PERIOD}, {MAX_CONTROL_PERIOD}] s, got {period}"
         )
-    friction = [_number(surface["friction"], "surface.friction")] if "friction" in surface else []
+    friction = [number(surface["friction"], "surface.friction")] if "friction" in surface else []
+    point, normal = numbers(surface["point"], 3, "surface.point"), numbers(surface["normal"], 3, "surface.normal")
     try:
-        plane = Surface(
-            _numbers(surface["point"], 3, "surface.point"), _numbers(surface["normal"], 3, "surface.normal"), *friction
-        )
-    except DatasetError:
-        raise
+        plane = Surface(point, normal, *friction)
     except BadInputError as error:
         raise DatasetError(f"surface: {error}") from None
-    return DatasetHeader(tool=Tool(frame, contact_point), surface=plane, control_period=period, robot=manifest["robot"])
+    return DatasetHeader(
+        tool=Tool(frame, contact_point), surface=plane, control_period=period, robot=manifest["robot"],
+        friction_known=bool(friction),
+    )
 
 
+@_dataset_errors
 def _parse_entry(entry: dict) -> TrialEntry:
     """One trial of the manifest, every value type-checked; messages name the trial and the key."""
     if not isinstance(entry, dict):
@@ -308,17 +314,14 @@ def _parse_entry(entry: dict) -> TrialEntry:
     unknown = set(entry) - TRIAL_KEYS - OPTIONAL_TRIAL_KEYS
     if unknown:
         raise DatasetError(f"{label} has unknown key(s) {', '.join(sorted(map(str, unknown)))}")
-    trial_id = _string(trial_id, "a trial's id")
+    trial_id = non_empty_string(trial_id, "a trial's id")
     if trial_id == RESERVED_ID:
         raise DatasetError(f"the trial id {RESERVED_ID!r} is reserved for the manifest's own problems")
-    speed = _number(entry["reference_normal_speed"], f"{label}: reference_normal_speed")
-    try:
-        approach_speed(speed, f"{label}: reference_normal_speed")
-    except BadInputError as error:
-        raise DatasetError(str(error)) from None
+    what = f"{label}: reference_normal_speed"
+    speed = approach_speed(number(entry["reference_normal_speed"], what), what)
     tangential = entry.get("reference_tangential_velocity")
     if tangential is not None:
-        tangential = _numbers(tangential, 3, f"{label}: reference_tangential_velocity")
+        tangential = numbers(tangential, 3, f"{label}: reference_tangential_velocity")
         if not all(np.isfinite(tangential)):
             raise DatasetError(f"{label}: reference_tangential_velocity must be finite")
     impact_time = entry.get("impact_time")
@@ -326,12 +329,12 @@ def _parse_entry(entry: dict) -> TrialEntry:
     force_file = entry.get("force_file")
     return TrialEntry(
         id=trial_id,
-        file=_file_name(entry["file"], f"{label}: file"),
+        file=file_inside(entry["file"], f"{label}: file", DIRECTORY),
         reference_normal_speed=speed,
-        force_file=None if force_file is None else _file_name(force_file, f"{label}: force_file"),
+        force_file=None if force_file is None else file_inside(force_file, f"{label}: force_file", DIRECTORY),
         reference_tangential_velocity=tangential,
-        posture=None if posture is None else _string(posture, f"{label}: posture"),
-        impact_time=None if impact_time is None else _number(impact_time, f"{label}: impact_time"),
+        posture=None if posture is None else non_empty_string(posture, f"{label}: posture"),
+        impact_time=None if impact_time is None else number(impact_time, f"{label}: impact_time"),
     )
 
 

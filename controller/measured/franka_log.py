@@ -19,6 +19,11 @@ period: the ``state.tau_J`` of the next row as well. The last row, whose followi
 logged, is dropped. Mapping: ``t = (time - time[0]) / 1000`` (s), ``q = state.q``,
 ``dq = state.dq`` (row k), ``tau = state.tau_J`` and ``dq_cmd = cmd.dq_d`` (row k + 1).
 
+The dataset's control period is the median step of the logged clock, rounded to the clock's
+logged resolution (``logged_period``: a 1 ms clock gives 0.001 s). A log does not know the
+surface's friction coefficient, so the manifest leaves ``surface.friction`` out (readers then
+take the default of ``controller.model.postures.Surface``).
+
 One log is one trial. Without a given reference speed, it is estimated from the log: the
 impact is detected from the torque residual (``controller.measured.impact``, no force sensor),
 and the reference velocity is the commanded velocity of the contact point, v = J(q) dq_cmd,
@@ -44,7 +49,7 @@ import pinocchio as pin
 
 from impactqp.controller.model.postures import POSTURES, Surface
 from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET, PandaModel
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import BadInputError, finite_vector, positive
 
 from .dataset import DatasetError, DatasetHeader, DatasetWriter, Tool, TrialEntry
 from .impact import ImpactNotFoundError, measure_impact
@@ -71,6 +76,7 @@ REFERENCE_WINDOW = 20
 REFERENCE_GAP = 3
 REFERENCE_ROUNDING = 1e-3
 POSTURE_TOLERANCE = 0.1
+MAX_TIME_DECIMALS = 6  # the clock (ms) is logged to at most a nanosecond
 _INDEXED = re.compile(r"^(?P<name>[A-Za-z_.]+)\[(?P<index>\d+)\]$")
 
 
@@ -84,6 +90,7 @@ class FrankaTrial:
     reference_tangential_velocity: tuple[float, float, float]
     posture: str | None
     impact_time: float | None
+    control_period: float
 
 
 def _columns(path: Path, header: str) -> dict[str, int]:
@@ -158,6 +165,19 @@ def trial_log_of(path: str | Path, columns: dict[str, np.ndarray]) -> TrialLog:
     )
 
 
+def logged_period(time_ms: np.ndarray) -> float:
+    """The control period (s) of a log whose clock ``time_ms`` is in ms: the median step rounded
+    to the clock's logged resolution, the fewest decimals (at most ``MAX_TIME_DECIMALS``) that
+    write every time stamp, so that the division by 1000 adds no binary rounding error."""
+    exact = 10.0**-MAX_TIME_DECIMALS
+    decimals = next(
+        (d for d in range(MAX_TIME_DECIMALS) if np.all(np.abs(time_ms - np.round(time_ms, d)) <= exact)),
+        MAX_TIME_DECIMALS,
+    )
+    step = round(float(np.median(np.diff(time_ms))), decimals)
+    return round(step / 1000.0, decimals + 3)
+
+
 def contact_velocity(robot: PandaModel, frame: str, point: np.ndarray, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     """World velocity (m/s) of the point ``point`` (m, in ``frame``) at the state (q, dq)."""
     model, data = robot.model, robot.data
@@ -186,7 +206,8 @@ def import_trial(
 ) -> FrankaTrial:
     """Read one libfranka log and estimate its reference velocity (module docstring)."""
     path = Path(path)
-    log = trial_log_of(path, read_franka_csv(path))
+    columns = read_franka_csv(path)
+    log = trial_log_of(path, columns)
     try:
         impact = measure_impact(log)
     except ImpactNotFoundError as error:
@@ -220,6 +241,7 @@ def import_trial(
         reference_tangential_velocity=tuple(float(x) for x in tangential),
         posture=nearest_posture(log.q[impact.pre_index]) if impact is not None else None,
         impact_time=float(log.t[impact.pre_index]) if impact is not None else None,
+        control_period=logged_period(columns["time"]),
     )
 
 
@@ -248,11 +270,9 @@ def import_franka_logs(
     the trial entries. Every log is read and checked before the first file is written."""
     if not logs:
         raise BadInputError("give at least one libfranka log")
-    if reference_speed is not None and not (np.isfinite(reference_speed) and reference_speed > 0.0):
-        raise BadInputError(f"--reference-speed must be > 0 m/s, got {reference_speed}")
-    point = np.asarray(contact_point, dtype=float)
-    if point.shape != (3,) or not np.all(np.isfinite(point)):
-        raise BadInputError(f"the contact point must be 3 finite numbers, got {contact_point!r}")
+    if reference_speed is not None:
+        positive(reference_speed, "--reference-speed", "m/s")
+    point = finite_vector(contact_point, 3, "the contact point")
     robot = PandaModel()
     if not robot.model.existFrame(tool_frame):
         raise BadInputError(f"--tool-frame {tool_frame!r} is not a frame of the Panda model (e.g. {HAND_FRAME!r})")
@@ -261,11 +281,12 @@ def import_franka_logs(
         import_trial(p, surface, robot=robot, tool_frame=tool_frame, contact_point=point, reference_speed=reference_speed)
         for p in paths
     ]
-    periods = [t.log.control_period for t in trials]
+    periods = [t.control_period for t in trials]
     if np.ptp(periods) > 1e-6:
         raise BadInputError(f"the logs have different control periods: {sorted(set(np.round(periods, 6)))} s")
     header = DatasetHeader(
-        tool=Tool(tool_frame, tuple(float(x) for x in point)), surface=surface, control_period=float(periods[0])
+        tool=Tool(tool_frame, tuple(float(x) for x in point)), surface=surface, control_period=float(periods[0]),
+        friction_known=False,
     )
     Path(out).mkdir(parents=True, exist_ok=True)
     try:

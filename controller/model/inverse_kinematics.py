@@ -1,57 +1,152 @@
-"""Contact posture by inverse kinematics: the tool tip on a surface point, the tool axis along -n.
+"""The one inverse kinematics: joint postures that put the contact frame on a target, by damped
+least squares within the joint limits.
 
-The task has five dimensions: the tip position p(q) = p* (3) and the tool axis (hand z axis) z(q)
-= -n (2; the spin about the axis is free). With the world-aligned frame Jacobian J6 = [Jv; Jw],
-the errors and their rates are
+Every use runs the same iteration from a seed posture q_0 (clipped into the limits). A target
+gives, at the iterate q, a task error e(q) and a matrix A(q) with de/dt = -A dq to first order;
+each step solves
 
-  e_p = p* - p,          de_p/dt = -Jv dq
-  e_z = z x (-n),        the rotation that turns z onto -n, of norm sin(angle); the angular
-                          velocity that reduces it is w = e_z, reached by P Jw dq with
-                          P = I - z z^T (the spin w.z does not move the axis).
+  dq = A^T (A A^T + lambda^2 I)^-1 e        (= (A^T A + lambda^2 I)^-1 A^T e, damped Gauss-Newton)
 
-Each damped least-squares step solves dq = A^T (A A^T + lambda^2 I)^-1 e with A = [Jv; P Jw]
-and e = [e_p; e_z], limited to ``MAX_STEP`` rad per joint and clipped to the joint limits. The
-seed posture is the start; the solution is the posture of the nearest local minimum, which is
-why a sweep documents its seed (docs/sweep.md).
+limited to ``MAX_STEP`` rad per joint and clipped to the joint limits, until the errors fall
+below their tolerances or the steps are spent (:class:`Stop`). The
+solution is the posture of the nearest local minimum from the seed, which is why a sweep
+documents its seed (docs/sweep.md). Two targets, two uses:
 
-:func:`contact_postures` runs the same iteration for N targets (every target from the same seed,
-each one stopped at its own convergence) in a compiled kernel, with the forward kinematics of
-``controller.model.batch.BatchKinematics`` written out and the 6x6 system solved by Cholesky;
-:func:`reference_contact_postures` is its plain-numpy reference, one vectorised iteration for all
-unsolved targets at once on ``BatchKinematics.contact_frames``. Both reach the postures of
-:func:`contact_posture` up to rounding.
+- **Contact posture** (:func:`contact_posture`, the sweep's postures): the tool tip on a surface
+  point p* and the tool axis (hand z) along -n, five dimensions (the spin about the axis is
+  free). With the world-aligned frame Jacobian J6 = [Jv; Jw],
+
+    e_p = p* - p,          de_p/dt = -Jv dq
+    e_z = z x (-n),        the rotation that turns z onto -n, of norm sin(angle); the angular
+                           velocity that reduces it is w = e_z, reached by P Jw dq with
+                           P = I - z z^T (the spin w.z does not move the axis),
+
+  so A = [Jv; P Jw] and e = [e_p; e_z].
+- **Approach start** (:func:`approach_start`, the start of every simulated trial): the whole
+  pose T* of the contact frame, six dimensions. The error is the twist e = log6(T^-1 T*) in the
+  contact frame and A = Jlog6(T^-1 T*) J_local, with J_local the frame Jacobian in the contact
+  frame (the position error is |e[:3]|, the axis error |e[3:]|, in rad).
+
+:func:`contact_postures` runs the contact-posture iteration for N targets (every target from
+the same seed, each one stopped at its own convergence) in a compiled kernel, with the forward
+kinematics of ``controller.model.batch.BatchKinematics`` written out and the 6x6 system solved by
+Cholesky; it reaches the postures of :func:`contact_posture` up to rounding (its plain-numpy
+reference lives with the tests).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
 from numba import njit
 
 from .batch import BatchKinematics
+from .postures import Surface
 from .robot import PandaModel
+from .validation import BadInputError
 
 POSITION_TOLERANCE = 1e-6
 """Largest tip position error (m) of a reached posture."""
 
 AXIS_TOLERANCE = 1e-5
-"""Largest |z x (-n)| (sin of the axis angle error) of a reached posture."""
+"""Largest |z x (-n)| (sin of the axis angle error) of a reached contact posture, and largest
+rotation error (rad) of a reached pose."""
 
 DAMPING = 1e-3
 MAX_STEP = 0.2
 MAX_ITERATIONS = 200
 
 
+class Stop(NamedTuple):
+    """When the iteration stops: both errors below their tolerances, or ``iterations`` steps."""
+
+    position: float = POSITION_TOLERANCE
+    axis: float = AXIS_TOLERANCE
+    iterations: int = MAX_ITERATIONS
+
+
+APPROACH_STOP = Stop(1e-7, 1e-6, 100)
+"""The approach start is placed ten times tighter (m, rad) than a contact posture: the start
+distance and the tool orientation of every simulated trial come from it."""
+
+
+class UnreachableStartError(BadInputError):
+    """No joint posture puts the tool at the requested start pose (wall out of reach)."""
+
+
 @dataclass(frozen=True)
 class ContactPosture:
-    """The result of :func:`contact_posture`: the last iterate and whether it reaches the target."""
+    """The result of the iteration: the last iterate and whether it reaches the target."""
 
     q: np.ndarray
     reachable: bool
     position_error: float  # m
-    axis_error: float  # sin of the angle between the tool axis and -n
+    axis_error: float  # sin of the angle between the tool axis and -n (rad for a pose)
+
+
+TaskError = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, float, bool]]
+"""A target of the iteration: the iterate q -> (e, A, axis error, aligned), e and A as in the
+module docstring with e[:3] the position error; ``aligned`` False keeps the iteration going."""
+
+
+def solve(robot: PandaModel, task: TaskError, seed, stop: Stop = Stop()) -> ContactPosture:
+    """The damped least-squares iteration of the module docstring on the target ``task``."""
+    q = np.clip(np.asarray(seed, dtype=float), robot.q_min, robot.q_max)
+    position_error = axis_error = np.inf
+    for iteration in range(stop.iterations + 1):
+        e, A, axis_error, aligned = task(q)
+        position_error = float(np.linalg.norm(e[:3]))
+        if position_error < stop.position and axis_error < stop.axis and aligned:
+            return ContactPosture(q, True, position_error, axis_error)
+        if iteration == stop.iterations:
+            break
+        step = A.T @ np.linalg.solve(A @ A.T + DAMPING**2 * np.eye(e.size), e)
+        q = np.clip(q + np.clip(step, -MAX_STEP, MAX_STEP), robot.q_min, robot.q_max)
+    return ContactPosture(q, False, position_error, axis_error)
+
+
+def tip_and_axis(robot: PandaModel, point, normal) -> TaskError:
+    """The contact-posture target: the tip at ``point``, hand z along -``normal`` (5 rows)."""
+    target = np.asarray(point, dtype=float)
+    axis_target = -np.asarray(normal, dtype=float)
+    model, data, fid = robot.model, robot.data, robot.contact_frame_id
+    A = np.empty((6, robot.q_min.size))
+    e = np.empty(6)
+
+    def task(q: np.ndarray):
+        J6 = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)
+        placement = data.oMf[fid]
+        z = placement.rotation[:, 2]
+        e[:3] = target - placement.translation
+        e[3:] = np.cross(z, axis_target)
+        axis_error = float(np.linalg.norm(e[3:]))
+        aligned = float(z @ axis_target) > 0.0
+        if not aligned:
+            # Pointing away: the cross product vanishes at 180 degrees; turn about any normal axis.
+            e[3:] = np.cross(z, axis_target + 0.5 * np.cross(z, np.roll(z, 1)))
+        A[:3] = J6[:3]
+        A[3:] = J6[3:] - np.outer(z, z @ J6[3:])
+        return e, A, axis_error, aligned
+
+    return task
+
+
+def pose(robot: PandaModel, target: pin.SE3) -> TaskError:
+    """The approach-start target: the whole pose ``target`` of the contact frame (6 rows)."""
+    model, data, fid = robot.model, robot.data, robot.contact_frame_id
+
+    def task(q: np.ndarray):
+        pin.framesForwardKinematics(model, data, q)
+        offset = data.oMf[fid].actInv(target)
+        J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
+        e = pin.log6(offset).vector
+        return e, pin.Jlog6(offset) @ J, float(np.linalg.norm(e[3:])), True
+
+    return task
 
 
 def contact_posture(
@@ -66,35 +161,41 @@ def contact_posture(
     ``normal`` must be a unit vector (see ``validation.unit_normal``). The result is reachable when
     the position error is below ``POSITION_TOLERANCE`` and the axis error below ``AXIS_TOLERANCE``.
     """
-    target = np.asarray(point, dtype=float)
-    axis_target = -np.asarray(normal, dtype=float)
-    q = np.clip(np.asarray(seed, dtype=float), robot.q_min, robot.q_max)
-    model, data, fid = robot.model, robot.data, robot.contact_frame_id
-    A = np.empty((6, q.size))
-    e = np.empty(6)
-    damping = DAMPING**2 * np.eye(6)
-    position_error = axis_error = np.inf
-    for iteration in range(max_iterations + 1):
-        J6 = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)
-        placement = data.oMf[fid]
-        z = placement.rotation[:, 2]
-        e[:3] = target - placement.translation
-        e[3:] = np.cross(z, axis_target)
-        position_error = float(np.linalg.norm(e[:3]))
-        axis_error = float(np.linalg.norm(e[3:]))
-        aligned = float(z @ axis_target) > 0.0
-        if position_error < POSITION_TOLERANCE and axis_error < AXIS_TOLERANCE and aligned:
-            return ContactPosture(q, True, position_error, axis_error)
-        if iteration == max_iterations:
-            break
-        if not aligned:
-            # Pointing away: the cross product vanishes at 180 degrees; turn about any normal axis.
-            e[3:] = np.cross(z, axis_target + 0.5 * np.cross(z, np.roll(z, 1)))
-        A[:3] = J6[:3]
-        A[3:] = J6[3:] - np.outer(z, z @ J6[3:])
-        step = A.T @ np.linalg.solve(A @ A.T + damping, e)
-        q = np.clip(q + np.clip(step, -MAX_STEP, MAX_STEP), robot.q_min, robot.q_max)
-    return ContactPosture(q, False, position_error, axis_error)
+    return solve(robot, tip_and_axis(robot, point, normal), seed, Stop(iterations=max_iterations))
+
+
+def approach_pose(robot: PandaModel, q_contact: np.ndarray, surface: Surface, distance: float) -> pin.SE3:
+    """The pose ``distance`` in front of ``surface`` that an approach from ``q_contact`` starts at.
+
+    Its point is the posture's contact point projected on the surface plane, moved by
+    ``distance`` along the normal n; its orientation is the posture's, turned by the smallest
+    rotation that maps its tool axis (hand z) onto -n.
+    """
+    start = robot.contact_frame(q_contact)
+    turn = pin.Quaternion.FromTwoVectors(start.rotation[:, 2], -surface.normal).toRotationMatrix()
+    point = start.translation - surface.signed_distance(start.translation) * surface.normal
+    return pin.SE3(turn @ start.rotation, point + distance * surface.normal)
+
+
+def approach_start(robot: PandaModel, q_contact, surface: Surface, distance: float) -> np.ndarray:
+    """Joint posture with the contact frame at :func:`approach_pose`, from the seed ``q_contact``.
+
+    The iteration stops at ``APPROACH_STOP``. Raises :class:`UnreachableStartError` when it
+    does not reach that pose.
+    """
+    if not (np.isfinite(distance) and distance >= 0.0):
+        raise BadInputError(f"start distance {distance} m must be >= 0")
+    q_contact, _ = robot.check_state(q_contact)
+    target = approach_pose(robot, q_contact, surface, distance)
+    solved = solve(robot, pose(robot, target), q_contact, APPROACH_STOP)
+    if solved.reachable:
+        return solved.q
+    raise UnreachableStartError(
+        f"the tool cannot reach {np.round(target.translation, 3).tolist()} (m, world) with its axis "
+        f"along {np.round(-surface.normal, 3).tolist()}: the surface through "
+        f"{np.round(surface.point, 3).tolist()} with normal {np.round(surface.normal, 3).tolist()} "
+        f"is out of reach from this posture (residual {np.hypot(solved.position_error, solved.axis_error):.3g})"
+    )
 
 
 @dataclass(frozen=True)
@@ -106,17 +207,36 @@ class ContactPostures:
     position_error: np.ndarray  # (N,) m
     axis_error: np.ndarray  # (N,)
 
+    @classmethod
+    def unsolved(cls, robot: PandaModel, points, normals, seed) -> tuple[np.ndarray, np.ndarray, ContactPostures]:
+        """The targets (N, 3), the tool-axis targets -n (N, 3) and the start of a batch: the
+        seeds (N, 7) clipped into the limits, not reachable, infinite errors."""
+        targets = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
+        axis_targets = -np.ascontiguousarray(normals, dtype=float).reshape(-1, 3)
+        n = targets.shape[0]
+        Q = np.tile(np.clip(np.asarray(seed, dtype=float), robot.q_min, robot.q_max), (n, 1))
+        return targets, axis_targets, cls(Q, np.zeros(n, dtype=bool), np.full(n, np.inf), np.full(n, np.inf))
 
-def _start(robot, points, normals, seed):
-    """The targets (N, 3), the tool-axis targets -n (N, 3), the seeds (N, 7) clipped into the
-    limits, and the result arrays (not reachable, infinite errors) of a batch of targets."""
-    targets = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
-    axis_targets = -np.ascontiguousarray(normals, dtype=float).reshape(-1, 3)
-    n_targets = targets.shape[0]
-    Q = np.tile(np.clip(np.asarray(seed, dtype=float), robot.q_min, robot.q_max), (n_targets, 1))
-    return (
-        targets, axis_targets, Q, np.zeros(n_targets, dtype=bool), np.full(n_targets, np.inf), np.full(n_targets, np.inf)
-    )
+
+class KinematicChain(NamedTuple):
+    """The kinematic chain of ``BatchKinematics`` and the joint limits, as the kernel reads them."""
+
+    R_joint: np.ndarray  # (7, 3, 3) fixed rotation of each joint frame in its parent
+    p_joint: np.ndarray  # (7, 3) its origin in the parent
+    p_contact: np.ndarray  # (3,) contact point in the last joint frame
+    z_contact: np.ndarray  # (3,) tool axis in the last joint frame
+    q_min: np.ndarray
+    q_max: np.ndarray
+
+
+class Iteration(NamedTuple):
+    """The constants of the iteration, as the kernel reads them."""
+
+    max_iterations: int
+    damping_squared: float
+    max_step: float
+    position_tolerance: float
+    axis_tolerance: float
 
 
 def contact_postures(
@@ -128,72 +248,27 @@ def contact_postures(
 ) -> ContactPostures:
     """:func:`contact_posture` for N targets (``points`` and unit ``normals``, (N, 3)), compiled."""
     robot = kinematics.robot
-    targets, axis_targets, Q, reachable, position_error, axis_error = _start(robot, points, normals, seed)
-    contact_postures_kernel(
-        Q, targets, axis_targets, kinematics.R_joint, kinematics.p_joint, kinematics.p_contact,
-        np.ascontiguousarray(kinematics.R_contact[:, 2]), robot.q_min, robot.q_max, max_iterations,
-        DAMPING**2, MAX_STEP, POSITION_TOLERANCE, AXIS_TOLERANCE, reachable, position_error, axis_error,
+    targets, axis_targets, result = ContactPostures.unsolved(robot, points, normals, seed)
+    chain = KinematicChain(
+        kinematics.R_joint, kinematics.p_joint, kinematics.p_contact,
+        np.ascontiguousarray(kinematics.R_contact[:, 2]), robot.q_min, robot.q_max,
     )
-    return ContactPostures(Q, reachable, position_error, axis_error)
-
-
-def reference_contact_postures(
-    kinematics: BatchKinematics,
-    points,
-    normals,
-    seed,
-    max_iterations: int = MAX_ITERATIONS,
-) -> ContactPostures:
-    """:func:`contact_postures` in plain numpy (the reference of its kernel).
-
-    Each iteration evaluates the frames of the targets still unsolved, tests them with the same
-    tolerances and takes the same damped least-squares step (batched 6x6 solves).
-    """
-    robot = kinematics.robot
-    targets, axis_targets, Q, reachable, position_error, axis_error = _start(robot, points, normals, seed)
-    active = np.arange(targets.shape[0])
-    damping = DAMPING**2 * np.eye(6)
-    for iteration in range(max_iterations + 1):
-        if active.size == 0:
-            break
-        q = Q[active]
-        p, z, J6 = kinematics.contact_frames(q)
-        axis_target = axis_targets[active]
-        e = np.empty((active.size, 6))
-        e[:, :3] = targets[active] - p
-        e[:, 3:] = np.cross(z, axis_target)
-        position_error[active] = np.linalg.norm(e[:, :3], axis=1)
-        axis_error[active] = np.linalg.norm(e[:, 3:], axis=1)
-        aligned = np.einsum("na,na->n", z, axis_target) > 0.0
-        solved = (position_error[active] < POSITION_TOLERANCE) & (axis_error[active] < AXIS_TOLERANCE) & aligned
-        reachable[active[solved]] = True
-        if iteration == max_iterations:
-            break
-        keep = ~solved
-        active, q, z, J6, e, aligned, axis_target = (
-            active[keep], q[keep], z[keep], J6[keep], e[keep], aligned[keep], axis_target[keep]
-        )
-        away = ~aligned
-        if np.any(away):
-            # Pointing away: the cross product vanishes at 180 degrees; turn about any normal axis.
-            za = z[away]
-            e[away, 3:] = np.cross(za, axis_target[away] + 0.5 * np.cross(za, np.roll(za, 1, axis=1)))
-        A = J6.copy()
-        A[:, 3:] -= z[:, :, None] * np.einsum("na,nak->nk", z, J6[:, 3:])[:, None, :]
-        step = np.einsum("nak,na->nk", A, np.linalg.solve(A @ np.swapaxes(A, 1, 2) + damping, e[:, :, None])[..., 0])
-        Q[active] = np.clip(q + np.clip(step, -MAX_STEP, MAX_STEP), robot.q_min, robot.q_max)
-    return ContactPostures(Q, reachable, position_error, axis_error)
+    iteration = Iteration(int(max_iterations), DAMPING**2, MAX_STEP, POSITION_TOLERANCE, AXIS_TOLERANCE)
+    contact_postures_kernel(
+        result.q, targets, axis_targets, chain, iteration, result.reachable, result.position_error, result.axis_error
+    )
+    return result
 
 
 @njit(cache=True)
-def contact_postures_kernel(
-    Q, targets, axis_targets, R_joint, p_joint, p_contact, z_contact, q_min, q_max,
-    max_iterations, damping_squared, max_step, position_tolerance, axis_tolerance,
-    reachable, position_error, axis_error,
-):
+def contact_postures_kernel(Q, targets, axis_targets, chain, iteration, reachable, position_error, axis_error):
     """Kernel of :func:`contact_postures`: the iteration of :func:`contact_posture` for each row
     of ``Q`` (the seeds, updated in place to the last iterates) with the forward kinematics of
-    ``BatchKinematics`` written out, and (A A^T + lambda^2 I) x = e solved by Cholesky."""
+    ``BatchKinematics`` written out (``chain``, a :class:`KinematicChain`), the constants of
+    ``iteration`` (an :class:`Iteration`), and (A A^T + lambda^2 I) x = e solved by Cholesky.
+    Longer than 80 lines: one compiled loop, written out so that it allocates nothing per step."""
+    R_joint, p_joint, p_contact, z_contact, q_min, q_max = chain
+    max_iterations, damping_squared, max_step, position_tolerance, axis_tolerance = iteration
     n_q = Q.shape[1]
     R = np.empty((3, 3))
     Rk = np.empty((3, 3))

@@ -1,4 +1,4 @@
-"""The default wall and the named impact postures that face it.
+"""The default wall and the named impact postures that face it, for each robot.
 
 The default wall is the vertical plane x = 0.6 m in front of the robot; its normal points back
 towards the robot, n = (-1, 0, 0). Each named posture puts the tool tip on that wall with the
@@ -57,7 +57,7 @@ class ImpactPosture:
     surface: Surface = field(default=DEFAULT_WALL)
 
 
-POSTURES: dict[str, ImpactPosture] = {
+PANDA_POSTURES: dict[str, ImpactPosture] = {
     p.name: p
     for p in (
         ImpactPosture(
@@ -77,6 +77,16 @@ POSTURES: dict[str, ImpactPosture] = {
         ),
     )
 }
+
+
+FR3_POSTURES = PANDA_POSTURES
+"""The FR3's named postures: its kinematic chain is the Panda's (the same Denavit-Hartenberg
+parameters in Franka's documentation; the test of the descriptions checks that the two URDFs'
+joint placements agree) and each posture lies inside its limits, so the same joint positions
+put the tool at the same place with the same hand axis (docs/robots.md)."""
+
+POSTURES = PANDA_POSTURES
+"""The postures of the default robot, the Panda."""
 
 
 def posture(name: str) -> ImpactPosture:

@@ -1,16 +1,22 @@
-"""Panda model: the example-robot-data URDF in Pinocchio, fingers locked, with a contact tool.
+"""Robot model: a described arm (``controller.model.robot_description``) in Pinocchio, fingers
+locked, carrying a described tool (``controller.model.tool_description``).
 
 The model is the single source of truth for the project: the MuJoCo scene of ``sim/`` is built
-from the same URDF file. All dynamic terms of one state are computed once, by one call to
-``pinocchio.computeAllTerms``, and gathered in :class:`ModelTerms`.
+from the same URDF text (``robot_description.model_urdf``). All dynamic terms of one state are
+computed once, by one call to ``pinocchio.computeAllTerms``, and gathered in :class:`ModelTerms`.
 
 Contact tool
 ------------
-A rigid sphere of radius :data:`TOOL_RADIUS` whose centre sits on the hand's z axis (the axis of
-the fingers) at :data:`TOOL_CENTRE_OFFSET` from the ``panda_hand`` frame. The contact frame
-:data:`CONTACT_FRAME` (``impact_tip``) is at the far pole of the sphere, on the same axis, with
-the hand's orientation. The tool is massless: a real tool's mass is a payload (``sim`` plant
-override ``payload_mass``).
+The contact frame :data:`CONTACT_FRAME` (``impact_tip``) sits at the tool's contact point, with the
+orientation of the frame the tool is fixed to. The tool's mass, centre of mass and inertia are
+appended to the link that carries that frame, so M, the locked inertia and the CRB terms (20)
+include them; a tool that replaces the Franka Hand removes the hand's inertia first.
+
+The default, ``PandaModel()``, is the Panda with the ``impact_tip`` tool: a massless rigid sphere
+of radius :data:`TOOL_RADIUS` whose centre sits on the hand's z axis (the axis of the fingers) at
+:data:`TOOL_CENTRE_OFFSET` from the ``panda_hand`` frame, touching at its far pole
+(:data:`TOOL_TIP_OFFSET`); a real tool's mass on it is a payload (``sim`` plant override
+``payload_mass``).
 """
 
 from __future__ import annotations
@@ -24,23 +30,29 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
+from .robot_description import PANDA, RobotDescription, model_urdf, robot_description
+from .tool_description import TOOLS, ToolDescription, tool_description
 from .validation import BadInputError
 
 NQ = 7
-HAND_FRAME = "panda_hand"
 CONTACT_FRAME = "impact_tip"
-TOOL_RADIUS = 0.02
-TOOL_CENTRE_OFFSET = 0.12
-TOOL_TIP_OFFSET = TOOL_CENTRE_OFFSET + TOOL_RADIUS
+TOOL_BODY = "tool"
+"""The body (Pinocchio frame, MuJoCo body) of a tool with a mass, at its centre of mass."""
+# The default robot and tool (``PandaModel()``): the Panda's hand frame and fingers, and the
+# impact_tip sphere's radius, centre and contact point along the hand's axis.
+HAND_FRAME = PANDA.hand_frame
+FINGER_JOINTS = PANDA.finger_joints
+TOOL_RADIUS = TOOLS["impact_tip"].geometry.radius
+TOOL_CENTRE_OFFSET = float(TOOLS["impact_tip"].geometry.centre[2])
+TOOL_TIP_OFFSET = float(TOOLS["impact_tip"].contact_point[2])
 # The contact Jacobian counts as singular when sigma_min / sigma_max falls below this ratio.
 SINGULAR_RATIO = 1e-3
-FINGER_JOINTS = ("panda_finger_joint1", "panda_finger_joint2")
 
-# Franka datasheet limits (docs/predictors.md, Conventions).
-VELOCITY_LIMIT = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
-TORQUE_LIMIT = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
-ACCELERATION_LIMIT = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0])
-JERK_LIMIT = np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0])
+# The Panda's datasheet limits (robot_description.PANDA, docs/robots.md).
+VELOCITY_LIMIT = PANDA.dq_max
+TORQUE_LIMIT = PANDA.tau_max
+ACCELERATION_LIMIT = PANDA.ddq_max
+JERK_LIMIT = PANDA.dddq_max
 
 
 class InvalidStateError(BadInputError):
@@ -57,14 +69,6 @@ class InvalidStateError(BadInputError):
 
 class SingularPostureError(BadInputError):
     """The contact Jacobian is (numerically) rank deficient at this posture."""
-
-
-def panda_urdf_path() -> Path:
-    """Path of the Panda URDF shipped by the ``example-robot-data`` package."""
-    import example_robot_data
-
-    subpath = "panda_description/urdf/panda.urdf"
-    return (Path(example_robot_data.getModelPath(subpath)) / subpath).resolve()
 
 
 _FILLS = itertools.count(1)
@@ -157,60 +161,86 @@ def symmetric_inverse3_into(S, out):
     return det
 
 
-class PandaModel:
-    """The 7-DoF Panda (fingers locked) with the spherical contact tool.
+class RobotModel:
+    """A described 7-DoF arm (fingers locked) carrying a described contact tool.
 
-    >>> robot = PandaModel()
+    ``robot`` is a name of ``robot_description.ROBOTS`` or a ``RobotDescription``; ``tool`` a
+    built-in tool name, a JSON/TOML tool file or a ``ToolDescription``.
+
+    ``tool_frame_id`` is the frame the tool is fixed to (the hand or the flange),
+    ``contact_frame_id`` the contact frame, ``hand_frame_id`` the hand's frame.
+
+    >>> robot = RobotModel("fr3", "franka_hand")
     >>> terms = robot.terms(q, dq)
     """
 
     def __init__(
         self,
+        robot: str | RobotDescription = "panda",
+        tool: str | Path | ToolDescription = "impact_tip",
+        *,
         urdf_path: str | Path | None = None,
         finger_opening: float = 0.0,
         base_placement: pin.SE3 | None = None,
     ):
-        """Load the URDF, lock the fingers at ``finger_opening`` (m) and add the contact tool.
+        """Load the robot's URDF (or ``urdf_path``), lock the fingers at ``finger_opening`` (m),
+        append the tool's inertia to its link and add the contact frame at its contact point.
 
         ``base_placement`` places the robot's base (link0) in the world; identity by default.
         """
-        self.urdf_path = Path(urdf_path) if urdf_path is not None else panda_urdf_path()
-        full = pin.buildModelFromUrdf(str(self.urdf_path))
-        q_full = pin.neutral(full)
-        locked = []
-        for name in FINGER_JOINTS:
-            jid = full.getJointId(name)
-            q_full[full.joints[jid].idx_q] = finger_opening
-            locked.append(jid)
-        model = pin.buildReducedModel(full, locked, q_full)
+        self.description = robot_description(robot)
+        self.tool = tool_description(tool)
+        self.urdf_path = Path(urdf_path) if urdf_path is not None else self.description.urdf_path()
+        model = self._arm(finger_opening)
         if base_placement is not None:
             model.jointPlacements[1] = base_placement * model.jointPlacements[1]
-        if model.nq != NQ:
-            raise RuntimeError(f"expected a 7-DoF Panda, got nq={model.nq}")
+        names = tuple(model.names[i] for i in range(1, model.njoints))
+        if model.nq != NQ or names != self.description.joints:
+            raise RuntimeError(f"expected the 7 joints {self.description.joints}, got {names}")
         masses = np.array([model.inertias[i].mass for i in range(1, model.njoints)])
         if not np.all(masses > 0.0):
-            raise RuntimeError(f"the Panda model has links without mass: {masses}")
-        hand = model.getFrameId(HAND_FRAME)
-        hand_frame = model.frames[hand]
+            raise RuntimeError(f"the {self.description.name} model has links without mass: {masses}")
+        mount = model.getFrameId(self.description.frame_of(self.tool))
+        mount_frame = model.frames[mount]
+        if self.tool.mass > 0.0:
+            model.appendBodyToJoint(mount_frame.parentJoint, self.tool.spatial_inertia, mount_frame.placement)
+            model.addFrame(pin.Frame(
+                TOOL_BODY, mount_frame.parentJoint, mount,
+                mount_frame.placement * pin.SE3(np.eye(3), self.tool.com.copy()), pin.FrameType.BODY,
+            ))
         tip = pin.Frame(
             CONTACT_FRAME,
-            hand_frame.parentJoint,
-            hand,
-            hand_frame.placement * pin.SE3(np.eye(3), np.array([0.0, 0.0, TOOL_TIP_OFFSET])),
+            mount_frame.parentJoint,
+            mount,
+            mount_frame.placement * pin.SE3(np.eye(3), self.tool.contact_point.copy()),
             pin.FrameType.OP_FRAME,
         )
         self.contact_frame_id = model.addFrame(tip)
-        self.hand_frame_id = hand
+        self.hand_frame_id = model.getFrameId(self.description.hand_frame)
+        self.tool_frame_id = mount
+        self.q_min = self.description.q_min.copy()
+        self.q_max = self.description.q_max.copy()
+        model.lowerPositionLimit, model.upperPositionLimit = self.q_min.copy(), self.q_max.copy()
         self.model = model
         self.data = model.createData()
-        self.q_min = model.lowerPositionLimit.copy()
-        self.q_max = model.upperPositionLimit.copy()
-        self.dq_max = VELOCITY_LIMIT.copy()
-        self.tau_max = TORQUE_LIMIT.copy()
-        self.ddq_max = ACCELERATION_LIMIT.copy()
-        self.dddq_max = JERK_LIMIT.copy()
+        self.dq_max = self.description.dq_max.copy()
+        self.tau_max = self.description.tau_max.copy()
+        self.ddq_max = self.description.ddq_max.copy()
+        self.dddq_max = self.description.dddq_max.copy()
         self._zero_velocity = np.zeros(NQ)
         self._zero_velocity.flags.writeable = False
+
+    def _arm(self, finger_opening: float) -> pin.Model:
+        """The arm of ``model_urdf`` (hand removed when the tool replaces it), fingers locked."""
+        full = pin.buildModelFromXML(model_urdf(self.description, self.tool, self.urdf_path))
+        q_full = pin.neutral(full)
+        locked = []
+        for name in self.description.finger_joints:
+            if full.existJointName(name):
+                jid = full.getJointId(name)
+                q_full[full.joints[jid].idx_q] = finger_opening
+                locked.append(jid)
+        return pin.buildReducedModel(full, locked, q_full)
 
     # ------------------------------------------------------------------ validation
     def check_state(self, q, dq=None, *, check_limits: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -306,6 +336,10 @@ class PandaModel:
         return pin.computeFrameJacobian(
             self.model, self.data, q, self.contact_frame_id, pin.LOCAL_WORLD_ALIGNED
         )
+
+
+PandaModel = RobotModel
+"""The historical name: ``PandaModel()`` is the default robot (the Panda) with the default tool."""
 
 
 _ACCEPTED, _NEAR_SINGULAR, _OUTSIDE_LIMITS = 0, 1, 2

@@ -9,6 +9,7 @@ exit code 2. Anything else that escapes is an internal error (exit code 1).
 from __future__ import annotations
 
 import math
+from pathlib import PurePath
 
 import numpy as np
 
@@ -44,7 +45,10 @@ def all_finite(*vectors: np.ndarray) -> bool:
 
 
 def finite_vector(value, size: int | None, what: str) -> np.ndarray:
-    """``value`` as a finite float vector of ``size`` entries (any size when None)."""
+    """``value`` as a finite float vector of ``size`` entries (any size when None); a boolean is
+    not a number (as in :func:`number_in_range`)."""
+    if _holds_boolean(value):
+        raise BadInputError(f"{what} must be a vector of numbers, got {value!r}")
     try:
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -54,6 +58,41 @@ def finite_vector(value, size: int | None, what: str) -> np.ndarray:
         raise BadInputError(f"{what} must be {expected}, got shape {array.shape}")
     if not all_finite(array):
         raise BadInputError(f"{what} must be finite, got {array.tolist()}")
+    return array
+
+
+def _holds_boolean(value) -> bool:
+    """Whether ``value`` is a boolean or a list or tuple holding one (numpy would read it as 0 or 1)."""
+    if isinstance(value, (list, tuple)):
+        return any(isinstance(x, (bool, np.bool_)) for x in value)
+    return isinstance(value, (bool, np.bool_)) or (isinstance(value, np.ndarray) and value.dtype == np.bool_)
+
+
+def finite_array(value, shape: tuple[int, ...], what: str) -> np.ndarray:
+    """``value`` as a finite float array of ``shape`` (a matrix; a vector is :func:`finite_vector`)."""
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise BadInputError(f"{what} must be {shape} finite values, got {value!r}") from None
+    if array.shape != shape or not np.all(np.isfinite(array)):
+        raise BadInputError(f"{what} must be {shape} finite values, got {value!r}")
+    return array
+
+
+def vector_in_range(value, size: int, low: float, high: float, what: str, unit: str = "") -> np.ndarray:
+    """``value`` as :func:`finite_vector` of ``size`` entries, each in [low, high] (the message
+    names the entry, ``what[i]``)."""
+    array = finite_vector(value, size, what)
+    for i, x in enumerate(array.tolist()):
+        number_in_range(x, low, high, f"{what}[{i}]", unit)
+    return array
+
+
+def positive_vector(value, size: int, what: str) -> np.ndarray:
+    """``value`` as :func:`finite_vector` of ``size`` entries, each > 0 (limits, bounds)."""
+    array = finite_vector(value, size, what)
+    if not np.all(array > 0.0):
+        raise BadInputError(f"{what} must be > 0, got {array.tolist()}")
     return array
 
 
@@ -100,6 +139,67 @@ def boolean(value, what: str) -> bool:
     if not isinstance(value, (bool, np.bool_)):
         raise BadInputError(f"{what} must be true or false, got {value!r}")
     return bool(value)
+
+
+def number(value, what: str) -> float:
+    """A number of a parsed file (not a boolean, not a string) as a float; not checked for finiteness."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise BadInputError(f"{what} must be a number, got a {type(value).__name__}")
+    return float(value)
+
+
+def numbers(value, count: int, what: str) -> tuple[float, ...]:
+    """A list of ``count`` numbers of a parsed file (each one :func:`number`)."""
+    if not isinstance(value, list) or len(value) != count:
+        raise BadInputError(f"{what} must be a list of {count} numbers")
+    return tuple(number(x, f"{what}[{i}]") for i, x in enumerate(value))
+
+
+def positive(value, what: str, unit: str = "") -> float:
+    """A finite number > 0 (a spacing, a tolerance, a threshold) as a float."""
+    value = number(value, what)
+    if not (math.isfinite(value) and value > 0.0):
+        raise BadInputError(f"{what} must be > 0{' ' + unit if unit else ''}, got {value}")
+    return value
+
+
+MAX_GAIN = 1e6
+"""Largest task gain, weight or speed accepted: beyond it the task's rows outweigh the damping
+task (weight 1e-4) by more than 1e10 and the QP's Hessian loses every other objective."""
+
+
+def task_gain(value, what: str) -> float:
+    """A task gain, weight or speed: a number in [0, MAX_GAIN]."""
+    return number_in_range(value, 0.0, MAX_GAIN, what)
+
+
+def non_empty_string(value, what: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise BadInputError(f"{what} must be a non-empty string, got a {type(value).__name__}")
+    return value
+
+
+def non_empty_list(value, what: str) -> list:
+    if not isinstance(value, list) or not value:
+        raise BadInputError(f"{what} must be a non-empty list")
+    return value
+
+
+def table(value, what: str) -> dict:
+    """A table of keys and values of a parsed file (a dict)."""
+    if not isinstance(value, dict):
+        raise BadInputError(f"{what} must be a table of keys and values, got {type(value).__name__}")
+    return value
+
+
+def file_inside(value, what: str, directory: str) -> str:
+    """A file name of a parsed file: a plain relative path that stays inside ``directory`` (no
+    absolute path, no '..', no '~')."""
+    name = non_empty_string(value, what)
+    path = PurePath(name)
+    if path.is_absolute() or ".." in path.parts or name.startswith("~"):
+        raise BadInputError(f"{what} must name a file inside {directory}")
+    return name
 
 
 def name_in(value, choices, what: str) -> str:

@@ -1,4 +1,4 @@
-"""Benchmark rows of the robot loop (``scenarios.robot``).
+"""Benchmark rows of the robot loop (``scenarios.run``).
 
 ``loop.sim_paced.p99``: cycle time (read returned -> command written, us) of the controller and
 the sim backend in a paced 1 kHz run (approach, impact, retract; goal p99 <= 500 us).
@@ -26,9 +26,9 @@ import yaml
 
 from impactqp.controller.config import ControllerConfig
 from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.robot import PandaModel
-from impactqp.scenarios.robot.run import SIM_START_DISTANCE, RunRequest, run
-
+from impactqp.scenarios.run import SIM_START_DISTANCE, RunRequest, run
 from impactqp.sim.franky_sim import FrankySimServer
 
 NO_OVERRUN_TRIP = 10**9
@@ -38,7 +38,7 @@ FRANKA_SIM_MODEL_DIFFERENCE = 0.1  # our Panda model drives franky-sim's FR3 (do
 
 
 def rows(duration: float = 1.0) -> list[dict]:
-    _, result = run(RunRequest(speed=0.15, duration=duration, paced=True, max_overruns=NO_OVERRUN_TRIP))
+    _, result = run(RunRequest(speed=0.15, duration=duration, unpaced=False, max_overruns=NO_OVERRUN_TRIP))
     stats = result.cycle_us
     jitter = result.period_error_us
     return [
@@ -57,7 +57,7 @@ def detection_rows() -> list[dict]:
     for posture in POSTURES:
         for speed in CAMPAIGN_SPEEDS:
             duration = SIM_START_DISTANCE / speed + 0.1  # from rest: the contact comes after the nominal time
-            report, _ = run(RunRequest(posture=posture, speed=speed, duration=duration, paced=False))
+            report, _ = run(RunRequest(posture=posture, speed=speed, duration=duration, unpaced=True))
             latency = report["impact"]["detection_latency_ms"]
             latencies.append(np.inf if latency is None else latency)
     return [
@@ -76,8 +76,6 @@ def franka_sim_run() -> tuple[dict, float | None] | None:
     posture's start; None without pylibfranka or franky-sim."""
     if importlib.util.find_spec("pylibfranka") is None or importlib.util.find_spec("franky_sim") is None:
         return None
-    from impactqp.sim.runner import approach_start
-
     posture = POSTURES[FRANKA_SIM_POSTURE]
     q0 = approach_start(PandaModel(), posture.q, posture.surface, SIM_START_DISTANCE)
     config = ControllerConfig.approach(posture.surface, 0.15)

@@ -40,6 +40,7 @@ def cli(debug):  # noqa: ARG001 - read by main(), which owns the error boundary
 def postures(as_json):
     """List the named impact postures, their contact point and the wall normal."""
     from impactqp.controller.model.robot import PandaModel
+    from impactqp.scenarios.readable import fixed
 
     robot = PandaModel()
     rows = [
@@ -57,9 +58,9 @@ def postures(as_json):
         return
     for row in rows:
         click.echo(f"{row['name']:<12} {row['description']}")
-        click.echo(f"  q             = {np.array2string(np.array(row['q']), precision=4)}")
-        click.echo(f"  contact point = {np.array2string(np.array(row['contact_point']), precision=4)} m")
-        click.echo(f"  normal        = {row['normal']}")
+        click.echo(f"  q             = {fixed(row['q'])} rad")
+        click.echo(f"  contact point = {fixed(row['contact_point'])} m")
+        click.echo(f"  normal        = {fixed(row['normal'])}")
 
 
 @cli.command()
@@ -74,6 +75,7 @@ def postures(as_json):
 def predict(posture_name, q_text, normal_text, speed, tangential_text, restitution, method, as_json):
     """Predict the impact-induced joint-velocity jump at a posture."""
     from impactqp.controller.model.prediction import ImpactQuery, predict_all
+    from impactqp.scenarios.readable import fixed
 
     if (posture_name is None) == (q_text is None):
         raise BadInputError("give exactly one of --posture NAME or --q Q1,...,Q7")
@@ -92,10 +94,10 @@ def predict(posture_name, q_text, normal_text, speed, tangential_text, restituti
     if as_json:
         emit_json(report)
         return
-    click.echo(f"q                   = {np.array2string(np.array(report['q']), precision=4)}")
-    click.echo(f"contact point       = {np.array2string(np.array(report['contact_point']), precision=4)} m")
-    click.echo(f"normal              = {np.array2string(np.array(report['normal']), precision=4)}")
-    click.echo(f"pre-impact velocity = {np.array2string(np.array(report['pre_impact_velocity']), precision=4)} m/s")
+    click.echo(f"q                   = {fixed(report['q'])} rad")
+    click.echo(f"contact point       = {fixed(report['contact_point'])} m")
+    click.echo(f"normal              = {fixed(report['normal'])}")
+    click.echo(f"pre-impact velocity = {fixed(report['pre_impact_velocity'])} m/s")
     click.echo(f"restitution         = {report['restitution']}   cond(M) = {report['cond_M']:.0f}")
     header = f"{'method':<17}" + "".join(f"{f'dq{i}':>9}" for i in range(1, 8)) + "   impulse (N s)"
     click.echo(header)
@@ -136,15 +138,25 @@ def demo(out_dir, jobs):
        on joints 1-4, 0.3 on joints 5-7), 3 postures x 2 speeds, with encoder and torque noise.
     3. The diagnosis of that dataset: the cause, its gain and Table I on the measured data, on
        which the CRB predictor wins.
-    4. The highest feasible contact speed of elbow_up with the calibrated plant.
+    4. The highest feasible contact speed of elbow_up with the calibrated plant, and which answer
+       to trust.
+
+    Progress bars (stderr) show the simulated trials of stages 1, 2 and 4.
     """
+    from tqdm import tqdm
+
     from impactqp.controller.model.postures import DEFAULT_WALL
     from impactqp.scenarios.campaign import Campaign, CampaignPlan
-    from impactqp.scenarios.cli.arguments import check_jobs
-    from impactqp.scenarios.diagnosis_report import feasible_speeds, table_by_condition, write_report
+    from impactqp.scenarios.cli.arguments import bar_progress, check_jobs
+    from impactqp.scenarios.diagnosis_report import (
+        feasible_speeds,
+        table_by_condition,
+        trusted_speed_text,
+        write_report,
+    )
     from impactqp.sim.causes import per_group
     from impactqp.sim.diagnosis import diagnose
-    from impactqp.sim.generation import generate_dataset
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
     from impactqp.sim.plant import PlantParameters
 
     out = output_directory(out_dir, "--out")
@@ -154,10 +166,13 @@ def demo(out_dir, jobs):
     click.echo("1. Nominal simulation, Table I:")
     click.echo(table.text())
     stiff = PlantParameters(armature=per_group((1.2, 0.3)))
-    generate_dataset(
-        out / "measured", plant=stiff, postures=["elbow_up", "elbow_left", "elbow_right"], speeds=[0.1, 0.18],
-        seed=1, jobs=jobs,
-    )
+    with tqdm(desc="measured dataset", unit="trial") as bar:
+        generate_dataset(
+            out / "measured",
+            DatasetRequest(plant=stiff, postures=["elbow_up", "elbow_left", "elbow_right"], speeds=[0.1, 0.18], seed=1),
+            jobs=jobs,
+            progress=bar_progress(bar),
+        )
     click.echo(f"\n2. 'Measured' dataset from a stiff plant (hidden armature 1.2 / 0.3 kg m^2): {out / 'measured'}")
     result = diagnose(out / "measured", jobs=jobs)
     summary = result.summary()
@@ -166,11 +181,12 @@ def demo(out_dir, jobs):
     click.echo(f"causes: {', '.join(summary['causes']) or 'none'}, held-out gain {100 * summary['gain']:.0f} %")
     click.echo("Table I on the measured data (average error (26), rad/s):")
     click.echo("\n".join(table_by_condition(result)))
-    speeds = feasible_speeds(result, PlantParameters(), postures=["elbow_up"], jobs=jobs)
+    speeds = feasible_speeds(result, PlantParameters(), postures=["elbow_up"], jobs=jobs, progress=True)
     path = write_report(result, out / "diagnosis", speeds)
     click.echo("\n4. Highest feasible contact speed with the calibrated plant:")
     for row in speeds:
         click.echo(row.sentence())
+    click.echo(trusted_speed_text(result, speeds))
     click.echo(f"\nreport: {path}")
 
 

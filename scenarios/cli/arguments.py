@@ -42,6 +42,17 @@ def emit_json(obj) -> None:
     click.echo(json.dumps(obj, indent=2, allow_nan=False))
 
 
+def bar_progress(bar):
+    """A ``progress(done, total)`` callback (``sim.generation.generate_dataset``) that drives the
+    tqdm progress bar ``bar``."""
+
+    def progress(done: int, total: int) -> None:
+        bar.total = total
+        bar.update(done - bar.n)
+
+    return progress
+
+
 def input_file(path: str, what: str) -> Path:
     """An existing, readable regular file."""
     p = Path(path)

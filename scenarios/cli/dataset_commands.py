@@ -3,8 +3,6 @@ simulation (dataset format: ``sim/dataset.py`` and the README)."""
 
 from __future__ import annotations
 
-import json
-
 import click
 
 from impactqp.controller.model.validation import BadInputError
@@ -67,7 +65,7 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
     from tqdm import tqdm
 
     from impactqp.controller.model.postures import POSTURES
-    from impactqp.sim.generation import generate_dataset
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
 
     output_directory(out, "OUT")
     plant = load_plant(plant_file)  # None: the nominal plant
@@ -86,10 +84,11 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
         bars[0].update(done - bars[0].n)
 
     try:
-        entries = generate_dataset(
-            out, plant=plant, postures=names, speeds=speed_list, tangential=tangential_list, repeats=repeats,
-            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed, jobs=jobs, progress=progress,
+        request = DatasetRequest(
+            plant=plant, postures=names, speeds=speed_list, tangential=tangential_list, repeats=repeats,
+            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed,
         )
+        entries = generate_dataset(out, request, jobs=jobs, progress=progress)
     finally:
         for bar in bars:
             bar.close()
@@ -176,17 +175,26 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
         emit_json(summary)
         return
     click.echo(summary["message"])
-    click.echo(f"causes: {', '.join(summary['causes']) or 'none'}  explained: {summary['explained']}  parameters: {json.dumps(summary['parameters'])}")
+    from impactqp.scenarios.readable import boolean, number, parameters_text
+
+    click.echo(
+        f"causes: {', '.join(summary['causes']) or 'none'}  explained: {boolean(summary['explained'])}  "
+        f"parameters: {parameters_text(summary['parameters'])}"
+    )
     click.echo(f"held-out average error (26): nominal {summary['baseline_error']:.4f}  extended {summary['extended_error']:.4f}  gain {100 * summary['gain']:.1f} %")
     for k, step in enumerate(summary["steps"], start=1):
         click.echo(f"step {k}: {step['cause']:<14} held-out {step['heldout_error']:.4f}  gain {100 * step['gain']:5.1f} %  {'selected' if step['selected'] else 'not selected'}")
     for p in summary["parameter_intervals"]:
-        click.echo(f"  {p['parameter']:<40} {p['value']:10.4g}  95 %: {interval_text(p['interval'])}")
+        click.echo(f"  {p['parameter']:<40} {number(p['value']):>10}  95 %: {interval_text(p['interval'])}")
     click.echo(f"{'candidate':<15}{'held-out':>10}{'gain':>9}")
-    for c in summary["candidates"]:
+    for c in sorted(summary["candidates"], key=lambda c: -c["gain"]):
         click.echo(f"{c['cause']:<15}{c['heldout_error']:>10.4f}{100 * c['gain']:>8.1f}%")
     click.echo("predictors (average error (26), own impulse): " + ", ".join(f"{k} {v:.4f}" for k, v in summary["predictors"].items()))
     for r in speeds or []:
         click.echo(r.sentence())
+    if speeds:
+        from impactqp.scenarios.diagnosis_report import trusted_speed_text
+
+        click.echo(trusted_speed_text(result, speeds))
     for s in summary["skipped"]:
         click.echo(f"skipped {s['id']}: {s['reason']}")

@@ -1,4 +1,4 @@
-"""``impactqp run``: the impact session in a 1 kHz robot loop (``scenarios.robot.run``)."""
+"""``impactqp run``: the impact session in a 1 kHz robot loop (``scenarios.run``)."""
 
 from __future__ import annotations
 
@@ -22,20 +22,20 @@ from impactqp.scenarios.cli.arguments import EXIT_INTERRUPTED, emit_json
 @click.option("--posture", default="elbow_up", show_default=True, help="Start posture (sim backend).")
 @click.option("--speed", type=float, default=0.15, show_default=True, help="Approach speed (m/s) of the default configuration.")
 @click.option("--duration", type=float, default=1.0, show_default=True, help="Control time (s) before braking to a stop.")
-@click.option("--log", "log_dir", default="out/run", show_default=True, help="Dataset directory the run is added to.")
+@click.option("--log", default="out/run", show_default=True, help="Dataset directory the run is added to.")
 @click.option("--dataset", help="Dataset directory of the trial to replay (replay backend).")
 @click.option("--trial", help="Trial id to replay (default: the first).")
 @click.option("--unpaced", is_flag=True, help="Run the sim backend as fast as it goes (no wall-clock pacing).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-def run_command(backend, robot_ip, realtime, config_file, plant_file, posture, speed, duration, log_dir, dataset, trial, unpaced, as_json):
+def run_command(backend, robot_ip, realtime, config_file, plant_file, posture, speed, duration, log, dataset, trial, unpaced, as_json):
     """Run the impact-aware controller in a 1 kHz loop on a robot: approach, detect the impact,
     post-impact phase, brake to a stop. Ctrl-C (or SIGTERM) brakes to a stop, keeps the log and
     exits with code 130."""
-    from impactqp.scenarios.robot.run import RunRequest, run
+    from impactqp.scenarios.run import RunRequest, run  # lazy: the command line loads an experiment when it runs
 
     request = RunRequest(
         backend=backend, robot_ip=robot_ip, config_file=config_file, plant_file=plant_file, posture=posture,
-        speed=speed, duration=duration, log_dir=log_dir, dataset=dataset, trial=trial, paced=not unpaced,
+        speed=speed, duration=duration, log=log, dataset=dataset, trial=trial, unpaced=unpaced,
         realtime=realtime == "enforce",
     )
     report, result = run(request)

@@ -18,7 +18,7 @@ import numpy as np
 from impactqp.constraints import JUMP_MODEL_CHOICES
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
 from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, ImpactPosture, Surface
-from impactqp.controller.model.validation import BadInputError, tangential_velocity, unit_normal
+from impactqp.controller.model.validation import BadInputError, positive, tangential_velocity, unit_normal
 from impactqp.controller.model.validation import approach_speed, restitution as restitution_coefficient
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.scenarios.cli.arguments import (
@@ -50,18 +50,12 @@ def wall(point_text: str | None, normal_text: str | None) -> Surface:
 def check_reachable(posture: ImpactPosture, surface: Surface, distance: float) -> None:
     """Reject a wall the posture cannot face (before any process is started)."""
     from impactqp.controller.model.prediction import default_robot
-    from impactqp.sim.runner import UnreachableStartError, approach_start
+    from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
 
     try:
         approach_start(default_robot(), posture.q, surface, distance)
     except UnreachableStartError as error:
         raise BadInputError(str(error)) from None
-
-
-def positive(value: float, what: str) -> float:
-    if not (np.isfinite(value) and value > 0.0):
-        raise BadInputError(f"{what} must be > 0, got {value}")
-    return value
 
 
 wall_point_option = click.option("--wall-point", "wall_point", help="A point X,Y,Z (m) of the wall; default 0.6,0,0.")
@@ -98,6 +92,7 @@ def simulate(
     from impactqp.scenarios.trial import TrialRunner
     from impactqp.sim.runner import TrialSpec
     from impactqp.controller.measured.dataset import DatasetWriter
+    from impactqp.scenarios.readable import fixed
 
     posture = named_posture(posture_name)
     approach_speed(speed, "--speed")
@@ -140,7 +135,7 @@ def simulate(
     click.echo(f"{posture.name}: reference {speed} m/s, jump constraints {report['jump_model'] or 'off'}")
     click.echo(f"contact speed    {report['contact_speed']:.4f} m/s at t = {report['impact_time']:.4f} s")
     click.echo(f"impact duration  {report['impact_duration'] * 1e3:.2f} ms")
-    click.echo(f"impulse          {np.array2string(np.array(report['impulse']), precision=4)} N s")
+    click.echo(f"impulse          {fixed(report['impulse'])} N s")
     click.echo(f"{'':<17}" + "".join(f"{f'dq{i}':>9}" for i in range(1, 8)))
     click.echo(f"{'simulated jump':<17}" + "".join(f"{x:9.4f}" for x in report["dq_jump"]))
     for name, jump in report["predicted"].items():

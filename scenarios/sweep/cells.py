@@ -32,13 +32,12 @@ import numpy as np
 
 from impactqp.controller.measured.impact import ImpactNotFoundError
 from impactqp.controller.model.batch import BatchKinematics
-from impactqp.controller.model.inverse_kinematics import contact_postures
+from impactqp.controller.model.inverse_kinematics import UnreachableStartError, contact_postures
 from impactqp.controller.model.max_speed import CRITERIA, approach_directions, closed_form_max_speeds
 from impactqp.controller.model.postures import DEFAULT_WALL, ImpactPosture, Surface
 from impactqp.controller.model.robot import NQ, SINGULAR_RATIO, PandaModel
 from impactqp.scenarios.max_speed_search import MaxSpeedSearch
 from impactqp.sim.plant import PlantParameters
-from impactqp.sim.runner import UnreachableStartError
 
 from .config import SweepConfig
 
@@ -46,7 +45,7 @@ _KINEMATICS: BatchKinematics | None = None
 
 SIMULATED_STATUS = ("simulated", "unreachable", "no_start", "no_impact")
 """``simulated_status``: searched; unreachable or singular posture (not searched); no start
-posture in front of the surface (``sim.runner.approach_start``); no impact in a trial."""
+posture in front of the surface (``inverse_kinematics.approach_start``); no impact in a trial."""
 
 
 @dataclass(frozen=True)

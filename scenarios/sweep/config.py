@@ -9,7 +9,6 @@ empty grid or a spacing <= 0 raises :class:`BadInputError` (docs/sweep.md).
 from __future__ import annotations
 
 import json
-import tomllib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -18,10 +17,13 @@ import numpy as np
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.postures import POSTURES
 from impactqp.constraints import JUMP_MODEL_CHOICES
+from impactqp.controller.model.files import read_mapping
 from impactqp.controller.model.validation import (
     BadInputError,
     finite_vector,
     impact_duration,
+    non_empty_list,
+    positive,
     restitution,
     unit_normal,
 )
@@ -141,20 +143,6 @@ def _table(data: dict, name: str, keys: set[str]) -> dict:
     return table
 
 
-def _positive(value, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise BadInputError(f"{what} must be a number, got {value!r}")
-    if not (np.isfinite(value) and value > 0.0):
-        raise BadInputError(f"{what} must be > 0, got {value}")
-    return float(value)
-
-
-def _nonempty_list(value, what: str) -> list:
-    if not isinstance(value, list) or not value:
-        raise BadInputError(f"{what} must be a non-empty list (the grid would be empty)")
-    return value
-
-
 def parse_config(data: dict) -> SweepConfig:
     """A validated :class:`SweepConfig` from the parsed TOML ``data``."""
     unknown = sorted(set(data) - set(TABLES))
@@ -167,16 +155,16 @@ def parse_config(data: dict) -> SweepConfig:
     size = finite_vector(grid["size"], 2, "grid.size")
     if np.any(size < 0.0):
         raise BadInputError(f"grid.size must be >= 0, got {size.tolist()}")
-    spacing = _positive(grid["spacing"], "grid.spacing")
+    spacing = positive(grid["spacing"], "grid.spacing")
     normals = [
         tuple(unit_normal(n, f"settings.normals[{k}]").tolist())
-        for k, n in enumerate(_nonempty_list(settings["normals"], "settings.normals"))
+        for k, n in enumerate(non_empty_list(settings["normals"], "settings.normals"))
     ]
     restitutions = [
         restitution(c, f"settings.restitution[{k}]")
-        for k, c in enumerate(_nonempty_list(settings["restitution"], "settings.restitution"))
+        for k, c in enumerate(non_empty_list(settings["restitution"], "settings.restitution"))
     ]
-    models = _nonempty_list(settings["jump_models"], "settings.jump_models")
+    models = non_empty_list(settings["jump_models"], "settings.jump_models")
     for name in models:
         if name not in JUMP_MODELS:
             raise BadInputError(
@@ -189,7 +177,7 @@ def parse_config(data: dict) -> SweepConfig:
         raise BadInputError(
             f"unknown settings.seed_posture {seed!r}; choose from {', '.join(POSTURES)}"
         )
-    controller_models = _nonempty_list(controller["jump_model"], "controller.jump_model")
+    controller_models = non_empty_list(controller["jump_model"], "controller.jump_model")
     for name in controller_models:
         if name not in JUMP_MODEL_CHOICES:
             raise BadInputError(
@@ -197,7 +185,7 @@ def parse_config(data: dict) -> SweepConfig:
             )
     durations = [
         impact_duration(value, f"controller.impact_duration[{k}]")
-        for k, value in enumerate(_nonempty_list(controller["impact_duration"], "controller.impact_duration"))
+        for k, value in enumerate(non_empty_list(controller["impact_duration"], "controller.impact_duration"))
     ]
     for name, values in (("controller.jump_model", controller_models), ("controller.impact_duration", durations)):
         if len(set(values)) != len(values):
@@ -214,7 +202,7 @@ def parse_config(data: dict) -> SweepConfig:
         seed_posture=seed,
         controller_jump_model=tuple(controller_models),
         impact_duration=tuple(durations),
-        tolerance=_positive(simulate["tolerance"], "simulate.tolerance"),
+        tolerance=positive(simulate["tolerance"], "simulate.tolerance"),
     )
     if max(size) / spacing > MAX_CELLS:
         raise BadInputError(f"grid.spacing {spacing} m is too fine for grid.size {size.tolist()}")
@@ -223,16 +211,4 @@ def parse_config(data: dict) -> SweepConfig:
 
 def load_config(path: Path) -> SweepConfig:
     """Read and validate the TOML file ``path``."""
-    try:
-        text = Path(path).read_bytes().decode("utf-8-sig")
-    except OSError as exc:
-        raise BadInputError(f"cannot read the sweep config {path}: {exc.strerror}") from None
-    except UnicodeDecodeError:
-        raise BadInputError(f"the sweep config {path} is not a UTF-8 text file") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise BadInputError(f"malformed sweep config {path}: {exc}") from None
-    except RecursionError:
-        raise BadInputError(f"the sweep config {path} is nested too deeply") from None
-    return parse_config(data)
+    return parse_config(read_mapping(path, "the sweep config", "toml"))

@@ -24,23 +24,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model.robot import NQ
-from .model.validation import BadInputError
+from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.validation import positive, positive_vector
 
 
 class CommandFilter:
     """Rate limiter of joint-velocity commands (module docstring), one call per control period."""
 
     def __init__(self, dt: float, dq_max: np.ndarray, ddq_max: np.ndarray, dddq_max: np.ndarray):
-        if not (np.isfinite(dt) and dt > 0.0):
-            raise BadInputError(f"dt = {dt} s must be > 0")
-        self.dt = float(dt)
-        self.dq_max = np.asarray(dq_max, dtype=float).copy()
-        self.ddq_max = np.asarray(ddq_max, dtype=float).copy()
-        self.jerk_step = np.asarray(dddq_max, dtype=float) * self.dt
-        for name, value in (("dq_max", self.dq_max), ("ddq_max", self.ddq_max), ("dddq_max", self.jerk_step)):
-            if value.shape != (NQ,) or not np.all(np.isfinite(value) & (value > 0.0)):
-                raise BadInputError(f"{name} must be {NQ} finite values > 0")
+        self.dt = positive(dt, "dt", "s")
+        self.dq_max = positive_vector(dq_max, NQ, "dq_max").copy()
+        self.ddq_max = positive_vector(ddq_max, NQ, "ddq_max").copy()
+        self.jerk_step = positive_vector(dddq_max, NQ, "dddq_max") * self.dt
         self.dq = np.zeros(NQ)
         self.ddq = np.zeros(NQ)
 

@@ -15,19 +15,26 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from impactqp.controller.command_filter import CommandFilter
 from impactqp.controller.config import ControllerConfig, TaskConfig
 from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD
 from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
-
-from .interface import RobotInterface
-from .loop import ControlLoop, LoopResult
-from .run_log import RunLog
-from .session import ImpactSession
+from impactqp.controller.runtime.command_filter import CommandFilter
+from impactqp.controller.runtime.franka_backend import FrankaRobot
+from impactqp.controller.runtime.interface import RobotInterface
+from impactqp.controller.runtime.loop import ControlLoop, LoopResult
+from impactqp.controller.runtime.panda_backend import PandaRobot
+from impactqp.controller.runtime.replay_backend import ReplayRobot, load_trial
+from impactqp.controller.runtime.run_log import RunLog
+from impactqp.controller.runtime.session import ImpactSession
+from impactqp.controller.runtime.start_move import StartMove
+from impactqp.sim.plant import PlantParameterError, PlantParameters
+from impactqp.sim.scene import build_scene
+from impactqp.sim.sim_backend import SimRobot
 
 BACKENDS = ("sim", "franka", "panda", "replay")
 ROBOT_BACKENDS = ("franka", "panda")  # a real robot: connect, check the model, move to the start posture
@@ -38,21 +45,56 @@ MAX_DURATION = 60.0
 
 @dataclass(frozen=True)
 class RunRequest:
-    """The options of ``impactqp run`` (``docs/robot-loop.md``)."""
+    """The options of ``impactqp run`` (``docs/robot-loop.md``); each field is named after its
+    option.
+
+    backend
+        ``--backend``: ``sim`` (MuJoCo), ``franka`` (an FR3 through pylibfranka), ``panda`` (a
+        Panda through panda-python's libfranka 0.9) or ``replay`` (a dataset trial played back).
+    robot_ip
+        ``--robot-ip``: the robot's address (franka and panda backends).
+    realtime
+        ``--realtime enforce|ignore``: True requires a real-time kernel for libfranka (franka and
+        panda backends); False runs without one (a simulator of the robot).
+    config_file
+        ``--config``: a controller configuration file (.toml, .yaml); None: the default approach
+        to ``posture``'s wall at ``speed``.
+    plant_file
+        ``--plant``: a JSON file of plant-parameter overrides (sim backend); None: nominal.
+    posture
+        ``--posture``: the named start posture (sim backend).
+    speed
+        ``--speed``: approach speed (m/s) of the default configuration.
+    duration
+        ``--duration``: control time (s) before braking to a stop, in (0, ``MAX_DURATION``].
+    log
+        ``--log``: the dataset directory the run is added to as one trial; None: no log.
+    dataset
+        ``--dataset``: the dataset directory of the trial to replay (replay backend).
+    trial
+        ``--trial``: the id of the trial to replay; None: the first.
+    unpaced
+        ``--unpaced``: run the sim backend as fast as it goes, without wall-clock pacing.
+    deadline
+        Time (s) from a state read to its command after which a cycle counts as an overrun;
+        None: the control period, and no deadline offline (replay, unpaced sim). No option.
+    max_overruns
+        Overruns in a row that trip the watchdog. No option.
+    """
 
     backend: str = "sim"
     robot_ip: str | None = None
+    realtime: bool = True
     config_file: str | None = None
     plant_file: str | None = None
     posture: str = "elbow_up"
     speed: float = 0.15
     duration: float = 1.0
-    log_dir: str | None = None
+    log: str | None = None
     dataset: str | None = None
     trial: str | None = None
-    paced: bool = True
-    realtime: bool = True  # robot backends: False runs libfranka without a real-time kernel
-    deadline: float | None = None  # None: the period, or no deadline offline (replay, unpaced sim)
+    unpaced: bool = False
+    deadline: float | None = None
     max_overruns: int = 5
 
 
@@ -96,8 +138,6 @@ def check_request(request: RunRequest) -> None:
 
 def start_posture(request: RunRequest, model: PandaModel, config: ControllerConfig) -> np.ndarray:
     """The posture's configuration with the contact point ``SIM_START_DISTANCE`` in front of the surface."""
-    from impactqp.sim.runner import UnreachableStartError, approach_start
-
     try:
         return approach_start(model, POSTURES[request.posture].q, config.surface.surface(), SIM_START_DISTANCE)
     except UnreachableStartError as error:
@@ -108,35 +148,24 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
     """(backend, controller configuration, duration) of the request. A robot is connected,
     configured (``[robot]``) and its model checked here; its posture task holds the start posture."""
     if request.backend in ROBOT_BACKENDS:
-        if request.backend == "franka":
-            from .franka_backend import FrankaRobot as Robot
-        else:
-            from .panda_backend import PandaRobot as Robot
-
+        Robot = FrankaRobot if request.backend == "franka" else PandaRobot
         config = controller_config(request)
         q_start = start_posture(request, model, config)
         robot = Robot.connect(request.robot_ip, config.robot, realtime=request.realtime)
         robot.check_model(model)
         return robot, with_posture_target(config, q_start), request.duration
     if request.backend == "replay":
-        from .replay_backend import ReplayRobot, load_trial
-
         trial, header = load_trial(request.dataset, request.trial)
         speed = trial.entry.reference_normal_speed
         config = controller_config(RunRequest(**{**request.__dict__, "speed": speed}), header.surface)
         return ReplayRobot(trial, header.control_period), config, len(trial.log) * header.control_period
-    from impactqp.sim.plant import PlantParameterError, PlantParameters
-    from impactqp.sim.scene import build_scene
-
     config = controller_config(request)
     try:
         plant = None if request.plant_file is None else PlantParameters.from_json(request.plant_file)
     except PlantParameterError as error:
         raise BadInputError(f"--plant: {error}") from None
     q0 = start_posture(request, model, config)
-    from .sim_backend import SimRobot
-
-    robot = SimRobot(build_scene(config.surface.surface(), plant), q0, np.zeros(NQ), config.dt, paced=request.paced)
+    robot = SimRobot(build_scene(config.surface.surface(), plant), q0, np.zeros(NQ), config.dt, paced=not request.unpaced)
     return robot, config, request.duration
 
 
@@ -168,8 +197,6 @@ class StopSignals:
 def move_to_start(robot: RobotInterface, model: PandaModel, config: ControllerConfig, q_start, signals: StopSignals) -> dict:
     """Run the move to ``q_start`` (``start_move``); its report. A move that does not end at
     rest on its own (watchdog, robot error, stop request) ends the run before the session."""
-    from .start_move import StartMove
-
     move = StartMove(q_start, model, config.dt, robot.read(), config.surface.surface())
     loop = ControlLoop(robot, move, CommandFilter.for_robot(model, config.dt), deadline=float("inf"))
     signals.loop = loop
@@ -188,9 +215,9 @@ def run(request: RunRequest, model: PandaModel | None = None) -> tuple[dict, Loo
     model = PandaModel() if model is None else model
     robot, config, duration = build_backend(request, model)
     q_start = start_posture(request, model, config) if request.backend in ROBOT_BACKENDS else None
-    run_log = RunLog(request.log_dir, log_header(config)) if request.log_dir else None
+    run_log = RunLog(request.log, log_header(config)) if request.log else None
     deadline = request.deadline
-    if deadline is None and (request.backend == "replay" or not request.paced):
+    if deadline is None and (request.backend == "replay" or request.unpaced):
         deadline = float("inf")  # offline: the plant waits for the controller
     with StopSignals() as signals:
         start_move = None if q_start is None else move_to_start(robot, model, config, q_start, signals)

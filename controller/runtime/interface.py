@@ -1,7 +1,7 @@
 """The robot interface of the control loop: read the state, send a joint-velocity command, stop.
 
-A backend (``sim_backend``, ``franka_backend``, ``replay_backend``) implements
-:class:`RobotInterface`; the loop runner (``scenarios.robot.loop``) makes every decision, so a
+A backend (``sim.sim_backend``, ``franka_backend``, ``replay_backend``) implements
+:class:`RobotInterface`; the loop runner (``controller.runtime.loop``) makes every decision, so a
 backend only maps its robot's state and command types.
 """
 

@@ -16,7 +16,7 @@ callback API, runs the same two in ``callback_cycle``, the robot doing the read 
 
 The watchdog latches: after a trip every command is the filter's braking command, which ramps the
 commanded velocity to zero within the velocity, acceleration and jerk limits
-(``controller.command_filter``), so the commands stay continuous; the run ends when the command
+(``controller.runtime.command_filter``), so the commands stay continuous; the run ends when the command
 is zero. At the end of the run (the duration, a stop request such as Ctrl-C, or a replay's last
 state) the loop brakes the same way until the command is zero, then calls ``robot.stop()``. A
 backend that fails mid-run (a robot that stopped on its own reflex) ends the run: the watchdog
@@ -33,11 +33,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactqp.controller.command_filter import CommandFilter
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
 
+from .command_filter import CommandFilter
 from .interface import RobotInterface, RobotState
 from .session import ImpactSession
 

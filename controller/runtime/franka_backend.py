@@ -29,7 +29,7 @@ INSTALL_HINT = "pip install -e '.[franka]'"
 
 def import_pylibfranka():
     try:
-        import pylibfranka
+        import pylibfranka  # optional dependency (the franka extra): imported only when the backend is chosen
     except ImportError:
         raise BadInputError(f"--backend franka needs pylibfranka, which is not installed: {INSTALL_HINT}") from None
     return pylibfranka

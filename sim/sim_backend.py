@@ -18,7 +18,7 @@ import numpy as np
 from impactqp.sim.runner import ServoedPlant
 from impactqp.sim.scene import Scene
 
-from .interface import RobotInterface, RobotState
+from impactqp.controller.runtime.interface import RobotInterface, RobotState
 
 SPIN_TIME = 2e-4
 

@@ -1,7 +1,7 @@
 """The impact session: the controller of each phase, online impact detection and the switch.
 
 Phases: ``approach`` (the configured controller with its impact-aware constraints) until the
-impact is detected (``controller.measured.impact_detector``: the robot's external-torque
+impact is detected (``controller.runtime.impact_detector``: the robot's external-torque
 estimate when it gives a real one, else the momentum observer on the measured torque,
 ``residual_source``), then the
 post-impact phase of ``config.post_impact`` (``retract``, ``hold`` or ``continue``: the
@@ -24,10 +24,10 @@ from dataclasses import replace
 import numpy as np
 
 from impactqp.controller.config import ControllerConfig, build_controller, post_impact_config
-from impactqp.controller.measured.impact_detector import ImpactDetector, MomentumObserver
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.qp import Command
 
+from .impact_detector import ImpactDetector, MomentumObserver
 from .interface import RobotState
 
 APPROACH = "approach"

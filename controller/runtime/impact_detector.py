@@ -37,9 +37,9 @@ import numpy as np
 import pinocchio as pin
 
 from impactqp.controller.model.robot import NQ, PandaModel
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import BadInputError, positive
 
-from .impact import DEFAULT_TORQUE_THRESHOLD, NOISE_SIGMAS
+from impactqp.controller.measured.impact import DEFAULT_TORQUE_THRESHOLD, NOISE_SIGMAS
 
 DEFAULT_OBSERVER_GAIN = 200.0
 DEFAULT_CALIBRATION_SAMPLES = 100
@@ -104,10 +104,8 @@ class ImpactDetector:
         calibration_samples: int = DEFAULT_CALIBRATION_SAMPLES,
         settle_samples: int = 0,
     ):
-        if not (np.isfinite(torque_threshold) and torque_threshold > 0.0):
-            raise BadInputError(f"torque_threshold = {torque_threshold} N m must be > 0")
-        if not (np.isfinite(noise_sigmas) and noise_sigmas > 0.0):
-            raise BadInputError(f"noise_sigmas = {noise_sigmas} must be > 0")
+        positive(torque_threshold, "torque_threshold", "N m")
+        positive(noise_sigmas, "noise_sigmas")
         for name, value in (("calibration_samples", calibration_samples), ("settle_samples", settle_samples)):
             if int(value) != value or value < 0:
                 raise BadInputError(f"{name} = {value} must be an integer >= 0")

@@ -1,0 +1,94 @@
+"""The one reader of the user's configuration and data files (JSON, TOML, YAML).
+
+Every failure is bad input with one line that names the file: a missing file, anything but a
+regular file (a directory, a FIFO, a device: checked before the file is opened, so a FIFO never
+blocks the reader), a file larger than ``MAX_FILE_BYTES``, text that is not UTF-8 (a byte-order
+mark is accepted), a syntax error, nesting deeper than the parser's recursion allows, or a
+document that is not a table of keys and values.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+import tomllib
+from pathlib import Path
+
+import yaml
+
+from .validation import BadInputError
+
+MAX_FILE_BYTES = 256 * 2**20
+"""Largest file read (bytes): far above any configuration or manifest of ours (a manifest entry
+takes a few hundred bytes), far below what would exhaust the memory."""
+
+SYNTAXES = {".json": "json", ".toml": "toml", ".yaml": "yaml", ".yml": "yaml"}
+"""The syntax of a file by its suffix, when the caller does not choose one."""
+
+MAPPING = {"json": "a JSON object", "toml": "a table of keys and values", "yaml": "a table of keys and values"}
+
+_PARSE_ERRORS = (json.JSONDecodeError, tomllib.TOMLDecodeError, yaml.YAMLError)
+
+
+def regular_file(path: str | Path, what: str, error: type[BadInputError] = BadInputError) -> Path:
+    """``path`` as a Path after checking, without opening it, that it names a regular file;
+    else ``error`` (a :class:`BadInputError`) whose message starts with ``what`` and the path."""
+    path = Path(path)
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise error(f"{what} {path} does not exist") from None
+    except NotADirectoryError:
+        raise error(f"{what} {path} does not exist (a parent is not a directory)") from None
+    except OSError as failure:
+        raise error(f"cannot read {what} {path}: {failure.strerror or failure}") from None
+    if stat.S_ISDIR(mode):
+        raise error(f"{what} {path} is a directory, not a file")
+    if not stat.S_ISREG(mode):
+        raise error(f"{what} {path} is not a regular file (a FIFO, a socket or a device)")
+    return path
+
+
+def read_text(path: str | Path, what: str, error: type[BadInputError] = BadInputError) -> str:
+    """The UTF-8 text of the regular file ``path`` (at most ``MAX_FILE_BYTES``)."""
+    path = regular_file(path, what, error)
+    try:
+        with open(path, "rb") as stream:
+            data = stream.read(MAX_FILE_BYTES + 1)
+    except OSError as failure:
+        raise error(f"cannot read {what} {path}: {failure.strerror or failure}") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise error(f"{what} {path} is larger than {MAX_FILE_BYTES} bytes")
+    try:
+        return data.decode("utf-8-sig")  # a byte-order mark is not an error
+    except UnicodeDecodeError:
+        raise error(f"{what} {path} is not a UTF-8 text file") from None
+
+
+def read_mapping(
+    path: str | Path, what: str, syntax: str | None = None, error: type[BadInputError] = BadInputError
+) -> dict:
+    """The table of keys and values in the file ``path``, parsed as ``syntax`` ('json', 'toml'
+    or 'yaml'; by default by the suffix, see ``SYNTAXES``). An empty YAML document is an empty
+    table. Every failure raises ``error`` (module docstring)."""
+    path = Path(path)
+    syntax = syntax or SYNTAXES.get(path.suffix.lower())
+    if syntax not in MAPPING:
+        raise error(f"{what} {path}: unsupported file type; use {', '.join(SYNTAXES)}")
+    text = read_text(path, what, error)
+    try:
+        if syntax == "json":
+            value = json.loads(text)
+        elif syntax == "toml":
+            value = tomllib.loads(text)
+        else:
+            value = yaml.safe_load(text)
+            value = {} if value is None else value
+    except RecursionError:
+        raise error(f"{what} {path} is nested too deeply") from None
+    except _PARSE_ERRORS as failure:
+        raise error(f"{what} {path} is not valid {syntax.upper()}: {' '.join(str(failure).split())}") from None
+    if not isinstance(value, dict):
+        raise error(f"{what} {path} must be {MAPPING[syntax]}, got {type(value).__name__}")
+    return value

@@ -1,0 +1,123 @@
+"""The one reader of configuration and data files: regular files only, UTF-8, bounded, one line."""
+
+import json
+import os
+
+import pytest
+import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from impactqp.controller.model import files
+from impactqp.controller.model.files import read_mapping, read_text, regular_file
+from impactqp.controller.model.validation import BadInputError
+
+
+class OwnError(BadInputError):
+    """A caller's own kind of bad input (as DatasetError or PlantParameterError)."""
+
+
+def test_a_regular_file_is_returned_as_a_path(tmp_path):
+    path = tmp_path / "a.json"
+    path.write_text("{}")
+    assert regular_file(str(path), "the file") == path
+
+
+@pytest.mark.parametrize("make, fragment", [
+    (lambda p: None, "does not exist"),
+    (lambda p: p.mkdir(), "is a directory"),
+    (lambda p: os.mkfifo(p), "not a regular file"),
+])
+def test_anything_but_a_regular_file_is_one_line_of_the_callers_kind_without_opening_it(tmp_path, make, fragment):
+    """A FIFO is refused before it is opened (opening it would block until a writer comes)."""
+    path = tmp_path / "c.toml"
+    make(path)
+    for read in (
+        lambda: regular_file(path, "the sweep config", OwnError),
+        lambda: read_mapping(path, "the sweep config", error=OwnError),
+    ):
+        with pytest.raises(OwnError) as caught:
+            read()
+        message = str(caught.value)
+        assert fragment in message and message.startswith(f"the sweep config {path}") and "\n" not in message
+
+
+def test_a_device_is_not_a_regular_file():
+    with pytest.raises(BadInputError, match="not a regular file"):
+        read_text("/dev/zero", "the plant parameter file")
+
+
+def test_a_path_under_a_file_does_not_exist(tmp_path):
+    (tmp_path / "f").write_text("")
+    with pytest.raises(BadInputError, match="does not exist"):
+        regular_file(tmp_path / "f" / "c.json", "the file")
+
+
+def test_a_byte_order_mark_is_not_part_of_the_text(tmp_path):
+    path = tmp_path / "c.toml"
+    path.write_bytes(b"\xef\xbb\xbfdt = 0.002\n")
+    assert read_text(path, "the file") == "dt = 0.002\n"
+    assert read_mapping(path, "the file") == {"dt": 0.002}
+
+
+def test_text_that_is_not_utf8_is_bad_input(tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_bytes(b"\xff\xfe\x00bad")
+    with pytest.raises(BadInputError, match=f"the file {path} is not a UTF-8 text file"):
+        read_mapping(path, "the file")
+
+
+def test_a_file_above_the_size_bound_is_bad_input(tmp_path, monkeypatch):
+    path = tmp_path / "c.json"
+    path.write_text('{"a": 1}')
+    monkeypatch.setattr(files, "MAX_FILE_BYTES", path.stat().st_size)
+    assert read_mapping(path, "the file") == {"a": 1}
+    monkeypatch.setattr(files, "MAX_FILE_BYTES", path.stat().st_size - 1)
+    with pytest.raises(BadInputError, match="larger than"):
+        read_mapping(path, "the file")
+
+
+@pytest.mark.parametrize("name, content, syntax, fragment", [
+    ("c.yaml", b"dt: [1\n", None, "not valid YAML"),
+    ("c.toml", b"dt = \n", None, "not valid TOML"),
+    ("c.json", b"{armature: 1", None, "not valid JSON"),
+    ("c.cfg", b"[grid\n", "toml", "not valid TOML"),
+    ("c.yaml", b"- 1\n- 2\n", None, "must be a table of keys and values, got list"),
+    ("c.json", b"[1, 2]", None, "must be a JSON object, got list"),
+    ("c.yaml", b"x: " + b"[" * 100_000 + b"]" * 100_000, None, "nested too deeply"),
+    ("c.json", b"[" * 100_000 + b"]" * 100_000, None, "nested too deeply"),
+    ("c.txt", b"{}", None, "unsupported file type"),
+])
+def test_bad_content_is_one_line_that_names_the_file(tmp_path, name, content, syntax, fragment):
+    path = tmp_path / name
+    path.write_bytes(content)
+    with pytest.raises(OwnError) as caught:
+        read_mapping(path, "the configuration", syntax, OwnError)
+    message = str(caught.value)
+    assert fragment in message and str(path) in message and "\n" not in message
+    assert path.read_bytes() == content
+
+
+def test_an_empty_yaml_document_is_an_empty_table(tmp_path):
+    path = tmp_path / "c.yml"
+    path.write_text("# nothing yet\n")
+    assert read_mapping(path, "the file") == {}
+
+
+words = st.characters(whitelist_categories=("L", "Nd", "Zs"))  # YAML folds some control characters
+keys = st.text(words, min_size=1, max_size=8)
+values = st.recursive(
+    st.none() | st.booleans() | st.integers(-(2**40), 2**40) | st.floats(allow_nan=False, allow_infinity=False)
+    | st.text(words, max_size=8),
+    lambda children: st.lists(children, max_size=3) | st.dictionaries(keys, children, max_size=3),
+    max_leaves=10,
+)
+
+
+@settings(max_examples=40, deadline=None)
+@given(table=st.dictionaries(keys, values, max_size=5), suffix=st.sampled_from([".json", ".yaml"]))
+def test_a_written_table_reads_back_equal(tmp_path_factory, table, suffix):
+    path = tmp_path_factory.mktemp("files") / f"c{suffix}"
+    text = json.dumps(table) if suffix == ".json" else yaml.safe_dump(table, allow_unicode=True)
+    path.write_text(text, encoding="utf-8")
+    assert read_mapping(path, "the file") == table

@@ -1,0 +1,121 @@
+"""Robot descriptions: the registry, limits inside each URDF's, the URDF edit for a hand-replacing
+tool, and the named postures' properties on each robot."""
+
+import xml.etree.ElementTree as ET
+from dataclasses import replace
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from impactqp.controller.model.robot import RobotModel
+from impactqp.controller.model.robot_description import ROBOTS, model_urdf, robot_description
+from impactqp.controller.model.tool_description import TOOLS
+from impactqp.controller.model.validation import BadInputError
+
+POSTURE_MARGIN = 0.1
+"""rad: the least distance of a named posture's joints from the limits."""
+MIN_SINGULAR_RATIO = 0.05
+"""sigma_min / sigma_max of J at a named posture: far from singular."""
+
+
+def urdf_joint_limits(robot):
+    """(lower, upper, velocity, effort) of the robot's moving joints, read from its URDF file."""
+    root = ET.parse(robot.urdf_path()).getroot()
+    joints = {j.get("name"): j.find("limit") for j in root.findall("joint")}
+    return np.array([[float(joints[name].get(k)) for k in ("lower", "upper", "velocity", "effort")]
+                     for name in robot.joints]).T
+
+
+@pytest.mark.parametrize("name", list(ROBOTS))
+def test_limits_lie_inside_the_urdf_limits(name):
+    robot = robot_description(name)
+    lower, upper, velocity, effort = urdf_joint_limits(robot)
+    assert np.all(lower <= robot.q_min) and np.all(robot.q_min < robot.q_max) and np.all(robot.q_max <= upper)
+    assert np.all(0.0 < robot.dq_max) and np.all(robot.dq_max <= velocity)
+    assert np.all(0.0 < robot.tau_max) and np.all(robot.tau_max <= effort)
+    assert np.all(robot.ddq_max > 0.0) and np.all(robot.dddq_max > 0.0)
+    # the model uses the description's limits
+    model = RobotModel(name)
+    np.testing.assert_array_equal(model.q_min, robot.q_min)
+    np.testing.assert_array_equal(model.dddq_max, robot.dddq_max)
+
+
+def test_descriptions_are_read_only():
+    with pytest.raises(ValueError):
+        ROBOTS["fr3"].dq_max[0] = 10.0
+
+
+def test_unknown_robot_lists_the_choices():
+    with pytest.raises(BadInputError, match="panda, fr3"):
+        robot_description("ur5")
+    assert robot_description(ROBOTS["fr3"]) is ROBOTS["fr3"]
+
+
+def test_unknown_posture_names_the_robot():
+    with pytest.raises(BadInputError, match="fr3.*elbow_up"):
+        ROBOTS["fr3"].posture("elbow_down")
+
+
+def test_the_fr3_has_the_pandas_kinematic_chain():
+    """Why the FR3 shares the Panda's named postures: equal joint placements and hand frame."""
+    panda, fr3 = RobotModel("panda"), RobotModel("fr3")
+    for i in range(1, 8):
+        assert panda.model.jointPlacements[i].isApprox(fr3.model.jointPlacements[i], 1e-12)
+    assert panda.model.frames[panda.hand_frame_id].placement.isApprox(fr3.model.frames[fr3.hand_frame_id].placement, 1e-12)
+
+
+@pytest.mark.parametrize("name", list(ROBOTS))
+def test_named_postures_touch_the_wall_inside_the_limits_away_from_singularities(name):
+    model = RobotModel(name)
+    for posture in model.description.postures.values():
+        terms = model.terms(posture.q)
+        assert posture.surface.signed_distance(terms.contact_point) == pytest.approx(0.0, abs=1e-6)
+        np.testing.assert_allclose(terms.contact_rotation[:, 2], -posture.surface.normal, atol=1e-5)
+        assert np.all(posture.q - model.q_min >= POSTURE_MARGIN) and np.all(model.q_max - posture.q >= POSTURE_MARGIN)
+        sigma = np.linalg.svd(terms.J, compute_uv=False)
+        assert sigma[-1] >= MIN_SINGULAR_RATIO * sigma[0]
+
+
+@pytest.mark.parametrize("name", list(ROBOTS))
+def test_named_postures_differ_in_elbow_and_wrist_arrangement(name):
+    q = {key: p.q for key, p in ROBOTS[name].postures.items()}
+    assert q["elbow_right"][2] < 0.0 < q["elbow_left"][2]  # elbow swung right / left (q3)
+    assert q["elbow_right"][4] < 0.0 < q["elbow_left"][4]  # wrist rolled down / up (q5)
+    assert abs(q["elbow_up"][2]) < 0.1 and abs(q["elbow_up"][4]) < 0.1  # sagittal elbow, neutral wrist
+
+
+@pytest.mark.parametrize("name", list(ROBOTS))
+def test_a_hand_replacing_tool_removes_the_fingers_and_the_hand_inertia(name):
+    robot = ROBOTS[name]
+    root = ET.fromstring(model_urdf(robot, TOOLS["pad"]))
+    links = {link.get("name"): link for link in root.findall("link")}
+    assert not set(robot.finger_links) & set(links)
+    assert not set(robot.finger_joints) & {j.get("name") for j in root.findall("joint")}
+    assert len(links[robot.hand_frame]) == 0  # no inertial, visual or collision left
+    assert model_urdf(robot, TOOLS["impact_tip"]) == robot.urdf_path().read_text(encoding="utf-8")
+    # the arm's own links keep their inertia: the model's mass drops by the hand's exactly
+    hand_mass = sum(
+        float(link.find("inertial/mass").get("value"))
+        for link in ET.parse(robot.urdf_path()).getroot().findall("link")
+        if link.get("name") in (robot.hand_frame, *robot.finger_links)
+    )
+    with_hand = sum(i.mass for i in RobotModel(name, "impact_tip").model.inertias)
+    massless_pad = RobotModel(name, replace(TOOLS["pad"], mass=0.0, com=np.zeros(3), inertia=np.zeros((3, 3))))
+    assert sum(i.mass for i in massless_pad.model.inertias) == pytest.approx(with_hand - hand_mass, abs=1e-12)
+
+
+def test_an_fr3_without_franky_sim_is_bad_input(monkeypatch):
+    import importlib.util
+
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: None)
+    with pytest.raises(BadInputError, match="franky-sim"):
+        ROBOTS["fr3"].urdf_path()
+
+
+def test_base_placement_moves_every_robot():
+    R = pin.utils.rpyToMatrix(0.0, 0.0, 0.7)
+    for name in ROBOTS:
+        q = ROBOTS[name].postures["elbow_up"].q
+        moved = RobotModel(name, base_placement=pin.SE3(R, np.zeros(3)))
+        np.testing.assert_allclose(moved.contact_point(q), R @ RobotModel(name).contact_point(q), atol=1e-12)
