@@ -35,7 +35,9 @@ class RobotConfig:
     constraints allow (tau_max = 87/12 N m): the factory values trip on an impact on purpose.
     ``joint_impedance`` is the stiffness of the robot's joint controller (N m/rad, libfranka's
     default). ``load_mass`` (kg), ``load_com`` (m, flange frame) and ``load_inertia`` (kg m^2, 3x3
-    column-major, about the centre of mass) describe the tool (``Robot.set_load``). After a
+    column-major, about the centre of mass) are the load ``Robot.set_load`` gets; each one left
+    out (None) is the declared tool's (``ToolDescription``: its mass, centre of mass and inertia
+    expressed in the flange frame, ``libfranka_robot.declared_load``). After a
     reflex the run ends; ``automatic_error_recovery`` then clears the robot's error state. On
     connect the robot's mass matrix M_r at the current state is compared with ours, M:
     ||M_r - M||_F / ||M_r||_F above ``max_model_difference`` refuses the robot.
@@ -46,9 +48,9 @@ class RobotConfig:
     lower_force_thresholds: list[float] = field(default_factory=lambda: [100.0] * 3 + [30.0] * 3)
     upper_force_thresholds: list[float] = field(default_factory=lambda: [100.0] * 3 + [30.0] * 3)
     joint_impedance: list[float] = field(default_factory=lambda: [3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0])
-    load_mass: float = 0.0
-    load_com: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    load_inertia: list[float] = field(default_factory=lambda: [0.0] * 9)
+    load_mass: float | None = None
+    load_com: list[float] | None = None
+    load_inertia: list[float] | None = None
     automatic_error_recovery: bool = False
     max_model_difference: float = 0.02
 
@@ -65,16 +67,20 @@ class RobotConfig:
         self.joint_impedance = _positive_vector(
             self.joint_impedance, 7, MAX_JOINT_STIFFNESS, "robot.joint_impedance"
         ).tolist()
-        validation.number_in_range(self.load_mass, 0.0, MAX_LOAD_MASS, "robot.load_mass", "kg")
-        com = validation.finite_vector(self.load_com, 3, "robot.load_com")
-        if np.max(np.abs(com)) > MAX_LOAD_OFFSET:
-            raise BadInputError(f"robot.load_com {com.tolist()} must lie within {MAX_LOAD_OFFSET:g} m of the flange")
-        inertia = validation.finite_vector(self.load_inertia, 9, "robot.load_inertia").reshape(3, 3)
-        if not np.allclose(inertia, inertia.T) or np.min(np.linalg.eigvalsh(inertia)) < -1e-12:
-            raise BadInputError("robot.load_inertia must be a symmetric positive semi-definite 3x3 matrix")
-        if np.max(np.abs(inertia)) > MAX_LOAD_INERTIA:
-            raise BadInputError(f"robot.load_inertia entries must stay below {MAX_LOAD_INERTIA:g} kg m^2")
-        self.load_com, self.load_inertia = com.tolist(), inertia.ravel().tolist()
+        if self.load_mass is not None:
+            validation.number_in_range(self.load_mass, 0.0, MAX_LOAD_MASS, "robot.load_mass", "kg")
+        if self.load_com is not None:
+            com = validation.finite_vector(self.load_com, 3, "robot.load_com")
+            if np.max(np.abs(com)) > MAX_LOAD_OFFSET:
+                raise BadInputError(f"robot.load_com {com.tolist()} must lie within {MAX_LOAD_OFFSET:g} m of the flange")
+            self.load_com = com.tolist()
+        if self.load_inertia is not None:
+            inertia = validation.finite_vector(self.load_inertia, 9, "robot.load_inertia").reshape(3, 3)
+            if not np.allclose(inertia, inertia.T) or np.min(np.linalg.eigvalsh(inertia)) < -1e-12:
+                raise BadInputError("robot.load_inertia must be a symmetric positive semi-definite 3x3 matrix")
+            if np.max(np.abs(inertia)) > MAX_LOAD_INERTIA:
+                raise BadInputError(f"robot.load_inertia entries must stay below {MAX_LOAD_INERTIA:g} kg m^2")
+            self.load_inertia = inertia.ravel().tolist()
         validation.boolean(self.automatic_error_recovery, "robot.automatic_error_recovery")
         validation.number_in_range(
             self.max_model_difference, 0.0, MAX_MODEL_DIFFERENCE, "robot.max_model_difference",

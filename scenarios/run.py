@@ -20,8 +20,9 @@ from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
-from impactqp.controller.model.postures import POSTURES
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.postures import ImpactPosture
+from impactqp.controller.model.robot import NQ, RobotModel
+from impactqp.controller.model.robot_description import ROBOTS, robot_description
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
 from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.runtime.franka_backend import FrankaRobot
@@ -38,6 +39,9 @@ from impactqp.sim.sim_backend import SimRobot
 
 BACKENDS = ("sim", "franka", "panda", "replay")
 ROBOT_BACKENDS = ("franka", "panda")  # a real robot: connect, check the model, move to the start posture
+BACKEND_ROBOTS = {"franka": "fr3", "panda": "panda"}
+"""The robot each robot backend drives: pylibfranka (libfranka >= 0.10) serves the FR3 only,
+libfranka 0.9 (panda-python) the Panda only (Franka's compatibility matrix)."""
 SIM_START_DISTANCE = 0.05
 MAX_DURATION = 60.0
 """s: one impact session (approach, impact, post-impact phase) lasts seconds; a minute bounds it."""
@@ -53,6 +57,10 @@ class RunRequest:
         Panda through panda-python's libfranka 0.9) or ``replay`` (a dataset trial played back).
     robot_ip
         ``--robot-ip``: the robot's address (franka and panda backends).
+    robot
+        ``--robot``: the arm the controller models (``robot_description.ROBOTS``: ``panda`` or
+        ``fr3``), with the default tool; the franka backend drives an ``fr3``, the panda
+        backend a ``panda``.
     realtime
         ``--realtime enforce|ignore``: True requires a real-time kernel for libfranka (franka and
         panda backends); False runs without one (a simulator of the robot).
@@ -84,6 +92,7 @@ class RunRequest:
 
     backend: str = "sim"
     robot_ip: str | None = None
+    robot: str = "panda"
     realtime: bool = True
     config_file: str | None = None
     plant_file: str | None = None
@@ -117,7 +126,7 @@ def controller_config(request: RunRequest, surface=None) -> ControllerConfig:
         except BadInputError as error:
             raise BadInputError(f"--config {error}") from None
     if surface is None:
-        surface = POSTURES[request.posture].surface
+        surface = posture_of(request).surface
     if request.backend in ROBOT_BACKENDS:  # a weak posture task keeps the wrist where the start put it
         return ControllerConfig.approach(surface, request.speed)
     return ControllerConfig.approach(surface, request.speed, posture_weight=0.0)
@@ -126,8 +135,17 @@ def controller_config(request: RunRequest, surface=None) -> ControllerConfig:
 def check_request(request: RunRequest) -> None:
     if request.backend not in BACKENDS:
         raise BadInputError(f"--backend {request.backend!r}: choose from {', '.join(BACKENDS)}")
-    if request.posture not in POSTURES:
-        raise BadInputError(f"--posture {request.posture!r} is unknown; known: {', '.join(POSTURES)}")
+    if request.robot not in ROBOTS:
+        raise BadInputError(f"--robot {request.robot!r} is unknown; known: {', '.join(ROBOTS)}")
+    robot = BACKEND_ROBOTS.get(request.backend)
+    if robot is not None and request.robot != robot:
+        raise BadInputError(
+            f"--backend {request.backend} drives the {robot} only, not the {request.robot}: "
+            f"use --robot {robot}, or --backend {'panda' if robot == 'fr3' else 'franka'} for the {request.robot}"
+        )
+    postures = robot_description(request.robot).postures
+    if request.posture not in postures:
+        raise BadInputError(f"--posture {request.posture!r} is unknown; known: {', '.join(postures)}")
     approach_speed(request.speed, "--speed")
     number_in_range(request.duration, 0.0, MAX_DURATION, "--duration", "s", low_open=True)
     if request.backend in ROBOT_BACKENDS and not request.robot_ip:
@@ -136,22 +154,27 @@ def check_request(request: RunRequest) -> None:
         raise BadInputError("--backend replay needs --dataset DIR (and optionally --trial ID)")
 
 
-def start_posture(request: RunRequest, model: PandaModel, config: ControllerConfig) -> np.ndarray:
+def posture_of(request: RunRequest) -> ImpactPosture:
+    """The named posture of the request's robot."""
+    return robot_description(request.robot).postures[request.posture]
+
+
+def start_posture(request: RunRequest, model: RobotModel, config: ControllerConfig) -> np.ndarray:
     """The posture's configuration with the contact point ``SIM_START_DISTANCE`` in front of the surface."""
     try:
-        return approach_start(model, POSTURES[request.posture].q, config.surface.surface(), SIM_START_DISTANCE)
+        return approach_start(model, posture_of(request).q, config.surface.surface(), SIM_START_DISTANCE)
     except UnreachableStartError as error:
         raise BadInputError(str(error)) from None
 
 
-def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterface, ControllerConfig, float]:
+def build_backend(request: RunRequest, model: RobotModel) -> tuple[RobotInterface, ControllerConfig, float]:
     """(backend, controller configuration, duration) of the request. A robot is connected,
     configured (``[robot]``) and its model checked here; its posture task holds the start posture."""
     if request.backend in ROBOT_BACKENDS:
         Robot = FrankaRobot if request.backend == "franka" else PandaRobot
         config = controller_config(request)
         q_start = start_posture(request, model, config)
-        robot = Robot.connect(request.robot_ip, config.robot, realtime=request.realtime)
+        robot = Robot.connect(request.robot_ip, config.robot, realtime=request.realtime, model=model)
         robot.check_model(model)
         return robot, with_posture_target(config, q_start), request.duration
     if request.backend == "replay":
@@ -165,7 +188,8 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
     except PlantParameterError as error:
         raise BadInputError(f"--plant: {error}") from None
     q0 = start_posture(request, model, config)
-    robot = SimRobot(build_scene(config.surface.surface(), plant), q0, np.zeros(NQ), config.dt, paced=not request.unpaced)
+    scene = build_scene(config.surface.surface(), plant, robot=model.description, tool=model.tool)
+    robot = SimRobot(scene, q0, np.zeros(NQ), config.dt, paced=not request.unpaced)
     return robot, config, request.duration
 
 
@@ -194,7 +218,7 @@ class StopSignals:
             signal.signal(sig, handler)
 
 
-def move_to_start(robot: RobotInterface, model: PandaModel, config: ControllerConfig, q_start, signals: StopSignals) -> dict:
+def move_to_start(robot: RobotInterface, model: RobotModel, config: ControllerConfig, q_start, signals: StopSignals) -> dict:
     """Run the move to ``q_start`` (``start_move``); its report. A move that does not end at
     rest on its own (watchdog, robot error, stop request) ends the run before the session."""
     move = StartMove(q_start, model, config.dt, robot.read(), config.surface.surface())
@@ -207,12 +231,12 @@ def move_to_start(robot: RobotInterface, model: PandaModel, config: ControllerCo
     return {"duration": move.duration, "cycles": result.cycles, "final_error": move.final_error(result.log.q[-1])}
 
 
-def run(request: RunRequest, model: PandaModel | None = None) -> tuple[dict, LoopResult]:
-    """Run the request with the robot ``model`` (default: the Panda); (report, result). Ctrl-C,
+def run(request: RunRequest) -> tuple[dict, LoopResult]:
+    """Run the request with the model of ``request.robot``; (report, result). Ctrl-C,
     SIGTERM or SIGHUP brakes to a stop and keeps the log (``result.interrupted``). The log
     directory is checked before the robot moves; a robot moves to the start posture first."""
     check_request(request)
-    model = PandaModel() if model is None else model
+    model = RobotModel(request.robot)
     robot, config, duration = build_backend(request, model)
     q_start = start_posture(request, model, config) if request.backend in ROBOT_BACKENDS else None
     run_log = RunLog(request.log, log_header(config)) if request.log else None

@@ -9,7 +9,8 @@ process group and reaps it; ``__exit__`` and the tests' fixture finalizers call 
 run leaves no server behind.
 
 ``main`` (the server process): usage ``python -m impactqp.sim.franky_sim READY_FILE
-WALL_POINT WALL_NORMAL Q0 [TOOL_CENTRE TOOL_RADIUS]`` (vectors as comma-separated numbers). The
+WALL_POINT WALL_NORMAL Q0 [TOOL_CENTRE TOOL_RADIUS]`` (vectors as comma-separated numbers; the
+tool is a sphere in the hand's frame, as the declared tool ``ToolDescription`` describes it). The
 server binds the first free loopback address and writes it to READY_FILE once it listens, and
 writes to READY_FILE.contact the robot time (s) of the first state sent after a physics step with
 a contact on the wall (the first state the contact force acted on): libfranka stamps a state with
@@ -29,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from impactqp.controller.model.robot import TOOL_CENTRE_OFFSET, TOOL_RADIUS
+from impactqp.controller.model.tool_description import Sphere, ToolDescription, tool_description
 
 READY_POLLS = 1200  # 0.1 s apart: importing MuJoCo and Pinocchio is slow on a loaded machine
 POLL_INTERVAL = 0.1
@@ -56,13 +57,16 @@ def write_file(path: str, text: str) -> None:
 class FrankySimServer:
     """The server process; ``hostname`` is the loopback address it serves once started."""
 
-    def __init__(self, directory, wall_point, wall_normal, q0, tool: bool = True):
+    def __init__(self, directory, wall_point, wall_normal, q0, tool: str | ToolDescription | None = "impact_tip"):
         self.directory = Path(directory)
         self.ready_file = self.directory / "franky-sim.ready"
         self.output = self.directory / "franky-sim.log"
         self.args = [str(self.ready_file), csv(wall_point), csv(wall_normal), csv(q0)]
-        if tool:
-            self.args += [repr(TOOL_CENTRE_OFFSET), repr(TOOL_RADIUS)]
+        if tool is not None:
+            tool = tool_description(tool)
+            if not isinstance(tool.geometry, Sphere) or tool.frame != "hand" or tool.replaces_hand:
+                raise ValueError(f"the franky-sim scene takes a sphere on the Franka Hand, not the tool {tool.name!r}")
+            self.args += [csv(tool.geometry.centre), repr(tool.geometry.radius)]
         self.process: subprocess.Popen | None = None
         self.hostname: str | None = None
 
@@ -122,11 +126,11 @@ def add_wall(sim, point: np.ndarray, normal: np.ndarray) -> None:
     )
 
 
-def add_tool(sim, centre_offset: float, radius: float) -> None:
-    """The contact tool: a light sphere on the hand's z axis (the axis of the fingers)."""
+def add_tool(sim, centre: np.ndarray, radius: float) -> None:
+    """The contact tool: a light sphere at ``centre`` in the hand's frame."""
     hand = next(body for body in sim.worldbody.iter("body") if body.get("name") == HAND_BODY)
     ET.SubElement(
-        hand, "geom", name="tool", type="sphere", size=str(radius), pos=f"0 0 {centre_offset}",
+        hand, "geom", name="tool", type="sphere", size=str(radius), pos=" ".join(map(str, centre)),
         mass="0.001", contype="1", conaffinity="1", group="0",
     )
 
@@ -156,7 +160,7 @@ def main() -> None:
         sim.add_robot(initial_q=tuple(vector(q0)))
         add_wall(sim, vector(wall_point), vector(wall_normal))
         if len(sys.argv) > 5:
-            add_tool(sim, float(sys.argv[5]), float(sys.argv[6]))
+            add_tool(sim, vector(sys.argv[5]), float(sys.argv[6]))
         with SimulationServer(sim) as server:
             sim.register_post_step_callback(contact_recorder(server, ready_file + ".contact"))
             write_file(ready_file, server.robot_servers[0].hostname)

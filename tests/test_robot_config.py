@@ -12,7 +12,7 @@ def test_the_defaults_have_the_sizes_libfranka_takes_and_round_trip():
     robot = RobotConfig()
     assert len(robot.lower_torque_thresholds) == len(robot.upper_torque_thresholds) == len(robot.joint_impedance) == 7
     assert len(robot.lower_force_thresholds) == len(robot.upper_force_thresholds) == 6
-    assert len(robot.load_com) == 3 and len(robot.load_inertia) == 9
+    assert robot.load_mass is robot.load_com is robot.load_inertia is None  # the declared tool's load
     assert not robot.automatic_error_recovery  # off unless asked for
     config = ControllerConfig.from_dict({"robot": {"load_mass": 0.4, "load_com": [0.0, 0.0, 0.05]}})
     assert ControllerConfig.from_dict(config.to_dict()).robot == config.robot

@@ -41,14 +41,22 @@ def one_error_line(capsys, argv):
 
 @pytest.mark.skipif(not HAS_PYLIBFRANKA, reason="pylibfranka is not installed: pip install -e '.[franka]'")
 def test_franka_without_a_robot_fails_with_one_line(capsys):
-    err = one_error_line(capsys, ["run", "--backend", "franka", "--robot-ip", "127.0.0.1"])
+    err = one_error_line(capsys, ["run", "--backend", "franka", "--robot", "fr3", "--robot-ip", "127.0.0.1"])
     assert "no robot answers at 127.0.0.1" in err
 
 
 def test_franka_without_pylibfranka_says_how_to_install_it(capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "pylibfranka", None)  # makes `import pylibfranka` fail
-    err = one_error_line(capsys, ["run", "--backend", "franka", "--robot-ip", "127.0.0.1"])
+    err = one_error_line(capsys, ["run", "--backend", "franka", "--robot", "fr3", "--robot-ip", "127.0.0.1"])
     assert "pip install -e '.[franka]'" in err
+
+
+@pytest.mark.parametrize(("backend", "robot", "right"), [("franka", "panda", "fr3"), ("panda", "fr3", "panda")])
+def test_a_backend_for_another_robot_is_bad_input_before_connecting(capsys, monkeypatch, backend, robot, right):
+    monkeypatch.setattr(run_module, "build_backend", lambda *_: pytest.fail("connected"))
+    err = one_error_line(capsys, ["run", "--backend", backend, "--robot", robot, "--robot-ip", "127.0.0.1"])
+    assert f"--backend {backend} drives the {right} only, not the {robot}: use --robot {right}" in err
+    assert "--robot 'ur5' is unknown; known: panda, fr3" in one_error_line(capsys, ["run", "--robot", "ur5"])
 
 
 def test_bad_input_gets_one_line(tmp_path, capsys):
@@ -56,7 +64,7 @@ def test_bad_input_gets_one_line(tmp_path, capsys):
     bad = tmp_path / "bad.toml"
     bad.write_text("nonsense_key = 1\n")
     assert "unknown configuration keys" in one_error_line(capsys, ["run", "--config", str(bad)])
-    assert "needs --robot-ip" in one_error_line(capsys, ["run", "--backend", "franka"])
+    assert "needs --robot-ip" in one_error_line(capsys, ["run", "--backend", "franka", "--robot", "fr3"])
     assert "dataset.json" in one_error_line(capsys, ["run", "--backend", "replay", "--dataset", str(tmp_path)])
     assert "--speed" in one_error_line(capsys, ["run", "--speed", "-1"])
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.robot import NQ, PandaModel, RobotModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 
@@ -55,6 +55,8 @@ def franka_errors(pylibfranka) -> tuple[type[BaseException], ...]:
 class FrankaRobot(LibfrankaRobot):
     """A connected ``pylibfranka.Robot`` (``connect``) in joint-velocity control."""
 
+    ROBOT = "fr3"  # the robot this backend drives (robot_description.ROBOTS)
+
     def __init__(self, robot, pylibfranka, settings: RobotConfig | None = None):
         settings = RobotConfig() if settings is None else settings
         super().__init__(robot, franka_errors(pylibfranka), (pylibfranka.ControlException,), settings)
@@ -62,9 +64,12 @@ class FrankaRobot(LibfrankaRobot):
         self.control = None
 
     @classmethod
-    def connect(cls, ip: str, settings: RobotConfig | None = None, realtime: bool = True) -> FrankaRobot:
-        """The robot at ``ip`` with the ``[robot]`` settings applied; bad input when it does not
-        answer or refuses them. ``realtime=False`` lets libfranka run without a real-time kernel."""
+    def connect(
+        cls, ip: str, settings: RobotConfig | None = None, realtime: bool = True, model: PandaModel | None = None
+    ) -> FrankaRobot:
+        """The robot at ``ip`` with the ``[robot]`` settings and the load of ``model``'s tool
+        (default: the FR3 with the default tool) applied; bad input when it does not answer or
+        refuses them. ``realtime=False`` lets libfranka run without a real-time kernel."""
         franka = import_pylibfranka()
         config = franka.RealtimeConfig.kEnforce if realtime else franka.RealtimeConfig.kIgnore
         try:
@@ -78,7 +83,7 @@ class FrankaRobot(LibfrankaRobot):
         except franka_errors(franka) as error:
             raise BadInputError(f"the robot at {ip} refused the connection: {error}") from None
         connected = cls(robot, franka, settings)
-        connected.configure(ip)
+        connected.configure(ip, RobotModel(cls.ROBOT) if model is None else model)
         return connected
 
     def read(self) -> RobotState:

@@ -3,6 +3,13 @@ panda-python's libfranka 0.9 for the Panda): the robot's settings of the ``[robo
 applied on connect, the check of the robot's own dynamic model against ours, the statistics
 of the connection and the naming of a reflex.
 
+Load: ``Robot.set_load(m, F_x_Cload, I_load)`` takes the mass, the centre of mass in the flange
+frame F and the inertia about the centre of mass in F's axes (3x3, column-major). The declared
+tool (``ToolDescription``: m, c and I_c in its own frame T) gives F_x_Cload = X_FT c and
+I_load = R_FT I_c R_FT^T, X_FT = (R_FT, p_FT) the tool frame's placement in the flange frame;
+each of the three that the ``[robot]`` table sets replaces the tool's. The load is what the robot
+carries beyond the end effector configured on the robot (the Franka Hand, usually).
+
 Model check: at the state on connect, with M_r the robot's mass matrix (``Model.mass``) and M
 ours, the relative difference ||M_r - M||_F / ||M_r||_F above ``max_model_difference`` refuses
 the robot (wrong robot, wrong tool or wrong model). Statistics: the smallest
@@ -12,13 +19,44 @@ read covers (``Duration`` of ``readOnce``, one period when no packet was missed)
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+import pinocchio as pin
 
 from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 
 from .interface import RobotInterface, RobotState
+
+
+@dataclass(frozen=True)
+class Load:
+    """The arguments of ``Robot.set_load``: mass (kg), centre of mass (m, flange frame) and
+    inertia about it (kg m^2, 9 numbers column-major, flange axes)."""
+
+    mass: float
+    com: list[float]
+    inertia: list[float]
+
+
+def declared_load(model: PandaModel, settings: RobotConfig) -> Load:
+    """The load of ``model``'s tool in the flange frame, each entry the ``[robot]`` table sets
+    taking its place (module docstring)."""
+    tool = model.tool
+    data = model.model.createData()
+    pin.framesForwardKinematics(model.model, data, pin.neutral(model.model))
+    flange = data.oMf[model.model.getFrameId(model.description.flange_frame)]
+    X = flange.actInv(data.oMf[model.tool_frame_id])
+    com = X.act(np.asarray(tool.com, dtype=float))
+    inertia = X.rotation @ np.asarray(tool.inertia, dtype=float) @ X.rotation.T
+    return Load(
+        float(tool.mass) if settings.load_mass is None else float(settings.load_mass),
+        com.tolist() if settings.load_com is None else list(settings.load_com),
+        inertia.ravel(order="F").tolist() if settings.load_inertia is None else list(settings.load_inertia),
+    )
+
 
 def state_from_franka(state) -> RobotState:
     """Our :class:`RobotState` from a ``pylibfranka.RobotState`` (or anything with its names)."""
@@ -65,16 +103,19 @@ class LibfrankaRobot(RobotInterface):
         self.reflex: list[str] = []
         self.recovered = False
         self.model_difference: float | None = None
+        self.load: Load | None = None
 
-    def configure(self, ip: str) -> None:
-        """Set the collision reflex, the joint impedance and the load of ``settings``."""
+    def configure(self, ip: str, model: PandaModel) -> None:
+        """Set the collision reflex and the joint impedance of ``settings`` and the load of
+        ``model``'s tool (``declared_load``)."""
         s = self.settings
+        load = self.load = declared_load(model, s)
         steps = (
             ("collision thresholds", lambda: self.robot.set_collision_behavior(
                 s.lower_torque_thresholds, s.upper_torque_thresholds, s.lower_force_thresholds, s.upper_force_thresholds
             )),
             ("joint impedance", lambda: self.robot.set_joint_impedance(s.joint_impedance)),
-            ("load", lambda: self.robot.set_load(s.load_mass, s.load_com, s.load_inertia)),
+            ("load", lambda: self.robot.set_load(load.mass, load.com, load.inertia)),
         )
         for what, step in steps:
             try:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from impactqp.controller.model.robot import PandaModel, RobotModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 
@@ -40,6 +41,7 @@ class PandaRobot(LibfrankaRobot):
     """A connected ``panda_py.libfranka.Robot`` (``connect``) in joint-velocity control through
     the callback API."""
 
+    ROBOT = "panda"  # the robot this backend drives (robot_description.ROBOTS)
     drives_cycles = True
 
     def __init__(self, robot, libfranka, settings: RobotConfig | None = None):
@@ -48,9 +50,12 @@ class PandaRobot(LibfrankaRobot):
         self.libfranka = libfranka
 
     @classmethod
-    def connect(cls, ip: str, settings: RobotConfig | None = None, realtime: bool = True) -> PandaRobot:
-        """The Panda at ``ip`` with the ``[robot]`` settings applied; bad input when it does not
-        answer or refuses them."""
+    def connect(
+        cls, ip: str, settings: RobotConfig | None = None, realtime: bool = True, model: PandaModel | None = None
+    ) -> PandaRobot:
+        """The Panda at ``ip`` with the ``[robot]`` settings and the load of ``model``'s tool
+        (default: the Panda with the default tool) applied; bad input when it does not answer or
+        refuses them."""
         libfranka = import_libfranka()
         config = libfranka.RealtimeConfig.kEnforce if realtime else libfranka.RealtimeConfig.kIgnore
         try:
@@ -61,7 +66,7 @@ class PandaRobot(LibfrankaRobot):
             raise BadInputError("real-time scheduling is not available (no real-time kernel); see docs/robot-loop.md "
                                 "or use --realtime ignore")
         connected = cls(robot, libfranka, settings)
-        connected.configure(ip)
+        connected.configure(ip, RobotModel(cls.ROBOT) if model is None else model)
         return connected
 
     def read(self):

@@ -18,23 +18,21 @@ from __future__ import annotations
 import functools
 import importlib.util
 import tempfile
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-from impactqp.controller.config import ControllerConfig
-from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.inverse_kinematics import approach_start
-from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot import RobotModel
+from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.scenarios.run import SIM_START_DISTANCE, RunRequest, run
 from impactqp.sim.franky_sim import FrankySimServer
 
 NO_OVERRUN_TRIP = 10**9
 CAMPAIGN_SPEEDS = (0.1, 0.15)
 FRANKA_SIM_POSTURE = "elbow_up"
-FRANKA_SIM_MODEL_DIFFERENCE = 0.1  # our Panda model drives franky-sim's FR3 (docs/robot-loop.md)
+FRANKA_SIM_ROBOT = "fr3"  # franky-sim serves an FR3
 
 
 def rows(duration: float = 1.0) -> list[dict]:
@@ -76,16 +74,12 @@ def franka_sim_run() -> tuple[dict, float | None] | None:
     posture's start; None without pylibfranka or franky-sim."""
     if importlib.util.find_spec("pylibfranka") is None or importlib.util.find_spec("franky_sim") is None:
         return None
-    posture = POSTURES[FRANKA_SIM_POSTURE]
-    q0 = approach_start(PandaModel(), posture.q, posture.surface, SIM_START_DISTANCE)
-    config = ControllerConfig.approach(posture.surface, 0.15)
-    config.robot = replace(config.robot, max_model_difference=FRANKA_SIM_MODEL_DIFFERENCE)
+    posture = ROBOTS[FRANKA_SIM_ROBOT].postures[FRANKA_SIM_POSTURE]
+    q0 = approach_start(RobotModel(FRANKA_SIM_ROBOT), posture.q, posture.surface, SIM_START_DISTANCE)
     with tempfile.TemporaryDirectory() as directory:
-        config_file = Path(directory) / "config.yaml"
-        config_file.write_text(yaml.safe_dump(config.to_dict()))
         with FrankySimServer(Path(directory) / "server", posture.surface.point, posture.surface.normal, q0) as server:
             request = RunRequest(
-                backend="franka", robot_ip=server.hostname, realtime=False, config_file=str(config_file),
+                backend="franka", robot=FRANKA_SIM_ROBOT, robot_ip=server.hostname, realtime=False,
                 posture=FRANKA_SIM_POSTURE, duration=1.0, max_overruns=NO_OVERRUN_TRIP,
             )
             report, _ = run(request)

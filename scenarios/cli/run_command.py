@@ -14,6 +14,10 @@ from impactqp.scenarios.cli.arguments import EXIT_INTERRUPTED, emit_json
 )
 @click.option("--robot-ip", help="The robot's address (franka and panda backends).")
 @click.option(
+    "--robot", default="panda", show_default=True,
+    help="The arm to model: panda or fr3 (docs/robots.md); --backend franka drives an fr3, --backend panda a panda.",
+)
+@click.option(
     "--realtime", type=click.Choice(["enforce", "ignore"]), default="enforce", show_default=True,
     help="franka and panda backends: require a real-time kernel (enforce) or run without one (ignore: a simulator).",
 )
@@ -27,14 +31,14 @@ from impactqp.scenarios.cli.arguments import EXIT_INTERRUPTED, emit_json
 @click.option("--trial", help="Trial id to replay (default: the first).")
 @click.option("--unpaced", is_flag=True, help="Run the sim backend as fast as it goes (no wall-clock pacing).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-def run_command(backend, robot_ip, realtime, config_file, plant_file, posture, speed, duration, log, dataset, trial, unpaced, as_json):
+def run_command(backend, robot_ip, robot, realtime, config_file, plant_file, posture, speed, duration, log, dataset, trial, unpaced, as_json):
     """Run the impact-aware controller in a 1 kHz loop on a robot: approach, detect the impact,
     post-impact phase, brake to a stop. Ctrl-C (or SIGTERM) brakes to a stop, keeps the log and
     exits with code 130."""
     from impactqp.scenarios.run import RunRequest, run  # lazy: the command line loads an experiment when it runs
 
     request = RunRequest(
-        backend=backend, robot_ip=robot_ip, config_file=config_file, plant_file=plant_file, posture=posture,
+        backend=backend, robot_ip=robot_ip, robot=robot, config_file=config_file, plant_file=plant_file, posture=posture,
         speed=speed, duration=duration, log=log, dataset=dataset, trial=trial, unpaced=unpaced,
         realtime=realtime == "enforce",
     )
