@@ -34,6 +34,7 @@ from .qp import ImpactAwareController
 from .model.robot import PandaModel
 from .model import validation
 from .model.validation import BadInputError
+from .robot_config import RobotConfig
 
 TASK_TYPES = {
     "frame": FrameTask,
@@ -198,6 +199,7 @@ class ControllerConfig:
     impact: ImpactConfig = field(default_factory=ImpactConfig)
     surface: SurfaceConfig = field(default_factory=SurfaceConfig)
     post_impact: PostImpactConfig = field(default_factory=PostImpactConfig)
+    robot: RobotConfig = field(default_factory=RobotConfig)
 
     def __post_init__(self):
         validation.number_in_range(self.dt, MIN_DT, MAX_DT, "dt", "s (10 kHz to 100 Hz)")
@@ -264,6 +266,7 @@ class ControllerConfig:
             parsed_tasks.append(TaskConfig(task_type, dict(params) | entry))
         sections = {
             "limits": LimitsConfig, "impact": ImpactConfig, "surface": SurfaceConfig, "post_impact": PostImpactConfig,
+            "robot": RobotConfig,
         }
         parsed = {name: _section(kind, data.pop(name, None), name) for name, kind in sections.items()}
         return cls(tasks=parsed_tasks, **parsed, **data)

@@ -11,29 +11,37 @@ from __future__ import annotations
 
 import signal
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from impactqp.controller.config import ControllerConfig
+from impactqp.controller.config import ControllerConfig, TaskConfig
 from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD
-from impactqp.controller.model.postures import POSTURES
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
+from impactqp.controller.model.postures import ImpactPosture
+from impactqp.controller.model.robot import NQ, RobotModel
+from impactqp.controller.model.robot_description import ROBOTS, robot_description
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
 from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.runtime.franka_backend import FrankaRobot
 from impactqp.controller.runtime.interface import RobotInterface
 from impactqp.controller.runtime.loop import ControlLoop, LoopResult
+from impactqp.controller.runtime.panda_backend import PandaRobot
 from impactqp.controller.runtime.replay_backend import ReplayRobot, load_trial
 from impactqp.controller.runtime.run_log import RunLog
 from impactqp.controller.runtime.session import ImpactSession
+from impactqp.controller.runtime.start_move import StartMove
 from impactqp.sim.plant import PlantParameterError, PlantParameters
-from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
 from impactqp.sim.scene import build_scene
 from impactqp.sim.sim_backend import SimRobot
 
-BACKENDS = ("sim", "franka", "replay")
+BACKENDS = ("sim", "franka", "panda", "replay")
+ROBOT_BACKENDS = ("franka", "panda")  # a real robot: connect, check the model, move to the start posture
+BACKEND_ROBOTS = {"franka": "fr3", "panda": "panda"}
+"""The robot each robot backend drives: pylibfranka (libfranka >= 0.10) serves the FR3 only,
+libfranka 0.9 (panda-python) the Panda only (Franka's compatibility matrix)."""
 SIM_START_DISTANCE = 0.05
 MAX_DURATION = 60.0
 """s: one impact session (approach, impact, post-impact phase) lasts seconds; a minute bounds it."""
@@ -45,10 +53,17 @@ class RunRequest:
     option.
 
     backend
-        ``--backend``: ``sim`` (MuJoCo), ``franka`` (a real Panda through libfranka) or
-        ``replay`` (a dataset trial played back).
+        ``--backend``: ``sim`` (MuJoCo), ``franka`` (an FR3 through pylibfranka), ``panda`` (a
+        Panda through panda-python's libfranka 0.9) or ``replay`` (a dataset trial played back).
     robot_ip
-        ``--robot-ip``: the robot's address (franka backend).
+        ``--robot-ip``: the robot's address (franka and panda backends).
+    robot
+        ``--robot``: the arm the controller models (``robot_description.ROBOTS``: ``panda`` or
+        ``fr3``), with the default tool; the franka backend drives an ``fr3``, the panda
+        backend a ``panda``.
+    realtime
+        ``--realtime enforce|ignore``: True requires a real-time kernel for libfranka (franka and
+        panda backends); False runs without one (a simulator of the robot).
     config_file
         ``--config``: a controller configuration file (.toml, .yaml); None: the default approach
         to ``posture``'s wall at ``speed``.
@@ -77,6 +92,8 @@ class RunRequest:
 
     backend: str = "sim"
     robot_ip: str | None = None
+    robot: str = "panda"
+    realtime: bool = True
     config_file: str | None = None
     plant_file: str | None = None
     posture: str = "elbow_up"
@@ -90,6 +107,18 @@ class RunRequest:
     max_overruns: int = 5
 
 
+def with_posture_target(config: ControllerConfig, q) -> ControllerConfig:
+    """``config`` with ``q`` the target of every posture task that has none, so that the task
+    holds the start posture for the whole session (without a target it would take the posture
+    at each controller's reset, the impact's for the post-impact controller)."""
+    tasks = [
+        TaskConfig(t.type, {**t.params, "target": [float(x) for x in q]})
+        if t.type == "posture" and t.params.get("target") is None else t
+        for t in config.tasks
+    ]
+    return replace(config, tasks=tasks)
+
+
 def controller_config(request: RunRequest, surface=None) -> ControllerConfig:
     if request.config_file is not None:
         try:
@@ -97,28 +126,57 @@ def controller_config(request: RunRequest, surface=None) -> ControllerConfig:
         except BadInputError as error:
             raise BadInputError(f"--config {error}") from None
     if surface is None:
-        surface = POSTURES[request.posture].surface
+        surface = posture_of(request).surface
+    if request.backend in ROBOT_BACKENDS:  # a weak posture task keeps the wrist where the start put it
+        return ControllerConfig.approach(surface, request.speed)
     return ControllerConfig.approach(surface, request.speed, posture_weight=0.0)
 
 
 def check_request(request: RunRequest) -> None:
     if request.backend not in BACKENDS:
         raise BadInputError(f"--backend {request.backend!r}: choose from {', '.join(BACKENDS)}")
-    if request.posture not in POSTURES:
-        raise BadInputError(f"--posture {request.posture!r} is unknown; known: {', '.join(POSTURES)}")
+    if request.robot not in ROBOTS:
+        raise BadInputError(f"--robot {request.robot!r} is unknown; known: {', '.join(ROBOTS)}")
+    robot = BACKEND_ROBOTS.get(request.backend)
+    if robot is not None and request.robot != robot:
+        raise BadInputError(
+            f"--backend {request.backend} drives the {robot} only, not the {request.robot}: "
+            f"use --robot {robot}, or --backend {'panda' if robot == 'fr3' else 'franka'} for the {request.robot}"
+        )
+    postures = robot_description(request.robot).postures
+    if request.posture not in postures:
+        raise BadInputError(f"--posture {request.posture!r} is unknown; known: {', '.join(postures)}")
     approach_speed(request.speed, "--speed")
     number_in_range(request.duration, 0.0, MAX_DURATION, "--duration", "s", low_open=True)
-    if request.backend == "franka" and not request.robot_ip:
-        raise BadInputError("--backend franka needs --robot-ip IP")
+    if request.backend in ROBOT_BACKENDS and not request.robot_ip:
+        raise BadInputError(f"--backend {request.backend} needs --robot-ip IP")
     if request.backend == "replay" and not request.dataset:
         raise BadInputError("--backend replay needs --dataset DIR (and optionally --trial ID)")
 
 
-def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterface, ControllerConfig, float]:
-    """(backend, controller configuration, duration) of the request."""
-    if request.backend == "franka":
+def posture_of(request: RunRequest) -> ImpactPosture:
+    """The named posture of the request's robot."""
+    return robot_description(request.robot).postures[request.posture]
+
+
+def start_posture(request: RunRequest, model: RobotModel, config: ControllerConfig) -> np.ndarray:
+    """The posture's configuration with the contact point ``SIM_START_DISTANCE`` in front of the surface."""
+    try:
+        return approach_start(model, posture_of(request).q, config.surface.surface(), SIM_START_DISTANCE)
+    except UnreachableStartError as error:
+        raise BadInputError(str(error)) from None
+
+
+def build_backend(request: RunRequest, model: RobotModel) -> tuple[RobotInterface, ControllerConfig, float]:
+    """(backend, controller configuration, duration) of the request. A robot is connected,
+    configured (``[robot]``) and its model checked here; its posture task holds the start posture."""
+    if request.backend in ROBOT_BACKENDS:
+        Robot = FrankaRobot if request.backend == "franka" else PandaRobot
         config = controller_config(request)
-        return FrankaRobot.connect(request.robot_ip), config, request.duration
+        q_start = start_posture(request, model, config)
+        robot = Robot.connect(request.robot_ip, config.robot, realtime=request.realtime, model=model)
+        robot.check_model(model)
+        return robot, with_posture_target(config, q_start), request.duration
     if request.backend == "replay":
         trial, header = load_trial(request.dataset, request.trial)
         speed = trial.entry.reference_normal_speed
@@ -129,43 +187,76 @@ def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterfac
         plant = None if request.plant_file is None else PlantParameters.from_json(request.plant_file)
     except PlantParameterError as error:
         raise BadInputError(f"--plant: {error}") from None
-    surface = config.surface.surface()
-    try:
-        q0 = approach_start(model, POSTURES[request.posture].q, surface, SIM_START_DISTANCE)
-    except UnreachableStartError as error:
-        raise BadInputError(str(error)) from None
-    robot = SimRobot(build_scene(surface, plant), q0, np.zeros(NQ), config.dt, paced=not request.unpaced)
+    q0 = start_posture(request, model, config)
+    scene = build_scene(config.surface.surface(), plant, robot=model.description, tool=model.tool)
+    robot = SimRobot(scene, q0, np.zeros(NQ), config.dt, paced=not request.unpaced)
     return robot, config, request.duration
 
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
+class StopSignals:
+    """While active (in the main thread only: signal handlers can be set nowhere else), Ctrl-C,
+    SIGTERM or SIGHUP asks the current ``loop`` to brake to a stop."""
+
+    def __init__(self):
+        self.loop: ControlLoop | None = None
+        self.previous: dict = {}
+
+    def request_stop(self, *_) -> None:
+        if self.loop is not None:
+            self.loop.request_stop()
+
+    def __enter__(self) -> StopSignals:
+        if threading.current_thread() is threading.main_thread():
+            self.previous = {sig: signal.signal(sig, self.request_stop) for sig in STOP_SIGNALS}
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self.previous.items():
+            signal.signal(sig, handler)
+
+
+def move_to_start(robot: RobotInterface, model: RobotModel, config: ControllerConfig, q_start, signals: StopSignals) -> dict:
+    """Run the move to ``q_start`` (``start_move``); its report. A move that does not end at
+    rest on its own (watchdog, robot error, stop request) ends the run before the session."""
+    move = StartMove(q_start, model, config.dt, robot.read(), config.surface.surface())
+    loop = ControlLoop(robot, move, CommandFilter.for_robot(model, config.dt), deadline=float("inf"))
+    signals.loop = loop
+    result = loop.run(move.duration)
+    if result.watchdog_trips or result.interrupted:
+        reason = result.watchdog_reason or "stop requested"
+        raise BadInputError(f"the move to the start posture ended early ({reason}); the robot braked to a stop")
+    return {"duration": move.duration, "cycles": result.cycles, "final_error": move.final_error(result.log.q[-1])}
+
+
 def run(request: RunRequest) -> tuple[dict, LoopResult]:
-    """Run the request; (report, result). Ctrl-C, SIGTERM or SIGHUP brakes to a stop and keeps the log
-    (``result.interrupted``). The log directory is checked before the robot moves."""
+    """Run the request with the model of ``request.robot``; (report, result). Ctrl-C,
+    SIGTERM or SIGHUP brakes to a stop and keeps the log (``result.interrupted``). The log
+    directory is checked before the robot moves; a robot moves to the start posture first."""
     check_request(request)
-    model = PandaModel()
+    model = RobotModel(request.robot)
     robot, config, duration = build_backend(request, model)
+    q_start = start_posture(request, model, config) if request.backend in ROBOT_BACKENDS else None
     run_log = RunLog(request.log, log_header(config)) if request.log else None
-    session = ImpactSession(config, model)
     deadline = request.deadline
     if deadline is None and (request.backend == "replay" or request.unpaced):
         deadline = float("inf")  # offline: the plant waits for the controller
-    loop = ControlLoop(
-        robot, session, CommandFilter.for_robot(model, config.dt), deadline=deadline, max_overruns=request.max_overruns
-    )
-    if threading.current_thread() is threading.main_thread():
-        previous = {sig: signal.signal(sig, lambda *_: loop.request_stop()) for sig in STOP_SIGNALS}
-        try:
-            result = loop.run(duration)
-        finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
-    else:  # signal handlers can only be set in the main thread
+    with StopSignals() as signals:
+        start_move = None if q_start is None else move_to_start(robot, model, config, q_start, signals)
+        session = ImpactSession(config, model)
+        loop = ControlLoop(
+            robot, session, CommandFilter.for_robot(model, config.dt), deadline=deadline,
+            max_overruns=request.max_overruns,
+        )
+        signals.loop = loop
         result = loop.run(duration)
     log_path = write_log(run_log, request, config, result) if run_log is not None else None
-    return report(result, config, log_path), result
+    report_ = report(result, config, log_path)
+    report_["robot"] = robot.report()
+    report_["start_move"] = start_move
+    return report_, result
 
 
 def contact_start(result: LoopResult) -> float | None:
@@ -198,6 +289,7 @@ def report(result: LoopResult, config: ControllerConfig, log_path: str | None) -
             "time": detector.t_detect,
             "detection_latency_ms": latency,
             "contact_speed": session.contact_speed(),
+            "residual": session.residual_source,
         },
         "phase": result.phase,
         "log": log_path,
@@ -212,12 +304,26 @@ def log_header(config: ControllerConfig) -> DatasetHeader:
     )
 
 
+def after(log: TrialLog, t_start: float) -> TrialLog:
+    """The samples of a log without force from ``t_start`` on."""
+    k = int(np.searchsorted(log.t, t_start))
+    return TrialLog(log.t[k:], log.q[k:], log.dq[k:], log.tau[k:], log.dq_cmd[k:])
+
+
 def write_log(run_log: RunLog, request: RunRequest, config: ControllerConfig, result: LoopResult) -> str:
-    """Add the run as one trial to its dataset; the trial file's path."""
+    """Add the run as one trial to its dataset; the trial file's path.
+
+    A log without a force measurement (a robot's) is written from the end of the detector's
+    contact-free reference window on: the offline torque rule (``controller.measured.impact``)
+    reads a trial that starts in the approach, and would take the start-up of a velocity-servoed
+    arm from rest (the joint torque following the commanded acceleration) for an impact."""
     speed = next(
         (float(t.params.get("speed", 0.0)) for t in config.tasks if t.type == "contact_approach"), request.speed
     )
     log = result.log
+    t_reference = result.session.detector.t_calibrated
+    if not log.has_force and t_reference is not None:
+        log = after(log, t_reference)
     return run_log.add(
         log,
         speed,

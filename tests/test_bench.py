@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from impactqp.scenarios.cli import main
 
 
@@ -14,3 +16,12 @@ def test_bench_prediction_rows(capsys):
     for r in rows:
         assert set(r) == {"name", "unit", "median", "p99"}
         assert r["median"] > 0 and r["p99"] > 0
+
+
+def test_bench_franka_sim_row_comes_from_a_session_through_the_franka_protocol(capsys):
+    pytest.importorskip("pylibfranka", reason="pylibfranka is not installed: pip install -e '.[franka]'")
+    pytest.importorskip("franky_sim", reason="franky-sim is not installed: pip install -e '.[test]'")
+    assert main(["bench", "--only", "loop.franka_sim", "--json"]) == 0
+    (row,) = json.loads(capsys.readouterr().out)["rows"]
+    assert (row["name"], row["unit"]) == ("loop.franka_sim.p99", "us")
+    assert 0.0 < row["median"] <= row["p99"] < float("inf")

@@ -12,20 +12,22 @@ from impactqp.controller.config import ControllerConfig
 from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.robot_config import RobotConfig
 from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.runtime.franka_backend import (
-    CollisionThresholds,
     FrankaRobot,
     franka_command,
     franka_errors,
     state_from_franka,
 )
+from impactqp.controller.runtime.libfranka_robot import error_names
 from impactqp.controller.runtime.loop import ControlLoop
 from impactqp.controller.runtime.session import ImpactSession
 
 pylibfranka = pytest.importorskip("pylibfranka", reason="pylibfranka is not installed: pip install -e '.[franka]'")
 
 READ_ATTRIBUTES = ("time", "q", "dq", "tau_J", "tau_ext_hat_filtered")
+STATISTICS_ATTRIBUTES = ("control_command_success_rate", "last_motion_errors", "current_errors")
 
 
 def franka_like_state(t):
@@ -37,7 +39,7 @@ def franka_like_state(t):
 
 def test_the_adapter_reads_only_attributes_that_robotstate_has():
     names = set(dir(pylibfranka.RobotState))
-    assert set(READ_ATTRIBUTES) <= names
+    assert set(READ_ATTRIBUTES) <= names and set(STATISTICS_ATTRIBUTES) <= names
     assert "O_F_ext_hat_K" in names
 
 
@@ -60,11 +62,12 @@ def test_command_mapping_builds_real_joint_velocities():
     assert franka_command(pylibfranka, np.zeros(NQ), finished=True).motion_finished
 
 
-def test_collision_thresholds_have_the_sizes_set_collision_behavior_takes():
-    thresholds = CollisionThresholds()
-    assert len(thresholds.lower_torque) == len(thresholds.upper_torque) == NQ
-    assert len(thresholds.lower_force) == len(thresholds.upper_force) == 6
-    assert all(lo <= hi for lo, hi in zip(thresholds.lower_torque, thresholds.upper_torque))
+def test_a_reflex_is_named_by_the_flags_of_the_real_errors_class():
+    names = [n for n in dir(pylibfranka.Errors) if not n.startswith("_")]
+    assert "joint_reflex" in names and "cartesian_reflex" in names
+    assert error_names(pylibfranka.Errors()) == []
+    flags = SimpleNamespace(**{n: n in ("joint_reflex", "tau_j_range_violation") for n in names})
+    assert error_names(flags) == ["joint_reflex", "tau_j_range_violation"]
 
 
 NO_ROBOT_HERE = r"no robot answers at 127\.0\.0\.1|real-time scheduling is not available"
@@ -100,6 +103,7 @@ class FciRobot:
         self.q, self.dq, self.t, self.events = np.array(q0, float), np.zeros(NQ), 0.0, events
         self.running = self.finished = self.read_pending = False
         self.commands = []
+        self.success_rate, self.skip_every = 1.0, None
 
     def _state(self):
         t = self.t
@@ -107,6 +111,7 @@ class FciRobot:
         return SimpleNamespace(
             time=SimpleNamespace(to_sec=lambda: t), q=list(self.q), dq=list(self.dq),
             tau_J=zeros, tau_ext_hat_filtered=zeros, O_F_ext_hat_K=[0.0] * 6,
+            control_command_success_rate=self.success_rate,
         )
 
     def read_once(self):
@@ -127,8 +132,10 @@ class FciRobot:
         if not self.running or self.read_pending:
             raise ProtocolError("readOnce without a motion, or twice without a writeOnce")
         self.read_pending = True
-        self.t += 1e-3
-        return self._state(), SimpleNamespace(to_sec=lambda: 1e-3)
+        periods = 2 if self.skip_every and len(self.commands) % self.skip_every == self.skip_every - 1 else 1
+        self.t += periods * 1e-3
+        self.success_rate = min(self.success_rate, 1.0 - 0.01 * (periods - 1))
+        return self._state(), SimpleNamespace(to_sec=lambda: periods * 1e-3)
 
     def writeOnce(self, command):
         if not (self.running and self.read_pending) or not isinstance(command, pylibfranka.JointVelocities):
@@ -143,8 +150,12 @@ class FciRobot:
 
 
 def test_fci_stand_in_uses_only_names_of_the_real_classes():
-    for name in ("read_once", "start_joint_velocity_control", "set_collision_behavior"):
+    for name in (
+        "read_once", "start_joint_velocity_control", "set_collision_behavior", "set_joint_impedance", "set_load",
+        "load_model", "automatic_error_recovery",
+    ):
         assert hasattr(pylibfranka.Robot, name)
+    assert hasattr(pylibfranka.Model, "mass") and hasattr(pylibfranka.Duration, "to_sec")
     for name in ("readOnce", "writeOnce"):
         assert hasattr(pylibfranka.ActiveControlBase, name)
 
@@ -173,3 +184,57 @@ def test_the_controller_is_prepared_before_real_time_and_the_protocol_holds():
     commands = np.array(fci.commands)  # every command sent, the last one finishing the motion
     assert np.max(np.abs(commands[len(commands) // 2])) > 0.01 and np.all(commands[-1] == 0.0)
     assert_continuous_within_limits(commands)
+
+
+def run_fci(fci, settings=None, duration=0.1):
+    model = PandaModel()
+    config = ControllerConfig.approach(POSTURES["elbow_up"].surface, 0.15, posture_weight=0.0)
+    robot = FrankaRobot(fci, pylibfranka, settings)
+    loop = ControlLoop(robot, ImpactSession(config, model), CommandFilter.for_robot(model, config.dt), deadline=float("inf"))
+    return robot, loop.run(duration)
+
+
+def test_missed_packets_are_counted_from_the_duration_of_each_read():
+    fci = FciRobot(POSTURES["elbow_up"].q, [])
+    fci.skip_every = 10
+    robot, result = run_fci(fci)
+    reads = len(fci.commands)  # one readOnce per writeOnce
+    skipped = sum(1 for k in range(reads) if k % 10 == 9)
+    assert robot.report()["missed_packets"] == skipped > 0
+    assert robot.report()["command_success_rate"] == fci.success_rate < 1.0
+
+
+class ReflexRobot(FciRobot):
+    """Aborts the motion with libfranka's ControlException at write ``at``; the robot's state then
+    reports a joint reflex until ``automatic_error_recovery``."""
+
+    def __init__(self, q0, at):
+        super().__init__(q0, [])
+        self.at, self.reflex, self.recoveries = at, False, 0
+
+    def writeOnce(self, command):
+        if len(self.commands) == self.at:
+            self.running, self.read_pending, self.reflex = False, False, True
+            raise pylibfranka.ControlException("libfranka: Move command aborted: motion aborted by reflex! [joint_reflex]")
+        super().writeOnce(command)
+
+    def read_once(self):
+        state = super().read_once()
+        names = [n for n in dir(pylibfranka.Errors) if not n.startswith("_")]
+        state.last_motion_errors = SimpleNamespace(**{n: self.reflex and n == "joint_reflex" for n in names})
+        state.current_errors = SimpleNamespace(**{n: False for n in names})
+        return state
+
+    def automatic_error_recovery(self):
+        self.recoveries += 1
+        self.reflex = False
+
+
+@pytest.mark.parametrize("recover", [False, True])
+def test_a_reflex_ends_the_run_is_named_and_recovered_only_on_request(recover):
+    fci = ReflexRobot(POSTURES["elbow_up"].q, at=30)
+    robot, result = run_fci(fci, RobotConfig(automatic_error_recovery=recover))
+    assert result.watchdog_reason.startswith("robot error: ControlException: ") and "\n" not in result.watchdog_reason
+    report = robot.report()
+    assert report["reflex"] == ["joint_reflex"]
+    assert report["recovered"] == recover and fci.recoveries == int(recover)

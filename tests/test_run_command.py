@@ -25,7 +25,7 @@ def test_sim_run_prints_the_report_and_writes_a_dataset(tmp_path, capsys):
     report = json.loads(capsys.readouterr().out)
     assert set(report) >= {"cycles", "overruns", "cycle_us", "watchdog_trips", "impact", "phase", "log"}
     assert set(report["cycle_us"]) == {"p50", "p99", "max"}
-    assert set(report["impact"]) == {"detected", "time", "detection_latency_ms", "contact_speed"}
+    assert set(report["impact"]) == {"detected", "time", "detection_latency_ms", "contact_speed", "residual"}
     assert report["impact"]["detected"]
     assert (tmp_path / "dataset.json").exists() and report["log"].endswith("run0000.csv")
     assert main(["dataset", "validate", str(tmp_path)]) == 0
@@ -44,15 +44,23 @@ def one_error_line(capsys, argv):
 
 @pytest.mark.skipif(not HAS_PYLIBFRANKA, reason="pylibfranka is not installed: pip install -e '.[franka]'")
 def test_franka_without_a_robot_fails_with_one_line(capsys):
-    err = one_error_line(capsys, ["run", "--backend", "franka", "--robot-ip", "127.0.0.1"])
+    err = one_error_line(capsys, ["run", "--backend", "franka", "--robot", "fr3", "--robot-ip", "127.0.0.1"])
     # either legitimate error: which one libfranka raises first depends on the machine, not on us
     assert "no robot answers at 127.0.0.1" in err or "real-time scheduling is not available" in err
 
 
 def test_franka_without_pylibfranka_says_how_to_install_it(capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "pylibfranka", None)  # makes `import pylibfranka` fail
-    err = one_error_line(capsys, ["run", "--backend", "franka", "--robot-ip", "127.0.0.1"])
+    err = one_error_line(capsys, ["run", "--backend", "franka", "--robot", "fr3", "--robot-ip", "127.0.0.1"])
     assert "pip install -e '.[franka]'" in err
+
+
+@pytest.mark.parametrize(("backend", "robot", "right"), [("franka", "panda", "fr3"), ("panda", "fr3", "panda")])
+def test_a_backend_for_another_robot_is_bad_input_before_connecting(capsys, monkeypatch, backend, robot, right):
+    monkeypatch.setattr(run_module, "build_backend", lambda *_: pytest.fail("connected"))
+    err = one_error_line(capsys, ["run", "--backend", backend, "--robot", robot, "--robot-ip", "127.0.0.1"])
+    assert f"--backend {backend} drives the {right} only, not the {robot}: use --robot {right}" in err
+    assert "--robot 'ur5' is unknown; known: panda, fr3" in one_error_line(capsys, ["run", "--robot", "ur5"])
 
 
 def test_bad_input_gets_one_line(tmp_path, capsys):
@@ -60,7 +68,7 @@ def test_bad_input_gets_one_line(tmp_path, capsys):
     bad = tmp_path / "bad.toml"
     bad.write_text("nonsense_key = 1\n")
     assert "unknown configuration keys" in one_error_line(capsys, ["run", "--config", str(bad)])
-    assert "needs --robot-ip" in one_error_line(capsys, ["run", "--backend", "franka"])
+    assert "needs --robot-ip" in one_error_line(capsys, ["run", "--backend", "franka", "--robot", "fr3"])
     assert "dataset.json" in one_error_line(capsys, ["run", "--backend", "replay", "--dataset", str(tmp_path)])
     assert "--speed" in one_error_line(capsys, ["run", "--speed", "-1"])
 
@@ -164,6 +172,30 @@ def test_a_run_a_real_robot_would_not_have_finished_exits_3_and_says_why(fault, 
         assert report["missed_in_a_row"] >= 6 and report["overruns"] >= 1
     else:
         assert "non-finite" in report["watchdog_reason"]
+
+
+def test_a_robot_run_keeps_a_posture_task_on_the_start_posture_in_both_phases():
+    from impactqp.controller.config import post_impact_config
+
+    q_start = np.linspace(-0.5, 0.5, 7)
+    config = run_module.with_posture_target(run_module.controller_config(run_module.RunRequest(backend="franka")), q_start)
+    for phase in (config, post_impact_config(config)):
+        (posture,) = [t for t in phase.tasks if t.type == "posture"]
+        assert posture.params["weight"] > 0.0 and posture.params["target"] == q_start.tolist()
+    sim = run_module.controller_config(run_module.RunRequest(backend="sim"))
+    assert [t.params["weight"] for t in sim.tasks if t.type == "posture"] == [0.0]  # the sim run as before
+    kept = [0.1] * 7  # a configured target is the user's
+    configured = run_module.with_posture_target(replace_posture_target(config, kept), q_start)
+    assert [t.params["target"] for t in configured.tasks if t.type == "posture"] == [kept]
+
+
+def replace_posture_target(config, target):
+    from dataclasses import replace
+
+    from impactqp.controller.config import TaskConfig
+
+    tasks = [TaskConfig(t.type, {**t.params, "target": target}) if t.type == "posture" else t for t in config.tasks]
+    return replace(config, tasks=tasks)
 
 
 def test_every_option_of_run_is_a_request_field_of_the_same_name_and_every_field_is_documented():

@@ -1,19 +1,29 @@
 """The impact session (``controller.runtime.session``) in runs on the simulated Panda: the impact is
 detected within 5 ms of the contact start (also with an unmodelled payload), and each post-impact
-mode does what it says (retract leaves the wall, hold presses, continue re-contacts)."""
+mode does what it says (retract leaves the wall, hold presses, continue re-contacts); the detector's
+residual is the robot's external-torque estimate only when it is one (not the measured joint
+torque itself), else the momentum observer."""
 
 import json
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from conftest import assert_continuous_within_limits
+from impactqp.controller.config import ControllerConfig
 from impactqp.controller.model.postures import POSTURES
-from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.runtime.interface import RobotState
+from impactqp.controller.runtime.session import ESTIMATE, OBSERVER, ImpactSession, residual_source
 from impactqp.scenarios.run import RunRequest, contact_start, run
 
 RETRACT_WINDOW = 0.05
 DETECTION_WINDOW = 5e-3
+
+torques = arrays(float, NQ, elements=st.floats(-80.0, 80.0))
 
 
 @pytest.fixture(scope="module")
@@ -106,3 +116,28 @@ def test_hold_comes_back_to_the_wall_and_presses_with_a_force_linear_in_the_hold
     slow, fast = (hold_run(tmp_path, speed) for speed in (0.02, 0.04))
     assert np.all(slow > 0.0) and np.all(fast > 0.0)
     assert fast.mean() / slow.mean() == pytest.approx(2.0, rel=0.2)
+
+
+@given(torques, torques)
+def test_an_estimate_is_used_only_when_it_differs_from_the_measured_torque(tau, tau_ext):
+    q, dq = np.zeros(NQ), np.zeros(NQ)
+    assert residual_source(RobotState(0.0, q, dq, tau)) == OBSERVER
+    assert residual_source(RobotState(0.0, q, dq, tau, tau.copy())) == OBSERVER
+    expected = OBSERVER if np.array_equal(tau, tau_ext) else ESTIMATE
+    assert residual_source(RobotState(0.0, q, dq, tau, tau_ext)) == expected
+
+
+def test_a_session_fed_the_measured_torque_as_estimate_runs_the_observer():
+    model = PandaModel()
+    posture = POSTURES["elbow_up"]
+    session = ImpactSession(ControllerConfig.approach(posture.surface, 0.15), model)
+    q, dq = posture.q, np.zeros(NQ)
+    tau = model.terms(q, dq).h
+    session.start(RobotState(0.0, q, dq, tau, tau))
+    assert session.residual_source == OBSERVER
+    extra = np.linspace(1.0, 2.0, NQ)  # a joint torque that did not move the arm: held by an external one
+    pushed = tau + extra
+    residual = session.residual(RobotState(1e-3, q, dq, pushed, pushed))
+    observer = session.observer
+    assert np.array_equal(residual, observer.residual)
+    assert np.allclose(residual, -observer.gain * observer.dt * extra, atol=1e-9)

@@ -1,5 +1,6 @@
-"""The ``franka`` backend: a Franka Panda through the official ``pylibfranka`` bindings, in
-joint-velocity control (``pip install -e '.[franka]'``; imported only when chosen).
+"""The ``franka`` backend: a Franka Research 3 through the official ``pylibfranka`` bindings
+(libfranka >= 0.10), in joint-velocity control (``pip install -e '.[franka]'``; imported only
+when chosen).
 
 The adapter is thin on purpose: it maps ``RobotState`` (``time``, ``q``, ``dq``, ``tau_J``,
 ``tau_ext_hat_filtered``) to :class:`RobotState` and a command to ``JointVelocities``, and follows
@@ -7,35 +8,23 @@ libfranka's protocol; every decision (filtering, watchdog, braking, impact detec
 loop runner's. Before ``start`` no motion runs and ``read`` is ``Robot.read_once``, so the loop
 prepares its controller outside real time; ``start`` opens joint-velocity control and reads the
 first real-time state; from then on ``readOnce`` blocks until the robot's next 1 kHz cycle, which
-paces the loop, and every ``writeOnce`` follows one ``readOnce``. Set-up (real-time kernel,
-network, collision thresholds): ``docs/robot-loop.md``.
+paces the loop, and every ``writeOnce`` follows one ``readOnce``. The settings, model check and
+statistics shared with the ``panda`` backend: ``libfranka_robot``. Set-up (real-time kernel,
+network, ``[robot]`` table): ``docs/robot-loop.md``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.robot import NQ, PandaModel, RobotModel
 from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.robot_config import RobotConfig
 
-from .interface import RobotInterface, RobotState
+from .interface import RobotState
+from .libfranka_robot import LibfrankaRobot, state_from_franka
 
 INSTALL_HINT = "pip install -e '.[franka]'"
-
-
-@dataclass(frozen=True)
-class CollisionThresholds:
-    """Thresholds of the robot's own collision reflex (``Robot.set_collision_behavior``):
-    torques per joint (N m) and Cartesian force/torque (N, N m). An impact on purpose trips the
-    reflex at the factory values; these defaults (``docs/robot-loop.md``) sit above the
-    impulsive torques the impact-aware constraints allow (tau_max = 87/12 N m)."""
-
-    lower_torque: tuple[float, ...] = (100.0,) * 4 + (20.0,) * 3
-    upper_torque: tuple[float, ...] = (100.0,) * 4 + (20.0,) * 3
-    lower_force: tuple[float, ...] = (100.0,) * 3 + (30.0,) * 3
-    upper_force: tuple[float, ...] = (100.0,) * 3 + (30.0,) * 3
 
 
 def import_pylibfranka():
@@ -44,18 +33,6 @@ def import_pylibfranka():
     except ImportError:
         raise BadInputError(f"--backend franka needs pylibfranka, which is not installed: {INSTALL_HINT}") from None
     return pylibfranka
-
-
-def state_from_franka(state) -> RobotState:
-    """Our :class:`RobotState` from a ``pylibfranka.RobotState`` (or anything with its names)."""
-    t = state.time
-    return RobotState(
-        float(t.to_sec()) if hasattr(t, "to_sec") else float(t),
-        np.array(state.q, dtype=float),
-        np.array(state.dq, dtype=float),
-        np.array(state.tau_J, dtype=float),
-        np.array(state.tau_ext_hat_filtered, dtype=float),
-    )
 
 
 def franka_command(pylibfranka, dq_cmd: np.ndarray, finished: bool = False):
@@ -75,20 +52,24 @@ def franka_errors(pylibfranka) -> tuple[type[BaseException], ...]:
     )
 
 
-class FrankaRobot(RobotInterface):
+class FrankaRobot(LibfrankaRobot):
     """A connected ``pylibfranka.Robot`` (``connect``) in joint-velocity control."""
 
-    def __init__(self, robot, pylibfranka):
+    ROBOT = "fr3"  # the robot this backend drives (robot_description.ROBOTS)
+
+    def __init__(self, robot, pylibfranka, settings: RobotConfig | None = None):
+        settings = RobotConfig() if settings is None else settings
+        super().__init__(robot, franka_errors(pylibfranka), (pylibfranka.ControlException,), settings)
         self.franka = pylibfranka
-        self.robot = robot
-        self.errors = franka_errors(pylibfranka)
         self.control = None
 
     @classmethod
     def connect(
-        cls, ip: str, collision: CollisionThresholds = CollisionThresholds(), realtime: bool = True
+        cls, ip: str, settings: RobotConfig | None = None, realtime: bool = True, model: PandaModel | None = None
     ) -> FrankaRobot:
-        """The Panda at ``ip`` with the ``collision`` thresholds; bad input when it does not answer."""
+        """The robot at ``ip`` with the ``[robot]`` settings and the load of ``model``'s tool
+        (default: the FR3 with the default tool) applied; bad input when it does not answer or
+        refuses them. ``realtime=False`` lets libfranka run without a real-time kernel."""
         franka = import_pylibfranka()
         config = franka.RealtimeConfig.kEnforce if realtime else franka.RealtimeConfig.kIgnore
         try:
@@ -96,17 +77,14 @@ class FrankaRobot(RobotInterface):
         except franka.NetworkException as error:
             raise BadInputError(f"no robot answers at {ip}: {error}") from None
         except franka.RealtimeException as error:
-            raise BadInputError(f"real-time scheduling is not available ({error}); see docs/robot-loop.md") from None
+            raise BadInputError(
+                f"real-time scheduling is not available ({error}); see docs/robot-loop.md or use --realtime ignore"
+            ) from None
         except franka_errors(franka) as error:
             raise BadInputError(f"the robot at {ip} refused the connection: {error}") from None
-        try:
-            robot.set_collision_behavior(
-                list(collision.lower_torque), list(collision.upper_torque),
-                list(collision.lower_force), list(collision.upper_force),
-            )
-        except franka_errors(franka) as error:
-            raise BadInputError(f"the robot at {ip} refused the collision thresholds: {error}") from None
-        return cls(robot, franka)
+        connected = cls(robot, franka, settings)
+        connected.configure(ip, RobotModel(cls.ROBOT) if model is None else model)
+        return connected
 
     def read(self) -> RobotState:
         if self.control is None:
@@ -114,7 +92,8 @@ class FrankaRobot(RobotInterface):
                 return state_from_franka(self.robot.read_once())
             except self.errors as error:
                 raise BadInputError(f"the robot state cannot be read: {error}") from None
-        state, _ = self.control.readOnce()
+        state, duration = self.control.readOnce()
+        self.record(state.control_command_success_rate, duration.to_sec())
         return state_from_franka(state)
 
     def start(self) -> RobotState:
@@ -134,3 +113,7 @@ class FrankaRobot(RobotInterface):
             self.control.readOnce()
             self.control.writeOnce(franka_command(self.franka, np.zeros(NQ), finished=True))
             self.control = None
+
+    def failed(self, error: BaseException) -> None:
+        self.control = None  # libfranka ended the motion
+        super().failed(error)

@@ -119,6 +119,7 @@ class ImpactDetector:
         self.threshold = np.full(NQ, self.torque_threshold)
         self.detected = False
         self.t_detect: float | None = None
+        self.t_calibrated: float | None = None  # time of the sample that completed the calibration
         self.joint: int | None = None
 
     @property
@@ -140,6 +141,7 @@ class ImpactDetector:
             self.calibration[self.samples] = residual
             self.samples += 1
             if self.calibrated:
+                self.t_calibrated = float(t)
                 self.bias = np.median(self.calibration, axis=0)
                 sigma = 1.4826 * np.median(np.abs(self.calibration - self.bias), axis=0)
                 self.threshold = np.maximum(self.torque_threshold, self.noise_sigmas * sigma)

@@ -33,10 +33,13 @@ class RobotInterface:
     begins real time once the loop has prepared its controller from the first state, ``write``
     sends the command of that cycle, ``stop`` ends the motion (after the loop brought the
     command to zero). ``finished`` is True when the backend has no more states (a replay).
+    A robot that calls its controller (libfranka's callback API) sets ``drives_cycles`` and
+    implements ``drive`` instead of ``start``, ``write`` and ``stop``.
     """
 
     period: float = 1e-3
     finished: bool = False
+    drives_cycles: bool = False  # True: the robot calls the loop every period (``drive``)
 
     def read(self) -> RobotState:
         raise NotImplementedError
@@ -51,6 +54,21 @@ class RobotInterface:
 
     def stop(self) -> None:
         """End the motion; the default has nothing to release."""
+
+    def drive(self, cycle) -> None:
+        """For a robot that calls its controller every period (``drives_cycles``): run the
+        motion, calling ``cycle(state) -> (dq_cmd, over)`` once per period until ``over``, and
+        return when the motion has ended; replaces ``start``, ``read``, ``write`` and ``stop``."""
+        raise NotImplementedError
+
+    def failed(self, error: BaseException) -> None:
+        """The run ended on this error of the backend (the loop can no longer command the
+        robot); a robot may name its reflex and recover. The default has nothing to do."""
+
+    def report(self) -> dict:
+        """What the backend measured of the connection (command success rate, missed packets,
+        reflex) for the run's report; empty by default."""
+        return {}
 
     def force_log(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(force_t, force): the contact force on the robot (world frame, N) when the backend

@@ -4,7 +4,8 @@ Start: the first state is read, the session prepares its controllers from it (th
 set-up), and only then ``robot.start()`` begins real time (a robot expects a command every
 period from there on; a backend whose state moved on meanwhile returns its newest state).
 
-One cycle::
+One cycle (``command`` then ``record``; a robot that calls us every period, such as libfranka's
+callback API, runs the same two in ``callback_cycle``, the robot doing the read and the write)::
 
     state = robot.read()                       (a paced backend blocks until the period starts)
     watchdog: read failed? malformed, NaN or stale state?      -> trip
@@ -241,8 +242,11 @@ class ControlLoop:
         self.deadline = robot.period if deadline is None else float(deadline)
         self.watchdog = Watchdog(max_overruns)
         self.stop_requested = False
+        self.robot_failed = False
         self.overruns = 0
         self.log: LoopLog | None = None
+        self.cycles = self.k = self.stop_cycles = 0
+        self.stopping = False
 
     def request_stop(self) -> None:
         """Brake to a stop at the next cycle (a signal handler may call it)."""
@@ -253,14 +257,22 @@ class ControlLoop:
         read, a malformed state, the controller, the filter, the log) trips the watchdog and
         ends in the braking sequence; ``robot.stop()`` is called on every way out."""
         robot, watchdog = self.robot, self.watchdog
-        cycles = int(round(duration / robot.period))
-        self.log = LoopLog(cycles + MAX_STOP_CYCLES + 1)
+        self.cycles = int(round(duration / robot.period))
+        self.log = LoopLog(self.cycles + MAX_STOP_CYCLES + 1)
         state = robot.read()  # before real time: nothing moves yet, a failure is reported as it is
         if not watchdog.check_state(state):
             state = placeholder(0.0, robot.period)
         elif not watchdog.tripped:
             self.session.start(state)
             self.filter.reset(state.dq)
+        if robot.drives_cycles:  # the robot calls ``callback_cycle`` once per period
+            try:
+                robot.drive(self.callback_cycle)
+            except Exception as error:  # the robot stopped by itself (e.g. its own reflex)
+                self._robot_error(error)
+            finally:
+                self._stop()
+            return self._result()
         try:
             newest = robot.start()
             if newest is not None and watchdog.check_state(newest):
@@ -271,53 +283,68 @@ class ControlLoop:
             self._stop()
             raise
         try:
-            self._cycle(state, cycles)
+            self._cycle(state)
         except Exception as error:  # e.g. no braking command can be computed: stop() is all that is left
             watchdog.trip(f"loop failure: {type(error).__name__}: {error}")
         finally:
             self._stop()
         return self._result()
 
-    def _cycle(self, state: RobotState, cycles: int) -> None:
+    def _cycle(self, state: RobotState) -> None:
         """The cycles of the run (module docstring), from the first state to the end of braking."""
-        robot, session, watchdog = self.robot, self.session, self.watchdog
-        k = 0
-        stop_cycles = 0
         while True:
             started = self.clock()
-            stopping = self.stop_requested or k >= cycles
-            if stopping:
-                dq_cmd, phase = self.brake(), STOPPING
-                stop_cycles += 1
-            elif watchdog.tripped:
-                dq_cmd, phase = self.brake(), BRAKING
-            else:
-                try:
-                    command = session.step(state)
-                    dq_cmd, phase = self.filter(command.dq_cmd), command.phase
-                except Exception as error:  # the robot must keep getting commands
-                    watchdog.trip(f"controller exception: {type(error).__name__}: {error}")
-                    dq_cmd, phase = self.brake(), BRAKING
+            dq_cmd, phase = self.command(state)
             try:
-                robot.write(dq_cmd)
+                self.robot.write(dq_cmd)
             except Exception as error:  # the robot stopped by itself (e.g. its own reflex)
                 self._robot_error(error)
                 self._record(state, dq_cmd, phase, self.clock() - started, started)
                 return
-            elapsed = self.clock() - started
-            overrun = elapsed > self.deadline
-            self.overruns += overrun
-            if not stopping:
-                watchdog.record_cycle(overrun)
-            self._record(state, dq_cmd, phase, elapsed, started)
-            k += 1
-            if stopping and stop_cycles >= MAX_STOP_CYCLES:
+            if self.record(state, dq_cmd, phase, started):
                 return
-            if (stopping or watchdog.tripped) and np.max(np.abs(dq_cmd)) <= STOPPED_SPEED:
-                return
-            if robot.finished:
-                return
-            state = self._read(state, check=not stopping)
+            state = self._read(state, check=not self.stopping)
+
+    def command(self, state: RobotState) -> tuple[np.ndarray, str]:
+        """The command of the cycle of ``state`` and its phase: the session's, filtered; the
+        filter's braking command once tripped or stopping."""
+        self.stopping = self.stop_requested or self.k >= self.cycles
+        if self.stopping:
+            self.stop_cycles += 1
+            return self.brake(), STOPPING
+        if self.watchdog.tripped:
+            return self.brake(), BRAKING
+        try:
+            command = self.session.step(state)
+            return self.filter(command.dq_cmd), command.phase
+        except Exception as error:  # the robot must keep getting commands
+            self.watchdog.trip(f"controller exception: {type(error).__name__}: {error}")
+            return self.brake(), BRAKING
+
+    def record(self, state: RobotState, dq_cmd: np.ndarray, phase: str, started: float) -> bool:
+        """Account and log the cycle that began at ``started`` once its command is out; True when
+        the run is over (stopped, braked to zero, or the backend has no more states)."""
+        elapsed = self.clock() - started
+        overrun = elapsed > self.deadline
+        self.overruns += overrun
+        if not self.stopping:
+            self.watchdog.record_cycle(overrun)
+        self._record(state, dq_cmd, phase, elapsed, started)
+        self.k += 1
+        if self.stopping and self.stop_cycles >= MAX_STOP_CYCLES:
+            return True
+        if (self.stopping or self.watchdog.tripped) and np.max(np.abs(dq_cmd)) <= STOPPED_SPEED:
+            return True
+        return self.robot.finished
+
+    def callback_cycle(self, state: RobotState) -> tuple[np.ndarray, bool]:
+        """One cycle for a robot that calls us every period (``RobotInterface.drive``): the
+        watchdog's state check, the command, its accounting; (command, run over)."""
+        started = self.clock()
+        if not self.stopping and not self.watchdog.check_state(state):
+            state = placeholder(self.log.t[self.log.size - 1] if self.log.size else 0.0, self.robot.period)
+        dq_cmd, phase = self.command(state)
+        return dq_cmd, self.record(state, dq_cmd, phase, started)
 
     def _read(self, previous: RobotState, check: bool) -> RobotState:
         """The next state; a read that raises or returns a malformed state trips the watchdog
@@ -325,7 +352,8 @@ class ControlLoop:
         try:
             state = self.robot.read()
         except Exception as error:
-            self.watchdog.trip(f"robot error: the state cannot be read: {type(error).__name__}: {error}")
+            message = " ".join(str(error).split())  # one line, whatever the bindings' message holds
+            self.watchdog.trip(f"robot error: the state cannot be read: {type(error).__name__}: {message}")
             return placeholder(previous.t, self.robot.period)
         if check:
             return state if self.watchdog.check_state(state) else placeholder(previous.t, self.robot.period)
@@ -339,11 +367,12 @@ class ControlLoop:
             self.watchdog.trip(f"log error: {type(error).__name__}: {error}")
 
     def _stop(self) -> None:
-        """``robot.stop()``, its failure recorded as a robot error."""
+        """``robot.stop()``, its failure recorded as a robot error (unless the robot already failed)."""
         try:
             self.robot.stop()
         except Exception as error:
-            self._robot_error(error)
+            if not self.robot_failed:
+                self._robot_error(error)
 
     def brake(self) -> np.ndarray:
         """The filter's next braking command; a residue below ``STOPPED_SPEED`` (rounding of the
@@ -354,8 +383,12 @@ class ControlLoop:
         return dq_cmd
 
     def _robot_error(self, error: Exception) -> None:
-        """The backend failed to take a command or to stop: the watchdog says why."""
-        self.watchdog.trip(f"robot error: {type(error).__name__}: {error}")
+        """The backend failed: no command can reach the robot any more; the run ends, its log
+        is kept and the watchdog says why."""
+        self.robot_failed = True
+        message = " ".join(str(error).split())  # one line, whatever the bindings' message holds
+        self.watchdog.trip(f"robot error: {type(error).__name__}: {message}")
+        self.robot.failed(error)
 
     def _result(self) -> LoopResult:
         log = self.log

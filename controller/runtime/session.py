@@ -2,7 +2,8 @@
 
 Phases: ``approach`` (the configured controller with its impact-aware constraints) until the
 impact is detected (``controller.runtime.impact_detector``: the robot's external-torque
-estimate when it gives one, else the momentum observer on the measured torque), then the
+estimate when it gives a real one, else the momentum observer on the measured torque,
+``residual_source``), then the
 post-impact phase of ``config.post_impact`` (``retract``, ``hold`` or ``continue``: the
 controller of ``controller.config.post_impact_config``, impact-aware constraints off).
 
@@ -31,6 +32,19 @@ from .interface import RobotState
 
 APPROACH = "approach"
 MEASURED_POSITION_PHASES = ("hold", "retract")
+ESTIMATE, OBSERVER = "estimate", "observer"
+
+
+def residual_source(state: RobotState) -> str:
+    """``estimate`` when the robot gives an external-torque estimate, else ``observer``.
+
+    An estimate equal to the measured joint torque is not one: it still holds gravity, which a
+    model-based estimate tau_ext = tau - (M ddq + h) removes, and gravity torques are never all
+    zero on an arm standing in gravity. A simulator of the Franka protocol that reports
+    ``tau_J`` as ``tau_ext_hat_filtered`` (franky-sim) gets the observer on ``tau_J``."""
+    if state.tau_ext is None or np.array_equal(state.tau_ext, state.tau):
+        return OBSERVER
+    return ESTIMATE
 
 
 class ImpactSession:
@@ -50,6 +64,7 @@ class ImpactSession:
         self.pre_impact_state: RobotState | None = None
         self._previous_state: RobotState | None = None
         self._start_t: float | None = None
+        self.residual_source = OBSERVER
 
     def start(self, state: RobotState) -> None:
         """Reset at the first state; one discarded step of each controller first, so that the
@@ -62,12 +77,13 @@ class ImpactSession:
         self.observer.reset(state.q, state.dq)
         self._previous_state = state
         self._start_t = state.t
+        self.residual_source = residual_source(state)
 
     def residual(self, state: RobotState) -> np.ndarray:
-        """The joint-torque residual of the detector: the robot's estimate or the observer's.
-        The observer starts at the start state (r = 0 there): its ``tau`` acted before the
-        start, over no period that p - p_0 saw, so it is not integrated."""
-        if state.tau_ext is not None:
+        """The joint-torque residual of the detector: the robot's estimate or the observer's
+        (``residual_source``). The observer starts at the start state (r = 0 there): its ``tau``
+        acted before the start, over no period that p - p_0 saw, so it is not integrated."""
+        if self.residual_source == ESTIMATE:
             return state.tau_ext
         if state.t == self._start_t:
             return self.observer.residual

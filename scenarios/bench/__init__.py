@@ -18,7 +18,9 @@ FAMILIES: list[tuple[str, str, str]] = [
     ("maxspeed.", "simulation", "max_speed_benchmark_rows"),
     ("diagnose.", "diagnosis", "rows"),
     ("loop.", "loop", "rows"),
+    ("loop.franka_sim", "loop", "franka_sim_loop_rows"),  # one franky-sim run for both rows
     ("impact.", "loop", "detection_rows"),
+    ("impact.detection_latency.franka_sim", "loop", "franka_sim_detection_rows"),
     ("sweep.", "sweep", "rows"),
 ]
 

@@ -9,8 +9,19 @@ from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED, EXIT_ROBOT_WOULD
 
 
 @click.command("run")
-@click.option("--backend", type=click.Choice(["sim", "franka", "replay"]), default="sim", show_default=True)
-@click.option("--robot-ip", help="The robot's address (franka backend).")
+@click.option(
+    "--backend", type=click.Choice(["sim", "franka", "panda", "replay"]), default="sim", show_default=True,
+    help="sim: MuJoCo; franka: an FR3 (pylibfranka); panda: a Panda (panda-python's libfranka 0.9); replay: a logged trial.",
+)
+@click.option("--robot-ip", help="The robot's address (franka and panda backends).")
+@click.option(
+    "--robot", default="panda", show_default=True,
+    help="The arm to model: panda or fr3 (docs/robots.md); --backend franka drives an fr3, --backend panda a panda.",
+)
+@click.option(
+    "--realtime", type=click.Choice(["enforce", "ignore"]), default="enforce", show_default=True,
+    help="franka and panda backends: require a real-time kernel (enforce) or run without one (ignore: a simulator).",
+)
 @click.option("--config", "config_file", help="Controller configuration (.toml, .yaml); default: approach at --speed.")
 @click.option("--plant", "plant_file", help="JSON plant-parameter overrides (sim backend).")
 @click.option("--posture", default="elbow_up", show_default=True, help="Start posture (sim backend).")
@@ -21,7 +32,7 @@ from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED, EXIT_ROBOT_WOULD
 @click.option("--trial", help="Trial id to replay (default: the first).")
 @click.option("--unpaced", is_flag=True, help="Run the sim backend as fast as it goes (no wall-clock pacing).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-def run_command(backend, robot_ip, config_file, plant_file, posture, speed, duration, log, dataset, trial, unpaced, as_json):
+def run_command(backend, robot_ip, robot, realtime, config_file, plant_file, posture, speed, duration, log, dataset, trial, unpaced, as_json):
     """Run the impact-aware controller in a 1 kHz loop on a robot: approach, detect the impact,
     post-impact phase, brake to a stop. Ctrl-C (or SIGTERM) brakes to a stop, keeps the log and
     exits with code 130. Overruns are reported on stderr; exit code 3 when the watchdog tripped or
@@ -29,8 +40,9 @@ def run_command(backend, robot_ip, config_file, plant_file, posture, speed, dura
     from impactqp.scenarios.run import RunRequest, run  # lazy: the command line loads an experiment when it runs
 
     request = RunRequest(
-        backend=backend, robot_ip=robot_ip, config_file=config_file, plant_file=plant_file, posture=posture,
+        backend=backend, robot_ip=robot_ip, robot=robot, config_file=config_file, plant_file=plant_file, posture=posture,
         speed=speed, duration=duration, log=log, dataset=dataset, trial=trial, unpaced=unpaced,
+        realtime=realtime == "enforce",
     )
     report, result = run(request)
     if as_json:
@@ -75,3 +87,22 @@ def print_report(report: dict) -> None:
     else:
         click.echo("no impact detected")
     click.echo(f"final phase: {report['phase']}; log: {report['log']}")
+    print_robot(report)
+
+
+def print_robot(report: dict) -> None:
+    """The robot backends' lines: the move to the start, the connection, a reflex."""
+    move, robot = report.get("start_move"), report.get("robot")
+    if move:
+        click.echo(
+            f"moved to the start posture in {move['duration']:.2f} s ({move['cycles']} cycles), "
+            f"final error {move['final_error']:.4f} rad"
+        )
+    if robot:
+        click.echo(
+            f"robot: command success rate {robot['command_success_rate']:.3f}, {robot['missed_packets']} missed packets, "
+            f"mass matrix {100 * robot['model_difference']:.1f} % from our model"
+        )
+        if robot["reflex"]:
+            recovered = "; error state cleared (automatic_error_recovery)" if robot["recovered"] else ""
+            click.echo(f"robot reflex: {', '.join(robot['reflex'])}{recovered}")

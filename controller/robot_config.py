@@ -1,0 +1,95 @@
+"""The ``[robot]`` table of the controller configuration: the connected robot's own settings
+(collision reflex, joint impedance, load, post-reflex policy, model check), which the ``franka``
+and ``panda`` backends apply on connect (``docs/robot-loop.md``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .model import validation
+from .model.validation import BadInputError
+
+MAX_COLLISION_TORQUE, MAX_COLLISION_FORCE = 1000.0, 1000.0
+"""N m, N: collision-reflex thresholds far above the joints' torque limits (87 N m) still name a
+torque; a larger number is a typing error."""
+
+MAX_JOINT_STIFFNESS = 14250.0
+"""N m/rad: the stiffness range of the Franka joint-impedance controller (libfranka's
+``setJointImpedance``)."""
+
+MAX_LOAD_MASS, MAX_LOAD_OFFSET, MAX_LOAD_INERTIA = 3.0, 1.0, 1.0
+"""kg, m, kg m^2: the Panda and the FR3 carry at most 3 kg; the load's centre of mass and
+inertia belong to a hand-held tool."""
+
+MAX_MODEL_DIFFERENCE = 1.0
+
+
+@dataclass
+class RobotConfig:
+    """The connected robot's own settings (``franka`` and ``panda`` backends; ``docs/robot-loop.md``).
+
+    The collision-reflex thresholds (``Robot.set_collision_behavior``: torques per joint in N m,
+    Cartesian force/torque in N and N m) default above the impulsive torques the impact-aware
+    constraints allow (tau_max = 87/12 N m): the factory values trip on an impact on purpose.
+    ``joint_impedance`` is the stiffness of the robot's joint controller (N m/rad, libfranka's
+    default). ``load_mass`` (kg), ``load_com`` (m, flange frame) and ``load_inertia`` (kg m^2, 3x3
+    column-major, about the centre of mass) are the load ``Robot.set_load`` gets; each one left
+    out (None) is the declared tool's (``ToolDescription``: its mass, centre of mass and inertia
+    expressed in the flange frame, ``libfranka_robot.declared_load``). After a
+    reflex the run ends; ``automatic_error_recovery`` then clears the robot's error state. On
+    connect the robot's mass matrix M_r at the current state is compared with ours, M:
+    ||M_r - M||_F / ||M_r||_F above ``max_model_difference`` refuses the robot.
+    """
+
+    lower_torque_thresholds: list[float] = field(default_factory=lambda: [100.0] * 4 + [20.0] * 3)
+    upper_torque_thresholds: list[float] = field(default_factory=lambda: [100.0] * 4 + [20.0] * 3)
+    lower_force_thresholds: list[float] = field(default_factory=lambda: [100.0] * 3 + [30.0] * 3)
+    upper_force_thresholds: list[float] = field(default_factory=lambda: [100.0] * 3 + [30.0] * 3)
+    joint_impedance: list[float] = field(default_factory=lambda: [3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0])
+    load_mass: float | None = None
+    load_com: list[float] | None = None
+    load_inertia: list[float] | None = None
+    automatic_error_recovery: bool = False
+    max_model_difference: float = 0.02
+
+    def __post_init__(self):
+        for kind, size, high in (("torque", 7, MAX_COLLISION_TORQUE), ("force", 6, MAX_COLLISION_FORCE)):
+            lower, upper = (
+                _positive_vector(getattr(self, f"{side}_{kind}_thresholds"), size, high, f"robot.{side}_{kind}_thresholds")
+                for side in ("lower", "upper")
+            )
+            if np.any(lower > upper):
+                raise BadInputError(f"robot.lower_{kind}_thresholds must not exceed robot.upper_{kind}_thresholds")
+            setattr(self, f"lower_{kind}_thresholds", lower.tolist())
+            setattr(self, f"upper_{kind}_thresholds", upper.tolist())
+        self.joint_impedance = _positive_vector(
+            self.joint_impedance, 7, MAX_JOINT_STIFFNESS, "robot.joint_impedance"
+        ).tolist()
+        if self.load_mass is not None:
+            validation.number_in_range(self.load_mass, 0.0, MAX_LOAD_MASS, "robot.load_mass", "kg")
+        if self.load_com is not None:
+            com = validation.finite_vector(self.load_com, 3, "robot.load_com")
+            if np.max(np.abs(com)) > MAX_LOAD_OFFSET:
+                raise BadInputError(f"robot.load_com {com.tolist()} must lie within {MAX_LOAD_OFFSET:g} m of the flange")
+            self.load_com = com.tolist()
+        if self.load_inertia is not None:
+            inertia = validation.finite_vector(self.load_inertia, 9, "robot.load_inertia").reshape(3, 3)
+            if not np.allclose(inertia, inertia.T) or np.min(np.linalg.eigvalsh(inertia)) < -1e-12:
+                raise BadInputError("robot.load_inertia must be a symmetric positive semi-definite 3x3 matrix")
+            if np.max(np.abs(inertia)) > MAX_LOAD_INERTIA:
+                raise BadInputError(f"robot.load_inertia entries must stay below {MAX_LOAD_INERTIA:g} kg m^2")
+            self.load_inertia = inertia.ravel().tolist()
+        validation.boolean(self.automatic_error_recovery, "robot.automatic_error_recovery")
+        validation.number_in_range(
+            self.max_model_difference, 0.0, MAX_MODEL_DIFFERENCE, "robot.max_model_difference",
+            "(relative difference of the mass matrices)", low_open=True,
+        )
+
+
+def _positive_vector(value, size: int, high: float, what: str) -> np.ndarray:
+    vector = validation.finite_vector(value, size, what)
+    if np.any(vector <= 0.0) or np.any(vector > high):
+        raise BadInputError(f"{what} must lie in (0, {high:g}], got {vector.tolist()}")
+    return vector

@@ -1,0 +1,170 @@
+"""What the two libfranka backends share (``franka``: pylibfranka for the FR3; ``panda``:
+panda-python's libfranka 0.9 for the Panda): the robot's settings of the ``[robot]`` table
+applied on connect, the check of the robot's own dynamic model against ours, the statistics
+of the connection and the naming of a reflex.
+
+Load: ``Robot.set_load(m, F_x_Cload, I_load)`` takes the mass, the centre of mass in the flange
+frame F and the inertia about the centre of mass in F's axes (3x3, column-major). The declared
+tool (``ToolDescription``: m, c and I_c in its own frame T) gives F_x_Cload = X_FT c and
+I_load = R_FT I_c R_FT^T, X_FT = (R_FT, p_FT) the tool frame's placement in the flange frame;
+each of the three that the ``[robot]`` table sets replaces the tool's. The load is what the robot
+carries beyond the end effector configured on the robot (the Franka Hand, usually).
+
+Model check: at the state on connect, with M_r the robot's mass matrix (``Model.mass``) and M
+ours, the relative difference ||M_r - M||_F / ||M_r||_F above ``max_model_difference`` refuses
+the robot (wrong robot, wrong tool or wrong model). Statistics: the smallest
+``control_command_success_rate`` of the run and the packets missed, counted from the time each
+read covers (``Duration`` of ``readOnce``, one period when no packet was missed).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.robot_config import RobotConfig
+
+from .interface import RobotInterface, RobotState
+
+
+@dataclass(frozen=True)
+class Load:
+    """The arguments of ``Robot.set_load``: mass (kg), centre of mass (m, flange frame) and
+    inertia about it (kg m^2, 9 numbers column-major, flange axes)."""
+
+    mass: float
+    com: list[float]
+    inertia: list[float]
+
+
+def declared_load(model: PandaModel, settings: RobotConfig) -> Load:
+    """The load of ``model``'s tool in the flange frame, each entry the ``[robot]`` table sets
+    taking its place (module docstring)."""
+    tool = model.tool
+    data = model.model.createData()
+    pin.framesForwardKinematics(model.model, data, pin.neutral(model.model))
+    flange = data.oMf[model.model.getFrameId(model.description.flange_frame)]
+    X = flange.actInv(data.oMf[model.tool_frame_id])
+    com = X.act(np.asarray(tool.com, dtype=float))
+    inertia = X.rotation @ np.asarray(tool.inertia, dtype=float) @ X.rotation.T
+    return Load(
+        float(tool.mass) if settings.load_mass is None else float(settings.load_mass),
+        com.tolist() if settings.load_com is None else list(settings.load_com),
+        inertia.ravel(order="F").tolist() if settings.load_inertia is None else list(settings.load_inertia),
+    )
+
+
+def state_from_franka(state) -> RobotState:
+    """Our :class:`RobotState` from a ``pylibfranka.RobotState`` (or anything with its names)."""
+    t = state.time
+    return RobotState(
+        float(t.to_sec()) if hasattr(t, "to_sec") else float(t),
+        np.array(state.q, dtype=float),
+        np.array(state.dq, dtype=float),
+        np.array(state.tau_J, dtype=float),
+        np.array(state.tau_ext_hat_filtered, dtype=float),
+    )
+
+
+def error_names(errors) -> list[str]:
+    """The names of the flags set in a libfranka ``Errors`` (e.g. ``joint_reflex``)."""
+    return sorted(name for name in dir(errors) if not name.startswith("_") and getattr(errors, name) is True)
+
+
+def model_difference(mass_matrix, model: PandaModel, q) -> float:
+    """||M_r - M(q)||_F / ||M_r||_F for the robot's mass matrix M_r (7x7 or its 49 entries:
+    M is symmetric, so the storage order does not matter)."""
+    robot_M = np.asarray(mass_matrix, dtype=float).reshape(NQ, NQ)
+    ours = model.terms(np.asarray(q, dtype=float), np.zeros(NQ), check_limits=False).M
+    return float(np.linalg.norm(robot_M - ours) / np.linalg.norm(robot_M))
+
+
+def missed_packets(read_duration: float, period: float) -> int:
+    """Packets missed before a read that covers ``read_duration`` seconds of the robot's time."""
+    return max(0, int(round(read_duration / period)) - 1)
+
+
+class LibfrankaRobot(RobotInterface):
+    """A connected libfranka ``Robot``: ``robot`` (the bindings' object), ``errors`` (the
+    bindings' exception classes), ``reflex_errors`` (those a motion aborted by a reflex raises)
+    and the ``[robot]`` settings."""
+
+    def __init__(self, robot, errors: tuple[type[BaseException], ...], reflex_errors: tuple, settings: RobotConfig):
+        self.robot = robot
+        self.errors = errors
+        self.reflex_errors = reflex_errors
+        self.settings = settings
+        self.success_rate = 1.0
+        self.missed_packets = 0
+        self.reflex: list[str] = []
+        self.recovered = False
+        self.model_difference: float | None = None
+        self.load: Load | None = None
+
+    def configure(self, ip: str, model: PandaModel) -> None:
+        """Set the collision reflex and the joint impedance of ``settings`` and the load of
+        ``model``'s tool (``declared_load``)."""
+        s = self.settings
+        load = self.load = declared_load(model, s)
+        steps = (
+            ("collision thresholds", lambda: self.robot.set_collision_behavior(
+                s.lower_torque_thresholds, s.upper_torque_thresholds, s.lower_force_thresholds, s.upper_force_thresholds
+            )),
+            ("joint impedance", lambda: self.robot.set_joint_impedance(s.joint_impedance)),
+            ("load", lambda: self.robot.set_load(load.mass, load.com, load.inertia)),
+        )
+        for what, step in steps:
+            try:
+                step()
+            except self.errors as error:
+                raise BadInputError(f"the robot at {ip} refused the {what}: {error}") from None
+
+    def check_model(self, model: PandaModel) -> float:
+        """The model difference (module docstring); bad input above ``max_model_difference``."""
+        try:
+            state = self.robot.read_once()
+            mass = self.robot.load_model().mass(state)
+        except self.errors as error:
+            raise BadInputError(f"the robot's dynamic model cannot be read: {error}") from None
+        difference = model_difference(mass, model, state.q)
+        self.model_difference = difference
+        limit = self.settings.max_model_difference
+        if difference > limit:
+            raise BadInputError(
+                f"the robot's mass matrix differs from our model's by {100 * difference:.1f} % "
+                f"(limit {100 * limit:.1f} %): another robot, tool or model? "
+                "Raise [robot] max_model_difference to accept it"
+            )
+        return difference
+
+    def record(self, success_rate: float, read_duration: float) -> None:
+        """Count one real-time read."""
+        self.success_rate = min(self.success_rate, float(success_rate))
+        self.missed_packets += missed_packets(read_duration, self.period)
+
+    def failed(self, error: BaseException) -> None:
+        """After a reflex: name it from the robot's errors and, when ``automatic_error_recovery``
+        is set, clear the robot's error state."""
+        if not isinstance(error, self.reflex_errors):
+            return
+        try:
+            state = self.robot.read_once()
+            self.reflex = error_names(state.last_motion_errors) or error_names(state.current_errors)
+            if self.settings.automatic_error_recovery:
+                self.robot.automatic_error_recovery()
+                self.recovered = True
+        except self.errors:
+            pass  # the connection is gone as well: the run's watchdog reason says why it ended
+
+    def report(self) -> dict:
+        return {
+            "command_success_rate": self.success_rate,
+            "missed_packets": self.missed_packets,
+            "reflex": self.reflex,
+            "recovered": self.recovered,
+            "model_difference": self.model_difference,
+        }

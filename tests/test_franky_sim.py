@@ -1,0 +1,173 @@
+"""The whole impact session through the real Franka network protocol: our ``franka`` backend
+(``pylibfranka``) against a franky-sim server (MuJoCo FR3 behind libfranka's TCP/UDP protocol)
+with a wall and the contact tool in its scene, in its own process group.
+
+The server runs slower than real time on a loaded machine, so every bound here counts control
+cycles, never wall time, and nothing about timing is asserted. The fixture owns the server
+processes and kills them in its finalizer, also when a test fails.
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import ForwardingRobot
+from impactqp.controller.config import ControllerConfig
+from impactqp.controller.measured.impact import WINDOW_AFTER
+from impactqp.controller.model.inverse_kinematics import approach_start
+from impactqp.controller.model.robot import RobotModel
+from impactqp.controller.model.robot_description import ROBOTS
+from impactqp.controller.robot_config import RobotConfig
+from impactqp.controller.runtime.command_filter import CommandFilter
+from impactqp.controller.runtime.franka_backend import FrankaRobot
+from impactqp.controller.runtime.loop import STOPPING, ControlLoop
+from impactqp.controller.runtime.run_log import RunLog
+from impactqp.controller.runtime.session import OBSERVER, ImpactSession
+from impactqp.scenarios.cli import main
+from impactqp.scenarios.run import RunRequest, log_header, start_posture, write_log
+from impactqp.sim.franky_sim import FrankySimServer
+
+pytest.importorskip("pylibfranka", reason="pylibfranka is not installed: pip install -e '.[franka]'")
+pytest.importorskip("franky_sim", reason="franky-sim is not installed: pip install -e '.[test]'")
+
+ROBOT = "fr3"  # franky-sim serves an FR3
+POSTURE = ROBOTS[ROBOT].postures["elbow_up"]
+START_DISTANCE = 0.05
+SPEED = 0.15
+WALL_TOLERANCE = 0.005  # m: the tool's predicted contact point at the detection vs the wall
+WRIST_DRIFT = 0.05  # rad: the posture task holds the wrist near the start posture
+AWAY = 0.25  # m: the server's arm starts facing the wall this far from it, the run moves it closer
+
+
+@pytest.fixture
+def franky_sim(tmp_path):
+    """``start(q0)`` -> a listening server with the posture's wall; every one is killed at teardown."""
+    servers = []
+
+    def start(q0):
+        server = FrankySimServer(tmp_path / f"server{len(servers)}", POSTURE.surface.point, POSTURE.surface.normal, q0)
+        servers.append(server)
+        server.start()
+        return server
+
+    yield start
+    for server in servers:
+        server.stop()
+
+
+@pytest.fixture(scope="module")
+def model():
+    return RobotModel(ROBOT)  # with the default tool, the sphere the server's scene carries
+
+
+def session_loop(robot, model):
+    config = ControllerConfig.approach(POSTURE.surface, SPEED, posture_weight=0.0)
+    session = ImpactSession(config, model)
+    return config, ControlLoop(robot, session, CommandFilter.for_robot(model, config.dt), deadline=float("inf"))
+
+
+def test_the_session_detects_the_wall_retracts_and_logs_through_the_franka_protocol(franky_sim, model, tmp_path, capsys):
+    q0 = approach_start(model, POSTURE.q, POSTURE.surface, START_DISTANCE)
+    server = franky_sim(q0)
+    robot = FrankaRobot.connect(server.hostname, realtime=False, model=model)
+    assert robot.check_model(model) <= RobotConfig().max_model_difference
+    config, loop = session_loop(robot, model)
+    run_log = RunLog(str(tmp_path / "log"), log_header(config))
+    result = loop.run(1.0)
+    session = result.session
+    assert result.watchdog_trips == 0, result.watchdog_reason
+    assert session.residual_source == OBSERVER  # franky-sim reports tau_J as tau_ext_hat_filtered
+    assert session.detector.detected and result.phase == STOPPING
+    assert "retract" in result.phases
+    log = result.log
+    distance = np.array([POSTURE.surface.signed_distance(model.contact_point(q)) for q in log.q])
+    detected = int(np.searchsorted(log.t, session.detector.t_detect))
+    assert abs(distance[detected]) <= WALL_TOLERANCE
+    assert np.all(distance[:detected] > -WALL_TOLERANCE)  # no earlier contact went unnoticed
+    assert distance[-1] > distance[detected] + WALL_TOLERANCE  # retracted
+    assert 0.5 * SPEED < session.contact_speed() <= SPEED * 1.05
+    t_contact = server.contact_time()  # the server's first wall contact, on the states' clock
+    assert t_contact is not None and t_contact <= session.detector.t_detect <= t_contact + WINDOW_AFTER
+    write_log(run_log, RunRequest(backend="franka", robot=ROBOT, robot_ip=server.hostname, speed=SPEED), config, result)
+    capsys.readouterr()
+    assert main(["dataset", "validate", str(tmp_path / "log")]) == 0, capsys.readouterr().err
+
+
+class ServerDiesAt(ForwardingRobot):
+    """Kills the server before the read of cycle ``cycle``: the connection is lost mid-session."""
+
+    def __init__(self, robot, server, cycle):
+        super().__init__(robot)
+        self.server, self.cycle, self.reads = server, cycle, 0
+
+    def read(self):
+        self.reads += 1
+        if self.reads == self.cycle:
+            self.server.stop()
+        return self.robot.read()
+
+    def start(self):
+        self.reads += 1
+        return self.robot.start()
+
+    def write(self, dq_cmd):
+        self.robot.write(dq_cmd)
+
+    def stop(self):
+        self.robot.stop()
+
+
+def test_a_lost_connection_ends_the_run_in_one_line_and_keeps_the_log(franky_sim, model):
+    q0 = approach_start(model, POSTURE.q, POSTURE.surface, START_DISTANCE)
+    server = franky_sim(q0)
+    robot = ServerDiesAt(FrankaRobot.connect(server.hostname, realtime=False, model=model), server, cycle=150)
+    _, loop = session_loop(robot, model)
+    result = loop.run(1.0)
+    assert not server.alive and loop.robot_failed
+    assert result.watchdog_trips == 1 and result.watchdog_reason.startswith("robot error: ")
+    assert "\n" not in result.watchdog_reason
+    # every cycle before the lost read is logged, then the lost read's cycle as NaN values
+    # (no measurement) with its braking command, which the dead connection refused
+    assert result.cycles == 150 - 1
+    assert np.all(np.isfinite(result.log.q[:-1])) and np.all(np.isnan(result.log.q[-1]))
+    assert np.all(np.diff(result.log.t) > 0.0)
+
+
+def contact_distance_at(log_file, t, model) -> float:
+    """The declared tool's contact point's signed distance to the wall at the logged state of time ``t``."""
+    log = np.loadtxt(log_file, delimiter=",", skiprows=1)
+    k = int(np.searchsorted(log[:, 0], t))
+    return POSTURE.surface.signed_distance(model.contact_point(log[k, 1:8]))
+
+
+def test_impactqp_run_moves_to_the_start_then_runs_the_session_against_the_server(franky_sim, model, tmp_path, capsys):
+    server = franky_sim(approach_start(model, POSTURE.q, POSTURE.surface, AWAY))
+    argv = ["run", "--backend", "franka", "--robot", ROBOT, "--robot-ip", server.hostname, "--realtime", "ignore", "--json"]
+    # the model check refuses a robot whose mass matrix differs by more than the limit, in one line, before any motion
+    strict = tmp_path / "strict.toml"
+    strict.write_text("[robot]\nmax_model_difference = 1e-6\n")
+    assert main(argv + ["--config", str(strict), "--log", str(tmp_path / "refused")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "mass matrix differs" in err and "max_model_difference" in err
+    code = main(argv + ["--log", str(tmp_path / "log"), "--duration", "1.0"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    report = json.loads(out)
+    assert report["watchdog_trips"] == 0, report["watchdog_reason"]
+    assert report["impact"]["detected"] and report["impact"]["residual"] == OBSERVER
+    assert report["phase"] == STOPPING
+    robot = report["robot"]
+    assert 0.0 < robot["model_difference"] <= RobotConfig().max_model_difference
+    assert robot["reflex"] == [] and not robot["recovered"]
+    assert robot["command_success_rate"] == 1.0 and robot["missed_packets"] >= 0
+    request = RunRequest(backend="franka", robot=ROBOT)
+    q_start = start_posture(request, model, ControllerConfig.approach(POSTURE.surface))
+    move = report["start_move"]
+    assert move["cycles"] >= int(move["duration"] / 1e-3) and move["final_error"] < 0.01
+    # the contact happens where the declared tool predicts it
+    assert abs(contact_distance_at(report["log"], report["impact"]["time"], model)) <= WALL_TOLERANCE
+    log = np.loadtxt(report["log"], delimiter=",", skiprows=1)
+    q_end = log[-1, 1:8]
+    assert np.all(np.abs(q_end - q_start)[[4, 6]] < WRIST_DRIFT)
+    assert main(["dataset", "validate", str(tmp_path / "log")]) == 0, capsys.readouterr().out
