@@ -16,10 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from impactqp.controller.config import ControllerConfig
-from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
+from impactqp.controller.measured.dataset import DatasetHeader
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD
-from impactqp.controller.model.postures import POSTURES
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
+from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
 from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.runtime.franka_backend import FrankaRobot
@@ -73,6 +73,9 @@ class RunRequest:
         None: the control period, and no deadline offline (replay, unpaced sim). No option.
     max_overruns
         Overruns in a row that trip the watchdog. No option.
+    choice
+        ``--robot`` and ``--tool``. A configuration file's ``robot``/``tool`` and a replayed
+        dataset's manifest decide; a non-default choice that disagrees with them is bad input.
     """
 
     backend: str = "sim"
@@ -88,24 +91,47 @@ class RunRequest:
     unpaced: bool = False
     deadline: float | None = None
     max_overruns: int = 5
+    choice: RobotChoice = DEFAULT_CHOICE
 
 
-def controller_config(request: RunRequest, surface=None) -> ControllerConfig:
+def controller_config(request: RunRequest, surface=None, decided: RobotChoice | None = None) -> ControllerConfig:
+    """The configuration file's, or the default approach of ``request.choice``'s robot and tool
+    to ``surface`` (the posture's wall by default). ``decided`` is the robot and tool the data
+    impose (a replayed manifest's): the configuration must agree with it."""
     if request.config_file is not None:
         try:
-            return ControllerConfig.from_file(request.config_file)
+            config = ControllerConfig.from_file(request.config_file)
         except BadInputError as error:
             raise BadInputError(f"--config {error}") from None
+        if decided is not None:
+            _agree(config.choice, decided, "the dataset's manifest")
+        elif not request.choice.is_default:
+            _agree(config.choice, request.choice, "--robot/--tool")
+        return config
+    choice = request.choice if decided is None else decided
     if surface is None:
-        surface = POSTURES[request.posture].surface
-    return ControllerConfig.approach(surface, request.speed, posture_weight=0.0)
+        surface = choice.posture(request.posture).surface
+    config = ControllerConfig.approach(surface, request.speed, posture_weight=0.0)
+    config.robot, config.tool = choice.robot.name, choice.tool_setting
+    return config
+
+
+def _agree(choice: RobotChoice, other: RobotChoice, source: str) -> None:
+    """Bad input when ``other`` (from ``source``) differs from ``choice``."""
+    if not choice.same_as(other):
+        raise BadInputError(
+            f"the configuration's robot and tool ({choice.robot.name}, {choice.tool.name}) differ from "
+            f"{source} ({other.robot.name}, {other.tool.name})"
+        )
 
 
 def check_request(request: RunRequest) -> None:
     if request.backend not in BACKENDS:
         raise BadInputError(f"--backend {request.backend!r}: choose from {', '.join(BACKENDS)}")
-    if request.posture not in POSTURES:
-        raise BadInputError(f"--posture {request.posture!r} is unknown; known: {', '.join(POSTURES)}")
+    if request.posture not in request.choice.robot.postures:
+        raise BadInputError(
+            f"--posture {request.posture!r} is unknown; known: {', '.join(request.choice.robot.postures)}"
+        )
     approach_speed(request.speed, "--speed")
     number_in_range(request.duration, 0.0, MAX_DURATION, "--duration", "s", low_open=True)
     if request.backend == "franka" and not request.robot_ip:
@@ -114,27 +140,32 @@ def check_request(request: RunRequest) -> None:
         raise BadInputError("--backend replay needs --dataset DIR (and optionally --trial ID)")
 
 
-def build_backend(request: RunRequest, model: PandaModel) -> tuple[RobotInterface, ControllerConfig, float]:
-    """(backend, controller configuration, duration) of the request."""
+def build_backend(request: RunRequest) -> tuple[RobotInterface, ControllerConfig, float]:
+    """(backend, controller configuration, duration) of the request; the configuration's
+    ``choice`` is the robot and the tool to model."""
     if request.backend == "franka":
         config = controller_config(request)
         return FrankaRobot.connect(request.robot_ip), config, request.duration
     if request.backend == "replay":
         trial, header = load_trial(request.dataset, request.trial)
+        if not request.choice.is_default:
+            _agree(header.choice, request.choice, "--robot/--tool")
         speed = trial.entry.reference_normal_speed
-        config = controller_config(RunRequest(**{**request.__dict__, "speed": speed}), header.surface)
+        config = controller_config(RunRequest(**{**request.__dict__, "speed": speed}), header.surface, header.choice)
         return ReplayRobot(trial, header.control_period), config, len(trial.log) * header.control_period
     config = controller_config(request)
+    choice = config.choice
     try:
         plant = None if request.plant_file is None else PlantParameters.from_json(request.plant_file)
     except PlantParameterError as error:
         raise BadInputError(f"--plant: {error}") from None
     surface = config.surface.surface()
     try:
-        q0 = approach_start(model, POSTURES[request.posture].q, surface, SIM_START_DISTANCE)
+        q0 = approach_start(choice.model(), choice.posture(request.posture).q, surface, SIM_START_DISTANCE)
     except UnreachableStartError as error:
         raise BadInputError(str(error)) from None
-    robot = SimRobot(build_scene(surface, plant), q0, np.zeros(NQ), config.dt, paced=not request.unpaced)
+    scene = build_scene(surface, plant, robot=choice.robot, tool=choice.tool)
+    robot = SimRobot(scene, q0, np.zeros(NQ), config.dt, paced=not request.unpaced)
     return robot, config, request.duration
 
 
@@ -145,8 +176,8 @@ def run(request: RunRequest) -> tuple[dict, LoopResult]:
     """Run the request; (report, result). Ctrl-C, SIGTERM or SIGHUP brakes to a stop and keeps the log
     (``result.interrupted``). The log directory is checked before the robot moves."""
     check_request(request)
-    model = PandaModel()
-    robot, config, duration = build_backend(request, model)
+    robot, config, duration = build_backend(request)
+    model = config.choice.model()
     run_log = RunLog(request.log, log_header(config)) if request.log else None
     session = ImpactSession(config, model)
     deadline = request.deadline
@@ -203,10 +234,12 @@ def report(result: LoopResult, config: ControllerConfig, log_path: str | None) -
 
 
 def log_header(config: ControllerConfig) -> DatasetHeader:
+    choice = config.choice
     return DatasetHeader(
-        tool=MODELLED_TOOL,
+        tool=choice.tool,
         surface=config.surface.surface(),
         control_period=config.dt,
+        robot=choice.robot.name,
     )
 
 

@@ -51,6 +51,7 @@ import numpy as np
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
 from impactqp.controller.model.max_speed import closed_form_max_speed
+from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.qp import Command
 from impactqp.controller.model.robot import PandaModel
@@ -131,8 +132,11 @@ class TrialRunner:
         self.robot = PandaModel() if robot is None else robot
 
     @classmethod
-    def build(cls, surface: Surface, plant: PlantParameters | None = None) -> TrialRunner:
-        return cls(build_scene(surface, plant))
+    def build(
+        cls, surface: Surface, plant: PlantParameters | None = None, choice: RobotChoice = DEFAULT_CHOICE
+    ) -> TrialRunner:
+        """A runner of ``choice``'s robot and tool: its scene and its model."""
+        return cls(build_scene(surface, plant, robot=choice.robot, tool=choice.tool), choice.model())
 
     @property
     def surface(self) -> Surface:
@@ -221,9 +225,9 @@ class TrialRunner:
 _WORKER: TrialRunner | None = None
 
 
-def _init_worker(surface: Surface, plant: PlantParameters | None) -> None:
+def _init_worker(surface: Surface, plant: PlantParameters | None, choice: RobotChoice) -> None:
     global _WORKER
-    _WORKER = TrialRunner.build(surface, plant)
+    _WORKER = TrialRunner.build(surface, plant, choice)
 
 
 def _run_in_worker(spec: TrialSpec) -> TrialResult:
@@ -232,24 +236,29 @@ def _run_in_worker(spec: TrialSpec) -> TrialResult:
 
 class TrialPool:
     """Runs trials on ``jobs`` processes (``ProcessPoolExecutor``); every worker builds its own
-    scene, robot model and controllers. ``jobs=1`` runs in this process."""
+    scene, robot model and controllers, of ``choice``'s robot and tool. ``jobs=1`` runs in this
+    process."""
 
-    def __init__(self, surface: Surface, plant: PlantParameters | None = None, jobs: int = 1):
+    def __init__(
+        self, surface: Surface, plant: PlantParameters | None = None, jobs: int = 1,
+        choice: RobotChoice = DEFAULT_CHOICE,
+    ):
         if jobs < 1:
             raise BadInputError(f"--jobs must be >= 1, got {jobs}")
         self.surface = surface
         self.plant = plant
         self.jobs = jobs
+        self.choice = choice
         self._executor: ProcessPoolExecutor | None = None
         self._local: TrialRunner | None = None
 
     def __enter__(self) -> TrialPool:
         if self.jobs > 1:
             self._executor = ProcessPoolExecutor(
-                self.jobs, initializer=_init_worker, initargs=(self.surface, self.plant)
+                self.jobs, initializer=_init_worker, initargs=(self.surface, self.plant, self.choice)
             )
         else:
-            self._local = TrialRunner.build(self.surface, self.plant)
+            self._local = TrialRunner.build(self.surface, self.plant, self.choice)
         return self
 
     def __exit__(self, *exc) -> None:

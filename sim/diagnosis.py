@@ -150,7 +150,6 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
     problems = validate(directory)
     bad = {k for k, v in problems.items() if k != "dataset" and v}
     dataset = read_dataset(directory, skip=bad, strict=False)
-    dataset.header.tool.require_modelled(str(directory))
     skipped = [{"id": k, "reason": "; ".join(problems[k])} for k in sorted(bad)]
     skipped += [{"id": "dataset", "reason": p} for p in problems["dataset"]]
     trials = []

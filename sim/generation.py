@@ -25,8 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from impactqp.controller.model.postures import POSTURES, Surface
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot import NQ
 
 from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry
 from .plant import PlantParameters
@@ -65,7 +66,8 @@ class PlannedTrial:
 
 
 def trial_specs(
-    postures: list[str], speeds: list[float], tangential: list[float], repeats: int, normal: np.ndarray, seed: int
+    postures: list[str], speeds: list[float], tangential: list[float], repeats: int, normal: np.ndarray, seed: int,
+    choice: RobotChoice = DEFAULT_CHOICE,
 ) -> list[PlannedTrial]:
     if isinstance(repeats, bool) or not isinstance(repeats, int) or not 1 <= repeats <= MAX_REPEATS:
         raise BadInputError(f"repeats must be a whole number in [1, {MAX_REPEATS}], got {repeats!r}")
@@ -78,7 +80,7 @@ def trial_specs(
     planned = []
     for c, (posture, v, vt) in enumerate(conditions):
         spec = TrialSpec(
-            posture, POSTURES[posture].q, float(v), vt, start_distance=START_DISTANCE, after_contact=AFTER_CONTACT
+            posture, choice.posture(posture).q, float(v), vt, start_distance=START_DISTANCE, after_contact=AFTER_CONTACT
         )
         for r in range(repeats):
             index = c * repeats + r
@@ -86,12 +88,15 @@ def trial_specs(
     return planned
 
 
-def simulate_trial(planned: PlannedTrial, plant: PlantParameters, surface: Surface, noise_dq: float, noise_tau: float):
-    """Run one trial from a randomly perturbed start and add the measurement noise; returns
-    (entry, log)."""
+def simulate_trial(
+    planned: PlannedTrial, plant: PlantParameters, surface: Surface, noise_dq: float, noise_tau: float,
+    choice: RobotChoice = DEFAULT_CHOICE,
+):
+    """Run one trial of ``choice``'s robot and tool from a randomly perturbed start and add the
+    measurement noise; returns (entry, log)."""
     rng = np.random.default_rng(planned.seed)
-    robot = PandaModel()
-    scene = build_scene(surface, plant)
+    robot = choice.model()
+    scene = build_scene(surface, plant, robot=choice.robot, tool=choice.tool)
     spec = planned.spec
     q_contact = np.clip(spec.q_contact + rng.normal(0.0, START_POSTURE_STD, NQ), robot.q_min, robot.q_max)
     distance = spec.start_distance + rng.uniform(-START_DISTANCE_SPREAD, START_DISTANCE_SPREAD)
@@ -123,19 +128,21 @@ def generate_dataset(
     seed: int = 0,
     jobs: int = 1,
     progress=None,
+    choice: RobotChoice = DEFAULT_CHOICE,
 ) -> list[TrialEntry]:
     """Simulate the trials and write them to ``out`` (created if missing); returns the entries.
 
     The surface defaults to the one the first posture faces (all named postures face the
     default wall).
-    ``progress(done, total)`` is an optional callable invoked once per finished trial.
+    ``progress(done, total)`` is an optional callable invoked once per finished trial. The robot
+    and the tool are ``choice``'s (recorded in the manifest).
     """
     plant = plant or PlantParameters()
-    postures = list(POSTURES) if postures is None else postures
-    unknown = [p for p in postures if p not in POSTURES]
-    if unknown or not postures:
-        raise BadInputError(f"unknown posture(s) {', '.join(unknown)}; known: {', '.join(POSTURES)}")
-    surface = POSTURES[postures[0]].surface if surface is None else surface
+    postures = list(choice.robot.postures) if postures is None else postures
+    if not postures:
+        raise BadInputError(f"give at least one posture; known: {', '.join(choice.robot.postures)}")
+    choice.check_postures(postures)
+    surface = choice.posture(postures[0]).surface if surface is None else surface
     number_in_range(noise_dq, 0.0, MAX_NOISE_DQ, "the encoder noise std --noise-dq", "rad/s")
     number_in_range(noise_tau, 0.0, MAX_NOISE_TAU, "the torque noise std --noise-tau", "N m")
     specs = trial_specs(
@@ -145,10 +152,11 @@ def generate_dataset(
         repeats,
         surface.normal,
         seed,
+        choice,
     )
     Path(out).mkdir(parents=True, exist_ok=True)
-    writer = DatasetWriter(out, dataset_header(surface))
-    args = [(s, plant, surface, noise_dq, noise_tau) for s in specs]
+    writer = DatasetWriter(out, dataset_header(surface, choice))
+    args = [(s, plant, surface, noise_dq, noise_tau, choice) for s in specs]
     entries = []
     if jobs > 1:
         with ProcessPoolExecutor(jobs) as pool:

@@ -66,7 +66,7 @@ class FaultySession(ImpactSession):
 @pytest.mark.parametrize("fault", ["nan", "nan_tau_ext", "stale", "exception", "overrun"])
 def test_each_fault_trips_the_watchdog_and_the_commands_stay_continuous(fault, model):
     request = RunRequest(speed=0.15, duration=0.3, unpaced=True)
-    sim, config, _ = build_backend(request, model)
+    sim, config, _ = build_backend(request)
     at = 200  # mid-approach, moving at speed
     robot = FaultySim(sim, fault, at) if fault in ("nan", "nan_tau_ext", "stale") else sim
     session = (
@@ -93,7 +93,7 @@ def test_each_fault_trips_the_watchdog_and_the_commands_stay_continuous(fault, m
 
 
 def test_a_backend_failure_ends_the_run_and_keeps_the_log(model):
-    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True), model)
+    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True))
     loop = ControlLoop(
         FaultySim(sim, "robot_error", 100), ImpactSession(config, model), CommandFilter.for_robot(model, DT),
         deadline=float("inf"),

@@ -80,8 +80,8 @@ class SignalAt(ForwardingRobot):
 def test_a_stop_signal_brakes_keeps_the_log_and_exits_130(sig, tmp_path, capsys, monkeypatch):
     build = run_module.build_backend
 
-    def build_with_signal(request, model):
-        robot, config, duration = build(request, model)
+    def build_with_signal(request):
+        robot, config, duration = build(request)
         return SignalAt(robot, sig, at=150), config, duration
 
     monkeypatch.setattr(run_module, "build_backend", build_with_signal)
@@ -99,8 +99,8 @@ def test_an_unusable_log_directory_is_refused_before_the_robot_moves(tmp_path, c
     moved = []
     build = run_module.build_backend
 
-    def build_and_watch(request, model):
-        robot, config, duration = build(request, model)
+    def build_and_watch(request):
+        robot, config, duration = build(request)
         robot.write = lambda dq_cmd, write=robot.write: (moved.append(1), write(dq_cmd))
         return robot, config, duration
 

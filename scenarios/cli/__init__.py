@@ -21,10 +21,16 @@ import click
 import numpy as np
 
 from impactqp.controller.model.jump import METHODS
-from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
-from impactqp.scenarios.cli.arguments import EXIT_BAD_INPUT, EXIT_INTERRUPTED, emit_json, output_directory, parse_vector
+from impactqp.scenarios.cli.arguments import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    emit_json,
+    output_directory,
+    parse_vector,
+    robot_options,
+)
 
 EXIT_INTERNAL_ERROR = 1
 
@@ -37,12 +43,13 @@ def cli(debug):  # noqa: ARG001 - read by main(), which owns the error boundary
 
 @cli.command()
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list.")
-def postures(as_json):
-    """List the named impact postures, their contact point and the wall normal."""
-    from impactqp.controller.model.robot import PandaModel
+@robot_options
+def postures(as_json, choice):
+    """List the robot's named impact postures (solved for the tool), their contact point and the
+    wall normal."""
     from impactqp.scenarios.readable import fixed
 
-    robot = PandaModel()
+    robot = choice.model()
     rows = [
         {
             "name": p.name,
@@ -51,7 +58,7 @@ def postures(as_json):
             "normal": p.surface.normal.tolist(),
             "description": p.description,
         }
-        for p in POSTURES.values()
+        for p in choice.postures.values()
     ]
     if as_json:
         emit_json(rows)
@@ -72,17 +79,16 @@ def postures(as_json):
 @click.option("--restitution", type=float, default=0.0, show_default=True, help="Coefficient of restitution in [0, 1].")
 @click.option("--method", type=click.Choice([*METHODS, "all"]), default="all", show_default=True)
 @click.option("--json", "as_json", is_flag=True)
-def predict(posture_name, q_text, normal_text, speed, tangential_text, restitution, method, as_json):
-    """Predict the impact-induced joint-velocity jump at a posture."""
+@robot_options
+def predict(posture_name, q_text, normal_text, speed, tangential_text, restitution, method, as_json, choice):
+    """Predict the impact-induced joint-velocity jump at a posture of the robot with the tool."""
     from impactqp.controller.model.prediction import ImpactQuery, predict_all
     from impactqp.scenarios.readable import fixed
 
     if (posture_name is None) == (q_text is None):
         raise BadInputError("give exactly one of --posture NAME or --q Q1,...,Q7")
     if posture_name is not None:
-        if posture_name not in POSTURES:
-            raise BadInputError(f"unknown posture {posture_name!r}; known: {', '.join(POSTURES)}")
-        q = POSTURES[posture_name].q
+        q = choice.posture(posture_name).q
     else:
         q = parse_vector(q_text, NQ, "--q")
     tangential = parse_vector(tangential_text, 3, "--tangential") if tangential_text else np.zeros(3)
@@ -90,7 +96,7 @@ def predict(posture_name, q_text, normal_text, speed, tangential_text, restituti
         q, parse_vector(normal_text, 3, "--normal"), speed, tangential, restitution
     )
     methods = METHODS if method == "all" else (method,)
-    report = predict_all(query, methods)
+    report = predict_all(query, methods, choice.model())
     if as_json:
         emit_json(report)
         return

@@ -15,6 +15,7 @@ from impactqp.scenarios.cli.arguments import (
     output_file,
     parse_list,
     parse_vector,
+    robot_options,
 )
 
 
@@ -60,19 +61,19 @@ def validate_command(ctx, directory, as_json):
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--jobs", type=int, default=1, show_default=True)
 @click.option("--json", "as_json", is_flag=True)
-def generate_command(out, plant_file, postures, speeds, tangential, repeats, noise_dq, noise_tau, seed, jobs, as_json):
-    """Simulate a dataset (plant overrides with --plant) in the measured-data format."""
+@robot_options
+def generate_command(
+    out, plant_file, postures, speeds, tangential, repeats, noise_dq, noise_tau, seed, jobs, as_json, choice
+):
+    """Simulate a dataset of the robot with the tool (plant overrides with --plant) in the
+    measured-data format; the manifest records the robot and the tool."""
     from tqdm import tqdm
 
-    from impactqp.controller.model.postures import POSTURES
     from impactqp.sim.generation import generate_dataset
 
     output_directory(out, "OUT")
     plant = load_plant(plant_file)  # None: the nominal plant
-    names = [p.strip() for p in postures.split(",")] if postures else list(POSTURES)
-    unknown = [p for p in names if p not in POSTURES]
-    if unknown:
-        raise BadInputError(f"unknown posture(s) {', '.join(unknown)}; known: {', '.join(POSTURES)}")
+    names = list(choice.check_postures(p.strip() for p in postures.split(","))) if postures else list(choice.robot.postures)
     speed_list = parse_list(speeds, "--speeds") if speeds else None
     tangential_list = parse_list(tangential, "--tangential") if tangential else []
     check_jobs(jobs)
@@ -86,7 +87,7 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
     try:
         entries = generate_dataset(
             out, plant=plant, postures=names, speeds=speed_list, tangential=tangential_list, repeats=repeats,
-            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed, jobs=jobs, progress=progress,
+            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed, jobs=jobs, progress=progress, choice=choice,
         )
     finally:
         for bar in bars:
@@ -102,24 +103,20 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
 @click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("--surface-point", required=True, help="A point X,Y,Z (m, world) of the surface hit.")
 @click.option("--surface-normal", required=True, help="The surface normal NX,NY,NZ, towards the robot.")
-@click.option("--tool-frame", default="panda_hand", show_default=True, help="Robot frame of the contact point.")
-@click.option("--contact-point", help="Contact point X,Y,Z (m) in the tool frame (default: the impact tool's tip).")
 @click.option("--reference-speed", type=float, help="Reference normal speed (m/s) of every log (default: estimated).")
 @click.option("--json", "as_json", is_flag=True)
-def import_franka_command(out, logs, surface_point, surface_normal, tool_frame, contact_point, reference_speed, as_json):
-    """Import libfranka logs (franka::logToCSV, one log per trial) as a dataset in OUT."""
+@robot_options
+def import_franka_command(out, logs, surface_point, surface_normal, reference_speed, as_json, choice):
+    """Import libfranka logs (franka::logToCSV, one log per trial) of the robot hitting with the
+    tool as a dataset in OUT."""
     from impactqp.controller.measured.franka_log import import_franka_logs
     from impactqp.controller.model.postures import Surface
-    from impactqp.controller.model.robot import TOOL_TIP_OFFSET
     from impactqp.controller.model.validation import unit_normal
 
     output_directory(out, "OUT")
     surface = Surface(parse_vector(surface_point, 3, "--surface-point"), unit_normal(
         parse_vector(surface_normal, 3, "--surface-normal"), "--surface-normal"))
-    point = parse_vector(contact_point, 3, "--contact-point") if contact_point else (0.0, 0.0, TOOL_TIP_OFFSET)
-    entries = import_franka_logs(
-        out, list(logs), surface, tool_frame=tool_frame, contact_point=point, reference_speed=reference_speed
-    )
+    entries = import_franka_logs(out, list(logs), surface, choice=choice, reference_speed=reference_speed)
     if as_json:
         emit_json({"out": str(out), "trials": [e.to_dict() for e in entries]})
         return

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from impactqp.scenarios.cli.arguments import EXIT_INTERRUPTED, emit_json
+from impactqp.scenarios.cli.arguments import EXIT_INTERRUPTED, emit_json, robot_options
 
 
 @click.command("run")
@@ -20,7 +20,10 @@ from impactqp.scenarios.cli.arguments import EXIT_INTERRUPTED, emit_json
 @click.option("--trial", help="Trial id to replay (default: the first).")
 @click.option("--unpaced", is_flag=True, help="Run the sim backend as fast as it goes (no wall-clock pacing).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-def run_command(backend, robot_ip, config_file, plant_file, posture, speed, duration, log, dataset, trial, unpaced, as_json):
+@robot_options
+def run_command(
+    backend, robot_ip, config_file, plant_file, posture, speed, duration, log, dataset, trial, unpaced, as_json, choice
+):
     """Run the impact-aware controller in a 1 kHz loop on a robot: approach, detect the impact,
     post-impact phase, brake to a stop. Ctrl-C (or SIGTERM) brakes to a stop, keeps the log and
     exits with code 130."""
@@ -28,7 +31,7 @@ def run_command(backend, robot_ip, config_file, plant_file, posture, speed, dura
 
     request = RunRequest(
         backend=backend, robot_ip=robot_ip, config_file=config_file, plant_file=plant_file, posture=posture,
-        speed=speed, duration=duration, log=log, dataset=dataset, trial=trial, unpaced=unpaced,
+        speed=speed, duration=duration, log=log, dataset=dataset, trial=trial, unpaced=unpaced, choice=choice,
     )
     report, result = run(request)
     if as_json:
