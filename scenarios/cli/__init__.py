@@ -192,6 +192,10 @@ def demo(out_dir, jobs):
         click.echo(row.sentence())
     click.echo(trusted_speed_text(result, speeds))
     click.echo(f"\nreport: {path}")
+    click.echo(
+        "This was the Panda with the impact tip; every command takes --robot panda|fr3 and --tool "
+        "impact_tip|franka_hand|pad|FILE.json, e.g. `impactqp campaign --robot fr3 --tool franka_hand`."
+    )
 
 
 from impactqp.scenarios.cli.simulation_commands import campaign, max_speed, simulate  # noqa: E402
