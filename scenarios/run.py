@@ -104,9 +104,9 @@ def controller_config(request: RunRequest, surface=None, decided: RobotChoice | 
         except BadInputError as error:
             raise BadInputError(f"--config {error}") from None
         if decided is not None:
-            _agree(config.choice, decided, "the dataset's manifest")
+            _agree(decided, "the dataset's manifest", config.choice, "the configuration's")
         elif not request.choice.is_default:
-            _agree(config.choice, request.choice, "--robot/--tool")
+            _agree(config.choice, "the configuration", request.choice, "--robot/--tool")
         return config
     choice = request.choice if decided is None else decided
     if surface is None:
@@ -116,11 +116,11 @@ def controller_config(request: RunRequest, surface=None, decided: RobotChoice | 
     return config
 
 
-def _agree(choice: RobotChoice, other: RobotChoice, source: str) -> None:
-    """Bad input when ``other`` (from ``source``) differs from ``choice``."""
+def _agree(choice: RobotChoice, what: str, other: RobotChoice, source: str) -> None:
+    """Bad input when ``other`` (from ``source``) differs from ``choice`` (from ``what``)."""
     if not choice.same_as(other):
         raise BadInputError(
-            f"the configuration's robot and tool ({choice.robot.name}, {choice.tool.name}) differ from "
+            f"the robot and tool of {what} ({choice.robot.name}, {choice.tool.name}) differ from "
             f"{source} ({other.robot.name}, {other.tool.name})"
         )
 
@@ -149,7 +149,7 @@ def build_backend(request: RunRequest) -> tuple[RobotInterface, ControllerConfig
     if request.backend == "replay":
         trial, header = load_trial(request.dataset, request.trial)
         if not request.choice.is_default:
-            _agree(header.choice, request.choice, "--robot/--tool")
+            _agree(header.choice, "the dataset's manifest", request.choice, "--robot/--tool")
         speed = trial.entry.reference_normal_speed
         config = controller_config(RunRequest(**{**request.__dict__, "speed": speed}), header.surface, header.choice)
         return ReplayRobot(trial, header.control_period), config, len(trial.log) * header.control_period
