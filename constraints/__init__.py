@@ -2,7 +2,7 @@
 
 from .acceleration_limit import AccelerationLimit
 from .constraint import Constraint, ConstraintRows, ControlCycle
-from .impact_model import JUMP_MODEL_CHOICES, ImpactMaps, ImpactModel, jump_model_names
+from .impact_model import JUMP_MODEL_CHOICES, ExpectedImpact, jump_model_names
 from .impulsive_torque import ImpulsiveTorqueLimit
 from .position_limit import PositionLimit
 from .post_impact_velocity import PostImpactVelocityLimit
@@ -17,8 +17,7 @@ __all__ = [
     "PositionLimit",
     "VelocityLimit",
     "TorqueLimit",
-    "ImpactModel",
-    "ImpactMaps",
+    "ExpectedImpact",
     "JUMP_MODEL_CHOICES",
     "jump_model_names",
     "PostImpactVelocityLimit",

@@ -5,8 +5,8 @@ Every constraint bounds the decision variable of the QP, the joint acceleration 
     lower <= C ddq <= upper
 
 written in ACCELERATION units (rad/s^2), so that all rows of the QP have comparable scales
-(docs/qp-constraints.md: rows written as dt-scaled velocity bounds made the warm-started proxsuite
-report false infeasibilities). A constraint whose ``C`` is ``None`` is a box on ddq (C = I).
+(docs/qp-constraints.md, Decision variable and units). A constraint whose ``C`` is ``None`` is a
+box on ddq (C = I).
 A constraint has a fixed number of rows; when it does not apply in a cycle it returns infinite
 bounds for them, so the QP keeps its dimensions and can stay warm-started.
 """
@@ -85,15 +85,6 @@ class ControlCycle:
         relax_to_reachable(C, lower, upper, self.acceleration_lower, self.acceleration_upper)
         return lower, upper
 
-    def reference_recoverable(self, C: np.ndarray, lower: np.ndarray, upper: np.ndarray):
-        """``recoverable`` in plain numpy (the reference of its kernel)."""
-        lo, hi = self.acceleration_lower, self.acceleration_upper
-        centre = C @ (0.5 * (lo + hi))
-        spread = np.abs(C) @ (0.5 * (hi - lo))
-        np.minimum(lower, centre + spread, out=lower)
-        np.maximum(upper, centre - spread, out=upper)
-        return lower, upper
-
     def clip_to_reachable(self, lower: np.ndarray, upper: np.ndarray):
         """(lower, upper) clipped into the reachable acceleration interval, in place."""
         lo, hi = self.acceleration_lower, self.acceleration_upper
@@ -107,8 +98,8 @@ class Constraint:
 
     A constraint writes its rows into arrays it is given (``compute_into``): a controller hands
     it views of the stacked QP data, so nothing is copied. Where a class has a compiled kernel
-    (numba), ``compute_into`` calls it and ``reference_into`` states the same rows in plain
-    numpy: the reference the tests compare the kernel with. Box bounds are then clipped into the
+    (numba), ``compute_into`` calls it (its plain-numpy statement is in the tests,
+    ``tests/reference/constraints.py``). Box bounds are then clipped into the
     cycle's reachable accelerations (``ControlCycle.clip_to_reachable``) and the rows of a
     ``relaxed`` constraint, which the state may already violate, are relaxed to the largest
     correction the cycle allows (``ControlCycle.recoverable``); the controller does both for all
@@ -124,10 +115,6 @@ class Constraint:
         """Write the raw rows of this state: C (rows x 7; None for a box), lower and upper."""
         raise NotImplementedError
 
-    def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower: np.ndarray, upper: np.ndarray) -> None:
-        """``compute_into`` in plain numpy (the same method for a class without a kernel)."""
-        self.compute_into(terms, cycle, C, lower, upper)
-
     def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
         """The rows of this state in new arrays, clipped or relaxed as the class says."""
         C = None if self.is_box else np.empty((self.rows, terms.q.shape[0]))
@@ -140,22 +127,11 @@ class Constraint:
         return ConstraintRows(C, lower, upper)
 
 
-def symmetric_rows_into(C, dq, limit, inv_h, active, lower, upper) -> None:
-    """Bounds of the rows C ddq that keep |C (dq + h ddq)| <= limit: (+-limit - C dq) / h when the
-    rows are ``active``, unbounded otherwise (the numpy reference of the impact-aware kernels)."""
-    if not active:
-        lower.fill(-np.inf)
-        upper.fill(np.inf)
-        return
-    centre = inv_h * (C @ dq)
-    scaled_limit = inv_h * limit
-    np.subtract(-scaled_limit, centre, out=lower)
-    np.subtract(scaled_limit, centre, out=upper)
-
-
 @njit(cache=True)
 def symmetric_row_bounds(C, dq, limit, inv_h, active, lower, upper):
-    """Compiled ``symmetric_rows_into`` (for the constraint kernels, with C already written)."""
+    """Kernel shared by the impact-aware constraint kernels (C already written): the bounds of
+    the rows C ddq that keep |C (dq + h ddq)| <= limit, (+-limit - C dq) / h, when the rows are
+    ``active``; unbounded otherwise."""
     for i in range(C.shape[0]):
         if not active:
             lower[i] = -np.inf

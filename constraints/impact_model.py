@@ -1,8 +1,9 @@
-"""The impact the impact-aware constraints prepare for: surface, jump model and activation rule.
+"""The impact the impact-aware constraints prepare for (``ExpectedImpact``): surface, jump model
+and activation rule.
 
 Jump prediction (docs/qp-constraints.md). With the pre-impact velocity dq- = dq + ddq dt, the
-chosen predictor (``controller.model.jump``) gives an impulse iota = G J dq- and a joint-velocity jump
-ddq_jump = K iota = A dq-, A = K G J, both linear in dq-:
+chosen predictor (``controller.model.jump``, ``JumpModel.unit_matrices``) gives an impulse
+iota = G J dq- and a joint-velocity jump ddq_jump = K iota = A dq-, A = K G J, both linear in dq-:
 
     crb        (12), (20)-(21)   G = -(1+c_r) n n^T / (n^T W_crb n),   K = J+ W_crb
     gm         (12), (22)-(23)   G = -(1+c_r) n n^T / (n^T W_gm n),    K = J+ W_gm
@@ -24,12 +25,9 @@ rule says inactive cannot command a dangerous approach speed.
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
-import numpy as np
 from numba import njit
 
-from impactqp.controller.model.jump import GeneralizedMomentumJump, JumpModel, jump_model
+from impactqp.controller.model.jump import JumpMatrices, JumpModel, jump_model
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import ModelTerms
 from impactqp.controller.model import validation
@@ -58,17 +56,11 @@ def jump_model_names(choice: str) -> tuple[str, ...]:
         ) from None
 
 
-class ImpactMaps(NamedTuple):
-    """Linear maps of one state: dq_jump = jump_matrix dq-, J^T iota = torque_matrix dq-;
-    ``active`` is the activation rule's answer for that state."""
-
-    jump_matrix: np.ndarray
-    torque_matrix: np.ndarray
-    active: bool
-
-
-class ImpactModel:
-    """An expected impact on ``surface`` predicted with one jump model."""
+class ExpectedImpact:
+    """An expected impact on ``surface`` predicted with one jump model: the jump matrices of a
+    state and whether the impact-aware rows apply to it (the activation rule), both computed
+    once per fill of the model terms (``ModelTerms.stamp``) and shared by the constraints and
+    the controller's prediction."""
 
     def __init__(
         self,
@@ -92,19 +84,31 @@ class ImpactModel:
         )
         self.always_active = validation.boolean(always_active, "always_active")
         self._surface_offset = float(surface.normal @ surface.point)  # n.s: distance = n.p - n.s
-        self._stamp = 0  # ModelTerms.stamp of the cached maps
-        self._maps: ImpactMaps | None = None
+        self._stamp = 0  # ModelTerms.stamp of the cached matrices and activation
+        self._matrices: JumpMatrices | None = None
+        self._active = False
 
     @property
     def name(self) -> str:
         return self.model.name
 
+    def matrices(self, terms: ModelTerms) -> JumpMatrices:
+        """A and P of this state (the normal and the restitution were checked once, above)."""
+        self._update(terms)
+        return self._matrices
+
     def is_active(self, terms: ModelTerms) -> bool:
-        """The activation rule of the module docstring."""
-        if self.always_active:
-            return True
+        """The activation rule of the module docstring for this state."""
+        self._update(terms)
+        return self._active
+
+    def _update(self, terms: ModelTerms) -> None:
+        if terms.stamp == self._stamp:
+            return
         normal = self.surface.normal
-        return self._rule(float(normal @ (terms.J @ terms.dq)), float(normal @ terms.contact_point))
+        self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
+        self._active = self.always_active or self._rule(*normal_motion(terms.J, normal, terms.contact_point, terms.dq))
+        self._stamp = terms.stamp
 
     def _rule(self, normal_speed: float, normal_position: float) -> bool:
         """The rule from n.v and n.p (the distance is n.p - n.s)."""
@@ -113,66 +117,14 @@ class ImpactModel:
         distance = normal_position - self._surface_offset
         return distance <= max(self.lookahead_distance, -normal_speed * self.lookahead_time)
 
-    def maps(self, terms: ModelTerms) -> ImpactMaps:
-        """A, P and the activation of this state; computed once per fill of ``terms``
-        (``ModelTerms.stamp``) and shared by the constraints and the controller's prediction."""
-        if terms.stamp != self._stamp:
-            normal = self.surface.normal
-            if isinstance(self.model, GeneralizedMomentumJump):
-                jump_matrix, torque_matrix, normal_speed, normal_position = self._normal_impulse_maps(terms)
-            else:
-                maps = self.model.unit_maps(terms, normal, self.restitution)  # both checked once, above
-                GJ = maps.G @ terms.J
-                jump_matrix, torque_matrix = maps.K @ GJ, terms.J.T @ GJ
-                normal_speed, normal_position = float(normal @ (terms.J @ terms.dq)), float(normal @ terms.contact_point)
-            active = self.always_active or self._rule(normal_speed, normal_position)
-            self._maps = ImpactMaps(jump_matrix, torque_matrix, active)
-            self._stamp = terms.stamp
-        return self._maps
-
-    def _normal_impulse_maps(self, terms: ModelTerms):
-        """A and P of the normal-impulse models (12) as rank-one products.
-
-        G = s n n^T with s = -(1+c_r) / (n^T W n) and K = J+ W = J^T (J J^T)^-1 W (17), (21),
-        (23), so A = K G J = s (J^T (J J^T)^-1 W n)(J^T n)^T and P = J^T G J = s (J^T n)(J^T n)^T.
-        """
-        n = terms.J.shape[1]
-        jump_matrix, torque_matrix = np.empty((n, n)), np.empty((n, n))
-        normal = self.surface.normal
-        normal_speed, normal_position = rank_one_impulse_maps(
-            terms.J, terms.JJt_inv, self.model.inverse_inertia_times(terms, normal), normal, terms.contact_point,
-            terms.dq, self.restitution, jump_matrix, torque_matrix,
-        )
-        return jump_matrix, torque_matrix, normal_speed, normal_position
-
-    def reference_normal_impulse_maps(self, terms: ModelTerms):
-        """``_normal_impulse_maps`` in plain numpy (the reference of its kernel)."""
-        normal = self.surface.normal
-        Jt_normal = normal @ terms.J
-        W_normal = self.model.inverse_inertia_times(terms, normal)
-        s = -(1.0 + self.restitution) / float(normal @ W_normal)
-        jump_direction = terms.J.T @ (terms.JJt_inv @ (s * W_normal))
-        return (
-            jump_direction[:, None] * Jt_normal, (s * Jt_normal)[:, None] * Jt_normal,
-            float(Jt_normal @ terms.dq), float(normal @ terms.contact_point),
-        )
-
 
 @njit(cache=True)
-def rank_one_impulse_maps(J, JJt_inv, W_normal, normal, contact_point, dq, restitution, jump_matrix, torque_matrix):
-    """Kernel of ``ImpactModel._normal_impulse_maps``: A = s (J^T (J J^T)^-1 W n)(J^T n)^T and
-    P = s (J^T n)(J^T n)^T with s = -(1+c_r) / (n^T W n); returns n.(J dq) and n.p, the inputs
-    of the activation rule."""
-    s = -(1.0 + restitution) / (normal[0] * W_normal[0] + normal[1] * W_normal[1] + normal[2] * W_normal[2])
-    y = JJt_inv @ (s * W_normal)
-    direction = J.T @ y
+def normal_motion(J, normal, contact_point, dq):
+    """Kernel: the normal contact speed n.(J dq) = (J^T n).dq and the normal position n.p, the
+    inputs of the activation rule."""
     Jt_normal = normal @ J
     normal_speed = 0.0
     for j in range(J.shape[1]):
         normal_speed += Jt_normal[j] * dq[j]
     normal_position = normal[0] * contact_point[0] + normal[1] * contact_point[1] + normal[2] * contact_point[2]
-    for i in range(J.shape[1]):
-        for j in range(J.shape[1]):
-            jump_matrix[i, j] = direction[i] * Jt_normal[j]
-            torque_matrix[i, j] = s * Jt_normal[i] * Jt_normal[j]
     return normal_speed, normal_position

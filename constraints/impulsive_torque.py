@@ -8,8 +8,8 @@ from numba import njit
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
 from impactqp.controller.model.robot import NQ, ModelTerms
 
-from .constraint import Constraint, ControlCycle, symmetric_row_bounds, symmetric_rows_into
-from .impact_model import ImpactModel
+from .constraint import Constraint, ControlCycle, symmetric_row_bounds
+from .impact_model import ExpectedImpact
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 
 
@@ -25,7 +25,7 @@ class ImpulsiveTorqueLimit(Constraint):
 
         s_i P_i ddq in s_i [(-tau_max_i delta_t - P_i dq) / h, (tau_max_i delta_t - P_i dq) / h]
 
-    Rows are unbounded while the impact model's activation rule says no impact is coming, and
+    Rows are unbounded while the expected impact's activation rule says no impact is coming, and
     relaxed to the largest correction the cycle allows when the state already violates them
     (``ControlCycle.recoverable``).
     """
@@ -35,7 +35,7 @@ class ImpulsiveTorqueLimit(Constraint):
 
     def __init__(
         self,
-        impact: ImpactModel,
+        impact: ExpectedImpact,
         tau_max: np.ndarray,
         dq_max: np.ndarray,
         impact_duration: float = DEFAULT_IMPACT_DURATION,
@@ -44,30 +44,22 @@ class ImpulsiveTorqueLimit(Constraint):
         self.impact = impact
         self.impulse_limit = np.asarray(tau_max, dtype=float) * impact_duration
         self.row_scale = np.asarray(dq_max, dtype=float) / self.impulse_limit
-        self._scaled_limit = self.row_scale * self.impulse_limit
+        self._scaling = np.vstack([self.row_scale, self.row_scale * self.impulse_limit])  # s_i; s_i tau_max_i delta_t
         self.name = f"impulsive_torque[{impact.name}]"
-        self._row_scale_column = self.row_scale[:, None].copy()
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
-        maps = self.impact.maps(terms)
         scaled_impulse_rows(
-            maps.torque_matrix, self.row_scale, self._scaled_limit, terms.dq, 1.0 / cycle.horizon, maps.active,
-            C, lower, upper,
+            self.impact.matrices(terms).torque_matrix, self._scaling, terms.dq, 1.0 / cycle.horizon,
+            self.impact.is_active(terms), C, lower, upper,
         )
-
-    def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
-        maps = self.impact.maps(terms)
-        np.multiply(maps.torque_matrix, self._row_scale_column, out=C)  # rows s_i P_i
-        # s_i tau_max_i delta_t = dq_max_i
-        symmetric_rows_into(C, terms.dq, self._scaled_limit, 1.0 / cycle.horizon, maps.active, lower, upper)
 
 
 @njit(cache=True)
-def scaled_impulse_rows(torque_matrix, row_scale, scaled_limit, dq, inv_h, active, C, lower, upper):
+def scaled_impulse_rows(torque_matrix, scaling, dq, inv_h, active, C, lower, upper):
     """Kernel: C = diag(s) P; bounds (+-s tau_max delta_t - C dq) / h when active, unbounded
-    otherwise."""
+    otherwise (``scaling`` rows: s, then s tau_max delta_t)."""
     n = dq.shape[0]
     for i in range(n):
         for j in range(n):
-            C[i, j] = torque_matrix[i, j] * row_scale[i]
-    symmetric_row_bounds(C, dq, scaled_limit, inv_h, active, lower, upper)
+            C[i, j] = torque_matrix[i, j] * scaling[0, i]
+    symmetric_row_bounds(C, dq, scaling[1], inv_h, active, lower, upper)

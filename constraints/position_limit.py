@@ -47,46 +47,31 @@ class PositionLimit(Constraint):
         self._dt = None
 
     def _constants(self, dt: float) -> None:
-        """The terms that depend only on dt: a dt / 2, (a dt / 2)^2, 2 a and the signed
-        limits less the last cycle's travel a dt^2 / 8."""
+        """The terms that depend only on dt: a dt / 2, (a dt / 2)^2 and 2 a (rows of
+        ``_braking_terms``) and the signed limits less the last cycle's travel a dt^2 / 8."""
         self._dt = dt
-        self._half_step = (0.5 * dt) * self._braking
-        self._half_step_squared = self._half_step * self._half_step
-        self._twice_braking = 2.0 * self._braking
+        half_step = (0.5 * dt) * self._braking
+        self._braking_terms = np.vstack([half_step, half_step * half_step, 2.0 * self._braking])
         self._signed_limits = self._sign * self._limits - (0.125 * dt * dt) * self._braking
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         dt = cycle.dt
         if dt != self._dt:
             self._constants(dt)
-        braking_bounds(
-            terms.q, terms.dq, self._signed_limits, self._half_step, self._half_step_squared, self._twice_braking,
-            dt, lower, upper,
-        )
-
-    def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
-        dt = cycle.dt
-        if dt != self._dt:
-            self._constants(dt)
-        towards = self._sign * terms.dq  # velocity towards each limit
-        # d_e = max(sign (limit - q) - dt/2 sign dq - a dt^2/8, 0)
-        distance = np.maximum(self._signed_limits - self._sign * (terms.q + (0.5 * dt) * terms.dq), 0.0)
-        allowed = np.sqrt(self._half_step_squared + self._twice_braking * distance)
-        allowed -= self._half_step + towards
-        allowed *= 1.0 / dt
-        np.negative(allowed[1], out=lower)
-        upper[:] = allowed[0]
+        braking_bounds(terms.q, terms.dq, self._signed_limits, self._braking_terms, dt, lower, upper)
 
 
 @njit(cache=True)
-def braking_bounds(q, dq, signed_limits, half_step, half_step_squared, twice_braking, dt, lower, upper):
+def braking_bounds(q, dq, signed_limits, braking_terms, dt, lower, upper):
     """Kernel of ``PositionLimit``: with p = q + dq dt / 2, d_up = max(L_up - p, 0) and
     d_low = max(L_low + p, 0) (L the signed limits less a dt^2 / 8), the commanded velocity
-    dq + ddq dt stays within +-(sqrt((a dt / 2)^2 + 2 a d) - a dt / 2)."""
+    dq + ddq dt stays within +-(sqrt((a dt / 2)^2 + 2 a d) - a dt / 2); ``braking_terms`` rows
+    are a dt / 2, (a dt / 2)^2 and 2 a."""
     inv_dt = 1.0 / dt
     for j in range(q.shape[0]):
+        half_step, half_step_squared, twice_braking = braking_terms[0, j], braking_terms[1, j], braking_terms[2, j]
         p = q[j] + 0.5 * dt * dq[j]
         up = max(signed_limits[0, j] - p, 0.0)
         low = max(signed_limits[1, j] + p, 0.0)
-        upper[j] = (math.sqrt(half_step_squared[j] + twice_braking[j] * up) - half_step[j] - dq[j]) * inv_dt
-        lower[j] = -(math.sqrt(half_step_squared[j] + twice_braking[j] * low) - half_step[j] + dq[j]) * inv_dt
+        upper[j] = (math.sqrt(half_step_squared + twice_braking * up) - half_step - dq[j]) * inv_dt
+        lower[j] = -(math.sqrt(half_step_squared + twice_braking * low) - half_step + dq[j]) * inv_dt

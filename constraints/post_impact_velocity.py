@@ -7,8 +7,8 @@ from numba import njit
 
 from impactqp.controller.model.robot import NQ, ModelTerms
 
-from .constraint import Constraint, ControlCycle, symmetric_row_bounds, symmetric_rows_into
-from .impact_model import ImpactModel
+from .constraint import Constraint, ControlCycle, symmetric_row_bounds
+from .impact_model import ExpectedImpact
 
 
 class PostImpactVelocityLimit(Constraint):
@@ -21,7 +21,7 @@ class PostImpactVelocityLimit(Constraint):
 
     so that they stay feasible from one cycle to the next under the jerk limits; since they
     held at the previous cycle (s = 0), they also hold at s = dt, the form above. Rows are
-    unbounded while the impact model's activation rule says no impact is coming, and relaxed
+    unbounded while the expected impact's activation rule says no impact is coming, and relaxed
     to the largest correction the cycle allows when the state already violates them
     (``ControlCycle.recoverable``).
     """
@@ -29,20 +29,16 @@ class PostImpactVelocityLimit(Constraint):
     rows = NQ
     relaxed = True
 
-    def __init__(self, impact: ImpactModel, dq_max: np.ndarray):
+    def __init__(self, impact: ExpectedImpact, dq_max: np.ndarray):
         self.impact = impact
         self.dq_max = np.asarray(dq_max, dtype=float)
         self.name = f"post_impact_velocity[{impact.name}]"
-        self._identity = np.eye(NQ)
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
-        maps = self.impact.maps(terms)
-        post_impact_velocity_rows(maps.jump_matrix, terms.dq, self.dq_max, 1.0 / cycle.horizon, maps.active, C, lower, upper)
-
-    def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
-        maps = self.impact.maps(terms)
-        np.add(self._identity, maps.jump_matrix, out=C)  # dq+ = (I + A) dq-
-        symmetric_rows_into(C, terms.dq, self.dq_max, 1.0 / cycle.horizon, maps.active, lower, upper)
+        post_impact_velocity_rows(
+            self.impact.matrices(terms).jump_matrix, terms.dq, self.dq_max, 1.0 / cycle.horizon,
+            self.impact.is_active(terms), C, lower, upper,
+        )
 
 
 @njit(cache=True)

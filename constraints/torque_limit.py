@@ -22,17 +22,9 @@ class TorqueLimit(Constraint):
 
     def __init__(self, tau_max: np.ndarray):
         self.tau_max = np.asarray(tau_max, dtype=float)
-        self._inv_diag = np.empty((len(self.tau_max), 1))
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         normalised_torque_rows(terms.M, terms.h, self.tau_max, C, lower, upper)
-
-    def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
-        inv_diag = np.divide(1.0, np.diagonal(terms.M)[:, None], out=self._inv_diag)
-        np.multiply(terms.M, inv_diag, out=C)
-        inv = inv_diag[:, 0]
-        np.multiply(-self.tau_max - terms.h, inv, out=lower)
-        np.multiply(self.tau_max - terms.h, inv, out=upper)
 
 
 @njit(cache=True)

@@ -35,13 +35,6 @@ class VelocityLimit(Constraint):
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         symmetric_velocity_bounds(terms.dq, self.dq_max, 1.0 / cycle.horizon, lower, upper)
 
-    def reference_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
-        inv_h = 1.0 / cycle.horizon
-        dq = inv_h * terms.dq
-        scaled_limit = inv_h * self.dq_max
-        np.subtract(-scaled_limit, dq, out=lower)
-        np.subtract(scaled_limit, dq, out=upper)
-
 
 @njit(cache=True)
 def symmetric_velocity_bounds(velocity, limit, inv_h, lower, upper):

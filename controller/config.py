@@ -15,7 +15,7 @@ from pathlib import Path
 from impactqp.constraints import (
     JUMP_MODEL_CHOICES,
     AccelerationLimit,
-    ImpactModel,
+    ExpectedImpact,
     ImpulsiveTorqueLimit,
     PositionLimit,
     PostImpactVelocityLimit,
@@ -354,8 +354,8 @@ def build_controller(config: ControllerConfig, robot: RobotModel | None = None) 
     if limits.torque:
         constraints.append(TorqueLimit(tau_max))
 
-    def impact_model(name: str) -> ImpactModel:
-        return ImpactModel(
+    def impact_model(name: str) -> ExpectedImpact:
+        return ExpectedImpact(
             surface,
             name,
             impact.restitution,

@@ -19,21 +19,23 @@ noise-free. The plant parameters that produced the data are never written.
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry
+from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
 
-from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry
 from .plant import PlantParameters
+from .process_pool import ProcessPool
 from .runner import TrialSpec, dataset_header, run_approach
 from .scene import build_scene
-from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
 
 DEFAULT_SPEEDS = (0.08, 0.10, 0.12, 0.15, 0.18)
 TANGENTIAL_SERIES_NORMAL_SPEED = 0.12
@@ -88,21 +90,32 @@ def trial_specs(
     return planned
 
 
-def simulate_trial(
-    planned: PlannedTrial, plant: PlantParameters, surface: Surface, noise_dq: float, noise_tau: float,
-    choice: RobotChoice = DEFAULT_CHOICE,
-):
-    """Run one trial of ``choice``'s robot and tool from a randomly perturbed start and add the
-    measurement noise; returns (entry, log)."""
+@dataclass(frozen=True)
+class TrialTask:
+    """One trial to simulate (a process task): the planned trial, the plant and surface, the
+    noise stds on dq (rad/s) and tau (N m), and the robot and the tool."""
+
+    planned: PlannedTrial
+    plant: PlantParameters
+    surface: Surface
+    noise_dq: float
+    noise_tau: float
+    choice: RobotChoice = DEFAULT_CHOICE
+
+
+def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
+    """Run one trial from a randomly perturbed start and add the measurement noise; returns
+    (entry, log)."""
+    planned = task.planned
     rng = np.random.default_rng(planned.seed)
-    robot = choice.model()
-    scene = build_scene(surface, plant, robot=choice.robot, tool=choice.tool)
+    robot = task.choice.model()
+    scene = build_scene(task.surface, task.plant, robot=task.choice.robot, tool=task.choice.tool)
     spec = planned.spec
     q_contact = np.clip(spec.q_contact + rng.normal(0.0, START_POSTURE_STD, NQ), robot.q_min, robot.q_max)
     distance = spec.start_distance + rng.uniform(-START_DISTANCE_SPREAD, START_DISTANCE_SPREAD)
     log = run_approach(scene, robot, replace(spec, q_contact=q_contact, start_distance=distance))
-    log.dq = log.dq + rng.normal(0.0, noise_dq, log.dq.shape)
-    log.tau = log.tau + rng.normal(0.0, noise_tau, log.tau.shape)
+    log.dq = log.dq + rng.normal(0.0, task.noise_dq, log.dq.shape)
+    log.tau = log.tau + rng.normal(0.0, task.noise_tau, log.tau.shape)
     entry = TrialEntry(
         id=planned.id,
         file=f"{planned.id}.csv",
@@ -114,63 +127,64 @@ def simulate_trial(
     return entry, log
 
 
+@dataclass(frozen=True)
+class DatasetRequest:
+    """What dataset to simulate: the plant that makes it (nominal by default), the surface (by
+    default the one the first posture faces; all named postures face the default wall), the
+    postures (default: all), normal speeds (m/s, default ``DEFAULT_SPEEDS``), tangential speeds
+    (m/s, at ``TANGENTIAL_SERIES_NORMAL_SPEED``), repeats per condition, the noise stds, the
+    seed of every random draw, and the robot and the tool (recorded in the manifest)."""
+
+    plant: PlantParameters | None = None
+    surface: Surface | None = None
+    postures: Sequence[str] | None = None
+    speeds: Sequence[float] | None = None
+    tangential: Sequence[float] = ()
+    repeats: int = 1
+    noise_dq: float = DEFAULT_NOISE_DQ
+    noise_tau: float = DEFAULT_NOISE_TAU
+    seed: int = 0
+    choice: RobotChoice = DEFAULT_CHOICE
+
+
 def generate_dataset(
     out: str | Path,
+    request: DatasetRequest = DatasetRequest(),
     *,
-    plant: PlantParameters | None = None,
-    surface: Surface | None = None,
-    postures: list[str] | None = None,
-    speeds: list[float] | None = None,
-    tangential: list[float] | None = None,
-    repeats: int = 1,
-    noise_dq: float = DEFAULT_NOISE_DQ,
-    noise_tau: float = DEFAULT_NOISE_TAU,
-    seed: int = 0,
     jobs: int = 1,
-    progress=None,
-    choice: RobotChoice = DEFAULT_CHOICE,
+    progress: Callable[[int, int], None] | None = None,
 ) -> list[TrialEntry]:
-    """Simulate the trials and write them to ``out`` (created if missing); returns the entries.
+    """Simulate the trials of ``request`` on ``jobs`` processes and write them to ``out``
+    (created if missing) as they finish, in order; returns the entries.
 
-    The surface defaults to the one the first posture faces (all named postures face the
-    default wall).
-    ``progress(done, total)`` is an optional callable invoked once per finished trial. The robot
-    and the tool are ``choice``'s (recorded in the manifest).
+    ``progress(done, total)`` is an optional callable invoked once per finished trial.
     """
-    plant = plant or PlantParameters()
-    postures = list(choice.robot.postures) if postures is None else postures
+    plant = request.plant or PlantParameters()
+    choice = request.choice
+    postures = list(choice.robot.postures) if request.postures is None else list(request.postures)
     if not postures:
         raise BadInputError(f"give at least one posture; known: {', '.join(choice.robot.postures)}")
     choice.check_postures(postures)
-    surface = choice.posture(postures[0]).surface if surface is None else surface
-    number_in_range(noise_dq, 0.0, MAX_NOISE_DQ, "the encoder noise std --noise-dq", "rad/s")
-    number_in_range(noise_tau, 0.0, MAX_NOISE_TAU, "the torque noise std --noise-tau", "N m")
+    surface = choice.posture(postures[0]).surface if request.surface is None else request.surface
+    number_in_range(request.noise_dq, 0.0, MAX_NOISE_DQ, "the encoder noise std --noise-dq", "rad/s")
+    number_in_range(request.noise_tau, 0.0, MAX_NOISE_TAU, "the torque noise std --noise-tau", "N m")
     specs = trial_specs(
         postures,
-        list(DEFAULT_SPEEDS if speeds is None else speeds),
-        list(tangential or []),
-        repeats,
+        list(DEFAULT_SPEEDS if request.speeds is None else request.speeds),
+        list(request.tangential or []),
+        request.repeats,
         surface.normal,
-        seed,
+        request.seed,
         choice,
     )
     Path(out).mkdir(parents=True, exist_ok=True)
     writer = DatasetWriter(out, dataset_header(surface, choice))
-    args = [(s, plant, surface, noise_dq, noise_tau, choice) for s in specs]
+    tasks = [TrialTask(s, plant, surface, request.noise_dq, request.noise_tau, choice) for s in specs]
     entries = []
-    if jobs > 1:
-        with ProcessPoolExecutor(jobs) as pool:
-            results = pool.map(simulate_trial, *zip(*args))
-            for entry, log in results:
-                writer.add_trial(entry, log)
-                entries.append(entry)
-                if progress:
-                    progress(len(entries), len(specs))
-    else:
-        for a in args:
-            entry, log = simulate_trial(*a)
+    with ProcessPool(min(jobs, max(len(tasks), 1))) as pool:
+        for entry, log in pool.map(simulate_trial, tasks):
             writer.add_trial(entry, log)
             entries.append(entry)
             if progress:
-                progress(len(entries), len(specs))
+                progress(len(entries), len(tasks))
     return entries

@@ -10,7 +10,7 @@ from impactqp.controller.model.validation import tangential_velocity as tangenti
 from impactqp.controller.model.validation import MAX_CONTACT_SPEED, finite_array, number_in_range, task_gain
 from impactqp.controller.model.validation import unit_normal
 
-from .task import Task, critical_damping, rotation_error, rotation_log
+from .task import Task, critical_damping, rotation_log
 
 
 class ContactApproachTask(Task):
@@ -62,8 +62,8 @@ class ContactApproachTask(Task):
         self.basis = np.vstack([normal, t1, np.cross(normal, t1)])
         self.normal = normal
         self.speed = float(speed)
-        self.reference_velocity = -self.speed * normal + tangential_velocity
         self.velocity_gain = float(velocity_gain)
+        self.reference_velocity = -self.speed * normal + tangential_velocity
         self.orientation_stiffness = float(orientation_stiffness)
         self.orientation_damping = (
             critical_damping(orientation_stiffness) if orientation_damping is None else float(orientation_damping)
@@ -75,8 +75,17 @@ class ContactApproachTask(Task):
             None if target_rotation is None else finite_array(target_rotation, (3, 3), "target_rotation")
         )
         self._twist_gain = np.repeat([-self.velocity_gain, -self.orientation_damping], 3)
-        self._reference_acceleration = self.velocity_gain * self.reference_velocity
         self._rotation_configured = self.target_rotation is not None
+
+    @property
+    def reference_velocity(self) -> np.ndarray:
+        """v* (world, m/s); setting it also sets the feed-forward k_v v* of the rows."""
+        return self._reference_velocity
+
+    @reference_velocity.setter
+    def reference_velocity(self, value) -> None:
+        self._reference_velocity = finite_array(value, (3,), "reference_velocity")
+        self._reference_acceleration = self.velocity_gain * self._reference_velocity
 
     def reset(self, terms: ModelTerms) -> None:
         if not self._rotation_configured:
@@ -87,16 +96,6 @@ class ContactApproachTask(Task):
             terms.J6, terms.dq, terms.dJ6_dq, terms.contact_rotation, self.target_rotation, self.basis,
             self._twist_gain, self._reference_acceleration, self.orientation_stiffness, A, b,
         )
-
-    def reference_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        # b = [k_v (v* - v); k_R log(R* R^T) - d_R w] - dJ6 dq, its linear part in the surface frame
-        np.multiply(self._twist_gain, terms.J6 @ terms.dq, out=b)
-        b[:3] += self._reference_acceleration
-        b[3:] += self.orientation_stiffness * rotation_error(self.target_rotation, terms.contact_rotation)
-        b -= terms.dJ6_dq
-        b[:3] = self.basis @ b[:3]
-        np.matmul(self.basis, terms.J6[:3], out=A[:3])
-        A[3:] = terms.J6[3:]
 
 
 @njit(cache=True)

@@ -10,8 +10,6 @@ from .posture_task import joint_pd_rows
 from .task import Task
 from impactqp.controller.model.validation import BadInputError, task_gain
 
-_IDENTITY = np.eye(NQ)
-
 
 class DampingTask(Task):
     """ddq = -gain dq as 7 rows I ddq = b.
@@ -32,7 +30,3 @@ class DampingTask(Task):
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         joint_pd_rows(terms.q, terms.dq, terms.q, 0.0, self.gain, A, b)
-
-    def reference_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        A[:] = _IDENTITY
-        np.multiply(-self.gain, terms.dq, out=b)

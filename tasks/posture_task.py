@@ -10,8 +10,6 @@ from impactqp.controller.model.validation import finite_vector, task_gain
 
 from .task import Task, critical_damping
 
-_IDENTITY = np.eye(NQ)
-
 
 class PostureTask(Task):
     """ddq = kp (q* - q) - kd dq as 7 rows I ddq = b, kd = 2 sqrt(kp) by default.
@@ -36,10 +34,6 @@ class PostureTask(Task):
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         joint_pd_rows(terms.q, terms.dq, self.target, self.stiffness, self.damping, A, b)
-
-    def reference_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        A[:] = _IDENTITY
-        np.subtract(self.stiffness * (self.target - terms.q), self.damping * terms.dq, out=b)
 
 
 @njit(cache=True)

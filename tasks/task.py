@@ -36,8 +36,8 @@ class Task:
 
     A task writes its rows into arrays it is given (``compute_into``): a controller hands it
     views of the stacked task data, so nothing is copied; ``compute`` returns them in new
-    arrays. Where a class has a compiled kernel (numba), ``compute_into`` calls it and
-    ``reference_into`` states the same rows in plain numpy, the reference of the tests.
+    arrays. Where a class has a compiled kernel (numba), ``compute_into`` calls it (its
+    plain-numpy statement is in the tests, ``tests/reference/tasks.py``).
     """
 
     name: str = ""
@@ -50,10 +50,6 @@ class Task:
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         """Write the rows A (rows x 7) and b of this state."""
         raise NotImplementedError
-
-    def reference_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        """``compute_into`` in plain numpy (the same method for a class without a kernel)."""
-        self.compute_into(terms, A, b)
 
     def compute(self, terms: ModelTerms) -> TaskRows:
         A, b = np.empty((self.rows, terms.q.shape[0])), np.empty(self.rows)

@@ -4,17 +4,19 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from reference.constraints import reference_normal_motion, reference_recoverable, reference_rows
 
 from impactqp.constraints import (
     AccelerationLimit,
     ControlCycle,
-    ImpactModel,
+    ExpectedImpact,
     ImpulsiveTorqueLimit,
     PositionLimit,
     PostImpactVelocityLimit,
     TorqueLimit,
     VelocityLimit,
 )
+from impactqp.constraints.impact_model import normal_motion
 from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.max_speed import approach_direction
 from impactqp.controller.model.postures import POSTURES, Surface
@@ -120,15 +122,17 @@ def surface_ahead(terms, gap=0.05):
 
 @pytest.mark.parametrize("name", ["crb", "gm", "classical", "classical_normal"])
 @pytest.mark.parametrize("restitution", [0.0, 0.5])
-def test_impact_maps_match_the_jump_models(robot, name, restitution):
+def test_impact_matrices_match_the_jump_models(robot, name, restitution):
+    """A = K G J and P = J^T G J of the expected impact, from the predictor's G and K."""
     terms = robot.terms(POSTURES["elbow_right"].q, np.full(7, 0.1))
     surface = surface_ahead(terms)
-    maps = ImpactModel(surface, name, restitution).maps(terms)
+    matrices = ExpectedImpact(surface, name, restitution).matrices(terms)
     model = jump_model(name)
-    assert np.allclose(maps.jump_matrix, model.jump_matrix(terms, surface.normal, restitution), atol=1e-10)
+    maps = model.maps(terms, surface.normal, restitution)
+    assert np.allclose(matrices.jump_matrix, maps.K @ maps.G @ terms.J, atol=1e-10)
     dq = np.linspace(-0.5, 0.5, 7)
     impulse = model.predict(terms, surface.normal, terms.J @ dq, restitution).impulse
-    assert np.allclose(maps.torque_matrix @ dq, terms.J.T @ impulse, atol=1e-10)
+    assert np.allclose(matrices.torque_matrix @ dq, terms.J.T @ impulse, atol=1e-10)
 
 
 @settings(max_examples=25, deadline=None)
@@ -140,7 +144,7 @@ def test_impact_rows_are_the_post_impact_velocity_and_impulsive_torque_limits(ro
     rng = np.random.default_rng(seed)
     terms = random_state(robot, rng, speed=0.2)
     surface = surface_ahead(terms)
-    impact = ImpactModel(surface, name, restitution=0.3, always_active=True)
+    impact = ExpectedImpact(surface, name, restitution=0.3, always_active=True)
     c = ControlCycle.after(np.zeros(7), DT, 1e6 * robot.ddq_max, 1e9 * robot.dddq_max)
     c = ControlCycle(DT, c.acceleration_lower, c.acceleration_upper, cycle(robot).horizon)
     velocity_rows = PostImpactVelocityLimit(impact, robot.dq_max).compute(terms, c)
@@ -164,13 +168,13 @@ def test_violated_impact_rows_ask_for_the_largest_reachable_correction(robot):
     be met are left as they are."""
     q = POSTURES["elbow_up"].q
     terms = robot.terms(q, 0.8 * approach_direction(robot.terms(q), np.array([-1.0, 0.0, 0.0])))
-    impact = ImpactModel(surface_ahead(terms), "crb", always_active=True)
+    impact = ExpectedImpact(surface_ahead(terms), "crb", always_active=True)
     c = cycle(robot)
     rows = ImpulsiveTorqueLimit(impact, robot.tau_max, robot.dq_max, 0.015).compute(terms, c)
     low, high = rows.C * c.acceleration_lower, rows.C * c.acceleration_upper
     reach_min, reach_max = np.minimum(low, high).sum(axis=1), np.maximum(low, high).sum(axis=1)
     assert np.all(rows.lower <= reach_max + 1e-9) and np.all(rows.upper >= reach_min - 1e-9)
-    pre = impact.maps(terms).torque_matrix @ terms.dq
+    pre = impact.matrices(terms).torque_matrix @ terms.dq
     violated = np.abs(pre) > robot.tau_max * 0.015
     assert violated.any()
     relaxed = np.isclose(rows.upper, reach_min, rtol=1e-12, atol=1e-9)
@@ -187,15 +191,15 @@ def test_activation_rule(robot):
     tip = at_rest.contact_point
     near = Surface(tip - 0.05 * normal, normal)
     far = Surface(tip - 0.5 * normal, normal)
-    assert ImpactModel(near).is_active(at_rest)
-    assert not ImpactModel(far).is_active(at_rest)
-    assert ImpactModel(far, always_active=True).is_active(at_rest)
+    assert ExpectedImpact(near).is_active(at_rest)
+    assert not ExpectedImpact(far).is_active(at_rest)
+    assert ExpectedImpact(far, always_active=True).is_active(at_rest)
     direction = np.linalg.pinv(at_rest.J6) @ np.concatenate([-normal, np.zeros(3)])
     approaching_fast = robot.terms(q, 2.0 * direction)  # 2 m/s: 0.5 m in 0.25 s
-    assert ImpactModel(far, lookahead_time=0.3).is_active(approaching_fast)
+    assert ExpectedImpact(far, lookahead_time=0.3).is_active(approaching_fast)
     receding = robot.terms(q, -0.1 * direction)
-    assert not ImpactModel(near).is_active(receding)
-    rows = PostImpactVelocityLimit(ImpactModel(far), robot.dq_max).compute(at_rest, cycle(robot))
+    assert not ExpectedImpact(near).is_active(receding)
+    rows = PostImpactVelocityLimit(ExpectedImpact(far), robot.dq_max).compute(at_rest, cycle(robot))
     assert np.all(np.isinf(rows.lower)) and np.all(np.isinf(rows.upper))
 
 
@@ -214,7 +218,10 @@ def test_advancing_the_cycle_in_place_equals_a_new_cycle(robot, previous):
 def _rows_of(constraint, terms, c, reference):
     C = None if constraint.is_box else np.full((constraint.rows, 7), np.nan)
     lower, upper = np.full(constraint.rows, np.nan), np.full(constraint.rows, np.nan)
-    (constraint.reference_into if reference else constraint.compute_into)(terms, c, C, lower, upper)
+    if reference:
+        reference_rows(constraint, terms, c, C, lower, upper)
+    else:
+        constraint.compute_into(terms, c, C, lower, upper)
     return C, lower, upper
 
 
@@ -223,12 +230,13 @@ def _rows_of(constraint, terms, c, reference):
        restitution=st.floats(0.0, 1.0))
 def test_compiled_rows_equal_the_numpy_reference(robot, seed, jump, always, restitution):
     """Every constraint's compiled kernel (compute_into) writes the rows its plain-numpy
-    statement (reference_into) gives, active or not; so does the relaxation kernel."""
+    statement (tests/reference/constraints.py) gives, active or not; so does the relaxation
+    kernel."""
     rng = np.random.default_rng(seed)
     terms = random_state(robot, rng)
     c = cycle(robot, rng.uniform(-0.5, 0.5, 7) * robot.ddq_max)
     surface = Surface(terms.contact_point - rng.uniform(0.0, 0.2) * np.array([-1.0, 0.0, 0.0]), [-1.0, 0.0, 0.0])
-    impact = ImpactModel(surface, jump, restitution, always_active=always)
+    impact = ExpectedImpact(surface, jump, restitution, always_active=always)
     constraints = [
         AccelerationLimit(), PositionLimit(robot.q_min, robot.q_max, robot.ddq_max, 0.5, 0.01),
         VelocityLimit(robot.dq_max), TorqueLimit(robot.tau_max), PostImpactVelocityLimit(impact, robot.dq_max),
@@ -243,19 +251,22 @@ def test_compiled_rows_equal_the_numpy_reference(robot, seed, jump, always, rest
             C, lower, upper = fast
             lower_ref, upper_ref = lower.copy(), upper.copy()
             c.recoverable(C, lower, upper)
-            c.reference_recoverable(C, lower_ref, upper_ref)
+            reference_recoverable(c, C, lower_ref, upper_ref)
             np.testing.assert_allclose(lower, lower_ref, rtol=1e-12, atol=1e-9)
             np.testing.assert_allclose(upper, upper_ref, rtol=1e-12, atol=1e-9)
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=SEEDS, jump=st.sampled_from(["crb", "gm"]), restitution=st.floats(0.0, 1.0))
-def test_compiled_jump_maps_equal_the_numpy_reference(robot, seed, jump, restitution):
+@given(seed=SEEDS)
+def test_compiled_activation_inputs_equal_the_numpy_reference(robot, seed):
+    """The compiled n.(J dq) and n.p that the activation rule reads equal their numpy statement."""
     rng = np.random.default_rng(seed)
     terms = random_state(robot, rng)
-    impact = ImpactModel(Surface([0.6, 0.0, 0.0], rng.normal(size=3)), jump, restitution)
-    for fast, reference in zip(impact._normal_impulse_maps(terms), impact.reference_normal_impulse_maps(terms)):
-        np.testing.assert_allclose(fast, reference, rtol=1e-10, atol=1e-12)
+    normal = rng.normal(size=3)
+    normal /= np.linalg.norm(normal)
+    fast = normal_motion(terms.J, normal, terms.contact_point, terms.dq)
+    reference = reference_normal_motion(terms, normal)
+    np.testing.assert_allclose(fast, reference, rtol=1e-10, atol=1e-12)
 
 
 @pytest.mark.parametrize(
@@ -272,5 +283,5 @@ def test_compiled_jump_maps_equal_the_numpy_reference(robot, seed, jump, restitu
 )
 def test_impact_model_checks_its_inputs_with_the_validation_module(keyword, value, fragment):
     with pytest.raises(BadInputError) as caught:
-        ImpactModel(POSTURES["elbow_up"].surface, "crb", **{keyword: value})
+        ExpectedImpact(POSTURES["elbow_up"].surface, "crb", **{keyword: value})
     assert fragment in str(caught.value)

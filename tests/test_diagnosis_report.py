@@ -21,13 +21,13 @@ from impactqp.scenarios.diagnosis_report import (
 from impactqp.scenarios.readable import parameters_text
 from impactqp.sim.causes import PayloadCause
 from impactqp.sim.diagnosis import diagnose
-from impactqp.sim.generation import generate_dataset
+from impactqp.sim.generation import DatasetRequest, generate_dataset
 
 
 @pytest.fixture(scope="module")
 def result(tmp_path_factory):
     data = tmp_path_factory.mktemp("data")
-    generate_dataset(data, postures=["elbow_up", "elbow_left"], speeds=[0.12], seed=1)
+    generate_dataset(data, DatasetRequest(postures=["elbow_up", "elbow_left"], speeds=[0.12], seed=1))
     return diagnose(data, causes=[PayloadCause()])
 
 

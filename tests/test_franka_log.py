@@ -22,7 +22,7 @@ from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.validation import BadInputError
 from impactqp.sim.causes import ArmatureCause, per_group
 from impactqp.sim.diagnosis import diagnose
-from impactqp.sim.generation import generate_dataset
+from impactqp.sim.generation import DatasetRequest, generate_dataset
 from impactqp.sim.plant import PlantParameters
 
 ARMATURE = (0.5, 0.15)
@@ -61,7 +61,7 @@ def source(tmp_path_factory):
     their libfranka logs."""
     directory = tmp_path_factory.mktemp("source")
     plant = PlantParameters(armature=per_group(ARMATURE))
-    generate_dataset(directory, plant=plant, postures=["elbow_up", "elbow_left"], speeds=[0.12], seed=5)
+    generate_dataset(directory, DatasetRequest(plant=plant, postures=["elbow_up", "elbow_left"], speeds=[0.12], seed=5))
     dataset = read_dataset(directory)
     logs = {}
     for separator, tag in ((", ", "old"), (",", "new")):

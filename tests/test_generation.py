@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from impactqp.controller.measured.dataset import read_dataset, validate
-from impactqp.sim.generation import START_DISTANCE, generate_dataset, tangential_direction, trial_specs
+from impactqp.sim.generation import START_DISTANCE, DatasetRequest, generate_dataset, tangential_direction, trial_specs
 from impactqp.sim.plant import PlantParameters
 
 
@@ -30,12 +30,13 @@ def test_trial_grid_and_tangential_direction():
 )
 def test_bad_requests_are_rejected(tmp_path, kwargs, message):
     with pytest.raises(ValueError, match=message):
-        generate_dataset(tmp_path, **{"postures": ["elbow_up"], "speeds": [0.1], **kwargs})
+        generate_dataset(tmp_path, DatasetRequest(**{"postures": ["elbow_up"], "speeds": [0.1], **kwargs}))
 
 
 def test_dataset_is_valid_and_holds_no_plant_parameters(tmp_path):
     plant = PlantParameters(payload_mass=0.7, armature=[0.2] * 7, friction=0.5)
-    entries = generate_dataset(tmp_path, plant=plant, postures=["elbow_up"], speeds=[0.1, 0.15], repeats=2, jobs=2)
+    request = DatasetRequest(plant=plant, postures=["elbow_up"], speeds=[0.1, 0.15], repeats=2)
+    entries = generate_dataset(tmp_path, request, jobs=2)
     assert len(entries) == 4
     assert all(not v for v in validate(tmp_path).values())
     manifest = (tmp_path / "dataset.json").read_text()
@@ -57,8 +58,8 @@ def test_dataset_is_valid_and_holds_no_plant_parameters(tmp_path):
 def test_noise_is_what_was_asked_for(tmp_path):
     """Same seed with and without noise: the difference has the requested standard deviations."""
     common = {"postures": ["elbow_left"], "speeds": [0.12], "seed": 4}
-    generate_dataset(tmp_path / "clean", noise_dq=0.0, noise_tau=0.0, **common)
-    generate_dataset(tmp_path / "noisy", noise_dq=0.0042, noise_tau=0.05, **common)
+    generate_dataset(tmp_path / "clean", DatasetRequest(noise_dq=0.0, noise_tau=0.0, **common))
+    generate_dataset(tmp_path / "noisy", DatasetRequest(noise_dq=0.0042, noise_tau=0.05, **common))
     clean = read_dataset(tmp_path / "clean").trials[0].log
     noisy = read_dataset(tmp_path / "noisy").trials[0].log
     assert np.std(noisy.dq - clean.dq) == pytest.approx(0.0042, rel=0.1)
@@ -66,14 +67,16 @@ def test_noise_is_what_was_asked_for(tmp_path):
     np.testing.assert_array_equal(noisy.q, clean.q)
 
 
-def test_generation_is_reproducible_and_never_overwrites(tmp_path):
-    common = {"postures": ["elbow_up"], "speeds": [0.1], "seed": 9}
-    generate_dataset(tmp_path / "a", **common)
-    generate_dataset(tmp_path / "b", **common)
-    for name in ("dataset.json", "t0000.csv", "t0000_force.csv"):
+def test_generation_is_reproducible_on_any_number_of_jobs_and_never_overwrites(tmp_path):
+    common = {"postures": ["elbow_up"], "speeds": [0.1, 0.12], "seed": 9}
+    generate_dataset(tmp_path / "a", DatasetRequest(**common))
+    generate_dataset(tmp_path / "b", DatasetRequest(**common), jobs=2)
+    names = sorted(p.name for p in (tmp_path / "a").iterdir())
+    assert names == sorted(p.name for p in (tmp_path / "b").iterdir()) and "t0001.csv" in names
+    for name in names:
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
     before = (tmp_path / "a" / "t0000.csv").read_bytes()
     with pytest.raises(ValueError):
-        generate_dataset(tmp_path / "a", **{**common, "seed": 10})
+        generate_dataset(tmp_path / "a", DatasetRequest(**{**common, "seed": 10}))
     assert (tmp_path / "a" / "t0000.csv").read_bytes() == before
     assert json.loads((tmp_path / "a" / "dataset.json").read_text())["trials"][0]["id"] == "t0000"

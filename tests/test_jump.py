@@ -1,4 +1,4 @@
-"""First-principles checks of the jump predictors (controller/jump.py)."""
+"""First-principles checks of the jump predictors (controller/model/jump.py)."""
 
 import dataclasses
 
@@ -8,6 +8,11 @@ import pytest
 from conftest import joint_positions, unit_vectors
 from hypothesis import given, reject, settings
 from hypothesis import strategies as st
+from reference.jump import (
+    reference_crb_inverse_inertia_times,
+    reference_crb_unit_maps,
+    reference_rank_one_jump_matrices,
+)
 
 from impactqp.controller.model.jump import (
     JUMP_MODELS,
@@ -208,7 +213,7 @@ def test_inverse_inertia_along_the_normal_is_W_times_n(robot, q, normal):
         JUMP_MODELS["crb"].inverse_inertia_times(terms, normal), crb_inverse_inertia(terms) @ normal, atol=1e-12
     )
     np.testing.assert_allclose(  # the kernel's plain-float reference
-        JUMP_MODELS["crb"].reference_inverse_inertia_times(terms, normal), crb_inverse_inertia(terms) @ normal,
+        reference_crb_inverse_inertia_times(terms, normal), crb_inverse_inertia(terms) @ normal,
         atol=1e-12,
     )
     np.testing.assert_allclose(
@@ -225,9 +230,25 @@ def test_compiled_crb_maps_equal_the_numpy_reference(robot, q, normal, cr):
     crb = JUMP_MODELS["crb"]
     for fast, reference in zip(
         dataclasses.astuple(crb.unit_maps(terms, normal, cr)),
-        dataclasses.astuple(crb.reference_unit_maps(terms, normal, cr)),
+        dataclasses.astuple(reference_crb_unit_maps(terms, normal, cr)),
     ):
         np.testing.assert_allclose(fast, reference, rtol=1e-9, atol=1e-12)
+
+
+@SETTINGS
+@given(q=joint_positions(), normal=unit_vectors(), cr=restitutions)
+def test_compiled_rank_one_matrices_equal_the_numpy_reference(robot, q, normal, cr):
+    """The compiled rank-one A and P of the normal-impulse models equal their numpy statement,
+    and both equal K G J and J^T G J from the models' own G and K."""
+    terms = terms_or_skip(robot, q)
+    for name in ("gm", "crb"):
+        model = JUMP_MODELS[name]
+        fast = model.unit_matrices(terms, normal, cr)
+        for a, b in zip(fast, reference_rank_one_jump_matrices(model, terms, normal, cr)):
+            np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12)
+        maps = model.unit_maps(terms, normal, cr)
+        np.testing.assert_allclose(fast.jump_matrix, maps.K @ maps.G @ terms.J, rtol=1e-8, atol=1e-10)
+        np.testing.assert_allclose(fast.torque_matrix, terms.J.T @ maps.G @ terms.J, rtol=1e-8, atol=1e-10)
 
 
 @pytest.mark.parametrize("name", METHODS)

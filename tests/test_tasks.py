@@ -6,6 +6,7 @@ import pytest
 from conftest import joint_positions, unit_vectors
 from hypothesis import given, reject, settings
 from hypothesis import strategies as st
+from reference.tasks import reference_rows
 
 from impactqp.controller.model.postures import POSTURES
 from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
@@ -140,11 +141,25 @@ def test_compiled_rotation_log_is_pinocchio_log3(axis, angle, base):
         np.testing.assert_allclose(out, expected, atol=1e-9)
 
 
+def test_setting_the_reference_velocity_moves_the_rows_by_its_feed_forward(terms):
+    """v* is a public attribute: changing it changes the linear rows by k_v (v*' - v*) in the
+    surface frame, and nothing else."""
+    normal = np.array([-1.0, 0.0, 0.0])
+    task = ContactApproachTask(normal, speed=0.1, velocity_gain=10.0)
+    task.reset(terms)
+    before = task.compute(terms).b
+    old, new = task.reference_velocity.copy(), np.array([0.05, 0.2, -0.1])
+    task.reference_velocity = new
+    after = task.compute(terms).b
+    np.testing.assert_allclose(after[:3] - before[:3], 10.0 * task.basis @ (new - old), atol=1e-12)
+    np.testing.assert_array_equal(after[3:], before[3:])
+
+
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
 def test_compiled_task_rows_equal_the_numpy_reference(robot, seed):
     """Every task's compute_into (compiled where the class has a kernel) writes the rows of its
-    plain-numpy reference_into."""
+    plain-numpy statement (tests/reference/tasks.py)."""
     rng = np.random.default_rng(seed)
     q = POSTURES["elbow_up"].q + rng.uniform(-0.3, 0.3, 7)
     terms = robot.terms(q, rng.uniform(-1.0, 1.0, 7), check_limits=False)
@@ -162,7 +177,7 @@ def test_compiled_task_rows_equal_the_numpy_reference(robot, seed):
         A, b = np.full((task.rows, 7), np.nan), np.full(task.rows, np.nan)
         A_ref, b_ref = np.full((task.rows, 7), np.nan), np.full(task.rows, np.nan)
         task.compute_into(terms, A, b)
-        task.reference_into(terms, A_ref, b_ref)
+        reference_rows(task, terms, A_ref, b_ref)
         np.testing.assert_allclose(A, A_ref, rtol=1e-12, atol=1e-12, err_msg=task.name)
         np.testing.assert_allclose(b, b_ref, rtol=1e-10, atol=1e-9, err_msg=task.name)
 

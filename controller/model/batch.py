@@ -4,9 +4,9 @@ Pinocchio works one state at a time; for N states the per-call Python overhead d
 :class:`BatchKinematics` reads the kinematic tree and link inertias from the Pinocchio model and
 evaluates, for N joint vectors at once with NumPy, the same terms as ``PandaModel.terms``: the
 contact Jacobian J, the joint-space inertia M = sum_k (Jv_k^T m_k Jv_k + Jw_k^T I_k Jw_k), the
-centre of mass, the moving mass and the locked-robot inertia about the centre of mass. The
-predictors then apply the formulas of :mod:`controller.model.jump` with batched linear algebra
-(Cholesky solves for M, eq. (6) and (22); no M at all for CRB, eq. (20)-(21)).
+centre of mass, the moving mass and the locked-robot inertia about the centre of mass.
+:func:`predict_batch` hands them to the batched predictor of :mod:`controller.model.jump`
+(``predict_from_terms``), the one home of the jump maps.
 """
 
 from __future__ import annotations
@@ -16,9 +16,8 @@ from functools import cached_property
 
 import numpy as np
 
-from .jump import METHODS
+from .jump import predict_from_terms
 from .robot import NQ, PandaModel
-from . import validation
 from .validation import BadInputError
 
 
@@ -138,14 +137,6 @@ class BatchKinematics:
         )
 
 
-def _skew_batch(v: np.ndarray) -> np.ndarray:
-    S = np.zeros(v.shape[:-1] + (3, 3))
-    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
-    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
-    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
-    return S
-
-
 def predict_batch(
     kinematics: BatchKinematics,
     Q: np.ndarray,
@@ -161,46 +152,3 @@ def predict_batch(
     ``impulses`` (N, 3) the measured impulses replace the predicted ones.
     """
     return predict_from_terms(kinematics.terms(Q), normals, pre_impact_velocities, restitution, method, impulses)
-
-
-def predict_from_terms(
-    terms: BatchTerms,
-    normals: np.ndarray,
-    pre_impact_velocities: np.ndarray,
-    restitution: float = 0.0,
-    method: str = "crb",
-    impulses: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`predict_batch` on terms already evaluated (``BatchKinematics.terms``)."""
-    if method not in METHODS:
-        raise BadInputError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
-    N = terms.J.shape[0]
-    n = np.broadcast_to(validation.unit_normals(normals), (N, 3))
-    restitution = validation.restitution(restitution)
-    v = np.broadcast_to(np.asarray(pre_impact_velocities, float), (N, 3))
-    J, Jt = terms.J, np.swapaxes(terms.J, 1, 2)
-    if method == "crb":
-        r_hat = _skew_batch(terms.contact_point - terms.com)
-        W = np.eye(3) / terms.mass - r_hat @ np.linalg.solve(terms.inertia_com, r_hat)
-    else:
-        L = np.linalg.cholesky(terms.M)
-        Y = np.linalg.solve(L, Jt)
-        MinvJt = np.linalg.solve(np.swapaxes(L, 1, 2), Y)  # M^-1 J^T by two triangular solves
-        W = J @ MinvJt
-    if impulses is None:
-        if method in ("classical", "classical_normal"):
-            impulse = -(1.0 + restitution) * np.linalg.solve(W, v[..., None])[..., 0]
-            if method == "classical_normal":
-                impulse = np.einsum("na,na->n", n, impulse)[:, None] * n
-        else:
-            nWn = np.einsum("na,nab,nb->n", n, W, n)
-            iota_n = -(1.0 + restitution) * np.einsum("na,na->n", n, v) / nWn
-            impulse = iota_n[:, None] * n
-    else:
-        impulse = np.broadcast_to(np.asarray(impulses, float), (N, 3))
-    if method in ("classical", "classical_normal"):
-        dq = (MinvJt @ impulse[..., None])[..., 0]
-    else:
-        Wi = (W @ impulse[..., None])[..., 0]
-        dq = (Jt @ np.linalg.solve(J @ Jt, Wi[..., None]))[..., 0]
-    return dq, np.array(impulse)

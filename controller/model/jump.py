@@ -6,7 +6,10 @@ Every predictor is linear in the pre-impact contact velocity v-. It is written a
 - the *impulse-to-jump map* K (7x3): ddq = K iota, the joint-velocity jump caused by iota.
 
 so that ddq = K G v- and, with v- = J dq-, ddq = A dq- with the rank-deficient jump matrix
-A = K G J used by the impact-aware constraints of the controller (docs/predictors.md).
+A = K G J used by the impact-aware constraints of the controller (docs/predictors.md), beside
+the impulse-torque matrix P = J^T G J (J^T iota = P dq-): ``JumpModel.matrices``. For the
+normal-impulse models (12), G = s n n^T makes both rank one:
+A = s (J+ W n)(J^T n)^T and P = s (J^T n)(J^T n)^T, s = -(1+c_r) / (n^T W n).
 A measured impulse iota° replaces G v-: ddq = K iota°.
 
 =====================  =====================================  ==============================
@@ -22,17 +25,22 @@ with W_gm = J M^-1 J^T (22), J+ = J^T (J J^T)^-1 (17), and the composite-rigid-b
 inertia W_crb = (1/m) I3 - [r]x I_c^-1 [r]x (20), r = p - c from the centre of mass c of the
 locked robot to the contact point p. The CRB path never forms or inverts M; the GM and classical
 paths use a Cholesky solve of M.
+
+This module is the one home of these maps: ``JumpModel`` gives them for one state
+(``ModelTerms``), :func:`predict_from_terms` for N states at once (the batched terms of
+``controller.model.batch``, leading axis N).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 from scipy.linalg import cho_solve
 
-from .robot import ModelTerms, symmetric_inverse3, symmetric_inverse3_into
+from .robot import ModelTerms, symmetric_inverse3_into
 from . import validation
 from .validation import BadInputError, unit_normal
 
@@ -40,8 +48,12 @@ METHODS = ("classical", "classical_normal", "gm", "crb")
 
 
 def skew(v: np.ndarray) -> np.ndarray:
-    """[v]x, the matrix of the cross product v x ."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    """[v]x, the matrix of the cross product v x (of each vector along the last axis)."""
+    S = np.zeros(v.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
+    return S
 
 
 def crb_inverse_inertia(terms: ModelTerms) -> np.ndarray:
@@ -50,6 +62,7 @@ def crb_inverse_inertia(terms: ModelTerms) -> np.ndarray:
     m is the moving mass of the locked (composite-rigid-body) robot, I_c its rotational inertia
     about its centre of mass and r the vector from the centre of mass to the contact point.
     It is the contact-point inverse inertia of the whole arm welded into one free rigid body.
+    For batched terms (leading axis N) it is the (N, 3, 3) stack.
     """
     r_hat = skew(terms.contact_point - terms.com)
     return np.eye(3) / terms.mass - r_hat @ np.linalg.solve(terms.inertia_com, r_hat)
@@ -91,27 +104,45 @@ class JumpMaps:
     W: np.ndarray | None
 
 
-class JumpModel:
-    """Common interface of the predictors: ``maps`` gives G, K (and W) of a state, once.
+class JumpMatrices(NamedTuple):
+    """The maps of one predictor at one state in joint space: the jump dq_jump = jump_matrix dq-
+    (A = K G J) and the impulse torque J^T iota = torque_matrix dq- (P = J^T G J)."""
 
-    ``maps``, ``jump_matrix`` and ``predict`` check their inputs (the normal is normalised,
-    the restitution must lie in [0, 1]; ``validation.py``) and call ``unit_maps``, which each
-    predictor implements for a unit normal and a valid restitution. A caller that has checked
-    both once (``constraints.ImpactModel``) calls ``unit_maps`` every cycle."""
+    jump_matrix: np.ndarray
+    torque_matrix: np.ndarray
+
+
+class JumpModel:
+    """Common interface of the predictors: ``maps`` gives G, K (and W) of a state, once;
+    ``matrices`` gives A and P.
+
+    ``maps``, ``matrices``, ``jump_matrix`` and ``predict`` check their inputs (the normal is
+    normalised, the restitution must lie in [0, 1]; ``validation.py``) and call ``unit_maps``
+    or ``unit_matrices``, which take a unit normal and a valid restitution. A caller that has
+    checked both once (``constraints.ExpectedImpact``) calls ``unit_matrices`` every cycle."""
 
     name: str = ""
 
     def unit_maps(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMaps:
         raise NotImplementedError
 
+    def unit_matrices(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMatrices:
+        """A = K G J and P = J^T G J from G and K."""
+        maps = self.unit_maps(terms, normal, restitution)
+        GJ = maps.G @ terms.J
+        return JumpMatrices(maps.K @ GJ, terms.J.T @ GJ)
+
     def maps(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMaps:
         """G, K (and W) for the surface normal ``normal`` and the restitution c_r."""
         return self.unit_maps(terms, unit_normal(normal), validation.restitution(restitution))
 
+    def matrices(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMatrices:
+        """A and P (7x7) for the surface normal ``normal`` and the restitution c_r."""
+        return self.unit_matrices(terms, unit_normal(normal), validation.restitution(restitution))
+
     def jump_matrix(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> np.ndarray:
         """A = K G J (7x7): the jump ddq = A dq- for a pre-impact joint velocity dq-."""
-        maps = self.maps(terms, normal, restitution)
-        return maps.K @ (maps.G @ terms.J)
+        return self.matrices(terms, normal, restitution).jump_matrix
 
     def predict(
         self,
@@ -168,6 +199,16 @@ class GeneralizedMomentumJump(JumpModel):
         W = self.inverse_inertia(terms)
         return JumpMaps(normal_impulse_map(W, normal, restitution), terms.J_pinv @ W, W)
 
+    def unit_matrices(self, terms, normal, restitution):
+        """A and P as the rank-one products of the module docstring, from W n alone
+        (``inverse_inertia_times``, J+ = J^T (J J^T)^-1); compiled (``rank_one_jump_matrices``)."""
+        n = terms.J.shape[1]
+        matrices = JumpMatrices(np.empty((n, n)), np.empty((n, n)))
+        rank_one_jump_matrices(
+            terms.J, terms.JJt_inv, self.inverse_inertia_times(terms, normal), normal, restitution, *matrices
+        )
+        return matrices
+
 
 class CompositeRigidBodyJump(GeneralizedMomentumJump):
     """Composite-rigid-body prediction, eqs. (12), (20)-(21): W = W_crb,
@@ -185,28 +226,10 @@ class CompositeRigidBodyJump(GeneralizedMomentumJump):
         )
         return JumpMaps(G, K, W)
 
-    def reference_unit_maps(self, terms, normal, restitution):
-        """``unit_maps`` in plain numpy: eq. (20), then (12) and (21) as for the GM model."""
-        return super().unit_maps(terms, normal, restitution)
-
     def inverse_inertia_times(self, terms: ModelTerms, normal: np.ndarray) -> np.ndarray:
         """W_crb n = n / m - r x (I_c^-1 (r x n)), eq. (20) applied to n
         (([r]x)^T = -[r]x, so -[r]x I_c^-1 [r]x n is the expression above); compiled."""
         return crb_inverse_inertia_times(terms.contact_point, terms.com, terms.inertia_com, terms.mass, normal)
-
-    def reference_inverse_inertia_times(self, terms: ModelTerms, normal: np.ndarray) -> np.ndarray:
-        """``inverse_inertia_times`` in plain floats (the reference of its kernel)."""
-        rx, ry, rz = (terms.contact_point - terms.com).tolist()
-        nx, ny, nz = normal.tolist()
-        ax, ay, az = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx  # r x n
-        inverse, _ = symmetric_inverse3(terms.inertia_com)
-        bx = inverse[0][0] * ax + inverse[0][1] * ay + inverse[0][2] * az
-        by = inverse[1][0] * ax + inverse[1][1] * ay + inverse[1][2] * az
-        bz = inverse[2][0] * ax + inverse[2][1] * ay + inverse[2][2] * az
-        m = 1.0 / terms.mass
-        return np.array([
-            nx * m - (ry * bz - rz * by), ny * m - (rz * bx - rx * bz), nz * m - (rx * by - ry * bx)
-        ])
 
 
 JUMP_MODELS: dict[str, JumpModel] = {
@@ -220,6 +243,56 @@ def jump_model(name: str) -> JumpModel:
         return JUMP_MODELS[name]
     except KeyError:
         raise BadInputError(f"unknown jump model {name!r}; choose from {', '.join(JUMP_MODELS)}") from None
+
+
+def predict_from_terms(
+    terms,
+    normals: np.ndarray,
+    pre_impact_velocities: np.ndarray,
+    restitution: float = 0.0,
+    method: str = "crb",
+    impulses: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Jumps (N, 7) and impulses (N, 3) of the predictor ``method`` for N states at once.
+
+    ``terms`` are batched model terms (``controller.model.batch.BatchTerms``: J (N, 3, 7),
+    contact point, centre of mass, mass, inertia about the centre of mass and M (N, 7, 7));
+    ``normals`` and ``pre_impact_velocities`` are (N, 3) or (3,) arrays (world frame); with
+    ``impulses`` (N, 3) the measured impulses replace the predicted ones. The maps are those of
+    the table of the module docstring, with M^-1 J^T by two triangular solves of the Cholesky
+    factor of M (no M at all for crb).
+    """
+    if method not in METHODS:
+        raise BadInputError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
+    N = terms.J.shape[0]
+    n = np.broadcast_to(validation.unit_normals(normals), (N, 3))
+    restitution = validation.restitution(restitution)
+    v = np.broadcast_to(np.asarray(pre_impact_velocities, float), (N, 3))
+    J, Jt = terms.J, np.swapaxes(terms.J, 1, 2)
+    if method == "crb":
+        W = crb_inverse_inertia(terms)
+    else:
+        L = np.linalg.cholesky(terms.M)
+        Y = np.linalg.solve(L, Jt)
+        MinvJt = np.linalg.solve(np.swapaxes(L, 1, 2), Y)  # M^-1 J^T by two triangular solves
+        W = J @ MinvJt
+    if impulses is None:
+        if method in ("classical", "classical_normal"):
+            impulse = -(1.0 + restitution) * np.linalg.solve(W, v[..., None])[..., 0]
+            if method == "classical_normal":
+                impulse = np.einsum("na,na->n", n, impulse)[:, None] * n
+        else:
+            nWn = np.einsum("na,nab,nb->n", n, W, n)
+            iota_n = -(1.0 + restitution) * np.einsum("na,na->n", n, v) / nWn
+            impulse = iota_n[:, None] * n
+    else:
+        impulse = np.broadcast_to(np.asarray(impulses, float), (N, 3))
+    if method in ("classical", "classical_normal"):
+        dq = (MinvJt @ impulse[..., None])[..., 0]
+    else:
+        Wi = (W @ impulse[..., None])[..., 0]
+        dq = (Jt @ np.linalg.solve(J @ Jt, Wi[..., None]))[..., 0]
+    return dq, np.array(impulse)
 
 
 def prediction_error(predicted: np.ndarray, measured: np.ndarray) -> np.ndarray:
@@ -273,3 +346,17 @@ def crb_maps(contact_point, com, inertia_com, mass, J, JJt_inv, normal, restitut
             G[i, j] = scale * normal[i] * normal[j]
     K = J.T @ (JJt_inv @ W)
     return G, K, W
+
+
+@njit(cache=True)
+def rank_one_jump_matrices(J, JJt_inv, W_normal, normal, restitution, jump_matrix, torque_matrix):
+    """Kernel of ``GeneralizedMomentumJump.unit_matrices``: A = s (J^T (J J^T)^-1 W n)(J^T n)^T
+    and P = s (J^T n)(J^T n)^T with s = -(1+c_r) / (n^T W n), written into the two matrices."""
+    s = -(1.0 + restitution) / (normal[0] * W_normal[0] + normal[1] * W_normal[1] + normal[2] * W_normal[2])
+    y = JJt_inv @ (s * W_normal)
+    direction = J.T @ y
+    Jt_normal = normal @ J
+    for i in range(J.shape[1]):
+        for j in range(J.shape[1]):
+            jump_matrix[i, j] = direction[i] * Jt_normal[j]
+            torque_matrix[i, j] = s * Jt_normal[i] * Jt_normal[j]

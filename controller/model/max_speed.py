@@ -12,7 +12,7 @@ with A = K G J the jump matrix of the chosen model. The maximum feasible speed i
 ratio limit_i / slope_i over joints and criteria; the arg-min says what binds.
 
 :func:`closed_form_max_speeds` evaluates the same for N postures at once on the batched terms and
-predictors of ``controller.model.batch`` (stacked pseudo-inverses, Cholesky solves with M).
+predictor of ``controller.model.jump`` (stacked pseudo-inverses, Cholesky solves with M).
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .batch import BatchTerms, predict_from_terms
-from .jump import JumpModel
+from .batch import BatchTerms
+from .jump import JumpModel, predict_from_terms
 from .robot import ModelTerms, PandaModel
 
 CRITERIA = ("velocity_pre", "velocity_post", "impulsive_torque")

@@ -11,7 +11,7 @@ import numpy as np
 
 from impactqp.sim.causes import CAUSE_NAMES, cause_named, realistic_hidden_effect
 from impactqp.sim.diagnosis import diagnose
-from impactqp.sim.generation import generate_dataset
+from impactqp.sim.generation import DatasetRequest, generate_dataset
 from impactqp.sim.plant import PlantParameters
 
 POSTURES = ["elbow_up", "elbow_left", "elbow_right"]
@@ -61,7 +61,7 @@ def rows() -> list[dict]:
     with tempfile.TemporaryDirectory() as tmp:
         overrides, _ = realistic_hidden_effect("armature", rng)
         data = Path(tmp) / "thirty"
-        generate_dataset(data, plant=PlantParameters(**overrides), repeats=2, seed=1, jobs=2)
+        generate_dataset(data, DatasetRequest(plant=PlantParameters(**overrides), repeats=2, seed=1), jobs=2)
         start = time.perf_counter()
         diagnose(data, jobs=2)
         elapsed = time.perf_counter() - start
@@ -74,10 +74,10 @@ def rows() -> list[dict]:
                 overrides.update(values)
                 tangential.update(speeds)
             data = Path(tmp) / f"hidden{k}"
-            generate_dataset(
-                data, plant=PlantParameters(**overrides), postures=POSTURES, speeds=SPEEDS,
-                tangential=sorted(tangential), seed=k, jobs=2,
+            request = DatasetRequest(
+                plant=PlantParameters(**overrides), postures=POSTURES, speeds=SPEEDS, tangential=sorted(tangential), seed=k
             )
+            generate_dataset(data, request, jobs=2)
             result = diagnose(data, jobs=2).summary()
             case_named, case_errors, case_covered = accuracy_of(case, result, overrides)
             named.append(case_named)

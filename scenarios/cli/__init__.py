@@ -162,7 +162,7 @@ def demo(out_dir, jobs):
     )
     from impactqp.sim.causes import per_group
     from impactqp.sim.diagnosis import diagnose
-    from impactqp.sim.generation import generate_dataset
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
     from impactqp.sim.plant import PlantParameters
 
     out = output_directory(out_dir, "--out")
@@ -174,8 +174,10 @@ def demo(out_dir, jobs):
     stiff = PlantParameters(armature=per_group((1.2, 0.3)))
     with tqdm(desc="measured dataset", unit="trial") as bar:
         generate_dataset(
-            out / "measured", plant=stiff, postures=["elbow_up", "elbow_left", "elbow_right"], speeds=[0.1, 0.18],
-            seed=1, jobs=jobs, progress=bar_progress(bar),
+            out / "measured",
+            DatasetRequest(plant=stiff, postures=["elbow_up", "elbow_left", "elbow_right"], speeds=[0.1, 0.18], seed=1),
+            jobs=jobs,
+            progress=bar_progress(bar),
         )
     click.echo(f"\n2. 'Measured' dataset from a stiff plant (hidden armature 1.2 / 0.3 kg m^2): {out / 'measured'}")
     result = diagnose(out / "measured", jobs=jobs)

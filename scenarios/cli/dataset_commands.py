@@ -69,7 +69,7 @@ def generate_command(
     measured-data format; the manifest records the robot and the tool."""
     from tqdm import tqdm
 
-    from impactqp.sim.generation import generate_dataset
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
 
     output_directory(out, "OUT")
     plant = load_plant(plant_file)  # None: the nominal plant
@@ -85,10 +85,11 @@ def generate_command(
         bars[0].update(done - bars[0].n)
 
     try:
-        entries = generate_dataset(
-            out, plant=plant, postures=names, speeds=speed_list, tangential=tangential_list, repeats=repeats,
-            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed, jobs=jobs, progress=progress, choice=choice,
+        request = DatasetRequest(
+            plant=plant, postures=names, speeds=speed_list, tangential=tangential_list, repeats=repeats,
+            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed, choice=choice,
         )
+        entries = generate_dataset(out, request, jobs=jobs, progress=progress)
     finally:
         for bar in bars:
             bar.close()

@@ -1,0 +1,97 @@
+"""Post-impact centre-of-mass velocity and the zero-step capture region (docs/floating-base.md).
+
+Zero-step capture region. With the linear inverted pendulum of the CoM at height h above the
+ground, omega = sqrt(g / h), the robot can stop without a step when the instantaneous capture
+point xi = c + dc / omega (horizontal parts) lies in the support polygon S. With S written as
+half-planes nu_k . x <= nu_k . a_k (outward unit normals nu_k of its edges, a_k a point of
+edge k), the CoM velocities that keep xi inside S are the polygon
+
+    (nu_k / omega) . dc <= nu_k . (a_k - c)        for every edge k,
+
+a set of linear inequalities A dc <= b in the CoM velocity: the capture region of the stance.
+
+Post-impact CoM velocity. A hand impulse iota (from one predictor's impulse map, eqs. 6 or 12)
+acting on the robot with both feet held changes the generalized velocity by P J^T iota
+(``floating_base``), so the CoM velocity jumps by C iota with C = Jcom P J^T (3x3); this equals
+(iota + the feet's impulsive forces) / m. As every predictor's impulse is linear in the contact
+velocity v-, dc+ = dc- + C iota(v-) is linear in v-, and the highest capturable contact speed
+along an approach direction has a closed form (:func:`max_capturable_speed`).
+
+Simplifications: GM and CRB impulses are frictionless (along the normal, eq. 12), the classical
+one sticking (eq. 6); the feet are held during the impulse (their impulsive wrenches are not
+checked against friction or the soles); the capture point is the linear pendulum's (constant CoM
+height, no angular momentum).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .floating_base import FloatingBaseTerms, predict
+from .validation import BadInputError
+
+GRAVITY = 9.81
+
+
+@dataclass(frozen=True)
+class CaptureRegion:
+    """A dc_xy <= b: the horizontal CoM velocities from which the robot stops without a step."""
+
+    A: np.ndarray  # (k, 2)
+    b: np.ndarray  # (k,)
+    omega: float  # sqrt(g / h), 1/s
+
+    def margins(self, com_velocity) -> np.ndarray:
+        """b - A dc_xy (m): the capture point's distance inside each edge of the support polygon."""
+        return self.b - self.A @ np.asarray(com_velocity, dtype=float)[:2]
+
+    def contains(self, com_velocity) -> bool:
+        return bool(np.all(self.margins(com_velocity) >= 0.0))
+
+
+def capture_region(polygon: np.ndarray, com: np.ndarray, ground_height: float = 0.0) -> CaptureRegion:
+    """The capture region (module docstring) of the counter-clockwise convex support ``polygon``
+    (k x 2) for the CoM at ``com`` (3)."""
+    polygon = np.asarray(polygon, dtype=float)
+    com = np.asarray(com, dtype=float)
+    height = com[2] - ground_height
+    if polygon.ndim != 2 or polygon.shape[0] < 3 or polygon.shape[1] != 2:
+        raise BadInputError("the support polygon needs at least three (x, y) vertices")
+    if not height > 0.0:
+        raise BadInputError(f"the centre of mass must be above the ground, got height {height}")
+    omega = math.sqrt(GRAVITY / height)
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    normals = np.column_stack([edges[:, 1], -edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]
+    return CaptureRegion(normals / omega, np.einsum("ij,ij->i", normals, polygon - com[:2]), omega)
+
+
+def com_jump_map(terms: FloatingBaseTerms) -> np.ndarray:
+    """C = Jcom P J^T (3x3): the CoM velocity jump per unit hand impulse, both feet held."""
+    return terms.Jcom @ terms.constrained_inverse_inertia() @ terms.J.T
+
+
+def post_impact_com_velocity(terms: FloatingBaseTerms, method: str, normal, v_minus, com_velocity, c_r: float = 0.0):
+    """dc+ = dc- + C iota, iota the impulse ``method`` predicts for the contact velocity v-."""
+    impulse = predict(terms, method, normal, v_minus, c_r).impulse
+    return np.asarray(com_velocity, dtype=float) + com_jump_map(terms) @ impulse
+
+
+def max_capturable_speed(
+    terms: FloatingBaseTerms, region: CaptureRegion, method: str, normal, direction, c_r: float = 0.0
+) -> float:
+    """The largest s >= 0 with dc+ inside the region for the contact velocity v- = s ``direction``,
+    taking the pre-impact CoM velocity as zero (the hand moves, the body stands): the smallest
+    ratio b_k / (A_k C iota_1) over the rows the unit-speed jump pushes outwards (inf when none
+    does; 0 when the standing robot is already outside)."""
+    region_margin = region.margins(np.zeros(2))
+    if np.any(region_margin < 0.0):
+        return 0.0
+    unit_jump = post_impact_com_velocity(terms, method, normal, direction, np.zeros(3), c_r)
+    rates = region.A @ unit_jump[:2]
+    pushing = rates > 0.0
+    if not np.any(pushing):
+        return math.inf
+    return float(np.min(region_margin[pushing] / rates[pushing]))

@@ -1,0 +1,158 @@
+"""Standing postures of the floating-base G1 before a hand impact (docs/floating-base.md).
+
+A stance places both soles flat on the ground (z = 0) at given horizontal positions, the
+centre of mass over the middle of the support polygon and the hand's contact point at a target
+with the forearm pointing forward (+x, towards the wall). The posture is found by damped
+Gauss-Newton over the whole configuration (base placement and joints), every task stacked with
+a weight (feet and CoM first, then the hand, then a small pull towards a nominal bent-knee
+posture that keeps the solution unique):
+
+    dv = argmin sum_k w_k^2 |A_k dv - e_k|^2 + lambda^2 |dv|^2,    q <- integrate(q, dv)
+
+with e_k = log6(T_k^-1 T_k*) and A_k = J_k (frame Jacobian in the frame) for the feet and the
+hand's orientation, e = c*_xy - c_xy with A = Jcom_xy for the CoM, e = p* - p with the
+world-aligned Jacobian for the hand's position. Joints are clipped into their limits.
+This is a floating-base, multi-frame problem; the arm's ``inverse_kinematics`` solves one frame of
+a fixed base.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from .floating_base import FOOT_FRAMES, SOLE_CORNERS, SOLE_DEPTH, FloatingBaseModel
+from .validation import BadInputError
+
+# Nominal bent-knee posture (rad): the regularisation target of the solver.
+NOMINAL = {
+    "left_hip_pitch_joint": -0.3, "left_knee_joint": 0.6, "left_ankle_pitch_joint": -0.3,
+    "right_hip_pitch_joint": -0.3, "right_knee_joint": 0.6, "right_ankle_pitch_joint": -0.3,
+    "left_elbow_joint": 1.0, "right_elbow_joint": 0.5, "left_shoulder_roll_joint": 0.2,
+    "right_shoulder_roll_joint": -0.2, "right_shoulder_pitch_joint": -0.8,
+}
+SOLE_CENTRE_X = float(SOLE_CORNERS[:, 0].mean())
+WEIGHTS = {"feet": 10.0, "com": 10.0, "hand": 3.0, "hand_axis": 1.0, "posture": 0.05}
+DAMPING = 1e-3
+ITERATIONS = 200
+
+
+@dataclass(frozen=True)
+class Stance:
+    """Where the feet stand and where the hand starts, world frame (m).
+
+    ``left_foot``/``right_foot``: (x, y) of each ankle frame (the soles are flat at z = 0);
+    ``hand``: the contact point's start position.
+    """
+
+    name: str
+    left_foot: tuple[float, float]
+    right_foot: tuple[float, float]
+    hand: tuple[float, float, float]
+
+
+STANCES = {
+    "parallel": Stance("parallel", (0.0, 0.12), (0.0, -0.12), (0.30, -0.18, 0.95)),
+    "wide": Stance("wide", (0.0, 0.20), (0.0, -0.20), (0.30, -0.22, 0.92)),
+    "staggered": Stance("staggered", (-0.08, 0.12), (0.08, -0.12), (0.36, -0.18, 0.95)),
+}
+
+
+def support_polygon(robot: FloatingBaseModel, q: np.ndarray) -> np.ndarray:
+    """Convex hull (counter-clockwise, k x 2) of both soles' corners, from the posture q."""
+    points = robot.sole_corners(q)[:, :2]
+    return convex_hull(points)
+
+
+def cross2(a, b) -> float:
+    """The z component of the cross product of two planar vectors."""
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
+def convex_hull(points: np.ndarray) -> np.ndarray:
+    """Monotone-chain convex hull of 2-D points, counter-clockwise."""
+    pts = sorted(map(tuple, np.asarray(points, dtype=float)))
+
+    def half(seq):
+        chain = []
+        for p in seq:
+            while len(chain) >= 2 and cross2(np.subtract(chain[-1], chain[-2]), np.subtract(p, chain[-2])) <= 0:
+                chain.pop()
+            chain.append(p)
+        return chain[:-1]
+
+    return np.array(half(pts) + half(pts[::-1]))
+
+
+def inside_polygon(point, polygon: np.ndarray) -> float:
+    """Signed distance-like margin: the smallest distance of ``point`` to the edges of the
+    counter-clockwise convex ``polygon`` (positive inside, negative outside)."""
+    p = np.asarray(point, dtype=float)[:2]
+    margins = []
+    for a, b in zip(polygon, np.roll(polygon, -1, axis=0)):
+        edge = b - a
+        margins.append(cross2(edge, p - a) / np.linalg.norm(edge))
+    return float(min(margins))
+
+
+def stance_posture(robot: FloatingBaseModel, stance: Stance) -> np.ndarray:
+    """The configuration q (nq) of the stance (module docstring); raises BadInputError when the
+    solver leaves a foot more than 1 mm (or 1 mrad) off its target or the hand 5 mm off."""
+    model, data = robot.model, robot.data
+    nominal = np.zeros(model.nq - 7)
+    for name, value in NOMINAL.items():
+        nominal[robot.joint_index(name)] = value
+    feet = {
+        FOOT_FRAMES[0]: pin.SE3(np.eye(3), np.array([*stance.left_foot, SOLE_DEPTH])),
+        FOOT_FRAMES[1]: pin.SE3(np.eye(3), np.array([*stance.right_foot, SOLE_DEPTH])),
+    }
+    centre = np.mean([[f[0] + SOLE_CENTRE_X, f[1]] for f in (stance.left_foot, stance.right_foot)], axis=0)
+    hand_target = np.array(stance.hand)
+    q = pin.neutral(model)
+    q[2] = 0.75
+    q[7:] = nominal
+    for _ in range(ITERATIONS):
+        rows, errors = _tasks(robot, q, feet, centre, hand_target, nominal)
+        A, e = np.vstack(rows), np.concatenate(errors)
+        dv = np.linalg.solve(A.T @ A + DAMPING**2 * np.eye(model.nv), A.T @ e)
+        q = pin.integrate(model, q, dv)
+        q[7:] = np.clip(q[7:], robot.q_min, robot.q_max)
+    _, errors = _tasks(robot, q, feet, centre, hand_target, nominal)
+    foot_error = max(np.abs(errors[0]).max(), np.abs(errors[1]).max()) / WEIGHTS["feet"]
+    hand_error = np.linalg.norm(errors[3]) / WEIGHTS["hand"]
+    if foot_error > 1e-3 or hand_error > 5e-3:
+        raise BadInputError(
+            f"stance {stance.name!r} cannot be reached: foot error {foot_error:.2e}, hand error {hand_error:.2e} m"
+        )
+    return q
+
+
+def _tasks(robot, q, feet, centre, hand_target, nominal):
+    """Weighted task rows and errors of the stance solver (module docstring)."""
+    model, data = robot.model, robot.data
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacements(model, data)
+    w = WEIGHTS
+    rows, errors = [], []
+    for name, target in feet.items():
+        fid = model.getFrameId(name)
+        rows.append(w["feet"] * pin.getFrameJacobian(model, data, fid, pin.LOCAL))
+        errors.append(w["feet"] * pin.log6(data.oMf[fid].inverse() * target).vector)
+    Jcom = pin.jacobianCenterOfMass(model, data, q)
+    rows.append(w["com"] * Jcom[:2])
+    errors.append(w["com"] * (centre - data.com[0][:2]))
+    hand = robot.contact_frame_id
+    J6 = pin.getFrameJacobian(model, data, hand, pin.LOCAL_WORLD_ALIGNED)
+    rows.append(w["hand"] * J6[:3])
+    errors.append(w["hand"] * (hand_target - data.oMf[hand].translation))
+    # forearm (frame x axis) along world +x: the rotation turning x onto +x, as in the arm's IK
+    x_axis = data.oMf[hand].rotation[:, 0]
+    rows.append(w["hand_axis"] * J6[3:])
+    errors.append(w["hand_axis"] * np.cross(x_axis, np.array([1.0, 0.0, 0.0])))
+    posture = np.zeros((model.nv - 6, model.nv))
+    posture[:, 6:] = np.eye(model.nv - 6)
+    rows.append(w["posture"] * posture)
+    errors.append(w["posture"] * (nominal - q[7:]))
+    return rows, errors

@@ -1,0 +1,393 @@
+"""Impact-aware task-space QP controller of a kinematic-controlled Panda.
+
+One control cycle, straight through::
+
+    state (q, dq) -> model terms (one ``robot.terms`` call) -> task rows and constraint rows
+    -> QP in ddq -> Command(ddq, dq_cmd = dq + ddq dt, q_cmd = q + dq dt + ddq dt^2 / 2)
+
+The QP (``problem``) is in the joint acceleration ddq: the tasks' weighted least squares under
+the box and general constraints, every row in acceleration units (``constraints.constraint``).
+The acceleration and jerk limits between consecutive commands always apply
+(``AccelerationLimit`` is added when missing).
+
+Solving (``solvers``): a solution is accepted only when it is finite and satisfies every row to
+``feasibility_tolerance`` (acceleration units). A second, independent solver confirms any failed
+or inaccurate solve before the QP is declared infeasible, so the controller never brakes on
+one solver's false alarm (docs/qp-constraints.md, Solvers).
+
+Cycle time: everything a cycle touches is allocated once. The model terms are refilled in
+place (``PandaModel.update_terms``), the control cycle is advanced in place, tasks and
+constraints write into their own buffers, and the QP data live in two stacked bound vectors
+[box; rows] that the solver and the feasibility check read without copies. The jump matrices
+are computed once per cycle (``ExpectedImpact.matrices``) and shared by the impact constraints
+and the Command's prediction.
+
+Fallback (``fallback``): when the state is unusable (non-finite, outside the position or
+velocity limits, singular contact Jacobian), when the QP is infeasible, or when no solver
+succeeds, the command is a joint-wise brake within the acceleration and jerk limits. The status
+says why, ``violated_constraints`` names the conflicting or violated constraints and
+``fallback_count`` counts fallbacks. A fallback never raises and never returns a NaN. For an
+infeasible QP, ``step`` stays bounded: it names the conflicting set of one compiled interval
+test; the irreducible conflicting set is computed only on demand, after the fact, by
+``conflicting_constraints()``, from the rows stored by the last infeasible cycle.
+
+Velocity limit: the velocity limit on dq_cmd is a row of the QP (``VelocityLimit``, at the
+jerk horizon), so in a closed loop the QP's answer needs no clipping. When the measured state
+makes clipping unavoidable (dq_cmd past its limit), dq_cmd is clipped, ``ddq`` is set to
+(dq_cmd - dq) / dt so that the command stays consistent, and the status is
+``ok_velocity_clipped``. (A fallback from a state already outside the velocity limits cannot
+keep both: it keeps ddq within the acceleration and jerk limits and clips dq_cmd; its status
+says it is a fallback.)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from impactqp.constraints import AccelerationLimit, Constraint, ControlCycle, ExpectedImpact
+from impactqp.controller.model.robot import NQ, InvalidStateError, ModelTerms, PandaModel, SingularPostureError
+from impactqp.controller.model.validation import BadInputError
+from impactqp.tasks import Task
+
+from .command import DQ_MAX, Q_MAX, Q_MIN, Command, CommandMemory, Status, command_limits
+from .fallback import bounded_conflict, brake, irreducible_conflict, usable_state
+from .problem import ConstraintLayout, QpProblem, consecutive_slices
+from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
+
+
+class ImpactAwareController:
+    """Task-space QP controller with impact-aware constraints (``step(q, dq) -> Command``).
+
+    Parameters
+    ----------
+    robot : PandaModel
+    tasks : least-squares tasks (``tasks``); at least one, and together they must make the
+        cost strictly convex (a ``DampingTask`` does).
+    constraints : constraints (``constraints``); an ``AccelerationLimit`` is added when missing.
+    dt : control period (s).
+    solver : "daqp" (default), "proxqp", or any qpsolvers backend name.
+    impact : the expected impact used for ``Command.predicted_jump`` (None: no prediction).
+    feasibility_tolerance : largest accepted row violation of a solution (acceleration units).
+    acceleration_limit, jerk_limit : ddq_max and dddq_max (default: the robot's datasheet values).
+    """
+
+    def __init__(
+        self,
+        robot: PandaModel,
+        tasks: list[Task],
+        constraints: list[Constraint],
+        dt: float,
+        solver: str = "daqp",
+        impact: ExpectedImpact | None = None,
+        feasibility_tolerance: float = 1e-6,
+        acceleration_limit: np.ndarray | None = None,
+        jerk_limit: np.ndarray | None = None,
+    ):
+        if not tasks:
+            raise BadInputError("the controller needs at least one task")
+        if not dt > 0.0:
+            raise BadInputError("dt must be > 0")
+        constraints = list(constraints)
+        if not any(isinstance(c, AccelerationLimit) for c in constraints):
+            constraints.insert(0, AccelerationLimit())
+        names = [c.name for c in constraints]
+        if len(set(names)) != len(names):
+            raise BadInputError(f"constraint names must be unique, got {names}")
+        self.robot = robot
+        self.tasks = list(tasks)
+        self.constraints = constraints
+        self.layout = ConstraintLayout.of(constraints)
+        self.dt = float(dt)
+        self.ddq_max = robot.ddq_max if acceleration_limit is None else np.asarray(acceleration_limit, float)
+        self.dddq_max = robot.dddq_max if jerk_limit is None else np.asarray(jerk_limit, float)
+        self.impact = impact
+        self.feasibility_tolerance = float(feasibility_tolerance)
+        self._allocate()
+        self.solver = make_solver(solver, self.layout.rows)
+        self.verifier = verifier_for(self.solver.name, self.layout.rows)
+        self.fallback_count = 0
+        self.memory = CommandMemory()
+        self._targets_set = False
+        self._last_infeasible: tuple[QpProblem, np.ndarray, np.ndarray] | None = None
+        self.phase = "approach"
+
+    def _allocate(self) -> None:
+        """The buffers of one cycle and the views each task and constraint writes into."""
+        layout = self.layout
+        task_slices = consecutive_slices([t.rows for t in self.tasks])
+        n_task_rows = sum(t.rows for t in self.tasks)
+        self._task_A = np.zeros((n_task_rows, NQ))
+        self._task_b = np.zeros(n_task_rows)
+        self._task_w = np.zeros((n_task_rows, 1))
+        self._task_views = [
+            (task, self._task_A[s], self._task_b[s], self._task_w[s, 0]) for task, s in zip(self.tasks, task_slices)
+        ]
+        self._active_flags = layout.empty_flags()
+        self.problem = p = QpProblem.empty(layout.rows)
+        self._box_bounds = layout.empty_box_bounds()  # rows 2k and 2k + 1: the bounds of box k
+        self._box_lower = self._box_bounds[0::2]
+        self._box_upper = self._box_bounds[1::2]
+        self._row_views = [(c, p.C[s], p.l[s], p.u[s]) for c, s in zip(layout.row_constraints, layout.row_slices)]
+        first = layout.first_relaxed_row
+        self._relaxed_rows = (p.C[first:], p.l[first:], p.u[first:])
+        self._terms: ModelTerms | None = None  # refilled in place every cycle
+        self._jerk_step = self.dddq_max * self.dt
+        self._limits = command_limits(self.robot, self.ddq_max, self._jerk_step)
+        horizon = max(self.dt, float(np.max(self.ddq_max / self.dddq_max)))
+        self._cycle = ControlCycle(self.dt, np.zeros(NQ), np.zeros(NQ), horizon)
+        # General rows see the joint-space box of the cycle (all box constraints intersected)
+        # as the reachable accelerations, so that a row the state violates is relaxed to what
+        # the box really allows (ControlCycle.recoverable): the arrays are the problem's own.
+        self._row_cycle = ControlCycle(self.dt, p.lb, p.ub, horizon)
+
+    @property
+    def box_constraints(self) -> tuple[Constraint, ...]:
+        return self.layout.box_constraints
+
+    @property
+    def row_constraints(self) -> tuple[Constraint, ...]:
+        """The general constraints in the order of their rows (the relaxed ones last)."""
+        return self.layout.row_constraints
+
+    def conflicting_constraints(self) -> list[str]:
+        """The irreducible conflicting set of the last infeasible cycle (deletion filter with
+        daqp, computed now, off the control cycle); [] when no cycle was infeasible."""
+        if self._last_infeasible is None:
+            return []
+        return irreducible_conflict(self.layout, [c.name for c in self.constraints], *self._last_infeasible)
+
+    # ------------------------------------------------------------------ public API
+    def reset(self, q, dq=None) -> None:
+        """Re-initialise the command memory at the state (q, dq) (zero acceleration) and
+        re-capture the task targets left unspecified."""
+        terms = self.robot.terms(q, dq, check_limits=False)
+        self.memory = CommandMemory(terms.q.copy(), terms.dq.copy(), np.zeros(NQ))
+        for task in self.tasks:
+            task.reset(terms)
+        self._targets_set = True
+
+    def step(self, q, dq) -> Command:
+        """One control cycle. Never raises on a bad state or a solver failure: see the module
+        docstring for the fallback."""
+        robot = self.robot
+        try:
+            if self._terms is None:
+                self._terms = robot.terms(q, dq)
+            else:
+                robot.update_terms(self._terms, q, dq)
+        except InvalidStateError as error:
+            return self._fallback(q, dq, Status.FALLBACK_INVALID_STATE, [error.constraint], str(error))
+        except SingularPostureError as error:
+            return self._fallback(q, dq, Status.FALLBACK_SINGULAR, [], str(error))
+        terms = self._terms
+        over = first_outside(terms.dq, robot.dq_max)
+        if over >= 0:
+            message = f"dq{over + 1} = {terms.dq[over]:.4f} rad/s is outside the velocity limits"
+            return self._fallback(q, dq, Status.FALLBACK_INVALID_STATE, ["joint_velocity_limit"], message, terms)
+        if not self._targets_set:
+            for task in self.tasks:
+                task.reset(terms)
+            self._targets_set = True
+
+        self._cycle.advance(self.memory.ddq, self.ddq_max, self._jerk_step)
+        if not self._assemble(terms, self._cycle):
+            return self._infeasible(q, dq, terms, "the joint-space bounds conflict")
+
+        solved, ddq, solver_name = self._solve()
+        if solved == INFEASIBLE:
+            return self._infeasible(q, dq, terms, f"the QP is infeasible (confirmed by {solver_name})")
+        if solved != SOLVED:
+            return self._fallback(q, dq, Status.FALLBACK_SOLVER_ERROR, [], "no solver found a solution", terms)
+
+        dq_cmd, q_cmd = np.empty(NQ), np.empty(NQ)
+        status = Status.OK
+        # dq_cmd = dq + ddq dt (clipped only off the closed loop: see the docstring) and
+        # q_cmd = q + (dq + dq_cmd) dt / 2 within the position limits
+        if integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, dq_cmd, q_cmd):
+            ddq = (dq_cmd - terms.dq) * (1.0 / self.dt)
+            status = Status.VELOCITY_CLIPPED
+            self.problem.violation(ddq)  # the gaps of the ddq actually commanded
+        return self._emit(terms, ddq, dq_cmd, q_cmd, status, self._active_constraints(ddq), [], solver_name)
+
+    # ------------------------------------------------------------------ one cycle
+    def _assemble(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
+        """Fill the preallocated QP data from the tasks and constraints of this state; False
+        when the joint-space bounds conflict (lb > ub somewhere)."""
+        self._assemble_tasks(terms)
+        return self._assemble_constraints(terms, cycle)
+
+    def _assemble_tasks(self, terms: ModelTerms) -> None:
+        """Cost: H = A^T W A and g = -A^T W b over the stacked rows of every task."""
+        for task, A, b, w in self._task_views:
+            task.compute_into(terms, A, b)
+            w[:] = task.weight
+        weighted_least_squares(self._task_A, self._task_b, self._task_w[:, 0], self.problem.H, self.problem.g)
+
+    def _assemble_constraints(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
+        """Bounds: the box constraints intersected and clipped into the cycle's reachable
+        accelerations, then the general rows, the relaxed ones relaxed in one block. False when
+        the box bounds conflict."""
+        problem = self.problem
+        box_lower, box_upper = self._box_lower, self._box_upper
+        for k, constraint in enumerate(self.layout.box_constraints):
+            constraint.compute_into(terms, cycle, None, box_lower[k], box_upper[k])
+        # Clipping each box into the reachable interval, then intersecting, equals intersecting
+        # then clipping (clipping is monotone): two vectors are clipped instead of every box.
+        consistent = intersect_boxes(
+            box_lower, box_upper, cycle.acceleration_lower, cycle.acceleration_upper, problem.lb, problem.ub
+        )
+        row_cycle = self._row_cycle  # its bounds are problem.lb and problem.ub, filled above
+        for constraint, C, lower, upper in self._row_views:
+            constraint.compute_into(terms, row_cycle, C, lower, upper)
+        row_cycle.recoverable(*self._relaxed_rows)
+        return consistent
+
+    def _solve(self) -> tuple[str, np.ndarray | None, str]:
+        """Solve with the chosen solver; a second solver confirms any failure or inaccurate
+        answer. Returns (status, ddq, name of the solver whose answer counts)."""
+        problem = self.problem
+        try:
+            solved, x = self.solver.solve(problem)
+        except Exception:  # a backend error must not stop the control loop
+            solved, x = FAILED, None
+        if solved == SOLVED and self._acceptable(x):
+            return SOLVED, x, self.solver.name
+        try:
+            solved, x = self.verifier.solve(problem)
+        except Exception:
+            solved, x = FAILED, None
+        if solved == SOLVED and not self._acceptable(x):
+            solved, x = FAILED, None
+        return solved, x, self.verifier.name
+
+    def _acceptable(self, x: np.ndarray) -> bool:
+        """A solution is used only when it is finite and satisfies every row and bound."""
+        return self.problem.violation(x) <= self.feasibility_tolerance
+
+    def _active_constraints(self, ddq: np.ndarray) -> list[str]:
+        """Names of the constraints with at least one row at a bound (the gaps of the
+        accepted solution's feasibility check; box constraints by their own, unclipped bounds)."""
+        p, flags = self.problem, self._active_flags
+        tolerance = self.feasibility_tolerance * 10.0
+        tight_constraints(ddq, self._box_bounds, p.lower_gap, p.upper_gap, self.layout.row_ends, tolerance, flags)
+        return [name for name, hit in zip(self.layout.flag_names, flags) if hit]
+
+    # ------------------------------------------------------------------ fallback
+    def _infeasible(self, q, dq, terms, message) -> Command:
+        self._last_infeasible = (self.problem.copy(), self._box_lower.copy(), self._box_upper.copy())
+        conflict = bounded_conflict(self.layout, self.problem, self._box_bounds, self._active_flags)
+        return self._fallback(
+            q, dq, Status.FALLBACK_INFEASIBLE, conflict, f"{message}; conflict: {', '.join(conflict)}", terms
+        )
+
+    def _fallback(self, q, dq, status, violated, message, terms: ModelTerms | None = None) -> Command:
+        """Joint-wise braking within the acceleration and jerk limits (``fallback``)."""
+        self.fallback_count += 1
+        q, dq = usable_state(q, dq, self.memory, self.robot)
+        ddq, dq_cmd, q_cmd = brake(q, dq, self.memory.ddq, self.dt, self._limits)
+        return self._emit(terms, ddq, dq_cmd, q_cmd, status, [], list(violated), "", message)
+
+    def _emit(self, terms, ddq, dq_cmd, q_cmd, status, active, violated, solver, message="") -> Command:
+        """Record the command in the memory and package it with the impact prediction (the
+        matrices of this cycle, already computed for the impact constraints)."""
+        memory = self.memory
+        memory.q_cmd, memory.dq_cmd, memory.ddq = q_cmd, dq_cmd, ddq
+        if self.impact is not None and terms is not None:
+            jump = self.impact.matrices(terms).jump_matrix @ dq_cmd
+            impact_active = self.impact.is_active(terms)
+        else:
+            jump = np.zeros(NQ)
+            impact_active = False
+        return Command(
+            ddq, dq_cmd, q_cmd, status, active, violated, jump, dq_cmd + jump, impact_active, solver, message,
+            self.phase,
+        )
+
+
+@njit(cache=True)
+def weighted_least_squares(A, b, w, H, g):
+    """Kernel: H = A^T diag(w) A and g = -A^T diag(w) b, the QP cost of the stacked task rows."""
+    rows, n = A.shape
+    for i in range(n):
+        g[i] = 0.0
+        for j in range(n):
+            H[i, j] = 0.0
+    for r in range(rows):
+        for i in range(n):
+            wa = w[r] * A[r, i]
+            g[i] -= wa * b[r]
+            for j in range(i, n):
+                H[i, j] += wa * A[r, j]
+    for i in range(n):
+        for j in range(i):
+            H[i, j] = H[j, i]
+
+
+@njit(cache=True)
+def intersect_boxes(box_lower, box_upper, reachable_lower, reachable_upper, lb, ub):
+    """Kernel: lb = max_k box_lower[k] and ub = min_k box_upper[k], each clipped into the
+    reachable interval [reachable_lower, reachable_upper]; False when lb > ub somewhere."""
+    consistent = True
+    for j in range(lb.shape[0]):
+        low, high = -np.inf, np.inf
+        for k in range(box_lower.shape[0]):
+            low = max(low, box_lower[k, j])
+            high = min(high, box_upper[k, j])
+        lb[j] = min(max(low, reachable_lower[j]), reachable_upper[j])
+        ub[j] = min(max(high, reachable_lower[j]), reachable_upper[j])
+        if lb[j] > ub[j]:
+            consistent = False
+    return consistent
+
+
+@njit(cache=True)
+def first_outside(values, limit):
+    """Kernel: the first index with |values_i| > limit_i, -1 when there is none."""
+    for i in range(values.shape[0]):
+        if abs(values[i]) > limit[i]:
+            return i
+    return -1
+
+
+@njit(cache=True)
+def integrate_command(q, dq, ddq, dt, limits, dq_cmd, q_cmd):
+    """Kernel: dq_cmd = clip(dq + ddq dt, +-dq_max), q_cmd = clip(q + (dq + dq_cmd) dt / 2,
+    q_min, q_max) (``limits``: the stacked ``command_limits``); True when dq_cmd had to be
+    clipped."""
+    clipped = False
+    for i in range(q.shape[0]):
+        v = dq[i] + ddq[i] * dt
+        dq_max = limits[DQ_MAX, i]
+        if v > dq_max:
+            v, clipped = dq_max, True
+        elif v < -dq_max:
+            v, clipped = -dq_max, True
+        dq_cmd[i] = v
+        q_cmd[i] = min(max(q[i] + 0.5 * dt * (dq[i] + v), limits[Q_MIN, i]), limits[Q_MAX, i])
+    return clipped
+
+
+@njit(cache=True)
+def tight_constraints(x, box_bounds, lower_gap, upper_gap, row_ends, tol, flags):
+    """Kernel: flags[k] for box k (bounds in rows 2k, 2k+1 of box_bounds) when x is within tol
+    of one of its bounds, then flags of the general constraints (rows ending at row_ends) when
+    one of their rows has a gap <= tol."""
+    boxes = box_bounds.shape[0] // 2
+    n = x.shape[0]
+    for k in range(boxes):
+        hit = False
+        for j in range(n):
+            if abs(box_bounds[2 * k, j] - x[j]) <= tol or abs(box_bounds[2 * k + 1, j] - x[j]) <= tol:
+                hit = True
+                break
+        flags[k] = hit
+    start = 0
+    for c in range(row_ends.shape[0]):
+        hit = False
+        for r in range(start, row_ends[c]):
+            if min(lower_gap[n + r], upper_gap[n + r]) <= tol:
+                hit = True
+                break
+        flags[boxes + c] = hit
+        start = row_ends[c]

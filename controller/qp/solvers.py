@@ -1,0 +1,155 @@
+"""QP solver backends: each ``solve(problem) -> (status, x)`` on a ``QpProblem``.
+
+``daqp`` (the default) is called directly on the preallocated, stacked bounds. ``proxqp`` is
+proxsuite dense, initialised once and then updated and warm-started every cycle. Any other
+name goes through ``qpsolvers.solve_problem(..., solver=name)`` (one-shot, no warm start);
+``"qpsolvers:proxqp"`` forces proxqp through qpsolvers. ``QuadprogSolver`` (Goldfarb-Idnani)
+is the independent second opinion the controller asks when daqp fails (docs/qp-constraints.md,
+Solvers).
+"""
+
+from __future__ import annotations
+
+import daqp
+import numpy as np
+import proxsuite
+import qpsolvers
+import quadprog
+
+from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.validation import BadInputError
+
+from .problem import QpProblem
+
+SOLVED, INFEASIBLE, FAILED = "solved", "infeasible", "failed"
+_PROXQP_INFINITY = 1e20
+
+
+class ProxqpDenseSolver:
+    """proxsuite dense QP, initialised once and then updated and warm-started every cycle."""
+
+    name = "proxqp"
+
+    def __init__(self, rows: int, tolerance: float = 1e-7, max_iterations: int = 200):
+        self.qp = proxsuite.proxqp.dense.QP(NQ, 0, rows, True)
+        settings = self.qp.settings
+        settings.max_iter = max_iterations  # bounded cycle time; a second solver confirms any failure
+        settings.max_iter_in = max_iterations
+        settings.eps_abs = tolerance
+        settings.eps_rel = 0.0
+        # Primal and dual residuals alone accept a warm start whose multipliers sit on bounds
+        # that are no longer active (only the bounds moved): the duality gap catches that.
+        settings.check_duality_gap = True
+        settings.eps_duality_gap_abs = tolerance
+        settings.eps_duality_gap_rel = 0.0
+        settings.verbose = False
+        settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+        self.initialized = False
+        self._l = np.zeros(rows)
+        self._u = np.zeros(rows)
+
+    def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
+        l = np.maximum(problem.l, -_PROXQP_INFINITY, out=self._l)
+        u = np.minimum(problem.u, _PROXQP_INFINITY, out=self._u)
+        if self.initialized:
+            self.qp.update(problem.H, problem.g, None, None, problem.C, l, u, problem.lb, problem.ub)
+        else:
+            self.qp.init(problem.H, problem.g, None, None, problem.C, l, u, problem.lb, problem.ub)
+            self.initialized = True
+        self.qp.solve()
+        status = self.qp.results.info.status
+        if status == proxsuite.proxqp.PROXQP_SOLVED:
+            return SOLVED, self.qp.results.x.copy()
+        self.initialized = False  # start the next cycle from a fresh init
+        if status == proxsuite.proxqp.PROXQP_PRIMAL_INFEASIBLE:
+            return INFEASIBLE, None
+        return FAILED, None
+
+
+class DaqpSolver:
+    """daqp called directly on the stacked bounds [lb; l] <= [x; C x] <= [ub; u]."""
+
+    name = "daqp"
+
+    def __init__(self, rows: int):
+        self._sense = np.zeros(NQ + rows, dtype=np.int32)
+
+    def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
+        sense = self._sense
+        sense.fill(0)  # daqp writes the working set into it
+        x, _, exitflag, _ = daqp.solve(problem.H, problem.g, problem.C, problem.upper, problem.lower, sense)
+        if exitflag >= 1:
+            return SOLVED, x
+        return (INFEASIBLE if exitflag == -1 else FAILED), None
+
+
+class QuadprogSolver:
+    """quadprog (Goldfarb-Idnani dual active set), the independent second opinion for daqp.
+
+    It solves min 1/2 x^T H x - a^T x s.t. A^T x >= b, so every finite bound becomes one
+    inequality. quadprog reports an infeasible problem only by a ValueError whose text says the
+    constraints are inconsistent; any other error is a failure.
+    """
+
+    name = "quadprog"
+
+    def __init__(self, rows: int):
+        del rows  # quadprog takes the problem as it comes
+
+    def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
+        upper, lower = np.isfinite(problem.upper), np.isfinite(problem.lower)
+        identity_and_rows = np.vstack([np.eye(NQ), problem.C])
+        A = np.vstack([-identity_and_rows[upper], identity_and_rows[lower]])
+        b = np.concatenate([-problem.upper[upper], problem.lower[lower]])
+        try:
+            x = quadprog.solve_qp(problem.H, -problem.g, A.T, b, 0)[0]
+        except ValueError as error:
+            return (INFEASIBLE if "inconsistent" in str(error) else FAILED), None
+        return SOLVED, x
+
+
+class QpsolversSolver:
+    """Any backend of ``qpsolvers`` (one-shot: no warm start); l <= C x <= u becomes
+    [C; -C] x <= [u; -l] without the unbounded rows."""
+
+    def __init__(self, backend: str):
+        if backend not in qpsolvers.available_solvers:
+            raise BadInputError(
+                f"QP solver {backend!r} is not available; available: "
+                f"daqp (direct), proxqp (direct, warm-started), "
+                f"{', '.join(qpsolvers.available_solvers)} (through qpsolvers)"
+            )
+        self.backend = backend
+        self.name = f"qpsolvers:{backend}"
+
+    def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
+        G = np.vstack([problem.C, -problem.C])
+        h = np.concatenate([problem.u, -problem.l])
+        finite = np.isfinite(h)
+        solution = qpsolvers.solve_problem(
+            qpsolvers.Problem(problem.H, problem.g, G[finite], h[finite], lb=problem.lb, ub=problem.ub),
+            solver=self.backend,
+        )
+        if solution.found and solution.x is not None and np.all(np.isfinite(solution.x)):
+            return SOLVED, np.asarray(solution.x, dtype=float)
+        return FAILED, None
+
+
+def available_backends() -> list[str]:
+    """Every solver name ``make_solver`` accepts on this machine."""
+    return ["daqp", "proxqp"] + [f"qpsolvers:{name}" for name in qpsolvers.available_solvers]
+
+
+def make_solver(name: str, rows: int):
+    """The QP backend called ``name`` (see the module docstring)."""
+    if name == "proxqp":
+        return ProxqpDenseSolver(rows)
+    if name == "daqp":
+        return DaqpSolver(rows)
+    return QpsolversSolver(name.removeprefix("qpsolvers:"))
+
+
+def verifier_for(name: str, rows: int) -> DaqpSolver | QuadprogSolver:
+    """The independent solver that confirms the failures of the backend ``name``: quadprog
+    behind daqp, daqp behind every other backend."""
+    return QuadprogSolver(rows) if name == "daqp" else DaqpSolver(rows)

@@ -1,0 +1,278 @@
+"""How well the data bound each fitted parameter: 95 % intervals (``parameter_intervals``).
+
+A Gauss-Newton polish of the joint fit, then per parameter the union of a profile-likelihood
+interval (``scan_side``) and a one-step bootstrap over trials (``bootstrap_intervals``); a side
+where the profile reaches the fit's bound inside the 95 % region is open (None), and the causes
+say which trials would settle it (``open_sides``). Method: ``docs/diagnosis.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import t as student_t
+
+from impactqp.sim.plant import PlantParameters
+from impactqp.sim.process_pool import map_in_processes
+
+from .fitting import FittedCauses, cost_of, residual_sizes, residuals
+from .trials import MeasuredTrial, ReplaySetting, replay_all
+
+CHI2_95 = 3.841  # 95 % quantile of chi^2 with 1 degree of freedom
+SCAN_FIRST_STEP = 1.0 / 40.0
+SCAN_BISECTIONS = 2
+JACOBIAN_STEP = 0.01
+POLISH_ITERATIONS = 3
+BOOTSTRAP_SAMPLES = 1000
+BOOTSTRAP_SEED = 0
+
+
+def residual_jacobian(model: FittedCauses, nominal, setting, trials) -> tuple[np.ndarray, np.ndarray]:
+    """The residual vector at the fit and its Jacobian in u, by central differences of
+    ``JACOBIAN_STEP`` of each parameter's range (one-sided at a bound)."""
+    u0 = model.vector()
+    lo, hi = model.bounds()
+
+    def r(u):
+        return residuals(replay_all(setting, model.with_vector(u).plant(nominal), trials), trials)
+
+    r0 = r(u0)
+    J = np.empty((len(r0), len(u0)))
+    for j in range(len(u0)):
+        h = JACOBIAN_STEP * (hi[j] - lo[j])
+        up, down = u0.copy(), u0.copy()
+        up[j], down[j] = min(u0[j] + h, hi[j]), max(u0[j] - h, lo[j])
+        J[:, j] = (r(up) - r(down)) / (up[j] - down[j])
+    return r0, J
+
+
+def gauss_newton_polish(model: FittedCauses, nominal, setting, trials):
+    """Up to ``POLISH_ITERATIONS`` Gauss-Newton steps from the derivative-free fit (each full,
+    else half, kept only when it lowers the cost); returns the model, its residuals and their
+    Jacobian (for the profile directions and the bootstrap)."""
+    lo, hi = model.bounds()
+    r0, J = residual_jacobian(model, nominal, setting, trials)
+    for _ in range(POLISH_ITERATIONS):
+        step = np.linalg.lstsq(J, -r0, rcond=None)[0]
+        for fraction in (1.0, 0.5):
+            u = np.clip(model.vector() + fraction * step, lo, hi)
+            if cost_of(model.with_vector(u).plant(nominal), setting, trials) < float(r0 @ r0):
+                model = model.with_vector(u)
+                r0, J = residual_jacobian(model, nominal, setting, trials)
+                break
+        else:
+            break
+    return model, r0, J
+
+
+def bootstrap_intervals(model: FittedCauses, r: np.ndarray, J: np.ndarray, sizes: list[int]) -> np.ndarray:
+    """95 % intervals in u from a one-step bootstrap over trials: ``BOOTSTRAP_SAMPLES``
+    resamples of the trials (with replacement), each refitted by the Gauss-Newton step from
+    the fit, u_b = u* - pinv(J_b) r_b, with the residual blocks and Jacobian rows of the drawn
+    trials. Returns (parameters, 2): the union of the percentile interval and
+    u* +- t_0.975(n - p) sqrt(n / (n - 1)) sd(u_b), n trials and p parameters: with a dozen
+    trials the bootstrap spread underestimates the sampling spread, and the Student quantile
+    and the n / (n - 1) factor are the small-sample corrections of a trial-clustered standard
+    error."""
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    edges = np.concatenate([[0], np.cumsum(sizes)])
+    blocks = [np.arange(a, b) for a, b in zip(edges[:-1], edges[1:])]
+    lo, hi = model.bounds()
+    u0 = model.vector()
+    samples = np.empty((BOOTSTRAP_SAMPLES, len(u0)))
+    for b in range(BOOTSTRAP_SAMPLES):
+        rows = np.concatenate([blocks[i] for i in rng.integers(0, len(blocks), len(blocks))])
+        samples[b] = np.clip(u0 - np.linalg.lstsq(J[rows], r[rows], rcond=None)[0], lo, hi)
+    n = len(blocks)
+    half = student_t.ppf(0.975, max(n - len(u0), 1)) * np.sqrt(n / max(n - 1, 1)) * samples.std(axis=0)
+    low, high = np.percentile(samples, [2.5, 97.5], axis=0)
+    return np.stack([np.maximum(np.minimum(low, u0 - half), lo), np.minimum(np.maximum(high, u0 + half), hi)], axis=1)
+
+
+def profile_direction(J: np.ndarray, index: int) -> np.ndarray:
+    """Direction in u along which parameter ``index`` moves by 1 while the others follow the
+    linearised profile: d_o = -pinv(J_o) J_i, the least-squares re-fit of the others."""
+    others = [j for j in range(J.shape[1]) if j != index]
+    d = np.zeros(J.shape[1])
+    d[index] = 1.0
+    if others:
+        d[others] = -np.linalg.lstsq(J[:, others], J[:, index], rcond=None)[0]
+    return d
+
+
+@dataclass(frozen=True)
+class ProfileRegion:
+    """The polished fit and its 95 % region, shared by the profile scans: the fitted ``model``
+    on top of ``nominal``, its cost ``cost0`` over ``trials``, and the rise of the cost above
+    ``cost0`` (``threshold``) that leaves the region."""
+
+    model: FittedCauses
+    nominal: PlantParameters
+    setting: ReplaySetting
+    trials: tuple[MeasuredTrial, ...]
+    cost0: float
+    threshold: float
+
+
+@dataclass(frozen=True)
+class ScanTask:
+    """One side (``sign``) of the profile scan of entry ``index`` of the fitted vector along
+    ``direction`` (``profile_direction``): one process task."""
+
+    region: ProfileRegion
+    index: int
+    sign: float
+    direction: np.ndarray
+
+
+def scan_side(task: ScanTask) -> float | None:
+    """Where the cost leaves the 95 % region along one parameter's profile path, on one side
+    (one process task).
+
+    From the fitted u, the parameter moves in steps that double (``SCAN_FIRST_STEP`` of its
+    range first) along ``direction`` (the others follow their linearised profile, clipped to
+    their bounds) until the cost exceeds ``threshold`` above the fitted cost; the crossing is
+    refined by ``SCAN_BISECTIONS`` bisections and a linear interpolation. Returns the theta of
+    the crossing, or None when the parameter reaches its bound inside the region (open side)."""
+    region, index, sign = task.region, task.index, task.sign
+    model, trials = region.model, list(region.trials)
+    u0 = model.vector()
+    lo, hi = model.bounds()
+    limit = hi[index] if sign > 0 else lo[index]
+
+    def excess(x):
+        u = np.clip(u0 + (x - u0[index]) * task.direction, lo, hi)
+        return cost_of(model.with_vector(u).plant(region.nominal), region.setting, trials) - region.cost0
+
+    inside, inside_excess = u0[index], 0.0
+    step = SCAN_FIRST_STEP * (hi[index] - lo[index])
+    while True:
+        x = u0[index] + sign * step
+        x = min(x, limit) if sign > 0 else max(x, limit)
+        value = excess(x)
+        if value >= region.threshold:
+            outside, outside_excess = x, value
+            break
+        if x == limit:
+            return None
+        inside, inside_excess = x, max(value, 0.0)
+        step *= 2.0
+    for _ in range(SCAN_BISECTIONS):
+        middle = 0.5 * (inside + outside)
+        value = excess(middle)
+        if value >= region.threshold:
+            outside, outside_excess = middle, value
+        else:
+            inside, inside_excess = middle, max(value, 0.0)
+    fraction = (region.threshold - inside_excess) / max(outside_excess - inside_excess, 1e-12)
+    x = inside + fraction * (outside - inside)
+    cause_index, local = parameter_owner(model, index)
+    u = model.u[cause_index].copy()
+    u[local] = x
+    return float(model.causes[cause_index].to_theta(u)[local])
+
+
+def parameter_owner(model: FittedCauses, index: int) -> tuple[int, int]:
+    """(cause index, parameter index within the cause) of entry ``index`` of the vector."""
+    for k, u in enumerate(model.u):
+        if index < len(u):
+            return k, index
+        index -= len(u)
+    raise IndexError(index)
+
+
+def parameter_intervals(model: FittedCauses, nominal, setting, trials, jobs: int) -> tuple[FittedCauses, list[list]]:
+    """The fit polished by Gauss-Newton, and 95 % intervals of every fitted parameter theta
+    (per cause, per parameter, [low, high], None for an open side).
+
+    Each interval is the union of two: the profile-likelihood interval (``scan_side``: with
+    Gaussian residuals of unknown common scale s, the region cost - cost_min <= CHI2_95 s^2,
+    s^2 = cost_min / (residuals - parameters)) and the percentile interval of a one-step
+    bootstrap over trials (``bootstrap_intervals``), which also carries the trial-to-trial
+    errors that the residual scale misses (e.g. of the replay's start state). A side is open
+    when the profile scan reaches the bound of the fit still inside the region: the data do
+    not bound the parameter there (``docs/diagnosis.md``)."""
+    if not model.causes:
+        return model, []
+    model, r, J = gauss_newton_polish(model, nominal, setting, trials)
+    cost0 = float(r @ r)
+    threshold = CHI2_95 * cost0 / max(len(r) - len(model.vector()), 1)
+    region = ProfileRegion(model, nominal, setting, tuple(trials), cost0, threshold)
+    tasks = [
+        ScanTask(region, i, sign, profile_direction(J, i))
+        for i in range(len(model.vector()))
+        for sign in (-1.0, 1.0)
+    ]
+    ends = map_in_processes(scan_side, tasks, jobs)
+    boot = bootstrap_intervals(model, r, J, residual_sizes(trials))
+    out, k = [], 0
+    for cause, u in zip(model.causes, model.u):
+        intervals = []
+        for j in range(len(u)):
+            low, high = ends[k + 2 * j], ends[k + 2 * j + 1]
+            at = u.copy()
+            at[j] = boot[k // 2 + j, 0]
+            boot_low = float(cause.to_theta(at)[j])
+            at[j] = boot[k // 2 + j, 1]
+            boot_high = float(cause.to_theta(at)[j])
+            intervals.append([
+                None if low is None else min(low, boot_low),
+                None if high is None else max(high, boot_high),
+            ])
+        out.append(intervals)
+        k += 2 * len(u)
+    return model, out
+
+
+def override_intervals(model: FittedCauses, theta_intervals: list[list]) -> dict:
+    """Intervals of the plant override keys: for each key, [low, high] (a list of them for a
+    vector); each entry takes the interval of the fitted parameter that moves it (an entry no
+    parameter moves gets [value, value]); None for an open side."""
+    result: dict = {}
+    for cause, u, intervals in zip(model.causes, model.u, theta_intervals):
+        theta = cause.to_theta(u)
+        base = cause.overrides(theta)
+        entries = {k: [[v, v] for v in np.atleast_1d(value).tolist()] for k, value in base.items()}
+        for j, (low, high) in enumerate(intervals):
+            moved = theta.copy()
+            moved[j] = theta[j] + max(1e-3 * abs(theta[j]), 1e-6)
+            changed = cause.overrides(moved)
+            for key, value in changed.items():
+                for e, (old, new) in enumerate(zip(np.atleast_1d(base[key]), np.atleast_1d(value))):
+                    if old != new:
+                        ends = []
+                        for end in (low, high):
+                            if end is None:
+                                ends.append(None)
+                            else:
+                                at = theta.copy()
+                                at[j] = end
+                                ends.append(float(np.atleast_1d(cause.overrides(at)[key])[e]))
+                        entries[key][e] = ends
+        for key, value in base.items():
+            result[key] = entries[key] if isinstance(value, list) else entries[key][0]
+    return result
+
+
+def open_sides(model: FittedCauses, theta_intervals: list[list], trials: list[MeasuredTrial]) -> list[dict]:
+    """Every parameter the data leave open on a side, with the trials that would settle it
+    (in terms of the normal speeds of ``trials``)."""
+    normal_speeds = np.array([t.reference_speed for t in trials])
+    found = []
+    for cause, u, intervals in zip(model.causes, model.u, theta_intervals):
+        for j, (low, high) in enumerate(intervals):
+            for side, end, other in (("below", low, high), ("above", high, low)):
+                # what the data do tell: the closed end of the interval, else the fitted value
+                known = float(cause.to_theta(u)[j]) if other is None else float(other)
+                if end is None:
+                    found.append(
+                        {
+                            "cause": cause.name,
+                            "parameter": cause.labels[j],
+                            "side": side,
+                            "fitted": float(cause.to_theta(u)[j]),
+                            "trials_needed": cause.settling_trials(j, side, known, normal_speeds),
+                        }
+                    )
+    return found

@@ -1,0 +1,81 @@
+"""The diagnosis's entry (``diagnose``): measure, replay, compare, select the causes, bound their
+parameters (the steps: ``sim/diagnosis/__init__.py``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from impactqp.controller.model.validation import BadInputError
+from impactqp.sim.causes import Cause, default_causes
+from impactqp.sim.plant import PlantParameters
+
+from .comparison import error_analysis, predictor_errors
+from .fitting import jump_errors
+from .intervals import open_sides, override_intervals, parameter_intervals
+from .result import Diagnosis
+from .selection import select_causes
+from .trials import load_trials, locate_jump_samples, replay_all
+
+
+def diagnose(
+    directory: str | Path,
+    *,
+    nominal: PlantParameters | None = None,
+    causes: list[Cause] | None = None,
+    jobs: int = 1,
+) -> Diagnosis:
+    """Measure, replay, compare, select the causes, bound their parameters (the steps:
+    ``sim/diagnosis/__init__.py``)."""
+    nominal = nominal or PlantParameters()
+    trials, skipped, setting = load_trials(directory)
+    if len(trials) < 2:
+        raise BadInputError(
+            f"{directory}: only {len(trials)} usable trial(s); the diagnosis needs at least 2 "
+            f"(skipped: {skipped})"
+        )
+    causes = causes if causes is not None else default_causes(setting.surface.friction, setting.choice.tool)
+    names = [c.name for c in causes]
+    if len(set(names)) != len(names):
+        raise ValueError(f"candidate causes must have distinct names, got {names}")
+    trials = locate_jump_samples(trials, setting, nominal)
+    nominal_features = replay_all(setting, nominal, trials)
+    nominal_jumps = np.array([f.detected_jump for f in nominal_features])
+    baseline_errors = jump_errors(nominal_features, trials)
+    selection = select_causes(causes, nominal, setting, trials, baseline_errors, jobs)
+    explained = bool(selection.model.causes)
+    model = selection.model if explained else selection.best
+    model, theta_intervals = parameter_intervals(model, nominal, setting, trials, jobs)
+    extended_plant = model.plant(nominal)
+    extended_jumps = np.array([f.detected_jump for f in replay_all(setting, extended_plant, trials)])
+    predictors, predictors_measured_impulse, predictions = predictor_errors(trials, setting)
+    per_parameter = [
+        {"cause": c.name, "parameter": label, "value": float(value), "interval": interval}
+        for c, u, intervals in zip(model.causes, model.u, theta_intervals)
+        for label, value, interval in zip(c.labels, c.to_theta(u), intervals)
+    ]
+    return Diagnosis(
+        trials=trials,
+        skipped=skipped,
+        nominal_jumps=nominal_jumps,
+        extended_jumps=extended_jumps,
+        baseline_errors=baseline_errors,
+        candidates=selection.candidates,
+        cause=model.causes[0].name,
+        explained=explained,
+        parameters=model.overrides(),
+        predictors=predictors,
+        predictors_measured_impulse=predictors_measured_impulse,
+        predictions=predictions,
+        analysis=error_analysis(trials, nominal_jumps),
+        causes=[c.name for c in selection.model.causes],
+        steps=selection.steps,
+        intervals=override_intervals(model, theta_intervals),
+        parameter_intervals=per_parameter,
+        open_sides=open_sides(model, theta_intervals, trials),
+        extended_error=float(np.mean(selection.heldout_errors)),
+        extended_plant=extended_plant,
+        surface=setting.surface,
+        choice=setting.choice,
+    )

@@ -1,0 +1,229 @@
+"""The diagnosis's trials: load the valid ones of a dataset, replay them in the simulation.
+
+1. **Measure** (``load_trials``). Every trial of the dataset is checked
+   (``controller.measured.dataset.validate``); bad trials are skipped with their reasons. The
+   impact is detected and the jump extracted with the same function as for simulated data
+   (``controller.measured.impact.measure_impact``); the impulse is integrated where a force log
+   exists.
+2. **Replay** (``replay``). Each trial is replayed in the simulation from the logged state
+   ``REPLAY_LEAD`` control steps before the impact (q, and dq averaged over 5 samples against
+   encoder noise), on the dataset's surface, with the logged ``dq_cmd`` driving the joint servo,
+   until ``REPLAY_TAIL`` steps after the detection. The servo's reference at that sample is
+   rebuilt from the log start and the commands before it (``servo_reference_from_commands``), so
+   a plant that lags behind its commands (joint damping) lags in the replay as it did. The
+   replayed impact is measured with the same function. Jumps are compared at fixed samples per
+   trial (``locate_jump_samples``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from impactqp.controller.measured.dataset import read_dataset, validate
+from impactqp.controller.measured.impact import (
+    POST_HALF_WIDTH,
+    PRE_SAMPLES,
+    ImpactNotFoundError,
+    measure_impact,
+)
+from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot import NQ
+
+from impactqp.sim.plant import PlantParameters
+from impactqp.sim.runner import CommandReplay, SimulationUnstableError, run_trial, servo_reference_from_commands
+from impactqp.sim.scene import Scene, build_scene
+
+REPLAY_LEAD = 40
+REPLAY_TAIL = 30
+START_AVERAGE = 2  # dq at the replay start: mean of samples i0 - 2 .. i0 + 2 (within the log)
+TORQUE_SETTLE = 10  # samples after the replay start before the torque window may begin
+TORQUE_WINDOW = 30  # mean tau over the 30 samples ending 2 samples before the pre-impact one
+
+
+@dataclass
+class MeasuredTrial:
+    """What the diagnosis needs of one valid trial."""
+
+    id: str
+    posture: str | None
+    reference_speed: float
+    tangential_speed: float
+    q0: np.ndarray
+    dq0: np.ndarray
+    servo_reference: tuple[np.ndarray, np.ndarray]
+    dq_cmd: np.ndarray
+    control_period: float
+    jump: np.ndarray
+    impulse: np.ndarray | None
+    duration: float | None
+    torque: np.ndarray
+    q_pre: np.ndarray
+    dq_pre: np.ndarray
+    torque_window: tuple[int, int]  # samples of the replay whose torque is averaged
+    dq_log: np.ndarray  # the measured dq over the replay's span (replay sample k is dq_log[k])
+    jump_samples: tuple[int, int]  # replay samples (pre, post) where the fit reads the jumps
+
+    @property
+    def reference(self) -> np.ndarray:
+        """The measured jump read at ``jump_samples`` (``jump_at``): what the fit compares."""
+        return jump_at(self.dq_log, *self.jump_samples)
+
+
+def jump_at(dq: np.ndarray, pre: int, post: int) -> np.ndarray:
+    """The jump of the velocities ``dq`` read at the samples (pre, post) with the averages of
+    ``controller.measured.impact``: the mean of 2 h + 1 samples about ``post`` minus the mean of
+    the ``PRE_SAMPLES`` ending at ``pre``."""
+    dq_pre = dq[pre - PRE_SAMPLES + 1 : pre + 1].mean(axis=0)
+    return dq[post - POST_HALF_WIDTH : post + POST_HALF_WIDTH + 1].mean(axis=0) - dq_pre
+
+
+@dataclass(frozen=True)
+class ReplayFeatures:
+    """What a replay gives: its jump read at the trial's ``jump_samples`` (compared with the
+    trial's ``reference``), its impulse, contact duration and pre-impact torque, and its jump
+    as ``controller.measured.impact`` detects and reads it (for the report)."""
+
+    jump: np.ndarray
+    impulse: np.ndarray | None
+    duration: float | None
+    torque: np.ndarray
+    detected_jump: np.ndarray
+
+
+@dataclass(frozen=True)
+class ReplaySetting:
+    """What the trials were taken on and with: the surface hit, and the robot and the tool that
+    hit it (the dataset manifest's ``robot`` and ``tool``). Every replay simulates them and every
+    prediction uses their model."""
+
+    surface: Surface
+    choice: RobotChoice = DEFAULT_CHOICE
+
+    def scene(self, plant: PlantParameters) -> Scene:
+        """The MuJoCo scene of the setting with the plant ``plant``."""
+        return build_scene(self.surface, plant, robot=self.choice.robot, tool=self.choice.tool)
+
+
+def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict], ReplaySetting]:
+    """Valid trials ready for replay, the skipped ones with their reasons, and the setting of
+    the manifest (its surface, robot and tool: any declared tool)."""
+    directory = Path(directory)
+    problems = validate(directory)
+    bad = {k for k, v in problems.items() if k != "dataset" and v}
+    dataset = read_dataset(directory, skip=bad, strict=False)
+    skipped = [{"id": k, "reason": "; ".join(problems[k])} for k in sorted(bad)]
+    skipped += [{"id": "dataset", "reason": p} for p in problems["dataset"]]
+    trials = []
+    period = dataset.header.control_period
+    for trial in dataset.trials:
+        log, entry = trial.log, trial.entry
+        try:
+            impact = measure_impact(log)
+        except ImpactNotFoundError as error:
+            skipped.append({"id": entry.id, "reason": f"no impact found: {error}"})
+            continue
+        i0 = max(impact.pre_index - REPLAY_LEAD, 0)
+        i1 = impact.detect_index + REPLAY_TAIL
+        last = impact.pre_index - 2
+        first = max(i0 + TORQUE_SETTLE, last - TORQUE_WINDOW)
+        if last - first < 3 or i1 > len(log):
+            skipped.append({"id": entry.id, "reason": "too short around the impact for a replay"})
+            continue
+        if i1 < len(log):
+            # impulse and contact duration over the span that the replay covers
+            impact = measure_impact(log.truncated(log.t[i1]))
+        tangential = entry.reference_tangential_velocity
+        trials.append(
+            MeasuredTrial(
+                id=entry.id,
+                posture=entry.posture,
+                reference_speed=entry.reference_normal_speed,
+                tangential_speed=float(np.linalg.norm(tangential)) if tangential is not None else 0.0,
+                q0=log.q[i0].copy(),
+                dq0=log.dq[max(i0 - START_AVERAGE, 0) : i0 + START_AVERAGE + 1].mean(axis=0),
+                servo_reference=servo_reference_from_commands(
+                    log.q[0], log.dq[: START_AVERAGE + 1].mean(axis=0), log.dq_cmd[:i0], period
+                ),
+                dq_cmd=log.dq_cmd[i0:i1].copy(),
+                control_period=period,
+                jump=impact.dq_jump,
+                impulse=impact.impulse,
+                duration=impact.duration,
+                torque=log.tau[first:last].mean(axis=0),
+                q_pre=impact.q_pre,
+                dq_pre=impact.dq_pre,
+                torque_window=(first - i0, last - i0),
+                dq_log=log.dq[i0:i1].copy(),
+                jump_samples=(impact.pre_index - i0, impact.post_index - i0),
+            )
+        )
+    return trials, skipped, ReplaySetting(dataset.header.surface, dataset.header.choice)
+
+
+def replay_log(scene, trial: MeasuredTrial):
+    """The simulated log of ``trial`` replayed in ``scene``: from its start state, the servo
+    reference rebuilt from its commands, driven by its logged commands."""
+    return run_trial(
+        scene,
+        CommandReplay(trial.dq_cmd),
+        trial.q0,
+        trial.dq0,
+        len(trial.dq_cmd) * trial.control_period,
+        control_period=trial.control_period,
+        servo_reference=trial.servo_reference,
+    )
+
+
+def replay(scene, trial: MeasuredTrial) -> ReplayFeatures:
+    """Replay one trial in ``scene`` and measure it like the real one: its jump at the trial's
+    ``jump_samples``, its impulse and duration from its contact force.
+
+    A replay that MuJoCo flags as unstable (bad accelerations, e.g. a servo gain beyond what the
+    1 kHz loop can hold) is marked failed: its jump and impulse are zero, so the fit's residuals
+    push away from it; so are the impulse and the detected jump of a replay without an impact.
+    """
+    try:
+        log = replay_log(scene, trial)
+    except SimulationUnstableError:
+        return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, np.zeros(NQ), np.zeros(NQ))
+    first, last = trial.torque_window
+    torque = log.tau[first:last].mean(axis=0)
+    jump = jump_at(log.dq, *trial.jump_samples)
+    try:
+        impact = measure_impact(log)
+    except ImpactNotFoundError:
+        return ReplayFeatures(jump, np.zeros(3), 0.0, torque, np.zeros(NQ))
+    return ReplayFeatures(jump, impact.impulse, impact.duration, torque, impact.dq_jump)
+
+
+def locate_jump_samples(trials: list[MeasuredTrial], setting: ReplaySetting, plant: PlantParameters) -> list[MeasuredTrial]:
+    """The trials with the post-impact sample of their ``jump_samples`` taken from their replay
+    in ``plant`` (the nominal one) instead of the measured velocities.
+
+    ``controller.measured.impact`` reads the jump at the sample of largest change, which encoder
+    noise biases towards larger jumps when the velocities are noisy (a positive noise sample is
+    likelier to be the largest). The replay is noise-free, so its sample is chosen without the
+    measured noise, the measured jump read there is unbiased, and the fit reads every replay at
+    the same fixed samples: no cause can move the sample the data are read at, and the read
+    jump is smooth in the parameters (``docs/diagnosis.md``). A trial whose replay finds no
+    impact keeps its measured samples."""
+    scene = setting.scene(plant)
+    located = []
+    for trial in trials:
+        try:
+            post = measure_impact(replay_log(scene, trial)).post_index
+        except (SimulationUnstableError, ImpactNotFoundError):
+            located.append(trial)
+            continue
+        pre = trial.jump_samples[0]
+        located.append(replace(trial, jump_samples=(pre, max(post, pre + 1))))
+    return located
+
+
+def replay_all(setting: ReplaySetting, plant: PlantParameters, trials: list[MeasuredTrial]) -> list[ReplayFeatures]:
+    scene = setting.scene(plant)
+    return [replay(scene, trial) for trial in trials]

@@ -1,0 +1,137 @@
+"""The MuJoCo scene of the standing G1: the same example-robot-data URDF as Pinocchio, a floor and
+a wall in front of the right hand (docs/floating-base.md).
+
+The URDF is edited for MuJoCo's importer as the Panda's (``sim.scene``): visuals and
+``package://`` prefixes go, inertias are taken exactly from the URDF. Added in code
+(``mujoco.MjSpec``): a free joint on the pelvis (the floating base), a floor plane at z = 0, a
+wall plane at x = ``wall_x`` facing the robot (normal -x), a hand sphere of radius
+:data:`HAND_RADIUS` on the forearm axis whose far pole is the model's contact point, and explicit
+contact pairs: each foot's four sole spheres (from the URDF) with the floor, the hand sphere with
+the wall. Every other geom has contype = conaffinity = 0.
+
+MuJoCo's free joint differs from Pinocchio's free-flyer in two conventions, converted by
+:func:`to_pinocchio`: the quaternion is (w, x, y, z) instead of (x, y, z, w), and the base's
+linear velocity is in world axes instead of the base frame (the angular one is in the base frame
+in both).
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from impactqp.controller.model.floating_base import CONTACT_OFFSET, FOOT_FRAMES, HAND_FRAME, FloatingBaseModel
+
+TIMESTEP = 0.5e-3
+HAND_RADIUS = 0.02
+HAND_GEOM = "hand_tool"
+WALL_GEOM = "wall"
+FLOOR_GEOM = "floor"
+BASE_BODY = "pelvis"
+FOOT_FRICTION = 1.0
+WALL_FRICTION = 0.1123  # the paper's mu
+CONTACT_SOLREF = (0.005, 1.0)
+CONTACT_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
+
+
+def mujoco_urdf(robot: FloatingBaseModel) -> str:
+    """The G1 URDF edited for MuJoCo's importer, as a string."""
+    root = ET.parse(robot.urdf_path).getroot()
+    for link in root.findall("link"):
+        for visual in link.findall("visual"):
+            link.remove(visual)
+    for mesh in root.iter("mesh"):
+        mesh.set("filename", mesh.get("filename").rsplit("/", 1)[-1])
+    extension = ET.SubElement(root, "mujoco")
+    ET.SubElement(
+        extension, "compiler", meshdir=str(robot.urdf_path.parent.parent / "meshes"), discardvisual="true",
+        fusestatic="false", balanceinertia="false", inertiafromgeom="false", strippath="true",
+    )
+    return ET.tostring(root, encoding="unicode")
+
+
+@dataclass
+class HumanoidScene:
+    """A compiled scene, its data and the ids the trials need."""
+
+    model: mujoco.MjModel
+    data: mujoco.MjData
+    wall_x: float
+    hand_geom: int
+    wall_geom: int
+    floor_geom: int
+    foot_bodies: tuple[int, int]
+
+    def set_state(self, q_pin: np.ndarray) -> None:
+        """Reset to the Pinocchio configuration q_pin at rest."""
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[:] = from_pinocchio(q_pin)
+        mujoco.mj_forward(self.model, self.data)
+
+
+def from_pinocchio(q: np.ndarray) -> np.ndarray:
+    """MuJoCo qpos from Pinocchio q: quaternion (x, y, z, w) -> (w, x, y, z)."""
+    return np.concatenate([q[:3], [q[6]], q[3:6], q[7:]])
+
+
+def to_pinocchio(qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pinocchio (q, v) from MuJoCo (qpos, qvel): quaternion reordered, the base's linear
+    velocity turned from world axes into the base frame."""
+    w, x, y, z = qpos[3:7]
+    q = np.concatenate([qpos[:3], [x, y, z, w], qpos[7:]])
+    R = np.empty(9)
+    mujoco.mju_quat2Mat(R, qpos[3:7])
+    v = qvel.copy()
+    v[:3] = R.reshape(3, 3).T @ qvel[:3]
+    return q, v
+
+
+def build_humanoid_scene(
+    robot: FloatingBaseModel, wall_x: float, *, timestep: float = TIMESTEP, armature: float = 0.0
+) -> HumanoidScene:
+    """Compile the scene with the wall plane at x = ``wall_x`` (normal -x, towards the robot);
+    ``armature`` (kg m^2) is a reflected rotor inertia added to every one of the 29 joints."""
+    spec = mujoco.MjSpec.from_string(mujoco_urdf(robot))
+    spec.option.timestep = timestep
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.body(BASE_BODY).add_freejoint(name="floating_base")
+    soles = {name: [g for g in spec.body(name).geoms if g.type == mujoco.mjtGeom.mjGEOM_SPHERE] for name in FOOT_FRAMES}
+    for geom in spec.geoms:
+        geom.contype = 0
+        geom.conaffinity = 0
+    common = dict(condim=3, solref=list(CONTACT_SOLREF), solimp=list(CONTACT_SOLIMP), contype=0, conaffinity=0)
+    spec.worldbody.add_geom(name=FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[2.0, 2.0, 0.01],
+                            friction=[FOOT_FRICTION, 0.0, 0.0], **common)
+    wall_quat = np.zeros(4)
+    mujoco.mju_quatZ2Vec(wall_quat, np.array([-1.0, 0.0, 0.0]))
+    spec.worldbody.add_geom(name=WALL_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1.0, 1.0, 0.01],
+                            pos=[wall_x, 0.0, 1.0], quat=list(wall_quat), rgba=[0.6, 0.6, 0.7, 0.5],
+                            friction=[WALL_FRICTION, 0.0, 0.0], **common)
+    spec.body(HAND_FRAME).add_geom(name=HAND_GEOM, type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[HAND_RADIUS, 0, 0],
+                                   pos=[CONTACT_OFFSET - HAND_RADIUS, 0.0, 0.0], mass=0.0,
+                                   friction=[WALL_FRICTION, 0.0, 0.0], **common)
+    pair = dict(condim=3, solref=list(CONTACT_SOLREF), solimp=list(CONTACT_SOLIMP))
+    spec.add_pair(geomname1=HAND_GEOM, geomname2=WALL_GEOM, friction=[WALL_FRICTION, WALL_FRICTION, 0, 0, 0], **pair)
+    for name, geoms in soles.items():
+        for i, geom in enumerate(geoms):
+            geom.name = geom.name or f"{name}_sole{i}"
+            spec.add_pair(geomname1=geom.name, geomname2=FLOOR_GEOM,
+                          friction=[FOOT_FRICTION, FOOT_FRICTION, 0, 0, 0], **pair)
+    for joint in spec.joints:
+        if joint.type == mujoco.mjtJoint.mjJNT_HINGE:
+            joint.armature = armature
+    model = spec.compile()
+    names = [model.joint(i).name for i in range(1, model.njnt)]
+    if names != robot.joint_names:
+        raise RuntimeError("the MuJoCo G1 must have the Pinocchio model's joints, in order")
+    return HumanoidScene(
+        model=model, data=mujoco.MjData(model), wall_x=wall_x,
+        hand_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, HAND_GEOM),
+        wall_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, WALL_GEOM),
+        floor_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR_GEOM),
+        foot_bodies=tuple(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f) for f in FOOT_FRAMES),
+    )

@@ -1,0 +1,85 @@
+"""The one process-pool helper of the parallel commands: tasks run on worker processes, results
+come back in the order of the tasks.
+
+``ProcessPool(jobs, initializer, initargs)`` is a context manager whose ``map`` may be called
+several times on the same workers; ``initializer(*initargs)`` runs once per worker (e.g. to
+build a per-worker scene and controller) and, with ``jobs == 1``, once in this process, where
+every task then runs: one code path for serial and parallel runs. ``map_in_processes`` is the
+one-shot form for a list of tasks.
+
+Interruption: the workers ignore SIGINT, so a Ctrl-C in a terminal (sent to the whole process
+group) reaches this process alone. When an exception (``KeyboardInterrupt`` included) leaves the
+``with`` block, the pending tasks are cancelled and the workers stopped at once instead of being
+waited for; the exception then goes on.
+"""
+
+from __future__ import annotations
+
+import signal
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+
+def _start_worker(initializer: Callable[..., None] | None, initargs: tuple) -> None:
+    """Every worker: leave SIGINT to the parent, which stops the workers itself, and drop the
+    command line's SIGTERM and SIGHUP handlers (inherited by a forked worker), then run the
+    caller's initializer."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    if initializer is not None:
+        initializer(*initargs)
+
+
+class ProcessPool:
+    """``jobs`` worker processes (``jobs == 1``: this process) running tasks in order."""
+
+    def __init__(self, jobs: int, initializer: Callable[..., None] | None = None, initargs: tuple = ()):
+        if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+            raise ValueError(f"a process pool needs a whole number of jobs >= 1, got {jobs!r}")
+        self.jobs = jobs
+        self.initializer = initializer
+        self.initargs = tuple(initargs)
+        self._executor: ProcessPoolExecutor | None = None
+        self._open = False
+
+    def __enter__(self) -> ProcessPool:
+        if self.jobs > 1:
+            self._executor = ProcessPoolExecutor(
+                self.jobs, initializer=_start_worker, initargs=(self.initializer, self.initargs)
+            )
+        elif self.initializer is not None:
+            self.initializer(*self.initargs)
+        self._open = True
+        return self
+
+    def __exit__(self, exc_type, exc, traceback) -> None:
+        self._open = False
+        executor, self._executor = self._executor, None
+        if executor is None:
+            return
+        if exc_type is not None:
+            # stop the running tasks instead of waiting for them; ProcessPoolExecutor has no
+            # public way to do so before Python 3.14
+            for worker in list((executor._processes or {}).values()):
+                worker.kill()
+        executor.shutdown(wait=True, cancel_futures=True)
+
+    def map(self, function: Callable[[Any], Any], tasks: Iterable) -> Iterator:
+        """``function(task)`` for every task, lazily, in the order of ``tasks``. ``function`` must
+        be a module-level function (it is pickled to the workers); a task's exception is raised
+        here when its result is reached."""
+        if not self._open:
+            raise RuntimeError("use ProcessPool as a context manager")
+        if self._executor is not None:
+            return self._executor.map(function, tasks)
+        return map(function, tasks)
+
+
+def map_in_processes(function: Callable[[Any], Any], tasks: Iterable, jobs: int) -> list:
+    """``[function(task) for task in tasks]`` on at most ``jobs`` worker processes (no more
+    than there are tasks; a single task or ``jobs == 1`` runs in this process)."""
+    tasks = list(tasks)
+    with ProcessPool(min(jobs, max(len(tasks), 1))) as pool:
+        return list(pool.map(function, tasks))

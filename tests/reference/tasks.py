@@ -1,0 +1,29 @@
+"""Plain-numpy statements of the compiled task kernels (``tasks``): the rows each class's
+``compute_into`` must write."""
+
+import numpy as np
+
+from impactqp.tasks import ContactApproachTask, DampingTask, PostureTask
+from impactqp.tasks.task import rotation_error
+
+
+def reference_rows(task, terms, A, b) -> None:
+    """The rows A, b of ``task`` at ``terms`` in plain numpy (``compute_into`` itself for a class
+    without a kernel)."""
+    if isinstance(task, ContactApproachTask):
+        # b = [k_v (v* - v); k_R log(R* R^T) - d_R w] - dJ6 dq, its linear part in the surface frame
+        np.multiply(task._twist_gain, terms.J6 @ terms.dq, out=b)
+        b[:3] += task._reference_acceleration
+        b[3:] += task.orientation_stiffness * rotation_error(task.target_rotation, terms.contact_rotation)
+        b -= terms.dJ6_dq
+        b[:3] = task.basis @ b[:3]
+        np.matmul(task.basis, terms.J6[:3], out=A[:3])
+        A[3:] = terms.J6[3:]
+    elif isinstance(task, PostureTask):
+        A[:] = np.eye(A.shape[1])
+        np.subtract(task.stiffness * (task.target - terms.q), task.damping * terms.dq, out=b)
+    elif isinstance(task, DampingTask):
+        A[:] = np.eye(A.shape[1])
+        np.multiply(-task.gain, terms.dq, out=b)
+    else:
+        task.compute_into(terms, A, b)

@@ -1,0 +1,103 @@
+"""Zero-step capture region and post-impact CoM velocity (controller/model/capture.py)."""
+
+import math
+
+import numpy as np
+import pytest
+from conftest import unit_vectors
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from impactqp.controller.model.capture import (
+    GRAVITY,
+    capture_region,
+    com_jump_map,
+    max_capturable_speed,
+    post_impact_com_velocity,
+)
+from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, predict
+from impactqp.controller.model.humanoid_stance import STANCES, inside_polygon, stance_posture, support_polygon
+from impactqp.controller.model.validation import BadInputError
+
+SQUARE = np.array([[-0.1, -0.1], [0.1, -0.1], [0.1, 0.1], [-0.1, 0.1]])
+WALL = np.array([-1.0, 0.0, 0.0])
+
+
+@pytest.fixture(scope="module")
+def standing():
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES["parallel"])
+    return robot, q, robot.terms(q)
+
+
+@settings(max_examples=60, deadline=None)
+@given(v=st.lists(st.floats(-2.0, 2.0), min_size=2, max_size=2), cx=st.floats(-0.09, 0.09),
+       height=st.floats(0.3, 1.2))
+def test_region_holds_exactly_the_velocities_whose_capture_point_is_in_the_polygon(v, cx, height):
+    com = np.array([cx, 0.02, height])
+    region = capture_region(SQUARE, com)
+    assert region.omega == pytest.approx(math.sqrt(GRAVITY / height))
+    xi = com[:2] + np.array(v) / region.omega
+    margin = inside_polygon(xi, SQUARE)
+    if abs(margin) > 1e-9:
+        assert region.contains(v) == (margin > 0.0)
+    # the margins are the capture point's distances to the edges (m)
+    assert region.margins(v).min() == pytest.approx(margin, abs=1e-9)
+
+
+def test_a_vertex_capture_point_is_on_the_boundary():
+    com = np.array([0.0, 0.0, 0.8])
+    region = capture_region(SQUARE, com)
+    v = region.omega * (SQUARE[2] - com[:2])
+    assert region.margins(v).min() == pytest.approx(0.0, abs=1e-12)
+
+
+def test_bad_regions_are_refused():
+    with pytest.raises(BadInputError):
+        capture_region(SQUARE[:2], np.array([0.0, 0.0, 0.8]))
+    with pytest.raises(BadInputError):
+        capture_region(SQUARE, np.array([0.0, 0.0, -0.1]))
+
+
+@settings(max_examples=20, deadline=None)
+@given(impulse=st.lists(st.floats(-5.0, 5.0), min_size=3, max_size=3))
+def test_com_jump_is_the_momentum_of_hand_and_feet_impulses(standing, impulse):
+    _, _, terms = standing
+    impulse = np.array(impulse)
+    feet = terms.feet_impulse(impulse)
+    np.testing.assert_allclose(terms.mass * com_jump_map(terms) @ impulse, impulse + feet[:3] + feet[6:9], atol=1e-8)
+
+
+@settings(max_examples=20, deadline=None)
+@given(n=unit_vectors(), v=st.floats(0.01, 1.0), cr=st.floats(0.0, 1.0),
+       dc=st.lists(st.floats(-0.1, 0.1), min_size=3, max_size=3))
+def test_post_impact_com_velocity_adds_the_predicted_jump(standing, n, v, cr, dc):
+    _, _, terms = standing
+    for method in METHODS:
+        impulse = predict(terms, method, n, -v * n, cr).impulse
+        expected = np.array(dc) + com_jump_map(terms) @ impulse
+        np.testing.assert_allclose(post_impact_com_velocity(terms, method, n, -v * n, dc, cr), expected)
+    # the classical impulse's CoM jump is the classical prediction's own
+    classical = predict(terms, "classical", n, -v * n, cr)
+    np.testing.assert_allclose(com_jump_map(terms) @ classical.impulse, classical.com_jump, atol=1e-9)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_max_capturable_speed_is_the_boundary(standing, method):
+    robot, q, terms = standing
+    region = capture_region(support_polygon(robot, q), terms.com)
+    direction = np.array([1.0, 0.0, 0.0])
+    s = max_capturable_speed(terms, region, method, WALL, direction)
+    assert 0.0 < s < math.inf
+    at = post_impact_com_velocity(terms, method, WALL, s * direction, np.zeros(3))
+    beyond = post_impact_com_velocity(terms, method, WALL, 1.01 * s * direction, np.zeros(3))
+    assert region.margins(at).min() == pytest.approx(0.0, abs=1e-9)
+    assert region.contains(0.99 * at) and not region.contains(beyond)
+    # the impulse scales with (1 + c_r): the speed limit with 1 / (1 + c_r)
+    assert max_capturable_speed(terms, region, method, WALL, direction, 0.5) == pytest.approx(s / 1.5)
+
+
+def test_a_robot_already_outside_its_region_captures_nothing(standing):
+    robot, q, terms = standing
+    region = capture_region(support_polygon(robot, q) + 1.0, terms.com)  # polygon far from the CoM
+    assert max_capturable_speed(terms, region, "crb", WALL, np.array([1.0, 0.0, 0.0])) == 0.0

@@ -1,0 +1,78 @@
+"""Residuals of a replay and the causes' fitted vectors (sim/diagnosis/fitting.py)."""
+
+from dataclasses import replace
+
+import numpy as np
+from diagnosis_checks import exact_features, synthetic_trial
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from impactqp.sim.causes import ArmatureCause, FrictionCause, PayloadCause
+from impactqp.sim.diagnosis.fitting import (
+    SIGMA_JUMP,
+    FittedCauses,
+    jump_errors,
+    residual_sizes,
+    residuals,
+)
+from impactqp.sim.plant import PlantParameters
+
+
+def trials_of(seed: int, forces: list[bool]):
+    rng = np.random.default_rng(seed)
+    return [synthetic_trial(rng, force=force) for force in forces]
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.lists(st.booleans(), min_size=1, max_size=6))
+def test_a_replay_that_reproduces_the_trials_leaves_no_residual(seed, forces):
+    trials = trials_of(seed, forces)
+    features = [exact_features(t) for t in trials]
+    r = residuals(features, trials)
+    assert len(r) == sum(residual_sizes(trials))
+    np.testing.assert_array_equal(r, 0.0)
+    np.testing.assert_array_equal(jump_errors(features, trials), 0.0)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.lists(st.booleans(), min_size=1, max_size=6), st.floats(-1.0, 1.0))
+def test_a_jump_offset_shows_in_the_jump_residuals_and_errors_only(seed, forces, offset):
+    """Each trial's block starts with its 7 jump residuals: (jump error) / SIGMA_JUMP."""
+    trials = trials_of(seed, forces)
+    features = [replace(exact_features(t), jump=t.reference + offset) for t in trials]
+    r = residuals(features, trials)
+    starts = np.concatenate([[0], np.cumsum(residual_sizes(trials))[:-1]])
+    jump_rows = np.concatenate([np.arange(s, s + 7) for s in starts])
+    np.testing.assert_allclose(r[jump_rows], offset / SIGMA_JUMP, rtol=1e-9, atol=1e-9)
+    np.testing.assert_array_equal(np.delete(r, jump_rows), 0.0)
+    np.testing.assert_allclose(jump_errors(features, trials), abs(offset), rtol=1e-9, atol=1e-12)
+
+
+def test_a_replay_without_a_contact_counts_as_a_zero_impulse():
+    (trial,) = trials_of(1, [True])
+    missing = replace(exact_features(trial), impulse=None, duration=None)
+    zero = replace(exact_features(trial), impulse=np.zeros(3), duration=0.0)
+    np.testing.assert_array_equal(residuals([missing], [trial]), residuals([zero], [trial]))
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_fitted_causes_split_and_join_their_vectors_and_apply_in_order(seed):
+    rng = np.random.default_rng(seed)
+    model = FittedCauses()
+    for cause in (ArmatureCause(), PayloadCause(), FrictionCause()):
+        lo, hi = cause.u_bounds()
+        model = model.plus(cause, rng.uniform(lo, hi))
+    u = model.vector()
+    again = model.with_vector(u)
+    assert [len(v) for v in again.u] == [2, 4, 1]
+    np.testing.assert_array_equal(again.vector(), u)
+    lo, hi = model.bounds()
+    assert len(lo) == len(hi) == len(u) and np.all(lo <= u) and np.all(u <= hi)
+    plant = PlantParameters()
+    for cause, v in zip(model.causes, model.u):
+        plant = cause.plant(plant, v)
+    assert model.plant(PlantParameters()) == plant
+    assert model.overrides() == {
+        key: value for c, v in zip(model.causes, model.u) for key, value in c.overrides(c.to_theta(v)).items()
+    }

@@ -1,0 +1,75 @@
+"""95 % intervals of the fitted parameters, open sides (sim/diagnosis/intervals.py)."""
+
+import numpy as np
+from diagnosis_checks import POSTURES
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from impactqp.sim.causes import ArmatureCause, FrictionCause, PayloadCause
+from impactqp.sim.diagnosis import diagnose
+from impactqp.sim.diagnosis.fitting import FittedCauses
+from impactqp.sim.diagnosis.intervals import bootstrap_intervals, parameter_owner, profile_direction
+from impactqp.sim.generation import DatasetRequest, generate_dataset
+from impactqp.sim.plant import PlantParameters
+
+
+def test_impacts_that_only_stick_leave_friction_open_above(tmp_path):
+    """mu = 0.6 and a tangential speed of 0.03 m/s at v_n = 0.12 m/s: every impact sticks, so the
+    data bound mu from below only; the message says so and names the trials that would settle it."""
+    request = DatasetRequest(plant=PlantParameters(friction=0.6), postures=POSTURES[:2], speeds=[0.12],
+                             tangential=[0.03], seed=3)
+    generate_dataset(tmp_path, request)
+    result = diagnose(tmp_path, causes=[FrictionCause()]).summary()
+    assert result["causes"] == ["friction"]
+    low, high = result["intervals"]["friction"]
+    assert high is None and low is not None and low <= 0.6
+    assert [(o["parameter"], o["side"]) for o in result["open_sides"]] == [("friction coefficient", "above")]
+    assert "cannot bound friction coefficient above" in result["message"]
+    assert "tangential speeds of several mu times the normal speed" in result["message"]
+    assert "normal speeds of 0.12 m/s" in result["message"]  # the dataset's own, not a constant
+
+
+def fitted_model(rng: np.random.Generator) -> FittedCauses:
+    """Armature, payload and friction at random points of their bounds (7 parameters)."""
+    model = FittedCauses()
+    for cause in (ArmatureCause(), PayloadCause(), FrictionCause()):
+        lo, hi = cause.u_bounds()
+        model = model.plus(cause, rng.uniform(lo, hi))
+    return model
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_profile_direction_moves_one_parameter_and_refits_the_others(seed):
+    """d_i = 1 and the others' least-squares normal equations hold: J_o^T J d = 0."""
+    rng = np.random.default_rng(seed)
+    J = rng.normal(size=(30, 5))
+    for index in range(5):
+        d = profile_direction(J, index)
+        others = [j for j in range(5) if j != index]
+        assert d[index] == 1.0
+        np.testing.assert_allclose(J[:, others].T @ (J @ d), 0.0, atol=1e-9)
+
+
+def test_parameter_owner_inverts_the_concatenation_of_the_vectors():
+    model = fitted_model(np.random.default_rng(0))
+    owners = [parameter_owner(model, i) for i in range(len(model.vector()))]
+    assert owners == [(k, j) for k, u in enumerate(model.u) for j in range(len(u))]
+    for i, (k, j) in enumerate(owners):
+        assert model.vector()[i] == model.u[k][j]
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_bootstrap_intervals_hold_the_fit_and_stay_within_the_bounds(seed):
+    rng = np.random.default_rng(seed)
+    model = fitted_model(rng)
+    sizes = [14, 18, 14, 18, 18]
+    J = rng.normal(size=(sum(sizes), len(model.vector())))
+    r = rng.normal(size=sum(sizes))
+    intervals = bootstrap_intervals(model, r, J, sizes)
+    lo, hi = model.bounds()
+    u = model.vector()
+    assert intervals.shape == (len(u), 2)
+    assert np.all(lo <= intervals[:, 0]) and np.all(intervals[:, 0] <= u)
+    assert np.all(u <= intervals[:, 1]) and np.all(intervals[:, 1] <= hi)

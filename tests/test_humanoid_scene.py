@@ -1,0 +1,80 @@
+"""The MuJoCo scene of the G1 against the Pinocchio model (sim/humanoid_scene.py)."""
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from impactqp.controller.model.floating_base import CONTACT_FRAME, HAND_FRAME, FloatingBaseModel
+from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+from impactqp.sim.humanoid_scene import HAND_RADIUS, build_humanoid_scene, from_pinocchio, to_pinocchio
+
+
+@pytest.fixture(scope="module")
+def setup():
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES["staggered"])
+    return robot, q, build_humanoid_scene(robot, wall_x=0.6)
+
+
+def random_velocity(scene, seed=0):
+    scene.data.qvel[:] = np.random.default_rng(seed).normal(0.0, 0.5, scene.model.nv)
+    mujoco.mj_forward(scene.model, scene.data)
+
+
+def test_configuration_round_trip(setup):
+    robot, q, scene = setup
+    scene.set_state(q)
+    back, _ = to_pinocchio(scene.data.qpos, scene.data.qvel)
+    np.testing.assert_allclose(back, q, atol=1e-12)
+    np.testing.assert_allclose(from_pinocchio(back), scene.data.qpos, atol=1e-12)
+
+
+def test_mass_matrices_agree_up_to_the_base_velocity_convention(setup):
+    """v_pin = T v_mj with T = diag(R^T, I): MuJoCo's M equals T^T M_pin T."""
+    robot, q, scene = setup
+    scene.set_state(q)
+    M = np.empty((scene.model.nv, scene.model.nv))
+    mujoco.mj_fullM(scene.model, scene.data, M)
+    T = np.eye(scene.model.nv)
+    T[:3, :3] = pin.Quaternion(q[3:7]).matrix().T
+    np.testing.assert_allclose(M, T.T @ robot.terms(q).M @ T, atol=1e-10)
+
+
+def test_hand_velocity_agrees(setup):
+    """The wrist link's velocity from MuJoCo (at the link's centre of mass) equals Pinocchio's of the
+    converted state."""
+    robot, q, scene = setup
+    scene.set_state(q)
+    random_velocity(scene)
+    q_pin, v_pin = to_pinocchio(scene.data.qpos, scene.data.qvel)
+    body = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_BODY, HAND_FRAME)
+    velocity = np.zeros(6)
+    mujoco.mj_objectVelocity(scene.model, scene.data, mujoco.mjtObj.mjOBJ_BODY, body, velocity, 0)
+    pin.forwardKinematics(robot.model, robot.data, q_pin, v_pin)
+    pin.updateFramePlacements(robot.model, robot.data)
+    frame = robot.model.getFrameId(HAND_FRAME)
+    twist = pin.getFrameVelocity(robot.model, robot.data, frame, pin.LOCAL_WORLD_ALIGNED)
+    lever = scene.data.xipos[body] - robot.data.oMf[frame].translation
+    np.testing.assert_allclose(velocity[3:], twist.linear + np.cross(twist.angular, lever), atol=1e-10)
+    np.testing.assert_allclose(velocity[:3], twist.angular, atol=1e-10)
+
+
+def test_hand_sphere_pole_is_the_contact_point(setup):
+    robot, q, scene = setup
+    scene.set_state(q)
+    placement = robot.frame_placements(q)[CONTACT_FRAME]
+    pole = scene.data.geom_xpos[scene.hand_geom] + HAND_RADIUS * scene.data.geom_xmat[scene.hand_geom].reshape(3, 3)[:, 0]
+    np.testing.assert_allclose(pole, placement.translation, atol=1e-10)
+
+
+def test_armature_adds_rotor_inertia_to_the_joints_only(setup):
+    robot, q, _ = setup
+    scene = build_humanoid_scene(robot, wall_x=0.6, armature=0.05)
+    scene.set_state(q)
+    M = np.empty((scene.model.nv, scene.model.nv))
+    mujoco.mj_fullM(scene.model, scene.data, M)
+    T = np.eye(scene.model.nv)
+    T[:3, :3] = pin.Quaternion(q[3:7]).matrix().T
+    rotor = np.diag(np.r_[np.zeros(6), np.full(scene.model.nv - 6, 0.05)])
+    np.testing.assert_allclose(M, T.T @ robot.terms(q).M @ T + rotor, atol=1e-10)

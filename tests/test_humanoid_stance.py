@@ -1,0 +1,57 @@
+"""Standing postures of the G1 (controller/model/humanoid_stance.py)."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from impactqp.controller.model.floating_base import CONTACT_FRAME, FOOT_FRAMES, SOLE_DEPTH, FloatingBaseModel
+from impactqp.controller.model.humanoid_stance import (
+    STANCES,
+    Stance,
+    convex_hull,
+    cross2,
+    inside_polygon,
+    stance_posture,
+    support_polygon,
+)
+from impactqp.controller.model.validation import BadInputError
+
+
+@pytest.fixture(scope="module")
+def humanoid() -> FloatingBaseModel:
+    return FloatingBaseModel()
+
+
+@pytest.mark.parametrize("name", list(STANCES))
+def test_stance_stands_flat_with_the_com_over_the_feet_and_the_hand_on_target(humanoid, name):
+    stance = STANCES[name]
+    q = stance_posture(humanoid, stance)
+    np.testing.assert_allclose(humanoid.sole_corners(q)[:, 2], 0.0, atol=1e-4)
+    placements = humanoid.frame_placements(q)
+    for frame, xy in zip(FOOT_FRAMES, (stance.left_foot, stance.right_foot)):
+        np.testing.assert_allclose(placements[frame].translation, [*xy, SOLE_DEPTH], atol=1e-3)
+        np.testing.assert_allclose(placements[frame].rotation, np.eye(3), atol=1e-3)
+    np.testing.assert_allclose(placements[CONTACT_FRAME].translation, stance.hand, atol=5e-3)
+    assert placements[CONTACT_FRAME].rotation[0, 0] > 0.99  # forearm towards the wall (+x)
+    assert inside_polygon(humanoid.terms(q).com, support_polygon(humanoid, q)) > 0.03
+    assert np.all((q[7:] >= humanoid.q_min) & (q[7:] <= humanoid.q_max))
+
+
+def test_an_unreachable_hand_is_bad_input(humanoid):
+    with pytest.raises(BadInputError):
+        stance_posture(humanoid, Stance("far", (0.0, 0.12), (0.0, -0.12), (1.5, -0.2, 0.95)))
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.tuples(st.floats(-1, 1), st.floats(-1, 1)), min_size=3, max_size=30))
+def test_convex_hull_holds_every_point_and_is_made_of_them(points):
+    points = np.array(points)
+    hull = convex_hull(points)
+    if len(hull) < 3 or abs(cross2(hull[1] - hull[0], hull[2] - hull[0])) < 1e-9:
+        return  # (nearly) collinear points have no interior
+    for p in points:
+        assert inside_polygon(p, hull) >= -1e-9
+    assert all(any(np.allclose(v, p) for p in points) for v in hull)
+    assert inside_polygon(hull.mean(axis=0), hull) > 0.0
+    assert inside_polygon(hull.max(axis=0) + 1.0, hull) < 0.0

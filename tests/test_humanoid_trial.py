@@ -1,0 +1,37 @@
+"""One simulated hand impact of the standing G1 (sim/humanoid_trial.py)."""
+
+import numpy as np
+import pytest
+
+from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
+from impactqp.controller.model.humanoid_stance import STANCES
+from impactqp.sim.humanoid_trial import NORMAL, run_impact_trial
+
+GRAVITY = np.array([0.0, 0.0, -9.81])
+
+
+@pytest.fixture(scope="module")
+def trial():
+    return run_impact_trial(FloatingBaseModel(), STANCES["parallel"], 0.2)
+
+
+def test_linear_momentum_of_the_simulated_robot_balances_the_external_impulses(trial):
+    """m dc = wall impulse + floor impulse + m g T over the measurement window (joint torques are internal)."""
+    mass = FloatingBaseModel().terms(np.r_[0, 0, 0, 0, 0, 0, 1, np.zeros(29)]).mass
+    external = trial.impulse + trial.floor_impulse + mass * GRAVITY * trial.duration
+    np.testing.assert_allclose(mass * trial.measured_com_jump, external, atol=0.01 * np.linalg.norm(trial.impulse))
+
+
+def test_the_wall_pushes_the_hand_back_and_the_robot_stands(trial):
+    assert trial.impulse @ NORMAL > 0.0
+    assert trial.contact_speed > 0.0
+    assert trial.duration > 0.0
+    assert not trial.fell and not trial.slipped and not trial.lifted
+
+
+def test_every_predictor_is_reported_with_its_error(trial):
+    for method in (*METHODS, "momentum"):
+        error = np.mean(np.abs(trial.predicted_jump[method][6:] - trial.measured_jump[6:]))
+        assert trial.errors[method] == pytest.approx(error)
+        assert trial.predicted_impulse[method] @ NORMAL > 0.0
+    np.testing.assert_array_equal(trial.predicted_impulse["momentum"], trial.impulse)

@@ -1,0 +1,117 @@
+"""The one process-pool helper (sim/process_pool.py): order, initializer, errors, Ctrl-C."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from impactqp.sim.process_pool import ProcessPool, map_in_processes
+
+_SETTING: object = None
+
+
+def _remember(value: object) -> None:
+    global _SETTING
+    _SETTING = value
+
+
+def _with_setting(task: int) -> tuple[int, object]:
+    return task, _SETTING
+
+
+def _square(task: int) -> int:
+    return task * task
+
+
+def _pid(_task: int) -> int:
+    return os.getpid()
+
+
+def _fail_on_three(task: int) -> int:
+    if task == 3:
+        raise ValueError("task three")
+    return task
+
+
+@pytest.mark.parametrize("jobs", [1, 2, 3])
+@pytest.mark.parametrize("count", [0, 1, 7])
+def test_results_come_back_in_the_order_of_the_tasks(jobs, count):
+    tasks = list(range(count, 0, -1))
+    assert map_in_processes(_square, tasks, jobs) == [t * t for t in tasks]
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_the_initializer_prepares_every_worker_for_every_map(jobs):
+    with ProcessPool(jobs, _remember, ("scene",)) as pool:
+        first = list(pool.map(_with_setting, range(5)))
+        second = list(pool.map(_with_setting, range(5, 9)))
+    assert first + second == [(t, "scene") for t in range(9)]
+
+
+def test_one_job_runs_in_this_process_and_more_run_in_workers():
+    assert set(map_in_processes(_pid, range(4), 1)) == {os.getpid()}
+    assert os.getpid() not in map_in_processes(_pid, range(4), 2)
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_a_failing_task_raises_here_and_leaves_no_worker_behind(jobs):
+    with pytest.raises(ValueError, match="task three"):
+        map_in_processes(_fail_on_three, range(6), jobs)
+    assert multiprocessing.active_children() == []
+
+
+@pytest.mark.parametrize("jobs", [0, -1, 1.5, True])
+def test_a_pool_needs_a_whole_positive_number_of_jobs(jobs):
+    with pytest.raises(ValueError, match="jobs"):
+        ProcessPool(jobs)
+
+
+def test_map_outside_the_with_block_is_refused():
+    with pytest.raises(RuntimeError, match="context manager"):
+        ProcessPool(1).map(_square, [1])
+
+
+CTRL_C = textwrap.dedent(
+    """
+    import os, sys, time
+    from impactqp.sim.process_pool import map_in_processes
+
+    def nap(task):
+        os.write(1, b"running\\n")  # one write: the two workers' lines never interleave
+        time.sleep(600)
+
+    if __name__ == "__main__":
+        try:
+            map_in_processes(nap, range(4), 2)
+        except KeyboardInterrupt:
+            print("interrupted", flush=True)
+            sys.exit(130)
+    """
+)
+
+
+def test_ctrl_c_stops_the_workers_at_once_and_only_the_parent_reports_it(tmp_path):
+    """SIGINT to the whole process group, as a terminal's Ctrl-C: the parent gets
+    KeyboardInterrupt, the running tasks are not waited for and no worker prints a traceback."""
+    script = tmp_path / "ctrl_c.py"
+    script.write_text(CTRL_C)
+    proc = subprocess.Popen(
+        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True,
+    )
+    try:
+        assert proc.stdout.readline() == "running\n"
+        os.killpg(proc.pid, signal.SIGINT)
+        out, err = proc.communicate(timeout=120)  # a hang guard: the tasks would sleep 600 s
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, err
+    assert out.splitlines()[-1] == "interrupted"
+    assert "Traceback" not in err

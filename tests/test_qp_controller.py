@@ -1,0 +1,233 @@
+"""ImpactAwareController: hard constraints, closed-form solutions, the maximum feasible speed,
+command continuity, the stacked QP data of a cycle and its active constraints."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from qp_states import DT, NORMAL, approach_controller, random_feasible_state, surface_ahead
+from reference.qp import reference_active_constraints
+
+from impactqp.constraints import ControlCycle, jump_model_names
+from impactqp.controller.config import ControllerConfig, TaskConfig, build_controller
+from impactqp.controller.model.inverse_kinematics import approach_start
+from impactqp.controller.model.jump import jump_model
+from impactqp.controller.model.max_speed import approach_direction, closed_form_max_speed
+from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.qp import ImpactAwareController
+from impactqp.tasks import DampingTask, FrameTask, PostureTask
+
+
+def check_hard_constraints(robot, controller, command, q, dq, previous_ddq, models, restitution):
+    tol = 1e-6
+    terms = robot.terms(q, dq)
+    ddq, dq_cmd = command.ddq, command.dq_cmd
+    assert np.all(np.isfinite(ddq)) and np.all(np.isfinite(dq_cmd)) and np.all(np.isfinite(command.q_cmd))
+    assert np.allclose(dq_cmd, dq + ddq * DT, atol=1e-12)
+    assert np.all(np.abs(ddq) <= robot.ddq_max + tol)
+    assert np.all(np.abs(ddq - previous_ddq) <= robot.dddq_max * DT + tol)
+    assert np.all(np.abs(dq_cmd) <= robot.dq_max + tol)
+    assert np.all(command.q_cmd >= robot.q_min - tol) and np.all(command.q_cmd <= robot.q_max + tol)
+    assert np.all(np.abs(terms.M @ ddq + terms.h) <= robot.tau_max + tol)
+    surface = controller.impact.surface
+    for name in models:
+        prediction = jump_model(name).predict(terms, surface.normal, terms.J @ dq_cmd, restitution)
+        assert np.all(np.abs(dq_cmd + prediction.dq_jump) <= robot.dq_max + tol), name
+        assert np.all(np.abs(terms.J.T @ prediction.impulse) / 0.015 <= robot.tau_max + tol), name
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from(["crb", "gm", "classical", "robust"]), st.sampled_from([0.0, 0.5]))
+def test_solution_satisfies_every_hard_constraint(robot, seed, jump, restitution):
+    rng = np.random.default_rng(seed)
+    q, dq = random_feasible_state(robot, rng, jump_model_names(jump), restitution)
+    controller = approach_controller(robot, q, speed=rng.uniform(0.0, 2.0), jump=jump, restitution=restitution)
+    command = controller.step(q, dq)
+    assert command.status == "ok", command.message
+    check_hard_constraints(robot, controller, command, q, dq, np.zeros(7), jump_model_names(jump), restitution)
+    assert np.allclose(command.predicted_post_impact_velocity, command.dq_cmd + command.predicted_jump)
+
+
+def test_unconstrained_qp_is_the_weighted_least_squares_solution(robot):
+    q = POSTURES["elbow_up"].q
+    dq = np.full(7, 0.01)
+    terms = robot.terms(q, dq)
+    tasks = [
+        FrameTask(terms.contact_point + [0.0, 0.001, 0.0], stiffness=1.0, position_weight=3.0, orientation_weight=0.5),
+        PostureTask(q + 0.001, stiffness=1.0, weight=0.1),
+        DampingTask(gain=0.5, weight=1e-3),
+    ]
+    all_limits = build_controller(ControllerConfig(tasks=[TaskConfig("damping")]), robot).constraints
+    controller = ImpactAwareController(robot, tasks, all_limits, DT)
+    command = controller.step(q, dq)
+    assert command.status == "ok" and command.active_constraints == []
+    rows = [t.compute(terms) for t in tasks]
+    sqrt_w = np.sqrt(np.concatenate([r.weight for r in rows]))
+    A = np.vstack([r.A for r in rows]) * sqrt_w[:, None]
+    b = np.concatenate([r.b for r in rows]) * sqrt_w
+    expected = np.linalg.lstsq(A, b, rcond=None)[0]
+    assert np.allclose(command.ddq, expected, atol=1e-6 * (1.0 + np.abs(expected).max()))
+
+
+def max_feasible_speed_by_bisection(robot, terms, model, restitution=0.0, impact_duration=0.015):
+    """Largest v with dq- = v d satisfying (a) |dq-| <= dq_max, (b) |dq+| <= dq_max and
+    (c) |J^T iota| / delta_t <= tau_max, found by bisection on the predictor itself."""
+
+    def feasible(v):
+        pre = v * approach_direction(terms, NORMAL)
+        prediction = model.predict(terms, NORMAL, terms.J @ pre, restitution)
+        return (
+            np.all(np.abs(pre) <= robot.dq_max)
+            and np.all(np.abs(pre + prediction.dq_jump) <= robot.dq_max)
+            and np.all(np.abs(terms.J.T @ prediction.impulse) / impact_duration <= robot.tau_max)
+        )
+
+    low, high = 0.0, 10.0
+    for _ in range(60):
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if feasible(middle) else (low, middle)
+    return low
+
+
+@pytest.mark.parametrize("posture", sorted(POSTURES))
+@pytest.mark.parametrize("jump", ["crb", "gm"])
+def test_commanded_speed_settles_at_the_maximum_feasible_speed(robot, posture, jump):
+    """Asked for 2 m/s at a posture (kept fixed), the commanded contact speed settles at the
+    posture's maximum feasible speed."""
+    q = POSTURES[posture].q
+    controller = approach_controller(robot, q, speed=2.0, jump=jump)
+    dq = np.zeros(7)
+    for _ in range(800):
+        command = controller.step(q, dq)
+        assert command.status == "ok", command.message
+        dq = command.dq_cmd
+    terms = robot.terms(q)
+    speed = float(-NORMAL @ (terms.J @ command.dq_cmd))
+    expected = max_feasible_speed_by_bisection(robot, terms, jump_model(jump))
+    assert speed == pytest.approx(expected, rel=0.02)
+    assert any(name.endswith(f"[{jump}]") or name == "joint_velocity_limit" for name in command.active_constraints)
+
+
+@pytest.mark.parametrize("posture", ["elbow_up", "elbow_left"])
+def test_fast_approach_from_afar_stays_within_the_impact_limits(robot, posture):
+    """Asked for 2 m/s from 30 cm away, the controller speeds up while the wall is far and slows
+    down to the impact-feasible speed as it enters the activation zone: every command keeps the
+    limits, and the contact speed is at most the crb maximum at the contact posture."""
+    wall = POSTURES[posture].surface
+    q = approach_start(robot, POSTURES[posture].q, wall, 0.3)
+    controller = build_controller(ControllerConfig.approach(wall, speed=2.0), robot)
+    dq, previous, top_speed = np.zeros(7), np.zeros(7), 0.0
+    for _ in range(3000):
+        command = controller.step(q, dq)
+        assert np.all(np.isfinite(command.dq_cmd)) and np.all(np.abs(command.dq_cmd) <= robot.dq_max)
+        assert np.all(np.abs(command.ddq - previous) <= robot.dddq_max * DT + 1e-6)
+        previous, q, dq = command.ddq, command.q_cmd, command.dq_cmd
+        terms = robot.terms(q, dq)
+        top_speed = max(top_speed, float(-wall.normal @ (terms.J @ dq)))
+        if wall.signed_distance(terms.contact_point) < 0.002:
+            break
+    else:
+        pytest.fail("the tool never reached the wall")
+    contact_speed = float(-wall.normal @ (terms.J @ dq))
+    assert top_speed > 1.5 * contact_speed  # it went faster while the wall was far
+    limit = closed_form_max_speed(robot, terms, wall.normal, jump_model("crb"))
+    assert contact_speed <= 1.02 * limit.speed
+    assert controller.fallback_count <= 10
+
+
+def test_closed_loop_commands_are_continuous(robot):
+    """Kinematic closed loop towards the wall: every command keeps the acceleration and jerk
+    limits relative to the previous one, across a reference step."""
+    q = POSTURES["elbow_up"].q.copy()
+    config = ControllerConfig.approach(surface_ahead(robot, q, 0.08), speed=0.05)
+    controller = build_controller(config, robot)
+    dq, previous = np.zeros(7), np.zeros(7)
+    for k in range(400):
+        if k == 150:
+            controller.tasks[0].reference_velocity = -1.5 * NORMAL  # step of the reference
+        command = controller.step(q, dq)
+        assert not command.is_fallback, command.message
+        assert np.all(np.abs(command.ddq) <= robot.ddq_max + 1e-6)
+        assert np.all(np.abs(command.ddq - previous) <= robot.dddq_max * DT + 1e-6)
+        previous, q, dq = command.ddq, command.q_cmd, command.dq_cmd
+    assert command.impact_constraints_active
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.05, 2.0))
+def test_closed_loop_command_sequence_keeps_every_limit(robot, seed, speed):
+    """A kinematic closed loop (q, dq <- q_cmd, dq_cmd) from a random state and target: every
+    command is finite, ddq = (dq_cmd - dq)/dt, and every consecutive pair keeps the velocity,
+    acceleration and jerk limits (the velocity limit is a row of the QP, nothing is clipped
+    after it)."""
+    rng = np.random.default_rng(seed)
+    span = robot.q_max - robot.q_min
+    q = robot.q_min + span * rng.uniform(0.2, 0.8, 7)
+    dq = rng.uniform(-0.9, 0.9, 7) * robot.dq_max
+    config = ControllerConfig.approach(surface_ahead(robot, q, rng.uniform(0.02, 0.2)), speed)
+    controller = build_controller(config, robot)
+    controller.reset(q, dq)
+    controller.tasks[0].reference_velocity = speed * rng.uniform(-1.0, 1.0, 3)
+    previous = np.zeros(7)
+    for _ in range(150):
+        command = controller.step(q, dq)
+        for value in (command.ddq, command.dq_cmd, command.q_cmd):
+            assert np.all(np.isfinite(value))
+        assert np.allclose(command.ddq, (command.dq_cmd - dq) / DT, atol=1e-6)
+        assert np.all(np.abs(command.dq_cmd) <= robot.dq_max + 1e-9)
+        assert np.all(np.abs(command.ddq) <= robot.ddq_max + 1e-6)
+        assert np.all(np.abs(command.ddq - previous) <= robot.dddq_max * DT + 1e-6)
+        previous, q, dq = command.ddq, command.q_cmd, command.dq_cmd
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), jump=st.sampled_from(["crb", "gm", "classical", "robust"]))
+def test_stacked_qp_data_are_the_rows_of_every_task_and_constraint(robot, seed, jump):
+    """The controller writes every row in place into one stacked QP; it must equal what each
+    task and constraint gives on its own (``compute``): H = sum A^T W A, g = -sum A^T W b, the
+    box = the intersection of the clipped boxes, and each constraint's rows (relaxed where the
+    class says so)."""
+    rng = np.random.default_rng(seed)
+    q, dq = random_feasible_state(robot, rng, jump_model_names(jump), 0.0)
+    controller = approach_controller(robot, q, jump=jump, solver="daqp")
+    controller.step(q, dq)  # a first cycle, so the memory holds a non-zero acceleration
+    terms = robot.terms(q, dq)
+    controller._cycle.advance(controller.memory.ddq, controller.ddq_max, controller._jerk_step)
+    controller._assemble(terms, controller._cycle)
+    p = controller.problem
+
+    H, g = np.zeros((7, 7)), np.zeros(7)
+    for task in controller.tasks:
+        rows = task.compute(terms)
+        H += rows.A.T @ (rows.weight[:, None] * rows.A)
+        g -= rows.A.T @ (rows.weight * rows.b)
+    np.testing.assert_allclose(p.H, H, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(p.g, g, rtol=1e-12, atol=1e-9)
+
+    cycle = ControlCycle.after(controller.memory.ddq, DT, robot.ddq_max, robot.dddq_max)
+    boxes = [c.compute(terms, cycle) for c in controller.box_constraints]
+    np.testing.assert_allclose(p.lb, np.max([b.lower for b in boxes], axis=0), atol=1e-12)
+    np.testing.assert_allclose(p.ub, np.min([b.upper for b in boxes], axis=0), atol=1e-12)
+    row_cycle = ControlCycle(DT, p.lb.copy(), p.ub.copy(), cycle.horizon)
+    for constraint, rows in zip(controller.row_constraints, controller.layout.row_slices):
+        expected = constraint.compute(terms, row_cycle)
+        np.testing.assert_allclose(p.C[rows], expected.C, atol=1e-12, err_msg=constraint.name)
+        np.testing.assert_allclose(p.l[rows], expected.lower, rtol=1e-12, atol=1e-9, err_msg=constraint.name)
+        np.testing.assert_allclose(p.u[rows], expected.upper, rtol=1e-12, atol=1e-9, err_msg=constraint.name)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), jump=st.sampled_from(["crb", "gm", "robust"]))
+def test_compiled_active_set_equals_the_numpy_reference(robot, seed, jump):
+    """The active constraints of the cycle (compiled, from the gaps of the feasibility check)
+    agree with their plain-numpy statement, on the solution and on perturbed points around it."""
+    rng = np.random.default_rng(seed)
+    q, dq = random_feasible_state(robot, rng, jump_model_names(jump), 0.0)
+    controller = approach_controller(robot, q, jump=jump, solver="daqp")
+    command = controller.step(q, dq)
+    problem = controller.problem
+    tolerance = 10.0 * controller.feasibility_tolerance
+    for x in (command.ddq, command.ddq + rng.normal(0.0, 1e-3, 7), command.ddq + rng.normal(0.0, 1.0, 7)):
+        problem.violation(x)
+        expected = reference_active_constraints(controller.layout, controller._box_bounds, problem, tolerance, x)
+        assert controller._active_constraints(x) == expected
