@@ -216,6 +216,15 @@ def test_the_postures_of_another_tool_put_its_contact_point_on_the_wall(capsys):
         assert r["contact_point"][0] == pytest.approx(0.6, abs=1e-4)  # the default wall x = 0.6 m
 
 
+def test_diagnose_refuses_a_robot_other_than_its_manifests(tmp_path, capsys):
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
+
+    generate_dataset(tmp_path, DatasetRequest(postures=["elbow_up"], speeds=[0.1]))
+    code, out, err = run(capsys, "diagnose", str(tmp_path), "--robot", "fr3", "--tool", "franka_hand")
+    assert code == 2 and out == ""
+    assert "manifest (panda, impact_tip) differ from --robot/--tool (fr3, franka_hand)" in err
+
+
 @pytest.mark.parametrize("args, message", [
     (["--robot", "ur5"], "unknown robot 'ur5'; choose from panda, fr3"),
     (["--tool", "hammer"], "unknown tool 'hammer'"),
@@ -259,17 +268,24 @@ def _smoke_commands(tmp):
                              "--json"],
         "sweep": ["sweep", str(tmp / "sweep.toml"), "--out", str(tmp / "sweep"), "--json"],
         "run": ["run", "--unpaced", "--duration", "0.3", "--log", str(tmp / "run"), "--json"],
+        "diagnose": ["diagnose", str(tmp / "measured"), "--jobs", "2", "--json"],
     }
 
 
 @pytest.mark.parametrize("robot, tool", [("panda", "impact_tip"), ("fr3", "franka_hand")])
 @pytest.mark.parametrize("command", ["predict", "postures", "simulate", "campaign", "max-speed", "dataset generate",
-                                     "sweep", "run"])
+                                     "sweep", "run", "diagnose"])
 def test_every_command_runs_for_both_robots(tmp_path, capsys, robot, tool, command):
     """Each command with --robot and --tool exits 0 with JSON; the datasets it writes record
-    that robot and that tool."""
+    that robot and that tool; diagnose models the robot and the tool of its dataset."""
     from impactqp.controller.measured.dataset import read_dataset
+    from impactqp.controller.model.choice import RobotChoice
     from impactqp.controller.model.tool_description import TOOLS
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
+
+    if command == "diagnose":
+        request = DatasetRequest(postures=["elbow_up"], speeds=[0.1, 0.15], choice=RobotChoice.of(robot, tool))
+        generate_dataset(tmp_path / "measured", request)
 
     code, out, err = run(capsys, *_smoke_commands(tmp_path)[command], "--robot", robot, "--tool", tool)
     assert code == 0, err

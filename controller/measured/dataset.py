@@ -387,6 +387,11 @@ def _inside(directory: Path, name: str) -> Path:
     return path
 
 
+def read_header(directory: str | Path) -> DatasetHeader:
+    """The manifest's header (robot, tool, surface, control period), without reading a trial."""
+    return _parse_header(_load_manifest(Path(directory) / MANIFEST))
+
+
 def read_trial(directory: Path, entry: TrialEntry) -> TrialLog:
     table = _read_table(_inside(directory, entry.file), TRIAL_COLUMNS)
     t, q, dq, tau, dq_cmd = (table[:, 0], *np.split(table[:, 1:], 4, axis=1))

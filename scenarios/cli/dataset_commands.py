@@ -135,8 +135,12 @@ def import_franka_command(out, logs, surface_point, surface_normal, reference_sp
 @click.option("--max-speed", "max_speed", is_flag=True,
               help="Also simulate the highest feasible contact speed per posture, nominal and extended plant.")
 @click.option("--jobs", type=int, default=1, show_default=True)
-def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, jobs):
-    """What the simulation gets wrong on measured impacts, why, and the model change that fixes it."""
+@robot_options
+def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, jobs, choice):
+    """What the simulation gets wrong on measured impacts, why, and the model change that fixes it.
+
+    The robot and the tool are the manifest's; a --robot/--tool other than the default that
+    disagrees with them is bad input."""
 
     from impactqp.sim.diagnosis import diagnose as run_diagnosis
     from impactqp.sim.diagnosis import interval_text
@@ -145,6 +149,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
 
     input_directory(directory, "DIRECTORY")
     check_jobs(jobs)
+    _check_manifest_choice(directory, choice)
     if report_dir:
         output_directory(report_dir, "--report")
     if save_plant:
@@ -195,3 +200,20 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
         click.echo(trusted_speed_text(result, speeds))
     for s in summary["skipped"]:
         click.echo(f"skipped {s['id']}: {s['reason']}")
+
+
+def _check_manifest_choice(directory, choice) -> None:
+    """Bad input when a non-default ``choice`` (--robot, --tool) differs from the manifest's."""
+    from impactqp.controller.measured.dataset import DatasetError, read_header
+
+    if choice.is_default:
+        return
+    try:
+        header = read_header(directory)
+    except DatasetError:
+        return  # the diagnosis reports the manifest's own problem
+    if not header.choice.same_as(choice):
+        raise BadInputError(
+            f"the robot and tool of the dataset's manifest ({header.robot}, {header.tool.name}) differ from "
+            f"--robot/--tool ({choice.robot.name}, {choice.tool.name})"
+        )
