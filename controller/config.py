@@ -31,7 +31,9 @@ from .model.jump import METHODS
 from .model.max_speed import DEFAULT_IMPACT_DURATION
 from .model.postures import DEFAULT_WALL, Surface
 from .qp import ImpactAwareController
-from .model.robot import PandaModel
+from .model.choice import DEFAULT_ROBOT, DEFAULT_TOOL, RobotChoice
+from .model.robot import RobotModel
+from .model.tool_description import TOOLS, tool_from_dict
 from .model import validation
 from .model.validation import BadInputError
 from .robot_config import RobotConfig
@@ -199,12 +201,31 @@ class ControllerConfig:
     impact: ImpactConfig = field(default_factory=ImpactConfig)
     surface: SurfaceConfig = field(default_factory=SurfaceConfig)
     post_impact: PostImpactConfig = field(default_factory=PostImpactConfig)
-    robot: RobotConfig = field(default_factory=RobotConfig)
+    robot: str = DEFAULT_ROBOT
+    tool: str | dict = DEFAULT_TOOL
+    libfranka: RobotConfig = field(default_factory=RobotConfig)
 
     def __post_init__(self):
         validation.number_in_range(self.dt, MIN_DT, MAX_DT, "dt", "s (10 kHz to 100 Hz)")
         if not isinstance(self.solver, str) or not self.solver:
             raise BadInputError(f"solver must be a QP solver name, got {self.solver!r}")
+        if not isinstance(self.robot, str):
+            raise BadInputError(f"robot must be a robot name, got {self.robot!r}")
+        if not isinstance(self.tool, (str, dict)):
+            raise BadInputError(f"tool must be a tool name, a tool file or a [tool] table, got {self.tool!r}")
+        self.choice  # the robot's and the tool's own checks, as soon as the file is read
+
+    @property
+    def choice(self) -> RobotChoice:
+        """The robot and the tool: ``robot`` by name, ``tool`` by built-in name, file or table
+        (the keys of a tool file, docs/robots.md)."""
+        if isinstance(self.tool, dict):
+            try:
+                tool = tool_from_dict(self.tool)
+            except BadInputError as error:
+                raise BadInputError(f"[tool]: {error}") from None
+            return RobotChoice.of(self.robot, tool)
+        return RobotChoice.of(self.robot, self.tool)
 
     @classmethod
     def approach(
@@ -266,7 +287,7 @@ class ControllerConfig:
             parsed_tasks.append(TaskConfig(task_type, dict(params) | entry))
         sections = {
             "limits": LimitsConfig, "impact": ImpactConfig, "surface": SurfaceConfig, "post_impact": PostImpactConfig,
-            "robot": RobotConfig,
+            "libfranka": RobotConfig,
         }
         parsed = {name: _section(kind, data.pop(name, None), name) for name, kind in sections.items()}
         return cls(tasks=parsed_tasks, **parsed, **data)
@@ -279,6 +300,9 @@ class ControllerConfig:
         if path.suffix not in (".toml", ".yaml", ".yml"):
             raise BadInputError(f"unsupported configuration file {path.name}: use .toml, .yaml or .yml")
         data = read_mapping(path, "file")
+        tool = data.get("tool")
+        if isinstance(tool, str) and tool not in TOOLS and not Path(tool).is_absolute():
+            data["tool"] = str(path.parent / tool)  # a tool file beside the configuration
         try:
             return cls.from_dict(data)
         except BadInputError as error:
@@ -300,9 +324,10 @@ def _section(kind, values, name: str):
     return kind(**values)
 
 
-def build_controller(config: ControllerConfig, robot: PandaModel | None = None) -> ImpactAwareController:
-    """The controller described by ``config`` (a fresh PandaModel when ``robot`` is None)."""
-    robot = PandaModel() if robot is None else robot
+def build_controller(config: ControllerConfig, robot: RobotModel | None = None) -> ImpactAwareController:
+    """The controller described by ``config`` (a fresh model of the configuration's robot and
+    tool when ``robot`` is None)."""
+    robot = config.choice.model() if robot is None else robot
     surface = config.surface.surface()
     limits, impact = config.limits, config.impact
 

@@ -1,4 +1,4 @@
-"""The ``[robot]`` table of the controller configuration: the connected robot's own settings
+"""The ``[libfranka]`` table of the controller configuration: the connected robot's own settings
 (collision reflex, joint impedance, load, post-reflex policy, model check), which the ``franka``
 and ``panda`` backends apply on connect (``docs/robot-loop.md``)."""
 
@@ -57,33 +57,33 @@ class RobotConfig:
     def __post_init__(self):
         for kind, size, high in (("torque", 7, MAX_COLLISION_TORQUE), ("force", 6, MAX_COLLISION_FORCE)):
             lower, upper = (
-                _positive_vector(getattr(self, f"{side}_{kind}_thresholds"), size, high, f"robot.{side}_{kind}_thresholds")
+                _positive_vector(getattr(self, f"{side}_{kind}_thresholds"), size, high, f"libfranka.{side}_{kind}_thresholds")
                 for side in ("lower", "upper")
             )
             if np.any(lower > upper):
-                raise BadInputError(f"robot.lower_{kind}_thresholds must not exceed robot.upper_{kind}_thresholds")
+                raise BadInputError(f"libfranka.lower_{kind}_thresholds must not exceed libfranka.upper_{kind}_thresholds")
             setattr(self, f"lower_{kind}_thresholds", lower.tolist())
             setattr(self, f"upper_{kind}_thresholds", upper.tolist())
         self.joint_impedance = _positive_vector(
-            self.joint_impedance, 7, MAX_JOINT_STIFFNESS, "robot.joint_impedance"
+            self.joint_impedance, 7, MAX_JOINT_STIFFNESS, "libfranka.joint_impedance"
         ).tolist()
         if self.load_mass is not None:
-            validation.number_in_range(self.load_mass, 0.0, MAX_LOAD_MASS, "robot.load_mass", "kg")
+            validation.number_in_range(self.load_mass, 0.0, MAX_LOAD_MASS, "libfranka.load_mass", "kg")
         if self.load_com is not None:
-            com = validation.finite_vector(self.load_com, 3, "robot.load_com")
+            com = validation.finite_vector(self.load_com, 3, "libfranka.load_com")
             if np.max(np.abs(com)) > MAX_LOAD_OFFSET:
-                raise BadInputError(f"robot.load_com {com.tolist()} must lie within {MAX_LOAD_OFFSET:g} m of the flange")
+                raise BadInputError(f"libfranka.load_com {com.tolist()} must lie within {MAX_LOAD_OFFSET:g} m of the flange")
             self.load_com = com.tolist()
         if self.load_inertia is not None:
-            inertia = validation.finite_vector(self.load_inertia, 9, "robot.load_inertia").reshape(3, 3)
+            inertia = validation.finite_vector(self.load_inertia, 9, "libfranka.load_inertia").reshape(3, 3)
             if not np.allclose(inertia, inertia.T) or np.min(np.linalg.eigvalsh(inertia)) < -1e-12:
-                raise BadInputError("robot.load_inertia must be a symmetric positive semi-definite 3x3 matrix")
+                raise BadInputError("libfranka.load_inertia must be a symmetric positive semi-definite 3x3 matrix")
             if np.max(np.abs(inertia)) > MAX_LOAD_INERTIA:
-                raise BadInputError(f"robot.load_inertia entries must stay below {MAX_LOAD_INERTIA:g} kg m^2")
+                raise BadInputError(f"libfranka.load_inertia entries must stay below {MAX_LOAD_INERTIA:g} kg m^2")
             self.load_inertia = inertia.ravel().tolist()
-        validation.boolean(self.automatic_error_recovery, "robot.automatic_error_recovery")
+        validation.boolean(self.automatic_error_recovery, "libfranka.automatic_error_recovery")
         validation.number_in_range(
-            self.max_model_difference, 0.0, MAX_MODEL_DIFFERENCE, "robot.max_model_difference",
+            self.max_model_difference, 0.0, MAX_MODEL_DIFFERENCE, "libfranka.max_model_difference",
             "(relative difference of the mass matrices)", low_open=True,
         )
 

@@ -35,6 +35,7 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from impactqp.controller.model.jump import METHODS, average_prediction_error  # noqa: E402
+from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice  # noqa: E402
 from impactqp.controller.model.postures import POSTURES, Surface  # noqa: E402
 from impactqp.controller.model.robot import NQ  # noqa: E402
 from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
@@ -93,16 +94,18 @@ class CampaignPlan:
         for v in self.tangential_speeds:
             approach_speed(abs(v) if v else 1.0, "every tangential speed")
 
-    def specs(self, surface: Surface) -> list[TrialSpec]:
+    def specs(self, surface: Surface, choice: RobotChoice = DEFAULT_CHOICE) -> list[TrialSpec]:
+        """The trials, at ``choice``'s named postures (solved for its tool)."""
+        choice.check_postures(self.postures)
         specs = [
-            TrialSpec(name, POSTURES[name].q, float(speed))
+            TrialSpec(name, choice.posture(name).q, float(speed))
             for name in self.postures
             for speed in self.speeds
         ]
         tangent = tangential_direction(surface.normal)
         first = self.postures[0]
         specs += [
-            TrialSpec(first, POSTURES[first].q, self.tangential_normal_speed, float(v_t) * tangent)
+            TrialSpec(first, choice.posture(first).q, self.tangential_normal_speed, float(v_t) * tangent)
             for v_t in self.tangential_speeds
         ]
         return specs
@@ -194,7 +197,8 @@ class Table1:
 
 
 class Campaign:
-    """Runs a :class:`CampaignPlan` on one surface and plant and writes its outputs."""
+    """Runs a :class:`CampaignPlan` on one surface and plant, with ``choice``'s robot and tool,
+    and writes its outputs."""
 
     def __init__(
         self,
@@ -204,7 +208,9 @@ class Campaign:
         *,
         jobs: int = 1,
         progress: bool = False,
+        choice: RobotChoice = DEFAULT_CHOICE,
     ):
+        self.choice = choice
         self.plan = plan
         self.surface = surface
         self.plant = plant
@@ -214,10 +220,10 @@ class Campaign:
     def run(self, out: str | Path) -> Table1:
         """Simulate every trial, write the dataset, Table I and the figures to ``out``."""
         out = Path(out)
-        writer = DatasetWriter(out, dataset_header(self.surface))
-        specs = self.plan.specs(self.surface)
+        writer = DatasetWriter(out, dataset_header(self.surface, self.choice))
+        specs = self.plan.specs(self.surface, self.choice)
         rows = []
-        with TrialPool(self.surface, self.plant, self.jobs) as pool:
+        with TrialPool(self.surface, self.plant, self.jobs, self.choice) as pool:
             results = tqdm(pool.map(specs), total=len(specs), desc="campaign", unit="trial", disable=not self.progress)
             for result in results:
                 write_trial(writer, result)

@@ -34,7 +34,6 @@ from dataclasses import dataclass  # noqa: E402
 from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
 from impactqp.controller.measured.impact import POST_HALF_WIDTH, PRE_SAMPLES  # noqa: E402
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION  # noqa: E402
-from impactqp.controller.model.postures import POSTURES  # noqa: E402
 from impactqp.controller.model.robot import NQ  # noqa: E402
 from impactqp.scenarios.max_speed_search import DEFAULT_TOLERANCE, MaxSpeedSearch  # noqa: E402
 from impactqp.sim.diagnosis import EXPLAINED_GAIN, STEP_GAIN, Diagnosis, interval_text  # noqa: E402
@@ -83,16 +82,19 @@ def feasible_speeds(
 ) -> list[FeasibleSpeed]:
     """For each named posture of the diagnosed trials (trials without a named posture are left
     out; only ``postures`` when given), the simulated highest feasible speed with ``nominal`` and
-    with the extended plant, and the CRB closed form at the contact posture (``MaxSpeedSearch``)."""
+    with the extended plant, and the CRB closed form at the contact posture (``MaxSpeedSearch``),
+    for the diagnosed robot and tool."""
     nominal = nominal or PlantParameters()
-    names = sorted({t.posture for t in diagnosis.trials if t.posture in POSTURES})
+    choice = diagnosis.choice
+    names = sorted({t.posture for t in diagnosis.trials if t.posture in choice.robot.postures})
     if postures is not None:
         names = [n for n in names if n in postures]
     rows = []
     for name in names:
         reports = [
             MaxSpeedSearch(
-                POSTURES[name], diagnosis.surface, plant, jobs=jobs, tolerance=tolerance, progress=progress
+                choice.posture(name), diagnosis.surface, plant, jobs=jobs, tolerance=tolerance, progress=progress,
+                choice=choice,
             ).run()
             for plant in (nominal, diagnosis.extended_plant)
         ]

@@ -40,6 +40,7 @@ from impactqp.controller.model.max_speed import (
     approach_direction,
     closed_form_max_speed,
 )
+from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import ImpactPosture, Surface
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
@@ -195,7 +196,7 @@ class MaxSpeedSearch:
         tolerance: float = DEFAULT_TOLERANCE,
         jobs: int = 1,
         progress: bool = False,
-        robot: PandaModel | None = None,
+        choice: RobotChoice = DEFAULT_CHOICE,
     ):
         jump_model_names(jump_model)
         restitution = restitution_coefficient(restitution)
@@ -209,7 +210,8 @@ class MaxSpeedSearch:
         self.tolerance = tolerance
         self.jobs = jobs
         self.progress = progress
-        self.robot = PandaModel() if robot is None else robot
+        self.choice = choice
+        self.robot = choice.model()
 
     def spec(self, speed: float, **changes) -> TrialSpec:
         return TrialSpec(
@@ -231,7 +233,7 @@ class MaxSpeedSearch:
         # upper bound of the number of trials, for the progress bar
         width = bisection.hi - bisection.lo
         rounds = int(np.ceil(np.log(width / self.tolerance) / np.log(self.jobs + 1))) + 1
-        with TrialPool(self.surface, self.plant, self.jobs) as pool, tqdm(
+        with TrialPool(self.surface, self.plant, self.jobs, self.choice) as pool, tqdm(
             total=2 + rounds * self.jobs, desc=f"max-speed {self.posture.name}", unit="trial",
             disable=not self.progress,
         ) as bar:

@@ -16,13 +16,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from impactqp.controller.config import ControllerConfig, TaskConfig
-from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
+from impactqp.controller.measured.dataset import DatasetHeader
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD
 from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
-from impactqp.controller.model.postures import ImpactPosture
 from impactqp.controller.model.robot import NQ, RobotModel
-from impactqp.controller.model.robot_description import ROBOTS, robot_description
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
 from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.runtime.franka_backend import FrankaRobot
@@ -57,10 +56,6 @@ class RunRequest:
         Panda through panda-python's libfranka 0.9) or ``replay`` (a dataset trial played back).
     robot_ip
         ``--robot-ip``: the robot's address (franka and panda backends).
-    robot
-        ``--robot``: the arm the controller models (``robot_description.ROBOTS``: ``panda`` or
-        ``fr3``), with the default tool; the franka backend drives an ``fr3``, the panda
-        backend a ``panda``.
     realtime
         ``--realtime enforce|ignore``: True requires a real-time kernel for libfranka (franka and
         panda backends); False runs without one (a simulator of the robot).
@@ -88,11 +83,14 @@ class RunRequest:
         None: the control period, and no deadline offline (replay, unpaced sim). No option.
     max_overruns
         Overruns in a row that trip the watchdog. No option.
+    choice
+        ``--robot`` and ``--tool``. A configuration file's ``robot``/``tool`` and a replayed
+        dataset's manifest decide; a non-default choice that disagrees with them is bad input.
+        The franka backend drives an ``fr3``, the panda backend a ``panda``.
     """
 
     backend: str = "sim"
     robot_ip: str | None = None
-    robot: str = "panda"
     realtime: bool = True
     config_file: str | None = None
     plant_file: str | None = None
@@ -105,6 +103,7 @@ class RunRequest:
     unpaced: bool = False
     deadline: float | None = None
     max_overruns: int = 5
+    choice: RobotChoice = DEFAULT_CHOICE
 
 
 def with_posture_target(config: ControllerConfig, q) -> ControllerConfig:
@@ -119,33 +118,55 @@ def with_posture_target(config: ControllerConfig, q) -> ControllerConfig:
     return replace(config, tasks=tasks)
 
 
-def controller_config(request: RunRequest, surface=None) -> ControllerConfig:
+def controller_config(request: RunRequest, surface=None, decided: RobotChoice | None = None) -> ControllerConfig:
+    """The configuration file's, or the default approach of ``request.choice``'s robot and tool
+    to ``surface`` (the posture's wall by default). ``decided`` is the robot and tool the data
+    impose (a replayed manifest's): the configuration must agree with it. On a robot a weak
+    posture task keeps the wrist where the start move put it."""
     if request.config_file is not None:
         try:
-            return ControllerConfig.from_file(request.config_file)
+            config = ControllerConfig.from_file(request.config_file)
         except BadInputError as error:
             raise BadInputError(f"--config {error}") from None
+        if decided is not None:
+            _agree(decided, "the dataset's manifest", config.choice, "the configuration's")
+        elif not request.choice.is_default:
+            _agree(config.choice, "the configuration", request.choice, "--robot/--tool")
+        return config
+    choice = request.choice if decided is None else decided
     if surface is None:
-        surface = posture_of(request).surface
-    if request.backend in ROBOT_BACKENDS:  # a weak posture task keeps the wrist where the start put it
-        return ControllerConfig.approach(surface, request.speed)
-    return ControllerConfig.approach(surface, request.speed, posture_weight=0.0)
+        surface = choice.posture(request.posture).surface
+    if request.backend in ROBOT_BACKENDS:
+        config = ControllerConfig.approach(surface, request.speed)
+    else:
+        config = ControllerConfig.approach(surface, request.speed, posture_weight=0.0)
+    config.robot, config.tool = choice.robot.name, choice.tool_setting
+    return config
+
+
+def _agree(choice: RobotChoice, what: str, other: RobotChoice, source: str) -> None:
+    """Bad input when ``other`` (from ``source``) differs from ``choice`` (from ``what``)."""
+    if not choice.same_as(other):
+        raise BadInputError(
+            f"the robot and tool of {what} ({choice.robot.name}, {choice.tool.name}) differ from "
+            f"{source} ({other.robot.name}, {other.tool.name})"
+        )
 
 
 def check_request(request: RunRequest) -> None:
     if request.backend not in BACKENDS:
         raise BadInputError(f"--backend {request.backend!r}: choose from {', '.join(BACKENDS)}")
-    if request.robot not in ROBOTS:
-        raise BadInputError(f"--robot {request.robot!r} is unknown; known: {', '.join(ROBOTS)}")
+    name = request.choice.robot.name
     robot = BACKEND_ROBOTS.get(request.backend)
-    if robot is not None and request.robot != robot:
+    if robot is not None and name != robot:
         raise BadInputError(
-            f"--backend {request.backend} drives the {robot} only, not the {request.robot}: "
-            f"use --robot {robot}, or --backend {'panda' if robot == 'fr3' else 'franka'} for the {request.robot}"
+            f"--backend {request.backend} drives the {robot} only, not the {name}: "
+            f"use --robot {robot}, or --backend {'panda' if robot == 'fr3' else 'franka'} for the {name}"
         )
-    postures = robot_description(request.robot).postures
-    if request.posture not in postures:
-        raise BadInputError(f"--posture {request.posture!r} is unknown; known: {', '.join(postures)}")
+    if request.posture not in request.choice.robot.postures:
+        raise BadInputError(
+            f"--posture {request.posture!r} is unknown; known: {', '.join(request.choice.robot.postures)}"
+        )
     approach_speed(request.speed, "--speed")
     number_in_range(request.duration, 0.0, MAX_DURATION, "--duration", "s", low_open=True)
     if request.backend in ROBOT_BACKENDS and not request.robot_ip:
@@ -154,41 +175,44 @@ def check_request(request: RunRequest) -> None:
         raise BadInputError("--backend replay needs --dataset DIR (and optionally --trial ID)")
 
 
-def posture_of(request: RunRequest) -> ImpactPosture:
-    """The named posture of the request's robot."""
-    return robot_description(request.robot).postures[request.posture]
-
-
 def start_posture(request: RunRequest, model: RobotModel, config: ControllerConfig) -> np.ndarray:
-    """The posture's configuration with the contact point ``SIM_START_DISTANCE`` in front of the surface."""
+    """The posture's configuration (of the configuration's robot and tool) with the contact
+    point ``SIM_START_DISTANCE`` in front of the surface."""
     try:
-        return approach_start(model, posture_of(request).q, config.surface.surface(), SIM_START_DISTANCE)
+        posture = config.choice.posture(request.posture)
+        return approach_start(model, posture.q, config.surface.surface(), SIM_START_DISTANCE)
     except UnreachableStartError as error:
         raise BadInputError(str(error)) from None
 
 
-def build_backend(request: RunRequest, model: RobotModel) -> tuple[RobotInterface, ControllerConfig, float]:
-    """(backend, controller configuration, duration) of the request. A robot is connected,
-    configured (``[robot]``) and its model checked here; its posture task holds the start posture."""
+def build_backend(request: RunRequest) -> tuple[RobotInterface, ControllerConfig, float]:
+    """(backend, controller configuration, duration) of the request; the configuration's
+    ``choice`` is the robot and the tool to model. A robot is connected, configured
+    (``[libfranka]``) and its model checked here; its posture task holds the start posture."""
     if request.backend in ROBOT_BACKENDS:
         Robot = FrankaRobot if request.backend == "franka" else PandaRobot
         config = controller_config(request)
+        model = config.choice.model()
         q_start = start_posture(request, model, config)
-        robot = Robot.connect(request.robot_ip, config.robot, realtime=request.realtime, model=model)
+        robot = Robot.connect(request.robot_ip, config.libfranka, realtime=request.realtime, model=model)
         robot.check_model(model)
         return robot, with_posture_target(config, q_start), request.duration
     if request.backend == "replay":
         trial, header = load_trial(request.dataset, request.trial)
+        if not request.choice.is_default:
+            _agree(header.choice, "the dataset's manifest", request.choice, "--robot/--tool")
         speed = trial.entry.reference_normal_speed
-        config = controller_config(RunRequest(**{**request.__dict__, "speed": speed}), header.surface)
+        config = controller_config(RunRequest(**{**request.__dict__, "speed": speed}), header.surface, header.choice)
         return ReplayRobot(trial, header.control_period), config, len(trial.log) * header.control_period
     config = controller_config(request)
+    choice = config.choice
     try:
         plant = None if request.plant_file is None else PlantParameters.from_json(request.plant_file)
     except PlantParameterError as error:
         raise BadInputError(f"--plant: {error}") from None
+    model = choice.model()
     q0 = start_posture(request, model, config)
-    scene = build_scene(config.surface.surface(), plant, robot=model.description, tool=model.tool)
+    scene = build_scene(config.surface.surface(), plant, robot=choice.robot, tool=choice.tool)
     robot = SimRobot(scene, q0, np.zeros(NQ), config.dt, paced=not request.unpaced)
     return robot, config, request.duration
 
@@ -232,12 +256,12 @@ def move_to_start(robot: RobotInterface, model: RobotModel, config: ControllerCo
 
 
 def run(request: RunRequest) -> tuple[dict, LoopResult]:
-    """Run the request with the model of ``request.robot``; (report, result). Ctrl-C,
+    """Run the request with the model of the configuration's robot and tool; (report, result). Ctrl-C,
     SIGTERM or SIGHUP brakes to a stop and keeps the log (``result.interrupted``). The log
     directory is checked before the robot moves; a robot moves to the start posture first."""
     check_request(request)
-    model = RobotModel(request.robot)
-    robot, config, duration = build_backend(request, model)
+    robot, config, duration = build_backend(request)
+    model = config.choice.model()
     q_start = start_posture(request, model, config) if request.backend in ROBOT_BACKENDS else None
     run_log = RunLog(request.log, log_header(config)) if request.log else None
     deadline = request.deadline
@@ -297,10 +321,12 @@ def report(result: LoopResult, config: ControllerConfig, log_path: str | None) -
 
 
 def log_header(config: ControllerConfig) -> DatasetHeader:
+    choice = config.choice
     return DatasetHeader(
-        tool=MODELLED_TOOL,
+        tool=choice.tool,
         surface=config.surface.surface(),
         control_period=config.dt,
+        robot=choice.robot.name,
     )
 
 

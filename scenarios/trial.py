@@ -50,6 +50,7 @@ import numpy as np
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
 from impactqp.controller.model.max_speed import closed_form_max_speed
+from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.qp import Command
 from impactqp.controller.model.robot import PandaModel
@@ -131,8 +132,11 @@ class TrialRunner:
         self.robot = PandaModel() if robot is None else robot
 
     @classmethod
-    def build(cls, surface: Surface, plant: PlantParameters | None = None) -> TrialRunner:
-        return cls(build_scene(surface, plant))
+    def build(
+        cls, surface: Surface, plant: PlantParameters | None = None, choice: RobotChoice = DEFAULT_CHOICE
+    ) -> TrialRunner:
+        """A runner of ``choice``'s robot and tool: its scene and its model."""
+        return cls(build_scene(surface, plant, robot=choice.robot, tool=choice.tool), choice.model())
 
     @property
     def surface(self) -> Surface:
@@ -221,9 +225,9 @@ class TrialRunner:
 _WORKER: TrialRunner | None = None
 
 
-def _init_worker(surface: Surface, plant: PlantParameters | None) -> None:
+def _init_worker(surface: Surface, plant: PlantParameters | None, choice: RobotChoice) -> None:
     global _WORKER
-    _WORKER = TrialRunner.build(surface, plant)
+    _WORKER = TrialRunner.build(surface, plant, choice)
 
 
 def _run_in_worker(spec: TrialSpec) -> TrialResult:
@@ -232,12 +236,16 @@ def _run_in_worker(spec: TrialSpec) -> TrialResult:
 
 class TrialPool(ProcessPool):
     """Runs trials on ``jobs`` processes (``sim.process_pool.ProcessPool``); every worker builds
-    its own scene, robot model and controllers. ``jobs=1`` runs in this process."""
+    its own scene, robot model and controllers, of ``choice``'s robot and tool. ``jobs=1`` runs
+    in this process."""
 
-    def __init__(self, surface: Surface, plant: PlantParameters | None = None, jobs: int = 1):
+    def __init__(
+        self, surface: Surface, plant: PlantParameters | None = None, jobs: int = 1,
+        choice: RobotChoice = DEFAULT_CHOICE,
+    ):
         if jobs < 1:
             raise BadInputError(f"--jobs must be >= 1, got {jobs}")
-        super().__init__(jobs, initializer=_init_worker, initargs=(surface, plant))
+        super().__init__(jobs, initializer=_init_worker, initargs=(surface, plant, choice))
 
     def map(self, specs: Iterable[TrialSpec]) -> Iterator[TrialResult]:
         """Results in the order of ``specs``."""

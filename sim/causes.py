@@ -29,13 +29,20 @@ from dataclasses import replace
 import numpy as np
 
 from impactqp.controller.model.postures import DEFAULT_WALL
-from impactqp.controller.model.robot import NQ, TOOL_RADIUS
+from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.tool_description import TOOLS, ToolDescription
 
 from .plant import PlantParameters
 from impactqp.controller.model.validation import name_in
 
-# The payload sits at the tool's centre by default: the contact point moved back by the radius.
-PAYLOAD_COM = (0.0, 0.0, -TOOL_RADIUS)
+
+
+def payload_com(tool: ToolDescription) -> tuple[float, float, float]:
+    """The default payload centre of mass: the centre of the tool's contact geometry, relative to
+    the contact point (the payload body's origin, ``sim.scene``)."""
+    return tuple(float(x) for x in tool.geometry.centre - tool.contact_point)
+
+
 # Joint groups of the Panda's drives: large motors on joints 1-4, small ones on joints 5-7.
 JOINT_GROUPS = ((0, 1, 2, 3), (4, 5, 6))
 GRID_POINTS = {1: 7, 2: 5}
@@ -147,14 +154,17 @@ class PayloadCause(Cause):
     realistic = ((0.3, -0.02, -0.02, -0.10), (2.0, 0.02, 0.02, -0.02))
     MASS_GRID = 7
 
+    def __init__(self, tool: ToolDescription = TOOLS["impact_tip"]):
+        self.com = payload_com(tool)
+
     def nominal_theta(self, nominal):
-        com = nominal.payload_com if nominal.payload_mass > 0.0 else PAYLOAD_COM
+        com = nominal.payload_com if nominal.payload_mass > 0.0 else self.com
         return np.array([nominal.payload_mass, *com])
 
     def grid(self, nominal):
         """The nominal value, then masses over the bounds with the CoM at the tool's centre."""
         masses = np.linspace(self.lower[0], self.upper[0], self.MASS_GRID)
-        return [self.to_u(self.nominal_theta(nominal))] + [np.array([m, *PAYLOAD_COM]) for m in masses]
+        return [self.to_u(self.nominal_theta(nominal))] + [np.array([m, *self.com]) for m in masses]
 
     def overrides(self, theta):
         return {"payload_mass": float(theta[0]), "payload_com": [float(x) for x in theta[1:4]]}
@@ -267,10 +277,11 @@ class ServoGainCause(Cause):
         return np.array([float(overrides["servo_gain"])])
 
 
-def default_causes(surface_friction: float = DEFAULT_WALL.friction) -> list[Cause]:
+def default_causes(surface_friction: float = DEFAULT_WALL.friction, tool: ToolDescription = TOOLS["impact_tip"]) -> list[Cause]:
+    """Every candidate cause, for a surface of friction ``surface_friction`` hit with ``tool``."""
     return [
         ArmatureCause(),
-        PayloadCause(),
+        PayloadCause(tool),
         FrictionCause(surface_friction),
         ContactCause(),
         JointDampingCause(),

@@ -27,8 +27,9 @@ import numpy as np
 
 from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry
 from impactqp.controller.measured.trial_log import TrialLog
-from impactqp.controller.model.postures import POSTURES, Surface
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range, whole_number
 
 from .plant import PlantParameters
@@ -67,7 +68,8 @@ class PlannedTrial:
 
 
 def trial_specs(
-    postures: list[str], speeds: list[float], tangential: list[float], repeats: int, normal: np.ndarray, seed: int
+    postures: list[str], speeds: list[float], tangential: list[float], repeats: int, normal: np.ndarray, seed: int,
+    choice: RobotChoice = DEFAULT_CHOICE,
 ) -> list[PlannedTrial]:
     whole_number(repeats, 1, MAX_REPEATS, "repeats")
     whole_number(seed, 0, None, "the seed --seed")
@@ -80,7 +82,7 @@ def trial_specs(
     planned = []
     for c, (posture, v, vt) in enumerate(conditions):
         spec = TrialSpec(
-            posture, POSTURES[posture].q, float(v), vt, start_distance=START_DISTANCE, after_contact=AFTER_CONTACT
+            posture, choice.posture(posture).q, float(v), vt, start_distance=START_DISTANCE, after_contact=AFTER_CONTACT
         )
         for r in range(repeats):
             index = c * repeats + r
@@ -90,14 +92,15 @@ def trial_specs(
 
 @dataclass(frozen=True)
 class TrialTask:
-    """One trial to simulate (a process task): the planned trial, the plant and surface, and the
-    noise stds on dq (rad/s) and tau (N m)."""
+    """One trial to simulate (a process task): the planned trial, the plant and surface, the
+    noise stds on dq (rad/s) and tau (N m), and the robot and the tool."""
 
     planned: PlannedTrial
     plant: PlantParameters
     surface: Surface
     noise_dq: float
     noise_tau: float
+    choice: RobotChoice = DEFAULT_CHOICE
 
 
 def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
@@ -105,8 +108,8 @@ def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
     (entry, log)."""
     planned = task.planned
     rng = np.random.default_rng(planned.seed)
-    robot = PandaModel()
-    scene = build_scene(task.surface, task.plant)
+    robot = task.choice.model()
+    scene = build_scene(task.surface, task.plant, robot=task.choice.robot, tool=task.choice.tool)
     spec = planned.spec
     q_contact = np.clip(spec.q_contact + rng.normal(0.0, START_POSTURE_STD, NQ), robot.q_min, robot.q_max)
     distance = spec.start_distance + rng.uniform(-START_DISTANCE_SPREAD, START_DISTANCE_SPREAD)
@@ -129,8 +132,8 @@ class DatasetRequest:
     """What dataset to simulate: the plant that makes it (nominal by default), the surface (by
     default the one the first posture faces; all named postures face the default wall), the
     postures (default: all), normal speeds (m/s, default ``DEFAULT_SPEEDS``), tangential speeds
-    (m/s, at ``TANGENTIAL_SERIES_NORMAL_SPEED``), repeats per condition, the noise stds and the
-    seed of every random draw."""
+    (m/s, at ``TANGENTIAL_SERIES_NORMAL_SPEED``), repeats per condition, the noise stds, the
+    seed of every random draw, and the robot and the tool (recorded in the manifest)."""
 
     plant: PlantParameters | None = None
     surface: Surface | None = None
@@ -141,6 +144,7 @@ class DatasetRequest:
     noise_dq: float = DEFAULT_NOISE_DQ
     noise_tau: float = DEFAULT_NOISE_TAU
     seed: int = 0
+    choice: RobotChoice = DEFAULT_CHOICE
 
 
 def generate_dataset(
@@ -156,11 +160,12 @@ def generate_dataset(
     ``progress(done, total)`` is an optional callable invoked once per finished trial.
     """
     plant = request.plant or PlantParameters()
-    postures = list(POSTURES) if request.postures is None else list(request.postures)
-    unknown = [p for p in postures if p not in POSTURES]
-    if unknown or not postures:
-        raise BadInputError(f"unknown posture(s) {', '.join(unknown)}; known: {', '.join(POSTURES)}")
-    surface = POSTURES[postures[0]].surface if request.surface is None else request.surface
+    choice = request.choice
+    postures = list(choice.robot.postures) if request.postures is None else list(request.postures)
+    if not postures:
+        raise BadInputError(f"give at least one posture; known: {', '.join(choice.robot.postures)}")
+    choice.check_postures(postures)
+    surface = choice.posture(postures[0]).surface if request.surface is None else request.surface
     number_in_range(request.noise_dq, 0.0, MAX_NOISE_DQ, "the encoder noise std --noise-dq", "rad/s")
     number_in_range(request.noise_tau, 0.0, MAX_NOISE_TAU, "the torque noise std --noise-tau", "N m")
     specs = trial_specs(
@@ -170,10 +175,11 @@ def generate_dataset(
         request.repeats,
         surface.normal,
         request.seed,
+        choice,
     )
     Path(out).mkdir(parents=True, exist_ok=True)
-    writer = DatasetWriter(out, dataset_header(surface))
-    tasks = [TrialTask(s, plant, surface, request.noise_dq, request.noise_tau) for s in specs]
+    writer = DatasetWriter(out, dataset_header(surface, choice))
+    tasks = [TrialTask(s, plant, surface, request.noise_dq, request.noise_tau, choice) for s in specs]
     entries = []
     with ProcessPool(min(jobs, max(len(tasks), 1))) as pool:
         for entry, log in pool.map(simulate_trial, tasks):

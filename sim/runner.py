@@ -41,17 +41,13 @@ import mujoco
 import numpy as np
 
 from impactqp.constraints import jump_model_names
-from impactqp.controller.measured.dataset import MODELLED_TOOL, DatasetHeader
+from impactqp.controller.measured.dataset import DatasetHeader
+from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import (
-    NQ,
-    TOOL_RADIUS,
-    VELOCITY_LIMIT,
-    PandaModel,
-)
+from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError, approach_speed, finite_vector
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.controller.model.validation import restitution as check_restitution
@@ -251,7 +247,7 @@ class ServoedPlant:
         self.servo = ComputedTorqueServo(scene, scene.plant.servo_gain)
         # centre-to-wall distance beyond which the tool cannot touch the wall within one period
         # (at up to CLEARANCE_SPEED m/s)
-        self.clearance = TOOL_RADIUS + CLEARANCE_SPEED * control_period
+        self.clearance = scene.tool.geometry.bounding_radius + CLEARANCE_SPEED * control_period
         self._contact_force = np.zeros(6)
 
     def reset(self, q0: np.ndarray, dq0: np.ndarray, servo_reference=None) -> None:
@@ -339,7 +335,7 @@ def run_trial(
 def _check_stable(scene: Scene, t: np.ndarray, dq: np.ndarray) -> None:
     """Raise :class:`SimulationUnstableError` when the trial diverged: a non-finite or huge joint
     velocity, or MuJoCo's own reset after a bad acceleration."""
-    limit = UNSTABLE_VELOCITY_FACTOR * VELOCITY_LIMIT
+    limit = UNSTABLE_VELOCITY_FACTOR * scene.robot.dq_max
     bad = ~np.all(np.isfinite(dq) & (np.abs(dq) <= limit), axis=1)
     resets = scene.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
     if np.any(bad) or resets:
@@ -369,11 +365,11 @@ def servo_reference_from_commands(
     return q_ref, dq_cmd[-1].copy()
 
 
-def dataset_header(surface: Surface) -> DatasetHeader:
-    """The manifest header of a simulated dataset: the tool tip in the hand frame, the runner's
-    control period."""
+def dataset_header(surface: Surface, choice: RobotChoice = DEFAULT_CHOICE) -> DatasetHeader:
+    """The manifest header of a simulated dataset: the robot and the tool of ``choice``, the
+    runner's control period."""
     return DatasetHeader(
-        tool=MODELLED_TOOL, surface=surface, control_period=DEFAULT_CONTROL_PERIOD
+        tool=choice.tool, surface=surface, control_period=DEFAULT_CONTROL_PERIOD, robot=choice.robot.name
     )
 
 

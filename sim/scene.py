@@ -198,6 +198,9 @@ def _apply_plant(spec, mount, robot: RobotDescription, tool: ToolDescription, pl
         joint = spec.joint(name)
         joint.armature = armature
         joint.damping = [damping, 0.0, 0.0]
+        # the plant has no dry joint friction: franka_description's FR3 URDF declares
+        # <dynamics friction="0.2"/>, which MuJoCo would import as a friction loss
+        joint.frictionloss = 0.0
     if plant.payload_mass > 0.0:
         mount.add_body(
             name=PAYLOAD_BODY,

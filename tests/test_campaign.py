@@ -152,3 +152,25 @@ def test_running_again_into_the_same_directory_changes_nothing(campaign_dir):
     before = (campaign_dir / "dataset.json").read_text()
     Campaign(CampaignPlan(("elbow_left",), (0.1, 0.15), (0.05,)), DEFAULT_WALL).run(campaign_dir)
     assert (campaign_dir / "dataset.json").read_text() == before
+
+
+def test_a_campaign_of_the_fr3_with_the_franka_hand_models_what_its_manifest_says(tmp_path):
+    """The FR3 hitting with the Franka Hand in the MuJoCo scene: the manifest records that robot
+    and that tool, the tool's contact point touches the wall, and Table I recomputed from the
+    dataset with the model of the manifest's robot and tool matches."""
+    from impactqp.controller.model.choice import RobotChoice
+    from impactqp.controller.model.jump import JUMP_MODELS
+
+    choice = RobotChoice.of("fr3", "franka_hand")
+    table = Campaign(CampaignPlan(("elbow_up",), (0.1,), ()), DEFAULT_WALL, choice=choice).run(tmp_path)
+    dataset = read_dataset(tmp_path)
+    assert dataset.header.robot == "fr3" and dataset.header.tool.as_dict() == choice.tool.as_dict()
+    assert all(not p for p in validate(tmp_path).values())
+    robot = dataset.header.choice.model()
+    impact = measure_impact(dataset.trials[0].log)
+    terms = robot.terms(impact.q_pre, impact.dq_pre)
+    assert abs(DEFAULT_WALL.signed_distance(terms.contact_point)) < 2e-3  # the fingertips touch
+    v = terms.J @ impact.dq_pre
+    assert -DEFAULT_WALL.normal @ v == pytest.approx(0.1, rel=0.05)
+    crb = JUMP_MODELS["crb"].predict(terms, DEFAULT_WALL.normal, v, 0.0).dq_jump
+    assert table.rows[0].errors["crb"] == pytest.approx(np.mean(np.abs(crb - impact.dq_jump)), rel=1e-4, abs=1e-6)

@@ -277,3 +277,119 @@ def test_the_progress_callback_drives_a_tqdm_bar():
         for done in (1, 2, 6):
             progress(done, 6)
             assert (bar.n, bar.total) == (done, 6)
+
+
+# ---------------------------------------------------------------------------- --robot / --tool
+def test_postures_and_predict_of_the_fr3(capsys):
+    """`postures --robot fr3` lists the FR3's named postures with their q and contact point;
+    `predict --robot fr3 --method gm` prints W = J M^-1 J^T (22) of the FR3's own model, which
+    is not the Panda's."""
+    from impactqp.controller.model.robot import RobotModel
+    from impactqp.controller.model.robot_description import FR3
+
+    code, out, _ = run(capsys, "postures", "--robot", "fr3", "--json")
+    assert code == 0
+    rows = json.loads(out)
+    fr3 = RobotModel("fr3")
+    assert [r["name"] for r in rows] == list(FR3.postures)
+    for r in rows:
+        np.testing.assert_array_equal(r["q"], FR3.postures[r["name"]].q)
+        np.testing.assert_allclose(r["contact_point"], fr3.contact_point(r["q"]), atol=1e-12)
+    W = {}
+    for robot in ("panda", "fr3"):
+        code, out, _ = run(
+            capsys, "predict", "--robot", robot, "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1",
+            "--method", "gm", "--json",
+        )
+        assert code == 0
+        W[robot] = np.array(json.loads(out)["methods"]["gm"]["W"])
+    terms = fr3.terms(FR3.postures["elbow_up"].q)
+    np.testing.assert_allclose(W["fr3"], terms.J @ np.linalg.solve(terms.M, terms.J.T), rtol=1e-9, atol=1e-12)
+    assert not np.allclose(W["fr3"], W["panda"], rtol=1e-3)
+
+
+def test_the_postures_of_another_tool_put_its_contact_point_on_the_wall(capsys):
+    code, out, _ = run(capsys, "postures", "--robot", "fr3", "--tool", "franka_hand", "--json")
+    assert code == 0
+    for r in json.loads(out):
+        assert r["contact_point"][0] == pytest.approx(0.6, abs=1e-4)  # the default wall x = 0.6 m
+
+
+def test_diagnose_refuses_a_robot_other_than_its_manifests(tmp_path, capsys):
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
+
+    generate_dataset(tmp_path, DatasetRequest(postures=["elbow_up"], speeds=[0.1]))
+    code, out, err = run(capsys, "diagnose", str(tmp_path), "--robot", "fr3", "--tool", "franka_hand")
+    assert code == 2 and out == ""
+    assert "manifest (panda, impact_tip) differ from --robot/--tool (fr3, franka_hand)" in err
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--robot", "ur5"], "unknown robot 'ur5'; choose from panda, fr3"),
+    (["--tool", "hammer"], "unknown tool 'hammer'"),
+    (["--tool", "absent.toml"], "the tool file absent.toml does not exist"),
+])
+def test_a_bad_robot_or_tool_is_one_line_and_exit_2(capsys, args, message):
+    code, out, err = run(capsys, "postures", *args)
+    assert code == 2 and out == "" and message in err and len(err.strip().splitlines()) == 1
+
+
+SWEEP_CONFIG = """\
+[grid]
+origin = [0.6, 0.0, 0.7]
+u = [0.0, 1.0, 0.0]
+v = [0.0, 0.0, 1.0]
+size = [0.0, 0.0]
+spacing = 0.1
+[settings]
+normals = [[-1.0, 0.0, 0.0]]
+restitution = [0.0]
+jump_models = ["crb"]
+seed_posture = "elbow_up"
+[controller]
+jump_model = ["crb"]
+impact_duration = [0.015]
+[simulate]
+tolerance = 0.005
+"""
+
+
+def _smoke_commands(tmp):
+    (tmp / "sweep.toml").write_text(SWEEP_CONFIG)
+    return {
+        "predict": ["predict", "--posture", "elbow_left", "--normal", "-1,0,0", "--speed", "0.1", "--json"],
+        "postures": ["postures", "--json"],
+        "simulate": ["simulate", "--posture", "elbow_up", "--speed", "0.1", "--out", str(tmp / "sim"), "--json"],
+        "campaign": ["campaign", "--postures", "elbow_up", "--speeds", "0.1", "--tangential", "none",
+                     "--out", str(tmp / "campaign"), "--json"],
+        "max-speed": ["max-speed", "--posture", "elbow_up", "--tolerance", "0.2", "--json"],
+        "dataset generate": ["dataset", "generate", str(tmp / "data"), "--postures", "elbow_up", "--speeds", "0.1",
+                             "--json"],
+        "sweep": ["sweep", str(tmp / "sweep.toml"), "--out", str(tmp / "sweep"), "--json"],
+        "run": ["run", "--unpaced", "--duration", "0.3", "--log", str(tmp / "run"), "--json"],
+        "diagnose": ["diagnose", str(tmp / "measured"), "--jobs", "2", "--json"],
+    }
+
+
+@pytest.mark.parametrize("robot, tool", [("panda", "impact_tip"), ("fr3", "franka_hand")])
+@pytest.mark.parametrize("command", ["predict", "postures", "simulate", "campaign", "max-speed", "dataset generate",
+                                     "sweep", "run", "diagnose"])
+def test_every_command_runs_for_both_robots(tmp_path, capsys, robot, tool, command):
+    """Each command with --robot and --tool exits 0 with JSON; the datasets it writes record
+    that robot and that tool; diagnose models the robot and the tool of its dataset."""
+    from impactqp.controller.measured.dataset import read_dataset
+    from impactqp.controller.model.choice import RobotChoice
+    from impactqp.controller.model.tool_description import TOOLS
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
+
+    if command == "diagnose":
+        request = DatasetRequest(postures=["elbow_up"], speeds=[0.1, 0.15], choice=RobotChoice.of(robot, tool))
+        generate_dataset(tmp_path / "measured", request)
+
+    code, out, err = run(capsys, *_smoke_commands(tmp_path)[command], "--robot", robot, "--tool", tool)
+    assert code == 0, err
+    json.loads(out)
+    for written in ("sim", "campaign", "data", "run"):
+        if (tmp_path / written / "dataset.json").exists():
+            header = read_dataset(tmp_path / written).header
+            assert header.robot == robot and header.tool.as_dict() == TOOLS[tool].as_dict()

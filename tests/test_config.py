@@ -159,6 +159,11 @@ def test_bad_configurations_are_rejected_with_a_value_error(robot, data):
         ({"tasks": [{"type": ["damping"]}]}, "task type"),
         ({"tasks": [{"type": "damping", "params": 5}]}, "tasks[0].params must be a table"),
         ({"limits": 5}, "[limits] must be a table"),
+        ({"robot": "ur5"}, "unknown robot 'ur5'; choose from panda, fr3"),
+        ({"robot": 3}, "robot must be a robot name"),
+        ({"tool": "hammer"}, "unknown tool 'hammer'"),
+        ({"tool": 5}, "tool must be a tool name, a tool file or a [tool] table"),
+        ({"tool": {"frame": "wrist"}}, "[tool]: tool description: unknown keys [], missing keys"),
     ],
 )
 def test_bad_values_are_bad_input_that_names_the_key(data, fragment):
@@ -231,3 +236,20 @@ def test_post_impact_controller_has_no_impact_constraints_and_keeps_the_limits(r
             assert (params["offset"], params["max_speed"]) == (post_impact.retract_distance, post_impact.max_speed)
         else:
             assert (params["offset"], params["max_speed"]) == (-post_impact.hold_depth, post_impact.hold_speed)
+
+
+def test_the_robot_and_the_tool_of_a_file_build_the_controller(tmp_path):
+    """``robot`` and a ``[tool]`` table: the controller's model is that robot carrying that tool,
+    with that robot's limits."""
+    from impactqp.controller.model.tool_description import TOOLS
+
+    path = tmp_path / "c.toml"
+    path.write_text('robot = "fr3"\n[[tasks]]\ntype = "damping"\n[tool]\nframe = "hand"\ncontact_point = [0.0, 0.0, 0.14]\n'
+                    '[tool.geometry]\nshape = "sphere"\nradius = 0.02\ncentre = [0.0, 0.0, 0.12]\n')
+    config = ControllerConfig.from_file(path)
+    assert config.choice.robot.name == "fr3"
+    assert config.choice.tool.as_dict() == {**TOOLS["impact_tip"].as_dict(), "name": "tool"}
+    controller = build_controller(config)
+    assert controller.robot.description.name == "fr3"
+    np.testing.assert_array_equal(controller.robot.dq_max, config.choice.robot.dq_max)
+    assert ControllerConfig().choice.is_default

@@ -9,12 +9,12 @@ import pytest
 
 from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
 from impactqp.controller.model.robot import TOOL_TIP_OFFSET, PandaModel
+from impactqp.controller.model.tool_description import TOOLS
 from impactqp.controller.measured.dataset import (
     FORMAT,
     DatasetError,
     DatasetHeader,
     DatasetWriter,
-    Tool,
     TrialEntry,
     read_dataset,
     validate,
@@ -25,7 +25,7 @@ from impactqp.sim.runner import TrialSpec, run_approach
 from impactqp.sim.scene import build_scene
 
 ROBOT = PandaModel()
-HEADER = DatasetHeader(Tool("panda_hand", (0.0, 0.0, TOOL_TIP_OFFSET)), DEFAULT_WALL, 1e-3)
+HEADER = DatasetHeader(TOOLS["impact_tip"], DEFAULT_WALL, 1e-3)
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +78,7 @@ def test_round_trip(dataset, logs):
 def test_manifest_holds_what_a_robot_log_holds_and_no_plant_parameter(dataset):
     manifest = json.loads((dataset / "dataset.json").read_text())
     assert manifest["format"] == FORMAT and manifest["robot"] == "panda"
-    assert manifest["tool"] == {"frame": "panda_hand", "contact_point": [0.0, 0.0, TOOL_TIP_OFFSET]}
+    assert manifest["tool"] == TOOLS["impact_tip"].as_dict()
     text = (dataset / "dataset.json").read_text()
     for name in PlantParameters().to_dict():
         if name != "friction":  # the surface's friction is part of the format
@@ -172,4 +172,36 @@ def test_validation_reports_a_broken_manifest(tmp_path):
     (tmp_path / "dataset.json").write_text(json.dumps({"format": "other/1"}))
     assert "lacks the key" in validate(tmp_path)["dataset"][0]
     with pytest.raises(DatasetError):
+        read_dataset(tmp_path)
+
+
+def _rewrite_manifest(directory, edit):
+    path = directory / "dataset.json"
+    manifest = json.loads(path.read_text())
+    edit(manifest)
+    path.write_text(json.dumps(manifest))
+
+
+@pytest.mark.parametrize("robot", ["panda", "fr3"])
+def test_a_first_version_manifest_reads_as_the_impact_tip(tmp_path, logs, robot):
+    writer = DatasetWriter(tmp_path, DatasetHeader(TOOLS["impact_tip"], DEFAULT_WALL, 1e-3, robot=robot))
+    writer.add_trial(TrialEntry("fast", "fast.csv", 0.15), logs[0.15])
+    _rewrite_manifest(tmp_path, lambda m: m.__setitem__(
+        "tool", {"frame": f"{robot}_hand", "contact_point": [0.0, 0.0, TOOL_TIP_OFFSET]}))
+    header = read_dataset(tmp_path).header
+    assert header.tool is TOOLS["impact_tip"] and header.robot == robot
+    assert header.choice.same_as(header.choice.of(robot, "impact_tip"))
+    _rewrite_manifest(tmp_path, lambda m: m["tool"].__setitem__("contact_point", [0.0, 0.0, 0.2]))
+    with pytest.raises(DatasetError, match="is not the impact tool"):
+        read_dataset(tmp_path)
+
+
+@pytest.mark.parametrize("tool", ["franka_hand", "pad"])
+def test_the_manifest_records_and_reads_back_the_full_tool(tmp_path, logs, tool):
+    header = DatasetHeader(TOOLS[tool], DEFAULT_WALL, 1e-3, robot="fr3")
+    DatasetWriter(tmp_path, header).add_trial(TrialEntry("fast", "fast.csv", 0.15), logs[0.15])
+    read = read_dataset(tmp_path).header
+    assert read.robot == "fr3" and read.tool.as_dict() == TOOLS[tool].as_dict()
+    _rewrite_manifest(tmp_path, lambda m: m["tool"].__setitem__("mass", -1.0))
+    with pytest.raises(DatasetError, match="tool: the tool mass"):
         read_dataset(tmp_path)

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.sim.diagnosis import ReplaySetting
 from impactqp.sim.diagnosis.comparison import error_analysis, predictor_errors
 
 
@@ -44,10 +45,10 @@ def test_a_predictor_that_made_the_measured_jumps_has_no_error():
     q = POSTURES["elbow_up"].q
     trials = [synthetic_trial(rng, force=force) for force in (True, False)]
     trials = [replace(t, q_pre=q + rng.normal(0.0, 0.01, 7), dq_pre=rng.normal(0.0, 0.1, 7)) for t in trials]
-    _, _, predictions = predictor_errors(trials, DEFAULT_WALL)
+    _, _, predictions = predictor_errors(trials, ReplaySetting(DEFAULT_WALL))
     for method in METHODS:
         made = [replace(t, jump=jump) for t, jump in zip(trials, predictions[method])]
-        own, fed, again = predictor_errors(made, DEFAULT_WALL)
+        own, fed, again = predictor_errors(made, ReplaySetting(DEFAULT_WALL))
         assert own[method] == pytest.approx(0.0, abs=1e-12)
         assert set(own) == set(METHODS) and set(fed) == set(METHODS)
         np.testing.assert_array_equal(again[method], predictions[method])

@@ -6,6 +6,7 @@ from diagnosis_checks import synthetic_trial
 from hypothesis import given
 from hypothesis import strategies as st
 
+from impactqp.controller.model.choice import DEFAULT_CHOICE
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.sim.diagnosis import EXPLAINED_GAIN, Diagnosis, interval_text
 from impactqp.sim.plant import PlantParameters
@@ -39,6 +40,7 @@ def diagnosis(explained: bool, baseline: float, extended: float, open_sides: lis
         parameters={"friction": 0.3}, predictors={}, predictors_measured_impulse={}, predictions={}, analysis={},
         causes=causes, steps=[], intervals={"friction": [0.2, None]}, parameter_intervals=[parameter],
         open_sides=open_sides, extended_error=extended, extended_plant=PlantParameters(), surface=DEFAULT_WALL,
+        choice=DEFAULT_CHOICE,
     )
 
 

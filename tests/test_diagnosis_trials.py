@@ -4,23 +4,30 @@ import hashlib
 from pathlib import Path
 
 import numpy as np
+import pytest
 from diagnosis_checks import POSTURES, SPEEDS
 
 from impactqp.controller.measured.dataset import read_dataset, validate
+from impactqp.controller.model.choice import RobotChoice
 from impactqp.sim.causes import PayloadCause
 from impactqp.sim.diagnosis import diagnose, load_trials, replay_all
 from impactqp.sim.generation import DatasetRequest, generate_dataset
 from impactqp.sim.plant import PlantParameters
 
 
-def test_replay_in_the_generating_plant_reproduces_the_jumps(tmp_path):
-    """A noise-free trial replayed in the plant that made it gives back its own jump."""
+@pytest.mark.parametrize("robot, tool", [("panda", "impact_tip"), ("fr3", "franka_hand")])
+def test_replay_in_the_generating_plant_reproduces_the_jumps(tmp_path, robot, tool):
+    """A noise-free trial replayed in the plant that made it gives back its own jump: the replay
+    simulates the robot and the tool of the manifest."""
     plant = PlantParameters(armature=[0.3] * 7)
-    request = DatasetRequest(plant=plant, postures=["elbow_left"], speeds=[0.15], noise_dq=0.0, noise_tau=0.0)
+    choice = RobotChoice.of(robot, tool)
+    request = DatasetRequest(
+        plant=plant, postures=["elbow_left"], speeds=[0.15], noise_dq=0.0, noise_tau=0.0, choice=choice
+    )
     generate_dataset(tmp_path, request)
-    trials, skipped, surface = load_trials(tmp_path)
-    assert skipped == []
-    (features,) = replay_all(surface, plant, trials)
+    trials, skipped, setting = load_trials(tmp_path)
+    assert skipped == [] and setting.choice.same_as(choice)
+    (features,) = replay_all(setting, plant, trials)
     np.testing.assert_allclose(features.jump, trials[0].jump, atol=1e-6)
     np.testing.assert_allclose(features.impulse, trials[0].impulse, atol=1e-6)
     np.testing.assert_allclose(features.torque, trials[0].torque, rtol=1e-6, atol=1e-6)  # CSV: 10 digits

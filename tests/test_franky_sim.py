@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from conftest import ForwardingRobot
+from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.config import ControllerConfig
 from impactqp.controller.measured.impact import WINDOW_AFTER
 from impactqp.controller.model.inverse_kinematics import approach_start
@@ -89,7 +90,7 @@ def test_the_session_detects_the_wall_retracts_and_logs_through_the_franka_proto
     assert 0.5 * SPEED < session.contact_speed() <= SPEED * 1.05
     t_contact = server.contact_time()  # the server's first wall contact, on the states' clock
     assert t_contact is not None and t_contact <= session.detector.t_detect <= t_contact + WINDOW_AFTER
-    write_log(run_log, RunRequest(backend="franka", robot=ROBOT, robot_ip=server.hostname, speed=SPEED), config, result)
+    write_log(run_log, RunRequest(backend="franka", choice=RobotChoice.of(ROBOT, "impact_tip"), robot_ip=server.hostname, speed=SPEED), config, result)
     capsys.readouterr()
     assert main(["dataset", "validate", str(tmp_path / "log")]) == 0, capsys.readouterr().err
 
@@ -146,7 +147,7 @@ def test_impactqp_run_moves_to_the_start_then_runs_the_session_against_the_serve
     argv = ["run", "--backend", "franka", "--robot", ROBOT, "--robot-ip", server.hostname, "--realtime", "ignore", "--json"]
     # the model check refuses a robot whose mass matrix differs by more than the limit, in one line, before any motion
     strict = tmp_path / "strict.toml"
-    strict.write_text("[robot]\nmax_model_difference = 1e-6\n")
+    strict.write_text(f'robot = "{ROBOT}"\n[libfranka]\nmax_model_difference = 1e-6\n')
     assert main(argv + ["--config", str(strict), "--log", str(tmp_path / "refused")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "mass matrix differs" in err and "max_model_difference" in err
@@ -161,7 +162,7 @@ def test_impactqp_run_moves_to_the_start_then_runs_the_session_against_the_serve
     assert 0.0 < robot["model_difference"] <= RobotConfig().max_model_difference
     assert robot["reflex"] == [] and not robot["recovered"]
     assert robot["command_success_rate"] == 1.0 and robot["missed_packets"] >= 0
-    request = RunRequest(backend="franka", robot=ROBOT)
+    request = RunRequest(backend="franka", choice=RobotChoice.of(ROBOT, "impact_tip"))
     q_start = start_posture(request, model, ControllerConfig.approach(POSTURE.surface))
     move = report["start_move"]
     assert move["cycles"] >= int(move["duration"] / 1e-3) and move["final_error"] < 0.01

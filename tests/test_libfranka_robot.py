@@ -1,5 +1,5 @@
 """What both libfranka backends share: the load ``set_load`` gets is the declared tool's, moved
-into the flange frame, each entry of the ``[robot]`` table replacing the tool's; the settings
+into the flange frame, each entry of the ``[libfranka]`` table replacing the tool's; the settings
 reach the robot on connect in libfranka's order."""
 
 import numpy as np

@@ -77,3 +77,34 @@ def test_the_batched_closed_form_equals_the_one_posture_closed_form(robot, seed,
             # what binds is the same, or binds at the same speed (a tie to rounding)
             slopes = criterion_slopes(robot, terms_i, normals[i], model, restitution, impact_duration)
             assert 1.0 / slopes[CRITERIA[batch.criterion[i]]][batch.joint[i] - 1] == pytest.approx(one.speed, rel=1e-9)
+
+
+ROBOT_TOOLS = [("panda", "impact_tip"), ("fr3", "impact_tip"), ("fr3", "franka_hand"), ("panda", "pad")]
+
+
+@pytest.mark.parametrize("robot_name, tool", ROBOT_TOOLS)
+@pytest.mark.parametrize("jump_model", ["crb", "gm"])
+def test_the_qp_settles_at_the_closed_form_speed_of_each_robot(robot_name, tool, jump_model):
+    """Asked for 2 m/s at a fixed elbow_up posture (solved for the tool), the wall 5 cm ahead and
+    the impact-aware rows always on, the QP's commanded contact speed settles at the closed-form
+    maximum of the same jump model and that robot's own limits: the QP and the closed form
+    agree on every robot, not only on the Panda."""
+    from impactqp.controller.config import ControllerConfig, build_controller
+    from impactqp.controller.model.choice import RobotChoice
+    from impactqp.controller.model.postures import Surface
+
+    choice = RobotChoice.of(robot_name, tool)
+    robot, posture = choice.model(), choice.posture("elbow_up")
+    q, normal = posture.q, posture.surface.normal
+    surface = Surface(robot.contact_point(q) - 0.05 * normal, normal)
+    config = ControllerConfig.approach(
+        surface, speed=2.0, jump_model=jump_model, always_active=True, posture_weight=0.0
+    )
+    controller = build_controller(config, robot)
+    dq = np.zeros(7)
+    for _ in range(800):
+        dq = controller.step(q, dq).dq_cmd
+    terms = robot.terms(q)
+    closed_form = closed_form_max_speed(robot, terms, normal, JUMP_MODELS[jump_model])
+    assert float(-normal @ (terms.J @ dq)) == pytest.approx(closed_form.speed, rel=0.01)
+    np.testing.assert_array_equal(robot.dq_max, choice.robot.dq_max)

@@ -95,3 +95,24 @@ def test_bad_search_settings_are_rejected():
         MaxSpeedSearch(POSTURES["elbow_up"], DEFAULT_WALL, jump_model="magic")
     with pytest.raises(ValueError, match="tolerance"):
         SpeedBisection(0.02, 1.0, 0.0)
+
+
+def test_a_max_speed_search_of_the_fr3_with_the_franka_hand_reaches_its_closed_form():
+    """The FR3 hitting with the Franka Hand in the MuJoCo scene: the QP-limited run settles at
+    the closed-form crb speed of that robot and tool at its impact posture, and the bisection
+    brackets the simulated maximum."""
+    from impactqp.controller.model.choice import RobotChoice
+
+    choice = RobotChoice.of("fr3", "franka_hand")
+    posture = choice.posture("elbow_up")
+    report = MaxSpeedSearch(posture, DEFAULT_WALL, jump_model="crb", tolerance=0.05, jobs=2, choice=choice).run()
+    data = report.to_json()
+    robot = choice.model()
+    terms = robot.terms(np.array(data["q_impact"]))
+    assert np.linalg.norm(terms.contact_point - robot.contact_point(posture.q)) < 0.01
+    expected = closed_form_max_speed(robot, terms, DEFAULT_WALL.normal, JUMP_MODELS["crb"])
+    assert data["predicted_max_speed"]["crb"] == pytest.approx(expected.speed)
+    assert data["qp_limited_speed"] == pytest.approx(expected.speed, rel=0.05)
+    assert data["qp_max_velocity_ratio"] < 1.0
+    below = [e for e in report.evaluations if e.reference_speed <= report.simulated_max_speed]
+    assert below and not any(e.violated for e in below)

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from test_jump import welded_arm_inverse_inertia
 
 from impactqp.controller.model.validation import BadInputError
-from impactqp.controller.model.postures import POSTURES, DEFAULT_WALL, Surface, posture
+from impactqp.controller.model.postures import POSTURES, DEFAULT_WALL, Surface
 from impactqp.controller.model.robot import (
     CONTACT_FRAME,
     HAND_FRAME,
@@ -92,9 +92,11 @@ def test_bad_states_are_rejected(robot):
     assert np.linalg.svd(robot.contact_jacobian6(SINGULAR_Q)[:3], compute_uv=False)[-1] < 1e-6
 
 
+@pytest.mark.parametrize("robot_name", list(ROBOTS))
 @pytest.mark.parametrize("name", list(POSTURES))
-def test_named_postures_face_the_default_wall(robot, name):
-    p = posture(name)
+def test_named_postures_face_the_default_wall(robot_name, name):
+    robot = RobotModel(robot_name)
+    p = robot.description.posture(name)
     assert p.surface is DEFAULT_WALL
     assert np.all(p.q - robot.q_min >= 0.1) and np.all(robot.q_max - p.q >= 0.1)
     terms = robot.terms(p.q)
@@ -115,8 +117,9 @@ def test_postures_differ_in_elbow_and_wrist(robot):
 
 
 def test_unknown_posture_and_bad_surface():
-    with pytest.raises(BadInputError, match="unknown posture"):
-        posture("nope")
+    for description in ROBOTS.values():
+        with pytest.raises(BadInputError, match=f"unknown posture 'nope' for the {description.name}"):
+            description.posture("nope")
     with pytest.raises(ValueError, match="zero"):
         Surface(np.zeros(3), np.zeros(3))
     assert np.linalg.norm(Surface(np.zeros(3), np.array([0, 0, 2.0])).normal) == 1.0

@@ -1,4 +1,4 @@
-"""The ``[robot]`` table: defaults a robot accepts, every entry checked with a one-line reason."""
+"""The ``[libfranka]`` table: defaults a robot accepts, every entry checked with a one-line reason."""
 
 import numpy as np
 import pytest
@@ -14,26 +14,26 @@ def test_the_defaults_have_the_sizes_libfranka_takes_and_round_trip():
     assert len(robot.lower_force_thresholds) == len(robot.upper_force_thresholds) == 6
     assert robot.load_mass is robot.load_com is robot.load_inertia is None  # the declared tool's load
     assert not robot.automatic_error_recovery  # off unless asked for
-    config = ControllerConfig.from_dict({"robot": {"load_mass": 0.4, "load_com": [0.0, 0.0, 0.05]}})
-    assert ControllerConfig.from_dict(config.to_dict()).robot == config.robot
+    config = ControllerConfig.from_dict({"libfranka": {"load_mass": 0.4, "load_com": [0.0, 0.0, 0.05]}})
+    assert ControllerConfig.from_dict(config.to_dict()).libfranka == config.libfranka
 
 
 @pytest.mark.parametrize(
     "entry, reason",
     [
-        ({"joint_impedance": [3000.0] * 6}, "robot.joint_impedance must be 7 numbers"),
-        ({"joint_impedance": [0.0] * 7}, "robot.joint_impedance must lie in"),
-        ({"lower_torque_thresholds": [200.0] * 7}, "must not exceed robot.upper_torque_thresholds"),
+        ({"joint_impedance": [3000.0] * 6}, "libfranka.joint_impedance must be 7 numbers"),
+        ({"joint_impedance": [0.0] * 7}, "libfranka.joint_impedance must lie in"),
+        ({"lower_torque_thresholds": [200.0] * 7}, "must not exceed libfranka.upper_torque_thresholds"),
         ({"upper_force_thresholds": [np.nan] * 6}, "must be finite"),
-        ({"load_mass": 4.0}, "robot.load_mass"),
-        ({"load_com": [2.0, 0.0, 0.0]}, "robot.load_com"),
+        ({"load_mass": 4.0}, "libfranka.load_mass"),
+        ({"load_com": [2.0, 0.0, 0.0]}, "libfranka.load_com"),
         ({"load_inertia": [1e-3, 1e-3, 0, 0, 1e-3, 0, 0, 0, 1e-3]}, "symmetric positive semi-definite"),
-        ({"automatic_error_recovery": "yes"}, "robot.automatic_error_recovery"),
-        ({"max_model_difference": 0.0}, "robot.max_model_difference"),
-        ({"stiffness": 1.0}, "unknown keys in [robot]: stiffness"),
+        ({"automatic_error_recovery": "yes"}, "libfranka.automatic_error_recovery"),
+        ({"max_model_difference": 0.0}, "libfranka.max_model_difference"),
+        ({"stiffness": 1.0}, "unknown keys in [libfranka]: stiffness"),
     ],
 )
 def test_bad_entries_are_bad_input_naming_the_key(entry, reason):
     with pytest.raises(BadInputError) as error:
-        ControllerConfig.from_dict({"robot": entry})
+        ControllerConfig.from_dict({"libfranka": entry})
     assert reason in str(error.value) and "\n" not in str(error.value)

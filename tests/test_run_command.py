@@ -60,7 +60,7 @@ def test_a_backend_for_another_robot_is_bad_input_before_connecting(capsys, monk
     monkeypatch.setattr(run_module, "build_backend", lambda *_: pytest.fail("connected"))
     err = one_error_line(capsys, ["run", "--backend", backend, "--robot", robot, "--robot-ip", "127.0.0.1"])
     assert f"--backend {backend} drives the {right} only, not the {robot}: use --robot {right}" in err
-    assert "--robot 'ur5' is unknown; known: panda, fr3" in one_error_line(capsys, ["run", "--robot", "ur5"])
+    assert "unknown robot 'ur5'; choose from panda, fr3" in one_error_line(capsys, ["run", "--robot", "ur5"])
 
 
 def test_bad_input_gets_one_line(tmp_path, capsys):
@@ -92,8 +92,8 @@ class SignalAt(ForwardingRobot):
 def test_a_stop_signal_brakes_keeps_the_log_and_exits_130(sig, tmp_path, capsys, monkeypatch):
     build = run_module.build_backend
 
-    def build_with_signal(request, model):
-        robot, config, duration = build(request, model)
+    def build_with_signal(request):
+        robot, config, duration = build(request)
         return SignalAt(robot, sig, at=150), config, duration
 
     monkeypatch.setattr(run_module, "build_backend", build_with_signal)
@@ -111,8 +111,8 @@ def test_an_unusable_log_directory_is_refused_before_the_robot_moves(tmp_path, c
     moved = []
     build = run_module.build_backend
 
-    def build_and_watch(request, model):
-        robot, config, duration = build(request, model)
+    def build_and_watch(request):
+        robot, config, duration = build(request)
         robot.write = lambda dq_cmd, write=robot.write: (moved.append(1), write(dq_cmd))
         return robot, config, duration
 
@@ -157,8 +157,8 @@ class LateOrBroken(ForwardingRobot):
 def test_a_run_a_real_robot_would_not_have_finished_exits_3_and_says_why(fault, options, tmp_path, capsys, monkeypatch):
     build = run_module.build_backend
 
-    def build_faulty(request, model):
-        robot, config, duration = build(request, model)
+    def build_faulty(request):
+        robot, config, duration = build(request)
         return LateOrBroken(robot, fault, 100), config, duration
 
     monkeypatch.setattr(run_module, "build_backend", build_faulty)
@@ -206,7 +206,9 @@ def test_every_option_of_run_is_a_request_field_of_the_same_name_and_every_field
 
     names = {f.name for f in fields(RunRequest)}
     options = {p.name for p in run_command.params} - {"as_json"}
-    assert options <= names
+    # --robot and --tool arrive together as one field, the RobotChoice ``choice``
+    assert {"robot", "tool"} <= options and "choice" in names
+    assert options - {"robot", "tool"} <= names
     for name in names:
         assert f"\n    {name}\n" in RunRequest.__doc__, name
     assert RunRequest().unpaced is False and RunRequest().log is None

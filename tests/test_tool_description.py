@@ -89,7 +89,7 @@ def test_a_tool_file_in_json_or_toml(tmp_path):
 
 @pytest.mark.parametrize("text, message", [
     ("{", "not valid JSON"),
-    ("[]", "must be an object"),
+    ("[]", "must be a JSON object"),
     ('{"frame": "hand"}', "missing keys"),
     ('{"frame": "hand", "geometry": {"shape": "sphere", "radius": 0.02, "centre": [0, 0, 0.1]},'
      ' "contact_point": [0, 0, 0.12], "colour": "red"}', "unknown keys"),
@@ -106,9 +106,12 @@ def test_bad_tool_files_are_bad_input(tmp_path, text, message):
         tool_description(path)
 
 
-def test_a_missing_file_or_unknown_name_is_bad_input(tmp_path):
-    with pytest.raises(BadInputError, match="cannot read"):
+def test_a_missing_file_a_directory_or_unknown_name_is_bad_input(tmp_path):
+    with pytest.raises(BadInputError, match="tool file .* does not exist"):
         tool_description(tmp_path / "absent.toml")
+    (tmp_path / "folder.json").mkdir()
+    with pytest.raises(BadInputError, match="is a directory"):
+        tool_description(tmp_path / "folder.json")
     with pytest.raises(BadInputError, match="impact_tip, franka_hand, pad"):
         tool_description("hammer")
 

@@ -5,7 +5,9 @@ A dataset is a directory with a manifest ``dataset.json``::
     {
       "format": "impactqp-dataset/1",
       "robot": "panda",
-      "tool": {"frame": "panda_hand", "contact_point": [0, 0, 0.14]},
+      "tool": {"name": "impact_tip", "frame": "hand", "replaces_hand": false,
+               "geometry": {"shape": "sphere", "radius": 0.02, "centre": [0, 0, 0.12]},
+               "contact_point": [0, 0, 0.14], "mass": 0.0, "com": [0, 0, 0], "inertia": [[0, 0, 0], ...]},
       "surface": {"point": [0.6, 0, 0], "normal": [-1, 0, 0], "friction": 0.1123},
       "control_period": 0.001,
       "trials": [{"id": "t000", "file": "t000.csv", "force_file": "t000_force.csv",
@@ -13,8 +15,11 @@ A dataset is a directory with a manifest ``dataset.json``::
                   "posture": "elbow_up", "impact_time": 0.134}]
     }
 
-``tool.contact_point`` is the contact point in ``tool.frame`` (a frame of the robot
-description); the surface is in the world frame with its normal towards the robot. Per trial,
+``robot`` names a robot description (``panda``, ``fr3``) and ``tool`` is the full tool
+description (``tool_description.ToolDescription.as_dict``; docs/dataset.md): whoever reads the
+dataset models that robot and that tool. A manifest of the first version, whose tool is
+``{"frame": "panda_hand", "contact_point": [0, 0, 0.14]}`` (the hand frame of its robot and the
+impact tip's contact point), is read as the built-in ``impact_tip``. The surface is in the world frame with its normal towards the robot. Per trial,
 one CSV at the control rate with the columns ``t, q1..q7, dq1..dq7, tau1..tau7, dq_cmd1..dq_cmd7``
 (tau: measured joint torques, dq_cmd: commanded joint velocities) and optionally a force CSV
 ``t, fx, fy, fz`` (force on the robot at the contact, world frame, any rate). ``force_file``,
@@ -38,9 +43,11 @@ from typing import TypeVar
 
 import numpy as np
 
+from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.prediction import default_robot
-from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET
+from impactqp.controller.model.robot import NQ
+from impactqp.controller.model.robot_description import ROBOTS, robot_description
+from impactqp.controller.model.tool_description import TOOLS, ToolDescription, tool_from_dict
 from impactqp.controller.model.files import read_mapping, regular_file
 from impactqp.controller.model.validation import (
     BadInputError,
@@ -65,14 +72,10 @@ TRIAL_COLUMNS = (
     + [f"dq_cmd{i}" for i in range(1, NQ + 1)]
 )
 FORCE_COLUMNS = ["t", "fx", "fy", "fz"]
-ROBOTS = ("panda",)
-"""The robots the package models; a manifest naming another one is refused."""
 RESERVED_ID = "dataset"
 """The key of the manifest's own problems in :func:`validate`; no trial may use it."""
 POSITION_TOLERANCE = 1e-3
 """rad a logged joint position may lie outside the URDF limits (encoder and rounding)."""
-MAX_TOOL_LENGTH = 0.5
-"""m: the farthest a contact point may lie from its tool frame."""
 MIN_CONTROL_PERIOD, MAX_CONTROL_PERIOD = 1e-4, 1e-2
 """s: the control periods a log may have (10 kHz to 100 Hz)."""
 DIRECTORY = "the dataset directory"
@@ -87,30 +90,27 @@ class DatasetError(BadInputError):
     """A dataset that cannot be read or written as asked."""
 
 
-@dataclass(frozen=True)
-class Tool:
-    """The contact point ``contact_point`` (m) expressed in the robot frame ``frame``."""
-
-    frame: str
-    contact_point: tuple[float, float, float]
-
-    def require_modelled(self, what: str) -> None:
-        """Bad input unless this is the tool that ``PandaModel`` and the simulated scene model
-        (``MODELLED_TOOL``): a result computed with another tool would ignore the manifest."""
-        same_point = np.allclose(self.contact_point, MODELLED_TOOL.contact_point, rtol=0.0, atol=TOOL_TOLERANCE)
-        if self.frame != MODELLED_TOOL.frame or not same_point:
-            raise DatasetError(
-                f"{what}: the manifest's tool (frame {self.frame!r}, contact point "
-                f"{[round(float(x), 6) for x in self.contact_point]} m) is not the modelled impact tool "
-                f"(frame {MODELLED_TOOL.frame!r}, contact point {list(MODELLED_TOOL.contact_point)} m)"
-            )
-
-
-MODELLED_TOOL = Tool(HAND_FRAME, (0.0, 0.0, TOOL_TIP_OFFSET))
-"""The impact tool of ``PandaModel`` and of the MuJoCo scene: a sphere on the hand's axis."""
+LEGACY_TOOL_KEYS = {"frame", "contact_point"}
+"""The tool of a first-version manifest: a frame of the robot and a contact point in it."""
 
 TOOL_TOLERANCE = 1e-6
-"""m: a contact point this close to the modelled one is the modelled tool (JSON round trips)."""
+"""m: a legacy contact point this close to the impact tip's is the impact tip (JSON round trips)."""
+
+
+def _legacy_tool(tool: dict, robot: str) -> ToolDescription:
+    """The built-in ``impact_tip`` of a first-version tool ``{"frame", "contact_point"}``;
+    bad input for any other legacy tool, whose geometry and mass the manifest does not say."""
+    tip = TOOLS["impact_tip"]
+    frame = non_empty_string(tool["frame"], "tool.frame")
+    point = numbers(tool["contact_point"], 3, "tool.contact_point")
+    same_point = np.allclose(point, tip.contact_point, rtol=0.0, atol=TOOL_TOLERANCE)
+    if frame != robot_description(robot).hand_frame or not same_point:
+        raise DatasetError(
+            f"the manifest's tool (frame {frame!r}, contact point {[round(float(x), 6) for x in point]} m) "
+            f"is not the impact tool (frame {robot_description(robot).hand_frame!r}, contact point "
+            f"{tip.contact_point.tolist()} m); give the full tool description instead (docs/dataset.md)"
+        )
+    return tip
 
 
 @dataclass(frozen=True)
@@ -144,17 +144,22 @@ class DatasetHeader:
     do not know the surface's friction coefficient (a real robot's log; the manifest leaves
     ``surface.friction`` out and ``surface`` holds the default)."""
 
-    tool: Tool
+    tool: ToolDescription
     surface: Surface
     control_period: float
     robot: str = "panda"
     friction_known: bool = True
 
+    @property
+    def choice(self) -> RobotChoice:
+        """The robot and the tool the data were taken with: what a reader models."""
+        return RobotChoice.of(self.robot, self.tool)
+
     def to_dict(self) -> dict:
         return {
             "format": FORMAT,
             "robot": self.robot,
-            "tool": {"frame": self.tool.frame, "contact_point": list(self.tool.contact_point)},
+            "tool": self.tool.as_dict(),
             "surface": {
                 "point": self.surface.point.tolist(),
                 "normal": self.surface.normal.tolist(),
@@ -250,7 +255,7 @@ def _load_manifest(path: Path) -> dict:
         raise DatasetError(f"{path} lacks the key(s) {', '.join(sorted(missing))}")
     if manifest["format"] != FORMAT:
         raise DatasetError(f"{path}: the format must be {FORMAT!r}")
-    if manifest["robot"] not in ROBOTS:
+    if not isinstance(manifest["robot"], str) or manifest["robot"] not in ROBOTS:
         raise DatasetError(f"{path}: 'robot' must be one of the robots we model ({', '.join(ROBOTS)})")
     if not isinstance(manifest["trials"], list):
         raise DatasetError(f"{path}: 'trials' must be a list")
@@ -276,14 +281,17 @@ def _dataset_errors(parse: Callable[[dict], T]) -> Callable[[dict], T]:
 @_dataset_errors
 def _parse_header(manifest: dict) -> DatasetHeader:
     tool, surface = manifest["tool"], manifest["surface"]
-    if not isinstance(tool, dict) or set(tool) != {"frame", "contact_point"}:
-        raise DatasetError("'tool' must be an object with the keys frame and contact_point")
+    if not isinstance(tool, dict):
+        raise DatasetError("'tool' must be an object: a tool description (docs/dataset.md)")
     if not isinstance(surface, dict) or not {"point", "normal"} <= set(surface) <= {"point", "normal", "friction"}:
         raise DatasetError("'surface' must be an object with the keys point, normal and optionally friction")
-    frame = non_empty_string(tool["frame"], "tool.frame")
-    contact_point = numbers(tool["contact_point"], 3, "tool.contact_point")
-    if not all(np.isfinite(contact_point)) or np.linalg.norm(contact_point) > MAX_TOOL_LENGTH:
-        raise DatasetError(f"tool.contact_point must be finite and within {MAX_TOOL_LENGTH} m of its frame")
+    if set(tool) == LEGACY_TOOL_KEYS:
+        tool = _legacy_tool(tool, manifest["robot"])
+    else:
+        try:
+            tool = tool_from_dict(tool)
+        except BadInputError as error:
+            raise DatasetError(f"tool: {error}") from None
     period = number(manifest["control_period"], "control_period")
     if not (np.isfinite(period) and MIN_CONTROL_PERIOD <= period <= MAX_CONTROL_PERIOD):
         raise DatasetError(
@@ -296,7 +304,7 @@ def _parse_header(manifest: dict) -> DatasetHeader:
     except BadInputError as error:
         raise DatasetError(f"surface: {error}") from None
     return DatasetHeader(
-        tool=Tool(frame, contact_point), surface=plane, control_period=period, robot=manifest["robot"],
+        tool=tool, surface=plane, control_period=period, robot=manifest["robot"],
         friction_known=bool(friction),
     )
 
@@ -380,6 +388,11 @@ def _inside(directory: Path, name: str) -> Path:
     return path
 
 
+def read_header(directory: str | Path) -> DatasetHeader:
+    """The manifest's header (robot, tool, surface, control period), without reading a trial."""
+    return _parse_header(_load_manifest(Path(directory) / MANIFEST))
+
+
 def read_trial(directory: Path, entry: TrialEntry) -> TrialLog:
     table = _read_table(_inside(directory, entry.file), TRIAL_COLUMNS)
     t, q, dq, tau, dq_cmd = (table[:, 0], *np.split(table[:, 1:], 4, axis=1))
@@ -455,7 +468,7 @@ def validate(directory: str | Path, progress=None) -> dict[str, list[str]]:
         listed |= {entry.file, entry.force_file}
         files = (entry.file, entry.force_file)
         if files not in checked:
-            checked[files] = _log_problems(directory, entry, header.control_period)
+            checked[files] = _log_problems(directory, entry, header)
         problems[entry.id] = _trial_problems(entry, *checked[files])
     if progress:
         progress(total, total)
@@ -477,15 +490,17 @@ def _trial_problems(entry: TrialEntry, log_problems: list[str], impact_start: fl
     return problems
 
 
-def _log_problems(directory: Path, entry: TrialEntry, control_period: float) -> tuple[list[str], float | None]:
-    """The problems of the files of ``entry`` (its CSV and force CSV) and the start of the impact
-    found in them (None when none is found)."""
+def _log_problems(directory: Path, entry: TrialEntry, header: DatasetHeader) -> tuple[list[str], float | None]:
+    """The problems of the files of ``entry`` (its CSV and force CSV), checked against the
+    header's robot and control period, and the start of the impact found in them (None when none
+    is found)."""
     try:
         log = read_trial(directory, entry)
     except DatasetError as error:
         return [str(error)], None
     problems = []
-    robot = default_robot()
+    control_period = header.control_period
+    robot = robot_description(header.robot)
     outside = (log.q < robot.q_min - POSITION_TOLERANCE) | (log.q > robot.q_max + POSITION_TOLERANCE)
     if np.any(outside):
         row, joint = (int(i) for i in np.argwhere(outside)[0])

@@ -47,12 +47,13 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.files import regular_file
-from impactqp.controller.model.postures import POSTURES, Surface
-from impactqp.controller.model.robot import HAND_FRAME, NQ, TOOL_TIP_OFFSET, PandaModel
-from impactqp.controller.model.validation import BadInputError, finite_vector, positive
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot import NQ, RobotModel
+from impactqp.controller.model.validation import BadInputError, positive
 
-from .dataset import DatasetError, DatasetHeader, DatasetWriter, Tool, TrialEntry
+from .dataset import DatasetError, DatasetHeader, DatasetWriter, TrialEntry
 from .impact import ImpactNotFoundError, measure_impact
 from .trial_log import TrialLog
 
@@ -180,18 +181,16 @@ def logged_period(time_ms: np.ndarray) -> float:
     return round(step / 1000.0, decimals + 3)
 
 
-def contact_velocity(robot: PandaModel, frame: str, point: np.ndarray, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """World velocity (m/s) of the point ``point`` (m, in ``frame``) at the state (q, dq)."""
+def contact_velocity(robot: RobotModel, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """World velocity (m/s) of the tool's contact point at the state (q, dq)."""
     model, data = robot.model, robot.data
     pin.forwardKinematics(model, data, q, dq)
-    frame_id = model.getFrameId(frame)
-    placement = pin.updateFramePlacement(model, data, frame_id)
-    twist = pin.getFrameVelocity(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)
-    return twist.linear + np.cross(twist.angular, placement.rotation @ point)
+    return pin.getFrameVelocity(model, data, robot.contact_frame_id, pin.LOCAL_WORLD_ALIGNED).linear.copy()
 
 
-def nearest_posture(q: np.ndarray) -> str | None:
-    for name, posture in POSTURES.items():
+def nearest_posture(q: np.ndarray, choice: RobotChoice = DEFAULT_CHOICE) -> str | None:
+    """The named posture of ``choice`` within ``POSTURE_TOLERANCE`` of q, if any."""
+    for name, posture in choice.postures.items():
         if np.max(np.abs(q - posture.q)) <= POSTURE_TOLERANCE:
             return name
     return None
@@ -201,13 +200,14 @@ def import_trial(
     path: str | Path,
     surface: Surface,
     *,
-    robot: PandaModel,
-    tool_frame: str = HAND_FRAME,
-    contact_point=(0.0, 0.0, TOOL_TIP_OFFSET),
+    choice: RobotChoice = DEFAULT_CHOICE,
+    robot: RobotModel | None = None,
     reference_speed: float | None = None,
 ) -> FrankaTrial:
-    """Read one libfranka log and estimate its reference velocity (module docstring)."""
+    """Read one libfranka log of ``choice``'s robot and tool (``robot``: its model, built when
+    None) and estimate its reference velocity (module docstring)."""
     path = Path(path)
+    robot = choice.model() if robot is None else robot
     columns = read_franka_csv(path)
     log = trial_log_of(path, columns)
     try:
@@ -222,10 +222,7 @@ def import_trial(
         last = max(impact.pre_index - REFERENCE_GAP, 1)
         first = max(last - REFERENCE_WINDOW, 0)
         dq = log.dq_cmd if np.any(log.dq_cmd[first:last] != 0.0) else log.dq
-        point = np.asarray(contact_point, dtype=float)
-        velocity = np.mean(
-            [contact_velocity(robot, tool_frame, point, log.q[k], dq[k]) for k in range(first, last)], axis=0
-        )
+        velocity = np.mean([contact_velocity(robot, log.q[k], dq[k]) for k in range(first, last)], axis=0)
         normal_speed = float(-surface.normal @ velocity)
         tangential = velocity + normal_speed * surface.normal
         tangential = np.round(tangential / REFERENCE_ROUNDING) * REFERENCE_ROUNDING + 0.0
@@ -241,7 +238,7 @@ def import_trial(
         log=log,
         reference_normal_speed=float(speed),
         reference_tangential_velocity=tuple(float(x) for x in tangential),
-        posture=nearest_posture(log.q[impact.pre_index]) if impact is not None else None,
+        posture=nearest_posture(log.q[impact.pre_index], choice) if impact is not None else None,
         impact_time=float(log.t[impact.pre_index]) if impact is not None else None,
         control_period=logged_period(columns["time"]),
     )
@@ -264,30 +261,24 @@ def import_franka_logs(
     logs: list[str | Path],
     surface: Surface,
     *,
-    tool_frame: str = HAND_FRAME,
-    contact_point=(0.0, 0.0, TOOL_TIP_OFFSET),
+    choice: RobotChoice = DEFAULT_CHOICE,
     reference_speed: float | None = None,
 ) -> list[TrialEntry]:
-    """Write the libfranka logs ``logs`` as a dataset in ``out`` (one trial per log) and return
-    the trial entries. Every log is read and checked before the first file is written."""
+    """Write the libfranka logs ``logs`` of ``choice``'s robot and tool as a dataset in ``out``
+    (one trial per log; the manifest records the robot and the tool) and return the trial
+    entries. Every log is read and checked before the first file is written."""
     if not logs:
         raise BadInputError("give at least one libfranka log")
     if reference_speed is not None:
         positive(reference_speed, "--reference-speed", "m/s")
-    point = finite_vector(contact_point, 3, "the contact point")
-    robot = PandaModel()
-    if not robot.model.existFrame(tool_frame):
-        raise BadInputError(f"--tool-frame {tool_frame!r} is not a frame of the Panda model (e.g. {HAND_FRAME!r})")
+    robot = choice.model()
     paths = [Path(p) for p in logs]
-    trials = [
-        import_trial(p, surface, robot=robot, tool_frame=tool_frame, contact_point=point, reference_speed=reference_speed)
-        for p in paths
-    ]
+    trials = [import_trial(p, surface, choice=choice, robot=robot, reference_speed=reference_speed) for p in paths]
     periods = [t.control_period for t in trials]
     if np.ptp(periods) > 1e-6:
         raise BadInputError(f"the logs have different control periods: {sorted(set(np.round(periods, 6)))} s")
     header = DatasetHeader(
-        tool=Tool(tool_frame, tuple(float(x) for x in point)), surface=surface, control_period=float(periods[0]),
+        tool=choice.tool, surface=surface, control_period=float(periods[0]), robot=choice.robot.name,
         friction_known=False,
     )
     Path(out).mkdir(parents=True, exist_ok=True)

@@ -87,11 +87,6 @@ joint placements agree) and each posture lies inside its limits, so the same joi
 put the tool at the same place with the same hand axis (docs/robots.md)."""
 
 POSTURES = PANDA_POSTURES
-"""The postures of the default robot, the Panda."""
+"""The postures of the default robot, the Panda (any robot's: ``RobotDescription.posture``,
+``choice.RobotChoice.posture``)."""
 
-
-def posture(name: str) -> ImpactPosture:
-    try:
-        return POSTURES[name]
-    except KeyError:
-        raise BadInputError(f"unknown posture {name!r}; known postures: {', '.join(POSTURES)}") from None

@@ -25,15 +25,14 @@ of :meth:`ToolDescription.as_dict` (docs/robots.md).
 
 from __future__ import annotations
 
-import json
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
+from .files import read_mapping
 from .validation import BadInputError, boolean, finite_vector, name_in, number_in_range, unit_normal
 
 FRAMES = ("hand", "flange")
@@ -249,14 +248,7 @@ def tool_from_dict(data: dict, default_name: str = "tool") -> ToolDescription:
 def read_tool_file(path: Path) -> ToolDescription:
     """The tool described in the JSON (``.json``) or TOML (``.toml``) file ``path``."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise BadInputError(f"cannot read the tool file {path}: {exc}") from None
-    try:
-        data = tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        raise BadInputError(f"the tool file {path} is not valid {path.suffix[1:].upper()}: {exc}") from None
+    data = read_mapping(path, "the tool file")
     try:
         return tool_from_dict(data, default_name=path.stem)
     except BadInputError as exc:

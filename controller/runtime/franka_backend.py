@@ -10,7 +10,7 @@ prepares its controller outside real time; ``start`` opens joint-velocity contro
 first real-time state; from then on ``readOnce`` blocks until the robot's next 1 kHz cycle, which
 paces the loop, and every ``writeOnce`` follows one ``readOnce``. The settings, model check and
 statistics shared with the ``panda`` backend: ``libfranka_robot``. Set-up (real-time kernel,
-network, ``[robot]`` table): ``docs/robot-loop.md``.
+network, ``[libfranka]`` table): ``docs/robot-loop.md``.
 """
 
 from __future__ import annotations
@@ -67,7 +67,7 @@ class FrankaRobot(LibfrankaRobot):
     def connect(
         cls, ip: str, settings: RobotConfig | None = None, realtime: bool = True, model: PandaModel | None = None
     ) -> FrankaRobot:
-        """The robot at ``ip`` with the ``[robot]`` settings and the load of ``model``'s tool
+        """The robot at ``ip`` with the ``[libfranka]`` settings and the load of ``model``'s tool
         (default: the FR3 with the default tool) applied; bad input when it does not answer or
         refuses them. ``realtime=False`` lets libfranka run without a real-time kernel."""
         franka = import_pylibfranka()

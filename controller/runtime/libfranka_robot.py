@@ -1,5 +1,5 @@
 """What the two libfranka backends share (``franka``: pylibfranka for the FR3; ``panda``:
-panda-python's libfranka 0.9 for the Panda): the robot's settings of the ``[robot]`` table
+panda-python's libfranka 0.9 for the Panda): the robot's settings of the ``[libfranka]`` table
 applied on connect, the check of the robot's own dynamic model against ours, the statistics
 of the connection and the naming of a reflex.
 
@@ -7,7 +7,7 @@ Load: ``Robot.set_load(m, F_x_Cload, I_load)`` takes the mass, the centre of mas
 frame F and the inertia about the centre of mass in F's axes (3x3, column-major). The declared
 tool (``ToolDescription``: m, c and I_c in its own frame T) gives F_x_Cload = X_FT c and
 I_load = R_FT I_c R_FT^T, X_FT = (R_FT, p_FT) the tool frame's placement in the flange frame;
-each of the three that the ``[robot]`` table sets replaces the tool's. The load is what the robot
+each of the three that the ``[libfranka]`` table sets replaces the tool's. The load is what the robot
 carries beyond the end effector configured on the robot (the Franka Hand, usually).
 
 Model check: at the state on connect, with M_r the robot's mass matrix (``Model.mass``) and M
@@ -42,7 +42,7 @@ class Load:
 
 
 def declared_load(model: PandaModel, settings: RobotConfig) -> Load:
-    """The load of ``model``'s tool in the flange frame, each entry the ``[robot]`` table sets
+    """The load of ``model``'s tool in the flange frame, each entry the ``[libfranka]`` table sets
     taking its place (module docstring)."""
     tool = model.tool
     data = model.model.createData()
@@ -91,7 +91,7 @@ def missed_packets(read_duration: float, period: float) -> int:
 class LibfrankaRobot(RobotInterface):
     """A connected libfranka ``Robot``: ``robot`` (the bindings' object), ``errors`` (the
     bindings' exception classes), ``reflex_errors`` (those a motion aborted by a reflex raises)
-    and the ``[robot]`` settings."""
+    and the ``[libfranka]`` settings."""
 
     def __init__(self, robot, errors: tuple[type[BaseException], ...], reflex_errors: tuple, settings: RobotConfig):
         self.robot = robot
@@ -137,7 +137,7 @@ class LibfrankaRobot(RobotInterface):
             raise BadInputError(
                 f"the robot's mass matrix differs from our model's by {100 * difference:.1f} % "
                 f"(limit {100 * limit:.1f} %): another robot, tool or model? "
-                "Raise [robot] max_model_difference to accept it"
+                "Raise [libfranka] max_model_difference to accept it"
             )
         return difference
 

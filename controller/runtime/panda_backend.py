@@ -53,7 +53,7 @@ class PandaRobot(LibfrankaRobot):
     def connect(
         cls, ip: str, settings: RobotConfig | None = None, realtime: bool = True, model: PandaModel | None = None
     ) -> PandaRobot:
-        """The Panda at ``ip`` with the ``[robot]`` settings and the load of ``model``'s tool
+        """The Panda at ``ip`` with the ``[libfranka]`` settings and the load of ``model``'s tool
         (default: the Panda with the default tool) applied; bad input when it does not answer or
         refuses them."""
         libfranka = import_libfranka()

@@ -15,12 +15,12 @@ from .interface import RobotInterface, RobotState
 
 
 def load_trial(directory, trial_id: str | None) -> tuple[DatasetTrial, object]:
-    """(trial, dataset header) of ``trial_id`` (the first trial when None); bad input otherwise."""
+    """(trial, dataset header) of ``trial_id`` (the first trial when None); bad input otherwise.
+    The header's robot and tool (``DatasetHeader.choice``) are what the replay models."""
     try:
         dataset = read_dataset(directory)
     except DatasetError as error:
         raise BadInputError(f"replay dataset {directory}: {error}") from None
-    dataset.header.tool.require_modelled(f"replay dataset {directory}")
     if not dataset.trials:
         raise BadInputError(f"replay dataset {directory} holds no trial")
     if trial_id is None:

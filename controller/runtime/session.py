@@ -24,7 +24,7 @@ from dataclasses import replace
 import numpy as np
 
 from impactqp.controller.config import ControllerConfig, build_controller, post_impact_config
-from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.qp import Command
 
 from .impact_detector import ImpactDetector, MomentumObserver
@@ -50,8 +50,8 @@ def residual_source(state: RobotState) -> str:
 class ImpactSession:
     """``start(state)`` once, then ``step(state) -> Command`` every period (``Command.phase``)."""
 
-    def __init__(self, config: ControllerConfig, robot: PandaModel | None = None):
-        robot = PandaModel() if robot is None else robot
+    def __init__(self, config: ControllerConfig, robot: RobotModel | None = None):
+        robot = config.choice.model() if robot is None else robot
         self.robot = robot
         self.config = config
         self.approach = build_controller(config, robot)

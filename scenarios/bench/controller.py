@@ -2,7 +2,8 @@
 
 - controller.cycle: microseconds per ``step`` in a kinematic closed loop (q, dq <- q_cmd,
   dq_cmd) approaching the default wall faster than the posture allows, every constraint on,
-  the impact-aware ones active (goals: median <= 100 us, p99 <= 250 us);
+  the impact-aware ones active (goals: median <= 100 us, p99 <= 250 us), on the Panda;
+  controller.cycle.fr3 the same loop on the FR3 (both with the impact tip);
 - peer.pink.cycle: the same robot in pink's ``solve_ik`` (frame task + posture task +
   configuration and velocity limits, velocity level, proxqp), measured in the same run;
 - peer.mink.cycle: mink on the MuJoCo model of our scene (frame task on the tool centre body +
@@ -27,7 +28,8 @@ import numpy as np
 
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.model.postures import POSTURES, Surface
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.robot import NQ, PandaModel, RobotModel
+from impactqp.controller.model.tool_postures import tool_posture
 from impactqp.controller.qp import available_backends
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION, approach_direction, closed_form_max_speed
@@ -40,8 +42,9 @@ WALL_GAP = 0.10  # m between the tool tip and the wall at the start
 
 
 def _approach_setup(robot: PandaModel, solver: str | None = None):
-    """The benchmark's approach controller (the configuration's default solver when None)."""
-    posture = POSTURES["elbow_up"]
+    """The benchmark's approach controller (the configuration's default solver when None), at
+    the robot's elbow_up posture for its tool."""
+    posture = tool_posture(robot, "elbow_up")
     normal = posture.surface.normal
     surface = Surface(robot.contact_point(posture.q) - WALL_GAP * normal, normal)
     config = ControllerConfig.approach(surface, speed=0.5)
@@ -76,7 +79,7 @@ def _approach_loop(robot: PandaModel, solver: str | None, cycles: int) -> tuple[
 def settled_speed_ratio(robot: PandaModel, solver: str) -> float:
     """Asked for 2 m/s at elbow_up (posture held fixed, the wall 5 cm ahead, the impact rows
     always on), the commanded contact speed after 0.8 s over the crb closed-form maximum."""
-    posture = POSTURES["elbow_up"]
+    posture = tool_posture(robot, "elbow_up")
     q, normal = posture.q, posture.surface.normal
     surface = Surface(robot.contact_point(q) - 0.05 * normal, normal)
     config = ControllerConfig.approach(surface, speed=2.0, solver=solver, always_active=True, posture_weight=0.0)
@@ -208,6 +211,9 @@ def controller_rows() -> list[dict]:
     robot = PandaModel()
     controller_cycle_samples(robot, cycles=300)  # warm-up
     rows = [timing_row("controller.cycle", "us", controller_cycle_samples(robot), 1e6)]
+    fr3 = RobotModel("fr3")
+    controller_cycle_samples(fr3, cycles=300)  # warm-up
+    rows.append(timing_row("controller.cycle.fr3", "us", controller_cycle_samples(fr3), 1e6))
     rows.append(timing_row("peer.pink.cycle", "us", pink_cycle_samples(robot), 1e6))
     try:
         rows.append(timing_row("peer.mink.cycle", "us", mink_cycle_samples(), 1e6))

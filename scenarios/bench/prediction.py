@@ -1,4 +1,5 @@
-"""Benchmark rows of the jump predictors: ``predict.crb.single`` (one full CRB prediction from q)
+"""Benchmark rows of the jump predictors: ``predict.crb.single`` (one full CRB prediction from q,
+on the Panda; ``predict.crb.single.fr3`` on the FR3, both with the impact tip)
 and ``predict.crb.batch`` (predictions per second of the vectorised batch API);
 ``floor.pinocchio.all_terms`` (one ``computeAllTerms`` call, the floor of a prediction from q)."""
 
@@ -10,16 +11,15 @@ import pinocchio
 from impactqp.controller.model.batch import BatchKinematics, predict_batch
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.postures import POSTURES
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.robot import NQ, PandaModel, RobotModel
 
 from .base import rate_row, time_calls, timing_row
 
 
-def rows() -> list[dict]:
-
-    robot = PandaModel()
+def single_prediction_samples(robot: RobotModel) -> np.ndarray:
+    """Seconds per full CRB prediction from q at the robot's first named posture."""
     crb = JUMP_MODELS["crb"]
-    posture = next(iter(POSTURES.values()))
+    posture = next(iter(robot.description.postures.values()))
     n = posture.surface.normal
     v = -0.15 * n
 
@@ -28,7 +28,17 @@ def rows() -> list[dict]:
 
     for _ in range(200):
         single()
-    rows = [timing_row("predict.crb.single", "us", time_calls(single, 5000), 1e6)]
+    return time_calls(single, 5000)
+
+
+def rows() -> list[dict]:
+
+    robot = PandaModel()
+    posture = next(iter(POSTURES.values()))
+    n = posture.surface.normal
+    v = -0.15 * n
+    rows = [timing_row("predict.crb.single", "us", single_prediction_samples(robot), 1e6)]
+    rows.append(timing_row("predict.crb.single.fr3", "us", single_prediction_samples(RobotModel("fr3")), 1e6))
     data = robot.model.createData()
     q, dq = posture.q, np.zeros(NQ)
     rows.append(timing_row(

@@ -7,6 +7,7 @@ any work starts.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from pathlib import Path
@@ -125,3 +126,28 @@ def check_jobs(value: int) -> int:
     if not 1 <= value <= max_jobs():
         raise BadInputError(f"--jobs must lie in [1, {max_jobs()}] (four per core), got {value}")
     return value
+
+
+def robot_choice(robot: str, tool: str):
+    """The ``RobotChoice`` of ``--robot NAME`` and ``--tool NAME|FILE`` (bad input names the
+    choices)."""
+    from impactqp.controller.model.choice import RobotChoice  # loads Pinocchio: only when a command runs
+
+    return RobotChoice.of(robot, tool)
+
+
+def robot_options(command):
+    """Add ``--robot`` and ``--tool`` to a click command, which receives them as one ``choice``
+    (a ``controller.model.choice.RobotChoice``) instead of two strings."""
+
+    @functools.wraps(command)
+    def with_choice(*args, robot: str, tool: str, **kwargs):
+        return command(*args, choice=robot_choice(robot, tool), **kwargs)
+
+    with_choice = click.option(
+        "--tool", default="impact_tip", show_default=True,
+        help="The tool: impact_tip, franka_hand, pad, or a .json/.toml tool file (docs/robots.md).",
+    )(with_choice)
+    return click.option(
+        "--robot", default="panda", show_default=True, help="The robot: panda or fr3 (docs/robots.md)."
+    )(with_choice)

@@ -9,10 +9,9 @@ import click
 import numpy as np
 
 from impactqp.controller.model.jump import METHODS
-from impactqp.controller.model.postures import POSTURES
 from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
-from impactqp.scenarios.cli.arguments import emit_json, output_directory, parse_vector
+from impactqp.scenarios.cli.arguments import emit_json, output_directory, parse_vector, robot_options
 
 
 @click.group()
@@ -24,12 +23,13 @@ def cli(debug):  # noqa: ARG001 - read by main(), which owns the error boundary
 
 @cli.command()
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list.")
-def postures(as_json):
-    """List the named impact postures, their contact point and the wall normal."""
-    from impactqp.controller.model.robot import PandaModel
+@robot_options
+def postures(as_json, choice):
+    """List the robot's named impact postures (solved for the tool), their contact point and the
+    wall normal."""
     from impactqp.scenarios.readable import fixed
 
-    robot = PandaModel()
+    robot = choice.model()
     rows = [
         {
             "name": p.name,
@@ -38,7 +38,7 @@ def postures(as_json):
             "normal": p.surface.normal.tolist(),
             "description": p.description,
         }
-        for p in POSTURES.values()
+        for p in choice.postures.values()
     ]
     if as_json:
         emit_json(rows)
@@ -59,25 +59,24 @@ def postures(as_json):
 @click.option("--restitution", type=float, default=0.0, show_default=True, help="Coefficient of restitution in [0, 1].")
 @click.option("--method", type=click.Choice([*METHODS, "all"]), default="all", show_default=True)
 @click.option("--json", "as_json", is_flag=True)
-def predict(posture_name, q_text, normal_text, speed, tangential_text, restitution, method, as_json):
-    """Predict the impact-induced joint-velocity jump at a posture."""
+@robot_options
+def predict(method, as_json, choice, **impact):
+    """Predict the impact-induced joint-velocity jump at a posture of the robot with the tool."""
     from impactqp.controller.model.prediction import ImpactQuery, predict_all
     from impactqp.scenarios.readable import fixed
 
-    if (posture_name is None) == (q_text is None):
+    if (impact["posture_name"] is None) == (impact["q_text"] is None):
         raise BadInputError("give exactly one of --posture NAME or --q Q1,...,Q7")
-    if posture_name is not None:
-        if posture_name not in POSTURES:
-            raise BadInputError(f"unknown posture {posture_name!r}; known: {', '.join(POSTURES)}")
-        q = POSTURES[posture_name].q
+    if impact["posture_name"] is not None:
+        q = choice.posture(impact["posture_name"]).q
     else:
-        q = parse_vector(q_text, NQ, "--q")
-    tangential = parse_vector(tangential_text, 3, "--tangential") if tangential_text else np.zeros(3)
+        q = parse_vector(impact["q_text"], NQ, "--q")
+    tangential = parse_vector(impact["tangential_text"], 3, "--tangential") if impact["tangential_text"] else np.zeros(3)
     query = ImpactQuery.from_speed(
-        q, parse_vector(normal_text, 3, "--normal"), speed, tangential, restitution
+        q, parse_vector(impact["normal_text"], 3, "--normal"), impact["speed"], tangential, impact["restitution"]
     )
     methods = METHODS if method == "all" else (method,)
-    report = predict_all(query, methods)
+    report = predict_all(query, methods, choice.model())
     if as_json:
         emit_json(report)
         return
@@ -175,6 +174,10 @@ def demo(out_dir, jobs):
         click.echo(row.sentence())
     click.echo(trusted_speed_text(result, speeds))
     click.echo(f"\nreport: {path}")
+    click.echo(
+        "This was the Panda with the impact tip; every command takes --robot panda|fr3 and --tool "
+        "impact_tip|franka_hand|pad|FILE.json, e.g. `impactqp campaign --robot fr3 --tool franka_hand`."
+    )
 
 
 from impactqp.scenarios.cli.simulation_commands import campaign, max_speed, simulate  # noqa: E402

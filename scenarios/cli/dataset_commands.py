@@ -17,6 +17,7 @@ from impactqp.scenarios.cli.arguments import (
     output_file,
     parse_list,
     parse_vector,
+    robot_options,
 )
 
 LONG_MANIFEST = 100
@@ -82,19 +83,19 @@ def validate_command(ctx, directory, as_json):
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--jobs", type=int, default=1, show_default=True)
 @click.option("--json", "as_json", is_flag=True)
-def generate_command(out, plant_file, postures, speeds, tangential, repeats, noise_dq, noise_tau, seed, jobs, as_json):
-    """Simulate a dataset (plant overrides with --plant) in the measured-data format."""
+@robot_options
+def generate_command(
+    out, plant_file, postures, speeds, tangential, repeats, noise_dq, noise_tau, seed, jobs, as_json, choice
+):
+    """Simulate a dataset of the robot with the tool (plant overrides with --plant) in the
+    measured-data format; the manifest records the robot and the tool."""
     from tqdm import tqdm
 
-    from impactqp.controller.model.postures import POSTURES
     from impactqp.sim.generation import DatasetRequest, generate_dataset
 
     output_directory(out, "OUT")
     plant = load_plant(plant_file)  # None: the nominal plant
-    names = [p.strip() for p in postures.split(",")] if postures else list(POSTURES)
-    unknown = [p for p in names if p not in POSTURES]
-    if unknown:
-        raise BadInputError(f"unknown posture(s) {', '.join(unknown)}; known: {', '.join(POSTURES)}")
+    names = list(choice.check_postures(p.strip() for p in postures.split(","))) if postures else list(choice.robot.postures)
     speed_list = parse_list(speeds, "--speeds") if speeds else None
     tangential_list = parse_list(tangential, "--tangential") if tangential else []
     check_jobs(jobs)
@@ -108,7 +109,7 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
     try:
         request = DatasetRequest(
             plant=plant, postures=names, speeds=speed_list, tangential=tangential_list, repeats=repeats,
-            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed,
+            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed, choice=choice,
         )
         entries = generate_dataset(out, request, jobs=jobs, progress=progress)
     finally:
@@ -125,24 +126,20 @@ def generate_command(out, plant_file, postures, speeds, tangential, repeats, noi
 @click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("--surface-point", required=True, help="A point X,Y,Z (m, world) of the surface hit.")
 @click.option("--surface-normal", required=True, help="The surface normal NX,NY,NZ, towards the robot.")
-@click.option("--tool-frame", default="panda_hand", show_default=True, help="Robot frame of the contact point.")
-@click.option("--contact-point", help="Contact point X,Y,Z (m) in the tool frame (default: the impact tool's tip).")
 @click.option("--reference-speed", type=float, help="Reference normal speed (m/s) of every log (default: estimated).")
 @click.option("--json", "as_json", is_flag=True)
-def import_franka_command(out, logs, surface_point, surface_normal, tool_frame, contact_point, reference_speed, as_json):
-    """Import libfranka logs (franka::logToCSV, one log per trial) as a dataset in OUT."""
+@robot_options
+def import_franka_command(out, logs, surface_point, surface_normal, reference_speed, as_json, choice):
+    """Import libfranka logs (franka::logToCSV, one log per trial) of the robot hitting with the
+    tool as a dataset in OUT."""
     from impactqp.controller.measured.franka_log import import_franka_logs
     from impactqp.controller.model.postures import Surface
-    from impactqp.controller.model.robot import TOOL_TIP_OFFSET
     from impactqp.controller.model.validation import unit_normal
 
     output_directory(out, "OUT")
     surface = Surface(parse_vector(surface_point, 3, "--surface-point"), unit_normal(
         parse_vector(surface_normal, 3, "--surface-normal"), "--surface-normal"))
-    point = parse_vector(contact_point, 3, "--contact-point") if contact_point else (0.0, 0.0, TOOL_TIP_OFFSET)
-    entries = import_franka_logs(
-        out, list(logs), surface, tool_frame=tool_frame, contact_point=point, reference_speed=reference_speed
-    )
+    entries = import_franka_logs(out, list(logs), surface, choice=choice, reference_speed=reference_speed)
     if as_json:
         emit_json({"out": str(out), "trials": [e.to_dict() for e in entries]})
         return
@@ -160,8 +157,12 @@ def import_franka_command(out, logs, surface_point, surface_normal, tool_frame, 
 @click.option("--max-speed", "max_speed", is_flag=True,
               help="Also simulate the highest feasible contact speed per posture, nominal and extended plant.")
 @click.option("--jobs", type=int, default=1, show_default=True)
-def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, jobs):
-    """What the simulation gets wrong on measured impacts, why, and the model change that fixes it."""
+@robot_options
+def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, jobs, choice):
+    """What the simulation gets wrong on measured impacts, why, and the model change that fixes it.
+
+    The robot and the tool are the manifest's; a --robot/--tool other than the default that
+    disagrees with them is bad input."""
 
     from impactqp.sim.diagnosis import diagnose as run_diagnosis
     from impactqp.sim.diagnosis import interval_text
@@ -170,6 +171,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
 
     input_directory(directory, "DIRECTORY")
     check_jobs(jobs)
+    _check_manifest_choice(directory, choice)
     if report_dir:
         output_directory(report_dir, "--report")
     if save_plant:
@@ -220,3 +222,20 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
         click.echo(trusted_speed_text(result, speeds))
     for s in summary["skipped"]:
         click.echo(f"skipped {s['id']}: {s['reason']}")
+
+
+def _check_manifest_choice(directory, choice) -> None:
+    """Bad input when a non-default ``choice`` (--robot, --tool) differs from the manifest's."""
+    from impactqp.controller.measured.dataset import DatasetError, read_header
+
+    if choice.is_default:
+        return
+    try:
+        header = read_header(directory)
+    except DatasetError:
+        return  # the diagnosis reports the manifest's own problem
+    if not header.choice.same_as(choice):
+        raise BadInputError(
+            f"the robot and tool of the dataset's manifest ({header.robot}, {header.tool.name}) differ from "
+            f"--robot/--tool ({choice.robot.name}, {choice.tool.name})"
+        )

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from impactqp.scenarios.cli.arguments import emit_json
+from impactqp.scenarios.cli.arguments import emit_json, robot_options
 from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED, EXIT_ROBOT_WOULD_STOP
 
 
@@ -14,10 +14,6 @@ from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED, EXIT_ROBOT_WOULD
     help="sim: MuJoCo; franka: an FR3 (pylibfranka); panda: a Panda (panda-python's libfranka 0.9); replay: a logged trial.",
 )
 @click.option("--robot-ip", help="The robot's address (franka and panda backends).")
-@click.option(
-    "--robot", default="panda", show_default=True,
-    help="The arm to model: panda or fr3 (docs/robots.md); --backend franka drives an fr3, --backend panda a panda.",
-)
 @click.option(
     "--realtime", type=click.Choice(["enforce", "ignore"]), default="enforce", show_default=True,
     help="franka and panda backends: require a real-time kernel (enforce) or run without one (ignore: a simulator).",
@@ -32,18 +28,15 @@ from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED, EXIT_ROBOT_WOULD
 @click.option("--trial", help="Trial id to replay (default: the first).")
 @click.option("--unpaced", is_flag=True, help="Run the sim backend as fast as it goes (no wall-clock pacing).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-def run_command(backend, robot_ip, robot, realtime, config_file, plant_file, posture, speed, duration, log, dataset, trial, unpaced, as_json):
+@robot_options
+def run_command(realtime: str, as_json: bool, choice, **options):
     """Run the impact-aware controller in a 1 kHz loop on a robot: approach, detect the impact,
     post-impact phase, brake to a stop. Ctrl-C (or SIGTERM) brakes to a stop, keeps the log and
     exits with code 130. Overruns are reported on stderr; exit code 3 when the watchdog tripped or
     the overruns would have stopped a real robot."""
     from impactqp.scenarios.run import RunRequest, run  # lazy: the command line loads an experiment when it runs
 
-    request = RunRequest(
-        backend=backend, robot_ip=robot_ip, robot=robot, config_file=config_file, plant_file=plant_file, posture=posture,
-        speed=speed, duration=duration, log=log, dataset=dataset, trial=trial, unpaced=unpaced,
-        realtime=realtime == "enforce",
-    )
+    request = RunRequest(realtime=realtime == "enforce", choice=choice, **options)
     report, result = run(request)
     if as_json:
         emit_json(report)
@@ -58,7 +51,7 @@ def run_command(backend, robot_ip, robot, realtime, config_file, plant_file, pos
         f"max {cycle['max']:.0f} us"
     )
     if result.robot_stop_reason:
-        who = "stopped the robot" if backend == "franka" else "would have stopped a real robot"
+        who = "stopped the robot" if options["backend"] in ("franka", "panda") else "would have stopped a real robot"
         click.echo(f"impactqp: the run {who}: {result.robot_stop_reason}; {timing}", err=True)
         click.get_current_context().exit(EXIT_ROBOT_WOULD_STOP)
     if report["overruns"]:

@@ -10,14 +10,16 @@ from __future__ import annotations
 # First: MuJoCo's OpenGL backend is chosen when MuJoCo is first imported (scenarios.video).
 from impactqp.scenarios import video  # noqa: F401, I001
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import click
 import numpy as np
 
 from impactqp.constraints import JUMP_MODEL_CHOICES
+from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, ImpactPosture, Surface
+from impactqp.controller.model.postures import DEFAULT_WALL, ImpactPosture, Surface
 from impactqp.controller.model.validation import BadInputError, positive, tangential_velocity, unit_normal
 from impactqp.controller.model.validation import approach_speed, restitution as restitution_coefficient
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
@@ -28,18 +30,13 @@ from impactqp.scenarios.cli.arguments import (
     output_directory,
     output_file,
     parse_vector,
+    robot_options,
 )
 
 SIMULATE_START_DISTANCE = 0.05
 
 
 # ---------------------------------------------------------------------------- shared options
-def named_posture(name: str) -> ImpactPosture:
-    if name not in POSTURES:
-        raise BadInputError(f"unknown posture {name!r}; known: {', '.join(POSTURES)}")
-    return POSTURES[name]
-
-
 def wall(point_text: str | None, normal_text: str | None) -> Surface:
     """The default wall, moved to --wall-point and/or turned to --wall-normal."""
     point = DEFAULT_WALL.point if point_text is None else parse_vector(point_text, 3, "--wall-point")
@@ -47,13 +44,13 @@ def wall(point_text: str | None, normal_text: str | None) -> Surface:
     return Surface(point, normal, DEFAULT_WALL.friction)
 
 
-def check_reachable(posture: ImpactPosture, surface: Surface, distance: float) -> None:
-    """Reject a wall the posture cannot face (before any process is started)."""
-    from impactqp.controller.model.prediction import default_robot
+def check_reachable(choice: RobotChoice, posture: ImpactPosture, surface: Surface, distance: float) -> None:
+    """Reject a wall the posture of ``choice``'s robot and tool cannot face (before any process
+    is started)."""
     from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
 
     try:
-        approach_start(default_robot(), posture.q, surface, distance)
+        approach_start(choice.model(), posture.q, surface, distance)
     except UnreachableStartError as error:
         raise BadInputError(str(error)) from None
 
@@ -78,11 +75,12 @@ plant_option = click.option("--plant", "plant_file", help="JSON file of plant-pa
 @click.option("--out", "out_dir", help="Add the trial to the dataset in this directory (controller.measured.dataset format).")
 @click.option("--video", "video_file", help="Render the impact to this animated GIF (needs an offscreen GL backend).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
+@robot_options
 def simulate(
     posture_name, speed, tangential_text, no_jump_constraint, jump_model, plant_file, wall_point, wall_normal,
-    out_dir, video_file, as_json,
+    out_dir, video_file, as_json, choice,
 ):
-    """One approach-and-impact trial: the QP controller at 1 kHz drives the MuJoCo Panda.
+    """One approach-and-impact trial: the QP controller at 1 kHz drives the MuJoCo robot.
 
     The tool starts at rest 5 cm in front of the wall; the controller accelerates it towards the
     reference velocity (capped by the jump-aware constraints when they are on) until it hits.
@@ -94,7 +92,7 @@ def simulate(
     from impactqp.controller.measured.dataset import DatasetWriter
     from impactqp.scenarios.readable import fixed
 
-    posture = named_posture(posture_name)
+    posture = choice.posture(posture_name)
     approach_speed(speed, "--speed")
     surface = wall(wall_point, wall_normal)
     tangential = (
@@ -113,17 +111,17 @@ def simulate(
         problem = offscreen_backend_problem()
         if problem is not None:
             raise BadInputError(f"--video: {problem}")
-    check_reachable(posture, surface, SIMULATE_START_DISTANCE)
+    check_reachable(choice, posture, surface, SIMULATE_START_DISTANCE)
 
     spec = TrialSpec(
         posture.name, posture.q, speed, tangential,
         jump_model=None if no_jump_constraint else jump_model,
         start_at_rest=True, start_distance=SIMULATE_START_DISTANCE,
     )
-    runner = TrialRunner.build(surface, plant)
+    runner = TrialRunner.build(surface, plant, choice)
     result = runner.run(spec)
     if out_dir is not None:
-        write_trial(DatasetWriter(out_dir, dataset_header(surface)), result)
+        write_trial(DatasetWriter(out_dir, dataset_header(surface, choice)), result)
     if video_file is not None:
         from impactqp.scenarios.video import render_impact_gif
 
@@ -150,13 +148,13 @@ def simulate(
 
 
 # ---------------------------------------------------------------------------- campaign
-def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, progress):
-    """Parse the campaign options, run it and return Table I."""
+def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, progress, choice):
+    """Parse the campaign options, run it with ``choice``'s robot and tool and return Table I."""
     from impactqp.scenarios.campaign import Campaign, CampaignPlan, PAPER_SPEEDS, PAPER_TANGENTIAL_SPEEDS
 
-    postures = tuple(POSTURES) if postures_text is None else tuple(s.strip() for s in postures_text.split(","))
-    for name in postures:
-        named_posture(name)
+    postures = choice.check_postures(
+        choice.robot.postures if postures_text is None else (s.strip() for s in postures_text.split(","))
+    )
     speeds = PAPER_SPEEDS if speeds_text is None else tuple(parse_vector(speeds_text, None, "--speeds").tolist())
     for v in speeds:
         approach_speed(v, "every speed of --speeds")
@@ -169,7 +167,7 @@ def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, 
     plan = CampaignPlan(postures, speeds, tangential)
     plant = load_plant(plant_file)
     output_directory(out_dir, "--out")
-    return Campaign(plan, DEFAULT_WALL, plant, jobs=check_jobs(jobs), progress=progress).run(out_dir)
+    return Campaign(plan, DEFAULT_WALL, plant, jobs=check_jobs(jobs), progress=progress, choice=choice).run(out_dir)
 
 
 @click.command()
@@ -183,9 +181,10 @@ def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, 
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
 @click.option("--out", "out_dir", default="impactqp-campaign", show_default=True, help="Output directory.")
 @click.option("--json", "as_json", is_flag=True, help="Print Table I as JSON (no progress bar).")
-def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, as_json):
+@robot_options
+def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, as_json, choice):
     """The paper's campaign in simulation: dataset, Table I and figures in --out."""
-    table = run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, not as_json)
+    table = run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, not as_json, choice)
     if as_json:
         emit_json(table.to_json())
         return
@@ -194,20 +193,38 @@ def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_
 
 
 # ---------------------------------------------------------------------------- max-speed
-def run_max_speed(posture_name, jump_model, restitution, impact_duration, plant_file, wall_point, wall_normal,
-                  jobs, tolerance, progress):
+@dataclass(frozen=True)
+class MaxSpeedRequest:
+    """The options of ``max-speed``, as given on the command line (``choice``: --robot, --tool)."""
+
+    posture: str
+    jump_model: str
+    restitution: float
+    impact_duration: float
+    plant: str | None
+    wall_point: str | None
+    wall_normal: str | None
+    jobs: int
+    tolerance: float
+    choice: RobotChoice
+
+
+def run_max_speed(request: MaxSpeedRequest, progress: bool):
+    """Check the ``max-speed`` options and run the search."""
     from impactqp.scenarios.max_speed_search import QP_START_DISTANCE, MaxSpeedSearch
 
-    posture = named_posture(posture_name)
+    choice, restitution, impact_duration, tolerance = request.choice, request.restitution, request.impact_duration, request.tolerance
+    posture = choice.posture(request.posture)
     restitution_coefficient(restitution, "--restitution")
     check_impact_duration(impact_duration, "--impact-duration")
     positive(tolerance, "--tolerance")
-    surface = wall(wall_point, wall_normal)
-    plant = load_plant(plant_file)
-    check_reachable(posture, surface, QP_START_DISTANCE)
+    surface = wall(request.wall_point, request.wall_normal)
+    plant = load_plant(request.plant)
+    check_reachable(choice, posture, surface, QP_START_DISTANCE)
     search = MaxSpeedSearch(
-        posture, surface, plant, jump_model=jump_model, restitution=restitution,
-        impact_duration=impact_duration, tolerance=tolerance, jobs=check_jobs(jobs), progress=progress,
+        posture, surface, plant, jump_model=request.jump_model, restitution=restitution,
+        impact_duration=impact_duration, tolerance=tolerance, jobs=check_jobs(request.jobs), progress=progress,
+        choice=choice,
     )
     return search.run()
 
@@ -252,13 +269,15 @@ def max_speed_text(report) -> str:
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
 @click.option("--tolerance", type=float, default=0.005, show_default=True, help="Bisection tolerance (m/s).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (no progress bar).")
+@robot_options
 def max_speed(posture_name, jump_model, restitution, impact_duration, plant_file, wall_point, wall_normal, jobs,
-              tolerance, as_json):
+              tolerance, as_json, choice):
     """Highest feasible contact speed: closed form, reached by the QP, and simulated."""
-    report = run_max_speed(
+    request = MaxSpeedRequest(
         posture_name, jump_model, restitution, impact_duration, plant_file, wall_point, wall_normal, jobs,
-        tolerance, not as_json,
+        tolerance, choice,
     )
+    report = run_max_speed(request, not as_json)
     if as_json:
         emit_json(report.to_json())
         return

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import click
 
 from impactqp.controller.model.validation import BadInputError
-from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, output_directory
+from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, output_directory, robot_options
 
 
 @click.command()
@@ -22,7 +23,8 @@ from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, 
 @click.option("--plant", "plant_file", help="JSON file of plant-parameter overrides for --simulate (sim.plant).")
 @click.option("--example", is_flag=True, help="Print a small runnable config and exit.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary instead of a progress bar.")
-def sweep(config_path, backend, jobs, out, resume, simulate, plant_file, example, as_json):
+@robot_options
+def sweep(config_path, backend, jobs, out, resume, simulate, plant_file, example, as_json, choice):
     """Highest feasible contact speed over a grid of contact points and settings (Parquet in --out)."""
     from impactqp.scenarios.sweep.config import EXAMPLE, load_config
 
@@ -36,7 +38,7 @@ def sweep(config_path, backend, jobs, out, resume, simulate, plant_file, example
 
     output_directory(str(out), "--out")
     check_jobs(jobs)
-    config = load_config(config_path)
+    config = replace(load_config(config_path), choice=choice)
     if plant_file is not None and not simulate:
         raise BadInputError("--plant sets the plant of the simulated cells: add --simulate")
     simulation = Simulation(load_plant(plant_file)) if simulate else None

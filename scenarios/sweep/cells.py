@@ -26,6 +26,7 @@ An unreachable or singular cell keeps its row, with NaN speeds, an empty criteri
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,13 +36,14 @@ from impactqp.controller.model.batch import BatchKinematics
 from impactqp.controller.model.inverse_kinematics import UnreachableStartError, contact_postures
 from impactqp.controller.model.max_speed import CRITERIA, approach_directions, closed_form_max_speeds
 from impactqp.controller.model.postures import DEFAULT_WALL, ImpactPosture, Surface
-from impactqp.controller.model.robot import NQ, SINGULAR_RATIO, PandaModel
+from impactqp.controller.model.choice import RobotChoice
+from impactqp.controller.model.robot import NQ, SINGULAR_RATIO
 from impactqp.scenarios.max_speed_search import MaxSpeedSearch
 from impactqp.sim.plant import PlantParameters
 
 from .config import SweepConfig
 
-_KINEMATICS: BatchKinematics | None = None
+_KINEMATICS: dict[str, BatchKinematics] = {}
 
 SIMULATED_STATUS = ("simulated", "unreachable", "no_start", "no_impact")
 """``simulated_status``: searched; unreachable or singular posture (not searched); no start
@@ -56,12 +58,13 @@ class Simulation:
     plant: PlantParameters | None = None
 
 
-def _kinematics() -> BatchKinematics:
-    """One Pinocchio model and its batch kinematics per process (workers build theirs once)."""
-    global _KINEMATICS
-    if _KINEMATICS is None:
-        _KINEMATICS = BatchKinematics(PandaModel())
-    return _KINEMATICS
+def _kinematics(choice: RobotChoice) -> BatchKinematics:
+    """One Pinocchio model of the robot and the tool and its batch kinematics per process
+    (workers build theirs once)."""
+    key = json.dumps([choice.robot.name, choice.tool.as_dict()])
+    if key not in _KINEMATICS:
+        _KINEMATICS[key] = BatchKinematics(choice.model())
+    return _KINEMATICS[key]
 
 
 def cell_settings(config: SweepConfig, cell: int) -> dict:
@@ -78,7 +81,7 @@ def cell_settings(config: SweepConfig, cell: int) -> dict:
 
 def evaluate_cells(config: SweepConfig, cells: range, simulation: Simulation | None = None) -> dict[str, list]:
     """The columns of the rows of ``cells`` (a contiguous range of cell indices), in order."""
-    kinematics = _kinematics()
+    kinematics = _kinematics(config.choice)
     robot = kinematics.robot
     cell = np.arange(cells.start, cells.stop)
     p, k, r, t, c = config.cell_axes(cell)
@@ -158,11 +161,11 @@ def evaluate_cells(config: SweepConfig, cells: range, simulation: Simulation | N
 
     # 4. --simulate
     if simulation is not None:
-        columns.update(_simulate(config, simulation, robot, cell, columns, q, regular[posture_of_cell]))
+        columns.update(_simulate(config, simulation, cell, columns, q, regular[posture_of_cell]))
     return columns
 
 
-def _simulate(config, simulation, robot, cell, columns, q, regular) -> dict[str, list]:
+def _simulate(config, simulation, cell, columns, q, regular) -> dict[str, list]:
     simulated, qp_limited, impacts, status = [], [], [], []
     for i in range(cell.size):
         point = np.array([columns["point_x"][i], columns["point_y"][i], columns["point_z"][i]])
@@ -173,7 +176,7 @@ def _simulate(config, simulation, robot, cell, columns, q, regular) -> dict[str,
             search = MaxSpeedSearch(
                 ImpactPosture(f"cell{cell[i]}", q[i].copy(), "sweep cell", surface), surface, simulation.plant,
                 jump_model=columns["controller_jump_model"][i], restitution=float(columns["restitution"][i]),
-                impact_duration=float(columns["impact_duration"][i]), tolerance=config.tolerance, robot=robot,
+                impact_duration=float(columns["impact_duration"][i]), tolerance=config.tolerance, choice=config.choice,
             )
             try:
                 report = search.run()

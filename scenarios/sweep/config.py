@@ -9,12 +9,13 @@ empty grid or a spacing <= 0 raises :class:`BadInputError` (docs/sweep.md).
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
 
 from impactqp.controller.model.jump import JUMP_MODELS
+from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import POSTURES
 from impactqp.constraints import JUMP_MODEL_CHOICES
 from impactqp.controller.model.files import read_mapping
@@ -87,14 +88,21 @@ class SweepConfig:
     controller_jump_model: tuple[str, ...]
     impact_duration: tuple[float, ...]
     tolerance: float
+    choice: RobotChoice = field(default=DEFAULT_CHOICE, compare=False)
+    """The robot and the tool (``--robot``, ``--tool``), not a key of the file."""
 
     def canonical_json(self) -> str:
-        """The configuration as sorted JSON: two configs are the same sweep when this is equal."""
-        return json.dumps(asdict(self), sort_keys=True)
+        """The configuration as sorted JSON: two configs are the same sweep when this is equal
+        (the robot and the tool count when they are not the default Panda and impact tip)."""
+        data = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "choice"}
+        if not self.choice.is_default:
+            data |= {"robot": self.choice.robot.name, "tool": self.choice.tool.as_dict()}
+        return json.dumps(data, sort_keys=True)
 
     @property
     def seed(self) -> np.ndarray:
-        return POSTURES[self.seed_posture].q.copy()
+        """The seed posture's joint positions, for the robot and the tool."""
+        return self.choice.posture(self.seed_posture).q.copy()
 
     def points(self) -> np.ndarray:
         """The contact points (P, 3): origin + i spacing u + j spacing v, row-major in (i, j)."""

@@ -21,6 +21,8 @@ The result and its report (``result``): ``Diagnosis.summary()`` is the JSON of
 from .pipeline import diagnose
 from .result import Diagnosis, interval_text
 from .selection import EXPLAINED_GAIN, STEP_GAIN
-from .trials import load_trials, replay_all
+from .trials import ReplaySetting, load_trials, replay_all
 
-__all__ = ["EXPLAINED_GAIN", "STEP_GAIN", "Diagnosis", "diagnose", "interval_text", "load_trials", "replay_all"]
+__all__ = [
+    "EXPLAINED_GAIN", "STEP_GAIN", "Diagnosis", "ReplaySetting", "diagnose", "interval_text", "load_trials", "replay_all",
+]

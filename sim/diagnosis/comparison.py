@@ -13,17 +13,15 @@ from __future__ import annotations
 import numpy as np
 
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS, average_prediction_error
-from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import PandaModel
 
-from .trials import MeasuredTrial
+from .trials import MeasuredTrial, ReplaySetting
 
 
-def predictor_errors(trials: list[MeasuredTrial], surface: Surface) -> tuple[dict, dict, dict]:
+def predictor_errors(trials: list[MeasuredTrial], setting: ReplaySetting) -> tuple[dict, dict, dict]:
     """Average error (26) of each predictor at the logged pre-impact states (v- = J dq-,
     c_r = 0): with its own impulse, and fed the measured impulse where a force log exists.
     Also returns the predicted jumps (trials x 7) per method."""
-    robot = PandaModel()
+    robot = setting.choice.model()
     own = {m: [] for m in METHODS}
     fed = {m: [] for m in METHODS}
     predictions = {m: [] for m in METHODS}
@@ -31,11 +29,11 @@ def predictor_errors(trials: list[MeasuredTrial], surface: Surface) -> tuple[dic
         terms = robot.terms(trial.q_pre, trial.dq_pre, check_limits=False)
         v_minus = terms.J @ trial.dq_pre
         for m in METHODS:
-            jump = JUMP_MODELS[m].predict(terms, surface.normal, v_minus, 0.0).dq_jump
+            jump = JUMP_MODELS[m].predict(terms, setting.surface.normal, v_minus, 0.0).dq_jump
             predictions[m].append(jump)
             own[m].append(average_prediction_error(jump, trial.jump))
             if trial.impulse is not None:
-                measured = JUMP_MODELS[m].predict(terms, surface.normal, v_minus, 0.0, impulse=trial.impulse)
+                measured = JUMP_MODELS[m].predict(terms, setting.surface.normal, v_minus, 0.0, impulse=trial.impulse)
                 fed[m].append(average_prediction_error(measured.dq_jump, trial.jump))
     return (
         {m: float(np.mean(own[m])) for m in METHODS},

@@ -16,11 +16,10 @@ import numpy as np
 from scipy.optimize import minimize
 
 from impactqp.controller.model.jump import average_prediction_error
-from impactqp.controller.model.postures import Surface
 from impactqp.sim.causes import Cause
 from impactqp.sim.plant import PlantParameters
 
-from .trials import MeasuredTrial, ReplayFeatures, replay_all
+from .trials import MeasuredTrial, ReplayFeatures, ReplaySetting, replay_all
 
 SIGMA_JUMP = 0.005
 SIGMA_TORQUE = 0.05
@@ -88,11 +87,11 @@ class FittedCauses:
         return merged
 
 
-def cost_of(plant: PlantParameters, surface: Surface, trials) -> float:
-    return float(np.sum(residuals(replay_all(surface, plant, trials), trials) ** 2))
+def cost_of(plant: PlantParameters, setting: ReplaySetting, trials) -> float:
+    return float(np.sum(residuals(replay_all(setting, plant, trials), trials) ** 2))
 
 
-def fit(model: FittedCauses, base: PlantParameters, surface, trials, max_evaluations: int) -> FittedCauses:
+def fit(model: FittedCauses, base: PlantParameters, setting, trials, max_evaluations: int) -> FittedCauses:
     """Least squares over the replays of ``trials``: minimise the sum of squared residuals over
     the vectors of ``model`` (its current vectors are the start), with the plant ``base`` under
     them, within the bounds, with Powell's derivative-free method (the replayed features are
@@ -103,7 +102,7 @@ def fit(model: FittedCauses, base: PlantParameters, surface, trials, max_evaluat
     best = {"cost": np.inf, "u": np.clip(model.vector(), lo, hi)}
 
     def cost(u):
-        value = cost_of(model.with_vector(u).plant(base), surface, trials)
+        value = cost_of(model.with_vector(u).plant(base), setting, trials)
         if value < best["cost"]:
             best.update(cost=value, u=np.array(u))
         return value
@@ -123,11 +122,11 @@ def fit(model: FittedCauses, base: PlantParameters, surface, trials, max_evaluat
     return model.with_vector(best["u"])
 
 
-def best_start(cause: Cause, base: PlantParameters, surface, trials, features_of_grid=None):
+def best_start(cause: Cause, base: PlantParameters, setting, trials, features_of_grid=None):
     """The grid point of ``cause`` (on top of ``base``) with the least cost over ``trials``:
     (its index, the grid, the replay features at every grid point)."""
     points = cause.grid(base)
     if features_of_grid is None:
-        features_of_grid = [replay_all(surface, cause.plant(base, u), trials) for u in points]
+        features_of_grid = [replay_all(setting, cause.plant(base, u), trials) for u in points]
     costs = [np.sum(residuals(f, trials) ** 2) for f in features_of_grid]
     return int(np.argmin(costs)), points, features_of_grid

@@ -13,12 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import t as student_t
 
-from impactqp.controller.model.postures import Surface
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import map_in_processes
 
 from .fitting import FittedCauses, cost_of, residual_sizes, residuals
-from .trials import MeasuredTrial, replay_all
+from .trials import MeasuredTrial, ReplaySetting, replay_all
 
 CHI2_95 = 3.841  # 95 % quantile of chi^2 with 1 degree of freedom
 SCAN_FIRST_STEP = 1.0 / 40.0
@@ -29,14 +28,14 @@ BOOTSTRAP_SAMPLES = 1000
 BOOTSTRAP_SEED = 0
 
 
-def residual_jacobian(model: FittedCauses, nominal, surface, trials) -> tuple[np.ndarray, np.ndarray]:
+def residual_jacobian(model: FittedCauses, nominal, setting, trials) -> tuple[np.ndarray, np.ndarray]:
     """The residual vector at the fit and its Jacobian in u, by central differences of
     ``JACOBIAN_STEP`` of each parameter's range (one-sided at a bound)."""
     u0 = model.vector()
     lo, hi = model.bounds()
 
     def r(u):
-        return residuals(replay_all(surface, model.with_vector(u).plant(nominal), trials), trials)
+        return residuals(replay_all(setting, model.with_vector(u).plant(nominal), trials), trials)
 
     r0 = r(u0)
     J = np.empty((len(r0), len(u0)))
@@ -48,19 +47,19 @@ def residual_jacobian(model: FittedCauses, nominal, surface, trials) -> tuple[np
     return r0, J
 
 
-def gauss_newton_polish(model: FittedCauses, nominal, surface, trials):
+def gauss_newton_polish(model: FittedCauses, nominal, setting, trials):
     """Up to ``POLISH_ITERATIONS`` Gauss-Newton steps from the derivative-free fit (each full,
     else half, kept only when it lowers the cost); returns the model, its residuals and their
     Jacobian (for the profile directions and the bootstrap)."""
     lo, hi = model.bounds()
-    r0, J = residual_jacobian(model, nominal, surface, trials)
+    r0, J = residual_jacobian(model, nominal, setting, trials)
     for _ in range(POLISH_ITERATIONS):
         step = np.linalg.lstsq(J, -r0, rcond=None)[0]
         for fraction in (1.0, 0.5):
             u = np.clip(model.vector() + fraction * step, lo, hi)
-            if cost_of(model.with_vector(u).plant(nominal), surface, trials) < float(r0 @ r0):
+            if cost_of(model.with_vector(u).plant(nominal), setting, trials) < float(r0 @ r0):
                 model = model.with_vector(u)
-                r0, J = residual_jacobian(model, nominal, surface, trials)
+                r0, J = residual_jacobian(model, nominal, setting, trials)
                 break
         else:
             break
@@ -110,7 +109,7 @@ class ProfileRegion:
 
     model: FittedCauses
     nominal: PlantParameters
-    surface: Surface
+    setting: ReplaySetting
     trials: tuple[MeasuredTrial, ...]
     cost0: float
     threshold: float
@@ -144,7 +143,7 @@ def scan_side(task: ScanTask) -> float | None:
 
     def excess(x):
         u = np.clip(u0 + (x - u0[index]) * task.direction, lo, hi)
-        return cost_of(model.with_vector(u).plant(region.nominal), region.surface, trials) - region.cost0
+        return cost_of(model.with_vector(u).plant(region.nominal), region.setting, trials) - region.cost0
 
     inside, inside_excess = u0[index], 0.0
     step = SCAN_FIRST_STEP * (hi[index] - lo[index])
@@ -183,7 +182,7 @@ def parameter_owner(model: FittedCauses, index: int) -> tuple[int, int]:
     raise IndexError(index)
 
 
-def parameter_intervals(model: FittedCauses, nominal, surface, trials, jobs: int) -> tuple[FittedCauses, list[list]]:
+def parameter_intervals(model: FittedCauses, nominal, setting, trials, jobs: int) -> tuple[FittedCauses, list[list]]:
     """The fit polished by Gauss-Newton, and 95 % intervals of every fitted parameter theta
     (per cause, per parameter, [low, high], None for an open side).
 
@@ -196,10 +195,10 @@ def parameter_intervals(model: FittedCauses, nominal, surface, trials, jobs: int
     not bound the parameter there (``docs/diagnosis.md``)."""
     if not model.causes:
         return model, []
-    model, r, J = gauss_newton_polish(model, nominal, surface, trials)
+    model, r, J = gauss_newton_polish(model, nominal, setting, trials)
     cost0 = float(r @ r)
     threshold = CHI2_95 * cost0 / max(len(r) - len(model.vector()), 1)
-    region = ProfileRegion(model, nominal, surface, tuple(trials), cost0, threshold)
+    region = ProfileRegion(model, nominal, setting, tuple(trials), cost0, threshold)
     tasks = [
         ScanTask(region, i, sign, profile_direction(J, i))
         for i in range(len(model.vector()))

@@ -29,27 +29,27 @@ def diagnose(
     """Measure, replay, compare, select the causes, bound their parameters (the steps:
     ``sim/diagnosis/__init__.py``)."""
     nominal = nominal or PlantParameters()
-    trials, skipped, surface = load_trials(directory)
+    trials, skipped, setting = load_trials(directory)
     if len(trials) < 2:
         raise BadInputError(
             f"{directory}: only {len(trials)} usable trial(s); the diagnosis needs at least 2 "
             f"(skipped: {skipped})"
         )
-    causes = causes if causes is not None else default_causes(surface.friction)
+    causes = causes if causes is not None else default_causes(setting.surface.friction, setting.choice.tool)
     names = [c.name for c in causes]
     if len(set(names)) != len(names):
         raise ValueError(f"candidate causes must have distinct names, got {names}")
-    trials = locate_jump_samples(trials, surface, nominal)
-    nominal_features = replay_all(surface, nominal, trials)
+    trials = locate_jump_samples(trials, setting, nominal)
+    nominal_features = replay_all(setting, nominal, trials)
     nominal_jumps = np.array([f.detected_jump for f in nominal_features])
     baseline_errors = jump_errors(nominal_features, trials)
-    selection = select_causes(causes, nominal, surface, trials, baseline_errors, jobs)
+    selection = select_causes(causes, nominal, setting, trials, baseline_errors, jobs)
     explained = bool(selection.model.causes)
     model = selection.model if explained else selection.best
-    model, theta_intervals = parameter_intervals(model, nominal, surface, trials, jobs)
+    model, theta_intervals = parameter_intervals(model, nominal, setting, trials, jobs)
     extended_plant = model.plant(nominal)
-    extended_jumps = np.array([f.detected_jump for f in replay_all(surface, extended_plant, trials)])
-    predictors, predictors_measured_impulse, predictions = predictor_errors(trials, surface)
+    extended_jumps = np.array([f.detected_jump for f in replay_all(setting, extended_plant, trials)])
+    predictors, predictors_measured_impulse, predictions = predictor_errors(trials, setting)
     per_parameter = [
         {"cause": c.name, "parameter": label, "value": float(value), "interval": interval}
         for c, u, intervals in zip(model.causes, model.u, theta_intervals)
@@ -76,5 +76,6 @@ def diagnose(
         open_sides=open_sides(model, theta_intervals, trials),
         extended_error=float(np.mean(selection.heldout_errors)),
         extended_plant=extended_plant,
-        surface=surface,
+        surface=setting.surface,
+        choice=setting.choice,
     )

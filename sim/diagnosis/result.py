@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.postures import Surface
 from impactqp.sim.plant import PlantParameters
 
@@ -41,6 +42,7 @@ class Diagnosis:
     extended_error: float
     extended_plant: PlantParameters
     surface: Surface
+    choice: RobotChoice
 
     def summary(self) -> dict:
         baseline = float(np.mean(self.baseline_errors))

@@ -15,13 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactqp.controller.model.postures import Surface
 from impactqp.sim.causes import Cause
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import map_in_processes
 
 from .fitting import FittedCauses, best_start, fit, jump_errors
-from .trials import MeasuredTrial, replay_all
+from .trials import MeasuredTrial, ReplaySetting, replay_all
 
 EXPLAINED_GAIN = 0.30  # the first cause must lower the held-out error (26) by 30 % of the nominal's
 STEP_GAIN = 0.20  # every further cause by 20 % of the held-out error of the causes before it
@@ -49,7 +48,7 @@ class CandidateTask:
     cause: Cause
     bases: tuple[PlantParameters, ...]
     base_all: PlantParameters
-    surface: Surface
+    setting: ReplaySetting
     trials: tuple[MeasuredTrial, ...]
 
 
@@ -59,25 +58,25 @@ def cross_validate_cause(task: CandidateTask) -> dict:
     Per fold k: the best grid point on the training trials starts a fit of the candidate on
     them on top of ``bases[k]``, and its replay of the held-out trials gives their errors (26).
     Then the candidate is fitted on all trials on top of ``base_all``."""
-    cause, surface, trials = task.cause, task.surface, list(task.trials)
+    cause, setting, trials = task.cause, task.setting, list(task.trials)
     folds = fold_of(trials)
     heldout = np.empty(len(trials))
     u_folds = []
     shared = None  # grid features on all trials, when every fold shares the base (first step)
     if all(b == task.base_all for b in task.bases):
-        _, _, shared = best_start(cause, task.base_all, surface, trials)
+        _, _, shared = best_start(cause, task.base_all, setting, trials)
     for k in np.unique(folds):
         train_idx = [i for i, f in enumerate(folds) if f != k]
         train = [trials[i] for i in train_idx]
         test = [t for t, f in zip(trials, folds) if f == k]
         grid = [[g[i] for i in train_idx] for g in shared] if shared is not None else None
         base = task.bases[k]
-        i, points, _ = best_start(cause, base, surface, train, grid)
-        fitted = fit(FittedCauses((cause,), (points[i],)), base, surface, train, FOLD_MAX_EVALUATIONS)
+        i, points, _ = best_start(cause, base, setting, train, grid)
+        fitted = fit(FittedCauses((cause,), (points[i],)), base, setting, train, FOLD_MAX_EVALUATIONS)
         u_folds.append(fitted.u[0])
-        heldout[folds == k] = jump_errors(replay_all(surface, fitted.plant(base), test), test)
-    i, points, _ = best_start(cause, task.base_all, surface, trials, shared)
-    u_all = fit(FittedCauses((cause,), (points[i],)), task.base_all, surface, trials, FIT_MAX_EVALUATIONS).u[0]
+        heldout[folds == k] = jump_errors(replay_all(setting, fitted.plant(base), test), test)
+    i, points, _ = best_start(cause, task.base_all, setting, trials, shared)
+    u_all = fit(FittedCauses((cause,), (points[i],)), task.base_all, setting, trials, FIT_MAX_EVALUATIONS).u[0]
     return {"cause": cause.name, "u": u_all, "u_folds": u_folds, "heldout": heldout}
 
 
@@ -87,7 +86,7 @@ class ScreenTask:
 
     cause: Cause
     base: PlantParameters
-    surface: Surface
+    setting: ReplaySetting
     trials: tuple[MeasuredTrial, ...]
 
 
@@ -95,7 +94,7 @@ def screen_cause(task: ScreenTask) -> float:
     """In-sample average error (26) of the best grid point of a candidate added on top of
     ``base`` (a cheap screen before its cross-validation)."""
     trials = list(task.trials)
-    index, _, features = best_start(task.cause, task.base, task.surface, trials)
+    index, _, features = best_start(task.cause, task.base, task.setting, trials)
     return float(np.mean(jump_errors(features[index], trials)))
 
 
@@ -138,17 +137,17 @@ def selection_step(cause: Cause, heldout_error: float, previous_error: float) ->
     return {"cause": cause.name, "heldout_error": heldout_error, "gain": gain, "selected": gain >= STEP_GAIN}
 
 
-def take_step(branch: Branch, step: dict, cause: Cause, result: dict, nominal, surface, trials) -> Branch:
+def take_step(branch: Branch, step: dict, cause: Cause, result: dict, nominal, setting, trials) -> Branch:
     """``branch`` after the accepted ``step``: ``cause`` added (its cross-validation
     ``result``) and the chosen causes refitted jointly."""
     model = branch.model.plus(cause, result["u"])
     if len(model.causes) > 1:
-        model = fit(model, nominal, surface, trials, JOINT_MAX_EVALUATIONS)
+        model = fit(model, nominal, setting, trials, JOINT_MAX_EVALUATIONS)
     bases = [cause.plant(b, u) for b, u in zip(branch.bases, result["u_folds"])]
     return Branch(model, bases, branch.steps + [step], result["heldout"])
 
 
-def cross_validate_step(branch: Branch, causes: list[Cause], nominal, surface, trials, jobs: int):
+def cross_validate_step(branch: Branch, causes: list[Cause], nominal, setting, trials, jobs: int):
     """The remaining candidates of ``branch`` worth cross-validating, and their results.
 
     From the second step on, a candidate whose best grid point does not lower the in-sample
@@ -158,20 +157,20 @@ def cross_validate_step(branch: Branch, causes: list[Cause], nominal, surface, t
     pool = [c for c in causes if c.name not in chosen]
     base_all = branch.model.plant(nominal)
     if branch.model.causes and pool:
-        current = float(np.mean(jump_errors(replay_all(surface, base_all, trials), trials)))
-        screens = [ScreenTask(c, base_all, surface, tuple(trials)) for c in pool]
+        current = float(np.mean(jump_errors(replay_all(setting, base_all, trials), trials)))
+        screens = [ScreenTask(c, base_all, setting, tuple(trials)) for c in pool]
         screened = map_in_processes(screen_cause, screens, jobs)
         pool = [c for c, e in zip(pool, screened) if e <= (1.0 - STEP_GAIN / 2) * current]
-    tasks = [CandidateTask(c, tuple(branch.bases), base_all, surface, tuple(trials)) for c in pool]
+    tasks = [CandidateTask(c, tuple(branch.bases), base_all, setting, tuple(trials)) for c in pool]
     results = map_in_processes(cross_validate_cause, tasks, jobs)
     return pool, results
 
 
-def forward(branch: Branch, causes: list[Cause], nominal, surface, trials, jobs: int) -> Branch:
+def forward(branch: Branch, causes: list[Cause], nominal, setting, trials, jobs: int) -> Branch:
     """Greedy forward steps from ``branch`` until a step gains less than ``STEP_GAIN`` or
     ``MAX_CAUSES`` are chosen; the rejected last step is recorded (``selected`` false)."""
     while len(branch.model.causes) < MAX_CAUSES:
-        pool, results = cross_validate_step(branch, causes, nominal, surface, trials, jobs)
+        pool, results = cross_validate_step(branch, causes, nominal, setting, trials, jobs)
         if not pool:
             break
         errors = [float(np.mean(r["heldout"])) for r in results]
@@ -180,12 +179,12 @@ def forward(branch: Branch, causes: list[Cause], nominal, surface, trials, jobs:
         if not step["selected"]:
             branch.steps = branch.steps + [step]
             break
-        branch = take_step(branch, step, pool[i], results[i], nominal, surface, trials)
+        branch = take_step(branch, step, pool[i], results[i], nominal, setting, trials)
     return branch
 
 
 def select_causes(
-    causes: list[Cause], nominal: PlantParameters, surface: Surface, trials, baseline_errors, jobs: int
+    causes: list[Cause], nominal: PlantParameters, setting: ReplaySetting, trials, baseline_errors, jobs: int
 ) -> Selection:
     """Forward selection on held-out error (``docs/diagnosis.md``).
 
@@ -205,7 +204,7 @@ def select_causes(
     folds = len(np.unique(fold_of(trials)))
     start = Branch(FittedCauses(), [nominal] * folds, [], np.asarray(baseline_errors, float))
     baseline = start.error
-    pool, results = cross_validate_step(start, causes, nominal, surface, trials, jobs)
+    pool, results = cross_validate_step(start, causes, nominal, setting, trials, jobs)
     errors = [float(np.mean(r["heldout"])) for r in results]
     candidates = [
         {
@@ -228,8 +227,8 @@ def select_causes(
         if not step["selected"]:
             branches.append(Branch(FittedCauses(), start.bases, [step], start.heldout))
             continue
-        first = take_step(start, step, pool[i], results[i], nominal, surface, trials)
-        branches.append(forward(first, causes, nominal, surface, trials, jobs))
+        first = take_step(start, step, pool[i], results[i], nominal, setting, trials)
+        branches.append(forward(first, causes, nominal, setting, trials, jobs))
     chosen = min(branches, key=lambda b: b.error)
     if chosen.model.causes and relative_gain(chosen.error, baseline) >= EXPLAINED_GAIN:
         return Selection(candidates, chosen.steps, chosen.model, best_alone, chosen.heldout)

@@ -29,12 +29,13 @@ from impactqp.controller.measured.impact import (
     ImpactNotFoundError,
     measure_impact,
 )
+from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import NQ
 
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import CommandReplay, SimulationUnstableError, run_trial, servo_reference_from_commands
-from impactqp.sim.scene import build_scene
+from impactqp.sim.scene import Scene, build_scene
 
 REPLAY_LEAD = 40
 REPLAY_TAIL = 30
@@ -93,13 +94,27 @@ class ReplayFeatures:
     detected_jump: np.ndarray
 
 
-def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict], Surface]:
-    """Valid trials ready for replay, the skipped ones with their reasons, and the surface."""
+@dataclass(frozen=True)
+class ReplaySetting:
+    """What the trials were taken on and with: the surface hit, and the robot and the tool that
+    hit it (the dataset manifest's ``robot`` and ``tool``). Every replay simulates them and every
+    prediction uses their model."""
+
+    surface: Surface
+    choice: RobotChoice = DEFAULT_CHOICE
+
+    def scene(self, plant: PlantParameters) -> Scene:
+        """The MuJoCo scene of the setting with the plant ``plant``."""
+        return build_scene(self.surface, plant, robot=self.choice.robot, tool=self.choice.tool)
+
+
+def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict], ReplaySetting]:
+    """Valid trials ready for replay, the skipped ones with their reasons, and the setting of
+    the manifest (its surface, robot and tool: any declared tool)."""
     directory = Path(directory)
     problems = validate(directory)
     bad = {k for k, v in problems.items() if k != "dataset" and v}
     dataset = read_dataset(directory, skip=bad, strict=False)
-    dataset.header.tool.require_modelled(str(directory))
     skipped = [{"id": k, "reason": "; ".join(problems[k])} for k in sorted(bad)]
     skipped += [{"id": "dataset", "reason": p} for p in problems["dataset"]]
     trials = []
@@ -146,7 +161,7 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
                 jump_samples=(impact.pre_index - i0, impact.post_index - i0),
             )
         )
-    return trials, skipped, dataset.header.surface
+    return trials, skipped, ReplaySetting(dataset.header.surface, dataset.header.choice)
 
 
 def replay_log(scene, trial: MeasuredTrial):
@@ -185,7 +200,7 @@ def replay(scene, trial: MeasuredTrial) -> ReplayFeatures:
     return ReplayFeatures(jump, impact.impulse, impact.duration, torque, impact.dq_jump)
 
 
-def locate_jump_samples(trials: list[MeasuredTrial], surface: Surface, plant: PlantParameters) -> list[MeasuredTrial]:
+def locate_jump_samples(trials: list[MeasuredTrial], setting: ReplaySetting, plant: PlantParameters) -> list[MeasuredTrial]:
     """The trials with the post-impact sample of their ``jump_samples`` taken from their replay
     in ``plant`` (the nominal one) instead of the measured velocities.
 
@@ -196,7 +211,7 @@ def locate_jump_samples(trials: list[MeasuredTrial], surface: Surface, plant: Pl
     the same fixed samples: no cause can move the sample the data are read at, and the read
     jump is smooth in the parameters (``docs/diagnosis.md``). A trial whose replay finds no
     impact keeps its measured samples."""
-    scene = build_scene(surface, plant)
+    scene = setting.scene(plant)
     located = []
     for trial in trials:
         try:
@@ -209,6 +224,6 @@ def locate_jump_samples(trials: list[MeasuredTrial], surface: Surface, plant: Pl
     return located
 
 
-def replay_all(surface: Surface, plant: PlantParameters, trials: list[MeasuredTrial]) -> list[ReplayFeatures]:
-    scene = build_scene(surface, plant)
+def replay_all(setting: ReplaySetting, plant: PlantParameters, trials: list[MeasuredTrial]) -> list[ReplayFeatures]:
+    scene = setting.scene(plant)
     return [replay(scene, trial) for trial in trials]

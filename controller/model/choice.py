@@ -1,0 +1,91 @@
+"""The robot and the tool a command, a configuration or a dataset works with (``--robot``,
+``--tool``; docs/robots.md).
+
+A :class:`RobotChoice` is the one value passed down the layers instead of two names: it builds
+the model (``RobotModel``) and knows the robot's named impact postures solved for the tool
+(``tool_postures.tool_posture``). It is small, frozen and picklable, so a process pool's workers
+receive it and build their own model and scene from it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+from .postures import ImpactPosture
+from .robot import RobotModel
+from .robot_description import PANDA, RobotDescription, robot_description
+from .tool_description import TOOLS, ToolDescription, tool_description
+from .tool_postures import tool_posture
+from .validation import BadInputError
+
+DEFAULT_ROBOT = PANDA.name
+DEFAULT_TOOL = "impact_tip"
+
+
+@dataclass(frozen=True, eq=False)
+class RobotChoice:
+    """A robot description and the tool it carries (default: the Panda with ``impact_tip``)."""
+
+    robot: RobotDescription = PANDA
+    tool: ToolDescription = field(default_factory=lambda: TOOLS[DEFAULT_TOOL])
+
+    @classmethod
+    def of(
+        cls,
+        robot: str | RobotDescription = DEFAULT_ROBOT,
+        tool: str | Path | ToolDescription = DEFAULT_TOOL,
+    ) -> RobotChoice:
+        """The choice of a robot name (or description) and a tool name, file (or description)."""
+        return cls(robot_description(robot), tool_description(tool))
+
+    @property
+    def is_default(self) -> bool:
+        """Whether this is the Panda with the built-in ``impact_tip``."""
+        return self.robot.name == DEFAULT_ROBOT and self.tool.as_dict() == TOOLS[DEFAULT_TOOL].as_dict()
+
+    def same_as(self, other: RobotChoice) -> bool:
+        """Whether ``other`` names the same robot and an identical tool description."""
+        return self.robot.name == other.robot.name and self.tool.as_dict() == other.tool.as_dict()
+
+    @property
+    def tool_setting(self) -> str | dict:
+        """The tool as a configuration holds it: a built-in's name, else its full description."""
+        builtin = TOOLS.get(self.tool.name)
+        return self.tool.name if builtin is not None and builtin.as_dict() == self.tool.as_dict() else self.tool.as_dict()
+
+    def model(self) -> RobotModel:
+        """A new model of the robot with the tool (each caller owns its Pinocchio data)."""
+        return RobotModel(self.robot, self.tool)
+
+    @cached_property
+    def postures(self) -> dict[str, ImpactPosture]:
+        """The robot's named postures, solved for the tool (computed once per choice)."""
+        model = self.model()
+        return {name: tool_posture(model, name) for name in self.robot.postures}
+
+    def posture(self, name: str) -> ImpactPosture:
+        """The named posture ``name``; bad input naming the known ones otherwise."""
+        if name not in self.robot.postures:
+            raise BadInputError(
+                f"unknown posture {name!r} for the {self.robot.name}; known: {', '.join(self.robot.postures)}"
+            )
+        return self.postures[name]
+
+    def check_postures(self, names) -> tuple[str, ...]:
+        """``names`` as a tuple after checking each is a named posture of the robot."""
+        names = tuple(names)
+        for name in names:
+            if name not in self.robot.postures:
+                raise BadInputError(
+                    f"unknown posture {name!r} for the {self.robot.name}; known: {', '.join(self.robot.postures)}"
+                )
+        return names
+
+    def __repr__(self) -> str:
+        return f"RobotChoice(robot={self.robot.name!r}, tool={self.tool.name!r})"
+
+
+DEFAULT_CHOICE = RobotChoice()
+"""The Panda with the ``impact_tip``: what every command used before ``--robot``/``--tool``."""
