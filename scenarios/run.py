@@ -42,6 +42,11 @@ BACKEND_ROBOTS = {"franka": "fr3", "panda": "panda"}
 """The robot each robot backend drives: pylibfranka (libfranka >= 0.10) serves the FR3 only,
 libfranka 0.9 (panda-python) the Panda only (Franka's compatibility matrix)."""
 SIM_START_DISTANCE = 0.05
+IMPACT_LEAD = 0.15
+"""s of a robot's log kept before the detected impact: more than every offline reading of the
+pre-impact state needs (the diagnosis replays from 40 ms before the impact), and short enough to
+leave out the approach's acceleration, whose torque transients the offline rule would take for
+an impact on a log without force (``write_log``)."""
 MAX_DURATION = 60.0
 """s: one impact session (approach, impact, post-impact phase) lasts seconds; a minute bounds it."""
 
@@ -340,16 +345,18 @@ def write_log(run_log: RunLog, request: RunRequest, config: ControllerConfig, re
     """Add the run as one trial to its dataset; the trial file's path.
 
     A log without a force measurement (a robot's) is written from the end of the detector's
-    contact-free reference window on: the offline torque rule (``controller.measured.impact``)
-    reads a trial that starts in the approach, and would take the start-up of a velocity-servoed
-    arm from rest (the joint torque following the commanded acceleration) for an impact."""
+    contact-free reference window on, and at most ``IMPACT_LEAD`` before the detected impact: the
+    offline torque rule (``controller.measured.impact``) reads a trial that starts in the
+    approach, and would take the start-up of a velocity-servoed arm from rest or the approach's
+    acceleration (the joint torque following the commanded acceleration) for an impact."""
     speed = next(
         (float(t.params.get("speed", 0.0)) for t in config.tasks if t.type == "contact_approach"), request.speed
     )
     log = result.log
     t_reference = result.session.detector.t_calibrated
+    t_detect = result.session.detector.t_detect
     if not log.has_force and t_reference is not None:
-        log = after(log, t_reference)
+        log = after(log, t_reference if t_detect is None else max(t_reference, t_detect - IMPACT_LEAD))
     return run_log.add(
         log,
         speed,

@@ -24,6 +24,7 @@ import numpy as np
 
 from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.scenarios.run import SIM_START_DISTANCE, RunRequest, run
@@ -79,7 +80,8 @@ def franka_sim_run() -> tuple[dict, float | None] | None:
     with tempfile.TemporaryDirectory() as directory:
         with FrankySimServer(Path(directory) / "server", posture.surface.point, posture.surface.normal, q0) as server:
             request = RunRequest(
-                backend="franka", robot=FRANKA_SIM_ROBOT, robot_ip=server.hostname, realtime=False,
+                backend="franka", choice=RobotChoice.of(FRANKA_SIM_ROBOT, "impact_tip"), robot_ip=server.hostname,
+                realtime=False,
                 posture=FRANKA_SIM_POSTURE, duration=1.0, max_overruns=NO_OVERRUN_TRIP,
             )
             report, _ = run(request)
