@@ -26,6 +26,7 @@ def _start_worker(initializer: Callable[..., None] | None, initargs: tuple) -> N
     command line's SIGTERM and SIGHUP handlers (inherited by a forked worker), then run the
     caller's initializer."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked while this worker started
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGHUP, signal.SIG_DFL)
     if initializer is not None:
@@ -73,7 +74,14 @@ class ProcessPool:
         if not self._open:
             raise RuntimeError("use ProcessPool as a context manager")
         if self._executor is not None:
-            return self._executor.map(function, tasks)
+            # the workers start as the tasks are submitted; SIGINT stays blocked meanwhile, so a
+            # Ctrl-C that reaches the whole process group before a new worker ignores it waits
+            # in this process (pending) instead of breaking that worker's start-up
+            previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+            try:
+                return self._executor.map(function, tasks)
+            finally:
+                signal.pthread_sigmask(signal.SIG_SETMASK, previous)
         return map(function, tasks)
 
 
