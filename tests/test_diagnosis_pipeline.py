@@ -24,7 +24,7 @@ def test_hidden_effect_is_found(tmp_path, cause):
     fitted = cause_named(cause)
     truth = fitted.theta_of(overrides)
     assert np.all(np.abs(fitted.theta_of(result["parameters"]) - truth) <= tolerance(fitted, truth))
-    assert result["gain"] >= EXPLAINED_GAIN
+    assert result["gain_over_floor"] >= EXPLAINED_GAIN and result["fit"]["fits_noise"]
     assert result["gain"] == pytest.approx(1 - result["extended_error"] / result["baseline_error"])
     assert result["trials"] == len(POSTURES) * (len(SPEEDS) + len(tangential)) and result["skipped"] == []
     check_contract(result)

@@ -44,7 +44,8 @@ def test_nominal_plant_with_noise_is_not_explained(tmp_path):
     assert not result["explained"] and result["causes"] == []
     assert max(c["gain"] for c in result["candidates"]) < EXPLAINED_GAIN
     assert result["steps"] and not result["steps"][0]["selected"]
-    assert "No candidate" in result["message"]
+    assert "No candidate" in result["message"] and "as good as" not in result["message"]
+    assert result["nominal_fit"]["fits_noise"] and result["fit"]["fits_noise"]
     check_contract(result)
 
 

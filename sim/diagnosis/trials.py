@@ -4,7 +4,7 @@
    (``controller.measured.dataset.validate``); bad trials are skipped with their reasons. The
    impact is detected and the jump extracted with the same function as for simulated data
    (``controller.measured.impact.measure_impact``); the impulse is integrated where a force log
-   exists.
+   exists. The noise of every compared signal is read from the trials (``noise``).
 2. **Replay** (``replay``). Each trial is replayed in the simulation from the logged state
    ``REPLAY_LEAD`` control steps before the impact (q, and dq averaged over 5 samples against
    encoder noise), on the dataset's surface, with the logged ``dq_cmd`` driving the joint servo,
@@ -36,6 +36,8 @@ from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import CommandReplay, SimulationUnstableError, run_trial, servo_reference_from_commands
 from impactqp.sim.scene import build_scene
 
+from .noise import BlockNoise, estimate_noise, sample_variance
+
 REPLAY_LEAD = 40
 REPLAY_TAIL = 30
 START_AVERAGE = 2  # dq at the replay start: mean of samples i0 - 2 .. i0 + 2 (within the log)
@@ -65,6 +67,9 @@ class MeasuredTrial:
     torque_window: tuple[int, int]  # samples of the replay whose torque is averaged
     dq_log: np.ndarray  # the measured dq over the replay's span (replay sample k is dq_log[k])
     jump_samples: tuple[int, int]  # replay samples (pre, post) where the fit reads the jumps
+    scatter: tuple[np.ndarray, np.ndarray]  # per-sample noise variance of dq and tau before the impact
+    force_period: float | None  # the force log's sample period (s), None without force data
+    noise: BlockNoise | None = None  # the dataset's block noise (``noise.estimate_noise``)
 
     @property
     def reference(self) -> np.ndarray:
@@ -122,6 +127,7 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
             # impulse and contact duration over the span that the replay covers
             impact = measure_impact(log.truncated(log.t[i1]))
         tangential = entry.reference_tangential_velocity
+        quiet = impact.pre_index - PRE_SAMPLES + 1  # the samples before the pre-impact mean
         trials.append(
             MeasuredTrial(
                 id=entry.id,
@@ -144,8 +150,13 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
                 torque_window=(first - i0, last - i0),
                 dq_log=log.dq[i0:i1].copy(),
                 jump_samples=(impact.pre_index - i0, impact.post_index - i0),
+                scatter=(sample_variance(log.dq[:quiet]), sample_variance(log.tau[:quiet])),
+                force_period=float(np.median(np.diff(log.force_t))) if len(log.force_t) > 1 else None,
             )
         )
+    if trials:
+        noise = estimate_noise(trials)
+        trials = [replace(t, noise=noise) for t in trials]
     return trials, skipped, dataset.header.surface
 
 
