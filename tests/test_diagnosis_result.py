@@ -58,7 +58,7 @@ def test_the_message_names_the_causes_their_intervals_and_what_is_open():
     side = {"cause": "friction", "parameter": "friction coefficient", "side": "above", "fitted": 0.3,
             "trials_needed": "faster sliding trials"}
     text = diagnosis(True, 0.01, 0.002, [side]).message()
-    assert text.startswith("The simulation's jump error is explained by 'friction'")
+    assert text.startswith("The gap between the simulation and the measurements is explained by 'friction'")
     assert "friction coefficient: 0.3, 95 % interval at least 0.2 (open above)." in text
     assert "cannot bound friction coefficient above: faster sliding trials." in text
     assert "within the noise (jump 1.1, torque 0.9, impulse 0.5, duration 0.4 noise units)" in text

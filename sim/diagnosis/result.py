@@ -80,7 +80,7 @@ class Diagnosis:
             return self.unexplained_message()
         named = " + ".join(f"'{c}'" for c in self.causes)
         text = (
-            f"The simulation's jump error is explained by {named}: fitting "
+            f"The gap between the simulation and the measurements is explained by {named}: fitting "
             f"{'it' if len(self.causes) == 1 else 'them'} lowers the held-out average error from "
             f"{baseline:.4f} to {self.extended_error:.4f} rad/s ({100 * gain:.0f} % gain; "
             f"{100 * self.gain_over_floor:.0f} % of the excess over the noise floor), and the fitted model "

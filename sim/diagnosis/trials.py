@@ -12,11 +12,15 @@
    rebuilt from the log start and the commands before it (``servo_reference_from_commands``), so
    a plant that lags behind its commands (joint damping) lags in the replay as it did. The
    replayed impact is measured with the same function. Jumps are compared at fixed samples per
-   trial (``locate_jump_samples``).
+   trial (``locate_jump_samples``). The plant's sensor keys (``sim.sensor``) act on the replayed
+   log after the simulation; the simulated logs of the last ``REPLAY_CACHE_SIZE`` replays are
+   kept per process, keyed by the physical plant and the trial, so causes that only change the
+   sensor (and fits on top of a fixed physical plant) need no new simulation.
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -35,6 +39,7 @@ from impactqp.controller.model.robot import NQ
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import CommandReplay, SimulationUnstableError, run_trial, servo_reference_from_commands
 from impactqp.sim.scene import build_scene
+from impactqp.sim.sensor import apply_sensor
 
 from .noise import BlockNoise, estimate_noise, sample_variance
 
@@ -43,6 +48,8 @@ REPLAY_TAIL = 30
 START_AVERAGE = 2  # dq at the replay start: mean of samples i0 - 2 .. i0 + 2 (within the log)
 TORQUE_SETTLE = 10  # samples after the replay start before the torque window may begin
 TORQUE_WINDOW = 30  # mean tau over the 30 samples ending 2 samples before the pre-impact one
+REPLAY_CACHE_SIZE = 512
+_simulated: OrderedDict = OrderedDict()  # (surface, physical plant, trial) -> simulated log or None
 
 
 @dataclass
@@ -174,17 +181,35 @@ def replay_log(scene, trial: MeasuredTrial):
     )
 
 
-def replay(scene, trial: MeasuredTrial) -> ReplayFeatures:
-    """Replay one trial in ``scene`` and measure it like the real one: its jump at the trial's
-    ``jump_samples``, its impulse and duration from its contact force.
+def simulated_log(surface: Surface, plant: PlantParameters, trial: MeasuredTrial, scene_of):
+    """The replay of ``trial`` in the physical part of ``plant`` (``scene_of()`` builds its
+    scene when needed), from the per-process cache when it was simulated before; None when the
+    simulation is unstable."""
+    physical = plant.physical()
+    key = (surface.point.tobytes(), surface.normal.tobytes(), surface.friction, physical, trial.id,
+           trial.q0.tobytes(), trial.dq0.tobytes(), trial.dq_cmd.tobytes())
+    if key in _simulated:
+        _simulated.move_to_end(key)
+        return _simulated[key]
+    try:
+        log = replay_log(scene_of(), trial)
+    except SimulationUnstableError:
+        log = None
+    _simulated[key] = log
+    if len(_simulated) > REPLAY_CACHE_SIZE:
+        _simulated.popitem(last=False)
+    return log
+
+
+def replay(log, trial: MeasuredTrial) -> ReplayFeatures:
+    """Measure the replayed ``log`` of one trial (after its sensor) like the real one: its jump
+    at the trial's ``jump_samples``, its impulse and duration from its contact force.
 
     A replay that MuJoCo flags as unstable (bad accelerations, e.g. a servo gain beyond what the
     1 kHz loop can hold) is marked failed: its jump and impulse are zero, so the fit's residuals
     push away from it; so are the impulse and the detected jump of a replay without an impact.
     """
-    try:
-        log = replay_log(scene, trial)
-    except SimulationUnstableError:
+    if log is None:
         return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, np.zeros(NQ), np.zeros(NQ))
     first, last = trial.torque_window
     torque = log.tau[first:last].mean(axis=0)
@@ -221,5 +246,19 @@ def locate_jump_samples(trials: list[MeasuredTrial], surface: Surface, plant: Pl
 
 
 def replay_all(surface: Surface, plant: PlantParameters, trials: list[MeasuredTrial]) -> list[ReplayFeatures]:
-    scene = build_scene(surface, plant)
-    return [replay(scene, trial) for trial in trials]
+    """The features of every trial replayed in ``plant``: simulated in its physical part (or
+    taken from the cache), then seen through its sensor (``sim.sensor.apply_sensor``)."""
+    scene = []
+
+    def scene_of():
+        if not scene:
+            scene.append(build_scene(surface, plant.physical()))
+        return scene[0]
+
+    features = []
+    for trial in trials:
+        log = simulated_log(surface, plant, trial, scene_of)
+        if log is not None:
+            log = apply_sensor(log, plant, trial.control_period)
+        features.append(replay(log, trial))
+    return features
