@@ -371,6 +371,8 @@ def default_causes(surface_friction: float = DEFAULT_WALL.friction) -> list[Caus
 
 
 CAUSE_NAMES = tuple(cause.name for cause in default_causes())
+SENSOR_CAUSE_NAMES = ("delay", "velocity_scale", "torque_offset", "velocity_filter")
+PLANT_CAUSE_NAMES = tuple(name for name in CAUSE_NAMES if name not in SENSOR_CAUSE_NAMES)
 
 
 def cause_named(name: str) -> Cause:

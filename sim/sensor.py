@@ -23,7 +23,8 @@ from impactqp.controller.measured.trial_log import TrialLog
 
 
 def delayed(x: np.ndarray, samples: float) -> np.ndarray:
-    """x (n, m) read ``samples`` samples late by linear interpolation (the first sample held)."""
+    """x (n, m) read ``samples`` samples late by linear interpolation (the first sample held);
+    a negative ``samples`` reads ahead (the last sample held)."""
     if samples == 0.0 or len(x) == 0:
         return x
     position = np.clip(np.arange(len(x)) - samples, 0.0, len(x) - 1)

@@ -5,13 +5,13 @@ import pytest
 from diagnosis_checks import POSTURES, SPEEDS, check_contract, tolerance
 
 from impactqp.controller.model.validation import BadInputError
-from impactqp.sim.causes import CAUSE_NAMES, FrictionCause, cause_named, realistic_hidden_effect
+from impactqp.sim.causes import PLANT_CAUSE_NAMES, FrictionCause, cause_named, realistic_hidden_effect
 from impactqp.sim.diagnosis import EXPLAINED_GAIN, diagnose
 from impactqp.sim.generation import DatasetRequest, generate_dataset
 from impactqp.sim.plant import PlantParameters
 
 
-@pytest.mark.parametrize("cause", CAUSE_NAMES)
+@pytest.mark.parametrize("cause", PLANT_CAUSE_NAMES)
 def test_hidden_effect_is_found(tmp_path, cause):
     """One realistic effect hidden (per group for armature and damping): it alone is named and
     every fitted parameter recovered."""

@@ -39,7 +39,7 @@ from impactqp.controller.model.robot import NQ
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import CommandReplay, SimulationUnstableError, run_trial, servo_reference_from_commands
 from impactqp.sim.scene import build_scene
-from impactqp.sim.sensor import apply_sensor
+from impactqp.sim.sensor import apply_sensor, delayed
 
 from .noise import BlockNoise, estimate_noise, sample_variance
 
@@ -187,18 +187,31 @@ def simulated_log(surface: Surface, plant: PlantParameters, trial: MeasuredTrial
     simulation is unstable."""
     physical = plant.physical()
     key = (surface.point.tobytes(), surface.normal.tobytes(), surface.friction, physical, trial.id,
-           trial.q0.tobytes(), trial.dq0.tobytes(), trial.dq_cmd.tobytes())
+           trial.q0.tobytes(), trial.dq0.tobytes(), trial.dq_cmd.tobytes(),
+           plant.sensor_delay, plant.sensor_velocity_scale)
     if key in _simulated:
         _simulated.move_to_end(key)
         return _simulated[key]
     try:
-        log = replay_log(scene_of(), trial)
+        log = replay_log(scene_of(), true_start(trial, plant))
     except SimulationUnstableError:
         log = None
     _simulated[key] = log
     if len(_simulated) > REPLAY_CACHE_SIZE:
         _simulated.popitem(last=False)
     return log
+
+
+def true_start(trial: MeasuredTrial, plant: PlantParameters) -> MeasuredTrial:
+    """``trial`` starting from the true velocity that the sensor of ``plant`` logged as its
+    start velocity: read ``sensor_delay`` samples later (the log is late) and divided by
+    ``sensor_velocity_scale`` (the replay's physics must start from the robot's state, not from
+    the faulty reading)."""
+    if plant.sensor_delay == 0.0 and plant.sensor_velocity_scale == 1.0:
+        return trial
+    ahead = delayed(trial.dq_log, -plant.sensor_delay)[: START_AVERAGE + 1].mean(axis=0)
+    dq0 = trial.dq0 + ahead - trial.dq_log[: START_AVERAGE + 1].mean(axis=0)
+    return replace(trial, dq0=dq0 / plant.sensor_velocity_scale)
 
 
 def replay(log, trial: MeasuredTrial) -> ReplayFeatures:
