@@ -13,7 +13,7 @@ from impactqp.sim.plant import PlantParameters
 
 from .comparison import error_analysis, predictor_errors
 from .fitting import fit_report, jump_errors, trial_errors
-from .intervals import open_sides, override_intervals, parameter_intervals
+from .intervals import excludes_nominal, open_sides, override_intervals, parameter_intervals
 from .result import Diagnosis
 from .selection import select_causes
 from .trials import load_trials, locate_jump_samples, replay_all
@@ -52,8 +52,9 @@ def diagnose(
     extended_features = replay_all(surface, extended_plant, trials)
     extended_jumps = np.array([f.detected_jump for f in extended_features])
     fit = fit_report(extended_features, trials)
-    # the causes explain the gap only when their model fits the noise
-    explained = selected and fit["fits_noise"]
+    # the causes explain the gap only when their model fits the noise and every named cause's
+    # interval excludes its nominal value (else the data do not say it moved)
+    explained = selected and fit["fits_noise"] and all(excludes_nominal(model, theta_intervals, nominal))
     steps = selection.steps if explained else [{**s, "selected": False} for s in selection.steps]
     predictors, predictors_measured_impulse, predictions = predictor_errors(trials, surface)
     per_parameter = [

@@ -108,6 +108,12 @@ class Diagnosis:
                 f"data: {worst} (a model that fits stays within {FIT_LIMIT:g}). Something outside the "
                 f"candidate causes is at work, e.g. in the {misfits[0]} signal; its fitted values mean nothing."
             )
+        if self.fit["fits_noise"] and self.gain_over_floor >= EXPLAINED_GAIN:
+            return (
+                f"No candidate cause explains the gap: the best model found ({model}) fits the noise, but the "
+                "95 % interval of every parameter of one of its causes contains that parameter's nominal value, "
+                "so the data do not show the plant moved away from the nominal; more trials would tell."
+            )
         if self.nominal_fit["fits_noise"]:
             return (
                 "No candidate cause is needed: the nominal simulation already matches the data within the noise "
