@@ -14,8 +14,9 @@ Each block's noise std is estimated from the dataset itself, never from a consta
 - **repeat-to-repeat variation**: the pooled within-condition std (same posture, normal and
   tangential speed) of each block, which also carries what the sensors' scatter does not (the
   force log's, the start state's);
-- **floors** where neither is available: the force log's sample period for the duration (its
-  resolution), ``IMPULSE_FLOOR_SHARE`` of the root mean square impulse for the impulse.
+- **floors**: ``DURATION_FLOOR_SAMPLES`` force-log sample periods for the duration (it ends at
+  two threshold crossings, each quantised to a sample, and the replay's start moves them),
+  ``IMPULSE_FLOOR_SHARE`` of the root mean square impulse for the impulse.
 
 Each block's std is the largest of those it has. The normalised residual of a block is the root
 mean square of its residuals in noise units over the trials; a model fits the noise when every
@@ -32,8 +33,9 @@ import numpy as np
 from impactqp.controller.measured.impact import POST_HALF_WIDTH, PRE_SAMPLES
 
 BLOCKS = ("jump", "torque", "impulse", "duration")
-FIT_LIMIT = 2.5
+FIT_LIMIT = 3.0
 IMPULSE_FLOOR_SHARE = 0.005
+DURATION_FLOOR_SAMPLES = 4  # a duration's resolution: force-log samples (two threshold crossings, the replay's start)
 TINY = {"jump": 1e-5, "torque": 1e-4, "impulse": 1e-5, "duration": 1e-5}  # noise-free data: no 0 divisions
 MAD_TO_STD = 1.4826
 
@@ -96,7 +98,8 @@ def estimate_noise(trials) -> BlockNoise:
         rms = np.sqrt(np.mean([np.sum(t.impulse**2) for t in forced]))
         impulse = largest("impulse", IMPULSE_FLOOR_SHARE * rms * np.ones(3), repeat_std(forced, lambda t: t.impulse))
         periods = [t.force_period for t in forced if t.force_period]
-        duration = float(largest("duration", min(periods, default=0.0), repeat_std(forced, lambda t: t.duration)).max())
+        floor = DURATION_FLOOR_SAMPLES * min(periods, default=0.0)
+        duration = float(largest("duration", floor, repeat_std(forced, lambda t: t.duration)).max())
     return BlockNoise(
         jump=largest("jump", jump_sensor, repeat_std(trials, lambda t: t.reference)),
         torque=largest("torque", torque_sensor, repeat_std(trials, lambda t: t.torque)),
