@@ -26,7 +26,7 @@ from .fitting import FittedCauses, best_start, fit, jump_errors, trial_errors
 from .noise import quadratic_mean
 from .trials import MeasuredTrial, replay_all
 
-EXPLAINED_GAIN = 0.30  # the causes must remove 30 % of the nominal's held-out excess over the noise floor
+EXPLAINED_GAIN = 0.20  # the causes must remove 20 % of the nominal's held-out excess over the noise floor
 NOISE_FLOOR = 1.0  # the normalised residual of a model that fits: the noise itself
 STEP_GAIN = 0.20  # every further cause by 20 % of the held-out error of the causes before it
 MAX_CAUSES = 3
