@@ -37,6 +37,7 @@ from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION  # noqa:
 from impactqp.controller.model.robot import NQ  # noqa: E402
 from impactqp.scenarios.max_speed_search import DEFAULT_TOLERANCE, MaxSpeedSearch  # noqa: E402
 from impactqp.sim.diagnosis import EXPLAINED_GAIN, STEP_GAIN, Diagnosis, interval_text  # noqa: E402
+from impactqp.sim.diagnosis.noise import BLOCKS  # noqa: E402
 from impactqp.sim.plant import PlantParameters  # noqa: E402
 
 from .readable import boolean, number, parameters_text  # noqa: E402
@@ -262,14 +263,25 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         f"- trials used: {s['trials']}, skipped: {len(s['skipped'])}",
         f"- causes: **{', '.join(s['causes']) or 'none'}** (explained: {boolean(s['explained'])}; "
         f"thresholds: every step "
-        f"{100 * STEP_GAIN:.0f} % held-out gain, the causes together {100 * EXPLAINED_GAIN:.0f} %)",
+        f"{100 * STEP_GAIN:.0f} % held-out gain, the causes together {100 * EXPLAINED_GAIN:.0f} % of the excess "
+        "over the noise floor, and a model that fits the noise)",
         f"- parameters: {parameters_text(s['parameters'])}",
         f"- average error (26), held-out: nominal simulation {s['baseline_error']:.4f} rad/s, "
-        f"extended simulation {s['extended_error']:.4f} rad/s, gain {100 * s['gain']:.1f} %",
+        f"extended simulation {s['extended_error']:.4f} rad/s, gain {100 * s['gain']:.1f} % "
+        f"({100 * s['gain_over_floor']:.1f} % of the excess over the noise floor)",
+        "",
+        "## Fit against the noise (normalised residual: root mean square in noise units)",
+        "",
+        "| model | " + " | ".join(b for b in BLOCKS if b in s["fit"]) + " | fits the noise |",
+        "|---|" + "---|" * (sum(b in s["fit"] for b in BLOCKS) + 1),
+        *(
+            f"| {label} | " + " | ".join(f"{fit[b]:.2f}" for b in BLOCKS if b in fit) + f" | {boolean(fit['fits_noise'])} |"
+            for label, fit in (("nominal", s["nominal_fit"]), ("final", s["fit"]))
+        ),
         "",
         "## Selection steps",
         "",
-        "| step | cause | held-out error (rad/s) | gain over the step before | selected |",
+        "| step | cause | held-out error (noise units) | gain over the step before | selected |",
         "|---|---|---|---|---|",
     ]
     for k, step in enumerate(s["steps"], start=1):
@@ -322,7 +334,7 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         "",
         "## Candidate causes (cross-validated over trials)",
         "",
-        "| cause | held-out error (rad/s) | gain | parameters |",
+        "| cause | held-out error (noise units) | gain | parameters |",
         "|---|---|---|---|",
     ]
     for c in sorted(s["candidates"], key=lambda c: -c["gain"]):

@@ -19,7 +19,14 @@ friction       tool/wall Coulomb coefficient mu                ``friction``
 contact        solref time constant and damping ratio          ``contact_solref``
 joint_damping  viscous damping per joint group (1-4, 5-7)      ``joint_damping`` (7 values)
 servo_gain     joint-servo bandwidth omega                     ``servo_gain``
+delay          measured dq and tau late by d control periods   ``sensor_delay``
+velocity_scale logged dq / true dq (global)                    ``sensor_velocity_scale``
+torque_offset  bias of the logged torque per joint (N m)       ``sensor_torque_offset`` (7)
+velocity_filt. time constant of a low-pass on the logged dq    ``sensor_velocity_filter``
 =============  ==============================================  ================================
+
+The last four are sensor causes (``sim.sensor``): they act on the replay's logged signals, not
+on the physics, and compete with the plant causes in the same selection.
 """
 
 from __future__ import annotations
@@ -277,6 +284,87 @@ class ServoGainCause(Cause):
         return np.array([float(overrides["servo_gain"])])
 
 
+class DelayCause(Cause):
+    """The measured dq and tau logged d control periods late (fractional: interpolated)."""
+
+    name = "delay"
+    labels = ("sensor delay (control periods)",)
+    log_scale = (False,)
+    lower, upper = (0.0,), (10.0,)
+    realistic = ((1.0,), (4.0,))
+
+    def nominal_theta(self, nominal):
+        return np.array([nominal.sensor_delay])
+
+    def overrides(self, theta):
+        return {"sensor_delay": float(theta[0])}
+
+    def theta_of(self, overrides):
+        return np.array([float(overrides["sensor_delay"])])
+
+
+class VelocityScaleCause(Cause):
+    """The logged dq a constant factor times the true velocity (all joints)."""
+
+    name = "velocity_scale"
+    labels = ("velocity scale",)
+    log_scale = (False,)
+    lower, upper = (0.7,), (1.4,)
+    realistic = ((1.04,), (1.1,))
+
+    def nominal_theta(self, nominal):
+        return np.array([nominal.sensor_velocity_scale])
+
+    def overrides(self, theta):
+        return {"sensor_velocity_scale": float(theta[0])}
+
+    def theta_of(self, overrides):
+        return np.array([float(overrides["sensor_velocity_scale"])])
+
+
+class TorqueOffsetCause(Cause):
+    """A constant bias of the logged torque, per joint."""
+
+    name = "torque_offset"
+    labels = tuple(f"torque offset joint {j + 1} (N m)" for j in range(NQ))
+    log_scale = (False,) * NQ
+    lower, upper = (-5.0,) * NQ, (5.0,) * NQ
+    realistic = ((-1.5,) * NQ, (1.5,) * NQ)
+
+    def nominal_theta(self, nominal):
+        return np.array(nominal.sensor_torque_offset, dtype=float)
+
+    def grid(self, nominal):
+        """The nominal offsets only: the torque residual is linear in the offsets, so the fit
+        needs no other start."""
+        return [self.to_u(self.nominal_theta(nominal))]
+
+    def overrides(self, theta):
+        return {"sensor_torque_offset": [float(x) for x in theta]}
+
+    def theta_of(self, overrides):
+        return np.array(overrides["sensor_torque_offset"], dtype=float)
+
+
+class VelocityFilterCause(Cause):
+    """The logged dq a first-order low-pass estimate of the true velocity (time constant, s)."""
+
+    name = "velocity_filter"
+    labels = ("velocity filter time constant (s)",)
+    log_scale = (True,)
+    lower, upper = (1e-4,), (0.05,)
+    realistic = ((0.002,), (0.008,))
+
+    def nominal_theta(self, nominal):
+        return np.array([max(nominal.sensor_velocity_filter, self.lower[0])])
+
+    def overrides(self, theta):
+        return {"sensor_velocity_filter": float(theta[0])}
+
+    def theta_of(self, overrides):
+        return np.array([float(overrides["sensor_velocity_filter"])])
+
+
 def default_causes(surface_friction: float = DEFAULT_WALL.friction, tool: ToolDescription = TOOLS["impact_tip"]) -> list[Cause]:
     """Every candidate cause, for a surface of friction ``surface_friction`` hit with ``tool``."""
     return [
@@ -286,10 +374,16 @@ def default_causes(surface_friction: float = DEFAULT_WALL.friction, tool: ToolDe
         ContactCause(),
         JointDampingCause(),
         ServoGainCause(),
+        DelayCause(),
+        VelocityScaleCause(),
+        TorqueOffsetCause(),
+        VelocityFilterCause(),
     ]
 
 
 CAUSE_NAMES = tuple(cause.name for cause in default_causes())
+SENSOR_CAUSE_NAMES = ("delay", "velocity_scale", "torque_offset", "velocity_filter")
+PLANT_CAUSE_NAMES = tuple(name for name in CAUSE_NAMES if name not in SENSOR_CAUSE_NAMES)
 
 
 def cause_named(name: str) -> Cause:

@@ -14,7 +14,9 @@ What a real log holds, simulated: encoder-like Gaussian noise on dq (std ``noise
 0.0042 rad/s, the paper's repeat-to-repeat std) and on tau (``noise_tau``); repeat-to-repeat
 variation of the start posture (Gaussian, std 0.000954 rad, the paper's std of q) and of the
 start distance (+-1 mm). The force log (on the robot, world frame, physics rate) is kept
-noise-free. The plant parameters that produced the data are never written.
+noise-free. A plant with sensor keys (``sim.sensor``: delay, velocity scale and filter, torque
+offset) logs dq and tau through that faulty sensor before the noise is added: a dataset of a
+sensor fault. The plant parameters that produced the data are never written.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from .plant import PlantParameters
 from .process_pool import ProcessPool
 from .runner import TrialSpec, dataset_header, run_approach
 from .scene import build_scene
+from .sensor import apply_sensor
 
 DEFAULT_SPEEDS = (0.08, 0.10, 0.12, 0.15, 0.18)
 TANGENTIAL_SERIES_NORMAL_SPEED = 0.12
@@ -109,11 +112,12 @@ def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
     planned = task.planned
     rng = np.random.default_rng(planned.seed)
     robot = task.choice.model()
-    scene = build_scene(task.surface, task.plant, robot=task.choice.robot, tool=task.choice.tool)
+    scene = build_scene(task.surface, task.plant.physical(), robot=task.choice.robot, tool=task.choice.tool)
     spec = planned.spec
     q_contact = np.clip(spec.q_contact + rng.normal(0.0, START_POSTURE_STD, NQ), robot.q_min, robot.q_max)
     distance = spec.start_distance + rng.uniform(-START_DISTANCE_SPREAD, START_DISTANCE_SPREAD)
     log = run_approach(scene, robot, replace(spec, q_contact=q_contact, start_distance=distance))
+    log = apply_sensor(log, task.plant, log.control_period)
     log.dq = log.dq + rng.normal(0.0, task.noise_dq, log.dq.shape)
     log.tau = log.tau + rng.normal(0.0, task.noise_tau, log.tau.shape)
     entry = TrialEntry(

@@ -19,13 +19,19 @@ contact_solimp      MuJoCo solimp (dmin, dmax, width m, midpoint, power) of the 
 servo_gain          bandwidth omega (rad/s) of the computed-torque joint servo (``sim.runner``)
 ==================  ===========================================================================
 
+Sensor keys (``sim.sensor.apply_sensor``) act on the logged signals after the simulation, not on
+the physics: ``sensor_delay`` (control periods, dq and tau late), ``sensor_velocity_scale``
+(logged dq / true dq), ``sensor_torque_offset`` (N m per joint, added to tau) and
+``sensor_velocity_filter`` (s, time constant of a first-order low-pass on dq). The defaults are
+a perfect sensor.
+
 Plant parameters are simulation truth: a dataset never records them (``controller.measured.dataset``).
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
 from impactqp.controller.measured.atomic import write_text_atomic
@@ -49,12 +55,18 @@ RANGES = {
     "payload_com": (-0.5, 0.5, "m"),
     "friction": (0.0, 2.0, ""),
     "servo_gain": (0.1, 1000.0, "rad/s"),
+    "sensor_delay": (0.0, 50.0, "control periods"),
+    "sensor_velocity_scale": (0.5, 2.0, ""),
+    "sensor_torque_offset": (-20.0, 20.0, "N m"),
+    "sensor_velocity_filter": (0.0, 0.1, "s"),
 }
 """Physical ranges of the plant parameters (per entry of a vector): reflected rotor inertias and
 viscous damping well above a Panda's (the diagnosis fits up to 5 kg m^2 and 200 N m s/rad), a
 payload within the Panda's 3 kg rating plus margin (the fit's 5 kg) with its centre of mass
-within half a metre of the tool tip, a Coulomb coefficient up to 2 (``postures.MAX_FRICTION``) and
-a servo bandwidth up to 1000 rad/s (the 1 kHz loop)."""
+within half a metre of the tool tip, a Coulomb coefficient up to 2 (``postures.MAX_FRICTION``),
+a servo bandwidth up to 1000 rad/s (the 1 kHz loop); sensors up to 50 ms late, reading velocities
+between half and twice the truth, torques off by at most 20 N m (a Panda's small joints carry
+12 N m) and filtering dq with a time constant up to 0.1 s."""
 
 MAX_SOLREF = (1.0, 10.0)
 """Largest contact time constant (s) and damping ratio of ``contact_solref``."""
@@ -72,6 +84,10 @@ class PlantParameters:
     contact_solref: tuple[float, ...] = DEFAULT_SOLREF
     contact_solimp: tuple[float, ...] = DEFAULT_SOLIMP
     servo_gain: float = DEFAULT_SERVO_GAIN
+    sensor_delay: float = 0.0
+    sensor_velocity_scale: float = 1.0
+    sensor_torque_offset: tuple[float, ...] = (0.0,) * NQ
+    sensor_velocity_filter: float = 0.0
 
     def __post_init__(self):
         try:
@@ -117,6 +133,15 @@ class PlantParameters:
             )
         set_("contact_solimp", solimp)
         set_("servo_gain", scalar("servo_gain"))
+        for name in ("sensor_delay", "sensor_velocity_scale", "sensor_velocity_filter"):
+            set_(name, scalar(name))
+        set_("sensor_torque_offset", vector("sensor_torque_offset", NQ))
+
+    def physical(self) -> "PlantParameters":
+        """The same plant with a perfect sensor: what the simulation itself needs."""
+        return replace(
+            self, sensor_delay=0.0, sensor_velocity_scale=1.0, sensor_torque_offset=(0.0,) * NQ, sensor_velocity_filter=0.0
+        )
 
     # ------------------------------------------------------------------ JSON
     @classmethod

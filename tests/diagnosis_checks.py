@@ -7,6 +7,7 @@ import numpy as np
 
 from impactqp.controller.measured.impact import POST_HALF_WIDTH, PRE_SAMPLES
 from impactqp.controller.model.robot import NQ
+from impactqp.sim.diagnosis.noise import BlockNoise
 from impactqp.sim.diagnosis.trials import MeasuredTrial, ReplayFeatures
 from impactqp.sim.plant import PlantParameters
 
@@ -63,6 +64,9 @@ def synthetic_trial(rng: np.random.Generator, *, force: bool = True, speed: floa
         torque_window=(5, 15),
         dq_log=rng.normal(size=(samples, NQ)),
         jump_samples=(pre, post),
+        scatter=(rng.uniform(1e-6, 1e-4, NQ), rng.uniform(1e-4, 1e-2, NQ)),
+        force_period=2.5e-4 if force else None,
+        noise=BlockNoise(rng.uniform(1e-3, 1e-2, NQ), rng.uniform(1e-2, 0.1, NQ), rng.uniform(1e-3, 1e-2, 3), 3e-4),
     )
 
 

@@ -51,7 +51,20 @@ def test_nominal_value_is_inside_the_bounds():
 
 
 def test_every_issue_cause_is_a_candidate():
-    assert set(CAUSE_NAMES) == {"armature", "payload", "friction", "contact", "joint_damping", "servo_gain"}
+    assert set(CAUSE_NAMES) == {
+        "armature", "payload", "friction", "contact", "joint_damping", "servo_gain",
+        "delay", "velocity_scale", "torque_offset", "velocity_filter",
+    }
+
+
+def test_sensor_causes_change_only_sensor_keys_and_leave_the_physics_alone():
+    nominal = PlantParameters()
+    for name in ("delay", "velocity_scale", "torque_offset", "velocity_filter"):
+        cause = cause_named(name)
+        lo, hi = cause.u_bounds()
+        plant = cause.plant(nominal, 0.3 * lo + 0.7 * hi)
+        assert all(key.startswith("sensor_") for key in cause.overrides(cause.to_theta(lo)))
+        assert plant.physical() == nominal and plant != nominal
 
 
 @given(st.lists(st.floats(0.0, 10.0, allow_nan=False), min_size=2, max_size=2))

@@ -3,18 +3,21 @@
 from dataclasses import replace
 
 import numpy as np
+import pytest
 from diagnosis_checks import exact_features, synthetic_trial
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from impactqp.sim.causes import ArmatureCause, FrictionCause, PayloadCause
 from impactqp.sim.diagnosis.fitting import (
-    SIGMA_JUMP,
     FittedCauses,
+    fit_report,
     jump_errors,
     residual_sizes,
     residuals,
+    trial_errors,
 )
+from impactqp.sim.diagnosis.noise import FIT_LIMIT
 from impactqp.sim.plant import PlantParameters
 
 
@@ -32,20 +35,29 @@ def test_a_replay_that_reproduces_the_trials_leaves_no_residual(seed, forces):
     assert len(r) == sum(residual_sizes(trials))
     np.testing.assert_array_equal(r, 0.0)
     np.testing.assert_array_equal(jump_errors(features, trials), 0.0)
+    np.testing.assert_array_equal(trial_errors(features, trials), 0.0)
+    fit = fit_report(features, trials)
+    assert fit["fits_noise"] and fit["jump"] == fit["torque"] == 0.0
+    assert ("impulse" in fit) == ("duration" in fit) == any(forces)
 
 
 @settings(max_examples=30, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.lists(st.booleans(), min_size=1, max_size=6), st.floats(-1.0, 1.0))
 def test_a_jump_offset_shows_in_the_jump_residuals_and_errors_only(seed, forces, offset):
-    """Each trial's block starts with its 7 jump residuals: (jump error) / SIGMA_JUMP."""
+    """Each trial's block starts with its 7 jump residuals: (jump error) / its noise std; the
+    jump block alone misfits, by |offset| / noise in root mean square."""
     trials = trials_of(seed, forces)
     features = [replace(exact_features(t), jump=t.reference + offset) for t in trials]
     r = residuals(features, trials)
     starts = np.concatenate([[0], np.cumsum(residual_sizes(trials))[:-1]])
     jump_rows = np.concatenate([np.arange(s, s + 7) for s in starts])
-    np.testing.assert_allclose(r[jump_rows], offset / SIGMA_JUMP, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(r[jump_rows], np.concatenate([offset / t.noise.jump for t in trials]), rtol=1e-9, atol=1e-9)
     np.testing.assert_array_equal(np.delete(r, jump_rows), 0.0)
     np.testing.assert_allclose(jump_errors(features, trials), abs(offset), rtol=1e-9, atol=1e-12)
+    fit = fit_report(features, trials)
+    expected = np.sqrt(np.mean(np.concatenate([(offset / t.noise.jump) ** 2 for t in trials])))
+    assert fit["jump"] == pytest.approx(expected) and fit["torque"] == 0.0
+    assert fit["fits_noise"] == (expected <= FIT_LIMIT)
 
 
 def test_a_replay_without_a_contact_counts_as_a_zero_impulse():

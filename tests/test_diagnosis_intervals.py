@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from impactqp.sim.causes import ArmatureCause, FrictionCause, PayloadCause
 from impactqp.sim.diagnosis import diagnose
 from impactqp.sim.diagnosis.fitting import FittedCauses
-from impactqp.sim.diagnosis.intervals import bootstrap_intervals, parameter_owner, profile_direction
+from impactqp.sim.diagnosis.intervals import bootstrap_intervals, excludes_nominal, parameter_owner, profile_direction
 from impactqp.sim.generation import DatasetRequest, generate_dataset
 from impactqp.sim.plant import PlantParameters
 
@@ -73,3 +73,15 @@ def test_bootstrap_intervals_hold_the_fit_and_stay_within_the_bounds(seed):
     assert intervals.shape == (len(u), 2)
     assert np.all(lo <= intervals[:, 0]) and np.all(intervals[:, 0] <= u)
     assert np.all(u <= intervals[:, 1]) and np.all(intervals[:, 1] <= hi)
+
+
+@given(st.floats(0.0, 1.5), st.floats(0.0, 0.5), st.floats(0.0, 0.5), st.booleans())
+def test_a_cause_is_supported_only_when_an_interval_excludes_its_nominal_value(value, below, above, open_low):
+    """Friction about ``value``: supported exactly when the nominal coefficient lies outside
+    [value - below, value + above] (an open side reaches every value on it)."""
+    cause = FrictionCause()
+    model = FittedCauses((cause,), (cause.to_u(np.array([value])),))
+    low = None if open_low else value - below
+    nominal = float(cause.nominal_theta(PlantParameters())[0])
+    expected = not ((low is None or low <= nominal) and nominal <= value + above)
+    assert excludes_nominal(model, [[[low, value + above]]], PlantParameters()) == [expected]

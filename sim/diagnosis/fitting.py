@@ -1,9 +1,11 @@
 """Fitting causes to the trials: residuals of a replay, and bounded least squares over them.
 
-The residuals per trial (``residuals``) are the jump error (7) / ``SIGMA_JUMP`` (both jumps read
-at the trial's ``jump_samples``), the error of the mean joint torque over the torque window
-before contact (7) / ``SIGMA_TORQUE``, and, with force data, the impulse error (3) /
-``SIGMA_IMPULSE`` and the contact duration error / ``SIGMA_DURATION``. A fit (``fit``) minimises
+The residuals per trial (``residuals``) are the jump error (7; both jumps read at the trial's
+``jump_samples``), the error of the mean joint torque over the torque window before contact (7)
+and, with force data, the impulse error (3) and the contact duration error, each divided by its
+block's noise std read from the data (``noise.estimate_noise``), so every block counts by its
+noise. A trial's error (``trial_errors``) is the root mean square of its residuals: the
+normalised residual the selection compares. A fit (``fit``) minimises
 their sum of squares over the replays with ``scipy.optimize.minimize`` (Powell, bounded), from
 the best point of each cause's grid (``best_start``).
 """
@@ -19,27 +21,49 @@ from impactqp.controller.model.jump import average_prediction_error
 from impactqp.sim.causes import Cause
 from impactqp.sim.plant import PlantParameters
 
+from .noise import fits_noise
 from .trials import MeasuredTrial, ReplayFeatures, ReplaySetting, replay_all
 
-SIGMA_JUMP = 0.005
-SIGMA_TORQUE = 0.05
-SIGMA_IMPULSE = 0.02
-SIGMA_DURATION = 1e-3
 FIT_XTOL = 2e-3
 POWELL_STEPS = 6  # Powell's first step along each parameter: its range / 6
 
 
 def residuals(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> np.ndarray:
     """The residual vector of the replays ``features`` against ``trials`` (module docstring)."""
-    parts = []
-    for f, trial in zip(features, trials):
-        parts.append((f.jump - trial.reference) / SIGMA_JUMP)
-        parts.append((f.torque - trial.torque) / SIGMA_TORQUE)
-        if trial.impulse is not None:  # a replay without a force contact counts as a zero impulse
-            impulse, duration = (np.zeros(3), 0.0) if f.impulse is None else (f.impulse, f.duration)
-            parts.append((impulse - trial.impulse) / SIGMA_IMPULSE)
-            parts.append([(duration - trial.duration) / SIGMA_DURATION])
+    return np.concatenate([trial_residuals(f, trial) for f, trial in zip(features, trials)])
+
+
+def trial_residuals(f: ReplayFeatures, trial: MeasuredTrial) -> np.ndarray:
+    """The residuals of one replay in noise units: jump (7), torque (7), then with force data
+    impulse (3) and duration (1) (module docstring)."""
+    noise = trial.noise
+    parts = [(f.jump - trial.reference) / noise.jump, (f.torque - trial.torque) / noise.torque]
+    if trial.impulse is not None:  # a replay without a force contact counts as a zero impulse
+        impulse, duration = (np.zeros(3), 0.0) if f.impulse is None else (f.impulse, f.duration)
+        parts.append((impulse - trial.impulse) / noise.impulse)
+        parts.append([(duration - trial.duration) / noise.duration])
     return np.concatenate(parts)
+
+
+def trial_errors(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> np.ndarray:
+    """The normalised residual of each trial: root mean square of its residuals in noise units."""
+    return np.array([np.sqrt(np.mean(trial_residuals(f, t) ** 2)) for f, t in zip(features, trials)])
+
+
+BLOCK_ROWS = {"jump": slice(0, 7), "torque": slice(7, 14), "impulse": slice(14, 17), "duration": slice(17, 18)}
+
+
+def fit_report(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> dict:
+    """The normalised residual (root mean square in noise units over the trials) of every block
+    (``BLOCK_ROWS`` of ``trial_residuals``; impulse and duration only with force data) and
+    whether all are within the noise (``noise.fits_noise``): the JSON ``fit`` and ``nominal_fit``."""
+    rows = [trial_residuals(f, t) for f, t in zip(features, trials)]
+    report = {}
+    for block, where in BLOCK_ROWS.items():
+        values = np.concatenate([r[where] for r in rows])
+        if values.size:
+            report[block] = float(np.sqrt(np.mean(values**2)))
+    return {**report, "fits_noise": fits_noise(report)}
 
 
 def residual_sizes(trials: list[MeasuredTrial]) -> list[int]:

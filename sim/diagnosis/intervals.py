@@ -1,7 +1,8 @@
 """How well the data bound each fitted parameter: 95 % intervals (``parameter_intervals``).
 
 A Gauss-Newton polish of the joint fit, then per parameter the union of a profile-likelihood
-interval (``scan_side``) and a one-step bootstrap over trials (``bootstrap_intervals``); a side
+interval (``scan_side``) and a one-step bootstrap over trials (``bootstrap_intervals``; a
+bootstrap that reaches a bound of the fit is degenerate and widens nothing); a side
 where the profile reaches the fit's bound inside the 95 % region is open (None), and the causes
 say which trials would settle it (``open_sides``). Method: ``docs/diagnosis.md``.
 """
@@ -216,13 +217,28 @@ def parameter_intervals(model: FittedCauses, nominal, setting, trials, jobs: int
             boot_low = float(cause.to_theta(at)[j])
             at[j] = boot[k // 2 + j, 1]
             boot_high = float(cause.to_theta(at)[j])
+            # a bootstrap end at the fit's bound is degenerate: it does not widen the profile
+            bound_lo, bound_hi = cause.u_bounds()
+            degenerate = boot[k // 2 + j, 0] <= bound_lo[j] or boot[k // 2 + j, 1] >= bound_hi[j]
             intervals.append([
-                None if low is None else min(low, boot_low),
-                None if high is None else max(high, boot_high),
+                None if low is None else (low if degenerate else min(low, boot_low)),
+                None if high is None else (high if degenerate else max(high, boot_high)),
             ])
         out.append(intervals)
         k += 2 * len(u)
     return model, out
+
+
+def excludes_nominal(model: FittedCauses, theta_intervals: list[list], nominal: PlantParameters) -> list[bool]:
+    """Per cause of ``model``: whether the interval of at least one of its parameters excludes
+    the parameter's nominal value (the cause moves the plant away from the nominal on evidence)."""
+    found = []
+    for cause, intervals in zip(model.causes, theta_intervals):
+        values = cause.nominal_theta(nominal)
+        found.append(any(not (
+            (low is None or low <= v) and (high is None or v <= high)
+        ) for v, (low, high) in zip(values, intervals)))
+    return found
 
 
 def override_intervals(model: FittedCauses, theta_intervals: list[list]) -> dict:

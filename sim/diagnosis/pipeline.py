@@ -12,8 +12,8 @@ from impactqp.sim.causes import Cause, default_causes
 from impactqp.sim.plant import PlantParameters
 
 from .comparison import error_analysis, predictor_errors
-from .fitting import jump_errors
-from .intervals import open_sides, override_intervals, parameter_intervals
+from .fitting import fit_report, jump_errors, trial_errors
+from .intervals import excludes_nominal, open_sides, override_intervals, parameter_intervals
 from .result import Diagnosis
 from .selection import select_causes
 from .trials import load_trials, locate_jump_samples, replay_all
@@ -43,12 +43,19 @@ def diagnose(
     nominal_features = replay_all(setting, nominal, trials)
     nominal_jumps = np.array([f.detected_jump for f in nominal_features])
     baseline_errors = jump_errors(nominal_features, trials)
-    selection = select_causes(causes, nominal, setting, trials, baseline_errors, jobs)
-    explained = bool(selection.model.causes)
-    model = selection.model if explained else selection.best
+    baseline = (trial_errors(nominal_features, trials), baseline_errors)
+    selection = select_causes(causes, nominal, setting, trials, baseline, jobs)
+    selected = bool(selection.model.causes)
+    model = selection.model if selected else selection.best
     model, theta_intervals = parameter_intervals(model, nominal, setting, trials, jobs)
     extended_plant = model.plant(nominal)
-    extended_jumps = np.array([f.detected_jump for f in replay_all(setting, extended_plant, trials)])
+    extended_features = replay_all(setting, extended_plant, trials)
+    extended_jumps = np.array([f.detected_jump for f in extended_features])
+    fit = fit_report(extended_features, trials)
+    # the causes explain the gap only when their model fits the noise and every named cause's
+    # interval excludes its nominal value (else the data do not say it moved)
+    explained = selected and fit["fits_noise"] and all(excludes_nominal(model, theta_intervals, nominal))
+    steps = selection.steps if explained else [{**s, "selected": False} for s in selection.steps]
     predictors, predictors_measured_impulse, predictions = predictor_errors(trials, setting)
     per_parameter = [
         {"cause": c.name, "parameter": label, "value": float(value), "interval": interval}
@@ -69,12 +76,15 @@ def diagnose(
         predictors_measured_impulse=predictors_measured_impulse,
         predictions=predictions,
         analysis=error_analysis(trials, nominal_jumps),
-        causes=[c.name for c in selection.model.causes],
-        steps=selection.steps,
+        causes=[c.name for c in selection.model.causes] if explained else [],
+        steps=steps,
         intervals=override_intervals(model, theta_intervals),
         parameter_intervals=per_parameter,
         open_sides=open_sides(model, theta_intervals, trials),
-        extended_error=float(np.mean(selection.heldout_errors)),
+        extended_error=float(np.mean(selection.heldout_jump_errors)),
+        gain_over_floor=selection.gain_over_floor,
+        fit=fit,
+        nominal_fit=fit_report(nominal_features, trials),
         extended_plant=extended_plant,
         surface=setting.surface,
         choice=setting.choice,

@@ -11,6 +11,7 @@ from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.postures import Surface
 from impactqp.sim.plant import PlantParameters
 
+from .noise import BLOCKS, FIT_LIMIT, misfit_blocks
 from .selection import EXPLAINED_GAIN, relative_gain
 from .trials import MeasuredTrial
 
@@ -19,7 +20,8 @@ from .trials import MeasuredTrial
 class Diagnosis:
     """What ``diagnose`` found: the trials used and skipped, the nominal and extended replays'
     jumps, the candidates and selection steps, the fitted causes with their intervals, the
-    predictors' errors and the comparison (``error_analysis``)."""
+    predictors' errors and the comparison (``error_analysis``), and the fit of the nominal and
+    the final model against the noise (``fitting.fit_report``)."""
 
     trials: list[MeasuredTrial]
     skipped: list[dict]
@@ -43,6 +45,9 @@ class Diagnosis:
     extended_plant: PlantParameters
     surface: Surface
     choice: RobotChoice
+    gain_over_floor: float
+    fit: dict
+    nominal_fit: dict
 
     def summary(self) -> dict:
         baseline = float(np.mean(self.baseline_errors))
@@ -58,6 +63,9 @@ class Diagnosis:
             "baseline_error": baseline,
             "extended_error": self.extended_error,
             "gain": relative_gain(self.extended_error, baseline),
+            "gain_over_floor": self.gain_over_floor,
+            "fit": self.fit,
+            "nominal_fit": self.nominal_fit,
             "candidates": self.candidates,
             "trials": len(self.trials),
             "skipped": self.skipped,
@@ -70,21 +78,16 @@ class Diagnosis:
     def message(self) -> str:
         baseline = float(np.mean(self.baseline_errors))
         gain = relative_gain(self.extended_error, baseline)
-        if self.explained:
-            named = " + ".join(f"'{c}'" for c in self.causes)
-            text = (
-                f"The simulation's jump error is explained by {named}: fitting "
-                f"{'it' if len(self.causes) == 1 else 'them'} lowers the held-out average error from "
-                f"{baseline:.4f} to {self.extended_error:.4f} rad/s ({100 * gain:.0f} % gain)."
-            )
-        else:
-            text = (
-                f"No candidate cause explains the gap: the best one, '{self.cause}', lowers the held-out "
-                f"average error by only {100 * gain:.0f} % (threshold {100 * EXPLAINED_GAIN:.0f} %); "
-                "the nominal simulation is as good as the candidates allow."
-            )
         if not self.explained:
-            return text
+            return self.unexplained_message()
+        named = " + ".join(f"'{c}'" for c in self.causes)
+        text = (
+            f"The gap between the simulation and the measurements is explained by {named}: fitting "
+            f"{'it' if len(self.causes) == 1 else 'them'} lowers the held-out average error from "
+            f"{baseline:.4f} to {self.extended_error:.4f} rad/s ({100 * gain:.0f} % gain; "
+            f"{100 * self.gain_over_floor:.0f} % of the excess over the noise floor), and the fitted model "
+            f"matches the data within the noise ({fit_text(self.fit)})."
+        )
         for p in self.parameter_intervals:
             text += f" {p['parameter']}: {p['value']:.4g}, 95 % interval {interval_text(p['interval'])}."
         for o in self.open_sides:
@@ -92,6 +95,49 @@ class Diagnosis:
                 f" The data cannot bound {o['parameter']} {o['side']}: {o['trials_needed']}."
             )
         return text
+
+
+    def unexplained_message(self) -> str:
+        """Plain words when nothing explains the gap: the data fit the nominal within the noise,
+        or the best model found still misfits (which block, by how much), or the causes remove
+        too little of the excess over the noise floor."""
+        model = " + ".join(f"'{name}'" for name in self.model_causes())
+        misfits = misfit_blocks(self.fit)
+        if misfits:
+            worst = ", ".join(f"the {b} residual is {self.fit[b]:.1f} times the noise" for b in misfits)
+            return (
+                f"No candidate cause explains the gap, and the best model found ({model}) does not fit the "
+                f"data: {worst} (a model that fits stays within {FIT_LIMIT:g}). Something outside the "
+                f"candidate causes is at work, e.g. in the {misfits[0]} signal; its fitted values mean nothing."
+            )
+        if self.fit["fits_noise"] and self.gain_over_floor >= EXPLAINED_GAIN:
+            return (
+                f"No candidate cause explains the gap: the best model found ({model}) fits the noise, but the "
+                "95 % interval of every parameter of one of its causes contains that parameter's nominal value, "
+                "so the data do not show the plant moved away from the nominal; more trials would tell."
+            )
+        if self.nominal_fit["fits_noise"]:
+            return (
+                "No candidate cause is needed: the nominal simulation already matches the data within the noise "
+                f"({fit_text(self.nominal_fit)}); the best candidate, {model}, removes "
+                f"{100 * self.gain_over_floor:.0f} % of the excess over the noise floor "
+                f"(threshold {100 * EXPLAINED_GAIN:.0f} %)."
+            )
+        return (
+            f"No candidate cause explains the gap: the best one, {model}, removes only "
+            f"{100 * self.gain_over_floor:.0f} % of the nominal simulation's excess error over the noise floor "
+            f"(threshold {100 * EXPLAINED_GAIN:.0f} %); the nominal simulation misfits ({fit_text(self.nominal_fit)})."
+        )
+
+    def model_causes(self) -> list[str]:
+        """The causes of the reported model (``parameter_intervals``), in order."""
+        names = list(dict.fromkeys(p["cause"] for p in self.parameter_intervals))
+        return names or [self.cause]
+
+
+def fit_text(fit: dict) -> str:
+    """The normalised residual of each block of a fit, in words."""
+    return ", ".join(f"{b} {fit[b]:.1f}" for b in BLOCKS if b in fit) + " noise units"
 
 
 def interval_text(interval) -> str:

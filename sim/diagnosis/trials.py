@@ -4,7 +4,7 @@
    (``controller.measured.dataset.validate``); bad trials are skipped with their reasons. The
    impact is detected and the jump extracted with the same function as for simulated data
    (``controller.measured.impact.measure_impact``); the impulse is integrated where a force log
-   exists.
+   exists. The noise of every compared signal is read from the trials (``noise``).
 2. **Replay** (``replay``). Each trial is replayed in the simulation from the logged state
    ``REPLAY_LEAD`` control steps before the impact (q, and dq averaged over 5 samples against
    encoder noise), on the dataset's surface, with the logged ``dq_cmd`` driving the joint servo,
@@ -12,11 +12,15 @@
    rebuilt from the log start and the commands before it (``servo_reference_from_commands``), so
    a plant that lags behind its commands (joint damping) lags in the replay as it did. The
    replayed impact is measured with the same function. Jumps are compared at fixed samples per
-   trial (``locate_jump_samples``).
+   trial (``locate_jump_samples``). The plant's sensor keys (``sim.sensor``) act on the replayed
+   log after the simulation; the simulated logs of the last ``REPLAY_CACHE_SIZE`` replays are
+   kept per process, keyed by the physical plant and the trial, so causes that only change the
+   sensor (and fits on top of a fixed physical plant) need no new simulation.
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -36,12 +40,17 @@ from impactqp.controller.model.robot import NQ
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import CommandReplay, SimulationUnstableError, run_trial, servo_reference_from_commands
 from impactqp.sim.scene import Scene, build_scene
+from impactqp.sim.sensor import apply_sensor, delayed
+
+from .noise import BlockNoise, estimate_noise, sample_variance
 
 REPLAY_LEAD = 40
 REPLAY_TAIL = 30
 START_AVERAGE = 2  # dq at the replay start: mean of samples i0 - 2 .. i0 + 2 (within the log)
 TORQUE_SETTLE = 10  # samples after the replay start before the torque window may begin
 TORQUE_WINDOW = 30  # mean tau over the 30 samples ending 2 samples before the pre-impact one
+REPLAY_CACHE_SIZE = 512
+_simulated: OrderedDict = OrderedDict()  # (surface, physical plant, trial) -> simulated log or None
 
 
 @dataclass
@@ -66,6 +75,9 @@ class MeasuredTrial:
     torque_window: tuple[int, int]  # samples of the replay whose torque is averaged
     dq_log: np.ndarray  # the measured dq over the replay's span (replay sample k is dq_log[k])
     jump_samples: tuple[int, int]  # replay samples (pre, post) where the fit reads the jumps
+    scatter: tuple[np.ndarray, np.ndarray]  # per-sample noise variance of dq and tau before the impact
+    force_period: float | None  # the force log's sample period (s), None without force data
+    noise: BlockNoise | None = None  # the dataset's block noise (``noise.estimate_noise``)
 
     @property
     def reference(self) -> np.ndarray:
@@ -137,6 +149,7 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
             # impulse and contact duration over the span that the replay covers
             impact = measure_impact(log.truncated(log.t[i1]))
         tangential = entry.reference_tangential_velocity
+        quiet = impact.pre_index - PRE_SAMPLES + 1  # the samples before the pre-impact mean
         trials.append(
             MeasuredTrial(
                 id=entry.id,
@@ -159,8 +172,13 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
                 torque_window=(first - i0, last - i0),
                 dq_log=log.dq[i0:i1].copy(),
                 jump_samples=(impact.pre_index - i0, impact.post_index - i0),
+                scatter=(sample_variance(log.dq[:quiet]), sample_variance(log.tau[:quiet])),
+                force_period=float(np.median(np.diff(log.force_t))) if len(log.force_t) > 1 else None,
             )
         )
+    if trials:
+        noise = estimate_noise(trials)
+        trials = [replace(t, noise=noise) for t in trials]
     return trials, skipped, ReplaySetting(dataset.header.surface, dataset.header.choice)
 
 
@@ -178,17 +196,50 @@ def replay_log(scene, trial: MeasuredTrial):
     )
 
 
-def replay(scene, trial: MeasuredTrial) -> ReplayFeatures:
-    """Replay one trial in ``scene`` and measure it like the real one: its jump at the trial's
-    ``jump_samples``, its impulse and duration from its contact force.
+def simulated_log(setting: ReplaySetting, plant: PlantParameters, trial: MeasuredTrial, scene_of):
+    """The replay of ``trial`` in the physical part of ``plant`` on ``setting`` (``scene_of()``
+    builds its scene when needed), from the per-process cache when it was simulated before; None
+    when the simulation is unstable."""
+    physical = plant.physical()
+    surface, choice = setting.surface, setting.choice
+    key = (surface.point.tobytes(), surface.normal.tobytes(), surface.friction, physical, trial.id,
+           choice.robot.name, repr(choice.tool.as_dict()),
+           trial.q0.tobytes(), trial.dq0.tobytes(), trial.dq_cmd.tobytes(),
+           plant.sensor_delay, plant.sensor_velocity_scale)
+    if key in _simulated:
+        _simulated.move_to_end(key)
+        return _simulated[key]
+    try:
+        log = replay_log(scene_of(), true_start(trial, plant))
+    except SimulationUnstableError:
+        log = None
+    _simulated[key] = log
+    if len(_simulated) > REPLAY_CACHE_SIZE:
+        _simulated.popitem(last=False)
+    return log
+
+
+def true_start(trial: MeasuredTrial, plant: PlantParameters) -> MeasuredTrial:
+    """``trial`` starting from the true velocity that the sensor of ``plant`` logged as its
+    start velocity: read ``sensor_delay`` samples later (the log is late) and divided by
+    ``sensor_velocity_scale`` (the replay's physics must start from the robot's state, not from
+    the faulty reading)."""
+    if plant.sensor_delay == 0.0 and plant.sensor_velocity_scale == 1.0:
+        return trial
+    ahead = delayed(trial.dq_log, -plant.sensor_delay)[: START_AVERAGE + 1].mean(axis=0)
+    dq0 = trial.dq0 + ahead - trial.dq_log[: START_AVERAGE + 1].mean(axis=0)
+    return replace(trial, dq0=dq0 / plant.sensor_velocity_scale)
+
+
+def replay(log, trial: MeasuredTrial) -> ReplayFeatures:
+    """Measure the replayed ``log`` of one trial (after its sensor) like the real one: its jump
+    at the trial's ``jump_samples``, its impulse and duration from its contact force.
 
     A replay that MuJoCo flags as unstable (bad accelerations, e.g. a servo gain beyond what the
     1 kHz loop can hold) is marked failed: its jump and impulse are zero, so the fit's residuals
     push away from it; so are the impulse and the detected jump of a replay without an impact.
     """
-    try:
-        log = replay_log(scene, trial)
-    except SimulationUnstableError:
+    if log is None:
         return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, np.zeros(NQ), np.zeros(NQ))
     first, last = trial.torque_window
     torque = log.tau[first:last].mean(axis=0)
@@ -225,5 +276,19 @@ def locate_jump_samples(trials: list[MeasuredTrial], setting: ReplaySetting, pla
 
 
 def replay_all(setting: ReplaySetting, plant: PlantParameters, trials: list[MeasuredTrial]) -> list[ReplayFeatures]:
-    scene = setting.scene(plant)
-    return [replay(scene, trial) for trial in trials]
+    """The features of every trial replayed in ``plant``: simulated in its physical part (or
+    taken from the cache), then seen through its sensor (``sim.sensor.apply_sensor``)."""
+    scene = []
+
+    def scene_of():
+        if not scene:
+            scene.append(setting.scene(plant.physical()))
+        return scene[0]
+
+    features = []
+    for trial in trials:
+        log = simulated_log(setting, plant, trial, scene_of)
+        if log is not None:
+            log = apply_sensor(log, plant, trial.control_period)
+        features.append(replay(log, trial))
+    return features

@@ -1,0 +1,129 @@
+"""The noise of the compared signals, read from the data (``estimate_noise``), and the fit of a
+model against it (``fit_report``).
+
+The diagnosis compares four signal blocks per trial (``fitting.residuals``): the jump (7), the
+mean torque before contact (7) and, with force data, the impulse (3) and the contact duration.
+Each block's noise std is estimated from the dataset itself, never from a constant:
+
+- **sensor scatter**: the per-sample noise variance of dq and tau from the samples before the
+  impact (second differences remove a smooth motion and leave 6 sigma^2 of white noise; a
+  robust median, 1.4826 median |d2| / sqrt 6), propagated through the block's averages: a jump
+  is a mean of 2 POST_HALF_WIDTH + 1 samples minus a mean of PRE_SAMPLES, its std is
+  sigma sqrt(1 / PRE_SAMPLES + 1 / (2 POST_HALF_WIDTH + 1)); the torque is a mean over its
+  window, std sigma / sqrt(window), times ``REPLAY_TORQUE_FACTOR``: the replay's start
+  velocity is a mean of noisy samples, and the servo's torque answers its error over the whole
+  window (the right model's torque residual over the sensor scatter alone is 1.8-2.7 on
+  simulated datasets, ``docs/diagnosis.md``);
+- **repeat-to-repeat variation**: the pooled within-condition std (same posture, normal and
+  tangential speed) of each block, which also carries what the sensors' scatter does not (the
+  force log's, the start state's);
+- **floors**: ``DURATION_FLOOR_SAMPLES`` force-log sample periods for the duration (it ends at
+  two threshold crossings, each quantised to a sample, and the replay's start moves them),
+  ``IMPULSE_FLOOR_SHARE`` of the root mean square impulse for the impulse.
+
+Each block's std is the largest of those it has. The normalised residual of a block is the root
+mean square of its residuals in noise units over the trials; a model fits the noise when every
+block's is at most ``FIT_LIMIT`` (a model with the right causes reads about 1 to 2: the replay's
+start state carries its own noise).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from impactqp.controller.measured.impact import POST_HALF_WIDTH, PRE_SAMPLES
+
+BLOCKS = ("jump", "torque", "impulse", "duration")
+FIT_LIMIT = 3.0
+IMPULSE_FLOOR_SHARE = 0.005
+REPLAY_TORQUE_FACTOR = 2.5  # without repeats: the torque residual of a right model over the sensor scatter's
+DURATION_FLOOR_SAMPLES = 4  # a duration's resolution: force-log samples (two threshold crossings, the replay's start)
+TINY = {"jump": 1e-5, "torque": 1e-4, "impulse": 1e-5, "duration": 1e-5}  # noise-free data: no 0 divisions
+MAD_TO_STD = 1.4826
+
+
+@dataclass(frozen=True)
+class BlockNoise:
+    """Noise std of each compared block: jump (7, rad/s), torque (7, N m), impulse (3, N s),
+    duration (s)."""
+
+    jump: np.ndarray
+    torque: np.ndarray
+    impulse: np.ndarray
+    duration: float
+
+
+def sample_variance(samples: np.ndarray) -> np.ndarray:
+    """Per-column variance of the white noise on a smooth signal (module docstring); zeros for
+    fewer than 3 samples."""
+    if len(samples) < 3:
+        return np.zeros(samples.shape[1])
+    second = samples[2:] - 2.0 * samples[1:-1] + samples[:-2]
+    return (MAD_TO_STD * np.median(np.abs(second), axis=0)) ** 2 / 6.0
+
+
+def repeat_std(trials, value) -> np.ndarray | None:
+    """Pooled within-condition std of ``value(trial)`` over conditions with repeats (None
+    without any repeat)."""
+    groups: dict = {}
+    for t in trials:
+        groups.setdefault((t.posture, t.reference_speed, t.tangential_speed), []).append(np.atleast_1d(value(t)))
+    squares, dof = 0.0, 0
+    for group in groups.values():
+        if len(group) > 1:
+            x = np.array(group, dtype=float)
+            squares = squares + np.sum((x - x.mean(axis=0)) ** 2, axis=0)
+            dof += len(group) - 1
+    return np.sqrt(squares / dof) if dof else None
+
+
+def largest(name: str, *estimates) -> np.ndarray:
+    """The largest of the available ``estimates`` (None: not available), at least ``TINY``."""
+    result = np.asarray(TINY[name], float)
+    for estimate in estimates:
+        if estimate is not None:
+            result = np.maximum(result, np.asarray(estimate, float))
+    return result
+
+
+def estimate_noise(trials) -> BlockNoise:
+    """The noise std of every block from the trials' scatter and repeats (module docstring)."""
+    dq_var = np.mean([t.scatter[0] for t in trials], axis=0)
+    tau_var = np.mean([t.scatter[1] for t in trials], axis=0)
+    window = np.mean([t.torque_window[1] - t.torque_window[0] for t in trials])
+    jump_sensor = np.sqrt(dq_var * (1.0 / PRE_SAMPLES + 1.0 / (2 * POST_HALF_WIDTH + 1)))
+    torque_sensor = np.sqrt(tau_var / max(window, 1.0))
+    forced = [t for t in trials if t.impulse is not None]
+    impulse = np.zeros(3)
+    duration = 0.0
+    if forced:
+        rms = np.sqrt(np.mean([np.sum(t.impulse**2) for t in forced]))
+        impulse = largest("impulse", IMPULSE_FLOOR_SHARE * rms * np.ones(3), repeat_std(forced, lambda t: t.impulse))
+        periods = [t.force_period for t in forced if t.force_period]
+        floor = DURATION_FLOOR_SAMPLES * min(periods, default=0.0)
+        duration = float(largest("duration", floor, repeat_std(forced, lambda t: t.duration)).max())
+    return BlockNoise(
+        jump=largest("jump", jump_sensor, repeat_std(trials, lambda t: t.reference)),
+        torque=largest("torque", REPLAY_TORQUE_FACTOR * torque_sensor, repeat_std(trials, lambda t: t.torque)),
+        impulse=impulse,
+        duration=duration,
+    )
+
+
+def fits_noise(fit: dict) -> bool:
+    """Whether every block of a fit (block -> normalised residual) is within ``FIT_LIMIT``."""
+    return all(fit[b] <= FIT_LIMIT for b in BLOCKS if b in fit)
+
+
+def misfit_blocks(fit: dict) -> list[str]:
+    """The blocks of a fit (``fitting.fit_report``) above ``FIT_LIMIT``, worst first."""
+    return sorted((b for b in BLOCKS if fit.get(b, 0.0) > FIT_LIMIT), key=lambda b: -fit[b])
+
+
+def quadratic_mean(errors) -> float:
+    """sqrt(mean(e^2)): the overall normalised residual of per-trial normalised residuals."""
+    errors = np.asarray(errors, float)
+    return float(np.sqrt(np.mean(errors**2))) if errors.size else 0.0
+

@@ -1,0 +1,77 @@
+"""The noise of the compared signals read from the data (sim/diagnosis/noise.py)."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from impactqp.sim.causes import ArmatureCause, JointDampingCause
+from impactqp.sim.diagnosis import diagnose
+from impactqp.sim.diagnosis.noise import FIT_LIMIT, fits_noise, misfit_blocks, repeat_std, sample_variance
+from impactqp.sim.diagnosis.trials import load_trials
+from impactqp.sim.generation import DatasetRequest, generate_dataset
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(1e-3, 1.0), st.floats(0.0, 3.0), st.floats(0.5, 5.0))
+def test_the_scatter_of_a_smooth_signal_recovers_its_white_noise(seed, sigma, amplitude, frequency):
+    """A smooth motion (sampled at 1 kHz) plus white noise: the second-difference estimate
+    recovers the noise std within 15 % (1000 samples)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(1000) * 1e-3
+    smooth = amplitude * np.sin(2 * np.pi * frequency * t)[:, None] + np.array([[0.1, -0.3]]) * t[:, None]
+    samples = smooth + rng.normal(0.0, sigma, (len(t), 2))
+    np.testing.assert_allclose(np.sqrt(sample_variance(samples)), sigma, rtol=0.15)
+
+
+@given(st.lists(st.tuples(st.floats(-10, 10), st.floats(-10, 10)), min_size=1, max_size=5))
+def test_repeats_pool_their_within_condition_scatter(pairs):
+    """Two repeats a, b per condition: pooled variance mean((a - b)^2 / 2); no repeat, no estimate."""
+    trials = [SimpleNamespace(posture=f"p{k}", reference_speed=0.1, tangential_speed=0.0, x=v)
+              for k, pair in enumerate(pairs) for v in pair]
+    expected = np.sqrt(np.mean([(a - b) ** 2 / 2 for a, b in pairs]))
+    assert repeat_std(trials, lambda t: t.x)[0] == pytest.approx(expected, abs=1e-9)
+    assert repeat_std(trials[::2], lambda t: t.x) is None
+
+
+@given(st.dictionaries(st.sampled_from(["jump", "torque", "impulse", "duration"]), st.floats(0.0, 10.0), min_size=1))
+def test_a_fit_fits_the_noise_unless_a_block_exceeds_the_limit_worst_named_first(fit):
+    worst = misfit_blocks(fit)
+    assert fits_noise(fit) == (not worst) == all(v <= FIT_LIMIT for v in fit.values())
+    assert [fit[b] for b in worst] == sorted((v for v in fit.values() if v > FIT_LIMIT), reverse=True)
+
+
+def test_the_noise_of_a_generated_dataset_is_read_back(tmp_path):
+    """The generator's noise stds on dq and tau are recovered from the logs before the impact
+    (within 25 % per joint), and the block noise of a jump follows from the dq noise."""
+    request = DatasetRequest(postures=["elbow_up"], speeds=[0.1, 0.15], repeats=2, noise_dq=0.01, noise_tau=0.2, seed=5)
+    generate_dataset(tmp_path, request)
+    trials, _, _ = load_trials(tmp_path)
+    dq = np.sqrt(np.mean([t.scatter[0] for t in trials], axis=0))
+    tau = np.sqrt(np.mean([t.scatter[1] for t in trials], axis=0))
+    np.testing.assert_allclose(dq, request.noise_dq, rtol=0.25)
+    np.testing.assert_allclose(tau, request.noise_tau, rtol=0.25)
+    assert np.all(trials[0].noise.jump >= 0.75 * request.noise_dq * np.sqrt(2 / 3))
+
+
+def shift_torque(directory, joint: int, offset: float) -> None:
+    """Add ``offset`` (N m) to the logged torque of ``joint`` in every trial of a dataset."""
+    for path in directory.glob("t????.csv"):
+        header = path.read_text().splitlines()[0]
+        table = np.loadtxt(path, delimiter=",", skiprows=1)
+        table[:, header.split(",").index(f"tau{joint + 1}")] += offset
+        np.savetxt(path, table, delimiter=",", header=header, comments="", fmt="%.10g")
+
+
+def test_a_torque_offset_outside_the_candidates_is_a_named_misfit_not_an_explanation(tmp_path):
+    """A torque sensor bias on one joint, which no plant cause makes: the jumps are untouched,
+    the torque block misfits, nothing is explained and the message names the torque."""
+    generate_dataset(tmp_path, DatasetRequest(postures=["elbow_up"], speeds=[0.1, 0.18], repeats=2, seed=3))
+    shift_torque(tmp_path, 1, 1.5)
+    result = diagnose(tmp_path, causes=[ArmatureCause(), JointDampingCause()]).summary()
+    assert not result["explained"] and result["causes"] == []
+    assert result["nominal_fit"]["torque"] > FIT_LIMIT >= result["nominal_fit"]["jump"]
+    assert not result["fit"]["fits_noise"] and result["fit"]["torque"] > FIT_LIMIT
+    assert "the torque residual is" in result["message"] and "as good as" not in result["message"]
