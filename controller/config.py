@@ -190,6 +190,20 @@ class SurfaceConfig:
         return cls(surface.point.tolist(), surface.normal.tolist(), float(surface.friction))
 
 
+@dataclass(frozen=True)
+class ApproachOptions:
+    """The settings of ``ControllerConfig.approach`` beyond the surface and the speed."""
+
+    tangential_velocity: tuple = (0.0, 0.0, 0.0)
+    jump_model: str | None = "crb"
+    restitution: float = 0.0
+    impact_duration: float = DEFAULT_IMPACT_DURATION
+    solver: str = "daqp"
+    dt: float = 0.001
+    posture_weight: float = 1e-2
+    always_active: bool = False
+
+
 @dataclass
 class ControllerConfig:
     """Everything ``build_controller`` needs: tasks, limits, impact model, surface, solver."""
@@ -228,40 +242,29 @@ class ControllerConfig:
         return RobotChoice.of(self.robot, self.tool)
 
     @classmethod
-    def approach(
-        cls,
-        surface: Surface = DEFAULT_WALL,
-        speed: float = 0.1,
-        tangential_velocity=(0.0, 0.0, 0.0),
-        jump_model: str | None = "crb",
-        restitution: float = 0.0,
-        impact_duration: float = DEFAULT_IMPACT_DURATION,
-        solver: str = "daqp",
-        dt: float = 0.001,
-        posture_weight: float = 1e-2,
-        always_active: bool = False,
-    ) -> ControllerConfig:
+    def approach(cls, surface: Surface = DEFAULT_WALL, speed: float = 0.1, **options) -> ControllerConfig:
         """The default impact approach: a contact-approach task towards ``surface`` at the
         normal ``speed`` (plus ``tangential_velocity``), holding orientation and tangential
         motion; a weak posture task (null-space), a damping task; every joint limit; and the
         impact-aware post-impact-velocity and impulsive-torque constraints with ``jump_model``
-        (None switches them off)."""
+        (None switches them off). ``options`` are the fields of :class:`ApproachOptions`."""
+        o = ApproachOptions(**options)
         return cls(
-            dt=dt,
-            solver=solver,
+            dt=o.dt,
+            solver=o.solver,
             tasks=[
                 TaskConfig(
                     "contact_approach",
-                    {"speed": float(speed), "tangential_velocity": [float(v) for v in tangential_velocity]},
+                    {"speed": float(speed), "tangential_velocity": [float(v) for v in o.tangential_velocity]},
                 ),
-                TaskConfig("posture", {"weight": posture_weight}),
+                TaskConfig("posture", {"weight": o.posture_weight}),
                 TaskConfig("damping", {}),
             ],
             impact=ImpactConfig(
-                jump_model=jump_model,
-                restitution=restitution,
-                impact_duration=impact_duration,
-                always_active=always_active,
+                jump_model=o.jump_model,
+                restitution=o.restitution,
+                impact_duration=o.impact_duration,
+                always_active=o.always_active,
             ),
             surface=SurfaceConfig.of(surface),
         )
