@@ -148,7 +148,7 @@ class TrialRunner:
         return ControllerConfig.approach(
             self.surface,
             spec.normal_speed,
-            tangential,
+            tangential_velocity=tangential,
             jump_model=spec.jump_model,
             restitution=spec.restitution,
             impact_duration=spec.impact_duration,

@@ -24,7 +24,7 @@ from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, 
 @click.option("--example", is_flag=True, help="Print a small runnable config and exit.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary instead of a progress bar.")
 @robot_options
-def sweep(config_path, backend, jobs, out, resume, simulate, plant_file, example, as_json, choice):
+def sweep(config_path, example, as_json, choice, **run):
     """Highest feasible contact speed over a grid of contact points and settings (Parquet in --out)."""
     from impactqp.scenarios.sweep.config import EXAMPLE, load_config
 
@@ -36,14 +36,16 @@ def sweep(config_path, backend, jobs, out, resume, simulate, plant_file, example
     from impactqp.scenarios.sweep.backends import run_sweep
     from impactqp.scenarios.sweep.cells import Simulation
 
+    out, simulate, plant_file = run["out"], run["simulate"], run["plant_file"]
     output_directory(str(out), "--out")
-    check_jobs(jobs)
+    check_jobs(run["jobs"])
     config = replace(load_config(config_path), choice=choice)
     if plant_file is not None and not simulate:
         raise BadInputError("--plant sets the plant of the simulated cells: add --simulate")
     simulation = Simulation(load_plant(plant_file)) if simulate else None
     summary = run_sweep(
-        config, out, jobs=jobs, backend=backend, resume=resume, progress=not as_json, simulation=simulation
+        config, out, jobs=run["jobs"], backend=run["backend"], resume=run["resume"], progress=not as_json,
+        simulation=simulation,
     )
     if as_json:
         emit_json(summary.as_dict())

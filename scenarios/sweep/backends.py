@@ -102,20 +102,28 @@ def _ray(config: SweepConfig, simulation: Simulation | None, todo: list[int], ch
             ray.shutdown()
 
 
-def run_sweep(
-    config: SweepConfig,
-    out: Path,
-    jobs: int = 1,
-    backend: str = "local",
-    resume: bool = False,
-    chunk_size: int | None = None,
-    progress: bool = True,
-    plots: bool = True,
-    simulation: Simulation | None = None,
-) -> SweepSummary:
-    """Evaluate every cell of ``config`` into ``out`` with ``jobs`` workers of ``backend``, simulated
-    with ``simulation`` (``--simulate``), in chunks of ``chunk_size`` cells (by default
-    ``default_chunk_size``). The progress bar (stderr) shows cells done, cells/s and the time left."""
+@dataclass(frozen=True)
+class SweepRun:
+    """How ``run_sweep`` runs: ``jobs`` workers of ``backend``, resuming the chunks already in
+    the output directory (``resume``), in chunks of ``chunk_size`` cells (None: by default
+    ``default_chunk_size``), with a progress bar and heat maps or not, and ``simulation`` for
+    ``--simulate`` (None: closed forms only)."""
+
+    jobs: int = 1
+    backend: str = "local"
+    resume: bool = False
+    chunk_size: int | None = None
+    progress: bool = True
+    plots: bool = True
+    simulation: Simulation | None = None
+
+
+def run_sweep(config: SweepConfig, out: Path, **options) -> SweepSummary:
+    """Evaluate every cell of ``config`` into ``out`` as the ``options`` (the fields of
+    :class:`SweepRun`) say. The progress bar (stderr) shows cells done, cells/s and the time left."""
+    run = SweepRun(**options)
+    jobs, backend, resume, simulation = run.jobs, run.backend, run.resume, run.simulation
+    chunk_size, progress, plots = run.chunk_size, run.progress, run.plots
     if chunk_size is None:
         chunk_size = default_chunk_size(simulation)
     if backend not in BACKENDS:
@@ -134,8 +142,8 @@ def run_sweep(
     todo = [c for c in range(n_chunks) if c not in done]
     bar = tqdm(total=n_cells, initial=n_cells - sum(len(_chunk_cells(config, c, chunk_size)) for c in todo),
                unit="cell", disable=not progress)
-    run = _ray if backend == "ray" else _local
-    for chunk, columns in run(config, simulation, todo, chunk_size, jobs):
+    evaluate = _ray if backend == "ray" else _local
+    for chunk, columns in evaluate(config, simulation, todo, chunk_size, jobs):
         store.write_chunk(Path(out), chunk, columns, sweep_identity)
         bar.update(len(columns["cell"]))
     bar.close()
