@@ -84,15 +84,14 @@ def validate_command(ctx, directory, as_json):
 @click.option("--jobs", type=int, default=1, show_default=True)
 @click.option("--json", "as_json", is_flag=True)
 @robot_options
-def generate_command(
-    out, plant_file, postures, speeds, tangential, repeats, noise_dq, noise_tau, seed, jobs, as_json, choice
-):
+def generate_command(out, postures, speeds, tangential, as_json, choice, **noise):
     """Simulate a dataset of the robot with the tool (plant overrides with --plant) in the
     measured-data format; the manifest records the robot and the tool."""
-    from tqdm import tqdm
+    from tqdm import tqdm  # lazy: the command line loads what a command needs when it runs
 
     from impactqp.sim.generation import DatasetRequest, generate_dataset
 
+    plant_file, jobs = noise.pop("plant_file"), noise.pop("jobs")
     output_directory(out, "OUT")
     plant = load_plant(plant_file)  # None: the nominal plant
     names = list(choice.check_postures(p.strip() for p in postures.split(","))) if postures else list(choice.robot.postures)
@@ -108,8 +107,8 @@ def generate_command(
 
     try:
         request = DatasetRequest(
-            plant=plant, postures=names, speeds=speed_list, tangential=tangential_list, repeats=repeats,
-            noise_dq=noise_dq, noise_tau=noise_tau, seed=seed, choice=choice,
+            plant=plant, postures=names, speeds=speed_list, tangential=tangential_list, choice=choice,
+            **noise,  # repeats, noise_dq, noise_tau, seed: the request's fields of the same names
         )
         entries = generate_dataset(out, request, jobs=jobs, progress=progress)
     finally:

@@ -76,10 +76,7 @@ plant_option = click.option("--plant", "plant_file", help="JSON file of plant-pa
 @click.option("--video", "video_file", help="Render the impact to this animated GIF (needs an offscreen GL backend).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @robot_options
-def simulate(
-    posture_name, speed, tangential_text, no_jump_constraint, jump_model, plant_file, wall_point, wall_normal,
-    out_dir, video_file, as_json, choice,
-):
+def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, **trial):
     """One approach-and-impact trial: the QP controller at 1 kHz drives the MuJoCo robot.
 
     The tool starts at rest 5 cm in front of the wall; the controller accelerates it towards the
@@ -92,9 +89,10 @@ def simulate(
     from impactqp.controller.measured.dataset import DatasetWriter
     from impactqp.scenarios.readable import fixed
 
+    out_dir, video_file = trial["out_dir"], trial["video_file"]
     posture = choice.posture(posture_name)
     approach_speed(speed, "--speed")
-    surface = wall(wall_point, wall_normal)
+    surface = wall(trial["wall_point"], trial["wall_normal"])
     tangential = (
         np.zeros(3) if tangential_text is None
         else tangential_velocity(parse_vector(tangential_text, 3, "--tangential"), surface.normal, "--tangential")
@@ -115,7 +113,7 @@ def simulate(
 
     spec = TrialSpec(
         posture.name, posture.q, speed, tangential,
-        jump_model=None if no_jump_constraint else jump_model,
+        jump_model=None if trial["no_jump_constraint"] else trial["jump_model"],
         start_at_rest=True, start_distance=SIMULATE_START_DISTANCE,
     )
     runner = TrialRunner.build(surface, plant, choice)
@@ -270,13 +268,9 @@ def max_speed_text(report) -> str:
 @click.option("--tolerance", type=float, default=0.005, show_default=True, help="Bisection tolerance (m/s).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (no progress bar).")
 @robot_options
-def max_speed(posture_name, jump_model, restitution, impact_duration, plant_file, wall_point, wall_normal, jobs,
-              tolerance, as_json, choice):
+def max_speed(posture_name, plant_file, as_json, choice, **search):
     """Highest feasible contact speed: closed form, reached by the QP, and simulated."""
-    request = MaxSpeedRequest(
-        posture_name, jump_model, restitution, impact_duration, plant_file, wall_point, wall_normal, jobs,
-        tolerance, choice,
-    )
+    request = MaxSpeedRequest(posture=posture_name, plant=plant_file, choice=choice, **search)
     report = run_max_speed(request, not as_json)
     if as_json:
         emit_json(report.to_json())
