@@ -27,6 +27,7 @@ from dataclasses import replace
 import numpy as np
 
 from impactqp.controller.config import ControllerConfig, build_controller
+from impactqp.sim.scene import build_scene
 from impactqp.controller.model.postures import POSTURES, Surface
 from impactqp.controller.model.robot import NQ, PandaModel, RobotModel
 from impactqp.controller.model.tool_postures import tool_posture
@@ -121,9 +122,7 @@ def pink_cycle_samples(robot: PandaModel, cycles: int = CYCLES) -> np.ndarray:
 def mink_cycle_samples(cycles: int = CYCLES) -> np.ndarray:
     """Seconds per cycle of mink on the MuJoCo model of our scene: frame task + posture task +
     configuration and velocity limits, solve_ik with daqp."""
-    import mink
-
-    from impactqp.sim.scene import build_scene
+    import mink  # optional peer (the bench extra): loaded only for its row
 
     model = build_scene().model
     q0 = POSTURES["elbow_up"].q

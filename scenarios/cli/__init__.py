@@ -76,6 +76,7 @@ def _run(args: list[str]) -> int:
 
 def _report(exc: Exception, args: list[str]) -> int:
     """One line on stderr for an error that ended a command; its exit code."""
+    # lazy: the command line loads what a command needs when it runs
     import click
     from impactqp.controller.model.validation import BadInputError
 

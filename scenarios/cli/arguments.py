@@ -105,6 +105,7 @@ def output_file(path: str, what: str) -> Path:
 def load_plant(path: str | None):
     """The plant of ``--plant FILE`` (JSON overrides of ``sim.plant.PlantParameters``), or
     None without a file."""
+    # lazy: the command line loads what a command needs when it runs
     from impactqp.sim.plant import PlantParameterError, PlantParameters
 
     if path is None:

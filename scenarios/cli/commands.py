@@ -27,6 +27,7 @@ def cli(debug):  # noqa: ARG001 - read by main(), which owns the error boundary
 def postures(as_json, choice):
     """List the robot's named impact postures (solved for the tool), their contact point and the
     wall normal."""
+    # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.readable import fixed
 
     robot = choice.model()
@@ -62,6 +63,7 @@ def postures(as_json, choice):
 @robot_options
 def predict(method, as_json, choice, **impact):
     """Predict the impact-induced joint-velocity jump at a posture of the robot with the tool."""
+    # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.prediction import ImpactQuery, predict_all
     from impactqp.scenarios.readable import fixed
 
@@ -98,6 +100,7 @@ def predict(method, as_json, choice, **impact):
 @click.option("--only", default="", help="Run only the rows whose name starts with this prefix.")
 def bench(as_json, only):
     """Benchmark table: median and p99 of every tracked speed and accuracy figure."""
+    # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.bench import run_benchmarks
 
     rows = run_benchmarks(only, progress=not as_json)
@@ -129,6 +132,7 @@ def demo(out_dir, jobs):
 
     Progress bars (stderr) show the simulated trials of stages 1, 2 and 4.
     """
+    # lazy: the command line loads what a command needs when it runs
     from tqdm import tqdm
 
     from impactqp.controller.model.postures import DEFAULT_WALL

@@ -38,6 +38,7 @@ def validate_command(ctx, directory, as_json):
     """Report every problem per trial; never modifies the data. Exit code 1 when any is found.
     Each file is read once, however many entries name it; a progress bar goes to stderr on a
     terminal or for a long manifest."""
+    # lazy: the command line loads what a command needs when it runs
     from tqdm import tqdm
 
     from impactqp.controller.measured.dataset import validate
@@ -131,6 +132,7 @@ def generate_command(out, postures, speeds, tangential, as_json, choice, **noise
 def import_franka_command(out, logs, surface_point, surface_normal, reference_speed, as_json, choice):
     """Import libfranka logs (franka::logToCSV, one log per trial) of the robot hitting with the
     tool as a dataset in OUT."""
+    # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.measured.franka_log import import_franka_logs
     from impactqp.controller.model.postures import Surface
     from impactqp.controller.model.validation import unit_normal
@@ -163,6 +165,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     The robot and the tool are the manifest's; a --robot/--tool other than the default that
     disagrees with them is bad input."""
 
+    # lazy: the command line loads what a command needs when it runs
     from impactqp.sim.diagnosis import diagnose as run_diagnosis
     from impactqp.sim.diagnosis import interval_text
 
@@ -225,6 +228,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
 
 def _check_manifest_choice(directory, choice) -> None:
     """Bad input when a non-default ``choice`` (--robot, --tool) differs from the manifest's."""
+    # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.measured.dataset import DatasetError, read_header
 
     if choice.is_default:

@@ -47,6 +47,7 @@ def wall(point_text: str | None, normal_text: str | None) -> Surface:
 def check_reachable(choice: RobotChoice, posture: ImpactPosture, surface: Surface, distance: float) -> None:
     """Reject a wall the posture of ``choice``'s robot and tool cannot face (before any process
     is started)."""
+    # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
 
     try:
@@ -82,6 +83,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     The tool starts at rest 5 cm in front of the wall; the controller accelerates it towards the
     reference velocity (capped by the jump-aware constraints when they are on) until it hits.
     """
+    # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.campaign import write_trial
     from impactqp.sim.runner import dataset_header
     from impactqp.scenarios.trial import TrialRunner
@@ -148,6 +150,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
 # ---------------------------------------------------------------------------- campaign
 def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, progress, choice):
     """Parse the campaign options, run it with ``choice``'s robot and tool and return Table I."""
+    # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.campaign import Campaign, CampaignPlan, PAPER_SPEEDS, PAPER_TANGENTIAL_SPEEDS
 
     postures = choice.check_postures(
@@ -209,6 +212,7 @@ class MaxSpeedRequest:
 
 def run_max_speed(request: MaxSpeedRequest, progress: bool):
     """Check the ``max-speed`` options and run the search."""
+    # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.max_speed_search import QP_START_DISTANCE, MaxSpeedSearch
 
     choice, restitution, impact_duration, tolerance = request.choice, request.restitution, request.impact_duration, request.tolerance

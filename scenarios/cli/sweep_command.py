@@ -26,6 +26,7 @@ from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, 
 @robot_options
 def sweep(config_path, example, as_json, choice, **run):
     """Highest feasible contact speed over a grid of contact points and settings (Parquet in --out)."""
+    # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.sweep.config import EXAMPLE, load_config
 
     if example:
