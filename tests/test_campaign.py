@@ -19,7 +19,8 @@ from impactqp.scenarios.campaign import (
     TableRow,
     y_limits,
 )
-from impactqp.controller.measured.dataset import read_dataset, validate
+from impactqp.controller.measured.dataset import read_dataset
+from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.measured.impact import measure_impact
 
 

@@ -17,8 +17,8 @@ from impactqp.controller.measured.dataset import (
     DatasetWriter,
     TrialEntry,
     read_dataset,
-    validate,
 )
+from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import TrialSpec, run_approach

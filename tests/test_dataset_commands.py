@@ -48,6 +48,7 @@ def test_validating_a_huge_manifest_reads_each_file_once_and_shows_progress(smal
     """3,000 entries naming the same trial files: each file is read and its impact measured once
     (the work per entry is constant), the progress bar goes to stderr, stdout is the JSON alone."""
     from impactqp.controller.measured import dataset as dataset_module
+    from impactqp.controller.measured import dataset_check
 
     huge = tmp_path / "huge"
     shutil.copytree(small_dataset, huge)
@@ -56,10 +57,10 @@ def test_validating_a_huge_manifest_reads_each_file_once_and_shows_progress(smal
     manifest["trials"] = [{**first, "id": f"x{i}"} for i in range(3000)] + manifest["trials"][1:]
     (huge / "dataset.json").write_text(json.dumps(manifest))
     reads, impacts = Counter(), []
-    read_table, measure_impact = dataset_module._read_table, dataset_module.measure_impact
+    read_table, measure_impact = dataset_module._read_table, dataset_check.measure_impact
     monkeypatch.setattr(dataset_module, "_read_table", lambda path, columns: (reads.update([path.name]),
                                                                               read_table(path, columns))[1])
-    monkeypatch.setattr(dataset_module, "measure_impact", lambda log: (impacts.append(1), measure_impact(log))[1])
+    monkeypatch.setattr(dataset_check, "measure_impact", lambda log: (impacts.append(1), measure_impact(log))[1])
     code, out, err = run(capsys, "dataset", "validate", huge, "--json")
     assert code == 0 and json.loads(out)["valid"]
     files = {name for t in manifest["trials"] for name in (t["file"], t["force_file"])}

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from diagnosis_checks import POSTURES, SPEEDS
 
-from impactqp.controller.measured.dataset import read_dataset, validate
+from impactqp.controller.measured.dataset import read_dataset
+from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.sim.causes import PayloadCause
 from impactqp.sim.diagnosis import diagnose, load_trials, replay_all

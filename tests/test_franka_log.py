@@ -14,7 +14,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from impactqp.controller.measured.dataset import read_dataset, validate
+from impactqp.controller.measured.dataset import read_dataset
+from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.measured.franka_log import import_franka_logs, logged_period, read_franka_csv
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.controller.measured.trial_log import TrialLog

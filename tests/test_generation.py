@@ -5,7 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from impactqp.controller.measured.dataset import read_dataset, validate
+from impactqp.controller.measured.dataset import read_dataset
+from impactqp.controller.measured.dataset_check import validate
 from impactqp.sim.generation import START_DISTANCE, DatasetRequest, generate_dataset, tangential_direction, trial_specs
 from impactqp.sim.plant import PlantParameters
 

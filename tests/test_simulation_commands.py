@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from impactqp.scenarios.cli import main
-from impactqp.controller.measured.dataset import validate
+from impactqp.controller.measured.dataset_check import validate
 
 
 def run(capsys, *args):

@@ -41,7 +41,7 @@ def validate_command(ctx, directory, as_json):
     # lazy: the command line loads what a command needs when it runs
     from tqdm import tqdm
 
-    from impactqp.controller.measured.dataset import validate
+    from impactqp.controller.measured.dataset_check import validate
 
     input_directory(directory, "DIRECTORY")
     bars = []  # on stderr: on a terminal, or for a long manifest (a log shows it is not stuck)

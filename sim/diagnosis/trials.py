@@ -1,7 +1,7 @@
 """The diagnosis's trials: load the valid ones of a dataset, replay them in the simulation.
 
 1. **Measure** (``load_trials``). Every trial of the dataset is checked
-   (``controller.measured.dataset.validate``); bad trials are skipped with their reasons. The
+   (``controller.measured.dataset_check.validate``); bad trials are skipped with their reasons. The
    impact is detected and the jump extracted with the same function as for simulated data
    (``controller.measured.impact.measure_impact``); the impulse is integrated where a force log
    exists. The noise of every compared signal is read from the trials (``noise``).
@@ -26,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from impactqp.controller.measured.dataset import read_dataset, validate
+from impactqp.controller.measured.dataset import read_dataset
+from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.measured.impact import (
     POST_HALF_WIDTH,
     PRE_SAMPLES,

@@ -1,0 +1,125 @@
+"""The checks of a dataset (``impactqp dataset validate``): every problem of the manifest and of
+each trial, found without modifying any file (format: ``docs/dataset.md``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from impactqp.controller.model.robot_description import robot_description
+
+from .dataset import (
+    MANIFEST,
+    DatasetError,
+    DatasetHeader,
+    TrialEntry,
+    load_manifest,
+    parse_entry,
+    parse_header,
+    read_trial,
+)
+from .impact import WINDOW_AFTER, WINDOW_BEFORE, ImpactNotFoundError, measure_impact
+
+POSITION_TOLERANCE = 1e-3
+"""rad a logged joint position may lie outside the URDF limits (encoder and rounding)."""
+
+
+def validate(directory: str | Path, progress=None) -> dict[str, list[str]]:
+    """Problems of a dataset, per trial id (key ``"dataset"`` for the manifest itself).
+
+    Checks: the manifest (format, keys, header, duplicate ids, CSV files it does not list),
+    per trial the files and their columns, non-finite values, increasing time, the sampling
+    period against ``control_period``, a length that holds the detection window, an impact
+    found by :func:`controller.measured.impact.measure_impact`, and ``impact_time`` against the detected impact.
+    An empty list means no problem. Never modifies any file.
+
+    Each file is read and checked once, however many trial entries name it, so the work grows
+    linearly with the entries. ``progress(done, total)`` is an optional callable invoked once per
+    trial entry.
+    """
+    directory = Path(directory)
+    problems: dict[str, list[str]] = {"dataset": []}
+    try:
+        manifest = load_manifest(directory / MANIFEST)
+        header = parse_header(manifest)
+    except DatasetError as error:
+        problems["dataset"].append(str(error))
+        return problems
+    listed = set()
+    checked: dict[tuple[str, str | None], tuple[list[str], float | None]] = {}
+    total = len(manifest["trials"])
+    for index, raw in enumerate(manifest["trials"]):
+        if progress:
+            progress(index, total)
+        try:
+            entry = parse_entry(raw)
+        except (DatasetError, TypeError, ValueError) as error:
+            problems["dataset"].append(f"trial entry {index}: {error}")
+            continue
+        if entry.id in problems:
+            problems["dataset"].append(f"trial id {entry.id!r} appears more than once")
+            continue
+        listed |= {entry.file, entry.force_file}
+        files = (entry.file, entry.force_file)
+        if files not in checked:
+            checked[files] = _log_problems(directory, entry, header)
+        problems[entry.id] = _trial_problems(entry, *checked[files])
+    if progress:
+        progress(total, total)
+    unlisted = sorted(p.name for p in directory.glob("*.csv") if p.name not in listed)
+    if unlisted:
+        problems["dataset"].append(f"CSV file(s) not listed in the manifest: {', '.join(unlisted)}")
+    return problems
+
+
+def _trial_problems(entry: TrialEntry, log_problems: list[str], impact_start: float | None) -> list[str]:
+    """The problems of one trial entry: those of its files, and its ``impact_time`` against the
+    impact found in them."""
+    problems = list(log_problems)
+    if impact_start is not None and entry.impact_time is not None:
+        if abs(entry.impact_time - impact_start) > WINDOW_BEFORE:
+            problems.append(
+                f"impact_time {entry.impact_time:.4f} s disagrees with the impact found at {impact_start:.4f} s"
+            )
+    return problems
+
+
+def _log_problems(directory: Path, entry: TrialEntry, header: DatasetHeader) -> tuple[list[str], float | None]:
+    """The problems of the files of ``entry`` (its CSV and force CSV), checked against the
+    header's robot and control period, and the start of the impact found in them (None when none
+    is found)."""
+    try:
+        log = read_trial(directory, entry)
+    except DatasetError as error:
+        return [str(error)], None
+    problems = []
+    control_period = header.control_period
+    robot = robot_description(header.robot)
+    outside = (log.q < robot.q_min - POSITION_TOLERANCE) | (log.q > robot.q_max + POSITION_TOLERANCE)
+    if np.any(outside):
+        row, joint = (int(i) for i in np.argwhere(outside)[0])
+        problems.append(
+            f"{entry.file}: q{joint + 1} = {log.q[row, joint]:.4f} rad at data row {row + 1} lies outside "
+            f"the joint limits [{robot.q_min[joint]:.4f}, {robot.q_max[joint]:.4f}]"
+        )
+        return problems, None
+    needed = int(round((WINDOW_BEFORE + WINDOW_AFTER) / control_period)) + 4
+    if len(log) < 2:
+        return [f"{entry.file} holds {len(log)} samples, fewer than the {needed} of the detection window"], None
+    period = log.control_period
+    if abs(period - control_period) > 0.01 * control_period:
+        problems.append(
+            f"{entry.file} is sampled every {period:.6g} s, the manifest says {control_period:.6g} s"
+        )
+    if len(log) < needed:
+        problems.append(
+            f"{entry.file} holds {len(log)} samples, fewer than the {needed} of the detection window"
+        )
+        return problems, None
+    try:
+        impact = measure_impact(log)
+    except ImpactNotFoundError as error:
+        problems.append(f"no impact found: {error}")
+        return problems, None
+    return problems, impact.t_contact_start
