@@ -252,9 +252,63 @@ def table_by_condition(diagnosis: Diagnosis) -> list[str]:
     return lines
 
 
+def speed_section(diagnosis: Diagnosis, speeds: list[FeasibleSpeed]) -> list[str]:
+    """The report's lines on the highest feasible contact speed and which answer to trust."""
+    lines = [
+        "",
+        "## What it means for your robot: highest feasible contact speed (m/s)",
+        "",
+        "| posture | CRB closed form | nominal simulation | extended simulation |",
+        "|---|---|---|---|",
+    ]
+    lines += [
+        f"| {r.posture} | {r.crb_closed_form:.3f} | {r.nominal_plant:.3f} | {r.extended_plant:.3f} |" for r in speeds
+    ]
+    return lines + [""] + [r.sentence() for r in speeds] + ["", trusted_speed_text(diagnosis, speeds)]
+
+
+def nominal_error_section(diagnosis: Diagnosis) -> list[str]:
+    """The report's lines on what the nominal simulation gets wrong, joint by joint."""
+    a = diagnosis.summary()["analysis"]
+    lines = [
+        "",
+        "## What the nominal simulation gets wrong",
+        "",
+        "| joint | mean error (25) | mean abs error | sim / measured | share of error |",
+        "|---|---|---|---|---|",
+    ]
+    near_zero = near_zero_jumps(diagnosis)
+    for j in range(NQ):
+        ratio = "-" if near_zero[j] else f"{a['per_joint_sim_to_measured_ratio'][j]:.3f}"
+        lines.append(
+            f"| {j + 1} | {a['per_joint_mean_error'][j]:+.4f} | {a['per_joint_mean_abs_error'][j]:.4f} | "
+            f"{ratio} | {100 * a['per_joint_error_share'][j]:.1f} % |"
+        )
+    return lines + [
+        "",
+        f"Average error (26) grows by {a['error_vs_speed_slope']:.3f} (rad/s) per m/s of reference speed. "
+        "A sim / measured ratio above 1 means the simulation overshoots that joint's jump; it is left out (-) "
+        f"where the measured jump is near zero (root mean square below {NEAR_ZERO_STDS:g} noise stds of a jump).",
+    ]
+
+
+def fit_section(summary: dict) -> list[str]:
+    """The report's table of the normalised residual of each signal block, nominal and final."""
+    blocks = [b for b in BLOCKS if b in summary["fit"]]
+    return [
+        "## Fit against the noise (normalised residual: root mean square in noise units)",
+        "",
+        "| model | " + " | ".join(blocks) + " | fits the noise |",
+        "|---|" + "---|" * (len(blocks) + 1),
+        *(
+            f"| {label} | " + " | ".join(f"{fit[b]:.2f}" for b in BLOCKS if b in fit) + f" | {boolean(fit['fits_noise'])} |"
+            for label, fit in (("nominal", summary["nominal_fit"]), ("final", summary["fit"]))
+        ),
+    ]
+
+
 def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) -> str:
     s = diagnosis.summary()
-    a = s["analysis"]
     lines = [
         "# Impact diagnosis",
         "",
@@ -270,14 +324,7 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         f"extended simulation {s['extended_error']:.4f} rad/s, gain {100 * s['gain']:.1f} % "
         f"({100 * s['gain_over_floor']:.1f} % of the excess over the noise floor)",
         "",
-        "## Fit against the noise (normalised residual: root mean square in noise units)",
-        "",
-        "| model | " + " | ".join(b for b in BLOCKS if b in s["fit"]) + " | fits the noise |",
-        "|---|" + "---|" * (sum(b in s["fit"] for b in BLOCKS) + 1),
-        *(
-            f"| {label} | " + " | ".join(f"{fit[b]:.2f}" for b in BLOCKS if b in fit) + f" | {boolean(fit['fits_noise'])} |"
-            for label, fit in (("nominal", s["nominal_fit"]), ("final", s["fit"]))
-        ),
+        *fit_section(s),
         "",
         "## Selection steps",
         "",
@@ -301,36 +348,9 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
     for o in s["open_sides"]:
         lines.append(f"\nThe data cannot bound {o['parameter']} {o['side']}: {o['trials_needed']}.")
     if speeds:
-        lines += [
-            "",
-            "## What it means for your robot: highest feasible contact speed (m/s)",
-            "",
-            "| posture | CRB closed form | nominal simulation | extended simulation |",
-            "|---|---|---|---|",
-        ]
-        lines += [
-            f"| {r.posture} | {r.crb_closed_form:.3f} | {r.nominal_plant:.3f} | {r.extended_plant:.3f} |" for r in speeds
-        ]
-        lines += [""] + [r.sentence() for r in speeds] + ["", trusted_speed_text(diagnosis, speeds)]
+        lines += speed_section(diagnosis, speeds)
+    lines += nominal_error_section(diagnosis)
     lines += [
-        "",
-        "## What the nominal simulation gets wrong",
-        "",
-        "| joint | mean error (25) | mean abs error | sim / measured | share of error |",
-        "|---|---|---|---|---|",
-    ]
-    near_zero = near_zero_jumps(diagnosis)
-    for j in range(NQ):
-        ratio = "-" if near_zero[j] else f"{a['per_joint_sim_to_measured_ratio'][j]:.3f}"
-        lines.append(
-            f"| {j + 1} | {a['per_joint_mean_error'][j]:+.4f} | {a['per_joint_mean_abs_error'][j]:.4f} | "
-            f"{ratio} | {100 * a['per_joint_error_share'][j]:.1f} % |"
-        )
-    lines += [
-        "",
-        f"Average error (26) grows by {a['error_vs_speed_slope']:.3f} (rad/s) per m/s of reference speed. "
-        "A sim / measured ratio above 1 means the simulation overshoots that joint's jump; it is left out (-) "
-        f"where the measured jump is near zero (root mean square below {NEAR_ZERO_STDS:g} noise stds of a jump).",
         "",
         "## Candidate causes (cross-validated over trials)",
         "",

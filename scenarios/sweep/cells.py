@@ -79,10 +79,67 @@ def cell_settings(config: SweepConfig, cell: int) -> dict:
     }
 
 
+@dataclass(frozen=True)
+class ClosedFormCells:
+    """The chunk's cells as the closed form needs them: the terms of the reached postures, which
+    postures are reached and regular, the (point, normal) pairs, each cell's posture and its
+    restitution and impact-duration indices."""
+
+    terms: object
+    reached: np.ndarray
+    regular: np.ndarray
+    pairs: np.ndarray
+    posture_of_cell: np.ndarray
+    r: np.ndarray
+    t: np.ndarray
+
+
+def _closed_forms(config: SweepConfig, cells: ClosedFormCells) -> dict[str, list]:
+    """The closed-form speed, criterion and joint columns of every jump model of ``config``."""
+    robot = _kinematics(config.choice).robot
+    normals = np.asarray(config.normals, dtype=float)
+    restitution = np.asarray(config.restitution)
+    impact_duration = np.asarray(config.impact_duration)
+    r, t, terms, reached = cells.r, cells.t, cells.terms, cells.reached
+    n_cells = cells.posture_of_cell.size
+    regular_in_reached = cells.regular[reached]
+    regular_terms = None
+    if terms is not None and regular_in_reached.any():
+        regular_terms = terms.rows(regular_in_reached)
+    regular_index = np.full(len(cells.pairs), -1)
+    regular_index[reached[regular_in_reached]] = np.arange(int(regular_in_reached.sum()))
+    cell_regular = regular_index[cells.posture_of_cell]
+    if regular_terms is not None:
+        regular_normals = normals[cells.pairs[regular_index >= 0, 1]]
+        directions = approach_directions(regular_terms, regular_normals)
+    columns = {}
+    for name in config.jump_models:
+        speed = np.full(n_cells, np.nan)
+        criterion = np.full(n_cells, -1)
+        joint = np.zeros(n_cells, dtype=np.int64)
+        if regular_terms is not None:
+            for ri, ti in sorted(set(zip(r.tolist(), t.tolist()))):
+                select = (r == ri) & (t == ti) & (cell_regular >= 0)
+                if not select.any():
+                    continue
+                best = closed_form_max_speeds(
+                    robot, regular_terms, regular_normals, name, float(restitution[ri]), float(impact_duration[ti]),
+                    directions,
+                )
+                rows = cell_regular[select]
+                speed[select], criterion[select], joint[select] = (
+                    best.speed[rows], best.criterion[rows], best.joint[rows]
+                )
+        columns[f"speed_{name}"] = speed
+        columns[f"criterion_{name}"] = [CRITERIA[i] if i >= 0 else "" for i in criterion]
+        columns[f"joint_{name}"] = joint
+
+    return columns
+
+
 def evaluate_cells(config: SweepConfig, cells: range, simulation: Simulation | None = None) -> dict[str, list]:
     """The columns of the rows of ``cells`` (a contiguous range of cell indices), in order."""
     kinematics = _kinematics(config.choice)
-    robot = kinematics.robot
     cell = np.arange(cells.start, cells.stop)
     p, k, r, t, c = config.cell_axes(cell)
     points = config.points()
@@ -128,36 +185,7 @@ def evaluate_cells(config: SweepConfig, cells: range, simulation: Simulation | N
     columns["jacobian_sv_ratio"] = sv_ratio[posture_of_cell]
 
     # 3. closed form of every model, for each (restitution, impact duration) of the chunk
-    regular_in_reached = regular[reached]
-    regular_terms = None
-    if terms is not None and regular_in_reached.any():
-        regular_terms = terms.rows(regular_in_reached)
-    regular_index = np.full(n_pairs, -1)
-    regular_index[reached[regular_in_reached]] = np.arange(int(regular_in_reached.sum()))
-    cell_regular = regular_index[posture_of_cell]
-    if regular_terms is not None:
-        regular_normals = normals[pairs[regular_index >= 0, 1]]
-        directions = approach_directions(regular_terms, regular_normals)
-    for name in config.jump_models:
-        speed = np.full(cell.size, np.nan)
-        criterion = np.full(cell.size, -1)
-        joint = np.zeros(cell.size, dtype=np.int64)
-        if regular_terms is not None:
-            for ri, ti in sorted(set(zip(r.tolist(), t.tolist()))):
-                select = (r == ri) & (t == ti) & (cell_regular >= 0)
-                if not select.any():
-                    continue
-                best = closed_form_max_speeds(
-                    robot, regular_terms, regular_normals, name, float(restitution[ri]), float(impact_duration[ti]),
-                    directions,
-                )
-                rows = cell_regular[select]
-                speed[select], criterion[select], joint[select] = (
-                    best.speed[rows], best.criterion[rows], best.joint[rows]
-                )
-        columns[f"speed_{name}"] = speed
-        columns[f"criterion_{name}"] = [CRITERIA[i] if i >= 0 else "" for i in criterion]
-        columns[f"joint_{name}"] = joint
+    columns.update(_closed_forms(config, ClosedFormCells(terms, reached, regular, pairs, posture_of_cell, r, t)))
 
     # 4. --simulate
     if simulation is not None:
