@@ -71,9 +71,9 @@ def test_validating_a_huge_manifest_reads_each_file_once_and_shows_progress(smal
 
 
 def test_diagnose_json_report_and_saved_plant(small_dataset, tmp_path, capsys):
-    code, out, _ = run(capsys, "diagnose", small_dataset, "--json", "--report", tmp_path / "report",
-                       "--save-plant", tmp_path / "fitted.json", "--jobs", "2")
-    assert code == 0
+    code, out, err = run(capsys, "diagnose", small_dataset, "--json", "--report", tmp_path / "report",
+                         "--save-plant", tmp_path / "fitted.json", "--jobs", "2")
+    assert code == 0 and "diagnose" not in err  # --json: no progress bar
     result = json.loads(out)
     for key in ("cause", "explained", "parameters", "baseline_error", "extended_error", "gain", "candidates",
                 "trials", "skipped", "predictors", "causes", "intervals", "steps"):
@@ -139,8 +139,12 @@ def test_diagnose_text_is_readable(small_dataset, capsys, monkeypatch):
     fake = type("Result", (), {"summary": lambda self: summary})()
     monkeypatch.setattr(diagnosis, "diagnose", lambda *args, **kwargs: fake)
     capsys.readouterr()  # the output of the fixture, when it runs first
-    code, out, _ = run(capsys, "diagnose", small_dataset)
+    import sys
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)  # the progress bar shows on a terminal
+    code, out, err = run(capsys, "diagnose", small_dataset)
     assert code == 0
+    assert "diagnose" in err and "5/5" in err  # the progress bar, on stderr
     assert "explained: true" in out and "True" not in out
     assert "armature (kg m^2): joints 1-4 = 1.2, joints 5-7 = 0.3" in out
     table = out.split("candidate")[1].splitlines()[1:4]

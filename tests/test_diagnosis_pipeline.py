@@ -7,6 +7,7 @@ from diagnosis_checks import POSTURES, SPEEDS, check_contract, tolerance
 from impactqp.controller.model.validation import BadInputError
 from impactqp.sim.causes import PLANT_CAUSE_NAMES, FrictionCause, cause_named, realistic_hidden_effect
 from impactqp.sim.diagnosis import EXPLAINED_GAIN, diagnose
+from impactqp.sim.diagnosis.pipeline import STEPS
 from impactqp.sim.generation import DatasetRequest, generate_dataset
 from impactqp.sim.plant import PlantParameters
 
@@ -18,7 +19,9 @@ def test_hidden_effect_is_found(tmp_path, cause):
     overrides, tangential = realistic_hidden_effect(cause, np.random.default_rng(sum(map(ord, cause))))
     plant = PlantParameters(**overrides)
     generate_dataset(tmp_path, DatasetRequest(plant=plant, postures=POSTURES, speeds=SPEEDS, tangential=tangential, seed=7))
-    result = diagnose(tmp_path, jobs=2).summary()
+    steps = []
+    result = diagnose(tmp_path, jobs=2, progress=steps.append).summary()
+    assert steps == list(STEPS)  # every step announced once, in order
     assert result["causes"] == [cause], result["steps"]
     assert result["cause"] == cause and result["explained"]
     fitted = cause_named(cause)

@@ -166,8 +166,11 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     disagrees with them is bad input."""
 
     # lazy: the command line loads what a command needs when it runs
+    from tqdm import tqdm
+
     from impactqp.sim.diagnosis import diagnose as run_diagnosis
     from impactqp.sim.diagnosis import interval_text
+    from impactqp.sim.diagnosis.pipeline import STEPS as DIAGNOSIS_STEPS
 
     from impactqp.sim.plant import PlantParameters
 
@@ -179,7 +182,21 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     if save_plant:
         output_file(save_plant, "--save-plant")
     nominal = load_plant(plant_file) or PlantParameters()
-    result = run_diagnosis(directory, nominal=nominal, jobs=jobs)
+    # the steps on stderr when it is a terminal; wiped when an error ends the command (one line)
+    bar = tqdm(total=len(DIAGNOSIS_STEPS), desc="diagnose", unit="step", disable=True if as_json else None)
+
+    def progress(step: str) -> None:
+        bar.set_postfix_str(step)
+        bar.update(DIAGNOSIS_STEPS.index(step) - bar.n)
+
+    try:
+        result = run_diagnosis(directory, nominal=nominal, jobs=jobs, progress=progress)
+        bar.update(bar.total - bar.n)
+    except BaseException:
+        bar.leave = False
+        raise
+    finally:
+        bar.close()
     summary = result.summary()
     speeds = None
     if max_speed:

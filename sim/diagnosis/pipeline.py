@@ -3,6 +3,8 @@ parameters (the steps: ``sim/diagnosis/__init__.py``)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from pathlib import Path
 
 import numpy as np
@@ -19,16 +21,24 @@ from .selection import select_causes
 from .trials import load_trials, locate_jump_samples, replay_all
 
 
+STEPS = ("load and check the trials", "replay the nominal simulation", "select the causes",
+         "bound the parameters", "compare the predictors")
+"""The steps of ``diagnose``, in order, as its ``progress`` callback names them."""
+
+
 def diagnose(
     directory: str | Path,
     *,
     nominal: PlantParameters | None = None,
     causes: list[Cause] | None = None,
     jobs: int = 1,
+    progress: Callable[[str], None] | None = None,
 ) -> Diagnosis:
     """Measure, replay, compare, select the causes, bound their parameters (the steps:
-    ``sim/diagnosis/__init__.py``)."""
+    ``sim/diagnosis/__init__.py``). ``progress(step)`` is called as each of ``STEPS`` begins."""
+    step = progress or (lambda name: None)
     nominal = nominal or PlantParameters()
+    step(STEPS[0])
     trials, skipped, setting = load_trials(directory)
     if len(trials) < 2:
         raise BadInputError(
@@ -39,14 +49,17 @@ def diagnose(
     names = [c.name for c in causes]
     if len(set(names)) != len(names):
         raise ValueError(f"candidate causes must have distinct names, got {names}")
+    step(STEPS[1])
     trials = locate_jump_samples(trials, setting, nominal)
     nominal_features = replay_all(setting, nominal, trials)
     nominal_jumps = np.array([f.detected_jump for f in nominal_features])
     baseline_errors = jump_errors(nominal_features, trials)
     baseline = (trial_errors(nominal_features, trials), baseline_errors)
+    step(STEPS[2])
     selection = select_causes(causes, nominal, setting, trials, baseline, jobs)
     selected = bool(selection.model.causes)
     model = selection.model if selected else selection.best
+    step(STEPS[3])
     model, theta_intervals = parameter_intervals(model, nominal, setting, trials, jobs)
     extended_plant = model.plant(nominal)
     extended_features = replay_all(setting, extended_plant, trials)
@@ -56,6 +69,7 @@ def diagnose(
     # interval excludes its nominal value (else the data do not say it moved)
     explained = selected and fit["fits_noise"] and all(excludes_nominal(model, theta_intervals, nominal))
     steps = selection.steps if explained else [{**s, "selected": False} for s in selection.steps]
+    step(STEPS[4])
     predictors, predictors_measured_impulse, predictions = predictor_errors(trials, setting)
     per_parameter = [
         {"cause": c.name, "parameter": label, "value": float(value), "interval": interval}
