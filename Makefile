@@ -8,7 +8,7 @@ BIN := $(VENV)/bin
 $(BIN)/impactqp: pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,bench,franka]'
+	$(BIN)/python -m pip install --quiet -e '.[test,bench,franka,panda]'
 	touch $@
 
 demo: $(BIN)/impactqp
