@@ -166,12 +166,6 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     disagrees with them is bad input."""
 
     # lazy: the command line loads what a command needs when it runs
-    from tqdm import tqdm
-
-    from impactqp.sim.diagnosis import diagnose as run_diagnosis
-    from impactqp.sim.diagnosis import interval_text
-    from impactqp.sim.diagnosis.pipeline import STEPS as DIAGNOSIS_STEPS
-
     from impactqp.sim.plant import PlantParameters
 
     input_directory(directory, "DIRECTORY")
@@ -182,21 +176,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     if save_plant:
         output_file(save_plant, "--save-plant")
     nominal = load_plant(plant_file) or PlantParameters()
-    # the steps on stderr when it is a terminal; wiped when an error ends the command (one line)
-    bar = tqdm(total=len(DIAGNOSIS_STEPS), desc="diagnose", unit="step", disable=True if as_json else None)
-
-    def progress(step: str) -> None:
-        bar.set_postfix_str(step)
-        bar.update(DIAGNOSIS_STEPS.index(step) - bar.n)
-
-    try:
-        result = run_diagnosis(directory, nominal=nominal, jobs=jobs, progress=progress)
-        bar.update(bar.total - bar.n)
-    except BaseException:
-        bar.leave = False
-        raise
-    finally:
-        bar.close()
+    result = _diagnose_with_progress(directory, nominal, jobs, show=not as_json)
     summary = result.summary()
     speeds = None
     if max_speed:
@@ -217,9 +197,44 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     if as_json:
         emit_json(summary)
         return
-    click.echo(summary["message"])
-    from impactqp.scenarios.readable import boolean, number, parameters_text
+    _print_diagnosis(result, summary, speeds)
 
+
+def _diagnose_with_progress(directory, nominal, jobs: int, show: bool):
+    """The diagnosis of ``directory``, its steps on a progress bar (stderr, when it is a terminal
+    and ``show``); the bar is wiped when an error ends the command, whose message is one line."""
+    # lazy: the command line loads what a command needs when it runs
+    from tqdm import tqdm
+
+    from impactqp.sim.diagnosis import diagnose as run_diagnosis
+    from impactqp.sim.diagnosis.pipeline import STEPS
+
+    bar = tqdm(total=len(STEPS), desc="diagnose", unit="step", disable=None if show else True)
+
+    def progress(step: str) -> None:
+        bar.set_postfix_str(step)
+        bar.update(STEPS.index(step) - bar.n)
+
+    try:
+        result = run_diagnosis(directory, nominal=nominal, jobs=jobs, progress=progress)
+        bar.update(bar.total - bar.n)
+    except BaseException:
+        bar.leave = False
+        raise
+    finally:
+        bar.close()
+    return result
+
+
+def _print_diagnosis(result, summary: dict, speeds) -> None:
+    """The diagnosis as text: the message, the causes and their intervals, the candidates, the
+    predictors, the feasible speeds and the skipped trials."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.diagnosis_report import trusted_speed_text
+    from impactqp.scenarios.readable import boolean, number, parameters_text
+    from impactqp.sim.diagnosis import interval_text
+
+    click.echo(summary["message"])
     click.echo(
         f"causes: {', '.join(summary['causes']) or 'none'}  explained: {boolean(summary['explained'])}  "
         f"parameters: {parameters_text(summary['parameters'])}"
@@ -236,8 +251,6 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     for r in speeds or []:
         click.echo(r.sentence())
     if speeds:
-        from impactqp.scenarios.diagnosis_report import trusted_speed_text
-
         click.echo(trusted_speed_text(result, speeds))
     for s in summary["skipped"]:
         click.echo(f"skipped {s['id']}: {s['reason']}")
