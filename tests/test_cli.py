@@ -208,13 +208,20 @@ def _mapped(pid: int, name: str) -> bool:
     return name in Path(f"/proc/{pid}/maps").read_text()
 
 
+def _started(pid: int, out: Path) -> bool:
+    """Whether the child already runs the command: between fork and exec it is a copy of the test
+    worker, with the worker's libraries mapped and whatever handlers the worker's extensions put in,
+    and a signal caught there is lost when exec replaces the image."""
+    return str(out) in Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace")
+
+
 # Moments of the start-up, each observed in the process rather than guessed from a clock: its
 # handlers are in (the earliest moment the contract covers: before, Python itself is starting),
 # numpy's or MuJoCo's library is being loaded, the output directory exists (trials are running).
 MOMENTS = {
-    "handlers": lambda pid, out: _caught_signals(pid) & (1 << (signal.SIGTERM - 1)) != 0,
-    "numpy": lambda pid, out: _mapped(pid, "numpy"),
-    "mujoco": lambda pid, out: _mapped(pid, "mujoco"),
+    "handlers": lambda pid, out: _started(pid, out) and _caught_signals(pid) & (1 << (signal.SIGTERM - 1)) != 0,
+    "numpy": lambda pid, out: _started(pid, out) and _mapped(pid, "numpy"),
+    "mujoco": lambda pid, out: _started(pid, out) and _mapped(pid, "mujoco"),
     "writing": lambda pid, out: out.exists(),
 }
 
