@@ -1,4 +1,4 @@
-"""impactqp: impact-aware task-space QP control of a Franka Panda.
+"""impactqp: impact-aware task-space QP control of Franka arms (Panda, FR3) and a standing humanoid.
 
 The package predicts the joint-velocity jump of an impact with the composite-rigid-body method of
 Wang, Dehio and Kheddar (RA-L 2022), beside the classical and generalized-momentum predictions
@@ -10,7 +10,9 @@ of them, and importing one module (say ``impactqp.controller.model.robot``) load
 module imports, never the QP or MuJoCo. The layers of the package are listed in the README.
 """
 
-from importlib import import_module, metadata
+from importlib import metadata
+
+from impactqp.lazy_exports import lazy_exports
 
 try:
     __version__ = metadata.version("impactqp")
@@ -34,14 +36,4 @@ _EXPORTS = {
 __all__ = [*_EXPORTS, "__version__"]
 
 
-def __getattr__(name: str):
-    """The exported name ``name``, imported from its module on first use (PEP 562)."""
-    if name not in _EXPORTS:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(_EXPORTS[name]), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)

@@ -8,7 +8,7 @@ The first names are exported lazily (PEP 562), so that importing the ground or t
 kernels, a task or a constraint.
 """
 
-from importlib import import_module
+from impactqp.lazy_exports import lazy_exports
 
 _EXPORTS = {
     "ImpactAwareController": "impactqp.controller.qp",
@@ -20,14 +20,4 @@ _EXPORTS = {
 __all__ = list(_EXPORTS)
 
 
-def __getattr__(name: str):
-    """The exported name ``name``, imported from its module on first use (PEP 562)."""
-    if name not in _EXPORTS:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(_EXPORTS[name]), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
