@@ -1,10 +1,19 @@
+import hashlib
+
 import numpy as np
 import pytest
 from hypothesis import strategies as st
 
+from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry
+from impactqp.controller.measured.impact import measure_impact
+from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
 from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT, PandaModel
+from impactqp.controller.model.tool_description import TOOLS
 from impactqp.controller.runtime.interface import RobotInterface
 from impactqp.scenarios.run import RunRequest, run
+from impactqp.sim.plant import PlantParameters
+from impactqp.sim.runner import TrialSpec, run_approach
+from impactqp.sim.scene import build_scene
 
 CONTROL_PERIOD = 1e-3
 LIMIT_TOLERANCE = 1e-9
@@ -70,3 +79,44 @@ def assert_continuous_within_limits(dq_cmd):
     assert np.all(np.abs(dq) <= VELOCITY_LIMIT * (1 + LIMIT_TOLERANCE))
     assert np.all(np.abs(ddq) <= ACCELERATION_LIMIT * (1 + LIMIT_TOLERANCE))
     assert np.all(np.abs(jerk) <= JERK_LIMIT * (1 + LIMIT_TOLERANCE))
+
+
+DATASET_HEADER = DatasetHeader(TOOLS["impact_tip"], DEFAULT_WALL, 1e-3)
+
+
+@pytest.fixture(scope="session")
+def dataset_logs():
+    """Two simulated trials (elbow_left, 0.1 and 0.15 m/s) of a plant with armature, by speed."""
+    scene = build_scene(plant=PlantParameters(armature=[0.2] * 7))
+    return {
+        speed: run_approach(scene, PandaModel(), TrialSpec("elbow_left", POSTURES["elbow_left"].q, speed, after_contact=0.05))
+        for speed in (0.1, 0.15)
+    }
+
+
+def dataset_entry(name, speed, log, force=True):
+    """The manifest entry of the trial ``name`` logged in ``log``."""
+    return TrialEntry(
+        id=name,
+        file=f"{name}.csv",
+        force_file=f"{name}_force.csv" if force else None,
+        reference_normal_speed=speed,
+        reference_tangential_velocity=(0.0, 0.0, 0.0),
+        posture="elbow_left",
+        impact_time=measure_impact(log).t_contact_start,
+    )
+
+
+@pytest.fixture()
+def dataset(tmp_path, dataset_logs):
+    """A dataset of two trials: "fast" with its force file, "slow" without."""
+    logs = dataset_logs
+    writer = DatasetWriter(tmp_path, DATASET_HEADER)
+    writer.add_trial(dataset_entry("fast", 0.15, logs[0.15]), logs[0.15])
+    writer.add_trial(dataset_entry("slow", 0.1, logs[0.1], force=False), logs[0.1])
+    return tmp_path
+
+
+def file_digests(directory):
+    """SHA-256 of every file in ``directory``, by name: equal before and after means untouched."""
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(directory.iterdir())}

@@ -1,0 +1,68 @@
+"""Dataset checks: a read-only validation that names every broken trial, file and manifest key."""
+
+import json
+import re
+
+import pytest
+
+from impactqp.controller.measured.dataset import DatasetError, read_dataset
+from impactqp.controller.measured.dataset_check import validate
+
+from conftest import file_digests
+
+
+def test_valid_dataset_has_no_problem(dataset):
+    before = file_digests(dataset)
+    assert validate(dataset) == {"dataset": [], "fast": [], "slow": []}
+    assert file_digests(dataset) == before
+
+
+def corrupt_csv(path, edit):
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(edit(lines)) + "\n")
+
+
+@pytest.mark.parametrize(
+    "damage, message",
+    [
+        (lambda d: (d / "slow.csv").unlink(), "slow.csv does not exist"),
+        (lambda d: corrupt_csv(d / "slow.csv", lambda ls: [ls[0].replace("tau3", "tau_3")] + ls[1:]),
+         "lacks the column.*tau3"),
+        (lambda d: corrupt_csv(d / "slow.csv", lambda ls: ls[:5] + [ls[5].replace(ls[5].split(",")[3], "nan", 1)] + ls[6:]),
+         "NaN"),
+        (lambda d: corrupt_csv(d / "slow.csv", lambda ls: ls[:5] + [ls[6], ls[5]] + ls[7:]), "time does not increase"),
+        (lambda d: corrupt_csv(d / "slow.csv", lambda ls: ls[:20]), "fewer than the"),
+        (lambda d: corrupt_csv(d / "slow.csv", lambda ls: ls[:2]), "holds 1 samples"),
+        (lambda d: corrupt_csv(d / "slow.csv", lambda ls: ls[:120]), "no impact found"),
+    ],
+)
+def test_validation_reports_broken_trials(dataset, damage, message):
+    damage(dataset)
+    before = file_digests(dataset)
+    problems = validate(dataset)
+    assert problems["fast"] == [] and problems["dataset"] == []
+    assert len(problems["slow"]) == 1
+    assert re.search(message, problems["slow"][0]), problems["slow"]
+    assert file_digests(dataset) == before
+
+
+def test_validation_reports_a_manifest_disagreeing_with_the_files(dataset):
+    manifest = json.loads((dataset / "dataset.json").read_text())
+    manifest["trials"][0]["impact_time"] += 0.05
+    manifest["control_period"] = 0.002
+    manifest["trials"][1]["force_file"] = "missing_force.csv"
+    (dataset / "dataset.json").write_text(json.dumps(manifest))
+    (dataset / "stray.csv").write_text("t\n0\n")
+    problems = validate(dataset)
+    assert any("stray.csv" in p for p in problems["dataset"])
+    assert any("manifest says 0.002" in p for p in problems["fast"])
+    assert any("impact_time" in p for p in problems["fast"])
+    assert problems["slow"] == ["missing_force.csv does not exist"]
+
+
+def test_validation_reports_a_broken_manifest(tmp_path):
+    assert validate(tmp_path)["dataset"] == [f"the dataset manifest {tmp_path / 'dataset.json'} does not exist"]
+    (tmp_path / "dataset.json").write_text(json.dumps({"format": "other/1"}))
+    assert "lacks the key" in validate(tmp_path)["dataset"][0]
+    with pytest.raises(DatasetError):
+        read_dataset(tmp_path)
