@@ -1,3 +1,4 @@
+import signal
 import tomllib
 
 import pytest
@@ -29,9 +30,24 @@ def test_local_and_ray_backends_give_identical_rows_with_simulated_cells(tmp_pat
     data["simulate"].update(tolerance=0.1)
     config = parse_config(data)
     local = run_sweep(config, tmp_path / "local", jobs=1, progress=False, plots=False, simulation=Simulation())
-    ray = run_sweep(
-        config, tmp_path / "ray", jobs=2, backend="ray", progress=False, plots=False, simulation=Simulation()
-    )
+    write_chunk, handlers = store.write_chunk, []
+
+    def write_chunk_seeing_the_handler(*args):  # the driver writes each chunk as Ray returns it
+        handlers.append(signal.getsignal(signal.SIGTERM))
+        return write_chunk(*args)
+
+    def stop(*_):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(store, "write_chunk", write_chunk_seeing_the_handler)
+    previous = signal.signal(signal.SIGTERM, stop)  # the command line's handler
+    try:
+        ray = run_sweep(
+            config, tmp_path / "ray", jobs=2, backend="ray", progress=False, plots=False, simulation=Simulation()
+        )
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert handlers and all(h is stop for h in handlers)  # not Ray's own SIGTERM handler (a plain exit)
     assert local.cells == ray.cells == 2 and local.cells_simulated == ray.cells_simulated == 1
     assert rows(tmp_path / "local") == rows(tmp_path / "ray")
 

@@ -7,6 +7,7 @@ needs no shared file system and both backends write the same files.
 from __future__ import annotations
 
 import os
+import signal
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -86,10 +87,15 @@ def _ray(config: SweepConfig, simulation: Simulation | None, todo: list[int], ch
 
     started = not ray.is_initialized()
     if started:
+        # ray.init puts in a SIGTERM handler of its own (sys.exit), which would turn a stop signal
+        # into a plain exit code 15: the command line's handler stays in charge
+        sigterm_handler = signal.getsignal(signal.SIGTERM)
         if os.environ.get("RAY_ADDRESS"):
             ray.init(address=os.environ["RAY_ADDRESS"], log_to_driver=False)
         else:
             ray.init(num_cpus=jobs, include_dashboard=False, log_to_driver=False)
+        if sigterm_handler is not None:  # None: a handler set outside Python, which cannot be put back
+            signal.signal(signal.SIGTERM, sigterm_handler)
     try:
         remote = ray.remote(num_cpus=1)(_evaluate_chunk_parts)
         config_ref, simulation_ref = ray.put(config), ray.put(simulation)
