@@ -17,8 +17,8 @@ contact on the wall (the first state the contact force acted on): libfranka stam
 its message id in ms since the connection, so the server's contact time and the client's state
 times share one clock. Files appear by rename, complete. With ``--stop-after-commands N`` the
 server stops (closes its connection and exits) when the N-th motion command arrives, before it
-answers it: a connection lost at a known cycle (N > 1: a motion's first command may follow
-states sent freely, below).
+answers it: a connection lost at a known cycle (N > 1: a motion's first command may answer an
+older state, below).
 
 **Lockstep.** franky-sim's own loop steps its physics every millisecond of wall-clock time
 whether or not a command came, and libfranka reads the newest state, so a client delayed by a
@@ -27,10 +27,14 @@ between two of our cycles, and which states a run sees, would depend on the mach
 Here the server steps freely (franky-sim's paced loop) only while no motion runs (connecting,
 ``read_once``, the model check) and at a motion's start, until the motion's first command (the
 client's first ``readOnce`` of a motion needs a state newer than the one that started it, and
-the arm is at rest there); from the first command on it steps exactly once per command it
-receives and then sends the state, as the ``sim`` backend's plant waits for the controller.
-One command, one step, one state: a run depends on its cycles, not on wall-clock time (only the
-state time between a motion's first two cycles can jump by the free steps, at rest).
+the arm is at rest there). From the first command on, it steps once and sends the state for
+each command that answers the newest state it sent, as the ``sim`` backend's plant waits for
+the controller; a command that answers an older state (the client read its state before the
+last free step) is taken but not answered, since the client's next read finds the newest state
+waiting. So from the motion's second command on, exactly one command and one state are in
+flight: a run depends on its cycles, not on wall-clock time (only the state time between a
+motion's first cycles can jump by the free steps, at rest). ``--stop-after-commands`` counts
+every command of the run's motions.
 """
 
 from __future__ import annotations
@@ -179,29 +183,50 @@ def contact_recorder(server, path: str):
     return record
 
 
+def answers_newest_state(robot_server) -> bool:
+    """Whether the client's last command answers the newest state sent (libfranka stamps a
+    command with the message id of the state it read; franky-sim counts its message ids)."""
+    newest = robot_server._FrankaServer__message_id - 1
+    return robot_server._FrankaRobotServer__current_control_command.message_id == newest
+
+
+class CommandCount:
+    """Counts the client's motion commands as franky-sim's server handles them, one by one (one
+    ``process_commands`` may handle two when the client sent both before it ran)."""
+
+    def __init__(self, robot_server):
+        self.count = 0
+        self.handle = robot_server._handle_udp_command
+        robot_server._handle_udp_command = self
+
+    def __call__(self, data: bytes) -> None:
+        self.count += 1
+        self.handle(data)
+
+
 def serve_in_lockstep(server, stop_after_commands: int | None) -> None:
     """Run ``server`` (a franky-sim ``SimulationServer`` with one robot) until the client's
     ``stop_after_commands``-th motion command: paced free steps (franky-sim's 1 ms period) while
     no motion runs and at a motion's start, then, from the motion's first command until its
-    ``motion_finished`` command, one step and one state per command (module docstring)."""
+    ``motion_finished`` command, one step and one state per command that answers the newest
+    state (module docstring)."""
     robot_server = server.robot_servers[0]
-    commands = 0
+    commands = CommandCount(robot_server)
     lockstep = False
     while True:
         tick = time.monotonic()
         if lockstep:  # the command arrives on franky-sim's UDP socket, a closed connection on TCP
             select.select([robot_server._FrankaServer__udp_socket, robot_server._tcp_socket], [], [])
+        before = commands.count
         robot_server.process_commands()
+        command = commands.count > before
+        if stop_after_commands is not None and commands.count >= stop_after_commands:
+            logging.getLogger(__name__).info("stopping at motion command %d, before answering it", commands.count)
+            return
         moving = robot_server.current_motion_id > 0
-        command = robot_server._FrankaRobotServer__has_new_command and (lockstep or moving)
-        if command:
-            commands += 1
-            if commands == stop_after_commands:
-                logging.getLogger(__name__).info("stopping at motion command %d, before answering it", commands)
-                return
         lockstep = moving and (lockstep or command)
-        if lockstep and not command:
-            continue  # woken without a command: nothing to answer yet
+        if lockstep and not (command and answers_newest_state(robot_server)):
+            continue  # nothing to answer: woken without a command, or the command of an older state
         server.sim.step()
         robot_server.send_state()
         if not lockstep:
