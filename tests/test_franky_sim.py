@@ -16,6 +16,7 @@ import pytest
 
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.config import ControllerConfig
+from impactqp.controller.measured.dataset import read_dataset
 from impactqp.controller.measured.impact import WINDOW_AFTER
 from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.robot import RobotModel
@@ -27,7 +28,7 @@ from impactqp.controller.runtime.loop import STOPPING, ControlLoop
 from impactqp.controller.runtime.run_log import RunLog
 from impactqp.controller.runtime.session import OBSERVER, ImpactSession
 from impactqp.scenarios.cli import main
-from impactqp.scenarios.run import RunRequest, log_header, start_posture, write_log
+from impactqp.scenarios.run import IMPACT_LEAD, RunRequest, log_header, start_posture, write_log
 from impactqp.sim.franky_sim import FrankySimServer
 
 pytest.importorskip("pylibfranka", reason="pylibfranka is not installed: pip install -e '.[franka]'")
@@ -70,6 +71,7 @@ def model():
 
 def session_loop(robot, model):
     config = ControllerConfig.approach(POSTURE.surface, SPEED, posture_weight=0.0)
+    config.robot, config.tool = ROBOT, "impact_tip"  # the log's manifest names the robot driven
     session = ImpactSession(config, model)
     return config, ControlLoop(robot, session, CommandFilter.for_robot(model, config.dt), deadline=float("inf"))
 
@@ -155,3 +157,15 @@ def test_impactqp_run_moves_to_the_start_then_runs_the_session_against_the_serve
     q_end = log[-1, 1:8]
     assert np.all(np.abs(q_end - q_start)[[4, 6]] < WRIST_DRIFT)
     assert main(["dataset", "validate", str(tmp_path / "log")]) == 0, capsys.readouterr().out
+    # one session = one trial of the FR3 with the declared tool, from at most IMPACT_LEAD before the
+    # detection, without impact_time (no force log: the offline rule finds the contact)
+    dataset = read_dataset(tmp_path / "log")
+    assert dataset.header.choice.same_as(RobotChoice.of(ROBOT, "impact_tip")) and len(dataset.trials) == 1
+    trial = dataset.trials[0]
+    assert trial.entry.impact_time is None and not trial.log.has_force
+    assert report["impact"]["time"] - IMPACT_LEAD <= trial.log.t[0] < report["impact"]["time"]
+    capsys.readouterr()
+    assert main(["diagnose", str(tmp_path / "log"), "--json"]) == 0, capsys.readouterr().err
+    diagnosis = json.loads(capsys.readouterr().out)
+    assert diagnosis["trials"] == 1 and diagnosis["skipped"] == [] and diagnosis["causes"] == []
+    assert diagnosis["message"].startswith("One trial")
