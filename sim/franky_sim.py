@@ -117,17 +117,14 @@ class FrankySimServer:
         raise RuntimeError(f"franky-sim did not start listening (exit code {self.process.returncode}):\n{self.output_text()}")
 
     def output_text(self) -> str:
-        """What the server printed (its stdout and stderr), "" before it started."""
+        """What the server wrote to its log (its standard error, and its standard output after the
+        address), "" before it started."""
         return self.output.read_text(errors="replace") if self.output.exists() else ""
 
     def contact_time(self) -> float | None:
         """Robot time (s) of the first state with the arm touching the wall, None before one."""
         path = Path(f"{self.ready_file}.contact")
         return float(path.read_text()) if path.exists() else None
-
-    @property
-    def alive(self) -> bool:
-        return self.process is not None and self.process.poll() is None
 
     def stop(self) -> None:
         """Kill the server's process group (the server and anything it started) and reap it."""
