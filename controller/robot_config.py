@@ -57,15 +57,17 @@ class RobotConfig:
     def __post_init__(self):
         for kind, size, high in (("torque", 7, MAX_COLLISION_TORQUE), ("force", 6, MAX_COLLISION_FORCE)):
             lower, upper = (
-                _positive_vector(getattr(self, f"{side}_{kind}_thresholds"), size, high, f"libfranka.{side}_{kind}_thresholds")
+                validation.positive_vector(
+                    getattr(self, f"{side}_{kind}_thresholds"), size, f"libfranka.{side}_{kind}_thresholds", high
+                )
                 for side in ("lower", "upper")
             )
             if np.any(lower > upper):
                 raise BadInputError(f"libfranka.lower_{kind}_thresholds must not exceed libfranka.upper_{kind}_thresholds")
             setattr(self, f"lower_{kind}_thresholds", lower.tolist())
             setattr(self, f"upper_{kind}_thresholds", upper.tolist())
-        self.joint_impedance = _positive_vector(
-            self.joint_impedance, 7, MAX_JOINT_STIFFNESS, "libfranka.joint_impedance"
+        self.joint_impedance = validation.positive_vector(
+            self.joint_impedance, 7, "libfranka.joint_impedance", MAX_JOINT_STIFFNESS
         ).tolist()
         if self.load_mass is not None:
             validation.number_in_range(self.load_mass, 0.0, MAX_LOAD_MASS, "libfranka.load_mass", "kg")
@@ -87,9 +89,3 @@ class RobotConfig:
             "(relative difference of the mass matrices)", low_open=True,
         )
 
-
-def _positive_vector(value, size: int, high: float, what: str) -> np.ndarray:
-    vector = validation.finite_vector(value, size, what)
-    if np.any(vector <= 0.0) or np.any(vector > high):
-        raise BadInputError(f"{what} must lie in (0, {high:g}], got {vector.tolist()}")
-    return vector

@@ -63,7 +63,8 @@ class RunRequest:
         ``--robot-ip``: the robot's address (franka and panda backends).
     realtime
         ``--realtime enforce|ignore``: True requires a real-time kernel for libfranka (franka and
-        panda backends); False runs without one (a simulator of the robot).
+        panda backends); False runs without one and keeps no deadline (a simulator of the robot
+        that waits for the controller, such as franky-sim in lockstep: ``sim.franky_sim``).
     config_file
         ``--config``: a controller configuration file (.toml, .yaml); None: the default approach
         to ``posture``'s wall at ``speed``.
@@ -85,7 +86,8 @@ class RunRequest:
         ``--unpaced``: run the sim backend as fast as it goes, without wall-clock pacing.
     deadline
         Time (s) from a state read to its command after which a cycle counts as an overrun;
-        None: the control period, and no deadline offline (replay, unpaced sim). No option.
+        None: the control period, and no deadline offline (replay, unpaced sim) or without a
+        real-time kernel (``realtime`` False). No option.
     max_overruns
         Overruns in a row that trip the watchdog. No option.
     choice
@@ -270,8 +272,9 @@ def run(request: RunRequest) -> tuple[dict, LoopResult]:
     q_start = start_posture(request, model, config) if request.backend in ROBOT_BACKENDS else None
     run_log = RunLog(request.log, log_header(config)) if request.log else None
     deadline = request.deadline
-    if deadline is None and (request.backend == "replay" or request.unpaced):
-        deadline = float("inf")  # offline: the plant waits for the controller
+    if deadline is None and (request.backend == "replay" or request.unpaced or not request.realtime):
+        # offline, or a simulated robot without a real-time kernel: the plant waits for the controller
+        deadline = float("inf")
     with StopSignals() as signals:
         start_move = None if q_start is None else move_to_start(robot, model, config, q_start, signals)
         session = ImpactSession(config, model)

@@ -2,38 +2,63 @@
 the contact tool in its scene, in its own process group, for the tests and the benchmark rows
 that drive a robot through the real protocol (``pip install -e '.[test]'``).
 
-``FrankySimServer`` (the parent side) starts ``python -m impactqp.sim.franky_sim``,
-waits until its sockets listen (polling its ready file a bounded number of times, failing with
-the server's own output when it does not come up) and always stops it: ``stop`` kills the whole
-process group and reaps it; ``__exit__`` and the tests' fixture finalizers call it, so a failing
-run leaves no server behind.
+``FrankySimServer`` (the parent side) starts ``python -m impactqp.sim.franky_sim`` and reads
+the address the server prints on its standard output once its sockets listen (a blocking read:
+the line, or the end of the pipe when the server died first, then the error carries the
+server's own output). ``stop`` kills the whole process group and reaps it; ``__exit__`` and the
+tests' fixture finalizers call it, so a failing run leaves no server behind.
 
-``main`` (the server process): usage ``python -m impactqp.sim.franky_sim READY_FILE
-WALL_POINT WALL_NORMAL Q0 [TOOL_CENTRE TOOL_RADIUS]`` (vectors as comma-separated numbers; the
-tool is a sphere in the hand's frame, as the declared tool ``ToolDescription`` describes it). The
-server binds the first free loopback address and writes it to READY_FILE once it listens, and
-writes to READY_FILE.contact the robot time (s) of the first state sent after a physics step with
-a contact on the wall (the first state the contact force acted on): libfranka stamps a state with
+``main`` (the server process): usage ``USAGE`` (vectors as
+comma-separated numbers; the tool is a sphere in the hand's frame, as the declared tool
+``ToolDescription`` describes it). The server binds the first free loopback address, prints it
+on its standard output and writes it to READY_FILE once it listens, and writes to
+READY_FILE.contact the robot time (s) of the first state sent after a physics step with a
+contact on the wall (the first state the contact force acted on): libfranka stamps a state with
 its message id in ms since the connection, so the server's contact time and the client's state
-times share one clock. Files appear by rename, complete.
+times share one clock. Files appear by rename, complete. With ``--stop-after-commands N`` the
+server stops (closes its connection and exits) when the N-th motion command arrives, before it
+answers it: a connection lost at a known cycle (N > 1: a motion's first command may answer an
+older state, below).
+
+**Lockstep.** franky-sim's own loop steps its physics every millisecond of wall-clock time
+whether or not a command came, and libfranka reads the newest state, so a client delayed by a
+loaded machine skips states while the arm goes on with its last command: how far the arm moved
+between two of our cycles, and which states a run sees, would depend on the machine's load.
+Here the server steps freely (franky-sim's paced loop) only while no motion runs (connecting,
+``read_once``, the model check) and at a motion's start, until the motion's first command (the
+client's first ``readOnce`` of a motion needs a state newer than the one that started it, and
+the arm is at rest there). From the first command on, it steps once and sends the state for
+each command that answers the newest state it sent, as the ``sim`` backend's plant waits for
+the controller; a command that answers an older state (the client read its state before the
+last free step) is taken but not answered, since the client's next read finds the newest state
+waiting. So from the motion's second command on, exactly one command and one state are in
+flight: a run depends on its cycles, not on wall-clock time (only the state time between a
+motion's first cycles can jump by the free steps, at rest). ``--stop-after-commands`` counts
+every command of the run's motions.
 """
 
 from __future__ import annotations
 
+import logging
 import os
+import select
 import signal
 import subprocess
 import sys
 import time
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from impactqp.controller.model.tool_description import Sphere, ToolDescription, tool_description
 
-READY_POLLS = 1200  # 0.1 s apart: importing MuJoCo and Pinocchio is slow on a loaded machine
-POLL_INTERVAL = 0.1
+USAGE = (
+    "python -m impactqp.sim.franky_sim READY_FILE WALL_POINT WALL_NORMAL Q0 [TOOL_CENTRE TOOL_RADIUS] "
+    "[--stop-after-commands N]"
+)
+FREE_PERIOD = 1e-3  # s: franky-sim's own step period while no command is awaited
 WALL_HALF_SIZE = 1.0
 WALL_HALF_THICKNESS = 0.05
 HAND_BODY = "robot0_hand"
@@ -57,7 +82,10 @@ def write_file(path: str, text: str) -> None:
 class FrankySimServer:
     """The server process; ``hostname`` is the loopback address it serves once started."""
 
-    def __init__(self, directory, wall_point, wall_normal, q0, tool: str | ToolDescription | None = "impact_tip"):
+    def __init__(
+        self, directory, wall_point, wall_normal, q0, tool: str | ToolDescription | None = "impact_tip",
+        stop_after_commands: int | None = None,
+    ):
         self.directory = Path(directory)
         self.ready_file = self.directory / "franky-sim.ready"
         self.output = self.directory / "franky-sim.log"
@@ -67,35 +95,36 @@ class FrankySimServer:
             if not isinstance(tool.geometry, Sphere) or tool.frame != "hand" or tool.replaces_hand:
                 raise ValueError(f"the franky-sim scene takes a sphere on the Franka Hand, not the tool {tool.name!r}")
             self.args += [csv(tool.geometry.centre), repr(tool.geometry.radius)]
+        if stop_after_commands is not None:
+            self.args += ["--stop-after-commands", str(int(stop_after_commands))]
         self.process: subprocess.Popen | None = None
         self.hostname: str | None = None
 
     def start(self) -> str:
+        """Start the server and wait until it listens; its address."""
         self.directory.mkdir(parents=True, exist_ok=True)
         with open(self.output, "wb") as output:
             self.process = subprocess.Popen(
                 [sys.executable, "-m", __name__, *self.args],
-                stdout=output, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True,
+                stdout=subprocess.PIPE, stderr=output, stdin=subprocess.DEVNULL, start_new_session=True,
             )
-        for _ in range(READY_POLLS):
-            if self.ready_file.exists():
-                self.hostname = self.ready_file.read_text()
-                return self.hostname
-            if self.process.poll() is not None:
-                break
-            time.sleep(POLL_INTERVAL)
+        with self.process.stdout:
+            line = self.process.stdout.readline().decode().strip()  # "" when the server ended first
+        if line:
+            self.hostname = line
+            return line
         self.stop()
-        tail = self.output.read_text(errors="replace")[-2000:]
-        raise RuntimeError(f"franky-sim did not start listening (exit code {self.process.returncode}):\n{tail}")
+        raise RuntimeError(f"franky-sim did not start listening (exit code {self.process.returncode}):\n{self.output_text()}")
+
+    def output_text(self) -> str:
+        """What the server wrote to its log (its standard error, and its standard output after the
+        address), "" before it started."""
+        return self.output.read_text(errors="replace") if self.output.exists() else ""
 
     def contact_time(self) -> float | None:
         """Robot time (s) of the first state with the arm touching the wall, None before one."""
         path = Path(f"{self.ready_file}.contact")
         return float(path.read_text()) if path.exists() else None
-
-    @property
-    def alive(self) -> bool:
-        return self.process is not None and self.process.poll() is None
 
     def stop(self) -> None:
         """Kill the server's process group (the server and anything it started) and reap it."""
@@ -151,20 +180,100 @@ def contact_recorder(server, path: str):
     return record
 
 
+def answers_newest_state(robot_server) -> bool:
+    """Whether the client's last command answers the newest state sent (libfranka stamps a
+    command with the message id of the state it read; franky-sim counts its message ids)."""
+    newest = robot_server._FrankaServer__message_id - 1
+    return robot_server._FrankaRobotServer__current_control_command.message_id == newest
+
+
+class CommandCount:
+    """Counts the client's motion commands as franky-sim's server handles them, one by one (one
+    ``process_commands`` may handle two when the client sent both before it ran)."""
+
+    def __init__(self, robot_server):
+        self.count = 0
+        self.handle = robot_server._handle_udp_command
+        robot_server._handle_udp_command = self
+
+    def __call__(self, data: bytes) -> None:
+        self.count += 1
+        self.handle(data)
+
+
+def serve_in_lockstep(server, stop_after_commands: int | None) -> None:
+    """Run ``server`` (a franky-sim ``SimulationServer`` with one robot) until the client's
+    ``stop_after_commands``-th motion command: paced free steps (franky-sim's 1 ms period) while
+    no motion runs and at a motion's start, then, from the motion's first command until its
+    ``motion_finished`` command, one step and one state per command that answers the newest
+    state (module docstring)."""
+    robot_server = server.robot_servers[0]
+    commands = CommandCount(robot_server)
+    lockstep = False
+    while True:
+        tick = time.monotonic()
+        if lockstep:  # the command arrives on franky-sim's UDP socket, a closed connection on TCP
+            select.select([robot_server._FrankaServer__udp_socket, robot_server._tcp_socket], [], [])
+        before = commands.count
+        robot_server.process_commands()
+        command = commands.count > before
+        if stop_after_commands is not None and commands.count >= stop_after_commands:
+            logging.getLogger(__name__).info("stopping at motion command %d, before answering it", commands.count)
+            return
+        moving = robot_server.current_motion_id > 0
+        lockstep = moving and (lockstep or command)
+        if lockstep and not (command and answers_newest_state(robot_server)):
+            continue  # nothing to answer: woken without a command, or the command of an older state
+        server.sim.step()
+        robot_server.send_state()
+        if not lockstep:
+            time.sleep(max(0.0, FREE_PERIOD - (time.monotonic() - tick)))
+
+
+@dataclass(frozen=True)
+class ServerArguments:
+    """The command line of the server process (module docstring)."""
+
+    ready_file: str
+    wall_point: np.ndarray
+    wall_normal: np.ndarray
+    q0: np.ndarray
+    tool: tuple[np.ndarray, float] | None
+    stop_after_commands: int | None
+
+
+def arguments(argv: list[str]) -> ServerArguments:
+    """Parsed by hand: the vectors start with a minus sign, which ``argparse`` takes for an option."""
+    argv = list(argv)
+    stop_after = None
+    if "--stop-after-commands" in argv:
+        i = argv.index("--stop-after-commands")
+        stop_after = int(argv[i + 1])
+        del argv[i : i + 2]
+    if len(argv) not in (4, 6):
+        raise SystemExit(f"usage: {USAGE}")
+    tool = (vector(argv[4]), float(argv[5])) if len(argv) == 6 else None
+    return ServerArguments(argv[0], vector(argv[1]), vector(argv[2]), vector(argv[3]), tool, stop_after)
+
+
 def main() -> None:
     from franky_sim import SimulationServer  # optional: the test extra
     from franky_sim.mujoco_simulator import MujocoSimulator
 
-    ready_file, wall_point, wall_normal, q0 = sys.argv[1:5]
+    args = arguments(sys.argv[1:])
+    logging.basicConfig(level=logging.INFO, format="%(relativeCreated)d ms %(name)s %(levelname)s: %(message)s")
     with MujocoSimulator() as sim:
-        sim.add_robot(initial_q=tuple(vector(q0)))
-        add_wall(sim, vector(wall_point), vector(wall_normal))
-        if len(sys.argv) > 5:
-            add_tool(sim, vector(sys.argv[5]), float(sys.argv[6]))
+        sim.add_robot(initial_q=tuple(args.q0))
+        add_wall(sim, args.wall_point, args.wall_normal)
+        if args.tool is not None:
+            add_tool(sim, *args.tool)
         with SimulationServer(sim) as server:
-            sim.register_post_step_callback(contact_recorder(server, ready_file + ".contact"))
-            write_file(ready_file, server.robot_servers[0].hostname)
-            server.run_forever()
+            sim.register_post_step_callback(contact_recorder(server, args.ready_file + ".contact"))
+            hostname = server.robot_servers[0].hostname
+            write_file(args.ready_file, hostname)
+            print(hostname, flush=True)
+            os.dup2(sys.stderr.fileno(), sys.stdout.fileno())  # anything printed later goes to the log
+            serve_in_lockstep(server, args.stop_after_commands)
 
 
 if __name__ == "__main__":

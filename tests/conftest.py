@@ -40,6 +40,17 @@ def unit_vectors():
     )
 
 
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """A failed test that ran franky-sim servers (``item.franky_sim_servers``, set by the
+    ``franky_sim`` fixture of ``test_franky_sim.py``) shows each server's own output."""
+    outcome = yield
+    report = outcome.get_result()
+    if report.failed:
+        for server in getattr(item, "franky_sim_servers", ()):
+            report.sections.append((f"franky-sim server output ({server.output})", server.output_text()))
+
+
 class ForwardingRobot(RobotInterface):
     """A robot interface that forwards every call to ``robot`` (a real backend); a test
     subclass overrides ``read`` to inject what it needs at a given cycle."""

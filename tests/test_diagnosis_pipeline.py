@@ -1,9 +1,12 @@
 """Hide an effect in a simulated dataset; the diagnosis must find it (sim/diagnosis/pipeline.py)."""
 
+import json
+
 import numpy as np
 import pytest
 from diagnosis_checks import POSTURES, SPEEDS, check_contract, tolerance
 
+from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.validation import BadInputError
 from impactqp.sim.causes import PLANT_CAUSE_NAMES, FrictionCause, cause_named, realistic_hidden_effect
 from impactqp.sim.diagnosis import EXPLAINED_GAIN, diagnose
@@ -33,11 +36,32 @@ def test_hidden_effect_is_found(tmp_path, cause):
     check_contract(result)
 
 
-def test_a_single_trial_or_twice_the_same_cause_is_refused(tmp_path):
-    """The diagnosis needs two usable trials (bad input) and distinct candidate names (a bug)."""
-    generate_dataset(tmp_path / "one", DatasetRequest(postures=["elbow_up"], speeds=[0.1]))
-    with pytest.raises(BadInputError, match="only 1 usable trial"):
-        diagnose(tmp_path / "one")
+def test_a_single_trial_is_replayed_without_selecting_a_cause(tmp_path):
+    """One trial (one ``impactqp run`` on a robot): the nominal replay and the predictors, no
+    cause, since the selection holds trials out. A trial of the nominal plant fits the nominal
+    simulation within the noise; one with an effect hidden does not."""
+    generate_dataset(tmp_path / "nominal", DatasetRequest(postures=["elbow_up"], speeds=[0.1]))
+    result = diagnose(tmp_path / "nominal").summary()
+    assert result["trials"] == 1 and result["skipped"] == []
+    assert result["causes"] == [] and not result["explained"] and result["parameters"] == {}
+    assert result["fit"] == result["nominal_fit"] and result["nominal_fit"]["fits_noise"]
+    assert result["extended_error"] == result["baseline_error"] and result["gain"] == 0.0
+    assert set(result["predictors"]) == set(METHODS)
+    assert result["message"].startswith("One trial") and "matches it within the noise" in result["message"]
+    check_contract(result)
+    hidden = PlantParameters(sensor_velocity_scale=0.8)  # the encoders read 20 % slow
+    generate_dataset(tmp_path / "hidden", DatasetRequest(plant=hidden, postures=["elbow_up"], speeds=[0.1]))
+    result = diagnose(tmp_path / "hidden").summary()
+    assert not result["nominal_fit"]["fits_noise"] and "does not match it" in result["message"]
+
+
+def test_no_usable_trial_or_twice_the_same_cause_is_refused(tmp_path):
+    """The diagnosis needs a usable trial (bad input) and distinct candidate names (a bug)."""
+    generate_dataset(tmp_path / "none", DatasetRequest(postures=["elbow_up"], speeds=[0.1]))
+    trial = tmp_path / "none" / json.loads((tmp_path / "none" / "dataset.json").read_text())["trials"][0]["file"]
+    trial.write_text("".join(trial.read_text().splitlines(keepends=True)[:20]))  # cut before the impact
+    with pytest.raises(BadInputError, match="no usable trial"):
+        diagnose(tmp_path / "none")
     generate_dataset(tmp_path / "two", DatasetRequest(postures=["elbow_up"], speeds=[0.1], repeats=2))
     with pytest.raises(ValueError, match="distinct names"):
         diagnose(tmp_path / "two", causes=[FrictionCause(), FrictionCause()])

@@ -2,9 +2,11 @@
 (``pylibfranka``) against a franky-sim server (MuJoCo FR3 behind libfranka's TCP/UDP protocol)
 with a wall and the contact tool in its scene, in its own process group.
 
-The server runs slower than real time on a loaded machine, so every bound here counts control
-cycles, never wall time, and nothing about timing is asserted. The fixture owns the server
-processes and kills them in its finalizer, also when a test fails.
+The server runs in lockstep with the client during a motion (one physics step per command,
+``sim.franky_sim``), so a loaded machine slows a run but does not change it: every bound here
+counts control cycles, never wall time, and nothing about timing is asserted. The fixture owns
+the server processes and kills them in its finalizer, also when a test fails; a failed test
+shows the servers' output.
 """
 
 import json
@@ -12,9 +14,9 @@ import json
 import numpy as np
 import pytest
 
-from conftest import ForwardingRobot
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.config import ControllerConfig
+from impactqp.controller.measured.dataset import read_dataset
 from impactqp.controller.measured.impact import WINDOW_AFTER
 from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.robot import RobotModel
@@ -26,7 +28,7 @@ from impactqp.controller.runtime.loop import STOPPING, ControlLoop
 from impactqp.controller.runtime.run_log import RunLog
 from impactqp.controller.runtime.session import OBSERVER, ImpactSession
 from impactqp.scenarios.cli import main
-from impactqp.scenarios.run import RunRequest, log_header, start_posture, write_log
+from impactqp.scenarios.run import IMPACT_LEAD, RunRequest, log_header, start_posture, write_log
 from impactqp.sim.franky_sim import FrankySimServer
 
 pytest.importorskip("pylibfranka", reason="pylibfranka is not installed: pip install -e '.[franka]'")
@@ -38,16 +40,21 @@ START_DISTANCE = 0.05
 SPEED = 0.15
 WALL_TOLERANCE = 0.005  # m: the tool's predicted contact point at the detection vs the wall
 WRIST_DRIFT = 0.05  # rad: the posture task holds the wrist near the start posture
+LOST_AT = 150  # the motion command at which the server stops
 AWAY = 0.25  # m: the server's arm starts facing the wall this far from it, the run moves it closer
 
 
 @pytest.fixture
-def franky_sim(tmp_path):
-    """``start(q0)`` -> a listening server with the posture's wall; every one is killed at teardown."""
-    servers = []
+def franky_sim(tmp_path, request):
+    """``start(q0)`` -> a listening server with the posture's wall; every one is killed at
+    teardown, and a failed test shows their output (``conftest.pytest_runtest_makereport``)."""
+    servers = request.node.franky_sim_servers = []
 
-    def start(q0):
-        server = FrankySimServer(tmp_path / f"server{len(servers)}", POSTURE.surface.point, POSTURE.surface.normal, q0)
+    def start(q0, stop_after_commands=None):
+        server = FrankySimServer(
+            tmp_path / f"server{len(servers)}", POSTURE.surface.point, POSTURE.surface.normal, q0,
+            stop_after_commands=stop_after_commands,
+        )
         servers.append(server)
         server.start()
         return server
@@ -64,6 +71,7 @@ def model():
 
 def session_loop(robot, model):
     config = ControllerConfig.approach(POSTURE.surface, SPEED, posture_weight=0.0)
+    config.robot, config.tool = ROBOT, "impact_tip"  # the log's manifest names the robot driven
     session = ImpactSession(config, model)
     return config, ControlLoop(robot, session, CommandFilter.for_robot(model, config.dt), deadline=float("inf"))
 
@@ -95,42 +103,18 @@ def test_the_session_detects_the_wall_retracts_and_logs_through_the_franka_proto
     assert main(["dataset", "validate", str(tmp_path / "log")]) == 0, capsys.readouterr().err
 
 
-class ServerDiesAt(ForwardingRobot):
-    """Kills the server before the read of cycle ``cycle``: the connection is lost mid-session."""
-
-    def __init__(self, robot, server, cycle):
-        super().__init__(robot)
-        self.server, self.cycle, self.reads = server, cycle, 0
-
-    def read(self):
-        self.reads += 1
-        if self.reads == self.cycle:
-            self.server.stop()
-        return self.robot.read()
-
-    def start(self):
-        self.reads += 1
-        return self.robot.start()
-
-    def write(self, dq_cmd):
-        self.robot.write(dq_cmd)
-
-    def stop(self):
-        self.robot.stop()
-
-
 def test_a_lost_connection_ends_the_run_in_one_line_and_keeps_the_log(franky_sim, model):
     q0 = approach_start(model, POSTURE.q, POSTURE.surface, START_DISTANCE)
-    server = franky_sim(q0)
-    robot = ServerDiesAt(FrankaRobot.connect(server.hostname, realtime=False, model=model), server, cycle=150)
+    server = franky_sim(q0, stop_after_commands=LOST_AT)  # the server stops when command LOST_AT arrives
+    robot = FrankaRobot.connect(server.hostname, realtime=False, model=model)
     _, loop = session_loop(robot, model)
     result = loop.run(1.0)
-    assert not server.alive and loop.robot_failed
+    assert loop.robot_failed
     assert result.watchdog_trips == 1 and result.watchdog_reason.startswith("robot error: ")
     assert "\n" not in result.watchdog_reason
-    # every cycle before the lost read is logged, then the lost read's cycle as NaN values
-    # (no measurement) with its braking command, which the dead connection refused
-    assert result.cycles == 150 - 1
+    # every cycle up to the unanswered command is logged with its state, then the read that got
+    # no state as NaN values (no measurement) with its braking command, which nothing received
+    assert result.cycles == LOST_AT + 1
     assert np.all(np.isfinite(result.log.q[:-1])) and np.all(np.isnan(result.log.q[-1]))
     assert np.all(np.diff(result.log.t) > 0.0)
 
@@ -155,6 +139,7 @@ def test_impactqp_run_moves_to_the_start_then_runs_the_session_against_the_serve
     out, err = capsys.readouterr()
     assert code == 0, err
     report = json.loads(out)
+    assert report["overruns"] == 0 and report["robot_stop_reason"] == ""  # --realtime ignore: no deadline
     assert report["watchdog_trips"] == 0, report["watchdog_reason"]
     assert report["impact"]["detected"] and report["impact"]["residual"] == OBSERVER
     assert report["phase"] == STOPPING
@@ -172,3 +157,15 @@ def test_impactqp_run_moves_to_the_start_then_runs_the_session_against_the_serve
     q_end = log[-1, 1:8]
     assert np.all(np.abs(q_end - q_start)[[4, 6]] < WRIST_DRIFT)
     assert main(["dataset", "validate", str(tmp_path / "log")]) == 0, capsys.readouterr().out
+    # one session = one trial of the FR3 with the declared tool, from at most IMPACT_LEAD before the
+    # detection, without impact_time (no force log: the offline rule finds the contact)
+    dataset = read_dataset(tmp_path / "log")
+    assert dataset.header.choice.same_as(RobotChoice.of(ROBOT, "impact_tip")) and len(dataset.trials) == 1
+    trial = dataset.trials[0]
+    assert trial.entry.impact_time is None and not trial.log.has_force
+    assert report["impact"]["time"] - IMPACT_LEAD <= trial.log.t[0] < report["impact"]["time"]
+    capsys.readouterr()
+    assert main(["diagnose", str(tmp_path / "log"), "--json"]) == 0, capsys.readouterr().err
+    diagnosis = json.loads(capsys.readouterr().out)
+    assert diagnosis["trials"] == 1 and diagnosis["skipped"] == [] and diagnosis["causes"] == []
+    assert diagnosis["message"].startswith("One trial")

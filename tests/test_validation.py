@@ -119,6 +119,15 @@ def test_positive_vector_needs_every_entry_finite_and_above_zero(value):
             positive_vector(value, 3, "dq_max")
 
 
+@given(arrays(np.float64, 3, elements=any_floats), st.floats(1e-3, 1e3))
+def test_a_bounded_positive_vector_has_every_entry_in_zero_to_high(value, high):
+    if np.all(np.isfinite(value) & (value > 0.0) & (value <= high)):
+        np.testing.assert_array_equal(positive_vector(value, 3, "the stiffness", high), value)
+    else:
+        with pytest.raises(BadInputError, match=r"the stiffness must (lie in \(0, |be )"):
+            positive_vector(value, 3, "the stiffness", high)
+
+
 @pytest.mark.parametrize("bad", [[True, 0.0, 0.0], (0.0, np.bool_(False), 1.0), np.array([True, False, True]), True])
 def test_a_boolean_is_never_an_entry_of_a_vector(bad):
     with pytest.raises(BadInputError, match="must be a vector of numbers"):

@@ -88,9 +88,12 @@ def vector_in_range(value, size: int, low: float, high: float, what: str, unit: 
     return array
 
 
-def positive_vector(value, size: int, what: str) -> np.ndarray:
-    """``value`` as :func:`finite_vector` of ``size`` entries, each > 0 (limits, bounds)."""
+def positive_vector(value, size: int, what: str, high: float | None = None) -> np.ndarray:
+    """``value`` as :func:`finite_vector` of ``size`` entries, each > 0 (limits, bounds) and, when
+    ``high`` is given, each in (0, high] (a stiffness, a threshold)."""
     array = finite_vector(value, size, what)
+    if high is not None and not np.all((array > 0.0) & (array <= high)):
+        raise BadInputError(f"{what} must lie in (0, {high:g}], got {array.tolist()}")
     if not np.all(array > 0.0):
         raise BadInputError(f"{what} must be > 0, got {array.tolist()}")
     return array

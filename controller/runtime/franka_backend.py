@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.controller.model.robot import NQ, PandaModel, RobotModel
+from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 
@@ -58,22 +58,16 @@ class FrankaRobot(LibfrankaRobot):
     ROBOT = "fr3"  # the robot this backend drives (robot_description.ROBOTS)
 
     def __init__(self, robot, pylibfranka, settings: RobotConfig | None = None):
-        settings = RobotConfig() if settings is None else settings
         super().__init__(robot, franka_errors(pylibfranka), (pylibfranka.ControlException,), settings)
         self.franka = pylibfranka
         self.control = None
 
-    @classmethod
-    def connect(
-        cls, ip: str, settings: RobotConfig | None = None, realtime: bool = True, model: PandaModel | None = None
-    ) -> FrankaRobot:
-        """The robot at ``ip`` with the ``[libfranka]`` settings and the load of ``model``'s tool
-        (default: the FR3 with the default tool) applied; bad input when it does not answer or
-        refuses them. ``realtime=False`` lets libfranka run without a real-time kernel."""
-        franka = import_pylibfranka()
-        config = franka.RealtimeConfig.kEnforce if realtime else franka.RealtimeConfig.kIgnore
+    bindings = staticmethod(import_pylibfranka)
+
+    @staticmethod
+    def open(franka, ip: str, config, realtime: bool):
         try:
-            robot = franka.Robot(ip, config)
+            return franka.Robot(ip, config)
         except franka.NetworkException as error:
             raise BadInputError(f"no robot answers at {ip}: {error}") from None
         except franka.RealtimeException as error:
@@ -82,9 +76,6 @@ class FrankaRobot(LibfrankaRobot):
             ) from None
         except franka_errors(franka) as error:
             raise BadInputError(f"the robot at {ip} refused the connection: {error}") from None
-        connected = cls(robot, franka, settings)
-        connected.configure(ip, RobotModel(cls.ROBOT) if model is None else model)
-        return connected
 
     def read(self) -> RobotState:
         if self.control is None:

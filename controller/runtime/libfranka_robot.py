@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.robot import NQ, PandaModel, RobotModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 
@@ -91,19 +91,47 @@ def missed_packets(read_duration: float, period: float) -> int:
 class LibfrankaRobot(RobotInterface):
     """A connected libfranka ``Robot``: ``robot`` (the bindings' object), ``errors`` (the
     bindings' exception classes), ``reflex_errors`` (those a motion aborted by a reflex raises)
-    and the ``[libfranka]`` settings."""
+    and the ``[libfranka]`` settings (None: the defaults). A backend names its robot (``ROBOT``),
+    imports its bindings (``bindings``) and opens their ``Robot`` (``open``); ``connect`` is
+    the same for both."""
 
-    def __init__(self, robot, errors: tuple[type[BaseException], ...], reflex_errors: tuple, settings: RobotConfig):
+    ROBOT = ""  # the robot the backend drives (robot_description.ROBOTS)
+
+    def __init__(self, robot, errors: tuple[type[BaseException], ...], reflex_errors: tuple, settings: RobotConfig | None):
         self.robot = robot
         self.errors = errors
         self.reflex_errors = reflex_errors
-        self.settings = settings
+        self.settings = RobotConfig() if settings is None else settings
         self.success_rate = 1.0
         self.missed_packets = 0
         self.reflex: list[str] = []
         self.recovered = False
         self.model_difference: float | None = None
         self.load: Load | None = None
+
+    @classmethod
+    def connect(
+        cls, ip: str, settings: RobotConfig | None = None, realtime: bool = True, model: PandaModel | None = None
+    ) -> LibfrankaRobot:
+        """The robot at ``ip`` with the ``[libfranka]`` settings and the load of ``model``'s tool
+        (default: the backend's robot with the default tool) applied; bad input when it does not
+        answer or refuses them. ``realtime=False`` lets libfranka run without a real-time kernel."""
+        bindings = cls.bindings()
+        config = bindings.RealtimeConfig.kEnforce if realtime else bindings.RealtimeConfig.kIgnore
+        connected = cls(cls.open(bindings, ip, config, realtime), bindings, settings)
+        connected.configure(ip, RobotModel(cls.ROBOT) if model is None else model)
+        return connected
+
+    @staticmethod
+    def bindings():
+        """The backend's libfranka bindings (an optional dependency); bad input when missing."""
+        raise NotImplementedError
+
+    @staticmethod
+    def open(bindings, ip: str, config, realtime: bool):
+        """The bindings' ``Robot`` at ``ip`` with the ``RealtimeConfig`` ``config``; bad input,
+        in one line, when it cannot be opened."""
+        raise NotImplementedError
 
     def configure(self, ip: str, model: PandaModel) -> None:
         """Set the collision reflex and the joint impedance of ``settings`` and the load of

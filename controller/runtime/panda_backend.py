@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.controller.model.robot import PandaModel, RobotModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 
@@ -45,19 +44,13 @@ class PandaRobot(LibfrankaRobot):
     drives_cycles = True
 
     def __init__(self, robot, libfranka, settings: RobotConfig | None = None):
-        settings = RobotConfig() if settings is None else settings
         super().__init__(robot, LIBFRANKA_ERRORS, LIBFRANKA_ERRORS, settings)
         self.libfranka = libfranka
 
-    @classmethod
-    def connect(
-        cls, ip: str, settings: RobotConfig | None = None, realtime: bool = True, model: PandaModel | None = None
-    ) -> PandaRobot:
-        """The Panda at ``ip`` with the ``[libfranka]`` settings and the load of ``model``'s tool
-        (default: the Panda with the default tool) applied; bad input when it does not answer or
-        refuses them."""
-        libfranka = import_libfranka()
-        config = libfranka.RealtimeConfig.kEnforce if realtime else libfranka.RealtimeConfig.kIgnore
+    bindings = staticmethod(import_libfranka)
+
+    @staticmethod
+    def open(libfranka, ip: str, config, realtime: bool):
         try:
             robot = libfranka.Robot(ip, config)
         except LIBFRANKA_ERRORS as error:
@@ -65,9 +58,7 @@ class PandaRobot(LibfrankaRobot):
         if realtime and not libfranka.has_realtime_kernel():  # libfranka 0.9 would refuse at the motion's start
             raise BadInputError("real-time scheduling is not available (no real-time kernel); see docs/robot-loop.md "
                                 "or use --realtime ignore")
-        connected = cls(robot, libfranka, settings)
-        connected.configure(ip, RobotModel(cls.ROBOT) if model is None else model)
-        return connected
+        return robot
 
     def read(self):
         try:

@@ -8,8 +8,9 @@ online detection, over a short campaign of unpaced simulated approaches (goal <=
 ``loop.franka_sim.p99``: cycle time (us, in our process) of ``impactqp run --backend franka``
 through pylibfranka and the real network protocol against franky-sim (an FR3 in MuJoCo, with the
 wall and the tool in its scene); ``impact.detection_latency.franka_sim``: ms from the server's
-first wall contact to our detection in that run, both on the states' clock. They need the
-``franka`` and ``test`` extras and are left out without them.
+first wall contact to our detection in that run, both on the states' clock (the server runs in
+lockstep with the loop, ``sim.franky_sim``: 0 is a detection at the first state after the
+contact). They need the ``franka`` and ``test`` extras and are left out without them.
 The overrun watchdog is off in these runs (they measure, they do not protect).
 """
 

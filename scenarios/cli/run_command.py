@@ -16,7 +16,7 @@ from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED, EXIT_ROBOT_WOULD
 @click.option("--robot-ip", help="The robot's address (franka and panda backends).")
 @click.option(
     "--realtime", type=click.Choice(["enforce", "ignore"]), default="enforce", show_default=True,
-    help="franka and panda backends: require a real-time kernel (enforce) or run without one (ignore: a simulator).",
+    help="franka and panda backends: require a real-time kernel (enforce) or run without one and keep no cycle deadline (ignore: a simulator).",
 )
 @click.option("--config", "config_file", help="Controller configuration (.toml, .yaml); default: approach at --speed.")
 @click.option("--plant", "plant_file", help="JSON plant-parameter overrides (sim backend).")

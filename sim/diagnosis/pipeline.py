@@ -40,11 +40,8 @@ def diagnose(
     nominal = nominal or PlantParameters()
     step(STEPS[0])
     trials, skipped, setting = load_trials(directory)
-    if len(trials) < 2:
-        raise BadInputError(
-            f"{directory}: only {len(trials)} usable trial(s); the diagnosis needs at least 2 "
-            f"(skipped: {skipped})"
-        )
+    if not trials:
+        raise BadInputError(f"{directory}: no usable trial; the diagnosis needs at least 1 (skipped: {skipped})")
     causes = causes if causes is not None else default_causes(setting.surface.friction, setting.choice.tool)
     names = [c.name for c in causes]
     if len(set(names)) != len(names):
@@ -54,6 +51,8 @@ def diagnose(
     nominal_features = replay_all(setting, nominal, trials)
     nominal_jumps = np.array([f.detected_jump for f in nominal_features])
     baseline_errors = jump_errors(nominal_features, trials)
+    if len(trials) == 1:
+        return nominal_diagnosis(trials, skipped, setting, nominal, nominal_features)
     baseline = (trial_errors(nominal_features, trials), baseline_errors)
     step(STEPS[2])
     selection = select_causes(causes, nominal, setting, trials, baseline, jobs)
@@ -102,4 +101,22 @@ def diagnose(
         extended_plant=extended_plant,
         surface=setting.surface,
         choice=setting.choice,
+    )
+
+
+def nominal_diagnosis(trials, skipped, setting, nominal: PlantParameters, nominal_features) -> Diagnosis:
+    """The diagnosis of a single trial (one ``impactqp run`` on a robot): its nominal replay, its
+    fit against the noise and the predictors' errors, and no cause: their selection holds trials
+    out (cross-validation), which takes two."""
+    jumps = np.array([f.detected_jump for f in nominal_features])
+    errors = jump_errors(nominal_features, trials)
+    fit = fit_report(nominal_features, trials)
+    predictors, predictors_measured_impulse, predictions = predictor_errors(trials, setting)
+    return Diagnosis(
+        trials=trials, skipped=skipped, nominal_jumps=jumps, extended_jumps=jumps, baseline_errors=errors,
+        candidates=[], cause="", explained=False, parameters={}, predictors=predictors,
+        predictors_measured_impulse=predictors_measured_impulse, predictions=predictions,
+        analysis=error_analysis(trials, jumps), causes=[], steps=[], intervals={}, parameter_intervals=[],
+        open_sides=[], extended_error=float(np.mean(errors)), gain_over_floor=0.0, fit=fit, nominal_fit=fit,
+        extended_plant=nominal, surface=setting.surface, choice=setting.choice,
     )

@@ -78,6 +78,8 @@ class Diagnosis:
     def message(self) -> str:
         baseline = float(np.mean(self.baseline_errors))
         gain = relative_gain(self.extended_error, baseline)
+        if len(self.trials) == 1:
+            return self.single_trial_message()
         if not self.explained:
             return self.unexplained_message()
         named = " + ".join(f"'{c}'" for c in self.causes)
@@ -96,6 +98,15 @@ class Diagnosis:
             )
         return text
 
+
+    def single_trial_message(self) -> str:
+        """Plain words for one trial: how the nominal simulation fits it; no cause is selected."""
+        verdict = "matches it within the noise" if self.nominal_fit["fits_noise"] else "does not match it"
+        return (
+            f"One trial: the nominal simulation, replayed with its commands, {verdict} "
+            f"({fit_text(self.nominal_fit)}; average error (26) {float(np.mean(self.baseline_errors)):.4f} rad/s). "
+            "No cause is selected: the selection holds trials out, which takes at least 2 trials."
+        )
 
     def unexplained_message(self) -> str:
         """Plain words when nothing explains the gap: the data fit the nominal within the noise,
