@@ -58,6 +58,7 @@ USAGE = (
     "python -m impactqp.sim.franky_sim READY_FILE WALL_POINT WALL_NORMAL Q0 [TOOL_CENTRE TOOL_RADIUS] "
     "[--stop-after-commands N]"
 )
+START_GUARD = 600.0  # s: the longest wait for a server to listen before it counts as hung
 FREE_PERIOD = 1e-3  # s: franky-sim's own step period while no command is awaited
 WALL_HALF_SIZE = 1.0
 WALL_HALF_THICKNESS = 0.05
@@ -109,12 +110,14 @@ class FrankySimServer:
                 stdout=subprocess.PIPE, stderr=output, stdin=subprocess.DEVNULL, start_new_session=True,
             )
         with self.process.stdout:
-            line = self.process.stdout.readline().decode().strip()  # "" when the server ended first
+            # a hang guard only (a server that neither listens nor dies), far above any start-up
+            ready, _, _ = select.select([self.process.stdout], [], [], START_GUARD)
+            line = self.process.stdout.readline().decode().strip() if ready else ""  # "": it ended first
         if line:
             self.hostname = line
             return line
         self.stop()
-        raise RuntimeError(f"franky-sim did not start listening (exit code {self.process.returncode}):\n{self.output_text()}")
+        raise RuntimeError(f"franky-sim did not start listening (exit code {self.process.returncode}, or hung):\n{self.output_text()}")
 
     def output_text(self) -> str:
         """What the server wrote to its log (its standard error, and its standard output after the
