@@ -73,9 +73,13 @@ class ImpactTrial:
     foot_lift: float  # largest vertical foot displacement (m)
     fell: bool
     max_velocity_ratio: float  # largest |dq_i| / dq_max_i of the 29 joints after the settling
+    max_velocity_joint: str  # the joint where it occurs
     failures: tuple  # every failure seen (FAILURES)
     first_failure: str  # the failure seen first (FAILURES), "" when none
     failure_time: float  # s from the first wall contact to that failure (< 0: before it; nan: none)
+    wall_x: float  # m: the wall plane's position
+    q_log: np.ndarray  # (steps, nq) Pinocchio configurations at the control rate
+    contact_index: int  # the control step of the first wall contact
 
     @property
     def feasible(self) -> bool:
@@ -164,7 +168,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     if first_contact is None:
         raise RuntimeError(f"the hand never reached the wall (stance {stance.name}, {speed} m/s)")
     log = (states, np.array(forces), np.array(floor_impulses), np.array(feet))
-    return _evaluate(robot, stance, speed, log, first_contact, model.opt.timestep)
+    return _evaluate(robot, stance, speed, log, first_contact, scene.wall_x)
 
 
 def _contact_forces(scene) -> tuple[np.ndarray, np.ndarray]:
@@ -184,7 +188,7 @@ def _contact_forces(scene) -> tuple[np.ndarray, np.ndarray]:
     return wall, floor
 
 
-def _evaluate(robot, stance, speed, log, first, timestep) -> ImpactTrial:
+def _evaluate(robot, stance, speed, log, first, wall_x) -> ImpactTrial:
     """Measured and predicted jumps of a simulated trial (module docstring)."""
     states, forces, floor_impulses, feet = log
     window = int(round(WINDOW / CONTROL_PERIOD))
@@ -212,7 +216,8 @@ def _evaluate(robot, stance, speed, log, first, timestep) -> ImpactTrial:
     moved = feet[start:] - feet[start]
     base_height = np.array([s[0][2] for s in states])
     base_up = np.array([pin.Quaternion(s[0][3:7]).matrix()[2, 2] for s in states])
-    ratio = np.array([np.max(np.abs(s[1][6:]) / robot.dq_max) for s in states[start:]])
+    ratios = np.array([np.abs(s[1][6:]) / robot.dq_max for s in states[start:]])
+    ratio = ratios.max(axis=1)
     fell = (base_height < 0.5 * base_height[0]) | (base_up < np.cos(np.radians(45.0)))
     failing = {
         "joint_velocity": ratio > 1.0,
@@ -230,6 +235,8 @@ def _evaluate(robot, stance, speed, log, first, timestep) -> ImpactTrial:
         foot_slip=float(np.linalg.norm(moved[..., :2], axis=-1).max()),
         foot_lift=float(np.abs(moved[..., 2]).max()),
         fell=bool(np.any(fell)), max_velocity_ratio=float(ratio.max()),
+        max_velocity_joint=robot.joint_names[int(np.argmax(ratios.max(axis=0)))],
         failures=tuple(name for name in FAILURES if name in first_step), first_failure=failure,
         failure_time=(first_step[failure] + start - first) * CONTROL_PERIOD if failure else float("nan"),
+        wall_x=wall_x, q_log=np.array([s[0] for s in states]), contact_index=first,
     )

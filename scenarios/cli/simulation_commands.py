@@ -24,6 +24,7 @@ from impactqp.controller.model.validation import BadInputError, positive, tangen
 from impactqp.controller.model.validation import approach_speed, restitution as restitution_coefficient
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.scenarios.cli.arguments import (
+    HumanoidChoice,
     check_jobs,
     emit_json,
     load_plant,
@@ -76,13 +77,29 @@ plant_option = click.option("--plant", "plant_file", help="JSON file of plant-pa
 @click.option("--out", "out_dir", help="Add the trial to the dataset in this directory (controller.measured.dataset format).")
 @click.option("--video", "video_file", help="Render the impact to this animated GIF (needs an offscreen GL backend).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
-@robot_options
+@robot_options(humanoid=True)
 def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, **trial):
     """One approach-and-impact trial: the QP controller at 1 kHz drives the MuJoCo robot.
 
     The tool starts at rest 5 cm in front of the wall; the controller accelerates it towards the
     reference velocity (capped by the jump-aware constraints when they are on) until it hits.
+    With --robot g1: the standing G1 (a stance) hits the wall with its right hand, kinematic
+    control, no QP (docs/floating-base.md).
     """
+    if isinstance(choice, HumanoidChoice):
+        from impactqp.scenarios.cli.humanoid_commands import g1_simulate
+
+        report = g1_simulate(posture_name, speed, trial["video_file"])
+        if as_json:
+            emit_json(report)
+            return
+        click.echo(f"{posture_name} (g1): commanded {speed} m/s, contact speed {report['contact_speed']:.4f} m/s, "
+                   f"impulse {np.round(report['impulse'], 4).tolist()} N s")
+        click.echo(f"errors (26): " + ", ".join(f"{m} {e:.4f}" for m, e in report["errors"].items()))
+        click.echo(f"foot slip {1e3 * report['foot_slip']:.2f} mm, lift {1e3 * report['foot_lift']:.2f} mm, "
+                   f"fell: {report['fell']}, max |dq|/dq_max {report['max_velocity_ratio']:.3f}, "
+                   f"failed first: {report['first_failure'] or '-'}")
+        return
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.campaign import write_trial
     from impactqp.sim.runner import dataset_header
@@ -182,9 +199,20 @@ def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, 
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
 @click.option("--out", "out_dir", default="impactqp-campaign", show_default=True, help="Output directory.")
 @click.option("--json", "as_json", is_flag=True, help="Print Table I as JSON (no progress bar).")
-@robot_options
+@robot_options(humanoid=True)
 def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, as_json, choice):
-    """The paper's campaign in simulation: dataset, Table I and figures in --out."""
+    """The paper's campaign in simulation: dataset, Table I and figures in --out (with --robot
+    g1: stances x speeds of the standing G1, table1.json and table1.md in --out)."""
+    if isinstance(choice, HumanoidChoice):
+        from impactqp.scenarios.cli.humanoid_commands import g1_campaign
+
+        table, text = g1_campaign(postures_text, speeds_text, jobs, out_dir)
+        if as_json:
+            emit_json(table)
+            return
+        click.echo(text)
+        click.echo(f"table1.json and table1.md written to {out_dir}")
+        return
     table = run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, not as_json, choice)
     if as_json:
         emit_json(table.to_json())
@@ -271,9 +299,19 @@ def max_speed_text(report) -> str:
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
 @click.option("--tolerance", type=float, default=0.005, show_default=True, help="Bisection tolerance (m/s).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (no progress bar).")
-@robot_options
+@robot_options(humanoid=True)
 def max_speed(posture_name, plant_file, as_json, choice, **search):
-    """Highest feasible contact speed: closed form, reached by the QP, and simulated."""
+    """Highest feasible contact speed: closed form, reached by the QP, and simulated (with
+    --robot g1: closed form and simulated bisection of a stance, no QP)."""
+    if isinstance(choice, HumanoidChoice):
+        from impactqp.scenarios.cli.humanoid_commands import g1_max_speed, max_speed_text as g1_text
+
+        report = g1_max_speed(posture_name, search)
+        if as_json:
+            emit_json(report)
+            return
+        click.echo(g1_text(report))
+        return
     request = MaxSpeedRequest(posture=posture_name, plant=plant_file, choice=choice, **search)
     report = run_max_speed(request, not as_json)
     if as_json:
