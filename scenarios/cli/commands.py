@@ -70,9 +70,10 @@ def predict(method, as_json, choice, **impact):
 
     methods = METHODS if method == "all" else (method,)
     if isinstance(choice, HumanoidChoice):
+        # lazy: the command line loads what a command needs when it runs
         from impactqp.scenarios.cli.humanoid_commands import g1_predict
 
-        report = g1_predict(impact.pop("posture_name"), impact.pop("q_text"), impact, methods)
+        report = g1_predict(impact.pop("posture_name"), impact.pop("q_text"), impact, None if method == "all" else methods)
         if as_json:
             emit_json(report)
             return

@@ -47,8 +47,8 @@ def stance_names(text: str | None) -> tuple[str, ...]:
 
 
 def g1_predict(posture: str | None, q_text: str | None, impact: dict, methods) -> dict:
-    """The ``predict`` report of the G1 (feet held): per method the jump dq_jump (35: base twist,
-    29 joints), impulse, W (gm, crb), CoM jump and feet wrenches."""
+    """The ``predict`` report of the G1 (feet held): per method (``methods``; None: classical, gm,
+    crb) the jump dq_jump (35: base twist, 29 joints), impulse, CoM jump and feet wrenches."""
     reject_options(["tool"])
     robot = FloatingBaseModel()
     if (posture is None) == (q_text is None):
@@ -66,7 +66,7 @@ def g1_predict(posture: str | None, q_text: str | None, impact: dict, methods) -
         "pre_impact_velocity": v_minus.tolist(), "restitution": c_r, "cond_M": float(np.linalg.cond(terms.M)),
         "methods": {},
     }
-    for method in methods:
+    for method in METHODS if methods is None else methods:
         jump = predict(terms, method, normal, v_minus, c_r)
         report["methods"][method] = {
             "dq_jump": jump.dv.tolist(), "impulse": jump.impulse.tolist(), "com_jump": jump.com_jump.tolist(),
@@ -112,6 +112,17 @@ def g1_simulate(posture: str, speed: float, video_file: str | None) -> dict:
     if video_file is not None:
         render_humanoid_gif(robot, trial, video_file)
     return trial_json(trial)
+
+
+def simulate_text(report: dict) -> str:
+    """A G1 trial's report as text."""
+    return "\n".join([
+        f"{report['posture']} (g1): commanded {report['reference_speed']} m/s, contact speed "
+        f"{report['contact_speed']:.4f} m/s, impulse {np.round(report['impulse'], 4).tolist()} N s",
+        "errors (26): " + ", ".join(f"{m} {e:.4f}" for m, e in report["errors"].items()),
+        f"foot slip {1e3 * report['foot_slip']:.2f} mm, lift {1e3 * report['foot_lift']:.2f} mm, fell: {report['fell']}, "
+        f"max |dq|/dq_max {report['max_velocity_ratio']:.3f}, failed first: {report['first_failure'] or '-'}",
+    ])
 
 
 def _campaign_trial(task):

@@ -87,18 +87,14 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     control, no QP (docs/floating-base.md).
     """
     if isinstance(choice, HumanoidChoice):
-        from impactqp.scenarios.cli.humanoid_commands import g1_simulate
+        # lazy: the command line loads what a command needs when it runs
+        from impactqp.scenarios.cli.humanoid_commands import g1_simulate, simulate_text
 
         report = g1_simulate(posture_name, speed, trial["video_file"])
         if as_json:
             emit_json(report)
-            return
-        click.echo(f"{posture_name} (g1): commanded {speed} m/s, contact speed {report['contact_speed']:.4f} m/s, "
-                   f"impulse {np.round(report['impulse'], 4).tolist()} N s")
-        click.echo(f"errors (26): " + ", ".join(f"{m} {e:.4f}" for m, e in report["errors"].items()))
-        click.echo(f"foot slip {1e3 * report['foot_slip']:.2f} mm, lift {1e3 * report['foot_lift']:.2f} mm, "
-                   f"fell: {report['fell']}, max |dq|/dq_max {report['max_velocity_ratio']:.3f}, "
-                   f"failed first: {report['first_failure'] or '-'}")
+        else:
+            click.echo(simulate_text(report))
         return
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.campaign import write_trial
@@ -204,6 +200,7 @@ def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_
     """The paper's campaign in simulation: dataset, Table I and figures in --out (with --robot
     g1: stances x speeds of the standing G1, table1.json and table1.md in --out)."""
     if isinstance(choice, HumanoidChoice):
+        # lazy: the command line loads what a command needs when it runs
         from impactqp.scenarios.cli.humanoid_commands import g1_campaign
 
         table, text = g1_campaign(postures_text, speeds_text, jobs, out_dir)
@@ -304,6 +301,7 @@ def max_speed(posture_name, plant_file, as_json, choice, **search):
     """Highest feasible contact speed: closed form, reached by the QP, and simulated (with
     --robot g1: closed form and simulated bisection of a stance, no QP)."""
     if isinstance(choice, HumanoidChoice):
+        # lazy: the command line loads what a command needs when it runs
         from impactqp.scenarios.cli.humanoid_commands import g1_max_speed, max_speed_text as g1_text
 
         report = g1_max_speed(posture_name, search)
