@@ -105,6 +105,11 @@ def render_impact_gif(scene: Scene, log: TrialLog, impact: ImpactMeasurement, pa
             renderer.update_scene(data, camera)
             draw_links(renderer.scene, model, data)
             frames.append(Image.fromarray(renderer.render()))
+    return save_gif(frames, path)
+
+
+def save_gif(frames: list, path: Path) -> Path:
+    """Write the frames (PIL images) as a looping GIF at FRAMES_PER_SECOND, atomically."""
     return write_atomic(
         path,
         lambda tmp: frames[0].save(
@@ -158,9 +163,4 @@ def render_humanoid_gif(robot, trial, path: str | Path) -> Path:
             renderer.update_scene(data, camera)
             draw_links(renderer.scene, model, data)
             frames.append(Image.fromarray(renderer.render()))
-    return write_atomic(
-        path,
-        lambda tmp: frames[0].save(
-            tmp, format="GIF", save_all=True, append_images=frames[1:], duration=int(1000 / FRAMES_PER_SECOND), loop=0
-        ),
-    )
+    return save_gif(frames, path)

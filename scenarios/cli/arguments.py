@@ -103,6 +103,20 @@ def output_file(path: str, what: str) -> Path:
     return p
 
 
+def gif_output(path: str) -> Path:
+    """``--video F.gif``: a writable .gif file name, with an offscreen renderer available."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.video import offscreen_backend_problem
+
+    p = output_file(path, "--video")
+    if p.suffix.lower() != ".gif":
+        raise BadInputError(f"--video writes an animated GIF: give a .gif file name, got {path!r}")
+    problem = offscreen_backend_problem()
+    if problem is not None:
+        raise BadInputError(f"--video: {problem}")
+    return p
+
+
 def load_plant(path: str | None):
     """The plant of ``--plant FILE`` (JSON overrides of ``sim.plant.PlantParameters``), or
     None without a file."""

@@ -23,7 +23,7 @@ from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.validation import BadInputError, approach_speed, tangential_velocity, unit_normal
 from impactqp.controller.model.validation import restitution as restitution_coefficient
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
-from impactqp.scenarios.cli.arguments import check_jobs, emit_json, output_directory, output_file, parse_vector
+from impactqp.scenarios.cli.arguments import check_jobs, gif_output, output_directory, parse_vector
 
 G1 = "g1"
 
@@ -93,7 +93,7 @@ def trial_json(trial) -> dict:
 def g1_simulate(posture: str, speed: float, video_file: str | None) -> dict:
     """One G1 trial (``sim.humanoid_trial``), optionally rendered to a GIF; its JSON."""
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.scenarios.video import offscreen_backend_problem, render_humanoid_gif
+    from impactqp.scenarios.video import render_humanoid_gif
     from impactqp.sim.humanoid_trial import run_impact_trial
 
     reject_options(["tangential_text", "no_jump_constraint", "jump_model", "plant_file", "wall_point",
@@ -101,12 +101,7 @@ def g1_simulate(posture: str, speed: float, video_file: str | None) -> dict:
     stance = STANCES[stance_names(posture)[0]]
     approach_speed(speed, "--speed")
     if video_file is not None:
-        output_file(video_file, "--video")
-        if Path(video_file).suffix.lower() != ".gif":
-            raise BadInputError(f"--video writes an animated GIF: give a .gif file name, got {video_file!r}")
-        problem = offscreen_backend_problem()
-        if problem is not None:
-            raise BadInputError(f"--video: {problem}")
+        gif_output(video_file)
     robot = FloatingBaseModel()
     trial = run_impact_trial(robot, stance, speed)
     if video_file is not None:

@@ -11,7 +11,6 @@ from __future__ import annotations
 from impactqp.scenarios import video  # noqa: F401, I001
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import click
 import numpy as np
@@ -27,9 +26,9 @@ from impactqp.scenarios.cli.arguments import (
     HumanoidChoice,
     check_jobs,
     emit_json,
+    gif_output,
     load_plant,
     output_directory,
-    output_file,
     parse_vector,
     robot_options,
 )
@@ -116,14 +115,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     if out_dir is not None:
         output_directory(out_dir, "--out")
     if video_file is not None:
-        output_file(video_file, "--video")
-        from impactqp.scenarios.video import offscreen_backend_problem
-
-        if Path(video_file).suffix.lower() != ".gif":
-            raise BadInputError(f"--video writes an animated GIF: give a .gif file name, got {video_file!r}")
-        problem = offscreen_backend_problem()
-        if problem is not None:
-            raise BadInputError(f"--video: {problem}")
+        gif_output(video_file)
     check_reachable(choice, posture, surface, SIMULATE_START_DISTANCE)
 
     spec = TrialSpec(
