@@ -11,7 +11,8 @@ rendering is impossible, so that a command can refuse ``--video`` before simulat
 
 The video replays the logged joint positions (control rate) from 60 ms before to 60 ms after
 the contact, slowed down 10 times, with a camera looking at the contact point along the wall
-(the wall is then a line). The simulated arm has no geoms (only the tool and the wall collide):
+(the wall is then a line); a G1 trial (``render_humanoid_gif``) likewise, from its logged
+configurations. The simulated arm has no geoms (only the tool and the wall collide):
 its links are drawn as capsules between the body origins.
 """
 
@@ -46,6 +47,8 @@ import numpy as np  # noqa: E402
 from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.measured.impact import ImpactMeasurement  # noqa: E402
 from impactqp.controller.measured.trial_log import TrialLog  # noqa: E402
+from impactqp.sim.humanoid_scene import build_humanoid_scene, from_pinocchio  # noqa: E402
+from impactqp.sim.humanoid_trial import CONTROL_PERIOD  # noqa: E402
 from impactqp.sim.scene import Scene  # noqa: E402
 
 FRAME_SIZE = (360, 480)  # height, width
@@ -53,6 +56,7 @@ SPAN = 0.06
 SLOW_MOTION = 10.0
 FRAMES_PER_SECOND = 25
 LINK_RADIUS = 0.025
+HUMANOID_AFTER = 0.3  # s of a G1 trial shown after the contact
 
 
 def offscreen_backend_problem() -> str | None:
@@ -101,6 +105,11 @@ def render_impact_gif(scene: Scene, log: TrialLog, impact: ImpactMeasurement, pa
             renderer.update_scene(data, camera)
             draw_links(renderer.scene, model, data)
             frames.append(Image.fromarray(renderer.render()))
+    return save_gif(frames, path)
+
+
+def save_gif(frames: list, path: Path) -> Path:
+    """Write the frames (PIL images) as a looping GIF at FRAMES_PER_SECOND, atomically."""
     return write_atomic(
         path,
         lambda tmp: frames[0].save(
@@ -125,3 +134,33 @@ def draw_links(scene: mujoco.MjvScene, model: mujoco.MjModel, data: mujoco.MjDat
             data.xpos[model.body_parentid[body]], data.xpos[body],
         )
         scene.ngeom += 1
+
+
+def render_humanoid_gif(robot, trial, path: str | Path) -> Path:
+    """Render a G1 trial (``sim.humanoid_trial.ImpactTrial``, its logged configurations) to the
+    GIF ``path``: from 60 ms before to 300 ms after the first wall contact, slowed down 10 times,
+    seen from the side (the wall is a line), the links drawn as capsules between body origins."""
+    from PIL import Image
+
+    path = Path(path)
+    scene = build_humanoid_scene(robot, trial.wall_x)
+    model, data = scene.model, scene.data
+    height, width = FRAME_SIZE
+    step = max(int(round(1.0 / (FRAMES_PER_SECOND * SLOW_MOTION * CONTROL_PERIOD))), 1)
+    first = max(trial.contact_index - int(round(SPAN / CONTROL_PERIOD)), 0)
+    last = min(trial.contact_index + int(round(HUMANOID_AFTER / CONTROL_PERIOD)), len(trial.q_log))
+    camera = mujoco.MjvCamera()
+    camera.lookat[:] = [trial.wall_x - 0.3, 0.0, 0.6]
+    camera.distance = 2.6
+    camera.azimuth = 90.0
+    camera.elevation = -10.0
+    model.vis.headlight.ambient[:] = 0.5
+    frames = []
+    with mujoco.Renderer(model, height, width) as renderer:
+        for k in range(first, last, step):
+            data.qpos[:] = from_pinocchio(trial.q_log[k])
+            mujoco.mj_forward(model, data)
+            renderer.update_scene(data, camera)
+            draw_links(renderer.scene, model, data)
+            frames.append(Image.fromarray(renderer.render()))
+    return save_gif(frames, path)

@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from impactqp.controller.model.floating_base import CONTACT_OFFSET, FOOT_FRAMES, HAND_FRAME, FloatingBaseModel
+from impactqp.controller.model.humanoid_max_speed import FOOT_FRICTION
 
 TIMESTEP = 0.5e-3
 HAND_RADIUS = 0.02
@@ -31,7 +32,6 @@ HAND_GEOM = "hand_tool"
 WALL_GEOM = "wall"
 FLOOR_GEOM = "floor"
 BASE_BODY = "pelvis"
-FOOT_FRICTION = 1.0
 WALL_FRICTION = 0.1123  # the paper's mu
 CONTACT_SOLREF = (0.005, 1.0)
 CONTACT_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)

@@ -33,6 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, jump_from_impulse, predict
+from impactqp.controller.model.humanoid_max_speed import ARM_JOINTS
 from impactqp.controller.model.humanoid_stance import Stance, stance_posture
 
 from .humanoid_scene import build_humanoid_scene, to_pinocchio
@@ -48,8 +49,7 @@ WINDOW = 0.03  # s: longest first contact read as the impact
 SERVO_GAIN = 40.0  # rad/s
 SLIP = 0.005  # m of horizontal foot motion counted as a slip
 LIFT = 0.005  # m of vertical foot motion counted as a lift
-ARM_JOINTS = tuple(f"right_{j}_joint" for j in (
-    "shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", "wrist_roll", "wrist_pitch", "wrist_yaw"))
+FAILURES = ("joint_velocity", "foot_slip", "foot_lift", "fell")
 NORMAL = np.array([-1.0, 0.0, 0.0])  # the wall's normal, towards the robot
 
 
@@ -72,6 +72,19 @@ class ImpactTrial:
     foot_slip: float  # largest horizontal foot displacement (m)
     foot_lift: float  # largest vertical foot displacement (m)
     fell: bool
+    max_velocity_ratio: float  # largest |dq_i| / dq_max_i of the 29 joints after the settling
+    max_velocity_joint: str  # the joint where it occurs
+    failures: tuple  # every failure seen (FAILURES)
+    first_failure: str  # the failure seen first (FAILURES), "" when none
+    failure_time: float  # s from the first wall contact to that failure (< 0: before it; nan: none)
+    wall_x: float  # m: the wall plane's position
+    q_log: np.ndarray  # (steps, nq) Pinocchio configurations at the control rate
+    contact_index: int  # the control step of the first wall contact
+
+    @property
+    def feasible(self) -> bool:
+        """Did not fall, no foot slip or lift beyond the thresholds, no joint beyond its velocity limit."""
+        return not self.first_failure
 
     @property
     def slipped(self) -> bool:
@@ -110,11 +123,12 @@ class _Servo:
 
 
 def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, gain: float = SERVO_GAIN,
-                     armature: float = 0.0, q0: np.ndarray | None = None) -> ImpactTrial:
-    """Simulate one trial (module docstring) and compare the jump with the predictors."""
+                     armature: float = 0.0, q0: np.ndarray | None = None, gap: float = GAP) -> ImpactTrial:
+    """Simulate one trial (module docstring) and compare the jump with the predictors; ``gap``
+    (m) is the start distance of the contact point from the wall."""
     q0 = stance_posture(robot, stance) if q0 is None else q0
     contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
-    scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + GAP, armature=armature)
+    scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature)
     start = q0.copy()
     start[2] -= SINK  # the soft floor contact carries the weight from the first step
     scene.set_state(start)
@@ -122,7 +136,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     servo = _Servo(scene, robot, q0, gain)
     substeps = int(round(CONTROL_PERIOD / model.opt.timestep))
     arm = np.array([robot.joint_index(j) for j in ARM_JOINTS])
-    approach_steps = int(round((SETTLE + 3 * GAP / speed + RAMP) / CONTROL_PERIOD))
+    approach_steps = int(round((SETTLE + 3 * gap / speed + RAMP) / CONTROL_PERIOD))
     states, forces, floor_impulses, feet = [], [], [], []
     first_contact, stop_at, end = None, None, approach_steps
     k = 0
@@ -154,7 +168,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     if first_contact is None:
         raise RuntimeError(f"the hand never reached the wall (stance {stance.name}, {speed} m/s)")
     log = (states, np.array(forces), np.array(floor_impulses), np.array(feet))
-    return _evaluate(robot, stance, speed, log, first_contact, model.opt.timestep)
+    return _evaluate(robot, stance, speed, log, first_contact, scene.wall_x)
 
 
 def _contact_forces(scene) -> tuple[np.ndarray, np.ndarray]:
@@ -174,7 +188,7 @@ def _contact_forces(scene) -> tuple[np.ndarray, np.ndarray]:
     return wall, floor
 
 
-def _evaluate(robot, stance, speed, log, first, timestep) -> ImpactTrial:
+def _evaluate(robot, stance, speed, log, first, wall_x) -> ImpactTrial:
     """Measured and predicted jumps of a simulated trial (module docstring)."""
     states, forces, floor_impulses, feet = log
     window = int(round(WINDOW / CONTROL_PERIOD))
@@ -202,6 +216,17 @@ def _evaluate(robot, stance, speed, log, first, timestep) -> ImpactTrial:
     moved = feet[start:] - feet[start]
     base_height = np.array([s[0][2] for s in states])
     base_up = np.array([pin.Quaternion(s[0][3:7]).matrix()[2, 2] for s in states])
+    ratios = np.array([np.abs(s[1][6:]) / robot.dq_max for s in states[start:]])
+    ratio = ratios.max(axis=1)
+    fell = (base_height < 0.5 * base_height[0]) | (base_up < np.cos(np.radians(45.0)))
+    failing = {
+        "joint_velocity": ratio > 1.0,
+        "foot_slip": np.linalg.norm(moved[..., :2], axis=-1).max(axis=1) > SLIP,
+        "foot_lift": np.abs(moved[..., 2]).max(axis=1) > LIFT,
+        "fell": fell[start:],
+    }
+    first_step = {name: int(np.argmax(flags)) for name, flags in failing.items() if np.any(flags)}
+    failure = min(first_step, key=lambda name: (first_step[name], FAILURES.index(name)), default="")
     return ImpactTrial(
         stance=stance.name, speed=speed, contact_speed=float(-NORMAL @ v_minus), impulse=impulse,
         floor_impulse=floor_impulse, duration=(last + 1 - first) * CONTROL_PERIOD,
@@ -209,5 +234,9 @@ def _evaluate(robot, stance, speed, log, first, timestep) -> ImpactTrial:
         predicted_com_jump=com, predicted_impulse=impulses, errors=errors,
         foot_slip=float(np.linalg.norm(moved[..., :2], axis=-1).max()),
         foot_lift=float(np.abs(moved[..., 2]).max()),
-        fell=bool(base_height.min() < 0.5 * base_height[0] or base_up.min() < np.cos(np.radians(45.0))),
+        fell=bool(np.any(fell)), max_velocity_ratio=float(ratio.max()),
+        max_velocity_joint=robot.joint_names[int(np.argmax(ratios.max(axis=0)))],
+        failures=tuple(name for name in FAILURES if name in first_step), first_failure=failure,
+        failure_time=(first_step[failure] + start - first) * CONTROL_PERIOD if failure else float("nan"),
+        wall_x=wall_x, q_log=np.array([s[0] for s in states]), contact_index=first,
     )

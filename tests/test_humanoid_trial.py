@@ -35,3 +35,13 @@ def test_every_predictor_is_reported_with_its_error(trial):
         assert trial.errors[method] == pytest.approx(error)
         assert trial.predicted_impulse[method] @ NORMAL > 0.0
     np.testing.assert_array_equal(trial.predicted_impulse["momentum"], trial.impulse)
+
+
+def test_failures_are_consistent_with_the_measured_flags(trial):
+    assert trial.feasible == (not trial.failures)
+    assert (trial.first_failure == "") == (not trial.failures)
+    assert ("foot_slip" in trial.failures) == trial.slipped
+    assert ("foot_lift" in trial.failures) == trial.lifted
+    assert ("fell" in trial.failures) == trial.fell
+    assert ("joint_velocity" in trial.failures) == (trial.max_velocity_ratio > 1.0)
+    assert trial.q_log.shape[1] == 36 and 0 < trial.contact_index < len(trial.q_log)

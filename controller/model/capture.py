@@ -79,19 +79,27 @@ def post_impact_com_velocity(terms: FloatingBaseTerms, method: str, normal, v_mi
     return np.asarray(com_velocity, dtype=float) + com_jump_map(terms) @ impulse
 
 
+def capturable_speeds(
+    terms: FloatingBaseTerms, region: CaptureRegion, method: str, normal, direction, c_r: float = 0.0
+) -> np.ndarray:
+    """Per edge k of the region, the largest s >= 0 with row k of A dc+ <= b for the contact
+    velocity v- = s ``direction``, the pre-impact CoM velocity taken as zero (the hand moves, the
+    body stands): b_k / (A_k C iota_1) where the unit-speed jump pushes outwards, inf elsewhere,
+    0 on a row the standing robot already violates."""
+    region_margin = region.margins(np.zeros(2))
+    unit_jump = post_impact_com_velocity(terms, method, normal, direction, np.zeros(3), c_r)
+    rates = region.A @ unit_jump[:2]
+    speeds = np.full(len(rates), math.inf)
+    pushing = rates > 0.0
+    speeds[pushing] = np.maximum(region_margin[pushing], 0.0) / rates[pushing]
+    speeds[region_margin < 0.0] = 0.0
+    return speeds
+
+
 def max_capturable_speed(
     terms: FloatingBaseTerms, region: CaptureRegion, method: str, normal, direction, c_r: float = 0.0
 ) -> float:
-    """The largest s >= 0 with dc+ inside the region for the contact velocity v- = s ``direction``,
-    taking the pre-impact CoM velocity as zero (the hand moves, the body stands): the smallest
-    ratio b_k / (A_k C iota_1) over the rows the unit-speed jump pushes outwards (inf when none
-    does; 0 when the standing robot is already outside)."""
-    region_margin = region.margins(np.zeros(2))
-    if np.any(region_margin < 0.0):
-        return 0.0
-    unit_jump = post_impact_com_velocity(terms, method, normal, direction, np.zeros(3), c_r)
-    rates = region.A @ unit_jump[:2]
-    pushing = rates > 0.0
-    if not np.any(pushing):
-        return math.inf
-    return float(np.min(region_margin[pushing] / rates[pushing]))
+    """The largest s >= 0 with dc+ inside the region for the contact velocity v- = s ``direction``
+    (the smallest of :func:`capturable_speeds`; inf when no edge binds, 0 when the standing robot
+    is already outside)."""
+    return float(np.min(capturable_speeds(terms, region, method, normal, direction, c_r)))

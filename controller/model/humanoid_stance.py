@@ -57,6 +57,10 @@ STANCES = {
     "parallel": Stance("parallel", (0.0, 0.12), (0.0, -0.12), (0.30, -0.18, 0.95)),
     "wide": Stance("wide", (0.0, 0.20), (0.0, -0.20), (0.30, -0.22, 0.92)),
     "staggered": Stance("staggered", (-0.08, 0.12), (0.08, -0.12), (0.36, -0.18, 0.95)),
+    # the parallel feet nearer to and farther from the wall: the hand starts closer to the body
+    # (elbow bent) or farther from it (arm stretched)
+    "close": Stance("close", (0.0, 0.12), (0.0, -0.12), (0.20, -0.18, 0.95)),
+    "far": Stance("far", (0.0, 0.12), (0.0, -0.12), (0.42, -0.18, 0.95)),
 }
 
 

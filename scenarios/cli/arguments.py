@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import json
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import click
@@ -102,6 +103,20 @@ def output_file(path: str, what: str) -> Path:
     return p
 
 
+def gif_output(path: str) -> Path:
+    """``--video F.gif``: a writable .gif file name, with an offscreen renderer available."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.video import offscreen_backend_problem
+
+    p = output_file(path, "--video")
+    if p.suffix.lower() != ".gif":
+        raise BadInputError(f"--video writes an animated GIF: give a .gif file name, got {path!r}")
+    problem = offscreen_backend_problem()
+    if problem is not None:
+        raise BadInputError(f"--video: {problem}")
+    return p
+
+
 def load_plant(path: str | None):
     """The plant of ``--plant FILE`` (JSON overrides of ``sim.plant.PlantParameters``), or
     None without a file."""
@@ -129,26 +144,41 @@ def check_jobs(value: int) -> int:
     return value
 
 
-def robot_choice(robot: str, tool: str):
+@dataclass(frozen=True)
+class HumanoidChoice:
+    """``--robot g1``: the floating-base Unitree G1 standing on two feet (docs/floating-base.md);
+    it carries no tool and its postures are its stances."""
+
+    name: str = "g1"
+
+
+def robot_choice(robot: str, tool: str, humanoid: bool = False):
     """The ``RobotChoice`` of ``--robot NAME`` and ``--tool NAME|FILE`` (bad input names the
-    choices)."""
+    choices), or a :class:`HumanoidChoice` for ``--robot g1`` where the command takes it."""
+    if robot == HumanoidChoice.name:
+        if not humanoid:
+            raise BadInputError("--robot g1 works with predict, simulate, campaign and max-speed only")
+        return HumanoidChoice()
     from impactqp.controller.model.choice import RobotChoice  # loads Pinocchio: only when a command runs
 
     return RobotChoice.of(robot, tool)
 
 
-def robot_options(command):
+def robot_options(command=None, *, humanoid: bool = False):
     """Add ``--robot`` and ``--tool`` to a click command, which receives them as one ``choice``
-    (a ``controller.model.choice.RobotChoice``) instead of two strings."""
+    (a ``controller.model.choice.RobotChoice``, or with ``humanoid`` a :class:`HumanoidChoice`
+    for ``--robot g1``) instead of two strings. Use as ``@robot_options`` or
+    ``@robot_options(humanoid=True)``."""
+    if command is None:
+        return functools.partial(robot_options, humanoid=humanoid)
 
     @functools.wraps(command)
     def with_choice(*args, robot: str, tool: str, **kwargs):
-        return command(*args, choice=robot_choice(robot, tool), **kwargs)
+        return command(*args, choice=robot_choice(robot, tool, humanoid), **kwargs)
 
     with_choice = click.option(
         "--tool", default="impact_tip", show_default=True,
         help="The tool: impact_tip, franka_hand, pad, or a .json/.toml tool file (docs/robots.md).",
     )(with_choice)
-    return click.option(
-        "--robot", default="panda", show_default=True, help="The robot: panda or fr3 (docs/robots.md)."
-    )(with_choice)
+    robots = "panda, fr3 or g1 (docs/robots.md, docs/floating-base.md)" if humanoid else "panda or fr3 (docs/robots.md)"
+    return click.option("--robot", default="panda", show_default=True, help=f"The robot: {robots}.")(with_choice)

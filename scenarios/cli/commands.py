@@ -11,7 +11,7 @@ import numpy as np
 from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
-from impactqp.scenarios.cli.arguments import emit_json, output_directory, parse_vector, robot_options
+from impactqp.scenarios.cli.arguments import HumanoidChoice, emit_json, output_directory, parse_vector, robot_options
 
 
 @click.group()
@@ -60,12 +60,27 @@ def postures(as_json, choice):
 @click.option("--restitution", type=float, default=0.0, show_default=True, help="Coefficient of restitution in [0, 1].")
 @click.option("--method", type=click.Choice([*METHODS, "all"]), default="all", show_default=True)
 @click.option("--json", "as_json", is_flag=True)
-@robot_options
+@robot_options(humanoid=True)
 def predict(method, as_json, choice, **impact):
-    """Predict the impact-induced joint-velocity jump at a posture of the robot with the tool."""
+    """Predict the impact-induced joint-velocity jump at a posture of the robot with the tool
+    (with --robot g1: a stance of the standing G1, --q of 36 values)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.prediction import ImpactQuery, predict_all
     from impactqp.scenarios.readable import fixed
+
+    methods = METHODS if method == "all" else (method,)
+    if isinstance(choice, HumanoidChoice):
+        # lazy: the command line loads what a command needs when it runs
+        from impactqp.scenarios.cli.humanoid_commands import g1_predict
+
+        report = g1_predict(impact.pop("posture_name"), impact.pop("q_text"), impact, None if method == "all" else methods)
+        if as_json:
+            emit_json(report)
+            return
+        click.echo(f"contact point = {fixed(report['contact_point'])} m, normal = {fixed(report['normal'])}")
+        for name, res in report["methods"].items():
+            click.echo(f"{name:<10} impulse {fixed(res['impulse'])} N s   CoM jump {fixed(res['com_jump'])} m/s")
+        return
 
     if (impact["posture_name"] is None) == (impact["q_text"] is None):
         raise BadInputError("give exactly one of --posture NAME or --q Q1,...,Q7")
@@ -77,7 +92,6 @@ def predict(method, as_json, choice, **impact):
     query = ImpactQuery.from_speed(
         q, parse_vector(impact["normal_text"], 3, "--normal"), impact["speed"], tangential, impact["restitution"]
     )
-    methods = METHODS if method == "all" else (method,)
     report = predict_all(query, methods, choice.model())
     if as_json:
         emit_json(report)

@@ -11,7 +11,6 @@ from __future__ import annotations
 from impactqp.scenarios import video  # noqa: F401, I001
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import click
 import numpy as np
@@ -24,11 +23,12 @@ from impactqp.controller.model.validation import BadInputError, positive, tangen
 from impactqp.controller.model.validation import approach_speed, restitution as restitution_coefficient
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.scenarios.cli.arguments import (
+    HumanoidChoice,
     check_jobs,
     emit_json,
+    gif_output,
     load_plant,
     output_directory,
-    output_file,
     parse_vector,
     robot_options,
 )
@@ -76,13 +76,25 @@ plant_option = click.option("--plant", "plant_file", help="JSON file of plant-pa
 @click.option("--out", "out_dir", help="Add the trial to the dataset in this directory (controller.measured.dataset format).")
 @click.option("--video", "video_file", help="Render the impact to this animated GIF (needs an offscreen GL backend).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
-@robot_options
+@robot_options(humanoid=True)
 def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, **trial):
     """One approach-and-impact trial: the QP controller at 1 kHz drives the MuJoCo robot.
 
     The tool starts at rest 5 cm in front of the wall; the controller accelerates it towards the
     reference velocity (capped by the jump-aware constraints when they are on) until it hits.
+    With --robot g1: the standing G1 (a stance) hits the wall with its right hand, kinematic
+    control, no QP (docs/floating-base.md).
     """
+    if isinstance(choice, HumanoidChoice):
+        # lazy: the command line loads what a command needs when it runs
+        from impactqp.scenarios.cli.humanoid_commands import g1_simulate, simulate_text
+
+        report = g1_simulate(posture_name, speed, trial["video_file"])
+        if as_json:
+            emit_json(report)
+        else:
+            click.echo(simulate_text(report))
+        return
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.campaign import write_trial
     from impactqp.sim.runner import dataset_header
@@ -103,14 +115,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     if out_dir is not None:
         output_directory(out_dir, "--out")
     if video_file is not None:
-        output_file(video_file, "--video")
-        from impactqp.scenarios.video import offscreen_backend_problem
-
-        if Path(video_file).suffix.lower() != ".gif":
-            raise BadInputError(f"--video writes an animated GIF: give a .gif file name, got {video_file!r}")
-        problem = offscreen_backend_problem()
-        if problem is not None:
-            raise BadInputError(f"--video: {problem}")
+        gif_output(video_file)
     check_reachable(choice, posture, surface, SIMULATE_START_DISTANCE)
 
     spec = TrialSpec(
@@ -182,9 +187,21 @@ def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, 
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
 @click.option("--out", "out_dir", default="impactqp-campaign", show_default=True, help="Output directory.")
 @click.option("--json", "as_json", is_flag=True, help="Print Table I as JSON (no progress bar).")
-@robot_options
+@robot_options(humanoid=True)
 def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, as_json, choice):
-    """The paper's campaign in simulation: dataset, Table I and figures in --out."""
+    """The paper's campaign in simulation: dataset, Table I and figures in --out (with --robot
+    g1: stances x speeds of the standing G1, table1.json and table1.md in --out)."""
+    if isinstance(choice, HumanoidChoice):
+        # lazy: the command line loads what a command needs when it runs
+        from impactqp.scenarios.cli.humanoid_commands import g1_campaign
+
+        table, text = g1_campaign(postures_text, speeds_text, jobs, out_dir)
+        if as_json:
+            emit_json(table)
+            return
+        click.echo(text)
+        click.echo(f"table1.json and table1.md written to {out_dir}")
+        return
     table = run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, not as_json, choice)
     if as_json:
         emit_json(table.to_json())
@@ -271,9 +288,20 @@ def max_speed_text(report) -> str:
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
 @click.option("--tolerance", type=float, default=0.005, show_default=True, help="Bisection tolerance (m/s).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (no progress bar).")
-@robot_options
+@robot_options(humanoid=True)
 def max_speed(posture_name, plant_file, as_json, choice, **search):
-    """Highest feasible contact speed: closed form, reached by the QP, and simulated."""
+    """Highest feasible contact speed: closed form, reached by the QP, and simulated (with
+    --robot g1: closed form and simulated bisection of a stance, no QP)."""
+    if isinstance(choice, HumanoidChoice):
+        # lazy: the command line loads what a command needs when it runs
+        from impactqp.scenarios.cli.humanoid_commands import g1_max_speed, max_speed_text as g1_text
+
+        report = g1_max_speed(posture_name, search)
+        if as_json:
+            emit_json(report)
+            return
+        click.echo(g1_text(report))
+        return
     request = MaxSpeedRequest(posture=posture_name, plant=plant_file, choice=choice, **search)
     report = run_max_speed(request, not as_json)
     if as_json:

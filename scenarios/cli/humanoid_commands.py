@@ -1,0 +1,192 @@
+"""``predict``, ``simulate``, ``campaign`` and ``max-speed`` with ``--robot g1``: the standing
+floating-base G1 hitting a wall with its right hand (docs/floating-base.md).
+
+The G1's postures are its stances (``controller.model.humanoid_stance.STANCES``); the wall stands
+2 cm in front of the stance's hand, normal -x. An option of the arm's command that has no meaning
+for the G1 (a tool, a plant file, a wall point, jump constraints: the G1 runs no QP here) is bad
+input when given: one line naming it. The JSON keeps the arm's keys where they mean the same and
+adds the G1's (CoM jump, foot wrenches, slip, lift, fall).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import click
+import numpy as np
+
+from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, predict
+from impactqp.controller.model.humanoid_max_speed import IMPACT_DURATION, Setting
+from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+from impactqp.controller.model.validation import BadInputError, approach_speed, tangential_velocity, unit_normal
+from impactqp.controller.model.validation import restitution as restitution_coefficient
+from impactqp.controller.model.validation import impact_duration as check_impact_duration
+from impactqp.scenarios.cli.arguments import check_jobs, gif_output, output_directory, parse_vector
+
+G1 = "g1"
+
+
+def reject_options(names) -> None:
+    """Bad input when one of the options ``names`` (click parameter names) was given."""
+    ctx = click.get_current_context()
+    for name in names:
+        if ctx.get_parameter_source(name) not in (None, click.core.ParameterSource.DEFAULT):
+            option = next(p for p in ctx.command.params if p.name == name).opts[0]
+            raise BadInputError(f"{option} does not apply to --robot g1 (docs/floating-base.md)")
+
+
+def stance_names(text: str | None) -> tuple[str, ...]:
+    """Comma-separated stance names (all when None), each checked."""
+    names = tuple(STANCES) if text is None else tuple(s.strip() for s in text.split(","))
+    for name in names:
+        if name not in STANCES:
+            raise BadInputError(f"unknown posture {name!r} for the g1; known: {', '.join(STANCES)}")
+    return names
+
+
+def g1_predict(posture: str | None, q_text: str | None, impact: dict, methods) -> dict:
+    """The ``predict`` report of the G1 (feet held): per method (``methods``; None: classical, gm,
+    crb) the jump dq_jump (35: base twist, 29 joints), impulse, CoM jump and feet wrenches."""
+    reject_options(["tool"])
+    robot = FloatingBaseModel()
+    if (posture is None) == (q_text is None):
+        raise BadInputError("give exactly one of --posture NAME or --q Q1,...,Q36")
+    q = stance_posture(robot, STANCES[stance_names(posture)[0]]) if posture else parse_vector(q_text, robot.model.nq, "--q")
+    normal = unit_normal(parse_vector(impact["normal_text"], 3, "--normal"), "--normal")
+    speed = approach_speed(impact["speed"], "--speed")
+    tangential = (np.zeros(3) if impact["tangential_text"] is None
+                  else tangential_velocity(parse_vector(impact["tangential_text"], 3, "--tangential"), normal, "--tangential"))
+    c_r = restitution_coefficient(impact["restitution"], "--restitution")
+    v_minus = -speed * normal + tangential
+    terms = robot.terms(q)
+    report = {
+        "robot": G1, "q": terms.q.tolist(), "contact_point": terms.contact_point.tolist(), "normal": normal.tolist(),
+        "pre_impact_velocity": v_minus.tolist(), "restitution": c_r, "cond_M": float(np.linalg.cond(terms.M)),
+        "methods": {},
+    }
+    for method in METHODS if methods is None else methods:
+        jump = predict(terms, method, normal, v_minus, c_r)
+        report["methods"][method] = {
+            "dq_jump": jump.dv.tolist(), "impulse": jump.impulse.tolist(), "com_jump": jump.com_jump.tolist(),
+            "feet_impulse": jump.feet_impulse.tolist(),
+        }
+    return report
+
+
+def trial_json(trial) -> dict:
+    """A G1 trial as JSON (sim.humanoid_trial.ImpactTrial)."""
+    return {
+        "robot": G1, "posture": trial.stance, "reference_speed": trial.speed, "contact_speed": trial.contact_speed,
+        "impulse": trial.impulse.tolist(), "floor_impulse": trial.floor_impulse.tolist(),
+        "impact_duration": trial.duration, "dq_jump": trial.measured_jump.tolist(),
+        "com_jump": trial.measured_com_jump.tolist(),
+        "predicted": {m: dv.tolist() for m, dv in trial.predicted_jump.items()},
+        "predicted_com_jump": {m: c.tolist() for m, c in trial.predicted_com_jump.items()},
+        "errors": trial.errors, "foot_slip": trial.foot_slip, "foot_lift": trial.foot_lift, "fell": trial.fell,
+        "max_velocity_ratio": trial.max_velocity_ratio, "first_failure": trial.first_failure,
+        "violated": not trial.feasible,
+    }
+
+
+def g1_simulate(posture: str, speed: float, video_file: str | None) -> dict:
+    """One G1 trial (``sim.humanoid_trial``), optionally rendered to a GIF; its JSON."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.video import render_humanoid_gif
+    from impactqp.sim.humanoid_trial import run_impact_trial
+
+    reject_options(["tangential_text", "no_jump_constraint", "jump_model", "plant_file", "wall_point",
+                    "wall_normal", "out_dir", "tool"])
+    stance = STANCES[stance_names(posture)[0]]
+    approach_speed(speed, "--speed")
+    if video_file is not None:
+        gif_output(video_file)
+    robot = FloatingBaseModel()
+    trial = run_impact_trial(robot, stance, speed)
+    if video_file is not None:
+        render_humanoid_gif(robot, trial, video_file)
+    return trial_json(trial)
+
+
+def simulate_text(report: dict) -> str:
+    """A G1 trial's report as text."""
+    return "\n".join([
+        f"{report['posture']} (g1): commanded {report['reference_speed']} m/s, contact speed "
+        f"{report['contact_speed']:.4f} m/s, impulse {np.round(report['impulse'], 4).tolist()} N s",
+        "errors (26): " + ", ".join(f"{m} {e:.4f}" for m, e in report["errors"].items()),
+        f"foot slip {1e3 * report['foot_slip']:.2f} mm, lift {1e3 * report['foot_lift']:.2f} mm, fell: {report['fell']}, "
+        f"max |dq|/dq_max {report['max_velocity_ratio']:.3f}, failed first: {report['first_failure'] or '-'}",
+    ])
+
+
+def _campaign_trial(task):
+    """One campaign trial in a worker process (stance, speed) -> ImpactTrial."""
+    # lazy: a worker process imports the simulation when it runs its first trial
+    from impactqp.sim.humanoid_trial import run_impact_trial
+
+    stance, speed = task
+    return run_impact_trial(FloatingBaseModel(), STANCES[stance], speed)
+
+
+def g1_campaign(postures_text, speeds_text, jobs: int, out_dir: str) -> tuple[dict, str]:
+    """The G1 campaign (``scenarios.humanoid_campaign``): Table I's JSON and the Markdown table,
+    both written to ``out_dir`` (table1.json, table1.md)."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.controller.measured.atomic import write_atomic
+    from impactqp.scenarios.humanoid_campaign import DEFAULT_SPEEDS, campaign_table, crb_reduction, mean_errors
+    from impactqp.sim.process_pool import map_in_processes
+
+    reject_options(["tangential_text", "plant_file", "tool"])
+    stances = stance_names(postures_text)
+    speeds = DEFAULT_SPEEDS if speeds_text is None else tuple(parse_vector(speeds_text, None, "--speeds").tolist())
+    for v in speeds:
+        approach_speed(v, "every speed of --speeds")
+    out = output_directory(out_dir, "--out")
+    trials = map_in_processes(_campaign_trial, [(s, v) for s in stances for v in speeds], check_jobs(jobs))
+    errors = {m: e for m, e in mean_errors(trials).items() if m in METHODS}
+    rows = [
+        {**{k: v for k, v in trial_json(t).items() if k not in ("predicted", "predicted_com_jump", "robot")},
+         "trial": i, "normal_speed": t.speed, "tangential_speed": 0.0, "average_error": t.errors,
+         "crb_reduction_percent": 100.0 * (1.0 - t.errors["crb"] / t.errors["classical"]),
+         "measured_jump": t.measured_jump.tolist()}
+        for i, t in enumerate(trials)
+    ]
+    table = {"robot": G1, "methods": list(METHODS), "rows": rows, "mean_average_error": errors,
+             "mean_crb_reduction_percent": crb_reduction(errors)}
+    text = campaign_table(trials)
+    out.mkdir(parents=True, exist_ok=True)
+    write_atomic(out / "table1.json", lambda tmp: Path(tmp).write_text(json.dumps(table, indent=2, allow_nan=False)))
+    write_atomic(out / "table1.md", lambda tmp: Path(tmp).write_text(text + "\n"))
+    return table, text
+
+
+def g1_max_speed(posture: str, search: dict) -> dict:
+    """Closed-form and bisected highest feasible contact speed of a G1 stance (JSON)."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.humanoid_max_speed import search_stance
+
+    reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool"])
+    stance = stance_names(posture)[0]
+    c_r = restitution_coefficient(search["restitution"], "--restitution")
+    default_duration = click.get_current_context().get_parameter_source("impact_duration") == click.core.ParameterSource.DEFAULT
+    duration = IMPACT_DURATION if default_duration else check_impact_duration(search["impact_duration"], "--impact-duration")
+    result = search_stance(FloatingBaseModel(), stance, Setting("crb", c_r, impact_duration=duration),
+                           tolerance=search["tolerance"])
+    report = {"robot": G1, **result.to_json()}
+    speeds = report["predicted_max_speed"]
+    robust = min(METHODS, key=lambda m: math.inf if speeds[m] is None else speeds[m])
+    speeds["robust"], report["binding"]["robust"] = speeds[robust], report["binding"][robust]
+    report["impact_duration"] = duration
+    return report
+
+
+def max_speed_text(report: dict) -> str:
+    """The G1's ``max-speed`` report as text."""
+    lines = [f"{report['posture']} (g1): highest feasible contact speed (m/s)", f"{'closed form':<14}{'speed':>8}  binds"]
+    for name, speed in report["predicted_max_speed"].items():
+        b = report["binding"][name]
+        lines.append(f"  {name:<12}{speed if speed is not None else math.inf:8.4f}  {b['criterion']} ({b['where']})")
+    lines.append(f"{'simulated':<14}{report['simulated_max_speed']:8.4f}  commanded; contact "
+                 f"{report['simulated_contact_speed']:.4f}; failed first above: {report['simulated_failed_first'] or '-'}")
+    return "\n".join(lines)

@@ -1,0 +1,95 @@
+"""``--robot g1`` on predict, simulate, campaign and max-speed (scenarios/cli/humanoid_commands.py)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from impactqp.controller.model.humanoid_stance import STANCES
+from impactqp.scenarios.cli import main
+from impactqp.scenarios.cli.exit_codes import EXIT_BAD_INPUT
+
+
+def run(capsys, *args):
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_predict_g1_json(capsys):
+    code, out, _ = run(capsys, "predict", "--robot", "g1", "--posture", "parallel", "--normal", "-1,0,0",
+                       "--speed", "0.3", "--json")
+    assert code == 0
+    report = json.loads(out)
+    assert {"q", "contact_point", "normal", "pre_impact_velocity", "restitution", "cond_M", "methods"} <= set(report)
+    assert set(report["methods"]) == {"classical", "gm", "crb"}
+    for entry in report["methods"].values():
+        assert len(entry["dq_jump"]) == 35 and len(entry["feet_impulse"]) == 12
+        assert np.asarray(entry["impulse"]) @ [-1.0, 0.0, 0.0] > 0.0
+
+
+def test_predict_g1_takes_a_configuration(capsys):
+    q = ",".join(["0"] * 6 + ["1"] + ["0"] * 29)
+    code, out, _ = run(capsys, "predict", "--robot", "g1", "--q", q, "--normal", "-1,0,0", "--speed", "0.2",
+                       "--method", "gm", "--json")
+    assert code == 0 and list(json.loads(out)["methods"]) == ["gm"]
+
+
+def test_simulate_g1_json(capsys):
+    code, out, _ = run(capsys, "simulate", "--robot", "g1", "--posture", "close", "--speed", "0.2", "--json")
+    assert code == 0
+    report = json.loads(out)
+    assert {"contact_speed", "impulse", "dq_jump", "predicted", "errors", "foot_slip", "foot_lift", "fell",
+            "max_velocity_ratio", "first_failure", "violated"} <= set(report)
+    assert len(report["dq_jump"]) == 35 and report["violated"] is False
+
+
+def test_campaign_g1_json_and_files(capsys, tmp_path):
+    code, out, _ = run(capsys, "campaign", "--robot", "g1", "--postures", "parallel", "--speeds", "0.2",
+                       "--out", str(tmp_path), "--json")
+    assert code == 0
+    table = json.loads(out)
+    assert {"methods", "rows", "mean_average_error", "mean_crb_reduction_percent"} <= set(table)
+    assert len(table["rows"]) == 1 and table["rows"][0]["posture"] == "parallel"
+    assert json.loads((tmp_path / "table1.json").read_text()) == table
+    assert (tmp_path / "table1.md").read_text().startswith("| stance")
+
+
+def test_max_speed_g1_json(capsys):
+    code, out, _ = run(capsys, "max-speed", "--robot", "g1", "--posture", "close", "--tolerance", "0.4", "--json")
+    assert code == 0
+    report = json.loads(out)
+    assert {"posture", "q_impact", "normal", "predicted_max_speed", "binding", "simulated_max_speed",
+            "evaluations"} <= set(report)
+    assert set(report["predicted_max_speed"]) == {"classical", "gm", "crb", "robust"}
+    assert report["predicted_max_speed"]["robust"] == min(report["predicted_max_speed"][m] for m in ("classical", "gm", "crb"))
+    speeds = [e["reference_speed"] for e in report["evaluations"] if not e["violated"]]
+    assert report["simulated_max_speed"] == max(speeds)
+
+
+@pytest.mark.parametrize("args", [
+    ("simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.2", "--wall-point", "1,0,0"),
+    ("max-speed", "--robot", "g1", "--posture", "parallel", "--jump-model", "gm"),
+    ("predict", "--robot", "g1", "--posture", "parallel", "--normal", "-1,0,0", "--speed", "0.2", "--tool", "pad"),
+    ("campaign", "--robot", "g1", "--postures", "kneeling"),
+    ("postures", "--robot", "g1"),
+])
+def test_what_does_not_apply_to_the_g1_is_one_line_of_bad_input(capsys, args):
+    code, out, err = run(capsys, *args)
+    assert code == EXIT_BAD_INPUT
+    assert err.count("\n") == 1 and err.startswith("impactqp: error:")
+
+
+def test_stances_are_the_g1_postures():
+    assert {"parallel", "wide", "staggered", "close", "far"} <= set(STANCES)
+
+
+def test_simulate_g1_video_is_a_gif(capsys, tmp_path):
+    from impactqp.scenarios.video import offscreen_backend_problem
+
+    if offscreen_backend_problem() is not None:
+        pytest.skip("no offscreen OpenGL backend")
+    path = tmp_path / "g1.gif"
+    code, _, _ = run(capsys, "simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.3", "--video", str(path))
+    assert code == 0
+    assert path.read_bytes()[:6] in (b"GIF87a", b"GIF89a")

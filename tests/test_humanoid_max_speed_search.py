@@ -1,0 +1,99 @@
+"""Closed form against simulated bisection per G1 stance (scenarios/humanoid_max_speed.py)."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.humanoid_max_speed import Bound, HumanoidMaxSpeed
+from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+from impactqp.controller.model.validation import BadInputError
+from impactqp.scenarios.humanoid_max_speed import (
+    HIGHEST_SPEED,
+    LOWEST_SPEED,
+    CheckRow,
+    Evaluation,
+    Plant,
+    StanceMaxSpeed,
+    bisect_speed,
+    check_summary,
+    search_stance,
+    speed_figure,
+    trial_at_contact_speed,
+)
+
+
+def evaluation(speed, failure=""):
+    return Evaluation(speed, 0.7 * speed, 0.5, 0.0, 0.0, failure == "fell", failure)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(0.0, 4.0), st.floats(0.002, 0.2))
+def test_bisection_brackets_the_threshold_of_a_monotone_feasibility(threshold, tolerance):
+    calls = []
+
+    def trial(speed):
+        calls.append(speed)
+        return evaluation(speed, "foot_slip" if speed > threshold else "")
+
+    best, evaluations = bisect_speed(trial, tolerance)
+    assert len(evaluations) == len(calls)
+    if threshold < LOWEST_SPEED:
+        assert best == 0.0
+    elif threshold >= HIGHEST_SPEED:
+        assert best == HIGHEST_SPEED
+    else:
+        assert best <= threshold < best + tolerance
+
+
+def test_a_bisection_tolerance_out_of_range_is_bad_input():
+    with pytest.raises(BadInputError):
+        bisect_speed(lambda s: evaluation(s), 0.0)
+
+
+class FakeTrial:
+    def __init__(self, failures):
+        self.failures = tuple(failures)
+        self.first_failure = failures[0] if failures else ""
+        self.fell = "fell" in failures
+        self.slipped = "foot_slip" in failures
+        self.feasible = not failures
+
+
+def test_check_summary_counts_below_and_above():
+    rows = [
+        CheckRow("a", 0.5, "capture", FakeTrial([])),
+        CheckRow("a", 0.9, "capture", FakeTrial(["joint_velocity"])),
+        CheckRow("a", 1.2, "capture", FakeTrial(["fell", "foot_lift"])),
+        CheckRow("a", 1.3, "capture", FakeTrial(["foot_lift", "fell"])),
+        CheckRow("a", 1.4, "capture", FakeTrial([])),
+    ]
+    assert check_summary(rows) == {
+        "below": 2, "below_fell_or_slipped": 0, "below_infeasible": 1, "above": 3,
+        "above_binding_first": 1, "above_binding_failed": 2, "above_feasible": 1,
+    }
+
+
+def test_unknown_stance_is_bad_input():
+    with pytest.raises(BadInputError):
+        search_stance(FloatingBaseModel(), "kneeling")
+
+
+def test_figure_is_a_png(tmp_path):
+    predicted = {
+        "crb": HumanoidMaxSpeed(1.0, "capture", "edge 0", {"capture": Bound(1.0, "edge 0")}),
+        "gm": HumanoidMaxSpeed(math.inf, "", "", {}),
+    }
+    results = [StanceMaxSpeed(name, np.zeros(36), predicted, 1.2, 0.9, "foot_slip") for name in ("a", "b")]
+    path = speed_figure(results, tmp_path / "f.png", "test")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_trial_reaches_the_asked_contact_speed():
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES["close"])
+    trial = trial_at_contact_speed(robot, "close", q, 0.3, Plant())
+    assert trial.contact_speed == pytest.approx(0.3, rel=0.02)
