@@ -117,8 +117,10 @@ class Constraint:
 
     def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
         """The rows of this state in new arrays, clipped or relaxed as the class says."""
-        C = None if self.is_box else np.empty((self.rows, terms.q.shape[0]))
-        lower, upper = np.empty(self.rows), np.empty(self.rows)
+        n = cycle.acceleration_lower.shape[0]  # the number of velocities; a box bounds each
+        size = n if self.is_box else self.rows
+        C = None if self.is_box else np.empty((self.rows, n))
+        lower, upper = np.empty(size), np.empty(size)
         self.compute_into(terms, cycle, C, lower, upper)
         if self.is_box:
             cycle.clip_to_reachable(lower, upper)

@@ -30,8 +30,8 @@ class ProxqpDenseSolver:
 
     name = "proxqp"
 
-    def __init__(self, rows: int, tolerance: float = 1e-7, max_iterations: int = 200):
-        self.qp = proxsuite.proxqp.dense.QP(NQ, 0, rows, True)
+    def __init__(self, rows: int, tolerance: float = 1e-7, max_iterations: int = 200, variables: int = NQ):
+        self.qp = proxsuite.proxqp.dense.QP(variables, 0, rows, True)
         settings = self.qp.settings
         settings.max_iter = max_iterations  # bounded cycle time; a second solver confirms any failure
         settings.max_iter_in = max_iterations
@@ -71,8 +71,8 @@ class DaqpSolver:
 
     name = "daqp"
 
-    def __init__(self, rows: int):
-        self._sense = np.zeros(NQ + rows, dtype=np.int32)
+    def __init__(self, rows: int, variables: int = NQ):
+        self._sense = np.zeros(variables + rows, dtype=np.int32)
 
     def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
         sense = self._sense
@@ -93,12 +93,12 @@ class QuadprogSolver:
 
     name = "quadprog"
 
-    def __init__(self, rows: int):
-        del rows  # quadprog takes the problem as it comes
+    def __init__(self, rows: int, variables: int = NQ):
+        del rows, variables  # quadprog takes the problem as it comes
 
     def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
         upper, lower = np.isfinite(problem.upper), np.isfinite(problem.lower)
-        identity_and_rows = np.vstack([np.eye(NQ), problem.C])
+        identity_and_rows = np.vstack([np.eye(problem.H.shape[0]), problem.C])
         A = np.vstack([-identity_and_rows[upper], identity_and_rows[lower]])
         b = np.concatenate([-problem.upper[upper], problem.lower[lower]])
         try:
@@ -140,16 +140,17 @@ def available_backends() -> list[str]:
     return ["daqp", "proxqp"] + [f"qpsolvers:{name}" for name in qpsolvers.available_solvers]
 
 
-def make_solver(name: str, rows: int):
-    """The QP backend called ``name`` (see the module docstring)."""
+def make_solver(name: str, rows: int, variables: int = NQ):
+    """The QP backend called ``name`` (see the module docstring) for ``rows`` general rows in
+    ``variables`` unknowns."""
     if name == "proxqp":
-        return ProxqpDenseSolver(rows)
+        return ProxqpDenseSolver(rows, variables=variables)
     if name == "daqp":
-        return DaqpSolver(rows)
+        return DaqpSolver(rows, variables)
     return QpsolversSolver(name.removeprefix("qpsolvers:"))
 
 
-def verifier_for(name: str, rows: int) -> DaqpSolver | QuadprogSolver:
+def verifier_for(name: str, rows: int, variables: int = NQ) -> DaqpSolver | QuadprogSolver:
     """The independent solver that confirms the failures of the backend ``name``: quadprog
     behind daqp, daqp behind every other backend."""
-    return QuadprogSolver(rows) if name == "daqp" else DaqpSolver(rows)
+    return QuadprogSolver(rows) if name == "daqp" else DaqpSolver(rows, variables)
