@@ -17,8 +17,10 @@ feet's equality rows (``FootContact``) set them.
 
 Fallback: when the state is unusable (wrong size, non-finite, a joint past its velocity limit),
 the QP is infeasible or no solver succeeds, the actuated joints brake within their acceleration
-and jerk limits (the arm's braking kernel) and the base acceleration is the least-squares
-solution of the feet's rows for those joint accelerations; the status says why. An unusable
+and jerk limits (the arm's braking kernel, dv_b with zero base acceleration), then dv_b is
+projected onto the feet's rows by the least-norm change, dv = dv_b - Jf^T (Jf Jf^T)^-1
+(Jf dv_b + dJf v): the feet take precedence over the joints' acceleration limits in a fallback
+(both feet over-determine the base); the status says why. An unusable
 state is replaced by the previous command (BadInputError when there is none yet).
 """
 
@@ -193,20 +195,21 @@ class WholeBodyController:
                 raise BadInputError(f"no command yet to stand in for an unusable state: {message}")
             terms = self.robot.terms(self.memory.q_cmd, self.memory.dq_cmd)
         n = self.robot.nv
-        dv, v_cmd, q_joints = np.empty(n), np.empty(n), np.empty(n - NB)
+        dv, v_cmd, q_joints = np.zeros(n), np.empty(n), np.empty(n - NB)
         braking_command(
             terms.q[7:], terms.dq[NB:], self.memory.ddq[NB:], self.dt, self._joint_limits, dv[NB:], v_cmd[NB:], q_joints
         )
         Jf = terms.Jf
-        dv[:NB] = np.linalg.lstsq(Jf[:, :NB], -terms.dJf_dq - Jf[:, NB:] @ dv[NB:], rcond=None)[0]
-        v_cmd[:NB] = terms.dq[:NB] + dv[:NB] * self.dt
-        return self._emit(terms, dv, v_cmd, status, [], list(violated), "", message, q_joints)
+        dv -= Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ dv + terms.dJf_dq)
+        v_cmd = terms.dq + dv * self.dt
+        np.clip(v_cmd[NB:], -self.robot.dq_max, self.robot.dq_max, out=v_cmd[NB:])
+        return self._emit(terms, dv, v_cmd, status, [], list(violated), "", message)
 
-    def _emit(self, terms, dv, v_cmd, status, active, violated, solver, message="", q_joints=None) -> Command:
+    def _emit(self, terms, dv, v_cmd, status, active, violated, solver, message="") -> Command:
         """q_cmd = q (+) (v + v_cmd) dt / 2, joints within their limits; the memory; the Command
         with the jump the expected impact predicts at v_cmd."""
         q_cmd = pin.integrate(self.robot.model, terms.q, 0.5 * self.dt * (terms.dq + v_cmd))
-        q_cmd[7:] = np.clip(q_cmd[7:] if q_joints is None else q_joints, self.robot.q_min, self.robot.q_max)
+        q_cmd[7:] = np.clip(q_cmd[7:], self.robot.q_min, self.robot.q_max)
         self.memory = CommandMemory(q_cmd, v_cmd, dv)
         if self.impact is not None:
             jump = self.impact.matrices(terms).jump_matrix @ v_cmd
