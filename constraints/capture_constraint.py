@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.controller.model.capture import capture_region
+from impactqp.controller.model.capture import GRAVITY, capture_region
 from impactqp.controller.model.whole_body_terms import WholeBodyTerms
 
 from .constraint import Constraint, ControlCycle
@@ -27,7 +27,10 @@ class CaptureRegionLimit(Constraint):
     linear in dv. Each row is multiplied by omega (velocity units) and written at the jerk
     horizon h like the other impact rows, in acceleration units:
 
-        nu_k . K_xy dv <= (omega b_k - nu_k . K_xy v) / h.
+        nu_k . K_xy dv <= (omega b_k - nu_k . K_xy v) / h,    omega b_k = omega nu_k . (a_k - c).
+
+    The edges' normals nu_k and offsets nu_k . a_k are the polygon's (``capture_region``, once);
+    omega = sqrt(g / (c_z - ground height)) and c follow the CoM every cycle.
 
     Simplifications (docs/whole-body-qp.md): the linear-pendulum capture point (constant CoM
     height, no angular momentum); the feet held during the impulse; gm and crb impulses
@@ -43,6 +46,10 @@ class CaptureRegionLimit(Constraint):
         self.ground_height = float(ground_height)
         self.rows = self.polygon.shape[0]
         self.name = f"capture_region[{impact.name}]"
+        centre = np.append(self.polygon.mean(axis=0), self.ground_height + 1.0)
+        region = capture_region(self.polygon, centre, self.ground_height)  # checks the polygon
+        self._normals = region.A * region.omega  # nu_k (k x 2)
+        self._offsets = region.b + self._normals @ centre[:2]  # nu_k . a_k
 
     def compute_into(self, terms: WholeBodyTerms, cycle: ControlCycle, C, lower, upper) -> None:
         lower[:] = -np.inf
@@ -50,8 +57,9 @@ class CaptureRegionLimit(Constraint):
             C[:] = 0.0
             upper[:] = np.inf
             return
-        region = capture_region(self.polygon, terms.com, self.ground_height)
+        com = terms.com
+        omega = np.sqrt(GRAVITY / (com[2] - self.ground_height))
         maps = self.impact.matrices(terms)
-        K = terms.Jcom[:2] + (maps.com_map @ maps.impulse_map @ terms.J)[:2]
-        np.matmul(region.A * region.omega, K, out=C)
-        upper[:] = (region.omega * region.b - C @ terms.dq) / cycle.horizon
+        K = terms.Jcom[:2] + (maps.com_map[:2] @ maps.impulse_map) @ terms.J
+        np.matmul(self._normals, K, out=C)
+        upper[:] = (omega * (self._offsets - self._normals @ com[:2]) - C @ terms.dq) / cycle.horizon

@@ -94,6 +94,7 @@ class WholeBodyModel:
         self.ddq_max = np.full(self.joints, JOINT_ACCELERATION_LIMIT)
         self.dddq_max = np.full(self.joints, JOINT_JERK_LIMIT)
         self.torso_frame_id = self.model.getFrameId(TORSO_FRAME)
+        self._lower = np.tril_indices(self.nv, -1)  # Pinocchio fills the upper triangles of M, M^-1
 
     def check_state(self, q, v) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) as float arrays; BadInputError unless they have nq and nv finite entries."""
@@ -112,10 +113,8 @@ class WholeBodyModel:
         contact = self._frame_state(self.base.contact_frame_id)
         feet = [self._frame_state(f) for f in self.base.foot_frame_ids]
         torso = self._frame_state(self.torso_frame_id)
-        M = pin.crba(model, data, q)
-        M = np.triu(M) + np.triu(M, 1).T
-        M_inv = pin.computeMinverse(model, data, q)
-        M_inv = np.triu(M_inv) + np.triu(M_inv, 1).T
+        M = self._symmetric(pin.crba(model, data, q))
+        M_inv = self._symmetric(pin.computeMinverse(model, data, q))
         pin.centerOfMass(model, data, q, v, np.zeros(self.nv))
         com, dJcom_dq = data.com[0].copy(), data.acom[0].copy()
         Jcom = pin.jacobianCenterOfMass(model, data, q).copy()
@@ -127,6 +126,12 @@ class WholeBodyModel:
             Jcom, dJcom_dq, com, float(Ig.mass), Ig.inertia.copy(),
             {"torso": torso},
         )
+
+    def _symmetric(self, upper: np.ndarray) -> np.ndarray:
+        """A copy of a matrix whose upper triangle is filled, mirrored into the lower one."""
+        full = upper.copy()
+        full[self._lower] = full.T[self._lower]
+        return full
 
     def _frame_state(self, frame_id: int) -> FrameState:
         """The frame's ``FrameState`` after the forward kinematics of ``terms`` (world-aligned)."""
