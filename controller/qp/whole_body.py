@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from impactqp.constraints import AccelerationLimit, Constraint, ControlCycle
+from impactqp.constraints import Constraint, ControlCycle
 from impactqp.constraints.floating_impact import FloatingExpectedImpact
 from impactqp.controller.model.floating_base import NB
 from impactqp.controller.model.validation import BadInputError
@@ -38,7 +38,7 @@ from impactqp.controller.model.whole_body_terms import BASE_ACCELERATION_LIMIT, 
 from impactqp.tasks import Task
 
 from .command import Command, CommandMemory, Status, command_limits
-from .controller import first_outside, intersect_boxes, tight_constraints
+from .controller import checked_constraints, first_outside, intersect_boxes, tight_constraints
 from .fallback import bounded_conflict, braking_command
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
 from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
@@ -62,16 +62,7 @@ class WholeBodyController:
         impact: FloatingExpectedImpact | None = None,
         feasibility_tolerance: float = 1e-6,
     ):
-        if not tasks:
-            raise BadInputError("the controller needs at least one task")
-        if not dt > 0.0:
-            raise BadInputError("dt must be > 0")
-        constraints = list(constraints)
-        if not any(isinstance(c, AccelerationLimit) for c in constraints):
-            constraints.insert(0, AccelerationLimit())
-        names = [c.name for c in constraints]
-        if len(set(names)) != len(names):
-            raise BadInputError(f"constraint names must be unique, got {names}")
+        constraints = checked_constraints(tasks, constraints, dt)
         self.robot, self.tasks, self.constraints = robot, list(tasks), constraints
         self.layout = ConstraintLayout.of(constraints)
         self.dt = float(dt)

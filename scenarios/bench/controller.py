@@ -106,14 +106,19 @@ def settled_speed_ratio(robot: PandaModel, solver: str) -> float:
 
 def pink_cycle_samples(robot: PandaModel, cycles: int = CYCLES) -> np.ndarray:
     """Seconds per cycle of pink: frame task + posture task + limits, solve_ik with proxqp."""
-    import pink
+    return pink_loop_samples(robot.model, POSTURES["elbow_up"].q, "impact_tip", "proxqp", cycles)
+
+
+def pink_loop_samples(model, q0: np.ndarray, frame: str, solver: str, cycles: int) -> np.ndarray:
+    """Seconds per cycle of pink's ``solve_ik`` (frame task on ``frame``, its target WALL_GAP
+    ahead along x, + posture task + pink's limits) from q0, restarted every RESTART_EVERY cycles."""
+    import pink  # optional peer (the bench extra): loaded only for its rows
     from pink.tasks import FrameTask, PostureTask
 
-    q0 = POSTURES["elbow_up"].q
-    configuration = pink.Configuration(robot.model, robot.model.createData(), q0)
-    frame_task = FrameTask("impact_tip", position_cost=1.0, orientation_cost=1.0)
+    configuration = pink.Configuration(model, model.createData(), q0)
+    frame_task = FrameTask(frame, position_cost=1.0, orientation_cost=1.0)
     posture_task = PostureTask(cost=1e-2)
-    target = configuration.get_transform_frame_to_world("impact_tip").copy()
+    target = configuration.get_transform_frame_to_world(frame).copy()
     target.translation[0] += WALL_GAP
     frame_task.set_target(target)
     posture_task.set_target(q0)
@@ -124,7 +129,7 @@ def pink_cycle_samples(robot: PandaModel, cycles: int = CYCLES) -> np.ndarray:
         if k % RESTART_EVERY == 0:
             configuration.update(q0)
         start = time.perf_counter()
-        velocity = pink.solve_ik(configuration, tasks, dt, solver="proxqp", safety_break=False)
+        velocity = pink.solve_ik(configuration, tasks, dt, solver=solver, safety_break=False)
         configuration.integrate_inplace(velocity, dt)
         samples[k] = time.perf_counter() - start
     return samples
@@ -239,29 +244,9 @@ def g1_cycle_samples(robot: WholeBodyModel, solver: str = "daqp", cycles: int = 
 def pink_g1_cycle_samples(robot: WholeBodyModel, cycles: int = CYCLES) -> np.ndarray:
     """Seconds per cycle of pink on the G1: frame task on the hand's contact frame + posture task
     + limits, solve_ik with daqp, the same target 10 cm ahead."""
-    import pink  # optional peer (the bench extra): loaded only for its row
-    from pink.tasks import FrameTask, PostureTask
-
     q0 = stance_posture(robot.base, STANCES[G1_STANCE])
-    configuration = pink.Configuration(robot.model, robot.model.createData(), q0)
     frame = robot.model.frames[robot.base.contact_frame_id].name
-    frame_task = FrameTask(frame, position_cost=1.0, orientation_cost=1.0)
-    posture_task = PostureTask(cost=1e-2)
-    target = configuration.get_transform_frame_to_world(frame).copy()
-    target.translation[0] += WALL_GAP
-    frame_task.set_target(target)
-    posture_task.set_target(q0)
-    tasks = [frame_task, posture_task]
-    dt = 0.001
-    samples = np.empty(cycles)
-    for k in range(cycles):
-        if k % RESTART_EVERY == 0:
-            configuration.update(q0)
-        start = time.perf_counter()
-        velocity = pink.solve_ik(configuration, tasks, dt, solver="daqp", safety_break=False)
-        configuration.integrate_inplace(velocity, dt)
-        samples[k] = time.perf_counter() - start
-    return samples
+    return pink_loop_samples(robot.model, q0, frame, "daqp", cycles)
 
 
 def g1_rows() -> list[dict]:
