@@ -66,8 +66,8 @@ def test_an_unknown_backend_is_bad_input():
         make_solver("no_such_solver", 4)
 
 
-@settings(max_examples=10, deadline=None)
-@given(st.integers(8, 40), st.integers(1, 6), st.integers(0, 2**31))
+@settings(max_examples=30, deadline=None)
+@given(st.integers(8, 40), st.integers(1, 8), st.integers(0, 2**31))
 def test_backends_solve_problems_of_any_size_alike(variables, rows, seed):
     """Every backend and verifier on a random strictly convex QP in ``variables`` unknowns with
     ``rows`` general rows feasible at a known point, equality rows included."""

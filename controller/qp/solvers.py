@@ -86,7 +86,9 @@ class DaqpSolver:
 class QuadprogSolver:
     """quadprog (Goldfarb-Idnani dual active set), the independent second opinion for daqp.
 
-    It solves min 1/2 x^T H x - a^T x s.t. A^T x >= b, so every finite bound becomes one
+    It solves min 1/2 x^T H x - a^T x s.t. A^T x >= b with the first meq rows equalities, so a
+    row or bound with lower = upper becomes one equality (as two opposite inequalities it is
+    degenerate, and quadprog calls such problems inconsistent) and every other finite bound one
     inequality. quadprog reports an infeasible problem only by a ValueError whose text says the
     constraints are inconsistent; any other error is a failure.
     """
@@ -97,12 +99,14 @@ class QuadprogSolver:
         del rows, variables  # quadprog takes the problem as it comes
 
     def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
-        upper, lower = np.isfinite(problem.upper), np.isfinite(problem.lower)
+        equal = np.isfinite(problem.upper) & (problem.upper == problem.lower)
+        upper = np.isfinite(problem.upper) & ~equal
+        lower = np.isfinite(problem.lower) & ~equal
         identity_and_rows = np.vstack([np.eye(problem.H.shape[0]), problem.C])
-        A = np.vstack([-identity_and_rows[upper], identity_and_rows[lower]])
-        b = np.concatenate([-problem.upper[upper], problem.lower[lower]])
+        A = np.vstack([identity_and_rows[equal], -identity_and_rows[upper], identity_and_rows[lower]])
+        b = np.concatenate([problem.lower[equal], -problem.upper[upper], problem.lower[lower]])
         try:
-            x = quadprog.solve_qp(problem.H, -problem.g, A.T, b, 0)[0]
+            x = quadprog.solve_qp(problem.H, -problem.g, A.T, b, int(equal.sum()))[0]
         except ValueError as error:
             return (INFEASIBLE if "inconsistent" in str(error) else FAILED), None
         return SOLVED, x
@@ -110,7 +114,7 @@ class QuadprogSolver:
 
 class QpsolversSolver:
     """Any backend of ``qpsolvers`` (one-shot: no warm start); l <= C x <= u becomes
-    [C; -C] x <= [u; -l] without the unbounded rows."""
+    [C; -C] x <= [u; -l] without the unbounded rows, and a row with l = u the equality C_i x = u_i."""
 
     def __init__(self, backend: str):
         if backend not in qpsolvers.available_solvers:
@@ -123,11 +127,13 @@ class QpsolversSolver:
         self.name = f"qpsolvers:{backend}"
 
     def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
-        G = np.vstack([problem.C, -problem.C])
-        h = np.concatenate([problem.u, -problem.l])
+        equal = np.isfinite(problem.u) & (problem.u == problem.l)
+        G = np.vstack([problem.C[~equal], -problem.C[~equal]])
+        h = np.concatenate([problem.u[~equal], -problem.l[~equal]])
         finite = np.isfinite(h)
+        A, b = (problem.C[equal], problem.u[equal]) if np.any(equal) else (None, None)
         solution = qpsolvers.solve_problem(
-            qpsolvers.Problem(problem.H, problem.g, G[finite], h[finite], lb=problem.lb, ub=problem.ub),
+            qpsolvers.Problem(problem.H, problem.g, G[finite], h[finite], A, b, lb=problem.lb, ub=problem.ub),
             solver=self.backend,
         )
         if solution.found and solution.x is not None and np.all(np.isfinite(solution.x)):

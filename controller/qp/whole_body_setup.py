@@ -25,7 +25,7 @@ from impactqp.controller.model.humanoid_stance import support_polygon
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.whole_body_terms import WholeBodyModel
 from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask
-from impactqp.tasks.com_task import CentreOfMassTask
+from impactqp.tasks import CentreOfMassTask
 
 from .whole_body import WholeBodyController
 
