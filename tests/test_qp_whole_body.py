@@ -5,22 +5,15 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from whole_body_states import NORMAL, approach_velocity, robot, stance, standing_states, wall_ahead
+from whole_body_states import NORMAL, approach_velocity, controller, robot, stance, standing_states
 
 from impactqp.controller.model.floating_base import METHODS
 from impactqp.controller.model.floating_maps import floating_jump_maps
 from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.controller.model.validation import BadInputError
-from impactqp.controller.qp.whole_body_setup import WholeBodySetup, build_whole_body_controller
-from impactqp.tasks import DampingTask
 
 SETTINGS = settings(max_examples=12, deadline=None)
 TOLERANCE = 1e-6
-
-
-def controller(name, gap=0.05, **choices):
-    q = stance(name)
-    return build_whole_body_controller(robot(), q, WholeBodySetup(wall_ahead(q, gap), **choices))
 
 
 def impact_rows(c):
@@ -119,17 +112,3 @@ def test_unusable_states_brake_the_joints_with_the_feet_held():
         assert command.status == status and np.all(np.isfinite(command.q_cmd))
         terms = robot().terms(first.q_cmd if np.isnan(bad_v).any() else bad_q, first.dq_cmd if np.isnan(bad_v).any() else bad_v)
         np.testing.assert_allclose(terms.Jf @ command.ddq + terms.dJf_dq, 0.0, atol=1e-6)
-
-
-def test_setup_assembles_the_tasks_and_constraints_and_refuses_a_bad_controller():
-    c = controller("staggered", method="gm")
-    names = [x.name for x in c.constraints]
-    assert names == [
-        "joint_acceleration_limit", "joint_position_limit", "joint_velocity_limit", "foot_contact",
-        "post_impact_velocity[gm]", "capture_region[gm]",
-    ]
-    assert [t.name for t in c.tasks] == ["contact_approach", "com", "frame[torso]", "posture", "damping"]
-    with pytest.raises(BadInputError):
-        type(c)(robot(), [], c.constraints, 0.001)
-    with pytest.raises(BadInputError):
-        type(c)(robot(), [DampingTask(variables=35)], c.constraints + c.constraints[-1:], 0.001)

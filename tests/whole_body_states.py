@@ -1,4 +1,5 @@
-"""The standing G1 and its random states, shared by the whole-body QP tests."""
+"""The standing G1, its random states and its default controller, shared by the whole-body QP
+tests."""
 
 from functools import lru_cache
 
@@ -10,6 +11,7 @@ from impactqp.controller.model.floating_maps import feet_held_pinv
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.whole_body_terms import WholeBodyModel
+from impactqp.controller.qp.whole_body_setup import WholeBodySetup, build_whole_body_controller
 
 NORMAL = np.array([-1.0, 0.0, 0.0])  # the wall in front (+x), normal towards the robot
 
@@ -58,3 +60,9 @@ def approach_velocity(q: np.ndarray, speed: float) -> np.ndarray:
 
 def integrate(q: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
     return pin.integrate(robot().model, q, v * dt)
+
+
+def controller(name: str, gap: float = 0.05, **choices):
+    """The default whole-body controller at stance ``name``, the wall ``gap`` m ahead."""
+    q = stance(name)
+    return build_whole_body_controller(robot(), q, WholeBodySetup(wall_ahead(q, gap), **choices))
