@@ -112,13 +112,16 @@ class Constraint:
     relaxed: bool = False
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower: np.ndarray, upper: np.ndarray) -> None:
-        """Write the raw rows of this state: C (rows x 7; None for a box), lower and upper."""
+        """Write the raw rows of this state: C (rows x number of velocities, 7 for the arm; None for
+        a box), lower and upper."""
         raise NotImplementedError
 
     def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:
         """The rows of this state in new arrays, clipped or relaxed as the class says."""
-        C = None if self.is_box else np.empty((self.rows, terms.q.shape[0]))
-        lower, upper = np.empty(self.rows), np.empty(self.rows)
+        n = cycle.acceleration_lower.shape[0]  # the number of velocities; a box bounds each
+        size = n if self.is_box else self.rows
+        C = None if self.is_box else np.empty((self.rows, n))
+        lower, upper = np.empty(size), np.empty(size)
         self.compute_into(terms, cycle, C, lower, upper)
         if self.is_box:
             cycle.clip_to_reachable(lower, upper)

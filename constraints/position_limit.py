@@ -31,6 +31,9 @@ class PositionLimit(Constraint):
     and acceleration limits stay mutually feasible near the boundary: a joint that is too fast
     brakes as hard as it may. braking_fraction < 1 leaves room for the jerk-limited onset of the
     deceleration and for the other constraints.
+
+    With fewer limits than velocities (a floating base), the limits are those of the last
+    joints (the actuated ones; the base's coordinates come first) and the base is unbounded.
     """
 
     name = "joint_position_limit"
@@ -58,7 +61,12 @@ class PositionLimit(Constraint):
         dt = cycle.dt
         if dt != self._dt:
             self._constants(dt)
-        braking_bounds(terms.q, terms.dq, self._signed_limits, self._braking_terms, dt, lower, upper)
+        n = self._limits.shape[1]
+        if lower.shape[0] == n:
+            braking_bounds(terms.q, terms.dq, self._signed_limits, self._braking_terms, dt, lower, upper)
+            return
+        lower[:-n], upper[:-n] = -np.inf, np.inf
+        braking_bounds(terms.q[-n:], terms.dq[-n:], self._signed_limits, self._braking_terms, dt, lower[-n:], upper[-n:])
 
 
 @njit(cache=True)

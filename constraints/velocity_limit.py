@@ -22,7 +22,8 @@ class VelocityLimit(Constraint):
     time, and the command had to be clipped after the QP (breaking ddq = (dq_cmd - dq)/dt and
     the jerk limit). The box is clipped into the reachable accelerations of the cycle: from a
     velocity outside the limits the constraint asks for the strongest allowed deceleration
-    instead of making the QP infeasible.
+    instead of making the QP infeasible. With fewer limits than velocities (a floating base),
+    they bound the last joints (the actuated ones) and the base is unbounded.
     """
 
     name = "joint_velocity_limit"
@@ -33,7 +34,12 @@ class VelocityLimit(Constraint):
         self.dq_max = np.asarray(dq_max, dtype=float)
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
-        symmetric_velocity_bounds(terms.dq, self.dq_max, 1.0 / cycle.horizon, lower, upper)
+        n = self.dq_max.shape[0]
+        if lower.shape[0] == n:
+            symmetric_velocity_bounds(terms.dq, self.dq_max, 1.0 / cycle.horizon, lower, upper)
+            return
+        lower[:-n], upper[:-n] = -np.inf, np.inf
+        symmetric_velocity_bounds(terms.dq[-n:], self.dq_max, 1.0 / cycle.horizon, lower[-n:], upper[-n:])
 
 
 @njit(cache=True)

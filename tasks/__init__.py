@@ -1,5 +1,6 @@
 """Least-squares tasks of the impact-aware QP (one class per task, see ``tasks.task``)."""
 
+from .com_task import CentreOfMassTask
 from .contact_approach_task import ContactApproachTask
 from .damping_task import DampingTask
 from .frame_task import FrameTask
@@ -7,4 +8,7 @@ from .posture_task import PostureTask
 from .surface_offset_task import SurfaceOffsetTask
 from .task import Task, TaskRows
 
-__all__ = ["Task", "TaskRows", "FrameTask", "ContactApproachTask", "PostureTask", "DampingTask", "SurfaceOffsetTask"]
+__all__ = [
+    "Task", "TaskRows", "FrameTask", "ContactApproachTask", "PostureTask", "DampingTask", "SurfaceOffsetTask",
+    "CentreOfMassTask",
+]

@@ -12,7 +12,8 @@ from impactqp.controller.model.validation import BadInputError, task_gain
 
 
 class DampingTask(Task):
-    """ddq = -gain dq as 7 rows I ddq = b.
+    """ddq = -gain dq as rows I ddq = b, one per velocity (``variables``: 7 for the arm, 35
+    for the standing humanoid's base and joints).
 
     With gain 0 it is a pure Tikhonov regularisation of ddq; with gain > 0 it also damps the
     joint velocity, which keeps the redundant motion of the arm from drifting. It makes the
@@ -22,11 +23,12 @@ class DampingTask(Task):
     name = "damping"
     rows = NQ
 
-    def __init__(self, gain: float = 1.0, weight: float = 1e-4):
+    def __init__(self, gain: float = 1.0, weight: float = 1e-4, variables: int = NQ):
         if not task_gain(weight, "damping weight") > 0.0:
             raise BadInputError("the damping task weight must be > 0")
         self.gain = task_gain(gain, "damping gain")
-        self.weight = np.full(NQ, float(weight))
+        self.rows = int(variables)
+        self.weight = np.full(self.rows, float(weight))
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        joint_pd_rows(terms.q, terms.dq, terms.q, 0.0, self.gain, A, b)
+        joint_pd_rows(terms.dq, terms.dq, terms.dq, 0.0, self.gain, A, b)

@@ -12,28 +12,39 @@ from .task import Task, critical_damping
 
 
 class PostureTask(Task):
-    """ddq = kp (q* - q) - kd dq as 7 rows I ddq = b, kd = 2 sqrt(kp) by default.
+    """ddq = kp (q* - q) - kd dq as ``joints`` rows (7 for the arm), kd = 2 sqrt(kp) by default.
 
-    A target left as None is the posture at ``reset``. Usually given a small weight, so it
-    only shapes the redundant (null-space) motion of the arm.
+    The actuated joints are the last ``joints`` entries of q and of the velocity (a floating
+    base's coordinates come first), so the rows are [0 I] ddv = b: on the arm, I ddq = b. A
+    target left as None is the posture at ``reset``. Usually given a small weight, so it only
+    shapes the redundant (null-space) motion.
     """
 
     name = "posture"
     rows = NQ
 
-    def __init__(self, target=None, stiffness: float = 10.0, damping: float | None = None, weight: float = 1e-2):
-        self.target = None if target is None else finite_vector(target, NQ, "posture target")
+    def __init__(
+        self, target=None, stiffness: float = 10.0, damping: float | None = None, weight: float = 1e-2,
+        joints: int = NQ,
+    ):
+        self.rows = int(joints)
+        self.target = None if target is None else finite_vector(target, self.rows, "posture target")
         self._target_configured = self.target is not None
         self.stiffness = task_gain(stiffness, "posture stiffness")
         self.damping = critical_damping(self.stiffness) if damping is None else task_gain(damping, "posture damping")
-        self.weight = np.full(NQ, task_gain(weight, "posture weight"))
+        self.weight = np.full(self.rows, task_gain(weight, "posture weight"))
 
     def reset(self, terms: ModelTerms) -> None:
         if not self._target_configured:
-            self.target = terms.q.copy()
+            self.target = terms.q[-self.rows:].copy()
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        joint_pd_rows(terms.q, terms.dq, self.target, self.stiffness, self.damping, A, b)
+        n = self.rows
+        if A.shape[1] == n:
+            joint_pd_rows(terms.q, terms.dq, self.target, self.stiffness, self.damping, A, b)
+            return
+        A[:, :-n] = 0.0
+        joint_pd_rows(terms.q[-n:], terms.dq[-n:], self.target, self.stiffness, self.damping, A[:, -n:], b)
 
 
 @njit(cache=True)

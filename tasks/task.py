@@ -48,11 +48,11 @@ class Task:
         """Capture the targets that were left unspecified from the state ``terms``."""
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        """Write the rows A (rows x 7) and b of this state."""
+        """Write the rows A (rows x number of velocities: 7 for the arm) and b of this state."""
         raise NotImplementedError
 
     def compute(self, terms: ModelTerms) -> TaskRows:
-        A, b = np.empty((self.rows, terms.q.shape[0])), np.empty(self.rows)
+        A, b = np.empty((self.rows, terms.dq.shape[0])), np.empty(self.rows)  # one column per velocity
         self.compute_into(terms, A, b)
         return TaskRows(A, b, self.weight)
 

@@ -64,3 +64,27 @@ def test_every_backend_name_makes_its_solver_and_a_different_verifier():
 def test_an_unknown_backend_is_bad_input():
     with pytest.raises(BadInputError, match="not available"):
         make_solver("no_such_solver", 4)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(8, 40), st.integers(1, 8), st.integers(0, 2**31))
+def test_backends_solve_problems_of_any_size_alike(variables, rows, seed):
+    """Every backend and verifier on a random strictly convex QP in ``variables`` unknowns with
+    ``rows`` general rows feasible at a known point, equality rows included."""
+    from impactqp.controller.qp.problem import QpProblem
+
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(variables, variables))
+    point = rng.normal(size=variables)
+    C = rng.normal(size=(rows, variables))
+    slack = rng.uniform(0.0, 1.0, size=rows) * (rng.random(rows) < 0.7)  # some rows are equalities
+    problem = QpProblem(A.T @ A + np.eye(variables), rng.normal(size=variables), C, C @ point - slack, C @ point + slack,
+                        point - 1.0, point + 1.0)
+    answers = []
+    for name in ("daqp", "proxqp", "qpsolvers:quadprog"):
+        for solver in (make_solver(name, rows, variables), verifier_for(name, rows, variables)):
+            status, x = solver.solve(problem)
+            assert status == "solved" and problem.violation(x) <= 1e-6
+            answers.append(x)
+    for x in answers[1:]:
+        np.testing.assert_allclose(x, answers[0], atol=1e-4)

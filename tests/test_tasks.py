@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from reference.tasks import reference_rows
 
 from impactqp.controller.model.postures import POSTURES
-from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
+from impactqp.tasks import CentreOfMassTask, ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
 from impactqp.controller.model.robot import SingularPostureError
 from impactqp.tasks.task import Task, rotation_error, rotation_log
 
@@ -217,7 +217,9 @@ def all_task_classes(kind=Task):
 
 
 def test_the_jacobian_table_covers_every_task():
-    assert all_task_classes() == set(CONTROLLED_RATE)
+    """Every task of the arm is in the table; the CoM task exists only on the floating base
+    (test_com_task.py checks its Jacobian against finite differences)."""
+    assert all_task_classes() == set(CONTROLLED_RATE) | {CentreOfMassTask}
 
 
 def one_task_of_each_class(normal, terms):
@@ -243,3 +245,39 @@ def test_every_task_jacobian_matches_finite_differences_of_what_it_controls(robo
         A = task.compute(terms).A
         expected = CONTROLLED_RATE[type(task)](robot, task, q, dq)
         np.testing.assert_allclose(A @ dq, expected, atol=1e-6, err_msg=task.name)
+
+
+def test_joint_tasks_on_a_floating_base_act_on_the_trailing_joints_only():
+    """PostureTask(joints=29) and DampingTask(variables=35) on the standing G1: [0 I] dv = b for
+    the posture (the base's six accelerations free), I dv = -gain v for the damping."""
+    from whole_body_states import approach_velocity, robot, stance
+
+    q = stance("parallel")
+    v = approach_velocity(q, 0.4)
+    terms = robot().terms(q, v)
+    posture = PostureTask(target=q[7:] + 0.1, stiffness=9.0, damping=2.0, joints=29)
+    rows = posture.compute(terms)
+    np.testing.assert_array_equal(rows.A, np.hstack([np.zeros((29, 6)), np.eye(29)]))
+    np.testing.assert_allclose(rows.b, 9.0 * 0.1 - 2.0 * v[6:])
+    posture = PostureTask(joints=29)
+    posture.reset(terms)
+    np.testing.assert_array_equal(posture.target, q[7:])
+    damping = DampingTask(gain=3.0, variables=35).compute(terms)
+    np.testing.assert_array_equal(damping.A, np.eye(35))
+    np.testing.assert_allclose(damping.b, -3.0 * v)
+
+
+def test_frame_task_on_a_named_frame_drives_that_frame():
+    """FrameTask(frame="torso") reads the torso's pose, Jacobian and drift from the terms."""
+    from whole_body_states import approach_velocity, robot, stance
+
+    q = stance("wide")
+    terms = robot().terms(q, approach_velocity(q, 0.3))
+    torso = terms.frame("torso")
+    task = FrameTask(stiffness=16.0, frame="torso")
+    task.reset(terms)
+    np.testing.assert_array_equal(task.target_position, torso.position)
+    rows = task.compute(terms)
+    assert task.name == "frame[torso]"
+    np.testing.assert_array_equal(rows.A, torso.J6)
+    np.testing.assert_allclose(rows.b, -8.0 * (torso.J6 @ terms.dq) - torso.dJ6_dq)

@@ -84,16 +84,7 @@ class ImpactAwareController:
         acceleration_limit: np.ndarray | None = None,
         jerk_limit: np.ndarray | None = None,
     ):
-        if not tasks:
-            raise BadInputError("the controller needs at least one task")
-        if not dt > 0.0:
-            raise BadInputError("dt must be > 0")
-        constraints = list(constraints)
-        if not any(isinstance(c, AccelerationLimit) for c in constraints):
-            constraints.insert(0, AccelerationLimit())
-        names = [c.name for c in constraints]
-        if len(set(names)) != len(names):
-            raise BadInputError(f"constraint names must be unique, got {names}")
+        constraints = checked_constraints(tasks, constraints, dt)
         self.robot = robot
         self.tasks = list(tasks)
         self.constraints = constraints
@@ -303,6 +294,22 @@ class ImpactAwareController:
             ddq, dq_cmd, q_cmd, status, active, violated, jump, dq_cmd + jump, impact_active, solver, message,
             self.phase,
         )
+
+
+def checked_constraints(tasks: list[Task], constraints: list[Constraint], dt: float) -> list[Constraint]:
+    """The constraints of a controller, an ``AccelerationLimit`` first when missing; BadInputError
+    without a task, for dt <= 0 or for two constraints of one name."""
+    if not tasks:
+        raise BadInputError("the controller needs at least one task")
+    if not dt > 0.0:
+        raise BadInputError("dt must be > 0")
+    constraints = list(constraints)
+    if not any(isinstance(c, AccelerationLimit) for c in constraints):
+        constraints.insert(0, AccelerationLimit())
+    names = [c.name for c in constraints]
+    if len(set(names)) != len(names):
+        raise BadInputError(f"constraint names must be unique, got {names}")
+    return constraints
 
 
 @njit(cache=True)

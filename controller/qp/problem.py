@@ -1,7 +1,8 @@
 """The QP of one cycle in preallocated arrays (``QpProblem``) and where each constraint's rows
 sit in it (``ConstraintLayout``).
 
-The QP in the joint acceleration ddq::
+The QP in the joint acceleration ddq (7 for the arm; any number of unknowns, e.g. the 35 base and
+joint accelerations of the standing humanoid, ``whole_body``)::
 
     minimize    1/2 ddq^T H ddq + g^T ddq
     subject to  lb <= ddq <= ub          (box constraints, intersected)
@@ -29,18 +30,20 @@ class QpProblem:
     """
 
     def __init__(self, H, g, C, l, u, lb, ub):
-        rows = C.shape[0]
+        rows, n = C.shape[0], H.shape[0]
         self.H, self.g, self.C = H, g, C
         self.lower, self.upper = np.concatenate([lb, l]), np.concatenate([ub, u])
-        self.lb, self.l = self.lower[:NQ], self.lower[NQ:]
-        self.ub, self.u = self.upper[:NQ], self.upper[NQ:]
-        self.lower_gap = np.zeros(NQ + rows)  # [x; C x] - lower, of the last ``violation``
-        self.upper_gap = np.zeros(NQ + rows)  # upper - [x; C x]
+        self.lb, self.l = self.lower[:n], self.lower[n:]
+        self.ub, self.u = self.upper[:n], self.upper[n:]
+        self.lower_gap = np.zeros(n + rows)  # [x; C x] - lower, of the last ``violation``
+        self.upper_gap = np.zeros(n + rows)  # upper - [x; C x]
 
     @classmethod
-    def empty(cls, rows: int) -> QpProblem:
-        return cls(np.zeros((NQ, NQ)), np.zeros(NQ), np.zeros((rows, NQ)), np.zeros(rows), np.zeros(rows),
-                   np.zeros(NQ), np.zeros(NQ))
+    def empty(cls, rows: int, variables: int = NQ) -> QpProblem:
+        """Zeros for ``rows`` general rows in ``variables`` unknowns (the arm's 7 by default)."""
+        n = variables
+        return cls(np.zeros((n, n)), np.zeros(n), np.zeros((rows, n)), np.zeros(rows), np.zeros(rows),
+                   np.zeros(n), np.zeros(n))
 
     def copy(self) -> QpProblem:
         return QpProblem(self.H.copy(), self.g.copy(), self.C.copy(), self.l, self.u, self.lb, self.ub)
@@ -87,9 +90,9 @@ class ConstraintLayout:
     def first_relaxed_row(self) -> int:
         return sum(c.rows for c in self.row_constraints if not c.relaxed)
 
-    def empty_box_bounds(self) -> np.ndarray:
+    def empty_box_bounds(self, variables: int = NQ) -> np.ndarray:
         """Zeros for the interleaved bounds of the box constraints (rows 2k and 2k + 1)."""
-        return np.zeros((2 * len(self.box_constraints), NQ))
+        return np.zeros((2 * len(self.box_constraints), variables))
 
     def empty_flags(self) -> np.ndarray:
         """One boolean per constraint, in ``flag_names`` order."""

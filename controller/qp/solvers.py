@@ -30,8 +30,8 @@ class ProxqpDenseSolver:
 
     name = "proxqp"
 
-    def __init__(self, rows: int, tolerance: float = 1e-7, max_iterations: int = 200):
-        self.qp = proxsuite.proxqp.dense.QP(NQ, 0, rows, True)
+    def __init__(self, rows: int, tolerance: float = 1e-7, max_iterations: int = 200, variables: int = NQ):
+        self.qp = proxsuite.proxqp.dense.QP(variables, 0, rows, True)
         settings = self.qp.settings
         settings.max_iter = max_iterations  # bounded cycle time; a second solver confirms any failure
         settings.max_iter_in = max_iterations
@@ -71,8 +71,8 @@ class DaqpSolver:
 
     name = "daqp"
 
-    def __init__(self, rows: int):
-        self._sense = np.zeros(NQ + rows, dtype=np.int32)
+    def __init__(self, rows: int, variables: int = NQ):
+        self._sense = np.zeros(variables + rows, dtype=np.int32)
 
     def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
         sense = self._sense
@@ -86,23 +86,27 @@ class DaqpSolver:
 class QuadprogSolver:
     """quadprog (Goldfarb-Idnani dual active set), the independent second opinion for daqp.
 
-    It solves min 1/2 x^T H x - a^T x s.t. A^T x >= b, so every finite bound becomes one
+    It solves min 1/2 x^T H x - a^T x s.t. A^T x >= b with the first meq rows equalities, so a
+    row or bound with lower = upper becomes one equality (as two opposite inequalities it is
+    degenerate, and quadprog calls such problems inconsistent) and every other finite bound one
     inequality. quadprog reports an infeasible problem only by a ValueError whose text says the
     constraints are inconsistent; any other error is a failure.
     """
 
     name = "quadprog"
 
-    def __init__(self, rows: int):
-        del rows  # quadprog takes the problem as it comes
+    def __init__(self, rows: int, variables: int = NQ):
+        del rows, variables  # quadprog takes the problem as it comes
 
     def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
-        upper, lower = np.isfinite(problem.upper), np.isfinite(problem.lower)
-        identity_and_rows = np.vstack([np.eye(NQ), problem.C])
-        A = np.vstack([-identity_and_rows[upper], identity_and_rows[lower]])
-        b = np.concatenate([-problem.upper[upper], problem.lower[lower]])
+        equal = np.isfinite(problem.upper) & (problem.upper == problem.lower)
+        upper = np.isfinite(problem.upper) & ~equal
+        lower = np.isfinite(problem.lower) & ~equal
+        identity_and_rows = np.vstack([np.eye(problem.H.shape[0]), problem.C])
+        A = np.vstack([identity_and_rows[equal], -identity_and_rows[upper], identity_and_rows[lower]])
+        b = np.concatenate([problem.lower[equal], -problem.upper[upper], problem.lower[lower]])
         try:
-            x = quadprog.solve_qp(problem.H, -problem.g, A.T, b, 0)[0]
+            x = quadprog.solve_qp(problem.H, -problem.g, A.T, b, int(equal.sum()))[0]
         except ValueError as error:
             return (INFEASIBLE if "inconsistent" in str(error) else FAILED), None
         return SOLVED, x
@@ -110,7 +114,7 @@ class QuadprogSolver:
 
 class QpsolversSolver:
     """Any backend of ``qpsolvers`` (one-shot: no warm start); l <= C x <= u becomes
-    [C; -C] x <= [u; -l] without the unbounded rows."""
+    [C; -C] x <= [u; -l] without the unbounded rows, and a row with l = u the equality C_i x = u_i."""
 
     def __init__(self, backend: str):
         if backend not in qpsolvers.available_solvers:
@@ -123,11 +127,13 @@ class QpsolversSolver:
         self.name = f"qpsolvers:{backend}"
 
     def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
-        G = np.vstack([problem.C, -problem.C])
-        h = np.concatenate([problem.u, -problem.l])
+        equal = np.isfinite(problem.u) & (problem.u == problem.l)
+        G = np.vstack([problem.C[~equal], -problem.C[~equal]])
+        h = np.concatenate([problem.u[~equal], -problem.l[~equal]])
         finite = np.isfinite(h)
+        A, b = (problem.C[equal], problem.u[equal]) if np.any(equal) else (None, None)
         solution = qpsolvers.solve_problem(
-            qpsolvers.Problem(problem.H, problem.g, G[finite], h[finite], lb=problem.lb, ub=problem.ub),
+            qpsolvers.Problem(problem.H, problem.g, G[finite], h[finite], A, b, lb=problem.lb, ub=problem.ub),
             solver=self.backend,
         )
         if solution.found and solution.x is not None and np.all(np.isfinite(solution.x)):
@@ -140,16 +146,17 @@ def available_backends() -> list[str]:
     return ["daqp", "proxqp"] + [f"qpsolvers:{name}" for name in qpsolvers.available_solvers]
 
 
-def make_solver(name: str, rows: int):
-    """The QP backend called ``name`` (see the module docstring)."""
+def make_solver(name: str, rows: int, variables: int = NQ):
+    """The QP backend called ``name`` (see the module docstring) for ``rows`` general rows in
+    ``variables`` unknowns."""
     if name == "proxqp":
-        return ProxqpDenseSolver(rows)
+        return ProxqpDenseSolver(rows, variables=variables)
     if name == "daqp":
-        return DaqpSolver(rows)
+        return DaqpSolver(rows, variables)
     return QpsolversSolver(name.removeprefix("qpsolvers:"))
 
 
-def verifier_for(name: str, rows: int) -> DaqpSolver | QuadprogSolver:
+def verifier_for(name: str, rows: int, variables: int = NQ) -> DaqpSolver | QuadprogSolver:
     """The independent solver that confirms the failures of the backend ``name``: quadprog
     behind daqp, daqp behind every other backend."""
-    return QuadprogSolver(rows) if name == "daqp" else DaqpSolver(rows)
+    return QuadprogSolver(rows) if name == "daqp" else DaqpSolver(rows, variables)

@@ -13,6 +13,13 @@
   towards the wall with the impact constraints always on; goal: p99 <= 2x controller.cycle p99);
 - controller.stage.<terms|tasks|constraints|solve|check>: one cycle split into its stages, on
   the states of the controller.cycle loop;
+- controller.cycle.g1: microseconds per ``WholeBodyController.step`` of the standing G1 (parallel
+  stance, the right hand approaching a wall 10 cm ahead at 0.5 m/s, every task and constraint on,
+  model terms once per cycle, daqp), the same closed loop as controller.cycle; .proxqp the same
+  loop with proxqp updated and warm-started every cycle;
+- peer.pink.cycle.g1: pink's ``solve_ik`` on the same G1 model (frame task on the hand's contact
+  frame + posture task + pink's configuration and velocity limits, daqp: pink's fastest backend
+  on this robot), its free-flyer left free (pink has no feet), same loop;
 - controller.solvers.<backend>: the controller.cycle loop with each available QP backend, with
   ``.fallbacks`` (fallback cycles in that loop) and ``.speed_ratio`` (asked for 2 m/s at a fixed
   posture, the commanded contact speed it settles at over the crb closed-form maximum speed;
@@ -32,7 +39,10 @@ from impactqp.controller.model.postures import POSTURES, Surface
 from impactqp.controller.model.robot import NQ, PandaModel, RobotModel
 from impactqp.controller.model.tool_postures import tool_posture
 from impactqp.controller.qp import available_backends
+from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.jump import JUMP_MODELS
+from impactqp.controller.model.whole_body_terms import WholeBodyModel
+from impactqp.controller.qp.whole_body_setup import WholeBodySetup, build_whole_body_controller
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION, approach_direction, closed_form_max_speed
 
 from .base import missing_row, timing_row
@@ -40,6 +50,7 @@ from .base import missing_row, timing_row
 CYCLES = 3000
 RESTART_EVERY = 500  # cycles; the loop restarts at the posture before reaching the wall
 WALL_GAP = 0.10  # m between the tool tip and the wall at the start
+G1_STANCE = "parallel"
 
 
 def _approach_setup(robot: PandaModel, solver: str | None = None):
@@ -95,14 +106,19 @@ def settled_speed_ratio(robot: PandaModel, solver: str) -> float:
 
 def pink_cycle_samples(robot: PandaModel, cycles: int = CYCLES) -> np.ndarray:
     """Seconds per cycle of pink: frame task + posture task + limits, solve_ik with proxqp."""
-    import pink
+    return pink_loop_samples(robot.model, POSTURES["elbow_up"].q, "impact_tip", "proxqp", cycles)
+
+
+def pink_loop_samples(model, q0: np.ndarray, frame: str, solver: str, cycles: int) -> np.ndarray:
+    """Seconds per cycle of pink's ``solve_ik`` (frame task on ``frame``, its target WALL_GAP
+    ahead along x, + posture task + pink's limits) from q0, restarted every RESTART_EVERY cycles."""
+    import pink  # optional peer (the bench extra): loaded only for its rows
     from pink.tasks import FrameTask, PostureTask
 
-    q0 = POSTURES["elbow_up"].q
-    configuration = pink.Configuration(robot.model, robot.model.createData(), q0)
-    frame_task = FrameTask("impact_tip", position_cost=1.0, orientation_cost=1.0)
+    configuration = pink.Configuration(model, model.createData(), q0)
+    frame_task = FrameTask(frame, position_cost=1.0, orientation_cost=1.0)
     posture_task = PostureTask(cost=1e-2)
-    target = configuration.get_transform_frame_to_world("impact_tip").copy()
+    target = configuration.get_transform_frame_to_world(frame).copy()
     target.translation[0] += WALL_GAP
     frame_task.set_target(target)
     posture_task.set_target(q0)
@@ -113,7 +129,7 @@ def pink_cycle_samples(robot: PandaModel, cycles: int = CYCLES) -> np.ndarray:
         if k % RESTART_EVERY == 0:
             configuration.update(q0)
         start = time.perf_counter()
-        velocity = pink.solve_ik(configuration, tasks, dt, solver="proxqp", safety_break=False)
+        velocity = pink.solve_ik(configuration, tasks, dt, solver=solver, safety_break=False)
         configuration.integrate_inplace(velocity, dt)
         samples[k] = time.perf_counter() - start
     return samples
@@ -206,6 +222,44 @@ def stage_samples(robot: PandaModel, cycles: int = 1000) -> dict[str, np.ndarray
     return stages
 
 
+def g1_cycle_samples(robot: WholeBodyModel, solver: str = "daqp", cycles: int = CYCLES) -> np.ndarray:
+    """Seconds per ``step`` of the G1's closed approach loop (q, v <- q_cmd, v_cmd), restarted at
+    the stance every RESTART_EVERY cycles."""
+    q0 = stance_posture(robot.base, STANCES[G1_STANCE])
+    normal = np.array([-1.0, 0.0, 0.0])
+    surface = Surface(robot.terms(q0).contact_point - WALL_GAP * normal, normal)
+    controller = build_whole_body_controller(robot, q0, WholeBodySetup(surface, speed=0.5, solver=solver))
+    samples = np.empty(cycles)
+    for k in range(cycles):
+        if k % RESTART_EVERY == 0:
+            q, v = q0, np.zeros(robot.nv)
+            controller.reset(q, v)
+        start = time.perf_counter()
+        command = controller.step(q, v)
+        samples[k] = time.perf_counter() - start
+        q, v = command.q_cmd, command.dq_cmd
+    return samples
+
+
+def pink_g1_cycle_samples(robot: WholeBodyModel, cycles: int = CYCLES) -> np.ndarray:
+    """Seconds per cycle of pink on the G1: frame task on the hand's contact frame + posture task
+    + limits, solve_ik with daqp, the same target 10 cm ahead."""
+    q0 = stance_posture(robot.base, STANCES[G1_STANCE])
+    frame = robot.model.frames[robot.base.contact_frame_id].name
+    return pink_loop_samples(robot.model, q0, frame, "daqp", cycles)
+
+
+def g1_rows() -> list[dict]:
+    """controller.cycle.g1, its proxqp twin and pink's row on the same G1."""
+    g1 = WholeBodyModel()
+    g1_cycle_samples(g1, cycles=300)  # warm-up (numba kernels, caches)
+    return [
+        timing_row("controller.cycle.g1", "us", g1_cycle_samples(g1), 1e6),
+        timing_row("controller.cycle.g1.proxqp", "us", g1_cycle_samples(g1, "proxqp"), 1e6),
+        timing_row("peer.pink.cycle.g1", "us", pink_g1_cycle_samples(g1), 1e6),
+    ]
+
+
 def controller_rows() -> list[dict]:
     robot = PandaModel()
     controller_cycle_samples(robot, cycles=300)  # warm-up
@@ -214,6 +268,7 @@ def controller_rows() -> list[dict]:
     controller_cycle_samples(fr3, cycles=300)  # warm-up
     rows.append(timing_row("controller.cycle.fr3", "us", controller_cycle_samples(fr3), 1e6))
     rows.append(timing_row("peer.pink.cycle", "us", pink_cycle_samples(robot), 1e6))
+    rows.extend(g1_rows())
     try:
         rows.append(timing_row("peer.mink.cycle", "us", mink_cycle_samples(), 1e6))
     except ImportError as error:

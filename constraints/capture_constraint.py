@@ -1,0 +1,65 @@
+"""Impact-aware balance: the predicted post-impact centre-of-mass velocity stays inside the
+stance's zero-step capture region."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from impactqp.controller.model.capture import GRAVITY, capture_region
+from impactqp.controller.model.whole_body_terms import WholeBodyTerms
+
+from .constraint import Constraint, ControlCycle
+from .floating_impact import FloatingExpectedImpact
+
+
+class CaptureRegionLimit(Constraint):
+    """A_cap dc+_xy <= b_cap for the post-impact CoM velocity of the next step.
+
+    The capture region (``controller.model.capture``) of the support ``polygon`` (k edges,
+    counter-clockwise) for the CoM at c: rows (nu_k / omega) . dc <= nu_k . (a_k - c), i.e. the
+    capture point c + dc / omega stays inside the polygon. With the velocity v' = v + dv s, the
+    pre-impact CoM velocity is Jcom v' and the impulse of the expected impact iota = G J v'
+    (G of the chosen predictor: crb (12), (20), gm (12), (22), classical (6)), so the
+    post-impact CoM velocity is
+
+        dc+ = Jcom v' + C G J v' = K v',    K = Jcom + C G J,    C = Jcom P J^T,
+
+    linear in dv. Each row is multiplied by omega (velocity units) and written at the jerk
+    horizon h like the other impact rows, in acceleration units:
+
+        nu_k . K_xy dv <= (omega b_k - nu_k . K_xy v) / h,    omega b_k = omega nu_k . (a_k - c).
+
+    The edges' normals nu_k and offsets nu_k . a_k are the polygon's (``capture_region``, once);
+    omega = sqrt(g / (c_z - ground height)) and c follow the CoM every cycle.
+
+    Simplifications (docs/whole-body-qp.md): the linear-pendulum capture point (constant CoM
+    height, no angular momentum); the feet held during the impulse; gm and crb impulses
+    frictionless, the classical one sticking. Unbounded while no impact is coming; relaxed to the
+    largest correction the cycle allows when the state already violates them.
+    """
+
+    relaxed = True
+
+    def __init__(self, impact: FloatingExpectedImpact, polygon: np.ndarray, ground_height: float = 0.0):
+        self.impact = impact
+        self.polygon = np.asarray(polygon, dtype=float)
+        self.ground_height = float(ground_height)
+        self.rows = self.polygon.shape[0]
+        self.name = f"capture_region[{impact.name}]"
+        centre = np.append(self.polygon.mean(axis=0), self.ground_height + 1.0)
+        region = capture_region(self.polygon, centre, self.ground_height)  # checks the polygon
+        self._normals = region.A * region.omega  # nu_k (k x 2)
+        self._offsets = region.b + self._normals @ centre[:2]  # nu_k . a_k
+
+    def compute_into(self, terms: WholeBodyTerms, cycle: ControlCycle, C, lower, upper) -> None:
+        lower[:] = -np.inf
+        if not self.impact.is_active(terms):
+            C[:] = 0.0
+            upper[:] = np.inf
+            return
+        com = terms.com
+        omega = np.sqrt(GRAVITY / (com[2] - self.ground_height))
+        maps = self.impact.matrices(terms)
+        K = terms.Jcom[:2] + (maps.com_map[:2] @ maps.impulse_map) @ terms.J
+        np.matmul(self._normals, K, out=C)
+        upper[:] = (omega * (self._offsets - self._normals @ com[:2]) - C @ terms.dq) / cycle.horizon

@@ -1,0 +1,45 @@
+"""Centre-of-mass task: hold (or move) the robot's centre of mass with a PD law."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from impactqp.controller.model.validation import finite_vector, task_gain
+from impactqp.controller.model.whole_body_terms import WholeBodyTerms
+
+from .task import Task, critical_damping
+
+
+class CentreOfMassTask(Task):
+    """ddc* = kp (c* - c) - kd dc, dc = Jcom v, as the 3 rows Jcom dv = ddc* - dJcom v
+    (dJcom v: the CoM acceleration at dv = 0), kd = 2 sqrt(kp) by default, one weight per
+    world axis (x, y, z). A target left as None is the centre of mass at ``reset``.
+
+    The error e = c* - c(q) has the derivative de/dt = -Jcom v, so the rows are those of the
+    frame task with the CoM's Jacobian.
+    """
+
+    name = "com"
+    rows = 3
+
+    def __init__(self, target=None, stiffness: float = 100.0, damping: float | None = None, weight=(1.0, 1.0, 1.0)):
+        self.target = None if target is None else finite_vector(target, 3, "the centre-of-mass target")
+        self._target_configured = self.target is not None
+        self.stiffness = task_gain(stiffness, "centre-of-mass stiffness")
+        self.damping = (
+            critical_damping(self.stiffness) if damping is None else task_gain(damping, "centre-of-mass damping")
+        )
+        weight = finite_vector(weight, 3, "centre-of-mass weight")
+        self.weight = np.array([task_gain(w, "centre-of-mass weight") for w in weight])
+
+    def error(self, terms: WholeBodyTerms) -> np.ndarray:
+        """e = c* - c."""
+        return self.target - terms.com
+
+    def reset(self, terms: WholeBodyTerms) -> None:
+        if not self._target_configured:
+            self.target = terms.com.copy()
+
+    def compute_into(self, terms: WholeBodyTerms, A: np.ndarray, b: np.ndarray) -> None:
+        A[:] = terms.Jcom
+        b[:] = self.stiffness * (self.target - terms.com) - self.damping * (terms.Jcom @ terms.dq) - terms.dJcom_dq

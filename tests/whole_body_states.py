@@ -1,0 +1,68 @@
+"""The standing G1, its random states and its default controller, shared by the whole-body QP
+tests."""
+
+from functools import lru_cache
+
+import numpy as np
+import pinocchio as pin
+from hypothesis import strategies as st
+
+from impactqp.controller.model.floating_maps import feet_held_pinv
+from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.whole_body_terms import WholeBodyModel
+from impactqp.controller.qp.whole_body_setup import WholeBodySetup, build_whole_body_controller
+
+NORMAL = np.array([-1.0, 0.0, 0.0])  # the wall in front (+x), normal towards the robot
+
+
+@lru_cache(maxsize=1)
+def robot() -> WholeBodyModel:
+    return WholeBodyModel()
+
+
+@lru_cache(maxsize=None)
+def stance(name: str) -> np.ndarray:
+    return stance_posture(robot().base, STANCES[name])
+
+
+def wall_ahead(q: np.ndarray, gap: float = 0.05) -> Surface:
+    """The wall ``gap`` m in front of the hand's contact point."""
+    return Surface(robot().terms(q).contact_point - gap * NORMAL, NORMAL)
+
+
+def standing_states(max_joint_offset: float = 0.05, max_speed: float = 0.3):
+    """(stance name, q, v): a stance's posture with its joints moved by up to
+    ``max_joint_offset`` rad (inside their limits) and a velocity that keeps both feet still
+    (v = N w, N the projector onto the null space of the feet's Jacobian, joint rates up to
+    ``max_speed`` rad/s before the projection)."""
+    n = robot().joints
+    offsets = st.lists(st.floats(-1.0, 1.0), min_size=n, max_size=n).map(np.array)
+    rates = st.lists(st.floats(-1.0, 1.0), min_size=n, max_size=n).map(np.array)
+
+    def build(name, offset, rate):
+        model = robot()
+        q = stance(name).copy()
+        q[7:] = np.clip(q[7:] + max_joint_offset * offset, model.q_min + 1e-3, model.q_max - 1e-3)
+        Jf = model.terms(q).Jf
+        w = np.concatenate([np.zeros(6), max_speed * rate])
+        v = w - Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ w)
+        return name, q, v
+
+    return st.builds(build, st.sampled_from(sorted(STANCES)), offsets, rates)
+
+
+def approach_velocity(q: np.ndarray, speed: float) -> np.ndarray:
+    """The least-norm velocity with both feet still and the hand at ``speed`` towards the wall."""
+    terms = robot().terms(q)
+    return feet_held_pinv(terms.J, terms.Jf) @ (-speed * NORMAL)
+
+
+def integrate(q: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
+    return pin.integrate(robot().model, q, v * dt)
+
+
+def controller(name: str, gap: float = 0.05, **choices):
+    """The default whole-body controller at stance ``name``, the wall ``gap`` m ahead."""
+    q = stance(name)
+    return build_whole_body_controller(robot(), q, WholeBodySetup(wall_ahead(q, gap), **choices))
