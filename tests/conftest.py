@@ -1,4 +1,5 @@
 import hashlib
+import signal
 
 import numpy as np
 import pytest
@@ -14,6 +15,12 @@ from impactqp.scenarios.run import RunRequest, run
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import TrialSpec, run_approach
 from impactqp.sim.scene import build_scene
+
+# The tests of Ctrl-C need SIGINT as a terminal delivers it. A test run started in the background of
+# a non-interactive shell (or by a tool that does so) inherits SIGINT ignored, and so would every
+# process it starts: put Python's own handler back in each test process.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 CONTROL_PERIOD = 1e-3
 LIMIT_TOLERANCE = 1e-9
