@@ -14,9 +14,9 @@ J# = N (J N)^+ = N J^T (J N J^T)^-1 (N = I - Jf^T (Jf Jf^T)^-1 Jf the symmetric,
 projector onto the null space of Jf; J N of full row rank). The centre-of-mass velocity jumps by
 C iota, C = Jcom P J^T (``capture.com_jump_map``): the momentum balance with the feet held.
 
-Computed here from M^-1 with small dense products and solves (the ``floating_base`` functions
-factor M with multi-right-hand-side LAPACK solves, which a control cycle cannot afford on a
-loaded machine); the tests check both give the same maps.
+Computed here in one compiled kernel from M^-1 with small dense products and solves (the
+``floating_base`` functions factor M with multi-right-hand-side LAPACK solves, which a control
+cycle cannot afford on a loaded machine); the tests check both give the same maps.
 """
 
 from __future__ import annotations
@@ -24,10 +24,13 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
-from .floating_base import METHODS, crb_inverse_inertia
+from .floating_base import METHODS
 from .validation import BadInputError
 from .whole_body_terms import WholeBodyTerms
+
+CLASSICAL, CRB = METHODS.index("classical"), METHODS.index("crb")  # the kernel's method codes
 
 
 class FloatingJumpMaps(NamedTuple):
@@ -43,20 +46,38 @@ def floating_jump_maps(terms: WholeBodyTerms, method: str, normal: np.ndarray, c
     restitution c_r (both already checked)."""
     if method not in METHODS:
         raise BadInputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    J, Jf = terms.J, terms.Jf
-    MiJf = terms.M_inv @ Jf.T
-    P = terms.M_inv - MiJf @ np.linalg.solve(Jf @ MiJf, MiJf.T)
-    PJt = P @ J.T
-    W_gm = J @ PJt
-    W_gm = 0.5 * (W_gm + W_gm.T)
-    if method == "classical":
-        G = -(1.0 + c_r) * np.linalg.inv(W_gm)
+    nv = terms.dq.shape[0]
+    G, A, C = np.empty((3, 3)), np.empty((nv, nv)), np.empty((3, 3))
+    jump_maps_kernel(
+        terms.M_inv, terms.J6, terms.Jf, terms.Jcom, terms.contact_point - terms.com, terms.mass,
+        terms.inertia_com, METHODS.index(method), normal, c_r, G, A, C,
+    )
+    return FloatingJumpMaps(G, A, C)
+
+
+@njit(cache=True)
+def jump_maps_kernel(M_inv, J6, Jf, Jcom, r, mass, inertia_com, method, normal, c_r, G, A, C):
+    """Kernel: G, A = K G J and C = Jcom P J^T (module docstring) of the method
+    ``METHODS[method]``, r the contact point minus the CoM. P J^T is formed as
+    M^-1 J^T - M^-1 Jf^T (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T (M^-1 symmetric), never P itself."""
+    J = np.ascontiguousarray(J6[:3])
+    JfT, JT = np.ascontiguousarray(Jf.T), np.ascontiguousarray(J.T)
+    MiJf, MiJt = M_inv @ JfT, M_inv @ JT
+    PJt = MiJt - MiJf @ np.linalg.solve(Jf @ MiJf, Jf @ MiJt)
+    W = J @ PJt
+    W = 0.5 * (W + W.T)
+    if method == CLASSICAL:
+        G[:] = -(1.0 + c_r) * np.linalg.inv(W)
         K = PJt
     else:
-        W = W_gm if method == "gm" else crb_inverse_inertia(terms)
-        G = (-(1.0 + c_r) / (normal @ W @ normal)) * np.outer(normal, normal)
-        K = feet_held_pinv(J, Jf) @ W
-    return FloatingJumpMaps(G, K @ (G @ J), terms.Jcom @ PJt)
+        if method == CRB:
+            r_hat = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+            W = np.eye(3) / mass - r_hat @ np.linalg.solve(inertia_com, r_hat)
+        G[:] = (-(1.0 + c_r) / (normal @ (W @ normal))) * np.outer(normal, normal)
+        NJt = JT - JfT @ np.linalg.solve(Jf @ JfT, Jf @ JT)
+        K = NJt @ np.linalg.inv(J @ NJt) @ W
+    A[:] = K @ (G @ J)
+    C[:] = Jcom @ PJt
 
 
 def feet_held_pinv(J: np.ndarray, Jf: np.ndarray) -> np.ndarray:

@@ -13,6 +13,8 @@ ddc = Jcom dv + dJcom v.
 (``Jf``, ``dJf_dq``: left then right, linear then angular rows), the centre of mass and the
 torso frame (``frame("torso")``) and M^-1 (Pinocchio's ``computeMinverse``), what the
 predictors' linear maps (``floating_maps``) need, so that one cycle computes the model once.
+A controller refills one WholeBodyTerms per cycle (``update_terms``); ``stamp`` changes at
+every fill, so anything cached per state keys on it.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
+from numba import njit
 
 from .floating_base import NB, FloatingBaseModel
 from .validation import BadInputError
@@ -94,7 +97,7 @@ class WholeBodyModel:
         self.ddq_max = np.full(self.joints, JOINT_ACCELERATION_LIMIT)
         self.dddq_max = np.full(self.joints, JOINT_JERK_LIMIT)
         self.torso_frame_id = self.model.getFrameId(TORSO_FRAME)
-        self._lower = np.tril_indices(self.nv, -1)  # Pinocchio fills the upper triangles of M, M^-1
+        self._zero = np.zeros(self.nv)
 
     def check_state(self, q, v) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) as float arrays; BadInputError unless they have nq and nv finite entries."""
@@ -104,42 +107,66 @@ class WholeBodyModel:
         return q, v
 
     def terms(self, q, v=None) -> WholeBodyTerms:
-        """The terms of the state (q, v) (v = 0 when None), computed once."""
+        """The terms of the state (q, v) (v = 0 when None), in new arrays."""
         q, v = self.check_state(q, np.zeros(self.nv) if v is None else v)
-        model, data = self.model, self.data
-        pin.forwardKinematics(model, data, q, v, np.zeros(self.nv))
+        return self._fill(self.empty_terms(), q, v)
+
+    def empty_terms(self) -> WholeBodyTerms:
+        """A WholeBodyTerms of unset arrays, for ``update_terms`` to fill."""
+        nv = self.nv
+        frame = FrameState(np.empty(3), np.empty((3, 3)), np.empty((6, nv)), np.empty(6))
+        return WholeBodyTerms(
+            np.empty(self.nq), np.empty(nv), np.empty((nv, nv)), np.empty((nv, nv)), np.empty((6, nv)), np.empty(6),
+            np.empty(3), np.empty((3, 3)), np.empty((12, nv)), np.empty(12), np.empty((3, nv)), np.empty(3),
+            np.empty(3), 0.0, np.empty((3, 3)), {"torso": frame},
+        )
+
+    def update_terms(self, terms: WholeBodyTerms, q, v) -> WholeBodyTerms:
+        """``terms(q, v)`` written into an existing WholeBodyTerms (a controller's per-cycle
+        buffer: no new arrays), with a new ``stamp``; a refused state leaves it as it was."""
+        q, v = self.check_state(q, v)
+        return self._fill(terms, q, v)
+
+    def _fill(self, terms: WholeBodyTerms, q: np.ndarray, v: np.ndarray) -> WholeBodyTerms:
+        """One pass of Pinocchio's algorithms at (q, v), their results copied into ``terms``."""
+        model, data, zero = self.model, self.data, self._zero
+        terms.q[:], terms.dq[:] = q, v
+        pin.forwardKinematics(model, data, q, v, zero)
         pin.computeJointJacobians(model, data)
         pin.updateFramePlacements(model, data)
-        contact = self._frame_state(self.base.contact_frame_id)
-        feet = [self._frame_state(f) for f in self.base.foot_frame_ids]
-        torso = self._frame_state(self.torso_frame_id)
-        M = self._symmetric(pin.crba(model, data, q))
-        M_inv = self._symmetric(pin.computeMinverse(model, data, q))
-        pin.centerOfMass(model, data, q, v, np.zeros(self.nv))
-        com, dJcom_dq = data.com[0].copy(), data.acom[0].copy()
-        Jcom = pin.jacobianCenterOfMass(model, data, q).copy()
+        contact_id, (left, right) = self.base.contact_frame_id, self.base.foot_frame_ids
+        self._frame_into(contact_id, terms.J6, terms.dJ6_dq, terms.contact_point, terms.contact_rotation)
+        self._frame_into(left, terms.Jf[:6], terms.dJf_dq[:6])
+        self._frame_into(right, terms.Jf[6:], terms.dJf_dq[6:])
+        torso = terms.frames["torso"]
+        self._frame_into(self.torso_frame_id, torso.J6, torso.dJ6_dq, torso.position, torso.rotation)
+        mirror_upper(pin.crba(model, data, q), terms.M)
+        mirror_upper(pin.computeMinverse(model, data, q), terms.M_inv)
+        pin.centerOfMass(model, data, q, v, zero)
+        terms.com[:], terms.dJcom_dq[:] = data.com[0], data.acom[0]
+        terms.Jcom[:] = pin.jacobianCenterOfMass(model, data, q)
         pin.ccrba(model, data, q, v)
-        Ig = data.Ig
-        return WholeBodyTerms(
-            q, v, M, M_inv, contact.J6, contact.dJ6_dq, contact.position, contact.rotation,
-            np.vstack([f.J6 for f in feet]), np.concatenate([f.dJ6_dq for f in feet]),
-            Jcom, dJcom_dq, com, float(Ig.mass), Ig.inertia.copy(),
-            {"torso": torso},
-        )
+        terms.mass, terms.inertia_com[:] = float(data.Ig.mass), data.Ig.inertia
+        terms.stamp = next(_FILLS)
+        return terms
 
-    def _symmetric(self, upper: np.ndarray) -> np.ndarray:
-        """A copy of a matrix whose upper triangle is filled, mirrored into the lower one."""
-        full = upper.copy()
-        full[self._lower] = full.T[self._lower]
-        return full
-
-    def _frame_state(self, frame_id: int) -> FrameState:
-        """The frame's ``FrameState`` after the forward kinematics of ``terms`` (world-aligned)."""
-        model, data = self.model, self.data
+    def _frame_into(self, frame_id: int, J6, drift, position=None, rotation=None) -> None:
+        """The frame's world-aligned Jacobian and drift (and its placement) after the forward
+        kinematics of ``_fill``, copied into the given arrays."""
         world = pin.LOCAL_WORLD_ALIGNED
-        placement = data.oMf[frame_id]
-        return FrameState(
-            placement.translation.copy(), placement.rotation.copy(),
-            pin.getFrameJacobian(model, data, frame_id, world),
-            pin.getFrameClassicalAcceleration(model, data, frame_id, world).vector.copy(),
-        )
+        J6[:] = pin.getFrameJacobian(self.model, self.data, frame_id, world)
+        drift[:] = pin.getFrameClassicalAcceleration(self.model, self.data, frame_id, world).vector
+        if position is not None:
+            placement = self.data.oMf[frame_id]
+            position[:], rotation[:] = placement.translation, placement.rotation
+
+
+@njit(cache=True)
+def mirror_upper(upper, out):
+    """Kernel: out = the symmetric matrix whose upper triangle is ``upper``'s (Pinocchio fills
+    only the upper triangles of M and M^-1)."""
+    n = upper.shape[0]
+    for i in range(n):
+        for j in range(i, n):
+            out[i, j] = upper[i, j]
+            out[j, i] = upper[i, j]

@@ -3,7 +3,7 @@
 
 One control cycle, as the arm's ``ImpactAwareController``::
 
-    state (q, v) -> model terms (one ``WholeBodyModel.terms`` call) -> task rows and constraint
+    state (q, v) -> model terms (one ``WholeBodyModel.update_terms`` call into the cycle's buffer) -> task rows and constraint
     rows -> QP in dv (35: base and joint accelerations) -> Command(dv, v_cmd = v + dv dt,
     q_cmd = q (+) (v + v_cmd) dt / 2)
 
@@ -95,6 +95,7 @@ class WholeBodyController:
         self._joint_limits = command_limits(robot, robot.ddq_max, robot.dddq_max * self.dt)
         horizon = max(self.dt, float(np.max(robot.ddq_max / robot.dddq_max)))
         self._cycle = ControlCycle(self.dt, np.zeros(n), np.zeros(n), horizon)
+        self._terms = robot.empty_terms()
         self._row_cycle = ControlCycle(self.dt, p.lb, p.ub, horizon)
 
     def reset(self, q, v=None) -> None:
@@ -109,7 +110,7 @@ class WholeBodyController:
     def step(self, q, v) -> Command:
         """One control cycle (module docstring); never raises once a command was issued."""
         try:
-            terms = self.robot.terms(q, v)
+            terms = self.robot.update_terms(self._terms, q, v)
         except (BadInputError, TypeError, ValueError) as error:
             return self._fallback(None, Status.FALLBACK_INVALID_STATE, [], str(error))
         over = first_outside(terms.dq[NB:], self.robot.dq_max)

@@ -1,0 +1,66 @@
+"""Plain-numpy statements of the G1's model terms (``WholeBodyModel.terms``) and of the
+floating-base jump maps (``floating_jump_maps``) before their compiled kernels: the terms from
+independent Pinocchio calls, the maps with the full constrained inverse inertia P."""
+
+import numpy as np
+import pinocchio as pin
+
+from impactqp.controller.model.floating_base import crb_inverse_inertia
+from impactqp.controller.model.floating_maps import FloatingJumpMaps
+from impactqp.controller.model.whole_body_terms import FrameState, WholeBodyTerms
+
+
+def _frame_state(robot, data, frame_id: int) -> FrameState:
+    world = pin.LOCAL_WORLD_ALIGNED
+    placement = data.oMf[frame_id]
+    return FrameState(
+        placement.translation.copy(), placement.rotation.copy(),
+        pin.getFrameJacobian(robot.model, data, frame_id, world),
+        pin.getFrameClassicalAcceleration(robot.model, data, frame_id, world).vector.copy(),
+    )
+
+
+def _symmetric(upper: np.ndarray) -> np.ndarray:
+    return np.triu(upper) + np.triu(upper, 1).T
+
+
+def reference_terms(robot, q, v) -> WholeBodyTerms:
+    """``WholeBodyModel.terms(q, v)`` on a fresh Pinocchio data."""
+    model, data = robot.model, robot.model.createData()
+    q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
+    pin.forwardKinematics(model, data, q, v, np.zeros(model.nv))
+    pin.computeJointJacobians(model, data)
+    pin.updateFramePlacements(model, data)
+    contact = _frame_state(robot, data, robot.base.contact_frame_id)
+    feet = [_frame_state(robot, data, f) for f in robot.base.foot_frame_ids]
+    torso = _frame_state(robot, data, robot.torso_frame_id)
+    M = _symmetric(pin.crba(model, data, q))
+    M_inv = _symmetric(pin.computeMinverse(model, data, q))
+    pin.centerOfMass(model, data, q, v, np.zeros(model.nv))
+    com, dJcom_dq = data.com[0].copy(), data.acom[0].copy()
+    Jcom = pin.jacobianCenterOfMass(model, data, q).copy()
+    pin.ccrba(model, data, q, v)
+    return WholeBodyTerms(
+        q.copy(), v.copy(), M, M_inv, contact.J6, contact.dJ6_dq, contact.position, contact.rotation,
+        np.vstack([f.J6 for f in feet]), np.concatenate([f.dJ6_dq for f in feet]),
+        Jcom, dJcom_dq, com, float(data.Ig.mass), data.Ig.inertia.copy(), {"torso": torso},
+    )
+
+
+def reference_jump_maps(terms, method: str, normal: np.ndarray, c_r: float) -> FloatingJumpMaps:
+    """``floating_jump_maps``: P = M^-1 - M^-1 Jf^T (Jf M^-1 Jf^T)^-1 Jf M^-1 formed in full."""
+    J, Jf = terms.J, terms.Jf
+    MiJf = terms.M_inv @ Jf.T
+    P = terms.M_inv - MiJf @ np.linalg.solve(Jf @ MiJf, MiJf.T)
+    PJt = P @ J.T
+    W_gm = J @ PJt
+    W_gm = 0.5 * (W_gm + W_gm.T)
+    if method == "classical":
+        G = -(1.0 + c_r) * np.linalg.inv(W_gm)
+        K = PJt
+    else:
+        W = W_gm if method == "gm" else crb_inverse_inertia(terms)
+        G = (-(1.0 + c_r) / (normal @ W @ normal)) * np.outer(normal, normal)
+        NJt = J.T - Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ J.T)
+        K = NJt @ np.linalg.inv(J @ NJt) @ W
+    return FloatingJumpMaps(G, K @ (G @ J), terms.Jcom @ PJt)
