@@ -4,6 +4,7 @@ stance's zero-step capture region."""
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from impactqp.controller.model.capture import GRAVITY, capture_region
 from impactqp.controller.model.whole_body_terms import WholeBodyTerms
@@ -57,9 +58,23 @@ class CaptureRegionLimit(Constraint):
             C[:] = 0.0
             upper[:] = np.inf
             return
-        com = terms.com
-        omega = np.sqrt(GRAVITY / (com[2] - self.ground_height))
+        omega = np.sqrt(GRAVITY / (terms.com[2] - self.ground_height))
         maps = self.impact.matrices(terms)
-        K = terms.Jcom[:2] + (maps.com_map[:2] @ maps.impulse_map) @ terms.J
-        np.matmul(self._normals, K, out=C)
-        upper[:] = (omega * (self._offsets - self._normals @ com[:2]) - C @ terms.dq) / cycle.horizon
+        capture_rows(
+            (terms.Jcom, terms.J6, maps.com_map, maps.impulse_map), (terms.com, terms.dq),
+            (self._normals, self._offsets), (omega, 1.0 / cycle.horizon), C, upper,
+        )
+
+
+@njit(cache=True)
+def capture_rows(maps, state, region, scale, C, upper):
+    """Kernel: C = nu K_xy, K_xy = Jcom_xy + (C_xy G) J (the class docstring), and
+    upper = (omega (nu . a - nu c_xy) - C v) / h, for maps = (Jcom, J6, C, G), state = (c, v),
+    region = (nu, nu . a) and scale = (omega, 1 / h)."""
+    Jcom, J6, com_map, impulse_map = maps
+    com, dq = state
+    normals, offsets = region
+    omega, inv_h = scale
+    K = Jcom[:2] + (com_map[:2] @ impulse_map) @ J6[:3]
+    C[:] = normals @ K
+    upper[:] = (omega * (offsets - normals @ com[:2]) - C @ dq) * inv_h

@@ -46,38 +46,36 @@ def floating_jump_maps(terms: WholeBodyTerms, method: str, normal: np.ndarray, c
     restitution c_r (both already checked)."""
     if method not in METHODS:
         raise BadInputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    nv = terms.dq.shape[0]
-    G, A, C = np.empty((3, 3)), np.empty((nv, nv)), np.empty((3, 3))
-    jump_maps_kernel(
-        terms.M_inv, terms.J6, terms.Jf, terms.Jcom, terms.contact_point - terms.com, terms.mass,
-        terms.inertia_com, METHODS.index(method), normal, c_r, G, A, C,
+    rigid = (terms.contact_point - terms.com, terms.mass, terms.inertia_com)
+    return FloatingJumpMaps(
+        *jump_maps_kernel(terms.M_inv, terms.J6, terms.Jf, terms.Jcom, rigid, METHODS.index(method), normal, c_r)
     )
-    return FloatingJumpMaps(G, A, C)
 
 
 @njit(cache=True)
-def jump_maps_kernel(M_inv, J6, Jf, Jcom, r, mass, inertia_com, method, normal, c_r, G, A, C):
-    """Kernel: G, A = K G J and C = Jcom P J^T (module docstring) of the method
-    ``METHODS[method]``, r the contact point minus the CoM. P J^T is formed as
-    M^-1 J^T - M^-1 Jf^T (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T (M^-1 symmetric), never P itself."""
+def jump_maps_kernel(M_inv, J6, Jf, Jcom, rigid, method, normal, c_r):
+    """Kernel: (G, A = K G J, C = Jcom P J^T) (module docstring) of the method
+    ``METHODS[method]``, rigid = (contact point - CoM, mass, centroidal inertia) for W_crb (20).
+    P J^T is formed as M^-1 J^T - M^-1 Jf^T (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T (M^-1 symmetric),
+    never P itself."""
     J = np.ascontiguousarray(J6[:3])
     JfT, JT = np.ascontiguousarray(Jf.T), np.ascontiguousarray(J.T)
     MiJf, MiJt = M_inv @ JfT, M_inv @ JT
     PJt = MiJt - MiJf @ np.linalg.solve(Jf @ MiJf, Jf @ MiJt)
     W = J @ PJt
-    W = 0.5 * (W + W.T)
+    W = np.ascontiguousarray(0.5 * (W + W.T))
     if method == CLASSICAL:
-        G[:] = -(1.0 + c_r) * np.linalg.inv(W)
+        G = np.ascontiguousarray(-(1.0 + c_r) * np.linalg.inv(W))
         K = PJt
     else:
         if method == CRB:
+            r, mass, inertia_com = rigid
             r_hat = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
             W = np.eye(3) / mass - r_hat @ np.linalg.solve(inertia_com, r_hat)
-        G[:] = (-(1.0 + c_r) / (normal @ (W @ normal))) * np.outer(normal, normal)
+        G = (-(1.0 + c_r) / (normal @ (W @ normal))) * np.outer(normal, normal)
         NJt = JT - JfT @ np.linalg.solve(Jf @ JfT, Jf @ JT)
-        K = NJt @ np.linalg.inv(J @ NJt) @ W
-    A[:] = K @ (G @ J)
-    C[:] = Jcom @ PJt
+        K = NJt @ np.linalg.solve(J @ NJt, W)
+    return G, K @ (G @ J), Jcom @ PJt
 
 
 def feet_held_pinv(J: np.ndarray, Jf: np.ndarray) -> np.ndarray:

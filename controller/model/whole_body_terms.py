@@ -102,7 +102,7 @@ class WholeBodyModel:
     def check_state(self, q, v) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) as float arrays; BadInputError unless they have nq and nv finite entries."""
         q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
-        if q.shape != (self.nq,) or v.shape != (self.nv,) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+        if q.shape != (self.nq,) or v.shape != (self.nv,) or not (np.isfinite(q).all() and np.isfinite(v).all()):
             raise BadInputError(f"the state must be {self.nq} finite coordinates and {self.nv} finite velocities")
         return q, v
 
@@ -129,9 +129,9 @@ class WholeBodyModel:
 
     def _fill(self, terms: WholeBodyTerms, q: np.ndarray, v: np.ndarray) -> WholeBodyTerms:
         """One pass of Pinocchio's algorithms at (q, v), their results copied into ``terms``."""
-        model, data, zero = self.model, self.data, self._zero
+        model, data = self.model, self.data
         terms.q[:], terms.dq[:] = q, v
-        pin.forwardKinematics(model, data, q, v, zero)
+        pin.forwardKinematics(model, data, q, v, self._zero)
         pin.computeJointJacobians(model, data)
         pin.updateFramePlacements(model, data)
         contact_id, (left, right) = self.base.contact_frame_id, self.base.foot_frame_ids
@@ -140,11 +140,11 @@ class WholeBodyModel:
         self._frame_into(right, terms.Jf[6:], terms.dJf_dq[6:])
         torso = terms.frames["torso"]
         self._frame_into(self.torso_frame_id, torso.J6, torso.dJ6_dq, torso.position, torso.rotation)
+        pin.centerOfMass(model, data, pin.ACCELERATION, True)  # of the kinematics above
+        terms.com[:], terms.dJcom_dq[:] = data.com[0], data.acom[0]
+        terms.Jcom[:] = pin.jacobianCenterOfMass(model, data, False)  # of the Jacobians and CoMs above
         mirror_upper(pin.crba(model, data, q), terms.M)
         mirror_upper(pin.computeMinverse(model, data, q), terms.M_inv)
-        pin.centerOfMass(model, data, q, v, zero)
-        terms.com[:], terms.dJcom_dq[:] = data.com[0], data.acom[0]
-        terms.Jcom[:] = pin.jacobianCenterOfMass(model, data, q)
         pin.ccrba(model, data, q, v)
         terms.mass, terms.inertia_com[:] = float(data.Ig.mass), data.Ig.inertia
         terms.stamp = next(_FILLS)

@@ -314,7 +314,8 @@ def checked_constraints(tasks: list[Task], constraints: list[Constraint], dt: fl
 
 @njit(cache=True)
 def weighted_least_squares(A, b, w, H, g):
-    """Kernel: H = A^T diag(w) A and g = -A^T diag(w) b, the QP cost of the stacked task rows."""
+    """Kernel: H = A^T diag(w) A and g = -A^T diag(w) b, the QP cost of the stacked task rows
+    (the zero entries of the rows skipped: posture and damping rows have one entry each)."""
     rows, n = A.shape
     for i in range(n):
         g[i] = 0.0
@@ -323,6 +324,8 @@ def weighted_least_squares(A, b, w, H, g):
     for r in range(rows):
         for i in range(n):
             wa = w[r] * A[r, i]
+            if wa == 0.0:
+                continue
             g[i] -= wa * b[r]
             for j in range(i, n):
                 H[i, j] += wa * A[r, j]

@@ -9,9 +9,9 @@ One control cycle, as the arm's ``ImpactAwareController``::
 
 The QP reuses the arm's machinery: the preallocated ``QpProblem`` and ``ConstraintLayout``
 (boxes intersected, general rows stacked, relaxed rows last), the same solvers with an
-independent second solver confirming any failure, and the arm's compiled kernels for the box
-intersection and the active set. The cost H = A^T W A, g = -A^T W b is one matrix product
-(BLAS beats the arm's loop kernel at 35 unknowns). The acceleration and jerk
+independent second solver confirming any failure, and the arm's compiled kernels for the cost
+H = A^T W A, g = -A^T W b (which skips the zero entries of the posture and damping rows), the
+box intersection and the active set. The acceleration and jerk
 limits of the 29 actuated joints always apply (``AccelerationLimit`` is added when missing); the
 base's six accelerations get a generous box (``BASE_ACCELERATION_LIMIT``, no jerk limit): the
 feet's equality rows (``FootContact``) set them.
@@ -38,7 +38,7 @@ from impactqp.controller.model.whole_body_terms import BASE_ACCELERATION_LIMIT, 
 from impactqp.tasks import Task
 
 from .command import Command, CommandMemory, Status, command_limits
-from .controller import checked_constraints, first_outside, intersect_boxes, tight_constraints
+from .controller import checked_constraints, first_outside, intersect_boxes, tight_constraints, weighted_least_squares
 from .fallback import bounded_conflict, braking_command
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
 from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
@@ -145,9 +145,7 @@ class WholeBodyController:
         for task, A, b, w in self._task_views:
             task.compute_into(terms, A, b)
             w[:] = task.weight
-        weighted = self._task_A.T * self._task_w
-        np.matmul(weighted, self._task_A, out=self.problem.H)
-        np.matmul(weighted, -self._task_b, out=self.problem.g)
+        weighted_least_squares(self._task_A, self._task_b, self._task_w, self.problem.H, self.problem.g)
         problem, cycle = self.problem, self._cycle
         for k, constraint in enumerate(self.layout.box_constraints):
             constraint.compute_into(terms, cycle, None, self._box_lower[k], self._box_upper[k])
