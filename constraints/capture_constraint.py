@@ -7,6 +7,7 @@ import numpy as np
 from numba import njit
 
 from impactqp.controller.model.capture import GRAVITY, capture_region
+from impactqp.controller.model.floating_maps import product
 from impactqp.controller.model.whole_body_terms import WholeBodyTerms
 
 from .constraint import Constraint, ControlCycle
@@ -75,6 +76,7 @@ def capture_rows(maps, state, region, scale, C, upper):
     com, dq = state
     normals, offsets = region
     omega, inv_h = scale
-    K = Jcom[:2] + (com_map[:2] @ impulse_map) @ J6[:3]
-    C[:] = normals @ K
-    upper[:] = (omega * (offsets - normals @ com[:2]) - C @ dq) * inv_h
+    K = Jcom[:2] + product(product(com_map[:2], impulse_map), J6[:3])
+    C[:] = product(normals, K)
+    for k in range(C.shape[0]):
+        upper[k] = (omega * (offsets[k] - normals[k, 0] * com[0] - normals[k, 1] * com[1]) - C[k] @ dq) * inv_h

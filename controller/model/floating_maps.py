@@ -56,26 +56,59 @@ def floating_jump_maps(terms: WholeBodyTerms, method: str, normal: np.ndarray, c
 def jump_maps_kernel(M_inv, J6, Jf, Jcom, rigid, method, normal, c_r):
     """Kernel: (G, A = K G J, C = Jcom P J^T) (module docstring) of the method
     ``METHODS[method]``, rigid = (contact point - CoM, mass, centroidal inertia) for W_crb (20).
-    P J^T is formed as M^-1 J^T - M^-1 Jf^T (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T (M^-1 symmetric),
-    never P itself."""
+    Never forms P: with Y = [Jf; J] M^-1 (M^-1 symmetric), (P J^T)^T = Y_J - Z^T Y_f,
+    Z = (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T; products as row dot products (``product_t``)."""
     J = np.ascontiguousarray(J6[:3])
-    JfT, JT = np.ascontiguousarray(Jf.T), np.ascontiguousarray(J.T)
-    MiJf, MiJt = M_inv @ JfT, M_inv @ JT
-    PJt = MiJt - MiJf @ np.linalg.solve(Jf @ MiJf, Jf @ MiJt)
-    W = J @ PJt
+    Y = product(np.vstack((Jf, J)), M_inv)
+    Yf, YJ = Y[:12], Y[12:]
+    Z = np.linalg.solve(product_t(Jf, Yf), product_t(Jf, YJ))
+    PJt_T = YJ - product(np.ascontiguousarray(Z.T), Yf)
+    W = product_t(J, PJt_T)
     W = np.ascontiguousarray(0.5 * (W + W.T))
     if method == CLASSICAL:
         G = np.ascontiguousarray(-(1.0 + c_r) * np.linalg.inv(W))
-        K = PJt
+        K_T = PJt_T
     else:
         if method == CRB:
             r, mass, inertia_com = rigid
             r_hat = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
-            W = np.eye(3) / mass - r_hat @ np.linalg.solve(inertia_com, r_hat)
-        G = (-(1.0 + c_r) / (normal @ (W @ normal))) * np.outer(normal, normal)
-        NJt = JT - JfT @ np.linalg.solve(Jf @ JfT, Jf @ JT)
-        K = NJt @ np.linalg.solve(J @ NJt, W)
-    return G, K @ (G @ J), Jcom @ PJt
+            W = np.eye(3) / mass - product(r_hat, np.ascontiguousarray(np.linalg.solve(inertia_com, r_hat)))
+        G = (-(1.0 + c_r) / np.sum(np.outer(normal, normal) * W)) * np.outer(normal, normal)
+        # (N J^T)^T = J - (Jf J^T)^T (Jf Jf^T)^-1 Jf, K^T = ((J N J^T)^-1 W)^T (N J^T)^T
+        NJt_T = J - product(np.ascontiguousarray(np.linalg.solve(product_t(Jf, Jf), product_t(Jf, J)).T), Jf)
+        K_T = product(np.ascontiguousarray(np.linalg.solve(product_t(J, NJt_T), W).T), NJt_T)
+    GJ = product(G, J)
+    return G, product(np.ascontiguousarray(K_T.T), GJ), product_t(Jcom, PJt_T)
+
+
+@njit(cache=True)
+def product(A, B):
+    """Kernel: the matrix product A B in plain loops (BLAS would start threads for these small
+    matrices, which costs more than the product on a loaded machine), skipping A's zero entries
+    (a foot's Jacobian row has entries for the base and one leg only)."""
+    rows, inner = A.shape
+    out = np.zeros((rows, B.shape[1]))
+    for i in range(rows):
+        for k in range(inner):
+            a = A[i, k]
+            if a == 0.0:
+                continue
+            for j in range(B.shape[1]):
+                out[i, j] += a * B[k, j]
+    return out
+
+
+@njit(cache=True)
+def product_t(A, B):
+    """Kernel: A B^T in plain loops, each entry the dot product of two rows."""
+    out = np.empty((A.shape[0], B.shape[0]))
+    for i in range(A.shape[0]):
+        for j in range(B.shape[0]):
+            total = 0.0
+            for k in range(A.shape[1]):
+                total += A[i, k] * B[j, k]
+            out[i, j] = total
+    return out
 
 
 def feet_held_pinv(J: np.ndarray, Jf: np.ndarray) -> np.ndarray:
