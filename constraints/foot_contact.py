@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from impactqp.controller.model.whole_body_terms import WholeBodyTerms
 
 from .constraint import Constraint, ControlCycle
@@ -22,5 +24,5 @@ class FootContact(Constraint):
 
     def compute_into(self, terms: WholeBodyTerms, cycle: ControlCycle, C, lower, upper) -> None:
         C[:] = terms.Jf
-        lower[:] = -terms.dJf_dq
+        np.negative(terms.dJf_dq, out=lower)
         upper[:] = lower

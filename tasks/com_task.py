@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from impactqp.controller.model.validation import finite_vector, task_gain
 from impactqp.controller.model.whole_body_terms import WholeBodyTerms
@@ -41,5 +42,16 @@ class CentreOfMassTask(Task):
             self.target = terms.com.copy()
 
     def compute_into(self, terms: WholeBodyTerms, A: np.ndarray, b: np.ndarray) -> None:
-        A[:] = terms.Jcom
-        b[:] = self.stiffness * (self.target - terms.com) - self.damping * (terms.Jcom @ terms.dq) - terms.dJcom_dq
+        com_rows(terms.Jcom, terms.dq, terms.com, terms.dJcom_dq, self.target, (self.stiffness, self.damping), A, b)
+
+
+@njit(cache=True)
+def com_rows(Jcom, dq, com, dJcom_dq, target, gains, A, b):
+    """Kernel: A = Jcom, b = kp (c* - c) - kd Jcom v - dJcom v, gains = (kp, kd)."""
+    kp, kd = gains
+    for i in range(3):
+        rate = 0.0
+        for j in range(dq.shape[0]):
+            A[i, j] = Jcom[i, j]
+            rate += Jcom[i, j] * dq[j]
+        b[i] = kp * (target[i] - com[i]) - kd * rate - dJcom_dq[i]
