@@ -53,6 +53,24 @@ def test_nominal_plant_with_noise_is_not_explained(tmp_path):
     check_contract(result)
 
 
+def test_three_hidden_effects_that_a_greedy_selection_missed_are_named(tmp_path):
+    """Armature, a payload and friction hidden at once, with tangential speeds: the greedy
+    selection took armature, then friction, and its grid screen then dropped the payload (one
+    run, docs/diagnosis.md). The search names all three, fits the noise and holds every truth
+    within its interval."""
+    truth = {"armature": per_group((0.3, 0.15)), "payload_mass": 0.4, "payload_com": [0.01, 0.0, -0.05], "friction": 0.4}
+    request = DatasetRequest(plant=PlantParameters(**truth), tangential=[0.3, 0.6], seed=8, **SMALL)
+    generate_dataset(tmp_path, request, jobs=2)
+    result = diagnose(tmp_path, jobs=2).summary()
+    assert sorted(result["causes"]) == ["armature", "friction", "payload"] and result["explained"], result["steps"]
+    assert result["fit"]["fits_noise"]
+    for key, value in truth.items():
+        pairs = result["intervals"][key]
+        values, pairs = (value, pairs) if isinstance(value, list) else ([value], [pairs])
+        assert all(inside(v, pair) for v, pair in zip(values, pairs)), (key, pairs)
+    check_contract(result)
+
+
 def test_one_joints_velocity_scale_is_named_with_that_joint(tmp_path):
     """Joint 4's dq logged 12 % too large: the global velocity scale is chosen first, then
     refined per joint; joint 4's interval holds the truth and excludes 1, every other joint's

@@ -138,7 +138,7 @@ def forward(search: Search, branch: Branch, path: int) -> Branch | None:
     if not order:
         return None
     base_all = branch.model.plant(search.nominal)
-    tasks = [CandidateTask(pool[i], tuple(branch.bases), base_all, search.setting, trials, screened[i][1].u[-1]) for i in order]
+    tasks = [CandidateTask(pool[i], tuple(branch.bases), base_all, search.setting, trials, screened[i][1].u[0]) for i in order]
     results = search.run(cross_validate_cause, tasks)
     errors = [quadratic_mean(r["heldout"]) for r in results]
     best = int(np.argmin(errors))
@@ -219,17 +219,39 @@ def marked(steps: list[dict], causes: list[str]) -> list[dict]:
     return [{**s, "selected": i in chosen} for i, s in enumerate(steps)]
 
 
-def first_steps(search: Search, start: Branch) -> tuple[list[dict], list[dict]]:
-    """Every candidate alone, cross-validated: their results and the ``candidates`` entries."""
+def first_steps(search: Search, start: Branch) -> tuple[list[Cause], list[dict], list[dict]]:
+    """Every candidate alone, cross-validated: the candidates (a cause replaced by its
+    refinement when that gains, ``refined_first``), their results and the ``candidates``
+    entries."""
     trials = tuple(search.trials)
     tasks = [CandidateTask(c, tuple(start.bases), search.nominal, search.setting, trials) for c in search.causes]
     results = search.run(cross_validate_cause, tasks)
+    causes = list(search.causes)
+    for k, (cause, result) in enumerate(zip(search.causes, results)):
+        causes[k], results[k] = refined_first(search, start, cause, result)
     candidates = []
-    for c, r in zip(search.causes, results):
+    for c, r in zip(causes, results):
         e = quadratic_mean(r["heldout"])
         candidates.append({"cause": c.name, "parameters": c.overrides(c.to_theta(r["u"])), "heldout_error": e,
                            "gain": relative_gain(e, start.error), "gain_over_floor": gain_over_floor(e, start.error)})
-    return results, candidates
+    return causes, results, candidates
+
+
+def refined_first(search: Search, start: Branch, cause: Cause, result: dict) -> tuple[Cause, dict]:
+    """A first-step candidate with a refinement (``Cause.refined``), global first: its
+    refinement, started from the global fit and cross-validated, takes its place if it gains
+    ``STEP_GAIN`` over it (one joint's velocity scale: the global one alone gains nothing)."""
+    finer = cause.refined()
+    error = quadratic_mean(result["heldout"])
+    if finer is None or search.budget <= 0:
+        return cause, result
+    u = finer.to_u(finer.theta_of(cause.overrides(cause.to_theta(result["u"]))))
+    task = ModelTask(FittedCauses((finer,), (u,)), search.nominal, search.setting, tuple(search.trials))
+    [model] = search.run(cross_validate_model, [task])
+    if relative_gain(quadratic_mean(model["heldout"]), error) < STEP_GAIN:
+        return cause, result
+    return finer, {"cause": cause.name, "u": model["model"].u[0], "u_folds": [m.u[0] for m in model["folds"]],
+                   "heldout": model["heldout"], "heldout_jump": model["heldout_jump"]}
 
 
 def select_causes(
@@ -240,7 +262,7 @@ def select_causes(
     search = Search(causes, nominal, setting, trials, jobs)
     folds = len(np.unique(fold_of(trials)))
     start = Branch(FittedCauses(), [nominal] * folds, [], *(np.asarray(b, float) for b in baseline))
-    results, candidates = first_steps(search, start)
+    causes, results, candidates = first_steps(search, start)
     errors = [c["heldout_error"] for c in candidates]
     order = [int(i) for i in np.argsort(errors, kind="stable")]
     paths: list[tuple[bool, Branch]] = []

@@ -37,6 +37,7 @@ FIT_MAX_EVALUATIONS = 20  # per fitted parameter, for the fit on all trials
 FOLD_MAX_EVALUATIONS = 10  # per fitted parameter, for each cross-validation fold
 JOINT_MAX_EVALUATIONS = 15  # per fitted parameter, for the joint refit of the chosen causes
 SCREEN_EVALUATIONS = 3  # per fitted parameter, for the short local fit of a screen
+SCREEN_GRID_STRIDE = 2  # the screen starts its local fit from every other grid point (and the nominal)
 
 
 def fold_of(trials: list[MeasuredTrial]) -> np.ndarray:
@@ -111,14 +112,18 @@ class ScreenTask:
 
 
 def screen_cause(task: ScreenTask) -> tuple[float, FittedCauses]:
-    """A cheap screen before a candidate's cross-validation: from its best grid point on top of
-    the chosen causes, a short local fit (``SCREEN_EVALUATIONS`` per parameter of the fitter)
-    of the candidate together with the chosen causes, which may move (one of them may have
-    mimicked a part of the candidate's effect). Returns the in-sample normalised residual of
-    the screened model and the model."""
+    """A cheap screen before a candidate's cross-validation: from its best point of a coarse
+    grid (``SCREEN_GRID_STRIDE``) on top of the chosen causes, a short local fit
+    (``SCREEN_EVALUATIONS`` per parameter of the fitter) of the candidate together with the
+    chosen causes, which may move (one of them may have mimicked a part of the candidate's
+    effect); the candidate's parameters come first, so Powell's first line searches move
+    them. Returns the in-sample normalised residual of the screened model and the model (the
+    candidate first)."""
     trials, setting = list(task.trials), task.setting
-    index, points, _ = best_start(task.cause, task.model.plant(task.nominal), setting, trials)
-    model = fit(task.model.plus(task.cause, points[index]), task.nominal, setting, trials, SCREEN_EVALUATIONS)
+    base = task.model.plant(task.nominal)
+    index, points, _ = best_start(task.cause, base, setting, trials, stride=SCREEN_GRID_STRIDE)
+    start = FittedCauses((task.cause,) + task.model.causes, (points[index],) + task.model.u)
+    model = fit(start, task.nominal, setting, trials, SCREEN_EVALUATIONS)
     return quadratic_mean(trial_errors(replay_all(setting, model.plant(task.nominal), trials), trials)), model
 
 
@@ -136,22 +141,23 @@ class ModelTask:
 def cross_validate_model(task: ModelTask) -> dict:
     """The causes of ``model`` refitted jointly on all trials (``model``), and without each
     fold k from there: the held-out normalised residuals and errors (26) of the fold's trials
-    (``heldout``, ``heldout_jump``) and the plants fitted without each fold (``bases``)."""
+    (``heldout``, ``heldout_jump``), the causes fitted without each fold (``folds``) and their
+    plants (``bases``)."""
     setting, trials, nominal = task.setting, list(task.trials), task.nominal
     model = fit(task.model, nominal, setting, trials, JOINT_MAX_EVALUATIONS)
     folds = fold_of(trials)
     heldout = np.empty(len(trials))
     heldout_jump = np.empty(len(trials))
-    bases = []
+    bases, fold_models = [], []
     for k in np.unique(folds):
         train = [t for t, f in zip(trials, folds) if f != k]
         test = [t for t, f in zip(trials, folds) if f == k]
-        fitted = fit(model, nominal, setting, train, FOLD_MAX_EVALUATIONS)
-        bases.append(fitted.plant(nominal))
+        fold_models.append(fit(model, nominal, setting, train, FOLD_MAX_EVALUATIONS))
+        bases.append(fold_models[-1].plant(nominal))
         features = replay_all(setting, bases[-1], test)
         heldout[folds == k] = trial_errors(features, test)
         heldout_jump[folds == k] = jump_errors(features, test)
-    return {"model": model, "heldout": heldout, "heldout_jump": heldout_jump, "bases": bases}
+    return {"model": model, "heldout": heldout, "heldout_jump": heldout_jump, "bases": bases, "folds": fold_models}
 
 
 def relative_gain(error: float, reference: float) -> float:
