@@ -25,11 +25,11 @@ from impactqp.sim.causes import Cause
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import map_in_processes
 
-from .fitting import FittedCauses, fit, fit_report, trial_errors
+from .fitting import FittedCauses, fit_report, trial_errors
 from .noise import quadratic_mean
 from .selection import (
     EXPLAINED_GAIN,
-    JOINT_MAX_EVALUATIONS,
+    REFINE_EVALUATIONS,
     STEP_GAIN,
     CandidateTask,
     ModelTask,
@@ -53,11 +53,11 @@ MAX_CROSS_VALIDATIONS = 48  # per search, every candidate of the first step incl
 @dataclass
 class Branch:
     """One path of the search: the chosen causes fitted jointly on all trials (``model``) and
-    without each fold (``bases``), the steps taken and the held-out normalised residuals and
+    without each fold (``folds``), the steps taken and the held-out normalised residuals and
     errors (26) per trial of the last one (of the nominal replay before any step)."""
 
     model: FittedCauses
-    bases: list[PlantParameters]
+    folds: list[FittedCauses]
     steps: list[dict]
     heldout: np.ndarray
     heldout_jump: np.ndarray
@@ -112,34 +112,38 @@ def search_step(action: str, cause: str, heldout_error: float, gain: float, acce
             "gain": float(gain), "accepted": bool(accepted), "selected": False}
 
 
-def added(search: Search, branch: Branch, cause: Cause, result: dict, step: dict) -> Branch:
-    """``branch`` after adding ``cause`` (its cross-validation ``result``), the chosen causes
-    refitted jointly."""
-    model = branch.model.plus(cause, result["u"])
-    if len(model.causes) > 1:
-        model = fit(model, search.nominal, search.setting, search.trials, JOINT_MAX_EVALUATIONS)
-    bases = [cause.plant(b, u) for b, u in zip(branch.bases, result["u_folds"])]
-    visited = branch.visited | {frozenset(c.name for c in model.causes)}
-    return Branch(model, bases, branch.steps + [step], result["heldout"], result["heldout_jump"], visited)
+def first_added(branch: Branch, cause: Cause, result: dict, step: dict) -> Branch:
+    """The nominal ``branch`` after its first step: ``cause`` alone, its cross-validation
+    ``result`` (``cross_validate_cause``)."""
+    folds = [FittedCauses((cause,), (u,)) for u in result["u_folds"]]
+    model = FittedCauses((cause,), (result["u"],))
+    return Branch(model, folds, branch.steps + [step], result["heldout"], result["heldout_jump"], {frozenset([cause.name])})
+
+
+def last_first(model: FittedCauses) -> FittedCauses:
+    """``model`` with its first cause (a candidate fitted first) moved to the end: the causes
+    in the order they were chosen (they touch distinct plant keys, so the plant is the same)."""
+    return FittedCauses(model.causes[1:] + model.causes[:1], model.u[1:] + model.u[:1])
 
 
 def forward(search: Search, branch: Branch, path: int) -> Branch | None:
-    """One forward step: screen, cross-validate the best ``MAX_SCREENED``, add the best when it
-    gains ``STEP_GAIN`` (None otherwise, the rejected step recorded on ``branch``)."""
+    """One forward step: screen, cross-validate the best ``MAX_SCREENED`` jointly with the
+    chosen causes, add the best when it gains ``STEP_GAIN`` (None otherwise, the rejected step
+    recorded on ``branch``)."""
     pool = [c for c in search.causes if c.name not in branch.names()
             and branch.names() | {c.name} not in branch.visited]
     if not pool or search.budget <= 0:
         return None
     trials = tuple(search.trials)
-    current = quadratic_mean(trial_errors(replay_all(search.setting, branch.model.plant(search.nominal), search.trials), search.trials))
+    features = replay_all(search.setting, branch.model.plant(search.nominal), search.trials)
+    current = quadratic_mean(trial_errors(features, search.trials))
     screened = search.run(screen_cause, [ScreenTask(c, branch.model, search.nominal, search.setting, trials) for c in pool])
-    order = [i for i in np.argsort([e for e, _ in screened], kind="stable") if screened[i][0] <= (1 - STEP_GAIN / 2) * current]
-    order = order[: min(MAX_SCREENED, search.budget)]
+    order = [int(i) for i in np.argsort([e for e, _ in screened], kind="stable")
+             if screened[i][0] <= (1 - STEP_GAIN / 2) * current][: min(MAX_SCREENED, search.budget)]
     if not order:
         return None
-    base_all = branch.model.plant(search.nominal)
-    tasks = [CandidateTask(pool[i], tuple(branch.bases), base_all, search.setting, trials, screened[i][1].u[0]) for i in order]
-    results = search.run(cross_validate_cause, tasks)
+    tasks = [ModelTask(screened[i][1], tuple(branch.folds), search.nominal, search.setting, trials, pool[i]) for i in order]
+    results = search.run(cross_validate_model, tasks)
     errors = [quadratic_mean(r["heldout"]) for r in results]
     best = int(np.argmin(errors))
     gain = relative_gain(errors[best], branch.error)
@@ -147,26 +151,35 @@ def forward(search: Search, branch: Branch, path: int) -> Branch | None:
     if gain < STEP_GAIN:
         branch.steps.append(step)
         return None
-    return added(search, branch, pool[order[best]], results[best], step)
+    result = results[best]
+    result = {**result, "model": last_first(result["model"]), "folds": [last_first(f) for f in result["folds"]]}
+    return as_branch(branch, result, step)
 
 
 def as_branch(branch: Branch, result: dict, step: dict) -> Branch:
     """``branch`` moved to the model of a cross-validated ``result`` (``cross_validate_model``)."""
     model = result["model"]
     visited = branch.visited | {frozenset(c.name for c in model.causes)}
-    return Branch(model, result["bases"], branch.steps + [step], result["heldout"], result["heldout_jump"], visited)
+    return Branch(model, list(result["folds"]), branch.steps + [step], result["heldout"], result["heldout_jump"], visited)
+
+
+def refined(model: FittedCauses, finer: Cause) -> FittedCauses:
+    """``model`` with its last cause replaced by ``finer``, started from the last cause's fit."""
+    cause, u = model.causes[-1], model.u[-1]
+    start = finer.to_u(finer.theta_of(cause.overrides(cause.to_theta(u))))
+    return FittedCauses(model.causes[:-1] + (finer,), model.u[:-1] + (start,))
 
 
 def refine(search: Search, branch: Branch, path: int) -> Branch:
     """The last added cause replaced by its refinement (``Cause.refined``), started from its
     fitted value, when that gains ``STEP_GAIN`` held out; else ``branch`` with the try recorded."""
-    cause, u = branch.model.causes[-1], branch.model.u[-1]
-    finer = cause.refined()
+    finer = branch.model.causes[-1].refined()
     if finer is None or search.budget <= 0:
         return branch
-    start = finer.to_u(finer.theta_of(cause.overrides(cause.to_theta(u))))
-    model = FittedCauses(branch.model.causes[:-1] + (finer,), branch.model.u[:-1] + (start,))
-    [result] = search.run(cross_validate_model, [ModelTask(model, search.nominal, search.setting, tuple(search.trials))])
+    task = ModelTask(refined(branch.model, finer), tuple(refined(f, finer) for f in branch.folds), search.nominal,
+                     search.setting, tuple(search.trials), evaluations=(REFINE_EVALUATIONS,) * 2)
+    [result] = search.run(cross_validate_model, [task])
+    cause = branch.model.causes[-1]
     error = quadratic_mean(result["heldout"])
     gain = relative_gain(error, branch.error)
     step = search_step("refine", cause.name, error, gain, gain >= STEP_GAIN, path)
@@ -176,6 +189,12 @@ def refine(search: Search, branch: Branch, path: int) -> Branch:
     return as_branch(branch, result, step)
 
 
+def without(model: FittedCauses, k: int) -> FittedCauses:
+    """``model`` without its cause ``k``."""
+    keep = [j for j in range(len(model.causes)) if j != k]
+    return FittedCauses(tuple(model.causes[j] for j in keep), tuple(model.u[j] for j in keep))
+
+
 def backward(search: Search, branch: Branch, path: int) -> Branch:
     """Each cause chosen before the last one tried out (the others refitted jointly and
     cross-validated); the one whose removal leaves the lowest held-out error is removed when it
@@ -183,9 +202,9 @@ def backward(search: Search, branch: Branch, path: int) -> Branch:
     earlier = [k for k, c in enumerate(branch.model.causes[:-1]) if branch.names() - {c.name} not in branch.visited]
     if len(branch.model.causes) < 2 or not earlier or search.budget < len(earlier):
         return branch
-    models = [FittedCauses(tuple(c for j, c in enumerate(branch.model.causes) if j != k),
-                           tuple(u for j, u in enumerate(branch.model.u) if j != k)) for k in earlier]
-    results = search.run(cross_validate_model, [ModelTask(m, search.nominal, search.setting, tuple(search.trials)) for m in models])
+    tasks = [ModelTask(without(branch.model, k), tuple(without(f, k) for f in branch.folds), search.nominal,
+                       search.setting, tuple(search.trials)) for k in earlier]
+    results = search.run(cross_validate_model, tasks)
     errors = [quadratic_mean(r["heldout"]) for r in results]
     best = int(np.argmin(errors))
     steps = []
@@ -224,7 +243,7 @@ def first_steps(search: Search, start: Branch) -> tuple[list[Cause], list[dict],
     refinement when that gains, ``refined_first``), their results and the ``candidates``
     entries."""
     trials = tuple(search.trials)
-    tasks = [CandidateTask(c, tuple(start.bases), search.nominal, search.setting, trials) for c in search.causes]
+    tasks = [CandidateTask(c, search.nominal, search.setting, trials) for c in search.causes]
     results = search.run(cross_validate_cause, tasks)
     causes = list(search.causes)
     for k, (cause, result) in enumerate(zip(search.causes, results)):
@@ -245,12 +264,13 @@ def refined_first(search: Search, start: Branch, cause: Cause, result: dict) -> 
     error = quadratic_mean(result["heldout"])
     if finer is None or search.budget <= 0:
         return cause, result
-    u = finer.to_u(finer.theta_of(cause.overrides(cause.to_theta(result["u"]))))
-    task = ModelTask(FittedCauses((finer,), (u,)), search.nominal, search.setting, tuple(search.trials))
+    folds = tuple(refined(FittedCauses((cause,), (u,)), finer) for u in result["u_folds"])
+    task = ModelTask(refined(FittedCauses((cause,), (result["u"],)), finer), folds, search.nominal, search.setting,
+                     tuple(search.trials), evaluations=(REFINE_EVALUATIONS,) * 2)
     [model] = search.run(cross_validate_model, [task])
     if relative_gain(quadratic_mean(model["heldout"]), error) < STEP_GAIN:
         return cause, result
-    return finer, {"cause": cause.name, "u": model["model"].u[0], "u_folds": [m.u[0] for m in model["folds"]],
+    return finer, {"cause": cause.name, "u": model["model"].u[0], "u_folds": [f.u[0] for f in model["folds"]],
                    "heldout": model["heldout"], "heldout_jump": model["heldout_jump"]}
 
 
@@ -261,7 +281,7 @@ def select_causes(
     residual and error (26) per trial."""
     search = Search(causes, nominal, setting, trials, jobs)
     folds = len(np.unique(fold_of(trials)))
-    start = Branch(FittedCauses(), [nominal] * folds, [], *(np.asarray(b, float) for b in baseline))
+    start = Branch(FittedCauses(), [FittedCauses()] * folds, [], *(np.asarray(b, float) for b in baseline))
     causes, results, candidates = first_steps(search, start)
     errors = [c["heldout_error"] for c in candidates]
     order = [int(i) for i in np.argsort(errors, kind="stable")]
@@ -273,7 +293,7 @@ def select_causes(
             if not paths:  # nothing gains: the nominal path, its rejected first step
                 paths.append((False, replace(start, steps=[step])))
             break
-        branch = follow(search, added(search, start, causes[i], results[i], step), len(paths))
+        branch = follow(search, first_added(start, causes[i], results[i], step), len(paths))
         paths.append((bool(branch.model.causes) and search.fits_noise(branch.model), branch))
     kept = min(range(len(paths)), key=lambda p: (not paths[p][0], paths[p][1].error))
     chosen = paths[kept][1]

@@ -4,12 +4,11 @@ The held-out normalised residual (every block in noise units, ``fitting.trial_er
 trials, their quadratic mean) of K-fold cross-validation over trials (K = min(``MAX_FOLDS``,
 trials)):
 
-- ``cross_validate_cause``: one candidate added on top of the causes already chosen (per fold,
-  on top of the chosen causes fitted without that fold);
-- ``screen_cause``: the cheap screen before it, a short local fit of the candidate together with
-  the chosen causes, in sample;
-- ``cross_validate_model``: a set of causes refitted jointly without each fold (a removal or a
-  refinement of the search).
+- ``cross_validate_cause``: one candidate alone (the first step);
+- ``screen_cause``: a cheap screen of a candidate next to the causes already chosen, a short
+  local fit of all of them, in sample;
+- ``cross_validate_model``: a set of causes refitted jointly without each fold, each fold from
+  a start fitted without it (an addition, a removal or a refinement of the search).
 
 A step gains ``STEP_GAIN`` over the error before it (``selection_step``); the causes must remove
 ``EXPLAINED_GAIN`` of the nominal's excess over the noise floor (``gain_over_floor``). The rules
@@ -37,6 +36,7 @@ FIT_MAX_EVALUATIONS = 20  # per fitted parameter, for the fit on all trials
 FOLD_MAX_EVALUATIONS = 10  # per fitted parameter, for each cross-validation fold
 JOINT_MAX_EVALUATIONS = 15  # per fitted parameter, for the joint refit of the chosen causes
 SCREEN_EVALUATIONS = 3  # per fitted parameter, for the short local fit of a screen
+REFINE_EVALUATIONS = 5  # per fitted parameter, for each fit of a refinement's cross-validation (a first look)
 SCREEN_GRID_STRIDE = 2  # the screen starts its local fit from every other grid point (and the nominal)
 
 
@@ -48,54 +48,40 @@ def fold_of(trials: list[MeasuredTrial]) -> np.ndarray:
 
 @dataclass(frozen=True)
 class CandidateTask:
-    """One candidate to cross-validate on top of the causes already chosen (a process task):
-    ``bases[k]`` is the plant of the chosen causes fitted without fold k, ``base_all`` the one
-    fitted on all trials; ``start`` the candidate's start vector (its screen), None: the best
-    grid point of each fit's trials."""
+    """One candidate alone to cross-validate on top of the nominal plant ``base`` (a process
+    task: the first step)."""
 
     cause: Cause
-    bases: tuple[PlantParameters, ...]
-    base_all: PlantParameters
+    base: PlantParameters
     setting: ReplaySetting
     trials: tuple[MeasuredTrial, ...]
-    start: np.ndarray | None = None
 
 
 def cross_validate_cause(task: CandidateTask) -> dict:
-    """Held-out errors of one candidate added to the causes already chosen (one process task).
+    """Held-out errors of one candidate alone (one process task).
 
-    Per fold k: a fit of the candidate on the training trials on top of ``bases[k]``, from
-    ``start`` or else the best grid point on them, and its replay of the held-out trials gives
-    their normalised residuals (``heldout``) and errors (26) (``heldout_jump``). Then the
-    candidate is fitted on all trials on top of ``base_all``."""
-    cause, setting, trials = task.cause, task.setting, list(task.trials)
+    Per fold k: the best grid point on the training trials starts a fit of the candidate on
+    them, and its replay of the held-out trials gives their normalised residuals (``heldout``)
+    and errors (26) (``heldout_jump``); ``u_folds`` are the fold fits. Then the candidate is
+    fitted on all trials (``u``)."""
+    cause, setting, trials, base = task.cause, task.setting, list(task.trials), task.base
     folds = fold_of(trials)
     heldout = np.empty(len(trials))
     heldout_jump = np.empty(len(trials))
     u_folds = []
-    shared = None  # grid features on all trials, when every fold shares the base (first step)
-    if task.start is None and all(b == task.base_all for b in task.bases):
-        _, _, shared = best_start(cause, task.base_all, setting, trials)
-
-    def start(base, subset, indices):
-        if task.start is not None:
-            return task.start
-        grid = [[g[i] for i in indices] for g in shared] if shared is not None else None
-        i, points, _ = best_start(cause, base, setting, subset, grid)
-        return points[i]
-
+    _, _, shared = best_start(cause, base, setting, trials)  # grid features on all trials, shared by the folds
     for k in np.unique(folds):
         train_idx = [i for i, f in enumerate(folds) if f != k]
         train = [trials[i] for i in train_idx]
         test = [t for t, f in zip(trials, folds) if f == k]
-        base = task.bases[k]
-        fitted = fit(FittedCauses((cause,), (start(base, train, train_idx),)), base, setting, train, FOLD_MAX_EVALUATIONS)
+        i, points, _ = best_start(cause, base, setting, train, [[g[i] for i in train_idx] for g in shared])
+        fitted = fit(FittedCauses((cause,), (points[i],)), base, setting, train, FOLD_MAX_EVALUATIONS)
         u_folds.append(fitted.u[0])
         features = replay_all(setting, fitted.plant(base), test)
         heldout[folds == k] = trial_errors(features, test)
         heldout_jump[folds == k] = jump_errors(features, test)
-    u0 = start(task.base_all, trials, range(len(trials)))
-    u_all = fit(FittedCauses((cause,), (u0,)), task.base_all, setting, trials, FIT_MAX_EVALUATIONS).u[0]
+    i, points, _ = best_start(cause, base, setting, trials, shared)
+    u_all = fit(FittedCauses((cause,), (points[i],)), base, setting, trials, FIT_MAX_EVALUATIONS).u[0]
     return {"cause": cause.name, "u": u_all, "u_folds": u_folds, "heldout": heldout, "heldout_jump": heldout_jump}
 
 
@@ -129,35 +115,44 @@ def screen_cause(task: ScreenTask) -> tuple[float, FittedCauses]:
 
 @dataclass(frozen=True)
 class ModelTask:
-    """A set of causes to cross-validate as a whole (a process task): ``model`` is the start of
-    every fit, on top of ``nominal``."""
+    """A set of causes to cross-validate as a whole (a process task): ``model`` starts the fit on
+    all trials, ``folds[k]`` the fit without fold k (fitted without it: no held-out trial
+    leaks into a fold's start); ``added``, when given, is a candidate put first into every
+    fold's start from its best coarse grid point on the fold's training trials (``model``
+    holds it first already); ``evaluations``: per fitted parameter, of the fit on all trials
+    and of each fold's."""
 
     model: FittedCauses
+    folds: tuple[FittedCauses, ...]
     nominal: PlantParameters
     setting: ReplaySetting
     trials: tuple[MeasuredTrial, ...]
+    added: Cause | None = None
+    evaluations: tuple[int, int] = (JOINT_MAX_EVALUATIONS, FOLD_MAX_EVALUATIONS)
 
 
 def cross_validate_model(task: ModelTask) -> dict:
-    """The causes of ``model`` refitted jointly on all trials (``model``), and without each
-    fold k from there: the held-out normalised residuals and errors (26) of the fold's trials
-    (``heldout``, ``heldout_jump``), the causes fitted without each fold (``folds``) and their
-    plants (``bases``)."""
+    """The causes refitted jointly on all trials (``model``) and without each fold k from its
+    start: the held-out normalised residuals and errors (26) of the fold's trials
+    (``heldout``, ``heldout_jump``) and the fold fits (``folds``)."""
     setting, trials, nominal = task.setting, list(task.trials), task.nominal
-    model = fit(task.model, nominal, setting, trials, JOINT_MAX_EVALUATIONS)
+    model = fit(task.model, nominal, setting, trials, task.evaluations[0])
     folds = fold_of(trials)
     heldout = np.empty(len(trials))
     heldout_jump = np.empty(len(trials))
-    bases, fold_models = [], []
+    fold_models = []
     for k in np.unique(folds):
         train = [t for t, f in zip(trials, folds) if f != k]
         test = [t for t, f in zip(trials, folds) if f == k]
-        fold_models.append(fit(model, nominal, setting, train, FOLD_MAX_EVALUATIONS))
-        bases.append(fold_models[-1].plant(nominal))
-        features = replay_all(setting, bases[-1], test)
+        start = task.folds[k]
+        if task.added is not None:
+            index, points, _ = best_start(task.added, start.plant(nominal), setting, train, stride=SCREEN_GRID_STRIDE)
+            start = FittedCauses((task.added,) + start.causes, (points[index],) + start.u)
+        fold_models.append(fit(start, nominal, setting, train, task.evaluations[1]))
+        features = replay_all(setting, fold_models[-1].plant(nominal), test)
         heldout[folds == k] = trial_errors(features, test)
         heldout_jump[folds == k] = jump_errors(features, test)
-    return {"model": model, "heldout": heldout, "heldout_jump": heldout_jump, "bases": bases, "folds": fold_models}
+    return {"model": model, "heldout": heldout, "heldout_jump": heldout_jump, "folds": fold_models}
 
 
 def relative_gain(error: float, reference: float) -> float:
