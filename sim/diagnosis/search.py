@@ -29,7 +29,6 @@ from .fitting import FittedCauses, fit_report, trial_errors
 from .noise import quadratic_mean
 from .selection import (
     EXPLAINED_GAIN,
-    REFINE_EVALUATIONS,
     STEP_GAIN,
     CandidateTask,
     ModelTask,
@@ -177,7 +176,7 @@ def refine(search: Search, branch: Branch, path: int) -> Branch:
     if finer is None or search.budget <= 0:
         return branch
     task = ModelTask(refined(branch.model, finer), tuple(refined(f, finer) for f in branch.folds), search.nominal,
-                     search.setting, tuple(search.trials), evaluations=(REFINE_EVALUATIONS,) * 2)
+                     search.setting, tuple(search.trials), newton=True)
     [result] = search.run(cross_validate_model, [task])
     cause = branch.model.causes[-1]
     error = quadratic_mean(result["heldout"])
@@ -266,7 +265,7 @@ def refined_first(search: Search, start: Branch, cause: Cause, result: dict) -> 
         return cause, result
     folds = tuple(refined(FittedCauses((cause,), (u,)), finer) for u in result["u_folds"])
     task = ModelTask(refined(FittedCauses((cause,), (result["u"],)), finer), folds, search.nominal, search.setting,
-                     tuple(search.trials), evaluations=(REFINE_EVALUATIONS,) * 2)
+                     tuple(search.trials), newton=True)
     [model] = search.run(cross_validate_model, [task])
     if relative_gain(quadratic_mean(model["heldout"]), error) < STEP_GAIN:
         return cause, result

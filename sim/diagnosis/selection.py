@@ -25,6 +25,7 @@ from impactqp.sim.causes import Cause
 from impactqp.sim.plant import PlantParameters
 
 from .fitting import FittedCauses, best_start, fit, jump_errors, trial_errors
+from .intervals import gauss_newton_polish
 from .noise import quadratic_mean
 from .trials import MeasuredTrial, ReplaySetting, replay_all
 
@@ -36,7 +37,6 @@ FIT_MAX_EVALUATIONS = 20  # per fitted parameter, for the fit on all trials
 FOLD_MAX_EVALUATIONS = 10  # per fitted parameter, for each cross-validation fold
 JOINT_MAX_EVALUATIONS = 15  # per fitted parameter, for the joint refit of the chosen causes
 SCREEN_EVALUATIONS = 3  # per fitted parameter, for the short local fit of a screen
-REFINE_EVALUATIONS = 5  # per fitted parameter, for each fit of a refinement's cross-validation (a first look)
 SCREEN_GRID_STRIDE = 2  # the screen starts its local fit from every other grid point (and the nominal)
 
 
@@ -119,8 +119,10 @@ class ModelTask:
     all trials, ``folds[k]`` the fit without fold k (fitted without it: no held-out trial
     leaks into a fold's start); ``added``, when given, is a candidate put first into every
     fold's start from its best coarse grid point on the fold's training trials (``model``
-    holds it first already); ``evaluations``: per fitted parameter, of the fit on all trials
-    and of each fold's."""
+    holds it first already). ``newton``: every fit is a Gauss-Newton polish
+    (``intervals.gauss_newton_polish``) instead of Powell's method: for a smooth, nearly linear
+    cause with many parameters (the velocity scale per joint), which Powell's line searches,
+    one parameter after the other, approach slowly."""
 
     model: FittedCauses
     folds: tuple[FittedCauses, ...]
@@ -128,7 +130,14 @@ class ModelTask:
     setting: ReplaySetting
     trials: tuple[MeasuredTrial, ...]
     added: Cause | None = None
-    evaluations: tuple[int, int] = (JOINT_MAX_EVALUATIONS, FOLD_MAX_EVALUATIONS)
+    newton: bool = False
+
+
+def task_fit(task: ModelTask, start: FittedCauses, trials: list, max_evaluations: int) -> FittedCauses:
+    """The fit of ``start`` over ``trials`` the way ``task`` asks (Powell, or Gauss-Newton)."""
+    if task.newton:
+        return gauss_newton_polish(start, task.nominal, task.setting, trials)[0]
+    return fit(start, task.nominal, task.setting, trials, max_evaluations)
 
 
 def cross_validate_model(task: ModelTask) -> dict:
@@ -136,7 +145,7 @@ def cross_validate_model(task: ModelTask) -> dict:
     start: the held-out normalised residuals and errors (26) of the fold's trials
     (``heldout``, ``heldout_jump``) and the fold fits (``folds``)."""
     setting, trials, nominal = task.setting, list(task.trials), task.nominal
-    model = fit(task.model, nominal, setting, trials, task.evaluations[0])
+    model = task_fit(task, task.model, trials, JOINT_MAX_EVALUATIONS)
     folds = fold_of(trials)
     heldout = np.empty(len(trials))
     heldout_jump = np.empty(len(trials))
@@ -148,7 +157,7 @@ def cross_validate_model(task: ModelTask) -> dict:
         if task.added is not None:
             index, points, _ = best_start(task.added, start.plant(nominal), setting, train, stride=SCREEN_GRID_STRIDE)
             start = FittedCauses((task.added,) + start.causes, (points[index],) + start.u)
-        fold_models.append(fit(start, nominal, setting, train, task.evaluations[1]))
+        fold_models.append(task_fit(task, start, train, FOLD_MAX_EVALUATIONS))
         features = replay_all(setting, fold_models[-1].plant(nominal), test)
         heldout[folds == k] = trial_errors(features, test)
         heldout_jump[folds == k] = jump_errors(features, test)
