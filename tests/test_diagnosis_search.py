@@ -81,7 +81,8 @@ def test_one_joints_velocity_scale_is_named_with_that_joint(tmp_path):
     candidates = [ArmatureCause(), JointDampingCause(), TorqueOffsetCause(), VelocityScaleCause()]
     result = diagnose(tmp_path, causes=candidates, jobs=2).summary()
     assert result["causes"] == ["velocity_scale"] and result["explained"], result["steps"]
-    assert any(s["action"] == "refine" and s["accepted"] for s in result["steps"])
+    scale = next(c for c in result["candidates"] if c["cause"] == "velocity_scale")
+    assert "sensor_joint_velocity_scale" in scale["parameters"]  # refined in the first step
     intervals = [p["interval"] for p in result["parameter_intervals"]]
     assert len(intervals) == 7 and inside(1.12, intervals[3]) and not inside(1.0, intervals[3])
     assert all(inside(1.0, i) for j, i in enumerate(intervals) if j != 3), intervals

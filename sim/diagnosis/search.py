@@ -5,7 +5,7 @@ Every candidate alone is cross-validated first (``selection.cross_validate_cause
 the best path so far does not fit the noise (``noise.fits_noise``). Along a path, each forward
 step screens every remaining candidate by a short local fit next to the chosen causes
 (``selection.screen_cause``), cross-validates the ``MAX_SCREENED`` best and adds the best one
-when it gains ``STEP_GAIN``; a cause with a refinement (``Cause.refined``: the velocity scale
+when it gains ``STEP_GAIN``, while the model does not fit the noise; a cause with a refinement (``Cause.refined``: the velocity scale
 per joint) is then tried refined, kept when that gains ``STEP_GAIN``; then each earlier cause is
 tried out (a backward step) and the one that gains least is removed when it no longer gains
 ``STEP_GAIN`` over the others. A path stops when no step gains, at ``MAX_CAUSES`` causes, after
@@ -218,11 +218,12 @@ def backward(search: Search, branch: Branch, path: int) -> Branch:
 
 
 def follow(search: Search, branch: Branch, path: int) -> Branch:
-    """Forward steps, each followed by a refinement try and a backward step, until no step
-    gains, ``MAX_CAUSES`` causes are chosen, ``MAX_PATH_STEPS`` steps are taken or the budget
-    is spent."""
+    """Forward steps, each followed by a refinement try and a backward step, while the model
+    does not fit the noise, until no step gains, ``MAX_CAUSES`` causes are chosen,
+    ``MAX_PATH_STEPS`` steps are taken or the budget is spent."""
     branch = refine(search, branch, path)
-    while len(branch.model.causes) < MAX_CAUSES and sum(s["accepted"] for s in branch.steps) < MAX_PATH_STEPS:
+    while (len(branch.model.causes) < MAX_CAUSES and sum(s["accepted"] for s in branch.steps) < MAX_PATH_STEPS
+           and not search.fits_noise(branch.model)):
         step = forward(search, branch, path)
         if step is None:
             break
