@@ -28,7 +28,8 @@ def test_two_hidden_effects_are_both_named_each_within_its_interval(tmp_path):
     """Armature per group and a payload hidden at once: both are named, refitted jointly, and
     every hidden value (armature per group, payload mass and CoM) lies within its interval."""
     truth = {"armature": per_group((0.6, 0.15)), "payload_mass": 1.0, "payload_com": [0.01, -0.01, -0.06]}
-    generate_dataset(tmp_path, DatasetRequest(plant=PlantParameters(**truth), postures=POSTURES, speeds=SPEEDS, seed=7), jobs=2)
+    request = DatasetRequest(plant=PlantParameters(**truth), postures=POSTURES, speeds=SPEEDS, seed=7)
+    generate_dataset(tmp_path, request, jobs=2)
     result = diagnose(tmp_path, jobs=2).summary()
     assert sorted(result["causes"]) == ["armature", "payload"], result["steps"]
     check_contract(result)
@@ -58,7 +59,8 @@ def test_three_hidden_effects_that_a_greedy_selection_missed_are_named(tmp_path)
     selection took armature, then friction, and its grid screen then dropped the payload (one
     run, docs/diagnosis.md). The search names all three, fits the noise and holds every truth
     within its interval."""
-    truth = {"armature": per_group((0.3, 0.15)), "payload_mass": 0.4, "payload_com": [0.01, 0.0, -0.05], "friction": 0.4}
+    truth = {"armature": per_group((0.3, 0.15)), "payload_mass": 0.4, "payload_com": [0.01, 0.0, -0.05],
+             "friction": 0.4}
     request = DatasetRequest(plant=PlantParameters(**truth), tangential=[0.3, 0.6], seed=8, **SMALL)
     generate_dataset(tmp_path, request, jobs=2)
     result = diagnose(tmp_path, jobs=2).summary()

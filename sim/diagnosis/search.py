@@ -1,18 +1,20 @@
 """Which causes explain the gap: a bounded search over sets of causes (``select_causes``).
 
-Every candidate alone is cross-validated first (``selection.cross_validate_cause``); the best
-``MAX_BRANCHES`` first steps that gain ``STEP_GAIN`` each start a path, the next one only while
-the best path so far does not fit the noise (``noise.fits_noise``). Along a path, each forward
-step screens every remaining candidate by a short local fit next to the chosen causes
-(``selection.screen_cause``), cross-validates the ``MAX_SCREENED`` best and adds the best one
-when it gains ``STEP_GAIN``, while the model does not fit the noise; a cause with a refinement (``Cause.refined``: the velocity scale
-per joint) is then tried refined, kept when that gains ``STEP_GAIN``; then each earlier cause is
-tried out (a backward step) and the one that gains least is removed when it no longer gains
-``STEP_GAIN`` over the others. A path stops when no step gains, at ``MAX_CAUSES`` causes, after
-``MAX_PATH_STEPS`` steps or when the search has spent ``MAX_CROSS_VALIDATIONS``. The kept path
-is the one that fits the noise with the lowest held-out error (else the lowest); its causes
-are selected when they remove ``EXPLAINED_GAIN`` of the nominal's excess over the noise floor.
-Every step of every path is reported (``steps``). Rules and caps: ``docs/diagnosis.md``.
+Every candidate alone is cross-validated first (``selection.cross_validate_cause``; a cause
+with a refinement, ``Cause.refined``, also refined); the best ``MAX_BRANCHES`` first steps that
+gain ``STEP_GAIN`` each start a path, the next one only while no path so far fits the noise
+(``noise.fits_noise``). Along a path, while its model does not fit the noise, each forward step
+screens every remaining candidate by a short local fit next to the chosen causes
+(``selection.screen_cause``), cross-validates the ``MAX_SCREENED`` best jointly with them and
+adds the best one when it gains ``STEP_GAIN``; an added cause with a refinement (the velocity
+scale per joint) is then tried refined, kept when that gains ``STEP_GAIN``; then each earlier
+cause is tried out (a backward step) and the one that gains least is removed when it no
+longer gains ``STEP_GAIN`` over the others. A path also stops when no step gains, at
+``MAX_CAUSES`` causes, after ``MAX_PATH_STEPS`` accepted steps or when the search has spent
+``MAX_CROSS_VALIDATIONS``. The kept path is the one that fits the noise with the lowest
+held-out error (else the lowest); its causes are selected when they remove ``EXPLAINED_GAIN``
+of the nominal's excess over the noise floor. Every step of every path is reported
+(``steps``). Rules and caps: ``docs/diagnosis.md``.
 """
 
 from __future__ import annotations
@@ -116,7 +118,8 @@ def first_added(branch: Branch, cause: Cause, result: dict, step: dict) -> Branc
     ``result`` (``cross_validate_cause``)."""
     folds = [FittedCauses((cause,), (u,)) for u in result["u_folds"]]
     model = FittedCauses((cause,), (result["u"],))
-    return Branch(model, folds, branch.steps + [step], result["heldout"], result["heldout_jump"], {frozenset([cause.name])})
+    heldout, heldout_jump = result["heldout"], result["heldout_jump"]
+    return Branch(model, folds, branch.steps + [step], heldout, heldout_jump, {frozenset([cause.name])})
 
 
 def last_first(model: FittedCauses) -> FittedCauses:
@@ -136,12 +139,14 @@ def forward(search: Search, branch: Branch, path: int) -> Branch | None:
     trials = tuple(search.trials)
     features = replay_all(search.setting, branch.model.plant(search.nominal), search.trials)
     current = quadratic_mean(trial_errors(features, search.trials))
-    screened = search.run(screen_cause, [ScreenTask(c, branch.model, search.nominal, search.setting, trials) for c in pool])
+    screens = [ScreenTask(c, branch.model, search.nominal, search.setting, trials) for c in pool]
+    screened = search.run(screen_cause, screens)
     order = [int(i) for i in np.argsort([e for e, _ in screened], kind="stable")
              if screened[i][0] <= (1 - STEP_GAIN / 2) * current][: min(MAX_SCREENED, search.budget)]
     if not order:
         return None
-    tasks = [ModelTask(screened[i][1], tuple(branch.folds), search.nominal, search.setting, trials, pool[i]) for i in order]
+    tasks = [ModelTask(screened[i][1], tuple(branch.folds), search.nominal, search.setting, trials, pool[i])
+             for i in order]
     results = search.run(cross_validate_model, tasks)
     errors = [quadratic_mean(r["heldout"]) for r in results]
     best = int(np.argmin(errors))
@@ -159,7 +164,8 @@ def as_branch(branch: Branch, result: dict, step: dict) -> Branch:
     """``branch`` moved to the model of a cross-validated ``result`` (``cross_validate_model``)."""
     model = result["model"]
     visited = branch.visited | {frozenset(c.name for c in model.causes)}
-    return Branch(model, list(result["folds"]), branch.steps + [step], result["heldout"], result["heldout_jump"], visited)
+    heldout, heldout_jump = result["heldout"], result["heldout_jump"]
+    return Branch(model, list(result["folds"]), branch.steps + [step], heldout, heldout_jump, visited)
 
 
 def refined(model: FittedCauses, finer: Cause) -> FittedCauses:
@@ -209,7 +215,8 @@ def backward(search: Search, branch: Branch, path: int) -> Branch:
     steps = []
     for i, k in enumerate(earlier):
         gain = relative_gain(branch.error, errors[i])
-        steps.append(search_step("remove", branch.model.causes[k].name, errors[i], gain, i == best and gain < STEP_GAIN, path))
+        taken = i == best and gain < STEP_GAIN
+        steps.append(search_step("remove", branch.model.causes[k].name, errors[i], gain, taken, path))
     if not steps[best]["accepted"]:
         branch.steps.extend(steps)
         return branch
