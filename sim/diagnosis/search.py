@@ -28,6 +28,7 @@ from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import map_in_processes
 
 from .fitting import FittedCauses, fit_report, trial_errors
+from .intervals import gauss_newton_polish
 from .noise import quadratic_mean
 from .selection import (
     EXPLAINED_GAIN,
@@ -100,9 +101,14 @@ class Search:
         self.budget -= len(tasks) if function is not screen_cause else 0
         return map_in_processes(function, tasks, self.jobs)
 
-    def fits_noise(self, model: FittedCauses) -> bool:
+    def settled(self, branch: Branch) -> tuple[Branch, bool]:
+        """``branch`` with its model polished (``intervals.gauss_newton_polish``: the fit of a
+        step stops after a few evaluations), and whether that model fits the noise."""
+        if not branch.model.causes:
+            return branch, False
+        model = gauss_newton_polish(branch.model, self.nominal, self.setting, self.trials)[0]
         features = replay_all(self.setting, model.plant(self.nominal), self.trials)
-        return fit_report(features, self.trials)["fits_noise"]
+        return replace(branch, model=model), fit_report(features, self.trials)["fits_noise"]
 
 
 def search_step(action: str, cause: str, heldout_error: float, gain: float, accepted: bool, path: int) -> dict:
@@ -224,18 +230,20 @@ def backward(search: Search, branch: Branch, path: int) -> Branch:
     return as_branch(branch, results[best], steps[best])
 
 
-def follow(search: Search, branch: Branch, path: int) -> Branch:
+def follow(search: Search, branch: Branch, path: int) -> tuple[Branch, bool]:
     """Forward steps, each followed by a refinement try and a backward step, while the model
     does not fit the noise, until no step gains, ``MAX_CAUSES`` causes are chosen,
-    ``MAX_PATH_STEPS`` steps are taken or the budget is spent."""
-    branch = refine(search, branch, path)
-    while (len(branch.model.causes) < MAX_CAUSES and sum(s["accepted"] for s in branch.steps) < MAX_PATH_STEPS
-           and not search.fits_noise(branch.model)):
+    ``MAX_PATH_STEPS`` steps are taken or the budget is spent. Returns the path's end and
+    whether its (polished) model fits the noise."""
+    branch, fits = search.settled(refine(search, branch, path))
+    while len(branch.model.causes) < MAX_CAUSES and sum(s["accepted"] for s in branch.steps) < MAX_PATH_STEPS:
+        if fits:
+            break
         step = forward(search, branch, path)
         if step is None:
             break
-        branch = backward(search, refine(search, step, path), path)
-    return branch
+        branch, fits = search.settled(backward(search, refine(search, step, path), path))
+    return branch, fits
 
 
 def marked(steps: list[dict], causes: list[str]) -> list[dict]:
@@ -300,8 +308,7 @@ def select_causes(
             if not paths:  # nothing gains: the nominal path, its rejected first step
                 paths.append((False, replace(start, steps=[step])))
             break
-        branch = follow(search, first_added(start, causes[i], results[i], step), len(paths))
-        paths.append((bool(branch.model.causes) and search.fits_noise(branch.model), branch))
+        paths.append(follow(search, first_added(start, causes[i], results[i], step), len(paths))[::-1])
     kept = min(range(len(paths)), key=lambda p: (not paths[p][0], paths[p][1].error))
     chosen = paths[kept][1]
     floor_gain = gain_over_floor(chosen.error, start.error)
