@@ -328,13 +328,16 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         "",
         "## Selection steps",
         "",
-        "| step | cause | held-out error (noise units) | gain over the step before | selected |",
-        "|---|---|---|---|---|",
+        "Every path tried, the kept one first (add: a forward step; refine: the cause per joint; remove: a",
+        "backward step, its gain is the cause's over the model without it).",
+        "",
+        "| step | path | action | cause | held-out error (noise units) | gain | taken | selected |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for k, step in enumerate(s["steps"], start=1):
         lines.append(
-            f"| {k} | {step['cause']} | {step['heldout_error']:.4f} | {100 * step['gain']:.1f} % | "
-            f"{boolean(step['selected'])} |"
+            f"| {k} | {step['path'] + 1} | {step['action']} | {step['cause']} | {step['heldout_error']:.4f} | "
+            f"{100 * step['gain']:.1f} % | {boolean(step['accepted'])} | {boolean(step['selected'])} |"
         )
     lines += [
         "",

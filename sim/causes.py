@@ -20,7 +20,8 @@ contact        solref time constant and damping ratio          ``contact_solref`
 joint_damping  viscous damping per joint group (1-4, 5-7)      ``joint_damping`` (7 values)
 servo_gain     joint-servo bandwidth omega                     ``servo_gain``
 delay          measured dq and tau late by d control periods   ``sensor_delay``
-velocity_scale logged dq / true dq (global)                    ``sensor_velocity_scale``
+velocity_scale logged dq / true dq (global; then per joint     ``sensor_velocity_scale``
+               when the data support it: ``refined``)          (``sensor_joint_velocity_scale``)
 torque_offset  bias of the logged torque per joint (N m)       ``sensor_torque_offset`` (7)
 velocity_filt. time constant of a low-pass on the logged dq    ``sensor_velocity_filter``
 =============  ==============================================  ================================
@@ -94,6 +95,11 @@ class Cause:
         axes = [np.linspace(a, b, GRID_POINTS[len(lo)]) for a, b in zip(lo, hi)]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(lo))
         return [self.to_u(self.nominal_theta(nominal))] + [np.array(p) for p in grid]
+
+    def refined(self) -> "Cause | None":
+        """The same effect with more parameters (per joint), which the search tries in place of
+        this cause once it is chosen, and keeps when the data support it; None: no refinement."""
+        return None
 
     def settling_trials(self, index: int, side: str, known: float, normal_speeds: np.ndarray) -> str:
         """Plain words for the trials that would bound parameter ``index`` on ``side`` ("below"
@@ -320,6 +326,33 @@ class VelocityScaleCause(Cause):
 
     def theta_of(self, overrides):
         return np.array([float(overrides["sensor_velocity_scale"])])
+
+    def refined(self):
+        return JointVelocityScaleCause()
+
+
+class JointVelocityScaleCause(Cause):
+    """The logged dq of each joint its own factor times the true velocity: the refinement of
+    ``VelocityScaleCause`` (same name; the global scale folded into the joints' own)."""
+
+    name = "velocity_scale"
+    labels = tuple(f"velocity scale joint {j + 1}" for j in range(NQ))
+    log_scale = (False,) * NQ
+    lower, upper = (0.7,) * NQ, (1.4,) * NQ
+
+    def nominal_theta(self, nominal):
+        return nominal.sensor_velocity_scale * np.array(nominal.sensor_joint_velocity_scale, dtype=float)
+
+    def grid(self, nominal):
+        """The nominal scales only: the search starts it from the fitted global scale."""
+        return [self.to_u(self.nominal_theta(nominal))]
+
+    def overrides(self, theta):
+        return {"sensor_velocity_scale": 1.0, "sensor_joint_velocity_scale": [float(x) for x in theta]}
+
+    def theta_of(self, overrides):
+        joints = overrides.get("sensor_joint_velocity_scale", (1.0,) * NQ)
+        return float(overrides.get("sensor_velocity_scale", 1.0)) * np.array(joints, dtype=float)
 
 
 class TorqueOffsetCause(Cause):

@@ -22,8 +22,9 @@ servo_gain          bandwidth omega (rad/s) of the computed-torque joint servo (
 Sensor keys (``sim.sensor.apply_sensor``) act on the logged signals after the simulation, not on
 the physics: ``sensor_delay`` (control periods, dq and tau late), ``sensor_velocity_scale``
 (logged dq / true dq), ``sensor_torque_offset`` (N m per joint, added to tau) and
-``sensor_velocity_filter`` (s, time constant of a first-order low-pass on dq). The defaults are
-a perfect sensor.
+``sensor_velocity_filter`` (s, time constant of a first-order low-pass on dq) and
+``sensor_joint_velocity_scale`` (7 values, logged dq / true dq per joint, on top of the global
+scale). The defaults are a perfect sensor.
 
 Plant parameters are simulation truth: a dataset never records them (``controller.measured.dataset``).
 """
@@ -59,6 +60,7 @@ RANGES = {
     "sensor_velocity_scale": (0.5, 2.0, ""),
     "sensor_torque_offset": (-20.0, 20.0, "N m"),
     "sensor_velocity_filter": (0.0, 0.1, "s"),
+    "sensor_joint_velocity_scale": (0.5, 2.0, ""),
 }
 """Physical ranges of the plant parameters (per entry of a vector): reflected rotor inertias and
 viscous damping well above a Panda's (the diagnosis fits up to 5 kg m^2 and 200 N m s/rad), a
@@ -88,6 +90,7 @@ class PlantParameters:
     sensor_velocity_scale: float = 1.0
     sensor_torque_offset: tuple[float, ...] = (0.0,) * NQ
     sensor_velocity_filter: float = 0.0
+    sensor_joint_velocity_scale: tuple[float, ...] = (1.0,) * NQ
 
     def __post_init__(self):
         try:
@@ -136,11 +139,13 @@ class PlantParameters:
         for name in ("sensor_delay", "sensor_velocity_scale", "sensor_velocity_filter"):
             set_(name, scalar(name))
         set_("sensor_torque_offset", vector("sensor_torque_offset", NQ))
+        set_("sensor_joint_velocity_scale", vector("sensor_joint_velocity_scale", NQ))
 
     def physical(self) -> "PlantParameters":
         """The same plant with a perfect sensor: what the simulation itself needs."""
         return replace(
-            self, sensor_delay=0.0, sensor_velocity_scale=1.0, sensor_torque_offset=(0.0,) * NQ, sensor_velocity_filter=0.0
+            self, sensor_delay=0.0, sensor_velocity_scale=1.0, sensor_torque_offset=(0.0,) * NQ,
+            sensor_velocity_filter=0.0, sensor_joint_velocity_scale=(1.0,) * NQ,
         )
 
     # ------------------------------------------------------------------ JSON

@@ -9,7 +9,8 @@ diagnosis's sensor causes apply them to a replay's output without simulating aga
   T the control period, y_0 = x_0;
 - ``sensor_delay`` d (control periods, fractional): dq and tau are logged d samples late,
   x(t - d T) by linear interpolation between samples, the first sample held before the log;
-- ``sensor_velocity_scale`` s: the logged dq is s times the (filtered, delayed) velocity;
+- ``sensor_velocity_scale`` s and ``sensor_joint_velocity_scale`` s_j: the logged dq of joint j
+  is s s_j times the (filtered, delayed) velocity (``velocity_scales``);
 - ``sensor_torque_offset`` b (N m per joint): the logged tau is the delayed torque plus b.
 """
 
@@ -53,7 +54,13 @@ def has_sensor_effect(plant) -> bool:
         or plant.sensor_velocity_scale != 1.0
         or plant.sensor_velocity_filter != 0.0
         or any(plant.sensor_torque_offset)
+        or any(s != 1.0 for s in plant.sensor_joint_velocity_scale)
     )
+
+
+def velocity_scales(plant) -> np.ndarray:
+    """Logged dq / true dq per joint: the global scale times the joint's own (module docstring)."""
+    return plant.sensor_velocity_scale * np.asarray(plant.sensor_joint_velocity_scale, float)
 
 
 def apply_sensor(log: TrialLog, plant, period: float) -> TrialLog:
@@ -62,6 +69,6 @@ def apply_sensor(log: TrialLog, plant, period: float) -> TrialLog:
     if not has_sensor_effect(plant):
         return log
     dq = low_pass(np.asarray(log.dq, float), plant.sensor_velocity_filter, period)
-    dq = plant.sensor_velocity_scale * delayed(dq, plant.sensor_delay)
+    dq = velocity_scales(plant) * delayed(dq, plant.sensor_delay)
     tau = delayed(np.asarray(log.tau, float), plant.sensor_delay) + np.asarray(plant.sensor_torque_offset)
     return replace(log, dq=dq, tau=tau)

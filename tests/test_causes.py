@@ -10,6 +10,8 @@ from impactqp.sim.causes import (
     ArmatureCause,
     cause_named,
     JointDampingCause,
+    JointVelocityScaleCause,
+    VelocityScaleCause,
     PayloadCause,
     default_causes,
     group_means,
@@ -19,7 +21,7 @@ from impactqp.sim.plant import PlantParameters
 from impactqp.controller.model.validation import BadInputError
 
 
-@pytest.mark.parametrize("cause", default_causes(), ids=lambda c: c.name)
+@pytest.mark.parametrize("cause", default_causes() + [JointVelocityScaleCause()], ids=lambda c: c.name + str(len(c.labels)))
 def test_cause_round_trips_and_builds_valid_plants(cause):
     nominal = PlantParameters()
     lo, hi = cause.u_bounds()
@@ -107,3 +109,19 @@ def test_a_cause_is_found_by_its_name_and_an_unknown_name_is_bad_input():
         assert cause_named(name).name == name
     with pytest.raises(BadInputError, match="the cause = 'gravity'; choose from armature"):
         cause_named("gravity")
+
+
+@given(st.floats(0.7, 1.4))
+def test_the_joint_velocity_scale_refines_the_global_one_and_starts_where_it_ends(scale):
+    """The refinement keeps the cause's name, and the global scale read as joint scales builds the
+    same sensor (every joint at the global value)."""
+    coarse = VelocityScaleCause()
+    finer = coarse.refined()
+    assert isinstance(finer, JointVelocityScaleCause) and finer.name == coarse.name
+    theta = finer.theta_of(coarse.overrides(np.array([scale])))
+    np.testing.assert_allclose(theta, scale)
+    a = PlantParameters(**coarse.overrides(np.array([scale])))
+    b = PlantParameters(**finer.overrides(theta))
+    np.testing.assert_allclose(a.sensor_velocity_scale * np.array(a.sensor_joint_velocity_scale),
+                               b.sensor_velocity_scale * np.array(b.sensor_joint_velocity_scale))
+    assert all(c.refined() is None for c in default_causes() if c.name != "velocity_scale")

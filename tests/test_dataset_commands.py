@@ -128,7 +128,8 @@ def test_diagnose_text_is_readable(small_dataset, capsys, monkeypatch):
     summary = {
         "message": "explained", "causes": ["armature"], "explained": True, "parameters": {"armature": armature},
         "baseline_error": 0.15, "extended_error": 0.003, "gain": 0.98,
-        "steps": [{"cause": "armature", "heldout_error": 0.003, "gain": 0.98, "selected": True}],
+        "steps": [{"path": 0, "action": "add", "cause": "armature", "heldout_error": 0.003, "gain": 0.98,
+                   "accepted": True, "selected": True}],
         "parameter_intervals": [{"parameter": "armature joints 1-4 (kg m^2)", "value": 1.2, "interval": [1.1, 1.3]}],
         "candidates": [
             {"cause": cause, "heldout_error": 0.1, "gain": gain, "parameters": {}}
@@ -147,6 +148,7 @@ def test_diagnose_text_is_readable(small_dataset, capsys, monkeypatch):
     assert "diagnose" in err and "5/5" in err  # the progress bar, on stderr
     assert "explained: true" in out and "True" not in out
     assert "armature (kg m^2): joints 1-4 = 1.2, joints 5-7 = 0.3" in out
+    assert "step 1: path 1 add    armature" in out and "selected" in out  # every path's steps
     table = out.split("candidate")[1].splitlines()[1:4]
     assert [line.split()[0] for line in table] == ["armature", "contact", "payload"]
 

@@ -53,10 +53,18 @@ def test_scale_and_offset_act_on_dq_and_tau_only(seed, n, scale, offset):
     assert apply_sensor(log, PlantParameters(), 1e-3) is log
 
 
+@given(st.integers(0, 2**32 - 1), rows, st.floats(0.5, 2.0), st.lists(st.floats(0.5, 2.0), min_size=7, max_size=7))
+def test_the_joint_scales_multiply_the_global_one_per_joint(seed, n, scale, joints):
+    log = log_of(seed, n)
+    plant = PlantParameters(sensor_velocity_scale=scale, sensor_joint_velocity_scale=joints)
+    np.testing.assert_allclose(apply_sensor(log, plant, 1e-3).dq, scale * np.array(joints) * log.dq)
+    assert plant.physical() == PlantParameters()
+
+
 @pytest.mark.parametrize(
     "key, value",
     [("sensor_delay", -1.0), ("sensor_delay", 51.0), ("sensor_velocity_scale", 0.4), ("sensor_velocity_filter", 0.2),
-     ("sensor_torque_offset", [21.0] + [0.0] * 6)],
+     ("sensor_torque_offset", [21.0] + [0.0] * 6), ("sensor_joint_velocity_scale", [1.0] * 6 + [2.5])],
 )
 def test_sensor_keys_outside_their_physical_range_are_refused(key, value):
     with pytest.raises(PlantParameterError, match=key):

@@ -241,7 +241,11 @@ def _print_diagnosis(result, summary: dict, speeds) -> None:
     )
     click.echo(f"held-out average error (26): nominal {summary['baseline_error']:.4f}  extended {summary['extended_error']:.4f}  gain {100 * summary['gain']:.1f} %")
     for k, step in enumerate(summary["steps"], start=1):
-        click.echo(f"step {k}: {step['cause']:<14} held-out {step['heldout_error']:.4f}  gain {100 * step['gain']:5.1f} %  {'selected' if step['selected'] else 'not selected'}")
+        taken = "selected" if step["selected"] else "taken" if step["accepted"] else "not taken"
+        click.echo(
+            f"step {k}: path {step['path'] + 1} {step['action']:<6} {step['cause']:<15} held-out "
+            f"{step['heldout_error']:.4f}  gain {100 * step['gain']:5.1f} %  {taken}"
+        )
     for p in summary["parameter_intervals"]:
         click.echo(f"  {p['parameter']:<40} {number(p['value']):>10}  95 %: {interval_text(p['interval'])}")
     click.echo(f"{'candidate':<15}{'held-out':>10}{'gain':>9}")

@@ -9,8 +9,9 @@ The steps of ``diagnose`` (``pipeline``), one module each:
    and speed, and of the classical, GM and CRB predictors.
 4. **Extend** (``fitting``): candidate causes (``sim.causes``) fitted by bounded least squares
    over the replays.
-5. **Select the causes** (``selection``): forward selection on the held-out error (26) of
-   cross-validation over trials.
+5. **Select the causes** (``search``, on the cross-validation of ``selection``): a bounded
+   search over sets of causes (paths from the best first steps, screened forward steps,
+   refinements, backward removals) on the held-out normalised residual over trials.
 6. **Bound the parameters** (``intervals``): profile-likelihood and bootstrap 95 % intervals,
    open sides and the trials that would settle them.
 

@@ -146,10 +146,12 @@ def fit(model: FittedCauses, base: PlantParameters, setting, trials, max_evaluat
     return model.with_vector(best["u"])
 
 
-def best_start(cause: Cause, base: PlantParameters, setting, trials, features_of_grid=None):
+def best_start(cause: Cause, base: PlantParameters, setting, trials, features_of_grid=None, stride: int = 1):
     """The grid point of ``cause`` (on top of ``base``) with the least cost over ``trials``:
-    (its index, the grid, the replay features at every grid point)."""
+    (its index, the grid, the replay features at every grid point). ``stride`` > 1 keeps the
+    nominal point and every ``stride``-th point of the rest (a coarser grid)."""
     points = cause.grid(base)
+    points = points[:1] + points[1::stride]
     if features_of_grid is None:
         features_of_grid = [replay_all(setting, cause.plant(base, u), trials) for u in points]
     costs = [np.sum(residuals(f, trials) ** 2) for f in features_of_grid]

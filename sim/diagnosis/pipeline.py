@@ -17,7 +17,7 @@ from .comparison import error_analysis, predictor_errors
 from .fitting import fit_report, jump_errors, trial_errors
 from .intervals import excludes_nominal, open_sides, override_intervals, parameter_intervals
 from .result import Diagnosis
-from .selection import select_causes
+from .search import select_causes
 from .trials import load_trials, locate_jump_samples, replay_all
 
 

@@ -1,14 +1,18 @@
-"""Which causes explain the gap: forward selection on held-out error (``select_causes``).
+"""Cross-validation of causes on held-out error: the tasks the search (``search``) runs.
 
-Forward selection on the held-out normalised residual (every block in noise units,
-``fitting.trial_errors``; over trials, their quadratic mean) of K-fold cross-validation over
-trials (K = min(``MAX_FOLDS``, trials)). Each step adds the candidate that lowers the held-out
-error most and must gain ``STEP_GAIN`` over the causes before it; the chosen causes are refitted
-jointly after each step; first steps within ``BRANCH_MARGIN`` of the best each start a path,
-and the path with the lowest held-out error is kept. The causes are kept when together they
-remove ``EXPLAINED_GAIN`` of the nominal replay's excess over the noise floor
-(``gain_over_floor``; else none is selected); they explain the gap when their model also fits
-the noise (``pipeline``). The rule and its reasons: ``docs/diagnosis.md``.
+The held-out normalised residual (every block in noise units, ``fitting.trial_errors``; over
+trials, their quadratic mean) of K-fold cross-validation over trials (K = min(``MAX_FOLDS``,
+trials)):
+
+- ``cross_validate_cause``: one candidate alone (the first step);
+- ``screen_cause``: a cheap screen of a candidate next to the causes already chosen, a short
+  local fit of all of them, in sample;
+- ``cross_validate_model``: a set of causes refitted jointly without each fold, each fold from
+  a start fitted without it (an addition, a removal or a refinement of the search).
+
+A step gains ``STEP_GAIN`` over the error before it (``selection_step``); the causes must remove
+``EXPLAINED_GAIN`` of the nominal's excess over the noise floor (``gain_over_floor``). The rules
+and their reasons: ``docs/diagnosis.md``.
 """
 
 from __future__ import annotations
@@ -19,22 +23,21 @@ import numpy as np
 
 from impactqp.sim.causes import Cause
 from impactqp.sim.plant import PlantParameters
-from impactqp.sim.process_pool import map_in_processes
 
 from .fitting import FittedCauses, best_start, fit, jump_errors, trial_errors
+from .intervals import gauss_newton_polish
 from .noise import quadratic_mean
 from .trials import MeasuredTrial, ReplaySetting, replay_all
 
 EXPLAINED_GAIN = 0.20  # the causes must remove 20 % of the nominal's held-out excess over the noise floor
 NOISE_FLOOR = 1.0  # the normalised residual of a model that fits: the noise itself
 STEP_GAIN = 0.20  # every further cause by 20 % of the held-out error of the causes before it
-MAX_CAUSES = 3
-BRANCH_MARGIN = 0.10  # first-step candidates within 10 % of the best held-out error start their own path
-MAX_BRANCHES = 3
 MAX_FOLDS = 3
 FIT_MAX_EVALUATIONS = 20  # per fitted parameter, for the fit on all trials
 FOLD_MAX_EVALUATIONS = 10  # per fitted parameter, for each cross-validation fold
 JOINT_MAX_EVALUATIONS = 15  # per fitted parameter, for the joint refit of the chosen causes
+SCREEN_EVALUATIONS = 3  # per fitted parameter, for the short local fit of a screen
+SCREEN_GRID_STRIDE = 2  # the screen starts its local fit from every other grid point (and the nominal)
 
 
 def fold_of(trials: list[MeasuredTrial]) -> np.ndarray:
@@ -45,52 +48,8 @@ def fold_of(trials: list[MeasuredTrial]) -> np.ndarray:
 
 @dataclass(frozen=True)
 class CandidateTask:
-    """One candidate to cross-validate on top of the causes already chosen (a process task):
-    ``bases[k]`` is the plant of the chosen causes fitted without fold k, ``base_all`` the one
-    fitted on all trials."""
-
-    cause: Cause
-    bases: tuple[PlantParameters, ...]
-    base_all: PlantParameters
-    setting: ReplaySetting
-    trials: tuple[MeasuredTrial, ...]
-
-
-def cross_validate_cause(task: CandidateTask) -> dict:
-    """Held-out errors of one candidate added to the causes already chosen (one process task).
-
-    Per fold k: the best grid point on the training trials starts a fit of the candidate on
-    them on top of ``bases[k]``, and its replay of the held-out trials gives their normalised
-    residuals (``heldout``) and errors (26) (``heldout_jump``). Then the candidate is fitted on
-    all trials on top of ``base_all``."""
-    cause, setting, trials = task.cause, task.setting, list(task.trials)
-    folds = fold_of(trials)
-    heldout = np.empty(len(trials))
-    heldout_jump = np.empty(len(trials))
-    u_folds = []
-    shared = None  # grid features on all trials, when every fold shares the base (first step)
-    if all(b == task.base_all for b in task.bases):
-        _, _, shared = best_start(cause, task.base_all, setting, trials)
-    for k in np.unique(folds):
-        train_idx = [i for i, f in enumerate(folds) if f != k]
-        train = [trials[i] for i in train_idx]
-        test = [t for t, f in zip(trials, folds) if f == k]
-        grid = [[g[i] for i in train_idx] for g in shared] if shared is not None else None
-        base = task.bases[k]
-        i, points, _ = best_start(cause, base, setting, train, grid)
-        fitted = fit(FittedCauses((cause,), (points[i],)), base, setting, train, FOLD_MAX_EVALUATIONS)
-        u_folds.append(fitted.u[0])
-        features = replay_all(setting, fitted.plant(base), test)
-        heldout[folds == k] = trial_errors(features, test)
-        heldout_jump[folds == k] = jump_errors(features, test)
-    i, points, _ = best_start(cause, task.base_all, setting, trials, shared)
-    u_all = fit(FittedCauses((cause,), (points[i],)), task.base_all, setting, trials, FIT_MAX_EVALUATIONS).u[0]
-    return {"cause": cause.name, "u": u_all, "u_folds": u_folds, "heldout": heldout, "heldout_jump": heldout_jump}
-
-
-@dataclass(frozen=True)
-class ScreenTask:
-    """One candidate to screen on top of the plant ``base`` of the causes chosen (a process task)."""
+    """One candidate alone to cross-validate on top of the nominal plant ``base`` (a process
+    task: the first step)."""
 
     cause: Cause
     base: PlantParameters
@@ -98,43 +57,111 @@ class ScreenTask:
     trials: tuple[MeasuredTrial, ...]
 
 
-def screen_cause(task: ScreenTask) -> float:
-    """In-sample normalised residual of the best grid point of a candidate added on top of
-    ``base`` (a cheap screen before its cross-validation)."""
-    trials = list(task.trials)
-    index, _, features = best_start(task.cause, task.base, task.setting, trials)
-    return quadratic_mean(trial_errors(features[index], trials))
+def cross_validate_cause(task: CandidateTask) -> dict:
+    """Held-out errors of one candidate alone (one process task).
+
+    Per fold k: the best grid point on the training trials starts a fit of the candidate on
+    them, and its replay of the held-out trials gives their normalised residuals (``heldout``)
+    and errors (26) (``heldout_jump``); ``u_folds`` are the fold fits. Then the candidate is
+    fitted on all trials (``u``)."""
+    cause, setting, trials, base = task.cause, task.setting, list(task.trials), task.base
+    folds = fold_of(trials)
+    heldout = np.empty(len(trials))
+    heldout_jump = np.empty(len(trials))
+    u_folds = []
+    _, _, shared = best_start(cause, base, setting, trials)  # grid features on all trials, shared by the folds
+    for k in np.unique(folds):
+        train_idx = [i for i, f in enumerate(folds) if f != k]
+        train = [trials[i] for i in train_idx]
+        test = [t for t, f in zip(trials, folds) if f == k]
+        i, points, _ = best_start(cause, base, setting, train, [[g[i] for i in train_idx] for g in shared])
+        fitted = fit(FittedCauses((cause,), (points[i],)), base, setting, train, FOLD_MAX_EVALUATIONS)
+        u_folds.append(fitted.u[0])
+        features = replay_all(setting, fitted.plant(base), test)
+        heldout[folds == k] = trial_errors(features, test)
+        heldout_jump[folds == k] = jump_errors(features, test)
+    i, points, _ = best_start(cause, base, setting, trials, shared)
+    u_all = fit(FittedCauses((cause,), (points[i],)), base, setting, trials, FIT_MAX_EVALUATIONS).u[0]
+    return {"cause": cause.name, "u": u_all, "u_folds": u_folds, "heldout": heldout, "heldout_jump": heldout_jump}
 
 
-@dataclass
-class Selection:
-    """The result of the forward selection (``select_causes``)."""
+@dataclass(frozen=True)
+class ScreenTask:
+    """One candidate to screen next to the causes chosen, ``model`` on top of ``nominal`` (a
+    process task)."""
 
-    candidates: list[dict]  # the first step: every candidate alone
-    steps: list[dict]  # one entry per step: the best candidate, its held-out error and gain
-    model: FittedCauses  # the selected causes, refitted jointly on all trials
-    best: FittedCauses  # the best path's causes, else the best first-step candidate alone
-    heldout_errors: np.ndarray  # normalised residual per trial, of ``model`` if it has causes, else of ``best``
-    heldout_jump_errors: np.ndarray  # error (26) per trial, likewise
-    gain_over_floor: float  # of the held-out errors above, against the nominal's
+    cause: Cause
+    model: FittedCauses
+    nominal: PlantParameters
+    setting: ReplaySetting
+    trials: tuple[MeasuredTrial, ...]
 
 
-@dataclass
-class Branch:
-    """One path of the forward selection: the chosen causes fitted jointly on all trials
-    (``model``), fitted without each fold (``bases``), the steps taken and the held-out
-    normalised residuals and errors (26) per trial of the last one (of the nominal replay
-    before any step)."""
+def screen_cause(task: ScreenTask) -> tuple[float, FittedCauses]:
+    """A cheap screen before a candidate's cross-validation: from its best point of a coarse
+    grid (``SCREEN_GRID_STRIDE``) on top of the chosen causes, a short local fit
+    (``SCREEN_EVALUATIONS`` per parameter of the fitter) of the candidate together with the
+    chosen causes, which may move (one of them may have mimicked a part of the candidate's
+    effect); the candidate's parameters come first, so Powell's first line searches move
+    them. Returns the in-sample normalised residual of the screened model and the model (the
+    candidate first)."""
+    trials, setting = list(task.trials), task.setting
+    base = task.model.plant(task.nominal)
+    index, points, _ = best_start(task.cause, base, setting, trials, stride=SCREEN_GRID_STRIDE)
+    start = FittedCauses((task.cause,) + task.model.causes, (points[index],) + task.model.u)
+    model = fit(start, task.nominal, setting, trials, SCREEN_EVALUATIONS)
+    return quadratic_mean(trial_errors(replay_all(setting, model.plant(task.nominal), trials), trials)), model
+
+
+@dataclass(frozen=True)
+class ModelTask:
+    """A set of causes to cross-validate as a whole (a process task): ``model`` starts the fit on
+    all trials, ``folds[k]`` the fit without fold k (fitted without it: no held-out trial
+    leaks into a fold's start); ``added``, when given, is a candidate put first into every
+    fold's start from its best coarse grid point on the fold's training trials (``model``
+    holds it first already). ``newton``: every fit is a Gauss-Newton polish
+    (``intervals.gauss_newton_polish``) instead of Powell's method: for a smooth, nearly linear
+    cause with many parameters (the velocity scale per joint), which Powell's line searches,
+    one parameter after the other, approach slowly."""
 
     model: FittedCauses
-    bases: list[PlantParameters]
-    steps: list[dict]
-    heldout: np.ndarray
-    heldout_jump: np.ndarray
+    folds: tuple[FittedCauses, ...]
+    nominal: PlantParameters
+    setting: ReplaySetting
+    trials: tuple[MeasuredTrial, ...]
+    added: Cause | None = None
+    newton: bool = False
 
-    @property
-    def error(self) -> float:
-        return quadratic_mean(self.heldout)
+
+def task_fit(task: ModelTask, start: FittedCauses, trials: list, max_evaluations: int) -> FittedCauses:
+    """The fit of ``start`` over ``trials`` the way ``task`` asks (Powell, or Gauss-Newton)."""
+    if task.newton:
+        return gauss_newton_polish(start, task.nominal, task.setting, trials)[0]
+    return fit(start, task.nominal, task.setting, trials, max_evaluations)
+
+
+def cross_validate_model(task: ModelTask) -> dict:
+    """The causes refitted jointly on all trials (``model``) and without each fold k from its
+    start: the held-out normalised residuals and errors (26) of the fold's trials
+    (``heldout``, ``heldout_jump``) and the fold fits (``folds``)."""
+    setting, trials, nominal = task.setting, list(task.trials), task.nominal
+    model = task_fit(task, task.model, trials, JOINT_MAX_EVALUATIONS)
+    folds = fold_of(trials)
+    heldout = np.empty(len(trials))
+    heldout_jump = np.empty(len(trials))
+    fold_models = []
+    for k in np.unique(folds):
+        train = [t for t, f in zip(trials, folds) if f != k]
+        test = [t for t, f in zip(trials, folds) if f == k]
+        start = task.folds[k]
+        if task.added is not None:
+            index, points, _ = best_start(task.added, start.plant(nominal), setting, train, stride=SCREEN_GRID_STRIDE)
+            start = FittedCauses((task.added,) + start.causes, (points[index],) + start.u)
+        fold_models.append(task_fit(task, start, train, FOLD_MAX_EVALUATIONS))
+        features = replay_all(setting, fold_models[-1].plant(nominal), test)
+        heldout[folds == k] = trial_errors(features, test)
+        heldout_jump[folds == k] = jump_errors(features, test)
+    return {"model": model, "heldout": heldout, "heldout_jump": heldout_jump, "folds": fold_models}
 
 
 def relative_gain(error: float, reference: float) -> float:
@@ -156,111 +183,3 @@ def selection_step(cause: Cause, heldout_error: float, previous_error: float) ->
     return {"cause": cause.name, "heldout_error": heldout_error, "gain": gain, "selected": gain >= STEP_GAIN}
 
 
-def take_step(branch: Branch, step: dict, cause: Cause, result: dict, nominal, setting, trials) -> Branch:
-    """``branch`` after the accepted ``step``: ``cause`` added (its cross-validation
-    ``result``) and the chosen causes refitted jointly."""
-    model = branch.model.plus(cause, result["u"])
-    if len(model.causes) > 1:
-        model = fit(model, nominal, setting, trials, JOINT_MAX_EVALUATIONS)
-    bases = [cause.plant(b, u) for b, u in zip(branch.bases, result["u_folds"])]
-    return Branch(model, bases, branch.steps + [step], result["heldout"], result["heldout_jump"])
-
-
-def cross_validate_step(branch: Branch, causes: list[Cause], nominal, setting, trials, jobs: int):
-    """The remaining candidates of ``branch`` worth cross-validating, and their results.
-
-    From the second step on, a candidate whose best grid point does not lower the in-sample
-    normalised residual by ``STEP_GAIN / 2`` is left out (its held-out gain could not reach
-    ``STEP_GAIN``)."""
-    chosen = {c.name for c in branch.model.causes}
-    pool = [c for c in causes if c.name not in chosen]
-    base_all = branch.model.plant(nominal)
-    if branch.model.causes and pool:
-        current = quadratic_mean(trial_errors(replay_all(setting, base_all, trials), trials))
-        screens = [ScreenTask(c, base_all, setting, tuple(trials)) for c in pool]
-        screened = map_in_processes(screen_cause, screens, jobs)
-        pool = [c for c, e in zip(pool, screened) if e <= (1.0 - STEP_GAIN / 2) * current]
-    tasks = [CandidateTask(c, tuple(branch.bases), base_all, setting, tuple(trials)) for c in pool]
-    results = map_in_processes(cross_validate_cause, tasks, jobs)
-    return pool, results
-
-
-def forward(branch: Branch, causes: list[Cause], nominal, setting, trials, jobs: int) -> Branch:
-    """Greedy forward steps from ``branch`` until a step gains less than ``STEP_GAIN`` or
-    ``MAX_CAUSES`` are chosen; the rejected last step is recorded (``selected`` false)."""
-    while len(branch.model.causes) < MAX_CAUSES:
-        pool, results = cross_validate_step(branch, causes, nominal, setting, trials, jobs)
-        if not pool:
-            break
-        errors = [quadratic_mean(r["heldout"]) for r in results]
-        i = int(np.argmin(errors))
-        step = selection_step(pool[i], errors[i], branch.error)
-        if not step["selected"]:
-            branch.steps = branch.steps + [step]
-            break
-        branch = take_step(branch, step, pool[i], results[i], nominal, setting, trials)
-    return branch
-
-
-def select_causes(
-    causes: list[Cause], nominal: PlantParameters, setting: ReplaySetting, trials, baseline: tuple, jobs: int
-) -> Selection:
-    """Forward selection on held-out error (``docs/diagnosis.md``).
-
-    ``baseline``: the nominal replays' normalised residual and error (26) per trial. Step s
-    cross-validates every remaining candidate added to the s - 1 causes chosen so far (each
-    fold on top of the chosen causes fitted without that fold) and takes the one with the
-    lowest held-out normalised residual. Its gain is 1 - heldout_s / heldout_(s-1), heldout_0
-    being the nominal simulation's; a step must gain ``STEP_GAIN``, else the selection stops
-    (at most ``MAX_CAUSES`` causes). After each step the chosen causes are refitted jointly on
-    all trials. The causes are kept when together they remove ``EXPLAINED_GAIN`` of the
-    nominal simulation's excess over the noise floor (``gain_over_floor``); otherwise none is
-    selected.
-
-    Two effects at once can leave their first steps close (each alone explains part of the
-    gap, and a third cause can mimic a part of both): every first-step candidate whose held-out
-    error is within ``BRANCH_MARGIN`` of the best one's starts its own path (at most
-    ``MAX_BRANCHES``), and the path with the lowest final held-out error is kept.
-    """
-    folds = len(np.unique(fold_of(trials)))
-    start = Branch(FittedCauses(), [nominal] * folds, [], *(np.asarray(b, float) for b in baseline))
-    baseline = start.error
-    pool, results = cross_validate_step(start, causes, nominal, setting, trials, jobs)
-    errors = [quadratic_mean(r["heldout"]) for r in results]
-    candidates = [
-        {
-            "cause": c.name,
-            "parameters": c.overrides(c.to_theta(r["u"])),
-            "heldout_error": e,
-            "gain": relative_gain(e, baseline),
-            "gain_over_floor": gain_over_floor(e, baseline),
-        }
-        for c, r, e in zip(pool, results, errors)
-    ]
-    order = np.argsort(errors, kind="stable")
-    best = int(order[0])
-    best_alone = FittedCauses((pool[best],), (results[best]["u"],))
-    branches = []
-    for i in order[:MAX_BRANCHES]:
-        i = int(i)
-        if i != best and errors[i] > (1.0 + BRANCH_MARGIN) * errors[best]:
-            break
-        step = selection_step(pool[i], errors[i], baseline)
-        if not step["selected"]:
-            branches.append(Branch(FittedCauses(), start.bases, [step], start.heldout, start.heldout_jump))
-            continue
-        first = take_step(start, step, pool[i], results[i], nominal, setting, trials)
-        branches.append(forward(first, causes, nominal, setting, trials, jobs))
-    chosen = min(branches, key=lambda b: b.error)
-    floor_gain = gain_over_floor(chosen.error, baseline)
-    if chosen.model.causes and floor_gain >= EXPLAINED_GAIN:
-        return Selection(candidates, chosen.steps, chosen.model, chosen.model, chosen.heldout, chosen.heldout_jump, floor_gain)
-    # the causes of the best path together do not remove enough of the excess: none is selected
-    steps = [{**step, "selected": False} for step in chosen.steps]
-    if chosen.model.causes:
-        return Selection(candidates, steps, FittedCauses(), chosen.model, chosen.heldout, chosen.heldout_jump, floor_gain)
-    heldout = results[best]["heldout"]
-    return Selection(
-        candidates, steps, FittedCauses(), best_alone, heldout, results[best]["heldout_jump"],
-        gain_over_floor(quadratic_mean(heldout), baseline),
-    )

@@ -41,7 +41,7 @@ from impactqp.controller.model.robot import NQ
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import CommandReplay, SimulationUnstableError, run_trial, servo_reference_from_commands
 from impactqp.sim.scene import Scene, build_scene
-from impactqp.sim.sensor import apply_sensor, delayed
+from impactqp.sim.sensor import apply_sensor, delayed, velocity_scales
 
 from .noise import BlockNoise, estimate_noise, sample_variance
 
@@ -206,7 +206,7 @@ def simulated_log(setting: ReplaySetting, plant: PlantParameters, trial: Measure
     key = (surface.point.tobytes(), surface.normal.tobytes(), surface.friction, physical, trial.id,
            choice.robot.name, repr(choice.tool.as_dict()),
            trial.q0.tobytes(), trial.dq0.tobytes(), trial.dq_cmd.tobytes(),
-           plant.sensor_delay, plant.sensor_velocity_scale)
+           plant.sensor_delay, velocity_scales(plant).tobytes())
     if key in _simulated:
         _simulated.move_to_end(key)
         return _simulated[key]
@@ -223,13 +223,14 @@ def simulated_log(setting: ReplaySetting, plant: PlantParameters, trial: Measure
 def true_start(trial: MeasuredTrial, plant: PlantParameters) -> MeasuredTrial:
     """``trial`` starting from the true velocity that the sensor of ``plant`` logged as its
     start velocity: read ``sensor_delay`` samples later (the log is late) and divided by
-    ``sensor_velocity_scale`` (the replay's physics must start from the robot's state, not from
-    the faulty reading)."""
-    if plant.sensor_delay == 0.0 and plant.sensor_velocity_scale == 1.0:
+    the velocity scales (``sim.sensor.velocity_scales``; the replay's physics must start from
+    the robot's state, not from the faulty reading)."""
+    scales = velocity_scales(plant)
+    if plant.sensor_delay == 0.0 and np.all(scales == 1.0):
         return trial
     ahead = delayed(trial.dq_log, -plant.sensor_delay)[: START_AVERAGE + 1].mean(axis=0)
     dq0 = trial.dq0 + ahead - trial.dq_log[: START_AVERAGE + 1].mean(axis=0)
-    return replace(trial, dq0=dq0 / plant.sensor_velocity_scale)
+    return replace(trial, dq0=dq0 / scales)
 
 
 def replay(log, trial: MeasuredTrial) -> ReplayFeatures:

@@ -1,0 +1,326 @@
+"""Which causes explain the gap: a bounded search over sets of causes (``select_causes``).
+
+Every candidate alone is cross-validated first (``selection.cross_validate_cause``; a cause
+with a refinement, ``Cause.refined``, also refined); the best ``MAX_BRANCHES`` first steps that
+gain ``STEP_GAIN`` each start a path, the next one only while no path so far fits the noise
+(``noise.fits_noise``). Along a path, while its model does not fit the noise, each forward step
+screens every remaining candidate by a short local fit next to the chosen causes
+(``selection.screen_cause``), cross-validates the ``MAX_SCREENED`` best jointly with them and
+adds the best one when it gains ``STEP_GAIN``; an added cause with a refinement (the velocity
+scale per joint) is then tried refined, kept when that gains ``STEP_GAIN``; then each earlier
+cause is tried out (a backward step) and the one that gains least is removed when it no
+longer gains ``STEP_GAIN`` over the others. A path also stops when no step gains, at
+``MAX_CAUSES`` causes, after ``MAX_PATH_STEPS`` accepted steps or when the search has spent
+``MAX_CROSS_VALIDATIONS``. The kept path is the one that fits the noise with the lowest
+held-out error (else the lowest); its causes are selected when they remove ``EXPLAINED_GAIN``
+of the nominal's excess over the noise floor. Every step of every path is reported
+(``steps``). Rules and caps: ``docs/diagnosis.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from impactqp.sim.causes import Cause
+from impactqp.sim.plant import PlantParameters
+from impactqp.sim.process_pool import map_in_processes
+
+from .fitting import FittedCauses, fit_report, trial_errors
+from .intervals import gauss_newton_polish
+from .noise import quadratic_mean
+from .selection import (
+    EXPLAINED_GAIN,
+    STEP_GAIN,
+    CandidateTask,
+    ModelTask,
+    ScreenTask,
+    cross_validate_cause,
+    cross_validate_model,
+    fold_of,
+    gain_over_floor,
+    relative_gain,
+    screen_cause,
+)
+from .trials import ReplaySetting, replay_all
+
+MAX_CAUSES = 3
+MAX_BRANCHES = 3  # paths, one per first step among the best three that gain
+MAX_SCREENED = 3  # candidates cross-validated per forward step, the best of the screen
+MAX_PATH_STEPS = 6  # additions, refinements and removals per path
+MAX_CROSS_VALIDATIONS = 48  # per search, every candidate of the first step included
+
+
+@dataclass
+class Branch:
+    """One path of the search: the chosen causes fitted jointly on all trials (``model``) and
+    without each fold (``folds``), the steps taken and the held-out normalised residuals and
+    errors (26) per trial of the last one (of the nominal replay before any step)."""
+
+    model: FittedCauses
+    folds: list[FittedCauses]
+    steps: list[dict]
+    heldout: np.ndarray
+    heldout_jump: np.ndarray
+    visited: set = field(default_factory=set)  # the sets of cause names reached (no cycles)
+
+    @property
+    def error(self) -> float:
+        return quadratic_mean(self.heldout)
+
+    def names(self) -> frozenset:
+        return frozenset(c.name for c in self.model.causes)
+
+
+@dataclass
+class Selection:
+    """The result of the search (``select_causes``)."""
+
+    candidates: list[dict]  # the first step: every candidate alone
+    steps: list[dict]  # every step of every path tried, the kept path first
+    model: FittedCauses  # the selected causes, refitted jointly on all trials
+    best: FittedCauses  # the kept path's causes, else the best first-step candidate alone
+    heldout_errors: np.ndarray  # normalised residual per trial, of ``model`` if it has causes, else of ``best``
+    heldout_jump_errors: np.ndarray  # error (26) per trial, likewise
+    gain_over_floor: float  # of the held-out errors above, against the nominal's
+
+
+@dataclass
+class Search:
+    """What every step of the search shares: the candidates, the data and the budget left."""
+
+    causes: list[Cause]
+    nominal: PlantParameters
+    setting: ReplaySetting
+    trials: list
+    jobs: int
+    budget: int = MAX_CROSS_VALIDATIONS
+
+    def run(self, function, tasks: list) -> list:
+        self.budget -= len(tasks) if function is not screen_cause else 0
+        return map_in_processes(function, tasks, self.jobs)
+
+    def settled(self, branch: Branch) -> tuple[Branch, bool]:
+        """``branch`` with its model polished (``intervals.gauss_newton_polish``: the fit of a
+        step stops after a few evaluations), and whether that model fits the noise."""
+        if not branch.model.causes:
+            return branch, False
+        model = gauss_newton_polish(branch.model, self.nominal, self.setting, self.trials)[0]
+        features = replay_all(self.setting, model.plant(self.nominal), self.trials)
+        return replace(branch, model=model), fit_report(features, self.trials)["fits_noise"]
+
+
+def search_step(action: str, cause: str, heldout_error: float, gain: float, accepted: bool, path: int) -> dict:
+    """One entry of ``steps``: which path, what was tried (add, refine, remove) with which cause,
+    the held-out error after it, the gain (of the cause over the model without it) and whether
+    the path took it; ``selected`` is set once the kept path is known."""
+    return {"path": path, "action": action, "cause": cause, "heldout_error": float(heldout_error),
+            "gain": float(gain), "accepted": bool(accepted), "selected": False}
+
+
+def first_added(branch: Branch, cause: Cause, result: dict, step: dict) -> Branch:
+    """The nominal ``branch`` after its first step: ``cause`` alone, its cross-validation
+    ``result`` (``cross_validate_cause``)."""
+    folds = [FittedCauses((cause,), (u,)) for u in result["u_folds"]]
+    model = FittedCauses((cause,), (result["u"],))
+    heldout, heldout_jump = result["heldout"], result["heldout_jump"]
+    return Branch(model, folds, branch.steps + [step], heldout, heldout_jump, {frozenset([cause.name])})
+
+
+def last_first(model: FittedCauses) -> FittedCauses:
+    """``model`` with its first cause (a candidate fitted first) moved to the end: the causes
+    in the order they were chosen (they touch distinct plant keys, so the plant is the same)."""
+    return FittedCauses(model.causes[1:] + model.causes[:1], model.u[1:] + model.u[:1])
+
+
+def forward(search: Search, branch: Branch, path: int) -> Branch | None:
+    """One forward step: screen, cross-validate the best ``MAX_SCREENED`` jointly with the
+    chosen causes, add the best when it gains ``STEP_GAIN`` (None otherwise, the rejected step
+    recorded on ``branch``)."""
+    pool = [c for c in search.causes if c.name not in branch.names()
+            and branch.names() | {c.name} not in branch.visited]
+    if not pool or search.budget <= 0:
+        return None
+    trials = tuple(search.trials)
+    features = replay_all(search.setting, branch.model.plant(search.nominal), search.trials)
+    current = quadratic_mean(trial_errors(features, search.trials))
+    screens = [ScreenTask(c, branch.model, search.nominal, search.setting, trials) for c in pool]
+    screened = search.run(screen_cause, screens)
+    order = [int(i) for i in np.argsort([e for e, _ in screened], kind="stable")
+             if screened[i][0] <= (1 - STEP_GAIN / 2) * current][: min(MAX_SCREENED, search.budget)]
+    if not order:
+        return None
+    tasks = [ModelTask(screened[i][1], tuple(branch.folds), search.nominal, search.setting, trials, pool[i])
+             for i in order]
+    results = search.run(cross_validate_model, tasks)
+    errors = [quadratic_mean(r["heldout"]) for r in results]
+    best = int(np.argmin(errors))
+    gain = relative_gain(errors[best], branch.error)
+    step = search_step("add", pool[order[best]].name, errors[best], gain, gain >= STEP_GAIN, path)
+    if gain < STEP_GAIN:
+        branch.steps.append(step)
+        return None
+    result = results[best]
+    result = {**result, "model": last_first(result["model"]), "folds": [last_first(f) for f in result["folds"]]}
+    return as_branch(branch, result, step)
+
+
+def as_branch(branch: Branch, result: dict, step: dict) -> Branch:
+    """``branch`` moved to the model of a cross-validated ``result`` (``cross_validate_model``)."""
+    model = result["model"]
+    visited = branch.visited | {frozenset(c.name for c in model.causes)}
+    heldout, heldout_jump = result["heldout"], result["heldout_jump"]
+    return Branch(model, list(result["folds"]), branch.steps + [step], heldout, heldout_jump, visited)
+
+
+def refined(model: FittedCauses, finer: Cause) -> FittedCauses:
+    """``model`` with its last cause replaced by ``finer``, started from the last cause's fit."""
+    cause, u = model.causes[-1], model.u[-1]
+    start = finer.to_u(finer.theta_of(cause.overrides(cause.to_theta(u))))
+    return FittedCauses(model.causes[:-1] + (finer,), model.u[:-1] + (start,))
+
+
+def refine(search: Search, branch: Branch, path: int) -> Branch:
+    """The last added cause replaced by its refinement (``Cause.refined``), started from its
+    fitted value, when that gains ``STEP_GAIN`` held out; else ``branch`` with the try recorded."""
+    finer = branch.model.causes[-1].refined()
+    if finer is None or search.budget <= 0:
+        return branch
+    task = ModelTask(refined(branch.model, finer), tuple(refined(f, finer) for f in branch.folds), search.nominal,
+                     search.setting, tuple(search.trials), newton=True)
+    [result] = search.run(cross_validate_model, [task])
+    cause = branch.model.causes[-1]
+    error = quadratic_mean(result["heldout"])
+    gain = relative_gain(error, branch.error)
+    step = search_step("refine", cause.name, error, gain, gain >= STEP_GAIN, path)
+    if gain < STEP_GAIN:
+        branch.steps.append(step)
+        return branch
+    return as_branch(branch, result, step)
+
+
+def without(model: FittedCauses, k: int) -> FittedCauses:
+    """``model`` without its cause ``k``."""
+    keep = [j for j in range(len(model.causes)) if j != k]
+    return FittedCauses(tuple(model.causes[j] for j in keep), tuple(model.u[j] for j in keep))
+
+
+def backward(search: Search, branch: Branch, path: int) -> Branch:
+    """Each cause chosen before the last one tried out (the others refitted jointly and
+    cross-validated); the one whose removal leaves the lowest held-out error is removed when it
+    gains less than ``STEP_GAIN`` over the others (1 - error with it / error without it)."""
+    earlier = [k for k, c in enumerate(branch.model.causes[:-1]) if branch.names() - {c.name} not in branch.visited]
+    if len(branch.model.causes) < 2 or not earlier or search.budget < len(earlier):
+        return branch
+    tasks = [ModelTask(without(branch.model, k), tuple(without(f, k) for f in branch.folds), search.nominal,
+                       search.setting, tuple(search.trials)) for k in earlier]
+    results = search.run(cross_validate_model, tasks)
+    errors = [quadratic_mean(r["heldout"]) for r in results]
+    best = int(np.argmin(errors))
+    steps = []
+    for i, k in enumerate(earlier):
+        gain = relative_gain(branch.error, errors[i])
+        taken = i == best and gain < STEP_GAIN
+        steps.append(search_step("remove", branch.model.causes[k].name, errors[i], gain, taken, path))
+    if not steps[best]["accepted"]:
+        branch.steps.extend(steps)
+        return branch
+    branch.steps.extend(s for i, s in enumerate(steps) if i != best)
+    return as_branch(branch, results[best], steps[best])
+
+
+def follow(search: Search, branch: Branch, path: int) -> tuple[Branch, bool]:
+    """Forward steps, each followed by a refinement try and a backward step, while the model
+    does not fit the noise, until no step gains, ``MAX_CAUSES`` causes are chosen,
+    ``MAX_PATH_STEPS`` steps are taken or the budget is spent. Returns the path's end and
+    whether its (polished) model fits the noise."""
+    branch, fits = search.settled(refine(search, branch, path))
+    while len(branch.model.causes) < MAX_CAUSES and sum(s["accepted"] for s in branch.steps) < MAX_PATH_STEPS:
+        if fits:
+            break
+        step = forward(search, branch, path)
+        if step is None:
+            break
+        branch, fits = search.settled(backward(search, refine(search, step, path), path))
+    return branch, fits
+
+
+def marked(steps: list[dict], causes: list[str]) -> list[dict]:
+    """The steps with ``selected`` set on the last accepted addition of each of ``causes``."""
+    last = {s["cause"]: i for i, s in enumerate(steps) if s["action"] == "add" and s["accepted"]}
+    chosen = {last[c] for c in causes}
+    return [{**s, "selected": i in chosen} for i, s in enumerate(steps)]
+
+
+def first_steps(search: Search, start: Branch) -> tuple[list[Cause], list[dict], list[dict]]:
+    """Every candidate alone, cross-validated: the candidates (a cause replaced by its
+    refinement when that gains, ``refined_first``), their results and the ``candidates``
+    entries."""
+    trials = tuple(search.trials)
+    tasks = [CandidateTask(c, search.nominal, search.setting, trials) for c in search.causes]
+    results = search.run(cross_validate_cause, tasks)
+    causes = list(search.causes)
+    for k, (cause, result) in enumerate(zip(search.causes, results)):
+        causes[k], results[k] = refined_first(search, start, cause, result)
+    candidates = []
+    for c, r in zip(causes, results):
+        e = quadratic_mean(r["heldout"])
+        candidates.append({"cause": c.name, "parameters": c.overrides(c.to_theta(r["u"])), "heldout_error": e,
+                           "gain": relative_gain(e, start.error), "gain_over_floor": gain_over_floor(e, start.error)})
+    return causes, results, candidates
+
+
+def refined_first(search: Search, start: Branch, cause: Cause, result: dict) -> tuple[Cause, dict]:
+    """A first-step candidate with a refinement (``Cause.refined``), global first: its
+    refinement, started from the global fit and cross-validated, takes its place if it gains
+    ``STEP_GAIN`` over it (one joint's velocity scale: the global one alone gains nothing)."""
+    finer = cause.refined()
+    error = quadratic_mean(result["heldout"])
+    if finer is None or search.budget <= 0:
+        return cause, result
+    folds = tuple(refined(FittedCauses((cause,), (u,)), finer) for u in result["u_folds"])
+    task = ModelTask(refined(FittedCauses((cause,), (result["u"],)), finer), folds, search.nominal, search.setting,
+                     tuple(search.trials), newton=True)
+    [model] = search.run(cross_validate_model, [task])
+    if relative_gain(quadratic_mean(model["heldout"]), error) < STEP_GAIN:
+        return cause, result
+    return finer, {"cause": cause.name, "u": model["model"].u[0], "u_folds": [f.u[0] for f in model["folds"]],
+                   "heldout": model["heldout"], "heldout_jump": model["heldout_jump"]}
+
+
+def select_causes(
+    causes: list[Cause], nominal: PlantParameters, setting: ReplaySetting, trials, baseline: tuple, jobs: int
+) -> Selection:
+    """The search of the module docstring. ``baseline``: the nominal replays' normalised
+    residual and error (26) per trial."""
+    search = Search(causes, nominal, setting, trials, jobs)
+    folds = len(np.unique(fold_of(trials)))
+    start = Branch(FittedCauses(), [FittedCauses()] * folds, [], *(np.asarray(b, float) for b in baseline))
+    causes, results, candidates = first_steps(search, start)
+    errors = [c["heldout_error"] for c in candidates]
+    order = [int(i) for i in np.argsort(errors, kind="stable")]
+    paths: list[tuple[bool, Branch]] = []
+    for i in order[:MAX_BRANCHES]:
+        gain = relative_gain(errors[i], start.error)
+        step = search_step("add", causes[i].name, errors[i], gain, gain >= STEP_GAIN, len(paths))
+        if gain < STEP_GAIN or any(fits for fits, _ in paths):
+            if not paths:  # nothing gains: the nominal path, its rejected first step
+                paths.append((False, replace(start, steps=[step])))
+            break
+        paths.append(follow(search, first_added(start, causes[i], results[i], step), len(paths))[::-1])
+    kept = min(range(len(paths)), key=lambda p: (not paths[p][0], paths[p][1].error))
+    chosen = paths[kept][1]
+    floor_gain = gain_over_floor(chosen.error, start.error)
+    selected = bool(chosen.model.causes) and floor_gain >= EXPLAINED_GAIN
+    names = [c.name for c in chosen.model.causes] if selected else []
+    steps = marked(chosen.steps, names) + [s for p, (_, b) in enumerate(paths) if p != kept for s in b.steps]
+    if chosen.model.causes:
+        model = chosen.model if selected else FittedCauses()
+        return Selection(candidates, steps, model, chosen.model, chosen.heldout, chosen.heldout_jump, floor_gain)
+    best = order[0]
+    heldout = results[best]["heldout"]
+    return Selection(
+        candidates, steps, FittedCauses(), FittedCauses((causes[best],), (results[best]["u"],)), heldout,
+        results[best]["heldout_jump"], gain_over_floor(quadratic_mean(heldout), start.error),
+    )
