@@ -100,7 +100,10 @@ def largest_step(offset: np.ndarray, slope: np.ndarray) -> float:
     if np.any(offset > 0.0):
         return 0.0
     rising = slope > 0.0
-    return float(np.min(-offset[rising] / slope[rising])) if np.any(rising) else math.inf
+    if not np.any(rising):
+        return math.inf
+    with np.errstate(over="ignore"):  # a vanishing slope allows an unbounded step: inf is the answer
+        return float(np.min(-offset[rising] / slope[rising]))
 
 
 def cone_step(force0: np.ndarray, force1: np.ndarray, mu: float) -> float:
