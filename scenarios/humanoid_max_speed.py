@@ -54,10 +54,11 @@ CRITERION_OF = {"joint_velocity": "joint_velocity", "foot_slip": "foot_slip", "f
 
 @dataclass(frozen=True)
 class Plant:
-    """The simulated plant: servo bandwidth (rad/s) and rotor inertia per joint (kg m^2)."""
+    """The simulated plant: servo bandwidth (rad/s) and rotor inertia (kg m^2): None for the G1's
+    actuators, one number for every joint (0: link-only) or one per joint."""
 
     gain: float = SERVO_GAIN
-    armature: float = 0.0
+    armature: float | tuple | None = None
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,13 @@ tau_feet, with M_f = M_jj - M_jb M_bb^-1 M_bj the joints' inertia with the base 
 Schur complement of MuJoCo's M; the plain joint block M_jj overestimates it and makes a stiff servo
 unstable at 1 kHz), h the bias forces, and tau_feet = (Jf^T f)_j
 the joint torques of the least-norm foot wrenches f that carry the robot's weight in the stance
-(computed once, by Pinocchio). The base is not actuated.
+(computed once, by Pinocchio). The base is not actuated. The torque each joint gets is clipped at
+its URDF effort limit (5-139 N m): a real motor cannot give more, so a hard stop command or a
+large tracking error saturates the drive instead of asking for unbounded torque.
+
+Plant: MuJoCo's G1 with the actuators' reflected rotor inertias by default (``armature``:
+``sim.humanoid_scene.plant_armature``; 0 for the link-only plant). The servo's M_f includes them
+(MuJoCo's M does); the predictors do not (they keep the URDF model).
 
 Measurement: the state before the impact is the last control step before the wall's first
 contact force, the state after it the first control step after that first contiguous contact
@@ -105,6 +111,7 @@ class _Servo:
         gravity = pin.computeGeneralizedGravity(robot.model, robot.data, q_pin)
         feet = np.linalg.pinv(terms.Jf[:, :6].T) @ gravity[:6]
         self.tau_feet = terms.Jf[:, 6:].T @ feet
+        self.tau_max = robot.tau_max
         self.q_ref = scene.data.qpos[7:].copy()
         self.dq_ref = np.zeros(29)
         self._M = np.empty((scene.model.nv, scene.model.nv))
@@ -116,16 +123,17 @@ class _Servo:
         mujoco.mj_fullM(model, data, self._M)
         M = self._M
         free_base = M[6:, 6:] - M[6:, :6] @ np.linalg.solve(M[:6, :6], M[:6, 6:])
-        tau = free_base @ acceleration + data.qfrc_bias[6:] - self.tau_feet
+        tau = np.clip(free_base @ acceleration + data.qfrc_bias[6:] - self.tau_feet, -self.tau_max, self.tau_max)
         self.q_ref += 0.5 * dt * (self.dq_ref + dq_cmd)
         self.dq_ref = dq_cmd.copy()
         return tau
 
 
 def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, gain: float = SERVO_GAIN,
-                     armature: float = 0.0, q0: np.ndarray | None = None, gap: float = GAP) -> ImpactTrial:
+                     armature=None, q0: np.ndarray | None = None, gap: float = GAP) -> ImpactTrial:
     """Simulate one trial (module docstring) and compare the jump with the predictors; ``gap``
-    (m) is the start distance of the contact point from the wall."""
+    (m) is the start distance of the contact point from the wall, ``armature`` the plant's rotor
+    inertia (``sim.humanoid_scene.plant_armature``: None for the G1's actuators)."""
     q0 = stance_posture(robot, stance) if q0 is None else q0
     contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
     scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature)

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
-from impactqp.controller.model.humanoid_stance import STANCES
-from impactqp.sim.humanoid_trial import NORMAL, run_impact_trial
+from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+from impactqp.sim.humanoid_scene import build_humanoid_scene
+from impactqp.sim.humanoid_trial import CONTROL_PERIOD, NORMAL, SERVO_GAIN, _Servo, run_impact_trial
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
 
@@ -45,3 +46,14 @@ def test_failures_are_consistent_with_the_measured_flags(trial):
     assert ("fell" in trial.failures) == trial.fell
     assert ("joint_velocity" in trial.failures) == (trial.max_velocity_ratio > 1.0)
     assert trial.q_log.shape[1] == 36 and 0 < trial.contact_index < len(trial.q_log)
+
+
+def test_the_servo_torque_saturates_at_the_urdf_effort_limits():
+    """A command far beyond what the motors can give is clipped at each joint's effort limit."""
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES["parallel"])
+    scene = build_humanoid_scene(robot, wall_x=1.0)
+    scene.set_state(q)
+    servo = _Servo(scene, robot, q, SERVO_GAIN)
+    tau = servo.torque(np.full(29, 1e3), CONTROL_PERIOD)
+    np.testing.assert_allclose(np.abs(tau), robot.model.effortLimit[6:])
