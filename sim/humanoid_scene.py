@@ -33,6 +33,8 @@ from impactqp.controller.model.g1_actuators import joint_armature
 from impactqp.controller.model.humanoid_max_speed import FOOT_FRICTION
 from impactqp.controller.model.validation import number_in_range, vector_in_range
 
+from .humanoid_feet import Soles
+
 TIMESTEP = 0.5e-3
 HAND_RADIUS = 0.02
 HAND_GEOM = "hand_tool"
@@ -72,6 +74,7 @@ class HumanoidScene:
     wall_geom: int
     floor_geom: int
     foot_bodies: tuple[int, int]
+    soles: Soles
 
     def set_state(self, q_pin: np.ndarray) -> None:
         """Reset to the Pinocchio configuration q_pin at rest."""
@@ -148,10 +151,11 @@ def build_humanoid_scene(
     names = [model.joint(i).name for i in range(1, model.njnt)]
     if names != robot.joint_names:
         raise RuntimeError("the MuJoCo G1 must have the Pinocchio model's joints, in order")
+    feet = tuple(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f) for f in FOOT_FRAMES)
     return HumanoidScene(
         model=model, data=mujoco.MjData(model), wall_x=wall_x,
         hand_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, HAND_GEOM),
         wall_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, WALL_GEOM),
         floor_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR_GEOM),
-        foot_bodies=tuple(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f) for f in FOOT_FRAMES),
+        foot_bodies=feet, soles=Soles.of(model, feet, FOOT_FRICTION),
     )
