@@ -171,7 +171,8 @@ def search_stance(
 
 def trial_at_contact_speed(robot, stance: str, q: np.ndarray, target: float, plant: Plant) -> ImpactTrial:
     """A trial whose measured contact speed is ``target`` within 2 % (secant on the commanded
-    speed, at most SECANT_STEPS trials; the closest one otherwise)."""
+    speed within [LOWEST_SPEED, 2 HIGHEST_SPEED], at most SECANT_STEPS trials; the closest one
+    otherwise: with torque-limited joints a contact speed may be out of reach)."""
     def run(speed):
         return run_impact_trial(robot, STANCES[stance], speed, gain=plant.gain, armature=plant.armature, q0=q)
 
@@ -182,7 +183,10 @@ def trial_at_contact_speed(robot, stance: str, q: np.ndarray, target: float, pla
         (s0, t0), (s1, t1) = points[-2], points[-1]
         if abs(t1.contact_speed - target) <= 0.02 * target or t1.contact_speed == t0.contact_speed:
             break
-        speed = max(LOWEST_SPEED, s1 + (target - t1.contact_speed) * (s1 - s0) / (t1.contact_speed - t0.contact_speed))
+        step = (target - t1.contact_speed) * (s1 - s0) / (t1.contact_speed - t0.contact_speed)
+        speed = min(max(LOWEST_SPEED, s1 + step), 2.0 * HIGHEST_SPEED)
+        if speed == s1:
+            break
     return min((t for _, t in points), key=lambda t: abs(t.contact_speed - target))
 
 

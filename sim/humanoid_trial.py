@@ -67,6 +67,7 @@ CONTROL_PERIOD = 1e-3
 GAP = 0.02  # m from the contact point to the wall at the start
 SETTLE = 0.1  # s standing still before the approach
 RAMP = 0.02  # s of velocity ramp
+LAG = 0.1  # s the hand may arrive after the commanded arrival (torque-limited joints lag the command)
 LATENCY = 0.005  # s from the first contact to the stop command
 AFTER = 0.4  # s simulated after the impact
 SINK = 0.001  # m the soles start into the floor
@@ -173,7 +174,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     servo = _Servo(scene, robot, q0, gain)
     substeps = int(round(CONTROL_PERIOD / model.opt.timestep))
     arm = np.array([robot.joint_index(j) for j in ARM_JOINTS])
-    approach_steps = int(round((SETTLE + 3 * gap / speed + RAMP) / CONTROL_PERIOD))
+    approach_steps = int(round((SETTLE + 3 * gap / speed + RAMP + LAG) / CONTROL_PERIOD))
     states, forces, floor_impulses, feet, soles = [], [], [], [], []
     first_contact, stop_at, end = None, None, approach_steps
     k = 0
