@@ -214,9 +214,16 @@ def check_against_simulation(
     return rows
 
 
+def _tied_first(row: CheckRow) -> bool:
+    """The binding criterion's onset shares the first failure's control step without being named first."""
+    times = {CRITERION_OF.get(f): t for f, t in row.trial.failure_times.items()}
+    return CRITERION_OF.get(row.trial.first_failure) != row.binding and times.get(row.binding) == row.trial.failure_time
+
+
 def check_summary(rows: list[CheckRow]) -> dict:
     """Below: trials that fell or slipped (should be none); above: in how many trials the binding
-    criterion failed first, and in how many it failed at all."""
+    criterion failed first, in how many its onset tied with the first failure (same control step,
+    named second by the order of FAILURES), and in how many it failed at all."""
     below = [r for r in rows if r.fraction < 1.0]
     above = [r for r in rows if r.fraction > 1.0]
     return {
@@ -225,6 +232,7 @@ def check_summary(rows: list[CheckRow]) -> dict:
         "below_infeasible": sum(not r.trial.feasible for r in below),
         "above": len(above),
         "above_binding_first": sum(CRITERION_OF.get(r.trial.first_failure) == r.binding for r in above),
+        "above_binding_tied": sum(_tied_first(r) for r in above),
         "above_binding_failed": sum(r.binding in {CRITERION_OF.get(f) for f in r.trial.failures} for r in above),
         "above_feasible": sum(r.trial.feasible for r in above),
     }
@@ -246,8 +254,9 @@ def check_table(rows: list[CheckRow]) -> str:
     s = check_summary(rows)
     lines += ["", (
         f"Below: {s['below_fell_or_slipped']} of {s['below']} trials fell or slipped, {s['below_infeasible']} infeasible. "
-        f"Above: the binding criterion failed first in {s['above_binding_first']} of {s['above']} trials, failed at all "
-        f"in {s['above_binding_failed']}; {s['above_feasible']} stayed feasible."
+        f"Above: the binding criterion failed first in {s['above_binding_first']} of {s['above']} trials "
+        f"(tied for first in {s['above_binding_tied']} more), failed at all in {s['above_binding_failed']}; "
+        f"{s['above_feasible']} stayed feasible."
     )]
     return "\n".join(lines)
 

@@ -57,9 +57,11 @@ def test_a_bisection_tolerance_out_of_range_is_bad_input():
 
 
 class FakeTrial:
-    def __init__(self, failures, slipped=False):
+    def __init__(self, failures, slipped=False, times=None):
         self.failures = tuple(failures)
+        self.failure_times = times or {f: 1e-3 * k for k, f in enumerate(failures)}
         self.first_failure = failures[0] if failures else ""
+        self.failure_time = self.failure_times.get(self.first_failure, float("nan"))
         self.fell = "fell" in failures
         self.slipped = slipped  # the foot frame's displacement beyond 5 mm
         self.feasible = not failures
@@ -74,12 +76,13 @@ def test_check_summary_counts_below_and_above():
         CheckRow("a", 0.95, "capture", FakeTrial(["foot_slip"])),
         CheckRow("a", 1.2, "capture", FakeTrial(["capture", "fell"])),
         CheckRow("a", 1.3, "capture", FakeTrial(["foot_lift", "capture"])),
+        CheckRow("a", 1.32, "capture", FakeTrial(["foot_slip", "capture"], times={"foot_slip": 0.0, "capture": 0.0})),
         CheckRow("a", 1.35, "capture", FakeTrial(["fell"])),
         CheckRow("a", 1.4, "capture", FakeTrial([])),
     ]
     assert check_summary(rows) == {
-        "below": 4, "below_fell_or_slipped": 2, "below_infeasible": 2, "above": 4,
-        "above_binding_first": 1, "above_binding_failed": 2, "above_feasible": 1,
+        "below": 4, "below_fell_or_slipped": 2, "below_infeasible": 2, "above": 5,
+        "above_binding_first": 1, "above_binding_tied": 1, "above_binding_failed": 3, "above_feasible": 1,
     }
 
 
