@@ -46,7 +46,7 @@ from impactqp.controller.model.validation import BadInputError, number_in_range 
 from impactqp.sim.humanoid_trial import NORMAL, SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
 
 LOWEST_SPEED = 0.05  # m/s commanded
-HIGHEST_SPEED = 3.0  # m/s commanded: the hand reaches about 1.9 m/s in the 2 cm before the wall
+HIGHEST_SPEED = 3.0  # m/s commanded: the torque-limited hand reaches about 1.1-1.3 m/s in the 2 cm to the wall
 DEFAULT_TOLERANCE = 0.02  # m/s
 BELOW = (0.5, 0.8, 0.95)
 ABOVE = (1.2, 1.3, 1.4)
