@@ -27,10 +27,11 @@ def run_campaign(
     stances: Iterable[str] = tuple(STANCES),
     speeds: Iterable[float] = DEFAULT_SPEEDS,
     gain: float = SERVO_GAIN,
-    armature: float = 0.0,
+    armature=None,
 ) -> list[ImpactTrial]:
     """One trial per stance and commanded hand speed (m/s); ``gain`` is the servo bandwidth (rad/s),
-    ``armature`` the rotor inertia (kg m^2) the plant adds to every joint."""
+    ``armature`` the plant's rotor inertia (kg m^2): None for the G1's actuators
+    (``controller.model.g1_actuators``), one number for every joint (0: link-only) or 29."""
     return [
         run_impact_trial(robot, STANCES[name], speed, gain=gain, armature=armature)
         for name in stances

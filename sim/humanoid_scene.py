@@ -9,6 +9,11 @@ wall plane at x = ``wall_x`` facing the robot (normal -x), a hand sphere of radi
 contact pairs: each foot's four sole spheres (from the URDF) with the floor, the hand sphere with
 the wall. Every other geom has contype = conaffinity = 0.
 
+The plant's joints carry the G1's reflected rotor inertias (``controller.model.g1_actuators``,
+MuJoCo's ``armature``: M -> M + diag(0, a)) unless told otherwise: the URDF has none, and a
+geared robot's motors are a large part of what the hand's impact meets (the predictors keep the
+URDF model, the paper's reason R3). ``armature=0`` gives the link-only plant.
+
 MuJoCo's free joint differs from Pinocchio's free-flyer in two conventions, converted by
 :func:`to_pinocchio`: the quaternion is (w, x, y, z) instead of (x, y, z, w), and the base's
 linear velocity is in world axes instead of the base frame (the angular one is in the base frame
@@ -24,7 +29,11 @@ import mujoco
 import numpy as np
 
 from impactqp.controller.model.floating_base import CONTACT_OFFSET, FOOT_FRAMES, HAND_FRAME, FloatingBaseModel
+from impactqp.controller.model.g1_actuators import joint_armature
 from impactqp.controller.model.humanoid_max_speed import FOOT_FRICTION
+from impactqp.controller.model.validation import number_in_range, vector_in_range
+
+from .humanoid_feet import Soles
 
 TIMESTEP = 0.5e-3
 HAND_RADIUS = 0.02
@@ -35,6 +44,7 @@ BASE_BODY = "pelvis"
 WALL_FRICTION = 0.1123  # the paper's mu
 CONTACT_SOLREF = (0.005, 1.0)
 CONTACT_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
+MAX_ARMATURE = 10.0  # kg m^2: the largest rotor inertia a joint may be given
 
 
 def mujoco_urdf(robot: FloatingBaseModel) -> str:
@@ -64,6 +74,7 @@ class HumanoidScene:
     wall_geom: int
     floor_geom: int
     foot_bodies: tuple[int, int]
+    soles: Soles
 
     def set_state(self, q_pin: np.ndarray) -> None:
         """Reset to the Pinocchio configuration q_pin at rest."""
@@ -89,11 +100,23 @@ def to_pinocchio(qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.nda
     return q, v
 
 
+def plant_armature(robot: FloatingBaseModel, armature=None) -> np.ndarray:
+    """The rotor inertia (kg m^2) of each of the 29 joints: the G1's actuators when ``armature`` is
+    None, else one number for every joint or one per joint (0: the link-only plant)."""
+    if armature is None:
+        return joint_armature(robot.joint_names)
+    n = len(robot.joint_names)
+    if np.ndim(armature) == 0:
+        return np.full(n, number_in_range(armature, 0.0, MAX_ARMATURE, "armature", "kg m^2"))
+    return vector_in_range(armature, n, 0.0, MAX_ARMATURE, "armature", "kg m^2")
+
+
 def build_humanoid_scene(
-    robot: FloatingBaseModel, wall_x: float, *, timestep: float = TIMESTEP, armature: float = 0.0
+    robot: FloatingBaseModel, wall_x: float, *, timestep: float = TIMESTEP, armature=None
 ) -> HumanoidScene:
     """Compile the scene with the wall plane at x = ``wall_x`` (normal -x, towards the robot);
-    ``armature`` (kg m^2) is a reflected rotor inertia added to every one of the 29 joints."""
+    ``armature`` is the joints' rotor inertia (:func:`plant_armature`: default the G1's actuators)."""
+    rotor = plant_armature(robot, armature)
     spec = mujoco.MjSpec.from_string(mujoco_urdf(robot))
     spec.option.timestep = timestep
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
@@ -121,17 +144,18 @@ def build_humanoid_scene(
             geom.name = geom.name or f"{name}_sole{i}"
             spec.add_pair(geomname1=geom.name, geomname2=FLOOR_GEOM,
                           friction=[FOOT_FRICTION, FOOT_FRICTION, 0, 0, 0], **pair)
-    for joint in spec.joints:
-        if joint.type == mujoco.mjtJoint.mjJNT_HINGE:
-            joint.armature = armature
+    hinges = [joint for joint in spec.joints if joint.type == mujoco.mjtJoint.mjJNT_HINGE]
+    for joint in hinges:
+        joint.armature = float(rotor[robot.joint_names.index(joint.name)])
     model = spec.compile()
     names = [model.joint(i).name for i in range(1, model.njnt)]
     if names != robot.joint_names:
         raise RuntimeError("the MuJoCo G1 must have the Pinocchio model's joints, in order")
+    feet = tuple(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f) for f in FOOT_FRAMES)
     return HumanoidScene(
         model=model, data=mujoco.MjData(model), wall_x=wall_x,
         hand_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, HAND_GEOM),
         wall_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, WALL_GEOM),
         floor_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR_GEOM),
-        foot_bodies=tuple(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f) for f in FOOT_FRAMES),
+        foot_bodies=feet, soles=Soles.of(model, feet, FOOT_FRICTION),
     )

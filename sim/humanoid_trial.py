@@ -14,7 +14,13 @@ tau_feet, with M_f = M_jj - M_jb M_bb^-1 M_bj the joints' inertia with the base 
 Schur complement of MuJoCo's M; the plain joint block M_jj overestimates it and makes a stiff servo
 unstable at 1 kHz), h the bias forces, and tau_feet = (Jf^T f)_j
 the joint torques of the least-norm foot wrenches f that carry the robot's weight in the stance
-(computed once, by Pinocchio). The base is not actuated.
+(computed once, by Pinocchio). The base is not actuated. The torque each joint gets is clipped at
+its URDF effort limit (5-139 N m): a real motor cannot give more, so a hard stop command or a
+large tracking error saturates the drive instead of asking for unbounded torque.
+
+Plant: MuJoCo's G1 with the actuators' reflected rotor inertias by default (``armature``:
+``sim.humanoid_scene.plant_armature``; 0 for the link-only plant). The servo's M_f includes them
+(MuJoCo's M does); the predictors do not (they keep the URDF model).
 
 Measurement: the state before the impact is the last control step before the wall's first
 contact force, the state after it the first control step after that first contiguous contact
@@ -22,6 +28,23 @@ ends (at most :data:`WINDOW` s later). The measured impulse is the integral of t
 that contact. The jump is compared over the 29 joints with each predictor of
 ``controller.model.floating_base`` fed its own impulse, and with the feet-held momentum law fed
 the measured impulse (``momentum``); the error is eq. (26), the mean of |predicted - measured|.
+
+Failures (:data:`FAILURES`), each with its onset time, the same definitions as the closed form's
+criteria (``controller.model.humanoid_max_speed``) measured in the trial:
+
+- ``joint_velocity``: a joint beyond its URDF velocity limit, any time after the settling;
+- ``foot_slip`` / ``foot_lift``: a foot that carried weight before the impact slides or has its
+  centre of pressure on an edge of its sole (``sim.humanoid_feet``: from MuJoCo's per-contact
+  forces of the sole spheres) during the impact window, the first wall contact and
+  :data:`ONSET_AFTER` s after it;
+- ``capture``: the measured CoM velocity after the first wall contact is outside the zero-step
+  capture region of the measured CoM and support polygon (``controller.model.capture``);
+- ``fell``: the pelvis below half its height or tilted more than 45 degrees (no closed-form
+  criterion: the outcome a failed capture risks).
+
+The feet's displacements are kept beside them: ``foot_slip`` / ``foot_lift`` (m), the largest
+horizontal / vertical motion of a foot frame after the settling (``slipped`` / ``lifted``: beyond
+:data:`SLIP` / :data:`LIFT`).
 """
 
 from __future__ import annotations
@@ -32,16 +55,19 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from impactqp.controller.model.capture import capture_region
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, jump_from_impulse, predict
 from impactqp.controller.model.humanoid_max_speed import ARM_JOINTS
-from impactqp.controller.model.humanoid_stance import Stance, stance_posture
+from impactqp.controller.model.humanoid_stance import Stance, stance_posture, support_polygon
 
+from .humanoid_feet import CONE, LOAD, MARGIN, SPEED, lift_onset, slip_onset, sole_state, worst
 from .humanoid_scene import build_humanoid_scene, to_pinocchio
 
 CONTROL_PERIOD = 1e-3
 GAP = 0.02  # m from the contact point to the wall at the start
 SETTLE = 0.1  # s standing still before the approach
 RAMP = 0.02  # s of velocity ramp
+LAG = 0.1  # s the hand may arrive after the commanded arrival (torque-limited joints lag the command)
 LATENCY = 0.005  # s from the first contact to the stop command
 AFTER = 0.4  # s simulated after the impact
 SINK = 0.001  # m the soles start into the floor
@@ -49,7 +75,8 @@ WINDOW = 0.03  # s: longest first contact read as the impact
 SERVO_GAIN = 40.0  # rad/s
 SLIP = 0.005  # m of horizontal foot motion counted as a slip
 LIFT = 0.005  # m of vertical foot motion counted as a lift
-FAILURES = ("joint_velocity", "foot_slip", "foot_lift", "fell")
+ONSET_AFTER = 0.005  # s after the first wall contact ends in which foot onsets still count
+FAILURES = ("joint_velocity", "foot_slip", "foot_lift", "capture", "fell")
 NORMAL = np.array([-1.0, 0.0, 0.0])  # the wall's normal, towards the robot
 
 
@@ -69,29 +96,38 @@ class ImpactTrial:
     predicted_com_jump: dict  # method -> (3)
     predicted_impulse: dict  # method -> (3)
     errors: dict  # method -> eq. (26) over the joints
+    post_com_velocity: np.ndarray  # (3) m/s: the CoM velocity after the first wall contact
+    capture_margin: float  # m: its capture point's distance inside the support polygon (< 0: outside)
     foot_slip: float  # largest horizontal foot displacement (m)
     foot_lift: float  # largest vertical foot displacement (m)
+    cone_ratio: float  # largest |f_t| / (mu f_n) of a loaded foot in the impact window
+    cop_margin: float  # m: smallest centre-of-pressure margin of a loaded foot in the impact window
+    slide_speed: float  # m/s: largest horizontal speed of a touching sole sphere in the impact window
     fell: bool
     max_velocity_ratio: float  # largest |dq_i| / dq_max_i of the 29 joints after the settling
     max_velocity_joint: str  # the joint where it occurs
     failures: tuple  # every failure seen (FAILURES)
+    failure_times: dict  # failure -> s from the first wall contact to its onset (< 0: before it)
     first_failure: str  # the failure seen first (FAILURES), "" when none
-    failure_time: float  # s from the first wall contact to that failure (< 0: before it; nan: none)
+    failure_time: float  # s from the first wall contact to that failure (nan: none)
     wall_x: float  # m: the wall plane's position
     q_log: np.ndarray  # (steps, nq) Pinocchio configurations at the control rate
     contact_index: int  # the control step of the first wall contact
 
     @property
     def feasible(self) -> bool:
-        """Did not fall, no foot slip or lift beyond the thresholds, no joint beyond its velocity limit."""
+        """No failure of FAILURES: no joint beyond its velocity limit, no slip or lift onset, the
+        post-impact CoM velocity capturable, no fall."""
         return not self.first_failure
 
     @property
     def slipped(self) -> bool:
+        """A foot frame moved more than SLIP horizontally (the displacement measure)."""
         return self.foot_slip > SLIP
 
     @property
     def lifted(self) -> bool:
+        """A foot frame moved more than LIFT vertically (the displacement measure)."""
         return self.foot_lift > LIFT
 
 
@@ -105,6 +141,7 @@ class _Servo:
         gravity = pin.computeGeneralizedGravity(robot.model, robot.data, q_pin)
         feet = np.linalg.pinv(terms.Jf[:, :6].T) @ gravity[:6]
         self.tau_feet = terms.Jf[:, 6:].T @ feet
+        self.tau_max = robot.tau_max
         self.q_ref = scene.data.qpos[7:].copy()
         self.dq_ref = np.zeros(29)
         self._M = np.empty((scene.model.nv, scene.model.nv))
@@ -116,16 +153,17 @@ class _Servo:
         mujoco.mj_fullM(model, data, self._M)
         M = self._M
         free_base = M[6:, 6:] - M[6:, :6] @ np.linalg.solve(M[:6, :6], M[:6, 6:])
-        tau = free_base @ acceleration + data.qfrc_bias[6:] - self.tau_feet
+        tau = np.clip(free_base @ acceleration + data.qfrc_bias[6:] - self.tau_feet, -self.tau_max, self.tau_max)
         self.q_ref += 0.5 * dt * (self.dq_ref + dq_cmd)
         self.dq_ref = dq_cmd.copy()
         return tau
 
 
 def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, gain: float = SERVO_GAIN,
-                     armature: float = 0.0, q0: np.ndarray | None = None, gap: float = GAP) -> ImpactTrial:
+                     armature=None, q0: np.ndarray | None = None, gap: float = GAP) -> ImpactTrial:
     """Simulate one trial (module docstring) and compare the jump with the predictors; ``gap``
-    (m) is the start distance of the contact point from the wall."""
+    (m) is the start distance of the contact point from the wall, ``armature`` the plant's rotor
+    inertia (``sim.humanoid_scene.plant_armature``: None for the G1's actuators)."""
     q0 = stance_posture(robot, stance) if q0 is None else q0
     contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
     scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature)
@@ -136,8 +174,8 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     servo = _Servo(scene, robot, q0, gain)
     substeps = int(round(CONTROL_PERIOD / model.opt.timestep))
     arm = np.array([robot.joint_index(j) for j in ARM_JOINTS])
-    approach_steps = int(round((SETTLE + 3 * gap / speed + RAMP) / CONTROL_PERIOD))
-    states, forces, floor_impulses, feet = [], [], [], []
+    approach_steps = int(round((SETTLE + 3 * gap / speed + RAMP + LAG) / CONTROL_PERIOD))
+    states, forces, floor_impulses, feet, soles = [], [], [], [], []
     first_contact, stop_at, end = None, None, approach_steps
     k = 0
     while k < end:
@@ -151,14 +189,17 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
             scale = min(1.0, (t - SETTLE) / RAMP)
             dq_cmd[arm] = np.linalg.pinv(terms.J[:, 6 + arm]) @ (-scale * speed * NORMAL)
         tau = servo.torque(dq_cmd, CONTROL_PERIOD)
-        force, floor = np.zeros(3), np.zeros(3)
+        force, floor, sole = np.zeros(3), np.zeros(3), None
         for _ in range(substeps):
             data.qfrc_applied[6:] = tau
             mujoco.mj_step(model, data)
             wall_force, floor_force = _contact_forces(scene)
             force += wall_force * model.opt.timestep
             floor += floor_force * model.opt.timestep
+            now = sole_state(model, data, scene.soles)
+            sole = now if sole is None else worst(sole, now)
         forces.append(force)
+        soles.append(sole)
         floor_impulses.append(floor)
         if first_contact is None and np.any(force != 0.0):
             first_contact = k
@@ -167,7 +208,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
         k += 1
     if first_contact is None:
         raise RuntimeError(f"the hand never reached the wall (stance {stance.name}, {speed} m/s)")
-    log = (states, np.array(forces), np.array(floor_impulses), np.array(feet))
+    log = _Log(states, np.array(forces), np.array(floor_impulses), np.array(feet), np.array(soles))
     return _evaluate(robot, stance, speed, log, first_contact, scene.wall_x)
 
 
@@ -188,22 +229,32 @@ def _contact_forces(scene) -> tuple[np.ndarray, np.ndarray]:
     return wall, floor
 
 
-def _evaluate(robot, stance, speed, log, first, wall_x) -> ImpactTrial:
-    """Measured and predicted jumps of a simulated trial (module docstring)."""
-    states, forces, floor_impulses, feet = log
-    window = int(round(WINDOW / CONTROL_PERIOD))
-    last = first
-    while last + 1 < min(len(forces), first + window) and np.any(forces[last + 1] != 0.0):
-        last += 1
-    q_pre, v_pre = states[first]
-    q_post, v_post = states[min(last + 1, len(states) - 1)]
-    impulse = forces[first:last + 1].sum(axis=0)
-    floor_impulse = floor_impulses[first:last + 1].sum(axis=0)
-    terms = robot.terms(q_pre)
+@dataclass
+class _Log:
+    """What a trial recorded at each control step."""
+
+    states: list  # (q, v), Pinocchio convention
+    forces: np.ndarray  # (steps, 3) wall impulse on the robot
+    floor_impulses: np.ndarray  # (steps, 3)
+    feet: np.ndarray  # (steps, 2, 3) foot frame positions
+    soles: np.ndarray  # (steps, 2, 4) sole states (``humanoid_feet``), worst over the step
+
+
+def capture_margin(robot: FloatingBaseModel, q: np.ndarray, com_velocity: np.ndarray) -> float:
+    """The capture point's smallest distance (m) inside the support polygon of the configuration q
+    for the CoM velocity ``com_velocity`` (``controller.model.capture``; < 0: a step is needed)."""
+    region = capture_region(support_polygon(robot, q), robot.terms(q).com)
+    return float(region.margins(com_velocity).min())
+
+
+def _measured_jumps(robot, log: _Log, first: int, last: int) -> dict:
+    """The measured and predicted jumps over the first wall contact [first, last] (module docstring)."""
+    q_pre, v_pre = log.states[first]
+    q_post, v_post = log.states[min(last + 1, len(log.states) - 1)]
+    impulse = log.forces[first:last + 1].sum(axis=0)
+    terms, post_terms = robot.terms(q_pre), robot.terms(q_post)
     v_minus = terms.J @ v_pre
     measured = v_post - v_pre
-    post_terms = robot.terms(q_post)
-    com_jump = post_terms.Jcom @ v_post - terms.Jcom @ v_pre
     predicted, com, impulses = {}, {}, {}
     for method in METHODS:
         jump = predict(terms, method, NORMAL, v_minus)
@@ -211,32 +262,65 @@ def _evaluate(robot, stance, speed, log, first, wall_x) -> ImpactTrial:
     predicted["momentum"] = jump_from_impulse(terms, impulse)
     com["momentum"] = terms.Jcom @ predicted["momentum"]
     impulses["momentum"] = impulse
-    errors = {m: float(np.mean(np.abs(dv[6:] - measured[6:]))) for m, dv in predicted.items()}
+    post_com_velocity = post_terms.Jcom @ v_post
+    return dict(
+        contact_speed=float(-NORMAL @ v_minus), impulse=impulse,
+        floor_impulse=log.floor_impulses[first:last + 1].sum(axis=0), duration=(last + 1 - first) * CONTROL_PERIOD,
+        measured_jump=measured, measured_com_jump=post_com_velocity - terms.Jcom @ v_pre,
+        predicted_jump=predicted, predicted_com_jump=com, predicted_impulse=impulses,
+        errors={m: float(np.mean(np.abs(dv[6:] - measured[6:]))) for m, dv in predicted.items()},
+        post_com_velocity=post_com_velocity, capture_margin=capture_margin(robot, q_post, post_com_velocity),
+    )
+
+
+def _failure_flags(robot, log: _Log, first: int, last: int, capture_margin: float) -> dict:
+    """Per control step from the settling on, whether each failure of FAILURES holds (module docstring)."""
     start = int(round(SETTLE / CONTROL_PERIOD))
-    moved = feet[start:] - feet[start]
-    base_height = np.array([s[0][2] for s in states])
-    base_up = np.array([pin.Quaternion(s[0][3:7]).matrix()[2, 2] for s in states])
-    ratios = np.array([np.abs(s[1][6:]) / robot.dq_max for s in states[start:]])
-    ratio = ratios.max(axis=1)
+    steps = len(log.states) - start
+    base_height = np.array([q[2] for q, _ in log.states])
+    base_up = np.array([pin.Quaternion(q[3:7]).matrix()[2, 2] for q, _ in log.states])
     fell = (base_height < 0.5 * base_height[0]) | (base_up < np.cos(np.radians(45.0)))
-    failing = {
+    ratio = np.array([np.max(np.abs(v[6:]) / robot.dq_max) for _, v in log.states[start:]])
+    window = np.zeros(steps, dtype=bool)
+    window[first - start:last + 1 + int(round(ONSET_AFTER / CONTROL_PERIOD)) - start] = True
+    loaded = log.soles[first - 1, :, LOAD] > 0.0  # the feet that carried weight before the impact
+    soles = log.soles[start:]
+    capture = np.zeros(steps, dtype=bool)
+    capture[min(last + 1, len(log.states) - 1) - start] = capture_margin < 0.0
+    return {
         "joint_velocity": ratio > 1.0,
-        "foot_slip": np.linalg.norm(moved[..., :2], axis=-1).max(axis=1) > SLIP,
-        "foot_lift": np.abs(moved[..., 2]).max(axis=1) > LIFT,
+        "foot_slip": window & np.any(slip_onset(soles) & loaded, axis=1),
+        "foot_lift": window & np.any(lift_onset(soles) & loaded, axis=1),
+        "capture": capture,
         "fell": fell[start:],
     }
-    first_step = {name: int(np.argmax(flags)) for name, flags in failing.items() if np.any(flags)}
-    failure = min(first_step, key=lambda name: (first_step[name], FAILURES.index(name)), default="")
+
+
+def _evaluate(robot, stance, speed, log: _Log, first, wall_x) -> ImpactTrial:
+    """Measured and predicted jumps and the failures of a simulated trial (module docstring)."""
+    window = int(round(WINDOW / CONTROL_PERIOD))
+    last = first
+    while last + 1 < min(len(log.forces), first + window) and np.any(log.forces[last + 1] != 0.0):
+        last += 1
+    jumps = _measured_jumps(robot, log, first, last)
+    failing = _failure_flags(robot, log, first, last, jumps["capture_margin"])
+    start = int(round(SETTLE / CONTROL_PERIOD))
+    times = {name: (int(np.argmax(flags)) + start - first) * CONTROL_PERIOD
+             for name, flags in failing.items() if np.any(flags)}
+    failure = min(times, key=lambda name: (times[name], FAILURES.index(name)), default="")
+    impact = log.soles[first:last + 1 + int(round(ONSET_AFTER / CONTROL_PERIOD))]
+    loaded = log.soles[first - 1, :, LOAD] > 0.0
+    moved = log.feet[start:] - log.feet[start]
+    ratios = np.array([np.abs(v[6:]) / robot.dq_max for _, v in log.states[start:]])
     return ImpactTrial(
-        stance=stance.name, speed=speed, contact_speed=float(-NORMAL @ v_minus), impulse=impulse,
-        floor_impulse=floor_impulse, duration=(last + 1 - first) * CONTROL_PERIOD,
-        measured_jump=measured, measured_com_jump=com_jump, predicted_jump=predicted,
-        predicted_com_jump=com, predicted_impulse=impulses, errors=errors,
+        stance=stance.name, speed=speed, **jumps,
         foot_slip=float(np.linalg.norm(moved[..., :2], axis=-1).max()),
         foot_lift=float(np.abs(moved[..., 2]).max()),
-        fell=bool(np.any(fell)), max_velocity_ratio=float(ratio.max()),
+        cone_ratio=float(impact[:, loaded, CONE].max()), cop_margin=float(impact[:, loaded, MARGIN].min()),
+        slide_speed=float(impact[:, loaded, SPEED].max()),
+        fell="fell" in times, max_velocity_ratio=float(ratios.max()),
         max_velocity_joint=robot.joint_names[int(np.argmax(ratios.max(axis=0)))],
-        failures=tuple(name for name in FAILURES if name in first_step), first_failure=failure,
-        failure_time=(first_step[failure] + start - first) * CONTROL_PERIOD if failure else float("nan"),
-        wall_x=wall_x, q_log=np.array([s[0] for s in states]), contact_index=first,
+        failures=tuple(name for name in FAILURES if name in times), failure_times=times, first_failure=failure,
+        failure_time=times.get(failure, float("nan")),
+        wall_x=wall_x, q_log=np.array([q for q, _ in log.states]), contact_index=first,
     )

@@ -32,3 +32,11 @@ def test_table_has_a_row_per_trial_and_the_mean(trials):
 def test_crb_reduction_sign():
     assert crb_reduction({"crb": 0.2, "classical": 1.0}) == pytest.approx(80.0)
     assert crb_reduction({"crb": 2.0, "classical": 1.0}) == pytest.approx(-100.0)
+
+
+def test_a_per_joint_armature_is_the_same_plant_as_one_number_for_every_joint():
+    robot = FloatingBaseModel()
+    one = run_campaign(robot, stances=("wide",), speeds=(0.1,), armature=0.02)
+    each = run_campaign(robot, stances=("wide",), speeds=(0.1,), armature=np.full(29, 0.02))
+    assert one[0].errors == each[0].errors
+    np.testing.assert_array_equal(one[0].measured_jump, each[0].measured_jump)

@@ -8,10 +8,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from impactqp.controller.model.floating_base import FloatingBaseModel
-from impactqp.controller.model.humanoid_max_speed import Bound, HumanoidMaxSpeed
+from impactqp.controller.model.humanoid_max_speed import CRITERIA, Bound, HumanoidMaxSpeed
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.validation import BadInputError
 from impactqp.scenarios.humanoid_max_speed import (
+    CRITERION_OF,
     HIGHEST_SPEED,
     LOWEST_SPEED,
     CheckRow,
@@ -24,6 +25,7 @@ from impactqp.scenarios.humanoid_max_speed import (
     speed_figure,
     trial_at_contact_speed,
 )
+from impactqp.sim.humanoid_trial import FAILURES
 
 
 def evaluation(speed, failure=""):
@@ -55,26 +57,39 @@ def test_a_bisection_tolerance_out_of_range_is_bad_input():
 
 
 class FakeTrial:
-    def __init__(self, failures):
+    def __init__(self, failures, slipped=False, times=None):
         self.failures = tuple(failures)
+        self.failure_times = times or {f: 1e-3 * k for k, f in enumerate(failures)}
         self.first_failure = failures[0] if failures else ""
+        self.failure_time = self.failure_times.get(self.first_failure, float("nan"))
         self.fell = "fell" in failures
-        self.slipped = "foot_slip" in failures
+        self.slipped = slipped  # the foot frame's displacement beyond 5 mm
         self.feasible = not failures
 
 
 def test_check_summary_counts_below_and_above():
+    """A fall measures no closed-form criterion; below, a slip onset or a 5 mm displacement counts."""
     rows = [
         CheckRow("a", 0.5, "capture", FakeTrial([])),
+        CheckRow("a", 0.8, "capture", FakeTrial([], slipped=True)),
         CheckRow("a", 0.9, "capture", FakeTrial(["joint_velocity"])),
-        CheckRow("a", 1.2, "capture", FakeTrial(["fell", "foot_lift"])),
-        CheckRow("a", 1.3, "capture", FakeTrial(["foot_lift", "fell"])),
+        CheckRow("a", 0.95, "capture", FakeTrial(["foot_slip"])),
+        CheckRow("a", 1.2, "capture", FakeTrial(["capture", "fell"])),
+        CheckRow("a", 1.3, "capture", FakeTrial(["foot_lift", "capture"])),
+        CheckRow("a", 1.32, "capture", FakeTrial(["foot_slip", "capture"], times={"foot_slip": 0.0, "capture": 0.0})),
+        CheckRow("a", 1.35, "capture", FakeTrial(["fell"])),
         CheckRow("a", 1.4, "capture", FakeTrial([])),
     ]
     assert check_summary(rows) == {
-        "below": 2, "below_fell_or_slipped": 0, "below_infeasible": 1, "above": 3,
-        "above_binding_first": 1, "above_binding_failed": 2, "above_feasible": 1,
+        "below": 4, "below_fell_or_slipped": 2, "below_infeasible": 2, "above": 5,
+        "above_binding_first": 1, "above_binding_tied": 1, "above_binding_failed": 3, "above_feasible": 1,
     }
+
+
+def test_each_measured_failure_is_the_closed_form_criterion_of_its_name():
+    assert CRITERION_OF == {c: c for c in CRITERIA}
+    assert "fell" in FAILURES and "fell" not in CRITERION_OF
+    assert set(CRITERION_OF) <= set(FAILURES)
 
 
 def test_unknown_stance_is_bad_input():

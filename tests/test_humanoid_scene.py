@@ -6,15 +6,17 @@ import pinocchio as pin
 import pytest
 
 from impactqp.controller.model.floating_base import CONTACT_FRAME, HAND_FRAME, FloatingBaseModel
+from impactqp.controller.model.g1_actuators import joint_armature
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
-from impactqp.sim.humanoid_scene import HAND_RADIUS, build_humanoid_scene, from_pinocchio, to_pinocchio
+from impactqp.controller.model.validation import BadInputError
+from impactqp.sim.humanoid_scene import HAND_RADIUS, build_humanoid_scene, from_pinocchio, plant_armature, to_pinocchio
 
 
 @pytest.fixture(scope="module")
 def setup():
     robot = FloatingBaseModel()
     q = stance_posture(robot, STANCES["staggered"])
-    return robot, q, build_humanoid_scene(robot, wall_x=0.6)
+    return robot, q, build_humanoid_scene(robot, wall_x=0.6, armature=0.0)
 
 
 def random_velocity(scene, seed=0):
@@ -68,13 +70,24 @@ def test_hand_sphere_pole_is_the_contact_point(setup):
     np.testing.assert_allclose(pole, placement.translation, atol=1e-10)
 
 
-def test_armature_adds_rotor_inertia_to_the_joints_only(setup):
+@pytest.mark.parametrize("armature", [None, 0.05, "per joint"])
+def test_armature_adds_rotor_inertia_to_the_joints_only(setup, armature):
+    """M_plant = T^T M_pin T + diag(0, a): the G1's actuators by default, one number or one per joint."""
     robot, q, _ = setup
-    scene = build_humanoid_scene(robot, wall_x=0.6, armature=0.05)
+    per_joint = np.linspace(0.01, 0.3, 29)
+    given = per_joint if armature == "per joint" else armature
+    expected = {None: joint_armature(robot.joint_names), 0.05: np.full(29, 0.05)}.get(armature, per_joint)
+    scene = build_humanoid_scene(robot, wall_x=0.6, armature=given)
     scene.set_state(q)
     M = np.empty((scene.model.nv, scene.model.nv))
     mujoco.mj_fullM(scene.model, scene.data, M)
     T = np.eye(scene.model.nv)
     T[:3, :3] = pin.Quaternion(q[3:7]).matrix().T
-    rotor = np.diag(np.r_[np.zeros(6), np.full(scene.model.nv - 6, 0.05)])
+    rotor = np.diag(np.r_[np.zeros(6), expected])
     np.testing.assert_allclose(M, T.T @ robot.terms(q).M @ T + rotor, atol=1e-10)
+
+
+@pytest.mark.parametrize("armature", [-0.1, [0.1] * 28, True, float("nan")])
+def test_a_bad_armature_is_bad_input(setup, armature):
+    with pytest.raises(BadInputError, match="armature"):
+        plant_armature(setup[0], armature)

@@ -1,11 +1,32 @@
 """One simulated hand impact of the standing G1 (sim/humanoid_trial.py)."""
 
+import mujoco
 import numpy as np
 import pytest
 
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
-from impactqp.controller.model.humanoid_stance import STANCES
-from impactqp.sim.humanoid_trial import NORMAL, run_impact_trial
+from impactqp.controller.model.humanoid_stance import STANCES, stance_posture, support_polygon
+from impactqp.sim.humanoid_feet import (
+    CONE_TOLERANCE,
+    LIFT_MARGIN,
+    LOAD,
+    SLIP_SPEED,
+    edge_margins,
+    lift_onset,
+    slip_onset,
+    sole_state,
+)
+from impactqp.sim.humanoid_scene import build_humanoid_scene
+from impactqp.sim.humanoid_trial import (
+    CONTROL_PERIOD,
+    NORMAL,
+    SERVO_GAIN,
+    SETTLE,
+    SINK,
+    _Servo,
+    capture_margin,
+    run_impact_trial,
+)
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
 
@@ -37,11 +58,73 @@ def test_every_predictor_is_reported_with_its_error(trial):
     np.testing.assert_array_equal(trial.predicted_impulse["momentum"], trial.impulse)
 
 
-def test_failures_are_consistent_with_the_measured_flags(trial):
+def test_failures_are_consistent_with_the_measured_onsets(trial):
     assert trial.feasible == (not trial.failures)
+    assert set(trial.failure_times) == set(trial.failures)
     assert (trial.first_failure == "") == (not trial.failures)
-    assert ("foot_slip" in trial.failures) == trial.slipped
-    assert ("foot_lift" in trial.failures) == trial.lifted
+    if trial.failures:
+        assert trial.failure_time == min(trial.failure_times.values())
+    slid = trial.cone_ratio >= 1.0 - CONE_TOLERANCE or trial.slide_speed > SLIP_SPEED
+    assert ("foot_slip" in trial.failures) == slid
+    assert ("foot_lift" in trial.failures) == (trial.cop_margin <= LIFT_MARGIN)
+    assert ("capture" in trial.failures) == (trial.capture_margin < 0.0)
     assert ("fell" in trial.failures) == trial.fell
     assert ("joint_velocity" in trial.failures) == (trial.max_velocity_ratio > 1.0)
     assert trial.q_log.shape[1] == 36 and 0 < trial.contact_index < len(trial.q_log)
+
+
+def test_a_slow_impact_leaves_the_feet_flat_and_the_com_capturable(trial):
+    """0.2 m/s in the parallel stance: the feet stay loaded, inside their cones and still."""
+    assert 0.0 < trial.cone_ratio < 1.0 - CONE_TOLERANCE
+    assert trial.slide_speed < SLIP_SPEED
+    assert trial.capture_margin > 0.0
+
+
+def test_capture_margin_agrees_with_the_capture_region_on_constructed_velocities():
+    """dc = omega (x - c): the capture point is x, and the margin is x's distance inside the
+    support polygon's nearest edge (positive inside, negative outside)."""
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES["wide"])
+    polygon = support_polygon(robot, q)
+    com = robot.terms(q).com
+    omega = np.sqrt(9.81 / com[2])
+    heel = polygon[:, 0].min()
+    for point in ([heel + 0.01, com[1]], [heel - 0.02, com[1]], polygon.mean(axis=0), [0.5, 0.5]):
+        velocity = np.r_[omega * (np.array(point) - com[:2]), 0.0]
+        margin = capture_margin(robot, q, velocity)
+        assert margin == pytest.approx(edge_margins(polygon, np.array(point)).min(), abs=1e-9)
+        assert (margin < 0.0) == (point[0] < heel or point[0] == 0.5)
+    assert capture_margin(robot, q, np.zeros(3)) == pytest.approx(edge_margins(polygon, com[:2]).min())
+
+
+def test_the_servo_torque_saturates_at_the_urdf_effort_limits():
+    """A command far beyond what the motors can give is clipped at each joint's effort limit."""
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES["parallel"])
+    scene = build_humanoid_scene(robot, wall_x=1.0)
+    scene.set_state(q)
+    servo = _Servo(scene, robot, q, SERVO_GAIN)
+    tau = servo.torque(np.full(29, 1e3), CONTROL_PERIOD)
+    np.testing.assert_allclose(np.abs(tau), robot.model.effortLimit[6:])
+
+
+@pytest.mark.parametrize("stance", ["wide", "staggered"])
+def test_the_standing_g1_shows_no_foot_onset(stance):
+    """Held by its servo with no command and no impact, after the settling: no slip, no lift."""
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES[stance])
+    scene = build_humanoid_scene(robot, wall_x=2.0)
+    start = q.copy()
+    start[2] -= SINK
+    scene.set_state(start)
+    servo = _Servo(scene, robot, q, SERVO_GAIN)
+    states = []
+    for k in range(300):
+        scene.data.qfrc_applied[6:] = servo.torque(np.zeros(29), CONTROL_PERIOD)
+        for _ in range(2):
+            mujoco.mj_step(scene.model, scene.data)
+        if k * CONTROL_PERIOD >= SETTLE:
+            states.append(sole_state(scene.model, scene.data, scene.soles))
+    states = np.array(states)
+    assert np.all(states[..., LOAD] > 0.0)
+    assert not slip_onset(states).any() and not lift_onset(states).any()
