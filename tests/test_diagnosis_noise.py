@@ -9,7 +9,8 @@ from hypothesis import strategies as st
 
 from impactqp.sim.causes import ArmatureCause, JointDampingCause
 from impactqp.sim.diagnosis import diagnose
-from impactqp.sim.diagnosis.noise import FIT_LIMIT, fits_noise, misfit_blocks, repeat_std, sample_variance
+from impactqp.controller.measured.impact import PRE_SAMPLES
+from impactqp.sim.diagnosis.noise import BLOCKS, FIT_LIMIT, fits_noise, misfit_blocks, repeat_std, sample_variance
 from impactqp.sim.diagnosis.trials import load_trials
 from impactqp.sim.generation import DatasetRequest, generate_dataset
 
@@ -41,7 +42,7 @@ def test_repeats_pool_their_within_condition_scatter(pairs):
     assert repeat_std(trials[::2], lambda t: t.x) is None
 
 
-@given(st.dictionaries(st.sampled_from(["jump", "torque", "impulse", "duration"]), st.floats(0.0, 10.0), min_size=1))
+@given(st.dictionaries(st.sampled_from(list(BLOCKS)), st.floats(0.0, 10.0), min_size=1))
 def test_a_fit_fits_the_noise_unless_a_block_exceeds_the_limit_worst_named_first(fit):
     worst = misfit_blocks(fit)
     assert fits_noise(fit) == (not worst) == all(v <= FIT_LIMIT for v in fit.values())
@@ -59,6 +60,9 @@ def test_the_noise_of_a_generated_dataset_is_read_back(tmp_path):
     np.testing.assert_allclose(dq, request.noise_dq, rtol=0.25)
     np.testing.assert_allclose(tau, request.noise_tau, rtol=0.25)
     assert np.all(trials[0].noise.jump >= 0.75 * request.noise_dq * np.sqrt(2 / 3))
+    # a trace sample is one dq sample minus the pre-impact mean
+    np.testing.assert_allclose(trials[0].noise.trace, np.sqrt(np.mean([t.scatter[0] for t in trials], axis=0)
+                                                              * (1 + 1 / PRE_SAMPLES)), rtol=1e-12)
 
 
 def shift_torque(directory, joint: int, offset: float) -> None:

@@ -50,6 +50,7 @@ REPLAY_TAIL = 30
 START_AVERAGE = 2  # dq at the replay start: mean of samples i0 - 2 .. i0 + 2 (within the log)
 TORQUE_SETTLE = 10  # samples after the replay start before the torque window may begin
 TORQUE_WINDOW = 30  # mean tau over the 30 samples ending 2 samples before the pre-impact one
+TRACE_LENGTH = 16  # samples of the velocity trace after the pre-impact one: the jump's rise (soft contact ~10 ms)
 REPLAY_CACHE_SIZE = 512
 _simulated: OrderedDict = OrderedDict()  # (surface, physical plant, trial) -> simulated log or None
 
@@ -85,6 +86,11 @@ class MeasuredTrial:
         """The measured jump read at ``jump_samples`` (``jump_at``): what the fit compares."""
         return jump_at(self.dq_log, *self.jump_samples)
 
+    @property
+    def reference_trace(self) -> np.ndarray:
+        """The measured velocity trace of the jump (``trace_at``): what the fit compares."""
+        return trace_at(self.dq_log, self.jump_samples[0])
+
 
 def jump_at(dq: np.ndarray, pre: int, post: int) -> np.ndarray:
     """The jump of the velocities ``dq`` read at the samples (pre, post) with the averages of
@@ -94,17 +100,28 @@ def jump_at(dq: np.ndarray, pre: int, post: int) -> np.ndarray:
     return dq[post - POST_HALF_WIDTH : post + POST_HALF_WIDTH + 1].mean(axis=0) - dq_pre
 
 
+def trace_at(dq: np.ndarray, pre: int) -> np.ndarray:
+    """(TRACE_LENGTH, joints): the velocities ``dq`` of the TRACE_LENGTH samples after ``pre``
+    minus the mean of the ``PRE_SAMPLES`` ending at ``pre``: how the jump rises, sample by sample.
+    The jump read at two samples cannot tell a late sensor from a filtered one or from a plant
+    that yields slowly; the rise's timing and shape can (``docs/diagnosis.md``)."""
+    dq_pre = dq[pre - PRE_SAMPLES + 1 : pre + 1].mean(axis=0)
+    return dq[pre + 1 : pre + 1 + TRACE_LENGTH] - dq_pre
+
+
 @dataclass(frozen=True)
 class ReplayFeatures:
     """What a replay gives: its jump read at the trial's ``jump_samples`` (compared with the
-    trial's ``reference``), its impulse, contact duration and pre-impact torque, and its jump
-    as ``controller.measured.impact`` detects and reads it (for the report)."""
+    trial's ``reference``), its impulse, contact duration and pre-impact torque, its jump
+    as ``controller.measured.impact`` detects and reads it (for the report) and its velocity
+    trace (``trace_at``, compared with the trial's ``reference_trace``)."""
 
     jump: np.ndarray
     impulse: np.ndarray | None
     duration: float | None
     torque: np.ndarray
     detected_jump: np.ndarray
+    trace: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -242,15 +259,17 @@ def replay(log, trial: MeasuredTrial) -> ReplayFeatures:
     push away from it; so are the impulse and the detected jump of a replay without an impact.
     """
     if log is None:
-        return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, np.zeros(NQ), np.zeros(NQ))
+        trace = np.zeros_like(trial.reference_trace)
+        return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, np.zeros(NQ), np.zeros(NQ), trace)
     first, last = trial.torque_window
     torque = log.tau[first:last].mean(axis=0)
     jump = jump_at(log.dq, *trial.jump_samples)
+    trace = trace_at(log.dq, trial.jump_samples[0])
     try:
         impact = measure_impact(log)
     except ImpactNotFoundError:
-        return ReplayFeatures(jump, np.zeros(3), 0.0, torque, np.zeros(NQ))
-    return ReplayFeatures(jump, impact.impulse, impact.duration, torque, impact.dq_jump)
+        return ReplayFeatures(jump, np.zeros(3), 0.0, torque, np.zeros(NQ), trace)
+    return ReplayFeatures(jump, impact.impulse, impact.duration, torque, impact.dq_jump, trace)
 
 
 def locate_jump_samples(trials: list[MeasuredTrial], setting: ReplaySetting, plant: PlantParameters) -> list[MeasuredTrial]:
