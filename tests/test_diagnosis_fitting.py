@@ -17,7 +17,7 @@ from impactqp.sim.diagnosis.fitting import (
     residuals,
     trial_errors,
 )
-from impactqp.sim.diagnosis.noise import FIT_LIMIT
+from impactqp.sim.diagnosis.noise import FIT_LIMIT, trace_std
 from impactqp.sim.plant import PlantParameters
 
 
@@ -68,7 +68,7 @@ def test_a_trace_offset_shows_in_the_trace_block_only(seed, forces, offset):
     trials = trials_of(seed, forces)
     features = [replace(exact_features(t), trace=t.reference_trace + offset) for t in trials]
     fit = fit_report(features, trials)
-    expected = np.sqrt(np.mean(np.concatenate([np.ravel((offset / t.noise.trace) ** 2 * np.ones_like(t.reference_trace))
+    expected = np.sqrt(np.mean(np.concatenate([np.ravel((offset / trace_std(t.reference_trace, t.noise.trace)) ** 2)
                                                for t in trials])))
     assert fit["trace"] == pytest.approx(expected)
     assert all(fit[b] == 0.0 for b in fit if b not in ("trace", "fits_noise"))
@@ -79,7 +79,7 @@ def test_a_trace_offset_shows_in_the_trace_block_only(seed, forces, offset):
     r = residuals(features, trials)
     for t, end in zip(trials, ends):
         np.testing.assert_allclose(r[end - t.reference_trace.size : end],
-                                   (offset / t.noise.trace * np.ones_like(t.reference_trace)).ravel(), rtol=1e-9, atol=1e-9)
+                                   (offset / trace_std(t.reference_trace, t.noise.trace)).ravel(), rtol=1e-9, atol=1e-9)
 
 
 def test_a_replay_without_a_contact_counts_as_a_zero_impulse():

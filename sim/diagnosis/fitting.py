@@ -3,7 +3,7 @@
 The residuals per trial (``residuals``) are the jump error (7; both jumps read at the trial's
 ``jump_samples``), the error of the mean joint torque over the torque window before contact (7),
 with force data the impulse error (3) and the contact duration error, and the error of the
-jump's velocity trace (``trials.trace_at``, TRACE_LENGTH samples x 7), each divided by its
+impact trace (``trials.impact_trace``: velocities and torques, TRACE_LENGTH samples x 14), each divided by its
 block's noise std read from the data (``noise.estimate_noise``), so every block counts by its
 noise. A trial's error (``trial_errors``) is the root mean square of its residuals: the
 normalised residual the selection compares. A fit (``fit``) minimises
@@ -22,7 +22,7 @@ from impactqp.controller.model.jump import average_prediction_error
 from impactqp.sim.causes import Cause
 from impactqp.sim.plant import PlantParameters
 
-from .noise import BLOCKS, fits_noise
+from .noise import BLOCKS, fits_noise, trace_std
 from .trials import MeasuredTrial, ReplayFeatures, ReplaySetting, replay_all
 
 FIT_XTOL = 2e-3
@@ -42,14 +42,16 @@ def trial_residuals(f: ReplayFeatures, trial: MeasuredTrial) -> np.ndarray:
 
 def residual_blocks(f: ReplayFeatures, trial: MeasuredTrial) -> dict[str, np.ndarray]:
     """The residuals of one replay in noise units per block: jump (7), torque (7), then with
-    force data impulse (3) and duration (1), and the velocity trace (TRACE_LENGTH x 7)."""
+    force data impulse (3) and duration (1), and the impact trace (TRACE_LENGTH x 14, each
+    sample over its own std, ``noise.trace_std``)."""
     noise = trial.noise
     blocks = {"jump": (f.jump - trial.reference) / noise.jump, "torque": (f.torque - trial.torque) / noise.torque}
     if trial.impulse is not None:  # a replay without a force contact counts as a zero impulse
         impulse, duration = (np.zeros(3), 0.0) if f.impulse is None else (f.impulse, f.duration)
         blocks["impulse"] = (impulse - trial.impulse) / noise.impulse
         blocks["duration"] = np.array([(duration - trial.duration) / noise.duration])
-    blocks["trace"] = ((f.trace - trial.reference_trace) / noise.trace).ravel()
+    reference = trial.reference_trace
+    blocks["trace"] = ((f.trace - reference) / trace_std(reference, noise.trace)).ravel()
     return blocks
 
 

@@ -3,7 +3,7 @@ model against it (``fit_report``).
 
 The diagnosis compares five signal blocks per trial (``fitting.residuals``): the jump (7), the
 mean torque before contact (7), with force data the impulse (3) and the contact duration, and
-the jump's velocity trace (``trials.trace_at``). Each block's noise std is estimated from the
+the impact trace of the velocities and torques (``trials.impact_trace``). Each block's noise std is estimated from the
 dataset itself, never from a constant:
 
 - **sensor scatter**: the per-sample noise variance of dq and tau from the samples before the
@@ -15,9 +15,12 @@ dataset itself, never from a constant:
   velocity is a mean of noisy samples, and the servo's torque answers its error over the whole
   window (the right model's torque residual over the sensor scatter alone is 1.8-2.7 on
   simulated datasets, ``docs/diagnosis.md``); a trace sample is one sample minus the
-  pre-impact mean, std sigma sqrt(1 + 1 / PRE_SAMPLES), and the trace has no other term:
-  repeats hit the wall at moments that differ within a sample, so their traces differ on the
-  steep samples by more than the noise, while each replay reproduces its own trial's timing;
+  pre-impact mean, std sigma sqrt(1 + 1 / PRE_SAMPLES), combined per sample with a timing
+  term (``trace_std``): the replay starts from a mean of noisy velocities, so it reaches the
+  wall a fraction of a sample early or late, which moves each trace sample by that fraction
+  times its slope; with ``REPLAY_TIMING_SAMPLES`` = 0.1 sample the right model reads about
+  1 (``docs/diagnosis.md``). The trace has no repeat term: repeats hit the wall at moments that
+  differ within a sample, which their own replays reproduce;
 - **repeat-to-repeat variation**: the pooled within-condition std (same posture, normal and
   tangential speed) of every other block, which also carries what the sensors' scatter does not (the
   force log's, the start state's);
@@ -43,6 +46,7 @@ BLOCKS = ("jump", "torque", "impulse", "duration", "trace")
 FIT_LIMIT = 3.0
 IMPULSE_FLOOR_SHARE = 0.005
 REPLAY_TORQUE_FACTOR = 2.5  # without repeats: the torque residual of a right model over the sensor scatter's
+REPLAY_TIMING_SAMPLES = 0.1  # the replay's contact moment is known to a tenth of a sample (its start state is noisy)
 DURATION_FLOOR_SAMPLES = 4  # a duration's resolution: force-log samples (two threshold crossings, the replay's start)
 TINY = {"jump": 1e-5, "torque": 1e-4, "impulse": 1e-5, "duration": 1e-5, "trace": 1e-5}  # noise-free data: no 0 divisions
 MAD_TO_STD = 1.4826
@@ -51,7 +55,8 @@ MAD_TO_STD = 1.4826
 @dataclass(frozen=True)
 class BlockNoise:
     """Noise std of each compared block: jump (7, rad/s), torque (7, N m), impulse (3, N s),
-    duration (s), velocity trace (7, rad/s per sample)."""
+    duration (s), impact trace (14 per sample: the 7 velocities, rad/s, then the 7 torques, N m;
+    the sensor term of ``trace_std``)."""
 
     jump: np.ndarray
     torque: np.ndarray
@@ -114,8 +119,18 @@ def estimate_noise(trials) -> BlockNoise:
         torque=largest("torque", REPLAY_TORQUE_FACTOR * torque_sensor, repeat_std(trials, lambda t: t.torque)),
         impulse=impulse,
         duration=duration,
-        trace=largest("trace", np.sqrt(dq_var * (1.0 + 1.0 / PRE_SAMPLES))),
+        trace=largest("trace", np.sqrt(np.concatenate([dq_var, tau_var]) * (1.0 + 1.0 / PRE_SAMPLES))),
     )
+
+
+def trace_std(trace: np.ndarray, sensor: np.ndarray) -> np.ndarray:
+    """The noise std of each sample of a velocity trace (samples x joints): the sensor term
+    ``sensor`` (per joint) and the replay's timing term, ``REPLAY_TIMING_SAMPLES`` times the
+    trace's slope per sample (central differences; the trace starts from 0, the pre-impact
+    mean), combined in quadrature."""
+    padded = np.vstack([np.zeros((1, trace.shape[1])), trace, trace[-1:]])
+    slope = 0.5 * (padded[2:] - padded[:-2])
+    return np.sqrt(sensor**2 + (REPLAY_TIMING_SAMPLES * slope) ** 2)
 
 
 def fits_noise(fit: dict) -> bool:
