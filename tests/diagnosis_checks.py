@@ -63,13 +63,16 @@ def synthetic_trial(rng: np.random.Generator, *, force: bool = True, speed: floa
         dq_pre=rng.normal(size=NQ),
         torque_window=(5, 15),
         dq_log=rng.normal(size=(samples, NQ)),
+        tau_log=rng.normal(size=(samples, NQ)),
         jump_samples=(pre, post),
         scatter=(rng.uniform(1e-6, 1e-4, NQ), rng.uniform(1e-4, 1e-2, NQ)),
         force_period=2.5e-4 if force else None,
-        noise=BlockNoise(rng.uniform(1e-3, 1e-2, NQ), rng.uniform(1e-2, 0.1, NQ), rng.uniform(1e-3, 1e-2, 3), 3e-4),
+        noise=BlockNoise(rng.uniform(1e-3, 1e-2, NQ), rng.uniform(1e-2, 0.1, NQ), rng.uniform(1e-3, 1e-2, 3), 3e-4,
+                         rng.uniform(1e-3, 1e-2, 2 * NQ)),
     )
 
 
 def exact_features(trial: MeasuredTrial) -> ReplayFeatures:
     """What a replay that reproduces ``trial`` exactly would give."""
-    return ReplayFeatures(trial.reference, trial.impulse, trial.duration, trial.torque, trial.jump)
+    return ReplayFeatures(trial.reference, trial.impulse, trial.duration, trial.torque, trial.jump,
+                          trial.reference_trace)

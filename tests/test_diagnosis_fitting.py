@@ -17,7 +17,7 @@ from impactqp.sim.diagnosis.fitting import (
     residuals,
     trial_errors,
 )
-from impactqp.sim.diagnosis.noise import FIT_LIMIT
+from impactqp.sim.diagnosis.noise import FIT_LIMIT, trace_std
 from impactqp.sim.plant import PlantParameters
 
 
@@ -37,7 +37,7 @@ def test_a_replay_that_reproduces_the_trials_leaves_no_residual(seed, forces):
     np.testing.assert_array_equal(jump_errors(features, trials), 0.0)
     np.testing.assert_array_equal(trial_errors(features, trials), 0.0)
     fit = fit_report(features, trials)
-    assert fit["fits_noise"] and fit["jump"] == fit["torque"] == 0.0
+    assert fit["fits_noise"] and fit["jump"] == fit["torque"] == fit["trace"] == 0.0
     assert ("impulse" in fit) == ("duration" in fit) == any(forces)
 
 
@@ -58,6 +58,28 @@ def test_a_jump_offset_shows_in_the_jump_residuals_and_errors_only(seed, forces,
     expected = np.sqrt(np.mean(np.concatenate([(offset / t.noise.jump) ** 2 for t in trials])))
     assert fit["jump"] == pytest.approx(expected) and fit["torque"] == 0.0
     assert fit["fits_noise"] == (expected <= FIT_LIMIT)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.lists(st.booleans(), min_size=1, max_size=6), st.floats(-1.0, 1.0))
+def test_a_trace_offset_shows_in_the_trace_block_only(seed, forces, offset):
+    """Each trial's residuals end with its velocity trace (samples x 7) over the trace noise; a
+    trace that is off leaves the jump error (26) and every other block untouched."""
+    trials = trials_of(seed, forces)
+    features = [replace(exact_features(t), trace=t.reference_trace + offset) for t in trials]
+    fit = fit_report(features, trials)
+    expected = np.sqrt(np.mean(np.concatenate([np.ravel((offset / trace_std(t.reference_trace, t.noise.trace)) ** 2)
+                                               for t in trials])))
+    assert fit["trace"] == pytest.approx(expected)
+    assert all(fit[b] == 0.0 for b in fit if b not in ("trace", "fits_noise"))
+    assert fit["fits_noise"] == (expected <= FIT_LIMIT)
+    np.testing.assert_array_equal(jump_errors(features, trials), 0.0)
+    sizes = residual_sizes(trials)
+    ends = np.cumsum(sizes)
+    r = residuals(features, trials)
+    for t, end in zip(trials, ends):
+        np.testing.assert_allclose(r[end - t.reference_trace.size : end],
+                                   (offset / trace_std(t.reference_trace, t.noise.trace)).ravel(), rtol=1e-9, atol=1e-9)
 
 
 def test_a_replay_without_a_contact_counts_as_a_zero_impulse():

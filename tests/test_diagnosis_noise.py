@@ -7,9 +7,19 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from impactqp.controller.measured.impact import PRE_SAMPLES
 from impactqp.sim.causes import ArmatureCause, JointDampingCause
 from impactqp.sim.diagnosis import diagnose
-from impactqp.sim.diagnosis.noise import FIT_LIMIT, fits_noise, misfit_blocks, repeat_std, sample_variance
+from impactqp.sim.diagnosis.noise import (
+    BLOCKS,
+    FIT_LIMIT,
+    REPLAY_TIMING_SAMPLES,
+    fits_noise,
+    misfit_blocks,
+    repeat_std,
+    sample_variance,
+    trace_std,
+)
 from impactqp.sim.diagnosis.trials import load_trials
 from impactqp.sim.generation import DatasetRequest, generate_dataset
 
@@ -41,11 +51,27 @@ def test_repeats_pool_their_within_condition_scatter(pairs):
     assert repeat_std(trials[::2], lambda t: t.x) is None
 
 
-@given(st.dictionaries(st.sampled_from(["jump", "torque", "impulse", "duration"]), st.floats(0.0, 10.0), min_size=1))
+@given(st.dictionaries(st.sampled_from(list(BLOCKS)), st.floats(0.0, 10.0), min_size=1))
 def test_a_fit_fits_the_noise_unless_a_block_exceeds_the_limit_worst_named_first(fit):
     worst = misfit_blocks(fit)
     assert fits_noise(fit) == (not worst) == all(v <= FIT_LIMIT for v in fit.values())
     assert [fit[b] for b in worst] == sorted((v for v in fit.values() if v > FIT_LIMIT), reverse=True)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 12), st.floats(-1.0, 1.0))
+def test_a_trace_sample_adds_the_replay_timing_times_its_slope_to_the_sensor_noise(seed, onset, slope):
+    """Flat before ``onset``, a ramp after it: flat samples keep the sensor std, ramp samples
+    (away from its ends) add REPLAY_TIMING_SAMPLES x slope in quadrature; never below the sensor."""
+    rng = np.random.default_rng(seed)
+    sensor = rng.uniform(1e-4, 1e-2, 7)
+    steps = np.maximum(np.arange(16) - onset, 0.0)
+    trace = np.outer(steps, slope * rng.uniform(0.5, 1.0, 7))
+    std = trace_std(trace, sensor)
+    assert std.shape == trace.shape and np.all(std >= sensor)
+    np.testing.assert_allclose(std[: onset - 1], np.broadcast_to(sensor, std[: onset - 1].shape))
+    ramp = np.sqrt(sensor**2 + (REPLAY_TIMING_SAMPLES * trace[-1] / max(15 - onset, 1)) ** 2)
+    np.testing.assert_allclose(std[onset + 1 : 15], np.broadcast_to(ramp, std[onset + 1 : 15].shape), rtol=1e-9)
 
 
 def test_the_noise_of_a_generated_dataset_is_read_back(tmp_path):
@@ -59,6 +85,9 @@ def test_the_noise_of_a_generated_dataset_is_read_back(tmp_path):
     np.testing.assert_allclose(dq, request.noise_dq, rtol=0.25)
     np.testing.assert_allclose(tau, request.noise_tau, rtol=0.25)
     assert np.all(trials[0].noise.jump >= 0.75 * request.noise_dq * np.sqrt(2 / 3))
+    # a trace sample is one dq or tau sample minus the pre-impact mean
+    scatter = np.concatenate([np.mean([t.scatter[k] for t in trials], axis=0) for k in (0, 1)])
+    np.testing.assert_allclose(trials[0].noise.trace, np.sqrt(scatter * (1 + 1 / PRE_SAMPLES)), rtol=1e-12)
 
 
 def shift_torque(directory, joint: int, offset: float) -> None:

@@ -30,3 +30,21 @@ def test_a_sensor_fault_is_named_against_plant_causes_with_the_truth_inside(tmp_
     intervals = [p["interval"] for p in result["parameter_intervals"]]
     assert all(inside(v, i) for v, i in zip(truth, intervals)), (truth, intervals)
     check_contract(result)
+
+
+def test_a_late_sensor_is_told_from_a_filter_and_never_read_as_damping(tmp_path):
+    """dq and tau logged 2.5 samples late: read at two samples, the jump is matched by a 1.5 ms
+    velocity filter or by joint damping; the velocity trace of the rise is not. With the delay
+    among the candidates it alone is named, the truth inside its interval; without it nothing
+    is explained and the misfit is named."""
+    overrides = {"sensor_delay": 2.5}
+    generate_dataset(tmp_path, DatasetRequest(plant=PlantParameters(**overrides), seed=6, **SMALL))
+    mimics = [JointDampingCause(), cause_named("velocity_filter")]
+    result = diagnose(tmp_path, causes=[*mimics, cause_named("delay")], jobs=2).summary()
+    assert result["causes"] == ["delay"] and result["explained"], result["steps"]
+    (interval,) = [p["interval"] for p in result["parameter_intervals"]]
+    assert inside(2.5, interval), interval
+    assert result["nominal_fit"]["trace"] > result["fit"]["trace"]
+    without = diagnose(tmp_path, causes=mimics, jobs=2).summary()
+    assert not without["explained"] and without["causes"] == [] and not without["fit"]["fits_noise"]
+    assert "residual is" in without["message"] and "as good as" not in without["message"]

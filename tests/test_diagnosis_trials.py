@@ -6,14 +6,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 from diagnosis_checks import POSTURES, SPEEDS
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from impactqp.controller.measured.impact import PRE_SAMPLES
 
 from impactqp.controller.measured.dataset import read_dataset
 from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.sim.causes import PayloadCause
 from impactqp.sim.diagnosis import diagnose, load_trials, replay_all
+from impactqp.sim.diagnosis.trials import TRACE_LENGTH, impact_trace, trace_at
 from impactqp.sim.generation import DatasetRequest, generate_dataset
 from impactqp.sim.plant import PlantParameters
+from impactqp.sim.sensor import delayed
 
 
 @pytest.mark.parametrize("robot, tool", [("panda", "impact_tip"), ("fr3", "franka_hand")])
@@ -32,6 +38,26 @@ def test_replay_in_the_generating_plant_reproduces_the_jumps(tmp_path, robot, to
     np.testing.assert_allclose(features.jump, trials[0].jump, atol=1e-6)
     np.testing.assert_allclose(features.impulse, trials[0].impulse, atol=1e-6)
     np.testing.assert_allclose(features.torque, trials[0].torque, rtol=1e-6, atol=1e-6)  # CSV: 10 digits
+    np.testing.assert_allclose(features.trace, trials[0].reference_trace, rtol=1e-6, atol=1e-6)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 5), st.integers(0, 6))
+def test_a_late_sensor_shifts_the_trace_and_leaves_its_pre_impact_mean(seed, late, onset):
+    """The trace (``trace_at``) of a signal logged ``late`` samples late is the trace of the
+    true one, ``late`` samples later, when the signal is steady before the rise; the impact
+    trace puts the velocities' beside the torques'."""
+    rng = np.random.default_rng(seed)
+    pre = PRE_SAMPLES + 8
+    dq = np.tile(rng.normal(size=7), (pre + TRACE_LENGTH + 10, 1))
+    rise = pre + 1 + onset
+    dq[rise:] += np.cumsum(rng.uniform(0.0, 0.1, size=(len(dq) - rise, 7)), axis=0)
+    trace, late_trace = trace_at(dq, pre), trace_at(delayed(dq, late), pre)
+    assert trace.shape == (TRACE_LENGTH, 7)
+    np.testing.assert_allclose(late_trace[late:], trace[:-late], atol=1e-12)
+    np.testing.assert_allclose(late_trace[: onset + late], 0.0, atol=1e-12)
+    both = impact_trace(dq, 2.0 * dq, pre)
+    np.testing.assert_array_equal(both, np.hstack([trace, trace_at(2.0 * dq, pre)]))
 
 
 def digest(directory: Path) -> dict:

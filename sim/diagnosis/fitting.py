@@ -1,8 +1,9 @@
 """Fitting causes to the trials: residuals of a replay, and bounded least squares over them.
 
 The residuals per trial (``residuals``) are the jump error (7; both jumps read at the trial's
-``jump_samples``), the error of the mean joint torque over the torque window before contact (7)
-and, with force data, the impulse error (3) and the contact duration error, each divided by its
+``jump_samples``), the error of the mean joint torque over the torque window before contact (7),
+with force data the impulse error (3) and the contact duration error, and the error of the
+impact trace (``trials.impact_trace``: velocities and torques, TRACE_LENGTH samples x 14), each divided by its
 block's noise std read from the data (``noise.estimate_noise``), so every block counts by its
 noise. A trial's error (``trial_errors``) is the root mean square of its residuals: the
 normalised residual the selection compares. A fit (``fit``) minimises
@@ -21,7 +22,7 @@ from impactqp.controller.model.jump import average_prediction_error
 from impactqp.sim.causes import Cause
 from impactqp.sim.plant import PlantParameters
 
-from .noise import fits_noise
+from .noise import BLOCKS, fits_noise, trace_std
 from .trials import MeasuredTrial, ReplayFeatures, ReplaySetting, replay_all
 
 FIT_XTOL = 2e-3
@@ -34,15 +35,24 @@ def residuals(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> np
 
 
 def trial_residuals(f: ReplayFeatures, trial: MeasuredTrial) -> np.ndarray:
-    """The residuals of one replay in noise units: jump (7), torque (7), then with force data
-    impulse (3) and duration (1) (module docstring)."""
+    """The residuals of one replay in noise units, its blocks (``residual_blocks``) in the
+    order of ``noise.BLOCKS``."""
+    return np.concatenate(list(residual_blocks(f, trial).values()))
+
+
+def residual_blocks(f: ReplayFeatures, trial: MeasuredTrial) -> dict[str, np.ndarray]:
+    """The residuals of one replay in noise units per block: jump (7), torque (7), then with
+    force data impulse (3) and duration (1), and the impact trace (TRACE_LENGTH x 14, each
+    sample over its own std, ``noise.trace_std``)."""
     noise = trial.noise
-    parts = [(f.jump - trial.reference) / noise.jump, (f.torque - trial.torque) / noise.torque]
+    blocks = {"jump": (f.jump - trial.reference) / noise.jump, "torque": (f.torque - trial.torque) / noise.torque}
     if trial.impulse is not None:  # a replay without a force contact counts as a zero impulse
         impulse, duration = (np.zeros(3), 0.0) if f.impulse is None else (f.impulse, f.duration)
-        parts.append((impulse - trial.impulse) / noise.impulse)
-        parts.append([(duration - trial.duration) / noise.duration])
-    return np.concatenate(parts)
+        blocks["impulse"] = (impulse - trial.impulse) / noise.impulse
+        blocks["duration"] = np.array([(duration - trial.duration) / noise.duration])
+    reference = trial.reference_trace
+    blocks["trace"] = ((f.trace - reference) / trace_std(reference, noise.trace)).ravel()
+    return blocks
 
 
 def trial_errors(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> np.ndarray:
@@ -50,25 +60,22 @@ def trial_errors(features: list[ReplayFeatures], trials: list[MeasuredTrial]) ->
     return np.array([np.sqrt(np.mean(trial_residuals(f, t) ** 2)) for f, t in zip(features, trials)])
 
 
-BLOCK_ROWS = {"jump": slice(0, 7), "torque": slice(7, 14), "impulse": slice(14, 17), "duration": slice(17, 18)}
-
-
 def fit_report(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> dict:
     """The normalised residual (root mean square in noise units over the trials) of every block
-    (``BLOCK_ROWS`` of ``trial_residuals``; impulse and duration only with force data) and
-    whether all are within the noise (``noise.fits_noise``): the JSON ``fit`` and ``nominal_fit``."""
-    rows = [trial_residuals(f, t) for f, t in zip(features, trials)]
+    (``residual_blocks``; impulse and duration only with force data) and whether all are within
+    the noise (``noise.fits_noise``): the JSON ``fit`` and ``nominal_fit``."""
+    rows = [residual_blocks(f, t) for f, t in zip(features, trials)]
     report = {}
-    for block, where in BLOCK_ROWS.items():
-        values = np.concatenate([r[where] for r in rows])
-        if values.size:
-            report[block] = float(np.sqrt(np.mean(values**2)))
+    for block in BLOCKS:
+        values = [r[block] for r in rows if block in r]
+        if values:
+            report[block] = float(np.sqrt(np.mean(np.concatenate(values) ** 2)))
     return {**report, "fits_noise": fits_noise(report)}
 
 
 def residual_sizes(trials: list[MeasuredTrial]) -> list[int]:
     """How many residuals each trial contributes (``residuals``)."""
-    return [14 + (4 if t.impulse is not None else 0) for t in trials]
+    return [14 + (4 if t.impulse is not None else 0) + t.reference_trace.size for t in trials]
 
 
 def jump_errors(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> np.ndarray:

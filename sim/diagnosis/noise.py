@@ -1,9 +1,10 @@
 """The noise of the compared signals, read from the data (``estimate_noise``), and the fit of a
 model against it (``fit_report``).
 
-The diagnosis compares four signal blocks per trial (``fitting.residuals``): the jump (7), the
-mean torque before contact (7) and, with force data, the impulse (3) and the contact duration.
-Each block's noise std is estimated from the dataset itself, never from a constant:
+The diagnosis compares five signal blocks per trial (``fitting.residuals``): the jump (7), the
+mean torque before contact (7), with force data the impulse (3) and the contact duration, and
+the impact trace of the velocities and torques (``trials.impact_trace``). Each block's noise std is estimated from the
+dataset itself, never from a constant:
 
 - **sensor scatter**: the per-sample noise variance of dq and tau from the samples before the
   impact (second differences remove a smooth motion and leave 6 sigma^2 of white noise; a
@@ -13,9 +14,15 @@ Each block's noise std is estimated from the dataset itself, never from a consta
   window, std sigma / sqrt(window), times ``REPLAY_TORQUE_FACTOR``: the replay's start
   velocity is a mean of noisy samples, and the servo's torque answers its error over the whole
   window (the right model's torque residual over the sensor scatter alone is 1.8-2.7 on
-  simulated datasets, ``docs/diagnosis.md``);
+  simulated datasets, ``docs/diagnosis.md``); a trace sample is one sample minus the
+  pre-impact mean, std sigma sqrt(1 + 1 / PRE_SAMPLES), combined per sample with a timing
+  term (``trace_std``): the replay starts from a mean of noisy velocities, so it reaches the
+  wall a fraction of a sample early or late, which moves each trace sample by that fraction
+  times its slope; with ``REPLAY_TIMING_SAMPLES`` = 0.1 sample the right model reads about
+  1 (``docs/diagnosis.md``). The trace has no repeat term: repeats hit the wall at moments that
+  differ within a sample, which their own replays reproduce;
 - **repeat-to-repeat variation**: the pooled within-condition std (same posture, normal and
-  tangential speed) of each block, which also carries what the sensors' scatter does not (the
+  tangential speed) of every other block, which also carries what the sensors' scatter does not (the
   force log's, the start state's);
 - **floors**: ``DURATION_FLOOR_SAMPLES`` force-log sample periods for the duration (it ends at
   two threshold crossings, each quantised to a sample, and the replay's start moves them),
@@ -35,24 +42,27 @@ import numpy as np
 
 from impactqp.controller.measured.impact import POST_HALF_WIDTH, PRE_SAMPLES
 
-BLOCKS = ("jump", "torque", "impulse", "duration")
+BLOCKS = ("jump", "torque", "impulse", "duration", "trace")
 FIT_LIMIT = 3.0
 IMPULSE_FLOOR_SHARE = 0.005
 REPLAY_TORQUE_FACTOR = 2.5  # without repeats: the torque residual of a right model over the sensor scatter's
+REPLAY_TIMING_SAMPLES = 0.1  # the replay's contact moment is known to a tenth of a sample (its start state is noisy)
 DURATION_FLOOR_SAMPLES = 4  # a duration's resolution: force-log samples (two threshold crossings, the replay's start)
-TINY = {"jump": 1e-5, "torque": 1e-4, "impulse": 1e-5, "duration": 1e-5}  # noise-free data: no 0 divisions
+TINY = {"jump": 1e-5, "torque": 1e-4, "impulse": 1e-5, "duration": 1e-5, "trace": 1e-5}  # noise-free data: no 0 divisions
 MAD_TO_STD = 1.4826
 
 
 @dataclass(frozen=True)
 class BlockNoise:
     """Noise std of each compared block: jump (7, rad/s), torque (7, N m), impulse (3, N s),
-    duration (s)."""
+    duration (s), impact trace (14 per sample: the 7 velocities, rad/s, then the 7 torques, N m;
+    the sensor term of ``trace_std``)."""
 
     jump: np.ndarray
     torque: np.ndarray
     impulse: np.ndarray
     duration: float
+    trace: np.ndarray
 
 
 def sample_variance(samples: np.ndarray) -> np.ndarray:
@@ -109,7 +119,18 @@ def estimate_noise(trials) -> BlockNoise:
         torque=largest("torque", REPLAY_TORQUE_FACTOR * torque_sensor, repeat_std(trials, lambda t: t.torque)),
         impulse=impulse,
         duration=duration,
+        trace=largest("trace", np.sqrt(np.concatenate([dq_var, tau_var]) * (1.0 + 1.0 / PRE_SAMPLES))),
     )
+
+
+def trace_std(trace: np.ndarray, sensor: np.ndarray) -> np.ndarray:
+    """The noise std of each sample of a velocity trace (samples x joints): the sensor term
+    ``sensor`` (per joint) and the replay's timing term, ``REPLAY_TIMING_SAMPLES`` times the
+    trace's slope per sample (central differences; the trace starts from 0, the pre-impact
+    mean), combined in quadrature."""
+    padded = np.vstack([np.zeros((1, trace.shape[1])), trace, trace[-1:]])
+    slope = 0.5 * (padded[2:] - padded[:-2])
+    return np.sqrt(sensor**2 + (REPLAY_TIMING_SAMPLES * slope) ** 2)
 
 
 def fits_noise(fit: dict) -> bool:

@@ -50,6 +50,7 @@ REPLAY_TAIL = 30
 START_AVERAGE = 2  # dq at the replay start: mean of samples i0 - 2 .. i0 + 2 (within the log)
 TORQUE_SETTLE = 10  # samples after the replay start before the torque window may begin
 TORQUE_WINDOW = 30  # mean tau over the 30 samples ending 2 samples before the pre-impact one
+TRACE_LENGTH = 16  # samples of the impact trace after the pre-impact one: the jump's rise (soft contact ~10 ms)
 REPLAY_CACHE_SIZE = 512
 _simulated: OrderedDict = OrderedDict()  # (surface, physical plant, trial) -> simulated log or None
 
@@ -75,6 +76,7 @@ class MeasuredTrial:
     dq_pre: np.ndarray
     torque_window: tuple[int, int]  # samples of the replay whose torque is averaged
     dq_log: np.ndarray  # the measured dq over the replay's span (replay sample k is dq_log[k])
+    tau_log: np.ndarray  # the measured tau over the same span
     jump_samples: tuple[int, int]  # replay samples (pre, post) where the fit reads the jumps
     scatter: tuple[np.ndarray, np.ndarray]  # per-sample noise variance of dq and tau before the impact
     force_period: float | None  # the force log's sample period (s), None without force data
@@ -85,6 +87,11 @@ class MeasuredTrial:
         """The measured jump read at ``jump_samples`` (``jump_at``): what the fit compares."""
         return jump_at(self.dq_log, *self.jump_samples)
 
+    @property
+    def reference_trace(self) -> np.ndarray:
+        """The measured trace of the impact (``impact_trace``): what the fit compares."""
+        return impact_trace(self.dq_log, self.tau_log, self.jump_samples[0])
+
 
 def jump_at(dq: np.ndarray, pre: int, post: int) -> np.ndarray:
     """The jump of the velocities ``dq`` read at the samples (pre, post) with the averages of
@@ -94,17 +101,36 @@ def jump_at(dq: np.ndarray, pre: int, post: int) -> np.ndarray:
     return dq[post - POST_HALF_WIDTH : post + POST_HALF_WIDTH + 1].mean(axis=0) - dq_pre
 
 
+def trace_at(x: np.ndarray, pre: int) -> np.ndarray:
+    """(TRACE_LENGTH, columns): the samples of ``x`` in the TRACE_LENGTH after ``pre`` minus
+    the mean of the ``PRE_SAMPLES`` ending at ``pre``: how the signal changes through the
+    impact, sample by sample."""
+    x_pre = x[pre - PRE_SAMPLES + 1 : pre + 1].mean(axis=0)
+    return x[pre + 1 : pre + 1 + TRACE_LENGTH] - x_pre
+
+
+def impact_trace(dq: np.ndarray, tau: np.ndarray, pre: int) -> np.ndarray:
+    """(TRACE_LENGTH, 14): the traces (``trace_at``) of the joint velocities (columns 0-6) and
+    torques (7-13). A jump read at two samples cannot tell a late sensor from a filtered
+    velocity or from a plant that yields slowly: the velocity's rise and the torque's answer,
+    sample by sample, can (a late sensor moves both, a velocity filter only rounds the
+    first; ``docs/diagnosis.md``)."""
+    return np.hstack([trace_at(dq, pre), trace_at(tau, pre)])
+
+
 @dataclass(frozen=True)
 class ReplayFeatures:
     """What a replay gives: its jump read at the trial's ``jump_samples`` (compared with the
-    trial's ``reference``), its impulse, contact duration and pre-impact torque, and its jump
-    as ``controller.measured.impact`` detects and reads it (for the report)."""
+    trial's ``reference``), its impulse, contact duration and pre-impact torque, its jump
+    as ``controller.measured.impact`` detects and reads it (for the report) and its impact
+    trace (``impact_trace``, compared with the trial's ``reference_trace``)."""
 
     jump: np.ndarray
     impulse: np.ndarray | None
     duration: float | None
     torque: np.ndarray
     detected_jump: np.ndarray
+    trace: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -172,6 +198,7 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
                 dq_pre=impact.dq_pre,
                 torque_window=(first - i0, last - i0),
                 dq_log=log.dq[i0:i1].copy(),
+                tau_log=log.tau[i0:i1].copy(),
                 jump_samples=(impact.pre_index - i0, impact.post_index - i0),
                 scatter=(sample_variance(log.dq[:quiet]), sample_variance(log.tau[:quiet])),
                 force_period=float(np.median(np.diff(log.force_t))) if len(log.force_t) > 1 else None,
@@ -242,15 +269,17 @@ def replay(log, trial: MeasuredTrial) -> ReplayFeatures:
     push away from it; so are the impulse and the detected jump of a replay without an impact.
     """
     if log is None:
-        return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, np.zeros(NQ), np.zeros(NQ))
+        trace = np.zeros_like(trial.reference_trace)
+        return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, np.zeros(NQ), np.zeros(NQ), trace)
     first, last = trial.torque_window
     torque = log.tau[first:last].mean(axis=0)
     jump = jump_at(log.dq, *trial.jump_samples)
+    trace = impact_trace(log.dq, log.tau, trial.jump_samples[0])
     try:
         impact = measure_impact(log)
     except ImpactNotFoundError:
-        return ReplayFeatures(jump, np.zeros(3), 0.0, torque, np.zeros(NQ))
-    return ReplayFeatures(jump, impact.impulse, impact.duration, torque, impact.dq_jump)
+        return ReplayFeatures(jump, np.zeros(3), 0.0, torque, np.zeros(NQ), trace)
+    return ReplayFeatures(jump, impact.impulse, impact.duration, torque, impact.dq_jump, trace)
 
 
 def locate_jump_samples(trials: list[MeasuredTrial], setting: ReplaySetting, plant: PlantParameters) -> list[MeasuredTrial]:
