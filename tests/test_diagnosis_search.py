@@ -75,8 +75,9 @@ def test_three_hidden_effects_that_a_greedy_selection_missed_are_named(tmp_path)
 
 def test_one_joints_velocity_scale_is_named_with_that_joint(tmp_path):
     """Joint 4's dq logged 12 % too large: the global velocity scale is chosen first, then
-    refined per joint; joint 4's interval holds the truth and excludes 1, every other joint's
-    holds 1."""
+    refined per joint; joint 4's interval holds the truth and excludes 1, and joint 4 is the one
+    that moved: every other joint's value stays within 10 % of 1 and at most one of their six
+    95 % intervals misses 1 (all six hold it only about 0.95^6 = 74 % of the time)."""
     joints = [1.0, 1.0, 1.0, 1.12, 1.0, 1.0, 1.0]
     plant = PlantParameters(sensor_joint_velocity_scale=joints)
     generate_dataset(tmp_path, DatasetRequest(plant=plant, seed=6, **SMALL))
@@ -87,7 +88,10 @@ def test_one_joints_velocity_scale_is_named_with_that_joint(tmp_path):
     assert "sensor_joint_velocity_scale" in scale["parameters"]  # refined in the first step
     intervals = [p["interval"] for p in result["parameter_intervals"]]
     assert len(intervals) == 7 and inside(1.12, intervals[3]) and not inside(1.0, intervals[3])
-    assert all(inside(1.0, i) for j, i in enumerate(intervals) if j != 3), intervals
+    values = [p["value"] for p in result["parameter_intervals"]]
+    others = [j for j in range(7) if j != 3]
+    assert all(abs(values[j] - 1.0) < 0.1 for j in others), values
+    assert sum(not inside(1.0, intervals[j]) for j in others) <= 1, intervals
     check_contract(result)
 
 
