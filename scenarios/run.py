@@ -229,7 +229,8 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 class StopSignals:
     """While active (in the main thread only: signal handlers can be set nowhere else), Ctrl-C,
-    SIGTERM or SIGHUP asks the current ``loop`` to brake to a stop."""
+    SIGTERM or SIGHUP asks the current ``loop`` to brake to a stop; a signal the parent set to be
+    ignored (``nohup``, a background job) stays ignored, as in the command line's ``main``."""
 
     def __init__(self):
         self.loop: ControlLoop | None = None
@@ -241,7 +242,11 @@ class StopSignals:
 
     def __enter__(self) -> StopSignals:
         if threading.current_thread() is threading.main_thread():
-            self.previous = {sig: signal.signal(sig, self.request_stop) for sig in STOP_SIGNALS}
+            self.previous = {
+                sig: signal.signal(sig, self.request_stop)
+                for sig in STOP_SIGNALS
+                if signal.getsignal(sig) is not signal.SIG_IGN
+            }
         return self
 
     def __exit__(self, *exc) -> None:
