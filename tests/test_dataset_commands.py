@@ -120,6 +120,16 @@ def test_diagnose_without_a_manifest_is_a_clear_error(tmp_path, capsys):
     assert code == 2 and "dataset.json" in err and len(err.strip().splitlines()) == 1
 
 
+def test_diagnose_of_one_trial_prints_no_candidate_table(tmp_path, capsys):
+    """One trial: the nominal replay's verdict, no cause and no empty candidate table."""
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
+
+    generate_dataset(tmp_path, DatasetRequest(postures=["elbow_up"], speeds=[0.1]))
+    code, out, _ = run(capsys, "diagnose", tmp_path)
+    assert code == 0 and out.startswith("One trial") and "causes: none" in out
+    assert "candidate" not in out and "predictors" in out
+
+
 def test_diagnose_text_is_readable(small_dataset, capsys, monkeypatch):
     """Booleans as JSON writes them, parameters by joint group, the candidates sorted by gain."""
     import impactqp.sim.diagnosis as diagnosis

@@ -248,7 +248,8 @@ def _print_diagnosis(result, summary: dict, speeds) -> None:
         )
     for p in summary["parameter_intervals"]:
         click.echo(f"  {p['parameter']:<40} {number(p['value']):>10}  95 %: {interval_text(p['interval'])}")
-    click.echo(f"{'candidate':<15}{'held-out':>10}{'gain':>9}")
+    if summary["candidates"]:  # none on one trial: the selection holds trials out
+        click.echo(f"{'candidate':<15}{'held-out':>10}{'gain':>9}")
     for c in sorted(summary["candidates"], key=lambda c: -c["gain"]):
         click.echo(f"{c['cause']:<15}{c['heldout_error']:>10.4f}{100 * c['gain']:>8.1f}%")
     click.echo("predictors (average error (26), own impulse): " + ", ".join(f"{k} {v:.4f}" for k, v in summary["predictors"].items()))
