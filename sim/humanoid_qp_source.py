@@ -45,6 +45,7 @@ from .humanoid_trial import NORMAL, RAMP, SETTLE
 FEEDBACK = ("measured", "commanded")
 IMPACT_ROWS = "post_impact_velocity"  # name prefix of the predicted post-impact joint-velocity rows
 CAPTURE_ROWS = "capture_region"  # name prefix of the capture-region rows
+QP_GAP = 0.05  # m from the contact point to the wall at the start (docs/floating-base.md: room to accelerate)
 HAND_ACCELERATION = 2.0  # m/s^2: a lower bound of the hand's acceleration under the QP's joint limits
 
 
@@ -56,7 +57,9 @@ class QpCommand:
     method: str = "crb"
     solver: str = "daqp"
     feedback: str = "commanded"
+    gap: float = QP_GAP
     name = "qp"
+    tracks_speed = True  # the hand's task asks the speed itself; the QP's rows and limits may cap it
 
     def __post_init__(self):
         if self.feedback not in FEEDBACK:

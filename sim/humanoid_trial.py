@@ -169,6 +169,8 @@ class ScriptedCommand:
     command drops to zero at the stop (LATENCY after the first wall contact)."""
 
     name = "scripted"
+    gap = GAP  # m from the contact point to the wall at the start
+    tracks_speed = False  # the servo lags the command: the contact speed is below the commanded one
 
     def approach_time(self, gap: float, speed: float) -> float:
         """s allowed from the end of the settling to the first wall contact."""
@@ -200,12 +202,13 @@ SCRIPTED = ScriptedCommand()
 
 
 def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, gain: float = SERVO_GAIN,
-                     armature=None, q0: np.ndarray | None = None, gap: float = GAP, source=SCRIPTED) -> ImpactTrial:
+                     armature=None, q0: np.ndarray | None = None, gap: float | None = None, source=SCRIPTED) -> ImpactTrial:
     """Simulate one trial (module docstring) and compare the jump with the predictors; ``gap``
-    (m) is the start distance of the contact point from the wall, ``armature`` the plant's rotor
+    (m) is the start distance of the contact point from the wall (None: the source's), ``armature`` the plant's rotor
     inertia (``sim.humanoid_scene.plant_armature``: None for the G1's actuators), ``source`` the
     command source (``SCRIPTED``, or ``sim.humanoid_qp_source.QpCommand``: the whole-body QP)."""
     q0 = stance_posture(robot, stance) if q0 is None else q0
+    gap = source.gap if gap is None else gap
     contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
     scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature)
     start = q0.copy()
