@@ -6,7 +6,10 @@ Trial: the robot starts at rest in a stance (``controller.model.humanoid_stance`
 dq_arm = J_arm^+ v* (J_arm the 3x7 block of the contact Jacobian), reached by a 20 ms velocity
 ramp; every other joint is commanded at rest. At the first wall contact (plus a 5 ms detection
 latency) the command drops to zero; the trial goes on for :data:`AFTER` s to see whether the robot
-stands.
+stands. That is the default command source (:data:`SCRIPTED`); ``source`` chooses another one,
+e.g. the whole-body QP (``sim.humanoid_qp_source.QpCommand``): a source gives its start gap, the
+time it may take to reach the wall, and per trial a driver whose ``command(t, q, v, stopped)``
+returns the 29 joints' velocity command (``stopped``: LATENCY has passed since the first contact).
 
 Servo (the kinematic control, as the arm's ``sim.runner`` servo): a joint-space computed-torque PD
 with acceleration feed-forward on the 29 joints, tau = M_f (ddq_ref + w^2 e + 2 w de) + h_j -
