@@ -40,7 +40,7 @@ from impactqp.controller.qp.command import Command, Status
 from impactqp.controller.qp.whole_body_setup import WholeBodySetup, build_whole_body_controller
 from impactqp.tasks import ContactApproachTask
 
-from .humanoid_trial import NORMAL, RAMP, SETTLE
+from .humanoid_trial import LAG, NORMAL, RAMP, SETTLE
 
 FEEDBACK = ("measured", "commanded")
 IMPACT_ROWS = "post_impact_velocity"  # name prefix of the predicted post-impact joint-velocity rows
@@ -69,7 +69,7 @@ class QpCommand:
         """s allowed from the end of the settling to the first wall contact: three times the gap
         at the asked speed, plus the time to reach it at HAND_ACCELERATION, plus the scripted
         source's ramp and lag margin."""
-        return 3 * gap / speed + speed / HAND_ACCELERATION + RAMP + 0.1
+        return 3 * gap / speed + speed / HAND_ACCELERATION + RAMP + LAG
 
     def start(self, robot: FloatingBaseModel, q0: np.ndarray, wall_x: float, speed: float) -> QpDriver:
         """The driver of one trial: the controller of the stance q0 towards the wall plane x = wall_x."""
