@@ -16,7 +16,7 @@ import numpy as np
 
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
 from impactqp.controller.model.humanoid_stance import STANCES
-from impactqp.sim.humanoid_trial import SERVO_GAIN, ImpactTrial, run_impact_trial
+from impactqp.sim.humanoid_trial import SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial
 
 DEFAULT_SPEEDS = (0.1, 0.2, 0.3, 0.4)
 PREDICTORS = (*METHODS, "momentum")
@@ -28,12 +28,14 @@ def run_campaign(
     speeds: Iterable[float] = DEFAULT_SPEEDS,
     gain: float = SERVO_GAIN,
     armature=None,
+    source=SCRIPTED,
 ) -> list[ImpactTrial]:
     """One trial per stance and commanded hand speed (m/s); ``gain`` is the servo bandwidth (rad/s),
     ``armature`` the plant's rotor inertia (kg m^2): None for the G1's actuators
-    (``controller.model.g1_actuators``), one number for every joint (0: link-only) or 29."""
+    (``controller.model.g1_actuators``), one number for every joint (0: link-only) or 29; ``source``
+    the command source (``sim.humanoid_trial.SCRIPTED`` or ``sim.humanoid_qp_source.QpCommand``)."""
     return [
-        run_impact_trial(robot, STANCES[name], speed, gain=gain, armature=armature)
+        run_impact_trial(robot, STANCES[name], speed, gain=gain, armature=armature, source=source)
         for name in stances
         for speed in speeds
     ]

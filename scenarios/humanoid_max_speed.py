@@ -43,7 +43,7 @@ from impactqp.controller.model.humanoid_max_speed import (  # noqa: E402
 )
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture  # noqa: E402
 from impactqp.controller.model.validation import BadInputError, number_in_range  # noqa: E402
-from impactqp.sim.humanoid_trial import NORMAL, SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
+from impactqp.sim.humanoid_trial import NORMAL, SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
 
 LOWEST_SPEED = 0.05  # m/s commanded
 HIGHEST_SPEED = 3.0  # m/s commanded: the torque-limited hand reaches about 1.1-1.3 m/s in the 2 cm to the wall
@@ -151,15 +151,18 @@ def bisect_speed(trial, tolerance: float = DEFAULT_TOLERANCE) -> tuple[float, li
 
 def search_stance(
     robot: FloatingBaseModel, stance: str, setting: Setting = Setting(), plant: Plant = Plant(),
-    tolerance: float = DEFAULT_TOLERANCE, methods=("classical", "gm", "crb"),
+    tolerance: float = DEFAULT_TOLERANCE, methods=("classical", "gm", "crb"), source=SCRIPTED,
 ) -> StanceMaxSpeed:
-    """The closed-form speeds of ``methods`` and the simulated bisection of one stance."""
+    """The closed-form speeds of ``methods`` and the simulated bisection of one stance, its trials
+    driven by ``source`` (``sim.humanoid_trial.SCRIPTED`` or ``sim.humanoid_qp_source.QpCommand``)."""
     if stance not in STANCES:
         raise BadInputError(f"unknown stance {stance!r}; known: {', '.join(STANCES)}")
     q = stance_posture(robot, STANCES[stance])
 
     def trial(speed: float) -> Evaluation:
-        return Evaluation.of(run_impact_trial(robot, STANCES[stance], speed, gain=plant.gain, armature=plant.armature, q0=q))
+        return Evaluation.of(
+            run_impact_trial(robot, STANCES[stance], speed, gain=plant.gain, armature=plant.armature, q0=q, source=source)
+        )
 
     best, evaluations = bisect_speed(trial, tolerance)
     feasible = [e for e in evaluations if not e.violated and e.reference_speed <= best]
@@ -169,14 +172,21 @@ def search_stance(
     return StanceMaxSpeed(stance, q, predicted_speeds(robot, q, setting, methods), best, contact, first, evaluations)
 
 
-def trial_at_contact_speed(robot, stance: str, q: np.ndarray, target: float, plant: Plant) -> ImpactTrial:
+def trial_at_contact_speed(
+    robot, stance: str, q: np.ndarray, target: float, plant: Plant, source=SCRIPTED
+) -> ImpactTrial:
     """A trial whose measured contact speed is ``target`` within 2 % (secant on the commanded
     speed within [LOWEST_SPEED, 2 HIGHEST_SPEED], at most SECANT_STEPS trials; the closest one
-    otherwise: with torque-limited joints a contact speed may be out of reach)."""
+    otherwise: with torque-limited joints a contact speed may be out of reach). A source that
+    tracks the speed itself (``source.tracks_speed``: the whole-body QP) is asked ``target`` once."""
     def run(speed):
-        return run_impact_trial(robot, STANCES[stance], speed, gain=plant.gain, armature=plant.armature, q0=q)
+        return run_impact_trial(
+            robot, STANCES[stance], speed, gain=plant.gain, armature=plant.armature, q0=q, source=source
+        )
 
     points = [(target, run(target))]
+    if source.tracks_speed:
+        return points[0][1]
     speed = 1.4 * target  # the hand reaches about 0.7 of the commanded speed
     for _ in range(SECANT_STEPS):
         points.append((speed, run(speed)))
@@ -201,15 +211,17 @@ class CheckRow:
 
 
 def check_against_simulation(
-    robot: FloatingBaseModel, stances=tuple(STANCES), setting: Setting = Setting(), plant: Plant = Plant()
+    robot: FloatingBaseModel, stances=tuple(STANCES), setting: Setting = Setting(), plant: Plant = Plant(),
+    source=SCRIPTED,
 ) -> list[CheckRow]:
-    """Trials at BELOW and ABOVE x the closed-form speed of ``setting`` for each stance (module docstring)."""
+    """Trials at BELOW and ABOVE x the closed-form speed of ``setting`` for each stance (module
+    docstring), driven by ``source`` (``trial_at_contact_speed``)."""
     rows = []
     for stance in stances:
         q = stance_posture(robot, STANCES[stance])
         predicted = closed_form_max_speed(robot, q, NORMAL, setting)
         for fraction in (*BELOW, *ABOVE):
-            trial = trial_at_contact_speed(robot, stance, q, fraction * predicted.speed, plant)
+            trial = trial_at_contact_speed(robot, stance, q, fraction * predicted.speed, plant, source)
             rows.append(CheckRow(stance, fraction, predicted.criterion, trial))
     return rows
 

@@ -6,7 +6,10 @@ Trial: the robot starts at rest in a stance (``controller.model.humanoid_stance`
 dq_arm = J_arm^+ v* (J_arm the 3x7 block of the contact Jacobian), reached by a 20 ms velocity
 ramp; every other joint is commanded at rest. At the first wall contact (plus a 5 ms detection
 latency) the command drops to zero; the trial goes on for :data:`AFTER` s to see whether the robot
-stands.
+stands. That is the default command source (:data:`SCRIPTED`); ``source`` chooses another one,
+e.g. the whole-body QP (``sim.humanoid_qp_source.QpCommand``): a source gives its start gap, the
+time it may take to reach the wall, and per trial a driver whose ``command(t, q, v, stopped)``
+returns the 29 joints' velocity command (``stopped``: LATENCY has passed since the first contact).
 
 Servo (the kinematic control, as the arm's ``sim.runner`` servo): a joint-space computed-torque PD
 with acceleration feed-forward on the 29 joints, tau = M_f (ddq_ref + w^2 e + 2 w de) + h_j -
@@ -49,7 +52,7 @@ horizontal / vertical motion of a foot frame after the settling (``slipped`` / `
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -113,6 +116,9 @@ class ImpactTrial:
     wall_x: float  # m: the wall plane's position
     q_log: np.ndarray  # (steps, nq) Pinocchio configurations at the control rate
     contact_index: int  # the control step of the first wall contact
+    source: str = "scripted"  # the command source (``ScriptedCommand.name``, ``QpCommand.name``)
+    commands: np.ndarray | None = None  # (steps, 29) joint velocity commands sent to the servo (rad/s)
+    record: object = None  # what the command source kept of each control step (the QP's ``QpRecord``), or None
 
     @property
     def feasible(self) -> bool:
@@ -159,12 +165,53 @@ class _Servo:
         return tau
 
 
+@dataclass(frozen=True)
+class ScriptedCommand:
+    """The scripted command source (module docstring): the 7 right-arm joints follow
+    dq_arm = J_arm^+ v* after a RAMP s velocity ramp, every other joint at rest, and the whole
+    command drops to zero at the stop (LATENCY after the first wall contact)."""
+
+    name = "scripted"
+    gap = GAP  # m from the contact point to the wall at the start
+    tracks_speed = False  # the servo lags the command: the contact speed is below the commanded one
+
+    def approach_time(self, gap: float, speed: float) -> float:
+        """s allowed from the end of the settling to the first wall contact."""
+        return 3 * gap / speed + RAMP + LAG
+
+    def start(self, robot: FloatingBaseModel, q0: np.ndarray, wall_x: float, speed: float) -> _ScriptedDriver:
+        """The driver of one trial (``wall_x`` unused: the script aims along +x)."""
+        return _ScriptedDriver(robot, speed)
+
+
+class _ScriptedDriver:
+    """One trial of ``ScriptedCommand``: ``command(t, q, v, stopped)`` -> the 29 joints' dq_cmd."""
+
+    def __init__(self, robot: FloatingBaseModel, speed: float):
+        self.robot, self.speed = robot, speed
+        self.arm = np.array([robot.joint_index(j) for j in ARM_JOINTS])
+        self.record = None
+
+    def command(self, t: float, q_pin: np.ndarray, v_pin: np.ndarray, stopped: bool) -> np.ndarray:
+        dq_cmd = np.zeros(29)
+        if t >= SETTLE and not stopped:
+            terms = self.robot.terms(q_pin)
+            scale = min(1.0, (t - SETTLE) / RAMP)
+            dq_cmd[self.arm] = np.linalg.pinv(terms.J[:, 6 + self.arm]) @ (-scale * self.speed * NORMAL)
+        return dq_cmd
+
+
+SCRIPTED = ScriptedCommand()
+
+
 def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, gain: float = SERVO_GAIN,
-                     armature=None, q0: np.ndarray | None = None, gap: float = GAP) -> ImpactTrial:
+                     armature=None, q0: np.ndarray | None = None, gap: float | None = None, source=SCRIPTED) -> ImpactTrial:
     """Simulate one trial (module docstring) and compare the jump with the predictors; ``gap``
-    (m) is the start distance of the contact point from the wall, ``armature`` the plant's rotor
-    inertia (``sim.humanoid_scene.plant_armature``: None for the G1's actuators)."""
+    (m) is the start distance of the contact point from the wall (None: the source's), ``armature`` the plant's rotor
+    inertia (``sim.humanoid_scene.plant_armature``: None for the G1's actuators), ``source`` the
+    command source (``SCRIPTED``, or ``sim.humanoid_qp_source.QpCommand``: the whole-body QP)."""
     q0 = stance_posture(robot, stance) if q0 is None else q0
+    gap = source.gap if gap is None else gap
     contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
     scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature)
     start = q0.copy()
@@ -172,22 +219,18 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     scene.set_state(start)
     model, data = scene.model, scene.data
     servo = _Servo(scene, robot, q0, gain)
+    driver = source.start(robot, q0, scene.wall_x, speed)
     substeps = int(round(CONTROL_PERIOD / model.opt.timestep))
-    arm = np.array([robot.joint_index(j) for j in ARM_JOINTS])
-    approach_steps = int(round((SETTLE + 3 * gap / speed + RAMP + LAG) / CONTROL_PERIOD))
-    states, forces, floor_impulses, feet, soles = [], [], [], [], []
+    approach_steps = int(round((SETTLE + source.approach_time(gap, speed)) / CONTROL_PERIOD))
+    states, forces, floor_impulses, feet, soles, commands = [], [], [], [], [], []
     first_contact, stop_at, end = None, None, approach_steps
     k = 0
     while k < end:
         q_pin, v_pin = to_pinocchio(data.qpos, data.qvel)
         states.append((q_pin, v_pin))
         feet.append(data.xpos[list(scene.foot_bodies)].copy())
-        dq_cmd = np.zeros(29)
-        t = k * CONTROL_PERIOD
-        if t >= SETTLE and (stop_at is None or k < stop_at):
-            terms = robot.terms(q_pin)
-            scale = min(1.0, (t - SETTLE) / RAMP)
-            dq_cmd[arm] = np.linalg.pinv(terms.J[:, 6 + arm]) @ (-scale * speed * NORMAL)
+        dq_cmd = driver.command(k * CONTROL_PERIOD, q_pin, v_pin, stop_at is not None and k >= stop_at)
+        commands.append(dq_cmd)
         tau = servo.torque(dq_cmd, CONTROL_PERIOD)
         force, floor, sole = np.zeros(3), np.zeros(3), None
         for _ in range(substeps):
@@ -207,9 +250,10 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
             end = k + int(round(AFTER / CONTROL_PERIOD))
         k += 1
     if first_contact is None:
-        raise RuntimeError(f"the hand never reached the wall (stance {stance.name}, {speed} m/s)")
+        raise RuntimeError(f"the hand never reached the wall (stance {stance.name}, {speed} m/s, {source.name} command)")
     log = _Log(states, np.array(forces), np.array(floor_impulses), np.array(feet), np.array(soles))
-    return _evaluate(robot, stance, speed, log, first_contact, scene.wall_x)
+    trial = _evaluate(robot, stance, speed, log, first_contact, scene.wall_x)
+    return replace(trial, source=source.name, commands=np.array(commands), record=driver.record)
 
 
 def _contact_forces(scene) -> tuple[np.ndarray, np.ndarray]:

@@ -48,6 +48,18 @@ def test_simulate_g1_json(capsys):
     assert len(report["dq_jump"]) == 35 and report["violated"] is False
 
 
+def test_simulate_g1_driven_by_the_whole_body_qp(capsys):
+    code, out, _ = run(capsys, "simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.2",
+                       "--controller", "qp", "--jump-model", "gm", "--json")
+    assert code == 0
+    report = json.loads(out)
+    assert report["controller"] == "qp" and report["jump_model"] == "gm" and report["cycles_not_ok"] >= 0
+    assert {"contact_speed", "dq_jump", "errors", "fell", "first_failure", "violated"} <= set(report)
+    code, text, _ = run(capsys, "simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.2",
+                        "--controller", "qp")
+    assert code == 0 and "whole-body QP (crb)" in text
+
+
 def test_campaign_g1_json_and_files(capsys, tmp_path):
     code, out, _ = run(capsys, "campaign", "--robot", "g1", "--postures", "parallel", "--speeds", "0.2",
                        "--out", str(tmp_path), "--json")
@@ -74,6 +86,10 @@ def test_max_speed_g1_json(capsys):
 @pytest.mark.parametrize("args", [
     ("simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.2", "--wall-point", "1,0,0"),
     ("max-speed", "--robot", "g1", "--posture", "parallel", "--jump-model", "gm"),
+    ("simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.2", "--jump-model", "gm"),
+    ("simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.2", "--controller", "qp",
+     "--jump-model", "robust"),
+    ("simulate", "--posture", "elbow_right", "--speed", "0.1", "--controller", "qp"),
     ("predict", "--robot", "g1", "--posture", "parallel", "--normal", "-1,0,0", "--speed", "0.2", "--tool", "pad"),
     ("campaign", "--robot", "g1", "--postures", "kneeling"),
     ("postures", "--robot", "g1"),

@@ -2,9 +2,11 @@
 floating-base G1 hitting a wall with its right hand (docs/floating-base.md).
 
 The G1's postures are its stances (``controller.model.humanoid_stance.STANCES``); the wall stands
-2 cm in front of the stance's hand, normal -x. An option of the arm's command that has no meaning
-for the G1 (a tool, a plant file, a wall point, jump constraints: the G1 runs no QP here) is bad
-input when given: one line naming it. The JSON keeps the arm's keys where they mean the same and
+2 cm in front of the stance's hand, normal -x (5 cm with ``simulate --controller qp``: the
+whole-body QP drives the trial, ``sim.humanoid_qp_source``). An option of the arm's command that
+has no meaning for the G1 (a tool, a plant file, a wall point, jump constraints: only
+``simulate --controller qp`` runs a QP, and takes ``--jump-model``) is bad input when given: one
+line naming it. The JSON keeps the arm's keys where they mean the same and
 adds the G1's (CoM jump, foot wrenches, slip, lift, fall).
 """
 
@@ -90,23 +92,35 @@ def trial_json(trial) -> dict:
     }
 
 
-def g1_simulate(posture: str, speed: float, video_file: str | None) -> dict:
-    """One G1 trial (``sim.humanoid_trial``), optionally rendered to a GIF; its JSON."""
+def g1_simulate(posture: str, speed: float, video_file: str | None, controller: str = "scripted") -> dict:
+    """One G1 trial (``sim.humanoid_trial``) driven by the scripted command or (``controller="qp"``)
+    the whole-body QP with the ``--jump-model`` predictor (crb, gm or classical), optionally
+    rendered to a GIF; its JSON (with the QP: ``controller`` and ``cycles_not_ok`` added)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.video import render_humanoid_gif
-    from impactqp.sim.humanoid_trial import run_impact_trial
+    from impactqp.sim.humanoid_qp_source import QpCommand
+    from impactqp.sim.humanoid_trial import SCRIPTED, run_impact_trial
 
-    reject_options(["tangential_text", "no_jump_constraint", "jump_model", "plant_file", "wall_point",
-                    "wall_normal", "out_dir", "tool"])
+    reject_options(["tangential_text", "no_jump_constraint", "plant_file", "wall_point", "wall_normal", "out_dir",
+                    "tool"] + (["jump_model"] if controller == "scripted" else []))
+    source = SCRIPTED
+    if controller == "qp":
+        method = click.get_current_context().params["jump_model"]
+        if method not in METHODS:
+            raise BadInputError(f"--jump-model {method} is not a floating-base predictor; choose from {', '.join(METHODS)}")
+        source = QpCommand(method=method)
     stance = STANCES[stance_names(posture)[0]]
     approach_speed(speed, "--speed")
     if video_file is not None:
         gif_output(video_file)
     robot = FloatingBaseModel()
-    trial = run_impact_trial(robot, stance, speed)
+    trial = run_impact_trial(robot, stance, speed, source=source)
     if video_file is not None:
         render_humanoid_gif(robot, trial, video_file)
-    return trial_json(trial)
+    report = trial_json(trial)
+    if controller == "qp":
+        report.update(controller="qp", jump_model=source.method, cycles_not_ok=trial.record.not_ok)
+    return report
 
 
 def simulate_text(report: dict) -> str:
@@ -117,7 +131,8 @@ def simulate_text(report: dict) -> str:
         "errors (26): " + ", ".join(f"{m} {e:.4f}" for m, e in report["errors"].items()),
         f"foot slip {1e3 * report['foot_slip']:.2f} mm, lift {1e3 * report['foot_lift']:.2f} mm, fell: {report['fell']}, "
         f"max |dq|/dq_max {report['max_velocity_ratio']:.3f}, failed first: {report['first_failure'] or '-'}",
-    ])
+    ] + ([f"whole-body QP ({report['jump_model']}): {report['cycles_not_ok']} cycles not OK"]
+         if report.get("controller") == "qp" else []))
 
 
 def _campaign_trial(task):

@@ -76,6 +76,8 @@ plant_option = click.option("--plant", "plant_file", help="JSON file of plant-pa
 @click.option("--out", "out_dir", help="Add the trial to the dataset in this directory (controller.measured.dataset format).")
 @click.option("--video", "video_file", help="Render the impact to this animated GIF (needs an offscreen GL backend).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
+@click.option("--controller", "controller", type=click.Choice(["scripted", "qp"]),
+              help="With --robot g1: the command source, the scripted arm command (default) or the whole-body QP.")
 @robot_options(humanoid=True)
 def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, **trial):
     """One approach-and-impact trial: the QP controller at 1 kHz drives the MuJoCo robot.
@@ -83,18 +85,22 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     The tool starts at rest 5 cm in front of the wall; the controller accelerates it towards the
     reference velocity (capped by the jump-aware constraints when they are on) until it hits.
     With --robot g1: the standing G1 (a stance) hits the wall with its right hand, kinematic
-    control, no QP (docs/floating-base.md).
+    control, driven by a scripted arm command or (--controller qp) by the whole-body QP
+    (docs/floating-base.md).
     """
+    controller = trial.pop("controller")
     if isinstance(choice, HumanoidChoice):
         # lazy: the command line loads what a command needs when it runs
         from impactqp.scenarios.cli.humanoid_commands import g1_simulate, simulate_text
 
-        report = g1_simulate(posture_name, speed, trial["video_file"])
+        report = g1_simulate(posture_name, speed, trial["video_file"], controller or "scripted")
         if as_json:
             emit_json(report)
         else:
             click.echo(simulate_text(report))
         return
+    if controller is not None:
+        raise BadInputError("--controller chooses the command source of --robot g1; the arm is always driven by its QP")
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.campaign import write_trial
     from impactqp.sim.runner import dataset_header

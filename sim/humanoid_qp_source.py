@@ -1,0 +1,137 @@
+"""The whole-body QP as the command source of the simulated G1 trial (docs/floating-base.md,
+"Trials driven by the whole-body QP").
+
+``run_impact_trial(..., source=QpCommand())`` drives the 29 joints with the controller of
+``controller.qp.whole_body_setup`` instead of the scripted arm command:
+
+- the controller is built for the stance (``WholeBodySetup(surface=the wall, speed=the trial's
+  hand speed)``: the wall plane at ``wall_x`` with normal -x; its support polygon is the start
+  stance's) and reset at the state measured when the settling ends (its CoM, torso and posture
+  targets are that state's);
+- during the settling the joints are held (zero command, as the scripted source); from then on,
+  every 1 ms control step, the controller is given the state (Pinocchio convention) and the
+  joints' part of its ``v_cmd`` goes to the trial's servo, which integrates it (kinematic control);
+- at the stop (the trial's LATENCY after the first wall contact) the hand's approach speed target
+  becomes 0 (``ContactApproachTask.reference_velocity``): the QP brakes within its acceleration
+  and jerk limits. Why the task target and not a second reset: a reset would re-capture the CoM,
+  torso and posture targets at the post-impact state (keeping whatever the impact displaced) and
+  zero the controller's acceleration memory, a step of acceleration that skips the jerk limit.
+
+``feedback`` says which state the controller is given: ``"measured"`` (the plant's state,
+``to_pinocchio``) or ``"commanded"`` (its own previous (q_cmd, v_cmd), the measured state only at
+the reset; the arm's convention of ``scenarios.trial``, where measured feedback closes a positive
+loop through the servo's acceleration feed-forward).
+
+Each control step's status, the impact rows' activity and the predicted post-impact velocity at
+the command (``Command.predicted_post_impact_velocity``) are kept in a ``QpRecord``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from impactqp.controller.model.floating_base import NB, FloatingBaseModel
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.whole_body_terms import WholeBodyModel
+from impactqp.controller.qp.command import Command, Status
+from impactqp.controller.qp.whole_body_setup import WholeBodySetup, build_whole_body_controller
+from impactqp.tasks import ContactApproachTask
+
+from .humanoid_trial import LAG, NORMAL, RAMP, SETTLE
+
+FEEDBACK = ("measured", "commanded")
+IMPACT_ROWS = "post_impact_velocity"  # name prefix of the predicted post-impact joint-velocity rows
+CAPTURE_ROWS = "capture_region"  # name prefix of the capture-region rows
+QP_GAP = 0.05  # m from the contact point to the wall at the start (docs/floating-base.md: room to accelerate)
+HAND_ACCELERATION = 2.0  # m/s^2: a lower bound of the hand's acceleration under the QP's joint limits
+
+
+@dataclass(frozen=True)
+class QpCommand:
+    """The whole-body QP as a trial's command source (module docstring): jump predictor of the
+    impact rows (crb, gm or classical), QP solver and which state the controller is given."""
+
+    method: str = "crb"
+    solver: str = "daqp"
+    feedback: str = "commanded"
+    gap: float = QP_GAP
+    name = "qp"
+    tracks_speed = True  # the hand's task asks the speed itself; the QP's rows and limits may cap it
+
+    def __post_init__(self):
+        if self.feedback not in FEEDBACK:
+            raise BadInputError(f"unknown feedback {self.feedback!r}; choose from {', '.join(FEEDBACK)}")
+
+    def approach_time(self, gap: float, speed: float) -> float:
+        """s allowed from the end of the settling to the first wall contact: three times the gap
+        at the asked speed, plus the time to reach it at HAND_ACCELERATION, plus the scripted
+        source's ramp and lag margin."""
+        return 3 * gap / speed + speed / HAND_ACCELERATION + RAMP + LAG
+
+    def start(self, robot: FloatingBaseModel, q0: np.ndarray, wall_x: float, speed: float) -> QpDriver:
+        """The driver of one trial: the controller of the stance q0 towards the wall plane x = wall_x."""
+        model = WholeBodyModel(robot)
+        contact = model.terms(q0).contact_point
+        wall = Surface(np.array([wall_x, contact[1], contact[2]]), NORMAL.copy())
+        setup = WholeBodySetup(surface=wall, speed=speed, method=self.method, solver=self.solver)
+        return QpDriver(build_whole_body_controller(model, q0, setup), self.feedback)
+
+
+@dataclass
+class QpRecord:
+    """What the QP did at each control step after the settling (``steps`` from its first cycle)."""
+
+    first_step: int = 0  # the trial's control step of the QP's first cycle
+    statuses: list = field(default_factory=list)  # Status of each cycle
+    impact_rows_active: list = field(default_factory=list)  # a post-impact velocity row tight at the solution
+    capture_rows_active: list = field(default_factory=list)  # a capture-region row tight at the solution
+    impact_constraints_on: list = field(default_factory=list)  # the activation rule switched the impact rows on
+    predicted_post_impact: list = field(default_factory=list)  # (35) v_cmd + predicted jump of each cycle
+    messages: list = field(default_factory=list)  # the message of each cycle whose status is not OK
+
+    def add(self, command: Command) -> None:
+        self.statuses.append(Status(command.status))
+        self.impact_rows_active.append(any(n.startswith(IMPACT_ROWS) for n in command.active_constraints))
+        self.capture_rows_active.append(any(n.startswith(CAPTURE_ROWS) for n in command.active_constraints))
+        self.impact_constraints_on.append(bool(command.impact_constraints_active))
+        self.predicted_post_impact.append(command.predicted_post_impact_velocity.copy())
+        if command.status != Status.OK:
+            self.messages.append(command.message)
+
+    @property
+    def not_ok(self) -> int:
+        """Cycles whose status is not OK (a clipped velocity or a fallback)."""
+        return sum(s != Status.OK for s in self.statuses)
+
+    def cycle(self, step: int) -> int:
+        """The QP cycle of the trial's control step ``step``."""
+        return step - self.first_step
+
+
+class QpDriver:
+    """One trial of ``QpCommand``: ``command(t, q, v, stopped)`` -> the 29 joints' dq_cmd."""
+
+    def __init__(self, controller, feedback: str):
+        self.controller, self.feedback = controller, feedback
+        self.approach = next(t for t in controller.tasks if isinstance(t, ContactApproachTask))
+        self.record = QpRecord()
+        self.last: Command | None = None
+        self._step = 0
+
+    def command(self, t: float, q_pin: np.ndarray, v_pin: np.ndarray, stopped: bool) -> np.ndarray:
+        step, self._step = self._step, self._step + 1
+        if t < SETTLE:
+            return np.zeros(len(v_pin) - NB)
+        if self.last is None:
+            self.controller.reset(q_pin, v_pin)
+            self.record.first_step = step
+        elif self.feedback == "commanded":
+            q_pin, v_pin = self.last.q_cmd, self.last.dq_cmd
+        if stopped:
+            self.approach.reference_velocity = np.zeros(3)
+        self.last = self.controller.step(q_pin, v_pin)
+        self.record.add(self.last)
+        return self.last.dq_cmd[NB:].copy()

@@ -1,0 +1,90 @@
+"""The simulated G1 trial driven by the whole-body QP (sim/humanoid_qp_source.py)."""
+
+import numpy as np
+import pytest
+
+from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.whole_body_terms import JOINT_ACCELERATION_LIMIT, JOINT_JERK_LIMIT
+from impactqp.controller.qp.command import Status
+from impactqp.scenarios.humanoid_max_speed import Plant, trial_at_contact_speed
+from impactqp.sim.humanoid_qp_source import QpCommand
+from impactqp.sim.humanoid_trial import CONTROL_PERIOD, LATENCY, NORMAL, SETTLE, run_impact_trial
+
+FOOT_ONSETS = {"foot_slip", "foot_lift"}
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return FloatingBaseModel()
+
+
+@pytest.fixture(scope="module")
+def trial(robot):
+    """A moderate asked speed (0.3 m/s) in the parallel stance."""
+    return run_impact_trial(robot, STANCES["parallel"], 0.3, source=QpCommand())
+
+
+def test_the_qp_drives_the_hand_to_the_wall_and_the_robot_stands(trial):
+    assert trial.source == "qp"
+    assert trial.impulse @ NORMAL > 0.0
+    assert 0.0 < trial.contact_speed <= 0.3 * 1.02
+    assert not trial.fell
+
+
+def test_every_cycle_is_ok_and_every_command_is_finite_and_within_the_limits(robot, trial):
+    record = trial.record
+    start = int(round(SETTLE / CONTROL_PERIOD))
+    assert record.first_step == start and len(record.statuses) == len(trial.commands) - start
+    assert record.not_ok == sum(s != Status.OK for s in record.statuses) == 0, record.messages
+    assert np.all(np.isfinite(trial.commands))
+    assert np.all(np.abs(trial.commands) <= robot.dq_max)
+    np.testing.assert_array_equal(trial.commands[:start], 0.0)
+
+
+def test_the_commands_change_within_the_acceleration_and_jerk_limits(trial):
+    """Given its own command as the state, the QP's commands step by its accelerations times dt:
+    within 25 rad/s^2, changing by at most the jerk limit per cycle, through the impact. (Its first
+    command starts from the measured state after the settling, a few mrad/s off rest.)"""
+    start = trial.record.first_step
+    acceleration = np.diff(trial.commands[start:], axis=0) / CONTROL_PERIOD
+    assert np.all(np.abs(acceleration) <= JOINT_ACCELERATION_LIMIT * (1 + 1e-9))
+    jerk = np.diff(acceleration, axis=0) / CONTROL_PERIOD
+    assert np.all(np.abs(jerk) <= JOINT_JERK_LIMIT * (1 + 1e-6))
+
+
+def test_the_qp_brakes_the_hand_after_the_stop(robot, trial):
+    """From the stop on the approach target is 0: the commanded joint velocities decay to rest
+    within the trial, at the acceleration limit at most."""
+    stop = trial.contact_index + int(round(LATENCY / CONTROL_PERIOD))
+    at_stop = np.abs(trial.commands[stop]).max()
+    assert at_stop > 0.0
+    assert np.abs(trial.commands[-1]).max() < 0.1 * at_stop
+
+
+def test_predicted_post_impact_joint_velocities_are_within_the_limits_at_the_contact(robot, trial):
+    record = trial.record
+    before = record.cycle(trial.contact_index) - 1
+    post = record.predicted_post_impact[before]
+    assert record.impact_constraints_on[before]
+    assert np.all(np.isfinite(post)) and np.all(np.abs(post[6:]) <= robot.dq_max)
+
+
+def test_the_feet_show_no_onset_the_scripted_trial_does_not_show_at_the_same_contact_speed(robot, trial):
+    q = stance_posture(robot, STANCES["parallel"])
+    scripted = trial_at_contact_speed(robot, "parallel", q, trial.contact_speed, Plant())
+    assert scripted.source == "scripted" and scripted.record is None
+    assert abs(scripted.contact_speed - trial.contact_speed) <= 0.02 * trial.contact_speed
+    assert FOOT_ONSETS & set(trial.failures) <= set(scripted.failures)
+
+
+def test_a_source_that_tracks_the_speed_is_asked_the_target_once(robot):
+    q = stance_posture(robot, STANCES["parallel"])
+    qp = trial_at_contact_speed(robot, "parallel", q, 0.2, Plant(), QpCommand())
+    assert qp.speed == 0.2 and qp.source == "qp"
+
+
+def test_unknown_feedback_is_bad_input():
+    with pytest.raises(BadInputError):
+        QpCommand(feedback="predicted")
