@@ -42,8 +42,12 @@ criteria (``controller.model.humanoid_max_speed``) measured in the trial:
   :data:`ONSET_AFTER` s after it;
 - ``capture``: the measured CoM velocity after the first wall contact is outside the zero-step
   capture region of the measured CoM and support polygon (``controller.model.capture``);
-- ``fell``: the pelvis below half its height or tilted more than 45 degrees (no closed-form
-  criterion: the outcome a failed capture risks).
+- ``fell``: the pelvis below half its height or tilted more than 45 degrees, or, at the trial's
+  last step, both the CoM's ground projection and the capture point outside the support polygon
+  (``falling_at_the_end``: no ground force inside the feet can hold a CoM beyond their edge, and
+  it is moving away; a stiff robot tips over slowly, and the trial may end before its pelvis is
+  low). The capture point alone is not enough there: a robot swaying back on its servos has it
+  outside for a moment. No closed-form criterion: the outcome a failed capture risks.
 
 The feet's displacements are kept beside them: ``foot_slip`` / ``foot_lift`` (m), the largest
 horizontal / vertical motion of a foot frame after the settling (``slipped`` / ``lifted``: beyond
@@ -291,6 +295,15 @@ def capture_margin(robot: FloatingBaseModel, q: np.ndarray, com_velocity: np.nda
     return float(region.margins(com_velocity).min())
 
 
+def falling_at_the_end(robot: FloatingBaseModel, state) -> bool:
+    """Whether the robot in ``state`` (q, v), its pelvis still up, is falling: its CoM's ground
+    projection and its capture point are both outside the support polygon of its feet
+    (``capture_margin`` < 0 at rest and at its CoM velocity)."""
+    q, v = state
+    outside = capture_margin(robot, q, np.zeros(3)) < 0.0
+    return outside and capture_margin(robot, q, robot.terms(q).Jcom @ v) < 0.0
+
+
 def _measured_jumps(robot, log: _Log, first: int, last: int) -> dict:
     """The measured and predicted jumps over the first wall contact [first, last] (module docstring)."""
     q_pre, v_pre = log.states[first]
@@ -324,6 +337,8 @@ def _failure_flags(robot, log: _Log, first: int, last: int, capture_margin: floa
     base_height = np.array([q[2] for q, _ in log.states])
     base_up = np.array([pin.Quaternion(q[3:7]).matrix()[2, 2] for q, _ in log.states])
     fell = (base_height < 0.5 * base_height[0]) | (base_up < np.cos(np.radians(45.0)))
+    if not fell.any():
+        fell[-1] = falling_at_the_end(robot, log.states[-1])
     ratio = np.array([np.max(np.abs(v[6:]) / robot.dq_max) for _, v in log.states[start:]])
     window = np.zeros(steps, dtype=bool)
     window[first - start:last + 1 + int(round(ONSET_AFTER / CONTROL_PERIOD)) - start] = True

@@ -2,6 +2,7 @@
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
@@ -25,6 +26,7 @@ from impactqp.sim.humanoid_trial import (
     SINK,
     _Servo,
     capture_margin,
+    falling_at_the_end,
     run_impact_trial,
 )
 
@@ -95,6 +97,39 @@ def test_capture_margin_agrees_with_the_capture_region_on_constructed_velocities
         assert margin == pytest.approx(edge_margins(polygon, np.array(point)).min(), abs=1e-9)
         assert (margin < 0.0) == (point[0] < heel or point[0] == 0.5)
     assert capture_margin(robot, q, np.zeros(3)) == pytest.approx(edge_margins(polygon, com[:2]).min())
+
+
+def test_a_robot_whose_com_and_capture_point_left_its_feet_is_falling():
+    """At the end of a trial the pelvis may still be high while the robot tips over. Standing
+    with its CoM over its feet it is not falling, even swaying backwards fast (its capture point
+    behind the heels for a moment); the whole robot tipped back about its heels by 25 degrees
+    (the CoM behind them) is falling at rest or moving backwards, and not when it moves forwards
+    fast enough to bring its capture point back over the feet."""
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES["parallel"])
+    rest = np.zeros(robot.model.nv)
+
+    def moving(q, vx):  # the whole body translating along world x (base frame velocity, joints still)
+        v = rest.copy()
+        v[:3] = pin.Quaternion(q[3:7]).matrix().T @ np.array([vx, 0.0, 0.0])
+        return v
+
+    np.testing.assert_allclose(robot.terms(q).Jcom @ moving(q, -0.5), [-0.5, 0.0, 0.0], atol=1e-9)
+    assert capture_margin(robot, q, np.zeros(3)) > 0.0 > capture_margin(robot, q, np.array([-0.5, 0.0, 0.0]))
+    assert not falling_at_the_end(robot, (q, rest)) and not falling_at_the_end(robot, (q, moving(q, -0.5)))
+
+    heel = np.array([support_polygon(robot, q)[:, 0].min(), 0.0, 0.0])
+    tip = pin.SE3(pin.utils.rotate("y", -np.radians(25.0)), heel - pin.utils.rotate("y", -np.radians(25.0)) @ heel)
+    tipped = q.copy()
+    base = tip * pin.XYZQUATToSE3(q[:7])
+    tipped[:7] = pin.SE3ToXYZQUAT(base)
+    com = robot.terms(tipped).com
+    assert com[0] < support_polygon(robot, tipped)[:, 0].min()  # the CoM is behind the heels
+    assert falling_at_the_end(robot, (tipped, rest)) and falling_at_the_end(robot, (tipped, moving(tipped, -0.2)))
+    omega = np.sqrt(9.81 / com[2])
+    middle = support_polygon(robot, tipped)[:, 0].mean()
+    forward = omega * (middle - com[0])  # the capture point c + dc / omega over the middle of the feet
+    assert not falling_at_the_end(robot, (tipped, moving(tipped, forward)))
 
 
 def test_the_servo_torque_saturates_at_the_urdf_effort_limits():
