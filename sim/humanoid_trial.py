@@ -290,8 +290,12 @@ class _Log:
 
 def capture_margin(robot: FloatingBaseModel, q: np.ndarray, com_velocity: np.ndarray) -> float:
     """The capture point's smallest distance (m) inside the support polygon of the configuration q
-    for the CoM velocity ``com_velocity`` (``controller.model.capture``; < 0: a step is needed)."""
-    region = capture_region(support_polygon(robot, q), robot.terms(q).com)
+    for the CoM velocity ``com_velocity`` (``controller.model.capture``; < 0: a step is needed);
+    -inf for a robot whose CoM is not above the ground (fallen: nothing captures it)."""
+    com = robot.terms(q).com
+    if com[2] <= 0.0:
+        return -np.inf
+    region = capture_region(support_polygon(robot, q), com)
     return float(region.margins(com_velocity).min())
 
 

@@ -132,6 +132,17 @@ def test_a_robot_whose_com_and_capture_point_left_its_feet_is_falling():
     assert not falling_at_the_end(robot, (tipped, moving(tipped, forward)))
 
 
+def test_a_robot_lying_below_its_feet_has_no_capture_margin_and_is_falling():
+    """A state with the CoM at or below the ground (a fallen robot, as a runaway trial can reach)
+    is reported, not raised: its capture margin is -inf."""
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES["parallel"])
+    sunk = q.copy()
+    sunk[2] -= robot.terms(q).com[2] + 0.05  # the CoM 5 cm below the ground
+    assert capture_margin(robot, sunk, np.zeros(3)) == -np.inf
+    assert falling_at_the_end(robot, (sunk, np.zeros(robot.model.nv)))
+
+
 def test_the_servo_torque_saturates_at_the_urdf_effort_limits():
     """A command far beyond what the motors can give is clipped at each joint's effort limit."""
     robot = FloatingBaseModel()
