@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from impactqp.controller.model.humanoid_stance import convex_hull
+from impactqp.controller.model.humanoid_stance import convex_hull, edge_margins
 
 LOAD, CONE, MARGIN, SPEED = range(4)
 CONE_TOLERANCE = 1e-3
@@ -44,12 +44,14 @@ LIFT_MARGIN = 1e-3  # m
 
 @dataclass(frozen=True)
 class Soles:
-    """The feet of a scene: body ids, their sphere geoms, sole polygons (foot axes) and mu."""
+    """The feet of a scene: body ids, their sphere geoms, sole polygons (foot axes) and mu, and
+    which foot each sphere geom belongs to (``foot_of``, read at every physics step)."""
 
     bodies: tuple[int, ...]
     spheres: tuple[tuple[int, ...], ...]
     polygons: tuple[np.ndarray, ...]
     friction: float
+    foot_of: dict
 
     @classmethod
     def of(cls, model: mujoco.MjModel, bodies, friction: float) -> Soles:
@@ -59,19 +61,12 @@ class Soles:
             for b in bodies
         )
         polygons = tuple(convex_hull(model.geom_pos[list(s), :2]) for s in spheres)
-        return cls(tuple(bodies), spheres, polygons, friction)
-
-
-def edge_margins(polygon: np.ndarray, point: np.ndarray) -> np.ndarray:
-    """The distance of ``point`` inside each edge of the counter-clockwise convex ``polygon``."""
-    edges = np.roll(polygon, -1, axis=0) - polygon
-    normals = np.column_stack([edges[:, 1], -edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]
-    return np.einsum("ij,ij->i", normals, polygon - point)
+        foot_of = {g: k for k, foot in enumerate(spheres) for g in foot}
+        return cls(tuple(bodies), spheres, polygons, friction, foot_of)
 
 
 def sole_state(model: mujoco.MjModel, data: mujoco.MjData, soles: Soles) -> np.ndarray:
     """(feet, 4): load, cone, margin and speed of each foot now (module docstring)."""
-    foot_of = {g: k for k, spheres in enumerate(soles.spheres) for g in spheres}
     n = len(soles.bodies)
     force, moment, speed = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros(n)
     wrench, twist = np.zeros(6), np.zeros((n, 6))
@@ -79,7 +74,7 @@ def sole_state(model: mujoco.MjModel, data: mujoco.MjData, soles: Soles) -> np.n
         mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, twist[k], 0)
     for c in range(data.ncon):
         contact = data.contact[c]
-        k = foot_of.get(contact.geom1, foot_of.get(contact.geom2))
+        k = soles.foot_of.get(contact.geom1, soles.foot_of.get(contact.geom2))
         if k is None:
             continue
         mujoco.mj_contactForce(model, data, c, wrench)

@@ -5,6 +5,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from impactqp.controller.model.humanoid_stance import edge_margins
 from impactqp.sim.humanoid_feet import (
     CONE,
     LIFT_MARGIN,
@@ -13,7 +14,6 @@ from impactqp.sim.humanoid_feet import (
     SLIP_SPEED,
     SPEED,
     Soles,
-    edge_margins,
     lift_onset,
     slip_onset,
     sole_state,
@@ -99,9 +99,3 @@ def test_a_sole_pushed_beyond_the_friction_cone_slides():
     assert onset.any()
     assert states[np.argmax(onset):, 0, CONE].min() >= 1.0 - 1e-3 or states[-1, 0, SPEED] > SLIP_SPEED
     assert states[-1, 0, SPEED] > SLIP_SPEED
-
-
-def test_edge_margins_of_a_square():
-    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
-    np.testing.assert_allclose(edge_margins(square, np.array([0.25, 0.5])), [0.5, 0.75, 0.5, 0.25])
-    assert edge_margins(square, np.array([1.5, 0.5])).min() == pytest.approx(-0.5)

@@ -11,6 +11,7 @@ from impactqp.controller.model.humanoid_stance import (
     Stance,
     convex_hull,
     cross2,
+    edge_margins,
     inside_polygon,
     stance_posture,
     support_polygon,
@@ -55,3 +56,10 @@ def test_convex_hull_holds_every_point_and_is_made_of_them(points):
     assert all(any(np.allclose(v, p) for p in points) for v in hull)
     assert inside_polygon(hull.mean(axis=0), hull) > 0.0
     assert inside_polygon(hull.max(axis=0) + 1.0, hull) < 0.0
+
+
+def test_edge_margins_of_a_square():
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    np.testing.assert_allclose(edge_margins(square, np.array([0.25, 0.5])), [0.5, 0.75, 0.5, 0.25])
+    assert edge_margins(square, np.array([1.5, 0.5])).min() == pytest.approx(-0.5)
+    assert inside_polygon([1.5, 0.5], square) == pytest.approx(-0.5)

@@ -6,13 +6,12 @@ import pinocchio as pin
 import pytest
 
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
-from impactqp.controller.model.humanoid_stance import STANCES, stance_posture, support_polygon
+from impactqp.controller.model.humanoid_stance import STANCES, edge_margins, stance_posture, support_polygon
 from impactqp.sim.humanoid_feet import (
     CONE_TOLERANCE,
     LIFT_MARGIN,
     LOAD,
     SLIP_SPEED,
-    edge_margins,
     lift_onset,
     slip_onset,
     sole_state,

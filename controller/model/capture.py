@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .floating_base import FloatingBaseTerms, predict
+from .humanoid_stance import edge_margins, edge_normals
 from .validation import BadInputError
 
 GRAVITY = 9.81
@@ -63,9 +64,7 @@ def capture_region(polygon: np.ndarray, com: np.ndarray, ground_height: float = 
     if not height > 0.0:
         raise BadInputError(f"the centre of mass must be above the ground, got height {height}")
     omega = math.sqrt(GRAVITY / height)
-    edges = np.roll(polygon, -1, axis=0) - polygon
-    normals = np.column_stack([edges[:, 1], -edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]
-    return CaptureRegion(normals / omega, np.einsum("ij,ij->i", normals, polygon - com[:2]), omega)
+    return CaptureRegion(edge_normals(polygon) / omega, edge_margins(polygon, com), omega)
 
 
 def com_jump_map(terms: FloatingBaseTerms) -> np.ndarray:

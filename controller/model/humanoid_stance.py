@@ -90,15 +90,23 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
     return np.array(half(pts) + half(pts[::-1]))
 
 
+def edge_normals(polygon: np.ndarray) -> np.ndarray:
+    """(k, 2): the unit outward normal of each edge (vertex i to i + 1) of the counter-clockwise
+    convex ``polygon`` (k x 2)."""
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    return np.column_stack([edges[:, 1], -edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]
+
+
+def edge_margins(polygon: np.ndarray, point) -> np.ndarray:
+    """(k): the distance of ``point`` (x, y) inside each edge of the counter-clockwise convex
+    ``polygon`` (positive inside, negative outside)."""
+    return np.einsum("ij,ij->i", edge_normals(polygon), polygon - np.asarray(point, dtype=float)[:2])
+
+
 def inside_polygon(point, polygon: np.ndarray) -> float:
     """Signed distance-like margin: the smallest distance of ``point`` to the edges of the
     counter-clockwise convex ``polygon`` (positive inside, negative outside)."""
-    p = np.asarray(point, dtype=float)[:2]
-    margins = []
-    for a, b in zip(polygon, np.roll(polygon, -1, axis=0)):
-        edge = b - a
-        margins.append(cross2(edge, p - a) / np.linalg.norm(edge))
-    return float(min(margins))
+    return float(edge_margins(polygon, point).min())
 
 
 def stance_posture(robot: FloatingBaseModel, stance: Stance) -> np.ndarray:
