@@ -6,11 +6,12 @@ import pytest
 from conftest import unit_vectors
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from reference.whole_body import feet_held_pinv
 from whole_body_states import robot, standing_states
 
 from impactqp.controller.model.capture import com_jump_map
 from impactqp.controller.model.floating_base import METHODS, predict
-from impactqp.controller.model.floating_maps import feet_held_pinv, floating_jump_maps
+from impactqp.controller.model.floating_maps import floating_jump_maps
 from impactqp.controller.model.validation import BadInputError
 
 SETTINGS = settings(max_examples=15, deadline=None)

@@ -6,8 +6,8 @@ from functools import lru_cache
 import numpy as np
 import pinocchio as pin
 from hypothesis import strategies as st
+from reference.whole_body import feet_held_pinv
 
-from impactqp.controller.model.floating_maps import feet_held_pinv
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.whole_body_terms import WholeBodyModel

@@ -109,9 +109,3 @@ def product_t(A, B):
                 total += A[i, k] * B[j, k]
             out[i, j] = total
     return out
-
-
-def feet_held_pinv(J: np.ndarray, Jf: np.ndarray) -> np.ndarray:
-    """J# = N J^T (J N J^T)^-1 (module docstring): the least-norm dv with J dv = x, Jf dv = 0."""
-    NJt = J.T - Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ J.T)
-    return NJt @ np.linalg.inv(J @ NJt)

@@ -1,6 +1,7 @@
 """Plain-numpy statements of the G1's model terms (``WholeBodyModel.terms``) and of the
 floating-base jump maps (``floating_jump_maps``) before their compiled kernels: the terms from
-independent Pinocchio calls, the maps with the full constrained inverse inertia P."""
+independent Pinocchio calls, the maps with the full constrained inverse inertia P, the feet-held
+right inverse J#."""
 
 import numpy as np
 import pinocchio as pin
@@ -64,3 +65,10 @@ def reference_jump_maps(terms, method: str, normal: np.ndarray, c_r: float) -> F
         NJt = J.T - Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ J.T)
         K = NJt @ np.linalg.inv(J @ NJt) @ W
     return FloatingJumpMaps(G, K @ (G @ J), terms.Jcom @ PJt)
+
+
+def feet_held_pinv(J: np.ndarray, Jf: np.ndarray) -> np.ndarray:
+    """J# = N J^T (J N J^T)^-1 (``floating_maps``' module docstring): the least-norm dv with
+    J dv = x, Jf dv = 0, which ``floating_jump_maps`` computes inside its kernel."""
+    NJt = J.T - Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ J.T)
+    return NJt @ np.linalg.inv(J @ NJt)
