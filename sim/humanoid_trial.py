@@ -64,7 +64,7 @@ import pinocchio as pin
 
 from impactqp.controller.model.capture import capture_region
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, jump_from_impulse, predict
-from impactqp.controller.model.humanoid_max_speed import ARM_JOINTS
+from impactqp.controller.model.humanoid_max_speed import ARM_JOINTS, standing_wrenches
 from impactqp.controller.model.humanoid_stance import Stance, stance_posture, support_polygon
 
 from .humanoid_feet import CONE, LOAD, MARGIN, SPEED, lift_onset, slip_onset, sole_state, worst
@@ -148,9 +148,7 @@ class _Servo:
         self.scene = scene
         self.kp, self.kd = gain * gain, 2.0 * gain
         terms = robot.terms(q_pin)
-        gravity = pin.computeGeneralizedGravity(robot.model, robot.data, q_pin)
-        feet = np.linalg.pinv(terms.Jf[:, :6].T) @ gravity[:6]
-        self.tau_feet = terms.Jf[:, 6:].T @ feet
+        self.tau_feet = terms.Jf[:, 6:].T @ standing_wrenches(robot, terms)
         self.tau_max = robot.tau_max
         self.q_ref = scene.data.qpos[7:].copy()
         self.dq_ref = np.zeros(29)
