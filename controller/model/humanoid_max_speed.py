@@ -31,7 +31,7 @@ import pinocchio as pin
 
 from .capture import capturable_speeds, capture_region
 from .floating_base import FOOT_FRAMES, NB, SOLE_CORNERS, SOLE_DEPTH, FloatingBaseModel, FloatingBaseTerms, predict
-from .humanoid_stance import convex_hull, support_polygon
+from .humanoid_stance import convex_hull, edge_margins, edge_normals, support_polygon
 from .validation import BadInputError
 
 CRITERIA = ("joint_velocity", "foot_slip", "foot_lift", "capture")
@@ -125,9 +125,7 @@ def sole_rows(sole: np.ndarray, impulse: np.ndarray) -> np.ndarray:
     keeps the centre of pressure in the sole."""
     f, tau = impulse[:3], impulse[3:]
     tau_sole = tau + np.cross([0.0, 0.0, SOLE_DEPTH], f)  # about the sole point under the frame
-    edges = np.roll(sole, -1, axis=0) - sole
-    normals = np.column_stack([edges[:, 1], -edges[:, 0]])
-    return normals @ np.array([-tau_sole[1], tau_sole[0]]) - np.einsum("ij,ij->i", normals, sole) * f[2]
+    return edge_normals(sole) @ np.array([-tau_sole[1], tau_sole[0]]) - edge_margins(sole, np.zeros(2)) * f[2]
 
 
 def foot_bounds(robot: FloatingBaseModel, terms: FloatingBaseTerms, unit_feet: np.ndarray, setting: Setting):
