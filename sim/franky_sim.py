@@ -11,8 +11,8 @@ tests' fixture finalizers call it, so a failing run leaves no server behind.
 ``main`` (the server process): usage ``USAGE`` (vectors as
 comma-separated numbers; the tool is a sphere in the hand's frame, as the declared tool
 ``ToolDescription`` describes it). The server binds the first free loopback address, prints it
-on its standard output and writes it to READY_FILE once it listens, and writes to
-READY_FILE.contact the robot time (s) of the first state sent after a physics step with a
+on its standard output once it listens, and writes to CONTACT_FILE the robot time (s) of
+the first state sent after a physics step with a
 contact on the wall (the first state the contact force acted on): libfranka stamps a state with
 its message id in ms since the connection, so the server's contact time and the client's state
 times share one clock. Files appear by rename, complete. With ``--stop-after-commands N`` the
@@ -55,7 +55,7 @@ import numpy as np
 from impactqp.controller.model.tool_description import Sphere, ToolDescription, tool_description
 
 USAGE = (
-    "python -m impactqp.sim.franky_sim READY_FILE WALL_POINT WALL_NORMAL Q0 [TOOL_CENTRE TOOL_RADIUS] "
+    "python -m impactqp.sim.franky_sim CONTACT_FILE WALL_POINT WALL_NORMAL Q0 [TOOL_CENTRE TOOL_RADIUS] "
     "[--stop-after-commands N]"
 )
 START_GUARD = 600.0  # s: the longest wait for a server to listen before it counts as hung
@@ -88,9 +88,9 @@ class FrankySimServer:
         stop_after_commands: int | None = None,
     ):
         self.directory = Path(directory)
-        self.ready_file = self.directory / "franky-sim.ready"
+        self.contact_file = self.directory / "franky-sim.contact"
         self.output = self.directory / "franky-sim.log"
-        self.args = [str(self.ready_file), csv(wall_point), csv(wall_normal), csv(q0)]
+        self.args = [str(self.contact_file), csv(wall_point), csv(wall_normal), csv(q0)]
         if tool is not None:
             tool = tool_description(tool)
             if not isinstance(tool.geometry, Sphere) or tool.frame != "hand" or tool.replaces_hand:
@@ -126,8 +126,7 @@ class FrankySimServer:
 
     def contact_time(self) -> float | None:
         """Robot time (s) of the first state with the arm touching the wall, None before one."""
-        path = Path(f"{self.ready_file}.contact")
-        return float(path.read_text()) if path.exists() else None
+        return float(self.contact_file.read_text()) if self.contact_file.exists() else None
 
     def stop(self) -> None:
         """Kill the server's process group (the server and anything it started) and reap it."""
@@ -237,7 +236,7 @@ def serve_in_lockstep(server, stop_after_commands: int | None) -> None:
 class ServerArguments:
     """The command line of the server process (module docstring)."""
 
-    ready_file: str
+    contact_file: str
     wall_point: np.ndarray
     wall_normal: np.ndarray
     q0: np.ndarray
@@ -271,10 +270,8 @@ def main() -> None:
         if args.tool is not None:
             add_tool(sim, *args.tool)
         with SimulationServer(sim) as server:
-            sim.register_post_step_callback(contact_recorder(server, args.ready_file + ".contact"))
-            hostname = server.robot_servers[0].hostname
-            write_file(args.ready_file, hostname)
-            print(hostname, flush=True)
+            sim.register_post_step_callback(contact_recorder(server, args.contact_file))
+            print(server.robot_servers[0].hostname, flush=True)
             os.dup2(sys.stderr.fileno(), sys.stdout.fileno())  # anything printed later goes to the log
             serve_in_lockstep(server, args.stop_after_commands)
 
