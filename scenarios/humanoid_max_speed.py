@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import matplotlib
@@ -62,6 +63,13 @@ class Plant:
 
     gain: float = SERVO_GAIN
     armature: float | tuple | None = None
+
+    def trial(self, robot: FloatingBaseModel, stance: str, q: np.ndarray, speed: float, source=SCRIPTED) -> ImpactTrial:
+        """One trial on this plant: ``stance`` from the configuration q at the commanded hand
+        ``speed``, driven by ``source``."""
+        return run_impact_trial(
+            robot, STANCES[stance], speed, gain=self.gain, armature=self.armature, q0=q, source=source
+        )
 
 
 @dataclass(frozen=True)
@@ -158,13 +166,8 @@ def search_stance(
     if stance not in STANCES:
         raise BadInputError(f"unknown stance {stance!r}; known: {', '.join(STANCES)}")
     q = stance_posture(robot, STANCES[stance])
-
-    def trial(speed: float) -> Evaluation:
-        return Evaluation.of(
-            run_impact_trial(robot, STANCES[stance], speed, gain=plant.gain, armature=plant.armature, q0=q, source=source)
-        )
-
-    best, evaluations = bisect_speed(trial, tolerance)
+    run = partial(plant.trial, robot, stance, q, source=source)
+    best, evaluations = bisect_speed(lambda speed: Evaluation.of(run(speed)), tolerance)
     feasible = [e for e in evaluations if not e.violated and e.reference_speed <= best]
     failed = [e for e in evaluations if e.violated]
     contact = max(feasible, key=lambda e: e.reference_speed).contact_speed if feasible else 0.0
@@ -179,11 +182,7 @@ def trial_at_contact_speed(
     speed within [LOWEST_SPEED, 2 HIGHEST_SPEED], at most SECANT_STEPS trials; the closest one
     otherwise: with torque-limited joints a contact speed may be out of reach). A source that
     tracks the speed itself (``source.tracks_speed``: the whole-body QP) is asked ``target`` once."""
-    def run(speed):
-        return run_impact_trial(
-            robot, STANCES[stance], speed, gain=plant.gain, armature=plant.armature, q0=q, source=source
-        )
-
+    run = partial(plant.trial, robot, stance, q, source=source)
     points = [(target, run(target))]
     if source.tracks_speed:
         return points[0][1]
