@@ -60,6 +60,7 @@ class QpCommand:
     gap: float = QP_GAP
     name = "qp"
     tracks_speed = True  # the hand's task asks the speed itself; the QP's rows and limits may cap it
+    holds_at_stop = False  # the QP brakes the joints itself (its acceleration and jerk limits)
 
     def __post_init__(self):
         if self.feedback not in FEEDBACK:

@@ -5,11 +5,18 @@ Trial: the robot starts at rest in a stance (``controller.model.humanoid_stance`
 (shoulder, elbow, wrist: 7 joints) is driven so that the hand moves along +x at ``speed``:
 dq_arm = J_arm^+ v* (J_arm the 3x7 block of the contact Jacobian), reached by a 20 ms velocity
 ramp; every other joint is commanded at rest. At the first wall contact (plus a 5 ms detection
-latency) the command drops to zero; the trial goes on for :data:`AFTER` s to see whether the robot
-stands. That is the default command source (:data:`SCRIPTED`); ``source`` chooses another one,
+latency) the arm stops: the servo's reference is re-anchored at the measured joint positions, at
+rest (``_Servo.hold``), and the command is zero from then on; the trial goes on for :data:`AFTER` s
+to see whether the robot stands. Why re-anchor rather than only command zero velocity: the wall has
+already stopped the hand, but the reference still moves at the approach speed, so a zero command
+asks the servo for the reference's whole deceleration -dq_ref/dt in one control step; the waist and
+shoulder torques saturate and the reaction jolts the feet (docs/floating-base.md: with that stop a
+foot slipped 5 ms after the contact in every trial at half the closed-form speed). Re-anchored, the
+servo only damps the joints' post-impact velocities. That is the default command source (:data:`SCRIPTED`); ``source`` chooses another one,
 e.g. the whole-body QP (``sim.humanoid_qp_source.QpCommand``): a source gives its start gap, the
 time it may take to reach the wall, and per trial a driver whose ``command(t, q, v, stopped)``
-returns the 29 joints' velocity command (``stopped``: LATENCY has passed since the first contact).
+returns the 29 joints' velocity command (``stopped``: LATENCY has passed since the first contact),
+and whether the servo re-anchors its reference at the stop (``holds_at_stop``).
 
 Servo (the kinematic control, as the arm's ``sim.runner`` servo): a joint-space computed-torque PD
 with acceleration feed-forward on the 29 joints, tau = M_f (ddq_ref + w^2 e + 2 w de) + h_j -
@@ -28,7 +35,9 @@ Plant: MuJoCo's G1 with the actuators' reflected rotor inertias by default (``ar
 Measurement: the state before the impact is the last control step before the wall's first
 contact force, the state after it the first control step after that first contiguous contact
 ends (at most :data:`WINDOW` s later). The measured impulse is the integral of the wall force over
-that contact. The jump is compared over the 29 joints with each predictor of
+that contact, and its peak (``peak_force``: the largest normal wall force of a physics step);
+their ratio is the contact's equivalent duration (``equivalent_duration``, the T of the closed
+form's foot criteria). The jump is compared over the 29 joints with each predictor of
 ``controller.model.floating_base`` fed its own impulse, and with the feet-held momentum law fed
 the measured impulse (``momentum``); the error is eq. (26), the mean of |predicted - measured|.
 
@@ -95,6 +104,7 @@ class ImpactTrial:
     speed: float  # commanded hand speed (m/s)
     contact_speed: float  # measured normal approach speed -n.v- (m/s)
     impulse: np.ndarray  # measured wall impulse on the robot (N s, world)
+    peak_force: float  # largest normal wall force of a physics step during the first contact (N)
     floor_impulse: np.ndarray  # the floor's impulse on the feet over the same window (N s)
     duration: float  # length of the measurement window (s): the first contact
     measured_jump: np.ndarray  # (35) generalized-velocity jump, Pinocchio convention
@@ -129,6 +139,12 @@ class ImpactTrial:
         """No failure of FAILURES: no joint beyond its velocity limit, no slip or lift onset, the
         post-impact CoM velocity capturable, no fall."""
         return not self.first_failure
+
+    @property
+    def equivalent_duration(self) -> float:
+        """The first contact's equivalent duration (s): its normal impulse over its peak force, the
+        length of a constant force at the peak that gives the same impulse (the closed form's T)."""
+        return float(NORMAL @ self.impulse) / self.peak_force
 
     @property
     def slipped(self) -> bool:
@@ -166,16 +182,24 @@ class _Servo:
         self.dq_ref = dq_cmd.copy()
         return tau
 
+    def hold(self) -> None:
+        """Re-anchor the reference at the measured joint positions, at rest: from now on the servo
+        holds the joints where they are (module docstring, the stop)."""
+        self.q_ref = self.scene.data.qpos[7:].copy()
+        self.dq_ref = np.zeros(29)
+
 
 @dataclass(frozen=True)
 class ScriptedCommand:
     """The scripted command source (module docstring): the 7 right-arm joints follow
-    dq_arm = J_arm^+ v* after a RAMP s velocity ramp, every other joint at rest, and the whole
-    command drops to zero at the stop (LATENCY after the first wall contact)."""
+    dq_arm = J_arm^+ v* after a RAMP s velocity ramp, every other joint at rest; at the stop
+    (LATENCY after the first wall contact) the servo holds the joints where they are and the
+    command is zero."""
 
     name = "scripted"
     gap = GAP  # m from the contact point to the wall at the start
     tracks_speed = False  # the servo lags the command: the contact speed is below the commanded one
+    holds_at_stop = True  # the servo re-anchors its reference at the stop (``_Servo.hold``)
 
     def approach_time(self, gap: float, speed: float) -> float:
         """s allowed from the end of the settling to the first wall contact."""
@@ -224,7 +248,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     driver = source.start(robot, q0, scene.wall_x, speed)
     substeps = int(round(CONTROL_PERIOD / model.opt.timestep))
     approach_steps = int(round((SETTLE + source.approach_time(gap, speed)) / CONTROL_PERIOD))
-    states, forces, floor_impulses, feet, soles, commands = [], [], [], [], [], []
+    states, forces, peaks, floor_impulses, feet, soles, commands = [], [], [], [], [], [], []
     first_contact, stop_at, end = None, None, approach_steps
     k = 0
     while k < end:
@@ -233,17 +257,21 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
         feet.append(data.xpos[list(scene.foot_bodies)].copy())
         dq_cmd = driver.command(k * CONTROL_PERIOD, q_pin, v_pin, stop_at is not None and k >= stop_at)
         commands.append(dq_cmd)
+        if k == stop_at and source.holds_at_stop:
+            servo.hold()
         tau = servo.torque(dq_cmd, CONTROL_PERIOD)
-        force, floor, sole = np.zeros(3), np.zeros(3), None
+        force, floor, sole, peak = np.zeros(3), np.zeros(3), None, 0.0
         for _ in range(substeps):
             data.qfrc_applied[6:] = tau
             mujoco.mj_step(model, data)
             wall_force, floor_force = _contact_forces(scene)
+            peak = max(peak, float(NORMAL @ wall_force))
             force += wall_force * model.opt.timestep
             floor += floor_force * model.opt.timestep
             now = sole_state(model, data, scene.soles)
             sole = now if sole is None else worst(sole, now)
         forces.append(force)
+        peaks.append(peak)
         soles.append(sole)
         floor_impulses.append(floor)
         if first_contact is None and np.any(force != 0.0):
@@ -253,7 +281,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
         k += 1
     if first_contact is None:
         raise RuntimeError(f"the hand never reached the wall (stance {stance.name}, {speed} m/s, {source.name} command)")
-    log = _Log(states, np.array(forces), np.array(floor_impulses), np.array(feet), np.array(soles))
+    log = _Log(states, np.array(forces), np.array(peaks), np.array(floor_impulses), np.array(feet), np.array(soles))
     trial = _evaluate(robot, stance, speed, log, first_contact, scene.wall_x)
     return replace(trial, source=source.name, commands=np.array(commands), record=driver.record)
 
@@ -281,6 +309,7 @@ class _Log:
 
     states: list  # (q, v), Pinocchio convention
     forces: np.ndarray  # (steps, 3) wall impulse on the robot
+    peaks: np.ndarray  # (steps,) largest normal wall force of a physics step (N)
     floor_impulses: np.ndarray  # (steps, 3)
     feet: np.ndarray  # (steps, 2, 3) foot frame positions
     soles: np.ndarray  # (steps, 2, 4) sole states (``humanoid_feet``), worst over the step
@@ -323,7 +352,7 @@ def _measured_jumps(robot, log: _Log, first: int, last: int) -> dict:
     impulses["momentum"] = impulse
     post_com_velocity = post_terms.Jcom @ v_post
     return dict(
-        contact_speed=float(-NORMAL @ v_minus), impulse=impulse,
+        contact_speed=float(-NORMAL @ v_minus), impulse=impulse, peak_force=float(log.peaks[first:last + 1].max()),
         floor_impulse=log.floor_impulses[first:last + 1].sum(axis=0), duration=(last + 1 - first) * CONTROL_PERIOD,
         measured_jump=measured, measured_com_jump=post_com_velocity - terms.Jcom @ v_pre,
         predicted_jump=predicted, predicted_com_jump=com, predicted_impulse=impulses,

@@ -173,3 +173,41 @@ def test_the_standing_g1_shows_no_foot_onset(stance):
     states = np.array(states)
     assert np.all(states[..., LOAD] > 0.0)
     assert not slip_onset(states).any() and not lift_onset(states).any()
+
+
+def test_a_held_servo_only_damps_the_joints():
+    """After ``hold`` the reference is the measured joint positions at rest: with a zero command the
+    servo asks M_f (-2 w dq) of acceleration, no feed-forward and no position error."""
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES["parallel"])
+    scene = build_humanoid_scene(robot, wall_x=2.0)
+    scene.set_state(q)
+    servo = _Servo(scene, robot, q, SERVO_GAIN)
+    rng = np.random.default_rng(3)
+    scene.data.qpos[7:] += rng.uniform(-0.01, 0.01, 29)  # the joints away from the reference
+    scene.data.qvel[6:] = rng.uniform(-0.2, 0.2, 29)  # and moving
+    mujoco.mj_forward(scene.model, scene.data)
+    servo.hold()
+    np.testing.assert_array_equal(servo.q_ref, scene.data.qpos[7:])
+    M = np.empty((scene.model.nv, scene.model.nv))
+    mujoco.mj_fullM(scene.model, scene.data, M)
+    free_base = M[6:, 6:] - M[6:, :6] @ np.linalg.solve(M[:6, :6], M[:6, 6:])
+    expected = free_base @ (-2.0 * SERVO_GAIN * scene.data.qvel[6:]) + scene.data.qfrc_bias[6:] - servo.tau_feet
+    tau = servo.torque(np.zeros(29), CONTROL_PERIOD)
+    np.testing.assert_allclose(tau, np.clip(expected, -servo.tau_max, servo.tau_max), rtol=1e-9, atol=1e-9)
+
+
+def test_the_stop_does_not_jolt_the_feet():
+    """At the stop the wall has stopped the hand while the reference still moves at the approach
+    speed; the held servo does not ask for that reference's deceleration in one step, so a trial at
+    about 0.5 m/s of contact speed shows no foot onset (with a zero command alone, the left foot
+    unloaded at the stop and slipped)."""
+    trial = run_impact_trial(FloatingBaseModel(), STANCES["wide"], 0.6)
+    assert trial.contact_speed > 0.45
+    assert trial.failures == ()
+
+
+def test_the_equivalent_duration_is_at_most_the_contact_duration(trial):
+    """A force never above its peak gives at most peak x duration of impulse."""
+    assert 0.0 < trial.equivalent_duration <= trial.duration
+    assert trial.equivalent_duration * trial.peak_force == pytest.approx(trial.impulse @ NORMAL)

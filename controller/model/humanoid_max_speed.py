@@ -8,11 +8,14 @@ zero. Every predicted quantity of ``floating_base`` is linear in the contact vel
 
 (a) ``joint_velocity``: |dq-_i| = s |d_i| and |dq+_i| = s |(d + dv_1)_i| stay below dq_max_i for
     the 29 joints (dv_1 the predicted jump at unit speed).
-(b) the feet, both held during the impulse (``floating_base``): the ground's wrench impulse on
-    foot k over the contact duration T is F_k(s) = T w_k + s lambda_k, w_k the standing wrench (the
-    least-norm foot wrenches carrying the robot's weight) and lambda_k the predicted impulsive
-    wrench at unit speed (world axes, about the foot frame). Assumed plainly: the impulse and the
-    weight act over the same duration T, the feet are flat.
+(b) the feet, both held during the impulse (``floating_base``), at the peak of the hand's force:
+    the hand's force peaks at iota / T, T the contact's equivalent duration (its impulse over its
+    peak force), and the ground's wrench on foot k is then F_k(s) / T with F_k(s) = T w_k +
+    s lambda_k, w_k the standing wrench (the least-norm foot wrenches carrying the robot's weight)
+    and lambda_k the predicted impulsive wrench at unit speed (world axes, about the foot frame).
+    The criteria are homogeneous in F_k, so they are checked on F_k. Assumed plainly: the feet's
+    impulsive wrenches peak with the hand's force, in the feet-held model's proportions, and the
+    feet are flat.
     ``foot_slip``: |F_xy| <= mu F_z (the friction cone of the summed impulse; a quadratic in s).
     ``foot_lift``: the centre of pressure of F, about the sole (:data:`SOLE_DEPTH` below the
     frame), stays inside the sole's four corners: nu_e . (-tau_y, tau_x) <= (nu_e . a_e) f_z for
@@ -36,7 +39,7 @@ from .validation import BadInputError
 
 CRITERIA = ("joint_velocity", "foot_slip", "foot_lift", "capture")
 FOOT_FRICTION = 1.0  # mu of the soles on the floor (the simulated floor's)
-IMPACT_DURATION = 0.005  # s: T, the duration of the hand's contact with the wall (the simulated one)
+IMPACT_DURATION = 0.0034  # s: T, the wall contact's equivalent duration (impulse / peak force; the simulated wall's)
 ARM_JOINTS = tuple(f"right_{j}_joint" for j in (
     "shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", "wrist_roll", "wrist_pitch", "wrist_yaw"))
 FEET = ("left", "right")
