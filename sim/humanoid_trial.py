@@ -23,8 +23,10 @@ with acceleration feed-forward on the 29 joints, tau = M_f (ddq_ref + w^2 e + 2 
 tau_feet, with M_f = M_jj - M_jb M_bb^-1 M_bj the joints' inertia with the base floating (the
 Schur complement of MuJoCo's M; the plain joint block M_jj overestimates it and makes a stiff servo
 unstable at 1 kHz), h the bias forces, and tau_feet = (Jf^T f)_j
-the joint torques of the least-norm foot wrenches f that carry the robot's weight in the stance
-(computed once, by Pinocchio). The base is not actuated. The torque each joint gets is clipped at
+the joint torques of the least-norm foot wrenches f that carry the robot's weight in the measured
+configuration (Pinocchio, every control step: the weight's share between the feet and their
+moments follow the posture; computed once at the start stance, they left the ankles a steady
+tracking error as soon as the whole-body QP leaned the body, and the robot swayed backwards). The base is not actuated. The torque each joint gets is clipped at
 its URDF effort limit (5-139 N m): a real motor cannot give more, so a hard stop command or a
 large tracking error saturates the drive instead of asking for unbounded torque.
 
@@ -160,11 +162,10 @@ class ImpactTrial:
 class _Servo:
     """The joint servo of the module docstring."""
 
-    def __init__(self, scene, robot: FloatingBaseModel, q_pin: np.ndarray, gain: float):
+    def __init__(self, scene, robot: FloatingBaseModel, gain: float):
         self.scene = scene
+        self.robot = robot
         self.kp, self.kd = gain * gain, 2.0 * gain
-        terms = robot.terms(q_pin)
-        self.tau_feet = terms.Jf[:, 6:].T @ standing_wrenches(robot, terms)
         self.tau_max = robot.tau_max
         self.q_ref = scene.data.qpos[7:].copy()
         self.dq_ref = np.zeros(29)
@@ -177,10 +178,17 @@ class _Servo:
         mujoco.mj_fullM(model, data, self._M)
         M = self._M
         free_base = M[6:, 6:] - M[6:, :6] @ np.linalg.solve(M[:6, :6], M[:6, 6:])
-        tau = np.clip(free_base @ acceleration + data.qfrc_bias[6:] - self.tau_feet, -self.tau_max, self.tau_max)
+        tau = free_base @ acceleration + data.qfrc_bias[6:] - self.standing_torques()
+        tau = np.clip(tau, -self.tau_max, self.tau_max)
         self.q_ref += 0.5 * dt * (self.dq_ref + dq_cmd)
         self.dq_ref = dq_cmd.copy()
         return tau
+
+    def standing_torques(self) -> np.ndarray:
+        """tau_feet (29): the joint torques of the least-norm foot wrenches carrying the robot's
+        weight in its measured configuration (module docstring)."""
+        terms = self.robot.terms(to_pinocchio(self.scene.data.qpos, self.scene.data.qvel)[0])
+        return terms.Jf[:, 6:].T @ standing_wrenches(self.robot, terms)
 
     def hold(self) -> None:
         """Re-anchor the reference at the measured joint positions, at rest: from now on the servo
@@ -244,7 +252,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     start[2] -= SINK  # the soft floor contact carries the weight from the first step
     scene.set_state(start)
     model, data = scene.model, scene.data
-    servo = _Servo(scene, robot, q0, gain)
+    servo = _Servo(scene, robot, gain)
     driver = source.start(robot, q0, scene.wall_x, speed)
     substeps = int(round(CONTROL_PERIOD / model.opt.timestep))
     approach_steps = int(round((SETTLE + source.approach_time(gap, speed)) / CONTROL_PERIOD))

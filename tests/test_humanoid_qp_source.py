@@ -88,3 +88,12 @@ def test_a_source_that_tracks_the_speed_is_asked_the_target_once(robot):
 def test_unknown_feedback_is_bad_input():
     with pytest.raises(BadInputError):
         QpCommand(feedback="predicted")
+
+
+def test_a_body_the_qp_leans_stays_over_its_feet(robot):
+    """The QP leans the body to reach the wall; the servo's standing feed-forward follows the
+    posture, so 0.4 s after the contact the CoM is still over the feet (fed the start stance's
+    feed-forward, the ankles yielded and this trial ended falling backwards)."""
+    trial = run_impact_trial(robot, STANCES["wide"], 0.6, source=QpCommand())
+    assert trial.contact_speed > 0.4
+    assert not trial.fell

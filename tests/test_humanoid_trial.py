@@ -6,6 +6,7 @@ import pinocchio as pin
 import pytest
 
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
+from impactqp.controller.model.humanoid_max_speed import standing_wrenches
 from impactqp.controller.model.humanoid_stance import STANCES, edge_margins, stance_posture, support_polygon
 from impactqp.sim.humanoid_feet import (
     CONE_TOLERANCE,
@@ -148,7 +149,7 @@ def test_the_servo_torque_saturates_at_the_urdf_effort_limits():
     q = stance_posture(robot, STANCES["parallel"])
     scene = build_humanoid_scene(robot, wall_x=1.0)
     scene.set_state(q)
-    servo = _Servo(scene, robot, q, SERVO_GAIN)
+    servo = _Servo(scene, robot, SERVO_GAIN)
     tau = servo.torque(np.full(29, 1e3), CONTROL_PERIOD)
     np.testing.assert_allclose(np.abs(tau), robot.model.effortLimit[6:])
 
@@ -162,7 +163,7 @@ def test_the_standing_g1_shows_no_foot_onset(stance):
     start = q.copy()
     start[2] -= SINK
     scene.set_state(start)
-    servo = _Servo(scene, robot, q, SERVO_GAIN)
+    servo = _Servo(scene, robot, SERVO_GAIN)
     states = []
     for k in range(300):
         scene.data.qfrc_applied[6:] = servo.torque(np.zeros(29), CONTROL_PERIOD)
@@ -182,7 +183,7 @@ def test_a_held_servo_only_damps_the_joints():
     q = stance_posture(robot, STANCES["parallel"])
     scene = build_humanoid_scene(robot, wall_x=2.0)
     scene.set_state(q)
-    servo = _Servo(scene, robot, q, SERVO_GAIN)
+    servo = _Servo(scene, robot, SERVO_GAIN)
     rng = np.random.default_rng(3)
     scene.data.qpos[7:] += rng.uniform(-0.01, 0.01, 29)  # the joints away from the reference
     scene.data.qvel[6:] = rng.uniform(-0.2, 0.2, 29)  # and moving
@@ -192,7 +193,7 @@ def test_a_held_servo_only_damps_the_joints():
     M = np.empty((scene.model.nv, scene.model.nv))
     mujoco.mj_fullM(scene.model, scene.data, M)
     free_base = M[6:, 6:] - M[6:, :6] @ np.linalg.solve(M[:6, :6], M[:6, 6:])
-    expected = free_base @ (-2.0 * SERVO_GAIN * scene.data.qvel[6:]) + scene.data.qfrc_bias[6:] - servo.tau_feet
+    expected = free_base @ (-2.0 * SERVO_GAIN * scene.data.qvel[6:]) + scene.data.qfrc_bias[6:] - servo.standing_torques()
     tau = servo.torque(np.zeros(29), CONTROL_PERIOD)
     np.testing.assert_allclose(tau, np.clip(expected, -servo.tau_max, servo.tau_max), rtol=1e-9, atol=1e-9)
 
@@ -211,3 +212,21 @@ def test_the_equivalent_duration_is_at_most_the_contact_duration(trial):
     """A force never above its peak gives at most peak x duration of impulse."""
     assert 0.0 < trial.equivalent_duration <= trial.duration
     assert trial.equivalent_duration * trial.peak_force == pytest.approx(trial.impulse @ NORMAL)
+
+
+def test_the_standing_torques_hold_any_posture_in_equilibrium():
+    """A servo at rest on its reference applies tau with S^T tau + Jf^T w = g in every row (base and
+    joints), w the least-norm foot wrenches of the measured configuration: the body leaned by the
+    waist is in equilibrium on its feet with no tracking error."""
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES["parallel"])
+    q[7 + robot.joint_index("waist_pitch_joint")] += 0.3
+    scene = build_humanoid_scene(robot, wall_x=2.0)
+    scene.set_state(q)
+    servo = _Servo(scene, robot, SERVO_GAIN)  # its reference: the state it starts from, at rest
+    tau = servo.torque(np.zeros(29), CONTROL_PERIOD)
+    terms = robot.terms(q)
+    gravity = pin.computeGeneralizedGravity(robot.model, robot.data, q)
+    residual = terms.Jf.T @ standing_wrenches(robot, terms) - gravity
+    residual[6:] += tau
+    np.testing.assert_allclose(residual, 0.0, atol=1e-6 * np.abs(gravity).max())
