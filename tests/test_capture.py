@@ -14,6 +14,7 @@ from impactqp.controller.model.capture import (
     com_jump_map,
     max_capturable_speed,
     post_impact_com_velocity,
+    row_steps,
 )
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, predict
 from impactqp.controller.model.humanoid_stance import STANCES, inside_polygon, stance_posture, support_polygon
@@ -101,3 +102,23 @@ def test_a_robot_already_outside_its_region_captures_nothing(standing):
     robot, q, terms = standing
     region = capture_region(support_polygon(robot, q) + 1.0, terms.com)  # polygon far from the CoM
     assert max_capturable_speed(terms, region, "crb", WALL, np.array([1.0, 0.0, 0.0])) == 0.0
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5, allow_subnormal=False)), min_size=1, max_size=8))
+def test_row_steps_bring_each_rising_row_to_zero(rows):
+    """Each row's step puts it exactly at zero when it rises from a held row, is inf when it does
+    not rise, 0 when the row already fails; every row holds for every s up to the smallest step."""
+    offset, slope = np.array(rows).T
+    steps = row_steps(offset, slope)
+    for o, k, s in zip(offset, slope, steps):
+        if o > 0.0:
+            assert s == 0.0
+        elif k > 0.0:
+            assert o + s * k == pytest.approx(0.0, abs=1e-9 * (1 + abs(o)))
+        else:
+            assert s == math.inf
+    smallest = steps.min()
+    if math.isfinite(smallest) and np.all(offset <= 0.0):
+        for t in np.linspace(0.0, smallest, 7):
+            assert np.all(offset + t * slope <= 1e-9 * (1 + np.abs(offset)))

@@ -18,7 +18,6 @@ from impactqp.controller.model.humanoid_max_speed import (
     closed_form_max_speed,
     cone_step,
     joint_velocity_bound,
-    largest_step,
     sole_rows,
     standing_wrenches,
 )
@@ -52,18 +51,6 @@ def test_cone_step_ends_on_the_cone_and_stays_inside_before(force0, force1, mu):
     if math.isfinite(s):
         f = force0 + s * force1
         assert np.linalg.norm(f[:2]) == pytest.approx(mu * f[2], abs=1e-6 * (1 + np.abs(f).sum()))
-
-
-@settings(max_examples=80, deadline=None)
-@given(st.lists(st.tuples(st.floats(-5, -0.01), st.floats(-5, 5, allow_subnormal=False)), min_size=1, max_size=8))
-def test_largest_step_is_the_first_row_to_reach_zero(rows):
-    offset, slope = np.array(rows).T
-    s = largest_step(offset, slope)
-    if math.isfinite(s):
-        values = offset + s * slope
-        assert values.max() == pytest.approx(0.0, abs=1e-9 * (1 + s))
-    else:
-        assert np.all(slope <= 0.0)
 
 
 @settings(max_examples=80, deadline=None)

@@ -78,6 +78,18 @@ def post_impact_com_velocity(terms: FloatingBaseTerms, method: str, normal, v_mi
     return np.asarray(com_velocity, dtype=float) + com_jump_map(terms) @ impulse
 
 
+def row_steps(offset: np.ndarray, slope: np.ndarray) -> np.ndarray:
+    """Per row of offset + s slope <= 0, the largest s >= 0 that keeps it: -offset / slope where the
+    row rises (slope > 0), inf where it does not, 0 where it already fails (offset > 0)."""
+    offset, slope = np.asarray(offset, dtype=float), np.asarray(slope, dtype=float)
+    steps = np.full(offset.shape, math.inf)
+    rising = slope > 0.0
+    with np.errstate(over="ignore"):  # a vanishing slope allows an unbounded step: inf is the answer
+        steps[rising] = np.maximum(-offset[rising], 0.0) / slope[rising]
+    steps[offset > 0.0] = 0.0
+    return steps
+
+
 def capturable_speeds(
     terms: FloatingBaseTerms, region: CaptureRegion, method: str, normal, direction, c_r: float = 0.0
 ) -> np.ndarray:
@@ -85,14 +97,8 @@ def capturable_speeds(
     velocity v- = s ``direction``, the pre-impact CoM velocity taken as zero (the hand moves, the
     body stands): b_k / (A_k C iota_1) where the unit-speed jump pushes outwards, inf elsewhere,
     0 on a row the standing robot already violates."""
-    region_margin = region.margins(np.zeros(2))
     unit_jump = post_impact_com_velocity(terms, method, normal, direction, np.zeros(3), c_r)
-    rates = region.A @ unit_jump[:2]
-    speeds = np.full(len(rates), math.inf)
-    pushing = rates > 0.0
-    speeds[pushing] = np.maximum(region_margin[pushing], 0.0) / rates[pushing]
-    speeds[region_margin < 0.0] = 0.0
-    return speeds
+    return row_steps(-region.margins(np.zeros(2)), region.A @ unit_jump[:2])
 
 
 def max_capturable_speed(

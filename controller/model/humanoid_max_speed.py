@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from .capture import capturable_speeds, capture_region
+from .capture import capturable_speeds, capture_region, row_steps
 from .floating_base import FOOT_FRAMES, NB, SOLE_CORNERS, SOLE_DEPTH, FloatingBaseModel, FloatingBaseTerms, predict
 from .humanoid_stance import convex_hull, edge_margins, edge_normals, support_polygon
 from .validation import BadInputError
@@ -97,18 +97,6 @@ def standing_wrenches(robot: FloatingBaseModel, terms: FloatingBaseTerms) -> np.
     return np.linalg.pinv(terms.Jf[:, :NB].T) @ gravity[:NB]
 
 
-def largest_step(offset: np.ndarray, slope: np.ndarray) -> float:
-    """The largest s >= 0 with offset + s slope <= 0 for every row (offset <= 0 assumed; 0 when
-    a row already fails)."""
-    if np.any(offset > 0.0):
-        return 0.0
-    rising = slope > 0.0
-    if not np.any(rising):
-        return math.inf
-    with np.errstate(over="ignore"):  # a vanishing slope allows an unbounded step: inf is the answer
-        return float(np.min(-offset[rising] / slope[rising]))
-
-
 def cone_step(force0: np.ndarray, force1: np.ndarray, mu: float) -> float:
     """The largest s >= 0 with |f_xy| <= mu f_z for f = force0 + s force1: the smallest positive
     root of mu^2 f_z^2 - |f_xy|^2 and of f_z (the set is an interval, the cone being convex)."""
@@ -148,7 +136,7 @@ def foot_bounds(robot: FloatingBaseModel, terms: FloatingBaseTerms, unit_feet: n
         s = cone_step(w0[:3], w1[:3], setting.friction)
         if s < slip.speed:
             slip = Bound(s, foot)
-        s = largest_step(sole_rows(sole, w0), sole_rows(sole, w1))
+        s = float(np.min(row_steps(sole_rows(sole, w0), sole_rows(sole, w1))))
         if s < lift.speed:
             lift = Bound(s, foot)
     return slip, lift
