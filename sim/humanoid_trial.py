@@ -322,6 +322,14 @@ class _Log:
     feet: np.ndarray  # (steps, 2, 3) foot frame positions
     soles: np.ndarray  # (steps, 2, 4) sole states (``humanoid_feet``), worst over the step
 
+    def velocity_ratios(self, robot: FloatingBaseModel, start: int) -> np.ndarray:
+        """(steps - start, 29): |dq_i| / dq_max_i of every joint at each control step from ``start``."""
+        return np.array([np.abs(v[6:]) / robot.dq_max for _, v in self.states[start:]])
+
+    def loaded_before(self, first: int) -> np.ndarray:
+        """(2): the feet that carried weight at the control step before ``first`` (the impact's)."""
+        return self.soles[first - 1, :, LOAD] > 0.0
+
 
 def capture_margin(robot: FloatingBaseModel, q: np.ndarray, com_velocity: np.ndarray) -> float:
     """The capture point's smallest distance (m) inside the support polygon of the configuration q
@@ -378,10 +386,10 @@ def _failure_flags(robot, log: _Log, first: int, last: int, capture_margin: floa
     fell = (base_height < 0.5 * base_height[0]) | (base_up < np.cos(np.radians(45.0)))
     if not fell.any():
         fell[-1] = falling_at_the_end(robot, log.states[-1])
-    ratio = np.array([np.max(np.abs(v[6:]) / robot.dq_max) for _, v in log.states[start:]])
+    ratio = log.velocity_ratios(robot, start).max(axis=1)
     window = np.zeros(steps, dtype=bool)
     window[first - start:last + 1 + int(round(ONSET_AFTER / CONTROL_PERIOD)) - start] = True
-    loaded = log.soles[first - 1, :, LOAD] > 0.0  # the feet that carried weight before the impact
+    loaded = log.loaded_before(first)
     soles = log.soles[start:]
     capture = np.zeros(steps, dtype=bool)
     capture[min(last + 1, len(log.states) - 1) - start] = capture_margin < 0.0
@@ -407,9 +415,9 @@ def _evaluate(robot, stance, speed, log: _Log, first, wall_x) -> ImpactTrial:
              for name, flags in failing.items() if np.any(flags)}
     failure = min(times, key=lambda name: (times[name], FAILURES.index(name)), default="")
     impact = log.soles[first:last + 1 + int(round(ONSET_AFTER / CONTROL_PERIOD))]
-    loaded = log.soles[first - 1, :, LOAD] > 0.0
+    loaded = log.loaded_before(first)
     moved = log.feet[start:] - log.feet[start]
-    ratios = np.array([np.abs(v[6:]) / robot.dq_max for _, v in log.states[start:]])
+    ratios = log.velocity_ratios(robot, start)
     return ImpactTrial(
         stance=stance.name, speed=speed, **jumps,
         foot_slip=float(np.linalg.norm(moved[..., :2], axis=-1).max()),
