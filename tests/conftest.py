@@ -138,3 +138,35 @@ def dataset(tmp_path, dataset_logs):
 def file_digests(directory):
     """SHA-256 of every file in ``directory``, by name: equal before and after means untouched."""
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(directory.iterdir())}
+
+
+def g1_log(seed: int, scale: float = 1.0):
+    """A synthetic G1 log of 80 control samples (1 ms): joint positions inside the G1's limits, unit
+    base quaternions, other values drawn at ``scale``, and a 20 N wall force (0.5 ms samples) from
+    30 to 35 ms, so that an impact is found."""
+    from impactqp.controller.measured.humanoid_format import g1_model  # loads the G1 only where used
+    from impactqp.controller.measured.trial_log import TrialLog
+
+    rng, model, n = np.random.default_rng(seed), g1_model(), 80
+    joints = len(model.joint_names)
+    quaternion = rng.normal(size=(n, 4))
+    base = np.column_stack([scale * rng.normal(size=(n, 3)), quaternion / np.linalg.norm(quaternion, axis=1)[:, None],
+                            scale * rng.normal(size=(n, 6))])
+    force_t = np.arange(2 * n) * 0.5e-3
+    force = np.zeros((2 * n, 3))
+    force[60:70, 0] = -20.0
+    return TrialLog(
+        np.arange(n) * 1e-3, rng.uniform(model.q_min, model.q_max, (n, joints)),
+        *(scale * rng.normal(size=(n, joints)) for _ in range(3)), force_t, force, base=base,
+    )
+
+
+def g1_dataset(directory, seed: int = 0):
+    """A G1 dataset of one synthetic trial ``g`` (``g1_log``) in ``directory``; its log."""
+    from impactqp.sim.humanoid_dataset import HEADER  # the simulation's G1 header, loaded where used
+
+    log = g1_log(seed)
+    entry = TrialEntry(id="g", file="g.csv", reference_normal_speed=0.3, force_file="g_force.csv",
+                       posture="parallel", impact_time=0.03)
+    DatasetWriter(directory, HEADER).add_trial(entry, log)
+    return log
