@@ -58,6 +58,10 @@ criteria (``controller.model.humanoid_max_speed``) measured in the trial:
   low). The capture point alone is not enough there: a robot swaying back on its servos has it
   outside for a moment. No closed-form criterion: the outcome a failed capture risks.
 
+Log: ``ImpactTrial.log`` holds the trial as a robot logs it (``controller.measured.trial_log``): per control
+step the joints' state, the servo's torque held over the step, the command, the base state, and the wall
+force per physics step (``sim.humanoid_dataset`` writes it as a dataset).
+
 The feet's displacements are kept beside them: ``foot_slip`` / ``foot_lift`` (m), the largest
 horizontal / vertical motion of a foot frame after the settling (``slipped`` / ``lifted``: beyond
 :data:`SLIP` / :data:`LIFT`).

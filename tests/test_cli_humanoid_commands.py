@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from impactqp.controller.measured.dataset import read_dataset
 from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.cli.exit_codes import EXIT_BAD_INPUT
@@ -88,8 +89,6 @@ def test_max_speed_g1_json(capsys):
 
 
 def test_simulate_g1_out_adds_the_trial_to_a_g1_dataset(capsys, tmp_path):
-    from impactqp.controller.measured.dataset import read_dataset
-
     args = ("simulate", "--robot", "g1", "--posture", "close", "--speed", "0.2", "--out", str(tmp_path))
     code, out, _ = run(capsys, *args)
     assert code == 0 and f"trial close_vn200_scripted written to {tmp_path}" in out

@@ -1,6 +1,7 @@
 """Dataset format: atomic writer and typed reader (the checks: test_dataset_check.py)."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -20,6 +21,7 @@ from impactqp.controller.measured.dataset import (
 )
 from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.measured.impact import measure_impact
+from impactqp.sim.humanoid_dataset import HEADER
 from impactqp.sim.plant import PlantParameters
 
 from conftest import DATASET_HEADER, dataset_entry, file_digests, g1_dataset, g1_log
@@ -123,8 +125,6 @@ G1_ARRAYS = ("t", "q", "dq", "tau", "dq_cmd", "base", "force_t", "force")
 def test_a_g1_trial_reads_back_as_written(tmp_path_factory, seed, scale):
     """Write -> read gives back every logged array to the CSV's 10 significant digits, the header
     (robot g1, its contact frame, the wall) and the entry."""
-    from impactqp.sim.humanoid_dataset import HEADER
-
     directory = tmp_path_factory.mktemp("g1")
     log = g1_log(seed, scale)
     entry = TrialEntry("g", "g.csv", 0.3, force_file="g_force.csv", posture="parallel")
@@ -138,10 +138,6 @@ def test_a_g1_trial_reads_back_as_written(tmp_path_factory, seed, scale):
 
 
 def test_a_g1_log_without_its_base_state_is_not_written(tmp_path):
-    from dataclasses import replace
-
-    from impactqp.sim.humanoid_dataset import HEADER
-
     log = replace(g1_log(0), base=np.zeros((0, 13)))
     with pytest.raises(DatasetError, match="base state"):
         DatasetWriter(tmp_path, HEADER).add_trial(TrialEntry("g", "g.csv", 0.3), log)
