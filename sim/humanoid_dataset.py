@@ -51,10 +51,15 @@ def trial_entry(trial: ImpactTrial) -> TrialEntry:
     )
 
 
-def write_trials(directory: str | Path, trials) -> list[TrialEntry]:
-    """Add ``trials`` (``ImpactTrial``) to the G1 dataset in ``directory`` (created when absent;
-    an existing dataset of another header, or a trial of the same id with other data, is refused)."""
-    writer = DatasetWriter(directory, HEADER)
+def open_dataset(directory: str | Path) -> DatasetWriter:
+    """The writer of the G1 dataset in ``directory`` (created with the first trial); an existing
+    dataset of another header is refused here, before any trial is simulated."""
+    return DatasetWriter(directory, HEADER)
+
+
+def write_trials(writer: DatasetWriter, trials) -> list[TrialEntry]:
+    """Add ``trials`` (``ImpactTrial``) to the dataset of ``writer`` (``open_dataset``); a trial of
+    an id the dataset holds with other data is refused, the same trial again changes nothing."""
     entries = []
     for trial in trials:
         entries.append(trial_entry(trial))

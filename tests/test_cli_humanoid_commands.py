@@ -14,6 +14,8 @@ from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.cli.exit_codes import EXIT_BAD_INPUT
 
+from conftest import file_digests
+
 
 def run(capsys, *args):
     code = main(list(args))
@@ -101,6 +103,17 @@ def test_simulate_g1_out_adds_the_trial_to_a_g1_dataset(capsys, tmp_path):
     assert data.trials[0].log.q.shape[1] == 29 and data.trials[0].log.has_force
     code, out, _ = run(capsys, "dataset", "validate", str(tmp_path))
     assert code == 0 and "0 problem(s) in 1 trial(s)" in out
+
+
+@pytest.mark.parametrize("command", ["simulate", "campaign"])
+def test_a_g1_trial_is_never_added_to_an_arm_dataset(capsys, dataset, command):
+    """Refused before any trial is simulated: one line of bad input, the arm's files untouched."""
+    before = file_digests(dataset)
+    speed = ("--speed", "0.2") if command == "simulate" else ("--speeds", "0.2")
+    code, _, err = run(capsys, command, "--robot", "g1", "--posture" + ("s" if command == "campaign" else ""),
+                       "parallel", *speed, "--out", str(dataset))
+    assert code == EXIT_BAD_INPUT and err.count("\n") == 1 and "another header" in err
+    assert file_digests(dataset) == before
 
 
 @pytest.mark.parametrize("args", [

@@ -11,7 +11,7 @@ from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD, measure_impact
 from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.humanoid_stance import STANCES
-from impactqp.sim.humanoid_dataset import HEADER, dataset_log, trial_entry, write_trials
+from impactqp.sim.humanoid_dataset import HEADER, dataset_log, open_dataset, trial_entry, write_trials
 from impactqp.sim.humanoid_trial import CONTROL_PERIOD, run_impact_trial
 
 from conftest import file_digests
@@ -25,7 +25,7 @@ def trials():
 
 @pytest.fixture()
 def written(tmp_path, trials):
-    write_trials(tmp_path, trials)
+    write_trials(open_dataset(tmp_path), trials)
     return tmp_path
 
 
@@ -93,11 +93,11 @@ def test_the_extraction_agrees_with_the_trial_where_their_definitions_coincide(w
 
 def test_the_writer_adds_nothing_twice_and_overwrites_nothing(written, trials):
     before = file_digests(written)
-    write_trials(written, trials[:1])  # the same trial again: nothing changes
+    write_trials(open_dataset(written), trials[:1])  # the same trial again: nothing changes
     assert file_digests(written) == before
     manifest = json.loads((written / "dataset.json").read_text())
     assert [t["id"] for t in manifest["trials"]] == [trial_entry(t).id for t in trials]
     changed = trials[0].__class__(**{**trials[0].__dict__, "log": trials[1].log})
     with pytest.raises(DatasetError, match="already exists"):
-        write_trials(written, [changed])
+        write_trials(open_dataset(written), [changed])
     assert file_digests(written) == before

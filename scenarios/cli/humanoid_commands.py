@@ -101,7 +101,7 @@ def g1_simulate(posture: str, speed: float, files: dict, controller: str = "scri
     (None without ``out_dir``)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.video import render_humanoid_gif
-    from impactqp.sim.humanoid_dataset import write_trials
+    from impactqp.sim.humanoid_dataset import open_dataset, write_trials
     from impactqp.sim.humanoid_qp_source import QpCommand
     from impactqp.sim.humanoid_trial import SCRIPTED, run_impact_trial
 
@@ -118,11 +118,10 @@ def g1_simulate(posture: str, speed: float, files: dict, controller: str = "scri
     approach_speed(speed, "--speed")
     if video_file is not None:
         gif_output(video_file)
-    if out_dir is not None:
-        output_directory(out_dir, "--out")
+    dataset = None if out_dir is None else open_dataset(output_directory(out_dir, "--out"))
     robot = FloatingBaseModel()
     trial = run_impact_trial(robot, stance, speed, source=source)
-    written = None if out_dir is None else write_trials(out_dir, [trial])[0].id
+    written = None if dataset is None else write_trials(dataset, [trial])[0].id
     if video_file is not None:
         render_humanoid_gif(robot, trial, video_file)
     report = trial_json(trial)
@@ -159,7 +158,7 @@ def g1_campaign(postures_text, speeds_text, jobs: int, out_dir: str) -> tuple[di
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.measured.atomic import write_atomic
     from impactqp.scenarios.humanoid_campaign import DEFAULT_SPEEDS, campaign_table, crb_reduction, mean_errors
-    from impactqp.sim.humanoid_dataset import write_trials
+    from impactqp.sim.humanoid_dataset import open_dataset, write_trials
     from impactqp.sim.process_pool import map_in_processes
 
     reject_options(["tangential_text", "plant_file", "tool"])
@@ -168,6 +167,7 @@ def g1_campaign(postures_text, speeds_text, jobs: int, out_dir: str) -> tuple[di
     for v in speeds:
         approach_speed(v, "every speed of --speeds")
     out = output_directory(out_dir, "--out")
+    dataset = open_dataset(out)
     trials = map_in_processes(_campaign_trial, [(s, v) for s in stances for v in speeds], check_jobs(jobs))
     errors = {m: e for m, e in mean_errors(trials).items() if m in METHODS}
     rows = [
@@ -181,7 +181,7 @@ def g1_campaign(postures_text, speeds_text, jobs: int, out_dir: str) -> tuple[di
              "mean_crb_reduction_percent": crb_reduction(errors)}
     text = campaign_table(trials)
     out.mkdir(parents=True, exist_ok=True)
-    write_trials(out, trials)
+    write_trials(dataset, trials)
     write_atomic(out / "table1.json", lambda tmp: Path(tmp).write_text(json.dumps(table, indent=2, allow_nan=False)))
     write_atomic(out / "table1.md", lambda tmp: Path(tmp).write_text(text + "\n"))
     return table, text
