@@ -60,6 +60,10 @@ criteria (``controller.model.humanoid_max_speed``) measured in the trial:
   low). The capture point alone is not enough there: a robot swaying back on its servos has it
   outside for a moment. No closed-form criterion: the outcome a failed capture risks.
 
+Log: ``ImpactTrial.log`` holds the trial as a robot logs it (``controller.measured.trial_log``): per control
+step the joints' state, the servo's torque held over the step, the command, the base state, and the wall
+force per physics step (``sim.humanoid_dataset`` writes it as a dataset).
+
 The feet's displacements are kept beside them: ``foot_slip`` / ``foot_lift`` (m), the largest
 horizontal / vertical motion of a foot frame after the settling (``slipped`` / ``lifted``: beyond
 :data:`SLIP` / :data:`LIFT`).
@@ -73,6 +77,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.capture import capture_region
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, jump_from_impulse, predict
 from impactqp.controller.model.humanoid_max_speed import ARM_JOINTS, standing_wrenches
@@ -135,6 +140,7 @@ class ImpactTrial:
     source: str = "scripted"  # the command source (``ScriptedCommand.name``, ``QpCommand.name``)
     commands: np.ndarray | None = None  # (steps, 29) joint velocity commands sent to the servo (rad/s)
     record: object = None  # what the command source kept of each control step (the QP's ``QpRecord``), or None
+    log: TrialLog | None = None  # the trial as a robot logs it (simulation world frame; ``sim.humanoid_dataset``)
 
     @property
     def feasible(self) -> bool:
@@ -257,6 +263,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     substeps = int(round(CONTROL_PERIOD / model.opt.timestep))
     approach_steps = int(round((SETTLE + source.approach_time(gap, speed)) / CONTROL_PERIOD))
     states, forces, peaks, floor_impulses, feet, soles, commands = [], [], [], [], [], [], []
+    torques, wall_forces = [], []  # the servo's torque per control step, the wall force per physics step
     first_contact, stop_at, end = None, None, approach_steps
     k = 0
     while k < end:
@@ -268,11 +275,13 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
         if k == stop_at and source.holds_at_stop:
             servo.hold()
         tau = servo.torque(dq_cmd, CONTROL_PERIOD)
+        torques.append(tau)
         force, floor, sole, peak = np.zeros(3), np.zeros(3), None, 0.0
         for _ in range(substeps):
             data.qfrc_applied[6:] = tau
             mujoco.mj_step(model, data)
             wall_force, floor_force = _contact_forces(scene)
+            wall_forces.append(wall_force)
             peak = max(peak, float(NORMAL @ wall_force))
             force += wall_force * model.opt.timestep
             floor += floor_force * model.opt.timestep
@@ -291,7 +300,11 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
         raise RuntimeError(f"the hand never reached the wall (stance {stance.name}, {speed} m/s, {source.name} command)")
     log = _Log(states, np.array(forces), np.array(peaks), np.array(floor_impulses), np.array(feet), np.array(soles))
     trial = _evaluate(robot, stance, speed, log, first_contact, scene.wall_x)
-    return replace(trial, source=source.name, commands=np.array(commands), record=driver.record)
+    q_log, v_log = (np.array(x) for x in zip(*states))
+    force_t = np.arange(len(wall_forces)) * model.opt.timestep
+    robot_log = TrialLog(np.arange(k) * CONTROL_PERIOD, q_log[:, 7:], v_log[:, 6:], np.array(torques), np.array(commands),
+                         force_t, np.array(wall_forces), base=np.column_stack([q_log[:, :7], v_log[:, :6]]))
+    return replace(trial, source=source.name, commands=np.array(commands), record=driver.record, log=robot_log)
 
 
 def _contact_forces(scene) -> tuple[np.ndarray, np.ndarray]:

@@ -6,12 +6,15 @@ import pytest
 from hypothesis import strategies as st
 
 from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry
+from impactqp.controller.measured.humanoid_format import g1_model
 from impactqp.controller.measured.impact import measure_impact
+from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
 from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT, PandaModel
 from impactqp.controller.model.tool_description import TOOLS
 from impactqp.controller.runtime.interface import RobotInterface
 from impactqp.scenarios.run import RunRequest, run
+from impactqp.sim.humanoid_dataset import HEADER as G1_HEADER
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import TrialSpec, run_approach
 from impactqp.sim.scene import build_scene
@@ -138,3 +141,30 @@ def dataset(tmp_path, dataset_logs):
 def file_digests(directory):
     """SHA-256 of every file in ``directory``, by name: equal before and after means untouched."""
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(directory.iterdir())}
+
+
+def g1_log(seed: int, scale: float = 1.0):
+    """A synthetic G1 log of 80 control samples (1 ms): joint positions inside the G1's limits, unit
+    base quaternions, other values drawn at ``scale``, and a 20 N wall force (0.5 ms samples) from
+    30 to 35 ms, so that an impact is found."""
+    rng, model, n = np.random.default_rng(seed), g1_model(), 80
+    joints = len(model.joint_names)
+    quaternion = rng.normal(size=(n, 4))
+    base = np.column_stack([scale * rng.normal(size=(n, 3)), quaternion / np.linalg.norm(quaternion, axis=1)[:, None],
+                            scale * rng.normal(size=(n, 6))])
+    force_t = np.arange(2 * n) * 0.5e-3
+    force = np.zeros((2 * n, 3))
+    force[60:70, 0] = -20.0
+    return TrialLog(
+        np.arange(n) * 1e-3, rng.uniform(model.q_min, model.q_max, (n, joints)),
+        *(scale * rng.normal(size=(n, joints)) for _ in range(3)), force_t, force, base=base,
+    )
+
+
+def g1_dataset(directory, seed: int = 0):
+    """A G1 dataset of one synthetic trial ``g`` (``g1_log``) in ``directory``; its log."""
+    log = g1_log(seed)
+    entry = TrialEntry(id="g", file="g.csv", reference_normal_speed=0.3, force_file="g_force.csv",
+                       posture="parallel", impact_time=0.03)
+    DatasetWriter(directory, G1_HEADER).add_trial(entry, log)
+    return log

@@ -9,9 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from impactqp.controller.measured.dataset import read_dataset
 from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.cli.exit_codes import EXIT_BAD_INPUT
+
+from conftest import file_digests
 
 
 def run(capsys, *args):
@@ -69,6 +72,10 @@ def test_campaign_g1_json_and_files(capsys, tmp_path):
     assert len(table["rows"]) == 1 and table["rows"][0]["posture"] == "parallel"
     assert json.loads((tmp_path / "table1.json").read_text()) == table
     assert (tmp_path / "table1.md").read_text().startswith("| stance")
+    # the campaign's trials, as a G1 dataset beside the table
+    manifest = json.loads((tmp_path / "dataset.json").read_text())
+    assert manifest["robot"] == "g1" and [t["posture"] for t in manifest["trials"]] == ["parallel"]
+    assert main(["dataset", "validate", str(tmp_path)]) == 0
 
 
 def test_max_speed_g1_json(capsys):
@@ -81,6 +88,32 @@ def test_max_speed_g1_json(capsys):
     assert report["predicted_max_speed"]["robust"] == min(report["predicted_max_speed"][m] for m in ("classical", "gm", "crb"))
     speeds = [e["reference_speed"] for e in report["evaluations"] if not e["violated"]]
     assert report["simulated_max_speed"] == max(speeds)
+
+
+def test_simulate_g1_out_adds_the_trial_to_a_g1_dataset(capsys, tmp_path):
+    args = ("simulate", "--robot", "g1", "--posture", "close", "--speed", "0.2", "--out", str(tmp_path))
+    code, out, _ = run(capsys, *args)
+    assert code == 0 and f"trial close_vn200_scripted written to {tmp_path}" in out
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    code, out, _ = run(capsys, *args, "--json")  # the same trial again: nothing changes, the JSON alone
+    assert code == 0 and "dq_jump" in json.loads(out)
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+    data = read_dataset(tmp_path)
+    assert data.header.robot == "g1" and [t.entry.id for t in data.trials] == ["close_vn200_scripted"]
+    assert data.trials[0].log.q.shape[1] == 29 and data.trials[0].log.has_force
+    code, out, _ = run(capsys, "dataset", "validate", str(tmp_path))
+    assert code == 0 and "0 problem(s) in 1 trial(s)" in out
+
+
+@pytest.mark.parametrize("command", ["simulate", "campaign"])
+def test_a_g1_trial_is_never_added_to_an_arm_dataset(capsys, dataset, command):
+    """Refused before any trial is simulated: one line of bad input, the arm's files untouched."""
+    before = file_digests(dataset)
+    speed = ("--speed", "0.2") if command == "simulate" else ("--speeds", "0.2")
+    code, _, err = run(capsys, command, "--robot", "g1", "--posture" + ("s" if command == "campaign" else ""),
+                       "parallel", *speed, "--out", str(dataset))
+    assert code == EXIT_BAD_INPUT and err.count("\n") == 1 and "another header" in err
+    assert file_digests(dataset) == before
 
 
 @pytest.mark.parametrize("args", [

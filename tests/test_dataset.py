@@ -1,9 +1,12 @@
 """Dataset format: atomic writer and typed reader (the checks: test_dataset_check.py)."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.controller.model.robot import TOOL_TIP_OFFSET
@@ -18,9 +21,10 @@ from impactqp.controller.measured.dataset import (
 )
 from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.measured.impact import measure_impact
+from impactqp.sim.humanoid_dataset import HEADER
 from impactqp.sim.plant import PlantParameters
 
-from conftest import DATASET_HEADER, dataset_entry, file_digests
+from conftest import DATASET_HEADER, dataset_entry, file_digests, g1_dataset, g1_log
 
 
 def test_round_trip(dataset, dataset_logs):
@@ -110,3 +114,63 @@ def test_the_manifest_records_and_reads_back_the_full_tool(tmp_path, dataset_log
     _rewrite_manifest(tmp_path, lambda m: m["tool"].__setitem__("mass", -1.0))
     with pytest.raises(DatasetError, match="tool: the tool mass"):
         read_dataset(tmp_path)
+
+
+# ---------------------------------------------------------------------------- the G1
+G1_ARRAYS = ("t", "q", "dq", "tau", "dq_cmd", "base", "force_t", "force")
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(seed=st.integers(0, 2**32 - 1), scale=st.floats(1e-6, 1e3))
+def test_a_g1_trial_reads_back_as_written(tmp_path_factory, seed, scale):
+    """Write -> read gives back every logged array to the CSV's 10 significant digits, the header
+    (robot g1, its contact frame, the wall) and the entry."""
+    directory = tmp_path_factory.mktemp("g1")
+    log = g1_log(seed, scale)
+    entry = TrialEntry("g", "g.csv", 0.3, force_file="g_force.csv", posture="parallel")
+    DatasetWriter(directory, HEADER).add_trial(entry, log)
+    data = read_dataset(directory)
+    assert data.header.to_dict() == HEADER.to_dict() and data.trials[0].entry == entry
+    for name in G1_ARRAYS:
+        np.testing.assert_allclose(getattr(data.trials[0].log, name), getattr(log, name), rtol=1e-9, atol=0.0)
+    manifest = json.loads((directory / "dataset.json").read_text())
+    assert manifest["robot"] == "g1" and manifest["tool"] == {"frame": "right_palm_contact", "contact_point": [0, 0, 0]}
+
+
+def test_a_g1_log_without_its_base_state_is_not_written(tmp_path):
+    log = replace(g1_log(0), base=np.zeros((0, 13)))
+    with pytest.raises(DatasetError, match="base state"):
+        DatasetWriter(tmp_path, HEADER).add_trial(TrialEntry("g", "g.csv", 0.3), log)
+    assert not list(tmp_path.iterdir())
+
+
+def _drop_column(path, name):
+    lines = [line.split(",") for line in path.read_text().splitlines()]
+    index = lines[0].index(name)
+    path.write_text("\n".join(",".join(x[:index] + x[index + 1:]) for x in lines) + "\n")
+
+
+@pytest.mark.parametrize("damage, message", [
+    (lambda p: _drop_column(p, "base_qw"), "lacks the column"),
+    (lambda p: _drop_column(p, "dq_cmd29"), "lacks the column"),
+    (lambda p: p.write_text(p.read_text().replace("base_x", "base_X", 1)), "lacks the column"),
+    (lambda p: p.write_text(p.read_text()[: len(p.read_text()) // 2]), "values per row|not a numeric CSV"),
+    (lambda p: p.write_text(p.read_text().splitlines()[0] + "\n"), "holds no samples"),
+    (lambda p: p.write_bytes(b"\x00\xff" * 50), "not a numeric CSV"),
+    (lambda p: p.write_text(p.read_text().replace("\n0,", "\nnan,", 1)), "not a numeric CSV|NaN"),
+])
+def test_a_damaged_g1_csv_is_one_line_of_bad_input(tmp_path, damage, message):
+    g1_dataset(tmp_path)
+    damage(tmp_path / "g.csv")
+    with pytest.raises(DatasetError, match=message) as error:
+        read_dataset(tmp_path)
+    assert "\n" not in str(error.value)
+    problems = validate(tmp_path)
+    assert problems["dataset"] == [] and len(problems["g"]) == 1 and "\n" not in problems["g"][0]
+
+
+def test_a_g1_dataset_is_no_arm_choice(tmp_path):
+    g1_dataset(tmp_path)
+    header = read_dataset(tmp_path).header
+    with pytest.raises(DatasetError, match="g1 dataset"):
+        header.choice

@@ -8,7 +8,7 @@ import pytest
 from impactqp.controller.measured.dataset import DatasetError, read_dataset
 from impactqp.controller.measured.dataset_check import validate
 
-from conftest import file_digests
+from conftest import file_digests, g1_dataset
 
 
 def test_valid_dataset_has_no_problem(dataset):
@@ -66,3 +66,30 @@ def test_validation_reports_a_broken_manifest(tmp_path):
     assert "lacks the key" in validate(tmp_path)["dataset"][0]
     with pytest.raises(DatasetError):
         read_dataset(tmp_path)
+
+
+def _set_cell(path, row, column, value):
+    lines = [line.split(",") for line in path.read_text().splitlines()]
+    lines[row][lines[0].index(column)] = value
+    path.write_text("\n".join(",".join(x) for x in lines) + "\n")
+
+
+def test_a_g1_dataset_is_valid_and_its_impact_found(tmp_path):
+    g1_dataset(tmp_path)
+    before = file_digests(tmp_path)
+    assert validate(tmp_path) == {"dataset": [], "g": []}
+    assert file_digests(tmp_path) == before
+
+
+@pytest.mark.parametrize("column, value, message", [
+    ("q5", "100", r"q5 = 100.0000 rad at data row 7 lies outside the joint limits"),
+    ("base_qw", "7", r"base quaternion's norm is .* at data row 7, not 1"),
+    ("t", "0.5", r"time does not increase at data row 8"),
+    ("tau29", "inf", r"NaN or infinite value \(data row 7\)"),
+])
+def test_a_g1_trial_out_of_what_the_robot_logs_is_named(tmp_path, column, value, message):
+    g1_dataset(tmp_path)
+    _set_cell(tmp_path / "g.csv", 7, column, value)
+    problems = validate(tmp_path)
+    assert problems["dataset"] == [] and len(problems["g"]) == 1
+    assert re.search(message, problems["g"][0]), problems["g"]

@@ -9,6 +9,8 @@ import pytest
 from impactqp.scenarios.cli import main
 from impactqp.sim.plant import PlantParameters
 
+from conftest import g1_dataset
+
 
 def run(capsys, *args):
     code = main([str(a) for a in args])
@@ -206,3 +208,12 @@ def test_a_fifo_as_plant_file_is_bad_input(tmp_path):
     code, out, err = run_guarded("dataset", "generate", tmp_path / "out", "--plant", plant, "--postures", "elbow_up",
                                  "--speeds", "0.1")
     assert code == 2 and err.count("\n") == 1 and "not a regular file" in err
+
+
+def test_a_g1_dataset_validates_and_diagnose_refuses_it(tmp_path, capsys):
+    g1_dataset(tmp_path)
+    code, out, _ = run(capsys, "dataset", "validate", tmp_path, "--json")
+    assert code == 0 and json.loads(out) == {"valid": True, "problems": {"dataset": [], "g": []}}
+    for args in ([], ["--robot", "fr3"]):
+        code, out, err = run(capsys, "diagnose", tmp_path, *args)
+        assert code == 2 and err.count("\n") == 1 and "is a g1 dataset" in err

@@ -14,7 +14,7 @@ from impactqp.controller.measured.dataset import read_dataset
 from impactqp.scenarios import run as run_module
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.cli.exit_codes import EXIT_ROBOT_WOULD_STOP
-from conftest import ForwardingRobot
+from conftest import ForwardingRobot, g1_dataset
 
 HAS_PYLIBFRANKA = importlib.util.find_spec("pylibfranka") is not None
 
@@ -212,3 +212,9 @@ def test_every_option_of_run_is_a_request_field_of_the_same_name_and_every_field
     for name in names:
         assert f"\n    {name}\n" in RunRequest.__doc__, name
     assert RunRequest().unpaced is False and RunRequest().log is None
+
+
+def test_replaying_a_g1_dataset_is_one_line_of_bad_input(tmp_path, capsys):
+    g1_dataset(tmp_path)
+    err = one_error_line(capsys, ["run", "--backend", "replay", "--dataset", str(tmp_path)])
+    assert "'g1' is not an arm" in err

@@ -15,7 +15,8 @@ A dataset is a directory with a manifest ``dataset.json``::
                   "posture": "elbow_up", "impact_time": 0.134}]
     }
 
-``robot`` names a robot description (``panda``, ``fr3``) and ``tool`` is the full tool
+``robot`` names a robot description (``panda``, ``fr3``; ``g1``: the floating-base humanoid, its
+contact frame as ``tool``, its base state before its 29 joints' columns, ``humanoid_format``) and ``tool`` is the full tool
 description (``tool_description.ToolDescription.as_dict``; docs/dataset.md): whoever reads the
 dataset models that robot and that tool. A manifest of the first version, whose tool is
 ``{"frame": "panda_hand", "contact_point": [0, 0, 0.14]}`` (the hand frame of its robot and the
@@ -59,17 +60,21 @@ from impactqp.controller.model.validation import (
 )
 
 from .atomic import write_text_atomic
+from .humanoid_format import BASE_COLUMNS, G1, ContactFrame, contact_frame_from_dict, joint_count
 from .trial_log import TrialLog
 
 FORMAT = "impactqp-dataset/1"
 MANIFEST = "dataset.json"
-TRIAL_COLUMNS = (
-    ["t"]
-    + [f"q{i}" for i in range(1, NQ + 1)]
-    + [f"dq{i}" for i in range(1, NQ + 1)]
-    + [f"tau{i}" for i in range(1, NQ + 1)]
-    + [f"dq_cmd{i}" for i in range(1, NQ + 1)]
-)
+
+
+def trial_columns(robot: str) -> list[str]:
+    """The columns of a trial CSV of ``robot``: t, a floating base's state, then per quantity
+    (q, dq, tau, dq_cmd) one column per joint of the robot."""
+    base, joints = (list(BASE_COLUMNS), joint_count()) if robot == G1 else ([], NQ)
+    return ["t", *base, *(f"{name}{i}" for name in ("q", "dq", "tau", "dq_cmd") for i in range(1, joints + 1))]
+
+
+TRIAL_COLUMNS = trial_columns("panda")
 FORCE_COLUMNS = ["t", "fx", "fy", "fz"]
 RESERVED_ID = "dataset"
 """The key of the manifest's own problems in :func:`validate`; no trial may use it."""
@@ -141,7 +146,7 @@ class DatasetHeader:
     do not know the surface's friction coefficient (a real robot's log; the manifest leaves
     ``surface.friction`` out and ``surface`` holds the default)."""
 
-    tool: ToolDescription
+    tool: ToolDescription | ContactFrame
     surface: Surface
     control_period: float
     robot: str = "panda"
@@ -149,7 +154,10 @@ class DatasetHeader:
 
     @property
     def choice(self) -> RobotChoice:
-        """The robot and the tool the data were taken with: what a reader models."""
+        """The robot and the tool the data were taken with: what a reader models (an arm's only)."""
+        if self.robot == G1:
+            raise DatasetError("a g1 dataset (the floating-base humanoid) cannot be read here: this reads "
+                               f"datasets of the arms ({', '.join(ROBOTS)}) only")
         return RobotChoice.of(self.robot, self.tool)
 
     def to_dict(self) -> dict:
@@ -204,7 +212,7 @@ class DatasetWriter:
             self.entries = [parse_entry(e) for e in manifest["trials"]]
 
     def add_trial(self, entry: TrialEntry, log: TrialLog) -> None:
-        files = {entry.file: _trial_csv(log)}
+        files = {entry.file: _trial_csv(log, self.header.robot)}
         if entry.force_file is not None:
             if not log.has_force:
                 raise DatasetError(f"trial {entry.id!r} names a force file but its log has no force")
@@ -236,8 +244,11 @@ def _csv(columns: list[str], table: np.ndarray) -> str:
     return stream.getvalue()
 
 
-def _trial_csv(log: TrialLog) -> str:
-    return _csv(TRIAL_COLUMNS, np.column_stack([log.t, log.q, log.dq, log.tau, log.dq_cmd]))
+def _trial_csv(log: TrialLog, robot: str) -> str:
+    base = [log.base] if robot == G1 else []
+    if robot == G1 and len(log.base) != len(log.t):
+        raise DatasetError("a g1 trial's log lacks the base state of its samples")
+    return _csv(trial_columns(robot), np.column_stack([log.t, *base, log.q, log.dq, log.tau, log.dq_cmd]))
 
 
 def _force_csv(log: TrialLog) -> str:
@@ -252,8 +263,8 @@ def load_manifest(path: Path) -> dict:
         raise DatasetError(f"{path} lacks the key(s) {', '.join(sorted(missing))}")
     if manifest["format"] != FORMAT:
         raise DatasetError(f"{path}: the format must be {FORMAT!r}")
-    if not isinstance(manifest["robot"], str) or manifest["robot"] not in ROBOTS:
-        raise DatasetError(f"{path}: 'robot' must be one of the robots we model ({', '.join(ROBOTS)})")
+    if not isinstance(manifest["robot"], str) or manifest["robot"] not in (*ROBOTS, G1):
+        raise DatasetError(f"{path}: 'robot' must be one of the robots we model ({', '.join((*ROBOTS, G1))})")
     if not isinstance(manifest["trials"], list):
         raise DatasetError(f"{path}: 'trials' must be a list")
     return manifest
@@ -282,7 +293,9 @@ def parse_header(manifest: dict) -> DatasetHeader:
         raise DatasetError("'tool' must be an object: a tool description (docs/dataset.md)")
     if not isinstance(surface, dict) or not {"point", "normal"} <= set(surface) <= {"point", "normal", "friction"}:
         raise DatasetError("'surface' must be an object with the keys point, normal and optionally friction")
-    if set(tool) == LEGACY_TOOL_KEYS:
+    if manifest["robot"] == G1:
+        tool = contact_frame_from_dict(tool)
+    elif set(tool) == LEGACY_TOOL_KEYS:
         tool = _legacy_tool(tool, manifest["robot"])
     else:
         try:
@@ -390,10 +403,12 @@ def read_header(directory: str | Path) -> DatasetHeader:
     return parse_header(load_manifest(Path(directory) / MANIFEST))
 
 
-def read_trial(directory: Path, entry: TrialEntry) -> TrialLog:
-    table = _read_table(_inside(directory, entry.file), TRIAL_COLUMNS)
-    t, q, dq, tau, dq_cmd = (table[:, 0], *np.split(table[:, 1:], 4, axis=1))
-    log = TrialLog(t, q, dq, tau, dq_cmd)
+def read_trial(directory: Path, entry: TrialEntry, robot: str = "panda") -> TrialLog:
+    """The log of the trial ``entry`` of a dataset of ``robot``."""
+    table = _read_table(_inside(directory, entry.file), trial_columns(robot))
+    base = len(BASE_COLUMNS) + 1 if robot == G1 else 1
+    t, q, dq, tau, dq_cmd = (table[:, 0], *np.split(table[:, base:], 4, axis=1))
+    log = TrialLog(t, q, dq, tau, dq_cmd, base=table[:, 1:base] if robot == G1 else np.zeros((0, 13)))
     if entry.force_file is not None:
         force = _read_table(_inside(directory, entry.force_file), FORCE_COLUMNS)
         log.force_t, log.force = force[:, 0], force[:, 1:]
@@ -420,7 +435,7 @@ def read_dataset(
         if entry.id in skip:
             continue
         try:
-            trials.append(DatasetTrial(entry, read_trial(directory, entry)))
+            trials.append(DatasetTrial(entry, read_trial(directory, entry, header.robot)))
         except DatasetError as error:
             raise DatasetError(f"trial {entry.id!r}: {error}") from None
     return Dataset(directory, header, trials)

@@ -19,6 +19,7 @@ from .dataset import (
     parse_header,
     read_trial,
 )
+from .humanoid_format import G1, g1_model, quaternion_problem
 from .impact import WINDOW_AFTER, WINDOW_BEFORE, ImpactNotFoundError, measure_impact
 
 POSITION_TOLERANCE = 1e-3
@@ -29,7 +30,8 @@ def validate(directory: str | Path, progress=None) -> dict[str, list[str]]:
     """Problems of a dataset, per trial id (key ``"dataset"`` for the manifest itself).
 
     Checks: the manifest (format, keys, header, duplicate ids, CSV files it does not list),
-    per trial the files and their columns, non-finite values, increasing time, the sampling
+    per trial the files and their columns, non-finite values, increasing time, the joint positions
+    against the robot's limits, a floating base's unit quaternions (the G1), the sampling
     period against ``control_period``, a length that holds the detection window, an impact
     found by :func:`controller.measured.impact.measure_impact`, and ``impact_time`` against the detected impact.
     An empty list means no problem. Never modifies any file.
@@ -90,12 +92,12 @@ def _log_problems(directory: Path, entry: TrialEntry, header: DatasetHeader) -> 
     header's robot and control period, and the start of the impact found in them (None when none
     is found)."""
     try:
-        log = read_trial(directory, entry)
+        log = read_trial(directory, entry, header.robot)
     except DatasetError as error:
         return [str(error)], None
     problems = []
     control_period = header.control_period
-    robot = robot_description(header.robot)
+    robot = g1_model() if header.robot == G1 else robot_description(header.robot)
     outside = (log.q < robot.q_min - POSITION_TOLERANCE) | (log.q > robot.q_max + POSITION_TOLERANCE)
     if np.any(outside):
         row, joint = (int(i) for i in np.argwhere(outside)[0])
@@ -104,6 +106,9 @@ def _log_problems(directory: Path, entry: TrialEntry, header: DatasetHeader) -> 
             f"the joint limits [{robot.q_min[joint]:.4f}, {robot.q_max[joint]:.4f}]"
         )
         return problems, None
+    quaternion = quaternion_problem(log.base, entry.file) if header.robot == G1 else None
+    if quaternion is not None:
+        return [quaternion], None
     needed = int(round((WINDOW_BEFORE + WINDOW_AFTER) / control_period)) + 4
     if len(log) < 2:
         return [f"{entry.file} holds {len(log)} samples, fewer than the {needed} of the detection window"], None

@@ -18,6 +18,8 @@ class TrialLog:
     robot (world frame, N) acting over [force_t[i], force_t[i] + timestep). Empty force arrays
     mean that the log holds no force measurement (e.g. a robot log without a sensor).
     ``wall_time`` is the time the simulation took (s), 0 for a log that was not simulated.
+    ``base`` (N, 13): a floating base's state per control sample (position, quaternion x, y, z,
+    w, twist in the base frame: ``controller.measured.humanoid_format``), empty for a fixed-base arm.
     """
 
     t: np.ndarray
@@ -28,6 +30,7 @@ class TrialLog:
     force_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     force: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     wall_time: float = 0.0
+    base: np.ndarray = field(default_factory=lambda: np.zeros((0, 13)))
 
     def __len__(self) -> int:
         return len(self.t)
@@ -44,7 +47,7 @@ class TrialLog:
         i = int(np.searchsorted(self.force_t, t_cut - 1e-12))
         return TrialLog(
             self.t[:k], self.q[:k], self.dq[:k], self.tau[:k], self.dq_cmd[:k],
-            self.force_t[:i], self.force[:i], self.wall_time,
+            self.force_t[:i], self.force[:i], self.wall_time, self.base[:k],
         )
 
     @property

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from impactqp.controller.measured.dataset import DatasetError, DatasetTrial, read_dataset
+from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError
 
 from .interface import RobotInterface, RobotState
@@ -21,6 +22,9 @@ def load_trial(directory, trial_id: str | None) -> tuple[DatasetTrial, object]:
         dataset = read_dataset(directory)
     except DatasetError as error:
         raise BadInputError(f"replay dataset {directory}: {error}") from None
+    if dataset.header.robot not in ROBOTS:
+        raise BadInputError(f"replay dataset {directory}: its robot {dataset.header.robot!r} is not an arm the replay "
+                            f"backend plays ({', '.join(ROBOTS)}); a g1 dataset has a floating base")
     if not dataset.trials:
         raise BadInputError(f"replay dataset {directory} holds no trial")
     if trial_id is None:

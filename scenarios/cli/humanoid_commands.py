@@ -7,7 +7,8 @@ whole-body QP drives the trial, ``sim.humanoid_qp_source``). An option of the ar
 has no meaning for the G1 (a tool, a plant file, a wall point, jump constraints: only
 ``simulate --controller qp`` runs a QP, and takes ``--jump-model``) is bad input when given: one
 line naming it. The JSON keeps the arm's keys where they mean the same and
-adds the G1's (CoM jump, foot wrenches, slip, lift, fall).
+adds the G1's (CoM jump, foot wrenches, slip, lift, fall). ``simulate --out DIR`` and ``campaign``
+write their trials as a G1 dataset (``sim.humanoid_dataset``, docs/dataset.md).
 """
 
 from __future__ import annotations
@@ -92,17 +93,21 @@ def trial_json(trial) -> dict:
     }
 
 
-def g1_simulate(posture: str, speed: float, video_file: str | None, controller: str = "scripted") -> dict:
+def g1_simulate(posture: str, speed: float, files: dict, controller: str = "scripted") -> tuple[dict, str | None]:
     """One G1 trial (``sim.humanoid_trial``) driven by the scripted command or (``controller="qp"``)
     the whole-body QP with the ``--jump-model`` predictor (crb, gm or classical), optionally
-    rendered to a GIF; its JSON (with the QP: ``controller`` and ``cycles_not_ok`` added)."""
+    rendered to a GIF (``files["video_file"]``) and added to the G1 dataset in ``files["out_dir"]``;
+    its JSON (with the QP: ``controller`` and ``cycles_not_ok`` added) and the id of the trial written
+    (None without ``out_dir``)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.video import render_humanoid_gif
+    from impactqp.sim.humanoid_dataset import open_dataset, write_trials
     from impactqp.sim.humanoid_qp_source import QpCommand
     from impactqp.sim.humanoid_trial import SCRIPTED, run_impact_trial
 
-    reject_options(["tangential_text", "no_jump_constraint", "plant_file", "wall_point", "wall_normal", "out_dir",
+    reject_options(["tangential_text", "no_jump_constraint", "plant_file", "wall_point", "wall_normal",
                     "tool"] + (["jump_model"] if controller == "scripted" else []))
+    video_file, out_dir = files["video_file"], files["out_dir"]
     source = SCRIPTED
     if controller == "qp":
         method = click.get_current_context().params["jump_model"]
@@ -113,14 +118,16 @@ def g1_simulate(posture: str, speed: float, video_file: str | None, controller: 
     approach_speed(speed, "--speed")
     if video_file is not None:
         gif_output(video_file)
+    dataset = None if out_dir is None else open_dataset(output_directory(out_dir, "--out"))
     robot = FloatingBaseModel()
     trial = run_impact_trial(robot, stance, speed, source=source)
+    written = None if dataset is None else write_trials(dataset, [trial])[0].id
     if video_file is not None:
         render_humanoid_gif(robot, trial, video_file)
     report = trial_json(trial)
     if controller == "qp":
         report.update(controller="qp", jump_model=source.method, cycles_not_ok=trial.record.not_ok)
-    return report
+    return report, written
 
 
 def simulate_text(report: dict) -> str:
@@ -146,10 +153,12 @@ def _campaign_trial(task):
 
 def g1_campaign(postures_text, speeds_text, jobs: int, out_dir: str) -> tuple[dict, str]:
     """The G1 campaign (``scenarios.humanoid_campaign``): Table I's JSON and the Markdown table,
-    both written to ``out_dir`` (table1.json, table1.md)."""
+    both written to ``out_dir`` (table1.json, table1.md) beside the campaign's trials as a G1
+    dataset (dataset.json and per trial its CSV and force CSV, ``sim.humanoid_dataset``)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.measured.atomic import write_atomic
     from impactqp.scenarios.humanoid_campaign import DEFAULT_SPEEDS, campaign_table, crb_reduction, mean_errors
+    from impactqp.sim.humanoid_dataset import open_dataset, write_trials
     from impactqp.sim.process_pool import map_in_processes
 
     reject_options(["tangential_text", "plant_file", "tool"])
@@ -158,6 +167,7 @@ def g1_campaign(postures_text, speeds_text, jobs: int, out_dir: str) -> tuple[di
     for v in speeds:
         approach_speed(v, "every speed of --speeds")
     out = output_directory(out_dir, "--out")
+    dataset = open_dataset(out)
     trials = map_in_processes(_campaign_trial, [(s, v) for s in stances for v in speeds], check_jobs(jobs))
     errors = {m: e for m, e in mean_errors(trials).items() if m in METHODS}
     rows = [
@@ -171,6 +181,7 @@ def g1_campaign(postures_text, speeds_text, jobs: int, out_dir: str) -> tuple[di
              "mean_crb_reduction_percent": crb_reduction(errors)}
     text = campaign_table(trials)
     out.mkdir(parents=True, exist_ok=True)
+    write_trials(dataset, trials)
     write_atomic(out / "table1.json", lambda tmp: Path(tmp).write_text(json.dumps(table, indent=2, allow_nan=False)))
     write_atomic(out / "table1.md", lambda tmp: Path(tmp).write_text(text + "\n"))
     return table, text

@@ -93,11 +93,13 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
         # lazy: the command line loads what a command needs when it runs
         from impactqp.scenarios.cli.humanoid_commands import g1_simulate, simulate_text
 
-        report = g1_simulate(posture_name, speed, trial["video_file"], controller or "scripted")
+        report, written = g1_simulate(posture_name, speed, trial, controller or "scripted")
         if as_json:
             emit_json(report)
         else:
             click.echo(simulate_text(report))
+        if written is not None and not as_json:
+            click.echo(f"trial {written} written to {trial['out_dir']}")
         return
     if controller is not None:
         raise BadInputError("--controller chooses the command source of --robot g1; the arm is always driven by its QP")
@@ -196,7 +198,7 @@ def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, 
 @robot_options(humanoid=True)
 def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, as_json, choice):
     """The paper's campaign in simulation: dataset, Table I and figures in --out (with --robot
-    g1: stances x speeds of the standing G1, table1.json and table1.md in --out)."""
+    g1: stances x speeds of the standing G1, its dataset, table1.json and table1.md in --out)."""
     if isinstance(choice, HumanoidChoice):
         # lazy: the command line loads what a command needs when it runs
         from impactqp.scenarios.cli.humanoid_commands import g1_campaign
@@ -206,7 +208,7 @@ def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_
             emit_json(table)
             return
         click.echo(text)
-        click.echo(f"table1.json and table1.md written to {out_dir}")
+        click.echo(f"dataset, table1.json and table1.md written to {out_dir}")
         return
     table = run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, not as_json, choice)
     if as_json:
