@@ -17,7 +17,6 @@ from typing import NamedTuple
 import math
 
 import numpy as np
-import pinocchio as pin
 from numba import njit
 
 from impactqp.controller.model.robot import ModelTerms
@@ -58,8 +57,11 @@ class Task:
 
 
 def rotation_error(target: np.ndarray, rotation: np.ndarray) -> np.ndarray:
-    """Rotation vector log(R* R^T) in world axes: the angular displacement from R to R*."""
-    return pin.log3(target @ rotation.T)
+    """Rotation vector log(R* R^T) in world axes: the angular displacement from R to R*
+    (the compiled :func:`rotation_log`)."""
+    out = np.empty(3)
+    rotation_log(target, rotation, out)
+    return out
 
 
 def critical_damping(stiffness: float) -> float:

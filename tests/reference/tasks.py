@@ -2,9 +2,9 @@
 ``compute_into`` must write."""
 
 import numpy as np
+import pinocchio as pin
 
 from impactqp.tasks import ContactApproachTask, DampingTask, PostureTask
-from impactqp.tasks.task import rotation_error
 
 
 def reference_rows(task, terms, A, b) -> None:
@@ -14,7 +14,7 @@ def reference_rows(task, terms, A, b) -> None:
         # b = [k_v (v* - v); k_R log(R* R^T) - d_R w] - dJ6 dq, its linear part in the surface frame
         np.multiply(task._twist_gain, terms.J6 @ terms.dq, out=b)
         b[:3] += task._reference_acceleration
-        b[3:] += task.orientation_stiffness * rotation_error(task.target_rotation, terms.contact_rotation)
+        b[3:] += task.orientation_stiffness * pin.log3(task.target_rotation @ terms.contact_rotation.T)
         b -= terms.dJ6_dq
         b[:3] = task.basis @ b[:3]
         np.matmul(task.basis, terms.J6[:3], out=A[:3])
