@@ -138,7 +138,6 @@ class ImpactTrial:
     q_log: np.ndarray  # (steps, nq) Pinocchio configurations at the control rate
     contact_index: int  # the control step of the first wall contact
     source: str = "scripted"  # the command source (``ScriptedCommand.name``, ``QpCommand.name``)
-    commands: np.ndarray | None = None  # (steps, 29) joint velocity commands sent to the servo (rad/s)
     record: object = None  # what the command source kept of each control step (the QP's ``QpRecord``), or None
     log: TrialLog | None = None  # the trial as a robot logs it (simulation world frame; ``sim.humanoid_dataset``)
 
@@ -147,6 +146,11 @@ class ImpactTrial:
         """No failure of FAILURES: no joint beyond its velocity limit, no slip or lift onset, the
         post-impact CoM velocity capturable, no fall."""
         return not self.first_failure
+
+    @property
+    def commands(self) -> np.ndarray:
+        """(steps, 29) the joint velocity commands sent to the servo (rad/s): the log's ``dq_cmd``."""
+        return self.log.dq_cmd
 
     @property
     def equivalent_duration(self) -> float:
@@ -304,7 +308,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     force_t = np.arange(len(wall_forces)) * model.opt.timestep
     robot_log = TrialLog(np.arange(k) * CONTROL_PERIOD, q_log[:, 7:], v_log[:, 6:], np.array(torques), np.array(commands),
                          force_t, np.array(wall_forces), base=np.column_stack([q_log[:, :7], v_log[:, :6]]))
-    return replace(trial, source=source.name, commands=np.array(commands), record=driver.record, log=robot_log)
+    return replace(trial, source=source.name, record=driver.record, log=robot_log)
 
 
 def _contact_forces(scene) -> tuple[np.ndarray, np.ndarray]:

@@ -36,7 +36,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import cho_factor, cho_solve
 
-from .jump import skew
+from .jump import crb_inverse_inertia
 from .validation import BadInputError, unit_normal
 
 URDF_SUBPATH = "g1_description/urdf/g1_29dof_rev_1_0.urdf"
@@ -129,12 +129,6 @@ class FloatingJump:
     impulse: np.ndarray
     feet_impulse: np.ndarray
     com_jump: np.ndarray
-
-
-def crb_inverse_inertia(terms: FloatingBaseTerms) -> np.ndarray:
-    """W_crb = (1/m) I3 - [r]x I_c^-1 [r]x (20) of the whole robot locked into one rigid body."""
-    r_hat = skew(terms.contact_point - terms.com)
-    return np.eye(3) / terms.mass - r_hat @ np.linalg.solve(terms.inertia_com, r_hat)
 
 
 def gm_inverse_inertia(terms: FloatingBaseTerms) -> np.ndarray:

@@ -27,6 +27,7 @@ import numpy as np
 from numba import njit
 
 from .floating_base import METHODS
+from .jump import welded_inverse_inertia
 from .validation import BadInputError
 from .whole_body_terms import WholeBodyTerms
 
@@ -46,7 +47,7 @@ def floating_jump_maps(terms: WholeBodyTerms, method: str, normal: np.ndarray, c
     restitution c_r (both already checked)."""
     if method not in METHODS:
         raise BadInputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    rigid = (terms.contact_point - terms.com, terms.mass, terms.inertia_com)
+    rigid = (terms.contact_point, terms.com, terms.inertia_com, terms.mass)
     return FloatingJumpMaps(
         *jump_maps_kernel(terms.M_inv, terms.J6, terms.Jf, terms.Jcom, rigid, METHODS.index(method), normal, c_r)
     )
@@ -55,7 +56,8 @@ def floating_jump_maps(terms: WholeBodyTerms, method: str, normal: np.ndarray, c
 @njit(cache=True)
 def jump_maps_kernel(M_inv, J6, Jf, Jcom, rigid, method, normal, c_r):
     """Kernel: (G, A = K G J, C = Jcom P J^T) (module docstring) of the method
-    ``METHODS[method]``, rigid = (contact point - CoM, mass, centroidal inertia) for W_crb (20).
+    ``METHODS[method]``, rigid = (contact point, CoM, centroidal inertia, mass) for W_crb (20,
+    ``jump.welded_inverse_inertia``).
     Never forms P: with Y = [Jf; J] M^-1 (M^-1 symmetric), (P J^T)^T = Y_J - Z^T Y_f,
     Z = (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T; products as row dot products (``product_t``)."""
     J = np.ascontiguousarray(J6[:3])
@@ -70,9 +72,7 @@ def jump_maps_kernel(M_inv, J6, Jf, Jcom, rigid, method, normal, c_r):
         K_T = PJt_T
     else:
         if method == CRB:
-            r, mass, inertia_com = rigid
-            r_hat = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
-            W = np.eye(3) / mass - product(r_hat, np.ascontiguousarray(np.linalg.solve(inertia_com, r_hat)))
+            W = welded_inverse_inertia(*rigid)
         G = (-(1.0 + c_r) / np.sum(np.outer(normal, normal) * W)) * np.outer(normal, normal)
         # (N J^T)^T = J - (Jf J^T)^T (Jf Jf^T)^-1 Jf, K^T = ((J N J^T)^-1 W)^T (N J^T)^T
         NJt_T = J - product(np.ascontiguousarray(np.linalg.solve(product_t(Jf, Jf), product_t(Jf, J)).T), Jf)

@@ -61,8 +61,10 @@ def crb_inverse_inertia(terms: ModelTerms) -> np.ndarray:
 
     m is the moving mass of the locked (composite-rigid-body) robot, I_c its rotational inertia
     about its centre of mass and r the vector from the centre of mass to the contact point.
-    It is the contact-point inverse inertia of the whole arm welded into one free rigid body.
-    For batched terms (leading axis N) it is the (N, 3, 3) stack.
+    It is the contact-point inverse inertia of the whole robot welded into one free rigid body:
+    the arm with its base fixed, or the standing humanoid with every joint locked (terms with
+    ``contact_point``, ``com``, ``mass`` and ``inertia_com``). For batched terms (leading axis N)
+    it is the (N, 3, 3) stack.
     """
     r_hat = skew(terms.contact_point - terms.com)
     return np.eye(3) / terms.mass - r_hat @ np.linalg.solve(terms.inertia_com, r_hat)
@@ -325,10 +327,10 @@ def crb_inverse_inertia_times(contact_point, com, inertia_com, mass, normal):
 
 
 @njit(cache=True)
-def crb_maps(contact_point, com, inertia_com, mass, J, JJt_inv, normal, restitution):
-    """Kernel of ``CompositeRigidBodyJump.maps``: W_crb = I3 / m - [r]x I_c^-1 [r]x (20), with
-    I_c^-1 by the adjugate; G = -(1+c_r) n n^T / (n^T W_crb n) (12); K = J^T (J J^T)^-1 W_crb (21).
-    Returns (G, K, W)."""
+def welded_inverse_inertia(contact_point, com, inertia_com, mass):
+    """Kernel: W_crb = I3 / m - [r]x I_c^-1 [r]x (20), r = contact point - CoM, with I_c^-1 by the
+    adjugate (``symmetric_inverse3_into``), symmetrized; the compiled twin of
+    :func:`crb_inverse_inertia` for the arm's and the standing humanoid's kernels."""
     r = contact_point - com
     R = np.zeros((3, 3))
     R[0, 1], R[0, 2], R[1, 0], R[1, 2], R[2, 0], R[2, 1] = -r[2], r[1], r[2], -r[0], -r[1], r[0]
@@ -337,7 +339,14 @@ def crb_maps(contact_point, com, inertia_com, mass, J, JJt_inv, normal, restitut
     W = -(R @ Iinv @ R)
     for i in range(3):
         W[i, i] += 1.0 / mass
-    W = 0.5 * (W + W.T)
+    return 0.5 * (W + W.T)
+
+
+@njit(cache=True)
+def crb_maps(contact_point, com, inertia_com, mass, J, JJt_inv, normal, restitution):
+    """Kernel of ``CompositeRigidBodyJump.maps``: W_crb (20, ``welded_inverse_inertia``);
+    G = -(1+c_r) n n^T / (n^T W_crb n) (12); K = J^T (J J^T)^-1 W_crb (21). Returns (G, K, W)."""
+    W = welded_inverse_inertia(contact_point, com, inertia_com, mass)
     Wn = W @ normal
     scale = -(1.0 + restitution) / (normal @ Wn)
     G = np.empty((3, 3))
