@@ -266,7 +266,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     driver = source.start(robot, q0, scene.wall_x, speed)
     substeps = int(round(CONTROL_PERIOD / model.opt.timestep))
     approach_steps = int(round((SETTLE + source.approach_time(gap, speed)) / CONTROL_PERIOD))
-    states, forces, peaks, floor_impulses, feet, soles, commands = [], [], [], [], [], [], []
+    states, floor_impulses, feet, soles, commands = [], [], [], [], []
     torques, wall_forces = [], []  # the servo's torque per control step, the wall force per physics step
     first_contact, stop_at, end = None, None, approach_steps
     k = 0
@@ -280,34 +280,32 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
             servo.hold()
         tau = servo.torque(dq_cmd, CONTROL_PERIOD)
         torques.append(tau)
-        force, floor, sole, peak = np.zeros(3), np.zeros(3), None, 0.0
+        floor, sole = np.zeros(3), None
         for _ in range(substeps):
             data.qfrc_applied[6:] = tau
             mujoco.mj_step(model, data)
             wall_force, floor_force = _contact_forces(scene)
             wall_forces.append(wall_force)
-            peak = max(peak, float(NORMAL @ wall_force))
-            force += wall_force * model.opt.timestep
             floor += floor_force * model.opt.timestep
             now = sole_state(model, data, scene.soles)
             sole = now if sole is None else worst(sole, now)
-        forces.append(force)
-        peaks.append(peak)
         soles.append(sole)
         floor_impulses.append(floor)
-        if first_contact is None and np.any(force != 0.0):
+        if first_contact is None and any(np.any(f != 0.0) for f in wall_forces[-substeps:]):
             first_contact = k
             stop_at = k + int(round(LATENCY / CONTROL_PERIOD))
             end = k + int(round(AFTER / CONTROL_PERIOD))
         k += 1
     if first_contact is None:
         raise RuntimeError(f"the hand never reached the wall (stance {stance.name}, {speed} m/s, {source.name} command)")
-    log = _Log(states, np.array(forces), np.array(peaks), np.array(floor_impulses), np.array(feet), np.array(soles))
+    walls = np.array(wall_forces).reshape(k, substeps, 3)
+    forces, peaks = (walls * model.opt.timestep).sum(axis=1), np.maximum((walls @ NORMAL).max(axis=1), 0.0)
+    log = _Log(states, forces, peaks, np.array(floor_impulses), np.array(feet), np.array(soles))
     trial = _evaluate(robot, stance, speed, log, first_contact, scene.wall_x)
     q_log, v_log = (np.array(x) for x in zip(*states))
     force_t = np.arange(len(wall_forces)) * model.opt.timestep
     robot_log = TrialLog(np.arange(k) * CONTROL_PERIOD, q_log[:, 7:], v_log[:, 6:], np.array(torques), np.array(commands),
-                         force_t, np.array(wall_forces), base=np.column_stack([q_log[:, :7], v_log[:, :6]]))
+                         force_t, walls.reshape(-1, 3), base=np.column_stack([q_log[:, :7], v_log[:, :6]]))
     return replace(trial, source=source.name, record=driver.record, log=robot_log)
 
 
@@ -333,8 +331,8 @@ class _Log:
     """What a trial recorded at each control step."""
 
     states: list  # (q, v), Pinocchio convention
-    forces: np.ndarray  # (steps, 3) wall impulse on the robot
-    peaks: np.ndarray  # (steps,) largest normal wall force of a physics step (N)
+    forces: np.ndarray  # (steps, 3) wall impulse on the robot, the sum of its physics steps'
+    peaks: np.ndarray  # (steps,) largest normal wall force of a physics step (N), 0 without one
     floor_impulses: np.ndarray  # (steps, 3)
     feet: np.ndarray  # (steps, 2, 3) foot frame positions
     soles: np.ndarray  # (steps, 2, 4) sole states (``humanoid_feet``), worst over the step
