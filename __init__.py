@@ -21,9 +21,9 @@ except metadata.PackageNotFoundError:  # pragma: no cover - running from a tree 
 
 _EXPORTS = {
     "PandaModel": "impactqp.controller.model.robot",
+    "RobotModel": "impactqp.controller.model.robot",
     "Surface": "impactqp.controller.model.postures",
     "DEFAULT_WALL": "impactqp.controller.model.postures",
-    "POSTURES": "impactqp.controller.model.postures",
     "JumpModel": "impactqp.controller.model.jump",
     "JUMP_MODELS": "impactqp.controller.model.jump",
     "jump_model": "impactqp.controller.model.jump",

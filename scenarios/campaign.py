@@ -36,7 +36,8 @@ from tqdm import tqdm  # noqa: E402
 
 from impactqp.controller.model.jump import METHODS, average_prediction_error  # noqa: E402
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice  # noqa: E402
-from impactqp.controller.model.postures import POSTURES, Surface  # noqa: E402
+from impactqp.controller.model.postures import Surface  # noqa: E402
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import NQ  # noqa: E402
 from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
 from impactqp.sim.generation import DEFAULT_SPEEDS, TANGENTIAL_SERIES_NORMAL_SPEED, tangential_direction  # noqa: E402
@@ -76,7 +77,7 @@ def write_trial(writer: DatasetWriter, result: TrialResult) -> None:
 class CampaignPlan:
     """Which trials the campaign runs (module docstring)."""
 
-    postures: tuple[str, ...] = tuple(POSTURES)
+    postures: tuple[str, ...] = tuple(PANDA.postures)
     speeds: tuple[float, ...] = PAPER_SPEEDS
     tangential_speeds: tuple[float, ...] = PAPER_TANGENTIAL_SPEEDS
     tangential_normal_speed: float = TANGENTIAL_NORMAL_SPEED
@@ -84,9 +85,9 @@ class CampaignPlan:
     def __post_init__(self):
         if not self.postures:
             raise BadInputError("the campaign needs at least one posture")
-        unknown = [name for name in self.postures if name not in POSTURES]
+        unknown = [name for name in self.postures if name not in PANDA.postures]
         if unknown:
-            raise BadInputError(f"unknown posture {unknown[0]!r}; known postures: {', '.join(POSTURES)}")
+            raise BadInputError(f"unknown posture {unknown[0]!r}; known postures: {', '.join(PANDA.postures)}")
         if not self.speeds:
             raise BadInputError("the campaign needs at least one speed")
         for v in self.speeds:

@@ -9,7 +9,8 @@ from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, T
 from impactqp.controller.measured.humanoid_format import g1_model
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.controller.measured.trial_log import TrialLog
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT, PandaModel
 from impactqp.controller.model.tool_description import TOOLS
 from impactqp.controller.runtime.interface import RobotInterface
@@ -110,7 +111,7 @@ def dataset_logs():
     """Two simulated trials (elbow_left, 0.1 and 0.15 m/s) of a plant with armature, by speed."""
     scene = build_scene(plant=PlantParameters(armature=[0.2] * 7))
     return {
-        speed: run_approach(scene, PandaModel(), TrialSpec("elbow_left", POSTURES["elbow_left"].q, speed, after_contact=0.05))
+        speed: run_approach(scene, PandaModel(), TrialSpec("elbow_left", PANDA.postures["elbow_left"].q, speed, after_contact=0.05))
         for speed in (0.1, 0.15)
     }
 

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from impactqp.controller.model.jump import METHODS
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import PandaModel
 from impactqp.scenarios.campaign import (
     PAPER_SPEEDS,
@@ -30,7 +31,7 @@ def test_default_plan_is_the_papers():
     assert PAPER_TANGENTIAL_SPEEDS[0] == 0.03 and PAPER_TANGENTIAL_SPEEDS[-1] == 0.12
     assert len(specs) == 3 * 5 + 10
     tangential = specs[15:]
-    assert {s.posture for s in tangential} == {next(iter(POSTURES))}
+    assert {s.posture for s in tangential} == {next(iter(PANDA.postures))}
     assert all(s.normal_speed == 0.12 for s in tangential)
     np.testing.assert_allclose([s.tangential_velocity[1] for s in tangential], PAPER_TANGENTIAL_SPEEDS)
     assert all(s.jump_model is None for s in specs)  # the tool hits at the requested speed

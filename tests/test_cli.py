@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED
 
@@ -25,7 +25,7 @@ def test_postures_json(capsys):
     code, out, _ = run(capsys, "postures", "--json")
     assert code == 0
     rows = json.loads(out)
-    assert [r["name"] for r in rows] == list(POSTURES)
+    assert [r["name"] for r in rows] == list(PANDA.postures)
     for r in rows:
         assert {"name", "q", "contact_point", "normal"} <= set(r)
         assert len(r["q"]) == 7 and len(r["contact_point"]) == 3
@@ -47,7 +47,7 @@ def test_predict_json_contract(capsys):
 
 
 def test_predict_with_q_and_one_method(capsys):
-    q = ",".join(str(x) for x in POSTURES["elbow_left"].q)
+    q = ",".join(str(x) for x in PANDA.postures["elbow_left"].q)
     code, out, _ = run(capsys, "predict", "--q", q, "--normal", "-1,0,0", "--speed", "0.1", "--method", "gm", "--json")
     assert code == 0
     assert list(json.loads(out)["methods"]) == ["gm"]

@@ -19,7 +19,8 @@ from impactqp.constraints import (
 from impactqp.constraints.impact_model import normal_motion
 from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.max_speed import approach_direction
-from impactqp.controller.model.postures import POSTURES, Surface
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import SingularPostureError
 from impactqp.controller.model.validation import BadInputError
 
@@ -70,7 +71,7 @@ def test_velocity_box_is_the_commanded_velocity_limit(robot, seed):
 
 
 def test_velocity_box_brakes_within_the_acceleration_limits_from_an_overspeed(robot):
-    terms = robot.terms(POSTURES["elbow_up"].q, 1.2 * robot.dq_max)
+    terms = robot.terms(PANDA.postures["elbow_up"].q, 1.2 * robot.dq_max)
     c = cycle(robot)
     rows = VelocityLimit(robot.dq_max).compute(terms, c)
     assert np.allclose(rows.upper, c.acceleration_lower)  # brake as hard as allowed
@@ -124,7 +125,7 @@ def surface_ahead(terms, gap=0.05):
 @pytest.mark.parametrize("restitution", [0.0, 0.5])
 def test_impact_matrices_match_the_jump_models(robot, name, restitution):
     """A = K G J and P = J^T G J of the expected impact, from the predictor's G and K."""
-    terms = robot.terms(POSTURES["elbow_right"].q, np.full(7, 0.1))
+    terms = robot.terms(PANDA.postures["elbow_right"].q, np.full(7, 0.1))
     surface = surface_ahead(terms)
     matrices = ExpectedImpact(surface, name, restitution).matrices(terms)
     model = jump_model(name)
@@ -166,7 +167,7 @@ def test_violated_impact_rows_ask_for_the_largest_reachable_correction(robot):
     """Approaching far faster than the impact allows: each row is relaxed to the extreme that
     the cycle's reachable accelerations allow, so it stays feasible on its own; rows that can
     be met are left as they are."""
-    q = POSTURES["elbow_up"].q
+    q = PANDA.postures["elbow_up"].q
     terms = robot.terms(q, 0.8 * approach_direction(robot.terms(q), np.array([-1.0, 0.0, 0.0])))
     impact = ExpectedImpact(surface_ahead(terms), "crb", always_active=True)
     c = cycle(robot)
@@ -185,7 +186,7 @@ def test_violated_impact_rows_ask_for_the_largest_reachable_correction(robot):
 
 
 def test_activation_rule(robot):
-    q = POSTURES["elbow_up"].q
+    q = PANDA.postures["elbow_up"].q
     at_rest = robot.terms(q)
     normal = np.array([-1.0, 0.0, 0.0])
     tip = at_rest.contact_point
@@ -283,7 +284,7 @@ def test_compiled_activation_inputs_equal_the_numpy_reference(robot, seed):
 )
 def test_impact_model_checks_its_inputs_with_the_validation_module(keyword, value, fragment):
     with pytest.raises(BadInputError) as caught:
-        ExpectedImpact(POSTURES["elbow_up"].surface, "crb", **{keyword: value})
+        ExpectedImpact(PANDA.postures["elbow_up"].surface, "crb", **{keyword: value})
     assert fragment in str(caught.value)
 
 

@@ -9,7 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from impactqp.controller.model.jump import METHODS
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.sim.diagnosis import ReplaySetting
 from impactqp.sim.diagnosis.comparison import error_analysis, predictor_errors
 
@@ -42,7 +43,7 @@ def test_a_predictor_that_made_the_measured_jumps_has_no_error():
     """Trials whose measured jump is a predictor's own prediction: that predictor's error is 0,
     with its own impulse; fed the measured impulse only where a force log exists."""
     rng = np.random.default_rng(5)
-    q = POSTURES["elbow_up"].q
+    q = PANDA.postures["elbow_up"].q
     trials = [synthetic_trial(rng, force=force) for force in (True, False)]
     trials = [replace(t, q_pre=q + rng.normal(0.0, 0.01, 7), dq_pre=rng.normal(0.0, 0.1, 7)) for t in trials]
     _, _, predictions = predictor_errors(trials, ReplaySetting(DEFAULT_WALL))

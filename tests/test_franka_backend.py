@@ -9,7 +9,7 @@ import pytest
 
 from conftest import assert_continuous_within_limits
 from impactqp.controller.config import ControllerConfig
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
@@ -172,8 +172,8 @@ class RecordingSession(ImpactSession):
 
 def test_the_controller_is_prepared_before_real_time_and_the_protocol_holds():
     model, events = PandaModel(), []
-    fci = FciRobot(POSTURES["elbow_up"].q, events)
-    config = ControllerConfig.approach(POSTURES["elbow_up"].surface, 0.15, posture_weight=0.0)
+    fci = FciRobot(PANDA.postures["elbow_up"].q, events)
+    config = ControllerConfig.approach(PANDA.postures["elbow_up"].surface, 0.15, posture_weight=0.0)
     loop = ControlLoop(
         FrankaRobot(fci, pylibfranka), RecordingSession(config, model, events),
         CommandFilter.for_robot(model, config.dt), deadline=float("inf"),
@@ -188,14 +188,14 @@ def test_the_controller_is_prepared_before_real_time_and_the_protocol_holds():
 
 def run_fci(fci, settings=None, duration=0.1):
     model = PandaModel()
-    config = ControllerConfig.approach(POSTURES["elbow_up"].surface, 0.15, posture_weight=0.0)
+    config = ControllerConfig.approach(PANDA.postures["elbow_up"].surface, 0.15, posture_weight=0.0)
     robot = FrankaRobot(fci, pylibfranka, settings)
     loop = ControlLoop(robot, ImpactSession(config, model), CommandFilter.for_robot(model, config.dt), deadline=float("inf"))
     return robot, loop.run(duration)
 
 
 def test_missed_packets_are_counted_from_the_duration_of_each_read():
-    fci = FciRobot(POSTURES["elbow_up"].q, [])
+    fci = FciRobot(PANDA.postures["elbow_up"].q, [])
     fci.skip_every = 10
     robot, result = run_fci(fci)
     reads = len(fci.commands)  # one readOnce per writeOnce
@@ -232,7 +232,7 @@ class ReflexRobot(FciRobot):
 
 @pytest.mark.parametrize("recover", [False, True])
 def test_a_reflex_ends_the_run_is_named_and_recovered_only_on_request(recover):
-    fci = ReflexRobot(POSTURES["elbow_up"].q, at=30)
+    fci = ReflexRobot(PANDA.postures["elbow_up"].q, at=30)
     robot, result = run_fci(fci, RobotConfig(automatic_error_recovery=recover))
     assert result.watchdog_reason.startswith("robot error: ControlException: ") and "\n" not in result.watchdog_reason
     report = robot.report()

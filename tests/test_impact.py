@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from impactqp.controller.model.jump import JUMP_MODELS
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.measured.impact import ImpactNotFoundError, measure_impact, torque_residual, trend_filter
 from impactqp.sim.runner import TrialSpec, run_approach
@@ -18,7 +19,7 @@ N = DEFAULT_WALL.normal
 
 
 def simulate(posture, speed):
-    return run_approach(SCENE, ROBOT, TrialSpec(posture, POSTURES[posture].q, speed, after_contact=0.05))
+    return run_approach(SCENE, ROBOT, TrialSpec(posture, PANDA.postures[posture].q, speed, after_contact=0.05))
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +60,7 @@ def test_impact_lasts_about_15_ms(log):
     assert 0.010 <= measure_impact(log).duration <= 0.020
 
 
-@pytest.mark.parametrize("posture", list(POSTURES))
+@pytest.mark.parametrize("posture", list(PANDA.postures))
 def test_plain_plant_jump_matches_the_classical_prediction(posture):
     """Rigid links and a low-bandwidth servo: the jump is M^-1 J^T iota of the measured impulse."""
     assert classical_error(measure_impact(simulate(posture, 0.15))) < 0.15

@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from impactqp.controller.measured.impact import DEFAULT_TORQUE_THRESHOLD
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.runtime.impact_detector import ImpactDetector, MomentumObserver
 
@@ -24,7 +24,7 @@ def simulate(robot, tau, tau_ext, steps, substeps=20):
     tau(q, dq) held over each control period and the external joint torque tau_ext(k); yields
     (q, dq, held torque) at every control sample."""
     model, data = robot.model, robot.model.createData()
-    q, dq = POSTURES["elbow_up"].q.copy(), np.zeros(NQ)
+    q, dq = PANDA.postures["elbow_up"].q.copy(), np.zeros(NQ)
     h = DT / substeps
     for k in range(steps):
         held = tau(q, dq)

@@ -12,7 +12,8 @@ from impactqp.controller.model.inverse_kinematics import (
     contact_postures,
 )
 from impactqp.controller.model.batch import BatchKinematics
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
+from impactqp.controller.model.postures import DEFAULT_WALL, Surface
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.validation import BadInputError
 
 from conftest import joint_positions
@@ -35,14 +36,14 @@ def test_a_posture_near_the_seed_is_found_and_its_forward_kinematics_meets_the_t
 
 
 def test_a_point_out_of_reach_is_reported_unreachable_within_the_limits(robot):
-    solved = contact_posture(robot, [2.0, 0.0, 0.5], np.array([-1.0, 0.0, 0.0]), POSTURES["elbow_up"].q)
+    solved = contact_posture(robot, [2.0, 0.0, 0.5], np.array([-1.0, 0.0, 0.0]), PANDA.postures["elbow_up"].q)
     assert not solved.reachable
     assert solved.position_error > 0.5
     assert np.all(solved.q >= robot.q_min) and np.all(solved.q <= robot.q_max)
 
 
 def test_a_named_posture_is_its_own_solution(robot):
-    p = POSTURES["elbow_left"]
+    p = PANDA.postures["elbow_left"]
     point = robot.contact_point(p.q)
     solved = contact_posture(robot, point, p.surface.normal, p.q)
     assert solved.reachable
@@ -57,7 +58,7 @@ def test_batched_postures_reach_their_targets_and_follow_the_one_target_iteratio
     tolerance, within the limits, and equals the one-target iteration's posture up to rounding
     (same steps, same stopping rule)."""
     rng = np.random.default_rng(seed)
-    start = POSTURES["elbow_up"].q
+    start = PANDA.postures["elbow_up"].q
     Q = np.clip(start + rng.uniform(-0.4, 0.4, (6, 7)), robot.q_min + 0.2, robot.q_max - 0.2)
     frames = [robot.contact_frame(q) for q in Q]
     seed_frame = robot.contact_frame(start)  # last but one: the tool axis starts pointing away
@@ -84,7 +85,7 @@ def test_batched_postures_reach_their_targets_and_follow_the_one_target_iteratio
 
 
 def test_start_posture_is_backed_away_along_the_normal_with_the_same_orientation(robot):
-    q_contact = POSTURES["elbow_left"].q
+    q_contact = PANDA.postures["elbow_left"].q
     q0 = approach_start(robot, q_contact, DEFAULT_WALL, 0.03)
     contact, start = robot.contact_frame(q_contact), robot.contact_frame(q0)
     np.testing.assert_allclose(start.translation, contact.translation + 0.03 * DEFAULT_WALL.normal, atol=1e-6)
@@ -95,7 +96,7 @@ def test_start_posture_is_backed_away_along_the_normal_with_the_same_orientation
 def test_start_posture_faces_a_tilted_wall(robot):
     normal = np.array([-1.0, 0.0, 0.3]) / np.linalg.norm([-1.0, 0.0, 0.3])
     wall = Surface(point=np.array([0.6, 0.0, 0.7]), normal=normal)
-    q0 = approach_start(robot, POSTURES["elbow_up"].q, wall, 0.02)
+    q0 = approach_start(robot, PANDA.postures["elbow_up"].q, wall, 0.02)
     start = robot.contact_frame(q0)
     assert wall.signed_distance(start.translation) == pytest.approx(0.02, abs=1e-6)
     np.testing.assert_allclose(start.rotation[:, 2], -normal, atol=1e-6)
@@ -104,15 +105,15 @@ def test_start_posture_faces_a_tilted_wall(robot):
 def test_unreachable_wall_is_rejected(robot):
     far = Surface(point=np.array([1.6, 0.0, 0.0]), normal=np.array([-1.0, 0.0, 0.0]))
     with pytest.raises(UnreachableStartError, match="out of reach"):
-        approach_start(robot, POSTURES["elbow_up"].q, far, 0.02)
+        approach_start(robot, PANDA.postures["elbow_up"].q, far, 0.02)
 
 
 @settings(max_examples=10, deadline=None)
-@given(name=st.sampled_from(sorted(POSTURES)), distance=st.floats(0.0, 0.1))
+@given(name=st.sampled_from(sorted(PANDA.postures)), distance=st.floats(0.0, 0.1))
 def test_an_approach_start_is_a_contact_posture_on_the_plane_moved_back_by_the_distance(robot, name, distance):
     """The two uses of the one iteration agree: the start posture, a whole-pose target, already
     solves the tip-and-axis target of its own point and the surface normal (no step taken)."""
-    posture = POSTURES[name]
+    posture = PANDA.postures[name]
     q0 = approach_start(robot, posture.q, posture.surface, distance)
     point = robot.contact_point(q0)
     assert posture.surface.signed_distance(point) == pytest.approx(distance, abs=1e-6)
@@ -124,5 +125,5 @@ def test_an_approach_start_is_a_contact_posture_on_the_plane_moved_back_by_the_d
 @pytest.mark.parametrize("distance", [-0.01, float("nan"), float("inf")])
 def test_a_negative_or_non_finite_start_distance_is_bad_input(robot, distance):
     with pytest.raises(BadInputError, match="start distance"):
-        approach_start(robot, POSTURES["elbow_up"].q, DEFAULT_WALL, distance)
+        approach_start(robot, PANDA.postures["elbow_up"].q, DEFAULT_WALL, distance)
 

@@ -22,7 +22,7 @@ from impactqp.controller.model.jump import (
     gm_inverse_inertia,
     prediction_error,
 )
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import PandaModel, SingularPostureError
 from impactqp.controller.model.validation import BadInputError
 
@@ -254,7 +254,7 @@ def test_compiled_rank_one_matrices_equal_the_numpy_reference(robot, q, normal, 
 @pytest.mark.parametrize("name", METHODS)
 @pytest.mark.parametrize("restitution", [-0.1, 1.5, float("nan"), "0.3", True])
 def test_every_entry_point_refuses_a_restitution_outside_zero_one(robot, name, restitution):
-    terms = robot.terms(POSTURES["elbow_up"].q)
+    terms = robot.terms(PANDA.postures["elbow_up"].q)
     model = JUMP_MODELS[name]
     normal, v = np.array([-1.0, 0.0, 0.0]), np.array([0.1, 0.0, 0.0])
     for call in (
@@ -268,7 +268,7 @@ def test_every_entry_point_refuses_a_restitution_outside_zero_one(robot, name, r
 
 @pytest.mark.parametrize("name", METHODS)
 def test_every_entry_point_refuses_a_zero_or_non_finite_normal(robot, name):
-    terms = robot.terms(POSTURES["elbow_up"].q)
+    terms = robot.terms(PANDA.postures["elbow_up"].q)
     model = JUMP_MODELS[name]
     for normal in ([0.0, 0.0, 0.0], [np.nan, 0.0, 1.0]):
         with pytest.raises(BadInputError, match="the surface normal"):

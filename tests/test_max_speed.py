@@ -15,7 +15,7 @@ from impactqp.controller.model.max_speed import (
     closed_form_max_speeds,
     criterion_slopes,
 )
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 
 
 def criteria_ratios(robot, terms, normal, model, speed, restitution=0.0, impact_duration=0.015):
@@ -29,11 +29,11 @@ def criteria_ratios(robot, terms, normal, model, speed, restitution=0.0, impact_
     }
 
 
-@pytest.mark.parametrize("name", list(POSTURES))
+@pytest.mark.parametrize("name", list(PANDA.postures))
 @pytest.mark.parametrize("method", ["classical", "gm", "crb"])
 @pytest.mark.parametrize("restitution", [0.0, 0.6])
 def test_max_speed_is_where_the_first_criterion_reaches_its_limit(robot, name, method, restitution):
-    p = POSTURES[name]
+    p = PANDA.postures[name]
     terms = robot.terms(p.q)
     n, model = p.surface.normal, JUMP_MODELS[method]
     best = closed_form_max_speed(robot, terms, n, model, restitution)
@@ -46,14 +46,14 @@ def test_max_speed_is_where_the_first_criterion_reaches_its_limit(robot, name, m
 
 
 def test_approach_translates_without_rotating(robot):
-    p = POSTURES["elbow_left"]
+    p = PANDA.postures["elbow_left"]
     terms = robot.terms(p.q)
     twist = terms.J6 @ approach_direction(terms, p.surface.normal)
     np.testing.assert_allclose(twist, np.concatenate([-p.surface.normal, np.zeros(3)]), atol=1e-10)
 
 
 def test_longer_impacts_allow_higher_speeds(robot):
-    p = POSTURES["elbow_up"]
+    p = PANDA.postures["elbow_up"]
     terms = robot.terms(p.q)
     short = closed_form_max_speed(robot, terms, p.surface.normal, JUMP_MODELS["crb"], impact_duration=0.005)
     long = closed_form_max_speed(robot, terms, p.surface.normal, JUMP_MODELS["crb"], impact_duration=0.05)

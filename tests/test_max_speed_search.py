@@ -6,7 +6,8 @@ import pytest
 
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.max_speed import approach_direction, closed_form_max_speed
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.scenarios.max_speed_search import (
     Evaluation,
     MaxSpeedSearch,
@@ -36,7 +37,7 @@ def test_bisection_converges_on_a_known_threshold(jobs):
 
 
 def test_approach_velocity_limit_puts_one_joint_at_its_limit(robot):
-    q = POSTURES["elbow_left"].q
+    q = PANDA.postures["elbow_left"].q
     v_a = approach_velocity_limit(robot, q, DEFAULT_WALL.normal)
     ratio = np.abs(v_a * approach_direction(robot.terms(q), DEFAULT_WALL.normal)) / robot.dq_max
     assert ratio.max() == pytest.approx(1.0)
@@ -44,14 +45,14 @@ def test_approach_velocity_limit_puts_one_joint_at_its_limit(robot):
 
 @pytest.fixture(scope="module")
 def report():
-    return MaxSpeedSearch(POSTURES["elbow_up"], DEFAULT_WALL, jump_model="crb", tolerance=0.02, jobs=2).run()
+    return MaxSpeedSearch(PANDA.postures["elbow_up"], DEFAULT_WALL, jump_model="crb", tolerance=0.02, jobs=2).run()
 
 
 def test_qp_reaches_the_closed_form_maximum_speed(report, robot):
     data = report.to_json()
     terms = robot.terms(np.array(data["q_impact"]))
     # the posture of the QP run's impact: its tool tip is where the named posture's is
-    named_tip = robot.contact_point(POSTURES["elbow_up"].q)
+    named_tip = robot.contact_point(PANDA.postures["elbow_up"].q)
     assert np.linalg.norm(terms.contact_point - named_tip) < 0.01
     for name in ("classical", "gm", "crb"):
         expected = closed_form_max_speed(robot, terms, DEFAULT_WALL.normal, JUMP_MODELS[name])
@@ -92,7 +93,7 @@ def test_report_json_keys(report):
 
 def test_bad_search_settings_are_rejected():
     with pytest.raises(ValueError, match="unknown jump model"):
-        MaxSpeedSearch(POSTURES["elbow_up"], DEFAULT_WALL, jump_model="magic")
+        MaxSpeedSearch(PANDA.postures["elbow_up"], DEFAULT_WALL, jump_model="magic")
     with pytest.raises(ValueError, match="tolerance"):
         SpeedBisection(0.02, 1.0, 0.0)
 

@@ -10,7 +10,7 @@ import pytest
 
 from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.config import ControllerConfig
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT, PandaModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
@@ -114,7 +114,7 @@ class CallbackRobot:
 
 def run_panda(robot, settings=None, duration=0.2):
     model = PandaModel()
-    config = ControllerConfig.approach(POSTURES["elbow_up"].surface, 0.15, posture_weight=0.0)
+    config = ControllerConfig.approach(PANDA.postures["elbow_up"].surface, 0.15, posture_weight=0.0)
     panda = PandaRobot(robot, libfranka, settings)
     loop = ControlLoop(panda, ImpactSession(config, model), CommandFilter.for_robot(model, config.dt), deadline=float("inf"))
     return panda, loop.run(duration)
@@ -130,7 +130,7 @@ def assert_within_limits(commands):
 
 
 def test_the_session_runs_inside_the_callback_and_finishes_the_motion_at_rest():
-    robot = CallbackRobot(POSTURES["elbow_up"].q)
+    robot = CallbackRobot(PANDA.postures["elbow_up"].q)
     panda, result = run_panda(robot)
     commands = np.array(robot.commands)
     assert robot.motions == 1 and not robot.running
@@ -142,7 +142,7 @@ def test_the_session_runs_inside_the_callback_and_finishes_the_motion_at_rest():
 
 
 def test_a_non_finite_state_trips_the_watchdog_inside_the_callback_and_brakes_continuously():
-    robot = CallbackRobot(POSTURES["elbow_up"].q, fault="nan", at=60)
+    robot = CallbackRobot(PANDA.postures["elbow_up"].q, fault="nan", at=60)
     _, result = run_panda(robot)
     assert result.watchdog_trips == 1 and "non-finite" in result.watchdog_reason
     commands = np.array(robot.commands)
@@ -152,7 +152,7 @@ def test_a_non_finite_state_trips_the_watchdog_inside_the_callback_and_brakes_co
 
 @pytest.mark.parametrize("recover", [False, True])
 def test_a_reflex_ends_the_run_is_named_and_recovered_only_on_request(recover):
-    robot = CallbackRobot(POSTURES["elbow_up"].q, fault="reflex", at=40)
+    robot = CallbackRobot(PANDA.postures["elbow_up"].q, fault="reflex", at=40)
     panda, result = run_panda(robot, RobotConfig(automatic_error_recovery=recover))
     assert result.watchdog_reason.startswith("robot error: RuntimeError: libfranka: Move command aborted")
     assert result.cycles == 40 and "\n" not in result.watchdog_reason

@@ -7,7 +7,8 @@ import pinocchio as pin
 import pytest
 
 from impactqp.controller.model.jump import JUMP_MODELS
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.sim.plant import PlantParameterError, PlantParameters
@@ -15,7 +16,7 @@ from impactqp.sim.runner import TrialSpec, run_approach
 from impactqp.sim.scene import PAYLOAD_BODY, build_scene
 
 ROBOT = PandaModel()
-Q = POSTURES["elbow_up"].q
+Q = PANDA.postures["elbow_up"].q
 
 
 def test_json_round_trip_is_atomic(tmp_path):

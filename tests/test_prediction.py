@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.prediction import ImpactQuery, predict_all
 
 
 def test_query_builds_the_pre_impact_velocity():
-    q = POSTURES["elbow_up"].q
+    q = PANDA.postures["elbow_up"].q
     query = ImpactQuery.from_speed(q, [-2.0, 0, 0], 0.1, [0, 0.03, 0], 0.5)
     np.testing.assert_allclose(query.normal, [-1, 0, 0])
     np.testing.assert_allclose(query.pre_impact_velocity, [0.1, 0.03, 0])
@@ -29,14 +29,14 @@ def test_query_builds_the_pre_impact_velocity():
     ],
 )
 def test_bad_queries_are_rejected(kwargs, message):
-    args = {"q": POSTURES["elbow_up"].q, "normal": [-1, 0, 0], "speed": 0.1, "tangential": None, "restitution": 0.0}
+    args = {"q": PANDA.postures["elbow_up"].q, "normal": [-1, 0, 0], "speed": 0.1, "tangential": None, "restitution": 0.0}
     args.update(kwargs)
     with pytest.raises(ValueError, match=message):
         ImpactQuery.from_speed(**args)
 
 
 def test_report_has_the_contract_keys(robot):
-    p = POSTURES["elbow_left"]
+    p = PANDA.postures["elbow_left"]
     report = predict_all(ImpactQuery.from_speed(p.q, p.surface.normal, 0.12), METHODS, robot)
     assert set(report) == {"q", "contact_point", "normal", "pre_impact_velocity", "restitution", "cond_M", "methods"}
     assert set(report["methods"]) == set(METHODS)

@@ -13,7 +13,7 @@ from impactqp.controller.config import ControllerConfig, TaskConfig, build_contr
 from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.max_speed import approach_direction, closed_form_max_speed
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.qp import ImpactAwareController
 from impactqp.tasks import DampingTask, FrameTask, PostureTask
 
@@ -49,7 +49,7 @@ def test_solution_satisfies_every_hard_constraint(robot, seed, jump, restitution
 
 
 def test_unconstrained_qp_is_the_weighted_least_squares_solution(robot):
-    q = POSTURES["elbow_up"].q
+    q = PANDA.postures["elbow_up"].q
     dq = np.full(7, 0.01)
     terms = robot.terms(q, dq)
     tasks = [
@@ -89,12 +89,12 @@ def max_feasible_speed_by_bisection(robot, terms, model, restitution=0.0, impact
     return low
 
 
-@pytest.mark.parametrize("posture", sorted(POSTURES))
+@pytest.mark.parametrize("posture", sorted(PANDA.postures))
 @pytest.mark.parametrize("jump", ["crb", "gm"])
 def test_commanded_speed_settles_at_the_maximum_feasible_speed(robot, posture, jump):
     """Asked for 2 m/s at a posture (kept fixed), the commanded contact speed settles at the
     posture's maximum feasible speed."""
-    q = POSTURES[posture].q
+    q = PANDA.postures[posture].q
     controller = approach_controller(robot, q, speed=2.0, jump=jump)
     dq = np.zeros(7)
     for _ in range(800):
@@ -113,8 +113,8 @@ def test_fast_approach_from_afar_stays_within_the_impact_limits(robot, posture):
     """Asked for 2 m/s from 30 cm away, the controller speeds up while the wall is far and slows
     down to the impact-feasible speed as it enters the activation zone: every command keeps the
     limits, and the contact speed is at most the crb maximum at the contact posture."""
-    wall = POSTURES[posture].surface
-    q = approach_start(robot, POSTURES[posture].q, wall, 0.3)
+    wall = PANDA.postures[posture].surface
+    q = approach_start(robot, PANDA.postures[posture].q, wall, 0.3)
     controller = build_controller(ControllerConfig.approach(wall, speed=2.0), robot)
     dq, previous, top_speed = np.zeros(7), np.zeros(7), 0.0
     for _ in range(3000):
@@ -138,7 +138,7 @@ def test_fast_approach_from_afar_stays_within_the_impact_limits(robot, posture):
 def test_closed_loop_commands_are_continuous(robot):
     """Kinematic closed loop towards the wall: every command keeps the acceleration and jerk
     limits relative to the previous one, across a reference step."""
-    q = POSTURES["elbow_up"].q.copy()
+    q = PANDA.postures["elbow_up"].q.copy()
     config = ControllerConfig.approach(surface_ahead(robot, q, 0.08), speed=0.05)
     controller = build_controller(config, robot)
     dq, previous = np.zeros(7), np.zeros(7)

@@ -8,7 +8,7 @@ from qp_states import DT, NORMAL, approach_controller
 from reference.qp import reference_braking_command, reference_interval_conflicts
 
 from impactqp.controller.model.max_speed import approach_direction
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.qp import Command
 from impactqp.controller.qp.fallback import conflict_names, interval_conflicts
 
@@ -25,7 +25,7 @@ def assert_safe_fallback(robot, controller, command, status, previous_ddq=np.zer
 
 
 def test_nan_state_gives_the_fallback(robot):
-    q = POSTURES["elbow_up"].q
+    q = PANDA.postures["elbow_up"].q
     controller = approach_controller(robot, q)
     first = controller.step(q, np.zeros(7))
     command = controller.step(np.full(7, np.nan), np.zeros(7))
@@ -38,7 +38,7 @@ def test_nan_state_gives_the_fallback(robot):
 
 
 def test_state_outside_the_limits_gives_the_fallback(robot):
-    q = POSTURES["elbow_up"].q
+    q = PANDA.postures["elbow_up"].q
     controller = approach_controller(robot, q)
     outside = q.copy()
     outside[3] = robot.q_max[3] + 0.05
@@ -57,7 +57,7 @@ def test_state_outside_the_limits_gives_the_fallback(robot):
 def test_infeasible_request_gives_the_fallback_and_names_the_conflict(robot):
     """Approaching at 0.6 m/s with the impact constraints on: no acceleration of one cycle can
     bring the impulsive torque within its limit."""
-    q = POSTURES["elbow_up"].q
+    q = PANDA.postures["elbow_up"].q
     controller = approach_controller(robot, q)
     dq = 0.6 * approach_direction(robot.terms(q), NORMAL)
     command = controller.step(q, dq)
@@ -71,7 +71,7 @@ def test_infeasible_request_gives_the_fallback_and_names_the_conflict(robot):
 def test_the_irreducible_conflict_is_computed_on_demand(robot):
     """``step`` names a bounded conflicting set; the irreducible one (deletion filter) is
     computed only when asked for, after the fact."""
-    q = POSTURES["elbow_up"].q
+    q = PANDA.postures["elbow_up"].q
     controller = approach_controller(robot, q)
     assert controller.conflicting_constraints() == []  # no infeasible cycle yet
     command = controller.step(q, 0.6 * approach_direction(robot.terms(q), NORMAL))
@@ -88,7 +88,7 @@ def test_compiled_conflict_and_braking_equal_the_numpy_reference(robot, seed, ju
     interval test names the same conflicting set as its numpy statement, and the compiled
     braking command equals its numpy statement from random states and previous accelerations."""
     rng = np.random.default_rng(seed)
-    q = POSTURES["elbow_up"].q
+    q = PANDA.postures["elbow_up"].q
     controller = approach_controller(robot, q, jump=jump)
     dq = speed * approach_direction(robot.terms(q), NORMAL)
     command = controller.step(q, dq)

@@ -16,7 +16,7 @@ from impactqp.constraints import (
     TorqueLimit,
     VelocityLimit,
 )
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.qp.problem import ConstraintLayout, QpProblem
 
 
@@ -61,7 +61,7 @@ def test_compiled_violation_equals_the_numpy_reference(seed, scale):
 
 
 def test_layout_puts_boxes_apart_and_relaxed_rows_last(robot):
-    impact = ExpectedImpact(POSTURES["elbow_up"].surface)
+    impact = ExpectedImpact(PANDA.postures["elbow_up"].surface)
     constraints = [
         PostImpactVelocityLimit(impact, robot.dq_max), AccelerationLimit(), TorqueLimit(robot.tau_max),
         VelocityLimit(robot.dq_max), ImpulsiveTorqueLimit(impact, robot.tau_max, robot.dq_max),

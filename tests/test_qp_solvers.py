@@ -7,17 +7,17 @@ from hypothesis import strategies as st
 from qp_states import NORMAL, approach_controller, random_feasible_state
 
 from impactqp.controller.model.max_speed import approach_direction
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.qp import available_backends
 from impactqp.controller.qp.solvers import DaqpSolver, QuadprogSolver, make_solver, verifier_for
 
 
-@pytest.mark.parametrize("posture", sorted(POSTURES))
+@pytest.mark.parametrize("posture", sorted(PANDA.postures))
 def test_solver_backends_agree(robot, posture):
     """Same QPs, same answers; three cycles, so that the warm-started proxqp must notice that
     the jerk box moved (its stale multipliers would otherwise pass the residual checks)."""
-    q = POSTURES[posture].q
+    q = PANDA.postures[posture].q
     terms = robot.terms(q)
     dq = 0.12 * approach_direction(terms, NORMAL)  # near the speed limit: the impact rows bind
     results = {}

@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 from test_jump import welded_arm_inverse_inertia
 
 from impactqp.controller.model.validation import BadInputError
-from impactqp.controller.model.postures import POSTURES, DEFAULT_WALL, Surface
+from impactqp.controller.model.postures import DEFAULT_WALL, Surface
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import (
     CONTACT_FRAME,
     HAND_FRAME,
@@ -36,7 +37,7 @@ def test_model_is_the_seven_dof_arm_with_real_masses(robot):
     assert robot.model.nq == 7
     masses = [robot.model.inertias[i].mass for i in range(1, robot.model.njoints)]
     assert all(m > 0 for m in masses)
-    terms = robot.terms(POSTURES["elbow_up"].q)
+    terms = robot.terms(PANDA.postures["elbow_up"].q)
     assert terms.mass == pytest.approx(sum(masses))
 
 
@@ -78,7 +79,7 @@ def test_terms_match_pinocchio_and_finite_differences(robot, q, dq):
 
 
 def test_bad_states_are_rejected(robot):
-    q = POSTURES["elbow_up"].q
+    q = PANDA.postures["elbow_up"].q
     with pytest.raises(InvalidStateError, match="7 values"):
         robot.terms(q[:6])
     with pytest.raises(InvalidStateError, match="non-finite"):
@@ -93,7 +94,7 @@ def test_bad_states_are_rejected(robot):
 
 
 @pytest.mark.parametrize("robot_name", list(ROBOTS))
-@pytest.mark.parametrize("name", list(POSTURES))
+@pytest.mark.parametrize("name", list(PANDA.postures))
 def test_named_postures_face_the_default_wall(robot_name, name):
     robot = RobotModel(robot_name)
     p = robot.description.posture(name)
@@ -107,7 +108,7 @@ def test_named_postures_face_the_default_wall(robot_name, name):
 
 
 def test_postures_differ_in_elbow_and_wrist(robot):
-    qs = np.array([p.q for p in POSTURES.values()])
+    qs = np.array([p.q for p in PANDA.postures.values()])
     assert len(qs) >= 3
     def side(angle):
         return 0 if abs(angle) < 0.3 else int(np.sign(angle))
@@ -161,7 +162,7 @@ def test_closed_form_inverse_of_J_Jt(robot, q):
 
 
 def test_singularity_is_detected_by_refill_too(robot):
-    buffer = robot.terms(POSTURES["elbow_up"].q)
+    buffer = robot.terms(PANDA.postures["elbow_up"].q)
     stamp = buffer.stamp
     with pytest.raises(SingularPostureError):
         robot.update_terms(buffer, SINGULAR_Q, np.zeros(7))

@@ -1,5 +1,5 @@
 """Robot descriptions: the registry, limits inside each URDF's, the URDF edit for a hand-replacing
-tool, and the named postures' properties on each robot."""
+tool, the named postures' properties on each arm, and a user's own description file."""
 
 import xml.etree.ElementTree as ET
 from dataclasses import replace
@@ -17,6 +17,8 @@ POSTURE_MARGIN = 0.1
 """rad: the least distance of a named posture's joints from the limits."""
 MIN_SINGULAR_RATIO = 0.05
 """sigma_min / sigma_max of J at a named posture: far from singular."""
+ARMS = [name for name in ROBOTS if not ROBOTS[name].floating]
+FRANKA_ARMS = [name for name in ARMS if ROBOTS[name].finger_joints]
 
 
 def urdf_joint_limits(robot):
@@ -27,7 +29,7 @@ def urdf_joint_limits(robot):
                      for name in robot.joints]).T
 
 
-@pytest.mark.parametrize("name", list(ROBOTS))
+@pytest.mark.parametrize("name", ARMS)
 def test_limits_lie_inside_the_urdf_limits(name):
     robot = robot_description(name)
     lower, upper, velocity, effort = urdf_joint_limits(robot)
@@ -47,8 +49,8 @@ def test_descriptions_are_read_only():
 
 
 def test_unknown_robot_lists_the_choices():
-    with pytest.raises(BadInputError, match="panda, fr3"):
-        robot_description("ur5")
+    with pytest.raises(BadInputError, match="panda, fr3, ur5, g1"):
+        robot_description("kuka")
     assert robot_description(ROBOTS["fr3"]) is ROBOTS["fr3"]
 
 
@@ -65,7 +67,7 @@ def test_the_fr3_has_the_pandas_kinematic_chain():
     assert panda.model.frames[panda.hand_frame_id].placement.isApprox(fr3.model.frames[fr3.hand_frame_id].placement, 1e-12)
 
 
-@pytest.mark.parametrize("name", list(ROBOTS))
+@pytest.mark.parametrize("name", ARMS)
 def test_named_postures_touch_the_wall_inside_the_limits_away_from_singularities(name):
     model = RobotModel(name)
     for posture in model.description.postures.values():
@@ -77,7 +79,7 @@ def test_named_postures_touch_the_wall_inside_the_limits_away_from_singularities
         assert sigma[-1] >= MIN_SINGULAR_RATIO * sigma[0]
 
 
-@pytest.mark.parametrize("name", list(ROBOTS))
+@pytest.mark.parametrize("name", FRANKA_ARMS)
 def test_named_postures_differ_in_elbow_and_wrist_arrangement(name):
     q = {key: p.q for key, p in ROBOTS[name].postures.items()}
     assert q["elbow_right"][2] < 0.0 < q["elbow_left"][2]  # elbow swung right / left (q3)
@@ -85,7 +87,7 @@ def test_named_postures_differ_in_elbow_and_wrist_arrangement(name):
     assert abs(q["elbow_up"][2]) < 0.1 and abs(q["elbow_up"][4]) < 0.1  # sagittal elbow, neutral wrist
 
 
-@pytest.mark.parametrize("name", list(ROBOTS))
+@pytest.mark.parametrize("name", FRANKA_ARMS)
 def test_a_hand_replacing_tool_removes_the_fingers_and_the_hand_inertia(name):
     robot = ROBOTS[name]
     root = ET.fromstring(model_urdf(robot, TOOLS["pad"]))
@@ -115,7 +117,102 @@ def test_an_fr3_without_franky_sim_is_bad_input(monkeypatch):
 
 def test_base_placement_moves_every_robot():
     R = pin.utils.rpyToMatrix(0.0, 0.0, 0.7)
-    for name in ROBOTS:
+    for name in ARMS:
         q = ROBOTS[name].postures["elbow_up"].q
         moved = RobotModel(name, base_placement=pin.SE3(R, np.zeros(3)))
         np.testing.assert_allclose(moved.contact_point(q), R @ RobotModel(name).contact_point(q), atol=1e-12)
+
+
+def test_the_ur5_postures_differ_in_elbow_and_wrist_arrangement():
+    """elbow_up / elbow_down: the elbow above / below the line from the shoulder to the wrist;
+    wrist_flipped: the wrist turned under (q5 < 0) with the elbow up."""
+    model = RobotModel("ur5")
+    ids = [model.model.getJointId(name) for name in ("shoulder_lift_joint", "elbow_joint", "wrist_1_joint")]
+
+    def elbow_height(q):
+        pin.forwardKinematics(model.model, model.data, q)
+        shoulder, elbow, wrist = (model.data.oMi[i].translation for i in ids)
+        t = (elbow[:2] - shoulder[:2]) @ (wrist[:2] - shoulder[:2]) / np.sum((wrist[:2] - shoulder[:2]) ** 2)
+        return elbow[2] - (shoulder[2] + t * (wrist[2] - shoulder[2]))
+
+    postures = ROBOTS["ur5"].postures
+    assert elbow_height(postures["elbow_up"].q) > 0.1 and elbow_height(postures["elbow_down"].q) < -0.1
+    assert elbow_height(postures["wrist_flipped"].q) > 0.1 and postures["wrist_flipped"].q[4] < 0.0 < postures["elbow_up"].q[4]
+
+
+def test_limits_missing_from_a_file_are_the_urdfs():
+    robot = ROBOTS["ur5"]
+    lower, upper, velocity, effort = urdf_joint_limits(robot)
+    for ours, theirs in ((robot.q_min, lower), (robot.q_max, upper), (robot.dq_max, velocity), (robot.tau_max, effort)):
+        np.testing.assert_array_equal(ours, theirs)
+    assert robot.joints == tuple(RobotModel("ur5").model.names[1:])
+
+
+def test_the_g1_description_gives_the_floating_models_joints_and_limits():
+    from impactqp.controller.model.floating_base import FloatingBaseModel
+
+    g1, model = ROBOTS["g1"], FloatingBaseModel()
+    assert g1.floating and g1.joints == tuple(model.joint_names)
+    for ours, theirs in ((g1.q_min, model.q_min), (g1.q_max, model.q_max), (g1.dq_max, model.dq_max), (g1.tau_max, model.tau_max)):
+        np.testing.assert_array_equal(ours, theirs)
+    assert [c.frame for c in g1.held_contacts] == [model.model.frames[i].name for i in model.foot_frame_ids]
+    with pytest.raises(BadInputError, match="floating base"):
+        RobotModel("g1")
+
+
+def _user_arm(folder, **changes):
+    """A user's own arm in ``folder``: the UR5's URDF copied beside a TOML description that names
+    it by a relative path, with ``changes`` to the description's keys (None removes a key)."""
+    import shutil
+    import tomllib
+
+    ur5 = ROBOTS["ur5"]
+    shutil.copy(ur5.urdf_path(), folder / "my_arm.urdf")
+    data = tomllib.loads(ur5.source.read_text())
+    data.update(name="my_arm", urdf="my_arm.urdf", meshes=str(ur5.mesh_dir()))
+    for key, value in changes.items():
+        data.pop(key) if value is None else data.__setitem__(key, value)
+    path = folder / "my_arm.toml"
+    path.write_text(_toml(data))
+    return path
+
+
+def _toml(data: dict, prefix: str = "") -> str:
+    """A small TOML writer for the test's tables (strings, numbers, lists, nested tables)."""
+    import json
+
+    scalars = [f"{k} = {json.dumps(v)}" for k, v in data.items() if not isinstance(v, dict)]
+    tables = [_toml(v, f"{prefix}{k}.") for k, v in data.items() if isinstance(v, dict)]
+    head = f"[{prefix[:-1]}]\n" if prefix else ""
+    return head + "\n".join(scalars) + "\n" + "\n".join(tables)
+
+
+def test_a_users_own_arm_loads_from_its_file(tmp_path):
+    path = _user_arm(tmp_path)
+    robot = robot_description(str(path))
+    assert robot.name == "my_arm" and robot.urdf_path() == tmp_path / "my_arm.urdf"
+    ur5 = ROBOTS["ur5"]
+    np.testing.assert_array_equal(robot.dq_max, ur5.dq_max)
+    mine, theirs = RobotModel(path), RobotModel("ur5")
+    q = ur5.postures["elbow_up"].q
+    np.testing.assert_allclose(mine.terms(q).M, theirs.terms(q).M, atol=1e-14)
+    assert mine.nv == len(robot.joints) == 6
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"limits": {}}, "needs ddq_max"),
+    ({"limits": {"ddq_max": [1.0, 2.0], "dddq_max": 1.0}}, "ddq_max must be 6 numbers"),
+    ({"limits": {"ddq_max": -1.0, "dddq_max": 1.0}}, "ddq_max must be > 0"),
+    ({"base": "wheeled"}, "base must be one of fixed, floating"),
+    ({"urdf": None}, "needs 'urdf'"),
+    ({"urdf": "missing.urdf"}, "does not exist"),
+    ({"joints": ["shoulder_pan_joint", "no_such_joint"]}, "no moving joints no_such_joint"),
+    ({"wheels": 4}, "unknown robot description keys wheels"),
+    ({"default_posture": "elbow_sideways"}, "default_posture 'elbow_sideways'"),
+    ({"postures": {"up": {"q": [0.0, 1.0]}}}, "posture up q must be 6 numbers"),
+])
+def test_a_bad_robot_file_is_one_line_of_bad_input(tmp_path, changes, message):
+    path = _user_arm(tmp_path, **changes)
+    with pytest.raises(BadInputError, match=message) as error:
+        robot_description(path)
+    assert "\n" not in str(error.value)

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from impactqp.controller.config import ControllerConfig, build_controller
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.controller.model.inverse_kinematics import approach_start
@@ -28,7 +29,7 @@ def scene():
 
 @pytest.fixture(scope="module")
 def log(scene):
-    return run_approach(scene, ROBOT, TrialSpec("elbow_right", POSTURES["elbow_right"].q, SPEED))
+    return run_approach(scene, ROBOT, TrialSpec("elbow_right", PANDA.postures["elbow_right"].q, SPEED))
 
 
 def test_log_has_one_sample_per_control_period_and_force_at_the_physics_rate(log, scene):
@@ -114,7 +115,7 @@ def test_bad_run_arguments_are_rejected(scene, log):
 
 def test_tangential_reference_moves_the_tip_along_the_wall(scene):
     v_t = np.array([0.0, 0.06, 0.0])
-    log = run_approach(scene, ROBOT, TrialSpec("elbow_right", POSTURES["elbow_right"].q, 0.12, v_t, after_contact=0.05))
+    log = run_approach(scene, ROBOT, TrialSpec("elbow_right", PANDA.postures["elbow_right"].q, 0.12, v_t, after_contact=0.05))
     impact = measure_impact(log)
     v = ROBOT.terms(impact.q_pre, impact.dq_pre).J @ impact.dq_pre
     np.testing.assert_allclose(v, [0.12, 0.06, 0.0], atol=0.006)
@@ -123,7 +124,7 @@ def test_tangential_reference_moves_the_tip_along_the_wall(scene):
 def test_runs_the_impact_aware_qp_controller(scene):
     """run_trial drives any object with step(q, dq) -> .dq_cmd, the QP controller included."""
     controller = build_controller(ControllerConfig.approach(speed=0.15), ROBOT)
-    q0 = approach_start(ROBOT, POSTURES["elbow_up"].q, DEFAULT_WALL, 0.02)
+    q0 = approach_start(ROBOT, PANDA.postures["elbow_up"].q, DEFAULT_WALL, 0.02)
     log = run_trial(scene, controller, q0, np.zeros(7), 0.3)
     impact = measure_impact(log)
     v = ROBOT.terms(impact.q_pre, impact.dq_pre).J @ impact.dq_pre

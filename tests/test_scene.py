@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES, Surface
+from impactqp.controller.model.postures import DEFAULT_WALL, Surface
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import TOOL_CENTRE_OFFSET, TOOL_RADIUS, PandaModel, RobotModel
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.tool_description import TOOLS, Sphere
@@ -66,9 +67,9 @@ def test_only_the_tool_and_the_wall_collide():
     assert model.opt.timestep <= 0.5e-3
 
 
-@pytest.mark.parametrize("name", list(POSTURES))
+@pytest.mark.parametrize("name", list(PANDA.postures))
 def test_wall_touches_the_tool_at_the_impact_postures(name):
-    SCENE.set_state(POSTURES[name].q, np.zeros(7))
+    SCENE.set_state(PANDA.postures[name].q, np.zeros(7))
     # the posture puts the tip on the wall: the sphere's centre is one radius in front of it
     assert DEFAULT_WALL.signed_distance(SCENE.tool_centre()) == pytest.approx(TOOL_RADIUS, abs=1e-6)
 

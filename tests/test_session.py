@@ -14,7 +14,7 @@ from hypothesis.extra.numpy import arrays
 
 from conftest import assert_continuous_within_limits
 from impactqp.controller.config import ControllerConfig
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.runtime.interface import RobotState
 from impactqp.controller.runtime.session import ESTIMATE, OBSERVER, ImpactSession, residual_source
@@ -61,7 +61,7 @@ def test_retract_leaves_the_wall_within_50_ms_without_recontact(retract_run, mod
     first, last = np.flatnonzero(in_contact)[[0, -1]]
     assert np.all(in_contact[first : last + 1])
     # the tool ends away from the wall, the phase after detection is the retract
-    surface = POSTURES["elbow_up"].surface
+    surface = PANDA.postures["elbow_up"].surface
     distance = surface.signed_distance(model.contact_point(log.q[-1]))
     assert distance > 0.01
     phases = np.array(result.phases)
@@ -129,7 +129,7 @@ def test_an_estimate_is_used_only_when_it_differs_from_the_measured_torque(tau, 
 
 def test_a_session_fed_the_measured_torque_as_estimate_runs_the_observer():
     model = PandaModel()
-    posture = POSTURES["elbow_up"]
+    posture = PANDA.postures["elbow_up"]
     session = ImpactSession(ControllerConfig.approach(posture.surface, 0.15), model)
     q, dq = posture.q, np.zeros(NQ)
     tau = model.terms(q, dq).h

@@ -3,7 +3,7 @@ run's log keeps the dataset's torque timing."""
 
 import numpy as np
 
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.sim.runner import CommandReplay, run_trial
 from impactqp.sim.scene import build_scene
 
@@ -16,7 +16,7 @@ def test_the_run_log_keeps_the_dataset_torque_timing(retract_run):
     the run's states and torques (the last row keeps the torque read with its own state)."""
     _, result, _ = retract_run
     log = result.log
-    surface = POSTURES["elbow_up"].surface
+    surface = PANDA.postures["elbow_up"].surface
     again = run_trial(build_scene(surface), CommandReplay(log.dq_cmd), log.q[0], log.dq[0], len(log) * DT)
     np.testing.assert_allclose(again.dq, log.dq, rtol=0.0, atol=1e-9)
     np.testing.assert_allclose(again.tau[:-1], log.tau[:-1], rtol=0.0, atol=1e-9)

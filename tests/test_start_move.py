@@ -7,7 +7,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import NQ, PandaModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.runtime.interface import RobotState
@@ -49,11 +49,11 @@ def test_the_commands_follow_a_straight_path_inside_the_limits_to_rest_at_the_ta
 def test_a_target_outside_the_joint_limits_is_bad_input():
     target = MODEL.q_max + 0.1
     with pytest.raises(BadInputError):
-        StartMove(target, MODEL, DT, at_rest(POSTURES["elbow_up"].q))
+        StartMove(target, MODEL, DT, at_rest(PANDA.postures["elbow_up"].q))
 
 
 def test_a_path_through_the_surface_is_refused_and_one_in_front_of_it_accepted():
-    posture = POSTURES["elbow_up"]
+    posture = PANDA.postures["elbow_up"]
     start = approach_start(MODEL, posture.q, posture.surface, 0.05)
     home = np.array([0.0, 0.0, 0.0, -1.57, 0.0, 1.57, 0.785])  # hand down: swinging it up crosses the wall
     with pytest.raises(BadInputError, match="behind the surface"):

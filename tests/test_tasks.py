@@ -8,7 +8,7 @@ from hypothesis import given, reject, settings
 from hypothesis import strategies as st
 from reference.tasks import reference_rows
 
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.tasks import CentreOfMassTask, ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
 from impactqp.controller.model.robot import SingularPostureError
 from impactqp.tasks.task import Task, rotation_error, rotation_log
@@ -16,7 +16,7 @@ from impactqp.tasks.task import Task, rotation_error, rotation_log
 
 @pytest.fixture(scope="module")
 def terms(robot):
-    q = POSTURES["elbow_up"].q
+    q = PANDA.postures["elbow_up"].q
     dq = np.linspace(-0.3, 0.3, 7)
     return robot.terms(q, dq)
 
@@ -49,7 +49,7 @@ def test_frame_task_rows_give_the_pd_frame_acceleration(terms):
 
 
 def test_frame_task_holds_the_pose_captured_at_reset(robot):
-    terms = robot.terms(POSTURES["elbow_left"].q)
+    terms = robot.terms(PANDA.postures["elbow_left"].q)
     task = FrameTask()
     task.reset(terms)
     assert np.allclose(task.compute(terms).b, -terms.dJ6_dq)
@@ -97,7 +97,7 @@ def test_damping_task_opposes_the_velocity(terms):
 
 @pytest.mark.parametrize("offset", [0.05, 0.0, -0.001])
 def test_surface_offset_target_is_at_the_offset_along_the_normal_through_the_reset_point(terms, offset):
-    surface = POSTURES["elbow_up"].surface
+    surface = PANDA.postures["elbow_up"].surface
     task = SurfaceOffsetTask(surface.normal, surface.point, offset)
     task.reset(terms)
     assert surface.signed_distance(task.target_position) == pytest.approx(offset, abs=1e-12)
@@ -108,7 +108,7 @@ def test_surface_offset_target_is_at_the_offset_along_the_normal_through_the_res
 
 
 def test_surface_offset_rows_give_the_saturated_velocity_law(terms):
-    surface = POSTURES["elbow_up"].surface
+    surface = PANDA.postures["elbow_up"].surface
     task = SurfaceOffsetTask(surface.normal, surface.point, 0.05, max_speed=0.1, position_gain=20.0, velocity_gain=40.0)
     task.reset(terms)
     task.target_position = terms.contact_point + np.array([-0.2, 0.0, 0.0])  # far: the speed saturates
@@ -161,7 +161,7 @@ def test_compiled_task_rows_equal_the_numpy_reference(robot, seed):
     """Every task's compute_into (compiled where the class has a kernel) writes the rows of its
     plain-numpy statement (tests/reference/tasks.py)."""
     rng = np.random.default_rng(seed)
-    q = POSTURES["elbow_up"].q + rng.uniform(-0.3, 0.3, 7)
+    q = PANDA.postures["elbow_up"].q + rng.uniform(-0.3, 0.3, 7)
     terms = robot.terms(q, rng.uniform(-1.0, 1.0, 7), check_limits=False)
     normal = rng.normal(size=3)
     normal /= np.linalg.norm(normal)

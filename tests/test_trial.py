@@ -5,13 +5,14 @@ import numpy as np
 import pytest
 
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach
 from impactqp.scenarios.trial import TrialPool, TrialRunner
 
 POSTURE = "elbow_right"
-Q = POSTURES[POSTURE].q
+Q = PANDA.postures[POSTURE].q
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +99,7 @@ def test_trial_id_names_the_setting():
 
 
 def test_pool_of_two_processes_gives_the_same_trials(result):
-    specs = [TrialSpec(POSTURE, Q, 0.15), TrialSpec("elbow_up", POSTURES["elbow_up"].q, 0.18)]
+    specs = [TrialSpec(POSTURE, Q, 0.15), TrialSpec("elbow_up", PANDA.postures["elbow_up"].q, 0.18)]
     with TrialPool(DEFAULT_WALL, jobs=2) as pool:
         results = list(pool.map(specs))
     assert [r.spec.trial_id for r in results] == [s.trial_id for s in specs]

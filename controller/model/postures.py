@@ -1,9 +1,10 @@
-"""The default wall and the named impact postures that face it, for each robot.
+"""Surfaces, the default wall and what a named impact posture is.
 
 The default wall is the vertical plane x = 0.6 m in front of the robot; its normal points back
-towards the robot, n = (-1, 0, 0). Each named posture puts the tool tip on that wall with the
-hand's axis along -n, so the tip is the first point to touch. The postures differ in their elbow
-and wrist arrangement, like the three configurations of the paper's Fig. 2.
+towards the robot, n = (-1, 0, 0). A robot's named postures (its description file,
+``robot_description``) put the tool tip on that wall with the tool's axis along -n, so the tip is
+the first point to touch; they differ in their elbow and wrist arrangement, like the three
+configurations of the paper's Fig. 2.
 """
 
 from __future__ import annotations
@@ -56,37 +57,3 @@ class ImpactPosture:
     q: np.ndarray
     description: str
     surface: Surface = field(default=DEFAULT_WALL)
-
-
-PANDA_POSTURES: dict[str, ImpactPosture] = {
-    p.name: p
-    for p in (
-        ImpactPosture(
-            "elbow_right",
-            np.array([1.141378, -0.390243, -0.616843, -1.859688, -1.737836, 2.587417, -0.461]),
-            "elbow swung right (q3 < 0), wrist rolled down (q5 < 0); tip at (0.6, 0.2, 0.75)",
-        ),
-        ImpactPosture(
-            "elbow_left",
-            np.array([-1.387445, -0.928934, 0.883828, -1.976312, 1.914563, 2.531826, -1.852]),
-            "elbow swung left (q3 > 0), wrist rolled up (q5 > 0); tip at (0.6, 0.0, 0.75)",
-        ),
-        ImpactPosture(
-            "elbow_up",
-            np.array([0.043817, -0.369231, -0.018765, -2.266834, 0.081754, 3.469656, 0.785]),
-            "elbow up in the sagittal plane, wrist neutral (q5 ~ 0); tip at (0.6, 0.0, 0.7)",
-        ),
-    )
-}
-
-
-FR3_POSTURES = PANDA_POSTURES
-"""The FR3's named postures: its kinematic chain is the Panda's (the same Denavit-Hartenberg
-parameters in Franka's documentation; the test of the descriptions checks that the two URDFs'
-joint placements agree) and each posture lies inside its limits, so the same joint positions
-put the tool at the same place with the same hand axis (docs/robots.md)."""
-
-POSTURES = PANDA_POSTURES
-"""The postures of the default robot, the Panda (any robot's: ``RobotDescription.posture``,
-``choice.RobotChoice.posture``)."""
-

@@ -192,14 +192,21 @@ class RobotModel:
         ``base_placement`` places the robot's base (link0) in the world; identity by default.
         """
         self.description = robot_description(robot)
+        if self.description.floating:
+            raise BadInputError(
+                f"the {self.description.name} has a floating base: its model is FloatingBaseModel, not RobotModel"
+            )
         self.tool = tool_description(tool)
         self.urdf_path = Path(urdf_path) if urdf_path is not None else self.description.urdf_path()
         model = self._arm(finger_opening)
         if base_placement is not None:
             model.jointPlacements[1] = base_placement * model.jointPlacements[1]
         names = tuple(model.names[i] for i in range(1, model.njoints))
-        if model.nq != NQ or names != self.description.joints:
-            raise RuntimeError(f"expected the 7 joints {self.description.joints}, got {names}")
+        if names != self.description.joints or model.nq != model.nv:
+            raise BadInputError(
+                f"the {self.description.name} URDF's moving joints {', '.join(names)} are not the description's "
+                f"joints {', '.join(self.description.joints)} (each a revolute or prismatic joint)"
+            )
         masses = np.array([model.inertias[i].mass for i in range(1, model.njoints)])
         if not np.all(masses > 0.0):
             raise RuntimeError(f"the {self.description.name} model has links without mass: {masses}")
@@ -219,7 +226,7 @@ class RobotModel:
             pin.FrameType.OP_FRAME,
         )
         self.contact_frame_id = model.addFrame(tip)
-        self.hand_frame_id = model.getFrameId(self.description.hand_frame)
+        self.hand_frame_id = model.getFrameId(self.description.hand_frame) if self.description.hand_frame else None
         self.tool_frame_id = mount
         self.q_min = self.description.q_min.copy()
         self.q_max = self.description.q_max.copy()
@@ -230,7 +237,8 @@ class RobotModel:
         self.tau_max = self.description.tau_max.copy()
         self.ddq_max = self.description.ddq_max.copy()
         self.dddq_max = self.description.dddq_max.copy()
-        self._zero_velocity = np.zeros(NQ)
+        self.nq = self.nv = model.nv  # a fixed-base arm of revolute or prismatic joints
+        self._zero_velocity = np.zeros(self.nv)
         self._zero_velocity.flags.writeable = False
 
     def _arm(self, finger_opening: float) -> pin.Model:
@@ -250,13 +258,14 @@ class RobotModel:
         """Return (q, dq) as float arrays, or raise :class:`InvalidStateError`."""
         q = np.asarray(q, dtype=float)
         dq = self._zero_velocity if dq is None else np.asarray(dq, dtype=float)
-        if q.shape != (NQ,) or dq.shape != (NQ,):
-            name, shape = ("q", q.shape) if q.shape != (NQ,) else ("dq", dq.shape)
-            raise InvalidStateError(f"{name} must have {NQ} values, got shape {shape}")
+        n = self.nv
+        if q.shape != (n,) or dq.shape != (n,):
+            name, shape = ("q", q.shape) if q.shape != (n,) else ("dq", dq.shape)
+            raise InvalidStateError(f"{name} must have {n} values, got shape {shape}")
         # One sum of |entries| in plain floats (it cannot overflow into a warning, as a dot
         # product of large entries would) exceeds the bound when any entry is NaN, infinite or
         # too large; the precise test only runs then, to name the culprit.
-        if not sum(map(abs, q.tolist())) + sum(map(abs, dq.tolist())) <= 2 * NQ * MAX_STATE_ENTRY:
+        if not sum(map(abs, q.tolist())) + sum(map(abs, dq.tolist())) <= 2 * n * MAX_STATE_ENTRY:
             for name, values in (("q", q), ("dq", dq)):
                 if not all_finite(values):
                     raise InvalidStateError(f"{name} contains a non-finite value")

@@ -1,64 +1,120 @@
-"""Robot descriptions by name: the URDF a robot is built from, its joints, frames, datasheet
-limits and named impact postures (docs/robots.md).
+"""Robot descriptions: a robot is data, one file (docs/robots.md).
 
-Both built-in arms come with their URDF from a maintained package, never a copied file:
+A :class:`RobotDescription` says everything the model, the controller and the simulation need
+to know of a robot: where its URDF and collision meshes are, whether its base is fixed or
+floating, its moving joints in order and their limits, the frames a tool may be fixed to, the
+gripper whose fingers the model locks, the robot's own contact point (a robot that carries no
+tool), the contacts it holds (the soles of a standing humanoid: polygon, depth, friction), and
+its named postures (an arm's impact postures) or stances (where a humanoid's feet stand).
 
-- ``panda``: the Franka Emika Panda (FER) of ``example-robot-data``;
-- ``fr3``: the Franka Research 3 of franka_description, shipped as package data by
-  ``franky-sim`` (``franky_sim/assets/fr3.urdf``). Only its location is looked up; the package
-  itself is not imported (it loads MuJoCo, which the ground never does).
+The built-in robots (:data:`ROBOTS`: ``panda``, ``fr3``, ``ur5``, ``g1``) are TOML files shipped
+with the package (``controller/model/robots/``); :func:`robot_description` takes one of their
+names or the path of the user's own file (TOML, JSON or YAML, the same keys). A file never
+holds a copy of a URDF: it names a file beside it or a file inside an installed package
+(``{package = "example-robot-data", path = ...}``). Limits missing from the file are read from
+the URDF's ``<limit>`` elements (position, velocity, torque); acceleration and jerk limits are
+not in a URDF and are required (one number for every joint, or one per joint).
 
-Both URDFs carry the Franka Hand (hand and finger links). The model locks the fingers; a tool
-that replaces the hand (``ToolDescription.replaces_hand``) removes the hand's inertia and the
-fingers from the URDF before the model and the MuJoCo scene load it (:func:`model_urdf`).
+The model locks the fingers; a tool that replaces the hand (``ToolDescription.replaces_hand``)
+removes the hand's inertia and the fingers from the URDF before the model and the MuJoCo scene
+load it (:func:`model_urdf`).
 """
 
 from __future__ import annotations
 
 import importlib.util
 import xml.etree.ElementTree as ET
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
-from .postures import FR3_POSTURES, PANDA_POSTURES, ImpactPosture
+from .files import read_mapping, read_text
+from .postures import DEFAULT_WALL, ImpactPosture
 from .tool_description import ToolDescription
-from .validation import BadInputError
+from .validation import BadInputError, finite_vector, number_in_range
+
+__all__ = [
+    "HeldContact", "PANDA", "RobotContact", "RobotDescription", "ROBOTS", "Stance", "load_robot_description",
+    "model_urdf", "robot_description",
+]
+
+BASES = ("fixed", "floating")
+ROBOT_KEYS = {
+    "name", "base", "joints", "default_posture", "urdf", "meshes", "tool_frames", "hand", "limits",
+    "contact", "held_contacts", "postures", "stances",
+}
+LIMIT_KEYS = ("q_min", "q_max", "dq_max", "ddq_max", "dddq_max", "tau_max")
+URDF_LIMITS = {"q_min": "lower", "q_max": "upper", "dq_max": "velocity", "tau_max": "effort"}
+MAX_JOINTS = 256
+"""The most moving joints a description may have (a humanoid has a few dozen)."""
+MAX_FRICTION = 5.0
+MAX_CONTACT_LENGTH = 1.0
+"""m: the farthest a robot's own contact point, a sole's corner or its depth lies from its frame."""
+BUILTIN_DIR = Path(__file__).parent / "robots"
 
 
-def panda_urdf_path() -> Path:
-    """Path of the Panda URDF shipped by the ``example-robot-data`` package."""
-    import example_robot_data  # imported on first use: it locates its data at import time
+@dataclass(frozen=True)
+class FileSource:
+    """Where a URDF or a mesh directory is: ``path`` inside the installed Python ``package``
+    (``example-robot-data`` resolves through its model path), or, with no package, a path
+    relative to the description file's folder ``base``."""
 
-    subpath = "panda_description/urdf/panda.urdf"
-    return (Path(example_robot_data.getModelPath(subpath)) / subpath).resolve()
+    path: str
+    package: str | None = None
+    base: Path | None = None
 
+    def resolve(self, robot: str) -> Path:
+        if self.package is None:
+            path = Path(self.path)
+            return path if path.is_absolute() or self.base is None else self.base / path
+        if self.package == "example-robot-data":
+            import example_robot_data  # imported on first use: it locates its data at import time
 
-def panda_mesh_dir() -> Path:
-    """The directory of the Panda's STL collision meshes (MuJoCo reads STL, not the DAE visuals)."""
-    return panda_urdf_path().parent.parent / "meshes" / "collision"
-
-
-def _franky_sim_assets() -> Path:
-    spec = importlib.util.find_spec("franky_sim")  # locates the package without importing it
-    if spec is None or spec.origin is None:
-        raise BadInputError("the fr3 robot needs the franky-sim package (pip install franky-sim)")
-    return Path(spec.origin).parent / "assets"
-
-
-def fr3_urdf_path() -> Path:
-    """Path of franka_description's FR3 URDF as ``franky-sim`` ships it."""
-    return _franky_sim_assets() / "fr3.urdf"
-
-
-def fr3_mesh_dir() -> Path:
-    """The directory of the FR3's STL collision meshes shipped beside the URDF."""
-    return _franky_sim_assets() / "meshes"
+            return (Path(example_robot_data.getModelPath(self.path)) / self.path).resolve()
+        # locate the package without importing it (franky-sim would load MuJoCo)
+        spec = importlib.util.find_spec(self.package.replace("-", "_"))
+        if spec is None or spec.origin is None:
+            raise BadInputError(f"the {robot} robot needs the {self.package} package (pip install {self.package})")
+        return Path(spec.origin).parent / self.path
 
 
-def _limit(values) -> np.ndarray:
+@dataclass(frozen=True, eq=False)
+class HeldContact:
+    """A contact the robot holds while it hits (a humanoid's sole on the ground): the frame it
+    is fixed to, the support polygon ``sole`` (k x 2, the frame's x-y plane, m) that lies
+    ``depth`` (m) below the frame along its -z axis, and the Coulomb ``friction`` on the ground."""
+
+    name: str
+    frame: str
+    sole: np.ndarray
+    depth: float
+    friction: float
+
+
+@dataclass(frozen=True, eq=False)
+class RobotContact:
+    """The robot's own contact point (a robot that carries no tool): frame ``name`` at
+    ``offset`` (m) from ``frame``, with that frame's orientation."""
+
+    name: str
+    frame: str
+    offset: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Stance:
+    """Where a standing robot's held contacts stand (``feet``: x, y of each contact's frame on
+    the ground, in the description's order) and where its contact point starts (``hand``)."""
+
+    name: str
+    feet: tuple[tuple[float, float], ...]
+    hand: tuple[float, float, float]
+
+
+def _read_only(values) -> np.ndarray:
     array = np.array(values, dtype=float)
     array.flags.writeable = False
     return array
@@ -66,32 +122,52 @@ def _limit(values) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class RobotDescription:
-    """A 7-DoF arm carrying a Franka Hand.
-
-    ``urdf_path`` and ``mesh_dir`` locate its URDF and STL collision meshes; ``joints`` are the
-    moving joints in order, ``finger_joints`` / ``finger_links`` the hand's fingers (locked by
-    the model, welded in the scene), ``hand_frame`` the hand's link (its frame is the ``"hand"``
-    tool frame) and ``flange_frame`` the flange link (the ``"flange"`` tool frame). The limits are
-    the datasheet's, per joint: positions ``q_min``/``q_max`` (rad), velocity ``dq_max`` (rad/s),
-    acceleration ``ddq_max`` (rad/s^2), jerk ``dddq_max`` (rad/s^3) and torque ``tau_max`` (N m).
-    ``postures`` are named impact postures on the default wall for the ``impact_tip`` tool.
-    """
+    """One robot (module docstring). ``joints`` are the moving joints in order (a floating base's
+    coordinates come before them); the limits are per joint: positions ``q_min``/``q_max`` (rad),
+    velocity ``dq_max`` (rad/s), acceleration ``ddq_max`` (rad/s^2), jerk ``dddq_max`` (rad/s^3)
+    and torque ``tau_max`` (N m), read-only arrays. ``tool_frames`` maps a tool's ``frame``
+    (``"hand"``, ``"flange"``) to a URDF frame; ``hand_frame``, ``finger_joints`` and
+    ``finger_links`` describe the gripper (empty without one). ``source`` is the file the
+    description was read from."""
 
     name: str
-    urdf_path: Callable[[], Path]
-    mesh_dir: Callable[[], Path]
+    base: str
+    urdf: FileSource
+    meshes: FileSource
     joints: tuple[str, ...]
-    finger_joints: tuple[str, ...]
-    finger_links: tuple[str, ...]
-    hand_frame: str
-    flange_frame: str
     q_min: np.ndarray
     q_max: np.ndarray
     dq_max: np.ndarray
     ddq_max: np.ndarray
     dddq_max: np.ndarray
     tau_max: np.ndarray
-    postures: Mapping[str, ImpactPosture]
+    tool_frames: Mapping[str, str] = field(default_factory=dict)
+    hand_frame: str = ""
+    finger_joints: tuple[str, ...] = ()
+    finger_links: tuple[str, ...] = ()
+    contact: RobotContact | None = None
+    held_contacts: tuple[HeldContact, ...] = ()
+    postures: Mapping[str, ImpactPosture] = field(default_factory=dict)
+    stances: Mapping[str, Stance] = field(default_factory=dict)
+    default_posture: str = ""
+    source: Path | None = None
+
+    @property
+    def floating(self) -> bool:
+        """Whether the base is floating (a free-flyer root before the joints)."""
+        return self.base == "floating"
+
+    @property
+    def flange_frame(self) -> str:
+        return self.tool_frames.get("flange", "")
+
+    def urdf_path(self) -> Path:
+        """The robot's URDF file."""
+        return self.urdf.resolve(self.name)
+
+    def mesh_dir(self) -> Path:
+        """The directory of its collision meshes."""
+        return self.meshes.resolve(self.name)
 
     def posture(self, name: str) -> ImpactPosture:
         """The named impact posture ``name`` of this robot."""
@@ -99,77 +175,254 @@ class RobotDescription:
             return self.postures[name]
         except KeyError:
             raise BadInputError(
-                f"unknown posture {name!r} for the {self.name}; known postures: {', '.join(self.postures)}"
+                f"unknown posture {name!r} for the {self.name}; known postures: {', '.join(self.postures) or 'none'}"
             ) from None
 
     def frame_of(self, tool: ToolDescription) -> str:
         """The name of the URDF frame the tool is fixed to."""
-        return self.hand_frame if tool.frame == "hand" else self.flange_frame
+        try:
+            return self.tool_frames[tool.frame]
+        except KeyError:
+            raise BadInputError(
+                f"the {self.name} has no {tool.frame!r} frame for the tool {tool.name!r}; "
+                f"its tool frames: {', '.join(self.tool_frames) or 'none'}"
+            ) from None
 
 
-def _franka_arm(prefix: str) -> dict:
-    """The joint, finger and frame names shared by franka_description's arms (``prefix`` + name)."""
-    return dict(
-        joints=tuple(f"{prefix}_joint{i}" for i in range(1, 8)),
-        finger_joints=(f"{prefix}_finger_joint1", f"{prefix}_finger_joint2"),
-        finger_links=(f"{prefix}_leftfinger", f"{prefix}_rightfinger"),
-        hand_frame=f"{prefix}_hand",
-        flange_frame=f"{prefix}_link8",
+# ---------------------------------------------------------------------- reading a description
+def _names(value, what: str) -> tuple[str, ...]:
+    if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
+        raise BadInputError(f"{what} must be a list of names")
+    if len(value) > MAX_JOINTS or len(set(value)) != len(value):
+        raise BadInputError(f"{what} must hold at most {MAX_JOINTS} distinct names")
+    return tuple(value)
+
+
+def _name(value, what: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise BadInputError(f"{what} must be a non-empty name")
+    return value
+
+
+def _table(data: Mapping, key: str, keys: set[str], what: str) -> dict:
+    value = data.get(key, {})
+    if not isinstance(value, dict):
+        raise BadInputError(f"{what} [{key}] must be a table")
+    unknown = sorted(set(value) - keys)
+    if unknown:
+        raise BadInputError(f"{what} [{key}]: unknown keys {', '.join(unknown)}; known: {', '.join(sorted(keys))}")
+    return value
+
+
+def _named_tables(data: Mapping, key: str, robot: str) -> dict:
+    """``data[key]``: a table of named tables (postures, stances), empty when missing."""
+    value = data.get(key, {})
+    if not isinstance(value, dict) or not all(isinstance(v, dict) for v in value.values()):
+        raise BadInputError(f"the {robot} [{key}] must be a table of named tables")
+    return value
+
+
+def _source(value, key: str, base: Path | None) -> FileSource:
+    if isinstance(value, str) and value:
+        return FileSource(value, None, base)
+    if isinstance(value, dict) and set(value) == {"package", "path"}:
+        return FileSource(_name(value["path"], f"{key}.path"), _name(value["package"], f"{key}.package"))
+    raise BadInputError(f"'{key}' must be a path or a table {{package = ..., path = ...}}")
+
+
+def _urdf_joints(urdf_text: str, robot: str) -> dict[str, dict[str, float]]:
+    """Every moving joint of the URDF (revolute, prismatic) in document order, with the
+    attributes of its ``<limit>``."""
+    try:
+        root = ET.fromstring(urdf_text)
+    except ET.ParseError as error:
+        raise BadInputError(f"the {robot} URDF is not valid XML: {error}") from None
+    joints = {}
+    for joint in root.iter("joint"):
+        if joint.get("type") in ("revolute", "prismatic"):
+            limit = joint.find("limit")
+            attributes = {} if limit is None else limit.attrib
+            joints[joint.get("name")] = {k: attributes.get(k) for k in ("lower", "upper", "velocity", "effort")}
+    return joints
+
+
+def _limits(table: Mapping, joints: tuple[str, ...], urdf: dict | None, robot: str) -> dict[str, np.ndarray]:
+    """The six limit arrays: each from the file (a number for every joint or one per joint) or,
+    for position, velocity and torque, from the URDF (``urdf``: its joints' limit attributes)."""
+    limits = {}
+    for key in LIMIT_KEYS:
+        value = table.get(key)
+        if value is None:
+            attribute = URDF_LIMITS.get(key)
+            if attribute is None:
+                raise BadInputError(f"the {robot} description's [limits] needs {key} (a URDF has none)")
+            texts = [urdf[j][attribute] for j in joints]
+            if None in texts:
+                raise BadInputError(f"the {robot} URDF gives no {attribute} limit for every joint: set {key}")
+            value = [float(t) for t in texts]
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            value = [value] * len(joints)
+        limits[key] = _read_only(finite_vector(value, len(joints), f"the {robot} limit {key}"))
+    for key in ("dq_max", "ddq_max", "dddq_max", "tau_max"):
+        if not np.all(limits[key] > 0.0):
+            raise BadInputError(f"the {robot} limit {key} must be > 0 for every joint")
+    if not np.all(limits["q_min"] < limits["q_max"]):
+        raise BadInputError(f"the {robot} limits need q_min < q_max for every joint")
+    return limits
+
+
+def _postures(table: Mapping, n: int, robot: str) -> dict[str, ImpactPosture]:
+    postures = {}
+    for name, entry in table.items():
+        entry = _table(table, name, {"q", "description"}, f"the {robot} posture")
+        if not isinstance(entry.get("description", ""), str):
+            raise BadInputError(f"the {robot} posture {name} description must be text")
+        q = _read_only(finite_vector(entry.get("q"), n, f"the {robot} posture {name} q"))
+        postures[name] = ImpactPosture(name, q, entry.get("description", ""), DEFAULT_WALL)
+    return postures
+
+
+def _held_contacts(entries, robot: str) -> tuple[HeldContact, ...]:
+    if not isinstance(entries, list):
+        raise BadInputError(f"the {robot} held_contacts must be a list of tables")
+    contacts = []
+    for entry in entries:
+        if not isinstance(entry, dict) or set(entry) != {"name", "frame", "sole", "depth", "friction"}:
+            raise BadInputError(f"each {robot} held contact needs exactly name, frame, sole, depth, friction")
+        sole = np.array(entry["sole"], dtype=float) if isinstance(entry["sole"], list) else np.empty(0)
+        if sole.ndim != 2 or sole.shape[1] != 2 or len(sole) < 3 or not np.all(np.abs(sole) <= MAX_CONTACT_LENGTH):
+            raise BadInputError(f"the {robot} held contact {entry['name']!r}: sole must be 3 or more (x, y) corners within 1 m")
+        sole.flags.writeable = False
+        contacts.append(HeldContact(
+            _name(entry["name"], "a held contact's name"), _name(entry["frame"], "a held contact's frame"), sole,
+            number_in_range(entry["depth"], 0.0, MAX_CONTACT_LENGTH, "a sole's depth", "m"),
+            number_in_range(entry["friction"], 0.0, MAX_FRICTION, "a sole's friction", "", True),
+        ))
+    return tuple(contacts)
+
+
+def _stances(table: Mapping, contacts: int, robot: str) -> dict[str, Stance]:
+    stances = {}
+    for name in table:
+        entry = _table(table, name, {"feet", "hand"}, f"the {robot} stance")
+        feet = entry.get("feet")
+        if not isinstance(feet, list) or len(feet) != contacts:
+            raise BadInputError(f"the {robot} stance {name}: feet must give (x, y) for each of the {contacts} held contacts")
+        stances[name] = Stance(
+            name,
+            tuple(tuple(finite_vector(f, 2, f"the {robot} stance {name} foot").tolist()) for f in feet),
+            tuple(finite_vector(entry.get("hand"), 3, f"the {robot} stance {name} hand").tolist()),
+        )
+    return stances
+
+
+def description_from_mapping(data: Mapping, base: Path | None = None, source: Path | None = None) -> RobotDescription:
+    """The description of the keys of a robot file (module docstring); relative paths are taken
+    from the folder ``base``."""
+    unknown = sorted(set(data) - ROBOT_KEYS)
+    if unknown:
+        raise BadInputError(f"unknown robot description keys {', '.join(unknown)}; known: {', '.join(sorted(ROBOT_KEYS))}")
+    robot = _name(data.get("name"), "the robot's name")
+    kind = data.get("base", "fixed")
+    if kind not in BASES:
+        raise BadInputError(f"the {robot} base must be one of {', '.join(BASES)}, got {kind!r}")
+    for key in ("urdf", "meshes"):
+        if key not in data:
+            raise BadInputError(f"the {robot} description needs '{key}'")
+    urdf, meshes = _source(data["urdf"], "urdf", base), _source(data["meshes"], "meshes", base)
+    hand = _table(data, "hand", {"frame", "finger_joints", "finger_links"}, f"the {robot}")
+    fingers = _names(hand.get("finger_joints", []), f"the {robot} finger_joints")
+    limit_table = _table(data, "limits", set(LIMIT_KEYS), f"the {robot}")
+    urdf_joints = None
+    if "joints" not in data or any(k not in limit_table for k in URDF_LIMITS):
+        urdf_joints = _urdf_joints(read_text(urdf.resolve(robot), f"the {robot} URDF"), robot)
+    joints = _names(data["joints"], f"the {robot} joints") if "joints" in data else tuple(
+        j for j in urdf_joints if j not in fingers
+    )
+    if not joints:
+        raise BadInputError(f"the {robot} has no moving joints")
+    if urdf_joints is not None and set(joints) - set(urdf_joints):
+        raise BadInputError(f"the {robot} URDF has no moving joints {', '.join(sorted(set(joints) - set(urdf_joints)))}")
+    contact = None
+    if "contact" in data:
+        entry = _table(data, "contact", {"name", "frame", "offset"}, f"the {robot}")
+        offset = finite_vector(entry.get("offset", [0.0, 0.0, 0.0]), 3, f"the {robot} contact offset")
+        if float(np.linalg.norm(offset)) > MAX_CONTACT_LENGTH:
+            raise BadInputError(f"the {robot} contact offset must lie within {MAX_CONTACT_LENGTH:g} m of its frame")
+        contact = RobotContact(_name(entry.get("name"), "the contact's name"), _name(entry.get("frame"), "the contact's frame"),
+                               _read_only(offset))
+    held = _held_contacts(data.get("held_contacts", []), robot)
+    postures = _postures(_named_tables(data, "postures", robot), len(joints), robot)
+    stances = _stances(_named_tables(data, "stances", robot), len(held), robot)
+    named = postures if postures else stances
+    default = data.get("default_posture", next(iter(named), ""))
+    if named and default not in named:
+        raise BadInputError(f"the {robot} default_posture {default!r} is not one of {', '.join(named)}")
+    tool_frames = _table(data, "tool_frames", {"hand", "flange"}, f"the {robot}")
+    return RobotDescription(
+        name=robot, base=kind, urdf=urdf, meshes=meshes, joints=joints,
+        **_limits(limit_table, joints, urdf_joints, robot),
+        tool_frames={k: _name(v, f"the {robot} tool frame {k}") for k, v in tool_frames.items()},
+        hand_frame=str(hand.get("frame", "")), finger_joints=fingers,
+        finger_links=_names(hand.get("finger_links", []), f"the {robot} finger_links"),
+        contact=contact, held_contacts=held, postures=postures, stances=stances, default_posture=default,
+        source=source,
     )
 
 
-PANDA = RobotDescription(
-    name="panda",
-    urdf_path=panda_urdf_path,
-    mesh_dir=panda_mesh_dir,
-    **_franka_arm("panda"),
-    # Franka's FER datasheet (docs/robots.md).
-    q_min=_limit([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973]),
-    q_max=_limit([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973]),
-    dq_max=_limit([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61]),
-    ddq_max=_limit([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0]),
-    dddq_max=_limit([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0]),
-    tau_max=_limit([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]),
-    postures=PANDA_POSTURES,
-)
-
-FR3 = RobotDescription(
-    name="fr3",
-    urdf_path=fr3_urdf_path,
-    mesh_dir=fr3_mesh_dir,
-    **_franka_arm("fr3"),
-    # Franka's "Limits for Franka Research 3 (FR3)" table (docs/robots.md).
-    q_min=_limit([-2.9007, -1.8361, -2.9007, -3.0770, -2.8763, 0.4398, -3.0508]),
-    q_max=_limit([2.9007, 1.8361, 2.9007, -0.1169, 2.8763, 4.6216, 3.0508]),
-    dq_max=_limit([2.62, 2.62, 2.62, 2.62, 5.26, 4.18, 5.26]),
-    ddq_max=_limit([10.0] * 7),
-    dddq_max=_limit([5000.0] * 7),
-    tau_max=_limit([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]),
-    postures=FR3_POSTURES,
-)
-
-ROBOTS: dict[str, RobotDescription] = {robot.name: robot for robot in (PANDA, FR3)}
+def load_robot_description(path: str | Path) -> RobotDescription:
+    """The robot described in the TOML, JSON or YAML file ``path`` (module docstring)."""
+    path = Path(path)
+    return description_from_mapping(read_mapping(path, "the robot description"), path.parent.resolve(), path)
 
 
-def robot_description(robot: str | RobotDescription) -> RobotDescription:
-    """The description ``robot``: returned as is, or looked up by name in :data:`ROBOTS`."""
+class BuiltinRobots(Mapping):
+    """The built-in descriptions by name, each read from its file on first use."""
+
+    def __init__(self, folder: Path):
+        self._files = {p.stem: p for p in sorted(folder.glob("*.toml"), key=lambda p: _ORDER.get(p.stem, len(_ORDER)))}
+
+    @cached_property
+    def _loaded(self) -> dict[str, RobotDescription]:
+        return {}
+
+    def __getitem__(self, name: str) -> RobotDescription:
+        if name not in self._loaded:
+            self._loaded[name] = load_robot_description(self._files[name])
+        return self._loaded[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._files)
+
+    def __len__(self) -> int:
+        return len(self._files)
+
+
+_ORDER = {"panda": 0, "fr3": 1, "ur5": 2, "g1": 3}
+ROBOTS: Mapping[str, RobotDescription] = BuiltinRobots(BUILTIN_DIR)
+"""The built-in robots by name: ``panda``, ``fr3``, ``ur5`` (fixed-base arms), ``g1`` (standing humanoid)."""
+PANDA = ROBOTS["panda"]
+"""The default robot: the Panda."""
+
+
+def robot_description(robot: str | Path | RobotDescription) -> RobotDescription:
+    """The description ``robot``: returned as is, a built-in name of :data:`ROBOTS`, or the path
+    of a robot file (``.toml``, ``.json``, ``.yaml``)."""
     if isinstance(robot, RobotDescription):
         return robot
-    try:
+    if isinstance(robot, str) and robot in ROBOTS:
         return ROBOTS[robot]
-    except (KeyError, TypeError):
-        raise BadInputError(f"unknown robot {robot!r}; choose from {', '.join(ROBOTS)}") from None
+    if isinstance(robot, (str, Path)) and Path(robot).suffix.lower() in (".toml", ".json", ".yaml", ".yml"):
+        return load_robot_description(robot)
+    raise BadInputError(f"unknown robot {str(robot)!r}; choose from {', '.join(ROBOTS)} or give a .toml robot file")
 
 
 def model_urdf(robot: RobotDescription, tool: ToolDescription, urdf_path: str | Path | None = None) -> str:
     """The robot's URDF text as the model and the scene load it: unchanged, or, when the tool
-    replaces the Franka Hand, without the fingers (links and joints) and without the hand link's
+    replaces the hand, without the fingers (links and joints) and without the hand link's
     inertial, visual and collision elements (the link stays: its frame is the ``"hand"`` frame)."""
     path = Path(urdf_path) if urdf_path is not None else robot.urdf_path()
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise BadInputError(f"cannot read the {robot.name} URDF {path}: {exc}") from None
+    text = read_text(path, f"the {robot.name} URDF")
     if not tool.replaces_hand:
         return text
     root = ET.fromstring(text)

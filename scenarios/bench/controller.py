@@ -35,7 +35,8 @@ import numpy as np
 
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.sim.scene import build_scene
-from impactqp.controller.model.postures import POSTURES, Surface
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import NQ, PandaModel, RobotModel
 from impactqp.controller.model.tool_postures import tool_posture
 from impactqp.controller.qp import available_backends
@@ -106,7 +107,7 @@ def settled_speed_ratio(robot: PandaModel, solver: str) -> float:
 
 def pink_cycle_samples(robot: PandaModel, cycles: int = CYCLES) -> np.ndarray:
     """Seconds per cycle of pink: frame task + posture task + limits, solve_ik with proxqp."""
-    return pink_loop_samples(robot.model, POSTURES["elbow_up"].q, "impact_tip", "proxqp", cycles)
+    return pink_loop_samples(robot.model, PANDA.postures["elbow_up"].q, "impact_tip", "proxqp", cycles)
 
 
 def pink_loop_samples(model, q0: np.ndarray, frame: str, solver: str, cycles: int) -> np.ndarray:
@@ -141,7 +142,7 @@ def mink_cycle_samples(cycles: int = CYCLES) -> np.ndarray:
     import mink  # optional peer (the bench extra): loaded only for its row
 
     model = build_scene().model
-    q0 = POSTURES["elbow_up"].q
+    q0 = PANDA.postures["elbow_up"].q
     configuration = mink.Configuration(model, q0)
     frame_task = mink.FrameTask("panda_hand_tcp", "body", position_cost=1.0, orientation_cost=1.0)
     posture_task = mink.PostureTask(model, cost=1e-2)
@@ -169,7 +170,7 @@ def fallback_cycle_samples(robot: PandaModel, cycles: int = 1000, seed: int = 0)
     """Seconds per ``step`` on infeasible states: elbow_up approaching a wall 5 cm ahead at a
     random 0.55-0.70 m/s with the impact constraints always on (only the cycles that end
     ``fallback_infeasible`` count)."""
-    q = POSTURES["elbow_up"].q
+    q = PANDA.postures["elbow_up"].q
     normal = np.array([-1.0, 0.0, 0.0])
     surface = Surface(robot.contact_point(q) - 0.05 * normal, normal)
     config = ControllerConfig.approach(surface, speed=2.0, always_active=True, posture_weight=0.0)

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from impactqp.controller.model.inverse_kinematics import approach_start
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.robot_description import ROBOTS
@@ -54,7 +54,7 @@ def rows(duration: float = 1.0) -> list[dict]:
 
 def detection_rows() -> list[dict]:
     latencies = []
-    for posture in POSTURES:
+    for posture in PANDA.postures:
         for speed in CAMPAIGN_SPEEDS:
             duration = SIM_START_DISTANCE / speed + 0.1  # from rest: the contact comes after the nominal time
             report, _ = run(RunRequest(posture=posture, speed=speed, duration=duration, unpaced=True))

@@ -10,7 +10,7 @@ import pinocchio
 
 from impactqp.controller.model.batch import BatchKinematics, predict_batch
 from impactqp.controller.model.jump import JUMP_MODELS
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import NQ, PandaModel, RobotModel
 
 from .base import rate_row, time_calls, timing_row
@@ -34,7 +34,7 @@ def single_prediction_samples(robot: RobotModel) -> np.ndarray:
 def rows() -> list[dict]:
 
     robot = PandaModel()
-    posture = next(iter(POSTURES.values()))
+    posture = next(iter(PANDA.postures.values()))
     n = posture.surface.normal
     v = -0.15 * n
     rows = [timing_row("predict.crb.single", "us", single_prediction_samples(robot), 1e6)]

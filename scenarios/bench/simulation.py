@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.controller.model.postures import DEFAULT_WALL, POSTURES
+from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.scenarios.max_speed_search import MaxSpeedSearch
 from impactqp.scenarios.trial import TrialRunner
 from impactqp.sim.runner import TrialSpec
@@ -18,7 +19,7 @@ def closed_loop_benchmark_rows(repeats: int = 5) -> list[dict]:
     controller in the loop (elbow_up, 0.15 m/s, crb constraints on, moving start)."""
 
     runner = TrialRunner.build(DEFAULT_WALL)
-    spec = TrialSpec("elbow_up", POSTURES["elbow_up"].q, 0.15, jump_model="crb")
+    spec = TrialSpec("elbow_up", PANDA.postures["elbow_up"].q, 0.15, jump_model="crb")
     logs = [runner.run(spec).log for _ in range(repeats)]
     simulated = len(logs[0]) * logs[0].control_period
     return [rate_row("sim.closed_loop_rtf", "sim s / wall s", simulated, np.array([log.wall_time for log in logs]))]
@@ -27,5 +28,5 @@ def closed_loop_benchmark_rows(repeats: int = 5) -> list[dict]:
 def max_speed_benchmark_rows(repeats: int = 3) -> list[dict]:
     """``maxspeed.one_posture``: wall seconds of the whole search on elbow_up with 2 jobs."""
 
-    search = MaxSpeedSearch(POSTURES["elbow_up"], DEFAULT_WALL, jobs=2)
+    search = MaxSpeedSearch(PANDA.postures["elbow_up"], DEFAULT_WALL, jobs=2)
     return [timing_row("maxspeed.one_posture", "s", time_calls(search.run, repeats), 1.0)]

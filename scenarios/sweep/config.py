@@ -16,7 +16,7 @@ import numpy as np
 
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
-from impactqp.controller.model.postures import POSTURES
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.constraints import JUMP_MODEL_CHOICES
 from impactqp.controller.model.files import read_mapping
 from impactqp.controller.model.validation import (
@@ -181,9 +181,9 @@ def parse_config(data: dict) -> SweepConfig:
     if len(set(models)) != len(models):
         raise BadInputError("settings.jump_models lists a model twice")
     seed = settings["seed_posture"]
-    if seed not in POSTURES:
+    if seed not in PANDA.postures:
         raise BadInputError(
-            f"unknown settings.seed_posture {seed!r}; choose from {', '.join(POSTURES)}"
+            f"unknown settings.seed_posture {seed!r}; choose from {', '.join(PANDA.postures)}"
         )
     controller_models = non_empty_list(controller["jump_model"], "controller.jump_model")
     for name in controller_models:
