@@ -44,3 +44,31 @@ def test_every_python_block_runs(code, tmp_path):
     # a fresh interpreter per block, in an empty directory (a block's files stay out of the checkout)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
     assert out.returncode == 0, out.stderr
+
+
+TOML_FENCE = re.compile(r"^```toml[ \t]*\n(.*?)^```[ \t]*$", re.MULTILINE | re.DOTALL)
+TOML_BLOCKS = [
+    (f"{path.relative_to(ROOT)}:{text.count(chr(10), 0, m.start()) + 1}", m.group(1))
+    for path in documents()
+    for text in [path.read_text(encoding="utf-8")]
+    for m in TOML_FENCE.finditer(text)
+]
+
+
+@pytest.mark.parametrize("code", [code for _, code in TOML_BLOCKS], ids=[name for name, _ in TOML_BLOCKS])
+def test_every_toml_block_parses_and_a_robot_file_loads(code, tmp_path):
+    """Every ``toml`` block is valid TOML; a robot description (a block with a ``base``) loads
+    with the UR5's URDF in place of the file it names."""
+    import shutil
+    import tomllib
+
+    data = tomllib.loads(code)
+    if "base" not in data:
+        return
+    from impactqp.controller.model.robot_description import ROBOTS, robot_description
+
+    shutil.copy(ROBOTS["ur5"].urdf_path(), tmp_path / data["urdf"])
+    path = tmp_path / "robot.toml"
+    path.write_text(code)
+    robot = robot_description(path)
+    assert robot.name == data["name"] and set(robot.postures) == set(data.get("postures", {}))
