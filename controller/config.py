@@ -224,22 +224,29 @@ class ControllerConfig:
         if not isinstance(self.solver, str) or not self.solver:
             raise BadInputError(f"solver must be a QP solver name, got {self.solver!r}")
         if not isinstance(self.robot, str):
-            raise BadInputError(f"robot must be a robot name, got {self.robot!r}")
+            raise BadInputError(f"robot must be a robot name or a robot file, got {self.robot!r}")
         if not isinstance(self.tool, (str, dict)):
             raise BadInputError(f"tool must be a tool name, a tool file or a [tool] table, got {self.tool!r}")
         self.choice  # the robot's and the tool's own checks, as soon as the file is read
 
     @property
     def choice(self) -> RobotChoice:
-        """The robot and the tool: ``robot`` by name, ``tool`` by built-in name, file or table
-        (the keys of a tool file, docs/robots.md)."""
+        """The robot and the tool: ``robot`` by name or robot file, ``tool`` by built-in name, file
+        or table (the keys of a tool file, docs/robots.md); built once per (robot, tool) value."""
+        key = (self.robot, self.tool)
+        cached = self.__dict__.get("_choice")
+        if cached is not None and cached[0] == key:
+            return cached[1]
         if isinstance(self.tool, dict):
             try:
                 tool = tool_from_dict(self.tool)
             except BadInputError as error:
                 raise BadInputError(f"[tool]: {error}") from None
-            return RobotChoice.of(self.robot, tool)
-        return RobotChoice.of(self.robot, self.tool)
+        else:
+            tool = self.tool
+        choice = RobotChoice.of(self.robot, tool)
+        self.__dict__["_choice"] = (key, choice)
+        return choice
 
     @classmethod
     def approach(cls, surface: Surface = DEFAULT_WALL, speed: float = 0.1, **options) -> ControllerConfig:

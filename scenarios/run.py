@@ -147,8 +147,7 @@ def controller_config(request: RunRequest, surface=None, decided: RobotChoice | 
         config = ControllerConfig.approach(surface, request.speed)
     else:
         config = ControllerConfig.approach(surface, request.speed, posture_weight=0.0)
-    config.robot, config.tool = choice.robot.name, choice.tool_setting
-    return config
+    return replace(config, robot=choice.robot_setting, tool=choice.tool_setting)
 
 
 def _agree(choice: RobotChoice, what: str, other: RobotChoice, source: str) -> None:

@@ -292,7 +292,9 @@ def test_postures_and_predict_of_the_fr3(capsys):
     `predict --robot fr3 --method gm` prints W = J M^-1 J^T (22) of the FR3's own model, which
     is not the Panda's."""
     from impactqp.controller.model.robot import RobotModel
-    from impactqp.controller.model.robot_description import FR3
+    from impactqp.controller.model.robot_description import ROBOTS
+
+    FR3 = ROBOTS["fr3"]
 
     code, out, _ = run(capsys, "postures", "--robot", "fr3", "--json")
     assert code == 0
@@ -332,7 +334,7 @@ def test_diagnose_refuses_a_robot_other_than_its_manifests(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--robot", "ur5"], "unknown robot 'ur5'; choose from panda, fr3"),
+    (["--robot", "kuka"], "unknown robot 'kuka'; choose from panda, fr3, ur5, g1"),
     (["--tool", "hammer"], "unknown tool 'hammer'"),
     (["--tool", "absent.toml"], "the tool file absent.toml does not exist"),
 ])

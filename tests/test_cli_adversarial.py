@@ -152,7 +152,7 @@ ROWS = [
     (["dataset", "validate", "{bad}"], write("t0000.csv", "root:x:0:0:root:/root:/bin/bash\n"), 1,
      "lacks the column"),
     (["dataset", "validate", "{bad}"], header_only("t0000.csv"), 1, "holds no samples"),
-    (["dataset", "validate", "{bad}"], manifest_edit(lambda m: m.__setitem__("robot", "ur5")), 1,
+    (["dataset", "validate", "{bad}"], manifest_edit(lambda m: m.__setitem__("robot", "kuka")), 1,
      "robots we model"),
     (["dataset", "validate", "{bad}"], nested_manifest, 1, "nested too deeply"),
     (["dataset", "validate", "{data}/t0000.csv"], None, 2, "is a file"),
@@ -171,7 +171,7 @@ ROWS = [
     (["dataset", "generate", "{tmp}/out", "--speeds", "0.1", "--jobs", "-1"], None, 2, "--jobs must lie in"),
     (["dataset", "generate", "{tmp}/out", "--plant", "{data}"], None, 2, "is a directory"),
     # diagnose
-    (["diagnose", "{bad}"], manifest_edit(lambda m: m.__setitem__("robot", "ur5")), 2, "robots we model"),
+    (["diagnose", "{bad}"], manifest_edit(lambda m: m.__setitem__("robot", "kuka")), 2, "robots we model"),
     (["diagnose", "{bad}"], manifest_edit(lambda m: m["tool"].__setitem__("contact_point", [0.0, 0.0, 0.2])), 2,
      "must lie on the contact surface"),
     (["diagnose", "{bad}"], manifest_edit(lambda m: m["tool"].__setitem__("frame", "panda_link7")), 2,

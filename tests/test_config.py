@@ -160,7 +160,7 @@ def test_bad_configurations_are_rejected_with_a_value_error(robot, data):
         ({"tasks": [{"type": ["damping"]}]}, "task type"),
         ({"tasks": [{"type": "damping", "params": 5}]}, "tasks[0].params must be a table"),
         ({"limits": 5}, "[limits] must be a table"),
-        ({"robot": "ur5"}, "unknown robot 'ur5'; choose from panda, fr3"),
+        ({"robot": "kuka"}, "unknown robot 'kuka'; choose from panda, fr3, ur5, g1"),
         ({"robot": 3}, "robot must be a robot name"),
         ({"tool": "hammer"}, "unknown tool 'hammer'"),
         ({"tool": 5}, "tool must be a tool name, a tool file or a [tool] table"),

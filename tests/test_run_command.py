@@ -60,7 +60,7 @@ def test_a_backend_for_another_robot_is_bad_input_before_connecting(capsys, monk
     monkeypatch.setattr(run_module, "build_backend", lambda *_: pytest.fail("connected"))
     err = one_error_line(capsys, ["run", "--backend", backend, "--robot", robot, "--robot-ip", "127.0.0.1"])
     assert f"--backend {backend} drives the {right} only, not the {robot}: use --robot {right}" in err
-    assert "unknown robot 'ur5'; choose from panda, fr3" in one_error_line(capsys, ["run", "--robot", "ur5"])
+    assert "unknown robot 'kuka'; choose from panda, fr3, ur5, g1" in one_error_line(capsys, ["run", "--robot", "kuka"])
 
 
 def test_bad_input_gets_one_line(tmp_path, capsys):

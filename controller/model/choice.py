@@ -15,7 +15,7 @@ from pathlib import Path
 
 from .postures import ImpactPosture
 from .robot import RobotModel
-from .robot_description import PANDA, RobotDescription, robot_description
+from .robot_description import PANDA, ROBOTS, RobotDescription, robot_description
 from .tool_description import TOOLS, ToolDescription, tool_description
 from .tool_postures import tool_posture
 from .validation import BadInputError
@@ -47,7 +47,15 @@ class RobotChoice:
 
     def same_as(self, other: RobotChoice) -> bool:
         """Whether ``other`` names the same robot and an identical tool description."""
-        return self.robot.name == other.robot.name and self.tool.as_dict() == other.tool.as_dict()
+        return self.robot_setting == other.robot_setting and self.tool.as_dict() == other.tool.as_dict()
+
+    @property
+    def robot_setting(self) -> str:
+        """The robot as a configuration holds it: a built-in's name, else its file's path."""
+        builtin = ROBOTS.get(self.robot.name)
+        if builtin is self.robot or self.robot.source is None:
+            return self.robot.name
+        return str(self.robot.source)
 
     @property
     def tool_setting(self) -> str | dict:

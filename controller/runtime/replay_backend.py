@@ -22,9 +22,11 @@ def load_trial(directory, trial_id: str | None) -> tuple[DatasetTrial, object]:
         dataset = read_dataset(directory)
     except DatasetError as error:
         raise BadInputError(f"replay dataset {directory}: {error}") from None
-    if dataset.header.robot not in ROBOTS:
+    robot = ROBOTS.get(dataset.header.robot)
+    if robot is None or robot.floating:
+        arms = ", ".join(name for name in ROBOTS if not ROBOTS[name].floating)
         raise BadInputError(f"replay dataset {directory}: its robot {dataset.header.robot!r} is not an arm the replay "
-                            f"backend plays ({', '.join(ROBOTS)}); a g1 dataset has a floating base")
+                            f"backend plays ({arms}); a g1 dataset has a floating base")
     if not dataset.trials:
         raise BadInputError(f"replay dataset {directory} holds no trial")
     if trial_id is None:
