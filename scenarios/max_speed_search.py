@@ -211,7 +211,7 @@ class MaxSpeedSearch:
         self.jobs = jobs
         self.progress = progress
         self.choice = choice
-        self.robot = choice.model()
+        self.robot = choice.shared_model
 
     def spec(self, speed: float, **changes) -> TrialSpec:
         return TrialSpec(

@@ -68,10 +68,22 @@ class RobotChoice:
         return RobotModel(self.robot, self.tool)
 
     @cached_property
+    def shared_model(self) -> RobotModel:
+        """The one model of this choice in a process, built on first use, for the callers of one
+        request that run one after the other (the postures, the start's check, a search).
+        It is not pickled: a worker process builds its own."""
+        return self.model()
+
+    def __getstate__(self) -> dict:
+        return {key: value for key, value in self.__dict__.items() if key != "shared_model"}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+
+    @cached_property
     def postures(self) -> dict[str, ImpactPosture]:
         """The robot's named postures, solved for the tool (computed once per choice)."""
-        model = self.model()
-        return {name: tool_posture(model, name) for name in self.robot.postures}
+        return {name: tool_posture(self.shared_model, name) for name in self.robot.postures}
 
     def posture(self, name: str) -> ImpactPosture:
         """The named posture ``name``; bad input naming the known ones otherwise."""

@@ -51,7 +51,7 @@ def check_reachable(choice: RobotChoice, posture: ImpactPosture, surface: Surfac
     from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
 
     try:
-        approach_start(choice.model(), posture.q, surface, distance)
+        approach_start(choice.shared_model, posture.q, surface, distance)
     except UnreachableStartError as error:
         raise BadInputError(str(error)) from None
 
