@@ -1,39 +1,95 @@
-"""impactqp: impact-aware task-space QP control of Franka arms (Panda, FR3) and a standing humanoid.
+"""impactqp: impact-aware task-space QP control of any robot described in one file: Franka arms (Panda, FR3), a UR5 and a standing humanoid (G1).
 
 The package predicts the joint-velocity jump of an impact with the composite-rigid-body method of
 Wang, Dehio and Kheddar (RA-L 2022), beside the classical and generalized-momentum predictions
 (``docs/predictors.md``), embeds it in a task-space QP as linear joint-velocity-limit constraints
 (``docs/qp-constraints.md``), and exercises both on a MuJoCo Panda (``docs/simulation.md``).
 
-The names a user needs first are exported here, lazily (PEP 562): ``import impactqp`` loads none
-of them, and importing one module (say ``impactqp.controller.model.robot``) loads only what that
-module imports, never the QP or MuJoCo. The layers of the package are listed in the README.
+The names a robotics engineer composes are exported here (``__all__``): the robot model and its
+descriptions, the jump predictors, the controller with its configuration, tasks and constraints,
+the impact session of a robot loop, and the simulated scene and trial. They are exported lazily
+(PEP 562): ``import impactqp`` loads none of them (nor NumPy, Pinocchio or MuJoCo), and importing
+one module (say ``impactqp.controller.model.robot``) loads only what that module imports, never
+the QP or MuJoCo. The layers of the package are listed in the README; each subpackage exports the
+names of its own layer.
 """
 
-from importlib import metadata
+from importlib import metadata as _metadata
 
-from impactqp.lazy_exports import lazy_exports
+from impactqp.lazy_exports import lazy_exports as _lazy_exports
 
 try:
-    __version__ = metadata.version("impactqp")
-except metadata.PackageNotFoundError:  # pragma: no cover - running from a tree that was never installed
+    __version__ = _metadata.version("impactqp")
+except _metadata.PackageNotFoundError:  # pragma: no cover - running from a tree that was never installed
     __version__ = "0+unknown"
 
+_MODEL = "impactqp.controller.model"
+_QP = "impactqp.controller.qp"
 _EXPORTS = {
-    "PandaModel": "impactqp.controller.model.robot",
-    "RobotModel": "impactqp.controller.model.robot",
-    "Surface": "impactqp.controller.model.postures",
-    "DEFAULT_WALL": "impactqp.controller.model.postures",
-    "JumpModel": "impactqp.controller.model.jump",
-    "JUMP_MODELS": "impactqp.controller.model.jump",
-    "jump_model": "impactqp.controller.model.jump",
-    "ImpactAwareController": "impactqp.controller",
-    "Command": "impactqp.controller",
-    "ControllerConfig": "impactqp.controller",
-    "build_controller": "impactqp.controller",
+    # the robot model, its descriptions and its surfaces (the ground)
+    "BadInputError": f"{_MODEL}.validation",
+    "RobotModel": f"{_MODEL}.robot",
+    "PandaModel": f"{_MODEL}.robot",
+    "ModelTerms": f"{_MODEL}.robot",
+    "RobotChoice": f"{_MODEL}.choice",
+    "RobotDescription": f"{_MODEL}.robot_description",
+    "robot_description": f"{_MODEL}.robot_description",
+    "ToolDescription": f"{_MODEL}.tool_description",
+    "tool_description": f"{_MODEL}.tool_description",
+    "Surface": f"{_MODEL}.postures",
+    "DEFAULT_WALL": f"{_MODEL}.postures",
+    "ROBOTS": f"{_MODEL}.robot_description",
+    "FloatingBaseModel": f"{_MODEL}.floating_base",
+    # the jump predictors, their results and the highest feasible contact speed
+    "JumpModel": f"{_MODEL}.jump",
+    "JumpPrediction": f"{_MODEL}.jump",
+    "JUMP_MODELS": f"{_MODEL}.jump",
+    "jump_model": f"{_MODEL}.jump",
+    "prediction_error": f"{_MODEL}.jump",
+    "average_prediction_error": f"{_MODEL}.jump",
+    "BatchKinematics": f"{_MODEL}.batch",
+    "predict_batch": f"{_MODEL}.batch",
+    "MaxSpeed": f"{_MODEL}.max_speed",
+    "closed_form_max_speed": f"{_MODEL}.max_speed",
+    # the controller and its configuration
+    "ImpactAwareController": _QP,
+    "Command": _QP,
+    "Status": _QP,
+    "ControllerConfig": "impactqp.controller.config",
+    "build_controller": "impactqp.controller.config",
+    "WholeBodySetup": _QP,
+    "build_whole_body_controller": _QP,
+    # tasks and constraints
+    "Task": "impactqp.tasks",
+    "FrameTask": "impactqp.tasks",
+    "ContactApproachTask": "impactqp.tasks",
+    "PostureTask": "impactqp.tasks",
+    "DampingTask": "impactqp.tasks",
+    "SurfaceOffsetTask": "impactqp.tasks",
+    "CentreOfMassTask": "impactqp.tasks",
+    "Constraint": "impactqp.constraints",
+    "PositionLimit": "impactqp.constraints",
+    "VelocityLimit": "impactqp.constraints",
+    "AccelerationLimit": "impactqp.constraints",
+    "TorqueLimit": "impactqp.constraints",
+    "ExpectedImpact": "impactqp.constraints",
+    "PostImpactVelocityLimit": "impactqp.constraints",
+    "ImpulsiveTorqueLimit": "impactqp.constraints",
+    # the robot loop
+    "ImpactSession": "impactqp.controller.runtime",
+    "RobotInterface": "impactqp.controller.runtime",
+    "RobotState": "impactqp.controller.runtime",
+    "ControlLoop": "impactqp.controller.runtime",
+    # the simulation
+    "Scene": "impactqp.sim",
+    "build_scene": "impactqp.sim",
+    "PlantParameters": "impactqp.sim",
+    "TrialSpec": "impactqp.sim",
+    "TrialRunner": "impactqp.scenarios",
+    "TrialResult": "impactqp.scenarios",
 }
 
 __all__ = [*_EXPORTS, "__version__"]
 
 
-__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
+__getattr__, __dir__ = _lazy_exports(globals(), _EXPORTS)

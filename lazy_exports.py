@@ -9,7 +9,10 @@ from importlib import import_module
 
 def lazy_exports(namespace: dict, exports: Mapping[str, str]) -> tuple[Callable, Callable]:
     """The package's ``__getattr__`` and ``__dir__``: ``exports`` maps each exported name to the
-    module that defines it; a name, once imported, is kept in ``namespace`` (the package's globals)."""
+    module that defines it; a name, once imported, is kept in ``namespace`` (the package's globals).
+
+    ``dir()`` of the package lists its exports and its dunder names (``__version__``...), never
+    the helpers its ``__init__`` imports nor the submodules loaded so far."""
 
     def __getattr__(name: str):
         if name not in exports:
@@ -19,6 +22,6 @@ def lazy_exports(namespace: dict, exports: Mapping[str, str]) -> tuple[Callable,
         return value
 
     def __dir__() -> list[str]:
-        return sorted({*namespace, *exports})
+        return sorted({*(name for name in namespace if name.startswith("__")), *exports})
 
     return __getattr__, __dir__

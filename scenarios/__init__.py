@@ -1,0 +1,35 @@
+"""The experiments: one closed-loop impact trial with the QP (``trial``), the paper's campaign
+(``campaign``), the highest feasible contact speed (``max_speed_search``), ``impactqp run`` on a
+robot (``run``), the diagnosis report, the video, the G1's campaign and maximum speed
+(``humanoid_*``) and the feasibility maps (``sweep``); above them the command line (``cli``) and
+the benchmarks (``bench``).
+
+Its names are exported lazily (PEP 562): the command line imports this file first and must stay
+quick to start (``scenarios.cli``).
+"""
+
+from impactqp.lazy_exports import lazy_exports as _lazy_exports
+
+_EXPORTS = {
+    "TrialRunner": "trial",
+    "TrialResult": "trial",
+    "TrialPool": "trial",
+    "Campaign": "campaign",
+    "CampaignPlan": "campaign",
+    "Table1": "campaign",
+    "MaxSpeedSearch": "max_speed_search",
+    "MaxSpeedReport": "max_speed_search",
+    "RunRequest": "run",
+    "write_report": "diagnosis_report",
+    "render_impact_gif": "video",
+    "render_humanoid_gif": "video",
+    "run_campaign": "humanoid_campaign",
+    "search_stance": "humanoid_max_speed",
+    "check_against_simulation": "humanoid_max_speed",
+}
+_EXPORTS = {name: f"{__name__}.{module}" for name, module in _EXPORTS.items()}
+
+__all__ = list(_EXPORTS)
+
+
+__getattr__, __dir__ = _lazy_exports(globals(), _EXPORTS)

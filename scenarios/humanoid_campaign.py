@@ -1,4 +1,4 @@
-"""The humanoid campaign of issue 24: stances x hand speeds of ``sim.humanoid_trial``, and its table.
+"""The humanoid campaign: stances x hand speeds of ``sim.humanoid_trial``, and its table.
 
 For each trial and predictor (classical, gm, crb, each fed its own impulse; ``momentum``: the
 feet-held momentum law fed the measured impulse) the average error (26) over the 29 joints; the

@@ -1,5 +1,5 @@
 """Highest feasible contact speed of each G1 stance: closed form and simulated bisection, and
-issue 24's check of one against the other (docs/floating-base.md).
+the check of one against the other (docs/floating-base.md; results: docs/results.md).
 
 closed form
     ``controller.model.humanoid_max_speed.closed_form_max_speed`` at the stance: the smallest of
@@ -12,7 +12,7 @@ simulated bisection
     :data:`HIGHEST_SPEED` until the bracket is narrower than the tolerance; the answer is the
     highest feasible commanded speed, its measured contact speed, and what failed first at the
     lowest infeasible one. Feasibility is assumed monotone in the speed.
-check ("done when" of issue 24)
+check
     Trials at contact speeds :data:`BELOW` x the closed-form speed must neither fall nor slip
     (a slip onset or a foot frame moved beyond 5 mm); at :data:`ABOVE` x (20 % and more above
     it) the binding criterion should be the failure seen first in the majority of trials
@@ -47,7 +47,7 @@ from impactqp.controller.model.validation import BadInputError, number_in_range 
 from impactqp.sim.humanoid_trial import NORMAL, SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
 
 LOWEST_SPEED = 0.05  # m/s commanded
-HIGHEST_SPEED = 3.0  # m/s commanded: the torque-limited hand reaches about 1.1-1.3 m/s in the 2 cm to the wall
+HIGHEST_SPEED = 3.0  # m/s commanded: above what the torque-limited hand reaches in the 2 cm to the wall
 DEFAULT_TOLERANCE = 0.02  # m/s
 BELOW = (0.5, 0.8, 0.95)
 ABOVE = (1.2, 1.3, 1.4)

@@ -66,7 +66,7 @@ from impactqp.controller.model.validation import (
     tangential_velocity,
 )
 
-# Time the controller needs, from rest, to reach its approach speed (measured: < 0.15 s).
+# Time allowed to the controller, from rest, to reach its approach speed (it needs less: docs/results.md).
 ACCELERATION_ALLOWANCE = 0.25
 
 

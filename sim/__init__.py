@@ -1,0 +1,42 @@
+"""The simulation: the MuJoCo scene of a robot, its tool and a wall (``scene``), the plant's
+parameters (``plant``) and sensors (``sensor``), the 1 kHz closed-loop runner (``runner``), the
+simulated robot behind the runtime's interface (``sim_backend``), simulated datasets
+(``generation``), the candidate causes of a sim-to-real gap (``causes``) and their diagnosis
+(``diagnosis``), and the standing G1's scene and trial (``humanoid_*``).
+
+Its names are exported lazily (PEP 562): importing one module loads only its own imports.
+"""
+
+from impactqp.lazy_exports import lazy_exports as _lazy_exports
+
+_EXPORTS = {
+    "Scene": "scene",
+    "build_scene": "scene",
+    "PlantParameters": "plant",
+    "PlantParameterError": "plant",
+    "apply_sensor": "sensor",
+    "TrialSpec": "runner",
+    "run_trial": "runner",
+    "run_approach": "runner",
+    "VelocityCommand": "runner",
+    "CartesianApproachCommand": "runner",
+    "CommandReplay": "runner",
+    "SimulationUnstableError": "runner",
+    "SimRobot": "sim_backend",
+    "DatasetRequest": "generation",
+    "generate_dataset": "generation",
+    "Cause": "causes",
+    "default_causes": "causes",
+    "HumanoidScene": "humanoid_scene",
+    "build_humanoid_scene": "humanoid_scene",
+    "ImpactTrial": "humanoid_trial",
+    "run_impact_trial": "humanoid_trial",
+    "QpCommand": "humanoid_qp_source",
+    "ProcessPool": "process_pool",
+}
+_EXPORTS = {name: f"{__name__}.{module}" for name, module in _EXPORTS.items()}
+
+__all__ = list(_EXPORTS)
+
+
+__getattr__, __dir__ = _lazy_exports(globals(), _EXPORTS)

@@ -10,9 +10,9 @@ rest (``_Servo.hold``), and the command is zero from then on; the trial goes on 
 to see whether the robot stands. Why re-anchor rather than only command zero velocity: the wall has
 already stopped the hand, but the reference still moves at the approach speed, so a zero command
 asks the servo for the reference's whole deceleration -dq_ref/dt in one control step; the waist and
-shoulder torques saturate and the reaction jolts the feet (docs/floating-base.md: with that stop a
-foot slipped 5 ms after the contact in every trial at half the closed-form speed). Re-anchored, the
-servo only damps the joints' post-impact velocities. That is the default command source (:data:`SCRIPTED`); ``source`` chooses another one,
+shoulder torques saturate and the reaction jolts the feet (what that stop did: docs/results.md,
+"G1: servo and stop"). Re-anchored, the servo only damps the joints' post-impact velocities.
+That is the default command source (:data:`SCRIPTED`); ``source`` chooses another one,
 e.g. the whole-body QP (``sim.humanoid_qp_source.QpCommand``): a source gives its start gap, the
 time it may take to reach the wall, and per trial a driver whose ``command(t, q, v, stopped)``
 returns the 29 joints' velocity command (``stopped``: LATENCY has passed since the first contact),
@@ -25,9 +25,9 @@ Schur complement of MuJoCo's M; the plain joint block M_jj overestimates it and 
 unstable at 1 kHz), h the bias forces, and tau_feet = (Jf^T f)_j
 the joint torques of the least-norm foot wrenches f that carry the robot's weight in the measured
 configuration (Pinocchio, every control step: the weight's share between the feet and their
-moments follow the posture; computed once at the start stance, they left the ankles a steady
-tracking error as soon as the whole-body QP leaned the body, and the robot swayed backwards). The base is not actuated. The torque each joint gets is clipped at
-its URDF effort limit (5-139 N m): a real motor cannot give more, so a hard stop command or a
+moments follow the posture, which the whole-body QP leans; wrenches of the start stance would
+leave the ankles a steady tracking error). The base is not actuated. The torque each joint gets
+is clipped at its URDF effort limit (5-139 N m): a real motor cannot give more, so a hard stop command or a
 large tracking error saturates the drive instead of asking for unbounded torque.
 
 Plant: MuJoCo's G1 with the actuators' reflected rotor inertias by default (``armature``:

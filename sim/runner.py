@@ -25,9 +25,9 @@ only acts on disturbances such as the impact. Its default, 5 rad/s, is far below
 (contact time constant 7 ms), so the plain plant jumps like the rigid-body model of the classical
 prediction (docs/simulation.md): the feedback reacts to the jump itself with an acceleration
 2 omega ddq, which over an impact of duration delta changes the jump by up to 2 omega delta
-(15 % for 15 ms at 5 rad/s; measured 8-9 % on the named postures at 0.08-0.18 m/s, against
-25-45 % at 30 rad/s). M includes the armature and h = Coriolis, centrifugal and gravity
-terms (``qfrc_bias``). ``tau`` in the log is this torque, the "measured joint torque" of a trial.
+(15 % for 15 ms at 5 rad/s; what it does on the named postures: docs/results.md). M includes
+the armature and h = Coriolis, centrifugal and gravity terms (``qfrc_bias``). ``tau`` in the log
+is this torque, the "measured joint torque" of a trial.
 """
 
 from __future__ import annotations

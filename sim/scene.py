@@ -21,7 +21,7 @@ Added in code (``mujoco.MjSpec``):
   both of its geoms;
 - with a payload, a welded point-mass body ``payload`` on the hand (``sim.plant``).
 
-Physics defaults (the contact ones are ``sim.plant`` defaults; measured on the named postures):
+Physics defaults (the contact ones are ``sim.plant`` defaults):
 
 ====================  =====================  =================================================
 option                default                why
@@ -31,8 +31,8 @@ timestep              0.25 ms                four substeps per 1 ms control peri
 integrator            implicitfast           stable with stiff joint damping and armature
 cone                  elliptic, condim 3     Coulomb cone of the paper's (24)
 friction              0.1123                 the paper's mu (the surface's coefficient)
-solref                (7 ms, 1.0)            first contact phase 15-16 ms long (force above
-                                             1 N), as the paper's ~15 ms
+solref                (7 ms, 1.0)            a first contact phase (force above 1 N) about as
+                                             long as the paper's ~15 ms (docs/results.md)
 solimp                (0.95, 0.99, 1 mm,     stiff (d -> 0.99) once the tool is 1 mm deep
                       0.5, 2)
 ====================  =====================  =================================================

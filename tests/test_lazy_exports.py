@@ -18,6 +18,12 @@ def test_a_name_is_imported_on_first_use_and_kept():
         getattr_("cos")
 
 
+def test_dir_lists_the_exports_and_the_dunders_only():
+    namespace = {"__name__": "pkg", "__version__": "1", "_helper": None, "submodule": None}
+    _, dir_ = lazy_exports(namespace, {"hypot": "math"})
+    assert dir_() == ["__name__", "__version__", "hypot"]
+
+
 def test_importing_the_packages_imports_none_of_their_exports():
     code = (
         "import sys, impactqp, impactqp.controller\n"

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import ast
+import importlib
+import pkgutil
 import subprocess
 import sys
 from pathlib import Path
@@ -26,6 +28,52 @@ def test_the_first_names_are_listed_and_an_unknown_name_is_an_attribute_error():
     assert impactqp.PandaModel is impactqp.controller.model.robot.PandaModel
     with pytest.raises(AttributeError, match="no_such_name"):
         impactqp.no_such_name
+
+
+def packages() -> list[str]:
+    """Every package of the project, as pyproject.toml installs them."""
+    import tomllib
+
+    return tomllib.loads((TESTS.parent / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+
+
+@pytest.mark.parametrize("package", packages())
+def test_every_name_of_every_package_all_resolves(package):
+    module = importlib.import_module(package)
+    assert module.__all__ and len(set(module.__all__)) == len(module.__all__)
+    missing = [name for name in module.__all__ if not hasattr(module, name)]
+    assert missing == []
+
+
+@pytest.mark.parametrize("package", packages())
+def test_no_exported_name_is_also_a_submodule(package):
+    # a submodule, once imported, becomes the package's attribute of its name and would hide a
+    # lazily exported name (``from impactqp.scenarios import run`` must stay the module)
+    module = importlib.import_module(package)
+    submodules = {info.name for info in pkgutil.iter_modules(module.__path__)}
+    assert sorted(submodules & set(module.__all__)) == []
+
+
+def test_the_top_level_names_are_few_and_are_all_that_dir_lists():
+    assert len(impactqp.__all__) <= 60
+    public = {name for name in dir(impactqp) if not name.startswith("__")}
+    assert public == {name for name in impactqp.__all__ if not name.startswith("__")}
+    assert "__version__" in impactqp.__all__
+
+
+def test_the_top_level_names_are_the_layers_own():
+    assert impactqp.RobotModel is impactqp.controller.model.robot.RobotModel
+    assert impactqp.ImpactSession is impactqp.controller.runtime.session.ImpactSession
+    assert impactqp.FrameTask is impactqp.tasks.FrameTask
+    assert impactqp.PostImpactVelocityLimit is impactqp.constraints.PostImpactVelocityLimit
+    assert impactqp.BadInputError is impactqp.controller.model.validation.BadInputError
+    assert impactqp.TrialRunner is impactqp.scenarios.trial.TrialRunner
+
+
+def test_import_impactqp_alone_loads_no_numpy_pinocchio_or_mujoco():
+    code = "import sys, impactqp\nprint(sorted(m for m in ('numpy', 'pinocchio', 'mujoco') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
 
 
 def test_only_impactqp_is_importable_outside_the_checkout(tmp_path):

@@ -1,2 +1,30 @@
 """Measured impact data: the dataset format, its reader and validator, the impact detection and
-the jump extraction. Beside the ground; importing it never imports MuJoCo."""
+the jump extraction. Beside the ground; importing it never imports MuJoCo.
+
+Its names are exported lazily (PEP 562), as the ground's: importing one module loads only its
+own imports."""
+
+from impactqp.lazy_exports import lazy_exports as _lazy_exports
+
+_EXPORTS = {
+    "TrialLog": "trial_log",
+    "Dataset": "dataset",
+    "DatasetHeader": "dataset",
+    "DatasetTrial": "dataset",
+    "DatasetWriter": "dataset",
+    "DatasetError": "dataset",
+    "TrialEntry": "dataset",
+    "read_dataset": "dataset",
+    "read_header": "dataset",
+    "validate": "dataset_check",
+    "ImpactMeasurement": "impact",
+    "ImpactNotFoundError": "impact",
+    "measure_impact": "impact",
+    "import_franka_logs": "franka_log",
+}
+_EXPORTS = {name: f"{__name__}.{module}" for name, module in _EXPORTS.items()}
+
+__all__ = list(_EXPORTS)
+
+
+__getattr__, __dir__ = _lazy_exports(globals(), _EXPORTS)

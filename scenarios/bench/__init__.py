@@ -10,6 +10,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from importlib import import_module
 
+__all__ = ["run_benchmarks"]
+
 FAMILIES: list[tuple[str, str, str]] = [
     # (row-name prefix, module, function returning the rows)
     ("predict.", "prediction", "rows"),

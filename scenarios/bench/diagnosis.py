@@ -18,7 +18,8 @@ from impactqp.sim.plant import PlantParameters
 
 POSTURES = ["elbow_up", "elbow_left", "elbow_right"]
 SPEEDS = [0.1, 0.18]
-# combined hidden effects: three pairs and the triple that a greedy selection missed (issue 23)
+# combined hidden effects: three pairs and the triple that a greedy selection missed
+# (docs/diagnosis.md, "Paths")
 COMBINED = (
     ("armature", "payload"), ("armature", "friction"), ("joint_damping", "torque_offset"),
     ("armature", "payload", "friction"),

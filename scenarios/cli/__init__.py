@@ -28,6 +28,8 @@ from impactqp.scenarios.cli.exit_codes import (
     EXIT_INTERRUPTED,
 )
 
+__all__ = ["main"]
+
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
