@@ -288,22 +288,24 @@ def test_impact_model_checks_its_inputs_with_the_validation_module(keyword, valu
 
 
 def test_joint_limit_boxes_on_a_floating_base_bound_the_trailing_joints_only():
-    """Position and velocity limits with 29 limits and 35 velocities: the base's six entries are
-    unbounded, the joints' equal the same limits applied to the joints alone."""
+    """Position and velocity limits with one limit per joint and the base's velocities besides:
+    the base's entries are unbounded, the joints' equal the same limits applied to the joints
+    alone."""
     from whole_body_states import approach_velocity, robot, stance
 
     model = robot()
     q = stance("staggered")
     v = approach_velocity(q, 0.5)
     terms = model.terms(q, v)
-    wide = ControlCycle(0.001, np.full(35, -1e9), np.full(35, 1e9), 0.0025)
-    narrow = ControlCycle(0.001, np.full(29, -1e9), np.full(29, 1e9), 0.0025)
+    wide = ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), 0.0025)
+    narrow = ControlCycle(0.001, np.full(model.joints, -1e9), np.full(model.joints, 1e9), 0.0025)
+    base = model.base_nv
 
     class Joints:  # the joints' part of the state, as the arm's terms
-        q, dq = terms.q[7:], terms.dq[6:]
+        q, dq = terms.q[model.base_nq:], terms.dq[base:]
 
     for box in (PositionLimit(model.q_min, model.q_max, model.ddq_max), VelocityLimit(model.dq_max)):
         full, joints = box.compute(terms, wide), box.compute(Joints, narrow)
-        assert np.all(full.lower[:6] == -1e9) and np.all(full.upper[:6] == 1e9)
-        np.testing.assert_array_equal(full.lower[6:], joints.lower)
-        np.testing.assert_array_equal(full.upper[6:], joints.upper)
+        assert np.all(full.lower[:base] == -1e9) and np.all(full.upper[:base] == 1e9)
+        np.testing.assert_array_equal(full.lower[base:], joints.lower)
+        np.testing.assert_array_equal(full.upper[base:], joints.upper)

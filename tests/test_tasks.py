@@ -248,22 +248,24 @@ def test_every_task_jacobian_matches_finite_differences_of_what_it_controls(robo
 
 
 def test_joint_tasks_on_a_floating_base_act_on_the_trailing_joints_only():
-    """PostureTask(joints=29) and DampingTask(variables=35) on the standing G1: [0 I] dv = b for
-    the posture (the base's six accelerations free), I dv = -gain v for the damping."""
+    """PostureTask(joints=joints) and DampingTask(variables=nv) on the standing G1: [0 I] dv = b
+    for the posture (the base's accelerations free), I dv = -gain v for the damping."""
     from whole_body_states import approach_velocity, robot, stance
 
+    model = robot()
+    joints, base = model.joints, model.base_nv
     q = stance("parallel")
     v = approach_velocity(q, 0.4)
-    terms = robot().terms(q, v)
-    posture = PostureTask(target=q[7:] + 0.1, stiffness=9.0, damping=2.0, joints=29)
+    terms = model.terms(q, v)
+    posture = PostureTask(target=q[model.base_nq:] + 0.1, stiffness=9.0, damping=2.0, joints=joints)
     rows = posture.compute(terms)
-    np.testing.assert_array_equal(rows.A, np.hstack([np.zeros((29, 6)), np.eye(29)]))
-    np.testing.assert_allclose(rows.b, 9.0 * 0.1 - 2.0 * v[6:])
-    posture = PostureTask(joints=29)
+    np.testing.assert_array_equal(rows.A, np.hstack([np.zeros((joints, base)), np.eye(joints)]))
+    np.testing.assert_allclose(rows.b, 9.0 * 0.1 - 2.0 * v[base:])
+    posture = PostureTask(joints=joints)
     posture.reset(terms)
-    np.testing.assert_array_equal(posture.target, q[7:])
-    damping = DampingTask(gain=3.0, variables=35).compute(terms)
-    np.testing.assert_array_equal(damping.A, np.eye(35))
+    np.testing.assert_array_equal(posture.target, q[model.base_nq:])
+    damping = DampingTask(variables=model.nv, gain=3.0).compute(terms)
+    np.testing.assert_array_equal(damping.A, np.eye(model.nv))
     np.testing.assert_allclose(damping.b, -3.0 * v)
 
 
