@@ -339,6 +339,10 @@ def build_controller(config: ControllerConfig, robot: RobotModel | None = None) 
         params = dict(task.params)
         if task.type == "contact_approach":
             params.setdefault("normal", surface.normal)
+        elif task.type == "posture":
+            params.setdefault("joints", robot.nv)
+        elif task.type == "damping":
+            params.setdefault("variables", robot.nv)
         kind = TASK_TYPES[task.type]
         try:
             inspect.signature(kind).bind(**params)

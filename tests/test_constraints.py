@@ -6,6 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from reference.constraints import reference_normal_motion, reference_recoverable, reference_rows
 
+from conftest import JOINTS
 from impactqp.constraints import (
     AccelerationLimit,
     ControlCycle,
@@ -28,7 +29,7 @@ SEEDS = st.integers(0, 2**32 - 1)
 
 
 def cycle(robot, previous_ddq=None):
-    previous = np.zeros(7) if previous_ddq is None else previous_ddq
+    previous = np.zeros(JOINTS) if previous_ddq is None else previous_ddq
     return ControlCycle.after(previous, DT, robot.ddq_max, robot.dddq_max)
 
 
@@ -36,9 +37,9 @@ def random_state(robot, rng, speed=0.5):
     """A random non-singular state inside the limits; speed is the fraction of dq_max."""
     span = robot.q_max - robot.q_min
     while True:
-        q = robot.q_min + span * rng.uniform(0.1, 0.9, 7)
+        q = robot.q_min + span * rng.uniform(0.1, 0.9, JOINTS)
         try:
-            return robot.terms(q, rng.uniform(-speed, speed, 7) * robot.dq_max)
+            return robot.terms(q, rng.uniform(-speed, speed, JOINTS) * robot.dq_max)
         except SingularPostureError:
             continue
 
@@ -65,7 +66,7 @@ def test_velocity_box_is_the_commanded_velocity_limit(robot, seed):
     terms = random_state(robot, rng, speed=0.99)
     rows = VelocityLimit(robot.dq_max).compute(terms, cycle(robot))
     assert np.all(rows.lower <= rows.upper)
-    for ddq in rng.uniform(rows.lower, rows.upper, (5, 7)):
+    for ddq in rng.uniform(rows.lower, rows.upper, (5, JOINTS)):
         assert np.all(np.abs(terms.dq + ddq * DT) <= robot.dq_max + 1e-12)
 
 
@@ -85,9 +86,9 @@ def test_position_limit_stops_every_joint_before_its_limit(robot, joint):
     acceleration, velocity = AccelerationLimit(), VelocityLimit(robot.dq_max)
     q = 0.5 * (robot.q_min + robot.q_max)
     q[joint] = robot.q_max[joint] - 0.5  # inside the braking horizon at full speed
-    dq = np.zeros(7)
+    dq = np.zeros(JOINTS)
     dq[joint] = robot.dq_max[joint]
-    ddq = np.zeros(7)
+    ddq = np.zeros(JOINTS)
     for _ in range(1500):
         terms = robot.terms(q, dq)
         c = cycle(robot, ddq)
@@ -109,7 +110,7 @@ def test_torque_rows_are_the_inverse_dynamics_limits(robot, seed):
     rng = np.random.default_rng(seed)
     terms = random_state(robot, rng)
     rows = TorqueLimit(robot.tau_max).compute(terms, cycle(robot))
-    for ddq in rng.uniform(-30.0, 30.0, (20, 7)):
+    for ddq in rng.uniform(-30.0, 30.0, (20, JOINTS)):
         tau = terms.M @ ddq + terms.h
         within = np.all(np.abs(tau) <= robot.tau_max)
         assert within == inside(rows, ddq) or np.min(np.abs(np.abs(tau) - robot.tau_max)) < 1e-6
@@ -124,13 +125,13 @@ def surface_ahead(terms, gap=0.05):
 @pytest.mark.parametrize("restitution", [0.0, 0.5])
 def test_impact_matrices_match_the_jump_models(robot, name, restitution):
     """A = K G J and P = J^T G J of the expected impact, from the predictor's G and K."""
-    terms = robot.terms(POSTURES["elbow_right"].q, np.full(7, 0.1))
+    terms = robot.terms(POSTURES["elbow_right"].q, np.full(JOINTS, 0.1))
     surface = surface_ahead(terms)
     matrices = ExpectedImpact(surface, name, restitution).matrices(terms)
     model = jump_model(name)
     maps = model.maps(terms, surface.normal, restitution)
     assert np.allclose(matrices.jump_matrix, maps.K @ maps.G @ terms.J, atol=1e-10)
-    dq = np.linspace(-0.5, 0.5, 7)
+    dq = np.linspace(-0.5, 0.5, JOINTS)
     impulse = model.predict(terms, surface.normal, terms.J @ dq, restitution).impulse
     assert np.allclose(matrices.torque_matrix @ dq, terms.J.T @ impulse, atol=1e-10)
 
@@ -145,13 +146,13 @@ def test_impact_rows_are_the_post_impact_velocity_and_impulsive_torque_limits(ro
     terms = random_state(robot, rng, speed=0.2)
     surface = surface_ahead(terms)
     impact = ExpectedImpact(surface, name, restitution=0.3, always_active=True)
-    c = ControlCycle.after(np.zeros(7), DT, 1e6 * robot.ddq_max, 1e9 * robot.dddq_max)
+    c = ControlCycle.after(np.zeros(JOINTS), DT, 1e6 * robot.ddq_max, 1e9 * robot.dddq_max)
     c = ControlCycle(DT, c.acceleration_lower, c.acceleration_upper, cycle(robot).horizon)
     velocity_rows = PostImpactVelocityLimit(impact, robot.dq_max).compute(terms, c)
     torque_rows = ImpulsiveTorqueLimit(impact, robot.tau_max, robot.dq_max, 0.015).compute(terms, c)
     model = jump_model(name)
     assert c.horizon == pytest.approx(max(DT, np.max(robot.ddq_max / robot.dddq_max)))
-    for ddq in rng.uniform(-200.0, 200.0, (20, 7)):
+    for ddq in rng.uniform(-200.0, 200.0, (20, JOINTS)):
         pre = terms.dq + ddq * c.horizon
         prediction = model.predict(terms, surface.normal, terms.J @ pre, 0.3)
         post_ratio = np.max(np.abs(pre + prediction.dq_jump) / robot.dq_max)
@@ -204,20 +205,22 @@ def test_activation_rule(robot):
 
 
 @settings(max_examples=50, deadline=None)
-@given(previous=st.lists(st.floats(-1.0, 1.0), min_size=7, max_size=7))
+@given(previous=st.lists(st.floats(-1.0, 1.0), min_size=JOINTS, max_size=JOINTS))
 def test_advancing_the_cycle_in_place_equals_a_new_cycle(robot, previous):
     """ControlCycle.advance (the controller's in-place update) gives the interval of after()."""
     previous = np.array(previous) * robot.ddq_max
     expected = ControlCycle.after(previous, DT, robot.ddq_max, robot.dddq_max)
-    c = ControlCycle.after(np.zeros(7), DT, robot.ddq_max, robot.dddq_max)
+    c = ControlCycle.after(np.zeros(JOINTS), DT, robot.ddq_max, robot.dddq_max)
     c.advance(previous, robot.ddq_max, robot.dddq_max * DT)
     np.testing.assert_array_equal(c.acceleration_lower, expected.acceleration_lower)
     np.testing.assert_array_equal(c.acceleration_upper, expected.acceleration_upper)
 
 
 def _rows_of(constraint, terms, c, reference):
-    C = None if constraint.is_box else np.full((constraint.rows, 7), np.nan)
-    lower, upper = np.full(constraint.rows, np.nan), np.full(constraint.rows, np.nan)
+    n = terms.dq.shape[0]  # one column per velocity; a box bounds each
+    size = n if constraint.is_box else constraint.rows
+    C = None if constraint.is_box else np.full((constraint.rows, n), np.nan)
+    lower, upper = np.full(size, np.nan), np.full(size, np.nan)
     if reference:
         reference_rows(constraint, terms, c, C, lower, upper)
     else:
@@ -234,7 +237,7 @@ def test_compiled_rows_equal_the_numpy_reference(robot, seed, jump, always, rest
     kernel."""
     rng = np.random.default_rng(seed)
     terms = random_state(robot, rng)
-    c = cycle(robot, rng.uniform(-0.5, 0.5, 7) * robot.ddq_max)
+    c = cycle(robot, rng.uniform(-0.5, 0.5, JOINTS) * robot.ddq_max)
     surface = Surface(terms.contact_point - rng.uniform(0.0, 0.2) * np.array([-1.0, 0.0, 0.0]), [-1.0, 0.0, 0.0])
     impact = ExpectedImpact(surface, jump, restitution, always_active=always)
     constraints = [
