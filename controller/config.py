@@ -227,7 +227,8 @@ class ControllerConfig:
             raise BadInputError(f"robot must be a robot name, got {self.robot!r}")
         if not isinstance(self.tool, (str, dict)):
             raise BadInputError(f"tool must be a tool name, a tool file or a [tool] table, got {self.tool!r}")
-        self.choice  # the robot's and the tool's own checks, as soon as the file is read
+        choice = self.choice  # the robot's and the tool's own checks, as soon as the file is read
+        self.libfranka.check_joints(len(choice.robot.joints))
 
     @property
     def choice(self) -> RobotChoice:
