@@ -33,7 +33,6 @@ from .robot_description import PANDA, RobotDescription, model_urdf, robot_descri
 from .tool_description import TOOLS, ToolDescription, tool_description
 from .validation import BadInputError, all_finite
 
-NQ = 7
 CONTACT_FRAME = "impact_tip"
 TOOL_BODY = "tool"
 """The body (Pinocchio frame, MuJoCo body) of a tool with a mass, at its centre of mass."""
