@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from impactqp.controller.model.robot import NQ, ModelTerms
+from impactqp.controller.model.robot import ModelTerms
 
 from .constraint import Constraint, ControlCycle
 
@@ -12,11 +12,11 @@ class AccelerationLimit(Constraint):
 
     ddq_prev is the acceleration of the previous command, so consecutive commands respect the
     jerk limits. The interval is the cycle's reachable set (:class:`ControlCycle`); it is never
-    empty because ddq_prev itself satisfies the acceleration limits.
+    empty because ddq_prev itself satisfies the acceleration limits. Its bounds are the cycle's,
+    one per velocity.
     """
 
     name = "joint_acceleration_limit"
-    rows = NQ
     is_box = True
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:

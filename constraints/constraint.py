@@ -112,8 +112,8 @@ class Constraint:
     relaxed: bool = False
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower: np.ndarray, upper: np.ndarray) -> None:
-        """Write the raw rows of this state: C (rows x number of velocities, 7 for the arm; None for
-        a box), lower and upper."""
+        """Write the raw rows of this state: C (rows x number of velocities; None for a box), lower
+        and upper."""
         raise NotImplementedError
 
     def compute(self, terms: ModelTerms, cycle: ControlCycle) -> ConstraintRows:

@@ -6,7 +6,7 @@ predictors: the impulse iota = G J v-, the jump dv = A v- with A = K G J (crb (1
 gm (12), (22)-(23); classical (5)-(6)) and the CoM velocity jump C iota. The activation rule is
 ``ExpectedImpact``'s (contact not leaving the surface, surface within the look-ahead distance or
 time), which reads only the contact point, its Jacobian and the velocity, so it applies to the
-35 velocities of the floating base unchanged.
+nv velocities of the floating base unchanged.
 """
 
 from __future__ import annotations

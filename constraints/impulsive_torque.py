@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit
 
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
-from impactqp.controller.model.robot import NQ, ModelTerms
+from impactqp.controller.model.robot import ModelTerms
 
 from .constraint import Constraint, ControlCycle, symmetric_row_bounds
 from .impact_model import ExpectedImpact
@@ -30,7 +30,6 @@ class ImpulsiveTorqueLimit(Constraint):
     (``ControlCycle.recoverable``).
     """
 
-    rows = NQ
     relaxed = True
 
     def __init__(
@@ -43,6 +42,7 @@ class ImpulsiveTorqueLimit(Constraint):
         impact_duration = check_impact_duration(impact_duration)
         self.impact = impact
         self.impulse_limit = np.asarray(tau_max, dtype=float) * impact_duration
+        self.rows = len(self.impulse_limit)
         self.row_scale = np.asarray(dq_max, dtype=float) / self.impulse_limit
         self._scaling = np.vstack([self.row_scale, self.row_scale * self.impulse_limit])  # s_i; s_i tau_max_i delta_t
         self.name = f"impulsive_torque[{impact.name}]"

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import njit
 
-from impactqp.controller.model.robot import NQ, ModelTerms
+from impactqp.controller.model.robot import ModelTerms
 
 from .constraint import Constraint, ControlCycle
 from impactqp.controller.model.validation import number_in_range
@@ -37,7 +37,6 @@ class PositionLimit(Constraint):
     """
 
     name = "joint_position_limit"
-    rows = NQ
     is_box = True
 
     def __init__(self, q_min, q_max, ddq_max, braking_fraction: float = 0.5, margin: float = 0.0):
@@ -46,6 +45,7 @@ class PositionLimit(Constraint):
         # Row 0 looks at the upper limits, row 1 at the lower ones (sign -1 mirrors them).
         self._sign = np.array([[1.0], [-1.0]])
         self._limits = np.vstack([np.asarray(q_max, float) - margin, np.asarray(q_min, float) + margin])
+        self.rows = self._limits.shape[1]
         self._braking = braking_fraction * np.asarray(ddq_max, dtype=float)
         self._dt = None
 

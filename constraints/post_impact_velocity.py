@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from impactqp.controller.model.robot import NQ, ModelTerms
+from impactqp.controller.model.robot import ModelTerms
 
 from .constraint import Constraint, ControlCycle, symmetric_row_bounds
 from .impact_model import ExpectedImpact
@@ -26,12 +26,12 @@ class PostImpactVelocityLimit(Constraint):
     (``ControlCycle.recoverable``).
     """
 
-    rows = NQ
     relaxed = True
 
     def __init__(self, impact: ExpectedImpact, dq_max: np.ndarray):
         self.impact = impact
         self.dq_max = np.asarray(dq_max, dtype=float)
+        self.rows = len(self.dq_max)
         self.name = f"post_impact_velocity[{impact.name}]"
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:

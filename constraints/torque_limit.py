@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from impactqp.controller.model.robot import NQ, ModelTerms
+from impactqp.controller.model.robot import ModelTerms
 
 from .constraint import Constraint, ControlCycle
 
@@ -18,10 +18,10 @@ class TorqueLimit(Constraint):
     """
 
     name = "joint_torque_limit"
-    rows = NQ
 
     def __init__(self, tau_max: np.ndarray):
         self.tau_max = np.asarray(tau_max, dtype=float)
+        self.rows = len(self.tau_max)
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         normalised_torque_rows(terms.M, terms.h, self.tau_max, C, lower, upper)

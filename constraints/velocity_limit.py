@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from impactqp.controller.model.robot import NQ, ModelTerms
+from impactqp.controller.model.robot import ModelTerms
 
 from .constraint import Constraint, ControlCycle
 
@@ -27,11 +27,11 @@ class VelocityLimit(Constraint):
     """
 
     name = "joint_velocity_limit"
-    rows = NQ
     is_box = True
 
     def __init__(self, dq_max: np.ndarray):
         self.dq_max = np.asarray(dq_max, dtype=float)
+        self.rows = len(self.dq_max)
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         n = self.dq_max.shape[0]

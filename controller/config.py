@@ -227,7 +227,8 @@ class ControllerConfig:
             raise BadInputError(f"robot must be a robot name or a robot file, got {self.robot!r}")
         if not isinstance(self.tool, (str, dict)):
             raise BadInputError(f"tool must be a tool name, a tool file or a [tool] table, got {self.tool!r}")
-        self.choice  # the robot's and the tool's own checks, as soon as the file is read
+        choice = self.choice  # the robot's and the tool's own checks, as soon as the file is read
+        self.libfranka.check_joints(len(choice.robot.joints))
 
     @property
     def choice(self) -> RobotChoice:
@@ -346,6 +347,10 @@ def build_controller(config: ControllerConfig, robot: RobotModel | None = None) 
         params = dict(task.params)
         if task.type == "contact_approach":
             params.setdefault("normal", surface.normal)
+        elif task.type == "posture":
+            params.setdefault("joints", robot.nv)
+        elif task.type == "damping":
+            params.setdefault("variables", robot.nv)
         kind = TASK_TYPES[task.type]
         try:
             inspect.signature(kind).bind(**params)

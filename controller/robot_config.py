@@ -25,6 +25,9 @@ inertia belong to a hand-held tool."""
 
 MAX_MODEL_DIFFERENCE = 1.0
 
+JOINT_SETTINGS = ("lower_torque_thresholds", "upper_torque_thresholds", "joint_impedance")
+"""The settings with one value per joint of the robot (``RobotConfig.check_joints``)."""
+
 
 @dataclass
 class RobotConfig:
@@ -55,19 +58,23 @@ class RobotConfig:
     max_model_difference: float = 0.02
 
     def __post_init__(self):
-        for kind, size, high in (("torque", 7, MAX_COLLISION_TORQUE), ("force", 6, MAX_COLLISION_FORCE)):
+        for kind, size, high in (("torque", None, MAX_COLLISION_TORQUE), ("force", 6, MAX_COLLISION_FORCE)):
             lower, upper = (
                 validation.positive_vector(
                     getattr(self, f"{side}_{kind}_thresholds"), size, f"libfranka.{side}_{kind}_thresholds", high
                 )
                 for side in ("lower", "upper")
             )
+            if lower.shape != upper.shape:
+                raise BadInputError(
+                    f"libfranka.lower_{kind}_thresholds and libfranka.upper_{kind}_thresholds must have as many values"
+                )
             if np.any(lower > upper):
                 raise BadInputError(f"libfranka.lower_{kind}_thresholds must not exceed libfranka.upper_{kind}_thresholds")
             setattr(self, f"lower_{kind}_thresholds", lower.tolist())
             setattr(self, f"upper_{kind}_thresholds", upper.tolist())
         self.joint_impedance = validation.positive_vector(
-            self.joint_impedance, 7, "libfranka.joint_impedance", MAX_JOINT_STIFFNESS
+            self.joint_impedance, None, "libfranka.joint_impedance", MAX_JOINT_STIFFNESS
         ).tolist()
         if self.load_mass is not None:
             validation.number_in_range(self.load_mass, 0.0, MAX_LOAD_MASS, "libfranka.load_mass", "kg")
@@ -88,4 +95,10 @@ class RobotConfig:
             self.max_model_difference, 0.0, MAX_MODEL_DIFFERENCE, "libfranka.max_model_difference",
             "(relative difference of the mass matrices)", low_open=True,
         )
+
+    def check_joints(self, joints: int) -> None:
+        """Bad input unless every per-joint setting (``JOINT_SETTINGS``) has one value for each of
+        the robot's ``joints`` joints."""
+        for name in JOINT_SETTINGS:
+            validation.finite_vector(getattr(self, name), joints, f"libfranka.{name}")
 

@@ -8,7 +8,7 @@ the requested speed, as in the paper. The simulation is deterministic: one trial
 stands for the paper's ten repeats.
 
 Table I: for each trial and predictor, the average prediction error (26)
-e = (1/7) sum_i |dq*_i - dq°_i| of the predictor's own jump at the pre-impact state against the
+e = (1/n) sum_i |dq*_i - dq°_i| (n joints) of the predictor's own jump at the pre-impact state against the
 simulated jump dq°, and the reduction 100 (1 - e_crb / e_classical) % of CRB against the classical
 prediction (the paper's 81.98 %); the last row averages every trial.
 
@@ -38,7 +38,6 @@ from impactqp.controller.model.jump import METHODS, average_prediction_error  # 
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice  # noqa: E402
 from impactqp.controller.model.postures import Surface  # noqa: E402
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.robot import NQ  # noqa: E402
 from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
 from impactqp.sim.generation import DEFAULT_SPEEDS, TANGENTIAL_SERIES_NORMAL_SPEED, tangential_direction  # noqa: E402
 from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry  # noqa: E402
@@ -264,7 +263,7 @@ class CampaignFigures:
         fig, ax = plt.subplots(figsize=(6.4, 4.4))
         speeds = [r.normal_speed for r in rows]
         jumps = np.array([r.measured_jump for r in rows])
-        for j in range(NQ):
+        for j in range(jumps.shape[1]):
             ax.plot(speeds, jumps[:, j], "o-", label=f"joint {j + 1}")
         ax.set(
             xlabel="normal contact speed (m/s)", ylabel="simulated jump dq+ - dq- (rad/s)",
@@ -283,7 +282,7 @@ class CampaignFigures:
         speeds = [r.normal_speed for r in rows]
         for ax, method in zip(axes, METHODS):
             errors = np.array([r.joint_errors[method] for r in rows])
-            for j in range(NQ):
+            for j in range(errors.shape[1]):
                 ax.plot(speeds, errors[:, j], "o-", label=f"joint {j + 1}")
             ax.set(title=method, xlabel="normal contact speed (m/s)", ylabel="|e_i|, eq. (25) (rad/s)")
             ax.yaxis.set_tick_params(labelleft=True)
@@ -306,7 +305,7 @@ class CampaignFigures:
         ax.set(
             xlabel="tangential speed v_t (m/s)", ylabel="average prediction error, eq. (26) (rad/s)",
             title=f"Tangential series at {rows[0].posture}, v_n = {rows[0].normal_speed:g} m/s\n"
-            "(error averaged over the 7 joints, one trial per v_t)",
+            f"(error averaged over the {len(rows[0].measured_jump)} joints, one trial per v_t)",
         )
         ax.set_ylim(bottom=0.0)
         ax.legend()

@@ -34,7 +34,6 @@ from dataclasses import dataclass  # noqa: E402
 from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
 from impactqp.controller.measured.impact import POST_HALF_WIDTH, PRE_SAMPLES  # noqa: E402
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION  # noqa: E402
-from impactqp.controller.model.robot import NQ  # noqa: E402
 from impactqp.scenarios.max_speed_search import DEFAULT_TOLERANCE, MaxSpeedSearch  # noqa: E402
 from impactqp.sim.diagnosis import EXPLAINED_GAIN, STEP_GAIN, Diagnosis, interval_text  # noqa: E402
 from impactqp.sim.diagnosis.noise import BLOCKS  # noqa: E402
@@ -42,7 +41,6 @@ from impactqp.sim.plant import PlantParameters  # noqa: E402
 
 from .readable import boolean, number, parameters_text  # noqa: E402
 
-JOINTS = np.arange(1, 8)
 NEAR_ZERO_STDS = 3.0
 
 
@@ -151,12 +149,12 @@ def jump_noise_std(diagnosis: Diagnosis) -> np.ndarray:
             continue
         second = before[2:] - 2.0 * before[1:-1] + before[:-2]
         variances.append(np.mean(second**2, axis=0) / 6.0)
-    sample_variance = np.mean(variances, axis=0) if variances else np.zeros(NQ)
+    sample_variance = np.mean(variances, axis=0) if variances else np.zeros(diagnosis.trials[0].dq_log.shape[1])
     return np.sqrt(sample_variance * (1.0 / PRE_SAMPLES + 1.0 / (2 * POST_HALF_WIDTH + 1)))
 
 
 def near_zero_jumps(diagnosis: Diagnosis) -> np.ndarray:
-    """Joints (bool, 7) whose measured jump is near zero: root mean square over the trials below
+    """Joints (bool, one per joint) whose measured jump is near zero: root mean square over the trials below
     ``NEAR_ZERO_STDS`` noise stds of a jump."""
     measured = np.array([t.jump for t in diagnosis.trials])
     return np.sqrt(np.mean(measured**2, axis=0)) < NEAR_ZERO_STDS * jump_noise_std(diagnosis)
@@ -172,7 +170,7 @@ def series(diagnosis: Diagnosis) -> dict[str, np.ndarray]:
 
 
 def absolute_errors(diagnosis: Diagnosis) -> dict[str, np.ndarray]:
-    """|e| of eq. (25) (trials x 7) of both simulations and every predictor."""
+    """|e| of eq. (25) (trials x joints) of both simulations and every predictor."""
     data = series(diagnosis)
     measured = data.pop("measured")
     return {name: np.abs(jumps - measured) for name, jumps in data.items()}
@@ -187,16 +185,17 @@ def save(fig, path: Path) -> None:
 def plot_jumps(diagnosis: Diagnosis, path: Path) -> None:
     postures = sorted({t.posture or "unknown" for t in diagnosis.trials})
     data = series(diagnosis)
+    joints = np.arange(1, data["measured"].shape[1] + 1)
     fig, axes = plt.subplots(1, len(postures), figsize=(5 * len(postures), 4.0), squeeze=False, sharey=True)
     for ax, posture in zip(axes[0], postures):
         rows = [i for i, t in enumerate(diagnosis.trials) if (t.posture or "unknown") == posture]
         for k, name in enumerate(("measured", "nominal sim", "extended sim")):
-            ax.bar(JOINTS + (k - 1) * 0.27, data[name][rows].mean(axis=0), width=0.27, label=name)
+            ax.bar(joints + (k - 1) * 0.27, data[name][rows].mean(axis=0), width=0.27, label=name)
         ax.set_title(f"{posture} ({len(rows)} trials)")
         ax.set_xlabel("joint")
         ax.set_ylabel("mean jump dq+ - dq- (rad/s)")
         ax.yaxis.set_tick_params(labelleft=True)
-        ax.set_xticks(JOINTS)
+        ax.set_xticks(joints)
         ax.axhline(0.0, color="k", lw=0.5)
     axes[0][0].legend(fontsize=8)
     fig.suptitle("Joint-velocity jump per joint, mean over each posture's trials (all speeds pooled)")
@@ -220,13 +219,14 @@ def plot_error_vs_speed(diagnosis: Diagnosis, path: Path) -> None:
 
 def plot_predictor_errors(diagnosis: Diagnosis, path: Path) -> None:
     errors = absolute_errors(diagnosis)
+    joints = np.arange(1, next(iter(errors.values())).shape[1] + 1)
     fig, ax = plt.subplots(figsize=(7, 4))
     width = 0.8 / len(errors)
     for k, (name, error) in enumerate(errors.items()):
-        ax.bar(JOINTS + (k - len(errors) / 2 + 0.5) * width, error.mean(axis=0), width, label=name)
+        ax.bar(joints + (k - len(errors) / 2 + 0.5) * width, error.mean(axis=0), width, label=name)
     ax.set_xlabel("joint")
     ax.set_ylabel("mean |error|, eq. (25) (rad/s)")
-    ax.set_xticks(JOINTS)
+    ax.set_xticks(joints)
     ax.set_title(
         f"Error against the measured jump per joint, mean over all {len(diagnosis.trials)} trials", fontsize=10
     )
@@ -278,7 +278,7 @@ def nominal_error_section(diagnosis: Diagnosis) -> list[str]:
         "|---|---|---|---|---|",
     ]
     near_zero = near_zero_jumps(diagnosis)
-    for j in range(NQ):
+    for j in range(len(near_zero)):
         ratio = "-" if near_zero[j] else f"{a['per_joint_sim_to_measured_ratio'][j]:.3f}"
         lines.append(
             f"| {j + 1} | {a['per_joint_mean_error'][j]:+.4f} | {a['per_joint_mean_abs_error'][j]:.4f} | "

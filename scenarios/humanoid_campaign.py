@@ -1,7 +1,7 @@
 """The humanoid campaign: stances x hand speeds of ``sim.humanoid_trial``, and its table.
 
 For each trial and predictor (classical, gm, crb, each fed its own impulse; ``momentum``: the
-feet-held momentum law fed the measured impulse) the average error (26) over the 29 joints; the
+feet-held momentum law fed the measured impulse) the average error (26) over the joints; the
 table gives per stance and speed the measured contact speed, the impulse, the CoM velocity jump,
 the foot slip and lift, whether the robot fell, and the errors; its last row averages the errors
 over every trial, with the reduction 100 (1 - e_crb / e_classical) % of CRB against classical
@@ -32,7 +32,7 @@ def run_campaign(
 ) -> list[ImpactTrial]:
     """One trial per stance and commanded hand speed (m/s); ``gain`` is the servo bandwidth (rad/s),
     ``armature`` the plant's rotor inertia (kg m^2): None for the G1's actuators
-    (``controller.model.g1_actuators``), one number for every joint (0: link-only) or 29; ``source``
+    (``controller.model.g1_actuators``), one number for every joint (0: link-only) or one per joint; ``source``
     the command source (``sim.humanoid_trial.SCRIPTED`` or ``sim.humanoid_qp_source.QpCommand``)."""
     return [
         run_impact_trial(robot, STANCES[name], speed, gain=gain, armature=armature, source=source)

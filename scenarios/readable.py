@@ -6,7 +6,7 @@ JSON output keeps full precision; the text beside it shows:
   scientific notation and never as ``-0.0000`` (:func:`fixed`);
 - single values with 4 significant digits, in positional notation between 1e-4 and 1e6
   (:func:`number`; Python's ``g`` format switches to an exponent below 1e-4 by itself);
-- plant overrides with their units, grouped as the diagnosis fits them: a 7-vector that is
+- plant overrides with their units, grouped as the diagnosis fits them: a per-joint vector that is
   constant over each of the Panda's drive groups (joints 1-4 and 5-7,
   ``sim.causes.JOINT_GROUPS``) as one value per group (:func:`parameters_text`);
 - booleans as in JSON, ``true`` / ``false`` (:func:`boolean`).

@@ -21,7 +21,7 @@ from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
-from impactqp.controller.model.robot import NQ, RobotModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
 from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.runtime.franka_backend import FrankaRobot
@@ -219,7 +219,7 @@ def build_backend(request: RunRequest) -> tuple[RobotInterface, ControllerConfig
     model = choice.model()
     q0 = start_posture(request, model, config)
     scene = build_scene(config.surface.surface(), plant, robot=choice.robot, tool=choice.tool)
-    robot = SimRobot(scene, q0, np.zeros(NQ), config.dt, paced=not request.unpaced)
+    robot = SimRobot(scene, q0, np.zeros(model.nv), config.dt, paced=not request.unpaced)
     return robot, config, request.duration
 
 

@@ -158,7 +158,7 @@ def render_humanoid_gif(robot, trial, path: str | Path) -> Path:
     frames = []
     with mujoco.Renderer(model, height, width) as renderer:
         for k in range(first, last, step):
-            data.qpos[:] = from_pinocchio(trial.q_log[k])
+            data.qpos[:] = from_pinocchio(trial.q_log[k], scene.base_nq)
             mujoco.mj_forward(model, data)
             renderer.update_scene(data, camera)
             draw_links(renderer.scene, model, data)

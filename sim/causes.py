@@ -10,19 +10,19 @@ that no other selected cause touches. Method and rules: ``docs/diagnosis.md``.
 =============  ==============================================  ================================
 cause          fitted parameters                               plant override keys
 =============  ==============================================  ================================
-armature       reflected rotor inertia per joint group:        ``armature`` (7 values)
+armature       reflected rotor inertia per joint group:        ``armature`` (one per joint)
                a_1 (joints 1-4, large motors),
                a_2 (joints 5-7, small motors)
 payload        payload mass m and its centre of mass c in the  ``payload_mass``, ``payload_com``
                tool's contact frame ``impact_tip``
 friction       tool/wall Coulomb coefficient mu                ``friction``
 contact        solref time constant and damping ratio          ``contact_solref``
-joint_damping  viscous damping per joint group (1-4, 5-7)      ``joint_damping`` (7 values)
+joint_damping  viscous damping per joint group (1-4, 5-7)      ``joint_damping`` (one per joint)
 servo_gain     joint-servo bandwidth omega                     ``servo_gain``
 delay          measured dq and tau late by d control periods   ``sensor_delay``
 velocity_scale logged dq / true dq (global; then per joint     ``sensor_velocity_scale``
                when the data support it: ``refined``)          (``sensor_joint_velocity_scale``)
-torque_offset  bias of the logged torque per joint (N m)       ``sensor_torque_offset`` (7)
+torque_offset  bias of the logged torque per joint (N m)       ``sensor_torque_offset`` (per joint)
 velocity_filt. time constant of a low-pass on the logged dq    ``sensor_velocity_filter``
 =============  ==============================================  ================================
 
@@ -37,7 +37,6 @@ from dataclasses import replace
 import numpy as np
 
 from impactqp.controller.model.postures import DEFAULT_WALL
-from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.tool_description import TOOLS, ToolDescription
 
 from .plant import PlantParameters
@@ -53,12 +52,14 @@ def payload_com(tool: ToolDescription) -> tuple[float, float, float]:
 
 # Joint groups of the Panda's drives: large motors on joints 1-4, small ones on joints 5-7.
 JOINT_GROUPS = ((0, 1, 2, 3), (4, 5, 6))
+GROUPED_JOINTS = sum(len(group) for group in JOINT_GROUPS)
+"""The joints the groups cover: every joint of the arm."""
 GRID_POINTS = {1: 7, 2: 5}
 
 
 def per_group(values: tuple[float, ...]) -> list[float]:
-    """The 7 joint values of one value per joint group."""
-    out = [0.0] * NQ
+    """The joint values (one per joint of ``JOINT_GROUPS``) of one value per joint group."""
+    out = [0.0] * GROUPED_JOINTS
     for group, value in zip(JOINT_GROUPS, values):
         for j in group:
             out[j] = float(value)
@@ -140,7 +141,7 @@ class ArmatureCause(Cause):
     realistic = ((0.2, 0.05), (1.5, 0.4))
 
     def nominal_theta(self, nominal):
-        return np.maximum(group_means(nominal.armature), self.lower)
+        return np.maximum(group_means(nominal.for_joints(GROUPED_JOINTS).armature), self.lower)
 
     def overrides(self, theta):
         return {"armature": per_group(theta)}
@@ -259,7 +260,7 @@ class JointDampingCause(Cause):
     realistic = ((1.0, 0.3), (4.0, 1.5))
 
     def nominal_theta(self, nominal):
-        return np.maximum(group_means(nominal.joint_damping), self.lower)
+        return np.maximum(group_means(nominal.for_joints(GROUPED_JOINTS).joint_damping), self.lower)
 
     def overrides(self, theta):
         return {"joint_damping": per_group(theta)}
@@ -310,13 +311,16 @@ class DelayCause(Cause):
 
 
 class VelocityScaleCause(Cause):
-    """The logged dq a constant factor times the true velocity (all joints)."""
+    """The logged dq a constant factor times the true velocity (all ``joints`` joints)."""
 
     name = "velocity_scale"
     labels = ("velocity scale",)
     log_scale = (False,)
     lower, upper = (0.7,), (1.4,)
     realistic = ((1.04,), (1.1,))
+
+    def __init__(self, joints: int):
+        self.joints = joints
 
     def nominal_theta(self, nominal):
         return np.array([nominal.sensor_velocity_scale])
@@ -328,20 +332,24 @@ class VelocityScaleCause(Cause):
         return np.array([float(overrides["sensor_velocity_scale"])])
 
     def refined(self):
-        return JointVelocityScaleCause()
+        return JointVelocityScaleCause(self.joints)
 
 
 class JointVelocityScaleCause(Cause):
-    """The logged dq of each joint its own factor times the true velocity: the refinement of
-    ``VelocityScaleCause`` (same name; the global scale folded into the joints' own)."""
+    """The logged dq of each of the ``joints`` joints its own factor times the true velocity: the
+    refinement of ``VelocityScaleCause`` (same name; the global scale folded into the joints' own)."""
 
     name = "velocity_scale"
-    labels = tuple(f"velocity scale joint {j + 1}" for j in range(NQ))
-    log_scale = (False,) * NQ
-    lower, upper = (0.7,) * NQ, (1.4,) * NQ
+
+    def __init__(self, joints: int):
+        self.joints = joints
+        self.labels = tuple(f"velocity scale joint {j + 1}" for j in range(joints))
+        self.log_scale = (False,) * joints
+        self.lower, self.upper = (0.7,) * joints, (1.4,) * joints
 
     def nominal_theta(self, nominal):
-        return nominal.sensor_velocity_scale * np.array(nominal.sensor_joint_velocity_scale, dtype=float)
+        scales = nominal.for_joints(self.joints).sensor_joint_velocity_scale
+        return nominal.sensor_velocity_scale * np.array(scales, dtype=float)
 
     def grid(self, nominal):
         """The nominal scales only: the search starts it from the fitted global scale."""
@@ -351,21 +359,24 @@ class JointVelocityScaleCause(Cause):
         return {"sensor_velocity_scale": 1.0, "sensor_joint_velocity_scale": [float(x) for x in theta]}
 
     def theta_of(self, overrides):
-        joints = overrides.get("sensor_joint_velocity_scale", (1.0,) * NQ)
-        return float(overrides.get("sensor_velocity_scale", 1.0)) * np.array(joints, dtype=float)
+        scales = overrides.get("sensor_joint_velocity_scale", (1.0,) * self.joints)
+        return float(overrides.get("sensor_velocity_scale", 1.0)) * np.array(scales, dtype=float)
 
 
 class TorqueOffsetCause(Cause):
-    """A constant bias of the logged torque, per joint."""
+    """A constant bias of the logged torque, per joint (``joints`` of them)."""
 
     name = "torque_offset"
-    labels = tuple(f"torque offset joint {j + 1} (N m)" for j in range(NQ))
-    log_scale = (False,) * NQ
-    lower, upper = (-5.0,) * NQ, (5.0,) * NQ
-    realistic = ((-1.5,) * NQ, (1.5,) * NQ)
+
+    def __init__(self, joints: int):
+        self.joints = joints
+        self.labels = tuple(f"torque offset joint {j + 1} (N m)" for j in range(joints))
+        self.log_scale = (False,) * joints
+        self.lower, self.upper = (-5.0,) * joints, (5.0,) * joints
+        self.realistic = ((-1.5,) * joints, (1.5,) * joints)
 
     def nominal_theta(self, nominal):
-        return np.array(nominal.sensor_torque_offset, dtype=float)
+        return np.array(nominal.for_joints(self.joints).sensor_torque_offset, dtype=float)
 
     def grid(self, nominal):
         """The nominal offsets only: the torque residual is linear in the offsets, so the fit
@@ -398,8 +409,11 @@ class VelocityFilterCause(Cause):
         return np.array([float(overrides["sensor_velocity_filter"])])
 
 
-def default_causes(surface_friction: float = DEFAULT_WALL.friction, tool: ToolDescription = TOOLS["impact_tip"]) -> list[Cause]:
-    """Every candidate cause, for a surface of friction ``surface_friction`` hit with ``tool``."""
+def default_causes(
+    joints: int, surface_friction: float = DEFAULT_WALL.friction, tool: ToolDescription = TOOLS["impact_tip"]
+) -> list[Cause]:
+    """Every candidate cause, for a robot of ``joints`` joints and a surface of friction
+    ``surface_friction`` hit with ``tool``."""
     return [
         ArmatureCause(),
         PayloadCause(tool),
@@ -408,25 +422,33 @@ def default_causes(surface_friction: float = DEFAULT_WALL.friction, tool: ToolDe
         JointDampingCause(),
         ServoGainCause(),
         DelayCause(),
-        VelocityScaleCause(),
-        TorqueOffsetCause(),
+        VelocityScaleCause(joints),
+        TorqueOffsetCause(joints),
         VelocityFilterCause(),
     ]
 
 
-CAUSE_NAMES = tuple(cause.name for cause in default_causes())
+CAUSE_NAMES = tuple(
+    kind.name for kind in (
+        ArmatureCause, PayloadCause, FrictionCause, ContactCause, JointDampingCause, ServoGainCause, DelayCause,
+        VelocityScaleCause, TorqueOffsetCause, VelocityFilterCause,
+    )
+)
+"""The names of ``default_causes``, in its order."""
 SENSOR_CAUSE_NAMES = ("delay", "velocity_scale", "torque_offset", "velocity_filter")
 PLANT_CAUSE_NAMES = tuple(name for name in CAUSE_NAMES if name not in SENSOR_CAUSE_NAMES)
 
 
-def cause_named(name: str) -> Cause:
+def cause_named(name: str, joints: int) -> Cause:
+    """The cause ``name`` of ``default_causes`` for a robot of ``joints`` joints."""
     name_in(name, CAUSE_NAMES, "the cause")
-    return next(cause for cause in default_causes() if cause.name == name)
+    return next(cause for cause in default_causes(joints) if cause.name == name)
 
 
-def realistic_hidden_effect(name: str, rng: np.random.Generator) -> tuple[dict, list[float]]:
-    """A random realistic value of a cause (uniform in its ``realistic`` range): the plant
-    overrides and the tangential speeds the dataset needs to make the effect observable."""
-    cause = cause_named(name)
+def realistic_hidden_effect(name: str, rng: np.random.Generator, joints: int) -> tuple[dict, list[float]]:
+    """A random realistic value of a cause (uniform in its ``realistic`` range) on a robot of
+    ``joints`` joints: the plant overrides and the tangential speeds the dataset needs to make
+    the effect observable."""
+    cause = cause_named(name, joints)
     theta = rng.uniform(*cause.realistic)
     return cause.overrides(theta), list(cause.tangential_speeds_needed)

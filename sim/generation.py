@@ -31,7 +31,6 @@ from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range, whole_number
 
 from .plant import PlantParameters
@@ -114,7 +113,7 @@ def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
     robot = task.choice.model()
     scene = build_scene(task.surface, task.plant.physical(), robot=task.choice.robot, tool=task.choice.tool)
     spec = planned.spec
-    q_contact = np.clip(spec.q_contact + rng.normal(0.0, START_POSTURE_STD, NQ), robot.q_min, robot.q_max)
+    q_contact = np.clip(spec.q_contact + rng.normal(0.0, START_POSTURE_STD, robot.nq), robot.q_min, robot.q_max)
     distance = spec.start_distance + rng.uniform(-START_DISTANCE_SPREAD, START_DISTANCE_SPREAD)
     log = run_approach(scene, robot, replace(spec, q_contact=q_contact, start_distance=distance))
     log = apply_sensor(log, task.plant, log.control_period)

@@ -1,7 +1,7 @@
 """The whole-body QP as the command source of the simulated G1 trial (docs/floating-base.md,
 "Trials driven by the whole-body QP").
 
-``run_impact_trial(..., source=QpCommand())`` drives the 29 joints with the controller of
+``run_impact_trial(..., source=QpCommand())`` drives the joints with the controller of
 ``controller.qp.whole_body_setup`` instead of the scripted arm command:
 
 - the controller is built for the stance (``WholeBodySetup(surface=the wall, speed=the trial's
@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from impactqp.controller.model.floating_base import NB, FloatingBaseModel
+from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.model.whole_body_terms import WholeBodyModel
@@ -90,7 +90,7 @@ class QpRecord:
     impact_rows_active: list = field(default_factory=list)  # a post-impact velocity row tight at the solution
     capture_rows_active: list = field(default_factory=list)  # a capture-region row tight at the solution
     impact_constraints_on: list = field(default_factory=list)  # the activation rule switched the impact rows on
-    predicted_post_impact: list = field(default_factory=list)  # (35) v_cmd + predicted jump of each cycle
+    predicted_post_impact: list = field(default_factory=list)  # (nv) v_cmd + predicted jump of each cycle
     messages: list = field(default_factory=list)  # the message of each cycle whose status is not OK
 
     def add(self, command: Command) -> None:
@@ -113,7 +113,7 @@ class QpRecord:
 
 
 class QpDriver:
-    """One trial of ``QpCommand``: ``command(t, q, v, stopped)`` -> the 29 joints' dq_cmd."""
+    """One trial of ``QpCommand``: ``command(t, q, v, stopped)`` -> the joints' dq_cmd."""
 
     def __init__(self, controller, feedback: str):
         self.controller, self.feedback = controller, feedback
@@ -125,7 +125,7 @@ class QpDriver:
     def command(self, t: float, q_pin: np.ndarray, v_pin: np.ndarray, stopped: bool) -> np.ndarray:
         step, self._step = self._step, self._step + 1
         if t < SETTLE:
-            return np.zeros(len(v_pin) - NB)
+            return np.zeros(self.controller.robot.joints)
         if self.last is None:
             self.controller.reset(q_pin, v_pin)
             self.record.first_step = step
@@ -135,4 +135,4 @@ class QpDriver:
             self.approach.reference_velocity = np.zeros(3)
         self.last = self.controller.step(q_pin, v_pin)
         self.record.add(self.last)
-        return self.last.dq_cmd[NB:].copy()
+        return self.last.dq_cmd[self.controller.robot.base_nv:].copy()

@@ -65,7 +65,9 @@ def mujoco_urdf(robot: FloatingBaseModel) -> str:
 
 @dataclass
 class HumanoidScene:
-    """A compiled scene, its data and the ids the trials need."""
+    """A compiled scene, its data and the ids the trials need. ``base_nq`` and ``base_nv`` are
+    the sizes of the free joint in qpos (position, quaternion) and qvel (twist), before the
+    joints'."""
 
     model: mujoco.MjModel
     data: mujoco.MjData
@@ -75,33 +77,38 @@ class HumanoidScene:
     floor_geom: int
     foot_bodies: tuple[int, int]
     soles: Soles
+    base_nq: int
+    base_nv: int
 
     def set_state(self, q_pin: np.ndarray) -> None:
         """Reset to the Pinocchio configuration q_pin at rest."""
         mujoco.mj_resetData(self.model, self.data)
-        self.data.qpos[:] = from_pinocchio(q_pin)
+        self.data.qpos[:] = from_pinocchio(q_pin, self.base_nq)
         mujoco.mj_forward(self.model, self.data)
 
 
-def from_pinocchio(q: np.ndarray) -> np.ndarray:
-    """MuJoCo qpos from Pinocchio q: quaternion (x, y, z, w) -> (w, x, y, z)."""
-    return np.concatenate([q[:3], [q[6]], q[3:6], q[7:]])
+def from_pinocchio(q: np.ndarray, base_nq: int) -> np.ndarray:
+    """MuJoCo qpos from Pinocchio q, whose first ``base_nq`` coordinates are the free flyer's
+    position and quaternion: quaternion (x, y, z, w) -> (w, x, y, z)."""
+    quaternion = q[3:base_nq]
+    return np.concatenate([q[:3], quaternion[-1:], quaternion[:-1], q[base_nq:]])
 
 
-def to_pinocchio(qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Pinocchio (q, v) from MuJoCo (qpos, qvel): quaternion reordered, the base's linear
-    velocity turned from world axes into the base frame."""
-    w, x, y, z = qpos[3:7]
-    q = np.concatenate([qpos[:3], [x, y, z, w], qpos[7:]])
+def to_pinocchio(qpos: np.ndarray, qvel: np.ndarray, base_nq: int) -> tuple[np.ndarray, np.ndarray]:
+    """Pinocchio (q, v) from MuJoCo (qpos, qvel), whose first ``base_nq`` coordinates are the free
+    joint's position and quaternion: quaternion reordered, the base's linear velocity turned from
+    world axes into the base frame."""
+    quaternion = qpos[3:base_nq]  # w, x, y, z
+    q = np.concatenate([qpos[:3], quaternion[1:], quaternion[:1], qpos[base_nq:]])
     R = np.empty(9)
-    mujoco.mju_quat2Mat(R, qpos[3:7])
+    mujoco.mju_quat2Mat(R, quaternion)
     v = qvel.copy()
     v[:3] = R.reshape(3, 3).T @ qvel[:3]
     return q, v
 
 
 def plant_armature(robot: FloatingBaseModel, armature=None) -> np.ndarray:
-    """The rotor inertia (kg m^2) of each of the 29 joints: the G1's actuators when ``armature`` is
+    """The rotor inertia (kg m^2) of each of the joints: the G1's actuators when ``armature`` is
     None, else one number for every joint or one per joint (0: the link-only plant)."""
     if armature is None:
         return joint_armature(robot.joint_names)
@@ -158,4 +165,5 @@ def build_humanoid_scene(
         wall_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, WALL_GEOM),
         floor_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR_GEOM),
         foot_bodies=feet, soles=Soles.of(model, feet, FOOT_FRICTION),
+        base_nq=int(model.jnt_qposadr[1]), base_nv=int(model.jnt_dofadr[1]),  # the joints follow the free joint
     )

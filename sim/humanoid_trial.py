@@ -2,8 +2,8 @@
 
 Trial: the robot starts at rest in a stance (``controller.model.humanoid_stance``), the wall
 :data:`GAP` beyond its contact point. It stands still for :data:`SETTLE` s, then the right arm
-(shoulder, elbow, wrist: 7 joints) is driven so that the hand moves along +x at ``speed``:
-dq_arm = J_arm^+ v* (J_arm the 3x7 block of the contact Jacobian), reached by a 20 ms velocity
+(shoulder, elbow, wrist: ``ARM_JOINTS``) is driven so that the hand moves along +x at ``speed``:
+dq_arm = J_arm^+ v* (J_arm the arm joints' block of the contact Jacobian), reached by a 20 ms velocity
 ramp; every other joint is commanded at rest. At the first wall contact (plus a 5 ms detection
 latency) the arm stops: the servo's reference is re-anchored at the measured joint positions, at
 rest (``_Servo.hold``), and the command is zero from then on; the trial goes on for :data:`AFTER` s
@@ -15,11 +15,11 @@ shoulder torques saturate and the reaction jolts the feet (what that stop did: d
 That is the default command source (:data:`SCRIPTED`); ``source`` chooses another one,
 e.g. the whole-body QP (``sim.humanoid_qp_source.QpCommand``): a source gives its start gap, the
 time it may take to reach the wall, and per trial a driver whose ``command(t, q, v, stopped)``
-returns the 29 joints' velocity command (``stopped``: LATENCY has passed since the first contact),
+returns the joints' velocity command (``stopped``: LATENCY has passed since the first contact),
 and whether the servo re-anchors its reference at the stop (``holds_at_stop``).
 
 Servo (the kinematic control, as the arm's ``sim.runner`` servo): a joint-space computed-torque PD
-with acceleration feed-forward on the 29 joints, tau = M_f (ddq_ref + w^2 e + 2 w de) + h_j -
+with acceleration feed-forward on the joints, tau = M_f (ddq_ref + w^2 e + 2 w de) + h_j -
 tau_feet, with M_f = M_jj - M_jb M_bb^-1 M_bj the joints' inertia with the base floating (the
 Schur complement of MuJoCo's M; the plain joint block M_jj overestimates it and makes a stiff servo
 unstable at 1 kHz), h the bias forces, and tau_feet = (Jf^T f)_j
@@ -39,7 +39,7 @@ contact force, the state after it the first control step after that first contig
 ends (at most :data:`WINDOW` s later). The measured impulse is the integral of the wall force over
 that contact, and its peak (``peak_force``: the largest normal wall force of a physics step);
 their ratio is the contact's equivalent duration (``equivalent_duration``, the T of the closed
-form's foot criteria). The jump is compared over the 29 joints with each predictor of
+form's foot criteria). The jump is compared over the joints with each predictor of
 ``controller.model.floating_base`` fed its own impulse, and with the feet-held momentum law fed
 the measured impulse (``momentum``); the error is eq. (26), the mean of |predicted - measured|.
 
@@ -105,7 +105,7 @@ NORMAL = np.array([-1.0, 0.0, 0.0])  # the wall's normal, towards the robot
 
 @dataclass(frozen=True)
 class ImpactTrial:
-    """What one trial measured and predicted (joint jumps over the 29 joints, rad/s)."""
+    """What one trial measured and predicted (joint jumps over the joints, rad/s)."""
 
     stance: str
     speed: float  # commanded hand speed (m/s)
@@ -114,9 +114,9 @@ class ImpactTrial:
     peak_force: float  # largest normal wall force of a physics step during the first contact (N)
     floor_impulse: np.ndarray  # the floor's impulse on the feet over the same window (N s)
     duration: float  # length of the measurement window (s): the first contact
-    measured_jump: np.ndarray  # (35) generalized-velocity jump, Pinocchio convention
+    measured_jump: np.ndarray  # (nv) generalized-velocity jump, Pinocchio convention
     measured_com_jump: np.ndarray  # (3) m/s
-    predicted_jump: dict  # method -> (35)
+    predicted_jump: dict  # method -> (nv)
     predicted_com_jump: dict  # method -> (3)
     predicted_impulse: dict  # method -> (3)
     errors: dict  # method -> eq. (26) over the joints
@@ -128,7 +128,7 @@ class ImpactTrial:
     cop_margin: float  # m: smallest centre-of-pressure margin of a loaded foot in the impact window
     slide_speed: float  # m/s: largest horizontal speed of a touching sole sphere in the impact window
     fell: bool
-    max_velocity_ratio: float  # largest |dq_i| / dq_max_i of the 29 joints after the settling
+    max_velocity_ratio: float  # largest |dq_i| / dq_max_i of the joints after the settling
     max_velocity_joint: str  # the joint where it occurs
     failures: tuple  # every failure seen (FAILURES)
     failure_times: dict  # failure -> s from the first wall contact to its onset (< 0: before it)
@@ -149,7 +149,7 @@ class ImpactTrial:
 
     @property
     def commands(self) -> np.ndarray:
-        """(steps, 29) the joint velocity commands sent to the servo (rad/s): the log's ``dq_cmd``."""
+        """(steps, joints) the joint velocity commands sent to the servo (rad/s): the log's ``dq_cmd``."""
         return self.log.dq_cmd
 
     @property
@@ -177,39 +177,43 @@ class _Servo:
         self.robot = robot
         self.kp, self.kd = gain * gain, 2.0 * gain
         self.tau_max = robot.tau_max
-        self.q_ref = scene.data.qpos[7:].copy()
-        self.dq_ref = np.zeros(29)
+        self.joint_coordinates = slice(scene.base_nq, None)  # the joints' part of qpos
+        self.base, self.joints = slice(scene.base_nv), slice(scene.base_nv, None)  # the free joint's and the joints' qvel
+        self.q_ref = scene.data.qpos[self.joint_coordinates].copy()
+        self.dq_ref = np.zeros(robot.n_joints)
         self._M = np.empty((scene.model.nv, scene.model.nv))
 
     def torque(self, dq_cmd: np.ndarray, dt: float) -> np.ndarray:
         model, data = self.scene.model, self.scene.data
+        base, joints = self.base, self.joints
         acceleration = (dq_cmd - self.dq_ref) / dt
-        acceleration += self.kp * (self.q_ref - data.qpos[7:]) + self.kd * (self.dq_ref - data.qvel[6:])
+        position_error = self.q_ref - data.qpos[self.joint_coordinates]
+        acceleration += self.kp * position_error + self.kd * (self.dq_ref - data.qvel[joints])
         mujoco.mj_fullM(model, data, self._M)
         M = self._M
-        free_base = M[6:, 6:] - M[6:, :6] @ np.linalg.solve(M[:6, :6], M[:6, 6:])
-        tau = free_base @ acceleration + data.qfrc_bias[6:] - self.standing_torques()
+        free_base = M[joints, joints] - M[joints, base] @ np.linalg.solve(M[base, base], M[base, joints])
+        tau = free_base @ acceleration + data.qfrc_bias[joints] - self.standing_torques()
         tau = np.clip(tau, -self.tau_max, self.tau_max)
         self.q_ref += 0.5 * dt * (self.dq_ref + dq_cmd)
         self.dq_ref = dq_cmd.copy()
         return tau
 
     def standing_torques(self) -> np.ndarray:
-        """tau_feet (29): the joint torques of the least-norm foot wrenches carrying the robot's
-        weight in its measured configuration (module docstring)."""
-        terms = self.robot.terms(to_pinocchio(self.scene.data.qpos, self.scene.data.qvel)[0])
-        return terms.Jf[:, 6:].T @ standing_wrenches(self.robot, terms)
+        """tau_feet (one per joint): the joint torques of the least-norm foot wrenches carrying the
+        robot's weight in its measured configuration (module docstring)."""
+        terms = self.robot.terms(to_pinocchio(self.scene.data.qpos, self.scene.data.qvel, self.scene.base_nq)[0])
+        return terms.Jf[:, self.robot.base_nv:].T @ standing_wrenches(self.robot, terms)
 
     def hold(self) -> None:
         """Re-anchor the reference at the measured joint positions, at rest: from now on the servo
         holds the joints where they are (module docstring, the stop)."""
-        self.q_ref = self.scene.data.qpos[7:].copy()
-        self.dq_ref = np.zeros(29)
+        self.q_ref = self.scene.data.qpos[self.joint_coordinates].copy()
+        self.dq_ref = np.zeros(self.robot.n_joints)
 
 
 @dataclass(frozen=True)
 class ScriptedCommand:
-    """The scripted command source (module docstring): the 7 right-arm joints follow
+    """The scripted command source (module docstring): the right-arm joints (``ARM_JOINTS``) follow
     dq_arm = J_arm^+ v* after a RAMP s velocity ramp, every other joint at rest; at the stop
     (LATENCY after the first wall contact) the servo holds the joints where they are and the
     command is zero."""
@@ -229,7 +233,7 @@ class ScriptedCommand:
 
 
 class _ScriptedDriver:
-    """One trial of ``ScriptedCommand``: ``command(t, q, v, stopped)`` -> the 29 joints' dq_cmd."""
+    """One trial of ``ScriptedCommand``: ``command(t, q, v, stopped)`` -> the joints' dq_cmd."""
 
     def __init__(self, robot: FloatingBaseModel, speed: float):
         self.robot, self.speed = robot, speed
@@ -237,11 +241,12 @@ class _ScriptedDriver:
         self.record = None
 
     def command(self, t: float, q_pin: np.ndarray, v_pin: np.ndarray, stopped: bool) -> np.ndarray:
-        dq_cmd = np.zeros(29)
+        dq_cmd = np.zeros(self.robot.n_joints)
         if t >= SETTLE and not stopped:
             terms = self.robot.terms(q_pin)
             scale = min(1.0, (t - SETTLE) / RAMP)
-            dq_cmd[self.arm] = np.linalg.pinv(terms.J[:, 6 + self.arm]) @ (-scale * self.speed * NORMAL)
+            arm = self.robot.base_nv + self.arm  # the arm joints' columns of J
+            dq_cmd[self.arm] = np.linalg.pinv(terms.J[:, arm]) @ (-scale * self.speed * NORMAL)
         return dq_cmd
 
 
@@ -271,7 +276,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     first_contact, stop_at, end = None, None, approach_steps
     k = 0
     while k < end:
-        q_pin, v_pin = to_pinocchio(data.qpos, data.qvel)
+        q_pin, v_pin = to_pinocchio(data.qpos, data.qvel, scene.base_nq)
         states.append((q_pin, v_pin))
         feet.append(data.xpos[list(scene.foot_bodies)].copy())
         dq_cmd = driver.command(k * CONTROL_PERIOD, q_pin, v_pin, stop_at is not None and k >= stop_at)
@@ -282,7 +287,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
         torques.append(tau)
         floor, sole = np.zeros(3), None
         for _ in range(substeps):
-            data.qfrc_applied[6:] = tau
+            data.qfrc_applied[scene.base_nv:] = tau
             mujoco.mj_step(model, data)
             wall_force, floor_force = _contact_forces(scene)
             wall_forces.append(wall_force)
@@ -304,8 +309,11 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     trial = _evaluate(robot, stance, speed, log, first_contact, scene.wall_x)
     q_log, v_log = (np.array(x) for x in zip(*states))
     force_t = np.arange(len(wall_forces)) * model.opt.timestep
-    robot_log = TrialLog(np.arange(k) * CONTROL_PERIOD, q_log[:, 7:], v_log[:, 6:], np.array(torques), np.array(commands),
-                         force_t, walls.reshape(-1, 3), base=np.column_stack([q_log[:, :7], v_log[:, :6]]))
+    base_q, base_v = slice(robot.base_nq), slice(robot.base_nv)
+    joints_q, joints_v = slice(robot.base_nq, None), slice(robot.base_nv, None)
+    robot_log = TrialLog(np.arange(k) * CONTROL_PERIOD, q_log[:, joints_q], v_log[:, joints_v], np.array(torques),
+                         np.array(commands), force_t, walls.reshape(-1, 3),
+                         base=np.column_stack([q_log[:, base_q], v_log[:, base_v]]))
     return replace(trial, source=source.name, record=driver.record, log=robot_log)
 
 
@@ -338,8 +346,8 @@ class _Log:
     soles: np.ndarray  # (steps, 2, 4) sole states (``humanoid_feet``), worst over the step
 
     def velocity_ratios(self, robot: FloatingBaseModel, start: int) -> np.ndarray:
-        """(steps - start, 29): |dq_i| / dq_max_i of every joint at each control step from ``start``."""
-        return np.array([np.abs(v[6:]) / robot.dq_max for _, v in self.states[start:]])
+        """(steps - start, joints): |dq_i| / dq_max_i of every joint at each control step from ``start``."""
+        return np.array([np.abs(v[robot.base_nv:]) / robot.dq_max for _, v in self.states[start:]])
 
     def loaded_before(self, first: int) -> np.ndarray:
         """(2): the feet that carried weight at the control step before ``first`` (the impact's)."""
@@ -374,6 +382,7 @@ def _measured_jumps(robot, log: _Log, first: int, last: int) -> dict:
     terms, post_terms = robot.terms(q_pre), robot.terms(q_post)
     v_minus = terms.J @ v_pre
     measured = v_post - v_pre
+    joints = slice(robot.base_nv, None)
     predicted, com, impulses = {}, {}, {}
     for method in METHODS:
         jump = predict(terms, method, NORMAL, v_minus)
@@ -387,7 +396,7 @@ def _measured_jumps(robot, log: _Log, first: int, last: int) -> dict:
         floor_impulse=log.floor_impulses[first:last + 1].sum(axis=0), duration=(last + 1 - first) * CONTROL_PERIOD,
         measured_jump=measured, measured_com_jump=post_com_velocity - terms.Jcom @ v_pre,
         predicted_jump=predicted, predicted_com_jump=com, predicted_impulse=impulses,
-        errors={m: float(np.mean(np.abs(dv[6:] - measured[6:]))) for m, dv in predicted.items()},
+        errors={m: float(np.mean(np.abs(dv[joints] - measured[joints]))) for m, dv in predicted.items()},
         post_com_velocity=post_com_velocity, capture_margin=capture_margin(robot, q_post, post_com_velocity),
     )
 
@@ -397,7 +406,7 @@ def _failure_flags(robot, log: _Log, first: int, last: int, capture_margin: floa
     start = int(round(SETTLE / CONTROL_PERIOD))
     steps = len(log.states) - start
     base_height = np.array([q[2] for q, _ in log.states])
-    base_up = np.array([pin.Quaternion(q[3:7]).matrix()[2, 2] for q, _ in log.states])
+    base_up = np.array([pin.Quaternion(q[3:robot.base_nq]).matrix()[2, 2] for q, _ in log.states])
     fell = (base_height < 0.5 * base_height[0]) | (base_up < np.cos(np.radians(45.0)))
     if not fell.any():
         fell[-1] = falling_at_the_end(robot, log.states[-1])

@@ -23,8 +23,11 @@ Sensor keys (``sim.sensor.apply_sensor``) act on the logged signals after the si
 the physics: ``sensor_delay`` (control periods, dq and tau late), ``sensor_velocity_scale``
 (logged dq / true dq), ``sensor_torque_offset`` (N m per joint, added to tau) and
 ``sensor_velocity_filter`` (s, time constant of a first-order low-pass on dq) and
-``sensor_joint_velocity_scale`` (7 values, logged dq / true dq per joint, on top of the global
-scale). The defaults are a perfect sensor.
+``sensor_joint_velocity_scale`` (one value per joint, logged dq / true dq per joint, on top of the
+global scale). The defaults are a perfect sensor.
+
+The per-joint vectors (``PER_JOINT``) have one value per joint of the robot the plant is applied
+to; left empty, they hold the nominal value at every joint (``PlantParameters.for_joints``).
 
 Plant parameters are simulation truth: a dataset never records them (``controller.measured.dataset``).
 """
@@ -37,7 +40,6 @@ from pathlib import Path
 
 from impactqp.controller.measured.atomic import write_text_atomic
 from impactqp.controller.model.files import read_mapping
-from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError, finite_vector, number_in_range, vector_in_range
 
 DEFAULT_SOLREF = (0.007, 1.0)
@@ -70,6 +72,11 @@ a servo bandwidth up to 1000 rad/s (the 1 kHz loop); sensors up to 50 ms late, r
 between half and twice the truth, torques off by at most 20 N m (a Panda's small joints carry
 12 N m) and filtering dq with a time constant up to 0.1 s."""
 
+PER_JOINT = {
+    "armature": 0.0, "joint_damping": 0.0, "sensor_torque_offset": 0.0, "sensor_joint_velocity_scale": 1.0,
+}
+"""The per-joint vectors and their nominal value at each joint."""
+
 MAX_SOLREF = (1.0, 10.0)
 """Largest contact time constant (s) and damping ratio of ``contact_solref``."""
 
@@ -78,8 +85,8 @@ MAX_SOLREF = (1.0, 10.0)
 class PlantParameters:
     """Plant parameters (see the module docstring for units and effects); validated on creation."""
 
-    armature: tuple[float, ...] = (0.0,) * NQ
-    joint_damping: tuple[float, ...] = (0.0,) * NQ
+    armature: tuple[float, ...] = ()
+    joint_damping: tuple[float, ...] = ()
     payload_mass: float = 0.0
     payload_com: tuple[float, ...] = (0.0, 0.0, 0.0)
     friction: float | None = None
@@ -88,9 +95,9 @@ class PlantParameters:
     servo_gain: float = DEFAULT_SERVO_GAIN
     sensor_delay: float = 0.0
     sensor_velocity_scale: float = 1.0
-    sensor_torque_offset: tuple[float, ...] = (0.0,) * NQ
+    sensor_torque_offset: tuple[float, ...] = ()
     sensor_velocity_filter: float = 0.0
-    sensor_joint_velocity_scale: tuple[float, ...] = (1.0,) * NQ
+    sensor_joint_velocity_scale: tuple[float, ...] = ()
 
     def __post_init__(self):
         try:
@@ -106,7 +113,7 @@ class PlantParameters:
         def set_(name, value):
             object.__setattr__(self, name, value)
 
-        def vector(name: str, size: int) -> tuple[float, ...]:
+        def vector(name: str, size: int | None) -> tuple[float, ...]:
             low, high, unit = RANGES[name]
             return tuple(vector_in_range(getattr(self, name), size, low, high, name, unit).tolist())
 
@@ -114,8 +121,12 @@ class PlantParameters:
             low, high, unit = RANGES[name]
             return number_in_range(getattr(self, name), low, high, name, unit)
 
-        for name in ("armature", "joint_damping"):
-            set_(name, vector(name, NQ))
+        for name in PER_JOINT:
+            set_(name, vector(name, None))
+        sizes = {name: len(getattr(self, name)) for name in PER_JOINT if getattr(self, name)}
+        if len(set(sizes.values())) > 1:
+            given = ", ".join(f"{name} {size}" for name, size in sizes.items())
+            raise PlantParameterError(f"the per-joint vectors must have one value per joint each, got {given}")
         set_("payload_com", vector("payload_com", 3))
         set_("payload_mass", scalar("payload_mass"))
         if self.friction is not None:
@@ -138,14 +149,25 @@ class PlantParameters:
         set_("servo_gain", scalar("servo_gain"))
         for name in ("sensor_delay", "sensor_velocity_scale", "sensor_velocity_filter"):
             set_(name, scalar(name))
-        set_("sensor_torque_offset", vector("sensor_torque_offset", NQ))
-        set_("sensor_joint_velocity_scale", vector("sensor_joint_velocity_scale", NQ))
+
+    def for_joints(self, joints: int) -> "PlantParameters":
+        """The same plant with ``joints`` values in every per-joint vector (``PER_JOINT``): the
+        nominal value at every joint where it is left empty; a vector of another size is bad
+        input."""
+        filled = {}
+        for name, nominal in PER_JOINT.items():
+            values = getattr(self, name)
+            if not values:
+                filled[name] = (nominal,) * joints
+            elif len(values) != joints:
+                raise PlantParameterError(f"{name} must be {joints} numbers, got shape ({len(values)},)")
+        return replace(self, **filled) if filled else self
 
     def physical(self) -> "PlantParameters":
         """The same plant with a perfect sensor: what the simulation itself needs."""
         return replace(
-            self, sensor_delay=0.0, sensor_velocity_scale=1.0, sensor_torque_offset=(0.0,) * NQ,
-            sensor_velocity_filter=0.0, sensor_joint_velocity_scale=(1.0,) * NQ,
+            self, sensor_delay=0.0, sensor_velocity_scale=1.0, sensor_torque_offset=(),
+            sensor_velocity_filter=0.0, sensor_joint_velocity_scale=(),
         )
 
     # ------------------------------------------------------------------ JSON

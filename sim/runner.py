@@ -47,7 +47,7 @@ from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.validation import BadInputError, approach_speed, finite_vector
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.controller.model.validation import restitution as check_restitution
@@ -122,12 +122,13 @@ class CartesianApproachCommand:
 
 
 class CommandReplay:
-    """Replay a logged sequence of joint-velocity commands, one row per control step."""
+    """Replay a logged sequence of joint-velocity commands of ``joints`` joints, one row per
+    control step."""
 
-    def __init__(self, dq_cmd: np.ndarray):
+    def __init__(self, dq_cmd: np.ndarray, joints: int):
         dq_cmd = np.asarray(dq_cmd, dtype=float)
-        if dq_cmd.ndim != 2 or dq_cmd.shape[1] != NQ or len(dq_cmd) == 0:
-            raise BadInputError(f"a command replay needs an (N, {NQ}) array, got shape {dq_cmd.shape}")
+        if dq_cmd.ndim != 2 or dq_cmd.shape[1] != joints or len(dq_cmd) == 0:
+            raise BadInputError(f"a command replay needs an (N, {joints}) array, got shape {dq_cmd.shape}")
         if not np.all(np.isfinite(dq_cmd)):
             raise BadInputError("the replayed commands contain a non-finite value")
         self.dq_cmd = dq_cmd
@@ -208,10 +209,11 @@ class ComputedTorqueServo:
         self.scene = scene
         self.kp = gain * gain
         self.kd = 2.0 * gain
-        self.q_ref = np.zeros(NQ)
-        self.dq_ref = np.zeros(NQ)
-        self._acceleration = np.zeros(NQ)
-        self._torque = np.zeros(NQ)
+        nv = scene.model.nv
+        self.q_ref = np.zeros(scene.model.nq)
+        self.dq_ref = np.zeros(nv)
+        self._acceleration = np.zeros(nv)
+        self._torque = np.zeros(nv)
 
     def reset(self, q: np.ndarray, dq: np.ndarray) -> None:
         self.q_ref = np.array(q, dtype=float)
@@ -307,14 +309,15 @@ def run_trial(
         raise BadInputError(f"duration {duration} s is shorter than one control period")
     q0 = np.asarray(q0, dtype=float)
     dq0 = np.asarray(dq0, dtype=float)
-    if q0.shape != (NQ,) or dq0.shape != (NQ,):
-        raise BadInputError(f"the start state needs {NQ} joint positions and velocities")
+    nq, nv = scene.model.nq, scene.model.nv
+    if q0.shape != (nq,) or dq0.shape != (nv,):
+        raise BadInputError(f"the start state needs {nq} joint positions and {nv} velocities")
 
     t = np.arange(steps) * control_period
-    q = np.empty((steps, NQ))
-    dq = np.empty((steps, NQ))
-    tau = np.empty((steps, NQ))
-    dq_cmd = np.empty((steps, NQ))
+    q = np.empty((steps, nq))
+    dq = np.empty((steps, nv))
+    tau = np.empty((steps, nv))
+    dq_cmd = np.empty((steps, nv))
     force = np.zeros((steps * substeps, 3))
     force_t = np.arange(steps * substeps) * scene.timestep
     plant.reset(q0, dq0, servo_reference)
@@ -323,8 +326,8 @@ def run_trial(
         q[k] = data.qpos
         dq[k] = data.qvel
         command = np.asarray(source.step(q[k].copy(), dq[k].copy()).dq_cmd, dtype=float)
-        if command.shape != (NQ,) or not np.all(np.isfinite(command)):
-            raise ValueError(f"control step {k}: dq_cmd must be {NQ} finite values, got {command}")
+        if command.shape != (nv,) or not np.all(np.isfinite(command)):
+            raise ValueError(f"control step {k}: dq_cmd must be {nv} finite values, got {command}")
         dq_cmd[k] = command
         tau[k] = plant.advance(command, force[k * substeps : (k + 1) * substeps])
     wall_time = time.perf_counter() - start
@@ -393,7 +396,7 @@ def run_approach(
     """
     q0 = approach_start(robot, spec.q_contact, scene.surface, spec.start_distance)
     approach = CartesianApproachCommand(robot, scene.surface, spec.normal_speed, spec.tangential_velocity)
-    dq0 = np.zeros(NQ) if spec.start_at_rest else approach.step(q0, np.zeros(NQ)).dq_cmd
+    dq0 = np.zeros(robot.nv) if spec.start_at_rest else approach.step(q0, np.zeros(robot.nv)).dq_cmd
     command = approach if source is None else source(q0, dq0)
     if duration is None:
         duration = LAG_ALLOWANCE * spec.start_distance / spec.normal_speed + spec.after_contact

@@ -48,7 +48,7 @@ import mujoco
 import numpy as np
 
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
-from impactqp.controller.model.robot import NQ, TOOL_BODY
+from impactqp.controller.model.robot import TOOL_BODY
 from impactqp.controller.model.robot_description import RobotDescription, model_urdf, robot_description
 from impactqp.controller.model.tool_description import Pad, ToolDescription, tool_description
 
@@ -153,7 +153,7 @@ class Scene:
 
     def mass_matrix(self) -> np.ndarray:
         """The joint-space inertia matrix M (with armature) of the current state."""
-        M = np.empty((NQ, NQ))
+        M = np.empty((self.model.nv, self.model.nv))
         mujoco.mj_fullM(self.model, self.data, M)
         return M
 
@@ -223,8 +223,8 @@ def build_scene(
 ) -> Scene:
     """Build and compile the scene: the robot from its URDF, the tool, the wall, the contact pair
     and the plant."""
-    plant = PlantParameters() if plant is None else plant
     robot, tool = robot_description(robot), tool_description(tool)
+    plant = (PlantParameters() if plant is None else plant).for_joints(len(robot.joints))
     if not (np.isfinite(timestep) and 0.0 < timestep <= 0.5e-3):
         raise BadInputError(f"timestep = {timestep} s must be in (0, 0.5 ms]")
     if plant.contact_solref[0] < 2.0 * timestep:
@@ -254,7 +254,7 @@ def build_scene(
 
     model = spec.compile()
     if tuple(model.joint(i).name for i in range(model.njnt)) != robot.joints:
-        raise RuntimeError(f"the MuJoCo {robot.name} must have exactly the seven arm joints, in order")
+        raise RuntimeError(f"the MuJoCo {robot.name} must have exactly the arm joints {robot.joints}, in order")
     data = mujoco.MjData(model)
     return Scene(
         model=model,

@@ -58,9 +58,10 @@ def has_sensor_effect(plant) -> bool:
     )
 
 
-def velocity_scales(plant) -> np.ndarray:
-    """Logged dq / true dq per joint: the global scale times the joint's own (module docstring)."""
-    return plant.sensor_velocity_scale * np.asarray(plant.sensor_joint_velocity_scale, float)
+def velocity_scales(plant, joints: int) -> np.ndarray:
+    """Logged dq / true dq of each of the ``joints`` joints: the global scale times the joint's
+    own (module docstring)."""
+    return plant.sensor_velocity_scale * np.asarray(plant.for_joints(joints).sensor_joint_velocity_scale, float)
 
 
 def apply_sensor(log: TrialLog, plant, period: float) -> TrialLog:
@@ -68,7 +69,9 @@ def apply_sensor(log: TrialLog, plant, period: float) -> TrialLog:
     is the control period (s)."""
     if not has_sensor_effect(plant):
         return log
+    joints = np.shape(log.dq)[1]
     dq = low_pass(np.asarray(log.dq, float), plant.sensor_velocity_filter, period)
-    dq = velocity_scales(plant) * delayed(dq, plant.sensor_delay)
-    tau = delayed(np.asarray(log.tau, float), plant.sensor_delay) + np.asarray(plant.sensor_torque_offset)
+    dq = velocity_scales(plant, joints) * delayed(dq, plant.sensor_delay)
+    offset = np.asarray(plant.for_joints(joints).sensor_torque_offset)
+    tau = delayed(np.asarray(log.tau, float), plant.sensor_delay) + offset
     return replace(log, dq=dq, tau=tau)

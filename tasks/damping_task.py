@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.controller.model.robot import NQ, ModelTerms
+from impactqp.controller.model.robot import ModelTerms
 
 from .posture_task import joint_pd_rows
 from .task import Task
@@ -12,8 +12,8 @@ from impactqp.controller.model.validation import BadInputError, task_gain
 
 
 class DampingTask(Task):
-    """ddq = -gain dq as rows I ddq = b, one per velocity (``variables``: 7 for the arm, 35
-    for the standing humanoid's base and joints).
+    """ddq = -gain dq as rows I ddq = b, one per velocity (``variables``: the model's nv, the
+    arm's joints or the standing humanoid's base and joints).
 
     With gain 0 it is a pure Tikhonov regularisation of ddq; with gain > 0 it also damps the
     joint velocity, which keeps the redundant motion of the arm from drifting. It makes the
@@ -21,9 +21,8 @@ class DampingTask(Task):
     """
 
     name = "damping"
-    rows = NQ
 
-    def __init__(self, gain: float = 1.0, weight: float = 1e-4, variables: int = NQ):
+    def __init__(self, variables: int, gain: float = 1.0, weight: float = 1e-4):
         if not task_gain(weight, "damping weight") > 0.0:
             raise BadInputError("the damping task weight must be > 0")
         self.gain = task_gain(gain, "damping gain")

@@ -5,14 +5,15 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from impactqp.controller.model.robot import NQ, ModelTerms
-from impactqp.controller.model.validation import finite_vector, task_gain
+from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.validation import BadInputError, finite_vector, task_gain
 
 from .task import Task, critical_damping
 
 
 class PostureTask(Task):
-    """ddq = kp (q* - q) - kd dq as ``joints`` rows (7 for the arm), kd = 2 sqrt(kp) by default.
+    """ddq = kp (q* - q) - kd dq as ``joints`` rows (one per actuated joint; the size of
+    ``target`` when ``joints`` is left out), kd = 2 sqrt(kp) by default.
 
     The actuated joints are the last ``joints`` entries of q and of the velocity (a floating
     base's coordinates come first), so the rows are [0 I] ddv = b: on the arm, I ddq = b. A
@@ -21,13 +22,14 @@ class PostureTask(Task):
     """
 
     name = "posture"
-    rows = NQ
 
     def __init__(
         self, target=None, stiffness: float = 10.0, damping: float | None = None, weight: float = 1e-2,
-        joints: int = NQ,
+        joints: int | None = None,
     ):
-        self.rows = int(joints)
+        if joints is None and target is None:
+            raise BadInputError("a posture task needs its target or its number of joints")
+        self.rows = len(finite_vector(target, None, "posture target")) if joints is None else int(joints)
         self.target = None if target is None else finite_vector(target, self.rows, "posture target")
         self._target_configured = self.target is not None
         self.stiffness = task_gain(stiffness, "posture stiffness")

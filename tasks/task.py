@@ -47,7 +47,7 @@ class Task:
         """Capture the targets that were left unspecified from the state ``terms``."""
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        """Write the rows A (rows x number of velocities: 7 for the arm) and b of this state."""
+        """Write the rows A (rows x number of velocities) and b of this state."""
         raise NotImplementedError
 
     def compute(self, terms: ModelTerms) -> TaskRows:

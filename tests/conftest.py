@@ -10,8 +10,8 @@ from impactqp.controller.measured.humanoid_format import g1_model
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.postures import DEFAULT_WALL
-from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT, PandaModel
+from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, VELOCITY_LIMIT, PandaModel
+from impactqp.controller.model.robot_description import PANDA, ROBOTS
 from impactqp.controller.model.tool_description import TOOLS
 from impactqp.controller.runtime.interface import RobotInterface
 from impactqp.scenarios.run import RunRequest, run
@@ -28,6 +28,12 @@ if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
 
 CONTROL_PERIOD = 1e-3
 LIMIT_TOLERANCE = 1e-9
+JOINTS = len(PANDA.joints)
+ARMS = [name for name in ROBOTS if not ROBOTS[name].floating]
+"""The built-in fixed-base arms (the descriptions whose base is fixed)."""
+FRANKA_ARMS = [name for name in ARMS if ROBOTS[name].finger_joints]
+"""The built-in arms carrying the Franka Hand (the Panda's kinematic chain and postures)."""
+"""The joints of the robot the tests drive (``PandaModel()``, the ``robot`` fixture)."""
 
 
 @pytest.fixture(scope="session")
@@ -39,7 +45,7 @@ def joint_positions(margin: float = 0.1):
     """Hypothesis strategy: q uniformly inside the joint limits, ``margin`` rad from each."""
     model = PandaModel()
     lo, hi = model.q_min + margin, model.q_max - margin
-    return st.lists(st.floats(0.0, 1.0), min_size=7, max_size=7).map(lambda u: lo + np.array(u) * (hi - lo))
+    return st.lists(st.floats(0.0, 1.0), min_size=model.nq, max_size=model.nq).map(lambda u: lo + np.array(u) * (hi - lo))
 
 
 def unit_vectors():
@@ -94,7 +100,7 @@ def retract_run(tmp_path_factory):
 
 def assert_continuous_within_limits(dq_cmd):
     """Velocity, acceleration and jerk of commands sent from rest stay inside the datasheet limits."""
-    dq = np.vstack([np.zeros((2, NQ)), dq_cmd])
+    dq = np.vstack([np.zeros((2, np.shape(dq_cmd)[1])), dq_cmd])
     ddq = np.diff(dq, axis=0) / CONTROL_PERIOD
     jerk = np.diff(ddq, axis=0) / CONTROL_PERIOD
     assert np.all(np.isfinite(dq))
@@ -109,7 +115,7 @@ DATASET_HEADER = DatasetHeader(TOOLS["impact_tip"], DEFAULT_WALL, 1e-3)
 @pytest.fixture(scope="session")
 def dataset_logs():
     """Two simulated trials (elbow_left, 0.1 and 0.15 m/s) of a plant with armature, by speed."""
-    scene = build_scene(plant=PlantParameters(armature=[0.2] * 7))
+    scene = build_scene(plant=PlantParameters(armature=[0.2] * JOINTS))
     return {
         speed: run_approach(scene, PandaModel(), TrialSpec("elbow_left", PANDA.postures["elbow_left"].q, speed, after_contact=0.05))
         for speed in (0.1, 0.15)

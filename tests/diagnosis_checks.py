@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from conftest import JOINTS
 from impactqp.controller.measured.impact import POST_HALF_WIDTH, PRE_SAMPLES
-from impactqp.controller.model.robot import NQ
 from impactqp.sim.diagnosis.noise import BlockNoise
 from impactqp.sim.diagnosis.trials import MeasuredTrial, ReplayFeatures
 from impactqp.sim.plant import PlantParameters
@@ -50,25 +50,25 @@ def synthetic_trial(rng: np.random.Generator, *, force: bool = True, speed: floa
         posture=posture,
         reference_speed=speed,
         tangential_speed=0.0,
-        q0=rng.normal(size=NQ),
-        dq0=rng.normal(size=NQ),
-        servo_reference=(rng.normal(size=NQ), rng.normal(size=NQ)),
-        dq_cmd=rng.normal(size=(samples, NQ)),
+        q0=rng.normal(size=JOINTS),
+        dq0=rng.normal(size=JOINTS),
+        servo_reference=(rng.normal(size=JOINTS), rng.normal(size=JOINTS)),
+        dq_cmd=rng.normal(size=(samples, JOINTS)),
         control_period=1e-3,
-        jump=rng.normal(size=NQ),
+        jump=rng.normal(size=JOINTS),
         impulse=rng.normal(size=3) if force else None,
         duration=float(rng.uniform(1e-3, 1e-2)) if force else None,
-        torque=rng.normal(size=NQ),
-        q_pre=rng.normal(size=NQ),
-        dq_pre=rng.normal(size=NQ),
+        torque=rng.normal(size=JOINTS),
+        q_pre=rng.normal(size=JOINTS),
+        dq_pre=rng.normal(size=JOINTS),
         torque_window=(5, 15),
-        dq_log=rng.normal(size=(samples, NQ)),
-        tau_log=rng.normal(size=(samples, NQ)),
+        dq_log=rng.normal(size=(samples, JOINTS)),
+        tau_log=rng.normal(size=(samples, JOINTS)),
         jump_samples=(pre, post),
-        scatter=(rng.uniform(1e-6, 1e-4, NQ), rng.uniform(1e-4, 1e-2, NQ)),
+        scatter=(rng.uniform(1e-6, 1e-4, JOINTS), rng.uniform(1e-4, 1e-2, JOINTS)),
         force_period=2.5e-4 if force else None,
-        noise=BlockNoise(rng.uniform(1e-3, 1e-2, NQ), rng.uniform(1e-2, 0.1, NQ), rng.uniform(1e-3, 1e-2, 3), 3e-4,
-                         rng.uniform(1e-3, 1e-2, 2 * NQ)),
+        noise=BlockNoise(rng.uniform(1e-3, 1e-2, JOINTS), rng.uniform(1e-2, 0.1, JOINTS), rng.uniform(1e-3, 1e-2, 3), 3e-4,
+                         rng.uniform(1e-3, 1e-2, 2 * JOINTS)),
     )
 
 

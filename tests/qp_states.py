@@ -2,6 +2,7 @@
 
 import numpy as np
 
+from conftest import JOINTS
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.max_speed import approach_direction
@@ -42,12 +43,12 @@ def random_feasible_state(robot, rng, models, restitution):
     """Random posture, random approach velocity, shrunk until the state keeps every limit."""
     span = robot.q_max - robot.q_min
     while True:
-        q = robot.q_min + span * rng.uniform(0.15, 0.85, 7)
+        q = robot.q_min + span * rng.uniform(0.15, 0.85, JOINTS)
         try:
             terms = robot.terms(q)
         except SingularPostureError:
             continue
-        dq = rng.uniform(0.0, 0.3) * approach_direction(terms, NORMAL) + rng.uniform(-0.05, 0.05, 7)
+        dq = rng.uniform(0.0, 0.3) * approach_direction(terms, NORMAL) + rng.uniform(-0.05, 0.05, JOINTS)
         for _ in range(20):
             if state_satisfies_the_limits(robot, robot.terms(q, dq), models, restitution):
                 return q, dq

@@ -3,7 +3,7 @@
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import unit_vectors
+from conftest import JOINTS, unit_vectors
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -21,7 +21,7 @@ def kinematics(robot):
 @given(seed=st.integers(0, 2**31), n=unit_vectors(), cr=st.floats(0.0, 1.0))
 def test_batch_equals_single_state_predictions(robot, kinematics, seed, n, cr):
     rng = np.random.default_rng(seed)
-    Q = rng.uniform(robot.q_min + 0.1, robot.q_max - 0.1, (20, 7))
+    Q = rng.uniform(robot.q_min + 0.1, robot.q_max - 0.1, (20, JOINTS))
     v_minus = -0.15 * n + 0.04 * np.cross(n, [0.0, 0.0, 1.0])
     for method in METHODS:
         dq, impulse = predict_batch(kinematics, Q, n, v_minus, cr, method)
@@ -32,7 +32,7 @@ def test_batch_equals_single_state_predictions(robot, kinematics, seed, n, cr):
 
 
 def test_batch_terms_match_pinocchio(robot, kinematics):
-    Q = np.random.default_rng(1).uniform(robot.q_min, robot.q_max, (10, 7))
+    Q = np.random.default_rng(1).uniform(robot.q_min, robot.q_max, (10, JOINTS))
     terms = kinematics.terms(Q)
     data = robot.model.createData()
     for i, q in enumerate(Q):
@@ -44,7 +44,7 @@ def test_batch_terms_match_pinocchio(robot, kinematics):
 
 
 def test_batch_contact_frames_match_pinocchio(robot, kinematics):
-    Q = np.random.default_rng(2).uniform(robot.q_min, robot.q_max, (10, 7))
+    Q = np.random.default_rng(2).uniform(robot.q_min, robot.q_max, (10, JOINTS))
     points, axes, J6 = kinematics.contact_frames(Q)
     for i, q in enumerate(Q):
         frame = robot.contact_frame(q)
@@ -54,7 +54,7 @@ def test_batch_contact_frames_match_pinocchio(robot, kinematics):
 
 
 def test_batch_with_measured_impulses(robot, kinematics):
-    Q = np.random.default_rng(2).uniform(robot.q_min + 0.1, robot.q_max - 0.1, (5, 7))
+    Q = np.random.default_rng(2).uniform(robot.q_min + 0.1, robot.q_max - 0.1, (5, JOINTS))
     impulses = np.random.default_rng(3).normal(size=(5, 3))
     n = np.array([-1.0, 0.0, 0.0])
     for method in METHODS:
@@ -69,13 +69,13 @@ def test_batch_rejects_bad_input(kinematics):
     with pytest.raises(ValueError, match="shape"):
         kinematics.terms(np.zeros((3, 6)))
     with pytest.raises(ValueError, match="non-finite"):
-        kinematics.terms(np.full((2, 7), np.nan))
+        kinematics.terms(np.full((2, JOINTS), np.nan))
     with pytest.raises(ValueError, match="unknown method"):
-        predict_batch(kinematics, np.zeros((1, 7)), [1, 0, 0], [-1, 0, 0], 0.0, "magic")
+        predict_batch(kinematics, np.zeros((1, JOINTS)), [1, 0, 0], [-1, 0, 0], 0.0, "magic")
 
 
 def test_batch_refuses_bad_normals_and_restitution_like_the_single_state_predictors(kinematics):
-    q = np.zeros((2, 7))
+    q = np.zeros((2, JOINTS))
     for normals in ([0.0, 0.0, 0.0], [[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]], [np.nan, 0.0, 1.0], [1.0, 0.0]):
         with pytest.raises(BadInputError, match="normals"):
             predict_batch(kinematics, q, normals, [-0.1, 0, 0], 0.0, "crb")
@@ -87,7 +87,7 @@ def test_batch_refuses_bad_normals_and_restitution_like_the_single_state_predict
 def test_rows_of_batch_terms_equal_the_terms_of_those_states(robot):
     """Selecting states from evaluated terms gives what evaluating those states gives."""
     kinematics = BatchKinematics(robot)
-    Q = np.random.default_rng(3).uniform(robot.q_min, robot.q_max, (6, 7))
+    Q = np.random.default_rng(3).uniform(robot.q_min, robot.q_max, (6, JOINTS))
     terms = kinematics.terms(Q)
     terms.M  # computed before the selection: it comes along
     keep = np.array([True, False, True, True, False, True])

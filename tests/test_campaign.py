@@ -6,6 +6,7 @@ import json
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot_description import PANDA
@@ -54,7 +55,7 @@ def test_bad_plans_are_rejected(changes, message):
 
 def row(classical, crb):
     errors = {m: 1.0 for m in METHODS} | {"classical": classical, "crb": crb}
-    return TableRow("t", "p", 0.1, 0.0, 0.1, errors, np.zeros(7), {m: np.zeros(7) for m in METHODS})
+    return TableRow("t", "p", 0.1, 0.0, 0.1, errors, np.zeros(JOINTS), {m: np.zeros(JOINTS) for m in METHODS})
 
 
 def test_crb_reduction_is_relative_to_classical():
@@ -109,8 +110,8 @@ def test_figures_are_png(campaign_dir):
 def posture_rows(posture, scale, seed):
     rng = np.random.default_rng(seed)
     return [
-        TableRow(f"{posture}{k}", posture, v, 0.0, v, {m: 0.1 for m in METHODS}, scale * rng.normal(size=7),
-                 {m: scale * rng.random(7) for m in METHODS})
+        TableRow(f"{posture}{k}", posture, v, 0.0, v, {m: 0.1 for m in METHODS}, scale * rng.normal(size=JOINTS),
+                 {m: scale * rng.random(JOINTS) for m in METHODS})
         for k, v in enumerate((0.1, 0.15))
     ]
 

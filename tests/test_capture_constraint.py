@@ -3,7 +3,7 @@
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from whole_body_states import NORMAL, approach_velocity, robot, standing_states, wall_ahead
+from whole_body_states import NORMAL, approach_velocity, robot, standing_states, upright, wall_ahead
 
 from impactqp.constraints import ControlCycle
 from impactqp.constraints.capture_constraint import CaptureRegionLimit
@@ -26,8 +26,8 @@ def test_rows_hold_exactly_when_the_post_impact_com_velocity_is_capturable(state
     terms = model.terms(q, v)
     polygon = support_polygon(model.base, q)
     limit = CaptureRegionLimit(FloatingExpectedImpact(wall_ahead(q), method, always_active=True), polygon)
-    rows = limit.compute(terms, ControlCycle(0.001, np.full(35, -1e9), np.full(35, 1e9), H))
-    dv = np.random.default_rng(seed).normal(scale=200.0, size=35)
+    rows = limit.compute(terms, ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), H))
+    dv = np.random.default_rng(seed).normal(scale=200.0, size=model.nv)
     v_next = v + dv * H
     base = model.base.terms(q)
     dc_plus = post_impact_com_velocity(base, method, NORMAL, base.J @ v_next, base.Jcom @ v_next)
@@ -38,7 +38,7 @@ def test_rows_hold_exactly_when_the_post_impact_com_velocity_is_capturable(state
 
 def test_rows_are_unbounded_while_no_impact_is_coming():
     model = robot()
-    q = model.terms(np.r_[0, 0, 0.7, 0, 0, 0, 1, np.zeros(29)]).q
+    q = model.terms(upright()).q
     limit = CaptureRegionLimit(FloatingExpectedImpact(wall_ahead(q, 0.8)), np.array([[0, 0], [1, 0], [0, 1.0]]))
-    rows = limit.compute(model.terms(q), ControlCycle(0.001, np.full(35, -1.0), np.full(35, 1.0), H))
+    rows = limit.compute(model.terms(q), ControlCycle(0.001, np.full(model.nv, -1.0), np.full(model.nv, 1.0), H))
     assert limit.rows == 3 and np.all(rows.upper == np.inf)

@@ -5,6 +5,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from conftest import JOINTS
 from impactqp.sim.causes import (
     CAUSE_NAMES,
     ArmatureCause,
@@ -18,10 +19,11 @@ from impactqp.sim.causes import (
     per_group,
 )
 from impactqp.sim.plant import PlantParameters
+from impactqp.sim.sensor import velocity_scales
 from impactqp.controller.model.validation import BadInputError
 
 
-@pytest.mark.parametrize("cause", default_causes() + [JointVelocityScaleCause()], ids=lambda c: c.name + str(len(c.labels)))
+@pytest.mark.parametrize("cause", default_causes(JOINTS) + [JointVelocityScaleCause(JOINTS)], ids=lambda c: c.name + str(len(c.labels)))
 def test_cause_round_trips_and_builds_valid_plants(cause):
     nominal = PlantParameters()
     lo, hi = cause.u_bounds()
@@ -37,7 +39,7 @@ def test_cause_round_trips_and_builds_valid_plants(cause):
         assert changed <= set(overrides)
 
 
-@pytest.mark.parametrize("cause", default_causes(), ids=lambda c: c.name)
+@pytest.mark.parametrize("cause", default_causes(JOINTS), ids=lambda c: c.name)
 def test_overrides_read_back_and_realistic_ranges_lie_inside_the_bounds(cause):
     lo, hi = np.array(cause.realistic[0]), np.array(cause.realistic[1])
     assert np.all(np.array(cause.lower) <= lo) and np.all(lo < hi) and np.all(hi <= np.array(cause.upper))
@@ -47,7 +49,7 @@ def test_overrides_read_back_and_realistic_ranges_lie_inside_the_bounds(cause):
 
 def test_nominal_value_is_inside_the_bounds():
     nominal = PlantParameters()
-    for cause in default_causes():
+    for cause in default_causes(JOINTS):
         theta = cause.nominal_theta(nominal)
         assert np.all(theta >= np.array(cause.lower)) and np.all(theta <= np.array(cause.upper))
 
@@ -62,7 +64,7 @@ def test_every_issue_cause_is_a_candidate():
 def test_sensor_causes_change_only_sensor_keys_and_leave_the_physics_alone():
     nominal = PlantParameters()
     for name in ("delay", "velocity_scale", "torque_offset", "velocity_filter"):
-        cause = cause_named(name)
+        cause = cause_named(name, JOINTS)
         lo, hi = cause.u_bounds()
         plant = cause.plant(nominal, 0.3 * lo + 0.7 * hi)
         assert all(key.startswith("sensor_") for key in cause.overrides(cause.to_theta(lo)))
@@ -72,7 +74,7 @@ def test_sensor_causes_change_only_sensor_keys_and_leave_the_physics_alone():
 @given(st.lists(st.floats(0.0, 10.0, allow_nan=False), min_size=2, max_size=2))
 def test_group_values_round_trip(values):
     joints = per_group(values)
-    assert len(joints) == 7 and joints[:4] == [values[0]] * 4 and joints[4:] == [values[1]] * 3
+    assert len(joints) == JOINTS and joints[:4] == [values[0]] * 4 and joints[4:] == [values[1]] * 3
     np.testing.assert_allclose(group_means(joints), values)
 
 
@@ -93,7 +95,7 @@ def test_payload_fits_mass_and_centre_of_mass():
     assert all(len(p) == 4 for p in cause.grid(PlantParameters()))
 
 
-@pytest.mark.parametrize("cause", default_causes(), ids=lambda c: c.name)
+@pytest.mark.parametrize("cause", default_causes(JOINTS), ids=lambda c: c.name)
 def test_grid_starts_at_the_nominal_value_inside_the_bounds(cause):
     lo, hi = cause.u_bounds()
     grid = cause.grid(PlantParameters())
@@ -106,22 +108,21 @@ def test_grid_starts_at_the_nominal_value_inside_the_bounds(cause):
 
 def test_a_cause_is_found_by_its_name_and_an_unknown_name_is_bad_input():
     for name in CAUSE_NAMES:
-        assert cause_named(name).name == name
+        assert cause_named(name, JOINTS).name == name
     with pytest.raises(BadInputError, match="the cause = 'gravity'; choose from armature"):
-        cause_named("gravity")
+        cause_named("gravity", JOINTS)
 
 
 @given(st.floats(0.7, 1.4))
 def test_the_joint_velocity_scale_refines_the_global_one_and_starts_where_it_ends(scale):
     """The refinement keeps the cause's name, and the global scale read as joint scales builds the
     same sensor (every joint at the global value)."""
-    coarse = VelocityScaleCause()
+    coarse = VelocityScaleCause(JOINTS)
     finer = coarse.refined()
     assert isinstance(finer, JointVelocityScaleCause) and finer.name == coarse.name
     theta = finer.theta_of(coarse.overrides(np.array([scale])))
     np.testing.assert_allclose(theta, scale)
     a = PlantParameters(**coarse.overrides(np.array([scale])))
     b = PlantParameters(**finer.overrides(theta))
-    np.testing.assert_allclose(a.sensor_velocity_scale * np.array(a.sensor_joint_velocity_scale),
-                               b.sensor_velocity_scale * np.array(b.sensor_joint_velocity_scale))
-    assert all(c.refined() is None for c in default_causes() if c.name != "velocity_scale")
+    np.testing.assert_allclose(velocity_scales(a, JOINTS), velocity_scales(b, JOINTS))
+    assert all(c.refined() is None for c in default_causes(JOINTS) if c.name != "velocity_scale")

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED
@@ -28,7 +29,7 @@ def test_postures_json(capsys):
     assert [r["name"] for r in rows] == list(PANDA.postures)
     for r in rows:
         assert {"name", "q", "contact_point", "normal"} <= set(r)
-        assert len(r["q"]) == 7 and len(r["contact_point"]) == 3
+        assert len(r["q"]) == JOINTS and len(r["contact_point"]) == 3
         assert np.linalg.norm(r["normal"]) == pytest.approx(1.0)
 
 
@@ -82,7 +83,7 @@ def test_contact_points_are_written_with_four_decimals(capsys, command):
     "args, message",
     [
         (["--q", "0,0,0,-1,0,1.5,nan"], "non-finite"),
-        (["--q", "0,0,0,-1,0,1.5"], "7 values"),
+        (["--q", "0,0,0,-1,0,1.5"], f"{JOINTS} values"),
         (["--q", "0,0,0,-5,0,1.5,0"], "outside the joint limits"),
         (["--q", "-0.63343,3e-05,1.5708,-0.467,0.0,3.01097,2.8973"], "singular"),
         (["--posture", "nowhere"], "unknown posture"),

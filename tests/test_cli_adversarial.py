@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from conftest import JOINTS
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.sweep.config import EXAMPLE as SWEEP_EXAMPLE
 
@@ -99,7 +100,7 @@ def nested_manifest(directory: Path) -> None:
 ROWS = [
     # predict
     (["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "1e308", "--json"], None, 2, "m/s"),
-    (["predict", "--q", "0,0,0", "--normal", "-1,0,0", "--speed", "0.1"], None, 2, "7 values"),
+    (["predict", "--q", "0,0,0", "--normal", "-1,0,0", "--speed", "0.1"], None, 2, f"{JOINTS} values"),
     (["predict", "--posture", "elbow_up", "--normal", "0,0,0", "--speed", "0.1"], None, 2, "non-zero"),
     (["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1", "--tangential", "0.1,0,0"],
      None, 2, "orthogonal"),

@@ -7,9 +7,11 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from impactqp.controller.measured.dataset import read_dataset
+from impactqp.controller.measured.humanoid_format import g1_model
 from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.cli.exit_codes import EXIT_BAD_INPUT
@@ -31,12 +33,12 @@ def test_predict_g1_json(capsys):
     assert {"q", "contact_point", "normal", "pre_impact_velocity", "restitution", "cond_M", "methods"} <= set(report)
     assert set(report["methods"]) == {"classical", "gm", "crb"}
     for entry in report["methods"].values():
-        assert len(entry["dq_jump"]) == 35 and len(entry["feet_impulse"]) == 12
+        assert len(entry["dq_jump"]) == g1_model().model.nv and len(entry["feet_impulse"]) == 12
         assert np.asarray(entry["impulse"]) @ [-1.0, 0.0, 0.0] > 0.0
 
 
 def test_predict_g1_takes_a_configuration(capsys):
-    q = ",".join(["0"] * 6 + ["1"] + ["0"] * 29)
+    q = ",".join(f"{x:g}" for x in pin.neutral(g1_model().model))  # the base at the origin, upright
     code, out, _ = run(capsys, "predict", "--robot", "g1", "--q", q, "--normal", "-1,0,0", "--speed", "0.2",
                        "--method", "gm", "--json")
     assert code == 0 and list(json.loads(out)["methods"]) == ["gm"]
@@ -48,7 +50,7 @@ def test_simulate_g1_json(capsys):
     report = json.loads(out)
     assert {"contact_speed", "impulse", "dq_jump", "predicted", "errors", "foot_slip", "foot_lift", "fell",
             "max_velocity_ratio", "first_failure", "violated"} <= set(report)
-    assert len(report["dq_jump"]) == 35 and report["violated"] is False
+    assert len(report["dq_jump"]) == g1_model().model.nv and report["violated"] is False
 
 
 def test_simulate_g1_driven_by_the_whole_body_qp(capsys):
@@ -100,7 +102,7 @@ def test_simulate_g1_out_adds_the_trial_to_a_g1_dataset(capsys, tmp_path):
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
     data = read_dataset(tmp_path)
     assert data.header.robot == "g1" and [t.entry.id for t in data.trials] == ["close_vn200_scripted"]
-    assert data.trials[0].log.q.shape[1] == 29 and data.trials[0].log.has_force
+    assert data.trials[0].log.q.shape[1] == g1_model().n_joints and data.trials[0].log.has_force
     code, out, _ = run(capsys, "dataset", "validate", str(tmp_path))
     assert code == 0 and "0 problem(s) in 1 trial(s)" in out
 

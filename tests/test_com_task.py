@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from whole_body_states import integrate, robot, standing_states
+from whole_body_states import integrate, robot, standing_states, upright
 
 from impactqp.controller.model.validation import BadInputError
 from impactqp.tasks.com_task import CentreOfMassTask
@@ -39,7 +39,7 @@ def test_rows_ask_for_the_pd_acceleration_of_the_centre_of_mass(state, kp, kd):
 
 
 def test_reset_captures_the_current_centre_of_mass_and_bad_gains_are_refused():
-    terms = robot().terms(np.r_[0, 0, 0.7, 0, 0, 0, 1, np.zeros(29)])
+    terms = robot().terms(upright())
     task = CentreOfMassTask()
     task.reset(terms)
     np.testing.assert_array_equal(task.target, terms.com)

@@ -4,7 +4,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT
+from conftest import JOINTS
+from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, VELOCITY_LIMIT
 from impactqp.controller.runtime.command_filter import CommandFilter
 
 DT = 1e-3
@@ -26,9 +27,9 @@ def assert_within_limits(commands, start):
 
 requests = st.lists(
     st.one_of(
-        st.lists(st.floats(-100.0, 100.0), min_size=NQ, max_size=NQ),
-        st.just([float("nan")] * NQ),
-        st.just([float("inf")] * NQ),
+        st.lists(st.floats(-100.0, 100.0), min_size=JOINTS, max_size=JOINTS),
+        st.just([float("nan")] * JOINTS),
+        st.just([float("inf")] * JOINTS),
     ),
     min_size=1,
     max_size=120,
@@ -41,11 +42,11 @@ def test_adversarial_requests_never_exceed_the_limits(sequence, hold):
     command_filter = make_filter()
     commands = [command_filter(np.array(request)) for request in sequence for _ in range(hold)]
     assert np.all(np.isfinite(commands))
-    assert_within_limits(np.array(commands), np.zeros(NQ))
+    assert_within_limits(np.array(commands), np.zeros(JOINTS))
 
 
 @settings(max_examples=100, deadline=None)
-@given(st.lists(st.floats(-1.0, 1.0), min_size=NQ, max_size=NQ), requests)
+@given(st.lists(st.floats(-1.0, 1.0), min_size=JOINTS, max_size=JOINTS), requests)
 def test_from_any_velocity_inside_the_limits_adversarial_requests_never_exceed_them(fraction, sequence):
     # the loop starts the filter at the measured velocity, with zero acceleration
     start = np.array(fraction) * VELOCITY_LIMIT
@@ -56,7 +57,7 @@ def test_from_any_velocity_inside_the_limits_adversarial_requests_never_exceed_t
 
 
 @settings(max_examples=50, deadline=None)
-@given(st.lists(st.floats(-1.0, 1.0), min_size=NQ, max_size=NQ))
+@given(st.lists(st.floats(-1.0, 1.0), min_size=JOINTS, max_size=JOINTS))
 def test_a_feasible_constant_request_is_reached_exactly_without_overshoot(fraction):
     target = np.array(fraction) * VELOCITY_LIMIT
     command_filter = make_filter()

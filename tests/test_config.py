@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.config import ControllerConfig, TaskConfig, build_controller, post_impact_config
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.controller.model.robot_description import PANDA
@@ -104,7 +105,7 @@ def test_default_approach_configuration(robot):
         "joint_acceleration_limit", "joint_position_limit", "joint_velocity_limit", "joint_torque_limit",
         "post_impact_velocity[crb]", "impulsive_torque[crb]",
     }
-    command = controller.step(PANDA.postures["elbow_up"].q, np.zeros(7))
+    command = controller.step(PANDA.postures["elbow_up"].q, np.zeros(JOINTS))
     assert command.status == "ok"
 
 

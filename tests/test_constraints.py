@@ -6,6 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from reference.constraints import reference_normal_motion, reference_recoverable, reference_rows
 
+from conftest import JOINTS
 from impactqp.constraints import (
     AccelerationLimit,
     ControlCycle,
@@ -29,7 +30,7 @@ SEEDS = st.integers(0, 2**32 - 1)
 
 
 def cycle(robot, previous_ddq=None):
-    previous = np.zeros(7) if previous_ddq is None else previous_ddq
+    previous = np.zeros(JOINTS) if previous_ddq is None else previous_ddq
     return ControlCycle.after(previous, DT, robot.ddq_max, robot.dddq_max)
 
 
@@ -37,9 +38,9 @@ def random_state(robot, rng, speed=0.5):
     """A random non-singular state inside the limits; speed is the fraction of dq_max."""
     span = robot.q_max - robot.q_min
     while True:
-        q = robot.q_min + span * rng.uniform(0.1, 0.9, 7)
+        q = robot.q_min + span * rng.uniform(0.1, 0.9, JOINTS)
         try:
-            return robot.terms(q, rng.uniform(-speed, speed, 7) * robot.dq_max)
+            return robot.terms(q, rng.uniform(-speed, speed, JOINTS) * robot.dq_max)
         except SingularPostureError:
             continue
 
@@ -66,7 +67,7 @@ def test_velocity_box_is_the_commanded_velocity_limit(robot, seed):
     terms = random_state(robot, rng, speed=0.99)
     rows = VelocityLimit(robot.dq_max).compute(terms, cycle(robot))
     assert np.all(rows.lower <= rows.upper)
-    for ddq in rng.uniform(rows.lower, rows.upper, (5, 7)):
+    for ddq in rng.uniform(rows.lower, rows.upper, (5, JOINTS)):
         assert np.all(np.abs(terms.dq + ddq * DT) <= robot.dq_max + 1e-12)
 
 
@@ -86,9 +87,9 @@ def test_position_limit_stops_every_joint_before_its_limit(robot, joint):
     acceleration, velocity = AccelerationLimit(), VelocityLimit(robot.dq_max)
     q = 0.5 * (robot.q_min + robot.q_max)
     q[joint] = robot.q_max[joint] - 0.5  # inside the braking horizon at full speed
-    dq = np.zeros(7)
+    dq = np.zeros(JOINTS)
     dq[joint] = robot.dq_max[joint]
-    ddq = np.zeros(7)
+    ddq = np.zeros(JOINTS)
     for _ in range(1500):
         terms = robot.terms(q, dq)
         c = cycle(robot, ddq)
@@ -110,7 +111,7 @@ def test_torque_rows_are_the_inverse_dynamics_limits(robot, seed):
     rng = np.random.default_rng(seed)
     terms = random_state(robot, rng)
     rows = TorqueLimit(robot.tau_max).compute(terms, cycle(robot))
-    for ddq in rng.uniform(-30.0, 30.0, (20, 7)):
+    for ddq in rng.uniform(-30.0, 30.0, (20, JOINTS)):
         tau = terms.M @ ddq + terms.h
         within = np.all(np.abs(tau) <= robot.tau_max)
         assert within == inside(rows, ddq) or np.min(np.abs(np.abs(tau) - robot.tau_max)) < 1e-6
@@ -125,13 +126,13 @@ def surface_ahead(terms, gap=0.05):
 @pytest.mark.parametrize("restitution", [0.0, 0.5])
 def test_impact_matrices_match_the_jump_models(robot, name, restitution):
     """A = K G J and P = J^T G J of the expected impact, from the predictor's G and K."""
-    terms = robot.terms(PANDA.postures["elbow_right"].q, np.full(7, 0.1))
+    terms = robot.terms(PANDA.postures["elbow_right"].q, np.full(JOINTS, 0.1))
     surface = surface_ahead(terms)
     matrices = ExpectedImpact(surface, name, restitution).matrices(terms)
     model = jump_model(name)
     maps = model.maps(terms, surface.normal, restitution)
     assert np.allclose(matrices.jump_matrix, maps.K @ maps.G @ terms.J, atol=1e-10)
-    dq = np.linspace(-0.5, 0.5, 7)
+    dq = np.linspace(-0.5, 0.5, JOINTS)
     impulse = model.predict(terms, surface.normal, terms.J @ dq, restitution).impulse
     assert np.allclose(matrices.torque_matrix @ dq, terms.J.T @ impulse, atol=1e-10)
 
@@ -146,13 +147,13 @@ def test_impact_rows_are_the_post_impact_velocity_and_impulsive_torque_limits(ro
     terms = random_state(robot, rng, speed=0.2)
     surface = surface_ahead(terms)
     impact = ExpectedImpact(surface, name, restitution=0.3, always_active=True)
-    c = ControlCycle.after(np.zeros(7), DT, 1e6 * robot.ddq_max, 1e9 * robot.dddq_max)
+    c = ControlCycle.after(np.zeros(JOINTS), DT, 1e6 * robot.ddq_max, 1e9 * robot.dddq_max)
     c = ControlCycle(DT, c.acceleration_lower, c.acceleration_upper, cycle(robot).horizon)
     velocity_rows = PostImpactVelocityLimit(impact, robot.dq_max).compute(terms, c)
     torque_rows = ImpulsiveTorqueLimit(impact, robot.tau_max, robot.dq_max, 0.015).compute(terms, c)
     model = jump_model(name)
     assert c.horizon == pytest.approx(max(DT, np.max(robot.ddq_max / robot.dddq_max)))
-    for ddq in rng.uniform(-200.0, 200.0, (20, 7)):
+    for ddq in rng.uniform(-200.0, 200.0, (20, JOINTS)):
         pre = terms.dq + ddq * c.horizon
         prediction = model.predict(terms, surface.normal, terms.J @ pre, 0.3)
         post_ratio = np.max(np.abs(pre + prediction.dq_jump) / robot.dq_max)
@@ -205,20 +206,22 @@ def test_activation_rule(robot):
 
 
 @settings(max_examples=50, deadline=None)
-@given(previous=st.lists(st.floats(-1.0, 1.0), min_size=7, max_size=7))
+@given(previous=st.lists(st.floats(-1.0, 1.0), min_size=JOINTS, max_size=JOINTS))
 def test_advancing_the_cycle_in_place_equals_a_new_cycle(robot, previous):
     """ControlCycle.advance (the controller's in-place update) gives the interval of after()."""
     previous = np.array(previous) * robot.ddq_max
     expected = ControlCycle.after(previous, DT, robot.ddq_max, robot.dddq_max)
-    c = ControlCycle.after(np.zeros(7), DT, robot.ddq_max, robot.dddq_max)
+    c = ControlCycle.after(np.zeros(JOINTS), DT, robot.ddq_max, robot.dddq_max)
     c.advance(previous, robot.ddq_max, robot.dddq_max * DT)
     np.testing.assert_array_equal(c.acceleration_lower, expected.acceleration_lower)
     np.testing.assert_array_equal(c.acceleration_upper, expected.acceleration_upper)
 
 
 def _rows_of(constraint, terms, c, reference):
-    C = None if constraint.is_box else np.full((constraint.rows, 7), np.nan)
-    lower, upper = np.full(constraint.rows, np.nan), np.full(constraint.rows, np.nan)
+    n = terms.dq.shape[0]  # one column per velocity; a box bounds each
+    size = n if constraint.is_box else constraint.rows
+    C = None if constraint.is_box else np.full((constraint.rows, n), np.nan)
+    lower, upper = np.full(size, np.nan), np.full(size, np.nan)
     if reference:
         reference_rows(constraint, terms, c, C, lower, upper)
     else:
@@ -235,7 +238,7 @@ def test_compiled_rows_equal_the_numpy_reference(robot, seed, jump, always, rest
     kernel."""
     rng = np.random.default_rng(seed)
     terms = random_state(robot, rng)
-    c = cycle(robot, rng.uniform(-0.5, 0.5, 7) * robot.ddq_max)
+    c = cycle(robot, rng.uniform(-0.5, 0.5, JOINTS) * robot.ddq_max)
     surface = Surface(terms.contact_point - rng.uniform(0.0, 0.2) * np.array([-1.0, 0.0, 0.0]), [-1.0, 0.0, 0.0])
     impact = ExpectedImpact(surface, jump, restitution, always_active=always)
     constraints = [
@@ -289,22 +292,24 @@ def test_impact_model_checks_its_inputs_with_the_validation_module(keyword, valu
 
 
 def test_joint_limit_boxes_on_a_floating_base_bound_the_trailing_joints_only():
-    """Position and velocity limits with 29 limits and 35 velocities: the base's six entries are
-    unbounded, the joints' equal the same limits applied to the joints alone."""
+    """Position and velocity limits with one limit per joint and the base's velocities besides:
+    the base's entries are unbounded, the joints' equal the same limits applied to the joints
+    alone."""
     from whole_body_states import approach_velocity, robot, stance
 
     model = robot()
     q = stance("staggered")
     v = approach_velocity(q, 0.5)
     terms = model.terms(q, v)
-    wide = ControlCycle(0.001, np.full(35, -1e9), np.full(35, 1e9), 0.0025)
-    narrow = ControlCycle(0.001, np.full(29, -1e9), np.full(29, 1e9), 0.0025)
+    wide = ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), 0.0025)
+    narrow = ControlCycle(0.001, np.full(model.joints, -1e9), np.full(model.joints, 1e9), 0.0025)
+    base = model.base_nv
 
     class Joints:  # the joints' part of the state, as the arm's terms
-        q, dq = terms.q[7:], terms.dq[6:]
+        q, dq = terms.q[model.base_nq:], terms.dq[base:]
 
     for box in (PositionLimit(model.q_min, model.q_max, model.ddq_max), VelocityLimit(model.dq_max)):
         full, joints = box.compute(terms, wide), box.compute(Joints, narrow)
-        assert np.all(full.lower[:6] == -1e9) and np.all(full.upper[:6] == 1e9)
-        np.testing.assert_array_equal(full.lower[6:], joints.lower)
-        np.testing.assert_array_equal(full.upper[6:], joints.upper)
+        assert np.all(full.lower[:base] == -1e9) and np.all(full.upper[:base] == 1e9)
+        np.testing.assert_array_equal(full.lower[base:], joints.lower)
+        np.testing.assert_array_equal(full.upper[base:], joints.upper)

@@ -24,7 +24,7 @@ from impactqp.controller.measured.impact import measure_impact
 from impactqp.sim.humanoid_dataset import HEADER
 from impactqp.sim.plant import PlantParameters
 
-from conftest import DATASET_HEADER, dataset_entry, file_digests, g1_dataset, g1_log
+from conftest import DATASET_HEADER, JOINTS, dataset_entry, file_digests, g1_dataset, g1_log
 
 
 def test_round_trip(dataset, dataset_logs):
@@ -50,7 +50,7 @@ def test_manifest_holds_what_a_robot_log_holds_and_no_plant_parameter(dataset):
         if name != "friction":  # the surface's friction is part of the format
             assert name not in text
     header = (dataset / "fast.csv").read_text().splitlines()[0].split(",")
-    assert header[:2] == ["t", "q1"] and header[-1] == "dq_cmd7" and len(header) == 29
+    assert header[:2] == ["t", "q1"] and header[-1] == f"dq_cmd{JOINTS}" and len(header) == 1 + 4 * JOINTS
     assert (dataset / "fast_force.csv").read_text().startswith("t,fx,fy,fz\n")
     assert not [p for p in dataset.iterdir() if p.name.endswith(".tmp")]
 

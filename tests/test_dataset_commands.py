@@ -9,7 +9,7 @@ import pytest
 from impactqp.scenarios.cli import main
 from impactqp.sim.plant import PlantParameters
 
-from conftest import g1_dataset
+from conftest import JOINTS, g1_dataset
 
 
 def run(capsys, *args):
@@ -22,7 +22,7 @@ def run(capsys, *args):
 def small_dataset(tmp_path_factory):
     out = tmp_path_factory.mktemp("data") / "armature"
     plant = tmp_path_factory.mktemp("plant") / "plant.json"
-    plant.write_text(json.dumps({"armature": [0.5] * 7}))
+    plant.write_text(json.dumps({"armature": [0.5] * JOINTS}))
     assert main(["dataset", "generate", str(out), "--plant", str(plant), "--postures", "elbow_up,elbow_left",
                  "--speeds", "0.1,0.18", "--seed", "2", "--json"]) == 0
     return out

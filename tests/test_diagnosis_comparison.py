@@ -8,6 +8,7 @@ from diagnosis_checks import synthetic_trial
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import JOINTS
 from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot_description import PANDA
@@ -45,7 +46,7 @@ def test_a_predictor_that_made_the_measured_jumps_has_no_error():
     rng = np.random.default_rng(5)
     q = PANDA.postures["elbow_up"].q
     trials = [synthetic_trial(rng, force=force) for force in (True, False)]
-    trials = [replace(t, q_pre=q + rng.normal(0.0, 0.01, 7), dq_pre=rng.normal(0.0, 0.1, 7)) for t in trials]
+    trials = [replace(t, q_pre=q + rng.normal(0.0, 0.01, JOINTS), dq_pre=rng.normal(0.0, 0.1, JOINTS)) for t in trials]
     _, _, predictions = predictor_errors(trials, ReplaySetting(DEFAULT_WALL))
     for method in METHODS:
         made = [replace(t, jump=jump) for t, jump in zip(trials, predictions[method])]

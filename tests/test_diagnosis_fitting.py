@@ -8,6 +8,7 @@ from diagnosis_checks import exact_features, synthetic_trial
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import JOINTS
 from impactqp.sim.causes import ArmatureCause, FrictionCause, PayloadCause
 from impactqp.sim.diagnosis.fitting import (
     FittedCauses,
@@ -44,13 +45,13 @@ def test_a_replay_that_reproduces_the_trials_leaves_no_residual(seed, forces):
 @settings(max_examples=30, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.lists(st.booleans(), min_size=1, max_size=6), st.floats(-1.0, 1.0))
 def test_a_jump_offset_shows_in_the_jump_residuals_and_errors_only(seed, forces, offset):
-    """Each trial's block starts with its 7 jump residuals: (jump error) / its noise std; the
+    """Each trial's block starts with its jump residuals (one per joint): (jump error) / its noise std; the
     jump block alone misfits, by |offset| / noise in root mean square."""
     trials = trials_of(seed, forces)
     features = [replace(exact_features(t), jump=t.reference + offset) for t in trials]
     r = residuals(features, trials)
     starts = np.concatenate([[0], np.cumsum(residual_sizes(trials))[:-1]])
-    jump_rows = np.concatenate([np.arange(s, s + 7) for s in starts])
+    jump_rows = np.concatenate([np.arange(s, s + JOINTS) for s in starts])
     np.testing.assert_allclose(r[jump_rows], np.concatenate([offset / t.noise.jump for t in trials]), rtol=1e-9, atol=1e-9)
     np.testing.assert_array_equal(np.delete(r, jump_rows), 0.0)
     np.testing.assert_allclose(jump_errors(features, trials), abs(offset), rtol=1e-9, atol=1e-12)
@@ -63,7 +64,7 @@ def test_a_jump_offset_shows_in_the_jump_residuals_and_errors_only(seed, forces,
 @settings(max_examples=30, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.lists(st.booleans(), min_size=1, max_size=6), st.floats(-1.0, 1.0))
 def test_a_trace_offset_shows_in_the_trace_block_only(seed, forces, offset):
-    """Each trial's residuals end with its velocity trace (samples x 7) over the trace noise; a
+    """Each trial's residuals end with its velocity trace (samples x joints) over the trace noise; a
     trace that is off leaves the jump error (26) and every other block untouched."""
     trials = trials_of(seed, forces)
     features = [replace(exact_features(t), trace=t.reference_trace + offset) for t in trials]

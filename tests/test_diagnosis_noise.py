@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import JOINTS
 from impactqp.controller.measured.impact import PRE_SAMPLES
 from impactqp.sim.causes import ArmatureCause, JointDampingCause
 from impactqp.sim.diagnosis import diagnose
@@ -64,9 +65,9 @@ def test_a_trace_sample_adds_the_replay_timing_times_its_slope_to_the_sensor_noi
     """Flat before ``onset``, a ramp after it: flat samples keep the sensor std, ramp samples
     (away from its ends) add REPLAY_TIMING_SAMPLES x slope in quadrature; never below the sensor."""
     rng = np.random.default_rng(seed)
-    sensor = rng.uniform(1e-4, 1e-2, 7)
+    sensor = rng.uniform(1e-4, 1e-2, JOINTS)
     steps = np.maximum(np.arange(16) - onset, 0.0)
-    trace = np.outer(steps, slope * rng.uniform(0.5, 1.0, 7))
+    trace = np.outer(steps, slope * rng.uniform(0.5, 1.0, JOINTS))
     std = trace_std(trace, sensor)
     assert std.shape == trace.shape and np.all(std >= sensor)
     np.testing.assert_allclose(std[: onset - 1], np.broadcast_to(sensor, std[: onset - 1].shape))

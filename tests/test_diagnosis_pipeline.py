@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from diagnosis_checks import POSTURES, SPEEDS, check_contract, tolerance
 
+from conftest import JOINTS
 from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.validation import BadInputError
 from impactqp.sim.causes import PLANT_CAUSE_NAMES, FrictionCause, cause_named, realistic_hidden_effect
@@ -19,7 +20,7 @@ from impactqp.sim.plant import PlantParameters
 def test_hidden_effect_is_found(tmp_path, cause):
     """One realistic effect hidden (per group for armature and damping): it alone is named and
     every fitted parameter recovered."""
-    overrides, tangential = realistic_hidden_effect(cause, np.random.default_rng(sum(map(ord, cause))))
+    overrides, tangential = realistic_hidden_effect(cause, np.random.default_rng(sum(map(ord, cause))), JOINTS)
     plant = PlantParameters(**overrides)
     generate_dataset(tmp_path, DatasetRequest(plant=plant, postures=POSTURES, speeds=SPEEDS, tangential=tangential, seed=7))
     steps = []
@@ -27,7 +28,7 @@ def test_hidden_effect_is_found(tmp_path, cause):
     assert steps == list(STEPS)  # every step announced once, in order
     assert result["causes"] == [cause], result["steps"]
     assert result["cause"] == cause and result["explained"]
-    fitted = cause_named(cause)
+    fitted = cause_named(cause, JOINTS)
     truth = fitted.theta_of(overrides)
     assert np.all(np.abs(fitted.theta_of(result["parameters"]) - truth) <= tolerance(fitted, truth))
     assert result["gain_over_floor"] >= EXPLAINED_GAIN and result["fit"]["fits_noise"]

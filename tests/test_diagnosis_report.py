@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import JOINTS
 from impactqp.controller.measured.impact import POST_HALF_WIDTH, PRE_SAMPLES
 from impactqp.scenarios.diagnosis_report import (
     NEAR_ZERO_STDS,
@@ -95,7 +96,7 @@ def noisy_trial(rng, sigma, jump, samples=60, pre=40):
     """A trial whose velocities ramp smoothly, carry white noise ``sigma`` and jump by ``jump``
     after sample ``pre``."""
     t = np.arange(samples)[:, None]
-    dq = 0.01 * t + 1e-4 * t**2 + rng.normal(0.0, sigma, (samples, 7)) + (t > pre) * jump
+    dq = 0.01 * t + 1e-4 * t**2 + rng.normal(0.0, sigma, (samples, JOINTS)) + (t > pre) * jump
     return SimpleNamespace(dq_log=dq, jump_samples=(pre, pre + 2), jump=np.asarray(jump, float))
 
 
@@ -103,9 +104,9 @@ def noisy_trial(rng, sigma, jump, samples=60, pre=40):
 @given(st.floats(min_value=1e-3, max_value=0.05), st.integers(min_value=0, max_value=1000))
 def test_jump_noise_is_the_sample_noise_of_the_means_a_jump_takes(sigma, seed):
     rng = np.random.default_rng(seed)
-    diagnosis = SimpleNamespace(trials=[noisy_trial(rng, sigma, np.zeros(7)) for _ in range(30)])
+    diagnosis = SimpleNamespace(trials=[noisy_trial(rng, sigma, np.zeros(JOINTS)) for _ in range(30)])
     expected = sigma * np.sqrt(1.0 / PRE_SAMPLES + 1.0 / (2 * POST_HALF_WIDTH + 1))
-    assert jump_noise_std(diagnosis) == pytest.approx(np.full(7, expected), rel=0.15)
+    assert jump_noise_std(diagnosis) == pytest.approx(np.full(JOINTS, expected), rel=0.15)
 
 
 def test_near_zero_jumps_are_those_within_the_noise():

@@ -6,6 +6,7 @@ from diagnosis_checks import synthetic_trial
 from hypothesis import given
 from hypothesis import strategies as st
 
+from conftest import JOINTS
 from impactqp.controller.model.choice import DEFAULT_CHOICE
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.sim.diagnosis import EXPLAINED_GAIN, Diagnosis, interval_text
@@ -38,7 +39,7 @@ def diagnosis(explained: bool, baseline: float, extended: float, open_sides: lis
     causes = ["friction"] if explained else []
     parameter = {"cause": "friction", "parameter": "friction coefficient", "value": 0.3, "interval": [0.2, None]}
     return Diagnosis(
-        trials=trials, skipped=[], nominal_jumps=np.zeros((2, 7)), extended_jumps=np.zeros((2, 7)),
+        trials=trials, skipped=[], nominal_jumps=np.zeros((2, JOINTS)), extended_jumps=np.zeros((2, JOINTS)),
         baseline_errors=np.array([baseline, baseline]), candidates=[], cause="friction", explained=explained,
         parameters={"friction": 0.3}, predictors={}, predictors_measured_impulse={}, predictions={}, analysis={},
         causes=causes, steps=[], intervals={"friction": [0.2, None]}, parameter_intervals=[parameter],

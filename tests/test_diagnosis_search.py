@@ -7,6 +7,7 @@ from diagnosis_checks import POSTURES, SPEEDS, check_contract, inside, tolerance
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import JOINTS
 from impactqp.sim.causes import (
     ArmatureCause,
     FrictionCause,
@@ -81,15 +82,15 @@ def test_one_joints_velocity_scale_is_named_with_that_joint(tmp_path):
     joints = [1.0, 1.0, 1.0, 1.12, 1.0, 1.0, 1.0]
     plant = PlantParameters(sensor_joint_velocity_scale=joints)
     generate_dataset(tmp_path, DatasetRequest(plant=plant, seed=6, **SMALL))
-    candidates = [ArmatureCause(), JointDampingCause(), TorqueOffsetCause(), VelocityScaleCause()]
+    candidates = [ArmatureCause(), JointDampingCause(), TorqueOffsetCause(JOINTS), VelocityScaleCause(JOINTS)]
     result = diagnose(tmp_path, causes=candidates, jobs=2).summary()
     assert result["causes"] == ["velocity_scale"] and result["explained"], result["steps"]
     scale = next(c for c in result["candidates"] if c["cause"] == "velocity_scale")
     assert "sensor_joint_velocity_scale" in scale["parameters"]  # refined in the first step
     intervals = [p["interval"] for p in result["parameter_intervals"]]
-    assert len(intervals) == 7 and inside(1.12, intervals[3]) and not inside(1.0, intervals[3])
+    assert len(intervals) == JOINTS and inside(1.12, intervals[3]) and not inside(1.0, intervals[3])
     values = [p["value"] for p in result["parameter_intervals"]]
-    others = [j for j in range(7) if j != 3]
+    others = [j for j in range(JOINTS) if j != 3]
     assert all(abs(values[j] - 1.0) < 0.1 for j in others), values
     assert sum(not inside(1.0, intervals[j]) for j in others) <= 1, intervals
     check_contract(result)

@@ -9,6 +9,7 @@ from diagnosis_checks import POSTURES, SPEEDS
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import JOINTS
 from impactqp.controller.measured.impact import PRE_SAMPLES
 
 from impactqp.controller.measured.dataset import read_dataset
@@ -26,7 +27,7 @@ from impactqp.sim.sensor import delayed
 def test_replay_in_the_generating_plant_reproduces_the_jumps(tmp_path, robot, tool):
     """A noise-free trial replayed in the plant that made it gives back its own jump: the replay
     simulates the robot and the tool of the manifest."""
-    plant = PlantParameters(armature=[0.3] * 7)
+    plant = PlantParameters(armature=[0.3] * JOINTS)
     choice = RobotChoice.of(robot, tool)
     request = DatasetRequest(
         plant=plant, postures=["elbow_left"], speeds=[0.15], noise_dq=0.0, noise_tau=0.0, choice=choice
@@ -49,11 +50,11 @@ def test_a_late_sensor_shifts_the_trace_and_leaves_its_pre_impact_mean(seed, lat
     trace puts the velocities' beside the torques'."""
     rng = np.random.default_rng(seed)
     pre = PRE_SAMPLES + 8
-    dq = np.tile(rng.normal(size=7), (pre + TRACE_LENGTH + 10, 1))
+    dq = np.tile(rng.normal(size=JOINTS), (pre + TRACE_LENGTH + 10, 1))
     rise = pre + 1 + onset
-    dq[rise:] += np.cumsum(rng.uniform(0.0, 0.1, size=(len(dq) - rise, 7)), axis=0)
+    dq[rise:] += np.cumsum(rng.uniform(0.0, 0.1, size=(len(dq) - rise, JOINTS)), axis=0)
     trace, late_trace = trace_at(dq, pre), trace_at(delayed(dq, late), pre)
-    assert trace.shape == (TRACE_LENGTH, 7)
+    assert trace.shape == (TRACE_LENGTH, JOINTS)
     np.testing.assert_allclose(late_trace[late:], trace[:-late], atol=1e-12)
     np.testing.assert_allclose(late_trace[: onset + late], 0.0, atol=1e-12)
     both = impact_trace(dq, 2.0 * dq, pre)

@@ -158,7 +158,8 @@ def test_jumps_do_not_depend_on_the_world_frame(humanoid, q, n, s, axis, angle, 
     in the base frame, joint rates) is unchanged; impulses and CoM jumps turn with R."""
     X = pin.SE3(pin.exp3(angle * axis), np.array(shift))
     moved = q.copy()
-    moved[:7] = pin.SE3ToXYZQUAT(X * pin.XYZQUATToSE3(q[:7]))
+    base = slice(humanoid.base_nq)  # position and quaternion
+    moved[base] = pin.SE3ToXYZQUAT(X * pin.XYZQUATToSE3(q[base]))
     terms, mterms = humanoid.terms(q), humanoid.terms(moved)
     R = X.rotation
     v_minus = approach(n, 0.2, s)

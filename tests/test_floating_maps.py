@@ -7,7 +7,7 @@ from conftest import unit_vectors
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from reference.whole_body import feet_held_pinv
-from whole_body_states import robot, standing_states
+from whole_body_states import robot, standing_states, upright
 
 from impactqp.controller.model.capture import com_jump_map
 from impactqp.controller.model.floating_base import METHODS, predict
@@ -45,6 +45,6 @@ def test_feet_held_pinv_is_a_right_inverse_that_keeps_the_feet_still(state):
 
 
 def test_unknown_method_is_refused():
-    terms = robot().terms(np.r_[0, 0, 0.7, 0, 0, 0, 1, np.zeros(29)])
+    terms = robot().terms(upright())
     with pytest.raises(BadInputError):
         floating_jump_maps(terms, "robust", np.array([-1.0, 0, 0]), 0.0)

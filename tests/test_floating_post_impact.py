@@ -3,7 +3,7 @@
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from whole_body_states import NORMAL, approach_velocity, robot, standing_states, wall_ahead
+from whole_body_states import NORMAL, approach_velocity, robot, standing_states, upright, wall_ahead
 
 from impactqp.constraints import ControlCycle
 from impactqp.constraints.floating_impact import FloatingExpectedImpact
@@ -25,10 +25,10 @@ def test_rows_hold_exactly_when_the_predicted_post_impact_joint_velocities_are_i
     v = v + approach_velocity(q, speed)
     terms = model.terms(q, v)
     limit = FloatingPostImpactVelocityLimit(FloatingExpectedImpact(wall_ahead(q), method, always_active=True), model.dq_max)
-    rows = limit.compute(terms, ControlCycle(0.001, np.full(35, -1e9), np.full(35, 1e9), H))
-    dv = np.random.default_rng(seed).normal(scale=2000.0, size=35)
+    rows = limit.compute(terms, ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), H))
+    dv = np.random.default_rng(seed).normal(scale=2000.0, size=model.nv)
     v_next = v + dv * H
-    post = (v_next + predict(model.base.terms(q), method, NORMAL, terms.J @ v_next).dv)[6:]
+    post = (v_next + predict(model.base.terms(q), method, NORMAL, terms.J @ v_next).dv)[model.base_nv:]
     inside_rows = np.all(rows.C @ dv <= rows.upper + 1e-9) and np.all(rows.C @ dv >= rows.lower - 1e-9)
     margin = np.min(model.dq_max - np.abs(post))
     if abs(margin) > 1e-6:
@@ -37,8 +37,8 @@ def test_rows_hold_exactly_when_the_predicted_post_impact_joint_velocities_are_i
 
 
 def test_rows_are_unbounded_while_no_impact_is_coming():
-    q = robot().terms(np.r_[0, 0, 0.7, 0, 0, 0, 1, np.zeros(29)]).q
+    q = robot().terms(upright()).q
     model = robot()
     limit = FloatingPostImpactVelocityLimit(FloatingExpectedImpact(wall_ahead(q, 0.8)), model.dq_max)
-    rows = limit.compute(model.terms(q), ControlCycle(0.001, np.full(35, -1.0), np.full(35, 1.0), H))
+    rows = limit.compute(model.terms(q), ControlCycle(0.001, np.full(model.nv, -1.0), np.full(model.nv, 1.0), H))
     assert np.all(rows.lower == -np.inf) and np.all(rows.upper == np.inf)

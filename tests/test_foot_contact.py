@@ -17,10 +17,11 @@ def test_any_acceleration_on_the_rows_keeps_the_feet_twists(state):
     order: (Jf(q + v eps)(v + dv eps) - Jf(q - v eps)(v - dv eps)) / (2 eps) -> 0."""
     _, q, v = state
     terms = robot().terms(q, v)
-    rows = FootContact().compute(terms, ControlCycle(0.001, np.zeros(35), np.zeros(35), 0.001))
+    nv = robot().nv
+    rows = FootContact().compute(terms, ControlCycle(0.001, np.zeros(nv), np.zeros(nv), 0.001))
     np.testing.assert_array_equal(rows.lower, rows.upper)
     rng = np.random.default_rng(0)
-    dv = np.linalg.lstsq(rows.C, rows.lower, rcond=None)[0] + (np.eye(35) - np.linalg.pinv(rows.C) @ rows.C) @ rng.normal(size=35)
+    dv = np.linalg.lstsq(rows.C, rows.lower, rcond=None)[0] + (np.eye(nv) - np.linalg.pinv(rows.C) @ rows.C) @ rng.normal(size=nv)
     ahead = robot().terms(integrate(q, v, EPS)).Jf @ (v + dv * EPS)
     behind = robot().terms(integrate(q, v, -EPS)).Jf @ (v - dv * EPS)
     np.testing.assert_allclose((ahead - behind) / (2 * EPS), 0.0, atol=1e-5 * (1 + np.abs(dv).max()))

@@ -7,10 +7,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from conftest import assert_continuous_within_limits
+from conftest import JOINTS, assert_continuous_within_limits
 from impactqp.controller.config import ControllerConfig
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 from impactqp.controller.runtime.command_filter import CommandFilter
@@ -33,7 +33,7 @@ STATISTICS_ATTRIBUTES = ("control_command_success_rate", "last_motion_errors", "
 def franka_like_state(t):
     """An object with RobotState's attribute names (RobotState has no Python constructor)."""
     rng = np.random.default_rng(1)
-    values = {name: list(rng.normal(size=NQ)) for name in READ_ATTRIBUTES[1:]}
+    values = {name: list(rng.normal(size=JOINTS)) for name in READ_ATTRIBUTES[1:]}
     return SimpleNamespace(time=t, O_F_ext_hat_K=[0.0] * 6, **values), values
 
 
@@ -55,11 +55,11 @@ def test_state_mapping(t):
 
 
 def test_command_mapping_builds_real_joint_velocities():
-    dq = np.linspace(-0.3, 0.3, NQ)
+    dq = np.linspace(-0.3, 0.3, JOINTS)
     command = franka_command(pylibfranka, dq)
     assert isinstance(command, pylibfranka.JointVelocities)
     assert np.allclose(command.dq, dq) and not command.motion_finished
-    assert franka_command(pylibfranka, np.zeros(NQ), finished=True).motion_finished
+    assert franka_command(pylibfranka, np.zeros(JOINTS), finished=True).motion_finished
 
 
 def test_a_reflex_is_named_by_the_flags_of_the_real_errors_class():
@@ -100,14 +100,14 @@ class FciRobot:
     ``readOnce``. Its method names are checked against the real classes below."""
 
     def __init__(self, q0, events):
-        self.q, self.dq, self.t, self.events = np.array(q0, float), np.zeros(NQ), 0.0, events
+        self.q, self.dq, self.t, self.events = np.array(q0, float), np.zeros(JOINTS), 0.0, events
         self.running = self.finished = self.read_pending = False
         self.commands = []
         self.success_rate, self.skip_every = 1.0, None
 
     def _state(self):
         t = self.t
-        zeros = [0.0] * NQ
+        zeros = [0.0] * JOINTS
         return SimpleNamespace(
             time=SimpleNamespace(to_sec=lambda: t), q=list(self.q), dq=list(self.dq),
             tau_J=zeros, tau_ext_hat_filtered=zeros, O_F_ext_hat_K=[0.0] * 6,

@@ -14,6 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import JOINTS
 from impactqp.controller.measured.dataset import read_dataset
 from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.measured.franka_log import import_franka_logs, logged_period, read_franka_csv
@@ -29,9 +30,9 @@ from impactqp.sim.plant import PlantParameters
 ARMATURE = (0.5, 0.15)
 
 ARRAYS = [
-    ("state.q", 7), ("state.q_d", 7), ("state.dq", 7), ("state.dq_d", 7), ("state.tau_J", 7),
-    ("state.tau_ext_hat_filtered", 7), ("cmd.q_d", 7), ("cmd.dq_d", 7), ("cmd.O_T_EE_d", 16),
-    ("cmd.O_dP_EE_d", 6), ("cmd.tau_J_d", 7),
+    ("state.q", JOINTS), ("state.q_d", JOINTS), ("state.dq", JOINTS), ("state.dq_d", JOINTS), ("state.tau_J", JOINTS),
+    ("state.tau_ext_hat_filtered", JOINTS), ("cmd.q_d", JOINTS), ("cmd.dq_d", JOINTS), ("cmd.O_T_EE_d", 16),
+    ("cmd.O_dP_EE_d", 6), ("cmd.tau_J_d", JOINTS),
 ]
 
 
@@ -44,12 +45,12 @@ def libfranka_header(separator: str) -> str:
 
 def libfranka_csv(log: TrialLog, separator: str) -> str:
     n = len(log)
-    command = np.vstack([np.zeros((1, 7)), log.dq_cmd[:-1]])  # row k: state k with the command of k - 1
+    command = np.vstack([np.zeros((1, JOINTS)), log.dq_cmd[:-1]])  # row k: state k with the command of k - 1
     # the state of cycle k measures the torque applied over period k - 1 (the dataset's tau[k - 1])
     measured_torque = np.vstack([log.tau[:1], log.tau[:-1]])
     pose = np.tile(np.eye(4).T.ravel(), (n, 1))
     table = np.column_stack([
-        np.round(log.t * 1000.0), np.ones(n), log.q, log.q, log.dq, log.dq, measured_torque, np.zeros((n, 7)),
+        np.round(log.t * 1000.0), np.ones(n), log.q, log.q, log.dq, log.dq, measured_torque, np.zeros((n, JOINTS)),
         log.q, command, pose, np.zeros((n, 6)), log.tau,
     ])
     rows = [",".join(f"{x:.6g}" for x in row) for row in table]
@@ -151,7 +152,7 @@ def test_given_reference_speed_is_used_as_is(source, tmp_path):
 def test_old_and_new_header_separators_read_the_same_columns(source):
     dataset, logs = source
     trial_id = dataset.trials[0].entry.id
-    old, new = read_franka_csv(logs["old", trial_id]), read_franka_csv(logs["new", trial_id])
+    old, new = read_franka_csv(logs["old", trial_id], JOINTS), read_franka_csv(logs["new", trial_id], JOINTS)
     assert old.keys() == new.keys() and len(old) == 1 + len(ARRAYS)
     for key in old:
         np.testing.assert_array_equal(old[key], new[key])

@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.measured.dataset import read_dataset
 from impactqp.controller.measured.dataset_check import validate
 from impactqp.sim.generation import START_DISTANCE, DatasetRequest, generate_dataset, tangential_direction, trial_specs
@@ -35,7 +36,7 @@ def test_bad_requests_are_rejected(tmp_path, kwargs, message):
 
 
 def test_dataset_is_valid_and_holds_no_plant_parameters(tmp_path):
-    plant = PlantParameters(payload_mass=0.7, armature=[0.2] * 7, friction=0.5)
+    plant = PlantParameters(payload_mass=0.7, armature=[0.2] * JOINTS, friction=0.5)
     request = DatasetRequest(plant=plant, postures=["elbow_up"], speeds=[0.1, 0.15], repeats=2)
     entries = generate_dataset(tmp_path, request, jobs=2)
     assert len(entries) == 4

@@ -37,6 +37,6 @@ def test_crb_reduction_sign():
 def test_a_per_joint_armature_is_the_same_plant_as_one_number_for_every_joint():
     robot = FloatingBaseModel()
     one = run_campaign(robot, stances=("wide",), speeds=(0.1,), armature=0.02)
-    each = run_campaign(robot, stances=("wide",), speeds=(0.1,), armature=np.full(29, 0.02))
+    each = run_campaign(robot, stances=("wide",), speeds=(0.1,), armature=np.full(robot.n_joints, 0.02))
     assert one[0].errors == each[0].errors
     np.testing.assert_array_equal(one[0].measured_jump, each[0].measured_jump)

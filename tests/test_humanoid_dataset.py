@@ -8,6 +8,7 @@ import pytest
 
 from impactqp.controller.measured.dataset import DatasetError, read_dataset
 from impactqp.controller.measured.dataset_check import validate
+from impactqp.controller.measured.humanoid_format import g1_model
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD, measure_impact
 from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.humanoid_stance import STANCES
@@ -34,8 +35,10 @@ def test_the_log_is_what_the_trial_ran(trials):
     the first control period with a wall force."""
     for trial in trials:
         log = trial.log
-        assert len(log) == len(trial.q_log) and log.q.shape[1] == 29 and log.base.shape == (len(log), 13)
-        np.testing.assert_array_equal(np.column_stack([log.base[:, :7], log.q]), trial.q_log)
+        robot = g1_model()
+        assert len(log) == len(trial.q_log) and log.q.shape[1] == robot.n_joints
+        assert log.base.shape == (len(log), robot.base_nq + robot.base_nv)
+        np.testing.assert_array_equal(np.column_stack([log.base[:, :robot.base_nq], log.q]), trial.q_log)
         np.testing.assert_allclose(log.t, np.arange(len(log)) * CONTROL_PERIOD, rtol=0, atol=1e-12)
         substeps = len(log.force_t) // len(log)
         touching = np.any(log.force.reshape(len(log), substeps, 3) != 0.0, axis=(1, 2))
@@ -75,11 +78,11 @@ def test_the_extraction_agrees_with_the_trial_where_their_definitions_coincide(w
         assert impact.pre_index == int(np.searchsorted(log.t, log.force_t[start], side="right")) - 1
         # the wall force passes 1 N within the first contact's control period: the same sample
         assert impact.pre_index == k
-        np.testing.assert_allclose(impact.q_pre, trial.q_log[k][7:], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(impact.q_pre, trial.q_log[k][g1_model().base_nq:], rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(impact.dq_pre, log.dq[k - 2:k + 1].mean(axis=0), rtol=1e-12, atol=1e-12)
-        # the trial's jump is the velocity after its first contact minus the one before, over the 29 joints
+        # the trial's jump is the velocity after its first contact minus the one before, over the joints
         post = k + int(round(trial.duration / CONTROL_PERIOD))
-        np.testing.assert_allclose(log.dq[post] - log.dq[k], trial.measured_jump[6:], rtol=1e-8, atol=1e-8)
+        np.testing.assert_allclose(log.dq[post] - log.dq[k], trial.measured_jump[g1_model().base_nv:], rtol=1e-8, atol=1e-8)
         # the extraction's sample of largest change is at least as far from dq- as the trial's
         first, last = impact.window
         assert first <= post <= last

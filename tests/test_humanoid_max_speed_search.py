@@ -102,7 +102,8 @@ def test_figure_is_a_png(tmp_path):
         "crb": HumanoidMaxSpeed(1.0, "capture", "edge 0", {"capture": Bound(1.0, "edge 0")}),
         "gm": HumanoidMaxSpeed(math.inf, "", "", {}),
     }
-    results = [StanceMaxSpeed(name, np.zeros(36), predicted, 1.2, 0.9, "foot_slip") for name in ("a", "b")]
+    q = np.zeros(FloatingBaseModel().model.nq)
+    results = [StanceMaxSpeed(name, q, predicted, 1.2, 0.9, "foot_slip") for name in ("a", "b")]
     path = speed_figure(results, tmp_path / "f.png", "test")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 

@@ -68,7 +68,7 @@ def test_predicted_post_impact_joint_velocities_are_within_the_limits_at_the_con
     before = record.cycle(trial.contact_index) - 1
     post = record.predicted_post_impact[before]
     assert record.impact_constraints_on[before]
-    assert np.all(np.isfinite(post)) and np.all(np.abs(post[6:]) <= robot.dq_max)
+    assert np.all(np.isfinite(post)) and np.all(np.abs(post[robot.base_nv:]) <= robot.dq_max)
 
 
 def test_the_feet_show_no_onset_the_scripted_trial_does_not_show_at_the_same_contact_speed(robot, trial):

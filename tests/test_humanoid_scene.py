@@ -5,6 +5,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from impactqp.controller.measured.humanoid_format import g1_model
 from impactqp.controller.model.floating_base import CONTACT_FRAME, HAND_FRAME, FloatingBaseModel
 from impactqp.controller.model.g1_actuators import joint_armature
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
@@ -27,9 +28,9 @@ def random_velocity(scene, seed=0):
 def test_configuration_round_trip(setup):
     robot, q, scene = setup
     scene.set_state(q)
-    back, _ = to_pinocchio(scene.data.qpos, scene.data.qvel)
+    back, _ = to_pinocchio(scene.data.qpos, scene.data.qvel, scene.base_nq)
     np.testing.assert_allclose(back, q, atol=1e-12)
-    np.testing.assert_allclose(from_pinocchio(back), scene.data.qpos, atol=1e-12)
+    np.testing.assert_allclose(from_pinocchio(back, scene.base_nq), scene.data.qpos, atol=1e-12)
 
 
 def test_mass_matrices_agree_up_to_the_base_velocity_convention(setup):
@@ -39,7 +40,7 @@ def test_mass_matrices_agree_up_to_the_base_velocity_convention(setup):
     M = np.empty((scene.model.nv, scene.model.nv))
     mujoco.mj_fullM(scene.model, scene.data, M)
     T = np.eye(scene.model.nv)
-    T[:3, :3] = pin.Quaternion(q[3:7]).matrix().T
+    T[:3, :3] = pin.Quaternion(q[3:robot.base_nq]).matrix().T
     np.testing.assert_allclose(M, T.T @ robot.terms(q).M @ T, atol=1e-10)
 
 
@@ -49,7 +50,7 @@ def test_hand_velocity_agrees(setup):
     robot, q, scene = setup
     scene.set_state(q)
     random_velocity(scene)
-    q_pin, v_pin = to_pinocchio(scene.data.qpos, scene.data.qvel)
+    q_pin, v_pin = to_pinocchio(scene.data.qpos, scene.data.qvel, scene.base_nq)
     body = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_BODY, HAND_FRAME)
     velocity = np.zeros(6)
     mujoco.mj_objectVelocity(scene.model, scene.data, mujoco.mjtObj.mjOBJ_BODY, body, velocity, 0)
@@ -74,20 +75,20 @@ def test_hand_sphere_pole_is_the_contact_point(setup):
 def test_armature_adds_rotor_inertia_to_the_joints_only(setup, armature):
     """M_plant = T^T M_pin T + diag(0, a): the G1's actuators by default, one number or one per joint."""
     robot, q, _ = setup
-    per_joint = np.linspace(0.01, 0.3, 29)
+    per_joint = np.linspace(0.01, 0.3, robot.n_joints)
     given = per_joint if armature == "per joint" else armature
-    expected = {None: joint_armature(robot.joint_names), 0.05: np.full(29, 0.05)}.get(armature, per_joint)
+    expected = {None: joint_armature(robot.joint_names), 0.05: np.full(robot.n_joints, 0.05)}.get(armature, per_joint)
     scene = build_humanoid_scene(robot, wall_x=0.6, armature=given)
     scene.set_state(q)
     M = np.empty((scene.model.nv, scene.model.nv))
     mujoco.mj_fullM(scene.model, scene.data, M)
     T = np.eye(scene.model.nv)
-    T[:3, :3] = pin.Quaternion(q[3:7]).matrix().T
-    rotor = np.diag(np.r_[np.zeros(6), expected])
+    T[:3, :3] = pin.Quaternion(q[3:robot.base_nq]).matrix().T
+    rotor = np.diag(np.r_[np.zeros(robot.base_nv), expected])
     np.testing.assert_allclose(M, T.T @ robot.terms(q).M @ T + rotor, atol=1e-10)
 
 
-@pytest.mark.parametrize("armature", [-0.1, [0.1] * 28, True, float("nan")])
+@pytest.mark.parametrize("armature", [-0.1, [0.1] * (g1_model().n_joints - 1), True, float("nan")])
 def test_a_bad_armature_is_bad_input(setup, armature):
     with pytest.raises(BadInputError, match="armature"):
         plant_armature(setup[0], armature)

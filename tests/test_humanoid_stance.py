@@ -36,7 +36,8 @@ def test_stance_stands_flat_with_the_com_over_the_feet_and_the_hand_on_target(hu
     np.testing.assert_allclose(placements[CONTACT_FRAME].translation, stance.hand, atol=5e-3)
     assert placements[CONTACT_FRAME].rotation[0, 0] > 0.99  # forearm towards the wall (+x)
     assert inside_polygon(humanoid.terms(q).com, support_polygon(humanoid, q)) > 0.03
-    assert np.all((q[7:] >= humanoid.q_min) & (q[7:] <= humanoid.q_max))
+    joints = q[humanoid.base_nq:]
+    assert np.all((joints >= humanoid.q_min) & (joints <= humanoid.q_max))
 
 
 def test_an_unreachable_hand_is_bad_input(humanoid):

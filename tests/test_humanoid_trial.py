@@ -40,7 +40,8 @@ def trial():
 
 def test_linear_momentum_of_the_simulated_robot_balances_the_external_impulses(trial):
     """m dc = wall impulse + floor impulse + m g T over the measurement window (joint torques are internal)."""
-    mass = FloatingBaseModel().terms(np.r_[0, 0, 0, 0, 0, 0, 1, np.zeros(29)]).mass
+    robot = FloatingBaseModel()
+    mass = robot.terms(pin.neutral(robot.model)).mass
     external = trial.impulse + trial.floor_impulse + mass * GRAVITY * trial.duration
     np.testing.assert_allclose(mass * trial.measured_com_jump, external, atol=0.01 * np.linalg.norm(trial.impulse))
 
@@ -54,7 +55,8 @@ def test_the_wall_pushes_the_hand_back_and_the_robot_stands(trial):
 
 def test_every_predictor_is_reported_with_its_error(trial):
     for method in (*METHODS, "momentum"):
-        error = np.mean(np.abs(trial.predicted_jump[method][6:] - trial.measured_jump[6:]))
+        joints = slice(FloatingBaseModel().base_nv, None)
+        error = np.mean(np.abs(trial.predicted_jump[method][joints] - trial.measured_jump[joints]))
         assert trial.errors[method] == pytest.approx(error)
         assert trial.predicted_impulse[method] @ NORMAL > 0.0
     np.testing.assert_array_equal(trial.predicted_impulse["momentum"], trial.impulse)
@@ -72,7 +74,7 @@ def test_failures_are_consistent_with_the_measured_onsets(trial):
     assert ("capture" in trial.failures) == (trial.capture_margin < 0.0)
     assert ("fell" in trial.failures) == trial.fell
     assert ("joint_velocity" in trial.failures) == (trial.max_velocity_ratio > 1.0)
-    assert trial.q_log.shape[1] == 36 and 0 < trial.contact_index < len(trial.q_log)
+    assert trial.q_log.shape[1] == FloatingBaseModel().model.nq and 0 < trial.contact_index < len(trial.q_log)
 
 
 def test_a_slow_impact_leaves_the_feet_flat_and_the_com_capturable(trial):
@@ -111,7 +113,7 @@ def test_a_robot_whose_com_and_capture_point_left_its_feet_is_falling():
 
     def moving(q, vx):  # the whole body translating along world x (base frame velocity, joints still)
         v = rest.copy()
-        v[:3] = pin.Quaternion(q[3:7]).matrix().T @ np.array([vx, 0.0, 0.0])
+        v[:3] = pin.Quaternion(q[3:robot.base_nq]).matrix().T @ np.array([vx, 0.0, 0.0])
         return v
 
     np.testing.assert_allclose(robot.terms(q).Jcom @ moving(q, -0.5), [-0.5, 0.0, 0.0], atol=1e-9)
@@ -121,8 +123,8 @@ def test_a_robot_whose_com_and_capture_point_left_its_feet_is_falling():
     heel = np.array([support_polygon(robot, q)[:, 0].min(), 0.0, 0.0])
     tip = pin.SE3(pin.utils.rotate("y", -np.radians(25.0)), heel - pin.utils.rotate("y", -np.radians(25.0)) @ heel)
     tipped = q.copy()
-    base = tip * pin.XYZQUATToSE3(q[:7])
-    tipped[:7] = pin.SE3ToXYZQUAT(base)
+    base = tip * pin.XYZQUATToSE3(q[: robot.base_nq])
+    tipped[: robot.base_nq] = pin.SE3ToXYZQUAT(base)
     com = robot.terms(tipped).com
     assert com[0] < support_polygon(robot, tipped)[:, 0].min()  # the CoM is behind the heels
     assert falling_at_the_end(robot, (tipped, rest)) and falling_at_the_end(robot, (tipped, moving(tipped, -0.2)))
@@ -150,8 +152,8 @@ def test_the_servo_torque_saturates_at_the_urdf_effort_limits():
     scene = build_humanoid_scene(robot, wall_x=1.0)
     scene.set_state(q)
     servo = _Servo(scene, robot, SERVO_GAIN)
-    tau = servo.torque(np.full(29, 1e3), CONTROL_PERIOD)
-    np.testing.assert_allclose(np.abs(tau), robot.model.effortLimit[6:])
+    tau = servo.torque(np.full(robot.n_joints, 1e3), CONTROL_PERIOD)
+    np.testing.assert_allclose(np.abs(tau), robot.model.effortLimit[robot.base_nv:])
 
 
 @pytest.mark.parametrize("stance", ["wide", "staggered"])
@@ -166,7 +168,7 @@ def test_the_standing_g1_shows_no_foot_onset(stance):
     servo = _Servo(scene, robot, SERVO_GAIN)
     states = []
     for k in range(300):
-        scene.data.qfrc_applied[6:] = servo.torque(np.zeros(29), CONTROL_PERIOD)
+        scene.data.qfrc_applied[scene.base_nv:] = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
         for _ in range(2):
             mujoco.mj_step(scene.model, scene.data)
         if k * CONTROL_PERIOD >= SETTLE:
@@ -185,16 +187,17 @@ def test_a_held_servo_only_damps_the_joints():
     scene.set_state(q)
     servo = _Servo(scene, robot, SERVO_GAIN)
     rng = np.random.default_rng(3)
-    scene.data.qpos[7:] += rng.uniform(-0.01, 0.01, 29)  # the joints away from the reference
-    scene.data.qvel[6:] = rng.uniform(-0.2, 0.2, 29)  # and moving
+    coordinates, base, joints = slice(scene.base_nq, None), slice(scene.base_nv), slice(scene.base_nv, None)
+    scene.data.qpos[coordinates] += rng.uniform(-0.01, 0.01, robot.n_joints)  # the joints away from the reference
+    scene.data.qvel[joints] = rng.uniform(-0.2, 0.2, robot.n_joints)  # and moving
     mujoco.mj_forward(scene.model, scene.data)
     servo.hold()
-    np.testing.assert_array_equal(servo.q_ref, scene.data.qpos[7:])
+    np.testing.assert_array_equal(servo.q_ref, scene.data.qpos[coordinates])
     M = np.empty((scene.model.nv, scene.model.nv))
     mujoco.mj_fullM(scene.model, scene.data, M)
-    free_base = M[6:, 6:] - M[6:, :6] @ np.linalg.solve(M[:6, :6], M[:6, 6:])
-    expected = free_base @ (-2.0 * SERVO_GAIN * scene.data.qvel[6:]) + scene.data.qfrc_bias[6:] - servo.standing_torques()
-    tau = servo.torque(np.zeros(29), CONTROL_PERIOD)
+    free_base = M[joints, joints] - M[joints, base] @ np.linalg.solve(M[base, base], M[base, joints])
+    expected = free_base @ (-2.0 * SERVO_GAIN * scene.data.qvel[joints]) + scene.data.qfrc_bias[joints] - servo.standing_torques()
+    tau = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
     np.testing.assert_allclose(tau, np.clip(expected, -servo.tau_max, servo.tau_max), rtol=1e-9, atol=1e-9)
 
 
@@ -220,13 +223,13 @@ def test_the_standing_torques_hold_any_posture_in_equilibrium():
     waist is in equilibrium on its feet with no tracking error."""
     robot = FloatingBaseModel()
     q = stance_posture(robot, STANCES["parallel"])
-    q[7 + robot.joint_index("waist_pitch_joint")] += 0.3
+    q[robot.base_nq + robot.joint_index("waist_pitch_joint")] += 0.3
     scene = build_humanoid_scene(robot, wall_x=2.0)
     scene.set_state(q)
     servo = _Servo(scene, robot, SERVO_GAIN)  # its reference: the state it starts from, at rest
-    tau = servo.torque(np.zeros(29), CONTROL_PERIOD)
+    tau = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
     terms = robot.terms(q)
     gravity = pin.computeGeneralizedGravity(robot.model, robot.data, q)
     residual = terms.Jf.T @ standing_wrenches(robot, terms) - gravity
-    residual[6:] += tau
+    residual[robot.base_nv:] += tau
     np.testing.assert_allclose(residual, 0.0, atol=1e-6 * np.abs(gravity).max())

@@ -5,6 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot_description import PANDA
@@ -86,7 +87,7 @@ def test_jump_is_robust_to_encoder_noise(log):
 
 def test_trend_filter_extrapolates_lines_exactly():
     t = np.arange(40.0)[:, None]
-    tau = 3.0 - 0.5 * t + np.zeros((1, 7))
+    tau = 3.0 - 0.5 * t + np.zeros((1, JOINTS))
     assert np.allclose(torque_residual(tau)[10:], 0.0, atol=1e-10)
     assert trend_filter(10).sum() == pytest.approx(1.0)
 

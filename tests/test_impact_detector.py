@@ -6,9 +6,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import JOINTS
 from impactqp.controller.measured.impact import DEFAULT_TORQUE_THRESHOLD
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.runtime.impact_detector import ImpactDetector, MomentumObserver
 
 DT = 1e-3
@@ -24,7 +25,7 @@ def simulate(robot, tau, tau_ext, steps, substeps=20):
     tau(q, dq) held over each control period and the external joint torque tau_ext(k); yields
     (q, dq, held torque) at every control sample."""
     model, data = robot.model, robot.model.createData()
-    q, dq = PANDA.postures["elbow_up"].q.copy(), np.zeros(NQ)
+    q, dq = PANDA.postures["elbow_up"].q.copy(), np.zeros(robot.nv)
     h = DT / substeps
     for k in range(steps):
         held = tau(q, dq)
@@ -46,7 +47,7 @@ def run_observer(robot, tau_ext, steps):
     for q, dq, held in simulate(robot, tau, tau_ext, steps):
         if tau_previous is None:
             observer.reset(q, dq)
-            residuals.append(np.zeros(NQ))
+            residuals.append(np.zeros(robot.nv))
         else:
             residuals.append(observer.update(q, dq, tau_previous).copy())
         tau_previous = held
@@ -54,14 +55,14 @@ def run_observer(robot, tau_ext, steps):
 
 
 def test_observer_residual_stays_near_zero_without_external_torque(robot):
-    residual = run_observer(robot, lambda k: np.zeros(NQ), 200)
+    residual = run_observer(robot, lambda k: np.zeros(robot.nv), 200)
     # far below the detection floor: the residual is the integration error only
     assert np.abs(residual).max() < 0.05 * DEFAULT_TORQUE_THRESHOLD
 
 
 def test_observer_residual_follows_an_external_torque_step_as_a_first_order_filter(robot):
     step = np.array([2.0, -1.0, 1.5, 1.0, 0.5, -0.5, 0.3])
-    residual = run_observer(robot, lambda k: step if k >= 50 else np.zeros(NQ), 120)
+    residual = run_observer(robot, lambda k: step if k >= 50 else np.zeros(robot.nv), 120)
     gain = 200.0
     expected = step * (1.0 - (1.0 - gain * DT) ** 20)
     assert np.allclose(residual[70], expected, atol=0.1 * np.abs(step).max())
@@ -79,19 +80,19 @@ def feed(detector, residual):
 @settings(max_examples=60, deadline=None)
 @given(
     st.floats(0.001, 0.05),
-    st.lists(st.floats(-20.0, 20.0), min_size=NQ, max_size=NQ),
+    st.lists(st.floats(-20.0, 20.0), min_size=JOINTS, max_size=JOINTS),
     st.integers(0, 199),
-    st.integers(0, NQ - 1),
+    st.integers(0, JOINTS - 1),
     st.sampled_from([-1.0, 1.0]),
 )
 def test_detector_fires_once_at_a_step_whatever_the_offset(amplitude, offset, onset, joint, sign):
     # bounded noise |u| <= a: after calibration sigma ~ 1.4826 a / 2, so the threshold
     # max(floor, 6 sigma) is above every noise sample and below a step of 20 a + 2 floor
     rng = np.random.default_rng(0)
-    residual = rng.uniform(-amplitude, amplitude, size=(SETTLE + CALIBRATION + 200, NQ)) + np.array(offset)
+    residual = rng.uniform(-amplitude, amplitude, size=(SETTLE + CALIBRATION + 200, JOINTS)) + np.array(offset)
     start = SETTLE + CALIBRATION + onset
     residual[start:, joint] += sign * (20.0 * amplitude + 2.0 * DEFAULT_TORQUE_THRESHOLD)
-    detector = ImpactDetector(calibration_samples=CALIBRATION, settle_samples=SETTLE)
+    detector = ImpactDetector(JOINTS, calibration_samples=CALIBRATION, settle_samples=SETTLE)
     fired = feed(detector, residual)
     assert sum(fired) == 1 and fired.index(True) == start
     assert detector.joint == joint and detector.t_detect == pytest.approx(DT * start)
@@ -99,21 +100,21 @@ def test_detector_fires_once_at_a_step_whatever_the_offset(amplitude, offset, on
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.floats(0.001, 0.2), st.lists(st.floats(-50.0, 50.0), min_size=NQ, max_size=NQ), st.integers(0, 2**32 - 1))
+@given(st.floats(0.001, 0.2), st.lists(st.floats(-50.0, 50.0), min_size=JOINTS, max_size=JOINTS), st.integers(0, 2**32 - 1))
 def test_detection_does_not_depend_on_a_constant_offset(noise, offset, seed):
     """A constant offset of the residual (an unmodelled load) changes neither the detection
     sample nor the threshold: the rule reads r - median(r) over the calibration window."""
     rng = np.random.default_rng(seed)
-    residual = rng.normal(0.0, noise, size=(SETTLE + CALIBRATION + 300, NQ))
+    residual = rng.normal(0.0, noise, size=(SETTLE + CALIBRATION + 300, JOINTS))
     residual[SETTLE + CALIBRATION + 150 :, 3] += 1.0
-    plain, shifted = ImpactDetector(settle_samples=SETTLE), ImpactDetector(settle_samples=SETTLE)
+    plain, shifted = ImpactDetector(JOINTS, settle_samples=SETTLE), ImpactDetector(JOINTS, settle_samples=SETTLE)
     assert feed(plain, residual) == feed(shifted, residual + np.array(offset))
     assert np.allclose(plain.threshold, shifted.threshold, rtol=1e-9, atol=1e-9)
 
 
 def test_nothing_is_detected_while_settling_and_calibrating():
-    detector = ImpactDetector(calibration_samples=CALIBRATION, settle_samples=SETTLE)
-    huge = np.full((SETTLE + CALIBRATION, NQ), 1e3)
+    detector = ImpactDetector(JOINTS, calibration_samples=CALIBRATION, settle_samples=SETTLE)
+    huge = np.full((SETTLE + CALIBRATION, JOINTS), 1e3)
     assert not any(feed(detector, huge)) and detector.calibrated
 
 
@@ -122,11 +123,12 @@ def test_an_unmodelled_load_is_not_an_impact_and_a_later_contact_is(robot):
     its settle time; the detector takes it as the bias and fires at a later torque step within
     the first-order filter's rise time to the threshold."""
     load = np.array([0.0, 4.0, 0.5, -3.0, 0.8, 0.6, 0.1])
-    step = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 3.0, 0.0])
+    step = np.zeros(robot.nv)
+    step[5] = 3.0
     onset = 300
     residual = run_observer(robot, lambda k: load + (step if k >= onset else 0.0), onset + 60)
     observer = MomentumObserver(robot, DT)
-    detector = ImpactDetector(settle_samples=observer.settle_samples)
+    detector = ImpactDetector(robot.nv, settle_samples=observer.settle_samples)
     fired = feed(detector, residual)
     assert sum(fired) == 1
     detected = fired.index(True)
@@ -138,6 +140,6 @@ def test_an_unmodelled_load_is_not_an_impact_and_a_later_contact_is(robot):
 
 
 def test_detector_ignores_a_non_finite_residual():
-    detector = ImpactDetector()
-    assert not detector.update(0.0, np.full(NQ, np.nan))
+    detector = ImpactDetector(JOINTS)
+    assert not detector.update(0.0, np.full(JOINTS, np.nan))
     assert not detector.detected

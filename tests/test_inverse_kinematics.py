@@ -16,12 +16,12 @@ from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.validation import BadInputError
 
-from conftest import joint_positions
+from conftest import JOINTS, joint_positions
 from reference.inverse_kinematics import reference_contact_postures
 
 
 @settings(max_examples=15, deadline=None)
-@given(q=joint_positions(margin=0.3), offset=st.lists(st.floats(-0.15, 0.15), min_size=7, max_size=7))
+@given(q=joint_positions(margin=0.3), offset=st.lists(st.floats(-0.15, 0.15), min_size=JOINTS, max_size=JOINTS))
 def test_a_posture_near_the_seed_is_found_and_its_forward_kinematics_meets_the_target(robot, q, offset):
     """Target built by FK of q; seed q + offset: the solution puts the tip on the point, z on -n."""
     frame = robot.contact_frame(q)
@@ -59,7 +59,7 @@ def test_batched_postures_reach_their_targets_and_follow_the_one_target_iteratio
     (same steps, same stopping rule)."""
     rng = np.random.default_rng(seed)
     start = PANDA.postures["elbow_up"].q
-    Q = np.clip(start + rng.uniform(-0.4, 0.4, (6, 7)), robot.q_min + 0.2, robot.q_max - 0.2)
+    Q = np.clip(start + rng.uniform(-0.4, 0.4, (6, JOINTS)), robot.q_min + 0.2, robot.q_max - 0.2)
     frames = [robot.contact_frame(q) for q in Q]
     seed_frame = robot.contact_frame(start)  # last but one: the tool axis starts pointing away
     points = np.array([f.translation for f in frames] + [seed_frame.translation, [2.0, 0.0, 0.5]])

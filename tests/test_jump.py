@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import joint_positions, unit_vectors
+from conftest import JOINTS, joint_positions, unit_vectors
 from hypothesis import given, reject, settings
 from hypothesis import strategies as st
 from reference.jump import (
@@ -151,7 +151,7 @@ def test_measured_impulse_variant_reproduces_the_prediction(robot, q, n, s):
 def test_jump_matrix_maps_pre_impact_joint_velocity(robot, q, n, s):
     """A dq- equals the prediction for v- = J dq-."""
     terms = terms_or_skip(robot, q)
-    dq_minus = terms.J_pinv @ approach(n, 0.1, s) + 0.05 * s[0] * np.ones(7)
+    dq_minus = terms.J_pinv @ approach(n, 0.1, s) + 0.05 * s[0] * np.ones(JOINTS)
     for model in JUMP_MODELS.values():
         A = model.jump_matrix(terms, n, 0.3)
         expected = model.predict(terms, n, terms.J @ dq_minus, 0.3).dq_jump
@@ -182,7 +182,7 @@ def test_classical_normal_keeps_only_the_normal_impulse(robot):
 def test_crb_never_uses_the_joint_space_inertia(robot):
     """The CRB path runs with M replaced by NaNs: it never forms or inverts M."""
     q = np.array([0.1, -0.4, 0.2, -2.0, 0.3, 2.2, 0.4])
-    terms = dataclasses.replace(robot.terms(q), M=np.full((7, 7), np.nan))
+    terms = dataclasses.replace(robot.terms(q), M=np.full((JOINTS, JOINTS), np.nan))
     n = np.array([-1.0, 0.0, 0.0])
     pred = JUMP_MODELS["crb"].predict(terms, n, -0.1 * n, 0.0)
     assert np.all(np.isfinite(pred.dq_jump))

@@ -12,8 +12,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from conftest import ForwardingRobot, assert_continuous_within_limits
-from impactqp.controller.model.robot import NQ, PandaModel
+from conftest import JOINTS, ForwardingRobot, assert_continuous_within_limits
+from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.runtime.loop import BRAKING, ControlLoop, missed_in_a_row
 from impactqp.controller.runtime.session import ImpactSession
@@ -41,9 +41,9 @@ class FaultySim(ForwardingRobot):
             if self.fault == "robot_error":
                 raise ConnectionError("injected: the robot stopped")
             if self.fault == "nan":
-                state = replace(state, q=np.full(NQ, np.nan))
+                state = replace(state, q=np.full(JOINTS, np.nan))
             elif self.fault == "nan_tau_ext":
-                state = replace(state, tau_ext=np.full(NQ, np.nan))
+                state = replace(state, tau_ext=np.full(JOINTS, np.nan))
             elif self.fault == "stale":
                 state = replace(state, t=state.t - self.period)
         return state
@@ -134,13 +134,13 @@ class BrokenSim(ForwardingRobot):
         if self.reads - 1 != self.at:
             return state
         return {
-            "short_q": lambda: replace(state, q=state.q[:6]),
-            "long_dq": lambda: replace(state, dq=np.zeros(NQ + 1)),
+            "short_q": lambda: replace(state, q=state.q[:-1]),
+            "long_dq": lambda: replace(state, dq=np.zeros(JOINTS + 1)),
             "tau_missing": lambda: replace(state, tau=None),
-            "matrix_tau_ext": lambda: replace(state, tau_ext=np.zeros((NQ, 1))),
+            "matrix_tau_ext": lambda: replace(state, tau_ext=np.zeros((JOINTS, 1))),
             "text_time": lambda: replace(state, t="soon"),
             "no_state": lambda: None,
-            "nan_dq": lambda: replace(state, dq=np.full(NQ, np.nan)),
+            "nan_dq": lambda: replace(state, dq=np.full(JOINTS, np.nan)),
             "raise": lambda: (_ for _ in ()).throw(ConnectionError("injected: no state")),
         }[self.fault]()
 

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.model.jump import JUMP_MODELS
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -42,7 +43,7 @@ def test_max_speed_is_where_the_first_criterion_reaches_its_limit(robot, name, m
     assert max(at.values()) == pytest.approx(1.0, rel=1e-9)
     assert max(criteria_ratios(robot, terms, n, model, 0.999 * best.speed, restitution).values()) < 1.0
     assert max(criteria_ratios(robot, terms, n, model, 1.001 * best.speed, restitution).values()) > 1.0
-    assert 1 <= best.joint <= 7
+    assert 1 <= best.joint <= JOINTS
 
 
 def test_approach_translates_without_rotating(robot):
@@ -64,7 +65,7 @@ def test_longer_impacts_allow_higher_speeds(robot):
 @given(seed=st.integers(0, 2**31), restitution=st.floats(0.0, 1.0), impact_duration=st.floats(0.002, 0.05))
 def test_the_batched_closed_form_equals_the_one_posture_closed_form(robot, seed, restitution, impact_duration):
     rng = np.random.default_rng(seed)
-    Q = rng.uniform(robot.q_min + 0.1, robot.q_max - 0.1, (12, 7))
+    Q = rng.uniform(robot.q_min + 0.1, robot.q_max - 0.1, (12, JOINTS))
     normals = rng.normal(size=(12, 3))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     terms = BatchKinematics(robot).terms(Q)
@@ -101,7 +102,7 @@ def test_the_qp_settles_at_the_closed_form_speed_of_each_robot(robot_name, tool,
         surface, speed=2.0, jump_model=jump_model, always_active=True, posture_weight=0.0
     )
     controller = build_controller(config, robot)
-    dq = np.zeros(7)
+    dq = np.zeros(JOINTS)
     for _ in range(800):
         dq = controller.step(q, dq).dq_cmd
     terms = robot.terms(q)

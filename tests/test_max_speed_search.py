@@ -4,6 +4,7 @@ closed loop (the QP reaches the closed-form maximum; the bracket of the simulati
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.max_speed import approach_direction, closed_form_max_speed
 from impactqp.controller.model.postures import DEFAULT_WALL
@@ -85,7 +86,7 @@ def test_report_json_keys(report):
         "posture", "q_impact", "normal", "predicted_max_speed", "binding", "qp_limited_speed",
         "qp_max_velocity_ratio", "qp_max_torque_ratio", "simulated_max_speed", "evaluations",
     } <= set(data)
-    assert len(data["q_impact"]) == 7 and len(data["normal"]) == 3
+    assert len(data["q_impact"]) == JOINTS and len(data["normal"]) == 3
     assert set(data["evaluations"][0]) == {
         "reference_speed", "contact_speed", "max_velocity_ratio", "max_torque_ratio", "violated",
     }

@@ -8,10 +8,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.config import ControllerConfig
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, NQ, VELOCITY_LIMIT, PandaModel
+from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, VELOCITY_LIMIT, PandaModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 from impactqp.scenarios.cli import main
@@ -41,8 +42,8 @@ def test_the_adapter_uses_only_names_of_the_installed_bindings():
     assert hasattr(libfranka.Model, "mass") and hasattr(libfranka.Duration, "to_sec")
     assert hasattr(libfranka, "has_realtime_kernel") and libfranka.ControllerMode.kJointImpedance is not None
     assert "joint_reflex" in ERROR_NAMES
-    finished = libfranka.motion_finished(libfranka.JointVelocities([0.0] * NQ))
-    assert finished.motion_finished and not libfranka.JointVelocities([0.0] * NQ).motion_finished
+    finished = libfranka.motion_finished(libfranka.JointVelocities([0.0] * JOINTS))
+    assert finished.motion_finished and not libfranka.JointVelocities([0.0] * JOINTS).motion_finished
 
 
 def test_no_robot_at_the_address_is_bad_input_in_one_line(capsys):
@@ -67,18 +68,18 @@ class CallbackRobot:
     (the motion aborts, the state then reports a joint reflex until recovered)."""
 
     def __init__(self, q0, fault=None, at=None):
-        self.q, self.dq, self.t = np.array(q0, float), np.zeros(NQ), 0.0
+        self.q, self.dq, self.t = np.array(q0, float), np.zeros(JOINTS), 0.0
         self.fault, self.at = fault, at
         self.running = self.reflex = False
         self.commands, self.calls, self.motions, self.recoveries = [], [], 0, 0
 
     def _state(self, nan=False):
         errors = {n: self.reflex and n == "joint_reflex" for n in ERROR_NAMES}
-        q = np.full(NQ, np.nan) if nan else self.q
+        q = np.full(JOINTS, np.nan) if nan else self.q
         t = self.t
         return SimpleNamespace(
-            time=SimpleNamespace(to_sec=lambda: t), q=list(q), dq=list(self.dq), tau_J=[0.0] * NQ,
-            tau_ext_hat_filtered=[0.0] * NQ, control_command_success_rate=1.0,
+            time=SimpleNamespace(to_sec=lambda: t), q=list(q), dq=list(self.dq), tau_J=[0.0] * JOINTS,
+            tau_ext_hat_filtered=[0.0] * JOINTS, control_command_success_rate=1.0,
             last_motion_errors=SimpleNamespace(**errors), current_errors=SimpleNamespace(**{n: False for n in ERROR_NAMES}),
         )
 
@@ -121,7 +122,7 @@ def run_panda(robot, settings=None, duration=0.2):
 
 
 def assert_within_limits(commands):
-    dq = np.vstack([np.zeros((2, NQ)), commands])
+    dq = np.vstack([np.zeros((2, JOINTS)), commands])
     ddq = np.diff(dq, axis=0) / 1e-3
     jerk = np.diff(ddq, axis=0) / 1e-3
     assert np.all(np.abs(dq) <= VELOCITY_LIMIT * (1 + 1e-9))

@@ -6,6 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot_description import PANDA
@@ -20,7 +21,7 @@ Q = PANDA.postures["elbow_up"].q
 
 
 def test_json_round_trip_is_atomic(tmp_path):
-    plant = PlantParameters(armature=[0.1] * 7, payload_mass=0.4, payload_com=[0.0, 0.0, -0.03],
+    plant = PlantParameters(armature=[0.1] * JOINTS, payload_mass=0.4, payload_com=[0.0, 0.0, -0.03],
                             friction=0.3, servo_gain=12.0)
     path = tmp_path / "plant.json"
     plant.to_json(path)
@@ -38,8 +39,8 @@ def test_partial_file_keeps_the_defaults(tmp_path):
 @pytest.mark.parametrize(
     "values, message",
     [
-        ({"armatur": [0.0] * 7}, "unknown plant parameter.*'armatur'"),
-        ({"armature": [0.1] * 6}, "armature must be 7 numbers"),
+        ({"armatur": [0.0] * JOINTS}, "unknown plant parameter.*'armatur'"),
+        ({"armature": [0.1] * JOINTS, "joint_damping": [0.1] * (JOINTS - 1)}, "one value per joint each"),
         ({"joint_damping": [0.1] * 6 + [-0.1]}, r"joint_damping\[6\] must lie in \[0, 500\] N m s/rad, got -0.1"),
         ({"payload_mass": -1.0}, "payload_mass"),
         ({"payload_com": [0.0, 0.0]}, "payload_com must be 3 numbers"),
@@ -54,7 +55,7 @@ def test_partial_file_keeps_the_defaults(tmp_path):
         ({"payload_mass": True}, "payload_mass must be a number"),
         ({"armature": [True] + [0.0] * 6}, "armature must be a vector of numbers"),
         ({"armature": [1e9] + [0.0] * 6}, r"armature\[0\] must lie in \[0, 10\] kg m\^2, got 1000000000.0"),
-        ({"joint_damping": [1e6] * 7}, r"joint_damping\[0\]"),
+        ({"joint_damping": [1e6] * JOINTS}, r"joint_damping\[0\]"),
         ({"payload_com": [0.0, 0.0, 5.0]}, r"payload_com\[2\]"),
         ({"friction": 1e9}, r"friction must lie in \[0, 2\], got 1000000000.0"),
         ({"servo_gain": 1e9}, "servo_gain"),
@@ -68,6 +69,19 @@ def test_bad_overrides_are_rejected_with_clear_messages(tmp_path, values, messag
         PlantParameters.from_json(path)
 
 
+def test_a_per_joint_vector_needs_one_value_per_joint_of_the_robot(tmp_path):
+    """A plant file does not know its robot: a per-joint vector of the wrong size is refused when
+    the plant meets the robot (its scene)."""
+    path = tmp_path / "plant.json"
+    path.write_text(json.dumps({"armature": [0.1] * (JOINTS - 1)}))
+    plant = PlantParameters.from_json(path)
+    with pytest.raises(PlantParameterError, match=f"armature must be {JOINTS} numbers"):
+        plant.for_joints(JOINTS)
+    with pytest.raises(PlantParameterError, match=f"armature must be {JOINTS} numbers"):
+        build_scene(plant=plant)
+    assert PlantParameters().for_joints(JOINTS).armature == (0.0,) * JOINTS  # nominal at every joint
+
+
 def test_unreadable_files_are_plant_parameter_errors(tmp_path):
     """The reader's failures (tests/test_files.py) come as the plant's own kind of bad input."""
     with pytest.raises(PlantParameterError, match="plant parameter file .* does not exist"):
@@ -78,8 +92,8 @@ def test_unreadable_files_are_plant_parameter_errors(tmp_path):
 
 
 def test_parameters_reach_the_mujoco_model():
-    armature = np.linspace(0.1, 0.7, 7)
-    plant = PlantParameters(armature=armature, joint_damping=[0.5] * 7, payload_mass=0.8,
+    armature = np.linspace(0.1, 0.7, JOINTS)
+    plant = PlantParameters(armature=armature, joint_damping=[0.5] * JOINTS, payload_mass=0.8,
                             payload_com=[0.0, 0.01, -0.02], friction=0.4,
                             contact_solref=(0.01, 1.2), contact_solimp=(0.9, 0.95, 0.002, 0.5, 2.0))
     scene = build_scene(plant=plant)
@@ -91,7 +105,7 @@ def test_parameters_reach_the_mujoco_model():
     np.testing.assert_allclose(model.pair_solref[0], (0.01, 1.2))
     np.testing.assert_allclose(model.pair_solimp[0], (0.9, 0.95, 0.002, 0.5, 2.0))
     # M = M_links + diag(armature) + the payload, a point mass on the contact frame
-    scene.set_state(Q, np.zeros(7))
+    scene.set_state(Q, np.zeros(JOINTS))
     M_pin = pin.crba(ROBOT.model, ROBOT.data, Q)
     M_pin = np.triu(M_pin) + np.triu(M_pin, 1).T
     hand = ROBOT.contact_frame(Q)
@@ -114,7 +128,7 @@ def test_armature_shrinks_the_wrist_jumps_relative_to_classical():
     """Rotor inertia the classical model ignores resists the light wrist joints most."""
     ratios = []
     for armature in (0.0, 0.3):
-        impact = _impact(PlantParameters(armature=[armature] * 7))
+        impact = _impact(PlantParameters(armature=[armature] * JOINTS))
         terms = ROBOT.terms(impact.q_pre, impact.dq_pre)
         classical = JUMP_MODELS["classical"].predict(terms, DEFAULT_WALL.normal, None,
                                                     impulse=impact.impulse).dq_jump

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.prediction import ImpactQuery, predict_all
@@ -41,7 +42,7 @@ def test_report_has_the_contract_keys(robot):
     assert set(report) == {"q", "contact_point", "normal", "pre_impact_velocity", "restitution", "cond_M", "methods"}
     assert set(report["methods"]) == set(METHODS)
     for name, entry in report["methods"].items():
-        assert len(entry["dq_jump"]) == 7 and len(entry["impulse"]) == 3
+        assert len(entry["dq_jump"]) == JOINTS and len(entry["impulse"]) == 3
         assert ("W" in entry) == (name in ("gm", "crb"))
         expected = JUMP_MODELS[name].predict(robot.terms(p.q), p.surface.normal, -0.12 * p.surface.normal, 0.0)
         np.testing.assert_allclose(entry["dq_jump"], expected.dq_jump)

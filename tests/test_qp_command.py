@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.qp import Command, Status
 
 STRINGS = {
@@ -18,7 +19,7 @@ STRINGS = {
 
 
 def command(status) -> Command:
-    zeros = np.zeros(7)
+    zeros = np.zeros(JOINTS)
     return Command(zeros, zeros, zeros, status, [], [], zeros, zeros)
 
 

@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 from qp_states import DT, NORMAL, approach_controller, random_feasible_state, surface_ahead
 from reference.qp import reference_active_constraints
 
+from conftest import JOINTS
 from impactqp.constraints import ControlCycle, jump_model_names
 from impactqp.controller.config import ControllerConfig, TaskConfig, build_controller
 from impactqp.controller.model.inverse_kinematics import approach_start
@@ -44,18 +45,18 @@ def test_solution_satisfies_every_hard_constraint(robot, seed, jump, restitution
     controller = approach_controller(robot, q, speed=rng.uniform(0.0, 2.0), jump=jump, restitution=restitution)
     command = controller.step(q, dq)
     assert command.status == "ok", command.message
-    check_hard_constraints(robot, controller, command, q, dq, np.zeros(7), jump_model_names(jump), restitution)
+    check_hard_constraints(robot, controller, command, q, dq, np.zeros(JOINTS), jump_model_names(jump), restitution)
     assert np.allclose(command.predicted_post_impact_velocity, command.dq_cmd + command.predicted_jump)
 
 
 def test_unconstrained_qp_is_the_weighted_least_squares_solution(robot):
     q = PANDA.postures["elbow_up"].q
-    dq = np.full(7, 0.01)
+    dq = np.full(JOINTS, 0.01)
     terms = robot.terms(q, dq)
     tasks = [
         FrameTask(terms.contact_point + [0.0, 0.001, 0.0], stiffness=1.0, position_weight=3.0, orientation_weight=0.5),
         PostureTask(q + 0.001, stiffness=1.0, weight=0.1),
-        DampingTask(gain=0.5, weight=1e-3),
+        DampingTask(robot.nv, gain=0.5, weight=1e-3),
     ]
     all_limits = build_controller(ControllerConfig(tasks=[TaskConfig("damping")]), robot).constraints
     controller = ImpactAwareController(robot, tasks, all_limits, DT)
@@ -96,7 +97,7 @@ def test_commanded_speed_settles_at_the_maximum_feasible_speed(robot, posture, j
     posture's maximum feasible speed."""
     q = PANDA.postures[posture].q
     controller = approach_controller(robot, q, speed=2.0, jump=jump)
-    dq = np.zeros(7)
+    dq = np.zeros(JOINTS)
     for _ in range(800):
         command = controller.step(q, dq)
         assert command.status == "ok", command.message
@@ -116,7 +117,7 @@ def test_fast_approach_from_afar_stays_within_the_impact_limits(robot, posture):
     wall = PANDA.postures[posture].surface
     q = approach_start(robot, PANDA.postures[posture].q, wall, 0.3)
     controller = build_controller(ControllerConfig.approach(wall, speed=2.0), robot)
-    dq, previous, top_speed = np.zeros(7), np.zeros(7), 0.0
+    dq, previous, top_speed = np.zeros(JOINTS), np.zeros(JOINTS), 0.0
     for _ in range(3000):
         command = controller.step(q, dq)
         assert np.all(np.isfinite(command.dq_cmd)) and np.all(np.abs(command.dq_cmd) <= robot.dq_max)
@@ -141,7 +142,7 @@ def test_closed_loop_commands_are_continuous(robot):
     q = PANDA.postures["elbow_up"].q.copy()
     config = ControllerConfig.approach(surface_ahead(robot, q, 0.08), speed=0.05)
     controller = build_controller(config, robot)
-    dq, previous = np.zeros(7), np.zeros(7)
+    dq, previous = np.zeros(JOINTS), np.zeros(JOINTS)
     for k in range(400):
         if k == 150:
             controller.tasks[0].reference_velocity = -1.5 * NORMAL  # step of the reference
@@ -162,13 +163,13 @@ def test_closed_loop_command_sequence_keeps_every_limit(robot, seed, speed):
     after it)."""
     rng = np.random.default_rng(seed)
     span = robot.q_max - robot.q_min
-    q = robot.q_min + span * rng.uniform(0.2, 0.8, 7)
-    dq = rng.uniform(-0.9, 0.9, 7) * robot.dq_max
+    q = robot.q_min + span * rng.uniform(0.2, 0.8, JOINTS)
+    dq = rng.uniform(-0.9, 0.9, JOINTS) * robot.dq_max
     config = ControllerConfig.approach(surface_ahead(robot, q, rng.uniform(0.02, 0.2)), speed)
     controller = build_controller(config, robot)
     controller.reset(q, dq)
     controller.tasks[0].reference_velocity = speed * rng.uniform(-1.0, 1.0, 3)
-    previous = np.zeros(7)
+    previous = np.zeros(JOINTS)
     for _ in range(150):
         command = controller.step(q, dq)
         for value in (command.ddq, command.dq_cmd, command.q_cmd):
@@ -196,7 +197,7 @@ def test_stacked_qp_data_are_the_rows_of_every_task_and_constraint(robot, seed, 
     controller._assemble(terms, controller._cycle)
     p = controller.problem
 
-    H, g = np.zeros((7, 7)), np.zeros(7)
+    H, g = np.zeros((JOINTS, JOINTS)), np.zeros(JOINTS)
     for task in controller.tasks:
         rows = task.compute(terms)
         H += rows.A.T @ (rows.weight[:, None] * rows.A)
@@ -227,7 +228,7 @@ def test_compiled_active_set_equals_the_numpy_reference(robot, seed, jump):
     command = controller.step(q, dq)
     problem = controller.problem
     tolerance = 10.0 * controller.feasibility_tolerance
-    for x in (command.ddq, command.ddq + rng.normal(0.0, 1e-3, 7), command.ddq + rng.normal(0.0, 1.0, 7)):
+    for x in (command.ddq, command.ddq + rng.normal(0.0, 1e-3, JOINTS), command.ddq + rng.normal(0.0, 1.0, JOINTS)):
         problem.violation(x)
         expected = reference_active_constraints(controller.layout, controller._box_bounds, problem, tolerance, x)
         assert controller._active_constraints(x) == expected

@@ -4,6 +4,7 @@ constraints it names, and its compiled kernels against their numpy statements.""
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from conftest import JOINTS
 from qp_states import DT, NORMAL, approach_controller
 from reference.qp import reference_braking_command, reference_interval_conflicts
 
@@ -13,7 +14,7 @@ from impactqp.controller.qp import Command
 from impactqp.controller.qp.fallback import conflict_names, interval_conflicts
 
 
-def assert_safe_fallback(robot, controller, command, status, previous_ddq=np.zeros(7)):
+def assert_safe_fallback(robot, controller, command, status, previous_ddq=np.zeros(JOINTS)):
     assert isinstance(command, Command)
     assert command.status == status and command.is_fallback
     for value in (command.ddq, command.dq_cmd, command.q_cmd, command.predicted_jump):
@@ -27,12 +28,12 @@ def assert_safe_fallback(robot, controller, command, status, previous_ddq=np.zer
 def test_nan_state_gives_the_fallback(robot):
     q = PANDA.postures["elbow_up"].q
     controller = approach_controller(robot, q)
-    first = controller.step(q, np.zeros(7))
-    command = controller.step(np.full(7, np.nan), np.zeros(7))
+    first = controller.step(q, np.zeros(JOINTS))
+    command = controller.step(np.full(JOINTS, np.nan), np.zeros(JOINTS))
     assert_safe_fallback(robot, controller, command, "fallback_invalid_state", first.ddq)
     assert controller.fallback_count == 1
     fresh = approach_controller(robot, q)
-    assert_safe_fallback(robot, fresh, fresh.step(q, [np.nan] * 7), "fallback_invalid_state")
+    assert_safe_fallback(robot, fresh, fresh.step(q, [np.nan] * JOINTS), "fallback_invalid_state")
     assert_safe_fallback(robot, fresh, fresh.step([1.0, 2.0], None), "fallback_invalid_state")
     assert fresh.fallback_count == 2
 
@@ -42,10 +43,10 @@ def test_state_outside_the_limits_gives_the_fallback(robot):
     controller = approach_controller(robot, q)
     outside = q.copy()
     outside[3] = robot.q_max[3] + 0.05
-    command = controller.step(outside, np.zeros(7))
+    command = controller.step(outside, np.zeros(JOINTS))
     assert_safe_fallback(robot, controller, command, "fallback_invalid_state")
     assert command.violated_constraints == ["joint_position_limit"]
-    too_fast = np.zeros(7)
+    too_fast = np.zeros(JOINTS)
     too_fast[0] = 1.1 * robot.dq_max[0]
     command = controller.step(q, too_fast)
     assert_safe_fallback(robot, controller, command, "fallback_invalid_state", controller.memory.ddq)
@@ -102,9 +103,9 @@ def test_compiled_conflict_and_braking_equal_the_numpy_reference(robot, seed, ju
         np.testing.assert_array_equal(fast, reference)
         assert command.violated_constraints == conflict_names(layout, reference, True)
     for _ in range(5):
-        q = robot.q_min + (robot.q_max - robot.q_min) * rng.uniform(-0.1, 1.1, 7)
-        dq = rng.uniform(-1.2, 1.2, 7) * robot.dq_max
-        controller.memory.ddq = rng.uniform(-1.0, 1.0, 7) * robot.ddq_max
+        q = robot.q_min + (robot.q_max - robot.q_min) * rng.uniform(-0.1, 1.1, JOINTS)
+        dq = rng.uniform(-1.2, 1.2, JOINTS) * robot.dq_max
+        controller.memory.ddq = rng.uniform(-1.0, 1.0, JOINTS) * robot.ddq_max
         expected = reference_braking_command(q, dq, controller.memory.ddq, DT, robot.ddq_max, robot.dddq_max, robot)
         command = controller._fallback(q, dq, "fallback_infeasible", [], "")
         for fast, reference in zip((command.ddq, command.dq_cmd, command.q_cmd), expected):
@@ -115,14 +116,14 @@ def test_compiled_conflict_and_braking_equal_the_numpy_reference(robot, seed, ju
 @given(seed=st.integers(0, 2**31 - 1))
 def test_interval_test_flags_exactly_the_rows_no_point_of_the_box_satisfies(seed):
     """The span of C_i x over the box is attained at its vertices: a row is flagged exactly when
-    every one of the 2^7 vertices gives C_i x above u_i or every one below l_i."""
+    every one of the 2^JOINTS vertices gives C_i x above u_i or every one below l_i."""
     rng = np.random.default_rng(seed)
-    lb = rng.uniform(-2.0, 0.0, 7)
-    ub = lb + rng.uniform(0.0, 2.0, 7)
-    C = rng.normal(size=(6, 7))
+    lb = rng.uniform(-2.0, 0.0, JOINTS)
+    ub = lb + rng.uniform(0.0, 2.0, JOINTS)
+    C = rng.normal(size=(6, JOINTS))
     centre = rng.normal(0.0, 4.0, 6)
     l, u = centre - rng.uniform(0.0, 1.0, 6), centre + rng.uniform(0.0, 1.0, 6)
-    vertices = np.array(np.meshgrid(*zip(lb, ub), indexing="ij")).reshape(7, -1)
+    vertices = np.array(np.meshgrid(*zip(lb, ub), indexing="ij")).reshape(JOINTS, -1)
     values = C @ vertices
     unreachable = (values > u[:, None]).all(axis=1) | (values < l[:, None]).all(axis=1)
     row_ends = np.array([2, 3, 6])  # three constraints of 2, 1 and 3 rows

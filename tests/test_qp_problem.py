@@ -7,6 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from reference.qp import reference_violation
 
+from conftest import JOINTS
 from impactqp.constraints import (
     AccelerationLimit,
     ExpectedImpact,
@@ -21,22 +22,22 @@ from impactqp.controller.qp.problem import ConstraintLayout, QpProblem
 
 
 def random_problem(rng, rows=5):
-    lb = rng.uniform(-2.0, 0.0, 7)
+    lb = rng.uniform(-2.0, 0.0, JOINTS)
     l = rng.uniform(-2.0, 0.0, rows)
     return QpProblem(
-        np.eye(7), np.zeros(7), rng.normal(size=(rows, 7)), l, l + rng.uniform(0.0, 2.0, rows),
-        lb, lb + rng.uniform(0.0, 2.0, 7),
+        np.eye(JOINTS), np.zeros(JOINTS), rng.normal(size=(rows, JOINTS)), l, l + rng.uniform(0.0, 2.0, rows),
+        lb, lb + rng.uniform(0.0, 2.0, JOINTS),
     )
 
 
 def test_the_bounds_are_views_of_the_stacked_vectors():
-    problem = QpProblem.empty(3)
+    problem = QpProblem.empty(3, JOINTS)
     problem.lb[:] = -1.0
     problem.l[:] = -2.0
     problem.ub[:] = 1.0
     problem.u[:] = 2.0
-    np.testing.assert_array_equal(problem.lower, [-1.0] * 7 + [-2.0] * 3)
-    np.testing.assert_array_equal(problem.upper, [1.0] * 7 + [2.0] * 3)
+    np.testing.assert_array_equal(problem.lower, [-1.0] * JOINTS + [-2.0] * 3)
+    np.testing.assert_array_equal(problem.upper, [1.0] * JOINTS + [2.0] * 3)
     copy = problem.copy()
     copy.lower[0] = -5.0
     assert problem.lb[0] == -1.0
@@ -49,7 +50,7 @@ def test_compiled_violation_equals_the_numpy_reference(seed, scale):
     statement; a feasible point has violation 0 and a non-finite one inf."""
     rng = np.random.default_rng(seed)
     problem = random_problem(rng)
-    x = rng.normal(0.0, scale, 7)
+    x = rng.normal(0.0, scale, JOINTS)
     fast = problem.violation(x)
     gaps = problem.lower_gap.copy(), problem.upper_gap.copy()
     assert fast == pytest.approx(reference_violation(problem, x), rel=1e-12, abs=1e-12)
@@ -57,7 +58,7 @@ def test_compiled_violation_equals_the_numpy_reference(seed, scale):
     np.testing.assert_allclose(gaps[1], problem.upper_gap, rtol=1e-12, atol=1e-12)
     z = np.concatenate([x, problem.C @ x])
     assert (fast == 0.0) == bool(np.all(z >= problem.lower) and np.all(z <= problem.upper))
-    assert problem.violation(np.full(7, np.nan)) == np.inf
+    assert problem.violation(np.full(JOINTS, np.nan)) == np.inf
 
 
 def test_layout_puts_boxes_apart_and_relaxed_rows_last(robot):
@@ -81,5 +82,5 @@ def test_layout_puts_boxes_apart_and_relaxed_rows_last(robot):
     assert layout.rows == sum(c.rows for c in layout.row_constraints)
     assert layout.first_relaxed_row == layout.row_constraints[0].rows
     assert layout.flag_names == tuple(c.name for c in layout.box_constraints + layout.row_constraints)
-    assert layout.empty_box_bounds().shape == (2 * len(layout.box_constraints), 7)
+    assert layout.empty_box_bounds(robot.nv).shape == (2 * len(layout.box_constraints), robot.nv)
     assert ConstraintLayout.of([AccelerationLimit()]).rows == 0

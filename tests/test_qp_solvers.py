@@ -6,6 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from qp_states import NORMAL, approach_controller, random_feasible_state
 
+from conftest import JOINTS
 from impactqp.controller.model.max_speed import approach_direction
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.validation import BadInputError
@@ -42,28 +43,28 @@ def test_the_confirming_solver_agrees_with_daqp(robot, seed):
     controller = approach_controller(robot, q, solver="daqp")
     controller.step(q, dq)
     problem = controller.problem
-    rows = problem.C.shape[0]
-    status_daqp, x_daqp = DaqpSolver(rows).solve(problem)
-    status_quadprog, x_quadprog = QuadprogSolver(rows).solve(problem)
+    rows, variables = problem.C.shape
+    status_daqp, x_daqp = DaqpSolver(rows, variables).solve(problem)
+    status_quadprog, x_quadprog = QuadprogSolver(rows, variables).solve(problem)
     assert status_daqp == status_quadprog
     if status_daqp == "solved":
         np.testing.assert_allclose(x_quadprog, x_daqp, atol=1e-6)
     infeasible = problem.copy()
     infeasible.l[0], infeasible.u[0] = 1.0, -1.0  # l > u: no ddq can satisfy row 0
-    assert DaqpSolver(rows).solve(infeasible)[0] == "infeasible"
-    assert QuadprogSolver(rows).solve(infeasible)[0] == "infeasible"
+    assert DaqpSolver(rows, variables).solve(infeasible)[0] == "infeasible"
+    assert QuadprogSolver(rows, variables).solve(infeasible)[0] == "infeasible"
 
 
 def test_every_backend_name_makes_its_solver_and_a_different_verifier():
     for name in available_backends():
-        solver = make_solver(name, 4)
+        solver = make_solver(name, 4, JOINTS)
         assert solver.name == name
-        assert verifier_for(solver.name, 4).name != name
+        assert verifier_for(solver.name, 4, JOINTS).name != name
 
 
 def test_an_unknown_backend_is_bad_input():
     with pytest.raises(BadInputError, match="not available"):
-        make_solver("no_such_solver", 4)
+        make_solver("no_such_solver", 4, JOINTS)
 
 
 @settings(max_examples=30, deadline=None)

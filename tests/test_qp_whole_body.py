@@ -33,11 +33,12 @@ def test_every_row_holds_and_the_feet_do_not_accelerate_at_the_solution(state, m
     terms = robot().terms(q, v)
     np.testing.assert_allclose(terms.Jf @ dv + terms.dJf_dq, 0.0, atol=TOLERANCE)
     # the joints' own limits, the impact rows as the constraints write them
-    joints = dv[6:]
+    base = robot().base_nv
+    joints = dv[base:]
     assert np.all(np.abs(joints) <= robot().ddq_max + TOLERANCE)
-    assert np.all(np.abs(command.dq_cmd[6:]) <= robot().dq_max)
+    assert np.all(np.abs(command.dq_cmd[base:]) <= robot().dq_max)
     for constraint in impact_rows(c):
-        C, lower, upper = np.zeros((constraint.rows, 35)), np.zeros(constraint.rows), np.zeros(constraint.rows)
+        C, lower, upper = np.zeros((constraint.rows, robot().nv)), np.zeros(constraint.rows), np.zeros(constraint.rows)
         constraint.compute_into(terms, c._row_cycle, C, lower, upper)
         if np.all(lower <= 0.0) and np.all(upper >= 0.0):  # the state keeps them: they are not relaxed
             assert np.all(C @ dv <= upper + TOLERANCE) and np.all(C @ dv >= lower - TOLERANCE)
@@ -59,7 +60,7 @@ def test_impact_rows_bind_when_the_approach_speed_is_pushed_up(name, method, ask
     def holds(s):
         terms = robot().terms(q, s * unit)
         for x in impact_rows(c):
-            C, lower, upper = np.zeros((x.rows, 35)), np.zeros(x.rows), np.zeros(x.rows)
+            C, lower, upper = np.zeros((x.rows, robot().nv)), np.zeros(x.rows), np.zeros(x.rows)
             x.compute_into(terms, c._cycle, C, lower, upper)
             if np.any(upper < 0.0) or np.any(lower > 0.0):
                 return False
@@ -77,12 +78,12 @@ def test_impact_rows_bind_when_the_approach_speed_is_pushed_up(name, method, ask
     assert any(x.name in command.active_constraints for x in impact_rows(c)), command.active_constraints
     maps = floating_jump_maps(robot().terms(q, command.dq_cmd), method, NORMAL, 0.0)
     post = command.dq_cmd + maps.jump_matrix @ command.dq_cmd
-    assert np.all(np.abs(post[6:]) <= robot().dq_max + 1e-9)
+    assert np.all(np.abs(post[robot().base_nv:]) <= robot().dq_max + 1e-9)
 
 
 def test_closed_loop_approach_keeps_the_feet_and_reaches_the_asked_speed():
     c = controller("parallel", gap=0.2, speed=0.2)
-    q, v = stance("parallel"), np.zeros(35)
+    q, v = stance("parallel"), np.zeros(robot().nv)
     c.reset(q, v)
     feet = robot().base.frame_placements(q)
     for _ in range(300):
@@ -105,8 +106,8 @@ def test_unusable_states_brake_the_joints_with_the_feet_held():
     c.reset(q, v)
     first = c.step(q, v)
     for bad_q, bad_v, status in (
-        (q, np.full(35, np.nan), "fallback_invalid_state"),
-        (q, np.r_[np.zeros(6), 1e3 * np.ones(29)], "fallback_invalid_state"),
+        (q, np.full(robot().nv, np.nan), "fallback_invalid_state"),
+        (q, np.r_[np.zeros(robot().base_nv), 1e3 * np.ones(robot().joints)], "fallback_invalid_state"),
     ):
         command = c.step(bad_q, bad_v)
         assert command.status == status and np.all(np.isfinite(command.q_cmd))

@@ -18,4 +18,4 @@ def test_setup_assembles_the_tasks_and_constraints_and_refuses_a_bad_controller(
     with pytest.raises(BadInputError):
         type(c)(robot(), [], c.constraints, 0.001)
     with pytest.raises(BadInputError):
-        type(c)(robot(), [DampingTask(variables=35)], c.constraints + c.constraints[-1:], 0.001)
+        type(c)(robot(), [DampingTask(variables=robot().nv)], c.constraints + c.constraints[-1:], 0.001)

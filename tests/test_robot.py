@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import joint_positions
+from conftest import ARMS, joint_positions
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_jump import welded_arm_inverse_inertia
@@ -33,8 +33,8 @@ from impactqp.controller.model.tool_description import TOOLS
 SINGULAR_Q = np.array([-0.63343, 3e-05, 1.5708, -0.467, 0.0, 3.01097, 2.8973])
 
 
-def test_model_is_the_seven_dof_arm_with_real_masses(robot):
-    assert robot.model.nq == 7
+def test_model_is_the_described_arm_with_real_masses(robot):
+    assert robot.model.nq == robot.nq == robot.nv == len(robot.description.joints)
     masses = [robot.model.inertias[i].mass for i in range(1, robot.model.njoints)]
     assert all(m > 0 for m in masses)
     terms = robot.terms(PANDA.postures["elbow_up"].q)
@@ -67,7 +67,7 @@ def test_terms_match_pinocchio_and_finite_differences(robot, q, dq):
     data = robot.model.createData()
     np.testing.assert_allclose(terms.M, pin.crba(robot.model, data, q), atol=1e-10)
     np.testing.assert_allclose(terms.M, terms.M.T)
-    np.testing.assert_allclose(terms.h, pin.rnea(robot.model, data, q, dq, np.zeros(7)), atol=1e-9)
+    np.testing.assert_allclose(terms.h, pin.rnea(robot.model, data, q, dq, np.zeros(robot.nv)), atol=1e-9)
     # contact velocity is J dq, and its derivative along the motion is dJ dq (ddq = 0)
     eps = 1e-6
     p_plus, p_minus = robot.contact_point(q + eps * dq), robot.contact_point(q - eps * dq)
@@ -80,21 +80,20 @@ def test_terms_match_pinocchio_and_finite_differences(robot, q, dq):
 
 def test_bad_states_are_rejected(robot):
     q = PANDA.postures["elbow_up"].q
-    with pytest.raises(InvalidStateError, match="7 values"):
-        robot.terms(q[:6])
+    with pytest.raises(InvalidStateError, match=f"{robot.nq} values"):
+        robot.terms(q[:-1])
     with pytest.raises(InvalidStateError, match="non-finite"):
-        robot.terms(np.where(np.arange(7) == 2, np.nan, q))
+        robot.terms(np.where(np.arange(robot.nq) == 2, np.nan, q))
     with pytest.raises(InvalidStateError, match="non-finite"):
-        robot.terms(q, np.full(7, np.inf))
+        robot.terms(q, np.full(robot.nv, np.inf))
     with pytest.raises(InvalidStateError, match="outside the joint limits"):
-        robot.terms(q + np.array([0, 0, 0, 5.0, 0, 0, 0]))
+        robot.terms(q + np.where(np.arange(robot.nq) == 3, 5.0, 0.0))
     with pytest.raises(SingularPostureError, match="singular"):
         robot.terms(SINGULAR_Q)
     assert np.linalg.svd(robot.contact_jacobian6(SINGULAR_Q)[:3], compute_uv=False)[-1] < 1e-6
 
 
-@pytest.mark.parametrize("robot_name", list(ROBOTS))
-@pytest.mark.parametrize("name", list(PANDA.postures))
+@pytest.mark.parametrize("robot_name, name", [(r, p) for r in ARMS for p in ROBOTS[r].postures])
 def test_named_postures_face_the_default_wall(robot_name, name):
     robot = RobotModel(robot_name)
     p = robot.description.posture(name)
@@ -132,7 +131,7 @@ def test_refilled_terms_equal_fresh_terms(robot, q_a, q_b):
     """update_terms rewrites a ModelTerms buffer into exactly what terms() computes, with a new
     stamp and the derived quantities (J+, cond M) of the new state, not the old one."""
     rng = np.random.default_rng(0)
-    dq_a, dq_b = rng.uniform(-1, 1, 7), rng.uniform(-1, 1, 7)
+    dq_a, dq_b = rng.uniform(-1, 1, robot.nv), rng.uniform(-1, 1, robot.nv)
     try:
         buffer = robot.terms(q_a, dq_a, check_limits=False)
         fresh = robot.terms(q_b, dq_b, check_limits=False)
@@ -165,12 +164,12 @@ def test_singularity_is_detected_by_refill_too(robot):
     buffer = robot.terms(PANDA.postures["elbow_up"].q)
     stamp = buffer.stamp
     with pytest.raises(SingularPostureError):
-        robot.update_terms(buffer, SINGULAR_Q, np.zeros(7))
+        robot.update_terms(buffer, SINGULAR_Q, np.zeros(robot.nv))
     assert buffer.stamp == stamp  # a refused state leaves the buffer as it was
 
 
 # ---------------------------------------------------------------- every robot with every tool
-ROBOT_TOOLS = [(robot, tool) for robot in ROBOTS for tool in TOOLS]
+ROBOT_TOOLS = [(robot, tool) for robot in ARMS for tool in TOOLS]
 
 
 @pytest.fixture(scope="module", params=ROBOT_TOOLS, ids=lambda pair: "-".join(pair))
@@ -179,10 +178,11 @@ def model(request):
 
 
 def model_positions(model, u):
-    return model.q_min + 0.1 + np.asarray(u) * (model.q_max - model.q_min - 0.2)
+    return model.q_min + 0.1 + np.asarray(u)[: model.nq] * (model.q_max - model.q_min - 0.2)
 
 
-unit_cube = st.lists(st.floats(0.0, 1.0), min_size=7, max_size=7)
+MOST_JOINTS = max(len(ROBOTS[name].joints) for name in ARMS)
+unit_cube = st.lists(st.floats(0.0, 1.0), min_size=MOST_JOINTS, max_size=MOST_JOINTS)  # the first nq serve a robot
 
 
 @settings(max_examples=15, deadline=None)
@@ -250,14 +250,15 @@ def urdf_inertia(link) -> pin.Inertia:
 def test_fr3_links_are_franka_descriptions():
     """franky-sim's fr3.urdf is franka_description's FR3 (its NOTICE): the model's link inertias
     are that file's, read here independently of Pinocchio's parser."""
-    model = RobotModel("fr3", "pad")  # the bare arm: link 7 carries the pad only
+    model = RobotModel("fr3", "pad")  # the bare arm: the last link carries the pad only
     root = ET.parse(model.description.urdf_path()).getroot()
     links = {link.get("name"): link for link in root.findall("link")}
-    for i in range(1, 7):
+    last = model.model.njoints - 1
+    for i in range(1, last):
         assert model.model.inertias[i].isApprox(urdf_inertia(links[f"fr3_link{i}"]), 1e-12)
     flange = model.model.frames[model.tool_frame_id].placement
-    expected7 = urdf_inertia(links["fr3_link7"]) + flange.act(model.tool.spatial_inertia)
-    assert model.model.inertias[7].isApprox(expected7, 1e-12)
+    expected_last = urdf_inertia(links[f"fr3_link{last}"]) + flange.act(model.tool.spatial_inertia)
+    assert model.model.inertias[last].isApprox(expected_last, 1e-12)
 
 
 def test_fr3_inverse_inertia_agrees_with_the_menagerie_fr3():
@@ -279,14 +280,15 @@ def test_fr3_inverse_inertia_agrees_with_the_menagerie_fr3():
     hand = mujoco.mj_name2id(menagerie, mujoco.mjtObj.mjOBJ_BODY, "hand")
     for posture in ours.description.postures.values():
         data.qpos[:] = 0.0
-        data.qpos[:7] = posture.q
+        data.qpos[: ours.nq] = posture.q
         mujoco.mj_forward(menagerie, data)
         M = np.zeros((menagerie.nv, menagerie.nv))
         mujoco.mj_fullM(menagerie, data, M)
         point = data.xpos[hand] + data.xmat[hand].reshape(3, 3) @ ours.tool.contact_point
         J = np.zeros((3, menagerie.nv))
         mujoco.mj_jac(menagerie, data, J, None, point, hand)
-        W = J[:, :7] @ np.linalg.solve(M[:7, :7], J[:, :7].T)
+        arm = slice(ours.nv)
+        W = J[:, arm] @ np.linalg.solve(M[arm, arm], J[:, arm].T)
         terms = ours.terms(posture.q)
         np.testing.assert_allclose(terms.contact_point, point, atol=1e-9)
         W_ours = terms.J @ np.linalg.solve(terms.M, terms.J.T)

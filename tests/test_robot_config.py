@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.config import ControllerConfig
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
@@ -10,7 +11,7 @@ from impactqp.controller.robot_config import RobotConfig
 
 def test_the_defaults_have_the_sizes_libfranka_takes_and_round_trip():
     robot = RobotConfig()
-    assert len(robot.lower_torque_thresholds) == len(robot.upper_torque_thresholds) == len(robot.joint_impedance) == 7
+    assert len(robot.lower_torque_thresholds) == len(robot.upper_torque_thresholds) == len(robot.joint_impedance) == JOINTS
     assert len(robot.lower_force_thresholds) == len(robot.upper_force_thresholds) == 6
     assert robot.load_mass is robot.load_com is robot.load_inertia is None  # the declared tool's load
     assert not robot.automatic_error_recovery  # off unless asked for
@@ -21,9 +22,9 @@ def test_the_defaults_have_the_sizes_libfranka_takes_and_round_trip():
 @pytest.mark.parametrize(
     "entry, reason",
     [
-        ({"joint_impedance": [3000.0] * 6}, "libfranka.joint_impedance must be 7 numbers"),
-        ({"joint_impedance": [0.0] * 7}, "libfranka.joint_impedance must lie in"),
-        ({"lower_torque_thresholds": [200.0] * 7}, "must not exceed libfranka.upper_torque_thresholds"),
+        ({"joint_impedance": [3000.0] * (JOINTS - 1)}, f"libfranka.joint_impedance must be {JOINTS} numbers"),
+        ({"joint_impedance": [0.0] * JOINTS}, "libfranka.joint_impedance must lie in"),
+        ({"lower_torque_thresholds": [200.0] * JOINTS}, "must not exceed libfranka.upper_torque_thresholds"),
         ({"upper_force_thresholds": [np.nan] * 6}, "must be finite"),
         ({"load_mass": 4.0}, "libfranka.load_mass"),
         ({"load_com": [2.0, 0.0, 0.0]}, "libfranka.load_com"),

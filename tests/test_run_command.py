@@ -14,7 +14,7 @@ from impactqp.controller.measured.dataset import read_dataset
 from impactqp.scenarios import run as run_module
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.cli.exit_codes import EXIT_ROBOT_WOULD_STOP
-from conftest import ForwardingRobot, g1_dataset
+from conftest import JOINTS, ForwardingRobot, g1_dataset
 
 HAS_PYLIBFRANKA = importlib.util.find_spec("pylibfranka") is not None
 
@@ -144,7 +144,7 @@ class LateOrBroken(ForwardingRobot):
         self.reads += 1
         state = self.robot.read()
         if self.reads == self.at and self.fault == "nan":
-            state = replace(state, dq=np.full(7, np.nan))
+            state = replace(state, dq=np.full(JOINTS, np.nan))
         return state
 
     def write(self, dq_cmd):
@@ -177,14 +177,14 @@ def test_a_run_a_real_robot_would_not_have_finished_exits_3_and_says_why(fault, 
 def test_a_robot_run_keeps_a_posture_task_on_the_start_posture_in_both_phases():
     from impactqp.controller.config import post_impact_config
 
-    q_start = np.linspace(-0.5, 0.5, 7)
+    q_start = np.linspace(-0.5, 0.5, JOINTS)
     config = run_module.with_posture_target(run_module.controller_config(run_module.RunRequest(backend="franka")), q_start)
     for phase in (config, post_impact_config(config)):
         (posture,) = [t for t in phase.tasks if t.type == "posture"]
         assert posture.params["weight"] > 0.0 and posture.params["target"] == q_start.tolist()
     sim = run_module.controller_config(run_module.RunRequest(backend="sim"))
     assert [t.params["weight"] for t in sim.tasks if t.type == "posture"] == [0.0]  # the sim run as before
-    kept = [0.1] * 7  # a configured target is the user's
+    kept = [0.1] * JOINTS  # a configured target is the user's
     configured = run_module.with_posture_target(replace_posture_target(config, kept), q_start)
     assert [t.params["target"] for t in configured.tasks if t.type == "posture"] == [kept]
 

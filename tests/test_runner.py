@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot_description import PANDA
@@ -36,7 +37,7 @@ def test_log_has_one_sample_per_control_period_and_force_at_the_physics_rate(log
     n = len(log)
     assert log.t.shape == (n,) and np.allclose(np.diff(log.t), 1e-3)
     for array in (log.q, log.dq, log.tau, log.dq_cmd):
-        assert array.shape == (n, 7) and np.all(np.isfinite(array))
+        assert array.shape == (n, JOINTS) and np.all(np.isfinite(array))
     assert log.force.shape == (4 * n, 3) and np.allclose(np.diff(log.force_t), scene.timestep)
     assert log.wall_time > 0.0  # speed goals live in `impactqp bench`, not here
 
@@ -67,7 +68,7 @@ def test_logged_force_accounts_for_the_momentum_change(log):
     servo = sum((log.tau[k] - ROBOT.terms(log.q[k], log.dq[k]).h) * 1e-3 for k in range(a, b))
     in_window = (log.force_t >= log.t[a]) & (log.force_t < log.t[b])
     h = log.force_t[1] - log.force_t[0]
-    contact = np.zeros(7)
+    contact = np.zeros(JOINTS)
     for i in np.flatnonzero(in_window):
         k = int(i // 4)
         contact += ROBOT.terms(log.q[k], log.dq[k]).J.T @ log.force[i] * h
@@ -86,7 +87,7 @@ def test_force_pushes_the_robot_away_from_the_wall(log):
 
 
 def test_replaying_the_commands_reproduces_the_trial(log, scene):
-    replay = run_trial(scene, CommandReplay(log.dq_cmd), log.q[0], log.dq[0], len(log) * 1e-3)
+    replay = run_trial(scene, CommandReplay(log.dq_cmd, JOINTS), log.q[0], log.dq[0], len(log) * 1e-3)
     np.testing.assert_allclose(replay.q, log.q, atol=1e-12)
     np.testing.assert_allclose(replay.tau, log.tau, atol=1e-9)
     np.testing.assert_allclose(replay.force, log.force, atol=1e-9)
@@ -94,21 +95,23 @@ def test_replaying_the_commands_reproduces_the_trial(log, scene):
 
 def test_replay_beyond_its_length_is_an_error(scene, log):
     with pytest.raises(IndexError, match="only 3 control steps"):
-        run_trial(scene, CommandReplay(log.dq_cmd[:3]), log.q[0], log.dq[0], 0.01)
+        run_trial(scene, CommandReplay(log.dq_cmd[:3], JOINTS), log.q[0], log.dq[0], 0.01)
 
 
-@pytest.mark.parametrize("dq_cmd", [np.zeros((5, 6)), np.full((5, 7), np.nan), np.zeros((0, 7))])
+@pytest.mark.parametrize(
+    "dq_cmd", [np.zeros((5, JOINTS - 1)), np.full((5, JOINTS), np.nan), np.zeros((0, JOINTS))]
+)
 def test_bad_replays_are_rejected(dq_cmd):
     with pytest.raises(ValueError):
-        CommandReplay(dq_cmd)
+        CommandReplay(dq_cmd, JOINTS)
 
 
 def test_bad_run_arguments_are_rejected(scene, log):
     source = CartesianApproachCommand(ROBOT, DEFAULT_WALL, SPEED)
     with pytest.raises(ValueError, match="whole number of timesteps"):
         run_trial(scene, source, log.q[0], log.dq[0], 0.01, control_period=1.1e-3)
-    with pytest.raises(ValueError, match="7 joint positions"):
-        run_trial(scene, source, log.q[0][:6], log.dq[0], 0.01)
+    with pytest.raises(ValueError, match=f"{JOINTS} joint positions"):
+        run_trial(scene, source, log.q[0][:-1], log.dq[0], 0.01)
     with pytest.raises(ValueError, match="normal_speed"):
         CartesianApproachCommand(ROBOT, DEFAULT_WALL, -0.1)
 
@@ -125,7 +128,7 @@ def test_runs_the_impact_aware_qp_controller(scene):
     """run_trial drives any object with step(q, dq) -> .dq_cmd, the QP controller included."""
     controller = build_controller(ControllerConfig.approach(speed=0.15), ROBOT)
     q0 = approach_start(ROBOT, PANDA.postures["elbow_up"].q, DEFAULT_WALL, 0.02)
-    log = run_trial(scene, controller, q0, np.zeros(7), 0.3)
+    log = run_trial(scene, controller, q0, np.zeros(JOINTS), 0.3)
     impact = measure_impact(log)
     v = ROBOT.terms(impact.q_pre, impact.dq_pre).J @ impact.dq_pre
     assert -(DEFAULT_WALL.normal @ v) > 0.05

@@ -6,6 +6,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import ARMS
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -22,7 +23,7 @@ SCENE = build_scene()
 
 
 def unit_postures():
-    return st.lists(st.floats(0.0, 1.0), min_size=7, max_size=7).map(
+    return st.lists(st.floats(0.0, 1.0), min_size=ROBOT.nq, max_size=ROBOT.nq).map(
         lambda u: ROBOT.q_min + np.asarray(u) * (ROBOT.q_max - ROBOT.q_min)
     )
 
@@ -30,7 +31,7 @@ def unit_postures():
 @settings(max_examples=40, deadline=None)
 @given(unit_postures())
 def test_mass_matrix_equals_pinocchio(q):
-    SCENE.set_state(q, np.zeros(7))
+    SCENE.set_state(q, np.zeros(ROBOT.nv))
     M_pin = pin.crba(ROBOT.model, ROBOT.data, q)
     M_pin = np.triu(M_pin) + np.triu(M_pin, 1).T
     assert np.abs(SCENE.mass_matrix() - M_pin).max() <= 1e-6 * np.abs(M_pin).max()
@@ -39,7 +40,7 @@ def test_mass_matrix_equals_pinocchio(q):
 @settings(max_examples=20, deadline=None)
 @given(unit_postures())
 def test_tool_sphere_centre_is_the_pinocchio_tool_centre(q):
-    SCENE.set_state(q, np.zeros(7))
+    SCENE.set_state(q, np.zeros(ROBOT.nv))
     hand = ROBOT.contact_frame(q)
     centre = hand.translation - TOOL_RADIUS * hand.rotation[:, 2]
     np.testing.assert_allclose(SCENE.tool_centre(), centre, atol=1e-9)
@@ -69,7 +70,7 @@ def test_only_the_tool_and_the_wall_collide():
 
 @pytest.mark.parametrize("name", list(PANDA.postures))
 def test_wall_touches_the_tool_at_the_impact_postures(name):
-    SCENE.set_state(PANDA.postures[name].q, np.zeros(7))
+    SCENE.set_state(PANDA.postures[name].q, np.zeros(ROBOT.nv))
     # the posture puts the tip on the wall: the sphere's centre is one radius in front of it
     assert DEFAULT_WALL.signed_distance(SCENE.tool_centre()) == pytest.approx(TOOL_RADIUS, abs=1e-6)
 
@@ -78,7 +79,7 @@ def test_wall_pose_follows_the_surface():
     surface = Surface(point=np.array([0.0, 0.5, 0.0]), normal=np.array([0.0, -1.0, 0.0]))
     scene = build_scene(surface)
     wall = scene.wall_geom
-    scene.set_state(np.zeros(7), np.zeros(7))
+    scene.set_state(np.zeros(scene.model.nq), np.zeros(scene.model.nv))
     np.testing.assert_allclose(scene.data.geom_xpos[wall], surface.point)
     np.testing.assert_allclose(scene.data.geom_xmat[wall].reshape(3, 3)[:, 2], surface.normal, atol=1e-12)
 
@@ -102,16 +103,17 @@ def test_contact_time_constant_below_two_timesteps_is_rejected():
 
 # ---------------------------------------------------------------- every robot with every tool
 SCENES = {(robot, tool): (build_scene(robot=robot, tool=tool), RobotModel(robot, tool))
-          for robot in ROBOTS for tool in TOOLS}
+          for robot in ARMS for tool in TOOLS}
+MOST_JOINTS = max(len(ROBOTS[name].joints) for name in ARMS)
 
 
 @pytest.mark.parametrize("robot, tool", list(SCENES), ids=[f"{r}-{t}" for r, t in SCENES])
 @settings(max_examples=10, deadline=None)
-@given(u=st.lists(st.floats(0.0, 1.0), min_size=7, max_size=7))
+@given(u=st.lists(st.floats(0.0, 1.0), min_size=MOST_JOINTS, max_size=MOST_JOINTS))  # the first nq serve a robot
 def test_mass_matrix_equals_pinocchio_for_every_robot_and_tool(robot, tool, u):
     scene, model = SCENES[robot, tool]
-    q = model.q_min + np.asarray(u) * (model.q_max - model.q_min)
-    scene.set_state(q, np.zeros(7))
+    q = model.q_min + np.asarray(u)[: model.nq] * (model.q_max - model.q_min)
+    scene.set_state(q, np.zeros(model.nv))
     M = pin.crba(model.model, model.data, q)
     M = np.triu(M) + np.triu(M, 1).T
     assert np.abs(scene.mass_matrix() - M).max() <= 1e-6 * np.abs(M).max()
@@ -122,7 +124,7 @@ def test_mass_matrix_equals_pinocchio_for_every_robot_and_tool(robot, tool, u):
 def test_tool_geometry_sits_where_the_model_puts_it(robot, tool):
     scene, model = SCENES[robot, tool]
     geometry = model.tool.geometry
-    q = model.description.postures["elbow_left"].q
+    q = model.description.postures[model.description.default_posture].q
     pin.framesForwardKinematics(model.model, model.data, q)
     frame = model.data.oMf[model.tool_frame_id]
     np.testing.assert_allclose(scene.tool_centre(q), frame.act(geometry.centre), atol=1e-9)
@@ -139,14 +141,14 @@ def test_tool_geometry_sits_where_the_model_puts_it(robot, tool):
                                    atol=1e-9)
 
 
-@pytest.mark.parametrize("robot", list(ROBOTS))
+@pytest.mark.parametrize("robot", ARMS)
 def test_a_point_mass_tool_is_the_plants_payload(robot):
     """The tool's mass in the scene is the plant's payload of the same mass at the same place."""
     tip = TOOLS["impact_tip"]
     heavy = replace(tip, mass=0.8, com=tip.contact_point + [0.0, 0.0, 0.01])
     with_tool = build_scene(robot=robot, tool=heavy)
     with_payload = build_scene(robot=robot, plant=PlantParameters(payload_mass=0.8, payload_com=(0.0, 0.0, 0.01)))
-    q = ROBOTS[robot].postures["elbow_right"].q
+    q = ROBOTS[robot].postures[ROBOTS[robot].default_posture].q
     for scene in (with_tool, with_payload):
-        scene.set_state(q, np.zeros(7))
+        scene.set_state(q, np.zeros(scene.model.nv))
     np.testing.assert_allclose(with_tool.mass_matrix(), with_payload.mass_matrix(), atol=1e-12)

@@ -5,6 +5,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from conftest import JOINTS
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.sim.plant import PlantParameterError, PlantParameters
 from impactqp.sim.sensor import apply_sensor, delayed, low_pass
@@ -14,8 +15,8 @@ rows = st.integers(3, 40)
 
 def log_of(seed: int, n: int) -> TrialLog:
     rng = np.random.default_rng(seed)
-    return TrialLog(np.arange(n) * 1e-3, rng.normal(size=(n, 7)), rng.normal(size=(n, 7)), rng.normal(size=(n, 7)),
-                    rng.normal(size=(n, 7)))
+    return TrialLog(np.arange(n) * 1e-3, rng.normal(size=(n, JOINTS)), rng.normal(size=(n, JOINTS)), rng.normal(size=(n, JOINTS)),
+                    rng.normal(size=(n, JOINTS)))
 
 
 @given(st.integers(0, 2**32 - 1), rows, st.integers(0, 5))
@@ -43,7 +44,7 @@ def test_the_filter_passes_a_constant_and_lags_a_step(time_constant, level):
     np.testing.assert_allclose(y[1:, 0], 1 - (1 - a) ** np.arange(1, 50))
 
 
-@given(st.integers(0, 2**32 - 1), rows, st.floats(0.5, 2.0), st.lists(st.floats(-20, 20), min_size=7, max_size=7))
+@given(st.integers(0, 2**32 - 1), rows, st.floats(0.5, 2.0), st.lists(st.floats(-20, 20), min_size=JOINTS, max_size=JOINTS))
 def test_scale_and_offset_act_on_dq_and_tau_only(seed, n, scale, offset):
     log = log_of(seed, n)
     out = apply_sensor(log, PlantParameters(sensor_velocity_scale=scale, sensor_torque_offset=offset), 1e-3)
@@ -53,7 +54,7 @@ def test_scale_and_offset_act_on_dq_and_tau_only(seed, n, scale, offset):
     assert apply_sensor(log, PlantParameters(), 1e-3) is log
 
 
-@given(st.integers(0, 2**32 - 1), rows, st.floats(0.5, 2.0), st.lists(st.floats(0.5, 2.0), min_size=7, max_size=7))
+@given(st.integers(0, 2**32 - 1), rows, st.floats(0.5, 2.0), st.lists(st.floats(0.5, 2.0), min_size=JOINTS, max_size=JOINTS))
 def test_the_joint_scales_multiply_the_global_one_per_joint(seed, n, scale, joints):
     log = log_of(seed, n)
     plant = PlantParameters(sensor_velocity_scale=scale, sensor_joint_velocity_scale=joints)

@@ -12,10 +12,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from conftest import assert_continuous_within_limits
+from conftest import JOINTS, assert_continuous_within_limits
 from impactqp.controller.config import ControllerConfig
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.runtime.interface import RobotState
 from impactqp.controller.runtime.session import ESTIMATE, OBSERVER, ImpactSession, residual_source
 from impactqp.scenarios.run import RunRequest, contact_start, run
@@ -23,7 +23,7 @@ from impactqp.scenarios.run import RunRequest, contact_start, run
 RETRACT_WINDOW = 0.05
 DETECTION_WINDOW = 5e-3
 
-torques = arrays(float, NQ, elements=st.floats(-80.0, 80.0))
+torques = arrays(float, JOINTS, elements=st.floats(-80.0, 80.0))
 
 
 @pytest.fixture(scope="module")
@@ -120,7 +120,7 @@ def test_hold_comes_back_to_the_wall_and_presses_with_a_force_linear_in_the_hold
 
 @given(torques, torques)
 def test_an_estimate_is_used_only_when_it_differs_from_the_measured_torque(tau, tau_ext):
-    q, dq = np.zeros(NQ), np.zeros(NQ)
+    q, dq = np.zeros(JOINTS), np.zeros(JOINTS)
     assert residual_source(RobotState(0.0, q, dq, tau)) == OBSERVER
     assert residual_source(RobotState(0.0, q, dq, tau, tau.copy())) == OBSERVER
     expected = OBSERVER if np.array_equal(tau, tau_ext) else ESTIMATE
@@ -131,11 +131,11 @@ def test_a_session_fed_the_measured_torque_as_estimate_runs_the_observer():
     model = PandaModel()
     posture = PANDA.postures["elbow_up"]
     session = ImpactSession(ControllerConfig.approach(posture.surface, 0.15), model)
-    q, dq = posture.q, np.zeros(NQ)
+    q, dq = posture.q, np.zeros(JOINTS)
     tau = model.terms(q, dq).h
     session.start(RobotState(0.0, q, dq, tau, tau))
     assert session.residual_source == OBSERVER
-    extra = np.linspace(1.0, 2.0, NQ)  # a joint torque that did not move the arm: held by an external one
+    extra = np.linspace(1.0, 2.0, JOINTS)  # a joint torque that did not move the arm: held by an external one
     pushed = tau + extra
     residual = session.residual(RobotState(1e-3, q, dq, pushed, pushed))
     observer = session.observer

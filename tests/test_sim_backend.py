@@ -3,6 +3,7 @@ run's log keeps the dataset's torque timing."""
 
 import numpy as np
 
+from conftest import JOINTS
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.sim.runner import CommandReplay, run_trial
 from impactqp.sim.scene import build_scene
@@ -17,7 +18,7 @@ def test_the_run_log_keeps_the_dataset_torque_timing(retract_run):
     _, result, _ = retract_run
     log = result.log
     surface = PANDA.postures["elbow_up"].surface
-    again = run_trial(build_scene(surface), CommandReplay(log.dq_cmd), log.q[0], log.dq[0], len(log) * DT)
+    again = run_trial(build_scene(surface), CommandReplay(log.dq_cmd, JOINTS), log.q[0], log.dq[0], len(log) * DT)
     np.testing.assert_allclose(again.dq, log.dq, rtol=0.0, atol=1e-9)
     np.testing.assert_allclose(again.tau[:-1], log.tau[:-1], rtol=0.0, atol=1e-9)
     np.testing.assert_array_equal(log.tau[-1], log.tau[-2])

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.scenarios.cli import main
 from impactqp.controller.measured.dataset_check import validate
 
@@ -37,9 +38,9 @@ def test_simulate_json_contract(simulated, capsys):
     report = json.loads(stdout)
     assert report["contact_speed"] == pytest.approx(0.1, rel=0.02)
     assert 0.005 < report["impact_duration"] < 0.05
-    assert len(report["impulse"]) == 3 and len(report["dq_jump"]) == 7
+    assert len(report["impulse"]) == 3 and len(report["dq_jump"]) == JOINTS
     assert set(report["predicted"]) == {"classical", "classical_normal", "gm", "crb"}
-    assert all(len(v) == 7 for v in report["predicted"].values())
+    assert all(len(v) == JOINTS for v in report["predicted"].values())
     assert report["violated"] == (report["max_velocity_ratio"] > 1 or report["max_torque_ratio"] > 1)
     assert report["jump_model"] == "crb"
 
@@ -109,7 +110,7 @@ def plant_files(tmp_path_factory):
         (["simulate", "--posture", "elbow_up", "--speed", "0"], r"\(0, 3\] m/s"),
         (["simulate", "--posture", "elbow_up", "--speed", "-0.1"], r"\(0, 3\] m/s"),
         (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{dir}/unknown.json"], "unknown plant parameter"),
-        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{dir}/shape.json"], "armature must be 7 numbers"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{dir}/shape.json"], f"armature must be {JOINTS} numbers"),
         (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{dir}/missing.json"], "does not exist"),
         (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--wall-point", "1.6,0,0"], "out of reach"),
         (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--wall-normal", "0,0,0"], "zero"),

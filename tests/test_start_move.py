@@ -8,12 +8,12 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.runtime.interface import RobotState
 from impactqp.controller.runtime.start_move import START_MOVE_SCALE, StartMove
 from impactqp.controller.model.inverse_kinematics import approach_start
-from conftest import joint_positions
+from conftest import JOINTS, joint_positions
 
 pytest.importorskip("ruckig", reason="ruckig is not installed: pip install -e '.[franka]'")
 
@@ -22,7 +22,7 @@ DT = 1e-3
 
 
 def at_rest(q):
-    return RobotState(0.0, np.asarray(q, float), np.zeros(NQ), np.zeros(NQ))
+    return RobotState(0.0, np.asarray(q, float), np.zeros(JOINTS), np.zeros(JOINTS))
 
 
 @settings(max_examples=10, deadline=None)
@@ -34,9 +34,9 @@ def test_the_commands_follow_a_straight_path_inside_the_limits_to_rest_at_the_ta
     dq = np.array([move.step(None).dq_cmd for _ in range(cycles)])
     assert np.allclose(dq[-1], 0.0, atol=1e-12)
     assert np.all(np.abs(dq) <= START_MOVE_SCALE * MODEL.dq_max * (1 + 1e-9))
-    ddq = np.diff(np.vstack([np.zeros(NQ), dq]), axis=0) / DT
+    ddq = np.diff(np.vstack([np.zeros(JOINTS), dq]), axis=0) / DT
     assert np.all(np.abs(ddq) <= START_MOVE_SCALE * MODEL.ddq_max * (1 + 1e-6))
-    jerk = np.diff(np.vstack([np.zeros((2, NQ)), dq]), n=2, axis=0) / DT**2
+    jerk = np.diff(np.vstack([np.zeros((2, JOINTS)), dq]), n=2, axis=0) / DT**2
     assert np.all(np.abs(jerk) <= START_MOVE_SCALE * MODEL.dddq_max * (1 + 1e-6))
     travelled = dq.sum(axis=0) * DT  # the commanded positions, integrated over the periods
     step = target - q0

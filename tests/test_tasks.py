@@ -3,7 +3,7 @@
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import joint_positions, unit_vectors
+from conftest import JOINTS, joint_positions, unit_vectors
 from hypothesis import given, reject, settings
 from hypothesis import strategies as st
 from reference.tasks import reference_rows
@@ -17,7 +17,7 @@ from impactqp.tasks.task import Task, rotation_error, rotation_log
 @pytest.fixture(scope="module")
 def terms(robot):
     q = PANDA.postures["elbow_up"].q
-    dq = np.linspace(-0.3, 0.3, 7)
+    dq = np.linspace(-0.3, 0.3, JOINTS)
     return robot.terms(q, dq)
 
 
@@ -80,19 +80,21 @@ def test_posture_task_is_a_joint_pd(terms):
     target = terms.q + 0.1
     task = PostureTask(target, stiffness=4.0, weight=0.5)
     rows = task.compute(terms)
-    assert np.allclose(rows.A, np.eye(7))
+    assert np.allclose(rows.A, np.eye(len(terms.dq)))
     assert np.allclose(rows.b, 4.0 * 0.1 - 4.0 * terms.dq)
-    captured = PostureTask()
+    captured = PostureTask(joints=len(terms.dq))
     captured.reset(terms)
     assert np.allclose(captured.compute(terms).b, -captured.damping * terms.dq)
+    with pytest.raises(ValueError, match="target or its number of joints"):
+        PostureTask()
 
 
 def test_damping_task_opposes_the_velocity(terms):
-    rows = DampingTask(gain=3.0, weight=1e-3).compute(terms)
+    rows = DampingTask(len(terms.dq), gain=3.0, weight=1e-3).compute(terms)
     assert np.allclose(rows.b, -3.0 * terms.dq)
     assert np.allclose(rows.weight, 1e-3)
     with pytest.raises(ValueError):
-        DampingTask(weight=0.0)
+        DampingTask(len(terms.dq), weight=0.0)
 
 
 @pytest.mark.parametrize("offset", [0.05, 0.0, -0.001])
@@ -161,21 +163,21 @@ def test_compiled_task_rows_equal_the_numpy_reference(robot, seed):
     """Every task's compute_into (compiled where the class has a kernel) writes the rows of its
     plain-numpy statement (tests/reference/tasks.py)."""
     rng = np.random.default_rng(seed)
-    q = PANDA.postures["elbow_up"].q + rng.uniform(-0.3, 0.3, 7)
-    terms = robot.terms(q, rng.uniform(-1.0, 1.0, 7), check_limits=False)
+    q = PANDA.postures["elbow_up"].q + rng.uniform(-0.3, 0.3, JOINTS)
+    terms = robot.terms(q, rng.uniform(-1.0, 1.0, JOINTS), check_limits=False)
     normal = rng.normal(size=3)
     normal /= np.linalg.norm(normal)
     tasks = [
         ContactApproachTask(normal, 0.2, velocity_gain=15.0, orientation_stiffness=80.0),
-        PostureTask(target=q + rng.uniform(-0.2, 0.2, 7), stiffness=12.0),
-        DampingTask(gain=2.0),
+        PostureTask(target=q + rng.uniform(-0.2, 0.2, JOINTS), stiffness=12.0),
+        DampingTask(robot.nv, gain=2.0),
         FrameTask(terms.contact_point + 0.01, pin.exp3(rng.uniform(-1, 1, 3))),
         SurfaceOffsetTask(normal, terms.contact_point, 0.05),
     ]
     for task in tasks:
-        task.reset(robot.terms(q + rng.uniform(-0.2, 0.2, 7), check_limits=False))
-        A, b = np.full((task.rows, 7), np.nan), np.full(task.rows, np.nan)
-        A_ref, b_ref = np.full((task.rows, 7), np.nan), np.full(task.rows, np.nan)
+        task.reset(robot.terms(q + rng.uniform(-0.2, 0.2, JOINTS), check_limits=False))
+        A, b = np.full((task.rows, JOINTS), np.nan), np.full(task.rows, np.nan)
+        A_ref, b_ref = np.full((task.rows, JOINTS), np.nan), np.full(task.rows, np.nan)
         task.compute_into(terms, A, b)
         reference_rows(task, terms, A_ref, b_ref)
         np.testing.assert_allclose(A, A_ref, rtol=1e-12, atol=1e-12, err_msg=task.name)
@@ -227,13 +229,13 @@ def one_task_of_each_class(normal, terms):
         FrameTask(),
         SurfaceOffsetTask(normal, terms.contact_point - 0.01 * normal, 0.02),
         ContactApproachTask(normal, 0.1, tangential_velocity=0.05 * np.cross(normal, [0.0, 0.0, 1.0])),
-        PostureTask(),
-        DampingTask(),
+        PostureTask(joints=len(terms.dq)),
+        DampingTask(len(terms.dq)),
     ]
 
 
 @settings(max_examples=40, deadline=None)
-@given(q=joint_positions(0.05), direction=st.lists(st.floats(-1.0, 1.0), min_size=7, max_size=7), normal=unit_vectors())
+@given(q=joint_positions(0.05), direction=st.lists(st.floats(-1.0, 1.0), min_size=JOINTS, max_size=JOINTS), normal=unit_vectors())
 def test_every_task_jacobian_matches_finite_differences_of_what_it_controls(robot, q, direction, normal):
     dq = np.asarray(direction)
     try:
@@ -248,22 +250,24 @@ def test_every_task_jacobian_matches_finite_differences_of_what_it_controls(robo
 
 
 def test_joint_tasks_on_a_floating_base_act_on_the_trailing_joints_only():
-    """PostureTask(joints=29) and DampingTask(variables=35) on the standing G1: [0 I] dv = b for
-    the posture (the base's six accelerations free), I dv = -gain v for the damping."""
+    """PostureTask(joints=joints) and DampingTask(variables=nv) on the standing G1: [0 I] dv = b
+    for the posture (the base's accelerations free), I dv = -gain v for the damping."""
     from whole_body_states import approach_velocity, robot, stance
 
+    model = robot()
+    joints, base = model.joints, model.base_nv
     q = stance("parallel")
     v = approach_velocity(q, 0.4)
-    terms = robot().terms(q, v)
-    posture = PostureTask(target=q[7:] + 0.1, stiffness=9.0, damping=2.0, joints=29)
+    terms = model.terms(q, v)
+    posture = PostureTask(target=q[model.base_nq:] + 0.1, stiffness=9.0, damping=2.0, joints=joints)
     rows = posture.compute(terms)
-    np.testing.assert_array_equal(rows.A, np.hstack([np.zeros((29, 6)), np.eye(29)]))
-    np.testing.assert_allclose(rows.b, 9.0 * 0.1 - 2.0 * v[6:])
-    posture = PostureTask(joints=29)
+    np.testing.assert_array_equal(rows.A, np.hstack([np.zeros((joints, base)), np.eye(joints)]))
+    np.testing.assert_allclose(rows.b, 9.0 * 0.1 - 2.0 * v[base:])
+    posture = PostureTask(joints=joints)
     posture.reset(terms)
-    np.testing.assert_array_equal(posture.target, q[7:])
-    damping = DampingTask(gain=3.0, variables=35).compute(terms)
-    np.testing.assert_array_equal(damping.A, np.eye(35))
+    np.testing.assert_array_equal(posture.target, q[model.base_nq:])
+    damping = DampingTask(variables=model.nv, gain=3.0).compute(terms)
+    np.testing.assert_array_equal(damping.A, np.eye(model.nv))
     np.testing.assert_allclose(damping.b, -3.0 * v)
 
 

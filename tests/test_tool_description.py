@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import FRANKA_ARMS
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -41,7 +42,7 @@ def fingertip_boxes(robot):
     return boxes
 
 
-@pytest.mark.parametrize("robot", list(ROBOTS))
+@pytest.mark.parametrize("robot", FRANKA_ARMS)
 def test_franka_hand_touches_with_the_closed_fingertips_of_the_urdf(robot):
     (lo1, hi1), (lo2, hi2) = fingertip_boxes(ROBOTS[robot])
     low, high = np.minimum(lo1, lo2), np.maximum(hi1, hi2)

@@ -4,6 +4,7 @@ criteria and predictions, process pool."""
 import numpy as np
 import pytest
 
+from conftest import JOINTS
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot_description import PANDA
@@ -69,9 +70,9 @@ def test_observed_criteria_follow_their_definitions(result, runner):
 
 def test_json_report_shapes(result):
     report = result.to_json()
-    assert len(report["impulse"]) == 3 and len(report["dq_jump"]) == 7
+    assert len(report["impulse"]) == 3 and len(report["dq_jump"]) == JOINTS
     assert set(report["predicted"]) == {"classical", "classical_normal", "gm", "crb"}
-    assert all(len(v) == 7 for v in report["predicted"].values())
+    assert all(len(v) == JOINTS for v in report["predicted"].values())
     assert np.dot(report["impulse"], DEFAULT_WALL.normal) > 0  # the wall pushes the robot back
 
 

@@ -4,7 +4,7 @@ inputs."""
 import numpy as np
 import pytest
 from hypothesis import given, settings
-from whole_body_states import integrate, robot, standing_states
+from whole_body_states import integrate, robot, standing_states, upright
 
 from impactqp.controller.model.validation import BadInputError
 
@@ -46,7 +46,8 @@ def test_inverse_inertia_and_centre_of_mass_match_their_definitions(state):
 
 def test_bad_states_are_refused():
     model = robot()
-    q = model.terms(np.r_[0, 0, 0.7, 0, 0, 0, 1, np.zeros(29)]).q
-    for bad_q, bad_v in ((q[:-1], np.zeros(35)), (q, np.zeros(34)), (q, np.full(35, np.nan))):
+    q = model.terms(upright()).q
+    nv = model.nv
+    for bad_q, bad_v in ((q[:-1], np.zeros(nv)), (q, np.zeros(nv - 1)), (q, np.full(nv, np.nan))):
         with pytest.raises(BadInputError):
             model.terms(bad_q, bad_v)

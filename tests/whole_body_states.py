@@ -26,6 +26,13 @@ def stance(name: str) -> np.ndarray:
     return stance_posture(robot().base, STANCES[name])
 
 
+def upright(height: float = 0.7) -> np.ndarray:
+    """The G1's neutral configuration (joints at zero, base upright) with its base ``height`` m up."""
+    q = pin.neutral(robot().model)
+    q[2] = height
+    return q
+
+
 def wall_ahead(q: np.ndarray, gap: float = 0.05) -> Surface:
     """The wall ``gap`` m in front of the hand's contact point."""
     return Surface(robot().terms(q).contact_point - gap * NORMAL, NORMAL)
@@ -43,9 +50,10 @@ def standing_states(max_joint_offset: float = 0.05, max_speed: float = 0.3):
     def build(name, offset, rate):
         model = robot()
         q = stance(name).copy()
-        q[7:] = np.clip(q[7:] + max_joint_offset * offset, model.q_min + 1e-3, model.q_max - 1e-3)
+        joints = slice(model.base_nq, None)
+        q[joints] = np.clip(q[joints] + max_joint_offset * offset, model.q_min + 1e-3, model.q_max - 1e-3)
         Jf = model.terms(q).Jf
-        w = np.concatenate([np.zeros(6), max_speed * rate])
+        w = np.concatenate([np.zeros(model.base_nv), max_speed * rate])
         v = w - Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ w)
         return name, q, v
 

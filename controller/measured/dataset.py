@@ -16,12 +16,12 @@ A dataset is a directory with a manifest ``dataset.json``::
     }
 
 ``robot`` names a robot description (``panda``, ``fr3``; ``g1``: the floating-base humanoid, its
-contact frame as ``tool``, its base state before its 29 joints' columns, ``humanoid_format``) and ``tool`` is the full tool
+contact frame as ``tool``, its base state before its joints' columns, ``humanoid_format``) and ``tool`` is the full tool
 description (``tool_description.ToolDescription.as_dict``; docs/dataset.md): whoever reads the
 dataset models that robot and that tool. A manifest of the first version, whose tool is
 ``{"frame": "panda_hand", "contact_point": [0, 0, 0.14]}`` (the hand frame of its robot and the
 impact tip's contact point), is read as the built-in ``impact_tip``. The surface is in the world frame with its normal towards the robot. Per trial,
-one CSV at the control rate with the columns ``t, q1..q7, dq1..dq7, tau1..tau7, dq_cmd1..dq_cmd7``
+one CSV at the control rate with the columns ``t, q1..qn, dq1..dqn, tau1..taun, dq_cmd1..dq_cmdn`` (n joints)
 (tau: measured joint torques, dq_cmd: commanded joint velocities) and optionally a force CSV
 ``t, fx, fy, fz`` (force on the robot at the contact, world frame, any rate). ``force_file``,
 ``reference_tangential_velocity``, ``posture`` and ``impact_time`` are optional.
@@ -46,7 +46,6 @@ import numpy as np
 
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.robot_description import ROBOTS, robot_description
 from impactqp.controller.model.tool_description import TOOLS, ToolDescription, tool_from_dict
 from impactqp.controller.model.files import read_mapping, regular_file
@@ -70,7 +69,10 @@ MANIFEST = "dataset.json"
 def trial_columns(robot: str) -> list[str]:
     """The columns of a trial CSV of ``robot``: t, a floating base's state, then per quantity
     (q, dq, tau, dq_cmd) one column per joint of the robot."""
-    base, joints = (list(BASE_COLUMNS), joint_count()) if robot == G1 else ([], NQ)
+    if robot == G1:
+        base, joints = list(BASE_COLUMNS), joint_count()
+    else:
+        base, joints = [], len(robot_description(robot).joints)
     return ["t", *base, *(f"{name}{i}" for name in ("q", "dq", "tau", "dq_cmd") for i in range(1, joints + 1))]
 
 
@@ -408,7 +410,7 @@ def read_trial(directory: Path, entry: TrialEntry, robot: str = "panda") -> Tria
     table = _read_table(_inside(directory, entry.file), trial_columns(robot))
     base = len(BASE_COLUMNS) + 1 if robot == G1 else 1
     t, q, dq, tau, dq_cmd = (table[:, 0], *np.split(table[:, base:], 4, axis=1))
-    log = TrialLog(t, q, dq, tau, dq_cmd, base=table[:, 1:base] if robot == G1 else np.zeros((0, 13)))
+    log = TrialLog(t, q, dq, tau, dq_cmd, base=table[:, 1:base] if robot == G1 else np.zeros((0, len(BASE_COLUMNS))))
     if entry.force_file is not None:
         force = _read_table(_inside(directory, entry.force_file), FORCE_COLUMNS)
         log.force_t, log.force = force[:, 0], force[:, 1:]

@@ -2,13 +2,14 @@
 (``impactqp dataset import-franka``; dataset format in ``docs/dataset.md``).
 
 The CSV format (libfranka ``src/log.cpp``): one header line, then one line per control cycle.
-The header names are ``time, success_rate``, then per array ``name[0], ..., name[N-1]``::
+The header names are ``time, success_rate``, then per array ``name[0], ..., name[N-1]``, with n
+the joints of the arm (the robot the dataset names)::
 
-    state.q[7]  state.q_d[7]  state.dq[7]  state.dq_d[7]  state.tau_J[7]
-    state.tau_ext_hat_filtered[7]
-    cmd.q_d[7]  cmd.dq_d[7]  cmd.O_T_EE_d[16]  cmd.O_dP_EE_d[6]  cmd.tau_J_d[7]
+    state.q[n]  state.q_d[n]  state.dq[n]  state.dq_d[n]  state.tau_J[n]
+    state.tau_ext_hat_filtered[n]
+    cmd.q_d[n]  cmd.dq_d[n]  cmd.O_T_EE_d[16]  cmd.O_dP_EE_d[6]  cmd.tau_J_d[n]
 
-87 columns in all. Older libfranka separates header names by ", ", newer by ","; both are read
+24 + 9 n columns in all. Older libfranka separates header names by ", ", newer by ","; both are read
 (values are always separated by ","). ``time`` is the robot's clock in milliseconds.
 
 One row holds the robot state of cycle n+1 and the command of cycle n (libfranka's
@@ -50,29 +51,37 @@ import pinocchio as pin
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.files import regular_file
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import NQ, RobotModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.validation import BadInputError, positive
 
 from .dataset import DatasetError, DatasetHeader, DatasetWriter, TrialEntry
 from .impact import ImpactNotFoundError, measure_impact
 from .trial_log import TrialLog
 
-FRANKA_ARRAYS = (
-    ("state.q", NQ),
-    ("state.q_d", NQ),
-    ("state.dq", NQ),
-    ("state.dq_d", NQ),
-    ("state.tau_J", NQ),
-    ("state.tau_ext_hat_filtered", NQ),
-    ("cmd.q_d", NQ),
-    ("cmd.dq_d", NQ),
-    ("cmd.O_T_EE_d", 16),
-    ("cmd.O_dP_EE_d", 6),
-    ("cmd.tau_J_d", NQ),
-)
-FRANKA_COLUMNS = ("time", "success_rate") + tuple(
-    f"{name}[{i}]" for name, size in FRANKA_ARRAYS for i in range(size)
-)
+def franka_arrays(joints: int) -> tuple[tuple[str, int], ...]:
+    """The arrays of a logToCSV file of an arm of ``joints`` joints and their sizes (module
+    docstring)."""
+    return (
+        ("state.q", joints),
+        ("state.q_d", joints),
+        ("state.dq", joints),
+        ("state.dq_d", joints),
+        ("state.tau_J", joints),
+        ("state.tau_ext_hat_filtered", joints),
+        ("cmd.q_d", joints),
+        ("cmd.dq_d", joints),
+        ("cmd.O_T_EE_d", 16),
+        ("cmd.O_dP_EE_d", 6),
+        ("cmd.tau_J_d", joints),
+    )
+
+
+def franka_columns(joints: int) -> tuple[str, ...]:
+    """The header names of a logToCSV file of an arm of ``joints`` joints."""
+    arrays = franka_arrays(joints)
+    return ("time", "success_rate") + tuple(f"{name}[{i}]" for name, size in arrays for i in range(size))
+
+
 MIN_ROWS = 50
 REFERENCE_WINDOW = 20
 REFERENCE_GAP = 3
@@ -95,10 +104,11 @@ class FrankaTrial:
     control_period: float
 
 
-def _columns(path: Path, header: str) -> dict[str, int]:
+def _columns(path: Path, header: str, joints: int) -> dict[str, int]:
     names = [name.strip() for name in header.split(",")]
-    if tuple(names) != FRANKA_COLUMNS:
-        missing = [c for c in FRANKA_COLUMNS if c not in names]
+    expected = franka_columns(joints)
+    if tuple(names) != expected:
+        missing = [c for c in expected if c not in names]
         if names[:2] != ["time", "success_rate"] or not all(_INDEXED.match(n) for n in names[2:]):
             raise BadInputError(
                 f"{path}: not a libfranka logToCSV file (the header must start with 'time, success_rate, "
@@ -112,10 +122,10 @@ def _columns(path: Path, header: str) -> dict[str, int]:
     return {name: i for i, name in enumerate(names)}
 
 
-def read_franka_csv(path: str | Path) -> dict[str, np.ndarray]:
-    """The columns of a ``franka::logToCSV`` file: ``time`` (ms) and one (rows, size) array per
-    logged array name (e.g. ``"state.q"``). Raises :class:`BadInputError` for a missing, empty,
-    foreign, truncated or non-numeric file."""
+def read_franka_csv(path: str | Path, joints: int) -> dict[str, np.ndarray]:
+    """The columns of a ``franka::logToCSV`` file of an arm of ``joints`` joints: ``time`` (ms)
+    and one (rows, size) array per logged array name (e.g. ``"state.q"``). Raises
+    :class:`BadInputError` for a missing, empty, foreign, truncated or non-numeric file."""
     path = Path(path)
     if not path.exists():
         raise BadInputError(f"{path}: no such libfranka log")
@@ -127,7 +137,7 @@ def read_franka_csv(path: str | Path) -> dict[str, np.ndarray]:
     lines = text.splitlines()
     if not lines or not lines[0].strip():
         raise BadInputError(f"{path}: empty file, not a libfranka log")
-    index = _columns(path, lines[0])
+    index = _columns(path, lines[0], joints)
     if not text.endswith("\n"):
         raise BadInputError(f"{path}: the last line is incomplete (libfranka ends every line): truncated file")
     rows = [line for line in lines[1:] if line.strip()]
@@ -148,7 +158,7 @@ def read_franka_csv(path: str | Path) -> dict[str, np.ndarray]:
         k = int(np.argwhere(~np.isfinite(table))[0, 0])
         raise BadInputError(f"{path}: line {k + 2} holds a NaN or infinite value")
     columns = {"time": table[:, index["time"]]}
-    for name, size in FRANKA_ARRAYS:
+    for name, size in franka_arrays(joints):
         columns[name] = table[:, [index[f"{name}[{i}]"] for i in range(size)]]
     return columns
 
@@ -208,7 +218,7 @@ def import_trial(
     None) and estimate its reference velocity (module docstring)."""
     path = Path(path)
     robot = choice.model() if robot is None else robot
-    columns = read_franka_csv(path)
+    columns = read_franka_csv(path, len(choice.robot.joints))
     log = trial_log_of(path, columns)
     try:
         impact = measure_impact(log)

@@ -1,6 +1,6 @@
 """What a dataset of the floating-base G1 holds beyond the arm's (docs/dataset.md, "The
 floating-base G1"): its contact frame in place of a tool, the base state a humanoid's state
-estimator gives, and the joint columns of its 29 joints.
+estimator gives, and the joint columns of its joints.
 
 The G1 hits with a point of its own, the fixed frame ``right_palm_contact`` of the model
 (``controller.model.floating_base.CONTACT_FRAME``): the manifest's ``tool`` is
@@ -26,7 +26,7 @@ BASE_COLUMNS = (
     "base_x", "base_y", "base_z", "base_qx", "base_qy", "base_qz", "base_qw",
     "base_vx", "base_vy", "base_vz", "base_wx", "base_wy", "base_wz",
 )
-QUATERNION = slice(3, 7)
+QUATERNION = slice(BASE_COLUMNS.index("base_qx"), BASE_COLUMNS.index("base_qw") + 1)
 """The quaternion's columns within the base state."""
 QUATERNION_TOLERANCE = 1e-6
 """How far from 1 a logged quaternion's norm may be (the CSV's 10 significant digits)."""

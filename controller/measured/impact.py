@@ -92,7 +92,7 @@ def trend_filter(samples: int) -> np.ndarray:
 
 
 def torque_residual(tau: np.ndarray, samples: int = TREND_SAMPLES) -> np.ndarray:
-    """r_k = tau_k - tau^_k for k >= samples (rows before are NaN): (N, 7)."""
+    """r_k = tau_k - tau^_k for k >= samples (rows before are NaN): (N, joints)."""
     weights = trend_filter(samples)
     residual = np.full_like(tau, np.nan)
     prediction = sum(w * tau[samples - j : len(tau) - j] for j, w in enumerate(weights, start=1))

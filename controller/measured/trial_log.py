@@ -13,7 +13,7 @@ class TrialLog:
     """Arrays of one trial.
 
     Control rate (N samples, sample k at t[k], state measured at the start of period k):
-    ``t`` (N,), ``q``, ``dq``, ``tau`` (servo torque applied over period k), ``dq_cmd`` (N, 7).
+    ``t`` (N,), ``q``, ``dq``, ``tau`` (servo torque applied over period k), ``dq_cmd`` (N, joints).
     Physics rate (K samples): ``force_t`` (K,), ``force`` (K, 3), the total contact force on the
     robot (world frame, N) acting over [force_t[i], force_t[i] + timestep). Empty force arrays
     mean that the log holds no force measurement (e.g. a robot log without a sensor).

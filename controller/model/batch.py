@@ -17,7 +17,7 @@ from functools import cached_property
 import numpy as np
 
 from .jump import predict_from_terms
-from .robot import NQ, PandaModel
+from .robot import PandaModel
 from .validation import BadInputError
 
 
@@ -25,16 +25,16 @@ from .validation import BadInputError
 class BatchTerms:
     """Model terms of N states (leading axis N), world-aligned as in ``ModelTerms``."""
 
-    J: np.ndarray  # (N, 3, 7) contact-point Jacobian
+    J: np.ndarray  # (N, 3, nv) contact-point Jacobian
     contact_point: np.ndarray  # (N, 3)
     com: np.ndarray  # (N, 3)
     mass: float
     inertia_com: np.ndarray  # (N, 3, 3)
-    joint_axes: np.ndarray  # (N, 7, 3) world axes z_k of the joints
-    joint_origins: np.ndarray  # (N, 7, 3)
-    link_com: np.ndarray  # (N, 7, 3)
-    link_inertia_world: np.ndarray  # (N, 7, 3, 3) about each link's centre of mass
-    link_masses: np.ndarray  # (7,)
+    joint_axes: np.ndarray  # (N, nv, 3) world axes z_k of the joints
+    joint_origins: np.ndarray  # (N, nv, 3)
+    link_com: np.ndarray  # (N, nv, 3)
+    link_inertia_world: np.ndarray  # (N, nv, 3, 3) about each link's centre of mass
+    link_masses: np.ndarray  # (nv,)
 
     def rows(self, index: np.ndarray) -> BatchTerms:
         """The terms of the states ``index`` (an index or mask along N), without evaluating
@@ -49,11 +49,11 @@ class BatchTerms:
 
     @cached_property
     def M(self) -> np.ndarray:
-        """M (N, 7, 7) = sum_k Jv_k^T m_k Jv_k + Jw_k^T I_k Jw_k over the links k."""
-        N = self.J.shape[0]
-        lower = np.tril(np.ones((NQ, NQ)))  # [k, j] = 1 when joint j moves link k
+        """M (N, nv, nv) = sum_k Jv_k^T m_k Jv_k + Jw_k^T I_k Jw_k over the links k."""
+        N, n = self.J.shape[0], self.J.shape[2]
+        lower = np.tril(np.ones((n, n)))  # [k, j] = 1 when joint j moves link k
         lever = self.link_com[:, :, None, :] - self.joint_origins[:, None, :, :]  # (N, k, j, 3)
-        axes = np.broadcast_to(self.joint_axes[:, None], (N, NQ, NQ, 3))
+        axes = np.broadcast_to(self.joint_axes[:, None], (N, n, n, 3))
         Jv = np.cross(axes, lever) * lower[None, :, :, None]  # (N, k, j, 3)
         Jw = axes * lower[None, :, :, None]
         M = np.einsum("k,nkia,nkja->nij", self.link_masses, Jv, Jv, optimize=True)
@@ -76,25 +76,26 @@ class BatchKinematics:
         self.levers = np.array([model.inertias[i].lever for i in range(1, model.njoints)])
         self.inertias = np.array([model.inertias[i].inertia for i in range(1, model.njoints)])
         frame = model.frames[robot.contact_frame_id]
-        if frame.parentJoint != NQ:
+        if frame.parentJoint != model.njoints - 1:
             raise ValueError("the contact frame must be attached to the last joint")
         self.p_contact = frame.placement.translation.copy()
         self.R_contact = frame.placement.rotation.copy()
         self.total_mass = float(self.masses.sum())
 
     def _chain(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Joint frames of N states: rotations Rs (N, 7, 3, 3) and origins ps (N, 7, 3)."""
+        """Joint frames of N states: rotations Rs (N, nv, 3, 3) and origins ps (N, nv, 3)."""
         Q = np.asarray(Q, dtype=float)
-        if Q.ndim != 2 or Q.shape[1] != NQ:
-            raise BadInputError(f"Q must have shape (N, {NQ}), got {Q.shape}")
+        n = self.robot.nq
+        if Q.ndim != 2 or Q.shape[1] != n:
+            raise BadInputError(f"Q must have shape (N, {n}), got {Q.shape}")
         if not np.all(np.isfinite(Q)):
             raise BadInputError("Q contains a non-finite value")
         N = Q.shape[0]
         c, s = np.cos(Q), np.sin(Q)
-        Rs = np.empty((N, NQ, 3, 3))
-        ps = np.empty((N, NQ, 3))
+        Rs = np.empty((N, n, 3, 3))
+        ps = np.empty((N, n, 3))
         R, p = np.broadcast_to(np.eye(3), (N, 3, 3)), np.zeros((N, 3))
-        for k in range(NQ):
+        for k in range(n):
             p = p + R @ self.p_joint[k]
             R = R @ self.R_joint[k]
             # R Rz(q_k): rotate the first two columns about the third.
@@ -109,7 +110,7 @@ class BatchKinematics:
 
     def contact_frames(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Contact point p (N, 3), tool axis z (N, 3) (hand z) and world-aligned frame Jacobian
-        J6 = [Jv; Jw] (N, 6, 7) of N states: Jv_k = z_k x (p - o_k), Jw_k = z_k."""
+        J6 = [Jv; Jw] (N, 6, nv) of N states: Jv_k = z_k x (p - o_k), Jw_k = z_k."""
         Rs, ps = self._chain(Q)
         axes = Rs[:, :, :, 2]
         contact = ps[:, -1] + Rs[:, -1] @ self.p_contact
@@ -146,7 +147,7 @@ def predict_batch(
     method: str = "crb",
     impulses: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Jumps (N, 7) and impulses (N, 3) of one predictor for N states.
+    """Jumps (N, nv) and impulses (N, 3) of one predictor for N states.
 
     ``normals`` and ``pre_impact_velocities`` are (N, 3) or (3,) arrays (world frame); with
     ``impulses`` (N, 3) the measured impulses replace the predicted ones.

@@ -1,6 +1,7 @@
 """Floating-base humanoid (Unitree G1) and its hand-impact jump predictors (docs/floating-base.md).
 
-The model is the 29-joint G1 of ``example-robot-data`` with a free-flyer root (nq = 36, nv = 35):
+The model is the G1 of ``example-robot-data`` (:data:`URDF_SUBPATH`) with a free-flyer root (its
+``base_nq`` coordinates and ``base_nv`` velocities come before the joints'):
 its description has no fingers, gripper or head joints, so nothing needs to be locked. The
 contact point p sits on the right forearm axis (the x axis of ``right_wrist_yaw_link``),
 :data:`CONTACT_OFFSET` beyond the wrist, inside the rubber hand. The feet are the two
@@ -48,11 +49,10 @@ SOLE_DEPTH = 0.035  # m: the URDF's sole spheres (radius 5 mm) sit 30 mm below t
 # Sole corners in the foot frame (x forward, y left), from the URDF's four contact spheres.
 SOLE_CORNERS = np.array([[-0.05, 0.025], [-0.05, -0.025], [0.12, 0.03], [0.12, -0.03]])
 METHODS = ("classical", "gm", "crb")
-NB = 6  # base twist dimensions in v
 
 
 def g1_urdf_path() -> Path:
-    """Path of the G1 (29 joints) URDF shipped by ``example-robot-data``."""
+    """Path of the G1 URDF shipped by ``example-robot-data``."""
     import example_robot_data  # optional at import time: only the loader needs it
 
     return (Path(example_robot_data.getModelPath(URDF_SUBPATH)) / URDF_SUBPATH).resolve()
@@ -60,7 +60,7 @@ def g1_urdf_path() -> Path:
 
 @dataclass(eq=False)
 class FloatingBaseTerms:
-    """Model quantities of one configuration q (nq = 36), world-aligned.
+    """Model quantities of one configuration q (nq values), world-aligned.
 
     ``J`` is the 3 x nv linear Jacobian of the contact point, ``Jf`` the 12 x nv Jacobian of
     the two foot frames (left then right; linear then angular rows), ``Jcom`` the 3 x nv
@@ -172,7 +172,11 @@ def jump_from_impulse(terms: FloatingBaseTerms, impulse: np.ndarray) -> np.ndarr
 
 
 class FloatingBaseModel:
-    """The G1 humanoid with a free-flyer root, a hand contact point and two held feet."""
+    """The G1 humanoid with a free-flyer root, a hand contact point and two held feet.
+
+    q and v start with the free flyer's ``base_nq`` coordinates (position, quaternion) and
+    ``base_nv`` velocities (the base twist); the ``n_joints`` actuated joints follow.
+    """
 
     def __init__(self, urdf_path: str | Path | None = None):
         self.urdf_path = Path(urdf_path) if urdf_path is not None else g1_urdf_path()
@@ -186,13 +190,16 @@ class FloatingBaseModel:
         self.model = model
         self.data = model.createData()
         self.joint_names = [model.names[i] for i in range(2, model.njoints)]
-        self.q_min = model.lowerPositionLimit[7:].copy()
-        self.q_max = model.upperPositionLimit[7:].copy()
-        self.dq_max = model.velocityLimit[NB:].copy()
-        self.tau_max = model.effortLimit[NB:].copy()
+        root = model.joints[1]  # the free flyer
+        self.base_nq, self.base_nv = root.nq, root.nv
+        self.n_joints = model.nv - self.base_nv
+        self.q_min = model.lowerPositionLimit[self.base_nq:].copy()
+        self.q_max = model.upperPositionLimit[self.base_nq:].copy()
+        self.dq_max = model.velocityLimit[self.base_nv:].copy()
+        self.tau_max = model.effortLimit[self.base_nv:].copy()
 
     def joint_index(self, name: str) -> int:
-        """Index of a joint in the joint part of q (0 .. 28)."""
+        """Index of a joint in the joint part of q (0 .. n_joints - 1)."""
         return self.joint_names.index(name)
 
     def terms(self, q) -> FloatingBaseTerms:

@@ -1,4 +1,4 @@
-"""The Unitree G1's actuators: reflected rotor inertia (armature) of each of its 29 joints
+"""The Unitree G1's actuators: reflected rotor inertia (armature) of each of its joints
 (docs/floating-base.md, "The plant's actuators").
 
 Each G1 joint is driven by one of four motors through a two-stage planetary gearbox. A rotor

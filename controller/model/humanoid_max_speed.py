@@ -1,13 +1,13 @@
 """Closed-form highest feasible contact speed of a standing G1 stance (docs/floating-base.md).
 
-The hand approaches the wall along -n at speed s with the body at rest: the 7 right-arm joints
+The hand approaches the wall along -n at speed s with the body at rest: the right-arm joints
 move at dq- = s d, d_arm = J_arm^+ (-n) (the simulated trial's command), every other velocity is
 zero. Every predicted quantity of ``floating_base`` is linear in the contact velocity v- = J d s
 (eqs. 6 and 12), so each criterion below is an inequality in s whose feasible set is an interval
 [0, s_max]; the highest feasible speed is the smallest s_max and the criterion giving it binds.
 
 (a) ``joint_velocity``: |dq-_i| = s |d_i| and |dq+_i| = s |(d + dv_1)_i| stay below dq_max_i for
-    the 29 joints (dv_1 the predicted jump at unit speed).
+    the joints (dv_1 the predicted jump at unit speed).
 (b) the feet, both held during the impulse (``floating_base``), at the peak of the hand's force:
     the hand's force peaks at iota / T, T the contact's equivalent duration (its impulse over its
     peak force), and the ground's wrench on foot k is then F_k(s) / T with F_k(s) = T w_k +
@@ -33,7 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 from .capture import capturable_speeds, capture_region, row_steps
-from .floating_base import FOOT_FRAMES, NB, SOLE_CORNERS, SOLE_DEPTH, FloatingBaseModel, FloatingBaseTerms, predict
+from .floating_base import FOOT_FRAMES, SOLE_CORNERS, SOLE_DEPTH, FloatingBaseModel, FloatingBaseTerms, predict
 from .humanoid_stance import convex_hull, edge_margins, edge_normals, support_polygon
 from .validation import BadInputError
 
@@ -85,7 +85,7 @@ class HumanoidMaxSpeed:
 
 def approach_direction(robot: FloatingBaseModel, terms: FloatingBaseTerms, normal) -> np.ndarray:
     """d (nv): the velocity per unit approach speed, right-arm joints J_arm^+ (-n), the rest zero."""
-    arm = NB + np.array([robot.joint_index(j) for j in ARM_JOINTS])
+    arm = robot.base_nv + np.array([robot.joint_index(j) for j in ARM_JOINTS])
     d = np.zeros(terms.M.shape[0])
     d[arm] = np.linalg.pinv(terms.J[:, arm]) @ -np.asarray(normal, dtype=float)
     return d
@@ -94,7 +94,8 @@ def approach_direction(robot: FloatingBaseModel, terms: FloatingBaseTerms, norma
 def standing_wrenches(robot: FloatingBaseModel, terms: FloatingBaseTerms) -> np.ndarray:
     """w (12): the least-norm foot wrenches with Jf_base^T w = g_base, the ground carrying the weight."""
     gravity = pin.computeGeneralizedGravity(robot.model, robot.data, terms.q)
-    return np.linalg.pinv(terms.Jf[:, :NB].T) @ gravity[:NB]
+    base = slice(robot.base_nv)
+    return np.linalg.pinv(terms.Jf[:, base].T) @ gravity[base]
 
 
 def cone_step(force0: np.ndarray, force1: np.ndarray, mu: float) -> float:
@@ -144,7 +145,8 @@ def foot_bounds(robot: FloatingBaseModel, terms: FloatingBaseTerms, unit_feet: n
 
 def joint_velocity_bound(robot: FloatingBaseModel, d: np.ndarray, dv: np.ndarray) -> Bound:
     """(a): 1 / max_i max(|d_i|, |(d + dv)_i|) / dq_max_i over the joints."""
-    ratio = np.maximum(np.abs(d[NB:]), np.abs(d[NB:] + dv[NB:])) / robot.dq_max
+    joints = slice(robot.base_nv, None)
+    ratio = np.maximum(np.abs(d[joints]), np.abs(d[joints] + dv[joints])) / robot.dq_max
     i = int(np.argmax(ratio))
     return Bound(1.0 / ratio[i], robot.joint_names[i]) if ratio[i] > 0.0 else Bound(math.inf, "")
 

@@ -113,7 +113,8 @@ def stance_posture(robot: FloatingBaseModel, stance: Stance) -> np.ndarray:
     """The configuration q (nq) of the stance (module docstring); raises BadInputError when the
     solver leaves a foot more than 1 mm (or 1 mrad) off its target or the hand 5 mm off."""
     model, data = robot.model, robot.data
-    nominal = np.zeros(model.nq - 7)
+    joints = slice(robot.base_nq, None)  # the actuated joints' part of q
+    nominal = np.zeros(robot.n_joints)
     for name, value in NOMINAL.items():
         nominal[robot.joint_index(name)] = value
     feet = {
@@ -124,13 +125,13 @@ def stance_posture(robot: FloatingBaseModel, stance: Stance) -> np.ndarray:
     hand_target = np.array(stance.hand)
     q = pin.neutral(model)
     q[2] = 0.75
-    q[7:] = nominal
+    q[joints] = nominal
     for _ in range(ITERATIONS):
         rows, errors = _tasks(robot, q, feet, centre, hand_target, nominal)
         A, e = np.vstack(rows), np.concatenate(errors)
         dv = np.linalg.solve(A.T @ A + DAMPING**2 * np.eye(model.nv), A.T @ e)
         q = pin.integrate(model, q, dv)
-        q[7:] = np.clip(q[7:], robot.q_min, robot.q_max)
+        q[joints] = np.clip(q[joints], robot.q_min, robot.q_max)
     _, errors = _tasks(robot, q, feet, centre, hand_target, nominal)
     foot_error = max(np.abs(errors[0]).max(), np.abs(errors[1]).max()) / WEIGHTS["feet"]
     hand_error = np.linalg.norm(errors[3]) / WEIGHTS["hand"]
@@ -163,8 +164,8 @@ def _tasks(robot, q, feet, centre, hand_target, nominal):
     x_axis = data.oMf[hand].rotation[:, 0]
     rows.append(w["hand_axis"] * J6[3:])
     errors.append(w["hand_axis"] * np.cross(x_axis, np.array([1.0, 0.0, 0.0])))
-    posture = np.zeros((model.nv - 6, model.nv))
-    posture[:, 6:] = np.eye(model.nv - 6)
+    posture = np.zeros((robot.n_joints, model.nv))
+    posture[:, robot.base_nv:] = np.eye(robot.n_joints)
     rows.append(w["posture"] * posture)
-    errors.append(w["posture"] * (nominal - q[7:]))
+    errors.append(w["posture"] * (nominal - q[robot.base_nq:]))
     return rows, errors

@@ -202,7 +202,7 @@ def approach_start(robot: PandaModel, q_contact, surface: Surface, distance: flo
 class ContactPostures:
     """The result of :func:`contact_postures`: one row per target, as in :class:`ContactPosture`."""
 
-    q: np.ndarray  # (N, 7)
+    q: np.ndarray  # (N, nq)
     reachable: np.ndarray  # (N,) bool
     position_error: np.ndarray  # (N,) m
     axis_error: np.ndarray  # (N,)
@@ -210,7 +210,7 @@ class ContactPostures:
     @classmethod
     def unsolved(cls, robot: PandaModel, points, normals, seed) -> tuple[np.ndarray, np.ndarray, ContactPostures]:
         """The targets (N, 3), the tool-axis targets -n (N, 3) and the start of a batch: the
-        seeds (N, 7) clipped into the limits, not reachable, infinite errors."""
+        seeds (N, nq) clipped into the limits, not reachable, infinite errors."""
         targets = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
         axis_targets = -np.ascontiguousarray(normals, dtype=float).reshape(-1, 3)
         n = targets.shape[0]
@@ -221,8 +221,8 @@ class ContactPostures:
 class KinematicChain(NamedTuple):
     """The kinematic chain of ``BatchKinematics`` and the joint limits, as the kernel reads them."""
 
-    R_joint: np.ndarray  # (7, 3, 3) fixed rotation of each joint frame in its parent
-    p_joint: np.ndarray  # (7, 3) its origin in the parent
+    R_joint: np.ndarray  # (joints, 3, 3) fixed rotation of each joint frame in its parent
+    p_joint: np.ndarray  # (joints, 3) its origin in the parent
     p_contact: np.ndarray  # (3,) contact point in the last joint frame
     z_contact: np.ndarray  # (3,) tool axis in the last joint frame
     q_min: np.ndarray

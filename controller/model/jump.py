@@ -255,10 +255,10 @@ def predict_from_terms(
     method: str = "crb",
     impulses: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Jumps (N, 7) and impulses (N, 3) of the predictor ``method`` for N states at once.
+    """Jumps (N, nv) and impulses (N, 3) of the predictor ``method`` for N states at once.
 
-    ``terms`` are batched model terms (``controller.model.batch.BatchTerms``: J (N, 3, 7),
-    contact point, centre of mass, mass, inertia about the centre of mass and M (N, 7, 7));
+    ``terms`` are batched model terms (``controller.model.batch.BatchTerms``: J (N, 3, nv),
+    contact point, centre of mass, mass, inertia about the centre of mass and M (N, nv, nv));
     ``normals`` and ``pre_impact_velocities`` are (N, 3) or (3,) arrays (world frame); with
     ``impulses`` (N, 3) the measured impulses replace the predicted ones. The maps are those of
     the table of the module docstring, with M^-1 J^T by two triangular solves of the Cholesky

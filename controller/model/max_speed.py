@@ -92,7 +92,7 @@ class MaxSpeeds:
 
 
 def approach_directions(terms: BatchTerms, normals: np.ndarray) -> np.ndarray:
-    """:func:`approach_direction` of N postures: d = J6+ [-n; 0] (N, 7), J6 = [J; joint axes]."""
+    """:func:`approach_direction` of N postures: d = J6+ [-n; 0] (N, nv), J6 = [J; joint axes]."""
     normals = np.broadcast_to(np.asarray(normals, float), terms.J.shape[:1] + (3,))
     J6 = np.concatenate([terms.J, np.swapaxes(terms.joint_axes, 1, 2)], axis=1)
     target = np.concatenate([-normals, np.zeros_like(normals)], axis=1)

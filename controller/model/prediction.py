@@ -13,7 +13,7 @@ from functools import lru_cache
 import numpy as np
 
 from .jump import JUMP_MODELS, METHODS
-from .robot import NQ, PandaModel
+from .robot import PandaModel
 from .validation import approach_speed, finite_vector, tangential_velocity, unit_normal
 from .validation import restitution as restitution_coefficient
 
@@ -36,7 +36,7 @@ class ImpactQuery:
         speed = approach_speed(speed)
         c_r = restitution_coefficient(restitution)
         tangential = np.zeros(3) if tangential is None else tangential_velocity(tangential, normal)
-        return cls(finite_vector(q, NQ, "the joint positions q"), normal, -speed * normal + tangential, c_r)
+        return cls(finite_vector(q, None, "the joint positions q"), normal, -speed * normal + tangential, c_r)
 
 
 def predict_all(query: ImpactQuery, methods=METHODS, robot: PandaModel | None = None) -> dict:

@@ -33,7 +33,6 @@ from .robot_description import PANDA, RobotDescription, model_urdf, robot_descri
 from .tool_description import TOOLS, ToolDescription, tool_description
 from .validation import BadInputError, all_finite
 
-NQ = 7
 CONTACT_FRAME = "impact_tip"
 TOOL_BODY = "tool"
 """The body (Pinocchio frame, MuJoCo body) of a tool with a mass, at its centre of mass."""
@@ -81,8 +80,8 @@ _FILLS = itertools.count(1)
 class ModelTerms:
     """Every model quantity of one joint state, computed once (``PandaModel.terms``).
 
-    Attributes are world-aligned: ``J`` is the 3x7 linear Jacobian of the contact point p,
-    ``J6`` the 6x7 (linear; angular) Jacobian of the contact frame, ``M`` the joint-space inertia
+    Attributes are world-aligned: ``J`` is the 3 x nv linear Jacobian of the contact point p,
+    ``J6`` the 6 x nv (linear; angular) Jacobian of the contact frame, ``M`` the joint-space inertia
     matrix, ``h`` the bias forces (Coriolis, centrifugal, gravity), ``com`` the centre of mass of
     the moving links, ``mass`` their total mass and ``inertia_com`` the rotational inertia of the
     locked robot about ``com`` (world axes), used by the composite-rigid-body model (20).
@@ -165,12 +164,13 @@ def symmetric_inverse3_into(S, out):
 
 
 class RobotModel:
-    """A described 7-DoF arm (fingers locked) carrying a described contact tool.
+    """A described arm (fingers locked) carrying a described contact tool.
 
     ``robot`` is a name of ``robot_description.ROBOTS`` or a ``RobotDescription``; ``tool`` a
     built-in tool name, a JSON/TOML tool file or a ``ToolDescription``.
 
-    ``tool_frame_id`` is the frame the tool is fixed to (the hand or the flange),
+    ``nq`` and ``nv`` are the model's numbers of coordinates and velocities (one per joint of the
+    description). ``tool_frame_id`` is the frame the tool is fixed to (the hand or the flange),
     ``contact_frame_id`` the contact frame, ``hand_frame_id`` the hand's frame.
 
     >>> robot = RobotModel("fr3", "franka_hand")
@@ -233,11 +233,11 @@ class RobotModel:
         model.lowerPositionLimit, model.upperPositionLimit = self.q_min.copy(), self.q_max.copy()
         self.model = model
         self.data = model.createData()
+        self.nq, self.nv = model.nq, model.nv
         self.dq_max = self.description.dq_max.copy()
         self.tau_max = self.description.tau_max.copy()
         self.ddq_max = self.description.ddq_max.copy()
         self.dddq_max = self.description.dddq_max.copy()
-        self.nq = self.nv = model.nv  # a fixed-base arm of revolute or prismatic joints
         self._zero_velocity = np.zeros(self.nv)
         self._zero_velocity.flags.writeable = False
 
@@ -258,14 +258,13 @@ class RobotModel:
         """Return (q, dq) as float arrays, or raise :class:`InvalidStateError`."""
         q = np.asarray(q, dtype=float)
         dq = self._zero_velocity if dq is None else np.asarray(dq, dtype=float)
-        n = self.nv
-        if q.shape != (n,) or dq.shape != (n,):
-            name, shape = ("q", q.shape) if q.shape != (n,) else ("dq", dq.shape)
-            raise InvalidStateError(f"{name} must have {n} values, got shape {shape}")
+        if q.shape != (self.nq,) or dq.shape != (self.nv,):
+            name, size, shape = ("q", self.nq, q.shape) if q.shape != (self.nq,) else ("dq", self.nv, dq.shape)
+            raise InvalidStateError(f"{name} must have {size} values, got shape {shape}")
         # One sum of |entries| in plain floats (it cannot overflow into a warning, as a dot
         # product of large entries would) exceeds the bound when any entry is NaN, infinite or
         # too large; the precise test only runs then, to name the culprit.
-        if not sum(map(abs, q.tolist())) + sum(map(abs, dq.tolist())) <= 2 * n * MAX_STATE_ENTRY:
+        if not sum(map(abs, q.tolist())) + sum(map(abs, dq.tolist())) <= (self.nq + self.nv) * MAX_STATE_ENTRY:
             for name, values in (("q", q), ("dq", dq)):
                 if not all_finite(values):
                     raise InvalidStateError(f"{name} contains a non-finite value")

@@ -1,8 +1,8 @@
 """Model terms of one state of the standing G1 for its whole-body QP (docs/whole-body-qp.md).
 
-The state is (q, v): q the 36 coordinates (base position, base quaternion, 29 joints) and v the
-35 velocities (base twist in the base frame, joint rates), Pinocchio's free-flyer convention.
-The QP's unknown is the acceleration dv (35, "ddq" in the tasks and constraints). Every frame
+The state is (q, v): q the nq coordinates (base position, base quaternion, joints) and v the
+nv velocities (base twist in the base frame, joint rates), Pinocchio's free-flyer convention.
+The QP's unknown is the acceleration dv (nv, "ddq" in the tasks and constraints). Every frame
 quantity is world-aligned (Pinocchio's LOCAL_WORLD_ALIGNED): for a frame with twist
 [v_p; w] = J6 v, its time derivative is J6 dv + dJ6 v, where dJ6 v is the frame's classical
 acceleration at dv = 0. The same holds for the centre of mass, dc = Jcom v and
@@ -27,7 +27,7 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
-from .floating_base import NB, FloatingBaseModel
+from .floating_base import FloatingBaseModel
 from .validation import BadInputError
 
 TORSO_FRAME = "torso_link"
@@ -82,7 +82,7 @@ class WholeBodyTerms:
 
 
 class WholeBodyModel:
-    """The G1 of ``FloatingBaseModel`` with the limits of its whole-body QP: the 29 actuated
+    """The G1 of ``FloatingBaseModel`` with the limits of its whole-body QP: the ``joints`` actuated
     joints' position, velocity and torque limits from the URDF, the acceleration and jerk
     limits chosen in docs/whole-body-qp.md, and a box on the base's acceleration."""
 
@@ -91,7 +91,8 @@ class WholeBodyModel:
         self.model = self.base.model
         self.data = self.model.createData()
         self.nq, self.nv = self.model.nq, self.model.nv
-        self.joints = self.nv - NB
+        self.base_nq, self.base_nv = self.base.base_nq, self.base.base_nv
+        self.joints = self.base.n_joints
         self.q_min, self.q_max = self.base.q_min, self.base.q_max
         self.dq_max, self.tau_max = self.base.dq_max, self.base.tau_max
         self.ddq_max = np.full(self.joints, JOINT_ACCELERATION_LIMIT)

@@ -3,12 +3,12 @@ the previous command."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
 
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.robot import PandaModel
 
 
 class Status(str, Enum):
@@ -68,7 +68,7 @@ DQ_MAX, Q_MIN, Q_MAX, DDQ_MAX, JERK_STEP = range(5)
 
 
 def command_limits(robot: PandaModel, ddq_max: np.ndarray, jerk_step: np.ndarray) -> np.ndarray:
-    """The joint limits every command keeps, stacked (5, 7) for the compiled kernels: rows
+    """The joint limits every command keeps, stacked (5, one per joint) for the compiled kernels: rows
     dq_max, q_min, q_max, ddq_max and jerk_step = dddq_max dt (indices DQ_MAX ... JERK_STEP)."""
     return np.vstack([robot.dq_max, robot.q_min, robot.q_max, ddq_max, jerk_step]).astype(float)
 
@@ -77,6 +77,6 @@ def command_limits(robot: PandaModel, ddq_max: np.ndarray, jerk_step: np.ndarray
 class CommandMemory:
     """The previous command, for continuity (jerk limits) and for unusable states."""
 
-    q_cmd: np.ndarray | None = None
-    dq_cmd: np.ndarray = field(default_factory=lambda: np.zeros(NQ))
-    ddq: np.ndarray = field(default_factory=lambda: np.zeros(NQ))
+    q_cmd: np.ndarray | None
+    dq_cmd: np.ndarray
+    ddq: np.ndarray

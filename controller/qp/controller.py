@@ -46,7 +46,7 @@ import numpy as np
 from numba import njit
 
 from impactqp.constraints import AccelerationLimit, Constraint, ControlCycle, ExpectedImpact
-from impactqp.controller.model.robot import NQ, InvalidStateError, ModelTerms, PandaModel, SingularPostureError
+from impactqp.controller.model.robot import InvalidStateError, ModelTerms, PandaModel, SingularPostureError
 from impactqp.controller.model.validation import BadInputError
 from impactqp.tasks import Task
 
@@ -95,28 +95,28 @@ class ImpactAwareController:
         self.impact = impact
         self.feasibility_tolerance = float(feasibility_tolerance)
         self._allocate()
-        self.solver = make_solver(solver, self.layout.rows)
-        self.verifier = verifier_for(self.solver.name, self.layout.rows)
+        self.solver = make_solver(solver, self.layout.rows, robot.nv)
+        self.verifier = verifier_for(self.solver.name, self.layout.rows, robot.nv)
         self.fallback_count = 0
-        self.memory = CommandMemory()
+        self.memory = CommandMemory(None, np.zeros(robot.nv), np.zeros(robot.nv))
         self._targets_set = False
         self._last_infeasible: tuple[QpProblem, np.ndarray, np.ndarray] | None = None
         self.phase = "approach"
 
     def _allocate(self) -> None:
         """The buffers of one cycle and the views each task and constraint writes into."""
-        layout = self.layout
+        layout, n = self.layout, self.robot.nv
         task_slices = consecutive_slices([t.rows for t in self.tasks])
         n_task_rows = sum(t.rows for t in self.tasks)
-        self._task_A = np.zeros((n_task_rows, NQ))
+        self._task_A = np.zeros((n_task_rows, n))
         self._task_b = np.zeros(n_task_rows)
         self._task_w = np.zeros((n_task_rows, 1))
         self._task_views = [
             (task, self._task_A[s], self._task_b[s], self._task_w[s, 0]) for task, s in zip(self.tasks, task_slices)
         ]
         self._active_flags = layout.empty_flags()
-        self.problem = p = QpProblem.empty(layout.rows)
-        self._box_bounds = layout.empty_box_bounds()  # rows 2k and 2k + 1: the bounds of box k
+        self.problem = p = QpProblem.empty(layout.rows, n)
+        self._box_bounds = layout.empty_box_bounds(n)  # rows 2k and 2k + 1: the bounds of box k
         self._box_lower = self._box_bounds[0::2]
         self._box_upper = self._box_bounds[1::2]
         self._row_views = [(c, p.C[s], p.l[s], p.u[s]) for c, s in zip(layout.row_constraints, layout.row_slices)]
@@ -126,7 +126,7 @@ class ImpactAwareController:
         self._jerk_step = self.dddq_max * self.dt
         self._limits = command_limits(self.robot, self.ddq_max, self._jerk_step)
         horizon = max(self.dt, float(np.max(self.ddq_max / self.dddq_max)))
-        self._cycle = ControlCycle(self.dt, np.zeros(NQ), np.zeros(NQ), horizon)
+        self._cycle = ControlCycle(self.dt, np.zeros(n), np.zeros(n), horizon)
         # General rows see the joint-space box of the cycle (all box constraints intersected)
         # as the reachable accelerations, so that a row the state violates is relaxed to what
         # the box really allows (ControlCycle.recoverable): the arrays are the problem's own.
@@ -153,7 +153,7 @@ class ImpactAwareController:
         """Re-initialise the command memory at the state (q, dq) (zero acceleration) and
         re-capture the task targets left unspecified."""
         terms = self.robot.terms(q, dq, check_limits=False)
-        self.memory = CommandMemory(terms.q.copy(), terms.dq.copy(), np.zeros(NQ))
+        self.memory = CommandMemory(terms.q.copy(), terms.dq.copy(), np.zeros(self.robot.nv))
         for task in self.tasks:
             task.reset(terms)
         self._targets_set = True
@@ -191,7 +191,7 @@ class ImpactAwareController:
         if solved != SOLVED:
             return self._fallback(q, dq, Status.FALLBACK_SOLVER_ERROR, [], "no solver found a solution", terms)
 
-        dq_cmd, q_cmd = np.empty(NQ), np.empty(NQ)
+        dq_cmd, q_cmd = np.empty(robot.nv), np.empty(robot.nq)
         status = Status.OK
         # dq_cmd = dq + ddq dt (clipped only off the closed loop: see the docstring) and
         # q_cmd = q + (dq + dq_cmd) dt / 2 within the position limits
@@ -288,7 +288,7 @@ class ImpactAwareController:
             jump = self.impact.matrices(terms).jump_matrix @ dq_cmd
             impact_active = self.impact.is_active(terms)
         else:
-            jump = np.zeros(NQ)
+            jump = np.zeros(self.robot.nv)
             impact_active = False
         return Command(
             ddq, dq_cmd, q_cmd, status, active, violated, jump, dq_cmd + jump, impact_active, solver, message,

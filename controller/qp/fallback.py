@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.validation import all_finite
 
 from .command import DDQ_MAX, DQ_MAX, JERK_STEP, Q_MAX, Q_MIN, CommandMemory
@@ -33,22 +33,22 @@ from .solvers import SOLVED, DaqpSolver
 def usable_state(q, dq, memory: CommandMemory, robot: PandaModel) -> tuple[np.ndarray, np.ndarray]:
     """(q, dq) if finite with the right shapes, else the previous command (module docstring)."""
     try:
-        q = np.asarray(q, dtype=float).reshape(NQ)
-        dq = np.asarray(dq, dtype=float).reshape(NQ)
+        q = np.asarray(q, dtype=float).reshape(robot.nq)
+        dq = np.asarray(dq, dtype=float).reshape(robot.nv)
     except (TypeError, ValueError):
-        q = dq = np.full(NQ, np.nan)
+        q, dq = np.full(robot.nq, np.nan), np.full(robot.nv, np.nan)
     if all_finite(q, dq):
         return q, dq
     if memory.q_cmd is not None:
         return memory.q_cmd, memory.dq_cmd
     mid_range = 0.5 * (robot.q_min + robot.q_max)
-    return np.where(np.isfinite(q), q, mid_range), np.zeros(NQ)
+    return np.where(np.isfinite(q), q, mid_range), np.zeros(robot.nv)
 
 
 def brake(q, dq, previous_ddq, dt, limits: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The braking command (ddq, dq_cmd, q_cmd) from a usable state; ``limits`` are the
     ``command.command_limits``."""
-    ddq, dq_cmd, q_cmd = np.empty(NQ), np.empty(NQ), np.empty(NQ)
+    ddq, dq_cmd, q_cmd = np.empty(len(dq)), np.empty(len(dq)), np.empty(len(q))
     braking_command(q, dq, previous_ddq, dt, limits, ddq, dq_cmd, q_cmd)
     return ddq, dq_cmd, q_cmd
 
@@ -84,9 +84,11 @@ def irreducible_conflict(
     for c, s in zip(layout.row_constraints, layout.row_slices):
         rows[c.name] = (problem.C[s], problem.l[s], problem.u[s])
 
+    n = problem.H.shape[0]
+
     def feasible(subset: list[str]) -> bool:
-        lb, ub = np.full(NQ, -np.inf), np.full(NQ, np.inf)
-        C, l, u = [np.zeros((0, NQ))], [np.zeros(0)], [np.zeros(0)]
+        lb, ub = np.full(n, -np.inf), np.full(n, np.inf)
+        C, l, u = [np.zeros((0, n))], [np.zeros(0)], [np.zeros(0)]
         for name in subset:
             C_rows, lower, upper = rows[name]
             if C_rows is None:
@@ -98,8 +100,8 @@ def irreducible_conflict(
         if np.any(lb > ub):
             return False
         C = np.vstack(C)
-        check = QpProblem(np.eye(NQ), np.zeros(NQ), C, np.concatenate(l), np.concatenate(u), lb, ub)
-        return DaqpSolver(C.shape[0]).solve(check)[0] == SOLVED
+        check = QpProblem(np.eye(n), np.zeros(n), C, np.concatenate(l), np.concatenate(u), lb, ub)
+        return DaqpSolver(C.shape[0], n).solve(check)[0] == SOLVED
 
     kept = list(names)
     for name in list(kept):

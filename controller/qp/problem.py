@@ -1,7 +1,7 @@
 """The QP of one cycle in preallocated arrays (``QpProblem``) and where each constraint's rows
 sit in it (``ConstraintLayout``).
 
-The QP in the joint acceleration ddq (7 for the arm; any number of unknowns, e.g. the 35 base and
+The QP in the joint acceleration ddq (one unknown per velocity: the arm's joints, or the base and
 joint accelerations of the standing humanoid, ``whole_body``)::
 
     minimize    1/2 ddq^T H ddq + g^T ddq
@@ -19,7 +19,6 @@ import numpy as np
 from numba import njit
 
 from impactqp.constraints import Constraint
-from impactqp.controller.model.robot import NQ
 
 
 class QpProblem:
@@ -39,8 +38,8 @@ class QpProblem:
         self.upper_gap = np.zeros(n + rows)  # upper - [x; C x]
 
     @classmethod
-    def empty(cls, rows: int, variables: int = NQ) -> QpProblem:
-        """Zeros for ``rows`` general rows in ``variables`` unknowns (the arm's 7 by default)."""
+    def empty(cls, rows: int, variables: int) -> QpProblem:
+        """Zeros for ``rows`` general rows in ``variables`` unknowns."""
         n = variables
         return cls(np.zeros((n, n)), np.zeros(n), np.zeros((rows, n)), np.zeros(rows), np.zeros(rows),
                    np.zeros(n), np.zeros(n))
@@ -90,7 +89,7 @@ class ConstraintLayout:
     def first_relaxed_row(self) -> int:
         return sum(c.rows for c in self.row_constraints if not c.relaxed)
 
-    def empty_box_bounds(self, variables: int = NQ) -> np.ndarray:
+    def empty_box_bounds(self, variables: int) -> np.ndarray:
         """Zeros for the interleaved bounds of the box constraints (rows 2k and 2k + 1)."""
         return np.zeros((2 * len(self.box_constraints), variables))
 

@@ -16,7 +16,6 @@ import proxsuite
 import qpsolvers
 import quadprog
 
-from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
 
 from .problem import QpProblem
@@ -30,7 +29,7 @@ class ProxqpDenseSolver:
 
     name = "proxqp"
 
-    def __init__(self, rows: int, tolerance: float = 1e-7, max_iterations: int = 200, variables: int = NQ):
+    def __init__(self, rows: int, variables: int, tolerance: float = 1e-7, max_iterations: int = 200):
         self.qp = proxsuite.proxqp.dense.QP(variables, 0, rows, True)
         settings = self.qp.settings
         settings.max_iter = max_iterations  # bounded cycle time; a second solver confirms any failure
@@ -71,7 +70,7 @@ class DaqpSolver:
 
     name = "daqp"
 
-    def __init__(self, rows: int, variables: int = NQ):
+    def __init__(self, rows: int, variables: int):
         self._sense = np.zeros(variables + rows, dtype=np.int32)
 
     def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
@@ -95,7 +94,7 @@ class QuadprogSolver:
 
     name = "quadprog"
 
-    def __init__(self, rows: int, variables: int = NQ):
+    def __init__(self, rows: int, variables: int):
         del rows, variables  # quadprog takes the problem as it comes
 
     def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
@@ -146,17 +145,17 @@ def available_backends() -> list[str]:
     return ["daqp", "proxqp"] + [f"qpsolvers:{name}" for name in qpsolvers.available_solvers]
 
 
-def make_solver(name: str, rows: int, variables: int = NQ):
+def make_solver(name: str, rows: int, variables: int):
     """The QP backend called ``name`` (see the module docstring) for ``rows`` general rows in
     ``variables`` unknowns."""
     if name == "proxqp":
-        return ProxqpDenseSolver(rows, variables=variables)
+        return ProxqpDenseSolver(rows, variables)
     if name == "daqp":
         return DaqpSolver(rows, variables)
     return QpsolversSolver(name.removeprefix("qpsolvers:"))
 
 
-def verifier_for(name: str, rows: int, variables: int = NQ) -> DaqpSolver | QuadprogSolver:
+def verifier_for(name: str, rows: int, variables: int) -> DaqpSolver | QuadprogSolver:
     """The independent solver that confirms the failures of the backend ``name``: quadprog
     behind daqp, daqp behind every other backend."""
-    return QuadprogSolver(rows) if name == "daqp" else DaqpSolver(rows, variables)
+    return QuadprogSolver(rows, variables) if name == "daqp" else DaqpSolver(rows, variables)

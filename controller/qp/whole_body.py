@@ -4,7 +4,7 @@
 One control cycle, as the arm's ``ImpactAwareController``::
 
     state (q, v) -> model terms (one ``WholeBodyModel.update_terms`` call into the cycle's buffer) -> task rows and constraint
-    rows -> QP in dv (35: base and joint accelerations) -> Command(dv, v_cmd = v + dv dt,
+    rows -> QP in dv (nv: base and joint accelerations) -> Command(dv, v_cmd = v + dv dt,
     q_cmd = q (+) (v + v_cmd) dt / 2)
 
 The QP reuses the arm's machinery: the preallocated ``QpProblem`` and ``ConstraintLayout``
@@ -12,8 +12,8 @@ The QP reuses the arm's machinery: the preallocated ``QpProblem`` and ``Constrai
 independent second solver confirming any failure, and the arm's compiled kernels for the cost
 H = A^T W A, g = -A^T W b (which skips the zero entries of the posture and damping rows), the
 box intersection and the active set. The acceleration and jerk
-limits of the 29 actuated joints always apply (``AccelerationLimit`` is added when missing); the
-base's six accelerations get a generous box (``BASE_ACCELERATION_LIMIT``, no jerk limit): the
+limits of the actuated joints always apply (``AccelerationLimit`` is added when missing); the
+base's accelerations get a generous box (``BASE_ACCELERATION_LIMIT``, no jerk limit): the
 feet's equality rows (``FootContact``) set them.
 
 Fallback: when the state is unusable (wrong size, non-finite, a joint past its velocity limit),
@@ -32,7 +32,6 @@ import pinocchio as pin
 
 from impactqp.constraints import Constraint, ControlCycle
 from impactqp.constraints.floating_impact import FloatingExpectedImpact
-from impactqp.controller.model.floating_base import NB
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.model.whole_body_terms import BASE_ACCELERATION_LIMIT, WholeBodyModel, WholeBodyTerms
 from impactqp.tasks import Task
@@ -47,8 +46,8 @@ from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
 class WholeBodyController:
     """Whole-body QP with impact-aware constraints (``step(q, v) -> Command``) for the G1.
 
-    ``tasks`` must make the cost strictly convex over the 35 accelerations (a
-    ``DampingTask(variables=35)`` does); ``impact`` is the expected impact whose jump fills
+    ``tasks`` must make the cost strictly convex over the nv accelerations (a
+    ``DampingTask(variables=nv)`` does); ``impact`` is the expected impact whose jump fills
     ``Command.predicted_jump`` (None: no prediction).
     """
 
@@ -90,8 +89,10 @@ class WholeBodyController:
         first = layout.first_relaxed_row
         self._relaxed_rows = (p.C[first:], p.l[first:], p.u[first:])
         self._active_flags = layout.empty_flags()
-        self.ddq_max = np.concatenate([np.full(NB, BASE_ACCELERATION_LIMIT), robot.ddq_max])
-        self._jerk_step = np.concatenate([np.full(NB, np.inf), robot.dddq_max * self.dt])
+        self.ddq_max = np.concatenate([np.full(robot.base_nv, BASE_ACCELERATION_LIMIT), robot.ddq_max])
+        self._jerk_step = np.concatenate([np.full(robot.base_nv, np.inf), robot.dddq_max * self.dt])
+        self._joint_coordinates = slice(robot.base_nq, None)  # the actuated joints' part of q
+        self._joint_velocities = slice(robot.base_nv, None)  # and of v
         self._joint_limits = command_limits(robot, robot.ddq_max, robot.dddq_max * self.dt)
         horizon = max(self.dt, float(np.max(robot.ddq_max / robot.dddq_max)))
         self._cycle = ControlCycle(self.dt, np.zeros(n), np.zeros(n), horizon)
@@ -113,9 +114,10 @@ class WholeBodyController:
             terms = self.robot.update_terms(self._terms, q, v)
         except (BadInputError, TypeError, ValueError) as error:
             return self._fallback(None, Status.FALLBACK_INVALID_STATE, [], str(error))
-        over = first_outside(terms.dq[NB:], self.robot.dq_max)
+        joints = self._joint_velocities
+        over = first_outside(terms.dq[joints], self.robot.dq_max)
         if over >= 0:
-            message = f"joint {over} velocity {terms.dq[NB + over]:.4f} rad/s is outside the velocity limits"
+            message = f"joint {over} velocity {terms.dq[joints][over]:.4f} rad/s is outside the velocity limits"
             return self._fallback(terms, Status.FALLBACK_INVALID_STATE, ["joint_velocity_limit"], message)
         if not self._targets_set:
             for task in self.tasks:
@@ -130,10 +132,10 @@ class WholeBodyController:
         if solved != SOLVED:
             return self._fallback(terms, Status.FALLBACK_SOLVER_ERROR, [], "no solver found a solution")
         v_cmd = terms.dq + dv * self.dt
-        joints = v_cmd[NB:]
+        joint_command = v_cmd[joints]
         status = Status.OK
-        if first_outside(joints, self.robot.dq_max) >= 0:
-            np.clip(joints, -self.robot.dq_max, self.robot.dq_max, out=joints)
+        if first_outside(joint_command, self.robot.dq_max) >= 0:
+            np.clip(joint_command, -self.robot.dq_max, self.robot.dq_max, out=joint_command)
             dv = (v_cmd - terms.dq) / self.dt
             status = Status.VELOCITY_CLIPPED
             self.problem.violation(dv)
@@ -187,22 +189,24 @@ class WholeBodyController:
             if self.memory.q_cmd is None:
                 raise BadInputError(f"no command yet to stand in for an unusable state: {message}")
             terms = self.robot.terms(self.memory.q_cmd, self.memory.dq_cmd)
-        n = self.robot.nv
-        dv, v_cmd, q_joints = np.zeros(n), np.empty(n), np.empty(n - NB)
+        n, joints = self.robot.nv, self._joint_velocities
+        dv, v_cmd, q_joints = np.zeros(n), np.empty(n), np.empty(self.robot.joints)
         braking_command(
-            terms.q[7:], terms.dq[NB:], self.memory.ddq[NB:], self.dt, self._joint_limits, dv[NB:], v_cmd[NB:], q_joints
+            terms.q[self._joint_coordinates], terms.dq[joints], self.memory.ddq[joints], self.dt, self._joint_limits,
+            dv[joints], v_cmd[joints], q_joints,
         )
         Jf = terms.Jf
         dv -= Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ dv + terms.dJf_dq)
         v_cmd = terms.dq + dv * self.dt
-        np.clip(v_cmd[NB:], -self.robot.dq_max, self.robot.dq_max, out=v_cmd[NB:])
+        np.clip(v_cmd[joints], -self.robot.dq_max, self.robot.dq_max, out=v_cmd[joints])
         return self._emit(terms, dv, v_cmd, status, [], list(violated), "", message)
 
     def _emit(self, terms, dv, v_cmd, status, active, violated, solver, message="") -> Command:
         """q_cmd = q (+) (v + v_cmd) dt / 2, joints within their limits; the memory; the Command
         with the jump the expected impact predicts at v_cmd."""
         q_cmd = pin.integrate(self.robot.model, terms.q, 0.5 * self.dt * (terms.dq + v_cmd))
-        q_cmd[7:] = np.clip(q_cmd[7:], self.robot.q_min, self.robot.q_max)
+        joints = self._joint_coordinates
+        q_cmd[joints] = np.clip(q_cmd[joints], self.robot.q_min, self.robot.q_max)
         self.memory = CommandMemory(q_cmd, v_cmd, dv)
         if self.impact is not None:
             jump = self.impact.matrices(terms).jump_matrix @ v_cmd

@@ -3,8 +3,8 @@
 
 Tasks (weighted least squares in dv): the hand's ``ContactApproachTask`` towards the surface,
 the ``CentreOfMassTask`` holding the CoM, the torso's orientation (``FrameTask`` on the torso
-frame, orientation rows only), a ``PostureTask`` on the 29 joints and a ``DampingTask`` on the
-35 velocities (strict convexity). Constraints: the joints' acceleration and jerk limits, their
+frame, orientation rows only), a ``PostureTask`` on the joints and a ``DampingTask`` on the
+nv velocities (strict convexity). Constraints: the joints' acceleration and jerk limits, their
 position limits (braking horizon) and velocity limits, the feet (``FootContact``, equality
 rows), the predicted post-impact joint velocities (``FloatingPostImpactVelocityLimit``) and the
 predicted post-impact CoM velocity inside the stance's capture region (``CaptureRegionLimit``).

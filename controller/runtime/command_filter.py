@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import positive, positive_vector
 
 
@@ -33,11 +32,12 @@ class CommandFilter:
 
     def __init__(self, dt: float, dq_max: np.ndarray, ddq_max: np.ndarray, dddq_max: np.ndarray):
         self.dt = positive(dt, "dt", "s")
-        self.dq_max = positive_vector(dq_max, NQ, "dq_max").copy()
-        self.ddq_max = positive_vector(ddq_max, NQ, "ddq_max").copy()
-        self.jerk_step = positive_vector(dddq_max, NQ, "dddq_max") * self.dt
-        self.dq = np.zeros(NQ)
-        self.ddq = np.zeros(NQ)
+        self.dq_max = positive_vector(dq_max, None, "dq_max").copy()
+        joints = len(self.dq_max)
+        self.ddq_max = positive_vector(ddq_max, joints, "ddq_max").copy()
+        self.jerk_step = positive_vector(dddq_max, joints, "dddq_max") * self.dt
+        self.dq = np.zeros(joints)
+        self.ddq = np.zeros(joints)
 
     @classmethod
     def for_robot(cls, robot, dt: float) -> CommandFilter:
@@ -48,7 +48,7 @@ class CommandFilter:
         """Start from the command dq (clipped into the velocity limits) and acceleration ddq
         (default 0, clipped into the acceleration limits)."""
         self.dq = np.clip(np.asarray(dq, dtype=float), -self.dq_max, self.dq_max)
-        self.ddq = np.zeros(NQ) if ddq is None else np.clip(np.asarray(ddq, float), -self.ddq_max, self.ddq_max)
+        self.ddq = np.zeros_like(self.dq_max) if ddq is None else np.clip(np.asarray(ddq, float), -self.ddq_max, self.ddq_max)
 
     def velocity_change(self, a: np.ndarray) -> np.ndarray:
         """g(a): the velocity change of a cycle at acceleration a plus the jerk-limited ramp-down."""
@@ -67,8 +67,8 @@ class CommandFilter:
     def __call__(self, dq_desired) -> np.ndarray:
         """The next command (a new array) for the requested velocity ``dq_desired``."""
         target = np.asarray(dq_desired, dtype=float)
-        if target.shape != (NQ,) or not np.all(np.isfinite(target)):
-            target = np.zeros(NQ)
+        if target.shape != self.dq_max.shape or not np.all(np.isfinite(target)):
+            target = np.zeros(len(self.dq_max))
         dq, ddq = self.dq, self.ddq
         lower = np.maximum(-self.ddq_max, ddq - self.jerk_step)
         upper = np.minimum(self.ddq_max, ddq + self.jerk_step)
@@ -86,4 +86,4 @@ class CommandFilter:
 
     def brake(self) -> np.ndarray:
         """The next command of a stop: the request dq = 0 within every limit."""
-        return self(np.zeros(NQ))
+        return self(np.zeros(len(self.dq_max)))

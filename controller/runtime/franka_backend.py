@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 
@@ -101,8 +100,8 @@ class FrankaRobot(LibfrankaRobot):
     def stop(self) -> None:
         """Finish the motion (the loop brought the command to zero first)."""
         if self.control is not None:
-            self.control.readOnce()
-            self.control.writeOnce(franka_command(self.franka, np.zeros(NQ), finished=True))
+            state, _ = self.control.readOnce()
+            self.control.writeOnce(franka_command(self.franka, np.zeros(len(state.dq)), finished=True))
             self.control = None
 
     def failed(self, error: BaseException) -> None:

@@ -36,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.validation import BadInputError, positive
 
 from impactqp.controller.measured.impact import DEFAULT_TORQUE_THRESHOLD, NOISE_SIGMAS
@@ -56,10 +56,10 @@ class MomentumObserver:
         self.data = robot.model.createData()
         self.dt = float(dt)
         self.gain = float(gain)
-        self.residual = np.zeros(NQ)
-        self._p0 = np.zeros(NQ)
-        self._integral = np.zeros(NQ)
-        self._drift = np.zeros(NQ)  # C^T dq - g of the previous sample
+        self.residual = np.zeros(robot.nv)
+        self._p0 = np.zeros(robot.nv)
+        self._integral = np.zeros(robot.nv)
+        self._drift = np.zeros(robot.nv)  # C^T dq - g of the previous sample
         self._started = False
 
     @property
@@ -95,10 +95,12 @@ class MomentumObserver:
 
 
 class ImpactDetector:
-    """Latching online detector (module docstring): ``update(t, residual)`` once per sample."""
+    """Latching online detector (module docstring): ``update(t, residual)`` once per sample, a
+    residual of one value per joint (``joints``)."""
 
     def __init__(
         self,
+        joints: int,
         torque_threshold: float = DEFAULT_TORQUE_THRESHOLD,
         noise_sigmas: float = NOISE_SIGMAS,
         calibration_samples: int = DEFAULT_CALIBRATION_SAMPLES,
@@ -113,10 +115,10 @@ class ImpactDetector:
         self.ignored = 0
         self.torque_threshold = float(torque_threshold)
         self.noise_sigmas = float(noise_sigmas)
-        self.calibration = np.zeros((int(calibration_samples), NQ))
+        self.calibration = np.zeros((int(calibration_samples), joints))
         self.samples = 0
-        self.bias = np.zeros(NQ)
-        self.threshold = np.full(NQ, self.torque_threshold)
+        self.bias = np.zeros(joints)
+        self.threshold = np.full(joints, self.torque_threshold)
         self.detected = False
         self.t_detect: float | None = None
         self.t_calibrated: float | None = None  # time of the sample that completed the calibration

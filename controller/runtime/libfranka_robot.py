@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from impactqp.controller.model.robot import NQ, PandaModel, RobotModel
+from impactqp.controller.model.robot import PandaModel, RobotModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 
@@ -76,10 +76,10 @@ def error_names(errors) -> list[str]:
 
 
 def model_difference(mass_matrix, model: PandaModel, q) -> float:
-    """||M_r - M(q)||_F / ||M_r||_F for the robot's mass matrix M_r (7x7 or its 49 entries:
+    """||M_r - M(q)||_F / ||M_r||_F for the robot's mass matrix M_r (nv x nv or its nv^2 entries:
     M is symmetric, so the storage order does not matter)."""
-    robot_M = np.asarray(mass_matrix, dtype=float).reshape(NQ, NQ)
-    ours = model.terms(np.asarray(q, dtype=float), np.zeros(NQ), check_limits=False).M
+    robot_M = np.asarray(mass_matrix, dtype=float).reshape(model.nv, model.nv)
+    ours = model.terms(np.asarray(q, dtype=float), np.zeros(model.nv), check_limits=False).M
     return float(np.linalg.norm(robot_M - ours) / np.linalg.norm(robot_M))
 
 

@@ -42,7 +42,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from impactqp.controller.measured.trial_log import TrialLog
-from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
 
 from .command_filter import CommandFilter
@@ -58,11 +57,13 @@ MAX_STOP_CYCLES = 2000
 
 class Watchdog:
     """Trips on a non-finite state (t, q, dq, tau or tau_ext), a stale state, a controller exception or ``max_overruns``
-    consecutive overruns; latched until the end of the run. ``reason`` says why."""
+    consecutive overruns; latched until the end of the run. ``reason`` says why. ``joints`` is the
+    number of values of a well-formed state's vectors."""
 
-    def __init__(self, max_overruns: int = DEFAULT_MAX_OVERRUNS):
+    def __init__(self, joints: int, max_overruns: int = DEFAULT_MAX_OVERRUNS):
         if max_overruns < 1:
             raise BadInputError(f"max_overruns = {max_overruns} must be >= 1")
+        self.joints = int(joints)
         self.max_overruns = int(max_overruns)
         self.consecutive_overruns = 0
         self.tripped = False
@@ -79,7 +80,7 @@ class Watchdog:
     def check_state(self, state: RobotState) -> bool:
         """Trip on a malformed (wrong type or shape), non-finite or stale state; whether the
         state is well-formed, i.e. safe to log."""
-        problem = malformed(state)
+        problem = malformed(state, self.joints)
         if problem:
             self.trip(f"malformed state: {problem}")
             return False
@@ -99,9 +100,9 @@ class Watchdog:
             self.trip(f"{self.consecutive_overruns} overruns in a row")
 
 
-def malformed(state) -> str:
-    """What makes ``state`` unusable as a :class:`RobotState` of NQ joints ("" when nothing):
-    a backend bug, never a value the watchdog can judge."""
+def malformed(state, joints: int) -> str:
+    """What makes ``state`` unusable as a :class:`RobotState` of ``joints`` joints ("" when
+    nothing): a backend bug, never a value the watchdog can judge."""
     if not isinstance(state, RobotState):
         return f"a {type(state).__name__}, not a RobotState"
     if isinstance(state.t, bool) or not isinstance(state.t, (int, float, np.integer, np.floating)):
@@ -109,29 +110,31 @@ def malformed(state) -> str:
     named = [("q", state.q), ("dq", state.dq), ("tau", state.tau)]
     named += [] if state.tau_ext is None else [("tau_ext", state.tau_ext)]
     for name, value in named:
-        if not isinstance(value, np.ndarray) or value.shape != (NQ,) or value.dtype.kind not in "fiu":
+        if not isinstance(value, np.ndarray) or value.shape != (joints,) or value.dtype.kind not in "fiu":
             shape = getattr(value, "shape", None)
-            return f"{name} is {'a ' + type(value).__name__ if shape is None else f'of shape {shape}'}, not {NQ} numbers"
+            return f"{name} is {'a ' + type(value).__name__ if shape is None else f'of shape {shape}'}, not {joints} numbers"
     return ""
 
 
-def placeholder(t: float, period: float) -> RobotState:
+def placeholder(t: float, period: float, joints: int) -> RobotState:
     """The state logged for a cycle whose read failed or was malformed: the next period's time
-    and NaN values (no measurement), so the log stays one row per cycle with increasing time."""
-    nan = np.full(NQ, np.nan)
+    and NaN values for the ``joints`` joints (no measurement), so the log stays one row per cycle
+    with increasing time."""
+    nan = np.full(joints, np.nan)
     return RobotState(t + period, nan, nan, nan)
 
 
 class LoopLog:
-    """Per-cycle records in arrays preallocated for ``capacity`` cycles (no allocation per cycle)."""
+    """Per-cycle records of ``joints`` joints in arrays preallocated for ``capacity`` cycles (no
+    allocation per cycle)."""
 
-    def __init__(self, capacity: int):
+    def __init__(self, capacity: int, joints: int):
         self.size = 0
         self.t = np.zeros(capacity)
-        self.q = np.zeros((capacity, NQ))
-        self.dq = np.zeros((capacity, NQ))
-        self.tau = np.zeros((capacity, NQ))
-        self.dq_cmd = np.zeros((capacity, NQ))
+        self.q = np.zeros((capacity, joints))
+        self.dq = np.zeros((capacity, joints))
+        self.tau = np.zeros((capacity, joints))
+        self.dq_cmd = np.zeros((capacity, joints))
         self.cycle_time = np.zeros(capacity)
         self.start_time = np.zeros(capacity)
         self.phase: list[str] = []
@@ -239,8 +242,9 @@ class ControlLoop:
         self.robot = robot
         self.session = session
         self.filter = command_filter
+        self.joints = len(command_filter.dq_max)  # the filter limits every joint of the robot
         self.deadline = robot.period if deadline is None else float(deadline)
-        self.watchdog = Watchdog(max_overruns)
+        self.watchdog = Watchdog(self.joints, max_overruns)
         self.stop_requested = False
         self.robot_failed = False
         self.overruns = 0
@@ -258,10 +262,10 @@ class ControlLoop:
         ends in the braking sequence; ``robot.stop()`` is called on every way out."""
         robot, watchdog = self.robot, self.watchdog
         self.cycles = int(round(duration / robot.period))
-        self.log = LoopLog(self.cycles + MAX_STOP_CYCLES + 1)
+        self.log = LoopLog(self.cycles + MAX_STOP_CYCLES + 1, self.joints)
         state = robot.read()  # before real time: nothing moves yet, a failure is reported as it is
         if not watchdog.check_state(state):
-            state = placeholder(0.0, robot.period)
+            state = placeholder(0.0, robot.period, self.joints)
         elif not watchdog.tripped:
             self.session.start(state)
             self.filter.reset(state.dq)
@@ -278,7 +282,7 @@ class ControlLoop:
             if newest is not None and watchdog.check_state(newest):
                 state = newest
             elif newest is not None:
-                state = placeholder(state.t, robot.period)
+                state = placeholder(state.t, robot.period, self.joints)
         except BaseException:
             self._stop()
             raise
@@ -342,7 +346,8 @@ class ControlLoop:
         watchdog's state check, the command, its accounting; (command, run over)."""
         started = self.clock()
         if not self.stopping and not self.watchdog.check_state(state):
-            state = placeholder(self.log.t[self.log.size - 1] if self.log.size else 0.0, self.robot.period)
+            last_t = self.log.t[self.log.size - 1] if self.log.size else 0.0
+            state = placeholder(last_t, self.robot.period, self.joints)
         dq_cmd, phase = self.command(state)
         return dq_cmd, self.record(state, dq_cmd, phase, started)
 
@@ -354,10 +359,9 @@ class ControlLoop:
         except Exception as error:
             message = " ".join(str(error).split())  # one line, whatever the bindings' message holds
             self.watchdog.trip(f"robot error: the state cannot be read: {type(error).__name__}: {message}")
-            return placeholder(previous.t, self.robot.period)
-        if check:
-            return state if self.watchdog.check_state(state) else placeholder(previous.t, self.robot.period)
-        return state if not malformed(state) else placeholder(previous.t, self.robot.period)
+            return placeholder(previous.t, self.robot.period, self.joints)
+        usable = self.watchdog.check_state(state) if check else not malformed(state, self.joints)
+        return state if usable else placeholder(previous.t, self.robot.period, self.joints)
 
     def _record(self, state: RobotState, dq_cmd: np.ndarray, phase: str, elapsed: float, started: float) -> None:
         """Log the cycle; a failure of the log trips the watchdog (the commands matter more)."""

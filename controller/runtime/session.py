@@ -57,7 +57,7 @@ class ImpactSession:
         self.approach = build_controller(config, robot)
         self.post_impact = build_controller(post_impact_config(config), robot)
         self.observer = MomentumObserver(robot, config.dt)
-        self.detector = ImpactDetector(settle_samples=self.observer.settle_samples)
+        self.detector = ImpactDetector(robot.nv, settle_samples=self.observer.settle_samples)
         self.controller = self.approach
         self.phase = APPROACH
         self.last: Command | None = None

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import NQ, PandaModel
+from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.validation import BadInputError
 
 from .interface import RobotState

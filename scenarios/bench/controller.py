@@ -37,7 +37,7 @@ from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.sim.scene import build_scene
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.robot import NQ, PandaModel, RobotModel
+from impactqp.controller.model.robot import PandaModel, RobotModel
 from impactqp.controller.model.tool_postures import tool_posture
 from impactqp.controller.qp import available_backends
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
@@ -76,10 +76,10 @@ def _approach_loop(robot: PandaModel, solver: str | None, cycles: int) -> tuple[
     controller, q0 = _approach_setup(robot, solver)
     samples = np.empty(cycles)
     fallbacks = 0
-    q, dq = q0, np.zeros(NQ)
+    q, dq = q0, np.zeros(robot.nv)
     for k in range(cycles):
         if k % RESTART_EVERY == 0:
-            q, dq = q0, np.zeros(NQ)
+            q, dq = q0, np.zeros(robot.nv)
             controller.reset(q, dq)
         start = time.perf_counter()
         command = controller.step(q, dq)
@@ -97,7 +97,7 @@ def settled_speed_ratio(robot: PandaModel, solver: str) -> float:
     surface = Surface(robot.contact_point(q) - 0.05 * normal, normal)
     config = ControllerConfig.approach(surface, speed=2.0, solver=solver, always_active=True, posture_weight=0.0)
     controller = build_controller(config, robot)
-    dq = np.zeros(NQ)
+    dq = np.zeros(robot.nv)
     for _ in range(800):
         dq = controller.step(q, dq).dq_cmd
     terms = robot.terms(q)
@@ -152,7 +152,7 @@ def mink_cycle_samples(cycles: int = CYCLES) -> np.ndarray:
     tasks = [frame_task, posture_task]
     limits = [
         mink.ConfigurationLimit(model),
-        mink.VelocityLimit(model, {model.joint(i).name: 2.0 for i in range(NQ)}),
+        mink.VelocityLimit(model, {model.joint(i).name: 2.0 for i in range(model.njnt)}),
     ]
     dt = 0.001
     samples = np.empty(cycles)
@@ -198,7 +198,7 @@ def stage_samples(robot: PandaModel, cycles: int = 1000) -> dict[str, np.ndarray
     the QP solver; check: the feasibility check and the active constraints)."""
     controller, q0 = _approach_setup(robot)
     stages = {name: np.empty(cycles) for name in ("terms", "tasks", "constraints", "solve", "check")}
-    q, dq = q0, np.zeros(NQ)
+    q, dq = q0, np.zeros(robot.nv)
     controller.reset(q, dq)
     terms = robot.terms(q, dq)
     for k in range(cycles):

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from impactqp.controller.model.choice import DEFAULT_CHOICE
 from impactqp.sim.causes import CAUSE_NAMES, cause_named, default_causes, realistic_hidden_effect
 from impactqp.sim.diagnosis import diagnose
 from impactqp.sim.generation import DatasetRequest, generate_dataset
@@ -26,6 +27,8 @@ COMBINED = (
 )
 # hidden effects diagnosed without their own causes among the candidates: nothing may explain them
 OUT_OF_FAMILY = (("velocity_filter",), ("torque_offset",), ("delay",), ("armature", "velocity_filter"))
+JOINTS = len(DEFAULT_CHOICE.robot.joints)
+"""The joints of the robot the datasets are generated with (``DatasetRequest``'s default)."""
 
 
 def hidden_cases() -> list[tuple[str, ...]]:
@@ -51,7 +54,7 @@ def accuracy_of(case: tuple[str, ...], result: dict, overrides: dict) -> tuple[b
     named = sorted(result["causes"]) == sorted(case)
     errors, covered = [], []
     for name in case:
-        cause = cause_named(name)
+        cause = cause_named(name, JOINTS)
         truth = cause.theta_of(overrides)
         if name not in result["causes"]:
             errors += [float("inf")] * len(truth)
@@ -70,7 +73,7 @@ def hidden_dataset(directory: Path, case: tuple[str, ...], rng: np.random.Genera
     """A dataset with the realistic effects of ``case`` hidden; returns their plant overrides."""
     overrides, tangential = {}, set()
     for name in case:
-        values, speeds = realistic_hidden_effect(name, rng)
+        values, speeds = realistic_hidden_effect(name, rng, JOINTS)
         overrides.update(values)
         tangential.update(speeds)
     request = DatasetRequest(
@@ -86,7 +89,7 @@ def false_explanations(tmp: str, rng: np.random.Generator) -> float:
     for k, case in enumerate(OUT_OF_FAMILY):
         data = Path(tmp) / f"outside{k}"
         hidden_dataset(data, case, rng, 100 + k)
-        causes = [c for c in default_causes() if c.name not in case]
+        causes = [c for c in default_causes(JOINTS) if c.name not in case]
         explained.append(diagnose(data, causes=causes, jobs=2).explained)
     return float(np.mean(explained))
 
@@ -96,7 +99,7 @@ def rows() -> list[dict]:
     rng = np.random.default_rng(2026)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        overrides, _ = realistic_hidden_effect("armature", rng)
+        overrides, _ = realistic_hidden_effect("armature", rng, JOINTS)
         data = Path(tmp) / "thirty"
         generate_dataset(data, DatasetRequest(plant=PlantParameters(**overrides), repeats=2, seed=1), jobs=2)
         start = time.perf_counter()

@@ -11,7 +11,7 @@ import pinocchio
 from impactqp.controller.model.batch import BatchKinematics, predict_batch
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.robot import NQ, PandaModel, RobotModel
+from impactqp.controller.model.robot import PandaModel, RobotModel
 
 from .base import rate_row, time_calls, timing_row
 
@@ -40,13 +40,13 @@ def rows() -> list[dict]:
     rows = [timing_row("predict.crb.single", "us", single_prediction_samples(robot), 1e6)]
     rows.append(timing_row("predict.crb.single.fr3", "us", single_prediction_samples(RobotModel("fr3")), 1e6))
     data = robot.model.createData()
-    q, dq = posture.q, np.zeros(NQ)
+    q, dq = posture.q, np.zeros(robot.nv)
     rows.append(timing_row(
         "floor.pinocchio.all_terms", "us",
         time_calls(lambda: pinocchio.computeAllTerms(robot.model, data, q, dq), 5000), 1e6,
     ))
     kinematics = BatchKinematics(robot)
-    Q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (10_000, NQ))
+    Q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (10_000, robot.nq))
     predict_batch(kinematics, Q, n, v, 0.0, "crb")
     samples = time_calls(lambda: predict_batch(kinematics, Q, n, v, 0.0, "crb"), 30)
     rows.append(rate_row("predict.crb.batch", "predictions/s", 10_000, samples))

@@ -9,7 +9,6 @@ import click
 import numpy as np
 
 from impactqp.controller.model.jump import METHODS
-from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
 from impactqp.scenarios.cli.arguments import HumanoidChoice, emit_json, output_directory, parse_vector, robot_options
 
@@ -63,7 +62,7 @@ def postures(as_json, choice):
 @robot_options(humanoid=True)
 def predict(method, as_json, choice, **impact):
     """Predict the impact-induced joint-velocity jump at a posture of the robot with the tool
-    (with --robot g1: a stance of the standing G1, --q of 36 values)."""
+    (with --robot g1: a stance of the standing G1, --q of its nq values)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.prediction import ImpactQuery, predict_all
     from impactqp.scenarios.readable import fixed
@@ -87,7 +86,7 @@ def predict(method, as_json, choice, **impact):
     if impact["posture_name"] is not None:
         q = choice.posture(impact["posture_name"]).q
     else:
-        q = parse_vector(impact["q_text"], NQ, "--q")
+        q = parse_vector(impact["q_text"], len(choice.robot.joints), "--q")
     tangential = parse_vector(impact["tangential_text"], 3, "--tangential") if impact["tangential_text"] else np.zeros(3)
     query = ImpactQuery.from_speed(
         q, parse_vector(impact["normal_text"], 3, "--normal"), impact["speed"], tangential, impact["restitution"]
@@ -101,7 +100,8 @@ def predict(method, as_json, choice, **impact):
     click.echo(f"normal              = {fixed(report['normal'])}")
     click.echo(f"pre-impact velocity = {fixed(report['pre_impact_velocity'])} m/s")
     click.echo(f"restitution         = {report['restitution']}   cond(M) = {report['cond_M']:.0f}")
-    header = f"{'method':<17}" + "".join(f"{f'dq{i}':>9}" for i in range(1, 8)) + "   impulse (N s)"
+    joints = range(1, len(report["q"]) + 1)
+    header = f"{'method':<17}" + "".join(f"{f'dq{i}':>9}" for i in joints) + "   impulse (N s)"
     click.echo(header)
     for name, res in report["methods"].items():
         dq = "".join(f"{x:9.4f}" for x in res["dq_jump"])

@@ -187,7 +187,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     if save_plant:
         from dataclasses import replace
 
-        replace(nominal, **summary["parameters"]).to_json(save_plant)
+        replace(nominal.for_joints(len(result.choice.robot.joints)), **summary["parameters"]).to_json(save_plant)
     if report_dir:
         from impactqp.scenarios.diagnosis_report import write_report
 

@@ -51,7 +51,7 @@ def stance_names(text: str | None) -> tuple[str, ...]:
 
 def g1_predict(posture: str | None, q_text: str | None, impact: dict, methods) -> dict:
     """The ``predict`` report of the G1 (feet held): per method (``methods``; None: classical, gm,
-    crb) the jump dq_jump (35: base twist, 29 joints), impulse, CoM jump and feet wrenches."""
+    crb) the jump dq_jump (nv: base twist, joints), impulse, CoM jump and feet wrenches."""
     reject_options(["tool"])
     robot = FloatingBaseModel()
     if (posture is None) == (q_text is None):

@@ -147,7 +147,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     click.echo(f"contact speed    {report['contact_speed']:.4f} m/s at t = {report['impact_time']:.4f} s")
     click.echo(f"impact duration  {report['impact_duration'] * 1e3:.2f} ms")
     click.echo(f"impulse          {fixed(report['impulse'])} N s")
-    click.echo(f"{'':<17}" + "".join(f"{f'dq{i}':>9}" for i in range(1, 8)))
+    click.echo(f"{'':<17}" + "".join(f"{f'dq{i}':>9}" for i in range(1, len(report["dq_jump"]) + 1)))
     click.echo(f"{'simulated jump':<17}" + "".join(f"{x:9.4f}" for x in report["dq_jump"]))
     for name, jump in report["predicted"].items():
         click.echo(f"{name:<17}" + "".join(f"{x:9.4f}" for x in jump))

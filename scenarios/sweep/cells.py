@@ -37,7 +37,7 @@ from impactqp.controller.model.inverse_kinematics import UnreachableStartError, 
 from impactqp.controller.model.max_speed import CRITERIA, approach_directions, closed_form_max_speeds
 from impactqp.controller.model.postures import DEFAULT_WALL, ImpactPosture, Surface
 from impactqp.controller.model.choice import RobotChoice
-from impactqp.controller.model.robot import NQ, SINGULAR_RATIO
+from impactqp.controller.model.robot import SINGULAR_RATIO
 from impactqp.scenarios.max_speed_search import MaxSpeedSearch
 from impactqp.sim.plant import PlantParameters
 
@@ -179,7 +179,7 @@ def evaluate_cells(config: SweepConfig, cells: range, simulation: Simulation | N
         "axis_error": solved.axis_error[posture_of_cell],
     }
     q = solved.q[posture_of_cell]
-    for j in range(NQ):
+    for j in range(q.shape[1]):
         columns[f"q{j + 1}"] = q[:, j]
     columns["cond_M"] = cond_M[posture_of_cell]
     columns["jacobian_sv_ratio"] = sv_ratio[posture_of_cell]

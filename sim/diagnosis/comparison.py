@@ -20,7 +20,7 @@ from .trials import MeasuredTrial, ReplaySetting
 def predictor_errors(trials: list[MeasuredTrial], setting: ReplaySetting) -> tuple[dict, dict, dict]:
     """Average error (26) of each predictor at the logged pre-impact states (v- = J dq-,
     c_r = 0): with its own impulse, and fed the measured impulse where a force log exists.
-    Also returns the predicted jumps (trials x 7) per method."""
+    Also returns the predicted jumps (trials x joints) per method."""
     robot = setting.choice.model()
     own = {m: [] for m in METHODS}
     fed = {m: [] for m in METHODS}

@@ -1,9 +1,9 @@
 """Fitting causes to the trials: residuals of a replay, and bounded least squares over them.
 
-The residuals per trial (``residuals``) are the jump error (7; both jumps read at the trial's
-``jump_samples``), the error of the mean joint torque over the torque window before contact (7),
-with force data the impulse error (3) and the contact duration error, and the error of the
-impact trace (``trials.impact_trace``: velocities and torques, TRACE_LENGTH samples x 14), each divided by its
+The residuals per trial (``residuals``) are the jump error (one per joint; both jumps read at the
+trial's ``jump_samples``), the error of the mean joint torque over the torque window before contact
+(one per joint), with force data the impulse error (3) and the contact duration error, and the error of the
+impact trace (``trials.impact_trace``: velocities and torques, TRACE_LENGTH samples x 2 per joint), each divided by its
 block's noise std read from the data (``noise.estimate_noise``), so every block counts by its
 noise. A trial's error (``trial_errors``) is the root mean square of its residuals: the
 normalised residual the selection compares. A fit (``fit``) minimises
@@ -41,8 +41,8 @@ def trial_residuals(f: ReplayFeatures, trial: MeasuredTrial) -> np.ndarray:
 
 
 def residual_blocks(f: ReplayFeatures, trial: MeasuredTrial) -> dict[str, np.ndarray]:
-    """The residuals of one replay in noise units per block: jump (7), torque (7), then with
-    force data impulse (3) and duration (1), and the impact trace (TRACE_LENGTH x 14, each
+    """The residuals of one replay in noise units per block: jump and torque (one per joint), then
+    with force data impulse (3) and duration (1), and the impact trace (TRACE_LENGTH x 2 per joint, each
     sample over its own std, ``noise.trace_std``)."""
     noise = trial.noise
     blocks = {"jump": (f.jump - trial.reference) / noise.jump, "torque": (f.torque - trial.torque) / noise.torque}
@@ -75,7 +75,9 @@ def fit_report(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> d
 
 def residual_sizes(trials: list[MeasuredTrial]) -> list[int]:
     """How many residuals each trial contributes (``residuals``)."""
-    return [14 + (4 if t.impulse is not None else 0) + t.reference_trace.size for t in trials]
+    return [
+        len(t.reference) + len(t.torque) + (4 if t.impulse is not None else 0) + t.reference_trace.size for t in trials
+    ]
 
 
 def jump_errors(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> np.ndarray:

@@ -1,8 +1,9 @@
 """The noise of the compared signals, read from the data (``estimate_noise``), and the fit of a
 model against it (``fit_report``).
 
-The diagnosis compares five signal blocks per trial (``fitting.residuals``): the jump (7), the
-mean torque before contact (7), with force data the impulse (3) and the contact duration, and
+The diagnosis compares five signal blocks per trial (``fitting.residuals``): the jump (one per
+joint), the mean torque before contact (one per joint), with force data the impulse (3) and the
+contact duration, and
 the impact trace of the velocities and torques (``trials.impact_trace``). Each block's noise std is estimated from the
 dataset itself, never from a constant:
 
@@ -54,9 +55,9 @@ MAD_TO_STD = 1.4826
 
 @dataclass(frozen=True)
 class BlockNoise:
-    """Noise std of each compared block: jump (7, rad/s), torque (7, N m), impulse (3, N s),
-    duration (s), impact trace (14 per sample: the 7 velocities, rad/s, then the 7 torques, N m;
-    the sensor term of ``trace_std``)."""
+    """Noise std of each compared block: jump (one per joint, rad/s), torque (one per joint, N m),
+    impulse (3, N s), duration (s), impact trace (2 per joint and sample: the joint velocities,
+    rad/s, then the joint torques, N m; the sensor term of ``trace_std``)."""
 
     jump: np.ndarray
     torque: np.ndarray

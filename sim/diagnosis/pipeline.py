@@ -37,12 +37,13 @@ def diagnose(
     """Measure, replay, compare, select the causes, bound their parameters (the steps:
     ``sim/diagnosis/__init__.py``). ``progress(step)`` is called as each of ``STEPS`` begins."""
     step = progress or (lambda name: None)
-    nominal = nominal or PlantParameters()
     step(STEPS[0])
     trials, skipped, setting = load_trials(directory)
     if not trials:
         raise BadInputError(f"{directory}: no usable trial; the diagnosis needs at least 1 (skipped: {skipped})")
-    causes = causes if causes is not None else default_causes(setting.surface.friction, setting.choice.tool)
+    joints = len(setting.choice.robot.joints)
+    nominal = (nominal or PlantParameters()).for_joints(joints)
+    causes = causes if causes is not None else default_causes(joints, setting.surface.friction, setting.choice.tool)
     names = [c.name for c in causes]
     if len(set(names)) != len(names):
         raise ValueError(f"candidate causes must have distinct names, got {names}")

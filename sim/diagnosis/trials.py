@@ -36,7 +36,6 @@ from impactqp.controller.measured.impact import (
 )
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import NQ
 
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import CommandReplay, SimulationUnstableError, run_trial, servo_reference_from_commands
@@ -110,8 +109,8 @@ def trace_at(x: np.ndarray, pre: int) -> np.ndarray:
 
 
 def impact_trace(dq: np.ndarray, tau: np.ndarray, pre: int) -> np.ndarray:
-    """(TRACE_LENGTH, 14): the traces (``trace_at``) of the joint velocities (columns 0-6) and
-    torques (7-13). A jump read at two samples cannot tell a late sensor from a filtered
+    """(TRACE_LENGTH, 2 x joints): the traces (``trace_at``) of the joint velocities (the first
+    columns) and torques (the last). A jump read at two samples cannot tell a late sensor from a filtered
     velocity or from a plant that yields slowly: the velocity's rise and the torque's answer,
     sample by sample, can (a late sensor moves both, a velocity filter only rounds the
     first; ``docs/diagnosis.md``)."""
@@ -215,7 +214,7 @@ def replay_log(scene, trial: MeasuredTrial):
     reference rebuilt from its commands, driven by its logged commands."""
     return run_trial(
         scene,
-        CommandReplay(trial.dq_cmd),
+        CommandReplay(trial.dq_cmd, scene.model.nv),
         trial.q0,
         trial.dq0,
         len(trial.dq_cmd) * trial.control_period,
@@ -233,7 +232,7 @@ def simulated_log(setting: ReplaySetting, plant: PlantParameters, trial: Measure
     key = (surface.point.tobytes(), surface.normal.tobytes(), surface.friction, physical, trial.id,
            choice.robot.name, repr(choice.tool.as_dict()),
            trial.q0.tobytes(), trial.dq0.tobytes(), trial.dq_cmd.tobytes(),
-           plant.sensor_delay, velocity_scales(plant).tobytes())
+           plant.sensor_delay, velocity_scales(plant, len(trial.dq0)).tobytes())
     if key in _simulated:
         _simulated.move_to_end(key)
         return _simulated[key]
@@ -252,7 +251,7 @@ def true_start(trial: MeasuredTrial, plant: PlantParameters) -> MeasuredTrial:
     start velocity: read ``sensor_delay`` samples later (the log is late) and divided by
     the velocity scales (``sim.sensor.velocity_scales``; the replay's physics must start from
     the robot's state, not from the faulty reading)."""
-    scales = velocity_scales(plant)
+    scales = velocity_scales(plant, len(trial.dq0))
     if plant.sensor_delay == 0.0 and np.all(scales == 1.0):
         return trial
     ahead = delayed(trial.dq_log, -plant.sensor_delay)[: START_AVERAGE + 1].mean(axis=0)
@@ -268,9 +267,10 @@ def replay(log, trial: MeasuredTrial) -> ReplayFeatures:
     1 kHz loop can hold) is marked failed: its jump and impulse are zero, so the fit's residuals
     push away from it; so are the impulse and the detected jump of a replay without an impact.
     """
+    joints = len(trial.dq0)
     if log is None:
         trace = np.zeros_like(trial.reference_trace)
-        return ReplayFeatures(np.zeros(NQ), np.zeros(3), 0.0, np.zeros(NQ), np.zeros(NQ), trace)
+        return ReplayFeatures(np.zeros(joints), np.zeros(3), 0.0, np.zeros(joints), np.zeros(joints), trace)
     first, last = trial.torque_window
     torque = log.tau[first:last].mean(axis=0)
     jump = jump_at(log.dq, *trial.jump_samples)
@@ -278,7 +278,7 @@ def replay(log, trial: MeasuredTrial) -> ReplayFeatures:
     try:
         impact = measure_impact(log)
     except ImpactNotFoundError:
-        return ReplayFeatures(jump, np.zeros(3), 0.0, torque, np.zeros(NQ), trace)
+        return ReplayFeatures(jump, np.zeros(3), 0.0, torque, np.zeros(joints), trace)
     return ReplayFeatures(jump, impact.impulse, impact.duration, torque, impact.dq_jump, trace)
 
 
