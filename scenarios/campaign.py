@@ -37,7 +37,6 @@ from tqdm import tqdm  # noqa: E402
 from impactqp.controller.model.jump import METHODS, average_prediction_error  # noqa: E402
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice  # noqa: E402
 from impactqp.controller.model.postures import Surface  # noqa: E402
-from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
 from impactqp.sim.generation import DEFAULT_SPEEDS, TANGENTIAL_SERIES_NORMAL_SPEED, tangential_direction  # noqa: E402
 from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry  # noqa: E402
@@ -74,19 +73,17 @@ def write_trial(writer: DatasetWriter, result: TrialResult) -> None:
 
 @dataclass(frozen=True)
 class CampaignPlan:
-    """Which trials the campaign runs (module docstring)."""
+    """Which trials the campaign runs (module docstring); ``postures`` None: every named posture
+    of the robot."""
 
-    postures: tuple[str, ...] = tuple(PANDA.postures)
+    postures: tuple[str, ...] | None = None
     speeds: tuple[float, ...] = PAPER_SPEEDS
     tangential_speeds: tuple[float, ...] = PAPER_TANGENTIAL_SPEEDS
     tangential_normal_speed: float = TANGENTIAL_NORMAL_SPEED
 
     def __post_init__(self):
-        if not self.postures:
+        if self.postures is not None and not self.postures:
             raise BadInputError("the campaign needs at least one posture")
-        unknown = [name for name in self.postures if name not in PANDA.postures]
-        if unknown:
-            raise BadInputError(f"unknown posture {unknown[0]!r}; known postures: {', '.join(PANDA.postures)}")
         if not self.speeds:
             raise BadInputError("the campaign needs at least one speed")
         for v in self.speeds:
@@ -95,15 +92,16 @@ class CampaignPlan:
             approach_speed(abs(v) if v else 1.0, "every tangential speed")
 
     def specs(self, surface: Surface, choice: RobotChoice = DEFAULT_CHOICE) -> list[TrialSpec]:
-        """The trials, at ``choice``'s named postures (solved for its tool)."""
-        choice.check_postures(self.postures)
+        """The trials, at ``choice``'s named postures (solved for its tool); bad input for a
+        posture the robot does not have."""
+        postures = choice.check_postures(choice.robot.postures if self.postures is None else self.postures)
         specs = [
             TrialSpec(name, choice.posture(name).q, float(speed))
-            for name in self.postures
+            for name in postures
             for speed in self.speeds
         ]
         tangent = tangential_direction(surface.normal)
-        first = self.postures[0]
+        first = postures[0]
         specs += [
             TrialSpec(first, choice.posture(first).q, self.tangential_normal_speed, float(v_t) * tangent)
             for v_t in self.tangential_speeds

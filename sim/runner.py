@@ -372,7 +372,7 @@ def dataset_header(surface: Surface, choice: RobotChoice = DEFAULT_CHOICE) -> Da
     """The manifest header of a simulated dataset: the robot and the tool of ``choice``, the
     runner's control period."""
     return DatasetHeader(
-        tool=choice.tool, surface=surface, control_period=DEFAULT_CONTROL_PERIOD, robot=choice.robot.name
+        tool=choice.tool, surface=surface, control_period=DEFAULT_CONTROL_PERIOD, robot=choice.robot_setting
     )
 
 

@@ -9,7 +9,8 @@ import pytest
 from conftest import JOINTS
 from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.postures import DEFAULT_WALL
-from impactqp.controller.model.robot_description import PANDA
+from impactqp.controller.model.choice import RobotChoice
+from impactqp.controller.model.robot_description import PANDA, ROBOTS
 from impactqp.controller.model.robot import PandaModel
 from impactqp.scenarios.campaign import (
     PAPER_SPEEDS,
@@ -42,7 +43,6 @@ def test_default_plan_is_the_papers():
 @pytest.mark.parametrize(
     "changes, message",
     [
-        ({"postures": ("nowhere",)}, "unknown posture"),
         ({"postures": ()}, "at least one posture"),
         ({"speeds": (0.1, 0.0)}, r"\(0, 3\] m/s"),
         ({"speeds": ()}, "at least one speed"),
@@ -51,6 +51,13 @@ def test_default_plan_is_the_papers():
 def test_bad_plans_are_rejected(changes, message):
     with pytest.raises(ValueError, match=message):
         CampaignPlan(**changes)
+
+
+def test_a_plans_postures_are_the_robots():
+    with pytest.raises(ValueError, match="unknown posture 'elbow_left' for the ur5"):
+        CampaignPlan(("elbow_left",)).specs(DEFAULT_WALL, RobotChoice.of("ur5"))
+    specs = CampaignPlan(speeds=(0.1,), tangential_speeds=()).specs(DEFAULT_WALL, RobotChoice.of("ur5"))
+    assert [s.posture for s in specs] == list(ROBOTS["ur5"].postures)
 
 
 def row(classical, crb):

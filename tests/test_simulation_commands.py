@@ -164,3 +164,43 @@ def test_video_renders_or_says_clearly_why_not(tmp_path, backend):
         assert len(proc.stderr.strip().splitlines()) == 1
         assert "no offscreen OpenGL backend" in proc.stderr and "MUJOCO_GL" in proc.stderr
         assert not video.exists()
+
+
+# ---------------------------------------------------------------- any robot: a built-in UR5, a user's file
+@pytest.fixture(scope="module")
+def my_arm(tmp_path_factory):
+    """A user's own arm: a copy of the UR5's description under another name in a folder of its own."""
+    from impactqp.controller.model.robot_description import ROBOTS
+
+    path = tmp_path_factory.mktemp("my_robot") / "my_arm.toml"
+    path.write_text(ROBOTS["ur5"].source.read_text().replace('name = "ur5"', 'name = "my_arm"'))
+    return path
+
+
+@pytest.mark.parametrize("robot", ["ur5", "my_arm"])
+def test_postures_and_simulate_take_any_arm(capsys, robot, my_arm, tmp_path):
+    """A six-joint arm, built in or from the user's file: its postures, a simulated trial whose
+    jump has one entry per joint and which hits at the asked speed, written as a valid dataset."""
+    robot = robot if robot == "ur5" else str(my_arm)
+    code, stdout, _ = run(capsys, "postures", "--robot", robot, "--json")
+    assert code == 0 and [p["name"] for p in json.loads(stdout)] == ["elbow_up", "elbow_down", "wrist_flipped"]
+    code, stdout, _ = run(capsys, "simulate", "--robot", robot, "--posture", "elbow_down", "--speed", "0.15",
+                          "--out", str(tmp_path), "--json")
+    assert code == 0
+    report = json.loads(stdout)
+    assert report["contact_speed"] == pytest.approx(0.15, rel=0.02)
+    assert len(report["dq_jump"]) == 6 and all(len(jump) == 6 for jump in report["predicted"].values())
+    assert not any(validate(tmp_path).values())
+
+
+def test_max_speed_and_campaign_take_a_users_arm(capsys, my_arm, tmp_path):
+    code, stdout, _ = run(capsys, "max-speed", "--robot", str(my_arm), "--posture", "elbow_down",
+                          "--tolerance", "0.5", "--json")
+    assert code == 0
+    report = json.loads(stdout)
+    assert report["posture"] == "elbow_down" and len(report["q_impact"]) == 6
+    assert 0.0 < report["predicted_max_speed"]["robust"] <= report["predicted_max_speed"]["crb"]
+    code, _, _ = run(capsys, "campaign", "--robot", str(my_arm), "--postures", "wrist_flipped", "--speeds", "0.1",
+                     "--tangential", "none", "--out", str(tmp_path), "--jobs", "1")
+    assert code == 0 and not any(validate(tmp_path).values())
+    assert json.loads((tmp_path / "dataset.json").read_text())["robot"] == str(my_arm)

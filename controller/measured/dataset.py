@@ -46,7 +46,7 @@ import numpy as np
 
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot_description import ROBOTS, robot_description
+from impactqp.controller.model.robot_description import ROBOT_FILE_SUFFIXES, ROBOTS, robot_description
 from impactqp.controller.model.tool_description import TOOLS, ToolDescription, tool_from_dict
 from impactqp.controller.model.files import read_mapping, regular_file
 from impactqp.controller.model.validation import (
@@ -265,8 +265,11 @@ def load_manifest(path: Path) -> dict:
         raise DatasetError(f"{path} lacks the key(s) {', '.join(sorted(missing))}")
     if manifest["format"] != FORMAT:
         raise DatasetError(f"{path}: the format must be {FORMAT!r}")
-    if not isinstance(manifest["robot"], str) or manifest["robot"] not in ROBOTS:
-        raise DatasetError(f"{path}: 'robot' must be one of the robots we model ({', '.join(ROBOTS)})")
+    robot = manifest["robot"]
+    if not isinstance(robot, str) or (robot not in ROBOTS and Path(robot).suffix.lower() not in ROBOT_FILE_SUFFIXES):
+        raise DatasetError(
+            f"{path}: 'robot' must be one of the robots we model ({', '.join(ROBOTS)}) or a robot description file"
+        )
     if not isinstance(manifest["trials"], list):
         raise DatasetError(f"{path}: 'trials' must be a list")
     return manifest

@@ -54,6 +54,8 @@ MAX_FRICTION = 5.0
 MAX_CONTACT_LENGTH = 1.0
 """m: the farthest a robot's own contact point, a sole's corner or its depth lies from its frame."""
 BUILTIN_DIR = Path(__file__).parent / "robots"
+ROBOT_FILE_SUFFIXES = (".toml", ".json", ".yaml", ".yml")
+"""The suffixes of a robot description file (``files.read_mapping`` reads each)."""
 
 
 @dataclass(frozen=True)
@@ -372,8 +374,8 @@ def description_from_mapping(data: Mapping, base: Path | None = None, source: Pa
 
 def load_robot_description(path: str | Path) -> RobotDescription:
     """The robot described in the TOML, JSON or YAML file ``path`` (module docstring)."""
-    path = Path(path)
-    return description_from_mapping(read_mapping(path, "the robot description"), path.parent.resolve(), path)
+    path = Path(path).absolute()
+    return description_from_mapping(read_mapping(path, "the robot description"), path.parent, path)
 
 
 class BuiltinRobots(Mapping):
@@ -412,7 +414,7 @@ def robot_description(robot: str | Path | RobotDescription) -> RobotDescription:
         return robot
     if isinstance(robot, str) and robot in ROBOTS:
         return ROBOTS[robot]
-    if isinstance(robot, (str, Path)) and Path(robot).suffix.lower() in (".toml", ".json", ".yaml", ".yml"):
+    if isinstance(robot, (str, Path)) and Path(robot).suffix.lower() in ROBOT_FILE_SUFFIXES:
         return load_robot_description(robot)
     raise BadInputError(f"unknown robot {str(robot)!r}; choose from {', '.join(ROBOTS)} or give a .toml robot file")
 
