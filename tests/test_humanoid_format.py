@@ -16,9 +16,11 @@ from impactqp.controller.measured.humanoid_format import (
     joint_count,
     quaternion_problem,
 )
-from impactqp.controller.model.floating_base import CONTACT_FRAME
+from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.robot import NQ
 from impactqp.controller.model.validation import BadInputError
+
+CONTACT_FRAME = ROBOTS["g1"].contact.name
 
 
 def test_columns_come_from_the_robot():
