@@ -8,8 +8,8 @@ The URDF is edited for MuJoCo's importer as the Panda's (``sim.scene``): visuals
 wall plane at x = ``wall_x`` facing the robot (normal -x), a hand sphere of radius
 :data:`HAND_RADIUS` fixed to the frame of the description's ``contact`` whose far pole along that
 frame's x axis is the model's contact point (the G1: on the forearm axis), and explicit contact
-pairs: the sole spheres (from the URDF) of each held contact's frame with the floor, the hand
-sphere with the wall. Every other geom has contype =
+pairs: the sole spheres (from the URDF) of each held contact's frame with the floor, at that
+contact's ``friction``, the hand sphere with the wall. Every other geom has contype =
 conaffinity = 0.
 
 The plant's joints carry the G1's reflected rotor inertias (``controller.model.g1_actuators``,
@@ -33,7 +33,6 @@ import numpy as np
 
 from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.g1_actuators import joint_armature
-from impactqp.controller.model.humanoid_max_speed import FOOT_FRICTION
 from impactqp.controller.model.validation import number_in_range, vector_in_range
 
 from .humanoid_feet import Soles
@@ -132,8 +131,10 @@ def build_humanoid_scene(
         geom.contype = 0
         geom.conaffinity = 0
     common = dict(condim=3, solref=list(CONTACT_SOLREF), solimp=list(CONTACT_SOLIMP), contype=0, conaffinity=0)
+    # the floor's own friction is unused (each sole's pair below sets its held contact's)
+    floor_friction = max(c.friction for c in contacts)
     spec.worldbody.add_geom(name=FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[2.0, 2.0, 0.01],
-                            friction=[FOOT_FRICTION, 0.0, 0.0], **common)
+                            friction=[floor_friction, 0.0, 0.0], **common)
     wall_quat = np.zeros(4)
     mujoco.mju_quatZ2Vec(wall_quat, np.array([-1.0, 0.0, 0.0]))
     spec.worldbody.add_geom(name=WALL_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1.0, 1.0, 0.01],
@@ -149,7 +150,7 @@ def build_humanoid_scene(
         for i, geom in enumerate(soles[held.frame]):
             geom.name = geom.name or f"{held.frame}_sole{i}"
             spec.add_pair(geomname1=geom.name, geomname2=FLOOR_GEOM,
-                          friction=[FOOT_FRICTION, FOOT_FRICTION, 0, 0, 0], **pair)
+                          friction=[held.friction, held.friction, 0, 0, 0], **pair)
     hinges = [joint for joint in spec.joints if joint.type == mujoco.mjtJoint.mjJNT_HINGE]
     for joint in hinges:
         joint.armature = float(rotor[robot.joint_names.index(joint.name)])
@@ -163,5 +164,5 @@ def build_humanoid_scene(
         hand_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, HAND_GEOM),
         wall_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, WALL_GEOM),
         floor_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR_GEOM),
-        foot_bodies=feet, soles=Soles.of(model, feet, FOOT_FRICTION),
+        foot_bodies=feet, soles=Soles.of(model, feet, tuple(c.friction for c in contacts)),
     )

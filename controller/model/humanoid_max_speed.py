@@ -16,7 +16,8 @@ zero. Every predicted quantity of ``floating_base`` is linear in the contact vel
     The criteria are homogeneous in F_k, so they are checked on F_k. Assumed plainly: the feet's
     impulsive wrenches peak with the hand's force, in the feet-held model's proportions, and the
     feet are flat.
-    ``foot_slip``: |F_xy| <= mu F_z (the friction cone of the summed impulse; a quadratic in s).
+    ``foot_slip``: |F_xy| <= mu F_z (the friction cone of the summed impulse; a quadratic in s;
+    mu the held contact's ``friction`` unless the setting gives one for every foot).
     ``foot_lift``: the centre of pressure of F, about the sole (the held contact's ``depth``
     below the frame), stays inside the convex hull of the sole's corners (the held contact's
     ``sole``): nu_e . (-tau_y, tau_x) <= (nu_e . a_e) f_z for each edge e (outward normal nu_e,
@@ -39,7 +40,6 @@ from .humanoid_stance import convex_hull, edge_margins, edge_normals, support_po
 from .validation import BadInputError
 
 CRITERIA = ("joint_velocity", "foot_slip", "foot_lift", "capture")
-FOOT_FRICTION = 1.0  # mu of the soles on the floor (the simulated floor's)
 IMPACT_DURATION = 0.0034  # s: T, the wall contact's equivalent duration (impulse / peak force; the simulated wall's)
 ARM_JOINTS = tuple(f"right_{j}_joint" for j in (
     "shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", "wrist_roll", "wrist_pitch", "wrist_yaw"))
@@ -49,11 +49,12 @@ FEET = ("left", "right")
 
 @dataclass(frozen=True)
 class Setting:
-    """What the closed form assumes: predictor, restitution, friction mu and contact duration T (s)."""
+    """What the closed form assumes: predictor, restitution, friction mu of every foot (None: each
+    held contact's own ``friction``, the description's) and contact duration T (s)."""
 
     method: str = "crb"
     restitution: float = 0.0
-    friction: float = FOOT_FRICTION
+    friction: float | None = None
     impact_duration: float = IMPACT_DURATION
 
 
@@ -124,20 +125,21 @@ def sole_rows(sole: np.ndarray, depth: float, impulse: np.ndarray) -> np.ndarray
 
 def foot_bounds(robot: FloatingBaseModel, terms: FloatingBaseTerms, unit_feet: np.ndarray, setting: Setting):
     """The (b) bounds: ``foot_slip`` and ``foot_lift`` (module docstring) of every held contact,
-    each with its own sole and depth."""
+    each with its own sole, depth and (unless ``setting.friction`` is given) friction."""
     standing = setting.impact_duration * standing_wrenches(robot, terms)
     placements = robot.frame_placements(terms.q)
     slip, lift = Bound(math.inf, ""), Bound(math.inf, "")
     for k, (foot, contact) in enumerate(zip(FEET, robot.description.held_contacts, strict=True)):
         R = placements[contact.frame].rotation
         sole = convex_hull(contact.sole)
+        mu = contact.friction if setting.friction is None else setting.friction
         rows = slice(6 * k, 6 * k + 6)
 
         def local(w):
             return np.concatenate([R.T @ w[:3], R.T @ w[3:]])
 
         w0, w1 = local(standing[rows]), local(unit_feet[rows])
-        s = cone_step(w0[:3], w1[:3], setting.friction)
+        s = cone_step(w0[:3], w1[:3], mu)
         if s < slip.speed:
             slip = Bound(s, foot)
         s = float(np.min(row_steps(sole_rows(sole, contact.depth, w0), sole_rows(sole, contact.depth, w1))))
@@ -158,7 +160,7 @@ def closed_form_max_speed(
 ) -> HumanoidMaxSpeed:
     """The highest contact speed of the stance configuration q against the wall ``normal``
     (towards the robot) that satisfies (a), (b) and (c), and what binds (module docstring)."""
-    if not setting.friction > 0.0 or not setting.impact_duration > 0.0:
+    if (setting.friction is not None and not setting.friction > 0.0) or not setting.impact_duration > 0.0:
         raise BadInputError("the foot friction and the impact duration must be > 0")
     normal = np.asarray(normal, dtype=float)
     terms = robot.terms(q)
