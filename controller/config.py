@@ -232,14 +232,19 @@ class ControllerConfig:
     @property
     def choice(self) -> RobotChoice:
         """The robot and the tool: ``robot`` by name, ``tool`` by built-in name, file or table
-        (the keys of a tool file, docs/robots.md)."""
+        (the keys of a tool file, docs/robots.md); a fixed-base robot's (this is an arm's
+        controller)."""
         if isinstance(self.tool, dict):
             try:
                 tool = tool_from_dict(self.tool)
             except BadInputError as error:
                 raise BadInputError(f"[tool]: {error}") from None
-            return RobotChoice.of(self.robot, tool)
-        return RobotChoice.of(self.robot, self.tool)
+            choice = RobotChoice.of(self.robot, tool)
+        else:
+            choice = RobotChoice.of(self.robot, self.tool)
+        if choice.robot.floating:
+            raise BadInputError(f"robot: the {choice.robot.name} has a floating base; this configuration is an arm's controller")
+        return choice
 
     @classmethod
     def approach(cls, surface: Surface = DEFAULT_WALL, speed: float = 0.1, **options) -> ControllerConfig:
