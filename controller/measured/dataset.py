@@ -157,7 +157,7 @@ class DatasetHeader:
         """The robot and the tool the data were taken with: what a reader models (an arm's only)."""
         if self.robot == G1:
             raise DatasetError("a g1 dataset (the floating-base humanoid) cannot be read here: this reads "
-                               f"datasets of the arms ({', '.join(ROBOTS)}) only")
+                               f"datasets of the arms ({', '.join(n for n in ROBOTS if not ROBOTS[n].floating)}) only")
         return RobotChoice.of(self.robot, self.tool)
 
     def to_dict(self) -> dict:
@@ -263,8 +263,8 @@ def load_manifest(path: Path) -> dict:
         raise DatasetError(f"{path} lacks the key(s) {', '.join(sorted(missing))}")
     if manifest["format"] != FORMAT:
         raise DatasetError(f"{path}: the format must be {FORMAT!r}")
-    if not isinstance(manifest["robot"], str) or manifest["robot"] not in (*ROBOTS, G1):
-        raise DatasetError(f"{path}: 'robot' must be one of the robots we model ({', '.join((*ROBOTS, G1))})")
+    if not isinstance(manifest["robot"], str) or manifest["robot"] not in ROBOTS:
+        raise DatasetError(f"{path}: 'robot' must be one of the robots we model ({', '.join(ROBOTS)})")
     if not isinstance(manifest["trials"], list):
         raise DatasetError(f"{path}: 'trials' must be a list")
     return manifest

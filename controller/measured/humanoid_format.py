@@ -22,7 +22,8 @@ from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError, non_empty_string, numbers
 
-G1 = "g1"
+G1 = ROBOTS["g1"].name
+"""The manifest's ``robot`` of a G1 dataset: the G1 description's name."""
 BASE_COLUMNS = (
     "base_x", "base_y", "base_z", "base_qx", "base_qy", "base_qz", "base_qw",
     "base_vx", "base_vy", "base_vz", "base_wx", "base_wy", "base_wz",
@@ -37,7 +38,7 @@ QUATERNION_TOLERANCE = 1e-6
 class ContactFrame:
     """The G1's contact point: the origin of one of its fixed frames (the manifest's ``tool``)."""
 
-    frame: str = ROBOTS["g1"].contact.name
+    frame: str = ROBOTS[G1].contact.name
 
     @property
     def name(self) -> str:
@@ -65,7 +66,7 @@ def contact_frame_from_dict(tool: dict) -> ContactFrame:
 @functools.cache
 def g1_model() -> FloatingBaseModel:
     """The G1's model, built once: its joints' order and limits are the dataset's."""
-    return FloatingBaseModel()
+    return FloatingBaseModel(G1)
 
 
 def joint_count() -> int:
