@@ -233,7 +233,8 @@ class ControllerConfig:
     @property
     def choice(self) -> RobotChoice:
         """The robot and the tool: ``robot`` by name or robot file, ``tool`` by built-in name, file
-        or table (the keys of a tool file, docs/robots.md); built once per (robot, tool) value."""
+        or table (the keys of a tool file, docs/robots.md); a fixed-base robot's (this is an arm's
+        controller); built once per (robot, tool) value."""
         key = (self.robot, self.tool)
         cached = self.__dict__.get("_choice")
         if cached is not None and cached[0] == key:
@@ -246,6 +247,8 @@ class ControllerConfig:
         else:
             tool = self.tool
         choice = RobotChoice.of(self.robot, tool)
+        if choice.robot.floating:
+            raise BadInputError(f"robot: the {choice.robot.name} has a floating base; this configuration is an arm's controller")
         self.__dict__["_choice"] = (key, choice)
         return choice
 

@@ -15,7 +15,6 @@ from collections.abc import Iterable
 import numpy as np
 
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
-from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.sim.humanoid_trial import SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial
 
 DEFAULT_SPEEDS = (0.1, 0.2, 0.3, 0.4)
@@ -24,19 +23,21 @@ PREDICTORS = (*METHODS, "momentum")
 
 def run_campaign(
     robot: FloatingBaseModel,
-    stances: Iterable[str] = tuple(STANCES),
+    stances: Iterable[str] | None = None,
     speeds: Iterable[float] = DEFAULT_SPEEDS,
     gain: float = SERVO_GAIN,
     armature=None,
     source=SCRIPTED,
 ) -> list[ImpactTrial]:
-    """One trial per stance and commanded hand speed (m/s); ``gain`` is the servo bandwidth (rad/s),
-    ``armature`` the plant's rotor inertia (kg m^2): None for the G1's actuators
-    (``controller.model.g1_actuators``), one number for every joint (0: link-only) or one per joint; ``source``
-    the command source (``sim.humanoid_trial.SCRIPTED`` or ``sim.humanoid_qp_source.QpCommand``)."""
+    """One trial per stance (None: every stance of the robot's description) and commanded hand
+    speed (m/s); ``gain`` is the servo bandwidth (rad/s), ``armature`` the plant's rotor inertia
+    (kg m^2): None for the G1's actuators (``controller.model.g1_actuators``), one number for every
+    joint (0: link-only) or one per joint; ``source`` the command source
+    (``sim.humanoid_trial.SCRIPTED`` or ``sim.humanoid_qp_source.QpCommand``)."""
+    all_stances = robot.description.stances
     return [
-        run_impact_trial(robot, STANCES[name], speed, gain=gain, armature=armature, source=source)
-        for name in stances
+        run_impact_trial(robot, all_stances[name], speed, gain=gain, armature=armature, source=source)
+        for name in (all_stances if stances is None else stances)
         for speed in speeds
     ]
 

@@ -42,7 +42,7 @@ from impactqp.controller.model.humanoid_max_speed import (  # noqa: E402
     Setting,
     closed_form_max_speed,
 )
-from impactqp.controller.model.humanoid_stance import STANCES, stance_posture  # noqa: E402
+from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
 from impactqp.controller.model.validation import BadInputError, number_in_range  # noqa: E402
 from impactqp.sim.humanoid_trial import NORMAL, SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
 
@@ -68,7 +68,7 @@ class Plant:
         """One trial on this plant: ``stance`` from the configuration q at the commanded hand
         ``speed``, driven by ``source``."""
         return run_impact_trial(
-            robot, STANCES[stance], speed, gain=self.gain, armature=self.armature, q0=q, source=source
+            robot, robot.description.stances[stance], speed, gain=self.gain, armature=self.armature, q0=q, source=source
         )
 
 
@@ -163,9 +163,10 @@ def search_stance(
 ) -> StanceMaxSpeed:
     """The closed-form speeds of ``methods`` and the simulated bisection of one stance, its trials
     driven by ``source`` (``sim.humanoid_trial.SCRIPTED`` or ``sim.humanoid_qp_source.QpCommand``)."""
-    if stance not in STANCES:
-        raise BadInputError(f"unknown stance {stance!r}; known: {', '.join(STANCES)}")
-    q = stance_posture(robot, STANCES[stance])
+    stances = robot.description.stances
+    if stance not in stances:
+        raise BadInputError(f"unknown stance {stance!r}; known: {', '.join(stances)}")
+    q = stance_posture(robot, stances[stance])
     run = partial(plant.trial, robot, stance, q, source=source)
     best, evaluations = bisect_speed(lambda speed: Evaluation.of(run(speed)), tolerance)
     feasible = [e for e in evaluations if not e.violated and e.reference_speed <= best]
@@ -210,14 +211,15 @@ class CheckRow:
 
 
 def check_against_simulation(
-    robot: FloatingBaseModel, stances=tuple(STANCES), setting: Setting = Setting(), plant: Plant = Plant(),
+    robot: FloatingBaseModel, stances=None, setting: Setting = Setting(), plant: Plant = Plant(),
     source=SCRIPTED,
 ) -> list[CheckRow]:
-    """Trials at BELOW and ABOVE x the closed-form speed of ``setting`` for each stance (module
-    docstring), driven by ``source`` (``trial_at_contact_speed``)."""
+    """Trials at BELOW and ABOVE x the closed-form speed of ``setting`` for each stance (None: every
+    stance of the robot's description; module docstring), driven by ``source``
+    (``trial_at_contact_speed``)."""
     rows = []
-    for stance in stances:
-        q = stance_posture(robot, STANCES[stance])
+    for stance in robot.description.stances if stances is None else stances:
+        q = stance_posture(robot, robot.description.stances[stance])
         predicted = closed_form_max_speed(robot, q, NORMAL, setting)
         for fraction in (*BELOW, *ABOVE):
             trial = trial_at_contact_speed(robot, stance, q, fraction * predicted.speed, plant, source)

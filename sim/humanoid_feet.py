@@ -44,25 +44,28 @@ LIFT_MARGIN = 1e-3  # m
 
 @dataclass(frozen=True)
 class Soles:
-    """The feet of a scene: body ids, their sphere geoms, sole polygons (foot axes) and mu, and
-    which foot each sphere geom belongs to (``foot_of``, read at every physics step)."""
+    """The feet of a scene: body ids, their sphere geoms, sole polygons (foot axes) and each
+    foot's mu, and which foot each sphere geom belongs to (``foot_of``, read at every physics
+    step)."""
 
     bodies: tuple[int, ...]
     spheres: tuple[tuple[int, ...], ...]
     polygons: tuple[np.ndarray, ...]
-    friction: float
+    friction: tuple[float, ...]
     foot_of: dict
 
     @classmethod
-    def of(cls, model: mujoco.MjModel, bodies, friction: float) -> Soles:
-        """Every sphere geom of each foot body is a sole sphere."""
+    def of(cls, model: mujoco.MjModel, bodies, friction) -> Soles:
+        """Every sphere geom of each foot body is a sole sphere; ``friction`` is one mu for every
+        foot or one per foot."""
         spheres = tuple(
             tuple(g for g in range(model.ngeom) if model.geom_bodyid[g] == b and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE)
             for b in bodies
         )
         polygons = tuple(convex_hull(model.geom_pos[list(s), :2]) for s in spheres)
         foot_of = {g: k for k, foot in enumerate(spheres) for g in foot}
-        return cls(tuple(bodies), spheres, polygons, friction, foot_of)
+        mu = tuple(float(f) for f in np.broadcast_to(np.asarray(friction, dtype=float), (len(spheres),)))
+        return cls(tuple(bodies), spheres, polygons, mu, foot_of)
 
 
 def sole_state(model: mujoco.MjModel, data: mujoco.MjData, soles: Soles) -> np.ndarray:
@@ -90,7 +93,7 @@ def sole_state(model: mujoco.MjModel, data: mujoco.MjData, soles: Soles) -> np.n
         load = force[k, 2]
         state[k] = load, 0.0, -np.inf, speed[k]
         if load > 0.0:
-            state[k, CONE] = np.linalg.norm(force[k, :2]) / (soles.friction * load)
+            state[k, CONE] = np.linalg.norm(force[k, :2]) / (soles.friction[k] * load)
             state[k, MARGIN] = edge_margins(soles.polygons[k], moment[k] / load).min()
     return state
 

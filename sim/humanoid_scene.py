@@ -1,13 +1,16 @@
-"""The MuJoCo scene of the standing G1: the same example-robot-data URDF as Pinocchio, a floor and
-a wall in front of the right hand (docs/floating-base.md).
+"""The MuJoCo scene of the standing G1: the same URDF as Pinocchio (the model's, its description's
+by default; the collision meshes from the description's ``meshes``), a floor and a wall in
+front of the right hand (docs/floating-base.md).
 
 The URDF is edited for MuJoCo's importer as the Panda's (``sim.scene``): visuals and
 ``package://`` prefixes go, inertias are taken exactly from the URDF. Added in code
 (``mujoco.MjSpec``): a free joint on the pelvis (the floating base), a floor plane at z = 0, a
 wall plane at x = ``wall_x`` facing the robot (normal -x), a hand sphere of radius
-:data:`HAND_RADIUS` on the forearm axis whose far pole is the model's contact point, and explicit
-contact pairs: each foot's four sole spheres (from the URDF) with the floor, the hand sphere with
-the wall. Every other geom has contype = conaffinity = 0.
+:data:`HAND_RADIUS` fixed to the frame of the description's ``contact`` whose far pole along that
+frame's x axis is the model's contact point (the G1: on the forearm axis), and explicit contact
+pairs: the sole spheres (from the URDF) of each held contact's frame with the floor, at that
+contact's ``friction``, the hand sphere with the wall. Every other geom has contype =
+conaffinity = 0.
 
 The plant's joints carry the G1's reflected rotor inertias (``controller.model.g1_actuators``,
 MuJoCo's ``armature``: M -> M + diag(0, a)) unless told otherwise: the URDF has none, and a
@@ -28,9 +31,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from impactqp.controller.model.floating_base import CONTACT_OFFSET, FOOT_FRAMES, HAND_FRAME, FloatingBaseModel
+from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.g1_actuators import joint_armature
-from impactqp.controller.model.humanoid_max_speed import FOOT_FRICTION
 from impactqp.controller.model.validation import number_in_range, vector_in_range
 
 from .humanoid_feet import Soles
@@ -48,7 +50,8 @@ MAX_ARMATURE = 10.0  # kg m^2: the largest rotor inertia a joint may be given
 
 
 def mujoco_urdf(robot: FloatingBaseModel) -> str:
-    """The G1 URDF edited for MuJoCo's importer, as a string."""
+    """The model's URDF edited for MuJoCo's importer (meshes from the description's directory),
+    as a string."""
     root = ET.parse(robot.urdf_path).getroot()
     for link in root.findall("link"):
         for visual in link.findall("visual"):
@@ -57,7 +60,7 @@ def mujoco_urdf(robot: FloatingBaseModel) -> str:
         mesh.set("filename", mesh.get("filename").rsplit("/", 1)[-1])
     extension = ET.SubElement(root, "mujoco")
     ET.SubElement(
-        extension, "compiler", meshdir=str(robot.urdf_path.parent.parent / "meshes"), discardvisual="true",
+        extension, "compiler", meshdir=str(robot.description.mesh_dir()), discardvisual="true",
         fusestatic="false", balanceinertia="false", inertiafromgeom="false", strippath="true",
     )
     return ET.tostring(root, encoding="unicode")
@@ -129,28 +132,32 @@ def build_humanoid_scene(
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
     spec.body(BASE_BODY).add_freejoint(name="floating_base")
-    soles = {name: [g for g in spec.body(name).geoms if g.type == mujoco.mjtGeom.mjGEOM_SPHERE] for name in FOOT_FRAMES}
+    contacts = robot.description.held_contacts
+    soles = {c.frame: [g for g in spec.body(c.frame).geoms if g.type == mujoco.mjtGeom.mjGEOM_SPHERE] for c in contacts}
     for geom in spec.geoms:
         geom.contype = 0
         geom.conaffinity = 0
     common = dict(condim=3, solref=list(CONTACT_SOLREF), solimp=list(CONTACT_SOLIMP), contype=0, conaffinity=0)
+    # the floor's own friction is unused (each sole's pair below sets its held contact's)
+    floor_friction = max(c.friction for c in contacts)
     spec.worldbody.add_geom(name=FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[2.0, 2.0, 0.01],
-                            friction=[FOOT_FRICTION, 0.0, 0.0], **common)
+                            friction=[floor_friction, 0.0, 0.0], **common)
     wall_quat = np.zeros(4)
     mujoco.mju_quatZ2Vec(wall_quat, np.array([-1.0, 0.0, 0.0]))
     spec.worldbody.add_geom(name=WALL_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1.0, 1.0, 0.01],
                             pos=[wall_x, 0.0, 1.0], quat=list(wall_quat), rgba=[0.6, 0.6, 0.7, 0.5],
                             friction=[WALL_FRICTION, 0.0, 0.0], **common)
-    spec.body(HAND_FRAME).add_geom(name=HAND_GEOM, type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[HAND_RADIUS, 0, 0],
-                                   pos=[CONTACT_OFFSET - HAND_RADIUS, 0.0, 0.0], mass=0.0,
-                                   friction=[WALL_FRICTION, 0.0, 0.0], **common)
+    contact = robot.description.contact
+    spec.body(contact.frame).add_geom(name=HAND_GEOM, type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[HAND_RADIUS, 0, 0],
+                                      pos=(contact.offset - [HAND_RADIUS, 0.0, 0.0]).tolist(), mass=0.0,
+                                      friction=[WALL_FRICTION, 0.0, 0.0], **common)
     pair = dict(condim=3, solref=list(CONTACT_SOLREF), solimp=list(CONTACT_SOLIMP))
     spec.add_pair(geomname1=HAND_GEOM, geomname2=WALL_GEOM, friction=[WALL_FRICTION, WALL_FRICTION, 0, 0, 0], **pair)
-    for name, geoms in soles.items():
-        for i, geom in enumerate(geoms):
-            geom.name = geom.name or f"{name}_sole{i}"
+    for held in contacts:
+        for i, geom in enumerate(soles[held.frame]):
+            geom.name = geom.name or f"{held.frame}_sole{i}"
             spec.add_pair(geomname1=geom.name, geomname2=FLOOR_GEOM,
-                          friction=[FOOT_FRICTION, FOOT_FRICTION, 0, 0, 0], **pair)
+                          friction=[held.friction, held.friction, 0, 0, 0], **pair)
     hinges = [joint for joint in spec.joints if joint.type == mujoco.mjtJoint.mjJNT_HINGE]
     for joint in hinges:
         joint.armature = float(rotor[robot.joint_names.index(joint.name)])
@@ -158,12 +165,12 @@ def build_humanoid_scene(
     names = [model.joint(i).name for i in range(1, model.njnt)]
     if names != robot.joint_names:
         raise RuntimeError("the MuJoCo G1 must have the Pinocchio model's joints, in order")
-    feet = tuple(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f) for f in FOOT_FRAMES)
+    feet = tuple(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, c.frame) for c in contacts)
     return HumanoidScene(
         model=model, data=mujoco.MjData(model), wall_x=wall_x,
         hand_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, HAND_GEOM),
         wall_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, WALL_GEOM),
         floor_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR_GEOM),
-        foot_bodies=feet, soles=Soles.of(model, feet, FOOT_FRICTION),
+        foot_bodies=feet, soles=Soles.of(model, feet, tuple(c.friction for c in contacts)),
         base_nq=int(model.jnt_qposadr[1]), base_nv=int(model.jnt_dofadr[1]),  # the joints follow the free joint
     )

@@ -81,7 +81,8 @@ from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.capture import capture_region
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, jump_from_impulse, predict
 from impactqp.controller.model.humanoid_max_speed import ARM_JOINTS, standing_wrenches
-from impactqp.controller.model.humanoid_stance import Stance, stance_posture, support_polygon
+from impactqp.controller.model.humanoid_stance import stance_posture, support_polygon
+from impactqp.controller.model.robot_description import Stance
 
 from .humanoid_feet import CONE, LOAD, MARGIN, SPEED, lift_onset, slip_onset, sole_state, worst
 from .humanoid_scene import build_humanoid_scene, to_pinocchio

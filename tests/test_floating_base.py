@@ -8,7 +8,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from impactqp.controller.model.floating_base import (
-    FOOT_FRAMES,
     METHODS,
     FloatingBaseModel,
     crb_inverse_inertia,
@@ -180,7 +179,8 @@ def test_sole_corners_follow_the_feet(humanoid):
     assert corners.shape == (8, 3)
     np.testing.assert_allclose(corners[:, 2], corners[0, 2], atol=1e-9)
     placements = humanoid.frame_placements(q)
-    assert placements[FOOT_FRAMES[0]].translation[1] > placements[FOOT_FRAMES[1]].translation[1]  # left is +y
+    left, right = humanoid.foot_frames
+    assert placements[left].translation[1] > placements[right].translation[1]  # left is +y
 
 
 def test_bad_input_is_refused(humanoid):

@@ -18,14 +18,17 @@ from impactqp.controller.measured.humanoid_format import (
     joint_count,
     quaternion_problem,
 )
-from impactqp.controller.model.floating_base import CONTACT_FRAME
+from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError
+
+CONTACT_FRAME = ROBOTS["g1"].contact.name
 
 
 def test_columns_come_from_the_robot():
     columns = trial_columns(G1)
     joints = joint_count()
-    assert joints == g1_model().model.nv - 6
+    model = g1_model()
+    assert joints == model.n_joints == model.model.nv - model.base_nv
     assert columns[: 1 + len(BASE_COLUMNS)] == ["t", *BASE_COLUMNS]
     assert len(columns) == 1 + len(BASE_COLUMNS) + 4 * joints and len(set(columns)) == len(columns)
     assert columns[-1] == f"dq_cmd{joints}" and f"q{joints + 1}" not in columns

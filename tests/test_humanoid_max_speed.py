@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from impactqp.controller.model.capture import capturable_speeds, capture_region, max_capturable_speed
-from impactqp.controller.model.floating_base import SOLE_CORNERS, SOLE_DEPTH, FloatingBaseModel, predict
+from impactqp.controller.model.floating_base import FloatingBaseModel, predict
 from impactqp.controller.model.humanoid_max_speed import (
     CRITERIA,
     IMPACT_DURATION,
@@ -22,10 +22,12 @@ from impactqp.controller.model.humanoid_max_speed import (
     standing_wrenches,
 )
 from impactqp.controller.model.humanoid_stance import STANCES, convex_hull, inside_polygon, stance_posture, support_polygon
+from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError
 
 NORMAL = np.array([-1.0, 0.0, 0.0])
-SOLE = convex_hull(SOLE_CORNERS)
+FOOT = ROBOTS["g1"].held_contacts[0]
+SOLE, SOLE_DEPTH = convex_hull(FOOT.sole), FOOT.depth
 vectors = st.lists(st.floats(-10, 10), min_size=3, max_size=3).map(lambda v: np.round(v, 6))  # no 1e-300 slopes
 
 
@@ -61,7 +63,7 @@ def test_sole_rows_hold_exactly_when_a_point_force_lies_inside_the_sole(x, y, fz
     point = np.array([x, y, -SOLE_DEPTH])  # in the foot frame
     wrench = np.concatenate([f, np.cross(point, f)])
     inside = inside_polygon([x, y], SOLE)
-    rows = sole_rows(SOLE, wrench) / fz
+    rows = sole_rows(SOLE, SOLE_DEPTH, wrench) / fz
     if inside > 1e-9:
         assert np.all(rows < 0.0)
     elif inside < -1e-9:

@@ -5,8 +5,8 @@ import pytest
 
 from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError
-from impactqp.controller.model.whole_body_terms import JOINT_ACCELERATION_LIMIT, JOINT_JERK_LIMIT
 from impactqp.controller.qp.command import Status
 from impactqp.scenarios.humanoid_max_speed import Plant, trial_at_contact_speed
 from impactqp.sim.humanoid_qp_source import QpCommand
@@ -49,9 +49,10 @@ def test_the_commands_change_within_the_acceleration_and_jerk_limits(trial):
     command starts from the measured state after the settling, a few mrad/s off rest.)"""
     start = trial.record.first_step
     acceleration = np.diff(trial.commands[start:], axis=0) / CONTROL_PERIOD
-    assert np.all(np.abs(acceleration) <= JOINT_ACCELERATION_LIMIT * (1 + 1e-9))
+    g1 = ROBOTS["g1"]
+    assert np.all(np.abs(acceleration) <= g1.ddq_max * (1 + 1e-9))
     jerk = np.diff(acceleration, axis=0) / CONTROL_PERIOD
-    assert np.all(np.abs(jerk) <= JOINT_JERK_LIMIT * (1 + 1e-6))
+    assert np.all(np.abs(jerk) <= g1.dddq_max * (1 + 1e-6))
 
 
 def test_the_qp_brakes_the_hand_after_the_stop(robot, trial):

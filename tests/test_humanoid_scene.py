@@ -6,7 +6,7 @@ import pinocchio as pin
 import pytest
 
 from impactqp.controller.measured.humanoid_format import g1_model
-from impactqp.controller.model.floating_base import CONTACT_FRAME, HAND_FRAME, FloatingBaseModel
+from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.g1_actuators import joint_armature
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.validation import BadInputError
@@ -51,12 +51,13 @@ def test_hand_velocity_agrees(setup):
     scene.set_state(q)
     random_velocity(scene)
     q_pin, v_pin = to_pinocchio(scene.data.qpos, scene.data.qvel, scene.base_nq)
-    body = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_BODY, HAND_FRAME)
+    hand = robot.description.contact.frame
+    body = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_BODY, hand)
     velocity = np.zeros(6)
     mujoco.mj_objectVelocity(scene.model, scene.data, mujoco.mjtObj.mjOBJ_BODY, body, velocity, 0)
     pin.forwardKinematics(robot.model, robot.data, q_pin, v_pin)
     pin.updateFramePlacements(robot.model, robot.data)
-    frame = robot.model.getFrameId(HAND_FRAME)
+    frame = robot.model.getFrameId(hand)
     twist = pin.getFrameVelocity(robot.model, robot.data, frame, pin.LOCAL_WORLD_ALIGNED)
     lever = scene.data.xipos[body] - robot.data.oMf[frame].translation
     np.testing.assert_allclose(velocity[3:], twist.linear + np.cross(twist.angular, lever), atol=1e-10)
@@ -66,7 +67,7 @@ def test_hand_velocity_agrees(setup):
 def test_hand_sphere_pole_is_the_contact_point(setup):
     robot, q, scene = setup
     scene.set_state(q)
-    placement = robot.frame_placements(q)[CONTACT_FRAME]
+    placement = robot.frame_placements(q)[robot.contact_frame_name]
     pole = scene.data.geom_xpos[scene.hand_geom] + HAND_RADIUS * scene.data.geom_xmat[scene.hand_geom].reshape(3, 3)[:, 0]
     np.testing.assert_allclose(pole, placement.translation, atol=1e-10)
 

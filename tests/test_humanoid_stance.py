@@ -5,10 +5,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from impactqp.controller.model.floating_base import CONTACT_FRAME, FOOT_FRAMES, SOLE_DEPTH, FloatingBaseModel
+from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.humanoid_stance import (
     STANCES,
-    Stance,
     convex_hull,
     cross2,
     edge_margins,
@@ -16,6 +15,7 @@ from impactqp.controller.model.humanoid_stance import (
     stance_posture,
     support_polygon,
 )
+from impactqp.controller.model.robot_description import Stance
 from impactqp.controller.model.validation import BadInputError
 
 
@@ -30,11 +30,12 @@ def test_stance_stands_flat_with_the_com_over_the_feet_and_the_hand_on_target(hu
     q = stance_posture(humanoid, stance)
     np.testing.assert_allclose(humanoid.sole_corners(q)[:, 2], 0.0, atol=1e-4)
     placements = humanoid.frame_placements(q)
-    for frame, xy in zip(FOOT_FRAMES, (stance.left_foot, stance.right_foot)):
-        np.testing.assert_allclose(placements[frame].translation, [*xy, SOLE_DEPTH], atol=1e-3)
-        np.testing.assert_allclose(placements[frame].rotation, np.eye(3), atol=1e-3)
-    np.testing.assert_allclose(placements[CONTACT_FRAME].translation, stance.hand, atol=5e-3)
-    assert placements[CONTACT_FRAME].rotation[0, 0] > 0.99  # forearm towards the wall (+x)
+    for foot, xy in zip(humanoid.description.held_contacts, stance.feet, strict=True):
+        np.testing.assert_allclose(placements[foot.frame].translation, [*xy, foot.depth], atol=1e-3)
+        np.testing.assert_allclose(placements[foot.frame].rotation, np.eye(3), atol=1e-3)
+    contact = humanoid.contact_frame_name
+    np.testing.assert_allclose(placements[contact].translation, stance.hand, atol=5e-3)
+    assert placements[contact].rotation[0, 0] > 0.99  # forearm towards the wall (+x)
     assert inside_polygon(humanoid.terms(q).com, support_polygon(humanoid, q)) > 0.03
     joints = q[humanoid.base_nq:]
     assert np.all((joints >= humanoid.q_min) & (joints <= humanoid.q_max))
@@ -42,7 +43,7 @@ def test_stance_stands_flat_with_the_com_over_the_feet_and_the_hand_on_target(hu
 
 def test_an_unreachable_hand_is_bad_input(humanoid):
     with pytest.raises(BadInputError):
-        stance_posture(humanoid, Stance("far", (0.0, 0.12), (0.0, -0.12), (1.5, -0.2, 0.95)))
+        stance_posture(humanoid, Stance("far", ((0.0, 0.12), (0.0, -0.12)), (1.5, -0.2, 0.95)))
 
 
 @settings(max_examples=50, deadline=None)

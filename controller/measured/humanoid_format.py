@@ -2,8 +2,8 @@
 floating-base G1"): its contact frame in place of a tool, the base state a humanoid's state
 estimator gives, and the joint columns of its joints.
 
-The G1 hits with a point of its own, the fixed frame ``right_palm_contact`` of the model
-(``controller.model.floating_base.CONTACT_FRAME``): the manifest's ``tool`` is
+The G1 hits with a point of its own, the fixed frame ``right_palm_contact`` of the model (its
+description's ``contact``, ``controller/model/robots/g1.toml``): the manifest's ``tool`` is
 ``{"frame": "right_palm_contact", "contact_point": [0, 0, 0]}``, the contact point at the frame's
 origin; any other tool of a G1 manifest is bad input. The base state of row k is Pinocchio's
 free-flyer convention: the position of the base frame in the world (m), its orientation as a unit
@@ -18,10 +18,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactqp.controller.model.floating_base import CONTACT_FRAME, FloatingBaseModel
+from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError, non_empty_string, numbers
 
-G1 = "g1"
+G1 = ROBOTS["g1"].name
+"""The manifest's ``robot`` of a G1 dataset: the G1 description's name."""
 BASE_COLUMNS = (
     "base_x", "base_y", "base_z", "base_qx", "base_qy", "base_qz", "base_qw",
     "base_vx", "base_vy", "base_vz", "base_wx", "base_wy", "base_wz",
@@ -36,7 +38,7 @@ QUATERNION_TOLERANCE = 1e-6
 class ContactFrame:
     """The G1's contact point: the origin of one of its fixed frames (the manifest's ``tool``)."""
 
-    frame: str = CONTACT_FRAME
+    frame: str = ROBOTS[G1].contact.name
 
     @property
     def name(self) -> str:
@@ -64,7 +66,7 @@ def contact_frame_from_dict(tool: dict) -> ContactFrame:
 @functools.cache
 def g1_model() -> FloatingBaseModel:
     """The G1's model, built once: its joints' order and limits are the dataset's."""
-    return FloatingBaseModel()
+    return FloatingBaseModel(G1)
 
 
 def joint_count() -> int:

@@ -56,7 +56,7 @@ _EXPORTS = {
     "FloatingJump": "floating_base",
     "WholeBodyModel": "whole_body_terms",
     "WholeBodyTerms": "whole_body_terms",
-    "Stance": "humanoid_stance",
+    "Stance": "robot_description",
     "STANCES": "humanoid_stance",
     "stance_posture": "humanoid_stance",
     "CaptureRegion": "capture",

@@ -5,11 +5,16 @@ A :class:`RobotChoice` is the one value passed down the layers instead of two na
 the model (``RobotModel``) and knows the robot's named impact postures solved for the tool
 (``tool_postures.tool_posture``). It is small, frozen and picklable, so a process pool's workers
 receive it and build their own model and scene from it.
+
+A floating-base robot (``robot.floating``: the G1) carries no tool: it hits with its own contact
+point (its description's ``contact``), its ``tool`` is None, its model is
+``floating_base.FloatingBaseModel`` (``RobotModel`` refuses it) and its postures are its
+description's ``stances``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
@@ -26,28 +31,44 @@ DEFAULT_TOOL = "impact_tip"
 
 @dataclass(frozen=True, eq=False)
 class RobotChoice:
-    """A robot description and the tool it carries (default: the Panda with ``impact_tip``)."""
+    """A robot description and the tool it carries (default: the Panda with ``impact_tip``; a
+    fixed-base robot given no tool carries ``impact_tip``, a floating-base robot carries none:
+    ``tool`` None, anything else is bad input)."""
 
     robot: RobotDescription = PANDA
-    tool: ToolDescription = field(default_factory=lambda: TOOLS[DEFAULT_TOOL])
+    tool: ToolDescription | None = None
+
+    def __post_init__(self):
+        if self.robot.floating and self.tool is not None:
+            raise BadInputError(_no_tool(self.robot, self.tool.name))
+        if not self.robot.floating and self.tool is None:
+            object.__setattr__(self, "tool", TOOLS[DEFAULT_TOOL])
 
     @classmethod
     def of(
         cls,
-        robot: str | RobotDescription = DEFAULT_ROBOT,
+        robot: str | Path | RobotDescription = DEFAULT_ROBOT,
         tool: str | Path | ToolDescription = DEFAULT_TOOL,
     ) -> RobotChoice:
-        """The choice of a robot name (or description) and a tool name, file (or description)."""
-        return cls(robot_description(robot), tool_description(tool))
+        """The choice of a robot name, file (or description) and a tool name, file (or
+        description). A floating-base robot takes only the default ``tool`` (what a command line
+        passes when no tool is given), which it ignores: it carries none; any other tool is bad
+        input (one line)."""
+        description = robot_description(robot)
+        if not description.floating:
+            return cls(description, tool_description(tool))
+        if not (isinstance(tool, str) and tool == DEFAULT_TOOL):
+            raise BadInputError(_no_tool(description, getattr(tool, "name", str(tool))))
+        return cls(description)
 
     @property
     def is_default(self) -> bool:
         """Whether this is the Panda with the built-in ``impact_tip``."""
-        return self.robot.name == DEFAULT_ROBOT and self.tool.as_dict() == TOOLS[DEFAULT_TOOL].as_dict()
+        return self.robot.name == DEFAULT_ROBOT and _tool_dict(self.tool) == TOOLS[DEFAULT_TOOL].as_dict()
 
     def same_as(self, other: RobotChoice) -> bool:
-        """Whether ``other`` names the same robot and an identical tool description."""
-        return self.robot_setting == other.robot_setting and self.tool.as_dict() == other.tool.as_dict()
+        """Whether ``other`` names the same robot and an identical tool description (or no tool)."""
+        return self.robot_setting == other.robot_setting and _tool_dict(self.tool) == _tool_dict(other.tool)
 
     @property
     def robot_setting(self) -> str:
@@ -104,7 +125,16 @@ class RobotChoice:
         return names
 
     def __repr__(self) -> str:
-        return f"RobotChoice(robot={self.robot.name!r}, tool={self.tool.name!r})"
+        return f"RobotChoice(robot={self.robot.name!r}, tool={None if self.tool is None else self.tool.name!r})"
+
+
+def _no_tool(robot: RobotDescription, tool: str) -> str:
+    contact = "" if robot.contact is None else f" {robot.contact.name}"
+    return f"the {robot.name} has a floating base and carries no tool (it hits with its own contact point{contact}), not {tool!r}"
+
+
+def _tool_dict(tool: ToolDescription | None) -> dict | None:
+    return None if tool is None else tool.as_dict()
 
 
 DEFAULT_CHOICE = RobotChoice()

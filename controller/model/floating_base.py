@@ -1,11 +1,14 @@
 """Floating-base humanoid (Unitree G1) and its hand-impact jump predictors (docs/floating-base.md).
 
-The model is the G1 of ``example-robot-data`` (:data:`URDF_SUBPATH`) with a free-flyer root (its
-``base_nq`` coordinates and ``base_nv`` velocities come before the joints'):
-its description has no fingers, gripper or head joints, so nothing needs to be locked. The
-contact point p sits on the right forearm axis (the x axis of ``right_wrist_yaw_link``),
-:data:`CONTACT_OFFSET` beyond the wrist, inside the rubber hand. The feet are the two
-``*_ankle_roll_link`` bodies; their soles lie :data:`SOLE_DEPTH` below those frames.
+The model is built from a floating-base robot description (``robot_description``, docs/robots.md;
+the built-in ``g1``): its URDF with a free-flyer root (its ``base_nq`` coordinates and ``base_nv``
+velocities come before the joints'), the robot's own contact point (the description's
+``contact``: a frame at an offset from a URDF frame) and the contacts it holds
+(``held_contacts``: the feet, each a URDF frame with its sole polygon and depth). The G1 is the
+29-joint G1 of ``example-robot-data``: its URDF has no fingers, gripper or head joints, so
+nothing needs to be locked. Its contact point p sits on the right forearm axis (the x axis of
+``right_wrist_yaw_link``), 10 cm beyond the wrist, inside the rubber hand; its feet are the two
+``*_ankle_roll_link`` bodies, their soles 35 mm below those frames.
 
 Impact model (Wang, Dehio, Kheddar, RA-L 2022, extended to a floating base standing on two
 feet). The generalized velocity v = (base twist in the base frame, joint rates) jumps by dv
@@ -38,35 +41,22 @@ import pinocchio as pin
 from scipy.linalg import cho_factor, cho_solve
 
 from .jump import crb_inverse_inertia
+from .robot_description import RobotDescription, robot_description
 from .validation import BadInputError, unit_normal
 
-URDF_SUBPATH = "g1_description/urdf/g1_29dof_rev_1_0.urdf"
-HAND_FRAME = "right_wrist_yaw_link"
-CONTACT_FRAME = "right_palm_contact"
-CONTACT_OFFSET = 0.10  # m along the forearm (x) axis of the wrist yaw link
-FOOT_FRAMES = ("left_ankle_roll_link", "right_ankle_roll_link")
-SOLE_DEPTH = 0.035  # m: the URDF's sole spheres (radius 5 mm) sit 30 mm below the ankle roll frame
-# Sole corners in the foot frame (x forward, y left), from the URDF's four contact spheres.
-SOLE_CORNERS = np.array([[-0.05, 0.025], [-0.05, -0.025], [0.12, 0.03], [0.12, -0.03]])
 METHODS = ("classical", "gm", "crb")
-
-
-def g1_urdf_path() -> Path:
-    """Path of the G1 URDF shipped by ``example-robot-data``."""
-    import example_robot_data  # optional at import time: only the loader needs it
-
-    return (Path(example_robot_data.getModelPath(URDF_SUBPATH)) / URDF_SUBPATH).resolve()
 
 
 @dataclass(eq=False)
 class FloatingBaseTerms:
     """Model quantities of one configuration q (nq values), world-aligned.
 
-    ``J`` is the 3 x nv linear Jacobian of the contact point, ``Jf`` the 12 x nv Jacobian of
-    the two foot frames (left then right; linear then angular rows), ``Jcom`` the 3 x nv
-    Jacobian of the centre of mass, ``M`` the joint-space inertia matrix (base and joints),
-    ``com``, ``mass`` and ``inertia_com`` the centre of mass, total mass and centroidal
-    rotational inertia (world axes) of the whole robot locked into one rigid body.
+    ``J`` is the 3 x nv linear Jacobian of the contact point, ``Jf`` the Jacobian of the held
+    contacts' frames (6 rows each, in the description's order: 12 x nv for the G1's left then
+    right foot; linear then angular rows), ``Jcom`` the 3 x nv Jacobian of the centre of mass,
+    ``M`` the joint-space inertia matrix (base and joints), ``com``, ``mass`` and ``inertia_com``
+    the centre of mass, total mass and centroidal rotational inertia (world axes) of the whole
+    robot locked into one rigid body.
     """
 
     q: np.ndarray
@@ -172,31 +162,54 @@ def jump_from_impulse(terms: FloatingBaseTerms, impulse: np.ndarray) -> np.ndarr
 
 
 class FloatingBaseModel:
-    """The G1 humanoid with a free-flyer root, a hand contact point and two held feet.
+    """A floating-base robot with a free-flyer root, its own contact point and its held contacts
+    (the G1: the right hand's contact point and the two feet), built from its description.
 
     q and v start with the free flyer's ``base_nq`` coordinates (position, quaternion) and
     ``base_nv`` velocities (the base twist); the ``n_joints`` actuated joints follow.
+
+    ``robot`` is a floating-base description, a built-in name or a robot file
+    (``robot_description``); ``urdf_path`` replaces the description's URDF. The joint limits
+    (``q_min``, ``q_max``, ``dq_max``, ``tau_max``) are the description's; ``foot_frames`` and
+    ``foot_frame_ids`` are the held contacts' frames in the description's order.
     """
 
-    def __init__(self, urdf_path: str | Path | None = None):
-        self.urdf_path = Path(urdf_path) if urdf_path is not None else g1_urdf_path()
+    def __init__(self, robot: str | Path | RobotDescription = "g1", urdf_path: str | Path | None = None):
+        self.description = description = robot_description(robot)
+        if not description.floating:
+            raise BadInputError(f"the {description.name} has a fixed base: its model is RobotModel, not FloatingBaseModel")
+        if description.contact is None or not description.held_contacts:
+            raise BadInputError(f"the floating-base {description.name} needs a contact and held contacts in its description")
+        self.urdf_path = Path(urdf_path) if urdf_path is not None else description.urdf_path()
         model = pin.buildModelFromUrdf(str(self.urdf_path), pin.JointModelFreeFlyer())
-        hand = model.getFrameId(HAND_FRAME)
+        self.foot_frames = tuple(c.frame for c in description.held_contacts)
+        missing = [f for f in (description.contact.frame, *self.foot_frames) if not model.existFrame(f)]
+        if missing:
+            raise BadInputError(f"the {description.name} URDF has no frame {', '.join(missing)}")
+        contact = description.contact
+        hand = model.getFrameId(contact.frame)
         frame = model.frames[hand]
-        offset = pin.SE3(np.eye(3), np.array([CONTACT_OFFSET, 0.0, 0.0]))
-        contact = pin.Frame(CONTACT_FRAME, frame.parentJoint, hand, frame.placement * offset, pin.FrameType.OP_FRAME)
-        self.contact_frame_id = model.addFrame(contact)
-        self.foot_frame_ids = tuple(model.getFrameId(name) for name in FOOT_FRAMES)
+        offset = pin.SE3(np.eye(3), contact.offset.copy())
+        self.contact_frame_name = contact.name
+        self.contact_frame_id = model.addFrame(
+            pin.Frame(contact.name, frame.parentJoint, hand, frame.placement * offset, pin.FrameType.OP_FRAME)
+        )
+        self.foot_frame_ids = tuple(model.getFrameId(name) for name in self.foot_frames)
         self.model = model
         self.data = model.createData()
         self.joint_names = [model.names[i] for i in range(2, model.njoints)]
         root = model.joints[1]  # the free flyer
         self.base_nq, self.base_nv = root.nq, root.nv
         self.n_joints = model.nv - self.base_nv
-        self.q_min = model.lowerPositionLimit[self.base_nq:].copy()
-        self.q_max = model.upperPositionLimit[self.base_nq:].copy()
-        self.dq_max = model.velocityLimit[self.base_nv:].copy()
-        self.tau_max = model.effortLimit[self.base_nv:].copy()
+        if tuple(self.joint_names) != description.joints:
+            raise BadInputError(
+                f"the {description.name} URDF's moving joints {', '.join(self.joint_names)} are not the "
+                f"description's joints {', '.join(description.joints)}"
+            )
+        self.q_min = description.q_min.copy()
+        self.q_max = description.q_max.copy()
+        self.dq_max = description.dq_max.copy()
+        self.tau_max = description.tau_max.copy()
 
     def joint_index(self, name: str) -> int:
         """Index of a joint in the joint part of q (0 .. n_joints - 1)."""
@@ -224,13 +237,17 @@ class FloatingBaseModel:
         )
 
     def frame_placements(self, q) -> dict[str, pin.SE3]:
-        """World placements of the contact frame and the two feet."""
+        """World placements of the contact frame and the held contacts' frames."""
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
-        ids = {CONTACT_FRAME: self.contact_frame_id, **dict(zip(FOOT_FRAMES, self.foot_frame_ids))}
+        ids = {self.contact_frame_name: self.contact_frame_id, **dict(zip(self.foot_frames, self.foot_frame_ids))}
         return {name: self.data.oMf[i].copy() for name, i in ids.items()}
 
     def sole_corners(self, q) -> np.ndarray:
-        """World positions (8 x 3) of the sole corners of both feet (left then right)."""
+        """World positions (k x 3) of the sole corners of every held contact, in the description's
+        order (the G1: 4 corners of the left foot, then 4 of the right), each corner (x, y) of the
+        contact's ``sole`` at its ``depth`` below the contact's frame."""
         placements = self.frame_placements(q)
-        local = np.column_stack([SOLE_CORNERS, np.full(4, -SOLE_DEPTH)])
-        return np.vstack([[placements[f].act(p) for p in local] for f in FOOT_FRAMES])
+        return np.vstack([
+            [placements[c.frame].act(p) for p in np.column_stack([c.sole, np.full(len(c.sole), -c.depth)])]
+            for c in self.description.held_contacts
+        ])

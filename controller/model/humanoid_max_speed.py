@@ -16,10 +16,12 @@ zero. Every predicted quantity of ``floating_base`` is linear in the contact vel
     The criteria are homogeneous in F_k, so they are checked on F_k. Assumed plainly: the feet's
     impulsive wrenches peak with the hand's force, in the feet-held model's proportions, and the
     feet are flat.
-    ``foot_slip``: |F_xy| <= mu F_z (the friction cone of the summed impulse; a quadratic in s).
-    ``foot_lift``: the centre of pressure of F, about the sole (:data:`SOLE_DEPTH` below the
-    frame), stays inside the sole's four corners: nu_e . (-tau_y, tau_x) <= (nu_e . a_e) f_z for
-    each edge e (outward normal nu_e, corner a_e); together these also give f_z >= 0.
+    ``foot_slip``: |F_xy| <= mu F_z (the friction cone of the summed impulse; a quadratic in s;
+    mu the held contact's ``friction`` unless the setting gives one for every foot).
+    ``foot_lift``: the centre of pressure of F, about the sole (the held contact's ``depth``
+    below the frame), stays inside the convex hull of the sole's corners (the held contact's
+    ``sole``): nu_e . (-tau_y, tau_x) <= (nu_e . a_e) f_z for each edge e (outward normal nu_e,
+    corner a_e); together these also give f_z >= 0.
 (c) ``capture``: the post-impact CoM velocity stays in the zero-step capture region
     (``capture.capturable_speeds``, the smallest over the edges).
 """
@@ -33,25 +35,26 @@ import numpy as np
 import pinocchio as pin
 
 from .capture import capturable_speeds, capture_region, row_steps
-from .floating_base import FOOT_FRAMES, SOLE_CORNERS, SOLE_DEPTH, FloatingBaseModel, FloatingBaseTerms, predict
+from .floating_base import FloatingBaseModel, FloatingBaseTerms, predict
 from .humanoid_stance import convex_hull, edge_margins, edge_normals, support_polygon
 from .validation import BadInputError
 
 CRITERIA = ("joint_velocity", "foot_slip", "foot_lift", "capture")
-FOOT_FRICTION = 1.0  # mu of the soles on the floor (the simulated floor's)
 IMPACT_DURATION = 0.0034  # s: T, the wall contact's equivalent duration (impulse / peak force; the simulated wall's)
 ARM_JOINTS = tuple(f"right_{j}_joint" for j in (
     "shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", "wrist_roll", "wrist_pitch", "wrist_yaw"))
 FEET = ("left", "right")
+"""How a foot bound names the G1's held contacts (``Bound.where``), in the description's order."""
 
 
 @dataclass(frozen=True)
 class Setting:
-    """What the closed form assumes: predictor, restitution, friction mu and contact duration T (s)."""
+    """What the closed form assumes: predictor, restitution, friction mu of every foot (None: each
+    held contact's own ``friction``, the description's) and contact duration T (s)."""
 
     method: str = "crb"
     restitution: float = 0.0
-    friction: float = FOOT_FRICTION
+    friction: float | None = None
     impact_duration: float = IMPACT_DURATION
 
 
@@ -111,33 +114,36 @@ def cone_step(force0: np.ndarray, force1: np.ndarray, mu: float) -> float:
     return float(min(roots)) if roots else math.inf
 
 
-def sole_rows(sole: np.ndarray, impulse: np.ndarray) -> np.ndarray:
-    """nu_e . (-tau_y, tau_x) - (nu_e . a_e) f_z for each edge e of the sole polygon (module
-    docstring), for a foot wrench impulse (f, tau) about the foot frame, in the foot's axes: <= 0
-    keeps the centre of pressure in the sole."""
+def sole_rows(sole: np.ndarray, depth: float, impulse: np.ndarray) -> np.ndarray:
+    """nu_e . (-tau_y, tau_x) - (nu_e . a_e) f_z for each edge e of the convex sole polygon
+    ``sole`` lying ``depth`` below the foot frame (module docstring), for a foot wrench impulse
+    (f, tau) about the foot frame, in the foot's axes: <= 0 keeps the centre of pressure in the
+    sole."""
     f, tau = impulse[:3], impulse[3:]
-    tau_sole = tau + np.cross([0.0, 0.0, SOLE_DEPTH], f)  # about the sole point under the frame
+    tau_sole = tau + np.cross([0.0, 0.0, depth], f)  # about the sole point under the frame
     return edge_normals(sole) @ np.array([-tau_sole[1], tau_sole[0]]) - edge_margins(sole, np.zeros(2)) * f[2]
 
 
 def foot_bounds(robot: FloatingBaseModel, terms: FloatingBaseTerms, unit_feet: np.ndarray, setting: Setting):
-    """The (b) bounds: ``foot_slip`` and ``foot_lift`` (module docstring) of both feet."""
+    """The (b) bounds: ``foot_slip`` and ``foot_lift`` (module docstring) of every held contact,
+    each with its own sole, depth and (unless ``setting.friction`` is given) friction."""
     standing = setting.impact_duration * standing_wrenches(robot, terms)
     placements = robot.frame_placements(terms.q)
-    sole = convex_hull(SOLE_CORNERS)
     slip, lift = Bound(math.inf, ""), Bound(math.inf, "")
-    for k, (foot, frame) in enumerate(zip(FEET, FOOT_FRAMES)):
-        R = placements[frame].rotation
+    for k, (foot, contact) in enumerate(zip(FEET, robot.description.held_contacts, strict=True)):
+        R = placements[contact.frame].rotation
+        sole = convex_hull(contact.sole)
+        mu = contact.friction if setting.friction is None else setting.friction
         rows = slice(6 * k, 6 * k + 6)
 
         def local(w):
             return np.concatenate([R.T @ w[:3], R.T @ w[3:]])
 
         w0, w1 = local(standing[rows]), local(unit_feet[rows])
-        s = cone_step(w0[:3], w1[:3], setting.friction)
+        s = cone_step(w0[:3], w1[:3], mu)
         if s < slip.speed:
             slip = Bound(s, foot)
-        s = float(np.min(row_steps(sole_rows(sole, w0), sole_rows(sole, w1))))
+        s = float(np.min(row_steps(sole_rows(sole, contact.depth, w0), sole_rows(sole, contact.depth, w1))))
         if s < lift.speed:
             lift = Bound(s, foot)
     return slip, lift
@@ -156,7 +162,7 @@ def closed_form_max_speed(
 ) -> HumanoidMaxSpeed:
     """The highest contact speed of the stance configuration q against the wall ``normal``
     (towards the robot) that satisfies (a), (b) and (c), and what binds (module docstring)."""
-    if not setting.friction > 0.0 or not setting.impact_duration > 0.0:
+    if (setting.friction is not None and not setting.friction > 0.0) or not setting.impact_duration > 0.0:
         raise BadInputError("the foot friction and the impact duration must be > 0")
     normal = np.asarray(normal, dtype=float)
     terms = robot.terms(q)

@@ -1,8 +1,11 @@
 """Standing postures of the floating-base G1 before a hand impact (docs/floating-base.md).
 
-A stance places both soles flat on the ground (z = 0) at given horizontal positions, the
-centre of mass over the middle of the support polygon and the hand's contact point at a target
-with the forearm pointing forward (+x, towards the wall). The posture is found by damped
+A stance (``robot_description.Stance``: a description's ``stances``, :data:`STANCES` the G1's)
+places the sole of each held contact k flat on the ground (z = 0, the contact's frame ``depth``
+above it) with its frame at the horizontal position ``feet[k]``, the centre of mass over the
+mean of the soles' centres (each frame's position moved along x by the mean x of its sole's
+corners) and the hand's contact point at a target with the forearm pointing forward (+x,
+towards the wall). The posture is found by damped
 Gauss-Newton over the whole configuration (base placement and joints), every task stacked with
 a weight (feet and CoM first, then the hand, then a small pull towards a nominal bent-knee
 posture that keeps the solution unique):
@@ -18,12 +21,11 @@ a fixed base.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import pinocchio as pin
 
-from .floating_base import FOOT_FRAMES, SOLE_CORNERS, SOLE_DEPTH, FloatingBaseModel
+from .floating_base import FloatingBaseModel
+from .robot_description import ROBOTS, Stance
 from .validation import BadInputError
 
 # Nominal bent-knee posture (rad): the regularisation target of the solver.
@@ -33,35 +35,11 @@ NOMINAL = {
     "left_elbow_joint": 1.0, "right_elbow_joint": 0.5, "left_shoulder_roll_joint": 0.2,
     "right_shoulder_roll_joint": -0.2, "right_shoulder_pitch_joint": -0.8,
 }
-SOLE_CENTRE_X = float(SOLE_CORNERS[:, 0].mean())
 WEIGHTS = {"feet": 10.0, "com": 10.0, "hand": 3.0, "hand_axis": 1.0, "posture": 0.05}
 DAMPING = 1e-3
 ITERATIONS = 200
-
-
-@dataclass(frozen=True)
-class Stance:
-    """Where the feet stand and where the hand starts, world frame (m).
-
-    ``left_foot``/``right_foot``: (x, y) of each ankle frame (the soles are flat at z = 0);
-    ``hand``: the contact point's start position.
-    """
-
-    name: str
-    left_foot: tuple[float, float]
-    right_foot: tuple[float, float]
-    hand: tuple[float, float, float]
-
-
-STANCES = {
-    "parallel": Stance("parallel", (0.0, 0.12), (0.0, -0.12), (0.30, -0.18, 0.95)),
-    "wide": Stance("wide", (0.0, 0.20), (0.0, -0.20), (0.30, -0.22, 0.92)),
-    "staggered": Stance("staggered", (-0.08, 0.12), (0.08, -0.12), (0.36, -0.18, 0.95)),
-    # the parallel feet nearer to and farther from the wall: the hand starts closer to the body
-    # (elbow bent) or farther from it (arm stretched)
-    "close": Stance("close", (0.0, 0.12), (0.0, -0.12), (0.20, -0.18, 0.95)),
-    "far": Stance("far", (0.0, 0.12), (0.0, -0.12), (0.42, -0.18, 0.95)),
-}
+STANCES = ROBOTS["g1"].stances
+"""The G1's stances by name (its description's): parallel, wide, staggered, close, far."""
 
 
 def support_polygon(robot: FloatingBaseModel, q: np.ndarray) -> np.ndarray:
@@ -117,11 +95,12 @@ def stance_posture(robot: FloatingBaseModel, stance: Stance) -> np.ndarray:
     nominal = np.zeros(robot.n_joints)
     for name, value in NOMINAL.items():
         nominal[robot.joint_index(name)] = value
-    feet = {
-        FOOT_FRAMES[0]: pin.SE3(np.eye(3), np.array([*stance.left_foot, SOLE_DEPTH])),
-        FOOT_FRAMES[1]: pin.SE3(np.eye(3), np.array([*stance.right_foot, SOLE_DEPTH])),
-    }
-    centre = np.mean([[f[0] + SOLE_CENTRE_X, f[1]] for f in (stance.left_foot, stance.right_foot)], axis=0)
+    contacts = robot.description.held_contacts
+    if len(stance.feet) != len(contacts):
+        raise BadInputError(f"stance {stance.name!r} places {len(stance.feet)} feet, the robot holds {len(contacts)} contacts")
+    feet = [(fid, pin.SE3(np.eye(3), np.array([*xy, c.depth])))
+            for fid, c, xy in zip(robot.foot_frame_ids, contacts, stance.feet)]
+    centre = np.mean([[xy[0] + float(c.sole[:, 0].mean()), xy[1]] for c, xy in zip(contacts, stance.feet)], axis=0)
     hand_target = np.array(stance.hand)
     q = pin.neutral(model)
     q[2] = 0.75
@@ -133,8 +112,8 @@ def stance_posture(robot: FloatingBaseModel, stance: Stance) -> np.ndarray:
         q = pin.integrate(model, q, dv)
         q[joints] = np.clip(q[joints], robot.q_min, robot.q_max)
     _, errors = _tasks(robot, q, feet, centre, hand_target, nominal)
-    foot_error = max(np.abs(errors[0]).max(), np.abs(errors[1]).max()) / WEIGHTS["feet"]
-    hand_error = np.linalg.norm(errors[3]) / WEIGHTS["hand"]
+    foot_error = max(np.abs(e).max() for e in errors[:len(feet)]) / WEIGHTS["feet"]
+    hand_error = np.linalg.norm(errors[len(feet) + 1]) / WEIGHTS["hand"]
     if foot_error > 1e-3 or hand_error > 5e-3:
         raise BadInputError(
             f"stance {stance.name!r} cannot be reached: foot error {foot_error:.2e}, hand error {hand_error:.2e} m"
@@ -149,8 +128,7 @@ def _tasks(robot, q, feet, centre, hand_target, nominal):
     pin.updateFramePlacements(model, data)
     w = WEIGHTS
     rows, errors = [], []
-    for name, target in feet.items():
-        fid = model.getFrameId(name)
+    for fid, target in feet:
         rows.append(w["feet"] * pin.getFrameJacobian(model, data, fid, pin.LOCAL))
         errors.append(w["feet"] * pin.log6(data.oMf[fid].inverse() * target).vector)
     Jcom = pin.jacobianCenterOfMass(model, data, q)

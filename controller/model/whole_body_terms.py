@@ -31,8 +31,6 @@ from .floating_base import FloatingBaseModel
 from .validation import BadInputError
 
 TORSO_FRAME = "torso_link"
-JOINT_ACCELERATION_LIMIT = 25.0  # rad/s^2, every actuated joint (docs/whole-body-qp.md, Limits)
-JOINT_JERK_LIMIT = 10_000.0  # rad/s^3
 BASE_ACCELERATION_LIMIT = 100.0  # m/s^2 and rad/s^2: a generous box on the base (the feet set it)
 
 _FILLS = itertools.count(1)
@@ -83,8 +81,9 @@ class WholeBodyTerms:
 
 class WholeBodyModel:
     """The G1 of ``FloatingBaseModel`` with the limits of its whole-body QP: the ``joints`` actuated
-    joints' position, velocity and torque limits from the URDF, the acceleration and jerk
-    limits chosen in docs/whole-body-qp.md, and a box on the base's acceleration."""
+    joints' position, velocity, torque, acceleration and jerk limits from its description (the
+    first three are the URDF's, the acceleration and jerk limits chosen in docs/whole-body-qp.md),
+    and a box on the base's acceleration."""
 
     def __init__(self, base: FloatingBaseModel | None = None):
         self.base = base if base is not None else FloatingBaseModel()
@@ -95,8 +94,8 @@ class WholeBodyModel:
         self.joints = self.base.n_joints
         self.q_min, self.q_max = self.base.q_min, self.base.q_max
         self.dq_max, self.tau_max = self.base.dq_max, self.base.tau_max
-        self.ddq_max = np.full(self.joints, JOINT_ACCELERATION_LIMIT)
-        self.dddq_max = np.full(self.joints, JOINT_JERK_LIMIT)
+        self.ddq_max = self.base.description.ddq_max.copy()
+        self.dddq_max = self.base.description.dddq_max.copy()
         self.torso_frame_id = self.model.getFrameId(TORSO_FRAME)
         self._zero = np.zeros(self.nv)
 

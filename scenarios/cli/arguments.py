@@ -10,7 +10,6 @@ from __future__ import annotations
 import functools
 import json
 import os
-from dataclasses import dataclass
 from pathlib import Path
 
 import click
@@ -144,30 +143,36 @@ def check_jobs(value: int) -> int:
     return value
 
 
-@dataclass(frozen=True)
-class HumanoidChoice:
-    """``--robot g1``: the floating-base Unitree G1 standing on two feet (docs/floating-base.md);
-    it carries no tool and its postures are its stances."""
-
-    name: str = "g1"
-
-
 def robot_choice(robot: str, tool: str, humanoid: bool = False):
-    """The ``RobotChoice`` of ``--robot NAME`` and ``--tool NAME|FILE`` (bad input names the
-    choices), or a :class:`HumanoidChoice` for ``--robot g1`` where the command takes it."""
-    if robot == HumanoidChoice.name:
-        if not humanoid:
-            raise BadInputError("--robot g1 works with predict, simulate, campaign and max-speed only")
-        return HumanoidChoice()
-    from impactqp.controller.model.choice import RobotChoice  # loads Pinocchio: only when a command runs
+    """The ``controller.model.choice.RobotChoice`` of ``--robot NAME|FILE`` (a built-in robot or a
+    robot .toml file) and ``--tool NAME|FILE`` (bad input names the choices). A floating-base
+    robot (``choice.robot.floating``: the G1) is taken only where the command takes one
+    (``humanoid``); it carries no tool (``RobotChoice.of``)."""
+    # lazy: loads Pinocchio, only when a command runs
+    from impactqp.controller.model.choice import RobotChoice
+    from impactqp.controller.model.robot_description import robot_description
 
-    return RobotChoice.of(robot, tool)
+    description = robot_description(robot)
+    if description.floating and not humanoid:
+        raise BadInputError(f"--robot {description.name} (a floating base) works with predict, simulate, campaign "
+                            "and max-speed only")
+    return RobotChoice.of(description, tool)
+
+
+def robot_help(humanoid: bool) -> str:
+    """The help of ``--robot``: the built-in robots (:data:`ROBOTS` of ``robot_description``) or a
+    robot file, and where a floating base is taken."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.controller.model.robot_description import ROBOTS
+
+    where = "docs/floating-base.md" if humanoid else "a floating base only with predict, simulate, campaign and max-speed"
+    return f"The robot: {', '.join(ROBOTS)} or a robot .toml file (docs/robots.md; {where})."
 
 
 def robot_options(command=None, *, humanoid: bool = False):
     """Add ``--robot`` and ``--tool`` to a click command, which receives them as one ``choice``
-    (a ``controller.model.choice.RobotChoice``, or with ``humanoid`` a :class:`HumanoidChoice`
-    for ``--robot g1``) instead of two strings. Use as ``@robot_options`` or
+    (a ``controller.model.choice.RobotChoice``; with ``humanoid`` it may be a floating-base
+    robot's, ``choice.robot.floating``) instead of two strings. Use as ``@robot_options`` or
     ``@robot_options(humanoid=True)``."""
     if command is None:
         return functools.partial(robot_options, humanoid=humanoid)
@@ -180,5 +185,4 @@ def robot_options(command=None, *, humanoid: bool = False):
         "--tool", default="impact_tip", show_default=True,
         help="The tool: impact_tip, franka_hand, pad, or a .json/.toml tool file (docs/robots.md).",
     )(with_choice)
-    robots = "panda, fr3 or g1 (docs/robots.md, docs/floating-base.md)" if humanoid else "panda or fr3 (docs/robots.md)"
-    return click.option("--robot", default="panda", show_default=True, help=f"The robot: {robots}.")(with_choice)
+    return click.option("--robot", default="panda", show_default=True, help=robot_help(humanoid))(with_choice)

@@ -10,7 +10,7 @@ import numpy as np
 
 from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.validation import BadInputError
-from impactqp.scenarios.cli.arguments import HumanoidChoice, emit_json, output_directory, parse_vector, robot_options
+from impactqp.scenarios.cli.arguments import emit_json, output_directory, parse_vector, robot_options
 
 
 @click.group()
@@ -68,11 +68,12 @@ def predict(method, as_json, choice, **impact):
     from impactqp.scenarios.readable import fixed
 
     methods = METHODS if method == "all" else (method,)
-    if isinstance(choice, HumanoidChoice):
+    if choice.robot.floating:
         # lazy: the command line loads what a command needs when it runs
         from impactqp.scenarios.cli.humanoid_commands import g1_predict
 
-        report = g1_predict(impact.pop("posture_name"), impact.pop("q_text"), impact, None if method == "all" else methods)
+        report = g1_predict(choice, impact.pop("posture_name"), impact.pop("q_text"), impact,
+                            None if method == "all" else methods)
         if as_json:
             emit_json(report)
             return

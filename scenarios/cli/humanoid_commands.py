@@ -1,7 +1,10 @@
 """``predict``, ``simulate``, ``campaign`` and ``max-speed`` with ``--robot g1``: the standing
 floating-base G1 hitting a wall with its right hand (docs/floating-base.md).
 
-The G1's postures are its stances (``controller.model.humanoid_stance.STANCES``); the wall stands
+Each command receives the ``RobotChoice`` of a floating-base robot (``choice.robot.floating``)
+and builds its model from the description (``FloatingBaseModel(choice.robot)``); the JSON's
+``robot`` is the description's name. The G1's postures are its stances (its description's
+``stances``); the wall stands
 2 cm in front of the stance's hand, normal -x (5 cm with ``simulate --controller qp``: the
 whole-body QP drives the trial, ``sim.humanoid_qp_source``). An option of the arm's command that
 has no meaning for the G1 (a tool, a plant file, a wall point, jump constraints: only
@@ -20,16 +23,15 @@ from pathlib import Path
 import click
 import numpy as np
 
+from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, predict
 from impactqp.controller.model.humanoid_max_speed import IMPACT_DURATION, Setting
-from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+from impactqp.controller.model.humanoid_stance import stance_posture
+from impactqp.controller.model.robot_description import RobotDescription
 from impactqp.controller.model.validation import BadInputError, approach_speed, tangential_velocity, unit_normal
 from impactqp.controller.model.validation import restitution as restitution_coefficient
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.scenarios.cli.arguments import check_jobs, gif_output, output_directory, parse_vector
-
-G1 = "g1"
-
 
 def reject_options(names) -> None:
     """Bad input when one of the options ``names`` (click parameter names) was given."""
@@ -40,23 +42,27 @@ def reject_options(names) -> None:
             raise BadInputError(f"{option} does not apply to --robot g1 (docs/floating-base.md)")
 
 
-def stance_names(text: str | None) -> tuple[str, ...]:
-    """Comma-separated stance names (all when None), each checked."""
-    names = tuple(STANCES) if text is None else tuple(s.strip() for s in text.split(","))
+def stance_names(robot: RobotDescription, text: str | None) -> tuple[str, ...]:
+    """Comma-separated stance names of ``robot`` (all when None), each checked."""
+    stances = robot.stances
+    names = tuple(stances) if text is None else tuple(s.strip() for s in text.split(","))
     for name in names:
-        if name not in STANCES:
-            raise BadInputError(f"unknown posture {name!r} for the g1; known: {', '.join(STANCES)}")
+        if name not in stances:
+            raise BadInputError(f"unknown posture {name!r} for the {robot.name}; known: {', '.join(stances)}")
     return names
 
 
-def g1_predict(posture: str | None, q_text: str | None, impact: dict, methods) -> dict:
-    """The ``predict`` report of the G1 (feet held): per method (``methods``; None: classical, gm,
-    crb) the jump dq_jump (nv: base twist, joints), impulse, CoM jump and feet wrenches."""
+def g1_predict(choice: RobotChoice, posture: str | None, q_text: str | None, impact: dict, methods) -> dict:
+    """The ``predict`` report of the floating-base robot of ``choice`` (feet held): per method
+    (``methods``; None: classical, gm, crb) the jump dq_jump (nv: base twist, joints), impulse,
+    CoM jump and feet wrenches."""
     reject_options(["tool"])
-    robot = FloatingBaseModel()
+    robot = FloatingBaseModel(choice.robot)
     if (posture is None) == (q_text is None):
         raise BadInputError("give exactly one of --posture NAME or --q Q1,...,Q36")
-    q = stance_posture(robot, STANCES[stance_names(posture)[0]]) if posture else parse_vector(q_text, robot.model.nq, "--q")
+    stances = choice.robot.stances
+    q = (stance_posture(robot, stances[stance_names(choice.robot, posture)[0]]) if posture
+         else parse_vector(q_text, robot.model.nq, "--q"))
     normal = unit_normal(parse_vector(impact["normal_text"], 3, "--normal"), "--normal")
     speed = approach_speed(impact["speed"], "--speed")
     tangential = (np.zeros(3) if impact["tangential_text"] is None
@@ -65,7 +71,8 @@ def g1_predict(posture: str | None, q_text: str | None, impact: dict, methods) -
     v_minus = -speed * normal + tangential
     terms = robot.terms(q)
     report = {
-        "robot": G1, "q": terms.q.tolist(), "contact_point": terms.contact_point.tolist(), "normal": normal.tolist(),
+        "robot": choice.robot.name, "q": terms.q.tolist(), "contact_point": terms.contact_point.tolist(),
+        "normal": normal.tolist(),
         "pre_impact_velocity": v_minus.tolist(), "restitution": c_r, "cond_M": float(np.linalg.cond(terms.M)),
         "methods": {},
     }
@@ -78,10 +85,10 @@ def g1_predict(posture: str | None, q_text: str | None, impact: dict, methods) -
     return report
 
 
-def trial_json(trial) -> dict:
-    """A G1 trial as JSON (sim.humanoid_trial.ImpactTrial)."""
+def trial_json(robot: str, trial) -> dict:
+    """A trial of the floating-base robot named ``robot`` as JSON (sim.humanoid_trial.ImpactTrial)."""
     return {
-        "robot": G1, "posture": trial.stance, "reference_speed": trial.speed, "contact_speed": trial.contact_speed,
+        "robot": robot, "posture": trial.stance, "reference_speed": trial.speed, "contact_speed": trial.contact_speed,
         "impulse": trial.impulse.tolist(), "floor_impulse": trial.floor_impulse.tolist(),
         "impact_duration": trial.duration, "dq_jump": trial.measured_jump.tolist(),
         "com_jump": trial.measured_com_jump.tolist(),
@@ -93,12 +100,14 @@ def trial_json(trial) -> dict:
     }
 
 
-def g1_simulate(posture: str, speed: float, files: dict, controller: str = "scripted") -> tuple[dict, str | None]:
-    """One G1 trial (``sim.humanoid_trial``) driven by the scripted command or (``controller="qp"``)
-    the whole-body QP with the ``--jump-model`` predictor (crb, gm or classical), optionally
-    rendered to a GIF (``files["video_file"]``) and added to the G1 dataset in ``files["out_dir"]``;
-    its JSON (with the QP: ``controller`` and ``cycles_not_ok`` added) and the id of the trial written
-    (None without ``out_dir``)."""
+def g1_simulate(
+    choice: RobotChoice, posture: str, speed: float, files: dict, controller: str = "scripted"
+) -> tuple[dict, str | None]:
+    """One trial of the floating-base robot of ``choice`` (``sim.humanoid_trial``) driven by the
+    scripted command or (``controller="qp"``) the whole-body QP with the ``--jump-model``
+    predictor (crb, gm or classical), optionally rendered to a GIF (``files["video_file"]``) and
+    added to the G1 dataset in ``files["out_dir"]``; its JSON (with the QP: ``controller`` and
+    ``cycles_not_ok`` added) and the id of the trial written (None without ``out_dir``)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.video import render_humanoid_gif
     from impactqp.sim.humanoid_dataset import open_dataset, write_trials
@@ -114,26 +123,26 @@ def g1_simulate(posture: str, speed: float, files: dict, controller: str = "scri
         if method not in METHODS:
             raise BadInputError(f"--jump-model {method} is not a floating-base predictor; choose from {', '.join(METHODS)}")
         source = QpCommand(method=method)
-    stance = STANCES[stance_names(posture)[0]]
+    stance = choice.robot.stances[stance_names(choice.robot, posture)[0]]
     approach_speed(speed, "--speed")
     if video_file is not None:
         gif_output(video_file)
     dataset = None if out_dir is None else open_dataset(output_directory(out_dir, "--out"))
-    robot = FloatingBaseModel()
+    robot = FloatingBaseModel(choice.robot)
     trial = run_impact_trial(robot, stance, speed, source=source)
     written = None if dataset is None else write_trials(dataset, [trial])[0].id
     if video_file is not None:
         render_humanoid_gif(robot, trial, video_file)
-    report = trial_json(trial)
+    report = trial_json(choice.robot.name, trial)
     if controller == "qp":
         report.update(controller="qp", jump_model=source.method, cycles_not_ok=trial.record.not_ok)
     return report, written
 
 
 def simulate_text(report: dict) -> str:
-    """A G1 trial's report as text."""
+    """A floating-base robot's trial report as text."""
     return "\n".join([
-        f"{report['posture']} (g1): commanded {report['reference_speed']} m/s, contact speed "
+        f"{report['posture']} ({report['robot']}): commanded {report['reference_speed']} m/s, contact speed "
         f"{report['contact_speed']:.4f} m/s, impulse {np.round(report['impulse'], 4).tolist()} N s",
         "errors (26): " + ", ".join(f"{m} {e:.4f}" for m, e in report["errors"].items()),
         f"foot slip {1e3 * report['foot_slip']:.2f} mm, lift {1e3 * report['foot_lift']:.2f} mm, fell: {report['fell']}, "
@@ -143,18 +152,19 @@ def simulate_text(report: dict) -> str:
 
 
 def _campaign_trial(task):
-    """One campaign trial in a worker process (stance, speed) -> ImpactTrial."""
+    """One campaign trial in a worker process (robot description, stance, speed) -> ImpactTrial."""
     # lazy: a worker process imports the simulation when it runs its first trial
     from impactqp.sim.humanoid_trial import run_impact_trial
 
-    stance, speed = task
-    return run_impact_trial(FloatingBaseModel(), STANCES[stance], speed)
+    robot, stance, speed = task
+    return run_impact_trial(FloatingBaseModel(robot), robot.stances[stance], speed)
 
 
-def g1_campaign(postures_text, speeds_text, jobs: int, out_dir: str) -> tuple[dict, str]:
-    """The G1 campaign (``scenarios.humanoid_campaign``): Table I's JSON and the Markdown table,
-    both written to ``out_dir`` (table1.json, table1.md) beside the campaign's trials as a G1
-    dataset (dataset.json and per trial its CSV and force CSV, ``sim.humanoid_dataset``)."""
+def g1_campaign(choice: RobotChoice, postures_text, speeds_text, jobs: int, out_dir: str) -> tuple[dict, str]:
+    """The campaign of the floating-base robot of ``choice`` (``scenarios.humanoid_campaign``):
+    Table I's JSON and the Markdown table, both written to ``out_dir`` (table1.json, table1.md)
+    beside the campaign's trials as a G1 dataset (dataset.json and per trial its CSV and force
+    CSV, ``sim.humanoid_dataset``)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.measured.atomic import write_atomic
     from impactqp.scenarios.humanoid_campaign import DEFAULT_SPEEDS, campaign_table, crb_reduction, mean_errors
@@ -162,22 +172,22 @@ def g1_campaign(postures_text, speeds_text, jobs: int, out_dir: str) -> tuple[di
     from impactqp.sim.process_pool import map_in_processes
 
     reject_options(["tangential_text", "plant_file", "tool"])
-    stances = stance_names(postures_text)
+    stances = stance_names(choice.robot, postures_text)
     speeds = DEFAULT_SPEEDS if speeds_text is None else tuple(parse_vector(speeds_text, None, "--speeds").tolist())
     for v in speeds:
         approach_speed(v, "every speed of --speeds")
     out = output_directory(out_dir, "--out")
     dataset = open_dataset(out)
-    trials = map_in_processes(_campaign_trial, [(s, v) for s in stances for v in speeds], check_jobs(jobs))
+    trials = map_in_processes(_campaign_trial, [(choice.robot, s, v) for s in stances for v in speeds], check_jobs(jobs))
     errors = {m: e for m, e in mean_errors(trials).items() if m in METHODS}
     rows = [
-        {**{k: v for k, v in trial_json(t).items() if k not in ("predicted", "predicted_com_jump", "robot")},
+        {**{k: v for k, v in trial_json(choice.robot.name, t).items() if k not in ("predicted", "predicted_com_jump", "robot")},
          "trial": i, "normal_speed": t.speed, "tangential_speed": 0.0, "average_error": t.errors,
          "crb_reduction_percent": 100.0 * (1.0 - t.errors["crb"] / t.errors["classical"]),
          "measured_jump": t.measured_jump.tolist()}
         for i, t in enumerate(trials)
     ]
-    table = {"robot": G1, "methods": list(METHODS), "rows": rows, "mean_average_error": errors,
+    table = {"robot": choice.robot.name, "methods": list(METHODS), "rows": rows, "mean_average_error": errors,
              "mean_crb_reduction_percent": crb_reduction(errors)}
     text = campaign_table(trials)
     out.mkdir(parents=True, exist_ok=True)
@@ -187,19 +197,20 @@ def g1_campaign(postures_text, speeds_text, jobs: int, out_dir: str) -> tuple[di
     return table, text
 
 
-def g1_max_speed(posture: str, search: dict) -> dict:
-    """Closed-form and bisected highest feasible contact speed of a G1 stance (JSON)."""
+def g1_max_speed(choice: RobotChoice, posture: str, search: dict) -> dict:
+    """Closed-form and bisected highest feasible contact speed of a stance of the floating-base
+    robot of ``choice`` (JSON)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.humanoid_max_speed import search_stance
 
     reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool"])
-    stance = stance_names(posture)[0]
+    stance = stance_names(choice.robot, posture)[0]
     c_r = restitution_coefficient(search["restitution"], "--restitution")
     default_duration = click.get_current_context().get_parameter_source("impact_duration") == click.core.ParameterSource.DEFAULT
     duration = IMPACT_DURATION if default_duration else check_impact_duration(search["impact_duration"], "--impact-duration")
-    result = search_stance(FloatingBaseModel(), stance, Setting("crb", c_r, impact_duration=duration),
+    result = search_stance(FloatingBaseModel(choice.robot), stance, Setting("crb", c_r, impact_duration=duration),
                            tolerance=search["tolerance"])
-    report = {"robot": G1, **result.to_json()}
+    report = {"robot": choice.robot.name, **result.to_json()}
     speeds = report["predicted_max_speed"]
     robust = min(METHODS, key=lambda m: math.inf if speeds[m] is None else speeds[m])
     speeds["robust"], report["binding"]["robust"] = speeds[robust], report["binding"][robust]
@@ -208,8 +219,9 @@ def g1_max_speed(posture: str, search: dict) -> dict:
 
 
 def max_speed_text(report: dict) -> str:
-    """The G1's ``max-speed`` report as text."""
-    lines = [f"{report['posture']} (g1): highest feasible contact speed (m/s)", f"{'closed form':<14}{'speed':>8}  binds"]
+    """A floating-base robot's ``max-speed`` report as text."""
+    lines = [f"{report['posture']} ({report['robot']}): highest feasible contact speed (m/s)",
+             f"{'closed form':<14}{'speed':>8}  binds"]
     for name, speed in report["predicted_max_speed"].items():
         b = report["binding"][name]
         lines.append(f"  {name:<12}{speed if speed is not None else math.inf:8.4f}  {b['criterion']} ({b['where']})")

@@ -23,7 +23,6 @@ from impactqp.controller.model.validation import BadInputError, positive, tangen
 from impactqp.controller.model.validation import approach_speed, restitution as restitution_coefficient
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.scenarios.cli.arguments import (
-    HumanoidChoice,
     check_jobs,
     emit_json,
     gif_output,
@@ -89,11 +88,11 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     (docs/floating-base.md).
     """
     controller = trial.pop("controller")
-    if isinstance(choice, HumanoidChoice):
+    if choice.robot.floating:
         # lazy: the command line loads what a command needs when it runs
         from impactqp.scenarios.cli.humanoid_commands import g1_simulate, simulate_text
 
-        report, written = g1_simulate(posture_name, speed, trial, controller or "scripted")
+        report, written = g1_simulate(choice, posture_name, speed, trial, controller or "scripted")
         if as_json:
             emit_json(report)
         else:
@@ -199,11 +198,11 @@ def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, 
 def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, as_json, choice):
     """The paper's campaign in simulation: dataset, Table I and figures in --out (with --robot
     g1: stances x speeds of the standing G1, its dataset, table1.json and table1.md in --out)."""
-    if isinstance(choice, HumanoidChoice):
+    if choice.robot.floating:
         # lazy: the command line loads what a command needs when it runs
         from impactqp.scenarios.cli.humanoid_commands import g1_campaign
 
-        table, text = g1_campaign(postures_text, speeds_text, jobs, out_dir)
+        table, text = g1_campaign(choice, postures_text, speeds_text, jobs, out_dir)
         if as_json:
             emit_json(table)
             return
@@ -300,11 +299,11 @@ def max_speed_text(report) -> str:
 def max_speed(posture_name, plant_file, as_json, choice, **search):
     """Highest feasible contact speed: closed form, reached by the QP, and simulated (with
     --robot g1: closed form and simulated bisection of a stance, no QP)."""
-    if isinstance(choice, HumanoidChoice):
+    if choice.robot.floating:
         # lazy: the command line loads what a command needs when it runs
         from impactqp.scenarios.cli.humanoid_commands import g1_max_speed, max_speed_text as g1_text
 
-        report = g1_max_speed(posture_name, search)
+        report = g1_max_speed(choice, posture_name, search)
         if as_json:
             emit_json(report)
             return
