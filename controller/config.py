@@ -252,6 +252,13 @@ class ControllerConfig:
         self.__dict__["_choice"] = (key, choice)
         return choice
 
+    def for_choice(self, choice: RobotChoice) -> ControllerConfig:
+        """This configuration for ``choice``'s robot and tool, as a new configuration whose
+        ``choice`` is ``choice`` itself (its model and solved postures are shared, not rebuilt)."""
+        config = replace(self, robot=choice.robot_setting, tool=choice.tool_setting)
+        config.__dict__["_choice"] = ((config.robot, config.tool), choice)
+        return config
+
     @classmethod
     def approach(cls, surface: Surface = DEFAULT_WALL, speed: float = 0.1, **options) -> ControllerConfig:
         """The default impact approach: a contact-approach task towards ``surface`` at the

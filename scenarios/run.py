@@ -147,7 +147,7 @@ def controller_config(request: RunRequest, surface=None, decided: RobotChoice | 
         config = ControllerConfig.approach(surface, request.speed)
     else:
         config = ControllerConfig.approach(surface, request.speed, posture_weight=0.0)
-    return replace(config, robot=choice.robot_setting, tool=choice.tool_setting)
+    return config.for_choice(choice)
 
 
 def _agree(choice: RobotChoice, what: str, other: RobotChoice, source: str) -> None:
@@ -191,36 +191,50 @@ def start_posture(request: RunRequest, model: RobotModel, config: ControllerConf
         raise BadInputError(str(error)) from None
 
 
-def build_backend(request: RunRequest) -> tuple[RobotInterface, ControllerConfig, float]:
-    """(backend, controller configuration, duration) of the request; the configuration's
-    ``choice`` is the robot and the tool to model. A robot is connected, configured
-    (``[libfranka]``) and its model checked here; its posture task holds the start posture."""
+@dataclass(frozen=True)
+class Backend:
+    """What a run drives: the ``robot`` (a backend), its controller ``config`` (whose ``choice``
+    is the robot and tool modelled), the run's ``duration`` (s), the one ``model`` of the run
+    and, for a real robot, the start posture ``q_start`` it moves to first (None otherwise)."""
+
+    robot: RobotInterface
+    config: ControllerConfig
+    duration: float
+    model: RobotModel
+    q_start: np.ndarray | None = None
+
+
+def build_backend(request: RunRequest) -> Backend:
+    """The backend of the request, with the run's model built once. A robot is connected,
+    configured (``[libfranka]``) and its model checked here; its posture task holds the start
+    posture."""
     if request.backend in ROBOT_BACKENDS:
         Robot = FrankaRobot if request.backend == "franka" else PandaRobot
         config = controller_config(request)
-        model = config.choice.model()
+        model = config.choice.shared_model
         q_start = start_posture(request, model, config)
         robot = Robot.connect(request.robot_ip, config.libfranka, realtime=request.realtime, model=model)
         robot.check_model(model)
-        return robot, with_posture_target(config, q_start), request.duration
+        return Backend(robot, with_posture_target(config, q_start), request.duration, model, q_start)
     if request.backend == "replay":
         trial, header = load_trial(request.dataset, request.trial)
         if not request.choice.is_default:
             _agree(header.choice, "the dataset's manifest", request.choice, "--robot/--tool")
         speed = trial.entry.reference_normal_speed
         config = controller_config(RunRequest(**{**request.__dict__, "speed": speed}), header.surface, header.choice)
-        return ReplayRobot(trial, header.control_period), config, len(trial.log) * header.control_period
+        duration = len(trial.log) * header.control_period
+        return Backend(ReplayRobot(trial, header.control_period), config, duration, config.choice.shared_model)
     config = controller_config(request)
     choice = config.choice
     try:
         plant = None if request.plant_file is None else PlantParameters.from_json(request.plant_file)
     except PlantParameterError as error:
         raise BadInputError(f"--plant: {error}") from None
-    model = choice.model()
+    model = choice.shared_model
     q0 = start_posture(request, model, config)
     scene = build_scene(config.surface.surface(), plant, robot=choice.robot, tool=choice.tool)
     robot = SimRobot(scene, q0, np.zeros(model.nv), config.dt, paced=not request.unpaced)
-    return robot, config, request.duration
+    return Backend(robot, config, request.duration, model)
 
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -271,9 +285,10 @@ def run(request: RunRequest) -> tuple[dict, LoopResult]:
     SIGTERM or SIGHUP brakes to a stop and keeps the log (``result.interrupted``). The log
     directory is checked before the robot moves; a robot moves to the start posture first."""
     check_request(request)
-    robot, config, duration = build_backend(request)
-    model = config.choice.model()
-    q_start = start_posture(request, model, config) if request.backend in ROBOT_BACKENDS else None
+    backend = build_backend(request)
+    robot, config, duration, model, q_start = (
+        backend.robot, backend.config, backend.duration, backend.model, backend.q_start
+    )
     run_log = RunLog(request.log, log_header(config)) if request.log else None
     deadline = request.deadline
     if deadline is None and (request.backend == "replay" or request.unpaced or not request.realtime):

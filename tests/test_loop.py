@@ -79,7 +79,8 @@ class FaultySession(ImpactSession):
 @pytest.mark.parametrize("fault", ["nan", "nan_tau_ext", "stale", "exception", "overrun"])
 def test_each_fault_trips_the_watchdog_and_the_commands_stay_continuous(fault, model):
     request = RunRequest(speed=0.15, duration=0.3, unpaced=True)
-    sim, config, _ = build_backend(request)
+    backend = build_backend(request)
+    sim, config = backend.robot, backend.config
     at = 200  # mid-approach, moving at speed
     robot = FaultySim(sim, fault, at) if fault in ("nan", "nan_tau_ext", "stale") else sim
     clock = Clock()  # every cycle takes no time, but the late ones
@@ -161,7 +162,8 @@ READ_FAULTS = ["short_q", "long_dq", "tau_missing", "matrix_tau_ext", "text_time
 @pytest.mark.parametrize("at", [1, 2, 150])
 @pytest.mark.parametrize("fault", READ_FAULTS)
 def test_any_read_failure_brakes_to_a_stop_and_calls_stop(fault, at, model):
-    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True))
+    backend = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True))
+    sim, config = backend.robot, backend.config
     robot = BrokenSim(sim, fault, at)
     loop = ControlLoop(robot, ImpactSession(config, model), CommandFilter.for_robot(model, DT), deadline=float("inf"))
     result = loop.run(0.3)
@@ -180,7 +182,8 @@ def test_any_read_failure_brakes_to_a_stop_and_calls_stop(fault, at, model):
 
 @pytest.mark.parametrize("fault", ["short_q", "no_state", "nan_dq"])
 def test_a_bad_first_state_starts_nothing_but_stops(fault, model):
-    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True))
+    backend = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True))
+    sim, config = backend.robot, backend.config
     robot = BrokenSim(sim, fault, 0)
     result = ControlLoop(robot, ImpactSession(config, model), CommandFilter.for_robot(model, DT)).run(0.3)
     assert robot.stops == 1 and result.watchdog_trips == 1
@@ -188,7 +191,8 @@ def test_a_bad_first_state_starts_nothing_but_stops(fault, model):
 
 
 def test_a_robot_that_stops_taking_commands_ends_the_run_keeps_the_log_and_is_stopped(model):
-    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True))
+    backend = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True))
+    sim, config = backend.robot, backend.config
     robot = BrokenSim(sim, "write", 100)
     loop = ControlLoop(robot, ImpactSession(config, model), CommandFilter.for_robot(model, DT), deadline=float("inf"))
     result = loop.run(0.3)
@@ -214,7 +218,8 @@ class BrokenFilter(CommandFilter):
 
 @pytest.mark.parametrize("part", ["command", "brake"])
 def test_a_filter_failure_brakes_when_it_can_and_always_stops(part, model):
-    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True))
+    backend = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True))
+    sim, config = backend.robot, backend.config
     robot = BrokenSim(sim, "none", -1)
     command_filter = BrokenFilter(CommandFilter.for_robot(model, DT), part, 150)
     result = ControlLoop(robot, ImpactSession(config, model), command_filter, deadline=float("inf")).run(0.3)
@@ -239,7 +244,8 @@ def test_a_log_failure_brakes_to_a_stop(model, monkeypatch):
         record(self, state, *args)
 
     monkeypatch.setattr(loop_module.LoopLog, "record", failing)
-    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True))
+    backend = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=True))
+    sim, config = backend.robot, backend.config
     robot = BrokenSim(sim, "none", -1)
     loop = ControlLoop(robot, ImpactSession(config, model), CommandFilter.for_robot(model, DT), deadline=float("inf"))
     result = loop.run(0.3)
@@ -264,7 +270,8 @@ def test_missed_commands_count_every_period_an_overrun_ran_through(cycle_time):
 def test_a_long_cycle_is_what_a_real_robot_would_stop_on(model):
     """A paced run whose one cycle takes 7 periods: the watchdog (it counts overrun cycles) lets
     the simulation go on, the result says a real robot would have stopped."""
-    sim, config, _ = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=False))
+    backend = build_backend(RunRequest(speed=0.15, duration=0.3, unpaced=False))
+    sim, config = backend.robot, backend.config
 
     class OneLongCycle(ForwardingRobot):
         writes = 0

@@ -93,8 +93,8 @@ def test_a_stop_signal_brakes_keeps_the_log_and_exits_130(sig, tmp_path, capsys,
     build = run_module.build_backend
 
     def build_with_signal(request):
-        robot, config, duration = build(request)
-        return SignalAt(robot, sig, at=150), config, duration
+        backend = build(request)
+        return replace(backend, robot=SignalAt(backend.robot, sig, at=150))
 
     monkeypatch.setattr(run_module, "build_backend", build_with_signal)
     code = main(["run", "--unpaced", "--duration", "5", "--log", str(tmp_path), "--json"])
@@ -112,9 +112,10 @@ def test_an_unusable_log_directory_is_refused_before_the_robot_moves(tmp_path, c
     build = run_module.build_backend
 
     def build_and_watch(request):
-        robot, config, duration = build(request)
+        backend = build(request)
+        robot = backend.robot
         robot.write = lambda dq_cmd, write=robot.write: (moved.append(1), write(dq_cmd))
-        return robot, config, duration
+        return backend
 
     monkeypatch.setattr(run_module, "build_backend", build_and_watch)
     blocker = tmp_path / "a file"
@@ -158,8 +159,8 @@ def test_a_run_a_real_robot_would_not_have_finished_exits_3_and_says_why(fault, 
     build = run_module.build_backend
 
     def build_faulty(request):
-        robot, config, duration = build(request)
-        return LateOrBroken(robot, fault, 100), config, duration
+        backend = build(request)
+        return replace(backend, robot=LateOrBroken(backend.robot, fault, 100))
 
     monkeypatch.setattr(run_module, "build_backend", build_faulty)
     code = main(["run", *options, "--duration", "0.3", "--log", str(tmp_path), "--json"])
@@ -218,3 +219,14 @@ def test_replaying_a_g1_dataset_is_one_line_of_bad_input(tmp_path, capsys):
     g1_dataset(tmp_path)
     err = one_error_line(capsys, ["run", "--backend", "replay", "--dataset", str(tmp_path)])
     assert "'g1' is not an arm" in err
+
+
+def test_a_run_builds_the_robot_model_once(tmp_path, monkeypatch):
+    """The start posture, the backend, the controller and the command filter share one model."""
+    from impactqp.controller.model import robot as robot_module
+
+    built = []
+    build = robot_module.RobotModel.__init__
+    monkeypatch.setattr(robot_module.RobotModel, "__init__", lambda self, *a, **k: built.append(1) or build(self, *a, **k))
+    assert main(["run", "--unpaced", "--duration", "0.05", "--log", str(tmp_path)]) == 0
+    assert len(built) == 1
