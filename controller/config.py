@@ -228,7 +228,8 @@ class ControllerConfig:
         if not isinstance(self.tool, (str, dict)):
             raise BadInputError(f"tool must be a tool name, a tool file or a [tool] table, got {self.tool!r}")
         choice = self.choice  # the robot's and the tool's own checks, as soon as the file is read
-        self.libfranka.check_joints(len(choice.robot.joints))
+        if self.libfranka != RobotConfig():  # a [libfranka] table given: one value per joint of this robot
+            self.libfranka.check_joints(len(choice.robot.joints))
 
     @property
     def choice(self) -> RobotChoice:

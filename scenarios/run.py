@@ -71,7 +71,8 @@ class RunRequest:
     plant_file
         ``--plant``: a JSON file of plant-parameter overrides (sim backend); None: nominal.
     posture
-        ``--posture``: the named start posture (sim backend).
+        ``--posture``: the named start posture (sim backend); None: the robot's default posture
+        (its description's ``default_posture``).
     speed
         ``--speed``: approach speed (m/s) of the default configuration.
     duration
@@ -101,7 +102,7 @@ class RunRequest:
     realtime: bool = True
     config_file: str | None = None
     plant_file: str | None = None
-    posture: str = "elbow_up"
+    posture: str | None = None
     speed: float = 0.15
     duration: float = 1.0
     log: str | None = None
@@ -142,7 +143,7 @@ def controller_config(request: RunRequest, surface=None, decided: RobotChoice | 
         return config
     choice = request.choice if decided is None else decided
     if surface is None:
-        surface = choice.posture(request.posture).surface
+        surface = choice.posture(request.posture or choice.robot.default_posture).surface
     if request.backend in ROBOT_BACKENDS:
         config = ControllerConfig.approach(surface, request.speed)
     else:
@@ -169,7 +170,7 @@ def check_request(request: RunRequest) -> None:
             f"--backend {request.backend} drives the {robot} only, not the {name}: "
             f"use --robot {robot}, or --backend {'panda' if robot == 'fr3' else 'franka'} for the {name}"
         )
-    if request.posture not in request.choice.robot.postures:
+    if request.posture is not None and request.posture not in request.choice.robot.postures:
         raise BadInputError(
             f"--posture {request.posture!r} is unknown; known: {', '.join(request.choice.robot.postures)}"
         )
@@ -185,7 +186,7 @@ def start_posture(request: RunRequest, model: RobotModel, config: ControllerConf
     """The posture's configuration (of the configuration's robot and tool) with the contact
     point ``SIM_START_DISTANCE`` in front of the surface."""
     try:
-        posture = config.choice.posture(request.posture)
+        posture = config.choice.posture(request.posture or config.choice.robot.default_posture)
         return approach_start(model, posture.q, config.surface.surface(), SIM_START_DISTANCE)
     except UnreachableStartError as error:
         raise BadInputError(str(error)) from None

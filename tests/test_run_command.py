@@ -221,12 +221,14 @@ def test_replaying_a_g1_dataset_is_one_line_of_bad_input(tmp_path, capsys):
     assert "'g1' is not an arm" in err
 
 
-def test_a_run_builds_the_robot_model_once(tmp_path, monkeypatch):
-    """The start posture, the backend, the controller and the command filter share one model."""
+@pytest.mark.parametrize("robot", ["panda", "ur5"])
+def test_a_run_builds_the_robot_model_once(robot, tmp_path, monkeypatch):
+    """The start posture (the robot's default posture), the backend, the controller and the
+    command filter share one model, on any arm."""
     from impactqp.controller.model import robot as robot_module
 
     built = []
     build = robot_module.RobotModel.__init__
     monkeypatch.setattr(robot_module.RobotModel, "__init__", lambda self, *a, **k: built.append(1) or build(self, *a, **k))
-    assert main(["run", "--unpaced", "--duration", "0.05", "--log", str(tmp_path)]) == 0
+    assert main(["run", "--robot", robot, "--unpaced", "--duration", "0.05", "--log", str(tmp_path)]) == 0
     assert len(built) == 1

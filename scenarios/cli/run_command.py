@@ -20,7 +20,7 @@ from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED, EXIT_ROBOT_WOULD
 )
 @click.option("--config", "config_file", help="Controller configuration (.toml, .yaml); default: approach at --speed.")
 @click.option("--plant", "plant_file", help="JSON plant-parameter overrides (sim backend).")
-@click.option("--posture", default="elbow_up", show_default=True, help="Start posture (sim backend).")
+@click.option("--posture", default=None, help="Start posture (sim backend); default: the robot's default posture (elbow_up on the Franka arms).")
 @click.option("--speed", type=float, default=0.15, show_default=True, help="Approach speed (m/s) of the default configuration.")
 @click.option("--duration", type=float, default=1.0, show_default=True, help="Control time (s) before braking to a stop.")
 @click.option("--log", default="out/run", show_default=True, help="Dataset directory the run is added to.")
