@@ -3,7 +3,8 @@
 - controller.cycle: microseconds per ``step`` in a kinematic closed loop (q, dq <- q_cmd,
   dq_cmd) approaching the default wall faster than the posture allows, every constraint on,
   the impact-aware ones active (goals: median <= 100 us, p99 <= 250 us), on the Panda;
-  controller.cycle.fr3 the same loop on the FR3 (both with the impact tip);
+  controller.cycle.fr3 and controller.cycle.ur5 the same loop on the FR3 and on the UR5 (six
+  joints, from its description file only), all with the impact tip;
 - peer.pink.cycle: the same robot in pink's ``solve_ik`` (frame task + posture task +
   configuration and velocity limits, velocity level, proxqp), measured in the same run;
 - peer.mink.cycle: mink on the MuJoCo model of our scene (frame task on the tool centre body +
@@ -56,8 +57,8 @@ G1_STANCE = "parallel"
 
 def _approach_setup(robot: PandaModel, solver: str | None = None):
     """The benchmark's approach controller (the configuration's default solver when None), at
-    the robot's elbow_up posture for its tool."""
-    posture = tool_posture(robot, "elbow_up")
+    the robot's default posture for its tool."""
+    posture = tool_posture(robot, robot.description.default_posture)
     normal = posture.surface.normal
     surface = Surface(robot.contact_point(posture.q) - WALL_GAP * normal, normal)
     config = ControllerConfig.approach(surface, speed=0.5)
@@ -265,9 +266,10 @@ def controller_rows() -> list[dict]:
     robot = PandaModel()
     controller_cycle_samples(robot, cycles=300)  # warm-up
     rows = [timing_row("controller.cycle", "us", controller_cycle_samples(robot), 1e6)]
-    fr3 = RobotModel("fr3")
-    controller_cycle_samples(fr3, cycles=300)  # warm-up
-    rows.append(timing_row("controller.cycle.fr3", "us", controller_cycle_samples(fr3), 1e6))
+    for name in ("fr3", "ur5"):
+        other = RobotModel(name)
+        controller_cycle_samples(other, cycles=300)  # warm-up
+        rows.append(timing_row(f"controller.cycle.{name}", "us", controller_cycle_samples(other), 1e6))
     rows.append(timing_row("peer.pink.cycle", "us", pink_cycle_samples(robot), 1e6))
     rows.extend(g1_rows())
     try:

@@ -1,5 +1,5 @@
 """Benchmark rows of the jump predictors: ``predict.crb.single`` (one full CRB prediction from q,
-on the Panda; ``predict.crb.single.fr3`` on the FR3, both with the impact tip)
+on the Panda; ``predict.crb.single.fr3`` and ``.ur5`` on the FR3 and the UR5, all with the impact tip)
 and ``predict.crb.batch`` (predictions per second of the vectorised batch API);
 ``floor.pinocchio.all_terms`` (one ``computeAllTerms`` call, the floor of a prediction from q)."""
 
@@ -38,7 +38,8 @@ def rows() -> list[dict]:
     n = posture.surface.normal
     v = -0.15 * n
     rows = [timing_row("predict.crb.single", "us", single_prediction_samples(robot), 1e6)]
-    rows.append(timing_row("predict.crb.single.fr3", "us", single_prediction_samples(RobotModel("fr3")), 1e6))
+    for name in ("fr3", "ur5"):
+        rows.append(timing_row(f"predict.crb.single.{name}", "us", single_prediction_samples(RobotModel(name)), 1e6))
     data = robot.model.createData()
     q, dq = posture.q, np.zeros(robot.nv)
     rows.append(timing_row(
