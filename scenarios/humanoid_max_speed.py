@@ -2,7 +2,7 @@
 the check of one against the other (docs/floating-base.md; results: docs/results.md).
 
 closed form
-    ``controller.model.humanoid_max_speed.closed_form_max_speed`` at the stance: the smallest of
+    ``controller.model.max_speed.closed_form_max_speed`` at the stance: the smallest of
     the joint-velocity, foot-slip, foot-lift and capture bounds, and which one binds.
 simulated bisection
     ``sim.humanoid_trial.run_impact_trial`` at commanded hand speeds; a trial is feasible when
@@ -37,13 +37,13 @@ import numpy as np  # noqa: E402
 
 from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.model.floating_base import FloatingBaseModel  # noqa: E402
-from impactqp.controller.model.humanoid_max_speed import (  # noqa: E402
-    CRITERIA,
-    HumanoidMaxSpeed,
+from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
+from impactqp.controller.model.max_speed import (  # noqa: E402
+    HELD_CONTACT_CRITERIA,
+    MaxSpeed,
     Setting,
     closed_form_max_speed,
 )
-from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
 from impactqp.controller.model.validation import BadInputError  # noqa: E402
 from impactqp.scenarios.max_speed_search import SpeedBisection  # noqa: E402
 from impactqp.sim.humanoid_trial import NORMAL, SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
@@ -56,7 +56,7 @@ BELOW = (0.5, 0.8, 0.95)
 ABOVE = (1.2, 1.3, 1.4)
 SECANT_STEPS = 6
 # a failure seen in simulation and the closed-form criterion it measures (a fall measures none)
-CRITERION_OF = {criterion: criterion for criterion in CRITERIA}
+CRITERION_OF = {criterion: criterion for criterion in HELD_CONTACT_CRITERIA}
 
 
 @dataclass(frozen=True)
@@ -111,7 +111,7 @@ class StanceMaxSpeed:
 
     stance: str
     q: np.ndarray
-    predicted: dict  # method -> HumanoidMaxSpeed
+    predicted: dict  # method -> MaxSpeed
     simulated_reference: float  # highest feasible commanded speed (m/s)
     simulated_contact: float  # its measured contact speed (m/s)
     failed_first: str  # what failed first at the lowest infeasible commanded speed ("" if none)
@@ -132,10 +132,11 @@ class StanceMaxSpeed:
         }
 
 
-def predicted_speeds(robot: FloatingBaseModel, q: np.ndarray, setting: Setting, methods) -> dict[str, HumanoidMaxSpeed]:
+def predicted_speeds(robot: FloatingBaseModel, q: np.ndarray, setting: Setting, methods) -> dict[str, MaxSpeed]:
     """The closed form of each predictor in ``methods`` (same restitution, friction and duration)."""
+    terms = robot.terms(q)
     return {
-        m: closed_form_max_speed(robot, q, NORMAL, Setting(m, setting.restitution, setting.friction, setting.impact_duration))
+        m: closed_form_max_speed(robot, terms, NORMAL, Setting(m, setting.restitution, setting.friction, setting.impact_duration))
         for m in methods
     }
 
@@ -205,7 +206,7 @@ def check_against_simulation(
     rows = []
     for stance in robot.description.stances if stances is None else stances:
         q = stance_posture(robot, robot.description.stances[stance])
-        predicted = closed_form_max_speed(robot, q, NORMAL, setting)
+        predicted = closed_form_max_speed(robot, robot.terms(q), NORMAL, setting)
         for fraction in (*BELOW, *ABOVE):
             trial = trial_at_contact_speed(robot, stance, q, fraction * predicted.speed, plant, source)
             rows.append(CheckRow(stance, fraction, predicted.criterion, trial))
@@ -271,7 +272,7 @@ def search_table(results: list[StanceMaxSpeed]) -> str:
     return "\n".join(lines)
 
 
-MARKERS = dict(zip(CRITERIA, ("o", "s", "^", "D")))
+MARKERS = dict(zip(HELD_CONTACT_CRITERIA, ("o", "s", "^", "D")))
 
 
 def speed_figure(results: list[StanceMaxSpeed], path: str | Path, title: str) -> Path:

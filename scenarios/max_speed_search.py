@@ -34,10 +34,10 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
-from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.max_speed import (
     DEFAULT_IMPACT_DURATION,
     MaxSpeed,
+    Setting,
     approach_direction,
     closed_form_max_speed,
 )
@@ -141,7 +141,7 @@ def predicted_max_speeds(
     of ``robust``, the constraints' setting that satisfies all three: the smallest of them."""
     terms = robot.terms(q)
     maxima = {
-        name: closed_form_max_speed(robot, terms, normal, JUMP_MODELS[name], restitution, impact_duration)
+        name: closed_form_max_speed(robot, terms, normal, Setting(name, restitution, impact_duration=impact_duration))
         for name in PREDICTED_MODELS
     }
     maxima["robust"] = min(maxima.values(), key=lambda m: m.speed)
@@ -151,7 +151,7 @@ def predicted_max_speeds(
 def approach_velocity_limit(robot: PandaModel, q: np.ndarray, normal: np.ndarray) -> float:
     """v_a = 1 / max_i |d_i| / dq_max_i: the approach speed at which dq- = v d reaches a joint
     velocity limit (criterion (a))."""
-    d = approach_direction(robot.terms(q), normal)
+    d = approach_direction(robot, robot.terms(q), normal)
     return float(1.0 / np.max(np.abs(d) / robot.dq_max))
 
 

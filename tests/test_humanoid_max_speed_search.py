@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from impactqp.controller.model.floating_base import FloatingBaseModel
-from impactqp.controller.model.humanoid_max_speed import CRITERIA, Bound, HumanoidMaxSpeed
+from impactqp.controller.model.max_speed import HELD_CONTACT_CRITERIA, Bound, MaxSpeed
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.validation import BadInputError
 from impactqp.scenarios.humanoid_max_speed import (
@@ -53,7 +53,7 @@ def test_check_summary_counts_below_and_above():
 
 
 def test_each_measured_failure_is_the_closed_form_criterion_of_its_name():
-    assert CRITERION_OF == {c: c for c in CRITERIA}
+    assert CRITERION_OF == {c: c for c in HELD_CONTACT_CRITERIA}
     assert "fell" in FAILURES and "fell" not in CRITERION_OF
     assert set(CRITERION_OF) <= set(FAILURES)
 
@@ -65,8 +65,8 @@ def test_unknown_stance_is_bad_input():
 
 def test_figure_is_a_png(tmp_path):
     predicted = {
-        "crb": HumanoidMaxSpeed(1.0, "capture", "edge 0", {"capture": Bound(1.0, "edge 0")}),
-        "gm": HumanoidMaxSpeed(math.inf, "", "", {}),
+        "crb": MaxSpeed(1.0, "capture", "edge 0", 0, {"capture": Bound(1.0, "edge 0")}),
+        "gm": MaxSpeed(math.inf, "", "", 0, {}),
     }
     q = np.zeros(FloatingBaseModel().model.nq)
     results = [StanceMaxSpeed(name, q, predicted, 1.2, 0.9, "foot_slip") for name in ("a", "b")]

@@ -7,8 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import JOINTS
-from impactqp.controller.model.jump import JUMP_MODELS
-from impactqp.controller.model.max_speed import approach_direction, closed_form_max_speed
+from impactqp.controller.model.max_speed import Setting, approach_direction, closed_form_max_speed
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.validation import BadInputError
@@ -78,7 +77,7 @@ def test_search_uses_the_ends_already_evaluated():
 def test_approach_velocity_limit_puts_one_joint_at_its_limit(robot):
     q = PANDA.postures["elbow_left"].q
     v_a = approach_velocity_limit(robot, q, DEFAULT_WALL.normal)
-    ratio = np.abs(v_a * approach_direction(robot.terms(q), DEFAULT_WALL.normal)) / robot.dq_max
+    ratio = np.abs(v_a * approach_direction(robot, robot.terms(q), DEFAULT_WALL.normal)) / robot.dq_max
     assert ratio.max() == pytest.approx(1.0)
 
 
@@ -94,7 +93,7 @@ def test_qp_reaches_the_closed_form_maximum_speed(report, robot):
     named_tip = robot.contact_point(PANDA.postures["elbow_up"].q)
     assert np.linalg.norm(terms.contact_point - named_tip) < 0.01
     for name in ("classical", "gm", "crb"):
-        expected = closed_form_max_speed(robot, terms, DEFAULT_WALL.normal, JUMP_MODELS[name])
+        expected = closed_form_max_speed(robot, terms, DEFAULT_WALL.normal, Setting(name))
         assert data["predicted_max_speed"][name] == pytest.approx(expected.speed)
         assert data["binding"][name] == {"criterion": expected.criterion, "joint": expected.joint}
     assert data["qp_limited_speed"] == pytest.approx(data["predicted_max_speed"]["crb"], rel=0.05)
@@ -152,7 +151,7 @@ def test_a_max_speed_search_of_the_fr3_with_the_franka_hand_reaches_its_closed_f
     robot = choice.model()
     terms = robot.terms(np.array(data["q_impact"]))
     assert np.linalg.norm(terms.contact_point - robot.contact_point(posture.q)) < 0.01
-    expected = closed_form_max_speed(robot, terms, DEFAULT_WALL.normal, JUMP_MODELS["crb"])
+    expected = closed_form_max_speed(robot, terms, DEFAULT_WALL.normal, Setting("crb"))
     assert data["predicted_max_speed"]["crb"] == pytest.approx(expected.speed)
     assert data["qp_limited_speed"] == pytest.approx(expected.speed, rel=0.05)
     assert data["qp_max_velocity_ratio"] < 1.0

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import click
 
 from impactqp.controller.model.choice import RobotChoice
-from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
+from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION, HAND_IMPACT_DURATION, Setting
 from impactqp.controller.model.validation import positive
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.controller.model.validation import restitution as restitution_coefficient
@@ -75,7 +75,6 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     and the contact duration used (the description's wall contact unless --impact-duration)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
-    from impactqp.controller.model.humanoid_max_speed import IMPACT_DURATION, Setting
     from impactqp.scenarios.cli.humanoid_commands import reject_options, stance_names
     from impactqp.scenarios.humanoid_max_speed import search_stance
 
@@ -84,7 +83,7 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     stance = stance_names(robot, request.posture)[0]
     c_r = restitution_coefficient(request.restitution, "--restitution")
     default_duration = click.get_current_context().get_parameter_source("impact_duration") == click.core.ParameterSource.DEFAULT
-    duration = IMPACT_DURATION if default_duration else check_impact_duration(request.impact_duration, "--impact-duration")
+    duration = HAND_IMPACT_DURATION if default_duration else check_impact_duration(request.impact_duration, "--impact-duration")
     result = search_stance(FloatingBaseModel(robot), stance, Setting("crb", c_r, impact_duration=duration),
                            tolerance=request.tolerance)
     report = {"robot": robot.name, **result.to_json()}
