@@ -2,14 +2,15 @@
 the check of one against the other (docs/floating-base.md; results: docs/results.md).
 
 closed form
-    ``controller.model.humanoid_max_speed.closed_form_max_speed`` at the stance: the smallest of
+    ``controller.model.max_speed.closed_form_max_speed`` at the stance: the smallest of
     the joint-velocity, foot-slip, foot-lift and capture bounds, and which one binds.
 simulated bisection
     ``sim.humanoid_trial.run_impact_trial`` at commanded hand speeds; a trial is feasible when
     none of the trial's measured failures occurred (no joint beyond its velocity limit, no
     foot slip or lift onset in the impact window, the post-impact CoM velocity capturable, no
-    fall). Bisection on the commanded speed between :data:`LOWEST_SPEED` (feasible) and
-    :data:`HIGHEST_SPEED` until the bracket is narrower than the tolerance; the answer is the
+    fall). The arm's bisection (``scenarios.max_speed_search.SpeedBisection``, one trial a
+    round, ``Plant.trial`` injected) on the commanded speed between :data:`LOWEST_SPEED`
+    (feasible) and :data:`HIGHEST_SPEED` until the bracket is narrower than the tolerance; the answer is the
     highest feasible commanded speed, its measured contact speed, and what failed first at the
     lowest infeasible one. Feasibility is assumed monotone in the speed.
 check
@@ -36,24 +37,26 @@ import numpy as np  # noqa: E402
 
 from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.model.floating_base import FloatingBaseModel  # noqa: E402
-from impactqp.controller.model.humanoid_max_speed import (  # noqa: E402
-    CRITERIA,
-    HumanoidMaxSpeed,
+from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
+from impactqp.controller.model.max_speed import (  # noqa: E402
+    HELD_CONTACT_CRITERIA,
+    MaxSpeed,
     Setting,
     closed_form_max_speed,
 )
-from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
-from impactqp.controller.model.validation import BadInputError, number_in_range  # noqa: E402
+from impactqp.controller.model.validation import BadInputError  # noqa: E402
+from impactqp.scenarios.max_speed_search import SpeedBisection  # noqa: E402
 from impactqp.sim.humanoid_trial import NORMAL, SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
 
 LOWEST_SPEED = 0.05  # m/s commanded
 HIGHEST_SPEED = 3.0  # m/s commanded: above what the torque-limited hand reaches in the 2 cm to the wall
 DEFAULT_TOLERANCE = 0.02  # m/s
+MIN_TOLERANCE = 1e-3  # m/s: the least bisection tolerance of a stance
 BELOW = (0.5, 0.8, 0.95)
 ABOVE = (1.2, 1.3, 1.4)
 SECANT_STEPS = 6
 # a failure seen in simulation and the closed-form criterion it measures (a fall measures none)
-CRITERION_OF = {criterion: criterion for criterion in CRITERIA}
+CRITERION_OF = {criterion: criterion for criterion in HELD_CONTACT_CRITERIA}
 
 
 @dataclass(frozen=True)
@@ -73,7 +76,7 @@ class Plant:
 
 
 @dataclass(frozen=True)
-class Evaluation:
+class StanceEvaluation:
     """One simulated trial of the search: commanded and contact speed (m/s), what failed."""
 
     reference_speed: float
@@ -85,7 +88,7 @@ class Evaluation:
     first_failure: str
 
     @classmethod
-    def of(cls, trial: ImpactTrial) -> Evaluation:
+    def of(cls, trial: ImpactTrial) -> StanceEvaluation:
         return cls(trial.speed, trial.contact_speed, trial.max_velocity_ratio, trial.foot_slip, trial.foot_lift,
                    trial.fell, trial.first_failure)
 
@@ -108,7 +111,7 @@ class StanceMaxSpeed:
 
     stance: str
     q: np.ndarray
-    predicted: dict  # method -> HumanoidMaxSpeed
+    predicted: dict  # method -> MaxSpeed
     simulated_reference: float  # highest feasible commanded speed (m/s)
     simulated_contact: float  # its measured contact speed (m/s)
     failed_first: str  # what failed first at the lowest infeasible commanded speed ("" if none)
@@ -129,32 +132,13 @@ class StanceMaxSpeed:
         }
 
 
-def predicted_speeds(robot: FloatingBaseModel, q: np.ndarray, setting: Setting, methods) -> dict[str, HumanoidMaxSpeed]:
+def predicted_speeds(robot: FloatingBaseModel, q: np.ndarray, setting: Setting, methods) -> dict[str, MaxSpeed]:
     """The closed form of each predictor in ``methods`` (same restitution, friction and duration)."""
+    terms = robot.terms(q)
     return {
-        m: closed_form_max_speed(robot, q, NORMAL, Setting(m, setting.restitution, setting.friction, setting.impact_duration))
+        m: closed_form_max_speed(robot, terms, NORMAL, Setting(m, setting.restitution, setting.friction, setting.impact_duration))
         for m in methods
     }
-
-
-def bisect_speed(trial, tolerance: float = DEFAULT_TOLERANCE) -> tuple[float, list[Evaluation]]:
-    """The highest feasible commanded speed of ``trial(speed) -> Evaluation`` (module docstring)
-    and every evaluation; 0 when LOWEST_SPEED already fails, HIGHEST_SPEED when it holds."""
-    tolerance = number_in_range(tolerance, 1e-3, 0.5, "the bisection tolerance", "m/s")
-    lo, hi = trial(LOWEST_SPEED), trial(HIGHEST_SPEED)
-    evaluations = [lo, hi]
-    if lo.violated:
-        return 0.0, evaluations
-    if not hi.violated:
-        return HIGHEST_SPEED, evaluations
-    while hi.reference_speed - lo.reference_speed > tolerance:
-        middle = trial(0.5 * (lo.reference_speed + hi.reference_speed))
-        evaluations.append(middle)
-        if middle.violated:
-            hi = middle
-        else:
-            lo = middle
-    return lo.reference_speed, evaluations
 
 
 def search_stance(
@@ -168,7 +152,9 @@ def search_stance(
         raise BadInputError(f"unknown stance {stance!r}; known: {', '.join(stances)}")
     q = stance_posture(robot, stances[stance])
     run = partial(plant.trial, robot, stance, q, source=source)
-    best, evaluations = bisect_speed(lambda speed: Evaluation.of(run(speed)), tolerance)
+    bisection = SpeedBisection(LOWEST_SPEED, HIGHEST_SPEED, tolerance, MIN_TOLERANCE)
+    best = bisection.search(lambda speeds: [StanceEvaluation.of(run(speed)) for speed in speeds])
+    evaluations = bisection.evaluations
     feasible = [e for e in evaluations if not e.violated and e.reference_speed <= best]
     failed = [e for e in evaluations if e.violated]
     contact = max(feasible, key=lambda e: e.reference_speed).contact_speed if feasible else 0.0
@@ -220,7 +206,7 @@ def check_against_simulation(
     rows = []
     for stance in robot.description.stances if stances is None else stances:
         q = stance_posture(robot, robot.description.stances[stance])
-        predicted = closed_form_max_speed(robot, q, NORMAL, setting)
+        predicted = closed_form_max_speed(robot, robot.terms(q), NORMAL, setting)
         for fraction in (*BELOW, *ABOVE):
             trial = trial_at_contact_speed(robot, stance, q, fraction * predicted.speed, plant, source)
             rows.append(CheckRow(stance, fraction, predicted.criterion, trial))
@@ -286,7 +272,7 @@ def search_table(results: list[StanceMaxSpeed]) -> str:
     return "\n".join(lines)
 
 
-MARKERS = dict(zip(CRITERIA, ("o", "s", "^", "D")))
+MARKERS = dict(zip(HELD_CONTACT_CRITERIA, ("o", "s", "^", "D")))
 
 
 def speed_figure(results: list[StanceMaxSpeed], path: str | Path, title: str) -> Path:

@@ -28,15 +28,16 @@ simulated_max_speed
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from tqdm import tqdm
 
-from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.max_speed import (
     DEFAULT_IMPACT_DURATION,
     MaxSpeed,
+    Setting,
     approach_direction,
     closed_form_max_speed,
 )
@@ -140,7 +141,7 @@ def predicted_max_speeds(
     of ``robust``, the constraints' setting that satisfies all three: the smallest of them."""
     terms = robot.terms(q)
     maxima = {
-        name: closed_form_max_speed(robot, terms, normal, JUMP_MODELS[name], restitution, impact_duration)
+        name: closed_form_max_speed(robot, terms, normal, Setting(name, restitution, impact_duration=impact_duration))
         for name in PREDICTED_MODELS
     }
     maxima["robust"] = min(maxima.values(), key=lambda m: m.speed)
@@ -150,17 +151,18 @@ def predicted_max_speeds(
 def approach_velocity_limit(robot: PandaModel, q: np.ndarray, normal: np.ndarray) -> float:
     """v_a = 1 / max_i |d_i| / dq_max_i: the approach speed at which dq- = v d reaches a joint
     velocity limit (criterion (a))."""
-    d = approach_direction(robot.terms(q), normal)
+    d = approach_direction(robot, robot.terms(q), normal)
     return float(1.0 / np.max(np.abs(d) / robot.dq_max))
 
 
 class SpeedBisection:
-    """The bracket [lo, hi] of the parallel bisection of the module docstring."""
+    """The bracket [lo, hi] of the parallel bisection of the module docstring (``smallest``: the
+    least tolerance accepted, m/s)."""
 
-    def __init__(self, lo: float, hi: float, tolerance: float):
-        tolerance = number_in_range(tolerance, MIN_TOLERANCE, MAX_TOLERANCE, "the bisection tolerance", "m/s")
+    def __init__(self, lo: float, hi: float, tolerance: float, smallest: float = MIN_TOLERANCE):
+        tolerance = number_in_range(tolerance, smallest, MAX_TOLERANCE, "the bisection tolerance", "m/s")
         self.lo, self.hi, self.tolerance = lo, hi, tolerance
-        self.evaluations: list[Evaluation] = []
+        self.evaluations: list = []
 
     @property
     def done(self) -> bool:
@@ -170,7 +172,7 @@ class SpeedBisection:
         """``count`` speeds evenly spaced strictly inside (lo, hi)."""
         return [float(v) for v in np.linspace(self.lo, self.hi, count + 2)[1:-1]]
 
-    def update(self, evaluations: list[Evaluation]) -> None:
+    def update(self, evaluations: list) -> None:
         """Keep the highest feasible speed below the lowest violated one."""
         self.evaluations += evaluations
         for e in sorted(evaluations, key=lambda e: e.reference_speed):
@@ -179,6 +181,22 @@ class SpeedBisection:
                     self.hi = e.reference_speed
                     break
                 self.lo = e.reference_speed
+
+    def search(self, evaluate: Callable[[list[float]], list], jobs: int = 1, ends: list | None = None) -> float:
+        """The highest feasible speed of the bracket: ``evaluate(speeds)`` simulates one trial per
+        speed (the plant's trial: the arm's ``TrialPool``, the G1's ``Plant.trial``) and returns one
+        evaluation each (``reference_speed``, ``violated``); ``ends``: the evaluations at lo and hi
+        when already made. 0 when lo is violated, hi when hi holds, else ``jobs`` speeds a round
+        until the bracket is within the tolerance; every evaluation is kept in ``evaluations``."""
+        ends = evaluate([self.lo, self.hi]) if ends is None else ends
+        self.evaluations += ends
+        if ends[0].violated:
+            return 0.0
+        if not ends[1].violated:
+            return self.hi
+        while not self.done:
+            self.update(evaluate(self.next_speeds(jobs)))
+        return self.lo
 
 
 class MaxSpeedSearch:
@@ -240,19 +258,13 @@ class MaxSpeedSearch:
             first = [qp_spec, self.spec(bisection.lo), self.spec(bisection.hi)]
             qp_limited, *ends = list(pool.map(first))
             bar.update(len(first))
-            ends = [Evaluation.of(r) for r in ends]
-            bisection.evaluations += ends
-            if ends[0].violated:
-                simulated = 0.0
-            elif not ends[1].violated:
-                simulated = bisection.hi
-            else:
-                while not bisection.done:
-                    speeds = bisection.next_speeds(self.jobs)
-                    results = [Evaluation.of(r) for r in pool.map([self.spec(v) for v in speeds])]
-                    bisection.update(results)
-                    bar.update(len(results))
-                simulated = bisection.lo
+
+            def evaluate(speeds: list[float]) -> list[Evaluation]:
+                results = [Evaluation.of(r) for r in pool.map([self.spec(v) for v in speeds])]
+                bar.update(len(results))
+                return results
+
+            simulated = bisection.search(evaluate, self.jobs, [Evaluation.of(r) for r in ends])
             bar.total = bar.n
             bar.refresh()
         q_impact = qp_limited.impact.q_pre.copy()

@@ -49,7 +49,7 @@ import numpy as np
 
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
-from impactqp.controller.model.max_speed import closed_form_max_speed
+from impactqp.controller.model.max_speed import Setting, closed_form_max_speed
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.qp import Command
@@ -167,10 +167,8 @@ class TrialRunner:
         if spec.jump_model is not None:
             terms = self.robot.terms(spec.q_contact)
             for name in jump_model_names(spec.jump_model):
-                limit = closed_form_max_speed(
-                    self.robot, terms, self.surface.normal, JUMP_MODELS[name],
-                    spec.restitution, spec.impact_duration,
-                )
+                setting = Setting(name, spec.restitution, impact_duration=spec.impact_duration)
+                limit = closed_form_max_speed(self.robot, terms, self.surface.normal, setting)
                 speed = min(speed, 0.9 * limit.speed)
         return ACCELERATION_ALLOWANCE + spec.start_distance / speed + spec.after_contact
 

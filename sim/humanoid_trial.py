@@ -44,7 +44,7 @@ form's foot criteria). The jump is compared over the joints with each predictor 
 the measured impulse (``momentum``); the error is eq. (26), the mean of |predicted - measured|.
 
 Failures (:data:`FAILURES`), each with its onset time, the same definitions as the closed form's
-criteria (``controller.model.humanoid_max_speed``) measured in the trial:
+criteria (``controller.model.max_speed``) measured in the trial:
 
 - ``joint_velocity``: a joint beyond its URDF velocity limit, any time after the settling;
 - ``foot_slip`` / ``foot_lift``: a foot that carried weight before the impact slides or has its
@@ -80,7 +80,7 @@ import pinocchio as pin
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.capture import capture_region
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, jump_from_impulse, predict
-from impactqp.controller.model.humanoid_max_speed import ARM_JOINTS, standing_wrenches
+from impactqp.controller.model.max_speed import ARM_JOINTS, standing_wrenches
 from impactqp.controller.model.humanoid_stance import stance_posture, support_polygon
 from impactqp.controller.model.robot_description import Stance
 

@@ -48,7 +48,7 @@ def random_feasible_state(robot, rng, models, restitution):
             terms = robot.terms(q)
         except SingularPostureError:
             continue
-        dq = rng.uniform(0.0, 0.3) * approach_direction(terms, NORMAL) + rng.uniform(-0.05, 0.05, JOINTS)
+        dq = rng.uniform(0.0, 0.3) * approach_direction(robot, terms, NORMAL) + rng.uniform(-0.05, 0.05, JOINTS)
         for _ in range(20):
             if state_satisfies_the_limits(robot, robot.terms(q, dq), models, restitution):
                 return q, dq

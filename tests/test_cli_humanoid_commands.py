@@ -1,4 +1,5 @@
-"""``--robot g1`` on predict, simulate, campaign and max-speed (scenarios/cli/humanoid_commands.py)."""
+"""``--robot g1`` on predict, simulate and campaign (scenarios/cli/humanoid_commands.py), and its
+max-speed options that do not apply."""
 
 import json
 import os
@@ -78,18 +79,6 @@ def test_campaign_g1_json_and_files(capsys, tmp_path):
     manifest = json.loads((tmp_path / "dataset.json").read_text())
     assert manifest["robot"] == "g1" and [t["posture"] for t in manifest["trials"]] == ["parallel"]
     assert main(["dataset", "validate", str(tmp_path)]) == 0
-
-
-def test_max_speed_g1_json(capsys):
-    code, out, _ = run(capsys, "max-speed", "--robot", "g1", "--posture", "close", "--tolerance", "0.4", "--json")
-    assert code == 0
-    report = json.loads(out)
-    assert {"posture", "q_impact", "normal", "predicted_max_speed", "binding", "simulated_max_speed",
-            "evaluations"} <= set(report)
-    assert set(report["predicted_max_speed"]) == {"classical", "gm", "crb", "robust"}
-    assert report["predicted_max_speed"]["robust"] == min(report["predicted_max_speed"][m] for m in ("classical", "gm", "crb"))
-    speeds = [e["reference_speed"] for e in report["evaluations"] if not e["violated"]]
-    assert report["simulated_max_speed"] == max(speeds)
 
 
 def test_simulate_g1_out_adds_the_trial_to_a_g1_dataset(capsys, tmp_path):

@@ -169,7 +169,7 @@ def test_violated_impact_rows_ask_for_the_largest_reachable_correction(robot):
     the cycle's reachable accelerations allow, so it stays feasible on its own; rows that can
     be met are left as they are."""
     q = PANDA.postures["elbow_up"].q
-    terms = robot.terms(q, 0.8 * approach_direction(robot.terms(q), np.array([-1.0, 0.0, 0.0])))
+    terms = robot.terms(q, 0.8 * approach_direction(robot, robot.terms(q), np.array([-1.0, 0.0, 0.0])))
     impact = ExpectedImpact(surface_ahead(terms), "crb", always_active=True)
     c = cycle(robot)
     rows = ImpulsiveTorqueLimit(impact, robot.tau_max, robot.dq_max, 0.015).compute(terms, c)

@@ -4,56 +4,22 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from impactqp.controller.model.floating_base import FloatingBaseModel
-from impactqp.controller.model.humanoid_max_speed import CRITERIA, Bound, HumanoidMaxSpeed
+from impactqp.controller.model.max_speed import HELD_CONTACT_CRITERIA, Bound, MaxSpeed
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.validation import BadInputError
 from impactqp.scenarios.humanoid_max_speed import (
     CRITERION_OF,
-    HIGHEST_SPEED,
-    LOWEST_SPEED,
     CheckRow,
-    Evaluation,
     Plant,
     StanceMaxSpeed,
-    bisect_speed,
     check_summary,
     search_stance,
     speed_figure,
     trial_at_contact_speed,
 )
 from impactqp.sim.humanoid_trial import FAILURES
-
-
-def evaluation(speed, failure=""):
-    return Evaluation(speed, 0.7 * speed, 0.5, 0.0, 0.0, failure == "fell", failure)
-
-
-@settings(max_examples=60, deadline=None)
-@given(st.floats(0.0, 4.0), st.floats(0.002, 0.2))
-def test_bisection_brackets_the_threshold_of_a_monotone_feasibility(threshold, tolerance):
-    calls = []
-
-    def trial(speed):
-        calls.append(speed)
-        return evaluation(speed, "foot_slip" if speed > threshold else "")
-
-    best, evaluations = bisect_speed(trial, tolerance)
-    assert len(evaluations) == len(calls)
-    if threshold < LOWEST_SPEED:
-        assert best == 0.0
-    elif threshold >= HIGHEST_SPEED:
-        assert best == HIGHEST_SPEED
-    else:
-        assert best <= threshold < best + tolerance
-
-
-def test_a_bisection_tolerance_out_of_range_is_bad_input():
-    with pytest.raises(BadInputError):
-        bisect_speed(lambda s: evaluation(s), 0.0)
 
 
 class FakeTrial:
@@ -87,7 +53,7 @@ def test_check_summary_counts_below_and_above():
 
 
 def test_each_measured_failure_is_the_closed_form_criterion_of_its_name():
-    assert CRITERION_OF == {c: c for c in CRITERIA}
+    assert CRITERION_OF == {c: c for c in HELD_CONTACT_CRITERIA}
     assert "fell" in FAILURES and "fell" not in CRITERION_OF
     assert set(CRITERION_OF) <= set(FAILURES)
 
@@ -99,8 +65,8 @@ def test_unknown_stance_is_bad_input():
 
 def test_figure_is_a_png(tmp_path):
     predicted = {
-        "crb": HumanoidMaxSpeed(1.0, "capture", "edge 0", {"capture": Bound(1.0, "edge 0")}),
-        "gm": HumanoidMaxSpeed(math.inf, "", "", {}),
+        "crb": MaxSpeed(1.0, "capture", "edge 0", 0, {"capture": Bound(1.0, "edge 0")}),
+        "gm": MaxSpeed(math.inf, "", "", 0, {}),
     }
     q = np.zeros(FloatingBaseModel().model.nq)
     results = [StanceMaxSpeed(name, q, predicted, 1.2, 0.9, "foot_slip") for name in ("a", "b")]

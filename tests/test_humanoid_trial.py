@@ -6,7 +6,7 @@ import pinocchio as pin
 import pytest
 
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
-from impactqp.controller.model.humanoid_max_speed import standing_wrenches
+from impactqp.controller.model.max_speed import standing_wrenches
 from impactqp.controller.model.humanoid_stance import STANCES, edge_margins, stance_posture, support_polygon
 from impactqp.sim.humanoid_feet import (
     CONE_TOLERANCE,

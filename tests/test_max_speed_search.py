@@ -1,14 +1,17 @@
-"""Maximum feasible speed: the parallel bisection on a known threshold, and one real search in
-closed loop (the QP reaches the closed-form maximum; the bracket of the simulation is sound)."""
+"""Maximum feasible speed: the parallel bisection (the arm's and the G1's) on a known threshold,
+and one real search in closed loop (the QP reaches the closed-form maximum; the bracket of the simulation is sound)."""
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from conftest import JOINTS
-from impactqp.controller.model.jump import JUMP_MODELS
-from impactqp.controller.model.max_speed import approach_direction, closed_form_max_speed
+from impactqp.controller.model.max_speed import Setting, approach_direction, closed_form_max_speed
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot_description import PANDA
+from impactqp.controller.model.validation import BadInputError
+from impactqp.scenarios.humanoid_max_speed import HIGHEST_SPEED, LOWEST_SPEED, MIN_TOLERANCE
 from impactqp.scenarios.max_speed_search import (
     Evaluation,
     MaxSpeedSearch,
@@ -37,10 +40,44 @@ def test_bisection_converges_on_a_known_threshold(jobs):
     assert rounds <= int(np.ceil(np.log(0.98 / 0.005) / np.log(jobs + 1)))
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.floats(0.0, 4.0), st.floats(0.002, 0.2), st.integers(1, 3))
+def test_search_brackets_the_threshold_of_a_monotone_feasibility(threshold, tolerance, jobs):
+    """The search of both plants (the G1's bracket): 0 when lo fails, hi when hi holds, else
+    lo <= threshold < lo + tolerance, every trial kept."""
+    calls = []
+
+    def evaluate(speeds):
+        calls.extend(speeds)
+        return [Evaluation(v, v, 0.5, 0.0, v > threshold) for v in speeds]
+
+    bisection = SpeedBisection(LOWEST_SPEED, HIGHEST_SPEED, tolerance, MIN_TOLERANCE)
+    best = bisection.search(evaluate, jobs)
+    assert [e.reference_speed for e in bisection.evaluations] == calls
+    if threshold < LOWEST_SPEED:
+        assert best == 0.0
+    elif threshold >= HIGHEST_SPEED:
+        assert best == HIGHEST_SPEED
+    else:
+        assert best <= threshold < best + tolerance
+
+
+def test_search_uses_the_ends_already_evaluated():
+    calls = []
+
+    def evaluate(speeds):
+        calls.extend(speeds)
+        return [oracle(0.3)(v) for v in speeds]
+
+    bisection = SpeedBisection(0.02, 1.0, 0.005)
+    assert bisection.search(evaluate, 1, [oracle(0.3)(0.02), oracle(0.3)(1.0)]) == bisection.lo
+    assert 0.02 not in calls and 1.0 not in calls and len(bisection.evaluations) == len(calls) + 2
+
+
 def test_approach_velocity_limit_puts_one_joint_at_its_limit(robot):
     q = PANDA.postures["elbow_left"].q
     v_a = approach_velocity_limit(robot, q, DEFAULT_WALL.normal)
-    ratio = np.abs(v_a * approach_direction(robot.terms(q), DEFAULT_WALL.normal)) / robot.dq_max
+    ratio = np.abs(v_a * approach_direction(robot, robot.terms(q), DEFAULT_WALL.normal)) / robot.dq_max
     assert ratio.max() == pytest.approx(1.0)
 
 
@@ -56,7 +93,7 @@ def test_qp_reaches_the_closed_form_maximum_speed(report, robot):
     named_tip = robot.contact_point(PANDA.postures["elbow_up"].q)
     assert np.linalg.norm(terms.contact_point - named_tip) < 0.01
     for name in ("classical", "gm", "crb"):
-        expected = closed_form_max_speed(robot, terms, DEFAULT_WALL.normal, JUMP_MODELS[name])
+        expected = closed_form_max_speed(robot, terms, DEFAULT_WALL.normal, Setting(name))
         assert data["predicted_max_speed"][name] == pytest.approx(expected.speed)
         assert data["binding"][name] == {"criterion": expected.criterion, "joint": expected.joint}
     assert data["qp_limited_speed"] == pytest.approx(data["predicted_max_speed"]["crb"], rel=0.05)
@@ -97,6 +134,8 @@ def test_bad_search_settings_are_rejected():
         MaxSpeedSearch(PANDA.postures["elbow_up"], DEFAULT_WALL, jump_model="magic")
     with pytest.raises(ValueError, match="tolerance"):
         SpeedBisection(0.02, 1.0, 0.0)
+    with pytest.raises(BadInputError, match="tolerance"):
+        SpeedBisection(LOWEST_SPEED, HIGHEST_SPEED, 0.5 * MIN_TOLERANCE, MIN_TOLERANCE)
 
 
 def test_a_max_speed_search_of_the_fr3_with_the_franka_hand_reaches_its_closed_form():
@@ -112,7 +151,7 @@ def test_a_max_speed_search_of_the_fr3_with_the_franka_hand_reaches_its_closed_f
     robot = choice.model()
     terms = robot.terms(np.array(data["q_impact"]))
     assert np.linalg.norm(terms.contact_point - robot.contact_point(posture.q)) < 0.01
-    expected = closed_form_max_speed(robot, terms, DEFAULT_WALL.normal, JUMP_MODELS["crb"])
+    expected = closed_form_max_speed(robot, terms, DEFAULT_WALL.normal, Setting("crb"))
     assert data["predicted_max_speed"]["crb"] == pytest.approx(expected.speed)
     assert data["qp_limited_speed"] == pytest.approx(expected.speed, rel=0.05)
     assert data["qp_max_velocity_ratio"] < 1.0

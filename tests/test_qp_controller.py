@@ -13,7 +13,7 @@ from impactqp.constraints import ControlCycle, jump_model_names
 from impactqp.controller.config import ControllerConfig, TaskConfig, build_controller
 from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.jump import jump_model
-from impactqp.controller.model.max_speed import approach_direction, closed_form_max_speed
+from impactqp.controller.model.max_speed import Setting, approach_direction, closed_form_max_speed
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.qp import ImpactAwareController
 from impactqp.tasks import DampingTask, FrameTask, PostureTask
@@ -75,7 +75,7 @@ def max_feasible_speed_by_bisection(robot, terms, model, restitution=0.0, impact
     (c) |J^T iota| / delta_t <= tau_max, found by bisection on the predictor itself."""
 
     def feasible(v):
-        pre = v * approach_direction(terms, NORMAL)
+        pre = v * approach_direction(robot, terms, NORMAL)
         prediction = model.predict(terms, NORMAL, terms.J @ pre, restitution)
         return (
             np.all(np.abs(pre) <= robot.dq_max)
@@ -131,7 +131,7 @@ def test_fast_approach_from_afar_stays_within_the_impact_limits(robot, posture):
         pytest.fail("the tool never reached the wall")
     contact_speed = float(-wall.normal @ (terms.J @ dq))
     assert top_speed > 1.5 * contact_speed  # it went faster while the wall was far
-    limit = closed_form_max_speed(robot, terms, wall.normal, jump_model("crb"))
+    limit = closed_form_max_speed(robot, terms, wall.normal, Setting("crb"))
     assert contact_speed <= 1.02 * limit.speed
     assert controller.fallback_count <= 10
 

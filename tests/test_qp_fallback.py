@@ -60,7 +60,7 @@ def test_infeasible_request_gives_the_fallback_and_names_the_conflict(robot):
     bring the impulsive torque within its limit."""
     q = PANDA.postures["elbow_up"].q
     controller = approach_controller(robot, q)
-    dq = 0.6 * approach_direction(robot.terms(q), NORMAL)
+    dq = 0.6 * approach_direction(robot, robot.terms(q), NORMAL)
     command = controller.step(q, dq)
     assert_safe_fallback(robot, controller, command, "fallback_infeasible")
     assert "impulsive_torque[crb]" in command.violated_constraints
@@ -75,7 +75,7 @@ def test_the_irreducible_conflict_is_computed_on_demand(robot):
     q = PANDA.postures["elbow_up"].q
     controller = approach_controller(robot, q)
     assert controller.conflicting_constraints() == []  # no infeasible cycle yet
-    command = controller.step(q, 0.6 * approach_direction(robot.terms(q), NORMAL))
+    command = controller.step(q, 0.6 * approach_direction(robot, robot.terms(q), NORMAL))
     assert command.status == "fallback_infeasible"
     irreducible = controller.conflicting_constraints()
     assert "impulsive_torque[crb]" in irreducible and len(irreducible) >= 2
@@ -91,7 +91,7 @@ def test_compiled_conflict_and_braking_equal_the_numpy_reference(robot, seed, ju
     rng = np.random.default_rng(seed)
     q = PANDA.postures["elbow_up"].q
     controller = approach_controller(robot, q, jump=jump)
-    dq = speed * approach_direction(robot.terms(q), NORMAL)
+    dq = speed * approach_direction(robot, robot.terms(q), NORMAL)
     command = controller.step(q, dq)
     layout = controller.layout
     if command.status == "fallback_infeasible":

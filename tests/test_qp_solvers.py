@@ -20,7 +20,7 @@ def test_solver_backends_agree(robot, posture):
     the jerk box moved (its stale multipliers would otherwise pass the residual checks)."""
     q = PANDA.postures[posture].q
     terms = robot.terms(q)
-    dq = 0.12 * approach_direction(terms, NORMAL)  # near the speed limit: the impact rows bind
+    dq = 0.12 * approach_direction(robot, terms, NORMAL)  # near the speed limit: the impact rows bind
     results = {}
     for solver in available_backends():
         controller = approach_controller(robot, q, solver=solver)

@@ -1,5 +1,5 @@
-"""`impactqp simulate`, `campaign` and `max-speed`: JSON contracts, dataset output, video, and
-one-line errors with exit code 2."""
+"""`impactqp simulate` and `campaign` (and the wall and plant options `max-speed` shares): JSON
+contracts, dataset output, video, and one-line errors with exit code 2."""
 
 import json
 import os
@@ -59,29 +59,6 @@ def test_simulate_without_jump_constraints_and_tangential(capsys):
     )
     assert code == 0
     assert "jump constraints off" in stdout and "simulated jump" in stdout
-
-
-def test_max_speed_json_contract(capsys, monkeypatch):
-    """... and the request builds the robot's model once in this process (the postures, the
-    start's check and the search share it; each worker process builds its own)."""
-    from impactqp.controller.model import robot as robot_module
-
-    built = []
-    build = robot_module.RobotModel.__init__
-    monkeypatch.setattr(robot_module.RobotModel, "__init__", lambda self, *a, **k: built.append(1) or build(self, *a, **k))
-    code, stdout, _ = run(
-        capsys, "max-speed", "--posture", "elbow_left", "--tolerance", "0.05", "--jobs", "2", "--json"
-    )
-    assert code == 0 and len(built) == 1
-    report = json.loads(stdout)
-    assert report["posture"] == "elbow_left"
-    assert set(report["predicted_max_speed"]) == {"classical", "gm", "crb", "robust"}
-    assert report["predicted_max_speed"]["robust"] == min(report["predicted_max_speed"][m] for m in ("classical", "gm", "crb"))
-    for binding in report["binding"].values():
-        assert binding["criterion"] in {"velocity_pre", "velocity_post", "impulsive_torque"}
-        assert 1 <= binding["joint"] <= len(report["q_impact"])
-    assert report["qp_limited_speed"] == pytest.approx(report["predicted_max_speed"]["crb"], rel=0.05)
-    assert report["evaluations"]
 
 
 def test_campaign_json(capsys, tmp_path):

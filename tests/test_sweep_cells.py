@@ -3,8 +3,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from impactqp.controller.model.jump import jump_model
-from impactqp.controller.model.max_speed import closed_form_max_speed, criterion_slopes
+from impactqp.controller.model.max_speed import Setting, closed_form_max_speed, criterion_slopes
 from impactqp.scenarios.max_speed_search import predicted_max_speeds
 from impactqp.scenarios.sweep.cells import Simulation, cell_settings, evaluate_cells
 from impactqp.scenarios.sweep.config import EXAMPLE, parse_config
@@ -39,14 +38,11 @@ def test_a_cell_speed_equals_the_closed_form_of_max_speed_at_the_same_posture(ro
         assert row["jacobian_sv_ratio"] == pytest.approx(s[-1] / s[0], rel=1e-9)
         for name in config.jump_models:
             best = predicted[name]
-            assert best == closed_form_max_speed(
-                robot, terms, cell["normal"], jump_model(name), cell["restitution"], cell["impact_duration"]
-            )
+            setting = Setting(name, cell["restitution"], impact_duration=cell["impact_duration"])
+            assert best == closed_form_max_speed(robot, terms, cell["normal"], setting)
             assert row[f"speed_{name}"] == pytest.approx(best.speed, rel=1e-9)
             # what binds is max-speed's, or binds at the same speed (a tie to rounding)
-            slopes = criterion_slopes(
-                robot, terms, cell["normal"], jump_model(name), cell["restitution"], cell["impact_duration"]
-            )
+            slopes = criterion_slopes(robot, terms, cell["normal"], setting)
             binding = slopes[row[f"criterion_{name}"]][row[f"joint_{name}"] - 1]
             assert 1.0 / binding == pytest.approx(best.speed, rel=1e-9)
 

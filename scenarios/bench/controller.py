@@ -42,10 +42,9 @@ from impactqp.controller.model.robot import PandaModel, RobotModel
 from impactqp.controller.model.tool_postures import tool_posture
 from impactqp.controller.qp import available_backends
 from impactqp.controller.model.humanoid_stance import stance_posture
-from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.whole_body_terms import WholeBodyModel
 from impactqp.controller.qp.whole_body_setup import WholeBodySetup, build_whole_body_controller
-from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION, approach_direction, closed_form_max_speed
+from impactqp.controller.model.max_speed import Setting, approach_direction, closed_form_max_speed
 
 from .base import missing_row, timing_row
 
@@ -102,7 +101,7 @@ def settled_speed_ratio(robot: PandaModel, solver: str) -> float:
     for _ in range(800):
         dq = controller.step(q, dq).dq_cmd
     terms = robot.terms(q)
-    closed_form = closed_form_max_speed(robot, terms, normal, JUMP_MODELS["crb"], 0.0, DEFAULT_IMPACT_DURATION)
+    closed_form = closed_form_max_speed(robot, terms, normal, Setting("crb"))
     return float(-normal @ (terms.J @ dq)) / closed_form.speed
 
 
@@ -176,7 +175,7 @@ def fallback_cycle_samples(robot: PandaModel, cycles: int = 1000, seed: int = 0)
     surface = Surface(robot.contact_point(q) - 0.05 * normal, normal)
     config = ControllerConfig.approach(surface, speed=2.0, always_active=True, posture_weight=0.0)
     controller = build_controller(config, robot)
-    direction = approach_direction(robot.terms(q), normal)
+    direction = approach_direction(robot, robot.terms(q), normal)
     rng = np.random.default_rng(seed)
     samples = []
     for _ in range(20 * cycles):

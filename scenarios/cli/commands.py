@@ -199,7 +199,8 @@ def demo(out_dir, jobs):
     )
 
 
-from impactqp.scenarios.cli.simulation_commands import campaign, max_speed, simulate  # noqa: E402
+from impactqp.scenarios.cli.simulation_commands import campaign, simulate  # noqa: E402
+from impactqp.scenarios.cli.max_speed_command import max_speed  # noqa: E402
 
 cli.add_command(simulate)
 cli.add_command(campaign)

@@ -1,4 +1,4 @@
-"""``predict``, ``simulate``, ``campaign`` and ``max-speed`` with ``--robot g1``: the standing
+"""``predict``, ``simulate`` and ``campaign`` with ``--robot g1`` (``max-speed``: ``scenarios.cli.max_speed_command``): the standing
 floating-base G1 hitting a wall with its right hand (docs/floating-base.md).
 
 Each command receives the ``RobotChoice`` of a floating-base robot (``choice.robot.floating``)
@@ -17,7 +17,6 @@ write their trials as a G1 dataset (``sim.humanoid_dataset``, docs/dataset.md).
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import click
@@ -25,12 +24,10 @@ import numpy as np
 
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, predict
-from impactqp.controller.model.humanoid_max_speed import IMPACT_DURATION, Setting
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.robot_description import RobotDescription
 from impactqp.controller.model.validation import BadInputError, approach_speed, tangential_velocity, unit_normal
 from impactqp.controller.model.validation import restitution as restitution_coefficient
-from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.scenarios.cli.arguments import check_jobs, gif_output, output_directory, parse_vector
 
 def reject_options(names) -> None:
@@ -195,36 +192,3 @@ def g1_campaign(choice: RobotChoice, postures_text, speeds_text, jobs: int, out_
     write_atomic(out / "table1.json", lambda tmp: Path(tmp).write_text(json.dumps(table, indent=2, allow_nan=False)))
     write_atomic(out / "table1.md", lambda tmp: Path(tmp).write_text(text + "\n"))
     return table, text
-
-
-def g1_max_speed(choice: RobotChoice, posture: str, search: dict) -> dict:
-    """Closed-form and bisected highest feasible contact speed of a stance of the floating-base
-    robot of ``choice`` (JSON)."""
-    # lazy: the command line loads what a command needs when it runs
-    from impactqp.scenarios.humanoid_max_speed import search_stance
-
-    reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool"])
-    stance = stance_names(choice.robot, posture)[0]
-    c_r = restitution_coefficient(search["restitution"], "--restitution")
-    default_duration = click.get_current_context().get_parameter_source("impact_duration") == click.core.ParameterSource.DEFAULT
-    duration = IMPACT_DURATION if default_duration else check_impact_duration(search["impact_duration"], "--impact-duration")
-    result = search_stance(FloatingBaseModel(choice.robot), stance, Setting("crb", c_r, impact_duration=duration),
-                           tolerance=search["tolerance"])
-    report = {"robot": choice.robot.name, **result.to_json()}
-    speeds = report["predicted_max_speed"]
-    robust = min(METHODS, key=lambda m: math.inf if speeds[m] is None else speeds[m])
-    speeds["robust"], report["binding"]["robust"] = speeds[robust], report["binding"][robust]
-    report["impact_duration"] = duration
-    return report
-
-
-def max_speed_text(report: dict) -> str:
-    """A floating-base robot's ``max-speed`` report as text."""
-    lines = [f"{report['posture']} ({report['robot']}): highest feasible contact speed (m/s)",
-             f"{'closed form':<14}{'speed':>8}  binds"]
-    for name, speed in report["predicted_max_speed"].items():
-        b = report["binding"][name]
-        lines.append(f"  {name:<12}{speed if speed is not None else math.inf:8.4f}  {b['criterion']} ({b['where']})")
-    lines.append(f"{'simulated':<14}{report['simulated_max_speed']:8.4f}  commanded; contact "
-                 f"{report['simulated_contact_speed']:.4f}; failed first above: {report['simulated_failed_first'] or '-'}")
-    return "\n".join(lines)

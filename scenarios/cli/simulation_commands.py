@@ -1,4 +1,5 @@
-"""The simulation commands of ``impactqp``: ``simulate``, ``campaign`` and ``max-speed``.
+"""The simulation commands of ``impactqp``: ``simulate`` and ``campaign`` (``max-speed``:
+``scenarios.cli.max_speed_command``), and the wall and plant options they share with it.
 
 Every command validates its input before simulating; bad input (an unknown posture, a speed
 <= 0, a bad plant file, a wall out of reach, ...) ends with one line on stderr and exit code 2
@@ -10,18 +11,14 @@ from __future__ import annotations
 # First: MuJoCo's OpenGL backend is chosen when MuJoCo is first imported (scenarios.video).
 from impactqp.scenarios import video  # noqa: F401, I001
 
-from dataclasses import dataclass
-
 import click
 import numpy as np
 
 from impactqp.constraints import JUMP_MODEL_CHOICES
 from impactqp.controller.model.choice import RobotChoice
-from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
 from impactqp.controller.model.postures import DEFAULT_WALL, ImpactPosture, Surface
-from impactqp.controller.model.validation import BadInputError, positive, tangential_velocity, unit_normal
-from impactqp.controller.model.validation import approach_speed, restitution as restitution_coefficient
-from impactqp.controller.model.validation import impact_duration as check_impact_duration
+from impactqp.controller.model.validation import BadInputError, tangential_velocity, unit_normal
+from impactqp.controller.model.validation import approach_speed
 from impactqp.scenarios.cli.arguments import (
     check_jobs,
     emit_json,
@@ -215,104 +212,3 @@ def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_
         return
     click.echo(table.text())
     click.echo(f"dataset, table1.json, table1.txt and figures written to {out_dir}")
-
-
-# ---------------------------------------------------------------------------- max-speed
-@dataclass(frozen=True)
-class MaxSpeedRequest:
-    """The options of ``max-speed``, as given on the command line (``choice``: --robot, --tool)."""
-
-    posture: str
-    jump_model: str
-    restitution: float
-    impact_duration: float
-    plant: str | None
-    wall_point: str | None
-    wall_normal: str | None
-    jobs: int
-    tolerance: float
-    choice: RobotChoice
-
-
-def run_max_speed(request: MaxSpeedRequest, progress: bool):
-    """Check the ``max-speed`` options and run the search."""
-    # lazy: the command line loads what a command needs when it runs
-    from impactqp.scenarios.max_speed_search import QP_START_DISTANCE, MaxSpeedSearch
-
-    choice, restitution, impact_duration, tolerance = request.choice, request.restitution, request.impact_duration, request.tolerance
-    posture = choice.posture(request.posture)
-    restitution_coefficient(restitution, "--restitution")
-    check_impact_duration(impact_duration, "--impact-duration")
-    positive(tolerance, "--tolerance")
-    surface = wall(request.wall_point, request.wall_normal)
-    plant = load_plant(request.plant)
-    check_reachable(choice, posture, surface, QP_START_DISTANCE)
-    search = MaxSpeedSearch(
-        posture, surface, plant, jump_model=request.jump_model, restitution=restitution,
-        impact_duration=impact_duration, tolerance=tolerance, jobs=check_jobs(request.jobs), progress=progress,
-        choice=choice,
-    )
-    return search.run()
-
-
-def max_speed_text(report) -> str:
-    data = report.to_json()
-    lines = [
-        f"{data['posture']}: highest feasible contact speed (m/s), jump constraints {data['jump_model']}",
-        f"{'closed form':<14}{'speed':>8}  binds",
-    ]
-    for name, speed in data["predicted_max_speed"].items():
-        binding = data["binding"][name]
-        lines.append(f"  {name:<12}{speed:8.4f}  {binding['criterion']}, joint {binding['joint']}")
-    lines.append(
-        f"{'QP-limited':<14}{data['qp_limited_speed']:8.4f}  (asked 2 m/s; observed |dq|/dq_max "
-        f"{data['qp_max_velocity_ratio']:.3f}, impulsive torque ratio {data['qp_max_torque_ratio']:.3f})"
-    )
-    lines.append(
-        f"{'simulated':<14}{data['simulated_max_speed']:8.4f}  (jump constraints off, "
-        f"{len(data['evaluations'])} simulated impacts)"
-    )
-    lines.append(f"  {'reference':>10}{'contact':>10}{'|dq| ratio':>12}{'torque ratio':>14}  violated")
-    for e in data["evaluations"]:
-        lines.append(
-            f"  {e['reference_speed']:10.4f}{e['contact_speed']:10.4f}{e['max_velocity_ratio']:12.3f}"
-            f"{e['max_torque_ratio']:14.3f}  {e['violated']}"
-        )
-    return "\n".join(lines)
-
-
-@click.command("max-speed")
-@click.option("--posture", "posture_name", required=True, help="A named posture (see `impactqp postures`).")
-@click.option(
-    "--jump-model", type=click.Choice(["crb", "gm", "classical", "robust"]), default="crb", show_default=True,
-    help="Model of the jump-aware constraints in the QP-limited run.",
-)
-@click.option("--restitution", type=float, default=0.0, show_default=True, help="c_r in [0, 1].")
-@click.option("--impact-duration", type=float, default=DEFAULT_IMPACT_DURATION, show_default=True, help="delta_t (s).")
-@plant_option
-@wall_point_option
-@wall_normal_option
-@click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
-@click.option("--tolerance", type=float, default=0.005, show_default=True, help="Bisection tolerance (m/s).")
-@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (no progress bar).")
-@robot_options(humanoid=True)
-def max_speed(posture_name, plant_file, as_json, choice, **search):
-    """Highest feasible contact speed: closed form, reached by the QP, and simulated (with
-    --robot g1: closed form and simulated bisection of a stance, no QP)."""
-    if choice.robot.floating:
-        # lazy: the command line loads what a command needs when it runs
-        from impactqp.scenarios.cli.humanoid_commands import g1_max_speed, max_speed_text as g1_text
-
-        report = g1_max_speed(choice, posture_name, search)
-        if as_json:
-            emit_json(report)
-            return
-        click.echo(g1_text(report))
-        return
-    request = MaxSpeedRequest(posture=posture_name, plant=plant_file, choice=choice, **search)
-    report = run_max_speed(request, not as_json)
-    if as_json:
-        emit_json(report.to_json())
-        return
-    click.echo(max_speed_text(report))
-

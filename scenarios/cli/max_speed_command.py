@@ -1,0 +1,161 @@
+"""``impactqp max-speed``: the highest feasible contact speed of a posture, one path for every
+robot (docs/max-speed.md, docs/floating-base.md).
+
+The options are checked, the search runs and its JSON report is printed, or the text made from
+that report. What differs between robots is data, read where it must be: a robot with a floating
+base (its description's ``base``) is searched per stance of its description
+(``scenarios.humanoid_max_speed.search_stance``: closed form and simulated bisection, no QP; an
+option of the arm's search that has no meaning there is bad input when given), a fixed-base arm
+per named posture on a wall (``scenarios.max_speed_search.MaxSpeedSearch``: closed form,
+QP-limited run and simulated bisection). Bad input ends with one line on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import click
+
+from impactqp.controller.model.choice import RobotChoice
+from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION, HAND_IMPACT_DURATION, Setting
+from impactqp.controller.model.validation import positive
+from impactqp.controller.model.validation import impact_duration as check_impact_duration
+from impactqp.controller.model.validation import restitution as restitution_coefficient
+from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, robot_options
+from impactqp.scenarios.cli.simulation_commands import (
+    check_reachable,
+    plant_option,
+    wall,
+    wall_normal_option,
+    wall_point_option,
+)
+
+
+@dataclass(frozen=True)
+class MaxSpeedRequest:
+    """The options of ``max-speed``, as given on the command line (``choice``: --robot, --tool)."""
+
+    posture: str
+    jump_model: str
+    restitution: float
+    impact_duration: float
+    plant: str | None
+    wall_point: str | None
+    wall_normal: str | None
+    jobs: int
+    tolerance: float
+    choice: RobotChoice
+
+
+def arm_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
+    """The JSON report of a fixed-base arm's search at a named posture on the wall."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.max_speed_search import QP_START_DISTANCE, MaxSpeedSearch
+
+    choice, restitution, impact_duration, tolerance = request.choice, request.restitution, request.impact_duration, request.tolerance
+    posture = choice.posture(request.posture)
+    restitution_coefficient(restitution, "--restitution")
+    check_impact_duration(impact_duration, "--impact-duration")
+    positive(tolerance, "--tolerance")
+    surface = wall(request.wall_point, request.wall_normal)
+    plant = load_plant(request.plant)
+    check_reachable(choice, posture, surface, QP_START_DISTANCE)
+    search = MaxSpeedSearch(
+        posture, surface, plant, jump_model=request.jump_model, restitution=restitution,
+        impact_duration=impact_duration, tolerance=tolerance, jobs=check_jobs(request.jobs), progress=progress,
+        choice=choice,
+    )
+    return search.run().to_json()
+
+
+def stance_max_speed(request: MaxSpeedRequest) -> dict:
+    """The JSON report of a floating-base robot's search at a stance of its description: its
+    ``robot``, the closed form of each predictor and ``robust`` (the smallest), the bisection,
+    and the contact duration used (the description's wall contact unless --impact-duration)."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
+    from impactqp.scenarios.cli.humanoid_commands import reject_options, stance_names
+    from impactqp.scenarios.humanoid_max_speed import search_stance
+
+    reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool"])
+    robot = request.choice.robot
+    stance = stance_names(robot, request.posture)[0]
+    c_r = restitution_coefficient(request.restitution, "--restitution")
+    default_duration = click.get_current_context().get_parameter_source("impact_duration") == click.core.ParameterSource.DEFAULT
+    duration = HAND_IMPACT_DURATION if default_duration else check_impact_duration(request.impact_duration, "--impact-duration")
+    result = search_stance(FloatingBaseModel(robot), stance, Setting("crb", c_r, impact_duration=duration),
+                           tolerance=request.tolerance)
+    report = {"robot": robot.name, **result.to_json()}
+    speeds = report["predicted_max_speed"]
+    robust = min(METHODS, key=lambda m: math.inf if speeds[m] is None else speeds[m])
+    speeds["robust"], report["binding"]["robust"] = speeds[robust], report["binding"][robust]
+    report["impact_duration"] = duration
+    return report
+
+
+def run_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
+    """Check the ``max-speed`` options and run the search of the chosen robot: its JSON report."""
+    if request.choice.robot.floating:
+        return stance_max_speed(request)
+    return arm_max_speed(request, progress)
+
+
+def max_speed_text(report: dict) -> str:
+    """A ``max-speed`` JSON report as text: the closed form of each predictor and what binds it
+    (a joint, or where the criterion binds), then the QP-limited run and every simulated impact
+    when the report has them (an arm's), or the bisection's contact speed and first failure."""
+    robot = f" ({report['robot']})" if "robot" in report else ""
+    constraints = f", jump constraints {report['jump_model']}" if "jump_model" in report else ""
+    lines = [
+        f"{report['posture']}{robot}: highest feasible contact speed (m/s){constraints}",
+        f"{'closed form':<14}{'speed':>8}  binds",
+    ]
+    for name, speed in report["predicted_max_speed"].items():
+        b = report["binding"][name]
+        where = f", joint {b['joint']}" if "joint" in b else f" ({b['where']})"
+        lines.append(f"  {name:<12}{speed if speed is not None else math.inf:8.4f}  {b['criterion']}{where}")
+    if "qp_limited_speed" not in report:
+        lines.append(f"{'simulated':<14}{report['simulated_max_speed']:8.4f}  commanded; contact "
+                     f"{report['simulated_contact_speed']:.4f}; failed first above: {report['simulated_failed_first'] or '-'}")
+        return "\n".join(lines)
+    lines.append(
+        f"{'QP-limited':<14}{report['qp_limited_speed']:8.4f}  (asked 2 m/s; observed |dq|/dq_max "
+        f"{report['qp_max_velocity_ratio']:.3f}, impulsive torque ratio {report['qp_max_torque_ratio']:.3f})"
+    )
+    lines.append(
+        f"{'simulated':<14}{report['simulated_max_speed']:8.4f}  (jump constraints off, "
+        f"{len(report['evaluations'])} simulated impacts)"
+    )
+    lines.append(f"  {'reference':>10}{'contact':>10}{'|dq| ratio':>12}{'torque ratio':>14}  violated")
+    for e in report["evaluations"]:
+        lines.append(
+            f"  {e['reference_speed']:10.4f}{e['contact_speed']:10.4f}{e['max_velocity_ratio']:12.3f}"
+            f"{e['max_torque_ratio']:14.3f}  {e['violated']}"
+        )
+    return "\n".join(lines)
+
+
+@click.command("max-speed")
+@click.option("--posture", "posture_name", required=True, help="A named posture (see `impactqp postures`).")
+@click.option(
+    "--jump-model", type=click.Choice(["crb", "gm", "classical", "robust"]), default="crb", show_default=True,
+    help="Model of the jump-aware constraints in the QP-limited run.",
+)
+@click.option("--restitution", type=float, default=0.0, show_default=True, help="c_r in [0, 1].")
+@click.option("--impact-duration", type=float, default=DEFAULT_IMPACT_DURATION, show_default=True, help="delta_t (s).")
+@plant_option
+@wall_point_option
+@wall_normal_option
+@click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
+@click.option("--tolerance", type=float, default=0.005, show_default=True, help="Bisection tolerance (m/s).")
+@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (no progress bar).")
+@robot_options(humanoid=True)
+def max_speed(posture_name, plant_file, as_json, choice, **search):
+    """Highest feasible contact speed: closed form, reached by the QP, and simulated (with
+    --robot g1: closed form and simulated bisection of a stance, no QP)."""
+    report = run_max_speed(MaxSpeedRequest(posture=posture_name, plant=plant_file, choice=choice, **search), not as_json)
+    if as_json:
+        emit_json(report)
+        return
+    click.echo(max_speed_text(report))

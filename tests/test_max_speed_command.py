@@ -1,0 +1,84 @@
+"""`impactqp max-speed` (scenarios/cli/max_speed_command.py): one path for every robot, the
+arm's and the G1's JSON contracts, and the text made from the report."""
+
+import json
+import math
+
+import pytest
+
+from impactqp.scenarios.cli import main
+from impactqp.scenarios.cli.max_speed_command import max_speed_text
+
+
+def run(capsys, *args):
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_max_speed_json_contract(capsys, monkeypatch):
+    """... and the request builds the robot's model once in this process (the postures, the
+    start's check and the search share it; each worker process builds its own)."""
+    from impactqp.controller.model import robot as robot_module
+
+    built = []
+    build = robot_module.RobotModel.__init__
+    monkeypatch.setattr(robot_module.RobotModel, "__init__", lambda self, *a, **k: built.append(1) or build(self, *a, **k))
+    code, stdout, _ = run(
+        capsys, "max-speed", "--posture", "elbow_left", "--tolerance", "0.05", "--jobs", "2", "--json"
+    )
+    assert code == 0 and len(built) == 1
+    report = json.loads(stdout)
+    assert report["posture"] == "elbow_left"
+    assert set(report["predicted_max_speed"]) == {"classical", "gm", "crb", "robust"}
+    assert report["predicted_max_speed"]["robust"] == min(report["predicted_max_speed"][m] for m in ("classical", "gm", "crb"))
+    for binding in report["binding"].values():
+        assert binding["criterion"] in {"velocity_pre", "velocity_post", "impulsive_torque"}
+        assert 1 <= binding["joint"] <= len(report["q_impact"])
+    assert report["qp_limited_speed"] == pytest.approx(report["predicted_max_speed"]["crb"], rel=0.05)
+    assert report["evaluations"]
+
+
+def test_max_speed_g1_json(capsys):
+    code, out, _ = run(capsys, "max-speed", "--robot", "g1", "--posture", "close", "--tolerance", "0.4", "--json")
+    assert code == 0
+    report = json.loads(out)
+    assert {"posture", "q_impact", "normal", "predicted_max_speed", "binding", "simulated_max_speed",
+            "evaluations"} <= set(report)
+    assert set(report["predicted_max_speed"]) == {"classical", "gm", "crb", "robust"}
+    assert report["predicted_max_speed"]["robust"] == min(report["predicted_max_speed"][m] for m in ("classical", "gm", "crb"))
+    speeds = [e["reference_speed"] for e in report["evaluations"] if not e["violated"]]
+    assert report["simulated_max_speed"] == max(speeds)
+
+
+def test_the_text_of_an_arm_report_names_each_joint_that_binds_and_each_impact():
+    report = {
+        "posture": "p", "jump_model": "crb",
+        "predicted_max_speed": {"crb": 0.25, "robust": 0.2},
+        "binding": {"crb": {"criterion": "velocity_post", "joint": 4}, "robust": {"criterion": "velocity_pre", "joint": 2}},
+        "qp_limited_speed": 0.24, "qp_max_velocity_ratio": 0.9, "qp_max_torque_ratio": 0.5,
+        "simulated_max_speed": 0.3,
+        "evaluations": [{"reference_speed": v, "contact_speed": v, "max_velocity_ratio": v, "max_torque_ratio": v,
+                         "violated": v > 0.3} for v in (0.1, 0.3, 0.5)],
+    }
+    lines = max_speed_text(report).splitlines()
+    assert lines[0] == "p: highest feasible contact speed (m/s), jump constraints crb"
+    assert "  crb           0.2500  velocity_post, joint 4" in lines
+    assert "  robust        0.2000  velocity_pre, joint 2" in lines
+    assert lines[4].startswith("QP-limited") and "0.2400" in lines[4]
+    assert "3 simulated impacts" in lines[5]
+    assert [line.split()[-1] for line in lines[-3:]] == ["False", "False", "True"]
+
+
+def test_the_text_of_a_stance_report_names_where_each_criterion_binds():
+    report = {
+        "robot": "g1", "posture": "close",
+        "predicted_max_speed": {"crb": 0.5, "gm": None},
+        "binding": {"crb": {"criterion": "capture", "where": "edge 2"}, "gm": {"criterion": "", "where": ""}},
+        "simulated_max_speed": 0.7, "simulated_contact_speed": 0.45, "simulated_failed_first": "",
+    }
+    lines = max_speed_text(report).splitlines()
+    assert lines[0] == "close (g1): highest feasible contact speed (m/s)"
+    assert "  crb           0.5000  capture (edge 2)" in lines
+    assert lines[3] == f"  gm          {math.inf:8.4f}   ()"
+    assert lines[-1] == "simulated       0.7000  commanded; contact 0.4500; failed first above: -"
