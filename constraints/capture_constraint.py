@@ -7,7 +7,7 @@ import numpy as np
 from numba import njit
 
 from impactqp.controller.model.capture import GRAVITY, capture_region
-from impactqp.controller.model.floating_maps import product
+from impactqp.controller.model.jump_kernels import product
 from impactqp.controller.model.whole_body_terms import WholeBodyTerms
 
 from .constraint import Constraint, ControlCycle

@@ -5,7 +5,7 @@ import pytest
 from whole_body_states import NORMAL, approach_velocity, robot, stance, wall_ahead
 
 from impactqp.constraints.floating_impact import FloatingExpectedImpact
-from impactqp.controller.model.floating_maps import floating_jump_maps
+from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.validation import BadInputError
 
 
@@ -27,7 +27,7 @@ def test_maps_are_the_predictors_of_the_state_computed_once_per_state(method):
     terms = robot().terms(q, approach_velocity(q, 0.2))
     maps = impact.matrices(terms)
     assert impact.matrices(terms) is maps
-    np.testing.assert_allclose(maps.jump_matrix, floating_jump_maps(terms, method, NORMAL, 0.3).jump_matrix)
+    np.testing.assert_allclose(maps.jump_matrix, jump_model(method).unit_matrices(terms, NORMAL, 0.3).jump_matrix)
     assert impact.matrices(robot().terms(q)) is not maps
 
 
