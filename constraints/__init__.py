@@ -1,12 +1,11 @@
 """Constraints of the impact-aware QP, rows in acceleration units (see ``constraints.constraint``):
-the arm's, and the standing G1's (feet, impact rows of the floating base, capture region)."""
+every robot's (limits, expected impact and its rows), and those of a robot standing on held
+contacts (the held contacts' rows, the capture region)."""
 
 from .acceleration_limit import AccelerationLimit
 from .capture_constraint import CaptureRegionLimit
 from .constraint import Constraint, ConstraintRows, ControlCycle
-from .floating_impact import FloatingExpectedImpact
-from .floating_post_impact import FloatingPostImpactVelocityLimit
-from .foot_contact import FootContact
+from .held_contact import HeldContactRows
 from .impact_model import JUMP_MODEL_CHOICES, ExpectedImpact, jump_model_names
 from .impulsive_torque import ImpulsiveTorqueLimit
 from .position_limit import PositionLimit
@@ -27,8 +26,6 @@ __all__ = [
     "jump_model_names",
     "PostImpactVelocityLimit",
     "ImpulsiveTorqueLimit",
-    "FootContact",
-    "FloatingExpectedImpact",
-    "FloatingPostImpactVelocityLimit",
+    "HeldContactRows",
     "CaptureRegionLimit",
 ]

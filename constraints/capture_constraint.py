@@ -7,11 +7,12 @@ import numpy as np
 from numba import njit
 
 from impactqp.controller.model.capture import GRAVITY, capture_region
-from impactqp.controller.model.floating_maps import product
+from impactqp.controller.model.jump_kernels import product
+from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.model.whole_body_terms import WholeBodyTerms
 
 from .constraint import Constraint, ControlCycle
-from .floating_impact import FloatingExpectedImpact
+from .impact_model import ExpectedImpact
 
 
 class CaptureRegionLimit(Constraint):
@@ -42,7 +43,9 @@ class CaptureRegionLimit(Constraint):
 
     relaxed = True
 
-    def __init__(self, impact: FloatingExpectedImpact, polygon: np.ndarray, ground_height: float = 0.0):
+    def __init__(self, impact: ExpectedImpact, polygon: np.ndarray, ground_height: float = 0.0):
+        if not impact.held_contacts:
+            raise BadInputError("the capture region needs an impact with held contacts (the robot's support)")
         self.impact = impact
         self.polygon = np.asarray(polygon, dtype=float)
         self.ground_height = float(ground_height)

@@ -1,14 +1,16 @@
 """The impact the impact-aware constraints prepare for (``ExpectedImpact``): surface, jump model
-and activation rule.
+and activation rule, for any robot (a fixed-base arm, or a humanoid on held contacts).
 
 Jump prediction (docs/qp-constraints.md). With the pre-impact velocity dq- = dq + ddq dt, the
 chosen predictor (``controller.model.jump``, ``JumpModel.unit_matrices``) gives an impulse
-iota = G J dq- and a joint-velocity jump ddq_jump = K iota = A dq-, A = K G J, both linear in dq-:
+iota = G J dq- and a velocity jump ddq_jump = K iota = A dq-, A = K G J, both linear in dq-:
 
     crb        (12), (20)-(21)   G = -(1+c_r) n n^T / (n^T W_crb n),   K = J+ W_crb
     gm         (12), (22)-(23)   G = -(1+c_r) n n^T / (n^T W_gm n),    K = J+ W_gm
     classical  (5)-(6)           G = -(1+c_r) (J M^-1 J^T)^-1,         K = M^-1 J^T
 
+(with held contacts Jf, M^-1 becomes P_f = M^-1 - M^-1 Jf^T (Jf M^-1 Jf^T)^-1 Jf M^-1 and J+ the
+held-contact right inverse J#, and the centre of mass jumps by C iota: ``jump``'s docstring).
 The post-impact velocity is dq+ = (I + A) dq- and the impulsive joint torque over the impact
 duration delta_t is J^T iota / delta_t = P dq- / delta_t with P = J^T G J.
 
@@ -28,8 +30,8 @@ from __future__ import annotations
 from numba import njit
 
 from impactqp.controller.model.jump import JumpMatrices, JumpModel, jump_model
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import ModelTerms
 from impactqp.controller.model import validation
 from impactqp.controller.model.validation import BadInputError
 
@@ -59,8 +61,11 @@ def jump_model_names(choice: str) -> tuple[str, ...]:
 class ExpectedImpact:
     """An expected impact on ``surface`` predicted with one jump model: the jump matrices of a
     state and whether the impact-aware rows apply to it (the activation rule), both computed
-    once per fill of the model terms (``ModelTerms.stamp``) and shared by the constraints and
-    the controller's prediction."""
+    once per fill of the model terms (their ``stamp``: ``ModelTerms`` of an arm,
+    ``WholeBodyTerms`` of a humanoid) and shared by the constraints and the controller's
+    prediction. ``held_contacts`` says the robot stands on held contacts (its terms'
+    ``held_jacobian`` has rows): then only the models of ``jump_kernels.HELD_CONTACT_METHODS``
+    apply (the others are bad input, here rather than at the first cycle)."""
 
     def __init__(
         self,
@@ -71,7 +76,14 @@ class ExpectedImpact:
         lookahead_time: float = 0.30,
         release_speed: float = 0.02,
         always_active: bool = False,
+        held_contacts: bool = False,
     ):
+        self.held_contacts = validation.boolean(held_contacts, "held_contacts")
+        if self.held_contacts and jump_model_name not in HELD_CONTACT_METHODS:
+            raise BadInputError(
+                f"unknown jump model {jump_model_name!r} with held contacts; "
+                f"choose from {', '.join(HELD_CONTACT_METHODS)}"
+            )
         self.surface = surface
         self.model: JumpModel = jump_model(jump_model_name)
         self.restitution = validation.restitution(restitution)
@@ -92,17 +104,17 @@ class ExpectedImpact:
     def name(self) -> str:
         return self.model.name
 
-    def matrices(self, terms: ModelTerms) -> JumpMatrices:
-        """A and P of this state (the normal and the restitution were checked once, above)."""
+    def matrices(self, terms) -> JumpMatrices:
+        """A, P, G (and C) of this state (the normal and the restitution were checked once, above)."""
         self._update(terms)
         return self._matrices
 
-    def is_active(self, terms: ModelTerms) -> bool:
+    def is_active(self, terms) -> bool:
         """The activation rule of the module docstring for this state."""
         self._update(terms)
         return self._active
 
-    def _update(self, terms: ModelTerms) -> None:
+    def _update(self, terms) -> None:
         if terms.stamp == self._stamp:
             return
         normal = self.surface.normal

@@ -1,10 +1,13 @@
-"""Constraints: every row set is equivalent to the physical limit it stands for."""
+"""Constraints: every row set is equivalent to the physical limit it stands for, on the arms and on the
+standing G1 (the expected impact and its post-impact rows with held contacts)."""
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from reference.constraints import reference_normal_motion, reference_recoverable, reference_rows
+from whole_body_states import NORMAL, approach_velocity, stance, standing_states, upright, wall_ahead
+from whole_body_states import robot as g1
 
 from conftest import JOINTS
 from impactqp.constraints import (
@@ -18,6 +21,7 @@ from impactqp.constraints import (
     VelocityLimit,
 )
 from impactqp.constraints.impact_model import normal_motion
+from impactqp.controller.model import floating_base
 from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.max_speed import approach_direction
 from impactqp.controller.model.postures import Surface
@@ -313,3 +317,81 @@ def test_joint_limit_boxes_on_a_floating_base_bound_the_trailing_joints_only():
         assert np.all(full.lower[:base] == -1e9) and np.all(full.upper[:base] == 1e9)
         np.testing.assert_array_equal(full.lower[base:], joints.lower)
         np.testing.assert_array_equal(full.upper[base:], joints.upper)
+
+
+H = 0.0025  # s: a jerk horizon of the G1's cycle
+
+
+def test_g1_rule_is_on_while_approaching_near_the_wall_and_off_when_leaving_or_far():
+    q = stance("parallel")
+    impact = ExpectedImpact(wall_ahead(q, 0.05), held_contacts=True)
+    far = ExpectedImpact(wall_ahead(q, 0.5), held_contacts=True)
+    approaching, leaving = approach_velocity(q, 0.3), approach_velocity(q, -0.3)
+    assert impact.is_active(g1().terms(q, approaching))
+    assert not impact.is_active(g1().terms(q, leaving))
+    assert not far.is_active(g1().terms(q, approaching))
+    assert ExpectedImpact(wall_ahead(q, 0.5), always_active=True, held_contacts=True).is_active(g1().terms(q, leaving))
+
+
+@pytest.mark.parametrize("method", ["crb", "gm", "classical"])
+def test_g1_maps_are_the_held_contact_predictors_of_the_state_computed_once_per_state(method):
+    q = stance("wide")
+    impact = ExpectedImpact(wall_ahead(q), method, restitution=0.3, held_contacts=True)
+    terms = g1().terms(q, approach_velocity(q, 0.2))
+    maps = impact.matrices(terms)
+    assert impact.matrices(terms) is maps
+    np.testing.assert_allclose(maps.jump_matrix, jump_model(method).unit_matrices(terms, NORMAL, 0.3).jump_matrix)
+    assert impact.matrices(g1().terms(q)) is not maps
+
+
+@pytest.mark.parametrize("name", ["robust", "classical_normal", "unknown"])
+def test_only_the_held_contact_models_are_accepted_with_held_contacts(name):
+    with pytest.raises(BadInputError):
+        ExpectedImpact(wall_ahead(stance("parallel")), name, held_contacts=True)
+
+
+@settings(max_examples=15, deadline=None)
+@given(standing_states(), st.sampled_from(floating_base.METHODS), st.floats(0.05, 3.0), st.integers(0, 2**31))
+def test_g1_rows_hold_exactly_when_the_predicted_post_impact_joint_velocities_are_in_the_limits(
+    state, method, speed, seed
+):
+    """C dv <= u and >= l  <=>  |S (v' + dv_jump(v'))| <= dq_max with v' = v + dv h, dv_jump
+    the feet-held predictor's jump at v- = J v' and S the joints' rows."""
+    name, q, v = state
+    model = g1()
+    v = v + approach_velocity(q, speed)
+    terms = model.terms(q, v)
+    impact = ExpectedImpact(wall_ahead(q), method, always_active=True, held_contacts=True)
+    rows = PostImpactVelocityLimit(impact, model.dq_max).compute(
+        terms, ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), H)
+    )
+    dv = np.random.default_rng(seed).normal(scale=2000.0, size=model.nv)
+    v_next = v + dv * H
+    post = (v_next + floating_base.predict(model.base.terms(q), method, NORMAL, terms.J @ v_next).dv)[model.base_nv:]
+    inside_rows = np.all(rows.C @ dv <= rows.upper + 1e-9) and np.all(rows.C @ dv >= rows.lower - 1e-9)
+    margin = np.min(model.dq_max - np.abs(post))
+    if abs(margin) > 1e-6:
+        assert inside_rows == (margin > 0)
+    np.testing.assert_allclose(rows.C @ dv - rows.upper, (post - model.dq_max) / H, atol=1e-6 / H)
+
+
+def test_g1_rows_are_unbounded_while_no_impact_is_coming():
+    model = g1()
+    q = model.terms(upright()).q
+    limit = PostImpactVelocityLimit(ExpectedImpact(wall_ahead(q, 0.8), held_contacts=True), model.dq_max)
+    rows = limit.compute(model.terms(q), ControlCycle(0.001, np.full(model.nv, -1.0), np.full(model.nv, 1.0), H))
+    assert np.all(rows.lower == -np.inf) and np.all(rows.upper == np.inf)
+
+
+@settings(max_examples=10, deadline=None)
+@given(standing_states(max_speed=1.0), st.sampled_from(floating_base.METHODS), st.booleans())
+def test_g1_compiled_post_impact_rows_equal_the_numpy_reference(state, method, always):
+    """On a floating base the kernel writes the joints' rows S (I + A) of the numpy statement."""
+    _, q, v = state
+    model = g1()
+    terms = model.terms(q, v + approach_velocity(q, 0.3))
+    c = ControlCycle(0.001, np.full(model.nv, -1.0), np.full(model.nv, 1.0), H)
+    impact = ExpectedImpact(wall_ahead(q), method, always_active=always, held_contacts=True)
+    limit = PostImpactVelocityLimit(impact, model.dq_max)
+    for a, b in zip(_rows_of(limit, terms, c, False), _rows_of(limit, terms, c, True)):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-9)

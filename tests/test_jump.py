@@ -1,4 +1,6 @@
-"""First-principles checks of the jump predictors (controller/model/jump.py)."""
+"""First-principles checks of the jump predictors (controller/model/jump.py, its kernels
+controller/model/jump_kernels.py): the fixed-base arms', and the held-contact form against the
+standing G1's predictors themselves (controller/model/floating_base.py)."""
 
 import dataclasses
 
@@ -13,15 +15,22 @@ from reference.jump import (
     reference_crb_unit_maps,
     reference_rank_one_jump_matrices,
 )
+from reference.whole_body import feet_held_pinv
+from whole_body_states import standing_states, upright
+from whole_body_states import robot as g1
 
+from impactqp.controller.model.capture import com_jump_map
+from impactqp.controller.model import floating_base
 from impactqp.controller.model.jump import (
     JUMP_MODELS,
     METHODS,
     average_prediction_error,
     crb_inverse_inertia,
     gm_inverse_inertia,
+    jump_model,
     prediction_error,
 )
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS, held_contact_maps
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import PandaModel, SingularPostureError
 from impactqp.controller.model.validation import BadInputError
@@ -244,9 +253,11 @@ def test_compiled_rank_one_matrices_equal_the_numpy_reference(robot, q, normal, 
     for name in ("gm", "crb"):
         model = JUMP_MODELS[name]
         fast = model.unit_matrices(terms, normal, cr)
-        for a, b in zip(fast, reference_rank_one_jump_matrices(model, terms, normal, cr)):
-            np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12)
         maps = model.unit_maps(terms, normal, cr)
+        assert fast.com_map is None
+        for a, b in zip(fast[:3], reference_rank_one_jump_matrices(model, terms, normal, cr)[:3]):
+            np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(fast.impulse_map, maps.G, rtol=1e-10, atol=1e-12)
         np.testing.assert_allclose(fast.jump_matrix, maps.K @ maps.G @ terms.J, rtol=1e-8, atol=1e-10)
         np.testing.assert_allclose(fast.torque_matrix, terms.J.T @ maps.G @ terms.J, rtol=1e-8, atol=1e-10)
 
@@ -275,3 +286,65 @@ def test_every_entry_point_refuses_a_zero_or_non_finite_normal(robot, name):
             model.maps(terms, normal, 0.0)
         with pytest.raises(BadInputError, match="the surface normal"):
             model.predict(terms, normal, np.zeros(3), 0.0)
+
+
+@SETTINGS
+@given(q=joint_positions(), normal=unit_vectors(), cr=restitutions, seed=st.integers(0, 2**31))
+def test_held_contact_maps_with_no_held_contact_are_the_arms_maps(robot, q, normal, cr, seed):
+    """With Jf empty (a fixed base: the terms' held_jacobian has no rows), P_f = M^-1 and
+    J# = J+: the held-contact kernel gives the arm's A, P and G, and C = Jcom M^-1 J^T for any
+    Jcom."""
+    terms = terms_or_skip(robot, q)
+    assert terms.held_jacobian.shape == (0, robot.nv)
+    Jcom = np.random.default_rng(seed).normal(size=(3, robot.nv))
+    M_inv = np.linalg.inv(terms.M)
+    rigid = (terms.contact_point, terms.com, terms.inertia_com, terms.mass)
+    for code, name in enumerate(HELD_CONTACT_METHODS):
+        arm = JUMP_MODELS[name].unit_matrices(terms, normal, cr)
+        A, P, G, C = held_contact_maps(M_inv, terms.J6, terms.held_jacobian, Jcom, rigid, code, normal, cr)
+        for general, fixed in ((A, arm.jump_matrix), (P, arm.torque_matrix), (G, arm.impulse_map)):
+            np.testing.assert_allclose(general, fixed, rtol=1e-7, atol=1e-9 * (1 + np.abs(fixed).max()))
+        np.testing.assert_allclose(C, Jcom @ np.linalg.solve(terms.M, terms.J.T), rtol=1e-8, atol=1e-10)
+
+
+G1_SETTINGS = settings(max_examples=15, deadline=None)
+
+
+@G1_SETTINGS
+@given(standing_states(max_joint_offset=0.3, max_speed=1.0), st.sampled_from(HELD_CONTACT_METHODS), unit_vectors(),
+       st.floats(0.0, 1.0))
+def test_held_contact_maps_give_the_g1_predictors_jump_impulse_and_com_map(state, method, normal, restitution):
+    """With the feet held: A v = dv and G J v = iota of ``floating_base.predict`` at v- = J v;
+    P = J^T G J; C = Jcom P_f J^T."""
+    _, q, v = state
+    terms, base = g1().terms(q, v), g1().base.terms(q)
+    maps = jump_model(method).unit_matrices(terms, normal, restitution)
+    if abs(normal @ terms.J @ v) < 1e-3:
+        v = v + feet_held_pinv(terms.J, terms.Jf) @ (-0.1 * normal)
+    jump = floating_base.predict(base, method, normal, terms.J @ v, restitution)
+    scale = 1.0 + np.abs(jump.dv).max()
+    np.testing.assert_allclose(maps.jump_matrix @ v, jump.dv, atol=1e-8 * scale)
+    np.testing.assert_allclose(maps.impulse_map @ (terms.J @ v), jump.impulse, atol=1e-8 * (1 + np.abs(jump.impulse).max()))
+    np.testing.assert_allclose(maps.torque_matrix, terms.J.T @ maps.impulse_map @ terms.J, atol=1e-9 * scale)
+    np.testing.assert_allclose(maps.com_map, com_jump_map(base), atol=1e-10)
+
+
+@G1_SETTINGS
+@given(standing_states(max_joint_offset=0.3))
+def test_feet_held_pinv_is_a_right_inverse_that_keeps_the_feet_still(state):
+    _, q, _ = state
+    terms = g1().terms(q)
+    Jsharp = feet_held_pinv(terms.J, terms.Jf)
+    np.testing.assert_allclose(terms.J @ Jsharp, np.eye(3), atol=1e-9)
+    np.testing.assert_allclose(terms.Jf @ Jsharp, 0.0, atol=1e-9)
+    np.testing.assert_allclose(Jsharp, g1().base.terms(q).feet_held_pinv(), atol=1e-8)
+
+
+def test_held_contact_methods_are_the_floating_base_predictors():
+    assert set(HELD_CONTACT_METHODS) == set(floating_base.METHODS)
+
+
+def test_a_model_without_a_held_contact_form_is_refused_with_held_contacts():
+    terms = g1().terms(upright())
+    with pytest.raises(BadInputError):
+        JUMP_MODELS["classical_normal"].unit_matrices(terms, np.array([-1.0, 0, 0]), 0.0)

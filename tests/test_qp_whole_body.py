@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from whole_body_states import NORMAL, approach_velocity, controller, robot, stance, standing_states
 
 from impactqp.controller.model.floating_base import METHODS
-from impactqp.controller.model.floating_maps import floating_jump_maps
+from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.controller.model.validation import BadInputError
 
@@ -76,7 +76,7 @@ def test_impact_rows_bind_when_the_approach_speed_is_pushed_up(name, method, ask
     command = c.step(q, v)
     assert not command.is_fallback, command.message
     assert any(x.name in command.active_constraints for x in impact_rows(c)), command.active_constraints
-    maps = floating_jump_maps(robot().terms(q, command.dq_cmd), method, NORMAL, 0.0)
+    maps = jump_model(method).unit_matrices(robot().terms(q, command.dq_cmd), NORMAL, 0.0)
     post = command.dq_cmd + maps.jump_matrix @ command.dq_cmd
     assert np.all(np.abs(post[robot().base_nv:]) <= robot().dq_max + 1e-9)
 

@@ -11,7 +11,7 @@ def test_setup_assembles_the_tasks_and_constraints_and_refuses_a_bad_controller(
     c = controller("staggered", method="gm")
     names = [x.name for x in c.constraints]
     assert names == [
-        "joint_acceleration_limit", "joint_position_limit", "joint_velocity_limit", "foot_contact",
+        "joint_acceleration_limit", "joint_position_limit", "joint_velocity_limit", "held_contacts",
         "post_impact_velocity[gm]", "capture_region[gm]",
     ]
     assert [t.name for t in c.tasks] == ["contact_approach", "com", "frame[torso]", "posture", "damping"]

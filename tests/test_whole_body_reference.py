@@ -9,7 +9,7 @@ from reference.whole_body import reference_jump_maps, reference_terms
 from whole_body_states import NORMAL, approach_velocity, controller, robot, stance, standing_states
 
 from impactqp.controller.model.floating_base import METHODS
-from impactqp.controller.model.floating_maps import floating_jump_maps
+from impactqp.controller.model.jump import jump_model
 
 SETTINGS = settings(max_examples=15, deadline=None)
 TERM_FIELDS = (
@@ -45,7 +45,7 @@ def test_kernel_maps_are_the_reference_maps(state, method, restitution):
     _, q, v = state
     terms = robot().terms(q, v)
     for actual, expected in zip(
-        floating_jump_maps(terms, method, NORMAL, restitution), reference_jump_maps(terms, method, NORMAL, restitution)
+        jump_model(method).unit_matrices(terms, NORMAL, restitution), reference_jump_maps(terms, method, NORMAL, restitution)
     ):
         assert_close(actual, expected)
 

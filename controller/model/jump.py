@@ -26,9 +26,20 @@ inertia W_crb = (1/m) I3 - [r]x I_c^-1 [r]x (20), r = p - c from the centre of m
 locked robot to the contact point p. The CRB path never forms or inverts M; the GM and classical
 paths use a Cholesky solve of M.
 
-This module is the one home of these maps: ``JumpModel`` gives them for one state
-(``ModelTerms``), :func:`predict_from_terms` for N states at once (the batched terms of
-``controller.model.batch``, leading axis N).
+Held contacts. A robot standing on held contacts (a humanoid's soles, Jacobian Jf, kept still
+through the impact: M dv = J^T iota + Jf^T lambda, Jf dv = 0) has the same predictors with the
+constrained inverse inertia P_f = M^-1 - M^-1 Jf^T (Jf M^-1 Jf^T)^-1 Jf M^-1 in place of M^-1
+(W_gm = J P_f J^T, K = P_f J^T for the classical model) and the held-contact right inverse
+J# = N J^T (J N J^T)^-1 in place of J+ (N the projector onto the null space of Jf), W_crb that of
+the whole robot with every joint locked; the centre of mass then jumps by C iota,
+C = Jcom P_f J^T (docs/whole-body-qp.md). A fixed-base arm is the case of no held contact
+(Jf with no rows): P_f = M^-1, J# = J+, the table above.
+
+This module is the one home of these maps: ``JumpModel`` gives them for one state of any robot
+(``ModelTerms`` of an arm, ``WholeBodyTerms`` of a humanoid: ``unit_matrices`` reads the terms'
+``held_jacobian``), :func:`predict_from_terms` for N states of an arm at once (the batched
+terms of ``controller.model.batch``, leading axis N); the compiled kernels are in
+``jump_kernels``.
 """
 
 from __future__ import annotations
@@ -40,8 +51,15 @@ import numpy as np
 from numba import njit
 from scipy.linalg import cho_solve
 
-from .robot import ModelTerms, symmetric_inverse3_into
 from . import validation
+from .jump_kernels import (
+    HELD_CONTACT_METHODS,
+    crb_inverse_inertia_times,
+    crb_maps,
+    held_contact_maps,
+    rank_one_jump_matrices,
+)
+from .robot import ModelTerms
 from .validation import BadInputError, unit_normal
 
 METHODS = ("classical", "classical_normal", "gm", "crb")
@@ -108,10 +126,14 @@ class JumpMaps:
 
 class JumpMatrices(NamedTuple):
     """The maps of one predictor at one state in joint space: the jump dq_jump = jump_matrix dq-
-    (A = K G J) and the impulse torque J^T iota = torque_matrix dq- (P = J^T G J)."""
+    (A = K G J), the impulse torque J^T iota = torque_matrix dq- (P = J^T G J), the impulse
+    iota = impulse_map J dq- (G) and, with held contacts, the centre-of-mass velocity jump
+    com_map iota (C = Jcom P_f J^T, 3 x 3; None for a fixed base, whose terms have no Jcom)."""
 
     jump_matrix: np.ndarray
     torque_matrix: np.ndarray
+    impulse_map: np.ndarray
+    com_map: np.ndarray | None
 
 
 class JumpModel:
@@ -121,29 +143,47 @@ class JumpModel:
     ``maps``, ``matrices``, ``jump_matrix`` and ``predict`` check their inputs (the normal is
     normalised, the restitution must lie in [0, 1]; ``validation.py``) and call ``unit_maps``
     or ``unit_matrices``, which take a unit normal and a valid restitution. A caller that has
-    checked both once (``constraints.ExpectedImpact``) calls ``unit_matrices`` every cycle."""
+    checked both once (``constraints.ExpectedImpact``) calls ``unit_matrices`` every cycle.
+    ``maps`` and ``predict`` are the fixed-base forms (they read M's Cholesky factor and J+);
+    ``matrices`` and ``unit_matrices`` serve both forms (module docstring)."""
 
     name: str = ""
 
     def unit_maps(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMaps:
         raise NotImplementedError
 
-    def unit_matrices(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMatrices:
-        """A = K G J and P = J^T G J from G and K."""
+    def unit_matrices(self, terms, normal: np.ndarray, restitution: float) -> JumpMatrices:
+        """A, P, G (and C) of this state: the held-contact form (``jump_kernels.held_contact_maps``,
+        from the terms' M_inv, J6, held_jacobian and Jcom) when the terms have held contacts,
+        the fixed-base form (``fixed_base_matrices``) otherwise."""
+        if terms.held_jacobian.shape[0] == 0:
+            return self.fixed_base_matrices(terms, normal, restitution)
+        if self.name not in HELD_CONTACT_METHODS:
+            raise BadInputError(
+                f"the {self.name} model has no held-contact form; choose from {', '.join(HELD_CONTACT_METHODS)}"
+            )
+        rigid = (terms.contact_point, terms.com, terms.inertia_com, terms.mass)
+        method = HELD_CONTACT_METHODS.index(self.name)
+        return JumpMatrices(
+            *held_contact_maps(terms.M_inv, terms.J6, terms.held_jacobian, terms.Jcom, rigid, method, normal, restitution)
+        )
+
+    def fixed_base_matrices(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMatrices:
+        """A = K G J and P = J^T G J from G and K (no held contact)."""
         maps = self.unit_maps(terms, normal, restitution)
         GJ = maps.G @ terms.J
-        return JumpMatrices(maps.K @ GJ, terms.J.T @ GJ)
+        return JumpMatrices(maps.K @ GJ, terms.J.T @ GJ, maps.G, None)
 
     def maps(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMaps:
         """G, K (and W) for the surface normal ``normal`` and the restitution c_r."""
         return self.unit_maps(terms, unit_normal(normal), validation.restitution(restitution))
 
-    def matrices(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMatrices:
-        """A and P (7x7) for the surface normal ``normal`` and the restitution c_r."""
+    def matrices(self, terms, normal: np.ndarray, restitution: float) -> JumpMatrices:
+        """A and P (nv x nv), G (and C) for the surface normal ``normal`` and the restitution c_r."""
         return self.unit_matrices(terms, unit_normal(normal), validation.restitution(restitution))
 
-    def jump_matrix(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> np.ndarray:
-        """A = K G J (7x7): the jump ddq = A dq- for a pre-impact joint velocity dq-."""
+    def jump_matrix(self, terms, normal: np.ndarray, restitution: float) -> np.ndarray:
+        """A = K G J (nv x nv): the jump ddq = A dq- for a pre-impact joint velocity dq-."""
         return self.matrices(terms, normal, restitution).jump_matrix
 
     def predict(
@@ -201,13 +241,13 @@ class GeneralizedMomentumJump(JumpModel):
         W = self.inverse_inertia(terms)
         return JumpMaps(normal_impulse_map(W, normal, restitution), terms.J_pinv @ W, W)
 
-    def unit_matrices(self, terms, normal, restitution):
-        """A and P as the rank-one products of the module docstring, from W n alone
+    def fixed_base_matrices(self, terms, normal, restitution):
+        """A, P and G as the rank-one products of the module docstring, from W n alone
         (``inverse_inertia_times``, J+ = J^T (J J^T)^-1); compiled (``rank_one_jump_matrices``)."""
         n = terms.J.shape[1]
-        matrices = JumpMatrices(np.empty((n, n)), np.empty((n, n)))
+        matrices = JumpMatrices(np.empty((n, n)), np.empty((n, n)), np.empty((3, 3)), None)
         rank_one_jump_matrices(
-            terms.J, terms.JJt_inv, self.inverse_inertia_times(terms, normal), normal, restitution, *matrices
+            terms.J, terms.JJt_inv, self.inverse_inertia_times(terms, normal), normal, restitution, *matrices[:3]
         )
         return matrices
 
@@ -305,67 +345,3 @@ def prediction_error(predicted: np.ndarray, measured: np.ndarray) -> np.ndarray:
 def average_prediction_error(predicted: np.ndarray, measured: np.ndarray) -> np.ndarray:
     """Average prediction error (1/D) sum_i |ddq*_i - ddq°_i|, eq. (26), over the last axis."""
     return np.mean(np.abs(prediction_error(predicted, measured)), axis=-1)
-
-
-@njit(cache=True)
-def crb_inverse_inertia_times(contact_point, com, inertia_com, mass, normal):
-    """Kernel of ``CompositeRigidBodyJump.inverse_inertia_times``: W_crb n (20), with I_c^-1
-    by the adjugate (``symmetric_inverse3_into``)."""
-    rx, ry, rz = contact_point[0] - com[0], contact_point[1] - com[1], contact_point[2] - com[2]
-    nx, ny, nz = normal[0], normal[1], normal[2]
-    ax, ay, az = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx  # r x n
-    Iinv = np.empty((3, 3))
-    symmetric_inverse3_into(inertia_com, Iinv)
-    bx = Iinv[0, 0] * ax + Iinv[0, 1] * ay + Iinv[0, 2] * az
-    by = Iinv[1, 0] * ax + Iinv[1, 1] * ay + Iinv[1, 2] * az
-    bz = Iinv[2, 0] * ax + Iinv[2, 1] * ay + Iinv[2, 2] * az
-    out = np.empty(3)
-    out[0] = nx / mass - (ry * bz - rz * by)
-    out[1] = ny / mass - (rz * bx - rx * bz)
-    out[2] = nz / mass - (rx * by - ry * bx)
-    return out
-
-
-@njit(cache=True)
-def welded_inverse_inertia(contact_point, com, inertia_com, mass):
-    """Kernel: W_crb = I3 / m - [r]x I_c^-1 [r]x (20), r = contact point - CoM, with I_c^-1 by the
-    adjugate (``symmetric_inverse3_into``), symmetrized; the compiled twin of
-    :func:`crb_inverse_inertia` for the arm's and the standing humanoid's kernels."""
-    r = contact_point - com
-    R = np.zeros((3, 3))
-    R[0, 1], R[0, 2], R[1, 0], R[1, 2], R[2, 0], R[2, 1] = -r[2], r[1], r[2], -r[0], -r[1], r[0]
-    Iinv = np.empty((3, 3))
-    symmetric_inverse3_into(inertia_com, Iinv)
-    W = -(R @ Iinv @ R)
-    for i in range(3):
-        W[i, i] += 1.0 / mass
-    return 0.5 * (W + W.T)
-
-
-@njit(cache=True)
-def crb_maps(contact_point, com, inertia_com, mass, J, JJt_inv, normal, restitution):
-    """Kernel of ``CompositeRigidBodyJump.maps``: W_crb (20, ``welded_inverse_inertia``);
-    G = -(1+c_r) n n^T / (n^T W_crb n) (12); K = J^T (J J^T)^-1 W_crb (21). Returns (G, K, W)."""
-    W = welded_inverse_inertia(contact_point, com, inertia_com, mass)
-    Wn = W @ normal
-    scale = -(1.0 + restitution) / (normal @ Wn)
-    G = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            G[i, j] = scale * normal[i] * normal[j]
-    K = J.T @ (JJt_inv @ W)
-    return G, K, W
-
-
-@njit(cache=True)
-def rank_one_jump_matrices(J, JJt_inv, W_normal, normal, restitution, jump_matrix, torque_matrix):
-    """Kernel of ``GeneralizedMomentumJump.unit_matrices``: A = s (J^T (J J^T)^-1 W n)(J^T n)^T
-    and P = s (J^T n)(J^T n)^T with s = -(1+c_r) / (n^T W n), written into the two matrices."""
-    s = -(1.0 + restitution) / (normal[0] * W_normal[0] + normal[1] * W_normal[1] + normal[2] * W_normal[2])
-    y = JJt_inv @ (s * W_normal)
-    direction = J.T @ y
-    Jt_normal = normal @ J
-    for i in range(J.shape[1]):
-        for j in range(J.shape[1]):
-            jump_matrix[i, j] = direction[i] * Jt_normal[j]
-            torque_matrix[i, j] = s * Jt_normal[i] * Jt_normal[j]

@@ -86,6 +86,9 @@ class ModelTerms:
     the moving links, ``mass`` their total mass and ``inertia_com`` the rotational inertia of the
     locked robot about ``com`` (world axes), used by the composite-rigid-body model (20).
     ``JJt_inv`` is (J J^T)^-1, so that the right inverse of (17) is J+ = J^T (J J^T)^-1.
+    ``held_jacobian`` (0 x nv) and ``held_drift`` (0) are the held contacts' Jacobian Jf and drift
+    dJf dq: a fixed-base arm holds none, the case of the held-contact jump maps with Jf empty
+    (``controller.model.jump``).
 
     A controller refills one ModelTerms per cycle (``PandaModel.update_terms``); ``stamp``
     changes at every fill (and for a ``dataclasses.replace`` copy), so anything cached per
@@ -106,10 +109,13 @@ class ModelTerms:
     mass: float
     inertia_com: np.ndarray
     stamp: int = field(init=False, repr=False)
+    held_jacobian: np.ndarray = field(init=False, repr=False)
+    held_drift: np.ndarray = field(init=False, repr=False)
     _derived: dict = field(init=False, repr=False)
 
     def __post_init__(self):
         self.stamp = next(_FILLS)
+        self.held_jacobian, self.held_drift = np.empty((0, self.J.shape[-1])), np.empty(0)
         self._derived = {}
 
     @property

@@ -12,7 +12,7 @@ ddc = Jcom dv + dJcom v.
 ``dJ6_dq``, ``contact_point``, ``contact_rotation``; the contact is the right hand's), the feet
 (``Jf``, ``dJf_dq``: left then right, linear then angular rows), the centre of mass and the
 torso frame (``frame("torso")``) and M^-1 (Pinocchio's ``computeMinverse``), what the
-predictors' linear maps (``floating_maps``) need, so that one cycle computes the model once.
+predictors' linear maps (``jump``, held-contact form) need, so that one cycle computes the model once.
 A controller refills one WholeBodyTerms per cycle (``update_terms``); ``stamp`` changes at
 every fill, so anything cached per state keys on it.
 """
@@ -74,6 +74,17 @@ class WholeBodyTerms:
     def J(self) -> np.ndarray:
         """The 3 x nv linear Jacobian of the contact point."""
         return self.J6[:3]
+
+    @property
+    def held_jacobian(self) -> np.ndarray:
+        """The held contacts' Jacobian (the feet's ``Jf``), read by the held-contact jump maps
+        (``controller.model.jump``) and rows (``constraints.HeldContactRows``)."""
+        return self.Jf
+
+    @property
+    def held_drift(self) -> np.ndarray:
+        """The held contacts' drift dJf/dt v (the feet's ``dJf_dq``)."""
+        return self.dJf_dq
 
     def frame(self, name: str) -> FrameState:
         return self.frames[name]

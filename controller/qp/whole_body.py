@@ -14,7 +14,7 @@ H = A^T W A, g = -A^T W b (which skips the zero entries of the posture and dampi
 box intersection and the active set. The acceleration and jerk
 limits of the actuated joints always apply (``AccelerationLimit`` is added when missing); the
 base's accelerations get a generous box (``BASE_ACCELERATION_LIMIT``, no jerk limit): the
-feet's equality rows (``FootContact``) set them.
+feet's equality rows (``HeldContactRows``) set them.
 
 Fallback: when the state is unusable (wrong size, non-finite, a joint past its velocity limit),
 the QP is infeasible or no solver succeeds, the actuated joints brake within their acceleration
@@ -30,8 +30,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from impactqp.constraints import Constraint, ControlCycle
-from impactqp.constraints.floating_impact import FloatingExpectedImpact
+from impactqp.constraints import Constraint, ControlCycle, ExpectedImpact
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.model.whole_body_terms import BASE_ACCELERATION_LIMIT, WholeBodyModel, WholeBodyTerms
 from impactqp.tasks import Task
@@ -58,7 +57,7 @@ class WholeBodyController:
         constraints: list[Constraint],
         dt: float,
         solver: str = "daqp",
-        impact: FloatingExpectedImpact | None = None,
+        impact: ExpectedImpact | None = None,
         feasibility_tolerance: float = 1e-6,
     ):
         constraints = checked_constraints(tasks, constraints, dt)

@@ -5,8 +5,8 @@ Tasks (weighted least squares in dv): the hand's ``ContactApproachTask`` towards
 the ``CentreOfMassTask`` holding the CoM, the torso's orientation (``FrameTask`` on the torso
 frame, orientation rows only), a ``PostureTask`` on the joints and a ``DampingTask`` on the
 nv velocities (strict convexity). Constraints: the joints' acceleration and jerk limits, their
-position limits (braking horizon) and velocity limits, the feet (``FootContact``, equality
-rows), the predicted post-impact joint velocities (``FloatingPostImpactVelocityLimit``) and the
+position limits (braking horizon) and velocity limits, the feet (``HeldContactRows``, equality
+rows), the predicted post-impact joint velocities (``PostImpactVelocityLimit``) and the
 predicted post-impact CoM velocity inside the stance's capture region (``CaptureRegionLimit``).
 """
 
@@ -16,11 +16,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactqp.constraints import AccelerationLimit, PositionLimit, VelocityLimit
-from impactqp.constraints.capture_constraint import CaptureRegionLimit
-from impactqp.constraints.floating_impact import FloatingExpectedImpact
-from impactqp.constraints.floating_post_impact import FloatingPostImpactVelocityLimit
-from impactqp.constraints.foot_contact import FootContact
+from impactqp.constraints import (
+    AccelerationLimit,
+    CaptureRegionLimit,
+    ExpectedImpact,
+    HeldContactRows,
+    PositionLimit,
+    PostImpactVelocityLimit,
+    VelocityLimit,
+)
 from impactqp.controller.model.humanoid_stance import support_polygon
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.whole_body_terms import WholeBodyModel
@@ -52,7 +56,9 @@ class WholeBodySetup:
 def build_whole_body_controller(robot: WholeBodyModel, q_stance: np.ndarray, setup: WholeBodySetup) -> WholeBodyController:
     """The controller of ``setup`` for the robot standing at ``q_stance`` (its feet's support
     polygon bounds the capture region)."""
-    impact = FloatingExpectedImpact(setup.surface, setup.method, setup.restitution, always_active=setup.always_active)
+    impact = ExpectedImpact(
+        setup.surface, setup.method, setup.restitution, always_active=setup.always_active, held_contacts=True
+    )
     tasks = [
         ContactApproachTask(setup.surface.normal, setup.speed),
         CentreOfMassTask(weight=(setup.com_weight,) * 3),
@@ -64,8 +70,8 @@ def build_whole_body_controller(robot: WholeBodyModel, q_stance: np.ndarray, set
         AccelerationLimit(),
         PositionLimit(robot.q_min, robot.q_max, robot.ddq_max),
         VelocityLimit(robot.dq_max),
-        FootContact(),
-        FloatingPostImpactVelocityLimit(impact, robot.dq_max),
+        HeldContactRows(6 * len(robot.base.foot_frame_ids)),
+        PostImpactVelocityLimit(impact, robot.dq_max),
         CaptureRegionLimit(impact, support_polygon(robot.base, q_stance)),
     ]
     return WholeBodyController(robot, tasks, constraints, setup.dt, setup.solver, impact)

@@ -57,7 +57,8 @@ def reference_rows(constraint, terms, cycle, C, lower, upper) -> None:
         np.multiply(constraint.tau_max - terms.h, inv, out=upper)
     elif isinstance(constraint, PostImpactVelocityLimit):
         impact = constraint.impact
-        np.add(np.eye(C.shape[1]), impact.matrices(terms).jump_matrix, out=C)  # dq+ = (I + A) dq-
+        n = C.shape[1]  # dq+ = S (I + A) dq-, S the last rows (the actuated joints)
+        C[:] = (np.eye(n) + impact.matrices(terms).jump_matrix)[n - C.shape[0]:]
         symmetric_rows_into(C, terms.dq, constraint.dq_max, inv_h, impact.is_active(terms), lower, upper)
     elif isinstance(constraint, ImpulsiveTorqueLimit):
         impact = constraint.impact

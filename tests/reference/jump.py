@@ -1,4 +1,4 @@
-"""Plain-numpy statements of the compiled jump kernels (``controller.model.jump``)."""
+"""Plain-numpy statements of the compiled jump kernels (``controller.model.jump_kernels``)."""
 
 import numpy as np
 
@@ -28,10 +28,13 @@ def reference_crb_inverse_inertia_times(terms, normal) -> np.ndarray:
 
 
 def reference_rank_one_jump_matrices(model, terms, normal, restitution) -> JumpMatrices:
-    """``GeneralizedMomentumJump.unit_matrices`` (both normal-impulse models) in plain numpy:
-    A = s (J^T (J J^T)^-1 W n)(J^T n)^T and P = s (J^T n)(J^T n)^T, s = -(1+c_r) / (n^T W n)."""
+    """``GeneralizedMomentumJump.fixed_base_matrices`` (both normal-impulse models) in plain numpy:
+    A = s (J^T (J J^T)^-1 W n)(J^T n)^T, P = s (J^T n)(J^T n)^T and G = s n n^T,
+    s = -(1+c_r) / (n^T W n)."""
     Jt_normal = normal @ terms.J
     W_normal = model.inverse_inertia_times(terms, normal)
     s = -(1.0 + restitution) / float(normal @ W_normal)
     jump_direction = terms.J.T @ (terms.JJt_inv @ (s * W_normal))
-    return JumpMatrices(jump_direction[:, None] * Jt_normal, (s * Jt_normal)[:, None] * Jt_normal)
+    return JumpMatrices(
+        jump_direction[:, None] * Jt_normal, (s * Jt_normal)[:, None] * Jt_normal, s * np.outer(normal, normal), None
+    )

@@ -1,5 +1,5 @@
 """Plain-numpy statements of the G1's model terms (``WholeBodyModel.terms``) and of the
-floating-base jump maps (``floating_jump_maps``) before their compiled kernels: the terms from
+held-contact jump maps (``JumpModel.unit_matrices`` with held contacts) before their compiled kernels: the terms from
 independent Pinocchio calls, the maps with the full constrained inverse inertia P, the feet-held
 right inverse J#."""
 
@@ -7,7 +7,7 @@ import numpy as np
 import pinocchio as pin
 
 from impactqp.controller.model.floating_base import crb_inverse_inertia
-from impactqp.controller.model.floating_maps import FloatingJumpMaps
+from impactqp.controller.model.jump import JumpMatrices
 from impactqp.controller.model.whole_body_terms import FrameState, WholeBodyTerms
 
 
@@ -48,8 +48,9 @@ def reference_terms(robot, q, v) -> WholeBodyTerms:
     )
 
 
-def reference_jump_maps(terms, method: str, normal: np.ndarray, c_r: float) -> FloatingJumpMaps:
-    """``floating_jump_maps``: P = M^-1 - M^-1 Jf^T (Jf M^-1 Jf^T)^-1 Jf M^-1 formed in full."""
+def reference_jump_maps(terms, method: str, normal: np.ndarray, c_r: float) -> JumpMatrices:
+    """``JumpModel.unit_matrices`` with held contacts (``jump_kernels.held_contact_maps``):
+    P_f = M^-1 - M^-1 Jf^T (Jf M^-1 Jf^T)^-1 Jf M^-1 formed in full."""
     J, Jf = terms.J, terms.Jf
     MiJf = terms.M_inv @ Jf.T
     P = terms.M_inv - MiJf @ np.linalg.solve(Jf @ MiJf, MiJf.T)
@@ -64,11 +65,11 @@ def reference_jump_maps(terms, method: str, normal: np.ndarray, c_r: float) -> F
         G = (-(1.0 + c_r) / (normal @ W @ normal)) * np.outer(normal, normal)
         NJt = J.T - Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ J.T)
         K = NJt @ np.linalg.inv(J @ NJt) @ W
-    return FloatingJumpMaps(G, K @ (G @ J), terms.Jcom @ PJt)
+    return JumpMatrices(K @ (G @ J), J.T @ G @ J, G, terms.Jcom @ PJt)
 
 
 def feet_held_pinv(J: np.ndarray, Jf: np.ndarray) -> np.ndarray:
-    """J# = N J^T (J N J^T)^-1 (``floating_maps``' module docstring): the least-norm dv with
-    J dv = x, Jf dv = 0, which ``floating_jump_maps`` computes inside its kernel."""
+    """J# = N J^T (J N J^T)^-1 (``jump_kernels``' module docstring): the least-norm dv with
+    J dv = x, Jf dv = 0, which ``held_contact_maps`` computes inside its kernel."""
     NJt = J.T - Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ J.T)
     return NJt @ np.linalg.inv(J @ NJt)

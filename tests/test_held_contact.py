@@ -1,11 +1,10 @@
-"""The feet's equality rows (constraints/foot_contact.py)."""
+"""The held contacts' equality rows (constraints/held_contact.py): the G1's feet."""
 
 import numpy as np
 from hypothesis import given, settings
 from whole_body_states import integrate, robot, standing_states
 
-from impactqp.constraints import ControlCycle
-from impactqp.constraints.foot_contact import FootContact
+from impactqp.constraints import ControlCycle, HeldContactRows
 
 EPS = 1e-6
 
@@ -18,10 +17,12 @@ def test_any_acceleration_on_the_rows_keeps_the_feet_twists(state):
     _, q, v = state
     terms = robot().terms(q, v)
     nv = robot().nv
-    rows = FootContact().compute(terms, ControlCycle(0.001, np.zeros(nv), np.zeros(nv), 0.001))
+    rows = HeldContactRows(12).compute(terms, ControlCycle(0.001, np.zeros(nv), np.zeros(nv), 0.001))
     np.testing.assert_array_equal(rows.lower, rows.upper)
+    np.testing.assert_array_equal(rows.C, terms.held_jacobian)  # one 6-row block per foot: Jf
     rng = np.random.default_rng(0)
     dv = np.linalg.lstsq(rows.C, rows.lower, rcond=None)[0] + (np.eye(nv) - np.linalg.pinv(rows.C) @ rows.C) @ rng.normal(size=nv)
     ahead = robot().terms(integrate(q, v, EPS)).Jf @ (v + dv * EPS)
     behind = robot().terms(integrate(q, v, -EPS)).Jf @ (v - dv * EPS)
     np.testing.assert_allclose((ahead - behind) / (2 * EPS), 0.0, atol=1e-5 * (1 + np.abs(dv).max()))
+

@@ -1,0 +1,165 @@
+"""The compiled kernels (numba) of the jump maps of ``controller.model.jump`` (docs/predictors.md).
+
+Two forms of the same predictors, A = K G J the jump matrix, P = J^T G J the impulse-torque
+matrix, G the impulse map:
+
+- no held contact (a fixed-base arm): the CRB maps (``crb_maps``), W_crb n
+  (``crb_inverse_inertia_times``) and the rank-one A and P of the normal-impulse models (12)
+  from W n alone (``rank_one_jump_matrices``), J+ = J^T (J J^T)^-1 (17);
+- held contacts (a humanoid's soles, Jacobian Jf: bilateral, they stay still through the
+  impact, M dv = J^T iota + Jf^T lambda, Jf dv = 0): ``held_contact_maps`` from M^-1 with the
+  constrained inverse inertia P_f = M^-1 - M^-1 Jf^T (Jf M^-1 Jf^T)^-1 Jf M^-1 in place of M^-1,
+  W_gm = J P_f J^T, and the held-contact right inverse J# = N J^T (J N J^T)^-1 in place of J+
+  (N = I - Jf^T (Jf Jf^T)^-1 Jf, the projector onto the null space of Jf), plus the centre-of-mass
+  jump map C = Jcom P_f J^T. With Jf empty, P_f = M^-1 and J# = J+: the first form.
+
+Small products are written as loops (``product``, ``product_t``): BLAS would start threads for
+these small matrices, which costs more than the product on a loaded machine.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .robot import symmetric_inverse3_into
+
+HELD_CONTACT_METHODS = ("classical", "gm", "crb")
+"""The predictors with held contacts, in the order of ``held_contact_maps``' method codes."""
+CLASSICAL, CRB = HELD_CONTACT_METHODS.index("classical"), HELD_CONTACT_METHODS.index("crb")
+
+
+@njit(cache=True)
+def crb_inverse_inertia_times(contact_point, com, inertia_com, mass, normal):
+    """Kernel of ``CompositeRigidBodyJump.inverse_inertia_times``: W_crb n (20), with I_c^-1
+    by the adjugate (``symmetric_inverse3_into``)."""
+    rx, ry, rz = contact_point[0] - com[0], contact_point[1] - com[1], contact_point[2] - com[2]
+    nx, ny, nz = normal[0], normal[1], normal[2]
+    ax, ay, az = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx  # r x n
+    Iinv = np.empty((3, 3))
+    symmetric_inverse3_into(inertia_com, Iinv)
+    bx = Iinv[0, 0] * ax + Iinv[0, 1] * ay + Iinv[0, 2] * az
+    by = Iinv[1, 0] * ax + Iinv[1, 1] * ay + Iinv[1, 2] * az
+    bz = Iinv[2, 0] * ax + Iinv[2, 1] * ay + Iinv[2, 2] * az
+    out = np.empty(3)
+    out[0] = nx / mass - (ry * bz - rz * by)
+    out[1] = ny / mass - (rz * bx - rx * bz)
+    out[2] = nz / mass - (rx * by - ry * bx)
+    return out
+
+
+@njit(cache=True)
+def welded_inverse_inertia(contact_point, com, inertia_com, mass):
+    """Kernel: W_crb = I3 / m - [r]x I_c^-1 [r]x (20), r = contact point - CoM, with I_c^-1 by the
+    adjugate (``symmetric_inverse3_into``), symmetrized; the compiled twin of
+    :func:`crb_inverse_inertia` for the arm's and the standing humanoid's kernels."""
+    r = contact_point - com
+    R = np.zeros((3, 3))
+    R[0, 1], R[0, 2], R[1, 0], R[1, 2], R[2, 0], R[2, 1] = -r[2], r[1], r[2], -r[0], -r[1], r[0]
+    Iinv = np.empty((3, 3))
+    symmetric_inverse3_into(inertia_com, Iinv)
+    W = -(R @ Iinv @ R)
+    for i in range(3):
+        W[i, i] += 1.0 / mass
+    return 0.5 * (W + W.T)
+
+
+@njit(cache=True)
+def crb_maps(contact_point, com, inertia_com, mass, J, JJt_inv, normal, restitution):
+    """Kernel of ``CompositeRigidBodyJump.unit_maps``: W_crb (20, ``welded_inverse_inertia``);
+    G = -(1+c_r) n n^T / (n^T W_crb n) (12); K = J^T (J J^T)^-1 W_crb (21). Returns (G, K, W)."""
+    W = welded_inverse_inertia(contact_point, com, inertia_com, mass)
+    Wn = W @ normal
+    scale = -(1.0 + restitution) / (normal @ Wn)
+    G = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            G[i, j] = scale * normal[i] * normal[j]
+    K = J.T @ (JJt_inv @ W)
+    return G, K, W
+
+
+@njit(cache=True)
+def rank_one_jump_matrices(J, JJt_inv, W_normal, normal, restitution, jump_matrix, torque_matrix, impulse_map):
+    """Kernel of ``GeneralizedMomentumJump.fixed_base_matrices``: A = s (J^T (J J^T)^-1 W n)(J^T n)^T,
+    P = s (J^T n)(J^T n)^T and G = s n n^T with s = -(1+c_r) / (n^T W n), written into the three
+    matrices."""
+    s = -(1.0 + restitution) / (normal[0] * W_normal[0] + normal[1] * W_normal[1] + normal[2] * W_normal[2])
+    y = JJt_inv @ (s * W_normal)
+    direction = J.T @ y
+    Jt_normal = normal @ J
+    for i in range(J.shape[1]):
+        for j in range(J.shape[1]):
+            jump_matrix[i, j] = direction[i] * Jt_normal[j]
+            torque_matrix[i, j] = s * Jt_normal[i] * Jt_normal[j]
+    for i in range(3):
+        for j in range(3):
+            impulse_map[i, j] = s * normal[i] * normal[j]
+
+
+@njit(cache=True)
+def held_contact_maps(M_inv, J6, Jf, Jcom, rigid, method, normal, c_r):
+    """Kernel: (A = K G J, P = J^T G J, G, C = Jcom P_f J^T) (module docstring) of the method
+    ``HELD_CONTACT_METHODS[method]``, rigid = (contact point, CoM, centroidal inertia, mass) for
+    W_crb (20, ``welded_inverse_inertia``):
+
+        classical  (5)-(6)           G = -(1 + c_r) W_gm^-1,                  K = P_f J^T
+        gm         (12), (22)-(23)   G = -(1 + c_r) n n^T / (n^T W_gm n),     K = J# W_gm
+        crb        (12), (20)-(21)   G = -(1 + c_r) n n^T / (n^T W_crb n),    K = J# W_crb
+
+    Never forms P_f: with Y = [Jf; J] M^-1 (M^-1 symmetric), (P_f J^T)^T = Y_J - Z^T Y_f,
+    Z = (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T; with no held contact (Jf of no rows), (P_f J^T)^T = Y_J
+    and (N J^T)^T = J."""
+    J = np.ascontiguousarray(J6[:3])
+    YJ = product(J, M_inv)
+    PJt_T = YJ
+    NJt_T = J
+    if Jf.shape[0] > 0:
+        Yf = product(Jf, M_inv)
+        Z = np.linalg.solve(product_t(Jf, Yf), product_t(Jf, YJ))
+        PJt_T = YJ - product(np.ascontiguousarray(Z.T), Yf)
+        # (N J^T)^T = J - (Jf J^T)^T (Jf Jf^T)^-1 Jf
+        NJt_T = J - product(np.ascontiguousarray(np.linalg.solve(product_t(Jf, Jf), product_t(Jf, J)).T), Jf)
+    W = product_t(J, PJt_T)
+    W = np.ascontiguousarray(0.5 * (W + W.T))
+    if method == CLASSICAL:
+        G = np.ascontiguousarray(-(1.0 + c_r) * np.linalg.inv(W))
+        K_T = PJt_T
+    else:
+        if method == CRB:
+            W = welded_inverse_inertia(*rigid)
+        G = (-(1.0 + c_r) / np.sum(np.outer(normal, normal) * W)) * np.outer(normal, normal)
+        # K^T = ((J N J^T)^-1 W)^T (N J^T)^T
+        K_T = product(np.ascontiguousarray(np.linalg.solve(product_t(J, NJt_T), W).T), NJt_T)
+    GJ = product(G, J)
+    A = product(np.ascontiguousarray(K_T.T), GJ)
+    return A, product(np.ascontiguousarray(J.T), GJ), G, product_t(Jcom, PJt_T)
+
+
+@njit(cache=True)
+def product(A, B):
+    """Kernel: the matrix product A B in plain loops, skipping A's zero entries (a foot's
+    Jacobian row has entries for the base and one leg only)."""
+    rows, inner = A.shape
+    out = np.zeros((rows, B.shape[1]))
+    for i in range(rows):
+        for k in range(inner):
+            a = A[i, k]
+            if a == 0.0:
+                continue
+            for j in range(B.shape[1]):
+                out[i, j] += a * B[k, j]
+    return out
+
+
+@njit(cache=True)
+def product_t(A, B):
+    """Kernel: A B^T in plain loops, each entry the dot product of two rows."""
+    out = np.empty((A.shape[0], B.shape[0]))
+    for i in range(A.shape[0]):
+        for j in range(B.shape[0]):
+            total = 0.0
+            for k in range(A.shape[1]):
+                total += A[i, k] * B[j, k]
+            out[i, j] = total
+    return out
