@@ -82,7 +82,8 @@ from impactqp.controller.model.humanoid_stance import stance_posture, support_po
 from impactqp.controller.model.robot_description import Stance
 
 from .humanoid_feet import CONE, LOAD, MARGIN, SPEED, lift_onset, slip_onset, sole_state, worst
-from .humanoid_scene import build_humanoid_scene, to_pinocchio
+from .humanoid_scene import build_humanoid_scene
+from .scene import to_pinocchio
 from .servo import ComputedTorqueServo, StandingSupport
 
 CONTROL_PERIOD = 1e-3

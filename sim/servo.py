@@ -35,7 +35,7 @@ import numpy as np
 from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.humanoid_max_speed import standing_wrenches
 
-from .humanoid_scene import to_pinocchio
+from .scene import to_pinocchio
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,9 @@ class ComputedTorqueServo:
     the plant's armature and payload exactly.
     """
 
-    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, gain: float, standing: StandingSupport | None = None):
+    def __init__(
+        self, model: mujoco.MjModel, data: mujoco.MjData, gain: float, standing: StandingSupport | None = None
+    ):
         self.model, self.data, self.standing = model, data, standing
         self.kp, self.kd = gain * gain, 2.0 * gain
         base_nq, base_nv = (standing.base_nq, standing.base_nv) if standing is not None else (0, 0)
@@ -93,7 +95,8 @@ class ComputedTorqueServo:
         data = self.data
         acceleration = self._acceleration
         acceleration[:] = (dq_cmd - self.dq_ref) / dt
-        acceleration += self.kp * (self.q_ref - data.qpos[self.coordinates]) + self.kd * (self.dq_ref - data.qvel[self.joints])
+        position_error = self.q_ref - data.qpos[self.coordinates]
+        acceleration += self.kp * position_error + self.kd * (self.dq_ref - data.qvel[self.joints])
         if self.standing is None:
             mujoco.mj_mulM(self.model, data, self._torque, acceleration)
             self._torque += data.qfrc_bias

@@ -26,7 +26,8 @@ DT = 1e-3
 
 
 def standing_servo(scene, robot: FloatingBaseModel) -> ComputedTorqueServo:
-    return ComputedTorqueServo(scene.model, scene.data, SERVO_GAIN, StandingSupport(robot, scene.base_nq, scene.base_nv))
+    standing = StandingSupport(robot, scene.base_nq, scene.base_nv)
+    return ComputedTorqueServo(scene.model, scene.data, SERVO_GAIN, standing)
 
 
 # ---------------------------------------------------------------------- fixed base: the arm
@@ -133,7 +134,8 @@ def test_a_held_servo_only_damps_the_joints():
     M = np.empty((scene.model.nv, scene.model.nv))
     mujoco.mj_fullM(scene.model, scene.data, M)
     free_base = M[joints, joints] - M[joints, base] @ np.linalg.solve(M[base, base], M[base, joints])
-    expected = free_base @ (-2.0 * SERVO_GAIN * scene.data.qvel[joints]) + scene.data.qfrc_bias[joints] - servo.standing.torques(scene.data.qpos, scene.data.qvel)
+    held = servo.standing.torques(scene.data.qpos, scene.data.qvel)
+    expected = free_base @ (-2.0 * SERVO_GAIN * scene.data.qvel[joints]) + scene.data.qfrc_bias[joints] - held
     tau = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
     np.testing.assert_allclose(tau, np.clip(expected, -robot.tau_max, robot.tau_max), rtol=1e-9, atol=1e-9)
 
