@@ -77,6 +77,7 @@ HAND_GEOM = "hand_tool"
 HAND_RADIUS = 0.02
 WALL_GEOM = "wall"
 FLOOR_GEOM = "floor"
+FLOOR_SIZE = 2.0  # m: the floor plane's half-size
 FREE_JOINT = "floating_base"
 CONTACT_PAIR = "tool_wall"
 PAYLOAD_BODY = "payload"
@@ -202,16 +203,14 @@ def _add_tool(mount, tool: ToolDescription, contact: dict) -> None:
 
 @dataclass(frozen=True)
 class Environment:
-    """What the robot meets: the ``wall`` (its pose and, unless ``contact`` says otherwise, its
-    friction) as a square plane of half-size ``wall_size`` (m), the contact parameters, the name
-    of the contact geometry/wall pair (``pair``, "" for none) and, for held contacts, the floor's
-    half-size (m)."""
+    """What the robot hits: the ``wall``'s pose, a square plane of half-size ``wall_size`` (m), the
+    contact parameters of every pair (``contact``: the wall's friction; a held contact's pairs,
+    its own) and the name of the contact geometry/wall pair (``pair``, "" for none)."""
 
     wall: Surface
     contact: ContactParameters
     wall_size: float
     pair: str = CONTACT_PAIR
-    floor_size: float = 2.0
 
 
 def add_environment(spec, robot: RobotDescription, contact_geom: str, environment: Environment) -> None:
@@ -221,7 +220,7 @@ def add_environment(spec, robot: RobotDescription, contact_geom: str, environmen
     soles = {c.frame: [g for g in spec.body(c.frame).geoms if g.type == mujoco.mjtGeom.mjGEOM_SPHERE] for c in held}
     if held:
         # the floor's own friction is unused (each sole's pair sets its held contact's)
-        size = environment.floor_size
+        size = FLOOR_SIZE
         spec.worldbody.add_geom(name=FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[size, size, 0.01],
                                 **contact.geom(max(c.friction for c in held)), **NO_COLLISION)
     wall, size = environment.wall, environment.wall_size

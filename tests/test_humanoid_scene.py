@@ -31,8 +31,7 @@ def test_mass_matrices_agree_up_to_the_base_velocity_convention(setup):
     """v_pin = T v_mj with T = diag(R^T, I): MuJoCo's M equals T^T M_pin T."""
     robot, q, scene = setup
     scene.set_state(q)
-    M = np.empty((scene.model.nv, scene.model.nv))
-    mujoco.mj_fullM(scene.model, scene.data, M)
+    M = scene.mass_matrix()
     T = np.eye(scene.model.nv)
     T[:3, :3] = pin.Quaternion(q[3:robot.base_nq]).matrix().T
     np.testing.assert_allclose(M, T.T @ robot.terms(q).M @ T, atol=1e-10)
@@ -75,8 +74,7 @@ def test_armature_adds_rotor_inertia_to_the_joints_only(setup, armature):
     expected = {None: joint_armature(robot.joint_names), 0.05: np.full(robot.n_joints, 0.05)}.get(armature, per_joint)
     scene = build_humanoid_scene(robot, wall_x=0.6, armature=given)
     scene.set_state(q)
-    M = np.empty((scene.model.nv, scene.model.nv))
-    mujoco.mj_fullM(scene.model, scene.data, M)
+    M = scene.mass_matrix()
     T = np.eye(scene.model.nv)
     T[:3, :3] = pin.Quaternion(q[3:robot.base_nq]).matrix().T
     rotor = np.diag(np.r_[np.zeros(robot.base_nv), expected])
