@@ -22,7 +22,8 @@ critically damped with bandwidth omega. The torque of the joints:
   The base is not actuated; a real motor gives no more than its effort limit, so a hard stop or a
   large tracking error saturates the drive instead of asking for unbounded torque.
 
-With no base (base_nv = 0) and no held contacts the second law is the first: M_f = M, tau_held = 0.
+With no base (base_nv = 0) and no held contacts the second law, unclipped, is the first: M_f = M,
+tau_held = 0.
 """
 
 from __future__ import annotations
