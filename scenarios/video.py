@@ -47,7 +47,7 @@ import numpy as np  # noqa: E402
 from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.measured.impact import ImpactMeasurement  # noqa: E402
 from impactqp.controller.measured.trial_log import TrialLog  # noqa: E402
-from impactqp.sim.humanoid_scene import build_humanoid_scene, from_pinocchio  # noqa: E402
+from impactqp.sim.humanoid_scene import build_humanoid_scene  # noqa: E402
 from impactqp.sim.humanoid_trial import CONTROL_PERIOD  # noqa: E402
 from impactqp.sim.scene import Scene  # noqa: E402
 
@@ -158,8 +158,7 @@ def render_humanoid_gif(robot, trial, path: str | Path) -> Path:
     frames = []
     with mujoco.Renderer(model, height, width) as renderer:
         for k in range(first, last, step):
-            data.qpos[:] = from_pinocchio(trial.q_log[k], scene.base_nq)
-            mujoco.mj_forward(model, data)
+            scene.set_state(trial.q_log[k])
             renderer.update_scene(data, camera)
             draw_links(renderer.scene, model, data)
             frames.append(Image.fromarray(renderer.render()))

@@ -1,8 +1,8 @@
 """The simulation: the MuJoCo scene of a robot, its tool and a wall (``scene``), the plant's
-parameters (``plant``) and sensors (``sensor``), the 1 kHz closed-loop runner (``runner``), the
-simulated robot behind the runtime's interface (``sim_backend``), simulated datasets
-(``generation``), the candidate causes of a sim-to-real gap (``causes``) and their diagnosis
-(``diagnosis``), and the standing G1's scene and trial (``humanoid_*``).
+parameters (``plant``), joint servo (``servo``) and sensors (``sensor``), the 1 kHz closed-loop
+runner (``runner``), the simulated robot behind the runtime's interface (``sim_backend``),
+simulated datasets (``generation``), the candidate causes of a sim-to-real gap (``causes``) and
+their diagnosis (``diagnosis``), and the standing G1's scene and trial (``humanoid_*``).
 
 Its names are exported lazily (PEP 562): importing one module loads only its own imports.
 """
@@ -22,6 +22,7 @@ _EXPORTS = {
     "CartesianApproachCommand": "runner",
     "CommandReplay": "runner",
     "SimulationUnstableError": "runner",
+    "ComputedTorqueServo": "servo",
     "SimRobot": "sim_backend",
     "DatasetRequest": "generation",
     "generate_dataset": "generation",

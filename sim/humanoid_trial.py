@@ -6,7 +6,7 @@ Trial: the robot starts at rest in a stance (``controller.model.humanoid_stance`
 dq_arm = J_arm^+ v* (J_arm the arm joints' block of the contact Jacobian), reached by a 20 ms velocity
 ramp; every other joint is commanded at rest. At the first wall contact (plus a 5 ms detection
 latency) the arm stops: the servo's reference is re-anchored at the measured joint positions, at
-rest (``_Servo.hold``), and the command is zero from then on; the trial goes on for :data:`AFTER` s
+rest (``ComputedTorqueServo.hold``), and the command is zero from then on; the trial goes on for :data:`AFTER` s
 to see whether the robot stands. Why re-anchor rather than only command zero velocity: the wall has
 already stopped the hand, but the reference still moves at the approach speed, so a zero command
 asks the servo for the reference's whole deceleration -dq_ref/dt in one control step; the waist and
@@ -18,17 +18,14 @@ time it may take to reach the wall, and per trial a driver whose ``command(t, q,
 returns the joints' velocity command (``stopped``: LATENCY has passed since the first contact),
 and whether the servo re-anchors its reference at the stop (``holds_at_stop``).
 
-Servo (the kinematic control, as the arm's ``sim.runner`` servo): a joint-space computed-torque PD
-with acceleration feed-forward on the joints, tau = M_f (ddq_ref + w^2 e + 2 w de) + h_j -
-tau_feet, with M_f = M_jj - M_jb M_bb^-1 M_bj the joints' inertia with the base floating (the
-Schur complement of MuJoCo's M; the plain joint block M_jj overestimates it and makes a stiff servo
-unstable at 1 kHz), h the bias forces, and tau_feet = (Jf^T f)_j
-the joint torques of the least-norm foot wrenches f that carry the robot's weight in the measured
-configuration (Pinocchio, every control step: the weight's share between the feet and their
-moments follow the posture, which the whole-body QP leans; wrenches of the start stance would
-leave the ankles a steady tracking error). The base is not actuated. The torque each joint gets
-is clipped at its URDF effort limit (5-139 N m): a real motor cannot give more, so a hard stop command or a
-large tracking error saturates the drive instead of asking for unbounded torque.
+Servo (the kinematic control, the arm's: ``sim.servo.ComputedTorqueServo``, standing on the feet
+through ``sim.servo.StandingSupport``): a joint-space computed-torque PD with acceleration
+feed-forward on the joints, tau = M_f (ddq_ref + w^2 e + 2 w de) + h_j - tau_feet, with M_f the
+joints' inertia with the base floating and tau_feet the joint torques of the least-norm foot
+wrenches that carry the robot's weight in the measured configuration (every control step: the
+weight's share between the feet and their moments follow the posture, which the whole-body QP
+leans; wrenches of the start stance would leave the ankles a steady tracking error). The torque
+each joint gets is clipped at its URDF effort limit (5-139 N m).
 
 Plant: MuJoCo's G1 with the actuators' reflected rotor inertias by default (``armature``:
 ``sim.humanoid_scene.plant_armature``; 0 for the link-only plant). The servo's M_f includes them
@@ -80,12 +77,14 @@ import pinocchio as pin
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.capture import capture_region
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, jump_from_impulse, predict
-from impactqp.controller.model.max_speed import ARM_JOINTS, standing_wrenches
+from impactqp.controller.model.max_speed import ARM_JOINTS
 from impactqp.controller.model.humanoid_stance import stance_posture, support_polygon
 from impactqp.controller.model.robot_description import Stance
 
 from .humanoid_feet import CONE, LOAD, MARGIN, SPEED, lift_onset, slip_onset, sole_state, worst
-from .humanoid_scene import build_humanoid_scene, to_pinocchio
+from .humanoid_scene import build_humanoid_scene
+from .scene import to_pinocchio
+from .servo import ComputedTorqueServo, StandingSupport
 
 CONTROL_PERIOD = 1e-3
 GAP = 0.02  # m from the contact point to the wall at the start
@@ -170,48 +169,6 @@ class ImpactTrial:
         return self.foot_lift > LIFT
 
 
-class _Servo:
-    """The joint servo of the module docstring."""
-
-    def __init__(self, scene, robot: FloatingBaseModel, gain: float):
-        self.scene = scene
-        self.robot = robot
-        self.kp, self.kd = gain * gain, 2.0 * gain
-        self.tau_max = robot.tau_max
-        self.joint_coordinates = slice(scene.base_nq, None)  # the joints' part of qpos
-        self.base, self.joints = slice(scene.base_nv), slice(scene.base_nv, None)  # the free joint's and the joints' qvel
-        self.q_ref = scene.data.qpos[self.joint_coordinates].copy()
-        self.dq_ref = np.zeros(robot.n_joints)
-        self._M = np.empty((scene.model.nv, scene.model.nv))
-
-    def torque(self, dq_cmd: np.ndarray, dt: float) -> np.ndarray:
-        model, data = self.scene.model, self.scene.data
-        base, joints = self.base, self.joints
-        acceleration = (dq_cmd - self.dq_ref) / dt
-        position_error = self.q_ref - data.qpos[self.joint_coordinates]
-        acceleration += self.kp * position_error + self.kd * (self.dq_ref - data.qvel[joints])
-        mujoco.mj_fullM(model, data, self._M)
-        M = self._M
-        free_base = M[joints, joints] - M[joints, base] @ np.linalg.solve(M[base, base], M[base, joints])
-        tau = free_base @ acceleration + data.qfrc_bias[joints] - self.standing_torques()
-        tau = np.clip(tau, -self.tau_max, self.tau_max)
-        self.q_ref += 0.5 * dt * (self.dq_ref + dq_cmd)
-        self.dq_ref = dq_cmd.copy()
-        return tau
-
-    def standing_torques(self) -> np.ndarray:
-        """tau_feet (one per joint): the joint torques of the least-norm foot wrenches carrying the
-        robot's weight in its measured configuration (module docstring)."""
-        terms = self.robot.terms(to_pinocchio(self.scene.data.qpos, self.scene.data.qvel, self.scene.base_nq)[0])
-        return terms.Jf[:, self.robot.base_nv:].T @ standing_wrenches(self.robot, terms)
-
-    def hold(self) -> None:
-        """Re-anchor the reference at the measured joint positions, at rest: from now on the servo
-        holds the joints where they are (module docstring, the stop)."""
-        self.q_ref = self.scene.data.qpos[self.joint_coordinates].copy()
-        self.dq_ref = np.zeros(self.robot.n_joints)
-
-
 @dataclass(frozen=True)
 class ScriptedCommand:
     """The scripted command source (module docstring): the right-arm joints (``ARM_JOINTS``) follow
@@ -222,7 +179,7 @@ class ScriptedCommand:
     name = "scripted"
     gap = GAP  # m from the contact point to the wall at the start
     tracks_speed = False  # the servo lags the command: the contact speed is below the commanded one
-    holds_at_stop = True  # the servo re-anchors its reference at the stop (``_Servo.hold``)
+    holds_at_stop = True  # the servo re-anchors its reference at the stop (``ComputedTorqueServo.hold``)
 
     def approach_time(self, gap: float, speed: float) -> float:
         """s allowed from the end of the settling to the first wall contact."""
@@ -268,7 +225,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
     start[2] -= SINK  # the soft floor contact carries the weight from the first step
     scene.set_state(start)
     model, data = scene.model, scene.data
-    servo = _Servo(scene, robot, gain)
+    servo = ComputedTorqueServo(model, data, gain, StandingSupport(robot, scene.base_nq, scene.base_nv))
     driver = source.start(robot, q0, scene.wall_x, speed)
     substeps = int(round(CONTROL_PERIOD / model.opt.timestep))
     approach_steps = int(round((SETTLE + source.approach_time(gap, speed)) / CONTROL_PERIOD))
@@ -284,7 +241,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
         commands.append(dq_cmd)
         if k == stop_at and source.holds_at_stop:
             servo.hold()
-        tau = servo.torque(dq_cmd, CONTROL_PERIOD)
+        tau = servo.torque(dq_cmd, CONTROL_PERIOD).copy()
         torques.append(tau)
         floor, sole = np.zeros(3), None
         for _ in range(substeps):

@@ -16,7 +16,7 @@ payload_com         its position (m) in the contact frame ``impact_tip``
 friction            Coulomb friction of the tool/wall pair; None: the surface's own coefficient
 contact_solref      MuJoCo solref (time constant s, damping ratio) of the tool/wall pair
 contact_solimp      MuJoCo solimp (dmin, dmax, width m, midpoint, power) of the pair
-servo_gain          bandwidth omega (rad/s) of the computed-torque joint servo (``sim.runner``)
+servo_gain          bandwidth omega (rad/s) of the computed-torque joint servo (``sim.servo``)
 ==================  ===========================================================================
 
 Sensor keys (``sim.sensor.apply_sensor``) act on the logged signals after the simulation, not on

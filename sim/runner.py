@@ -11,12 +11,9 @@ Loop of one control period dt (default 1 ms), at control step k (t_k = k dt):
    substep (zero, without a per-substep Python loop, while the tool is too far from the wall to
    touch it within the period even at 5 m/s).
 
-Servo (the Panda's kinematic control, a plant property): a computed-torque joint PD with
-acceleration feed-forward that tracks the commanded velocity. A command dq_cmd_k is the joint
-velocity to reach at the end of period k, so the reference is piecewise constant in acceleration:
+Servo (the arm's kinematic control, a plant property): ``sim.servo.ComputedTorqueServo``, a
+computed-torque joint PD with acceleration feed-forward that tracks the commanded velocity,
 
-    ddq_ref_k = (dq_cmd_k - dq_ref_k) / dt,   dq_ref_{k+1} = dq_cmd_k,
-    q_ref_{k+1} = q_ref_k + dt (dq_ref_k + dq_cmd_k) / 2,     (q_ref, dq_ref)(0) = (q, dq)(0),
     tau_k = M(q_k) (ddq_ref_k + omega^2 (q_ref_k - q_k) + 2 omega (dq_ref_k - dq_k)) + h(q_k, dq_k).
 
 Feed-forward makes the joints follow smooth commands exactly (kinematic control) whatever the
@@ -54,6 +51,7 @@ from impactqp.controller.model.validation import restitution as check_restitutio
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 
 from .scene import Scene
+from .servo import ComputedTorqueServo
 
 # A diverging simulation is detected from MuJoCo's warning counters and raised as
 # SimulationUnstableError (_check_stable); the C library must not also print each warning.
@@ -198,40 +196,6 @@ def _mm(value: float) -> str:
     return f"{round(value * 1000):d}".replace("-", "m")
 
 
-class ComputedTorqueServo:
-    """The joint servo of the module docstring, one torque per control period (zero-order hold).
-
-    Uses MuJoCo's own M and h of the current state (``mj_step1`` computes them), so the servo
-    sees the plant's armature and payload exactly.
-    """
-
-    def __init__(self, scene: Scene, gain: float):
-        self.scene = scene
-        self.kp = gain * gain
-        self.kd = 2.0 * gain
-        nv = scene.model.nv
-        self.q_ref = np.zeros(scene.model.nq)
-        self.dq_ref = np.zeros(nv)
-        self._acceleration = np.zeros(nv)
-        self._torque = np.zeros(nv)
-
-    def reset(self, q: np.ndarray, dq: np.ndarray) -> None:
-        self.q_ref = np.array(q, dtype=float)
-        self.dq_ref = np.array(dq, dtype=float)
-
-    def torque(self, dq_cmd: np.ndarray, dt: float) -> np.ndarray:
-        """Torque for the state in ``scene.data`` (after ``mj_step1``); advances the reference."""
-        data = self.scene.data
-        acceleration = self._acceleration
-        acceleration[:] = (dq_cmd - self.dq_ref) / dt
-        acceleration += self.kp * (self.q_ref - data.qpos) + self.kd * (self.dq_ref - data.qvel)
-        mujoco.mj_mulM(self.scene.model, data, self._torque, acceleration)
-        self._torque += data.qfrc_bias
-        self.q_ref += 0.5 * dt * (self.dq_ref + dq_cmd)
-        self.dq_ref[:] = dq_cmd
-        return self._torque
-
-
 class ServoedPlant:
     """The scene's plant under the joint servo, advanced one control period per command
     (steps 2 and 3 of the module docstring); shared by :func:`run_trial` and the robot loop's
@@ -246,7 +210,7 @@ class ServoedPlant:
         self.scene = scene
         self.control_period = control_period
         self.substeps = substeps
-        self.servo = ComputedTorqueServo(scene, scene.plant.servo_gain)
+        self.servo = ComputedTorqueServo(scene.model, scene.data, scene.plant.servo_gain)
         # centre-to-wall distance beyond which the tool cannot touch the wall within one period
         # (at up to CLEARANCE_SPEED m/s)
         self.clearance = scene.tool.geometry.bounding_radius + CLEARANCE_SPEED * control_period

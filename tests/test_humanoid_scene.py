@@ -1,4 +1,5 @@
-"""The MuJoCo scene of the G1 against the Pinocchio model (sim/humanoid_scene.py)."""
+"""The MuJoCo scene of the G1 against the Pinocchio model (sim/humanoid_scene.py); what it shares
+with the arm's (the URDF edits, the free joint's conventions): tests/test_scene.py."""
 
 import mujoco
 import numpy as np
@@ -10,7 +11,8 @@ from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.g1_actuators import joint_armature
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.validation import BadInputError
-from impactqp.sim.humanoid_scene import HAND_RADIUS, build_humanoid_scene, from_pinocchio, plant_armature, to_pinocchio
+from impactqp.sim.humanoid_scene import WALL_FRICTION, build_humanoid_scene, plant_armature
+from impactqp.sim.scene import HAND_RADIUS, to_pinocchio
 
 
 @pytest.fixture(scope="module")
@@ -25,20 +27,11 @@ def random_velocity(scene, seed=0):
     mujoco.mj_forward(scene.model, scene.data)
 
 
-def test_configuration_round_trip(setup):
-    robot, q, scene = setup
-    scene.set_state(q)
-    back, _ = to_pinocchio(scene.data.qpos, scene.data.qvel, scene.base_nq)
-    np.testing.assert_allclose(back, q, atol=1e-12)
-    np.testing.assert_allclose(from_pinocchio(back, scene.base_nq), scene.data.qpos, atol=1e-12)
-
-
 def test_mass_matrices_agree_up_to_the_base_velocity_convention(setup):
     """v_pin = T v_mj with T = diag(R^T, I): MuJoCo's M equals T^T M_pin T."""
     robot, q, scene = setup
     scene.set_state(q)
-    M = np.empty((scene.model.nv, scene.model.nv))
-    mujoco.mj_fullM(scene.model, scene.data, M)
+    M = scene.mass_matrix()
     T = np.eye(scene.model.nv)
     T[:3, :3] = pin.Quaternion(q[3:robot.base_nq]).matrix().T
     np.testing.assert_allclose(M, T.T @ robot.terms(q).M @ T, atol=1e-10)
@@ -81,8 +74,7 @@ def test_armature_adds_rotor_inertia_to_the_joints_only(setup, armature):
     expected = {None: joint_armature(robot.joint_names), 0.05: np.full(robot.n_joints, 0.05)}.get(armature, per_joint)
     scene = build_humanoid_scene(robot, wall_x=0.6, armature=given)
     scene.set_state(q)
-    M = np.empty((scene.model.nv, scene.model.nv))
-    mujoco.mj_fullM(scene.model, scene.data, M)
+    M = scene.mass_matrix()
     T = np.eye(scene.model.nv)
     T[:3, :3] = pin.Quaternion(q[3:robot.base_nq]).matrix().T
     rotor = np.diag(np.r_[np.zeros(robot.base_nv), expected])
@@ -93,3 +85,20 @@ def test_armature_adds_rotor_inertia_to_the_joints_only(setup, armature):
 def test_a_bad_armature_is_bad_input(setup, armature):
     with pytest.raises(BadInputError, match="armature"):
         plant_armature(setup[0], armature)
+
+
+def test_the_feet_stand_on_the_floor_and_only_the_pairs_collide(setup):
+    """The held contacts add the floor and one pair per sole sphere at the contact's friction; the
+    hand sphere and the wall are the other pair; no geom collides outside the pairs."""
+    robot, _, scene = setup
+    model = scene.model
+    assert not model.geom_contype.any() and not model.geom_conaffinity.any()
+    spheres = [g for foot in scene.soles.spheres for g in foot]
+    assert len(spheres) == model.npair - 1 and len(spheres) >= 3 * len(robot.description.held_contacts)
+    pairs = {frozenset((int(model.pair_geom1[i]), int(model.pair_geom2[i]))): model.pair_friction[i][0]
+             for i in range(model.npair)}
+    assert pairs[frozenset((scene.hand_geom, scene.wall_geom))] == WALL_FRICTION
+    for k, foot in enumerate(scene.soles.spheres):
+        for g in foot:
+            assert model.geom_bodyid[g] == scene.foot_bodies[k]
+            assert pairs[frozenset((g, scene.floor_geom))] == robot.description.held_contacts[k].friction

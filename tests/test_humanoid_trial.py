@@ -1,30 +1,14 @@
 """One simulated hand impact of the standing G1 (sim/humanoid_trial.py)."""
 
-import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
 
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
-from impactqp.controller.model.max_speed import standing_wrenches
 from impactqp.controller.model.humanoid_stance import STANCES, edge_margins, stance_posture, support_polygon
-from impactqp.sim.humanoid_feet import (
-    CONE_TOLERANCE,
-    LIFT_MARGIN,
-    LOAD,
-    SLIP_SPEED,
-    lift_onset,
-    slip_onset,
-    sole_state,
-)
-from impactqp.sim.humanoid_scene import build_humanoid_scene
+from impactqp.sim.humanoid_feet import CONE_TOLERANCE, LIFT_MARGIN, SLIP_SPEED
 from impactqp.sim.humanoid_trial import (
-    CONTROL_PERIOD,
     NORMAL,
-    SERVO_GAIN,
-    SETTLE,
-    SINK,
-    _Servo,
     capture_margin,
     falling_at_the_end,
     run_impact_trial,
@@ -145,62 +129,6 @@ def test_a_robot_lying_below_its_feet_has_no_capture_margin_and_is_falling():
     assert falling_at_the_end(robot, (sunk, np.zeros(robot.model.nv)))
 
 
-def test_the_servo_torque_saturates_at_the_urdf_effort_limits():
-    """A command far beyond what the motors can give is clipped at each joint's effort limit."""
-    robot = FloatingBaseModel()
-    q = stance_posture(robot, STANCES["parallel"])
-    scene = build_humanoid_scene(robot, wall_x=1.0)
-    scene.set_state(q)
-    servo = _Servo(scene, robot, SERVO_GAIN)
-    tau = servo.torque(np.full(robot.n_joints, 1e3), CONTROL_PERIOD)
-    np.testing.assert_allclose(np.abs(tau), robot.model.effortLimit[robot.base_nv:])
-
-
-@pytest.mark.parametrize("stance", ["wide", "staggered"])
-def test_the_standing_g1_shows_no_foot_onset(stance):
-    """Held by its servo with no command and no impact, after the settling: no slip, no lift."""
-    robot = FloatingBaseModel()
-    q = stance_posture(robot, STANCES[stance])
-    scene = build_humanoid_scene(robot, wall_x=2.0)
-    start = q.copy()
-    start[2] -= SINK
-    scene.set_state(start)
-    servo = _Servo(scene, robot, SERVO_GAIN)
-    states = []
-    for k in range(300):
-        scene.data.qfrc_applied[scene.base_nv:] = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
-        for _ in range(2):
-            mujoco.mj_step(scene.model, scene.data)
-        if k * CONTROL_PERIOD >= SETTLE:
-            states.append(sole_state(scene.model, scene.data, scene.soles))
-    states = np.array(states)
-    assert np.all(states[..., LOAD] > 0.0)
-    assert not slip_onset(states).any() and not lift_onset(states).any()
-
-
-def test_a_held_servo_only_damps_the_joints():
-    """After ``hold`` the reference is the measured joint positions at rest: with a zero command the
-    servo asks M_f (-2 w dq) of acceleration, no feed-forward and no position error."""
-    robot = FloatingBaseModel()
-    q = stance_posture(robot, STANCES["parallel"])
-    scene = build_humanoid_scene(robot, wall_x=2.0)
-    scene.set_state(q)
-    servo = _Servo(scene, robot, SERVO_GAIN)
-    rng = np.random.default_rng(3)
-    coordinates, base, joints = slice(scene.base_nq, None), slice(scene.base_nv), slice(scene.base_nv, None)
-    scene.data.qpos[coordinates] += rng.uniform(-0.01, 0.01, robot.n_joints)  # the joints away from the reference
-    scene.data.qvel[joints] = rng.uniform(-0.2, 0.2, robot.n_joints)  # and moving
-    mujoco.mj_forward(scene.model, scene.data)
-    servo.hold()
-    np.testing.assert_array_equal(servo.q_ref, scene.data.qpos[coordinates])
-    M = np.empty((scene.model.nv, scene.model.nv))
-    mujoco.mj_fullM(scene.model, scene.data, M)
-    free_base = M[joints, joints] - M[joints, base] @ np.linalg.solve(M[base, base], M[base, joints])
-    expected = free_base @ (-2.0 * SERVO_GAIN * scene.data.qvel[joints]) + scene.data.qfrc_bias[joints] - servo.standing_torques()
-    tau = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
-    np.testing.assert_allclose(tau, np.clip(expected, -servo.tau_max, servo.tau_max), rtol=1e-9, atol=1e-9)
-
-
 def test_the_stop_does_not_jolt_the_feet():
     """At the stop the wall has stopped the hand while the reference still moves at the approach
     speed; the held servo does not ask for that reference's deceleration in one step, so a trial at
@@ -215,21 +143,3 @@ def test_the_equivalent_duration_is_at_most_the_contact_duration(trial):
     """A force never above its peak gives at most peak x duration of impulse."""
     assert 0.0 < trial.equivalent_duration <= trial.duration
     assert trial.equivalent_duration * trial.peak_force == pytest.approx(trial.impulse @ NORMAL)
-
-
-def test_the_standing_torques_hold_any_posture_in_equilibrium():
-    """A servo at rest on its reference applies tau with S^T tau + Jf^T w = g in every row (base and
-    joints), w the least-norm foot wrenches of the measured configuration: the body leaned by the
-    waist is in equilibrium on its feet with no tracking error."""
-    robot = FloatingBaseModel()
-    q = stance_posture(robot, STANCES["parallel"])
-    q[robot.base_nq + robot.joint_index("waist_pitch_joint")] += 0.3
-    scene = build_humanoid_scene(robot, wall_x=2.0)
-    scene.set_state(q)
-    servo = _Servo(scene, robot, SERVO_GAIN)  # its reference: the state it starts from, at rest
-    tau = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
-    terms = robot.terms(q)
-    gravity = pin.computeGeneralizedGravity(robot.model, robot.data, q)
-    residual = terms.Jf.T @ standing_wrenches(robot, terms) - gravity
-    residual[robot.base_nv:] += tau
-    np.testing.assert_allclose(residual, 0.0, atol=1e-6 * np.abs(gravity).max())

@@ -1,6 +1,10 @@
-"""The MuJoCo scene is the same robot as the Pinocchio model, with one tool/wall contact pair."""
+"""The MuJoCo scene is the same robot as the Pinocchio model, with one tool/wall contact pair; the
+scene builder's parts every robot shares (the URDF edits, a floating base's free joint and its
+conventions). The standing G1's own scene: tests/test_humanoid_scene.py."""
 
 from dataclasses import replace
+
+import xml.etree.ElementTree as ET
 
 import mujoco
 import numpy as np
@@ -16,7 +20,10 @@ from impactqp.controller.model.robot import TOOL_CENTRE_OFFSET, TOOL_RADIUS, Pan
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.tool_description import TOOLS, Sphere
 from impactqp.sim.plant import PlantParameters
-from impactqp.sim.scene import CONTACT_CONDIM, build_scene
+from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+from impactqp.sim.humanoid_scene import build_humanoid_scene
+from impactqp.sim.scene import CONTACT_CONDIM, build_scene, from_pinocchio, mujoco_urdf, to_pinocchio
 
 ROBOT = PandaModel()
 SCENE = build_scene()
@@ -152,3 +159,54 @@ def test_a_point_mass_tool_is_the_plants_payload(robot):
     for scene in (with_tool, with_payload):
         scene.set_state(q, np.zeros(scene.model.nv))
     np.testing.assert_allclose(with_tool.mass_matrix(), with_payload.mass_matrix(), atol=1e-12)
+
+
+# ---------------------------------------------------------------- what every robot's scene shares
+@pytest.mark.parametrize("robot", list(ROBOTS))
+def test_the_urdf_is_edited_for_mujoco_with_the_urdf_inertias(robot):
+    """No visual element, bare mesh file names, the fingers welded, and the compiler told to keep
+    the URDF's inertias and bodies (module docstring of sim/scene.py)."""
+    description = ROBOTS[robot]
+    tool = None if description.floating else "impact_tip"
+    root = ET.fromstring(mujoco_urdf(description, tool))
+    assert not root.findall("link/visual")
+    assert all("/" not in mesh.get("filename") for mesh in root.iter("mesh"))
+    for joint in root.findall("joint"):
+        if joint.get("name") in description.finger_joints:
+            assert joint.get("type") == "fixed" and joint.find("mimic") is None
+    compiler = root.find("mujoco/compiler")
+    assert compiler.get("meshdir") == str(description.mesh_dir())
+    assert (compiler.get("inertiafromgeom"), compiler.get("balanceinertia"), compiler.get("fusestatic")) == ("false",) * 3
+
+
+G1 = FloatingBaseModel()
+G1_SCENE = build_humanoid_scene(G1, wall_x=0.6, armature=0.0)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.lists(st.floats(-1.0, 1.0), min_size=G1.model.nv + 4, max_size=G1.model.nv + 4))
+def test_a_floating_base_state_round_trips_through_mujoco(u):
+    """set_state takes Pinocchio's (q, v) (free flyer: quaternion (x, y, z, w), linear velocity in
+    the base frame) and to_pinocchio gives them back; the base's linear velocity in MuJoCo is the
+    same vector in world axes."""
+    u = np.asarray(u)
+    q = stance_posture(G1, STANCES["staggered"])
+    q[3:G1.base_nq] = u[:4] / np.linalg.norm(u[:4]) if np.linalg.norm(u[:4]) > 0.1 else q[3:G1.base_nq]
+    v = u[4:]
+    G1_SCENE.set_state(q, v)
+    back, v_back = to_pinocchio(G1_SCENE.data.qpos, G1_SCENE.data.qvel, G1_SCENE.base_nq)
+    np.testing.assert_allclose(back, q, atol=1e-12)
+    np.testing.assert_allclose(v_back, v, atol=1e-12)
+    np.testing.assert_allclose(from_pinocchio(back, G1_SCENE.base_nq), G1_SCENE.data.qpos, atol=1e-12)
+    R = pin.Quaternion(q[3:G1.base_nq]).matrix()
+    np.testing.assert_allclose(G1_SCENE.data.qvel[:3], R @ v[:3], atol=1e-12)
+    G1_SCENE.set_state(q)
+    assert not G1_SCENE.data.qvel.any()
+
+
+def test_a_fixed_base_has_no_free_joint_and_a_floating_base_one():
+    """The free joint comes with the description's floating base, first, on the URDF's root link."""
+    assert mujoco.mjtJoint.mjJNT_FREE not in SCENE.model.jnt_type and SCENE.base_nq == SCENE.base_nv == 0
+    assert G1_SCENE.model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
+    assert (G1_SCENE.base_nq, G1_SCENE.base_nv) == (G1.base_nq, G1.base_nv)
+    assert G1_SCENE.model.jnt_bodyid[0] == 1  # the first body under the world

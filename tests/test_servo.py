@@ -1,0 +1,158 @@
+"""The plant's joint servo, one law for a fixed-base arm and a standing robot (sim/servo.py)."""
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.max_speed import standing_wrenches
+from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+from impactqp.controller.model.robot import PandaModel
+from impactqp.sim.humanoid_feet import LOAD, lift_onset, slip_onset, sole_state
+from impactqp.sim.humanoid_scene import build_humanoid_scene
+from impactqp.sim.humanoid_trial import CONTROL_PERIOD, SERVO_GAIN, SETTLE, SINK
+from impactqp.sim.plant import PlantParameters
+from impactqp.sim.scene import build_scene
+from impactqp.sim.servo import ComputedTorqueServo, StandingSupport
+
+ARM = PandaModel()
+ARMATURE = np.linspace(0.1, 0.4, ARM.nv)
+ARM_SCENE = build_scene(plant=PlantParameters(armature=tuple(ARMATURE)))
+GAIN = 5.0
+DT = 1e-3
+
+
+def standing_servo(scene, robot: FloatingBaseModel) -> ComputedTorqueServo:
+    standing = StandingSupport(robot, scene.base_nq, scene.base_nv)
+    return ComputedTorqueServo(scene.model, scene.data, SERVO_GAIN, standing)
+
+
+# ---------------------------------------------------------------------- fixed base: the arm
+def arm_states():
+    unit = st.lists(st.floats(0.05, 0.95), min_size=ARM.nv, max_size=ARM.nv).map(np.asarray)
+    return st.tuples(unit, unit, unit).map(
+        lambda u: (ARM.q_min + u[0] * (ARM.q_max - ARM.q_min), u[1] - 0.5, 20.0 * (u[2] - 0.5))
+    )
+
+
+@settings(max_examples=25, deadline=None)
+@given(arm_states())
+def test_on_its_reference_the_arm_servo_is_the_inverse_dynamics(state):
+    """With the reference at the state and dq_cmd = dq + ddq dt, tau = (M + diag(armature)) ddq + h:
+    Pinocchio's RNEA plus the rotor inertia, the acceleration the command asks for."""
+    q, dq, ddq = state
+    ARM_SCENE.set_state(q, dq)
+    servo = ComputedTorqueServo(ARM_SCENE.model, ARM_SCENE.data, GAIN)
+    tau = servo.torque(dq + ddq * DT, DT).copy()
+    expected = pin.rnea(ARM.model, ARM.model.createData(), q, dq, ddq) + ARMATURE * ddq
+    np.testing.assert_allclose(tau, expected, atol=1e-8 * max(1.0, np.abs(expected).max()))
+
+
+@settings(max_examples=25, deadline=None)
+@given(arm_states())
+def test_the_arm_servo_feeds_back_the_tracking_error_critically_damped(state):
+    """A reference (q_ref, dq_ref) away from the state and a command dq_cmd = dq_ref ask for the
+    acceleration omega^2 (q_ref - q) + 2 omega (dq_ref - dq); the reference then advances by the
+    trapezoid q_ref + dt (dq_ref + dq_cmd) / 2, dq_ref = dq_cmd."""
+    q, dq, offset = state
+    ARM_SCENE.set_state(q, dq)
+    servo = ComputedTorqueServo(ARM_SCENE.model, ARM_SCENE.data, GAIN)
+    q_ref, dq_ref = q + 0.01 * offset, dq - 0.05 * offset
+    servo.reset(q_ref, dq_ref)
+    tau = servo.torque(dq_ref, DT).copy()
+    ddq = GAIN**2 * (q_ref - q) + 2.0 * GAIN * (dq_ref - dq)
+    expected = pin.rnea(ARM.model, ARM.model.createData(), q, dq, ddq) + ARMATURE * ddq
+    np.testing.assert_allclose(tau, expected, atol=1e-8 * max(1.0, np.abs(expected).max()))
+    np.testing.assert_allclose(servo.q_ref, q_ref + DT * dq_ref, atol=1e-15)
+    np.testing.assert_array_equal(servo.dq_ref, dq_ref)
+
+
+def test_the_arm_servo_starts_at_the_state_and_holds_it():
+    """The reference starts at the state in the data; ``hold`` re-anchors it at the joints, at rest."""
+    q = 0.5 * (ARM.q_min + ARM.q_max)
+    ARM_SCENE.set_state(q, np.full(ARM.nv, 0.1))
+    servo = ComputedTorqueServo(ARM_SCENE.model, ARM_SCENE.data, GAIN)
+    np.testing.assert_array_equal(servo.q_ref, q)
+    np.testing.assert_array_equal(servo.dq_ref, np.full(ARM.nv, 0.1))
+    servo.hold()
+    np.testing.assert_array_equal(servo.q_ref, q)
+    np.testing.assert_array_equal(servo.dq_ref, np.zeros(ARM.nv))
+
+
+# ---------------------------------------------------------------------- floating base: the standing G1
+def test_the_servo_torque_saturates_at_the_urdf_effort_limits():
+    """A command far beyond what the motors can give is clipped at each joint's effort limit."""
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES["parallel"])
+    scene = build_humanoid_scene(robot, wall_x=1.0)
+    scene.set_state(q)
+    servo = standing_servo(scene, robot)
+    tau = servo.torque(np.full(robot.n_joints, 1e3), CONTROL_PERIOD)
+    np.testing.assert_allclose(np.abs(tau), robot.model.effortLimit[robot.base_nv:])
+
+
+@pytest.mark.parametrize("stance", ["wide", "staggered"])
+def test_the_standing_g1_shows_no_foot_onset(stance):
+    """Held by its servo with no command and no impact, after the settling: no slip, no lift."""
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES[stance])
+    scene = build_humanoid_scene(robot, wall_x=2.0)
+    start = q.copy()
+    start[2] -= SINK
+    scene.set_state(start)
+    servo = standing_servo(scene, robot)
+    states = []
+    for k in range(300):
+        scene.data.qfrc_applied[scene.base_nv:] = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
+        for _ in range(2):
+            mujoco.mj_step(scene.model, scene.data)
+        if k * CONTROL_PERIOD >= SETTLE:
+            states.append(sole_state(scene.model, scene.data, scene.soles))
+    states = np.array(states)
+    assert np.all(states[..., LOAD] > 0.0)
+    assert not slip_onset(states).any() and not lift_onset(states).any()
+
+
+def test_a_held_servo_only_damps_the_joints():
+    """After ``hold`` the reference is the measured joint positions at rest: with a zero command the
+    servo asks M_f (-2 w dq) of acceleration, no feed-forward and no position error."""
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES["parallel"])
+    scene = build_humanoid_scene(robot, wall_x=2.0)
+    scene.set_state(q)
+    servo = standing_servo(scene, robot)
+    rng = np.random.default_rng(3)
+    coordinates, base, joints = slice(scene.base_nq, None), slice(scene.base_nv), slice(scene.base_nv, None)
+    scene.data.qpos[coordinates] += rng.uniform(-0.01, 0.01, robot.n_joints)  # the joints away from the reference
+    scene.data.qvel[joints] = rng.uniform(-0.2, 0.2, robot.n_joints)  # and moving
+    mujoco.mj_forward(scene.model, scene.data)
+    servo.hold()
+    np.testing.assert_array_equal(servo.q_ref, scene.data.qpos[coordinates])
+    M = np.empty((scene.model.nv, scene.model.nv))
+    mujoco.mj_fullM(scene.model, scene.data, M)
+    free_base = M[joints, joints] - M[joints, base] @ np.linalg.solve(M[base, base], M[base, joints])
+    held = servo.standing.torques(scene.data.qpos, scene.data.qvel)
+    expected = free_base @ (-2.0 * SERVO_GAIN * scene.data.qvel[joints]) + scene.data.qfrc_bias[joints] - held
+    tau = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
+    np.testing.assert_allclose(tau, np.clip(expected, -robot.tau_max, robot.tau_max), rtol=1e-9, atol=1e-9)
+
+
+def test_the_standing_torques_hold_any_posture_in_equilibrium():
+    """A servo at rest on its reference applies tau with S^T tau + Jf^T w = g in every row (base and
+    joints), w the least-norm foot wrenches of the measured configuration: the body leaned by the
+    waist is in equilibrium on its feet with no tracking error."""
+    robot = FloatingBaseModel()
+    q = stance_posture(robot, STANCES["parallel"])
+    q[robot.base_nq + robot.joint_index("waist_pitch_joint")] += 0.3
+    scene = build_humanoid_scene(robot, wall_x=2.0)
+    scene.set_state(q)
+    servo = standing_servo(scene, robot)  # its reference: the state it starts from, at rest
+    tau = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
+    terms = robot.terms(q)
+    gravity = pin.computeGeneralizedGravity(robot.model, robot.data, q)
+    residual = terms.Jf.T @ standing_wrenches(robot, terms) - gravity
+    residual[robot.base_nv:] += tau
+    np.testing.assert_allclose(residual, 0.0, atol=1e-6 * np.abs(gravity).max())
