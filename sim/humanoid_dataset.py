@@ -19,14 +19,14 @@ from pathlib import Path
 import numpy as np
 
 from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry
-from impactqp.controller.measured.humanoid_format import G1, PALM
 from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.postures import Surface
 
 from .humanoid_scene import WALL_FRICTION
 from .humanoid_trial import CONTROL_PERIOD, NORMAL, ImpactTrial
 
-HEADER = DatasetHeader(PALM, Surface(np.zeros(3), NORMAL, WALL_FRICTION), CONTROL_PERIOD, robot=G1)
+HEADER = DatasetHeader.of(RobotChoice.of("g1"), Surface(np.zeros(3), NORMAL, WALL_FRICTION), CONTROL_PERIOD)
 
 
 def trial_id(trial: ImpactTrial) -> str:

@@ -1,3 +1,4 @@
+import functools
 import hashlib
 import signal
 
@@ -6,9 +7,9 @@ import pytest
 from hypothesis import strategies as st
 
 from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry
-from impactqp.controller.measured.humanoid_format import g1_model
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, VELOCITY_LIMIT, PandaModel
 from impactqp.controller.model.robot_description import PANDA, ROBOTS
@@ -34,6 +35,12 @@ ARMS = [name for name in ROBOTS if not ROBOTS[name].floating]
 FRANKA_ARMS = [name for name in ARMS if ROBOTS[name].finger_joints]
 """The built-in arms carrying the Franka Hand (the Panda's kinematic chain and postures)."""
 """The joints of the robot the tests drive (``PandaModel()``, the ``robot`` fixture)."""
+
+
+@functools.cache
+def g1_model() -> FloatingBaseModel:
+    """The G1's model (its description's), built once for the tests."""
+    return FloatingBaseModel("g1")
 
 
 @pytest.fixture(scope="session")
