@@ -16,7 +16,7 @@ from impactqp.controller.model.robot_description import PANDA, ROBOTS
 from impactqp.controller.model.tool_description import TOOLS
 from impactqp.controller.runtime.interface import RobotInterface
 from impactqp.scenarios.run import RunRequest, run
-from impactqp.sim.humanoid_dataset import HEADER as G1_HEADER
+from impactqp.sim.humanoid_dataset import humanoid_header
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import TrialSpec, run_approach
 from impactqp.sim.scene import build_scene
@@ -30,6 +30,8 @@ if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
 CONTROL_PERIOD = 1e-3
 LIMIT_TOLERANCE = 1e-9
 JOINTS = len(PANDA.joints)
+G1_HEADER = humanoid_header(ROBOTS["g1"])
+"""The header of the G1's simulated trials."""
 ARMS = [name for name in ROBOTS if not ROBOTS[name].floating]
 """The built-in fixed-base arms (the descriptions whose base is fixed)."""
 FRANKA_ARMS = [name for name in ARMS if ROBOTS[name].finger_joints]
