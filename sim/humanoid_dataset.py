@@ -27,11 +27,11 @@ from impactqp.controller.model.robot_description import ROBOTS, RobotDescription
 from .humanoid_scene import WALL_FRICTION
 from .humanoid_trial import CONTROL_PERIOD, NORMAL, ImpactTrial
 
+
 def humanoid_header(robot: RobotDescription) -> DatasetHeader:
     """The manifest header of the simulated trials of the floating-base ``robot``: its contact
     frame, the wall through the origin (module docstring), the trial's control period."""
     return DatasetHeader.of(RobotChoice(robot), Surface(np.zeros(3), NORMAL, WALL_FRICTION), CONTROL_PERIOD)
-
 
 
 def trial_id(trial: ImpactTrial) -> str:
