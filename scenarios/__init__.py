@@ -1,7 +1,7 @@
 """The experiments: one closed-loop impact trial with the QP (``trial``), the paper's campaign
 (``campaign``), the highest feasible contact speed (``max_speed_search``), ``impactqp run`` on a
-robot (``run``), the diagnosis report, the video, the G1's campaign and maximum speed
-(``humanoid_*``) and the feasibility maps (``sweep``); above them the command line (``cli``) and
+robot (``run``), the diagnosis report, the video, the G1's trials of the campaign and its maximum
+speed (``humanoid_*``) and the feasibility maps (``sweep``); above them the command line (``cli``) and
 the benchmarks (``bench``).
 
 Its names are exported lazily (PEP 562): the command line imports this file first and must stay
@@ -16,6 +16,7 @@ _EXPORTS = {
     "TrialPool": "trial",
     "Campaign": "campaign",
     "CampaignPlan": "campaign",
+    "FixedBaseTrials": "campaign",
     "Table1": "campaign",
     "MaxSpeedSearch": "max_speed_search",
     "MaxSpeedReport": "max_speed_search",
@@ -24,6 +25,7 @@ _EXPORTS = {
     "render_impact_gif": "video",
     "render_humanoid_gif": "video",
     "run_campaign": "humanoid_campaign",
+    "FloatingBaseTrials": "humanoid_campaign",
     "search_stance": "humanoid_max_speed",
     "check_against_simulation": "humanoid_max_speed",
 }

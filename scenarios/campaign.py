@@ -19,13 +19,22 @@ every predictor against v_t (Fig. 12).
 
 Output directory: the dataset (``controller.measured.dataset``: ``dataset.json`` and one CSV pair per trial),
 ``table1.json``, ``table1.txt`` and the figures; every file written atomically.
+
+One :class:`Campaign` runs every robot: it is given the robot's trial runner (a
+:class:`CampaignTrials`: :class:`FixedBaseTrials` above for an arm, the closed-loop trials of
+``scenarios.trial``; ``scenarios.humanoid_campaign.FloatingBaseTrials`` for a floating base,
+whose postures are its stances and whose Table I is ``table1.json`` and ``table1.md``), writes
+each trial to the dataset as it comes, then the runner's Table I (its files and figures).
 """
 
 from __future__ import annotations
 
 import json
+from contextlib import closing
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Protocol
 
 import matplotlib
 
@@ -39,42 +48,63 @@ from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice  # noqa
 from impactqp.controller.model.postures import Surface  # noqa: E402
 from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
 from impactqp.sim.generation import DEFAULT_SPEEDS, TANGENTIAL_SERIES_NORMAL_SPEED, tangential_direction  # noqa: E402
-from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry  # noqa: E402
+from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry  # noqa: E402
+from impactqp.controller.measured.trial_log import TrialLog  # noqa: E402
+from impactqp.controller.model.robot_description import RobotDescription  # noqa: E402
 from impactqp.sim.plant import PlantParameters  # noqa: E402
 from impactqp.sim.runner import dataset_header  # noqa: E402
 
 from impactqp.sim.runner import TrialSpec  # noqa: E402
 
 from .trial import TrialPool, TrialResult  # noqa: E402
-from impactqp.controller.model.validation import BadInputError, approach_speed
+from impactqp.controller.model.validation import BadInputError, approach_speed  # noqa: E402
 
 PAPER_SPEEDS = DEFAULT_SPEEDS
 PAPER_TANGENTIAL_SPEEDS = tuple(round(0.03 + 0.01 * i, 2) for i in range(10))
 TANGENTIAL_NORMAL_SPEED = TANGENTIAL_SERIES_NORMAL_SPEED
 
 
-def write_trial(writer: DatasetWriter, result: TrialResult) -> None:
-    """Add one simulated trial (control-rate CSV and force CSV) to a dataset."""
+def dataset_trial(result: TrialResult) -> tuple[TrialEntry, TrialLog]:
+    """The manifest entry and the log (control-rate CSV and force CSV) of one simulated trial."""
     spec = result.spec
     trial_id = spec.trial_id
-    writer.add_trial(
-        TrialEntry(
-            id=trial_id,
-            file=f"{trial_id}.csv",
-            reference_normal_speed=spec.normal_speed,
-            force_file=f"{trial_id}_force.csv",
-            reference_tangential_velocity=tuple(float(v) for v in spec.tangential_velocity),
-            posture=spec.posture,
-            impact_time=result.impact.t_contact_start,
-        ),
-        result.log,
+    entry = TrialEntry(
+        id=trial_id,
+        file=f"{trial_id}.csv",
+        reference_normal_speed=spec.normal_speed,
+        force_file=f"{trial_id}_force.csv",
+        reference_tangential_velocity=tuple(float(v) for v in spec.tangential_velocity),
+        posture=spec.posture,
+        impact_time=result.impact.t_contact_start,
     )
+    return entry, result.log
+
+
+def write_trial(writer: DatasetWriter, result: TrialResult) -> None:
+    """Add one simulated trial to a dataset."""
+    writer.add_trial(*dataset_trial(result))
+
+
+def named_postures(robot: RobotDescription) -> Mapping:
+    """The postures a campaign of ``robot`` may run: a floating base's stances, a fixed base's
+    named impact postures (its description's)."""
+    return robot.stances if robot.floating else robot.postures
+
+
+def check_postures(robot: RobotDescription, names) -> tuple[str, ...]:
+    """``names`` (None: every named posture of ``robot``) as a tuple, each checked."""
+    known = named_postures(robot)
+    names = tuple(known) if names is None else tuple(names)
+    for name in names:
+        if name not in known:
+            raise BadInputError(f"unknown posture {name!r} for the {robot.name}; known: {', '.join(known)}")
+    return names
 
 
 @dataclass(frozen=True)
 class CampaignPlan:
     """Which trials the campaign runs (module docstring); ``postures`` None: every named posture
-    of the robot."""
+    of the robot (a floating base's: its stances)."""
 
     postures: tuple[str, ...] | None = None
     speeds: tuple[float, ...] = PAPER_SPEEDS
@@ -94,7 +124,7 @@ class CampaignPlan:
     def specs(self, surface: Surface, choice: RobotChoice = DEFAULT_CHOICE) -> list[TrialSpec]:
         """The trials, at ``choice``'s named postures (solved for its tool); bad input for a
         posture the robot does not have."""
-        postures = choice.check_postures(choice.robot.postures if self.postures is None else self.postures)
+        postures = check_postures(choice.robot, self.postures)
         specs = [
             TrialSpec(name, choice.posture(name).q, float(speed))
             for name in postures
@@ -173,6 +203,13 @@ class Table1:
             "mean_crb_reduction_percent": self.mean_crb_reduction(),
         }
 
+    def files(self) -> dict[str, str]:
+        """The table's files by name: its JSON and its text."""
+        return {"table1.json": json.dumps(self.to_json(), indent=2) + "\n", "table1.txt": self.text() + "\n"}
+
+    def write_figures(self, out: Path) -> list[Path]:
+        return CampaignFigures(self).write(out)
+
     def text(self) -> str:
         """The table as aligned text (rad/s; the last column in %)."""
         head = f"{'posture':<12}{'v_n':>6}{'v_t':>6}{'v_c':>8}" + "".join(f"{m:>17}" for m in METHODS)
@@ -194,42 +231,87 @@ class Table1:
         return "\n".join(lines)
 
 
-class Campaign:
-    """Runs a :class:`CampaignPlan` on one surface and plant, with ``choice``'s robot and tool,
-    and writes its outputs."""
+class CampaignTable(Protocol):
+    """A campaign's Table I: its JSON, its text, its files by name and its figures."""
 
-    def __init__(
-        self,
-        plan: CampaignPlan,
-        surface: Surface,
-        plant: PlantParameters | None = None,
-        *,
-        jobs: int = 1,
-        progress: bool = False,
-        choice: RobotChoice = DEFAULT_CHOICE,
-    ):
-        self.choice = choice
+    def to_json(self) -> dict: ...
+
+    def text(self) -> str: ...
+
+    def files(self) -> dict[str, str]: ...
+
+    def write_figures(self, out: Path) -> list[Path]: ...
+
+
+class CampaignTrials(Protocol):
+    """The trial runner of one robot that a :class:`Campaign` is given: its dataset's header, the
+    tasks of a plan, their results (in the tasks' order), each result as a dataset trial, and the
+    Table I of the results."""
+
+    @property
+    def header(self) -> DatasetHeader: ...
+
+    def tasks(self, plan: CampaignPlan) -> list: ...
+
+    def results(self, tasks: list, jobs: int) -> Iterator[Any]: ...
+
+    def dataset_trial(self, result: Any) -> tuple[TrialEntry, TrialLog]: ...
+
+    def table(self, results: list) -> CampaignTable: ...
+
+
+@dataclass(frozen=True)
+class FixedBaseTrials:
+    """The campaign's trials of a fixed-base arm (module docstring): ``scenarios.trial`` runs on
+    ``surface`` and ``plant`` (None: the default plant) with ``choice``'s robot and tool."""
+
+    surface: Surface
+    plant: PlantParameters | None = None
+    choice: RobotChoice = DEFAULT_CHOICE
+
+    @property
+    def header(self) -> DatasetHeader:
+        return dataset_header(self.surface, self.choice)
+
+    def tasks(self, plan: CampaignPlan) -> list[TrialSpec]:
+        return plan.specs(self.surface, self.choice)
+
+    def results(self, tasks: list[TrialSpec], jobs: int) -> Iterator[TrialResult]:
+        with TrialPool(self.surface, self.plant, jobs, self.choice) as pool:
+            yield from pool.map(tasks)
+
+    def dataset_trial(self, result: TrialResult) -> tuple[TrialEntry, TrialLog]:
+        return dataset_trial(result)
+
+    def table(self, results: list[TrialResult]) -> Table1:
+        return Table1([TableRow.of(result) for result in results])
+
+
+class Campaign:
+    """Runs a :class:`CampaignPlan` with the trial runner ``trials`` of one robot
+    (:class:`CampaignTrials`) on ``jobs`` worker processes and writes its outputs."""
+
+    def __init__(self, plan: CampaignPlan, trials: CampaignTrials, *, jobs: int = 1, progress: bool = False):
         self.plan = plan
-        self.surface = surface
-        self.plant = plant
+        self.trials = trials
         self.jobs = jobs
         self.progress = progress
 
-    def run(self, out: str | Path) -> Table1:
-        """Simulate every trial, write the dataset, Table I and the figures to ``out``."""
+    def run(self, out: str | Path) -> CampaignTable:
+        """Run every trial, adding each to the dataset in ``out`` as it comes, then write Table I's
+        files and figures there; an existing dataset of another header is refused first."""
         out = Path(out)
-        writer = DatasetWriter(out, dataset_header(self.surface, self.choice))
-        specs = self.plan.specs(self.surface, self.choice)
-        rows = []
-        with TrialPool(self.surface, self.plant, self.jobs, self.choice) as pool:
-            results = tqdm(pool.map(specs), total=len(specs), desc="campaign", unit="trial", disable=not self.progress)
-            for result in results:
-                write_trial(writer, result)
-                rows.append(TableRow.of(result))
-        table = Table1(rows)
-        write_text_atomic(out / "table1.json", json.dumps(table.to_json(), indent=2) + "\n")
-        write_text_atomic(out / "table1.txt", table.text() + "\n")
-        CampaignFigures(table).write(out)
+        writer = DatasetWriter(out, self.trials.header)
+        tasks = self.trials.tasks(self.plan)
+        results = []
+        with closing(self.trials.results(tasks, self.jobs)) as running:  # its pool ends with the loop
+            for result in tqdm(running, total=len(tasks), desc="campaign", unit="trial", disable=not self.progress):
+                writer.add_trial(*self.trials.dataset_trial(result))
+                results.append(result)
+        table = self.trials.table(results)
+        for name, text in table.files().items():
+            write_text_atomic(out / name, text)
+        table.write_figures(out)
         return table
 
 

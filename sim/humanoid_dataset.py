@@ -19,14 +19,19 @@ from pathlib import Path
 import numpy as np
 
 from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry
-from impactqp.controller.measured.humanoid_format import G1, PALM
 from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot_description import ROBOTS, RobotDescription
 
 from .humanoid_scene import WALL_FRICTION
 from .humanoid_trial import CONTROL_PERIOD, NORMAL, ImpactTrial
 
-HEADER = DatasetHeader(PALM, Surface(np.zeros(3), NORMAL, WALL_FRICTION), CONTROL_PERIOD, robot=G1)
+
+def humanoid_header(robot: RobotDescription) -> DatasetHeader:
+    """The manifest header of the simulated trials of the floating-base ``robot``: its contact
+    frame, the wall through the origin (module docstring), the trial's control period."""
+    return DatasetHeader.of(RobotChoice(robot), Surface(np.zeros(3), NORMAL, WALL_FRICTION), CONTROL_PERIOD)
 
 
 def trial_id(trial: ImpactTrial) -> str:
@@ -51,10 +56,10 @@ def trial_entry(trial: ImpactTrial) -> TrialEntry:
     )
 
 
-def open_dataset(directory: str | Path) -> DatasetWriter:
-    """The writer of the G1 dataset in ``directory`` (created with the first trial); an existing
-    dataset of another header is refused here, before any trial is simulated."""
-    return DatasetWriter(directory, HEADER)
+def open_dataset(directory: str | Path, robot: RobotDescription = ROBOTS["g1"]) -> DatasetWriter:
+    """The writer of the dataset of ``robot``'s trials in ``directory`` (created with the first
+    trial); an existing dataset of another header is refused here, before any trial is simulated."""
+    return DatasetWriter(directory, humanoid_header(robot))
 
 
 def write_trials(writer: DatasetWriter, trials) -> list[TrialEntry]:

@@ -335,9 +335,7 @@ def servo_reference_from_commands(
 def dataset_header(surface: Surface, choice: RobotChoice = DEFAULT_CHOICE) -> DatasetHeader:
     """The manifest header of a simulated dataset: the robot and the tool of ``choice``, the
     runner's control period."""
-    return DatasetHeader(
-        tool=choice.tool, surface=surface, control_period=DEFAULT_CONTROL_PERIOD, robot=choice.robot_setting
-    )
+    return DatasetHeader.of(choice, surface, DEFAULT_CONTROL_PERIOD)
 
 
 def run_approach(

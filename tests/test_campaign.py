@@ -12,14 +12,18 @@ from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.robot_description import PANDA, ROBOTS
 from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.model.validation import BadInputError
 from impactqp.scenarios.campaign import (
     PAPER_SPEEDS,
     PAPER_TANGENTIAL_SPEEDS,
     Campaign,
     CampaignFigures,
     CampaignPlan,
+    FixedBaseTrials,
     Table1,
     TableRow,
+    check_postures,
+    named_postures,
     y_limits,
 )
 from impactqp.controller.measured.dataset import read_dataset
@@ -76,7 +80,7 @@ def test_crb_reduction_is_relative_to_classical():
 def campaign_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("campaign")
     plan = CampaignPlan(("elbow_left",), (0.1, 0.15), (0.05,))
-    Campaign(plan, DEFAULT_WALL).run(out)
+    Campaign(plan, FixedBaseTrials(DEFAULT_WALL)).run(out)
     return out
 
 
@@ -160,7 +164,7 @@ def test_y_limits_hold_every_value():
 
 def test_running_again_into_the_same_directory_changes_nothing(campaign_dir):
     before = (campaign_dir / "dataset.json").read_text()
-    Campaign(CampaignPlan(("elbow_left",), (0.1, 0.15), (0.05,)), DEFAULT_WALL).run(campaign_dir)
+    Campaign(CampaignPlan(("elbow_left",), (0.1, 0.15), (0.05,)), FixedBaseTrials(DEFAULT_WALL)).run(campaign_dir)
     assert (campaign_dir / "dataset.json").read_text() == before
 
 
@@ -172,7 +176,7 @@ def test_a_campaign_of_the_fr3_with_the_franka_hand_models_what_its_manifest_say
     from impactqp.controller.model.jump import JUMP_MODELS
 
     choice = RobotChoice.of("fr3", "franka_hand")
-    table = Campaign(CampaignPlan(("elbow_up",), (0.1,), ()), DEFAULT_WALL, choice=choice).run(tmp_path)
+    table = Campaign(CampaignPlan(("elbow_up",), (0.1,), ()), FixedBaseTrials(DEFAULT_WALL, choice=choice)).run(tmp_path)
     dataset = read_dataset(tmp_path)
     assert dataset.header.robot == "fr3" and dataset.header.tool.as_dict() == choice.tool.as_dict()
     assert all(not p for p in validate(tmp_path).values())
@@ -184,3 +188,15 @@ def test_a_campaign_of_the_fr3_with_the_franka_hand_models_what_its_manifest_say
     assert -DEFAULT_WALL.normal @ v == pytest.approx(0.1, rel=0.05)
     crb = JUMP_MODELS["crb"].predict(terms, DEFAULT_WALL.normal, v, 0.0).dq_jump
     assert table.rows[0].errors["crb"] == pytest.approx(np.mean(np.abs(crb - impact.dq_jump)), rel=1e-4, abs=1e-6)
+
+
+@pytest.mark.parametrize("name", list(ROBOTS))
+def test_a_robots_campaign_postures_are_its_description_s(name):
+    """A fixed base's named postures, a floating base's stances; None: every one; an unknown
+    name is bad input naming the known ones."""
+    robot = ROBOTS[name]
+    known = robot.stances if robot.floating else robot.postures
+    assert named_postures(robot) is known and check_postures(robot, None) == tuple(known)
+    assert check_postures(robot, reversed(tuple(known))) == tuple(reversed(tuple(known)))
+    with pytest.raises(BadInputError, match=f"unknown posture 'nope' for the {robot.name}; known: {', '.join(known)}"):
+        check_postures(robot, ("nope",))

@@ -12,12 +12,11 @@ import pinocchio as pin
 import pytest
 
 from impactqp.controller.measured.dataset import read_dataset
-from impactqp.controller.measured.humanoid_format import g1_model
 from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.cli.exit_codes import EXIT_BAD_INPUT
 
-from conftest import file_digests
+from conftest import g1_model, file_digests
 
 
 def run(capsys, *args):

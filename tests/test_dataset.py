@@ -21,10 +21,9 @@ from impactqp.controller.measured.dataset import (
 )
 from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.measured.impact import measure_impact
-from impactqp.sim.humanoid_dataset import HEADER
 from impactqp.sim.plant import PlantParameters
 
-from conftest import DATASET_HEADER, JOINTS, dataset_entry, file_digests, g1_dataset, g1_log
+from conftest import G1_HEADER, DATASET_HEADER, JOINTS, dataset_entry, file_digests, g1_dataset, g1_log
 
 
 def test_round_trip(dataset, dataset_logs):
@@ -128,9 +127,9 @@ def test_a_g1_trial_reads_back_as_written(tmp_path_factory, seed, scale):
     directory = tmp_path_factory.mktemp("g1")
     log = g1_log(seed, scale)
     entry = TrialEntry("g", "g.csv", 0.3, force_file="g_force.csv", posture="parallel")
-    DatasetWriter(directory, HEADER).add_trial(entry, log)
+    DatasetWriter(directory, G1_HEADER).add_trial(entry, log)
     data = read_dataset(directory)
-    assert data.header.to_dict() == HEADER.to_dict() and data.trials[0].entry == entry
+    assert data.header.to_dict() == G1_HEADER.to_dict() and data.trials[0].entry == entry
     for name in G1_ARRAYS:
         np.testing.assert_allclose(getattr(data.trials[0].log, name), getattr(log, name), rtol=1e-9, atol=0.0)
     manifest = json.loads((directory / "dataset.json").read_text())
@@ -140,7 +139,7 @@ def test_a_g1_trial_reads_back_as_written(tmp_path_factory, seed, scale):
 def test_a_g1_log_without_its_base_state_is_not_written(tmp_path):
     log = replace(g1_log(0), base=np.zeros((0, 13)))
     with pytest.raises(DatasetError, match="base state"):
-        DatasetWriter(tmp_path, HEADER).add_trial(TrialEntry("g", "g.csv", 0.3), log)
+        DatasetWriter(tmp_path, G1_HEADER).add_trial(TrialEntry("g", "g.csv", 0.3), log)
     assert not list(tmp_path.iterdir())
 
 

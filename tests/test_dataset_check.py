@@ -7,9 +7,8 @@ import pytest
 
 from impactqp.controller.measured.dataset import DatasetError, read_dataset
 from impactqp.controller.measured.dataset_check import validate
-from impactqp.controller.measured.humanoid_format import g1_model
 
-from conftest import file_digests, g1_dataset
+from conftest import g1_model, file_digests, g1_dataset
 
 
 def test_valid_dataset_has_no_problem(dataset):

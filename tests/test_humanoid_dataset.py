@@ -8,14 +8,13 @@ import pytest
 
 from impactqp.controller.measured.dataset import DatasetError, read_dataset
 from impactqp.controller.measured.dataset_check import validate
-from impactqp.controller.measured.humanoid_format import g1_model
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD, measure_impact
 from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.humanoid_stance import STANCES
-from impactqp.sim.humanoid_dataset import HEADER, dataset_log, open_dataset, trial_entry, write_trials
+from impactqp.sim.humanoid_dataset import dataset_log, open_dataset, trial_entry, write_trials
 from impactqp.sim.humanoid_trial import CONTROL_PERIOD, run_impact_trial
 
-from conftest import file_digests
+from conftest import G1_HEADER, g1_model, file_digests
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +51,7 @@ def test_the_log_is_what_the_trial_ran(trials):
 
 def test_written_trials_read_back_as_logged(written, trials):
     data = read_dataset(written)
-    assert data.header.to_dict() == HEADER.to_dict()
+    assert data.header.to_dict() == G1_HEADER.to_dict()
     assert [t.entry for t in data.trials] == [trial_entry(t) for t in trials]
     for read, trial in zip(data.trials, trials):
         expected = dataset_log(trial)

@@ -6,13 +6,14 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from impactqp.controller.measured.humanoid_format import g1_model
 from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.g1_actuators import joint_armature
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.validation import BadInputError
 from impactqp.sim.humanoid_scene import WALL_FRICTION, build_humanoid_scene, plant_armature
 from impactqp.sim.scene import HAND_RADIUS, to_pinocchio
+
+from conftest import g1_model
 
 
 @pytest.fixture(scope="module")

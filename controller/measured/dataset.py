@@ -15,13 +15,15 @@ A dataset is a directory with a manifest ``dataset.json``::
                   "posture": "elbow_up", "impact_time": 0.134}]
     }
 
-``robot`` names a robot description (``panda``, ``fr3``; ``g1``: the floating-base humanoid, its
-contact frame as ``tool``, its base state before its joints' columns, ``humanoid_format``) and ``tool`` is the full tool
-description (``tool_description.ToolDescription.as_dict``; docs/dataset.md): whoever reads the
-dataset models that robot and that tool. A manifest of the first version, whose tool is
+``robot`` names a robot description (``panda``, ``fr3``, ``ur5``, ``g1``, or a description file) and
+``tool`` is the full tool description (``tool_description.ToolDescription.as_dict``; docs/dataset.md): whoever reads the
+dataset models that robot and that tool. A floating-base robot (the G1) carries no tool: its
+``tool`` is its own contact frame and its base state comes before its joints' columns
+(``dataset_robot``). A manifest of the first version, whose tool is
 ``{"frame": "panda_hand", "contact_point": [0, 0, 0.14]}`` (the hand frame of its robot and the
 impact tip's contact point), is read as the built-in ``impact_tip``. The surface is in the world frame with its normal towards the robot. Per trial,
-one CSV at the control rate with the columns ``t, q1..qn, dq1..dqn, tau1..taun, dq_cmd1..dq_cmdn`` (n joints)
+one CSV at the control rate with the columns ``t, q1..qn, dq1..dqn, tau1..taun, dq_cmd1..dq_cmdn`` (n joints;
+a floating base's 13 columns after ``t``)
 (tau: measured joint torques, dq_cmd: commanded joint velocities) and optionally a force CSV
 ``t, fx, fy, fz`` (force on the robot at the contact, world frame, any rate). ``force_file``,
 ``reference_tangential_velocity``, ``posture`` and ``impact_time`` are optional.
@@ -59,21 +61,11 @@ from impactqp.controller.model.validation import (
 )
 
 from .atomic import write_text_atomic
-from .humanoid_format import BASE_COLUMNS, G1, ContactFrame, contact_frame_from_dict, joint_count
+from .dataset_robot import BASE_COLUMNS, ContactFrame, base_columns, contact_frame_from_dict, trial_columns
 from .trial_log import TrialLog
 
 FORMAT = "impactqp-dataset/1"
 MANIFEST = "dataset.json"
-
-
-def trial_columns(robot: str) -> list[str]:
-    """The columns of a trial CSV of ``robot``: t, a floating base's state, then per quantity
-    (q, dq, tau, dq_cmd) one column per joint of the robot."""
-    if robot == G1:
-        base, joints = list(BASE_COLUMNS), joint_count()
-    else:
-        base, joints = [], len(robot_description(robot).joints)
-    return ["t", *base, *(f"{name}{i}" for name in ("q", "dq", "tau", "dq_cmd") for i in range(1, joints + 1))]
 
 
 TRIAL_COLUMNS = trial_columns("panda")
@@ -154,11 +146,18 @@ class DatasetHeader:
     robot: str = "panda"
     friction_known: bool = True
 
+    @classmethod
+    def of(cls, choice: RobotChoice, surface: Surface, control_period: float) -> DatasetHeader:
+        """The header of trials of ``choice``'s robot with its tool (a floating-base robot: its
+        own contact frame, ``dataset_robot.ContactFrame``)."""
+        tool = ContactFrame.of(choice.robot) if choice.robot.floating else choice.tool
+        return cls(tool=tool, surface=surface, control_period=control_period, robot=choice.robot_setting)
+
     @property
     def choice(self) -> RobotChoice:
         """The robot and the tool the data were taken with: what a reader models (an arm's only)."""
-        if self.robot == G1:
-            raise DatasetError("a g1 dataset (the floating-base humanoid) cannot be read here: this reads "
+        if robot_description(self.robot).floating:
+            raise DatasetError(f"a {robot_description(self.robot).name} dataset (a floating base) cannot be read here: this reads "
                                f"datasets of the arms ({', '.join(n for n in ROBOTS if not ROBOTS[n].floating)}) only")
         return RobotChoice.of(self.robot, self.tool)
 
@@ -247,9 +246,9 @@ def _csv(columns: list[str], table: np.ndarray) -> str:
 
 
 def _trial_csv(log: TrialLog, robot: str) -> str:
-    base = [log.base] if robot == G1 else []
-    if robot == G1 and len(log.base) != len(log.t):
-        raise DatasetError("a g1 trial's log lacks the base state of its samples")
+    base = [log.base] if base_columns(robot) else []
+    if base and len(log.base) != len(log.t):
+        raise DatasetError(f"a {robot_description(robot).name} trial's log lacks the base state of its samples")
     return _csv(trial_columns(robot), np.column_stack([log.t, *base, log.q, log.dq, log.tau, log.dq_cmd]))
 
 
@@ -298,8 +297,8 @@ def parse_header(manifest: dict) -> DatasetHeader:
         raise DatasetError("'tool' must be an object: a tool description (docs/dataset.md)")
     if not isinstance(surface, dict) or not {"point", "normal"} <= set(surface) <= {"point", "normal", "friction"}:
         raise DatasetError("'surface' must be an object with the keys point, normal and optionally friction")
-    if manifest["robot"] == G1:
-        tool = contact_frame_from_dict(tool)
+    if robot_description(manifest["robot"]).floating:
+        tool = contact_frame_from_dict(tool, manifest["robot"])
     elif set(tool) == LEGACY_TOOL_KEYS:
         tool = _legacy_tool(tool, manifest["robot"])
     else:
@@ -411,9 +410,10 @@ def read_header(directory: str | Path) -> DatasetHeader:
 def read_trial(directory: Path, entry: TrialEntry, robot: str = "panda") -> TrialLog:
     """The log of the trial ``entry`` of a dataset of ``robot``."""
     table = _read_table(_inside(directory, entry.file), trial_columns(robot))
-    base = len(BASE_COLUMNS) + 1 if robot == G1 else 1
-    t, q, dq, tau, dq_cmd = (table[:, 0], *np.split(table[:, base:], 4, axis=1))
-    log = TrialLog(t, q, dq, tau, dq_cmd, base=table[:, 1:base] if robot == G1 else np.zeros((0, len(BASE_COLUMNS))))
+    joints = 1 + len(base_columns(robot))
+    t, q, dq, tau, dq_cmd = (table[:, 0], *np.split(table[:, joints:], 4, axis=1))
+    base = table[:, 1:joints] if joints > 1 else np.zeros((0, len(BASE_COLUMNS)))
+    log = TrialLog(t, q, dq, tau, dq_cmd, base=base)
     if entry.force_file is not None:
         force = _read_table(_inside(directory, entry.force_file), FORCE_COLUMNS)
         log.force_t, log.force = force[:, 0], force[:, 1:]

@@ -19,7 +19,7 @@ from .dataset import (
     parse_header,
     read_trial,
 )
-from .humanoid_format import G1, g1_model, quaternion_problem
+from .dataset_robot import quaternion_problem
 from .impact import WINDOW_AFTER, WINDOW_BEFORE, ImpactNotFoundError, measure_impact
 
 POSITION_TOLERANCE = 1e-3
@@ -31,7 +31,7 @@ def validate(directory: str | Path, progress=None) -> dict[str, list[str]]:
 
     Checks: the manifest (format, keys, header, duplicate ids, CSV files it does not list),
     per trial the files and their columns, non-finite values, increasing time, the joint positions
-    against the robot's limits, a floating base's unit quaternions (the G1), the sampling
+    against the robot's limits, a floating base's unit quaternions, the sampling
     period against ``control_period``, a length that holds the detection window, an impact
     found by :func:`controller.measured.impact.measure_impact`, and ``impact_time`` against the detected impact.
     An empty list means no problem. Never modifies any file.
@@ -97,7 +97,7 @@ def _log_problems(directory: Path, entry: TrialEntry, header: DatasetHeader) -> 
         return [str(error)], None
     problems = []
     control_period = header.control_period
-    robot = g1_model() if header.robot == G1 else robot_description(header.robot)
+    robot = robot_description(header.robot)
     outside = (log.q < robot.q_min - POSITION_TOLERANCE) | (log.q > robot.q_max + POSITION_TOLERANCE)
     if np.any(outside):
         row, joint = (int(i) for i in np.argwhere(outside)[0])
@@ -106,7 +106,7 @@ def _log_problems(directory: Path, entry: TrialEntry, header: DatasetHeader) -> 
             f"the joint limits [{robot.q_min[joint]:.4f}, {robot.q_max[joint]:.4f}]"
         )
         return problems, None
-    quaternion = quaternion_problem(log.base, entry.file) if header.robot == G1 else None
+    quaternion = quaternion_problem(log.base, entry.file) if robot.floating else None
     if quaternion is not None:
         return [quaternion], None
     needed = int(round((WINDOW_BEFORE + WINDOW_AFTER) / control_period)) + 4

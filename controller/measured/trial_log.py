@@ -19,7 +19,7 @@ class TrialLog:
     mean that the log holds no force measurement (e.g. a robot log without a sensor).
     ``wall_time`` is the time the simulation took (s), 0 for a log that was not simulated.
     ``base`` (N, 13): a floating base's state per control sample (position, quaternion x, y, z,
-    w, twist in the base frame: ``controller.measured.humanoid_format``), empty for a fixed-base arm.
+    w, twist in the base frame: ``controller.measured.dataset_robot``), empty for a fixed-base arm.
     """
 
     t: np.ndarray

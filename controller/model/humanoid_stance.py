@@ -90,7 +90,7 @@ def inside_polygon(point, polygon: np.ndarray) -> float:
 def stance_posture(robot: FloatingBaseModel, stance: Stance) -> np.ndarray:
     """The configuration q (nq) of the stance (module docstring); raises BadInputError when the
     solver leaves a foot more than 1 mm (or 1 mrad) off its target or the hand 5 mm off."""
-    model, data = robot.model, robot.data
+    model = robot.model
     joints = slice(robot.base_nq, None)  # the actuated joints' part of q
     nominal = np.zeros(robot.n_joints)
     for name, value in NOMINAL.items():

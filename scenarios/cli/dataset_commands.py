@@ -262,19 +262,19 @@ def _print_diagnosis(result, summary: dict, speeds) -> None:
 
 
 def _check_manifest_choice(directory, choice) -> None:
-    """Bad input when the manifest's robot is the G1 (the diagnosis replays an arm in its MuJoCo
+    """Bad input when the manifest's robot has a floating base (the diagnosis replays an arm in its MuJoCo
     scene), or when a non-default ``choice`` (--robot, --tool) differs from the manifest's."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.measured.dataset import DatasetError, read_header
-    from impactqp.controller.measured.humanoid_format import G1
+    from impactqp.controller.model.robot_description import robot_description
 
     try:
         header = read_header(directory)
     except DatasetError:
         return  # the diagnosis reports the manifest's own problem
-    if header.robot == G1:
-        raise BadInputError(f"{directory} is a g1 dataset: diagnose replays and fits the arms' trials (panda, fr3), "
-                            "not the floating-base humanoid's")
+    if robot_description(header.robot).floating:
+        raise BadInputError(f"{directory} is a {robot_description(header.robot).name} dataset: diagnose replays and "
+                            "fits the arms' trials, not a floating-base robot's")
     if choice.is_default:
         return
     if not header.choice.same_as(choice):

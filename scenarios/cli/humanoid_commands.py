@@ -11,13 +11,12 @@ has no meaning for the G1 (a tool, a plant file, a wall point, jump constraints:
 ``simulate --controller qp`` runs a QP, and takes ``--jump-model``) is bad input when given: one
 line naming it. The JSON keeps the arm's keys where they mean the same and
 adds the G1's (CoM jump, foot wrenches, slip, lift, fall). ``simulate --out DIR`` and ``campaign``
-write their trials as a G1 dataset (``sim.humanoid_dataset``, docs/dataset.md).
+write their trials as a G1 dataset (``sim.humanoid_dataset``, docs/dataset.md); ``campaign`` is
+the arm's command, given the floating-base robot's trial runner (``scenarios.humanoid_campaign``).
 """
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
 
 import click
 import numpy as np
@@ -28,7 +27,7 @@ from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.robot_description import RobotDescription
 from impactqp.controller.model.validation import BadInputError, approach_speed, tangential_velocity, unit_normal
 from impactqp.controller.model.validation import restitution as restitution_coefficient
-from impactqp.scenarios.cli.arguments import check_jobs, gif_output, output_directory, parse_vector
+from impactqp.scenarios.cli.arguments import gif_output, output_directory, parse_vector
 
 def reject_options(names) -> None:
     """Bad input when one of the options ``names`` (click parameter names) was given."""
@@ -82,21 +81,6 @@ def g1_predict(choice: RobotChoice, posture: str | None, q_text: str | None, imp
     return report
 
 
-def trial_json(robot: str, trial) -> dict:
-    """A trial of the floating-base robot named ``robot`` as JSON (sim.humanoid_trial.ImpactTrial)."""
-    return {
-        "robot": robot, "posture": trial.stance, "reference_speed": trial.speed, "contact_speed": trial.contact_speed,
-        "impulse": trial.impulse.tolist(), "floor_impulse": trial.floor_impulse.tolist(),
-        "impact_duration": trial.duration, "dq_jump": trial.measured_jump.tolist(),
-        "com_jump": trial.measured_com_jump.tolist(),
-        "predicted": {m: dv.tolist() for m, dv in trial.predicted_jump.items()},
-        "predicted_com_jump": {m: c.tolist() for m, c in trial.predicted_com_jump.items()},
-        "errors": trial.errors, "foot_slip": trial.foot_slip, "foot_lift": trial.foot_lift, "fell": trial.fell,
-        "max_velocity_ratio": trial.max_velocity_ratio, "first_failure": trial.first_failure,
-        "violated": not trial.feasible,
-    }
-
-
 def g1_simulate(
     choice: RobotChoice, posture: str, speed: float, files: dict, controller: str = "scripted"
 ) -> tuple[dict, str | None]:
@@ -106,6 +90,7 @@ def g1_simulate(
     added to the G1 dataset in ``files["out_dir"]``; its JSON (with the QP: ``controller`` and
     ``cycles_not_ok`` added) and the id of the trial written (None without ``out_dir``)."""
     # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.humanoid_campaign import trial_json
     from impactqp.scenarios.video import render_humanoid_gif
     from impactqp.sim.humanoid_dataset import open_dataset, write_trials
     from impactqp.sim.humanoid_qp_source import QpCommand
@@ -124,7 +109,7 @@ def g1_simulate(
     approach_speed(speed, "--speed")
     if video_file is not None:
         gif_output(video_file)
-    dataset = None if out_dir is None else open_dataset(output_directory(out_dir, "--out"))
+    dataset = None if out_dir is None else open_dataset(output_directory(out_dir, "--out"), choice.robot)
     robot = FloatingBaseModel(choice.robot)
     trial = run_impact_trial(robot, stance, speed, source=source)
     written = None if dataset is None else write_trials(dataset, [trial])[0].id
@@ -148,47 +133,3 @@ def simulate_text(report: dict) -> str:
          if report.get("controller") == "qp" else []))
 
 
-def _campaign_trial(task):
-    """One campaign trial in a worker process (robot description, stance, speed) -> ImpactTrial."""
-    # lazy: a worker process imports the simulation when it runs its first trial
-    from impactqp.sim.humanoid_trial import run_impact_trial
-
-    robot, stance, speed = task
-    return run_impact_trial(FloatingBaseModel(robot), robot.stances[stance], speed)
-
-
-def g1_campaign(choice: RobotChoice, postures_text, speeds_text, jobs: int, out_dir: str) -> tuple[dict, str]:
-    """The campaign of the floating-base robot of ``choice`` (``scenarios.humanoid_campaign``):
-    Table I's JSON and the Markdown table, both written to ``out_dir`` (table1.json, table1.md)
-    beside the campaign's trials as a G1 dataset (dataset.json and per trial its CSV and force
-    CSV, ``sim.humanoid_dataset``)."""
-    # lazy: the command line loads what a command needs when it runs
-    from impactqp.controller.measured.atomic import write_atomic
-    from impactqp.scenarios.humanoid_campaign import DEFAULT_SPEEDS, campaign_table, crb_reduction, mean_errors
-    from impactqp.sim.humanoid_dataset import open_dataset, write_trials
-    from impactqp.sim.process_pool import map_in_processes
-
-    reject_options(["tangential_text", "plant_file", "tool"])
-    stances = stance_names(choice.robot, postures_text)
-    speeds = DEFAULT_SPEEDS if speeds_text is None else tuple(parse_vector(speeds_text, None, "--speeds").tolist())
-    for v in speeds:
-        approach_speed(v, "every speed of --speeds")
-    out = output_directory(out_dir, "--out")
-    dataset = open_dataset(out)
-    trials = map_in_processes(_campaign_trial, [(choice.robot, s, v) for s in stances for v in speeds], check_jobs(jobs))
-    errors = {m: e for m, e in mean_errors(trials).items() if m in METHODS}
-    rows = [
-        {**{k: v for k, v in trial_json(choice.robot.name, t).items() if k not in ("predicted", "predicted_com_jump", "robot")},
-         "trial": i, "normal_speed": t.speed, "tangential_speed": 0.0, "average_error": t.errors,
-         "crb_reduction_percent": 100.0 * (1.0 - t.errors["crb"] / t.errors["classical"]),
-         "measured_jump": t.measured_jump.tolist()}
-        for i, t in enumerate(trials)
-    ]
-    table = {"robot": choice.robot.name, "methods": list(METHODS), "rows": rows, "mean_average_error": errors,
-             "mean_crb_reduction_percent": crb_reduction(errors)}
-    text = campaign_table(trials)
-    out.mkdir(parents=True, exist_ok=True)
-    write_trials(dataset, trials)
-    write_atomic(out / "table1.json", lambda tmp: Path(tmp).write_text(json.dumps(table, indent=2, allow_nan=False)))
-    write_atomic(out / "table1.md", lambda tmp: Path(tmp).write_text(text + "\n"))
-    return table, text

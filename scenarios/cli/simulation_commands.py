@@ -157,27 +157,22 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
 
 
 # ---------------------------------------------------------------------------- campaign
-def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, progress, choice):
-    """Parse the campaign options, run it with ``choice``'s robot and tool and return Table I."""
+def campaign_speeds(speeds_text, tangential_text, floating: bool) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """The normal speeds (default: the paper's for an arm, the humanoid campaign's for a floating
+    base) and the tangential series (an arm's; default the paper's, 'none' skips it) of the options."""
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.scenarios.campaign import Campaign, CampaignPlan, PAPER_SPEEDS, PAPER_TANGENTIAL_SPEEDS
+    from impactqp.scenarios.campaign import PAPER_SPEEDS, PAPER_TANGENTIAL_SPEEDS
+    from impactqp.scenarios.humanoid_campaign import DEFAULT_SPEEDS
 
-    postures = choice.check_postures(
-        choice.robot.postures if postures_text is None else (s.strip() for s in postures_text.split(","))
-    )
-    speeds = PAPER_SPEEDS if speeds_text is None else tuple(parse_vector(speeds_text, None, "--speeds").tolist())
+    default = DEFAULT_SPEEDS if floating else PAPER_SPEEDS
+    speeds = default if speeds_text is None else tuple(parse_vector(speeds_text, None, "--speeds").tolist())
     for v in speeds:
         approach_speed(v, "every speed of --speeds")
+    if floating or (tangential_text is not None and tangential_text.strip().lower() == "none"):
+        return speeds, ()
     if tangential_text is None:
-        tangential = PAPER_TANGENTIAL_SPEEDS
-    elif tangential_text.strip().lower() == "none":
-        tangential = ()
-    else:
-        tangential = tuple(parse_vector(tangential_text, None, "--tangential").tolist())
-    plan = CampaignPlan(postures, speeds, tangential)
-    plant = load_plant(plant_file)
-    output_directory(out_dir, "--out")
-    return Campaign(plan, DEFAULT_WALL, plant, jobs=check_jobs(jobs), progress=progress, choice=choice).run(out_dir)
+        return speeds, PAPER_TANGENTIAL_SPEEDS
+    return speeds, tuple(parse_vector(tangential_text, None, "--tangential").tolist())
 
 
 @click.command()
@@ -195,20 +190,24 @@ def run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, 
 def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, as_json, choice):
     """The paper's campaign in simulation: dataset, Table I and figures in --out (with --robot
     g1: stances x speeds of the standing G1, its dataset, table1.json and table1.md in --out)."""
-    if choice.robot.floating:
-        # lazy: the command line loads what a command needs when it runs
-        from impactqp.scenarios.cli.humanoid_commands import g1_campaign
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.campaign import Campaign, CampaignPlan, FixedBaseTrials, check_postures
+    from impactqp.scenarios.humanoid_campaign import FloatingBaseTrials
 
-        table, text = g1_campaign(choice, postures_text, speeds_text, jobs, out_dir)
-        if as_json:
-            emit_json(table)
-            return
-        click.echo(text)
-        click.echo(f"dataset, table1.json and table1.md written to {out_dir}")
-        return
-    table = run_campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, not as_json, choice)
+    robot = choice.robot
+    if robot.floating:
+        from impactqp.scenarios.cli.humanoid_commands import reject_options
+
+        reject_options(["tangential_text", "plant_file", "tool"])
+    postures = check_postures(robot, None if postures_text is None else (s.strip() for s in postures_text.split(",")))
+    speeds, tangential = campaign_speeds(speeds_text, tangential_text, robot.floating)
+    plan = CampaignPlan(postures, speeds, tangential)
+    trials = FloatingBaseTrials(robot) if robot.floating else FixedBaseTrials(DEFAULT_WALL, load_plant(plant_file), choice)
+    output_directory(out_dir, "--out")
+    table = Campaign(plan, trials, jobs=check_jobs(jobs), progress=not as_json).run(out_dir)
     if as_json:
         emit_json(table.to_json())
         return
     click.echo(table.text())
-    click.echo(f"dataset, table1.json, table1.txt and figures written to {out_dir}")
+    *first, last = ["dataset", *table.files(), *(["figures"] if not robot.floating else [])]
+    click.echo(f"{', '.join(first)} and {last} written to {out_dir}")
