@@ -104,9 +104,25 @@ def solve(robot: PandaModel, task: TaskError, seed, stop: Stop = Stop()) -> Cont
             return ContactPosture(q, True, position_error, axis_error)
         if iteration == stop.iterations:
             break
-        step = A.T @ np.linalg.solve(A @ A.T + DAMPING**2 * np.eye(e.size), e)
+        step = limited_step(A, e, q, robot)
         q = np.clip(q + np.clip(step, -MAX_STEP, MAX_STEP), robot.q_min, robot.q_max)
     return ContactPosture(q, False, position_error, axis_error)
+
+
+def limited_step(A: np.ndarray, e: np.ndarray, q: np.ndarray, robot: PandaModel) -> np.ndarray:
+    """The damped least-squares step dq = A^T (A A^T + lambda^2 I)^-1 e over the joints that are
+    free to move: a joint at a limit whose step would push it further out is frozen (its column
+    of A zeroed) and the step recomputed, so the other joints take up its share instead of the
+    clipped step stalling the iteration."""
+    frozen = np.zeros(q.size, dtype=bool)
+    regularised = DAMPING**2 * np.eye(e.size)
+    while True:
+        free = np.where(frozen, 0.0, A)
+        step = free.T @ np.linalg.solve(free @ free.T + regularised, e)
+        blocked = ~frozen & (((q <= robot.q_min) & (step < 0.0)) | ((q >= robot.q_max) & (step > 0.0)))
+        if not blocked.any():
+            return step
+        frozen |= blocked
 
 
 def tip_and_axis(robot: PandaModel, point, normal) -> TaskError:
@@ -278,6 +294,8 @@ def contact_postures_kernel(Q, targets, axis_targets, chain, iteration, reachabl
     S = np.empty((6, 6))
     e = np.empty(6)
     x = np.empty(6)
+    steps = np.empty(n_q)
+    frozen = np.zeros(n_q, dtype=np.bool_)
     p = np.empty(3)
     z = np.empty(3)
     contact = np.empty(3)
@@ -343,37 +361,51 @@ def contact_postures_kernel(Q, targets, axis_targets, chain, iteration, reachabl
                 A[3, k] = wx - z[0] * zw
                 A[4, k] = wy - z[1] * zw
                 A[5, k] = wz - z[2] * zw
-            # S = A A^T + lambda^2 I, Cholesky S = L L^T in place (lower triangle)
-            for i in range(6):
-                for j in range(i + 1):
-                    acc = 0.0
-                    for k in range(n_q):
-                        acc += A[i, k] * A[j, k]
-                    S[i, j] = acc + (damping_squared if i == j else 0.0)
-            for j in range(6):
-                d = S[j, j]
-                for k in range(j):
-                    d -= S[j, k] * S[j, k]
-                d = np.sqrt(d)
-                S[j, j] = d
-                for i in range(j + 1, 6):
-                    v = S[i, j]
-                    for k in range(j):
-                        v -= S[i, k] * S[j, k]
-                    S[i, j] = v / d
-            for i in range(6):
-                v = e[i]
-                for k in range(i):
-                    v -= S[i, k] * x[k]
-                x[i] = v / S[i, i]
-            for i in range(5, -1, -1):
-                v = x[i]
-                for k in range(i + 1, 6):
-                    v -= S[k, i] * x[k]
-                x[i] = v / S[i, i]
+            # the step over the free joints (``limited_step``): a joint at a limit that the step
+            # pushes further out is frozen (its column of A zeroed) and the step recomputed
             for k in range(n_q):
-                step = 0.0
+                frozen[k] = False
+            blocked = True
+            while blocked:
+                # S = A A^T + lambda^2 I over the free columns, Cholesky S = L L^T in place
                 for i in range(6):
-                    step += A[i, k] * x[i]
-                step = min(max(step, -max_step), max_step)
+                    for j in range(i + 1):
+                        acc = 0.0
+                        for k in range(n_q):
+                            if not frozen[k]:
+                                acc += A[i, k] * A[j, k]
+                        S[i, j] = acc + (damping_squared if i == j else 0.0)
+                for j in range(6):
+                    d = S[j, j]
+                    for k in range(j):
+                        d -= S[j, k] * S[j, k]
+                    d = np.sqrt(d)
+                    S[j, j] = d
+                    for i in range(j + 1, 6):
+                        v = S[i, j]
+                        for k in range(j):
+                            v -= S[i, k] * S[j, k]
+                        S[i, j] = v / d
+                for i in range(6):
+                    v = e[i]
+                    for k in range(i):
+                        v -= S[i, k] * x[k]
+                    x[i] = v / S[i, i]
+                for i in range(5, -1, -1):
+                    v = x[i]
+                    for k in range(i + 1, 6):
+                        v -= S[k, i] * x[k]
+                    x[i] = v / S[i, i]
+                blocked = False
+                for k in range(n_q):
+                    step = 0.0
+                    if not frozen[k]:
+                        for i in range(6):
+                            step += A[i, k] * x[i]
+                        if (q[k] <= q_min[k] and step < 0.0) or (q[k] >= q_max[k] and step > 0.0):
+                            frozen[k] = True
+                            blocked = True
+                    steps[k] = step
+            for k in range(n_q):
+                step = min(max(steps[k], -max_step), max_step)
                 q[k] = min(max(q[k] + step, q_min[k]), q_max[k])

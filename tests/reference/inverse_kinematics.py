@@ -59,6 +59,19 @@ def reference_contact_postures(
             e[away, 3:] = np.cross(za, axis_target[away] + 0.5 * np.cross(za, np.roll(za, 1, axis=1)))
         A = J6.copy()
         A[:, 3:] -= z[:, :, None] * np.einsum("na,nak->nk", z, J6[:, 3:])[:, None, :]
-        step = np.einsum("nak,na->nk", A, np.linalg.solve(A @ np.swapaxes(A, 1, 2) + damping, e[:, :, None])[..., 0])
+        step = np.array([free_joint_step(A[n], e[n], q[n], robot, damping) for n in range(q.shape[0])]).reshape(q.shape)
         Q[active] = np.clip(q + np.clip(step, -MAX_STEP, MAX_STEP), robot.q_min, robot.q_max)
     return result
+
+
+def free_joint_step(A, e, q, robot, damping):
+    """The damped least-squares step over the joints free to move: joints at a limit that the
+    step pushes further out are left out (columns of A zeroed), one at a time until none is."""
+    frozen = np.zeros(q.size, dtype=bool)
+    while True:
+        A_free = A * ~frozen
+        step = A_free.T @ np.linalg.solve(A_free @ A_free.T + damping, e)
+        blocked = ~frozen & (((q <= robot.q_min) & (step < 0.0)) | ((q >= robot.q_max) & (step > 0.0)))
+        if not blocked.any():
+            return step
+        frozen |= blocked
