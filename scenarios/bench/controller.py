@@ -74,18 +74,25 @@ def controller_cycle_samples(robot: PandaModel, solver: str | None = None, cycle
 def _approach_loop(robot: PandaModel, solver: str | None, cycles: int) -> tuple[np.ndarray, int]:
     """Seconds per ``step`` of the closed approach loop, and its number of fallbacks."""
     controller, q0 = _approach_setup(robot, solver)
+    return closed_loop_samples(controller, q0, robot.nv, cycles)
+
+
+def closed_loop_samples(controller, q0: np.ndarray, nv: int, cycles: int) -> tuple[np.ndarray, int]:
+    """Seconds per ``controller.step`` in the kinematic closed loop (q, v <- q_cmd, v_cmd),
+    restarted at rest at ``q0`` every RESTART_EVERY cycles, and the number of fallback commands
+    (any controller whose command has ``q_cmd``, ``dq_cmd`` and ``is_fallback``)."""
     samples = np.empty(cycles)
     fallbacks = 0
-    q, dq = q0, np.zeros(robot.nv)
+    q, v = q0, np.zeros(nv)
     for k in range(cycles):
         if k % RESTART_EVERY == 0:
-            q, dq = q0, np.zeros(robot.nv)
-            controller.reset(q, dq)
+            q, v = q0, np.zeros(nv)
+            controller.reset(q, v)
         start = time.perf_counter()
-        command = controller.step(q, dq)
+        command = controller.step(q, v)
         samples[k] = time.perf_counter() - start
         fallbacks += command.is_fallback
-        q, dq = command.q_cmd, command.dq_cmd
+        q, v = command.q_cmd, command.dq_cmd
     return samples, fallbacks
 
 
@@ -230,16 +237,7 @@ def g1_cycle_samples(robot: WholeBodyModel, solver: str = "daqp", cycles: int = 
     normal = np.array([-1.0, 0.0, 0.0])
     surface = Surface(robot.terms(q0).contact_point - WALL_GAP * normal, normal)
     controller = build_whole_body_controller(robot, q0, WholeBodySetup(surface, speed=0.5, solver=solver))
-    samples = np.empty(cycles)
-    for k in range(cycles):
-        if k % RESTART_EVERY == 0:
-            q, v = q0, np.zeros(robot.nv)
-            controller.reset(q, v)
-        start = time.perf_counter()
-        command = controller.step(q, v)
-        samples[k] = time.perf_counter() - start
-        q, v = command.q_cmd, command.dq_cmd
-    return samples
+    return closed_loop_samples(controller, q0, robot.nv, cycles)[0]
 
 
 def pink_g1_cycle_samples(robot: WholeBodyModel, cycles: int = CYCLES) -> np.ndarray:
