@@ -194,8 +194,9 @@ def demo(out_dir, jobs):
     click.echo(trusted_speed_text(result, speeds))
     click.echo(f"\nreport: {path}")
     click.echo(
-        "This was the Panda with the impact tip; every command takes --robot panda|fr3 and --tool "
-        "impact_tip|franka_hand|pad|FILE.json, e.g. `impactqp campaign --robot fr3 --tool franka_hand`."
+        "This was the Panda with the impact tip; every command takes --robot panda|fr3|ur5|FILE.toml (your own "
+        "robot's description, docs/robots.md; predict, simulate, campaign and max-speed also g1) and --tool "
+        "impact_tip|franka_hand|pad|FILE.json, e.g. `impactqp campaign --robot ur5 --postures elbow_down`."
     )
 
 
