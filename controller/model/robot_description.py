@@ -26,7 +26,6 @@ import importlib.util
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -378,15 +377,17 @@ def load_robot_description(path: str | Path) -> RobotDescription:
     return description_from_mapping(read_mapping(path, "the robot description"), path.parent, path)
 
 
+BUILTIN_ORDER = ("panda", "fr3", "ur5", "g1")
+"""The order the built-in robots are listed in (any other file in the folder comes after them)."""
+
+
 class BuiltinRobots(Mapping):
     """The built-in descriptions by name, each read from its file on first use."""
 
     def __init__(self, folder: Path):
-        self._files = {p.stem: p for p in sorted(folder.glob("*.toml"), key=lambda p: _ORDER.get(p.stem, len(_ORDER)))}
-
-    @cached_property
-    def _loaded(self) -> dict[str, RobotDescription]:
-        return {}
+        rank = {name: i for i, name in enumerate(BUILTIN_ORDER)}
+        self._files = {p.stem: p for p in sorted(folder.glob("*.toml"), key=lambda p: (rank.get(p.stem, len(rank)), p.stem))}
+        self._loaded: dict[str, RobotDescription] = {}
 
     def __getitem__(self, name: str) -> RobotDescription:
         if name not in self._loaded:
@@ -400,7 +401,6 @@ class BuiltinRobots(Mapping):
         return len(self._files)
 
 
-_ORDER = {"panda": 0, "fr3": 1, "ur5": 2, "g1": 3}
 ROBOTS: Mapping[str, RobotDescription] = BuiltinRobots(BUILTIN_DIR)
 """The built-in robots by name: ``panda``, ``fr3``, ``ur5`` (fixed-base arms), ``g1`` (standing humanoid)."""
 PANDA = ROBOTS["panda"]
