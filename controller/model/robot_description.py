@@ -43,7 +43,7 @@ __all__ = [
 BASES = ("fixed", "floating")
 ROBOT_KEYS = {
     "name", "base", "joints", "default_posture", "urdf", "meshes", "tool_frames", "hand", "limits",
-    "contact", "held_contacts", "postures", "stances",
+    "contact", "held_contacts", "postures", "stances", "frames",
 }
 LIMIT_KEYS = ("q_min", "q_max", "dq_max", "ddq_max", "dddq_max", "tau_max")
 URDF_LIMITS = {"q_min": "lower", "q_max": "upper", "dq_max": "velocity", "tau_max": "effort"}
@@ -128,8 +128,9 @@ class RobotDescription:
     velocity ``dq_max`` (rad/s), acceleration ``ddq_max`` (rad/s^2), jerk ``dddq_max`` (rad/s^3)
     and torque ``tau_max`` (N m), read-only arrays. ``tool_frames`` maps a tool's ``frame``
     (``"hand"``, ``"flange"``) to a URDF frame; ``hand_frame``, ``finger_joints`` and
-    ``finger_links`` describe the gripper (empty without one). ``source`` is the file the
-    description was read from."""
+    ``finger_links`` describe the gripper (empty without one). ``frames`` names further URDF
+    frames whose state the model terms carry (``ModelTerms.frame(name)``: a humanoid's torso,
+    ``{torso = "torso_link"}``). ``source`` is the file the description was read from."""
 
     name: str
     base: str
@@ -151,6 +152,7 @@ class RobotDescription:
     postures: Mapping[str, ImpactPosture] = field(default_factory=dict)
     stances: Mapping[str, Stance] = field(default_factory=dict)
     default_posture: str = ""
+    frames: Mapping[str, str] = field(default_factory=dict)
     source: Path | None = None
 
     @property
@@ -360,6 +362,9 @@ def description_from_mapping(data: Mapping, base: Path | None = None, source: Pa
     if named and default not in named:
         raise BadInputError(f"the {robot} default_posture {default!r} is not one of {', '.join(named)}")
     tool_frames = _table(data, "tool_frames", {"hand", "flange"}, f"the {robot}")
+    frames = data.get("frames", {})
+    if not isinstance(frames, Mapping):
+        raise BadInputError(f"the {robot} [frames] must be a table of names to URDF frames")
     return RobotDescription(
         name=robot, base=kind, urdf=urdf, meshes=meshes, joints=joints,
         **_limits(limit_table, joints, urdf_joints, robot),
@@ -367,6 +372,7 @@ def description_from_mapping(data: Mapping, base: Path | None = None, source: Pa
         hand_frame=str(hand.get("frame", "")), finger_joints=fingers,
         finger_links=_names(hand.get("finger_links", []), f"the {robot} finger_links"),
         contact=contact, held_contacts=held, postures=postures, stances=stances, default_posture=default,
+        frames={_name(k, f"the {robot} [frames] key"): _name(v, f"the {robot} frame {k}") for k, v in frames.items()},
         source=source,
     )
 
