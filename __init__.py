@@ -30,7 +30,7 @@ _EXPORTS = {
     "BadInputError": f"{_MODEL}.validation",
     "RobotModel": f"{_MODEL}.robot",
     "PandaModel": f"{_MODEL}.robot",
-    "ModelTerms": f"{_MODEL}.robot",
+    "ModelTerms": f"{_MODEL}.model_terms",
     "RobotChoice": f"{_MODEL}.choice",
     "RobotDescription": f"{_MODEL}.robot_description",
     "robot_description": f"{_MODEL}.robot_description",
@@ -39,7 +39,6 @@ _EXPORTS = {
     "Surface": f"{_MODEL}.postures",
     "DEFAULT_WALL": f"{_MODEL}.postures",
     "ROBOTS": f"{_MODEL}.robot_description",
-    "FloatingBaseModel": f"{_MODEL}.floating_base",
     # the jump predictors, their results and the highest feasible contact speed
     "JumpModel": f"{_MODEL}.jump",
     "JumpPrediction": f"{_MODEL}.jump",

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.model_terms import ModelTerms
 
 from .constraint import Constraint, ControlCycle
 

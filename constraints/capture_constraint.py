@@ -9,7 +9,7 @@ from numba import njit
 from impactqp.controller.model.capture import GRAVITY, capture_region
 from impactqp.controller.model.jump_kernels import product
 from impactqp.controller.model.validation import BadInputError
-from impactqp.controller.model.whole_body_terms import WholeBodyTerms
+from impactqp.controller.model.model_terms import ModelTerms
 
 from .constraint import Constraint, ControlCycle
 from .impact_model import ExpectedImpact
@@ -56,7 +56,7 @@ class CaptureRegionLimit(Constraint):
         self._normals = region.A * region.omega  # nu_k (k x 2)
         self._offsets = region.b + self._normals @ centre[:2]  # nu_k . a_k
 
-    def compute_into(self, terms: WholeBodyTerms, cycle: ControlCycle, C, lower, upper) -> None:
+    def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         lower[:] = -np.inf
         if not self.impact.is_active(terms):
             C[:] = 0.0

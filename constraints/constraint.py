@@ -20,7 +20,7 @@ import numpy as np
 
 from numba import njit
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.model_terms import ModelTerms
 
 
 class ConstraintRows(NamedTuple):

@@ -61,8 +61,8 @@ def jump_model_names(choice: str) -> tuple[str, ...]:
 class ExpectedImpact:
     """An expected impact on ``surface`` predicted with one jump model: the jump matrices of a
     state and whether the impact-aware rows apply to it (the activation rule), both computed
-    once per fill of the model terms (their ``stamp``: ``ModelTerms`` of an arm,
-    ``WholeBodyTerms`` of a humanoid) and shared by the constraints and the controller's
+    once per fill of the model terms (their ``stamp``: the ``ModelTerms`` of any robot) and
+    shared by the constraints and the controller's
     prediction. ``held_contacts`` says the robot stands on held contacts (its terms'
     ``held_jacobian`` has rows): then only the models of ``jump_kernels.HELD_CONTACT_METHODS``
     apply (the others are bad input, here rather than at the first cycle)."""

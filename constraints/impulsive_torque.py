@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit
 
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.model_terms import ModelTerms
 
 from .constraint import Constraint, ControlCycle, symmetric_row_bounds
 from .impact_model import ExpectedImpact

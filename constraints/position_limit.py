@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import njit
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.model_terms import ModelTerms
 
 from .constraint import Constraint, ControlCycle
 from impactqp.controller.model.validation import number_in_range

@@ -24,7 +24,8 @@ import numpy as np
 
 from impactqp.controller.measured.dataset import DatasetHeader, TrialEntry
 from impactqp.controller.measured.trial_log import TrialLog
-from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.robot_description import RobotDescription
 from impactqp.controller.model.validation import BadInputError
 from impactqp.sim.humanoid_dataset import dataset_log, humanoid_header, trial_entry
@@ -38,7 +39,7 @@ PREDICTORS = (*METHODS, "momentum")
 
 
 def run_campaign(
-    robot: FloatingBaseModel,
+    robot: RobotModel,
     stances: Iterable[str] | None = None,
     speeds: Iterable[float] = DEFAULT_SPEEDS,
     gain: float = SERVO_GAIN,
@@ -61,7 +62,7 @@ def run_campaign(
 def _campaign_trial(task: tuple[RobotDescription, str, float]) -> ImpactTrial:
     """One campaign trial (robot description, stance, speed) in a worker process."""
     robot, stance, speed = task
-    return run_campaign(FloatingBaseModel(robot), (stance,), (speed,))[0]
+    return run_campaign(RobotModel(robot), (stance,), (speed,))[0]
 
 
 def trial_json(robot: str, trial: ImpactTrial) -> dict:

@@ -36,7 +36,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
-from impactqp.controller.model.floating_base import FloatingBaseModel  # noqa: E402
+from impactqp.controller.model.robot import RobotModel  # noqa: E402
 from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
 from impactqp.controller.model.max_speed import (  # noqa: E402
     HELD_CONTACT_CRITERIA,
@@ -67,7 +67,7 @@ class Plant:
     gain: float = SERVO_GAIN
     armature: float | tuple | None = None
 
-    def trial(self, robot: FloatingBaseModel, stance: str, q: np.ndarray, speed: float, source=SCRIPTED) -> ImpactTrial:
+    def trial(self, robot: RobotModel, stance: str, q: np.ndarray, speed: float, source=SCRIPTED) -> ImpactTrial:
         """One trial on this plant: ``stance`` from the configuration q at the commanded hand
         ``speed``, driven by ``source``."""
         return run_impact_trial(
@@ -132,7 +132,7 @@ class StanceMaxSpeed:
         }
 
 
-def predicted_speeds(robot: FloatingBaseModel, q: np.ndarray, setting: Setting, methods) -> dict[str, MaxSpeed]:
+def predicted_speeds(robot: RobotModel, q: np.ndarray, setting: Setting, methods) -> dict[str, MaxSpeed]:
     """The closed form of each predictor in ``methods`` (same restitution, friction and duration)."""
     terms = robot.terms(q)
     return {
@@ -142,7 +142,7 @@ def predicted_speeds(robot: FloatingBaseModel, q: np.ndarray, setting: Setting, 
 
 
 def search_stance(
-    robot: FloatingBaseModel, stance: str, setting: Setting = Setting(), plant: Plant = Plant(),
+    robot: RobotModel, stance: str, setting: Setting = Setting(), plant: Plant = Plant(),
     tolerance: float = DEFAULT_TOLERANCE, methods=("classical", "gm", "crb"), source=SCRIPTED,
 ) -> StanceMaxSpeed:
     """The closed-form speeds of ``methods`` and the simulated bisection of one stance, its trials
@@ -197,7 +197,7 @@ class CheckRow:
 
 
 def check_against_simulation(
-    robot: FloatingBaseModel, stances=None, setting: Setting = Setting(), plant: Plant = Plant(),
+    robot: RobotModel, stances=None, setting: Setting = Setting(), plant: Plant = Plant(),
     source=SCRIPTED,
 ) -> list[CheckRow]:
     """Trials at BELOW and ABOVE x the closed-form speed of ``setting`` for each stance (None: every

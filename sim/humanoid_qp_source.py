@@ -32,10 +32,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.validation import BadInputError
-from impactqp.controller.model.whole_body_terms import WholeBodyModel
 from impactqp.controller.qp.command import Command, Status
 from impactqp.controller.qp.whole_body_setup import WholeBodySetup, build_whole_body_controller
 from impactqp.tasks import ContactApproachTask
@@ -72,13 +71,12 @@ class QpCommand:
         source's ramp and lag margin."""
         return 3 * gap / speed + speed / HAND_ACCELERATION + RAMP + LAG
 
-    def start(self, robot: FloatingBaseModel, q0: np.ndarray, wall_x: float, speed: float) -> QpDriver:
+    def start(self, robot: RobotModel, q0: np.ndarray, wall_x: float, speed: float) -> QpDriver:
         """The driver of one trial: the controller of the stance q0 towards the wall plane x = wall_x."""
-        model = WholeBodyModel(robot)
-        contact = model.terms(q0).contact_point
+        contact = robot.terms(q0).contact_point
         wall = Surface(np.array([wall_x, contact[1], contact[2]]), NORMAL.copy())
         setup = WholeBodySetup(surface=wall, speed=speed, method=self.method, solver=self.solver)
-        return QpDriver(build_whole_body_controller(model, q0, setup), self.feedback)
+        return QpDriver(build_whole_body_controller(robot, q0, setup), self.feedback)
 
 
 @dataclass
@@ -125,7 +123,7 @@ class QpDriver:
     def command(self, t: float, q_pin: np.ndarray, v_pin: np.ndarray, stopped: bool) -> np.ndarray:
         step, self._step = self._step, self._step + 1
         if t < SETTLE:
-            return np.zeros(self.controller.robot.joints)
+            return np.zeros(self.controller.robot.n_joints)
         if self.last is None:
             self.controller.reset(q_pin, v_pin)
             self.record.first_step = step

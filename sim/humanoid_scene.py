@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.g1_actuators import joint_armature
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.validation import number_in_range, vector_in_range
@@ -61,7 +61,7 @@ class HumanoidScene(MujocoScene):
     soles: Soles
 
 
-def plant_armature(robot: FloatingBaseModel, armature=None) -> np.ndarray:
+def plant_armature(robot: RobotModel, armature=None) -> np.ndarray:
     """The rotor inertia (kg m^2) of each of the joints: the G1's actuators when ``armature`` is
     None, else one number for every joint or one per joint (0: the link-only plant)."""
     if armature is None:
@@ -73,7 +73,7 @@ def plant_armature(robot: FloatingBaseModel, armature=None) -> np.ndarray:
 
 
 def build_humanoid_scene(
-    robot: FloatingBaseModel, wall_x: float, *, timestep: float = TIMESTEP, armature=None
+    robot: RobotModel, wall_x: float, *, timestep: float = TIMESTEP, armature=None
 ) -> HumanoidScene:
     """Compile the scene with the wall plane at x = ``wall_x`` (normal -x, towards the robot);
     ``armature`` is the joints' rotor inertia (:func:`plant_armature`: default the G1's actuators)."""

@@ -37,7 +37,7 @@ ends (at most :data:`WINDOW` s later). The measured impulse is the integral of t
 that contact, and its peak (``peak_force``: the largest normal wall force of a physics step);
 their ratio is the contact's equivalent duration (``equivalent_duration``, the T of the closed
 form's foot criteria). The jump is compared over the joints with each predictor of
-``controller.model.floating_base`` fed its own impulse, and with the feet-held momentum law fed
+``controller.model.jump`` fed its own impulse, and with the feet-held momentum law fed
 the measured impulse (``momentum``); the error is eq. (26), the mean of |predicted - measured|.
 
 Failures (:data:`FAILURES`), each with its onset time, the same definitions as the closed form's
@@ -76,7 +76,9 @@ import pinocchio as pin
 
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.capture import capture_region
-from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, jump_from_impulse, predict
+from impactqp.controller.model.jump import jump_from_impulse, predict
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.max_speed import ARM_JOINTS
 from impactqp.controller.model.humanoid_stance import stance_posture, support_polygon
 from impactqp.controller.model.robot_description import Stance
@@ -185,7 +187,7 @@ class ScriptedCommand:
         """s allowed from the end of the settling to the first wall contact."""
         return 3 * gap / speed + RAMP + LAG
 
-    def start(self, robot: FloatingBaseModel, q0: np.ndarray, wall_x: float, speed: float) -> _ScriptedDriver:
+    def start(self, robot: RobotModel, q0: np.ndarray, wall_x: float, speed: float) -> _ScriptedDriver:
         """The driver of one trial (``wall_x`` unused: the script aims along +x)."""
         return _ScriptedDriver(robot, speed)
 
@@ -193,7 +195,7 @@ class ScriptedCommand:
 class _ScriptedDriver:
     """One trial of ``ScriptedCommand``: ``command(t, q, v, stopped)`` -> the joints' dq_cmd."""
 
-    def __init__(self, robot: FloatingBaseModel, speed: float):
+    def __init__(self, robot: RobotModel, speed: float):
         self.robot, self.speed = robot, speed
         self.arm = np.array([robot.joint_index(j) for j in ARM_JOINTS])
         self.record = None
@@ -211,7 +213,7 @@ class _ScriptedDriver:
 SCRIPTED = ScriptedCommand()
 
 
-def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, gain: float = SERVO_GAIN,
+def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: float = SERVO_GAIN,
                      armature=None, q0: np.ndarray | None = None, gap: float | None = None, source=SCRIPTED) -> ImpactTrial:
     """Simulate one trial (module docstring) and compare the jump with the predictors; ``gap``
     (m) is the start distance of the contact point from the wall (None: the source's), ``armature`` the plant's rotor
@@ -303,7 +305,7 @@ class _Log:
     feet: np.ndarray  # (steps, 2, 3) foot frame positions
     soles: np.ndarray  # (steps, 2, 4) sole states (``humanoid_feet``), worst over the step
 
-    def velocity_ratios(self, robot: FloatingBaseModel, start: int) -> np.ndarray:
+    def velocity_ratios(self, robot: RobotModel, start: int) -> np.ndarray:
         """(steps - start, joints): |dq_i| / dq_max_i of every joint at each control step from ``start``."""
         return np.array([np.abs(v[robot.base_nv:]) / robot.dq_max for _, v in self.states[start:]])
 
@@ -312,7 +314,7 @@ class _Log:
         return self.soles[first - 1, :, LOAD] > 0.0
 
 
-def capture_margin(robot: FloatingBaseModel, q: np.ndarray, com_velocity: np.ndarray) -> float:
+def capture_margin(robot: RobotModel, q: np.ndarray, com_velocity: np.ndarray) -> float:
     """The capture point's smallest distance (m) inside the support polygon of the configuration q
     for the CoM velocity ``com_velocity`` (``controller.model.capture``; < 0: a step is needed);
     -inf for a robot whose CoM is not above the ground (fallen: nothing captures it)."""
@@ -323,7 +325,7 @@ def capture_margin(robot: FloatingBaseModel, q: np.ndarray, com_velocity: np.nda
     return float(region.margins(com_velocity).min())
 
 
-def falling_at_the_end(robot: FloatingBaseModel, state) -> bool:
+def falling_at_the_end(robot: RobotModel, state) -> bool:
     """Whether the robot in ``state`` (q, v), its pelvis still up, is falling: its CoM's ground
     projection and its capture point are both outside the support polygon of its feet
     (``capture_margin`` < 0 at rest and at its CoM velocity)."""
@@ -344,7 +346,7 @@ def _measured_jumps(robot, log: _Log, first: int, last: int) -> dict:
     predicted, com, impulses = {}, {}, {}
     for method in METHODS:
         jump = predict(terms, method, NORMAL, v_minus)
-        predicted[method], com[method], impulses[method] = jump.dv, jump.com_jump, jump.impulse
+        predicted[method], com[method], impulses[method] = jump.dq_jump, jump.com_jump, jump.impulse
     predicted["momentum"] = jump_from_impulse(terms, impulse)
     com["momentum"] = terms.Jcom @ predicted["momentum"]
     impulses["momentum"] = impulse

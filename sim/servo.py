@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.max_speed import standing_wrenches
 
 from .scene import to_pinocchio
@@ -45,7 +45,7 @@ class StandingSupport:
     contacts' wrenches, the effort limits ``robot.tau_max``) and the free joint's sizes in MuJoCo's
     qpos (``base_nq``) and qvel (``base_nv``), before the joints'."""
 
-    robot: FloatingBaseModel
+    robot: RobotModel
     base_nq: int
     base_nv: int
 
@@ -53,7 +53,7 @@ class StandingSupport:
         """tau_held (one per joint): the joint torques of the least-norm held-contact wrenches
         carrying the robot's weight in the configuration qpos (module docstring)."""
         terms = self.robot.terms(to_pinocchio(qpos, qvel, self.base_nq)[0])
-        return terms.Jf[:, self.robot.base_nv:].T @ standing_wrenches(self.robot, terms)
+        return terms.held_jacobian[:, self.robot.base_nv:].T @ standing_wrenches(self.robot, terms)
 
 
 class ComputedTorqueServo:

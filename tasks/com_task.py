@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit
 
 from impactqp.controller.model.validation import finite_vector, task_gain
-from impactqp.controller.model.whole_body_terms import WholeBodyTerms
+from impactqp.controller.model.model_terms import ModelTerms
 
 from .task import Task, critical_damping
 
@@ -33,15 +33,15 @@ class CentreOfMassTask(Task):
         weight = finite_vector(weight, 3, "centre-of-mass weight")
         self.weight = np.array([task_gain(w, "centre-of-mass weight") for w in weight])
 
-    def error(self, terms: WholeBodyTerms) -> np.ndarray:
+    def error(self, terms: ModelTerms) -> np.ndarray:
         """e = c* - c."""
         return self.target - terms.com
 
-    def reset(self, terms: WholeBodyTerms) -> None:
+    def reset(self, terms: ModelTerms) -> None:
         if not self._target_configured:
             self.target = terms.com.copy()
 
-    def compute_into(self, terms: WholeBodyTerms, A: np.ndarray, b: np.ndarray) -> None:
+    def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         com_rows(terms.Jcom, terms.dq, terms.com, terms.dJcom_dq, self.target, (self.stiffness, self.damping), A, b)
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.model_terms import ModelTerms
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 from impactqp.controller.model.validation import MAX_CONTACT_SPEED, finite_array, number_in_range, task_gain
 from impactqp.controller.model.validation import unit_normal

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.model_terms import ModelTerms
 
 from .posture_task import joint_pd_rows
 from .task import Task

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.model_terms import ModelTerms
 from impactqp.controller.model.validation import BadInputError, finite_vector, task_gain
 
 from .task import Task, critical_damping

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.model_terms import ModelTerms
 from impactqp.controller.model.validation import finite_vector, task_gain, number_in_range, unit_normal
 
 from .task import Task, critical_damping, rotation_error

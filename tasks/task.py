@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
-from impactqp.controller.model.robot import ModelTerms
+from impactqp.controller.model.model_terms import ModelTerms
 
 
 class TaskRows(NamedTuple):

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.controller.measured.trial_log import TrialLog
-from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, VELOCITY_LIMIT, PandaModel
 from impactqp.controller.model.robot_description import PANDA, ROBOTS
@@ -40,9 +40,9 @@ FRANKA_ARMS = [name for name in ARMS if ROBOTS[name].finger_joints]
 
 
 @functools.cache
-def g1_model() -> FloatingBaseModel:
+def g1_model() -> RobotModel:
     """The G1's model (its description's), built once for the tests."""
-    return FloatingBaseModel("g1")
+    return RobotModel("g1")
 
 
 @pytest.fixture(scope="session")

@@ -16,7 +16,9 @@ from impactqp.controller.model.capture import (
     post_impact_com_velocity,
     row_steps,
 )
-from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, predict
+from impactqp.controller.model.jump import held_impulse, predict
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import STANCES, inside_polygon, stance_posture, support_polygon
 from impactqp.controller.model.validation import BadInputError
 
@@ -26,7 +28,7 @@ WALL = np.array([-1.0, 0.0, 0.0])
 
 @pytest.fixture(scope="module")
 def standing():
-    robot = FloatingBaseModel()
+    robot = RobotModel("g1")
     q = stance_posture(robot, STANCES["parallel"])
     return robot, q, robot.terms(q)
 
@@ -65,7 +67,7 @@ def test_bad_regions_are_refused():
 def test_com_jump_is_the_momentum_of_hand_and_feet_impulses(standing, impulse):
     _, _, terms = standing
     impulse = np.array(impulse)
-    feet = terms.feet_impulse(impulse)
+    feet = held_impulse(terms, impulse)
     np.testing.assert_allclose(terms.mass * com_jump_map(terms) @ impulse, impulse + feet[:3] + feet[6:9], atol=1e-8)
 
 

@@ -9,7 +9,7 @@ from whole_body_states import NORMAL, approach_velocity, robot, standing_states,
 from impactqp.constraints import ControlCycle, ExpectedImpact
 from impactqp.constraints.capture_constraint import CaptureRegionLimit
 from impactqp.controller.model.capture import capture_region, post_impact_com_velocity
-from impactqp.controller.model.floating_base import METHODS
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
 from impactqp.controller.model.humanoid_stance import support_polygon
 from impactqp.controller.model.validation import BadInputError
 
@@ -25,12 +25,12 @@ def test_rows_hold_exactly_when_the_post_impact_com_velocity_is_capturable(state
     model = robot()
     v = v + approach_velocity(q, speed)
     terms = model.terms(q, v)
-    polygon = support_polygon(model.base, q)
+    polygon = support_polygon(model, q)
     limit = CaptureRegionLimit(ExpectedImpact(wall_ahead(q), method, always_active=True, held_contacts=True), polygon)
     rows = limit.compute(terms, ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), H))
     dv = np.random.default_rng(seed).normal(scale=200.0, size=model.nv)
     v_next = v + dv * H
-    base = model.base.terms(q)
+    base = model.terms(q)
     dc_plus = post_impact_com_velocity(base, method, NORMAL, base.J @ v_next, base.Jcom @ v_next)
     region = capture_region(polygon, terms.com)
     np.testing.assert_allclose(rows.upper - rows.C @ dv, region.omega * region.margins(dc_plus) / H, atol=1e-6 / H)

@@ -21,7 +21,8 @@ from impactqp.constraints import (
     VelocityLimit,
 )
 from impactqp.constraints.impact_model import normal_motion
-from impactqp.controller.model import floating_base
+from impactqp.controller.model.jump import predict
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
 from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.max_speed import approach_direction
 from impactqp.controller.model.postures import Surface
@@ -306,7 +307,7 @@ def test_joint_limit_boxes_on_a_floating_base_bound_the_trailing_joints_only():
     v = approach_velocity(q, 0.5)
     terms = model.terms(q, v)
     wide = ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), 0.0025)
-    narrow = ControlCycle(0.001, np.full(model.joints, -1e9), np.full(model.joints, 1e9), 0.0025)
+    narrow = ControlCycle(0.001, np.full(model.n_joints, -1e9), np.full(model.n_joints, 1e9), 0.0025)
     base = model.base_nv
 
     class Joints:  # the joints' part of the state, as the arm's terms
@@ -351,7 +352,7 @@ def test_only_the_held_contact_models_are_accepted_with_held_contacts(name):
 
 
 @settings(max_examples=15, deadline=None)
-@given(standing_states(), st.sampled_from(floating_base.METHODS), st.floats(0.05, 3.0), st.integers(0, 2**31))
+@given(standing_states(), st.sampled_from(HELD_CONTACT_METHODS), st.floats(0.05, 3.0), st.integers(0, 2**31))
 def test_g1_rows_hold_exactly_when_the_predicted_post_impact_joint_velocities_are_in_the_limits(
     state, method, speed, seed
 ):
@@ -367,7 +368,7 @@ def test_g1_rows_hold_exactly_when_the_predicted_post_impact_joint_velocities_ar
     )
     dv = np.random.default_rng(seed).normal(scale=2000.0, size=model.nv)
     v_next = v + dv * H
-    post = (v_next + floating_base.predict(model.base.terms(q), method, NORMAL, terms.J @ v_next).dv)[model.base_nv:]
+    post = (v_next + predict(model.terms(q), method, NORMAL, terms.J @ v_next).dq_jump)[model.base_nv:]
     inside_rows = np.all(rows.C @ dv <= rows.upper + 1e-9) and np.all(rows.C @ dv >= rows.lower - 1e-9)
     margin = np.min(model.dq_max - np.abs(post))
     if abs(margin) > 1e-6:
@@ -384,7 +385,7 @@ def test_g1_rows_are_unbounded_while_no_impact_is_coming():
 
 
 @settings(max_examples=10, deadline=None)
-@given(standing_states(max_speed=1.0), st.sampled_from(floating_base.METHODS), st.booleans())
+@given(standing_states(max_speed=1.0), st.sampled_from(HELD_CONTACT_METHODS), st.booleans())
 def test_g1_compiled_post_impact_rows_equal_the_numpy_reference(state, method, always):
     """On a floating base the kernel writes the joints' rows S (I + A) of the numpy statement."""
     _, q, v = state

@@ -3,14 +3,14 @@
 import numpy as np
 import pytest
 
-from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.g1_actuators import JOINT_MOTORS, MOTORS, joint_armature, joint_kind
 from impactqp.controller.model.validation import BadInputError
 
 
 @pytest.fixture(scope="module")
 def robot():
-    return FloatingBaseModel()
+    return RobotModel("g1")
 
 
 def test_two_stage_planetary_formula_by_hand():

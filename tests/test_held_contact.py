@@ -22,7 +22,7 @@ def test_any_acceleration_on_the_rows_keeps_the_feet_twists(state):
     np.testing.assert_array_equal(rows.C, terms.held_jacobian)  # one 6-row block per foot: Jf
     rng = np.random.default_rng(0)
     dv = np.linalg.lstsq(rows.C, rows.lower, rcond=None)[0] + (np.eye(nv) - np.linalg.pinv(rows.C) @ rows.C) @ rng.normal(size=nv)
-    ahead = robot().terms(integrate(q, v, EPS)).Jf @ (v + dv * EPS)
-    behind = robot().terms(integrate(q, v, -EPS)).Jf @ (v - dv * EPS)
+    ahead = robot().terms(integrate(q, v, EPS)).held_jacobian @ (v + dv * EPS)
+    behind = robot().terms(integrate(q, v, -EPS)).held_jacobian @ (v - dv * EPS)
     np.testing.assert_allclose((ahead - behind) / (2 * EPS), 0.0, atol=1e-5 * (1 + np.abs(dv).max()))
 

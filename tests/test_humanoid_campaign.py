@@ -7,7 +7,8 @@ import pytest
 
 from conftest import G1_HEADER
 
-from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError
 from impactqp.scenarios.campaign import CampaignPlan
@@ -24,7 +25,7 @@ from impactqp.scenarios.humanoid_campaign import (
 
 @pytest.fixture(scope="module")
 def trials():
-    return run_campaign(FloatingBaseModel(), stances=("wide",), speeds=(0.1, 0.25))
+    return run_campaign(RobotModel("g1"), stances=("wide",), speeds=(0.1, 0.25))
 
 
 def test_one_trial_per_stance_and_speed(trials):
@@ -50,7 +51,7 @@ def test_crb_reduction_sign():
 
 
 def test_a_per_joint_armature_is_the_same_plant_as_one_number_for_every_joint():
-    robot = FloatingBaseModel()
+    robot = RobotModel("g1")
     one = run_campaign(robot, stances=("wide",), speeds=(0.1,), armature=0.02)
     each = run_campaign(robot, stances=("wide",), speeds=(0.1,), armature=np.full(robot.n_joints, 0.02))
     assert one[0].errors == each[0].errors

@@ -9,7 +9,7 @@ import pytest
 from impactqp.controller.measured.dataset import DatasetError, read_dataset
 from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD, measure_impact
-from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.sim.humanoid_dataset import dataset_log, open_dataset, trial_entry, write_trials
 from impactqp.sim.humanoid_trial import CONTROL_PERIOD, run_impact_trial
@@ -19,7 +19,7 @@ from conftest import G1_HEADER, g1_model, file_digests
 
 @pytest.fixture(scope="module")
 def trials():
-    robot = FloatingBaseModel()
+    robot = RobotModel("g1")
     return [run_impact_trial(robot, STANCES[stance], 0.3) for stance in ("parallel", "close")]
 
 

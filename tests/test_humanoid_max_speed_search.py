@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.max_speed import HELD_CONTACT_CRITERIA, Bound, MaxSpeed
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.validation import BadInputError
@@ -60,7 +60,7 @@ def test_each_measured_failure_is_the_closed_form_criterion_of_its_name():
 
 def test_unknown_stance_is_bad_input():
     with pytest.raises(BadInputError):
-        search_stance(FloatingBaseModel(), "kneeling")
+        search_stance(RobotModel("g1"), "kneeling")
 
 
 def test_figure_is_a_png(tmp_path):
@@ -68,14 +68,14 @@ def test_figure_is_a_png(tmp_path):
         "crb": MaxSpeed(1.0, "capture", "edge 0", 0, {"capture": Bound(1.0, "edge 0")}),
         "gm": MaxSpeed(math.inf, "", "", 0, {}),
     }
-    q = np.zeros(FloatingBaseModel().model.nq)
+    q = np.zeros(RobotModel("g1").model.nq)
     results = [StanceMaxSpeed(name, q, predicted, 1.2, 0.9, "foot_slip") for name in ("a", "b")]
     path = speed_figure(results, tmp_path / "f.png", "test")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_a_trial_reaches_the_asked_contact_speed():
-    robot = FloatingBaseModel()
+    robot = RobotModel("g1")
     q = stance_posture(robot, STANCES["close"])
     trial = trial_at_contact_speed(robot, "close", q, 0.3, Plant())
     assert trial.contact_speed == pytest.approx(0.3, rel=0.02)

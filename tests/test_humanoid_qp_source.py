@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError
@@ -17,7 +17,7 @@ FOOT_ONSETS = {"foot_slip", "foot_lift"}
 
 @pytest.fixture(scope="module")
 def robot():
-    return FloatingBaseModel()
+    return RobotModel("g1")
 
 
 @pytest.fixture(scope="module")

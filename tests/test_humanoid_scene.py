@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.g1_actuators import joint_armature
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.validation import BadInputError
@@ -18,7 +18,7 @@ from conftest import g1_model
 
 @pytest.fixture(scope="module")
 def setup():
-    robot = FloatingBaseModel()
+    robot = RobotModel("g1")
     q = stance_posture(robot, STANCES["staggered"])
     return robot, q, build_humanoid_scene(robot, wall_x=0.6, armature=0.0)
 

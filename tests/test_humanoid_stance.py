@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import (
     STANCES,
     convex_hull,
@@ -20,8 +20,8 @@ from impactqp.controller.model.validation import BadInputError
 
 
 @pytest.fixture(scope="module")
-def humanoid() -> FloatingBaseModel:
-    return FloatingBaseModel()
+def humanoid() -> RobotModel:
+    return RobotModel("g1")
 
 
 @pytest.mark.parametrize("name", list(STANCES))

@@ -4,7 +4,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import STANCES, edge_margins, stance_posture, support_polygon
 from impactqp.sim.humanoid_feet import CONE_TOLERANCE, LIFT_MARGIN, SLIP_SPEED
 from impactqp.sim.humanoid_trial import (
@@ -19,12 +20,12 @@ GRAVITY = np.array([0.0, 0.0, -9.81])
 
 @pytest.fixture(scope="module")
 def trial():
-    return run_impact_trial(FloatingBaseModel(), STANCES["parallel"], 0.2)
+    return run_impact_trial(RobotModel("g1"), STANCES["parallel"], 0.2)
 
 
 def test_linear_momentum_of_the_simulated_robot_balances_the_external_impulses(trial):
     """m dc = wall impulse + floor impulse + m g T over the measurement window (joint torques are internal)."""
-    robot = FloatingBaseModel()
+    robot = RobotModel("g1")
     mass = robot.terms(pin.neutral(robot.model)).mass
     external = trial.impulse + trial.floor_impulse + mass * GRAVITY * trial.duration
     np.testing.assert_allclose(mass * trial.measured_com_jump, external, atol=0.01 * np.linalg.norm(trial.impulse))
@@ -39,7 +40,7 @@ def test_the_wall_pushes_the_hand_back_and_the_robot_stands(trial):
 
 def test_every_predictor_is_reported_with_its_error(trial):
     for method in (*METHODS, "momentum"):
-        joints = slice(FloatingBaseModel().base_nv, None)
+        joints = slice(RobotModel("g1").base_nv, None)
         error = np.mean(np.abs(trial.predicted_jump[method][joints] - trial.measured_jump[joints]))
         assert trial.errors[method] == pytest.approx(error)
         assert trial.predicted_impulse[method] @ NORMAL > 0.0
@@ -58,7 +59,7 @@ def test_failures_are_consistent_with_the_measured_onsets(trial):
     assert ("capture" in trial.failures) == (trial.capture_margin < 0.0)
     assert ("fell" in trial.failures) == trial.fell
     assert ("joint_velocity" in trial.failures) == (trial.max_velocity_ratio > 1.0)
-    assert trial.q_log.shape[1] == FloatingBaseModel().model.nq and 0 < trial.contact_index < len(trial.q_log)
+    assert trial.q_log.shape[1] == RobotModel("g1").model.nq and 0 < trial.contact_index < len(trial.q_log)
 
 
 def test_a_slow_impact_leaves_the_feet_flat_and_the_com_capturable(trial):
@@ -71,7 +72,7 @@ def test_a_slow_impact_leaves_the_feet_flat_and_the_com_capturable(trial):
 def test_capture_margin_agrees_with_the_capture_region_on_constructed_velocities():
     """dc = omega (x - c): the capture point is x, and the margin is x's distance inside the
     support polygon's nearest edge (positive inside, negative outside)."""
-    robot = FloatingBaseModel()
+    robot = RobotModel("g1")
     q = stance_posture(robot, STANCES["wide"])
     polygon = support_polygon(robot, q)
     com = robot.terms(q).com
@@ -91,7 +92,7 @@ def test_a_robot_whose_com_and_capture_point_left_its_feet_is_falling():
     behind the heels for a moment); the whole robot tipped back about its heels by 25 degrees
     (the CoM behind them) is falling at rest or moving backwards, and not when it moves forwards
     fast enough to bring its capture point back over the feet."""
-    robot = FloatingBaseModel()
+    robot = RobotModel("g1")
     q = stance_posture(robot, STANCES["parallel"])
     rest = np.zeros(robot.model.nv)
 
@@ -121,7 +122,7 @@ def test_a_robot_whose_com_and_capture_point_left_its_feet_is_falling():
 def test_a_robot_lying_below_its_feet_has_no_capture_margin_and_is_falling():
     """A state with the CoM at or below the ground (a fallen robot, as a runaway trial can reach)
     is reported, not raised: its capture margin is -inf."""
-    robot = FloatingBaseModel()
+    robot = RobotModel("g1")
     q = stance_posture(robot, STANCES["parallel"])
     sunk = q.copy()
     sunk[2] -= robot.terms(q).com[2] + 0.05  # the CoM 5 cm below the ground
@@ -134,7 +135,7 @@ def test_the_stop_does_not_jolt_the_feet():
     speed; the held servo does not ask for that reference's deceleration in one step, so a trial at
     about 0.5 m/s of contact speed shows no foot onset (with a zero command alone, the left foot
     unloaded at the stop and slipped)."""
-    trial = run_impact_trial(FloatingBaseModel(), STANCES["wide"], 0.6)
+    trial = run_impact_trial(RobotModel("g1"), STANCES["wide"], 0.6)
     assert trial.contact_speed > 0.45
     assert trial.failures == ()
 

@@ -1,6 +1,6 @@
 """First-principles checks of the jump predictors (controller/model/jump.py, its kernels
-controller/model/jump_kernels.py): the fixed-base arms', and the held-contact form against the
-standing G1's predictors themselves (controller/model/floating_base.py)."""
+controller/model/jump_kernels.py): the fixed-base arms', and the held-contact form of the
+standing G1 (its predictions, and its compiled maps against them)."""
 
 import dataclasses
 
@@ -20,14 +20,17 @@ from whole_body_states import standing_states, upright
 from whole_body_states import robot as g1
 
 from impactqp.controller.model.capture import com_jump_map
-from impactqp.controller.model import floating_base
 from impactqp.controller.model.jump import (
     JUMP_MODELS,
     METHODS,
     average_prediction_error,
     crb_inverse_inertia,
     gm_inverse_inertia,
+    held_impulse,
+    held_pinv,
+    jump_from_impulse,
     jump_model,
+    predict,
     prediction_error,
 )
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS, held_contact_maps
@@ -314,16 +317,17 @@ G1_SETTINGS = settings(max_examples=15, deadline=None)
 @given(standing_states(max_joint_offset=0.3, max_speed=1.0), st.sampled_from(HELD_CONTACT_METHODS), unit_vectors(),
        st.floats(0.0, 1.0))
 def test_held_contact_maps_give_the_g1_predictors_jump_impulse_and_com_map(state, method, normal, restitution):
-    """With the feet held: A v = dv and G J v = iota of ``floating_base.predict`` at v- = J v;
+    """With the feet held: A v = dv and G J v = iota of ``predict`` (M's Cholesky factor,
+    J# = N (J N)^+) at v- = J v, from the kernel's M^-1 and J# = N J^T (J N J^T)^-1;
     P = J^T G J; C = Jcom P_f J^T."""
     _, q, v = state
-    terms, base = g1().terms(q, v), g1().base.terms(q)
+    terms, base = g1().terms(q, v), g1().terms(q)
     maps = jump_model(method).unit_matrices(terms, normal, restitution)
     if abs(normal @ terms.J @ v) < 1e-3:
-        v = v + feet_held_pinv(terms.J, terms.Jf) @ (-0.1 * normal)
-    jump = floating_base.predict(base, method, normal, terms.J @ v, restitution)
-    scale = 1.0 + np.abs(jump.dv).max()
-    np.testing.assert_allclose(maps.jump_matrix @ v, jump.dv, atol=1e-8 * scale)
+        v = v + feet_held_pinv(terms.J, terms.held_jacobian) @ (-0.1 * normal)
+    jump = predict(base, method, normal, terms.J @ v, restitution)
+    scale = 1.0 + np.abs(jump.dq_jump).max()
+    np.testing.assert_allclose(maps.jump_matrix @ v, jump.dq_jump, atol=1e-8 * scale)
     np.testing.assert_allclose(maps.impulse_map @ (terms.J @ v), jump.impulse, atol=1e-8 * (1 + np.abs(jump.impulse).max()))
     np.testing.assert_allclose(maps.torque_matrix, terms.J.T @ maps.impulse_map @ terms.J, atol=1e-9 * scale)
     np.testing.assert_allclose(maps.com_map, com_jump_map(base), atol=1e-10)
@@ -334,17 +338,168 @@ def test_held_contact_maps_give_the_g1_predictors_jump_impulse_and_com_map(state
 def test_feet_held_pinv_is_a_right_inverse_that_keeps_the_feet_still(state):
     _, q, _ = state
     terms = g1().terms(q)
-    Jsharp = feet_held_pinv(terms.J, terms.Jf)
+    Jsharp = feet_held_pinv(terms.J, terms.held_jacobian)
     np.testing.assert_allclose(terms.J @ Jsharp, np.eye(3), atol=1e-9)
-    np.testing.assert_allclose(terms.Jf @ Jsharp, 0.0, atol=1e-9)
-    np.testing.assert_allclose(Jsharp, g1().base.terms(q).feet_held_pinv(), atol=1e-8)
-
-
-def test_held_contact_methods_are_the_floating_base_predictors():
-    assert set(HELD_CONTACT_METHODS) == set(floating_base.METHODS)
+    np.testing.assert_allclose(terms.held_jacobian @ Jsharp, 0.0, atol=1e-9)
+    np.testing.assert_allclose(Jsharp, held_pinv(terms), atol=1e-8)
 
 
 def test_a_model_without_a_held_contact_form_is_refused_with_held_contacts():
     terms = g1().terms(upright())
     with pytest.raises(BadInputError):
         JUMP_MODELS["classical_normal"].unit_matrices(terms, np.array([-1.0, 0, 0]), 0.0)
+    with pytest.raises(BadInputError, match="no held-contact form"):
+        predict(terms, "classical_normal", np.array([-1.0, 0, 0]), np.array([0.2, 0, 0]))
+
+
+def configurations():
+    """q: a random base placement (position, unit quaternion) and joints 10-90 % into their range."""
+    model = g1()
+    lo, hi = model.q_min, model.q_max
+    joints = st.lists(st.floats(0.1, 0.9), min_size=lo.size, max_size=lo.size).map(lambda u: lo + np.array(u) * (hi - lo))
+    position = st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3)
+    quaternion = st.lists(st.floats(-1.0, 1.0), min_size=4, max_size=4).filter(lambda v: np.linalg.norm(v) > 0.2)
+    return st.tuples(position, quaternion, joints).map(
+        lambda t: np.concatenate([t[0], np.array(t[1]) / np.linalg.norm(t[1]), t[2]])
+    )
+
+
+def welded_inverse_inertia(q):
+    """J M^-1 J^T at the contact point of the whole robot welded at q into one free rigid body,
+    built from the per-link inertias (no CCRBA)."""
+    model, data = g1().model, g1().model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    body = pin.Inertia.Zero()
+    for i in range(1, model.njoints):
+        body += data.oMi[i].act(model.inertias[i])
+    free = pin.Model()
+    joint = free.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "welded_robot")
+    free.appendBodyToJoint(joint, body, pin.SE3.Identity())
+    tip = free.addFrame(pin.Frame("tip", joint, 0, data.oMf[g1().contact_frame_id], pin.FrameType.OP_FRAME))
+    fdata = free.createData()
+    q0 = pin.neutral(free)
+    M = pin.crba(free, fdata, q0)
+    M = np.triu(M) + np.triu(M, 1).T
+    J = pin.computeFrameJacobian(free, fdata, q0, tip, pin.LOCAL_WORLD_ALIGNED)[:3]
+    return J @ np.linalg.solve(M, J.T), body.mass
+
+
+@G1_SETTINGS
+@given(q=configurations())
+def test_g1_crb_inverse_inertia_is_the_welded_robot(q):
+    terms = g1().terms(q)
+    W, mass = welded_inverse_inertia(q)
+    assert terms.mass == pytest.approx(mass, rel=1e-12)
+    np.testing.assert_allclose(crb_inverse_inertia(terms), W, atol=1e-10 * np.abs(W).max())
+
+
+@G1_SETTINGS
+@given(q=configurations())
+def test_g1_holding_the_feet_makes_the_hand_heavier(q):
+    """W_gm (feet held) <= J M^-1 J^T (feet free): constraints only remove mobility; both SPD."""
+    terms = g1().terms(q)
+    W = gm_inverse_inertia(terms)
+    W_free = terms.J @ np.linalg.solve(terms.M, terms.J.T)
+    assert np.linalg.eigvalsh(W)[0] > 0.0
+    assert np.linalg.eigvalsh(W_free - W)[0] > -1e-8 * np.abs(W_free).max()
+
+
+@G1_SETTINGS
+@given(q=configurations(), n=unit_vectors(), s=unit_vectors(), v=speeds, cr=restitutions)
+def test_g1_classical_reaches_the_velocity_change_with_the_feet_still(q, n, s, v, cr):
+    """Eq. (6) with the feet held: J dv = -(1+c_r) v-, Jf dv = 0, M dv = J^T iota + Jf^T lambda."""
+    terms = g1().terms(q)
+    v_minus = approach(n, v, s)
+    jump = predict(terms, "classical", n, v_minus, cr)
+    np.testing.assert_allclose(terms.J @ jump.dq_jump, -(1 + cr) * v_minus, atol=1e-8 * v)
+    np.testing.assert_allclose(terms.held_jacobian @ jump.dq_jump, 0.0, atol=1e-8 * v)
+    generalized = terms.J.T @ jump.impulse + terms.held_jacobian.T @ jump.held_impulse
+    np.testing.assert_allclose(terms.M @ jump.dq_jump, generalized, atol=1e-8 * np.abs(generalized).max())
+
+
+@G1_SETTINGS
+@given(q=configurations(), impulse=st.lists(st.floats(-5.0, 5.0), min_size=3, max_size=3))
+def test_g1_linear_momentum_changes_by_the_hand_and_feet_impulses(q, impulse):
+    """m dc = iota + f_left + f_right: the feet's forces are the first three rows of each wrench."""
+    terms = g1().terms(q)
+    impulse = np.array(impulse)
+    dv = jump_from_impulse(terms, impulse)
+    feet = held_impulse(terms, impulse)
+    total = impulse + feet[:3] + feet[6:9]
+    np.testing.assert_allclose(terms.mass * (terms.Jcom @ dv), total, atol=1e-8 * (1 + np.abs(feet).max()))
+
+
+@G1_SETTINGS
+@given(q=configurations(), n=unit_vectors(), s=unit_vectors(), v=speeds, cr=restitutions)
+def test_g1_gm_and_crb_change_the_normal_velocity_with_the_feet_still(q, n, s, v, cr):
+    """(12) with (21)/(23): n.J dv = -(1+c_r) n.v-, Jf dv = 0, iota along n and pushing."""
+    terms = g1().terms(q)
+    v_minus = approach(n, v, s)
+    for method in ("gm", "crb"):
+        jump = predict(terms, method, n, v_minus, cr)
+        assert n @ terms.J @ jump.dq_jump == pytest.approx(-(1 + cr) * (n @ v_minus), rel=1e-7)
+        np.testing.assert_allclose(terms.held_jacobian @ jump.dq_jump, 0.0, atol=1e-8 * v)
+        np.testing.assert_allclose(np.cross(jump.impulse, n), 0.0, atol=1e-12 * (1 + np.abs(jump.impulse).max()))
+        assert jump.impulse @ n >= 0.0
+        np.testing.assert_allclose(jump.com_jump, terms.Jcom @ jump.dq_jump)
+
+
+@G1_SETTINGS
+@given(q=configurations())
+def test_g1_feet_held_pseudo_inverse_is_a_right_inverse(q):
+    terms = g1().terms(q)
+    Jsharp = held_pinv(terms)
+    np.testing.assert_allclose(terms.J @ Jsharp, np.eye(3), atol=1e-8)
+    np.testing.assert_allclose(terms.held_jacobian @ Jsharp, 0.0, atol=1e-8)
+
+
+@G1_SETTINGS
+@given(q=configurations(), n=unit_vectors(), s=unit_vectors(), v=speeds, k=st.floats(0.1, 10.0), cr=restitutions)
+def test_g1_jumps_are_linear_in_speed_and_in_one_plus_restitution(q, n, s, v, k, cr):
+    terms = g1().terms(q)
+    v_minus = approach(n, v, s)
+    for method in HELD_CONTACT_METHODS:
+        base = predict(terms, method, n, v_minus, 0.0)
+        scaled = predict(terms, method, n, k * v_minus, 0.0)
+        bounced = predict(terms, method, n, v_minus, cr)
+        for field in ("dq_jump", "impulse", "held_impulse", "com_jump"):
+            ref = getattr(base, field)
+            tol = 1e-9 * (1 + np.abs(ref).max())
+            np.testing.assert_allclose(getattr(scaled, field), k * ref, rtol=1e-8, atol=k * tol)
+            np.testing.assert_allclose(getattr(bounced, field), (1 + cr) * ref, rtol=1e-8, atol=2 * tol)
+
+
+@settings(max_examples=10, deadline=None)
+@given(q=configurations(), n=unit_vectors(), s=unit_vectors(), axis=unit_vectors(), angle=st.floats(-np.pi, np.pi),
+       shift=st.lists(st.floats(-2.0, 2.0), min_size=3, max_size=3))
+def test_g1_jumps_do_not_depend_on_the_world_frame(q, n, s, axis, angle, shift):
+    """Move the whole scene by a rigid motion X = (R, t): the generalized-velocity jump (base twist
+    in the base frame, joint rates) is unchanged; impulses and CoM jumps turn with R."""
+    X = pin.SE3(pin.exp3(angle * axis), np.array(shift))
+    moved = q.copy()
+    base = slice(g1().base_nq)  # position and quaternion
+    moved[base] = pin.SE3ToXYZQUAT(X * pin.XYZQUATToSE3(q[base]))
+    terms, mterms = g1().terms(q), g1().terms(moved)
+    R = X.rotation
+    v_minus = approach(n, 0.2, s)
+    np.testing.assert_allclose(crb_inverse_inertia(mterms), R @ crb_inverse_inertia(terms) @ R.T, atol=1e-10)
+    W = gm_inverse_inertia(terms)
+    np.testing.assert_allclose(gm_inverse_inertia(mterms), R @ W @ R.T, atol=1e-8 * np.abs(W).max())
+    for method in HELD_CONTACT_METHODS:
+        a, b = predict(terms, method, n, v_minus), predict(mterms, method, R @ n, R @ v_minus)
+        np.testing.assert_allclose(b.dq_jump, a.dq_jump, atol=1e-7 * (1 + np.abs(a.dq_jump).max()))
+        np.testing.assert_allclose(b.impulse, R @ a.impulse, atol=1e-7 * (1 + np.abs(a.impulse).max()))
+        np.testing.assert_allclose(b.com_jump, R @ a.com_jump, atol=1e-7 * (1 + np.abs(a.com_jump).max()))
+
+
+def test_g1_bad_predictor_input_is_refused():
+    terms = g1().terms(pin.neutral(g1().model))
+    n, v = np.array([-1.0, 0.0, 0.0]), np.array([0.2, 0.0, 0.0])
+    with pytest.raises(BadInputError):
+        predict(terms, "pendulum", n, v)
+    with pytest.raises(BadInputError):
+        predict(terms, "crb", n, v, 1.5)
+    with pytest.raises(BadInputError):
+        predict(terms, "crb", np.zeros(3), v)
+    with pytest.raises(BadInputError):
+        predict(terms, "crb", n, [np.nan, 0.0, 0.0])

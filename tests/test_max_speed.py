@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 from conftest import JOINTS
 from impactqp.controller.model.batch import BatchKinematics
 from impactqp.controller.model.capture import capturable_speeds, capture_region, max_capturable_speed
-from impactqp.controller.model.floating_base import FloatingBaseModel, predict
+from impactqp.controller.model.jump import predict
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import STANCES, convex_hull, inside_polygon, stance_posture, support_polygon
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.max_speed import (
@@ -140,7 +141,7 @@ vectors = st.lists(st.floats(-10, 10), min_size=3, max_size=3).map(lambda v: np.
 
 @pytest.fixture(scope="module")
 def g1():
-    return FloatingBaseModel()
+    return RobotModel("g1")
 
 
 @pytest.fixture(scope="module", params=["parallel", "staggered"])
@@ -189,7 +190,7 @@ def test_joint_velocity_bound_puts_the_worst_joint_at_its_limit(g1, stance_q):
     terms = g1.terms(stance_q)
     d = approach_direction(g1, terms, NORMAL)
     np.testing.assert_allclose(terms.J @ d, -NORMAL, atol=1e-9)
-    dv = predict(terms, "classical", NORMAL, terms.J @ d).dv
+    dv = predict(terms, "classical", NORMAL, terms.J @ d).dq_jump
     unit = unit_impact(g1, terms, NORMAL, Setting("classical"))
     np.testing.assert_array_equal(unit.jump, dv)
     bound = joint_bound(g1, joint_velocity_ratio(unit))

@@ -12,6 +12,8 @@ from conftest import ARMS, joint_positions
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_jump import welded_arm_inverse_inertia
+from whole_body_states import integrate, standing_states, upright
+from whole_body_states import robot as g1_robot
 
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
@@ -300,3 +302,143 @@ def test_unknown_robot_or_tool_is_bad_input():
         RobotModel("kuka")
     with pytest.raises(BadInputError, match="unknown tool"):
         RobotModel("fr3", "hammer")
+
+
+@settings(max_examples=10, deadline=None)
+@given(q=joint_positions(), dq=joint_positions(0.0))
+def test_an_arms_terms_are_one_compute_all_terms(robot, q, dq):
+    """The fast fill equals a plain ``computeAllTerms`` on a fresh data (to 1e-12), holds no held
+    contact, and computes M^-1, Jcom and its drift on first use (definitions checked)."""
+    dq = 0.3 * (dq - robot.q_min) / (robot.q_max - robot.q_min) - 0.15
+    terms = robot.terms(q, dq)
+    model, data = robot.model, robot.model.createData()
+    pin.computeAllTerms(model, data, q, dq)
+    pin.updateFramePlacements(model, data)
+    fid, world = robot.contact_frame_id, pin.LOCAL_WORLD_ALIGNED
+    expected = {
+        "M": data.M, "h": data.nle, "J6": pin.getFrameJacobian(model, data, fid, world),
+        "dJ6_dq": pin.getFrameClassicalAcceleration(model, data, fid, world).vector,
+        "contact_point": data.oMf[fid].translation, "contact_rotation": data.oMf[fid].rotation,
+        "com": data.com[0], "inertia_com": data.Ig.inertia,
+    }
+    for name, value in expected.items():
+        np.testing.assert_allclose(getattr(terms, name), value, rtol=0, atol=1e-12, err_msg=name)
+    assert terms.mass == pytest.approx(data.Ig.mass, rel=1e-12)
+    assert terms.held_jacobian.shape == (0, robot.nv) and terms.held_drift.shape == (0,)
+    np.testing.assert_allclose(terms.M_inv @ terms.M, np.eye(robot.nv), atol=1e-8)
+    eps = 1e-6
+    rate = (pin.centerOfMass(model, data, q + eps * dq) - pin.centerOfMass(model, data, q - eps * dq)) / (2 * eps)
+    np.testing.assert_allclose(terms.Jcom @ dq, rate, atol=1e-8)
+    Jcom_rate = (pin.jacobianCenterOfMass(model, data, q + eps * dq) - pin.jacobianCenterOfMass(model, data, q - eps * dq)) @ dq
+    np.testing.assert_allclose(terms.dJcom_dq, Jcom_rate / (2 * eps), atol=1e-6)
+    with pytest.raises(BadInputError, match="unknown frame"):
+        terms.frame("torso")
+
+
+# ---------------------------------------------------------------------- a floating base (the G1)
+G1_SETTINGS = settings(max_examples=10, deadline=None)
+EPS = 1e-6
+
+
+def test_a_floating_base_has_a_free_flyer_before_its_joints():
+    g1 = g1_robot()
+    assert (g1.base_nq, g1.base_nv) == (7, 6) and g1.floating
+    assert g1.n_joints == len(g1.description.joints) == g1.nv - 6 == g1.nq - 7
+    assert all(len(limit) == g1.n_joints for limit in (g1.q_min, g1.q_max, g1.dq_max, g1.tau_max, g1.ddq_max, g1.dddq_max))
+    arm = RobotModel("panda")
+    assert (arm.base_nq, arm.base_nv, arm.n_joints) == (0, 0, arm.nv) and not arm.floating
+
+
+@G1_SETTINGS
+@given(standing_states(max_joint_offset=0.3, max_speed=1.0))
+def test_g1_terms_match_pinocchio_and_finite_differences(state):
+    """M is CRBA's; each held contact's 6 rows are the world-aligned velocity of its frame (the
+    translation's rate, then the angular velocity of its rotation: finite differences along v);
+    Jcom v is the centre of mass's rate; h is RNEA at zero acceleration."""
+    _, q, v = state
+    g1 = g1_robot()
+    terms = g1.terms(q, v)
+    model, data = g1.model, g1.model.createData()
+    M = pin.crba(model, data, q)
+    np.testing.assert_allclose(terms.M, np.triu(M) + np.triu(M, 1).T, atol=1e-12)
+    np.testing.assert_allclose(terms.h, pin.rnea(model, data, q, v, np.zeros(g1.nv)), atol=1e-9)
+    after, before = integrate(q, v, EPS), integrate(q, v, -EPS)
+    placements = g1.frame_placements(after), g1.frame_placements(before)
+    for k, frame in enumerate(g1.held_frames):
+        plus, minus = placements[0][frame], placements[1][frame]
+        rate = np.concatenate([
+            (plus.translation - minus.translation) / (2 * EPS), pin.log3(plus.rotation @ minus.rotation.T) / (2 * EPS)
+        ])
+        np.testing.assert_allclose(terms.held_jacobian[6 * k:6 * k + 6] @ v, rate, atol=1e-6)
+    com_rate = (pin.centerOfMass(model, data, after) - pin.centerOfMass(model, data, before)) / (2 * EPS)
+    np.testing.assert_allclose(terms.Jcom @ v, com_rate, atol=1e-7)
+
+
+@G1_SETTINGS
+@given(standing_states(max_joint_offset=0.3, max_speed=1.0))
+def test_drifts_are_the_time_derivatives_of_the_jacobians_along_the_motion(state):
+    """d/dt (X v) = X dv + dX v: with dv = 0, (X(q + v eps) v - X(q) v) / eps -> dX v for the
+    hand, the feet, the torso and the centre of mass (central differences)."""
+    _, q, v = state
+    model = g1_robot()
+    before, after, now = model.terms(integrate(q, v, -EPS), v), model.terms(integrate(q, v, EPS), v), model.terms(q, v)
+    pairs = [
+        (lambda t: t.J6 @ v, now.dJ6_dq),
+        (lambda t: t.held_jacobian @ v, now.held_drift),
+        (lambda t: t.Jcom @ v, now.dJcom_dq),
+        (lambda t: t.frame("torso").J6 @ v, now.frame("torso").dJ6_dq),
+    ]
+    for rate, drift in pairs:
+        np.testing.assert_allclose((rate(after) - rate(before)) / (2 * EPS), drift, atol=1e-5 * (1 + np.abs(drift).max()))
+
+
+@G1_SETTINGS
+@given(standing_states())
+def test_inverse_inertia_and_centre_of_mass_match_their_definitions(state):
+    _, q, v = state
+    terms = g1_robot().terms(q, v)
+    np.testing.assert_allclose(terms.M @ terms.M_inv, np.eye(g1_robot().nv), atol=1e-8)
+    np.testing.assert_allclose(terms.M_inv, terms.M_inv.T, atol=1e-12)
+    np.testing.assert_allclose(terms.J @ terms.J.T @ terms.JJt_inv, np.eye(3), atol=1e-9)
+    # the configuration's terms (v = 0) have the same CoM, its Jacobian and the locked inertia
+    still = g1_robot().terms(q)
+    np.testing.assert_allclose(terms.Jcom, still.Jcom, atol=1e-12)
+    np.testing.assert_allclose(terms.com, still.com, atol=1e-12)
+    assert terms.mass == pytest.approx(still.mass)
+
+
+def test_a_floating_base_checks_sizes_values_and_only_the_joints_limits():
+    g1 = g1_robot()
+    q, nv = upright(), g1.nv
+    for bad_q, bad_v, message in (
+        (q[:-1], np.zeros(nv), f"q must have {g1.nq} values"), (q, np.zeros(nv - 1), f"dq must have {nv} values"),
+        (q, np.full(nv, np.nan), "non-finite"), (np.where(np.arange(g1.nq) == 9, np.inf, q), np.zeros(nv), "non-finite"),
+    ):
+        with pytest.raises(InvalidStateError, match=message):
+            g1.terms(bad_q, bad_v)
+        with pytest.raises(InvalidStateError, match=message):
+            g1.check_state(bad_q, bad_v)
+    far = q.copy()
+    far[:3] = [50.0, -40.0, 30.0]  # the base's coordinates have no limits
+    g1.check_state(far, check_limits=True)
+    out = q.copy()
+    out[g1.base_nq + 3] = g1.q_max[3] + 0.1
+    with pytest.raises(InvalidStateError, match=g1.joint_names[3]) as error:
+        g1.check_state(out, check_limits=True)
+    assert error.value.constraint == "joint_position_limit" and "\n" not in str(error.value)
+    g1.terms(out)  # a floating base's terms do not check the limits unless asked
+    with pytest.raises(InvalidStateError):
+        g1.terms(out, check_limits=True)
+
+
+def test_sole_corners_follow_the_feet():
+    """At the neutral configuration both soles are flat and at the same height; an arm has none."""
+    g1 = g1_robot()
+    q = pin.neutral(g1.model)
+    corners = g1.sole_corners(q)
+    assert corners.shape == (8, 3)
+    np.testing.assert_allclose(corners[:, 2], corners[0, 2], atol=1e-9)
+    placements = g1.frame_placements(q)
+    left, right = g1.held_frames
+    assert placements[left].translation[1] > placements[right].translation[1]  # left is +y
+    assert RobotModel("panda").sole_corners(PANDA.postures["elbow_up"].q).shape == (0, 3)

@@ -8,8 +8,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from impactqp.controller.model.files import read_mapping
 from impactqp.controller.model.robot import RobotModel
-from impactqp.controller.model.robot_description import ROBOTS, model_urdf, robot_description
+from impactqp.controller.model.robot_description import ROBOTS, description_from_mapping, model_urdf, robot_description
 from impactqp.controller.model.tool_description import TOOLS
 from impactqp.controller.model.validation import BadInputError
 
@@ -149,15 +150,29 @@ def test_limits_missing_from_a_file_are_the_urdfs():
 
 
 def test_the_g1_description_gives_the_floating_models_joints_and_limits():
-    from impactqp.controller.model.floating_base import FloatingBaseModel
-
-    g1, model = ROBOTS["g1"], FloatingBaseModel()
+    g1, model = ROBOTS["g1"], RobotModel("g1")
     assert g1.floating and g1.joints == tuple(model.joint_names)
     for ours, theirs in ((g1.q_min, model.q_min), (g1.q_max, model.q_max), (g1.dq_max, model.dq_max), (g1.tau_max, model.tau_max)):
         np.testing.assert_array_equal(ours, theirs)
-    assert [c.frame for c in g1.held_contacts] == [model.model.frames[i].name for i in model.foot_frame_ids]
-    with pytest.raises(BadInputError, match="floating base"):
-        RobotModel("g1")
+    assert [c.frame for c in g1.held_contacts] == [model.model.frames[i].name for i in model.held_frame_ids]
+    assert {name: model.model.frames[i].name for name, i in model.frame_ids.items()} == dict(g1.frames) == {"torso": "torso_link"}
+    with pytest.raises(BadInputError, match="carries no tool"):
+        RobotModel("g1", "impact_tip")
+
+
+@pytest.mark.parametrize("frames, message", [
+    ({"torso": 3}, "frame torso must be a non-empty name"),
+    ("torso_link", r"\[frames\] must be a table"),
+])
+def test_a_bad_frames_table_is_one_line_of_bad_input(frames, message):
+    data = dict(read_mapping(ROBOTS["g1"].source, "the G1"), frames=frames)
+    with pytest.raises(BadInputError, match=message):
+        description_from_mapping(data, ROBOTS["g1"].source.parent, ROBOTS["g1"].source)
+
+
+def test_a_named_frame_missing_from_the_urdf_is_bad_input():
+    with pytest.raises(BadInputError, match="has no frame no_such_link"):
+        RobotModel(replace(ROBOTS["g1"], frames={"torso": "no_such_link"}))
 
 
 def _user_arm(folder, **changes):

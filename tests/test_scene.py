@@ -20,7 +20,6 @@ from impactqp.controller.model.robot import TOOL_CENTRE_OFFSET, TOOL_RADIUS, Pan
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.tool_description import TOOLS, Sphere
 from impactqp.sim.plant import PlantParameters
-from impactqp.controller.model.floating_base import FloatingBaseModel
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.sim.humanoid_scene import build_humanoid_scene
 from impactqp.sim.scene import CONTACT_CONDIM, build_scene, from_pinocchio, mujoco_urdf, to_pinocchio
@@ -179,7 +178,7 @@ def test_the_urdf_is_edited_for_mujoco_with_the_urdf_inertias(robot):
     assert (compiler.get("inertiafromgeom"), compiler.get("balanceinertia"), compiler.get("fusestatic")) == ("false",) * 3
 
 
-G1 = FloatingBaseModel()
+G1 = RobotModel("g1")
 G1_SCENE = build_humanoid_scene(G1, wall_x=0.6, armature=0.0)
 
 

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from impactqp.controller.model.floating_base import FloatingBaseModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.max_speed import standing_wrenches
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.robot import PandaModel
@@ -25,7 +25,7 @@ GAIN = 5.0
 DT = 1e-3
 
 
-def standing_servo(scene, robot: FloatingBaseModel) -> ComputedTorqueServo:
+def standing_servo(scene, robot: RobotModel) -> ComputedTorqueServo:
     standing = StandingSupport(robot, scene.base_nq, scene.base_nv)
     return ComputedTorqueServo(scene.model, scene.data, SERVO_GAIN, standing)
 
@@ -85,7 +85,7 @@ def test_the_arm_servo_starts_at_the_state_and_holds_it():
 # ---------------------------------------------------------------------- floating base: the standing G1
 def test_the_servo_torque_saturates_at_the_urdf_effort_limits():
     """A command far beyond what the motors can give is clipped at each joint's effort limit."""
-    robot = FloatingBaseModel()
+    robot = RobotModel("g1")
     q = stance_posture(robot, STANCES["parallel"])
     scene = build_humanoid_scene(robot, wall_x=1.0)
     scene.set_state(q)
@@ -97,7 +97,7 @@ def test_the_servo_torque_saturates_at_the_urdf_effort_limits():
 @pytest.mark.parametrize("stance", ["wide", "staggered"])
 def test_the_standing_g1_shows_no_foot_onset(stance):
     """Held by its servo with no command and no impact, after the settling: no slip, no lift."""
-    robot = FloatingBaseModel()
+    robot = RobotModel("g1")
     q = stance_posture(robot, STANCES[stance])
     scene = build_humanoid_scene(robot, wall_x=2.0)
     start = q.copy()
@@ -119,7 +119,7 @@ def test_the_standing_g1_shows_no_foot_onset(stance):
 def test_a_held_servo_only_damps_the_joints():
     """After ``hold`` the reference is the measured joint positions at rest: with a zero command the
     servo asks M_f (-2 w dq) of acceleration, no feed-forward and no position error."""
-    robot = FloatingBaseModel()
+    robot = RobotModel("g1")
     q = stance_posture(robot, STANCES["parallel"])
     scene = build_humanoid_scene(robot, wall_x=2.0)
     scene.set_state(q)
@@ -144,7 +144,7 @@ def test_the_standing_torques_hold_any_posture_in_equilibrium():
     """A servo at rest on its reference applies tau with S^T tau + Jf^T w = g in every row (base and
     joints), w the least-norm foot wrenches of the measured configuration: the body leaned by the
     waist is in equilibrium on its feet with no tracking error."""
-    robot = FloatingBaseModel()
+    robot = RobotModel("g1")
     q = stance_posture(robot, STANCES["parallel"])
     q[robot.base_nq + robot.joint_index("waist_pitch_joint")] += 0.3
     scene = build_humanoid_scene(robot, wall_x=2.0)
@@ -153,6 +153,6 @@ def test_the_standing_torques_hold_any_posture_in_equilibrium():
     tau = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
     terms = robot.terms(q)
     gravity = pin.computeGeneralizedGravity(robot.model, robot.data, q)
-    residual = terms.Jf.T @ standing_wrenches(robot, terms) - gravity
+    residual = terms.held_jacobian.T @ standing_wrenches(robot, terms) - gravity
     residual[robot.base_nv:] += tau
     np.testing.assert_allclose(residual, 0.0, atol=1e-6 * np.abs(gravity).max())

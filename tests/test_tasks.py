@@ -255,7 +255,7 @@ def test_joint_tasks_on_a_floating_base_act_on_the_trailing_joints_only():
     from whole_body_states import approach_velocity, robot, stance
 
     model = robot()
-    joints, base = model.joints, model.base_nv
+    joints, base = model.n_joints, model.base_nv
     q = stance("parallel")
     v = approach_velocity(q, 0.4)
     terms = model.terms(q, v)

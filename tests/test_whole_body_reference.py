@@ -8,13 +8,13 @@ from hypothesis import strategies as st
 from reference.whole_body import reference_jump_maps, reference_terms
 from whole_body_states import NORMAL, approach_velocity, controller, robot, stance, standing_states
 
-from impactqp.controller.model.floating_base import METHODS
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
 from impactqp.controller.model.jump import jump_model
 
 SETTINGS = settings(max_examples=15, deadline=None)
 TERM_FIELDS = (
-    "q", "dq", "M", "M_inv", "J6", "dJ6_dq", "contact_point", "contact_rotation", "Jf", "dJf_dq", "Jcom",
-    "dJcom_dq", "com", "mass", "inertia_com",
+    "q", "dq", "M", "h", "M_inv", "J", "J6", "dJ6_dq", "JJt_inv", "contact_point", "contact_rotation", "held_jacobian",
+    "held_drift", "Jcom", "dJcom_dq", "com", "mass", "inertia_com",
 )
 
 

@@ -10,20 +10,20 @@ from reference.whole_body import feet_held_pinv
 
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.whole_body_terms import WholeBodyModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.qp.whole_body_setup import WholeBodySetup, build_whole_body_controller
 
 NORMAL = np.array([-1.0, 0.0, 0.0])  # the wall in front (+x), normal towards the robot
 
 
 @lru_cache(maxsize=1)
-def robot() -> WholeBodyModel:
-    return WholeBodyModel()
+def robot() -> RobotModel:
+    return RobotModel("g1")
 
 
 @lru_cache(maxsize=None)
 def stance(name: str) -> np.ndarray:
-    return stance_posture(robot().base, STANCES[name])
+    return stance_posture(robot(), STANCES[name])
 
 
 def upright(height: float = 0.7) -> np.ndarray:
@@ -43,7 +43,7 @@ def standing_states(max_joint_offset: float = 0.05, max_speed: float = 0.3):
     ``max_joint_offset`` rad (inside their limits) and a velocity that keeps both feet still
     (v = N w, N the projector onto the null space of the feet's Jacobian, joint rates up to
     ``max_speed`` rad/s before the projection)."""
-    n = robot().joints
+    n = robot().n_joints
     offsets = st.lists(st.floats(-1.0, 1.0), min_size=n, max_size=n).map(np.array)
     rates = st.lists(st.floats(-1.0, 1.0), min_size=n, max_size=n).map(np.array)
 
@@ -52,7 +52,7 @@ def standing_states(max_joint_offset: float = 0.05, max_speed: float = 0.3):
         q = stance(name).copy()
         joints = slice(model.base_nq, None)
         q[joints] = np.clip(q[joints] + max_joint_offset * offset, model.q_min + 1e-3, model.q_max - 1e-3)
-        Jf = model.terms(q).Jf
+        Jf = model.terms(q).held_jacobian
         w = np.concatenate([np.zeros(model.base_nv), max_speed * rate])
         v = w - Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ w)
         return name, q, v
@@ -63,7 +63,7 @@ def standing_states(max_joint_offset: float = 0.05, max_speed: float = 0.3):
 def approach_velocity(q: np.ndarray, speed: float) -> np.ndarray:
     """The least-norm velocity with both feet still and the hand at ``speed`` towards the wall."""
     terms = robot().terms(q)
-    return feet_held_pinv(terms.J, terms.Jf) @ (-speed * NORMAL)
+    return feet_held_pinv(terms.J, terms.held_jacobian) @ (-speed * NORMAL)
 
 
 def integrate(q: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:

@@ -12,7 +12,7 @@ a set of linear inequalities A dc <= b in the CoM velocity: the capture region o
 
 Post-impact CoM velocity. A hand impulse iota (from one predictor's impulse map, eqs. 6 or 12)
 acting on the robot with both feet held changes the generalized velocity by P J^T iota
-(``floating_base``), so the CoM velocity jumps by C iota with C = Jcom P J^T (3x3); this equals
+(``jump``), so the CoM velocity jumps by C iota with C = Jcom P J^T (3x3); this equals
 (iota + the feet's impulsive forces) / m. As every predictor's impulse is linear in the contact
 velocity v-, dc+ = dc- + C iota(v-) is linear in v-, and the highest capturable contact speed
 along an approach direction has a closed form (:func:`max_capturable_speed`).
@@ -30,7 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .floating_base import FloatingBaseTerms, predict
+from .jump import constrained_inverse_inertia, predict
+from .model_terms import ModelTerms
 from .humanoid_stance import edge_margins, edge_normals
 from .validation import BadInputError
 
@@ -67,12 +68,12 @@ def capture_region(polygon: np.ndarray, com: np.ndarray, ground_height: float = 
     return CaptureRegion(edge_normals(polygon) / omega, edge_margins(polygon, com), omega)
 
 
-def com_jump_map(terms: FloatingBaseTerms) -> np.ndarray:
+def com_jump_map(terms: ModelTerms) -> np.ndarray:
     """C = Jcom P J^T (3x3): the CoM velocity jump per unit hand impulse, both feet held."""
-    return terms.Jcom @ terms.constrained_inverse_inertia() @ terms.J.T
+    return terms.Jcom @ constrained_inverse_inertia(terms) @ terms.J.T
 
 
-def post_impact_com_velocity(terms: FloatingBaseTerms, method: str, normal, v_minus, com_velocity, c_r: float = 0.0):
+def post_impact_com_velocity(terms: ModelTerms, method: str, normal, v_minus, com_velocity, c_r: float = 0.0):
     """dc+ = dc- + C iota, iota the impulse ``method`` predicts for the contact velocity v-."""
     impulse = predict(terms, method, normal, v_minus, c_r).impulse
     return np.asarray(com_velocity, dtype=float) + com_jump_map(terms) @ impulse
@@ -91,7 +92,7 @@ def row_steps(offset: np.ndarray, slope: np.ndarray) -> np.ndarray:
 
 
 def capturable_speeds(
-    terms: FloatingBaseTerms, region: CaptureRegion, method: str, normal, direction, c_r: float = 0.0
+    terms: ModelTerms, region: CaptureRegion, method: str, normal, direction, c_r: float = 0.0
 ) -> np.ndarray:
     """Per edge k of the region, the largest s >= 0 with row k of A dc+ <= b for the contact
     velocity v- = s ``direction``, the pre-impact CoM velocity taken as zero (the hand moves, the
@@ -102,7 +103,7 @@ def capturable_speeds(
 
 
 def max_capturable_speed(
-    terms: FloatingBaseTerms, region: CaptureRegion, method: str, normal, direction, c_r: float = 0.0
+    terms: ModelTerms, region: CaptureRegion, method: str, normal, direction, c_r: float = 0.0
 ) -> float:
     """The largest s >= 0 with dc+ inside the region for the contact velocity v- = s ``direction``
     (the smallest of :func:`capturable_speeds`; inf when no edge binds, 0 when the standing robot

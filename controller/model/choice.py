@@ -8,8 +8,7 @@ receive it and build their own model and scene from it.
 
 A floating-base robot (``robot.floating``: the G1) carries no tool: it hits with its own contact
 point (its description's ``contact``), its ``tool`` is None, its model is
-``floating_base.FloatingBaseModel`` (``RobotModel`` refuses it) and its postures are its
-description's ``stances``.
+``RobotModel`` with a free-flyer root and its postures are its description's ``stances``.
 """
 
 from __future__ import annotations

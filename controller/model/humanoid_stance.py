@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from .floating_base import FloatingBaseModel
+from .robot import RobotModel
 from .robot_description import ROBOTS, Stance
 from .validation import BadInputError
 
@@ -42,7 +42,7 @@ STANCES = ROBOTS["g1"].stances
 """The G1's stances by name (its description's): parallel, wide, staggered, close, far."""
 
 
-def support_polygon(robot: FloatingBaseModel, q: np.ndarray) -> np.ndarray:
+def support_polygon(robot: RobotModel, q: np.ndarray) -> np.ndarray:
     """Convex hull (counter-clockwise, k x 2) of both soles' corners, from the posture q."""
     points = robot.sole_corners(q)[:, :2]
     return convex_hull(points)
@@ -87,7 +87,7 @@ def inside_polygon(point, polygon: np.ndarray) -> float:
     return float(edge_margins(polygon, point).min())
 
 
-def stance_posture(robot: FloatingBaseModel, stance: Stance) -> np.ndarray:
+def stance_posture(robot: RobotModel, stance: Stance) -> np.ndarray:
     """The configuration q (nq) of the stance (module docstring); raises BadInputError when the
     solver leaves a foot more than 1 mm (or 1 mrad) off its target or the hand 5 mm off."""
     model = robot.model
@@ -99,7 +99,7 @@ def stance_posture(robot: FloatingBaseModel, stance: Stance) -> np.ndarray:
     if len(stance.feet) != len(contacts):
         raise BadInputError(f"stance {stance.name!r} places {len(stance.feet)} feet, the robot holds {len(contacts)} contacts")
     feet = [(fid, pin.SE3(np.eye(3), np.array([*xy, c.depth])))
-            for fid, c, xy in zip(robot.foot_frame_ids, contacts, stance.feet)]
+            for fid, c, xy in zip(robot.held_frame_ids, contacts, stance.feet)]
     centre = np.mean([[xy[0] + float(c.sole[:, 0].mean()), xy[1]] for c, xy in zip(contacts, stance.feet)], axis=0)
     hand_target = np.array(stance.hand)
     q = pin.neutral(model)

@@ -35,16 +35,21 @@ the whole robot with every joint locked; the centre of mass then jumps by C iota
 C = Jcom P_f J^T (docs/whole-body-qp.md). A fixed-base arm is the case of no held contact
 (Jf with no rows): P_f = M^-1, J# = J+, the table above.
 
-This module is the one home of these maps: ``JumpModel`` gives them for one state of any robot
-(``ModelTerms`` of an arm, ``WholeBodyTerms`` of a humanoid: ``unit_matrices`` reads the terms'
-``held_jacobian``), :func:`predict_from_terms` for N states of an arm at once (the batched
-terms of ``controller.model.batch``, leading axis N); the compiled kernels are in
-``jump_kernels``.
+The held contacts' impulse is lambda = -(Jf M^-1 Jf^T)^-1 Jf M^-1 J^T iota (a wrench per held
+contact, world axes about its frame), what keeps them still under iota.
+
+This module is the one home of these maps and predictors: ``JumpModel`` gives them for one state
+of any robot (``ModelTerms``; ``unit_maps`` and ``unit_matrices`` read the terms'
+``held_jacobian``), :func:`predict` by a method's name, :func:`predict_from_terms` for N states
+of an arm at once (the batched terms of ``controller.model.batch``, leading axis N); the
+compiled kernels are in ``jump_kernels``. The held-contact ``unit_maps`` factor M
+(Cholesky) and take J# = N (J N)^+, equal to N J^T (J N J^T)^-1; the held-contact
+``unit_matrices`` (a controller's every cycle) read the terms' M^-1 in one compiled call.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -58,7 +63,7 @@ from .jump_kernels import (
     held_contact_maps,
     rank_one_jump_matrices,
 )
-from .robot import ModelTerms
+from .model_terms import ModelTerms
 from .validation import BadInputError, unit_normal
 
 METHODS = ("classical", "classical_normal", "gm", "crb")
@@ -87,13 +92,59 @@ def crb_inverse_inertia(terms: ModelTerms) -> np.ndarray:
     return np.eye(3) / terms.mass - r_hat @ np.linalg.solve(terms.inertia_com, r_hat)
 
 
+def held_inverse_inertia_times_Jf_t(terms: ModelTerms) -> np.ndarray:
+    """M^-1 Jf^T by a Cholesky solve."""
+    return terms.cached("MiJf", lambda: cho_solve(terms.M_cholesky, terms.held_jacobian.T))
+
+
+def constrained_inverse_inertia(terms: ModelTerms) -> np.ndarray:
+    """P_f = M^-1 - M^-1 Jf^T (Jf M^-1 Jf^T)^-1 Jf M^-1 (module docstring): dv = P_f tau_impulse
+    with the held contacts kept still; M^-1 without held contacts."""
+
+    def build():
+        Mi = cho_solve(terms.M_cholesky, np.eye(terms.M.shape[0]))
+        if terms.held_jacobian.shape[0] == 0:
+            return Mi
+        MiJf = held_inverse_inertia_times_Jf_t(terms)
+        P = Mi - MiJf @ np.linalg.solve(terms.held_jacobian @ MiJf, MiJf.T)
+        return 0.5 * (P + P.T)
+
+    return terms.cached("P", build)
+
+
 def joint_space_inverse_inertia_times_Jt(terms: ModelTerms) -> np.ndarray:
-    """M^-1 J^T (7x3) by a Cholesky solve; M is never inverted."""
-    return cho_solve(terms.M_cholesky, terms.J.T)
+    """P_f J^T (nv x 3): M^-1 J^T by a Cholesky solve (M is never inverted) without held
+    contacts, P_f J^T with them."""
+    if terms.held_jacobian.shape[0] == 0:
+        return cho_solve(terms.M_cholesky, terms.J.T)
+    return constrained_inverse_inertia(terms) @ terms.J.T
+
+
+def held_pinv(terms: ModelTerms) -> np.ndarray:
+    """J# = N (J N)^+ (nv x 3), N the projector onto null(Jf): the least-norm dv with J dv = x
+    and Jf dv = 0 (J+ without held contacts)."""
+    if terms.held_jacobian.shape[0] == 0:
+        return terms.J_pinv
+
+    def build():
+        Jf = terms.held_jacobian
+        N = np.eye(terms.M.shape[0]) - np.linalg.pinv(Jf) @ Jf
+        return N @ np.linalg.pinv(terms.J @ N)
+
+    return terms.cached("Jsharp", build)
+
+
+def held_impulse(terms: ModelTerms, impulse: np.ndarray) -> np.ndarray:
+    """lambda = -(Jf M^-1 Jf^T)^-1 Jf M^-1 J^T iota (6 per held contact; none without)."""
+    if terms.held_jacobian.shape[0] == 0:
+        return np.zeros(0)
+    MiJf = held_inverse_inertia_times_Jf_t(terms)
+    return -np.linalg.solve(terms.held_jacobian @ MiJf, MiJf.T @ (terms.J.T @ impulse))
 
 
 def gm_inverse_inertia(terms: ModelTerms) -> np.ndarray:
-    """W_gm = J M^-1 J^T, eq. (22): the generalized-momentum inverse inertia at the contact."""
+    """W_gm = J P_f J^T, eq. (22): the generalized-momentum inverse inertia at the contact
+    (J M^-1 J^T without held contacts)."""
     W = terms.J @ joint_space_inverse_inertia_times_Jt(terms)
     return 0.5 * (W + W.T)
 
@@ -105,12 +156,17 @@ def normal_impulse_map(W: np.ndarray, normal: np.ndarray, restitution: float) ->
 
 @dataclass(frozen=True)
 class JumpPrediction:
-    """One predictor's answer: the joint-velocity jump, the impulse on the robot, W if any."""
+    """One predictor's answer: the generalized-velocity jump ``dq_jump`` (nv), the contact
+    impulse on the robot (3), W if any, the held contacts' impulse ``held_impulse`` lambda (6
+    per held contact, none without) and the centre of mass's velocity jump ``com_jump``
+    Jcom dq_jump (3; None without held contacts)."""
 
     method: str
     dq_jump: np.ndarray
     impulse: np.ndarray
     W: np.ndarray | None
+    held_impulse: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    com_jump: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -143,13 +199,28 @@ class JumpModel:
     normalised, the restitution must lie in [0, 1]; ``validation.py``) and call ``unit_maps``
     or ``unit_matrices``, which take a unit normal and a valid restitution. A caller that has
     checked both once (``constraints.ExpectedImpact``) calls ``unit_matrices`` every cycle.
-    ``maps`` and ``predict`` are the fixed-base forms (they read M's Cholesky factor and J+);
-    ``matrices`` and ``unit_matrices`` serve both forms (module docstring)."""
+    Every method serves both forms (module docstring): ``unit_maps`` calls ``fixed_base_maps``
+    without held contacts and ``held_maps`` with them."""
 
     name: str = ""
 
     def unit_maps(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMaps:
+        if terms.held_jacobian.shape[0] == 0:
+            return self.fixed_base_maps(terms, normal, restitution)
+        self._check_held_contact_form()
+        return self.held_maps(terms, normal, restitution)
+
+    def fixed_base_maps(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMaps:
         raise NotImplementedError
+
+    def held_maps(self, terms: ModelTerms, normal: np.ndarray, restitution: float) -> JumpMaps:
+        raise NotImplementedError
+
+    def _check_held_contact_form(self) -> None:
+        if self.name not in HELD_CONTACT_METHODS:
+            raise BadInputError(
+                f"the {self.name} model has no held-contact form; choose from {', '.join(HELD_CONTACT_METHODS)}"
+            )
 
     def unit_matrices(self, terms, normal: np.ndarray, restitution: float) -> JumpMatrices:
         """A, P, G (and C) of this state: the held-contact form (``jump_kernels.held_contact_maps``,
@@ -157,10 +228,7 @@ class JumpModel:
         the fixed-base form (``fixed_base_matrices``) otherwise."""
         if terms.held_jacobian.shape[0] == 0:
             return self.fixed_base_matrices(terms, normal, restitution)
-        if self.name not in HELD_CONTACT_METHODS:
-            raise BadInputError(
-                f"the {self.name} model has no held-contact form; choose from {', '.join(HELD_CONTACT_METHODS)}"
-            )
+        self._check_held_contact_form()
         rigid = (terms.contact_point, terms.com, terms.inertia_com, terms.mass)
         method = HELD_CONTACT_METHODS.index(self.name)
         return JumpMatrices(
@@ -193,11 +261,20 @@ class JumpModel:
         restitution: float = 0.0,
         impulse: np.ndarray | None = None,
     ) -> JumpPrediction:
-        """Predict the jump for the contact velocity v- (world), or from a measured impulse.
-        The normal n is normalised here."""
+        """Predict the jump for the contact velocity v- (world), or from a measured impulse
+        (then v- is not read). The normal n is normalised here. With held contacts the answer
+        also holds their impulse lambda and the centre of mass's jump Jcom dv."""
         maps = self.maps(terms, normal, restitution)
-        impulse = maps.G @ pre_impact_velocity if impulse is None else np.asarray(impulse, dtype=float)
-        return JumpPrediction(self.name, maps.K @ impulse, impulse, maps.W)
+        if impulse is None:
+            impulse = maps.G @ validation.finite_vector(pre_impact_velocity, 3, "the pre-impact contact velocity")
+        else:
+            impulse = np.asarray(impulse, dtype=float)
+        dq_jump = maps.K @ impulse
+        if terms.held_jacobian.shape[0] == 0:
+            return JumpPrediction(self.name, dq_jump, impulse, maps.W)
+        return JumpPrediction(
+            self.name, dq_jump, impulse, maps.W, held_impulse(terms, impulse), terms.Jcom @ dq_jump
+        )
 
 
 class ClassicalJump(JumpModel):
@@ -206,9 +283,15 @@ class ClassicalJump(JumpModel):
 
     name = "classical"
 
-    def unit_maps(self, terms, normal, restitution):
+    def fixed_base_maps(self, terms, normal, restitution):
         MinvJt = joint_space_inverse_inertia_times_Jt(terms)
         return JumpMaps(-(1.0 + restitution) * np.linalg.inv(terms.J @ MinvJt), MinvJt, None)
+
+    def held_maps(self, terms, normal, restitution):
+        """G = -(1+c_r) W_gm^-1, K = P_f J^T."""
+        return JumpMaps(
+            -(1.0 + restitution) * np.linalg.inv(gm_inverse_inertia(terms)), joint_space_inverse_inertia_times_Jt(terms), None
+        )
 
 
 class ClassicalNormalJump(ClassicalJump):
@@ -217,8 +300,8 @@ class ClassicalNormalJump(ClassicalJump):
 
     name = "classical_normal"
 
-    def unit_maps(self, terms, normal, restitution):
-        classical = super().unit_maps(terms, normal, restitution)
+    def fixed_base_maps(self, terms, normal, restitution):
+        classical = super().fixed_base_maps(terms, normal, restitution)
         return JumpMaps(np.outer(normal, normal) @ classical.G, classical.K, None)
 
 
@@ -236,9 +319,14 @@ class GeneralizedMomentumJump(JumpModel):
         J M^-1 (J^T n), one linear solve with M."""
         return terms.J @ np.linalg.solve(terms.M, normal @ terms.J)
 
-    def unit_maps(self, terms, normal, restitution):
+    def fixed_base_maps(self, terms, normal, restitution):
         W = self.inverse_inertia(terms)
         return JumpMaps(normal_impulse_map(W, normal, restitution), terms.J_pinv @ W, W)
+
+    def held_maps(self, terms, normal, restitution):
+        """G = -(1+c_r) n n^T / (n^T W n), K = J# W."""
+        W = self.inverse_inertia(terms)
+        return JumpMaps(normal_impulse_map(W, normal, restitution), held_pinv(terms) @ W, W)
 
     def fixed_base_matrices(self, terms, normal, restitution):
         """A, P and G as the rank-one products of the module docstring, from W n alone
@@ -260,7 +348,7 @@ class CompositeRigidBodyJump(GeneralizedMomentumJump):
     def inverse_inertia(self, terms: ModelTerms) -> np.ndarray:
         return crb_inverse_inertia(terms)
 
-    def unit_maps(self, terms, normal, restitution):
+    def fixed_base_maps(self, terms, normal, restitution):
         """G, K = J+ W_crb and W_crb in one compiled call (``crb_maps``)."""
         G, K, W = crb_maps(
             terms.contact_point, terms.com, terms.inertia_com, terms.mass, terms.J, terms.JJt_inv, normal, restitution
@@ -284,6 +372,18 @@ def jump_model(name: str) -> JumpModel:
         return JUMP_MODELS[name]
     except KeyError:
         raise BadInputError(f"unknown jump model {name!r}; choose from {', '.join(JUMP_MODELS)}") from None
+
+
+def predict(terms: ModelTerms, method: str, normal, pre_impact_velocity, restitution: float = 0.0) -> JumpPrediction:
+    """The prediction of the method ``method`` (a name of ``JUMP_MODELS``) for the contact
+    velocity v- (``JumpModel.predict``)."""
+    return jump_model(method).predict(terms, normal, pre_impact_velocity, restitution)
+
+
+def jump_from_impulse(terms: ModelTerms, impulse) -> np.ndarray:
+    """dv = P_f J^T iota: the momentum law (held contacts kept still), fed a given (e.g.
+    measured) impulse."""
+    return joint_space_inverse_inertia_times_Jt(terms) @ np.asarray(impulse, dtype=float)
 
 
 def predict_from_terms(

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .robot import symmetric_inverse3_into
+from .model_terms import symmetric_inverse3_into
 
 HELD_CONTACT_METHODS = ("classical", "gm", "crb")
 """The predictors with held contacts, in the order of ``held_contact_maps``' method codes."""

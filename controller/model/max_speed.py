@@ -7,7 +7,7 @@ For a fixed-base arm every joint moves and the contact frame does not rotate, d 
 contacts (a standing humanoid's soles) the contact's arm moves alone (:data:`ARM_JOINTS`),
 d_arm = J_arm+ (-n), the body at rest. Every predicted quantity is linear in v (the jump at unit
 speed dv, the contact impulse iota and the held contacts' impulsive wrenches lambda: the arm's
-``jump`` model, eqs. 6 and 12, or ``floating_base.predict`` with the contacts held), so each
+``jump`` model, eqs. 6 and 12, or ``jump.predict`` with the contacts held), so each
 criterion is an inequality in v whose feasible set is an interval [0, v_max]; the highest
 feasible speed is the smallest v_max, and the criterion giving it binds.
 
@@ -48,10 +48,10 @@ import pinocchio as pin
 
 from .batch import BatchTerms
 from .capture import capturable_speeds, capture_region, row_steps
-from .floating_base import FloatingBaseModel, FloatingBaseTerms, predict
 from .humanoid_stance import convex_hull, edge_margins, edge_normals, support_polygon
-from .jump import JUMP_MODELS, predict_from_terms
-from .robot import ModelTerms, PandaModel
+from .jump import JUMP_MODELS, predict, predict_from_terms
+from .model_terms import ModelTerms
+from .robot import RobotModel
 from .robot_description import RobotDescription
 from .validation import BadInputError
 
@@ -67,7 +67,7 @@ FEET = ("left", "right")
 @dataclass(frozen=True)
 class Setting:
     """What the closed form assumes: predictor (a name of ``jump.JUMP_MODELS``, or of
-    ``floating_base.METHODS`` with held contacts), restitution, friction mu of every held contact
+    ``jump_kernels.HELD_CONTACT_METHODS`` with held contacts), restitution, friction mu of every held contact
     (None: each held contact's own ``friction``, the description's) and impact duration (s; None:
     the robot's, :data:`DEFAULT_IMPACT_DURATION`, or :data:`HAND_IMPACT_DURATION` with held contacts)."""
 
@@ -121,8 +121,8 @@ class UnitImpact:
     the jump dv (nv), the contact impulse iota (3) and the held contacts' impulsive wrenches
     lambda (6 each, world axes about each frame; none without held contacts)."""
 
-    robot: PandaModel | FloatingBaseModel
-    terms: ModelTerms | FloatingBaseTerms
+    robot: RobotModel
+    terms: ModelTerms
     normal: np.ndarray
     setting: Setting
     direction: np.ndarray
@@ -136,7 +136,7 @@ class UnitImpact:
         return slice(self.direction.shape[0] - self.robot.dq_max.shape[0], None)
 
 
-def approach_direction(robot: PandaModel | FloatingBaseModel, terms, normal) -> np.ndarray:
+def approach_direction(robot: RobotModel, terms, normal) -> np.ndarray:
     """d (nv): the joint velocity per unit approach speed along -n (module docstring): J6+ [-n; 0]
     for an arm, J_arm+ (-n) on :data:`ARM_JOINTS` and zero elsewhere with held contacts."""
     normal = np.asarray(normal, dtype=float)
@@ -148,19 +148,19 @@ def approach_direction(robot: PandaModel | FloatingBaseModel, terms, normal) -> 
     return d
 
 
-def unit_impact(robot: PandaModel | FloatingBaseModel, terms, normal: np.ndarray, setting: Setting) -> UnitImpact:
+def unit_impact(robot: RobotModel, terms, normal: np.ndarray, setting: Setting) -> UnitImpact:
     """The approach d and its predicted impact at unit speed (v- = J d): the arm's ``jump`` model
-    (iota = G J d, dv = K iota), or the held contacts' ``floating_base.predict``."""
+    (iota = G J d, dv = K iota), or ``jump.predict`` with the held contacts."""
     d = approach_direction(robot, terms, normal)
     if robot.description.held_contacts:
         unit = predict(terms, setting.method, normal, terms.J @ d, setting.restitution)
-        return UnitImpact(robot, terms, normal, setting, d, unit.dv, unit.impulse, unit.feet_impulse)
+        return UnitImpact(robot, terms, normal, setting, d, unit.dq_jump, unit.impulse, unit.held_impulse)
     maps = JUMP_MODELS[setting.method].maps(terms, normal, setting.restitution)
     impulse = maps.G @ (terms.J @ d)
     return UnitImpact(robot, terms, normal, setting, d, maps.K @ impulse, impulse, np.zeros(0))
 
 
-def joint_bound(robot: PandaModel | FloatingBaseModel, ratio: np.ndarray) -> Bound:
+def joint_bound(robot: RobotModel, ratio: np.ndarray) -> Bound:
     """1 / max_i ratio_i over the joints, at the joint that gives it (inf when every ratio is 0)."""
     i = int(np.argmax(ratio))
     if not ratio[i] > 0.0:
@@ -189,12 +189,12 @@ def joint_velocity_ratio(u: UnitImpact) -> np.ndarray:
     return np.maximum(np.abs(d), np.abs(post)) / u.robot.dq_max
 
 
-def standing_wrenches(robot: FloatingBaseModel, terms: FloatingBaseTerms) -> np.ndarray:
+def standing_wrenches(robot: RobotModel, terms: ModelTerms) -> np.ndarray:
     """w (6 per held contact): the least-norm foot wrenches with Jf_base^T w = g_base, the ground
     carrying the weight."""
     gravity = pin.computeGeneralizedGravity(robot.model, robot.data, terms.q)
     base = slice(robot.base_nv)
-    return np.linalg.pinv(terms.Jf[:, base].T) @ gravity[base]
+    return np.linalg.pinv(terms.held_jacobian[:, base].T) @ gravity[base]
 
 
 def cone_step(force0: np.ndarray, force1: np.ndarray, mu: float) -> float:
@@ -297,14 +297,14 @@ def criteria_of(robot: RobotDescription) -> dict[str, Callable[[UnitImpact], Bou
     return CRITERIA_WITH_HELD_CONTACTS if robot.held_contacts else CRITERIA_WITHOUT_HELD_CONTACTS
 
 
-def criterion_slopes(robot: PandaModel, terms: ModelTerms, normal, setting: Setting = Setting()) -> dict[str, np.ndarray]:
+def criterion_slopes(robot: RobotModel, terms: ModelTerms, normal, setting: Setting = Setting()) -> dict[str, np.ndarray]:
     """Per-joint ratio to the limit at unit approach speed of each of an arm's criteria (a), (b), (c)."""
     unit = unit_impact(robot, terms, np.asarray(normal, dtype=float), setting)
     return {name: ratio(unit) for name, ratio in JOINT_RATIOS.items()}
 
 
 def closed_form_max_speed(
-    robot: PandaModel | FloatingBaseModel, terms, normal, setting: Setting = Setting()
+    robot: RobotModel, terms, normal, setting: Setting = Setting()
 ) -> MaxSpeed:
     """The highest contact speed of the posture of ``terms`` (``robot.terms(q)``) against the
     surface ``normal`` (towards the robot) that meets every criterion of the robot
@@ -339,7 +339,7 @@ def approach_directions(terms: BatchTerms, normals: np.ndarray) -> np.ndarray:
 
 
 def closed_form_max_speeds(
-    robot: PandaModel,
+    robot: RobotModel,
     terms: BatchTerms,
     normals: np.ndarray,
     model: str,

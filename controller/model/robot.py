@@ -1,9 +1,16 @@
-"""Robot model: a described arm (``controller.model.robot_description``) in Pinocchio, fingers
-locked, carrying a described tool (``controller.model.tool_description``).
+"""Robot model: any described robot (``controller.model.robot_description``) in Pinocchio.
+
+A fixed base (an arm) has its fingers locked and carries a described tool
+(``controller.model.tool_description``); a floating base (a humanoid) has a free-flyer root
+(its ``base_nq`` coordinates and ``base_nv`` velocities come before the joints'), its own
+contact point (the description's ``contact``) and the contacts it holds (``held_contacts``:
+a humanoid's soles). A fixed base is the case ``base_nq = base_nv = 0`` with no held contact.
 
 The model is the single source of truth for the project: the MuJoCo scene of ``sim/`` is built
 from the same URDF text (``robot_description.model_urdf``). All dynamic terms of one state are
-computed once, by one call to ``pinocchio.computeAllTerms``, and gathered in :class:`ModelTerms`.
+gathered in :class:`~controller.model.model_terms.ModelTerms`: an arm's by one call to
+``pinocchio.computeAllTerms`` (its centre-of-mass Jacobian, M^-1 and named frames only when
+asked), a floating base's in one pass of the algorithms its whole-body QP needs.
 
 Contact tool
 ------------
@@ -21,14 +28,21 @@ of radius :data:`TOOL_RADIUS` whose centre sits on the hand's z axis (the axis o
 
 from __future__ import annotations
 
-import itertools
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
-from numba import njit
 
+from .model_terms import (
+    NEAR_SINGULAR,
+    OUTSIDE_LIMITS,
+    BodyTerms,
+    FrameState,
+    ModelTerms,
+    contact_jacobian_status,
+    mirror_upper,
+    symmetric_inverse3_into,
+)
 from .robot_description import PANDA, RobotDescription, model_urdf, robot_description
 from .tool_description import TOOLS, ToolDescription, tool_description
 from .validation import BadInputError, all_finite
@@ -55,6 +69,8 @@ VELOCITY_LIMIT = PANDA.dq_max
 TORQUE_LIMIT = PANDA.tau_max
 ACCELERATION_LIMIT = PANDA.ddq_max
 JERK_LIMIT = PANDA.dddq_max
+BASE_ACCELERATION_LIMIT = 100.0
+"""m/s^2 and rad/s^2: a generous box on a floating base's acceleration (the held contacts set it)."""
 
 
 class InvalidStateError(BadInputError):
@@ -73,111 +89,22 @@ class SingularPostureError(BadInputError):
     """The contact Jacobian is (numerically) rank deficient at this posture."""
 
 
-_FILLS = itertools.count(1)
-
-
-@dataclass(eq=False)
-class ModelTerms:
-    """Every model quantity of one joint state, computed once (``PandaModel.terms``).
-
-    Attributes are world-aligned: ``J`` is the 3 x nv linear Jacobian of the contact point p,
-    ``J6`` the 6 x nv (linear; angular) Jacobian of the contact frame, ``M`` the joint-space inertia
-    matrix, ``h`` the bias forces (Coriolis, centrifugal, gravity), ``com`` the centre of mass of
-    the moving links, ``mass`` their total mass and ``inertia_com`` the rotational inertia of the
-    locked robot about ``com`` (world axes), used by the composite-rigid-body model (20).
-    ``JJt_inv`` is (J J^T)^-1, so that the right inverse of (17) is J+ = J^T (J J^T)^-1.
-    ``held_jacobian`` (0 x nv) and ``held_drift`` (0) are the held contacts' Jacobian Jf and drift
-    dJf dq: a fixed-base arm holds none, the case of the held-contact jump maps with Jf empty
-    (``controller.model.jump``).
-
-    A controller refills one ModelTerms per cycle (``PandaModel.update_terms``); ``stamp``
-    changes at every fill (and for a ``dataclasses.replace`` copy), so anything cached per
-    state keys on it. The derived quantities below are computed on first use, once per fill.
-    """
-
-    q: np.ndarray
-    dq: np.ndarray
-    M: np.ndarray
-    h: np.ndarray
-    J: np.ndarray
-    J6: np.ndarray
-    dJ6_dq: np.ndarray  # dJ6/dt dq: contact-frame acceleration at ddq = 0
-    JJt_inv: np.ndarray
-    contact_point: np.ndarray
-    contact_rotation: np.ndarray
-    com: np.ndarray
-    mass: float
-    inertia_com: np.ndarray
-    stamp: int = field(init=False, repr=False)
-    held_jacobian: np.ndarray = field(init=False, repr=False)
-    held_drift: np.ndarray = field(init=False, repr=False)
-    _derived: dict = field(init=False, repr=False)
-
-    def __post_init__(self):
-        self.stamp = next(_FILLS)
-        self.held_jacobian, self.held_drift = np.empty((0, self.J.shape[-1])), np.empty(0)
-        self._derived = {}
-
-    @property
-    def J_pinv(self) -> np.ndarray:
-        """J+ = J^T (J J^T)^-1, the right inverse of J used in (17)."""
-        if "J_pinv" not in self._derived:
-            self._derived["J_pinv"] = self.J.T @ self.JJt_inv
-        return self._derived["J_pinv"]
-
-    @property
-    def M_cholesky(self):
-        """Cholesky factor of M (scipy ``cho_factor``): M is never inverted explicitly."""
-        if "M_cholesky" not in self._derived:
-            from scipy.linalg import cho_factor
-
-            self._derived["M_cholesky"] = cho_factor(self.M)
-        return self._derived["M_cholesky"]
-
-    @property
-    def cond_M(self) -> float:
-        if "cond_M" not in self._derived:
-            self._derived["cond_M"] = float(np.linalg.cond(self.M))
-        return self._derived["cond_M"]
-
-
-def symmetric_inverse3(S: np.ndarray) -> tuple[list[list[float]], float]:
-    """The inverse of a symmetric 3x3 matrix by its adjugate, in plain floats (no LAPACK call,
-    which costs more than the arithmetic at this size), and its determinant."""
-    (a, b, c), (_, d, e), (_, _, f) = S.tolist()
-    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
-    det = a * A + b * B + c * C
-    inv = 1.0 / det
-    D, E, F = (a * f - c * c) * inv, (b * c - a * e) * inv, (a * d - b * b) * inv
-    A, B, C = A * inv, B * inv, C * inv
-    return [[A, B, C], [B, D, E], [C, E, F]], det
-
-
-@njit(cache=True)
-def symmetric_inverse3_into(S, out):
-    """Compiled ``symmetric_inverse3`` (for kernels): the inverse of the symmetric 3x3 ``S`` by
-    its adjugate into ``out`` (zeros when S is singular); returns det S."""
-    a, b, c, d, e, f = S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
-    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
-    det = a * A + b * B + c * C
-    inv = 1.0 / det if det != 0.0 else 0.0
-    D, E, F = (a * f - c * c) * inv, (b * c - a * e) * inv, (a * d - b * b) * inv
-    A, B, C = A * inv, B * inv, C * inv
-    out[0, 0], out[0, 1], out[0, 2] = A, B, C
-    out[1, 0], out[1, 1], out[1, 2] = B, D, E
-    out[2, 0], out[2, 1], out[2, 2] = C, E, F
-    return det
-
-
 class RobotModel:
-    """A described arm (fingers locked) carrying a described contact tool.
+    """A described robot: an arm (fingers locked) carrying a described contact tool, or a
+    floating-base robot with its own contact point and its held contacts (module docstring).
 
-    ``robot`` is a name of ``robot_description.ROBOTS`` or a ``RobotDescription``; ``tool`` a
-    built-in tool name, a JSON/TOML tool file or a ``ToolDescription``.
+    ``robot`` is a name of ``robot_description.ROBOTS``, a robot file or a ``RobotDescription``;
+    ``tool`` a built-in tool name, a JSON/TOML tool file or a ``ToolDescription`` (a fixed base
+    only; ``impact_tip`` by default).
 
-    ``nq`` and ``nv`` are the model's numbers of coordinates and velocities (one per joint of the
-    description). ``tool_frame_id`` is the frame the tool is fixed to (the hand or the flange),
-    ``contact_frame_id`` the contact frame, ``hand_frame_id`` the hand's frame.
+    ``nq`` and ``nv`` are the model's numbers of coordinates and velocities: the base's
+    ``base_nq`` and ``base_nv`` (0 for a fixed base) then one per joint of the description
+    (``n_joints`` = nv - base_nv). The joint limits ``q_min``, ``q_max``, ``dq_max``,
+    ``tau_max``, ``ddq_max``, ``dddq_max`` are the description's, over the actuated joints.
+    ``contact_frame_id`` is the contact frame, ``held_frames`` and ``held_frame_ids`` the held
+    contacts' frames in the description's order, ``frame_ids`` the description's named
+    frames; an arm's ``tool_frame_id`` is the frame the tool is fixed to (the hand or the
+    flange), ``hand_frame_id`` the hand's frame.
 
     >>> robot = RobotModel("fr3", "franka_hand")
     >>> terms = robot.terms(q, dq)
@@ -185,34 +112,69 @@ class RobotModel:
 
     def __init__(
         self,
-        robot: str | RobotDescription = "panda",
-        tool: str | Path | ToolDescription = "impact_tip",
+        robot: str | Path | RobotDescription = "panda",
+        tool: str | Path | ToolDescription | None = None,
         *,
         urdf_path: str | Path | None = None,
         finger_opening: float = 0.0,
         base_placement: pin.SE3 | None = None,
     ):
-        """Load the robot's URDF (or ``urdf_path``), lock the fingers at ``finger_opening`` (m),
-        append the tool's inertia to its link and add the contact frame at its contact point.
+        """Load the robot's URDF (or ``urdf_path``); for a fixed base, lock the fingers at
+        ``finger_opening`` (m), append the tool's inertia to its link and add the contact frame
+        at its contact point; for a floating base, add a free-flyer root and the description's
+        contact frame.
 
-        ``base_placement`` places the robot's base (link0) in the world; identity by default.
+        ``base_placement`` places a fixed base (link0) in the world; identity by default.
         """
-        self.description = robot_description(robot)
-        if self.description.floating:
+        self.description = description = robot_description(robot)
+        self.urdf_path = Path(urdf_path) if urdf_path is not None else description.urdf_path()
+        if description.floating:
+            if tool is not None or base_placement is not None:
+                raise BadInputError(f"the floating-base {description.name} carries no tool and stands where its feet are")
+            self.tool = None
+            model = self._floating_base()
+        else:
+            self.tool = tool_description("impact_tip" if tool is None else tool)
+            model = self._fixed_base(finger_opening, base_placement)
+        self.model = model
+        self.data = model.createData()
+        self.nq, self.nv = model.nq, model.nv
+        root = model.joints[1]  # a floating base's free flyer
+        self.base_nq, self.base_nv = (root.nq, root.nv) if description.floating else (0, 0)
+        self.n_joints = model.nv - self.base_nv
+        first = 2 if description.floating else 1
+        self.joint_names = [model.names[i] for i in range(first, model.njoints)]
+        if tuple(self.joint_names) != description.joints or model.nq - self.base_nq != self.n_joints:
             raise BadInputError(
-                f"the {self.description.name} has a floating base: its model is FloatingBaseModel, not RobotModel"
+                f"the {description.name} URDF's moving joints {', '.join(self.joint_names)} are not the "
+                f"description's joints {', '.join(description.joints)} (each a revolute or prismatic joint)"
             )
-        self.tool = tool_description(tool)
-        self.urdf_path = Path(urdf_path) if urdf_path is not None else self.description.urdf_path()
+        self.held_frames = tuple(c.frame for c in description.held_contacts)
+        missing = [f for f in (*self.held_frames, *description.frames.values()) if not model.existFrame(f)]
+        if missing:
+            raise BadInputError(f"the {description.name} URDF has no frame {', '.join(missing)}")
+        self.held_frame_ids = tuple(model.getFrameId(name) for name in self.held_frames)
+        self.frame_ids = {name: model.getFrameId(frame) for name, frame in description.frames.items()}
+        self.q_min = description.q_min.copy()
+        self.q_max = description.q_max.copy()
+        self.dq_max = description.dq_max.copy()
+        self.tau_max = description.tau_max.copy()
+        self.ddq_max = description.ddq_max.copy()
+        self.dddq_max = description.dddq_max.copy()
+        self._zero_velocity = np.zeros(self.nv)
+        self._zero_velocity.flags.writeable = False
+        self._body_data = model.createData()
+
+    @property
+    def floating(self) -> bool:
+        """Whether the base is floating (a free-flyer root before the joints)."""
+        return self.base_nv > 0
+
+    def _fixed_base(self, finger_opening: float, base_placement: pin.SE3 | None) -> pin.Model:
+        """The arm with its tool's inertia and contact frame (module docstring)."""
         model = self._arm(finger_opening)
         if base_placement is not None:
             model.jointPlacements[1] = base_placement * model.jointPlacements[1]
-        names = tuple(model.names[i] for i in range(1, model.njoints))
-        if names != self.description.joints or model.nq != model.nv:
-            raise BadInputError(
-                f"the {self.description.name} URDF's moving joints {', '.join(names)} are not the description's "
-                f"joints {', '.join(self.description.joints)} (each a revolute or prismatic joint)"
-            )
         masses = np.array([model.inertias[i].mass for i in range(1, model.njoints)])
         if not np.all(masses > 0.0):
             raise RuntimeError(f"the {self.description.name} model has links without mass: {masses}")
@@ -231,21 +193,12 @@ class RobotModel:
             mount_frame.placement * pin.SE3(np.eye(3), self.tool.contact_point.copy()),
             pin.FrameType.OP_FRAME,
         )
+        self.contact_frame_name = CONTACT_FRAME
         self.contact_frame_id = model.addFrame(tip)
         self.hand_frame_id = model.getFrameId(self.description.hand_frame) if self.description.hand_frame else None
         self.tool_frame_id = mount
-        self.q_min = self.description.q_min.copy()
-        self.q_max = self.description.q_max.copy()
-        model.lowerPositionLimit, model.upperPositionLimit = self.q_min.copy(), self.q_max.copy()
-        self.model = model
-        self.data = model.createData()
-        self.nq, self.nv = model.nq, model.nv
-        self.dq_max = self.description.dq_max.copy()
-        self.tau_max = self.description.tau_max.copy()
-        self.ddq_max = self.description.ddq_max.copy()
-        self.dddq_max = self.description.dddq_max.copy()
-        self._zero_velocity = np.zeros(self.nv)
-        self._zero_velocity.flags.writeable = False
+        model.lowerPositionLimit, model.upperPositionLimit = self.description.q_min.copy(), self.description.q_max.copy()
+        return model
 
     def _arm(self, finger_opening: float) -> pin.Model:
         """The arm of ``model_urdf`` (hand removed when the tool replaces it), fingers locked."""
@@ -259,9 +212,34 @@ class RobotModel:
                 locked.append(jid)
         return pin.buildReducedModel(full, locked, q_full)
 
+    def _floating_base(self) -> pin.Model:
+        """The URDF under a free-flyer root, with the description's contact frame."""
+        description = self.description
+        if description.contact is None or not description.held_contacts:
+            raise BadInputError(f"the floating-base {description.name} needs a contact and held contacts in its description")
+        model = pin.buildModelFromUrdf(str(self.urdf_path), pin.JointModelFreeFlyer())
+        contact = description.contact
+        if not model.existFrame(contact.frame):
+            raise BadInputError(f"the {description.name} URDF has no frame {contact.frame}")
+        parent = model.getFrameId(contact.frame)
+        frame = model.frames[parent]
+        offset = pin.SE3(np.eye(3), contact.offset.copy())
+        self.contact_frame_name = contact.name
+        self.contact_frame_id = model.addFrame(
+            pin.Frame(contact.name, frame.parentJoint, parent, frame.placement * offset, pin.FrameType.OP_FRAME)
+        )
+        self.hand_frame_id, self.tool_frame_id = None, parent
+        return model
+
+    def joint_index(self, name: str) -> int:
+        """Index of a joint in the joint part of q (0 .. n_joints - 1)."""
+        return self.joint_names.index(name)
+
     # ------------------------------------------------------------------ validation
     def check_state(self, q, dq=None, *, check_limits: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        """Return (q, dq) as float arrays, or raise :class:`InvalidStateError`."""
+        """Return (q, dq) as float arrays (dq = 0 when None), or raise :class:`InvalidStateError`:
+        wrong sizes, a non-finite or huge entry, or (``check_limits``) an actuated joint outside
+        its position limits (a floating base's coordinates are not limited)."""
         q = np.asarray(q, dtype=float)
         dq = self._zero_velocity if dq is None else np.asarray(dq, dtype=float)
         if q.shape != (self.nq,) or dq.shape != (self.nv,):
@@ -281,34 +259,45 @@ class RobotModel:
                         f"the state is too large to be a joint state: {name}{i + 1} = {values[i]:g}"
                     )
         if check_limits:
-            outside = (q < self.q_min) | (q > self.q_max)
+            joints = q[self.base_nq:]
+            outside = (joints < self.q_min) | (joints > self.q_max)
             if outside.any():
                 i = int(np.flatnonzero(outside)[0])
                 raise InvalidStateError(
-                    f"q{i + 1} = {q[i]:.4f} rad is outside the joint limits "
+                    f"{self.joint_names[i]} = {joints[i]:.4f} is outside its limits "
+                    f"[{self.q_min[i]:.4f}, {self.q_max[i]:.4f}]" if self.base_nq else
+                    f"q{i + 1} = {joints[i]:.4f} rad is outside the joint limits "
                     f"[{self.q_min[i]:.4f}, {self.q_max[i]:.4f}]",
                     constraint="joint_position_limit",
                 )
         return q, dq
 
     # ------------------------------------------------------------------ model terms
-    def terms(self, q, dq=None, *, check_limits: bool = True) -> ModelTerms:
-        """All model terms of the state (q, dq), from one ``computeAllTerms`` call.
+    def terms(self, q, dq=None, *, check_limits: bool | None = None) -> ModelTerms:
+        """All model terms of the state (q, dq) (dq = 0 when None), in new arrays.
 
-        Raises :class:`SingularPostureError` when the contact Jacobian J is rank deficient
-        (assumption 5 of the paper: sigma_min(J) < SINGULAR_RATIO sigma_max(J)), checked before
-        the joint limits, and :class:`InvalidStateError` for a bad or out-of-limit state.
+        ``check_limits`` (None: yes for a fixed base, no for a floating base, whose states come
+        from its stances and simulations and whose joints its whole-body QP bounds) checks the
+        joint position limits. An arm's terms raise :class:`SingularPostureError` when the
+        contact Jacobian J is rank deficient (assumption 5 of the paper:
+        sigma_min(J) < SINGULAR_RATIO sigma_max(J)), checked before the joint limits; every
+        robot's raise :class:`InvalidStateError` for a bad or out-of-limit state.
         """
         q, dq = self.check_state(q, dq, check_limits=False)
-        return self._fill(None, q, dq, check_limits)
+        if self.floating:
+            return self._fill_floating(self.empty_terms(), q, dq, bool(check_limits))
+        return self._fill_fixed(None, q, dq, check_limits is not False)
 
-    def update_terms(self, terms: ModelTerms, q, dq, *, check_limits: bool = True) -> ModelTerms:
+    def update_terms(self, terms: ModelTerms, q, dq, *, check_limits: bool | None = None) -> ModelTerms:
         """``terms(q, dq)`` written into an existing ModelTerms (a controller's per-cycle
-        buffer: no new object), with a new ``stamp``. Raises like ``terms``."""
+        buffer: no new object; a floating base's arrays are refilled in place), with a new
+        ``stamp``. Raises like ``terms``; a refused state leaves a floating base's as it was."""
         q, dq = self.check_state(q, dq, check_limits=False)
-        return self._fill(terms, q, dq, check_limits)
+        if self.floating:
+            return self._fill_floating(terms, q, dq, bool(check_limits))
+        return self._fill_fixed(terms, q, dq, check_limits is not False)
 
-    def _fill(self, terms: ModelTerms | None, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
+    def _fill_fixed(self, terms: ModelTerms | None, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
         model, data, fid = self.model, self.data, self.contact_frame_id
         pin.computeAllTerms(model, data, q, dq)
         pin.updateFramePlacement(model, data, fid)
@@ -316,14 +305,14 @@ class RobotModel:
         J = J6[:3]
         JJt_inv = np.empty((3, 3))
         status = contact_jacobian_status(J, q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO**2, JJt_inv)
-        if status == _NEAR_SINGULAR:
+        if status == NEAR_SINGULAR:
             eigenvalues = np.linalg.eigvalsh(J @ J.T)
             if not eigenvalues[0] >= (SINGULAR_RATIO**2) * eigenvalues[2]:
                 raise SingularPostureError(
                     "singular contact Jacobian at this posture (singular values ratio "
                     f"{np.sqrt(max(eigenvalues[0], 0.0) / eigenvalues[2]):.1e})"
                 )
-        if status == _OUTSIDE_LIMITS or (status == _NEAR_SINGULAR and check_limits):
+        if status == OUTSIDE_LIMITS or (status == NEAR_SINGULAR and check_limits):
             self.check_state(q, dq, check_limits=True)  # raises, naming the joint, when outside
         # dJ6/dt dq (world-aligned) is the frame's classical acceleration at ddq = 0, which
         # computeAllTerms leaves in the data.
@@ -336,13 +325,84 @@ class RobotModel:
             float(centroidal.mass), centroidal.inertia.copy(),
         )  # computeAllTerms fills both triangles of M
         if terms is None:
-            return ModelTerms(*fields)
+            return ModelTerms(*fields, compute_body=self.body_terms)
         (terms.q, terms.dq, terms.M, terms.h, terms.J, terms.J6, terms.dJ6_dq, terms.JJt_inv,
          terms.contact_point, terms.contact_rotation, terms.com, terms.mass, terms.inertia_com) = fields
-        terms.stamp = next(_FILLS)
-        terms._derived.clear()
-        return terms
+        return terms.refilled()
 
+    def empty_terms(self) -> ModelTerms:
+        """A floating base's ModelTerms of unset arrays, for ``update_terms`` to fill."""
+        nv, held = self.nv, 6 * len(self.held_frame_ids)
+        J6 = np.empty((6, nv))
+        frames = {
+            name: FrameState(np.empty(3), np.empty((3, 3)), np.empty((6, nv)), np.empty(6)) for name in self.frame_ids
+        }
+        return ModelTerms(
+            np.empty(self.nq), np.empty(nv), np.empty((nv, nv)), np.empty(nv), J6[:3], J6, np.empty(6),
+            np.empty((3, 3)), np.empty(3), np.empty((3, 3)), np.empty(3), 0.0, np.empty((3, 3)),
+            np.empty((held, nv)), np.empty(held), BodyTerms(np.empty((nv, nv)), np.empty((3, nv)), np.empty(3), frames),
+        )
+
+    def _fill_floating(self, terms: ModelTerms, q: np.ndarray, v: np.ndarray, check_limits: bool) -> ModelTerms:
+        """One pass of Pinocchio's algorithms at (q, v), their results copied into ``terms``."""
+        if check_limits:
+            self.check_state(q, v, check_limits=True)
+        model, data, body = self.model, self.data, terms.body
+        terms.q[:], terms.dq[:] = q, v
+        pin.forwardKinematics(model, data, q, v, self._zero_velocity)
+        pin.computeJointJacobians(model, data)
+        pin.updateFramePlacements(model, data)
+        self._frame_into(self.contact_frame_id, terms.J6, terms.dJ6_dq, terms.contact_point, terms.contact_rotation)
+        for k, frame_id in enumerate(self.held_frame_ids):
+            self._frame_into(frame_id, terms.held_jacobian[6 * k:6 * k + 6], terms.held_drift[6 * k:6 * k + 6])
+        for name, frame_id in self.frame_ids.items():
+            frame = body.frames[name]
+            self._frame_into(frame_id, frame.J6, frame.dJ6_dq, frame.position, frame.rotation)
+        pin.centerOfMass(model, data, pin.ACCELERATION, True)  # of the kinematics above
+        terms.com[:], body.dJcom_dq[:] = data.com[0], data.acom[0]
+        body.Jcom[:] = pin.jacobianCenterOfMass(model, data, False)  # of the Jacobians and CoMs above
+        mirror_upper(pin.crba(model, data, q), terms.M)
+        mirror_upper(pin.computeMinverse(model, data, q), body.M_inv)
+        pin.ccrba(model, data, q, v)
+        terms.mass, terms.inertia_com[:] = float(data.Ig.mass), data.Ig.inertia
+        terms.h[:] = pin.nonLinearEffects(model, data, q, v)
+        symmetric_inverse3_into(terms.J @ terms.J.T, terms.JJt_inv)
+        return terms.refilled()
+
+    def _frame_into(self, frame_id: int, J6, drift, position=None, rotation=None) -> None:
+        """The frame's world-aligned Jacobian and drift (and its placement) after the forward
+        kinematics of ``_fill_floating``, copied into the given arrays."""
+        world = pin.LOCAL_WORLD_ALIGNED
+        J6[:] = pin.getFrameJacobian(self.model, self.data, frame_id, world)
+        drift[:] = pin.getFrameClassicalAcceleration(self.model, self.data, frame_id, world).vector
+        if position is not None:
+            placement = self.data.oMf[frame_id]
+            position[:], rotation[:] = placement.translation, placement.rotation
+
+    def body_terms(self, q: np.ndarray, dq: np.ndarray) -> BodyTerms:
+        """M^-1, Jcom, dJcom dq and the named frames of the state (q, dq) (``BodyTerms``), on a
+        data of their own: what a fixed base's terms compute on first use."""
+        model, data = self.model, self._body_data
+        pin.forwardKinematics(model, data, q, dq, self._zero_velocity)
+        pin.computeJointJacobians(model, data)
+        pin.updateFramePlacements(model, data)
+        world = pin.LOCAL_WORLD_ALIGNED
+        frames = {}
+        for name, frame_id in self.frame_ids.items():
+            placement = data.oMf[frame_id]
+            frames[name] = FrameState(
+                placement.translation.copy(), placement.rotation.copy(),
+                pin.getFrameJacobian(model, data, frame_id, world),
+                pin.getFrameClassicalAcceleration(model, data, frame_id, world).vector.copy(),
+            )
+        pin.centerOfMass(model, data, pin.ACCELERATION, True)
+        dJcom_dq = data.acom[0].copy()
+        Jcom = pin.jacobianCenterOfMass(model, data, False).copy()
+        M_inv = np.empty((self.nv, self.nv))
+        mirror_upper(pin.computeMinverse(model, data, q), M_inv)
+        return BodyTerms(M_inv, Jcom, dJcom_dq, frames)
+
+    # ------------------------------------------------------------------ frames
     def contact_point(self, q) -> np.ndarray:
         """World position of the contact point (forward kinematics only)."""
         q, _ = self.check_state(q, check_limits=False)
@@ -360,28 +420,22 @@ class RobotModel:
             self.model, self.data, q, self.contact_frame_id, pin.LOCAL_WORLD_ALIGNED
         )
 
+    def frame_placements(self, q) -> dict[str, pin.SE3]:
+        """World placements of the contact frame and the held contacts' frames."""
+        pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
+        ids = {self.contact_frame_name: self.contact_frame_id, **dict(zip(self.held_frames, self.held_frame_ids))}
+        return {name: self.data.oMf[i].copy() for name, i in ids.items()}
+
+    def sole_corners(self, q) -> np.ndarray:
+        """World positions (k x 3) of the sole corners of every held contact, in the description's
+        order (the G1: 4 corners of the left foot, then 4 of the right), each corner (x, y) of the
+        contact's ``sole`` at its ``depth`` below the contact's frame; none for a fixed base."""
+        placements = self.frame_placements(q)
+        return np.vstack([np.empty((0, 3))] + [
+            [placements[c.frame].act(p) for p in np.column_stack([c.sole, np.full(len(c.sole), -c.depth)])]
+            for c in self.description.held_contacts
+        ])
+
 
 PandaModel = RobotModel
 """The historical name: ``PandaModel()`` is the default robot (the Panda) with the default tool."""
-
-
-_ACCEPTED, _NEAR_SINGULAR, _OUTSIDE_LIMITS = 0, 1, 2
-
-
-@njit(cache=True)
-def contact_jacobian_status(J, q, q_min, q_max, check_limits, singular_ratio_squared, JJt_inv):
-    """Kernel of the per-state checks: (J J^T)^-1 by its adjugate into ``JJt_inv``, then
-    _NEAR_SINGULAR when det(J J^T) < ratio^2 trace^3 (with eigenvalues l1 <= l2 <= l3 of J J^T,
-    the squared singular values of J, l1 / l3 >= det / trace^3: only then is the exact test
-    needed), else _OUTSIDE_LIMITS when ``check_limits`` and q leaves [q_min, q_max], else
-    _ACCEPTED."""
-    S = J @ J.T
-    det = symmetric_inverse3_into(S, JJt_inv)
-    trace = S[0, 0] + S[1, 1] + S[2, 2]
-    if not det >= singular_ratio_squared * trace * trace * trace:
-        return _NEAR_SINGULAR
-    if check_limits:
-        for j in range(q.shape[0]):
-            if q[j] < q_min[j] or q[j] > q_max[j]:
-                return _OUTSIDE_LIMITS
-    return _ACCEPTED

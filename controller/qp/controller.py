@@ -46,7 +46,8 @@ import numpy as np
 from numba import njit
 
 from impactqp.constraints import AccelerationLimit, Constraint, ControlCycle, ExpectedImpact
-from impactqp.controller.model.robot import InvalidStateError, ModelTerms, PandaModel, SingularPostureError
+from impactqp.controller.model.model_terms import ModelTerms
+from impactqp.controller.model.robot import InvalidStateError, PandaModel, SingularPostureError
 from impactqp.controller.model.validation import BadInputError
 from impactqp.tasks import Task
 

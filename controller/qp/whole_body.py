@@ -3,7 +3,7 @@
 
 One control cycle, as the arm's ``ImpactAwareController``::
 
-    state (q, v) -> model terms (one ``WholeBodyModel.update_terms`` call into the cycle's buffer) -> task rows and constraint
+    state (q, v) -> model terms (one ``RobotModel.update_terms`` call into the cycle's buffer) -> task rows and constraint
     rows -> QP in dv (nv: base and joint accelerations) -> Command(dv, v_cmd = v + dv dt,
     q_cmd = q (+) (v + v_cmd) dt / 2)
 
@@ -32,7 +32,8 @@ import pinocchio as pin
 
 from impactqp.constraints import Constraint, ControlCycle, ExpectedImpact
 from impactqp.controller.model.validation import BadInputError
-from impactqp.controller.model.whole_body_terms import BASE_ACCELERATION_LIMIT, WholeBodyModel, WholeBodyTerms
+from impactqp.controller.model.model_terms import ModelTerms
+from impactqp.controller.model.robot import BASE_ACCELERATION_LIMIT, RobotModel
 from impactqp.tasks import Task
 
 from .command import Command, CommandMemory, Status, command_limits
@@ -52,7 +53,7 @@ class WholeBodyController:
 
     def __init__(
         self,
-        robot: WholeBodyModel,
+        robot: RobotModel,
         tasks: list[Task],
         constraints: list[Constraint],
         dt: float,
@@ -140,7 +141,7 @@ class WholeBodyController:
             self.problem.violation(dv)
         return self._emit(terms, dv, v_cmd, status, self._active_constraints(dv), [], solver_name)
 
-    def assemble(self, terms: WholeBodyTerms) -> bool:
+    def assemble(self, terms: ModelTerms) -> bool:
         """Fill the QP from the tasks and constraints of this state (the arm's ``_assemble``);
         False when the box bounds conflict."""
         for task, A, b, w in self._task_views:
@@ -177,11 +178,11 @@ class WholeBodyController:
         tight_constraints(dv, self._box_bounds, p.lower_gap, p.upper_gap, self.layout.row_ends, tolerance, flags)
         return [name for name, hit in zip(self.layout.flag_names, flags) if hit]
 
-    def _infeasible(self, terms: WholeBodyTerms, message: str) -> Command:
+    def _infeasible(self, terms: ModelTerms, message: str) -> Command:
         conflict = bounded_conflict(self.layout, self.problem, self._box_bounds, self._active_flags)
         return self._fallback(terms, Status.FALLBACK_INFEASIBLE, conflict, f"{message}; conflict: {', '.join(conflict)}")
 
-    def _fallback(self, terms: WholeBodyTerms | None, status: Status, violated, message: str) -> Command:
+    def _fallback(self, terms: ModelTerms | None, status: Status, violated, message: str) -> Command:
         """Joints brake, the base follows the feet (module docstring)."""
         self.fallback_count += 1
         if terms is None:
@@ -189,13 +190,13 @@ class WholeBodyController:
                 raise BadInputError(f"no command yet to stand in for an unusable state: {message}")
             terms = self.robot.terms(self.memory.q_cmd, self.memory.dq_cmd)
         n, joints = self.robot.nv, self._joint_velocities
-        dv, v_cmd, q_joints = np.zeros(n), np.empty(n), np.empty(self.robot.joints)
+        dv, v_cmd, q_joints = np.zeros(n), np.empty(n), np.empty(self.robot.n_joints)
         braking_command(
             terms.q[self._joint_coordinates], terms.dq[joints], self.memory.ddq[joints], self.dt, self._joint_limits,
             dv[joints], v_cmd[joints], q_joints,
         )
-        Jf = terms.Jf
-        dv -= Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ dv + terms.dJf_dq)
+        Jf = terms.held_jacobian
+        dv -= Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ dv + terms.held_drift)
         v_cmd = terms.dq + dv * self.dt
         np.clip(v_cmd[joints], -self.robot.dq_max, self.robot.dq_max, out=v_cmd[joints])
         return self._emit(terms, dv, v_cmd, status, [], list(violated), "", message)

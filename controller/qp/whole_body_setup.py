@@ -27,7 +27,7 @@ from impactqp.constraints import (
 )
 from impactqp.controller.model.humanoid_stance import support_polygon
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.whole_body_terms import WholeBodyModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask
 from impactqp.tasks import CentreOfMassTask
 
@@ -53,7 +53,7 @@ class WholeBodySetup:
     posture_weight: float = 1e-4
 
 
-def build_whole_body_controller(robot: WholeBodyModel, q_stance: np.ndarray, setup: WholeBodySetup) -> WholeBodyController:
+def build_whole_body_controller(robot: RobotModel, q_stance: np.ndarray, setup: WholeBodySetup) -> WholeBodyController:
     """The controller of ``setup`` for the robot standing at ``q_stance`` (its feet's support
     polygon bounds the capture region)."""
     impact = ExpectedImpact(
@@ -63,15 +63,15 @@ def build_whole_body_controller(robot: WholeBodyModel, q_stance: np.ndarray, set
         ContactApproachTask(setup.surface.normal, setup.speed),
         CentreOfMassTask(weight=(setup.com_weight,) * 3),
         FrameTask(position_weight=0.0, orientation_weight=setup.torso_weight, frame="torso"),
-        PostureTask(weight=setup.posture_weight, joints=robot.joints),
+        PostureTask(weight=setup.posture_weight, joints=robot.n_joints),
         DampingTask(variables=robot.nv),
     ]
     constraints = [
         AccelerationLimit(),
         PositionLimit(robot.q_min, robot.q_max, robot.ddq_max),
         VelocityLimit(robot.dq_max),
-        HeldContactRows(6 * len(robot.base.foot_frame_ids)),
+        HeldContactRows(6 * len(robot.held_frame_ids)),
         PostImpactVelocityLimit(impact, robot.dq_max),
-        CaptureRegionLimit(impact, support_polygon(robot.base, q_stance)),
+        CaptureRegionLimit(impact, support_polygon(robot, q_stance)),
     ]
     return WholeBodyController(robot, tasks, constraints, setup.dt, setup.solver, impact)

@@ -42,7 +42,6 @@ from impactqp.controller.model.robot import PandaModel, RobotModel
 from impactqp.controller.model.tool_postures import tool_posture
 from impactqp.controller.qp import available_backends
 from impactqp.controller.model.humanoid_stance import stance_posture
-from impactqp.controller.model.whole_body_terms import WholeBodyModel
 from impactqp.controller.qp.whole_body_setup import WholeBodySetup, build_whole_body_controller
 from impactqp.controller.model.max_speed import Setting, approach_direction, closed_form_max_speed
 
@@ -230,27 +229,27 @@ def stage_samples(robot: PandaModel, cycles: int = 1000) -> dict[str, np.ndarray
     return stages
 
 
-def g1_cycle_samples(robot: WholeBodyModel, solver: str = "daqp", cycles: int = CYCLES) -> np.ndarray:
+def g1_cycle_samples(robot: RobotModel, solver: str = "daqp", cycles: int = CYCLES) -> np.ndarray:
     """Seconds per ``step`` of the G1's closed approach loop (q, v <- q_cmd, v_cmd), restarted at
     the stance every RESTART_EVERY cycles."""
-    q0 = stance_posture(robot.base, robot.base.description.stances[G1_STANCE])
+    q0 = stance_posture(robot, robot.description.stances[G1_STANCE])
     normal = np.array([-1.0, 0.0, 0.0])
     surface = Surface(robot.terms(q0).contact_point - WALL_GAP * normal, normal)
     controller = build_whole_body_controller(robot, q0, WholeBodySetup(surface, speed=0.5, solver=solver))
     return closed_loop_samples(controller, q0, robot.nv, cycles)[0]
 
 
-def pink_g1_cycle_samples(robot: WholeBodyModel, cycles: int = CYCLES) -> np.ndarray:
+def pink_g1_cycle_samples(robot: RobotModel, cycles: int = CYCLES) -> np.ndarray:
     """Seconds per cycle of pink on the G1: frame task on the hand's contact frame + posture task
     + limits, solve_ik with daqp, the same target 10 cm ahead."""
-    q0 = stance_posture(robot.base, robot.base.description.stances[G1_STANCE])
-    frame = robot.model.frames[robot.base.contact_frame_id].name
+    q0 = stance_posture(robot, robot.description.stances[G1_STANCE])
+    frame = robot.model.frames[robot.contact_frame_id].name
     return pink_loop_samples(robot.model, q0, frame, "daqp", cycles)
 
 
 def g1_rows() -> list[dict]:
     """controller.cycle.g1, its proxqp twin and pink's row on the same G1."""
-    g1 = WholeBodyModel()
+    g1 = RobotModel("g1")
     g1_cycle_samples(g1, cycles=300)  # warm-up (numba kernels, caches)
     return [
         timing_row("controller.cycle.g1", "us", g1_cycle_samples(g1), 1e6),

@@ -2,7 +2,7 @@
 floating-base G1 hitting a wall with its right hand (docs/floating-base.md).
 
 Each command receives the ``RobotChoice`` of a floating-base robot (``choice.robot.floating``)
-and builds its model from the description (``FloatingBaseModel(choice.robot)``); the JSON's
+and builds its model from the description (``RobotModel(choice.robot)``); the JSON's
 ``robot`` is the description's name. The G1's postures are its stances (its description's
 ``stances``); the wall stands
 2 cm in front of the stance's hand, normal -x (5 cm with ``simulate --controller qp``: the
@@ -22,7 +22,9 @@ import click
 import numpy as np
 
 from impactqp.controller.model.choice import RobotChoice
-from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel, predict
+from impactqp.controller.model.jump import predict
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.robot_description import RobotDescription
 from impactqp.controller.model.validation import BadInputError, approach_speed, tangential_velocity, unit_normal
@@ -53,7 +55,7 @@ def g1_predict(choice: RobotChoice, posture: str | None, q_text: str | None, imp
     (``methods``; None: classical, gm, crb) the jump dq_jump (nv: base twist, joints), impulse,
     CoM jump and feet wrenches."""
     reject_options(["tool"])
-    robot = FloatingBaseModel(choice.robot)
+    robot = RobotModel(choice.robot)
     if (posture is None) == (q_text is None):
         raise BadInputError("give exactly one of --posture NAME or --q Q1,...,Q36")
     stances = choice.robot.stances
@@ -75,8 +77,8 @@ def g1_predict(choice: RobotChoice, posture: str | None, q_text: str | None, imp
     for method in METHODS if methods is None else methods:
         jump = predict(terms, method, normal, v_minus, c_r)
         report["methods"][method] = {
-            "dq_jump": jump.dv.tolist(), "impulse": jump.impulse.tolist(), "com_jump": jump.com_jump.tolist(),
-            "feet_impulse": jump.feet_impulse.tolist(),
+            "dq_jump": jump.dq_jump.tolist(), "impulse": jump.impulse.tolist(), "com_jump": jump.com_jump.tolist(),
+            "feet_impulse": jump.held_impulse.tolist(),
         }
     return report
 
@@ -110,7 +112,7 @@ def g1_simulate(
     if video_file is not None:
         gif_output(video_file)
     dataset = None if out_dir is None else open_dataset(output_directory(out_dir, "--out"), choice.robot)
-    robot = FloatingBaseModel(choice.robot)
+    robot = RobotModel(choice.robot)
     trial = run_impact_trial(robot, stance, speed, source=source)
     written = None if dataset is None else write_trials(dataset, [trial])[0].id
     if video_file is not None:

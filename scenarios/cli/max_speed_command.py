@@ -74,7 +74,8 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     ``robot``, the closed form of each predictor and ``robust`` (the smallest), the bisection,
     and the contact duration used (the description's wall contact unless --impact-duration)."""
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
+    from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
+    from impactqp.controller.model.robot import RobotModel
     from impactqp.scenarios.cli.humanoid_commands import reject_options, stance_names
     from impactqp.scenarios.humanoid_max_speed import search_stance
 
@@ -84,7 +85,7 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     c_r = restitution_coefficient(request.restitution, "--restitution")
     default_duration = click.get_current_context().get_parameter_source("impact_duration") == click.core.ParameterSource.DEFAULT
     duration = HAND_IMPACT_DURATION if default_duration else check_impact_duration(request.impact_duration, "--impact-duration")
-    result = search_stance(FloatingBaseModel(robot), stance, Setting("crb", c_r, impact_duration=duration),
+    result = search_stance(RobotModel(robot), stance, Setting("crb", c_r, impact_duration=duration),
                            tolerance=request.tolerance)
     report = {"robot": robot.name, **result.to_json()}
     speeds = report["predicted_max_speed"]

@@ -3,7 +3,7 @@
 import numpy as np
 
 from impactqp.controller.model.jump import JumpMaps, JumpMatrices, crb_inverse_inertia, normal_impulse_map
-from impactqp.controller.model.robot import symmetric_inverse3
+from impactqp.controller.model.model_terms import symmetric_inverse3
 
 
 def reference_crb_unit_maps(terms, normal, restitution) -> JumpMaps:

@@ -1,4 +1,4 @@
-"""Plain-numpy statements of the G1's model terms (``WholeBodyModel.terms``) and of the
+"""Plain-numpy statements of the G1's model terms (``RobotModel.terms``) and of the
 held-contact jump maps (``JumpModel.unit_matrices`` with held contacts) before their compiled kernels: the terms from
 independent Pinocchio calls, the maps with the full constrained inverse inertia P, the feet-held
 right inverse J#."""
@@ -6,9 +6,8 @@ right inverse J#."""
 import numpy as np
 import pinocchio as pin
 
-from impactqp.controller.model.floating_base import crb_inverse_inertia
-from impactqp.controller.model.jump import JumpMatrices
-from impactqp.controller.model.whole_body_terms import FrameState, WholeBodyTerms
+from impactqp.controller.model.jump import JumpMatrices, crb_inverse_inertia
+from impactqp.controller.model.model_terms import BodyTerms, FrameState, ModelTerms
 
 
 def _frame_state(robot, data, frame_id: int) -> FrameState:
@@ -25,33 +24,36 @@ def _symmetric(upper: np.ndarray) -> np.ndarray:
     return np.triu(upper) + np.triu(upper, 1).T
 
 
-def reference_terms(robot, q, v) -> WholeBodyTerms:
-    """``WholeBodyModel.terms(q, v)`` on a fresh Pinocchio data."""
+def reference_terms(robot, q, v) -> ModelTerms:
+    """``RobotModel.terms(q, v)`` on a fresh Pinocchio data."""
     model, data = robot.model, robot.model.createData()
     q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
     pin.forwardKinematics(model, data, q, v, np.zeros(model.nv))
     pin.computeJointJacobians(model, data)
     pin.updateFramePlacements(model, data)
-    contact = _frame_state(robot, data, robot.base.contact_frame_id)
-    feet = [_frame_state(robot, data, f) for f in robot.base.foot_frame_ids]
-    torso = _frame_state(robot, data, robot.torso_frame_id)
+    contact = _frame_state(robot, data, robot.contact_frame_id)
+    feet = [_frame_state(robot, data, f) for f in robot.held_frame_ids]
+    torso = _frame_state(robot, data, robot.frame_ids["torso"])
     M = _symmetric(pin.crba(model, data, q))
     M_inv = _symmetric(pin.computeMinverse(model, data, q))
     pin.centerOfMass(model, data, q, v, np.zeros(model.nv))
     com, dJcom_dq = data.com[0].copy(), data.acom[0].copy()
     Jcom = pin.jacobianCenterOfMass(model, data, q).copy()
     pin.ccrba(model, data, q, v)
-    return WholeBodyTerms(
-        q.copy(), v.copy(), M, M_inv, contact.J6, contact.dJ6_dq, contact.position, contact.rotation,
-        np.vstack([f.J6 for f in feet]), np.concatenate([f.dJ6_dq for f in feet]),
-        Jcom, dJcom_dq, com, float(data.Ig.mass), data.Ig.inertia.copy(), {"torso": torso},
+    mass, inertia = float(data.Ig.mass), data.Ig.inertia.copy()
+    h = pin.rnea(model, data, q, v, np.zeros(model.nv))
+    J = contact.J6[:3]
+    return ModelTerms(
+        q.copy(), v.copy(), M, h, J, contact.J6, contact.dJ6_dq, np.linalg.inv(J @ J.T), contact.position,
+        contact.rotation, com, mass, inertia, np.vstack([f.J6 for f in feet]), np.concatenate([f.dJ6_dq for f in feet]),
+        BodyTerms(M_inv, Jcom, dJcom_dq, {"torso": torso}),
     )
 
 
 def reference_jump_maps(terms, method: str, normal: np.ndarray, c_r: float) -> JumpMatrices:
     """``JumpModel.unit_matrices`` with held contacts (``jump_kernels.held_contact_maps``):
     P_f = M^-1 - M^-1 Jf^T (Jf M^-1 Jf^T)^-1 Jf M^-1 formed in full."""
-    J, Jf = terms.J, terms.Jf
+    J, Jf = terms.J, terms.held_jacobian
     MiJf = terms.M_inv @ Jf.T
     P = terms.M_inv - MiJf @ np.linalg.solve(Jf @ MiJf, MiJf.T)
     PJt = P @ J.T

@@ -1,0 +1,219 @@
+"""The model terms of one state of a robot (``RobotModel.terms``), and the compiled kernels
+that fill and check them.
+
+Every frame quantity is world-aligned (Pinocchio's LOCAL_WORLD_ALIGNED): for a frame with twist
+[v_p; w] = J6 dq, its time derivative is J6 ddq + dJ6 dq, where dJ6 dq is the frame's classical
+acceleration at ddq = 0. The same holds for the centre of mass: dc = Jcom dq and
+ddc = Jcom ddq + dJcom dq. For a floating base, q holds the free flyer's coordinates (position,
+quaternion) before the joints' and dq = v the base twist (base frame) before the joint rates,
+Pinocchio's free-flyer convention.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from .validation import BadInputError
+
+_FILLS = itertools.count(1)
+
+
+class FrameState(NamedTuple):
+    """A frame's world position, rotation, world-aligned Jacobian (6 x nv) and drift dJ6 dq."""
+
+    position: np.ndarray
+    rotation: np.ndarray
+    J6: np.ndarray
+    dJ6_dq: np.ndarray
+
+
+class BodyTerms(NamedTuple):
+    """The terms of a state beyond the contact's that a whole-body QP reads: M^-1
+    (Pinocchio's ``computeMinverse``), the centre of mass's Jacobian ``Jcom`` (3 x nv) and drift
+    dJcom dq, and the named frames of the description (``frames``: name -> FrameState)."""
+
+    M_inv: np.ndarray
+    Jcom: np.ndarray
+    dJcom_dq: np.ndarray
+    frames: dict[str, FrameState]
+
+
+@dataclass(eq=False)
+class ModelTerms:
+    """Every model quantity of one state (q, dq), computed once (``RobotModel.terms``).
+
+    Attributes are world-aligned: ``J`` is the 3 x nv linear Jacobian of the contact point p,
+    ``J6`` the 6 x nv (linear; angular) Jacobian of the contact frame, ``dJ6_dq`` its drift,
+    ``M`` the joint-space inertia matrix, ``h`` the bias forces (Coriolis, centrifugal, gravity),
+    ``com`` the centre of mass of the moving links, ``mass`` their total mass and
+    ``inertia_com`` the rotational inertia of the locked robot about ``com`` (world axes), used
+    by the composite-rigid-body model (20). ``JJt_inv`` is (J J^T)^-1, so that the right
+    inverse of (17) is J+ = J^T (J J^T)^-1.
+
+    ``held_jacobian`` Jf (6 rows per held contact, in the description's order, linear then
+    angular rows) and ``held_drift`` dJf dq are the held contacts' (a humanoid's soles): a
+    fixed-base arm holds none (0 x nv and 0), the case of the held-contact jump maps with Jf
+    empty (``controller.model.jump``).
+
+    ``body`` holds M^-1, Jcom, dJcom dq and the named frames (:class:`BodyTerms`): a floating
+    base fills it with everything else in one pass; a fixed base leaves it None and
+    ``compute_body`` (the model's ``body_terms``) computes it on first use, once per fill.
+
+    A controller refills one ModelTerms per cycle (``RobotModel.update_terms``); ``stamp``
+    changes at every fill (and for a ``dataclasses.replace`` copy), so anything cached per
+    state keys on it. The derived quantities below are computed on first use, once per fill.
+    """
+
+    q: np.ndarray
+    dq: np.ndarray
+    M: np.ndarray
+    h: np.ndarray
+    J: np.ndarray
+    J6: np.ndarray
+    dJ6_dq: np.ndarray  # dJ6/dt dq: contact-frame acceleration at ddq = 0
+    JJt_inv: np.ndarray
+    contact_point: np.ndarray
+    contact_rotation: np.ndarray
+    com: np.ndarray
+    mass: float
+    inertia_com: np.ndarray
+    held_jacobian: np.ndarray | None = field(default=None, repr=False)
+    held_drift: np.ndarray | None = field(default=None, repr=False)
+    body: BodyTerms | None = field(default=None, repr=False)
+    compute_body: Callable[[np.ndarray, np.ndarray], BodyTerms] | None = field(default=None, repr=False)
+    stamp: int = field(init=False, repr=False)
+    _derived: dict = field(init=False, repr=False)
+
+    def __post_init__(self):
+        self.stamp = next(_FILLS)
+        if self.held_jacobian is None:
+            self.held_jacobian, self.held_drift = np.empty((0, self.J.shape[-1])), np.empty(0)
+        self._derived = {}
+
+    def cached(self, key: str, build: Callable[[], object]):
+        """``build()``, computed once per fill of these terms and kept under ``key``."""
+        if key not in self._derived:
+            self._derived[key] = build()
+        return self._derived[key]
+
+    def _body(self) -> BodyTerms:
+        if self.body is not None:
+            return self.body
+        return self.cached("body", lambda: self.compute_body(self.q, self.dq))
+
+    @property
+    def M_inv(self) -> np.ndarray:
+        """M^-1 (nv x nv)."""
+        return self._body().M_inv
+
+    @property
+    def Jcom(self) -> np.ndarray:
+        """The 3 x nv Jacobian of the centre of mass."""
+        return self._body().Jcom
+
+    @property
+    def dJcom_dq(self) -> np.ndarray:
+        """dJcom/dt dq: the centre of mass's acceleration at ddq = 0."""
+        return self._body().dJcom_dq
+
+    def frame(self, name: str) -> FrameState:
+        """The state of the description's frame ``name`` (its ``frames`` table)."""
+        frames = self._body().frames
+        if name not in frames:
+            raise BadInputError(f"unknown frame {name!r}; the robot's frames: {', '.join(frames) or 'none'}")
+        return frames[name]
+
+    @property
+    def J_pinv(self) -> np.ndarray:
+        """J+ = J^T (J J^T)^-1, the right inverse of J used in (17)."""
+        if "J_pinv" not in self._derived:
+            self._derived["J_pinv"] = self.J.T @ self.JJt_inv
+        return self._derived["J_pinv"]
+
+    @property
+    def M_cholesky(self):
+        """Cholesky factor of M (scipy ``cho_factor``): M is never inverted explicitly."""
+        if "M_cholesky" not in self._derived:
+            from scipy.linalg import cho_factor
+
+            self._derived["M_cholesky"] = cho_factor(self.M)
+        return self._derived["M_cholesky"]
+
+    @property
+    def cond_M(self) -> float:
+        if "cond_M" not in self._derived:
+            self._derived["cond_M"] = float(np.linalg.cond(self.M))
+        return self._derived["cond_M"]
+
+    def refilled(self) -> ModelTerms:
+        """Mark the terms as those of a new state: a new ``stamp``, derived quantities cleared."""
+        self.stamp = next(_FILLS)
+        self._derived.clear()
+        return self
+
+
+def symmetric_inverse3(S: np.ndarray) -> tuple[list[list[float]], float]:
+    """The inverse of a symmetric 3x3 matrix by its adjugate, in plain floats (no LAPACK call,
+    which costs more than the arithmetic at this size), and its determinant."""
+    (a, b, c), (_, d, e), (_, _, f) = S.tolist()
+    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
+    det = a * A + b * B + c * C
+    inv = 1.0 / det
+    D, E, F = (a * f - c * c) * inv, (b * c - a * e) * inv, (a * d - b * b) * inv
+    A, B, C = A * inv, B * inv, C * inv
+    return [[A, B, C], [B, D, E], [C, E, F]], det
+
+
+@njit(cache=True)
+def symmetric_inverse3_into(S, out):
+    """Compiled ``symmetric_inverse3`` (for kernels): the inverse of the symmetric 3x3 ``S`` by
+    its adjugate into ``out`` (zeros when S is singular); returns det S."""
+    a, b, c, d, e, f = S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
+    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
+    det = a * A + b * B + c * C
+    inv = 1.0 / det if det != 0.0 else 0.0
+    D, E, F = (a * f - c * c) * inv, (b * c - a * e) * inv, (a * d - b * b) * inv
+    A, B, C = A * inv, B * inv, C * inv
+    out[0, 0], out[0, 1], out[0, 2] = A, B, C
+    out[1, 0], out[1, 1], out[1, 2] = B, D, E
+    out[2, 0], out[2, 1], out[2, 2] = C, E, F
+    return det
+
+
+ACCEPTED, NEAR_SINGULAR, OUTSIDE_LIMITS = 0, 1, 2
+
+
+@njit(cache=True)
+def contact_jacobian_status(J, q, q_min, q_max, check_limits, singular_ratio_squared, JJt_inv):
+    """Kernel of the per-state checks: (J J^T)^-1 by its adjugate into ``JJt_inv``, then
+    NEAR_SINGULAR when det(J J^T) < ratio^2 trace^3 (with eigenvalues l1 <= l2 <= l3 of J J^T,
+    the squared singular values of J, l1 / l3 >= det / trace^3: only then is the exact test
+    needed), else OUTSIDE_LIMITS when ``check_limits`` and q leaves [q_min, q_max], else
+    ACCEPTED."""
+    S = J @ J.T
+    det = symmetric_inverse3_into(S, JJt_inv)
+    trace = S[0, 0] + S[1, 1] + S[2, 2]
+    if not det >= singular_ratio_squared * trace * trace * trace:
+        return NEAR_SINGULAR
+    if check_limits:
+        for j in range(q.shape[0]):
+            if q[j] < q_min[j] or q[j] > q_max[j]:
+                return OUTSIDE_LIMITS
+    return ACCEPTED
+
+
+@njit(cache=True)
+def mirror_upper(upper, out):
+    """Kernel: out = the symmetric matrix whose upper triangle is ``upper``'s (Pinocchio fills
+    only the upper triangles of M and M^-1)."""
+    n = upper.shape[0]
+    for i in range(n):
+        for j in range(i, n):
+            out[i, j] = upper[i, j]
+            out[j, i] = upper[i, j]
