@@ -49,7 +49,7 @@ import pinocchio as pin
 from .batch import BatchTerms
 from .capture import capturable_speeds, capture_region, row_steps
 from .humanoid_stance import convex_hull, edge_margins, edge_normals, support_polygon
-from .jump import JUMP_MODELS, predict, predict_from_terms
+from .jump import predict, predict_from_terms
 from .model_terms import ModelTerms
 from .robot import RobotModel
 from .robot_description import RobotDescription
@@ -149,15 +149,11 @@ def approach_direction(robot: RobotModel, terms, normal) -> np.ndarray:
 
 
 def unit_impact(robot: RobotModel, terms, normal: np.ndarray, setting: Setting) -> UnitImpact:
-    """The approach d and its predicted impact at unit speed (v- = J d): the arm's ``jump`` model
-    (iota = G J d, dv = K iota), or ``jump.predict`` with the held contacts."""
+    """The approach d and its predicted impact at unit speed (v- = J d): ``jump.predict``
+    (iota = G J d, dv = K iota, and the held contacts' impulse when the robot holds any)."""
     d = approach_direction(robot, terms, normal)
-    if robot.description.held_contacts:
-        unit = predict(terms, setting.method, normal, terms.J @ d, setting.restitution)
-        return UnitImpact(robot, terms, normal, setting, d, unit.dq_jump, unit.impulse, unit.held_impulse)
-    maps = JUMP_MODELS[setting.method].maps(terms, normal, setting.restitution)
-    impulse = maps.G @ (terms.J @ d)
-    return UnitImpact(robot, terms, normal, setting, d, maps.K @ impulse, impulse, np.zeros(0))
+    unit = predict(terms, setting.method, normal, terms.J @ d, setting.restitution)
+    return UnitImpact(robot, terms, normal, setting, d, unit.dq_jump, unit.impulse, unit.held_impulse)
 
 
 def joint_bound(robot: RobotModel, ratio: np.ndarray) -> Bound:
