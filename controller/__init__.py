@@ -19,7 +19,6 @@ _EXPORTS = {
     "ImpactAwareController": "impactqp.controller.qp",
     "Command": "impactqp.controller.qp",
     "Status": "impactqp.controller.qp",
-    "WholeBodyController": "impactqp.controller.qp",
     "WholeBodySetup": "impactqp.controller.qp",
     "build_whole_body_controller": "impactqp.controller.qp",
     "ControllerConfig": _CONFIG,

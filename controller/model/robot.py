@@ -240,6 +240,8 @@ class RobotModel:
         self.model = model
         self.data = model.createData()
         self.nq, self.nv = model.nq, model.nv
+        self.base_nq = self.base_nv = 0  # a fixed base: every coordinate and velocity is a joint's
+        self.n_joints = self.nv
         self.dq_max = self.description.dq_max.copy()
         self.tau_max = self.description.tau_max.copy()
         self.ddq_max = self.description.ddq_max.copy()

@@ -102,7 +102,7 @@ class WholeBodyModel:
         self.data = self.model.createData()
         self.nq, self.nv = self.model.nq, self.model.nv
         self.base_nq, self.base_nv = self.base.base_nq, self.base.base_nv
-        self.joints = self.base.n_joints
+        self.joints = self.n_joints = self.base.n_joints
         self.q_min, self.q_max = self.base.q_min, self.base.q_max
         self.dq_max, self.tau_max = self.base.dq_max, self.base.tau_max
         self.ddq_max = self.base.description.ddq_max.copy()
@@ -117,8 +117,9 @@ class WholeBodyModel:
             raise BadInputError(f"the state must be {self.nq} finite coordinates and {self.nv} finite velocities")
         return q, v
 
-    def terms(self, q, v=None) -> WholeBodyTerms:
-        """The terms of the state (q, v) (v = 0 when None), in new arrays."""
+    def terms(self, q, v=None, *, check_limits: bool = False) -> WholeBodyTerms:
+        """The terms of the state (q, v) (v = 0 when None), in new arrays (``check_limits``: the
+        arm's signature; the joint limits are the QP's rows here)."""
         q, v = self.check_state(q, np.zeros(self.nv) if v is None else v)
         return self._fill(self.empty_terms(), q, v)
 

@@ -31,7 +31,7 @@ from impactqp.controller.model.whole_body_terms import WholeBodyModel
 from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask
 from impactqp.tasks import CentreOfMassTask
 
-from .whole_body import WholeBodyController
+from .controller import ImpactAwareController
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,7 @@ class WholeBodySetup:
     posture_weight: float = 1e-4
 
 
-def build_whole_body_controller(robot: WholeBodyModel, q_stance: np.ndarray, setup: WholeBodySetup) -> WholeBodyController:
+def build_whole_body_controller(robot: WholeBodyModel, q_stance: np.ndarray, setup: WholeBodySetup) -> ImpactAwareController:
     """The controller of ``setup`` for the robot standing at ``q_stance`` (its feet's support
     polygon bounds the capture region)."""
     impact = ExpectedImpact(
@@ -74,4 +74,4 @@ def build_whole_body_controller(robot: WholeBodyModel, q_stance: np.ndarray, set
         PostImpactVelocityLimit(impact, robot.dq_max),
         CaptureRegionLimit(impact, support_polygon(robot.base, q_stance)),
     ]
-    return WholeBodyController(robot, tasks, constraints, setup.dt, setup.solver, impact)
+    return ImpactAwareController(robot, tasks, constraints, setup.dt, setup.solver, impact)

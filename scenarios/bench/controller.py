@@ -14,7 +14,7 @@
   towards the wall with the impact constraints always on; goal: p99 <= 2x controller.cycle p99);
 - controller.stage.<terms|tasks|constraints|solve|check>: one cycle split into its stages, on
   the states of the controller.cycle loop;
-- controller.cycle.g1: microseconds per ``WholeBodyController.step`` of the standing G1 (parallel
+- controller.cycle.g1: microseconds per ``ImpactAwareController.step`` of the standing G1 (parallel
   stance, the right hand approaching a wall 10 cm ahead at 0.5 m/s, every task and constraint on,
   model terms once per cycle, daqp), the same closed loop as controller.cycle; .proxqp the same
   loop with proxqp updated and warm-started every cycle;
