@@ -57,8 +57,6 @@ _EXPORTS = {
     "Status": _QP,
     "ControllerConfig": "impactqp.controller.config",
     "build_controller": "impactqp.controller.config",
-    "WholeBodySetup": _QP,
-    "build_whole_body_controller": _QP,
     # tasks and constraints
     "Task": "impactqp.tasks",
     "FrameTask": "impactqp.tasks",
@@ -75,6 +73,8 @@ _EXPORTS = {
     "ExpectedImpact": "impactqp.constraints",
     "PostImpactVelocityLimit": "impactqp.constraints",
     "ImpulsiveTorqueLimit": "impactqp.constraints",
+    "HeldContactRows": "impactqp.constraints",
+    "CaptureRegionLimit": "impactqp.constraints",
     # the robot loop
     "ImpactSession": "impactqp.controller.runtime",
     "RobotInterface": "impactqp.controller.runtime",

@@ -19,8 +19,6 @@ _EXPORTS = {
     "ImpactAwareController": "impactqp.controller.qp",
     "Command": "impactqp.controller.qp",
     "Status": "impactqp.controller.qp",
-    "WholeBodySetup": "impactqp.controller.qp",
-    "build_whole_body_controller": "impactqp.controller.qp",
     "ControllerConfig": _CONFIG,
     "TaskConfig": _CONFIG,
     "LimitsConfig": _CONFIG,

@@ -98,6 +98,7 @@ class WholeBodyModel:
 
     def __init__(self, base: FloatingBaseModel | None = None):
         self.base = base if base is not None else FloatingBaseModel()
+        self.description = self.base.description
         self.model = self.base.model
         self.data = self.model.createData()
         self.nq, self.nv = self.model.nq, self.model.nv

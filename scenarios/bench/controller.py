@@ -43,7 +43,6 @@ from impactqp.controller.model.tool_postures import tool_posture
 from impactqp.controller.qp import available_backends
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.whole_body_terms import WholeBodyModel
-from impactqp.controller.qp.whole_body_setup import WholeBodySetup, build_whole_body_controller
 from impactqp.controller.model.max_speed import Setting, approach_direction, closed_form_max_speed
 
 from .base import missing_row, timing_row
@@ -236,7 +235,8 @@ def g1_cycle_samples(robot: WholeBodyModel, solver: str = "daqp", cycles: int = 
     q0 = stance_posture(robot.base, robot.base.description.stances[G1_STANCE])
     normal = np.array([-1.0, 0.0, 0.0])
     surface = Surface(robot.terms(q0).contact_point - WALL_GAP * normal, normal)
-    controller = build_whole_body_controller(robot, q0, WholeBodySetup(surface, speed=0.5, solver=solver))
+    config = ControllerConfig.approach(surface, 0.5, robot=robot.description.name, solver=solver)
+    controller = build_controller(config, robot, q0)
     return closed_loop_samples(controller, q0, robot.nv, cycles)[0]
 
 
