@@ -342,3 +342,55 @@ def test_unusable_states_brake_the_joints_with_the_feet_held():
         assert command.status == status and np.all(np.isfinite(command.q_cmd))
         terms = g1.robot().terms(first.q_cmd if np.isnan(bad_v).any() else bad_q, first.dq_cmd if np.isnan(bad_v).any() else bad_v)
         np.testing.assert_allclose(terms.Jf @ command.ddq + terms.dJf_dq, 0.0, atol=1e-6)
+
+
+# ---------------------------------------------------------------- the impact brake
+def measured_state_loop(robot_name: str, speed: float, duration: float = 0.9):
+    """The loop a pink or mink user writes: read the measured state, step, send dq_cmd, on the
+    MuJoCo robot hitting the wall of its default posture at ``speed`` asked; (model, commands,
+    measured velocities, statuses, contact time)."""
+    from impactqp.controller.model.choice import RobotChoice
+    from impactqp.sim.scene import build_scene
+    from impactqp.sim.sim_backend import SimRobot
+
+    choice = RobotChoice.of(robot_name)
+    model = choice.shared_model
+    posture = choice.posture(choice.robot.default_posture)
+    config = ControllerConfig.approach(posture.surface, speed, robot=robot_name)
+    controller = build_controller(config, model)
+    wall = config.surface.surface()
+    q0 = approach_start(model, posture.q, wall, 0.05)
+    robot = SimRobot(build_scene(wall, robot=choice.robot, tool=choice.tool), q0, np.zeros(model.nv), config.dt)
+    commands, velocities, statuses = [], [], []
+    for _ in range(int(round(duration / config.dt))):
+        state = robot.read()
+        command = controller.step(state.q, state.dq)
+        robot.write(command.dq_cmd)
+        commands.append(command.dq_cmd)
+        velocities.append(state.dq)
+        statuses.append(command.status)
+    t, force = robot.force_log()
+    touching = np.linalg.norm(force, axis=1) > 1.0
+    contact = float(t[np.argmax(touching)]) if touching.any() else None
+    return model, np.array(commands), np.array(velocities), statuses, contact
+
+
+@pytest.mark.parametrize("robot_name", ["panda", "fr3"])
+@pytest.mark.parametrize("speed", [0.3, 0.5])
+def test_a_measured_state_loop_brakes_after_the_impact_and_never_holds_a_limit(robot_name, speed):
+    """Fed the measured state through the impact, the commands never sit at a velocity limit
+    for more than 20 ms, every measured |dq| is back under half its limit within 300 ms of the
+    first contact and stays there, and the controller brakes its commands to rest."""
+    dt = 0.001
+    model, commands, velocities, statuses, contact = measured_state_loop(robot_name, speed)
+    assert contact is not None, "the robot never reached the wall"
+    at_limit = np.abs(commands) >= model.dq_max * (1.0 - 1e-9)
+    longest = max((len(run) for column in at_limit.T for run in "".join("1" if x else "0" for x in column).split("0")), default=0)
+    assert longest * dt <= 0.020
+    after = int(round((contact + 0.3) / dt))
+    assert np.all(np.abs(velocities[after:]) < 0.5 * model.dq_max)
+    assert statuses[-1] == "impact_brake" and np.all(commands[-1] == 0.0)
+    braking = statuses.index("impact_brake")
+    assert contact <= braking * dt <= contact + 0.02  # noticed at the impact, not before
+    steps = np.diff(commands[braking - 1:], axis=0) / dt
+    assert np.all(np.abs(steps) <= model.ddq_max * (1.0 + 1e-9))

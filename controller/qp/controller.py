@@ -39,6 +39,18 @@ For an infeasible QP, ``step`` stays bounded: it names the conflicting set of on
 interval test; the irreducible conflicting set is computed only on demand, after the fact, by
 ``conflicting_constraints()``, from the rows stored by the last infeasible cycle.
 
+Impact brake: a controller fed the measured state notices an impact itself. While its expected
+impact's rows were active at the previous cycle, the contact point's measured speed towards the
+surface, -n.(J dq), falls below ``IMPACT_SPEED_DROP`` times the speed the previous command asks
+there, -n.(J dq_cmd) (the predicted jump takes it to -c_r times itself; a servo's tracking error
+is far smaller). From then on the controller brakes its own command trajectory to rest within
+the acceleration and jerk limits, from the previous command (q_cmd, dq_cmd, ddq) and not from the
+measured state: after an impact that pushed a joint past its velocity limit, braking from the
+measured state would command the limit itself for as long as the lagging servo keeps the joint
+above it. Then it holds the rest it reached; status ``impact_brake``, phase ``brake``, until
+``reset``. A loop fed its own previous command sees no jump and never brakes (``ImpactSession``
+detects the impact from the joint torques and switches controllers).
+
 Velocity limit: the velocity limit on dq_cmd is a row of the QP (``VelocityLimit``, at the
 jerk horizon), so in a closed loop the QP's answer needs no clipping. When the measured state
 makes clipping unavoidable (dq_cmd past its limit), dq_cmd is clipped, ``ddq`` is set to
@@ -54,6 +66,7 @@ import numpy as np
 import pinocchio as pin
 
 from impactqp.constraints import AccelerationLimit, Constraint, ControlCycle, ExpectedImpact
+from impactqp.constraints.impact_model import normal_motion
 from impactqp.controller.model.robot import InvalidStateError, ModelTerms, RobotModel, SingularPostureError
 from impactqp.controller.model.whole_body_terms import BASE_ACCELERATION_LIMIT
 from impactqp.controller.model.validation import BadInputError
@@ -64,6 +77,12 @@ from .cycle_kernels import first_outside, integrate_command, intersect_boxes, ti
 from .fallback import bounded_conflict, brake, braking_command, irreducible_conflict, usable_state
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
 from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
+
+
+IMPACT_SPEED_DROP = 0.5
+"""The impact brake starts when the measured approach speed of the contact point falls below this
+fraction of the commanded one (module docstring)."""
+BRAKE = "brake"
 
 
 class ImpactAwareController:
@@ -121,6 +140,8 @@ class ImpactAwareController:
         self._targets_set = False
         self._last_infeasible: tuple[QpProblem, np.ndarray, np.ndarray] | None = None
         self.phase = "approach"
+        self._impact_was_active = False  # at the previous cycle
+        self.braking = False
 
     def _allocate(self) -> None:
         """The buffers of one cycle and the views each task and constraint writes into."""
@@ -174,13 +195,21 @@ class ImpactAwareController:
         re-capture the task targets left unspecified."""
         terms = self.robot.terms(q, dq, check_limits=False)
         self.memory = CommandMemory(terms.q.copy(), terms.dq.copy(), np.zeros(self.robot.nv))
+        self.braking, self._impact_was_active = False, False
+        if self.phase == BRAKE:
+            self.phase = "approach"
         for task in self.tasks:
             task.reset(terms)
         self._targets_set = True
 
-    def step(self, q, dq) -> Command:
-        """One control cycle. Never raises on a bad state or a solver failure: see the module
-        docstring for the fallback."""
+    def step(self, q: np.ndarray, dq: np.ndarray) -> Command:
+        """One control cycle from the state (q, dq): the measured state, or the previous command
+        (q_cmd, dq_cmd) of a kinematic-controlled robot; the Command to send (its ``dq_cmd``, or
+        its ``q_cmd``). Never raises on a bad state or a solver failure (module docstring:
+        fallback), except on a floating base whose first state is unusable; after a noticed
+        impact it brakes to rest (module docstring: impact brake)."""
+        if self.braking:
+            return self._impact_brake()
         robot = self.robot
         try:
             if self._terms is None:
@@ -194,6 +223,9 @@ class ImpactAwareController:
         except (BadInputError, TypeError, ValueError) as error:  # not a state of this robot
             return self._fallback(q, dq, Status.FALLBACK_INVALID_STATE, ["finite_state"], str(error))
         terms = self._terms
+        if self._impact_noticed(terms):
+            self.braking = True
+            return self._impact_brake()
         joint_velocities = terms.dq[self._joint_velocities]
         over = first_outside(joint_velocities, robot.dq_max)
         if over >= 0:
@@ -225,6 +257,26 @@ class ImpactAwareController:
         return self._emit(terms, ddq, dq_cmd, q_cmd, status, self._active_constraints(ddq), [], solver_name)
 
     # ------------------------------------------------------------------ one cycle
+    def _impact_noticed(self, terms: ModelTerms) -> bool:
+        """Whether this state shows an impact (module docstring: impact brake)."""
+        impact, memory = self.impact, self.memory
+        if impact is None or not self._impact_was_active or memory.q_cmd is None:
+            return False
+        commanded, _ = normal_motion(terms.J, impact.surface.normal, terms.contact_point, memory.dq_cmd)
+        commanded = -commanded
+        return commanded > impact.release_speed and impact.approach_speed(terms) < IMPACT_SPEED_DROP * commanded
+
+    def _impact_brake(self) -> Command:
+        """The brake of the command trajectory from the previous command, to rest, then rest."""
+        memory = self.memory
+        self.phase = BRAKE
+        if self._floating:
+            terms = self.robot.terms(memory.q_cmd, memory.dq_cmd, check_limits=False)
+            ddq, dq_cmd, q_cmd = self._held_brake(terms)
+        else:
+            ddq, dq_cmd, q_cmd = brake(memory.q_cmd, memory.dq_cmd, memory.ddq, self.dt, self._limits)
+        return self._emit(None, ddq, dq_cmd, q_cmd, Status.IMPACT_BRAKE, [], [], "", "braking after a noticed impact")
+
     def _integrate(self, terms: ModelTerms, ddq: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
         """dq_cmd = dq + ddq dt, the joints' part clipped into their velocity limits, and
         q_cmd = q (+) (dq + dq_cmd) dt / 2, the joints' part within their position limits; and
@@ -368,6 +420,7 @@ class ImpactAwareController:
         else:
             jump = np.zeros(self.robot.nv)
             impact_active = False
+        self._impact_was_active = impact_active
         return Command(
             ddq, dq_cmd, q_cmd, status, active, violated, jump, dq_cmd + jump, impact_active, solver, message,
             self.phase,
