@@ -90,6 +90,10 @@ class ImpactSession:
         return self.observer.update(state.q, state.dq, state.tau)
 
     def step(self, state: RobotState) -> Command:
+        """One period: the detector reads the state's torque residual (the switch to the
+        post-impact controller on a detection), then the phase's controller steps on its own
+        previous command (the measured q with the commanded dq after a retract's or hold's
+        switch; the measured state at the first step) and its Command is returned."""
         if self.phase == APPROACH and self.detector.update(state.t, self.residual(state)):
             self._switch(state)
         if self.last is None:
