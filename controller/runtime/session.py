@@ -61,6 +61,7 @@ class ImpactSession:
         self.controller = self.approach
         self.phase = APPROACH
         self.last: Command | None = None
+        self.last_approach: Command | None = None  # the approach phase's last command
         self.pre_impact_state: RobotState | None = None
         self._previous_state: RobotState | None = None
         self._start_t: float | None = None
@@ -103,6 +104,8 @@ class ImpactSession:
         else:
             q, dq = self.last.q_cmd, self.last.dq_cmd
         self.last = self.controller.step(q, dq)
+        if self.phase == APPROACH:
+            self.last_approach = self.last
         self._previous_state = state
         return self.last
 

@@ -79,6 +79,12 @@ def print_report(report: dict) -> None:
         )
     else:
         click.echo("no impact detected")
+    speed = report["speed"]
+    if speed["capped_by"]:
+        click.echo(
+            f"asked {speed['asked']:.3f} m/s, hit at {speed['contact']:.3f} m/s: the controller capped the approach "
+            f"(active: {', '.join(speed['capped_by'])}; docs/max-speed.md)"
+        )
     click.echo(f"final phase: {report['phase']}; log: {report['log']}")
     print_robot(report)
 
