@@ -32,8 +32,21 @@ def parse_vector(text: str, size: int | None, what: str) -> np.ndarray:
     return values
 
 
+MAX_LIST_ENTRIES = 100
+"""Most values of a list option (--speeds, --tangential): each one a simulated condition."""
+
+
 def parse_list(text: str, what: str) -> list[float]:
-    return parse_vector(text, None, what).tolist()
+    """'a,b,c' as a list of distinct finite numbers, one to ``MAX_LIST_ENTRIES`` of them."""
+    if not text.strip():
+        raise BadInputError(f"{what} is empty: give comma-separated numbers, or leave the option out")
+    values = parse_vector(text, None, what).tolist()
+    if len(values) > MAX_LIST_ENTRIES:
+        raise BadInputError(f"{what} has {len(values)} values; at most {MAX_LIST_ENTRIES}")
+    repeated = sorted({v for v in values if values.count(v) > 1})
+    if repeated:
+        raise BadInputError(f"{what} repeats {', '.join(f'{v:g}' for v in repeated)}")
+    return values
 
 
 def emit_json(obj) -> None:

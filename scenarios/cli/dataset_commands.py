@@ -96,8 +96,8 @@ def generate_command(out, postures, speeds, tangential, as_json, choice, **noise
     output_directory(out, "OUT")
     plant = load_plant(plant_file)  # None: the nominal plant
     names = list(choice.check_postures(p.strip() for p in postures.split(","))) if postures else list(choice.robot.postures)
-    speed_list = parse_list(speeds, "--speeds") if speeds else None
-    tangential_list = parse_list(tangential, "--tangential") if tangential else []
+    speed_list = parse_list(speeds, "--speeds") if speeds is not None else None
+    tangential_list = parse_list(tangential, "--tangential") if tangential is not None else []
     check_jobs(jobs)
     bars = []  # the progress bar appears with the first finished trial, after validation
 
