@@ -330,7 +330,7 @@ class ControllerConfig:
         """Read a ``.toml``, ``.yaml`` or ``.yml`` file. An unreadable, undecodable, malformed or
         out-of-range file is bad input (``BadInputError``) whose one line names the file."""
         path = Path(path)
-        if path.suffix not in (".toml", ".yaml", ".yml"):
+        if path.suffix.lower() not in (".toml", ".yaml", ".yml"):
             raise BadInputError(f"unsupported configuration file {path.name}: use .toml, .yaml or .yml")
         data = read_mapping(path, "file")
         tool = data.get("tool")
