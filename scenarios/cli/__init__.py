@@ -71,7 +71,11 @@ def main(argv: list[str] | None = None) -> int:
         _interrupting = False
         signal.setitimer(signal.ITIMER_REAL, 0.0)
         for sig, handler in previous.items():
-            if handler is not None:  # None: a handler not set from Python, which cannot be restored
+            if argv is None and sig in STOP_SIGNALS:
+                # the console entry point: the work is done and its exit code stands; a stop
+                # signal during the interpreter's shutdown must not kill the process by the signal
+                signal.signal(sig, signal.SIG_IGN)
+            elif handler is not None:  # None: a handler not set from Python, which cannot be restored
                 signal.signal(sig, handler)
 
 
