@@ -14,14 +14,7 @@ the QP or MuJoCo. The layers of the package are listed in the README; each subpa
 names of its own layer.
 """
 
-from importlib import metadata as _metadata
-
 from impactqp.lazy_exports import lazy_exports as _lazy_exports
-
-try:
-    __version__ = _metadata.version("impactqp")
-except _metadata.PackageNotFoundError:  # pragma: no cover - running from a tree that was never installed
-    __version__ = "0+unknown"
 
 _MODEL = "impactqp.controller.model"
 _QP = "impactqp.controller.qp"
@@ -56,8 +49,6 @@ _EXPORTS = {
     "Status": _QP,
     "ControllerConfig": "impactqp.controller.config",
     "build_controller": "impactqp.controller.config",
-    "WholeBodySetup": _QP,
-    "build_whole_body_controller": _QP,
     # tasks and constraints
     "Task": "impactqp.tasks",
     "FrameTask": "impactqp.tasks",
@@ -74,6 +65,8 @@ _EXPORTS = {
     "ExpectedImpact": "impactqp.constraints",
     "PostImpactVelocityLimit": "impactqp.constraints",
     "ImpulsiveTorqueLimit": "impactqp.constraints",
+    "HeldContactRows": "impactqp.constraints",
+    "CaptureRegionLimit": "impactqp.constraints",
     # the robot loop
     "ImpactSession": "impactqp.controller.runtime",
     "RobotInterface": "impactqp.controller.runtime",
@@ -91,4 +84,24 @@ _EXPORTS = {
 __all__ = [*_EXPORTS, "__version__"]
 
 
-__getattr__, __dir__ = _lazy_exports(globals(), _EXPORTS)
+_export, _exported = _lazy_exports(globals(), _EXPORTS)
+
+
+def __getattr__(name: str):
+    """An export, or ``__version__``: read from the installed metadata on first use (reading it
+    costs tens of milliseconds, which the command line must not spend before its signal
+    handlers are in)."""
+    if name != "__version__":
+        return _export(name)
+    from importlib import metadata
+
+    try:
+        version = metadata.version("impactqp")
+    except metadata.PackageNotFoundError:  # pragma: no cover - a tree that was never installed
+        version = "0+unknown"
+    globals()["__version__"] = version
+    return version
+
+
+def __dir__() -> list[str]:
+    return sorted({*_exported(), "__version__"})

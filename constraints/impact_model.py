@@ -99,6 +99,7 @@ class ExpectedImpact:
         self._stamp = 0  # ModelTerms.stamp of the cached matrices and activation
         self._matrices: JumpMatrices | None = None
         self._active = False
+        self._approach_speed = 0.0
 
     @property
     def name(self) -> str:
@@ -114,12 +115,19 @@ class ExpectedImpact:
         self._update(terms)
         return self._active
 
+    def approach_speed(self, terms) -> float:
+        """-n.(J dq): the contact point's speed towards the surface at this state (m/s)."""
+        self._update(terms)
+        return self._approach_speed
+
     def _update(self, terms) -> None:
         if terms.stamp == self._stamp:
             return
         normal = self.surface.normal
         self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
-        self._active = self.always_active or self._rule(*normal_motion(terms.J, normal, terms.contact_point, terms.dq))
+        normal_speed, normal_position = normal_motion(terms.J, normal, terms.contact_point, terms.dq)
+        self._approach_speed = -normal_speed
+        self._active = self.always_active or self._rule(normal_speed, normal_position)
         self._stamp = terms.stamp
 
     def _rule(self, normal_speed: float, normal_position: float) -> bool:

@@ -55,10 +55,16 @@ class FeasibleSpeed:
     extended_plant: float
 
     def sentence(self) -> str:
+        """One sentence; "not ..." only when the two answers differ at the printed precision."""
+        extended, nominal = f"{self.extended_plant:.3f}", f"{self.nominal_plant:.3f}"
+        if extended == nominal:
+            return (
+                f"At {self.posture}, your robot can hit at {extended} m/s: the nominal simulation's answer "
+                f"holds with the diagnosed plant (CRB closed form {self.crb_closed_form:.3f} m/s)."
+            )
         return (
-            f"At {self.posture}, your robot can hit at {self.extended_plant:.3f} m/s, not "
-            f"{self.nominal_plant:.3f} m/s (the nominal simulation's answer; CRB closed form "
-            f"{self.crb_closed_form:.3f} m/s)."
+            f"At {self.posture}, your robot can hit at {extended} m/s, not {nominal} m/s (the nominal "
+            f"simulation's answer; CRB closed form {self.crb_closed_form:.3f} m/s)."
         )
 
     def to_json(self) -> dict:

@@ -343,8 +343,30 @@ def report(result: LoopResult, config: ControllerConfig, log_path: str | None) -
             "contact_speed": session.contact_speed(),
             "residual": session.residual_source,
         },
+        "speed": speed_report(config, session),
         "phase": result.phase,
         "log": log_path,
+    }
+
+
+SPEED_SHORTFALL = 0.02
+"""A contact speed this fraction below the asked one was capped by the controller."""
+
+
+def speed_report(config: ControllerConfig, session: ImpactSession) -> dict:
+    """The approach speed asked (the contact-approach task's, m/s; None without one), the contact
+    speed (m/s; None without an impact), and, when the contact came slower than asked, the
+    constraints active at the approach's last command: what capped the speed."""
+    asked = next(
+        (float(t.params["speed"]) for t in config.tasks if t.type == "contact_approach" and "speed" in t.params), None
+    )
+    contact = session.contact_speed()
+    last = session.last_approach
+    capped = asked is not None and contact is not None and contact < (1.0 - SPEED_SHORTFALL) * asked
+    return {
+        "asked": asked,
+        "contact": contact,
+        "capped_by": sorted(last.active_constraints) if capped and last is not None else [],
     }
 
 

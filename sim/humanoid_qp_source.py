@@ -1,11 +1,11 @@
 """The whole-body QP as the command source of the simulated G1 trial (docs/floating-base.md,
 "Trials driven by the whole-body QP").
 
-``run_impact_trial(..., source=QpCommand())`` drives the joints with the controller of
-``controller.qp.whole_body_setup`` instead of the scripted arm command:
+``run_impact_trial(..., source=QpCommand())`` drives the joints with the robot's default
+controller (``ControllerConfig.approach``) instead of the scripted arm command:
 
-- the controller is built for the stance (``WholeBodySetup(surface=the wall, speed=the trial's
-  hand speed)``: the wall plane at ``wall_x`` with normal -x; its support polygon is the start
+- the controller is built for the stance (``ControllerConfig.approach(the wall, the trial's
+  hand speed, robot=the robot's description)``: the wall plane at ``wall_x`` with normal -x; its support polygon is the start
   stance's) and reset at the state measured when the settling ends (its CoM, torso and posture
   targets are that state's);
 - during the settling the joints are held (zero command, as the scripted source); from then on,
@@ -32,11 +32,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.qp.command import Command, Status
-from impactqp.controller.qp.whole_body_setup import WholeBodySetup, build_whole_body_controller
+from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.tasks import ContactApproachTask
 
 from .humanoid_trial import LAG, NORMAL, RAMP, SETTLE
@@ -75,8 +76,10 @@ class QpCommand:
         """The driver of one trial: the controller of the stance q0 towards the wall plane x = wall_x."""
         contact = robot.terms(q0).contact_point
         wall = Surface(np.array([wall_x, contact[1], contact[2]]), NORMAL.copy())
-        setup = WholeBodySetup(surface=wall, speed=speed, method=self.method, solver=self.solver)
-        return QpDriver(build_whole_body_controller(robot, q0, setup), self.feedback)
+        config = ControllerConfig.approach(
+            wall, speed, robot=RobotChoice(robot.description).robot_setting, jump_model=self.method, solver=self.solver
+        )
+        return QpDriver(build_controller(config, robot, q0), self.feedback)
 
 
 @dataclass

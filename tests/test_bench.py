@@ -25,3 +25,10 @@ def test_bench_franka_sim_row_comes_from_a_session_through_the_franka_protocol(c
     (row,) = json.loads(capsys.readouterr().out)["rows"]
     assert (row["name"], row["unit"]) == ("loop.franka_sim.p99", "us")
     assert 0.0 < row["median"] <= row["p99"] < float("inf")
+
+
+def test_an_only_prefix_that_selects_no_row_is_bad_input(capsys):
+    assert main(["bench", "--only", "nonsense", "--json"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and len(captured.err.strip().splitlines()) == 1
+    assert "--only 'nonsense' selects no benchmark row" in captured.err and "predict" in captured.err

@@ -403,3 +403,47 @@ def test_every_command_runs_for_both_robots(tmp_path, capsys, robot, tool, comma
         if (tmp_path / written / "dataset.json").exists():
             header = read_dataset(tmp_path / written).header
             assert header.robot == robot and header.tool.as_dict() == TOOLS[tool].as_dict()
+
+
+def test_a_stop_signal_whose_interrupt_a_library_swallowed_still_ends_the_command(capsys, monkeypatch):
+    """A KeyboardInterrupt that code swallows (an optional import's ``except`` around a C
+    extension the signal interrupted) is raised again until the command line catches it: exit
+    code 130, without running the command on."""
+    import os
+    import time
+
+    import impactqp.controller.model.prediction as prediction
+
+    ran_on = []
+
+    def swallowing(*args, **kwargs):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5.0)  # the handler raises in here
+        except KeyboardInterrupt:
+            pass  # swallowed
+        time.sleep(5.0)  # the re-raised interrupt ends this
+        ran_on.append(True)
+
+    monkeypatch.setattr(prediction, "predict_all", swallowing)
+    code, out, err = run(capsys, "predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1")
+    assert code == EXIT_INTERRUPTED and err.strip() == "impactqp: interrupted" and out == "" and not ran_on
+    assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
+def test_a_stop_signal_after_the_work_is_done_keeps_the_exit_code(sig):
+    """The console entry point (``main()`` without argv): a stop signal that comes once the
+    command has finished, while the interpreter shuts down, neither kills the process by the
+    signal nor prints anything: the command's own exit code stands."""
+    script = (
+        "import os, signal, sys, time\n"
+        "from impactqp.scenarios.cli import main\n"
+        "code = main()\n"
+        f"os.kill(os.getpid(), {int(sig)})\n"
+        "time.sleep(0.2)\n"
+        "sys.exit(code)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script, "postures", "--json"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout) and done.stderr == ""

@@ -255,3 +255,46 @@ def test_the_robot_and_the_tool_of_a_file_build_the_controller(tmp_path):
     assert controller.robot.description.name == "fr3"
     np.testing.assert_array_equal(controller.robot.dq_max, config.choice.robot.dq_max)
     assert ControllerConfig().choice.is_default
+
+
+# ---------------------------------------------------------------- a floating base: the G1's preset
+def test_the_floating_base_preset_holds_the_balance_and_the_feet_and_refuses_a_bad_controller():
+    """The G1's approach: the hand's approach, the CoM, the torso's orientation, the posture and
+    the damping; the joints' limits, the feet's rows, the post-impact velocities and the capture
+    region, no torque rows."""
+    import whole_body_states as g1
+
+    c = g1.controller("staggered", method="gm")
+    assert [x.name for x in c.constraints] == [
+        "joint_acceleration_limit", "joint_position_limit", "joint_velocity_limit", "held_contacts",
+        "post_impact_velocity[gm]", "capture_region[gm]",
+    ]
+    assert [t.name for t in c.tasks] == ["contact_approach", "com", "frame[torso]", "posture", "damping"]
+    assert c.tasks[3].rows == g1.robot().n_joints and c.tasks[4].rows == g1.robot().nv
+    with pytest.raises(BadInputError):
+        type(c)(g1.robot(), [], c.constraints, 0.001)
+    with pytest.raises(BadInputError):
+        type(c)(g1.robot(), [DampingTask(variables=g1.robot().nv)], c.constraints + c.constraints[-1:], 0.001)
+    robust = g1.controller("parallel", method="robust")
+    assert sum(x.name.startswith("capture_region") for x in robust.constraints) == 3
+
+
+@pytest.mark.parametrize("key", ["limits.torque", "impact.impulsive_torque"])
+def test_torque_rows_on_a_floating_base_are_bad_input_that_names_the_key(key):
+    section, name = key.split(".")
+    data = {"robot": "g1", "limits": {"torque": False}, "impact": {"impulsive_torque": False}}
+    data[section][name] = True
+    with pytest.raises(BadInputError, match=key.replace(".", r"\.")):
+        ControllerConfig.from_dict(data)
+
+
+def test_the_floating_base_after_the_impact_keeps_its_torso_task():
+    import whole_body_states as g1
+
+    q = g1.stance("parallel")
+    config = ControllerConfig.approach(g1.wall_ahead(q), 0.3, robot="g1")
+    post = post_impact_config(config)
+    assert [t.type for t in post.tasks] == ["surface_offset", "centre_of_mass", "frame", "posture", "damping"]
+    controller = build_controller(post, g1.robot(), q)
+    assert "held_contacts" in [x.name for x in controller.constraints]
+    assert not any(x.relaxed for x in controller.constraints)  # the impact and capture rows are off

@@ -46,6 +46,14 @@ def test_validation_reports_broken_trials(dataset, damage, message):
     assert file_digests(dataset) == before
 
 
+def test_a_trial_file_that_is_a_symbolic_link_loop_is_reported(dataset):
+    (dataset / "slow.csv").unlink()
+    (dataset / "slow.csv").symlink_to(dataset / "slow.csv")
+    problems = validate(dataset)
+    assert problems["fast"] == [] and problems["dataset"] == []
+    assert len(problems["slow"]) == 1 and "symbolic-link loop" in problems["slow"][0], problems["slow"]
+
+
 def test_validation_reports_a_manifest_disagreeing_with_the_files(dataset):
     manifest = json.loads((dataset / "dataset.json").read_text())
     manifest["trials"][0]["impact_time"] += 0.05

@@ -96,6 +96,10 @@ def test_diagnose_json_report_and_saved_plant(small_dataset, tmp_path, capsys):
         (["dataset", "validate", "/nonexistent/dataset"], "not a directory"),
         (["dataset", "generate", "OUT", "--postures", "nowhere"], "unknown posture"),
         (["dataset", "generate", "OUT", "--speeds", "0.1,-1"], "(0, 3] m/s"),
+        (["dataset", "generate", "OUT", "--speeds", ""], "--speeds is empty"),
+        (["dataset", "generate", "OUT", "--speeds", "0.1,0.12,0.1"], "--speeds repeats 0.1"),
+        (["dataset", "generate", "OUT", "--speeds", ",".join(str(0.05 + k * 1e-4) for k in range(101))], "at most 100"),
+        (["campaign", "--out", "OUT", "--speeds", "0.1,0.1"], "--speeds repeats 0.1"),
         (["dataset", "generate", "OUT", "--plant", "PLANT"], "unknown plant parameter"),
         (["dataset", "import-franka", "OUT", "PLANT", "--surface-point", "0.6,0,0", "--surface-normal", "-1,0,0"],
          "not a libfranka"),
@@ -114,6 +118,25 @@ def test_bad_input_is_one_line_with_exit_code_2(tmp_path, capsys, args, message)
     code, out, err = run(capsys, *args)
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and message in err
+
+
+@pytest.mark.parametrize("output", [
+    ("--save-plant", "{data}/dataset.json"), ("--save-plant", "{data}/t0000.csv"), ("--save-plant", "{plant}"),
+    ("--report", "{data}"), ("--report", "{parent}"),
+])
+def test_diagnose_never_writes_over_its_inputs(small_dataset, tmp_path, capsys, output):
+    """An output that is an input (the manifest, a trial, the --plant file), or a folder that is
+    or holds the dataset: one line and exit 2 before any work, every input byte-identical."""
+    from conftest import file_digests
+
+    plant = tmp_path / "plant.json"
+    plant.write_text(json.dumps({"armature": [0.5] * JOINTS}))
+    option, path = output
+    path = path.format(data=small_dataset, plant=plant, parent=small_dataset.parent)
+    before, plant_before = file_digests(small_dataset), plant.read_bytes()
+    code, out, err = run(capsys, "diagnose", small_dataset, "--plant", plant, option, path)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "would overwrite the input" in err
+    assert file_digests(small_dataset) == before and plant.read_bytes() == plant_before
 
 
 def test_diagnose_without_a_manifest_is_a_clear_error(tmp_path, capsys):
@@ -217,3 +240,14 @@ def test_a_g1_dataset_validates_and_diagnose_refuses_it(tmp_path, capsys):
     for args in ([], ["--robot", "fr3"]):
         code, out, err = run(capsys, "diagnose", tmp_path, *args)
         assert code == 2 and err.count("\n") == 1 and "is a g1 dataset" in err
+
+
+def test_import_franka_refuses_an_output_folder_that_holds_an_input_log(tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    log = out / "log.csv"
+    log.write_text("not read: the output is refused first\n")
+    code, stdout, err = run(capsys, "dataset", "import-franka", out, log, "--surface-point", "0.6,0,0",
+                            "--surface-normal", "-1,0,0")
+    assert code == 2 and stdout == "" and "would overwrite the input" in err and len(err.strip().splitlines()) == 1
+    assert log.read_text() == "not read: the output is refused first\n" and sorted(out.iterdir()) == [log]

@@ -127,3 +127,9 @@ def test_the_report_says_which_maximum_speed_to_trust():
     unexplained = trusted_speed_text(SimpleNamespace(explained=False, causes=[]), rows)
     assert unexplained.startswith("Trust the nominal simulation")
     assert "is below the trusted 0.292 m/s" in unexplained
+
+
+def test_the_speed_sentence_says_not_only_when_the_answers_differ():
+    assert "not 0.420" in FeasibleSpeed("elbow_up", 0.31, 0.42, 0.27).sentence()
+    same = FeasibleSpeed("elbow_up", 0.31, 0.3494, 0.3491).sentence()
+    assert "not" not in same.split("m/s")[1] and "holds" in same and "0.349 m/s" in same

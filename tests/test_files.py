@@ -2,6 +2,7 @@
 
 import json
 import os
+import time
 
 import pytest
 import yaml
@@ -10,7 +11,7 @@ from hypothesis import strategies as st
 
 from impactqp.controller.model import files
 from impactqp.controller.model.files import read_mapping, read_text, regular_file
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import MAX_MESSAGE_CHARACTERS, BadInputError
 
 
 class OwnError(BadInputError):
@@ -121,3 +122,40 @@ def test_a_written_table_reads_back_equal(tmp_path_factory, table, suffix):
     text = json.dumps(table) if suffix == ".json" else yaml.safe_dump(table, allow_unicode=True)
     path.write_text(text, encoding="utf-8")
     assert read_mapping(path, "the file") == table
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    st.sampled_from([".json", ".toml", ".yaml"]),
+    st.one_of(st.integers(19, 6000), st.just(5000)),
+    st.booleans(),
+)
+def test_an_integer_beyond_64_bits_is_one_line_before_any_conversion(tmp_path_factory, suffix, digits, negative):
+    """An integer of 19 to thousands of digits, in every syntax (a tool's mass, a manifest's
+    field, a grid size): one line of bad input naming the file, quickly."""
+    number = ("-" if negative else "") + "9" * digits
+    path = tmp_path_factory.mktemp("huge") / f"f{suffix}"
+    path.write_text({".json": f'{{"mass": {number}}}', ".toml": f"mass = {number}\n", ".yaml": f"mass: {number}\n"}[suffix])
+    start = time.perf_counter()
+    with pytest.raises(BadInputError) as caught:
+        read_mapping(path, "the file")
+    message = str(caught.value)
+    assert str(path) in message and len(message.splitlines()) == 1 and len(message) <= MAX_MESSAGE_CHARACTERS
+    assert time.perf_counter() - start < 5.0
+
+
+def test_yaml_aliases_are_refused_so_an_alias_bomb_cannot_expand(tmp_path):
+    lines = ['a: &a ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]']
+    for k in range(1, 9):
+        lines.append(f"{chr(97 + k)}: &{chr(97 + k)} [{', '.join([f'*{chr(96 + k)}'] * 9)}]")
+    path = tmp_path / "bomb.yaml"
+    path.write_text("\n".join(lines) + "\n")
+    start = time.perf_counter()
+    with pytest.raises(BadInputError, match="aliases"):
+        read_mapping(path, "the configuration")
+    assert time.perf_counter() - start < 5.0
+
+
+def test_a_bad_input_message_quoting_a_huge_value_is_cut():
+    message = str(BadInputError(f"speeds must be numbers, got {list(range(100000))!r}"))
+    assert len(message) <= MAX_MESSAGE_CHARACTERS and message.endswith("(cut)")

@@ -103,11 +103,11 @@ def test_the_session_detects_the_wall_retracts_and_logs_through_the_franka_proto
     assert main(["dataset", "validate", str(tmp_path / "log")]) == 0, capsys.readouterr().err
 
 
-def test_a_lost_connection_ends_the_run_in_one_line_and_keeps_the_log(franky_sim, model):
+def test_a_lost_connection_ends_the_run_in_one_line_and_keeps_the_log(franky_sim, model, tmp_path):
     q0 = approach_start(model, POSTURE.q, POSTURE.surface, START_DISTANCE)
     server = franky_sim(q0, stop_after_commands=LOST_AT)  # the server stops when command LOST_AT arrives
     robot = FrankaRobot.connect(server.hostname, realtime=False, model=model)
-    _, loop = session_loop(robot, model)
+    config, loop = session_loop(robot, model)
     result = loop.run(1.0)
     assert loop.robot_failed
     assert result.watchdog_trips == 1 and result.watchdog_reason.startswith("robot error: ")
@@ -117,6 +117,17 @@ def test_a_lost_connection_ends_the_run_in_one_line_and_keeps_the_log(franky_sim
     assert result.cycles == LOST_AT + 1
     assert np.all(np.isfinite(result.log.q[:-1])) and np.all(np.isnan(result.log.q[-1]))
     assert np.all(np.diff(result.log.t) > 0.0)
+    # the trial written from that log ends at the last measured sample: no NaN row in the dataset
+    from impactqp.controller.measured.dataset_check import validate
+
+    path = RunLog(str(tmp_path / "lost"), log_header(config)).add(result.log, SPEED, None, None)
+    assert path is not None
+    (trial,) = read_dataset(tmp_path / "lost").trials  # reading refuses a NaN value
+    # the torque of the last answered period comes with the next state, which never came: the trial
+    # ends one sample before the unanswered read
+    assert len(trial.log) == LOST_AT - 1 and np.allclose(trial.log.q, result.log.q[:-2], rtol=1e-9, atol=1e-12)
+    problems = validate(tmp_path / "lost")
+    assert not any("NaN" in problem for problems_of in problems.values() for problem in problems_of)
 
 
 def contact_distance_at(log_file, t, model) -> float:

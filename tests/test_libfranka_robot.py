@@ -74,3 +74,54 @@ def test_connect_sets_the_reflex_impedance_and_the_declared_load_or_names_what_w
     refusing = LibfrankaRobot(SettingsRobot("set_load"), (RuntimeError,), (RuntimeError,), settings)
     with pytest.raises(BadInputError, match="the robot at ip refused the load: set_load refused"):
         refusing.configure("ip", model)
+
+
+@pytest.fixture
+def silent_peer():
+    """A local server at 127.0.0.2:1337 (libfranka's port; not the address a franky-sim test
+    serves on) that accepts every connection and never answers."""
+    import socket
+    import threading
+
+    server = socket.socket()
+    server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    server.bind(("127.0.0.2", 1337))
+    server.listen(8)
+    accepted = []
+    running = threading.Event()
+    running.set()
+
+    def accept():
+        server.settimeout(0.1)
+        while running.is_set():
+            try:
+                accepted.append(server.accept()[0])
+            except OSError:
+                continue
+
+    thread = threading.Thread(target=accept, daemon=True)
+    thread.start()
+    yield "127.0.0.2"
+    running.clear()
+    thread.join()
+    for connection in accepted:
+        connection.close()
+    server.close()
+
+
+@pytest.mark.parametrize("backend", ["franka", "panda"])
+def test_a_robot_that_accepts_and_never_answers_is_one_line_within_seconds(silent_peer, backend):
+    import importlib
+    import time
+
+    from impactqp.controller.runtime.libfranka_robot import ANSWER_TIMEOUT
+
+    module = {"franka": "pylibfranka", "panda": "panda_py.libfranka"}[backend]
+    pytest.importorskip(module, reason=f"{module} is not installed")
+    backend_module = importlib.import_module(f"impactqp.controller.runtime.{backend}_backend")
+    Robot = backend_module.FrankaRobot if backend == "franka" else backend_module.PandaRobot
+    start = time.monotonic()
+    with pytest.raises(BadInputError, match="accepted the connection but did not answer within"):
+        Robot.connect(silent_peer, realtime=False)
+    # the bindings' import in the child (unbounded by the answer's deadline) plus the deadline
+    assert time.monotonic() - start < 10.0 + ANSWER_TIMEOUT

@@ -15,6 +15,7 @@ STRINGS = {
     Status.FALLBACK_INVALID_STATE: "fallback_invalid_state",
     Status.FALLBACK_SINGULAR: "fallback_singular_posture",
     Status.FALLBACK_SOLVER_ERROR: "fallback_solver_error",
+    Status.IMPACT_BRAKE: "impact_brake",
 }
 
 
@@ -40,8 +41,9 @@ def test_a_status_is_its_string_for_comparison_printing_and_json(status):
 
 
 @pytest.mark.parametrize("status", list(Status))
-def test_only_the_two_ok_statuses_are_not_fallbacks(status):
-    expected = not STRINGS[status].startswith("ok")
+def test_only_the_fallback_statuses_are_fallbacks(status):
+    """The two ok statuses and the impact brake (the planned behaviour after an impact) are not."""
+    expected = STRINGS[status].startswith("fallback")
     assert status.is_fallback == expected
     assert command(status).is_fallback == expected
     assert command(STRINGS[status]).is_fallback == expected  # a plain string too

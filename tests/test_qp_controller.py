@@ -1,10 +1,13 @@
 """ImpactAwareController: hard constraints, closed-form solutions, the maximum feasible speed,
-command continuity, the stacked QP data of a cycle and its active constraints."""
+command continuity, the stacked QP data of a cycle and its active constraints; on the standing
+G1 (a floating base on held contacts): every row, the feet held, the impact rows binding, a
+closed approach and the brake of unusable states."""
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+import whole_body_states as g1
 from qp_states import DT, NORMAL, approach_controller, random_feasible_state, surface_ahead
 from reference.qp import reference_active_constraints
 
@@ -12,9 +15,12 @@ from conftest import JOINTS
 from impactqp.constraints import ControlCycle, jump_model_names
 from impactqp.controller.config import ControllerConfig, TaskConfig, build_controller
 from impactqp.controller.model.inverse_kinematics import approach_start
+from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.controller.model.jump import jump_model
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
 from impactqp.controller.model.max_speed import Setting, approach_direction, closed_form_max_speed
 from impactqp.controller.model.robot_description import PANDA
+from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.qp import ImpactAwareController
 from impactqp.tasks import DampingTask, FrameTask, PostureTask
 
@@ -232,3 +238,159 @@ def test_compiled_active_set_equals_the_numpy_reference(robot, seed, jump):
         problem.violation(x)
         expected = reference_active_constraints(controller.layout, controller._box_bounds, problem, tolerance, x)
         assert controller._active_constraints(x) == expected
+
+
+# ---------------------------------------------------------------- the standing G1
+G1_SETTINGS = settings(max_examples=12, deadline=None)
+G1_TOLERANCE = 1e-6
+
+
+def impact_rows(c):
+    return [x for x in c.layout.row_constraints if x.relaxed]
+
+
+@G1_SETTINGS
+@given(g1.standing_states(), st.sampled_from(HELD_CONTACT_METHODS), st.floats(0.0, 1.0), st.booleans())
+def test_every_row_holds_and_the_feet_do_not_accelerate_at_the_solution(state, method, speed, always):
+    name, q, v = state
+    c = g1.controller(name, method=method, speed=speed, always_active=always)
+    c.reset(q, v)
+    command = c.step(q, v)
+    assert not command.is_fallback, command.message
+    dv = command.ddq
+    assert c.problem.violation(dv) <= G1_TOLERANCE
+    terms = g1.robot().terms(q, v)
+    np.testing.assert_allclose(terms.held_jacobian @ dv + terms.held_drift, 0.0, atol=G1_TOLERANCE)
+    # the joints' own limits, the impact rows as the constraints write them
+    base = g1.robot().base_nv
+    joints = dv[base:]
+    assert np.all(np.abs(joints) <= g1.robot().ddq_max + G1_TOLERANCE)
+    assert np.all(np.abs(command.dq_cmd[base:]) <= g1.robot().dq_max)
+    for constraint in impact_rows(c):
+        C, lower, upper = np.zeros((constraint.rows, g1.robot().nv)), np.zeros(constraint.rows), np.zeros(constraint.rows)
+        constraint.compute_into(terms, c._row_cycle, C, lower, upper)
+        if np.all(lower <= 0.0) and np.all(upper >= 0.0):  # the state keeps them: they are not relaxed
+            assert np.all(C @ dv <= upper + G1_TOLERANCE) and np.all(C @ dv >= lower - G1_TOLERANCE)
+    np.testing.assert_allclose(command.dq_cmd, v + dv * c.dt)
+
+
+@G1_SETTINGS
+@given(st.sampled_from(sorted(STANCES)), st.sampled_from(HELD_CONTACT_METHODS), st.floats(2.0, 3.0))
+def test_impact_rows_bind_when_the_approach_speed_is_pushed_up(name, method, asked):
+    """The hand moves at just below the highest speed s* the impact rows allow (bisection on
+    the rows at v = s d, dv = 0, d the least-norm feet-held approach at 1 m/s) and the task asks
+    for more: an impact row is active at the solution, and the commanded velocity keeps the
+    predicted post-impact joint velocities within their limits. The balance tasks (CoM, torso)
+    are off, so that the impact rows alone keep the post-impact CoM velocity capturable."""
+    c = g1.controller(name, method=method, speed=asked, always_active=True, com_weight=0.0, torso_weight=0.0)
+    q = g1.stance(name)
+    unit = g1.approach_velocity(q, 1.0)
+
+    def holds(s):
+        terms = g1.robot().terms(q, s * unit)
+        for x in impact_rows(c):
+            C, lower, upper = np.zeros((x.rows, g1.robot().nv)), np.zeros(x.rows), np.zeros(x.rows)
+            x.compute_into(terms, c._cycle, C, lower, upper)
+            if np.any(upper < 0.0) or np.any(lower > 0.0):
+                return False
+        return True
+
+    low, high = 0.0, asked
+    for _ in range(40):
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if holds(middle) else (low, middle)
+    assert 0.1 < low < 0.99 * asked
+    v = 0.999 * low * unit
+    c.reset(q, v)
+    command = c.step(q, v)
+    assert not command.is_fallback, command.message
+    assert any(x.name in command.active_constraints for x in impact_rows(c)), command.active_constraints
+    maps = jump_model(method).unit_matrices(g1.robot().terms(q, command.dq_cmd), g1.NORMAL, 0.0)
+    post = command.dq_cmd + maps.jump_matrix @ command.dq_cmd
+    assert np.all(np.abs(post[g1.robot().base_nv:]) <= g1.robot().dq_max + 1e-9)
+
+
+def test_closed_loop_approach_keeps_the_feet_and_reaches_the_asked_speed():
+    c = g1.controller("parallel", gap=0.2, speed=0.2)
+    q, v = g1.stance("parallel"), np.zeros(g1.robot().nv)
+    c.reset(q, v)
+    feet = g1.robot().frame_placements(q)
+    for _ in range(300):
+        command = c.step(q, v)
+        assert not command.is_fallback, command.message
+        q, v = command.q_cmd, command.dq_cmd
+    terms = g1.robot().terms(q, v)
+    assert -g1.NORMAL @ terms.J @ v == pytest.approx(0.2, abs=0.02)
+    for name, placement in g1.robot().frame_placements(q).items():
+        if name in feet and "ankle" in name:
+            np.testing.assert_allclose(placement.translation, feet[name].translation, atol=1e-3)
+
+
+def test_unusable_states_brake_the_joints_with_the_feet_held():
+    c = g1.controller("wide")
+    q = g1.stance("wide")
+    v = g1.approach_velocity(q, 0.5)
+    with pytest.raises(BadInputError):
+        c.step(q[:-1], v)  # no previous command to stand in
+    c.reset(q, v)
+    first = c.step(q, v)
+    for bad_q, bad_v, status in (
+        (q, np.full(g1.robot().nv, np.nan), "fallback_invalid_state"),
+        (q, np.r_[np.zeros(g1.robot().base_nv), 1e3 * np.ones(g1.robot().n_joints)], "fallback_invalid_state"),
+    ):
+        command = c.step(bad_q, bad_v)
+        assert command.status == status and np.all(np.isfinite(command.q_cmd))
+        terms = g1.robot().terms(first.q_cmd if np.isnan(bad_v).any() else bad_q, first.dq_cmd if np.isnan(bad_v).any() else bad_v)
+        np.testing.assert_allclose(terms.held_jacobian @ command.ddq + terms.held_drift, 0.0, atol=1e-6)
+
+
+# ---------------------------------------------------------------- the impact brake
+def measured_state_loop(robot_name: str, speed: float, duration: float = 0.9):
+    """The loop a pink or mink user writes: read the measured state, step, send dq_cmd, on the
+    MuJoCo robot hitting the wall of its default posture at ``speed`` asked; (model, commands,
+    measured velocities, statuses, contact time)."""
+    from impactqp.controller.model.choice import RobotChoice
+    from impactqp.sim.scene import build_scene
+    from impactqp.sim.sim_backend import SimRobot
+
+    choice = RobotChoice.of(robot_name)
+    model = choice.shared_model
+    posture = choice.posture(choice.robot.default_posture)
+    config = ControllerConfig.approach(posture.surface, speed, robot=robot_name)
+    controller = build_controller(config, model)
+    wall = config.surface.surface()
+    q0 = approach_start(model, posture.q, wall, 0.05)
+    robot = SimRobot(build_scene(wall, robot=choice.robot, tool=choice.tool), q0, np.zeros(model.nv), config.dt)
+    commands, velocities, statuses = [], [], []
+    for _ in range(int(round(duration / config.dt))):
+        state = robot.read()
+        command = controller.step(state.q, state.dq)
+        robot.write(command.dq_cmd)
+        commands.append(command.dq_cmd)
+        velocities.append(state.dq)
+        statuses.append(command.status)
+    t, force = robot.force_log()
+    touching = np.linalg.norm(force, axis=1) > 1.0
+    contact = float(t[np.argmax(touching)]) if touching.any() else None
+    return model, np.array(commands), np.array(velocities), statuses, contact
+
+
+@pytest.mark.parametrize("robot_name", ["panda", "fr3"])
+@pytest.mark.parametrize("speed", [0.3, 0.5])
+def test_a_measured_state_loop_brakes_after_the_impact_and_never_holds_a_limit(robot_name, speed):
+    """Fed the measured state through the impact, the commands never sit at a velocity limit
+    for more than 20 ms, every measured |dq| is back under half its limit within 300 ms of the
+    first contact and stays there, and the controller brakes its commands to rest."""
+    dt = 0.001
+    model, commands, velocities, statuses, contact = measured_state_loop(robot_name, speed)
+    assert contact is not None, "the robot never reached the wall"
+    at_limit = np.abs(commands) >= model.dq_max * (1.0 - 1e-9)
+    longest = max((len(run) for column in at_limit.T for run in "".join("1" if x else "0" for x in column).split("0")), default=0)
+    assert longest * dt <= 0.020
+    after = int(round((contact + 0.3) / dt))
+    assert np.all(np.abs(velocities[after:]) < 0.5 * model.dq_max)
+    assert statuses[-1] == "impact_brake" and np.all(commands[-1] == 0.0)
+    braking = statuses.index("impact_brake")
+    assert contact <= braking * dt <= contact + 0.02  # noticed at the impact, not before
+    steps = np.diff(commands[braking - 1:], axis=0) / dt
+    assert np.all(np.abs(steps) <= model.ddq_max * (1.0 + 1e-9))

@@ -232,3 +232,15 @@ def test_a_run_builds_the_robot_model_once(robot, tmp_path, monkeypatch):
     monkeypatch.setattr(robot_module.RobotModel, "__init__", lambda self, *a, **k: built.append(1) or build(self, *a, **k))
     assert main(["run", "--robot", robot, "--unpaced", "--duration", "0.05", "--log", str(tmp_path)]) == 0
     assert len(built) == 1
+
+
+def test_a_run_asked_too_fast_says_the_controller_capped_it_and_by_what(capsys):
+    """Asked 1 m/s at elbow_up, the contact comes at the posture's highest feasible speed: the
+    report gives both speeds and the constraints active at the approach's last command."""
+    code = main(["run", "--backend", "sim", "--unpaced", "--duration", "0.5", "--speed", "1.0", "--json"])
+    assert code == 0
+    speed = json.loads(capsys.readouterr().out)["speed"]
+    assert speed["asked"] == 1.0 and 0.0 < speed["contact"] < 0.98
+    assert any(name.startswith(("post_impact_velocity", "impulsive_torque")) for name in speed["capped_by"])
+    assert main(["run", "--backend", "sim", "--unpaced", "--duration", "0.5", "--speed", "1.0"]) == 0
+    assert "asked 1.000 m/s, hit at" in capsys.readouterr().out

@@ -1,5 +1,7 @@
 import tomllib
 
+import time
+
 import pytest
 
 from impactqp.controller.model.validation import BadInputError
@@ -59,13 +61,18 @@ def test_every_line_of_the_example_that_sets_a_key_follows_a_comment():
         (lambda d: d["controller"].update(impact_duration=[0.01, 0.01]), "twice"),
         (lambda d: d["simulate"].update(tolerance=0.0), "simulate.tolerance must be > 0"),
         (lambda d: d.pop("simulate"), r"needs a [simulate] table"),
+        (lambda d: d["grid"].update(size=[10.0, 10.0], spacing=0.001), "more than 10,000,000"),
+        (lambda d: d["grid"].update(size=[1e300, 0.1], spacing=1e-300), "more than 10,000,000"),
+        (lambda d: d["grid"].update(u=[1.0, 0.0, 0.0], v=[-2.0, 0.0, 0.0]), "parallel"),
     ],
 )
 def test_bad_configs_are_refused_with_a_message_naming_the_key(edit, message):
     data = example()
     edit(data)
+    start = time.perf_counter()
     with pytest.raises(BadInputError, match=message.replace("[", r"\[").replace("]", r"\]")):
         parse_config(data)
+    assert time.perf_counter() - start < 5.0
 
 
 def test_a_malformed_file_is_bad_input(tmp_path):

@@ -86,6 +86,9 @@ def test_a_tool_file_in_json_or_toml(tmp_path):
     )
     hammer = tool_description(str(toml_file))
     assert (hammer.name, hammer.frame, hammer.mass, hammer.geometry.radius) == ("hammer", "flange", 0.5, 0.03)
+    upper = tmp_path / "HAMMER.TOML"  # a suffix in capitals is the same file type
+    upper.write_text(toml_file.read_text())
+    assert tool_description(str(upper)).as_dict() == {**hammer.as_dict(), "name": "HAMMER"}
 
 
 @pytest.mark.parametrize("text, message", [
@@ -134,6 +137,8 @@ SPHERE = Sphere(0.02, (0.0, 0.0, 0.12))
     (dict(inertia=np.diag([-1e-3, 1e-3, 1e-3])), "rigid body"),
     (dict(inertia=np.array([[1e-3, 1e-4, 0], [0, 1e-3, 0], [0, 0, 1e-3]])), "symmetric"),
     (dict(inertia=np.eye(2)), "3x3"),
+    (dict(inertia=np.eye(3) * 1e300), "exceeds what a 0.2 kg tool"),
+    (dict(inertia=np.eye(3) * 0.21), "exceeds what a 0.2 kg tool"),
     (dict(com=(0.0, np.inf, 0.0)), "finite"),
 ])
 def test_every_field_is_validated(change, message):

@@ -71,7 +71,7 @@ def test_the_cycle_builds_the_reference_rows_and_solution(stance_name, method, s
     c.impact._active = c.impact.is_active(robot().terms(q, v))
     c.impact._stamp = expected.stamp
     c._cycle.advance(memory_ddq, c.ddq_max, c._jerk_step)
-    c.assemble(expected)
+    c._assemble(expected, c._cycle)
     slow = (c.problem.H, c.problem.g, c.problem.C, c.problem.l, c.problem.u, c.problem.lb, c.problem.ub)
     for actual, wanted in zip(fast, slow):
         finite = np.isfinite(wanted)

@@ -11,7 +11,7 @@ from reference.whole_body import feet_held_pinv
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import RobotModel
-from impactqp.controller.qp.whole_body_setup import WholeBodySetup, build_whole_body_controller
+from impactqp.controller.config import ControllerConfig, build_controller
 
 NORMAL = np.array([-1.0, 0.0, 0.0])  # the wall in front (+x), normal towards the robot
 
@@ -70,7 +70,9 @@ def integrate(q: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
     return pin.integrate(robot().model, q, v * dt)
 
 
-def controller(name: str, gap: float = 0.05, **choices):
-    """The default whole-body controller at stance ``name``, the wall ``gap`` m ahead."""
+def controller(name: str, gap: float = 0.05, speed: float = 0.3, method: str = "crb", **options):
+    """The G1's default controller (``ControllerConfig.approach``) at stance ``name``, the wall
+    ``gap`` m ahead; ``options`` are ``ApproachOptions`` fields."""
     q = stance(name)
-    return build_whole_body_controller(robot(), q, WholeBodySetup(wall_ahead(q, gap), **choices))
+    config = ControllerConfig.approach(wall_ahead(q, gap), speed, robot="g1", jump_model=method, **options)
+    return build_controller(config, robot(), q)

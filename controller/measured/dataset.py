@@ -397,7 +397,11 @@ def _read_table(path: Path, columns: list[str]) -> np.ndarray:
 def _inside(directory: Path, name: str) -> Path:
     """``directory / name``, refused when a link leads it outside the dataset directory."""
     path = directory / name
-    if not path.resolve().is_relative_to(directory.resolve()):
+    try:
+        inside = path.resolve().is_relative_to(directory.resolve())
+    except (RuntimeError, OSError):  # a symbolic-link loop (RuntimeError before Python 3.13)
+        raise DatasetError(f"{name} is a symbolic-link loop") from None
+    if not inside:
         raise DatasetError(f"{name} leads outside the dataset directory")
     return path
 

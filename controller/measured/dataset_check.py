@@ -26,6 +26,11 @@ POSITION_TOLERANCE = 1e-3
 """rad a logged joint position may lie outside the URDF limits (encoder and rounding)."""
 
 
+def samples_needed(control_period: float) -> int:
+    """The fewest control samples of a trial whose impact the detection window can measure."""
+    return int(round((WINDOW_BEFORE + WINDOW_AFTER) / control_period)) + 4
+
+
 def validate(directory: str | Path, progress=None) -> dict[str, list[str]]:
     """Problems of a dataset, per trial id (key ``"dataset"`` for the manifest itself).
 
@@ -109,7 +114,7 @@ def _log_problems(directory: Path, entry: TrialEntry, header: DatasetHeader) -> 
     quaternion = quaternion_problem(log.base, entry.file) if robot.floating else None
     if quaternion is not None:
         return [quaternion], None
-    needed = int(round((WINDOW_BEFORE + WINDOW_AFTER) / control_period)) + 4
+    needed = samples_needed(control_period)
     if len(log) < 2:
         return [f"{entry.file} holds {len(log)} samples, fewer than the {needed} of the detection window"], None
     period = log.control_period

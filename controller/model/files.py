@@ -3,8 +3,11 @@
 Every failure is bad input with one line that names the file: a missing file, anything but a
 regular file (a directory, a FIFO, a device: checked before the file is opened, so a FIFO never
 blocks the reader), a file larger than ``MAX_FILE_BYTES``, text that is not UTF-8 (a byte-order
-mark is accepted), a syntax error, nesting deeper than the parser's recursion allows, or a
-document that is not a table of keys and values.
+mark is accepted), a syntax error, nesting deeper than the parser's recursion allows, a document
+that is not a table of keys and values, an integer beyond ``MAX_INTEGER`` (no physical quantity,
+count or seed of ours is one: checked before any conversion, so a number of thousands of digits is
+one line, not an overflow), or a YAML alias (an alias repeats a node: nested aliases expand a
+small file into gigabytes).
 """
 
 from __future__ import annotations
@@ -29,6 +32,39 @@ SYNTAXES = {".json": "json", ".toml": "toml", ".yaml": "yaml", ".yml": "yaml"}
 MAPPING = {"json": "a JSON object", "toml": "a table of keys and values", "yaml": "a table of keys and values"}
 
 _PARSE_ERRORS = (json.JSONDecodeError, tomllib.TOMLDecodeError, yaml.YAMLError)
+MAX_INTEGER = 2**63
+"""Largest |integer| in a file (a signed 64-bit integer's range)."""
+MAX_INTEGER_DIGITS = len(str(MAX_INTEGER))
+
+
+class _NoAliasLoader(yaml.SafeLoader):
+    """PyYAML's safe loader without aliases (module docstring)."""
+
+    def compose_node(self, parent, index):
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.composer.ComposerError(None, None, "YAML aliases (*name) are not accepted", event.start_mark)
+        return super().compose_node(parent, index)
+
+
+def _json_integer(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_INTEGER_DIGITS:
+        raise ValueError(f"an integer of {len(text.lstrip('-'))} digits")
+    return int(text)
+
+
+def _out_of_range_integer(value) -> int | None:
+    """The first integer of the parsed document beyond MAX_INTEGER (None when there is none)."""
+    stack = [value]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, dict):
+            stack.extend(item.values())
+        elif isinstance(item, list):
+            stack.extend(item)
+        elif isinstance(item, int) and not isinstance(item, bool) and abs(item) > MAX_INTEGER:
+            return item
+    return None
 
 
 def regular_file(
@@ -83,16 +119,22 @@ def read_mapping(
     text = read_text(path, what, error)
     try:
         if syntax == "json":
-            value = json.loads(text)
+            value = json.loads(text, parse_int=_json_integer)
         elif syntax == "toml":
             value = tomllib.loads(text)
         else:
-            value = yaml.safe_load(text)
+            value = yaml.load(text, Loader=_NoAliasLoader)  # noqa: S506 - the safe loader, without aliases
             value = {} if value is None else value
     except RecursionError:
         raise error(f"{what} {path} is nested too deeply") from None
     except _PARSE_ERRORS as failure:
         raise error(f"{what} {path} is not valid {syntax.upper()}: {' '.join(str(failure).split())}") from None
+    except ValueError as failure:  # an integer of thousands of digits (Python's int() limit)
+        raise error(f"{what} {path} holds a number too large to read: {' '.join(str(failure).split())}") from None
     if not isinstance(value, dict):
         raise error(f"{what} {path} must be {MAPPING[syntax]}, got {type(value).__name__}")
+    huge = _out_of_range_integer(value)
+    if huge is not None:
+        digits = len(str(abs(huge))) if huge.bit_length() < 10000 else "thousands of"
+        raise error(f"{what} {path} holds an integer of {digits} digits, beyond +-2^63")
     return value

@@ -133,7 +133,9 @@ class Pad:
 
 def _inertia(value, mass: float) -> np.ndarray:
     """A rotational inertia about the centre of mass: symmetric 3x3, principal moments >= 0 that
-    satisfy the triangle inequality (a rigid body's), zero for a massless tool."""
+    satisfy the triangle inequality (a rigid body's), zero for a massless tool, and at most
+    m (2 MAX_TOOL_LENGTH)^2 (every point of a tool lies within MAX_TOOL_LENGTH of its frame, so
+    within twice that of its centre of mass)."""
     try:
         I = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -150,6 +152,13 @@ def _inertia(value, mass: float) -> np.ndarray:
         )
     if mass == 0.0 and moments[2] > INERTIA_TOLERANCE:
         raise BadInputError("a massless tool cannot have a rotational inertia")
+    largest = mass * (2.0 * MAX_TOOL_LENGTH) ** 2
+    if moments[2] > largest + INERTIA_TOLERANCE:
+        raise BadInputError(
+            f"the tool inertia's largest principal moment {moments[2]:.3g} kg m^2 exceeds what a {mass:g} kg tool "
+            f"within {MAX_TOOL_LENGTH:g} m of its frame can have ({largest:.3g} kg m^2: all its mass "
+            f"{2 * MAX_TOOL_LENGTH:g} m from its centre of mass)"
+        )
     I = (I + I.T) / 2.0
     I.flags.writeable = False
     return I
@@ -322,6 +331,6 @@ def tool_description(tool: str | Path | ToolDescription) -> ToolDescription:
         return tool
     if isinstance(tool, str) and tool in TOOLS:
         return TOOLS[tool]
-    if isinstance(tool, (str, Path)) and Path(tool).suffix in (".json", ".toml"):
+    if isinstance(tool, (str, Path)) and Path(tool).suffix.lower() in (".json", ".toml"):
         return read_tool_file(Path(tool))
     raise BadInputError(f"unknown tool {str(tool)!r}: give one of {', '.join(TOOLS)} or a .json/.toml tool file")

@@ -23,11 +23,22 @@ ORTHOGONALITY_TOLERANCE = 1e-6
 """Largest |v_t . n| (m/s) accepted for a tangential velocity; larger is rejected, never projected."""
 
 
+MAX_MESSAGE_CHARACTERS = 600
+"""Longest message of a BadInputError: a message that quotes a hostile value (a huge list, a
+long string) quotes its beginning only."""
+
+
 class BadInputError(ValueError):
     """Input that the user can fix: a wrong value, shape, unit, file or request.
 
-    The message is one line that names the offending input.
+    The message is one line that names the offending input, at most ``MAX_MESSAGE_CHARACTERS``
+    long (a longer one keeps its beginning and says it was cut).
     """
+
+    def __init__(self, *args):
+        if len(args) == 1 and isinstance(args[0], str) and len(args[0]) > MAX_MESSAGE_CHARACTERS:
+            args = (args[0][: MAX_MESSAGE_CHARACTERS - 15] + " ... (cut)",)
+        super().__init__(*args)
 
 
 SHORT_VECTOR = 16

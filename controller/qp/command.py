@@ -21,13 +21,16 @@ class Status(str, Enum):
     FALLBACK_INVALID_STATE = "fallback_invalid_state"
     FALLBACK_SINGULAR = "fallback_singular_posture"
     FALLBACK_SOLVER_ERROR = "fallback_solver_error"
+    IMPACT_BRAKE = "impact_brake"
 
     def __str__(self) -> str:
         return self.value
 
     @property
     def is_fallback(self) -> bool:
-        return self not in (Status.OK, Status.VELOCITY_CLIPPED)
+        """Whether the command stands in for a QP solution that could not be had (the impact
+        brake is the controller's planned behaviour after a noticed impact, not a fallback)."""
+        return self not in (Status.OK, Status.VELOCITY_CLIPPED, Status.IMPACT_BRAKE)
 
 
 @dataclass(eq=False, repr=False, slots=True)

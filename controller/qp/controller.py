@@ -1,14 +1,18 @@
-"""Impact-aware task-space QP controller of a kinematic-controlled Panda.
+"""Impact-aware task-space QP controller of a kinematic-controlled robot, fixed or floating base.
 
 One control cycle, straight through::
 
-    state (q, dq) -> model terms (one ``robot.terms`` call) -> task rows and constraint rows
-    -> QP in ddq -> Command(ddq, dq_cmd = dq + ddq dt, q_cmd = q + dq dt + ddq dt^2 / 2)
+    state (q, dq) -> model terms (one ``robot.update_terms`` call) -> task rows and constraint rows
+    -> QP in ddq -> Command(ddq, dq_cmd = dq + ddq dt, q_cmd = q (+) (dq + dq_cmd) dt / 2)
 
-The QP (``problem``) is in the joint acceleration ddq: the tasks' weighted least squares under
-the box and general constraints, every row in acceleration units (``constraints.constraint``).
-The acceleration and jerk limits between consecutive commands always apply
-(``AccelerationLimit`` is added when missing).
+The QP (``problem``) is in the generalized acceleration ddq (nv values: a floating base's
+``base_nv`` base accelerations first, then the actuated joints'): the tasks' weighted least
+squares under the box and general constraints, every row in acceleration units
+(``constraints.constraint``). The acceleration and jerk limits between consecutive commands
+always apply to the actuated joints (``AccelerationLimit`` is added when missing); a floating
+base's accelerations get a generous box (``BASE_ACCELERATION_LIMIT``, no jerk limit): the held
+contacts' equality rows (``HeldContactRows``) set them. (+) is Pinocchio's ``integrate`` on a
+floating base (the base's quaternion), the plain sum on a fixed base.
 
 Solving (``solvers``): a solution is accepted only when it is finite and satisfies every row to
 ``feasibility_tolerance`` (acceleration units). A second, independent solver confirms any failed
@@ -16,20 +20,36 @@ or inaccurate solve before the QP is declared infeasible, so the controller neve
 one solver's false alarm (docs/qp-constraints.md, Solvers).
 
 Cycle time: everything a cycle touches is allocated once. The model terms are refilled in
-place (``PandaModel.update_terms``), the control cycle is advanced in place, tasks and
+place (``RobotModel.update_terms``), the control cycle is advanced in place, tasks and
 constraints write into their own buffers, and the QP data live in two stacked bound vectors
 [box; rows] that the solver and the feasibility check read without copies. The jump matrices
 are computed once per cycle (``ExpectedImpact.matrices``) and shared by the impact constraints
-and the Command's prediction.
+and the Command's prediction. The kernels are in ``cycle_kernels``.
 
 Fallback (``fallback``): when the state is unusable (non-finite, outside the position or
 velocity limits, singular contact Jacobian), when the QP is infeasible, or when no solver
-succeeds, the command is a joint-wise brake within the acceleration and jerk limits. The status
-says why, ``violated_constraints`` names the conflicting or violated constraints and
-``fallback_count`` counts fallbacks. A fallback never raises and never returns a NaN. For an
-infeasible QP, ``step`` stays bounded: it names the conflicting set of one compiled interval
-test; the irreducible conflicting set is computed only on demand, after the fact, by
+succeeds, the command is a joint-wise brake within the acceleration and jerk limits; on a
+floating base the brake ddq_b (zero base acceleration) is then projected onto the held
+contacts' rows by the least-norm change ddq = ddq_b - Jf^T (Jf Jf^T)^-1 (Jf ddq_b + dJf dq), so
+the held contacts take precedence over the joints' acceleration limits. The status says why,
+``violated_constraints`` names the conflicting or violated constraints and ``fallback_count``
+counts fallbacks. A fallback never returns a NaN and never raises, except on a floating base
+whose very first state is unusable (``BadInputError``: nothing can stand in for the base's pose).
+For an infeasible QP, ``step`` stays bounded: it names the conflicting set of one compiled
+interval test; the irreducible conflicting set is computed only on demand, after the fact, by
 ``conflicting_constraints()``, from the rows stored by the last infeasible cycle.
+
+Impact brake: a controller fed the measured state notices an impact itself. While its expected
+impact's rows were active at the previous cycle, the contact point's measured speed towards the
+surface, -n.(J dq), falls below ``IMPACT_SPEED_DROP`` times the speed the previous command asks
+there, -n.(J dq_cmd) (the predicted jump takes it to -c_r times itself; a servo's tracking error
+is far smaller). From then on the controller brakes its own command trajectory to rest within
+the acceleration and jerk limits, from the previous command (q_cmd, dq_cmd, ddq) and not from the
+measured state: after an impact that pushed a joint past its velocity limit, braking from the
+measured state would command the limit itself for as long as the lagging servo keeps the joint
+above it. Then it holds the rest it reached; status ``impact_brake``, phase ``brake``, until
+``reset``. A loop fed its own previous command sees no jump and never brakes (``ImpactSession``
+detects the impact from the joint torques and switches controllers).
 
 Velocity limit: the velocity limit on dq_cmd is a row of the QP (``VelocityLimit``, at the
 jerk horizon), so in a closed loop the QP's answer needs no clipping. When the measured state
@@ -43,18 +63,26 @@ says it is a fallback.)
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+import pinocchio as pin
 
 from impactqp.constraints import AccelerationLimit, Constraint, ControlCycle, ExpectedImpact
+from impactqp.constraints.impact_model import normal_motion
 from impactqp.controller.model.model_terms import ModelTerms
-from impactqp.controller.model.robot import InvalidStateError, PandaModel, SingularPostureError
+from impactqp.controller.model.robot import BASE_ACCELERATION_LIMIT, InvalidStateError, RobotModel, SingularPostureError
 from impactqp.controller.model.validation import BadInputError
 from impactqp.tasks import Task
 
-from .command import DQ_MAX, Q_MAX, Q_MIN, Command, CommandMemory, Status, command_limits
-from .fallback import bounded_conflict, brake, irreducible_conflict, usable_state
+from .command import Command, CommandMemory, Status, command_limits
+from .cycle_kernels import first_outside, integrate_command, intersect_boxes, tight_constraints, weighted_least_squares
+from .fallback import bounded_conflict, brake, braking_command, irreducible_conflict, usable_state
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
 from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
+
+
+IMPACT_SPEED_DROP = 0.5
+"""The impact brake starts when the measured approach speed of the contact point falls below this
+fraction of the commanded one (module docstring)."""
+BRAKE = "brake"
 
 
 class ImpactAwareController:
@@ -62,7 +90,8 @@ class ImpactAwareController:
 
     Parameters
     ----------
-    robot : PandaModel
+    robot : RobotModel, a fixed base or a floating base (its held contacts' rows come from the
+        constraints: ``HeldContactRows``).
     tasks : least-squares tasks (``tasks``); at least one, and together they must make the
         cost strictly convex (a ``DampingTask`` does).
     constraints : constraints (``constraints``); an ``AccelerationLimit`` is added when missing.
@@ -70,12 +99,14 @@ class ImpactAwareController:
     solver : "daqp" (default), "proxqp", or any qpsolvers backend name.
     impact : the expected impact used for ``Command.predicted_jump`` (None: no prediction).
     feasibility_tolerance : largest accepted row violation of a solution (acceleration units).
-    acceleration_limit, jerk_limit : ddq_max and dddq_max (default: the robot's datasheet values).
+    acceleration_limit, jerk_limit : the actuated joints' ddq_max and dddq_max (default: the
+        robot's description). ``ddq_max`` and ``dddq_max`` of the controller cover every
+        velocity (a floating base's box first).
     """
 
     def __init__(
         self,
-        robot: PandaModel,
+        robot: RobotModel,
         tasks: list[Task],
         constraints: list[Constraint],
         dt: float,
@@ -91,8 +122,14 @@ class ImpactAwareController:
         self.constraints = constraints
         self.layout = ConstraintLayout.of(constraints)
         self.dt = float(dt)
-        self.ddq_max = robot.ddq_max if acceleration_limit is None else np.asarray(acceleration_limit, float)
-        self.dddq_max = robot.dddq_max if jerk_limit is None else np.asarray(jerk_limit, float)
+        joint_ddq_max = robot.ddq_max if acceleration_limit is None else np.asarray(acceleration_limit, float)
+        joint_dddq_max = robot.dddq_max if jerk_limit is None else np.asarray(jerk_limit, float)
+        base = robot.base_nv
+        self._floating = base > 0
+        self._joint_coordinates = slice(robot.base_nq, None)  # the actuated joints' part of q
+        self._joint_velocities = slice(base, None)  # and of dq
+        self.ddq_max = np.concatenate([np.full(base, BASE_ACCELERATION_LIMIT), joint_ddq_max])
+        self.dddq_max = np.concatenate([np.full(base, np.inf), joint_dddq_max])
         self.impact = impact
         self.feasibility_tolerance = float(feasibility_tolerance)
         self._allocate()
@@ -103,6 +140,8 @@ class ImpactAwareController:
         self._targets_set = False
         self._last_infeasible: tuple[QpProblem, np.ndarray, np.ndarray] | None = None
         self.phase = "approach"
+        self._impact_was_active = False  # at the previous cycle
+        self.braking = False
 
     def _allocate(self) -> None:
         """The buffers of one cycle and the views each task and constraint writes into."""
@@ -125,7 +164,8 @@ class ImpactAwareController:
         self._relaxed_rows = (p.C[first:], p.l[first:], p.u[first:])
         self._terms: ModelTerms | None = None  # refilled in place every cycle
         self._jerk_step = self.dddq_max * self.dt
-        self._limits = command_limits(self.robot, self.ddq_max, self._jerk_step)
+        joints = self._joint_velocities
+        self._limits = command_limits(self.robot, self.ddq_max[joints], self._jerk_step[joints])
         horizon = max(self.dt, float(np.max(self.ddq_max / self.dddq_max)))
         self._cycle = ControlCycle(self.dt, np.zeros(n), np.zeros(n), horizon)
         # General rows see the joint-space box of the cycle (all box constraints intersected)
@@ -155,13 +195,21 @@ class ImpactAwareController:
         re-capture the task targets left unspecified."""
         terms = self.robot.terms(q, dq, check_limits=False)
         self.memory = CommandMemory(terms.q.copy(), terms.dq.copy(), np.zeros(self.robot.nv))
+        self.braking, self._impact_was_active = False, False
+        if self.phase == BRAKE:
+            self.phase = "approach"
         for task in self.tasks:
             task.reset(terms)
         self._targets_set = True
 
-    def step(self, q, dq) -> Command:
-        """One control cycle. Never raises on a bad state or a solver failure: see the module
-        docstring for the fallback."""
+    def step(self, q: np.ndarray, dq: np.ndarray) -> Command:
+        """One control cycle from the state (q, dq): the measured state, or the previous command
+        (q_cmd, dq_cmd) of a kinematic-controlled robot; the Command to send (its ``dq_cmd``, or
+        its ``q_cmd``). Never raises on a bad state or a solver failure (module docstring:
+        fallback), except on a floating base whose first state is unusable; after a noticed
+        impact it brakes to rest (module docstring: impact brake)."""
+        if self.braking:
+            return self._impact_brake()
         robot = self.robot
         try:
             if self._terms is None:
@@ -172,10 +220,16 @@ class ImpactAwareController:
             return self._fallback(q, dq, Status.FALLBACK_INVALID_STATE, [error.constraint], str(error))
         except SingularPostureError as error:
             return self._fallback(q, dq, Status.FALLBACK_SINGULAR, [], str(error))
+        except (BadInputError, TypeError, ValueError) as error:  # not a state of this robot
+            return self._fallback(q, dq, Status.FALLBACK_INVALID_STATE, ["finite_state"], str(error))
         terms = self._terms
-        over = first_outside(terms.dq, robot.dq_max)
+        if self._impact_noticed(terms):
+            self.braking = True
+            return self._impact_brake()
+        joint_velocities = terms.dq[self._joint_velocities]
+        over = first_outside(joint_velocities, robot.dq_max)
         if over >= 0:
-            message = f"dq{over + 1} = {terms.dq[over]:.4f} rad/s is outside the velocity limits"
+            message = f"dq{over + 1} = {joint_velocities[over]:.4f} rad/s is outside the velocity limits"
             return self._fallback(q, dq, Status.FALLBACK_INVALID_STATE, ["joint_velocity_limit"], message, terms)
         if not self._targets_set:
             for task in self.tasks:
@@ -192,17 +246,59 @@ class ImpactAwareController:
         if solved != SOLVED:
             return self._fallback(q, dq, Status.FALLBACK_SOLVER_ERROR, [], "no solver found a solution", terms)
 
-        dq_cmd, q_cmd = np.empty(robot.nv), np.empty(robot.nq)
         status = Status.OK
         # dq_cmd = dq + ddq dt (clipped only off the closed loop: see the docstring) and
-        # q_cmd = q + (dq + dq_cmd) dt / 2 within the position limits
-        if integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, dq_cmd, q_cmd):
+        # q_cmd = q (+) (dq + dq_cmd) dt / 2 within the position limits
+        dq_cmd, q_cmd, clipped = self._integrate(terms, ddq)
+        if clipped:
             ddq = (dq_cmd - terms.dq) * (1.0 / self.dt)
             status = Status.VELOCITY_CLIPPED
             self.problem.violation(ddq)  # the gaps of the ddq actually commanded
         return self._emit(terms, ddq, dq_cmd, q_cmd, status, self._active_constraints(ddq), [], solver_name)
 
     # ------------------------------------------------------------------ one cycle
+    def _impact_noticed(self, terms: ModelTerms) -> bool:
+        """Whether this state shows an impact (module docstring: impact brake)."""
+        impact, memory = self.impact, self.memory
+        if impact is None or not self._impact_was_active or memory.q_cmd is None:
+            return False
+        commanded, _ = normal_motion(terms.J, impact.surface.normal, terms.contact_point, memory.dq_cmd)
+        commanded = -commanded
+        return commanded > impact.release_speed and impact.approach_speed(terms) < IMPACT_SPEED_DROP * commanded
+
+    def _impact_brake(self) -> Command:
+        """The brake of the command trajectory from the previous command, to rest, then rest."""
+        memory = self.memory
+        self.phase = BRAKE
+        if self._floating:
+            terms = self.robot.terms(memory.q_cmd, memory.dq_cmd, check_limits=False)
+            ddq, dq_cmd, q_cmd = self._held_brake(terms)
+        else:
+            ddq, dq_cmd, q_cmd = brake(memory.q_cmd, memory.dq_cmd, memory.ddq, self.dt, self._limits)
+        return self._emit(None, ddq, dq_cmd, q_cmd, Status.IMPACT_BRAKE, [], [], "", "braking after a noticed impact")
+
+    def _integrate(self, terms: ModelTerms, ddq: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+        """dq_cmd = dq + ddq dt, the joints' part clipped into their velocity limits, and
+        q_cmd = q (+) (dq + dq_cmd) dt / 2, the joints' part within their position limits; and
+        whether dq_cmd was clipped."""
+        if not self._floating:  # one compiled pass
+            dq_cmd, q_cmd = np.empty(self.robot.nv), np.empty(self.robot.nq)
+            clipped = integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, dq_cmd, q_cmd)
+            return dq_cmd, q_cmd, clipped
+        dq_cmd = terms.dq + ddq * self.dt
+        joints, dq_max = dq_cmd[self._joint_velocities], self.robot.dq_max
+        clipped = first_outside(joints, dq_max) >= 0
+        if clipped:
+            np.clip(joints, -dq_max, dq_max, out=joints)
+        return dq_cmd, self._floating_position(terms, dq_cmd), clipped
+
+    def _floating_position(self, terms: ModelTerms, dq_cmd: np.ndarray) -> np.ndarray:
+        """q (+) (dq + dq_cmd) dt / 2 on the configuration manifold, the joints within their limits."""
+        q_cmd = pin.integrate(self.robot.model, terms.q, 0.5 * self.dt * (terms.dq + dq_cmd))
+        joints = q_cmd[self._joint_coordinates]
+        np.clip(joints, self.robot.q_min, self.robot.q_max, out=joints)
+        return q_cmd
+
     def _assemble(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
         """Fill the preallocated QP data from the tasks and constraints of this state; False
         when the joint-space bounds conflict (lb > ub somewhere)."""
@@ -274,11 +370,44 @@ class ImpactAwareController:
         )
 
     def _fallback(self, q, dq, status, violated, message, terms: ModelTerms | None = None) -> Command:
-        """Joint-wise braking within the acceleration and jerk limits (``fallback``)."""
+        """Joint-wise braking within the acceleration and jerk limits (``fallback``); on a
+        floating base, projected onto the held contacts' rows (module docstring)."""
         self.fallback_count += 1
-        q, dq = usable_state(q, dq, self.memory, self.robot)
-        ddq, dq_cmd, q_cmd = brake(q, dq, self.memory.ddq, self.dt, self._limits)
+        if self._floating:
+            terms = terms if terms is not None else self._stand_in_terms(q, dq, message)
+            ddq, dq_cmd, q_cmd = self._held_brake(terms)
+        else:
+            q, dq = usable_state(q, dq, self.memory, self.robot)
+            ddq, dq_cmd, q_cmd = brake(q, dq, self.memory.ddq, self.dt, self._limits)
         return self._emit(terms, ddq, dq_cmd, q_cmd, status, [], list(violated), "", message)
+
+    def _stand_in_terms(self, q, dq, message: str) -> ModelTerms:
+        """The terms of an unusable floating-base state: the state itself when it has the right
+        sizes and finite values (only a limit broken), else the previous command; BadInputError
+        when there is none yet (nothing can stand in for the base's pose)."""
+        try:
+            return self.robot.terms(q, dq, check_limits=False)
+        except (BadInputError, TypeError, ValueError):
+            pass
+        if self.memory.q_cmd is None:
+            raise BadInputError(f"no command yet to stand in for an unusable state: {message}")
+        return self.robot.terms(self.memory.q_cmd, self.memory.dq_cmd, check_limits=False)
+
+    def _held_brake(self, terms: ModelTerms) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The joints' brake with a still base, projected onto the held contacts' rows:
+        ddq = ddq_b - Jf^T (Jf Jf^T)^-1 (Jf ddq_b + dJf dq); dq_cmd and q_cmd from it."""
+        joints, robot = self._joint_velocities, self.robot
+        ddq, dq_cmd = np.zeros(robot.nv), np.empty(robot.nv)
+        braking_command(
+            terms.q[self._joint_coordinates], terms.dq[joints], self.memory.ddq[joints], self.dt, self._limits,
+            ddq[joints], dq_cmd[joints], np.empty(robot.n_joints),
+        )
+        Jf = terms.held_jacobian
+        if Jf.shape[0]:
+            ddq -= Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ ddq + terms.held_drift)
+        dq_cmd = terms.dq + ddq * self.dt
+        np.clip(dq_cmd[joints], -robot.dq_max, robot.dq_max, out=dq_cmd[joints])
+        return ddq, dq_cmd, self._floating_position(terms, dq_cmd)
 
     def _emit(self, terms, ddq, dq_cmd, q_cmd, status, active, violated, solver, message="") -> Command:
         """Record the command in the memory and package it with the impact prediction (the
@@ -291,6 +420,7 @@ class ImpactAwareController:
         else:
             jump = np.zeros(self.robot.nv)
             impact_active = False
+        self._impact_was_active = impact_active
         return Command(
             ddq, dq_cmd, q_cmd, status, active, violated, jump, dq_cmd + jump, impact_active, solver, message,
             self.phase,
@@ -311,94 +441,3 @@ def checked_constraints(tasks: list[Task], constraints: list[Constraint], dt: fl
     if len(set(names)) != len(names):
         raise BadInputError(f"constraint names must be unique, got {names}")
     return constraints
-
-
-@njit(cache=True)
-def weighted_least_squares(A, b, w, H, g):
-    """Kernel: H = A^T diag(w) A and g = -A^T diag(w) b, the QP cost of the stacked task rows
-    (the zero entries of the rows skipped: posture and damping rows have one entry each)."""
-    rows, n = A.shape
-    for i in range(n):
-        g[i] = 0.0
-        for j in range(n):
-            H[i, j] = 0.0
-    for r in range(rows):
-        for i in range(n):
-            wa = w[r] * A[r, i]
-            if wa == 0.0:
-                continue
-            g[i] -= wa * b[r]
-            for j in range(i, n):
-                H[i, j] += wa * A[r, j]
-    for i in range(n):
-        for j in range(i):
-            H[i, j] = H[j, i]
-
-
-@njit(cache=True)
-def intersect_boxes(box_lower, box_upper, reachable_lower, reachable_upper, lb, ub):
-    """Kernel: lb = max_k box_lower[k] and ub = min_k box_upper[k], each clipped into the
-    reachable interval [reachable_lower, reachable_upper]; False when lb > ub somewhere."""
-    consistent = True
-    for j in range(lb.shape[0]):
-        low, high = -np.inf, np.inf
-        for k in range(box_lower.shape[0]):
-            low = max(low, box_lower[k, j])
-            high = min(high, box_upper[k, j])
-        lb[j] = min(max(low, reachable_lower[j]), reachable_upper[j])
-        ub[j] = min(max(high, reachable_lower[j]), reachable_upper[j])
-        if lb[j] > ub[j]:
-            consistent = False
-    return consistent
-
-
-@njit(cache=True)
-def first_outside(values, limit):
-    """Kernel: the first index with |values_i| > limit_i, -1 when there is none."""
-    for i in range(values.shape[0]):
-        if abs(values[i]) > limit[i]:
-            return i
-    return -1
-
-
-@njit(cache=True)
-def integrate_command(q, dq, ddq, dt, limits, dq_cmd, q_cmd):
-    """Kernel: dq_cmd = clip(dq + ddq dt, +-dq_max), q_cmd = clip(q + (dq + dq_cmd) dt / 2,
-    q_min, q_max) (``limits``: the stacked ``command_limits``); True when dq_cmd had to be
-    clipped."""
-    clipped = False
-    for i in range(q.shape[0]):
-        v = dq[i] + ddq[i] * dt
-        dq_max = limits[DQ_MAX, i]
-        if v > dq_max:
-            v, clipped = dq_max, True
-        elif v < -dq_max:
-            v, clipped = -dq_max, True
-        dq_cmd[i] = v
-        q_cmd[i] = min(max(q[i] + 0.5 * dt * (dq[i] + v), limits[Q_MIN, i]), limits[Q_MAX, i])
-    return clipped
-
-
-@njit(cache=True)
-def tight_constraints(x, box_bounds, lower_gap, upper_gap, row_ends, tol, flags):
-    """Kernel: flags[k] for box k (bounds in rows 2k, 2k+1 of box_bounds) when x is within tol
-    of one of its bounds, then flags of the general constraints (rows ending at row_ends) when
-    one of their rows has a gap <= tol."""
-    boxes = box_bounds.shape[0] // 2
-    n = x.shape[0]
-    for k in range(boxes):
-        hit = False
-        for j in range(n):
-            if abs(box_bounds[2 * k, j] - x[j]) <= tol or abs(box_bounds[2 * k + 1, j] - x[j]) <= tol:
-                hit = True
-                break
-        flags[k] = hit
-    start = 0
-    for c in range(row_ends.shape[0]):
-        hit = False
-        for r in range(start, row_ends[c]):
-            if min(lower_gap[n + r], upper_gap[n + r]) <= tol:
-                hit = True
-                break
-        flags[boxes + c] = hit
-        start = row_ends[c]

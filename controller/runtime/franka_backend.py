@@ -55,6 +55,7 @@ class FrankaRobot(LibfrankaRobot):
     """A connected ``pylibfranka.Robot`` (``connect``) in joint-velocity control."""
 
     ROBOT = "fr3"  # the robot this backend drives (robot_description.ROBOTS)
+    BINDINGS_MODULE = "pylibfranka"
 
     def __init__(self, robot, pylibfranka, settings: RobotConfig | None = None):
         super().__init__(robot, franka_errors(pylibfranka), (pylibfranka.ControlException,), settings)

@@ -19,6 +19,10 @@ read covers (``Duration`` of ``readOnce``, one period when no packet was missed)
 
 from __future__ import annotations
 
+import select
+import subprocess
+import sys
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -88,6 +92,54 @@ def missed_packets(read_duration: float, period: float) -> int:
     return max(0, int(round(read_duration / period)) - 1)
 
 
+ANSWER_TIMEOUT = 3.0
+"""s a robot has to answer a connection (after the child process imported the bindings)."""
+IMPORT_TIMEOUT = 60.0
+"""s the child process may take to import the bindings (a busy machine)."""
+_PROBE = """
+import sys
+module = __import__(sys.argv[1], fromlist=["Robot"])
+print("imported", flush=True)
+try:
+    module.Robot(sys.argv[2], module.RealtimeConfig.kIgnore)
+except Exception:
+    pass  # refused, or an error of the protocol: the connection in the process says which
+print("answered", flush=True)
+"""
+
+
+def answers_within(module: str, ip: str, timeout: float) -> None:
+    """Bad input unless the robot at ``ip`` answers a connection of the bindings ``module``
+    within ``timeout`` s (an answer that refuses counts: the connection in this process then
+    names the refusal). The child process is killed on return, on a timeout or on a stop signal
+    (the wait here is interruptible)."""
+    child = subprocess.Popen(
+        [sys.executable, "-c", _PROBE, module, ip], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True
+    )
+    try:
+        if not _prints_within(child, "imported", IMPORT_TIMEOUT):
+            raise BadInputError(f"the libfranka bindings {module} did not load within {IMPORT_TIMEOUT:g} s")
+        if not _prints_within(child, "answered", timeout):
+            raise BadInputError(
+                f"the robot at {ip} accepted the connection but did not answer within {timeout:g} s: "
+                "is it a Franka robot with FCI active?"
+            )
+    finally:
+        child.kill()
+        child.wait()
+        child.stdout.close()
+
+
+def _prints_within(child: subprocess.Popen, expected: str, limit: float) -> bool:
+    """Whether the child's next line is ``expected``, printed within ``limit`` s."""
+    deadline = time.monotonic() + limit
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([child.stdout], [], [], 0.05)
+        if ready:
+            return child.stdout.readline().strip() == expected
+    return False
+
+
 class LibfrankaRobot(RobotInterface):
     """A connected libfranka ``Robot``: ``robot`` (the bindings' object), ``errors`` (the
     bindings' exception classes), ``reflex_errors`` (those a motion aborted by a reflex raises)
@@ -109,14 +161,22 @@ class LibfrankaRobot(RobotInterface):
         self.model_difference: float | None = None
         self.load: Load | None = None
 
+    BINDINGS_MODULE = ""  # the module whose ``Robot(ip, RealtimeConfig.kIgnore)`` the probe opens
+
     @classmethod
     def connect(
         cls, ip: str, settings: RobotConfig | None = None, realtime: bool = True, model: PandaModel | None = None
     ) -> LibfrankaRobot:
         """The robot at ``ip`` with the ``[libfranka]`` settings and the load of ``model``'s tool
         (default: the backend's robot with the default tool) applied; bad input when it does not
-        answer or refuses them. ``realtime=False`` lets libfranka run without a real-time kernel."""
+        answer or refuses them. ``realtime=False`` lets libfranka run without a real-time kernel.
+
+        A peer that accepts the connection and never answers would block libfranka's connect for
+        minutes, holding the interpreter's lock (no signal is handled meanwhile): the connection
+        is first tried in a child process (``answers_within``), which is killed after
+        ``ANSWER_TIMEOUT``."""
         bindings = cls.bindings()
+        answers_within(cls.BINDINGS_MODULE, ip, ANSWER_TIMEOUT)
         config = bindings.RealtimeConfig.kEnforce if realtime else bindings.RealtimeConfig.kIgnore
         connected = cls(cls.open(bindings, ip, config, realtime), bindings, settings)
         connected.configure(ip, RobotModel(cls.ROBOT) if model is None else model)

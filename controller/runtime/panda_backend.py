@@ -41,6 +41,7 @@ class PandaRobot(LibfrankaRobot):
     the callback API."""
 
     ROBOT = "panda"  # the robot this backend drives (robot_description.ROBOTS)
+    BINDINGS_MODULE = "panda_py.libfranka"
     drives_cycles = True
 
     def __init__(self, robot, libfranka, settings: RobotConfig | None = None):

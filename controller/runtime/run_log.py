@@ -10,7 +10,10 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
+
 from impactqp.controller.measured.dataset import DatasetError, DatasetHeader, DatasetWriter, TrialEntry
+from impactqp.controller.measured.dataset_check import samples_needed
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.validation import BadInputError
 
@@ -29,8 +32,13 @@ class RunLog:
             raise BadInputError(f"--log {directory}: {error}") from None
         self.trial_id = f"run{len(self.writer.entries):04d}"
 
-    def add(self, log: TrialLog, speed: float, posture: str | None, impact_time: float | None) -> str:
-        """Write the trial; the path of its CSV."""
+    def add(self, log: TrialLog, speed: float, posture: str | None, impact_time: float | None) -> str | None:
+        """Write the trial, up to its last measured sample (a lost connection logs NaN
+        placeholders from then on); the path of its CSV, or None when fewer samples than a
+        trial needs were measured (``dataset_check.samples_needed``): a complete trial or none."""
+        log = measured_part(log)
+        if len(log) < samples_needed(self.writer.header.control_period):
+            return None
         entry = TrialEntry(
             id=self.trial_id,
             file=f"{self.trial_id}.csv",
@@ -44,3 +52,14 @@ class RunLog:
         except (DatasetError, OSError) as error:
             raise BadInputError(f"--log {self.directory}: {error}") from None
         return str(self.directory / entry.file)
+
+
+def measured_part(log: TrialLog) -> TrialLog:
+    """The log up to its first sample with a non-finite value (excluded): what was measured
+    before a read failed."""
+    finite = np.isfinite(log.q).all(axis=1) & np.isfinite(log.dq).all(axis=1) & np.isfinite(log.tau).all(axis=1)
+    if finite.all():
+        return log
+    first = int(np.argmin(finite))
+    return log.truncated(float(log.t[first]))
+

@@ -61,6 +61,7 @@ class ImpactSession:
         self.controller = self.approach
         self.phase = APPROACH
         self.last: Command | None = None
+        self.last_approach: Command | None = None  # the approach phase's last command
         self.pre_impact_state: RobotState | None = None
         self._previous_state: RobotState | None = None
         self._start_t: float | None = None
@@ -90,6 +91,10 @@ class ImpactSession:
         return self.observer.update(state.q, state.dq, state.tau)
 
     def step(self, state: RobotState) -> Command:
+        """One period: the detector reads the state's torque residual (the switch to the
+        post-impact controller on a detection), then the phase's controller steps on its own
+        previous command (the measured q with the commanded dq after a retract's or hold's
+        switch; the measured state at the first step) and its Command is returned."""
         if self.phase == APPROACH and self.detector.update(state.t, self.residual(state)):
             self._switch(state)
         if self.last is None:
@@ -99,6 +104,8 @@ class ImpactSession:
         else:
             q, dq = self.last.q_cmd, self.last.dq_cmd
         self.last = self.controller.step(q, dq)
+        if self.phase == APPROACH:
+            self.last_approach = self.last
         self._previous_state = state
         return self.last
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from importlib import import_module
 
+from impactqp.controller.model.validation import BadInputError
+
 __all__ = ["run_benchmarks"]
 
 FAMILIES: list[tuple[str, str, str]] = [
@@ -32,7 +34,11 @@ def _family(module: str, function: str) -> Callable[[], list[dict]]:
 
 
 def run_benchmarks(only: str = "", progress: bool = True) -> list[dict]:
-    """The rows whose name starts with ``only`` (all rows when empty)."""
+    """The rows whose name starts with ``only`` (all rows when empty); a prefix that selects no
+    family is bad input (naming the families)."""
+    if only and not any(prefix.startswith(only) or only.startswith(prefix) for prefix, _, _ in FAMILIES):
+        known = ", ".join(dict.fromkeys(prefix.rstrip(".") for prefix, _, _ in FAMILIES))
+        raise BadInputError(f"--only {only!r} selects no benchmark row; the rows start with {known}")
     rows = []
     for prefix, module, function in FAMILIES:
         if only and not (prefix.startswith(only) or only.startswith(prefix)):

@@ -9,6 +9,10 @@ One error boundary (:func:`main`):
 - ``impactqp run``: exit code 3 when the watchdog or the overrun budget stopped the run, or would
   have stopped a real robot;
 - Ctrl-C, SIGTERM or SIGHUP ends with exit code 130, from the first instant of :func:`main`.
+  The handler raises ``KeyboardInterrupt`` and re-raises it every :data:`REDELIVERY_PERIOD`
+  (SIGALRM) until :func:`main` has caught it: code that swallows one (a library's
+  ``try: import ... except ImportError`` around a C extension whose initialisation the signal
+  interrupted) cannot make the command run on as if no signal had come.
 
 This module is the console entry point and stays tiny: :func:`main` installs the signal handlers
 first and only then imports the commands (numpy, Pinocchio, MuJoCo: seconds of imports), so a
@@ -31,19 +35,24 @@ from impactqp.scenarios.cli.exit_codes import (
 __all__ = ["main"]
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+REDELIVERY_PERIOD = 0.05
+"""s between re-raisings of a stop signal's KeyboardInterrupt until ``main`` catches it."""
+_interrupting = False  # a stop signal came and main has not caught its KeyboardInterrupt yet
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; the exit code: 0 done, 1 internal error (or problems found by
     ``dataset validate``), 2 bad input, 3 a run a real robot would not have finished, 130 Ctrl-C."""
+    global _interrupting
     args = sys.argv[1:] if argv is None else list(argv)
     # before anything else: cleanup (temporary files, the robot brake) runs on every stop signal,
     # and a signal during the imports below ends with exit code 130 too; a signal the parent set
     # to be ignored (nohup, a background job) stays ignored
-    previous = {sig: signal.getsignal(sig) for sig in STOP_SIGNALS}
+    previous = {sig: signal.getsignal(sig) for sig in (*STOP_SIGNALS, signal.SIGALRM)}
     for sig, handler in previous.items():
         if handler is not signal.SIG_IGN:
-            signal.signal(sig, _interrupt)
+            signal.signal(sig, _interrupt_again if sig == signal.SIGALRM else _interrupt)
+    _interrupting = False
     try:
         try:
             return _run(args)
@@ -52,13 +61,21 @@ def main(argv: list[str] | None = None) -> int:
                 return _report(exc, args)
             raise KeyboardInterrupt from None
     except KeyboardInterrupt:
+        _interrupting = False  # first, with no call before it: no re-raising from here on
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
         for sig in STOP_SIGNALS:  # a second signal must not interrupt the last line
             signal.signal(sig, signal.SIG_IGN)
         sys.stderr.write("impactqp: interrupted\n")
         return EXIT_INTERRUPTED
     finally:
+        _interrupting = False
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
         for sig, handler in previous.items():
-            if handler is not None:  # None: a handler not set from Python, which cannot be restored
+            if argv is None and sig in STOP_SIGNALS:
+                # the console entry point: the work is done and its exit code stands; a stop
+                # signal during the interpreter's shutdown must not kill the process by the signal
+                signal.signal(sig, signal.SIG_IGN)
+            elif handler is not None:  # None: a handler not set from Python, which cannot be restored
                 signal.signal(sig, handler)
 
 
@@ -118,7 +135,16 @@ def interrupted(exc: BaseException) -> bool:
 
 
 def _interrupt(signum, frame):
+    global _interrupting
+    _interrupting = True
+    signal.setitimer(signal.ITIMER_REAL, REDELIVERY_PERIOD, REDELIVERY_PERIOD)
     raise KeyboardInterrupt
+
+
+def _interrupt_again(signum, frame):
+    """SIGALRM: the stop signal's KeyboardInterrupt once more, until main has caught one."""
+    if _interrupting:
+        raise KeyboardInterrupt
 
 
 def _one_line(exc: BaseException) -> str:

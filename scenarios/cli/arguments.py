@@ -32,8 +32,21 @@ def parse_vector(text: str, size: int | None, what: str) -> np.ndarray:
     return values
 
 
+MAX_LIST_ENTRIES = 100
+"""Most values of a list option (--speeds, --tangential): each one a simulated condition."""
+
+
 def parse_list(text: str, what: str) -> list[float]:
-    return parse_vector(text, None, what).tolist()
+    """'a,b,c' as a list of distinct finite numbers, one to ``MAX_LIST_ENTRIES`` of them."""
+    if not text.strip():
+        raise BadInputError(f"{what} is empty: give comma-separated numbers, or leave the option out")
+    values = parse_vector(text, None, what).tolist()
+    if len(values) > MAX_LIST_ENTRIES:
+        raise BadInputError(f"{what} has {len(values)} values; at most {MAX_LIST_ENTRIES}")
+    repeated = sorted({v for v in values if values.count(v) > 1})
+    if repeated:
+        raise BadInputError(f"{what} repeats {', '.join(f'{v:g}' for v in repeated)}")
+    return values
 
 
 def emit_json(obj) -> None:
@@ -80,9 +93,24 @@ def _writable_parent(p: Path, what: str) -> None:
         raise BadInputError(f"{what}: cannot write under {parent} (permission denied)")
 
 
-def output_directory(path: str, what: str) -> Path:
-    """A directory that exists and is writable, or can be created."""
+def _not_an_input(path: Path, what: str, inputs) -> None:
+    """Bad input when the output ``path`` is one of ``inputs`` (files or directories), contains
+    one, or is an existing file inside an input directory: an output never overwrites an input."""
+    target = Path(os.path.realpath(path))
+    for source in inputs:
+        if source is None:
+            continue
+        origin = Path(os.path.realpath(source))
+        inside_input = origin.is_dir() and target.is_relative_to(origin) and target.exists()
+        if target == origin or origin.is_relative_to(target) or inside_input:
+            raise BadInputError(f"{what}: {path} would overwrite the input {source}; write elsewhere")
+
+
+def output_directory(path: str, what: str, inputs=()) -> Path:
+    """A directory that exists and is writable, or can be created, and is not, nor holds, one of
+    ``inputs``."""
     p = Path(path)
+    _not_an_input(p, what, inputs)
     if p.exists():
         if not p.is_dir():
             raise BadInputError(f"{what}: {path} exists and is not a directory")
@@ -93,9 +121,11 @@ def output_directory(path: str, what: str) -> Path:
     return p
 
 
-def output_file(path: str, what: str) -> Path:
-    """A file that can be written atomically: not a directory, in a writable directory."""
+def output_file(path: str, what: str, inputs=()) -> Path:
+    """A file that can be written atomically: not a directory, in a writable directory, not one of
+    ``inputs`` nor an existing file inside an input directory."""
     p = Path(path)
+    _not_an_input(p, what, inputs)
     if p.is_dir():
         raise BadInputError(f"{what}: {path} is a directory")
     _writable_parent(p, what)

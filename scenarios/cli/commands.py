@@ -128,7 +128,8 @@ def bench(as_json, only):
         if row["median"] is None:  # a row that could not be measured says why
             click.echo(f"{row['name']:<{width}}{row['unit']:<16}{'n/a':>14}{'n/a':>14}  {row.get('note', '')}")
             continue
-        click.echo(f"{row['name']:<{width}}{row['unit']:<16}{row['median']:>14.4g}{row['p99']:>14.4g}")
+        note = f"  {row['note']}" if row.get("note") else ""
+        click.echo(f"{row['name']:<{width}}{row['unit']:<16}{row['median']:>14.4g}{row['p99']:>14.4g}{note}")
 
 
 @cli.command()

@@ -96,8 +96,8 @@ def generate_command(out, postures, speeds, tangential, as_json, choice, **noise
     output_directory(out, "OUT")
     plant = load_plant(plant_file)  # None: the nominal plant
     names = list(choice.check_postures(p.strip() for p in postures.split(","))) if postures else list(choice.robot.postures)
-    speed_list = parse_list(speeds, "--speeds") if speeds else None
-    tangential_list = parse_list(tangential, "--tangential") if tangential else []
+    speed_list = parse_list(speeds, "--speeds") if speeds is not None else None
+    tangential_list = parse_list(tangential, "--tangential") if tangential is not None else []
     check_jobs(jobs)
     bars = []  # the progress bar appears with the first finished trial, after validation
 
@@ -137,7 +137,7 @@ def import_franka_command(out, logs, surface_point, surface_normal, reference_sp
     from impactqp.controller.model.postures import Surface
     from impactqp.controller.model.validation import unit_normal
 
-    output_directory(out, "OUT")
+    output_directory(out, "OUT", inputs=logs)
     surface = Surface(parse_vector(surface_point, 3, "--surface-point"), unit_normal(
         parse_vector(surface_normal, 3, "--surface-normal"), "--surface-normal"))
     entries = import_franka_logs(out, list(logs), surface, choice=choice, reference_speed=reference_speed)
@@ -172,9 +172,9 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     check_jobs(jobs)
     _check_manifest_choice(directory, choice)
     if report_dir:
-        output_directory(report_dir, "--report")
+        output_directory(report_dir, "--report", inputs=(directory, plant_file))
     if save_plant:
-        output_file(save_plant, "--save-plant")
+        output_file(save_plant, "--save-plant", inputs=(directory, plant_file))
     nominal = load_plant(plant_file) or PlantParameters()
     result = _diagnose_with_progress(directory, nominal, jobs, show=not as_json)
     summary = result.summary()

@@ -8,6 +8,9 @@ from impactqp.scenarios.cli.arguments import emit_json, robot_options
 from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED, EXIT_ROBOT_WOULD_STOP
 
 
+NO_LOG = "none (the run measured fewer samples than a trial needs)"
+
+
 @click.command("run")
 @click.option(
     "--backend", type=click.Choice(["sim", "franka", "panda", "replay"]), default="sim", show_default=True,
@@ -43,7 +46,7 @@ def run_command(realtime: str, as_json: bool, choice, **options):
     else:
         print_report(report)
     if result.interrupted:
-        click.echo(f"impactqp: interrupted: braked to a stop; log: {report['log']}", err=True)
+        click.echo(f"impactqp: interrupted: braked to a stop; log: {report['log'] or NO_LOG}", err=True)
         click.get_current_context().exit(EXIT_INTERRUPTED)
     cycle = report["cycle_us"]
     timing = (
@@ -79,7 +82,13 @@ def print_report(report: dict) -> None:
         )
     else:
         click.echo("no impact detected")
-    click.echo(f"final phase: {report['phase']}; log: {report['log']}")
+    speed = report["speed"]
+    if speed["capped_by"]:
+        click.echo(
+            f"asked {speed['asked']:.3f} m/s, hit at {speed['contact']:.3f} m/s: the controller capped the approach "
+            f"(active: {', '.join(speed['capped_by'])}; docs/max-speed.md)"
+        )
+    click.echo(f"final phase: {report['phase']}; log: {report['log'] or NO_LOG}")
     print_robot(report)
 
 

@@ -25,6 +25,7 @@ from impactqp.scenarios.cli.arguments import (
     gif_output,
     load_plant,
     output_directory,
+    parse_list,
     parse_vector,
     robot_options,
 )
@@ -165,7 +166,7 @@ def campaign_speeds(speeds_text, tangential_text, floating: bool) -> tuple[tuple
     from impactqp.scenarios.humanoid_campaign import DEFAULT_SPEEDS
 
     default = DEFAULT_SPEEDS if floating else PAPER_SPEEDS
-    speeds = default if speeds_text is None else tuple(parse_vector(speeds_text, None, "--speeds").tolist())
+    speeds = default if speeds_text is None else tuple(parse_list(speeds_text, "--speeds"))
     for v in speeds:
         approach_speed(v, "every speed of --speeds")
     if floating or (tangential_text is not None and tangential_text.strip().lower() == "none"):

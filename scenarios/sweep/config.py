@@ -8,6 +8,8 @@ empty grid or a spacing <= 0 raises :class:`BadInputError` (docs/sweep.md).
 
 from __future__ import annotations
 
+import math
+
 import json
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -160,6 +162,8 @@ def parse_config(data: dict) -> SweepConfig:
     origin = finite_vector(grid["origin"], 3, "grid.origin")
     u = unit_normal(grid["u"], "grid.u")
     v = unit_normal(grid["v"], "grid.v")
+    if abs(float(u @ v)) > 1.0 - 1e-6:
+        raise BadInputError(f"grid.u {u.tolist()} and grid.v {v.tolist()} are parallel: the grid would be a line")
     size = finite_vector(grid["size"], 2, "grid.size")
     if np.any(size < 0.0):
         raise BadInputError(f"grid.size must be >= 0, got {size.tolist()}")
@@ -212,8 +216,15 @@ def parse_config(data: dict) -> SweepConfig:
         impact_duration=tuple(durations),
         tolerance=positive(simulate["tolerance"], "simulate.tolerance"),
     )
-    if max(size) / spacing > MAX_CELLS:
-        raise BadInputError(f"grid.spacing {spacing} m is too fine for grid.size {size.tolist()}")
+    points = [math.floor(side / spacing + 1e-9) + 1 if side / spacing < MAX_CELLS else MAX_CELLS + 1 for side in size.tolist()]
+    settings_count = len(normals) * len(restitutions) * len(durations) * len(controller_models)
+    cells = math.prod(points) * settings_count
+    if cells > MAX_CELLS:
+        shown = " x ".join(str(p) if p <= MAX_CELLS else f"over {MAX_CELLS:,}" for p in points)
+        raise BadInputError(
+            f"the sweep has {cells:.3g} cells ({shown} points x {settings_count} settings), more than "
+            f"{MAX_CELLS:,}: make grid.spacing coarser or the grid smaller"
+        )
     return config
 
 

@@ -1,45 +1,36 @@
 """Controller configuration: a dataclass, loadable from a TOML or YAML file.
 
 ``ControllerConfig.from_file(path)`` reads ``.toml`` (tomllib) or ``.yaml``/``.yml`` (PyYAML);
-``build_controller(config, robot)`` builds the :class:`ImpactAwareController`.
-``ControllerConfig.approach(surface, speed)`` is the default impact-approach configuration.
+``build.build_controller(config, robot)`` builds the ``ImpactAwareController``.
+``ControllerConfig.approach(surface, speed, robot=...)`` is the default impact-approach
+configuration of a robot: a fixed-base arm's, or a floating-base robot standing on its held
+contacts (the G1: its centre of mass and torso held, its feet's rows, the capture region).
 The file format is documented in the project README (section "Controller configuration").
 """
 
 from __future__ import annotations
 
-import inspect
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
-from impactqp.constraints import (
-    JUMP_MODEL_CHOICES,
-    AccelerationLimit,
-    ExpectedImpact,
-    ImpulsiveTorqueLimit,
-    PositionLimit,
-    PostImpactVelocityLimit,
-    TorqueLimit,
-    VelocityLimit,
-    jump_model_names,
-)
+from impactqp.constraints import JUMP_MODEL_CHOICES
 from impactqp.constraints.impact_model import MAX_LOOKAHEAD_DISTANCE, MAX_LOOKAHEAD_TIME
-from impactqp.tasks import ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
+from impactqp.tasks import CentreOfMassTask, ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
 
-from .model.files import read_mapping
-from .model.jump import METHODS
-from .model.max_speed import DEFAULT_IMPACT_DURATION
-from .model.postures import DEFAULT_WALL, Surface
-from .qp import ImpactAwareController
-from .model.choice import DEFAULT_ROBOT, DEFAULT_TOOL, RobotChoice
-from .model.robot import RobotModel
-from .model.tool_description import TOOLS, tool_from_dict
-from .model import validation
-from .model.validation import BadInputError
-from .robot_config import RobotConfig
+from ..model.files import read_mapping
+from ..model.jump import METHODS
+from ..model.max_speed import DEFAULT_IMPACT_DURATION
+from ..model.postures import DEFAULT_WALL, Surface
+from ..model.choice import DEFAULT_ROBOT, DEFAULT_TOOL, RobotChoice
+from ..model.robot_description import robot_description
+from ..model.tool_description import TOOLS, tool_from_dict
+from ..model import validation
+from ..model.validation import BadInputError
+from ..robot_config import RobotConfig
 
 TASK_TYPES = {
     "frame": FrameTask,
+    "centre_of_mass": CentreOfMassTask,
     "contact_approach": ContactApproachTask,
     "posture": PostureTask,
     "damping": DampingTask,
@@ -109,7 +100,8 @@ class ImpactConfig:
 
     jump_model: 'crb', 'gm', 'classical', 'classical_normal', 'robust' (crb + gm + classical),
     or None to switch the impact-aware constraints off (the prediction in ``Command`` then uses
-    ``prediction_model``).
+    ``prediction_model``). ``capture_region``: on a robot standing on held contacts, the
+    predicted post-impact centre-of-mass velocity stays capturable (``CaptureRegionLimit``).
     """
 
     jump_model: str | None = "crb"
@@ -122,6 +114,7 @@ class ImpactConfig:
     release_speed: float = 0.02
     always_active: bool = False
     prediction_model: str = "crb"
+    capture_region: bool = True
 
     def __post_init__(self):
         if self.jump_model is not None:
@@ -129,7 +122,7 @@ class ImpactConfig:
         validation.name_in(self.prediction_model, METHODS, "impact.prediction_model")
         validation.restitution(self.restitution, "impact.restitution")
         validation.impact_duration(self.impact_duration, "impact.impact_duration")
-        for name in ("post_impact_velocity", "impulsive_torque", "always_active"):
+        for name in ("post_impact_velocity", "impulsive_torque", "always_active", "capture_region"):
             validation.boolean(getattr(self, name), f"impact.{name}")
         validation.number_in_range(self.lookahead_distance, 0.0, MAX_LOOKAHEAD_DISTANCE, "impact.lookahead_distance", "m")
         validation.number_in_range(self.lookahead_time, 0.0, MAX_LOOKAHEAD_TIME, "impact.lookahead_time", "s")
@@ -192,15 +185,21 @@ class SurfaceConfig:
 
 @dataclass(frozen=True)
 class ApproachOptions:
-    """The settings of ``ControllerConfig.approach`` beyond the surface and the speed."""
+    """The settings of ``ControllerConfig.approach`` beyond the surface and the speed: the robot
+    (a name or a robot file), the approach, the impact model, the solver and period, and the
+    task weights (``posture_weight`` None: 1e-2 for a fixed base, 1e-4 for a floating base, whose
+    centre of mass and torso orientation are held with ``com_weight`` and ``torso_weight``)."""
 
+    robot: str = DEFAULT_ROBOT
     tangential_velocity: tuple = (0.0, 0.0, 0.0)
     jump_model: str | None = "crb"
     restitution: float = 0.0
     impact_duration: float = DEFAULT_IMPACT_DURATION
     solver: str = "daqp"
     dt: float = 0.001
-    posture_weight: float = 1e-2
+    posture_weight: float | None = None
+    com_weight: float = 10.0
+    torso_weight: float = 10.0
     always_active: bool = False
 
 
@@ -248,8 +247,12 @@ class ControllerConfig:
         else:
             tool = self.tool
         choice = RobotChoice.of(self.robot, tool)
-        if choice.robot.floating:
-            raise BadInputError(f"robot: the {choice.robot.name} has a floating base; this configuration is an arm's controller")
+        if choice.robot.floating and (self.limits.torque or self.impact.impulsive_torque):
+            key = "limits.torque" if self.limits.torque else "impact.impulsive_torque"
+            raise BadInputError(
+                f"{key}: the {choice.robot.name} has a floating base, whose joint torques depend on its contact "
+                f"wrenches, which the QP does not carry; set {key} = false"
+            )
         self.__dict__["_choice"] = (key, choice)
         return choice
 
@@ -262,30 +265,38 @@ class ControllerConfig:
 
     @classmethod
     def approach(cls, surface: Surface = DEFAULT_WALL, speed: float = 0.1, **options) -> ControllerConfig:
-        """The default impact approach: a contact-approach task towards ``surface`` at the
-        normal ``speed`` (plus ``tangential_velocity``), holding orientation and tangential
-        motion; a weak posture task (null-space), a damping task; every joint limit; and the
-        impact-aware post-impact-velocity and impulsive-torque constraints with ``jump_model``
-        (None switches them off). ``options`` are the fields of :class:`ApproachOptions`."""
+        """The default impact approach of ``robot``: a contact-approach task towards ``surface``
+        at the normal ``speed`` (plus ``tangential_velocity``), holding orientation and
+        tangential motion; a weak posture task (null-space), a damping task; every joint limit;
+        and the impact-aware post-impact-velocity and impulsive-torque constraints with
+        ``jump_model`` (None switches them off). A floating-base robot also holds its centre of
+        mass and its torso's orientation (``frame = "torso"``), keeps its held contacts (their
+        rows are always added) and its post-impact centre-of-mass velocity capturable; it has
+        no torque rows. ``options`` are the fields of :class:`ApproachOptions`."""
         o = ApproachOptions(**options)
+        floating = robot_description(o.robot).floating
+        approach = TaskConfig(
+            "contact_approach", {"speed": float(speed), "tangential_velocity": [float(v) for v in o.tangential_velocity]}
+        )
+        balance = [
+            TaskConfig("centre_of_mass", {"weight": [float(o.com_weight)] * 3}),
+            TaskConfig("frame", {"position_weight": 0.0, "orientation_weight": float(o.torso_weight), "frame": "torso"}),
+        ] if floating else []
+        posture_weight = o.posture_weight if o.posture_weight is not None else (1e-4 if floating else 1e-2)
         return cls(
             dt=o.dt,
             solver=o.solver,
-            tasks=[
-                TaskConfig(
-                    "contact_approach",
-                    {"speed": float(speed), "tangential_velocity": [float(v) for v in o.tangential_velocity]},
-                ),
-                TaskConfig("posture", {"weight": o.posture_weight}),
-                TaskConfig("damping", {}),
-            ],
+            tasks=[approach, *balance, TaskConfig("posture", {"weight": posture_weight}), TaskConfig("damping", {})],
+            limits=LimitsConfig(torque=not floating),
             impact=ImpactConfig(
                 jump_model=o.jump_model,
                 restitution=o.restitution,
                 impact_duration=o.impact_duration,
                 always_active=o.always_active,
+                impulsive_torque=not floating,
             ),
             surface=SurfaceConfig.of(surface),
+            robot=o.robot,
         )
 
     @classmethod
@@ -319,7 +330,7 @@ class ControllerConfig:
         """Read a ``.toml``, ``.yaml`` or ``.yml`` file. An unreadable, undecodable, malformed or
         out-of-range file is bad input (``BadInputError``) whose one line names the file."""
         path = Path(path)
-        if path.suffix not in (".toml", ".yaml", ".yml"):
+        if path.suffix.lower() not in (".toml", ".yaml", ".yml"):
             raise BadInputError(f"unsupported configuration file {path.name}: use .toml, .yaml or .yml")
         data = read_mapping(path, "file")
         tool = data.get("tool")
@@ -344,85 +355,3 @@ def _section(kind, values, name: str):
     if unknown:
         raise BadInputError(f"unknown keys in [{name}]: {', '.join(sorted(map(str, unknown)))}")
     return kind(**values)
-
-
-def build_controller(config: ControllerConfig, robot: RobotModel | None = None) -> ImpactAwareController:
-    """The controller described by ``config`` (a fresh model of the configuration's robot and
-    tool when ``robot`` is None)."""
-    robot = config.choice.model() if robot is None else robot
-    surface = config.surface.surface()
-    limits, impact = config.limits, config.impact
-
-    tasks = []
-    for task in config.tasks:
-        params = dict(task.params)
-        if task.type == "contact_approach":
-            params.setdefault("normal", surface.normal)
-        elif task.type == "posture":
-            params.setdefault("joints", robot.nv)
-        elif task.type == "damping":
-            params.setdefault("variables", robot.nv)
-        kind = TASK_TYPES[task.type]
-        try:
-            inspect.signature(kind).bind(**params)
-        except TypeError as error:
-            raise BadInputError(f"bad parameters for the {task.type} task: {error}") from None
-        tasks.append(kind(**params))
-
-    dq_max = robot.dq_max * limits.velocity_scale
-    tau_max = robot.tau_max * limits.torque_scale
-    ddq_max = robot.ddq_max * limits.acceleration_scale
-    dddq_max = robot.dddq_max * limits.jerk_scale
-    constraints = [AccelerationLimit()]
-    if limits.position:
-        constraints.append(
-            PositionLimit(robot.q_min, robot.q_max, ddq_max, limits.braking_fraction, limits.position_margin)
-        )
-    if limits.velocity:
-        constraints.append(VelocityLimit(dq_max))
-    if limits.torque:
-        constraints.append(TorqueLimit(tau_max))
-
-    def impact_model(name: str) -> ExpectedImpact:
-        return ExpectedImpact(
-            surface,
-            name,
-            impact.restitution,
-            impact.lookahead_distance,
-            impact.lookahead_time,
-            impact.release_speed,
-            impact.always_active,
-        )
-
-    models = [impact_model(name) for name in jump_model_names(impact.jump_model)] if impact.jump_model else []
-    for model in models:
-        if impact.post_impact_velocity:
-            constraints.append(PostImpactVelocityLimit(model, dq_max))
-        if impact.impulsive_torque:
-            constraints.append(ImpulsiveTorqueLimit(model, tau_max, dq_max, impact.impact_duration))
-    prediction = models[0] if models else impact_model(impact.prediction_model)
-    return ImpactAwareController(
-        robot, tasks, constraints, config.dt, config.solver, prediction,
-        acceleration_limit=ddq_max, jerk_limit=dddq_max,
-    )
-
-
-def post_impact_config(config: ControllerConfig) -> ControllerConfig:
-    """The configuration of the controller after the impact (``config.post_impact``): the
-    impact-aware constraints off; for ``retract`` and ``hold`` the contact-approach and frame
-    tasks replaced by one ``surface_offset`` task, the other tasks and every limit kept."""
-    post = config.post_impact
-    impact = replace(config.impact, jump_model=None)
-    if post.mode == "continue":
-        return replace(config, impact=impact)
-    if post.mode == "retract":
-        offset, speed = post.retract_distance, post.max_speed
-    else:
-        offset, speed = -post.hold_depth, post.hold_speed
-    surface = config.surface
-    offset_task = TaskConfig(
-        "surface_offset",
-        {"normal": surface.normal, "surface_point": surface.point, "offset": offset, "max_speed": speed},
-    )
-    kept = [t for t in config.tasks if t.type not in ("contact_approach", "frame")]
-    return replace(config, tasks=[offset_task, *kept], impact=impact)

@@ -1,0 +1,125 @@
+"""The controller a configuration describes (``build_controller``) and the configuration after the
+impact (``post_impact_config``)."""
+
+from __future__ import annotations
+
+import inspect
+from dataclasses import replace
+
+from impactqp.constraints import (
+    AccelerationLimit,
+    CaptureRegionLimit,
+    ExpectedImpact,
+    HeldContactRows,
+    ImpulsiveTorqueLimit,
+    PositionLimit,
+    PostImpactVelocityLimit,
+    TorqueLimit,
+    VelocityLimit,
+    jump_model_names,
+)
+
+from ..model.humanoid_stance import stance_posture, support_polygon
+from ..model.robot import RobotModel
+from ..model.validation import BadInputError
+from ..qp import ImpactAwareController
+from .controller_config import TASK_TYPES, ControllerConfig, TaskConfig
+
+
+def build_controller(config: ControllerConfig, robot: RobotModel | None = None, q_start=None) -> ImpactAwareController:
+    """The controller described by ``config`` (a fresh model of the configuration's robot and
+    tool when ``robot`` is None). A robot standing on held contacts gets their rows
+    (``HeldContactRows``) and, with ``impact.capture_region``, the capture region of its support
+    polygon at ``q_start`` (default: the posture of its description's default stance)."""
+    robot = config.choice.model() if robot is None else robot
+    surface = config.surface.surface()
+    limits, impact = config.limits, config.impact
+    held_contacts = len(robot.description.held_contacts)
+
+    tasks = []
+    for task in config.tasks:
+        params = dict(task.params)
+        if task.type == "contact_approach":
+            params.setdefault("normal", surface.normal)
+        elif task.type == "posture":
+            params.setdefault("joints", robot.n_joints)
+        elif task.type == "damping":
+            params.setdefault("variables", robot.nv)
+        kind = TASK_TYPES[task.type]
+        try:
+            inspect.signature(kind).bind(**params)
+        except TypeError as error:
+            raise BadInputError(f"bad parameters for the {task.type} task: {error}") from None
+        tasks.append(kind(**params))
+
+    dq_max = robot.dq_max * limits.velocity_scale
+    tau_max = robot.tau_max * limits.torque_scale
+    ddq_max = robot.ddq_max * limits.acceleration_scale
+    dddq_max = robot.dddq_max * limits.jerk_scale
+    constraints = [AccelerationLimit()]
+    if limits.position:
+        constraints.append(
+            PositionLimit(robot.q_min, robot.q_max, ddq_max, limits.braking_fraction, limits.position_margin)
+        )
+    if limits.velocity:
+        constraints.append(VelocityLimit(dq_max))
+    if limits.torque:
+        constraints.append(TorqueLimit(tau_max))
+    if held_contacts:
+        constraints.append(HeldContactRows(6 * held_contacts))
+
+    def impact_model(name: str) -> ExpectedImpact:
+        return ExpectedImpact(
+            surface,
+            name,
+            impact.restitution,
+            impact.lookahead_distance,
+            impact.lookahead_time,
+            impact.release_speed,
+            impact.always_active,
+            held_contacts > 0,
+        )
+
+    models = [impact_model(name) for name in jump_model_names(impact.jump_model)] if impact.jump_model else []
+    polygon = support(robot, q_start) if held_contacts and impact.capture_region and models else None
+    for model in models:
+        if impact.post_impact_velocity:
+            constraints.append(PostImpactVelocityLimit(model, dq_max))
+        if impact.impulsive_torque:
+            constraints.append(ImpulsiveTorqueLimit(model, tau_max, dq_max, impact.impact_duration))
+        if polygon is not None:
+            constraints.append(CaptureRegionLimit(model, polygon))
+    prediction = models[0] if models else impact_model(impact.prediction_model)
+    return ImpactAwareController(
+        robot, tasks, constraints, config.dt, config.solver, prediction,
+        acceleration_limit=ddq_max, jerk_limit=dddq_max,
+    )
+
+
+def support(robot: RobotModel, q_start=None):
+    """The support polygon of the robot's held contacts at ``q_start`` (default: its default stance)."""
+    if q_start is None:
+        description = robot.description
+        q_start = stance_posture(robot, description.stances[description.default_posture])
+    return support_polygon(robot, q_start)
+
+
+def post_impact_config(config: ControllerConfig) -> ControllerConfig:
+    """The configuration of the controller after the impact (``config.post_impact``): the
+    impact-aware constraints off; for ``retract`` and ``hold`` the contact-approach and frame
+    tasks replaced by one ``surface_offset`` task, the other tasks and every limit kept."""
+    post = config.post_impact
+    impact = replace(config.impact, jump_model=None)
+    if post.mode == "continue":
+        return replace(config, impact=impact)
+    if post.mode == "retract":
+        offset, speed = post.retract_distance, post.max_speed
+    else:
+        offset, speed = -post.hold_depth, post.hold_speed
+    surface = config.surface
+    offset_task = TaskConfig(
+        "surface_offset",
+        {"normal": surface.normal, "surface_point": surface.point, "offset": offset, "max_speed": speed},
+    )
+    kept = [t for t in config.tasks if t.type != "contact_approach" and not (t.type == "frame" and t.params.get("frame") is None)]
+    return replace(config, tasks=[offset_task, *kept], impact=impact)

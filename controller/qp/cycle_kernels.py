@@ -1,0 +1,101 @@
+"""The compiled kernels of one control cycle (``controller.ImpactAwareController``), each with a
+plain-numpy twin in the tests: the QP cost of the stacked task rows, the intersection of the box
+constraints, the velocity-limit test, the integration of a fixed-base command and the active set."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .command import DQ_MAX, Q_MAX, Q_MIN
+
+
+@njit(cache=True)
+def weighted_least_squares(A, b, w, H, g):
+    """Kernel: H = A^T diag(w) A and g = -A^T diag(w) b, the QP cost of the stacked task rows
+    (the zero entries of the rows skipped: posture and damping rows have one entry each)."""
+    rows, n = A.shape
+    for i in range(n):
+        g[i] = 0.0
+        for j in range(n):
+            H[i, j] = 0.0
+    for r in range(rows):
+        for i in range(n):
+            wa = w[r] * A[r, i]
+            if wa == 0.0:
+                continue
+            g[i] -= wa * b[r]
+            for j in range(i, n):
+                H[i, j] += wa * A[r, j]
+    for i in range(n):
+        for j in range(i):
+            H[i, j] = H[j, i]
+
+
+@njit(cache=True)
+def intersect_boxes(box_lower, box_upper, reachable_lower, reachable_upper, lb, ub):
+    """Kernel: lb = max_k box_lower[k] and ub = min_k box_upper[k], each clipped into the
+    reachable interval [reachable_lower, reachable_upper]; False when lb > ub somewhere."""
+    consistent = True
+    for j in range(lb.shape[0]):
+        low, high = -np.inf, np.inf
+        for k in range(box_lower.shape[0]):
+            low = max(low, box_lower[k, j])
+            high = min(high, box_upper[k, j])
+        lb[j] = min(max(low, reachable_lower[j]), reachable_upper[j])
+        ub[j] = min(max(high, reachable_lower[j]), reachable_upper[j])
+        if lb[j] > ub[j]:
+            consistent = False
+    return consistent
+
+
+@njit(cache=True)
+def first_outside(values, limit):
+    """Kernel: the first index with |values_i| > limit_i, -1 when there is none."""
+    for i in range(values.shape[0]):
+        if abs(values[i]) > limit[i]:
+            return i
+    return -1
+
+
+@njit(cache=True)
+def integrate_command(q, dq, ddq, dt, limits, dq_cmd, q_cmd):
+    """Kernel: dq_cmd = clip(dq + ddq dt, +-dq_max), q_cmd = clip(q + (dq + dq_cmd) dt / 2,
+    q_min, q_max) (``limits``: the stacked ``command_limits``); True when dq_cmd had to be
+    clipped."""
+    clipped = False
+    for i in range(q.shape[0]):
+        v = dq[i] + ddq[i] * dt
+        dq_max = limits[DQ_MAX, i]
+        if v > dq_max:
+            v, clipped = dq_max, True
+        elif v < -dq_max:
+            v, clipped = -dq_max, True
+        dq_cmd[i] = v
+        q_cmd[i] = min(max(q[i] + 0.5 * dt * (dq[i] + v), limits[Q_MIN, i]), limits[Q_MAX, i])
+    return clipped
+
+
+@njit(cache=True)
+def tight_constraints(x, box_bounds, lower_gap, upper_gap, row_ends, tol, flags):
+    """Kernel: flags[k] for box k (bounds in rows 2k, 2k+1 of box_bounds) when x is within tol
+    of one of its bounds, then flags of the general constraints (rows ending at row_ends) when
+    one of their rows has a gap <= tol."""
+    boxes = box_bounds.shape[0] // 2
+    n = x.shape[0]
+    for k in range(boxes):
+        hit = False
+        for j in range(n):
+            if abs(box_bounds[2 * k, j] - x[j]) <= tol or abs(box_bounds[2 * k + 1, j] - x[j]) <= tol:
+                hit = True
+                break
+        flags[k] = hit
+    start = 0
+    for c in range(row_ends.shape[0]):
+        hit = False
+        for r in range(start, row_ends[c]):
+            if min(lower_gap[n + r], upper_gap[n + r]) <= tol:
+                hit = True
+                break
+        flags[boxes + c] = hit
+        start = row_ends[c]
