@@ -2,7 +2,7 @@
 parameters (``plant``), joint servo (``servo``) and sensors (``sensor``), the 1 kHz closed-loop
 runner (``runner``), the simulated robot behind the runtime's interface (``sim_backend``),
 simulated datasets (``generation``), the candidate causes of a sim-to-real gap (``causes``) and
-their diagnosis (``diagnosis``), and the standing G1's scene and trial (``humanoid_*``).
+their diagnosis (``diagnosis``), and the standing G1's trial (``humanoid_*``; its scene in ``scene``).
 
 Its names are exported lazily (PEP 562): importing one module loads only its own imports.
 """
@@ -28,8 +28,8 @@ _EXPORTS = {
     "generate_dataset": "generation",
     "Cause": "causes",
     "default_causes": "causes",
-    "HumanoidScene": "humanoid_scene",
-    "build_humanoid_scene": "humanoid_scene",
+    "HumanoidScene": "scene",
+    "build_humanoid_scene": "scene",
     "ImpactTrial": "humanoid_trial",
     "run_impact_trial": "humanoid_trial",
     "QpCommand": "humanoid_qp_source",

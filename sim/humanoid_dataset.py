@@ -24,7 +24,7 @@ from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot_description import ROBOTS, RobotDescription
 
-from .humanoid_scene import WALL_FRICTION
+from .scene import WALL_FRICTION
 from .humanoid_trial import CONTROL_PERIOD, NORMAL, ImpactTrial
 
 

@@ -28,7 +28,7 @@ leans; wrenches of the start stance would leave the ankles a steady tracking err
 each joint gets is clipped at its URDF effort limit (5-139 N m).
 
 Plant: MuJoCo's G1 with the actuators' reflected rotor inertias by default (``armature``:
-``sim.humanoid_scene.plant_armature``; 0 for the link-only plant). The servo's M_f includes them
+``sim.scene.plant_armature``; 0 for the link-only plant). The servo's M_f includes them
 (MuJoCo's M does); the predictors do not (they keep the URDF model).
 
 Measurement: the state before the impact is the last control step before the wall's first
@@ -82,7 +82,7 @@ from impactqp.controller.model.humanoid_stance import stance_posture, support_po
 from impactqp.controller.model.robot_description import Stance
 
 from .humanoid_feet import CONE, LOAD, MARGIN, SPEED, lift_onset, slip_onset, sole_state, worst
-from .humanoid_scene import build_humanoid_scene
+from .scene import build_humanoid_scene
 from .scene import to_pinocchio
 from .servo import ComputedTorqueServo, StandingSupport
 
@@ -215,7 +215,7 @@ def run_impact_trial(robot: FloatingBaseModel, stance: Stance, speed: float, *, 
                      armature=None, q0: np.ndarray | None = None, gap: float | None = None, source=SCRIPTED) -> ImpactTrial:
     """Simulate one trial (module docstring) and compare the jump with the predictors; ``gap``
     (m) is the start distance of the contact point from the wall (None: the source's), ``armature`` the plant's rotor
-    inertia (``sim.humanoid_scene.plant_armature``: None for the G1's actuators), ``source`` the
+    inertia (``sim.scene.plant_armature``: None for the G1's actuators), ``source`` the
     command source (``SCRIPTED``, or ``sim.humanoid_qp_source.QpCommand``: the whole-body QP)."""
     q0 = stance_posture(robot, stance) if q0 is None else q0
     gap = source.gap if gap is None else gap
