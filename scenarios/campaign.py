@@ -52,7 +52,7 @@ from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, T
 from impactqp.controller.measured.trial_log import TrialLog  # noqa: E402
 from impactqp.controller.model.robot_description import RobotDescription  # noqa: E402
 from impactqp.sim.plant import PlantParameters  # noqa: E402
-from impactqp.sim.runner import dataset_header  # noqa: E402
+from impactqp.sim.generation import dataset_header  # noqa: E402
 
 from impactqp.sim.runner import TrialSpec  # noqa: E402
 

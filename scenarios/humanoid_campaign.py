@@ -24,10 +24,11 @@ import numpy as np
 
 from impactqp.controller.measured.dataset import DatasetHeader, TrialEntry
 from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
 from impactqp.controller.model.robot_description import RobotDescription
 from impactqp.controller.model.validation import BadInputError
-from impactqp.sim.humanoid_dataset import dataset_log, humanoid_header, trial_entry
+from impactqp.sim.generation import STANDING_WALL, dataset_header, dataset_log, trial_entry
 from impactqp.sim.humanoid_trial import SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial
 from impactqp.sim.process_pool import map_in_processes
 
@@ -83,13 +84,13 @@ def trial_json(robot: str, trial: ImpactTrial) -> dict:
 class FloatingBaseTrials:
     """The campaign's trials of the floating-base robot ``robot`` (``scenarios.campaign``'s
     ``CampaignTrials``): the scripted hand at each stance and speed, on the default plant, its
-    trials written as a dataset of the wall (``sim.humanoid_dataset``)."""
+    trials written as a dataset of the wall (``sim.generation``)."""
 
     robot: RobotDescription
 
     @property
     def header(self) -> DatasetHeader:
-        return humanoid_header(self.robot)
+        return dataset_header(STANDING_WALL, RobotChoice(self.robot))
 
     def tasks(self, plan: CampaignPlan) -> list[tuple[RobotDescription, str, float]]:
         """(robot, stance, speed) per trial: the plan's stances (None: every stance) x speeds; bad

@@ -60,7 +60,7 @@ criteria (``controller.model.max_speed``) measured in the trial:
 
 Log: ``ImpactTrial.log`` holds the trial as a robot logs it (``controller.measured.trial_log``): per control
 step the joints' state, the servo's torque held over the step, the command, the base state, and the wall
-force per physics step (``sim.humanoid_dataset`` writes it as a dataset).
+force per physics step (``sim.generation`` writes it as a dataset).
 
 The feet's displacements are kept beside them: ``foot_slip`` / ``foot_lift`` (m), the largest
 horizontal / vertical motion of a foot frame after the settling (``slipped`` / ``lifted``: beyond
@@ -139,7 +139,7 @@ class ImpactTrial:
     contact_index: int  # the control step of the first wall contact
     source: str = "scripted"  # the command source (``ScriptedCommand.name``, ``QpCommand.name``)
     record: object = None  # what the command source kept of each control step (the QP's ``QpRecord``), or None
-    log: TrialLog | None = None  # the trial as a robot logs it (simulation world frame; ``sim.humanoid_dataset``)
+    log: TrialLog | None = None  # the trial as a robot logs it (simulation world frame; ``sim.generation``)
 
     @property
     def feasible(self) -> bool:

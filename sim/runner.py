@@ -32,8 +32,6 @@ import mujoco
 import numpy as np
 
 from impactqp.constraints import jump_model_names
-from impactqp.controller.measured.dataset import DatasetHeader
-from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
@@ -236,12 +234,6 @@ def servo_reference_from_commands(
     previous = np.vstack([dq_start, dq_cmd[:-1]])
     q_ref = np.asarray(q_start, dtype=float) + 0.5 * dt * np.sum(previous + dq_cmd, axis=0)
     return q_ref, dq_cmd[-1].copy()
-
-
-def dataset_header(surface: Surface, choice: RobotChoice = DEFAULT_CHOICE) -> DatasetHeader:
-    """The manifest header of a simulated dataset: the robot and the tool of ``choice``, the
-    runner's control period."""
-    return DatasetHeader.of(choice, surface, DEFAULT_CONTROL_PERIOD)
 
 
 def run_approach(

@@ -38,7 +38,7 @@ import numpy as np
 from impactqp.controller.model.validation import BadInputError
 
 from .humanoid_feet import HeldContactLog
-from .scene import MujocoScene, Scene, to_pinocchio
+from .scene import MujocoScene, to_pinocchio
 from .servo import ComputedTorqueServo, StandingSupport
 
 CLEARANCE_SPEED = 5.0

@@ -11,7 +11,7 @@ has no meaning for the G1 (a tool, a plant file, a wall point, jump constraints:
 ``simulate --controller qp`` runs a QP, and takes ``--jump-model``) is bad input when given: one
 line naming it. The JSON keeps the arm's keys where they mean the same and
 adds the G1's (CoM jump, foot wrenches, slip, lift, fall). ``simulate --out DIR`` and ``campaign``
-write their trials as a G1 dataset (``sim.humanoid_dataset``, docs/dataset.md); ``campaign`` is
+write their trials as a G1 dataset (``sim.generation``, docs/dataset.md); ``campaign`` is
 the arm's command, given the floating-base robot's trial runner (``scenarios.humanoid_campaign``).
 """
 
@@ -92,7 +92,7 @@ def g1_simulate(
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.humanoid_campaign import trial_json
     from impactqp.scenarios.video import render_humanoid_gif
-    from impactqp.sim.humanoid_dataset import open_dataset, write_trials
+    from impactqp.sim.generation import open_dataset, write_trials
     from impactqp.sim.humanoid_qp_source import QpCommand
     from impactqp.sim.humanoid_trial import SCRIPTED, run_impact_trial
 

@@ -101,7 +101,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
         raise BadInputError("--controller chooses the command source of --robot g1; the arm is always driven by its QP")
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.campaign import write_trial
-    from impactqp.sim.runner import dataset_header
+    from impactqp.sim.generation import dataset_header
     from impactqp.scenarios.trial import TrialRunner
     from impactqp.sim.runner import TrialSpec
     from impactqp.controller.measured.dataset import DatasetWriter
