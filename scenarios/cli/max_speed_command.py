@@ -22,7 +22,7 @@ from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION, HAND_IM
 from impactqp.controller.model.validation import positive
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.controller.model.validation import restitution as restitution_coefficient
-from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, robot_options
+from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, reject_options, robot_options, stance_names
 from impactqp.scenarios.cli.simulation_commands import (
     check_reachable,
     plant_option,
@@ -75,7 +75,6 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     and the contact duration used (the description's wall contact unless --impact-duration)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
-    from impactqp.scenarios.cli.humanoid_commands import reject_options, stance_names
     from impactqp.scenarios.humanoid_max_speed import search_stance
 
     reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool"])
