@@ -24,8 +24,8 @@ _EXPORTS = {
     "write_report": "diagnosis_report",
     "render_impact_gif": "video",
     "render_humanoid_gif": "video",
-    "run_campaign": "humanoid_campaign",
-    "FloatingBaseTrials": "humanoid_campaign",
+    "run_stance_trials": "campaign",
+    "FloatingBaseTrials": "campaign",
     "search_stance": "humanoid_max_speed",
     "check_against_simulation": "humanoid_max_speed",
 }

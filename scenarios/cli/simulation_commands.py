@@ -174,7 +174,7 @@ def stance_trial(
     ``cycles_not_ok`` added) and the id of the trial written (None without ``out_dir``)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
-    from impactqp.scenarios.humanoid_campaign import trial_json
+    from impactqp.scenarios.campaign import trial_json
     from impactqp.scenarios.video import render_humanoid_gif
     from impactqp.sim.generation import open_dataset, write_trials
     from impactqp.sim.humanoid_qp_source import QpCommand
@@ -222,10 +222,9 @@ def campaign_speeds(speeds_text, tangential_text, floating: bool) -> tuple[tuple
     """The normal speeds (default: the paper's for an arm, the humanoid campaign's for a floating
     base) and the tangential series (an arm's; default the paper's, 'none' skips it) of the options."""
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.scenarios.campaign import PAPER_SPEEDS, PAPER_TANGENTIAL_SPEEDS
-    from impactqp.scenarios.humanoid_campaign import DEFAULT_SPEEDS
+    from impactqp.scenarios.campaign import PAPER_SPEEDS, PAPER_TANGENTIAL_SPEEDS, STANCE_SPEEDS
 
-    default = DEFAULT_SPEEDS if floating else PAPER_SPEEDS
+    default = STANCE_SPEEDS if floating else PAPER_SPEEDS
     speeds = default if speeds_text is None else tuple(parse_vector(speeds_text, None, "--speeds").tolist())
     for v in speeds:
         approach_speed(v, "every speed of --speeds")
@@ -253,7 +252,7 @@ def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_
     g1: stances x speeds of the standing G1, its dataset, table1.json and table1.md in --out)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.campaign import Campaign, CampaignPlan, FixedBaseTrials, check_postures
-    from impactqp.scenarios.humanoid_campaign import FloatingBaseTrials
+    from impactqp.scenarios.campaign import FloatingBaseTrials
 
     robot = choice.robot
     if robot.floating:
