@@ -1,7 +1,7 @@
-"""The experiments: one closed-loop impact trial with the QP (``trial``), the paper's campaign
-(``campaign``), the highest feasible contact speed (``max_speed_search``), ``impactqp run`` on a
-robot (``run``), the diagnosis report, the video, the G1's trials of the campaign and its maximum
-speed (``humanoid_*``) and the feasibility maps (``sweep``); above them the command line (``cli``) and
+"""The experiments: one closed-loop impact trial with the QP (``trial``), the campaign of every
+robot (``campaign``, its figures ``campaign_figures``), the highest feasible contact speed
+(``max_speed_search``), ``impactqp run`` on a robot (``run``), the diagnosis report, the video, the
+G1's maximum speed (``humanoid_max_speed``) and the feasibility maps (``sweep``); above them the command line (``cli``) and
 the benchmarks (``bench``).
 
 Its names are exported lazily (PEP 562): the command line imports this file first and must stay
