@@ -4,7 +4,7 @@ robot (docs/max-speed.md, docs/floating-base.md).
 The options are checked, the search runs and its JSON report is printed, or the text made from
 that report. What differs between robots is data, read where it must be: a robot with a floating
 base (its description's ``base``) is searched per stance of its description
-(``scenarios.humanoid_max_speed.search_stance``: closed form and simulated bisection, no QP; an
+(``scenarios.max_speed_search.search_stance``: closed form and simulated bisection, no QP; an
 option of the arm's search that has no meaning there is bad input when given), a fixed-base arm
 per named posture on a wall (``scenarios.max_speed_search.MaxSpeedSearch``: closed form,
 QP-limited run and simulated bisection). Bad input ends with one line on stderr and exit code 2.
@@ -75,7 +75,7 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     and the contact duration used (the description's wall contact unless --impact-duration)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.floating_base import METHODS, FloatingBaseModel
-    from impactqp.scenarios.humanoid_max_speed import search_stance
+    from impactqp.scenarios.max_speed_search import search_stance
 
     reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool"])
     robot = request.choice.robot
