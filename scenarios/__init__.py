@@ -1,7 +1,7 @@
-"""The experiments: one closed-loop impact trial with the QP (``trial``), the paper's campaign
-(``campaign``), the highest feasible contact speed (``max_speed_search``), ``impactqp run`` on a
-robot (``run``), the diagnosis report, the video, the G1's trials of the campaign and its maximum
-speed (``humanoid_*``) and the feasibility maps (``sweep``); above them the command line (``cli``) and
+"""The experiments: one closed-loop impact trial with the QP (``trial``), the campaign of every
+robot (``campaign``, its figures ``campaign_figures``), the highest feasible contact speed
+(``max_speed_search``), ``impactqp run`` on a robot (``run``), the diagnosis report, the video, the
+G1's closed form checked against simulation (``stance_check``) and the feasibility maps (``sweep``); above them the command line (``cli``) and
 the benchmarks (``bench``).
 
 Its names are exported lazily (PEP 562): the command line imports this file first and must stay
@@ -24,10 +24,10 @@ _EXPORTS = {
     "write_report": "diagnosis_report",
     "render_impact_gif": "video",
     "render_humanoid_gif": "video",
-    "run_campaign": "humanoid_campaign",
-    "FloatingBaseTrials": "humanoid_campaign",
-    "search_stance": "humanoid_max_speed",
-    "check_against_simulation": "humanoid_max_speed",
+    "run_stance_trials": "campaign",
+    "FloatingBaseTrials": "campaign",
+    "search_stance": "max_speed_search",
+    "check_against_simulation": "stance_check",
 }
 _EXPORTS = {name: f"{__name__}.{module}" for name, module in _EXPORTS.items()}
 

@@ -21,47 +21,60 @@ Output directory: the dataset (``controller.measured.dataset``: ``dataset.json``
 ``table1.json``, ``table1.txt`` and the figures; every file written atomically.
 
 One :class:`Campaign` runs every robot: it is given the robot's trial runner (a
-:class:`CampaignTrials`: :class:`FixedBaseTrials` above for an arm, the closed-loop trials of
-``scenarios.trial``; ``scenarios.humanoid_campaign.FloatingBaseTrials`` for a floating base,
-whose postures are its stances and whose Table I is ``table1.json`` and ``table1.md``), writes
-each trial to the dataset as it comes, then the runner's Table I (its files and figures).
+:class:`CampaignTrials`: :class:`FixedBaseTrials` for an arm, the closed-loop trials of
+``scenarios.trial``; :class:`FloatingBaseTrials` for a floating base), writes each trial to the
+dataset as it comes, then the runner's Table I (its files and figures: ``scenarios.campaign_figures``).
+
+A floating base's campaign: its stances x hand speeds of ``sim.humanoid_trial``
+(:func:`run_stance_trials`), no tangential series. For each trial and predictor (classical, gm,
+crb, each fed its own impulse; ``momentum``: the feet-held momentum law fed the measured impulse)
+the average error (26) over the joints; its table (:class:`FloatingBaseTable`, ``table1.json``
+and the Markdown ``table1.md``, without figures) gives per stance and speed the measured contact
+speed, the impulse, the CoM velocity jump, the foot slip and lift, whether the robot fell, and the
+errors; its last row averages the errors over every trial, with the reduction
+100 (1 - e_crb / e_classical) % of CRB against classical (negative when CRB is worse).
 """
 
 from __future__ import annotations
 
 import json
 from contextlib import closing
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from tqdm import tqdm  # noqa: E402
+import numpy as np
+from tqdm import tqdm
 
 from impactqp.controller.model.jump import METHODS, average_prediction_error  # noqa: E402
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice  # noqa: E402
 from impactqp.controller.model.postures import Surface  # noqa: E402
-from impactqp.controller.measured.atomic import write_atomic, write_text_atomic  # noqa: E402
+from impactqp.controller.measured.atomic import write_text_atomic  # noqa: E402
 from impactqp.sim.generation import DEFAULT_SPEEDS, TANGENTIAL_SERIES_NORMAL_SPEED, tangential_direction  # noqa: E402
 from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry  # noqa: E402
 from impactqp.controller.measured.trial_log import TrialLog  # noqa: E402
 from impactqp.controller.model.robot_description import RobotDescription  # noqa: E402
 from impactqp.sim.plant import PlantParameters  # noqa: E402
-from impactqp.sim.runner import dataset_header  # noqa: E402
+from impactqp.sim.generation import dataset_header  # noqa: E402
 
 from impactqp.sim.runner import TrialSpec  # noqa: E402
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as FLOATING_METHODS  # noqa: E402
+from impactqp.controller.model.robot import RobotModel  # noqa: E402
+from impactqp.sim.generation import STANDING_WALL, dataset_log, trial_entry  # noqa: E402
+from impactqp.sim.humanoid_trial import SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
+from impactqp.sim.process_pool import map_in_processes  # noqa: E402
 
+from .campaign_figures import CampaignFigures  # noqa: E402
 from .trial import TrialPool, TrialResult  # noqa: E402
 from impactqp.controller.model.validation import BadInputError, approach_speed  # noqa: E402
 
 PAPER_SPEEDS = DEFAULT_SPEEDS
 PAPER_TANGENTIAL_SPEEDS = tuple(round(0.03 + 0.01 * i, 2) for i in range(10))
 TANGENTIAL_NORMAL_SPEED = TANGENTIAL_SERIES_NORMAL_SPEED
+STANCE_SPEEDS = (0.1, 0.2, 0.3, 0.4)
+"""m/s: a floating base's commanded hand speeds."""
+STANCE_PREDICTORS = (*FLOATING_METHODS, "momentum")
 
 
 def dataset_trial(result: TrialResult) -> tuple[TrialEntry, TrialLog]:
@@ -168,8 +181,8 @@ class TableRow:
 
     @property
     def crb_reduction(self) -> float:
-        """100 (1 - e_crb / e_classical): how much CRB cuts the classical error, in %."""
-        return 100.0 * (1.0 - self.errors["crb"] / self.errors["classical"])
+        """How much CRB cuts the classical error, in % (:func:`crb_reduction`)."""
+        return crb_reduction(self.errors)
 
     def to_json(self) -> dict:
         return {
@@ -192,8 +205,7 @@ class Table1:
         return {m: float(np.mean([r.errors[m] for r in self.rows])) for m in METHODS}
 
     def mean_crb_reduction(self) -> float:
-        mean = self.mean_errors()
-        return 100.0 * (1.0 - mean["crb"] / mean["classical"])
+        return crb_reduction(self.mean_errors())
 
     def to_json(self) -> dict:
         return {
@@ -208,7 +220,7 @@ class Table1:
         return {"table1.json": json.dumps(self.to_json(), indent=2) + "\n", "table1.txt": self.text() + "\n"}
 
     def write_figures(self, out: Path) -> list[Path]:
-        return CampaignFigures(self).write(out)
+        return CampaignFigures(self).write(out)  # (``scenarios.campaign_figures``)
 
     def text(self) -> str:
         """The table as aligned text (rad/s; the last column in %)."""
@@ -315,98 +327,139 @@ class Campaign:
         return table
 
 
-class CampaignFigures:
-    """The PNG figures of the module docstring. Each point is one simulated trial (one per
-    setting, the simulation is deterministic); the figures of the postures share their y scale so
-    that they compare, and the error panels show every predictor of Table I."""
+# ---------------------------------------------------------------------------- a floating base's campaign
 
-    def __init__(self, table: Table1):
-        self.table = table
 
-    def write(self, out: Path) -> list[Path]:
-        paths = []
-        normal_rows = [r for r in self.table.rows if r.tangential_speed == 0.0]
-        jump_limits = y_limits([r.measured_jump for r in normal_rows])
-        error_limits = y_limits([r.joint_errors[m] for r in normal_rows for m in METHODS], zero=True)
-        for posture in dict.fromkeys(r.posture for r in normal_rows):
-            rows = sorted((r for r in normal_rows if r.posture == posture), key=lambda r: r.normal_speed)
-            jumps = self.jumps_figure(posture, rows, jump_limits)
-            paths.append(save_figure(jumps, out / f"jumps_{posture}.png"))
-            paths.append(save_figure(self.errors_figure(posture, rows, error_limits), out / f"errors_{posture}.png"))
-        tangential = sorted((r for r in self.table.rows if r.tangential_speed > 0.0), key=lambda r: r.tangential_speed)
-        if tangential:
-            paths.append(save_figure(self.tangential_figure(tangential), out / "tangential.png"))
-        return paths
+def run_stance_trials(
+    robot: RobotModel,
+    stances: Iterable[str] | None = None,
+    speeds: Iterable[float] = STANCE_SPEEDS,
+    gain: float = SERVO_GAIN,
+    armature=None,
+    source=SCRIPTED,
+) -> list[ImpactTrial]:
+    """One trial per stance (None: every stance of the robot's description) and commanded hand
+    speed (m/s); ``gain`` is the servo bandwidth (rad/s), ``armature`` the plant's rotor inertia
+    (kg m^2): None for the G1's actuators (``controller.model.g1_actuators``), one number for every
+    joint (0: link-only) or one per joint; ``source`` the command source
+    (``sim.humanoid_trial.SCRIPTED`` or ``sim.humanoid_qp_source.QpCommand``)."""
+    all_stances = robot.description.stances
+    return [
+        run_impact_trial(robot, all_stances[name], speed, gain=gain, armature=armature, source=source)
+        for name in (all_stances if stances is None else stances)
+        for speed in speeds
+    ]
 
-    @staticmethod
-    def jumps_figure(posture: str, rows: list[TableRow], ylim: tuple[float, float] | None = None):
-        fig, ax = plt.subplots(figsize=(6.4, 4.4))
-        speeds = [r.normal_speed for r in rows]
-        jumps = np.array([r.measured_jump for r in rows])
-        for j in range(jumps.shape[1]):
-            ax.plot(speeds, jumps[:, j], "o-", label=f"joint {j + 1}")
-        ax.set(
-            xlabel="normal contact speed (m/s)", ylabel="simulated jump dq+ - dq- (rad/s)",
-            title=f"Simulated joint-velocity jumps at {posture}\n(one trial per speed, no tangential velocity)",
+
+def _campaign_trial(task: tuple[RobotDescription, str, float]) -> ImpactTrial:
+    """One campaign trial (robot description, stance, speed) in a worker process."""
+    robot, stance, speed = task
+    return run_stance_trials(RobotModel(robot), (stance,), (speed,))[0]
+
+
+def trial_json(robot: str, trial: ImpactTrial) -> dict:
+    """A trial of the floating-base robot named ``robot`` as JSON (sim.humanoid_trial.ImpactTrial)."""
+    return {
+        "robot": robot, "posture": trial.stance, "reference_speed": trial.speed, "contact_speed": trial.contact_speed,
+        "impulse": trial.impulse.tolist(), "floor_impulse": trial.floor_impulse.tolist(),
+        "impact_duration": trial.duration, "dq_jump": trial.measured_jump.tolist(),
+        "com_jump": trial.measured_com_jump.tolist(),
+        "predicted": {m: dv.tolist() for m, dv in trial.predicted_jump.items()},
+        "predicted_com_jump": {m: c.tolist() for m, c in trial.predicted_com_jump.items()},
+        "errors": trial.errors, "foot_slip": trial.foot_slip, "foot_lift": trial.foot_lift, "fell": trial.fell,
+        "max_velocity_ratio": trial.max_velocity_ratio, "first_failure": trial.first_failure,
+        "violated": not trial.feasible,
+    }
+
+
+@dataclass(frozen=True)
+class FloatingBaseTrials:
+    """The campaign's trials of the floating-base robot ``robot`` (``scenarios.campaign``'s
+    ``CampaignTrials``): the scripted hand at each stance and speed, on the default plant, its
+    trials written as a dataset of the wall (``sim.generation``)."""
+
+    robot: RobotDescription
+
+    @property
+    def header(self) -> DatasetHeader:
+        return dataset_header(STANDING_WALL, RobotChoice(self.robot))
+
+    def tasks(self, plan: CampaignPlan) -> list[tuple[RobotDescription, str, float]]:
+        """(robot, stance, speed) per trial: the plan's stances (None: every stance) x speeds; bad
+        input for a stance the robot does not have or a tangential series (none here)."""
+        if plan.tangential_speeds:
+            raise BadInputError(f"the {self.robot.name}'s campaign has no tangential series")
+        stances = check_postures(self.robot, plan.postures)
+        return [(self.robot, stance, float(speed)) for stance in stances for speed in plan.speeds]
+
+    def results(self, tasks: list, jobs: int) -> Iterator[ImpactTrial]:
+        yield from map_in_processes(_campaign_trial, tasks, jobs)
+
+    def dataset_trial(self, trial: ImpactTrial) -> tuple[TrialEntry, TrialLog]:
+        return trial_entry(trial), dataset_log(trial)
+
+    def table(self, trials: list[ImpactTrial]) -> FloatingBaseTable:
+        return FloatingBaseTable(self.robot.name, trials)
+
+
+@dataclass(frozen=True)
+class FloatingBaseTable:
+    """Table I of a floating-base robot's campaign (module docstring)."""
+
+    robot: str
+    trials: list[ImpactTrial]
+
+    def to_json(self) -> dict:
+        """Table I's JSON: per trial the trial's JSON (``trial_json``) but its predictions, with the
+        arm's row keys; the errors (26) averaged over the trials and CRB's reduction."""
+        errors = {m: e for m, e in stance_mean_errors(self.trials).items() if m in FLOATING_METHODS}
+        rows = [
+            {**{k: v for k, v in trial_json(self.robot, t).items() if k not in ("predicted", "predicted_com_jump", "robot")},
+             "trial": i, "normal_speed": t.speed, "tangential_speed": 0.0, "average_error": t.errors,
+             "crb_reduction_percent": crb_reduction(t.errors), "measured_jump": t.measured_jump.tolist()}
+            for i, t in enumerate(self.trials)
+        ]
+        return {"robot": self.robot, "methods": list(FLOATING_METHODS), "rows": rows, "mean_average_error": errors,
+                "mean_crb_reduction_percent": crb_reduction(errors)}
+
+    def text(self) -> str:
+        return stance_table_text(self.trials)
+
+    def files(self) -> dict[str, str]:
+        """The table's files by name: its JSON and the Markdown table."""
+        return {"table1.json": json.dumps(self.to_json(), indent=2, allow_nan=False), "table1.md": self.text() + "\n"}
+
+    def write_figures(self, out: Path) -> list[Path]:
+        """No figures: the table is the campaign's summary."""
+        return []
+
+
+def stance_mean_errors(trials: list[ImpactTrial]) -> dict[str, float]:
+    """Eq. (26) averaged over the trials, per predictor."""
+    return {m: float(np.mean([t.errors[m] for t in trials])) for m in STANCE_PREDICTORS}
+
+
+def crb_reduction(errors: dict[str, float]) -> float:
+    """100 (1 - e_crb / e_classical) %: how much CRB cuts the classical error (negative: worse)."""
+    return 100.0 * (1.0 - errors["crb"] / errors["classical"])
+
+
+def stance_table_text(trials: list[ImpactTrial]) -> str:
+    """The campaign as a Markdown table (module docstring)."""
+    head = ("| stance | v cmd (m/s) | v contact (m/s) | impulse n (N s) | CoM jump x (m/s) | slip (mm) | "
+            "lift (mm) | fell | " + " | ".join(f"e {m}" for m in STANCE_PREDICTORS) + " |")
+    lines = [head, "|" + "---|" * (8 + len(STANCE_PREDICTORS))]
+    for t in trials:
+        lines.append(
+            f"| {t.stance} | {t.speed:.2f} | {t.contact_speed:.3f} | {-t.impulse[0]:.3f} | "
+            f"{t.measured_com_jump[0]:.4f} | {1e3 * t.foot_slip:.2f} | {1e3 * t.foot_lift:.2f} | "
+            f"{'yes' if t.fell else 'no'} | " + " | ".join(f"{t.errors[m]:.4f}" for m in STANCE_PREDICTORS) + " |"
         )
-        if ylim is not None:
-            ax.set_ylim(ylim)
-        ax.axhline(0.0, color="0.6", lw=0.8)
-        ax.legend(fontsize=7, ncol=2)
-        fig.tight_layout()
-        return fig
-
-    @staticmethod
-    def errors_figure(posture: str, rows: list[TableRow], ylim: tuple[float, float] | None = None):
-        fig, axes = plt.subplots(1, len(METHODS), figsize=(3.6 * len(METHODS), 4.0), sharey=True)
-        speeds = [r.normal_speed for r in rows]
-        for ax, method in zip(axes, METHODS):
-            errors = np.array([r.joint_errors[method] for r in rows])
-            for j in range(errors.shape[1]):
-                ax.plot(speeds, errors[:, j], "o-", label=f"joint {j + 1}")
-            ax.set(title=method, xlabel="normal contact speed (m/s)", ylabel="|e_i|, eq. (25) (rad/s)")
-            ax.yaxis.set_tick_params(labelleft=True)
-        if ylim is not None:
-            axes[0].set_ylim(ylim)
-        axes[-1].legend(fontsize=7, ncol=2)
-        fig.suptitle(
-            f"Absolute prediction error per joint at {posture}: each predictor's own jump against the "
-            "simulated one (one trial per speed)", fontsize=10,
-        )
-        fig.tight_layout()
-        return fig
-
-    @staticmethod
-    def tangential_figure(rows: list[TableRow]):
-        fig, ax = plt.subplots(figsize=(6.4, 4.4))
-        speeds = [r.tangential_speed for r in rows]
-        for method in METHODS:
-            ax.plot(speeds, [r.errors[method] for r in rows], "o-", label=method)
-        ax.set(
-            xlabel="tangential speed v_t (m/s)", ylabel="average prediction error, eq. (26) (rad/s)",
-            title=f"Tangential series at {rows[0].posture}, v_n = {rows[0].normal_speed:g} m/s\n"
-            f"(error averaged over the {len(rows[0].measured_jump)} joints, one trial per v_t)",
-        )
-        ax.set_ylim(bottom=0.0)
-        ax.legend()
-        fig.tight_layout()
-        return fig
-
-
-def y_limits(values: list[np.ndarray], zero: bool = False) -> tuple[float, float] | None:
-    """A y range that holds every value (and 0 when ``zero``), with a 5 % margin; None without
-    values."""
-    if not values:
-        return None
-    data = np.concatenate([np.ravel(v) for v in values] + ([np.zeros(1)] if zero else []))
-    low, high = float(data.min()), float(data.max())
-    margin = 0.05 * (high - low) or 0.05
-    return (0.0 if zero else low - margin, high + margin)
-
-
-def save_figure(fig, path: Path) -> Path:
-    """Save a figure as PNG atomically (``controller.measured.atomic.write_atomic``) and close it."""
-    try:
-        return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
-    finally:
-        plt.close(fig)
+    errors = stance_mean_errors(trials)
+    lines.append(
+        f"| **mean** ({len(trials)} trials) | | | | | | | | " + " | ".join(f"**{errors[m]:.4f}**" for m in STANCE_PREDICTORS)
+        + " |"
+    )
+    lines.append("")
+    lines.append(f"CRB against classical: {crb_reduction(errors):+.1f} % (positive: CRB is better).")
+    return "\n".join(lines)

@@ -24,12 +24,24 @@ simulated_max_speed
     speed at which the approach itself brings a joint to its velocity limit (criterion (a), the
     same for every model; taken 0.1 % below); when v_a is still feasible the answer is v_a, when v_lo is violated
     it is 0. Feasibility is assumed monotone in the speed (checked by the tests).
+
+A floating base standing on held contacts (the G1, docs/floating-base.md) is searched per stance
+of its description (:func:`search_stance`): the closed form at the stance (the smallest of the
+joint-velocity, foot-slip, foot-lift and capture bounds, and which one binds) and the same
+bisection (:class:`SpeedBisection`, one trial a round) on the commanded hand speed of
+``sim.humanoid_trial.run_impact_trial`` between :data:`STANCE_LOWEST_SPEED` (feasible) and
+:data:`STANCE_HIGHEST_SPEED`, a trial feasible when none of its measured failures occurred (no
+joint beyond its velocity limit, no foot slip or lift onset in the impact window, the post-impact
+CoM velocity capturable, no fall): the highest feasible commanded speed, its measured contact
+speed, and what failed first at the lowest infeasible one (no QP-limited run). Its check against
+simulation and its tables and figure: ``scenarios.stance_check``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from tqdm import tqdm
@@ -41,6 +53,10 @@ from impactqp.controller.model.max_speed import (
     approach_direction,
     closed_form_max_speed,
 )
+from impactqp.controller.model.robot import RobotModel
+from impactqp.controller.model.humanoid_stance import stance_posture
+from impactqp.controller.model.validation import BadInputError
+from impactqp.sim.humanoid_trial import NORMAL, SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import ImpactPosture, Surface
 from impactqp.controller.model.robot import PandaModel
@@ -279,3 +295,113 @@ class MaxSpeedSearch:
             simulated_max_speed=float(simulated),
             evaluations=sorted(bisection.evaluations, key=lambda e: e.reference_speed),
         )
+
+
+# ---------------------------------------------------------------------------- a floating base's stances
+STANCE_LOWEST_SPEED = 0.05  # m/s commanded
+STANCE_HIGHEST_SPEED = 3.0  # m/s commanded: above what the torque-limited hand reaches in the 2 cm to the wall
+STANCE_TOLERANCE = 0.02  # m/s
+STANCE_MIN_TOLERANCE = 1e-3  # m/s: the least bisection tolerance of a stance
+
+
+@dataclass(frozen=True)
+class StancePlant:
+    """A floating base's simulated plant: servo bandwidth (rad/s) and rotor inertia (kg m^2): None for the G1's
+    actuators, one number for every joint (0: link-only) or one per joint."""
+
+    gain: float = SERVO_GAIN
+    armature: float | tuple | None = None
+
+    def trial(self, robot: RobotModel, stance: str, q: np.ndarray, speed: float, source=SCRIPTED) -> ImpactTrial:
+        """One trial on this plant: ``stance`` from the configuration q at the commanded hand
+        ``speed``, driven by ``source``."""
+        return run_impact_trial(
+            robot, robot.description.stances[stance], speed, gain=self.gain, armature=self.armature, q0=q, source=source
+        )
+
+
+@dataclass(frozen=True)
+class StanceEvaluation:
+    """One simulated trial of the search: commanded and contact speed (m/s), what failed."""
+
+    reference_speed: float
+    contact_speed: float
+    max_velocity_ratio: float
+    foot_slip: float
+    foot_lift: float
+    fell: bool
+    first_failure: str
+
+    @classmethod
+    def of(cls, trial: ImpactTrial) -> StanceEvaluation:
+        return cls(trial.speed, trial.contact_speed, trial.max_velocity_ratio, trial.foot_slip, trial.foot_lift,
+                   trial.fell, trial.first_failure)
+
+    @property
+    def violated(self) -> bool:
+        return bool(self.first_failure)
+
+    def to_json(self) -> dict:
+        return {
+            "reference_speed": self.reference_speed, "contact_speed": self.contact_speed,
+            "max_velocity_ratio": self.max_velocity_ratio, "foot_slip": self.foot_slip,
+            "foot_lift": self.foot_lift, "fell": self.fell, "first_failure": self.first_failure,
+            "violated": self.violated,
+        }
+
+
+@dataclass(frozen=True)
+class StanceMaxSpeed:
+    """Closed-form and simulated highest feasible speed of one stance."""
+
+    stance: str
+    q: np.ndarray
+    predicted: dict  # method -> MaxSpeed
+    simulated_reference: float  # highest feasible commanded speed (m/s)
+    simulated_contact: float  # its measured contact speed (m/s)
+    failed_first: str  # what failed first at the lowest infeasible commanded speed ("" if none)
+    evaluations: list = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        return {
+            "posture": self.stance,
+            "q_impact": self.q.tolist(),
+            "normal": NORMAL.tolist(),
+            "predicted_max_speed": {m: p.to_json()["speed"] for m, p in self.predicted.items()},
+            "binding": {m: {"criterion": p.criterion, "where": p.where} for m, p in self.predicted.items()},
+            "bounds": {m: p.to_json()["bounds"] for m, p in self.predicted.items()},
+            "simulated_max_speed": self.simulated_reference,
+            "simulated_contact_speed": self.simulated_contact,
+            "simulated_failed_first": self.failed_first,
+            "evaluations": [e.to_json() for e in sorted(self.evaluations, key=lambda e: e.reference_speed)],
+        }
+
+
+def predicted_speeds(robot: RobotModel, q: np.ndarray, setting: Setting, methods) -> dict[str, MaxSpeed]:
+    """The closed form of each predictor in ``methods`` (same restitution, friction and duration)."""
+    terms = robot.terms(q)
+    return {
+        m: closed_form_max_speed(robot, terms, NORMAL, Setting(m, setting.restitution, setting.friction, setting.impact_duration))
+        for m in methods
+    }
+
+
+def search_stance(
+    robot: RobotModel, stance: str, setting: Setting = Setting(), plant: StancePlant = StancePlant(),
+    tolerance: float = STANCE_TOLERANCE, methods=("classical", "gm", "crb"), source=SCRIPTED,
+) -> StanceMaxSpeed:
+    """The closed-form speeds of ``methods`` and the simulated bisection of one stance, its trials
+    driven by ``source`` (``sim.humanoid_trial.SCRIPTED`` or ``sim.humanoid_qp_source.QpCommand``)."""
+    stances = robot.description.stances
+    if stance not in stances:
+        raise BadInputError(f"unknown stance {stance!r}; known: {', '.join(stances)}")
+    q = stance_posture(robot, stances[stance])
+    run = partial(plant.trial, robot, stance, q, source=source)
+    bisection = SpeedBisection(STANCE_LOWEST_SPEED, STANCE_HIGHEST_SPEED, tolerance, STANCE_MIN_TOLERANCE)
+    best = bisection.search(lambda speeds: [StanceEvaluation.of(run(speed)) for speed in speeds])
+    evaluations = bisection.evaluations
+    feasible = [e for e in evaluations if not e.violated and e.reference_speed <= best]
+    failed = [e for e in evaluations if e.violated]
+    contact = max(feasible, key=lambda e: e.reference_speed).contact_speed if feasible else 0.0
+    first = min(failed, key=lambda e: e.reference_speed).first_failure if failed else ""
+    return StanceMaxSpeed(stance, q, predicted_speeds(robot, q, setting, methods), best, contact, first, evaluations)

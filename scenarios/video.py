@@ -47,7 +47,7 @@ import numpy as np  # noqa: E402
 from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.measured.impact import ImpactMeasurement  # noqa: E402
 from impactqp.controller.measured.trial_log import TrialLog  # noqa: E402
-from impactqp.sim.humanoid_scene import build_humanoid_scene  # noqa: E402
+from impactqp.sim.scene import build_humanoid_scene  # noqa: E402
 from impactqp.sim.humanoid_trial import CONTROL_PERIOD  # noqa: E402
 from impactqp.sim.scene import Scene  # noqa: E402
 

@@ -1,8 +1,8 @@
 """The simulation: the MuJoCo scene of a robot, its tool and a wall (``scene``), the plant's
-parameters (``plant``), joint servo (``servo``) and sensors (``sensor``), the 1 kHz closed-loop
-runner (``runner``), the simulated robot behind the runtime's interface (``sim_backend``),
+parameters (``plant``), joint servo (``servo``) and sensors (``sensor``), the one 1 kHz closed-loop
+trial of every robot (``trial_loop``), the arm's trials (``runner``), the simulated robot behind the runtime's interface (``sim_backend``),
 simulated datasets (``generation``), the candidate causes of a sim-to-real gap (``causes``) and
-their diagnosis (``diagnosis``), and the standing G1's scene and trial (``humanoid_*``).
+their diagnosis (``diagnosis``), and the standing G1's trial (``humanoid_*``; its scene in ``scene``).
 
 Its names are exported lazily (PEP 562): importing one module loads only its own imports.
 """
@@ -18,7 +18,7 @@ _EXPORTS = {
     "TrialSpec": "runner",
     "run_trial": "runner",
     "run_approach": "runner",
-    "VelocityCommand": "runner",
+    "VelocityCommand": "trial_loop",
     "CartesianApproachCommand": "runner",
     "CommandReplay": "runner",
     "SimulationUnstableError": "runner",
@@ -28,8 +28,8 @@ _EXPORTS = {
     "generate_dataset": "generation",
     "Cause": "causes",
     "default_causes": "causes",
-    "HumanoidScene": "humanoid_scene",
-    "build_humanoid_scene": "humanoid_scene",
+    "HumanoidScene": "scene",
+    "build_humanoid_scene": "scene",
     "ImpactTrial": "humanoid_trial",
     "run_impact_trial": "humanoid_trial",
     "QpCommand": "humanoid_qp_source",

@@ -17,6 +17,17 @@ start distance (+-1 mm). The force log (on the robot, world frame, physics rate)
 noise-free. A plant with sensor keys (``sim.sensor``: delay, velocity scale and filter, torque
 offset) logs dq and tau through that faulty sensor before the noise is added: a dataset of a
 sensor fault. The plant parameters that produced the data are never written.
+
+One header for every simulated dataset (:func:`dataset_header`: the robot and the tool, the
+surface, the 1 ms control period). The standing robot's simulated trials (``sim.humanoid_trial``,
+what ``simulate --robot g1 --out DIR`` and ``campaign --robot g1`` write) are written in the
+simulation's world frame moved along x onto the wall plane: the wall is :data:`STANDING_WALL`,
+through the origin with normal (-1, 0, 0), whatever the stance (each stance puts its wall 2 cm,
+with the whole-body QP 5 cm, in front of its hand), so that the trials of every stance and command
+source share one manifest. A real humanoid's state estimator has its own origin too; only the base
+position's x column depends on the choice. The trial's ``ImpactTrial.log`` holds the rows (the
+servo's torque of row k held over [t_k, t_k+1), the wall force per physics step); its first
+contact is the manifest's ``impact_time``.
 """
 
 from __future__ import annotations
@@ -27,16 +38,18 @@ from pathlib import Path
 
 import numpy as np
 
-from impactqp.controller.measured.dataset import DatasetWriter, TrialEntry
+from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot_description import ROBOTS, RobotDescription
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range, whole_number
 
 from .plant import PlantParameters
+from .humanoid_trial import NORMAL, ImpactTrial
 from .process_pool import ProcessPool
-from .runner import TrialSpec, dataset_header, run_approach
-from .scene import build_scene
+from .runner import DEFAULT_CONTROL_PERIOD, TrialSpec, run_approach
+from .scene import WALL_FRICTION, build_scene
 from .sensor import apply_sensor
 
 DEFAULT_SPEEDS = (0.08, 0.10, 0.12, 0.15, 0.18)
@@ -51,6 +64,14 @@ MAX_REPEATS = 100
 """Repeats per condition: the paper repeats each impact a handful of times; 100 bounds the run."""
 MAX_NOISE_DQ, MAX_NOISE_TAU = 1.0, 10.0
 """rad/s and N m: noise far above a Panda's encoders (~0.004 rad/s) and torque sensors (~0.05 N m)."""
+STANDING_WALL = Surface(np.zeros(3), NORMAL, WALL_FRICTION)
+"""The wall of the standing robot's datasets (module docstring)."""
+
+
+def dataset_header(surface: Surface, choice: RobotChoice = DEFAULT_CHOICE) -> DatasetHeader:
+    """The manifest header of a simulated dataset: the robot and the tool of ``choice``, the
+    surface, the trial loop's control period."""
+    return DatasetHeader.of(choice, surface, DEFAULT_CONTROL_PERIOD)
 
 
 def tangential_direction(normal: np.ndarray) -> np.ndarray:
@@ -190,4 +211,43 @@ def generate_dataset(
             entries.append(entry)
             if progress:
                 progress(len(entries), len(tasks))
+    return entries
+
+
+# ---------------------------------------------------------------------------- the standing robot's trials
+def standing_trial_id(trial: ImpactTrial) -> str:
+    """A file-name-safe id naming the stance, the commanded speed (mm/s) and the command source."""
+    return f"{trial.stance}_vn{round(trial.speed * 1000):d}_{trial.source}"
+
+
+def dataset_log(trial: ImpactTrial) -> TrialLog:
+    """The trial's log in the dataset's world frame (module docstring): the base's x minus the wall's."""
+    base = trial.log.base.copy()
+    base[:, 0] -= trial.wall_x
+    return replace(trial.log, base=base)
+
+
+def trial_entry(trial: ImpactTrial) -> TrialEntry:
+    """The manifest's entry of a trial: its files, commanded speed, stance and first wall contact."""
+    name = standing_trial_id(trial)
+    return TrialEntry(
+        id=name, file=f"{name}.csv", reference_normal_speed=trial.speed, force_file=f"{name}_force.csv",
+        reference_tangential_velocity=(0.0, 0.0, 0.0), posture=trial.stance,
+        impact_time=trial.contact_index * DEFAULT_CONTROL_PERIOD,
+    )
+
+
+def open_dataset(directory: str | Path, robot: RobotDescription = ROBOTS["g1"]) -> DatasetWriter:
+    """The writer of the dataset of ``robot``'s trials in ``directory`` (created with the first
+    trial); an existing dataset of another header is refused here, before any trial is simulated."""
+    return DatasetWriter(directory, dataset_header(STANDING_WALL, RobotChoice(robot)))
+
+
+def write_trials(writer: DatasetWriter, trials) -> list[TrialEntry]:
+    """Add ``trials`` (``ImpactTrial``) to the dataset of ``writer`` (``open_dataset``); a trial of
+    an id the dataset holds with other data is refused, the same trial again changes nothing."""
+    entries = []
+    for trial in trials:
+        entries.append(trial_entry(trial))
+        writer.add_trial(entries[-1], dataset_log(trial))
     return entries

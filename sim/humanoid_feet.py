@@ -105,6 +105,41 @@ def worst(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
+class HeldContactLog:
+    """What a trial of a robot on held contacts records at each control step (``sim.trial_loop``):
+    the floor's impulse on the robot (world frame, the sum of its physics steps' force times the
+    timestep), the held contacts' frame positions at the step's start and the soles' states,
+    worst over its physics steps (:func:`worst`)."""
+
+    def __init__(self, scene, floor: np.ndarray, feet: np.ndarray, soles: np.ndarray):
+        self.scene, self.floor, self.feet, self.soles = scene, floor, feet, soles
+        self._step = 0
+        self._first = True
+
+    @classmethod
+    def of(cls, scene, steps: int) -> HeldContactLog:
+        """An empty log of at most ``steps`` control steps of the scene's held contacts."""
+        n = len(scene.foot_bodies)
+        return cls(scene, np.zeros((steps, 3)), np.empty((steps, n, 3)), np.empty((steps, n, 4)))
+
+    def add_state(self, k: int) -> None:
+        """Start control step k: the held contacts' frame positions now."""
+        self._step, self._first = k, True
+        self.feet[k] = self.scene.data.xpos[list(self.scene.foot_bodies)]
+
+    def add_substep(self, floor_force: np.ndarray, timestep: float) -> None:
+        """A physics step of the current control step: the floor's force on the robot, the soles."""
+        scene, k = self.scene, self._step
+        self.floor[k] += floor_force * timestep
+        now = sole_state(scene.model, scene.data, scene.soles)
+        self.soles[k] = now if self._first else worst(self.soles[k], now)
+        self._first = False
+
+    def truncated(self, steps: int) -> HeldContactLog:
+        """The log of the first ``steps`` control steps."""
+        return HeldContactLog(self.scene, self.floor[:steps], self.feet[:steps], self.soles[:steps])
+
+
 def slip_onset(states: np.ndarray) -> np.ndarray:
     """Per step of (steps, feet, 4) states and foot: the foot slides (module docstring)."""
     return (states[..., CONE] >= 1.0 - CONE_TOLERANCE) | (states[..., SPEED] > SLIP_SPEED)

@@ -40,7 +40,8 @@ from impactqp.controller.qp.command import Command, Status
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.tasks import ContactApproachTask
 
-from .humanoid_trial import LAG, NORMAL, RAMP, SETTLE
+from .humanoid_trial import CONTROL_PERIOD, LAG, NORMAL, RAMP, SETTLE
+from .trial_loop import VelocityCommand
 
 FEEDBACK = ("measured", "commanded")
 IMPACT_ROWS = "post_impact_velocity"  # name prefix of the predicted post-impact joint-velocity rows
@@ -114,7 +115,8 @@ class QpRecord:
 
 
 class QpDriver:
-    """One trial of ``QpCommand``: ``command(t, q, v, stopped)`` -> the joints' dq_cmd."""
+    """One trial of ``QpCommand``, a stopping command source (``sim.trial_loop``): ``step(q, v)`` ->
+    the joints' dq_cmd at the source's control step."""
 
     def __init__(self, controller, feedback: str):
         self.controller, self.feedback = controller, feedback
@@ -123,17 +125,19 @@ class QpDriver:
         self.last: Command | None = None
         self._step = 0
 
-    def command(self, t: float, q_pin: np.ndarray, v_pin: np.ndarray, stopped: bool) -> np.ndarray:
+    def stop(self) -> None:
+        """The hand's approach speed target becomes 0 (module docstring)."""
+        self.approach.reference_velocity = np.zeros(3)
+
+    def step(self, q_pin: np.ndarray, v_pin: np.ndarray) -> VelocityCommand:
         step, self._step = self._step, self._step + 1
-        if t < SETTLE:
-            return np.zeros(self.controller.robot.n_joints)
+        if step * CONTROL_PERIOD < SETTLE:
+            return VelocityCommand(np.zeros(self.controller.robot.n_joints))
         if self.last is None:
             self.controller.reset(q_pin, v_pin)
             self.record.first_step = step
         elif self.feedback == "commanded":
             q_pin, v_pin = self.last.q_cmd, self.last.dq_cmd
-        if stopped:
-            self.approach.reference_velocity = np.zeros(3)
         self.last = self.controller.step(q_pin, v_pin)
         self.record.add(self.last)
-        return self.last.dq_cmd[self.controller.robot.base_nv:].copy()
+        return VelocityCommand(self.last.dq_cmd[self.controller.robot.base_nv:].copy())

@@ -14,9 +14,10 @@ shoulder torques saturate and the reaction jolts the feet (what that stop did: d
 "G1: servo and stop"). Re-anchored, the servo only damps the joints' post-impact velocities.
 That is the default command source (:data:`SCRIPTED`); ``source`` chooses another one,
 e.g. the whole-body QP (``sim.humanoid_qp_source.QpCommand``): a source gives its start gap, the
-time it may take to reach the wall, and per trial a driver whose ``command(t, q, v, stopped)``
-returns the joints' velocity command (``stopped``: LATENCY has passed since the first contact),
-and whether the servo re-anchors its reference at the stop (``holds_at_stop``).
+time it may take to reach the wall, per trial a driver, the command source of the one trial loop
+(``sim.trial_loop``: ``step(q, v)`` returns the joints' velocity command, ``stop()`` tells it that
+LATENCY has passed since the first contact), and whether the servo re-anchors its reference at the
+stop (``holds_at_stop``).
 
 Servo (the kinematic control, the arm's: ``sim.servo.ComputedTorqueServo``, standing on the feet
 through ``sim.servo.StandingSupport``): a joint-space computed-torque PD with acceleration
@@ -28,7 +29,7 @@ leans; wrenches of the start stance would leave the ankles a steady tracking err
 each joint gets is clipped at its URDF effort limit (5-139 N m).
 
 Plant: MuJoCo's G1 with the actuators' reflected rotor inertias by default (``armature``:
-``sim.humanoid_scene.plant_armature``; 0 for the link-only plant). The servo's M_f includes them
+``sim.scene.plant_armature``; 0 for the link-only plant). The servo's M_f includes them
 (MuJoCo's M does); the predictors do not (they keep the URDF model).
 
 Measurement: the state before the impact is the last control step before the wall's first
@@ -59,7 +60,7 @@ criteria (``controller.model.max_speed``) measured in the trial:
 
 Log: ``ImpactTrial.log`` holds the trial as a robot logs it (``controller.measured.trial_log``): per control
 step the joints' state, the servo's torque held over the step, the command, the base state, and the wall
-force per physics step (``sim.humanoid_dataset`` writes it as a dataset).
+force per physics step (``sim.generation`` writes it as a dataset).
 
 The feet's displacements are kept beside them: ``foot_slip`` / ``foot_lift`` (m), the largest
 horizontal / vertical motion of a foot frame after the settling (``slipped`` / ``lifted``: beyond
@@ -70,7 +71,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-import mujoco
 import numpy as np
 import pinocchio as pin
 
@@ -83,10 +83,10 @@ from impactqp.controller.model.max_speed import ARM_JOINTS
 from impactqp.controller.model.humanoid_stance import stance_posture, support_polygon
 from impactqp.controller.model.robot_description import Stance
 
-from .humanoid_feet import CONE, LOAD, MARGIN, SPEED, lift_onset, slip_onset, sole_state, worst
-from .humanoid_scene import build_humanoid_scene
-from .scene import to_pinocchio
-from .servo import ComputedTorqueServo, StandingSupport
+from .humanoid_feet import CONE, LOAD, MARGIN, SPEED, lift_onset, slip_onset
+from .scene import build_humanoid_scene
+from .servo import StandingSupport
+from .trial_loop import Ending, ServoedPlant, VelocityCommand, run_loop
 
 CONTROL_PERIOD = 1e-3
 GAP = 0.02  # m from the contact point to the wall at the start
@@ -141,7 +141,7 @@ class ImpactTrial:
     contact_index: int  # the control step of the first wall contact
     source: str = "scripted"  # the command source (``ScriptedCommand.name``, ``QpCommand.name``)
     record: object = None  # what the command source kept of each control step (the QP's ``QpRecord``), or None
-    log: TrialLog | None = None  # the trial as a robot logs it (simulation world frame; ``sim.humanoid_dataset``)
+    log: TrialLog | None = None  # the trial as a robot logs it (simulation world frame; ``sim.generation``)
 
     @property
     def feasible(self) -> bool:
@@ -193,21 +193,28 @@ class ScriptedCommand:
 
 
 class _ScriptedDriver:
-    """One trial of ``ScriptedCommand``: ``command(t, q, v, stopped)`` -> the joints' dq_cmd."""
+    """One trial of ``ScriptedCommand``, a stopping command source (``sim.trial_loop``):
+    ``step(q, v)`` -> the joints' dq_cmd at the source's control step, zero once stopped."""
 
     def __init__(self, robot: RobotModel, speed: float):
         self.robot, self.speed = robot, speed
         self.arm = np.array([robot.joint_index(j) for j in ARM_JOINTS])
         self.record = None
+        self.stopped = False
+        self._step = 0
 
-    def command(self, t: float, q_pin: np.ndarray, v_pin: np.ndarray, stopped: bool) -> np.ndarray:
+    def stop(self) -> None:
+        self.stopped = True
+
+    def step(self, q_pin: np.ndarray, v_pin: np.ndarray) -> VelocityCommand:
+        t, self._step = self._step * CONTROL_PERIOD, self._step + 1
         dq_cmd = np.zeros(self.robot.n_joints)
-        if t >= SETTLE and not stopped:
+        if t >= SETTLE and not self.stopped:
             terms = self.robot.terms(q_pin)
             scale = min(1.0, (t - SETTLE) / RAMP)
             arm = self.robot.base_nv + self.arm  # the arm joints' columns of J
             dq_cmd[self.arm] = np.linalg.pinv(terms.J[:, arm]) @ (-scale * self.speed * NORMAL)
-        return dq_cmd
+        return VelocityCommand(dq_cmd)
 
 
 SCRIPTED = ScriptedCommand()
@@ -217,81 +224,35 @@ def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: f
                      armature=None, q0: np.ndarray | None = None, gap: float | None = None, source=SCRIPTED) -> ImpactTrial:
     """Simulate one trial (module docstring) and compare the jump with the predictors; ``gap``
     (m) is the start distance of the contact point from the wall (None: the source's), ``armature`` the plant's rotor
-    inertia (``sim.humanoid_scene.plant_armature``: None for the G1's actuators), ``source`` the
+    inertia (``sim.scene.plant_armature``: None for the G1's actuators), ``source`` the
     command source (``SCRIPTED``, or ``sim.humanoid_qp_source.QpCommand``: the whole-body QP)."""
     q0 = stance_posture(robot, stance) if q0 is None else q0
     gap = source.gap if gap is None else gap
     contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
     scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature)
+    plant = ServoedPlant(scene, CONTROL_PERIOD, gain=gain, standing=StandingSupport(robot, scene.base_nq, scene.base_nv))
     start = q0.copy()
     start[2] -= SINK  # the soft floor contact carries the weight from the first step
-    scene.set_state(start)
-    model, data = scene.model, scene.data
-    servo = ComputedTorqueServo(model, data, gain, StandingSupport(robot, scene.base_nq, scene.base_nv))
+    plant.reset(start)
     driver = source.start(robot, q0, scene.wall_x, speed)
-    substeps = int(round(CONTROL_PERIOD / model.opt.timestep))
-    approach_steps = int(round((SETTLE + source.approach_time(gap, speed)) / CONTROL_PERIOD))
-    states, floor_impulses, feet, soles, commands = [], [], [], [], []
-    torques, wall_forces = [], []  # the servo's torque per control step, the wall force per physics step
-    first_contact, stop_at, end = None, None, approach_steps
-    k = 0
-    while k < end:
-        q_pin, v_pin = to_pinocchio(data.qpos, data.qvel, scene.base_nq)
-        states.append((q_pin, v_pin))
-        feet.append(data.xpos[list(scene.foot_bodies)].copy())
-        dq_cmd = driver.command(k * CONTROL_PERIOD, q_pin, v_pin, stop_at is not None and k >= stop_at)
-        commands.append(dq_cmd)
-        if k == stop_at and source.holds_at_stop:
-            servo.hold()
-        tau = servo.torque(dq_cmd, CONTROL_PERIOD).copy()
-        torques.append(tau)
-        floor, sole = np.zeros(3), None
-        for _ in range(substeps):
-            data.qfrc_applied[scene.base_nv:] = tau
-            mujoco.mj_step(model, data)
-            wall_force, floor_force = _contact_forces(scene)
-            wall_forces.append(wall_force)
-            floor += floor_force * model.opt.timestep
-            now = sole_state(model, data, scene.soles)
-            sole = now if sole is None else worst(sole, now)
-        soles.append(sole)
-        floor_impulses.append(floor)
-        if first_contact is None and any(np.any(f != 0.0) for f in wall_forces[-substeps:]):
-            first_contact = k
-            stop_at = k + int(round(LATENCY / CONTROL_PERIOD))
-            end = k + int(round(AFTER / CONTROL_PERIOD))
-        k += 1
-    if first_contact is None:
+    ending = Ending(
+        int(round((SETTLE + source.approach_time(gap, speed)) / CONTROL_PERIOD)), after=int(round(AFTER / CONTROL_PERIOD)),
+        stop_after=int(round(LATENCY / CONTROL_PERIOD)), hold=source.holds_at_stop,
+    )
+    record = run_loop(plant, driver, ending)
+    first = record.first_contact
+    if first is None:
         raise RuntimeError(f"the hand never reached the wall (stance {stance.name}, {speed} m/s, {source.name} command)")
-    walls = np.array(wall_forces).reshape(k, substeps, 3)
-    forces, peaks = (walls * model.opt.timestep).sum(axis=1), np.maximum((walls @ NORMAL).max(axis=1), 0.0)
-    log = _Log(states, forces, peaks, np.array(floor_impulses), np.array(feet), np.array(soles))
-    trial = _evaluate(robot, stance, speed, log, first_contact, scene.wall_x)
-    q_log, v_log = (np.array(x) for x in zip(*states))
-    force_t = np.arange(len(wall_forces)) * model.opt.timestep
-    base_q, base_v = slice(robot.base_nq), slice(robot.base_nv)
+    steps, substeps, held = len(record.t), plant.substeps, record.held
+    walls = record.force.reshape(steps, substeps, 3)
+    forces, peaks = (walls * scene.timestep).sum(axis=1), np.maximum((walls @ NORMAL).max(axis=1), 0.0)
+    log = _Log(list(zip(record.q, record.dq)), forces, peaks, held.floor, held.feet, held.soles)
+    trial = _evaluate(robot, stance, speed, log, first, scene.wall_x)
     joints_q, joints_v = slice(robot.base_nq, None), slice(robot.base_nv, None)
-    robot_log = TrialLog(np.arange(k) * CONTROL_PERIOD, q_log[:, joints_q], v_log[:, joints_v], np.array(torques),
-                         np.array(commands), force_t, walls.reshape(-1, 3),
-                         base=np.column_stack([q_log[:, base_q], v_log[:, base_v]]))
+    robot_log = TrialLog(record.t, record.q[:, joints_q], record.dq[:, joints_v], record.tau, record.dq_cmd,
+                         record.force_t, record.force, record.wall_time,
+                         base=np.column_stack([record.q[:, :robot.base_nq], record.dq[:, :robot.base_nv]]))
     return replace(trial, source=source.name, record=driver.record, log=robot_log)
-
-
-def _contact_forces(scene) -> tuple[np.ndarray, np.ndarray]:
-    """The wall's and the floor's contact forces on the robot (world frame) in the current step."""
-    model, data = scene.model, scene.data
-    wall, floor, wrench = np.zeros(3), np.zeros(3), np.zeros(6)
-    for c in range(data.ncon):
-        contact = data.contact[c]
-        mujoco.mj_contactForce(model, data, c, wrench)
-        on_geom2 = contact.frame.reshape(3, 3).T @ wrench[:3]
-        # the environment (wall or floor) is geom1 or geom2 of the pair; the force on the robot
-        on_robot = on_geom2 if contact.geom1 in (scene.wall_geom, scene.floor_geom) else -on_geom2
-        if scene.wall_geom in (contact.geom1, contact.geom2):
-            wall += on_robot
-        else:
-            floor += on_robot
-    return wall, floor
 
 
 @dataclass

@@ -1,15 +1,11 @@
-"""Closed-loop trials: a 1 kHz command source drives the MuJoCo Panda through a joint servo.
+"""The fixed-base arm's closed-loop trials: a 1 kHz command source drives the MuJoCo arm through a
+joint servo, in the one trial loop of every robot (``sim.trial_loop``: state, command, servo
+torque held over the period, physics substeps with the wall's contact force logged).
 
-Loop of one control period dt (default 1 ms), at control step k (t_k = k dt):
-
-1. the command source reads the state (q_k, dq_k) and returns a command whose ``dq_cmd`` is the
-   commanded joint velocity (the QP controller, a :class:`CartesianApproachCommand` or a
-   :class:`CommandReplay` of a logged sequence);
-2. the servo turns it into joint torques, held constant over the period (zero-order hold, like
-   the robot's own 1 kHz torque loop);
-3. MuJoCo advances ``dt / timestep`` substeps; the contact force on the robot is logged at every
-   substep (zero, without a per-substep Python loop, while the tool is too far from the wall to
-   touch it within the period even at 5 m/s).
+The arm's command sources: the QP controller, a :class:`CartesianApproachCommand` or a
+:class:`CommandReplay` of a logged sequence (``sim.trial_loop.CommandSource``); :func:`run_trial`
+runs one for a given duration from a given state, :func:`run_approach` one approach-and-impact
+trial (:class:`TrialSpec`).
 
 Servo (the arm's kinematic control, a plant property): ``sim.servo.ComputedTorqueServo``, a
 computed-torque joint PD with acceleration feed-forward that tracks the commanded velocity,
@@ -29,17 +25,13 @@ is this torque, the "measured joint torque" of a trial.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
 
 import mujoco
 import numpy as np
 
 from impactqp.constraints import jump_model_names
-from impactqp.controller.measured.dataset import DatasetHeader
-from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
@@ -51,7 +43,7 @@ from impactqp.controller.model.validation import restitution as check_restitutio
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 
 from .scene import Scene
-from .servo import ComputedTorqueServo
+from .trial_loop import CommandSource, Ending, ServoedPlant, VelocityCommand, run_loop
 
 # A diverging simulation is detected from MuJoCo's warning counters and raised as
 # SimulationUnstableError (_check_stable); the C library must not also print each warning.
@@ -61,7 +53,6 @@ DEFAULT_CONTROL_PERIOD = 1e-3
 OBSERVATION_WINDOW = 0.05
 """s after the contact start in which a trial's velocities are observed (``docs/max-speed.md``)."""
 FEEDBACKS = ("commanded", "measured")
-CLEARANCE_SPEED = 5.0
 LAG_ALLOWANCE = 3.0
 
 
@@ -73,23 +64,6 @@ real Panda comes near it, and the data would be garbage."""
 class SimulationUnstableError(BadInputError):
     """The simulated state diverged (non-finite, or |dq| far above the limits): the plant or the
     request lies outside what the model simulates faithfully. Such a trial is never data."""
-
-
-class JointVelocityCommand(Protocol):
-    dq_cmd: np.ndarray
-
-
-class CommandSource(Protocol):
-    """Anything that maps the measured joint state to a joint-velocity command, once per period."""
-
-    def step(self, q: np.ndarray, dq: np.ndarray) -> JointVelocityCommand: ...
-
-
-@dataclass(frozen=True)
-class VelocityCommand:
-    """A plain joint-velocity command (the ``dq_cmd`` of the sources of this module)."""
-
-    dq_cmd: np.ndarray
 
 
 class CartesianApproachCommand:
@@ -196,58 +170,6 @@ def _mm(value: float) -> str:
     return f"{round(value * 1000):d}".replace("-", "m")
 
 
-class ServoedPlant:
-    """The scene's plant under the joint servo, advanced one control period per command
-    (steps 2 and 3 of the module docstring); shared by :func:`run_trial` and the robot loop's
-    sim backend."""
-
-    def __init__(self, scene: Scene, control_period: float):
-        substeps = int(round(control_period / scene.timestep))
-        if substeps < 1 or abs(substeps * scene.timestep - control_period) > 1e-9:
-            raise BadInputError(
-                f"control period {control_period} s is not a whole number of timesteps ({scene.timestep} s)"
-            )
-        self.scene = scene
-        self.control_period = control_period
-        self.substeps = substeps
-        self.servo = ComputedTorqueServo(scene.model, scene.data, scene.plant.servo_gain)
-        # centre-to-wall distance beyond which the tool cannot touch the wall within one period
-        # (at up to CLEARANCE_SPEED m/s)
-        self.clearance = scene.tool.geometry.bounding_radius + CLEARANCE_SPEED * control_period
-        self._contact_force = np.zeros(6)
-
-    def reset(self, q0: np.ndarray, dq0: np.ndarray, servo_reference=None) -> None:
-        """Put the plant at (q0, dq0); the servo reference at the state or at ``servo_reference``."""
-        self.scene.set_state(q0, dq0)
-        self.servo.reset(*(servo_reference if servo_reference is not None else (q0, dq0)))
-
-    def advance(self, dq_cmd: np.ndarray, force: np.ndarray) -> np.ndarray:
-        """One period under the command; adds the contact force on the robot (world frame) of
-        each substep to the rows of ``force`` (substeps, 3); returns the servo torque (the
-        servo's buffer: copy it to keep it)."""
-        scene = self.scene
-        model, data, tool = scene.model, scene.data, scene.tool_geom
-        mujoco.mj_step1(model, data)
-        torque = self.servo.torque(dq_cmd, self.control_period)
-        data.qfrc_applied[:] = torque
-        mujoco.mj_step2(model, data)
-        if scene.surface.signed_distance(data.geom_xpos[tool]) > self.clearance:
-            # the tool cannot reach the wall within this period: no contact force to log
-            mujoco.mj_step(model, data, self.substeps - 1)
-            return torque
-        contact_force = self._contact_force
-        for i in range(self.substeps):
-            if i > 0:
-                mujoco.mj_step(model, data)
-            for c in range(data.ncon):
-                mujoco.mj_contactForce(model, data, c, contact_force)
-                contact = data.contact[c]
-                # contact_force[:3] is in the contact frame; +normal pushes geom2 away from geom1
-                on_geom2 = contact.frame.reshape(3, 3).T @ contact_force[:3]
-                force[i] += on_geom2 if contact.geom2 == tool else -on_geom2
-        return torque
-
-
 def run_trial(
     scene: Scene,
     source: CommandSource,
@@ -265,9 +187,7 @@ def run_trial(
     The servo gain is the scene's ``plant.servo_gain``; ``control_period`` must be a whole
     number of physics timesteps.
     """
-    data = scene.data
     plant = ServoedPlant(scene, control_period)
-    substeps = plant.substeps
     steps = int(round(duration / control_period))
     if steps < 1:
         raise BadInputError(f"duration {duration} s is shorter than one control period")
@@ -276,27 +196,11 @@ def run_trial(
     nq, nv = scene.model.nq, scene.model.nv
     if q0.shape != (nq,) or dq0.shape != (nv,):
         raise BadInputError(f"the start state needs {nq} joint positions and {nv} velocities")
-
-    t = np.arange(steps) * control_period
-    q = np.empty((steps, nq))
-    dq = np.empty((steps, nv))
-    tau = np.empty((steps, nv))
-    dq_cmd = np.empty((steps, nv))
-    force = np.zeros((steps * substeps, 3))
-    force_t = np.arange(steps * substeps) * scene.timestep
     plant.reset(q0, dq0, servo_reference)
-    start = time.perf_counter()
-    for k in range(steps):
-        q[k] = data.qpos
-        dq[k] = data.qvel
-        command = np.asarray(source.step(q[k].copy(), dq[k].copy()).dq_cmd, dtype=float)
-        if command.shape != (nv,) or not np.all(np.isfinite(command)):
-            raise ValueError(f"control step {k}: dq_cmd must be {nv} finite values, got {command}")
-        dq_cmd[k] = command
-        tau[k] = plant.advance(command, force[k * substeps : (k + 1) * substeps])
-    wall_time = time.perf_counter() - start
-    _check_stable(scene, t, dq)
-    return TrialLog(t, q, dq, tau, dq_cmd, force_t, force, wall_time)
+    record = run_loop(plant, source, Ending(steps))
+    _check_stable(scene, record.t, record.dq)
+    return TrialLog(record.t, record.q, record.dq, record.tau, record.dq_cmd, record.force_t, record.force,
+                    record.wall_time)
 
 
 def _check_stable(scene: Scene, t: np.ndarray, dq: np.ndarray) -> None:
@@ -330,12 +234,6 @@ def servo_reference_from_commands(
     previous = np.vstack([dq_start, dq_cmd[:-1]])
     q_ref = np.asarray(q_start, dtype=float) + 0.5 * dt * np.sum(previous + dq_cmd, axis=0)
     return q_ref, dq_cmd[-1].copy()
-
-
-def dataset_header(surface: Surface, choice: RobotChoice = DEFAULT_CHOICE) -> DatasetHeader:
-    """The manifest header of a simulated dataset: the robot and the tool of ``choice``, the
-    runner's control period."""
-    return DatasetHeader.of(choice, surface, DEFAULT_CONTROL_PERIOD)
 
 
 def run_approach(

@@ -1,7 +1,7 @@
 """The ``sim`` backend: the MuJoCo plant (``sim``) behind the robot interface.
 
-One ``write`` advances the plant by one period as ``sim.runner.run_trial`` does
-(``sim.runner.ServoedPlant``): the computed-torque joint servo turns the command into a torque
+One ``write`` advances the plant by one period as the trial loop does
+(``sim.trial_loop.ServoedPlant``): the computed-torque joint servo turns the command into a torque
 held over the period, MuJoCo runs its substeps, and the contact force on the tool is logged at
 every substep. ``read`` returns the state at the start of the next period; its ``tau`` is the
 torque that acted over the previous period (the last measured joint torque of a robot). Paced,
@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from impactqp.sim.runner import ServoedPlant
+from impactqp.sim.trial_loop import ServoedPlant
 from impactqp.sim.scene import Scene
 
 from impactqp.controller.runtime.interface import RobotInterface, RobotState

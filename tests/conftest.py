@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, VELOCITY_LIMIT, PandaModel
@@ -16,7 +17,7 @@ from impactqp.controller.model.robot_description import PANDA, ROBOTS
 from impactqp.controller.model.tool_description import TOOLS
 from impactqp.controller.runtime.interface import RobotInterface
 from impactqp.scenarios.run import RunRequest, run
-from impactqp.sim.humanoid_dataset import humanoid_header
+from impactqp.sim.generation import STANDING_WALL, dataset_header
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import TrialSpec, run_approach
 from impactqp.sim.scene import build_scene
@@ -30,7 +31,7 @@ if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
 CONTROL_PERIOD = 1e-3
 LIMIT_TOLERANCE = 1e-9
 JOINTS = len(PANDA.joints)
-G1_HEADER = humanoid_header(ROBOTS["g1"])
+G1_HEADER = dataset_header(STANDING_WALL, RobotChoice(ROBOTS["g1"]))
 """The header of the G1's simulated trials."""
 ARMS = [name for name in ROBOTS if not ROBOTS[name].floating]
 """The built-in fixed-base arms (the descriptions whose base is fixed)."""

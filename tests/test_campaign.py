@@ -1,30 +1,38 @@
-"""The simulated campaign: its plan, the dataset it writes, Table I from first principles and
-the figures."""
+"""The simulated campaign (scenarios/campaign.py): its plan, the dataset it writes, Table I from
+first principles and the figure files; a floating base's campaign, its trial runner of the one
+campaign and its table. The figures themselves: tests/test_campaign_figures.py."""
 
 import json
 
 import numpy as np
 import pytest
 
-from conftest import JOINTS
+from conftest import G1_HEADER, JOINTS
 from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.robot_description import PANDA, ROBOTS
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as FLOATING_METHODS
+from impactqp.controller.model.robot import RobotModel
 from impactqp.scenarios.campaign import (
+    STANCE_PREDICTORS,
+    FloatingBaseTable,
+    FloatingBaseTrials,
+    crb_reduction,
+    run_stance_trials,
+    stance_mean_errors,
+    stance_table_text,
     PAPER_SPEEDS,
     PAPER_TANGENTIAL_SPEEDS,
     Campaign,
-    CampaignFigures,
     CampaignPlan,
     FixedBaseTrials,
     Table1,
     TableRow,
     check_postures,
     named_postures,
-    y_limits,
 )
 from impactqp.controller.measured.dataset import read_dataset
 from impactqp.controller.measured.dataset_check import validate
@@ -118,50 +126,6 @@ def test_figures_are_png(campaign_dir):
         assert (campaign_dir / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def posture_rows(posture, scale, seed):
-    rng = np.random.default_rng(seed)
-    return [
-        TableRow(f"{posture}{k}", posture, v, 0.0, v, {m: 0.1 for m in METHODS}, scale * rng.normal(size=JOINTS),
-                 {m: scale * rng.random(JOINTS) for m in METHODS})
-        for k, v in enumerate((0.1, 0.15))
-    ]
-
-
-def test_every_figure_panel_is_labelled_and_the_postures_share_their_y_scale(tmp_path, monkeypatch):
-    """Two postures with jumps 10 times apart: their figures still share the y range; the error
-    figure has a panel for every predictor of Table I (classical_normal included)."""
-    import matplotlib.pyplot as plt
-
-    import impactqp.scenarios.campaign as campaign
-
-    figures = []
-    monkeypatch.setattr(campaign, "save_figure", lambda fig, path: figures.append((path.name, fig)) or path)
-    rows = posture_rows("elbow_up", 1.0, 0) + posture_rows("elbow_left", 0.1, 1)
-    CampaignFigures(Table1(rows)).write(tmp_path)
-    by_name = dict(figures)
-    assert sorted(by_name) == [
-        "errors_elbow_left.png", "errors_elbow_up.png", "jumps_elbow_left.png", "jumps_elbow_up.png"
-    ]
-    for kind in ("jumps", "errors"):
-        limits = [by_name[f"{kind}_{p}.png"].axes[0].get_ylim() for p in ("elbow_up", "elbow_left")]
-        assert limits[0] == limits[1]
-    errors = by_name["errors_elbow_up.png"]
-    assert [ax.get_title() for ax in errors.axes] == list(METHODS) and "classical_normal" in METHODS
-    assert "elbow_up" in errors._suptitle.get_text()
-    for name, fig in figures:
-        for ax in fig.axes:
-            assert "(m/s)" in ax.get_xlabel() and "(rad/s)" in ax.get_ylabel(), name
-        plt.close(fig)
-    assert "elbow_up" in by_name["jumps_elbow_up.png"].axes[0].get_title()
-
-
-def test_y_limits_hold_every_value():
-    low, high = y_limits([np.array([-1.0, 2.0]), np.array([0.5])])
-    assert low < -1.0 and high > 2.0
-    assert y_limits([np.array([0.2, 0.3])], zero=True)[0] == 0.0
-    assert y_limits([]) is None
-
-
 def test_running_again_into_the_same_directory_changes_nothing(campaign_dir):
     before = (campaign_dir / "dataset.json").read_text()
     Campaign(CampaignPlan(("elbow_left",), (0.1, 0.15), (0.05,)), FixedBaseTrials(DEFAULT_WALL)).run(campaign_dir)
@@ -200,3 +164,64 @@ def test_a_robots_campaign_postures_are_its_description_s(name):
     assert check_postures(robot, reversed(tuple(known))) == tuple(reversed(tuple(known)))
     with pytest.raises(BadInputError, match=f"unknown posture 'nope' for the {robot.name}; known: {', '.join(known)}"):
         check_postures(robot, ("nope",))
+
+
+@pytest.fixture(scope="module")
+def trials():
+    return run_stance_trials(RobotModel("g1"), stances=("wide",), speeds=(0.1, 0.25))
+
+
+def test_one_trial_per_stance_and_speed(trials):
+    assert [(t.stance, t.speed) for t in trials] == [("wide", 0.1), ("wide", 0.25)]
+
+
+def test_mean_errors_average_the_trials(trials):
+    errors = stance_mean_errors(trials)
+    for m in STANCE_PREDICTORS:
+        assert errors[m] == pytest.approx(np.mean([t.errors[m] for t in trials]))
+
+
+def test_table_has_a_row_per_trial_and_the_mean(trials):
+    table = stance_table_text(trials)
+    rows = [line for line in table.splitlines() if line.startswith("| ")]
+    assert len(rows) == 1 + len(trials) + 1
+    assert f"{crb_reduction(stance_mean_errors(trials)):+.1f} %" in table
+
+
+def test_crb_reduction_sign():
+    assert crb_reduction({"crb": 0.2, "classical": 1.0}) == pytest.approx(80.0)
+    assert crb_reduction({"crb": 2.0, "classical": 1.0}) == pytest.approx(-100.0)
+
+
+def test_a_per_joint_armature_is_the_same_plant_as_one_number_for_every_joint():
+    robot = RobotModel("g1")
+    one = run_stance_trials(robot, stances=("wide",), speeds=(0.1,), armature=0.02)
+    each = run_stance_trials(robot, stances=("wide",), speeds=(0.1,), armature=np.full(robot.n_joints, 0.02))
+    assert one[0].errors == each[0].errors
+    np.testing.assert_array_equal(one[0].measured_jump, each[0].measured_jump)
+
+
+def test_the_campaign_runner_plans_the_stances_and_speeds():
+    """FloatingBaseTrials: the plan's stances (None: every stance of the description) x speeds, no
+    tangential series; its header is the robot's wall dataset's."""
+    robot = ROBOTS["g1"]
+    trials = FloatingBaseTrials(robot)
+    tasks = trials.tasks(CampaignPlan(None, (0.1, 0.2), ()))
+    assert [(s, v) for _, s, v in tasks] == [(s, v) for s in robot.stances for v in (0.1, 0.2)]
+    assert all(r is robot for r, _, _ in tasks)
+    assert trials.header.to_dict() == G1_HEADER.to_dict()
+    with pytest.raises(BadInputError, match="unknown posture 'elbow_up' for the g1"):
+        trials.tasks(CampaignPlan(("elbow_up",), (0.1,), ()))
+    with pytest.raises(BadInputError, match="no tangential series"):
+        trials.tasks(CampaignPlan(("wide",), (0.1,), (0.05,)))
+
+
+def test_the_table_json_rows_are_the_trials(trials):
+    table = FloatingBaseTable("g1", trials)
+    data = json.loads(table.files()["table1.json"])
+    assert data == json.loads(json.dumps(table.to_json())) and data["robot"] == "g1"
+    assert [r["posture"] for r in data["rows"]] == [t.stance for t in trials]
+    for row, trial in zip(data["rows"], trials):
+        assert row["crb_reduction_percent"] == pytest.approx(100 * (1 - trial.errors["crb"] / trial.errors["classical"]))
+    assert set(data["mean_average_error"]) == set(FLOATING_METHODS)
+    assert table.files()["table1.md"] == stance_table_text(trials) + "\n" and table.write_figures(None) == []

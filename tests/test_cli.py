@@ -1,4 +1,5 @@
-"""The command-line contract: JSON keys, readable tables, one-line errors with exit code 2."""
+"""The command-line contract: JSON keys, readable tables, one-line errors with exit code 2; ``predict
+--robot g1`` (a stance of the floating base) and what does not apply to the G1."""
 
 import json
 import signal
@@ -8,12 +9,14 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
-from conftest import JOINTS
+from conftest import JOINTS, g1_model
+from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.scenarios.cli import main
-from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED
+from impactqp.scenarios.cli.exit_codes import EXIT_BAD_INPUT, EXIT_INTERRUPTED
 
 
 def run(capsys, *args):
@@ -447,3 +450,43 @@ def test_a_stop_signal_after_the_work_is_done_keeps_the_exit_code(sig):
     done = subprocess.run([sys.executable, "-c", script, "postures", "--json"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout) and done.stderr == ""
+
+
+def test_predict_g1_json(capsys):
+    code, out, _ = run(capsys, "predict", "--robot", "g1", "--posture", "parallel", "--normal", "-1,0,0",
+                       "--speed", "0.3", "--json")
+    assert code == 0
+    report = json.loads(out)
+    assert {"q", "contact_point", "normal", "pre_impact_velocity", "restitution", "cond_M", "methods"} <= set(report)
+    assert set(report["methods"]) == {"classical", "gm", "crb"}
+    for entry in report["methods"].values():
+        assert len(entry["dq_jump"]) == g1_model().model.nv and len(entry["feet_impulse"]) == 12
+        assert np.asarray(entry["impulse"]) @ [-1.0, 0.0, 0.0] > 0.0
+
+
+def test_predict_g1_takes_a_configuration(capsys):
+    q = ",".join(f"{x:g}" for x in pin.neutral(g1_model().model))  # the base at the origin, upright
+    code, out, _ = run(capsys, "predict", "--robot", "g1", "--q", q, "--normal", "-1,0,0", "--speed", "0.2",
+                       "--method", "gm", "--json")
+    assert code == 0 and list(json.loads(out)["methods"]) == ["gm"]
+
+
+@pytest.mark.parametrize("args", [
+    ("simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.2", "--wall-point", "1,0,0"),
+    ("max-speed", "--robot", "g1", "--posture", "parallel", "--jump-model", "gm"),
+    ("simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.2", "--jump-model", "gm"),
+    ("simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.2", "--controller", "qp",
+     "--jump-model", "robust"),
+    ("simulate", "--posture", "elbow_right", "--speed", "0.1", "--controller", "qp"),
+    ("predict", "--robot", "g1", "--posture", "parallel", "--normal", "-1,0,0", "--speed", "0.2", "--tool", "pad"),
+    ("campaign", "--robot", "g1", "--postures", "kneeling"),
+    ("postures", "--robot", "g1"),
+])
+def test_what_does_not_apply_to_the_g1_is_one_line_of_bad_input(capsys, args):
+    code, out, err = run(capsys, *args)
+    assert code == EXIT_BAD_INPUT
+    assert err.count("\n") == 1 and err.startswith("impactqp: error:")
+
+
+def test_stances_are_the_g1_postures():
+    assert {"parallel", "wide", "staggered", "close", "far"} <= set(STANCES)

@@ -2,7 +2,6 @@
 screened forward steps, refinements and backward removals, every step reported."""
 
 import numpy as np
-import pytest
 from diagnosis_checks import POSTURES, SPEEDS, check_contract, inside, tolerance
 from hypothesis import given, settings
 from hypothesis import strategies as st

@@ -1,7 +1,6 @@
 """Sensor faults hidden in a small dataset: named, with the truth inside the interval
 (sim/diagnosis with the sensor causes of sim/causes.py)."""
 
-import numpy as np
 import pytest
 from diagnosis_checks import check_contract, inside
 

@@ -8,7 +8,7 @@ from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.qp.command import Status
-from impactqp.scenarios.humanoid_max_speed import Plant, trial_at_contact_speed
+from impactqp.scenarios.stance_check import StancePlant, trial_at_contact_speed
 from impactqp.sim.humanoid_qp_source import QpCommand
 from impactqp.sim.humanoid_trial import CONTROL_PERIOD, LATENCY, NORMAL, SETTLE, run_impact_trial
 
@@ -74,7 +74,7 @@ def test_predicted_post_impact_joint_velocities_are_within_the_limits_at_the_con
 
 def test_the_feet_show_no_onset_the_scripted_trial_does_not_show_at_the_same_contact_speed(robot, trial):
     q = stance_posture(robot, STANCES["parallel"])
-    scripted = trial_at_contact_speed(robot, "parallel", q, trial.contact_speed, Plant())
+    scripted = trial_at_contact_speed(robot, "parallel", q, trial.contact_speed, StancePlant())
     assert scripted.source == "scripted" and scripted.record is None
     assert abs(scripted.contact_speed - trial.contact_speed) <= 0.02 * trial.contact_speed
     assert FOOT_ONSETS & set(trial.failures) <= set(scripted.failures)
@@ -82,7 +82,7 @@ def test_the_feet_show_no_onset_the_scripted_trial_does_not_show_at_the_same_con
 
 def test_a_source_that_tracks_the_speed_is_asked_the_target_once(robot):
     q = stance_posture(robot, STANCES["parallel"])
-    qp = trial_at_contact_speed(robot, "parallel", q, 0.2, Plant(), QpCommand())
+    qp = trial_at_contact_speed(robot, "parallel", q, 0.2, StancePlant(), QpCommand())
     assert qp.speed == 0.2 and qp.source == "qp"
 
 

@@ -1,5 +1,5 @@
 """Maximum feasible speed: the parallel bisection (the arm's and the G1's) on a known threshold,
-and one real search in closed loop (the QP reaches the closed-form maximum; the bracket of the simulation is sound)."""
+a G1 stance the description does not have, and one real search in closed loop (the QP reaches the closed-form maximum; the bracket of the simulation is sound)."""
 
 import numpy as np
 import pytest
@@ -11,12 +11,16 @@ from impactqp.controller.model.max_speed import Setting, approach_direction, clo
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.validation import BadInputError
-from impactqp.scenarios.humanoid_max_speed import HIGHEST_SPEED, LOWEST_SPEED, MIN_TOLERANCE
+from impactqp.controller.model.robot import RobotModel
 from impactqp.scenarios.max_speed_search import (
+    STANCE_HIGHEST_SPEED,
+    STANCE_LOWEST_SPEED,
+    STANCE_MIN_TOLERANCE,
     Evaluation,
     MaxSpeedSearch,
     SpeedBisection,
     approach_velocity_limit,
+    search_stance,
 )
 
 
@@ -51,13 +55,13 @@ def test_search_brackets_the_threshold_of_a_monotone_feasibility(threshold, tole
         calls.extend(speeds)
         return [Evaluation(v, v, 0.5, 0.0, v > threshold) for v in speeds]
 
-    bisection = SpeedBisection(LOWEST_SPEED, HIGHEST_SPEED, tolerance, MIN_TOLERANCE)
+    bisection = SpeedBisection(STANCE_LOWEST_SPEED, STANCE_HIGHEST_SPEED, tolerance, STANCE_MIN_TOLERANCE)
     best = bisection.search(evaluate, jobs)
     assert [e.reference_speed for e in bisection.evaluations] == calls
-    if threshold < LOWEST_SPEED:
+    if threshold < STANCE_LOWEST_SPEED:
         assert best == 0.0
-    elif threshold >= HIGHEST_SPEED:
-        assert best == HIGHEST_SPEED
+    elif threshold >= STANCE_HIGHEST_SPEED:
+        assert best == STANCE_HIGHEST_SPEED
     else:
         assert best <= threshold < best + tolerance
 
@@ -135,7 +139,7 @@ def test_bad_search_settings_are_rejected():
     with pytest.raises(ValueError, match="tolerance"):
         SpeedBisection(0.02, 1.0, 0.0)
     with pytest.raises(BadInputError, match="tolerance"):
-        SpeedBisection(LOWEST_SPEED, HIGHEST_SPEED, 0.5 * MIN_TOLERANCE, MIN_TOLERANCE)
+        SpeedBisection(STANCE_LOWEST_SPEED, STANCE_HIGHEST_SPEED, 0.5 * STANCE_MIN_TOLERANCE, STANCE_MIN_TOLERANCE)
 
 
 def test_a_max_speed_search_of_the_fr3_with_the_franka_hand_reaches_its_closed_form():
@@ -157,3 +161,8 @@ def test_a_max_speed_search_of_the_fr3_with_the_franka_hand_reaches_its_closed_f
     assert data["qp_max_velocity_ratio"] < 1.0
     below = [e for e in report.evaluations if e.reference_speed <= report.simulated_max_speed]
     assert below and not any(e.violated for e in below)
+
+
+def test_unknown_stance_is_bad_input():
+    with pytest.raises(BadInputError):
+        search_stance(RobotModel("g1"), "kneeling")

@@ -5,7 +5,6 @@ is refused before anything moves."""
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings
-from hypothesis import strategies as st
 
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import PandaModel

@@ -216,3 +216,24 @@ def robot_options(command=None, *, humanoid: bool = False):
         help="The tool: impact_tip, franka_hand, pad, or a .json/.toml tool file (docs/robots.md).",
     )(with_choice)
     return click.option("--robot", default="panda", show_default=True, help=robot_help(humanoid))(with_choice)
+
+
+def reject_options(names) -> None:
+    """Bad input when one of the options ``names`` (click parameter names), which do not apply to a
+    floating-base robot, was given."""
+    ctx = click.get_current_context()
+    for name in names:
+        if ctx.get_parameter_source(name) not in (None, click.core.ParameterSource.DEFAULT):
+            option = next(p for p in ctx.command.params if p.name == name).opts[0]
+            raise BadInputError(f"{option} does not apply to --robot g1 (docs/floating-base.md)")
+
+
+def stance_names(robot, text: str | None) -> tuple[str, ...]:
+    """Comma-separated stance names of the floating-base ``robot`` (all when None), each checked: its
+    postures are its description's stances."""
+    stances = robot.stances
+    names = tuple(stances) if text is None else tuple(s.strip() for s in text.split(","))
+    for name in names:
+        if name not in stances:
+            raise BadInputError(f"unknown posture {name!r} for the {robot.name}; known: {', '.join(stances)}")
+    return names

@@ -1,5 +1,7 @@
 """The ``impactqp`` commands: the click group and the small commands (``postures``, ``predict``,
-``bench``, ``demo``); the others live beside it. They parse options and call the library,
+``bench``, ``demo``); the others live beside it. ``predict --robot g1`` (a floating base,
+docs/floating-base.md) predicts at a stance of its description, its feet held
+(:func:`stance_prediction`). They parse options and call the library,
 nothing more; the error boundary and the exit codes are ``scenarios.cli.main``'s.
 """
 
@@ -10,7 +12,14 @@ import numpy as np
 
 from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.validation import BadInputError
-from impactqp.scenarios.cli.arguments import emit_json, output_directory, parse_vector, robot_options
+from impactqp.scenarios.cli.arguments import (
+    emit_json,
+    output_directory,
+    parse_vector,
+    reject_options,
+    robot_options,
+    stance_names,
+)
 
 
 @click.group()
@@ -69,11 +78,8 @@ def predict(method, as_json, choice, **impact):
 
     methods = METHODS if method == "all" else (method,)
     if choice.robot.floating:
-        # lazy: the command line loads what a command needs when it runs
-        from impactqp.scenarios.cli.humanoid_commands import g1_predict
-
-        report = g1_predict(choice, impact.pop("posture_name"), impact.pop("q_text"), impact,
-                            None if method == "all" else methods)
+        report = stance_prediction(choice, impact.pop("posture_name"), impact.pop("q_text"), impact,
+                                   None if method == "all" else methods)
         if as_json:
             emit_json(report)
             return
@@ -108,6 +114,47 @@ def predict(method, as_json, choice, **impact):
         dq = "".join(f"{x:9.4f}" for x in res["dq_jump"])
         imp = " ".join(f"{x:7.4f}" for x in res["impulse"])
         click.echo(f"{name:<17}{dq}   [{imp}]")
+
+
+def stance_prediction(choice, posture: str | None, q_text: str | None, impact: dict, methods) -> dict:
+    """The ``predict`` report of the floating-base robot of ``choice`` (feet held): per method
+    (``methods``; None: classical, gm, crb) the jump dq_jump (nv: base twist, joints), impulse,
+    CoM jump and feet wrenches (JSON: the arm's keys where they mean the same)."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.controller.model.jump import predict as predict_jump
+    from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as FLOATING_METHODS
+    from impactqp.controller.model.robot import RobotModel
+    from impactqp.controller.model.humanoid_stance import stance_posture
+    from impactqp.controller.model.validation import approach_speed, tangential_velocity, unit_normal
+    from impactqp.controller.model.validation import restitution as restitution_coefficient
+
+    reject_options(["tool"])
+    robot = RobotModel(choice.robot)
+    if (posture is None) == (q_text is None):
+        raise BadInputError("give exactly one of --posture NAME or --q Q1,...,Q36")
+    stances = choice.robot.stances
+    q = (stance_posture(robot, stances[stance_names(choice.robot, posture)[0]]) if posture
+         else parse_vector(q_text, robot.model.nq, "--q"))
+    normal = unit_normal(parse_vector(impact["normal_text"], 3, "--normal"), "--normal")
+    speed = approach_speed(impact["speed"], "--speed")
+    tangential = (np.zeros(3) if impact["tangential_text"] is None
+                  else tangential_velocity(parse_vector(impact["tangential_text"], 3, "--tangential"), normal, "--tangential"))
+    c_r = restitution_coefficient(impact["restitution"], "--restitution")
+    v_minus = -speed * normal + tangential
+    terms = robot.terms(q)
+    report = {
+        "robot": choice.robot.name, "q": terms.q.tolist(), "contact_point": terms.contact_point.tolist(),
+        "normal": normal.tolist(),
+        "pre_impact_velocity": v_minus.tolist(), "restitution": c_r, "cond_M": float(np.linalg.cond(terms.M)),
+        "methods": {},
+    }
+    for method in FLOATING_METHODS if methods is None else methods:
+        jump = predict_jump(terms, method, normal, v_minus, c_r)
+        report["methods"][method] = {
+            "dq_jump": jump.dq_jump.tolist(), "impulse": jump.impulse.tolist(), "com_jump": jump.com_jump.tolist(),
+            "feet_impulse": jump.held_impulse.tolist(),
+        }
+    return report
 
 
 @cli.command()

@@ -4,7 +4,7 @@ robot (docs/max-speed.md, docs/floating-base.md).
 The options are checked, the search runs and its JSON report is printed, or the text made from
 that report. What differs between robots is data, read where it must be: a robot with a floating
 base (its description's ``base``) is searched per stance of its description
-(``scenarios.humanoid_max_speed.search_stance``: closed form and simulated bisection, no QP; an
+(``scenarios.max_speed_search.search_stance``: closed form and simulated bisection, no QP; an
 option of the arm's search that has no meaning there is bad input when given), a fixed-base arm
 per named posture on a wall (``scenarios.max_speed_search.MaxSpeedSearch``: closed form,
 QP-limited run and simulated bisection). Bad input ends with one line on stderr and exit code 2.
@@ -22,7 +22,7 @@ from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION, HAND_IM
 from impactqp.controller.model.validation import positive
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.controller.model.validation import restitution as restitution_coefficient
-from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, robot_options
+from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, reject_options, robot_options, stance_names
 from impactqp.scenarios.cli.simulation_commands import (
     check_reachable,
     plant_option,
@@ -76,8 +76,7 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
     from impactqp.controller.model.robot import RobotModel
-    from impactqp.scenarios.cli.humanoid_commands import reject_options, stance_names
-    from impactqp.scenarios.humanoid_max_speed import search_stance
+    from impactqp.scenarios.max_speed_search import search_stance
 
     reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool"])
     robot = request.choice.robot

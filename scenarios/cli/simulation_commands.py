@@ -4,6 +4,15 @@
 Every command validates its input before simulating; bad input (an unknown posture, a speed
 <= 0, a bad plant file, a wall out of reach, ...) ends with one line on stderr and exit code 2
 (``scenarios.cli.main``). Progress bars go to stderr and are off with ``--json``.
+
+With ``--robot g1`` (a floating base, docs/floating-base.md) the trial is the standing robot's at a
+stance of its description (:func:`stance_trial`): the wall 2 cm in front of the stance's hand,
+normal -x (5 cm with ``simulate --controller qp``: the whole-body QP drives the trial,
+``sim.humanoid_qp_source``). An option of the arm's command that has no meaning for it (a tool, a
+plant file, a wall point, jump constraints: only ``--controller qp`` runs a QP, and takes
+``--jump-model``) is bad input when given: one line naming it. The JSON keeps the arm's keys where
+they mean the same and adds the G1's (CoM jump, foot wrenches, slip, lift, fall); ``--out DIR``
+and ``campaign`` write its trials as a G1 dataset (``sim.generation``, docs/dataset.md).
 """
 
 from __future__ import annotations
@@ -27,7 +36,9 @@ from impactqp.scenarios.cli.arguments import (
     output_directory,
     parse_list,
     parse_vector,
+    reject_options,
     robot_options,
+    stance_names,
 )
 
 SIMULATE_START_DISTANCE = 0.05
@@ -87,14 +98,11 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     """
     controller = trial.pop("controller")
     if choice.robot.floating:
-        # lazy: the command line loads what a command needs when it runs
-        from impactqp.scenarios.cli.humanoid_commands import g1_simulate, simulate_text
-
-        report, written = g1_simulate(choice, posture_name, speed, trial, controller or "scripted")
+        report, written = stance_trial(choice, posture_name, speed, trial, controller or "scripted")
         if as_json:
             emit_json(report)
         else:
-            click.echo(simulate_text(report))
+            click.echo(stance_trial_text(report))
         if written is not None and not as_json:
             click.echo(f"trial {written} written to {trial['out_dir']}")
         return
@@ -102,7 +110,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
         raise BadInputError("--controller chooses the command source of --robot g1; the arm is always driven by its QP")
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.campaign import write_trial
-    from impactqp.sim.runner import dataset_header
+    from impactqp.sim.generation import dataset_header
     from impactqp.scenarios.trial import TrialRunner
     from impactqp.sim.runner import TrialSpec
     from impactqp.controller.measured.dataset import DatasetWriter
@@ -157,15 +165,68 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
         click.echo(f"trial {spec.trial_id} written to {out_dir}")
 
 
+def stance_trial(
+    choice: RobotChoice, posture: str, speed: float, files: dict, controller: str = "scripted"
+) -> tuple[dict, str | None]:
+    """One trial of the floating-base robot of ``choice`` (``sim.humanoid_trial``) driven by the
+    scripted command or (``controller="qp"``) the whole-body QP with the ``--jump-model``
+    predictor (crb, gm or classical), optionally rendered to a GIF (``files["video_file"]``) and
+    added to the G1 dataset in ``files["out_dir"]``; its JSON (with the QP: ``controller`` and
+    ``cycles_not_ok`` added) and the id of the trial written (None without ``out_dir``)."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
+    from impactqp.controller.model.robot import RobotModel
+    from impactqp.scenarios.campaign import trial_json
+    from impactqp.scenarios.video import render_humanoid_gif
+    from impactqp.sim.generation import open_dataset, write_trials
+    from impactqp.sim.humanoid_qp_source import QpCommand
+    from impactqp.sim.humanoid_trial import SCRIPTED, run_impact_trial
+
+    reject_options(["tangential_text", "no_jump_constraint", "plant_file", "wall_point", "wall_normal",
+                    "tool"] + (["jump_model"] if controller == "scripted" else []))
+    video_file, out_dir = files["video_file"], files["out_dir"]
+    source = SCRIPTED
+    if controller == "qp":
+        method = click.get_current_context().params["jump_model"]
+        if method not in METHODS:
+            raise BadInputError(f"--jump-model {method} is not a floating-base predictor; choose from {', '.join(METHODS)}")
+        source = QpCommand(method=method)
+    stance = choice.robot.stances[stance_names(choice.robot, posture)[0]]
+    approach_speed(speed, "--speed")
+    if video_file is not None:
+        gif_output(video_file)
+    dataset = None if out_dir is None else open_dataset(output_directory(out_dir, "--out"), choice.robot)
+    robot = RobotModel(choice.robot)
+    trial = run_impact_trial(robot, stance, speed, source=source)
+    written = None if dataset is None else write_trials(dataset, [trial])[0].id
+    if video_file is not None:
+        render_humanoid_gif(robot, trial, video_file)
+    report = trial_json(choice.robot.name, trial)
+    if controller == "qp":
+        report.update(controller="qp", jump_model=source.method, cycles_not_ok=trial.record.not_ok)
+    return report, written
+
+
+def stance_trial_text(report: dict) -> str:
+    """A floating-base robot's trial report as text."""
+    return "\n".join([
+        f"{report['posture']} ({report['robot']}): commanded {report['reference_speed']} m/s, contact speed "
+        f"{report['contact_speed']:.4f} m/s, impulse {np.round(report['impulse'], 4).tolist()} N s",
+        "errors (26): " + ", ".join(f"{m} {e:.4f}" for m, e in report["errors"].items()),
+        f"foot slip {1e3 * report['foot_slip']:.2f} mm, lift {1e3 * report['foot_lift']:.2f} mm, fell: {report['fell']}, "
+        f"max |dq|/dq_max {report['max_velocity_ratio']:.3f}, failed first: {report['first_failure'] or '-'}",
+    ] + ([f"whole-body QP ({report['jump_model']}): {report['cycles_not_ok']} cycles not OK"]
+         if report.get("controller") == "qp" else []))
+
+
 # ---------------------------------------------------------------------------- campaign
 def campaign_speeds(speeds_text, tangential_text, floating: bool) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """The normal speeds (default: the paper's for an arm, the humanoid campaign's for a floating
     base) and the tangential series (an arm's; default the paper's, 'none' skips it) of the options."""
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.scenarios.campaign import PAPER_SPEEDS, PAPER_TANGENTIAL_SPEEDS
-    from impactqp.scenarios.humanoid_campaign import DEFAULT_SPEEDS
+    from impactqp.scenarios.campaign import PAPER_SPEEDS, PAPER_TANGENTIAL_SPEEDS, STANCE_SPEEDS
 
-    default = DEFAULT_SPEEDS if floating else PAPER_SPEEDS
+    default = STANCE_SPEEDS if floating else PAPER_SPEEDS
     speeds = default if speeds_text is None else tuple(parse_list(speeds_text, "--speeds"))
     for v in speeds:
         approach_speed(v, "every speed of --speeds")
@@ -193,11 +254,10 @@ def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_
     g1: stances x speeds of the standing G1, its dataset, table1.json and table1.md in --out)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.campaign import Campaign, CampaignPlan, FixedBaseTrials, check_postures
-    from impactqp.scenarios.humanoid_campaign import FloatingBaseTrials
+    from impactqp.scenarios.campaign import FloatingBaseTrials
 
     robot = choice.robot
     if robot.floating:
-        from impactqp.scenarios.cli.humanoid_commands import reject_options
 
         reject_options(["tangential_text", "plant_file", "tool"])
     postures = check_postures(robot, None if postures_text is None else (s.strip() for s in postures_text.split(",")))

@@ -1,4 +1,5 @@
-"""Closed form against simulated bisection per G1 stance (scenarios/humanoid_max_speed.py)."""
+"""The check of the G1's closed form against simulation and the report of its stance search
+(scenarios/stance_check.py)."""
 
 import math
 
@@ -8,14 +9,11 @@ import pytest
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.max_speed import HELD_CONTACT_CRITERIA, Bound, MaxSpeed
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
-from impactqp.controller.model.validation import BadInputError
-from impactqp.scenarios.humanoid_max_speed import (
+from impactqp.scenarios.max_speed_search import StanceMaxSpeed, StancePlant
+from impactqp.scenarios.stance_check import (
     CRITERION_OF,
     CheckRow,
-    Plant,
-    StanceMaxSpeed,
     check_summary,
-    search_stance,
     speed_figure,
     trial_at_contact_speed,
 )
@@ -58,11 +56,6 @@ def test_each_measured_failure_is_the_closed_form_criterion_of_its_name():
     assert set(CRITERION_OF) <= set(FAILURES)
 
 
-def test_unknown_stance_is_bad_input():
-    with pytest.raises(BadInputError):
-        search_stance(RobotModel("g1"), "kneeling")
-
-
 def test_figure_is_a_png(tmp_path):
     predicted = {
         "crb": MaxSpeed(1.0, "capture", "edge 0", 0, {"capture": Bound(1.0, "edge 0")}),
@@ -77,5 +70,5 @@ def test_figure_is_a_png(tmp_path):
 def test_a_trial_reaches_the_asked_contact_speed():
     robot = RobotModel("g1")
     q = stance_posture(robot, STANCES["close"])
-    trial = trial_at_contact_speed(robot, "close", q, 0.3, Plant())
+    trial = trial_at_contact_speed(robot, "close", q, 0.3, StancePlant())
     assert trial.contact_speed == pytest.approx(0.3, rel=0.02)

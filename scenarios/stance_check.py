@@ -1,31 +1,18 @@
-"""Highest feasible contact speed of each G1 stance: closed form and simulated bisection, and
-the check of one against the other (docs/floating-base.md; results: docs/results.md).
+"""The check of a floating base's closed-form highest feasible speed against simulation, and the
+report of its stance search (``scenarios.max_speed_search.search_stance``; docs/floating-base.md;
+results: docs/results.md).
 
-closed form
-    ``controller.model.max_speed.closed_form_max_speed`` at the stance: the smallest of
-    the joint-velocity, foot-slip, foot-lift and capture bounds, and which one binds.
-simulated bisection
-    ``sim.humanoid_trial.run_impact_trial`` at commanded hand speeds; a trial is feasible when
-    none of the trial's measured failures occurred (no joint beyond its velocity limit, no
-    foot slip or lift onset in the impact window, the post-impact CoM velocity capturable, no
-    fall). The arm's bisection (``scenarios.max_speed_search.SpeedBisection``, one trial a
-    round, ``Plant.trial`` injected) on the commanded speed between :data:`LOWEST_SPEED`
-    (feasible) and :data:`HIGHEST_SPEED` until the bracket is narrower than the tolerance; the answer is the
-    highest feasible commanded speed, its measured contact speed, and what failed first at the
-    lowest infeasible one. Feasibility is assumed monotone in the speed.
-check
-    Trials at contact speeds :data:`BELOW` x the closed-form speed must neither fall nor slip
-    (a slip onset or a foot frame moved beyond 5 mm); at :data:`ABOVE` x (20 % and more above
-    it) the binding criterion should be the failure seen first in the majority of trials
-    (:data:`CRITERION_OF`: each measured failure is the closed form's criterion of the same
-    name; a fall is none of them). A contact speed is reached by a secant search on the
-    commanded speed (the servo lags the command).
+Trials at contact speeds :data:`BELOW` x the closed-form speed must neither fall nor slip (a slip
+onset or a foot frame moved beyond 5 mm); at :data:`ABOVE` x (20 % and more above it) the binding
+criterion should be the failure seen first in the majority of trials (:data:`CRITERION_OF`: each
+measured failure is the closed form's criterion of the same name; a fall is none of them). A
+contact speed is reached by a secant search on the commanded speed (the servo lags the command).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 
@@ -38,20 +25,11 @@ import numpy as np  # noqa: E402
 from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.model.robot import RobotModel  # noqa: E402
 from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
-from impactqp.controller.model.max_speed import (  # noqa: E402
-    HELD_CONTACT_CRITERIA,
-    MaxSpeed,
-    Setting,
-    closed_form_max_speed,
-)
-from impactqp.controller.model.validation import BadInputError  # noqa: E402
-from impactqp.scenarios.max_speed_search import SpeedBisection  # noqa: E402
-from impactqp.sim.humanoid_trial import NORMAL, SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
+from impactqp.controller.model.max_speed import HELD_CONTACT_CRITERIA, Setting, closed_form_max_speed  # noqa: E402
+from impactqp.sim.humanoid_trial import NORMAL, SCRIPTED, ImpactTrial  # noqa: E402
 
-LOWEST_SPEED = 0.05  # m/s commanded
-HIGHEST_SPEED = 3.0  # m/s commanded: above what the torque-limited hand reaches in the 2 cm to the wall
-DEFAULT_TOLERANCE = 0.02  # m/s
-MIN_TOLERANCE = 1e-3  # m/s: the least bisection tolerance of a stance
+from .max_speed_search import STANCE_HIGHEST_SPEED, STANCE_LOWEST_SPEED, StanceMaxSpeed, StancePlant  # noqa: E402
+
 BELOW = (0.5, 0.8, 0.95)
 ABOVE = (1.2, 1.3, 1.4)
 SECANT_STEPS = 6
@@ -59,114 +37,11 @@ SECANT_STEPS = 6
 CRITERION_OF = {criterion: criterion for criterion in HELD_CONTACT_CRITERIA}
 
 
-@dataclass(frozen=True)
-class Plant:
-    """The simulated plant: servo bandwidth (rad/s) and rotor inertia (kg m^2): None for the G1's
-    actuators, one number for every joint (0: link-only) or one per joint."""
-
-    gain: float = SERVO_GAIN
-    armature: float | tuple | None = None
-
-    def trial(self, robot: RobotModel, stance: str, q: np.ndarray, speed: float, source=SCRIPTED) -> ImpactTrial:
-        """One trial on this plant: ``stance`` from the configuration q at the commanded hand
-        ``speed``, driven by ``source``."""
-        return run_impact_trial(
-            robot, robot.description.stances[stance], speed, gain=self.gain, armature=self.armature, q0=q, source=source
-        )
-
-
-@dataclass(frozen=True)
-class StanceEvaluation:
-    """One simulated trial of the search: commanded and contact speed (m/s), what failed."""
-
-    reference_speed: float
-    contact_speed: float
-    max_velocity_ratio: float
-    foot_slip: float
-    foot_lift: float
-    fell: bool
-    first_failure: str
-
-    @classmethod
-    def of(cls, trial: ImpactTrial) -> StanceEvaluation:
-        return cls(trial.speed, trial.contact_speed, trial.max_velocity_ratio, trial.foot_slip, trial.foot_lift,
-                   trial.fell, trial.first_failure)
-
-    @property
-    def violated(self) -> bool:
-        return bool(self.first_failure)
-
-    def to_json(self) -> dict:
-        return {
-            "reference_speed": self.reference_speed, "contact_speed": self.contact_speed,
-            "max_velocity_ratio": self.max_velocity_ratio, "foot_slip": self.foot_slip,
-            "foot_lift": self.foot_lift, "fell": self.fell, "first_failure": self.first_failure,
-            "violated": self.violated,
-        }
-
-
-@dataclass(frozen=True)
-class StanceMaxSpeed:
-    """Closed-form and simulated highest feasible speed of one stance."""
-
-    stance: str
-    q: np.ndarray
-    predicted: dict  # method -> MaxSpeed
-    simulated_reference: float  # highest feasible commanded speed (m/s)
-    simulated_contact: float  # its measured contact speed (m/s)
-    failed_first: str  # what failed first at the lowest infeasible commanded speed ("" if none)
-    evaluations: list = field(default_factory=list)
-
-    def to_json(self) -> dict:
-        return {
-            "posture": self.stance,
-            "q_impact": self.q.tolist(),
-            "normal": NORMAL.tolist(),
-            "predicted_max_speed": {m: p.to_json()["speed"] for m, p in self.predicted.items()},
-            "binding": {m: {"criterion": p.criterion, "where": p.where} for m, p in self.predicted.items()},
-            "bounds": {m: p.to_json()["bounds"] for m, p in self.predicted.items()},
-            "simulated_max_speed": self.simulated_reference,
-            "simulated_contact_speed": self.simulated_contact,
-            "simulated_failed_first": self.failed_first,
-            "evaluations": [e.to_json() for e in sorted(self.evaluations, key=lambda e: e.reference_speed)],
-        }
-
-
-def predicted_speeds(robot: RobotModel, q: np.ndarray, setting: Setting, methods) -> dict[str, MaxSpeed]:
-    """The closed form of each predictor in ``methods`` (same restitution, friction and duration)."""
-    terms = robot.terms(q)
-    return {
-        m: closed_form_max_speed(robot, terms, NORMAL, Setting(m, setting.restitution, setting.friction, setting.impact_duration))
-        for m in methods
-    }
-
-
-def search_stance(
-    robot: RobotModel, stance: str, setting: Setting = Setting(), plant: Plant = Plant(),
-    tolerance: float = DEFAULT_TOLERANCE, methods=("classical", "gm", "crb"), source=SCRIPTED,
-) -> StanceMaxSpeed:
-    """The closed-form speeds of ``methods`` and the simulated bisection of one stance, its trials
-    driven by ``source`` (``sim.humanoid_trial.SCRIPTED`` or ``sim.humanoid_qp_source.QpCommand``)."""
-    stances = robot.description.stances
-    if stance not in stances:
-        raise BadInputError(f"unknown stance {stance!r}; known: {', '.join(stances)}")
-    q = stance_posture(robot, stances[stance])
-    run = partial(plant.trial, robot, stance, q, source=source)
-    bisection = SpeedBisection(LOWEST_SPEED, HIGHEST_SPEED, tolerance, MIN_TOLERANCE)
-    best = bisection.search(lambda speeds: [StanceEvaluation.of(run(speed)) for speed in speeds])
-    evaluations = bisection.evaluations
-    feasible = [e for e in evaluations if not e.violated and e.reference_speed <= best]
-    failed = [e for e in evaluations if e.violated]
-    contact = max(feasible, key=lambda e: e.reference_speed).contact_speed if feasible else 0.0
-    first = min(failed, key=lambda e: e.reference_speed).first_failure if failed else ""
-    return StanceMaxSpeed(stance, q, predicted_speeds(robot, q, setting, methods), best, contact, first, evaluations)
-
-
 def trial_at_contact_speed(
-    robot, stance: str, q: np.ndarray, target: float, plant: Plant, source=SCRIPTED
+    robot, stance: str, q: np.ndarray, target: float, plant: StancePlant, source=SCRIPTED
 ) -> ImpactTrial:
     """A trial whose measured contact speed is ``target`` within 2 % (secant on the commanded
-    speed within [LOWEST_SPEED, 2 HIGHEST_SPEED], at most SECANT_STEPS trials; the closest one
+    speed within [STANCE_LOWEST_SPEED, 2 STANCE_HIGHEST_SPEED], at most SECANT_STEPS trials; the closest one
     otherwise: with torque-limited joints a contact speed may be out of reach). A source that
     tracks the speed itself (``source.tracks_speed``: the whole-body QP) is asked ``target`` once."""
     run = partial(plant.trial, robot, stance, q, source=source)
@@ -180,7 +55,7 @@ def trial_at_contact_speed(
         if abs(t1.contact_speed - target) <= 0.02 * target or t1.contact_speed == t0.contact_speed:
             break
         step = (target - t1.contact_speed) * (s1 - s0) / (t1.contact_speed - t0.contact_speed)
-        speed = min(max(LOWEST_SPEED, s1 + step), 2.0 * HIGHEST_SPEED)
+        speed = min(max(STANCE_LOWEST_SPEED, s1 + step), 2.0 * STANCE_HIGHEST_SPEED)
         if speed == s1:
             break
     return min((t for _, t in points), key=lambda t: abs(t.contact_speed - target))
@@ -197,7 +72,7 @@ class CheckRow:
 
 
 def check_against_simulation(
-    robot: RobotModel, stances=None, setting: Setting = Setting(), plant: Plant = Plant(),
+    robot: RobotModel, stances=None, setting: Setting = Setting(), plant: StancePlant = StancePlant(),
     source=SCRIPTED,
 ) -> list[CheckRow]:
     """Trials at BELOW and ABOVE x the closed-form speed of ``setting`` for each stance (None: every

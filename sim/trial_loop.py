@@ -1,0 +1,235 @@
+"""The one closed-loop trial of every robot: a command source drives the MuJoCo plant through the
+joint servo, one control period dt (1 ms) at a time.
+
+At control step k (t_k = k dt):
+
+1. the state is read: (q_k, dq_k) the joints' for a fixed base; for a floating base Pinocchio's
+   (q, v), the base's coordinates first (``sim.scene.to_pinocchio``), and, with held contacts, the
+   held contacts' frame positions (:class:`~sim.humanoid_feet.HeldContactLog`);
+2. the command source (:class:`CommandSource`) maps it to ``dq_cmd``, the joints' commanded
+   velocity (the arm's Cartesian approach, a replay or the QP; the standing robot's scripted arm
+   or whole-body QP);
+3. the servo (``sim.servo.ComputedTorqueServo``, with ``StandingSupport`` for a floating base held
+   by its contacts) turns it into joint torques, held constant over the period (zero-order hold);
+4. MuJoCo advances ``dt / timestep`` substeps; the wall's contact force on the robot is logged at
+   every substep (zero, without a per-substep Python loop, while a fixed-base arm's tool is too
+   far from the wall to touch it within the period even at 5 m/s) and, with held contacts, the
+   floor's impulse and the soles' states.
+
+The trial lasts ``Ending.steps`` control steps; a floating-base trial's ending is set at the first
+wall contact k_c: it ends ``after`` steps later and, ``stop_after`` steps after k_c, its source is
+told to stop (:class:`StoppingSource`) and, with ``hold``, the servo re-anchors its reference at
+the measured joint positions, at rest (``ComputedTorqueServo.hold``).
+
+The two plants differ in one point of the per-period order: the fixed-base arm's servo reads M and
+h of the current state (``mj_step1`` before the torque), the standing robot's those that MuJoCo
+left from the previous physics step (its servo torque before the period's first ``mj_step``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Protocol
+
+import mujoco
+import numpy as np
+
+from impactqp.controller.model.validation import BadInputError
+
+from .humanoid_feet import HeldContactLog
+from .scene import MujocoScene, to_pinocchio
+from .servo import ComputedTorqueServo, StandingSupport
+
+CLEARANCE_SPEED = 5.0
+
+
+class JointVelocityCommand(Protocol):
+    dq_cmd: np.ndarray
+
+
+class CommandSource(Protocol):
+    """Anything that maps the measured state to a joint-velocity command, once per period."""
+
+    def step(self, q: np.ndarray, dq: np.ndarray) -> JointVelocityCommand: ...
+
+
+class StoppingSource(CommandSource, Protocol):
+    """A command source that is told when the trial stops its approach (module docstring)."""
+
+    def stop(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class VelocityCommand:
+    """A plain joint-velocity command (the ``dq_cmd`` of the scripted sources)."""
+
+    dq_cmd: np.ndarray
+
+
+class ServoedPlant:
+    """The scene's plant under the joint servo, advanced one control period per command (steps 3
+    and 4 of the module docstring); the fixed-base arm's (``standing`` None, the servo gain its
+    plant's) or a floating base held by its contacts (``standing``, ``gain`` rad/s). Shared by
+    :func:`run_loop` and the robot loop's sim backend."""
+
+    def __init__(
+        self, scene: MujocoScene, control_period: float, *, gain: float | None = None,
+        standing: StandingSupport | None = None,
+    ):
+        substeps = int(round(control_period / scene.timestep))
+        if substeps < 1 or abs(substeps * scene.timestep - control_period) > 1e-9:
+            raise BadInputError(
+                f"control period {control_period} s is not a whole number of timesteps ({scene.timestep} s)"
+            )
+        self.scene = scene
+        self.control_period = control_period
+        self.substeps = substeps
+        gain = scene.plant.servo_gain if gain is None else gain
+        self.servo = ComputedTorqueServo(scene.model, scene.data, gain, standing)
+        self.standing = standing
+        if standing is None:
+            # centre-to-wall distance beyond which the tool cannot touch the wall within one period
+            # (at up to CLEARANCE_SPEED m/s)
+            self.clearance = scene.tool.geometry.bounding_radius + CLEARANCE_SPEED * control_period
+            self.contact_geom, self.environment = scene.tool_geom, (scene.wall_geom,)
+        else:
+            self.contact_geom, self.environment = scene.hand_geom, (scene.wall_geom, scene.floor_geom)
+        self._contact_force = np.zeros(6)
+
+    def reset(self, q0: np.ndarray, dq0: np.ndarray | None = None, servo_reference=None) -> None:
+        """Put the plant at the Pinocchio state (q0, dq0) (None: at rest); the servo reference at
+        the joints' state or at ``servo_reference``."""
+        self.scene.set_state(q0, dq0)
+        data, servo = self.scene.data, self.servo
+        if servo_reference is None:
+            servo_reference = data.qpos[servo.coordinates], data.qvel[servo.joints]
+        servo.reset(*servo_reference)
+
+    def advance(self, dq_cmd: np.ndarray, force: np.ndarray, held: HeldContactLog | None = None) -> np.ndarray:
+        """One period under the command; adds the wall's contact force on the robot (world frame)
+        of each substep to the rows of ``force`` (substeps, 3) and, with held contacts, records
+        the floor and the soles in ``held``; returns the servo torque (the servo's buffer: copy it
+        to keep it)."""
+        if self.standing is not None:
+            return self._advance_standing(dq_cmd, force, held)
+        scene = self.scene
+        model, data, tool = scene.model, scene.data, self.contact_geom
+        mujoco.mj_step1(model, data)
+        torque = self.servo.torque(dq_cmd, self.control_period)
+        data.qfrc_applied[:] = torque
+        mujoco.mj_step2(model, data)
+        if scene.surface.signed_distance(data.geom_xpos[tool]) > self.clearance:
+            # the tool cannot reach the wall within this period: no contact force to log
+            mujoco.mj_step(model, data, self.substeps - 1)
+            return torque
+        for i in range(self.substeps):
+            if i > 0:
+                mujoco.mj_step(model, data)
+            self._contact_forces(force[i])
+        return torque
+
+    def _advance_standing(self, dq_cmd: np.ndarray, force: np.ndarray, held: HeldContactLog) -> np.ndarray:
+        """One period of a robot held by its contacts (the servo before the first physics step)."""
+        model, data = self.scene.model, self.scene.data
+        torque = self.servo.torque(dq_cmd, self.control_period)
+        for i in range(self.substeps):
+            data.qfrc_applied[self.standing.base_nv:] = torque
+            mujoco.mj_step(model, data)
+            held.add_substep(self._contact_forces(force[i], np.zeros(3)), model.opt.timestep)
+        return torque
+
+    def _contact_forces(self, wall: np.ndarray, floor: np.ndarray | None = None) -> np.ndarray | None:
+        """Adds the wall's contact force on the robot (world frame) of the current physics step to
+        ``wall`` and, with held contacts, the floor's to ``floor`` (returned)."""
+        model, data, environment = self.scene.model, self.scene.data, self.environment
+        wrench = self._contact_force
+        for c in range(data.ncon):
+            contact = data.contact[c]
+            mujoco.mj_contactForce(model, data, c, wrench)
+            # wrench[:3] is in the contact frame; +normal pushes geom2 away from geom1; the
+            # environment (wall or floor) is geom1 or geom2 of the pair
+            on_geom2 = contact.frame.reshape(3, 3).T @ wrench[:3]
+            on_robot = on_geom2 if contact.geom1 in environment else -on_geom2
+            if floor is None or environment[0] in (contact.geom1, contact.geom2):
+                wall += on_robot
+            else:
+                floor += on_robot
+        return floor
+
+
+@dataclass(frozen=True)
+class Ending:
+    """When a trial ends: after ``steps`` control steps, or, once the wall is touched (at step
+    k_c), at k_c + ``after``; the source is told to stop at k_c + ``stop_after`` and the servo then
+    holds the joints (``hold``). None: no such rule."""
+
+    steps: int
+    after: int | None = None
+    stop_after: int | None = None
+    hold: bool = False
+
+
+@dataclass
+class LoopRecord:
+    """What :func:`run_loop` recorded: per control step the time, the state (Pinocchio convention:
+    a floating base's coordinates first), the servo torque and the command; per physics step the
+    wall force on the robot; the first control step with a wall contact force (None: none, or no
+    ``Ending.after`` rule to watch for it), the
+    held contacts' log (None without) and the loop's wall-clock time (s)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+    dq_cmd: np.ndarray
+    force_t: np.ndarray
+    force: np.ndarray
+    first_contact: int | None
+    held: HeldContactLog | None
+    wall_time: float
+
+
+def run_loop(plant: ServoedPlant, source: CommandSource, ending: Ending) -> LoopRecord:
+    """Run the closed loop of the module docstring from the plant's current state."""
+    scene = plant.scene
+    data, substeps, period = scene.data, plant.substeps, plant.control_period
+    base_nq, base_nv = scene.base_nq, scene.base_nv
+    nv, joints = scene.model.nv, scene.model.nv - base_nv
+    rows = ending.steps + (ending.after or 0)
+    q, dq = np.empty((rows, scene.model.nq)), np.empty((rows, nv))  # Pinocchio's sizes are MuJoCo's
+    tau, dq_cmd = np.empty((rows, joints)), np.empty((rows, joints))
+    force = np.zeros((rows * substeps, 3))
+    held = HeldContactLog.of(scene, rows) if plant.standing is not None else None
+    first_contact, stop_at, end = None, None, ending.steps
+    watch = ending.after is not None  # the first wall contact sets the ending
+    advance, command_of = plant.advance, source.step
+    start = time.perf_counter()
+    k = 0
+    while k < end:
+        if base_nq:
+            q[k], dq[k] = to_pinocchio(data.qpos, data.qvel, base_nq)
+        else:
+            q[k], dq[k] = data.qpos, data.qvel
+        if held is not None:
+            held.add_state(k)
+        if k == stop_at:
+            source.stop()
+            if ending.hold:
+                plant.servo.hold()
+        command = np.asarray(command_of(q[k].copy(), dq[k].copy()).dq_cmd, dtype=float)
+        if command.shape != (joints,) or not np.all(np.isfinite(command)):
+            raise ValueError(f"control step {k}: dq_cmd must be {joints} finite values, got {command}")
+        dq_cmd[k] = command
+        rows_k = force[k * substeps:(k + 1) * substeps]
+        tau[k] = advance(command, rows_k, held)
+        if watch and first_contact is None and np.any(rows_k != 0.0):
+            first_contact = k
+            stop_at = k + ending.stop_after if ending.stop_after is not None else None
+            end = k + ending.after
+        k += 1
+    wall_time = time.perf_counter() - start
+    return LoopRecord(
+        np.arange(k) * period, q[:k], dq[:k], tau[:k], dq_cmd[:k], np.arange(k * substeps) * scene.timestep,
+        force[:k * substeps], first_contact, held.truncated(k) if held is not None else None, wall_time,
+    )
