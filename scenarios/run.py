@@ -33,7 +33,12 @@ from impactqp.controller.runtime.run_log import RunLog
 from impactqp.controller.runtime.session import ImpactSession
 from impactqp.controller.runtime.start_move import StartMove
 from impactqp.sim.plant import PlantParameterError, PlantParameters
-from impactqp.sim.scene import build_scene
+from impactqp.controller.model.humanoid_stance import stance_posture
+from impactqp.controller.model.postures import Surface
+from impactqp.sim.humanoid_trial import NORMAL as STANDING_NORMAL
+from impactqp.sim.humanoid_trial import SERVO_GAIN, SETTLE, SINK
+from impactqp.sim.scene import build_humanoid_scene, build_scene
+from impactqp.sim.servo import StandingSupport
 from impactqp.sim.sim_backend import SimRobot
 
 BACKENDS = ("sim", "franka", "panda", "replay")
@@ -144,7 +149,9 @@ def controller_config(request: RunRequest, surface=None, decided: RobotChoice | 
     choice = request.choice if decided is None else decided
     if surface is None:
         surface = choice.posture(request.posture or choice.robot.default_posture).surface
-    if request.backend in ROBOT_BACKENDS:
+    if choice.robot.floating:  # the robot's own preset (its balance tasks and weights)
+        config = ControllerConfig.approach(surface, request.speed, robot=choice.robot_setting)
+    elif request.backend in ROBOT_BACKENDS:
         config = ControllerConfig.approach(surface, request.speed)
     else:
         config = ControllerConfig.approach(surface, request.speed, posture_weight=0.0)
@@ -170,10 +177,12 @@ def check_request(request: RunRequest) -> None:
             f"--backend {request.backend} drives the {robot} only, not the {name}: "
             f"use --robot {robot}, or --backend {'panda' if robot == 'fr3' else 'franka'} for the {name}"
         )
-    if request.posture is not None and request.posture not in request.choice.robot.postures:
-        raise BadInputError(
-            f"--posture {request.posture!r} is unknown; known: {', '.join(request.choice.robot.postures)}"
-        )
+    robot = request.choice.robot
+    if robot.floating and request.backend != "sim":
+        raise BadInputError(f"the {name} has a floating base: it runs on --backend sim only, not {request.backend}")
+    named = robot.stances if robot.floating else robot.postures
+    if request.posture is not None and request.posture not in named:
+        raise BadInputError(f"--posture {request.posture!r} is unknown; known: {', '.join(named)}")
     approach_speed(request.speed, "--speed")
     number_in_range(request.duration, 0.0, MAX_DURATION, "--duration", "s", low_open=True)
     if request.backend in ROBOT_BACKENDS and not request.robot_ip:
@@ -203,6 +212,7 @@ class Backend:
     duration: float
     model: RobotModel
     q_start: np.ndarray | None = None
+    stance: np.ndarray | None = None  # a floating base's standing configuration (its support)
 
 
 def build_backend(request: RunRequest) -> Backend:
@@ -225,6 +235,8 @@ def build_backend(request: RunRequest) -> Backend:
         config = controller_config(RunRequest(**{**request.__dict__, "speed": speed}), header.surface, header.choice)
         duration = len(trial.log) * header.control_period
         return Backend(ReplayRobot(trial, header.control_period), config, duration, config.choice.shared_model)
+    if request.choice.robot.floating:
+        return standing_backend(request)
     config = controller_config(request)
     choice = config.choice
     try:
@@ -236,6 +248,27 @@ def build_backend(request: RunRequest) -> Backend:
     scene = build_scene(config.surface.surface(), plant, robot=choice.robot, tool=choice.tool)
     robot = SimRobot(scene, q0, np.zeros(model.nv), config.dt, paced=not request.unpaced)
     return Backend(robot, config, request.duration, model)
+
+
+def standing_backend(request: RunRequest) -> Backend:
+    """The sim backend of a floating-base robot: standing in the stance ``--posture`` (default:
+    its description's default), the wall ``SIM_START_DISTANCE`` ahead of its contact point along
+    +x (the stances' approach), settled on its feet for ``SETTLE`` s under the standing servo."""
+    if request.config_file is not None or request.plant_file is not None:
+        raise BadInputError("a floating-base robot runs its own preset on the nominal plant: --config and --plant do not apply")
+    choice = request.choice
+    model = choice.shared_model
+    stance = stance_posture(model, choice.robot.stances[request.posture or choice.robot.default_posture])
+    contact = model.terms(stance).contact_point
+    surface = Surface(contact + np.array([SIM_START_DISTANCE, 0.0, 0.0]), STANDING_NORMAL)
+    config = controller_config(request, surface)
+    scene = build_humanoid_scene(model, wall_x=float(surface.point[0]))
+    start = stance.copy()
+    start[2] -= SINK  # the soft floor carries the weight from the first step
+    support = StandingSupport(model, scene.base_nq, scene.base_nv)
+    robot = SimRobot(scene, start, np.zeros(model.nv), config.dt, paced=not request.unpaced, standing=support, gain=SERVO_GAIN)
+    robot.hold(SETTLE)
+    return Backend(robot, config, request.duration, model, stance=stance)
 
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -297,7 +330,7 @@ def run(request: RunRequest) -> tuple[dict, LoopResult]:
         deadline = float("inf")
     with StopSignals() as signals:
         start_move = None if q_start is None else move_to_start(robot, model, config, q_start, signals)
-        session = ImpactSession(config, model)
+        session = ImpactSession(config, model, backend.stance)
         loop = ControlLoop(
             robot, session, CommandFilter.for_robot(model, config.dt), deadline=deadline,
             max_overruns=request.max_overruns,
@@ -353,10 +386,15 @@ SPEED_SHORTFALL = 0.02
 """A contact speed this fraction below the asked one was capped by the controller."""
 
 
+EQUALITY_CONSTRAINTS = ("held_contacts",)
+"""Constraints whose rows are equalities: always active, they cap nothing."""
+
+
 def speed_report(config: ControllerConfig, session: ImpactSession) -> dict:
     """The approach speed asked (the contact-approach task's, m/s; None without one), the contact
     speed (m/s; None without an impact), and, when the contact came slower than asked, the
-    constraints active at the approach's last command: what capped the speed."""
+    inequality constraints active at the approach's last command: what capped the speed (none:
+    the approach had not reached its speed, or its task traded it off against the others)."""
     asked = next(
         (float(t.params["speed"]) for t in config.tasks if t.type == "contact_approach" and "speed" in t.params), None
     )
@@ -366,18 +404,13 @@ def speed_report(config: ControllerConfig, session: ImpactSession) -> dict:
     return {
         "asked": asked,
         "contact": contact,
-        "capped_by": sorted(last.active_constraints) if capped and last is not None else [],
+        "slower": bool(capped),
+        "capped_by": sorted(set(last.active_constraints) - set(EQUALITY_CONSTRAINTS)) if capped and last else [],
     }
 
 
 def log_header(config: ControllerConfig) -> DatasetHeader:
-    choice = config.choice
-    return DatasetHeader(
-        tool=choice.tool,
-        surface=config.surface.surface(),
-        control_period=config.dt,
-        robot=choice.robot.name,
-    )
+    return DatasetHeader.of(config.choice, config.surface.surface(), config.dt)
 
 
 def after(log: TrialLog, t_start: float) -> TrialLog:

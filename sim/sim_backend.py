@@ -15,8 +15,9 @@ import time
 
 import numpy as np
 
+from impactqp.sim.scene import MujocoScene, to_pinocchio
+from impactqp.sim.servo import StandingSupport
 from impactqp.sim.trial_loop import ServoedPlant
-from impactqp.sim.scene import Scene
 
 from impactqp.controller.runtime.interface import RobotInterface, RobotState
 
@@ -24,15 +25,21 @@ SPIN_TIME = 2e-4
 
 
 class SimRobot(RobotInterface):
-    """The simulated Panda of ``scene`` started at (q0, dq0), stepped one period per command."""
+    """The simulated robot of ``scene`` started at the Pinocchio state (q0, dq0), stepped one
+    period per command; ``standing`` for a floating base held by its contacts (with the servo's
+    ``gain``, rad/s; None: the plant's)."""
 
-    def __init__(self, scene: Scene, q0: np.ndarray, dq0: np.ndarray, period: float = 1e-3, paced: bool = False):
-        self.plant = ServoedPlant(scene, period)
+    def __init__(
+        self, scene: MujocoScene, q0: np.ndarray, dq0: np.ndarray, period: float = 1e-3, paced: bool = False,
+        standing: StandingSupport | None = None, gain: float | None = None,
+    ):
+        self.plant = ServoedPlant(scene, period, gain=gain, standing=standing)
         self.plant.reset(np.asarray(q0, float), np.asarray(dq0, float))
         self.scene = scene
         self.period = float(period)
         self.paced = paced
-        self.tau = scene.data.qfrc_bias.copy()
+        self.base_nq, self.base_nv = scene.base_nq, scene.base_nv
+        self.tau = scene.data.qfrc_bias[self.base_nv:].copy()
         self.steps = 0
         self._force: list[np.ndarray] = []
         self._start: float | None = None
@@ -47,8 +54,19 @@ class SimRobot(RobotInterface):
                 time.sleep(deadline - now - SPIN_TIME)
             while time.perf_counter() < deadline:
                 pass
-        data = self.scene.data
-        return RobotState(self.steps * self.period, data.qpos.copy(), data.qvel.copy(), self.tau.copy())
+        data, t = self.scene.data, self.steps * self.period
+        if not self.base_nq:
+            return RobotState(t, data.qpos.copy(), data.qvel.copy(), self.tau.copy())
+        q, v = to_pinocchio(data.qpos, data.qvel, self.base_nq)
+        base = np.concatenate([q[: self.base_nq], v[: self.base_nv]])
+        return RobotState(t, q[self.base_nq:], v[self.base_nv:], self.tau.copy(), base=base)
+
+    def hold(self, duration: float) -> None:
+        """Hold the joints still (zero command) for ``duration`` s before the run; the run's clock
+        and its force log start after it."""
+        force = np.zeros((self.plant.substeps, 3))
+        for _ in range(int(round(duration / self.period))):
+            self.tau = self.plant.advance(np.zeros(len(self.tau)), force).copy()
 
     def start(self) -> None:
         """Start the wall clock of the pacing at this cycle."""

@@ -110,7 +110,7 @@ class ServoedPlant:
         """One period under the command; adds the wall's contact force on the robot (world frame)
         of each substep to the rows of ``force`` (substeps, 3) and, with held contacts, records
         the floor and the soles in ``held``; returns the servo torque (the servo's buffer: copy it
-        to keep it)."""
+        to keep it); ``held`` None: the held contacts are not recorded."""
         if self.standing is not None:
             return self._advance_standing(dq_cmd, force, held)
         scene = self.scene
@@ -136,7 +136,9 @@ class ServoedPlant:
         for i in range(self.substeps):
             data.qfrc_applied[self.standing.base_nv:] = torque
             mujoco.mj_step(model, data)
-            held.add_substep(self._contact_forces(force[i], np.zeros(3)), model.opt.timestep)
+            floor = self._contact_forces(force[i], np.zeros(3))
+            if held is not None:
+                held.add_substep(floor, model.opt.timestep)
         return torque
 
     def _contact_forces(self, wall: np.ndarray, floor: np.ndarray | None = None) -> np.ndarray | None:

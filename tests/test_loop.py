@@ -285,3 +285,18 @@ def test_a_long_cycle_is_what_a_real_robot_would_stop_on(model):
     loop = ControlLoop(OneLongCycle(sim), ImpactSession(config, model), CommandFilter.for_robot(model, DT))
     result = loop.run(0.3)
     assert result.missed_in_a_row >= 6 and result.robot_stop_reason
+
+
+def test_a_state_is_well_formed_only_with_the_sizes_of_its_robot():
+    """The watchdog's shape check: the joints' vectors, and a floating base's 13 base values
+    (the dataset's base columns) when the state carries them."""
+    from impactqp.controller.runtime.interface import RobotState
+    from impactqp.controller.runtime.loop import BASE_VALUES, malformed, placeholder
+
+    joints = np.zeros(JOINTS)
+    assert malformed(RobotState(0.0, joints, joints, joints), JOINTS) == ""
+    assert malformed(RobotState(0.0, joints, joints, joints, base=np.zeros(BASE_VALUES)), JOINTS) == ""
+    assert "base is of shape (12,)" in malformed(RobotState(0.0, joints, joints, joints, base=np.zeros(12)), JOINTS)
+    assert "q is of shape" in malformed(RobotState(0.0, np.zeros(JOINTS + 1), joints, joints), JOINTS)
+    standing = placeholder(1.0, 0.001, JOINTS, floating=True)
+    assert malformed(standing, JOINTS) == "" and np.all(np.isnan(standing.base)) and standing.t == 1.001

@@ -244,3 +244,36 @@ def test_a_run_asked_too_fast_says_the_controller_capped_it_and_by_what(capsys):
     assert any(name.startswith(("post_impact_velocity", "impulsive_torque")) for name in speed["capped_by"])
     assert main(["run", "--backend", "sim", "--unpaced", "--duration", "0.5", "--speed", "1.0"]) == 0
     assert "asked 1.000 m/s, hit at" in capsys.readouterr().out
+
+
+def test_the_standing_g1_runs_on_the_sim_backend_detects_its_impact_and_stays_up(tmp_path, capsys):
+    """``run --robot g1 --backend sim``: the G1's own preset (balance tasks, held contacts,
+    capture region) in the same 1 kHz loop, session and log as the arms; the impact is detected
+    from the jump of the measured velocity within a few periods of the first wall contact, the
+    log validates, and the robot is still standing upright at the end."""
+    from impactqp.controller.measured.dataset import read_header
+
+    code = main(["run", "--robot", "g1", "--backend", "sim", "--unpaced", "--duration", "0.7", "--log", str(tmp_path), "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 0 and report["watchdog_trips"] == 0 and report["robot"] == {}
+    assert report["impact"]["detected"] and report["impact"]["residual"] == "velocity_jump"
+    assert 0.0 <= report["impact"]["detection_latency_ms"] <= 5.0
+    assert main(["dataset", "validate", str(tmp_path)]) == 0
+    capsys.readouterr()
+    assert read_header(tmp_path).robot == "g1"
+    log = np.genfromtxt(tmp_path / "run0000.csv", delimiter=",", names=True)
+    assert log["base_z"][-1] > 0.95 * log["base_z"][0]  # the pelvis height
+    # upright: the quaternion's x and y stay small (a tilt below 11 degrees)
+    assert np.all(np.abs(log["base_qx"]) < 0.1) and np.all(np.abs(log["base_qy"]) < 0.1)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--backend", "replay", "--dataset", "DIR"], "runs on --backend sim only"),
+    (["--backend", "sim", "--plant", "PLANT"], "--config and --plant do not apply"),
+    (["--backend", "sim", "--posture", "elbow_up"], "--posture 'elbow_up' is unknown"),
+])
+def test_what_a_standing_robot_run_cannot_take_is_one_line(tmp_path, capsys, args, message):
+    args = [str(tmp_path) if a == "DIR" else str(tmp_path / "p.json") if a == "PLANT" else a for a in args]
+    (tmp_path / "p.json").write_text("{}")
+    err = one_error_line(capsys, ["run", "--robot", "g1", *args])
+    assert message in err

@@ -79,7 +79,10 @@ class RobotChoice:
 
     @property
     def tool_setting(self) -> str | dict:
-        """The tool as a configuration holds it: a built-in's name, else its full description."""
+        """The tool as a configuration holds it: a built-in's name, else its full description (a
+        floating-base robot, which carries none: the default name, which ``of`` ignores for it)."""
+        if self.tool is None:
+            return DEFAULT_TOOL
         builtin = TOOLS.get(self.tool.name)
         return self.tool.name if builtin is not None and builtin.as_dict() == self.tool.as_dict() else self.tool.as_dict()
 

@@ -40,6 +40,7 @@ from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.validation import BadInputError, positive
 
 from impactqp.controller.measured.impact import DEFAULT_TORQUE_THRESHOLD, NOISE_SIGMAS
+from impactqp.controller.qp.controller import IMPACT_SPEED_DROP
 
 DEFAULT_OBSERVER_GAIN = 200.0
 DEFAULT_CALIBRATION_SAMPLES = 100
@@ -155,3 +156,35 @@ class ImpactDetector:
             self.joint = int(np.argmax(deviation / self.threshold))
             return True
         return False
+
+
+class VelocityJumpDetector:
+    """The impact of a robot whose joint torques cannot single it out (a floating base on held
+    contacts: their wrenches change with every motion), detected by the jump of its measured
+    velocity, the rule of the controller's impact brake (``controller.qp.controller``): at the
+    first state where, the expected impact's rows active at the last command, the contact point's
+    measured speed towards the surface, -n.(J dq), falls below ``IMPACT_SPEED_DROP`` times the
+    speed the last command asks there, -n.(J dq_cmd). ``update(t, q, dq, last)`` once per sample
+    with the model's state and the last Command; no calibration (``t_calibrated`` None)."""
+
+    def __init__(self, robot: PandaModel, impact):
+        self.robot, self.impact = robot, impact
+        self.data = robot.model.createData()
+        self.detected = False
+        self.t_detect: float | None = None
+        self.t_calibrated: float | None = None
+
+    def update(self, t: float, q: np.ndarray, dq: np.ndarray, last) -> bool:
+        """True at the sample where the impact is detected (and only there)."""
+        if self.detected or last is None or self.impact is None or not last.impact_constraints_active:
+            return False
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(dq))):
+            return False
+        J = pin.computeFrameJacobian(
+            self.robot.model, self.data, q, self.robot.contact_frame_id, pin.LOCAL_WORLD_ALIGNED
+        )[:3]
+        normal = self.impact.surface.normal
+        commanded, measured = -(normal @ J) @ last.dq_cmd, -(normal @ J) @ dq
+        if commanded > self.impact.release_speed and measured < IMPACT_SPEED_DROP * commanded:
+            self.detected, self.t_detect = True, float(t)
+        return self.detected

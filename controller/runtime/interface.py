@@ -14,20 +14,23 @@ import numpy as np
 
 @dataclass(frozen=True)
 class RobotState:
-    """One sample of the robot: time t (s, the robot's clock), joint positions q (rad),
-    velocities dq (rad/s), the last measured joint torques tau (N m: the torque that acted over
-    the period before this sample), and the robot's own external-torque estimate tau_ext (N m)
-    when it gives one (None otherwise)."""
+    """One sample of the robot: time t (s, the robot's clock), the actuated joints' positions q
+    (rad), velocities dq (rad/s), the last measured joint torques tau (N m: the torque that acted
+    over the period before this sample), the robot's own external-torque estimate tau_ext (N m)
+    when it gives one (None otherwise), and a floating base's state ``base`` (13 values: position,
+    quaternion x, y, z, w, and twist in the base frame, the dataset's base columns; None for a
+    fixed base)."""
 
     t: float
     q: np.ndarray
     dq: np.ndarray
     tau: np.ndarray
     tau_ext: np.ndarray | None = None
+    base: np.ndarray | None = None
 
 
 class RobotInterface:
-    """A robot driven at a fixed period by joint-velocity commands.
+    """A robot driven at a fixed period by joint-velocity commands (one per actuated joint).
 
     ``read`` returns the next state (a paced backend blocks until the next period), ``start``
     begins real time once the loop has prepared its controller from the first state, ``write``

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from impactqp.controller.measured.dataset_robot import BASE_COLUMNS
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.validation import BadInputError
 
@@ -49,6 +50,7 @@ from .interface import RobotInterface, RobotState
 from .session import ImpactSession
 
 DEFAULT_MAX_OVERRUNS = 5
+BASE_VALUES = len(BASE_COLUMNS)  # a floating base's state in a RobotState and a log row
 BRAKING = "brake"
 STOPPING = "stop"
 STOPPED_SPEED = 1e-9
@@ -84,7 +86,7 @@ class Watchdog:
         if problem:
             self.trip(f"malformed state: {problem}")
             return False
-        parts = [state.q, state.dq, state.tau] + ([] if state.tau_ext is None else [state.tau_ext])
+        parts = [state.q, state.dq, state.tau] + [x for x in (state.tau_ext, state.base) if x is not None]
         finite = all(np.all(np.isfinite(x)) for x in parts) and math.isfinite(state.t)
         if not finite:
             self.trip(f"non-finite state at t = {state.t}")
@@ -107,29 +109,31 @@ def malformed(state, joints: int) -> str:
         return f"a {type(state).__name__}, not a RobotState"
     if isinstance(state.t, bool) or not isinstance(state.t, (int, float, np.integer, np.floating)):
         return f"t is a {type(state.t).__name__}"
-    named = [("q", state.q), ("dq", state.dq), ("tau", state.tau)]
-    named += [] if state.tau_ext is None else [("tau_ext", state.tau_ext)]
-    for name, value in named:
-        if not isinstance(value, np.ndarray) or value.shape != (joints,) or value.dtype.kind not in "fiu":
+    named = [("q", state.q, joints), ("dq", state.dq, joints), ("tau", state.tau, joints)]
+    named += [] if state.tau_ext is None else [("tau_ext", state.tau_ext, joints)]
+    named += [] if state.base is None else [("base", state.base, BASE_VALUES)]
+    for name, value, size in named:
+        if not isinstance(value, np.ndarray) or value.shape != (size,) or value.dtype.kind not in "fiu":
             shape = getattr(value, "shape", None)
-            return f"{name} is {'a ' + type(value).__name__ if shape is None else f'of shape {shape}'}, not {joints} numbers"
+            return f"{name} is {'a ' + type(value).__name__ if shape is None else f'of shape {shape}'}, not {size} numbers"
     return ""
 
 
-def placeholder(t: float, period: float, joints: int) -> RobotState:
+def placeholder(t: float, period: float, joints: int, floating: bool = False) -> RobotState:
     """The state logged for a cycle whose read failed or was malformed: the next period's time
-    and NaN values for the ``joints`` joints (no measurement), so the log stays one row per cycle
-    with increasing time."""
+    and NaN values for the ``joints`` joints (and a floating base's state: ``floating``) (no
+    measurement), so the log stays one row per cycle with increasing time."""
     nan = np.full(joints, np.nan)
-    return RobotState(t + period, nan, nan, nan)
+    return RobotState(t + period, nan, nan, nan, base=np.full(BASE_VALUES, np.nan) if floating else None)
 
 
 class LoopLog:
     """Per-cycle records of ``joints`` joints in arrays preallocated for ``capacity`` cycles (no
     allocation per cycle)."""
 
-    def __init__(self, capacity: int, joints: int):
+    def __init__(self, capacity: int, joints: int, floating: bool = False):
         self.size = 0
+        self.base = np.zeros((capacity, BASE_VALUES)) if floating else None
         self.t = np.zeros(capacity)
         self.q = np.zeros((capacity, joints))
         self.dq = np.zeros((capacity, joints))
@@ -144,6 +148,8 @@ class LoopLog:
         self.t[k] = state.t
         self.q[k] = state.q
         self.dq[k] = state.dq
+        if self.base is not None:
+            self.base[k] = state.base
         # A state's tau is the torque of the period before it (``RobotState``), while the
         # dataset's tau[k] is the torque applied over period k (docs/dataset.md): the read of
         # cycle k fills row k - 1. The last row keeps the torque read with its own state (no
@@ -160,6 +166,8 @@ class LoopLog:
     def trial_log(self, force: tuple[np.ndarray, np.ndarray] | None) -> TrialLog:
         n = self.size
         log = TrialLog(self.t[:n], self.q[:n], self.dq[:n], self.tau[:n], self.dq_cmd[:n])
+        if self.base is not None:
+            log.base = self.base[:n]
         if force is not None:
             log.force_t, log.force = force
         return log
@@ -242,7 +250,8 @@ class ControlLoop:
         self.robot = robot
         self.session = session
         self.filter = command_filter
-        self.joints = len(command_filter.dq_max)  # the filter limits every joint of the robot
+        self.joints = len(command_filter.dq_max)  # the filter limits every actuated joint of the robot
+        self.floating = session.robot.base_nv > 0  # its states carry the base's
         self.deadline = robot.period if deadline is None else float(deadline)
         self.watchdog = Watchdog(self.joints, max_overruns)
         self.stop_requested = False
@@ -262,10 +271,10 @@ class ControlLoop:
         ends in the braking sequence; ``robot.stop()`` is called on every way out."""
         robot, watchdog = self.robot, self.watchdog
         self.cycles = int(round(duration / robot.period))
-        self.log = LoopLog(self.cycles + MAX_STOP_CYCLES + 1, self.joints)
+        self.log = LoopLog(self.cycles + MAX_STOP_CYCLES + 1, self.joints, self.floating)
         state = robot.read()  # before real time: nothing moves yet, a failure is reported as it is
         if not watchdog.check_state(state):
-            state = placeholder(0.0, robot.period, self.joints)
+            state = placeholder(0.0, robot.period, self.joints, self.floating)
         elif not watchdog.tripped:
             self.session.start(state)
             self.filter.reset(state.dq)
@@ -282,7 +291,7 @@ class ControlLoop:
             if newest is not None and watchdog.check_state(newest):
                 state = newest
             elif newest is not None:
-                state = placeholder(state.t, robot.period, self.joints)
+                state = placeholder(state.t, robot.period, self.joints, self.floating)
         except BaseException:
             self._stop()
             raise
@@ -320,7 +329,7 @@ class ControlLoop:
             return self.brake(), BRAKING
         try:
             command = self.session.step(state)
-            return self.filter(command.dq_cmd), command.phase
+            return self.filter(command.dq_cmd[-self.joints:]), command.phase  # the actuated joints' part
         except Exception as error:  # the robot must keep getting commands
             self.watchdog.trip(f"controller exception: {type(error).__name__}: {error}")
             return self.brake(), BRAKING
@@ -347,7 +356,7 @@ class ControlLoop:
         started = self.clock()
         if not self.stopping and not self.watchdog.check_state(state):
             last_t = self.log.t[self.log.size - 1] if self.log.size else 0.0
-            state = placeholder(last_t, self.robot.period, self.joints)
+            state = placeholder(last_t, self.robot.period, self.joints, self.floating)
         dq_cmd, phase = self.command(state)
         return dq_cmd, self.record(state, dq_cmd, phase, started)
 
@@ -359,9 +368,9 @@ class ControlLoop:
         except Exception as error:
             message = " ".join(str(error).split())  # one line, whatever the bindings' message holds
             self.watchdog.trip(f"robot error: the state cannot be read: {type(error).__name__}: {message}")
-            return placeholder(previous.t, self.robot.period, self.joints)
+            return placeholder(previous.t, self.robot.period, self.joints, self.floating)
         usable = self.watchdog.check_state(state) if check else not malformed(state, self.joints)
-        return state if usable else placeholder(previous.t, self.robot.period, self.joints)
+        return state if usable else placeholder(previous.t, self.robot.period, self.joints, self.floating)
 
     def _record(self, state: RobotState, dq_cmd: np.ndarray, phase: str, elapsed: float, started: float) -> None:
         """Log the cycle; a failure of the log trips the watchdog (the commands matter more)."""

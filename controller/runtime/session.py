@@ -3,7 +3,9 @@
 Phases: ``approach`` (the configured controller with its impact-aware constraints) until the
 impact is detected (``controller.runtime.impact_detector``: the robot's external-torque
 estimate when it gives a real one, else the momentum observer on the measured torque,
-``residual_source``), then the
+``residual_source``; a floating base, whose held contacts' wrenches change with every motion,
+by the jump of its measured velocity: ``velocity_jump``, the rule of the controller's impact
+brake), then the
 post-impact phase of ``config.post_impact`` (``retract``, ``hold`` or ``continue``: the
 controller of ``controller.config.post_impact_config``, impact-aware constraints off).
 
@@ -27,12 +29,12 @@ from impactqp.controller.config import ControllerConfig, build_controller, post_
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.qp import Command
 
-from .impact_detector import ImpactDetector, MomentumObserver
+from .impact_detector import ImpactDetector, MomentumObserver, VelocityJumpDetector
 from .interface import RobotState
 
 APPROACH = "approach"
 MEASURED_POSITION_PHASES = ("hold", "retract")
-ESTIMATE, OBSERVER = "estimate", "observer"
+ESTIMATE, OBSERVER, VELOCITY_JUMP = "estimate", "observer", "velocity_jump"
 
 
 def residual_source(state: RobotState) -> str:
@@ -48,16 +50,22 @@ def residual_source(state: RobotState) -> str:
 
 
 class ImpactSession:
-    """``start(state)`` once, then ``step(state) -> Command`` every period (``Command.phase``)."""
+    """``start(state)`` once, then ``step(state) -> Command`` every period (``Command.phase``).
+    ``q_start``: the configuration a floating base stands in (its support polygon; None: its
+    default stance)."""
 
-    def __init__(self, config: ControllerConfig, robot: RobotModel | None = None):
+    def __init__(self, config: ControllerConfig, robot: RobotModel | None = None, q_start=None):
         robot = config.choice.model() if robot is None else robot
         self.robot = robot
         self.config = config
-        self.approach = build_controller(config, robot)
-        self.post_impact = build_controller(post_impact_config(config), robot)
-        self.observer = MomentumObserver(robot, config.dt)
-        self.detector = ImpactDetector(robot.nv, settle_samples=self.observer.settle_samples)
+        self.approach = build_controller(config, robot, q_start)
+        self.post_impact = build_controller(post_impact_config(config), robot, q_start)
+        self.floating = robot.base_nv > 0
+        if self.floating:
+            self.observer, self.detector = None, VelocityJumpDetector(robot, self.approach.impact)
+        else:
+            self.observer = MomentumObserver(robot, config.dt)
+            self.detector = ImpactDetector(robot.nv, settle_samples=self.observer.settle_samples)
         self.controller = self.approach
         self.phase = APPROACH
         self.last: Command | None = None
@@ -70,15 +78,27 @@ class ImpactSession:
     def start(self, state: RobotState) -> None:
         """Reset at the first state; one discarded step of each controller first, so that the
         solvers' set-up does not fall into the first control cycles."""
+        q, dq = self.generalized(state)
         for controller in (self.post_impact, self.approach):
-            controller.reset(state.q, state.dq)
-            controller.step(state.q, state.dq)
-            controller.reset(state.q, state.dq)
+            controller.reset(q, dq)
+            controller.step(q, dq)
+            controller.reset(q, dq)
             controller.fallback_count = 0
-        self.observer.reset(state.q, state.dq)
         self._previous_state = state
         self._start_t = state.t
+        if self.floating:
+            self.residual_source = VELOCITY_JUMP
+            return
+        self.observer.reset(q, dq)
         self.residual_source = residual_source(state)
+
+    def generalized(self, state: RobotState) -> tuple[np.ndarray, np.ndarray]:
+        """The model's (q, dq) of a state: the joints' for a fixed base; a floating base's state
+        (``state.base``) first, then the joints'."""
+        if state.base is None:
+            return state.q, state.dq
+        nq = self.robot.base_nq
+        return np.concatenate([state.base[:nq], state.q]), np.concatenate([state.base[nq:], state.dq])
 
     def residual(self, state: RobotState) -> np.ndarray:
         """The joint-torque residual of the detector: the robot's estimate or the observer's
@@ -90,17 +110,23 @@ class ImpactSession:
             return self.observer.residual
         return self.observer.update(state.q, state.dq, state.tau)
 
+    def detects(self, state: RobotState) -> bool:
+        """Whether the impact is detected at this state (module docstring)."""
+        if self.floating:
+            return self.detector.update(state.t, *self.generalized(state), self.last)
+        return self.detector.update(state.t, self.residual(state))
+
     def step(self, state: RobotState) -> Command:
         """One period: the detector reads the state's torque residual (the switch to the
         post-impact controller on a detection), then the phase's controller steps on its own
         previous command (the measured q with the commanded dq after a retract's or hold's
         switch; the measured state at the first step) and its Command is returned."""
-        if self.phase == APPROACH and self.detector.update(state.t, self.residual(state)):
+        if self.phase == APPROACH and self.detects(state):
             self._switch(state)
         if self.last is None:
-            q, dq = state.q, state.dq
+            q, dq = self.generalized(state)
         elif self.phase in MEASURED_POSITION_PHASES:
-            q, dq = state.q, self.last.dq_cmd
+            q, dq = self.generalized(state)[0], self.last.dq_cmd
         else:
             q, dq = self.last.q_cmd, self.last.dq_cmd
         self.last = self.controller.step(q, dq)
@@ -123,5 +149,6 @@ class ImpactSession:
         if state is None:
             return None
         normal = np.asarray(self.config.surface.normal, float)
-        J = self.robot.terms(state.q, state.dq, check_limits=False).J
-        return float(-normal @ (J @ state.dq))
+        q, dq = self.generalized(state)
+        J = self.robot.terms(q, dq, check_limits=False).J
+        return float(-normal @ (J @ dq))

@@ -184,8 +184,8 @@ def robot_choice(robot: str, tool: str, humanoid: bool = False):
 
     description = robot_description(robot)
     if description.floating and not humanoid:
-        raise BadInputError(f"--robot {description.name} (a floating base) works with predict, simulate, campaign "
-                            "and max-speed only")
+        raise BadInputError(f"--robot {description.name} (a floating base) works with predict, simulate, campaign, "
+                            "max-speed and run only")
     return RobotChoice.of(description, tool)
 
 
@@ -195,7 +195,7 @@ def robot_help(humanoid: bool) -> str:
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.robot_description import ROBOTS
 
-    where = "docs/floating-base.md" if humanoid else "a floating base only with predict, simulate, campaign and max-speed"
+    where = "docs/floating-base.md" if humanoid else "a floating base only with predict, simulate, campaign, max-speed and run"
     return f"The robot: {', '.join(ROBOTS)} or a robot .toml file (docs/robots.md; {where})."
 
 

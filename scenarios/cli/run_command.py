@@ -31,7 +31,7 @@ NO_LOG = "none (the run measured fewer samples than a trial needs)"
 @click.option("--trial", help="Trial id to replay (default: the first).")
 @click.option("--unpaced", is_flag=True, help="Run the sim backend as fast as it goes (no wall-clock pacing).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-@robot_options
+@robot_options(humanoid=True)
 def run_command(realtime: str, as_json: bool, choice, **options):
     """Run the impact-aware controller in a 1 kHz loop on a robot: approach, detect the impact,
     post-impact phase, brake to a stop. Ctrl-C (or SIGTERM) brakes to a stop, keeps the log and
@@ -87,6 +87,11 @@ def print_report(report: dict) -> None:
         click.echo(
             f"asked {speed['asked']:.3f} m/s, hit at {speed['contact']:.3f} m/s: the controller capped the approach "
             f"(active: {', '.join(speed['capped_by'])}; docs/max-speed.md)"
+        )
+    elif speed["slower"]:
+        click.echo(
+            f"asked {speed['asked']:.3f} m/s, hit at {speed['contact']:.3f} m/s: no limit was active at the last "
+            "approach command (the approach had not reached its speed, or its task traded it off)"
         )
     click.echo(f"final phase: {report['phase']}; log: {report['log'] or NO_LOG}")
     print_robot(report)
