@@ -148,14 +148,22 @@ def pink_loop_samples(model, q0: np.ndarray, frame: str, solver: str, cycles: in
     frame_task.set_target(target)
     posture_task.set_target(q0)
     tasks = [frame_task, posture_task]
+    return peer_loop_samples(
+        configuration, q0, lambda dt: pink.solve_ik(configuration, tasks, dt, solver=solver, safety_break=False), cycles
+    )
+
+
+def peer_loop_samples(configuration, q0: np.ndarray, solve: Callable, cycles: int) -> np.ndarray:
+    """Seconds per cycle of a peer's differential-IK loop (pink's and mink's share its shape):
+    ``solve(dt)`` the velocity, integrated into ``configuration``, restarted at q0 every
+    RESTART_EVERY cycles."""
     dt = 0.001
     samples = np.empty(cycles)
     for k in range(cycles):
         if k % RESTART_EVERY == 0:
             configuration.update(q0)
         start = time.perf_counter()
-        velocity = pink.solve_ik(configuration, tasks, dt, solver=solver, safety_break=False)
-        configuration.integrate_inplace(velocity, dt)
+        configuration.integrate_inplace(solve(dt), dt)
         samples[k] = time.perf_counter() - start
     return samples
 
@@ -178,16 +186,7 @@ def mink_cycle_samples(solver: str, cycles: int = CYCLES) -> np.ndarray:
         mink.ConfigurationLimit(model),
         mink.VelocityLimit(model, {model.joint(i).name: 2.0 for i in range(model.njnt)}),
     ]
-    dt = 0.001
-    samples = np.empty(cycles)
-    for k in range(cycles):
-        if k % RESTART_EVERY == 0:
-            configuration.update(q0)
-        start = time.perf_counter()
-        velocity = mink.solve_ik(configuration, tasks, dt, solver, limits=limits)
-        configuration.integrate_inplace(velocity, dt)
-        samples[k] = time.perf_counter() - start
-    return samples
+    return peer_loop_samples(configuration, q0, lambda dt: mink.solve_ik(configuration, tasks, dt, solver, limits=limits), cycles)
 
 
 def fallback_cycle_samples(robot: PandaModel, cycles: int = 1000, seed: int = 0) -> np.ndarray:
