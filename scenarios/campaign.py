@@ -317,7 +317,7 @@ class Campaign:
         tasks = self.trials.tasks(self.plan)
         results = []
         with closing(self.trials.results(tasks, self.jobs)) as running:  # its pool ends with the loop
-            for result in tqdm(running, total=len(tasks), desc="campaign", unit="trial", disable=not self.progress):
+            for result in tqdm(running, total=len(tasks), desc="campaign", unit="trial", disable=None if self.progress else True):
                 writer.add_trial(*self.trials.dataset_trial(result))
                 results.append(result)
         table = self.trials.table(results)

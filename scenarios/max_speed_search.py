@@ -269,7 +269,7 @@ class MaxSpeedSearch:
         rounds = int(np.ceil(np.log(width / self.tolerance) / np.log(self.jobs + 1))) + 1
         with TrialPool(self.surface, self.plant, self.jobs, self.choice) as pool, tqdm(
             total=2 + rounds * self.jobs, desc=f"max-speed {self.posture.name}", unit="trial",
-            disable=not self.progress,
+            disable=None if self.progress else True,
         ) as bar:
             first = [qp_spec, self.spec(bisection.lo), self.spec(bisection.hi)]
             qp_limited, *ends = list(pool.map(first))

@@ -251,3 +251,9 @@ def test_import_franka_refuses_an_output_folder_that_holds_an_input_log(tmp_path
                             "--surface-normal", "-1,0,0")
     assert code == 2 and stdout == "" and "would overwrite the input" in err and len(err.strip().splitlines()) == 1
     assert log.read_text() == "not read: the output is refused first\n" and sorted(out.iterdir()) == [log]
+
+
+def test_progress_bars_stay_off_a_stream_that_is_not_a_terminal(tmp_path, capsys):
+    """A progress bar is drawn only on a terminal: redirected, stderr keeps only real messages."""
+    code, out, err = run(capsys, "dataset", "generate", tmp_path / "d", "--postures", "elbow_up", "--speeds", "0.1")
+    assert code == 0 and "wrote 1 trial(s)" in out and err == ""

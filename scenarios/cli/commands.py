@@ -219,7 +219,7 @@ def demo(out_dir, jobs):
     click.echo("1. Nominal simulation, Table I:")
     click.echo(table.text())
     stiff = PlantParameters(armature=per_group((1.2, 0.3)))
-    with tqdm(desc="measured dataset", unit="trial") as bar:
+    with tqdm(desc="measured dataset", unit="trial", disable=None) as bar:
         generate_dataset(
             out / "measured",
             DatasetRequest(plant=stiff, postures=["elbow_up", "elbow_left", "elbow_right"], speeds=[0.1, 0.18], seed=1),

@@ -49,7 +49,7 @@ def validate_command(ctx, directory, as_json):
     def progress(done: int, total: int) -> None:
         if not bars:
             shown = sys.stderr.isatty() or total >= LONG_MANIFEST
-            bars.append(tqdm(total=total, disable=not shown, desc="trials", unit="trial", file=sys.stderr))
+            bars.append(tqdm(total=total, disable=None if shown else True, desc="trials", unit="trial", file=sys.stderr))
         bars[0].update(done - bars[0].n)
 
     try:
@@ -103,7 +103,7 @@ def generate_command(out, postures, speeds, tangential, as_json, choice, **noise
 
     def progress(done: int, total: int) -> None:
         if not bars:
-            bars.append(tqdm(total=total, disable=as_json, desc="trials", unit="trial"))
+            bars.append(tqdm(total=total, disable=True if as_json else None, desc="trials", unit="trial"))
         bars[0].update(done - bars[0].n)
 
     try:

@@ -147,7 +147,7 @@ def run_sweep(config: SweepConfig, out: Path, **options) -> SweepSummary:
     done = store.done_chunks(out, n_chunks)
     todo = [c for c in range(n_chunks) if c not in done]
     bar = tqdm(total=n_cells, initial=n_cells - sum(len(_chunk_cells(config, c, chunk_size)) for c in todo),
-               unit="cell", disable=not progress)
+               unit="cell", disable=None if progress else True)
     evaluate = _ray if backend == "ray" else _local
     for chunk, columns in evaluate(config, simulation, todo, chunk_size, jobs):
         store.write_chunk(Path(out), chunk, columns, sweep_identity)
