@@ -2,7 +2,7 @@
 
 Trial: the robot starts at rest in a stance (``controller.model.humanoid_stance``), the wall
 :data:`GAP` beyond its contact point. It stands still for :data:`SETTLE` s, then the right arm
-(shoulder, elbow, wrist: ``ARM_JOINTS``) is driven so that the hand moves along +x at ``speed``:
+(shoulder, elbow, wrist: its description's ``contact.joints``) is driven so that the hand moves along +x at ``speed``:
 dq_arm = J_arm^+ v* (J_arm the arm joints' block of the contact Jacobian), reached by a 20 ms velocity
 ramp; every other joint is commanded at rest. At the first wall contact (plus a 5 ms detection
 latency) the arm stops: the servo's reference is re-anchored at the measured joint positions, at
@@ -79,7 +79,7 @@ from impactqp.controller.model.capture import capture_region
 from impactqp.controller.model.jump import jump_from_impulse, predict
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
 from impactqp.controller.model.robot import RobotModel
-from impactqp.controller.model.max_speed import ARM_JOINTS
+from impactqp.controller.model.max_speed import contact_joints
 from impactqp.controller.model.humanoid_stance import stance_posture, support_polygon
 from impactqp.controller.model.robot_description import Stance
 
@@ -173,7 +173,7 @@ class ImpactTrial:
 
 @dataclass(frozen=True)
 class ScriptedCommand:
-    """The scripted command source (module docstring): the right-arm joints (``ARM_JOINTS``) follow
+    """The scripted command source (module docstring): the joints that move the contact (``contact.joints``: the right arm) follow
     dq_arm = J_arm^+ v* after a RAMP s velocity ramp, every other joint at rest; at the stop
     (LATENCY after the first wall contact) the servo holds the joints where they are and the
     command is zero."""
@@ -198,7 +198,7 @@ class _ScriptedDriver:
 
     def __init__(self, robot: RobotModel, speed: float):
         self.robot, self.speed = robot, speed
-        self.arm = np.array([robot.joint_index(j) for j in ARM_JOINTS])
+        self.arm = np.array([robot.joint_index(j) for j in contact_joints(robot.description)])
         self.record = None
         self.stopped = False
         self._step = 0

@@ -231,3 +231,34 @@ def test_a_bad_robot_file_is_one_line_of_bad_input(tmp_path, changes, message):
     with pytest.raises(BadInputError, match=message) as error:
         robot_description(path)
     assert "\n" not in str(error.value)
+
+
+def test_the_standing_robot_s_own_data_come_from_its_description():
+    """What a standing robot's tools read of it is data: the joints that move its contact point,
+    its held contacts' labels and the posture its stance solver pulls towards."""
+    from impactqp.controller.model.max_speed import contact_joints
+
+    g1 = ROBOTS["g1"]
+    assert contact_joints(g1) == g1.contact.joints and len(g1.contact.joints) == 7
+    assert all(j.startswith("right_") for j in g1.contact.joints)
+    assert [c.label for c in g1.held_contacts] == ["left", "right"]
+    assert g1.nominal_posture["left_knee_joint"] == 0.6 and set(g1.nominal_posture) <= set(g1.joints)
+    assert contact_joints(ROBOTS["panda"]) == ROBOTS["panda"].joints  # no contact joints named: every joint
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d["contact"].update(joints=["no_such_joint"]), "are not its joints"),
+    (lambda d: d.update(nominal_posture={"left_knee_joint": 9.0}), "nominal_posture left_knee_joint"),
+    (lambda d: d.update(nominal_posture={"no_such_joint": 0.1}), "unknown keys no_such_joint"),
+    (lambda d: d["held_contacts"][0].update(label=""), "label"),
+])
+def test_bad_standing_robot_data_are_one_line(edit, message):
+    import tomllib
+    from importlib.resources import files
+
+    from impactqp.controller.model.robot_description import description_from_mapping
+
+    data = tomllib.loads((files("impactqp.controller.model") / "robots" / "g1.toml").read_text())
+    edit(data)
+    with pytest.raises(BadInputError, match=message):
+        description_from_mapping(data)

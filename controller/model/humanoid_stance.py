@@ -28,13 +28,6 @@ from .robot import RobotModel
 from .robot_description import ROBOTS, Stance
 from .validation import BadInputError
 
-# Nominal bent-knee posture (rad): the regularisation target of the solver.
-NOMINAL = {
-    "left_hip_pitch_joint": -0.3, "left_knee_joint": 0.6, "left_ankle_pitch_joint": -0.3,
-    "right_hip_pitch_joint": -0.3, "right_knee_joint": 0.6, "right_ankle_pitch_joint": -0.3,
-    "left_elbow_joint": 1.0, "right_elbow_joint": 0.5, "left_shoulder_roll_joint": 0.2,
-    "right_shoulder_roll_joint": -0.2, "right_shoulder_pitch_joint": -0.8,
-}
 WEIGHTS = {"feet": 10.0, "com": 10.0, "hand": 3.0, "hand_axis": 1.0, "posture": 0.05}
 DAMPING = 1e-3
 ITERATIONS = 200
@@ -93,7 +86,7 @@ def stance_posture(robot: RobotModel, stance: Stance) -> np.ndarray:
     model = robot.model
     joints = slice(robot.base_nq, None)  # the actuated joints' part of q
     nominal = np.zeros(robot.n_joints)
-    for name, value in NOMINAL.items():
+    for name, value in robot.description.nominal_posture.items():
         nominal[robot.joint_index(name)] = value
     contacts = robot.description.held_contacts
     if len(stance.feet) != len(contacts):

@@ -4,7 +4,7 @@ docs/floating-base.md).
 The approach motion at speed v is dq- = v d: the contact point moves along -n (v- = J d v = -v n).
 For a fixed-base arm every joint moves and the contact frame does not rotate, d = J6+ [-n; 0]
 (J6 the 6 x nv world-aligned frame Jacobian, + the pseudo-inverse); for a robot with held
-contacts (a standing humanoid's soles) the contact's arm moves alone (:data:`ARM_JOINTS`),
+contacts (a standing humanoid's soles) the contact's arm moves alone (its description's ``contact.joints``),
 d_arm = J_arm+ (-n), the body at rest. Every predicted quantity is linear in v (the jump at unit
 speed dv, the contact impulse iota and the held contacts' impulsive wrenches lambda: the arm's
 ``jump`` model, eqs. 6 and 12, or ``jump.predict`` with the contacts held), so each
@@ -57,11 +57,6 @@ from .validation import BadInputError
 
 DEFAULT_IMPACT_DURATION = 0.015  # s: delta_t of an arm's impact
 HAND_IMPACT_DURATION = 0.0034  # s: T, the wall contact's equivalent duration (impulse / peak force; the simulated wall's) of a robot with held contacts
-ARM_JOINTS = tuple(f"right_{j}_joint" for j in (
-    "shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", "wrist_roll", "wrist_pitch", "wrist_yaw"))
-"""The joints that move a standing robot's contact point in the approach (the G1's right arm)."""
-FEET = ("left", "right")
-"""How a foot bound names the G1's held contacts (``Bound.where``), in the description's order."""
 
 
 @dataclass(frozen=True)
@@ -136,13 +131,21 @@ class UnitImpact:
         return slice(self.direction.shape[0] - self.robot.dq_max.shape[0], None)
 
 
+def contact_joints(description: RobotDescription) -> tuple[str, ...]:
+    """The joints that move a robot's own contact point in a scripted approach: its description's
+    ``contact.joints``, or every joint."""
+    contact = description.contact
+    return contact.joints if contact is not None and contact.joints else description.joints
+
+
 def approach_direction(robot: RobotModel, terms, normal) -> np.ndarray:
     """d (nv): the joint velocity per unit approach speed along -n (module docstring): J6+ [-n; 0]
-    for an arm, J_arm+ (-n) on :data:`ARM_JOINTS` and zero elsewhere with held contacts."""
+    for an arm, J_arm+ (-n) on the joints that move the contact (its description's
+    ``contact.joints``; every joint when it names none) and zero elsewhere with held contacts."""
     normal = np.asarray(normal, dtype=float)
     if not robot.description.held_contacts:
         return np.linalg.pinv(terms.J6) @ np.concatenate([-normal, np.zeros(3)])
-    arm = robot.base_nv + np.array([robot.joint_index(j) for j in ARM_JOINTS])
+    arm = robot.base_nv + np.array([robot.joint_index(j) for j in contact_joints(robot.description)])
     d = np.zeros(terms.M.shape[0])
     d[arm] = np.linalg.pinv(terms.J[:, arm]) @ -normal
     return d
@@ -221,7 +224,8 @@ def foot_wrenches(u: UnitImpact) -> list:
     standing = u.setting.duration(u.robot.description) * standing_wrenches(u.robot, u.terms)
     placements = u.robot.frame_placements(u.terms.q)
     feet = []
-    for k, (foot, contact) in enumerate(zip(FEET, u.robot.description.held_contacts, strict=True)):
+    for k, contact in enumerate(u.robot.description.held_contacts):
+        foot = contact.label
         R = placements[contact.frame].rotation
         rows = slice(6 * k, 6 * k + 6)
 

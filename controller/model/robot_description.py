@@ -43,7 +43,7 @@ __all__ = [
 BASES = ("fixed", "floating")
 ROBOT_KEYS = {
     "name", "base", "joints", "default_posture", "urdf", "meshes", "tool_frames", "hand", "limits",
-    "contact", "held_contacts", "postures", "stances", "frames",
+    "contact", "held_contacts", "postures", "stances", "frames", "nominal_posture",
 }
 LIMIT_KEYS = ("q_min", "q_max", "dq_max", "ddq_max", "dddq_max", "tau_max")
 URDF_LIMITS = {"q_min": "lower", "q_max": "upper", "dq_max": "velocity", "tau_max": "effort"}
@@ -86,23 +86,27 @@ class FileSource:
 class HeldContact:
     """A contact the robot holds while it hits (a humanoid's sole on the ground): the frame it
     is fixed to, the support polygon ``sole`` (k x 2, the frame's x-y plane, m) that lies
-    ``depth`` (m) below the frame along its -z axis, and the Coulomb ``friction`` on the ground."""
+    ``depth`` (m) below the frame along its -z axis, the Coulomb ``friction`` on the ground, and
+    the ``label`` that reports name it by (default: its name)."""
 
     name: str
     frame: str
     sole: np.ndarray
     depth: float
     friction: float
+    label: str = ""
 
 
 @dataclass(frozen=True, eq=False)
 class RobotContact:
     """The robot's own contact point (a robot that carries no tool): frame ``name`` at
-    ``offset`` (m) from ``frame``, with that frame's orientation."""
+    ``offset`` (m) from ``frame``, with that frame's orientation; ``joints``, the joints that
+    move it in a scripted approach (a humanoid's arm; empty: every joint)."""
 
     name: str
     frame: str
     offset: np.ndarray
+    joints: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,7 +134,9 @@ class RobotDescription:
     (``"hand"``, ``"flange"``) to a URDF frame; ``hand_frame``, ``finger_joints`` and
     ``finger_links`` describe the gripper (empty without one). ``frames`` names further URDF
     frames whose state the model terms carry (``ModelTerms.frame(name)``: a humanoid's torso,
-    ``{torso = "torso_link"}``). ``source`` is the file the description was read from."""
+    ``{torso = "torso_link"}``). ``nominal_posture`` maps joints to the angles (rad; the others
+    0) that a floating base's stance solver pulls towards. ``source`` is the file the
+    description was read from."""
 
     name: str
     base: str
@@ -153,6 +159,7 @@ class RobotDescription:
     stances: Mapping[str, Stance] = field(default_factory=dict)
     default_posture: str = ""
     frames: Mapping[str, str] = field(default_factory=dict)
+    nominal_posture: Mapping[str, float] = field(default_factory=dict)
     source: Path | None = None
 
     @property
@@ -290,8 +297,9 @@ def _held_contacts(entries, robot: str) -> tuple[HeldContact, ...]:
         raise BadInputError(f"the {robot} held_contacts must be a list of tables")
     contacts = []
     for entry in entries:
-        if not isinstance(entry, dict) or set(entry) != {"name", "frame", "sole", "depth", "friction"}:
-            raise BadInputError(f"each {robot} held contact needs exactly name, frame, sole, depth, friction")
+        keys = {"name", "frame", "sole", "depth", "friction"}
+        if not isinstance(entry, dict) or not keys <= set(entry) <= keys | {"label"}:
+            raise BadInputError(f"each {robot} held contact needs exactly name, frame, sole, depth, friction (and a label)")
         sole = np.array(entry["sole"], dtype=float) if isinstance(entry["sole"], list) else np.empty(0)
         if sole.ndim != 2 or sole.shape[1] != 2 or len(sole) < 3 or not np.all(np.abs(sole) <= MAX_CONTACT_LENGTH):
             raise BadInputError(f"the {robot} held contact {entry['name']!r}: sole must be 3 or more (x, y) corners within 1 m")
@@ -300,6 +308,7 @@ def _held_contacts(entries, robot: str) -> tuple[HeldContact, ...]:
             _name(entry["name"], "a held contact's name"), _name(entry["frame"], "a held contact's frame"), sole,
             number_in_range(entry["depth"], 0.0, MAX_CONTACT_LENGTH, "a sole's depth", "m"),
             number_in_range(entry["friction"], 0.0, MAX_FRICTION, "a sole's friction", "", True),
+            _name(entry.get("label", entry["name"]), "a held contact's label"),
         ))
     return tuple(contacts)
 
@@ -348,12 +357,15 @@ def description_from_mapping(data: Mapping, base: Path | None = None, source: Pa
         raise BadInputError(f"the {robot} URDF has no moving joints {', '.join(sorted(set(joints) - set(urdf_joints)))}")
     contact = None
     if "contact" in data:
-        entry = _table(data, "contact", {"name", "frame", "offset"}, f"the {robot}")
+        entry = _table(data, "contact", {"name", "frame", "offset", "joints"}, f"the {robot}")
         offset = finite_vector(entry.get("offset", [0.0, 0.0, 0.0]), 3, f"the {robot} contact offset")
         if float(np.linalg.norm(offset)) > MAX_CONTACT_LENGTH:
             raise BadInputError(f"the {robot} contact offset must lie within {MAX_CONTACT_LENGTH:g} m of its frame")
+        moving = _names(entry.get("joints", []), f"the {robot} contact joints")
+        if set(moving) - set(joints):
+            raise BadInputError(f"the {robot} contact joints {', '.join(sorted(set(moving) - set(joints)))} are not its joints")
         contact = RobotContact(_name(entry.get("name"), "the contact's name"), _name(entry.get("frame"), "the contact's frame"),
-                               _read_only(offset))
+                               _read_only(offset), moving)
     held = _held_contacts(data.get("held_contacts", []), robot)
     postures = _postures(_named_tables(data, "postures", robot), len(joints), robot)
     stances = _stances(_named_tables(data, "stances", robot), len(held), robot)
@@ -365,6 +377,9 @@ def description_from_mapping(data: Mapping, base: Path | None = None, source: Pa
     frames = data.get("frames", {})
     if not isinstance(frames, Mapping):
         raise BadInputError(f"the {robot} [frames] must be a table of names to URDF frames")
+    nominal = _table(data, "nominal_posture", set(joints), f"the {robot}")
+    nominal = {name: number_in_range(value, -2 * np.pi, 2 * np.pi, f"the {robot} nominal_posture {name}", "rad")
+               for name, value in nominal.items()}
     return RobotDescription(
         name=robot, base=kind, urdf=urdf, meshes=meshes, joints=joints,
         **_limits(limit_table, joints, urdf_joints, robot),
@@ -373,7 +388,7 @@ def description_from_mapping(data: Mapping, base: Path | None = None, source: Pa
         finger_links=_names(hand.get("finger_links", []), f"the {robot} finger_links"),
         contact=contact, held_contacts=held, postures=postures, stances=stances, default_posture=default,
         frames={_name(k, f"the {robot} [frames] key"): _name(v, f"the {robot} frame {k}") for k, v in frames.items()},
-        source=source,
+        nominal_posture=nominal, source=source,
     )
 
 

@@ -251,7 +251,7 @@ class ControlLoop:
         self.session = session
         self.filter = command_filter
         self.joints = len(command_filter.dq_max)  # the filter limits every actuated joint of the robot
-        self.floating = session.robot.base_nv > 0  # its states carry the base's
+        self.floating = False  # whether the robot's states carry a floating base's (the first state says)
         self.deadline = robot.period if deadline is None else float(deadline)
         self.watchdog = Watchdog(self.joints, max_overruns)
         self.stop_requested = False
@@ -271,8 +271,9 @@ class ControlLoop:
         ends in the braking sequence; ``robot.stop()`` is called on every way out."""
         robot, watchdog = self.robot, self.watchdog
         self.cycles = int(round(duration / robot.period))
-        self.log = LoopLog(self.cycles + MAX_STOP_CYCLES + 1, self.joints, self.floating)
         state = robot.read()  # before real time: nothing moves yet, a failure is reported as it is
+        self.floating = isinstance(state, RobotState) and state.base is not None
+        self.log = LoopLog(self.cycles + MAX_STOP_CYCLES + 1, self.joints, self.floating)
         if not watchdog.check_state(state):
             state = placeholder(0.0, robot.period, self.joints, self.floating)
         elif not watchdog.tripped:
