@@ -26,5 +26,5 @@ def test_a_replayed_trial_reproduces_the_logged_commands(retract_run):
 
 def test_a_g1_dataset_is_refused_naming_why(tmp_path):
     g1_dataset(tmp_path)
-    with pytest.raises(BadInputError, match="its robot 'g1' is not an arm the replay backend plays"):
+    with pytest.raises(BadInputError, match="its robot g1 has a floating base"):
         load_trial(tmp_path, None)

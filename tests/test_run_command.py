@@ -218,7 +218,7 @@ def test_every_option_of_run_is_a_request_field_of_the_same_name_and_every_field
 def test_replaying_a_g1_dataset_is_one_line_of_bad_input(tmp_path, capsys):
     g1_dataset(tmp_path)
     err = one_error_line(capsys, ["run", "--backend", "replay", "--dataset", str(tmp_path)])
-    assert "'g1' is not an arm" in err
+    assert "its robot g1 has a floating base" in err
 
 
 @pytest.mark.parametrize("robot", ["panda", "ur5"])

@@ -184,6 +184,10 @@ def test_max_speed_and_campaign_take_a_users_arm(capsys, my_arm, tmp_path):
                      "--tangential", "none", "--out", str(tmp_path), "--jobs", "1")
     assert code == 0 and not any(validate(tmp_path).values())
     assert json.loads((tmp_path / "dataset.json").read_text())["robot"] == str(my_arm)
+    # the replay backend plays the user's arm's dataset: its model comes from the robot file
+    code, stdout, err = run(capsys, "run", "--backend", "replay", "--dataset", str(tmp_path), "--log", str(tmp_path / "replayed"), "--json")
+    assert code == 0, err
+    assert json.loads(stdout)["cycles"] > 0
 
 
 def test_simulate_g1_json(capsys):

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from impactqp.controller.measured.dataset import DatasetError, DatasetTrial, read_dataset
-from impactqp.controller.model.robot_description import ROBOTS
+from impactqp.controller.model.robot_description import robot_description
 from impactqp.controller.model.validation import BadInputError
 
 from .interface import RobotInterface, RobotState
@@ -22,11 +22,13 @@ def load_trial(directory, trial_id: str | None) -> tuple[DatasetTrial, object]:
         dataset = read_dataset(directory)
     except DatasetError as error:
         raise BadInputError(f"replay dataset {directory}: {error}") from None
-    robot = ROBOTS.get(dataset.header.robot)
-    if robot is None or robot.floating:
-        arms = ", ".join(name for name in ROBOTS if not ROBOTS[name].floating)
-        raise BadInputError(f"replay dataset {directory}: its robot {dataset.header.robot!r} is not an arm the replay "
-                            f"backend plays ({arms}); a g1 dataset has a floating base")
+    try:
+        robot = robot_description(dataset.header.robot)  # a built-in's name or the user's robot file
+    except BadInputError as error:
+        raise BadInputError(f"replay dataset {directory}: {error}") from None
+    if robot.floating:
+        raise BadInputError(f"replay dataset {directory}: its robot {robot.name} has a floating base; the replay "
+                            "backend plays the logs of fixed-base arms")
     if not dataset.trials:
         raise BadInputError(f"replay dataset {directory} holds no trial")
     if trial_id is None:
