@@ -20,9 +20,6 @@ from impactqp.scenarios.cli.arguments import (
     robot_options,
 )
 
-LONG_MANIFEST = 100
-"""Trial entries from which ``dataset validate`` shows its progress bar even when stderr is not a
-terminal."""
 
 
 @click.group()
@@ -37,19 +34,18 @@ def dataset():
 def validate_command(ctx, directory, as_json):
     """Report every problem per trial; never modifies the data. Exit code 1 when any is found.
     Each file is read once, however many entries name it; a progress bar goes to stderr on a
-    terminal or for a long manifest."""
+    terminal (never into a redirected stream)."""
     # lazy: the command line loads what a command needs when it runs
     from tqdm import tqdm
 
     from impactqp.controller.measured.dataset_check import validate
 
     input_directory(directory, "DIRECTORY")
-    bars = []  # on stderr: on a terminal, or for a long manifest (a log shows it is not stuck)
+    bars = []  # on stderr, on a terminal only
 
     def progress(done: int, total: int) -> None:
         if not bars:
-            shown = sys.stderr.isatty() or total >= LONG_MANIFEST
-            bars.append(tqdm(total=total, disable=None if shown else True, desc="trials", unit="trial", file=sys.stderr))
+            bars.append(tqdm(total=total, disable=None, desc="trials", unit="trial", file=sys.stderr))
         bars[0].update(done - bars[0].n)
 
     try:
