@@ -293,7 +293,7 @@ class RobotModel:
         buffer: no new object; a floating base's arrays are refilled in place), with a new
         ``stamp``. Raises like ``terms``; a refused state leaves a floating base's as it was."""
         q, dq = self.check_state(q, dq, check_limits=False)
-        if self.floating:
+        if self.base_nv:  # a floating base (an attribute: this runs every control cycle)
             return self._fill_floating(terms, q, dq, bool(check_limits))
         return self._fill_fixed(terms, q, dq, check_limits is not False)
 

@@ -223,10 +223,10 @@ class ImpactAwareController:
         except (BadInputError, TypeError, ValueError) as error:  # not a state of this robot
             return self._fallback(q, dq, Status.FALLBACK_INVALID_STATE, ["finite_state"], str(error))
         terms = self._terms
-        if self._impact_noticed(terms):
+        if self._impact_was_active and self._impact_noticed(terms):
             self.braking = True
             return self._impact_brake()
-        joint_velocities = terms.dq[self._joint_velocities]
+        joint_velocities = terms.dq[self._joint_velocities] if self._floating else terms.dq
         over = first_outside(joint_velocities, robot.dq_max)
         if over >= 0:
             message = f"dq{over + 1} = {joint_velocities[over]:.4f} rad/s is outside the velocity limits"
@@ -249,7 +249,11 @@ class ImpactAwareController:
         status = Status.OK
         # dq_cmd = dq + ddq dt (clipped only off the closed loop: see the docstring) and
         # q_cmd = q (+) (dq + dq_cmd) dt / 2 within the position limits
-        dq_cmd, q_cmd, clipped = self._integrate(terms, ddq)
+        if self._floating:
+            dq_cmd, q_cmd, clipped = self._floating_integrate(terms, ddq)
+        else:  # one compiled pass
+            dq_cmd, q_cmd = np.empty(robot.nv), np.empty(robot.nq)
+            clipped = integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, dq_cmd, q_cmd)
         if clipped:
             ddq = (dq_cmd - terms.dq) * (1.0 / self.dt)
             status = Status.VELOCITY_CLIPPED
@@ -258,9 +262,10 @@ class ImpactAwareController:
 
     # ------------------------------------------------------------------ one cycle
     def _impact_noticed(self, terms: ModelTerms) -> bool:
-        """Whether this state shows an impact (module docstring: impact brake)."""
+        """Whether this state shows an impact (module docstring: impact brake); a state that is the
+        previous command itself (a loop fed its own command) never does."""
         impact, memory = self.impact, self.memory
-        if impact is None or not self._impact_was_active or memory.q_cmd is None:
+        if impact is None or memory.q_cmd is None or terms.dq is memory.dq_cmd:
             return False
         commanded, _ = normal_motion(terms.J, impact.surface.normal, terms.contact_point, memory.dq_cmd)
         commanded = -commanded
@@ -277,14 +282,10 @@ class ImpactAwareController:
             ddq, dq_cmd, q_cmd = brake(memory.q_cmd, memory.dq_cmd, memory.ddq, self.dt, self._limits)
         return self._emit(None, ddq, dq_cmd, q_cmd, Status.IMPACT_BRAKE, [], [], "", "braking after a noticed impact")
 
-    def _integrate(self, terms: ModelTerms, ddq: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
-        """dq_cmd = dq + ddq dt, the joints' part clipped into their velocity limits, and
-        q_cmd = q (+) (dq + dq_cmd) dt / 2, the joints' part within their position limits; and
-        whether dq_cmd was clipped."""
-        if not self._floating:  # one compiled pass
-            dq_cmd, q_cmd = np.empty(self.robot.nv), np.empty(self.robot.nq)
-            clipped = integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, dq_cmd, q_cmd)
-            return dq_cmd, q_cmd, clipped
+    def _floating_integrate(self, terms: ModelTerms, ddq: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+        """A floating base's dq_cmd = dq + ddq dt, the joints' part clipped into their velocity
+        limits, and q_cmd = q (+) (dq + dq_cmd) dt / 2, the joints' part within their position
+        limits; and whether dq_cmd was clipped (a fixed base: ``integrate_command``, compiled)."""
         dq_cmd = terms.dq + ddq * self.dt
         joints, dq_max = dq_cmd[self._joint_velocities], self.robot.dq_max
         clipped = first_outside(joints, dq_max) >= 0
