@@ -469,6 +469,14 @@ def test_predict_g1_takes_a_configuration(capsys):
     code, out, _ = run(capsys, "predict", "--robot", "g1", "--q", q, "--normal", "-1,0,0", "--speed", "0.2",
                        "--method", "gm", "--json")
     assert code == 0 and list(json.loads(out)["methods"]) == ["gm"]
+    zero = pin.neutral(g1_model().model)
+    zero[3:7] = 0.0  # no orientation at all
+    huge = pin.neutral(g1_model().model)
+    huge[10] = 1e308
+    for bad in (zero, huge):
+        code, out, err = run(capsys, "predict", "--robot", "g1", "--q", ",".join(f"{x:g}" for x in bad),
+                             "--normal", "-1,0,0", "--speed", "0.2")
+        assert code == EXIT_BAD_INPUT and out == "" and len(err.strip().splitlines()) == 1
 
 
 @pytest.mark.parametrize("args", [

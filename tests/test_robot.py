@@ -413,6 +413,8 @@ def test_a_floating_base_checks_sizes_values_and_only_the_joints_limits():
     for bad_q, bad_v, message in (
         (q[:-1], np.zeros(nv), f"q must have {g1.nq} values"), (q, np.zeros(nv - 1), f"dq must have {nv} values"),
         (q, np.full(nv, np.nan), "non-finite"), (np.where(np.arange(g1.nq) == 9, np.inf, q), np.zeros(nv), "non-finite"),
+        (np.where((np.arange(g1.nq) >= 3) & (np.arange(g1.nq) < 7), 0.0, q), np.zeros(nv), "unit quaternion"),
+        (np.where(np.arange(g1.nq) == 6, 2.0, q), np.zeros(nv), "unit quaternion"),
     ):
         with pytest.raises(InvalidStateError, match=message):
             g1.terms(bad_q, bad_v)

@@ -28,6 +28,8 @@ of radius :data:`TOOL_RADIUS` whose centre sits on the hand's z axis (the axis o
 
 from __future__ import annotations
 
+import math
+
 from pathlib import Path
 
 import numpy as np
@@ -69,6 +71,8 @@ VELOCITY_LIMIT = PANDA.dq_max
 TORQUE_LIMIT = PANDA.tau_max
 ACCELERATION_LIMIT = PANDA.ddq_max
 JERK_LIMIT = PANDA.dddq_max
+QUATERNION_TOLERANCE = 1e-3
+"""Largest | |quaternion| - 1 | of a floating base's orientation in a state (typed to a few digits)."""
 BASE_ACCELERATION_LIMIT = 100.0
 """m/s^2 and rad/s^2: a generous box on a floating base's acceleration (the held contacts set it)."""
 
@@ -238,8 +242,9 @@ class RobotModel:
     # ------------------------------------------------------------------ validation
     def check_state(self, q, dq=None, *, check_limits: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Return (q, dq) as float arrays (dq = 0 when None), or raise :class:`InvalidStateError`:
-        wrong sizes, a non-finite or huge entry, or (``check_limits``) an actuated joint outside
-        its position limits (a floating base's coordinates are not limited)."""
+        wrong sizes, a non-finite or huge entry, a floating base's quaternion that is not a unit
+        one, or (``check_limits``) an actuated joint outside its position limits (a floating
+        base's coordinates are not limited)."""
         q = np.asarray(q, dtype=float)
         dq = self._zero_velocity if dq is None else np.asarray(dq, dtype=float)
         if q.shape != (self.nq,) or dq.shape != (self.nv,):
@@ -258,6 +263,10 @@ class RobotModel:
                     raise InvalidStateError(
                         f"the state is too large to be a joint state: {name}{i + 1} = {values[i]:g}"
                     )
+        if self.base_nq:  # a free flyer's orientation is a unit quaternion (x, y, z, w)
+            norm = math.sqrt(sum(x * x for x in q[3:self.base_nq].tolist()))
+            if abs(norm - 1.0) > QUATERNION_TOLERANCE:
+                raise InvalidStateError(f"the base orientation q4..q7 must be a unit quaternion, its norm is {norm:.6g}")
         if check_limits:
             joints = q[self.base_nq:]
             outside = (joints < self.q_min) | (joints > self.q_max)

@@ -243,7 +243,7 @@ def demo(out_dir, jobs):
     click.echo(f"\nreport: {path}")
     click.echo(
         "This was the Panda with the impact tip; every command takes --robot panda|fr3|ur5|FILE.toml (your own "
-        "robot's description, docs/robots.md; predict, simulate, campaign and max-speed also g1) and --tool "
+        "robot's description, docs/robots.md; predict, simulate, campaign, max-speed and run also g1) and --tool "
         "impact_tip|franka_hand|pad|FILE.json, e.g. `impactqp campaign --robot ur5 --postures elbow_down`."
     )
 
