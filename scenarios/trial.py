@@ -52,7 +52,6 @@ from impactqp.controller.model.jump import JUMP_MODELS, METHODS
 from impactqp.controller.model.max_speed import Setting, closed_form_max_speed
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.qp import Command
 from impactqp.controller.model.robot import PandaModel
 from impactqp.constraints import jump_model_names
 from impactqp.controller.measured.impact import ImpactMeasurement, measure_impact
@@ -60,6 +59,7 @@ from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import ProcessPool
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach
+from impactqp.sim.trial_loop import ControllerSource
 from impactqp.sim.scene import Scene, build_scene
 from impactqp.controller.model.validation import (
     BadInputError,
@@ -105,23 +105,6 @@ class TrialResult:
             "violated": self.violated,
             "controller_fallbacks": self.fallback_count,
         }
-
-
-class CommandedStateFeedback:
-    """The controller as a command source for ``run_trial``, given its own previous command
-    (q_cmd, dq_cmd) as the state (``feedback="commanded"``, see the module docstring) or the
-    measured state (``feedback="measured"``)."""
-
-    def __init__(self, controller, feedback: str):
-        self.controller = controller
-        self.feedback = feedback
-        self.last: Command | None = None
-
-    def step(self, q: np.ndarray, dq: np.ndarray) -> Command:
-        if self.feedback == "commanded" and self.last is not None:
-            q, dq = self.last.q_cmd, self.last.dq_cmd
-        self.last = self.controller.step(q, dq)
-        return self.last
 
 
 class TrialRunner:
@@ -178,11 +161,11 @@ class TrialRunner:
         when the surface is out of reach)."""
         controllers = []
 
-        def qp_source(q0: np.ndarray, dq0: np.ndarray) -> CommandedStateFeedback:
+        def qp_source(q0: np.ndarray, dq0: np.ndarray) -> ControllerSource:
             controller = build_controller(self.controller_config(spec), self.robot)
             controller.reset(q0, dq0)
             controllers.append(controller)
-            return CommandedStateFeedback(controller, spec.feedback)
+            return ControllerSource(controller, spec.feedback)
 
         log = run_approach(self.scene, self.robot, spec, qp_source, self.duration(spec))
         return self.evaluate(spec, log, controllers[0].fallback_count)

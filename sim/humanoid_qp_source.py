@@ -41,9 +41,7 @@ from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.tasks import ContactApproachTask
 
 from .humanoid_trial import CONTROL_PERIOD, LAG, NORMAL, RAMP, SETTLE
-from .trial_loop import VelocityCommand
-
-FEEDBACK = ("measured", "commanded")
+from .trial_loop import FEEDBACK, ControllerSource, VelocityCommand
 IMPACT_ROWS = "post_impact_velocity"  # name prefix of the predicted post-impact joint-velocity rows
 CAPTURE_ROWS = "capture_region"  # name prefix of the capture-region rows
 QP_GAP = 0.05  # m from the contact point to the wall at the start (docs/floating-base.md: room to accelerate)
@@ -119,10 +117,9 @@ class QpDriver:
     the joints' dq_cmd at the source's control step."""
 
     def __init__(self, controller, feedback: str):
-        self.controller, self.feedback = controller, feedback
+        self.controller, self.source = controller, ControllerSource(controller, feedback)
         self.approach = next(t for t in controller.tasks if isinstance(t, ContactApproachTask))
         self.record = QpRecord()
-        self.last: Command | None = None
         self._step = 0
 
     def stop(self) -> None:
@@ -133,11 +130,9 @@ class QpDriver:
         step, self._step = self._step, self._step + 1
         if step * CONTROL_PERIOD < SETTLE:
             return VelocityCommand(np.zeros(self.controller.robot.n_joints))
-        if self.last is None:
+        if self.source.last is None:
             self.controller.reset(q_pin, v_pin)
             self.record.first_step = step
-        elif self.feedback == "commanded":
-            q_pin, v_pin = self.last.q_cmd, self.last.dq_cmd
-        self.last = self.controller.step(q_pin, v_pin)
-        self.record.add(self.last)
-        return VelocityCommand(self.last.dq_cmd[self.controller.robot.base_nv:].copy())
+        command = self.source.step(q_pin, v_pin)
+        self.record.add(self.source.last)
+        return VelocityCommand(command.dq_cmd.copy())

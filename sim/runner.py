@@ -43,7 +43,7 @@ from impactqp.controller.model.validation import restitution as check_restitutio
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 
 from .scene import Scene
-from .trial_loop import CommandSource, Ending, ServoedPlant, VelocityCommand, run_loop
+from .trial_loop import FEEDBACK, CommandSource, Ending, ServoedPlant, VelocityCommand, run_loop
 
 # A diverging simulation is detected from MuJoCo's warning counters and raised as
 # SimulationUnstableError (_check_stable); the C library must not also print each warning.
@@ -52,7 +52,6 @@ mujoco.set_mju_user_warning(lambda message: None)
 DEFAULT_CONTROL_PERIOD = 1e-3
 OBSERVATION_WINDOW = 0.05
 """s after the contact start in which a trial's velocities are observed (``docs/max-speed.md``)."""
-FEEDBACKS = ("commanded", "measured")
 LAG_ALLOWANCE = 3.0
 
 
@@ -153,8 +152,8 @@ class TrialSpec:
         check_impact_duration(self.impact_duration)
         if self.after_contact < OBSERVATION_WINDOW:
             raise BadInputError(f"after_contact must be at least {OBSERVATION_WINDOW} s")
-        if self.feedback not in FEEDBACKS:
-            raise BadInputError(f"feedback must be one of {', '.join(FEEDBACKS)}, got {self.feedback!r}")
+        if self.feedback not in FEEDBACK:
+            raise BadInputError(f"feedback must be one of {', '.join(FEEDBACK)}, got {self.feedback!r}")
 
     @property
     def trial_id(self) -> str:

@@ -67,6 +67,31 @@ class VelocityCommand:
     dq_cmd: np.ndarray
 
 
+FEEDBACK = ("commanded", "measured")
+
+
+class ControllerSource:
+    """A controller (``step(q, dq) -> Command``) as a command source, given its own previous
+    command (q_cmd, dq_cmd) as the state (``feedback="commanded"``: a kinematic-controlled robot's
+    controller follows its own smooth command trajectory, docs/simulation.md) or the measured state
+    (``"measured"``; the first step always gets the measured state); the source's command is the
+    actuated joints' part of the controller's (a floating base's velocities come first). ``last``
+    is the controller's last Command."""
+
+    def __init__(self, controller, feedback: str):
+        if feedback not in FEEDBACK:
+            raise BadInputError(f"unknown feedback {feedback!r}; choose from {', '.join(FEEDBACK)}")
+        self.controller, self.feedback = controller, feedback
+        self.joints = slice(controller.robot.base_nv, None)
+        self.last = None
+
+    def step(self, q: np.ndarray, dq: np.ndarray) -> VelocityCommand:
+        if self.feedback == "commanded" and self.last is not None:
+            q, dq = self.last.q_cmd, self.last.dq_cmd
+        self.last = self.controller.step(q, dq)
+        return VelocityCommand(self.last.dq_cmd[self.joints])
+
+
 class ServoedPlant:
     """The scene's plant under the joint servo, advanced one control period per command (steps 3
     and 4 of the module docstring); the fixed-base arm's (``standing`` None, the servo gain its

@@ -98,3 +98,12 @@ def test_a_body_the_qp_leans_stays_over_its_feet(robot):
     trial = run_impact_trial(robot, STANCES["wide"], 0.6, source=QpCommand())
     assert trial.contact_speed > 0.4
     assert not trial.fell
+
+
+def test_the_measured_state_fed_to_the_standing_qp_gives_an_evaluated_trial_without_the_impact_brake(robot):
+    """The G1's controller fed its measured state: the trial runs and is evaluated; the impact
+    brake (a fixed base's: the standing servo's lag would set it off before any contact) never
+    engages."""
+    trial = run_impact_trial(robot, STANCES["parallel"], 0.5, source=QpCommand(feedback="measured"))
+    assert trial.record.statuses and Status.IMPACT_BRAKE not in trial.record.statuses
+    assert np.isfinite(trial.max_velocity_ratio)

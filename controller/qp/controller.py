@@ -39,7 +39,9 @@ For an infeasible QP, ``step`` stays bounded: it names the conflicting set of on
 interval test; the irreducible conflicting set is computed only on demand, after the fact, by
 ``conflicting_constraints()``, from the rows stored by the last infeasible cycle.
 
-Impact brake: a controller fed the measured state notices an impact itself. While its expected
+Impact brake: a fixed-base controller fed the measured state notices an impact itself (a floating
+base's soft standing servo lags its commands too much for this rule while it accelerates: its
+session detects the impact, ``controller.runtime.session``). While its expected
 impact's rows were active at the previous cycle, the contact point's measured speed towards the
 surface, -n.(J dq), falls below ``IMPACT_SPEED_DROP`` times the speed the previous command asks
 there, -n.(J dq_cmd) (the predicted jump takes it to -c_r times itself; a servo's tracking error
@@ -223,7 +225,7 @@ class ImpactAwareController:
         except (BadInputError, TypeError, ValueError) as error:  # not a state of this robot
             return self._fallback(q, dq, Status.FALLBACK_INVALID_STATE, ["finite_state"], str(error))
         terms = self._terms
-        if self._impact_was_active and self._impact_noticed(terms):
+        if self._impact_was_active and not self._floating and self._impact_noticed(terms):
             self.braking = True
             return self._impact_brake()
         joint_velocities = terms.dq[self._joint_velocities] if self._floating else terms.dq
