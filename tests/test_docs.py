@@ -72,3 +72,43 @@ def test_every_toml_block_parses_and_a_robot_file_loads(code, tmp_path):
     path.write_text(code)
     robot = robot_description(path)
     assert robot.name == data["name"] and set(robot.postures) == set(data.get("postures", {}))
+
+
+SH_FENCE = re.compile(r"^```sh[ \t]*\n(.*?)^```[ \t]*$", re.MULTILINE | re.DOTALL)
+DATA_SUFFIXES = (".toml", ".json", ".yaml", ".yml")
+
+
+def test_the_example_files_load_and_every_input_file_a_shell_block_names_ships():
+    """``docs/examples`` holds the README's own tool and robot files, which load through the real
+    readers; every ``.toml``/``.json``/``.yaml`` input a ``sh`` block of the docs names with a path
+    ships in the repository (an output file, after ``--out``/``--log``/``--save-plant``, need not)."""
+    from impactqp.controller.model.robot_description import robot_description
+    from impactqp.controller.model.tool_description import tool_description
+
+    hammer = tool_description(ROOT / "docs" / "examples" / "my_hammer.toml")
+    assert hammer.name == "my_hammer" and hammer.mass == 0.5 and hammer.replaces_hand
+    arm = robot_description(ROOT / "docs" / "examples" / "my_arm.toml")
+    assert arm.name == "my_arm" and arm.default_posture == "ready" and len(arm.joints) == 6
+    named = []
+    for path in documents():
+        for block in SH_FENCE.findall(path.read_text(encoding="utf-8")):
+            for line in block.splitlines():
+                words = line.split()
+                for before, word in zip([""] + words, words):
+                    if word.endswith(DATA_SUFFIXES) and "/" in word and before not in ("--out", "--log", "--save-plant"):
+                        named.append(word)
+    assert "docs/examples/my_hammer.toml" in named
+    missing = [word for word in named if not (ROOT / word).exists()]
+    assert not missing, missing
+
+
+def test_the_readme_s_own_robot_and_tool_files_run_a_command(tmp_path):
+    """The README's commands with its example files: the arm's postures, and a prediction with the
+    hammer (the full max-speed searches of the README run in the max-speed tests)."""
+    for command in (
+        ["postures", "--robot", str(ROOT / "docs/examples/my_arm.toml"), "--json"],
+        ["predict", "--robot", "fr3", "--tool", str(ROOT / "docs/examples/my_hammer.toml"), "--posture", "elbow_left",
+         "--normal", "-1,0,0", "--speed", "0.1", "--json"],
+    ):
+        out = subprocess.run([sys.executable, "-m", "impactqp", *command], capture_output=True, text=True, cwd=tmp_path)
+        assert out.returncode == 0, out.stderr
