@@ -234,15 +234,16 @@ def test_a_run_builds_the_robot_model_once(robot, tmp_path, monkeypatch):
     assert len(built) == 1
 
 
-def test_a_run_asked_too_fast_says_the_controller_capped_it_and_by_what(capsys):
+def test_a_run_asked_too_fast_says_the_controller_capped_it_and_by_what(capsys, tmp_path):
     """Asked 1 m/s at elbow_up, the contact comes at the posture's highest feasible speed: the
     report gives both speeds and the constraints active at the approach's last command."""
-    code = main(["run", "--backend", "sim", "--unpaced", "--duration", "0.5", "--speed", "1.0", "--json"])
+    log = ["--log", str(tmp_path)]  # not the working directory's default out/run
+    code = main(["run", "--backend", "sim", "--unpaced", "--duration", "0.5", "--speed", "1.0", "--json", *log])
     assert code == 0
     speed = json.loads(capsys.readouterr().out)["speed"]
     assert speed["asked"] == 1.0 and 0.0 < speed["contact"] < 0.98
     assert any(name.startswith(("post_impact_velocity", "impulsive_torque")) for name in speed["capped_by"])
-    assert main(["run", "--backend", "sim", "--unpaced", "--duration", "0.5", "--speed", "1.0"]) == 0
+    assert main(["run", "--backend", "sim", "--unpaced", "--duration", "0.5", "--speed", "1.0", *log]) == 0
     assert "asked 1.000 m/s, hit at" in capsys.readouterr().out
 
 
