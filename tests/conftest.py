@@ -4,6 +4,7 @@ import signal
 
 import numpy as np
 import pytest
+from hypothesis import settings
 from hypothesis import strategies as st
 
 from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry
@@ -21,6 +22,11 @@ from impactqp.sim.generation import STANDING_WALL, dataset_header
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import TrialSpec, run_approach
 from impactqp.sim.scene import build_scene
+
+# No property test may fail on its timing: a busy machine (CI shares its cores) can stall any
+# example for a second; hypothesis's default 200 ms deadline would call that a failure.
+settings.register_profile("impactqp", deadline=None)
+settings.load_profile("impactqp")
 
 # The tests of Ctrl-C need SIGINT as a terminal delivers it. A test run started in the background of
 # a non-interactive shell (or by a tool that does so) inherits SIGINT ignored, and so would every
