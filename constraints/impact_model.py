@@ -1,5 +1,7 @@
-"""The impact the impact-aware constraints prepare for (``ExpectedImpact``): surface, jump model
-and activation rule, for any robot (a fixed-base arm, or a humanoid on held contacts).
+"""The impact the impact-aware constraints prepare for (``ExpectedImpact``): surface, jump model,
+activation rule, and the jump of the measured velocity that shows it happened (``shows_jump``:
+the controller's impact brake and a standing robot's session both read it), for any robot (a
+fixed-base arm, or a humanoid on held contacts).
 
 Jump prediction (docs/qp-constraints.md). With the pre-impact velocity dq- = dq + ddq dt, the
 chosen predictor (``controller.model.jump``, ``JumpModel.unit_matrices``) gives an impulse
@@ -27,6 +29,7 @@ rule says inactive cannot command a dangerous approach speed.
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from impactqp.controller.model.jump import JumpMatrices, JumpModel, jump_model
@@ -57,6 +60,10 @@ def jump_model_names(choice: str) -> tuple[str, ...]:
             f"unknown jump model {choice!r}; choose from {', '.join(JUMP_MODEL_CHOICES)}"
         ) from None
 
+
+IMPACT_SPEED_DROP = 0.5
+"""An impact shows when the measured speed of the contact point towards the surface falls below
+this fraction of the commanded one (``ExpectedImpact.shows_jump``)."""
 
 class ExpectedImpact:
     """An expected impact on ``surface`` predicted with one jump model: the jump matrices of a
@@ -99,7 +106,6 @@ class ExpectedImpact:
         self._stamp = 0  # ModelTerms.stamp of the cached matrices and activation
         self._matrices: JumpMatrices | None = None
         self._active = False
-        self._approach_speed = 0.0
 
     @property
     def name(self) -> str:
@@ -115,19 +121,22 @@ class ExpectedImpact:
         self._update(terms)
         return self._active
 
-    def approach_speed(self, terms) -> float:
-        """-n.(J dq): the contact point's speed towards the surface at this state (m/s)."""
-        self._update(terms)
-        return self._approach_speed
+    def shows_jump(self, J: np.ndarray, dq: np.ndarray, dq_cmd: np.ndarray) -> bool:
+        """Whether the velocity dq shows the impact's jump against the command dq_cmd (both at the
+        contact Jacobian J): the commanded speed towards the surface, -n.(J dq_cmd), is above the
+        release speed and the measured one, -n.(J dq), below ``IMPACT_SPEED_DROP`` times it (the
+        predicted jump takes it to -c_r times itself within the contact's few milliseconds; a
+        joint servo's tracking error is far smaller)."""
+        normal, point = self.surface.normal, self.surface.point
+        commanded = -normal_motion(J, normal, point, dq_cmd)[0]
+        return commanded > self.release_speed and -normal_motion(J, normal, point, dq)[0] < IMPACT_SPEED_DROP * commanded
 
     def _update(self, terms) -> None:
         if terms.stamp == self._stamp:
             return
         normal = self.surface.normal
         self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
-        normal_speed, normal_position = normal_motion(terms.J, normal, terms.contact_point, terms.dq)
-        self._approach_speed = -normal_speed
-        self._active = self.always_active or self._rule(normal_speed, normal_position)
+        self._active = self.always_active or self._rule(*normal_motion(terms.J, normal, terms.contact_point, terms.dq))
         self._stamp = terms.stamp
 
     def _rule(self, normal_speed: float, normal_position: float) -> bool:

@@ -68,7 +68,6 @@ import numpy as np
 import pinocchio as pin
 
 from impactqp.constraints import AccelerationLimit, Constraint, ControlCycle, ExpectedImpact
-from impactqp.constraints.impact_model import normal_motion
 from impactqp.controller.model.model_terms import ModelTerms
 from impactqp.controller.model.robot import BASE_ACCELERATION_LIMIT, InvalidStateError, RobotModel, SingularPostureError
 from impactqp.controller.model.validation import BadInputError
@@ -81,9 +80,6 @@ from .problem import ConstraintLayout, QpProblem, consecutive_slices
 from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
 
 
-IMPACT_SPEED_DROP = 0.5
-"""The impact brake starts when the measured approach speed of the contact point falls below this
-fraction of the commanded one (module docstring)."""
 BRAKE = "brake"
 
 
@@ -269,9 +265,7 @@ class ImpactAwareController:
         impact, memory = self.impact, self.memory
         if impact is None or memory.q_cmd is None or terms.dq is memory.dq_cmd:
             return False
-        commanded, _ = normal_motion(terms.J, impact.surface.normal, terms.contact_point, memory.dq_cmd)
-        commanded = -commanded
-        return commanded > impact.release_speed and impact.approach_speed(terms) < IMPACT_SPEED_DROP * commanded
+        return impact.shows_jump(terms.J, terms.dq, memory.dq_cmd)
 
     def _impact_brake(self) -> Command:
         """The brake of the command trajectory from the previous command, to rest, then rest."""

@@ -40,7 +40,6 @@ from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.validation import BadInputError, positive
 
 from impactqp.controller.measured.impact import DEFAULT_TORQUE_THRESHOLD, NOISE_SIGMAS
-from impactqp.controller.qp.controller import IMPACT_SPEED_DROP
 
 DEFAULT_OBSERVER_GAIN = 200.0
 DEFAULT_CALIBRATION_SAMPLES = 100
@@ -183,8 +182,6 @@ class VelocityJumpDetector:
         J = pin.computeFrameJacobian(
             self.robot.model, self.data, q, self.robot.contact_frame_id, pin.LOCAL_WORLD_ALIGNED
         )[:3]
-        normal = self.impact.surface.normal
-        commanded, measured = -(normal @ J) @ last.dq_cmd, -(normal @ J) @ dq
-        if commanded > self.impact.release_speed and measured < IMPACT_SPEED_DROP * commanded:
+        if self.impact.shows_jump(J, dq, last.dq_cmd):
             self.detected, self.t_detect = True, float(t)
         return self.detected
