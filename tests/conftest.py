@@ -151,14 +151,19 @@ def dataset_entry(name, speed, log, force=True):
     )
 
 
+def write_dataset(directory, logs):
+    """Write a dataset of two trials into ``directory``: "fast" with its force file, "slow"
+    without (``logs``: ``dataset_logs``); returns the directory."""
+    writer = DatasetWriter(directory, DATASET_HEADER)
+    writer.add_trial(dataset_entry("fast", 0.15, logs[0.15]), logs[0.15])
+    writer.add_trial(dataset_entry("slow", 0.1, logs[0.1], force=False), logs[0.1])
+    return directory
+
+
 @pytest.fixture()
 def dataset(tmp_path, dataset_logs):
     """A dataset of two trials: "fast" with its force file, "slow" without."""
-    logs = dataset_logs
-    writer = DatasetWriter(tmp_path, DATASET_HEADER)
-    writer.add_trial(dataset_entry("fast", 0.15, logs[0.15]), logs[0.15])
-    writer.add_trial(dataset_entry("slow", 0.1, logs[0.1], force=False), logs[0.1])
-    return tmp_path
+    return write_dataset(tmp_path, dataset_logs)
 
 
 def file_digests(directory):

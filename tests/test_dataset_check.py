@@ -3,12 +3,14 @@
 import json
 import re
 
+import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
 
 from impactqp.controller.measured.dataset import DatasetError, read_dataset
 from impactqp.controller.measured.dataset_check import validate
 
-from conftest import g1_model, file_digests, g1_dataset
+from conftest import g1_model, file_digests, g1_dataset, write_dataset
 
 
 def test_valid_dataset_has_no_problem(dataset):
@@ -101,3 +103,43 @@ def test_a_g1_trial_out_of_what_the_robot_logs_is_named(tmp_path, column, value,
     problems = validate(tmp_path)
     assert problems["dataset"] == [] and len(problems["g"]) == 1
     assert re.search(message, problems["g"][0]), problems["g"]
+
+
+def rewrite_times(path, edit):
+    """Rewrite the time column of a trial CSV with ``edit(t)`` (the other columns kept)."""
+    lines = path.read_text().splitlines()
+    rows = [line.split(",") for line in lines[1:]]
+    t = edit(np.array([float(r[0]) for r in rows]))
+    path.write_text("\n".join([lines[0]] + [",".join([repr(float(x))] + r[1:]) for x, r in zip(t, rows)]) + "\n")
+
+
+@pytest.mark.parametrize("dropped", [[40], [40, 41, 90]])
+def test_dropped_samples_are_named_with_where_they_are(dataset, dropped):
+    # the time stamps say samples are missing: the steps after them are 2 or 3 periods long
+    lines = (dataset / "slow.csv").read_text().splitlines()
+    (dataset / "slow.csv").write_text("\n".join(line for k, line in enumerate(lines) if k - 1 not in dropped) + "\n")
+    problems = validate(dataset)
+    assert problems["fast"] == [] and problems["dataset"] == []
+    gaps = len({k - i for i, k in enumerate(dropped)})  # runs of consecutive dropped rows
+    (message,) = [p for p in problems["slow"] if "missing" in p]
+    assert f"{len(dropped)} sample(s) missing in {gaps} gap(s)" in message
+    assert f"data row {dropped[0]}:" in message and "sampled every" not in " ".join(problems["slow"])
+
+
+@given(amplitude=st.floats(0.1, 0.24), seed=st.integers(0, 2**16))
+@settings(max_examples=10, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_jittered_time_stamps_are_jitter_not_a_wrong_rate(dataset_logs, tmp_path_factory, amplitude, seed):
+    # each stamp moved by up to +-amplitude periods (a step stays under 1.5 periods: no gap): the rate is
+    # right, the stamps wander
+    directory = write_dataset(tmp_path_factory.mktemp("jitter"), dataset_logs)
+    rng = np.random.default_rng(seed)
+    rewrite_times(directory / "slow.csv", lambda t: t + 0.001 * amplitude * np.sign(rng.uniform(-1, 1, t.shape)) * rng.uniform(0.7, 1, t.shape))
+    problems = validate(directory)["slow"]
+    assert any("jitter" in p for p in problems), problems
+    assert not any("sampled every" in p or "missing" in p for p in problems), problems
+
+
+def test_a_uniformly_wrong_rate_is_named_as_such(dataset):
+    rewrite_times(dataset / "slow.csv", lambda t: 1.05 * t)
+    problems = validate(dataset)["slow"]
+    assert any("sampled every 0.00105 s" in p for p in problems) and not any("jitter" in p for p in problems), problems

@@ -25,6 +25,15 @@ from .impact import WINDOW_AFTER, WINDOW_BEFORE, ImpactNotFoundError, measure_im
 POSITION_TOLERANCE = 1e-3
 """rad a logged joint position may lie outside the URDF limits (encoder and rounding)."""
 
+GAP_STEPS = 1.5
+"""A time step longer than this many control periods is a gap: samples are missing."""
+
+JITTER_SHARE = 0.1
+"""A time step (not a gap) further than this share of the control period from it is jitter."""
+
+RATE_SHARE = 0.01
+"""The mean regular time step may differ from the manifest's control period by this share."""
+
 
 def samples_needed(control_period: float) -> int:
     """The fewest control samples of a trial whose impact the detection window can measure."""
@@ -36,8 +45,8 @@ def validate(directory: str | Path, progress=None) -> dict[str, list[str]]:
 
     Checks: the manifest (format, keys, header, duplicate ids, CSV files it does not list),
     per trial the files and their columns, non-finite values, increasing time, the joint positions
-    against the robot's limits, a floating base's unit quaternions, the sampling
-    period against ``control_period``, a length that holds the detection window, an impact
+    against the robot's limits, a floating base's unit quaternions, the time stamps against
+    ``control_period`` (:func:`timing_problems`: gaps, rate, jitter), a length that holds the detection window, an impact
     found by :func:`controller.measured.impact.measure_impact`, and ``impact_time`` against the detected impact.
     An empty list means no problem. Never modifies any file.
 
@@ -80,6 +89,46 @@ def validate(directory: str | Path, progress=None) -> dict[str, list[str]]:
     return problems
 
 
+def timing_problems(t: np.ndarray, control_period: float, name: str) -> list[str]:
+    """The problems of a trial's time stamps ``t`` (increasing, s) against the manifest's
+    ``control_period``, each named with where it is:
+
+    - **gaps**: a step longer than :data:`GAP_STEPS` periods, round(step / period) - 1 samples
+      missing (a dropped sample is one);
+    - **a wrong sampling rate**: the mean of the other steps differs from the period by more than
+      :data:`RATE_SHARE` of it (a mean, not a median: a log whose steps alternate is read right);
+    - **jitter**: regular steps further than :data:`JITTER_SHARE` of the period from their mean
+      (the time stamps wander, the rate is right).
+    """
+    steps = np.diff(t)
+    gap = steps > GAP_STEPS * control_period
+    problems = []
+    if np.any(gap):
+        where = np.flatnonzero(gap)
+        missing = int(np.sum(np.round(steps[where] / control_period) - 1))
+        first = int(where[0])
+        problems.append(
+            f"{name}: {missing} sample(s) missing in {len(where)} gap(s), the first after t = {t[first]:.4f} s "
+            f"(data row {first + 1}: the next sample comes {steps[first]:.6g} s later, the period is "
+            f"{control_period:.6g} s)"
+        )
+    regular = steps[~gap]
+    if len(regular) == 0:
+        return problems
+    period = float(np.mean(regular))
+    if abs(period - control_period) > RATE_SHARE * control_period:
+        problems.append(f"{name} is sampled every {period:.6g} s, the manifest says {control_period:.6g} s")
+        return problems
+    off = np.abs(regular - period) > JITTER_SHARE * control_period
+    if np.any(off):
+        worst = float(np.max(np.abs(regular - period)))
+        problems.append(
+            f"{name}: the time stamps jitter: {int(np.sum(off))} of {len(regular)} steps differ from the "
+            f"{control_period:.6g} s period by more than {100 * JITTER_SHARE:.0f} % (at most {worst:.3g} s)"
+        )
+    return problems
+
+
 def _trial_problems(entry: TrialEntry, log_problems: list[str], impact_start: float | None) -> list[str]:
     """The problems of one trial entry: those of its files, and its ``impact_time`` against the
     impact found in them."""
@@ -117,11 +166,7 @@ def _log_problems(directory: Path, entry: TrialEntry, header: DatasetHeader) -> 
     needed = samples_needed(control_period)
     if len(log) < 2:
         return [f"{entry.file} holds {len(log)} samples, fewer than the {needed} of the detection window"], None
-    period = log.control_period
-    if abs(period - control_period) > 0.01 * control_period:
-        problems.append(
-            f"{entry.file} is sampled every {period:.6g} s, the manifest says {control_period:.6g} s"
-        )
+    problems += timing_problems(log.t, control_period, entry.file)
     if len(log) < needed:
         problems.append(
             f"{entry.file} holds {len(log)} samples, fewer than the {needed} of the detection window"
