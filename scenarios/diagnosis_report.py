@@ -36,6 +36,7 @@ from impactqp.controller.measured.impact import POST_HALF_WIDTH, PRE_SAMPLES  # 
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION  # noqa: E402
 from impactqp.scenarios.max_speed_search import DEFAULT_TOLERANCE, MaxSpeedSearch  # noqa: E402
 from impactqp.sim.diagnosis import EXPLAINED_GAIN, STEP_GAIN, Diagnosis, interval_text  # noqa: E402
+from impactqp.sim.diagnosis.intervals import open_side_text  # noqa: E402
 from impactqp.sim.diagnosis.noise import BLOCKS  # noqa: E402
 from impactqp.sim.plant import PlantParameters  # noqa: E402
 
@@ -313,6 +314,28 @@ def fit_section(summary: dict) -> list[str]:
     ]
 
 
+def fitted_section(summary: dict) -> list[str]:
+    """The report's fitted parameters and their 95 % intervals, only when causes are named."""
+    if not summary["explained"]:
+        return ["", "## Fitted parameters", "",
+                "No cause is named, so no fitted value is a result (the best model found, which explains "
+                "nothing, is the JSON's `best_model`)."]
+    lines = ["", "## Fitted parameters and 95 % intervals", "",
+             "| cause | parameter | value | 95 % interval |", "|---|---|---|---|"]
+    for p in summary["parameter_intervals"]:
+        lines.append(f"| {p['cause']} | {p['parameter']} | {number(p['value'])} | {interval_text(p['interval'])} |")
+    intervals = {p["parameter"]: p["interval"] for p in summary["parameter_intervals"]}
+    return lines + [f"\n{open_side_text(o, intervals[o['parameter']])}" for o in summary["open_sides"]]
+
+
+def trial_section(summary: dict) -> list[str]:
+    """The report's table of each trial's normalised residual under the final model, outliers marked."""
+    outliers = set(summary["outlier_trials"])
+    return ["", "## Trials (normalised residual of the final model, noise units)", "",
+            "| trial | residual | stands out |", "|---|---|---|",
+            *(f"| {r['id']} | {r['residual']:.2f} | {boolean(r['id'] in outliers)} |" for r in summary["trial_residuals"])]
+
+
 def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) -> str:
     s = diagnosis.summary()
     lines = [
@@ -326,7 +349,7 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         f"{100 * STEP_GAIN:.0f} % held-out gain, the causes together {100 * EXPLAINED_GAIN:.0f} % of the excess "
         "over the noise floor, and a model that fits the noise)",
         f"- parameters: {parameters_text(s['parameters'])}",
-        f"- average error (26), held-out: nominal simulation {s['baseline_error']:.4f} rad/s, "
+        f"- average error (26) of the held-out replays: nominal simulation {s['baseline_error']:.4f} rad/s, "
         f"extended simulation {s['extended_error']:.4f} rad/s, gain {100 * s['gain']:.1f} % "
         f"({100 * s['gain_over_floor']:.1f} % of the excess over the noise floor)",
         "",
@@ -337,7 +360,7 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         "Every path tried, the kept one first (add: a forward step; refine: the cause per joint; remove: a",
         "backward step, its gain is the cause's over the model without it).",
         "",
-        "| step | path | action | cause | held-out error (noise units) | gain | taken | selected |",
+        "| step | path | action | cause | held-out residual (noise units) | gain | taken | selected |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for k, step in enumerate(s["steps"], start=1):
@@ -345,17 +368,8 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
             f"| {k} | {step['path'] + 1} | {step['action']} | {step['cause']} | {step['heldout_error']:.4f} | "
             f"{100 * step['gain']:.1f} % | {boolean(step['accepted'])} | {boolean(step['selected'])} |"
         )
-    lines += [
-        "",
-        "## Fitted parameters and 95 % intervals",
-        "",
-        "| cause | parameter | value | 95 % interval |",
-        "|---|---|---|---|",
-    ]
-    for p in s["parameter_intervals"]:
-        lines.append(f"| {p['cause']} | {p['parameter']} | {number(p['value'])} | {interval_text(p['interval'])} |")
-    for o in s["open_sides"]:
-        lines.append(f"\nThe data cannot bound {o['parameter']} {o['side']}: {o['trials_needed']}.")
+    lines += fitted_section(s)
+    lines += trial_section(s)
     if speeds:
         lines += speed_section(diagnosis, speeds)
     lines += nominal_error_section(diagnosis)
@@ -363,7 +377,7 @@ def markdown(diagnosis: Diagnosis, speeds: list[FeasibleSpeed] | None = None) ->
         "",
         "## Candidate causes (cross-validated over trials)",
         "",
-        "| cause | held-out error (noise units) | gain | parameters |",
+        "| cause | held-out residual (noise units) | gain | parameters |",
         "|---|---|---|---|",
     ]
     for c in sorted(s["candidates"], key=lambda c: -c["gain"]):

@@ -11,7 +11,9 @@ tangential velocity is ``speed * t`` with ``t = normalise(n x e_z)`` (for the de
 n = -x, t = +y: the paper's v_y), or ``normalise(n x e_x)`` when n is vertical.
 
 What a real log holds, simulated: encoder-like Gaussian noise on dq (std ``noise_dq``, default
-0.0042 rad/s, the paper's repeat-to-repeat std) and on tau (``noise_tau``); repeat-to-repeat
+0.0042 rad/s, the paper's repeat-to-repeat std) and on tau (``noise_tau``), and optionally the
+quantisation of dq to a step (``dq_step``: dq = step round(dq / step), after the noise, as an
+encoder-based velocity); repeat-to-repeat
 variation of the start posture (Gaussian, std 0.000954 rad, the paper's std of q) and of the
 start distance (+-1 mm). The force log (on the robot, world frame, physics rate) is kept
 noise-free. A plant with sensor keys (``sim.sensor``: delay, velocity scale and filter, torque
@@ -124,6 +126,7 @@ class TrialTask:
     noise_dq: float
     noise_tau: float
     choice: RobotChoice = DEFAULT_CHOICE
+    dq_step: float = 0.0
 
 
 def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
@@ -140,6 +143,8 @@ def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
     log = apply_sensor(log, task.plant, log.control_period)
     log.dq = log.dq + rng.normal(0.0, task.noise_dq, log.dq.shape)
     log.tau = log.tau + rng.normal(0.0, task.noise_tau, log.tau.shape)
+    if task.dq_step > 0.0:
+        log.dq = task.dq_step * np.round(log.dq / task.dq_step)
     entry = TrialEntry(
         id=planned.id,
         file=f"{planned.id}.csv",
@@ -157,7 +162,8 @@ class DatasetRequest:
     default the one the first posture faces; all named postures face the default wall), the
     postures (default: all), normal speeds (m/s, default ``DEFAULT_SPEEDS``), tangential speeds
     (m/s, at ``TANGENTIAL_SERIES_NORMAL_SPEED``), repeats per condition, the noise stds, the
-    seed of every random draw, and the robot and the tool (recorded in the manifest)."""
+    seed of every random draw, the robot and the tool (recorded in the manifest), and the
+    quantisation step of dq (rad/s, 0: none)."""
 
     plant: PlantParameters | None = None
     surface: Surface | None = None
@@ -169,6 +175,7 @@ class DatasetRequest:
     noise_tau: float = DEFAULT_NOISE_TAU
     seed: int = 0
     choice: RobotChoice = DEFAULT_CHOICE
+    dq_step: float = 0.0
 
 
 def generate_dataset(
@@ -192,6 +199,7 @@ def generate_dataset(
     surface = choice.posture(postures[0]).surface if request.surface is None else request.surface
     number_in_range(request.noise_dq, 0.0, MAX_NOISE_DQ, "the encoder noise std --noise-dq", "rad/s")
     number_in_range(request.noise_tau, 0.0, MAX_NOISE_TAU, "the torque noise std --noise-tau", "N m")
+    number_in_range(request.dq_step, 0.0, MAX_NOISE_DQ, "the velocity quantisation step --dq-step", "rad/s")
     specs = trial_specs(
         postures,
         list(DEFAULT_SPEEDS if request.speeds is None else request.speeds),
@@ -203,7 +211,7 @@ def generate_dataset(
     )
     Path(out).mkdir(parents=True, exist_ok=True)
     writer = DatasetWriter(out, dataset_header(surface, choice))
-    tasks = [TrialTask(s, plant, surface, request.noise_dq, request.noise_tau, choice) for s in specs]
+    tasks = [TrialTask(s, plant, surface, request.noise_dq, request.noise_tau, choice, request.dq_step) for s in specs]
     entries = []
     with ProcessPool(min(jobs, max(len(tasks), 1))) as pool:
         for entry, log in pool.map(simulate_trial, tasks):

@@ -145,12 +145,15 @@ def test_diagnose_without_a_manifest_is_a_clear_error(tmp_path, capsys):
 
 
 def test_diagnose_of_one_trial_prints_no_candidate_table(tmp_path, capsys):
-    """One trial: the nominal replay's verdict, no cause and no empty candidate table."""
+    """One trial: the nominal replay's verdict, no cause and no empty candidate table; with no
+    cause named, --save-plant writes nothing and says so in one line."""
     from impactqp.sim.generation import DatasetRequest, generate_dataset
 
-    generate_dataset(tmp_path, DatasetRequest(postures=["elbow_up"], speeds=[0.1]))
-    code, out, _ = run(capsys, "diagnose", tmp_path)
+    generate_dataset(tmp_path / "data", DatasetRequest(postures=["elbow_up"], speeds=[0.1]))
+    code, out, err = run(capsys, "diagnose", tmp_path / "data", "--save-plant", tmp_path / "plant.json")
     assert code == 0 and out.startswith("One trial") and "causes: none" in out
+    assert not (tmp_path / "plant.json").exists()
+    assert err.strip().splitlines() == [f"--save-plant: nothing written to {tmp_path / 'plant.json'}: no cause is named, the nominal plant stands"]
     assert "candidate" not in out and "predictors" in out
 
 
@@ -170,6 +173,8 @@ def test_diagnose_text_is_readable(small_dataset, capsys, monkeypatch):
             for cause, gain in (("payload", 0.03), ("armature", 0.98), ("contact", 0.36))
         ],
         "predictors": {"crb": 0.07}, "skipped": [],
+        "trial_residuals": [{"id": "t0000", "residual": 1.1}, {"id": "t0001", "residual": 4.8}, {"id": "t0002", "residual": 0.9}],
+        "outlier_trials": ["t0001"],
     }
     fake = type("Result", (), {"summary": lambda self: summary})()
     monkeypatch.setattr(diagnosis, "diagnose", lambda *args, **kwargs: fake)
@@ -181,6 +186,7 @@ def test_diagnose_text_is_readable(small_dataset, capsys, monkeypatch):
     assert code == 0
     assert "diagnose" in err and "5/5" in err  # the progress bar, on stderr
     assert "explained: true" in out and "True" not in out
+    assert "largest 4.80 (t0001); outliers: t0001" in out
     assert "armature (kg m^2): joints 1-4 = 1.2, joints 5-7 = 0.3" in out
     assert "step 1: path 1 add    armature" in out and "selected" in out  # every path's steps
     table = out.split("candidate")[1].splitlines()[1:4]

@@ -17,6 +17,8 @@ from impactqp.sim.diagnosis.noise import (
     REPLAY_TIMING_SAMPLES,
     fits_noise,
     misfit_blocks,
+    outlier_trials,
+    quantisation_step,
     repeat_std,
     sample_variance,
     trace_std,
@@ -40,6 +42,32 @@ def test_the_scatter_of_a_smooth_signal_recovers_its_white_noise(seed, sigma, cu
     smooth = amplitude * np.sin(2 * np.pi * frequency * t)[:, None] + np.array([[0.1, -0.3]]) * t[:, None]
     samples = smooth + rng.normal(0.0, sigma, (len(t), 2))
     np.testing.assert_allclose(np.sqrt(sample_variance(samples)), sigma, rtol=0.15)
+
+
+@settings(max_examples=30)
+@given(st.integers(0, 2**32 - 1), st.floats(1e-4, 1e-1), st.floats(0.0, 0.1), st.floats(0.5, 5.0))
+def test_a_quantised_signal_has_at_least_its_rounding_noise(seed, step, noise_share, frequency):
+    """An encoder-like signal: a slow motion with noise far below the step (``noise_share`` of
+    it), rounded to the step. Most second differences are 0, yet the noise read back is the
+    rounding's, step / sqrt 12, at least, and the step is read from the data."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(2000) * 1e-3
+    smooth = 3.0 * step * np.sin(2 * np.pi * frequency * t)[:, None] + np.array([[3.3, -7.1]]) * step
+    samples = step * np.round((smooth + rng.normal(0.0, noise_share * step, smooth.shape)) / step)
+    np.testing.assert_allclose(quantisation_step(samples), step, rtol=1e-9)
+    sigma = np.sqrt(sample_variance(samples))
+    assert np.all(sigma >= step / np.sqrt(12) * (1 - 1e-9)) and np.all(sigma <= step)
+
+
+@given(st.lists(st.floats(0.0, FIT_LIMIT), min_size=1, max_size=20), st.floats(1.0, 100.0))
+def test_a_trial_stands_out_when_it_misfits_and_is_far_above_the_others(residuals, scale):
+    """Outliers are above the fit limit and twice the median; a trial far above well-fitting
+    trials is the only one named; one trial alone never stands out."""
+    assert outlier_trials(residuals[:1]) == []
+    assert outlier_trials(residuals) == [k for k, r in sorted(enumerate(residuals), key=lambda x: -x[1])
+                                         if r > max(FIT_LIMIT, 2 * np.median(residuals))]
+    worst = 2 * FIT_LIMIT * scale
+    assert outlier_trials(residuals + [worst]) == ([len(residuals)] if worst > 2 * np.median(residuals + [worst]) else [])
 
 
 @given(st.lists(st.tuples(st.floats(-10, 10), st.floats(-10, 10)), min_size=1, max_size=5))
@@ -110,3 +138,14 @@ def test_a_torque_offset_outside_the_candidates_is_a_named_misfit_not_an_explana
     assert result["nominal_fit"]["torque"] > FIT_LIMIT >= result["nominal_fit"]["jump"]
     assert not result["fit"]["fits_noise"] and result["fit"]["torque"] > FIT_LIMIT
     assert "the torque residual is" in result["message"] and "as good as" not in result["message"]
+
+
+def test_a_quantised_low_noise_dataset_of_the_nominal_plant_fits_the_nominal(tmp_path):
+    """Real encoders: dq quantised to 0.004 rad/s with little noise (most second differences 0).
+    The nominal plant made the data, so the nominal simulation fits them within the noise and
+    nothing is refused as a misfit (before, the noise fell to its floor: 56 noise units)."""
+    request = DatasetRequest(postures=["elbow_up"], speeds=[0.1, 0.18], repeats=2, noise_dq=0.0003, dq_step=0.004, seed=4)
+    generate_dataset(tmp_path, request)
+    result = diagnose(tmp_path, causes=[ArmatureCause()]).summary()
+    assert result["nominal_fit"]["fits_noise"], result["nominal_fit"]
+    assert not result["explained"] and result["message"].startswith("No candidate cause is needed"), result["message"]

@@ -36,10 +36,12 @@ def test_report_is_written_without_touching_other_files(result, tmp_path):
     path = write_report(result, tmp_path / "report")
     text = path.read_text()
     for heading in ("# Impact diagnosis", "## What the nominal simulation gets wrong", "## Candidate causes",
-                    "## Predictors and simulations per condition", "## Selection steps",
-                    "## Fitted parameters and 95 % intervals"):
+                    "## Predictors and simulations per condition", "## Selection steps", "## Fitted parameters",
+                    "## Trials (normalised residual of the final model, noise units)"):
         assert heading in text
-    assert "payload mass (kg)" in text  # the best candidate's parameters and intervals
+    # a nominal plant: nothing is explained, so no fitted value is printed as a result
+    assert not result.explained and "no fitted value is a result" in text and "95 % interval" not in text
+    assert all(f"| {t.id} |" in text for t in result.trials)
     assert "What it means for your robot" not in text
     speeds = [FeasibleSpeed("elbow_up", 0.31, 0.42, 0.27)]
     text = write_report(result, tmp_path / "report", speeds).read_text()
@@ -60,7 +62,7 @@ def test_report_writes_json_booleans_and_grouped_parameters(result):
     assert f"(explained: {str(result.explained).lower()};" in text
     assert "True" not in text and "False" not in text
     assert "| true |" in text or "| false |" in text  # the selection steps
-    assert f"- parameters: {parameters_text(result.parameters)}" in text
+    assert f"- parameters: {parameters_text(result.summary()['parameters'])}" in text
     assert "{'" not in text  # no Python dict
     assert "Trust the " in text
 

@@ -1,5 +1,7 @@
 """The diagnosis's result: its JSON summary and its message (sim/diagnosis/result.py)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from diagnosis_checks import synthetic_trial
@@ -17,6 +19,7 @@ SUMMARY_KEYS = {
     "cause", "causes", "explained", "parameters", "intervals", "parameter_intervals", "open_sides", "steps",
     "baseline_error", "extended_error", "gain", "candidates", "trials", "skipped", "predictors",
     "predictors_measured_impulse", "analysis", "message", "gain_over_floor", "fit", "nominal_fit",
+    "best_model", "trial_residuals", "outlier_trials",
 }
 FITS = {"jump": 1.1, "torque": 0.9, "impulse": 0.5, "duration": 0.4, "fits_noise": True}
 
@@ -34,18 +37,19 @@ def test_an_interval_reads_as_its_closed_ends(low, high):
 
 
 def diagnosis(explained: bool, baseline: float, extended: float, open_sides: list, fit: dict = FITS,
-              nominal_fit: dict = FITS) -> Diagnosis:
-    trials = [synthetic_trial(np.random.default_rng(k)) for k in range(2)]
+              nominal_fit: dict = FITS, residuals=(1.0, 1.2)) -> Diagnosis:
+    trials = [synthetic_trial(np.random.default_rng(k)) for k in range(len(residuals))]
+    trials = [replace(t, id=f"t{k}") for k, t in enumerate(trials)]
     causes = ["friction"] if explained else []
     parameter = {"cause": "friction", "parameter": "friction coefficient", "value": 0.3, "interval": [0.2, None]}
     return Diagnosis(
         trials=trials, skipped=[], nominal_jumps=np.zeros((2, JOINTS)), extended_jumps=np.zeros((2, JOINTS)),
-        baseline_errors=np.array([baseline, baseline]), candidates=[], cause="friction", explained=explained,
+        baseline_errors=np.full(len(trials), baseline), candidates=[], cause="friction", explained=explained,
         parameters={"friction": 0.3}, predictors={}, predictors_measured_impulse={}, predictions={}, analysis={},
         causes=causes, steps=[], intervals={"friction": [0.2, None]}, parameter_intervals=[parameter],
         open_sides=open_sides, extended_error=extended, extended_plant=PlantParameters(), surface=DEFAULT_WALL,
         choice=DEFAULT_CHOICE,
-        gain_over_floor=0.1, fit=fit, nominal_fit=nominal_fit,
+        gain_over_floor=0.1, fit=fit, nominal_fit=nominal_fit, trial_residuals=np.array(residuals),
     )
 
 
@@ -59,7 +63,7 @@ def test_the_summary_has_every_key_and_its_gain_is_one_minus_the_error_ratio(exp
 
 def test_the_message_names_the_causes_their_intervals_and_what_is_open():
     side = {"cause": "friction", "parameter": "friction coefficient", "side": "above", "fitted": 0.3,
-            "trials_needed": "faster sliding trials"}
+            "negligible": False, "trials_needed": "faster sliding trials"}
     text = diagnosis(True, 0.01, 0.002, [side]).message()
     assert text.startswith("The gap between the simulation and the measurements is explained by 'friction'")
     assert "friction coefficient: 0.3, 95 % interval at least 0.2 (open above)." in text
@@ -80,3 +84,35 @@ def test_a_model_that_misfits_is_named_with_its_block_and_never_reassures(block,
     assert text.startswith("No candidate cause explains the gap, and the best model found ('friction') does not fit")
     assert f"the {block} residual is {size:.1f} times the noise" in text
     assert "as good as" not in text and "within the noise" not in text
+
+
+@given(st.booleans())
+def test_fitted_values_are_results_only_when_causes_are_named(explained):
+    summary = diagnosis(explained, 0.01, 0.009, []).summary()
+    fitted = ("parameters", "intervals", "parameter_intervals", "open_sides")
+    if explained:
+        assert summary["parameters"] == {"friction": 0.3} and summary["best_model"] is None
+    else:
+        assert all(not summary[key] for key in fitted)
+        assert summary["best_model"]["causes"] == ["friction"] and summary["best_model"]["parameters"] == {"friction": 0.3}
+        assert "0.3" not in summary["message"]
+
+
+def test_a_parameter_open_down_to_its_nominal_floor_reads_negligible():
+    side = {"cause": "friction", "parameter": "friction coefficient", "side": "below", "fitted": 0.0,
+            "negligible": True, "trials_needed": ""}
+    text = diagnosis(True, 0.01, 0.002, [side]).message()
+    assert "friction coefficient is negligible (at most its upper bound" in text and "cannot bound" not in text
+
+
+@given(st.lists(st.floats(0.5, 1.5), min_size=2, max_size=12), st.floats(4.0, 50.0), st.integers(0, 12))
+def test_a_trial_that_stands_out_is_named_in_the_summary_and_the_message(residuals, outlier, at):
+    residuals = list(residuals)
+    residuals.insert(at % (len(residuals) + 1), outlier)
+    result = diagnosis(True, 0.01, 0.002, [], residuals=residuals)
+    summary = result.summary()
+    name = f"t{residuals.index(outlier)}"
+    assert summary["outlier_trials"] == [name]
+    assert [r["residual"] for r in summary["trial_residuals"]] == residuals
+    assert f"Trial {name} ({outlier:.1f}) stands out" in summary["message"]
+    assert "stands out" not in diagnosis(True, 0.01, 0.002, [], residuals=[r for r in residuals if r != outlier]).message()

@@ -77,6 +77,8 @@ def validate_command(ctx, directory, as_json):
 @click.option("--repeats", type=int, default=1, show_default=True)
 @click.option("--noise-dq", type=float, default=0.0042, show_default=True, help="Encoder noise std on dq (rad/s).")
 @click.option("--noise-tau", type=float, default=0.05, show_default=True, help="Noise std on tau (N m).")
+@click.option("--dq-step", type=float, default=0.0, show_default=True,
+              help="Quantise the logged dq to this step, rad/s, as an encoder-based velocity (0: none).")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--jobs", type=int, default=1, show_default=True)
 @click.option("--json", "as_json", is_flag=True)
@@ -149,7 +151,8 @@ def import_franka_command(out, logs, surface_point, surface_normal, reference_sp
 @click.argument("directory", type=click.Path(file_okay=False))
 @click.option("--json", "as_json", is_flag=True)
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write report.md and PNG figures here.")
-@click.option("--save-plant", type=click.Path(dir_okay=False), help="Save the fitted plant overrides (JSON).")
+@click.option("--save-plant", type=click.Path(dir_okay=False),
+              help="Save the fitted plant (JSON) when causes are named; nothing is written otherwise.")
 @click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Nominal plant to start from (JSON).")
 @click.option("--max-speed", "max_speed", is_flag=True,
               help="Also simulate the highest feasible contact speed per posture, nominal and extended plant.")
@@ -180,10 +183,12 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
 
         speeds = feasible_speeds(result, nominal, jobs=jobs)
         summary["max_speeds"] = [r.to_json() for r in speeds]
-    if save_plant:
+    if save_plant and result.explained:
         from dataclasses import replace
 
         replace(nominal.for_joints(len(result.choice.robot.joints)), **summary["parameters"]).to_json(save_plant)
+    elif save_plant:
+        click.echo(f"--save-plant: nothing written to {save_plant}: no cause is named, the nominal plant stands", err=True)
     if report_dir:
         from impactqp.scenarios.diagnosis_report import write_report
 
@@ -226,6 +231,8 @@ def _print_diagnosis(result, summary: dict, speeds) -> None:
     """The diagnosis as text: the message, the causes and their intervals, the candidates, the
     predictors, the feasible speeds and the skipped trials."""
     # lazy: the command line loads what a command needs when it runs
+    import statistics
+
     from impactqp.scenarios.diagnosis_report import trusted_speed_text
     from impactqp.scenarios.readable import boolean, number, parameters_text
     from impactqp.sim.diagnosis import interval_text
@@ -235,19 +242,29 @@ def _print_diagnosis(result, summary: dict, speeds) -> None:
         f"causes: {', '.join(summary['causes']) or 'none'}  explained: {boolean(summary['explained'])}  "
         f"parameters: {parameters_text(summary['parameters'])}"
     )
-    click.echo(f"held-out average error (26): nominal {summary['baseline_error']:.4f}  extended {summary['extended_error']:.4f}  gain {100 * summary['gain']:.1f} %")
+    click.echo(
+        f"average error (26) of the held-out replays: nominal {summary['baseline_error']:.4f} rad/s  "
+        f"extended {summary['extended_error']:.4f} rad/s  gain {100 * summary['gain']:.1f} %"
+    )
+    residuals = summary["trial_residuals"]
+    if len(residuals) > 1:
+        worst = max(residuals, key=lambda r: r["residual"])
+        click.echo(
+            f"trial residuals (noise units): median {statistics.median(r['residual'] for r in residuals):.2f}, "
+            f"largest {worst['residual']:.2f} ({worst['id']}); outliers: {', '.join(summary['outlier_trials']) or 'none'}"
+        )
     for k, step in enumerate(summary["steps"], start=1):
         taken = "selected" if step["selected"] else "taken" if step["accepted"] else "not taken"
         click.echo(
-            f"step {k}: path {step['path'] + 1} {step['action']:<6} {step['cause']:<15} held-out "
-            f"{step['heldout_error']:.4f}  gain {100 * step['gain']:5.1f} %  {taken}"
+            f"step {k}: path {step['path'] + 1} {step['action']:<6} {step['cause']:<15} held-out residual "
+            f"{step['heldout_error']:.4f} noise units  gain {100 * step['gain']:5.1f} %  {taken}"
         )
     for p in summary["parameter_intervals"]:
         click.echo(f"  {p['parameter']:<40} {number(p['value']):>10}  95 %: {interval_text(p['interval'])}")
     if summary["candidates"]:  # none on one trial: the selection holds trials out
-        click.echo(f"{'candidate':<15}{'held-out':>10}{'gain':>9}")
+        click.echo(f"{'candidate':<15}{'held-out residual (noise units)':>33}{'gain':>9}")
     for c in sorted(summary["candidates"], key=lambda c: -c["gain"]):
-        click.echo(f"{c['cause']:<15}{c['heldout_error']:>10.4f}{100 * c['gain']:>8.1f}%")
+        click.echo(f"{c['cause']:<15}{c['heldout_error']:>33.4f}{100 * c['gain']:>8.1f}%")
     click.echo("predictors (average error (26), own impulse): " + ", ".join(f"{k} {v:.4f}" for k, v in summary["predictors"].items()))
     for r in speeds or []:
         click.echo(r.sentence())

@@ -271,24 +271,42 @@ def override_intervals(model: FittedCauses, theta_intervals: list[list]) -> dict
     return result
 
 
-def open_sides(model: FittedCauses, theta_intervals: list[list], trials: list[MeasuredTrial]) -> list[dict]:
+def open_sides(model: FittedCauses, theta_intervals: list[list], trials: list[MeasuredTrial],
+               nominal: PlantParameters) -> list[dict]:
     """Every parameter the data leave open on a side, with the trials that would settle it
-    (in terms of the normal speeds of ``trials``)."""
+    (in terms of the normal speeds of ``trials``). A side open down to the parameter's floor
+    when the floor is its nominal value (no effect: an armature or a damping of 0) is
+    ``negligible``: the data say the effect is at most the interval's other end, and more
+    trials would not change that."""
     normal_speeds = np.array([t.reference_speed for t in trials])
     found = []
     for cause, u, intervals in zip(model.causes, model.u, theta_intervals):
+        floor = cause.to_theta(cause.u_bounds()[0])
+        at_nominal = np.isclose(floor, cause.nominal_theta(nominal), rtol=1e-9, atol=1e-12)
         for j, (low, high) in enumerate(intervals):
             for side, end, other in (("below", low, high), ("above", high, low)):
                 # what the data do tell: the closed end of the interval, else the fitted value
                 known = float(cause.to_theta(u)[j]) if other is None else float(other)
                 if end is None:
+                    negligible = side == "below" and bool(at_nominal[j])
                     found.append(
                         {
                             "cause": cause.name,
                             "parameter": cause.labels[j],
                             "side": side,
                             "fitted": float(cause.to_theta(u)[j]),
-                            "trials_needed": cause.settling_trials(j, side, known, normal_speeds),
+                            "negligible": negligible,
+                            "trials_needed": "" if negligible else cause.settling_trials(j, side, known, normal_speeds),
                         }
                     )
     return found
+
+
+def open_side_text(side: dict, interval) -> str:
+    """One open side (``open_sides``) in words: a negligible parameter and its upper end, or
+    the trials that would settle it."""
+    if side["negligible"]:
+        high = interval[1]
+        bound = "at most its upper bound" if high is None else f"at most {high:.4g}"
+        return f"{side['parameter']} is negligible ({bound}: the data are consistent with none)."
+    return f"The data cannot bound {side['parameter']} {side['side']}: {side['trials_needed']}."

@@ -9,7 +9,8 @@ dataset itself, never from a constant:
 
 - **sensor scatter**: the per-sample noise variance of dq and tau from the samples before the
   impact (second differences remove a smooth motion and leave 6 sigma^2 of white noise; a
-  robust median, 1.4826 median |d2| / sqrt 6), propagated through the block's averages: a jump
+  robust median, 1.4826 median |d2| / sqrt 6), at least q / sqrt 12 for a signal quantised to
+  a step q read from the data (a low-noise encoder: most second differences are 0), propagated through the block's averages: a jump
   is a mean of 2 POST_HALF_WIDTH + 1 samples minus a mean of PRE_SAMPLES, its std is
   sigma sqrt(1 / PRE_SAMPLES + 1 / (2 POST_HALF_WIDTH + 1)); the torque is a mean over its
   window, std sigma / sqrt(window), times ``REPLAY_TORQUE_FACTOR``: the replay's start
@@ -45,6 +46,7 @@ from impactqp.controller.measured.impact import POST_HALF_WIDTH, PRE_SAMPLES
 
 BLOCKS = ("jump", "torque", "impulse", "duration", "trace")
 FIT_LIMIT = 3.0
+OUTLIER_FACTOR = 2.0  # a trial whose residual is this many times the trials' median (and misfits) stands out
 IMPULSE_FLOOR_SHARE = 0.005
 REPLAY_TORQUE_FACTOR = 2.5  # without repeats: the torque residual of a right model over the sensor scatter's
 REPLAY_TIMING_SAMPLES = 0.1  # the replay's contact moment is known to a tenth of a sample (its start state is noisy)
@@ -67,12 +69,26 @@ class BlockNoise:
 
 
 def sample_variance(samples: np.ndarray) -> np.ndarray:
-    """Per-column variance of the white noise on a smooth signal (module docstring); zeros for
-    fewer than 3 samples."""
+    """Per-column variance of the white noise on a smooth signal (module docstring), at least
+    the quantisation's (``quantisation_step`` q: q^2 / 12, the variance of a rounding error
+    spread evenly over one step, which a low-noise encoder's median second difference of 0
+    would otherwise hide); zeros for fewer than 3 samples."""
     if len(samples) < 3:
         return np.zeros(samples.shape[1])
     second = samples[2:] - 2.0 * samples[1:-1] + samples[:-2]
-    return (MAD_TO_STD * np.median(np.abs(second), axis=0)) ** 2 / 6.0
+    scatter = (MAD_TO_STD * np.median(np.abs(second), axis=0)) ** 2 / 6.0
+    return np.maximum(scatter, quantisation_step(samples) ** 2 / 12.0)
+
+
+def quantisation_step(samples: np.ndarray) -> np.ndarray:
+    """Per column, the smallest gap between two distinct values of the column: an encoder's step
+    when the signal is quantised, a rounding-level number (harmless as a floor) when it is not,
+    0 for a constant column."""
+    steps = np.zeros(samples.shape[1])
+    for j in range(samples.shape[1]):
+        gaps = np.diff(np.unique(samples[:, j]))
+        steps[j] = gaps.min() if gaps.size else 0.0
+    return steps
 
 
 def repeat_std(trials, value) -> np.ndarray | None:
@@ -149,3 +165,14 @@ def quadratic_mean(errors) -> float:
     errors = np.asarray(errors, float)
     return float(np.sqrt(np.mean(errors**2))) if errors.size else 0.0
 
+
+
+def outlier_trials(residuals) -> list[int]:
+    """Indices of the trials that stand out: a normalised residual (``fitting.trial_errors``)
+    above ``FIT_LIMIT`` and above ``OUTLIER_FACTOR`` times the median of all trials' (the model
+    fits the others; something happened in that trial alone). Worst first."""
+    residuals = np.asarray(residuals, float)
+    if residuals.size < 2:
+        return []
+    limit = max(FIT_LIMIT, OUTLIER_FACTOR * float(np.median(residuals)))
+    return sorted(np.flatnonzero(residuals > limit).tolist(), key=lambda k: -residuals[k])

@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -11,7 +11,8 @@ from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.postures import Surface
 from impactqp.sim.plant import PlantParameters
 
-from .noise import BLOCKS, FIT_LIMIT, misfit_blocks
+from .intervals import open_side_text
+from .noise import BLOCKS, FIT_LIMIT, misfit_blocks, outlier_trials
 from .selection import EXPLAINED_GAIN, relative_gain
 from .trials import MeasuredTrial
 
@@ -48,17 +49,32 @@ class Diagnosis:
     gain_over_floor: float
     fit: dict
     nominal_fit: dict
+    trial_residuals: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def outliers(self) -> list[str]:
+        """The ids of the trials that stand out from the others (``noise.outlier_trials``), worst first."""
+        return [self.trials[k].id for k in outlier_trials(self.trial_residuals)]
 
     def summary(self) -> dict:
+        """The JSON summary (every key in ``docs/diagnosis.md``). The fitted values are results
+        only when causes are named (``explained``): otherwise ``parameters``, ``intervals``,
+        ``parameter_intervals`` and ``open_sides`` are empty, and the best model found, which
+        explains nothing, is kept apart in ``best_model``."""
         baseline = float(np.mean(self.baseline_errors))
-        return {
-            "cause": self.cause,
-            "causes": self.causes,
-            "explained": self.explained,
+        fitted = {
             "parameters": self.parameters,
             "intervals": self.intervals,
             "parameter_intervals": self.parameter_intervals,
             "open_sides": self.open_sides,
+        }
+        return {
+            "cause": self.cause,
+            "causes": self.causes,
+            "explained": self.explained,
+            **(fitted if self.explained else {key: type(value)() for key, value in fitted.items()}),
+            "best_model": None if self.explained or not self.parameter_intervals else {
+                "causes": self.model_causes(), **fitted,
+            },
             "steps": self.steps,
             "baseline_error": baseline,
             "extended_error": self.extended_error,
@@ -68,6 +84,10 @@ class Diagnosis:
             "nominal_fit": self.nominal_fit,
             "candidates": self.candidates,
             "trials": len(self.trials),
+            "trial_residuals": [
+                {"id": t.id, "residual": float(r)} for t, r in zip(self.trials, self.trial_residuals)
+            ],
+            "outlier_trials": self.outliers(),
             "skipped": self.skipped,
             "predictors": self.predictors,
             "predictors_measured_impulse": self.predictors_measured_impulse,
@@ -76,12 +96,28 @@ class Diagnosis:
         }
 
     def message(self) -> str:
-        baseline = float(np.mean(self.baseline_errors))
-        gain = relative_gain(self.extended_error, baseline)
         if len(self.trials) == 1:
             return self.single_trial_message()
-        if not self.explained:
-            return self.unexplained_message()
+        text = self.explained_message() if self.explained else self.unexplained_message()
+        return text + self.outlier_text()
+
+    def outlier_text(self) -> str:
+        """A sentence naming the trials that stand out (empty when none does)."""
+        outliers = outlier_trials(self.trial_residuals)
+        if not outliers:
+            return ""
+        median = float(np.median(self.trial_residuals))
+        named = ", ".join(f"{self.trials[k].id} ({self.trial_residuals[k]:.1f})" for k in outliers)
+        return (
+            f" {'Trial' if len(outliers) == 1 else 'Trials'} {named} stand{'s' if len(outliers) == 1 else ''} out: "
+            f"residual in noise units against a median of {median:.1f} over the trials; look at "
+            f"{'its log' if len(outliers) == 1 else 'their logs'} (JSON key trial_residuals)."
+        )
+
+    def explained_message(self) -> str:
+        """Plain words for named causes: what fitting them gains, their values and intervals."""
+        baseline = float(np.mean(self.baseline_errors))
+        gain = relative_gain(self.extended_error, baseline)
         named = " + ".join(f"'{c}'" for c in self.causes)
         text = (
             f"The gap between the simulation and the measurements is explained by {named}: fitting "
@@ -92,10 +128,9 @@ class Diagnosis:
         )
         for p in self.parameter_intervals:
             text += f" {p['parameter']}: {p['value']:.4g}, 95 % interval {interval_text(p['interval'])}."
+        intervals = {p["parameter"]: p["interval"] for p in self.parameter_intervals}
         for o in self.open_sides:
-            text += (
-                f" The data cannot bound {o['parameter']} {o['side']}: {o['trials_needed']}."
-            )
+            text += " " + open_side_text(o, intervals[o["parameter"]])
         return text
 
 
@@ -109,10 +144,17 @@ class Diagnosis:
         )
 
     def unexplained_message(self) -> str:
-        """Plain words when nothing explains the gap: the data fit the nominal within the noise,
-        or the best model found still misfits (which block, by how much), or the causes remove
-        too little of the excess over the noise floor."""
+        """Plain words when nothing explains the gap: the data fit the nominal within the noise
+        (whatever the best model found does), or the best model found still misfits (which
+        block, by how much), or the causes remove too little of the excess over the noise floor."""
         model = " + ".join(f"'{name}'" for name in self.model_causes())
+        if self.nominal_fit["fits_noise"]:
+            return (
+                "No candidate cause is needed: the nominal simulation already matches the data within the noise "
+                f"({fit_text(self.nominal_fit)}); the best candidate, {model}, removes "
+                f"{100 * self.gain_over_floor:.0f} % of the excess over the noise floor "
+                f"(threshold {100 * EXPLAINED_GAIN:.0f} %)."
+            )
         misfits = misfit_blocks(self.fit)
         if misfits:
             worst = ", ".join(f"the {b} residual is {self.fit[b]:.1f} times the noise" for b in misfits)
@@ -126,13 +168,6 @@ class Diagnosis:
                 f"No candidate cause explains the gap: the best model found ({model}) fits the noise, but the "
                 "95 % interval of every parameter of one of its causes contains that parameter's nominal value, "
                 "so the data do not show the plant moved away from the nominal; more trials would tell."
-            )
-        if self.nominal_fit["fits_noise"]:
-            return (
-                "No candidate cause is needed: the nominal simulation already matches the data within the noise "
-                f"({fit_text(self.nominal_fit)}); the best candidate, {model}, removes "
-                f"{100 * self.gain_over_floor:.0f} % of the excess over the noise floor "
-                f"(threshold {100 * EXPLAINED_GAIN:.0f} %)."
             )
         return (
             f"No candidate cause explains the gap: the best one, {model}, removes only "
