@@ -1,7 +1,7 @@
 """Plant parameters: what the simulated robot is made of beyond the URDF's rigid links.
 
 The nominal plant (all defaults) is the clean rigid-body baseline: rigid links exactly as in the
-URDF, no rotor inertia, no joint damping, no payload, and a joint servo whose feedback bandwidth
+URDF, no rotor inertia, no joint damping or friction, no payload, and a joint servo whose feedback bandwidth
 (5 rad/s) is far below the impact's (the contact time constant is 7 ms), so that the simulated
 jumps follow the classical prediction M^-1 J^T iota (docs/simulation.md; ``sim.runner``). Each parameter moves
 the plant away from that baseline in a known direction:
@@ -11,6 +11,9 @@ parameter           effect on the MuJoCo model (``sim.scene.build_scene``)
 ==================  ===========================================================================
 armature            reflected rotor inertia per joint (kg m^2), ``dof_armature``: M -> M + diag
 joint_damping       viscous joint damping (N m s/rad), ``dof_damping``; replaces the URDF values
+joint_friction      dry (Coulomb) joint friction torque (N m), ``dof_frictionloss``: MuJoCo's
+                    friction loss, a soft constraint opposing the joint's motion up to that
+                    torque; replaces the URDF values
 payload_mass        point mass (kg) welded to the hand, a body ``payload``
 payload_com         its position (m) in the contact frame ``impact_tip``
 friction            Coulomb friction of the tool/wall pair; None: the surface's own coefficient
@@ -54,6 +57,7 @@ class PlantParameterError(BadInputError):
 RANGES = {
     "armature": (0.0, 10.0, "kg m^2"),
     "joint_damping": (0.0, 500.0, "N m s/rad"),
+    "joint_friction": (0.0, 50.0, "N m"),
     "payload_mass": (0.0, 5.0, "kg"),
     "payload_com": (-0.5, 0.5, "m"),
     "friction": (0.0, 2.0, ""),
@@ -65,7 +69,8 @@ RANGES = {
     "sensor_joint_velocity_scale": (0.5, 2.0, ""),
 }
 """Physical ranges of the plant parameters (per entry of a vector): reflected rotor inertias and
-viscous damping well above a Panda's (the diagnosis fits up to 5 kg m^2 and 200 N m s/rad), a
+viscous damping well above a Panda's (the diagnosis fits up to 5 kg m^2 and 200 N m s/rad), dry
+joint friction up to the torque of a Panda's small joints (12 N m) and more, a
 payload within the Panda's 3 kg rating plus margin (the fit's 5 kg) with its centre of mass
 within half a metre of the tool tip, a Coulomb coefficient up to 2 (``postures.MAX_FRICTION``),
 a servo bandwidth up to 1000 rad/s (the 1 kHz loop); sensors up to 50 ms late, reading velocities
@@ -73,7 +78,8 @@ between half and twice the truth, torques off by at most 20 N m (a Panda's small
 12 N m) and filtering dq with a time constant up to 0.1 s."""
 
 PER_JOINT = {
-    "armature": 0.0, "joint_damping": 0.0, "sensor_torque_offset": 0.0, "sensor_joint_velocity_scale": 1.0,
+    "armature": 0.0, "joint_damping": 0.0, "joint_friction": 0.0, "sensor_torque_offset": 0.0,
+    "sensor_joint_velocity_scale": 1.0,
 }
 """The per-joint vectors and their nominal value at each joint."""
 
@@ -87,6 +93,7 @@ class PlantParameters:
 
     armature: tuple[float, ...] = ()
     joint_damping: tuple[float, ...] = ()
+    joint_friction: tuple[float, ...] = ()
     payload_mass: float = 0.0
     payload_com: tuple[float, ...] = (0.0, 0.0, 0.0)
     friction: float | None = None

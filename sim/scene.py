@@ -349,15 +349,16 @@ class Scene(MujocoScene):
 
 
 def _apply_plant(spec, mount, robot: RobotDescription, tool: ToolDescription, plant: PlantParameters) -> None:
-    """The plant's drive armature, joint damping and payload (a point mass at the contact point
-    with its centre of mass offset) on the robot before it is compiled."""
-    for name, armature, damping in zip(robot.joints, plant.armature, plant.joint_damping):
+    """The plant's drive armature, joint damping and dry friction, and payload (a point mass at
+    the contact point with its centre of mass offset) on the robot before it is compiled. The
+    plant's values replace the URDF's: franka_description's FR3 URDF declares
+    <dynamics friction="0.2"/>, which MuJoCo would import as a friction loss the nominal plant
+    does not have."""
+    for name, armature, damping, friction in zip(robot.joints, plant.armature, plant.joint_damping, plant.joint_friction):
         joint = spec.joint(name)
         joint.armature = armature
         joint.damping = [damping, 0.0, 0.0]
-        # the plant has no dry joint friction: franka_description's FR3 URDF declares
-        # <dynamics friction="0.2"/>, which MuJoCo would import as a friction loss
-        joint.frictionloss = 0.0
+        joint.frictionloss = friction
     if plant.payload_mass > 0.0:
         mount.add_body(
             name=PAYLOAD_BODY,

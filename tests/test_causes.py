@@ -1,4 +1,4 @@
-"""Candidate causes map fitted numbers onto plant overrides (sim/causes.py)."""
+"""Candidate causes map fitted numbers onto plant overrides (sim/causes/: the interface, the plant and the sensor causes)."""
 
 import numpy as np
 import pytest
@@ -56,7 +56,7 @@ def test_nominal_value_is_inside_the_bounds():
 
 def test_every_issue_cause_is_a_candidate():
     assert set(CAUSE_NAMES) == {
-        "armature", "payload", "friction", "contact", "joint_damping", "servo_gain",
+        "armature", "payload", "friction", "contact", "joint_damping", "joint_friction", "servo_gain",
         "delay", "velocity_scale", "torque_offset", "velocity_filter",
     }
 

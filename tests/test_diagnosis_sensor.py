@@ -1,5 +1,5 @@
 """Sensor faults hidden in a small dataset: named, with the truth inside the interval
-(sim/diagnosis with the sensor causes of sim/causes.py)."""
+(sim/diagnosis with the sensor causes of sim/causes/sensor_causes.py)."""
 
 import pytest
 from diagnosis_checks import check_contract, inside

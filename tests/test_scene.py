@@ -309,3 +309,34 @@ def test_the_feet_stand_on_the_floor_and_only_the_pairs_collide(setup):
         for g in foot:
             assert model.geom_bodyid[g] == scene.foot_bodies[k]
             assert pairs[frozenset((g, scene.floor_geom))] == robot.description.held_contacts[k].friction
+
+
+@settings(max_examples=10)
+@given(st.lists(st.floats(0.05, 5.0), min_size=7, max_size=7), st.lists(st.sampled_from([-1.0, 1.0]), min_size=7, max_size=7))
+def test_joint_friction_bounds_each_joints_torque_and_takes_the_motions_energy(friction, signs):
+    """Dry friction at the joints: a plant's joint friction f_j acts on joint j with a torque of
+    at most f_j (MuJoCo's friction loss: a soft constraint on the accelerations), and a robot
+    coasting without gravity or drive loses kinetic energy to it, while the nominal plant (no
+    friction, no damping) keeps it."""
+    far = Surface(point=np.array([3.0, 0.0, 0.0]), normal=np.array([-1.0, 0.0, 0.0]))  # no contact
+    energies = {}
+    for label, plant in (("friction", PlantParameters(joint_friction=friction)), ("nominal", PlantParameters())):
+        scene = build_scene(far, plant=plant)
+        model, data = scene.model, scene.data
+        model.opt.gravity[:] = 0.0
+        np.testing.assert_array_equal(model.dof_frictionloss[:7], friction if label == "friction" else 0.0)
+        data.qpos[:7], data.qvel[:7] = PANDA.postures["elbow_up"].q, 0.5 * np.array(signs)
+        mujoco.mj_forward(model, data)
+        rows = np.flatnonzero(data.efc_type[: data.nefc] == mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)
+        torque = np.zeros(model.nv)
+        torque[data.efc_id[rows]] = data.efc_force[rows]  # a friction-loss row's force acts on its own dof
+        assert np.all(np.abs(torque[:7]) <= np.array(plant.for_joints(7).joint_friction) * (1 + 1e-9))
+        energy, most = 0.5 * data.qvel @ scene.mass_matrix() @ data.qvel, 0.0
+        for _ in range(100):
+            # the most friction can take in a step: each joint's torque bound times its path
+            most += np.abs(data.qvel[:7]) @ np.array(plant.for_joints(7).joint_friction) * model.opt.timestep
+            mujoco.mj_step(model, data)
+        energies[label] = (energy, 0.5 * data.qvel @ scene.mass_matrix() @ data.qvel, most)
+    (start, end, most), (nominal_start, nominal_end, _) = energies["friction"], energies["nominal"]
+    assert nominal_end == pytest.approx(nominal_start, rel=1e-3)
+    assert 10.0 * abs(nominal_start - nominal_end) < start - end <= 1.05 * most
