@@ -20,6 +20,9 @@ friction            Coulomb friction of the tool/wall pair; None: the surface's 
 contact_solref      MuJoCo solref (time constant s, damping ratio) of the tool/wall pair
 contact_solimp      MuJoCo solimp (dmin, dmax, width m, midpoint, power) of the pair
 servo_gain          bandwidth omega (rad/s) of the computed-torque joint servo (``sim.servo``)
+link_inertials      per named link, its mass m (kg), centre of mass c (m, link frame) and
+                    inertia about c (kg m^2: Ixx, Iyy, Izz, Ixy, Ixz, Iyz): replace the URDF's
+                    inertial (an identified model's links)
 ==================  ===========================================================================
 
 Sensor keys (``sim.sensor.apply_sensor``) act on the logged signals after the simulation, not on
@@ -33,6 +36,13 @@ The per-joint vectors (``PER_JOINT``) have one value per joint of the robot the 
 to; left empty, they hold the nominal value at every joint (``PlantParameters.for_joints``).
 
 Plant parameters are simulation truth: a dataset never records them (``controller.measured.dataset``).
+
+Built-in plants (``plant_named``, files in ``sim/plants/``): ``identified_panda``, the Panda as
+identified from measured data by Gaz et al. (RA-L 2019). Its link inertials are the URDF's
+already (example-robot-data's Panda carries them), so the file adds their joint friction: the
+sigmoid tau_f = phi_1 / (1 + exp(-phi_2 (dq + phi_3))) - (its value at dq = 0) as a dry
+friction of half its range, phi_1 / 2, per joint (MuJoCo's friction loss is symmetric: the
+offset phi_3, a few hundredths of a rad/s, is left out).
 """
 
 from __future__ import annotations
@@ -41,9 +51,14 @@ import json
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
+import numpy as np
+
 from impactqp.controller.measured.atomic import write_text_atomic
 from impactqp.controller.model.files import read_mapping
 from impactqp.controller.model.validation import BadInputError, finite_vector, number_in_range, vector_in_range
+
+PLANTS_DIRECTORY = Path(__file__).parent / "plants"
+"""The built-in plant files, ``<name>.json``."""
 
 DEFAULT_SOLREF = (0.007, 1.0)
 DEFAULT_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
@@ -83,6 +98,10 @@ PER_JOINT = {
 }
 """The per-joint vectors and their nominal value at each joint."""
 
+LINK_INERTIAL_VALUES = 10
+"""Numbers per link of ``link_inertials``: m, c (3), Ixx, Iyy, Izz, Ixy, Ixz, Iyz."""
+MAX_LINK_MASS = 100.0  # kg
+
 MAX_SOLREF = (1.0, 10.0)
 """Largest contact time constant (s) and damping ratio of ``contact_solref``."""
 
@@ -105,6 +124,7 @@ class PlantParameters:
     sensor_torque_offset: tuple[float, ...] = ()
     sensor_velocity_filter: float = 0.0
     sensor_joint_velocity_scale: tuple[float, ...] = ()
+    link_inertials: tuple = ()
 
     def __post_init__(self):
         try:
@@ -154,6 +174,7 @@ class PlantParameters:
             )
         set_("contact_solimp", solimp)
         set_("servo_gain", scalar("servo_gain"))
+        set_("link_inertials", link_inertials(self.link_inertials))
         for name in ("sensor_delay", "sensor_velocity_scale", "sensor_velocity_filter"):
             set_(name, scalar(name))
 
@@ -205,10 +226,72 @@ class PlantParameters:
         except PlantParameterError as error:
             raise PlantParameterError(f"{path}: {error}") from None
 
+    @classmethod
+    def named(cls, name: str) -> "PlantParameters":
+        """The built-in plant ``name`` (module docstring); an unknown name is bad input."""
+        names = built_in_plants()
+        if name not in names:
+            raise PlantParameterError(f"no built-in plant {name!r}; built-in: {', '.join(names)}")
+        return cls.from_json(PLANTS_DIRECTORY / f"{name}.json")
+
     def to_dict(self) -> dict:
         values = asdict(self)
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in values.items()}
+        values = {k: list(v) if isinstance(v, tuple) else v for k, v in values.items()}
+        values["link_inertials"] = {name: list(numbers) for name, numbers in self.link_inertials}
+        return values
 
     def to_json(self, path: str | Path) -> None:
         """Write the parameters atomically (temporary file in the same directory + os.replace)."""
         write_text_atomic(Path(path), json.dumps(self.to_dict(), indent=2) + "\n")
+
+
+def link_inertials(value) -> tuple:
+    """``link_inertials`` as stored: ((link name, (m, cx, cy, cz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz)),
+    ...) sorted by name, from that form or a mapping name -> 10 numbers (the JSON form). A mass in
+    (0, ``MAX_LINK_MASS``] kg, a centre of mass within 1 m of the link frame, and an inertia about
+    it that a body can have: positive definite, its principal moments meeting the triangle
+    inequality."""
+    items = value.items() if isinstance(value, dict) else value
+    try:
+        entries = [(name, numbers) for name, numbers in items]
+    except (TypeError, ValueError):
+        raise PlantParameterError("link_inertials must map link names to 10 numbers each") from None
+    stored = []
+    for name, numbers in entries:
+        if not isinstance(name, str) or not name:
+            raise PlantParameterError(f"link_inertials: a link name must be a non-empty string, got {name!r}")
+        x = finite_vector(numbers, LINK_INERTIAL_VALUES, f"link_inertials[{name!r}]")
+        mass, com, (ixx, iyy, izz, ixy, ixz, iyz) = x[0], x[1:4], x[4:]
+        number_in_range(mass, 1e-9, MAX_LINK_MASS, f"the mass of link {name}", "kg")
+        vector_in_range(com, 3, -1.0, 1.0, f"the centre of mass of link {name}", "m")
+        inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        moments = np.linalg.eigvalsh(inertia)
+        if moments[0] <= 0.0 or moments[2] > moments[0] + moments[1] * (1.0 + 1e-9):
+            raise PlantParameterError(
+                f"the inertia of link {name} (principal moments {np.round(moments, 9).tolist()} kg m^2) is not a "
+                "body's: it must be positive definite with each moment at most the sum of the other two"
+            )
+        stored.append((name, tuple(float(v) for v in x)))
+    names = [name for name, _ in stored]
+    if len(set(names)) != len(names):
+        raise PlantParameterError(f"link_inertials names a link twice: {names}")
+    return tuple(sorted(stored))
+
+
+def apply_link_inertials(spec, plant: PlantParameters) -> None:
+    """The plant's ``link_inertials`` on the bodies of a MuJoCo spec (before it is compiled); a
+    link the robot does not have is bad input."""
+    bodies = {body.name: body for body in spec.bodies}
+    for name, values in plant.link_inertials:
+        if name not in bodies:
+            known = ", ".join(sorted(b for b in bodies if b and b != "world"))
+            raise PlantParameterError(f"link_inertials: the robot has no link {name!r}; its links: {known}")
+        body = bodies[name]
+        body.mass, body.ipos = values[0], list(values[1:4])
+        body.fullinertia = list(values[4:7]) + list(values[7:10])
+        body.explicitinertial = True
+
+
+def built_in_plants() -> list[str]:
+    """The names of the built-in plants (``PlantParameters.named``)."""
+    return sorted(path.stem for path in PLANTS_DIRECTORY.glob("*.json"))

@@ -81,7 +81,7 @@ from impactqp.controller.model.tool_description import Pad, ToolDescription, too
 from impactqp.controller.model.validation import BadInputError, number_in_range, vector_in_range
 
 from .humanoid_feet import Soles
-from .plant import PlantParameters
+from .plant import PlantParameters, apply_link_inertials
 
 DEFAULT_TIMESTEP = 0.25e-3
 TOOL_GEOM = "impact_tool"
@@ -396,6 +396,7 @@ def build_scene(
     contact_geom = add_contact_geometry(spec, robot, tool, contact)
     add_environment(spec, robot, contact_geom, Environment(surface, contact, wall_size=0.5))
     _apply_plant(spec, spec.body(robot.frame_of(tool)), robot, tool, plant)
+    apply_link_inertials(spec, plant)
     model = compile_spec(spec, robot, robot.joints)
     return Scene(
         model=model,

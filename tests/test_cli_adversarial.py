@@ -117,6 +117,8 @@ ROWS = [
     # simulate
     (["simulate", "--posture", "elbow_up", "--speed", "1e9"], None, 2, "(0, 3] m/s"),
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{tmp}"], None, 2, "is a directory, not a file"),
+    (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "identified_pnda"], None, 2,
+     "no built-in plant 'identified_pnda'; built-in: identified_panda"),
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--out", "{data}/t0000.csv"], None, 2,
      "not a directory"),
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--video", "{data}/t0000.csv/x.gif"], None, 2,

@@ -18,7 +18,7 @@ from impactqp.sim.diagnosis.fitting import (
     residuals,
     trial_errors,
 )
-from impactqp.sim.diagnosis.noise import FIT_LIMIT, trace_std
+from impactqp.sim.diagnosis.noise import CHANNEL_LIMIT, FIT_LIMIT, trace_std
 from impactqp.sim.plant import PlantParameters
 
 
@@ -72,8 +72,15 @@ def test_a_trace_offset_shows_in_the_trace_block_only(seed, forces, offset):
     expected = np.sqrt(np.mean(np.concatenate([np.ravel((offset / trace_std(t.reference_trace, t.noise.trace)) ** 2)
                                                for t in trials])))
     assert fit["trace"] == pytest.approx(expected)
-    assert all(fit[b] == 0.0 for b in fit if b not in ("trace", "fits_noise"))
-    assert fit["fits_noise"] == (expected <= FIT_LIMIT)
+    assert all(fit[b] == 0.0 for b in fit if b not in ("trace", "fits_noise", "worst_channel"))
+    # the worst channel: one column of the trace (a joint's velocity or torque) over every trial and sample
+    columns = np.concatenate([offset / trace_std(t.reference_trace, t.noise.trace) for t in trials])
+    per_channel = np.sqrt(np.mean(columns**2, axis=0))
+    if per_channel.max() > 1e-9:  # an offset far below the trace values cancels in (reference + offset) - reference
+        assert fit["worst_channel"]["block"] == "trace"
+    assert fit["worst_channel"]["value"] == pytest.approx(per_channel.max())
+    assert fit["worst_channel"]["value"] >= fit["trace"] * (1 - 1e-12)  # a mean never exceeds its largest part
+    assert fit["fits_noise"] == (expected <= FIT_LIMIT and per_channel.max() <= CHANNEL_LIMIT)
     np.testing.assert_array_equal(jump_errors(features, trials), 0.0)
     sizes = residual_sizes(trials)
     ends = np.cumsum(sizes)

@@ -13,6 +13,7 @@ from impactqp.sim.causes import ArmatureCause, JointDampingCause
 from impactqp.sim.diagnosis import diagnose
 from impactqp.sim.diagnosis.noise import (
     BLOCKS,
+    CHANNEL_LIMIT,
     FIT_LIMIT,
     REPLAY_TIMING_SAMPLES,
     fits_noise,
@@ -149,3 +150,28 @@ def test_a_quantised_low_noise_dataset_of_the_nominal_plant_fits_the_nominal(tmp
     result = diagnose(tmp_path, causes=[ArmatureCause()]).summary()
     assert result["nominal_fit"]["fits_noise"], result["nominal_fit"]
     assert not result["explained"] and result["message"].startswith("No candidate cause is needed"), result["message"]
+
+
+def delay_joint_velocity(directory, joint: int, samples: int) -> None:
+    """Log the velocity of ``joint`` ``samples`` samples late in every trial of a dataset (the
+    first sample held), as a faulty encoder channel would."""
+    for path in directory.glob("t????.csv"):
+        header = path.read_text().splitlines()[0]
+        table = np.loadtxt(path, delimiter=",", skiprows=1)
+        column = header.split(",").index(f"dq{joint + 1}")
+        table[samples:, column] = table[:-samples, column].copy()
+        table[:samples, column] = table[0, column]
+        np.savetxt(path, table, delimiter=",", header=header, comments="", fmt="%.10g")
+
+
+def test_a_fault_in_one_joints_channel_is_not_averaged_away(tmp_path):
+    """Joint 4's velocity logged 3 samples late: its own channel misfits by far while the trace
+    block, a mean over every joint's channels, stays near the limit. The fit is refused and the
+    message names the channel, not a block."""
+    generate_dataset(tmp_path, DatasetRequest(postures=["elbow_up", "elbow_left"], speeds=[0.1, 0.18], seed=6))
+    delay_joint_velocity(tmp_path, 3, 3)
+    result = diagnose(tmp_path, causes=[ArmatureCause()]).summary()
+    channel = result["fit"]["worst_channel"]
+    assert channel["channel"] in ("joint 4", "joint 4 velocity") and channel["value"] > CHANNEL_LIMIT, result["fit"]
+    assert not result["explained"] and not result["fit"]["fits_noise"]
+    assert "residual of joint 4" in result["message"], result["message"]

@@ -66,3 +66,24 @@ def test_no_usable_trial_or_twice_the_same_cause_is_refused(tmp_path):
     generate_dataset(tmp_path / "two", DatasetRequest(postures=["elbow_up"], speeds=[0.1], repeats=2))
     with pytest.raises(ValueError, match="distinct names"):
         diagnose(tmp_path / "two", causes=[FrictionCause(), FrictionCause()])
+
+
+def test_the_identified_panda_is_named_with_intervals_that_hold_or_called_unexplained(tmp_path):
+    """A realistic plant out of the causes' exact family: the Panda with Gaz et al.'s identified
+    joint friction, different at every joint where the cause fits one value per joint group. The
+    diagnosis either names joint friction alone, each group's interval holding the group's mean
+    friction, or calls the gap unexplained and names what misfits; it never names a cause that
+    is not there."""
+    from impactqp.sim.causes import ArmatureCause, JointDampingCause, JointFrictionCause, JOINT_GROUPS
+
+    plant = PlantParameters.named("identified_panda")
+    generate_dataset(tmp_path, DatasetRequest(plant=plant, postures=POSTURES[:2], speeds=SPEEDS, seed=3))
+    result = diagnose(tmp_path, causes=[ArmatureCause(), JointDampingCause(), JointFrictionCause()]).summary()
+    if result["explained"]:
+        assert result["causes"] == ["joint_friction"], result["causes"]
+        truth = [np.mean([plant.joint_friction[j] for j in group]) for group in JOINT_GROUPS]
+        for value, p in zip(truth, result["parameter_intervals"]):
+            low, high = p["interval"]
+            assert (low is None or low <= value) and (high is None or value <= high), (p, value)
+    else:
+        assert "does not fit the data" in result["message"] and not result["fit"]["fits_noise"], result["message"]

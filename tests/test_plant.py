@@ -60,6 +60,12 @@ def test_partial_file_keeps_the_defaults(tmp_path):
         ({"friction": 1e9}, r"friction must lie in \[0, 2\], got 1000000000.0"),
         ({"servo_gain": 1e9}, "servo_gain"),
         ({"contact_solref": [100.0, 1.0]}, "time constant in"),
+        ({"joint_friction": [-0.1] * JOINTS}, r"joint_friction\[0\] must lie in \[0, 50\] N m"),
+        ({"link_inertials": {"panda_link3": [1.0] * 9}}, "must be 10 numbers"),
+        ({"link_inertials": {"panda_link3": [-1.0, 0, 0, 0, 0.1, 0.1, 0.1, 0, 0, 0]}}, "mass of link panda_link3"),
+        ({"link_inertials": {"panda_link3": [1.0, 0, 0, 0, 0.1, 0.1, 0.3, 0, 0, 0]}}, "is not a body's"),
+        ({"link_inertials": {"panda_link3": [1.0, 0, 0, 0, 0.1, 0.1, 0.1, 0.2, 0, 0]}}, "is not a body's"),
+        ({"link_inertials": [["panda_link3"]]}, "map link names to 10 numbers"),
     ],
 )
 def test_bad_overrides_are_rejected_with_clear_messages(tmp_path, values, message):
@@ -142,3 +148,45 @@ def test_payload_raises_the_impulse():
     loaded = _impact(PlantParameters(payload_mass=1.0))
     n = DEFAULT_WALL.normal
     assert loaded.impulse @ n > 1.2 * (bare.impulse @ n) > 0.0
+
+
+def link_inertial(robot: PandaModel, joint: int, mass_scale: float) -> tuple[list[float], pin.Inertia]:
+    """The link moved by ``joint`` (1-based) with its mass and inertia scaled by ``mass_scale``:
+    the plant's 10 numbers (m, c, inertia about c) and Pinocchio's inertia of the same body."""
+    inertia = robot.model.inertias[joint]
+    scaled = pin.Inertia(mass_scale * inertia.mass, inertia.lever, mass_scale * inertia.inertia)
+    I = scaled.inertia
+    return [scaled.mass, *scaled.lever, I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]], scaled
+
+
+@pytest.mark.parametrize("joint, scale", [(3, 1.0), (3, 1.7), (5, 0.4)])
+def test_link_inertials_replace_a_links_inertial_as_pinocchio_would(joint, scale):
+    """A link's inertial given to the plant: MuJoCo's joint-space inertia equals Pinocchio's with
+    the same body changed (its own values leave M as it was)."""
+    robot = PandaModel()
+    values, inertia = link_inertial(robot, joint, scale)
+    scene = build_scene(plant=PlantParameters(link_inertials={f"panda_link{joint}": values}))
+    model = robot.model.copy()
+    model.inertias[joint] = inertia
+    data = model.createData()
+    scene.set_state(Q, np.zeros(JOINTS))
+    np.testing.assert_allclose(scene.mass_matrix(), pin.crba(model, data, Q), atol=1e-9)
+
+
+def test_a_link_the_robot_does_not_have_is_bad_input():
+    plant = PlantParameters(link_inertials={"link_nine": [1.0, 0, 0, 0, 0.1, 0.1, 0.1, 0, 0, 0]})
+    with pytest.raises(PlantParameterError, match="the robot has no link 'link_nine'; its links: .*panda_link3"):
+        build_scene(plant=plant)
+    assert PlantParameters.from_dict(plant.to_dict()) == plant  # the JSON form reads back
+
+
+def test_the_identified_panda_is_a_built_in_plant_of_joint_friction():
+    """The Panda as identified by Gaz et al.: its link inertials are the URDF's already, so the
+    built-in plant is the URDF with their joint friction (a dry friction per joint, half the
+    identified sigmoid's range: between 0.1 and 0.7 N m); an unknown name lists the built-ins."""
+    plant = PlantParameters.named("identified_panda")
+    assert plant == PlantParameters(joint_friction=plant.joint_friction)
+    assert len(plant.joint_friction) == JOINTS and all(0.1 < f < 0.7 for f in plant.joint_friction)
+    np.testing.assert_array_equal(build_scene(plant=plant).model.dof_frictionloss[:JOINTS], plant.joint_friction)
+    with pytest.raises(PlantParameterError, match="no built-in plant 'ideal'; built-in: identified_panda"):
+        PlantParameters.named("ideal")

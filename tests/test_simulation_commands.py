@@ -268,3 +268,17 @@ def test_simulate_g1_video_is_a_gif(tmp_path):
     with Image.open(path) as image:
         assert image.format == "GIF" and image.n_frames > 10
         assert np.asarray(image.convert("RGB")).std() > 1.0
+
+
+def test_simulate_on_the_identified_panda_meets_its_friction(capsys):
+    """``--plant identified_panda``, a built-in plant by name: the same approach as on the nominal
+    plant, its joints now braked by dry friction that the slow servo (5 rad/s) does not fully
+    make up for: the tool reaches the wall slower, and the jump differs."""
+    results = {}
+    for plant in (None, "identified_panda"):
+        args = ["simulate", "--posture", "elbow_left", "--speed", "0.1", "--json"] + (["--plant", plant] if plant else [])
+        code, stdout, err = run(capsys, *args)
+        assert code == 0, err
+        results[plant] = json.loads(stdout)
+    assert results["identified_panda"]["contact_speed"] < results[None]["contact_speed"]
+    assert results["identified_panda"]["dq_jump"] != results[None]["dq_jump"]

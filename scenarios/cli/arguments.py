@@ -147,15 +147,18 @@ def gif_output(path: str) -> Path:
 
 
 def load_plant(path: str | None):
-    """The plant of ``--plant FILE`` (JSON overrides of ``sim.plant.PlantParameters``), or
-    None without a file."""
+    """The plant of ``--plant NAME|FILE``: a built-in plant's name (``sim.plant.built_in_plants``:
+    ``identified_panda``) or a JSON file of overrides of ``sim.plant.PlantParameters``; None
+    without either."""
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.sim.plant import PlantParameterError, PlantParameters
+    from impactqp.sim.plant import PlantParameterError, PlantParameters, built_in_plants
 
     if path is None:
         return None
-    input_file(path, "--plant")
     try:
+        if not Path(path).exists() and (str(path) in built_in_plants() or not Path(path).suffix):
+            return PlantParameters.named(str(path))  # a name: an unknown one lists the built-ins
+        input_file(path, "--plant")
         return PlantParameters.from_json(path)
     except PlantParameterError as error:
         raise BadInputError(f"--plant: {error}") from None

@@ -70,7 +70,7 @@ def validate_command(ctx, directory, as_json):
 
 @dataset.command("generate")
 @click.argument("out", type=click.Path(file_okay=False))
-@click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Plant overrides (JSON).")
+@click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Plant: a JSON file of overrides or a built-in name (identified_panda).")
 @click.option("--postures", help="Comma-separated posture names (default: all).")
 @click.option("--speeds", help="Comma-separated normal speeds, m/s (default 0.08,0.10,0.12,0.15,0.18).")
 @click.option("--tangential", help="Comma-separated tangential speeds, m/s, at v_n = 0.12 (direction n x e_z).")
@@ -153,7 +153,7 @@ def import_franka_command(out, logs, surface_point, surface_normal, reference_sp
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write report.md and PNG figures here.")
 @click.option("--save-plant", type=click.Path(dir_okay=False),
               help="Save the fitted plant (JSON) when causes are named; nothing is written otherwise.")
-@click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Nominal plant to start from (JSON).")
+@click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Nominal plant to start from: a JSON file or a built-in name (identified_panda).")
 @click.option("--max-speed", "max_speed", is_flag=True,
               help="Also simulate the highest feasible contact speed per posture, nominal and extended plant.")
 @click.option("--jobs", type=int, default=1, show_default=True)

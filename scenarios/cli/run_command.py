@@ -22,7 +22,7 @@ NO_LOG = "none (the run measured fewer samples than a trial needs)"
     help="franka and panda backends: require a real-time kernel (enforce) or run without one and keep no cycle deadline (ignore: a simulator).",
 )
 @click.option("--config", "config_file", help="Controller configuration (.toml, .yaml); default: approach at --speed.")
-@click.option("--plant", "plant_file", help="JSON plant-parameter overrides (sim backend).")
+@click.option("--plant", "plant_file", help="Plant (sim backend): a JSON file of overrides or a built-in name (identified_panda).")
 @click.option("--posture", default=None, help="Start posture (sim backend); default: the robot's default posture (elbow_up on the Franka arms).")
 @click.option("--speed", type=float, default=0.15, show_default=True, help="Approach speed (m/s) of the default configuration.")
 @click.option("--duration", type=float, default=1.0, show_default=True, help="Control time (s) before braking to a stop.")

@@ -68,7 +68,7 @@ wall_point_option = click.option("--wall-point", "wall_point", help="A point X,Y
 wall_normal_option = click.option(
     "--wall-normal", "wall_normal", help="The wall normal NX,NY,NZ towards the robot; default -1,0,0."
 )
-plant_option = click.option("--plant", "plant_file", help="JSON file of plant-parameter overrides (sim.plant).")
+plant_option = click.option("--plant", "plant_file", help="Plant: a JSON file of overrides (sim.plant) or a built-in name (identified_panda).")
 
 
 # ---------------------------------------------------------------------------- simulate

@@ -20,7 +20,7 @@ from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, 
 @click.option("--resume", is_flag=True, help="Skip the chunks already in --out (same config, --simulate, --plant).")
 @click.option("--simulate", is_flag=True,
               help="Also search each cell's simulated highest feasible speed (the bisection of max-speed).")
-@click.option("--plant", "plant_file", help="JSON file of plant-parameter overrides for --simulate (sim.plant).")
+@click.option("--plant", "plant_file", help="Plant for --simulate: a JSON file of overrides (sim.plant) or a built-in name (identified_panda).")
 @click.option("--example", is_flag=True, help="Print a small runnable config and exit.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary instead of a progress bar.")
 @robot_options

@@ -70,7 +70,27 @@ def fit_report(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> d
         values = [r[block] for r in rows if block in r]
         if values:
             report[block] = float(np.sqrt(np.mean(np.concatenate(values) ** 2)))
+    report["worst_channel"] = worst_channel(rows, len(trials[0].reference))
     return {**report, "fits_noise": fits_noise(report)}
+
+
+def worst_channel(rows: list[dict[str, np.ndarray]], joints: int) -> dict:
+    """The channel with the largest normalised residual over the trials (root mean square in
+    noise units): one joint's jump or torque, or one joint's velocity or torque trace (the trace
+    block's columns: the joints' velocities, then their torques), as ``{block, channel, value}``."""
+    channels = {
+        "jump": np.array([r["jump"] for r in rows]),
+        "torque": np.array([r["torque"] for r in rows]),
+        "trace": np.concatenate([r["trace"].reshape(-1, 2 * joints) for r in rows]),
+    }
+    worst = {"block": "", "channel": "", "value": 0.0}
+    for block, residuals in channels.items():
+        rms = np.sqrt(np.mean(residuals**2, axis=0))
+        k = int(np.argmax(rms))
+        if rms[k] > worst["value"]:
+            name = f"joint {k % joints + 1}" + ("" if block != "trace" else " velocity" if k < joints else " torque")
+            worst = {"block": block, "channel": name, "value": float(rms[k])}
+    return worst
 
 
 def residual_sizes(trials: list[MeasuredTrial]) -> list[int]:

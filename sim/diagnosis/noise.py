@@ -31,8 +31,10 @@ dataset itself, never from a constant:
   ``IMPULSE_FLOOR_SHARE`` of the root mean square impulse for the impulse.
 
 Each block's std is the largest of those it has. The normalised residual of a block is the root
-mean square of its residuals in noise units over the trials; a model fits the noise when every
-block's is at most ``FIT_LIMIT`` (a model with the right causes reads about 1 to 2: the replay's
+mean square of its residuals in noise units over the trials, and of a channel (one joint's jump
+or torque, one joint's velocity or torque trace) the same over that channel's residuals; a model
+fits the noise when every block's is at most ``FIT_LIMIT`` and every channel's at most
+``CHANNEL_LIMIT`` (a model with the right causes reads about 1 to 2: the replay's
 start state carries its own noise).
 """
 
@@ -46,6 +48,7 @@ from impactqp.controller.measured.impact import POST_HALF_WIDTH, PRE_SAMPLES
 
 BLOCKS = ("jump", "torque", "impulse", "duration", "trace")
 FIT_LIMIT = 3.0
+CHANNEL_LIMIT = 2.0 * FIT_LIMIT  # one joint's channel of a block: fewer residuals, a wider spread
 OUTLIER_FACTOR = 2.0  # a trial whose residual is this many times the trials' median (and misfits) stands out
 IMPULSE_FLOOR_SHARE = 0.005
 REPLAY_TORQUE_FACTOR = 2.5  # without repeats: the torque residual of a right model over the sensor scatter's
@@ -151,8 +154,15 @@ def trace_std(trace: np.ndarray, sensor: np.ndarray) -> np.ndarray:
 
 
 def fits_noise(fit: dict) -> bool:
-    """Whether every block of a fit (block -> normalised residual) is within ``FIT_LIMIT``."""
-    return all(fit[b] <= FIT_LIMIT for b in BLOCKS if b in fit)
+    """Whether every block of a fit (block -> normalised residual) is within ``FIT_LIMIT`` and
+    its worst channel (``worst_channel``, when the fit has one) within ``CHANNEL_LIMIT``: a
+    fault in one joint must not hide in a block's mean over all of them."""
+    return all(fit[b] <= FIT_LIMIT for b in BLOCKS if b in fit) and not channel_misfits(fit)
+
+
+def channel_misfits(fit: dict) -> bool:
+    """Whether the worst channel of a fit (``fitting.fit_report``) is beyond ``CHANNEL_LIMIT``."""
+    return fit.get("worst_channel", {}).get("value", 0.0) > CHANNEL_LIMIT
 
 
 def misfit_blocks(fit: dict) -> list[str]:

@@ -12,7 +12,7 @@ from impactqp.controller.model.postures import Surface
 from impactqp.sim.plant import PlantParameters
 
 from .intervals import open_side_text
-from .noise import BLOCKS, FIT_LIMIT, misfit_blocks, outlier_trials
+from .noise import BLOCKS, CHANNEL_LIMIT, FIT_LIMIT, channel_misfits, misfit_blocks, outlier_trials
 from .selection import EXPLAINED_GAIN, relative_gain
 from .trials import MeasuredTrial
 
@@ -156,12 +156,11 @@ class Diagnosis:
                 f"(threshold {100 * EXPLAINED_GAIN:.0f} %)."
             )
         misfits = misfit_blocks(self.fit)
-        if misfits:
-            worst = ", ".join(f"the {b} residual is {self.fit[b]:.1f} times the noise" for b in misfits)
+        if misfits or channel_misfits(self.fit):
             return (
                 f"No candidate cause explains the gap, and the best model found ({model}) does not fit the "
-                f"data: {worst} (a model that fits stays within {FIT_LIMIT:g}). Something outside the "
-                f"candidate causes is at work, e.g. in the {misfits[0]} signal; its fitted values mean nothing."
+                f"data: {misfit_text(self.fit)}. Something outside the candidate causes is at work, e.g. in "
+                f"{where_misfit(self.fit)}; its fitted values mean nothing."
             )
         if self.fit["fits_noise"] and self.gain_over_floor >= EXPLAINED_GAIN:
             return (
@@ -179,6 +178,25 @@ class Diagnosis:
         """The causes of the reported model (``parameter_intervals``), in order."""
         names = list(dict.fromkeys(p["cause"] for p in self.parameter_intervals))
         return names or [self.cause]
+
+
+def misfit_text(fit: dict) -> str:
+    """What misfits in a fit, in words: each block beyond ``FIT_LIMIT``, and the worst channel
+    when it is beyond ``CHANNEL_LIMIT`` (a fault of one joint that a block's mean may hide)."""
+    parts = [f"the {b} residual is {fit[b]:.1f} times the noise" for b in misfit_blocks(fit)]
+    limits = f"a block that fits stays within {FIT_LIMIT:g}"
+    if channel_misfits(fit):
+        channel = fit["worst_channel"]
+        parts.append(f"the {channel['block']} residual of {channel['channel']} alone is {channel['value']:.1f}")
+        limits += f", one joint's channel within {CHANNEL_LIMIT:g}"
+    return ", ".join(parts) + f" ({limits})"
+
+
+def where_misfit(fit: dict) -> str:
+    """Where to look first: the worst channel when it misfits, else the worst block's signal."""
+    if channel_misfits(fit):
+        return f"the {fit['worst_channel']['block']} of {fit['worst_channel']['channel']}"
+    return f"the {misfit_blocks(fit)[0]} signal"
 
 
 def fit_text(fit: dict) -> str:
