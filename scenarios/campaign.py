@@ -62,7 +62,8 @@ from impactqp.sim.runner import TrialSpec  # noqa: E402
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as FLOATING_METHODS  # noqa: E402
 from impactqp.controller.model.robot import RobotModel  # noqa: E402
 from impactqp.sim.generation import STANDING_WALL, dataset_log, trial_entry  # noqa: E402
-from impactqp.sim.humanoid_trial import SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
+from impactqp.sim.humanoid_trial import SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
+from impactqp.sim.trial_sources import SCRIPTED  # noqa: E402
 from impactqp.sim.process_pool import map_in_processes  # noqa: E402
 
 from .campaign_figures import CampaignFigures  # noqa: E402
@@ -342,7 +343,7 @@ def run_stance_trials(
     speed (m/s); ``gain`` is the servo bandwidth (rad/s), ``armature`` the plant's rotor inertia
     (kg m^2): None for the G1's actuators (``controller.model.g1_actuators``), one number for every
     joint (0: link-only) or one per joint; ``source`` the command source
-    (``sim.humanoid_trial.SCRIPTED`` or ``sim.humanoid_qp_source.QpCommand``)."""
+    (``sim.trial_sources``: ``SCRIPTED`` or ``QpCommand``)."""
     all_stances = robot.description.stances
     return [
         run_impact_trial(robot, all_stances[name], speed, gain=gain, armature=armature, source=source)

@@ -26,7 +26,8 @@ from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.model.robot import RobotModel  # noqa: E402
 from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
 from impactqp.controller.model.max_speed import HELD_CONTACT_CRITERIA, Setting, closed_form_max_speed  # noqa: E402
-from impactqp.sim.humanoid_trial import NORMAL, SCRIPTED, ImpactTrial  # noqa: E402
+from impactqp.sim.humanoid_trial import NORMAL, ImpactTrial  # noqa: E402
+from impactqp.sim.trial_sources import SCRIPTED  # noqa: E402
 
 from .max_speed_search import STANCE_HIGHEST_SPEED, STANCE_LOWEST_SPEED, StanceMaxSpeed, StancePlant  # noqa: E402
 

@@ -3,8 +3,8 @@
 Set-up
 ------
 The MuJoCo plant (``sim.scene``) is driven by the impact-aware QP controller
-(``controller.config.ControllerConfig.approach``) at 1 kHz through the plant's joint servo
-(``sim.runner.run_trial``). The trial starts ``start_distance`` in front of the surface at the
+(``controller.config.ControllerConfig.approach``, the command source ``sim.trial_sources.QpCommand``)
+at 1 kHz through the plant's joint servo (``sim.runner.run_approach``). The trial starts ``start_distance`` in front of the surface at the
 posture ``approach_start`` finds for the contact posture, either already moving at the reference
 velocity dq0 = J6+ [-v_n n + v_t; 0] (``start_at_rest=False``, as the paper's constant-velocity
 approach) or at rest (``start_at_rest=True``: the controller accelerates by itself, which is how
@@ -20,7 +20,7 @@ feed-forward: the controller commands dq_cmd = dq_measured + ddq dt, so the serv
 (dq_cmd_k - dq_cmd_{k-1}) / dt repeats, every period, the acceleration the impact imposed in the
 previous one: the contact is cut short and a wrist joint runs away while the controller reports
 "ok" (``docs/simulation.md``, "Controller in the loop", has the numbers). With the commanded
-state the jump is the one of ``sim.runner.CartesianApproachCommand``.
+state the jump is the one of ``sim.trial_sources.CartesianApproachCommand``.
 After the contact the controller keeps its reference: it keeps commanding the approach into the
 wall, like ``CartesianApproachCommand`` (the servo then presses with a slowly growing force).
 
@@ -47,7 +47,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
 from impactqp.controller.model.max_speed import Setting, closed_form_max_speed
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
@@ -59,12 +58,9 @@ from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import ProcessPool
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach
-from impactqp.sim.trial_loop import ControllerSource
+from impactqp.sim.trial_sources import QpCommand
 from impactqp.sim.scene import Scene, build_scene
-from impactqp.controller.model.validation import (
-    BadInputError,
-    tangential_velocity,
-)
+from impactqp.controller.model.validation import BadInputError
 
 # Time allowed to the controller, from rest, to reach its approach speed (it needs less: docs/results.md).
 ACCELERATION_ALLOWANCE = 0.25
@@ -125,19 +121,6 @@ class TrialRunner:
     def surface(self) -> Surface:
         return self.scene.surface
 
-    def controller_config(self, spec: TrialSpec) -> ControllerConfig:
-        normal = self.surface.normal
-        tangential = tangential_velocity(spec.tangential_velocity, normal)
-        return ControllerConfig.approach(
-            self.surface,
-            spec.normal_speed,
-            tangential_velocity=tangential,
-            jump_model=spec.jump_model,
-            restitution=spec.restitution,
-            impact_duration=spec.impact_duration,
-            posture_weight=0.0,
-        )
-
     def duration(self, spec: TrialSpec) -> float:
         """Simulated time: the approach at the expected speed, plus ``after_contact``.
 
@@ -155,20 +138,18 @@ class TrialRunner:
                 speed = min(speed, 0.9 * limit.speed)
         return ACCELERATION_ALLOWANCE + spec.start_distance / speed + spec.after_contact
 
+    def source(self, spec: TrialSpec) -> QpCommand:
+        """The trial's command source: the robot's default controller (``sim.trial_sources.QpCommand``)
+        with the spec's jump model, c_r, delta_t and feedback, posture task weight 0."""
+        return QpCommand(method=spec.jump_model, feedback=spec.feedback, restitution=spec.restitution,
+                         impact_duration=spec.impact_duration, posture_weight=0.0)
+
     def run(self, spec: TrialSpec) -> TrialResult:
         """Simulate the trial with the QP controller in the loop (``sim.runner.run_approach``) and
         evaluate it (raises ``ImpactNotFoundError`` without impact, ``UnreachableStartError``
         when the surface is out of reach)."""
-        controllers = []
-
-        def qp_source(q0: np.ndarray, dq0: np.ndarray) -> ControllerSource:
-            controller = build_controller(self.controller_config(spec), self.robot)
-            controller.reset(q0, dq0)
-            controllers.append(controller)
-            return ControllerSource(controller, spec.feedback)
-
-        log = run_approach(self.scene, self.robot, spec, qp_source, self.duration(spec))
-        return self.evaluate(spec, log, controllers[0].fallback_count)
+        run = run_approach(self.scene, self.robot, spec, self.source(spec), self.duration(spec))
+        return self.evaluate(spec, run.log, run.driver.controller.fallback_count)
 
     def evaluate(self, spec: TrialSpec, log: TrialLog, fallback_count: int = 0) -> TrialResult:
         """The observed criteria and the predictions of the module docstring."""

@@ -2,7 +2,7 @@
 
 Each trial is an approach-and-impact of :func:`sim.runner.run_approach`: the contact point
 starts ``START_DISTANCE`` in front of the surface, already moving at the reference velocity
-(:class:`sim.runner.CartesianApproachCommand`, the kinematic control of the paper's
+(:class:`sim.trial_sources.CartesianApproachCommand`, the kinematic control of the paper's
 experiments), hits the surface and keeps commanding the approach for ``AFTER_CONTACT`` s.
 
 Trials: every posture x every normal speed, then every posture x every tangential speed at the
@@ -136,7 +136,7 @@ def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
     spec = planned.spec
     q_contact = np.clip(spec.q_contact + rng.normal(0.0, START_POSTURE_STD, robot.nq), robot.q_min, robot.q_max)
     distance = spec.start_distance + rng.uniform(-START_DISTANCE_SPREAD, START_DISTANCE_SPREAD)
-    log = run_approach(scene, robot, replace(spec, q_contact=q_contact, start_distance=distance))
+    log = run_approach(scene, robot, replace(spec, q_contact=q_contact, start_distance=distance)).log
     log = apply_sensor(log, task.plant, log.control_period)
     log.dq = log.dq + rng.normal(0.0, task.noise_dq, log.dq.shape)
     log.tau = log.tau + rng.normal(0.0, task.noise_tau, log.tau.shape)

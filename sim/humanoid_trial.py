@@ -1,7 +1,7 @@
 """One simulated hand impact of the standing G1, and a campaign of them (docs/floating-base.md).
 
 Trial: the robot starts at rest in a stance (``controller.model.humanoid_stance``), the wall
-:data:`GAP` beyond its contact point. It stands still for :data:`SETTLE` s, then the right arm
+the source's ``gap`` beyond its contact point. It stands still for :data:`SETTLE` s, then the right arm
 (shoulder, elbow, wrist: its description's ``contact.joints``) is driven so that the hand moves along +x at ``speed``:
 dq_arm = J_arm^+ v* (J_arm the arm joints' block of the contact Jacobian), reached by a 20 ms velocity
 ramp; every other joint is commanded at rest. At the first wall contact (plus a 5 ms detection
@@ -12,12 +12,13 @@ already stopped the hand, but the reference still moves at the approach speed, s
 asks the servo for the reference's whole deceleration -dq_ref/dt in one control step; the waist and
 shoulder torques saturate and the reaction jolts the feet (what that stop did: docs/results.md,
 "G1: servo and stop"). Re-anchored, the servo only damps the joints' post-impact velocities.
-That is the default command source (:data:`SCRIPTED`); ``source`` chooses another one,
-e.g. the whole-body QP (``sim.humanoid_qp_source.QpCommand``): a source gives its start gap, the
-time it may take to reach the wall, per trial a driver, the command source of the one trial loop
-(``sim.trial_loop``: ``step(q, v)`` returns the joints' velocity command, ``stop()`` tells it that
-LATENCY has passed since the first contact), and whether the servo re-anchors its reference at the
-stop (``holds_at_stop``).
+That is the default command source (``sim.trial_sources.SCRIPTED``); ``source`` chooses another
+one, e.g. the whole-body QP (``sim.trial_sources.QpCommand``): a source (``TrialSource``) gives its
+start gap, the time it may take to reach the wall (``approach_time``), per trial a driver, the
+command source of the one trial loop (``sim.trial_loop``: ``step(q, v)`` returns the joints'
+velocity command, ``stop()`` tells it that LATENCY has passed since the first contact), and whether
+the servo re-anchors its reference at the stop (``holds_at_stop``). The trial runs in the one
+trial runner of every robot (``sim.runner.run_impact``).
 
 Servo (the kinematic control, the arm's: ``sim.servo.ComputedTorqueServo``, standing on the feet
 through ``sim.servo.StandingSupport``): a joint-space computed-torque PD with acceleration
@@ -79,20 +80,18 @@ from impactqp.controller.model.capture import capture_region
 from impactqp.controller.model.jump import jump_from_impulse, predict
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
 from impactqp.controller.model.robot import RobotModel
-from impactqp.controller.model.max_speed import contact_joints
+from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.humanoid_stance import stance_posture, support_polygon
 from impactqp.controller.model.robot_description import Stance
 
 from .humanoid_feet import CONE, LOAD, MARGIN, SPEED, lift_onset, slip_onset
+from .runner import run_impact, servoed_plant
 from .scene import build_humanoid_scene
-from .servo import StandingSupport
-from .trial_loop import Ending, ServoedPlant, VelocityCommand, run_loop
+from .trial_loop import Ending
+from .trial_sources import SCRIPTED, TrialStart
 
 CONTROL_PERIOD = 1e-3
-GAP = 0.02  # m from the contact point to the wall at the start
 SETTLE = 0.1  # s standing still before the approach
-RAMP = 0.02  # s of velocity ramp
-LAG = 0.1  # s the hand may arrive after the commanded arrival (torque-limited joints lag the command)
 LATENCY = 0.005  # s from the first contact to the stop command
 AFTER = 0.4  # s simulated after the impact
 SINK = 0.001  # m the soles start into the floor
@@ -171,75 +170,27 @@ class ImpactTrial:
         return self.foot_lift > LIFT
 
 
-@dataclass(frozen=True)
-class ScriptedCommand:
-    """The scripted command source (module docstring): the joints that move the contact (``contact.joints``: the right arm) follow
-    dq_arm = J_arm^+ v* after a RAMP s velocity ramp, every other joint at rest; at the stop
-    (LATENCY after the first wall contact) the servo holds the joints where they are and the
-    command is zero."""
-
-    name = "scripted"
-    gap = GAP  # m from the contact point to the wall at the start
-    tracks_speed = False  # the servo lags the command: the contact speed is below the commanded one
-    holds_at_stop = True  # the servo re-anchors its reference at the stop (``ComputedTorqueServo.hold``)
-
-    def approach_time(self, gap: float, speed: float) -> float:
-        """s allowed from the end of the settling to the first wall contact."""
-        return 3 * gap / speed + RAMP + LAG
-
-    def start(self, robot: RobotModel, q0: np.ndarray, wall_x: float, speed: float) -> _ScriptedDriver:
-        """The driver of one trial (``wall_x`` unused: the script aims along +x)."""
-        return _ScriptedDriver(robot, speed)
-
-
-class _ScriptedDriver:
-    """One trial of ``ScriptedCommand``, a stopping command source (``sim.trial_loop``):
-    ``step(q, v)`` -> the joints' dq_cmd at the source's control step, zero once stopped."""
-
-    def __init__(self, robot: RobotModel, speed: float):
-        self.robot, self.speed = robot, speed
-        self.arm = np.array([robot.joint_index(j) for j in contact_joints(robot.description)])
-        self.record = None
-        self.stopped = False
-        self._step = 0
-
-    def stop(self) -> None:
-        self.stopped = True
-
-    def step(self, q_pin: np.ndarray, v_pin: np.ndarray) -> VelocityCommand:
-        t, self._step = self._step * CONTROL_PERIOD, self._step + 1
-        dq_cmd = np.zeros(self.robot.n_joints)
-        if t >= SETTLE and not self.stopped:
-            terms = self.robot.terms(q_pin)
-            scale = min(1.0, (t - SETTLE) / RAMP)
-            arm = self.robot.base_nv + self.arm  # the arm joints' columns of J
-            dq_cmd[self.arm] = np.linalg.pinv(terms.J[:, arm]) @ (-scale * self.speed * NORMAL)
-        return VelocityCommand(dq_cmd)
-
-
-SCRIPTED = ScriptedCommand()
-
-
 def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: float = SERVO_GAIN,
                      armature=None, q0: np.ndarray | None = None, gap: float | None = None, source=SCRIPTED) -> ImpactTrial:
-    """Simulate one trial (module docstring) and compare the jump with the predictors; ``gap``
-    (m) is the start distance of the contact point from the wall (None: the source's), ``armature`` the plant's rotor
-    inertia (``sim.scene.plant_armature``: None for the G1's actuators), ``source`` the
-    command source (``SCRIPTED``, or ``sim.humanoid_qp_source.QpCommand``: the whole-body QP)."""
+    """Simulate one trial (module docstring; ``sim.runner.run_impact``) and compare the jump with
+    the predictors; ``gap`` (m) is the start distance of the contact point from the wall (None:
+    the source's), ``armature`` the plant's rotor inertia (``sim.scene.plant_armature``: None for
+    the G1's actuators), ``source`` the command source (``sim.trial_sources``: ``SCRIPTED``, or
+    ``QpCommand``: the whole-body QP)."""
     q0 = stance_posture(robot, stance) if q0 is None else q0
     gap = source.gap if gap is None else gap
     contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
     scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature)
-    plant = ServoedPlant(scene, CONTROL_PERIOD, gain=gain, standing=StandingSupport(robot, scene.base_nq, scene.base_nv))
-    start = q0.copy()
-    start[2] -= SINK  # the soft floor contact carries the weight from the first step
-    plant.reset(start)
-    driver = source.start(robot, q0, scene.wall_x, speed)
+    plant = servoed_plant(scene, robot, CONTROL_PERIOD, gain)
+    contact = robot.terms(q0).contact_point
+    wall = Surface(np.array([scene.wall_x, contact[1], contact[2]]), NORMAL.copy())
     ending = Ending(
         int(round((SETTLE + source.approach_time(gap, speed)) / CONTROL_PERIOD)), after=int(round(AFTER / CONTROL_PERIOD)),
         stop_after=int(round(LATENCY / CONTROL_PERIOD)), hold=source.holds_at_stop,
     )
-    record = run_loop(plant, driver, ending)
+    run = run_impact(plant, source, TrialStart(robot, q0, np.zeros(robot.nv), wall, speed, settle=SETTLE, sink=SINK,
+                                               control_period=CONTROL_PERIOD), ending)
+    record = run.record
     first = record.first_contact
     if first is None:
         raise RuntimeError(f"the hand never reached the wall (stance {stance.name}, {speed} m/s, {source.name} command)")
@@ -248,11 +199,7 @@ def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: f
     forces, peaks = (walls * scene.timestep).sum(axis=1), np.maximum((walls @ NORMAL).max(axis=1), 0.0)
     log = _Log(list(zip(record.q, record.dq)), forces, peaks, held.floor, held.feet, held.soles)
     trial = _evaluate(robot, stance, speed, log, first, scene.wall_x)
-    joints_q, joints_v = slice(robot.base_nq, None), slice(robot.base_nv, None)
-    robot_log = TrialLog(record.t, record.q[:, joints_q], record.dq[:, joints_v], record.tau, record.dq_cmd,
-                         record.force_t, record.force, record.wall_time,
-                         base=np.column_stack([record.q[:, :robot.base_nq], record.dq[:, :robot.base_nv]]))
-    return replace(trial, source=source.name, record=driver.record, log=robot_log)
+    return replace(trial, source=source.name, record=run.driver.record, log=run.log)
 
 
 @dataclass

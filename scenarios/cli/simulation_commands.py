@@ -8,7 +8,7 @@ Every command validates its input before simulating; bad input (an unknown postu
 With ``--robot g1`` (a floating base, docs/floating-base.md) the trial is the standing robot's at a
 stance of its description (:func:`stance_trial`): the wall 2 cm in front of the stance's hand,
 normal -x (5 cm with ``simulate --controller qp``: the whole-body QP drives the trial,
-``sim.humanoid_qp_source``). An option of the arm's command that has no meaning for it (a tool, a
+``sim.trial_sources.QpCommand``). An option of the arm's command that has no meaning for it (a tool, a
 plant file, a wall point, jump constraints: only ``--controller qp`` runs a QP, and takes
 ``--jump-model``) is bad input when given: one line naming it. The JSON keeps the arm's keys where
 they mean the same and adds the G1's (CoM jump, foot wrenches, slip, lift, fall); ``--out DIR``
@@ -179,8 +179,8 @@ def stance_trial(
     from impactqp.scenarios.campaign import trial_json
     from impactqp.scenarios.video import render_humanoid_gif
     from impactqp.sim.generation import open_dataset, write_trials
-    from impactqp.sim.humanoid_qp_source import QpCommand
-    from impactqp.sim.humanoid_trial import SCRIPTED, run_impact_trial
+    from impactqp.sim.humanoid_trial import run_impact_trial
+    from impactqp.sim.trial_sources import SCRIPTED, QpCommand
 
     reject_options(["tangential_text", "no_jump_constraint", "plant_file", "wall_point", "wall_normal",
                     "tool"] + (["jump_model"] if controller == "scripted" else []))
