@@ -98,7 +98,7 @@ def _tied_first(row: CheckRow) -> bool:
 def check_summary(rows: list[CheckRow]) -> dict:
     """Below: trials that fell or slipped (should be none); above: in how many trials the binding
     criterion failed first, in how many its onset tied with the first failure (same control step,
-    named second by the order of FAILURES), and in how many it failed at all."""
+    named second by the order of the criteria, ``sim.observed_criteria``), and in how many it failed at all."""
     below = [r for r in rows if r.fraction < 1.0]
     above = [r for r in rows if r.fraction > 1.0]
     return {

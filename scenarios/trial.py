@@ -37,6 +37,7 @@ delta_t_sim):
 - velocity ratio        max over i and t in [t_c, t_c + 50 ms] of |dq_i(t)| / dq_max_i
 - impulsive torque      max_i |J(q-)^T iota_sim|_i / delta_t_sim / tau_max_i
 - violated              either ratio > 1
+(the criteria of a robot without held contacts, ``sim.observed_criteria``, watching [t_c, t_c + 50 ms])
 - predictions           each predictor's own jump at (q-, dq-), v- = J(q-) dq-
 """
 
@@ -58,6 +59,7 @@ from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import ProcessPool
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach
+from impactqp.sim.observed_criteria import Observed, TrialObservation, observe
 from impactqp.sim.trial_sources import QpCommand
 from impactqp.sim.scene import Scene, build_scene
 from impactqp.controller.model.validation import BadInputError
@@ -68,20 +70,29 @@ ACCELERATION_ALLOWANCE = 0.25
 
 @dataclass(frozen=True)
 class TrialResult:
-    """The log of a trial, its measured impact and the observed criteria (module docstring)."""
+    """The log of a trial, its measured impact and the observed criteria (module docstring;
+    ``sim.observed_criteria``: name -> ``Observed``)."""
 
     spec: TrialSpec
     log: TrialLog
     impact: ImpactMeasurement
     contact_speed: float
     predicted: dict[str, np.ndarray]
-    max_velocity_ratio: float
-    max_torque_ratio: float
+    criteria: dict[str, Observed]
     fallback_count: int
 
     @property
+    def max_velocity_ratio(self) -> float:
+        return self.criteria["joint_velocity"].value
+
+    @property
+    def max_torque_ratio(self) -> float:
+        return self.criteria["impulsive_torque"].value
+
+    @property
     def violated(self) -> bool:
-        return bool(self.max_velocity_ratio > 1.0 or self.max_torque_ratio > 1.0)
+        """A criterion failed."""
+        return any(c.failed for c in self.criteria.values())
 
     def to_json(self) -> dict:
         """The ``impactqp simulate --json`` report."""
@@ -165,8 +176,9 @@ class TrialRunner:
                 f"the trial ends {log.t[-1] - impact.t_contact_start:.3f} s after the contact, "
                 f"less than the {OBSERVATION_WINDOW * 1e3:.0f} ms observation window"
             )
-        velocity_ratio = float(np.max(np.abs(log.dq[window]) / robot.dq_max))
-        torque = np.abs(terms.J.T @ impact.impulse) / impact.duration
+        first = int(np.flatnonzero(window)[0])
+        observation = TrialObservation(robot, log, window, first, first, impact.impulse, impact.duration, terms.J,
+                                       log.control_period)
         predicted = {
             name: JUMP_MODELS[name].predict(terms, normal, v_pre, spec.restitution).dq_jump
             for name in METHODS
@@ -177,8 +189,7 @@ class TrialRunner:
             impact=impact,
             contact_speed=float(-normal @ v_pre),
             predicted=predicted,
-            max_velocity_ratio=velocity_ratio,
-            max_torque_ratio=float(np.max(torque / robot.tau_max)),
+            criteria=observe(observation),
             fallback_count=fallback_count,
         )
 

@@ -42,22 +42,10 @@ form's foot criteria). The jump is compared over the joints with each predictor 
 ``controller.model.jump`` fed its own impulse, and with the feet-held momentum law fed
 the measured impulse (``momentum``); the error is eq. (26), the mean of |predicted - measured|.
 
-Failures (:data:`FAILURES`), each with its onset time, the same definitions as the closed form's
-criteria (``controller.model.max_speed``) measured in the trial:
-
-- ``joint_velocity``: a joint beyond its URDF velocity limit, any time after the settling;
-- ``foot_slip`` / ``foot_lift``: a foot that carried weight before the impact slides or has its
-  centre of pressure on an edge of its sole (``sim.humanoid_feet``: from MuJoCo's per-contact
-  forces of the sole spheres) during the impact window, the first wall contact and
-  :data:`ONSET_AFTER` s after it;
-- ``capture``: the measured CoM velocity after the first wall contact is outside the zero-step
-  capture region of the measured CoM and support polygon (``controller.model.capture``);
-- ``fell``: the pelvis below half its height or tilted more than 45 degrees, or, at the trial's
-  last step, both the CoM's ground projection and the capture point outside the support polygon
-  (``falling_at_the_end``: no ground force inside the feet can hold a CoM beyond their edge, and
-  it is moving away; a stiff robot tips over slowly, and the trial may end before its pelvis is
-  low). The capture point alone is not enough there: a robot swaying back on its servos has it
-  outside for a moment. No closed-form criterion: the outcome a failed capture risks.
+Failures: the criteria of a robot with held contacts (``sim.observed_criteria``: joint velocity
+after the settling, foot slip and lift in the impact window, capture, fell), each with its onset
+time, the same definitions as the closed form's criteria (``controller.model.max_speed``) measured
+in the trial; ``ImpactTrial.criteria`` lists them, the failures and their onsets derive from it.
 
 Log: ``ImpactTrial.log`` holds the trial as a robot logs it (``controller.measured.trial_log``): per control
 step the joints' state, the servo's torque held over the step, the command, the base state, and the wall
@@ -73,18 +61,17 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-import pinocchio as pin
 
 from impactqp.controller.measured.trial_log import TrialLog
-from impactqp.controller.model.capture import capture_region
 from impactqp.controller.model.jump import jump_from_impulse, predict
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.humanoid_stance import stance_posture, support_polygon
+from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.robot_description import Stance
 
-from .humanoid_feet import CONE, LOAD, MARGIN, SPEED, lift_onset, slip_onset
+from .humanoid_feet import SPEED, HeldContactLog
+from .observed_criteria import TrialObservation, first_failure, observe
 from .runner import run_impact, servoed_plant
 from .scene import build_humanoid_scene
 from .trial_loop import Ending
@@ -99,8 +86,6 @@ WINDOW = 0.03  # s: longest first contact read as the impact
 SERVO_GAIN = 40.0  # rad/s
 SLIP = 0.005  # m of horizontal foot motion counted as a slip
 LIFT = 0.005  # m of vertical foot motion counted as a lift
-ONSET_AFTER = 0.005  # s after the first wall contact ends in which foot onsets still count
-FAILURES = ("joint_velocity", "foot_slip", "foot_lift", "capture", "fell")
 NORMAL = np.array([-1.0, 0.0, 0.0])  # the wall's normal, towards the robot
 
 
@@ -122,19 +107,10 @@ class ImpactTrial:
     predicted_impulse: dict  # method -> (3)
     errors: dict  # method -> eq. (26) over the joints
     post_com_velocity: np.ndarray  # (3) m/s: the CoM velocity after the first wall contact
-    capture_margin: float  # m: its capture point's distance inside the support polygon (< 0: outside)
     foot_slip: float  # largest horizontal foot displacement (m)
     foot_lift: float  # largest vertical foot displacement (m)
-    cone_ratio: float  # largest |f_t| / (mu f_n) of a loaded foot in the impact window
-    cop_margin: float  # m: smallest centre-of-pressure margin of a loaded foot in the impact window
     slide_speed: float  # m/s: largest horizontal speed of a touching sole sphere in the impact window
-    fell: bool
-    max_velocity_ratio: float  # largest |dq_i| / dq_max_i of the joints after the settling
-    max_velocity_joint: str  # the joint where it occurs
-    failures: tuple  # every failure seen (FAILURES)
-    failure_times: dict  # failure -> s from the first wall contact to its onset (< 0: before it)
-    first_failure: str  # the failure seen first (FAILURES), "" when none
-    failure_time: float  # s from the first wall contact to that failure (nan: none)
+    criteria: dict  # name -> ``sim.observed_criteria.Observed``, the robot's criteria in their order
     wall_x: float  # m: the wall plane's position
     q_log: np.ndarray  # (steps, nq) Pinocchio configurations at the control rate
     contact_index: int  # the control step of the first wall contact
@@ -144,9 +120,58 @@ class ImpactTrial:
 
     @property
     def feasible(self) -> bool:
-        """No failure of FAILURES: no joint beyond its velocity limit, no slip or lift onset, the
+        """No criterion failed: no joint beyond its velocity limit, no slip or lift onset, the
         post-impact CoM velocity capturable, no fall."""
         return not self.first_failure
+
+    @property
+    def failures(self) -> tuple:
+        """Every criterion that failed, in the criteria's order."""
+        return tuple(name for name, c in self.criteria.items() if c.failed)
+
+    @property
+    def failure_times(self) -> dict:
+        """Failed criterion -> s from the first wall contact to its onset (< 0: before it)."""
+        return {name: c.onset for name, c in self.criteria.items() if c.failed}
+
+    @property
+    def first_failure(self) -> str:
+        """The criterion that failed first (``sim.observed_criteria.first_failure``), "" when none."""
+        return first_failure(self.criteria)
+
+    @property
+    def failure_time(self) -> float:
+        """s from the first wall contact to the first failure (nan: none)."""
+        return self.failure_times.get(self.first_failure, float("nan"))
+
+    @property
+    def fell(self) -> bool:
+        return self.criteria["fell"].failed
+
+    @property
+    def capture_margin(self) -> float:
+        """m: the post-impact capture point's distance inside the support polygon (< 0: outside)."""
+        return self.criteria["capture"].value
+
+    @property
+    def cone_ratio(self) -> float:
+        """The largest |f_t| / (mu f_n) of a loaded foot in the impact window."""
+        return self.criteria["foot_slip"].value
+
+    @property
+    def cop_margin(self) -> float:
+        """m: the smallest centre-of-pressure margin of a loaded foot in the impact window."""
+        return self.criteria["foot_lift"].value
+
+    @property
+    def max_velocity_ratio(self) -> float:
+        """The largest |dq_i| / dq_max_i of the joints after the settling."""
+        return self.criteria["joint_velocity"].value
+
+    @property
+    def max_velocity_joint(self) -> str:
+        """The joint where it occurs."""
+        return self.criteria["joint_velocity"].where
 
     @property
     def commands(self) -> np.ndarray:
@@ -194,60 +219,39 @@ def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: f
     first = record.first_contact
     if first is None:
         raise RuntimeError(f"the hand never reached the wall (stance {stance.name}, {speed} m/s, {source.name} command)")
-    steps, substeps, held = len(record.t), plant.substeps, record.held
-    walls = record.force.reshape(steps, substeps, 3)
+    walls = record.force.reshape(len(record.t), plant.substeps, 3)
     forces, peaks = (walls * scene.timestep).sum(axis=1), np.maximum((walls @ NORMAL).max(axis=1), 0.0)
-    log = _Log(list(zip(record.q, record.dq)), forces, peaks, held.floor, held.feet, held.soles)
-    trial = _evaluate(robot, stance, speed, log, first, scene.wall_x)
+    trial = _evaluate(robot, stance, speed, _Contact(forces, peaks, first), run.log, record.held, scene.wall_x)
     return replace(trial, source=source.name, record=run.driver.record, log=run.log)
 
 
-@dataclass
-class _Log:
-    """What a trial recorded at each control step."""
+@dataclass(frozen=True)
+class _Contact:
+    """The wall per control step: its impulse on the robot (steps, 3), the sum of its physics
+    steps', and its largest normal force of a physics step (steps,) (N, 0 without one); the
+    control step of the first wall contact."""
 
-    states: list  # (q, v), Pinocchio convention
-    forces: np.ndarray  # (steps, 3) wall impulse on the robot, the sum of its physics steps'
-    peaks: np.ndarray  # (steps,) largest normal wall force of a physics step (N), 0 without one
-    floor_impulses: np.ndarray  # (steps, 3)
-    feet: np.ndarray  # (steps, 2, 3) foot frame positions
-    soles: np.ndarray  # (steps, 2, 4) sole states (``humanoid_feet``), worst over the step
+    forces: np.ndarray
+    peaks: np.ndarray
+    first: int
 
-    def velocity_ratios(self, robot: RobotModel, start: int) -> np.ndarray:
-        """(steps - start, joints): |dq_i| / dq_max_i of every joint at each control step from ``start``."""
-        return np.array([np.abs(v[robot.base_nv:]) / robot.dq_max for _, v in self.states[start:]])
-
-    def loaded_before(self, first: int) -> np.ndarray:
-        """(2): the feet that carried weight at the control step before ``first`` (the impact's)."""
-        return self.soles[first - 1, :, LOAD] > 0.0
-
-
-def capture_margin(robot: RobotModel, q: np.ndarray, com_velocity: np.ndarray) -> float:
-    """The capture point's smallest distance (m) inside the support polygon of the configuration q
-    for the CoM velocity ``com_velocity`` (``controller.model.capture``; < 0: a step is needed);
-    -inf for a robot whose CoM is not above the ground (fallen: nothing captures it)."""
-    com = robot.terms(q).com
-    if com[2] <= 0.0:
-        return -np.inf
-    region = capture_region(support_polygon(robot, q), com)
-    return float(region.margins(com_velocity).min())
+    @property
+    def last(self) -> int:
+        """The last control step of the first contiguous contact (at most WINDOW s long)."""
+        last, window = self.first, int(round(WINDOW / CONTROL_PERIOD))
+        while last + 1 < min(len(self.forces), self.first + window) and np.any(self.forces[last + 1] != 0.0):
+            last += 1
+        return last
 
 
-def falling_at_the_end(robot: RobotModel, state) -> bool:
-    """Whether the robot in ``state`` (q, v), its pelvis still up, is falling: its CoM's ground
-    projection and its capture point are both outside the support polygon of its feet
-    (``capture_margin`` < 0 at rest and at its CoM velocity)."""
-    q, v = state
-    outside = capture_margin(robot, q, np.zeros(3)) < 0.0
-    return outside and capture_margin(robot, q, robot.terms(q).Jcom @ v) < 0.0
-
-
-def _measured_jumps(robot, log: _Log, first: int, last: int) -> dict:
-    """The measured and predicted jumps over the first wall contact [first, last] (module docstring)."""
-    q_pre, v_pre = log.states[first]
-    q_post, v_post = log.states[min(last + 1, len(log.states) - 1)]
-    impulse = log.forces[first:last + 1].sum(axis=0)
-    terms, post_terms = robot.terms(q_pre), robot.terms(q_post)
+def _measured_jumps(robot, o: TrialObservation, contact: _Contact, terms) -> dict:
+    """The measured and predicted jumps over the first wall contact (module docstring); ``terms``
+    the model terms before it."""
+    first, last = o.first, o.last
+    q_pre, v_pre = o.state(first)
+    q_post, v_post = o.state(o.post)
+    impulse = o.impulse
+    post_terms = robot.terms(q_post)
     v_minus = terms.J @ v_pre
     measured = v_post - v_pre
     joints = slice(robot.base_nv, None)
@@ -260,65 +264,33 @@ def _measured_jumps(robot, log: _Log, first: int, last: int) -> dict:
     impulses["momentum"] = impulse
     post_com_velocity = post_terms.Jcom @ v_post
     return dict(
-        contact_speed=float(-NORMAL @ v_minus), impulse=impulse, peak_force=float(log.peaks[first:last + 1].max()),
-        floor_impulse=log.floor_impulses[first:last + 1].sum(axis=0), duration=(last + 1 - first) * CONTROL_PERIOD,
+        contact_speed=float(-NORMAL @ v_minus), impulse=impulse, peak_force=float(contact.peaks[first:last + 1].max()),
+        floor_impulse=o.held.floor[first:last + 1].sum(axis=0), duration=o.duration,
         measured_jump=measured, measured_com_jump=post_com_velocity - terms.Jcom @ v_pre,
         predicted_jump=predicted, predicted_com_jump=com, predicted_impulse=impulses,
         errors={m: float(np.mean(np.abs(dv[joints] - measured[joints]))) for m, dv in predicted.items()},
-        post_com_velocity=post_com_velocity, capture_margin=capture_margin(robot, q_post, post_com_velocity),
+        post_com_velocity=post_com_velocity,
     )
 
 
-def _failure_flags(robot, log: _Log, first: int, last: int, capture_margin: float) -> dict:
-    """Per control step from the settling on, whether each failure of FAILURES holds (module docstring)."""
+def _evaluate(robot, stance, speed, contact: _Contact, log: TrialLog, held: HeldContactLog, wall_x) -> ImpactTrial:
+    """Measured and predicted jumps and the observed criteria of a simulated trial (module docstring)."""
+    first, last = contact.first, contact.last
     start = int(round(SETTLE / CONTROL_PERIOD))
-    steps = len(log.states) - start
-    base_height = np.array([q[2] for q, _ in log.states])
-    base_up = np.array([pin.Quaternion(q[3:robot.base_nq]).matrix()[2, 2] for q, _ in log.states])
-    fell = (base_height < 0.5 * base_height[0]) | (base_up < np.cos(np.radians(45.0)))
-    if not fell.any():
-        fell[-1] = falling_at_the_end(robot, log.states[-1])
-    ratio = log.velocity_ratios(robot, start).max(axis=1)
-    window = np.zeros(steps, dtype=bool)
-    window[first - start:last + 1 + int(round(ONSET_AFTER / CONTROL_PERIOD)) - start] = True
-    loaded = log.loaded_before(first)
-    soles = log.soles[start:]
-    capture = np.zeros(steps, dtype=bool)
-    capture[min(last + 1, len(log.states) - 1) - start] = capture_margin < 0.0
-    return {
-        "joint_velocity": ratio > 1.0,
-        "foot_slip": window & np.any(slip_onset(soles) & loaded, axis=1),
-        "foot_lift": window & np.any(lift_onset(soles) & loaded, axis=1),
-        "capture": capture,
-        "fell": fell[start:],
-    }
-
-
-def _evaluate(robot, stance, speed, log: _Log, first, wall_x) -> ImpactTrial:
-    """Measured and predicted jumps and the failures of a simulated trial (module docstring)."""
-    window = int(round(WINDOW / CONTROL_PERIOD))
-    last = first
-    while last + 1 < min(len(log.forces), first + window) and np.any(log.forces[last + 1] != 0.0):
-        last += 1
-    jumps = _measured_jumps(robot, log, first, last)
-    failing = _failure_flags(robot, log, first, last, jumps["capture_margin"])
-    start = int(round(SETTLE / CONTROL_PERIOD))
-    times = {name: (int(np.argmax(flags)) + start - first) * CONTROL_PERIOD
-             for name, flags in failing.items() if np.any(flags)}
-    failure = min(times, key=lambda name: (times[name], FAILURES.index(name)), default="")
-    impact = log.soles[first:last + 1 + int(round(ONSET_AFTER / CONTROL_PERIOD))]
-    loaded = log.loaded_before(first)
-    moved = log.feet[start:] - log.feet[start]
-    ratios = log.velocity_ratios(robot, start)
+    watched = np.arange(len(log)) >= start
+    terms = robot.terms(np.concatenate([log.base[first, :robot.base_nq], log.q[first]]))
+    observation = TrialObservation(
+        robot, log, watched, first, last, contact.forces[first:last + 1].sum(axis=0),
+        (last + 1 - first) * CONTROL_PERIOD, terms.J, CONTROL_PERIOD, held,
+    )
+    jumps = _measured_jumps(robot, observation, contact, terms)
+    impact = held.soles[observation.impact_window()]
+    loaded = observation.loaded_before()
+    moved = held.feet[start:] - held.feet[start]
     return ImpactTrial(
         stance=stance.name, speed=speed, **jumps,
         foot_slip=float(np.linalg.norm(moved[..., :2], axis=-1).max()),
         foot_lift=float(np.abs(moved[..., 2]).max()),
-        cone_ratio=float(impact[:, loaded, CONE].max()), cop_margin=float(impact[:, loaded, MARGIN].min()),
-        slide_speed=float(impact[:, loaded, SPEED].max()),
-        fell="fell" in times, max_velocity_ratio=float(ratios.max()),
-        max_velocity_joint=robot.joint_names[int(np.argmax(ratios.max(axis=0)))],
-        failures=tuple(name for name in FAILURES if name in times), failure_times=times, first_failure=failure,
-        failure_time=times.get(failure, float("nan")),
-        wall_x=wall_x, q_log=np.array([q for q, _ in log.states]), contact_index=first,
+        slide_speed=float(impact[:, loaded, SPEED].max()), criteria=observe(observation),
+        wall_x=wall_x, q_log=np.column_stack([log.base[:, :robot.base_nq], log.q]), contact_index=first,
     )

@@ -37,7 +37,6 @@ from impactqp.constraints import jump_model_names
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
-from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.validation import BadInputError, approach_speed, finite_vector
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
@@ -151,7 +150,7 @@ def run_source(plant: ServoedPlant, driver: CommandSource, ending: Ending, start
     scene = plant.scene
     _check_stable(scene, record.t, record.dq[:, scene.base_nv:], dq_max)
     base = (np.column_stack([record.q[:, :scene.base_nq], record.dq[:, :scene.base_nv]]) if scene.base_nq
-            else np.zeros((len(record.t), 13)))
+            else np.zeros((0, 13)))
     log = TrialLog(record.t, record.q[:, scene.base_nq:], record.dq[:, scene.base_nv:], record.tau, record.dq_cmd,
                    record.force_t, record.force, record.wall_time, base=base)
     return TrialRun(log, record, driver)
