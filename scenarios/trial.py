@@ -52,7 +52,8 @@ from impactqp.controller.model.jump import JUMP_MODELS, METHODS
 from impactqp.controller.model.max_speed import Setting, closed_form_max_speed
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.model.robot import PandaModel, RobotModel
+from impactqp.controller.measured.dataset import TrialEntry
 from impactqp.constraints import jump_model_names
 from impactqp.controller.measured.impact import ImpactMeasurement, measure_impact
 from impactqp.sim.plant import PlantParameters
@@ -60,7 +61,8 @@ from impactqp.sim.process_pool import ProcessPool
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach
 from impactqp.sim.observed_criteria import Observed, TrialObservation, observe
-from impactqp.sim.trial_sources import QpCommand
+from impactqp.sim.humanoid_trial import ImpactTrial, run_impact_trial
+from impactqp.sim.trial_sources import SCRIPTED, QpCommand, TrialSource
 from impactqp.sim.scene import Scene, build_scene
 from impactqp.controller.model.validation import BadInputError
 
@@ -94,6 +96,21 @@ class TrialResult:
         """A criterion failed."""
         return any(c.failed for c in self.criteria.values())
 
+    def dataset_trial(self) -> tuple[TrialEntry, TrialLog]:
+        """The manifest entry and the log (control-rate CSV and force CSV) of the trial."""
+        spec = self.spec
+        trial_id = spec.trial_id
+        entry = TrialEntry(
+            id=trial_id,
+            file=f"{trial_id}.csv",
+            reference_normal_speed=spec.normal_speed,
+            force_file=f"{trial_id}_force.csv",
+            reference_tangential_velocity=tuple(float(v) for v in spec.tangential_velocity),
+            posture=spec.posture,
+            impact_time=self.impact.t_contact_start,
+        )
+        return entry, self.log
+
     def to_json(self) -> dict:
         """The ``impactqp simulate --json`` report."""
         return {
@@ -115,22 +132,40 @@ class TrialResult:
 
 
 class TrialRunner:
-    """Runs :class:`TrialSpec` trials on one scene (surface and plant) with one robot model."""
+    """Runs :class:`TrialSpec` trials of one robot model: an arm's on one scene (surface and
+    plant), driven by its QP (``source`` None: ``QpCommand`` configured by each spec), each a
+    :class:`TrialResult`; a robot with held contacts at the stance ``spec.posture`` of its
+    description (``sim.humanoid_trial.run_impact_trial``: the wall placed before its hand, scene
+    None) at the hand speed ``spec.normal_speed``, driven by ``source`` (None: the scripted arm),
+    each an ``ImpactTrial``."""
 
-    def __init__(self, scene: Scene, robot: PandaModel | None = None):
+    def __init__(self, scene: Scene | None, robot: RobotModel | None = None, source: TrialSource | None = None):
         self.scene = scene
         self.robot = PandaModel() if robot is None else robot
+        self.source = source
 
     @classmethod
     def build(
-        cls, surface: Surface, plant: PlantParameters | None = None, choice: RobotChoice = DEFAULT_CHOICE
+        cls, surface: Surface, plant: PlantParameters | None = None, choice: RobotChoice = DEFAULT_CHOICE,
+        source: TrialSource | None = None,
     ) -> TrialRunner:
-        """A runner of ``choice``'s robot and tool: its scene and its model."""
-        return cls(build_scene(surface, plant, robot=choice.robot, tool=choice.tool), choice.model())
+        """A runner of ``choice``'s robot and tool: its scene (none for a robot with held
+        contacts: each trial builds its own) and its model."""
+        held = choice.robot.held_contacts
+        return cls(None if held else build_scene(surface, plant, robot=choice.robot, tool=choice.tool), choice.model(), source)
 
     @property
     def surface(self) -> Surface:
         return self.scene.surface
+
+    def source_of(self, spec: TrialSpec) -> TrialSource:
+        """The trial's command source: the runner's, or the robot's default controller
+        (``sim.trial_sources.QpCommand``) with the spec's jump model, c_r, delta_t and feedback,
+        posture task weight 0."""
+        if self.source is not None:
+            return self.source
+        return QpCommand(method=spec.jump_model, feedback=spec.feedback, restitution=spec.restitution,
+                         impact_duration=spec.impact_duration, posture_weight=0.0)
 
     def duration(self, spec: TrialSpec) -> float:
         """Simulated time: the approach at the expected speed, plus ``after_contact``.
@@ -155,11 +190,15 @@ class TrialRunner:
         return QpCommand(method=spec.jump_model, feedback=spec.feedback, restitution=spec.restitution,
                          impact_duration=spec.impact_duration, posture_weight=0.0)
 
-    def run(self, spec: TrialSpec) -> TrialResult:
-        """Simulate the trial with the QP controller in the loop (``sim.runner.run_approach``) and
-        evaluate it (raises ``ImpactNotFoundError`` without impact, ``UnreachableStartError``
-        when the surface is out of reach)."""
-        run = run_approach(self.scene, self.robot, spec, self.source(spec), self.duration(spec))
+    def run(self, spec: TrialSpec) -> TrialResult | ImpactTrial:
+        """Simulate the trial (``sim.runner.run_approach`` with the QP in the loop, or the standing
+        robot's trial) and evaluate it (raises ``ImpactNotFoundError`` without impact,
+        ``UnreachableStartError`` when the surface is out of reach)."""
+        description = self.robot.description
+        if description.held_contacts:
+            return run_impact_trial(self.robot, description.stances[spec.posture], spec.normal_speed,
+                                    q0=spec.q_contact, source=self.source or SCRIPTED)
+        run = run_approach(self.scene, self.robot, spec, self.source_of(spec), self.duration(spec))
         return self.evaluate(spec, run.log, run.driver.controller.fallback_count)
 
     def evaluate(self, spec: TrialSpec, log: TrialLog, fallback_count: int = 0) -> TrialResult:
@@ -203,7 +242,7 @@ def _init_worker(surface: Surface, plant: PlantParameters | None, choice: RobotC
     _WORKER = TrialRunner.build(surface, plant, choice)
 
 
-def _run_in_worker(spec: TrialSpec) -> TrialResult:
+def _run_in_worker(spec: TrialSpec) -> TrialResult | ImpactTrial:
     return _WORKER.run(spec)
 
 
@@ -220,6 +259,6 @@ class TrialPool(ProcessPool):
             raise BadInputError(f"--jobs must be >= 1, got {jobs}")
         super().__init__(jobs, initializer=_init_worker, initargs=(surface, plant, choice))
 
-    def map(self, specs: Iterable[TrialSpec]) -> Iterator[TrialResult]:
+    def map(self, specs: Iterable[TrialSpec]) -> Iterator[TrialResult | ImpactTrial]:
         """Results in the order of ``specs``."""
         return super().map(_run_in_worker, specs)

@@ -62,6 +62,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from impactqp.controller.measured.dataset import TrialEntry
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.jump import jump_from_impulse, predict
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
@@ -177,6 +178,39 @@ class ImpactTrial:
     def commands(self) -> np.ndarray:
         """(steps, joints) the joint velocity commands sent to the servo (rad/s): the log's ``dq_cmd``."""
         return self.log.dq_cmd
+
+    @property
+    def trial_id(self) -> str:
+        """A file-name-safe id naming the stance, the commanded speed (mm/s) and the command source."""
+        return f"{self.stance}_vn{round(self.speed * 1000):d}_{self.source}"
+
+    def dataset_trial(self) -> tuple[TrialEntry, TrialLog]:
+        """The manifest's entry of the trial (its files, commanded speed, stance and first wall
+        contact) and its log in the dataset's world frame (``sim.generation``: the base's x minus
+        the wall's)."""
+        name = self.trial_id
+        entry = TrialEntry(
+            id=name, file=f"{name}.csv", reference_normal_speed=self.speed, force_file=f"{name}_force.csv",
+            reference_tangential_velocity=(0.0, 0.0, 0.0), posture=self.stance,
+            impact_time=self.contact_index * CONTROL_PERIOD,
+        )
+        base = self.log.base.copy()
+        base[:, 0] -= self.wall_x
+        return entry, replace(self.log, base=base)
+
+    def to_json(self, robot: str) -> dict:
+        """The trial of the robot named ``robot`` as JSON (``impactqp simulate --robot g1 --json``)."""
+        return {
+            "robot": robot, "posture": self.stance, "reference_speed": self.speed, "contact_speed": self.contact_speed,
+            "impulse": self.impulse.tolist(), "floor_impulse": self.floor_impulse.tolist(),
+            "impact_duration": self.duration, "dq_jump": self.measured_jump.tolist(),
+            "com_jump": self.measured_com_jump.tolist(),
+            "predicted": {m: dv.tolist() for m, dv in self.predicted_jump.items()},
+            "predicted_com_jump": {m: c.tolist() for m, c in self.predicted_com_jump.items()},
+            "errors": self.errors, "foot_slip": self.foot_slip, "foot_lift": self.foot_lift, "fell": self.fell,
+            "max_velocity_ratio": self.max_velocity_ratio, "first_failure": self.first_failure,
+            "violated": not self.feasible,
+        }
 
     @property
     def equivalent_duration(self) -> float:

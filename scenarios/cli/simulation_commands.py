@@ -109,7 +109,6 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     if controller is not None:
         raise BadInputError("--controller chooses the command source of --robot g1; the arm is always driven by its QP")
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.scenarios.campaign import write_trial
     from impactqp.sim.generation import dataset_header
     from impactqp.scenarios.trial import TrialRunner
     from impactqp.sim.runner import TrialSpec
@@ -139,7 +138,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     runner = TrialRunner.build(surface, plant, choice)
     result = runner.run(spec)
     if out_dir is not None:
-        write_trial(DatasetWriter(out_dir, dataset_header(surface, choice)), result)
+        DatasetWriter(out_dir, dataset_header(surface, choice)).add_trial(*result.dataset_trial())
     if video_file is not None:
         from impactqp.scenarios.video import render_impact_gif
 
@@ -176,7 +175,6 @@ def stance_trial(
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
     from impactqp.controller.model.robot import RobotModel
-    from impactqp.scenarios.campaign import trial_json
     from impactqp.scenarios.video import render_humanoid_gif
     from impactqp.sim.generation import open_dataset, write_trials
     from impactqp.sim.humanoid_trial import run_impact_trial
@@ -201,7 +199,7 @@ def stance_trial(
     written = None if dataset is None else write_trials(dataset, [trial])[0].id
     if video_file is not None:
         render_humanoid_gif(robot, trial, video_file)
-    report = trial_json(choice.robot.name, trial)
+    report = trial.to_json(choice.robot.name)
     if controller == "qp":
         report.update(controller="qp", jump_model=source.method, cycles_not_ok=trial.record.not_ok)
     return report, written
@@ -253,22 +251,20 @@ def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_
     """The paper's campaign in simulation: dataset, Table I and figures in --out (with --robot
     g1: stances x speeds of the standing G1, its dataset, table1.json and table1.md in --out)."""
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.scenarios.campaign import Campaign, CampaignPlan, FixedBaseTrials, check_postures
-    from impactqp.scenarios.campaign import FloatingBaseTrials
+    from impactqp.scenarios.campaign import Campaign, CampaignPlan, CampaignTrials, check_postures
 
     robot = choice.robot
     if robot.floating:
-
         reject_options(["tangential_text", "plant_file", "tool"])
     postures = check_postures(robot, None if postures_text is None else (s.strip() for s in postures_text.split(",")))
     speeds, tangential = campaign_speeds(speeds_text, tangential_text, robot.floating)
     plan = CampaignPlan(postures, speeds, tangential)
-    trials = FloatingBaseTrials(robot) if robot.floating else FixedBaseTrials(DEFAULT_WALL, load_plant(plant_file), choice)
+    trials = CampaignTrials(choice, DEFAULT_WALL, load_plant(plant_file))
     output_directory(out_dir, "--out")
     table = Campaign(plan, trials, jobs=check_jobs(jobs), progress=not as_json).run(out_dir)
     if as_json:
         emit_json(table.to_json())
         return
     click.echo(table.text())
-    *first, last = ["dataset", *table.files(), *(["figures"] if not robot.floating else [])]
+    *first, last = ["dataset", *table.files(), *(["figures"] if table.figures else [])]
     click.echo(f"{', '.join(first)} and {last} written to {out_dir}")
