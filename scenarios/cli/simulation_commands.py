@@ -167,17 +167,19 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
 def stance_trial(
     choice: RobotChoice, posture: str, speed: float, files: dict, controller: str = "scripted"
 ) -> tuple[dict, str | None]:
-    """One trial of the floating-base robot of ``choice`` (``sim.humanoid_trial``) driven by the
+    """One trial of the floating-base robot of ``choice`` (``scenarios.trial.TrialRunner``, the
+    standing trial of ``sim.humanoid_trial``) driven by the
     scripted command or (``controller="qp"``) the whole-body QP with the ``--jump-model``
     predictor (crb, gm or classical), optionally rendered to a GIF (``files["video_file"]``) and
     added to the G1 dataset in ``files["out_dir"]``; its JSON (with the QP: ``controller`` and
     ``cycles_not_ok`` added) and the id of the trial written (None without ``out_dir``)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
-    from impactqp.controller.model.robot import RobotModel
+    from impactqp.scenarios.campaign import posture_of
+    from impactqp.scenarios.trial import TrialRunner
     from impactqp.scenarios.video import render_humanoid_gif
     from impactqp.sim.generation import open_dataset, write_trials
-    from impactqp.sim.humanoid_trial import run_impact_trial
+    from impactqp.sim.runner import TrialSpec
     from impactqp.sim.trial_sources import SCRIPTED, QpCommand
 
     reject_options(["tangential_text", "no_jump_constraint", "plant_file", "wall_point", "wall_normal",
@@ -189,16 +191,16 @@ def stance_trial(
         if method not in METHODS:
             raise BadInputError(f"--jump-model {method} is not a floating-base predictor; choose from {', '.join(METHODS)}")
         source = QpCommand(method=method)
-    stance = choice.robot.stances[stance_names(choice.robot, posture)[0]]
+    stance = stance_names(choice.robot, posture)[0]
     approach_speed(speed, "--speed")
     if video_file is not None:
         gif_output(video_file)
     dataset = None if out_dir is None else open_dataset(output_directory(out_dir, "--out"), choice.robot)
-    robot = RobotModel(choice.robot)
-    trial = run_impact_trial(robot, stance, speed, source=source)
+    runner = TrialRunner.build(DEFAULT_WALL, None, choice, source)
+    trial = runner.run(TrialSpec(stance, posture_of(choice, stance), speed))
     written = None if dataset is None else write_trials(dataset, [trial])[0].id
     if video_file is not None:
-        render_humanoid_gif(robot, trial, video_file)
+        render_humanoid_gif(runner.robot, trial, video_file)
     report = trial.to_json(choice.robot.name)
     if controller == "qp":
         report.update(controller="qp", jump_model=source.method, cycles_not_ok=trial.record.not_ok)
