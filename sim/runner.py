@@ -78,6 +78,10 @@ class TrialSpec:
     'classical_normal', 'robust') or None to switch them off. ``restitution`` and
     ``impact_duration`` are the controller's c_r and delta_t (and c_r of the predictions).
     ``after_contact``: simulated time after the nominal contact (must hold the 50 ms window).
+    A robot with held contacts (``scenarios.trial.TrialRunner``) takes the stance ``posture`` of
+    its description at its posture ``q_contact`` and the hand speed ``normal_speed``; its wall,
+    start, stop and ending are its standing trial's (``sim.humanoid_trial``), the other fields
+    unused.
     """
 
     posture: str
