@@ -16,7 +16,7 @@ _EXPORTS = {
     "TrialPool": "trial",
     "Campaign": "campaign",
     "CampaignPlan": "campaign",
-    "FixedBaseTrials": "campaign",
+    "CampaignTrials": "campaign",
     "Table1": "campaign",
     "MaxSpeedSearch": "max_speed_search",
     "MaxSpeedReport": "max_speed_search",
@@ -25,7 +25,6 @@ _EXPORTS = {
     "render_impact_gif": "video",
     "render_humanoid_gif": "video",
     "run_stance_trials": "campaign",
-    "FloatingBaseTrials": "campaign",
     "search_stance": "max_speed_search",
     "check_against_simulation": "stance_check",
 }

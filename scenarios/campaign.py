@@ -20,13 +20,14 @@ every predictor against v_t (Fig. 12).
 Output directory: the dataset (``controller.measured.dataset``: ``dataset.json`` and one CSV pair per trial),
 ``table1.json``, ``table1.txt`` and the figures; every file written atomically.
 
-One :class:`Campaign` runs every robot: it is given the robot's trial runner (a
-:class:`CampaignTrials`: :class:`FixedBaseTrials` for an arm, the closed-loop trials of
-``scenarios.trial``; :class:`FloatingBaseTrials` for a floating base), writes each trial to the
-dataset as it comes, then the runner's Table I (its files and figures: ``scenarios.campaign_figures``).
+One :class:`Campaign` runs every robot: it is given the robot's trials (:class:`CampaignTrials`,
+parametrised by the robot's description: its named postures, or with held contacts its stances;
+each trial one ``scenarios.trial.TrialRunner`` run, an arm's driven by its QP, a standing robot's
+by the scripted arm), writes each trial to the dataset as it comes, then Table I (its files and
+figures: ``scenarios.campaign_figures``).
 
-A floating base's campaign: its stances x hand speeds of ``sim.humanoid_trial``
-(:func:`run_stance_trials`), no tangential series. For each trial and predictor (classical, gm,
+A floating base's campaign: its stances x hand speeds of ``sim.humanoid_trial`` (also
+:func:`run_stance_trials`, with the plant's gain and armature), no tangential series. For each trial and predictor (classical, gm,
 crb, each fed its own impulse; ``momentum``: the feet-held momentum law fed the measured impulse)
 the average error (26) over the joints; its table (:class:`FloatingBaseTable`, ``table1.json``
 and the Markdown ``table1.md``, without figures) gives per stance and speed the measured contact
@@ -42,18 +43,18 @@ from contextlib import closing
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 from tqdm import tqdm
 
 from impactqp.controller.model.jump import METHODS, average_prediction_error  # noqa: E402
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice  # noqa: E402
-from impactqp.controller.model.postures import Surface  # noqa: E402
+from impactqp.controller.model.postures import DEFAULT_WALL, Surface  # noqa: E402
+from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
 from impactqp.controller.measured.atomic import write_text_atomic  # noqa: E402
 from impactqp.sim.generation import DEFAULT_SPEEDS, TANGENTIAL_SERIES_NORMAL_SPEED, tangential_direction  # noqa: E402
-from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry  # noqa: E402
-from impactqp.controller.measured.trial_log import TrialLog  # noqa: E402
+from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter  # noqa: E402
 from impactqp.controller.model.robot_description import RobotDescription  # noqa: E402
 from impactqp.sim.plant import PlantParameters  # noqa: E402
 from impactqp.sim.generation import dataset_header  # noqa: E402
@@ -61,9 +62,9 @@ from impactqp.sim.generation import dataset_header  # noqa: E402
 from impactqp.sim.runner import TrialSpec  # noqa: E402
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as FLOATING_METHODS  # noqa: E402
 from impactqp.controller.model.robot import RobotModel  # noqa: E402
-from impactqp.sim.generation import STANDING_WALL, dataset_log, trial_entry  # noqa: E402
-from impactqp.sim.humanoid_trial import SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
-from impactqp.sim.process_pool import map_in_processes  # noqa: E402
+from impactqp.sim.generation import STANDING_WALL  # noqa: E402
+from impactqp.sim.humanoid_trial import SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
+from impactqp.sim.trial_sources import SCRIPTED  # noqa: E402
 
 from .campaign_figures import CampaignFigures  # noqa: E402
 from .trial import TrialPool, TrialResult  # noqa: E402
@@ -75,27 +76,6 @@ TANGENTIAL_NORMAL_SPEED = TANGENTIAL_SERIES_NORMAL_SPEED
 STANCE_SPEEDS = (0.1, 0.2, 0.3, 0.4)
 """m/s: a floating base's commanded hand speeds."""
 STANCE_PREDICTORS = (*FLOATING_METHODS, "momentum")
-
-
-def dataset_trial(result: TrialResult) -> tuple[TrialEntry, TrialLog]:
-    """The manifest entry and the log (control-rate CSV and force CSV) of one simulated trial."""
-    spec = result.spec
-    trial_id = spec.trial_id
-    entry = TrialEntry(
-        id=trial_id,
-        file=f"{trial_id}.csv",
-        reference_normal_speed=spec.normal_speed,
-        force_file=f"{trial_id}_force.csv",
-        reference_tangential_velocity=tuple(float(v) for v in spec.tangential_velocity),
-        posture=spec.posture,
-        impact_time=result.impact.t_contact_start,
-    )
-    return entry, result.log
-
-
-def write_trial(writer: DatasetWriter, result: TrialResult) -> None:
-    """Add one simulated trial to a dataset."""
-    writer.add_trial(*dataset_trial(result))
 
 
 def named_postures(robot: RobotDescription) -> Mapping:
@@ -112,6 +92,15 @@ def check_postures(robot: RobotDescription, names) -> tuple[str, ...]:
         if name not in known:
             raise BadInputError(f"unknown posture {name!r} for the {robot.name}; known: {', '.join(known)}")
     return names
+
+
+def posture_of(choice: RobotChoice, name: str) -> np.ndarray:
+    """The configuration of the named posture ``name`` of ``choice``'s robot: a stance's posture
+    with held contacts (``controller.model.humanoid_stance``), else the named impact posture solved
+    for the tool."""
+    if choice.robot.held_contacts:
+        return stance_posture(choice.shared_model, choice.robot.stances[name])
+    return choice.posture(name).q
 
 
 @dataclass(frozen=True)
@@ -135,18 +124,21 @@ class CampaignPlan:
             approach_speed(abs(v) if v else 1.0, "every tangential speed")
 
     def specs(self, surface: Surface, choice: RobotChoice = DEFAULT_CHOICE) -> list[TrialSpec]:
-        """The trials, at ``choice``'s named postures (solved for its tool); bad input for a
-        posture the robot does not have."""
+        """The trials, at ``choice``'s named postures (:func:`posture_of`); bad input for a
+        posture the robot does not have, or for a tangential series of a robot with held contacts
+        (its hand moves along the wall normal)."""
         postures = check_postures(choice.robot, self.postures)
+        if self.tangential_speeds and choice.robot.held_contacts:
+            raise BadInputError(f"the {choice.robot.name}'s campaign has no tangential series")
         specs = [
-            TrialSpec(name, choice.posture(name).q, float(speed))
+            TrialSpec(name, posture_of(choice, name), float(speed))
             for name in postures
             for speed in self.speeds
         ]
         tangent = tangential_direction(surface.normal)
         first = postures[0]
         specs += [
-            TrialSpec(first, choice.posture(first).q, self.tangential_normal_speed, float(v_t) * tangent)
+            TrialSpec(first, posture_of(choice, first), self.tangential_normal_speed, float(v_t) * tangent)
             for v_t in self.tangential_speeds
         ]
         return specs
@@ -199,7 +191,10 @@ class TableRow:
 
 @dataclass(frozen=True)
 class Table1:
+    """An arm's Table I (module docstring), with its figures."""
+
     rows: list[TableRow]
+    figures = True
 
     def mean_errors(self) -> dict[str, float]:
         return {m: float(np.mean([r.errors[m] for r in self.rows])) for m in METHODS}
@@ -244,7 +239,10 @@ class Table1:
 
 
 class CampaignTable(Protocol):
-    """A campaign's Table I: its JSON, its text, its files by name and its figures."""
+    """A campaign's Table I: its JSON, its text, its files by name and its figures (``figures``:
+    whether it has any)."""
+
+    figures: bool
 
     def to_json(self) -> dict: ...
 
@@ -255,52 +253,39 @@ class CampaignTable(Protocol):
     def write_figures(self, out: Path) -> list[Path]: ...
 
 
-class CampaignTrials(Protocol):
-    """The trial runner of one robot that a :class:`Campaign` is given: its dataset's header, the
-    tasks of a plan, their results (in the tasks' order), each result as a dataset trial, and the
-    Table I of the results."""
-
-    @property
-    def header(self) -> DatasetHeader: ...
-
-    def tasks(self, plan: CampaignPlan) -> list: ...
-
-    def results(self, tasks: list, jobs: int) -> Iterator[Any]: ...
-
-    def dataset_trial(self, result: Any) -> tuple[TrialEntry, TrialLog]: ...
-
-    def table(self, results: list) -> CampaignTable: ...
-
-
 @dataclass(frozen=True)
-class FixedBaseTrials:
-    """The campaign's trials of a fixed-base arm (module docstring): ``scenarios.trial`` runs on
-    ``surface`` and ``plant`` (None: the default plant) with ``choice``'s robot and tool."""
+class CampaignTrials:
+    """The campaign's trials of ``choice``'s robot and tool (module docstring): the plan's
+    trials (``CampaignPlan.specs``) run by ``scenarios.trial`` (its ``TrialPool``) on ``surface``
+    and ``plant`` (None: the default plant), each written to the dataset of the robot's wall
+    (with held contacts ``sim.generation.STANDING_WALL``: each stance puts its wall before its
+    hand), then Table I of the results."""
 
-    surface: Surface
-    plant: PlantParameters | None = None
     choice: RobotChoice = DEFAULT_CHOICE
+    surface: Surface = DEFAULT_WALL
+    plant: PlantParameters | None = None
 
     @property
     def header(self) -> DatasetHeader:
-        return dataset_header(self.surface, self.choice)
+        return dataset_header(STANDING_WALL if self.choice.robot.held_contacts else self.surface, self.choice)
 
     def tasks(self, plan: CampaignPlan) -> list[TrialSpec]:
         return plan.specs(self.surface, self.choice)
 
-    def results(self, tasks: list[TrialSpec], jobs: int) -> Iterator[TrialResult]:
+    def results(self, tasks: list[TrialSpec], jobs: int) -> Iterator:
         with TrialPool(self.surface, self.plant, jobs, self.choice) as pool:
             yield from pool.map(tasks)
 
-    def dataset_trial(self, result: TrialResult) -> tuple[TrialEntry, TrialLog]:
-        return dataset_trial(result)
-
-    def table(self, results: list[TrialResult]) -> Table1:
+    def table(self, results: list) -> CampaignTable:
+        """Table I of the results: the arm's (:class:`Table1`), or a robot's with held contacts
+        (:class:`FloatingBaseTable`)."""
+        if self.choice.robot.held_contacts:
+            return FloatingBaseTable(self.choice.robot.name, results)
         return Table1([TableRow.of(result) for result in results])
 
 
 class Campaign:
-    """Runs a :class:`CampaignPlan` with the trial runner ``trials`` of one robot
+    """Runs a :class:`CampaignPlan` with the trials ``trials`` of one robot
     (:class:`CampaignTrials`) on ``jobs`` worker processes and writes its outputs."""
 
     def __init__(self, plan: CampaignPlan, trials: CampaignTrials, *, jobs: int = 1, progress: bool = False):
@@ -318,7 +303,7 @@ class Campaign:
         results = []
         with closing(self.trials.results(tasks, self.jobs)) as running:  # its pool ends with the loop
             for result in tqdm(running, total=len(tasks), desc="campaign", unit="trial", disable=None if self.progress else True):
-                writer.add_trial(*self.trials.dataset_trial(result))
+                writer.add_trial(*result.dataset_trial())
                 results.append(result)
         table = self.trials.table(results)
         for name, text in table.files().items():
@@ -342,7 +327,7 @@ def run_stance_trials(
     speed (m/s); ``gain`` is the servo bandwidth (rad/s), ``armature`` the plant's rotor inertia
     (kg m^2): None for the G1's actuators (``controller.model.g1_actuators``), one number for every
     joint (0: link-only) or one per joint; ``source`` the command source
-    (``sim.humanoid_trial.SCRIPTED`` or ``sim.humanoid_qp_source.QpCommand``)."""
+    (``sim.trial_sources``: ``SCRIPTED`` or ``QpCommand``)."""
     all_stances = robot.description.stances
     return [
         run_impact_trial(robot, all_stances[name], speed, gain=gain, armature=armature, source=source)
@@ -351,70 +336,20 @@ def run_stance_trials(
     ]
 
 
-def _campaign_trial(task: tuple[RobotDescription, str, float]) -> ImpactTrial:
-    """One campaign trial (robot description, stance, speed) in a worker process."""
-    robot, stance, speed = task
-    return run_stance_trials(RobotModel(robot), (stance,), (speed,))[0]
-
-
-def trial_json(robot: str, trial: ImpactTrial) -> dict:
-    """A trial of the floating-base robot named ``robot`` as JSON (sim.humanoid_trial.ImpactTrial)."""
-    return {
-        "robot": robot, "posture": trial.stance, "reference_speed": trial.speed, "contact_speed": trial.contact_speed,
-        "impulse": trial.impulse.tolist(), "floor_impulse": trial.floor_impulse.tolist(),
-        "impact_duration": trial.duration, "dq_jump": trial.measured_jump.tolist(),
-        "com_jump": trial.measured_com_jump.tolist(),
-        "predicted": {m: dv.tolist() for m, dv in trial.predicted_jump.items()},
-        "predicted_com_jump": {m: c.tolist() for m, c in trial.predicted_com_jump.items()},
-        "errors": trial.errors, "foot_slip": trial.foot_slip, "foot_lift": trial.foot_lift, "fell": trial.fell,
-        "max_velocity_ratio": trial.max_velocity_ratio, "first_failure": trial.first_failure,
-        "violated": not trial.feasible,
-    }
-
-
-@dataclass(frozen=True)
-class FloatingBaseTrials:
-    """The campaign's trials of the floating-base robot ``robot`` (``scenarios.campaign``'s
-    ``CampaignTrials``): the scripted hand at each stance and speed, on the default plant, its
-    trials written as a dataset of the wall (``sim.generation``)."""
-
-    robot: RobotDescription
-
-    @property
-    def header(self) -> DatasetHeader:
-        return dataset_header(STANDING_WALL, RobotChoice(self.robot))
-
-    def tasks(self, plan: CampaignPlan) -> list[tuple[RobotDescription, str, float]]:
-        """(robot, stance, speed) per trial: the plan's stances (None: every stance) x speeds; bad
-        input for a stance the robot does not have or a tangential series (none here)."""
-        if plan.tangential_speeds:
-            raise BadInputError(f"the {self.robot.name}'s campaign has no tangential series")
-        stances = check_postures(self.robot, plan.postures)
-        return [(self.robot, stance, float(speed)) for stance in stances for speed in plan.speeds]
-
-    def results(self, tasks: list, jobs: int) -> Iterator[ImpactTrial]:
-        yield from map_in_processes(_campaign_trial, tasks, jobs)
-
-    def dataset_trial(self, trial: ImpactTrial) -> tuple[TrialEntry, TrialLog]:
-        return trial_entry(trial), dataset_log(trial)
-
-    def table(self, trials: list[ImpactTrial]) -> FloatingBaseTable:
-        return FloatingBaseTable(self.robot.name, trials)
-
-
 @dataclass(frozen=True)
 class FloatingBaseTable:
     """Table I of a floating-base robot's campaign (module docstring)."""
 
     robot: str
     trials: list[ImpactTrial]
+    figures = False
 
     def to_json(self) -> dict:
-        """Table I's JSON: per trial the trial's JSON (``trial_json``) but its predictions, with the
+        """Table I's JSON: per trial the trial's JSON (``ImpactTrial.to_json``) but its predictions, with the
         arm's row keys; the errors (26) averaged over the trials and CRB's reduction."""
         errors = {m: e for m, e in stance_mean_errors(self.trials).items() if m in FLOATING_METHODS}
         rows = [
-            {**{k: v for k, v in trial_json(self.robot, t).items() if k not in ("predicted", "predicted_com_jump", "robot")},
+            {**{k: v for k, v in t.to_json(self.robot).items() if k not in ("predicted", "predicted_com_jump", "robot")},
              "trial": i, "normal_speed": t.speed, "tangential_speed": 0.0, "average_error": t.errors,
              "crb_reduction_percent": crb_reduction(t.errors), "measured_jump": t.measured_jump.tolist()}
             for i, t in enumerate(self.trials)

@@ -56,7 +56,8 @@ from impactqp.controller.model.max_speed import (
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.validation import BadInputError
-from impactqp.sim.humanoid_trial import NORMAL, SCRIPTED, SERVO_GAIN, ImpactTrial, run_impact_trial
+from impactqp.sim.humanoid_trial import NORMAL, SERVO_GAIN, ImpactTrial, run_impact_trial
+from impactqp.sim.trial_sources import SCRIPTED
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import ImpactPosture, Surface
 from impactqp.controller.model.robot import PandaModel
@@ -391,7 +392,7 @@ def search_stance(
     tolerance: float = STANCE_TOLERANCE, methods=("classical", "gm", "crb"), source=SCRIPTED,
 ) -> StanceMaxSpeed:
     """The closed-form speeds of ``methods`` and the simulated bisection of one stance, its trials
-    driven by ``source`` (``sim.humanoid_trial.SCRIPTED`` or ``sim.humanoid_qp_source.QpCommand``)."""
+    driven by ``source`` (``sim.trial_sources``: ``SCRIPTED`` or ``QpCommand``)."""
     stances = robot.description.stances
     if stance not in stances:
         raise BadInputError(f"unknown stance {stance!r}; known: {', '.join(stances)}")

@@ -26,7 +26,8 @@ from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.model.robot import RobotModel  # noqa: E402
 from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
 from impactqp.controller.model.max_speed import HELD_CONTACT_CRITERIA, Setting, closed_form_max_speed  # noqa: E402
-from impactqp.sim.humanoid_trial import NORMAL, SCRIPTED, ImpactTrial  # noqa: E402
+from impactqp.sim.humanoid_trial import NORMAL, ImpactTrial  # noqa: E402
+from impactqp.sim.trial_sources import SCRIPTED  # noqa: E402
 
 from .max_speed_search import STANCE_HIGHEST_SPEED, STANCE_LOWEST_SPEED, StanceMaxSpeed, StancePlant  # noqa: E402
 
@@ -97,7 +98,7 @@ def _tied_first(row: CheckRow) -> bool:
 def check_summary(rows: list[CheckRow]) -> dict:
     """Below: trials that fell or slipped (should be none); above: in how many trials the binding
     criterion failed first, in how many its onset tied with the first failure (same control step,
-    named second by the order of FAILURES), and in how many it failed at all."""
+    named second by the order of the criteria, ``sim.observed_criteria``), and in how many it failed at all."""
     below = [r for r in rows if r.fraction < 1.0]
     above = [r for r in rows if r.fraction > 1.0]
     return {

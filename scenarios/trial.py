@@ -3,8 +3,8 @@
 Set-up
 ------
 The MuJoCo plant (``sim.scene``) is driven by the impact-aware QP controller
-(``controller.config.ControllerConfig.approach``) at 1 kHz through the plant's joint servo
-(``sim.runner.run_trial``). The trial starts ``start_distance`` in front of the surface at the
+(``controller.config.ControllerConfig.approach``, the command source ``sim.trial_sources.QpCommand``)
+at 1 kHz through the plant's joint servo (``sim.runner.run_approach``). The trial starts ``start_distance`` in front of the surface at the
 posture ``approach_start`` finds for the contact posture, either already moving at the reference
 velocity dq0 = J6+ [-v_n n + v_t; 0] (``start_at_rest=False``, as the paper's constant-velocity
 approach) or at rest (``start_at_rest=True``: the controller accelerates by itself, which is how
@@ -20,7 +20,7 @@ feed-forward: the controller commands dq_cmd = dq_measured + ddq dt, so the serv
 (dq_cmd_k - dq_cmd_{k-1}) / dt repeats, every period, the acceleration the impact imposed in the
 previous one: the contact is cut short and a wrist joint runs away while the controller reports
 "ok" (``docs/simulation.md``, "Controller in the loop", has the numbers). With the commanded
-state the jump is the one of ``sim.runner.CartesianApproachCommand``.
+state the jump is the one of ``sim.trial_sources.CartesianApproachCommand``.
 After the contact the controller keeps its reference: it keeps commanding the approach into the
 wall, like ``CartesianApproachCommand`` (the servo then presses with a slowly growing force).
 
@@ -37,6 +37,7 @@ delta_t_sim):
 - velocity ratio        max over i and t in [t_c, t_c + 50 ms] of |dq_i(t)| / dq_max_i
 - impulsive torque      max_i |J(q-)^T iota_sim|_i / delta_t_sim / tau_max_i
 - violated              either ratio > 1
+(the criteria of a robot without held contacts, ``sim.observed_criteria``, watching [t_c, t_c + 50 ms])
 - predictions           each predictor's own jump at (q-, dq-), v- = J(q-) dq-
 """
 
@@ -47,24 +48,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
 from impactqp.controller.model.max_speed import Setting, closed_form_max_speed
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.model.robot import PandaModel, RobotModel
+from impactqp.controller.measured.dataset import TrialEntry
 from impactqp.constraints import jump_model_names
 from impactqp.controller.measured.impact import ImpactMeasurement, measure_impact
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import ProcessPool
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach
-from impactqp.sim.trial_loop import ControllerSource
+from impactqp.sim.observed_criteria import Observed, TrialObservation, observe
+from impactqp.sim.humanoid_trial import ImpactTrial, run_impact_trial
+from impactqp.sim.trial_sources import SCRIPTED, QpCommand, TrialSource
 from impactqp.sim.scene import Scene, build_scene
-from impactqp.controller.model.validation import (
-    BadInputError,
-    tangential_velocity,
-)
+from impactqp.controller.model.validation import BadInputError
 
 # Time allowed to the controller, from rest, to reach its approach speed (it needs less: docs/results.md).
 ACCELERATION_ALLOWANCE = 0.25
@@ -72,20 +72,44 @@ ACCELERATION_ALLOWANCE = 0.25
 
 @dataclass(frozen=True)
 class TrialResult:
-    """The log of a trial, its measured impact and the observed criteria (module docstring)."""
+    """The log of a trial, its measured impact and the observed criteria (module docstring;
+    ``sim.observed_criteria``: name -> ``Observed``)."""
 
     spec: TrialSpec
     log: TrialLog
     impact: ImpactMeasurement
     contact_speed: float
     predicted: dict[str, np.ndarray]
-    max_velocity_ratio: float
-    max_torque_ratio: float
+    criteria: dict[str, Observed]
     fallback_count: int
 
     @property
+    def max_velocity_ratio(self) -> float:
+        return self.criteria["joint_velocity"].value
+
+    @property
+    def max_torque_ratio(self) -> float:
+        return self.criteria["impulsive_torque"].value
+
+    @property
     def violated(self) -> bool:
-        return bool(self.max_velocity_ratio > 1.0 or self.max_torque_ratio > 1.0)
+        """A criterion failed."""
+        return any(c.failed for c in self.criteria.values())
+
+    def dataset_trial(self) -> tuple[TrialEntry, TrialLog]:
+        """The manifest entry and the log (control-rate CSV and force CSV) of the trial."""
+        spec = self.spec
+        trial_id = spec.trial_id
+        entry = TrialEntry(
+            id=trial_id,
+            file=f"{trial_id}.csv",
+            reference_normal_speed=spec.normal_speed,
+            force_file=f"{trial_id}_force.csv",
+            reference_tangential_velocity=tuple(float(v) for v in spec.tangential_velocity),
+            posture=spec.posture,
+            impact_time=self.impact.t_contact_start,
+        )
+        return entry, self.log
 
     def to_json(self) -> dict:
         """The ``impactqp simulate --json`` report."""
@@ -108,35 +132,40 @@ class TrialResult:
 
 
 class TrialRunner:
-    """Runs :class:`TrialSpec` trials on one scene (surface and plant) with one robot model."""
+    """Runs :class:`TrialSpec` trials of one robot model: an arm's on one scene (surface and
+    plant), driven by its QP (``source`` None: ``QpCommand`` configured by each spec), each a
+    :class:`TrialResult`; a robot with held contacts at the stance ``spec.posture`` of its
+    description (``sim.humanoid_trial.run_impact_trial``: the wall placed before its hand, scene
+    None) at the hand speed ``spec.normal_speed``, driven by ``source`` (None: the scripted arm),
+    each an ``ImpactTrial``."""
 
-    def __init__(self, scene: Scene, robot: PandaModel | None = None):
+    def __init__(self, scene: Scene | None, robot: RobotModel | None = None, source: TrialSource | None = None):
         self.scene = scene
         self.robot = PandaModel() if robot is None else robot
+        self.source = source
 
     @classmethod
     def build(
-        cls, surface: Surface, plant: PlantParameters | None = None, choice: RobotChoice = DEFAULT_CHOICE
+        cls, surface: Surface, plant: PlantParameters | None = None, choice: RobotChoice = DEFAULT_CHOICE,
+        source: TrialSource | None = None,
     ) -> TrialRunner:
-        """A runner of ``choice``'s robot and tool: its scene and its model."""
-        return cls(build_scene(surface, plant, robot=choice.robot, tool=choice.tool), choice.model())
+        """A runner of ``choice``'s robot and tool: its scene (none for a robot with held
+        contacts: each trial builds its own) and its model."""
+        held = choice.robot.held_contacts
+        return cls(None if held else build_scene(surface, plant, robot=choice.robot, tool=choice.tool), choice.model(), source)
 
     @property
     def surface(self) -> Surface:
         return self.scene.surface
 
-    def controller_config(self, spec: TrialSpec) -> ControllerConfig:
-        normal = self.surface.normal
-        tangential = tangential_velocity(spec.tangential_velocity, normal)
-        return ControllerConfig.approach(
-            self.surface,
-            spec.normal_speed,
-            tangential_velocity=tangential,
-            jump_model=spec.jump_model,
-            restitution=spec.restitution,
-            impact_duration=spec.impact_duration,
-            posture_weight=0.0,
-        )
+    def source_of(self, spec: TrialSpec) -> TrialSource:
+        """The trial's command source: the runner's, or the robot's default controller
+        (``sim.trial_sources.QpCommand``) with the spec's jump model, c_r, delta_t and feedback,
+        posture task weight 0."""
+        if self.source is not None:
+            return self.source
+        return QpCommand(method=spec.jump_model, feedback=spec.feedback, restitution=spec.restitution,
+                         impact_duration=spec.impact_duration, posture_weight=0.0)
 
     def duration(self, spec: TrialSpec) -> float:
         """Simulated time: the approach at the expected speed, plus ``after_contact``.
@@ -155,20 +184,22 @@ class TrialRunner:
                 speed = min(speed, 0.9 * limit.speed)
         return ACCELERATION_ALLOWANCE + spec.start_distance / speed + spec.after_contact
 
-    def run(self, spec: TrialSpec) -> TrialResult:
-        """Simulate the trial with the QP controller in the loop (``sim.runner.run_approach``) and
-        evaluate it (raises ``ImpactNotFoundError`` without impact, ``UnreachableStartError``
-        when the surface is out of reach)."""
-        controllers = []
+    def source(self, spec: TrialSpec) -> QpCommand:
+        """The trial's command source: the robot's default controller (``sim.trial_sources.QpCommand``)
+        with the spec's jump model, c_r, delta_t and feedback, posture task weight 0."""
+        return QpCommand(method=spec.jump_model, feedback=spec.feedback, restitution=spec.restitution,
+                         impact_duration=spec.impact_duration, posture_weight=0.0)
 
-        def qp_source(q0: np.ndarray, dq0: np.ndarray) -> ControllerSource:
-            controller = build_controller(self.controller_config(spec), self.robot)
-            controller.reset(q0, dq0)
-            controllers.append(controller)
-            return ControllerSource(controller, spec.feedback)
-
-        log = run_approach(self.scene, self.robot, spec, qp_source, self.duration(spec))
-        return self.evaluate(spec, log, controllers[0].fallback_count)
+    def run(self, spec: TrialSpec) -> TrialResult | ImpactTrial:
+        """Simulate the trial (``sim.runner.run_approach`` with the QP in the loop, or the standing
+        robot's trial) and evaluate it (raises ``ImpactNotFoundError`` without impact,
+        ``UnreachableStartError`` when the surface is out of reach)."""
+        description = self.robot.description
+        if description.held_contacts:
+            return run_impact_trial(self.robot, description.stances[spec.posture], spec.normal_speed,
+                                    q0=spec.q_contact, source=self.source or SCRIPTED)
+        run = run_approach(self.scene, self.robot, spec, self.source_of(spec), self.duration(spec))
+        return self.evaluate(spec, run.log, run.driver.controller.fallback_count)
 
     def evaluate(self, spec: TrialSpec, log: TrialLog, fallback_count: int = 0) -> TrialResult:
         """The observed criteria and the predictions of the module docstring."""
@@ -184,8 +215,9 @@ class TrialRunner:
                 f"the trial ends {log.t[-1] - impact.t_contact_start:.3f} s after the contact, "
                 f"less than the {OBSERVATION_WINDOW * 1e3:.0f} ms observation window"
             )
-        velocity_ratio = float(np.max(np.abs(log.dq[window]) / robot.dq_max))
-        torque = np.abs(terms.J.T @ impact.impulse) / impact.duration
+        first = int(np.flatnonzero(window)[0])
+        observation = TrialObservation(robot, log, window, first, first, impact.impulse, impact.duration, terms.J,
+                                       log.control_period)
         predicted = {
             name: JUMP_MODELS[name].predict(terms, normal, v_pre, spec.restitution).dq_jump
             for name in METHODS
@@ -196,8 +228,7 @@ class TrialRunner:
             impact=impact,
             contact_speed=float(-normal @ v_pre),
             predicted=predicted,
-            max_velocity_ratio=velocity_ratio,
-            max_torque_ratio=float(np.max(torque / robot.tau_max)),
+            criteria=observe(observation),
             fallback_count=fallback_count,
         )
 
@@ -211,7 +242,7 @@ def _init_worker(surface: Surface, plant: PlantParameters | None, choice: RobotC
     _WORKER = TrialRunner.build(surface, plant, choice)
 
 
-def _run_in_worker(spec: TrialSpec) -> TrialResult:
+def _run_in_worker(spec: TrialSpec) -> TrialResult | ImpactTrial:
     return _WORKER.run(spec)
 
 
@@ -228,6 +259,6 @@ class TrialPool(ProcessPool):
             raise BadInputError(f"--jobs must be >= 1, got {jobs}")
         super().__init__(jobs, initializer=_init_worker, initargs=(surface, plant, choice))
 
-    def map(self, specs: Iterable[TrialSpec]) -> Iterator[TrialResult]:
+    def map(self, specs: Iterable[TrialSpec]) -> Iterator[TrialResult | ImpactTrial]:
         """Results in the order of ``specs``."""
         return super().map(_run_in_worker, specs)

@@ -1,6 +1,7 @@
 """The simulation: the MuJoCo scene of a robot, its tool and a wall (``scene``), the plant's
 parameters (``plant``), joint servo (``servo``) and sensors (``sensor``), the one 1 kHz closed-loop
-trial of every robot (``trial_loop``), the arm's trials (``runner``), the simulated robot behind the runtime's interface (``sim_backend``),
+trial of every robot (``trial_loop``), the one trial runner (``runner``) and its command sources
+(``trial_sources``), the simulated robot behind the runtime's interface (``sim_backend``),
 simulated datasets (``generation``), the candidate causes of a sim-to-real gap (``causes``) and
 their diagnosis (``diagnosis``), and the standing G1's trial (``humanoid_*``; its scene in ``scene``).
 
@@ -19,8 +20,10 @@ _EXPORTS = {
     "run_trial": "runner",
     "run_approach": "runner",
     "VelocityCommand": "trial_loop",
-    "CartesianApproachCommand": "runner",
-    "CommandReplay": "runner",
+    "run_impact": "runner",
+    "TrialStart": "trial_sources",
+    "CartesianApproachCommand": "trial_sources",
+    "CommandReplay": "trial_sources",
     "SimulationUnstableError": "runner",
     "ComputedTorqueServo": "servo",
     "SimRobot": "sim_backend",
@@ -32,7 +35,8 @@ _EXPORTS = {
     "build_humanoid_scene": "scene",
     "ImpactTrial": "humanoid_trial",
     "run_impact_trial": "humanoid_trial",
-    "QpCommand": "humanoid_qp_source",
+    "QpCommand": "trial_sources",
+    "ScriptedCommand": "trial_sources",
     "ProcessPool": "process_pool",
 }
 _EXPORTS = {name: f"{__name__}.{module}" for name, module in _EXPORTS.items()}

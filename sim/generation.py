@@ -2,7 +2,7 @@
 
 Each trial is an approach-and-impact of :func:`sim.runner.run_approach`: the contact point
 starts ``START_DISTANCE`` in front of the surface, already moving at the reference velocity
-(:class:`sim.runner.CartesianApproachCommand`, the kinematic control of the paper's
+(:class:`sim.trial_sources.CartesianApproachCommand`, the kinematic control of the paper's
 experiments), hits the surface and keeps commanding the approach for ``AFTER_CONTACT`` s.
 
 Trials: every posture x every normal speed, then every posture x every tangential speed at the
@@ -29,7 +29,7 @@ with the whole-body QP 5 cm, in front of its hand), so that the trials of every 
 source share one manifest. A real humanoid's state estimator has its own origin too; only the base
 position's x column depends on the choice. The trial's ``ImpactTrial.log`` holds the rows (the
 servo's torque of row k held over [t_k, t_k+1), the wall force per physics step); its first
-contact is the manifest's ``impact_time``.
+contact is the manifest's ``impact_time`` (``ImpactTrial.dataset_trial``).
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ from impactqp.controller.model.robot_description import ROBOTS, RobotDescription
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range, whole_number
 
 from .plant import PlantParameters
-from .humanoid_trial import NORMAL, ImpactTrial
+from .humanoid_trial import NORMAL
 from .process_pool import ProcessPool
 from .runner import DEFAULT_CONTROL_PERIOD, TrialSpec, run_approach
 from .scene import WALL_FRICTION, build_scene
@@ -139,7 +139,7 @@ def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
     spec = planned.spec
     q_contact = np.clip(spec.q_contact + rng.normal(0.0, START_POSTURE_STD, robot.nq), robot.q_min, robot.q_max)
     distance = spec.start_distance + rng.uniform(-START_DISTANCE_SPREAD, START_DISTANCE_SPREAD)
-    log = run_approach(scene, robot, replace(spec, q_contact=q_contact, start_distance=distance))
+    log = run_approach(scene, robot, replace(spec, q_contact=q_contact, start_distance=distance)).log
     log = apply_sensor(log, task.plant, log.control_period)
     log.dq = log.dq + rng.normal(0.0, task.noise_dq, log.dq.shape)
     log.tau = log.tau + rng.normal(0.0, task.noise_tau, log.tau.shape)
@@ -223,28 +223,6 @@ def generate_dataset(
 
 
 # ---------------------------------------------------------------------------- the standing robot's trials
-def standing_trial_id(trial: ImpactTrial) -> str:
-    """A file-name-safe id naming the stance, the commanded speed (mm/s) and the command source."""
-    return f"{trial.stance}_vn{round(trial.speed * 1000):d}_{trial.source}"
-
-
-def dataset_log(trial: ImpactTrial) -> TrialLog:
-    """The trial's log in the dataset's world frame (module docstring): the base's x minus the wall's."""
-    base = trial.log.base.copy()
-    base[:, 0] -= trial.wall_x
-    return replace(trial.log, base=base)
-
-
-def trial_entry(trial: ImpactTrial) -> TrialEntry:
-    """The manifest's entry of a trial: its files, commanded speed, stance and first wall contact."""
-    name = standing_trial_id(trial)
-    return TrialEntry(
-        id=name, file=f"{name}.csv", reference_normal_speed=trial.speed, force_file=f"{name}_force.csv",
-        reference_tangential_velocity=(0.0, 0.0, 0.0), posture=trial.stance,
-        impact_time=trial.contact_index * DEFAULT_CONTROL_PERIOD,
-    )
-
-
 def open_dataset(directory: str | Path, robot: RobotDescription = ROBOTS["g1"]) -> DatasetWriter:
     """The writer of the dataset of ``robot``'s trials in ``directory`` (created with the first
     trial); an existing dataset of another header is refused here, before any trial is simulated."""
@@ -256,6 +234,7 @@ def write_trials(writer: DatasetWriter, trials) -> list[TrialEntry]:
     an id the dataset holds with other data is refused, the same trial again changes nothing."""
     entries = []
     for trial in trials:
-        entries.append(trial_entry(trial))
-        writer.add_trial(entries[-1], dataset_log(trial))
+        entry, log = trial.dataset_trial()
+        writer.add_trial(entry, log)
+        entries.append(entry)
     return entries

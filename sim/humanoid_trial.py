@@ -1,7 +1,7 @@
 """One simulated hand impact of the standing G1, and a campaign of them (docs/floating-base.md).
 
 Trial: the robot starts at rest in a stance (``controller.model.humanoid_stance``), the wall
-:data:`GAP` beyond its contact point. It stands still for :data:`SETTLE` s, then the right arm
+the source's ``gap`` beyond its contact point. It stands still for :data:`SETTLE` s, then the right arm
 (shoulder, elbow, wrist: its description's ``contact.joints``) is driven so that the hand moves along +x at ``speed``:
 dq_arm = J_arm^+ v* (J_arm the arm joints' block of the contact Jacobian), reached by a 20 ms velocity
 ramp; every other joint is commanded at rest. At the first wall contact (plus a 5 ms detection
@@ -12,12 +12,13 @@ already stopped the hand, but the reference still moves at the approach speed, s
 asks the servo for the reference's whole deceleration -dq_ref/dt in one control step; the waist and
 shoulder torques saturate and the reaction jolts the feet (what that stop did: docs/results.md,
 "G1: servo and stop"). Re-anchored, the servo only damps the joints' post-impact velocities.
-That is the default command source (:data:`SCRIPTED`); ``source`` chooses another one,
-e.g. the whole-body QP (``sim.humanoid_qp_source.QpCommand``): a source gives its start gap, the
-time it may take to reach the wall, per trial a driver, the command source of the one trial loop
-(``sim.trial_loop``: ``step(q, v)`` returns the joints' velocity command, ``stop()`` tells it that
-LATENCY has passed since the first contact), and whether the servo re-anchors its reference at the
-stop (``holds_at_stop``).
+That is the default command source (``sim.trial_sources.SCRIPTED``); ``source`` chooses another
+one, e.g. the whole-body QP (``sim.trial_sources.QpCommand``): a source (``TrialSource``) gives its
+start gap, the time it may take to reach the wall (``approach_time``), per trial a driver, the
+command source of the one trial loop (``sim.trial_loop``: ``step(q, v)`` returns the joints'
+velocity command, ``stop()`` tells it that LATENCY has passed since the first contact), and whether
+the servo re-anchors its reference at the stop (``holds_at_stop``). The trial runs in the one
+trial runner of every robot (``sim.runner.run_impact``).
 
 Servo (the kinematic control, the arm's: ``sim.servo.ComputedTorqueServo``, standing on the feet
 through ``sim.servo.StandingSupport``): a joint-space computed-torque PD with acceleration
@@ -41,22 +42,10 @@ form's foot criteria). The jump is compared over the joints with each predictor 
 ``controller.model.jump`` fed its own impulse, and with the feet-held momentum law fed
 the measured impulse (``momentum``); the error is eq. (26), the mean of |predicted - measured|.
 
-Failures (:data:`FAILURES`), each with its onset time, the same definitions as the closed form's
-criteria (``controller.model.max_speed``) measured in the trial:
-
-- ``joint_velocity``: a joint beyond its URDF velocity limit, any time after the settling;
-- ``foot_slip`` / ``foot_lift``: a foot that carried weight before the impact slides or has its
-  centre of pressure on an edge of its sole (``sim.humanoid_feet``: from MuJoCo's per-contact
-  forces of the sole spheres) during the impact window, the first wall contact and
-  :data:`ONSET_AFTER` s after it;
-- ``capture``: the measured CoM velocity after the first wall contact is outside the zero-step
-  capture region of the measured CoM and support polygon (``controller.model.capture``);
-- ``fell``: the pelvis below half its height or tilted more than 45 degrees, or, at the trial's
-  last step, both the CoM's ground projection and the capture point outside the support polygon
-  (``falling_at_the_end``: no ground force inside the feet can hold a CoM beyond their edge, and
-  it is moving away; a stiff robot tips over slowly, and the trial may end before its pelvis is
-  low). The capture point alone is not enough there: a robot swaying back on its servos has it
-  outside for a moment. No closed-form criterion: the outcome a failed capture risks.
+Failures: the criteria of a robot with held contacts (``sim.observed_criteria``: joint velocity
+after the settling, foot slip and lift in the impact window, capture, fell), each with its onset
+time, the same definitions as the closed form's criteria (``controller.model.max_speed``) measured
+in the trial; ``ImpactTrial.criteria`` lists them, the failures and their onsets derive from it.
 
 Log: ``ImpactTrial.log`` holds the trial as a robot logs it (``controller.measured.trial_log``): per control
 step the joints' state, the servo's torque held over the step, the command, the base state, and the wall
@@ -72,27 +61,25 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-import pinocchio as pin
 
+from impactqp.controller.measured.dataset import TrialEntry
 from impactqp.controller.measured.trial_log import TrialLog
-from impactqp.controller.model.capture import capture_region
 from impactqp.controller.model.jump import jump_from_impulse, predict
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
 from impactqp.controller.model.robot import RobotModel
-from impactqp.controller.model.max_speed import contact_joints
-from impactqp.controller.model.humanoid_stance import stance_posture, support_polygon
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.robot_description import Stance
 
-from .humanoid_feet import CONE, LOAD, MARGIN, SPEED, lift_onset, slip_onset
+from .humanoid_feet import SPEED, HeldContactLog
+from .observed_criteria import TrialObservation, first_failure, observe
+from .runner import run_impact, servoed_plant
 from .scene import build_humanoid_scene
-from .servo import StandingSupport
-from .trial_loop import Ending, ServoedPlant, VelocityCommand, run_loop
+from .trial_loop import Ending
+from .trial_sources import SCRIPTED, TrialStart
 
 CONTROL_PERIOD = 1e-3
-GAP = 0.02  # m from the contact point to the wall at the start
 SETTLE = 0.1  # s standing still before the approach
-RAMP = 0.02  # s of velocity ramp
-LAG = 0.1  # s the hand may arrive after the commanded arrival (torque-limited joints lag the command)
 LATENCY = 0.005  # s from the first contact to the stop command
 AFTER = 0.4  # s simulated after the impact
 SINK = 0.001  # m the soles start into the floor
@@ -100,8 +87,6 @@ WINDOW = 0.03  # s: longest first contact read as the impact
 SERVO_GAIN = 40.0  # rad/s
 SLIP = 0.005  # m of horizontal foot motion counted as a slip
 LIFT = 0.005  # m of vertical foot motion counted as a lift
-ONSET_AFTER = 0.005  # s after the first wall contact ends in which foot onsets still count
-FAILURES = ("joint_velocity", "foot_slip", "foot_lift", "capture", "fell")
 NORMAL = np.array([-1.0, 0.0, 0.0])  # the wall's normal, towards the robot
 
 
@@ -123,19 +108,10 @@ class ImpactTrial:
     predicted_impulse: dict  # method -> (3)
     errors: dict  # method -> eq. (26) over the joints
     post_com_velocity: np.ndarray  # (3) m/s: the CoM velocity after the first wall contact
-    capture_margin: float  # m: its capture point's distance inside the support polygon (< 0: outside)
     foot_slip: float  # largest horizontal foot displacement (m)
     foot_lift: float  # largest vertical foot displacement (m)
-    cone_ratio: float  # largest |f_t| / (mu f_n) of a loaded foot in the impact window
-    cop_margin: float  # m: smallest centre-of-pressure margin of a loaded foot in the impact window
     slide_speed: float  # m/s: largest horizontal speed of a touching sole sphere in the impact window
-    fell: bool
-    max_velocity_ratio: float  # largest |dq_i| / dq_max_i of the joints after the settling
-    max_velocity_joint: str  # the joint where it occurs
-    failures: tuple  # every failure seen (FAILURES)
-    failure_times: dict  # failure -> s from the first wall contact to its onset (< 0: before it)
-    first_failure: str  # the failure seen first (FAILURES), "" when none
-    failure_time: float  # s from the first wall contact to that failure (nan: none)
+    criteria: dict  # name -> ``sim.observed_criteria.Observed``, the robot's criteria in their order
     wall_x: float  # m: the wall plane's position
     q_log: np.ndarray  # (steps, nq) Pinocchio configurations at the control rate
     contact_index: int  # the control step of the first wall contact
@@ -145,14 +121,96 @@ class ImpactTrial:
 
     @property
     def feasible(self) -> bool:
-        """No failure of FAILURES: no joint beyond its velocity limit, no slip or lift onset, the
+        """No criterion failed: no joint beyond its velocity limit, no slip or lift onset, the
         post-impact CoM velocity capturable, no fall."""
         return not self.first_failure
+
+    @property
+    def failures(self) -> tuple:
+        """Every criterion that failed, in the criteria's order."""
+        return tuple(name for name, c in self.criteria.items() if c.failed)
+
+    @property
+    def failure_times(self) -> dict:
+        """Failed criterion -> s from the first wall contact to its onset (< 0: before it)."""
+        return {name: c.onset for name, c in self.criteria.items() if c.failed}
+
+    @property
+    def first_failure(self) -> str:
+        """The criterion that failed first (``sim.observed_criteria.first_failure``), "" when none."""
+        return first_failure(self.criteria)
+
+    @property
+    def failure_time(self) -> float:
+        """s from the first wall contact to the first failure (nan: none)."""
+        return self.failure_times.get(self.first_failure, float("nan"))
+
+    @property
+    def fell(self) -> bool:
+        return self.criteria["fell"].failed
+
+    @property
+    def capture_margin(self) -> float:
+        """m: the post-impact capture point's distance inside the support polygon (< 0: outside)."""
+        return self.criteria["capture"].value
+
+    @property
+    def cone_ratio(self) -> float:
+        """The largest |f_t| / (mu f_n) of a loaded foot in the impact window."""
+        return self.criteria["foot_slip"].value
+
+    @property
+    def cop_margin(self) -> float:
+        """m: the smallest centre-of-pressure margin of a loaded foot in the impact window."""
+        return self.criteria["foot_lift"].value
+
+    @property
+    def max_velocity_ratio(self) -> float:
+        """The largest |dq_i| / dq_max_i of the joints after the settling."""
+        return self.criteria["joint_velocity"].value
+
+    @property
+    def max_velocity_joint(self) -> str:
+        """The joint where it occurs."""
+        return self.criteria["joint_velocity"].where
 
     @property
     def commands(self) -> np.ndarray:
         """(steps, joints) the joint velocity commands sent to the servo (rad/s): the log's ``dq_cmd``."""
         return self.log.dq_cmd
+
+    @property
+    def trial_id(self) -> str:
+        """A file-name-safe id naming the stance, the commanded speed (mm/s) and the command source."""
+        return f"{self.stance}_vn{round(self.speed * 1000):d}_{self.source}"
+
+    def dataset_trial(self) -> tuple[TrialEntry, TrialLog]:
+        """The manifest's entry of the trial (its files, commanded speed, stance and first wall
+        contact) and its log in the dataset's world frame (``sim.generation``: the base's x minus
+        the wall's)."""
+        name = self.trial_id
+        entry = TrialEntry(
+            id=name, file=f"{name}.csv", reference_normal_speed=self.speed, force_file=f"{name}_force.csv",
+            reference_tangential_velocity=(0.0, 0.0, 0.0), posture=self.stance,
+            impact_time=self.contact_index * CONTROL_PERIOD,
+        )
+        base = self.log.base.copy()
+        base[:, 0] -= self.wall_x
+        return entry, replace(self.log, base=base)
+
+    def to_json(self, robot: str) -> dict:
+        """The trial of the robot named ``robot`` as JSON (``impactqp simulate --robot g1 --json``)."""
+        return {
+            "robot": robot, "posture": self.stance, "reference_speed": self.speed, "contact_speed": self.contact_speed,
+            "impulse": self.impulse.tolist(), "floor_impulse": self.floor_impulse.tolist(),
+            "impact_duration": self.duration, "dq_jump": self.measured_jump.tolist(),
+            "com_jump": self.measured_com_jump.tolist(),
+            "predicted": {m: dv.tolist() for m, dv in self.predicted_jump.items()},
+            "predicted_com_jump": {m: c.tolist() for m, c in self.predicted_com_jump.items()},
+            "errors": self.errors, "foot_slip": self.foot_slip, "foot_lift": self.foot_lift, "fell": self.fell,
+            "max_velocity_ratio": self.max_velocity_ratio, "first_failure": self.first_failure,
+            "violated": not self.feasible,
+        }
 
     @property
     def equivalent_duration(self) -> float:
@@ -171,136 +229,63 @@ class ImpactTrial:
         return self.foot_lift > LIFT
 
 
-@dataclass(frozen=True)
-class ScriptedCommand:
-    """The scripted command source (module docstring): the joints that move the contact (``contact.joints``: the right arm) follow
-    dq_arm = J_arm^+ v* after a RAMP s velocity ramp, every other joint at rest; at the stop
-    (LATENCY after the first wall contact) the servo holds the joints where they are and the
-    command is zero."""
-
-    name = "scripted"
-    gap = GAP  # m from the contact point to the wall at the start
-    tracks_speed = False  # the servo lags the command: the contact speed is below the commanded one
-    holds_at_stop = True  # the servo re-anchors its reference at the stop (``ComputedTorqueServo.hold``)
-
-    def approach_time(self, gap: float, speed: float) -> float:
-        """s allowed from the end of the settling to the first wall contact."""
-        return 3 * gap / speed + RAMP + LAG
-
-    def start(self, robot: RobotModel, q0: np.ndarray, wall_x: float, speed: float) -> _ScriptedDriver:
-        """The driver of one trial (``wall_x`` unused: the script aims along +x)."""
-        return _ScriptedDriver(robot, speed)
-
-
-class _ScriptedDriver:
-    """One trial of ``ScriptedCommand``, a stopping command source (``sim.trial_loop``):
-    ``step(q, v)`` -> the joints' dq_cmd at the source's control step, zero once stopped."""
-
-    def __init__(self, robot: RobotModel, speed: float):
-        self.robot, self.speed = robot, speed
-        self.arm = np.array([robot.joint_index(j) for j in contact_joints(robot.description)])
-        self.record = None
-        self.stopped = False
-        self._step = 0
-
-    def stop(self) -> None:
-        self.stopped = True
-
-    def step(self, q_pin: np.ndarray, v_pin: np.ndarray) -> VelocityCommand:
-        t, self._step = self._step * CONTROL_PERIOD, self._step + 1
-        dq_cmd = np.zeros(self.robot.n_joints)
-        if t >= SETTLE and not self.stopped:
-            terms = self.robot.terms(q_pin)
-            scale = min(1.0, (t - SETTLE) / RAMP)
-            arm = self.robot.base_nv + self.arm  # the arm joints' columns of J
-            dq_cmd[self.arm] = np.linalg.pinv(terms.J[:, arm]) @ (-scale * self.speed * NORMAL)
-        return VelocityCommand(dq_cmd)
-
-
-SCRIPTED = ScriptedCommand()
-
-
 def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: float = SERVO_GAIN,
                      armature=None, q0: np.ndarray | None = None, gap: float | None = None, source=SCRIPTED) -> ImpactTrial:
-    """Simulate one trial (module docstring) and compare the jump with the predictors; ``gap``
-    (m) is the start distance of the contact point from the wall (None: the source's), ``armature`` the plant's rotor
-    inertia (``sim.scene.plant_armature``: None for the G1's actuators), ``source`` the
-    command source (``SCRIPTED``, or ``sim.humanoid_qp_source.QpCommand``: the whole-body QP)."""
+    """Simulate one trial (module docstring; ``sim.runner.run_impact``) and compare the jump with
+    the predictors; ``gap`` (m) is the start distance of the contact point from the wall (None:
+    the source's), ``armature`` the plant's rotor inertia (``sim.scene.plant_armature``: None for
+    the G1's actuators), ``source`` the command source (``sim.trial_sources``: ``SCRIPTED``, or
+    ``QpCommand``: the whole-body QP)."""
     q0 = stance_posture(robot, stance) if q0 is None else q0
     gap = source.gap if gap is None else gap
     contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
     scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature)
-    plant = ServoedPlant(scene, CONTROL_PERIOD, gain=gain, standing=StandingSupport(robot, scene.base_nq, scene.base_nv))
-    start = q0.copy()
-    start[2] -= SINK  # the soft floor contact carries the weight from the first step
-    plant.reset(start)
-    driver = source.start(robot, q0, scene.wall_x, speed)
+    plant = servoed_plant(scene, robot, CONTROL_PERIOD, gain)
+    contact = robot.terms(q0).contact_point
+    wall = Surface(np.array([scene.wall_x, contact[1], contact[2]]), NORMAL.copy())
     ending = Ending(
         int(round((SETTLE + source.approach_time(gap, speed)) / CONTROL_PERIOD)), after=int(round(AFTER / CONTROL_PERIOD)),
         stop_after=int(round(LATENCY / CONTROL_PERIOD)), hold=source.holds_at_stop,
     )
-    record = run_loop(plant, driver, ending)
+    run = run_impact(plant, source, TrialStart(robot, q0, np.zeros(robot.nv), wall, speed, settle=SETTLE, sink=SINK,
+                                               control_period=CONTROL_PERIOD), ending)
+    record = run.record
     first = record.first_contact
     if first is None:
         raise RuntimeError(f"the hand never reached the wall (stance {stance.name}, {speed} m/s, {source.name} command)")
-    steps, substeps, held = len(record.t), plant.substeps, record.held
-    walls = record.force.reshape(steps, substeps, 3)
+    walls = record.force.reshape(len(record.t), plant.substeps, 3)
     forces, peaks = (walls * scene.timestep).sum(axis=1), np.maximum((walls @ NORMAL).max(axis=1), 0.0)
-    log = _Log(list(zip(record.q, record.dq)), forces, peaks, held.floor, held.feet, held.soles)
-    trial = _evaluate(robot, stance, speed, log, first, scene.wall_x)
-    joints_q, joints_v = slice(robot.base_nq, None), slice(robot.base_nv, None)
-    robot_log = TrialLog(record.t, record.q[:, joints_q], record.dq[:, joints_v], record.tau, record.dq_cmd,
-                         record.force_t, record.force, record.wall_time,
-                         base=np.column_stack([record.q[:, :robot.base_nq], record.dq[:, :robot.base_nv]]))
-    return replace(trial, source=source.name, record=driver.record, log=robot_log)
+    trial = _evaluate(robot, stance, speed, _Contact(forces, peaks, first), run.log, record.held, scene.wall_x)
+    return replace(trial, source=source.name, record=run.driver.record, log=run.log)
 
 
-@dataclass
-class _Log:
-    """What a trial recorded at each control step."""
+@dataclass(frozen=True)
+class _Contact:
+    """The wall per control step: its impulse on the robot (steps, 3), the sum of its physics
+    steps', and its largest normal force of a physics step (steps,) (N, 0 without one); the
+    control step of the first wall contact."""
 
-    states: list  # (q, v), Pinocchio convention
-    forces: np.ndarray  # (steps, 3) wall impulse on the robot, the sum of its physics steps'
-    peaks: np.ndarray  # (steps,) largest normal wall force of a physics step (N), 0 without one
-    floor_impulses: np.ndarray  # (steps, 3)
-    feet: np.ndarray  # (steps, 2, 3) foot frame positions
-    soles: np.ndarray  # (steps, 2, 4) sole states (``humanoid_feet``), worst over the step
+    forces: np.ndarray
+    peaks: np.ndarray
+    first: int
 
-    def velocity_ratios(self, robot: RobotModel, start: int) -> np.ndarray:
-        """(steps - start, joints): |dq_i| / dq_max_i of every joint at each control step from ``start``."""
-        return np.array([np.abs(v[robot.base_nv:]) / robot.dq_max for _, v in self.states[start:]])
-
-    def loaded_before(self, first: int) -> np.ndarray:
-        """(2): the feet that carried weight at the control step before ``first`` (the impact's)."""
-        return self.soles[first - 1, :, LOAD] > 0.0
-
-
-def capture_margin(robot: RobotModel, q: np.ndarray, com_velocity: np.ndarray) -> float:
-    """The capture point's smallest distance (m) inside the support polygon of the configuration q
-    for the CoM velocity ``com_velocity`` (``controller.model.capture``; < 0: a step is needed);
-    -inf for a robot whose CoM is not above the ground (fallen: nothing captures it)."""
-    com = robot.terms(q).com
-    if com[2] <= 0.0:
-        return -np.inf
-    region = capture_region(support_polygon(robot, q), com)
-    return float(region.margins(com_velocity).min())
+    @property
+    def last(self) -> int:
+        """The last control step of the first contiguous contact (at most WINDOW s long)."""
+        last, window = self.first, int(round(WINDOW / CONTROL_PERIOD))
+        while last + 1 < min(len(self.forces), self.first + window) and np.any(self.forces[last + 1] != 0.0):
+            last += 1
+        return last
 
 
-def falling_at_the_end(robot: RobotModel, state) -> bool:
-    """Whether the robot in ``state`` (q, v), its pelvis still up, is falling: its CoM's ground
-    projection and its capture point are both outside the support polygon of its feet
-    (``capture_margin`` < 0 at rest and at its CoM velocity)."""
-    q, v = state
-    outside = capture_margin(robot, q, np.zeros(3)) < 0.0
-    return outside and capture_margin(robot, q, robot.terms(q).Jcom @ v) < 0.0
-
-
-def _measured_jumps(robot, log: _Log, first: int, last: int) -> dict:
-    """The measured and predicted jumps over the first wall contact [first, last] (module docstring)."""
-    q_pre, v_pre = log.states[first]
-    q_post, v_post = log.states[min(last + 1, len(log.states) - 1)]
-    impulse = log.forces[first:last + 1].sum(axis=0)
-    terms, post_terms = robot.terms(q_pre), robot.terms(q_post)
+def _measured_jumps(robot, o: TrialObservation, contact: _Contact, terms) -> dict:
+    """The measured and predicted jumps over the first wall contact (module docstring); ``terms``
+    the model terms before it."""
+    first, last = o.first, o.last
+    q_pre, v_pre = o.state(first)
+    q_post, v_post = o.state(o.post)
+    impulse = o.impulse
+    post_terms = robot.terms(q_post)
     v_minus = terms.J @ v_pre
     measured = v_post - v_pre
     joints = slice(robot.base_nv, None)
@@ -313,65 +298,33 @@ def _measured_jumps(robot, log: _Log, first: int, last: int) -> dict:
     impulses["momentum"] = impulse
     post_com_velocity = post_terms.Jcom @ v_post
     return dict(
-        contact_speed=float(-NORMAL @ v_minus), impulse=impulse, peak_force=float(log.peaks[first:last + 1].max()),
-        floor_impulse=log.floor_impulses[first:last + 1].sum(axis=0), duration=(last + 1 - first) * CONTROL_PERIOD,
+        contact_speed=float(-NORMAL @ v_minus), impulse=impulse, peak_force=float(contact.peaks[first:last + 1].max()),
+        floor_impulse=o.held.floor[first:last + 1].sum(axis=0), duration=o.duration,
         measured_jump=measured, measured_com_jump=post_com_velocity - terms.Jcom @ v_pre,
         predicted_jump=predicted, predicted_com_jump=com, predicted_impulse=impulses,
         errors={m: float(np.mean(np.abs(dv[joints] - measured[joints]))) for m, dv in predicted.items()},
-        post_com_velocity=post_com_velocity, capture_margin=capture_margin(robot, q_post, post_com_velocity),
+        post_com_velocity=post_com_velocity,
     )
 
 
-def _failure_flags(robot, log: _Log, first: int, last: int, capture_margin: float) -> dict:
-    """Per control step from the settling on, whether each failure of FAILURES holds (module docstring)."""
+def _evaluate(robot, stance, speed, contact: _Contact, log: TrialLog, held: HeldContactLog, wall_x) -> ImpactTrial:
+    """Measured and predicted jumps and the observed criteria of a simulated trial (module docstring)."""
+    first, last = contact.first, contact.last
     start = int(round(SETTLE / CONTROL_PERIOD))
-    steps = len(log.states) - start
-    base_height = np.array([q[2] for q, _ in log.states])
-    base_up = np.array([pin.Quaternion(q[3:robot.base_nq]).matrix()[2, 2] for q, _ in log.states])
-    fell = (base_height < 0.5 * base_height[0]) | (base_up < np.cos(np.radians(45.0)))
-    if not fell.any():
-        fell[-1] = falling_at_the_end(robot, log.states[-1])
-    ratio = log.velocity_ratios(robot, start).max(axis=1)
-    window = np.zeros(steps, dtype=bool)
-    window[first - start:last + 1 + int(round(ONSET_AFTER / CONTROL_PERIOD)) - start] = True
-    loaded = log.loaded_before(first)
-    soles = log.soles[start:]
-    capture = np.zeros(steps, dtype=bool)
-    capture[min(last + 1, len(log.states) - 1) - start] = capture_margin < 0.0
-    return {
-        "joint_velocity": ratio > 1.0,
-        "foot_slip": window & np.any(slip_onset(soles) & loaded, axis=1),
-        "foot_lift": window & np.any(lift_onset(soles) & loaded, axis=1),
-        "capture": capture,
-        "fell": fell[start:],
-    }
-
-
-def _evaluate(robot, stance, speed, log: _Log, first, wall_x) -> ImpactTrial:
-    """Measured and predicted jumps and the failures of a simulated trial (module docstring)."""
-    window = int(round(WINDOW / CONTROL_PERIOD))
-    last = first
-    while last + 1 < min(len(log.forces), first + window) and np.any(log.forces[last + 1] != 0.0):
-        last += 1
-    jumps = _measured_jumps(robot, log, first, last)
-    failing = _failure_flags(robot, log, first, last, jumps["capture_margin"])
-    start = int(round(SETTLE / CONTROL_PERIOD))
-    times = {name: (int(np.argmax(flags)) + start - first) * CONTROL_PERIOD
-             for name, flags in failing.items() if np.any(flags)}
-    failure = min(times, key=lambda name: (times[name], FAILURES.index(name)), default="")
-    impact = log.soles[first:last + 1 + int(round(ONSET_AFTER / CONTROL_PERIOD))]
-    loaded = log.loaded_before(first)
-    moved = log.feet[start:] - log.feet[start]
-    ratios = log.velocity_ratios(robot, start)
+    watched = np.arange(len(log)) >= start
+    terms = robot.terms(np.concatenate([log.base[first, :robot.base_nq], log.q[first]]))
+    observation = TrialObservation(
+        robot, log, watched, first, last, contact.forces[first:last + 1].sum(axis=0),
+        (last + 1 - first) * CONTROL_PERIOD, terms.J, CONTROL_PERIOD, held,
+    )
+    jumps = _measured_jumps(robot, observation, contact, terms)
+    impact = held.soles[observation.impact_window()]
+    loaded = observation.loaded_before()
+    moved = held.feet[start:] - held.feet[start]
     return ImpactTrial(
         stance=stance.name, speed=speed, **jumps,
         foot_slip=float(np.linalg.norm(moved[..., :2], axis=-1).max()),
         foot_lift=float(np.abs(moved[..., 2]).max()),
-        cone_ratio=float(impact[:, loaded, CONE].max()), cop_margin=float(impact[:, loaded, MARGIN].min()),
-        slide_speed=float(impact[:, loaded, SPEED].max()),
-        fell="fell" in times, max_velocity_ratio=float(ratios.max()),
-        max_velocity_joint=robot.joint_names[int(np.argmax(ratios.max(axis=0)))],
-        failures=tuple(name for name in FAILURES if name in times), failure_times=times, first_failure=failure,
-        failure_time=times.get(failure, float("nan")),
-        wall_x=wall_x, q_log=np.array([q for q, _ in log.states]), contact_index=first,
+        slide_speed=float(impact[:, loaded, SPEED].max()), criteria=observe(observation),
+        wall_x=wall_x, q_log=np.column_stack([log.base[:, :robot.base_nq], log.q]), contact_index=first,
     )

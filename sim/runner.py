@@ -1,11 +1,14 @@
-"""The fixed-base arm's closed-loop trials: a 1 kHz command source drives the MuJoCo arm through a
-joint servo, in the one trial loop of every robot (``sim.trial_loop``: state, command, servo
-torque held over the period, physics substeps with the wall's contact force logged).
+"""The one trial runner of every robot: a command source (``sim.trial_sources``: the arm's
+Cartesian approach or replay, the standing robot's scripted arm, the QP of any robot) drives the
+MuJoCo plant through the joint servo, in the one trial loop (``sim.trial_loop``: state, command,
+servo torque held over the period, physics substeps with the wall's contact force logged), and
+the trial is logged as a robot logs it (``TrialLog``; a floating base's state in its base columns).
 
-The arm's command sources: the QP controller, a :class:`CartesianApproachCommand` or a
-:class:`CommandReplay` of a logged sequence (``sim.trial_loop.CommandSource``); :func:`run_trial`
-runs one for a given duration from a given state, :func:`run_approach` one approach-and-impact
-trial (:class:`TrialSpec`).
+:func:`run_impact` runs one source from a :class:`~sim.trial_sources.TrialStart` until an
+``Ending``, on the plant of :func:`servoed_plant` (a robot with held contacts stands on them);
+:func:`run_trial` runs a fixed-base arm's command source for a given duration from a given state,
+:func:`run_approach` an arm's approach-and-impact trial (:class:`TrialSpec`), and
+``sim.humanoid_trial.run_impact_trial`` a standing robot's.
 
 Servo (the arm's kinematic control, a plant property): ``sim.servo.ComputedTorqueServo``, a
 computed-torque joint PD with acceleration feed-forward that tracks the commanded velocity,
@@ -25,8 +28,7 @@ is this torque, the "measured joint torque" of a trial.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import mujoco
 import numpy as np
@@ -35,15 +37,15 @@ from impactqp.constraints import jump_model_names
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
-from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import PandaModel
+from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.validation import BadInputError, approach_speed, finite_vector
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.controller.model.validation import restitution as check_restitution
-from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 
-from .scene import Scene
-from .trial_loop import FEEDBACK, CommandSource, Ending, ServoedPlant, VelocityCommand, run_loop
+from .scene import MujocoScene, Scene
+from .servo import StandingSupport
+from .trial_loop import FEEDBACK, CommandSource, Ending, LoopRecord, ServoedPlant, run_loop
+from .trial_sources import CARTESIAN, CartesianApproachCommand, TrialSource, TrialStart
 
 # A diverging simulation is detected from MuJoCo's warning counters and raised as
 # SimulationUnstableError (_check_stable); the C library must not also print each warning.
@@ -65,57 +67,6 @@ class SimulationUnstableError(BadInputError):
     request lies outside what the model simulates faithfully. Such a trial is never data."""
 
 
-class CartesianApproachCommand:
-    """Move the contact point at a constant world velocity with the orientation held.
-
-    dq_cmd = J6+ [v_ref; 0], v_ref = -v_n n + v_t, with J6 the 6x7 (linear; angular) Jacobian of
-    the contact frame and J6+ its Moore-Penrose pseudo-inverse (minimum joint-velocity norm). A
-    purely kinematic, open-loop-in-task-space approach: no drift correction, which is harmless
-    over the few centimetres of an impact trial. It never stops: after the impact it keeps
-    commanding motion into the wall (the servo then presses with a slowly growing force).
-    """
-
-    def __init__(
-        self,
-        robot: PandaModel,
-        surface: Surface,
-        normal_speed: float,
-        tangential_velocity: np.ndarray | None = None,
-    ):
-        approach_speed(normal_speed, "normal_speed")
-        v_t = np.zeros(3) if tangential_velocity is None else tangential_velocity_along(tangential_velocity, surface.normal)
-        self.robot = robot
-        self.twist = np.concatenate([-normal_speed * surface.normal + v_t, np.zeros(3)])
-
-    def step(self, q: np.ndarray, dq: np.ndarray) -> VelocityCommand:
-        J6 = self.robot.contact_jacobian6(q)
-        return VelocityCommand(np.linalg.lstsq(J6, self.twist, rcond=None)[0])
-
-
-class CommandReplay:
-    """Replay a logged sequence of joint-velocity commands of ``joints`` joints, one row per
-    control step."""
-
-    def __init__(self, dq_cmd: np.ndarray, joints: int):
-        dq_cmd = np.asarray(dq_cmd, dtype=float)
-        if dq_cmd.ndim != 2 or dq_cmd.shape[1] != joints or len(dq_cmd) == 0:
-            raise BadInputError(f"a command replay needs an (N, {joints}) array, got shape {dq_cmd.shape}")
-        if not np.all(np.isfinite(dq_cmd)):
-            raise BadInputError("the replayed commands contain a non-finite value")
-        self.dq_cmd = dq_cmd
-        self.index = 0
-
-    def __len__(self) -> int:
-        return len(self.dq_cmd)
-
-    def step(self, q: np.ndarray, dq: np.ndarray) -> VelocityCommand:
-        if self.index >= len(self.dq_cmd):
-            raise IndexError(f"the command replay holds only {len(self.dq_cmd)} control steps")
-        command = VelocityCommand(self.dq_cmd[self.index])
-        self.index += 1
-        return command
-
-
 @dataclass(frozen=True)
 class TrialSpec:
     """One approach-and-impact trial: where it hits, how fast, and how it is controlled.
@@ -127,6 +78,10 @@ class TrialSpec:
     'classical_normal', 'robust') or None to switch them off. ``restitution`` and
     ``impact_duration`` are the controller's c_r and delta_t (and c_r of the predictions).
     ``after_contact``: simulated time after the nominal contact (must hold the 50 ms window).
+    A robot with held contacts (``scenarios.trial.TrialRunner``) takes the stance ``posture`` of
+    its description at its posture ``q_contact`` and the hand speed ``normal_speed``; its wall,
+    start, stop and ending are its standing trial's (``sim.humanoid_trial``), the other fields
+    unused.
     """
 
     posture: str
@@ -169,6 +124,48 @@ def _mm(value: float) -> str:
     return f"{round(value * 1000):d}".replace("-", "m")
 
 
+@dataclass(frozen=True)
+class TrialRun:
+    """What one trial of :func:`run_impact` or :func:`run_source` recorded: the trial as a robot
+    logs it (``TrialLog``; base columns only for a floating base), the loop's record (the held
+    contacts' log among it) and the driver that commanded it (its ``record``, its controller)."""
+
+    log: TrialLog
+    record: LoopRecord
+    driver: CommandSource
+
+
+def servoed_plant(scene: MujocoScene, robot: RobotModel, control_period: float = DEFAULT_CONTROL_PERIOD,
+                  gain: float | None = None) -> ServoedPlant:
+    """The scene's plant under the joint servo of gain ``gain`` (None: the plant's); a robot with
+    held contacts stands on them (``sim.servo.StandingSupport``)."""
+    standing = StandingSupport(robot, scene.base_nq, scene.base_nv) if robot.description.held_contacts else None
+    return ServoedPlant(scene, control_period, gain=gain, standing=standing)
+
+
+def run_source(plant: ServoedPlant, driver: CommandSource, ending: Ending, start: tuple, dq_max: np.ndarray,
+               servo_reference: tuple[np.ndarray, np.ndarray] | None = None) -> TrialRun:
+    """The trial loop of ``driver`` from the Pinocchio state ``start`` = (q0, dq0) (dq0 None: at
+    rest) until ``ending``, checked stable against the joints' velocity limits ``dq_max``; the
+    servo's reference starts at the state, or at ``servo_reference`` = (q_ref, dq_ref) to resume a
+    trial in the middle (see :func:`servo_reference_from_commands`)."""
+    plant.reset(*start, servo_reference)
+    record = run_loop(plant, driver, ending)
+    scene = plant.scene
+    _check_stable(scene, record.t, record.dq[:, scene.base_nv:], dq_max)
+    base = (np.column_stack([record.q[:, :scene.base_nq], record.dq[:, :scene.base_nv]]) if scene.base_nq
+            else np.zeros((0, 13)))
+    log = TrialLog(record.t, record.q[:, scene.base_nq:], record.dq[:, scene.base_nv:], record.tau, record.dq_cmd,
+                   record.force_t, record.force, record.wall_time, base=base)
+    return TrialRun(log, record, driver)
+
+
+def run_impact(plant: ServoedPlant, source: TrialSource, start: TrialStart, ending: Ending) -> TrialRun:
+    """One impact trial of any robot: ``source`` started at ``start`` drives the plant from the
+    start state until ``ending``."""
+    return run_source(plant, source.start(start), ending, (start.plant_start(), start.dq0), start.robot.dq_max)
+
+
 def run_trial(
     scene: Scene,
     source: CommandSource,
@@ -179,12 +176,9 @@ def run_trial(
     control_period: float = DEFAULT_CONTROL_PERIOD,
     servo_reference: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> TrialLog:
-    """Simulate ``duration`` seconds of closed-loop control from the state (q0, dq0).
-
-    The servo's reference starts at the state, or at ``servo_reference`` = (q_ref, dq_ref) to
-    resume a trial in the middle (see :func:`servo_reference_from_commands`).
-    The servo gain is the scene's ``plant.servo_gain``; ``control_period`` must be a whole
-    number of physics timesteps.
+    """Simulate ``duration`` seconds of a fixed-base arm's closed-loop control by ``source`` from
+    the state (q0, dq0) (:func:`run_source`). The servo gain is the scene's ``plant.servo_gain``;
+    ``control_period`` must be a whole number of physics timesteps.
     """
     plant = ServoedPlant(scene, control_period)
     steps = int(round(duration / control_period))
@@ -195,17 +189,13 @@ def run_trial(
     nq, nv = scene.model.nq, scene.model.nv
     if q0.shape != (nq,) or dq0.shape != (nv,):
         raise BadInputError(f"the start state needs {nq} joint positions and {nv} velocities")
-    plant.reset(q0, dq0, servo_reference)
-    record = run_loop(plant, source, Ending(steps))
-    _check_stable(scene, record.t, record.dq)
-    return TrialLog(record.t, record.q, record.dq, record.tau, record.dq_cmd, record.force_t, record.force,
-                    record.wall_time)
+    return run_source(plant, source, Ending(steps), (q0, dq0), scene.robot.dq_max, servo_reference).log
 
 
-def _check_stable(scene: Scene, t: np.ndarray, dq: np.ndarray) -> None:
+def _check_stable(scene: MujocoScene, t: np.ndarray, dq: np.ndarray, dq_max: np.ndarray) -> None:
     """Raise :class:`SimulationUnstableError` when the trial diverged: a non-finite or huge joint
     velocity, or MuJoCo's own reset after a bad acceleration."""
-    limit = UNSTABLE_VELOCITY_FACTOR * scene.robot.dq_max
+    limit = UNSTABLE_VELOCITY_FACTOR * dq_max
     bad = ~np.all(np.isfinite(dq) & (np.abs(dq) <= limit), axis=1)
     resets = scene.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
     if np.any(bad) or resets:
@@ -236,31 +226,31 @@ def servo_reference_from_commands(
 
 
 def run_approach(
-    scene: Scene,
-    robot: PandaModel,
-    spec: TrialSpec,
-    source: Callable[[np.ndarray, np.ndarray], CommandSource] | None = None,
-    duration: float | None = None,
-) -> TrialLog:
-    """The one approach runner: the trial ``spec`` on the scene's surface.
+    scene: Scene, robot: RobotModel, spec: TrialSpec, source: TrialSource = CARTESIAN, duration: float | None = None
+) -> TrialRun:
+    """A fixed-base arm's approach-and-impact trial ``spec`` on the scene's surface (:func:`run_impact`).
 
     Starts ``spec.start_distance`` in front of the surface (``inverse_kinematics.approach_start``
     from ``spec.q_contact``), at rest or moving at the reference velocity of
-    :class:`CartesianApproachCommand`. The command source is that Cartesian command, or
-    ``source(q0, dq0)`` (the QP controller of a scenario trial). The trial lasts ``duration``; by
-    default the nominal time to contact with a ``LAG_ALLOWANCE`` margin (a plant that lags behind
-    the command, e.g. joint damping against a soft servo, touches later). It ends
+    ``CartesianApproachCommand``. The command source is ``source`` (default: that Cartesian
+    command; the QP controller of a scenario trial is ``QpCommand``). The trial lasts ``duration``;
+    by default the nominal time to contact with a ``LAG_ALLOWANCE`` margin (a plant that lags
+    behind the command, e.g. joint damping against a soft servo, touches later). Its log ends
     ``spec.after_contact`` seconds after the first contact; without any contact it ends at the
     duration.
     """
     q0 = approach_start(robot, spec.q_contact, scene.surface, spec.start_distance)
     approach = CartesianApproachCommand(robot, scene.surface, spec.normal_speed, spec.tangential_velocity)
     dq0 = np.zeros(robot.nv) if spec.start_at_rest else approach.step(q0, np.zeros(robot.nv)).dq_cmd
-    command = approach if source is None else source(q0, dq0)
     if duration is None:
         duration = LAG_ALLOWANCE * spec.start_distance / spec.normal_speed + spec.after_contact
-    log = run_trial(scene, command, q0, dq0, duration)
+    steps = int(round(duration / DEFAULT_CONTROL_PERIOD))
+    if steps < 1:
+        raise BadInputError(f"duration {duration} s is shorter than one control period")
+    start = TrialStart(robot, q0, dq0, scene.surface, spec.normal_speed, spec.tangential_velocity)
+    run = run_impact(servoed_plant(scene, robot), source, start, Ending(steps))
+    log = run.log
     touching = np.flatnonzero(np.linalg.norm(log.force, axis=1) > 0.0)
     if touching.size == 0:
-        return log
-    return log.truncated(log.force_t[touching[0]] + spec.after_contact)
+        return run
+    return replace(run, log=log.truncated(log.force_t[touching[0]] + spec.after_contact))

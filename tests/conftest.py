@@ -133,7 +133,7 @@ def dataset_logs():
     """Two simulated trials (elbow_left, 0.1 and 0.15 m/s) of a plant with armature, by speed."""
     scene = build_scene(plant=PlantParameters(armature=[0.2] * JOINTS))
     return {
-        speed: run_approach(scene, PandaModel(), TrialSpec("elbow_left", PANDA.postures["elbow_left"].q, speed, after_contact=0.05))
+        speed: run_approach(scene, PandaModel(), TrialSpec("elbow_left", PANDA.postures["elbow_left"].q, speed, after_contact=0.05)).log
         for speed in (0.1, 0.15)
     }
 

@@ -16,10 +16,10 @@ from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as FLOATING_METHODS
 from impactqp.controller.model.robot import RobotModel
+from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.scenarios.campaign import (
     STANCE_PREDICTORS,
     FloatingBaseTable,
-    FloatingBaseTrials,
     crb_reduction,
     run_stance_trials,
     stance_mean_errors,
@@ -28,7 +28,7 @@ from impactqp.scenarios.campaign import (
     PAPER_TANGENTIAL_SPEEDS,
     Campaign,
     CampaignPlan,
-    FixedBaseTrials,
+    CampaignTrials,
     Table1,
     TableRow,
     check_postures,
@@ -88,7 +88,7 @@ def test_crb_reduction_is_relative_to_classical():
 def campaign_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("campaign")
     plan = CampaignPlan(("elbow_left",), (0.1, 0.15), (0.05,))
-    Campaign(plan, FixedBaseTrials(DEFAULT_WALL)).run(out)
+    Campaign(plan, CampaignTrials()).run(out)
     return out
 
 
@@ -128,7 +128,7 @@ def test_figures_are_png(campaign_dir):
 
 def test_running_again_into_the_same_directory_changes_nothing(campaign_dir):
     before = (campaign_dir / "dataset.json").read_text()
-    Campaign(CampaignPlan(("elbow_left",), (0.1, 0.15), (0.05,)), FixedBaseTrials(DEFAULT_WALL)).run(campaign_dir)
+    Campaign(CampaignPlan(("elbow_left",), (0.1, 0.15), (0.05,)), CampaignTrials()).run(campaign_dir)
     assert (campaign_dir / "dataset.json").read_text() == before
 
 
@@ -140,7 +140,7 @@ def test_a_campaign_of_the_fr3_with_the_franka_hand_models_what_its_manifest_say
     from impactqp.controller.model.jump import JUMP_MODELS
 
     choice = RobotChoice.of("fr3", "franka_hand")
-    table = Campaign(CampaignPlan(("elbow_up",), (0.1,), ()), FixedBaseTrials(DEFAULT_WALL, choice=choice)).run(tmp_path)
+    table = Campaign(CampaignPlan(("elbow_up",), (0.1,), ()), CampaignTrials(choice)).run(tmp_path)
     dataset = read_dataset(tmp_path)
     assert dataset.header.robot == "fr3" and dataset.header.tool.as_dict() == choice.tool.as_dict()
     assert all(not p for p in validate(tmp_path).values())
@@ -201,19 +201,33 @@ def test_a_per_joint_armature_is_the_same_plant_as_one_number_for_every_joint():
     np.testing.assert_array_equal(one[0].measured_jump, each[0].measured_jump)
 
 
-def test_the_campaign_runner_plans_the_stances_and_speeds():
-    """FloatingBaseTrials: the plan's stances (None: every stance of the description) x speeds, no
-    tangential series; its header is the robot's wall dataset's."""
+def test_the_campaign_trials_of_a_robot_with_held_contacts_are_its_stances_and_speeds():
+    """The one CampaignTrials, given the G1: the plan's stances (None: every stance of the
+    description) x speeds, each at the stance's posture, no tangential series; its header is the
+    robot's wall dataset's."""
     robot = ROBOTS["g1"]
-    trials = FloatingBaseTrials(robot)
+    trials = CampaignTrials(RobotChoice(robot))
     tasks = trials.tasks(CampaignPlan(None, (0.1, 0.2), ()))
-    assert [(s, v) for _, s, v in tasks] == [(s, v) for s in robot.stances for v in (0.1, 0.2)]
-    assert all(r is robot for r, _, _ in tasks)
+    assert [(s.posture, s.normal_speed) for s in tasks] == [(s, v) for s in robot.stances for v in (0.1, 0.2)]
+    model = RobotModel(robot)
+    for spec in tasks:
+        np.testing.assert_array_equal(spec.q_contact, stance_posture(model, robot.stances[spec.posture]))
     assert trials.header.to_dict() == G1_HEADER.to_dict()
     with pytest.raises(BadInputError, match="unknown posture 'elbow_up' for the g1"):
         trials.tasks(CampaignPlan(("elbow_up",), (0.1,), ()))
     with pytest.raises(BadInputError, match="no tangential series"):
         trials.tasks(CampaignPlan(("wide",), (0.1,), (0.05,)))
+
+
+def test_the_campaign_trials_of_a_robot_with_held_contacts_are_its_standing_trials(trials):
+    """What the one CampaignTrials runs for the G1 is the scripted standing trial of each stance
+    and speed, its table the floating base's."""
+    campaign = CampaignTrials(RobotChoice(ROBOTS["g1"]))
+    results = list(campaign.results(campaign.tasks(CampaignPlan(("wide",), (0.1, 0.25), ())), 1))
+    for result, trial in zip(results, trials, strict=True):
+        assert result.errors == trial.errors and result.failures == trial.failures
+        np.testing.assert_array_equal(result.measured_jump, trial.measured_jump)
+    assert isinstance(campaign.table(results), FloatingBaseTable)
 
 
 def test_the_table_json_rows_are_the_trials(trials):

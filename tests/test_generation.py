@@ -16,11 +16,9 @@ from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.sim.generation import (
     START_DISTANCE,
     DatasetRequest,
-    dataset_log,
     generate_dataset,
     open_dataset,
     tangential_direction,
-    trial_entry,
     trial_specs,
     write_trials,
 )
@@ -135,15 +133,15 @@ def test_the_log_is_what_the_trial_ran(trials):
 def test_written_trials_read_back_as_logged(written, trials):
     data = read_dataset(written)
     assert data.header.to_dict() == G1_HEADER.to_dict()
-    assert [t.entry for t in data.trials] == [trial_entry(t) for t in trials]
+    assert [t.entry for t in data.trials] == [t.dataset_trial()[0] for t in trials]
     for read, trial in zip(data.trials, trials):
-        expected = dataset_log(trial)
+        expected = trial.dataset_trial()[1]
         for name in ("t", "q", "dq", "tau", "dq_cmd", "base", "force_t", "force"):
             np.testing.assert_allclose(getattr(read.log, name), getattr(expected, name), rtol=1e-9, atol=1e-12)
         # the dataset's world frame is the simulation's moved onto the wall: only the base's x differs
         np.testing.assert_allclose(read.log.base[:, 0] + trial.wall_x, trial.log.base[:, 0], rtol=1e-9, atol=1e-9)
         np.testing.assert_array_equal(expected.base[:, 1:], trial.log.base[:, 1:])
-    assert validate(written) == {"dataset": [], **{trial_entry(t).id: [] for t in trials}}
+    assert validate(written) == {"dataset": [], **{t.trial_id: [] for t in trials}}
 
 
 def test_the_extraction_agrees_with_the_trial_where_their_definitions_coincide(written, trials):
@@ -180,7 +178,7 @@ def test_the_writer_adds_nothing_twice_and_overwrites_nothing(written, trials):
     write_trials(open_dataset(written), trials[:1])  # the same trial again: nothing changes
     assert file_digests(written) == before
     manifest = json.loads((written / "dataset.json").read_text())
-    assert [t["id"] for t in manifest["trials"]] == [trial_entry(t).id for t in trials]
+    assert [t["id"] for t in manifest["trials"]] == [t.trial_id for t in trials]
     changed = trials[0].__class__(**{**trials[0].__dict__, "log": trials[1].log})
     with pytest.raises(DatasetError, match="already exists"):
         write_trials(open_dataset(written), [changed])

@@ -20,7 +20,7 @@ N = DEFAULT_WALL.normal
 
 
 def simulate(posture, speed):
-    return run_approach(SCENE, ROBOT, TrialSpec(posture, PANDA.postures[posture].q, speed, after_contact=0.05))
+    return run_approach(SCENE, ROBOT, TrialSpec(posture, PANDA.postures[posture].q, speed, after_contact=0.05)).log
 
 
 @pytest.fixture(scope="module")

@@ -126,7 +126,7 @@ def test_parameters_reach_the_mujoco_model():
 
 
 def _impact(plant):
-    log = run_approach(build_scene(plant=plant), ROBOT, TrialSpec("test", Q, 0.15))
+    log = run_approach(build_scene(plant=plant), ROBOT, TrialSpec("test", Q, 0.15)).log
     return measure_impact(log)
 
 

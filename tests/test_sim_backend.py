@@ -5,7 +5,8 @@ import numpy as np
 
 from conftest import JOINTS
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.sim.runner import CommandReplay, run_trial
+from impactqp.sim.runner import run_trial
+from impactqp.sim.trial_sources import CommandReplay
 from impactqp.sim.scene import build_scene
 
 DT = 1e-3

@@ -17,7 +17,9 @@ from impactqp.scenarios.stance_check import (
     speed_figure,
     trial_at_contact_speed,
 )
-from impactqp.sim.humanoid_trial import FAILURES
+from impactqp.sim.observed_criteria import WITH_HELD_CONTACTS
+
+FAILURES = tuple(c.name for c in WITH_HELD_CONTACTS)
 
 
 class FakeTrial:

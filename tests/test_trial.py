@@ -29,7 +29,7 @@ def result(runner):
 def test_commanded_state_feedback_reproduces_the_kinematic_approach(runner, result):
     """Fed its own command, the controller at constant speed hits like the sim core's
     Cartesian approach command: same jump, same contact duration."""
-    baseline = measure_impact(run_approach(runner.scene, runner.robot, TrialSpec(POSTURE, Q, 0.15)))
+    baseline = measure_impact(run_approach(runner.scene, runner.robot, TrialSpec(POSTURE, Q, 0.15)).log)
     np.testing.assert_allclose(result.impact.dq_jump, baseline.dq_jump, atol=5e-3)
     assert result.impact.duration == pytest.approx(baseline.duration, abs=1e-3)
     assert result.impact.duration > 0.010

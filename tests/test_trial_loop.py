@@ -12,7 +12,7 @@ from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.validation import BadInputError
-from impactqp.sim.runner import CartesianApproachCommand
+from impactqp.sim.trial_sources import CartesianApproachCommand
 from impactqp.sim.scene import build_humanoid_scene, build_scene
 from impactqp.sim.servo import StandingSupport
 from impactqp.sim.trial_loop import Ending, ServoedPlant, VelocityCommand, run_loop

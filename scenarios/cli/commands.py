@@ -198,8 +198,7 @@ def demo(out_dir, jobs):
     # lazy: the command line loads what a command needs when it runs
     from tqdm import tqdm
 
-    from impactqp.controller.model.postures import DEFAULT_WALL
-    from impactqp.scenarios.campaign import Campaign, CampaignPlan, FixedBaseTrials
+    from impactqp.scenarios.campaign import Campaign, CampaignPlan, CampaignTrials
     from impactqp.scenarios.cli.arguments import bar_progress, check_jobs
     from impactqp.scenarios.diagnosis_report import (
         feasible_speeds,
@@ -215,7 +214,7 @@ def demo(out_dir, jobs):
     out = output_directory(out_dir, "--out")
     jobs = check_jobs(jobs)
     plan = CampaignPlan(tangential_speeds=(0.03, 0.06, 0.09, 0.12))
-    table = Campaign(plan, FixedBaseTrials(DEFAULT_WALL), jobs=jobs, progress=True).run(out / "nominal")
+    table = Campaign(plan, CampaignTrials(), jobs=jobs, progress=True).run(out / "nominal")
     click.echo("1. Nominal simulation, Table I:")
     click.echo(table.text())
     stiff = PlantParameters(armature=per_group((1.2, 0.3)))

@@ -8,7 +8,7 @@ Every command validates its input before simulating; bad input (an unknown postu
 With ``--robot g1`` (a floating base, docs/floating-base.md) the trial is the standing robot's at a
 stance of its description (:func:`stance_trial`): the wall 2 cm in front of the stance's hand,
 normal -x (5 cm with ``simulate --controller qp``: the whole-body QP drives the trial,
-``sim.humanoid_qp_source``). An option of the arm's command that has no meaning for it (a tool, a
+``sim.trial_sources.QpCommand``). An option of the arm's command that has no meaning for it (a tool, a
 plant file, a wall point, jump constraints: only ``--controller qp`` runs a QP, and takes
 ``--jump-model``) is bad input when given: one line naming it. The JSON keeps the arm's keys where
 they mean the same and adds the G1's (CoM jump, foot wrenches, slip, lift, fall); ``--out DIR``
@@ -109,7 +109,6 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     if controller is not None:
         raise BadInputError("--controller chooses the command source of --robot g1; the arm is always driven by its QP")
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.scenarios.campaign import write_trial
     from impactqp.sim.generation import dataset_header
     from impactqp.scenarios.trial import TrialRunner
     from impactqp.sim.runner import TrialSpec
@@ -139,7 +138,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     runner = TrialRunner.build(surface, plant, choice)
     result = runner.run(spec)
     if out_dir is not None:
-        write_trial(DatasetWriter(out_dir, dataset_header(surface, choice)), result)
+        DatasetWriter(out_dir, dataset_header(surface, choice)).add_trial(*result.dataset_trial())
     if video_file is not None:
         from impactqp.scenarios.video import render_impact_gif
 
@@ -168,19 +167,20 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
 def stance_trial(
     choice: RobotChoice, posture: str, speed: float, files: dict, controller: str = "scripted"
 ) -> tuple[dict, str | None]:
-    """One trial of the floating-base robot of ``choice`` (``sim.humanoid_trial``) driven by the
+    """One trial of the floating-base robot of ``choice`` (``scenarios.trial.TrialRunner``, the
+    standing trial of ``sim.humanoid_trial``) driven by the
     scripted command or (``controller="qp"``) the whole-body QP with the ``--jump-model``
     predictor (crb, gm or classical), optionally rendered to a GIF (``files["video_file"]``) and
     added to the G1 dataset in ``files["out_dir"]``; its JSON (with the QP: ``controller`` and
     ``cycles_not_ok`` added) and the id of the trial written (None without ``out_dir``)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
-    from impactqp.controller.model.robot import RobotModel
-    from impactqp.scenarios.campaign import trial_json
+    from impactqp.scenarios.campaign import posture_of
+    from impactqp.scenarios.trial import TrialRunner
     from impactqp.scenarios.video import render_humanoid_gif
     from impactqp.sim.generation import open_dataset, write_trials
-    from impactqp.sim.humanoid_qp_source import QpCommand
-    from impactqp.sim.humanoid_trial import SCRIPTED, run_impact_trial
+    from impactqp.sim.runner import TrialSpec
+    from impactqp.sim.trial_sources import SCRIPTED, QpCommand
 
     reject_options(["tangential_text", "no_jump_constraint", "plant_file", "wall_point", "wall_normal",
                     "tool"] + (["jump_model"] if controller == "scripted" else []))
@@ -191,17 +191,17 @@ def stance_trial(
         if method not in METHODS:
             raise BadInputError(f"--jump-model {method} is not a floating-base predictor; choose from {', '.join(METHODS)}")
         source = QpCommand(method=method)
-    stance = choice.robot.stances[stance_names(choice.robot, posture)[0]]
+    stance = stance_names(choice.robot, posture)[0]
     approach_speed(speed, "--speed")
     if video_file is not None:
         gif_output(video_file)
     dataset = None if out_dir is None else open_dataset(output_directory(out_dir, "--out"), choice.robot)
-    robot = RobotModel(choice.robot)
-    trial = run_impact_trial(robot, stance, speed, source=source)
+    runner = TrialRunner.build(DEFAULT_WALL, None, choice, source)
+    trial = runner.run(TrialSpec(stance, posture_of(choice, stance), speed))
     written = None if dataset is None else write_trials(dataset, [trial])[0].id
     if video_file is not None:
-        render_humanoid_gif(robot, trial, video_file)
-    report = trial_json(choice.robot.name, trial)
+        render_humanoid_gif(runner.robot, trial, video_file)
+    report = trial.to_json(choice.robot.name)
     if controller == "qp":
         report.update(controller="qp", jump_model=source.method, cycles_not_ok=trial.record.not_ok)
     return report, written
@@ -253,22 +253,20 @@ def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_
     """The paper's campaign in simulation: dataset, Table I and figures in --out (with --robot
     g1: stances x speeds of the standing G1, its dataset, table1.json and table1.md in --out)."""
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.scenarios.campaign import Campaign, CampaignPlan, FixedBaseTrials, check_postures
-    from impactqp.scenarios.campaign import FloatingBaseTrials
+    from impactqp.scenarios.campaign import Campaign, CampaignPlan, CampaignTrials, check_postures
 
     robot = choice.robot
     if robot.floating:
-
         reject_options(["tangential_text", "plant_file", "tool"])
     postures = check_postures(robot, None if postures_text is None else (s.strip() for s in postures_text.split(",")))
     speeds, tangential = campaign_speeds(speeds_text, tangential_text, robot.floating)
     plan = CampaignPlan(postures, speeds, tangential)
-    trials = FloatingBaseTrials(robot) if robot.floating else FixedBaseTrials(DEFAULT_WALL, load_plant(plant_file), choice)
+    trials = CampaignTrials(choice, DEFAULT_WALL, load_plant(plant_file))
     output_directory(out_dir, "--out")
     table = Campaign(plan, trials, jobs=check_jobs(jobs), progress=not as_json).run(out_dir)
     if as_json:
         emit_json(table.to_json())
         return
     click.echo(table.text())
-    *first, last = ["dataset", *table.files(), *(["figures"] if not robot.floating else [])]
+    *first, last = ["dataset", *table.files(), *(["figures"] if table.figures else [])]
     click.echo(f"{', '.join(first)} and {last} written to {out_dir}")

@@ -38,7 +38,8 @@ from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
 
 from impactqp.sim.plant import PlantParameters
-from impactqp.sim.runner import CommandReplay, SimulationUnstableError, run_trial, servo_reference_from_commands
+from impactqp.sim.runner import SimulationUnstableError, run_trial, servo_reference_from_commands
+from impactqp.sim.trial_sources import CommandReplay
 from impactqp.sim.scene import Scene, build_scene
 from impactqp.sim.sensor import apply_sensor, delayed, velocity_scales
 

@@ -1,16 +1,18 @@
-"""The simulated G1 trial driven by the whole-body QP (sim/humanoid_qp_source.py)."""
+"""The command sources of a trial (sim/trial_sources.py): the arm's Cartesian approach and
+replay; the whole-body QP driving the simulated G1's trial."""
 
 import numpy as np
 import pytest
 
-from impactqp.controller.model.robot import RobotModel
+from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.controller.model.robot import PandaModel, RobotModel
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.qp.command import Status
 from impactqp.scenarios.stance_check import StancePlant, trial_at_contact_speed
-from impactqp.sim.humanoid_qp_source import QpCommand
-from impactqp.sim.humanoid_trial import CONTROL_PERIOD, LATENCY, NORMAL, SETTLE, run_impact_trial
+from impactqp.sim.humanoid_trial import CONTROL_PERIOD, LATENCY, NORMAL, SETTLE, SINK, run_impact_trial
+from impactqp.sim.trial_sources import CartesianApproachCommand, CommandReplay, QpCommand, TrialStart
 
 FOOT_ONSETS = {"foot_slip", "foot_lift"}
 
@@ -107,3 +109,60 @@ def test_the_measured_state_fed_to_the_standing_qp_gives_an_evaluated_trial_with
     trial = run_impact_trial(robot, STANCES["parallel"], 0.5, source=QpCommand(feedback="measured"))
     assert trial.record.statuses and Status.IMPACT_BRAKE not in trial.record.statuses
     assert np.isfinite(trial.max_velocity_ratio)
+
+
+ARM = PandaModel()
+
+
+@pytest.mark.parametrize(
+    "dq_cmd", [np.zeros((5, ARM.n_joints - 1)), np.full((5, ARM.n_joints), np.nan), np.zeros((0, ARM.n_joints))]
+)
+def test_bad_replays_are_rejected(dq_cmd):
+    with pytest.raises(ValueError):
+        CommandReplay(dq_cmd, ARM.n_joints)
+
+
+def test_a_replay_gives_its_rows_in_order_and_no_more():
+    rows = np.arange(2.0 * ARM.n_joints).reshape(2, ARM.n_joints)
+    replay = CommandReplay(rows, ARM.n_joints)
+    q = np.zeros(ARM.nq)
+    assert len(replay) == 2
+    np.testing.assert_array_equal(replay.step(q, q).dq_cmd, rows[0])
+    np.testing.assert_array_equal(replay.step(q, q).dq_cmd, rows[1])
+    with pytest.raises(IndexError, match="only 2 control steps"):
+        replay.step(q, q)
+
+
+def test_a_negative_approach_speed_is_bad_input():
+    with pytest.raises(ValueError, match="normal_speed"):
+        CartesianApproachCommand(ARM, DEFAULT_WALL, -0.1)
+
+
+def test_the_cartesian_command_moves_the_contact_frame_at_the_reference_twist():
+    """J6 dq_cmd = [-v_n n + v_t; 0] wherever J6 has full row rank (least squares is exact)."""
+    v_t = np.array([0.0, 0.04, 0.0])
+    command = CartesianApproachCommand(ARM, DEFAULT_WALL, 0.15, v_t)
+    q = ARM.description.postures["elbow_up"].q
+    twist = ARM.contact_jacobian6(q) @ command.step(q, np.zeros(ARM.nv)).dq_cmd
+    np.testing.assert_allclose(twist, np.concatenate([-0.15 * DEFAULT_WALL.normal + v_t, np.zeros(3)]), atol=1e-12)
+
+
+def test_the_plant_starts_sink_below_the_start_posture_and_q0_is_left_alone(robot):
+    q0 = stance_posture(robot, STANCES["parallel"])
+    start = TrialStart(robot, q0.copy(), np.zeros(robot.nv), DEFAULT_WALL, 0.2, sink=SINK)
+    lowered = start.plant_start()
+    assert lowered[2] == q0[2] - SINK and np.array_equal(np.delete(lowered, 2), np.delete(q0, 2))
+    np.testing.assert_array_equal(start.q0, q0)
+    arm_q0 = ARM.description.postures["elbow_up"].q
+    np.testing.assert_array_equal(TrialStart(ARM, arm_q0, np.zeros(ARM.nv), DEFAULT_WALL, 0.2).plant_start(), arm_q0)
+
+
+def test_the_qp_source_configures_the_description_s_approach_towards_the_start_s_wall():
+    start = TrialStart(ARM, ARM.description.postures["elbow_up"].q, np.zeros(ARM.nv), DEFAULT_WALL, 0.12,
+                       np.array([0.0, 0.03, 0.0]))
+    config = QpCommand(method="gm", restitution=0.2, impact_duration=0.01, posture_weight=0.0).config(start)
+    approach = next(t for t in config.tasks if t.type == "contact_approach")
+    assert approach.params["speed"] == 0.12 and approach.params["tangential_velocity"] == [0.0, 0.03, 0.0]
+    assert (config.impact.jump_model, config.impact.restitution, config.impact.impact_duration) == ("gm", 0.2, 0.01)
+    assert config.robot == "panda"
+    np.testing.assert_array_equal(config.surface.surface().normal, DEFAULT_WALL.normal)

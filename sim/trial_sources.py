@@ -1,0 +1,298 @@
+"""The command sources of a trial, every robot's (``sim.runner``: the one trial runner).
+
+A trial's command source (:class:`TrialSource`) is given, at the start of one trial, the robot,
+its start state, the wall and the commanded speed (:class:`TrialStart`), and returns the driver
+of that trial: a command source of the trial loop (``sim.trial_loop.CommandSource``:
+``step(q, dq)`` -> the joints' ``dq_cmd``, once per control period; ``stop()`` when the loop's
+``Ending.stop_after`` says the approach ends). A robot standing on held contacts first settles
+on them for ``TrialStart.settle`` s, during which every source commands the joints at rest.
+
+- :class:`CartesianApproach` (the arm's plain approach, :class:`CartesianApproachCommand`):
+  dq_cmd = J6+ [-v_n n + v_t; 0], open loop in task space, never stops;
+- :class:`ScriptedCommand` (the standing robot's scripted arm): the joints that move the
+  contact (the description's ``contact.joints``) follow dq_arm = J_arm^+ v* after a :data:`RAMP`
+  s velocity ramp, every other joint at rest; at the stop the servo re-anchors its reference at
+  the measured joints, at rest (``holds_at_stop``), and the command is zero;
+- :class:`QpCommand` (every robot: the default controller ``ControllerConfig.approach`` of the
+  robot's description, with the jump predictor of its impact rows): the controller is reset at the
+  state measured when the settling ends (at once for a fixed base) and is given, every period, its
+  own previous command (``feedback="commanded"``, a kinematic-controlled robot's convention:
+  ``scenarios.trial`` says why) or the measured state; at the stop the hand's approach speed target
+  becomes 0 (``ContactApproachTask.reference_velocity``): the QP brakes within its acceleration and
+  jerk limits. Why the task target and not a second reset: a reset would re-capture the CoM, torso
+  and posture targets at the post-impact state and zero the controller's acceleration memory, a
+  step of acceleration that skips the jerk limit. Each cycle's status, the impact rows' activity
+  and the predicted post-impact velocity are kept in a :class:`QpRecord`;
+- :class:`CommandReplay`: a logged sequence of commands, one row per period.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from impactqp.controller.config import ControllerConfig, build_controller
+from impactqp.controller.model.choice import RobotChoice
+from impactqp.controller.model.max_speed import contact_joints
+from impactqp.controller.model.postures import Surface
+from impactqp.controller.model.robot import RobotModel
+from impactqp.controller.model.validation import BadInputError, approach_speed
+from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
+from impactqp.controller.qp.command import Command, Status
+from impactqp.tasks import ContactApproachTask
+
+from .trial_loop import FEEDBACK, CommandSource, ControllerSource, VelocityCommand
+
+RAMP = 0.02  # s of the scripted command's velocity ramp
+LAG = 0.1  # s the hand may arrive after the commanded arrival (torque-limited joints lag the command)
+HAND_ACCELERATION = 2.0  # m/s^2: a lower bound of the hand's acceleration under the QP's joint limits
+QP_GAP = 0.05  # m from the contact point to the wall at the start of a standing robot's QP trial
+SCRIPTED_GAP = 0.02  # m, the same for the scripted command
+IMPACT_ROWS = "post_impact_velocity"  # name prefix of the predicted post-impact joint-velocity rows
+CAPTURE_ROWS = "capture_region"  # name prefix of the capture-region rows
+
+
+@dataclass(frozen=True)
+class TrialStart:
+    """What a command source is given at the start of one trial: the robot, its start state (q0,
+    dq0) (Pinocchio convention), the wall (normal towards the robot), the commanded normal speed
+    v_n (m/s) and tangential velocity v_t, the settling time (s) before the approach, how far
+    (m) the plant starts below q0 (a robot standing on held contacts: its soft floor contact
+    carries the weight from the first step) and the control period (s)."""
+
+    robot: RobotModel
+    q0: np.ndarray
+    dq0: np.ndarray
+    surface: Surface
+    speed: float
+    tangential_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    settle: float = 0.0
+    sink: float = 0.0
+    control_period: float = 1e-3
+
+    def plant_start(self) -> np.ndarray:
+        """The plant's start configuration: q0, ``sink`` m lower (unchanged without a sink)."""
+        if not self.sink:
+            return self.q0
+        q = self.q0.copy()
+        q[2] -= self.sink
+        return q
+
+
+class TrialSource(Protocol):
+    """A trial's command source (module docstring): its name, whether the servo re-anchors its
+    reference at the stop, and the driver of one trial."""
+
+    name: str
+    holds_at_stop: bool
+
+    def start(self, start: TrialStart) -> CommandSource: ...
+
+
+class CartesianApproachCommand:
+    """Move the contact point at a constant world velocity with the orientation held.
+
+    dq_cmd = J6+ [v_ref; 0], v_ref = -v_n n + v_t, with J6 the 6 x n_joints (linear; angular)
+    Jacobian of the contact frame and J6+ its Moore-Penrose pseudo-inverse (minimum joint-velocity
+    norm). A purely kinematic, open-loop-in-task-space approach: no drift correction, which is
+    harmless over the few centimetres of an impact trial. It never stops: after the impact it keeps
+    commanding motion into the wall (the servo then presses with a slowly growing force).
+    """
+
+    def __init__(self, robot: RobotModel, surface: Surface, normal_speed: float,
+                 tangential_velocity: np.ndarray | None = None):
+        approach_speed(normal_speed, "normal_speed")
+        v_t = np.zeros(3) if tangential_velocity is None else tangential_velocity_along(tangential_velocity, surface.normal)
+        self.robot = robot
+        self.twist = np.concatenate([-normal_speed * surface.normal + v_t, np.zeros(3)])
+
+    def step(self, q: np.ndarray, dq: np.ndarray) -> VelocityCommand:
+        J6 = self.robot.contact_jacobian6(q)
+        return VelocityCommand(np.linalg.lstsq(J6, self.twist, rcond=None)[0])
+
+
+@dataclass(frozen=True)
+class CartesianApproach:
+    """:class:`CartesianApproachCommand` as a trial's command source (an arm's plain approach)."""
+
+    name = "cartesian"
+    holds_at_stop = False
+
+    def start(self, start: TrialStart) -> CartesianApproachCommand:
+        return CartesianApproachCommand(start.robot, start.surface, start.speed, start.tangential_velocity)
+
+
+class CommandReplay:
+    """Replay a logged sequence of joint-velocity commands of ``joints`` joints, one row per
+    control step."""
+
+    def __init__(self, dq_cmd: np.ndarray, joints: int):
+        dq_cmd = np.asarray(dq_cmd, dtype=float)
+        if dq_cmd.ndim != 2 or dq_cmd.shape[1] != joints or len(dq_cmd) == 0:
+            raise BadInputError(f"a command replay needs an (N, {joints}) array, got shape {dq_cmd.shape}")
+        if not np.all(np.isfinite(dq_cmd)):
+            raise BadInputError("the replayed commands contain a non-finite value")
+        self.dq_cmd = dq_cmd
+        self.index = 0
+
+    def __len__(self) -> int:
+        return len(self.dq_cmd)
+
+    def step(self, q: np.ndarray, dq: np.ndarray) -> VelocityCommand:
+        if self.index >= len(self.dq_cmd):
+            raise IndexError(f"the command replay holds only {len(self.dq_cmd)} control steps")
+        command = VelocityCommand(self.dq_cmd[self.index])
+        self.index += 1
+        return command
+
+
+@dataclass(frozen=True)
+class ScriptedCommand:
+    """The scripted arm of a standing robot (module docstring)."""
+
+    name = "scripted"
+    gap = SCRIPTED_GAP  # m from the contact point to the wall at the start
+    tracks_speed = False  # the servo lags the command: the contact speed is below the commanded one
+    holds_at_stop = True  # the servo re-anchors its reference at the stop (``ComputedTorqueServo.hold``)
+
+    def approach_time(self, gap: float, speed: float) -> float:
+        """s allowed from the end of the settling to the first wall contact."""
+        return 3 * gap / speed + RAMP + LAG
+
+    def start(self, start: TrialStart) -> _ScriptedDriver:
+        return _ScriptedDriver(start)
+
+
+class _ScriptedDriver:
+    """One trial of :class:`ScriptedCommand`, a stopping command source (``sim.trial_loop``):
+    ``step(q, v)`` -> the joints' dq_cmd at the source's control step, zero once stopped."""
+
+    def __init__(self, start: TrialStart):
+        robot = start.robot
+        self.robot, self.speed, self.normal = robot, start.speed, start.surface.normal
+        self.settle, self.period = start.settle, start.control_period
+        self.arm = np.array([robot.joint_index(j) for j in contact_joints(robot.description)])
+        self.record = None
+        self.stopped = False
+        self._step = 0
+
+    def stop(self) -> None:
+        self.stopped = True
+
+    def step(self, q_pin: np.ndarray, v_pin: np.ndarray) -> VelocityCommand:
+        t, self._step = self._step * self.period, self._step + 1
+        dq_cmd = np.zeros(self.robot.n_joints)
+        if t >= self.settle and not self.stopped:
+            terms = self.robot.terms(q_pin)
+            scale = min(1.0, (t - self.settle) / RAMP)
+            arm = self.robot.base_nv + self.arm  # the arm joints' columns of J
+            dq_cmd[self.arm] = np.linalg.pinv(terms.J[:, arm]) @ (-scale * self.speed * self.normal)
+        return VelocityCommand(dq_cmd)
+
+
+SCRIPTED = ScriptedCommand()
+CARTESIAN = CartesianApproach()
+
+
+@dataclass(frozen=True)
+class QpCommand:
+    """The robot's default controller as a trial's command source (module docstring): the jump
+    predictor of its impact rows (``method``: a jump model, None without the rows), the QP solver,
+    which state it is given (``feedback``), the start gap of a standing robot's trial (m), and the
+    approach options c_r, delta_t and the posture task's weight (None: the preset's)."""
+
+    method: str | None = "crb"
+    solver: str = "daqp"
+    feedback: str = "commanded"
+    gap: float = QP_GAP
+    restitution: float = 0.0
+    impact_duration: float | None = None
+    posture_weight: float | None = None
+    name = "qp"
+    tracks_speed = True  # the hand's task asks the speed itself; the QP's rows and limits may cap it
+    holds_at_stop = False  # the QP brakes the joints itself (its acceleration and jerk limits)
+
+    def __post_init__(self):
+        if self.feedback not in FEEDBACK:
+            raise BadInputError(f"unknown feedback {self.feedback!r}; choose from {', '.join(FEEDBACK)}")
+
+    def approach_time(self, gap: float, speed: float) -> float:
+        """s allowed from the end of the settling to the first wall contact: three times the gap
+        at the asked speed, plus the time to reach it at HAND_ACCELERATION, plus the scripted
+        source's ramp and lag margin."""
+        return 3 * gap / speed + speed / HAND_ACCELERATION + RAMP + LAG
+
+    def config(self, start: TrialStart) -> ControllerConfig:
+        """The controller's configuration: the description's approach towards the start's wall."""
+        options = {} if self.impact_duration is None else {"impact_duration": self.impact_duration}
+        return ControllerConfig.approach(
+            start.surface, start.speed, tangential_velocity=start.tangential_velocity,
+            robot=RobotChoice(start.robot.description).robot_setting, jump_model=self.method, solver=self.solver,
+            restitution=self.restitution, posture_weight=self.posture_weight, **options,
+        )
+
+    def start(self, start: TrialStart) -> QpDriver:
+        """The driver of one trial: the controller of the start posture towards the start's wall."""
+        controller = build_controller(self.config(start), start.robot, start.q0)
+        return QpDriver(controller, self.feedback, start.settle, start.control_period)
+
+
+@dataclass
+class QpRecord:
+    """What the QP did at each control step after the settling (``steps`` from its first cycle)."""
+
+    first_step: int = 0  # the trial's control step of the QP's first cycle
+    statuses: list = field(default_factory=list)  # Status of each cycle
+    impact_rows_active: list = field(default_factory=list)  # a post-impact velocity row tight at the solution
+    capture_rows_active: list = field(default_factory=list)  # a capture-region row tight at the solution
+    impact_constraints_on: list = field(default_factory=list)  # the activation rule switched the impact rows on
+    predicted_post_impact: list = field(default_factory=list)  # (nv) v_cmd + predicted jump of each cycle
+    messages: list = field(default_factory=list)  # the message of each cycle whose status is not OK
+
+    def add(self, command: Command) -> None:
+        self.statuses.append(Status(command.status))
+        self.impact_rows_active.append(any(n.startswith(IMPACT_ROWS) for n in command.active_constraints))
+        self.capture_rows_active.append(any(n.startswith(CAPTURE_ROWS) for n in command.active_constraints))
+        self.impact_constraints_on.append(bool(command.impact_constraints_active))
+        self.predicted_post_impact.append(command.predicted_post_impact_velocity.copy())
+        if command.status != Status.OK:
+            self.messages.append(command.message)
+
+    @property
+    def not_ok(self) -> int:
+        """Cycles whose status is not OK (a clipped velocity or a fallback)."""
+        return sum(s != Status.OK for s in self.statuses)
+
+    def cycle(self, step: int) -> int:
+        """The QP cycle of the trial's control step ``step``."""
+        return step - self.first_step
+
+
+class QpDriver:
+    """One trial of :class:`QpCommand`, a stopping command source (``sim.trial_loop``): zero
+    commands during the settling (``settle`` s), then the controller, reset at its first cycle at
+    the measured state; ``step(q, v)`` -> the joints' dq_cmd at the source's control step."""
+
+    def __init__(self, controller, feedback: str, settle: float = 0.0, control_period: float = 1e-3):
+        self.controller, self.source = controller, ControllerSource(controller, feedback)
+        self.approach = next(t for t in controller.tasks if isinstance(t, ContactApproachTask))
+        self.settle, self.period = settle, control_period
+        self.record = QpRecord()
+        self._step = 0
+
+    def stop(self) -> None:
+        """The hand's approach speed target becomes 0 (module docstring)."""
+        self.approach.reference_velocity = np.zeros(3)
+
+    def step(self, q_pin: np.ndarray, v_pin: np.ndarray) -> VelocityCommand:
+        step, self._step = self._step, self._step + 1
+        if step * self.period < self.settle:
+            return VelocityCommand(np.zeros(self.controller.robot.n_joints))
+        if self.source.last is None:
+            self.controller.reset(q_pin, v_pin)
+            self.record.first_step = step
+        command = self.source.step(q_pin, v_pin)
+        self.record.add(self.source.last)
+        return VelocityCommand(command.dq_cmd.copy())
