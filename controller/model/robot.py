@@ -8,9 +8,11 @@ a humanoid's soles). A fixed base is the case ``base_nq = base_nv = 0`` with no 
 
 The model is the single source of truth for the project: the MuJoCo scene of ``sim/`` is built
 from the same URDF text (``robot_description.model_urdf``). All dynamic terms of one state are
-gathered in :class:`~controller.model.model_terms.ModelTerms`: an arm's by one call to
-``pinocchio.computeAllTerms`` (its centre-of-mass Jacobian, M^-1 and named frames only when
-asked), a floating base's in one pass of the algorithms its whole-body QP needs.
+gathered in :class:`~controller.model.model_terms.ModelTerms`: an arm's, for a controller's cycle,
+by one call to ``pinocchio.computeAllTerms``, for a prediction from q (``terms``) by one
+world-frame CRBA pass (the contact Jacobian and the locked robot's inertia; M, h and the drift on
+first read); its centre-of-mass Jacobian, M^-1 and named frames only when asked; a floating
+base's in one pass of the algorithms its whole-body QP needs.
 
 Contact tool
 ------------
@@ -36,6 +38,7 @@ import numpy as np
 import pinocchio as pin
 
 from .model_terms import (
+    ACCEPTED,
     NEAR_SINGULAR,
     OUTSIDE_LIMITS,
     BodyTerms,
@@ -168,6 +171,8 @@ class RobotModel:
         self._zero_velocity = np.zeros(self.nv)
         self._zero_velocity.flags.writeable = False
         self._body_data = model.createData()
+        self._inverse_data = model.createData()
+        self._root_joints = [j for j in range(1, model.njoints) if model.parents[j] == 0]
 
     @property
     def floating(self) -> bool:
@@ -307,13 +312,49 @@ class RobotModel:
         return self._fill_fixed(terms, q, dq, check_limits is not False)
 
     def _fill_fixed(self, terms: ModelTerms | None, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
+        """An arm's terms: into ``terms`` by one ``computeAllTerms`` (a controller's cycle: every
+        field), or new terms of one world-frame CRBA pass (a prediction from q): the contact
+        frame's Jacobian and placement, (J J^T)^-1 and the locked robot's inertia (its subtree
+        inertia ``data.oYcrb``), M, h and dJ6 dq left to their first read (``_lazy_dynamics``)."""
         model, data, fid = self.model, self.data, self.contact_frame_id
-        pin.computeAllTerms(model, data, q, dq)
+        if terms is None:
+            pin.crba(model, data, q, pin.Convention.WORLD)
+        else:
+            pin.computeAllTerms(model, data, q, dq)
         pin.updateFramePlacement(model, data, fid)
         J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
         J = J6[:3]
         JJt_inv = np.empty((3, 3))
         status = contact_jacobian_status(J, q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO**2, JJt_inv)
+        if status != ACCEPTED:
+            self._refuse(J, q, dq, status, check_limits)
+        placement = data.oMf[fid]
+        if terms is None:
+            locked = data.oYcrb[self._root_joints[0]]
+            for joint in self._root_joints[1:]:
+                locked = locked + data.oYcrb[joint]
+            return ModelTerms(
+                q, dq, None, None, J, J6, None, JJt_inv, placement.translation.copy(), placement.rotation.copy(),
+                locked.lever.copy(), float(locked.mass), locked.inertia.copy(),
+                compute_body=self.body_terms, compute_inverse_inertia=self.inverse_inertia,
+                fill_lazy=self._lazy_dynamics,
+            )
+        # dJ6/dt dq (world-aligned) is the frame's classical acceleration at ddq = 0, which
+        # computeAllTerms leaves in the data; it fills both triangles of M.
+        centroidal = data.Ig
+        (terms.q, terms.dq, terms.M, terms.h, terms.J, terms.J6, terms.dJ6_dq, terms.JJt_inv,
+         terms.contact_point, terms.contact_rotation, terms.com, terms.mass, terms.inertia_com) = (
+            q, dq, data.M.copy(), data.nle.copy(), J, J6,
+            pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector.copy(), JJt_inv,
+            placement.translation.copy(), placement.rotation.copy(), data.com[0].copy(),
+            float(centroidal.mass), centroidal.inertia.copy(),
+        )
+        return terms.refilled()
+
+    def _refuse(self, J: np.ndarray, q: np.ndarray, dq: np.ndarray, status: int, check_limits: bool) -> None:
+        """Raise for a state ``contact_jacobian_status`` did not accept: SingularPostureError when
+        the exact test confirms a near-singular J, InvalidStateError (naming the joint) when q
+        leaves its limits; a near-singular status that the exact test clears returns."""
         if status == NEAR_SINGULAR:
             eigenvalues = np.linalg.eigvalsh(J @ J.T)
             if not eigenvalues[0] >= (SINGULAR_RATIO**2) * eigenvalues[2]:
@@ -321,39 +362,49 @@ class RobotModel:
                     "singular contact Jacobian at this posture (singular values ratio "
                     f"{np.sqrt(max(eigenvalues[0], 0.0) / eigenvalues[2]):.1e})"
                 )
-        if status == OUTSIDE_LIMITS or (status == NEAR_SINGULAR and check_limits):
+        if status == OUTSIDE_LIMITS or check_limits:
             self.check_state(q, dq, check_limits=True)  # raises, naming the joint, when outside
-        # dJ6/dt dq (world-aligned) is the frame's classical acceleration at ddq = 0, which
-        # computeAllTerms leaves in the data.
-        dJ6_dq = pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector.copy()
-        placement = data.oMf[fid]
-        centroidal = data.Ig
-        fields = (
-            q, dq, data.M.copy(), data.nle.copy(), J, J6, dJ6_dq, JJt_inv,
-            placement.translation.copy(), placement.rotation.copy(), data.com[0].copy(),
-            float(centroidal.mass), centroidal.inertia.copy(),
-        )  # computeAllTerms fills both triangles of M
-        if terms is None:
-            return ModelTerms(*fields, compute_body=self.body_terms)
-        (terms.q, terms.dq, terms.M, terms.h, terms.J, terms.J6, terms.dJ6_dq, terms.JJt_inv,
-         terms.contact_point, terms.contact_rotation, terms.com, terms.mass, terms.inertia_com) = fields
-        return terms.refilled()
+
+    def _lazy_dynamics(self, terms: ModelTerms, name: str) -> dict[str, np.ndarray]:
+        """The lazily filled fields of ``terms`` (``ModelTerms.fill_lazy``), on a data of their
+        own: an arm's M, h and dJ6 dq by one ``computeAllTerms``; a floating base's h by
+        ``nonLinearEffects`` or its (J J^T)^-1 by the adjugate."""
+        model, data, q, dq = self.model, self._body_data, terms.q, terms.dq
+        if name == "JJt_inv":
+            JJt_inv = np.empty((3, 3))
+            symmetric_inverse3_into(terms.J @ terms.J.T, JJt_inv)
+            return {"JJt_inv": JJt_inv}
+        if self.floating:
+            return {"h": pin.nonLinearEffects(model, data, q, dq).copy()}
+        pin.computeAllTerms(model, data, q, dq)
+        pin.updateFramePlacement(model, data, self.contact_frame_id)
+        drift = pin.getFrameClassicalAcceleration(model, data, self.contact_frame_id, pin.LOCAL_WORLD_ALIGNED)
+        return {"M": data.M.copy(), "h": data.nle.copy(), "dJ6_dq": drift.vector.copy()}
+
+    def inverse_inertia(self, q: np.ndarray) -> np.ndarray:
+        """M^-1 at q (Pinocchio's ``computeMinverse``, both triangles), on a data of its own."""
+        M_inv = np.empty((self.nv, self.nv))
+        mirror_upper(pin.computeMinverse(self.model, self._inverse_data, q), M_inv)
+        return M_inv
 
     def empty_terms(self) -> ModelTerms:
-        """A floating base's ModelTerms of unset arrays, for ``update_terms`` to fill."""
+        """A floating base's ModelTerms of unset arrays, for ``update_terms`` to fill (h and
+        (J J^T)^-1 on their first read: ``_lazy_dynamics``)."""
         nv, held = self.nv, 6 * len(self.held_frame_ids)
         J6 = np.empty((6, nv))
         frames = {
             name: FrameState(np.empty(3), np.empty((3, 3)), np.empty((6, nv)), np.empty(6)) for name in self.frame_ids
         }
         return ModelTerms(
-            np.empty(self.nq), np.empty(nv), np.empty((nv, nv)), np.empty(nv), J6[:3], J6, np.empty(6),
-            np.empty((3, 3)), np.empty(3), np.empty((3, 3)), np.empty(3), 0.0, np.empty((3, 3)),
+            np.empty(self.nq), np.empty(nv), np.empty((nv, nv)), None, J6[:3], J6, np.empty(6),
+            None, np.empty(3), np.empty((3, 3)), np.empty(3), 0.0, np.empty((3, 3)),
             np.empty((held, nv)), np.empty(held), BodyTerms(np.empty((nv, nv)), np.empty((3, nv)), np.empty(3), frames),
+            fill_lazy=self._lazy_dynamics,
         )
 
     def _fill_floating(self, terms: ModelTerms, q: np.ndarray, v: np.ndarray, check_limits: bool) -> ModelTerms:
-        """One pass of Pinocchio's algorithms at (q, v), their results copied into ``terms``."""
+        """One pass of Pinocchio's algorithms at (q, v), their results copied into ``terms``; h and
+        (J J^T)^-1, which the whole-body QP does not read, left to their first read."""
         if check_limits:
             self.check_state(q, v, check_limits=True)
         model, data, body = self.model, self.data, terms.body
@@ -374,9 +425,7 @@ class RobotModel:
         mirror_upper(pin.computeMinverse(model, data, q), body.M_inv)
         pin.ccrba(model, data, q, v)
         terms.mass, terms.inertia_com[:] = float(data.Ig.mass), data.Ig.inertia
-        terms.h[:] = pin.nonLinearEffects(model, data, q, v)
-        symmetric_inverse3_into(terms.J @ terms.J.T, terms.JJt_inv)
-        return terms.refilled()
+        return terms.refilled(pending=("h", "JJt_inv"))
 
     def _frame_into(self, frame_id: int, J6, drift, position=None, rotation=None) -> None:
         """The frame's world-aligned Jacobian and drift (and its placement) after the forward
@@ -407,9 +456,7 @@ class RobotModel:
         pin.centerOfMass(model, data, pin.ACCELERATION, True)
         dJcom_dq = data.acom[0].copy()
         Jcom = pin.jacobianCenterOfMass(model, data, False).copy()
-        M_inv = np.empty((self.nv, self.nv))
-        mirror_upper(pin.computeMinverse(model, data, q), M_inv)
-        return BodyTerms(M_inv, Jcom, dJcom_dq, frames)
+        return BodyTerms(self.inverse_inertia(q), Jcom, dJcom_dq, frames)
 
     # ------------------------------------------------------------------ frames
     def contact_point(self, q) -> np.ndarray:
