@@ -163,11 +163,14 @@ def test_closed_form_inverse_of_J_Jt(robot, q):
 
 
 def test_singularity_is_detected_by_refill_too(robot):
-    buffer = robot.terms(PANDA.postures["elbow_up"].q)
-    stamp = buffer.stamp
-    with pytest.raises(SingularPostureError):
-        robot.update_terms(buffer, SINGULAR_Q, np.zeros(robot.nv))
-    assert buffer.stamp == stamp  # a refused state leaves the buffer as it was
+    q = PANDA.postures["elbow_up"].q
+    for buffer in (robot.terms(q), robot.update_terms(robot.empty_terms(), q, np.zeros(robot.nv))):
+        stamp, before = buffer.stamp, {name: np.copy(getattr(buffer, name)) for name in ("M", "J6", "JJt_inv", "com")}
+        with pytest.raises(SingularPostureError):
+            robot.update_terms(buffer, SINGULAR_Q, np.zeros(robot.nv))
+        assert buffer.stamp == stamp  # a refused state leaves the buffer as it was
+        for name, value in before.items():
+            np.testing.assert_array_equal(getattr(buffer, name), value, err_msg=name)
 
 
 # ---------------------------------------------------------------- every robot with every tool
@@ -307,10 +310,16 @@ def test_unknown_robot_or_tool_is_bad_input():
 @settings(max_examples=10, deadline=None)
 @given(q=joint_positions(), dq=joint_positions(0.0))
 def test_an_arms_terms_are_one_compute_all_terms(robot, q, dq):
-    """The fast fill equals a plain ``computeAllTerms`` on a fresh data (to 1e-12), holds no held
-    contact, and computes M^-1, Jcom and its drift on first use (definitions checked)."""
+    """Both fills (a prediction's ``terms``: one world-frame CRBA pass, M, h and the drift on
+    first read; a controller's ``update_terms`` of a preallocated buffer, in place) equal a plain
+    ``computeAllTerms`` on a fresh data (to 1e-12), hold no held contact, and compute M^-1, Jcom
+    and its drift on first use (definitions checked)."""
     dq = 0.3 * (dq - robot.q_min) / (robot.q_max - robot.q_min) - 0.15
-    terms = robot.terms(q, dq)
+    for terms in (robot.terms(q, dq), robot.update_terms(robot.empty_terms(), q, dq)):
+        check_one_compute_all_terms(robot, terms, q, dq)
+
+
+def check_one_compute_all_terms(robot, terms, q, dq):
     model, data = robot.model, robot.model.createData()
     pin.computeAllTerms(model, data, q, dq)
     pin.updateFramePlacements(model, data)

@@ -72,7 +72,8 @@ class ModelTerms:
     ``fill_lazy(terms, name)``, the model's, which returns that field and the others computed in
     the same pass, kept until the next fill. An arm's ``RobotModel.terms`` (a prediction from q)
     leaves M, h and dJ6_dq to a first read, a floating base's refill h and JJt_inv, which its
-    whole-body QP does not read; a controller's ``update_terms`` of an arm fills every field.
+    whole-body QP does not read; a controller's ``update_terms`` of an arm fills every field
+    in place (``store_arm_terms``), in the buffer of ``RobotModel.empty_terms``.
 
     A controller refills one ModelTerms per cycle (``RobotModel.update_terms``); ``stamp``
     changes at every fill (and for a ``dataclasses.replace`` copy), so anything cached per
@@ -224,6 +225,33 @@ def contact_jacobian_status(J, q, q_min, q_max, check_limits, singular_ratio_squ
         for j in range(q.shape[0]):
             if q[j] < q_min[j] or q[j] > q_max[j]:
                 return OUTSIDE_LIMITS
+    return ACCEPTED
+
+
+@njit(cache=True)
+def store_arm_terms(outputs, targets, q, q_min, q_max, check_limits, singular_ratio_squared):
+    """Kernel of an arm's per-cycle refill: the checks of ``contact_jacobian_status`` on the
+    Jacobian of ``outputs``, then, when ACCEPTED only (a refused state leaves the targets as they
+    were), every output written into its preallocated target once. ``outputs`` = (M, h,
+    centre of mass, contact point, contact rotation: views of Pinocchio's data; J6, dJ6 dq,
+    inertia about the centre of mass), ``targets`` the same terms' arrays then (J J^T)^-1."""
+    M, h, com, point, rotation, J6, drift, inertia = outputs
+    M_out, h_out, com_out, point_out, rotation_out, J6_out, drift_out, inertia_out, JJt_inv_out = targets
+    JJt_inv = np.empty((3, 3))
+    status = contact_jacobian_status(
+        np.ascontiguousarray(J6[:3]), q, q_min, q_max, check_limits, singular_ratio_squared, JJt_inv
+    )
+    if status != ACCEPTED:
+        return status
+    M_out[:, :] = M
+    h_out[:] = h
+    com_out[:] = com
+    point_out[:] = point
+    rotation_out[:, :] = rotation
+    J6_out[:, :] = J6
+    drift_out[:] = drift
+    inertia_out[:, :] = inertia
+    JJt_inv_out[:, :] = JJt_inv
     return ACCEPTED
 
 

@@ -46,6 +46,7 @@ from .model_terms import (
     ModelTerms,
     contact_jacobian_status,
     mirror_upper,
+    store_arm_terms,
     symmetric_inverse3_into,
 )
 from .robot_description import PANDA, RobotDescription, model_urdf, robot_description
@@ -173,6 +174,9 @@ class RobotModel:
         self._body_data = model.createData()
         self._inverse_data = model.createData()
         self._root_joints = [j for j in range(1, model.njoints) if model.parents[j] == 0]
+        if not description.floating:  # views of the data that computeAllTerms refills in place
+            placement = self.data.oMf[self.contact_frame_id]
+            self._data_outputs = (self.data.M, self.data.nle, self.data.com[0], placement.translation, placement.rotation)
 
     @property
     def floating(self) -> bool:
@@ -300,7 +304,7 @@ class RobotModel:
         q, dq = self.check_state(q, dq, check_limits=False)
         if self.floating:
             return self._fill_floating(self.empty_terms(), q, dq, bool(check_limits))
-        return self._fill_fixed(None, q, dq, check_limits is not False)
+        return self._prediction_terms(q, dq, check_limits is not False)
 
     def update_terms(self, terms: ModelTerms, q, dq, *, check_limits: bool | None = None) -> ModelTerms:
         """``terms(q, dq)`` written into an existing ModelTerms (a controller's per-cycle
@@ -311,44 +315,51 @@ class RobotModel:
             return self._fill_floating(terms, q, dq, bool(check_limits))
         return self._fill_fixed(terms, q, dq, check_limits is not False)
 
-    def _fill_fixed(self, terms: ModelTerms | None, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
-        """An arm's terms: into ``terms`` by one ``computeAllTerms`` (a controller's cycle: every
-        field), or new terms of one world-frame CRBA pass (a prediction from q): the contact
-        frame's Jacobian and placement, (J J^T)^-1 and the locked robot's inertia (its subtree
-        inertia ``data.oYcrb``), M, h and dJ6 dq left to their first read (``_lazy_dynamics``)."""
+    def _prediction_terms(self, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
+        """An arm's new terms of one world-frame CRBA pass (what a prediction from q needs): the
+        contact frame's Jacobian and placement, (J J^T)^-1 and the locked robot's inertia (the
+        subtree inertia ``data.oYcrb`` of the root joints); M, h and dJ6 dq left to their first
+        read (``_lazy_dynamics``)."""
         model, data, fid = self.model, self.data, self.contact_frame_id
-        if terms is None:
-            pin.crba(model, data, q, pin.Convention.WORLD)
-        else:
-            pin.computeAllTerms(model, data, q, dq)
+        pin.crba(model, data, q, pin.Convention.WORLD)
         pin.updateFramePlacement(model, data, fid)
         J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-        J = J6[:3]
         JJt_inv = np.empty((3, 3))
-        status = contact_jacobian_status(J, q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO**2, JJt_inv)
+        status = contact_jacobian_status(J6[:3], q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO**2, JJt_inv)
         if status != ACCEPTED:
-            self._refuse(J, q, dq, status, check_limits)
+            self._refuse(J6[:3], q, dq, status, check_limits)
         placement = data.oMf[fid]
-        if terms is None:
-            locked = data.oYcrb[self._root_joints[0]]
-            for joint in self._root_joints[1:]:
-                locked = locked + data.oYcrb[joint]
-            return ModelTerms(
-                q, dq, None, None, J, J6, None, JJt_inv, placement.translation.copy(), placement.rotation.copy(),
-                locked.lever.copy(), float(locked.mass), locked.inertia.copy(),
-                compute_body=self.body_terms, compute_inverse_inertia=self.inverse_inertia,
-                fill_lazy=self._lazy_dynamics,
-            )
-        # dJ6/dt dq (world-aligned) is the frame's classical acceleration at ddq = 0, which
-        # computeAllTerms leaves in the data; it fills both triangles of M.
-        centroidal = data.Ig
-        (terms.q, terms.dq, terms.M, terms.h, terms.J, terms.J6, terms.dJ6_dq, terms.JJt_inv,
-         terms.contact_point, terms.contact_rotation, terms.com, terms.mass, terms.inertia_com) = (
-            q, dq, data.M.copy(), data.nle.copy(), J, J6,
-            pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector.copy(), JJt_inv,
-            placement.translation.copy(), placement.rotation.copy(), data.com[0].copy(),
-            float(centroidal.mass), centroidal.inertia.copy(),
+        locked = data.oYcrb[self._root_joints[0]]
+        for joint in self._root_joints[1:]:
+            locked = locked + data.oYcrb[joint]
+        return ModelTerms(
+            q, dq, None, None, J6[:3], J6, None, JJt_inv, placement.translation.copy(), placement.rotation.copy(),
+            locked.lever.copy(), float(locked.mass), locked.inertia.copy(),
+            compute_body=self.body_terms, compute_inverse_inertia=self.inverse_inertia, fill_lazy=self._lazy_dynamics,
         )
+
+    def _fill_fixed(self, terms: ModelTerms, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
+        """An arm's terms refilled in place by one ``computeAllTerms`` (a controller's cycle:
+        every field). dJ6/dt dq (world-aligned) is the frame's classical acceleration at ddq = 0,
+        which computeAllTerms leaves in the data; it fills both triangles of M. One kernel checks
+        the state and writes every output into the terms' own arrays (``store_arm_terms``)."""
+        model, data, fid = self.model, self.data, self.contact_frame_id
+        pin.computeAllTerms(model, data, q, dq)
+        pin.updateFramePlacement(model, data, fid)
+        centroidal = data.Ig
+        outputs = (
+            *self._data_outputs, pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED),
+            pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector, centroidal.inertia,
+        )
+        targets = (
+            terms.M, terms.h, terms.com, terms.contact_point, terms.contact_rotation, terms.J6, terms.dJ6_dq,
+            terms.inertia_com, terms.JJt_inv,
+        )
+        status = store_arm_terms(outputs, targets, q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO**2)
+        if status != ACCEPTED:  # raises, or a near-singular J that the exact test clears: store it
+            self._refuse(outputs[5][:3], q, dq, status, check_limits)
+            store_arm_terms(outputs, targets, q, self.q_min, self.q_max, False, -np.inf)
+        terms.q, terms.dq, terms.mass = q, dq, float(centroidal.mass)
         return terms.refilled()
 
     def _refuse(self, J: np.ndarray, q: np.ndarray, dq: np.ndarray, status: int, check_limits: bool) -> None:
@@ -388,10 +399,18 @@ class RobotModel:
         return M_inv
 
     def empty_terms(self) -> ModelTerms:
-        """A floating base's ModelTerms of unset arrays, for ``update_terms`` to fill (h and
-        (J J^T)^-1 on their first read: ``_lazy_dynamics``)."""
-        nv, held = self.nv, 6 * len(self.held_frame_ids)
+        """A ModelTerms of unset arrays, for ``update_terms`` to fill in place (a controller's
+        per-cycle buffer); a floating base's h and (J J^T)^-1 on their first read
+        (``_lazy_dynamics``)."""
+        nv = self.nv
         J6 = np.empty((6, nv))
+        if not self.floating:
+            return ModelTerms(
+                np.empty(self.nq), np.empty(nv), np.empty((nv, nv)), np.empty(nv), J6[:3], J6, np.empty(6),
+                np.empty((3, 3)), np.empty(3), np.empty((3, 3)), np.empty(3), 0.0, np.empty((3, 3)),
+                compute_body=self.body_terms, compute_inverse_inertia=self.inverse_inertia,
+            )
+        held = 6 * len(self.held_frame_ids)
         frames = {
             name: FrameState(np.empty(3), np.empty((3, 3)), np.empty((6, nv)), np.empty(6)) for name in self.frame_ids
         }
