@@ -8,11 +8,12 @@ a humanoid's soles). A fixed base is the case ``base_nq = base_nv = 0`` with no 
 
 The model is the single source of truth for the project: the MuJoCo scene of ``sim/`` is built
 from the same URDF text (``robot_description.model_urdf``). All dynamic terms of one state are
-gathered in :class:`~controller.model.model_terms.ModelTerms`: an arm's, for a controller's cycle,
-by one call to ``pinocchio.computeAllTerms``, for a prediction from q (``terms``) by one
-world-frame CRBA pass (the contact Jacobian and the locked robot's inertia; M, h and the drift on
-first read); its centre-of-mass Jacobian, M^-1 and named frames only when asked; a floating
-base's in one pass of the algorithms its whole-body QP needs.
+gathered in :class:`~controller.model.model_terms.ModelTerms`, filled by the methods of
+:class:`~controller.model.term_fills.ModelTermFills`: an arm's, for a controller's cycle, by one
+call to ``pinocchio.computeAllTerms``, for a prediction from q (``terms``) by one world-frame
+CRBA pass (the contact Jacobian and the locked robot's inertia; M, h and the drift on first
+read); its centre-of-mass Jacobian, M^-1 and named frames only when asked; a floating base's in
+one pass of the algorithms its whole-body QP needs.
 
 Contact tool
 ------------
@@ -37,18 +38,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .model_terms import (
-    ACCEPTED,
-    NEAR_SINGULAR,
-    OUTSIDE_LIMITS,
-    BodyTerms,
-    FrameState,
-    ModelTerms,
-    contact_jacobian_status,
-    mirror_upper,
-    store_arm_terms,
-    symmetric_inverse3_into,
-)
+# SINGULAR_RATIO and SingularPostureError are the model's: their home is the fills that check them
+from .term_fills import SINGULAR_RATIO, ModelTermFills, SingularPostureError  # noqa: F401
 from .robot_description import PANDA, RobotDescription, model_urdf, robot_description
 from .tool_description import TOOLS, ToolDescription, tool_description
 from .validation import BadInputError, all_finite
@@ -63,8 +54,6 @@ FINGER_JOINTS = PANDA.finger_joints
 TOOL_RADIUS = TOOLS["impact_tip"].geometry.radius
 TOOL_CENTRE_OFFSET = float(TOOLS["impact_tip"].geometry.centre[2])
 TOOL_TIP_OFFSET = float(TOOLS["impact_tip"].contact_point[2])
-# The contact Jacobian counts as singular when sigma_min / sigma_max falls below this ratio.
-SINGULAR_RATIO = 1e-3
 
 MAX_STATE_ENTRY = 1e100
 """Largest |q_i| (rad) or |dq_i| (rad/s) of a joint state: far above any robot's, far enough
@@ -93,11 +82,7 @@ class InvalidStateError(BadInputError):
         self.constraint = constraint
 
 
-class SingularPostureError(BadInputError):
-    """The contact Jacobian is (numerically) rank deficient at this posture."""
-
-
-class RobotModel:
+class RobotModel(ModelTermFills):
     """A described robot: an arm (fingers locked) carrying a described contact tool, or a
     floating-base robot with its own contact point and its held contacts (module docstring).
 
@@ -112,7 +97,9 @@ class RobotModel:
     ``contact_frame_id`` is the contact frame, ``held_frames`` and ``held_frame_ids`` the held
     contacts' frames in the description's order, ``frame_ids`` the description's named
     frames; an arm's ``tool_frame_id`` is the frame the tool is fixed to (the hand or the
-    flange), ``hand_frame_id`` the hand's frame.
+    flange), ``hand_frame_id`` the hand's frame. The terms of a state (``terms``,
+    ``update_terms``, ``empty_terms``, ``body_terms``, ``inverse_inertia``) are the fills of
+    :class:`~controller.model.term_fills.ModelTermFills`.
 
     >>> robot = RobotModel("fr3", "franka_hand")
     >>> terms = robot.terms(q, dq)
@@ -171,12 +158,7 @@ class RobotModel:
         self.dddq_max = description.dddq_max.copy()
         self._zero_velocity = np.zeros(self.nv)
         self._zero_velocity.flags.writeable = False
-        self._body_data = model.createData()
-        self._inverse_data = model.createData()
-        self._root_joints = [j for j in range(1, model.njoints) if model.parents[j] == 0]
-        if not description.floating:  # views of the data that computeAllTerms refills in place
-            placement = self.data.oMf[self.contact_frame_id]
-            self._data_outputs = (self.data.M, self.data.nle, self.data.com[0], placement.translation, placement.rotation)
+        self._prepare_fills()
 
     @property
     def floating(self) -> bool:
@@ -289,193 +271,6 @@ class RobotModel:
                     constraint="joint_position_limit",
                 )
         return q, dq
-
-    # ------------------------------------------------------------------ model terms
-    def terms(self, q, dq=None, *, check_limits: bool | None = None) -> ModelTerms:
-        """All model terms of the state (q, dq) (dq = 0 when None), in new arrays.
-
-        ``check_limits`` (None: yes for a fixed base, no for a floating base, whose states come
-        from its stances and simulations and whose joints its whole-body QP bounds) checks the
-        joint position limits. An arm's terms raise :class:`SingularPostureError` when the
-        contact Jacobian J is rank deficient (assumption 5 of the paper:
-        sigma_min(J) < SINGULAR_RATIO sigma_max(J)), checked before the joint limits; every
-        robot's raise :class:`InvalidStateError` for a bad or out-of-limit state.
-        """
-        q, dq = self.check_state(q, dq, check_limits=False)
-        if self.floating:
-            return self._fill_floating(self.empty_terms(), q, dq, bool(check_limits))
-        return self._prediction_terms(q, dq, check_limits is not False)
-
-    def update_terms(self, terms: ModelTerms, q, dq, *, check_limits: bool | None = None) -> ModelTerms:
-        """``terms(q, dq)`` written into an existing ModelTerms (a controller's per-cycle
-        buffer: no new object; a floating base's arrays are refilled in place), with a new
-        ``stamp``. Raises like ``terms``; a refused state leaves a floating base's as it was."""
-        q, dq = self.check_state(q, dq, check_limits=False)
-        if self.base_nv:  # a floating base (an attribute: this runs every control cycle)
-            return self._fill_floating(terms, q, dq, bool(check_limits))
-        return self._fill_fixed(terms, q, dq, check_limits is not False)
-
-    def _prediction_terms(self, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
-        """An arm's new terms of one world-frame CRBA pass (what a prediction from q needs): the
-        contact frame's Jacobian and placement, (J J^T)^-1 and the locked robot's inertia (the
-        subtree inertia ``data.oYcrb`` of the root joints); M, h and dJ6 dq left to their first
-        read (``_lazy_dynamics``)."""
-        model, data, fid = self.model, self.data, self.contact_frame_id
-        pin.crba(model, data, q, pin.Convention.WORLD)
-        pin.updateFramePlacement(model, data, fid)
-        J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-        JJt_inv = np.empty((3, 3))
-        status = contact_jacobian_status(J6[:3], q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO**2, JJt_inv)
-        if status != ACCEPTED:
-            self._refuse(J6[:3], q, dq, status, check_limits)
-        placement = data.oMf[fid]
-        locked = data.oYcrb[self._root_joints[0]]
-        for joint in self._root_joints[1:]:
-            locked = locked + data.oYcrb[joint]
-        return ModelTerms(
-            q, dq, None, None, J6[:3], J6, None, JJt_inv, placement.translation.copy(), placement.rotation.copy(),
-            locked.lever.copy(), float(locked.mass), locked.inertia.copy(),
-            compute_body=self.body_terms, compute_inverse_inertia=self.inverse_inertia, fill_lazy=self._lazy_dynamics,
-        )
-
-    def _fill_fixed(self, terms: ModelTerms, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
-        """An arm's terms refilled in place by one ``computeAllTerms`` (a controller's cycle:
-        every field). dJ6/dt dq (world-aligned) is the frame's classical acceleration at ddq = 0,
-        which computeAllTerms leaves in the data; it fills both triangles of M. One kernel checks
-        the state and writes every output into the terms' own arrays (``store_arm_terms``)."""
-        model, data, fid = self.model, self.data, self.contact_frame_id
-        pin.computeAllTerms(model, data, q, dq)
-        pin.updateFramePlacement(model, data, fid)
-        centroidal = data.Ig
-        outputs = (
-            *self._data_outputs, pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED),
-            pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector, centroidal.inertia,
-        )
-        targets = (
-            terms.M, terms.h, terms.com, terms.contact_point, terms.contact_rotation, terms.J6, terms.dJ6_dq,
-            terms.inertia_com, terms.JJt_inv,
-        )
-        status = store_arm_terms(outputs, targets, q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO**2)
-        if status != ACCEPTED:  # raises, or a near-singular J that the exact test clears: store it
-            self._refuse(outputs[5][:3], q, dq, status, check_limits)
-            store_arm_terms(outputs, targets, q, self.q_min, self.q_max, False, -np.inf)
-        terms.q, terms.dq, terms.mass = q, dq, float(centroidal.mass)
-        return terms.refilled()
-
-    def _refuse(self, J: np.ndarray, q: np.ndarray, dq: np.ndarray, status: int, check_limits: bool) -> None:
-        """Raise for a state ``contact_jacobian_status`` did not accept: SingularPostureError when
-        the exact test confirms a near-singular J, InvalidStateError (naming the joint) when q
-        leaves its limits; a near-singular status that the exact test clears returns."""
-        if status == NEAR_SINGULAR:
-            eigenvalues = np.linalg.eigvalsh(J @ J.T)
-            if not eigenvalues[0] >= (SINGULAR_RATIO**2) * eigenvalues[2]:
-                raise SingularPostureError(
-                    "singular contact Jacobian at this posture (singular values ratio "
-                    f"{np.sqrt(max(eigenvalues[0], 0.0) / eigenvalues[2]):.1e})"
-                )
-        if status == OUTSIDE_LIMITS or check_limits:
-            self.check_state(q, dq, check_limits=True)  # raises, naming the joint, when outside
-
-    def _lazy_dynamics(self, terms: ModelTerms, name: str) -> dict[str, np.ndarray]:
-        """The lazily filled fields of ``terms`` (``ModelTerms.fill_lazy``), on a data of their
-        own: an arm's M, h and dJ6 dq by one ``computeAllTerms``; a floating base's h by
-        ``nonLinearEffects`` or its (J J^T)^-1 by the adjugate."""
-        model, data, q, dq = self.model, self._body_data, terms.q, terms.dq
-        if name == "JJt_inv":
-            JJt_inv = np.empty((3, 3))
-            symmetric_inverse3_into(terms.J @ terms.J.T, JJt_inv)
-            return {"JJt_inv": JJt_inv}
-        if self.floating:
-            return {"h": pin.nonLinearEffects(model, data, q, dq).copy()}
-        pin.computeAllTerms(model, data, q, dq)
-        pin.updateFramePlacement(model, data, self.contact_frame_id)
-        drift = pin.getFrameClassicalAcceleration(model, data, self.contact_frame_id, pin.LOCAL_WORLD_ALIGNED)
-        return {"M": data.M.copy(), "h": data.nle.copy(), "dJ6_dq": drift.vector.copy()}
-
-    def inverse_inertia(self, q: np.ndarray) -> np.ndarray:
-        """M^-1 at q (Pinocchio's ``computeMinverse``, both triangles), on a data of its own."""
-        M_inv = np.empty((self.nv, self.nv))
-        mirror_upper(pin.computeMinverse(self.model, self._inverse_data, q), M_inv)
-        return M_inv
-
-    def empty_terms(self) -> ModelTerms:
-        """A ModelTerms of unset arrays, for ``update_terms`` to fill in place (a controller's
-        per-cycle buffer); a floating base's h and (J J^T)^-1 on their first read
-        (``_lazy_dynamics``)."""
-        nv = self.nv
-        J6 = np.empty((6, nv))
-        if not self.floating:
-            return ModelTerms(
-                np.empty(self.nq), np.empty(nv), np.empty((nv, nv)), np.empty(nv), J6[:3], J6, np.empty(6),
-                np.empty((3, 3)), np.empty(3), np.empty((3, 3)), np.empty(3), 0.0, np.empty((3, 3)),
-                compute_body=self.body_terms, compute_inverse_inertia=self.inverse_inertia,
-            )
-        held = 6 * len(self.held_frame_ids)
-        frames = {
-            name: FrameState(np.empty(3), np.empty((3, 3)), np.empty((6, nv)), np.empty(6)) for name in self.frame_ids
-        }
-        return ModelTerms(
-            np.empty(self.nq), np.empty(nv), np.empty((nv, nv)), None, J6[:3], J6, np.empty(6),
-            None, np.empty(3), np.empty((3, 3)), np.empty(3), 0.0, np.empty((3, 3)),
-            np.empty((held, nv)), np.empty(held), BodyTerms(np.empty((nv, nv)), np.empty((3, nv)), np.empty(3), frames),
-            fill_lazy=self._lazy_dynamics,
-        )
-
-    def _fill_floating(self, terms: ModelTerms, q: np.ndarray, v: np.ndarray, check_limits: bool) -> ModelTerms:
-        """One pass of Pinocchio's algorithms at (q, v), their results copied into ``terms``; h and
-        (J J^T)^-1, which the whole-body QP does not read, left to their first read."""
-        if check_limits:
-            self.check_state(q, v, check_limits=True)
-        model, data, body = self.model, self.data, terms.body
-        terms.q[:], terms.dq[:] = q, v
-        pin.forwardKinematics(model, data, q, v, self._zero_velocity)
-        pin.computeJointJacobians(model, data)
-        pin.updateFramePlacements(model, data)
-        self._frame_into(self.contact_frame_id, terms.J6, terms.dJ6_dq, terms.contact_point, terms.contact_rotation)
-        for k, frame_id in enumerate(self.held_frame_ids):
-            self._frame_into(frame_id, terms.held_jacobian[6 * k:6 * k + 6], terms.held_drift[6 * k:6 * k + 6])
-        for name, frame_id in self.frame_ids.items():
-            frame = body.frames[name]
-            self._frame_into(frame_id, frame.J6, frame.dJ6_dq, frame.position, frame.rotation)
-        pin.centerOfMass(model, data, pin.ACCELERATION, True)  # of the kinematics above
-        terms.com[:], body.dJcom_dq[:] = data.com[0], data.acom[0]
-        body.Jcom[:] = pin.jacobianCenterOfMass(model, data, False)  # of the Jacobians and CoMs above
-        mirror_upper(pin.crba(model, data, q), terms.M)
-        mirror_upper(pin.computeMinverse(model, data, q), body.M_inv)
-        pin.ccrba(model, data, q, v)
-        terms.mass, terms.inertia_com[:] = float(data.Ig.mass), data.Ig.inertia
-        return terms.refilled(pending=("h", "JJt_inv"))
-
-    def _frame_into(self, frame_id: int, J6, drift, position=None, rotation=None) -> None:
-        """The frame's world-aligned Jacobian and drift (and its placement) after the forward
-        kinematics of ``_fill_floating``, copied into the given arrays."""
-        world = pin.LOCAL_WORLD_ALIGNED
-        J6[:] = pin.getFrameJacobian(self.model, self.data, frame_id, world)
-        drift[:] = pin.getFrameClassicalAcceleration(self.model, self.data, frame_id, world).vector
-        if position is not None:
-            placement = self.data.oMf[frame_id]
-            position[:], rotation[:] = placement.translation, placement.rotation
-
-    def body_terms(self, q: np.ndarray, dq: np.ndarray) -> BodyTerms:
-        """M^-1, Jcom, dJcom dq and the named frames of the state (q, dq) (``BodyTerms``), on a
-        data of their own: what a fixed base's terms compute on first use."""
-        model, data = self.model, self._body_data
-        pin.forwardKinematics(model, data, q, dq, self._zero_velocity)
-        pin.computeJointJacobians(model, data)
-        pin.updateFramePlacements(model, data)
-        world = pin.LOCAL_WORLD_ALIGNED
-        frames = {}
-        for name, frame_id in self.frame_ids.items():
-            placement = data.oMf[frame_id]
-            frames[name] = FrameState(
-                placement.translation.copy(), placement.rotation.copy(),
-                pin.getFrameJacobian(model, data, frame_id, world),
-                pin.getFrameClassicalAcceleration(model, data, frame_id, world).vector.copy(),
-            )
-        pin.centerOfMass(model, data, pin.ACCELERATION, True)
-        dJcom_dq = data.acom[0].copy()
-        Jcom = pin.jacobianCenterOfMass(model, data, False).copy()
-        return BodyTerms(self.inverse_inertia(q), Jcom, dJcom_dq, frames)
 
     # ------------------------------------------------------------------ frames
     def contact_point(self, q) -> np.ndarray:
