@@ -8,14 +8,21 @@ from impactqp.scenarios.cli import main
 
 
 def test_bench_prediction_rows(capsys):
-    """A family's rows come with the floor they are compared with, timed in the same run."""
+    """A family's rows come with the floor they are compared with, timed in the same run, and
+    their ratio block by block (its median at most its least favourable block, "p99")."""
     assert main(["bench", "--only", "predict.", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)["rows"]
     names = {r["name"] for r in rows}
-    assert names == {"predict.crb.single", "predict.crb.single.fr3", "predict.crb.single.ur5", "predict.crb.batch", "floor.pinocchio.all_terms"}
+    assert names == {
+        "predict.crb.single", "predict.crb.single.fr3", "predict.crb.single.ur5", "predict.crb.batch",
+        "floor.pinocchio.all_terms", "predict.crb.single/floor.pinocchio.all_terms",
+    }
     for r in rows:
         assert set(r) == {"name", "unit", "median", "p99"}
         assert r["median"] > 0 and r["p99"] > 0
+    by_name = {r["name"]: r for r in rows}
+    ratio = by_name["predict.crb.single/floor.pinocchio.all_terms"]
+    assert ratio["unit"] == "ratio" and ratio["median"] <= ratio["p99"]
 
 
 def test_bench_franka_sim_row_comes_from_a_session_through_the_franka_protocol(capsys):

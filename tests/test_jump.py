@@ -12,6 +12,7 @@ from hypothesis import given, reject, settings
 from hypothesis import strategies as st
 from reference.jump import (
     reference_crb_inverse_inertia_times,
+    reference_crb_jump,
     reference_crb_unit_maps,
     reference_rank_one_jump_matrices,
 )
@@ -192,14 +193,19 @@ def test_classical_normal_keeps_only_the_normal_impulse(robot):
 
 
 def test_crb_never_uses_the_joint_space_inertia(robot):
-    """The CRB path runs with M replaced by NaNs: it never forms or inverts M."""
+    """The CRB path runs with M replaced by NaNs and M^-1 computed at a NaN posture: it never
+    forms or inverts M; a prediction from q does not even fill M (a lazily filled field)."""
     q = np.array([0.1, -0.4, 0.2, -2.0, 0.3, 2.2, 0.4])
-    terms = dataclasses.replace(robot.terms(q), M=np.full((JOINTS, JOINTS), np.nan))
     n = np.array([-1.0, 0.0, 0.0])
+    fresh = robot.terms(q)
+    JUMP_MODELS["crb"].predict(fresh, n, -0.1 * n, 0.0)
+    assert "M" not in vars(fresh)
+    terms = dataclasses.replace(
+        fresh, M=np.full((JOINTS, JOINTS), np.nan), compute_inverse_inertia=lambda _: robot.inverse_inertia(q * np.nan)
+    )
     pred = JUMP_MODELS["crb"].predict(terms, n, -0.1 * n, 0.0)
     assert np.all(np.isfinite(pred.dq_jump))
-    with pytest.raises(ValueError):
-        JUMP_MODELS["gm"].predict(terms, n, -0.1 * n, 0.0)
+    assert not np.all(np.isfinite(JUMP_MODELS["gm"].predict(terms, n, -0.1 * n, 0.0).dq_jump))
 
 
 def test_error_metrics_eq25_eq26():
@@ -245,6 +251,21 @@ def test_compiled_crb_maps_equal_the_numpy_reference(robot, q, normal, cr):
         dataclasses.astuple(reference_crb_unit_maps(terms, normal, cr)),
     ):
         np.testing.assert_allclose(fast, reference, rtol=1e-9, atol=1e-12)
+
+
+@SETTINGS
+@given(q=joint_positions(), normal=unit_vectors(), velocity=unit_vectors(), cr=restitutions)
+def test_compiled_crb_prediction_equals_the_numpy_reference(robot, q, normal, velocity, cr):
+    """One compiled CRB prediction from q (``crb_jump``) equals eq. (20), (12) and (21) in numpy,
+    and the general path's G v- and K iota (``JumpModel.predict`` with a measured impulse)."""
+    terms = terms_or_skip(robot, q)
+    crb = JUMP_MODELS["crb"]
+    fast = crb.predict(terms, normal, velocity, cr)
+    for value, reference in zip((fast.dq_jump, fast.impulse, fast.W), reference_crb_jump(terms, normal, velocity, cr)):
+        np.testing.assert_allclose(value, reference, rtol=1e-9, atol=1e-12)
+    maps = crb.unit_maps(terms, normal, cr)
+    general = crb.predict(terms, normal, velocity, cr, impulse=maps.G @ velocity)
+    np.testing.assert_allclose(fast.dq_jump, general.dq_jump, rtol=1e-9, atol=1e-12)
 
 
 @SETTINGS

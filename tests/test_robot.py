@@ -127,49 +127,6 @@ def test_unknown_posture_and_bad_surface():
     assert np.linalg.norm(Surface(np.zeros(3), np.array([0, 0, 2.0])).normal) == 1.0
 
 
-@settings(max_examples=30, deadline=None)
-@given(q_a=joint_positions(), q_b=joint_positions())
-def test_refilled_terms_equal_fresh_terms(robot, q_a, q_b):
-    """update_terms rewrites a ModelTerms buffer into exactly what terms() computes, with a new
-    stamp and the derived quantities (J+, cond M) of the new state, not the old one."""
-    rng = np.random.default_rng(0)
-    dq_a, dq_b = rng.uniform(-1, 1, robot.nv), rng.uniform(-1, 1, robot.nv)
-    try:
-        buffer = robot.terms(q_a, dq_a, check_limits=False)
-        fresh = robot.terms(q_b, dq_b, check_limits=False)
-    except SingularPostureError:
-        return
-    buffer.J_pinv, buffer.cond_M  # cache the derived quantities of state a
-    stamp = buffer.stamp
-    assert robot.update_terms(buffer, q_b, dq_b, check_limits=False) is buffer
-    assert buffer.stamp != stamp
-    for name in ("q", "dq", "M", "h", "J", "J6", "dJ6_dq", "JJt_inv", "contact_point", "contact_rotation",
-                 "com", "inertia_com"):
-        np.testing.assert_allclose(getattr(buffer, name), getattr(fresh, name), rtol=1e-12, atol=1e-12)
-    assert buffer.mass == fresh.mass
-    np.testing.assert_allclose(buffer.J_pinv, np.linalg.pinv(fresh.J), atol=1e-9)
-    assert buffer.cond_M == pytest.approx(np.linalg.cond(fresh.M))
-
-
-@settings(max_examples=50, deadline=None)
-@given(q=joint_positions())
-def test_closed_form_inverse_of_J_Jt(robot, q):
-    """(J J^T)^-1 by the adjugate times J J^T is the identity."""
-    try:
-        terms = robot.terms(q, check_limits=False)
-    except SingularPostureError:
-        return
-    np.testing.assert_allclose(terms.JJt_inv @ (terms.J @ terms.J.T), np.eye(3), atol=1e-8)
-
-
-def test_singularity_is_detected_by_refill_too(robot):
-    buffer = robot.terms(PANDA.postures["elbow_up"].q)
-    stamp = buffer.stamp
-    with pytest.raises(SingularPostureError):
-        robot.update_terms(buffer, SINGULAR_Q, np.zeros(robot.nv))
-    assert buffer.stamp == stamp  # a refused state leaves the buffer as it was
-
-
 # ---------------------------------------------------------------- every robot with every tool
 ROBOT_TOOLS = [(robot, tool) for robot in ARMS for tool in TOOLS]
 
@@ -302,37 +259,6 @@ def test_unknown_robot_or_tool_is_bad_input():
         RobotModel("kuka")
     with pytest.raises(BadInputError, match="unknown tool"):
         RobotModel("fr3", "hammer")
-
-
-@settings(max_examples=10, deadline=None)
-@given(q=joint_positions(), dq=joint_positions(0.0))
-def test_an_arms_terms_are_one_compute_all_terms(robot, q, dq):
-    """The fast fill equals a plain ``computeAllTerms`` on a fresh data (to 1e-12), holds no held
-    contact, and computes M^-1, Jcom and its drift on first use (definitions checked)."""
-    dq = 0.3 * (dq - robot.q_min) / (robot.q_max - robot.q_min) - 0.15
-    terms = robot.terms(q, dq)
-    model, data = robot.model, robot.model.createData()
-    pin.computeAllTerms(model, data, q, dq)
-    pin.updateFramePlacements(model, data)
-    fid, world = robot.contact_frame_id, pin.LOCAL_WORLD_ALIGNED
-    expected = {
-        "M": data.M, "h": data.nle, "J6": pin.getFrameJacobian(model, data, fid, world),
-        "dJ6_dq": pin.getFrameClassicalAcceleration(model, data, fid, world).vector,
-        "contact_point": data.oMf[fid].translation, "contact_rotation": data.oMf[fid].rotation,
-        "com": data.com[0], "inertia_com": data.Ig.inertia,
-    }
-    for name, value in expected.items():
-        np.testing.assert_allclose(getattr(terms, name), value, rtol=0, atol=1e-12, err_msg=name)
-    assert terms.mass == pytest.approx(data.Ig.mass, rel=1e-12)
-    assert terms.held_jacobian.shape == (0, robot.nv) and terms.held_drift.shape == (0,)
-    np.testing.assert_allclose(terms.M_inv @ terms.M, np.eye(robot.nv), atol=1e-8)
-    eps = 1e-6
-    rate = (pin.centerOfMass(model, data, q + eps * dq) - pin.centerOfMass(model, data, q - eps * dq)) / (2 * eps)
-    np.testing.assert_allclose(terms.Jcom @ dq, rate, atol=1e-8)
-    Jcom_rate = (pin.jacobianCenterOfMass(model, data, q + eps * dq) - pin.jacobianCenterOfMass(model, data, q - eps * dq)) @ dq
-    np.testing.assert_allclose(terms.dJcom_dq, Jcom_rate / (2 * eps), atol=1e-6)
-    with pytest.raises(BadInputError, match="unknown frame"):
-        terms.frame("torso")
 
 
 # ---------------------------------------------------------------------- a floating base (the G1)

@@ -23,8 +23,9 @@ crb (12), (20)-(21)    -(1+c_r) n n^T / (n^T W_crb n)         J+ W_crb
 
 with W_gm = J M^-1 J^T (22), J+ = J^T (J J^T)^-1 (17), and the composite-rigid-body inverse
 inertia W_crb = (1/m) I3 - [r]x I_c^-1 [r]x (20), r = p - c from the centre of mass c of the
-locked robot to the contact point p. The CRB path never forms or inverts M; the GM and classical
-paths use a Cholesky solve of M.
+locked robot to the contact point p. The CRB path never forms or inverts M (a prediction from q
+is one compiled call, ``jump_kernels.crb_jump``, on terms of one world-frame CRBA pass); the GM
+and classical paths use M^-1 from Pinocchio's ``computeMinverse`` (``ModelTerms.M_inv``).
 
 Held contacts. A robot standing on held contacts (a humanoid's soles, Jacobian Jf, kept still
 through the impact: M dv = J^T iota + Jf^T lambda, Jf dv = 0) has the same predictors with the
@@ -42,8 +43,8 @@ This module is the one home of these maps and predictors: ``JumpModel`` gives th
 of any robot (``ModelTerms``; ``unit_maps`` and ``unit_matrices`` read the terms'
 ``held_jacobian``), :func:`predict` by a method's name, :func:`predict_from_terms` for N states
 of an arm at once (the batched terms of ``controller.model.batch``, leading axis N); the
-compiled kernels are in ``jump_kernels``. The held-contact ``unit_maps`` factor M
-(Cholesky) and take J# = N (J N)^+, equal to N J^T (J N J^T)^-1; the held-contact
+compiled kernels are in ``jump_kernels``. The held-contact ``unit_maps`` read M^-1 and take
+J# = N (J N)^+, equal to N J^T (J N J^T)^-1; the held-contact
 ``unit_matrices`` (a controller's every cycle) read the terms' M^-1 in one compiled call.
 """
 
@@ -53,18 +54,17 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from scipy.linalg import cho_solve
-
 from . import validation
 from .jump_kernels import (
     HELD_CONTACT_METHODS,
     crb_inverse_inertia_times,
+    crb_jump,
     crb_maps,
     held_contact_maps,
     rank_one_jump_matrices,
 )
 from .model_terms import ModelTerms
-from .validation import BadInputError, unit_normal
+from .validation import BadInputError, finite_vector, unit_normal
 
 METHODS = ("classical", "classical_normal", "gm", "crb")
 
@@ -93,8 +93,8 @@ def crb_inverse_inertia(terms: ModelTerms) -> np.ndarray:
 
 
 def held_inverse_inertia_times_Jf_t(terms: ModelTerms) -> np.ndarray:
-    """M^-1 Jf^T by a Cholesky solve."""
-    return terms.cached("MiJf", lambda: cho_solve(terms.M_cholesky, terms.held_jacobian.T))
+    """M^-1 Jf^T."""
+    return terms.cached("MiJf", lambda: terms.M_inv @ terms.held_jacobian.T)
 
 
 def constrained_inverse_inertia(terms: ModelTerms) -> np.ndarray:
@@ -102,7 +102,7 @@ def constrained_inverse_inertia(terms: ModelTerms) -> np.ndarray:
     with the held contacts kept still; M^-1 without held contacts."""
 
     def build():
-        Mi = cho_solve(terms.M_cholesky, np.eye(terms.M.shape[0]))
+        Mi = terms.M_inv
         if terms.held_jacobian.shape[0] == 0:
             return Mi
         MiJf = held_inverse_inertia_times_Jf_t(terms)
@@ -113,10 +113,9 @@ def constrained_inverse_inertia(terms: ModelTerms) -> np.ndarray:
 
 
 def joint_space_inverse_inertia_times_Jt(terms: ModelTerms) -> np.ndarray:
-    """P_f J^T (nv x 3): M^-1 J^T by a Cholesky solve (M is never inverted) without held
-    contacts, P_f J^T with them."""
+    """P_f J^T (nv x 3): M^-1 J^T without held contacts, P_f J^T with them."""
     if terms.held_jacobian.shape[0] == 0:
-        return cho_solve(terms.M_cholesky, terms.J.T)
+        return terms.M_inv @ terms.J.T
     return constrained_inverse_inertia(terms) @ terms.J.T
 
 
@@ -316,8 +315,8 @@ class GeneralizedMomentumJump(JumpModel):
 
     def inverse_inertia_times(self, terms: ModelTerms, normal: np.ndarray) -> np.ndarray:
         """W n, the only product of W that the normal-impulse model (12) needs along n:
-        J M^-1 (J^T n), one linear solve with M."""
-        return terms.J @ np.linalg.solve(terms.M, normal @ terms.J)
+        J M^-1 (J^T n)."""
+        return terms.J @ (terms.M_inv @ (normal @ terms.J))
 
     def fixed_base_maps(self, terms, normal, restitution):
         W = self.inverse_inertia(terms)
@@ -354,6 +353,17 @@ class CompositeRigidBodyJump(GeneralizedMomentumJump):
             terms.contact_point, terms.com, terms.inertia_com, terms.mass, terms.J, terms.JJt_inv, normal, restitution
         )
         return JumpMaps(G, K, W)
+
+    def predict(self, terms, normal, pre_impact_velocity, restitution=0.0, impulse=None) -> JumpPrediction:
+        """``JumpModel.predict``; without held contacts and for a predicted impulse, W_crb (20),
+        the impulse (12) and the jump (21) in one compiled call (``crb_jump``)."""
+        if impulse is not None or terms.held_jacobian.shape[0]:
+            return super().predict(terms, normal, pre_impact_velocity, restitution, impulse)
+        normal, restitution = unit_normal(normal), validation.restitution(restitution)
+        velocity = finite_vector(pre_impact_velocity, 3, "the pre-impact contact velocity")
+        rigid = (terms.contact_point, terms.com, terms.inertia_com, terms.mass)
+        dq_jump, impulse, W = crb_jump(rigid, terms.J, terms.JJt_inv, normal, velocity, restitution)
+        return JumpPrediction(self.name, dq_jump, impulse, W)
 
     def inverse_inertia_times(self, terms: ModelTerms, normal: np.ndarray) -> np.ndarray:
         """W_crb n = n / m - r x (I_c^-1 (r x n)), eq. (20) applied to n

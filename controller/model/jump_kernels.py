@@ -3,7 +3,8 @@
 Two forms of the same predictors, A = K G J the jump matrix, P = J^T G J the impulse-torque
 matrix, G the impulse map:
 
-- no held contact (a fixed-base arm): the CRB maps (``crb_maps``), W_crb n
+- no held contact (a fixed-base arm): the CRB maps (``crb_maps``), one CRB prediction
+  (``crb_jump``), W_crb n
   (``crb_inverse_inertia_times``) and the rank-one A and P of the normal-impulse models (12)
   from W n alone (``rank_one_jump_matrices``), J+ = J^T (J J^T)^-1 (17);
 - held contacts (a humanoid's soles, Jacobian Jf: bilateral, they stay still through the
@@ -51,17 +52,20 @@ def crb_inverse_inertia_times(contact_point, com, inertia_com, mass, normal):
 @njit(cache=True)
 def welded_inverse_inertia(contact_point, com, inertia_com, mass):
     """Kernel: W_crb = I3 / m - [r]x I_c^-1 [r]x (20), r = contact point - CoM, with I_c^-1 by the
-    adjugate (``symmetric_inverse3_into``), symmetrized; the compiled twin of
+    adjugate (``symmetric_inverse3_into``), symmetrized, in plain loops; the compiled twin of
     :func:`crb_inverse_inertia` for the arm's and the standing humanoid's kernels."""
-    r = contact_point - com
     R = np.zeros((3, 3))
-    R[0, 1], R[0, 2], R[1, 0], R[1, 2], R[2, 0], R[2, 1] = -r[2], r[1], r[2], -r[0], -r[1], r[0]
+    r0, r1, r2 = contact_point[0] - com[0], contact_point[1] - com[1], contact_point[2] - com[2]
+    R[0, 1], R[0, 2], R[1, 0], R[1, 2], R[2, 0], R[2, 1] = -r2, r1, r2, -r0, -r1, r0
     Iinv = np.empty((3, 3))
     symmetric_inverse3_into(inertia_com, Iinv)
-    W = -(R @ Iinv @ R)
+    W = -product(product(R, Iinv), R)
     for i in range(3):
         W[i, i] += 1.0 / mass
-    return 0.5 * (W + W.T)
+    for i in range(3):
+        for j in range(i):
+            W[i, j] = W[j, i] = 0.5 * (W[i, j] + W[j, i])
+    return W
 
 
 @njit(cache=True)
@@ -77,6 +81,33 @@ def crb_maps(contact_point, com, inertia_com, mass, J, JJt_inv, normal, restitut
             G[i, j] = scale * normal[i] * normal[j]
     K = J.T @ (JJt_inv @ W)
     return G, K, W
+
+
+@njit(cache=True)
+def crb_jump(rigid, J, JJt_inv, normal, velocity, restitution):
+    """Kernel of ``CompositeRigidBodyJump.predict``: W_crb (20, ``welded_inverse_inertia``, rigid =
+    (contact point, CoM, centroidal inertia, mass)), the impulse iota = -(1+c_r) n (n.v-) /
+    (n^T W_crb n) (12) and the jump J^T (J J^T)^-1 W_crb iota (21), in plain loops. Returns
+    (jump, iota, W_crb)."""
+    W = welded_inverse_inertia(*rigid)
+    Wn = np.zeros(3)
+    normal_Wn, normal_v = 0.0, 0.0
+    for i in range(3):
+        for j in range(3):
+            Wn[i] += W[i, j] * normal[j]
+        normal_Wn += normal[i] * Wn[i]
+        normal_v += normal[i] * velocity[i]
+    scale = -(1.0 + restitution) * normal_v / normal_Wn
+    impulse = np.empty(3)
+    y = np.zeros(3)  # (J J^T)^-1 W iota
+    for i in range(3):
+        impulse[i] = scale * normal[i]
+        for j in range(3):
+            y[i] += JJt_inv[i, j] * (scale * Wn[j])
+    jump = np.zeros(J.shape[1])
+    for k in range(J.shape[1]):
+        jump[k] = J[0, k] * y[0] + J[1, k] * y[1] + J[2, k] * y[2]
+    return jump, impulse, W
 
 
 @njit(cache=True)

@@ -22,6 +22,8 @@ from numba import njit
 from .validation import BadInputError
 
 _FILLS = itertools.count(1)
+LAZY_FIELDS = ("M", "h", "dJ6_dq", "JJt_inv")
+"""The fields of ModelTerms that a fill may leave to their first read (``fill_lazy``)."""
 
 
 class FrameState(NamedTuple):
@@ -65,6 +67,14 @@ class ModelTerms:
     base fills it with everything else in one pass; a fixed base leaves it None and
     ``compute_body`` (the model's ``body_terms``) computes it on first use, once per fill.
 
+    Lazily filled fields: a fill may leave any of ``LAZY_FIELDS`` (M, h, dJ6_dq, JJt_inv)
+    unset (None at construction, or ``refilled(pending=...)``); the first read of one calls
+    ``fill_lazy(terms, name)``, the model's, which returns that field and the others computed in
+    the same pass, kept until the next fill. An arm's ``RobotModel.terms`` (a prediction from q)
+    leaves M, h and dJ6_dq to a first read, a floating base's refill h and JJt_inv, which its
+    whole-body QP does not read; a controller's ``update_terms`` of an arm fills every field
+    in place (``store_arm_terms``), in the buffer of ``RobotModel.empty_terms``.
+
     A controller refills one ModelTerms per cycle (``RobotModel.update_terms``); ``stamp``
     changes at every fill (and for a ``dataclasses.replace`` copy), so anything cached per
     state keys on it. The derived quantities below are computed on first use, once per fill.
@@ -87,6 +97,8 @@ class ModelTerms:
     held_drift: np.ndarray | None = field(default=None, repr=False)
     body: BodyTerms | None = field(default=None, repr=False)
     compute_body: Callable[[np.ndarray, np.ndarray], BodyTerms] | None = field(default=None, repr=False)
+    compute_inverse_inertia: Callable[[np.ndarray], np.ndarray] | None = field(default=None, repr=False)
+    fill_lazy: Callable[[ModelTerms, str], dict[str, np.ndarray]] | None = field(default=None, repr=False)
     stamp: int = field(init=False, repr=False)
     _derived: dict = field(init=False, repr=False)
 
@@ -95,6 +107,17 @@ class ModelTerms:
         if self.held_jacobian is None:
             self.held_jacobian, self.held_drift = np.empty((0, self.J.shape[-1])), np.empty(0)
         self._derived = {}
+        for name in LAZY_FIELDS:
+            if self.__dict__[name] is None:
+                del self.__dict__[name]  # read through ``__getattr__``: ``fill_lazy``
+
+    def __getattr__(self, name: str):
+        """A lazily filled field (class docstring) on its first read since the last fill."""
+        fill = self.__dict__.get("fill_lazy")
+        if name in LAZY_FIELDS and fill is not None:
+            self.__dict__.update(fill(self, name))
+            return self.__dict__[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def cached(self, key: str, build: Callable[[], object]):
         """``build()``, computed once per fill of these terms and kept under ``key``."""
@@ -109,8 +132,11 @@ class ModelTerms:
 
     @property
     def M_inv(self) -> np.ndarray:
-        """M^-1 (nv x nv)."""
-        return self._body().M_inv
+        """M^-1 (nv x nv), Pinocchio's ``computeMinverse``: the body terms' when a floating base
+        filled them, else computed alone on first use (``compute_inverse_inertia``)."""
+        if self.body is not None:
+            return self.body.M_inv
+        return self.cached("M_inv", lambda: self.compute_inverse_inertia(self.q))
 
     @property
     def Jcom(self) -> np.ndarray:
@@ -137,24 +163,18 @@ class ModelTerms:
         return self._derived["J_pinv"]
 
     @property
-    def M_cholesky(self):
-        """Cholesky factor of M (scipy ``cho_factor``): M is never inverted explicitly."""
-        if "M_cholesky" not in self._derived:
-            from scipy.linalg import cho_factor
-
-            self._derived["M_cholesky"] = cho_factor(self.M)
-        return self._derived["M_cholesky"]
-
-    @property
     def cond_M(self) -> float:
         if "cond_M" not in self._derived:
             self._derived["cond_M"] = float(np.linalg.cond(self.M))
         return self._derived["cond_M"]
 
-    def refilled(self) -> ModelTerms:
-        """Mark the terms as those of a new state: a new ``stamp``, derived quantities cleared."""
+    def refilled(self, pending: tuple[str, ...] = ()) -> ModelTerms:
+        """Mark the terms as those of a new state: a new ``stamp``, derived quantities cleared,
+        the lazily filled fields ``pending`` left to their first read (class docstring)."""
         self.stamp = next(_FILLS)
         self._derived.clear()
+        for name in pending:
+            self.__dict__.pop(name, None)
         return self
 
 
@@ -205,6 +225,33 @@ def contact_jacobian_status(J, q, q_min, q_max, check_limits, singular_ratio_squ
         for j in range(q.shape[0]):
             if q[j] < q_min[j] or q[j] > q_max[j]:
                 return OUTSIDE_LIMITS
+    return ACCEPTED
+
+
+@njit(cache=True)
+def store_arm_terms(outputs, targets, q, q_min, q_max, check_limits, singular_ratio_squared):
+    """Kernel of an arm's per-cycle refill: the checks of ``contact_jacobian_status`` on the
+    Jacobian of ``outputs``, then, when ACCEPTED only (a refused state leaves the targets as they
+    were), every output written into its preallocated target once. ``outputs`` = (M, h,
+    centre of mass, contact point, contact rotation: views of Pinocchio's data; J6, dJ6 dq,
+    inertia about the centre of mass), ``targets`` the same terms' arrays then (J J^T)^-1."""
+    M, h, com, point, rotation, J6, drift, inertia = outputs
+    M_out, h_out, com_out, point_out, rotation_out, J6_out, drift_out, inertia_out, JJt_inv_out = targets
+    JJt_inv = np.empty((3, 3))
+    status = contact_jacobian_status(
+        np.ascontiguousarray(J6[:3]), q, q_min, q_max, check_limits, singular_ratio_squared, JJt_inv
+    )
+    if status != ACCEPTED:
+        return status
+    M_out[:, :] = M
+    h_out[:] = h
+    com_out[:] = com
+    point_out[:] = point
+    rotation_out[:, :] = rotation
+    J6_out[:, :] = J6
+    drift_out[:] = drift
+    inertia_out[:, :] = inertia
+    JJt_inv_out[:, :] = JJt_inv
     return ACCEPTED
 
 

@@ -8,9 +8,12 @@ a humanoid's soles). A fixed base is the case ``base_nq = base_nv = 0`` with no 
 
 The model is the single source of truth for the project: the MuJoCo scene of ``sim/`` is built
 from the same URDF text (``robot_description.model_urdf``). All dynamic terms of one state are
-gathered in :class:`~controller.model.model_terms.ModelTerms`: an arm's by one call to
-``pinocchio.computeAllTerms`` (its centre-of-mass Jacobian, M^-1 and named frames only when
-asked), a floating base's in one pass of the algorithms its whole-body QP needs.
+gathered in :class:`~controller.model.model_terms.ModelTerms`, filled by the methods of
+:class:`~controller.model.term_fills.ModelTermFills`: an arm's, for a controller's cycle, by one
+call to ``pinocchio.computeAllTerms``, for a prediction from q (``terms``) by one world-frame
+CRBA pass (the contact Jacobian and the locked robot's inertia; M, h and the drift on first
+read); its centre-of-mass Jacobian, M^-1 and named frames only when asked; a floating base's in
+one pass of the algorithms its whole-body QP needs.
 
 Contact tool
 ------------
@@ -35,16 +38,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .model_terms import (
-    NEAR_SINGULAR,
-    OUTSIDE_LIMITS,
-    BodyTerms,
-    FrameState,
-    ModelTerms,
-    contact_jacobian_status,
-    mirror_upper,
-    symmetric_inverse3_into,
-)
+# SINGULAR_RATIO and SingularPostureError are the model's: their home is the fills that check them
+from .term_fills import SINGULAR_RATIO, ModelTermFills, SingularPostureError  # noqa: F401
 from .robot_description import PANDA, RobotDescription, model_urdf, robot_description
 from .tool_description import TOOLS, ToolDescription, tool_description
 from .validation import BadInputError, all_finite
@@ -59,8 +54,6 @@ FINGER_JOINTS = PANDA.finger_joints
 TOOL_RADIUS = TOOLS["impact_tip"].geometry.radius
 TOOL_CENTRE_OFFSET = float(TOOLS["impact_tip"].geometry.centre[2])
 TOOL_TIP_OFFSET = float(TOOLS["impact_tip"].contact_point[2])
-# The contact Jacobian counts as singular when sigma_min / sigma_max falls below this ratio.
-SINGULAR_RATIO = 1e-3
 
 MAX_STATE_ENTRY = 1e100
 """Largest |q_i| (rad) or |dq_i| (rad/s) of a joint state: far above any robot's, far enough
@@ -89,11 +82,7 @@ class InvalidStateError(BadInputError):
         self.constraint = constraint
 
 
-class SingularPostureError(BadInputError):
-    """The contact Jacobian is (numerically) rank deficient at this posture."""
-
-
-class RobotModel:
+class RobotModel(ModelTermFills):
     """A described robot: an arm (fingers locked) carrying a described contact tool, or a
     floating-base robot with its own contact point and its held contacts (module docstring).
 
@@ -108,7 +97,9 @@ class RobotModel:
     ``contact_frame_id`` is the contact frame, ``held_frames`` and ``held_frame_ids`` the held
     contacts' frames in the description's order, ``frame_ids`` the description's named
     frames; an arm's ``tool_frame_id`` is the frame the tool is fixed to (the hand or the
-    flange), ``hand_frame_id`` the hand's frame.
+    flange), ``hand_frame_id`` the hand's frame. The terms of a state (``terms``,
+    ``update_terms``, ``empty_terms``, ``body_terms``, ``inverse_inertia``) are the fills of
+    :class:`~controller.model.term_fills.ModelTermFills`.
 
     >>> robot = RobotModel("fr3", "franka_hand")
     >>> terms = robot.terms(q, dq)
@@ -167,7 +158,7 @@ class RobotModel:
         self.dddq_max = description.dddq_max.copy()
         self._zero_velocity = np.zeros(self.nv)
         self._zero_velocity.flags.writeable = False
-        self._body_data = model.createData()
+        self._prepare_fills()
 
     @property
     def floating(self) -> bool:
@@ -280,136 +271,6 @@ class RobotModel:
                     constraint="joint_position_limit",
                 )
         return q, dq
-
-    # ------------------------------------------------------------------ model terms
-    def terms(self, q, dq=None, *, check_limits: bool | None = None) -> ModelTerms:
-        """All model terms of the state (q, dq) (dq = 0 when None), in new arrays.
-
-        ``check_limits`` (None: yes for a fixed base, no for a floating base, whose states come
-        from its stances and simulations and whose joints its whole-body QP bounds) checks the
-        joint position limits. An arm's terms raise :class:`SingularPostureError` when the
-        contact Jacobian J is rank deficient (assumption 5 of the paper:
-        sigma_min(J) < SINGULAR_RATIO sigma_max(J)), checked before the joint limits; every
-        robot's raise :class:`InvalidStateError` for a bad or out-of-limit state.
-        """
-        q, dq = self.check_state(q, dq, check_limits=False)
-        if self.floating:
-            return self._fill_floating(self.empty_terms(), q, dq, bool(check_limits))
-        return self._fill_fixed(None, q, dq, check_limits is not False)
-
-    def update_terms(self, terms: ModelTerms, q, dq, *, check_limits: bool | None = None) -> ModelTerms:
-        """``terms(q, dq)`` written into an existing ModelTerms (a controller's per-cycle
-        buffer: no new object; a floating base's arrays are refilled in place), with a new
-        ``stamp``. Raises like ``terms``; a refused state leaves a floating base's as it was."""
-        q, dq = self.check_state(q, dq, check_limits=False)
-        if self.base_nv:  # a floating base (an attribute: this runs every control cycle)
-            return self._fill_floating(terms, q, dq, bool(check_limits))
-        return self._fill_fixed(terms, q, dq, check_limits is not False)
-
-    def _fill_fixed(self, terms: ModelTerms | None, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
-        model, data, fid = self.model, self.data, self.contact_frame_id
-        pin.computeAllTerms(model, data, q, dq)
-        pin.updateFramePlacement(model, data, fid)
-        J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-        J = J6[:3]
-        JJt_inv = np.empty((3, 3))
-        status = contact_jacobian_status(J, q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO**2, JJt_inv)
-        if status == NEAR_SINGULAR:
-            eigenvalues = np.linalg.eigvalsh(J @ J.T)
-            if not eigenvalues[0] >= (SINGULAR_RATIO**2) * eigenvalues[2]:
-                raise SingularPostureError(
-                    "singular contact Jacobian at this posture (singular values ratio "
-                    f"{np.sqrt(max(eigenvalues[0], 0.0) / eigenvalues[2]):.1e})"
-                )
-        if status == OUTSIDE_LIMITS or (status == NEAR_SINGULAR and check_limits):
-            self.check_state(q, dq, check_limits=True)  # raises, naming the joint, when outside
-        # dJ6/dt dq (world-aligned) is the frame's classical acceleration at ddq = 0, which
-        # computeAllTerms leaves in the data.
-        dJ6_dq = pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector.copy()
-        placement = data.oMf[fid]
-        centroidal = data.Ig
-        fields = (
-            q, dq, data.M.copy(), data.nle.copy(), J, J6, dJ6_dq, JJt_inv,
-            placement.translation.copy(), placement.rotation.copy(), data.com[0].copy(),
-            float(centroidal.mass), centroidal.inertia.copy(),
-        )  # computeAllTerms fills both triangles of M
-        if terms is None:
-            return ModelTerms(*fields, compute_body=self.body_terms)
-        (terms.q, terms.dq, terms.M, terms.h, terms.J, terms.J6, terms.dJ6_dq, terms.JJt_inv,
-         terms.contact_point, terms.contact_rotation, terms.com, terms.mass, terms.inertia_com) = fields
-        return terms.refilled()
-
-    def empty_terms(self) -> ModelTerms:
-        """A floating base's ModelTerms of unset arrays, for ``update_terms`` to fill."""
-        nv, held = self.nv, 6 * len(self.held_frame_ids)
-        J6 = np.empty((6, nv))
-        frames = {
-            name: FrameState(np.empty(3), np.empty((3, 3)), np.empty((6, nv)), np.empty(6)) for name in self.frame_ids
-        }
-        return ModelTerms(
-            np.empty(self.nq), np.empty(nv), np.empty((nv, nv)), np.empty(nv), J6[:3], J6, np.empty(6),
-            np.empty((3, 3)), np.empty(3), np.empty((3, 3)), np.empty(3), 0.0, np.empty((3, 3)),
-            np.empty((held, nv)), np.empty(held), BodyTerms(np.empty((nv, nv)), np.empty((3, nv)), np.empty(3), frames),
-        )
-
-    def _fill_floating(self, terms: ModelTerms, q: np.ndarray, v: np.ndarray, check_limits: bool) -> ModelTerms:
-        """One pass of Pinocchio's algorithms at (q, v), their results copied into ``terms``."""
-        if check_limits:
-            self.check_state(q, v, check_limits=True)
-        model, data, body = self.model, self.data, terms.body
-        terms.q[:], terms.dq[:] = q, v
-        pin.forwardKinematics(model, data, q, v, self._zero_velocity)
-        pin.computeJointJacobians(model, data)
-        pin.updateFramePlacements(model, data)
-        self._frame_into(self.contact_frame_id, terms.J6, terms.dJ6_dq, terms.contact_point, terms.contact_rotation)
-        for k, frame_id in enumerate(self.held_frame_ids):
-            self._frame_into(frame_id, terms.held_jacobian[6 * k:6 * k + 6], terms.held_drift[6 * k:6 * k + 6])
-        for name, frame_id in self.frame_ids.items():
-            frame = body.frames[name]
-            self._frame_into(frame_id, frame.J6, frame.dJ6_dq, frame.position, frame.rotation)
-        pin.centerOfMass(model, data, pin.ACCELERATION, True)  # of the kinematics above
-        terms.com[:], body.dJcom_dq[:] = data.com[0], data.acom[0]
-        body.Jcom[:] = pin.jacobianCenterOfMass(model, data, False)  # of the Jacobians and CoMs above
-        mirror_upper(pin.crba(model, data, q), terms.M)
-        mirror_upper(pin.computeMinverse(model, data, q), body.M_inv)
-        pin.ccrba(model, data, q, v)
-        terms.mass, terms.inertia_com[:] = float(data.Ig.mass), data.Ig.inertia
-        terms.h[:] = pin.nonLinearEffects(model, data, q, v)
-        symmetric_inverse3_into(terms.J @ terms.J.T, terms.JJt_inv)
-        return terms.refilled()
-
-    def _frame_into(self, frame_id: int, J6, drift, position=None, rotation=None) -> None:
-        """The frame's world-aligned Jacobian and drift (and its placement) after the forward
-        kinematics of ``_fill_floating``, copied into the given arrays."""
-        world = pin.LOCAL_WORLD_ALIGNED
-        J6[:] = pin.getFrameJacobian(self.model, self.data, frame_id, world)
-        drift[:] = pin.getFrameClassicalAcceleration(self.model, self.data, frame_id, world).vector
-        if position is not None:
-            placement = self.data.oMf[frame_id]
-            position[:], rotation[:] = placement.translation, placement.rotation
-
-    def body_terms(self, q: np.ndarray, dq: np.ndarray) -> BodyTerms:
-        """M^-1, Jcom, dJcom dq and the named frames of the state (q, dq) (``BodyTerms``), on a
-        data of their own: what a fixed base's terms compute on first use."""
-        model, data = self.model, self._body_data
-        pin.forwardKinematics(model, data, q, dq, self._zero_velocity)
-        pin.computeJointJacobians(model, data)
-        pin.updateFramePlacements(model, data)
-        world = pin.LOCAL_WORLD_ALIGNED
-        frames = {}
-        for name, frame_id in self.frame_ids.items():
-            placement = data.oMf[frame_id]
-            frames[name] = FrameState(
-                placement.translation.copy(), placement.rotation.copy(),
-                pin.getFrameJacobian(model, data, frame_id, world),
-                pin.getFrameClassicalAcceleration(model, data, frame_id, world).vector.copy(),
-            )
-        pin.centerOfMass(model, data, pin.ACCELERATION, True)
-        dJcom_dq = data.acom[0].copy()
-        Jcom = pin.jacobianCenterOfMass(model, data, False).copy()
-        M_inv = np.empty((self.nv, self.nv))
-        mirror_upper(pin.computeMinverse(model, data, q), M_inv)
-        return BodyTerms(M_inv, Jcom, dJcom_dq, frames)
 
     # ------------------------------------------------------------------ frames
     def contact_point(self, q) -> np.ndarray:

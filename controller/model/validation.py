@@ -114,13 +114,16 @@ def unit_normal(normal, what: str = "the surface normal") -> np.ndarray:
     """The normalised 3-vector ``normal``; a non-finite or (near-)zero normal is bad input."""
     n = finite_vector(normal, 3, what)
     # |n| = s |n / s| with s = max |n_i|: the norm of n / s lies in [1, sqrt(3)], so neither it
-    # nor the division overflows for any finite n (|n| itself may exceed the float range)
-    scale = max(map(abs, n.tolist()))
-    scaled = n / scale if scale > 0.0 else n
-    norm = math.hypot(*scaled.tolist())
+    # nor the division overflows for any finite n (|n| itself may exceed the float range); in
+    # plain floats, cheaper than numpy calls for three entries
+    x, y, z = n.tolist()
+    scale = max(abs(x), abs(y), abs(z))
+    if scale > 0.0:
+        x, y, z = x / scale, y / scale, z / scale
+    norm = math.hypot(x, y, z)
     if scale * norm < NORMAL_MIN_NORM:
         raise BadInputError(f"{what} must be non-zero, got {n.tolist()}")
-    return scaled / norm
+    return np.array((x / norm, y / norm, z / norm))
 
 
 def unit_normals(normals, what: str = "the surface normals") -> np.ndarray:

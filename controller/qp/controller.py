@@ -160,7 +160,7 @@ class ImpactAwareController:
         self._row_views = [(c, p.C[s], p.l[s], p.u[s]) for c, s in zip(layout.row_constraints, layout.row_slices)]
         first = layout.first_relaxed_row
         self._relaxed_rows = (p.C[first:], p.l[first:], p.u[first:])
-        self._terms: ModelTerms | None = None  # refilled in place every cycle
+        self._terms = self.robot.empty_terms()  # refilled in place every cycle
         self._jerk_step = self.dddq_max * self.dt
         joints = self._joint_velocities
         self._limits = command_limits(self.robot, self.ddq_max[joints], self._jerk_step[joints])
@@ -210,10 +210,7 @@ class ImpactAwareController:
             return self._impact_brake()
         robot = self.robot
         try:
-            if self._terms is None:
-                self._terms = robot.terms(q, dq)
-            else:
-                robot.update_terms(self._terms, q, dq)
+            robot.update_terms(self._terms, q, dq)
         except InvalidStateError as error:
             return self._fallback(q, dq, Status.FALLBACK_INVALID_STATE, [error.constraint], str(error))
         except SingularPostureError as error:

@@ -3,6 +3,10 @@
 - controller.cycle: microseconds per ``step`` in a kinematic closed loop (q, dq <- q_cmd,
   dq_cmd) approaching the default wall faster than the posture allows, every constraint on,
   the impact-aware ones active (goals: median <= 100 us, p99 <= 250 us), on the Panda;
+- floor.cycle: the floor of that cycle at the same states: one ``computeAllTerms`` and a bare
+  ``daqp.solve`` of the controller's own QP (the same H, g, C and stacked bounds, recorded along
+  the loop), timed in alternating blocks with controller.cycle (``base.alternating_blocks``),
+  and their ratio ``controller.cycle/floor.cycle`` block by block;
   controller.cycle.fr3 and controller.cycle.ur5 the same loop on the FR3 and on the UR5 (six
   joints, from its description file only), all with the impact tip;
 - peer.pink.cycle: the same robot in pink's ``solve_ik`` (frame task + posture task +
@@ -17,7 +21,8 @@
 - controller.cycle.g1: microseconds per ``ImpactAwareController.step`` of the standing G1 (parallel
   stance, the right hand approaching a wall 10 cm ahead at 0.5 m/s, every task and constraint on,
   model terms once per cycle, daqp), the same closed loop as controller.cycle; .proxqp the same
-  loop with proxqp updated and warm-started every cycle;
+  loop with proxqp updated and warm-started every cycle; floor.cycle.g1 and
+  ``controller.cycle.g1/floor.cycle.g1`` its floor and ratio, as floor.cycle;
 - peer.pink.cycle.g1: pink's ``solve_ik`` on the same G1 model (frame task on the hand's contact
   frame + posture task + pink's configuration and velocity limits), its free-flyer left free
   (pink has no feet), same loop;
@@ -33,7 +38,9 @@ import time
 from collections.abc import Callable
 from dataclasses import replace
 
+import daqp
 import numpy as np
+import pinocchio as pin
 
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.sim.scene import build_scene
@@ -45,7 +52,7 @@ from impactqp.controller.qp import available_backends
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.max_speed import Setting, approach_direction, closed_form_max_speed
 
-from .base import missing_row, timing_row
+from .base import ALTERNATING_BLOCKS, alternating_blocks, blocks_row, missing_row, ratio_row, timing_row
 
 CYCLES = 3000
 RESTART_EVERY = 500  # cycles; the loop restarts at the posture before reaching the wall
@@ -73,26 +80,76 @@ def controller_cycle_samples(robot: PandaModel, solver: str | None = None, cycle
 def _approach_loop(robot: PandaModel, solver: str | None, cycles: int) -> tuple[np.ndarray, int]:
     """Seconds per ``step`` of the closed approach loop, and its number of fallbacks."""
     controller, q0 = _approach_setup(robot, solver)
-    return closed_loop_samples(controller, q0, robot.nv, cycles)
+    return ClosedLoop(controller, q0, robot.nv).run(cycles)
 
 
-def closed_loop_samples(controller, q0: np.ndarray, nv: int, cycles: int) -> tuple[np.ndarray, int]:
-    """Seconds per ``controller.step`` in the kinematic closed loop (q, v <- q_cmd, v_cmd),
-    restarted at rest at ``q0`` every RESTART_EVERY cycles, and the number of fallback commands
-    (any controller whose command has ``q_cmd``, ``dq_cmd`` and ``is_fallback``)."""
-    samples = np.empty(cycles)
-    fallbacks = 0
-    q, v = q0, np.zeros(nv)
-    for k in range(cycles):
-        if k % RESTART_EVERY == 0:
-            q, v = q0, np.zeros(nv)
-            controller.reset(q, v)
-        start = time.perf_counter()
-        command = controller.step(q, v)
-        samples[k] = time.perf_counter() - start
-        fallbacks += command.is_fallback
-        q, v = command.q_cmd, command.dq_cmd
-    return samples, fallbacks
+class ClosedLoop:
+    """The kinematic closed loop of a controller (q, v <- q_cmd, v_cmd), restarted at rest at
+    ``q0`` every RESTART_EVERY cycles (any controller whose command has ``q_cmd``, ``dq_cmd`` and
+    ``is_fallback``); each ``run`` goes on from where the last one stopped."""
+
+    def __init__(self, controller, q0: np.ndarray, nv: int):
+        self.controller, self.q0, self.nv = controller, q0, nv
+        self.q, self.v, self.cycle = q0, np.zeros(nv), 0
+
+    def run(self, cycles: int, record: list | None = None) -> tuple[np.ndarray, int]:
+        """Seconds per ``step`` of the next ``cycles`` cycles and their number of fallback
+        commands; with ``record``, each cycle's (q, v, the controller's QP) appended to it."""
+        controller = self.controller
+        samples = np.empty(cycles)
+        fallbacks = 0
+        for k in range(cycles):
+            if self.cycle % RESTART_EVERY == 0:
+                self.q, self.v = self.q0, np.zeros(self.nv)
+                controller.reset(self.q, self.v)
+            start = time.perf_counter()
+            command = controller.step(self.q, self.v)
+            samples[k] = time.perf_counter() - start
+            if record is not None:
+                record.append((self.q, self.v, controller.problem.copy()))
+            fallbacks += command.is_fallback
+            self.q, self.v, self.cycle = command.q_cmd, command.dq_cmd, self.cycle + 1
+        return samples, fallbacks
+
+
+class CycleFloor:
+    """The floor of a controller's cycle at recorded states (``ClosedLoop.run``'s ``record``): one
+    ``computeAllTerms`` of the robot and one bare ``daqp.solve`` of the controller's QP, the
+    same H, g, C and stacked bounds; each ``run`` times the next states, in a ring."""
+
+    def __init__(self, robot: RobotModel, states: list):
+        self.model, self.data, self.states, self.next = robot.model, robot.model.createData(), states, 0
+        rows, n = states[0][2].C.shape
+        self.sense = np.zeros(n + rows, dtype=np.int32)
+
+    def run(self, cycles: int) -> np.ndarray:
+        """Seconds per floor cycle of the next ``cycles`` recorded states."""
+        samples = np.empty(cycles)
+        model, data, sense = self.model, self.data, self.sense
+        for k in range(cycles):
+            q, v, problem = self.states[self.next]
+            self.next = (self.next + 1) % len(self.states)
+            start = time.perf_counter()
+            pin.computeAllTerms(model, data, q, v)
+            sense.fill(0)
+            daqp.solve(problem.H, problem.g, problem.C, problem.upper, problem.lower, sense)
+            samples[k] = time.perf_counter() - start
+        return samples
+
+
+def cycle_and_floor_rows(name: str, floor: str, robot: RobotModel, setup: Callable[[], tuple]) -> list[dict]:
+    """The rows ``name`` (us per ``step`` of the closed loop of ``setup()`` = (controller, q0)),
+    ``floor`` (``CycleFloor`` at the states of the same loop, recorded by a twin controller) and
+    their ratio, timed in alternating blocks of CYCLES // ALTERNATING_BLOCKS cycles after a
+    warm-up of both."""
+    states: list = []
+    ClosedLoop(*setup(), robot.nv).run(CYCLES, states)
+    loop, cycle_floor = ClosedLoop(*setup(), robot.nv), CycleFloor(robot, states)
+    ClosedLoop(*setup(), robot.nv).run(300)  # warm-up (numba kernels, caches)
+    cycle_floor.run(300)
+    block = CYCLES // ALTERNATING_BLOCKS
+    blocks = alternating_blocks({name: lambda: loop.run(block)[0], floor: lambda: cycle_floor.run(block)})
+    return [blocks_row(name, "us", blocks[name], 1e6), blocks_row(floor, "us", blocks[floor], 1e6), ratio_row(name, floor, blocks)]
 
 
 def settled_speed_ratio(robot: PandaModel, solver: str) -> float:
@@ -246,15 +303,20 @@ def stage_samples(robot: PandaModel, cycles: int = 1000) -> dict[str, np.ndarray
     return stages
 
 
-def g1_cycle_samples(robot: RobotModel, solver: str = "daqp", cycles: int = CYCLES) -> np.ndarray:
-    """Seconds per ``step`` of the G1's closed approach loop (q, v <- q_cmd, v_cmd), restarted at
-    the stance every RESTART_EVERY cycles."""
+def g1_setup(robot: RobotModel, solver: str = "daqp") -> tuple:
+    """The G1's approach controller and its stance q0: the right hand 10 cm before a wall ahead
+    at 0.5 m/s."""
     q0 = stance_posture(robot, robot.description.stances[G1_STANCE])
     normal = np.array([-1.0, 0.0, 0.0])
     surface = Surface(robot.terms(q0).contact_point - WALL_GAP * normal, normal)
     config = ControllerConfig.approach(surface, 0.5, robot=robot.description.name, solver=solver)
-    controller = build_controller(config, robot, q0)
-    return closed_loop_samples(controller, q0, robot.nv, cycles)[0]
+    return build_controller(config, robot, q0), q0
+
+
+def g1_cycle_samples(robot: RobotModel, solver: str = "daqp", cycles: int = CYCLES) -> np.ndarray:
+    """Seconds per ``step`` of the G1's closed approach loop (q, v <- q_cmd, v_cmd), restarted at
+    the stance every RESTART_EVERY cycles."""
+    return ClosedLoop(*g1_setup(robot, solver), robot.nv).run(cycles)[0]
 
 
 def pink_g1_cycle_samples(robot: RobotModel, solver: str, cycles: int = CYCLES) -> np.ndarray:
@@ -268,9 +330,8 @@ def pink_g1_cycle_samples(robot: RobotModel, solver: str, cycles: int = CYCLES) 
 def g1_rows() -> list[dict]:
     """controller.cycle.g1, its proxqp twin and pink's row on the same G1."""
     g1 = RobotModel("g1")
-    g1_cycle_samples(g1, cycles=300)  # warm-up (numba kernels, caches)
     return [
-        timing_row("controller.cycle.g1", "us", g1_cycle_samples(g1), 1e6),
+        *cycle_and_floor_rows("controller.cycle.g1", "floor.cycle.g1", g1, lambda: g1_setup(g1)),
         timing_row("controller.cycle.g1.proxqp", "us", g1_cycle_samples(g1, "proxqp"), 1e6),
         fastest_solver_row("peer.pink.cycle.g1", lambda solver, cycles: pink_g1_cycle_samples(g1, solver, cycles)),
     ]
@@ -278,8 +339,7 @@ def g1_rows() -> list[dict]:
 
 def controller_rows() -> list[dict]:
     robot = PandaModel()
-    controller_cycle_samples(robot, cycles=300)  # warm-up
-    rows = [timing_row("controller.cycle", "us", controller_cycle_samples(robot), 1e6)]
+    rows = cycle_and_floor_rows("controller.cycle", "floor.cycle", robot, lambda: _approach_setup(robot))
     for name in ("fr3", "ur5"):
         other = RobotModel(name)
         controller_cycle_samples(other, cycles=300)  # warm-up

@@ -12,6 +12,13 @@ def reference_crb_unit_maps(terms, normal, restitution) -> JumpMaps:
     return JumpMaps(normal_impulse_map(W, normal, restitution), terms.J_pinv @ W, W)
 
 
+def reference_crb_jump(terms, normal, velocity, restitution) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``jump_kernels.crb_jump``: W_crb (20), iota = G v- (12), dq_jump = J+ W_crb iota (21)."""
+    W = crb_inverse_inertia(terms)
+    impulse = normal_impulse_map(W, normal, restitution) @ velocity
+    return terms.J_pinv @ W @ impulse, impulse, W
+
+
 def reference_crb_inverse_inertia_times(terms, normal) -> np.ndarray:
     """``CompositeRigidBodyJump.inverse_inertia_times`` in plain floats: n / m - r x (I_c^-1 (r x n))."""
     rx, ry, rz = (terms.contact_point - terms.com).tolist()

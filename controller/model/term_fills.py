@@ -1,0 +1,241 @@
+"""How a robot model fills the terms of one state (``ModelTerms``) from Pinocchio's algorithms:
+the methods of :class:`ModelTermFills`, mixed into ``robot.RobotModel``.
+
+An arm (a fixed base) has two fills. A prediction from q (``terms``) is one world-frame CRBA
+pass (``pin.crba`` with ``Convention.WORLD``): the contact frame's Jacobian and placement,
+(J J^T)^-1 and the locked robot's mass, centre of mass and inertia about it, the subtree inertia
+``data.oYcrb`` of the root joints (what the composite-rigid-body model (20) welds); M, h and the
+drift dJ6 dq are lazily filled fields (``ModelTerms.fill_lazy``), one ``computeAllTerms`` on
+their first read. A controller's cycle (``update_terms``) is one ``computeAllTerms`` whose
+outputs one kernel (``model_terms.store_arm_terms``) checks and writes into the preallocated
+buffer of ``empty_terms``. A floating base's fill is one pass of the algorithms its whole-body
+QP needs, into its buffer; h and (J J^T)^-1, which that QP does not read, on first read.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from .model_terms import (
+    ACCEPTED,
+    NEAR_SINGULAR,
+    OUTSIDE_LIMITS,
+    BodyTerms,
+    FrameState,
+    ModelTerms,
+    contact_jacobian_status,
+    mirror_upper,
+    store_arm_terms,
+    symmetric_inverse3_into,
+)
+from .validation import BadInputError
+
+# The contact Jacobian counts as singular when sigma_min / sigma_max falls below this ratio.
+SINGULAR_RATIO = 1e-3
+
+
+class SingularPostureError(BadInputError):
+    """The contact Jacobian is (numerically) rank deficient at this posture."""
+
+
+class ModelTermFills:
+    """The fills of a robot model's ``ModelTerms`` (module docstring), for ``robot.RobotModel``:
+    it reads the model's Pinocchio ``model`` and ``data``, sizes, limits, frame ids and
+    ``check_state``; ``_prepare_fills`` (called once the model is built) makes the data the
+    lazily filled fields and M^-1 are computed on, and the views of ``data`` an arm's cycle reads."""
+
+    def _prepare_fills(self) -> None:
+        model = self.model
+        self._body_data = model.createData()
+        self._inverse_data = model.createData()
+        self._root_joints = [j for j in range(1, model.njoints) if model.parents[j] == 0]
+        if not self.floating:  # views of the data that computeAllTerms refills in place
+            placement = self.data.oMf[self.contact_frame_id]
+            self._data_outputs = (self.data.M, self.data.nle, self.data.com[0], placement.translation, placement.rotation)
+
+    def terms(self, q, dq=None, *, check_limits: bool | None = None) -> ModelTerms:
+        """All model terms of the state (q, dq) (dq = 0 when None), in new arrays.
+
+        ``check_limits`` (None: yes for a fixed base, no for a floating base, whose states come
+        from its stances and simulations and whose joints its whole-body QP bounds) checks the
+        joint position limits. An arm's terms raise :class:`SingularPostureError` when the
+        contact Jacobian J is rank deficient (assumption 5 of the paper:
+        sigma_min(J) < SINGULAR_RATIO sigma_max(J)), checked before the joint limits; every
+        robot's raise :class:`InvalidStateError` for a bad or out-of-limit state.
+        """
+        q, dq = self.check_state(q, dq, check_limits=False)
+        if self.floating:
+            return self._fill_floating(self.empty_terms(), q, dq, bool(check_limits))
+        return self._prediction_terms(q, dq, check_limits is not False)
+
+    def update_terms(self, terms: ModelTerms, q, dq, *, check_limits: bool | None = None) -> ModelTerms:
+        """``terms(q, dq)`` written into an existing ModelTerms (a controller's per-cycle
+        buffer: no new object; a floating base's arrays are refilled in place), with a new
+        ``stamp``. Raises like ``terms``; a refused state leaves a floating base's as it was."""
+        q, dq = self.check_state(q, dq, check_limits=False)
+        if self.base_nv:  # a floating base (an attribute: this runs every control cycle)
+            return self._fill_floating(terms, q, dq, bool(check_limits))
+        return self._fill_fixed(terms, q, dq, check_limits is not False)
+
+    def _prediction_terms(self, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
+        """An arm's new terms of one world-frame CRBA pass (what a prediction from q needs): the
+        contact frame's Jacobian and placement, (J J^T)^-1 and the locked robot's inertia (the
+        subtree inertia ``data.oYcrb`` of the root joints); M, h and dJ6 dq left to their first
+        read (``_lazy_dynamics``)."""
+        model, data, fid = self.model, self.data, self.contact_frame_id
+        pin.crba(model, data, q, pin.Convention.WORLD)
+        pin.updateFramePlacement(model, data, fid)
+        J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+        JJt_inv = np.empty((3, 3))
+        status = contact_jacobian_status(J6[:3], q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO**2, JJt_inv)
+        if status != ACCEPTED:
+            self._refuse(J6[:3], q, dq, status, check_limits)
+        placement = data.oMf[fid]
+        locked = data.oYcrb[self._root_joints[0]]
+        for joint in self._root_joints[1:]:
+            locked = locked + data.oYcrb[joint]
+        return ModelTerms(
+            q, dq, None, None, J6[:3], J6, None, JJt_inv, placement.translation.copy(), placement.rotation.copy(),
+            locked.lever.copy(), float(locked.mass), locked.inertia.copy(),
+            compute_body=self.body_terms, compute_inverse_inertia=self.inverse_inertia, fill_lazy=self._lazy_dynamics,
+        )
+
+    def _fill_fixed(self, terms: ModelTerms, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
+        """An arm's terms refilled in place by one ``computeAllTerms`` (a controller's cycle:
+        every field). dJ6/dt dq (world-aligned) is the frame's classical acceleration at ddq = 0,
+        which computeAllTerms leaves in the data; it fills both triangles of M. One kernel checks
+        the state and writes every output into the terms' own arrays (``store_arm_terms``)."""
+        model, data, fid = self.model, self.data, self.contact_frame_id
+        pin.computeAllTerms(model, data, q, dq)
+        pin.updateFramePlacement(model, data, fid)
+        centroidal = data.Ig
+        outputs = (
+            *self._data_outputs, pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED),
+            pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector, centroidal.inertia,
+        )
+        targets = (
+            terms.M, terms.h, terms.com, terms.contact_point, terms.contact_rotation, terms.J6, terms.dJ6_dq,
+            terms.inertia_com, terms.JJt_inv,
+        )
+        status = store_arm_terms(outputs, targets, q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO**2)
+        if status != ACCEPTED:  # raises, or a near-singular J that the exact test clears: store it
+            self._refuse(outputs[5][:3], q, dq, status, check_limits)
+            store_arm_terms(outputs, targets, q, self.q_min, self.q_max, False, -np.inf)
+        terms.q, terms.dq, terms.mass = q, dq, float(centroidal.mass)
+        return terms.refilled()
+
+    def _refuse(self, J: np.ndarray, q: np.ndarray, dq: np.ndarray, status: int, check_limits: bool) -> None:
+        """Raise for a state ``contact_jacobian_status`` did not accept: SingularPostureError when
+        the exact test confirms a near-singular J, InvalidStateError (naming the joint) when q
+        leaves its limits; a near-singular status that the exact test clears returns."""
+        if status == NEAR_SINGULAR:
+            eigenvalues = np.linalg.eigvalsh(J @ J.T)
+            if not eigenvalues[0] >= (SINGULAR_RATIO**2) * eigenvalues[2]:
+                raise SingularPostureError(
+                    "singular contact Jacobian at this posture (singular values ratio "
+                    f"{np.sqrt(max(eigenvalues[0], 0.0) / eigenvalues[2]):.1e})"
+                )
+        if status == OUTSIDE_LIMITS or check_limits:
+            self.check_state(q, dq, check_limits=True)  # raises, naming the joint, when outside
+
+    def _lazy_dynamics(self, terms: ModelTerms, name: str) -> dict[str, np.ndarray]:
+        """The lazily filled fields of ``terms`` (``ModelTerms.fill_lazy``), on a data of their
+        own: an arm's M, h and dJ6 dq by one ``computeAllTerms``; a floating base's h by
+        ``nonLinearEffects`` or its (J J^T)^-1 by the adjugate."""
+        model, data, q, dq = self.model, self._body_data, terms.q, terms.dq
+        if name == "JJt_inv":
+            JJt_inv = np.empty((3, 3))
+            symmetric_inverse3_into(terms.J @ terms.J.T, JJt_inv)
+            return {"JJt_inv": JJt_inv}
+        if self.floating:
+            return {"h": pin.nonLinearEffects(model, data, q, dq).copy()}
+        pin.computeAllTerms(model, data, q, dq)
+        pin.updateFramePlacement(model, data, self.contact_frame_id)
+        drift = pin.getFrameClassicalAcceleration(model, data, self.contact_frame_id, pin.LOCAL_WORLD_ALIGNED)
+        return {"M": data.M.copy(), "h": data.nle.copy(), "dJ6_dq": drift.vector.copy()}
+
+    def inverse_inertia(self, q: np.ndarray) -> np.ndarray:
+        """M^-1 at q (Pinocchio's ``computeMinverse``, both triangles), on a data of its own."""
+        M_inv = np.empty((self.nv, self.nv))
+        mirror_upper(pin.computeMinverse(self.model, self._inverse_data, q), M_inv)
+        return M_inv
+
+    def empty_terms(self) -> ModelTerms:
+        """A ModelTerms of unset arrays, for ``update_terms`` to fill in place (a controller's
+        per-cycle buffer); a floating base's h and (J J^T)^-1 on their first read
+        (``_lazy_dynamics``)."""
+        nv = self.nv
+        J6 = np.empty((6, nv))
+        if not self.floating:
+            return ModelTerms(
+                np.empty(self.nq), np.empty(nv), np.empty((nv, nv)), np.empty(nv), J6[:3], J6, np.empty(6),
+                np.empty((3, 3)), np.empty(3), np.empty((3, 3)), np.empty(3), 0.0, np.empty((3, 3)),
+                compute_body=self.body_terms, compute_inverse_inertia=self.inverse_inertia,
+            )
+        held = 6 * len(self.held_frame_ids)
+        frames = {
+            name: FrameState(np.empty(3), np.empty((3, 3)), np.empty((6, nv)), np.empty(6)) for name in self.frame_ids
+        }
+        return ModelTerms(
+            np.empty(self.nq), np.empty(nv), np.empty((nv, nv)), None, J6[:3], J6, np.empty(6),
+            None, np.empty(3), np.empty((3, 3)), np.empty(3), 0.0, np.empty((3, 3)),
+            np.empty((held, nv)), np.empty(held), BodyTerms(np.empty((nv, nv)), np.empty((3, nv)), np.empty(3), frames),
+            fill_lazy=self._lazy_dynamics,
+        )
+
+    def _fill_floating(self, terms: ModelTerms, q: np.ndarray, v: np.ndarray, check_limits: bool) -> ModelTerms:
+        """One pass of Pinocchio's algorithms at (q, v), their results copied into ``terms``; h and
+        (J J^T)^-1, which the whole-body QP does not read, left to their first read."""
+        if check_limits:
+            self.check_state(q, v, check_limits=True)
+        model, data, body = self.model, self.data, terms.body
+        terms.q[:], terms.dq[:] = q, v
+        pin.forwardKinematics(model, data, q, v, self._zero_velocity)
+        pin.computeJointJacobians(model, data)
+        pin.updateFramePlacements(model, data)
+        self._frame_into(self.contact_frame_id, terms.J6, terms.dJ6_dq, terms.contact_point, terms.contact_rotation)
+        for k, frame_id in enumerate(self.held_frame_ids):
+            self._frame_into(frame_id, terms.held_jacobian[6 * k:6 * k + 6], terms.held_drift[6 * k:6 * k + 6])
+        for name, frame_id in self.frame_ids.items():
+            frame = body.frames[name]
+            self._frame_into(frame_id, frame.J6, frame.dJ6_dq, frame.position, frame.rotation)
+        pin.centerOfMass(model, data, pin.ACCELERATION, True)  # of the kinematics above
+        terms.com[:], body.dJcom_dq[:] = data.com[0], data.acom[0]
+        body.Jcom[:] = pin.jacobianCenterOfMass(model, data, False)  # of the Jacobians and CoMs above
+        mirror_upper(pin.crba(model, data, q), terms.M)
+        mirror_upper(pin.computeMinverse(model, data, q), body.M_inv)
+        pin.ccrba(model, data, q, v)
+        terms.mass, terms.inertia_com[:] = float(data.Ig.mass), data.Ig.inertia
+        return terms.refilled(pending=("h", "JJt_inv"))
+
+    def _frame_into(self, frame_id: int, J6, drift, position=None, rotation=None) -> None:
+        """The frame's world-aligned Jacobian and drift (and its placement) after the forward
+        kinematics of ``_fill_floating``, copied into the given arrays."""
+        world = pin.LOCAL_WORLD_ALIGNED
+        J6[:] = pin.getFrameJacobian(self.model, self.data, frame_id, world)
+        drift[:] = pin.getFrameClassicalAcceleration(self.model, self.data, frame_id, world).vector
+        if position is not None:
+            placement = self.data.oMf[frame_id]
+            position[:], rotation[:] = placement.translation, placement.rotation
+
+    def body_terms(self, q: np.ndarray, dq: np.ndarray) -> BodyTerms:
+        """M^-1, Jcom, dJcom dq and the named frames of the state (q, dq) (``BodyTerms``), on a
+        data of their own: what a fixed base's terms compute on first use."""
+        model, data = self.model, self._body_data
+        pin.forwardKinematics(model, data, q, dq, self._zero_velocity)
+        pin.computeJointJacobians(model, data)
+        pin.updateFramePlacements(model, data)
+        world = pin.LOCAL_WORLD_ALIGNED
+        frames = {}
+        for name, frame_id in self.frame_ids.items():
+            placement = data.oMf[frame_id]
+            frames[name] = FrameState(
+                placement.translation.copy(), placement.rotation.copy(),
+                pin.getFrameJacobian(model, data, frame_id, world),
+                pin.getFrameClassicalAcceleration(model, data, frame_id, world).vector.copy(),
+            )
+        pin.centerOfMass(model, data, pin.ACCELERATION, True)
+        dJcom_dq = data.acom[0].copy()
+        Jcom = pin.jacobianCenterOfMass(model, data, False).copy()
+        return BodyTerms(self.inverse_inertia(q), Jcom, dJcom_dq, frames)
