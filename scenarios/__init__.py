@@ -12,7 +12,6 @@ from impactqp.lazy_exports import lazy_exports as _lazy_exports
 
 _EXPORTS = {
     "TrialRunner": "trial",
-    "TrialResult": "trial",
     "TrialPool": "trial",
     "Campaign": "campaign",
     "CampaignPlan": "campaign",

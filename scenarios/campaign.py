@@ -63,11 +63,12 @@ from impactqp.sim.runner import TrialSpec  # noqa: E402
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as FLOATING_METHODS  # noqa: E402
 from impactqp.controller.model.robot import RobotModel  # noqa: E402
 from impactqp.sim.generation import STANDING_WALL  # noqa: E402
-from impactqp.sim.humanoid_trial import SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
+from impactqp.sim.humanoid_trial import SERVO_GAIN, run_impact_trial  # noqa: E402
+from impactqp.sim.trial_result import TrialResult  # noqa: E402
 from impactqp.sim.trial_sources import SCRIPTED  # noqa: E402
 
 from .campaign_figures import CampaignFigures  # noqa: E402
-from .trial import TrialPool, TrialResult  # noqa: E402
+from .trial import TrialPool  # noqa: E402
 from impactqp.controller.model.validation import BadInputError, approach_speed  # noqa: E402
 
 PAPER_SPEEDS = DEFAULT_SPEEDS
@@ -159,12 +160,12 @@ class TableRow:
 
     @classmethod
     def of(cls, result: TrialResult) -> TableRow:
-        measured = result.impact.dq_jump
+        measured = result.measured_jump
         return cls(
-            trial_id=result.spec.trial_id,
-            posture=result.spec.posture,
-            normal_speed=result.spec.normal_speed,
-            tangential_speed=float(np.linalg.norm(result.spec.tangential_velocity)),
+            trial_id=result.trial_id,
+            posture=result.posture,
+            normal_speed=result.normal_speed,
+            tangential_speed=float(np.linalg.norm(result.tangential_velocity)),
             contact_speed=result.contact_speed,
             errors={m: float(average_prediction_error(result.predicted[m], measured)) for m in METHODS},
             measured_jump=measured,
@@ -322,7 +323,7 @@ def run_stance_trials(
     gain: float = SERVO_GAIN,
     armature=None,
     source=SCRIPTED,
-) -> list[ImpactTrial]:
+) -> list[TrialResult]:
     """One trial per stance (None: every stance of the robot's description) and commanded hand
     speed (m/s); ``gain`` is the servo bandwidth (rad/s), ``armature`` the plant's rotor inertia
     (kg m^2): None for the G1's actuators (``controller.model.g1_actuators``), one number for every
@@ -341,16 +342,16 @@ class FloatingBaseTable:
     """Table I of a floating-base robot's campaign (module docstring)."""
 
     robot: str
-    trials: list[ImpactTrial]
+    trials: list[TrialResult]
     figures = False
 
     def to_json(self) -> dict:
-        """Table I's JSON: per trial the trial's JSON (``ImpactTrial.to_json``) but its predictions, with the
+        """Table I's JSON: per trial the trial's JSON (``TrialResult.to_json``) but its predictions, with the
         arm's row keys; the errors (26) averaged over the trials and CRB's reduction."""
         errors = {m: e for m, e in stance_mean_errors(self.trials).items() if m in FLOATING_METHODS}
         rows = [
             {**{k: v for k, v in t.to_json(self.robot).items() if k not in ("predicted", "predicted_com_jump", "robot")},
-             "trial": i, "normal_speed": t.speed, "tangential_speed": 0.0, "average_error": t.errors,
+             "trial": i, "normal_speed": t.normal_speed, "tangential_speed": 0.0, "average_error": t.errors,
              "crb_reduction_percent": crb_reduction(t.errors), "measured_jump": t.measured_jump.tolist()}
             for i, t in enumerate(self.trials)
         ]
@@ -369,7 +370,7 @@ class FloatingBaseTable:
         return []
 
 
-def stance_mean_errors(trials: list[ImpactTrial]) -> dict[str, float]:
+def stance_mean_errors(trials: list[TrialResult]) -> dict[str, float]:
     """Eq. (26) averaged over the trials, per predictor."""
     return {m: float(np.mean([t.errors[m] for t in trials])) for m in STANCE_PREDICTORS}
 
@@ -379,15 +380,15 @@ def crb_reduction(errors: dict[str, float]) -> float:
     return 100.0 * (1.0 - errors["crb"] / errors["classical"])
 
 
-def stance_table_text(trials: list[ImpactTrial]) -> str:
+def stance_table_text(trials: list[TrialResult]) -> str:
     """The campaign as a Markdown table (module docstring)."""
     head = ("| stance | v cmd (m/s) | v contact (m/s) | impulse n (N s) | CoM jump x (m/s) | slip (mm) | "
             "lift (mm) | fell | " + " | ".join(f"e {m}" for m in STANCE_PREDICTORS) + " |")
     lines = [head, "|" + "---|" * (8 + len(STANCE_PREDICTORS))]
     for t in trials:
         lines.append(
-            f"| {t.stance} | {t.speed:.2f} | {t.contact_speed:.3f} | {-t.impulse[0]:.3f} | "
-            f"{t.measured_com_jump[0]:.4f} | {1e3 * t.foot_slip:.2f} | {1e3 * t.foot_lift:.2f} | "
+            f"| {t.posture} | {t.normal_speed:.2f} | {t.contact_speed:.3f} | {-t.impact.impulse[0]:.3f} | "
+            f"{t.held.measured_com_jump[0]:.4f} | {1e3 * t.held.foot_slip:.2f} | {1e3 * t.held.foot_lift:.2f} | "
             f"{'yes' if t.fell else 'no'} | " + " | ".join(f"{t.errors[m]:.4f}" for m in STANCE_PREDICTORS) + " |"
         )
     errors = stance_mean_errors(trials)

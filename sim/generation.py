@@ -25,9 +25,9 @@ simulation's world frame moved along x onto the wall plane: the wall is :data:`S
 through the origin with normal (-1, 0, 0), whatever the stance (each stance puts its wall 2 cm,
 with the whole-body QP 5 cm, in front of its hand), so that the trials of every stance and command
 source share one manifest. A real humanoid's state estimator has its own origin too; only the base
-position's x column depends on the choice. The trial's ``ImpactTrial.log`` holds the rows (the
+position's x column depends on the choice. The trial's ``TrialResult.log`` holds the rows (the
 servo's torque of row k held over [t_k, t_k+1), the wall force per physics step); its first
-contact is the manifest's ``impact_time`` (``ImpactTrial.dataset_trial``).
+contact is the manifest's ``impact_time`` (``TrialResult.dataset_trial``).
 """
 
 from __future__ import annotations
@@ -222,7 +222,7 @@ def open_dataset(directory: str | Path, robot: RobotDescription = ROBOTS["g1"]) 
 
 
 def write_trials(writer: DatasetWriter, trials) -> list[TrialEntry]:
-    """Add ``trials`` (``ImpactTrial``) to the dataset of ``writer`` (``open_dataset``); a trial of
+    """Add ``trials`` (``sim.trial_result.TrialResult``) to the dataset of ``writer`` (``open_dataset``); a trial of
     an id the dataset holds with other data is refused, the same trial again changes nothing."""
     entries = []
     for trial in trials:

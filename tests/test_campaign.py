@@ -172,7 +172,7 @@ def trials():
 
 
 def test_one_trial_per_stance_and_speed(trials):
-    assert [(t.stance, t.speed) for t in trials] == [("wide", 0.1), ("wide", 0.25)]
+    assert [(t.posture, t.normal_speed) for t in trials] == [("wide", 0.1), ("wide", 0.25)]
 
 
 def test_mean_errors_average_the_trials(trials):
@@ -234,7 +234,7 @@ def test_the_table_json_rows_are_the_trials(trials):
     table = FloatingBaseTable("g1", trials)
     data = json.loads(table.files()["table1.json"])
     assert data == json.loads(json.dumps(table.to_json())) and data["robot"] == "g1"
-    assert [r["posture"] for r in data["rows"]] == [t.stance for t in trials]
+    assert [r["posture"] for r in data["rows"]] == [t.posture for t in trials]
     for row, trial in zip(data["rows"], trials):
         assert row["crb_reduction_percent"] == pytest.approx(100 * (1 - trial.errors["crb"] / trial.errors["classical"]))
     assert set(data["mean_average_error"]) == set(FLOATING_METHODS)

@@ -22,24 +22,24 @@ def test_linear_momentum_of_the_simulated_robot_balances_the_external_impulses(t
     """m dc = wall impulse + floor impulse + m g T over the measurement window (joint torques are internal)."""
     robot = RobotModel("g1")
     mass = robot.terms(pin.neutral(robot.model)).mass
-    external = trial.impulse + trial.floor_impulse + mass * GRAVITY * trial.duration
-    np.testing.assert_allclose(mass * trial.measured_com_jump, external, atol=0.01 * np.linalg.norm(trial.impulse))
+    external = trial.impact.impulse + trial.held.floor_impulse + mass * GRAVITY * trial.impact.duration
+    np.testing.assert_allclose(mass * trial.held.measured_com_jump, external, atol=0.01 * np.linalg.norm(trial.impact.impulse))
 
 
 def test_the_wall_pushes_the_hand_back_and_the_robot_stands(trial):
-    assert trial.impulse @ NORMAL > 0.0
+    assert trial.impact.impulse @ NORMAL > 0.0
     assert trial.contact_speed > 0.0
-    assert trial.duration > 0.0
-    assert not trial.fell and not trial.slipped and not trial.lifted
+    assert trial.impact.duration > 0.0
+    assert not trial.fell and not trial.held.slipped and not trial.held.lifted
 
 
 def test_every_predictor_is_reported_with_its_error(trial):
     for method in (*METHODS, "momentum"):
         joints = slice(RobotModel("g1").base_nv, None)
-        error = np.mean(np.abs(trial.predicted_jump[method][joints] - trial.measured_jump[joints]))
+        error = np.mean(np.abs(trial.predicted[method][joints] - trial.measured_jump[joints]))
         assert trial.errors[method] == pytest.approx(error)
-        assert trial.predicted_impulse[method] @ NORMAL > 0.0
-    np.testing.assert_array_equal(trial.predicted_impulse["momentum"], trial.impulse)
+        assert trial.held.predicted_impulse[method] @ NORMAL > 0.0
+    np.testing.assert_array_equal(trial.held.predicted_impulse["momentum"], trial.impact.impulse)
 
 
 def test_failures_are_consistent_with_the_measured_onsets(trial):
@@ -48,19 +48,19 @@ def test_failures_are_consistent_with_the_measured_onsets(trial):
     assert (trial.first_failure == "") == (not trial.failures)
     if trial.failures:
         assert trial.failure_time == min(trial.failure_times.values())
-    slid = trial.cone_ratio >= 1.0 - CONE_TOLERANCE or trial.slide_speed > SLIP_SPEED
+    slid = trial.cone_ratio >= 1.0 - CONE_TOLERANCE or trial.held.slide_speed > SLIP_SPEED
     assert ("foot_slip" in trial.failures) == slid
     assert ("foot_lift" in trial.failures) == (trial.cop_margin <= LIFT_MARGIN)
     assert ("capture" in trial.failures) == (trial.capture_margin < 0.0)
     assert ("fell" in trial.failures) == trial.fell
     assert ("joint_velocity" in trial.failures) == (trial.max_velocity_ratio > 1.0)
-    assert trial.q_log.shape[1] == RobotModel("g1").model.nq and 0 < trial.contact_index < len(trial.q_log)
+    assert trial.held.q_log.shape[1] == RobotModel("g1").model.nq and 0 < trial.impact.pre_index < len(trial.held.q_log)
 
 
 def test_a_slow_impact_leaves_the_feet_flat_and_the_com_capturable(trial):
     """0.2 m/s in the parallel stance: the feet stay loaded, inside their cones and still."""
     assert 0.0 < trial.cone_ratio < 1.0 - CONE_TOLERANCE
-    assert trial.slide_speed < SLIP_SPEED
+    assert trial.held.slide_speed < SLIP_SPEED
     assert trial.capture_margin > 0.0
 
 
@@ -76,5 +76,5 @@ def test_the_stop_does_not_jolt_the_feet():
 
 def test_the_equivalent_duration_is_at_most_the_contact_duration(trial):
     """A force never above its peak gives at most peak x duration of impulse."""
-    assert 0.0 < trial.equivalent_duration <= trial.duration
-    assert trial.equivalent_duration * trial.peak_force == pytest.approx(trial.impulse @ NORMAL)
+    assert 0.0 < trial.equivalent_duration <= trial.impact.duration
+    assert trial.equivalent_duration * trial.held.peak_force == pytest.approx(trial.impact.impulse @ NORMAL)

@@ -30,7 +30,7 @@ def trial(robot):
 
 def test_the_qp_drives_the_hand_to_the_wall_and_the_robot_stands(trial):
     assert trial.source == "qp"
-    assert trial.impulse @ NORMAL > 0.0
+    assert trial.impact.impulse @ NORMAL > 0.0
     assert 0.0 < trial.contact_speed <= 0.3 * 1.02
     assert not trial.fell
 
@@ -60,7 +60,7 @@ def test_the_commands_change_within_the_acceleration_and_jerk_limits(trial):
 def test_the_qp_brakes_the_hand_after_the_stop(robot, trial):
     """From the stop on the approach target is 0: the commanded joint velocities decay to rest
     within the trial, at the acceleration limit at most."""
-    stop = trial.contact_index + int(round(LATENCY / CONTROL_PERIOD))
+    stop = trial.impact.pre_index + int(round(LATENCY / CONTROL_PERIOD))
     at_stop = np.abs(trial.commands[stop]).max()
     assert at_stop > 0.0
     assert np.abs(trial.commands[-1]).max() < 0.1 * at_stop
@@ -68,7 +68,7 @@ def test_the_qp_brakes_the_hand_after_the_stop(robot, trial):
 
 def test_predicted_post_impact_joint_velocities_are_within_the_limits_at_the_contact(robot, trial):
     record = trial.record
-    before = record.cycle(trial.contact_index) - 1
+    before = record.cycle(trial.impact.pre_index) - 1
     post = record.predicted_post_impact[before]
     assert record.impact_constraints_on[before]
     assert np.all(np.isfinite(post)) and np.all(np.abs(post[robot.base_nv:]) <= robot.dq_max)
@@ -85,7 +85,7 @@ def test_the_feet_show_no_onset_the_scripted_trial_does_not_show_at_the_same_con
 def test_a_source_that_tracks_the_speed_is_asked_the_target_once(robot):
     q = stance_posture(robot, STANCES["parallel"])
     qp = trial_at_contact_speed(robot, "parallel", q, 0.2, StancePlant(), QpCommand())
-    assert qp.speed == 0.2 and qp.source == "qp"
+    assert qp.normal_speed == 0.2 and qp.source == "qp"
 
 
 def test_unknown_feedback_is_bad_input():
