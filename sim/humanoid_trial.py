@@ -70,7 +70,7 @@ from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.robot_description import Stance
 
 from .humanoid_feet import SPEED
-from .observed_criteria import TrialObservation, first_failure, observe
+from .observed_criteria import TrialObservation, observe
 from .runner import run_impact, servoed_plant
 from .scene import build_humanoid_scene
 from .trial_loop import Ending

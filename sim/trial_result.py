@@ -69,9 +69,9 @@ class HeldContactResult:
 class TrialResult:
     """One trial's setting, log, measured impact, predictions and observed criteria (module
     docstring; ``trial_id`` a file-name-safe id, ``jump_model`` None: the arm's controller without
-    jump constraints, or a robot with held contacts); ``source`` names the command source (``sim.trial_sources``), ``record`` is what it kept of
-    each control step (the QP's ``QpRecord``) or None, ``fallback_count`` the arm's controller's
-    fallbacks."""
+    jump constraints, or a robot with held contacts); ``source`` names the command source
+    (``sim.trial_sources``), ``record`` is what it kept of each control step (the QP's
+    ``QpRecord``) or None, ``fallback_count`` the arm's controller's fallbacks."""
 
     trial_id: str
     posture: str
