@@ -27,7 +27,7 @@ each trial one ``scenarios.trial.TrialRunner`` run, an arm's driven by its QP, a
 by the scripted arm), writes each trial to the dataset as it comes, then Table I (its files and
 figures).
 
-A floating base's campaign: its stances x hand speeds of ``sim.humanoid_trial`` (also
+A floating base's campaign: its stances x hand speeds of ``sim.runner.run_impact_trial`` (also
 :func:`run_stance_trials`, with the plant's gain and armature), no tangential series. For each trial and predictor (classical, gm,
 crb, each fed its own impulse; ``momentum``: the feet-held momentum law fed the measured impulse)
 the average error (26) over the joints; its Table I (``table1.json`` and the Markdown
@@ -58,7 +58,7 @@ from impactqp.sim.generation import dataset_header  # noqa: E402
 from impactqp.sim.runner import TrialSpec  # noqa: E402
 from impactqp.controller.model.robot import RobotModel  # noqa: E402
 from impactqp.sim.generation import STANDING_WALL  # noqa: E402
-from impactqp.sim.humanoid_trial import SERVO_GAIN, run_impact_trial  # noqa: E402
+from impactqp.sim.runner import SERVO_GAIN, run_impact_trial  # noqa: E402
 from impactqp.sim.trial_result import TrialResult  # noqa: E402
 from impactqp.sim.trial_sources import SCRIPTED  # noqa: E402
 

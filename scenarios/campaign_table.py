@@ -209,7 +209,8 @@ class Table1:
         columns, shown = self.layout.columns, self.layout.shown
         lines = [
             "Table I (simulation): average prediction error (26), rad/s",
-            "".join(f"{c.header:{c.align}{c.width}}" for c in columns) + "".join(f"{m:>17}" for m in shown) + f"{'crb vs classical':>18}",
+            "".join(f"{c.header:{c.align}{c.width}}" for c in columns) + "".join(f"{m:>17}" for m in shown)
+            + f"{'crb vs classical':>18}",
         ]
         for r in self.rows:
             lines.append("".join(f"{c.cell(r):{c.align}{c.width}{c.spec}}" for c in columns)

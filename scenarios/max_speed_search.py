@@ -29,7 +29,7 @@ A floating base standing on held contacts (the G1, docs/floating-base.md) is sea
 of its description (:func:`search_stance`): the closed form at the stance (the smallest of the
 joint-velocity, foot-slip, foot-lift and capture bounds, and which one binds) and the same
 bisection (:class:`SpeedBisection`, one trial a round) on the commanded hand speed of
-``sim.humanoid_trial.run_impact_trial`` between :data:`STANCE_LOWEST_SPEED` (feasible) and
+``sim.runner.run_impact_trial`` between :data:`STANCE_LOWEST_SPEED` (feasible) and
 :data:`STANCE_HIGHEST_SPEED`, a trial feasible when none of its measured failures occurred (no
 joint beyond its velocity limit, no foot slip or lift onset in the impact window, the post-impact
 CoM velocity capturable, no fall): the highest feasible commanded speed, its measured contact
@@ -56,7 +56,7 @@ from impactqp.controller.model.max_speed import (
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.validation import BadInputError
-from impactqp.sim.humanoid_trial import NORMAL, SERVO_GAIN, run_impact_trial
+from impactqp.sim.runner import NORMAL, SERVO_GAIN, run_impact_trial
 from impactqp.sim.trial_result import TrialResult
 from impactqp.sim.trial_sources import SCRIPTED
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice

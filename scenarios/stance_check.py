@@ -26,7 +26,7 @@ from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.model.robot import RobotModel  # noqa: E402
 from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
 from impactqp.controller.model.max_speed import HELD_CONTACT_CRITERIA, Setting, closed_form_max_speed  # noqa: E402
-from impactqp.sim.humanoid_trial import NORMAL  # noqa: E402
+from impactqp.sim.runner import NORMAL  # noqa: E402
 from impactqp.sim.trial_result import TrialResult  # noqa: E402
 from impactqp.sim.trial_sources import SCRIPTED  # noqa: E402
 

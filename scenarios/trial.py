@@ -58,9 +58,8 @@ from impactqp.controller.measured.impact import measure_impact
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import ProcessPool
 from impactqp.controller.measured.trial_log import TrialLog
-from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach
+from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach, run_impact_trial
 from impactqp.sim.observed_criteria import TrialObservation, observe
-from impactqp.sim.humanoid_trial import run_impact_trial
 from impactqp.sim.trial_result import TrialResult
 from impactqp.sim.trial_sources import SCRIPTED, QpCommand, TrialSource
 from impactqp.sim.scene import Scene, build_scene
@@ -74,7 +73,7 @@ class TrialRunner:
     """Runs :class:`TrialSpec` trials of one robot model: an arm's on one scene (surface and
     plant), driven by its QP (``source`` None: ``QpCommand`` configured by each spec), each a
     ``sim.trial_result.TrialResult``; a robot with held contacts at the stance ``spec.posture`` of its
-    description (``sim.humanoid_trial.run_impact_trial``: the wall placed before its hand, scene
+    description (``sim.runner.run_impact_trial``: the wall placed before its hand, scene
     None) at the hand speed ``spec.normal_speed``, driven by ``source`` (None: the scripted arm),
     each a ``TrialResult`` with its ``held`` part."""
 

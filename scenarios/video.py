@@ -48,7 +48,7 @@ from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.measured.impact import ImpactMeasurement  # noqa: E402
 from impactqp.controller.measured.trial_log import TrialLog  # noqa: E402
 from impactqp.sim.scene import build_humanoid_scene  # noqa: E402
-from impactqp.sim.humanoid_trial import CONTROL_PERIOD  # noqa: E402
+from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD  # noqa: E402
 from impactqp.sim.scene import Scene  # noqa: E402
 
 FRAME_SIZE = (360, 480)  # height, width
@@ -146,9 +146,9 @@ def render_humanoid_gif(robot, trial, path: str | Path) -> Path:
     scene = build_humanoid_scene(robot, trial.held.wall_x)
     model, data = scene.model, scene.data
     height, width = FRAME_SIZE
-    step = max(int(round(1.0 / (FRAMES_PER_SECOND * SLOW_MOTION * CONTROL_PERIOD))), 1)
-    first = max(trial.impact.pre_index - int(round(SPAN / CONTROL_PERIOD)), 0)
-    last = min(trial.impact.pre_index + int(round(HUMANOID_AFTER / CONTROL_PERIOD)), len(trial.held.q_log))
+    step = max(int(round(1.0 / (FRAMES_PER_SECOND * SLOW_MOTION * DEFAULT_CONTROL_PERIOD))), 1)
+    first = max(trial.impact.pre_index - int(round(SPAN / DEFAULT_CONTROL_PERIOD)), 0)
+    last = min(trial.impact.pre_index + int(round(HUMANOID_AFTER / DEFAULT_CONTROL_PERIOD)), len(trial.held.q_log))
     camera = mujoco.MjvCamera()
     camera.lookat[:] = [trial.held.wall_x - 0.3, 0.0, 0.6]
     camera.distance = 2.6

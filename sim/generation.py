@@ -19,7 +19,7 @@ offset) logs dq and tau through that faulty sensor before the noise is added: a 
 sensor fault. The plant parameters that produced the data are never written.
 
 One header for every simulated dataset (:func:`dataset_header`: the robot and the tool, the
-surface, the 1 ms control period). The standing robot's simulated trials (``sim.humanoid_trial``,
+surface, the 1 ms control period). The standing robot's simulated trials (``sim.runner.run_impact_trial``,
 what ``simulate --robot g1 --out DIR`` and ``campaign --robot g1`` write) are written in the
 simulation's world frame moved along x onto the wall plane: the wall is :data:`STANDING_WALL`,
 through the origin with normal (-1, 0, 0), whatever the stance (each stance puts its wall 2 cm,
@@ -46,9 +46,8 @@ from impactqp.controller.model.robot_description import ROBOTS, RobotDescription
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range, whole_number
 
 from .plant import PlantParameters
-from .humanoid_trial import NORMAL
 from .process_pool import ProcessPool
-from .runner import DEFAULT_CONTROL_PERIOD, TrialSpec, run_approach
+from .runner import DEFAULT_CONTROL_PERIOD, NORMAL, TrialSpec, run_approach
 from .scene import WALL_FRICTION, build_scene
 from .sensor import apply_sensor
 

@@ -1,7 +1,8 @@
 """What one simulated impact trial of any robot measured and predicted: :class:`TrialResult`.
 
 Every robot's trial gives the same result: the trial's setting (its id, posture, commanded normal
-speed and tangential velocity, the controller's jump constraints: a ``sim.runner.TrialSpec``'s), its log as a robot logs it
+speed and tangential velocity, the controller's jump constraints: a ``sim.runner.TrialSpec``'s),
+its log as a robot logs it
 (``controller.measured.trial_log``), the measured impact (``controller.measured.impact``: the
 pre-impact state (q-, dq-), the contact start t_c, the contact impulse iota and duration), the
 generalized-velocity jump it measured (nv: a floating base's base rows first), the contact speed
@@ -12,6 +13,22 @@ error per predictor is eq. (26), the mean of |predicted - measured| over the joi
 
 A robot with held contacts (the standing G1) measures more: the feet, the CoM and the wall's peak
 force (:class:`HeldContactResult`, the result's ``held``; None for a fixed-base arm).
+
+A fixed-base arm's impact is ``controller.measured.impact.measure_impact`` of its log
+(``scenarios.trial.TrialRunner.evaluate``). A standing robot's (:func:`held_contact_result`) is
+read from the wall force of the simulation (:class:`WallContact`): the state before the impact is
+the last control step before the wall's first contact force, the state after it the first control
+step after that first contiguous contact ends (at most :data:`WINDOW` s later). The measured
+impulse is the integral of the wall force over that contact, and its peak (``peak_force``: the
+largest normal wall force of a physics step); their ratio is the contact's equivalent duration
+(``equivalent_duration``, the T of the closed form's foot criteria). The jump is compared over
+the joints with each predictor of ``controller.model.jump`` fed its own impulse, and with the
+feet-held momentum law fed the measured impulse (``momentum``). Its failure criteria
+(``sim.observed_criteria``: joint velocity after the settling, foot slip and lift in the impact
+window, capture, fell) each have an onset time, the same definitions as the closed form's criteria
+(``controller.model.max_speed``) measured in the trial. The feet's displacements are kept beside
+them: ``foot_slip`` / ``foot_lift`` (m), the largest horizontal / vertical motion of a foot frame
+after the settling (``slipped`` / ``lifted``: beyond :data:`SLIP` / :data:`LIFT`).
 """
 
 from __future__ import annotations
@@ -23,11 +40,17 @@ import numpy as np
 from impactqp.controller.measured.dataset import TrialEntry
 from impactqp.controller.measured.impact import ImpactMeasurement
 from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.jump import jump_from_impulse, predict
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
 
-from .observed_criteria import Observed, first_failure
+from .humanoid_feet import SPEED
+from .observed_criteria import Observed, TrialObservation, first_failure, observe
+from .trial_loop import LoopRecord, ServoedPlant
+from .trial_sources import TrialStart
 
 SLIP = 0.005  # m of horizontal foot motion counted as a slip
 LIFT = 0.005  # m of vertical foot motion counted as a lift
+WINDOW = 0.03  # s: longest first contact read as a standing robot's impact
 
 
 @dataclass(frozen=True)
@@ -215,3 +238,86 @@ class TrialResult:
             "max_velocity_ratio": self.max_velocity_ratio, "first_failure": self.first_failure,
             "violated": self.violated,
         }
+
+
+@dataclass(frozen=True)
+class WallContact:
+    """The wall per control step: its impulse on the robot (steps, 3), the sum of its physics
+    steps', and its largest normal force of a physics step (steps,) (N, 0 without one); the
+    control step of the first wall contact and the control period (s)."""
+
+    forces: np.ndarray
+    peaks: np.ndarray
+    first: int
+    control_period: float
+
+    @classmethod
+    def of(cls, record: LoopRecord, plant: ServoedPlant, start: TrialStart) -> WallContact | None:
+        """The wall of a trial's loop record on ``plant`` from ``start`` (its wall's normal,
+        towards the robot, and its control period); None when it was never touched."""
+        if record.first_contact is None:
+            return None
+        walls = record.force.reshape(len(record.t), plant.substeps, 3)
+        forces = (walls * plant.scene.timestep).sum(axis=1)
+        peaks = np.maximum((walls @ start.surface.normal).max(axis=1), 0.0)
+        return cls(forces, peaks, record.first_contact, start.control_period)
+
+    @property
+    def last(self) -> int:
+        """The last control step of the first contiguous contact (at most WINDOW s long)."""
+        last, window = self.first, int(round(WINDOW / self.control_period))
+        while last + 1 < min(len(self.forces), self.first + window) and np.any(self.forces[last + 1] != 0.0):
+            last += 1
+        return last
+
+
+def held_contact_result(stance: str, start: TrialStart, contact: WallContact, run, source: str) -> TrialResult:
+    """The measured impact, the predicted jumps and the observed criteria (module docstring) of
+    the trial ``run`` (``sim.runner.TrialRun``) of a robot with held contacts in the stance
+    ``stance``, started at ``start`` (its wall, commanded speed, settling time and control
+    period), driven by the command source named ``source``."""
+    robot, log, held, dt = start.robot, run.log, run.record.held, start.control_period
+    normal = start.surface.normal
+    first, last = contact.first, contact.last
+    settled = int(round(start.settle / dt))
+    watched = np.arange(len(log)) >= settled
+    terms = robot.terms(np.concatenate([log.base[first, :robot.base_nq], log.q[first]]))
+    o = TrialObservation(
+        robot, log, watched, first, last, contact.forces[first:last + 1].sum(axis=0), (last + 1 - first) * dt, terms.J,
+        dt, held,
+    )
+    q_pre, v_pre = o.state(first)
+    q_post, v_post = o.state(o.post)
+    impulse = o.impulse
+    v_minus = terms.J @ v_pre
+    measured = v_post - v_pre
+    predicted, com, impulses = {}, {}, {}
+    for method in HELD_CONTACT_METHODS:
+        jump = predict(terms, method, normal, v_minus)
+        predicted[method], com[method], impulses[method] = jump.dq_jump, jump.com_jump, jump.impulse
+    predicted["momentum"] = jump_from_impulse(terms, impulse)
+    com["momentum"] = terms.Jcom @ predicted["momentum"]
+    impulses["momentum"] = impulse
+    post_com_velocity = robot.terms(q_post).Jcom @ v_post
+    joints = slice(robot.base_nv, None)
+    t_contact = first * dt
+    impact = ImpactMeasurement(
+        "force", t_contact, t_contact, first, first, o.post, (first, last), q_pre[robot.base_nq:], v_pre[joints],
+        v_post[joints], measured[joints], impulse, o.duration,
+    )
+    soles = held.soles[o.impact_window()]
+    moved = held.feet[settled:] - held.feet[settled]
+    feet = HeldContactResult(
+        peak_force=float(contact.peaks[first:last + 1].max()), floor_impulse=held.floor[first:last + 1].sum(axis=0),
+        measured_com_jump=post_com_velocity - terms.Jcom @ v_pre, predicted_com_jump=com, predicted_impulse=impulses,
+        post_com_velocity=post_com_velocity, foot_slip=float(np.linalg.norm(moved[..., :2], axis=-1).max()),
+        foot_lift=float(np.abs(moved[..., 2]).max()), slide_speed=float(soles[:, o.loaded_before(), SPEED].max()),
+        wall_x=float(start.surface.point[0]), wall_normal=normal.copy(),
+        q_log=np.column_stack([log.base[:, :robot.base_nq], log.q]),
+    )
+    return TrialResult(
+        trial_id=f"{stance}_vn{round(start.speed * 1000):d}_{source}", posture=stance, normal_speed=start.speed,
+        tangential_velocity=np.zeros(3), jump_model=None, log=log, impact=impact, measured_jump=measured,
+        contact_speed=float(-normal @ v_minus), predicted=predicted, criteria=observe(o), source=source,
+        record=run.driver.record, held=feet,
+    )

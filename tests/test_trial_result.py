@@ -1,17 +1,28 @@
-"""The one trial result of every robot (sim/trial_result.py), on results built by hand: the
-error (26) over the joints, the failures derived from the criteria, the dataset trial's frame."""
+"""The one trial result of every robot (sim/trial_result.py), on results built by hand (the
+error (26) over the joints, the failures derived from the criteria, the dataset trial's frame),
+and a standing robot's measurement on a simulated G1 trial (its momentum balance, predictors,
+failures and equivalent duration)."""
 
 import math
 
 import numpy as np
+import pinocchio as pin
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from impactqp.controller.measured.impact import ImpactMeasurement
 from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.humanoid_stance import STANCES
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
+from impactqp.controller.model.robot import RobotModel
+from impactqp.sim.humanoid_feet import CONE_TOLERANCE, LIFT_MARGIN, SLIP_SPEED
 from impactqp.sim.observed_criteria import Observed
+from impactqp.sim.runner import NORMAL, run_impact_trial
 from impactqp.sim.trial_result import LIFT, SLIP, HeldContactResult, TrialResult
+
+GRAVITY = np.array([0.0, 0.0, -9.81])
 
 STEPS, JOINTS = 5, 3
 finite = st.floats(-10.0, 10.0, allow_nan=False)
@@ -88,3 +99,48 @@ def test_held_part_slip_lift_and_equivalent_duration():
     assert set(arm.to_json()) >= {"posture", "reference_normal_speed", "dq_jump", "violated"}
     report = trial.to_json("g1")
     assert report["robot"] == "g1" and report["reference_speed"] == 0.1 and "foot_slip" in report
+
+
+@pytest.fixture(scope="module")
+def trial():
+    """A scripted standing trial of the G1: the parallel stance, 0.2 m/s."""
+    return run_impact_trial(RobotModel("g1"), STANCES["parallel"], 0.2)
+
+
+def test_linear_momentum_of_the_simulated_robot_balances_the_external_impulses(trial):
+    """m dc = wall impulse + floor impulse + m g T over the measurement window (joint torques are internal)."""
+    robot = RobotModel("g1")
+    mass = robot.terms(pin.neutral(robot.model)).mass
+    external = trial.impact.impulse + trial.held.floor_impulse + mass * GRAVITY * trial.impact.duration
+    atol = 0.01 * np.linalg.norm(trial.impact.impulse)
+    np.testing.assert_allclose(mass * trial.held.measured_com_jump, external, atol=atol)
+
+
+def test_every_predictor_is_reported_with_its_error(trial):
+    for method in (*METHODS, "momentum"):
+        joints = slice(RobotModel("g1").base_nv, None)
+        error = np.mean(np.abs(trial.predicted[method][joints] - trial.measured_jump[joints]))
+        assert trial.errors[method] == pytest.approx(error)
+        assert trial.held.predicted_impulse[method] @ NORMAL > 0.0
+    np.testing.assert_array_equal(trial.held.predicted_impulse["momentum"], trial.impact.impulse)
+
+
+def test_failures_are_consistent_with_the_measured_onsets(trial):
+    assert trial.feasible == (not trial.failures)
+    assert set(trial.failure_times) == set(trial.failures)
+    assert (trial.first_failure == "") == (not trial.failures)
+    if trial.failures:
+        assert trial.failure_time == min(trial.failure_times.values())
+    slid = trial.cone_ratio >= 1.0 - CONE_TOLERANCE or trial.held.slide_speed > SLIP_SPEED
+    assert ("foot_slip" in trial.failures) == slid
+    assert ("foot_lift" in trial.failures) == (trial.cop_margin <= LIFT_MARGIN)
+    assert ("capture" in trial.failures) == (trial.capture_margin < 0.0)
+    assert ("fell" in trial.failures) == trial.fell
+    assert ("joint_velocity" in trial.failures) == (trial.max_velocity_ratio > 1.0)
+    assert trial.held.q_log.shape[1] == RobotModel("g1").model.nq and 0 < trial.impact.pre_index < len(trial.held.q_log)
+
+
+def test_the_equivalent_duration_is_at_most_the_contact_duration(trial):
+    """A force never above its peak gives at most peak x duration of impulse."""
+    assert 0.0 < trial.equivalent_duration <= trial.impact.duration
+    assert trial.equivalent_duration * trial.held.peak_force == pytest.approx(trial.impact.impulse @ NORMAL)
