@@ -78,7 +78,7 @@ _EXPORTS = {
     "PlantParameters": "impactqp.sim",
     "TrialSpec": "impactqp.sim",
     "TrialRunner": "impactqp.scenarios",
-    "TrialResult": "impactqp.scenarios",
+    "TrialResult": "impactqp.sim",
 }
 
 __all__ = [*_EXPORTS, "__version__"]

@@ -1,5 +1,5 @@
 """The experiments: one closed-loop impact trial with the QP (``trial``), the campaign of every
-robot (``campaign``, its figures ``campaign_figures``), the highest feasible contact speed
+robot (``campaign``, its Table I ``campaign_table``, its figures ``campaign_figures``), the highest feasible contact speed
 (``max_speed_search``), ``impactqp run`` on a robot (``run``), the diagnosis report, the video, the
 G1's closed form checked against simulation (``stance_check``) and the feasibility maps (``sweep``); above them the command line (``cli``) and
 the benchmarks (``bench``).
@@ -12,12 +12,11 @@ from impactqp.lazy_exports import lazy_exports as _lazy_exports
 
 _EXPORTS = {
     "TrialRunner": "trial",
-    "TrialResult": "trial",
     "TrialPool": "trial",
     "Campaign": "campaign",
     "CampaignPlan": "campaign",
     "CampaignTrials": "campaign",
-    "Table1": "campaign",
+    "Table1": "campaign_table",
     "MaxSpeedSearch": "max_speed_search",
     "MaxSpeedReport": "max_speed_search",
     "RunRequest": "run",

@@ -7,12 +7,13 @@ trial is one ``scenarios.trial`` run with the jump-aware constraints off, so tha
 the requested speed, as in the paper. The simulation is deterministic: one trial per setting
 stands for the paper's ten repeats.
 
-Table I: for each trial and predictor, the average prediction error (26)
-e = (1/n) sum_i |dq*_i - dq°_i| (n joints) of the predictor's own jump at the pre-impact state against the
-simulated jump dq°, and the reduction 100 (1 - e_crb / e_classical) % of CRB against the classical
-prediction (the paper's 81.98 %); the last row averages every trial.
+Table I (``scenarios.campaign_table``, one table for every robot): for each trial and predictor,
+the average prediction error (26) e = (1/n) sum_i |dq*_i - dq°_i| (n joints) of the predictor's
+own jump at the pre-impact state against the simulated jump dq°, and the reduction
+100 (1 - e_crb / e_classical) % of CRB against the classical prediction (the paper's 81.98 %); the
+last row averages every trial.
 
-Figures (PNG): per posture, the simulated jump of every joint against the normal speed (like the
+An arm's figures (PNG, ``scenarios.campaign_figures``): per posture, the simulated jump of every joint against the normal speed (like the
 paper's Fig. 8) and the absolute error |e_i| of every predictor of Table I per joint (Figs. 9-11),
 each kind on one y scale for all postures; for the tangential series, the average error of
 every predictor against v_t (Fig. 12).
@@ -24,31 +25,26 @@ One :class:`Campaign` runs every robot: it is given the robot's trials (:class:`
 parametrised by the robot's description: its named postures, or with held contacts its stances;
 each trial one ``scenarios.trial.TrialRunner`` run, an arm's driven by its QP, a standing robot's
 by the scripted arm), writes each trial to the dataset as it comes, then Table I (its files and
-figures: ``scenarios.campaign_figures``).
+figures).
 
-A floating base's campaign: its stances x hand speeds of ``sim.humanoid_trial`` (also
+A floating base's campaign: its stances x hand speeds of ``sim.runner.run_impact_trial`` (also
 :func:`run_stance_trials`, with the plant's gain and armature), no tangential series. For each trial and predictor (classical, gm,
 crb, each fed its own impulse; ``momentum``: the feet-held momentum law fed the measured impulse)
-the average error (26) over the joints; its table (:class:`FloatingBaseTable`, ``table1.json``
-and the Markdown ``table1.md``, without figures) gives per stance and speed the measured contact
-speed, the impulse, the CoM velocity jump, the foot slip and lift, whether the robot fell, and the
-errors; its last row averages the errors over every trial, with the reduction
-100 (1 - e_crb / e_classical) % of CRB against classical (negative when CRB is worse).
+the average error (26) over the joints; its Table I (``table1.json`` and the Markdown
+``table1.md``, without figures) gives per stance and speed the measured contact speed, the
+impulse, the CoM velocity jump, the foot slip and lift, whether the robot fell, and the errors.
 """
 
 from __future__ import annotations
 
-import json
 from contextlib import closing
 from collections.abc import Iterable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
 
 import numpy as np
 from tqdm import tqdm
 
-from impactqp.controller.model.jump import METHODS, average_prediction_error  # noqa: E402
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice  # noqa: E402
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface  # noqa: E402
 from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
@@ -60,14 +56,14 @@ from impactqp.sim.plant import PlantParameters  # noqa: E402
 from impactqp.sim.generation import dataset_header  # noqa: E402
 
 from impactqp.sim.runner import TrialSpec  # noqa: E402
-from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as FLOATING_METHODS  # noqa: E402
 from impactqp.controller.model.robot import RobotModel  # noqa: E402
 from impactqp.sim.generation import STANDING_WALL  # noqa: E402
-from impactqp.sim.humanoid_trial import SERVO_GAIN, ImpactTrial, run_impact_trial  # noqa: E402
+from impactqp.sim.runner import SERVO_GAIN, run_impact_trial  # noqa: E402
+from impactqp.sim.trial_result import TrialResult  # noqa: E402
 from impactqp.sim.trial_sources import SCRIPTED  # noqa: E402
 
-from .campaign_figures import CampaignFigures  # noqa: E402
-from .trial import TrialPool, TrialResult  # noqa: E402
+from .campaign_table import Table1  # noqa: E402
+from .trial import TrialPool  # noqa: E402
 from impactqp.controller.model.validation import BadInputError, approach_speed  # noqa: E402
 
 PAPER_SPEEDS = DEFAULT_SPEEDS
@@ -75,7 +71,6 @@ PAPER_TANGENTIAL_SPEEDS = tuple(round(0.03 + 0.01 * i, 2) for i in range(10))
 TANGENTIAL_NORMAL_SPEED = TANGENTIAL_SERIES_NORMAL_SPEED
 STANCE_SPEEDS = (0.1, 0.2, 0.3, 0.4)
 """m/s: a floating base's commanded hand speeds."""
-STANCE_PREDICTORS = (*FLOATING_METHODS, "momentum")
 
 
 def named_postures(robot: RobotDescription) -> Mapping:
@@ -145,115 +140,6 @@ class CampaignPlan:
 
 
 @dataclass(frozen=True)
-class TableRow:
-    """One trial of Table I: its setting, the contact speed and the error (26) per predictor."""
-
-    trial_id: str
-    posture: str
-    normal_speed: float
-    tangential_speed: float
-    contact_speed: float
-    errors: dict[str, float]
-    measured_jump: np.ndarray = field(repr=False)
-    joint_errors: dict[str, np.ndarray] = field(repr=False)
-
-    @classmethod
-    def of(cls, result: TrialResult) -> TableRow:
-        measured = result.impact.dq_jump
-        return cls(
-            trial_id=result.spec.trial_id,
-            posture=result.spec.posture,
-            normal_speed=result.spec.normal_speed,
-            tangential_speed=float(np.linalg.norm(result.spec.tangential_velocity)),
-            contact_speed=result.contact_speed,
-            errors={m: float(average_prediction_error(result.predicted[m], measured)) for m in METHODS},
-            measured_jump=measured,
-            joint_errors={m: np.abs(result.predicted[m] - measured) for m in METHODS},
-        )
-
-    @property
-    def crb_reduction(self) -> float:
-        """How much CRB cuts the classical error, in % (:func:`crb_reduction`)."""
-        return crb_reduction(self.errors)
-
-    def to_json(self) -> dict:
-        return {
-            "trial": self.trial_id,
-            "posture": self.posture,
-            "normal_speed": self.normal_speed,
-            "tangential_speed": self.tangential_speed,
-            "contact_speed": self.contact_speed,
-            "average_error": self.errors,
-            "crb_reduction_percent": self.crb_reduction,
-            "measured_jump": self.measured_jump.tolist(),
-        }
-
-
-@dataclass(frozen=True)
-class Table1:
-    """An arm's Table I (module docstring), with its figures."""
-
-    rows: list[TableRow]
-    figures = True
-
-    def mean_errors(self) -> dict[str, float]:
-        return {m: float(np.mean([r.errors[m] for r in self.rows])) for m in METHODS}
-
-    def mean_crb_reduction(self) -> float:
-        return crb_reduction(self.mean_errors())
-
-    def to_json(self) -> dict:
-        return {
-            "methods": list(METHODS),
-            "rows": [r.to_json() for r in self.rows],
-            "mean_average_error": self.mean_errors(),
-            "mean_crb_reduction_percent": self.mean_crb_reduction(),
-        }
-
-    def files(self) -> dict[str, str]:
-        """The table's files by name: its JSON and its text."""
-        return {"table1.json": json.dumps(self.to_json(), indent=2) + "\n", "table1.txt": self.text() + "\n"}
-
-    def write_figures(self, out: Path) -> list[Path]:
-        return CampaignFigures(self).write(out)  # (``scenarios.campaign_figures``)
-
-    def text(self) -> str:
-        """The table as aligned text (rad/s; the last column in %)."""
-        head = f"{'posture':<12}{'v_n':>6}{'v_t':>6}{'v_c':>8}" + "".join(f"{m:>17}" for m in METHODS)
-        lines = [
-            "Table I (simulation): average prediction error (26), rad/s",
-            head + f"{'crb vs classical':>18}",
-        ]
-        for r in self.rows:
-            lines.append(
-                f"{r.posture:<12}{r.normal_speed:6.3f}{r.tangential_speed:6.3f}{r.contact_speed:8.4f}"
-                + "".join(f"{r.errors[m]:17.4f}" for m in METHODS)
-                + f"{r.crb_reduction:16.1f} %"
-            )
-        mean = self.mean_errors()
-        lines.append(
-            f"{'all trials':<32}" + "".join(f"{mean[m]:17.4f}" for m in METHODS)
-            + f"{self.mean_crb_reduction():16.1f} %"
-        )
-        return "\n".join(lines)
-
-
-class CampaignTable(Protocol):
-    """A campaign's Table I: its JSON, its text, its files by name and its figures (``figures``:
-    whether it has any)."""
-
-    figures: bool
-
-    def to_json(self) -> dict: ...
-
-    def text(self) -> str: ...
-
-    def files(self) -> dict[str, str]: ...
-
-    def write_figures(self, out: Path) -> list[Path]: ...
-
-
-@dataclass(frozen=True)
 class CampaignTrials:
     """The campaign's trials of ``choice``'s robot and tool (module docstring): the plan's
     trials (``CampaignPlan.specs``) run by ``scenarios.trial`` (its ``TrialPool``) on ``surface``
@@ -276,12 +162,9 @@ class CampaignTrials:
         with TrialPool(self.surface, self.plant, jobs, self.choice) as pool:
             yield from pool.map(tasks)
 
-    def table(self, results: list) -> CampaignTable:
-        """Table I of the results: the arm's (:class:`Table1`), or a robot's with held contacts
-        (:class:`FloatingBaseTable`)."""
-        if self.choice.robot.held_contacts:
-            return FloatingBaseTable(self.choice.robot.name, results)
-        return Table1([TableRow.of(result) for result in results])
+    def table(self, results: list[TrialResult]) -> Table1:
+        """Table I of the results in the robot's layout (``scenarios.campaign_table``)."""
+        return Table1.of(self.choice.robot, results)
 
 
 class Campaign:
@@ -294,7 +177,7 @@ class Campaign:
         self.jobs = jobs
         self.progress = progress
 
-    def run(self, out: str | Path) -> CampaignTable:
+    def run(self, out: str | Path) -> Table1:
         """Run every trial, adding each to the dataset in ``out`` as it comes, then write Table I's
         files and figures there; an existing dataset of another header is refused first."""
         out = Path(out)
@@ -322,7 +205,7 @@ def run_stance_trials(
     gain: float = SERVO_GAIN,
     armature=None,
     source=SCRIPTED,
-) -> list[ImpactTrial]:
+) -> list[TrialResult]:
     """One trial per stance (None: every stance of the robot's description) and commanded hand
     speed (m/s); ``gain`` is the servo bandwidth (rad/s), ``armature`` the plant's rotor inertia
     (kg m^2): None for the G1's actuators (``controller.model.g1_actuators``), one number for every
@@ -334,67 +217,3 @@ def run_stance_trials(
         for name in (all_stances if stances is None else stances)
         for speed in speeds
     ]
-
-
-@dataclass(frozen=True)
-class FloatingBaseTable:
-    """Table I of a floating-base robot's campaign (module docstring)."""
-
-    robot: str
-    trials: list[ImpactTrial]
-    figures = False
-
-    def to_json(self) -> dict:
-        """Table I's JSON: per trial the trial's JSON (``ImpactTrial.to_json``) but its predictions, with the
-        arm's row keys; the errors (26) averaged over the trials and CRB's reduction."""
-        errors = {m: e for m, e in stance_mean_errors(self.trials).items() if m in FLOATING_METHODS}
-        rows = [
-            {**{k: v for k, v in t.to_json(self.robot).items() if k not in ("predicted", "predicted_com_jump", "robot")},
-             "trial": i, "normal_speed": t.speed, "tangential_speed": 0.0, "average_error": t.errors,
-             "crb_reduction_percent": crb_reduction(t.errors), "measured_jump": t.measured_jump.tolist()}
-            for i, t in enumerate(self.trials)
-        ]
-        return {"robot": self.robot, "methods": list(FLOATING_METHODS), "rows": rows, "mean_average_error": errors,
-                "mean_crb_reduction_percent": crb_reduction(errors)}
-
-    def text(self) -> str:
-        return stance_table_text(self.trials)
-
-    def files(self) -> dict[str, str]:
-        """The table's files by name: its JSON and the Markdown table."""
-        return {"table1.json": json.dumps(self.to_json(), indent=2, allow_nan=False), "table1.md": self.text() + "\n"}
-
-    def write_figures(self, out: Path) -> list[Path]:
-        """No figures: the table is the campaign's summary."""
-        return []
-
-
-def stance_mean_errors(trials: list[ImpactTrial]) -> dict[str, float]:
-    """Eq. (26) averaged over the trials, per predictor."""
-    return {m: float(np.mean([t.errors[m] for t in trials])) for m in STANCE_PREDICTORS}
-
-
-def crb_reduction(errors: dict[str, float]) -> float:
-    """100 (1 - e_crb / e_classical) %: how much CRB cuts the classical error (negative: worse)."""
-    return 100.0 * (1.0 - errors["crb"] / errors["classical"])
-
-
-def stance_table_text(trials: list[ImpactTrial]) -> str:
-    """The campaign as a Markdown table (module docstring)."""
-    head = ("| stance | v cmd (m/s) | v contact (m/s) | impulse n (N s) | CoM jump x (m/s) | slip (mm) | "
-            "lift (mm) | fell | " + " | ".join(f"e {m}" for m in STANCE_PREDICTORS) + " |")
-    lines = [head, "|" + "---|" * (8 + len(STANCE_PREDICTORS))]
-    for t in trials:
-        lines.append(
-            f"| {t.stance} | {t.speed:.2f} | {t.contact_speed:.3f} | {-t.impulse[0]:.3f} | "
-            f"{t.measured_com_jump[0]:.4f} | {1e3 * t.foot_slip:.2f} | {1e3 * t.foot_lift:.2f} | "
-            f"{'yes' if t.fell else 'no'} | " + " | ".join(f"{t.errors[m]:.4f}" for m in STANCE_PREDICTORS) + " |"
-        )
-    errors = stance_mean_errors(trials)
-    lines.append(
-        f"| **mean** ({len(trials)} trials) | | | | | | | | " + " | ".join(f"**{errors[m]:.4f}**" for m in STANCE_PREDICTORS)
-        + " |"
-    )
-    lines.append("")
-    lines.append(f"CRB against classical: {crb_reduction(errors):+.1f} % (positive: CRB is better).")
-    return "\n".join(lines)

@@ -29,7 +29,7 @@ A floating base standing on held contacts (the G1, docs/floating-base.md) is sea
 of its description (:func:`search_stance`): the closed form at the stance (the smallest of the
 joint-velocity, foot-slip, foot-lift and capture bounds, and which one binds) and the same
 bisection (:class:`SpeedBisection`, one trial a round) on the commanded hand speed of
-``sim.humanoid_trial.run_impact_trial`` between :data:`STANCE_LOWEST_SPEED` (feasible) and
+``sim.runner.run_impact_trial`` between :data:`STANCE_LOWEST_SPEED` (feasible) and
 :data:`STANCE_HIGHEST_SPEED`, a trial feasible when none of its measured failures occurred (no
 joint beyond its velocity limit, no foot slip or lift onset in the impact window, the post-impact
 CoM velocity capturable, no fall): the highest feasible commanded speed, its measured contact
@@ -56,7 +56,8 @@ from impactqp.controller.model.max_speed import (
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.validation import BadInputError
-from impactqp.sim.humanoid_trial import NORMAL, SERVO_GAIN, ImpactTrial, run_impact_trial
+from impactqp.sim.runner import NORMAL, SERVO_GAIN, run_impact_trial
+from impactqp.sim.trial_result import TrialResult
 from impactqp.sim.trial_sources import SCRIPTED
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import ImpactPosture, Surface
@@ -68,7 +69,7 @@ from impactqp.sim.plant import PlantParameters
 
 from impactqp.sim.runner import TrialSpec
 
-from .trial import TrialPool, TrialResult
+from .trial import TrialPool
 from impactqp.controller.model.validation import number_in_range
 
 PREDICTED_MODELS = ("classical", "gm", "crb")
@@ -108,7 +109,7 @@ class Evaluation:
     @classmethod
     def of(cls, result: TrialResult) -> Evaluation:
         return cls(
-            result.spec.normal_speed, result.contact_speed, result.max_velocity_ratio,
+            result.normal_speed, result.contact_speed, result.max_velocity_ratio,
             result.max_torque_ratio, result.violated,
         )
 
@@ -313,7 +314,7 @@ class StancePlant:
     gain: float = SERVO_GAIN
     armature: float | tuple | None = None
 
-    def trial(self, robot: RobotModel, stance: str, q: np.ndarray, speed: float, source=SCRIPTED) -> ImpactTrial:
+    def trial(self, robot: RobotModel, stance: str, q: np.ndarray, speed: float, source=SCRIPTED) -> TrialResult:
         """One trial on this plant: ``stance`` from the configuration q at the commanded hand
         ``speed``, driven by ``source``."""
         return run_impact_trial(
@@ -334,8 +335,8 @@ class StanceEvaluation:
     first_failure: str
 
     @classmethod
-    def of(cls, trial: ImpactTrial) -> StanceEvaluation:
-        return cls(trial.speed, trial.contact_speed, trial.max_velocity_ratio, trial.foot_slip, trial.foot_lift,
+    def of(cls, trial: TrialResult) -> StanceEvaluation:
+        return cls(trial.normal_speed, trial.contact_speed, trial.max_velocity_ratio, trial.held.foot_slip, trial.held.foot_lift,
                    trial.fell, trial.first_failure)
 
     @property

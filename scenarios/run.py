@@ -35,8 +35,8 @@ from impactqp.controller.runtime.start_move import StartMove
 from impactqp.sim.plant import PlantParameterError, PlantParameters
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.postures import Surface
-from impactqp.sim.humanoid_trial import NORMAL as STANDING_NORMAL
-from impactqp.sim.humanoid_trial import SERVO_GAIN, SETTLE, SINK
+from impactqp.sim.runner import NORMAL as STANDING_NORMAL
+from impactqp.sim.runner import SERVO_GAIN, SETTLE, SINK
 from impactqp.sim.scene import build_humanoid_scene, build_scene
 from impactqp.sim.servo import StandingSupport
 from impactqp.sim.sim_backend import SimRobot

@@ -26,7 +26,8 @@ from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.model.robot import RobotModel  # noqa: E402
 from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
 from impactqp.controller.model.max_speed import HELD_CONTACT_CRITERIA, Setting, closed_form_max_speed  # noqa: E402
-from impactqp.sim.humanoid_trial import NORMAL, ImpactTrial  # noqa: E402
+from impactqp.sim.runner import NORMAL  # noqa: E402
+from impactqp.sim.trial_result import TrialResult  # noqa: E402
 from impactqp.sim.trial_sources import SCRIPTED  # noqa: E402
 
 from .max_speed_search import STANCE_HIGHEST_SPEED, STANCE_LOWEST_SPEED, StanceMaxSpeed, StancePlant  # noqa: E402
@@ -40,7 +41,7 @@ CRITERION_OF = {criterion: criterion for criterion in HELD_CONTACT_CRITERIA}
 
 def trial_at_contact_speed(
     robot, stance: str, q: np.ndarray, target: float, plant: StancePlant, source=SCRIPTED
-) -> ImpactTrial:
+) -> TrialResult:
     """A trial whose measured contact speed is ``target`` within 2 % (secant on the commanded
     speed within [STANCE_LOWEST_SPEED, 2 STANCE_HIGHEST_SPEED], at most SECANT_STEPS trials; the closest one
     otherwise: with torque-limited joints a contact speed may be out of reach). A source that
@@ -69,7 +70,7 @@ class CheckRow:
     stance: str
     fraction: float
     binding: str
-    trial: ImpactTrial
+    trial: TrialResult
 
 
 def check_against_simulation(
@@ -103,7 +104,7 @@ def check_summary(rows: list[CheckRow]) -> dict:
     above = [r for r in rows if r.fraction > 1.0]
     return {
         "below": len(below),
-        "below_fell_or_slipped": sum(r.trial.fell or r.trial.slipped or "foot_slip" in r.trial.failures for r in below),
+        "below_fell_or_slipped": sum(r.trial.fell or r.trial.held.slipped or "foot_slip" in r.trial.failures for r in below),
         "below_infeasible": sum(not r.trial.feasible for r in below),
         "above": len(above),
         "above_binding_first": sum(CRITERION_OF.get(r.trial.first_failure) == r.binding for r in above),
@@ -122,8 +123,8 @@ def check_table(rows: list[CheckRow]) -> str:
         t = r.trial
         onsets = ", ".join(f"{name} {1e3 * t.failure_times[name]:.0f}" for name in t.failures) or "-"
         lines.append(
-            f"| {r.stance} | {r.binding} | {r.fraction:.2f} | {t.speed:.3f} | {t.contact_speed:.3f} | "
-            f"{1e3 * t.foot_slip:.2f} / {1e3 * t.foot_lift:.2f} | {t.cone_ratio:.3f} | {1e3 * t.cop_margin:.1f} | "
+            f"| {r.stance} | {r.binding} | {r.fraction:.2f} | {t.normal_speed:.3f} | {t.contact_speed:.3f} | "
+            f"{1e3 * t.held.foot_slip:.2f} / {1e3 * t.held.foot_lift:.2f} | {t.cone_ratio:.3f} | {1e3 * t.cop_margin:.1f} | "
             f"{1e3 * t.capture_margin:.1f} | {t.max_velocity_ratio:.2f} | {onsets} | {t.first_failure or '-'} |"
         )
     s = check_summary(rows)

@@ -1,4 +1,5 @@
-"""One closed-loop impact trial with the QP controller, and what was observed in it.
+"""One closed-loop impact trial with the QP controller, and what was observed in it (its
+``sim.trial_result.TrialResult``).
 
 Set-up
 ------
@@ -44,7 +45,6 @@ delta_t_sim):
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -53,15 +53,14 @@ from impactqp.controller.model.max_speed import Setting, closed_form_max_speed
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import PandaModel, RobotModel
-from impactqp.controller.measured.dataset import TrialEntry
 from impactqp.constraints import jump_model_names
-from impactqp.controller.measured.impact import ImpactMeasurement, measure_impact
+from impactqp.controller.measured.impact import measure_impact
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import ProcessPool
 from impactqp.controller.measured.trial_log import TrialLog
-from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach
-from impactqp.sim.observed_criteria import Observed, TrialObservation, observe
-from impactqp.sim.humanoid_trial import ImpactTrial, run_impact_trial
+from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach, run_impact_trial
+from impactqp.sim.observed_criteria import TrialObservation, observe
+from impactqp.sim.trial_result import TrialResult
 from impactqp.sim.trial_sources import SCRIPTED, QpCommand, TrialSource
 from impactqp.sim.scene import Scene, build_scene
 from impactqp.controller.model.validation import BadInputError
@@ -70,74 +69,13 @@ from impactqp.controller.model.validation import BadInputError
 ACCELERATION_ALLOWANCE = 0.25
 
 
-@dataclass(frozen=True)
-class TrialResult:
-    """The log of a trial, its measured impact and the observed criteria (module docstring;
-    ``sim.observed_criteria``: name -> ``Observed``)."""
-
-    spec: TrialSpec
-    log: TrialLog
-    impact: ImpactMeasurement
-    contact_speed: float
-    predicted: dict[str, np.ndarray]
-    criteria: dict[str, Observed]
-    fallback_count: int
-
-    @property
-    def max_velocity_ratio(self) -> float:
-        return self.criteria["joint_velocity"].value
-
-    @property
-    def max_torque_ratio(self) -> float:
-        return self.criteria["impulsive_torque"].value
-
-    @property
-    def violated(self) -> bool:
-        """A criterion failed."""
-        return any(c.failed for c in self.criteria.values())
-
-    def dataset_trial(self) -> tuple[TrialEntry, TrialLog]:
-        """The manifest entry and the log (control-rate CSV and force CSV) of the trial."""
-        spec = self.spec
-        trial_id = spec.trial_id
-        entry = TrialEntry(
-            id=trial_id,
-            file=f"{trial_id}.csv",
-            reference_normal_speed=spec.normal_speed,
-            force_file=f"{trial_id}_force.csv",
-            reference_tangential_velocity=tuple(float(v) for v in spec.tangential_velocity),
-            posture=spec.posture,
-            impact_time=self.impact.t_contact_start,
-        )
-        return entry, self.log
-
-    def to_json(self) -> dict:
-        """The ``impactqp simulate --json`` report."""
-        return {
-            "posture": self.spec.posture,
-            "reference_normal_speed": self.spec.normal_speed,
-            "reference_tangential_velocity": self.spec.tangential_velocity.tolist(),
-            "jump_model": self.spec.jump_model,
-            "contact_speed": self.contact_speed,
-            "impact_time": self.impact.t_contact_start,
-            "impact_duration": self.impact.duration,
-            "impulse": self.impact.impulse.tolist(),
-            "dq_jump": self.impact.dq_jump.tolist(),
-            "predicted": {name: jump.tolist() for name, jump in self.predicted.items()},
-            "max_velocity_ratio": self.max_velocity_ratio,
-            "max_torque_ratio": self.max_torque_ratio,
-            "violated": self.violated,
-            "controller_fallbacks": self.fallback_count,
-        }
-
-
 class TrialRunner:
     """Runs :class:`TrialSpec` trials of one robot model: an arm's on one scene (surface and
     plant), driven by its QP (``source`` None: ``QpCommand`` configured by each spec), each a
-    :class:`TrialResult`; a robot with held contacts at the stance ``spec.posture`` of its
-    description (``sim.humanoid_trial.run_impact_trial``: the wall placed before its hand, scene
+    ``sim.trial_result.TrialResult``; a robot with held contacts at the stance ``spec.posture`` of its
+    description (``sim.runner.run_impact_trial``: the wall placed before its hand, scene
     None) at the hand speed ``spec.normal_speed``, driven by ``source`` (None: the scripted arm),
-    each an ``ImpactTrial``."""
+    each a ``TrialResult`` with its ``held`` part."""
 
     def __init__(self, scene: Scene | None, robot: RobotModel | None = None, source: TrialSource | None = None):
         self.scene = scene
@@ -184,13 +122,7 @@ class TrialRunner:
                 speed = min(speed, 0.9 * limit.speed)
         return ACCELERATION_ALLOWANCE + spec.start_distance / speed + spec.after_contact
 
-    def source(self, spec: TrialSpec) -> QpCommand:
-        """The trial's command source: the robot's default controller (``sim.trial_sources.QpCommand``)
-        with the spec's jump model, c_r, delta_t and feedback, posture task weight 0."""
-        return QpCommand(method=spec.jump_model, feedback=spec.feedback, restitution=spec.restitution,
-                         impact_duration=spec.impact_duration, posture_weight=0.0)
-
-    def run(self, spec: TrialSpec) -> TrialResult | ImpactTrial:
+    def run(self, spec: TrialSpec) -> TrialResult:
         """Simulate the trial (``sim.runner.run_approach`` with the QP in the loop, or the standing
         robot's trial) and evaluate it (raises ``ImpactNotFoundError`` without impact,
         ``UnreachableStartError`` when the surface is out of reach)."""
@@ -198,10 +130,11 @@ class TrialRunner:
         if description.held_contacts:
             return run_impact_trial(self.robot, description.stances[spec.posture], spec.normal_speed,
                                     q0=spec.q_contact, source=self.source or SCRIPTED)
-        run = run_approach(self.scene, self.robot, spec, self.source_of(spec), self.duration(spec))
-        return self.evaluate(spec, run.log, run.driver.controller.fallback_count)
+        source = self.source_of(spec)
+        run = run_approach(self.scene, self.robot, spec, source, self.duration(spec))
+        return self.evaluate(spec, run.log, run.driver.controller.fallback_count, source.name)
 
-    def evaluate(self, spec: TrialSpec, log: TrialLog, fallback_count: int = 0) -> TrialResult:
+    def evaluate(self, spec: TrialSpec, log: TrialLog, fallback_count: int = 0, source: str = "qp") -> TrialResult:
         """The observed criteria and the predictions of the module docstring."""
         robot, normal = self.robot, self.surface.normal
         impact = measure_impact(log)
@@ -223,12 +156,18 @@ class TrialRunner:
             for name in METHODS
         }
         return TrialResult(
-            spec=spec,
+            trial_id=spec.trial_id,
+            posture=spec.posture,
+            normal_speed=spec.normal_speed,
+            tangential_velocity=spec.tangential_velocity,
+            jump_model=spec.jump_model,
             log=log,
             impact=impact,
+            measured_jump=impact.dq_jump,
             contact_speed=float(-normal @ v_pre),
             predicted=predicted,
             criteria=observe(observation),
+            source=source,
             fallback_count=fallback_count,
         )
 
@@ -242,7 +181,7 @@ def _init_worker(surface: Surface, plant: PlantParameters | None, choice: RobotC
     _WORKER = TrialRunner.build(surface, plant, choice)
 
 
-def _run_in_worker(spec: TrialSpec) -> TrialResult | ImpactTrial:
+def _run_in_worker(spec: TrialSpec) -> TrialResult:
     return _WORKER.run(spec)
 
 
@@ -259,6 +198,6 @@ class TrialPool(ProcessPool):
             raise BadInputError(f"--jobs must be >= 1, got {jobs}")
         super().__init__(jobs, initializer=_init_worker, initargs=(surface, plant, choice))
 
-    def map(self, specs: Iterable[TrialSpec]) -> Iterator[TrialResult | ImpactTrial]:
+    def map(self, specs: Iterable[TrialSpec]) -> Iterator[TrialResult]:
         """Results in the order of ``specs``."""
         return super().map(_run_in_worker, specs)

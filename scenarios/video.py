@@ -48,7 +48,7 @@ from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
 from impactqp.controller.measured.impact import ImpactMeasurement  # noqa: E402
 from impactqp.controller.measured.trial_log import TrialLog  # noqa: E402
 from impactqp.sim.scene import build_humanoid_scene  # noqa: E402
-from impactqp.sim.humanoid_trial import CONTROL_PERIOD  # noqa: E402
+from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD  # noqa: E402
 from impactqp.sim.scene import Scene  # noqa: E402
 
 FRAME_SIZE = (360, 480)  # height, width
@@ -137,20 +137,20 @@ def draw_links(scene: mujoco.MjvScene, model: mujoco.MjModel, data: mujoco.MjDat
 
 
 def render_humanoid_gif(robot, trial, path: str | Path) -> Path:
-    """Render a G1 trial (``sim.humanoid_trial.ImpactTrial``, its logged configurations) to the
+    """Render a G1 trial (``sim.trial_result.TrialResult`` with held contacts, its logged configurations) to the
     GIF ``path``: from 60 ms before to 300 ms after the first wall contact, slowed down 10 times,
     seen from the side (the wall is a line), the links drawn as capsules between body origins."""
     from PIL import Image
 
     path = Path(path)
-    scene = build_humanoid_scene(robot, trial.wall_x)
+    scene = build_humanoid_scene(robot, trial.held.wall_x)
     model, data = scene.model, scene.data
     height, width = FRAME_SIZE
-    step = max(int(round(1.0 / (FRAMES_PER_SECOND * SLOW_MOTION * CONTROL_PERIOD))), 1)
-    first = max(trial.contact_index - int(round(SPAN / CONTROL_PERIOD)), 0)
-    last = min(trial.contact_index + int(round(HUMANOID_AFTER / CONTROL_PERIOD)), len(trial.q_log))
+    step = max(int(round(1.0 / (FRAMES_PER_SECOND * SLOW_MOTION * DEFAULT_CONTROL_PERIOD))), 1)
+    first = max(trial.impact.pre_index - int(round(SPAN / DEFAULT_CONTROL_PERIOD)), 0)
+    last = min(trial.impact.pre_index + int(round(HUMANOID_AFTER / DEFAULT_CONTROL_PERIOD)), len(trial.held.q_log))
     camera = mujoco.MjvCamera()
-    camera.lookat[:] = [trial.wall_x - 0.3, 0.0, 0.6]
+    camera.lookat[:] = [trial.held.wall_x - 0.3, 0.0, 0.6]
     camera.distance = 2.6
     camera.azimuth = 90.0
     camera.elevation = -10.0
@@ -158,7 +158,7 @@ def render_humanoid_gif(robot, trial, path: str | Path) -> Path:
     frames = []
     with mujoco.Renderer(model, height, width) as renderer:
         for k in range(first, last, step):
-            scene.set_state(trial.q_log[k])
+            scene.set_state(trial.held.q_log[k])
             renderer.update_scene(data, camera)
             draw_links(renderer.scene, model, data)
             frames.append(Image.fromarray(renderer.render()))

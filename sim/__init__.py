@@ -1,9 +1,10 @@
 """The simulation: the MuJoCo scene of a robot, its tool and a wall (``scene``), the plant's
 parameters (``plant``), joint servo (``servo``) and sensors (``sensor``), the one 1 kHz closed-loop
-trial of every robot (``trial_loop``), the one trial runner (``runner``) and its command sources
-(``trial_sources``), the simulated robot behind the runtime's interface (``sim_backend``),
+trial of every robot (``trial_loop``), the one trial runner (``runner``), its command sources
+(``trial_sources``) and its result (``trial_result``), the simulated robot behind the runtime's interface (``sim_backend``),
 simulated datasets (``generation``), the candidate causes of a sim-to-real gap (``causes``) and
-their diagnosis (``diagnosis``), and the standing G1's trial (``humanoid_*``; its scene in ``scene``).
+their diagnosis (``diagnosis``), and the standing G1's feet (``humanoid_feet``; its scene in
+``scene``, its trial in ``runner``).
 
 Its names are exported lazily (PEP 562): importing one module loads only its own imports.
 """
@@ -33,8 +34,9 @@ _EXPORTS = {
     "default_causes": "causes",
     "HumanoidScene": "scene",
     "build_humanoid_scene": "scene",
-    "ImpactTrial": "humanoid_trial",
-    "run_impact_trial": "humanoid_trial",
+    "TrialResult": "trial_result",
+    "HeldContactResult": "trial_result",
+    "run_impact_trial": "runner",
     "QpCommand": "trial_sources",
     "ScriptedCommand": "trial_sources",
     "ProcessPool": "process_pool",

@@ -21,15 +21,15 @@ offset) logs dq and tau through that faulty sensor before the noise is added: a 
 sensor fault. The plant parameters that produced the data are never written.
 
 One header for every simulated dataset (:func:`dataset_header`: the robot and the tool, the
-surface, the 1 ms control period). The standing robot's simulated trials (``sim.humanoid_trial``,
+surface, the 1 ms control period). The standing robot's simulated trials (``sim.runner.run_impact_trial``,
 what ``simulate --robot g1 --out DIR`` and ``campaign --robot g1`` write) are written in the
 simulation's world frame moved along x onto the wall plane: the wall is :data:`STANDING_WALL`,
 through the origin with normal (-1, 0, 0), whatever the stance (each stance puts its wall 2 cm,
 with the whole-body QP 5 cm, in front of its hand), so that the trials of every stance and command
 source share one manifest. A real humanoid's state estimator has its own origin too; only the base
-position's x column depends on the choice. The trial's ``ImpactTrial.log`` holds the rows (the
+position's x column depends on the choice. The trial's ``TrialResult.log`` holds the rows (the
 servo's torque of row k held over [t_k, t_k+1), the wall force per physics step); its first
-contact is the manifest's ``impact_time`` (``ImpactTrial.dataset_trial``).
+contact is the manifest's ``impact_time`` (``TrialResult.dataset_trial``).
 """
 
 from __future__ import annotations
@@ -48,9 +48,8 @@ from impactqp.controller.model.robot_description import ROBOTS, RobotDescription
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range, whole_number
 
 from .plant import PlantParameters
-from .humanoid_trial import NORMAL
 from .process_pool import ProcessPool
-from .runner import DEFAULT_CONTROL_PERIOD, TrialSpec, run_approach
+from .runner import DEFAULT_CONTROL_PERIOD, NORMAL, TrialSpec, run_approach
 from .scene import WALL_FRICTION, build_scene
 from .sensor import apply_sensor
 
@@ -230,7 +229,7 @@ def open_dataset(directory: str | Path, robot: RobotDescription = ROBOTS["g1"]) 
 
 
 def write_trials(writer: DatasetWriter, trials) -> list[TrialEntry]:
-    """Add ``trials`` (``ImpactTrial``) to the dataset of ``writer`` (``open_dataset``); a trial of
+    """Add ``trials`` (``sim.trial_result.TrialResult``) to the dataset of ``writer`` (``open_dataset``); a trial of
     an id the dataset holds with other data is refused, the same trial again changes nothing."""
     entries = []
     for trial in trials:

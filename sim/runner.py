@@ -8,7 +8,8 @@ the trial is logged as a robot logs it (``TrialLog``; a floating base's state in
 ``Ending``, on the plant of :func:`servoed_plant` (a robot with held contacts stands on them);
 :func:`run_trial` runs a fixed-base arm's command source for a given duration from a given state,
 :func:`run_approach` an arm's approach-and-impact trial (:class:`TrialSpec`), and
-``sim.humanoid_trial.run_impact_trial`` a standing robot's.
+:func:`run_impact_trial` a standing robot's (below); every trial's result is a
+``sim.trial_result.TrialResult``.
 
 Servo (the arm's kinematic control, a plant property): ``sim.servo.ComputedTorqueServo``, a
 computed-torque joint PD with acceleration feed-forward that tracks the commanded velocity,
@@ -24,6 +25,41 @@ prediction (docs/simulation.md): the feedback reacts to the jump itself with an 
 (15 % for 15 ms at 5 rad/s; what it does on the named postures: docs/results.md). M includes
 the armature and h = Coriolis, centrifugal and gravity terms (``qfrc_bias``). ``tau`` in the log
 is this torque, the "measured joint torque" of a trial.
+
+A standing robot's trial (:func:`run_impact_trial`, docs/floating-base.md): the robot (the G1)
+starts at rest in a stance (``controller.model.humanoid_stance``), the wall the source's ``gap``
+beyond its contact point. It stands still for :data:`SETTLE` s, then the right arm (shoulder,
+elbow, wrist: its description's ``contact.joints``) is driven so that the hand moves along +x at
+``speed``: dq_arm = J_arm^+ v* (J_arm the arm joints' block of the contact Jacobian), reached by a
+20 ms velocity ramp; every other joint is commanded at rest. At the first wall contact (plus a
+:data:`LATENCY` detection latency) the arm stops: the servo's reference is re-anchored at the
+measured joint positions, at rest (``ComputedTorqueServo.hold``), and the command is zero from
+then on; the trial goes on for :data:`AFTER` s to see whether the robot stands. Why re-anchor
+rather than only command zero velocity: the wall has already stopped the hand, but the reference
+still moves at the approach speed, so a zero command asks the servo for the reference's whole
+deceleration -dq_ref/dt in one control step; the waist and shoulder torques saturate and the
+reaction jolts the feet (what that stop did: docs/results.md, "G1: servo and stop"). Re-anchored,
+the servo only damps the joints' post-impact velocities. That is the default command source
+(``sim.trial_sources.SCRIPTED``); ``source`` chooses another one, e.g. the whole-body QP
+(``sim.trial_sources.QpCommand``): a source (``TrialSource``) gives its start gap, the time it may
+take to reach the wall (``approach_time``), per trial a driver, the command source of the one
+trial loop (``sim.trial_loop``: ``step(q, v)`` returns the joints' velocity command, ``stop()``
+tells it that LATENCY has passed since the first contact), and whether the servo re-anchors its
+reference at the stop (``holds_at_stop``).
+
+Its servo (``sim.servo.ComputedTorqueServo``, standing on the feet through
+``sim.servo.StandingSupport``): a joint-space computed-torque PD with acceleration feed-forward on
+the joints, tau = M_f (ddq_ref + w^2 e + 2 w de) + h_j - tau_feet, with M_f the joints' inertia
+with the base floating and tau_feet the joint torques of the least-norm foot wrenches that carry
+the robot's weight in the measured configuration (every control step: the weight's share between
+the feet and their moments follow the posture, which the whole-body QP leans; wrenches of the
+start stance would leave the ankles a steady tracking error), gain :data:`SERVO_GAIN`. The torque
+each joint gets is clipped at its URDF effort limit (5-139 N m). Its plant: MuJoCo's G1 with the
+actuators' reflected rotor inertias by default (``armature``: ``sim.scene.plant_armature``; 0 for
+the link-only plant). The servo's M_f includes them (MuJoCo's M does); the predictors do not (they
+keep the URDF model). Its measurement, predictions and failure criteria:
+``sim.trial_result.held_contact_result``; its log (``TrialResult.log``) holds the trial as a robot
+logs it, the base state among it (``sim.generation`` writes it as a dataset).
 """
 
 from __future__ import annotations
@@ -35,17 +71,21 @@ import numpy as np
 
 from impactqp.constraints import jump_model_names
 from impactqp.controller.measured.trial_log import TrialLog
+from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.inverse_kinematics import approach_start
+from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION
 from impactqp.controller.model.robot import RobotModel
+from impactqp.controller.model.robot_description import Stance
 from impactqp.controller.model.validation import BadInputError, approach_speed, finite_vector
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.controller.model.validation import restitution as check_restitution
 
-from .scene import MujocoScene, Scene
+from .scene import MujocoScene, Scene, build_humanoid_scene
 from .servo import StandingSupport
 from .trial_loop import FEEDBACK, CommandSource, Ending, LoopRecord, ServoedPlant, run_loop
-from .trial_sources import CARTESIAN, CartesianApproachCommand, TrialSource, TrialStart
+from .trial_result import TrialResult, WallContact, held_contact_result
+from .trial_sources import CARTESIAN, SCRIPTED, CartesianApproachCommand, TrialSource, TrialStart
 
 # A diverging simulation is detected from MuJoCo's warning counters and raised as
 # SimulationUnstableError (_check_stable); the C library must not also print each warning.
@@ -55,6 +95,14 @@ DEFAULT_CONTROL_PERIOD = 1e-3
 OBSERVATION_WINDOW = 0.05
 """s after the contact start in which a trial's velocities are observed (``docs/max-speed.md``)."""
 LAG_ALLOWANCE = 3.0
+
+# a standing robot's trial (module docstring)
+SETTLE = 0.1  # s standing still before the approach
+LATENCY = 0.005  # s from the first contact to the stop command
+AFTER = 0.4  # s simulated after the impact
+SINK = 0.001  # m the soles start into the floor
+SERVO_GAIN = 40.0  # rad/s
+NORMAL = np.array([-1.0, 0.0, 0.0])  # the wall's normal, towards the robot
 
 
 UNSTABLE_VELOCITY_FACTOR = 5.0
@@ -80,7 +128,7 @@ class TrialSpec:
     ``after_contact``: simulated time after the nominal contact (must hold the 50 ms window).
     A robot with held contacts (``scenarios.trial.TrialRunner``) takes the stance ``posture`` of
     its description at its posture ``q_contact`` and the hand speed ``normal_speed``; its wall,
-    start, stop and ending are its standing trial's (``sim.humanoid_trial``), the other fields
+    start, stop and ending are its standing trial's (:func:`run_impact_trial`), the other fields
     unused.
     """
 
@@ -254,3 +302,33 @@ def run_approach(
     if touching.size == 0:
         return run
     return replace(run, log=log.truncated(log.force_t[touching[0]] + spec.after_contact))
+
+
+def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: float = SERVO_GAIN,
+                     armature=None, q0: np.ndarray | None = None, gap: float | None = None,
+                     source: TrialSource = SCRIPTED) -> TrialResult:
+    """Simulate one trial of a standing robot (module docstring; :func:`run_impact`) and compare
+    the jump with the predictors (``sim.trial_result.held_contact_result``); ``gap`` (m) is the
+    start distance of the contact point from the wall (None: the source's), ``armature`` the
+    plant's rotor inertia (``sim.scene.plant_armature``: None for the G1's actuators), ``source``
+    the command source (``sim.trial_sources``: ``SCRIPTED``, or ``QpCommand``: the whole-body QP)."""
+    dt = DEFAULT_CONTROL_PERIOD
+    q0 = stance_posture(robot, stance) if q0 is None else q0
+    gap = source.gap if gap is None else gap
+    contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
+    scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature)
+    plant = servoed_plant(scene, robot, dt, gain)
+    contact = robot.terms(q0).contact_point
+    wall = Surface(np.array([scene.wall_x, contact[1], contact[2]]), NORMAL.copy())
+    ending = Ending(
+        int(round((SETTLE + source.approach_time(gap, speed)) / dt)), after=int(round(AFTER / dt)),
+        stop_after=int(round(LATENCY / dt)), hold=source.holds_at_stop,
+    )
+    start = TrialStart(robot, q0, np.zeros(robot.nv), wall, speed, settle=SETTLE, sink=SINK, control_period=dt)
+    run = run_impact(plant, source, start, ending)
+    touched = WallContact.of(run.record, plant, start)
+    if touched is None:
+        raise RuntimeError(
+            f"the hand never reached the wall (stance {stance.name}, {speed} m/s, {source.name} command)"
+        )
+    return held_contact_result(stance.name, start, touched, run, source.name)

@@ -1,42 +1,35 @@
-"""The simulated campaign (scenarios/campaign.py): its plan, the dataset it writes, Table I from
-first principles and the figure files; a floating base's campaign, its trial runner of the one
-campaign and its table. The figures themselves: tests/test_campaign_figures.py."""
+"""The simulated campaign (scenarios/campaign.py): its plan, the dataset it writes, its Table I
+from first principles and the figure files; a floating base's campaign, its trial runner of the
+one campaign. The table itself: tests/test_campaign_table.py; the figures: tests/test_campaign_figures.py."""
 
 import json
 
 import numpy as np
 import pytest
 
-from conftest import G1_HEADER, JOINTS
+from conftest import G1_HEADER
 from impactqp.controller.model.jump import METHODS
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.robot_description import PANDA, ROBOTS
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.validation import BadInputError
-from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as FLOATING_METHODS
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.scenarios.campaign import (
-    STANCE_PREDICTORS,
-    FloatingBaseTable,
-    crb_reduction,
     run_stance_trials,
-    stance_mean_errors,
-    stance_table_text,
     PAPER_SPEEDS,
     PAPER_TANGENTIAL_SPEEDS,
     Campaign,
     CampaignPlan,
     CampaignTrials,
-    Table1,
-    TableRow,
     check_postures,
     named_postures,
 )
 from impactqp.controller.measured.dataset import read_dataset
 from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.measured.impact import measure_impact
+from impactqp.scenarios.campaign_table import held_contact_table
 
 
 def test_default_plan_is_the_papers():
@@ -70,18 +63,6 @@ def test_a_plans_postures_are_the_robots():
         CampaignPlan(("elbow_left",)).specs(DEFAULT_WALL, RobotChoice.of("ur5"))
     specs = CampaignPlan(speeds=(0.1,), tangential_speeds=()).specs(DEFAULT_WALL, RobotChoice.of("ur5"))
     assert [s.posture for s in specs] == list(ROBOTS["ur5"].postures)
-
-
-def row(classical, crb):
-    errors = {m: 1.0 for m in METHODS} | {"classical": classical, "crb": crb}
-    return TableRow("t", "p", 0.1, 0.0, 0.1, errors, np.zeros(JOINTS), {m: np.zeros(JOINTS) for m in METHODS})
-
-
-def test_crb_reduction_is_relative_to_classical():
-    assert row(0.5, 0.1).crb_reduction == pytest.approx(80.0)
-    table = Table1([row(0.5, 0.1), row(0.3, 0.3)])
-    assert table.mean_errors()["classical"] == pytest.approx(0.4)
-    assert table.mean_crb_reduction() == pytest.approx(50.0)
 
 
 @pytest.fixture(scope="module")
@@ -172,25 +153,7 @@ def trials():
 
 
 def test_one_trial_per_stance_and_speed(trials):
-    assert [(t.stance, t.speed) for t in trials] == [("wide", 0.1), ("wide", 0.25)]
-
-
-def test_mean_errors_average_the_trials(trials):
-    errors = stance_mean_errors(trials)
-    for m in STANCE_PREDICTORS:
-        assert errors[m] == pytest.approx(np.mean([t.errors[m] for t in trials]))
-
-
-def test_table_has_a_row_per_trial_and_the_mean(trials):
-    table = stance_table_text(trials)
-    rows = [line for line in table.splitlines() if line.startswith("| ")]
-    assert len(rows) == 1 + len(trials) + 1
-    assert f"{crb_reduction(stance_mean_errors(trials)):+.1f} %" in table
-
-
-def test_crb_reduction_sign():
-    assert crb_reduction({"crb": 0.2, "classical": 1.0}) == pytest.approx(80.0)
-    assert crb_reduction({"crb": 2.0, "classical": 1.0}) == pytest.approx(-100.0)
+    assert [(t.posture, t.normal_speed) for t in trials] == [("wide", 0.1), ("wide", 0.25)]
 
 
 def test_a_per_joint_armature_is_the_same_plant_as_one_number_for_every_joint():
@@ -227,15 +190,4 @@ def test_the_campaign_trials_of_a_robot_with_held_contacts_are_its_standing_tria
     for result, trial in zip(results, trials, strict=True):
         assert result.errors == trial.errors and result.failures == trial.failures
         np.testing.assert_array_equal(result.measured_jump, trial.measured_jump)
-    assert isinstance(campaign.table(results), FloatingBaseTable)
-
-
-def test_the_table_json_rows_are_the_trials(trials):
-    table = FloatingBaseTable("g1", trials)
-    data = json.loads(table.files()["table1.json"])
-    assert data == json.loads(json.dumps(table.to_json())) and data["robot"] == "g1"
-    assert [r["posture"] for r in data["rows"]] == [t.stance for t in trials]
-    for row, trial in zip(data["rows"], trials):
-        assert row["crb_reduction_percent"] == pytest.approx(100 * (1 - trial.errors["crb"] / trial.errors["classical"]))
-    assert set(data["mean_average_error"]) == set(FLOATING_METHODS)
-    assert table.files()["table1.md"] == stance_table_text(trials) + "\n" and table.write_figures(None) == []
+    assert campaign.table(results).layout == held_contact_table("g1")

@@ -5,7 +5,7 @@ import numpy as np
 
 from conftest import JOINTS
 from impactqp.controller.model.jump import METHODS
-from impactqp.scenarios.campaign import Table1, TableRow
+from impactqp.scenarios.campaign_table import Table1, TableRow
 from impactqp.scenarios.campaign_figures import CampaignFigures, y_limits
 
 

@@ -22,7 +22,7 @@ from impactqp.sim.generation import (
     trial_specs,
     write_trials,
 )
-from impactqp.sim.humanoid_trial import CONTROL_PERIOD, run_impact_trial
+from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD, run_impact_trial
 from impactqp.sim.plant import PlantParameters
 
 
@@ -116,17 +116,17 @@ def test_the_log_is_what_the_trial_ran(trials):
     for trial in trials:
         log = trial.log
         robot = g1_model()
-        assert len(log) == len(trial.q_log) and log.q.shape[1] == robot.n_joints
+        assert len(log) == len(trial.held.q_log) and log.q.shape[1] == robot.n_joints
         assert log.base.shape == (len(log), robot.base_nq + robot.base_nv)
-        np.testing.assert_array_equal(np.column_stack([log.base[:, :robot.base_nq], log.q]), trial.q_log)
-        np.testing.assert_allclose(log.t, np.arange(len(log)) * CONTROL_PERIOD, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(np.column_stack([log.base[:, :robot.base_nq], log.q]), trial.held.q_log)
+        np.testing.assert_allclose(log.t, np.arange(len(log)) * DEFAULT_CONTROL_PERIOD, rtol=0, atol=1e-12)
         substeps = len(log.force_t) // len(log)
         touching = np.any(log.force.reshape(len(log), substeps, 3) != 0.0, axis=(1, 2))
-        assert int(np.argmax(touching)) == trial.contact_index
+        assert int(np.argmax(touching)) == trial.impact.pre_index
         # the wall impulse of the first contact is the physics steps' forces summed
-        first, last = trial.contact_index, trial.contact_index + int(round(trial.duration / CONTROL_PERIOD))
+        first, last = trial.impact.pre_index, trial.impact.pre_index + int(round(trial.impact.duration / DEFAULT_CONTROL_PERIOD))
         step = log.force_t[1] - log.force_t[0]
-        np.testing.assert_allclose(log.force[first * substeps:last * substeps].sum(axis=0) * step, trial.impulse,
+        np.testing.assert_allclose(log.force[first * substeps:last * substeps].sum(axis=0) * step, trial.impact.impulse,
                                    rtol=1e-12, atol=1e-12)
 
 
@@ -139,7 +139,7 @@ def test_written_trials_read_back_as_logged(written, trials):
         for name in ("t", "q", "dq", "tau", "dq_cmd", "base", "force_t", "force"):
             np.testing.assert_allclose(getattr(read.log, name), getattr(expected, name), rtol=1e-9, atol=1e-12)
         # the dataset's world frame is the simulation's moved onto the wall: only the base's x differs
-        np.testing.assert_allclose(read.log.base[:, 0] + trial.wall_x, trial.log.base[:, 0], rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(read.log.base[:, 0] + trial.held.wall_x, trial.log.base[:, 0], rtol=1e-9, atol=1e-9)
         np.testing.assert_array_equal(expected.base[:, 1:], trial.log.base[:, 1:])
     assert validate(written) == {"dataset": [], **{t.trial_id: [] for t in trials}}
 
@@ -152,16 +152,16 @@ def test_the_extraction_agrees_with_the_trial_where_their_definitions_coincide(w
     for read, trial in zip(read_dataset(written).trials, trials):
         log = read.log
         impact = measure_impact(log)
-        k = trial.contact_index
+        k = trial.impact.pre_index
         start = int(np.argmax(np.linalg.norm(log.force, axis=1) > DEFAULT_FORCE_THRESHOLD))
         assert impact.method == "force" and impact.t_contact_start == pytest.approx(log.force_t[start], abs=1e-12)
         assert impact.pre_index == int(np.searchsorted(log.t, log.force_t[start], side="right")) - 1
         # the wall force passes 1 N within the first contact's control period: the same sample
         assert impact.pre_index == k
-        np.testing.assert_allclose(impact.q_pre, trial.q_log[k][g1_model().base_nq:], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(impact.q_pre, trial.held.q_log[k][g1_model().base_nq:], rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(impact.dq_pre, log.dq[k - 2:k + 1].mean(axis=0), rtol=1e-12, atol=1e-12)
         # the trial's jump is the velocity after its first contact minus the one before, over the joints
-        post = k + int(round(trial.duration / CONTROL_PERIOD))
+        post = k + int(round(trial.impact.duration / DEFAULT_CONTROL_PERIOD))
         np.testing.assert_allclose(log.dq[post] - log.dq[k], trial.measured_jump[g1_model().base_nv:], rtol=1e-8, atol=1e-8)
         # the extraction's sample of largest change is at least as far from dq- as the trial's
         first, last = impact.window
@@ -169,8 +169,8 @@ def test_the_extraction_agrees_with_the_trial_where_their_definitions_coincide(w
         change = np.linalg.norm(log.dq - impact.dq_pre, axis=1)
         assert change[impact.post_index] >= change[post]
         # one impulse: the trapezoid over the force samples against the sum of the physics steps
-        np.testing.assert_allclose(impact.impulse, trial.impulse, rtol=1e-2)
-        assert abs(read.entry.impact_time - impact.t_contact_start) <= CONTROL_PERIOD
+        np.testing.assert_allclose(impact.impulse, trial.impact.impulse, rtol=1e-2)
+        assert abs(read.entry.impact_time - impact.t_contact_start) <= DEFAULT_CONTROL_PERIOD
 
 
 def test_the_writer_adds_nothing_twice_and_overwrites_nothing(written, trials):

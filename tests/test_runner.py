@@ -1,4 +1,5 @@
-"""Closed-loop runner: servo tracking, contact speed, logged force, replay, start state."""
+"""Closed-loop runner: servo tracking, contact speed, logged force, replay, start state; a
+standing robot's trial (the G1 stands the impact, the stop does not jolt its feet)."""
 
 import numpy as np
 import pytest
@@ -10,7 +11,10 @@ from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.controller.model.inverse_kinematics import approach_start
-from impactqp.sim.runner import TrialSpec, run_approach, run_trial
+from impactqp.controller.model.humanoid_stance import STANCES
+from impactqp.controller.model.robot import RobotModel
+from impactqp.sim.humanoid_feet import CONE_TOLERANCE, SLIP_SPEED
+from impactqp.sim.runner import NORMAL, TrialSpec, run_approach, run_impact_trial, run_trial
 from impactqp.sim.trial_sources import CartesianApproachCommand, CommandReplay
 from impactqp.sim.scene import build_scene
 
@@ -117,3 +121,33 @@ def test_runs_the_impact_aware_qp_controller(scene):
     impact = measure_impact(log)
     v = ROBOT.terms(impact.q_pre, impact.dq_pre).J @ impact.dq_pre
     assert -(DEFAULT_WALL.normal @ v) > 0.05
+
+
+@pytest.fixture(scope="module")
+def standing():
+    """A scripted standing trial of the G1: the parallel stance, 0.2 m/s."""
+    return run_impact_trial(RobotModel("g1"), STANCES["parallel"], 0.2)
+
+
+def test_the_wall_pushes_the_hand_back_and_the_robot_stands(standing):
+    assert standing.impact.impulse @ NORMAL > 0.0
+    assert standing.contact_speed > 0.0
+    assert standing.impact.duration > 0.0
+    assert not standing.fell and not standing.held.slipped and not standing.held.lifted
+
+
+def test_a_slow_impact_leaves_the_feet_flat_and_the_com_capturable(standing):
+    """0.2 m/s in the parallel stance: the feet stay loaded, inside their cones and still."""
+    assert 0.0 < standing.cone_ratio < 1.0 - CONE_TOLERANCE
+    assert standing.held.slide_speed < SLIP_SPEED
+    assert standing.capture_margin > 0.0
+
+
+def test_the_stop_does_not_jolt_the_feet():
+    """At the stop the wall has stopped the hand while the reference still moves at the approach
+    speed; the held servo does not ask for that reference's deceleration in one step, so a trial at
+    about 0.5 m/s of contact speed shows no foot onset (with a zero command alone, the left foot
+    unloaded at the stop and slipped)."""
+    trial = run_impact_trial(RobotModel("g1"), STANCES["wide"], 0.6)
+    assert trial.contact_speed > 0.45
+    assert trial.failures == ()

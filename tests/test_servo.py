@@ -13,7 +13,7 @@ from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.robot import PandaModel
 from impactqp.sim.humanoid_feet import LOAD, lift_onset, slip_onset, sole_state
 from impactqp.sim.scene import build_humanoid_scene
-from impactqp.sim.humanoid_trial import CONTROL_PERIOD, SERVO_GAIN, SETTLE, SINK
+from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD, SERVO_GAIN, SETTLE, SINK
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.scene import build_scene
 from impactqp.sim.servo import ComputedTorqueServo, StandingSupport
@@ -90,7 +90,7 @@ def test_the_servo_torque_saturates_at_the_urdf_effort_limits():
     scene = build_humanoid_scene(robot, wall_x=1.0)
     scene.set_state(q)
     servo = standing_servo(scene, robot)
-    tau = servo.torque(np.full(robot.n_joints, 1e3), CONTROL_PERIOD)
+    tau = servo.torque(np.full(robot.n_joints, 1e3), DEFAULT_CONTROL_PERIOD)
     np.testing.assert_allclose(np.abs(tau), robot.model.effortLimit[robot.base_nv:])
 
 
@@ -106,10 +106,10 @@ def test_the_standing_g1_shows_no_foot_onset(stance):
     servo = standing_servo(scene, robot)
     states = []
     for k in range(300):
-        scene.data.qfrc_applied[scene.base_nv:] = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
+        scene.data.qfrc_applied[scene.base_nv:] = servo.torque(np.zeros(robot.n_joints), DEFAULT_CONTROL_PERIOD)
         for _ in range(2):
             mujoco.mj_step(scene.model, scene.data)
-        if k * CONTROL_PERIOD >= SETTLE:
+        if k * DEFAULT_CONTROL_PERIOD >= SETTLE:
             states.append(sole_state(scene.model, scene.data, scene.soles))
     states = np.array(states)
     assert np.all(states[..., LOAD] > 0.0)
@@ -136,7 +136,7 @@ def test_a_held_servo_only_damps_the_joints():
     free_base = M[joints, joints] - M[joints, base] @ np.linalg.solve(M[base, base], M[base, joints])
     held = servo.standing.torques(scene.data.qpos, scene.data.qvel)
     expected = free_base @ (-2.0 * SERVO_GAIN * scene.data.qvel[joints]) + scene.data.qfrc_bias[joints] - held
-    tau = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
+    tau = servo.torque(np.zeros(robot.n_joints), DEFAULT_CONTROL_PERIOD)
     np.testing.assert_allclose(tau, np.clip(expected, -robot.tau_max, robot.tau_max), rtol=1e-9, atol=1e-9)
 
 
@@ -150,7 +150,7 @@ def test_the_standing_torques_hold_any_posture_in_equilibrium():
     scene = build_humanoid_scene(robot, wall_x=2.0)
     scene.set_state(q)
     servo = standing_servo(scene, robot)  # its reference: the state it starts from, at rest
-    tau = servo.torque(np.zeros(robot.n_joints), CONTROL_PERIOD)
+    tau = servo.torque(np.zeros(robot.n_joints), DEFAULT_CONTROL_PERIOD)
     terms = robot.terms(q)
     gravity = pin.computeGeneralizedGravity(robot.model, robot.data, q)
     residual = terms.held_jacobian.T @ standing_wrenches(robot, terms) - gravity

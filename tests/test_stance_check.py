@@ -2,6 +2,7 @@
 (scenarios/stance_check.py)."""
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -29,7 +30,7 @@ class FakeTrial:
         self.first_failure = failures[0] if failures else ""
         self.failure_time = self.failure_times.get(self.first_failure, float("nan"))
         self.fell = "fell" in failures
-        self.slipped = slipped  # the foot frame's displacement beyond 5 mm
+        self.held = SimpleNamespace(slipped=slipped)  # the foot frame's displacement beyond 5 mm
         self.feasible = not failures
 
 

@@ -103,5 +103,5 @@ def test_pool_of_two_processes_gives_the_same_trials(result):
     specs = [TrialSpec(POSTURE, Q, 0.15), TrialSpec("elbow_up", PANDA.postures["elbow_up"].q, 0.18)]
     with TrialPool(DEFAULT_WALL, jobs=2) as pool:
         results = list(pool.map(specs))
-    assert [r.spec.trial_id for r in results] == [s.trial_id for s in specs]
+    assert [r.trial_id for r in results] == [s.trial_id for s in specs]
     np.testing.assert_array_equal(results[0].log.dq, result.log.dq)

@@ -11,7 +11,7 @@ from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.qp.command import Status
 from impactqp.scenarios.stance_check import StancePlant, trial_at_contact_speed
-from impactqp.sim.humanoid_trial import CONTROL_PERIOD, LATENCY, NORMAL, SETTLE, SINK, run_impact_trial
+from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD, LATENCY, NORMAL, SETTLE, SINK, run_impact_trial
 from impactqp.sim.trial_sources import CartesianApproachCommand, CommandReplay, QpCommand, TrialStart
 
 FOOT_ONSETS = {"foot_slip", "foot_lift"}
@@ -30,14 +30,14 @@ def trial(robot):
 
 def test_the_qp_drives_the_hand_to_the_wall_and_the_robot_stands(trial):
     assert trial.source == "qp"
-    assert trial.impulse @ NORMAL > 0.0
+    assert trial.impact.impulse @ NORMAL > 0.0
     assert 0.0 < trial.contact_speed <= 0.3 * 1.02
     assert not trial.fell
 
 
 def test_every_cycle_is_ok_and_every_command_is_finite_and_within_the_limits(robot, trial):
     record = trial.record
-    start = int(round(SETTLE / CONTROL_PERIOD))
+    start = int(round(SETTLE / DEFAULT_CONTROL_PERIOD))
     assert record.first_step == start and len(record.statuses) == len(trial.commands) - start
     assert record.not_ok == sum(s != Status.OK for s in record.statuses) == 0, record.messages
     assert np.all(np.isfinite(trial.commands))
@@ -50,17 +50,17 @@ def test_the_commands_change_within_the_acceleration_and_jerk_limits(trial):
     within 25 rad/s^2, changing by at most the jerk limit per cycle, through the impact. (Its first
     command starts from the measured state after the settling, a few mrad/s off rest.)"""
     start = trial.record.first_step
-    acceleration = np.diff(trial.commands[start:], axis=0) / CONTROL_PERIOD
+    acceleration = np.diff(trial.commands[start:], axis=0) / DEFAULT_CONTROL_PERIOD
     g1 = ROBOTS["g1"]
     assert np.all(np.abs(acceleration) <= g1.ddq_max * (1 + 1e-9))
-    jerk = np.diff(acceleration, axis=0) / CONTROL_PERIOD
+    jerk = np.diff(acceleration, axis=0) / DEFAULT_CONTROL_PERIOD
     assert np.all(np.abs(jerk) <= g1.dddq_max * (1 + 1e-6))
 
 
 def test_the_qp_brakes_the_hand_after_the_stop(robot, trial):
     """From the stop on the approach target is 0: the commanded joint velocities decay to rest
     within the trial, at the acceleration limit at most."""
-    stop = trial.contact_index + int(round(LATENCY / CONTROL_PERIOD))
+    stop = trial.impact.pre_index + int(round(LATENCY / DEFAULT_CONTROL_PERIOD))
     at_stop = np.abs(trial.commands[stop]).max()
     assert at_stop > 0.0
     assert np.abs(trial.commands[-1]).max() < 0.1 * at_stop
@@ -68,7 +68,7 @@ def test_the_qp_brakes_the_hand_after_the_stop(robot, trial):
 
 def test_predicted_post_impact_joint_velocities_are_within_the_limits_at_the_contact(robot, trial):
     record = trial.record
-    before = record.cycle(trial.contact_index) - 1
+    before = record.cycle(trial.impact.pre_index) - 1
     post = record.predicted_post_impact[before]
     assert record.impact_constraints_on[before]
     assert np.all(np.isfinite(post)) and np.all(np.abs(post[robot.base_nv:]) <= robot.dq_max)
@@ -85,7 +85,7 @@ def test_the_feet_show_no_onset_the_scripted_trial_does_not_show_at_the_same_con
 def test_a_source_that_tracks_the_speed_is_asked_the_target_once(robot):
     q = stance_posture(robot, STANCES["parallel"])
     qp = trial_at_contact_speed(robot, "parallel", q, 0.2, StancePlant(), QpCommand())
-    assert qp.speed == 0.2 and qp.source == "qp"
+    assert qp.normal_speed == 0.2 and qp.source == "qp"
 
 
 def test_unknown_feedback_is_bad_input():

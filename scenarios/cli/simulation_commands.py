@@ -168,7 +168,7 @@ def stance_trial(
     choice: RobotChoice, posture: str, speed: float, files: dict, controller: str = "scripted"
 ) -> tuple[dict, str | None]:
     """One trial of the floating-base robot of ``choice`` (``scenarios.trial.TrialRunner``, the
-    standing trial of ``sim.humanoid_trial``) driven by the
+    standing trial of ``sim.runner.run_impact_trial``) driven by the
     scripted command or (``controller="qp"``) the whole-body QP with the ``--jump-model``
     predictor (crb, gm or classical), optionally rendered to a GIF (``files["video_file"]``) and
     added to the G1 dataset in ``files["out_dir"]``; its JSON (with the QP: ``controller`` and
