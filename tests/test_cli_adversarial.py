@@ -112,6 +112,12 @@ ROWS = [
      None, 2, "got 1e+308 m/s"),
     (["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.15", "--tangential", "0,1.7e308,1.7e308"],
      None, 2, "got 1.7e+308 m/s"),
+    (["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.15", "--friction", "-0.2"], None, 2,
+     "the friction coefficient --friction must lie in [0, 10]"),
+    (["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.15", "--friction", "0.3", "--method",
+      "classical_normal"], None, 2, "classical_normal has no frictional form"),
+    (["predict", "--robot", "g1", "--posture", "parallel", "--normal", "-1,0,0", "--speed", "0.15", "--friction", "0.3"],
+     None, 2, "--friction does not apply to a robot with held contacts"),
     # postures: no input but its options
     (["postures", "--bogus"], None, 2, "No such option"),
     # simulate

@@ -2,11 +2,14 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from conftest import JOINTS
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
+from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.prediction import ImpactQuery, predict_all
+from impactqp.controller.model.prediction import FRICTIONAL_METHODS, ImpactQuery, predict_all
 
 
 def test_query_builds_the_pre_impact_velocity():
@@ -27,6 +30,8 @@ def test_query_builds_the_pre_impact_velocity():
         ({"restitution": -0.1}, r"\[0, 1\]"),
         ({"tangential": [0.1, 0, 0]}, "orthogonal"),
         ({"normal": [1, 0]}, "3 numbers"),
+        ({"friction": -0.1}, "friction coefficient --friction"),
+        ({"friction": 0.3, "restitution_model": "elastic"}, "restitution model"),
     ],
 )
 def test_bad_queries_are_rejected(kwargs, message):
@@ -47,3 +52,34 @@ def test_report_has_the_contract_keys(robot):
         expected = JUMP_MODELS[name].predict(robot.terms(p.q), p.surface.normal, -0.12 * p.surface.normal, 0.0)
         np.testing.assert_allclose(entry["dq_jump"], expected.dq_jump)
     assert report["cond_M"] == pytest.approx(np.linalg.cond(robot.terms(p.q).M))
+
+
+@settings(max_examples=30)
+@given(st.sampled_from(list(PANDA.postures)), st.floats(0.02, 1.0), st.floats(0.0, 0.1), st.floats(0.0, 1.0))
+def test_a_frictional_prediction_is_the_predictors_map_of_the_frictional_impulse(posture, mu, tangential, restitution):
+    """With friction each predictor's jump is its own map of the 3-D impulse (J ddq = W iota for
+    CRB and GM: the contact velocity changes by W iota), the impulse lies in the friction cone,
+    and with mu = 0 the CRB and GM reports are the frictionless ones (eq. (12))."""
+    from impactqp.controller.model.frictional_impact import contact_frame
+
+    robot = PandaModel()
+    p = PANDA.postures[posture]
+    n = p.surface.normal
+    t = contact_frame(n)[:, 0]
+    query = ImpactQuery.from_speed(p.q, n, 0.12, tangential * t, restitution, friction=mu)
+    report = predict_all(query, METHODS, robot)
+    assert set(report["methods"]) == set(FRICTIONAL_METHODS) and report["friction"] == mu
+    terms = robot.terms(p.q)
+    for name, entry in report["methods"].items():
+        impulse = np.array(entry["impulse"])
+        normal = impulse @ n
+        assert normal > 0 and np.linalg.norm(impulse - normal * n) <= mu * normal * (1 + 1e-9)
+        if name in ("crb", "gm"):
+            W = np.array(entry["W"])
+            np.testing.assert_allclose(terms.J @ entry["dq_jump"], W @ impulse, rtol=1e-9, atol=1e-12)
+            np.testing.assert_allclose(entry["post_impact_contact_velocity"], query.pre_impact_velocity + W @ impulse,
+                                       rtol=1e-9, atol=1e-12)
+    frictionless = predict_all(ImpactQuery.from_speed(p.q, n, 0.12, None, restitution, friction=0.0), ("crb", "gm"), robot)
+    plain = predict_all(ImpactQuery.from_speed(p.q, n, 0.12, None, restitution), ("crb", "gm"), robot)
+    for name in ("crb", "gm"):
+        np.testing.assert_allclose(frictionless["methods"][name]["dq_jump"], plain["methods"][name]["dq_jump"], rtol=1e-12, atol=1e-15)

@@ -1,8 +1,16 @@
 """A validated impact query and the report of all predictors for it.
 
 An :class:`ImpactQuery` is a posture q, the unit surface normal n (towards the robot), the
-pre-impact contact velocity v- = -speed n + v_t (v_t orthogonal to n) and the restitution c_r.
-It is checked once on construction: bad values raise ``ValueError`` with a clear message.
+pre-impact contact velocity v- = -speed n + v_t (v_t orthogonal to n), the restitution c_r and,
+for a frictional impact, the Coulomb coefficient mu and the restitution model
+(``controller.model.frictional_impact``). It is checked once on construction: bad values raise
+``BadInputError`` with a clear message.
+
+Without friction each predictor's impulse is eq. (12) (the classical ones: eq. (5)); with
+friction, every predictor's inverse inertia W (the classical's: W_gm = J M^-1 J^T) gives the 3-D
+frictional impulse, and the predictor's own map gives the jump (dq+ = dq- + J^+ W iota for CRB
+and GM, M^-1 J^T iota for the classical). ``classical_normal`` keeps only the normal part of the
+classical impulse, which a frictional impulse has no use for: it is left out with friction.
 """
 
 from __future__ import annotations
@@ -12,10 +20,15 @@ from functools import lru_cache
 
 import numpy as np
 
-from .jump import JUMP_MODELS, METHODS
+from .frictional_impact import RESTITUTION_MODELS, frictional_impulse
+from .jump import JUMP_MODELS, METHODS, gm_inverse_inertia
 from .robot import PandaModel
-from .validation import approach_speed, finite_vector, tangential_velocity, unit_normal
+from .validation import BadInputError, approach_speed, finite_vector, name_in, number_in_range, tangential_velocity
 from .validation import restitution as restitution_coefficient
+from .validation import unit_normal
+
+FRICTIONAL_METHODS = tuple(m for m in METHODS if m != "classical_normal")
+"""The predictors a frictional impact serves (module docstring)."""
 
 @lru_cache(maxsize=1)
 def default_robot() -> PandaModel:
@@ -28,15 +41,23 @@ class ImpactQuery:
     normal: np.ndarray
     pre_impact_velocity: np.ndarray
     restitution: float
+    friction: float | None = None
+    restitution_model: str = "energetic"
 
     @classmethod
-    def from_speed(cls, q, normal, speed: float, tangential=None, restitution: float = 0.0):
-        """v- = -speed * n + tangential, with n normalised and tangential orthogonal to n."""
+    def from_speed(cls, q, normal, speed: float, tangential=None, restitution: float = 0.0,
+                   friction: float | None = None, restitution_model: str = "energetic"):
+        """v- = -speed * n + tangential, with n normalised and tangential orthogonal to n; a
+        frictional impact with ``friction`` mu (None: frictionless, eq. (12))."""
         normal = unit_normal(normal)
         speed = approach_speed(speed)
         c_r = restitution_coefficient(restitution)
         tangential = np.zeros(3) if tangential is None else tangential_velocity(tangential, normal)
-        return cls(finite_vector(q, None, "the joint positions q"), normal, -speed * normal + tangential, c_r)
+        if friction is not None:
+            friction = number_in_range(friction, 0.0, 10.0, "the friction coefficient --friction", "")
+        name_in(restitution_model, RESTITUTION_MODELS, "the restitution model")
+        q = finite_vector(q, None, "the joint positions q")
+        return cls(q, normal, -speed * normal + tangential, c_r, friction, restitution_model)
 
 
 def predict_all(query: ImpactQuery, methods=METHODS, robot: PandaModel | None = None) -> dict:
@@ -52,10 +73,25 @@ def predict_all(query: ImpactQuery, methods=METHODS, robot: PandaModel | None = 
         "cond_M": terms.cond_M,
         "methods": {},
     }
+    if query.friction is not None:
+        report["friction"], report["restitution_model"] = query.friction, query.restitution_model
+        if any(name not in FRICTIONAL_METHODS for name in methods) and len(methods) == 1:
+            raise BadInputError(f"--method {methods[0]} has no frictional form; choose from {', '.join(FRICTIONAL_METHODS)}")
+        methods = [name for name in methods if name in FRICTIONAL_METHODS]
     for name in methods:
-        pred = JUMP_MODELS[name].predict(terms, query.normal, query.pre_impact_velocity, query.restitution)
+        model = JUMP_MODELS[name]
+        impact = None
+        if query.friction is not None:
+            W = model.maps(terms, query.normal, query.restitution).W
+            W = gm_inverse_inertia(terms) if W is None else W
+            impact = frictional_impulse(W, query.normal, query.pre_impact_velocity, query.friction,
+                                        query.restitution, query.restitution_model)
+        pred = model.predict(terms, query.normal, query.pre_impact_velocity, query.restitution,
+                             None if impact is None else impact.impulse)
         entry = {"dq_jump": pred.dq_jump.tolist(), "impulse": pred.impulse.tolist()}
         if pred.W is not None:
             entry["W"] = pred.W.tolist()
+        if impact is not None:
+            entry.update(mode=impact.mode, mu_bar=impact.mu_bar, post_impact_contact_velocity=impact.post_velocity.tolist())
         report["methods"][name] = entry
     return report

@@ -67,17 +67,24 @@ def postures(as_json, choice):
 @click.option("--tangential", "tangential_text", help="Tangential velocity VX,VY,VZ (m/s), orthogonal to the normal.")
 @click.option("--restitution", type=float, default=0.0, show_default=True, help="Coefficient of restitution in [0, 1].")
 @click.option("--method", type=click.Choice([*METHODS, "all"]), default="all", show_default=True)
+@click.option("--friction", type=float, help="Coulomb coefficient of the contact: a 3-D frictional impact (slip, stick).")
+@click.option("--restitution-model", type=click.Choice(["energetic", "kinematic"]), default="energetic",
+              show_default=True, help="With --friction: Stronge's energetic or Newton's kinematic restitution.")
 @click.option("--json", "as_json", is_flag=True)
 @robot_options(humanoid=True)
 def predict(method, as_json, choice, **impact):
     """Predict the impact-induced joint-velocity jump at a posture of the robot with the tool
-    (with --robot g1: a stance of the standing G1, --q of its nq values)."""
+    (with --robot g1: a stance of the standing G1, --q of its nq values); with --friction, the
+    3-D frictional impulse, the contact's mode (slip, stick, reversal) and the stick coefficient."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.prediction import ImpactQuery, predict_all
     from impactqp.scenarios.readable import fixed
 
     methods = METHODS if method == "all" else (method,)
+    friction = {"friction": impact.pop("friction"), "restitution_model": impact.pop("restitution_model")}
     if choice.robot.floating:
+        if friction["friction"] is not None:
+            raise BadInputError("--friction does not apply to a robot with held contacts yet (docs/frictional-impacts.md)")
         report = stance_prediction(choice, impact.pop("posture_name"), impact.pop("q_text"), impact,
                                    None if method == "all" else methods)
         if as_json:
@@ -96,7 +103,8 @@ def predict(method, as_json, choice, **impact):
         q = parse_vector(impact["q_text"], len(choice.robot.joints), "--q")
     tangential = parse_vector(impact["tangential_text"], 3, "--tangential") if impact["tangential_text"] else np.zeros(3)
     query = ImpactQuery.from_speed(
-        q, parse_vector(impact["normal_text"], 3, "--normal"), impact["speed"], tangential, impact["restitution"]
+        q, parse_vector(impact["normal_text"], 3, "--normal"), impact["speed"], tangential, impact["restitution"],
+        **friction,
     )
     report = predict_all(query, methods, choice.model())
     if as_json:
@@ -113,7 +121,8 @@ def predict(method, as_json, choice, **impact):
     for name, res in report["methods"].items():
         dq = "".join(f"{x:9.4f}" for x in res["dq_jump"])
         imp = " ".join(f"{x:7.4f}" for x in res["impulse"])
-        click.echo(f"{name:<17}{dq}   [{imp}]")
+        mode = f"   {res['mode']} (mu_bar {res['mu_bar']:.3f})" if "mode" in res else ""
+        click.echo(f"{name:<17}{dq}   [{imp}]{mode}")
 
 
 def stance_prediction(choice, posture: str | None, q_text: str | None, impact: dict, methods) -> dict:

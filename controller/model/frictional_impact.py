@@ -1,0 +1,310 @@
+"""The impulse of a frictional impact in three dimensions, for a given inverse inertia W at the
+contact (``docs/frictional-impacts.md``).
+
+The contact velocity u (3) changes with the impulse P on the robot as du = W dP (W: the CRB, GM
+or classical inverse inertia of ``controller.model.jump``; 3 x 3, symmetric positive definite).
+The impact is integrated over the normal impulse p = n^T P, the independent variable of
+Stronge's method (Stronge, "Impact mechanics", ch. 4), in a contact frame (t1, t2, n), n the
+surface normal towards the robot, so u_n = n^T u < 0 while the contact closes:
+
+- **slip** (|u_t| > 0): Coulomb friction mu opposes the tangential velocity u_t,
+  dP/dp = n - mu s, s = u_t / |u_t|; the tangential velocity follows the autonomous ODE
+  du_t/dp = W_tn - mu W_tt s (the phase plane of Jia and Wang for a 3 x 3 W);
+- **stick** (u_t = 0): the tangential impulse keeps u_t = 0, dP_t/dp = d = -W_tt^-1 W_tn, which
+  Coulomb allows while |d| <= mu; the smallest such mu is the **stick coefficient**
+  mu_bar = |W_tt^-1 W_tn| (the seed paper's Sec. VI-B, Stronge eq. 4.12);
+- **reversal** (u_t = 0 and |d| > mu): slip resumes along an invariant ray s* of the phase
+  plane, W_tn - mu W_tt s* = lambda s* with lambda > 0, and keeps it.
+
+Compression ends at u_n = 0 (normal impulse p_c). Restitution ends, with the **energetic**
+coefficient e (Stronge), when the work of the normal impulse during restitution is -e^2 times
+its work during compression (int u_n dp over each phase); with the **kinematic** one (Newton),
+when u_n = -e u_n(0). Without friction (mu = 0, or no tangential velocity and W_tn = 0), u_n is
+linear in p and both give eq. (12): P = -(1 + e) (n^T v-) / (n^T W n) n.
+
+Phases of constant impulse direction (stick, reversal, no friction) are integrated in closed
+form; slip by a compiled fourth-order Runge-Kutta scheme over p (:data:`STEPS_PER_IMPULSE`
+steps per frictionless impulse), each event (slip stops, compression ends, restitution ends)
+located inside its step by bisection.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from . import validation
+from .validation import BadInputError
+
+RESTITUTION_MODELS = ("energetic", "kinematic")
+STEPS_PER_IMPULSE = 2000
+"""Runge-Kutta steps along slip per frictionless impulse (1 + e) |u_n(0)| / W_nn."""
+MAX_STEPS = 10**7
+STOP_SHARE = 1e-9
+"""|u_t| below this share of the pre-impact speed is stopped (u_t = 0): above the integration's
+own error, so that a trajectory that reaches u_t = 0 is not read as one that passes close by."""
+BISECTIONS = 60
+NEAR_STOP_SHARE = 0.005
+"""Along slip, a step changes u_t by at most this share of |u_t|: the slip direction turns
+fast near u_t = 0, so the steps shrink there (geometrically, towards a stop)."""
+RAY_ANGLES = 720
+"""Angles scanned for the invariant rays of the slip phase plane (each refined by bisection)."""
+
+# events of the slip kernel
+STOPPED, COMPRESSED, ENDED, NOT_ENDED = 0, 1, 2, 3
+
+
+@dataclass(frozen=True)
+class FrictionalImpact:
+    """The answer of :func:`frictional_impulse`: the impulse on the robot ``impulse`` (3, in the
+    frame of W), the contact velocity after the impact ``post_velocity``, the ``mode`` of the
+    contact ("slip": slid throughout; "stick": stopped sliding and stuck; "reversal": stopped,
+    then slid along a new direction; "frictionless": mu = 0), the stick coefficient ``mu_bar``
+    and the normal impulse at the end of compression ``compression_impulse``."""
+
+    impulse: np.ndarray
+    post_velocity: np.ndarray
+    mode: str
+    mu_bar: float
+    compression_impulse: float
+
+
+def contact_frame(normal: np.ndarray) -> np.ndarray:
+    """R = [t1 t2 n] (columns): an orthonormal frame whose third axis is the unit normal n."""
+    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    t1 = np.cross(helper, normal)
+    t1 /= np.linalg.norm(t1)
+    return np.column_stack([t1, np.cross(normal, t1), normal])
+
+
+def stick_direction(Wc: np.ndarray) -> np.ndarray:
+    """d = -W_tt^-1 W_tn (W in the contact frame): the tangential impulse per unit normal
+    impulse that keeps u_t = 0."""
+    return -np.linalg.solve(Wc[:2, :2], Wc[:2, 2])
+
+
+def reversal_direction(Wc: np.ndarray, mu: float) -> np.ndarray:
+    """s* (unit, contact frame) with W_tn - mu W_tt s* = lambda s*, lambda > 0: where slip goes
+    once sticking needs more than mu. The cross product of s(theta) with
+    g(theta) = W_tn - mu W_tt s(theta) changes sign at each invariant ray; of the rays with
+    lambda = s . g > 0, the one with the largest lambda."""
+
+    def ray(theta):
+        s = np.array([math.cos(theta), math.sin(theta)])
+        g = Wc[:2, 2] - mu * Wc[:2, :2] @ s
+        return s[0] * g[1] - s[1] * g[0], float(s @ g)
+
+    angles = np.linspace(0.0, 2.0 * math.pi, RAY_ANGLES + 1)
+    crosses = [ray(a)[0] for a in angles]
+    best, best_rate = None, 0.0
+    for k in range(RAY_ANGLES):
+        if crosses[k] * crosses[k + 1] > 0.0:
+            continue
+        low, high = angles[k], angles[k + 1]
+        for _ in range(BISECTIONS):
+            middle = 0.5 * (low + high)
+            if ray(low)[0] * ray(middle)[0] <= 0.0:
+                high = middle
+            else:
+                low = middle
+        rate = ray(0.5 * (low + high))[1]
+        if rate > best_rate:
+            best, best_rate = 0.5 * (low + high), rate
+    if best is None:
+        raise ArithmeticError("no invariant slip ray leaves the origin: W is not an inverse inertia")
+    return np.array([math.cos(best), math.sin(best)])
+
+
+def frictional_impulse(
+    W: np.ndarray,
+    normal,
+    pre_velocity,
+    friction: float,
+    restitution: float = 0.0,
+    restitution_model: str = "energetic",
+) -> FrictionalImpact:
+    """The frictional impact of the module docstring for the inverse inertia W (3 x 3), the
+    surface normal n (towards the robot), the pre-impact contact velocity v- (with n^T v- < 0),
+    the Coulomb coefficient mu >= 0, the restitution e in [0, 1] and its model (energetic or
+    kinematic); every vector in the frame of W."""
+    n = validation.unit_normal(normal)
+    v = validation.finite_vector(pre_velocity, 3, "the pre-impact contact velocity")
+    e = validation.restitution(restitution)
+    mu = validation.number_in_range(friction, 0.0, 10.0, "the friction coefficient", "")
+    validation.name_in(restitution_model, RESTITUTION_MODELS, "the restitution model")
+    W = np.asarray(W, dtype=float)
+    if W.shape != (3, 3) or not np.all(np.isfinite(W)):
+        raise BadInputError(f"W must be a finite 3 x 3 matrix, got shape {W.shape}")
+    R = contact_frame(n)
+    Wc = R.T @ (0.5 * (W + W.T)) @ R
+    u0 = R.T @ v
+    if not u0[2] < 0.0:
+        raise BadInputError(f"the contact does not approach the surface: n^T v- = {u0[2]:.6g} m/s must be < 0")
+    energetic = restitution_model == "energetic"
+    # y = (u_t1, u_t2, u_n, P_t1, P_t2, work of the normal impulse in the current phase of the
+    # impact: compression, then restitution), p the normal impulse
+    y, p = np.concatenate([u0, np.zeros(3)]), 0.0
+    stopped = STOP_SHARE * float(np.linalg.norm(u0))
+    h = (1.0 + e) * -u0[2] / Wc[2, 2] / STEPS_PER_IMPULSE
+    mu_bar = float(np.linalg.norm(stick_direction(Wc)))
+    if mu == 0.0:
+        mode, direction = "frictionless", np.zeros(2)
+    elif math.hypot(u0[0], u0[1]) > stopped:
+        mode, direction = "slip", None
+    else:
+        mode, direction = after_stop(Wc, mu, mu_bar)
+    compression, target = None, 0.0
+    while True:
+        if compression is None and y[2] >= 0.0:
+            compression = p
+            target = -e * e * y[5] if energetic else -e * u0[2]  # restitution's work or final u_n
+            y[5] = 0.0
+        if compression is not None and restitution_ended(y, target, energetic):
+            break
+        if direction is not None:
+            p = constant_direction_phase(y, p, Wc, direction, target, energetic, compression is None)
+            if compression is not None:
+                break  # the phase ran to the end of restitution (in closed form)
+            continue
+        p, event = slip_phase(Wc, mu, y, p, h, stopped, target, energetic, compression is None)
+        if event == ENDED:
+            break
+        if event == STOPPED:
+            y[:2] = 0.0
+            mode, direction = after_stop(Wc, mu, mu_bar)
+    impulse = np.array([y[3], y[4], p])
+    # v+ = v- + W P: the integrated u agrees to the stop threshold (u_t set to 0 at a stop)
+    return FrictionalImpact(R @ impulse, R @ (u0 + Wc @ impulse), mode, mu_bar, float(compression))
+
+
+def after_stop(Wc: np.ndarray, mu: float, mu_bar: float) -> tuple[str, np.ndarray]:
+    """The mode and the tangential impulse rate dP_t/dp once u_t = 0: stick (d) when
+    mu >= mu_bar, else reversal along the invariant ray (-mu s*)."""
+    if mu >= mu_bar:
+        return "stick", stick_direction(Wc)
+    return "reversal", -mu * reversal_direction(Wc, mu)
+
+
+@njit(cache=True)
+def restitution_ended(y, target, energetic) -> bool:
+    """Whether restitution has ended (past compression): the work of the normal impulse since
+    compression ended has reached ``target`` (energetic) or u_n has reached it (kinematic)."""
+    if energetic:
+        return y[2] >= 0.0 and y[5] >= target - 1e-15 * abs(target)
+    return y[2] >= target - 1e-15 * abs(target)
+
+
+def constant_direction_phase(y, p, Wc, direction, target, energetic, compressing) -> float:
+    """Advance y in place along dP = (direction, 1) dp, in closed form (u linear in p, the work
+    quadratic): to the end of compression (u_n = 0) when compressing, else to the end of
+    restitution; returns the new p."""
+    rate = Wc @ np.array([direction[0], direction[1], 1.0])
+    un, a = y[2], rate[2]
+    if a <= 0.0:
+        raise ArithmeticError("the normal velocity does not grow with the impulse: W is not an inverse inertia")
+    if compressing:
+        dp = -un / a
+    elif not energetic:
+        dp = max((target - un) / a, 0.0)
+    else:
+        remaining = max(target - y[5], 0.0)  # work + un dp + a dp^2 / 2 = target, un >= 0
+        dp = (-un + math.sqrt(un * un + 2.0 * a * remaining)) / a
+    y[5] += un * dp + 0.5 * a * dp * dp
+    y[:3] += rate * dp
+    if compressing:
+        y[2] = 0.0
+    y[3:5] += direction * dp
+    return p + dp
+
+
+@njit(cache=True)
+def slip_rate(Wc, mu, y, out):
+    """dy/dp along slip: du = W (n - mu s) dp, dP_t = -mu s dp, d work = u_n dp."""
+    norm = math.sqrt(y[0] * y[0] + y[1] * y[1])
+    f0, f1 = -mu * y[0] / norm, -mu * y[1] / norm
+    for i in range(3):
+        out[i] = Wc[i, 0] * f0 + Wc[i, 1] * f1 + Wc[i, 2]
+    out[3], out[4], out[5] = f0, f1, y[2]
+
+
+@njit(cache=True)
+def rk4_step(Wc, mu, y, h, out) -> bool:
+    """One classical Runge-Kutta step of length h along slip, from y into out; returns whether
+    the step reaches u_t = 0 (a stage or its end whose tangential velocity points against the
+    start's: the slip direction is not defined there, out is not written, and ``slip_phase``
+    halves the step until it stops short of 0)."""
+    k1, k2, k3, k4, z = np.empty(6), np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+    slip_rate(Wc, mu, y, k1)
+    for i in range(6):
+        z[i] = y[i] + 0.5 * h * k1[i]
+    crossed = z[0] * y[0] + z[1] * y[1] <= 0.0
+    if not crossed:
+        slip_rate(Wc, mu, z, k2)
+        for i in range(6):
+            z[i] = y[i] + 0.5 * h * k2[i]
+        crossed = z[0] * y[0] + z[1] * y[1] <= 0.0
+    if not crossed:
+        slip_rate(Wc, mu, z, k3)
+        for i in range(6):
+            z[i] = y[i] + h * k3[i]
+        crossed = z[0] * y[0] + z[1] * y[1] <= 0.0
+    if not crossed:
+        slip_rate(Wc, mu, z, k4)
+        for i in range(6):
+            out[i] = y[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+        crossed = out[0] * y[0] + out[1] * y[1] <= 0.0
+    return crossed
+
+
+@njit(cache=True)
+def slip_event(z, stopped, target, energetic, compressing) -> int:
+    if math.sqrt(z[0] * z[0] + z[1] * z[1]) <= stopped:
+        return STOPPED
+    if compressing:
+        return COMPRESSED if z[2] >= 0.0 else NOT_ENDED
+    return ENDED if restitution_ended(z, target, energetic) else NOT_ENDED
+
+
+@njit(cache=True)
+def slip_phase(Wc, mu, y, p, h, stopped, target, energetic, compressing):
+    """Advance y in place along slip, step by step (of at most h, and at most a change of
+    ``NEAR_STOP_SHARE`` |u_t| in u_t), up to the first event: slip stops (|u_t| below
+    ``stopped``), compression ends when ``compressing``, else restitution ends (both located by
+    bisection inside their step); returns the new p and the event."""
+    z, rate = np.empty(6), np.empty(6)
+    for _ in range(MAX_STEPS):
+        slip_rate(Wc, mu, y, rate)
+        speed = math.sqrt(y[0] * y[0] + y[1] * y[1])
+        change = math.sqrt(rate[0] * rate[0] + rate[1] * rate[1])
+        step = min(h, NEAR_STOP_SHARE * speed / change) if change > 0.0 else h
+        while rk4_step(Wc, mu, y, step, z):
+            step *= 0.5
+        event = slip_event(z, stopped, target, energetic, compressing)
+        if event == NOT_ENDED:
+            y[:] = z
+            p += step
+            continue
+        if event == STOPPED:
+            y[:] = z
+            y[0], y[1] = 0.0, 0.0
+            return p + step, STOPPED
+        low, high = 0.0, step
+        for _ in range(BISECTIONS):
+            middle = 0.5 * (low + high)
+            rk4_step(Wc, mu, y, middle, z)
+            if slip_event(z, stopped, target, energetic, compressing) == NOT_ENDED:
+                low = middle
+            else:
+                high = middle
+        rk4_step(Wc, mu, y, high, z)
+        event = slip_event(z, stopped, target, energetic, compressing)
+        y[:] = z
+        if event == STOPPED:
+            y[0], y[1] = 0.0, 0.0
+        elif event == COMPRESSED:
+            y[2] = 0.0
+        return p + high, event
+    raise ArithmeticError("the frictional impact did not end within MAX_STEPS steps")
