@@ -8,7 +8,7 @@ JSON output keeps full precision; the text beside it shows:
   (:func:`number`; Python's ``g`` format switches to an exponent below 1e-4 by itself);
 - plant overrides with their units, grouped as the diagnosis fits them: a per-joint vector that is
   constant over each of the Panda's drive groups (joints 1-4 and 5-7,
-  ``sim.causes.JOINT_GROUPS``) as one value per group (:func:`parameters_text`);
+  ``sim.causes.joint_groups``) as one value per group (:func:`parameters_text`);
 - booleans as in JSON, ``true`` / ``false`` (:func:`boolean`).
 """
 
@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.sim.causes import JOINT_GROUPS
-from impactqp.sim.plant import RANGES
+from impactqp.sim.causes import group_name, joint_groups
+from impactqp.sim.plant import PER_JOINT, RANGES
 
 DECIMALS = 4
 SIGNIFICANT = 4
@@ -48,21 +48,17 @@ def boolean(value: bool) -> str:
     return "true" if value else "false"
 
 
-def group_name(group: tuple[int, ...]) -> str:
-    """``joints 1-4`` for the 0-based joint indices (0, 1, 2, 3)."""
-    return f"joints {group[0] + 1}-{group[-1] + 1}" if len(group) > 1 else f"joint {group[0] + 1}"
-
-
-def value_text(value) -> str:
-    """One plant override: a number, a vector, or a per-joint vector by joint group when it is
-    constant over each group."""
+def value_text(value, per_joint: bool = False) -> str:
+    """One plant override: a number, a vector, or a per-joint vector (``per_joint``) by joint
+    group when it is constant over each group."""
     array = np.asarray(value, dtype=float)
     if array.ndim == 0:
         return number(float(array))
-    if array.size == sum(len(g) for g in JOINT_GROUPS):
-        groups = [array[list(g)] for g in JOINT_GROUPS]
+    if per_joint and array.ndim == 1 and array.size >= 2:
+        indices = joint_groups(array.size)
+        groups = [array[list(g)] for g in indices]
         if all(np.all(g == g[0]) for g in groups):
-            return ", ".join(f"{group_name(g)} = {number(v[0])}" for g, v in zip(JOINT_GROUPS, groups))
+            return ", ".join(f"{group_name(g)} = {number(v[0])}" for g, v in zip(indices, groups))
     return "[" + ", ".join(number(x) for x in array.ravel()) + "]"
 
 
@@ -70,7 +66,7 @@ def parameters_text(overrides: dict) -> str:
     """Plant overrides as ``key (unit): value; ...`` (``value_text``, units of
     ``sim.plant.RANGES``); ``nominal`` when empty."""
     return "; ".join(
-        f"{key}{unit_text(key)}: {value_text(value)}" for key, value in overrides.items()
+        f"{key}{unit_text(key)}: {value_text(value, key in PER_JOINT)}" for key, value in overrides.items()
     ) or "nominal"
 
 

@@ -16,6 +16,7 @@ from impactqp.sim.causes import (
     PayloadCause,
     default_causes,
     group_means,
+    joint_groups,
     per_group,
 )
 from impactqp.sim.plant import PlantParameters
@@ -71,15 +72,25 @@ def test_sensor_causes_change_only_sensor_keys_and_leave_the_physics_alone():
         assert plant.physical() == nominal and plant != nominal
 
 
-@given(st.lists(st.floats(0.0, 10.0, allow_nan=False), min_size=2, max_size=2))
-def test_group_values_round_trip(values):
-    joints = per_group(values)
-    assert len(joints) == JOINTS and joints[:4] == [values[0]] * 4 and joints[4:] == [values[1]] * 3
-    np.testing.assert_allclose(group_means(joints), values)
+@given(st.lists(st.floats(0.0, 10.0, allow_nan=False), min_size=2, max_size=2), st.integers(2, 40))
+def test_group_values_round_trip_for_any_joint_count(values, joints):
+    """The groups partition the joints, the shoulder's and elbow's first (ceil(n / 2): the
+    Panda's 1-4, the UR5's 1-3); one value per group spreads and averages back."""
+    groups = joint_groups(joints)
+    assert [j for g in groups for j in g] == list(range(joints)) and len(groups[0]) == (joints + 1) // 2
+    spread = per_group(values, joints)
+    assert len(spread) == joints and all(spread[j] == values[k] for k, g in enumerate(groups) for j in g)
+    np.testing.assert_allclose(group_means(spread), values)
+
+
+def test_a_six_joint_arm_gets_its_own_groups_and_labels():
+    cause = ArmatureCause(6)
+    assert cause.labels == ("armature joints 1-3 (kg m^2)", "armature joints 4-6 (kg m^2)")
+    assert cause.overrides([0.4, 0.1])["armature"] == [0.4] * 3 + [0.1] * 3
 
 
 def test_armature_and_damping_are_fitted_per_joint_group():
-    for cause in (ArmatureCause(), JointDampingCause()):
+    for cause in (ArmatureCause(JOINTS), JointDampingCause(JOINTS)):
         key = next(iter(cause.overrides(np.array([1.0, 1.0]))))
         values = cause.overrides(np.array([0.7, 0.2]))[key]
         assert values == [0.7] * 4 + [0.2] * 3

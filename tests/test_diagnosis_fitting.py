@@ -102,7 +102,7 @@ def test_a_replay_without_a_contact_counts_as_a_zero_impulse():
 def test_fitted_causes_split_and_join_their_vectors_and_apply_in_order(seed):
     rng = np.random.default_rng(seed)
     model = FittedCauses()
-    for cause in (ArmatureCause(), PayloadCause(), FrictionCause()):
+    for cause in (ArmatureCause(JOINTS), PayloadCause(), FrictionCause()):
         lo, hi = cause.u_bounds()
         model = model.plus(cause, rng.uniform(lo, hi))
     u = model.vector()

@@ -5,6 +5,7 @@ from diagnosis_checks import POSTURES
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from conftest import JOINTS
 from impactqp.sim.causes import ArmatureCause, FrictionCause, PayloadCause
 from impactqp.sim.diagnosis import diagnose
 from impactqp.sim.diagnosis.fitting import FittedCauses
@@ -32,7 +33,7 @@ def test_impacts_that_only_stick_leave_friction_open_above(tmp_path):
 def fitted_model(rng: np.random.Generator) -> FittedCauses:
     """Armature, payload and friction at random points of their bounds (7 parameters)."""
     model = FittedCauses()
-    for cause in (ArmatureCause(), PayloadCause(), FrictionCause()):
+    for cause in (ArmatureCause(JOINTS), PayloadCause(), FrictionCause()):
         lo, hi = cause.u_bounds()
         model = model.plus(cause, rng.uniform(lo, hi))
     return model

@@ -134,7 +134,7 @@ def test_a_torque_offset_outside_the_candidates_is_a_named_misfit_not_an_explana
     the torque block misfits, nothing is explained and the message names the torque."""
     generate_dataset(tmp_path, DatasetRequest(postures=["elbow_up"], speeds=[0.1, 0.18], repeats=2, seed=3))
     shift_torque(tmp_path, 1, 1.5)
-    result = diagnose(tmp_path, causes=[ArmatureCause(), JointDampingCause()]).summary()
+    result = diagnose(tmp_path, causes=[ArmatureCause(JOINTS), JointDampingCause(JOINTS)]).summary()
     assert not result["explained"] and result["causes"] == []
     assert result["nominal_fit"]["torque"] > FIT_LIMIT >= result["nominal_fit"]["jump"]
     assert not result["fit"]["fits_noise"] and result["fit"]["torque"] > FIT_LIMIT
@@ -147,7 +147,7 @@ def test_a_quantised_low_noise_dataset_of_the_nominal_plant_fits_the_nominal(tmp
     nothing is refused as a misfit (before, the noise fell to its floor: 56 noise units)."""
     request = DatasetRequest(postures=["elbow_up"], speeds=[0.1, 0.18], repeats=2, noise_dq=0.0003, dq_step=0.004, seed=4)
     generate_dataset(tmp_path, request)
-    result = diagnose(tmp_path, causes=[ArmatureCause()]).summary()
+    result = diagnose(tmp_path, causes=[ArmatureCause(JOINTS)]).summary()
     assert result["nominal_fit"]["fits_noise"], result["nominal_fit"]
     assert not result["explained"] and result["message"].startswith("No candidate cause is needed"), result["message"]
 
@@ -170,7 +170,7 @@ def test_a_fault_in_one_joints_channel_is_not_averaged_away(tmp_path):
     message names the channel, not a block."""
     generate_dataset(tmp_path, DatasetRequest(postures=["elbow_up", "elbow_left"], speeds=[0.1, 0.18], seed=6))
     delay_joint_velocity(tmp_path, 3, 3)
-    result = diagnose(tmp_path, causes=[ArmatureCause()]).summary()
+    result = diagnose(tmp_path, causes=[ArmatureCause(JOINTS)]).summary()
     channel = result["fit"]["worst_channel"]
     assert channel["channel"] in ("joint 4", "joint 4 velocity") and channel["value"] > CHANNEL_LIMIT, result["fit"]
     assert not result["explained"] and not result["fit"]["fits_noise"]

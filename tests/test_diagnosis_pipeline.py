@@ -74,14 +74,14 @@ def test_the_identified_panda_is_named_with_intervals_that_hold_or_called_unexpl
     diagnosis either names joint friction alone, each group's interval holding the group's mean
     friction, or calls the gap unexplained and names what misfits; it never names a cause that
     is not there."""
-    from impactqp.sim.causes import ArmatureCause, JointDampingCause, JointFrictionCause, JOINT_GROUPS
+    from impactqp.sim.causes import ArmatureCause, JointDampingCause, JointFrictionCause, joint_groups
 
     plant = PlantParameters.named("identified_panda")
     generate_dataset(tmp_path, DatasetRequest(plant=plant, postures=POSTURES[:2], speeds=SPEEDS, seed=3))
-    result = diagnose(tmp_path, causes=[ArmatureCause(), JointDampingCause(), JointFrictionCause()]).summary()
+    result = diagnose(tmp_path, causes=[ArmatureCause(JOINTS), JointDampingCause(JOINTS), JointFrictionCause(JOINTS)]).summary()
     if result["explained"]:
         assert result["causes"] == ["joint_friction"], result["causes"]
-        truth = [np.mean([plant.joint_friction[j] for j in group]) for group in JOINT_GROUPS]
+        truth = [np.mean([plant.joint_friction[j] for j in group]) for group in joint_groups(JOINTS)]
         for value, p in zip(truth, result["parameter_intervals"]):
             low, high = p["interval"]
             assert (low is None or low <= value) and (high is None or value <= high), (p, value)

@@ -28,7 +28,7 @@ SMALL = {"postures": ["elbow_up", "elbow_left"], "speeds": [0.1, 0.18], "repeats
 def test_two_hidden_effects_are_both_named_each_within_its_interval(tmp_path):
     """Armature per group and a payload hidden at once: both are named, refitted jointly, and
     every hidden value (armature per group, payload mass and CoM) lies within its interval."""
-    truth = {"armature": per_group((0.6, 0.15)), "payload_mass": 1.0, "payload_com": [0.01, -0.01, -0.06]}
+    truth = {"armature": per_group((0.6, 0.15), JOINTS), "payload_mass": 1.0, "payload_com": [0.01, -0.01, -0.06]}
     request = DatasetRequest(plant=PlantParameters(**truth), postures=POSTURES, speeds=SPEEDS, seed=7)
     generate_dataset(tmp_path, request, jobs=2)
     result = diagnose(tmp_path, jobs=2).summary()
@@ -60,14 +60,14 @@ def test_three_hidden_effects_that_a_greedy_selection_missed_are_named(tmp_path)
     selection took armature, then friction, and its grid screen then dropped the payload (one
     run, docs/diagnosis.md). The search names all three, fits the noise and recovers every
     value (the armature's interval missed its truth by 0.2 % in one run: not asserted)."""
-    truth = {"armature": per_group((0.3, 0.15)), "payload_mass": 0.4, "payload_com": [0.01, 0.0, -0.05],
+    truth = {"armature": per_group((0.3, 0.15), JOINTS), "payload_mass": 0.4, "payload_com": [0.01, 0.0, -0.05],
              "friction": 0.4}
     request = DatasetRequest(plant=PlantParameters(**truth), tangential=[0.3, 0.6], seed=8, **SMALL)
     generate_dataset(tmp_path, request, jobs=2)
     result = diagnose(tmp_path, jobs=2).summary()
     assert sorted(result["causes"]) == ["armature", "friction", "payload"] and result["explained"], result["steps"]
     assert result["fit"]["fits_noise"]
-    for cause in (ArmatureCause(), PayloadCause(), FrictionCause()):
+    for cause in (ArmatureCause(JOINTS), PayloadCause(), FrictionCause()):
         value = cause.theta_of(truth)
         assert np.all(np.abs(cause.theta_of(result["parameters"]) - value) <= tolerance(cause, value)), cause.name
     check_contract(result)
@@ -81,7 +81,7 @@ def test_one_joints_velocity_scale_is_named_with_that_joint(tmp_path):
     joints = [1.0, 1.0, 1.0, 1.12, 1.0, 1.0, 1.0]
     plant = PlantParameters(sensor_joint_velocity_scale=joints)
     generate_dataset(tmp_path, DatasetRequest(plant=plant, seed=6, **SMALL))
-    candidates = [ArmatureCause(), JointDampingCause(), TorqueOffsetCause(JOINTS), VelocityScaleCause(JOINTS)]
+    candidates = [ArmatureCause(JOINTS), JointDampingCause(JOINTS), TorqueOffsetCause(JOINTS), VelocityScaleCause(JOINTS)]
     result = diagnose(tmp_path, causes=candidates, jobs=2).summary()
     assert result["causes"] == ["velocity_scale"] and result["explained"], result["steps"]
     scale = next(c for c in result["candidates"] if c["cause"] == "velocity_scale")

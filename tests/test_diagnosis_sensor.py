@@ -22,7 +22,7 @@ def test_a_sensor_fault_is_named_against_plant_causes_with_the_truth_inside(tmp_
     delay, armature loads the torques); it alone is named, fits the noise, and every true value
     lies within its interval."""
     generate_dataset(tmp_path, DatasetRequest(plant=PlantParameters(**overrides), seed=4, **SMALL))
-    candidates = [ArmatureCause(), JointDampingCause(), cause_named(name, JOINTS)]
+    candidates = [ArmatureCause(JOINTS), JointDampingCause(JOINTS), cause_named(name, JOINTS)]
     result = diagnose(tmp_path, causes=candidates, jobs=2).summary()
     assert result["causes"] == [name] and result["explained"], result["steps"]
     assert result["fit"]["fits_noise"] and result["gain_over_floor"] >= 0.3
@@ -39,7 +39,7 @@ def test_a_late_sensor_is_told_from_a_filter_and_never_read_as_damping(tmp_path)
     is explained and the misfit is named."""
     overrides = {"sensor_delay": 2.5}
     generate_dataset(tmp_path, DatasetRequest(plant=PlantParameters(**overrides), seed=6, **SMALL))
-    mimics = [JointDampingCause(), cause_named("velocity_filter", JOINTS)]
+    mimics = [JointDampingCause(JOINTS), cause_named("velocity_filter", JOINTS)]
     result = diagnose(tmp_path, causes=[*mimics, cause_named("delay", JOINTS)], jobs=2).summary()
     assert result["causes"] == ["delay"] and result["explained"], result["steps"]
     (interval,) = [p["interval"] for p in result["parameter_intervals"]]

@@ -62,7 +62,7 @@ def source(tmp_path_factory):
     """Two simulated trials of a plant with armature (no force sensor is read by the import) and
     their libfranka logs."""
     directory = tmp_path_factory.mktemp("source")
-    plant = PlantParameters(armature=per_group(ARMATURE))
+    plant = PlantParameters(armature=per_group(ARMATURE, JOINTS))
     generate_dataset(directory, DatasetRequest(plant=plant, postures=["elbow_up", "elbow_left"], speeds=[0.12], seed=5))
     dataset = read_dataset(directory)
     logs = {}
@@ -108,11 +108,11 @@ def test_imported_logs_diagnose_like_the_dataset_they_came_from(source, tmp_path
     residuals: the fits agree to a few per cent, not exactly)."""
     dataset, logs = source
     import_franka_logs(tmp_path, [logs["old", t.entry.id] for t in dataset.trials], DEFAULT_WALL)
-    imported = diagnose(tmp_path, causes=[ArmatureCause()]).summary()
-    original = diagnose(dataset.directory, causes=[ArmatureCause()]).summary()
+    imported = diagnose(tmp_path, causes=[ArmatureCause(JOINTS)]).summary()
+    original = diagnose(dataset.directory, causes=[ArmatureCause(JOINTS)]).summary()
     assert imported["causes"] == original["causes"] == ["armature"]
-    fitted = ArmatureCause().theta_of(imported["parameters"])
-    np.testing.assert_allclose(fitted, ArmatureCause().theta_of(original["parameters"]), rtol=0.1)
+    fitted = ArmatureCause(JOINTS).theta_of(imported["parameters"])
+    np.testing.assert_allclose(fitted, ArmatureCause(JOINTS).theta_of(original["parameters"]), rtol=0.1)
     np.testing.assert_allclose(fitted, ARMATURE, rtol=0.2)
     assert imported["baseline_error"] == pytest.approx(original["baseline_error"], rel=0.1)
 

@@ -6,6 +6,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
+from conftest import JOINTS
 from impactqp.scenarios.readable import boolean, fixed, number, parameters_text
 from impactqp.sim.causes import ArmatureCause, JointDampingCause, PayloadCause
 
@@ -45,7 +46,7 @@ def test_booleans_are_written_as_json_writes_them():
 @given(st.floats(min_value=0.01, max_value=4.0), st.floats(min_value=0.01, max_value=4.0))
 def test_per_joint_parameters_are_grouped_as_the_diagnosis_fits_them(a, b):
     """A cause fitted per joint group (1-4, 5-7) reads as one value per group, with its unit."""
-    for cause, key in ((ArmatureCause(), "armature"), (JointDampingCause(), "joint_damping")):
+    for cause, key in ((ArmatureCause(JOINTS), "armature"), (JointDampingCause(JOINTS), "joint_damping")):
         text = parameters_text(cause.overrides(np.array([a, b])))
         assert text.startswith(f"{key} (")
         assert f"joints 1-4 = {number(a)}, joints 5-7 = {number(b)}" in text

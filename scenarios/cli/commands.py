@@ -215,6 +215,7 @@ def demo(out_dir, jobs):
         trusted_speed_text,
         write_report,
     )
+    from impactqp.controller.model.choice import DEFAULT_CHOICE
     from impactqp.sim.causes import per_group
     from impactqp.sim.diagnosis import diagnose
     from impactqp.sim.generation import DatasetRequest, generate_dataset
@@ -226,7 +227,7 @@ def demo(out_dir, jobs):
     table = Campaign(plan, CampaignTrials(), jobs=jobs, progress=True).run(out / "nominal")
     click.echo("1. Nominal simulation, Table I:")
     click.echo(table.text())
-    stiff = PlantParameters(armature=per_group((1.2, 0.3)))
+    stiff = PlantParameters(armature=per_group((1.2, 0.3), len(DEFAULT_CHOICE.robot.joints)))
     with tqdm(desc="measured dataset", unit="trial", disable=None) as bar:
         generate_dataset(
             out / "measured",

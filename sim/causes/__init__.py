@@ -39,7 +39,16 @@ from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.tool_description import TOOLS, ToolDescription
 from impactqp.controller.model.validation import name_in
 
-from .cause import GRID_POINTS, GROUPED_JOINTS, JOINT_GROUPS, Cause, group_means, payload_com, per_group
+from .cause import (
+    GRID_POINTS,
+    Cause,
+    JointGroupCause,
+    group_means,
+    group_name,
+    joint_groups,
+    payload_com,
+    per_group,
+)
 from .plant_causes import (
     ArmatureCause,
     ContactCause,
@@ -58,7 +67,7 @@ from .sensor_causes import (
 )
 
 __all__ = [
-    "Cause", "JOINT_GROUPS", "GROUPED_JOINTS", "GRID_POINTS", "per_group", "group_means", "payload_com",
+    "Cause", "JointGroupCause", "joint_groups", "group_name", "GRID_POINTS", "per_group", "group_means", "payload_com",
     "ArmatureCause", "PayloadCause", "FrictionCause", "ContactCause", "JointDampingCause", "JointFrictionCause",
     "ServoGainCause",
     "DelayCause", "VelocityScaleCause", "JointVelocityScaleCause", "TorqueOffsetCause", "VelocityFilterCause",
@@ -73,12 +82,12 @@ def default_causes(
     """Every candidate cause, for a robot of ``joints`` joints and a surface of friction
     ``surface_friction`` hit with ``tool``."""
     return [
-        ArmatureCause(),
+        ArmatureCause(joints),
         PayloadCause(tool),
         FrictionCause(surface_friction),
         ContactCause(),
-        JointDampingCause(),
-        JointFrictionCause(),
+        JointDampingCause(joints),
+        JointFrictionCause(joints),
         ServoGainCause(),
         DelayCause(),
         VelocityScaleCause(joints),

@@ -1,6 +1,6 @@
 """The candidate cause's interface (:class:`Cause`: fitted numbers theta, their transformed
 space u and the plant overrides they make) and the drives' joint groups that several causes
-share one value per (``JOINT_GROUPS``)."""
+share one value per (``joint_groups``), read from the number of joints: no arm is a constant."""
 
 from __future__ import annotations
 
@@ -18,25 +18,35 @@ def payload_com(tool: ToolDescription) -> tuple[float, float, float]:
     return tuple(float(x) for x in tool.geometry.centre - tool.contact_point)
 
 
-# Joint groups of the Panda's drives: large motors on joints 1-4, small ones on joints 5-7.
-JOINT_GROUPS = ((0, 1, 2, 3), (4, 5, 6))
-GROUPED_JOINTS = sum(len(group) for group in JOINT_GROUPS)
-"""The joints the groups cover: every joint of the arm."""
 GRID_POINTS = {1: 7, 2: 5}
 
 
-def per_group(values: tuple[float, ...]) -> list[float]:
-    """The joint values (one per joint of ``JOINT_GROUPS``) of one value per joint group."""
-    out = [0.0] * GROUPED_JOINTS
-    for group, value in zip(JOINT_GROUPS, values):
+def joint_groups(joints: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """The drive groups of an arm of ``joints`` joints (0-based indices): the larger drives of
+    the first ceil(n / 2) joints (shoulder and elbow) and the smaller ones of the others (the
+    wrist): the Panda's and the FR3's joints 1-4 and 5-7, the UR5's 1-3 and 4-6."""
+    split = (joints + 1) // 2
+    return tuple(range(split)), tuple(range(split, joints))
+
+
+def group_name(group: tuple[int, ...]) -> str:
+    """``joints 1-4`` for the 0-based joint indices (0, 1, 2, 3)."""
+    return f"joints {group[0] + 1}-{group[-1] + 1}" if len(group) > 1 else f"joint {group[0] + 1}"
+
+
+def per_group(values, joints: int) -> list[float]:
+    """The ``joints`` joint values of one value per joint group (``joint_groups``)."""
+    out = [0.0] * joints
+    for group, value in zip(joint_groups(joints), values):
         for j in group:
             out[j] = float(value)
     return out
 
 
 def group_means(values) -> np.ndarray:
+    """The mean of per-joint ``values`` over each joint group of their joints."""
     values = np.asarray(values, dtype=float)
-    return np.array([values[list(group)].mean() for group in JOINT_GROUPS])
+    return np.array([values[list(group)].mean() for group in joint_groups(len(values))])
 
 
 class Cause:
@@ -97,3 +107,27 @@ class Cause:
 
     def plant(self, nominal: PlantParameters, u: np.ndarray) -> PlantParameters:
         return replace(nominal, **self.overrides(self.to_theta(u)))
+
+
+class JointGroupCause(Cause):
+    """A per-joint plant key (``key``) fitted as one value per joint group of an arm of
+    ``joints`` joints (``joint_groups``): the drives of one group share a design, so the data
+    bound the groups where seven separate values would not be identifiable."""
+
+    key: str = ""
+    quantity: str = ""
+    unit: str = ""
+
+    def __init__(self, joints: int):
+        self.joints = joints
+        self.groups = joint_groups(joints)
+        self.labels = tuple(f"{self.quantity} {group_name(g)} ({self.unit})" for g in self.groups)
+
+    def nominal_theta(self, nominal):
+        return np.maximum(group_means(getattr(nominal.for_joints(self.joints), self.key)), self.lower)
+
+    def overrides(self, theta):
+        return {self.key: per_group(theta, self.joints)}
+
+    def theta_of(self, overrides):
+        return group_means(overrides[self.key])

@@ -9,31 +9,22 @@ import numpy as np
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.tool_description import TOOLS, ToolDescription
 
-from .cause import GROUPED_JOINTS, Cause, group_means, payload_com, per_group
+from .cause import Cause, JointGroupCause, group_name, payload_com
 
 
-class ArmatureCause(Cause):
-    """Reflected rotor inertia, one value per joint group (the drives of joints 1-4 and 5-7)."""
+class ArmatureCause(JointGroupCause):
+    """Reflected rotor inertia, one value per joint group (the drives of the shoulder and elbow,
+    and of the wrist)."""
 
     name = "armature"
-    labels = ("armature joints 1-4 (kg m^2)", "armature joints 5-7 (kg m^2)")
+    key, quantity, unit = "armature", "armature", "kg m^2"
     log_scale = (True, True)
     lower, upper = (1e-3, 1e-3), (5.0, 5.0)
     realistic = ((0.2, 0.05), (1.5, 0.4))
 
-    def nominal_theta(self, nominal):
-        return np.maximum(group_means(nominal.for_joints(GROUPED_JOINTS).armature), self.lower)
-
-    def overrides(self, theta):
-        return {"armature": per_group(theta)}
-
-    def theta_of(self, overrides):
-        return group_means(overrides["armature"])
-
     def settling_trials(self, index, side, known, normal_speeds):
-        joints = "1-4" if index == 0 else "5-7"
         return (
-            f"faster impacts (higher normal speeds) at postures whose jump loads joints {joints}, "
+            f"faster impacts (higher normal speeds) at postures whose jump loads {group_name(self.groups[index])}, "
             "e.g. the contact normal across those joints' axes"
         )
 
@@ -131,53 +122,34 @@ class ContactCause(Cause):
         return np.array(overrides["contact_solref"], dtype=float)
 
 
-class JointDampingCause(Cause):
-    """Viscous joint damping, one value per joint group (joints 1-4 and 5-7)."""
+class JointDampingCause(JointGroupCause):
+    """Viscous joint damping, one value per joint group."""
 
     name = "joint_damping"
-    labels = ("joint damping joints 1-4 (N m s/rad)", "joint damping joints 5-7 (N m s/rad)")
+    key, quantity, unit = "joint_damping", "joint damping", "N m s/rad"
     log_scale = (True, True)
     lower, upper = (1e-2, 1e-2), (200.0, 200.0)
     realistic = ((1.0, 0.3), (4.0, 1.5))
 
-    def nominal_theta(self, nominal):
-        return np.maximum(group_means(nominal.for_joints(GROUPED_JOINTS).joint_damping), self.lower)
-
-    def overrides(self, theta):
-        return {"joint_damping": per_group(theta)}
-
-    def theta_of(self, overrides):
-        return group_means(overrides["joint_damping"])
-
     def settling_trials(self, index, side, known, normal_speeds):
-        joints = "1-4" if index == 0 else "5-7"
-        return f"trials that move joints {joints} faster before the impact (higher approach speeds)"
+        return f"trials that move {group_name(self.groups[index])} faster before the impact (higher approach speeds)"
 
 
-class JointFrictionCause(Cause):
-    """Dry (Coulomb) joint friction, one torque per joint group (joints 1-4 and 5-7): MuJoCo's
-    friction loss, which opposes a joint's motion with up to that torque. Beside the viscous
-    ``joint_damping`` (torque c dq), it is the torque f sign(dq) that every identified model of a
-    geared arm has; the servo's torque before contact shows it, the same at every approach speed."""
+class JointFrictionCause(JointGroupCause):
+    """Dry (Coulomb) joint friction, one torque per joint group: MuJoCo's friction loss, which
+    opposes a joint's motion with up to that torque. Beside the viscous ``joint_damping``
+    (torque c dq), it is the torque f sign(dq) that every identified model of a geared arm has;
+    the servo's torque before contact shows it, the same at every approach speed."""
 
     name = "joint_friction"
-    labels = ("joint friction joints 1-4 (N m)", "joint friction joints 5-7 (N m)")
+    key, quantity, unit = "joint_friction", "joint friction", "N m"
     log_scale = (True, True)
     lower, upper = (1e-2, 1e-2), (10.0, 10.0)
     realistic = ((0.3, 0.15), (1.3, 0.6))
 
-    def nominal_theta(self, nominal):
-        return np.maximum(group_means(nominal.for_joints(GROUPED_JOINTS).joint_friction), self.lower)
-
-    def overrides(self, theta):
-        return {"joint_friction": per_group(theta)}
-
-    def theta_of(self, overrides):
-        return group_means(overrides["joint_friction"])
-
     def settling_trials(self, index, side, known, normal_speeds):
-        joints = "1-4" if index == 0 else "5-7"
-        return f"trials that move joints {joints} in both directions before the impact (other postures and normals)"
+        return (f"trials that move {group_name(self.groups[index])} in both directions before the impact "
+                "(other postures and normals)")
 
 
 class ServoGainCause(Cause):
