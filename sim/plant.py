@@ -7,7 +7,7 @@ jumps follow the classical prediction M^-1 J^T iota (docs/simulation.md; ``sim.r
 the plant away from that baseline in a known direction:
 
 ==================  ===========================================================================
-parameter           effect on the MuJoCo model (``sim.scene.build_scene``)
+parameter           effect on the MuJoCo model (``apply_plant``, called by ``sim.scene.build_scene``)
 ==================  ===========================================================================
 armature            reflected rotor inertia per joint (kg m^2), ``dof_armature``: M -> M + diag
 joint_damping       viscous joint damping (N m s/rad), ``dof_damping``; replaces the URDF values
@@ -55,6 +55,8 @@ import numpy as np
 
 from impactqp.controller.measured.atomic import write_text_atomic
 from impactqp.controller.model.files import read_mapping
+from impactqp.controller.model.robot_description import RobotDescription
+from impactqp.controller.model.tool_description import ToolDescription
 from impactqp.controller.model.validation import BadInputError, finite_vector, number_in_range, vector_in_range
 
 PLANTS_DIRECTORY = Path(__file__).parent / "plants"
@@ -101,6 +103,9 @@ PER_JOINT = {
 LINK_INERTIAL_VALUES = 10
 """Numbers per link of ``link_inertials``: m, c (3), Ixx, Iyy, Izz, Ixy, Ixz, Iyz."""
 MAX_LINK_MASS = 100.0  # kg
+
+PAYLOAD_BODY = "payload"
+"""The MuJoCo body of the payload (``apply_plant``)."""
 
 MAX_SOLREF = (1.0, 10.0)
 """Largest contact time constant (s) and damping ratio of ``contact_solref``."""
@@ -276,6 +281,30 @@ def link_inertials(value) -> tuple:
     if len(set(names)) != len(names):
         raise PlantParameterError(f"link_inertials names a link twice: {names}")
     return tuple(sorted(stored))
+
+
+def apply_plant(spec, mount, robot: RobotDescription, tool: ToolDescription, plant: PlantParameters) -> None:
+    """The plant on the robot's MuJoCo spec before it is compiled (the module docstring's
+    table): the drive armature, joint damping and dry friction of ``robot``'s joints, the
+    payload (a point mass at ``tool``'s contact point on the body ``mount``, with its centre of
+    mass offset) and the links' inertials. The plant's values replace the URDF's:
+    franka_description's FR3 URDF declares <dynamics friction="0.2"/>, which MuJoCo would import
+    as a friction loss the nominal plant does not have."""
+    for name, armature, damping, friction in zip(robot.joints, plant.armature, plant.joint_damping, plant.joint_friction):
+        joint = spec.joint(name)
+        joint.armature = armature
+        joint.damping = [damping, 0.0, 0.0]
+        joint.frictionloss = friction
+    if plant.payload_mass > 0.0:
+        mount.add_body(
+            name=PAYLOAD_BODY,
+            pos=tool.contact_point.tolist(),
+            mass=plant.payload_mass,
+            ipos=list(plant.payload_com),
+            inertia=[0.0, 0.0, 0.0],
+            explicitinertial=True,
+        )
+    apply_link_inertials(spec, plant)
 
 
 def apply_link_inertials(spec, plant: PlantParameters) -> None:

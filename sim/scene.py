@@ -81,7 +81,7 @@ from impactqp.controller.model.tool_description import Pad, ToolDescription, too
 from impactqp.controller.model.validation import BadInputError, number_in_range, vector_in_range
 
 from .humanoid_feet import Soles
-from .plant import PlantParameters, apply_link_inertials
+from .plant import PlantParameters, apply_plant
 
 DEFAULT_TIMESTEP = 0.25e-3
 TOOL_GEOM = "impact_tool"
@@ -92,7 +92,6 @@ FLOOR_GEOM = "floor"
 FLOOR_SIZE = 2.0  # m: the floor plane's half-size
 FREE_JOINT = "floating_base"
 CONTACT_PAIR = "tool_wall"
-PAYLOAD_BODY = "payload"
 CONTACT_CONDIM = 3
 NO_COLLISION = dict(contype=0, conaffinity=0)  # every geom: only the explicit pairs collide
 STANDING_TIMESTEP = 0.5e-3
@@ -348,28 +347,6 @@ class Scene(MujocoScene):
         return data.geom_xpos[self.tool_geom].copy()
 
 
-def _apply_plant(spec, mount, robot: RobotDescription, tool: ToolDescription, plant: PlantParameters) -> None:
-    """The plant's drive armature, joint damping and dry friction, and payload (a point mass at
-    the contact point with its centre of mass offset) on the robot before it is compiled. The
-    plant's values replace the URDF's: franka_description's FR3 URDF declares
-    <dynamics friction="0.2"/>, which MuJoCo would import as a friction loss the nominal plant
-    does not have."""
-    for name, armature, damping, friction in zip(robot.joints, plant.armature, plant.joint_damping, plant.joint_friction):
-        joint = spec.joint(name)
-        joint.armature = armature
-        joint.damping = [damping, 0.0, 0.0]
-        joint.frictionloss = friction
-    if plant.payload_mass > 0.0:
-        mount.add_body(
-            name=PAYLOAD_BODY,
-            pos=tool.contact_point.tolist(),
-            mass=plant.payload_mass,
-            ipos=list(plant.payload_com),
-            inertia=[0.0, 0.0, 0.0],
-            explicitinertial=True,
-        )
-
-
 def build_scene(
     surface: Surface = DEFAULT_WALL,
     plant: PlantParameters | None = None,
@@ -395,8 +372,7 @@ def build_scene(
     contact = ContactParameters(friction, tuple(plant.contact_solref), tuple(plant.contact_solimp))
     contact_geom = add_contact_geometry(spec, robot, tool, contact)
     add_environment(spec, robot, contact_geom, Environment(surface, contact, wall_size=0.5))
-    _apply_plant(spec, spec.body(robot.frame_of(tool)), robot, tool, plant)
-    apply_link_inertials(spec, plant)
+    apply_plant(spec, spec.body(robot.frame_of(tool)), robot, tool, plant)
     model = compile_spec(spec, robot, robot.joints)
     return Scene(
         model=model,

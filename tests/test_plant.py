@@ -12,9 +12,9 @@ from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.measured.impact import measure_impact
-from impactqp.sim.plant import PlantParameterError, PlantParameters
+from impactqp.sim.plant import PAYLOAD_BODY, PlantParameterError, PlantParameters
 from impactqp.sim.runner import TrialSpec, run_approach
-from impactqp.sim.scene import PAYLOAD_BODY, build_scene
+from impactqp.sim.scene import build_scene
 
 ROBOT = PandaModel()
 Q = PANDA.postures["elbow_up"].q
