@@ -7,7 +7,7 @@ jumps follow the classical prediction M^-1 J^T iota (docs/simulation.md; ``sim.r
 the plant away from that baseline in a known direction:
 
 ==================  ===========================================================================
-parameter           effect on the MuJoCo model (``apply_plant``, called by ``sim.scene.build_scene``)
+parameter           effect on the MuJoCo model (``apply_plant``, in ``sim.scene.build_scene``)
 ==================  ===========================================================================
 armature            reflected rotor inertia per joint (kg m^2), ``dof_armature``: M -> M + diag
 joint_damping       viscous joint damping (N m s/rad), ``dof_damping``; replaces the URDF values
