@@ -75,9 +75,9 @@ def predict_all(query: ImpactQuery, methods=METHODS, robot: PandaModel | None = 
     }
     if query.friction is not None:
         report["friction"], report["restitution_model"] = query.friction, query.restitution_model
-        if any(name not in FRICTIONAL_METHODS for name in methods) and len(methods) == 1:
-            raise BadInputError(f"--method {methods[0]} has no frictional form; choose from {', '.join(FRICTIONAL_METHODS)}")
         methods = [name for name in methods if name in FRICTIONAL_METHODS]
+        if not methods:
+            raise BadInputError(f"--method classical_normal has no frictional form; choose from {', '.join(FRICTIONAL_METHODS)}")
     for name in methods:
         model = JUMP_MODELS[name]
         impact = None

@@ -71,7 +71,7 @@ class Diagnosis:
             "cause": self.cause,
             "causes": self.causes,
             "explained": self.explained,
-            **(fitted if self.explained else {key: type(value)() for key, value in fitted.items()}),
+            **(fitted if self.explained else {"parameters": {}, "intervals": {}, "parameter_intervals": [], "open_sides": []}),
             "best_model": None if self.explained or not self.parameter_intervals else {
                 "causes": self.model_causes(), **fitted,
             },
