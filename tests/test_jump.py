@@ -24,7 +24,6 @@ from impactqp.controller.model.capture import com_jump_map
 from impactqp.controller.model.jump import (
     JUMP_MODELS,
     METHODS,
-    average_prediction_error,
     crb_inverse_inertia,
     gm_inverse_inertia,
     held_impulse,
@@ -32,7 +31,6 @@ from impactqp.controller.model.jump import (
     jump_from_impulse,
     jump_model,
     predict,
-    prediction_error,
 )
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS, held_contact_maps
 from impactqp.controller.model.robot_description import PANDA
@@ -206,16 +204,6 @@ def test_crb_never_uses_the_joint_space_inertia(robot):
     pred = JUMP_MODELS["crb"].predict(terms, n, -0.1 * n, 0.0)
     assert np.all(np.isfinite(pred.dq_jump))
     assert not np.all(np.isfinite(JUMP_MODELS["gm"].predict(terms, n, -0.1 * n, 0.0).dq_jump))
-
-
-def test_error_metrics_eq25_eq26():
-    measured = np.array([0.1, -0.2, 0.3, 0.0, 0.0, 0.5, -0.1])
-    predicted = measured + np.array([0.07, -0.07, 0.0, 0.0, 0.0, 0.0, 0.0])
-    np.testing.assert_allclose(prediction_error(predicted, measured), predicted - measured)
-    assert average_prediction_error(predicted, measured) == pytest.approx(0.02)
-    assert average_prediction_error(measured, measured) == 0.0
-    batch = average_prediction_error(np.stack([predicted, measured]), measured)
-    np.testing.assert_allclose(batch, [0.02, 0.0])
 
 
 def test_methods_are_registered():

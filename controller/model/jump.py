@@ -445,12 +445,3 @@ def predict_from_terms(
         dq = (Jt @ np.linalg.solve(J @ Jt, Wi[..., None]))[..., 0]
     return dq, np.array(impulse)
 
-
-def prediction_error(predicted: np.ndarray, measured: np.ndarray) -> np.ndarray:
-    """Absolute prediction error e = ddq* - ddq°, eq. (25), per joint (last axis)."""
-    return np.asarray(predicted) - np.asarray(measured)
-
-
-def average_prediction_error(predicted: np.ndarray, measured: np.ndarray) -> np.ndarray:
-    """Average prediction error (1/D) sum_i |ddq*_i - ddq°_i|, eq. (26), over the last axis."""
-    return np.mean(np.abs(prediction_error(predicted, measured)), axis=-1)

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactqp.controller.model.jump import JUMP_MODELS, METHODS, average_prediction_error
+from impactqp.controller.model.jump import JUMP_MODELS, METHODS
+from impactqp.controller.model.jump_error import average_prediction_error
 
 from .trials import MeasuredTrial, ReplaySetting
 

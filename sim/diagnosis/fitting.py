@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from impactqp.controller.model.jump import average_prediction_error
+from impactqp.controller.model.jump_error import average_prediction_error
 from impactqp.sim.causes import Cause
 from impactqp.sim.plant import PlantParameters
 
