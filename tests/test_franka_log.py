@@ -149,6 +149,16 @@ def test_given_reference_speed_is_used_as_is(source, tmp_path):
     assert entries[0].reference_normal_speed == 0.2
 
 
+@pytest.mark.parametrize("speed", [1e308, 3.5, 0.0, -0.1, float("nan")])
+def test_a_reference_speed_the_dataset_would_refuse_is_refused_before_writing(source, tmp_path, speed):
+    """The import writes only what `dataset validate` accepts: an approach speed in (0, 3] m/s."""
+    dataset, logs = source
+    with pytest.raises(BadInputError, match="--reference-speed"):
+        import_franka_logs(tmp_path / "out", [logs["new", dataset.trials[0].entry.id]], DEFAULT_WALL,
+                           reference_speed=speed)
+    assert not (tmp_path / "out").exists()
+
+
 def test_old_and_new_header_separators_read_the_same_columns(source):
     dataset, logs = source
     trial_id = dataset.trials[0].entry.id

@@ -52,7 +52,7 @@ from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.files import regular_file
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import RobotModel
-from impactqp.controller.model.validation import BadInputError, positive
+from impactqp.controller.model.validation import BadInputError, approach_speed
 
 from .dataset import DatasetError, DatasetHeader, DatasetWriter, TrialEntry
 from .impact import ImpactNotFoundError, measure_impact
@@ -280,7 +280,7 @@ def import_franka_logs(
     if not logs:
         raise BadInputError("give at least one libfranka log")
     if reference_speed is not None:
-        positive(reference_speed, "--reference-speed", "m/s")
+        approach_speed(reference_speed, "--reference-speed")
     robot = choice.model()
     paths = [Path(p) for p in logs]
     trials = [import_trial(p, surface, choice=choice, robot=robot, reference_speed=reference_speed) for p in paths]
