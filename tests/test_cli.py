@@ -144,6 +144,26 @@ def test_output_directory_that_is_a_file_is_bad_input(capsys, tmp_path):
     assert existing.read_text() == "keep me"
 
 
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ("campaign", "--out", "", "--speeds", "0.1", "--tangential", "none"),
+        ("campaign", "--out", "  ", "--speeds", "0.1", "--tangential", "none"),
+        ("dataset", "generate", "", "--speeds", "0.1"),
+        ("simulate", "--posture", "elbow_up", "--speed", "0.1", "--video", ""),
+        ("demo", "--out", ""),
+    ],
+    ids=["campaign", "campaign-blank", "generate", "video", "demo"],
+)
+def test_an_empty_output_path_is_bad_input_and_nothing_lands_in_the_working_directory(
+    capsys, tmp_path, monkeypatch, command
+):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(capsys, *command)
+    one_line_bad_input(code, out, err, "is empty")
+    assert list(tmp_path.iterdir()) == []
+
 def test_output_under_a_file_is_bad_input(capsys, tmp_path):
     existing = tmp_path / "file"
     existing.write_text("x")

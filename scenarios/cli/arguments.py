@@ -108,8 +108,8 @@ def _not_an_input(path: Path, what: str, inputs) -> None:
 
 def output_directory(path: str, what: str, inputs=()) -> Path:
     """A directory that exists and is writable, or can be created, and is not, nor holds, one of
-    ``inputs``."""
-    p = Path(path)
+    ``inputs``. An empty path is not the working directory: it is bad input."""
+    p = _given_path(path, what, "directory")
     _not_an_input(p, what, inputs)
     if p.exists():
         if not p.is_dir():
@@ -121,10 +121,17 @@ def output_directory(path: str, what: str, inputs=()) -> Path:
     return p
 
 
+def _given_path(path: str, what: str, kind: str) -> Path:
+    """``path`` as a Path, refusing an empty or blank one (Path("") would be the working directory)."""
+    if not str(path).strip():
+        raise BadInputError(f"{what} is empty: give a {kind}")
+    return Path(path)
+
+
 def output_file(path: str, what: str, inputs=()) -> Path:
     """A file that can be written atomically: not a directory, in a writable directory, not one of
     ``inputs`` nor an existing file inside an input directory."""
-    p = Path(path)
+    p = _given_path(path, what, "file")
     _not_an_input(p, what, inputs)
     if p.is_dir():
         raise BadInputError(f"{what}: {path} is a directory")
