@@ -64,7 +64,13 @@ from impactqp.sim.trial_sources import SCRIPTED  # noqa: E402
 
 from .campaign_table import Table1  # noqa: E402
 from .trial import TrialPool  # noqa: E402
-from impactqp.controller.model.validation import BadInputError, approach_speed  # noqa: E402
+from impactqp.controller.model.validation import (  # noqa: E402
+    MAX_TRIALS,
+    BadInputError,
+    approach_speed,
+    counted,
+    trial_count,
+)
 
 PAPER_SPEEDS = DEFAULT_SPEEDS
 PAPER_TANGENTIAL_SPEEDS = tuple(round(0.03 + 0.01 * i, 2) for i in range(10))
@@ -107,6 +113,7 @@ class CampaignPlan:
     speeds: tuple[float, ...] = PAPER_SPEEDS
     tangential_speeds: tuple[float, ...] = PAPER_TANGENTIAL_SPEEDS
     tangential_normal_speed: float = TANGENTIAL_NORMAL_SPEED
+    max_trials: int = MAX_TRIALS
 
     def __post_init__(self):
         if self.postures is not None and not self.postures:
@@ -125,6 +132,11 @@ class CampaignPlan:
         postures = check_postures(choice.robot, self.postures)
         if self.tangential_speeds and choice.robot.held_contacts:
             raise BadInputError(f"the {choice.robot.name}'s campaign has no tangential series")
+        trial_count(
+            len(postures) * len(self.speeds) + len(self.tangential_speeds), self.max_trials, "the campaign",
+            f"{counted(len(postures), 'posture')} x {counted(len(self.speeds), 'speed')}"
+            f" + {len(self.tangential_speeds)} tangential",
+        )
         specs = [
             TrialSpec(name, posture_of(choice, name), float(speed))
             for name in postures

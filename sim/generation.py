@@ -45,7 +45,15 @@ from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot_description import ROBOTS, RobotDescription
-from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range, whole_number
+from impactqp.controller.model.validation import (
+    MAX_TRIALS,
+    BadInputError,
+    approach_speed,
+    counted,
+    number_in_range,
+    trial_count,
+    whole_number,
+)
 
 from .plant import PlantParameters
 from .process_pool import ProcessPool
@@ -161,8 +169,9 @@ class DatasetRequest:
     default the one the first posture faces; all named postures face the default wall), the
     postures (default: all), normal speeds (m/s, default ``DEFAULT_SPEEDS``), tangential speeds
     (m/s, at ``TANGENTIAL_SERIES_NORMAL_SPEED``), repeats per condition, the noise stds, the
-    seed of every random draw, the robot and the tool (recorded in the manifest), and the
-    quantisation step of dq (rad/s, 0: none)."""
+    seed of every random draw, the robot and the tool (recorded in the manifest), the
+    quantisation step of dq (rad/s, 0: none), and the most trials it may hold
+    (``validation.trial_count``)."""
 
     plant: PlantParameters | None = None
     surface: Surface | None = None
@@ -175,6 +184,7 @@ class DatasetRequest:
     seed: int = 0
     choice: RobotChoice = DEFAULT_CHOICE
     dq_step: float = 0.0
+    max_trials: int = MAX_TRIALS
 
 
 def generate_dataset(
@@ -199,9 +209,16 @@ def generate_dataset(
     number_in_range(request.noise_dq, 0.0, MAX_NOISE_DQ, "the encoder noise std --noise-dq", "rad/s")
     number_in_range(request.noise_tau, 0.0, MAX_NOISE_TAU, "the torque noise std --noise-tau", "N m")
     number_in_range(request.dq_step, 0.0, MAX_NOISE_DQ, "the velocity quantisation step --dq-step", "rad/s")
+    speeds = list(DEFAULT_SPEEDS if request.speeds is None else request.speeds)
+    whole_number(request.repeats, 1, MAX_REPEATS, "repeats")
+    trial_count(
+        len(postures) * (len(speeds) + len(request.tangential)) * request.repeats, request.max_trials, "the dataset",
+        f"{counted(len(postures), 'posture')} x ({counted(len(speeds), 'speed')} + {len(request.tangential)} tangential)"
+        f" x {counted(request.repeats, 'repeat')}",
+    )
     specs = trial_specs(
         postures,
-        list(DEFAULT_SPEEDS if request.speeds is None else request.speeds),
+        speeds,
         list(request.tangential or []),
         request.repeats,
         surface.normal,

@@ -26,6 +26,7 @@ from impactqp.controller.model.validation import (
     table,
     tangential_velocity,
     task_gain,
+    trial_count,
     unit_normal,
     unit_normals,
     vector_in_range,
@@ -204,3 +205,18 @@ def test_boolean_accepts_only_true_and_false(value):
         with pytest.raises(BadInputError, match="flag must be true or false"):
             boolean(value, "flag")
 
+
+
+@given(st.integers(0, 10**6), st.integers(1, 10**6))
+def test_a_trial_count_passes_exactly_up_to_its_limit(count, limit):
+    if count <= limit:
+        assert trial_count(count, limit, "the request") == count
+    else:
+        with pytest.raises(BadInputError, match=f"the request has {count:,} trials, more than the limit of {limit:,}"):
+            trial_count(count, limit, "the request")
+
+
+@pytest.mark.parametrize("limit", [0, -3, 2.5, True, None])
+def test_a_trial_limit_is_a_whole_number_from_one(limit):
+    with pytest.raises(BadInputError, match="--max-trials"):
+        trial_count(1, limit, "the request")

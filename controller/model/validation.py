@@ -170,6 +170,29 @@ def whole_number(value, low: int, high: int | None, what: str) -> int:
     return int(value)
 
 
+MAX_TRIALS = 1000
+"""Most trials one request simulates or fits unless its caller raises the limit (``max_trials``,
+``--max-trials`` on the command line): the bound that keeps a typo in a list of speeds or repeats
+from asking for hours of work."""
+
+
+def trial_count(count: int, limit: int, what: str, how: str = "") -> int:
+    """``count`` trials of ``what`` when within ``limit`` (a whole number >= 1); beyond it bad
+    input that gives the count (and ``how`` it is made up) and how to raise the limit."""
+    whole_number(limit, 1, None, "the trial limit --max-trials")
+    if count > limit:
+        raise BadInputError(
+            f"{what} has {count:,} trials{f' ({how})' if how else ''}, more than the limit of {limit:,}: "
+            f"ask for fewer, or raise the limit with --max-trials {count}"
+        )
+    return count
+
+
+def counted(count: int, noun: str) -> str:
+    """``count`` and ``noun``, plural unless one: "1 posture", "3 speeds"."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
 def boolean(value, what: str) -> bool:
     """``value`` as a bool; only ``true``/``false`` are accepted (never 1, "yes" or a string)."""
     if not isinstance(value, (bool, np.bool_)):

@@ -16,7 +16,12 @@ import click
 import numpy as np
 
 from impactqp.controller.model.files import regular_file
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import MAX_TRIALS, BadInputError
+
+max_trials_option = click.option(
+    "--max-trials", "max_trials", type=int, default=MAX_TRIALS, show_default=True,
+    help="The most trials the request may hold; a larger one is refused before any work (raise it to run more).",
+)
 
 
 def parse_vector(text: str, size: int | None, what: str) -> np.ndarray:

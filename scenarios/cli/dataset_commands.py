@@ -13,6 +13,7 @@ from impactqp.scenarios.cli.arguments import (
     emit_json,
     input_directory,
     load_plant,
+    max_trials_option,
     output_directory,
     output_file,
     parse_list,
@@ -82,6 +83,7 @@ def validate_command(ctx, directory, as_json):
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--jobs", type=int, default=1, show_default=True)
 @click.option("--json", "as_json", is_flag=True)
+@max_trials_option
 @robot_options
 def generate_command(out, postures, speeds, tangential, as_json, choice, **noise):
     """Simulate a dataset of the robot with the tool (plant overrides with --plant) in the
@@ -157,8 +159,9 @@ def import_franka_command(out, logs, surface_point, surface_normal, reference_sp
 @click.option("--max-speed", "max_speed", is_flag=True,
               help="Also simulate the highest feasible contact speed per posture, nominal and extended plant.")
 @click.option("--jobs", type=int, default=1, show_default=True)
+@max_trials_option
 @robot_options
-def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, jobs, choice):
+def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, jobs, max_trials, choice):
     """What the simulation gets wrong on measured impacts, why, and the model change that fixes it.
 
     The robot and the tool are the manifest's; a --robot/--tool other than the default that
@@ -175,7 +178,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     if save_plant:
         output_file(save_plant, "--save-plant", inputs=(directory, plant_file))
     nominal = load_plant(plant_file) or PlantParameters()
-    result = _diagnose_with_progress(directory, nominal, jobs, show=not as_json)
+    result = _diagnose_with_progress(directory, nominal, jobs, show=not as_json, max_trials=max_trials)
     summary = result.summary()
     speeds = None
     if max_speed:
@@ -201,7 +204,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     _print_diagnosis(result, summary, speeds)
 
 
-def _diagnose_with_progress(directory, nominal, jobs: int, show: bool):
+def _diagnose_with_progress(directory, nominal, jobs: int, show: bool, max_trials: int):
     """The diagnosis of ``directory``, its steps on a progress bar (stderr, when it is a terminal
     and ``show``); the bar is wiped when an error ends the command, whose message is one line."""
     # lazy: the command line loads what a command needs when it runs
@@ -217,7 +220,7 @@ def _diagnose_with_progress(directory, nominal, jobs: int, show: bool):
         bar.update(STEPS.index(step) - bar.n)
 
     try:
-        result = run_diagnosis(directory, nominal=nominal, jobs=jobs, progress=progress)
+        result = run_diagnosis(directory, nominal=nominal, jobs=jobs, progress=progress, max_trials=max_trials)
         bar.update(bar.total - bar.n)
     except BaseException:
         bar.leave = False

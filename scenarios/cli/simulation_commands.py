@@ -33,6 +33,7 @@ from impactqp.scenarios.cli.arguments import (
     emit_json,
     gif_output,
     load_plant,
+    max_trials_option,
     output_directory,
     parse_list,
     parse_vector,
@@ -248,8 +249,9 @@ def campaign_speeds(speeds_text, tangential_text, floating: bool) -> tuple[tuple
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
 @click.option("--out", "out_dir", default="impactqp-campaign", show_default=True, help="Output directory.")
 @click.option("--json", "as_json", is_flag=True, help="Print Table I as JSON (no progress bar).")
+@max_trials_option
 @robot_options(humanoid=True)
-def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, as_json, choice):
+def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, as_json, max_trials, choice):
     """The paper's campaign in simulation: dataset, Table I and figures in --out (with --robot
     g1: stances x speeds of the standing G1, its dataset, table1.json and table1.md in --out)."""
     # lazy: the command line loads what a command needs when it runs
@@ -260,7 +262,7 @@ def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_
         reject_options(["tangential_text", "plant_file", "tool"])
     postures = check_postures(robot, None if postures_text is None else (s.strip() for s in postures_text.split(",")))
     speeds, tangential = campaign_speeds(speeds_text, tangential_text, robot.floating)
-    plan = CampaignPlan(postures, speeds, tangential)
+    plan = CampaignPlan(postures, speeds, tangential, max_trials=max_trials)
     trials = CampaignTrials(choice, DEFAULT_WALL, load_plant(plant_file))
     output_directory(out_dir, "--out")
     table = Campaign(plan, trials, jobs=check_jobs(jobs), progress=not as_json).run(out_dir)

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.measured.dataset import MANIFEST, load_manifest
+from impactqp.controller.model.validation import MAX_TRIALS, BadInputError, trial_count
 from impactqp.sim.causes import Cause, default_causes
 from impactqp.sim.plant import PlantParameters
 
@@ -33,9 +34,12 @@ def diagnose(
     causes: list[Cause] | None = None,
     jobs: int = 1,
     progress: Callable[[str], None] | None = None,
+    max_trials: int = MAX_TRIALS,
 ) -> Diagnosis:
     """Measure, replay, compare, select the causes, bound their parameters (the steps:
-    ``sim/diagnosis/__init__.py``). ``progress(step)`` is called as each of ``STEPS`` begins."""
+    ``sim/diagnosis/__init__.py``). ``progress(step)`` is called as each of ``STEPS`` begins.
+    A dataset of more than ``max_trials`` trials is refused before any is read."""
+    trial_count(len(load_manifest(Path(directory) / MANIFEST)["trials"]), max_trials, f"the dataset {directory}")
     step = progress or (lambda name: None)
     step(STEPS[0])
     trials, skipped, setting = load_trials(directory)
