@@ -193,8 +193,8 @@ class Campaign:
         """Run every trial, adding each to the dataset in ``out`` as it comes, then write Table I's
         files and figures there; an existing dataset of another header is refused first."""
         out = Path(out)
-        writer = DatasetWriter(out, self.trials.header)
         tasks = self.trials.tasks(self.plan)
+        writer = DatasetWriter(out, self.trials.header, expected_trials=len(tasks))
         results = []
         with closing(self.trials.results(tasks, self.jobs)) as running:  # its pool ends with the loop
             for result in tqdm(running, total=len(tasks), desc="campaign", unit="trial", disable=None if self.progress else True):

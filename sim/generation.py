@@ -226,7 +226,7 @@ def generate_dataset(
         choice,
     )
     Path(out).mkdir(parents=True, exist_ok=True)
-    writer = DatasetWriter(out, dataset_header(surface, choice))
+    writer = DatasetWriter(out, dataset_header(surface, choice), expected_trials=len(specs))
     tasks = [TrialTask(s, plant, surface, request.noise_dq, request.noise_tau, choice, request.dq_step) for s in specs]
     entries = []
     with ProcessPool(min(jobs, max(len(tasks), 1))) as pool:

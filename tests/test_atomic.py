@@ -82,3 +82,26 @@ def test_a_signal_right_after_the_temporary_file_is_created_leaves_no_temporary_
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_write_the_system_refuses_names_the_target_and_leaves_the_old_file(tmp_path):
+    """A real refusal by the kernel (a file-size limit: EFBIG, as ENOSPC on a full disk, carries no
+    file name) comes back naming the target; the old file stays and no temporary file is left."""
+    target = tmp_path / "table1.json"
+    target.write_text("old")
+    code = (
+        "import resource, signal, sys\n"
+        "from impactqp.controller.measured.atomic import write_text_atomic\n"
+        "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
+        "resource.setrlimit(resource.RLIMIT_FSIZE, (1000, 1000))\n"
+        "try:\n"
+        f"    write_text_atomic(sys.argv[1], 'x' * 100_000)\n"
+        "except OSError as error:\n"
+        "    print(error.filename, error.strerror, sep='|')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code, str(target)], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    filename, reason = out.stdout.strip().split("|")
+    assert filename == str(target) and reason
+    assert target.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["table1.json"]

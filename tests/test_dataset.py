@@ -1,6 +1,7 @@
 """Dataset format: atomic writer and typed reader (the checks: test_dataset_check.py)."""
 
 import json
+import shutil
 from dataclasses import replace
 
 import numpy as np
@@ -13,6 +14,7 @@ from impactqp.controller.model.robot import TOOL_TIP_OFFSET
 from impactqp.controller.model.tool_description import TOOLS
 from impactqp.controller.measured.dataset import (
     FORMAT,
+    SPACE_MARGIN,
     DatasetError,
     DatasetHeader,
     DatasetWriter,
@@ -82,6 +84,20 @@ def test_writer_never_overwrites_a_different_dataset(dataset, dataset_logs):
         writer.add_trial(TrialEntry("new", "slow.csv", 0.1), dataset_logs[0.15])
     assert file_digests(dataset) == before
 
+
+
+def test_a_writer_refuses_to_go_on_when_the_disk_cannot_hold_the_trials_to_come(tmp_path, dataset_logs):
+    """The first trial's size times the trials left (and the margin) against the real free space:
+    more trials than any disk holds are refused after the first, which stays a valid dataset."""
+    log = dataset_logs[0.15]
+    first = DatasetWriter(tmp_path / "fits", DATASET_HEADER, expected_trials=2)
+    first.add_trial(dataset_entry("fast", 0.15, log), log)
+    trial_bytes = sum(p.stat().st_size for p in (tmp_path / "fits").iterdir() if p.name != "dataset.json")
+    left = 2 * shutil.disk_usage(tmp_path).free // int(SPACE_MARGIN * trial_bytes) + 10  # twice the free space
+    writer = DatasetWriter(tmp_path / "full", DATASET_HEADER, expected_trials=left + 1)
+    with pytest.raises(DatasetError, match=f"the {left} left need about"):
+        writer.add_trial(dataset_entry("fast", 0.15, log), log)
+    assert validate(tmp_path / "full") == {"dataset": [], "fast": []}
 
 def _rewrite_manifest(directory, edit):
     path = directory / "dataset.json"

@@ -25,7 +25,8 @@ def _umask() -> int:
 def write_atomic(path: Path, write: Callable[[Path], None]) -> Path:
     """Let ``write`` fill a temporary file in the same directory as ``path``, flush it to disk
     and move it onto ``path`` with os.replace; on any error or interruption the temporary file is
-    removed and ``path`` is left as it was."""
+    removed and ``path`` is left as it was. An OSError that names no file (a full disk, a file
+    size limit) is raised again naming ``path``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp: Path | None = None
@@ -43,6 +44,10 @@ def write_atomic(path: Path, write: Callable[[Path], None]) -> Path:
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
         tmp = None
+    except OSError as error:
+        if error.filename is not None:
+            raise
+        raise OSError(error.errno, error.strerror or str(error), str(path)) from error
     finally:
         if tmp is not None:
             tmp.unlink(missing_ok=True)

@@ -38,6 +38,7 @@ from __future__ import annotations
 import functools
 import io
 import json
+import shutil
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -70,6 +71,9 @@ MANIFEST = "dataset.json"
 
 TRIAL_COLUMNS = trial_columns("panda")
 FORCE_COLUMNS = ["t", "fx", "fy", "fz"]
+SPACE_MARGIN = 1.5
+"""The free space a dataset writer asks for, in units of the trials still to come at the size of
+the first one (a slower trial logs more samples)."""
 RESERVED_ID = "dataset"
 """The key of the manifest's own problems in :func:`validate`; no trial may use it."""
 MIN_CONTROL_PERIOD, MAX_CONTROL_PERIOD = 1e-4, 1e-2
@@ -195,11 +199,17 @@ class DatasetWriter:
     Opening an existing dataset with a different header, or adding a trial whose id exists with
     different data, raises :class:`DatasetError` (nothing is overwritten silently); adding an
     identical trial again is a no-op.
+
+    Space: a writer told how many trials are coming (``expected_trials``) measures the first
+    one it writes and refuses to go on when the disk cannot hold the others
+    (``SPACE_MARGIN`` times their size at the first one's); the trials written stay a dataset.
     """
 
-    def __init__(self, directory: str | Path, header: DatasetHeader):
+    def __init__(self, directory: str | Path, header: DatasetHeader, expected_trials: int = 1):
         self.directory = Path(directory)
         self.header = header
+        self.expected_trials = expected_trials
+        self.written = 0
         self.entries: list[TrialEntry] = []
         manifest_path = self.directory / MANIFEST
         if manifest_path.exists():
@@ -237,6 +247,20 @@ class DatasetWriter:
         self.entries.append(entry)
         manifest = {**self.header.to_dict(), "trials": [e.to_dict() for e in self.entries]}
         write_text_atomic(self.directory / MANIFEST, json.dumps(manifest, indent=2) + "\n")
+        self.written += 1
+        if self.written == 1:
+            self._check_space(sum(len(text.encode()) for text in files.values()))
+
+    def _check_space(self, trial_bytes: int) -> None:
+        """Refuse (DatasetError) when the free space cannot hold the trials still to come."""
+        left = self.expected_trials - self.written
+        needed = SPACE_MARGIN * trial_bytes * left
+        free = shutil.disk_usage(self.directory).free
+        if left > 0 and free < needed:
+            raise DatasetError(
+                f"{self.directory}: the first trial took {trial_bytes / 1e3:.0f} kB; the {left} left need about "
+                f"{needed / 1e6:.1f} MB and {free / 1e6:.1f} MB are free: free some space or write elsewhere"
+            )
 
 
 def _csv(columns: list[str], table: np.ndarray) -> str:
