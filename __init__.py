@@ -10,7 +10,7 @@ descriptions, the jump predictors, the controller with its configuration, tasks 
 the impact session of a robot loop, and the simulated scene and trial. They are exported lazily
 (PEP 562): ``import impactqp`` loads none of them (nor NumPy, Pinocchio or MuJoCo), and importing
 one module (say ``impactqp.controller.model.robot``) loads only what that module imports, never
-the QP or MuJoCo. The layers of the package are listed in the README; each subpackage exports the
+the QP or MuJoCo. The layers of the package are listed in docs/layout.md; each subpackage exports the
 names of its own layer.
 """
 

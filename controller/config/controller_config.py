@@ -5,7 +5,7 @@
 ``ControllerConfig.approach(surface, speed, robot=...)`` is the default impact-approach
 configuration of a robot: a fixed-base arm's, or a floating-base robot standing on its held
 contacts (the G1: its centre of mass and torso held, its feet's rows, the capture region).
-The file format is documented in the project README (section "Controller configuration").
+The file format is documented in docs/configuration.md.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The benchmark table of ``impactqp bench``: every tracked speed and accuracy figure.
 
 One module per family (``prediction``, ``controller``, ``simulation``, ``diagnosis``), each with
-row helpers from ``base``. Goals are ratios within one run, printed in the README, never asserted
+row helpers from ``base``. Goals are ratios within one run, printed in docs/benchmarks.md, never asserted
 in tests.
 """
 

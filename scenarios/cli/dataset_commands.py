@@ -1,5 +1,5 @@
 """``impactqp dataset validate|generate|import-franka`` and ``impactqp diagnose``: measured data against the
-simulation (dataset format: ``sim/dataset.py`` and the README)."""
+simulation (dataset format: ``controller.measured.dataset`` and docs/dataset.md)."""
 
 from __future__ import annotations
 

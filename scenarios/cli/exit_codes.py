@@ -1,4 +1,4 @@
-"""The exit codes of ``impactqp`` (README, "Errors and exit codes"); a leaf module, so that the
+"""The exit codes of ``impactqp`` (docs/errors.md); a leaf module, so that the
 entry point reads them before any heavy import."""
 
 EXIT_INTERNAL_ERROR = 1
