@@ -311,7 +311,10 @@ def move_to_start(robot: RobotInterface, model: RobotModel, config: ControllerCo
     if result.watchdog_trips or result.interrupted:
         reason = result.watchdog_reason or "stop requested"
         raise BadInputError(f"the move to the start posture ended early ({reason}); the robot braked to a stop")
-    return {"duration": move.duration, "cycles": result.cycles, "final_error": move.final_error(result.log.q[-1])}
+    return {
+        "duration": move.duration, "cycles": result.cycles, "final_error": move.final_error(result.log.q[-1]),
+        "retreat": move.path.retreat, "clearance": move.path.clearance,
+    }
 
 
 def run(request: RunRequest) -> tuple[dict, LoopResult]:

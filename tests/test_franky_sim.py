@@ -27,6 +27,7 @@ from impactqp.controller.runtime.franka_backend import FrankaRobot
 from impactqp.controller.runtime.loop import STOPPING, ControlLoop
 from impactqp.controller.runtime.run_log import RunLog
 from impactqp.controller.runtime.session import OBSERVER, ImpactSession
+from impactqp.controller.runtime.start_move import START_CLEARANCE
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.run import IMPACT_LEAD, RunRequest, log_header, start_posture, write_log
 from impactqp.sim.franky_sim import FrankySimServer
@@ -180,3 +181,25 @@ def test_impactqp_run_moves_to_the_start_then_runs_the_session_against_the_serve
     diagnosis = json.loads(capsys.readouterr().out)
     assert diagnosis["trials"] == 1 and diagnosis["skipped"] == [] and diagnosis["causes"] == []
     assert diagnosis["message"].startswith("One trial")
+
+
+def test_impactqp_run_from_franky_sims_home_pose_retreats_from_the_wall_then_runs_the_session(franky_sim, model, tmp_path, capsys):
+    """franky-sim's home pose (the hand down, its tool 45.6 mm in front of the default wall): the
+    straight joint segment to ``elbow_up``'s start passes the tool behind the wall, so the move
+    retreats along the normal first and never touches the wall (the server's first wall contact is
+    the session's impact)."""
+    from franky_sim.constants import DEFAULT_INITIAL_JOINT_POS  # franky-sim is imported only once it is known installed
+
+    server = franky_sim(np.array(DEFAULT_INITIAL_JOINT_POS))
+    argv = ["run", "--backend", "franka", "--robot", ROBOT, "--robot-ip", server.hostname, "--realtime", "ignore", "--json"]
+    code = main(argv + ["--log", str(tmp_path / "log"), "--duration", "1.0"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    report = json.loads(out)
+    assert report["watchdog_trips"] == 0, report["watchdog_reason"]
+    move = report["start_move"]
+    assert move["retreat"] > 0.0 and move["clearance"] >= START_CLEARANCE and move["final_error"] < 0.01
+    assert report["impact"]["detected"] and report["phase"] == STOPPING
+    t_contact = server.contact_time()
+    assert t_contact is not None and t_contact <= report["impact"]["time"] <= t_contact + WINDOW_AFTER
+    assert abs(contact_distance_at(report["log"], report["impact"]["time"], model)) <= WALL_TOLERANCE
