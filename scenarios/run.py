@@ -9,8 +9,6 @@ report of ``impactqp run --json``. Bad input raises ``BadInputError``.
 
 from __future__ import annotations
 
-import signal
-import threading
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -32,6 +30,7 @@ from impactqp.controller.runtime.replay_backend import ReplayRobot, load_trial
 from impactqp.controller.runtime.run_log import RunLog
 from impactqp.controller.runtime.session import ImpactSession
 from impactqp.controller.runtime.start_move import StartMove
+from impactqp.scenarios.stop_signals import StopSignals
 from impactqp.sim.plant import PlantParameterError, PlantParameters
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.postures import Surface
@@ -269,36 +268,6 @@ def standing_backend(request: RunRequest) -> Backend:
     robot = SimRobot(scene, start, np.zeros(model.nv), config.dt, paced=not request.unpaced, standing=support, gain=SERVO_GAIN)
     robot.hold(SETTLE)
     return Backend(robot, config, request.duration, model, stance=stance)
-
-
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-
-
-class StopSignals:
-    """While active (in the main thread only: signal handlers can be set nowhere else), Ctrl-C,
-    SIGTERM or SIGHUP asks the current ``loop`` to brake to a stop; a signal the parent set to be
-    ignored (``nohup``, a background job) stays ignored, as in the command line's ``main``."""
-
-    def __init__(self):
-        self.loop: ControlLoop | None = None
-        self.previous: dict = {}
-
-    def request_stop(self, *_) -> None:
-        if self.loop is not None:
-            self.loop.request_stop()
-
-    def __enter__(self) -> StopSignals:
-        if threading.current_thread() is threading.main_thread():
-            self.previous = {
-                sig: signal.signal(sig, self.request_stop)
-                for sig in STOP_SIGNALS
-                if signal.getsignal(sig) is not signal.SIG_IGN
-            }
-        return self
-
-    def __exit__(self, *exc) -> None:
-        for sig, handler in self.previous.items():
-            signal.signal(sig, handler)
 
 
 def move_to_start(robot: RobotInterface, model: RobotModel, config: ControllerConfig, q_start, signals: StopSignals) -> dict:
