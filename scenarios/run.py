@@ -9,6 +9,7 @@ report of ``impactqp run --json``. Bad input raises ``BadInputError``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -21,6 +22,7 @@ from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
+from impactqp.controller.runtime.collision_thresholds import CollisionThresholds, impact_thresholds, predicted_peaks
 from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.runtime.franka_backend import FrankaRobot
 from impactqp.controller.runtime.interface import RobotInterface
@@ -204,7 +206,8 @@ def start_posture(request: RunRequest, model: RobotModel, config: ControllerConf
 class Backend:
     """What a run drives: the ``robot`` (a backend), its controller ``config`` (whose ``choice``
     is the robot and tool modelled), the run's ``duration`` (s), the one ``model`` of the run
-    and, for a real robot, the start posture ``q_start`` it moves to first (None otherwise)."""
+    and, for a real robot, the start posture ``q_start`` it moves to first and the ``collision``
+    thresholds set on it (None otherwise)."""
 
     robot: RobotInterface
     config: ControllerConfig
@@ -212,20 +215,25 @@ class Backend:
     model: RobotModel
     q_start: np.ndarray | None = None
     stance: np.ndarray | None = None  # a floating base's standing configuration (its support)
+    collision: CollisionThresholds | None = None
 
 
 def build_backend(request: RunRequest) -> Backend:
     """The backend of the request, with the run's model built once. A robot is connected,
-    configured (``[libfranka]``) and its model checked here; its posture task holds the start
-    posture."""
+    configured (``[libfranka]``, the collision thresholds from the impact planned at the start
+    posture: ``collision_thresholds``) and its model checked here; its posture task holds the
+    start posture."""
     if request.backend in ROBOT_BACKENDS:
         Robot = FrankaRobot if request.backend == "franka" else PandaRobot
         config = controller_config(request)
         model = config.choice.shared_model
         q_start = start_posture(request, model, config)
-        robot = Robot.connect(request.robot_ip, config.libfranka, realtime=request.realtime, model=model)
+        speed = asked_speed(config)
+        peaks = None if speed is None else predicted_peaks(model, q_start, config.surface.normal, speed, config.impact)
+        collision = impact_thresholds(config.libfranka, peaks)
+        robot = Robot.connect(request.robot_ip, config.libfranka, request.realtime, model, collision)
         robot.check_model(model)
-        return Backend(robot, with_posture_target(config, q_start), request.duration, model, q_start)
+        return Backend(robot, with_posture_target(config, q_start), request.duration, model, q_start, collision=collision)
     if request.backend == "replay":
         trial, header = load_trial(request.dataset, request.trial)
         if not request.choice.is_default:
@@ -286,12 +294,15 @@ def move_to_start(robot: RobotInterface, model: RobotModel, config: ControllerCo
     }
 
 
-def run(request: RunRequest) -> tuple[dict, LoopResult]:
+def run(request: RunRequest, say: Callable[[str], None] = lambda line: None) -> tuple[dict, LoopResult]:
     """Run the request with the model of the configuration's robot and tool; (report, result). Ctrl-C,
     SIGTERM or SIGHUP brakes to a stop and keeps the log (``result.interrupted``). The log
-    directory is checked before the robot moves; a robot moves to the start posture first."""
+    directory is checked before the robot moves; a robot's collision thresholds are told to
+    ``say`` (one line) once it is configured, and it moves to the start posture first."""
     check_request(request)
     backend = build_backend(request)
+    if backend.collision is not None:
+        say(backend.collision.reason)
     robot, config, duration, model, q_start = (
         backend.robot, backend.config, backend.duration, backend.model, backend.q_start
     )
@@ -313,6 +324,8 @@ def run(request: RunRequest) -> tuple[dict, LoopResult]:
     report_ = report(result, config, log_path)
     report_["robot"] = robot.report()
     report_["start_move"] = start_move
+    if log_path is not None and backend.collision is not None:
+        run_log.add_robot(report_["robot"], start_move)
     return report_, result
 
 
@@ -362,14 +375,19 @@ EQUALITY_CONSTRAINTS = ("held_contacts",)
 """Constraints whose rows are equalities: always active, they cap nothing."""
 
 
+def asked_speed(config: ControllerConfig) -> float | None:
+    """The contact-approach task's speed (m/s); None without one."""
+    return next(
+        (float(t.params["speed"]) for t in config.tasks if t.type == "contact_approach" and "speed" in t.params), None
+    )
+
+
 def speed_report(config: ControllerConfig, session: ImpactSession) -> dict:
     """The approach speed asked (the contact-approach task's, m/s; None without one), the contact
     speed (m/s; None without an impact), and, when the contact came slower than asked, the
     inequality constraints active at the approach's last command: what capped the speed (none:
     the approach had not reached its speed, or its task traded it off against the others)."""
-    asked = next(
-        (float(t.params["speed"]) for t in config.tasks if t.type == "contact_approach" and "speed" in t.params), None
-    )
+    asked = asked_speed(config)
     contact = session.contact_speed()
     last = session.last_approach
     capped = asked is not None and contact is not None and contact < (1.0 - SPEED_SHORTFALL) * asked

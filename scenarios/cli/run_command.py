@@ -40,7 +40,7 @@ def run_command(realtime: str, as_json: bool, choice, **options):
     from impactqp.scenarios.run import RunRequest, run  # lazy: the command line loads an experiment when it runs
 
     request = RunRequest(realtime=realtime == "enforce", choice=choice, **options)
-    report, result = run(request)
+    report, result = run(request, say=lambda line: click.echo(f"impactqp: {line}", err=True))
     if as_json:
         emit_json(report)
     else:
