@@ -25,6 +25,23 @@ inertia belong to a hand-held tool."""
 
 MAX_MODEL_DIFFERENCE = 1.0
 
+DEFAULT_TORQUE_THRESHOLDS = [100.0] * 4 + [20.0] * 3
+"""N m: the joint collision thresholds of the Franka arms unless the table or the impact sets
+others, above the impulsive torques the impact-aware constraints allow (tau_max = 87/12 N m)."""
+DEFAULT_FORCE_THRESHOLDS = [100.0] * 3 + [30.0] * 3
+"""N, N m: the Cartesian collision thresholds (force, then moment) unless the table or the impact
+sets others."""
+
+FROM_IMPACT, FIXED = "from_impact", "fixed"
+COLLISION_CHOICES = (FROM_IMPACT, FIXED)
+IMPACT_THRESHOLD_FACTOR = 3.0
+"""The safety factor k of the thresholds over the predicted peaks (``collision_thresholds``): a
+contact force pulse peaks above its mean over delta_t (pi/2 times it for a half sine), and the
+surface's stiffness and the model's error add to it."""
+MAX_THRESHOLD_FACTOR = 10.0
+"""The largest factor the table accepts: ten times the predicted peak is no longer a threshold
+for the planned impact."""
+
 JOINT_SETTINGS = ("lower_torque_thresholds", "upper_torque_thresholds", "joint_impedance")
 """The settings with one value per joint of the robot (``RobotConfig.check_joints``)."""
 
@@ -34,8 +51,12 @@ class RobotConfig:
     """The connected robot's own settings (``franka`` and ``panda`` backends; ``docs/robot-loop.md``).
 
     The collision-reflex thresholds (``Robot.set_collision_behavior``: torques per joint in N m,
-    Cartesian force/torque in N and N m) default above the impulsive torques the impact-aware
-    constraints allow (tau_max = 87/12 N m): the factory values trip on an impact on purpose.
+    Cartesian force/torque in N and N m): with ``collision_thresholds`` "from_impact" (default) a
+    run sets them from its predicted impact, ``impact_threshold_factor`` times the peak joint
+    torques and contact wrench, never below the defaults (``DEFAULT_TORQUE_THRESHOLDS``,
+    ``DEFAULT_FORCE_THRESHOLDS``; ``controller.runtime.collision_thresholds``); with "fixed" they
+    are the four lists. A list given (not None) wins in both cases; one left out is the default
+    ("fixed") or the computed one. The factory values trip on an impact on purpose.
     ``joint_impedance`` is the stiffness of the robot's joint controller (N m/rad, libfranka's
     default). ``load_mass`` (kg), ``load_com`` (m, flange frame) and ``load_inertia`` (kg m^2, 3x3
     column-major, about the centre of mass) are the load ``Robot.set_load`` gets; each one left
@@ -46,10 +67,12 @@ class RobotConfig:
     ||M_r - M||_F / ||M_r||_F above ``max_model_difference`` refuses the robot.
     """
 
-    lower_torque_thresholds: list[float] = field(default_factory=lambda: [100.0] * 4 + [20.0] * 3)
-    upper_torque_thresholds: list[float] = field(default_factory=lambda: [100.0] * 4 + [20.0] * 3)
-    lower_force_thresholds: list[float] = field(default_factory=lambda: [100.0] * 3 + [30.0] * 3)
-    upper_force_thresholds: list[float] = field(default_factory=lambda: [100.0] * 3 + [30.0] * 3)
+    collision_thresholds: str = FROM_IMPACT
+    impact_threshold_factor: float = IMPACT_THRESHOLD_FACTOR
+    lower_torque_thresholds: list[float] | None = None
+    upper_torque_thresholds: list[float] | None = None
+    lower_force_thresholds: list[float] | None = None
+    upper_force_thresholds: list[float] | None = None
     joint_impedance: list[float] = field(default_factory=lambda: [3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0])
     load_mass: float | None = None
     load_com: list[float] | None = None
@@ -58,21 +81,25 @@ class RobotConfig:
     max_model_difference: float = 0.02
 
     def __post_init__(self):
+        validation.name_in(self.collision_thresholds, COLLISION_CHOICES, "libfranka.collision_thresholds")
+        validation.number_in_range(
+            self.impact_threshold_factor, 1.0, MAX_THRESHOLD_FACTOR, "libfranka.impact_threshold_factor",
+            "(times the predicted peak)",
+        )
         for kind, size, high in (("torque", None, MAX_COLLISION_TORQUE), ("force", 6, MAX_COLLISION_FORCE)):
             lower, upper = (
-                validation.positive_vector(
-                    getattr(self, f"{side}_{kind}_thresholds"), size, f"libfranka.{side}_{kind}_thresholds", high
-                )
-                for side in ("lower", "upper")
+                None if getattr(self, name) is None else validation.positive_vector(getattr(self, name), size, f"libfranka.{name}", high)
+                for name in (f"lower_{kind}_thresholds", f"upper_{kind}_thresholds")
             )
-            if lower.shape != upper.shape:
-                raise BadInputError(
-                    f"libfranka.lower_{kind}_thresholds and libfranka.upper_{kind}_thresholds must have as many values"
-                )
-            if np.any(lower > upper):
-                raise BadInputError(f"libfranka.lower_{kind}_thresholds must not exceed libfranka.upper_{kind}_thresholds")
-            setattr(self, f"lower_{kind}_thresholds", lower.tolist())
-            setattr(self, f"upper_{kind}_thresholds", upper.tolist())
+            if lower is not None and upper is not None:
+                if lower.shape != upper.shape:
+                    raise BadInputError(
+                        f"libfranka.lower_{kind}_thresholds and libfranka.upper_{kind}_thresholds must have as many values"
+                    )
+                if np.any(lower > upper):
+                    raise BadInputError(f"libfranka.lower_{kind}_thresholds must not exceed libfranka.upper_{kind}_thresholds")
+            for side, values in (("lower", lower), ("upper", upper)):
+                setattr(self, f"{side}_{kind}_thresholds", None if values is None else values.tolist())
         self.joint_impedance = validation.positive_vector(
             self.joint_impedance, None, "libfranka.joint_impedance", MAX_JOINT_STIFFNESS
         ).tolist()
@@ -100,5 +127,6 @@ class RobotConfig:
         """Bad input unless every per-joint setting (``JOINT_SETTINGS``) has one value for each of
         the robot's ``joints`` joints."""
         for name in JOINT_SETTINGS:
-            validation.finite_vector(getattr(self, name), joints, f"libfranka.{name}")
+            if getattr(self, name) is not None:
+                validation.finite_vector(getattr(self, name), joints, f"libfranka.{name}")
 

@@ -9,8 +9,7 @@ report of ``impactqp run --json``. Bad input raises ``BadInputError``.
 
 from __future__ import annotations
 
-import signal
-import threading
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -23,6 +22,7 @@ from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.inverse_kinematics import UnreachableStartError, approach_start
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.validation import BadInputError, approach_speed, number_in_range
+from impactqp.controller.runtime.collision_thresholds import CollisionThresholds, impact_thresholds, predicted_peaks
 from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.runtime.franka_backend import FrankaRobot
 from impactqp.controller.runtime.interface import RobotInterface
@@ -32,6 +32,7 @@ from impactqp.controller.runtime.replay_backend import ReplayRobot, load_trial
 from impactqp.controller.runtime.run_log import RunLog
 from impactqp.controller.runtime.session import ImpactSession
 from impactqp.controller.runtime.start_move import StartMove
+from impactqp.scenarios.stop_signals import StopSignals
 from impactqp.sim.plant import PlantParameterError, PlantParameters
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.postures import Surface
@@ -205,7 +206,8 @@ def start_posture(request: RunRequest, model: RobotModel, config: ControllerConf
 class Backend:
     """What a run drives: the ``robot`` (a backend), its controller ``config`` (whose ``choice``
     is the robot and tool modelled), the run's ``duration`` (s), the one ``model`` of the run
-    and, for a real robot, the start posture ``q_start`` it moves to first (None otherwise)."""
+    and, for a real robot, the start posture ``q_start`` it moves to first and the ``collision``
+    thresholds set on it (None otherwise)."""
 
     robot: RobotInterface
     config: ControllerConfig
@@ -213,20 +215,25 @@ class Backend:
     model: RobotModel
     q_start: np.ndarray | None = None
     stance: np.ndarray | None = None  # a floating base's standing configuration (its support)
+    collision: CollisionThresholds | None = None
 
 
 def build_backend(request: RunRequest) -> Backend:
     """The backend of the request, with the run's model built once. A robot is connected,
-    configured (``[libfranka]``) and its model checked here; its posture task holds the start
-    posture."""
+    configured (``[libfranka]``, the collision thresholds from the impact planned at the start
+    posture: ``collision_thresholds``) and its model checked here; its posture task holds the
+    start posture."""
     if request.backend in ROBOT_BACKENDS:
         Robot = FrankaRobot if request.backend == "franka" else PandaRobot
         config = controller_config(request)
         model = config.choice.shared_model
         q_start = start_posture(request, model, config)
-        robot = Robot.connect(request.robot_ip, config.libfranka, realtime=request.realtime, model=model)
+        speed = asked_speed(config)
+        peaks = None if speed is None else predicted_peaks(model, q_start, config.surface.normal, speed, config.impact)
+        collision = impact_thresholds(config.libfranka, peaks)
+        robot = Robot.connect(request.robot_ip, config.libfranka, request.realtime, model, collision)
         robot.check_model(model)
-        return Backend(robot, with_posture_target(config, q_start), request.duration, model, q_start)
+        return Backend(robot, with_posture_target(config, q_start), request.duration, model, q_start, collision=collision)
     if request.backend == "replay":
         trial, header = load_trial(request.dataset, request.trial)
         if not request.choice.is_default:
@@ -271,36 +278,6 @@ def standing_backend(request: RunRequest) -> Backend:
     return Backend(robot, config, request.duration, model, stance=stance)
 
 
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-
-
-class StopSignals:
-    """While active (in the main thread only: signal handlers can be set nowhere else), Ctrl-C,
-    SIGTERM or SIGHUP asks the current ``loop`` to brake to a stop; a signal the parent set to be
-    ignored (``nohup``, a background job) stays ignored, as in the command line's ``main``."""
-
-    def __init__(self):
-        self.loop: ControlLoop | None = None
-        self.previous: dict = {}
-
-    def request_stop(self, *_) -> None:
-        if self.loop is not None:
-            self.loop.request_stop()
-
-    def __enter__(self) -> StopSignals:
-        if threading.current_thread() is threading.main_thread():
-            self.previous = {
-                sig: signal.signal(sig, self.request_stop)
-                for sig in STOP_SIGNALS
-                if signal.getsignal(sig) is not signal.SIG_IGN
-            }
-        return self
-
-    def __exit__(self, *exc) -> None:
-        for sig, handler in self.previous.items():
-            signal.signal(sig, handler)
-
-
 def move_to_start(robot: RobotInterface, model: RobotModel, config: ControllerConfig, q_start, signals: StopSignals) -> dict:
     """Run the move to ``q_start`` (``start_move``); its report. A move that does not end at
     rest on its own (watchdog, robot error, stop request) ends the run before the session."""
@@ -311,15 +288,21 @@ def move_to_start(robot: RobotInterface, model: RobotModel, config: ControllerCo
     if result.watchdog_trips or result.interrupted:
         reason = result.watchdog_reason or "stop requested"
         raise BadInputError(f"the move to the start posture ended early ({reason}); the robot braked to a stop")
-    return {"duration": move.duration, "cycles": result.cycles, "final_error": move.final_error(result.log.q[-1])}
+    return {
+        "duration": move.duration, "cycles": result.cycles, "final_error": move.final_error(result.log.q[-1]),
+        "retreat": move.path.retreat, "clearance": move.path.clearance,
+    }
 
 
-def run(request: RunRequest) -> tuple[dict, LoopResult]:
+def run(request: RunRequest, say: Callable[[str], None] = lambda line: None) -> tuple[dict, LoopResult]:
     """Run the request with the model of the configuration's robot and tool; (report, result). Ctrl-C,
     SIGTERM or SIGHUP brakes to a stop and keeps the log (``result.interrupted``). The log
-    directory is checked before the robot moves; a robot moves to the start posture first."""
+    directory is checked before the robot moves; a robot's collision thresholds are told to
+    ``say`` (one line) once it is configured, and it moves to the start posture first."""
     check_request(request)
     backend = build_backend(request)
+    if backend.collision is not None:
+        say(backend.collision.reason)
     robot, config, duration, model, q_start = (
         backend.robot, backend.config, backend.duration, backend.model, backend.q_start
     )
@@ -341,6 +324,8 @@ def run(request: RunRequest) -> tuple[dict, LoopResult]:
     report_ = report(result, config, log_path)
     report_["robot"] = robot.report()
     report_["start_move"] = start_move
+    if log_path is not None and backend.collision is not None:
+        run_log.add_robot(report_["robot"], start_move)
     return report_, result
 
 
@@ -390,14 +375,19 @@ EQUALITY_CONSTRAINTS = ("held_contacts",)
 """Constraints whose rows are equalities: always active, they cap nothing."""
 
 
+def asked_speed(config: ControllerConfig) -> float | None:
+    """The contact-approach task's speed (m/s); None without one."""
+    return next(
+        (float(t.params["speed"]) for t in config.tasks if t.type == "contact_approach" and "speed" in t.params), None
+    )
+
+
 def speed_report(config: ControllerConfig, session: ImpactSession) -> dict:
     """The approach speed asked (the contact-approach task's, m/s; None without one), the contact
     speed (m/s; None without an impact), and, when the contact came slower than asked, the
     inequality constraints active at the approach's last command: what capped the speed (none:
     the approach had not reached its speed, or its task traded it off against the others)."""
-    asked = next(
-        (float(t.params["speed"]) for t in config.tasks if t.type == "contact_approach" and "speed" in t.params), None
-    )
+    asked = asked_speed(config)
     contact = session.contact_speed()
     last = session.last_approach
     capped = asked is not None and contact is not None and contact < (1.0 - SPEED_SHORTFALL) * asked

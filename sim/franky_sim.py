@@ -15,7 +15,9 @@ on its standard output once it listens, and writes to CONTACT_FILE the robot tim
 the first state sent after a physics step with a
 contact on the wall (the first state the contact force acted on): libfranka stamps a state with
 its message id in ms since the connection, so the server's contact time and the client's state
-times share one clock. Files appear by rename, complete. With ``--stop-after-commands N`` the
+times share one clock. Beside it, ``franky-sim.collision`` (JSON) holds the collision thresholds
+the client last sent (``set_collision_behavior``'s eight lists, as the server received them;
+franky-sim does not simulate the reflex). Files appear by rename, complete. With ``--stop-after-commands N`` the
 server stops (closes its connection and exits) when the N-th motion command arrives, before it
 answers it: a connection lost at a known cycle (N > 1: a motion's first command may answer an
 older state, below).
@@ -39,6 +41,7 @@ every command of the run's motions.
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import select
@@ -47,6 +50,7 @@ import subprocess
 import sys
 import time
 import xml.etree.ElementTree as ET
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -89,6 +93,7 @@ class FrankySimServer:
     ):
         self.directory = Path(directory)
         self.contact_file = self.directory / "franky-sim.contact"
+        self.collision_file = self.directory / "franky-sim.collision"
         self.output = self.directory / "franky-sim.log"
         self.args = [str(self.contact_file), csv(wall_point), csv(wall_normal), csv(q0)]
         if tool is not None:
@@ -127,6 +132,11 @@ class FrankySimServer:
     def contact_time(self) -> float | None:
         """Robot time (s) of the first state with the arm touching the wall, None before one."""
         return float(self.contact_file.read_text()) if self.contact_file.exists() else None
+
+    def collision_behavior(self) -> dict | None:
+        """The collision thresholds the server last received (``record_collision_behavior``),
+        None before any."""
+        return json.loads(self.collision_file.read_text()) if self.collision_file.exists() else None
 
     def stop(self) -> None:
         """Kill the server's process group (the server and anything it started) and reap it."""
@@ -180,6 +190,22 @@ def contact_recorder(server, path: str):
             write_file(path, repr(message_id / 1000.0))  # as libfranka's Duration::toSec
 
     return record
+
+
+def record_collision_behavior(path: str) -> None:
+    """Make the server write the thresholds of every ``SetCollisionBehavior`` command it
+    receives to ``path`` (JSON: the command's eight lists by name) before answering it."""
+    from franky_sim.franka_robot_protocol import SetCollisionBehaviorCommand  # in the server process only
+
+    handle = SetCollisionBehaviorCommand.handle
+
+    def record(command, server) -> None:
+        names = [f.name for f in dataclasses.fields(command) if f.name.endswith("_thresholds_acceleration")
+                 or f.name.endswith("_thresholds_nominal")]
+        write_file(path, json.dumps({name: list(getattr(command, name)) for name in names}))
+        handle(command, server)
+
+    SetCollisionBehaviorCommand.handle = record
 
 
 def answers_newest_state(robot_server) -> bool:
@@ -263,6 +289,7 @@ def main() -> None:
     from franky_sim.mujoco_simulator import MujocoSimulator
 
     args = arguments(sys.argv[1:])
+    record_collision_behavior(str(Path(args.contact_file).with_suffix(".collision")))
     logging.basicConfig(level=logging.INFO, format="%(relativeCreated)d ms %(name)s %(levelname)s: %(message)s")
     with MujocoSimulator() as sim:
         sim.add_robot(initial_q=tuple(args.q0))

@@ -21,12 +21,14 @@ from impactqp.controller.measured.impact import WINDOW_AFTER
 from impactqp.controller.model.inverse_kinematics import approach_start
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.robot_description import ROBOTS
-from impactqp.controller.robot_config import RobotConfig
+from impactqp.controller.robot_config import DEFAULT_FORCE_THRESHOLDS, DEFAULT_TORQUE_THRESHOLDS, RobotConfig
+from impactqp.controller.runtime.collision_thresholds import impact_thresholds, predicted_peaks
 from impactqp.controller.runtime.command_filter import CommandFilter
 from impactqp.controller.runtime.franka_backend import FrankaRobot
 from impactqp.controller.runtime.loop import STOPPING, ControlLoop
 from impactqp.controller.runtime.run_log import RunLog
 from impactqp.controller.runtime.session import OBSERVER, ImpactSession
+from impactqp.controller.runtime.start_move import START_CLEARANCE
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.run import IMPACT_LEAD, RunRequest, log_header, start_posture, write_log
 from impactqp.sim.franky_sim import FrankySimServer
@@ -180,3 +182,41 @@ def test_impactqp_run_moves_to_the_start_then_runs_the_session_against_the_serve
     diagnosis = json.loads(capsys.readouterr().out)
     assert diagnosis["trials"] == 1 and diagnosis["skipped"] == [] and diagnosis["causes"] == []
     assert diagnosis["message"].startswith("One trial")
+
+
+def test_impactqp_run_from_franky_sims_home_pose_retreats_from_the_wall_then_runs_the_session(franky_sim, model, tmp_path, capsys):
+    """franky-sim's home pose (the hand down, its tool 45.6 mm in front of the default wall): the
+    straight joint segment to ``elbow_up``'s start passes the tool behind the wall, so the move
+    retreats along the normal first and never touches the wall (the server's first wall contact is
+    the session's impact)."""
+    from franky_sim.constants import DEFAULT_INITIAL_JOINT_POS  # franky-sim is imported only once it is known installed
+
+    server = franky_sim(np.array(DEFAULT_INITIAL_JOINT_POS))
+    argv = ["run", "--backend", "franka", "--robot", ROBOT, "--robot-ip", server.hostname, "--realtime", "ignore", "--json"]
+    code = main(argv + ["--log", str(tmp_path / "log"), "--duration", "1.0"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    report = json.loads(out)
+    assert report["watchdog_trips"] == 0, report["watchdog_reason"]
+    move = report["start_move"]
+    assert move["retreat"] > 0.0 and move["clearance"] >= START_CLEARANCE and move["final_error"] < 0.01
+    assert report["impact"]["detected"] and report["phase"] == STOPPING
+    t_contact = server.contact_time()
+    assert t_contact is not None and t_contact <= report["impact"]["time"] <= t_contact + WINDOW_AFTER
+    assert abs(contact_distance_at(report["log"], report["impact"]["time"], model)) <= WALL_TOLERANCE
+    # the collision thresholds from the impact predicted at the start posture and the asked speed:
+    # said in one line, reported, written beside the trial, and received by the server as computed
+    config = ControllerConfig.approach(POSTURE.surface, SPEED)
+    q_start = start_posture(RunRequest(backend="franka", choice=RobotChoice.of(ROBOT, "impact_tip")), model, config)
+    expected = impact_thresholds(RobotConfig(), predicted_peaks(model, q_start, POSTURE.surface.normal, SPEED, config.impact))
+    assert expected.upper_torque != DEFAULT_TORQUE_THRESHOLDS and expected.upper_force != DEFAULT_FORCE_THRESHOLDS
+    (said,) = [line for line in err.splitlines() if "collision thresholds" in line]
+    assert said == f"impactqp: {expected.reason}"
+    assert report["robot"]["collision_thresholds"] == expected.to_dict()
+    written = json.loads((tmp_path / "log" / "run0000_robot.json").read_text())
+    assert written["robot"]["collision_thresholds"] == expected.to_dict() and written["start_move"] == move
+    received = server.collision_behavior()
+    for side in ("lower", "upper"):
+        for phase in ("acceleration", "nominal"):  # the four-list call sets both phases alike
+            np.testing.assert_allclose(received[f"{side}_torque_thresholds_{phase}"], getattr(expected, f"{side}_torque"), rtol=1e-15)
+            np.testing.assert_allclose(received[f"{side}_force_thresholds_{phase}"], getattr(expected, f"{side}_force"), rtol=1e-15)

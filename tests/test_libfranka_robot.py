@@ -9,6 +9,7 @@ import pytest
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
+from impactqp.controller.runtime.collision_thresholds import CollisionThresholds, fixed_thresholds
 from impactqp.controller.runtime.libfranka_robot import LibfrankaRobot, declared_load
 
 
@@ -71,6 +72,14 @@ def test_connect_sets_the_reflex_impedance_and_the_declared_load_or_names_what_w
     assert names == ["set_collision_behavior", "set_joint_impedance", "set_load"]
     load = declared_load(model, settings)
     assert robot.calls[-1][1] == (load.mass, load.com, load.inertia)
+    defaults = fixed_thresholds(settings)  # no impact given: the table's lists or the defaults
+    assert robot.calls[0][1] == (defaults.lower_torque, defaults.upper_torque, defaults.lower_force, defaults.upper_force)
+    given = CollisionThresholds([1.0] * 7, [2.0] * 7, [3.0] * 6, [4.0] * 6, "why")
+    robot = SettingsRobot()
+    connected = LibfrankaRobot(robot, (RuntimeError,), (RuntimeError,), settings)
+    connected.configure("ip", model, given)
+    assert robot.calls[0] == ("set_collision_behavior", ([1.0] * 7, [2.0] * 7, [3.0] * 6, [4.0] * 6))
+    assert connected.report()["collision_thresholds"] == given.to_dict()
     refusing = LibfrankaRobot(SettingsRobot("set_load"), (RuntimeError,), (RuntimeError,), settings)
     with pytest.raises(BadInputError, match="the robot at ip refused the load: set_load refused"):
         refusing.configure("ip", model)

@@ -49,33 +49,3 @@ def test_the_configuration_carries_the_robot_and_the_tool_of_the_request(tmp_pat
     assert config.choice.robot.name == "fr3" and config.choice.tool.name == "hammer"
     with pytest.raises(BadInputError, match=r"the configuration \(fr3, hammer\) differ from --robot/--tool"):
         controller_config(RunRequest(config_file=str(tmp_path / "c.toml"), choice=RobotChoice.of("panda", "pad")))
-
-
-def test_stop_signals_ask_the_loop_to_stop_and_leave_ignored_signals_ignored():
-    """Inside ``StopSignals`` a stop signal asks the current loop to brake; a signal the parent
-    ignored (nohup) stays ignored; every handler is restored on exit."""
-    import os
-    import signal
-
-    from impactqp.scenarios.run import STOP_SIGNALS, StopSignals
-
-    class Loop:
-        stops = 0
-
-        def request_stop(self):
-            self.stops += 1
-
-    before = {sig: signal.getsignal(sig) for sig in STOP_SIGNALS}
-    signal.signal(signal.SIGHUP, signal.SIG_IGN)
-    try:
-        with StopSignals() as signals:
-            signals.loop = loop = Loop()
-            assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
-            os.kill(os.getpid(), signal.SIGHUP)  # ignored: no stop
-            os.kill(os.getpid(), signal.SIGTERM)
-            assert loop.stops == 1
-        assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
-        assert signal.getsignal(signal.SIGTERM) == before[signal.SIGTERM]
-    finally:
-        for sig, handler in before.items():
-            signal.signal(sig, handler)

@@ -197,3 +197,19 @@ def test_bounding_radius_reaches_every_corner_and_no_farther(normal, corner):
     point = pad.centre + pad.rotation @ (np.array(corner) * pad.size)
     assert np.linalg.norm(point - pad.centre) == pytest.approx(pad.bounding_radius, abs=1e-12)
     assert SPHERE.bounding_radius == SPHERE.radius
+
+
+@settings(max_examples=30, deadline=None)
+@given(normal=unit, direction=unit)
+def test_lowest_is_the_smallest_projection_over_the_geometry(normal, direction):
+    """u . x over the pad's corners (a box's extreme points) and over the sphere's surface
+    (centre + radius w for unit w): the smallest is ``lowest(u)``, reached at a corner / at
+    w = -u/|u|, and no sampled point goes below it."""
+    pad = Pad((0.06, 0.04, 0.01), (0.0, 0.0, 0.05), normal)
+    corners = [pad.centre + pad.rotation @ ((np.array(c) - 0.5) * pad.size) for c in np.ndindex(2, 2, 2)]
+    assert pad.lowest(direction) == pytest.approx(min(direction @ c for c in corners), abs=1e-12)
+    w = np.random.default_rng(0).normal(size=(500, 3))
+    points = SPHERE.centre + SPHERE.radius * w / np.linalg.norm(w, axis=1)[:, None]
+    assert np.min(points @ direction) >= SPHERE.lowest(direction) - 1e-12
+    deepest = SPHERE.centre - SPHERE.radius * direction / np.linalg.norm(direction)
+    assert direction @ deepest == pytest.approx(SPHERE.lowest(direction), abs=1e-12)

@@ -78,6 +78,12 @@ class Sphere:
         """|p - centre| - radius: zero on the sphere."""
         return float(np.linalg.norm(p - self.centre)) - self.radius
 
+    def lowest(self, direction: np.ndarray) -> float:
+        """min over the sphere's points x of u . x, u = ``direction`` (the support function of
+        -u, negated): u . centre - radius |u|."""
+        u = np.asarray(direction, dtype=float)
+        return float(u @ self.centre) - self.radius * float(np.linalg.norm(u))
+
     def as_dict(self) -> dict:
         return {"shape": "sphere", "radius": self.radius, "centre": self.centre.tolist()}
 
@@ -126,6 +132,12 @@ class Pad:
         off_plane = local[2] - half[2]
         outside = np.maximum(np.abs(local[:2]) - half[:2], 0.0)
         return math.hypot(off_plane, *outside.tolist())
+
+    def lowest(self, direction: np.ndarray) -> float:
+        """min over the box's points x of u . x, u = ``direction``: reached at a corner,
+        u . centre - sum_i |(R^T u)_i| size_i / 2 (R = :attr:`rotation`)."""
+        u = np.asarray(direction, dtype=float)
+        return float(u @ self.centre) - float(np.abs(self.rotation.T @ u) @ self.size) / 2.0
 
     def as_dict(self) -> dict:
         return {"shape": "pad", "size": self.size.tolist(), "centre": self.centre.tolist(), "normal": self.normal.tolist()}

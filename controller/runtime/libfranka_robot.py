@@ -32,6 +32,7 @@ from impactqp.controller.model.robot import PandaModel, RobotModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.robot_config import RobotConfig
 
+from .collision_thresholds import CollisionThresholds, fixed_thresholds
 from .interface import RobotInterface, RobotState
 
 
@@ -160,16 +161,19 @@ class LibfrankaRobot(RobotInterface):
         self.recovered = False
         self.model_difference: float | None = None
         self.load: Load | None = None
+        self.collision: CollisionThresholds | None = None
 
     BINDINGS_MODULE = ""  # the module whose ``Robot(ip, RealtimeConfig.kIgnore)`` the probe opens
 
     @classmethod
     def connect(
-        cls, ip: str, settings: RobotConfig | None = None, realtime: bool = True, model: PandaModel | None = None
+        cls, ip: str, settings: RobotConfig | None = None, realtime: bool = True, model: PandaModel | None = None,
+        thresholds: CollisionThresholds | None = None,
     ) -> LibfrankaRobot:
-        """The robot at ``ip`` with the ``[libfranka]`` settings and the load of ``model``'s tool
-        (default: the backend's robot with the default tool) applied; bad input when it does not
-        answer or refuses them. ``realtime=False`` lets libfranka run without a real-time kernel.
+        """The robot at ``ip`` with the ``[libfranka]`` settings, the collision ``thresholds``
+        (None: the table's fixed lists) and the load of ``model``'s tool (default: the backend's
+        robot with the default tool) applied; bad input when it does not answer or refuses them.
+        ``realtime=False`` lets libfranka run without a real-time kernel.
 
         A peer that accepts the connection and never answers would block libfranka's connect for
         minutes, holding the interpreter's lock (no signal is handled meanwhile): the connection
@@ -179,7 +183,7 @@ class LibfrankaRobot(RobotInterface):
         answers_within(cls.BINDINGS_MODULE, ip, ANSWER_TIMEOUT)
         config = bindings.RealtimeConfig.kEnforce if realtime else bindings.RealtimeConfig.kIgnore
         connected = cls(cls.open(bindings, ip, config, realtime), bindings, settings)
-        connected.configure(ip, RobotModel(cls.ROBOT) if model is None else model)
+        connected.configure(ip, RobotModel(cls.ROBOT) if model is None else model, thresholds)
         return connected
 
     @staticmethod
@@ -193,14 +197,15 @@ class LibfrankaRobot(RobotInterface):
         in one line, when it cannot be opened."""
         raise NotImplementedError
 
-    def configure(self, ip: str, model: PandaModel) -> None:
-        """Set the collision reflex and the joint impedance of ``settings`` and the load of
-        ``model``'s tool (``declared_load``)."""
+    def configure(self, ip: str, model: PandaModel, thresholds: CollisionThresholds | None = None) -> None:
+        """Set the collision ``thresholds`` (None: the table's fixed lists), the joint impedance of
+        ``settings`` and the load of ``model``'s tool (``declared_load``)."""
         s = self.settings
         load = self.load = declared_load(model, s)
+        c = self.collision = fixed_thresholds(s) if thresholds is None else thresholds
         steps = (
             ("collision thresholds", lambda: self.robot.set_collision_behavior(
-                s.lower_torque_thresholds, s.upper_torque_thresholds, s.lower_force_thresholds, s.upper_force_thresholds
+                c.lower_torque, c.upper_torque, c.lower_force, c.upper_force
             )),
             ("joint impedance", lambda: self.robot.set_joint_impedance(s.joint_impedance)),
             ("load", lambda: self.robot.set_load(load.mass, load.com, load.inertia)),
@@ -255,4 +260,5 @@ class LibfrankaRobot(RobotInterface):
             "reflex": self.reflex,
             "recovered": self.recovered,
             "model_difference": self.model_difference,
+            "collision_thresholds": None if self.collision is None else self.collision.to_dict(),
         }

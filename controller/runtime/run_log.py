@@ -2,11 +2,14 @@
 
 Opening checks everything that could refuse the log (the directory can be created and written,
 an existing dataset there has the same header), so that a robot never moves for a log that
-cannot be kept; ``add`` then writes the run as one trial ``runNNNN`` (``docs/dataset.md``).
+cannot be kept; ``add`` then writes the run as one trial ``runNNNN`` (``docs/dataset.md``) and
+``add_robot`` what a robot run set and did beside it (``runNNNN_robot.json``: the collision
+thresholds, the start move; ``docs/robot-loop.md``), outside the dataset's manifest.
 """
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -52,6 +55,17 @@ class RunLog:
         except (DatasetError, OSError) as error:
             raise BadInputError(f"--log {self.directory}: {error}") from None
         return str(self.directory / entry.file)
+
+
+    def add_robot(self, robot: dict, start_move: dict | None) -> str:
+        """Write a robot run's report entries ``robot`` and ``start_move`` beside its trial; the
+        file's path."""
+        path = self.directory / f"{self.trial_id}_robot.json"
+        try:
+            path.write_text(json.dumps({"robot": robot, "start_move": start_move}, indent=1) + "\n")
+        except OSError as error:
+            raise BadInputError(f"--log {self.directory}: {error}") from None
+        return str(path)
 
 
 def measured_part(log: TrialLog) -> TrialLog:

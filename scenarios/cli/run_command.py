@@ -40,7 +40,7 @@ def run_command(realtime: str, as_json: bool, choice, **options):
     from impactqp.scenarios.run import RunRequest, run  # lazy: the command line loads an experiment when it runs
 
     request = RunRequest(realtime=realtime == "enforce", choice=choice, **options)
-    report, result = run(request)
+    report, result = run(request, say=lambda line: click.echo(f"impactqp: {line}", err=True))
     if as_json:
         emit_json(report)
     else:
@@ -101,9 +101,10 @@ def print_robot(report: dict) -> None:
     """The robot backends' lines: the move to the start, the connection, a reflex."""
     move, robot = report.get("start_move"), report.get("robot")
     if move:
+        via = f", through a retreat of {1e3 * move['retreat']:.0f} mm" if move["retreat"] else ""
         click.echo(
-            f"moved to the start posture in {move['duration']:.2f} s ({move['cycles']} cycles), "
-            f"final error {move['final_error']:.4f} rad"
+            f"moved to the start posture in {move['duration']:.2f} s ({move['cycles']} cycles{via}, the tool at least "
+            f"{1e3 * move['clearance']:.0f} mm in front of the surface), final error {move['final_error']:.4f} rad"
         )
     if robot:
         click.echo(

@@ -1,0 +1,39 @@
+"""Stop signals during ``impactqp run`` (``scenarios.run``): Ctrl-C, SIGTERM or SIGHUP brakes the
+running loop to a stop instead of ending the process, so the log is kept and the robot stops
+within its limits."""
+
+from __future__ import annotations
+
+import signal
+import threading
+
+from impactqp.controller.runtime.loop import ControlLoop
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+class StopSignals:
+    """While active (in the main thread only: signal handlers can be set nowhere else), Ctrl-C,
+    SIGTERM or SIGHUP asks the current ``loop`` to brake to a stop; a signal the parent set to be
+    ignored (``nohup``, a background job) stays ignored, as in the command line's ``main``."""
+
+    def __init__(self):
+        self.loop: ControlLoop | None = None
+        self.previous: dict = {}
+
+    def request_stop(self, *_) -> None:
+        if self.loop is not None:
+            self.loop.request_stop()
+
+    def __enter__(self) -> StopSignals:
+        if threading.current_thread() is threading.main_thread():
+            self.previous = {
+                sig: signal.signal(sig, self.request_stop)
+                for sig in STOP_SIGNALS
+                if signal.getsignal(sig) is not signal.SIG_IGN
+            }
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self.previous.items():
+            signal.signal(sig, handler)
