@@ -6,10 +6,13 @@ from __future__ import annotations
 
 import signal
 import threading
+from typing import TYPE_CHECKING
 
-from impactqp.controller.runtime.loop import ControlLoop
+if TYPE_CHECKING:  # light to import: the command line reads STOP_SIGNALS before anything heavy
+    from impactqp.controller.runtime.loop import ControlLoop
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+"""The signals that stop a command (the command line's ``main``) or brake a running loop."""
 
 
 class StopSignals:

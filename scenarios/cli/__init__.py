@@ -26,6 +26,7 @@ import signal
 import sys
 import traceback
 
+from impactqp.scenarios.stop_signals import STOP_SIGNALS
 from impactqp.scenarios.cli.exit_codes import (
     EXIT_BAD_INPUT,
     EXIT_INTERNAL_ERROR,
@@ -34,7 +35,6 @@ from impactqp.scenarios.cli.exit_codes import (
 
 __all__ = ["main"]
 
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 REDELIVERY_PERIOD = 0.05
 """s between re-raisings of a stop signal's KeyboardInterrupt until ``main`` catches it."""
 _interrupting = False  # a stop signal came and main has not caught its KeyboardInterrupt yet
