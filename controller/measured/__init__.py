@@ -20,6 +20,8 @@ _EXPORTS = {
     "ImpactMeasurement": "impact",
     "ImpactNotFoundError": "impact",
     "measure_impact": "impact",
+    "ObliqueImpact": "oblique_impact",
+    "measure_oblique_impact": "oblique_impact",
     "import_franka_logs": "franka_log",
 }
 _EXPORTS = {name: f"{__name__}.{module}" for name, module in _EXPORTS.items()}
