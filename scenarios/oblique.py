@@ -103,14 +103,19 @@ def grid_named(name: str) -> ObliqueGrid:
     return GRIDS[name]
 
 
+def fixed_base(choice: RobotChoice) -> RobotChoice:
+    """``choice``, whose robot must be a fixed-base arm (bad input otherwise)."""
+    if choice.robot.floating:
+        raise BadInputError(f"the oblique study runs a fixed-base arm, not the {choice.robot.name}")
+    return choice
+
+
 class ObliqueTrials:
     """Runs :class:`ObliqueTrial` trials of ``choice``'s arm: one scene per wall friction (built
     on first use), each trial measured and predicted as a JSON-ready row (:meth:`run`)."""
 
     def __init__(self, choice: RobotChoice):
-        if choice.robot.floating:
-            raise BadInputError(f"the oblique study runs a fixed-base arm, not the {choice.robot.name}")
-        self.choice, self.robot = choice, choice.model()
+        self.choice, self.robot = fixed_base(choice), choice.model()
         self.scenes: dict[float, Scene] = {}
 
     def scene(self, friction: float) -> Scene:
@@ -198,9 +203,7 @@ def _run_in_worker(trial: ObliqueTrial) -> dict:
 def run_oblique_study(choice: RobotChoice, grid: ObliqueGrid, jobs: int = 1) -> dict:
     """The study of ``choice``'s arm over ``grid`` on ``jobs`` processes: its JSON report
     (robot, tool, rules, rows in the order of the grid's trials, summary)."""
-    if choice.robot.floating:
-        raise BadInputError(f"the oblique study runs a fixed-base arm, not the {choice.robot.name}")
-    trials = grid.trials(choice)
+    trials = grid.trials(fixed_base(choice))
     with ProcessPool(jobs, _init_worker, (choice,)) as pool:
         rows = list(pool.map(_run_in_worker, trials))
     return {

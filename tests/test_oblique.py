@@ -204,3 +204,11 @@ def test_bad_input_of_the_command_is_one_line_and_exit_code_2(tmp_path, capsys, 
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
     assert not (tmp_path / "x").exists()
+
+
+def test_the_study_refuses_a_floating_base():
+    from impactqp.controller.model.validation import BadInputError
+    from impactqp.scenarios.oblique import run_oblique_study
+
+    with pytest.raises(BadInputError, match="fixed-base arm"):
+        run_oblique_study(RobotChoice.of("g1"), GRIDS["small"])
