@@ -1,7 +1,8 @@
 """The experiments: one closed-loop impact trial with the QP (``trial``), the campaign of every
 robot (``campaign``, its Table I ``campaign_table``, its figures ``campaign_figures``), the highest feasible contact speed
 (``max_speed_search``), ``impactqp run`` on a robot (``run``), the diagnosis report, the video, the
-G1's closed form checked against simulation (``stance_check``) and the feasibility maps (``sweep``); above them the command line (``cli``) and
+G1's closed form checked against simulation (``stance_check``), the frictional impact law against
+MuJoCo's wall (``oblique``) and the feasibility maps (``sweep``); above them the command line (``cli``) and
 the benchmarks (``bench``).
 
 Its names are exported lazily (PEP 562): the command line imports this file first and must stay
@@ -26,6 +27,7 @@ _EXPORTS = {
     "run_stance_trials": "campaign",
     "search_stance": "max_speed_search",
     "check_against_simulation": "stance_check",
+    "run_oblique_study": "oblique",
 }
 _EXPORTS = {name: f"{__name__}.{module}" for name, module in _EXPORTS.items()}
 

@@ -9,7 +9,7 @@ from conftest import JOINTS
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
 from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.prediction import FRICTIONAL_METHODS, ImpactQuery, predict_all
+from impactqp.controller.model.prediction import FRICTIONAL_METHODS, ImpactQuery, inverse_inertia, predict_all
 
 
 def test_query_builds_the_pre_impact_velocity():
@@ -83,3 +83,18 @@ def test_a_frictional_prediction_is_the_predictors_map_of_the_frictional_impulse
     plain = predict_all(ImpactQuery.from_speed(p.q, n, 0.12, None, restitution), ("crb", "gm"), robot)
     for name in ("crb", "gm"):
         np.testing.assert_allclose(frictionless["methods"][name]["dq_jump"], plain["methods"][name]["dq_jump"], rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("method", FRICTIONAL_METHODS)
+def test_inverse_inertia_is_the_predictors_own_or_the_classical_j_minv_jt(method):
+    """The classical law's W is J M^-1 J^T; CRB's and GM's are their maps' own W; every W is an
+    inverse inertia (symmetric positive definite)."""
+    robot = PandaModel()
+    terms = robot.terms(PANDA.postures["elbow_up"].q)
+    normal = np.array([-1.0, 0.0, 0.0])
+    W = inverse_inertia(method, terms, normal)
+    own = JUMP_MODELS[method].maps(terms, normal, 0.0).W
+    expected = terms.J @ np.linalg.solve(terms.M, terms.J.T) if own is None else own
+    np.testing.assert_allclose(W, expected, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(W, W.T, atol=1e-10)
+    assert np.all(np.linalg.eigvalsh(0.5 * (W + W.T)) > 0.0)

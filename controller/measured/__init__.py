@@ -1,5 +1,5 @@
-"""Measured impact data: the dataset format, its reader and validator, the impact detection and
-the jump extraction. Beside the ground; importing it never imports MuJoCo.
+"""Measured impact data: the dataset format, its reader and validator, the impact detection,
+the jump extraction and an oblique impact's impulse, tangential velocity and mode. Beside the ground; importing it never imports MuJoCo.
 
 Its names are exported lazily (PEP 562), as the ground's: importing one module loads only its
 own imports."""
@@ -20,6 +20,8 @@ _EXPORTS = {
     "ImpactMeasurement": "impact",
     "ImpactNotFoundError": "impact",
     "measure_impact": "impact",
+    "ObliqueImpact": "oblique_impact",
+    "measure_oblique_impact": "oblique_impact",
     "import_franka_logs": "franka_log",
 }
 _EXPORTS = {name: f"{__name__}.{module}" for name, module in _EXPORTS.items()}

@@ -30,6 +30,14 @@ from .validation import unit_normal
 FRICTIONAL_METHODS = tuple(m for m in METHODS if m != "classical_normal")
 """The predictors a frictional impact serves (module docstring)."""
 
+
+def inverse_inertia(method: str, terms, normal: np.ndarray, restitution: float = 0.0) -> np.ndarray:
+    """The predictor ``method``'s inverse inertia W at the contact (3 x 3): its own (CRB, GM),
+    the classical's W_gm = J M^-1 J^T (module docstring)."""
+    W = JUMP_MODELS[method].maps(terms, normal, restitution).W
+    return gm_inverse_inertia(terms) if W is None else W
+
+
 @lru_cache(maxsize=1)
 def default_robot() -> PandaModel:
     return PandaModel()
@@ -82,8 +90,7 @@ def predict_all(query: ImpactQuery, methods=METHODS, robot: PandaModel | None = 
         model = JUMP_MODELS[name]
         impact = None
         if query.friction is not None:
-            W = model.maps(terms, query.normal, query.restitution).W
-            W = gm_inverse_inertia(terms) if W is None else W
+            W = inverse_inertia(name, terms, query.normal, query.restitution)
             impact = frictional_impulse(W, query.normal, query.pre_impact_velocity, query.friction,
                                         query.restitution, query.restitution_model)
         pred = model.predict(terms, query.normal, query.pre_impact_velocity, query.restitution,

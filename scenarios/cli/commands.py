@@ -274,5 +274,7 @@ from impactqp.scenarios.cli.run_command import run_command  # noqa: E402
 cli.add_command(run_command)
 
 from impactqp.scenarios.cli.sweep_command import sweep  # noqa: E402
+from impactqp.scenarios.cli.oblique_command import oblique  # noqa: E402
 
 cli.add_command(sweep)
+cli.add_command(oblique)

@@ -1,0 +1,245 @@
+"""The frictional impact law against MuJoCo's simulated wall: oblique impacts of a fixed-base arm
+(``impactqp oblique``, ``docs/frictional-impacts.md``, "Against MuJoCo").
+
+Trials (:class:`ObliqueGrid`): the grid v_t / v_n in {0, 0.25, 0.5, 0.75, 1} x mu in {0.1, 0.3,
+0.6} x the robot's first two named postures at v_n = 0.12 m/s, plus the paper's conditions (v_n =
+0.12 m/s, v_t = 0.03 .. 0.12 m/s on the first posture, at the default wall's mu = 0.1123). The
+tangential velocity lies along the surface tangent t = normalise(n x e_z) of ``sim.generation``.
+Each trial: the plain Cartesian approach (``sim.trial_sources.CartesianApproach``: no QP, the
+tool hits at the commanded velocity) on the scene whose wall has the trial's mu (the Surface's
+``friction``: MuJoCo's tool/wall pair, elliptic cone, condim 3), started 2 cm before the wall at
+the commanded velocity.
+
+Measured (``controller.measured.oblique_impact``): the impulse of the contact's compression and
+restitution, its tangential part p_t, the post-impact tangential contact velocity v_t+ and the
+simulated mode. Predicted, for CRB, GM and the classical law: ``frictional_impulse(W, n, v-, mu,
+e = 0)`` with the predictor's inverse inertia W (``controller.model.prediction.inverse_inertia``)
+at the pre-impact state (q-, dq-), v- = J(q-) dq-: p_t, v_t+ and the mode.
+
+A predicted v_t+ **agrees** when |v_t+ predicted - v_t+ simulated| <= max(20 % |v_t+ simulated|,
+0.01 m/s); a predicted mode agrees when it is the simulated one. The law's mode says what the
+contact did during the impact (slip: never stopped, even if its direction turned); the simulated
+mode is read from v_t- and v_t+ alone (``oblique_impact.simulated_mode``). So each predictor's
+v_t+ is also classified by the simulation's own rule (its ``velocity_mode``). The summary gives,
+per predictor and series (grid, paper, all), the share (%) of trials whose mode agrees, whose
+v_t+ agrees and whose ``velocity_mode`` agrees.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from impactqp.controller.measured.oblique_impact import measure_oblique_impact, simulated_mode, tangential_part
+from impactqp.controller.model.choice import RobotChoice
+from impactqp.controller.model.frictional_impact import frictional_impulse
+from impactqp.controller.model.postures import DEFAULT_WALL, Surface
+from impactqp.controller.model.prediction import FRICTIONAL_METHODS, inverse_inertia
+from impactqp.controller.model.validation import BadInputError
+from impactqp.sim.generation import tangential_direction
+from impactqp.sim.process_pool import ProcessPool
+from impactqp.sim.runner import TrialSpec, run_approach
+from impactqp.sim.scene import Scene, build_scene
+from impactqp.sim.trial_sources import CARTESIAN
+
+from .campaign import PAPER_TANGENTIAL_SPEEDS, TANGENTIAL_NORMAL_SPEED
+
+NORMAL_SPEED = TANGENTIAL_NORMAL_SPEED
+"""m/s: every trial's commanded normal speed (the paper's tangential series')."""
+VELOCITY_SHARE = 0.2
+VELOCITY_FLOOR = 0.01
+"""m/s: a predicted v_t+ agrees within max(VELOCITY_SHARE |v_t+ simulated|, VELOCITY_FLOOR)."""
+RESTITUTION = 0.0
+"""The predictions' restitution e (energetic): MuJoCo's contact pair is critically damped."""
+POSTURES = 2
+"""The grid's postures: the robot's first named ones."""
+SERIES = ("grid", "paper")
+
+
+@dataclass(frozen=True)
+class ObliqueTrial:
+    """One trial: its ``series`` ("grid" or "paper"), posture, commanded normal speed v_n and
+    tangential speed v_t (m/s, along the surface tangent) and the wall's friction mu."""
+
+    series: str
+    posture: str
+    normal_speed: float
+    tangential_speed: float
+    friction: float
+
+
+@dataclass(frozen=True)
+class ObliqueGrid:
+    """The trials of a study (module docstring): tangential-to-normal speed ratios x frictions x
+    the robot's first ``postures`` named postures, plus the paper's tangential speeds (m/s) on
+    the first posture at the default wall's friction."""
+
+    ratios: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)
+    frictions: tuple[float, ...] = (0.1, 0.3, 0.6)
+    postures: int = POSTURES
+    paper_speeds: tuple[float, ...] = PAPER_TANGENTIAL_SPEEDS
+
+    def trials(self, choice: RobotChoice) -> list[ObliqueTrial]:
+        names = tuple(choice.robot.postures)[: self.postures]
+        grid = [
+            ObliqueTrial("grid", name, NORMAL_SPEED, ratio * NORMAL_SPEED, mu)
+            for name in names for mu in self.frictions for ratio in self.ratios
+        ]
+        paper = [ObliqueTrial("paper", names[0], NORMAL_SPEED, v_t, DEFAULT_WALL.friction) for v_t in self.paper_speeds]
+        return grid + paper
+
+
+GRIDS = {
+    "full": ObliqueGrid(),
+    "small": ObliqueGrid(ratios=(0.0, 1.0), frictions=(0.3,), postures=1, paper_speeds=(0.06,)),
+}
+"""The named grids of ``impactqp oblique --grid``: the study's, and a small one for a quick run."""
+
+
+def grid_named(name: str) -> ObliqueGrid:
+    if name not in GRIDS:
+        raise BadInputError(f"unknown grid {name!r}; choose from {', '.join(GRIDS)}")
+    return GRIDS[name]
+
+
+def fixed_base(choice: RobotChoice) -> RobotChoice:
+    """``choice``, whose robot must be a fixed-base arm (bad input otherwise)."""
+    if choice.robot.floating:
+        raise BadInputError(f"the oblique study runs a fixed-base arm, not the {choice.robot.name}")
+    return choice
+
+
+class ObliqueTrials:
+    """Runs :class:`ObliqueTrial` trials of ``choice``'s arm: one scene per wall friction (built
+    on first use), each trial measured and predicted as a JSON-ready row (:meth:`run`)."""
+
+    def __init__(self, choice: RobotChoice):
+        self.choice, self.robot = fixed_base(choice), choice.model()
+        self.scenes: dict[float, Scene] = {}
+
+    def scene(self, friction: float) -> Scene:
+        if friction not in self.scenes:
+            surface = Surface(DEFAULT_WALL.point, DEFAULT_WALL.normal, friction)
+            self.scenes[friction] = build_scene(surface, robot=self.choice.robot, tool=self.choice.tool)
+        return self.scenes[friction]
+
+    def run(self, trial: ObliqueTrial) -> dict:
+        """The trial's row: its settings, the simulated impact and each predictor's."""
+        scene, normal = self.scene(trial.friction), DEFAULT_WALL.normal
+        tangential = trial.tangential_speed * tangential_direction(normal)
+        spec = TrialSpec(trial.posture, self.choice.posture(trial.posture).q, trial.normal_speed, tangential)
+        measured = measure_oblique_impact(run_approach(scene, self.robot, spec, CARTESIAN).log, self.robot, normal)
+        step = scene.timestep
+        simulated = {
+            "contact_speed": float(-normal @ measured.pre_velocity),
+            "pre_tangential": measured.pre_tangential.tolist(), "normal_impulse": measured.normal_impulse,
+            "tangential_impulse": measured.tangential_impulse.tolist(),
+            "post_tangential": measured.post_tangential.tolist(),
+            "post_normal_speed": float(normal @ measured.post_velocity), "mode": measured.mode,
+            "end_rule": measured.end_rule, "window": (measured.end + 1 - measured.start) * step,
+        }
+        terms = self.robot.terms(measured.q_pre, measured.dq_pre, check_limits=False)
+        predicted = {}
+        for method in FRICTIONAL_METHODS:
+            W = inverse_inertia(method, terms, normal, RESTITUTION)
+            impact = frictional_impulse(W, normal, measured.pre_velocity, trial.friction, RESTITUTION)
+            post = tangential_part(impact.post_velocity, normal)
+            predicted[method] = {
+                "normal_impulse": float(normal @ impact.impulse),
+                "tangential_impulse": tangential_part(impact.impulse, normal).tolist(),
+                "post_tangential": post.tolist(), "mode": impact.mode, "mu_bar": impact.mu_bar,
+                "mode_agrees": impact.mode == measured.mode,
+                "velocity_mode": simulated_mode(measured.pre_tangential, post),
+                "velocity_agrees": velocity_agrees(post, measured.post_tangential),
+            }
+        return {
+            "series": trial.series, "posture": trial.posture, "normal_speed": trial.normal_speed,
+            "tangential_speed": trial.tangential_speed, "friction": trial.friction,
+            "simulated": simulated, "predicted": predicted,
+        }
+
+
+def velocity_agrees(predicted: np.ndarray, simulated: np.ndarray) -> bool:
+    """|predicted - simulated| <= max(VELOCITY_SHARE |simulated|, VELOCITY_FLOOR) (module docstring)."""
+    bound = max(VELOCITY_SHARE * float(np.linalg.norm(simulated)), VELOCITY_FLOOR)
+    return bool(np.linalg.norm(np.asarray(predicted) - np.asarray(simulated)) <= bound)
+
+
+def summary(rows: list[dict]) -> dict:
+    """Per series (and "all") and predictor: trials, the share (%) whose mode agrees, whose v_t+
+    agrees and whose v_t+ classified by the simulation's rule agrees (module docstring)."""
+    result = {}
+    for series in (*SERIES, "all"):
+        chosen = [r for r in rows if series in ("all", r["series"])]
+        if not chosen:
+            continue
+        result[series] = {
+            method: {
+                "trials": len(chosen),
+                "mode_agreement": 100.0 * np.mean([r["predicted"][method]["mode_agrees"] for r in chosen]),
+                "velocity_agreement": 100.0 * np.mean([r["predicted"][method]["velocity_agrees"] for r in chosen]),
+                "velocity_mode_agreement": 100.0 * np.mean(
+                    [r["predicted"][method]["velocity_mode"] == r["simulated"]["mode"] for r in chosen]),
+            }
+            for method in FRICTIONAL_METHODS
+        }
+    return result
+
+
+# ---------------------------------------------------------------------------- processes
+_WORKER: ObliqueTrials | None = None
+
+
+def _init_worker(choice: RobotChoice) -> None:
+    global _WORKER
+    _WORKER = ObliqueTrials(choice)
+
+
+def _run_in_worker(trial: ObliqueTrial) -> dict:
+    return _WORKER.run(trial)
+
+
+def run_oblique_study(choice: RobotChoice, grid: ObliqueGrid, jobs: int = 1) -> dict:
+    """The study of ``choice``'s arm over ``grid`` on ``jobs`` processes: its JSON report
+    (robot, tool, rules, rows in the order of the grid's trials, summary)."""
+    trials = grid.trials(fixed_base(choice))
+    with ProcessPool(jobs, _init_worker, (choice,)) as pool:
+        rows = list(pool.map(_run_in_worker, trials))
+    return {
+        "robot": choice.robot.name, "tool": choice.tool.name, "normal": DEFAULT_WALL.normal.tolist(),
+        "restitution": RESTITUTION, "velocity_share": VELOCITY_SHARE, "velocity_floor": VELOCITY_FLOOR,
+        "rows": rows, "summary": summary(rows),
+    }
+
+
+def markdown(report: dict) -> str:
+    """The report as Markdown: the summary, then one line per trial (speeds in mm/s, impulses in
+    mN s, |p_t| / p_n the tangential impulse's share of the normal one)."""
+    lines = [f"# Oblique impacts: the {report['robot']} against MuJoCo", "",
+             "| series | predictor | trials | mode agrees | v_t+ agrees | mode of v_t+ agrees |", "|---|---|---|---|---|---|"]
+    for series, methods in report["summary"].items():
+        for method, s in methods.items():
+            lines.append(f"| {series} | {method} | {s['trials']} | {s['mode_agreement']:.0f} % "
+                         f"| {s['velocity_agreement']:.0f} % | {s['velocity_mode_agreement']:.0f} % |")
+    methods = list(FRICTIONAL_METHODS)
+    lines += ["", "| series | posture | mu | v_t | sim mode | sim \\|p_t\\|/p_n | sim \\|v_t+\\| | "
+              + " | ".join(f"{m} mode | {m} \\|p_t\\|/p_n | {m} \\|v_t+\\|" for m in methods) + " |",
+              "|" + "---|" * (7 + 3 * len(methods))]
+    for row in report["rows"]:
+        sim = row["simulated"]
+        cells = [row["series"], row["posture"], f"{row['friction']:g}", f"{1e3 * row['tangential_speed']:.0f}",
+                 sim["mode"], _share(sim), _speed(sim)]
+        for m in methods:
+            p = row["predicted"][m]
+            cells += [p["mode"], _share(p), _speed(p)]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _share(entry: dict) -> str:
+    return f"{np.linalg.norm(entry['tangential_impulse']) / entry['normal_impulse']:.3f}"
+
+
+def _speed(entry: dict) -> str:
+    return f"{1e3 * np.linalg.norm(entry['post_tangential']):.1f}"
