@@ -3,6 +3,7 @@ simulation (dataset format: ``sim/dataset.py`` and the README)."""
 
 from __future__ import annotations
 
+import logging
 import sys
 
 import click
@@ -19,7 +20,9 @@ from impactqp.scenarios.cli.arguments import (
     parse_vector,
     robot_options,
 )
+from impactqp.scenarios.cli.stderr_log import LOGGER, show_progress
 
+log = logging.getLogger(__name__)
 
 
 @click.group()
@@ -41,11 +44,12 @@ def validate_command(ctx, directory, as_json):
     from impactqp.controller.measured.dataset_check import validate
 
     input_directory(directory, "DIRECTORY")
+    show = show_progress()
     bars = []  # on stderr, on a terminal only
 
     def progress(done: int, total: int) -> None:
         if not bars:
-            bars.append(tqdm(total=total, disable=None, desc="trials", unit="trial", file=sys.stderr))
+            bars.append(tqdm(total=total, disable=None if show else True, desc="trials", unit="trial", file=sys.stderr))
         bars[0].update(done - bars[0].n)
 
     try:
@@ -101,7 +105,7 @@ def generate_command(out, postures, speeds, tangential, as_json, choice, **noise
 
     def progress(done: int, total: int) -> None:
         if not bars:
-            bars.append(tqdm(total=total, disable=True if as_json else None, desc="trials", unit="trial"))
+            bars.append(tqdm(total=total, disable=None if show_progress(as_json) else True, desc="trials", unit="trial"))
         bars[0].update(done - bars[0].n)
 
     try:
@@ -175,7 +179,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     if save_plant:
         output_file(save_plant, "--save-plant", inputs=(directory, plant_file))
     nominal = load_plant(plant_file) or PlantParameters()
-    result = _diagnose_with_progress(directory, nominal, jobs, show=not as_json)
+    result = _diagnose_with_progress(directory, nominal, jobs, show=show_progress(as_json))
     summary = result.summary()
     speeds = None
     if max_speed:
@@ -188,7 +192,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
 
         replace(nominal.for_joints(len(result.choice.robot.joints)), **summary["parameters"]).to_json(save_plant)
     elif save_plant:
-        click.echo(f"--save-plant: nothing written to {save_plant}: no cause is named, the nominal plant stands", err=True)
+        log.info("--save-plant: nothing written to %s: no cause is named, the nominal plant stands", save_plant)
     if report_dir:
         from impactqp.scenarios.diagnosis_report import write_report
 
@@ -203,9 +207,12 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
 
 def _diagnose_with_progress(directory, nominal, jobs: int, show: bool):
     """The diagnosis of ``directory``, its steps on a progress bar (stderr, when it is a terminal
-    and ``show``); the bar is wiped when an error ends the command, whose message is one line."""
+    and ``show``) above its notes (the stages, each model set of the search, each profile: the
+    log's lines, written around the bar); the bar is wiped when an error ends the command, whose
+    message is one line."""
     # lazy: the command line loads what a command needs when it runs
     from tqdm import tqdm
+    from tqdm.contrib.logging import logging_redirect_tqdm
 
     from impactqp.sim.diagnosis import diagnose as run_diagnosis
     from impactqp.sim.diagnosis.pipeline import STEPS
@@ -217,7 +224,8 @@ def _diagnose_with_progress(directory, nominal, jobs: int, show: bool):
         bar.update(STEPS.index(step) - bar.n)
 
     try:
-        result = run_diagnosis(directory, nominal=nominal, jobs=jobs, progress=progress)
+        with logging_redirect_tqdm([logging.getLogger(LOGGER)]):
+            result = run_diagnosis(directory, nominal=nominal, jobs=jobs, progress=progress)
         bar.update(bar.total - bar.n)
     except BaseException:
         bar.leave = False

@@ -40,6 +40,7 @@ from impactqp.scenarios.cli.arguments import (
     robot_options,
     stance_names,
 )
+from impactqp.scenarios.cli.stderr_log import show_progress
 
 SIMULATE_START_DISTANCE = 0.05
 
@@ -263,7 +264,7 @@ def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_
     plan = CampaignPlan(postures, speeds, tangential)
     trials = CampaignTrials(choice, DEFAULT_WALL, load_plant(plant_file))
     output_directory(out_dir, "--out")
-    table = Campaign(plan, trials, jobs=check_jobs(jobs), progress=not as_json).run(out_dir)
+    table = Campaign(plan, trials, jobs=check_jobs(jobs), progress=show_progress(as_json)).run(out_dir)
     if as_json:
         emit_json(table.to_json())
         return

@@ -9,6 +9,7 @@ import click
 
 from impactqp.controller.model.validation import BadInputError
 from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, output_directory, robot_options
+from impactqp.scenarios.cli.stderr_log import show_progress
 
 
 @click.command()
@@ -45,7 +46,7 @@ def sweep(config_path, example, as_json, choice, **run):
         raise BadInputError("--plant sets the plant of the simulated cells: add --simulate")
     simulation = Simulation(load_plant(plant_file)) if simulate else None
     summary = run_sweep(
-        config, out, jobs=run["jobs"], backend=run["backend"], resume=run["resume"], progress=not as_json,
+        config, out, jobs=run["jobs"], backend=run["backend"], resume=run["resume"], progress=show_progress(as_json),
         simulation=simulation,
     )
     if as_json:
