@@ -520,3 +520,29 @@ def test_bad_input_stays_one_line_at_every_level_and_the_log_is_removed_after(ca
     assert all(line.startswith("impactqp: debug: ") for line in err.strip().splitlines()[:-1])
     assert (list(logger.handlers), logger.level) == before
 
+
+def _commands(group, path=()):
+    """(name path, click command) of every command of the group, its subgroups' included."""
+    import click
+
+    for name, command in group.commands.items():
+        if isinstance(command, click.Group):
+            yield from _commands(command, (*path, name))
+        else:
+            yield (*path, name), command
+
+
+def test_every_default_output_folder_is_out_slash_the_command():
+    """One convention: a command that writes a folder by default writes ``out/<command>`` under
+    the current directory (read from the click parameters: --out, --log, an OUT argument)."""
+    from impactqp.scenarios.cli.commands import cli
+
+    defaults = {
+        path: str(param.default)
+        for path, command in _commands(cli)
+        for param in command.params
+        if param.name in ("out", "out_dir", "log") and isinstance(param.default, (str, Path))
+    }
+    assert set(defaults) == {("demo",), ("run",), ("campaign",), ("sweep",), ("dataset", "generate")}
+    for path, default in defaults.items():
+        assert default == f"out/{path[-1]}", (path, default)

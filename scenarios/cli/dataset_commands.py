@@ -73,7 +73,7 @@ def validate_command(ctx, directory, as_json):
 
 
 @dataset.command("generate")
-@click.argument("out", type=click.Path(file_okay=False))
+@click.argument("out", required=False, default="out/generate", type=click.Path(file_okay=False))
 @click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Plant: a JSON file of overrides or a built-in name (identified_panda).")
 @click.option("--postures", help="Comma-separated posture names (default: all).")
 @click.option("--speeds", help="Comma-separated normal speeds, m/s (default 0.08,0.10,0.12,0.15,0.18).")
@@ -89,7 +89,8 @@ def validate_command(ctx, directory, as_json):
 @robot_options
 def generate_command(out, postures, speeds, tangential, as_json, choice, **noise):
     """Simulate a dataset of the robot with the tool (plant overrides with --plant) in the
-    measured-data format; the manifest records the robot and the tool."""
+    measured-data format, in OUT (default out/generate); the manifest records the robot and the
+    tool."""
     from tqdm import tqdm  # lazy: the command line loads what a command needs when it runs
 
     from impactqp.sim.generation import DatasetRequest, generate_dataset

@@ -247,12 +247,13 @@ def campaign_speeds(speeds_text, tangential_text, floating: bool) -> tuple[tuple
 )
 @plant_option
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
-@click.option("--out", "out_dir", default="impactqp-campaign", show_default=True, help="Output directory.")
+@click.option("--out", "out_dir", default="out/campaign", show_default=True, help="Output directory.")
 @click.option("--json", "as_json", is_flag=True, help="Print Table I as JSON (no progress bar).")
 @robot_options(humanoid=True)
 def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, as_json, choice):
-    """The paper's campaign in simulation: dataset, Table I and figures in --out (with --robot
-    g1: stances x speeds of the standing G1, its dataset, table1.json and table1.md in --out)."""
+    """The paper's campaign in simulation: dataset, Table I (table1.json, table1.md) and figures
+    in --out (with --robot g1: stances x speeds of the standing G1, its dataset and Table I, no
+    figures)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.campaign import Campaign, CampaignPlan, CampaignTrials, check_postures
 

@@ -17,7 +17,7 @@ from impactqp.scenarios.cli.stderr_log import show_progress
 @click.option("--backend", type=click.Choice(["local", "ray"]), default="local", show_default=True,
               help="local: a process pool; ray: the cluster at RAY_ADDRESS, else a local Ray.")
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
-@click.option("--out", type=click.Path(path_type=Path), default=Path("sweep-out"), show_default=True)
+@click.option("--out", type=click.Path(path_type=Path), default=Path("out/sweep"), show_default=True)
 @click.option("--resume", is_flag=True, help="Skip the chunks already in --out (same config, --simulate, --plant).")
 @click.option("--simulate", is_flag=True,
               help="Also search each cell's simulated highest feasible speed (the bisection of max-speed).")
