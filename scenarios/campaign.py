@@ -19,7 +19,8 @@ each kind on one y scale for all postures; for the tangential series, the averag
 every predictor against v_t (Fig. 12).
 
 Output directory: the dataset (``controller.measured.dataset``: ``dataset.json`` and one CSV pair per trial),
-``table1.json``, ``table1.txt`` and the figures; every file written atomically.
+Table I's ``table1.json`` and ``table1.md`` (``scenarios.campaign_table.TABLE_FILES``, for every
+robot) and the figures; every file written atomically.
 
 One :class:`Campaign` runs every robot: it is given the robot's trials (:class:`CampaignTrials`,
 parametrised by the robot's description: its named postures, or with held contacts its stances;
@@ -30,8 +31,8 @@ figures).
 A floating base's campaign: its stances x hand speeds of ``sim.runner.run_impact_trial`` (also
 :func:`run_stance_trials`, with the plant's gain and armature), no tangential series. For each trial and predictor (classical, gm,
 crb, each fed its own impulse; ``momentum``: the feet-held momentum law fed the measured impulse)
-the average error (26) over the joints; its Table I (``table1.json`` and the Markdown
-``table1.md``, without figures) gives per stance and speed the measured contact speed, the
+the average error (26) over the joints; its Table I (``table1.json`` and ``table1.md``,
+without figures) gives per stance and speed the measured contact speed, the
 impulse, the CoM velocity jump, the foot slip and lift, whether the robot fell, and the errors.
 """
 

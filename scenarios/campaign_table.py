@@ -6,13 +6,15 @@ last row averages every trial.
 
 What a robot's table shows is data chosen by its description (:class:`TableLayout`): a fixed-base
 arm's (:data:`ARM_TABLE`) the setting v_n, v_t, v_c and every predictor of
-``controller.model.jump`` in aligned text (``table1.txt``), with its figures
-(``scenarios.campaign_figures``); a robot with held contacts' (:func:`held_contact_table`) the
-measured contact speed, the normal impulse, the CoM velocity jump, the foot slip and lift, whether
-the robot fell, and the held-contact predictors with the feet-held momentum law (``momentum``, fed
-the measured impulse) in a Markdown table (``table1.md``), no figures; its JSON names the robot,
-numbers its rows and carries each trial's own report (``sim.trial_result.TrialResult.to_json``,
-but its predictions).
+``controller.model.jump`` in aligned text, with its figures (``scenarios.campaign_figures``); a
+robot with held contacts' (:func:`held_contact_table`) the measured contact speed, the normal
+impulse, the CoM velocity jump, the foot slip and lift, whether the robot fell, and the
+held-contact predictors with the feet-held momentum law (``momentum``, fed the measured impulse)
+in a Markdown table, no figures; its JSON names the robot, numbers its rows and carries each
+trial's own report (``sim.trial_result.TrialResult.to_json``, but its predictions).
+
+Every robot's table is written as the same two files (:data:`TABLE_FILES`): ``table1.json`` and
+the Markdown ``table1.md`` (an arm's aligned text inside it as a fenced ``text`` block).
 """
 
 from __future__ import annotations
@@ -33,6 +35,8 @@ from .campaign_figures import CampaignFigures
 
 HELD_CONTACT_PREDICTORS = (*HELD_CONTACT_METHODS, "momentum")
 """The predictors a robot with held contacts' table shows: its methods and the momentum law."""
+TABLE_FILES = ("table1.json", "table1.md")
+"""The files of every robot's Table I: its JSON and its Markdown."""
 UNREPORTED = ("predicted", "predicted_com_jump", "robot")
 """The keys of a trial's report that its row of Table I's JSON leaves out."""
 
@@ -111,15 +115,15 @@ class Column:
 @dataclass(frozen=True)
 class TableLayout:
     """What a robot's Table I shows (module docstring): the setting ``columns`` of its text, the
-    predictors its JSON averages (``methods``) and its text shows (``shown``), its text file
-    (``table1.txt``: aligned text, or ``table1.md``: Markdown), whether it has figures; a table of
-    a named ``robot`` (None: an arm's) names it in its JSON, numbers its rows and carries each
-    trial's report."""
+    predictors its JSON averages (``methods``) and its text shows (``shown``), whether its text is
+    a Markdown table (``markdown``; else aligned text), whether it has figures; a table of a named
+    ``robot`` (None: an arm's) names it in its JSON, numbers its rows and carries each trial's
+    report."""
 
     columns: tuple[Column, ...]
     methods: tuple[str, ...]
     shown: tuple[str, ...]
-    text_file: str
+    markdown: bool
     figures: bool
     robot: str | None = None
 
@@ -131,7 +135,7 @@ ARM_TABLE = TableLayout(
         Column("v_t", lambda r: r.tangential_speed, ".3f", 6),
         Column("v_c", lambda r: r.contact_speed, ".4f", 8),
     ),
-    methods=METHODS, shown=METHODS, text_file="table1.txt", figures=True,
+    methods=METHODS, shown=METHODS, markdown=False, figures=True,
 )
 """A fixed-base arm's Table I (module docstring)."""
 
@@ -150,7 +154,7 @@ HELD_CONTACT_COLUMNS = (
 def held_contact_table(robot: str) -> TableLayout:
     """The Table I of the robot with held contacts named ``robot`` (module docstring; the wall's
     normal is -x: the normal impulse is -iota_x)."""
-    return TableLayout(HELD_CONTACT_COLUMNS, HELD_CONTACT_METHODS, HELD_CONTACT_PREDICTORS, "table1.md", False, robot)
+    return TableLayout(HELD_CONTACT_COLUMNS, HELD_CONTACT_METHODS, HELD_CONTACT_PREDICTORS, True, False, robot)
 
 
 def table_layout(robot: RobotDescription) -> TableLayout:
@@ -193,17 +197,18 @@ class Table1:
         }
 
     def files(self) -> dict[str, str]:
-        """The table's files by name: its JSON and its text."""
-        return {"table1.json": json.dumps(self.to_json(), indent=2, allow_nan=False) + "\n",
-                self.layout.text_file: self.text() + "\n"}
+        """The table's files by name (:data:`TABLE_FILES`): its JSON and its Markdown (the text;
+        aligned text as a fenced block)."""
+        text = self.text() if self.layout.markdown else f"```text\n{self.text()}\n```"
+        return dict(zip(TABLE_FILES, (json.dumps(self.to_json(), indent=2, allow_nan=False) + "\n", text + "\n")))
 
     def write_figures(self, out: Path) -> list[Path]:
         """The figures (``scenarios.campaign_figures``) of a layout with figures, else none."""
         return CampaignFigures(self).write(out) if self.figures else []
 
     def text(self) -> str:
-        """The table as text: Markdown for a ``.md`` text file, else aligned (errors in rad/s)."""
-        return self._markdown() if self.layout.text_file.endswith(".md") else self._aligned()
+        """The table as text: a Markdown table or aligned text, as its layout says (errors in rad/s)."""
+        return self._markdown() if self.layout.markdown else self._aligned()
 
     def _aligned(self) -> str:
         columns, shown = self.layout.columns, self.layout.shown

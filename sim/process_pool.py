@@ -85,9 +85,17 @@ class ProcessPool:
         return map(function, tasks)
 
 
-def map_in_processes(function: Callable[[Any], Any], tasks: Iterable, jobs: int) -> list:
+def map_in_processes(
+    function: Callable[[Any], Any], tasks: Iterable, jobs: int, progress: Callable[[int, int], None] | None = None
+) -> list:
     """``[function(task) for task in tasks]`` on at most ``jobs`` worker processes (no more
-    than there are tasks; a single task or ``jobs == 1`` runs in this process)."""
+    than there are tasks; a single task or ``jobs == 1`` runs in this process);
+    ``progress(done, total)`` is called as each result arrives, in the order of the tasks."""
     tasks = list(tasks)
+    results = []
     with ProcessPool(min(jobs, max(len(tasks), 1))) as pool:
-        return list(pool.map(function, tasks))
+        for result in pool.map(function, tasks):
+            results.append(result)
+            if progress is not None:
+                progress(len(results), len(tasks))
+    return results

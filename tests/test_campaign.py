@@ -98,8 +98,9 @@ def test_table1_is_eq26_against_the_jumps_in_the_dataset(campaign_dir):
             predicted = JUMP_MODELS[name].predict(terms, DEFAULT_WALL.normal, v, 0.0).dq_jump
             expected = np.mean(np.abs(predicted - impact.dq_jump))
             assert entry["average_error"][name] == pytest.approx(expected, rel=1e-4, abs=1e-6)
-    text = (campaign_dir / "table1.txt").read_text()
-    assert "crb vs classical" in text and "all trials" in text
+    text = (campaign_dir / "table1.md").read_text()
+    assert text.startswith("```text\nTable I") and "crb vs classical" in text and "all trials" in text
+    assert not (campaign_dir / "table1.txt").exists()
 
 
 def test_figures_are_png(campaign_dir):

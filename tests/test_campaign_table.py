@@ -42,9 +42,9 @@ def test_crb_reduction_sign():
 
 def test_a_robots_layout_is_its_descriptions():
     """An arm's table is aligned text with figures, a robot with held contacts' Markdown naming it."""
-    assert table_layout(PANDA) is ARM_TABLE and ARM_TABLE.figures and ARM_TABLE.text_file == "table1.txt"
+    assert table_layout(PANDA) is ARM_TABLE and ARM_TABLE.figures and not ARM_TABLE.markdown
     g1 = table_layout(ROBOTS["g1"])
-    assert g1 == held_contact_table("g1") and not g1.figures and g1.text_file == "table1.md" and g1.robot == "g1"
+    assert g1 == held_contact_table("g1") and not g1.figures and g1.markdown and g1.robot == "g1"
     assert g1.methods == HELD_CONTACT_METHODS and g1.shown == (*HELD_CONTACT_METHODS, "momentum")
 
 
@@ -53,7 +53,8 @@ def test_an_arms_text_has_a_line_per_trial_and_the_mean():
     lines = table.text().splitlines()
     assert len(lines) == 2 + 2 + 1 and lines[-1].startswith("all trials")
     assert lines[-1].endswith(f"{table.mean_crb_reduction():.1f} %")
-    assert set(table.files()) == {"table1.json", "table1.txt"}
+    assert list(table.files()) == ["table1.json", "table1.md"]
+    assert table.files()["table1.md"] == f"```text\n{table.text()}\n```\n"  # the aligned text, fenced
     data = json.loads(table.files()["table1.json"])
     assert "robot" not in data and [r["trial"] for r in data["rows"]] == ["t", "t"]
     assert data["methods"] == list(METHODS)
@@ -103,4 +104,5 @@ def test_the_table_json_rows_are_the_trials(trials, table):
         assert row_["crb_reduction_percent"] == pytest.approx(reduction)
         assert row_["foot_slip"] == trial.held.foot_slip and "predicted" not in row_
     assert set(data["mean_average_error"]) == set(HELD_CONTACT_METHODS)
+    assert list(table.files()) == ["table1.json", "table1.md"]  # the arm's two names
     assert table.files()["table1.md"] == table.text() + "\n" and table.write_figures(None) == []

@@ -541,3 +541,51 @@ def test_what_does_not_apply_to_the_g1_is_one_line_of_bad_input(capsys, args):
 
 def test_stances_are_the_g1_postures():
     assert {"parallel", "wide", "staggered", "close", "far"} <= set(STANCES)
+
+
+def test_verbose_and_quiet_together_are_bad_input(capsys):
+    code, out, err = run(capsys, "--verbose", "--quiet", "postures", "--json")
+    assert code == EXIT_BAD_INPUT and out == "" and err.strip().splitlines() == [err.strip()]
+    assert "at most one of --verbose and --quiet" in err
+
+
+@pytest.mark.parametrize("level", [[], ["--quiet"], ["--verbose"]])
+def test_bad_input_stays_one_line_at_every_level_and_the_log_is_removed_after(capsys, level):
+    """The bad-input line and exit code 2 at every level (--verbose: never a traceback), and no
+    handler is left on the package's logger once the command is over."""
+    import logging
+
+    logger = logging.getLogger("impactqp")
+    before = (list(logger.handlers), logger.level)
+    code, out, err = run(capsys, *level, "predict", "--posture", "nope", "--normal", "-1,0,0", "--speed", "0.1")
+    assert code == EXIT_BAD_INPUT and out == "" and "Traceback" not in err
+    assert err.strip().splitlines()[-1].startswith("impactqp: error: unknown posture 'nope'")
+    assert all(line.startswith("impactqp: debug: ") for line in err.strip().splitlines()[:-1])
+    assert (list(logger.handlers), logger.level) == before
+
+
+def _commands(group, path=()):
+    """(name path, click command) of every command of the group, its subgroups' included."""
+    import click
+
+    for name, command in group.commands.items():
+        if isinstance(command, click.Group):
+            yield from _commands(command, (*path, name))
+        else:
+            yield (*path, name), command
+
+
+def test_every_default_output_folder_is_out_slash_the_command():
+    """One convention: a command that writes a folder by default writes ``out/<command>`` under
+    the current directory (read from the click parameters: --out, --log, an OUT argument)."""
+    from impactqp.scenarios.cli.commands import cli
+
+    defaults = {
+        path: str(param.default)
+        for path, command in _commands(cli)
+        for param in command.params
+        if param.name in ("out", "out_dir", "log") and isinstance(param.default, (str, Path))
+    }
+    assert set(defaults) == {("demo",), ("run",), ("campaign",), ("sweep",), ("dataset", "generate")}
+    for path, default in defaults.items():
+        assert default == f"out/{path[-1]}", (path, default)

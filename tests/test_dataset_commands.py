@@ -74,7 +74,7 @@ def test_validating_a_huge_manifest_reads_each_file_once_and_shows_progress(smal
 def test_diagnose_json_report_and_saved_plant(small_dataset, tmp_path, capsys):
     code, out, err = run(capsys, "diagnose", small_dataset, "--json", "--report", tmp_path / "report",
                          "--save-plant", tmp_path / "fitted.json", "--jobs", "2")
-    assert code == 0 and "diagnose" not in err  # --json: no progress bar
+    assert code == 0 and all(line.startswith("impactqp: diagnose: ") for line in err.splitlines())  # notes, no bar
     result = json.loads(out)
     for key in ("cause", "explained", "parameters", "baseline_error", "extended_error", "gain", "candidates",
                 "trials", "skipped", "predictors", "causes", "intervals", "steps"):
@@ -146,19 +146,21 @@ def test_diagnose_without_a_manifest_is_a_clear_error(tmp_path, capsys):
 
 def test_diagnose_of_one_trial_prints_no_candidate_table(tmp_path, capsys):
     """One trial: the nominal replay's verdict, no cause and no empty candidate table; with no
-    cause named, --save-plant writes nothing and says so in one line."""
+    cause named, --save-plant writes nothing and says so in one line, after the diagnosis's notes."""
     from impactqp.sim.generation import DatasetRequest, generate_dataset
 
     generate_dataset(tmp_path / "data", DatasetRequest(postures=["elbow_up"], speeds=[0.1]))
     code, out, err = run(capsys, "diagnose", tmp_path / "data", "--save-plant", tmp_path / "plant.json")
     assert code == 0 and out.startswith("One trial") and "causes: none" in out
     assert not (tmp_path / "plant.json").exists()
-    assert err.strip().splitlines() == [f"--save-plant: nothing written to {tmp_path / 'plant.json'}: no cause is named, the nominal plant stands"]
+    note = f"impactqp: --save-plant: nothing written to {tmp_path / 'plant.json'}: no cause is named, the nominal plant stands"
+    assert err.strip().splitlines()[-1] == note and err.count("nothing written") == 1
     assert "candidate" not in out and "predictors" in out
 
 
 def test_diagnose_text_is_readable(small_dataset, capsys, monkeypatch):
-    """Booleans as JSON writes them, parameters by joint group, the candidates sorted by gain."""
+    """Booleans as JSON writes them, parameters by joint group, the candidates sorted by gain; the
+    step bar on a terminal, none with --quiet."""
     import impactqp.sim.diagnosis as diagnosis
 
     armature = [1.2] * 4 + [0.3] * 3
@@ -191,6 +193,8 @@ def test_diagnose_text_is_readable(small_dataset, capsys, monkeypatch):
     assert "step 1: path 1 add    armature" in out and "selected" in out  # every path's steps
     table = out.split("candidate")[1].splitlines()[1:4]
     assert [line.split()[0] for line in table] == ["armature", "contact", "payload"]
+    quiet = run(capsys, "--quiet", "diagnose", small_dataset)
+    assert quiet == (0, out, "")  # --quiet: no bar, even on a terminal; the same text
 
 
 def run_guarded(*args):
@@ -262,3 +266,35 @@ def test_progress_bars_stay_off_a_stream_that_is_not_a_terminal(tmp_path, capsys
     """A progress bar is drawn only on a terminal: redirected, stderr keeps only real messages."""
     code, out, err = run(capsys, "dataset", "generate", tmp_path / "d", "--postures", "elbow_up", "--speeds", "0.1")
     assert code == 0 and "wrote 1 trial(s)" in out and err == ""
+
+
+def test_diagnose_reports_its_stages_in_order_and_quiet_silences_them(tmp_path, capsys):
+    """Progress on stderr while diagnose works: its five steps in order, each candidate model set
+    of the search between the third and the fourth, each profile between the fourth and the
+    fifth, then the note of --save-plant; --quiet leaves stderr empty, --verbose adds debug
+    lines; stdout (--json) is byte-identical at the three levels."""
+    from impactqp.sim.diagnosis.pipeline import STEPS
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
+
+    generate_dataset(tmp_path / "data", DatasetRequest(postures=["elbow_up"], speeds=[0.1, 0.15]))
+    runs = {}
+    for level in ("", "--quiet", "--verbose"):
+        args = [level] if level else []
+        runs[level] = run(capsys, *args, "diagnose", tmp_path / "data", "--json", "--save-plant", tmp_path / "p.json")
+        assert runs[level][0] == 0, runs[level][2]
+    assert runs[""][1] == runs["--quiet"][1] == runs["--verbose"][1] and json.loads(runs[""][1])["causes"] == []
+    lines = runs[""][2].splitlines()
+    assert all(line.startswith("impactqp: ") and "debug" not in line for line in lines)
+    steps = [next(i for i, line in enumerate(lines) if line.startswith(f"impactqp: diagnose: step {k}/5 {step}"))
+             for k, step in enumerate(STEPS, start=1)]
+    assert steps == sorted(steps) and steps[0] == 0
+    candidates = [i for i, line in enumerate(lines) if line.startswith("impactqp: diagnose: candidate model ")]
+    assert len(candidates) > 1 and lines[candidates[-1]].split()[4] == f"{len(candidates)}/{len(candidates)}"
+    assert steps[2] < candidates[0] and candidates[-1] < steps[3]
+    profiles = [i for i, line in enumerate(lines) if line.startswith("impactqp: diagnose: profile ")]
+    assert profiles and steps[3] < profiles[0] and profiles[-1] < steps[4]
+    assert lines[-1].startswith("impactqp: --save-plant: nothing written")
+    assert runs["--quiet"][2] == ""
+    verbose = runs["--verbose"][2].splitlines()
+    assert any(line.startswith("impactqp: debug: diagnose: ") for line in verbose)
+    assert [line for line in verbose if not line.startswith("impactqp: debug: ")] == lines

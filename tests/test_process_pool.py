@@ -115,3 +115,12 @@ def test_ctrl_c_stops_the_workers_at_once_and_only_the_parent_reports_it(tmp_pat
     assert proc.returncode == 130, err
     assert out.splitlines()[-1] == "interrupted"
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_progress_counts_every_result_as_it_arrives(jobs):
+    """``progress(done, total)`` once per result, done rising 1..n: the callback is told each
+    result, in order, before the list is returned."""
+    calls = []
+    results = map_in_processes(_square, range(5), jobs, lambda done, total: calls.append((done, total)))
+    assert results == [t * t for t in range(5)] and calls == [(k, 5) for k in range(1, 6)]

@@ -72,7 +72,8 @@ def test_campaign_json(capsys, tmp_path):
     assert code == 0
     table = json.loads(stdout)
     assert len(table["rows"]) == 1 and table["rows"][0]["posture"] == "elbow_up"
-    assert (tmp_path / "table1.txt").exists()
+    assert json.loads((tmp_path / "table1.json").read_text()) == table  # the G1's two names (below)
+    assert (tmp_path / "table1.md").read_text().startswith("```text\n") and not (tmp_path / "table1.txt").exists()
 
 
 @pytest.fixture(scope="module")

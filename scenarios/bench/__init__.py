@@ -7,12 +7,15 @@ in tests.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from importlib import import_module
 
 from impactqp.controller.model.validation import BadInputError
 
 __all__ = ["run_benchmarks"]
+
+log = logging.getLogger(__name__)
 
 FAMILIES: list[tuple[str, str, str]] = [
     # (row-name prefix, module, function returning the rows)
@@ -33,9 +36,9 @@ def _family(module: str, function: str) -> Callable[[], list[dict]]:
     return getattr(import_module(f"{__name__}.{module}"), function)
 
 
-def run_benchmarks(only: str = "", progress: bool = True) -> list[dict]:
-    """The rows whose name starts with ``only`` (all rows when empty); a prefix that selects no
-    family is bad input (naming the families)."""
+def run_benchmarks(only: str = "") -> list[dict]:
+    """The rows whose name starts with ``only`` (all rows when empty), each family announced as it
+    starts (a note: INFO); a prefix that selects no family is bad input (naming the families)."""
     if only and not any(prefix.startswith(only) or only.startswith(prefix) for prefix, _, _ in FAMILIES):
         known = ", ".join(dict.fromkeys(prefix.rstrip(".") for prefix, _, _ in FAMILIES))
         raise BadInputError(f"--only {only!r} selects no benchmark row; the rows start with {known}")
@@ -43,8 +46,7 @@ def run_benchmarks(only: str = "", progress: bool = True) -> list[dict]:
     for prefix, module, function in FAMILIES:
         if only and not (prefix.startswith(only) or only.startswith(prefix)):
             continue
-        if progress:
-            print(f"running {prefix}* ...", flush=True)
+        log.info("bench: running %s* ...", prefix)
         rows.extend(r for r in _family(module, function)() if _selected(r["name"], only, prefix))
     return rows
 

@@ -17,7 +17,8 @@ One error boundary (:func:`main`):
 This module is the console entry point and stays tiny: :func:`main` installs the signal handlers
 first and only then imports the commands (numpy, Pinocchio, MuJoCo: seconds of imports), so a
 signal during start-up is an interruption like any other. ``--json`` prints machine-readable
-output on stdout.
+output on stdout; notes, progress and warnings go to stderr through the log, at the level of
+``impactqp --verbose|--quiet`` (``scenarios.cli.stderr_log``, docs/cli.md).
 """
 
 from __future__ import annotations

@@ -7,6 +7,8 @@ nothing more; the error boundary and the exit codes are ``scenarios.cli.main``'s
 
 from __future__ import annotations
 
+import logging
+
 import click
 import numpy as np
 
@@ -20,13 +22,22 @@ from impactqp.scenarios.cli.arguments import (
     robot_options,
     stance_names,
 )
+from impactqp.scenarios.cli.stderr_log import log_to_stderr, show_progress
 
 
 @click.group()
 @click.version_option(package_name="impactqp", prog_name="impactqp")
 @click.option("--debug", is_flag=True, help="Show the traceback of an internal error.")
-def cli(debug):  # noqa: ARG001 - read by main(), which owns the error boundary
-    """Impact-aware QP control of a Franka Panda (Wang, Dehio, Kheddar, RA-L 2022)."""
+@click.option("--verbose", is_flag=True, help="Also debug messages on stderr.")
+@click.option("--quiet", is_flag=True, help="Only warnings and errors on stderr: no notes, no progress.")
+@click.pass_context
+def cli(ctx, debug, verbose, quiet):  # noqa: ARG001 - debug: read by main(), which owns the error boundary
+    """Impact-aware QP control of a Franka Panda (Wang, Dehio, Kheddar, RA-L 2022).
+
+    Results go to stdout; notes, progress, warnings to stderr (docs/cli.md)."""
+    if verbose and quiet:
+        raise click.UsageError("give at most one of --verbose and --quiet")
+    ctx.call_on_close(log_to_stderr(logging.DEBUG if verbose else logging.WARNING if quiet else logging.INFO))
 
 
 @cli.command()
@@ -174,7 +185,7 @@ def bench(as_json, only):
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.bench import run_benchmarks
 
-    rows = run_benchmarks(only, progress=not as_json)
+    rows = run_benchmarks(only)
     if as_json:
         emit_json({"rows": rows})
         return
@@ -202,7 +213,8 @@ def demo(out_dir, jobs):
     4. The highest feasible contact speed of elbow_up with the calibrated plant, and which answer
        to trust.
 
-    Progress bars (stderr) show the simulated trials of stages 1, 2 and 4.
+    Progress bars (stderr) show the simulated trials of stages 1, 2 and 4, notes the steps of
+    stage 3 (``impactqp --quiet demo``: neither).
     """
     # lazy: the command line loads what a command needs when it runs
     from tqdm import tqdm
@@ -224,11 +236,11 @@ def demo(out_dir, jobs):
     out = output_directory(out_dir, "--out")
     jobs = check_jobs(jobs)
     plan = CampaignPlan(tangential_speeds=(0.03, 0.06, 0.09, 0.12))
-    table = Campaign(plan, CampaignTrials(), jobs=jobs, progress=True).run(out / "nominal")
+    table = Campaign(plan, CampaignTrials(), jobs=jobs, progress=show_progress()).run(out / "nominal")
     click.echo("1. Nominal simulation, Table I:")
     click.echo(table.text())
     stiff = PlantParameters(armature=per_group((1.2, 0.3), len(DEFAULT_CHOICE.robot.joints)))
-    with tqdm(desc="measured dataset", unit="trial", disable=None) as bar:
+    with tqdm(desc="measured dataset", unit="trial", disable=None if show_progress() else True) as bar:
         generate_dataset(
             out / "measured",
             DatasetRequest(plant=stiff, postures=["elbow_up", "elbow_left", "elbow_right"], speeds=[0.1, 0.18], seed=1),
@@ -243,7 +255,7 @@ def demo(out_dir, jobs):
     click.echo(f"causes: {', '.join(summary['causes']) or 'none'}, held-out gain {100 * summary['gain']:.0f} %")
     click.echo("Table I on the measured data (average error (26), rad/s):")
     click.echo("\n".join(table_by_condition(result)))
-    speeds = feasible_speeds(result, PlantParameters(), postures=["elbow_up"], jobs=jobs, progress=True)
+    speeds = feasible_speeds(result, PlantParameters(), postures=["elbow_up"], jobs=jobs, progress=show_progress())
     path = write_report(result, out / "diagnosis", speeds)
     click.echo("\n4. Highest feasible contact speed with the calibrated plant:")
     for row in speeds:

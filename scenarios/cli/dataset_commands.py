@@ -3,6 +3,7 @@ simulation (dataset format: ``controller.measured.dataset`` and docs/dataset.md)
 
 from __future__ import annotations
 
+import logging
 import sys
 
 import click
@@ -20,7 +21,9 @@ from impactqp.scenarios.cli.arguments import (
     parse_vector,
     robot_options,
 )
+from impactqp.scenarios.cli.stderr_log import LOGGER, show_progress
 
+log = logging.getLogger(__name__)
 
 
 @click.group()
@@ -42,11 +45,12 @@ def validate_command(ctx, directory, as_json):
     from impactqp.controller.measured.dataset_check import validate
 
     input_directory(directory, "DIRECTORY")
+    show = show_progress()
     bars = []  # on stderr, on a terminal only
 
     def progress(done: int, total: int) -> None:
         if not bars:
-            bars.append(tqdm(total=total, disable=None, desc="trials", unit="trial", file=sys.stderr))
+            bars.append(tqdm(total=total, disable=None if show else True, desc="trials", unit="trial", file=sys.stderr))
         bars[0].update(done - bars[0].n)
 
     try:
@@ -70,7 +74,7 @@ def validate_command(ctx, directory, as_json):
 
 
 @dataset.command("generate")
-@click.argument("out", type=click.Path(file_okay=False))
+@click.argument("out", required=False, default="out/generate", type=click.Path(file_okay=False))
 @click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Plant: a JSON file of overrides or a built-in name (identified_panda).")
 @click.option("--postures", help="Comma-separated posture names (default: all).")
 @click.option("--speeds", help="Comma-separated normal speeds, m/s (default 0.08,0.10,0.12,0.15,0.18).")
@@ -87,7 +91,8 @@ def validate_command(ctx, directory, as_json):
 @robot_options
 def generate_command(out, postures, speeds, tangential, as_json, choice, **noise):
     """Simulate a dataset of the robot with the tool (plant overrides with --plant) in the
-    measured-data format; the manifest records the robot and the tool."""
+    measured-data format, in OUT (default out/generate); the manifest records the robot and the
+    tool."""
     from tqdm import tqdm  # lazy: the command line loads what a command needs when it runs
 
     from impactqp.sim.generation import DatasetRequest, generate_dataset
@@ -103,7 +108,7 @@ def generate_command(out, postures, speeds, tangential, as_json, choice, **noise
 
     def progress(done: int, total: int) -> None:
         if not bars:
-            bars.append(tqdm(total=total, disable=True if as_json else None, desc="trials", unit="trial"))
+            bars.append(tqdm(total=total, disable=None if show_progress(as_json) else True, desc="trials", unit="trial"))
         bars[0].update(done - bars[0].n)
 
     try:
@@ -178,7 +183,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     if save_plant:
         output_file(save_plant, "--save-plant", inputs=(directory, plant_file))
     nominal = load_plant(plant_file) or PlantParameters()
-    result = _diagnose_with_progress(directory, nominal, jobs, show=not as_json, max_trials=max_trials)
+    result = _diagnose_with_progress(directory, nominal, jobs, show=show_progress(as_json), max_trials=max_trials)
     summary = result.summary()
     speeds = None
     if max_speed:
@@ -191,7 +196,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
 
         replace(nominal.for_joints(len(result.choice.robot.joints)), **summary["parameters"]).to_json(save_plant)
     elif save_plant:
-        click.echo(f"--save-plant: nothing written to {save_plant}: no cause is named, the nominal plant stands", err=True)
+        log.info("--save-plant: nothing written to %s: no cause is named, the nominal plant stands", save_plant)
     if report_dir:
         from impactqp.scenarios.diagnosis_report import write_report
 
@@ -206,9 +211,12 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
 
 def _diagnose_with_progress(directory, nominal, jobs: int, show: bool, max_trials: int):
     """The diagnosis of ``directory``, its steps on a progress bar (stderr, when it is a terminal
-    and ``show``); the bar is wiped when an error ends the command, whose message is one line."""
+    and ``show``) above its notes (the stages, each model set of the search, each profile: the
+    log's lines, written around the bar); the bar is wiped when an error ends the command, whose
+    message is one line."""
     # lazy: the command line loads what a command needs when it runs
     from tqdm import tqdm
+    from tqdm.contrib.logging import logging_redirect_tqdm
 
     from impactqp.sim.diagnosis import diagnose as run_diagnosis
     from impactqp.sim.diagnosis.pipeline import STEPS
@@ -220,7 +228,8 @@ def _diagnose_with_progress(directory, nominal, jobs: int, show: bool, max_trial
         bar.update(STEPS.index(step) - bar.n)
 
     try:
-        result = run_diagnosis(directory, nominal=nominal, jobs=jobs, progress=progress, max_trials=max_trials)
+        with logging_redirect_tqdm([logging.getLogger(LOGGER)]):
+            result = run_diagnosis(directory, nominal=nominal, jobs=jobs, progress=progress, max_trials=max_trials)
         bar.update(bar.total - bar.n)
     except BaseException:
         bar.leave = False

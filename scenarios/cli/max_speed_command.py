@@ -23,6 +23,7 @@ from impactqp.controller.model.validation import positive
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.controller.model.validation import restitution as restitution_coefficient
 from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, reject_options, robot_options, stance_names
+from impactqp.scenarios.cli.stderr_log import show_progress
 from impactqp.scenarios.cli.simulation_commands import (
     check_reachable,
     plant_option,
@@ -154,7 +155,8 @@ def max_speed_text(report: dict) -> str:
 def max_speed(posture_name, plant_file, as_json, choice, **search):
     """Highest feasible contact speed: closed form, reached by the QP, and simulated (with
     --robot g1: closed form and simulated bisection of a stance, no QP)."""
-    report = run_max_speed(MaxSpeedRequest(posture=posture_name, plant=plant_file, choice=choice, **search), not as_json)
+    report = run_max_speed(MaxSpeedRequest(posture=posture_name, plant=plant_file, choice=choice, **search),
+                           show_progress(as_json))
     if as_json:
         emit_json(report)
         return

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import logging
+
 import click
 
 from impactqp.scenarios.cli.arguments import emit_json, robot_options
 from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED, EXIT_ROBOT_WOULD_STOP
 
+
+log = logging.getLogger(__name__)
 
 NO_LOG = "none (the run measured fewer samples than a trial needs)"
 
@@ -46,7 +50,7 @@ def run_command(realtime: str, as_json: bool, choice, **options):
     else:
         print_report(report)
     if result.interrupted:
-        click.echo(f"impactqp: interrupted: braked to a stop; log: {report['log'] or NO_LOG}", err=True)
+        log.warning("interrupted: braked to a stop; log: %s", report["log"] or NO_LOG)
         click.get_current_context().exit(EXIT_INTERRUPTED)
     cycle = report["cycle_us"]
     timing = (
@@ -55,14 +59,11 @@ def run_command(realtime: str, as_json: bool, choice, **options):
     )
     if result.robot_stop_reason:
         who = "stopped the robot" if options["backend"] in ("franka", "panda") else "would have stopped a real robot"
-        click.echo(f"impactqp: the run {who}: {result.robot_stop_reason}; {timing}", err=True)
+        log.error("the run %s: %s; %s", who, result.robot_stop_reason, timing)
         click.get_current_context().exit(EXIT_ROBOT_WOULD_STOP)
     if report["overruns"]:
-        click.echo(
-            f"impactqp: warning: {timing}; at most {report['missed_in_a_row']} period(s) in a row without a "
-            f"command on time, within the budget of {result.max_overruns - 1}",
-            err=True,
-        )
+        log.warning("%s; at most %d period(s) in a row without a command on time, within the budget of %d",
+                    timing, report["missed_in_a_row"], result.max_overruns - 1)
 
 
 def print_report(report: dict) -> None:

@@ -41,6 +41,7 @@ from impactqp.scenarios.cli.arguments import (
     robot_options,
     stance_names,
 )
+from impactqp.scenarios.cli.stderr_log import show_progress
 
 SIMULATE_START_DISTANCE = 0.05
 
@@ -247,13 +248,14 @@ def campaign_speeds(speeds_text, tangential_text, floating: bool) -> tuple[tuple
 )
 @plant_option
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
-@click.option("--out", "out_dir", default="impactqp-campaign", show_default=True, help="Output directory.")
+@click.option("--out", "out_dir", default="out/campaign", show_default=True, help="Output directory.")
 @click.option("--json", "as_json", is_flag=True, help="Print Table I as JSON (no progress bar).")
 @max_trials_option
 @robot_options(humanoid=True)
 def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, as_json, max_trials, choice):
-    """The paper's campaign in simulation: dataset, Table I and figures in --out (with --robot
-    g1: stances x speeds of the standing G1, its dataset, table1.json and table1.md in --out)."""
+    """The paper's campaign in simulation: dataset, Table I (table1.json, table1.md) and figures
+    in --out (with --robot g1: stances x speeds of the standing G1, its dataset and Table I, no
+    figures)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.campaign import Campaign, CampaignPlan, CampaignTrials, check_postures
 
@@ -265,7 +267,7 @@ def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_
     plan = CampaignPlan(postures, speeds, tangential, max_trials=max_trials)
     trials = CampaignTrials(choice, DEFAULT_WALL, load_plant(plant_file))
     output_directory(out_dir, "--out")
-    table = Campaign(plan, trials, jobs=check_jobs(jobs), progress=not as_json).run(out_dir)
+    table = Campaign(plan, trials, jobs=check_jobs(jobs), progress=show_progress(as_json)).run(out_dir)
     if as_json:
         emit_json(table.to_json())
         return

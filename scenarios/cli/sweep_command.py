@@ -9,6 +9,7 @@ import click
 
 from impactqp.controller.model.validation import BadInputError
 from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, output_directory, robot_options
+from impactqp.scenarios.cli.stderr_log import show_progress
 
 
 @click.command()
@@ -16,7 +17,7 @@ from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, 
 @click.option("--backend", type=click.Choice(["local", "ray"]), default="local", show_default=True,
               help="local: a process pool; ray: the cluster at RAY_ADDRESS, else a local Ray.")
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
-@click.option("--out", type=click.Path(path_type=Path), default=Path("sweep-out"), show_default=True)
+@click.option("--out", type=click.Path(path_type=Path), default=Path("out/sweep"), show_default=True)
 @click.option("--resume", is_flag=True, help="Skip the chunks already in --out (same config, --simulate, --plant).")
 @click.option("--simulate", is_flag=True,
               help="Also search each cell's simulated highest feasible speed (the bisection of max-speed).")
@@ -45,7 +46,7 @@ def sweep(config_path, example, as_json, choice, **run):
         raise BadInputError("--plant sets the plant of the simulated cells: add --simulate")
     simulation = Simulation(load_plant(plant_file)) if simulate else None
     summary = run_sweep(
-        config, out, jobs=run["jobs"], backend=run["backend"], resume=run["resume"], progress=not as_json,
+        config, out, jobs=run["jobs"], backend=run["backend"], resume=run["resume"], progress=show_progress(as_json),
         simulation=simulation,
     )
     if as_json:

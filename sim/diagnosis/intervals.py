@@ -9,6 +9,7 @@ say which trials would settle it (``open_sides``). Method: ``docs/diagnosis.md``
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,6 +20,8 @@ from impactqp.sim.process_pool import map_in_processes
 
 from .fitting import FittedCauses, cost_of, residual_sizes, residuals
 from .trials import MeasuredTrial, ReplaySetting, replay_all
+
+log = logging.getLogger(__name__)
 
 CHI2_95 = 3.841  # 95 % quantile of chi^2 with 1 degree of freedom
 SCAN_FIRST_STEP = 1.0 / 40.0
@@ -183,6 +186,11 @@ def parameter_owner(model: FittedCauses, index: int) -> tuple[int, int]:
     raise IndexError(index)
 
 
+def parameter_labels(model: FittedCauses) -> list[str]:
+    """The label of every fitted parameter of ``model``, in the order of its vector."""
+    return [label for cause in model.causes for label in cause.labels]
+
+
 def parameter_intervals(model: FittedCauses, nominal, setting, trials, jobs: int) -> tuple[FittedCauses, list[list]]:
     """The fit polished by Gauss-Newton, and 95 % intervals of every fitted parameter theta
     (per cause, per parameter, [low, high], None for an open side).
@@ -205,7 +213,13 @@ def parameter_intervals(model: FittedCauses, nominal, setting, trials, jobs: int
         for i in range(len(model.vector()))
         for sign in (-1.0, 1.0)
     ]
-    ends = map_in_processes(scan_side, tasks, jobs)
+    names = parameter_labels(model)
+    labels = [f"{names[task.index]} {'low' if task.sign < 0 else 'high'} side" for task in tasks]
+
+    def done(k: int, total: int) -> None:
+        log.info("diagnose: profile %d/%d %s", k, total, labels[k - 1])
+
+    ends = map_in_processes(scan_side, tasks, jobs, done)
     boot = bootstrap_intervals(model, r, J, residual_sizes(trials))
     out, k = [], 0
     for cause, u in zip(model.causes, model.u):

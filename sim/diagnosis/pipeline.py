@@ -3,6 +3,7 @@ parameters (the steps: ``sim/diagnosis/__init__.py``)."""
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 
 from pathlib import Path
@@ -22,6 +23,8 @@ from .search import select_causes
 from .trials import load_trials, locate_jump_samples, replay_all
 
 
+log = logging.getLogger(__name__)
+
 STEPS = ("load and check the trials", "replay the nominal simulation", "select the causes",
          "bound the parameters", "compare the predictors")
 """The steps of ``diagnose``, in order, as its ``progress`` callback names them."""
@@ -37,11 +40,20 @@ def diagnose(
     max_trials: int = MAX_TRIALS,
 ) -> Diagnosis:
     """Measure, replay, compare, select the causes, bound their parameters (the steps:
-    ``sim/diagnosis/__init__.py``). ``progress(step)`` is called as each of ``STEPS`` begins.
-    A dataset of more than ``max_trials`` trials is refused before any is read."""
+    ``sim/diagnosis/__init__.py``). As each of ``STEPS`` begins, ``progress(step)`` is called
+    and the step is logged (a note: INFO, with its counts; the first once the trials are loaded
+    and checked: bad input stays its one line); the search and the intervals log each
+    model set and profile as it is done (``search``, ``intervals``). A dataset of more than
+    ``max_trials`` trials is refused before any is read."""
     trial_count(len(load_manifest(Path(directory) / MANIFEST)["trials"]), max_trials, f"the dataset {directory}")
-    step = progress or (lambda name: None)
-    step(STEPS[0])
+
+    def step(index: int, counts: str = "") -> None:
+        if progress is not None and index > 0:  # the first is announced before the loading
+            progress(STEPS[index])
+        log.info("diagnose: step %d/%d %s%s", index + 1, len(STEPS), STEPS[index], counts)
+
+    if progress is not None:
+        progress(STEPS[0])
     trials, skipped, setting = load_trials(directory)
     if not trials:
         raise BadInputError(f"{directory}: no usable trial; the diagnosis needs at least 1 (skipped: {skipped})")
@@ -51,19 +63,21 @@ def diagnose(
     names = [c.name for c in causes]
     if len(set(names)) != len(names):
         raise ValueError(f"candidate causes must have distinct names, got {names}")
-    step(STEPS[1])
+    step(0, f" ({len(trials)} usable, {len(skipped)} skipped)")
+    step(1, f" ({len(trials)} trial(s))")
     trials = locate_jump_samples(trials, setting, nominal)
     nominal_features = replay_all(setting, nominal, trials)
     nominal_jumps = np.array([f.detected_jump for f in nominal_features])
     baseline_errors = jump_errors(nominal_features, trials)
     if len(trials) == 1:
+        step(4, " (one trial: no cause is selected)")
         return nominal_diagnosis(trials, skipped, setting, nominal, nominal_features)
     baseline = (trial_errors(nominal_features, trials), baseline_errors)
-    step(STEPS[2])
+    step(2, f" ({len(causes)} candidate causes)")
     selection = select_causes(causes, nominal, setting, trials, baseline, jobs)
     selected = bool(selection.model.causes)
     model = selection.model if selected else selection.best
-    step(STEPS[3])
+    step(3, f" ({', '.join(c.name for c in model.causes) or 'no cause'})")
     model, theta_intervals = parameter_intervals(model, nominal, setting, trials, jobs)
     extended_plant = model.plant(nominal)
     extended_features = replay_all(setting, extended_plant, trials)
@@ -73,7 +87,7 @@ def diagnose(
     # interval excludes its nominal value (else the data do not say it moved)
     explained = selected and fit["fits_noise"] and all(excludes_nominal(model, theta_intervals, nominal))
     steps = selection.steps if explained else [{**s, "selected": False} for s in selection.steps]
-    step(STEPS[4])
+    step(4)
     predictors, predictors_measured_impulse, predictions = predictor_errors(trials, setting)
     per_parameter = [
         {"cause": c.name, "parameter": label, "value": float(value), "interval": interval}

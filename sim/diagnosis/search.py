@@ -19,6 +19,7 @@ of the nominal's excess over the noise floor. Every step of every path is report
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -44,6 +45,8 @@ from .selection import (
     screen_cause,
 )
 from .trials import ReplaySetting, replay_all
+
+log = logging.getLogger(__name__)
 
 MAX_CAUSES = 3
 MAX_BRANCHES = 3  # paths, one per first step among the best three that gain
@@ -97,9 +100,17 @@ class Search:
     jobs: int
     budget: int = MAX_CROSS_VALIDATIONS
 
-    def run(self, function, tasks: list) -> list:
-        self.budget -= len(tasks) if function is not screen_cause else 0
-        return map_in_processes(function, tasks, self.jobs)
+    def run(self, function, tasks: list, what: str, labels: list[str]) -> list:
+        """``function`` over ``tasks`` (each cross-validation spends the budget, a screen does
+        not), each result logged as it comes: ``diagnose: WHAT k/n LABEL``, a note (INFO) for a
+        cross-validated model set, a debug line for a screen."""
+        screen = function is screen_cause
+        self.budget -= 0 if screen else len(tasks)
+
+        def done(k: int, total: int) -> None:
+            log.log(logging.DEBUG if screen else logging.INFO, "diagnose: %s %d/%d %s", what, k, total, labels[k - 1])
+
+        return map_in_processes(function, tasks, self.jobs, done)
 
     def settled(self, branch: Branch) -> tuple[Branch, bool]:
         """``branch`` with its model polished (``intervals.gauss_newton_polish``: the fit of a
@@ -111,10 +122,17 @@ class Search:
         return replace(branch, model=model), fit_report(features, self.trials)["fits_noise"]
 
 
+def model_label(model: FittedCauses) -> str:
+    """The causes of ``model`` joined by '+' (a model set in the progress notes)."""
+    return "+".join(c.name for c in model.causes) or "nominal"
+
+
 def search_step(action: str, cause: str, heldout_error: float, gain: float, accepted: bool, path: int) -> dict:
     """One entry of ``steps``: which path, what was tried (add, refine, remove) with which cause,
     the held-out error after it, the gain (of the cause over the model without it) and whether
-    the path took it; ``selected`` is set once the kept path is known."""
+    the path took it; ``selected`` is set once the kept path is known. Logged (DEBUG)."""
+    log.debug("diagnose: path %d %s %s: held-out residual %.4f, gain %.1f %%, %s", path + 1, action, cause,
+              heldout_error, 100 * gain, "taken" if accepted else "not taken")
     return {"path": path, "action": action, "cause": cause, "heldout_error": float(heldout_error),
             "gain": float(gain), "accepted": bool(accepted), "selected": False}
 
@@ -146,14 +164,16 @@ def forward(search: Search, branch: Branch, path: int) -> Branch | None:
     features = replay_all(search.setting, branch.model.plant(search.nominal), search.trials)
     current = quadratic_mean(trial_errors(features, search.trials))
     screens = [ScreenTask(c, branch.model, search.nominal, search.setting, trials) for c in pool]
-    screened = search.run(screen_cause, screens)
+    screened = search.run(screen_cause, screens, f"path {path + 1} screen",
+                          [f"{c.name} next to {model_label(branch.model)}" for c in pool])
     order = [int(i) for i in np.argsort([e for e, _ in screened], kind="stable")
              if screened[i][0] <= (1 - STEP_GAIN / 2) * current][: min(MAX_SCREENED, search.budget)]
     if not order:
         return None
     tasks = [ModelTask(screened[i][1], tuple(branch.folds), search.nominal, search.setting, trials, pool[i])
              for i in order]
-    results = search.run(cross_validate_model, tasks)
+    results = search.run(cross_validate_model, tasks, f"path {path + 1} model",
+                         [model_label(t.model) for t in tasks])
     errors = [quadratic_mean(r["heldout"]) for r in results]
     best = int(np.argmin(errors))
     gain = relative_gain(errors[best], branch.error)
@@ -189,7 +209,7 @@ def refine(search: Search, branch: Branch, path: int) -> Branch:
         return branch
     task = ModelTask(refined(branch.model, finer), tuple(refined(f, finer) for f in branch.folds), search.nominal,
                      search.setting, tuple(search.trials), newton=True)
-    [result] = search.run(cross_validate_model, [task])
+    [result] = search.run(cross_validate_model, [task], f"path {path + 1} refined model", [model_label(task.model)])
     cause = branch.model.causes[-1]
     error = quadratic_mean(result["heldout"])
     gain = relative_gain(error, branch.error)
@@ -215,7 +235,8 @@ def backward(search: Search, branch: Branch, path: int) -> Branch:
         return branch
     tasks = [ModelTask(without(branch.model, k), tuple(without(f, k) for f in branch.folds), search.nominal,
                        search.setting, tuple(search.trials)) for k in earlier]
-    results = search.run(cross_validate_model, tasks)
+    results = search.run(cross_validate_model, tasks, f"path {path + 1} model without a cause",
+                         [model_label(t.model) for t in tasks])
     errors = [quadratic_mean(r["heldout"]) for r in results]
     best = int(np.argmin(errors))
     steps = []
@@ -259,7 +280,7 @@ def first_steps(search: Search, start: Branch) -> tuple[list[Cause], list[dict],
     entries."""
     trials = tuple(search.trials)
     tasks = [CandidateTask(c, search.nominal, search.setting, trials) for c in search.causes]
-    results = search.run(cross_validate_cause, tasks)
+    results = search.run(cross_validate_cause, tasks, "candidate model", [c.name for c in search.causes])
     causes = list(search.causes)
     for k, (cause, result) in enumerate(zip(search.causes, results)):
         causes[k], results[k] = refined_first(search, start, cause, result)
@@ -282,7 +303,7 @@ def refined_first(search: Search, start: Branch, cause: Cause, result: dict) -> 
     folds = tuple(refined(FittedCauses((cause,), (u,)), finer) for u in result["u_folds"])
     task = ModelTask(refined(FittedCauses((cause,), (result["u"],)), finer), folds, search.nominal, search.setting,
                      tuple(search.trials), newton=True)
-    [model] = search.run(cross_validate_model, [task])
+    [model] = search.run(cross_validate_model, [task], "candidate refined", [model_label(task.model)])
     if relative_gain(quadratic_mean(model["heldout"]), error) < STEP_GAIN:
         return cause, result
     return finer, {"cause": cause.name, "u": model["model"].u[0], "u_folds": [f.u[0] for f in model["folds"]],
