@@ -136,10 +136,11 @@ class ImpactConfig:
         validation.number_in_range(
             self.release_speed, 0.0, validation.MAX_CONTACT_SPEED, "impact.release_speed", "m/s"
         )
-        try:
-            self.friction_setting()
-        except BadInputError as error:
-            raise BadInputError(f"impact.friction, impact.pyramid_edges, impact.friction_rows: {error}") from None
+        for name, field_name in (("friction", "friction"), ("pyramid_edges", "edges"), ("friction_rows", "mode")):
+            try:
+                FrictionRows(**{field_name: getattr(self, name)})  # each key alone, named in its error
+            except BadInputError as error:
+                raise BadInputError(f"impact.{name}: {error}") from None
         if self.friction > 0.0 and self.jump_model == "classical_normal":
             raise BadInputError("impact.friction: the classical_normal model has no friction rows; use 0 or another model")
 
@@ -204,8 +205,8 @@ class SurfaceConfig:
 @dataclass(frozen=True)
 class ApproachOptions:
     """The settings of ``ControllerConfig.approach`` beyond the surface and the speed: the robot
-    (a name or a robot file), the approach, the impact model, the solver and period, and the
-    task weights (``posture_weight`` None: 1e-2 for a fixed base, 1e-4 for a floating base, whose
+    (a name or a robot file), the approach, the impact model (``friction`` > 0: an arm's robust
+    friction rows, the pyramid's default edges), the solver and period, and the task weights (``posture_weight`` None: 1e-2 for a fixed base, 1e-4 for a floating base, whose
     centre of mass and torso orientation are held with ``com_weight`` and ``torso_weight``)."""
 
     robot: str = DEFAULT_ROBOT
@@ -219,6 +220,7 @@ class ApproachOptions:
     com_weight: float = 10.0
     torso_weight: float = 10.0
     always_active: bool = False
+    friction: float = 0.0
 
 
 @dataclass
@@ -317,6 +319,7 @@ class ControllerConfig:
                 impact_duration=o.impact_duration,
                 always_active=o.always_active,
                 impulsive_torque=not floating,
+                friction=o.friction,
             ),
             surface=SurfaceConfig.of(surface),
             robot=o.robot,
