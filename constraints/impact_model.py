@@ -142,6 +142,7 @@ class ExpectedImpact:
         self._matrices: JumpMatrices | None = None
         self._active = False
         self._directions = edge_directions(friction, surface.normal, np.zeros(3))  # the preview's: per state
+        self._edge_count = friction.count
         self._edges = EdgeMatrices(np.empty((0, 0, 0)), np.empty((0, 0, 0)))  # filled at the first state
 
     @property
@@ -179,7 +180,7 @@ class ExpectedImpact:
             return
         normal = self.surface.normal
         self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
-        if self._directions.shape[0]:
+        if self._edge_count:
             self._fill_edges(terms)
         self._active = self.rule.always_active or self._rule(*normal_motion(terms.J, normal, terms.contact_point, terms.dq))
         self._stamp = terms.stamp

@@ -45,19 +45,26 @@ class ImpulsiveTorqueLimit(Constraint):
         impact_duration = check_impact_duration(impact_duration)
         self.impact = impact
         self.impulse_limit = np.asarray(tau_max, dtype=float) * impact_duration
-        self.rows = len(self.impulse_limit) * (1 + impact.friction.count)
+        self._edges = impact.friction.count
+        self.rows = len(self.impulse_limit) * (1 + self._edges)
         self.row_scale = np.asarray(dq_max, dtype=float) / self.impulse_limit
         self._scaling = np.vstack([self.row_scale, self.row_scale * self.impulse_limit])  # s_i; s_i tau_max_i delta_t
         self.name = f"impulsive_torque[{impact.name}]"
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
-        inv_h, active = 1.0 / cycle.horizon, self.impact.is_active(terms)
-        torque_matrix = self.impact.matrices(terms).torque_matrix
-        if not self.impact.friction.count:
-            scaled_impulse_rows(torque_matrix, self._scaling, terms.dq, inv_h, active, C, lower, upper)
+        if self._edges:
+            self._stacked_rows_into(terms, cycle, C, lower, upper)
             return
+        scaled_impulse_rows(
+            self.impact.matrices(terms).torque_matrix, self._scaling, terms.dq, 1.0 / cycle.horizon,
+            self.impact.is_active(terms), C, lower, upper,
+        )
+
+    def _stacked_rows_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
+        """The frictionless block, then one block per edge of the friction rows."""
         edge_scaled_impulse_rows(
-            torque_matrix, self.impact.edge_matrices(terms).torque, self._scaling, terms.dq, inv_h, active, C, lower, upper
+            self.impact.matrices(terms).torque_matrix, self.impact.edge_matrices(terms).torque, self._scaling,
+            terms.dq, 1.0 / cycle.horizon, self.impact.is_active(terms), C, lower, upper,
         )
 
 

@@ -37,17 +37,24 @@ class PostImpactVelocityLimit(Constraint):
     def __init__(self, impact: ExpectedImpact, dq_max: np.ndarray):
         self.impact = impact
         self.dq_max = np.asarray(dq_max, dtype=float)
-        self.rows = len(self.dq_max) * (1 + impact.friction.count)
+        self._edges = impact.friction.count
+        self.rows = len(self.dq_max) * (1 + self._edges)
         self.name = f"post_impact_velocity[{impact.name}]"
 
     def compute_into(self, terms, cycle: ControlCycle, C, lower, upper) -> None:
-        inv_h, active = 1.0 / cycle.horizon, self.impact.is_active(terms)
-        jump_matrix = self.impact.matrices(terms).jump_matrix
-        if not self.impact.friction.count:
-            post_impact_velocity_rows(jump_matrix, terms.dq, self.dq_max, inv_h, active, C, lower, upper)
+        if self._edges:
+            self._stacked_rows_into(terms, cycle, C, lower, upper)
             return
+        post_impact_velocity_rows(
+            self.impact.matrices(terms).jump_matrix, terms.dq, self.dq_max, 1.0 / cycle.horizon,
+            self.impact.is_active(terms), C, lower, upper,
+        )
+
+    def _stacked_rows_into(self, terms, cycle: ControlCycle, C, lower, upper) -> None:
+        """The frictionless block, then one block per edge of the friction rows."""
         edge_post_impact_velocity_rows(
-            jump_matrix, self.impact.edge_matrices(terms).jump, terms.dq, self.dq_max, inv_h, active, C, lower, upper
+            self.impact.matrices(terms).jump_matrix, self.impact.edge_matrices(terms).jump, terms.dq, self.dq_max,
+            1.0 / cycle.horizon, self.impact.is_active(terms), C, lower, upper,
         )
 
 
