@@ -63,6 +63,8 @@ _EXPORTS = {
     "AccelerationLimit": "impactqp.constraints",
     "TorqueLimit": "impactqp.constraints",
     "ExpectedImpact": "impactqp.constraints",
+    "ActivationRule": "impactqp.constraints",
+    "FrictionRows": "impactqp.controller.model",
     "PostImpactVelocityLimit": "impactqp.constraints",
     "ImpulsiveTorqueLimit": "impactqp.constraints",
     "HeldContactRows": "impactqp.constraints",

@@ -6,7 +6,7 @@ from .acceleration_limit import AccelerationLimit
 from .capture_constraint import CaptureRegionLimit
 from .constraint import Constraint, ConstraintRows, ControlCycle
 from .held_contact import HeldContactRows
-from .impact_model import JUMP_MODEL_CHOICES, ExpectedImpact, jump_model_names
+from .impact_model import JUMP_MODEL_CHOICES, ActivationRule, ExpectedImpact, jump_model_names
 from .impulsive_torque import ImpulsiveTorqueLimit
 from .position_limit import PositionLimit
 from .post_impact_velocity import PostImpactVelocityLimit
@@ -22,6 +22,7 @@ __all__ = [
     "VelocityLimit",
     "TorqueLimit",
     "ExpectedImpact",
+    "ActivationRule",
     "JUMP_MODEL_CHOICES",
     "jump_model_names",
     "PostImpactVelocityLimit",

@@ -16,6 +16,14 @@ held-contact right inverse J#, and the centre of mass jumps by C iota: ``jump``'
 The post-impact velocity is dq+ = (I + A) dq- and the impulsive joint torque over the impact
 duration delta_t is J^T iota / delta_t = P dq- / delta_t with P = J^T G J.
 
+Friction rows
+-------------
+With ``FrictionRows`` of friction mu > 0 (``controller.model.friction_pyramid``), the impact also
+carries the edges' maps A_i = K G_i J and P_i = J^T G_i J of the friction pyramid (or of the
+one-step preview's edge opposing the predicted slip), computed once per fill of the terms
+(``edge_matrices``); the post-impact-velocity and impulsive-torque rows stack them under the
+frictionless ones. Fixed-base arms only; not with ``classical_normal``.
+
 Activation rule
 ---------------
 The constraints only describe an impact that is about to happen. They are active in a cycle
@@ -29,9 +37,19 @@ rule says inactive cannot command a dangerous approach speed.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numba import njit
 
+from impactqp.controller.model.friction_pyramid import (
+    EdgeMatrices,
+    FrictionRows,
+    edge_directions,
+    edge_matrices_into,
+    response_maps,
+    slip_direction_into,
+)
 from impactqp.controller.model.jump import JumpMatrices, JumpModel, jump_model
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
 from impactqp.controller.model.postures import Surface
@@ -61,6 +79,24 @@ def jump_model_names(choice: str) -> tuple[str, ...]:
         ) from None
 
 
+@dataclass(frozen=True)
+class ActivationRule:
+    """The activation rule of the module docstring: on within ``lookahead_distance`` (m) or
+    ``lookahead_time`` (s) of the surface while the contact's normal velocity is at most
+    ``release_speed`` (m/s); always on with ``always_active``."""
+
+    lookahead_distance: float = 0.10
+    lookahead_time: float = 0.30
+    release_speed: float = 0.02
+    always_active: bool = False
+
+    def __post_init__(self):
+        validation.number_in_range(self.lookahead_distance, 0.0, MAX_LOOKAHEAD_DISTANCE, "the look-ahead distance", "m")
+        validation.number_in_range(self.lookahead_time, 0.0, MAX_LOOKAHEAD_TIME, "the look-ahead time", "s")
+        validation.number_in_range(self.release_speed, 0.0, validation.MAX_CONTACT_SPEED, "the release speed", "m/s")
+        validation.boolean(self.always_active, "always_active")
+
+
 IMPACT_SPEED_DROP = 0.5
 """An impact shows when the measured speed of the contact point towards the surface falls below
 this fraction of the commanded one (``ExpectedImpact.shows_jump``)."""
@@ -79,11 +115,9 @@ class ExpectedImpact:
         surface: Surface,
         jump_model_name: str = "crb",
         restitution: float = 0.0,
-        lookahead_distance: float = 0.10,
-        lookahead_time: float = 0.30,
-        release_speed: float = 0.02,
-        always_active: bool = False,
+        rule: ActivationRule = ActivationRule(),
         held_contacts: bool = False,
+        friction: FrictionRows = FrictionRows(),
     ):
         self.held_contacts = validation.boolean(held_contacts, "held_contacts")
         if self.held_contacts and jump_model_name not in HELD_CONTACT_METHODS:
@@ -94,18 +128,22 @@ class ExpectedImpact:
         self.surface = surface
         self.model: JumpModel = jump_model(jump_model_name)
         self.restitution = validation.restitution(restitution)
-        self.lookahead_distance = validation.number_in_range(
-            lookahead_distance, 0.0, MAX_LOOKAHEAD_DISTANCE, "the look-ahead distance", "m"
-        )
-        self.lookahead_time = validation.number_in_range(lookahead_time, 0.0, MAX_LOOKAHEAD_TIME, "the look-ahead time", "s")
-        self.release_speed = validation.number_in_range(
-            release_speed, 0.0, validation.MAX_CONTACT_SPEED, "the release speed", "m/s"
-        )
-        self.always_active = validation.boolean(always_active, "always_active")
+        if not isinstance(rule, ActivationRule) or not isinstance(friction, FrictionRows):
+            raise TypeError("rule must be an ActivationRule and friction a FrictionRows")
+        self.rule = rule
+        self.friction = friction
+        if friction.count and (self.held_contacts or jump_model_name == "classical_normal"):
+            raise BadInputError(
+                "friction rows are for fixed-base arms with the crb, gm or classical model, "
+                f"not {'held contacts' if self.held_contacts else 'classical_normal'}"
+            )
         self._surface_offset = float(surface.normal @ surface.point)  # n.s: distance = n.p - n.s
         self._stamp = 0  # ModelTerms.stamp of the cached matrices and activation
         self._matrices: JumpMatrices | None = None
         self._active = False
+        self._directions = edge_directions(friction, surface.normal, np.zeros(3))  # the preview's: per state
+        self._edge_count = friction.count
+        self._edges = EdgeMatrices(np.empty((0, 0, 0)), np.empty((0, 0, 0)))  # filled at the first state
 
     @property
     def name(self) -> str:
@@ -115,6 +153,12 @@ class ExpectedImpact:
         """A, P, G (and C) of this state (the normal and the restitution were checked once, above)."""
         self._update(terms)
         return self._matrices
+
+    def edge_matrices(self, terms) -> EdgeMatrices:
+        """A_i and P_i of the friction rows' edges at this state (``friction.count`` of them;
+        none without friction)."""
+        self._update(terms)
+        return self._edges
 
     def is_active(self, terms) -> bool:
         """The activation rule of the module docstring for this state."""
@@ -129,22 +173,37 @@ class ExpectedImpact:
         joint servo's tracking error is far smaller)."""
         normal, point = self.surface.normal, self.surface.point
         commanded = -normal_motion(J, normal, point, dq_cmd)[0]
-        return commanded > self.release_speed and -normal_motion(J, normal, point, dq)[0] < IMPACT_SPEED_DROP * commanded
+        return commanded > self.rule.release_speed and -normal_motion(J, normal, point, dq)[0] < IMPACT_SPEED_DROP * commanded
 
     def _update(self, terms) -> None:
         if terms.stamp == self._stamp:
             return
         normal = self.surface.normal
         self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
-        self._active = self.always_active or self._rule(*normal_motion(terms.J, normal, terms.contact_point, terms.dq))
+        if self._edge_count:
+            self._fill_edges(terms)
+        self._active = self.rule.always_active or self._rule(*normal_motion(terms.J, normal, terms.contact_point, terms.dq))
         self._stamp = terms.stamp
+
+    def _fill_edges(self, terms) -> None:
+        """The edges' maps of this state into buffers allocated at the first fill (the preview's
+        edge direction first, from this state's contact velocity)."""
+        n = terms.J.shape[1]
+        if self._edges.jump.shape != (count := self._directions.shape[0], n, n):
+            self._edges = EdgeMatrices(np.empty((count, n, n)), np.empty((count, n, n)))
+        normal = self.surface.normal
+        if self.friction.mode == "slip":
+            slip_direction_into(terms.J, terms.dq, normal, self.friction.friction, self._directions[0])
+        K, W = response_maps(self.model, terms, normal, self.restitution)
+        edge_matrices_into(terms.J, K, W, normal, self._directions, self.restitution, *self._edges)
 
     def _rule(self, normal_speed: float, normal_position: float) -> bool:
         """The rule from n.v and n.p (the distance is n.p - n.s)."""
-        if normal_speed > self.release_speed:
+        rule = self.rule
+        if normal_speed > rule.release_speed:
             return False
         distance = normal_position - self._surface_offset
-        return distance <= max(self.lookahead_distance, -normal_speed * self.lookahead_time)
+        return distance <= max(rule.lookahead_distance, -normal_speed * rule.lookahead_time)
 
 
 @njit(cache=True)

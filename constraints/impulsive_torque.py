@@ -28,6 +28,9 @@ class ImpulsiveTorqueLimit(Constraint):
     Rows are unbounded while the expected impact's activation rule says no impact is coming, and
     relaxed to the largest correction the cycle allows when the state already violates them
     (``ControlCycle.recoverable``).
+
+    With friction rows (``ExpectedImpact.friction``) the same rows of every edge's P_i follow,
+    one block of joints rows per edge.
     """
 
     relaxed = True
@@ -42,15 +45,26 @@ class ImpulsiveTorqueLimit(Constraint):
         impact_duration = check_impact_duration(impact_duration)
         self.impact = impact
         self.impulse_limit = np.asarray(tau_max, dtype=float) * impact_duration
-        self.rows = len(self.impulse_limit)
+        self._edges = impact.friction.count
+        self.rows = len(self.impulse_limit) * (1 + self._edges)
         self.row_scale = np.asarray(dq_max, dtype=float) / self.impulse_limit
         self._scaling = np.vstack([self.row_scale, self.row_scale * self.impulse_limit])  # s_i; s_i tau_max_i delta_t
         self.name = f"impulsive_torque[{impact.name}]"
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
+        if self._edges:
+            self._stacked_rows_into(terms, cycle, C, lower, upper)
+            return
         scaled_impulse_rows(
             self.impact.matrices(terms).torque_matrix, self._scaling, terms.dq, 1.0 / cycle.horizon,
             self.impact.is_active(terms), C, lower, upper,
+        )
+
+    def _stacked_rows_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
+        """The frictionless block, then one block per edge of the friction rows."""
+        edge_scaled_impulse_rows(
+            self.impact.matrices(terms).torque_matrix, self.impact.edge_matrices(terms).torque, self._scaling,
+            terms.dq, 1.0 / cycle.horizon, self.impact.is_active(terms), C, lower, upper,
         )
 
 
@@ -63,3 +77,14 @@ def scaled_impulse_rows(torque_matrix, scaling, dq, inv_h, active, C, lower, upp
         for j in range(n):
             C[i, j] = torque_matrix[i, j] * scaling[0, i]
     symmetric_row_bounds(C, dq, scaling[1], inv_h, active, lower, upper)
+
+
+@njit(cache=True)
+def edge_scaled_impulse_rows(torque_matrix, edge_torques, scaling, dq, inv_h, active, C, lower, upper):
+    """Kernel: the rows of ``scaled_impulse_rows`` for P, then for each edge's P_i, one block of
+    joints rows each."""
+    rows = dq.shape[0]
+    scaled_impulse_rows(torque_matrix, scaling, dq, inv_h, active, C[:rows], lower[:rows], upper[:rows])
+    for e in range(edge_torques.shape[0]):
+        block = slice((e + 1) * rows, (e + 2) * rows)
+        scaled_impulse_rows(edge_torques[e], scaling, dq, inv_h, active, C[block], lower[block], upper[block])

@@ -25,6 +25,11 @@ class PostImpactVelocityLimit(Constraint):
     unbounded while the expected impact's activation rule says no impact is coming, and relaxed
     to the largest correction the cycle allows when the state already violates them
     (``ControlCycle.recoverable``).
+
+    With friction rows (``ExpectedImpact.friction``, docs/frictional-impacts.md) the same rows
+    of every edge's jump A_i follow, block after block: (1 + edges) x joints rows, so that the
+    post-impact velocity of the frictionless impulse and of every edge impulse (hence of every
+    convex combination of them) stays in the limits.
     """
 
     relaxed = True
@@ -32,13 +37,24 @@ class PostImpactVelocityLimit(Constraint):
     def __init__(self, impact: ExpectedImpact, dq_max: np.ndarray):
         self.impact = impact
         self.dq_max = np.asarray(dq_max, dtype=float)
-        self.rows = len(self.dq_max)
+        self._edges = impact.friction.count
+        self.rows = len(self.dq_max) * (1 + self._edges)
         self.name = f"post_impact_velocity[{impact.name}]"
 
     def compute_into(self, terms, cycle: ControlCycle, C, lower, upper) -> None:
+        if self._edges:
+            self._stacked_rows_into(terms, cycle, C, lower, upper)
+            return
         post_impact_velocity_rows(
             self.impact.matrices(terms).jump_matrix, terms.dq, self.dq_max, 1.0 / cycle.horizon,
             self.impact.is_active(terms), C, lower, upper,
+        )
+
+    def _stacked_rows_into(self, terms, cycle: ControlCycle, C, lower, upper) -> None:
+        """The frictionless block, then one block per edge of the friction rows."""
+        edge_post_impact_velocity_rows(
+            self.impact.matrices(terms).jump_matrix, self.impact.edge_matrices(terms).jump, terms.dq, self.dq_max,
+            1.0 / cycle.horizon, self.impact.is_active(terms), C, lower, upper,
         )
 
 
@@ -52,3 +68,14 @@ def post_impact_velocity_rows(jump_matrix, dq, dq_max, inv_h, active, C, lower, 
         for j in range(n):
             C[i, j] = jump_matrix[offset + i, j] + (1.0 if offset + i == j else 0.0)
     symmetric_row_bounds(C, dq, dq_max, inv_h, active, lower, upper)
+
+
+@njit(cache=True)
+def edge_post_impact_velocity_rows(jump_matrix, edge_jumps, dq, dq_max, inv_h, active, C, lower, upper):
+    """Kernel: the rows of ``post_impact_velocity_rows`` for A, then for each edge's A_i, one
+    block of len(dq_max) rows each."""
+    rows = dq_max.shape[0]
+    post_impact_velocity_rows(jump_matrix, dq, dq_max, inv_h, active, C[:rows], lower[:rows], upper[:rows])
+    for e in range(edge_jumps.shape[0]):
+        block = slice((e + 1) * rows, (e + 2) * rows)
+        post_impact_velocity_rows(edge_jumps[e], dq, dq_max, inv_h, active, C[block], lower[block], upper[block])

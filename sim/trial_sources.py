@@ -201,7 +201,8 @@ class QpCommand:
     """The robot's default controller as a trial's command source (module docstring): the jump
     predictor of its impact rows (``method``: a jump model, None without the rows), the QP solver,
     which state it is given (``feedback``), the start gap of a standing robot's trial (m), and the
-    approach options c_r, delta_t and the posture task's weight (None: the preset's)."""
+    approach options c_r, delta_t, the posture task's weight (None: the preset's) and the friction
+    mu of an arm's robust friction rows (0: none; docs/frictional-impacts.md)."""
 
     method: str | None = "crb"
     solver: str = "daqp"
@@ -210,6 +211,7 @@ class QpCommand:
     restitution: float = 0.0
     impact_duration: float | None = None
     posture_weight: float | None = None
+    friction: float = 0.0
     name = "qp"
     tracks_speed = True  # the hand's task asks the speed itself; the QP's rows and limits may cap it
     holds_at_stop = False  # the QP brakes the joints itself (its acceleration and jerk limits)
@@ -230,7 +232,7 @@ class QpCommand:
         return ControllerConfig.approach(
             start.surface, start.speed, tangential_velocity=start.tangential_velocity,
             robot=RobotChoice(start.robot.description).robot_setting, jump_model=self.method, solver=self.solver,
-            restitution=self.restitution, posture_weight=self.posture_weight, **options,
+            restitution=self.restitution, posture_weight=self.posture_weight, friction=self.friction, **options,
         )
 
     def start(self, start: TrialStart) -> QpDriver:

@@ -8,6 +8,7 @@ from whole_body_states import NORMAL, approach_velocity, robot, standing_states,
 
 from impactqp.constraints import ControlCycle, ExpectedImpact
 from impactqp.constraints.capture_constraint import CaptureRegionLimit
+from impactqp.constraints.impact_model import ActivationRule
 from impactqp.controller.model.capture import capture_region, post_impact_com_velocity
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
 from impactqp.controller.model.humanoid_stance import support_polygon
@@ -26,7 +27,7 @@ def test_rows_hold_exactly_when_the_post_impact_com_velocity_is_capturable(state
     v = v + approach_velocity(q, speed)
     terms = model.terms(q, v)
     polygon = support_polygon(model, q)
-    limit = CaptureRegionLimit(ExpectedImpact(wall_ahead(q), method, always_active=True, held_contacts=True), polygon)
+    limit = CaptureRegionLimit(ExpectedImpact(wall_ahead(q), method, rule=ActivationRule(always_active=True), held_contacts=True), polygon)
     rows = limit.compute(terms, ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), H))
     dv = np.random.default_rng(seed).normal(scale=200.0, size=model.nv)
     v_next = v + dv * H

@@ -1,5 +1,7 @@
 """ControllerConfig: files, round trips and the controller it builds."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -166,6 +168,14 @@ def test_bad_configurations_are_rejected_with_a_value_error(robot, data):
         ({"tool": "hammer"}, "unknown tool 'hammer'"),
         ({"tool": 5}, "tool must be a tool name, a tool file or a [tool] table"),
         ({"tool": {"frame": "wrist"}}, "[tool]: tool description: unknown keys [], missing keys"),
+        ({"impact": {"friction": 2.5}}, "impact.friction"),
+        ({"impact": {"friction": -0.1}}, "impact.friction"),
+        ({"impact": {"friction": 0.3, "pyramid_edges": 2}}, "impact.pyramid_edges"),
+        ({"impact": {"friction": 0.3, "pyramid_edges": 17}}, "impact.pyramid_edges"),
+        ({"impact": {"friction_rows": "cone"}}, "impact.friction_rows"),
+        ({"impact": {"friction": 0.3, "jump_model": "classical_normal"}}, "impact.friction"),
+        ({"robot": "g1", "limits": {"torque": False}, "impact": {"impulsive_torque": False, "friction": 0.3}},
+         "impact.friction"),
     ],
 )
 def test_bad_values_are_bad_input_that_names_the_key(data, fragment):
@@ -298,3 +308,25 @@ def test_the_floating_base_after_the_impact_keeps_its_torso_task():
     controller = build_controller(post, g1.robot(), q)
     assert "held_contacts" in [x.name for x in controller.constraints]
     assert not any(x.relaxed for x in controller.constraints)  # the impact and capture rows are off
+
+
+def documented_toml(page: str) -> str:
+    """The TOML block of a docs page."""
+    text = (Path(__file__).parent.parent / "docs" / page).read_text()
+    return text.split("```toml\n", 1)[1].split("```", 1)[0]
+
+
+@pytest.mark.parametrize("rows, blocks", [("pyramid", 5), ("slip", 2)])
+def test_the_documented_friction_rows_file_builds_the_stacked_rows(robot, tmp_path, rows, blocks):
+    """The TOML example of docs/frictional-impacts.md loads, and its controller stacks one block of
+    post-impact velocity and impulsive torque rows per edge under the frictionless block."""
+    path = tmp_path / "friction.toml"
+    path.write_text(documented_toml("frictional-impacts.md").replace('friction_rows = "pyramid"', f'friction_rows = "{rows}"'))
+    config = ControllerConfig.from_file(path)
+    assert (config.impact.friction, config.impact.pyramid_edges, config.impact.friction_rows) == (0.3, 4, rows)
+    controller = build_controller(config, robot)
+    counts = {c.name: c.rows for c in controller.constraints}
+    assert counts["post_impact_velocity[crb]"] == counts["impulsive_torque[crb]"] == blocks * JOINTS
+    assert ControllerConfig.from_dict(config.to_dict()) == config
+    frictionless = build_controller(ControllerConfig.from_dict({**config.to_dict(), "impact": {"friction": 0.0}}), robot)
+    assert {c.name: c.rows for c in frictionless.constraints}["post_impact_velocity[crb]"] == JOINTS

@@ -20,7 +20,8 @@ from impactqp.constraints import (
     TorqueLimit,
     VelocityLimit,
 )
-from impactqp.constraints.impact_model import normal_motion
+from impactqp.constraints.impact_model import ActivationRule, normal_motion
+from impactqp.controller.model.friction_pyramid import FrictionRows
 from impactqp.controller.model.jump import predict
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
 from impactqp.controller.model.jump import jump_model
@@ -151,7 +152,7 @@ def test_impact_rows_are_the_post_impact_velocity_and_impulsive_torque_limits(ro
     rng = np.random.default_rng(seed)
     terms = random_state(robot, rng, speed=0.2)
     surface = surface_ahead(terms)
-    impact = ExpectedImpact(surface, name, restitution=0.3, always_active=True)
+    impact = ExpectedImpact(surface, name, restitution=0.3, rule=ActivationRule(always_active=True))
     c = ControlCycle.after(np.zeros(JOINTS), DT, 1e6 * robot.ddq_max, 1e9 * robot.dddq_max)
     c = ControlCycle(DT, c.acceleration_lower, c.acceleration_upper, cycle(robot).horizon)
     velocity_rows = PostImpactVelocityLimit(impact, robot.dq_max).compute(terms, c)
@@ -175,7 +176,7 @@ def test_violated_impact_rows_ask_for_the_largest_reachable_correction(robot):
     be met are left as they are."""
     q = PANDA.postures["elbow_up"].q
     terms = robot.terms(q, 0.8 * approach_direction(robot, robot.terms(q), np.array([-1.0, 0.0, 0.0])))
-    impact = ExpectedImpact(surface_ahead(terms), "crb", always_active=True)
+    impact = ExpectedImpact(surface_ahead(terms), "crb", rule=ActivationRule(always_active=True))
     c = cycle(robot)
     rows = ImpulsiveTorqueLimit(impact, robot.tau_max, robot.dq_max, 0.015).compute(terms, c)
     low, high = rows.C * c.acceleration_lower, rows.C * c.acceleration_upper
@@ -200,10 +201,10 @@ def test_activation_rule(robot):
     far = Surface(tip - 0.5 * normal, normal)
     assert ExpectedImpact(near).is_active(at_rest)
     assert not ExpectedImpact(far).is_active(at_rest)
-    assert ExpectedImpact(far, always_active=True).is_active(at_rest)
+    assert ExpectedImpact(far, rule=ActivationRule(always_active=True)).is_active(at_rest)
     direction = np.linalg.pinv(at_rest.J6) @ np.concatenate([-normal, np.zeros(3)])
     approaching_fast = robot.terms(q, 2.0 * direction)  # 2 m/s: 0.5 m in 0.25 s
-    assert ExpectedImpact(far, lookahead_time=0.3).is_active(approaching_fast)
+    assert ExpectedImpact(far, rule=ActivationRule(lookahead_time=0.3)).is_active(approaching_fast)
     receding = robot.terms(q, -0.1 * direction)
     assert not ExpectedImpact(near).is_active(receding)
     rows = PostImpactVelocityLimit(ExpectedImpact(far), robot.dq_max).compute(at_rest, cycle(robot))
@@ -236,16 +237,16 @@ def _rows_of(constraint, terms, c, reference):
 
 @settings(max_examples=40, deadline=None)
 @given(seed=SEEDS, jump=st.sampled_from(["crb", "gm", "classical"]), always=st.booleans(),
-       restitution=st.floats(0.0, 1.0))
-def test_compiled_rows_equal_the_numpy_reference(robot, seed, jump, always, restitution):
+       restitution=st.floats(0.0, 1.0), friction=st.sampled_from([FrictionRows(), FrictionRows(0.4, 5), FrictionRows(0.4, 4, "slip")]))
+def test_compiled_rows_equal_the_numpy_reference(robot, seed, jump, always, restitution, friction):
     """Every constraint's compiled kernel (compute_into) writes the rows its plain-numpy
-    statement (tests/reference/constraints.py) gives, active or not; so does the relaxation
-    kernel."""
+    statement (tests/reference/constraints.py) gives, active or not, with and without the
+    friction rows' blocks; so does the relaxation kernel."""
     rng = np.random.default_rng(seed)
     terms = random_state(robot, rng)
     c = cycle(robot, rng.uniform(-0.5, 0.5, JOINTS) * robot.ddq_max)
     surface = Surface(terms.contact_point - rng.uniform(0.0, 0.2) * np.array([-1.0, 0.0, 0.0]), [-1.0, 0.0, 0.0])
-    impact = ExpectedImpact(surface, jump, restitution, always_active=always)
+    impact = ExpectedImpact(surface, jump, restitution, ActivationRule(always_active=always), friction=friction)
     constraints = [
         AccelerationLimit(), PositionLimit(robot.q_min, robot.q_max, robot.ddq_max, 0.5, 0.01),
         VelocityLimit(robot.dq_max), TorqueLimit(robot.tau_max), PostImpactVelocityLimit(impact, robot.dq_max),
@@ -292,7 +293,10 @@ def test_compiled_activation_inputs_equal_the_numpy_reference(robot, seed):
 )
 def test_impact_model_checks_its_inputs_with_the_validation_module(keyword, value, fragment):
     with pytest.raises(BadInputError) as caught:
-        ExpectedImpact(PANDA.postures["elbow_up"].surface, "crb", **{keyword: value})
+        if keyword == "restitution":
+            ExpectedImpact(PANDA.postures["elbow_up"].surface, "crb", **{keyword: value})
+        else:
+            ExpectedImpact(PANDA.postures["elbow_up"].surface, "crb", ActivationRule(**{keyword: value}))
     assert fragment in str(caught.value)
 
 
@@ -331,7 +335,7 @@ def test_g1_rule_is_on_while_approaching_near_the_wall_and_off_when_leaving_or_f
     assert impact.is_active(g1().terms(q, approaching))
     assert not impact.is_active(g1().terms(q, leaving))
     assert not far.is_active(g1().terms(q, approaching))
-    assert ExpectedImpact(wall_ahead(q, 0.5), always_active=True, held_contacts=True).is_active(g1().terms(q, leaving))
+    assert ExpectedImpact(wall_ahead(q, 0.5), rule=ActivationRule(always_active=True), held_contacts=True).is_active(g1().terms(q, leaving))
 
 
 @pytest.mark.parametrize("method", ["crb", "gm", "classical"])
@@ -362,7 +366,7 @@ def test_g1_rows_hold_exactly_when_the_predicted_post_impact_joint_velocities_ar
     model = g1()
     v = v + approach_velocity(q, speed)
     terms = model.terms(q, v)
-    impact = ExpectedImpact(wall_ahead(q), method, always_active=True, held_contacts=True)
+    impact = ExpectedImpact(wall_ahead(q), method, rule=ActivationRule(always_active=True), held_contacts=True)
     rows = PostImpactVelocityLimit(impact, model.dq_max).compute(
         terms, ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), H)
     )
@@ -392,7 +396,7 @@ def test_g1_compiled_post_impact_rows_equal_the_numpy_reference(state, method, a
     model = g1()
     terms = model.terms(q, v + approach_velocity(q, 0.3))
     c = ControlCycle(0.001, np.full(model.nv, -1.0), np.full(model.nv, 1.0), H)
-    impact = ExpectedImpact(wall_ahead(q), method, always_active=always, held_contacts=True)
+    impact = ExpectedImpact(wall_ahead(q), method, rule=ActivationRule(always_active=always), held_contacts=True)
     limit = PostImpactVelocityLimit(impact, model.dq_max)
     for a, b in zip(_rows_of(limit, terms, c, False), _rows_of(limit, terms, c, True)):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-9)

@@ -82,3 +82,21 @@ def test_the_text_of_a_stance_report_names_where_each_criterion_binds():
     assert "  crb           0.5000  capture (edge 2)" in lines
     assert lines[3] == f"  gm          {math.inf:8.4f}   ()"
     assert lines[-1] == "simulated       0.7000  commanded; contact 0.4500; failed first above: -"
+
+
+def test_max_speed_with_friction_is_the_closed_form_of_the_robust_friction_rows(capsys):
+    code, stdout, _ = run(
+        capsys, "max-speed", "--posture", "elbow_up", "--friction", "0.3", "--tangential", "0,0.05,0", "--json"
+    )
+    assert code == 0
+    report = json.loads(stdout)
+    assert (report["friction"], report["pyramid_edges"], report["tangential"]) == (0.3, 4, [0.0, 0.05, 0.0])
+    speeds, without = report["predicted_max_speed"], report["frictionless_max_speed"]
+    assert set(speeds) == {"classical", "gm", "crb", "robust"}
+    assert speeds["robust"] == min(speeds[m] for m in ("classical", "gm", "crb"))
+    assert all(speeds[m] <= without[m] for m in speeds)
+    for binding in report["binding"].values():
+        assert binding["criterion"] in {"velocity_pre", "velocity_post", "impulsive_torque"}
+        assert binding["mode"] in {"slip", "stick", "reversal"}
+    code, text, _ = run(capsys, "max-speed", "--posture", "elbow_up", "--friction", "0.3", "--tangential", "0,0.05,0")
+    assert code == 0 and "robust friction rows" in text and f"{speeds['crb']:8.4f}" in text

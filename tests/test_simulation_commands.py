@@ -64,6 +64,34 @@ def test_simulate_without_jump_constraints_and_tangential(capsys):
     assert "jump constraints off" in stdout and "simulated jump" in stdout
 
 
+def test_simulate_with_friction_puts_the_friction_rows_in_the_qp_and_mu_on_the_wall(capsys, monkeypatch):
+    from impactqp.scenarios import trial as trial_module
+    from impactqp.sim import trial_sources
+
+    seen = {}
+    build_scene, build_controller = trial_module.build_scene, trial_sources.build_controller
+
+    def scene(surface, *args, **kwargs):
+        seen["wall"] = surface.friction
+        return build_scene(surface, *args, **kwargs)
+
+    def controller(config, *args, **kwargs):
+        built = build_controller(config, *args, **kwargs)
+        seen["rows"] = {c.name: c.rows for c in built.constraints}
+        seen["friction"] = config.impact.friction_setting()
+        return built
+
+    monkeypatch.setattr(trial_module, "build_scene", scene)
+    monkeypatch.setattr(trial_sources, "build_controller", controller)
+    code, stdout, _ = run(
+        capsys, "simulate", "--posture", "elbow_up", "--speed", "0.2", "--tangential", "0,0.05,0", "--friction", "0.3",
+        "--json",
+    )
+    assert code == 0 and json.loads(stdout)["jump_model"] == "crb"
+    assert seen["wall"] == 0.3 and seen["friction"].friction == 0.3 and seen["friction"].count == 4
+    assert seen["rows"]["post_impact_velocity[crb]"] == seen["rows"]["impulsive_torque[crb]"] == JOINTS * 5
+
+
 def test_campaign_json(capsys, tmp_path):
     code, stdout, _ = run(
         capsys, "campaign", "--postures", "elbow_up", "--speeds", "0.1", "--tangential", "none",
@@ -110,6 +138,16 @@ def plant_files(tmp_path_factory):
         (["max-speed", "--posture", "elbow_up", "--plant", "{dir}/unknown.json"], "unknown plant parameter"),
         (["campaign", "--speeds", "0.1,0"], r"\(0, 3\] m/s"),
         (["campaign", "--postures", "elbow_up,nowhere"], "unknown posture"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--friction", "2.5"], r"--friction: .*\[0, 2\]"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--friction", "0.3", "--no-jump-constraint"], "--no-jump-constraint"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--friction", "0.3", "--jump-model", "classical_normal"],
+         "classical_normal"),
+        (["simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.1", "--friction", "0.3"], "--friction does not apply"),
+        (["max-speed", "--posture", "elbow_up", "--friction", "-1"], r"--friction: .*\[0, 2\]"),
+        (["max-speed", "--posture", "elbow_up", "--tangential", "0,0.1,0"], "give --friction too"),
+        (["max-speed", "--posture", "elbow_up", "--friction", "0.3", "--tangential", "0.1,0,0"], "orthogonal"),
+        (["max-speed", "--posture", "elbow_up", "--friction", "0.3", "--jobs", "2"], "--jobs"),
+        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3"], "--friction does not apply"),
     ],
 )
 def test_bad_input_is_one_line_with_exit_code_2(capsys, plant_files, args, message):

@@ -8,6 +8,7 @@ from dataclasses import replace
 
 from impactqp.constraints import (
     AccelerationLimit,
+    ActivationRule,
     CaptureRegionLimit,
     ExpectedImpact,
     HeldContactRows,
@@ -19,6 +20,7 @@ from impactqp.constraints import (
     jump_model_names,
 )
 
+from ..model.friction_pyramid import FrictionRows
 from ..model.humanoid_stance import stance_posture, support_polygon
 from ..model.robot import RobotModel
 from ..model.validation import BadInputError
@@ -68,19 +70,11 @@ def build_controller(config: ControllerConfig, robot: RobotModel | None = None, 
     if held_contacts:
         constraints.append(HeldContactRows(6 * held_contacts))
 
-    def impact_model(name: str) -> ExpectedImpact:
-        return ExpectedImpact(
-            surface,
-            name,
-            impact.restitution,
-            impact.lookahead_distance,
-            impact.lookahead_time,
-            impact.release_speed,
-            impact.always_active,
-            held_contacts > 0,
-        )
+    def impact_model(name: str, friction: FrictionRows) -> ExpectedImpact:
+        rule = ActivationRule(impact.lookahead_distance, impact.lookahead_time, impact.release_speed, impact.always_active)
+        return ExpectedImpact(surface, name, impact.restitution, rule, held_contacts > 0, friction)
 
-    models = [impact_model(name) for name in jump_model_names(impact.jump_model)] if impact.jump_model else []
+    models = [impact_model(name, impact.friction_setting()) for name in jump_model_names(impact.jump_model)] if impact.jump_model else []
     polygon = support(robot, q_start) if held_contacts and impact.capture_region and models else None
     for model in models:
         if impact.post_impact_velocity:
@@ -89,7 +83,7 @@ def build_controller(config: ControllerConfig, robot: RobotModel | None = None, 
             constraints.append(ImpulsiveTorqueLimit(model, tau_max, dq_max, impact.impact_duration))
         if polygon is not None:
             constraints.append(CaptureRegionLimit(model, polygon))
-    prediction = models[0] if models else impact_model(impact.prediction_model)
+    prediction = models[0] if models else impact_model(impact.prediction_model, FrictionRows())
     return ImpactAwareController(
         robot, tasks, constraints, config.dt, config.solver, prediction,
         acceleration_limit=ddq_max, jerk_limit=dddq_max,

@@ -18,6 +18,7 @@ from impactqp.constraints.impact_model import MAX_LOOKAHEAD_DISTANCE, MAX_LOOKAH
 from impactqp.tasks import CentreOfMassTask, ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
 
 from ..model.files import read_mapping
+from ..model.friction_pyramid import DEFAULT_EDGES, FrictionRows
 from ..model.jump import METHODS
 from ..model.max_speed import DEFAULT_IMPACT_DURATION
 from ..model.postures import DEFAULT_WALL, Surface
@@ -102,6 +103,9 @@ class ImpactConfig:
     or None to switch the impact-aware constraints off (the prediction in ``Command`` then uses
     ``prediction_model``). ``capture_region``: on a robot standing on held contacts, the
     predicted post-impact centre-of-mass velocity stays capturable (``CaptureRegionLimit``).
+    ``friction`` mu in [0, 2] > 0 adds the robust friction rows of a fixed-base arm
+    (docs/frictional-impacts.md): ``friction_rows`` "pyramid" (``pyramid_edges`` in [3, 16]
+    edges) or "slip" (the one-step preview's edge); 0 keeps the frictionless rows alone.
     """
 
     jump_model: str | None = "crb"
@@ -115,6 +119,9 @@ class ImpactConfig:
     always_active: bool = False
     prediction_model: str = "crb"
     capture_region: bool = True
+    friction: float = 0.0
+    pyramid_edges: int = DEFAULT_EDGES
+    friction_rows: str = "pyramid"
 
     def __post_init__(self):
         if self.jump_model is not None:
@@ -129,6 +136,18 @@ class ImpactConfig:
         validation.number_in_range(
             self.release_speed, 0.0, validation.MAX_CONTACT_SPEED, "impact.release_speed", "m/s"
         )
+        for name, field_name in (("friction", "friction"), ("pyramid_edges", "edges"), ("friction_rows", "mode")):
+            try:
+                FrictionRows(**{field_name: getattr(self, name)})  # each key alone, named in its error
+            except BadInputError as error:
+                raise BadInputError(f"impact.{name}: {error}") from None
+        if self.friction > 0.0 and self.jump_model == "classical_normal":
+            raise BadInputError("impact.friction: the classical_normal model has no friction rows; use 0 or another model")
+
+    def friction_setting(self) -> FrictionRows:
+        """The friction rows of the impact-aware constraints (``friction``, ``pyramid_edges``,
+        ``friction_rows``)."""
+        return FrictionRows(self.friction, self.pyramid_edges, self.friction_rows)
 
 
 POST_IMPACT_MODES = ("retract", "hold", "continue")
@@ -186,8 +205,8 @@ class SurfaceConfig:
 @dataclass(frozen=True)
 class ApproachOptions:
     """The settings of ``ControllerConfig.approach`` beyond the surface and the speed: the robot
-    (a name or a robot file), the approach, the impact model, the solver and period, and the
-    task weights (``posture_weight`` None: 1e-2 for a fixed base, 1e-4 for a floating base, whose
+    (a name or a robot file), the approach, the impact model (``friction`` > 0: an arm's robust
+    friction rows, the pyramid's default edges), the solver and period, and the task weights (``posture_weight`` None: 1e-2 for a fixed base, 1e-4 for a floating base, whose
     centre of mass and torso orientation are held with ``com_weight`` and ``torso_weight``)."""
 
     robot: str = DEFAULT_ROBOT
@@ -201,6 +220,7 @@ class ApproachOptions:
     com_weight: float = 10.0
     torso_weight: float = 10.0
     always_active: bool = False
+    friction: float = 0.0
 
 
 @dataclass
@@ -253,6 +273,11 @@ class ControllerConfig:
                 f"{key}: the {choice.robot.name} has a floating base, whose joint torques depend on its contact "
                 f"wrenches, which the QP does not carry; set {key} = false"
             )
+        if choice.robot.held_contacts and self.impact.friction > 0.0:
+            raise BadInputError(
+                f"impact.friction: the friction rows are for fixed-base arms; the {choice.robot.name} stands on held "
+                "contacts; set impact.friction = 0"
+            )
         self.__dict__["_choice"] = (key, choice)
         return choice
 
@@ -294,6 +319,7 @@ class ControllerConfig:
                 impact_duration=o.impact_duration,
                 always_active=o.always_active,
                 impulsive_torque=not floating,
+                friction=o.friction,
             ),
             surface=SurfaceConfig.of(surface),
             robot=o.robot,

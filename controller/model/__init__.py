@@ -47,11 +47,14 @@ _EXPORTS = {
     "BatchKinematics": "batch",
     "BatchTerms": "batch",
     "predict_batch": "batch",
+    # the robust friction rows
+    "FrictionRows": "friction_pyramid",
     # the highest feasible contact speed
     "MaxSpeed": "max_speed",
     "MaxSpeeds": "max_speed",
     "closed_form_max_speed": "max_speed",
     "closed_form_max_speeds": "max_speed",
+    "frictional_max_speed": "max_speed",
     # the standing humanoid
     "Stance": "robot_description",
     "STANCES": "humanoid_stance",

@@ -3,6 +3,9 @@
 - controller.cycle: microseconds per ``step`` in a kinematic closed loop (q, dq <- q_cmd,
   dq_cmd) approaching the default wall faster than the posture allows, every constraint on,
   the impact-aware ones active (goals: median <= 100 us, p99 <= 250 us), on the Panda;
+- controller.cycle.friction4: the same loop with the robust friction rows of a 4-edge pyramid
+  (mu = ``BENCH_FRICTION``; docs/frictional-impacts.md), timed in the same alternating blocks as
+  controller.cycle, and their ratio ``controller.cycle.friction4/controller.cycle`` (goal <= 1.3);
 - floor.cycle: the floor of that cycle at the same states: one ``computeAllTerms`` and a bare
   ``daqp.solve`` of the controller's own QP (the same H, g, C and stacked bounds, recorded along
   the loop), timed in alternating blocks with controller.cycle (``base.alternating_blocks``),
@@ -58,15 +61,17 @@ CYCLES = 3000
 RESTART_EVERY = 500  # cycles; the loop restarts at the posture before reaching the wall
 WALL_GAP = 0.10  # m between the tool tip and the wall at the start
 G1_STANCE = "parallel"
+BENCH_FRICTION = 0.3  # mu of controller.cycle.friction4's rows
 
 
-def _approach_setup(robot: PandaModel, solver: str | None = None):
-    """The benchmark's approach controller (the configuration's default solver when None), at
-    the robot's default posture for its tool."""
+def _approach_setup(robot: PandaModel, solver: str | None = None, friction: float = 0.0):
+    """The benchmark's approach controller (the configuration's default solver when None; the
+    robust friction rows of mu = ``friction`` when > 0), at the robot's default posture for its
+    tool."""
     posture = tool_posture(robot, robot.description.default_posture)
     normal = posture.surface.normal
     surface = Surface(robot.contact_point(posture.q) - WALL_GAP * normal, normal)
-    config = ControllerConfig.approach(surface, speed=0.5)
+    config = ControllerConfig.approach(surface, speed=0.5, friction=friction)
     if solver is not None:
         config = replace(config, solver=solver)
     return build_controller(config, robot), posture.q
@@ -137,19 +142,30 @@ class CycleFloor:
         return samples
 
 
-def cycle_and_floor_rows(name: str, floor: str, robot: RobotModel, setup: Callable[[], tuple]) -> list[dict]:
+def cycle_and_floor_rows(
+    name: str, floor: str, robot: RobotModel, setup: Callable[[], tuple], variants: dict[str, Callable[[], tuple]] | None = None
+) -> list[dict]:
     """The rows ``name`` (us per ``step`` of the closed loop of ``setup()`` = (controller, q0)),
     ``floor`` (``CycleFloor`` at the states of the same loop, recorded by a twin controller) and
     their ratio, timed in alternating blocks of CYCLES // ALTERNATING_BLOCKS cycles after a
-    warm-up of both."""
+    warm-up of both; each of ``variants`` (row name: its setup) is a closed loop timed in the same
+    blocks, with its ratio to ``name``."""
+    variants = variants or {}
     states: list = []
     ClosedLoop(*setup(), robot.nv).run(CYCLES, states)
     loop, cycle_floor = ClosedLoop(*setup(), robot.nv), CycleFloor(robot, states)
-    ClosedLoop(*setup(), robot.nv).run(300)  # warm-up (numba kernels, caches)
+    others = {variant: ClosedLoop(*make(), robot.nv) for variant, make in variants.items()}
+    for warm_up in (ClosedLoop(*setup(), robot.nv), *(ClosedLoop(*make(), robot.nv) for make in variants.values())):
+        warm_up.run(300)  # warm-up (numba kernels, caches)
     cycle_floor.run(300)
     block = CYCLES // ALTERNATING_BLOCKS
-    blocks = alternating_blocks({name: lambda: loop.run(block)[0], floor: lambda: cycle_floor.run(block)})
-    return [blocks_row(name, "us", blocks[name], 1e6), blocks_row(floor, "us", blocks[floor], 1e6), ratio_row(name, floor, blocks)]
+    timers = {name: lambda: loop.run(block)[0], floor: lambda: cycle_floor.run(block)}
+    timers |= {variant: (lambda other=other: other.run(block)[0]) for variant, other in others.items()}
+    blocks = alternating_blocks(timers)
+    rows = [blocks_row(name, "us", blocks[name], 1e6), blocks_row(floor, "us", blocks[floor], 1e6), ratio_row(name, floor, blocks)]
+    for variant in variants:
+        rows += [blocks_row(variant, "us", blocks[variant], 1e6), ratio_row(variant, name, blocks)]
+    return rows
 
 
 def settled_speed_ratio(robot: PandaModel, solver: str) -> float:
@@ -339,7 +355,8 @@ def g1_rows() -> list[dict]:
 
 def controller_rows() -> list[dict]:
     robot = PandaModel()
-    rows = cycle_and_floor_rows("controller.cycle", "floor.cycle", robot, lambda: _approach_setup(robot))
+    friction4 = {"controller.cycle.friction4": lambda: _approach_setup(robot, friction=BENCH_FRICTION)}
+    rows = cycle_and_floor_rows("controller.cycle", "floor.cycle", robot, lambda: _approach_setup(robot), friction4)
     for name in ("fr3", "ur5"):
         other = RobotModel(name)
         controller_cycle_samples(other, cycles=300)  # warm-up

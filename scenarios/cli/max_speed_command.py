@@ -7,7 +7,10 @@ base (its description's ``base``) is searched per stance of its description
 (``scenarios.max_speed_search.search_stance``: closed form and simulated bisection, no QP; an
 option of the arm's search that has no meaning there is bad input when given), a fixed-base arm
 per named posture on a wall (``scenarios.max_speed_search.MaxSpeedSearch``: closed form,
-QP-limited run and simulated bisection). Bad input ends with one line on stderr and exit code 2.
+QP-limited run and simulated bisection). With ``--friction`` an arm's answer is the closed form
+under the robust friction rows (``controller.model.max_speed.frictional_max_speed``: every
+predictor at the posture, sliding at ``--tangential``), without simulation. Bad input ends with
+one line on stderr and exit code 2.
 """
 
 from __future__ import annotations
@@ -16,10 +19,11 @@ import math
 from dataclasses import dataclass
 
 import click
+import numpy as np
 
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION, HAND_IMPACT_DURATION, Setting
-from impactqp.controller.model.validation import positive
+from impactqp.controller.model.validation import BadInputError, positive
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.controller.model.validation import restitution as restitution_coefficient
 from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, reject_options, robot_options, stance_names
@@ -47,6 +51,8 @@ class MaxSpeedRequest:
     jobs: int
     tolerance: float
     choice: RobotChoice
+    friction: float | None = None
+    tangential: str | None = None
 
 
 def arm_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
@@ -79,7 +85,7 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     from impactqp.controller.model.robot import RobotModel
     from impactqp.scenarios.max_speed_search import search_stance
 
-    reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool"])
+    reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool", "friction", "tangential"])
     robot = request.choice.robot
     stance = stance_names(robot, request.posture)[0]
     c_r = restitution_coefficient(request.restitution, "--restitution")
@@ -95,10 +101,64 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     return report
 
 
+def frictional_arm_max_speed(request: MaxSpeedRequest) -> dict:
+    """The JSON report of an arm's closed form under the robust friction rows (``--friction``,
+    4-edge pyramid) at a named posture, sliding at ``--tangential``: per predictor and ``robust``
+    (the smallest) the speed, what binds it, the block and the frictional impact's mode, beside
+    the frictionless closed form."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.controller.model.friction_pyramid import FrictionRows
+    from impactqp.controller.model.max_speed import frictional_max_speed
+    from impactqp.controller.model.validation import tangential_velocity
+    from impactqp.scenarios.cli.arguments import parse_vector
+
+    reject_options(["jump_model", "plant_file", "wall_point", "jobs", "tolerance"])
+    try:
+        rows = FrictionRows(request.friction)
+    except BadInputError as error:
+        raise BadInputError(f"--friction: {error}") from None
+    c_r = restitution_coefficient(request.restitution, "--restitution")
+    setting_of = {"restitution": c_r, "impact_duration": check_impact_duration(request.impact_duration, "--impact-duration")}
+    normal = wall(None, request.wall_normal).normal
+    tangential = np.zeros(3) if request.tangential is None else tangential_velocity(
+        parse_vector(request.tangential, 3, "--tangential"), normal, "--tangential")
+    posture = request.choice.posture(request.posture)
+    robot = request.choice.shared_model
+    terms = robot.terms(posture.q)
+    answers = {}
+    for method in ("crb", "gm", "classical"):
+        setting = Setting(method, **setting_of)
+        answers[method] = (
+            frictional_max_speed(robot, terms, normal, tangential, setting, rows),
+            frictional_max_speed(robot, terms, normal, tangential, setting, FrictionRows()),
+        )
+    answers["robust"] = min(answers.values(), key=lambda pair: pair[0].max_speed.speed)
+    return {
+        "posture": posture.name, "robot": request.choice.robot.name, "friction": rows.friction,
+        "pyramid_edges": rows.edges, "tangential": tangential.tolist(), "normal": normal.tolist(), "restitution": c_r,
+        "predicted_max_speed": {m: finite(a.max_speed.speed) for m, (a, _) in answers.items()},
+        "frictionless_max_speed": {m: finite(b.max_speed.speed) for m, (_, b) in answers.items()},
+        "binding": {
+            m: {"criterion": a.max_speed.criterion, "joint": a.max_speed.joint, "block": a.block, "mode": a.mode,
+                "mu_bar": finite(a.mu_bar)}
+            for m, (a, _) in answers.items()
+        },
+    }
+
+
+def finite(x: float) -> float | None:
+    """A JSON number: None for inf and nan."""
+    return float(x) if math.isfinite(x) else None
+
+
 def run_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
     """Check the ``max-speed`` options and run the search of the chosen robot: its JSON report."""
     if request.choice.robot.floating:
         return stance_max_speed(request)
+    if request.friction is not None:
+        return frictional_arm_max_speed(request)
+    if request.tangential is not None:
+        raise BadInputError("--tangential is the sliding of the closed form with --friction; give --friction too")
     return arm_max_speed(request, progress)
 
 
@@ -107,6 +167,8 @@ def max_speed_text(report: dict) -> str:
     (a joint, or where the criterion binds), then the QP-limited run and every simulated impact
     when the report has them (an arm's), or the bisection's contact speed and first failure."""
     robot = f" ({report['robot']})" if "robot" in report else ""
+    if "friction" in report:
+        return frictional_text(report)
     constraints = f", jump constraints {report['jump_model']}" if "jump_model" in report else ""
     lines = [
         f"{report['posture']}{robot}: highest feasible contact speed (m/s){constraints}",
@@ -137,6 +199,22 @@ def max_speed_text(report: dict) -> str:
     return "\n".join(lines)
 
 
+def frictional_text(report: dict) -> str:
+    """A ``max-speed --friction`` report as text."""
+    lines = [
+        f"{report['posture']} ({report['robot']}): highest normal contact speed (m/s) under the robust friction rows, "
+        f"mu = {report['friction']}, {report['pyramid_edges']} edges, sliding at {report['tangential']} m/s",
+        f"{'closed form':<14}{'speed':>8}{'no friction':>13}  binds",
+    ]
+    for name, speed in report["predicted_max_speed"].items():
+        b, without = report["binding"][name], report["frictionless_max_speed"][name]
+        lines.append(
+            f"  {name:<12}{speed if speed is not None else math.inf:8.4f}{without if without is not None else math.inf:13.4f}  "
+            f"{b['criterion']}, joint {b['joint']}, {b['block']}; contact {b['mode'] or '-'}"
+        )
+    return "\n".join(lines)
+
+
 @click.command("max-speed")
 @click.option("--posture", "posture_name", required=True, help="A named posture (see `impactqp postures`).")
 @click.option(
@@ -150,6 +228,8 @@ def max_speed_text(report: dict) -> str:
 @wall_normal_option
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
 @click.option("--tolerance", type=float, default=0.005, show_default=True, help="Bisection tolerance (m/s).")
+@click.option("--friction", type=float, help="mu in [0, 2]: the closed form under the robust friction rows (an arm's; no simulation).")
+@click.option("--tangential", help="With --friction: the tangential velocity VX,VY,VZ (m/s) of the sliding approach.")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (no progress bar).")
 @robot_options(humanoid=True)
 def max_speed(posture_name, plant_file, as_json, choice, **search):

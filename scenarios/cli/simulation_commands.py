@@ -20,6 +20,8 @@ from __future__ import annotations
 # First: MuJoCo's OpenGL backend is chosen when MuJoCo is first imported (scenarios.video).
 from impactqp.scenarios import video  # noqa: F401, I001
 
+from dataclasses import replace
+
 import click
 import numpy as np
 
@@ -80,6 +82,8 @@ plant_option = click.option("--plant", "plant_file", help="Plant: a JSON file of
 @click.option("--tangential", "tangential_text", help="Tangential velocity VX,VY,VZ (m/s), orthogonal to the wall normal.")
 @click.option("--no-jump-constraint", is_flag=True, help="Switch the jump-aware constraints off.")
 @click.option("--jump-model", type=click.Choice(list(JUMP_MODEL_CHOICES)), default="crb", show_default=True)
+@click.option("--friction", type=float,
+              help="mu in [0, 2]: the QP's robust friction rows (4-edge pyramid) and the wall's friction.")
 @plant_option
 @wall_point_option
 @wall_normal_option
@@ -94,12 +98,16 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
 
     The tool starts at rest 5 cm in front of the wall; the controller accelerates it towards the
     reference velocity (capped by the jump-aware constraints when they are on) until it hits.
+    --friction MU: the jump-aware constraints get the robust friction rows of mu = MU and the
+    wall's friction is MU too (docs/frictional-impacts.md).
     With --robot g1: the standing G1 (a stance) hits the wall with its right hand, kinematic
     control, driven by a scripted arm command or (--controller qp) by the whole-body QP
     (docs/floating-base.md).
     """
     controller = trial.pop("controller")
+    friction = trial.pop("friction")
     if choice.robot.floating:
+        reject_options(["friction"])
         report, written = stance_trial(choice, posture_name, speed, trial, controller or "scripted")
         if as_json:
             emit_json(report)
@@ -126,6 +134,8 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
         else tangential_velocity(parse_vector(tangential_text, 3, "--tangential"), surface.normal, "--tangential")
     )
     plant = load_plant(plant_file)
+    if friction is not None:
+        surface = frictional_wall(surface, friction, plant, trial["no_jump_constraint"], trial["jump_model"])
     if out_dir is not None:
         output_directory(out_dir, "--out")
     if video_file is not None:
@@ -138,6 +148,8 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
         start_at_rest=True, start_distance=SIMULATE_START_DISTANCE,
     )
     runner = TrialRunner.build(surface, plant, choice)
+    if friction is not None and spec.jump_model is not None:
+        runner.source = replace(runner.source_of(spec), friction=surface.friction)
     result = runner.run(spec)
     if out_dir is not None:
         DatasetWriter(out_dir, dataset_header(surface, choice)).add_trial(*result.dataset_trial())
@@ -164,6 +176,26 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     )
     if out_dir is not None:
         click.echo(f"trial {spec.trial_id} written to {out_dir}")
+
+
+def frictional_wall(surface: Surface, friction: float, plant, no_rows: bool, jump_model: str) -> Surface:
+    """``surface`` with the friction of ``--friction`` (the rows' mu, ``FrictionRows``' range),
+    checked against the other options: a plant file that sets the wall's friction too, or a
+    model without friction rows (classical_normal; none with --no-jump-constraint), is bad input."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.controller.model.friction_pyramid import FrictionRows
+
+    try:
+        mu = FrictionRows(friction).friction
+    except BadInputError as error:
+        raise BadInputError(f"--friction: {error}") from None
+    if plant is not None and plant.friction is not None:
+        raise BadInputError("--friction and the plant's 'friction' both set the wall's friction; give one")
+    if no_rows:
+        raise BadInputError("--friction sets the jump constraints' friction rows; they are off with --no-jump-constraint")
+    if jump_model == "classical_normal" and mu > 0.0:
+        raise BadInputError("--friction: the classical_normal model has no friction rows; choose another --jump-model")
+    return Surface(surface.point, surface.normal, mu)
 
 
 def stance_trial(

@@ -57,14 +57,17 @@ def reference_rows(constraint, terms, cycle, C, lower, upper) -> None:
         np.multiply(constraint.tau_max - terms.h, inv, out=upper)
     elif isinstance(constraint, PostImpactVelocityLimit):
         impact = constraint.impact
-        n = C.shape[1]  # dq+ = S (I + A) dq-, S the last rows (the actuated joints)
-        C[:] = (np.eye(n) + impact.matrices(terms).jump_matrix)[n - C.shape[0]:]
-        symmetric_rows_into(C, terms.dq, constraint.dq_max, inv_h, impact.is_active(terms), lower, upper)
+        n, rows = C.shape[1], len(constraint.dq_max)  # dq+ = S (I + A) dq-, S the last rows (the actuated joints)
+        jumps = [impact.matrices(terms).jump_matrix, *impact.edge_matrices(terms).jump]  # then each edge's A_i
+        C[:] = np.vstack([(np.eye(n) + A)[n - rows:] for A in jumps])
+        limit = np.tile(constraint.dq_max, len(jumps))
+        symmetric_rows_into(C, terms.dq, limit, inv_h, impact.is_active(terms), lower, upper)
     elif isinstance(constraint, ImpulsiveTorqueLimit):
         impact = constraint.impact
-        np.multiply(impact.matrices(terms).torque_matrix, constraint.row_scale[:, None], out=C)  # rows s_i P_i
+        torques = [impact.matrices(terms).torque_matrix, *impact.edge_matrices(terms).torque]  # then each edge's P_i
+        C[:] = np.vstack([P * constraint.row_scale[:, None] for P in torques])  # rows s_i P_i
         # s_i tau_max_i delta_t = dq_max_i
-        scaled_limit = constraint.row_scale * constraint.impulse_limit
+        scaled_limit = np.tile(constraint.row_scale * constraint.impulse_limit, len(torques))
         symmetric_rows_into(C, terms.dq, scaled_limit, inv_h, impact.is_active(terms), lower, upper)
     else:
         constraint.compute_into(terms, cycle, C, lower, upper)
