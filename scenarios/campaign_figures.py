@@ -108,8 +108,10 @@ def y_limits(values: list[np.ndarray], zero: bool = False) -> tuple[float, float
 
 
 def save_figure(fig, path: Path) -> Path:
-    """Save a figure as PNG atomically (``controller.measured.atomic.write_atomic``) and close it."""
+    """Save a figure atomically (``controller.measured.atomic.write_atomic``) in the format of the
+    path's suffix (PNG, PDF or SVG) and close it."""
+    path = Path(path)
     try:
-        return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
+        return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=100, format=path.suffix[1:].lower()))
     finally:
         plt.close(fig)
