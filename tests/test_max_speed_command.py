@@ -82,3 +82,15 @@ def test_the_text_of_a_stance_report_names_where_each_criterion_binds():
     assert "  crb           0.5000  capture (edge 2)" in lines
     assert lines[3] == f"  gm          {math.inf:8.4f}   ()"
     assert lines[-1] == "simulated       0.7000  commanded; contact 0.4500; failed first above: -"
+
+
+def test_a_figure_of_another_format_is_refused_before_the_search(capsys, monkeypatch, tmp_path):
+    from impactqp.scenarios.cli import max_speed_command
+
+    def searched(*args, **kwargs):
+        raise AssertionError("the search ran before --figure was refused")
+
+    monkeypatch.setattr(max_speed_command, "run_max_speed", searched)
+    code, out, err = run(capsys, "max-speed", "--posture", "elbow_up", "--figure", str(tmp_path / "speed.jpg"))
+    assert code == 2 and out == "" and err.count("\n") == 1 and "--figure writes a figure" in err
+    assert list(tmp_path.iterdir()) == []

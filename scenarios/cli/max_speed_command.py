@@ -22,7 +22,15 @@ from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION, HAND_IM
 from impactqp.controller.model.validation import positive
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.controller.model.validation import restitution as restitution_coefficient
-from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, reject_options, robot_options, stance_names
+from impactqp.scenarios.cli.arguments import (
+    check_jobs,
+    emit_json,
+    load_plant,
+    output_file,
+    reject_options,
+    robot_options,
+    stance_names,
+)
 from impactqp.scenarios.cli.simulation_commands import (
     check_reachable,
     plant_option,
@@ -105,6 +113,9 @@ def max_speed_text(report: dict) -> str:
     """A ``max-speed`` JSON report as text: the closed form of each predictor and what binds it
     (a joint, or where the criterion binds), then the QP-limited run and every simulated impact
     when the report has them (an arm's), or the bisection's contact speed and first failure."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.max_speed_search import binding_text
+
     robot = f" ({report['robot']})" if "robot" in report else ""
     constraints = f", jump constraints {report['jump_model']}" if "jump_model" in report else ""
     lines = [
@@ -112,9 +123,7 @@ def max_speed_text(report: dict) -> str:
         f"{'closed form':<14}{'speed':>8}  binds",
     ]
     for name, speed in report["predicted_max_speed"].items():
-        b = report["binding"][name]
-        where = f", joint {b['joint']}" if "joint" in b else f" ({b['where']})"
-        lines.append(f"  {name:<12}{speed if speed is not None else math.inf:8.4f}  {b['criterion']}{where}")
+        lines.append(f"  {name:<12}{speed if speed is not None else math.inf:8.4f}  {binding_text(report['binding'][name])}")
     if "qp_limited_speed" not in report:
         lines.append(f"{'simulated':<14}{report['simulated_max_speed']:8.4f}  commanded; contact "
                      f"{report['simulated_contact_speed']:.4f}; failed first above: {report['simulated_failed_first'] or '-'}")
@@ -150,11 +159,21 @@ def max_speed_text(report: dict) -> str:
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
 @click.option("--tolerance", type=float, default=0.005, show_default=True, help="Bisection tolerance (m/s).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (no progress bar).")
+@click.option("--figure", "figure_file", help="Plot the speed of each predictor and simulation, what binds it (.png, .pdf, .svg).")
 @robot_options(humanoid=True)
-def max_speed(posture_name, plant_file, as_json, choice, **search):
+def max_speed(posture_name, plant_file, as_json, figure_file, choice, **search):
     """Highest feasible contact speed: closed form, reached by the QP, and simulated (with
     --robot g1: closed form and simulated bisection of a stance, no QP)."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.impact_figure import check_figure_suffix
+    from impactqp.scenarios.max_speed_figure import write_max_speed_figure
+
+    if figure_file is not None:
+        check_figure_suffix(output_file(figure_file, "--figure"))
     report = run_max_speed(MaxSpeedRequest(posture=posture_name, plant=plant_file, choice=choice, **search), not as_json)
+    if figure_file is not None:
+        tool = choice.tool.name if choice.tool is not None else "its hand"
+        write_max_speed_figure(report, f"{choice.robot.name} with {tool}", figure_file)
     if as_json:
         emit_json(report)
         return
