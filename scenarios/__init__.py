@@ -1,6 +1,8 @@
 """The experiments: one closed-loop impact trial with the QP (``trial``), the campaign of every
 robot (``campaign``, its Table I ``campaign_table``, its figures ``campaign_figures``), the highest feasible contact speed
-(``max_speed_search``), ``impactqp run`` on a robot (``run``), the diagnosis report, the video, the
+(``max_speed_search``, its figure ``max_speed_figure``), ``impactqp run`` on a robot (``run``), the
+diagnosis report, the video with the robot's meshes (``video``), the joint velocities around an
+impact (``impact_figure``), the
 G1's closed form checked against simulation (``stance_check``) and the feasibility maps (``sweep``); above them the command line (``cli``) and
 the benchmarks (``bench``).
 
@@ -23,6 +25,8 @@ _EXPORTS = {
     "write_report": "diagnosis_report",
     "render_trial_video": "video",
     "write_trial_video": "video",
+    "write_velocity_figure": "impact_figure",
+    "write_max_speed_figure": "max_speed_figure",
     "run_stance_trials": "campaign",
     "search_stance": "max_speed_search",
     "check_against_simulation": "stance_check",

@@ -96,14 +96,18 @@ def check_video_suffix(path: str | Path, what: str = "--video") -> Path:
 def frame_samples(t: np.ndarray, t_contact: float, after: float) -> np.ndarray:
     """The control samples shown, one per frame at :data:`FRAMES_PER_SECOND`: the frame times
     advance by 1/fps of trial time outside the window |t - t_contact| <= SPAN and by
-    1/(fps SLOW_MOTION) inside it, from t_contact - BEFORE to t_contact + ``after`` (clipped to
-    the log); each time is shown by the last sample at or before it."""
+    1/(fps SLOW_MOTION) inside it (which a real-time step does not skip into: it stops at its
+    start), from t_contact - BEFORE to t_contact + ``after`` (clipped to the log); each time is
+    shown by the last sample at or before it."""
     real, slow = 1.0 / FRAMES_PER_SECOND, 1.0 / (FRAMES_PER_SECOND * SLOW_MOTION)
     start, stop = max(t_contact - BEFORE, float(t[0])), min(t_contact + after, float(t[-1]))
     times, now = [], start
     while now <= stop:
         times.append(now)
-        now += slow if abs(now - t_contact) < SPAN else real
+        if t_contact - SPAN - 1e-9 <= now < t_contact + SPAN:
+            now += slow
+        else:  # a real-time step lands on the window's start rather than inside it
+            now = t_contact - SPAN if now < t_contact - SPAN < now + real else now + real
     return np.unique(np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(t) - 1))
 
 

@@ -49,11 +49,15 @@ def test_the_contact_is_slowed_down_and_the_rest_runs_at_real_time(t_contact):
     shown = t[video.frame_samples(t, t_contact, video.ARM_AFTER)]
     steps = np.diff(shown)
     slow, real = 1.0 / (video.FRAMES_PER_SECOND * video.SLOW_MOTION), 1.0 / video.FRAMES_PER_SECOND
+    window_start = t_contact - video.SPAN
     near = np.abs(shown[:-1] - t_contact) < video.SPAN - 2e-3
-    far = np.abs(shown[:-1] - t_contact) > video.SPAN + 2e-3
+    entering = (shown[:-1] < window_start) & (shown[:-1] + real > window_start - 2e-3)
+    far = (np.abs(shown[:-1] - t_contact) > video.SPAN + 2e-3) & ~entering
     assert near.any() and far.any()
     np.testing.assert_allclose(steps[near], slow, atol=1.01e-3)
     np.testing.assert_allclose(steps[far], real, atol=1.01e-3)
+    assert np.abs(shown - window_start).min() < 1.01e-3  # the slow motion starts at the window's start (one sample)
+    assert (steps[entering] <= real + 1.01e-3).all()
     assert shown[0] == pytest.approx(max(t_contact - video.BEFORE, 0.0), abs=1e-3)
     assert shown[-1] <= t_contact + video.ARM_AFTER
 

@@ -201,6 +201,8 @@ def demo(out_dir, jobs):
        which the CRB predictor wins.
     4. The highest feasible contact speed of elbow_up with the calibrated plant, and which answer
        to trust.
+    5. One impact in pictures: the video of a trial with the robot's meshes and its joint
+       velocities around the impact with each predictor's dq+ (out/demo/impact).
 
     Progress bars (stderr) show the simulated trials of stages 1, 2 and 4.
     """
