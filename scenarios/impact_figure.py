@@ -55,10 +55,9 @@ def check_figure_suffix(path: str | Path, what: str = "--figure") -> Path:
 
 
 def post_velocities(trial) -> dict[str, np.ndarray]:
-    """The joints' predicted dq+ = dq- + Delta dq of every predictor of :data:`PREDICTORS` the
-    trial has (the jump's joint part: its last n entries, after a floating base's twist)."""
-    dq_pre = trial.impact.dq_pre
-    return {m: dq_pre + trial.predicted[m][-len(dq_pre):] for m in PREDICTORS if m in trial.predicted}
+    """The joints' predicted dq+ = dq- + Delta dq (``TrialResult.predicted_post_velocity``) of
+    every predictor of :data:`PREDICTORS` the trial has."""
+    return {m: trial.predicted_post_velocity(m) for m in PREDICTORS if m in trial.predicted}
 
 
 def shown_joints(trial, dq_max: np.ndarray) -> list[int]:

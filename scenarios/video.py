@@ -127,14 +127,7 @@ def configurations_of(trial) -> np.ndarray:
 def binding_joint(trial, dq_max: np.ndarray) -> int:
     """The joint whose predicted post-impact speed |dq- + Delta dq| (OVERLAY_METHOD, eq. (19)) is
     the largest fraction of its limit."""
-    return int(np.argmax(np.abs(predicted_post_velocity(trial, OVERLAY_METHOD)) / dq_max))
-
-
-def predicted_post_velocity(trial, method: str) -> np.ndarray:
-    """The joints' predicted dq+ = dq- + Delta dq of ``method`` (its jump's joint part: the
-    last n entries, after a floating base's twist)."""
-    dq_pre = trial.impact.dq_pre
-    return dq_pre + trial.predicted[method][-len(dq_pre):]
+    return int(np.argmax(np.abs(trial.predicted_post_velocity(OVERLAY_METHOD)) / dq_max))
 
 
 def overlay_lines(trial, robot, k: int) -> list[str]:
@@ -144,7 +137,7 @@ def overlay_lines(trial, robot, k: int) -> list[str]:
     t = float(trial.log.t[k] - trial.impact.t_contact_start)
     pace = f"{SLOW_MOTION:g}x slow motion" if abs(t) < SPAN else "real time"
     j = binding_joint(trial, dq_max)
-    post = predicted_post_velocity(trial, OVERLAY_METHOD)[j]
+    post = trial.predicted_post_velocity(OVERLAY_METHOD)[j]
     return [
         f"t - t_contact = {t * 1e3:+7.1f} ms   ({pace})",
         f"contact speed {trial.contact_speed:.3f} m/s",
