@@ -1,8 +1,9 @@
 """The experiments: one closed-loop impact trial with the QP (``trial``), the campaign of every
 robot (``campaign``, its Table I ``campaign_table``, its figures ``campaign_figures``), the highest feasible contact speed
-(``max_speed_search``), ``impactqp run`` on a robot (``run``), the diagnosis report, the video, the
-G1's closed form checked against simulation (``stance_check``), the frictional impact law against
-MuJoCo's wall (``oblique``) and the feasibility maps (``sweep``); above them the command line (``cli``) and
+(``max_speed_search``, its figure ``max_speed_figure``), ``impactqp run`` on a robot (``run``), the
+diagnosis report, the video with the robot's meshes (``video``), the joint velocities around an
+impact (``impact_figure``), the G1's closed form checked against simulation (``stance_check``),
+the frictional impact law against MuJoCo's wall (``oblique``) and the feasibility maps (``sweep``); above them the command line (``cli``) and
 the benchmarks (``bench``).
 
 Its names are exported lazily (PEP 562): the command line imports this file first and must stay
@@ -22,8 +23,10 @@ _EXPORTS = {
     "MaxSpeedReport": "max_speed_search",
     "RunRequest": "run",
     "write_report": "diagnosis_report",
-    "render_impact_gif": "video",
-    "render_humanoid_gif": "video",
+    "render_trial_video": "video",
+    "write_trial_video": "video",
+    "write_velocity_figure": "impact_figure",
+    "write_max_speed_figure": "max_speed_figure",
     "run_stance_trials": "campaign",
     "search_stance": "max_speed_search",
     "check_against_simulation": "stance_check",

@@ -204,7 +204,8 @@ class Campaign:
         table = self.trials.table(results)
         for name, text in table.files().items():
             write_text_atomic(out / name, text)
-        table.write_figures(out)
+        choice = self.trials.choice
+        table.write_figures(out, f"{choice.robot.name} with {choice.tool.name if choice.tool else 'its hand'}")
         return table
 
 

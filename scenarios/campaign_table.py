@@ -49,8 +49,9 @@ def crb_reduction(errors: dict[str, float]) -> float:
 @dataclass(frozen=True)
 class TableRow:
     """One trial of Table I: its setting, the contact speed and the error (26) per predictor; the
-    measured jump (nv) and each predictor's |error| per joint (the figures'); ``report`` the
-    trial's own JSON (without its predictions) when the table carries it, else empty."""
+    measured jump (nv), each predictor's |error| per joint and its jump of the joints (the
+    figures'); ``report`` the trial's own JSON (without its predictions) when the table carries
+    it, else empty."""
 
     trial_id: str
     posture: str
@@ -61,6 +62,7 @@ class TableRow:
     measured_jump: np.ndarray = field(repr=False)
     joint_errors: dict[str, np.ndarray] = field(repr=False)
     report: dict = field(default_factory=dict, repr=False)
+    predicted_jump: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     @classmethod
     def of(cls, result: TrialResult, report: bool = False) -> TableRow:
@@ -77,6 +79,7 @@ class TableRow:
             measured_jump=measured,
             joint_errors={m: np.abs(dv[joints] - measured[joints]) for m, dv in result.predicted.items()},
             report={k: v for k, v in result.to_json().items() if k not in UNREPORTED} if report else {},
+            predicted_jump={m: dv[joints].copy() for m, dv in result.predicted.items()},
         )
 
     @property
@@ -202,9 +205,10 @@ class Table1:
         text = self.text() if self.layout.markdown else f"```text\n{self.text()}\n```"
         return dict(zip(TABLE_FILES, (json.dumps(self.to_json(), indent=2, allow_nan=False) + "\n", text + "\n")))
 
-    def write_figures(self, out: Path) -> list[Path]:
-        """The figures (``scenarios.campaign_figures``) of a layout with figures, else none."""
-        return CampaignFigures(self).write(out) if self.figures else []
+    def write_figures(self, out: Path, subject: str = "") -> list[Path]:
+        """The figures (``scenarios.campaign_figures``, their titles naming ``subject``: the robot
+        and its tool) of a layout with figures, else none."""
+        return CampaignFigures(self, subject).write(out) if self.figures else []
 
     def text(self) -> str:
         """The table as text: a Markdown table or aligned text, as its layout says (errors in rad/s)."""

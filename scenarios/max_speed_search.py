@@ -152,6 +152,12 @@ class MaxSpeedReport:
         }
 
 
+def binding_text(binding: dict) -> str:
+    """What binds a predictor's speed in a report's ``binding``: ``criterion, joint N`` or
+    ``criterion (where)``."""
+    return binding["criterion"] + (f", joint {binding['joint']}" if "joint" in binding else f" ({binding['where']})")
+
+
 def predicted_max_speeds(
     robot: PandaModel, q: np.ndarray, normal: np.ndarray, restitution: float, impact_duration: float
 ) -> dict[str, MaxSpeed]:

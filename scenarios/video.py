@@ -1,4 +1,4 @@
-"""Offscreen rendering of an impact trial as an animated GIF.
+"""Offscreen rendering of an impact trial, with the robot's own meshes, as an animated GIF.
 
 MuJoCo picks its OpenGL backend from the environment variable ``MUJOCO_GL`` when it is first
 imported: ``egl`` (Debian package libegl1 plus a Mesa or GPU driver) or ``osmesa`` (libosmesa6)
@@ -9,11 +9,16 @@ without libosmesa6 raises AttributeError), so MuJoCo is imported again with rend
 and the failure is kept for :func:`offscreen_backend_problem`, which says in one line why
 rendering is impossible, so that a command can refuse ``--video`` before simulating anything.
 
-The video replays the logged joint positions (control rate) from 60 ms before to 60 ms after
-the contact, slowed down 10 times, with a camera looking at the contact point along the wall
-(the wall is then a line); a G1 trial (``render_humanoid_gif``) likewise, from its logged
-configurations. The simulated arm has no geoms (only the tool and the wall collide):
-its links are drawn as capsules between the body origins.
+The video (:func:`render_trial_video`) replays a trial's logged configurations on the render
+model of its scene (``sim.render_scene``: the robot's meshes, the tool and the wall, the scene's
+qpos layout): at real time from :data:`BEFORE` before the contact, slowed down
+:data:`SLOW_MOTION` times within +-:data:`SPAN` of it, at real time again up to the trial's
+``after`` (:func:`frame_samples`). The arm is seen along the wall (the wall is a line), the
+standing G1 from the side. Each frame carries the overlay of :func:`overlay_lines`: the time
+relative to the contact (ms) and the playback speed, the contact speed, and for the binding
+joint (the largest predicted |dq+_i| / dq_max_i, CRB) its |dq| now, its limit and its CRB
+prediction dq+ = dq- + Delta dq (eq. (19)). The output format follows the file suffix
+(:data:`VIDEO_SUFFIXES`: ``.gif``, written with PIL).
 """
 
 from __future__ import annotations
@@ -45,18 +50,20 @@ except Exception as import_error:  # the GL libraries of MUJOCO_GL are missing
 import numpy as np  # noqa: E402
 
 from impactqp.controller.measured.atomic import write_atomic  # noqa: E402
-from impactqp.controller.measured.impact import ImpactMeasurement  # noqa: E402
-from impactqp.controller.measured.trial_log import TrialLog  # noqa: E402
-from impactqp.sim.scene import build_humanoid_scene  # noqa: E402
-from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD  # noqa: E402
-from impactqp.sim.scene import Scene  # noqa: E402
+from impactqp.controller.model.validation import BadInputError  # noqa: E402
+from impactqp.sim.render_scene import RenderScene, arm_render_scene, humanoid_render_scene  # noqa: E402
+from impactqp.sim.scene import TOOL_GEOM  # noqa: E402
 
 FRAME_SIZE = (360, 480)  # height, width
-SPAN = 0.06
+SPAN = 0.06  # s: the slow-motion window on either side of the contact
 SLOW_MOTION = 10.0
-FRAMES_PER_SECOND = 25
-LINK_RADIUS = 0.025
+BEFORE = 0.3  # s shown before the contact
+ARM_AFTER = 0.12  # s of an arm trial shown after the contact
 HUMANOID_AFTER = 0.3  # s of a G1 trial shown after the contact
+FRAMES_PER_SECOND = 25
+VIDEO_SUFFIXES = (".gif",)
+OVERLAY_METHOD = "crb"
+SHOULDER = np.array([0.0, 0.0, 0.45])  # m: a point above an arm's base the camera keeps in view
 
 
 def offscreen_backend_problem() -> str | None:
@@ -76,36 +83,186 @@ def offscreen_backend_problem() -> str | None:
     return None
 
 
-def render_impact_gif(scene: Scene, log: TrialLog, impact: ImpactMeasurement, path: str | Path) -> Path:
-    """Render the impact of ``log`` (module docstring) to the GIF ``path`` (written atomically)."""
+def check_video_suffix(path: str | Path, what: str = "--video") -> Path:
+    """``path`` when its suffix names a format of :data:`VIDEO_SUFFIXES`, else bad input."""
+    path = Path(path)
+    if path.suffix.lower() not in VIDEO_SUFFIXES:
+        raise BadInputError(
+            f"{what} writes an animated GIF: give a {' or '.join(VIDEO_SUFFIXES)} file name, got {str(path)!r}"
+        )
+    return path
+
+
+def frame_samples(t: np.ndarray, t_contact: float, after: float) -> np.ndarray:
+    """The control samples shown, one per frame at :data:`FRAMES_PER_SECOND`: the frame times
+    advance by 1/fps of trial time outside the window |t - t_contact| <= SPAN and by
+    1/(fps SLOW_MOTION) inside it (which a real-time step does not skip into: it stops at its
+    start), from t_contact - BEFORE to t_contact + ``after`` (clipped to the log); each time is
+    shown by the last sample at or before it."""
+    real, slow = 1.0 / FRAMES_PER_SECOND, 1.0 / (FRAMES_PER_SECOND * SLOW_MOTION)
+    start, stop = max(t_contact - BEFORE, float(t[0])), min(t_contact + after, float(t[-1]))
+    times, now = [], start
+    while now <= stop:
+        times.append(now)
+        if t_contact - SPAN - 1e-9 <= now < t_contact + SPAN:
+            now += slow
+        else:  # a real-time step lands on the window's start rather than inside it
+            now = t_contact - SPAN if now < t_contact - SPAN < now + real else now + real
+    return np.unique(np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(t) - 1))
+
+
+def shown_samples(trial) -> np.ndarray:
+    """The samples of ``trial`` a video shows (:func:`frame_samples`: an arm's up to ARM_AFTER, a
+    standing robot's up to HUMANOID_AFTER after the contact)."""
+    after = HUMANOID_AFTER if trial.held is not None else ARM_AFTER
+    return frame_samples(trial.log.t, trial.impact.t_contact_start, after)
+
+
+def configurations_of(trial) -> np.ndarray:
+    """The logged Pinocchio configurations of ``trial`` per control sample (a floating base's
+    with its base pose)."""
+    return trial.held.q_log if trial.held is not None else trial.log.q
+
+
+def binding_joint(trial, dq_max: np.ndarray) -> int:
+    """The joint whose predicted post-impact speed |dq- + Delta dq| (OVERLAY_METHOD, eq. (19)) is
+    the largest fraction of its limit."""
+    return int(np.argmax(np.abs(trial.predicted_post_velocity(OVERLAY_METHOD)) / dq_max))
+
+
+def overlay_lines(trial, robot, k: int) -> list[str]:
+    """The overlay of control sample ``k`` (module docstring) of ``trial`` of the robot ``robot``
+    (its description: joint names and limits)."""
+    joints, dq_max = robot.joints, robot.dq_max
+    t = float(trial.log.t[k] - trial.impact.t_contact_start)
+    pace = f"{SLOW_MOTION:g}x slow motion" if abs(t) < SPAN else "real time"
+    j = binding_joint(trial, dq_max)
+    post = trial.predicted_post_velocity(OVERLAY_METHOD)[j]
+    return [
+        f"t - t_contact = {t * 1e3:+7.1f} ms   ({pace})",
+        f"contact speed {trial.contact_speed:.3f} m/s",
+        f"{joints[j]}: |dq| {abs(trial.log.dq[k, j]):.3f} rad/s, limit {dq_max[j]:.3f}, "
+        f"{OVERLAY_METHOD.upper()} dq+ {post:+.3f}",
+    ]
+
+
+def draw_overlay(image, lines: list[str]):
+    """The frame ``image`` (PIL) with ``lines`` written in white on a dark band at its top."""
+    from PIL import ImageDraw, ImageFont
+
+    font = ImageFont.load_default(size=max(10, image.height // 30))
+    draw = ImageDraw.Draw(image)
+    line_height = font.size + 3
+    draw.rectangle([0, 0, image.width, 6 + line_height * len(lines)], fill=(20, 24, 32))
+    for i, line in enumerate(lines):
+        draw.text((6, 3 + i * line_height), line, fill=(255, 255, 255), font=font)
+    return image
+
+
+def arm_camera(render: RenderScene, q: np.ndarray) -> mujoco.MjvCamera:
+    """A camera looking along the wall at the middle between the tool at the configuration ``q``
+    and the arm's shoulder (:data:`SHOULDER`)."""
+    model, data = render.model, mujoco.MjData(render.model)
+    data.qpos[:] = render.qpos(q)
+    mujoco.mj_kinematics(model, data)
+    camera = mujoco.MjvCamera()
+    camera.lookat[:] = 0.5 * (data.geom_xpos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, TOOL_GEOM)] + SHOULDER)
+    camera.distance = 1.5
+    normal = render.surface.normal
+    camera.azimuth = 90.0 + float(np.degrees(np.arctan2(normal[1], normal[0])))
+    camera.elevation = -12.0
+    return camera
+
+
+def humanoid_camera(render: RenderScene) -> mujoco.MjvCamera:
+    """A camera looking at the standing robot from its side (the wall is a line)."""
+    camera = mujoco.MjvCamera()
+    camera.lookat[:] = [render.surface.point[0] - 0.3, 0.0, 0.6]
+    camera.distance = 2.6
+    camera.azimuth = 90.0
+    camera.elevation = -10.0
+    return camera
+
+
+def render_frames(render: RenderScene, trial, camera: mujoco.MjvCamera, samples, frame_size=FRAME_SIZE) -> list:
+    """The frames (PIL images) of the control ``samples`` of ``trial`` on ``render``, with their
+    overlays."""
     from PIL import Image
 
-    path = Path(path)
-    model = scene.model
-    data = mujoco.MjData(model)
-    height, width = FRAME_SIZE
-    step = 1.0 / (FRAMES_PER_SECOND * SLOW_MOTION * log.control_period)  # samples per frame
-    t_c = impact.t_contact_start
-    first = int(np.searchsorted(log.t, t_c - SPAN))
-    last = int(np.searchsorted(log.t, t_c + SPAN))
-    # integer frame indices: a float arange can overshoot its stop by one rounding error
-    samples = np.unique(np.minimum(np.arange(first, last, max(step, 1.0)).astype(int), last - 1))
-
-    camera = mujoco.MjvCamera()
-    camera.lookat[:] = scene.tool_centre(log.q[impact.pre_index])
-    camera.distance = 1.5
-    camera.azimuth = 90.0 + float(np.degrees(np.arctan2(scene.surface.normal[1], scene.surface.normal[0])))
-    camera.elevation = -15.0
-    model.vis.headlight.ambient[:] = 0.5  # the URDF brings no light: a brighter headlight
+    configurations = configurations_of(trial)
+    model, data = render.model, mujoco.MjData(render.model)
+    height, width = frame_size
     frames = []
     with mujoco.Renderer(model, height, width) as renderer:
         for k in samples:
-            data.qpos[:] = log.q[k]
-            mujoco.mj_forward(model, data)
+            data.qpos[:] = render.qpos(configurations[k])
+            mujoco.mj_kinematics(model, data)
             renderer.update_scene(data, camera)
-            draw_links(renderer.scene, model, data)
-            frames.append(Image.fromarray(renderer.render()))
-    return save_gif(frames, path)
+            frames.append(draw_overlay(Image.fromarray(renderer.render()), overlay_lines(trial, render.robot, k)))
+    return frames
+
+
+def render_trial_video(render: RenderScene, trial, path: str | Path, frame_size=FRAME_SIZE) -> Path:
+    """Render ``trial`` (``sim.trial_result.TrialResult``, an arm's or a standing robot's) on the
+    render model of its scene to the video ``path`` (module docstring), written atomically."""
+    path = check_video_suffix(path)
+    samples = shown_samples(trial)
+    if trial.held is not None:
+        camera = humanoid_camera(render)
+    else:
+        camera = arm_camera(render, trial.log.q[trial.impact.pre_index])
+    return save_gif(render_frames(render, trial, camera, samples, frame_size), path)
+
+
+def render_scene_of(runner, trial) -> RenderScene:
+    """The render model of the scene ``trial`` ran on with ``runner``
+    (``scenarios.trial.TrialRunner``): an arm's, ``runner.scene``'s robot, tool and wall; a
+    standing robot's, its model and the trial's wall."""
+    if trial.held is not None:
+        robot = runner.robot
+        return humanoid_render_scene(robot.description, tuple(robot.joint_names), trial.held.wall_x, robot.urdf_path)
+    scene = runner.scene
+    return arm_render_scene(scene.robot, scene.tool, scene.surface)
+
+
+def write_trial_video(runner, trial, path: str | Path, frame_size=FRAME_SIZE) -> Path:
+    """Render ``trial``, run by ``runner``, on the render model of its scene
+    (:func:`render_scene_of`) to the video ``path``."""
+    return render_trial_video(render_scene_of(runner, trial), trial, path, frame_size)
+
+
+def viewer_problem() -> str | None:
+    """None when MuJoCo's interactive viewer can open a window, else a one-line explanation: no
+    display (DISPLAY and WAYLAND_DISPLAY unset) or its module cannot load."""
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        return "no display to open the viewer in (DISPLAY and WAYLAND_DISPLAY are unset); use --video FILE.gif"
+    try:
+        import mujoco.viewer  # noqa: F401
+    except Exception as error:  # any failure to load the viewer means: no viewer
+        return f"the viewer cannot start: {type(error).__name__}: {error}".strip().splitlines()[0]
+    return None
+
+
+def view_trial(runner, trial) -> None:
+    """Replay ``trial`` in MuJoCo's interactive viewer (``mujoco.viewer.launch_passive``) on the
+    render model of its scene, at the pace of the video's frames (slowed around the contact),
+    again and again until the window is closed."""
+    import time
+
+    import mujoco.viewer
+
+    render = render_scene_of(runner, trial)
+    configurations, samples = configurations_of(trial), shown_samples(trial)
+    data = mujoco.MjData(render.model)
+    with mujoco.viewer.launch_passive(render.model, data) as viewer:
+        while viewer.is_running():
+            for k in samples:
+                data.qpos[:] = render.qpos(configurations[k])
+                mujoco.mj_kinematics(render.model, data)
+                viewer.sync()
+                time.sleep(1.0 / FRAMES_PER_SECOND)
+                if not viewer.is_running():
+                    return
 
 
 def save_gif(frames: list, path: Path) -> Path:
@@ -116,50 +273,3 @@ def save_gif(frames: list, path: Path) -> Path:
             tmp, format="GIF", save_all=True, append_images=frames[1:], duration=int(1000 / FRAMES_PER_SECOND), loop=0
         ),
     )
-
-
-def draw_links(scene: mujoco.MjvScene, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-    """A capsule from every body's origin to its parent's: the simulated robot has no geoms
-    but the tool (only the tool and the wall collide)."""
-    for body in range(2, model.nbody):
-        if scene.ngeom >= scene.maxgeom:
-            return
-        geom = scene.geoms[scene.ngeom]
-        mujoco.mjv_initGeom(
-            geom, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3), np.zeros(9),
-            np.array([0.75, 0.75, 0.8, 1.0], dtype=np.float32),
-        )
-        mujoco.mjv_connector(
-            geom, mujoco.mjtGeom.mjGEOM_CAPSULE, LINK_RADIUS,
-            data.xpos[model.body_parentid[body]], data.xpos[body],
-        )
-        scene.ngeom += 1
-
-
-def render_humanoid_gif(robot, trial, path: str | Path) -> Path:
-    """Render a G1 trial (``sim.trial_result.TrialResult`` with held contacts, its logged configurations) to the
-    GIF ``path``: from 60 ms before to 300 ms after the first wall contact, slowed down 10 times,
-    seen from the side (the wall is a line), the links drawn as capsules between body origins."""
-    from PIL import Image
-
-    path = Path(path)
-    scene = build_humanoid_scene(robot, trial.held.wall_x)
-    model, data = scene.model, scene.data
-    height, width = FRAME_SIZE
-    step = max(int(round(1.0 / (FRAMES_PER_SECOND * SLOW_MOTION * DEFAULT_CONTROL_PERIOD))), 1)
-    first = max(trial.impact.pre_index - int(round(SPAN / DEFAULT_CONTROL_PERIOD)), 0)
-    last = min(trial.impact.pre_index + int(round(HUMANOID_AFTER / DEFAULT_CONTROL_PERIOD)), len(trial.held.q_log))
-    camera = mujoco.MjvCamera()
-    camera.lookat[:] = [trial.held.wall_x - 0.3, 0.0, 0.6]
-    camera.distance = 2.6
-    camera.azimuth = 90.0
-    camera.elevation = -10.0
-    model.vis.headlight.ambient[:] = 0.5
-    frames = []
-    with mujoco.Renderer(model, height, width) as renderer:
-        for k in range(first, last, step):
-            scene.set_state(trial.held.q_log[k])
-            renderer.update_scene(data, camera)
-            draw_links(renderer.scene, model, data)
-            frames.append(Image.fromarray(renderer.render()))
-    return save_gif(frames, path)

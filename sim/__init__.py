@@ -3,8 +3,9 @@ parameters (``plant``), joint servo (``servo``) and sensors (``sensor``), the on
 trial of every robot (``trial_loop``), the one trial runner (``runner``), its command sources
 (``trial_sources``) and its result (``trial_result``), the simulated robot behind the runtime's interface (``sim_backend``),
 simulated datasets (``generation``), the candidate causes of a sim-to-real gap (``causes``) and
-their diagnosis (``diagnosis``), and the standing G1's feet (``humanoid_feet``; its scene in
-``scene``, its trial in ``runner``).
+their diagnosis (``diagnosis``), the standing G1's feet (``humanoid_feet``; its scene in
+``scene``, its trial in ``runner``), and the render-only model of a scene with the robot's
+meshes (``render_scene``).
 
 Its names are exported lazily (PEP 562): importing one module loads only its own imports.
 """
@@ -40,6 +41,9 @@ _EXPORTS = {
     "QpCommand": "trial_sources",
     "ScriptedCommand": "trial_sources",
     "ProcessPool": "process_pool",
+    "RenderScene": "render_scene",
+    "arm_render_scene": "render_scene",
+    "humanoid_render_scene": "render_scene",
 }
 _EXPORTS = {name: f"{__name__}.{module}" for name, module in _EXPORTS.items()}
 

@@ -119,6 +119,12 @@ class TrialResult:
         measured = self.measured_jump[joints]
         return {m: float(np.mean(np.abs(dv[joints] - measured))) for m, dv in self.predicted.items()}
 
+    def predicted_post_velocity(self, method: str) -> np.ndarray:
+        """The joints' post-impact velocity predicted by ``method``: dq+ = dq- + Delta dq (eq.
+        (19)), with the jump's joint part (its last n entries, after a floating base's twist)."""
+        dq_pre = self.impact.dq_pre
+        return dq_pre + self.predicted[method][-len(dq_pre):]
+
     @property
     def violated(self) -> bool:
         """A criterion failed."""

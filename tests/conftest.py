@@ -1,6 +1,11 @@
 import functools
 import hashlib
+import os
 import signal
+
+# MuJoCo picks its OpenGL backend when it is first imported (below): the offscreen one that
+# scenarios.video renders with, as the command line does (an explicit MUJOCO_GL wins).
+os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np
 import pytest

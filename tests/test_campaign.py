@@ -104,7 +104,7 @@ def test_table1_is_eq26_against_the_jumps_in_the_dataset(campaign_dir):
 
 
 def test_figures_are_png(campaign_dir):
-    for name in ("jumps_elbow_left.png", "errors_elbow_left.png", "tangential.png"):
+    for name in ("jumps_elbow_left.png", "errors_elbow_left.png", "predicted_elbow_left.png", "tangential.png"):
         assert (campaign_dir / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 

@@ -344,3 +344,23 @@ def test_the_docs_own_robot_and_tool_files_run_a_command(tmp_path):
     ):
         out = subprocess.run([sys.executable, "-m", "impactqp", *command], capture_output=True, text=True, cwd=tmp_path)
         assert out.returncode == 0, out.stderr
+
+
+def test_the_picture_commands_of_the_simulation_page_parse():
+    """Every ``impactqp`` line of the ``sh`` block of docs/simulation.md's "Pictures" is parsed by
+    its command's options (an unknown option or a bad value fails; nothing runs), and the docs'
+    pictures it made are small files."""
+    import click
+
+    from impactqp.scenarios.cli.commands import cli
+
+    text = (ROOT / "docs" / "simulation.md").read_text(encoding="utf-8")
+    section = text[text.index("## Pictures"):]
+    lines = [line.split()[1:] for block in SH_FENCE.findall(section) for line in block.splitlines()
+             if line.startswith("impactqp ")]
+    assert {words[0] for words in lines} == {"simulate", "campaign", "max-speed"}
+    for words in lines:
+        context = cli.commands[words[0]].make_context(words[0], words[1:])
+        assert isinstance(context, click.Context)
+    for name in ("panda-impact.gif", "panda-impact.png", "panda-velocities.png"):
+        assert f"figures/{name}" in section and (ROOT / "docs" / "figures" / name).stat().st_size < 1.5e6

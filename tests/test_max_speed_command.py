@@ -100,3 +100,15 @@ def test_max_speed_with_friction_is_the_closed_form_of_the_robust_friction_rows(
         assert binding["mode"] in {"slip", "stick", "reversal"}
     code, text, _ = run(capsys, "max-speed", "--posture", "elbow_up", "--friction", "0.3", "--tangential", "0,0.05,0")
     assert code == 0 and "robust friction rows" in text and f"{speeds['crb']:8.4f}" in text
+
+
+def test_a_figure_of_another_format_is_refused_before_the_search(capsys, monkeypatch, tmp_path):
+    from impactqp.scenarios.cli import max_speed_command
+
+    def searched(*args, **kwargs):
+        raise AssertionError("the search ran before --figure was refused")
+
+    monkeypatch.setattr(max_speed_command, "run_max_speed", searched)
+    code, out, err = run(capsys, "max-speed", "--posture", "elbow_up", "--figure", str(tmp_path / "speed.jpg"))
+    assert code == 2 and out == "" and err.count("\n") == 1 and "--figure writes a figure" in err
+    assert list(tmp_path.iterdir()) == []

@@ -127,6 +127,7 @@ def plant_files(tmp_path_factory):
         (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--tangential", "0.1,0,0"], "orthogonal"),
         (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--jump-model", "magic"], "magic"),
         (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--video", "x.mp4"], "GIF"),
+        (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--figure", "x.jpg"], r"--figure writes a figure"),
         (["max-speed", "--posture", "nowhere"], "unknown posture"),
         (["max-speed", "--posture", "elbow_up", "--wall-point", "1.6,0,0"], "out of reach"),
         (["max-speed", "--posture", "elbow_up", "--restitution", "1.5"], r"\[0, 1\]"),
@@ -183,6 +184,28 @@ def test_video_renders_or_says_clearly_why_not(tmp_path, backend):
         assert len(proc.stderr.strip().splitlines()) == 1
         assert "no offscreen OpenGL backend" in proc.stderr and "MUJOCO_GL" in proc.stderr
         assert not video.exists()
+
+
+@pytest.mark.parametrize("robot", [["--posture", "elbow_up"], ["--robot", "g1", "--posture", "parallel"]])
+def test_view_without_a_display_is_refused_before_simulating(capsys, monkeypatch, robot):
+    from impactqp.scenarios.trial import TrialRunner
+
+    def simulated(*args, **kwargs):
+        raise AssertionError("a trial was simulated before --view was refused")
+
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(TrialRunner, "run", simulated)
+    code, out, err = run(capsys, "simulate", *robot, "--speed", "0.1", "--view")
+    assert code == EXIT_BAD_INPUT and out == ""
+    assert err.count("\n") == 1 and "--view" in err and "no display" in err
+
+
+def test_simulate_writes_the_velocity_figure(capsys, tmp_path):
+    path = tmp_path / "velocities.png"
+    code, _, err = run(capsys, "simulate", "--posture", "elbow_up", "--speed", "0.1", "--figure", str(path))
+    assert code == 0, err
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 # ---------------------------------------------------------------- any robot: a built-in UR5, a user's file

@@ -1,5 +1,6 @@
 """The one trial result of every robot (sim/trial_result.py), on results built by hand (the
-error (26) over the joints, the failures derived from the criteria, the dataset trial's frame),
+error (26) over the joints, the predicted post-impact velocity (19), the failures derived from
+the criteria, the dataset trial's frame),
 and a standing robot's measurement on a simulated G1 trial (its momentum balance, predictors,
 failures and equivalent duration)."""
 
@@ -60,6 +61,15 @@ def test_errors_are_eq_26_over_the_joints_only(base_nv, measured, predicted):
     changed = predicted[:nv].copy()
     changed[:base_nv] += 1.0
     assert result(base_nv, measured[:nv], {"crb": changed}).errors == trial.errors
+
+
+@given(st.sampled_from([0, 6]), arrays(float, JOINTS, elements=finite), arrays(float, 6 + JOINTS, elements=finite))
+def test_the_predicted_post_impact_velocity_is_eq_19_of_the_joints(base_nv, dq_pre, jump):
+    """dq+_i = dq-_i + Delta dq_i for each joint i; a floating base's twist rows are not joints."""
+    trial = result(base_nv, predicted={"crb": jump[:base_nv + JOINTS]})
+    trial.impact.dq_pre[:] = dq_pre
+    expected = [dq_pre[i] + jump[base_nv + i] for i in range(JOINTS)]
+    assert trial.predicted_post_velocity("crb").tolist() == expected
 
 
 @given(st.lists(st.tuples(st.booleans(), st.floats(-0.1, 0.1, allow_nan=False)), min_size=1, max_size=4))

@@ -144,14 +144,13 @@ def output_file(path: str, what: str, inputs=()) -> Path:
     return p
 
 
-def gif_output(path: str) -> Path:
-    """``--video F.gif``: a writable .gif file name, with an offscreen renderer available."""
+def video_output(path: str) -> Path:
+    """``--video FILE``: a writable file name of a video format (``scenarios.video.VIDEO_SUFFIXES``),
+    with an offscreen renderer available."""
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.scenarios.video import offscreen_backend_problem
+    from impactqp.scenarios.video import check_video_suffix, offscreen_backend_problem
 
-    p = output_file(path, "--video")
-    if p.suffix.lower() != ".gif":
-        raise BadInputError(f"--video writes an animated GIF: give a .gif file name, got {path!r}")
+    p = check_video_suffix(output_file(path, "--video"))
     problem = offscreen_backend_problem()
     if problem is not None:
         raise BadInputError(f"--video: {problem}")

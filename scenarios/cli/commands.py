@@ -212,6 +212,8 @@ def demo(out_dir, jobs):
        which the CRB predictor wins.
     4. The highest feasible contact speed of elbow_up with the calibrated plant, and which answer
        to trust.
+    5. One impact in pictures: the video of a trial with the robot's meshes and its joint
+       velocities around the impact with each predictor's dq+ (out/demo/impact).
 
     Progress bars (stderr) show the simulated trials of stages 1, 2 and 4, notes the steps of
     stage 3 (``impactqp --quiet demo``: neither).
@@ -262,11 +264,44 @@ def demo(out_dir, jobs):
         click.echo(row.sentence())
     click.echo(trusted_speed_text(result, speeds))
     click.echo(f"\nreport: {path}")
+    click.echo("\n5. One impact in pictures (elbow_up at 0.1 m/s):")
+    for line in demo_pictures(out / "impact"):
+        click.echo(line)
     click.echo(
         "This was the Panda with the impact tip; every command takes --robot panda|fr3|ur5|FILE.toml (your own "
         "robot's description, docs/robots.md; predict, simulate, campaign, max-speed and run also g1) and --tool "
         "impact_tip|franka_hand|pad|FILE.json, e.g. `impactqp campaign --robot ur5 --postures elbow_down`."
     )
+
+
+def demo_pictures(out) -> list[str]:
+    """The demo's fifth stage: one trial of the Panda with the impact tip at elbow_up, 0.1 m/s,
+    from rest 5 cm before the wall (``impactqp simulate``'s), its joint velocities around the
+    impact (``scenarios.impact_figure``) and its video with the robot's meshes
+    (``scenarios.video``; none without an offscreen renderer, said in one line) in ``out``; the
+    lines that say what was written."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.controller.model.choice import DEFAULT_CHOICE
+    from impactqp.controller.model.postures import DEFAULT_WALL
+    from impactqp.scenarios.cli.simulation_commands import SIMULATE_START_DISTANCE
+    from impactqp.scenarios.impact_figure import ImpactLabel, write_velocity_figure
+    from impactqp.scenarios.trial import TrialRunner
+    from impactqp.scenarios.video import offscreen_backend_problem, write_trial_video
+    from impactqp.sim.runner import TrialSpec
+
+    out = output_directory(out, "--out")
+    posture = DEFAULT_CHOICE.posture("elbow_up")
+    runner = TrialRunner.build(DEFAULT_WALL, None, DEFAULT_CHOICE)
+    spec = TrialSpec(posture.name, posture.q, 0.1, jump_model="crb", start_at_rest=True, start_distance=SIMULATE_START_DISTANCE)
+    trial = runner.run(spec)
+    label = ImpactLabel(DEFAULT_CHOICE.robot, DEFAULT_CHOICE.tool.name, posture.name)
+    lines = [f"joint velocities around the impact: {write_velocity_figure(trial, label, out / 'velocities.png')}"]
+    problem = offscreen_backend_problem()
+    if problem is None:
+        lines.append(f"video with the robot's meshes: {write_trial_video(runner, trial, out / 'impact.gif')}")
+    else:
+        lines.append(f"no video: {problem}")
+    return lines
 
 
 from impactqp.scenarios.cli.simulation_commands import campaign, simulate  # noqa: E402

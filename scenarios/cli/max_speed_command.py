@@ -26,7 +26,15 @@ from impactqp.controller.model.max_speed import DEFAULT_IMPACT_DURATION, HAND_IM
 from impactqp.controller.model.validation import BadInputError, positive
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.controller.model.validation import restitution as restitution_coefficient
-from impactqp.scenarios.cli.arguments import check_jobs, emit_json, load_plant, reject_options, robot_options, stance_names
+from impactqp.scenarios.cli.arguments import (
+    check_jobs,
+    emit_json,
+    load_plant,
+    output_file,
+    reject_options,
+    robot_options,
+    stance_names,
+)
 from impactqp.scenarios.cli.stderr_log import show_progress
 from impactqp.scenarios.cli.simulation_commands import (
     check_reachable,
@@ -166,6 +174,9 @@ def max_speed_text(report: dict) -> str:
     """A ``max-speed`` JSON report as text: the closed form of each predictor and what binds it
     (a joint, or where the criterion binds), then the QP-limited run and every simulated impact
     when the report has them (an arm's), or the bisection's contact speed and first failure."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.max_speed_search import binding_text
+
     robot = f" ({report['robot']})" if "robot" in report else ""
     if "friction" in report:
         return frictional_text(report)
@@ -175,9 +186,7 @@ def max_speed_text(report: dict) -> str:
         f"{'closed form':<14}{'speed':>8}  binds",
     ]
     for name, speed in report["predicted_max_speed"].items():
-        b = report["binding"][name]
-        where = f", joint {b['joint']}" if "joint" in b else f" ({b['where']})"
-        lines.append(f"  {name:<12}{speed if speed is not None else math.inf:8.4f}  {b['criterion']}{where}")
+        lines.append(f"  {name:<12}{speed if speed is not None else math.inf:8.4f}  {binding_text(report['binding'][name])}")
     if "qp_limited_speed" not in report:
         lines.append(f"{'simulated':<14}{report['simulated_max_speed']:8.4f}  commanded; contact "
                      f"{report['simulated_contact_speed']:.4f}; failed first above: {report['simulated_failed_first'] or '-'}")
@@ -231,12 +240,22 @@ def frictional_text(report: dict) -> str:
 @click.option("--friction", type=float, help="mu in [0, 2]: the closed form under the robust friction rows (an arm's; no simulation).")
 @click.option("--tangential", help="With --friction: the tangential velocity VX,VY,VZ (m/s) of the sliding approach.")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (no progress bar).")
+@click.option("--figure", "figure_file", help="Plot the speed of each predictor and simulation, what binds it (.png, .pdf, .svg).")
 @robot_options(humanoid=True)
-def max_speed(posture_name, plant_file, as_json, choice, **search):
+def max_speed(posture_name, plant_file, as_json, figure_file, choice, **search):
     """Highest feasible contact speed: closed form, reached by the QP, and simulated (with
     --robot g1: closed form and simulated bisection of a stance, no QP)."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.impact_figure import check_figure_suffix
+    from impactqp.scenarios.max_speed_figure import write_max_speed_figure
+
+    if figure_file is not None:
+        check_figure_suffix(output_file(figure_file, "--figure"))
     report = run_max_speed(MaxSpeedRequest(posture=posture_name, plant=plant_file, choice=choice, **search),
                            show_progress(as_json))
+    if figure_file is not None:
+        tool = choice.tool.name if choice.tool is not None else "its hand"
+        write_max_speed_figure(report, f"{choice.robot.name} with {tool}", figure_file)
     if as_json:
         emit_json(report)
         return

@@ -33,15 +33,16 @@ from impactqp.controller.model.validation import approach_speed
 from impactqp.scenarios.cli.arguments import (
     check_jobs,
     emit_json,
-    gif_output,
     load_plant,
     max_trials_option,
     output_directory,
+    output_file,
     parse_list,
     parse_vector,
     reject_options,
     robot_options,
     stance_names,
+    video_output,
 )
 from impactqp.scenarios.cli.stderr_log import show_progress
 
@@ -88,7 +89,9 @@ plant_option = click.option("--plant", "plant_file", help="Plant: a JSON file of
 @wall_point_option
 @wall_normal_option
 @click.option("--out", "out_dir", help="Add the trial to the dataset in this directory (controller.measured.dataset format).")
-@click.option("--video", "video_file", help="Render the impact to this animated GIF (needs an offscreen GL backend).")
+@click.option("--video", "video_file", help="Render the impact with the robot's meshes to this animated GIF (needs an offscreen GL backend).")
+@click.option("--figure", "figure_file", help="Plot every joint's dq(t) around the impact, the predicted dq+ and the limits (.png, .pdf, .svg).")
+@click.option("--view", is_flag=True, help="Replay the trial in MuJoCo's interactive viewer (needs a display).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--controller", "controller", type=click.Choice(["scripted", "qp"]),
               help="With --robot g1: the command source, the scripted arm command (default) or the whole-body QP.")
@@ -124,8 +127,10 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     from impactqp.sim.runner import TrialSpec
     from impactqp.controller.measured.dataset import DatasetWriter
     from impactqp.scenarios.readable import fixed
+    from impactqp.scenarios.impact_figure import ImpactLabel
 
     out_dir, video_file = trial["out_dir"], trial["video_file"]
+    check_pictures(trial)
     posture = choice.posture(posture_name)
     approach_speed(speed, "--speed")
     surface = wall(trial["wall_point"], trial["wall_normal"])
@@ -138,8 +143,6 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
         surface = frictional_wall(surface, friction, plant, trial["no_jump_constraint"], trial["jump_model"])
     if out_dir is not None:
         output_directory(out_dir, "--out")
-    if video_file is not None:
-        gif_output(video_file)
     check_reachable(choice, posture, surface, SIMULATE_START_DISTANCE)
 
     spec = TrialSpec(
@@ -153,10 +156,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     result = runner.run(spec)
     if out_dir is not None:
         DatasetWriter(out_dir, dataset_header(surface, choice)).add_trial(*result.dataset_trial())
-    if video_file is not None:
-        from impactqp.scenarios.video import render_impact_gif
-
-        render_impact_gif(runner.scene, result.log, result.impact, video_file)
+    write_pictures(runner, result, trial, ImpactLabel(choice.robot, choice.tool.name, posture.name))
     report = result.to_json()
     if as_json:
         emit_json(report)
@@ -211,14 +211,15 @@ def stance_trial(
     from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
     from impactqp.scenarios.campaign import posture_of
     from impactqp.scenarios.trial import TrialRunner
-    from impactqp.scenarios.video import render_humanoid_gif
+    from impactqp.scenarios.impact_figure import ImpactLabel
     from impactqp.sim.generation import open_dataset, write_trials
     from impactqp.sim.runner import TrialSpec
     from impactqp.sim.trial_sources import SCRIPTED, QpCommand
 
     reject_options(["tangential_text", "no_jump_constraint", "plant_file", "wall_point", "wall_normal",
                     "tool"] + (["jump_model"] if controller == "scripted" else []))
-    video_file, out_dir = files["video_file"], files["out_dir"]
+    out_dir = files["out_dir"]
+    check_pictures(files)
     source = SCRIPTED
     if controller == "qp":
         method = click.get_current_context().params["jump_model"]
@@ -227,18 +228,48 @@ def stance_trial(
         source = QpCommand(method=method)
     stance = stance_names(choice.robot, posture)[0]
     approach_speed(speed, "--speed")
-    if video_file is not None:
-        gif_output(video_file)
     dataset = None if out_dir is None else open_dataset(output_directory(out_dir, "--out"), choice.robot)
     runner = TrialRunner.build(DEFAULT_WALL, None, choice, source)
     trial = runner.run(TrialSpec(stance, posture_of(choice, stance), speed))
     written = None if dataset is None else write_trials(dataset, [trial])[0].id
-    if video_file is not None:
-        render_humanoid_gif(runner.robot, trial, video_file)
+    write_pictures(runner, trial, files, ImpactLabel(choice.robot, "its hand", stance))
     report = trial.to_json(choice.robot.name)
     if controller == "qp":
         report.update(controller="qp", jump_model=source.method, cycles_not_ok=trial.record.not_ok)
     return report, written
+
+
+def check_pictures(files: dict) -> None:
+    """Refuse, before anything is simulated, a --video, --figure or --view that cannot be made:
+    a file name of another format or in no writable directory, no offscreen renderer, no
+    display for the viewer."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.impact_figure import check_figure_suffix
+    from impactqp.scenarios.video import viewer_problem
+
+    if files["video_file"] is not None:
+        video_output(files["video_file"])
+    if files["figure_file"] is not None:
+        check_figure_suffix(output_file(files["figure_file"], "--figure"))
+    if files["view"]:
+        problem = viewer_problem()
+        if problem is not None:
+            raise BadInputError(f"--view: {problem}")
+
+
+def write_pictures(runner, trial, files: dict, label) -> None:
+    """The --video, --figure and --view of ``trial`` (``scenarios.video``,
+    ``scenarios.impact_figure``), each when asked."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.impact_figure import write_velocity_figure
+    from impactqp.scenarios.video import view_trial, write_trial_video
+
+    if files["video_file"] is not None:
+        write_trial_video(runner, trial, files["video_file"])
+    if files["figure_file"] is not None:
+        write_velocity_figure(trial, label, files["figure_file"])
+    if files["view"]:
+        view_trial(runner, trial)
 
 
 def stance_trial_text(report: dict) -> str:
