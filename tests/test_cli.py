@@ -586,6 +586,6 @@ def test_every_default_output_folder_is_out_slash_the_command():
         for param in command.params
         if param.name in ("out", "out_dir", "log") and isinstance(param.default, (str, Path))
     }
-    assert set(defaults) == {("demo",), ("run",), ("campaign",), ("sweep",), ("dataset", "generate")}
+    assert set(defaults) == {("demo",), ("run",), ("campaign",), ("sweep",), ("oblique",), ("dataset", "generate")}
     for path, default in defaults.items():
         assert default == f"out/{path[-1]}", (path, default)

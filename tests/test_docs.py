@@ -139,8 +139,16 @@ def test_every_json_block_parses_and_a_manifest_loads(code):
 
 
 def shell_commands(code: str) -> list[list[str]]:
-    """The words of every command of a shell block: continuation lines joined, comments dropped."""
-    return [words for line in code.replace("\\\n", " ").splitlines() if (words := shlex.split(line, comments=True))]
+    """The words of every command of a shell block: continuation lines joined, comments dropped,
+    the command's own words only (up to a redirection, a pipe or a list operator)."""
+    commands = []
+    for line in code.replace("\\\n", " ").splitlines():
+        words = shlex.split(line, comments=True)
+        operator = next((i for i, word in enumerate(words) if word.lstrip("0123456789")[:1] in ("<", ">", "|", "&", ";")),
+                        len(words))
+        if words[:operator]:
+            commands.append(words[:operator])
+    return commands
 
 
 def resolve(words: list[str]):
@@ -148,8 +156,9 @@ def resolve(words: list[str]):
     from impactqp.scenarios.cli.commands import cli
 
     command, path, args = cli, ["impactqp"], list(words[1:])
-    while hasattr(command, "get_command"):  # a group: its own options, then a subcommand
-        while args and args[0] in ("--debug",):
+    while hasattr(command, "get_command"):  # a group: its own flags (--debug, --quiet...), then a subcommand
+        flags = {name for param in command.params if getattr(param, "is_flag", False) for name in param.opts}
+        while args and args[0] in flags | {"--debug"}:
             args.pop(0)
         assert args, f"{' '.join(words)}: no command"
         name = args.pop(0)
@@ -355,7 +364,8 @@ def test_the_picture_commands_of_the_simulation_page_parse():
     from impactqp.scenarios.cli.commands import cli
 
     text = (ROOT / "docs" / "simulation.md").read_text(encoding="utf-8")
-    section = text[text.index("## Pictures"):]
+    start = text.index("## Pictures")
+    section = text[start:text.find("\n## ", start + 1) if "\n## " in text[start + 1:] else len(text)]
     lines = [line.split()[1:] for block in SH_FENCE.findall(section) for line in block.splitlines()
              if line.startswith("impactqp ")]
     assert {words[0] for words in lines} == {"simulate", "campaign", "max-speed"}
