@@ -3,7 +3,7 @@ an independent scipy integration of the same law, and the identities every impac
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from impactqp.controller.model.frictional_impact import RESTITUTION_MODELS, frictional_impulse
@@ -40,9 +40,14 @@ def test_without_friction_the_impulse_is_eq_12(seed, restitution, model):
 @given(st.integers(0, 2**32 - 1), st.floats(0.02, 1.5), st.floats(0.0, 1.0), st.sampled_from(RESTITUTION_MODELS))
 def test_the_law_agrees_with_a_generic_ode_solver(seed, mu, restitution, model):
     """The same equations integrated by scipy's DOP853 with its own event location: impulse
-    within 1e-6 (relative to its size), the same contact mode."""
+    within 1e-6 (relative to its size), the same contact mode. Left out: mu within 0.1 % of the
+    stick coefficient mu_bar, the boundary between stick and slip, where a slip slows towards
+    rest at a rate proportional to mu - mu_bar and the answer hangs on the direction of a
+    vanishing tangential velocity (a case at 0.006 % from it differed by 3e-5 between two
+    correct integrations)."""
     W, n, v = random_case(seed)
     impact = frictional_impulse(W, n, v, mu, restitution, model)
+    assume(abs(mu - impact.mu_bar) > 1e-3 * impact.mu_bar)
     impulse, post, mode = reference_impact(W, n, v, mu, restitution, model)
     size = np.linalg.norm(impulse)
     np.testing.assert_allclose(impact.impulse, impulse, rtol=0, atol=1e-6 * size)
