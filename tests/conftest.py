@@ -18,7 +18,7 @@ from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.postures import DEFAULT_WALL
-from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, VELOCITY_LIMIT, PandaModel
+from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, VELOCITY_LIMIT, PandaModel, SingularPostureError
 from impactqp.controller.model.robot_description import PANDA, ROBOTS
 from impactqp.controller.model.tool_description import TOOLS
 from impactqp.controller.runtime.interface import RobotInterface
@@ -67,6 +67,17 @@ def joint_positions(margin: float = 0.1):
     model = PandaModel()
     lo, hi = model.q_min + margin, model.q_max - margin
     return st.lists(st.floats(0.0, 1.0), min_size=model.nq, max_size=model.nq).map(lambda u: lo + np.array(u) * (hi - lo))
+
+
+def random_state(robot, rng, speed=0.5):
+    """A random non-singular state inside the limits; speed is the fraction of dq_max."""
+    span = robot.q_max - robot.q_min
+    while True:
+        q = robot.q_min + span * rng.uniform(0.1, 0.9, JOINTS)
+        try:
+            return robot.terms(q, rng.uniform(-speed, speed, JOINTS) * robot.dq_max)
+        except SingularPostureError:
+            continue
 
 
 def unit_vectors():

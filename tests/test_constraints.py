@@ -9,7 +9,7 @@ from reference.constraints import reference_normal_motion, reference_recoverable
 from whole_body_states import NORMAL, approach_velocity, stance, standing_states, upright, wall_ahead
 from whole_body_states import robot as g1
 
-from conftest import JOINTS
+from conftest import JOINTS, random_state
 from impactqp.constraints import (
     AccelerationLimit,
     ControlCycle,
@@ -28,7 +28,6 @@ from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.max_speed import approach_direction
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.robot import SingularPostureError
 from impactqp.controller.model.validation import BadInputError
 
 DT = 0.001
@@ -38,17 +37,6 @@ SEEDS = st.integers(0, 2**32 - 1)
 def cycle(robot, previous_ddq=None):
     previous = np.zeros(JOINTS) if previous_ddq is None else previous_ddq
     return ControlCycle.after(previous, DT, robot.ddq_max, robot.dddq_max)
-
-
-def random_state(robot, rng, speed=0.5):
-    """A random non-singular state inside the limits; speed is the fraction of dq_max."""
-    span = robot.q_max - robot.q_min
-    while True:
-        q = robot.q_min + span * rng.uniform(0.1, 0.9, JOINTS)
-        try:
-            return robot.terms(q, rng.uniform(-speed, speed, JOINTS) * robot.dq_max)
-        except SingularPostureError:
-            continue
 
 
 def inside(rows, ddq):

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from reference.friction_pyramid import reference_edge_matrices, reference_slip_direction
 from scipy.optimize import linprog
 
-from conftest import JOINTS
+from conftest import JOINTS, random_state
 from impactqp.constraints import ActivationRule, ControlCycle, ExpectedImpact, ImpulsiveTorqueLimit, PostImpactVelocityLimit
 from impactqp.controller.model.friction_pyramid import (
     EDGE_GUARD,
@@ -22,7 +22,6 @@ from impactqp.controller.model.friction_pyramid import (
 )
 from impactqp.controller.model.jump import crb_inverse_inertia, gm_inverse_inertia
 from impactqp.controller.model.postures import Surface
-from impactqp.controller.model.robot import SingularPostureError
 from impactqp.controller.model.validation import BadInputError
 
 DT = 0.001
@@ -30,17 +29,6 @@ DURATION = 0.015
 SEEDS = st.integers(0, 2**32 - 1)
 NORMAL = np.array([-1.0, 0.0, 0.0])
 MODELS = ["crb", "gm", "classical"]
-
-
-def random_state(robot, rng, speed=0.5):
-    """A random non-singular state inside the limits; speed is the fraction of dq_max."""
-    span = robot.q_max - robot.q_min
-    while True:
-        q = robot.q_min + span * rng.uniform(0.1, 0.9, JOINTS)
-        try:
-            return robot.terms(q, rng.uniform(-speed, speed, JOINTS) * robot.dq_max)
-        except SingularPostureError:
-            continue
 
 
 def wide_cycle(robot):
