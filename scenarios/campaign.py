@@ -51,7 +51,8 @@ from impactqp.controller.model.postures import DEFAULT_WALL, Surface  # noqa: E4
 from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E402
 from impactqp.controller.measured.atomic import write_text_atomic  # noqa: E402
 from impactqp.sim.generation import DEFAULT_SPEEDS, TANGENTIAL_SERIES_NORMAL_SPEED, tangential_direction  # noqa: E402
-from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter  # noqa: E402
+from impactqp.controller.measured.dataset import DatasetHeader  # noqa: E402
+from impactqp.controller.measured.dataset_writer import DatasetWriter  # noqa: E402
 from impactqp.controller.model.robot_description import RobotDescription  # noqa: E402
 from impactqp.sim.plant import PlantParameters  # noqa: E402
 from impactqp.sim.generation import dataset_header  # noqa: E402

@@ -40,7 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry
+from impactqp.controller.measured.dataset import DatasetHeader, TrialEntry
+from impactqp.controller.measured.dataset_writer import DatasetWriter
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface

@@ -12,7 +12,8 @@ import pytest
 from hypothesis import settings
 from hypothesis import strategies as st
 
-from impactqp.controller.measured.dataset import DatasetHeader, DatasetWriter, TrialEntry
+from impactqp.controller.measured.dataset import DatasetHeader, TrialEntry
+from impactqp.controller.measured.dataset_writer import DatasetWriter
 from impactqp.controller.measured.impact import measure_impact
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.choice import RobotChoice

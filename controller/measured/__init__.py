@@ -11,7 +11,7 @@ _EXPORTS = {
     "Dataset": "dataset",
     "DatasetHeader": "dataset",
     "DatasetTrial": "dataset",
-    "DatasetWriter": "dataset",
+    "DatasetWriter": "dataset_writer",
     "DatasetError": "dataset",
     "TrialEntry": "dataset",
     "read_dataset": "dataset",

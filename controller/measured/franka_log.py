@@ -54,7 +54,8 @@ from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.validation import BadInputError, approach_speed
 
-from .dataset import DatasetError, DatasetHeader, DatasetWriter, TrialEntry
+from .dataset import DatasetError, DatasetHeader, TrialEntry
+from .dataset_writer import DatasetWriter
 from .impact import ImpactNotFoundError, measure_impact
 from .trial_log import TrialLog
 

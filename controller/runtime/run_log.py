@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from impactqp.controller.measured.dataset import DatasetError, DatasetHeader, DatasetWriter, TrialEntry
+from impactqp.controller.measured.dataset import DatasetError, DatasetHeader, TrialEntry
+from impactqp.controller.measured.dataset_writer import DatasetWriter
 from impactqp.controller.measured.dataset_check import samples_needed
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.validation import BadInputError

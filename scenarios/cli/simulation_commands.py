@@ -125,7 +125,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     from impactqp.sim.generation import dataset_header
     from impactqp.scenarios.trial import TrialRunner
     from impactqp.sim.runner import TrialSpec
-    from impactqp.controller.measured.dataset import DatasetWriter
+    from impactqp.controller.measured.dataset_writer import DatasetWriter
     from impactqp.scenarios.readable import fixed
     from impactqp.scenarios.impact_figure import ImpactLabel
 
