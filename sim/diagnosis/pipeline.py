@@ -30,6 +30,31 @@ STEPS = ("load and check the trials", "replay the nominal simulation", "select t
 """The steps of ``diagnose``, in order, as its ``progress`` callback names them."""
 
 
+def _usable_trials(directory, nominal: PlantParameters | None, causes: list[Cause] | None):
+    """The usable trials of ``directory``, the skipped ones, the replay setting, the nominal
+    plant for the robot's joints and the candidate causes (the defaults of the robot, its
+    surface and its tool when None); bad input when no trial is usable."""
+    trials, skipped, setting = load_trials(directory)
+    if not trials:
+        raise BadInputError(f"{directory}: no usable trial; the diagnosis needs at least 1 (skipped: {skipped})")
+    joints = len(setting.choice.robot.joints)
+    nominal = (nominal or PlantParameters()).for_joints(joints)
+    causes = causes if causes is not None else default_causes(joints, setting.surface.friction, setting.choice.tool)
+    names = [c.name for c in causes]
+    if len(set(names)) != len(names):
+        raise ValueError(f"candidate causes must have distinct names, got {names}")
+    return trials, skipped, setting, nominal, causes
+
+
+def parameter_rows(model, theta_intervals) -> list[dict]:
+    """One row per fitted parameter: its cause, label, value and interval."""
+    return [
+        {"cause": c.name, "parameter": label, "value": float(value), "interval": interval}
+        for c, u, intervals in zip(model.causes, model.u, theta_intervals)
+        for label, value, interval in zip(c.labels, c.to_theta(u), intervals)
+    ]
+
+
 def diagnose(
     directory: str | Path,
     *,
@@ -54,15 +79,7 @@ def diagnose(
 
     if progress is not None:
         progress(STEPS[0])
-    trials, skipped, setting = load_trials(directory)
-    if not trials:
-        raise BadInputError(f"{directory}: no usable trial; the diagnosis needs at least 1 (skipped: {skipped})")
-    joints = len(setting.choice.robot.joints)
-    nominal = (nominal or PlantParameters()).for_joints(joints)
-    causes = causes if causes is not None else default_causes(joints, setting.surface.friction, setting.choice.tool)
-    names = [c.name for c in causes]
-    if len(set(names)) != len(names):
-        raise ValueError(f"candidate causes must have distinct names, got {names}")
+    trials, skipped, setting, nominal, causes = _usable_trials(directory, nominal, causes)
     step(0, f" ({len(trials)} usable, {len(skipped)} skipped)")
     step(1, f" ({len(trials)} trial(s))")
     trials = locate_jump_samples(trials, setting, nominal)
@@ -89,11 +106,6 @@ def diagnose(
     steps = selection.steps if explained else [{**s, "selected": False} for s in selection.steps]
     step(4)
     predictors, predictors_measured_impulse, predictions = predictor_errors(trials, setting)
-    per_parameter = [
-        {"cause": c.name, "parameter": label, "value": float(value), "interval": interval}
-        for c, u, intervals in zip(model.causes, model.u, theta_intervals)
-        for label, value, interval in zip(c.labels, c.to_theta(u), intervals)
-    ]
     return Diagnosis(
         trials=trials,
         skipped=skipped,
@@ -111,7 +123,7 @@ def diagnose(
         causes=[c.name for c in selection.model.causes] if explained else [],
         steps=steps,
         intervals=override_intervals(model, theta_intervals),
-        parameter_intervals=per_parameter,
+        parameter_intervals=parameter_rows(model, theta_intervals),
         open_sides=open_sides(model, theta_intervals, trials, nominal),
         extended_error=float(np.mean(selection.heldout_jump_errors)),
         gain_over_floor=selection.gain_over_floor,
