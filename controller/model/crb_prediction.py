@@ -31,18 +31,18 @@ import math
 import numpy as np
 from numba import njit
 
+from . import validation
 from .jump import JUMP_MODELS, JumpPrediction
 from .jump_kernels import crb_jump
 from .model_terms import ACCEPTED, contact_jacobian_status
 from .term_fills import SINGULAR_RATIO
-from . import validation
 from .validation import NORMAL_MIN_NORM, BadInputError
 
 REVOLUTE, PRISMATIC = 0, 1
 JOINT_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 """The axes of Pinocchio's axis-aligned one-degree joints (JointModelRX ... JointModelPZ)."""
 REJECTED = -1
-"""``crb_state``'s status of a bad input (q, the normal, the velocity or the restitution)."""
+"""``checked_crb_prediction``'s status of a bad input (q, the normal, the velocity or the restitution)."""
 # columns of a KinematicTree's joint table
 PARENT, KIND, AXIS, ROTATION, TRANSLATION, MASS, LEVER, INERTIA, ON_PATH = 0, 1, 2, 5, 14, 17, 18, 21, 30
 COLUMNS = 31
@@ -267,7 +267,7 @@ class CrbPredictor:
         """``CompositeRigidBodyJump.predict(robot.terms(q), normal, pre_impact_velocity,
         restitution)``, the same numbers and the same bad input, from one compiled call."""
         arrays = np.asarray(q, dtype=float), np.asarray(normal, dtype=float), np.asarray(pre_impact_velocity, dtype=float)
-        if arrays[0].shape == self._q_shape and arrays[1].shape == arrays[2].shape == (3,) and type(restitution) in (float, int):
+        if arrays[0].shape == self._q_shape and arrays[1].shape == arrays[2].shape == (3,) and type(restitution) in (float, int, np.float64):
             outputs = np.empty(self._q_shape), np.empty(3), np.empty((3, 3))
             if checked_crb_prediction(self.tree, *arrays, float(restitution), outputs) == ACCEPTED:
                 return JumpPrediction("crb", *outputs)
