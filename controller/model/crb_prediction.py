@@ -90,7 +90,7 @@ class KinematicTree:
         self.q_min, self.q_max = robot.q_min.copy(), robot.q_max.copy()
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def joint_rotation(kind, ax, ay, az, angle, out):
     """Kernel: the rotation of a joint at its coordinate into ``out``: about the unit axis a by
     Rodrigues' formula I + s [a]x + (1 - c) [a]x^2 for a revolute joint, I for a prismatic one."""
@@ -101,7 +101,7 @@ def joint_rotation(kind, ax, ay, az, angle, out):
     out[2, 0], out[2, 1], out[2, 2] = t * ax * az - s * ay, t * ay * az + s * ax, c + t * az * az
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def crb_state(tree, q, state, work):
     """Kernel: forward kinematics of the tree (``tree`` = (``KinematicTree``'s joint table,
     contact joint, contact translation, ...)) at q; into ``state`` = (J, contact point, centre
@@ -203,7 +203,7 @@ def scratch(nv):
     return state, np.empty((3, 3)), work
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def crb_prediction(tree, q, impact, outputs, check_limits, buffers):
     """Kernel of one CRB prediction from q: ``crb_state`` at q, (J J^T)^-1 with the checks of
     ``contact_jacobian_status`` (its status when not ACCEPTED), then W_crb (20), the impulse
@@ -273,9 +273,10 @@ class CrbPredictor:
                 return JumpPrediction("crb", *outputs)
         return JUMP_MODELS["crb"].predict(self.robot.terms(q), normal, pre_impact_velocity, restitution)
 
-    def predict_batch(self, Q, normals, pre_impact_velocities, restitution: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    def predict_batch(self, Q, normals, pre_impact_velocities, restitution: float = 0.0, out=None) -> tuple[np.ndarray, np.ndarray]:
         """Jumps (N, nv) and impulses (N, 3) of N states (``batch.predict_batch`` with "crb"):
-        Q (N, nv), normals and velocities (N, 3) or (3,), one compiled loop (``crb_batch``)."""
+        Q (N, nv), normals and velocities (N, 3) or (3,), one compiled loop (``crb_batch``),
+        written into ``out`` = (jumps, impulses) when given (e.g. views of shared memory)."""
         Q = np.asarray(Q, dtype=float)
         if Q.ndim != 2 or Q.shape[1] != self._q_shape[0]:
             raise BadInputError(f"Q must have shape (N, {self._q_shape[0]}), got {Q.shape}")
@@ -284,6 +285,8 @@ class CrbPredictor:
         N = Q.shape[0]
         normals = np.ascontiguousarray(np.broadcast_to(validation.unit_normals(normals), (N, 3)))
         velocities = np.ascontiguousarray(np.broadcast_to(np.asarray(pre_impact_velocities, dtype=float), (N, 3)))
-        outputs = np.full((N, self._q_shape[0]), np.nan), np.full((N, 3), np.nan)
+        outputs = (np.empty((N, self._q_shape[0])), np.empty((N, 3))) if out is None else out
+        for output in outputs:
+            output[:] = np.nan  # the rows of a J with a non-finite entry stay NaN
         crb_batch(self.unchecked_tree, Q, normals, velocities, validation.restitution(restitution), outputs)
         return outputs

@@ -59,7 +59,7 @@ def welded_inverse_inertia(contact_point, com, inertia_com, mass):
     return W
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def welded_inverse_inertia_into(rigid, W):
     """Kernel: W_crb (20) of rigid = (contact point, CoM, centroidal inertia, mass) into W, with
     I_c^-1 by the adjugate of the symmetric I_c and [r]x I_c^-1 [r]x column by column in plain
@@ -102,7 +102,7 @@ def crb_maps(contact_point, com, inertia_com, mass, J, JJt_inv, normal, restitut
     return G, K, W
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def crb_jump(rigid, J, JJt_inv, impact, outputs):
     """Kernel of ``CompositeRigidBodyJump.predict``: W_crb (20, ``welded_inverse_inertia_into``,
     rigid = (contact point, CoM, centroidal inertia, mass)), the impulse

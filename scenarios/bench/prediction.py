@@ -4,12 +4,16 @@
 the UR5, all with the impact tip); ``floor.pinocchio.all_terms`` (one ``computeAllTerms`` call,
 the floor of a prediction from q) and the ratio ``predict.crb.single/floor.pinocchio.all_terms``
 block by block (``base.ratio_row``); ``predict.crb.batch`` (predictions per second of
-``CrbPredictor.predict_batch``, 100,000 states split over 2 worker processes, one compiled loop
-each) and ``predict.crb.batch.jobs1`` (the same in one process)."""
+``CrbPredictor.predict_batch``, 100,000 states in shared memory split over 2 worker processes,
+one compiled loop each writing its rows in place) and ``predict.crb.batch.jobs1`` (the same in
+one process)."""
 
 from __future__ import annotations
 
+import os
+import tempfile
 from collections.abc import Callable
+from contextlib import ExitStack
 
 import numpy as np
 import pinocchio
@@ -23,7 +27,10 @@ from .base import ALTERNATING_BLOCKS, alternating_blocks, blocks_row, rate_row, 
 
 CALLS = 5000
 BATCH, BATCH_JOBS, BATCH_REPEATS = 100_000, 2, 2
-_WORKER: dict[str, CrbPredictor] = {}
+BATCH_ARRAYS = ("Q", "jumps", "impulses")
+SHARED_MEMORY = "/dev/shm" if os.path.isdir("/dev/shm") else None
+"""Where the batch's arrays are mapped from: memory, where the system has it as a folder."""
+_WORKER: dict[str, object] = {}
 
 
 def single_prediction(robot: RobotModel) -> Callable[[], object]:
@@ -41,13 +48,37 @@ def single_prediction(robot: RobotModel) -> Callable[[], object]:
     return single
 
 
-def _start_batch_worker(robot_name: str) -> None:
+def _start_batch_worker(robot_name: str, folder: str) -> None:
+    """A worker's predictor and the batch's arrays, memory-mapped from the ``.npy`` files of
+    ``folder`` (shared memory: the states Q read, the jumps and impulses written in place)."""
     _WORKER["crb"] = CrbPredictor(RobotModel(robot_name))
+    _WORKER.update({name: np.load(os.path.join(folder, f"{name}.npy"), mmap_mode="r+") for name in BATCH_ARRAYS})
 
 
-def _predict_chunk(task: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    Q, normal, velocity = task
-    return _WORKER["crb"].predict_batch(Q, normal, velocity, 0.0)
+def _predict_rows(task: tuple[int, int, np.ndarray, np.ndarray]) -> None:
+    """The batch's rows [start, stop) for the normal n and the velocity v-, predicted into the
+    mapped jumps and impulses."""
+    start, stop, normal, velocity = task
+    Q, jumps, impulses = (_WORKER[name] for name in BATCH_ARRAYS)
+    _WORKER["crb"].predict_batch(Q[start:stop], normal, velocity, 0.0, out=(jumps[start:stop], impulses[start:stop]))
+
+
+def batch_timers(robot: RobotModel, folder: str, stack: ExitStack, impact: tuple[np.ndarray, np.ndarray]) -> dict:
+    """The timers of ``predict.crb.batch`` (BATCH_JOBS worker processes) and ``.jobs1`` (this
+    process): BATCH random states in shared memory (``folder``), each worker predicting its
+    share of the rows in one compiled loop; warmed up."""
+    Q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (BATCH, robot.nq))
+    shapes = {"Q": Q.shape, "jumps": (BATCH, robot.nv), "impulses": (BATCH, 3)}
+    for name in BATCH_ARRAYS:
+        np.lib.format.open_memmap(os.path.join(folder, f"{name}.npy"), "w+", float, shapes[name])[:] = Q if name == "Q" else 0.0
+    timers = {}
+    for name, jobs in (("predict.crb.batch", BATCH_JOBS), ("predict.crb.batch.jobs1", 1)):
+        pool = stack.enter_context(ProcessPool(jobs, _start_batch_worker, (robot.description.name, folder)))
+        bounds = np.linspace(0, BATCH, jobs + 1).astype(int)
+        tasks = [(int(a), int(b), *impact) for a, b in zip(bounds[:-1], bounds[1:])]
+        list(pool.map(_predict_rows, tasks))  # warm up
+        timers[name] = (lambda pool, tasks: lambda: time_calls(lambda: list(pool.map(_predict_rows, tasks)), BATCH_REPEATS))(pool, tasks)
+    return timers
 
 
 def rows() -> list[dict]:
@@ -63,12 +94,8 @@ def rows() -> list[dict]:
         for suffix, model in (("", robot), (".fr3", RobotModel("fr3")), (".ur5", RobotModel("ur5")))
     }
     timers["floor.pinocchio.all_terms"] = lambda: time_calls(lambda: pinocchio.computeAllTerms(robot.model, data, q, dq), block)
-    Q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (BATCH, robot.nq))
-    with ProcessPool(BATCH_JOBS, _start_batch_worker, ("panda",)) as pool, ProcessPool(1, _start_batch_worker, ("panda",)) as one:
-        for name, on in (("predict.crb.batch", pool), ("predict.crb.batch.jobs1", one)):
-            tasks = [(chunk, n, v) for chunk in np.array_split(Q, on.jobs)]
-            list(on.map(_predict_chunk, tasks))  # warm up
-            timers[name] = (lambda on, tasks: lambda: time_calls(lambda: list(on.map(_predict_chunk, tasks)), BATCH_REPEATS))(on, tasks)
+    with tempfile.TemporaryDirectory(dir=SHARED_MEMORY) as folder, ExitStack() as stack:
+        timers.update(batch_timers(robot, folder, stack, (n, v)))
         blocks = alternating_blocks(timers)
     rows = [
         rate_row(name, "predictions/s", BATCH, np.concatenate(samples)) if name.startswith("predict.crb.batch")
