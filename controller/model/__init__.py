@@ -47,6 +47,7 @@ _EXPORTS = {
     "BatchKinematics": "batch",
     "BatchTerms": "batch",
     "predict_batch": "batch",
+    "CrbPredictor": "crb_prediction",
     # the robust friction rows
     "FrictionRows": "friction_pyramid",
     # the highest feasible contact speed

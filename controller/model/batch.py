@@ -6,7 +6,9 @@ evaluates, for N joint vectors at once with NumPy, the same terms as ``PandaMode
 contact Jacobian J, the joint-space inertia M = sum_k (Jv_k^T m_k Jv_k + Jw_k^T I_k Jw_k), the
 centre of mass, the moving mass and the locked-robot inertia about the centre of mass.
 :func:`predict_batch` hands them to the batched predictor of :mod:`controller.model.jump`
-(``predict_from_terms``), the one home of the jump maps.
+(``predict_from_terms``), the one home of the jump maps; the CRB prediction of a predicted
+impulse, which needs none of M, is one compiled loop over the states instead
+(``crb_prediction.CrbPredictor.predict_batch``).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from functools import cached_property
 
 import numpy as np
 
+from .crb_prediction import CrbPredictor
 from .jump import predict_from_terms
 from .robot import PandaModel
 from .validation import BadInputError
@@ -81,6 +84,7 @@ class BatchKinematics:
         self.p_contact = frame.placement.translation.copy()
         self.R_contact = frame.placement.rotation.copy()
         self.total_mass = float(self.masses.sum())
+        self.crb = CrbPredictor(robot)
 
     def _chain(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Joint frames of N states: rotations Rs (N, nv, 3, 3) and origins ps (N, nv, 3)."""
@@ -152,4 +156,6 @@ def predict_batch(
     ``normals`` and ``pre_impact_velocities`` are (N, 3) or (3,) arrays (world frame); with
     ``impulses`` (N, 3) the measured impulses replace the predicted ones.
     """
+    if method == "crb" and impulses is None:
+        return kinematics.crb.predict_batch(Q, normals, pre_impact_velocities, restitution)
     return predict_from_terms(kinematics.terms(Q), normals, pre_impact_velocities, restitution, method, impulses)

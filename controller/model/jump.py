@@ -362,8 +362,9 @@ class CompositeRigidBodyJump(GeneralizedMomentumJump):
         normal, restitution = unit_normal(normal), validation.restitution(restitution)
         velocity = finite_vector(pre_impact_velocity, 3, "the pre-impact contact velocity")
         rigid = (terms.contact_point, terms.com, terms.inertia_com, terms.mass)
-        dq_jump, impulse, W = crb_jump(rigid, terms.J, terms.JJt_inv, normal, velocity, restitution)
-        return JumpPrediction(self.name, dq_jump, impulse, W)
+        outputs = np.empty(terms.J.shape[1]), np.empty(3), np.empty((3, 3))
+        crb_jump(rigid, terms.J, terms.JJt_inv, (normal, velocity, restitution), outputs)
+        return JumpPrediction(self.name, *outputs)
 
     def inverse_inertia_times(self, terms: ModelTerms, normal: np.ndarray) -> np.ndarray:
         """W_crb n = n / m - r x (I_c^-1 (r x n)), eq. (20) applied to n

@@ -51,21 +51,40 @@ def crb_inverse_inertia_times(contact_point, com, inertia_com, mass, normal):
 
 @njit(cache=True)
 def welded_inverse_inertia(contact_point, com, inertia_com, mass):
-    """Kernel: W_crb = I3 / m - [r]x I_c^-1 [r]x (20), r = contact point - CoM, with I_c^-1 by the
-    adjugate (``symmetric_inverse3_into``), symmetrized, in plain loops; the compiled twin of
-    :func:`crb_inverse_inertia` for the arm's and the standing humanoid's kernels."""
-    R = np.zeros((3, 3))
-    r0, r1, r2 = contact_point[0] - com[0], contact_point[1] - com[1], contact_point[2] - com[2]
-    R[0, 1], R[0, 2], R[1, 0], R[1, 2], R[2, 0], R[2, 1] = -r2, r1, r2, -r0, -r1, r0
-    Iinv = np.empty((3, 3))
-    symmetric_inverse3_into(inertia_com, Iinv)
-    W = -product(product(R, Iinv), R)
-    for i in range(3):
-        W[i, i] += 1.0 / mass
+    """Kernel: W_crb = I3 / m - [r]x I_c^-1 [r]x (20), r = contact point - CoM, in a new array
+    (``welded_inverse_inertia_into``); the compiled twin of :func:`crb_inverse_inertia` for the
+    arm's and the standing humanoid's kernels."""
+    W = np.empty((3, 3))
+    welded_inverse_inertia_into((contact_point, com, inertia_com, mass), W)
+    return W
+
+
+@njit(cache=True, inline="always")
+def welded_inverse_inertia_into(rigid, W):
+    """Kernel: W_crb (20) of rigid = (contact point, CoM, centroidal inertia, mass) into W, with
+    I_c^-1 by the adjugate of the symmetric I_c and [r]x I_c^-1 [r]x column by column in plain
+    floats (no array allocated: a batch calls it for every state), symmetrized."""
+    contact_point, com, S, mass = rigid
+    r = (contact_point[0] - com[0], contact_point[1] - com[1], contact_point[2] - com[2])
+    a, b, c, d, e, f = S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
+    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
+    det = a * A + b * B + c * C
+    inv = 1.0 / det if det != 0.0 else 0.0
+    Iinv = (A * inv, B * inv, C * inv, B * inv, (a * f - c * c) * inv, (b * c - a * e) * inv,
+            C * inv, (b * c - a * e) * inv, (a * d - b * b) * inv)
+    K = (0.0, -r[2], r[1], r[2], 0.0, -r[0], -r[1], r[0], 0.0)  # [r]x
+    for j in range(3):  # column j: e_j / m - r x (I_c^-1 (r x e_j)), r x e_j = [r]x e_j
+        u = (K[j], K[3 + j], K[6 + j])
+        v0 = Iinv[0] * u[0] + Iinv[1] * u[1] + Iinv[2] * u[2]
+        v1 = Iinv[3] * u[0] + Iinv[4] * u[1] + Iinv[5] * u[2]
+        v2 = Iinv[6] * u[0] + Iinv[7] * u[1] + Iinv[8] * u[2]
+        W[0, j] = -(r[1] * v2 - r[2] * v1)
+        W[1, j] = -(r[2] * v0 - r[0] * v2)
+        W[2, j] = -(r[0] * v1 - r[1] * v0)
+        W[j, j] += 1.0 / mass
     for i in range(3):
         for j in range(i):
             W[i, j] = W[j, i] = 0.5 * (W[i, j] + W[j, i])
-    return W
 
 
 @njit(cache=True)
@@ -83,31 +102,28 @@ def crb_maps(contact_point, com, inertia_com, mass, J, JJt_inv, normal, restitut
     return G, K, W
 
 
-@njit(cache=True)
-def crb_jump(rigid, J, JJt_inv, normal, velocity, restitution):
-    """Kernel of ``CompositeRigidBodyJump.predict``: W_crb (20, ``welded_inverse_inertia``, rigid =
-    (contact point, CoM, centroidal inertia, mass)), the impulse iota = -(1+c_r) n (n.v-) /
-    (n^T W_crb n) (12) and the jump J^T (J J^T)^-1 W_crb iota (21), in plain loops. Returns
-    (jump, iota, W_crb)."""
-    W = welded_inverse_inertia(*rigid)
-    Wn = np.zeros(3)
-    normal_Wn, normal_v = 0.0, 0.0
-    for i in range(3):
-        for j in range(3):
-            Wn[i] += W[i, j] * normal[j]
-        normal_Wn += normal[i] * Wn[i]
-        normal_v += normal[i] * velocity[i]
+@njit(cache=True, inline="always")
+def crb_jump(rigid, J, JJt_inv, impact, outputs):
+    """Kernel of ``CompositeRigidBodyJump.predict``: W_crb (20, ``welded_inverse_inertia_into``,
+    rigid = (contact point, CoM, centroidal inertia, mass)), the impulse
+    iota = -(1+c_r) n (n.v-) / (n^T W_crb n) (12) and the jump J^T (J J^T)^-1 W_crb iota (21), in
+    plain loops, for impact = (unit normal n, v-, c_r), into outputs = (jump, iota, W_crb)."""
+    normal, velocity, restitution = impact
+    jump, impulse, W = outputs
+    welded_inverse_inertia_into(rigid, W)
+    Wn0 = W[0, 0] * normal[0] + W[0, 1] * normal[1] + W[0, 2] * normal[2]
+    Wn1 = W[1, 0] * normal[0] + W[1, 1] * normal[1] + W[1, 2] * normal[2]
+    Wn2 = W[2, 0] * normal[0] + W[2, 1] * normal[1] + W[2, 2] * normal[2]
+    normal_Wn = normal[0] * Wn0 + normal[1] * Wn1 + normal[2] * Wn2
+    normal_v = normal[0] * velocity[0] + normal[1] * velocity[1] + normal[2] * velocity[2]
     scale = -(1.0 + restitution) * normal_v / normal_Wn
-    impulse = np.empty(3)
-    y = np.zeros(3)  # (J J^T)^-1 W iota
     for i in range(3):
         impulse[i] = scale * normal[i]
-        for j in range(3):
-            y[i] += JJt_inv[i, j] * (scale * Wn[j])
-    jump = np.zeros(J.shape[1])
+    y0 = scale * (JJt_inv[0, 0] * Wn0 + JJt_inv[0, 1] * Wn1 + JJt_inv[0, 2] * Wn2)  # (J J^T)^-1 W iota
+    y1 = scale * (JJt_inv[1, 0] * Wn0 + JJt_inv[1, 1] * Wn1 + JJt_inv[1, 2] * Wn2)
+    y2 = scale * (JJt_inv[2, 0] * Wn0 + JJt_inv[2, 1] * Wn1 + JJt_inv[2, 2] * Wn2)
     for k in range(J.shape[1]):
-        jump[k] = J[0, k] * y[0] + J[1, k] * y[1] + J[2, k] * y[2]
-    return jump, impulse, W
+        jump[k] = J[0, k] * y0 + J[1, k] * y1 + J[2, k] * y2
 
 
 @njit(cache=True)

@@ -215,8 +215,15 @@ def contact_jacobian_status(J, q, q_min, q_max, check_limits, singular_ratio_squ
     NEAR_SINGULAR when det(J J^T) < ratio^2 trace^3 (with eigenvalues l1 <= l2 <= l3 of J J^T,
     the squared singular values of J, l1 / l3 >= det / trace^3: only then is the exact test
     needed), else OUTSIDE_LIMITS when ``check_limits`` and q leaves [q_min, q_max], else
-    ACCEPTED."""
-    S = J @ J.T
+    ACCEPTED. J J^T in plain loops: a 3 x 3 product is cheaper than a BLAS call, which may
+    start threads."""
+    S = np.empty((3, 3))
+    for i in range(3):
+        for j in range(i, 3):
+            total = 0.0
+            for k in range(J.shape[1]):
+                total += J[i, k] * J[j, k]
+            S[i, j] = S[j, i] = total
     det = symmetric_inverse3_into(S, JJt_inv)
     trace = S[0, 0] + S[1, 1] + S[2, 2]
     if not det >= singular_ratio_squared * trace * trace * trace:
