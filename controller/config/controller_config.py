@@ -102,7 +102,9 @@ class ImpactConfig:
     jump_model: 'crb', 'gm', 'classical', 'classical_normal', 'robust' (crb + gm + classical),
     or None to switch the impact-aware constraints off (the prediction in ``Command`` then uses
     ``prediction_model``). ``capture_region``: on a robot standing on held contacts, the
-    predicted post-impact centre-of-mass velocity stays capturable (``CaptureRegionLimit``).
+    predicted post-impact centre-of-mass velocity stays capturable (``CaptureRegionLimit``);
+    ``foot_wrench``: there, each held contact's wrench at the impact's peak force stays in its
+    friction cone and its sole (``FootWrenchLimit``, the closed form's foot slip and lift).
     ``friction`` mu in [0, 2] > 0 adds the robust friction rows of a fixed-base arm
     (docs/frictional-impacts.md): ``friction_rows`` "pyramid" (``pyramid_edges`` in [3, 16]
     edges) or "slip" (the one-step preview's edge); 0 keeps the frictionless rows alone.
@@ -119,6 +121,7 @@ class ImpactConfig:
     always_active: bool = False
     prediction_model: str = "crb"
     capture_region: bool = True
+    foot_wrench: bool = True
     friction: float = 0.0
     pyramid_edges: int = DEFAULT_EDGES
     friction_rows: str = "pyramid"
@@ -129,7 +132,7 @@ class ImpactConfig:
         validation.name_in(self.prediction_model, METHODS, "impact.prediction_model")
         validation.restitution(self.restitution, "impact.restitution")
         validation.impact_duration(self.impact_duration, "impact.impact_duration")
-        for name in ("post_impact_velocity", "impulsive_torque", "always_active", "capture_region"):
+        for name in ("post_impact_velocity", "impulsive_torque", "always_active", "capture_region", "foot_wrench"):
             validation.boolean(getattr(self, name), f"impact.{name}")
         validation.number_in_range(self.lookahead_distance, 0.0, MAX_LOOKAHEAD_DISTANCE, "impact.lookahead_distance", "m")
         validation.number_in_range(self.lookahead_time, 0.0, MAX_LOOKAHEAD_TIME, "impact.lookahead_time", "s")
