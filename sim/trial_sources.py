@@ -14,7 +14,8 @@ on them for ``TrialStart.settle`` s, during which every source commands the join
   s velocity ramp, every other joint at rest; at the stop the servo re-anchors its reference at
   the measured joints, at rest (``holds_at_stop``), and the command is zero;
 - :class:`QpCommand` (every robot: the default controller ``ControllerConfig.approach`` of the
-  robot's description, with the jump predictor of its impact rows): the controller is reset at the
+  robot's description, with the jump predictor of its impact rows; a standing robot's trial starts
+  from its run-up, ``controller.model.run_up``): the controller is reset at the
   state measured when the settling ends (at once for a fixed base) and is given, every period, its
   own previous command (``feedback="commanded"``, a kinematic-controlled robot's convention:
   ``scenarios.trial`` says why) or the measured state; at the stop the hand's approach speed target
@@ -34,10 +35,12 @@ from typing import Protocol
 import numpy as np
 
 from impactqp.controller.config import ControllerConfig, build_controller
+from impactqp.controller.config.controller_config import FLOATING_BASE_APPROACH
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.max_speed import contact_joints
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import RobotModel
+from impactqp.controller.model.run_up import run_up_distance, run_up_posture
 from impactqp.controller.model.validation import BadInputError, approach_speed
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 from impactqp.controller.qp.command import Command, Status
@@ -48,8 +51,7 @@ from .trial_loop import FEEDBACK, CommandSource, ControllerSource, VelocityComma
 RAMP = 0.02  # s of the scripted command's velocity ramp
 LAG = 0.1  # s the hand may arrive after the commanded arrival (torque-limited joints lag the command)
 HAND_ACCELERATION = 2.0  # m/s^2: a lower bound of the hand's acceleration under the QP's joint limits
-QP_GAP = 0.05  # m from the contact point to the wall at the start of a standing robot's QP trial
-SCRIPTED_GAP = 0.02  # m, the same for the scripted command
+SCRIPTED_GAP = 0.02  # m from the contact point to the wall at the start of a standing robot's scripted trial
 IMPACT_ROWS = "post_impact_velocity"  # name prefix of the predicted post-impact joint-velocity rows
 CAPTURE_ROWS = "capture_region"  # name prefix of the capture-region rows
 
@@ -161,6 +163,10 @@ class ScriptedCommand:
         """s allowed from the end of the settling to the first wall contact."""
         return 3 * gap / speed + RAMP + LAG
 
+    def start_posture(self, robot: RobotModel, q: np.ndarray, normal: np.ndarray, speed: float) -> tuple[np.ndarray, float]:
+        """The trial's start posture and gap (m) from a stance's posture q: q itself, :attr:`gap`."""
+        return q, self.gap
+
     def start(self, start: TrialStart) -> _ScriptedDriver:
         return _ScriptedDriver(start)
 
@@ -202,12 +208,14 @@ class QpCommand:
     predictor of its impact rows (``method``: a jump model, None without the rows), the QP solver,
     which state it is given (``feedback``), the start gap of a standing robot's trial (m), and the
     approach options c_r, delta_t, the posture task's weight (None: the preset's) and the friction
-    mu of an arm's robust friction rows (0: none; docs/frictional-impacts.md)."""
+    mu of an arm's robust friction rows (0: none; docs/frictional-impacts.md). A standing robot's
+    trial starts from its run-up (``gap`` None, :meth:`start_posture`) or ``gap`` m from the wall at
+    the stance's posture."""
 
     method: str | None = "crb"
     solver: str = "daqp"
     feedback: str = "commanded"
-    gap: float = QP_GAP
+    gap: float | None = None
     restitution: float = 0.0
     impact_duration: float | None = None
     posture_weight: float | None = None
@@ -225,6 +233,17 @@ class QpCommand:
         at the asked speed, plus the time to reach it at HAND_ACCELERATION, plus the scripted
         source's ramp and lag margin."""
         return 3 * gap / speed + speed / HAND_ACCELERATION + RAMP + LAG
+
+    def start_posture(self, robot: RobotModel, q: np.ndarray, normal: np.ndarray, speed: float) -> tuple[np.ndarray, float]:
+        """The trial's start posture and gap (m) from a stance's posture q: the run-up
+        (``controller.model.run_up``: the hand moved back along the normal n far enough for the
+        hand's task to reach ``speed``), the wall :data:`SCRIPTED_GAP` beyond the stance's hand, so
+        that the hand meets it in the stance's posture; with a ``gap``, q itself and that gap."""
+        if self.gap is not None:
+            return q, self.gap
+        start = run_up_posture(robot, q, normal, run_up_distance(speed, FLOATING_BASE_APPROACH["velocity_gain"]))
+        moved = (robot.terms(start).contact_point - robot.terms(q).contact_point) @ normal
+        return start, float(moved) + SCRIPTED_GAP
 
     def config(self, start: TrialStart) -> ControllerConfig:
         """The controller's configuration: the description's approach towards the start's wall."""

@@ -153,6 +153,11 @@ class ImpactConfig:
         return FrictionRows(self.friction, self.pyramid_edges, self.friction_rows)
 
 
+FLOATING_BASE_APPROACH = {"velocity_gain": 40.0, "normal_weight": 100.0, "orientation_weight": 1.0}
+"""The hand's approach task of a floating base (docs/whole-body-qp.md): a stiffer speed law
+(a 25 ms time constant, for a run-up of a few centimetres: ``controller.model.run_up``), the normal
+speed weighted as the tangential motion against the balance tasks, the orientation weighted low."""
+
 POST_IMPACT_MODES = ("retract", "hold", "continue")
 
 
@@ -300,11 +305,14 @@ class ControllerConfig:
         ``jump_model`` (None switches them off). A floating-base robot also holds its centre of
         mass and its torso's orientation (``frame = "torso"``), keeps its held contacts (their
         rows are always added) and its post-impact centre-of-mass velocity capturable; it has
-        no torque rows. ``options`` are the fields of :class:`ApproachOptions`."""
+        no torque rows, and its hand's task is :data:`FLOATING_BASE_APPROACH`. ``options`` are the
+        fields of :class:`ApproachOptions`."""
         o = ApproachOptions(**options)
         floating = robot_description(o.robot).floating
         approach = TaskConfig(
-            "contact_approach", {"speed": float(speed), "tangential_velocity": [float(v) for v in o.tangential_velocity]}
+            "contact_approach",
+            {"speed": float(speed), "tangential_velocity": [float(v) for v in o.tangential_velocity],
+             **(FLOATING_BASE_APPROACH if floating else {})},
         )
         balance = [
             TaskConfig("centre_of_mass", {"weight": [float(o.com_weight)] * 3}),
