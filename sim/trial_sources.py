@@ -54,6 +54,8 @@ HAND_ACCELERATION = 2.0  # m/s^2: a lower bound of the hand's acceleration under
 SCRIPTED_GAP = 0.02  # m from the contact point to the wall at the start of a standing robot's scripted trial
 IMPACT_ROWS = "post_impact_velocity"  # name prefix of the predicted post-impact joint-velocity rows
 CAPTURE_ROWS = "capture_region"  # name prefix of the capture-region rows
+FOOT_ROWS = "foot_wrench"  # name prefix of the feet's rows at the impact
+BINDING_WINDOW = 10  # QP cycles before a step whose tight impact rows bind the approach (``QpRecord.binding``)
 
 
 @dataclass(frozen=True)
@@ -268,6 +270,7 @@ class QpRecord:
     statuses: list = field(default_factory=list)  # Status of each cycle
     impact_rows_active: list = field(default_factory=list)  # a post-impact velocity row tight at the solution
     capture_rows_active: list = field(default_factory=list)  # a capture-region row tight at the solution
+    tight_impact_rows: list = field(default_factory=list)  # names of the impact rows (joints, capture, feet) tight at the solution
     impact_constraints_on: list = field(default_factory=list)  # the activation rule switched the impact rows on
     predicted_post_impact: list = field(default_factory=list)  # (nv) v_cmd + predicted jump of each cycle
     messages: list = field(default_factory=list)  # the message of each cycle whose status is not OK
@@ -276,6 +279,9 @@ class QpRecord:
         self.statuses.append(Status(command.status))
         self.impact_rows_active.append(any(n.startswith(IMPACT_ROWS) for n in command.active_constraints))
         self.capture_rows_active.append(any(n.startswith(CAPTURE_ROWS) for n in command.active_constraints))
+        self.tight_impact_rows.append(
+            tuple(n for n in command.active_constraints if n.startswith((IMPACT_ROWS, CAPTURE_ROWS, FOOT_ROWS)))
+        )
         self.impact_constraints_on.append(bool(command.impact_constraints_active))
         self.predicted_post_impact.append(command.predicted_post_impact_velocity.copy())
         if command.status != Status.OK:
@@ -285,6 +291,12 @@ class QpRecord:
     def not_ok(self) -> int:
         """Cycles whose status is not OK (a clipped velocity or a fallback)."""
         return sum(s != Status.OK for s in self.statuses)
+
+    def binding(self, step: int) -> tuple[str, ...]:
+        """The impact rows tight in any of the BINDING_WINDOW QP cycles up to the trial's control
+        step ``step`` (e.g. the first wall contact): what held the approach speed, sorted."""
+        end = self.cycle(step) + 1
+        return tuple(sorted({n for names in self.tight_impact_rows[max(end - BINDING_WINDOW, 0):max(end, 0)] for n in names}))
 
     def cycle(self, step: int) -> int:
         """The QP cycle of the trial's control step ``step``."""
