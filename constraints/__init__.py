@@ -1,10 +1,11 @@
 """Constraints of the impact-aware QP, rows in acceleration units (see ``constraints.constraint``):
 every robot's (limits, expected impact and its rows), and those of a robot standing on held
-contacts (the held contacts' rows, the capture region)."""
+contacts (the held contacts' rows, the capture region, the feet's wrenches at the impact)."""
 
 from .acceleration_limit import AccelerationLimit
 from .capture_constraint import CaptureRegionLimit
 from .constraint import Constraint, ConstraintRows, ControlCycle
+from .foot_wrench import FootWrenchLimit
 from .held_contact import HeldContactRows
 from .impact_model import JUMP_MODEL_CHOICES, ActivationRule, ExpectedImpact, jump_model_names
 from .impulsive_torque import ImpulsiveTorqueLimit
@@ -29,4 +30,5 @@ __all__ = [
     "ImpulsiveTorqueLimit",
     "HeldContactRows",
     "CaptureRegionLimit",
+    "FootWrenchLimit",
 ]

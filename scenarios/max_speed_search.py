@@ -58,7 +58,7 @@ from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.validation import BadInputError
 from impactqp.sim.runner import NORMAL, SERVO_GAIN, run_impact_trial
 from impactqp.sim.trial_result import TrialResult
-from impactqp.sim.trial_sources import SCRIPTED
+from impactqp.sim.trial_sources import SCRIPTED, QpRecord
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import ImpactPosture, Surface
 from impactqp.controller.model.robot import PandaModel
@@ -330,7 +330,9 @@ class StancePlant:
 
 @dataclass(frozen=True)
 class StanceEvaluation:
-    """One simulated trial of the search: commanded and contact speed (m/s), what failed."""
+    """One simulated trial of the search: commanded and contact speed (m/s), what failed, each
+    failed criterion's onset (s from the first contact) and, with the QP in the loop, the impact
+    rows tight just before the contact (``QpRecord.binding``; "" without the QP)."""
 
     reference_speed: float
     contact_speed: float
@@ -339,11 +341,15 @@ class StanceEvaluation:
     foot_lift: float
     fell: bool
     first_failure: str
+    onsets: dict = field(default_factory=dict)
+    binding: str = ""
 
     @classmethod
     def of(cls, trial: TrialResult) -> StanceEvaluation:
+        record = trial.record
+        binding = ", ".join(record.binding(trial.impact.pre_index)) if isinstance(record, QpRecord) else ""
         return cls(trial.normal_speed, trial.contact_speed, trial.max_velocity_ratio, trial.held.foot_slip, trial.held.foot_lift,
-                   trial.fell, trial.first_failure)
+                   trial.fell, trial.first_failure, trial.failure_times, binding)
 
     @property
     def violated(self) -> bool:
@@ -354,7 +360,7 @@ class StanceEvaluation:
             "reference_speed": self.reference_speed, "contact_speed": self.contact_speed,
             "max_velocity_ratio": self.max_velocity_ratio, "foot_slip": self.foot_slip,
             "foot_lift": self.foot_lift, "fell": self.fell, "first_failure": self.first_failure,
-            "violated": self.violated,
+            "violated": self.violated, "onsets": self.onsets, "binding": self.binding,
         }
 
 
@@ -369,6 +375,7 @@ class StanceMaxSpeed:
     simulated_contact: float  # its measured contact speed (m/s)
     failed_first: str  # what failed first at the lowest infeasible commanded speed ("" if none)
     evaluations: list = field(default_factory=list)
+    checks: dict = field(default_factory=dict)  # factor of the crb closed form -> StanceEvaluation at that asked speed
 
     def to_json(self) -> dict:
         return {
@@ -382,6 +389,7 @@ class StanceMaxSpeed:
             "simulated_contact_speed": self.simulated_contact,
             "simulated_failed_first": self.failed_first,
             "evaluations": [e.to_json() for e in sorted(self.evaluations, key=lambda e: e.reference_speed)],
+            "checks": {f"{factor:g}": e.to_json() for factor, e in self.checks.items()},
         }
 
 
@@ -396,10 +404,11 @@ def predicted_speeds(robot: RobotModel, q: np.ndarray, setting: Setting, methods
 
 def search_stance(
     robot: RobotModel, stance: str, setting: Setting = Setting(), plant: StancePlant = StancePlant(),
-    tolerance: float = STANCE_TOLERANCE, methods=("classical", "gm", "crb"), source=SCRIPTED,
+    tolerance: float = STANCE_TOLERANCE, methods=("classical", "gm", "crb"), source=SCRIPTED, checks=(),
 ) -> StanceMaxSpeed:
     """The closed-form speeds of ``methods`` and the simulated bisection of one stance, its trials
-    driven by ``source`` (``sim.trial_sources``: ``SCRIPTED`` or ``QpCommand``)."""
+    driven by ``source`` (``sim.trial_sources``: ``SCRIPTED`` or ``QpCommand``), and one trial asked
+    for each factor of ``checks`` times the crb closed form (``methods`` must hold crb then)."""
     stances = robot.description.stances
     if stance not in stances:
         raise BadInputError(f"unknown stance {stance!r}; known: {', '.join(stances)}")
@@ -412,4 +421,6 @@ def search_stance(
     failed = [e for e in evaluations if e.violated]
     contact = max(feasible, key=lambda e: e.reference_speed).contact_speed if feasible else 0.0
     first = min(failed, key=lambda e: e.reference_speed).first_failure if failed else ""
-    return StanceMaxSpeed(stance, q, predicted_speeds(robot, q, setting, methods), best, contact, first, evaluations)
+    predicted = predicted_speeds(robot, q, setting, methods)
+    checked = {factor: StanceEvaluation.of(run(factor * predicted["crb"].speed)) for factor in checks}
+    return StanceMaxSpeed(stance, q, predicted, best, contact, first, evaluations, checked)

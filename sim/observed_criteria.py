@@ -134,7 +134,7 @@ class FootSlip:
     def observe(self, o: TrialObservation) -> Observed:
         window, loaded = o.impact_window(), o.loaded_before()
         flags = window & np.any(slip_onset(o.held.soles) & loaded, axis=1)
-        value = float(o.held.soles[window][:, loaded, CONE].max())
+        value = float(o.held.soles[window][:, loaded, CONE].max(initial=0.0))  # 0: no foot was loaded (already falling)
         onset = o.onset(flags)
         return Observed(self.name, value, not np.isnan(onset), onset)
 
@@ -148,7 +148,7 @@ class FootLift:
     def observe(self, o: TrialObservation) -> Observed:
         window, loaded = o.impact_window(), o.loaded_before()
         flags = window & np.any(lift_onset(o.held.soles) & loaded, axis=1)
-        value = float(o.held.soles[window][:, loaded, MARGIN].min())
+        value = float(o.held.soles[window][:, loaded, MARGIN].min(initial=np.inf))  # inf: no foot was loaded
         onset = o.onset(flags)
         return Observed(self.name, value, not np.isnan(onset), onset)
 

@@ -309,12 +309,14 @@ def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: f
                      source: TrialSource = SCRIPTED) -> TrialResult:
     """Simulate one trial of a standing robot (module docstring; :func:`run_impact`) and compare
     the jump with the predictors (``sim.trial_result.held_contact_result``); ``gap`` (m) is the
-    start distance of the contact point from the wall (None: the source's), ``armature`` the
+    start distance of the contact point from the wall at q0 (None: the source's start posture and
+    gap from q0, ``start_posture``: the scripted arm's 2 cm, the QP's run-up), ``armature`` the
     plant's rotor inertia (``sim.scene.plant_armature``: None for the G1's actuators), ``source``
     the command source (``sim.trial_sources``: ``SCRIPTED``, or ``QpCommand``: the whole-body QP)."""
     dt = DEFAULT_CONTROL_PERIOD
     q0 = stance_posture(robot, stance) if q0 is None else q0
-    gap = source.gap if gap is None else gap
+    if gap is None:
+        q0, gap = source.start_posture(robot, q0, NORMAL, speed)
     contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
     scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature)
     plant = servoed_plant(scene, robot, dt, gain)

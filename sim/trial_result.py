@@ -61,7 +61,8 @@ class HeldContactResult:
     predictor's impulse (N s), the CoM velocity after the first wall contact, the largest
     horizontal / vertical foot-frame displacements after the settling (``foot_slip`` /
     ``foot_lift``, m; ``slipped`` / ``lifted``: beyond :data:`SLIP` / :data:`LIFT`), the largest
-    horizontal speed of a touching sole sphere in the impact window, the wall (its plane's x and
+    horizontal speed of a touching sole sphere in the impact window (0 when no sole carried weight
+    before the contact: the robot was already falling), the wall (its plane's x and
     its normal towards the robot) and the Pinocchio configurations at the control rate."""
 
     peak_force: float
@@ -317,7 +318,7 @@ def held_contact_result(stance: str, start: TrialStart, contact: WallContact, ru
         peak_force=float(contact.peaks[first:last + 1].max()), floor_impulse=held.floor[first:last + 1].sum(axis=0),
         measured_com_jump=post_com_velocity - terms.Jcom @ v_pre, predicted_com_jump=com, predicted_impulse=impulses,
         post_com_velocity=post_com_velocity, foot_slip=float(np.linalg.norm(moved[..., :2], axis=-1).max()),
-        foot_lift=float(np.abs(moved[..., 2]).max()), slide_speed=float(soles[:, o.loaded_before(), SPEED].max()),
+        foot_lift=float(np.abs(moved[..., 2]).max()), slide_speed=float(soles[:, o.loaded_before(), SPEED].max(initial=0.0)),
         wall_x=float(start.surface.point[0]), wall_normal=normal.copy(),
         q_log=np.column_stack([log.base[:, :robot.base_nq], log.q]),
     )

@@ -14,7 +14,8 @@ on them for ``TrialStart.settle`` s, during which every source commands the join
   s velocity ramp, every other joint at rest; at the stop the servo re-anchors its reference at
   the measured joints, at rest (``holds_at_stop``), and the command is zero;
 - :class:`QpCommand` (every robot: the default controller ``ControllerConfig.approach`` of the
-  robot's description, with the jump predictor of its impact rows): the controller is reset at the
+  robot's description, with the jump predictor of its impact rows; a standing robot's trial starts
+  from its run-up, ``controller.model.run_up``): the controller is reset at the
   state measured when the settling ends (at once for a fixed base) and is given, every period, its
   own previous command (``feedback="commanded"``, a kinematic-controlled robot's convention:
   ``scenarios.trial`` says why) or the measured state; at the stop the hand's approach speed target
@@ -34,10 +35,12 @@ from typing import Protocol
 import numpy as np
 
 from impactqp.controller.config import ControllerConfig, build_controller
+from impactqp.controller.config.controller_config import FLOATING_BASE_APPROACH
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.max_speed import contact_joints
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import RobotModel
+from impactqp.controller.model.run_up import run_up_distance, run_up_posture
 from impactqp.controller.model.validation import BadInputError, approach_speed
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 from impactqp.controller.qp.command import Command, Status
@@ -48,10 +51,11 @@ from .trial_loop import FEEDBACK, CommandSource, ControllerSource, VelocityComma
 RAMP = 0.02  # s of the scripted command's velocity ramp
 LAG = 0.1  # s the hand may arrive after the commanded arrival (torque-limited joints lag the command)
 HAND_ACCELERATION = 2.0  # m/s^2: a lower bound of the hand's acceleration under the QP's joint limits
-QP_GAP = 0.05  # m from the contact point to the wall at the start of a standing robot's QP trial
-SCRIPTED_GAP = 0.02  # m, the same for the scripted command
+SCRIPTED_GAP = 0.02  # m from the contact point to the wall at the start of a standing robot's scripted trial
 IMPACT_ROWS = "post_impact_velocity"  # name prefix of the predicted post-impact joint-velocity rows
 CAPTURE_ROWS = "capture_region"  # name prefix of the capture-region rows
+FOOT_ROWS = "foot_wrench"  # name prefix of the feet's rows at the impact
+BINDING_WINDOW = 10  # QP cycles before a step whose tight impact rows bind the approach (``QpRecord.binding``)
 
 
 @dataclass(frozen=True)
@@ -161,6 +165,10 @@ class ScriptedCommand:
         """s allowed from the end of the settling to the first wall contact."""
         return 3 * gap / speed + RAMP + LAG
 
+    def start_posture(self, robot: RobotModel, q: np.ndarray, normal: np.ndarray, speed: float) -> tuple[np.ndarray, float]:
+        """The trial's start posture and gap (m) from a stance's posture q: q itself, :attr:`gap`."""
+        return q, self.gap
+
     def start(self, start: TrialStart) -> _ScriptedDriver:
         return _ScriptedDriver(start)
 
@@ -202,12 +210,14 @@ class QpCommand:
     predictor of its impact rows (``method``: a jump model, None without the rows), the QP solver,
     which state it is given (``feedback``), the start gap of a standing robot's trial (m), and the
     approach options c_r, delta_t, the posture task's weight (None: the preset's) and the friction
-    mu of an arm's robust friction rows (0: none; docs/frictional-impacts.md)."""
+    mu of an arm's robust friction rows (0: none; docs/frictional-impacts.md). A standing robot's
+    trial starts from its run-up (``gap`` None, :meth:`start_posture`) or ``gap`` m from the wall at
+    the stance's posture."""
 
     method: str | None = "crb"
     solver: str = "daqp"
     feedback: str = "commanded"
-    gap: float = QP_GAP
+    gap: float | None = None
     restitution: float = 0.0
     impact_duration: float | None = None
     posture_weight: float | None = None
@@ -225,6 +235,17 @@ class QpCommand:
         at the asked speed, plus the time to reach it at HAND_ACCELERATION, plus the scripted
         source's ramp and lag margin."""
         return 3 * gap / speed + speed / HAND_ACCELERATION + RAMP + LAG
+
+    def start_posture(self, robot: RobotModel, q: np.ndarray, normal: np.ndarray, speed: float) -> tuple[np.ndarray, float]:
+        """The trial's start posture and gap (m) from a stance's posture q: the run-up
+        (``controller.model.run_up``: the hand moved back along the normal n far enough for the
+        hand's task to reach ``speed``), the wall :data:`SCRIPTED_GAP` beyond the stance's hand, so
+        that the hand meets it in the stance's posture; with a ``gap``, q itself and that gap."""
+        if self.gap is not None:
+            return q, self.gap
+        start = run_up_posture(robot, q, normal, run_up_distance(speed, FLOATING_BASE_APPROACH["velocity_gain"]))
+        moved = (robot.terms(start).contact_point - robot.terms(q).contact_point) @ normal
+        return start, float(moved) + SCRIPTED_GAP
 
     def config(self, start: TrialStart) -> ControllerConfig:
         """The controller's configuration: the description's approach towards the start's wall."""
@@ -249,6 +270,7 @@ class QpRecord:
     statuses: list = field(default_factory=list)  # Status of each cycle
     impact_rows_active: list = field(default_factory=list)  # a post-impact velocity row tight at the solution
     capture_rows_active: list = field(default_factory=list)  # a capture-region row tight at the solution
+    tight_impact_rows: list = field(default_factory=list)  # names of the impact rows (joints, capture, feet) tight at the solution
     impact_constraints_on: list = field(default_factory=list)  # the activation rule switched the impact rows on
     predicted_post_impact: list = field(default_factory=list)  # (nv) v_cmd + predicted jump of each cycle
     messages: list = field(default_factory=list)  # the message of each cycle whose status is not OK
@@ -257,6 +279,9 @@ class QpRecord:
         self.statuses.append(Status(command.status))
         self.impact_rows_active.append(any(n.startswith(IMPACT_ROWS) for n in command.active_constraints))
         self.capture_rows_active.append(any(n.startswith(CAPTURE_ROWS) for n in command.active_constraints))
+        self.tight_impact_rows.append(
+            tuple(n for n in command.active_constraints if n.startswith((IMPACT_ROWS, CAPTURE_ROWS, FOOT_ROWS)))
+        )
         self.impact_constraints_on.append(bool(command.impact_constraints_active))
         self.predicted_post_impact.append(command.predicted_post_impact_velocity.copy())
         if command.status != Status.OK:
@@ -266,6 +291,12 @@ class QpRecord:
     def not_ok(self) -> int:
         """Cycles whose status is not OK (a clipped velocity or a fallback)."""
         return sum(s != Status.OK for s in self.statuses)
+
+    def binding(self, step: int) -> tuple[str, ...]:
+        """The impact rows tight in any of the BINDING_WINDOW QP cycles up to the trial's control
+        step ``step`` (e.g. the first wall contact): what held the approach speed, sorted."""
+        end = self.cycle(step) + 1
+        return tuple(sorted({n for names in self.tight_impact_rows[max(end - BINDING_WINDOW, 0):max(end, 0)] for n in names}))
 
     def cycle(self, step: int) -> int:
         """The QP cycle of the trial's control step ``step``."""

@@ -271,13 +271,13 @@ def test_the_robot_and_the_tool_of_a_file_build_the_controller(tmp_path):
 def test_the_floating_base_preset_holds_the_balance_and_the_feet_and_refuses_a_bad_controller():
     """The G1's approach: the hand's approach, the CoM, the torso's orientation, the posture and
     the damping; the joints' limits, the feet's rows, the post-impact velocities and the capture
-    region, no torque rows."""
+    region, the feet's wrenches at the impact, no torque rows."""
     import whole_body_states as g1
 
     c = g1.controller("staggered", method="gm")
     assert [x.name for x in c.constraints] == [
         "joint_acceleration_limit", "joint_position_limit", "joint_velocity_limit", "held_contacts",
-        "post_impact_velocity[gm]", "capture_region[gm]",
+        "post_impact_velocity[gm]", "capture_region[gm]", "foot_wrench[gm]",
     ]
     assert [t.name for t in c.tasks] == ["contact_approach", "com", "frame[torso]", "posture", "damping"]
     assert c.tasks[3].rows == g1.robot().n_joints and c.tasks[4].rows == g1.robot().nv
@@ -287,6 +287,7 @@ def test_the_floating_base_preset_holds_the_balance_and_the_feet_and_refuses_a_b
         type(c)(g1.robot(), [DampingTask(variables=g1.robot().nv)], c.constraints + c.constraints[-1:], 0.001)
     robust = g1.controller("parallel", method="robust")
     assert sum(x.name.startswith("capture_region") for x in robust.constraints) == 3
+    assert sum(x.name.startswith("foot_wrench") for x in robust.constraints) == 3
 
 
 @pytest.mark.parametrize("key", ["limits.torque", "impact.impulsive_torque"])

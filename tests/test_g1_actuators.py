@@ -48,3 +48,19 @@ def test_joints_with_the_same_urdf_effort_limit_share_a_drive(robot):
 def test_an_unknown_joint_is_bad_input():
     with pytest.raises(BadInputError, match="no G1 actuator"):
         joint_armature(["left_finger_joint"])
+
+
+def test_the_description_s_acceleration_limits_are_the_actuators(robot):
+    """ddq_max of g1.toml is acceleration_limits over the stances, rounded down, each within the
+    share of its torque over the joint's own inertia (M_ii + armature, the base welded); the jerk
+    limit gives a swing of JERK_HORIZON."""
+    from impactqp.controller.model.g1_actuators import JERK_HORIZON, TORQUE_SHARE, acceleration_limits
+    from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+
+    postures = [stance_posture(robot, s) for s in STANCES.values()]
+    np.testing.assert_array_equal(robot.ddq_max, np.floor(acceleration_limits(robot, postures)))
+    np.testing.assert_allclose(robot.ddq_max / robot.dddq_max, JERK_HORIZON, rtol=1e-12)
+    for q in postures:
+        M = robot.terms(q).M
+        welded = TORQUE_SHARE * robot.tau_max / (np.diag(M)[robot.base_nv:] + joint_armature(robot.joint_names))
+        assert np.all(robot.ddq_max <= welded)

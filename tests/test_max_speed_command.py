@@ -112,3 +112,30 @@ def test_a_figure_of_another_format_is_refused_before_the_search(capsys, monkeyp
     code, out, err = run(capsys, "max-speed", "--posture", "elbow_up", "--figure", str(tmp_path / "speed.jpg"))
     assert code == 2 and out == "" and err.count("\n") == 1 and "--figure writes a figure" in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_qp_driven_search_of_a_stance_holds_the_contact_speed_at_its_closed_form(capsys):
+    """--controller qp: the trials are the whole-body QP's; asked for 1.3 times the closed form,
+    the QP holds the contact speed at or below it, its impact rows tight before the contact; the
+    text gives each check's asked and contact speed, binding rows, onsets and fall."""
+    code, out, _ = run(capsys, "max-speed", "--robot", "g1", "--controller", "qp", "--posture", "close",
+                       "--tolerance", "0.4", "--json")
+    assert code == 0
+    report = json.loads(out)
+    assert report["controller"] == "qp" and set(report["checks"]) == {"0.9", "1.3"}
+    closed_form = report["predicted_max_speed"]["crb"]
+    for factor, check in report["checks"].items():
+        assert check["reference_speed"] == pytest.approx(float(factor) * closed_form)
+    above = report["checks"]["1.3"]
+    assert above["contact_speed"] <= closed_form
+    assert above["binding"] and all(name.split("[")[0] in {"post_impact_velocity", "capture_region", "foot_wrench"}
+                                    for name in above["binding"].split(", "))
+    lines = max_speed_text(report).splitlines()
+    assert "commanded by the QP" in lines[-3]
+    assert lines[-1].startswith(f"  1.3x crb: asked {above['reference_speed']:.4f}, contact {above['contact_speed']:.4f}; "
+                                f"binding: {above['binding']}; onsets: ")
+
+
+def test_the_controller_option_is_a_standing_robot_s(capsys):
+    code, _, err = run(capsys, "max-speed", "--posture", "elbow_up", "--controller", "qp")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--controller" in err

@@ -47,7 +47,7 @@ def test_every_cycle_is_ok_and_every_command_is_finite_and_within_the_limits(rob
 
 def test_the_commands_change_within_the_acceleration_and_jerk_limits(trial):
     """Given its own command as the state, the QP's commands step by its accelerations times dt:
-    within 25 rad/s^2, changing by at most the jerk limit per cycle, through the impact. (Its first
+    within its description's limits, changing by at most the jerk limit per cycle, through the impact. (Its first
     command starts from the measured state after the settling, a few mrad/s off rest.)"""
     start = trial.record.first_step
     acceleration = np.diff(trial.commands[start:], axis=0) / DEFAULT_CONTROL_PERIOD

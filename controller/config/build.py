@@ -11,6 +11,7 @@ from impactqp.constraints import (
     ActivationRule,
     CaptureRegionLimit,
     ExpectedImpact,
+    FootWrenchLimit,
     HeldContactRows,
     ImpulsiveTorqueLimit,
     PositionLimit,
@@ -22,6 +23,7 @@ from impactqp.constraints import (
 
 from ..model.friction_pyramid import FrictionRows
 from ..model.humanoid_stance import stance_posture, support_polygon
+from ..model.max_speed import Setting
 from ..model.robot import RobotModel
 from ..model.validation import BadInputError
 from ..qp import ImpactAwareController
@@ -32,7 +34,9 @@ def build_controller(config: ControllerConfig, robot: RobotModel | None = None, 
     """The controller described by ``config`` (a fresh model of the configuration's robot and
     tool when ``robot`` is None). A robot standing on held contacts gets their rows
     (``HeldContactRows``) and, with ``impact.capture_region``, the capture region of its support
-    polygon at ``q_start`` (default: the posture of its description's default stance)."""
+    polygon at ``q_start`` (default: the posture of its description's default stance); with
+    ``impact.foot_wrench``, the feet's rows at the impact (``FootWrenchLimit``, the feet as at
+    ``q_start``, the closed form's equivalent contact duration)."""
     robot = config.choice.model() if robot is None else robot
     surface = config.surface.surface()
     limits, impact = config.limits, config.impact
@@ -76,6 +80,7 @@ def build_controller(config: ControllerConfig, robot: RobotModel | None = None, 
 
     models = [impact_model(name, impact.friction_setting()) for name in jump_model_names(impact.jump_model)] if impact.jump_model else []
     polygon = support(robot, q_start) if held_contacts and impact.capture_region and models else None
+    feet_start = start_posture(robot, q_start) if held_contacts and impact.foot_wrench and models else None
     for model in models:
         if impact.post_impact_velocity:
             constraints.append(PostImpactVelocityLimit(model, dq_max))
@@ -83,6 +88,8 @@ def build_controller(config: ControllerConfig, robot: RobotModel | None = None, 
             constraints.append(ImpulsiveTorqueLimit(model, tau_max, dq_max, impact.impact_duration))
         if polygon is not None:
             constraints.append(CaptureRegionLimit(model, polygon))
+        if feet_start is not None:
+            constraints.append(FootWrenchLimit(model, robot, feet_start, Setting().duration(robot.description)))
     prediction = models[0] if models else impact_model(impact.prediction_model, FrictionRows())
     return ImpactAwareController(
         robot, tasks, constraints, config.dt, config.solver, prediction,
@@ -90,12 +97,17 @@ def build_controller(config: ControllerConfig, robot: RobotModel | None = None, 
     )
 
 
-def support(robot: RobotModel, q_start=None):
-    """The support polygon of the robot's held contacts at ``q_start`` (default: its default stance)."""
+def start_posture(robot: RobotModel, q_start=None):
+    """``q_start``, or the posture of the robot's default stance when it is None."""
     if q_start is None:
         description = robot.description
-        q_start = stance_posture(robot, description.stances[description.default_posture])
-    return support_polygon(robot, q_start)
+        return stance_posture(robot, description.stances[description.default_posture])
+    return q_start
+
+
+def support(robot: RobotModel, q_start=None):
+    """The support polygon of the robot's held contacts at ``q_start`` (default: its default stance)."""
+    return support_polygon(robot, start_posture(robot, q_start))
 
 
 def post_impact_config(config: ControllerConfig) -> ControllerConfig:

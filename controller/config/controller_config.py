@@ -102,7 +102,9 @@ class ImpactConfig:
     jump_model: 'crb', 'gm', 'classical', 'classical_normal', 'robust' (crb + gm + classical),
     or None to switch the impact-aware constraints off (the prediction in ``Command`` then uses
     ``prediction_model``). ``capture_region``: on a robot standing on held contacts, the
-    predicted post-impact centre-of-mass velocity stays capturable (``CaptureRegionLimit``).
+    predicted post-impact centre-of-mass velocity stays capturable (``CaptureRegionLimit``);
+    ``foot_wrench``: there, each held contact's wrench at the impact's peak force stays in its
+    friction cone and its sole (``FootWrenchLimit``, the closed form's foot slip and lift).
     ``friction`` mu in [0, 2] > 0 adds the robust friction rows of a fixed-base arm
     (docs/frictional-impacts.md): ``friction_rows`` "pyramid" (``pyramid_edges`` in [3, 16]
     edges) or "slip" (the one-step preview's edge); 0 keeps the frictionless rows alone.
@@ -119,6 +121,7 @@ class ImpactConfig:
     always_active: bool = False
     prediction_model: str = "crb"
     capture_region: bool = True
+    foot_wrench: bool = True
     friction: float = 0.0
     pyramid_edges: int = DEFAULT_EDGES
     friction_rows: str = "pyramid"
@@ -129,7 +132,7 @@ class ImpactConfig:
         validation.name_in(self.prediction_model, METHODS, "impact.prediction_model")
         validation.restitution(self.restitution, "impact.restitution")
         validation.impact_duration(self.impact_duration, "impact.impact_duration")
-        for name in ("post_impact_velocity", "impulsive_torque", "always_active", "capture_region"):
+        for name in ("post_impact_velocity", "impulsive_torque", "always_active", "capture_region", "foot_wrench"):
             validation.boolean(getattr(self, name), f"impact.{name}")
         validation.number_in_range(self.lookahead_distance, 0.0, MAX_LOOKAHEAD_DISTANCE, "impact.lookahead_distance", "m")
         validation.number_in_range(self.lookahead_time, 0.0, MAX_LOOKAHEAD_TIME, "impact.lookahead_time", "s")
@@ -149,6 +152,11 @@ class ImpactConfig:
         ``friction_rows``)."""
         return FrictionRows(self.friction, self.pyramid_edges, self.friction_rows)
 
+
+FLOATING_BASE_APPROACH = {"velocity_gain": 40.0, "normal_weight": 100.0, "orientation_weight": 1.0}
+"""The hand's approach task of a floating base (docs/whole-body-qp.md): a stiffer speed law
+(a 25 ms time constant, for a run-up of a few centimetres: ``controller.model.run_up``), the normal
+speed weighted as the tangential motion against the balance tasks, the orientation weighted low."""
 
 POST_IMPACT_MODES = ("retract", "hold", "continue")
 
@@ -297,11 +305,14 @@ class ControllerConfig:
         ``jump_model`` (None switches them off). A floating-base robot also holds its centre of
         mass and its torso's orientation (``frame = "torso"``), keeps its held contacts (their
         rows are always added) and its post-impact centre-of-mass velocity capturable; it has
-        no torque rows. ``options`` are the fields of :class:`ApproachOptions`."""
+        no torque rows, and its hand's task is :data:`FLOATING_BASE_APPROACH`. ``options`` are the
+        fields of :class:`ApproachOptions`."""
         o = ApproachOptions(**options)
         floating = robot_description(o.robot).floating
         approach = TaskConfig(
-            "contact_approach", {"speed": float(speed), "tangential_velocity": [float(v) for v in o.tangential_velocity]}
+            "contact_approach",
+            {"speed": float(speed), "tangential_velocity": [float(v) for v in o.tangential_velocity],
+             **(FLOATING_BASE_APPROACH if floating else {})},
         )
         balance = [
             TaskConfig("centre_of_mass", {"weight": [float(o.com_weight)] * 3}),

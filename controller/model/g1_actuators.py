@@ -15,6 +15,9 @@ so these joints get twice the 5020's armature.
 The stage inertias and ratios are Unitree's published motor data (as collected in the MuJoCo
 G1 model constants of the mjlab project). The URDF carries no rotor inertia: the predictors
 keep the URDF model, the simulated plant adds these (the paper's reason R3).
+
+The same data give the whole-body QP its joint acceleration limits (:func:`acceleration_limits`,
+written into the description's ``[limits]``, docs/whole-body-qp.md).
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .jump import constrained_inverse_inertia
 from .validation import BadInputError
 
 
@@ -75,3 +79,27 @@ def joint_armature(joint_names) -> np.ndarray:
         motor, count = JOINT_MOTORS[joint_kind(name)]
         armatures.append(count * MOTORS[motor].armature)
     return np.array(armatures)
+
+
+TORQUE_SHARE = 0.5
+"""The share of a joint's torque limit its acceleration limit may use: the rest is kept for
+gravity and the coupling of the other joints."""
+JERK_HORIZON = 0.0025
+"""s: h = ddq_max / dddq_max, the jerk limit's time to swing the acceleration (the impact rows'
+horizon, close to the Panda's 2 ms)."""
+
+
+def acceleration_limits(robot, postures) -> np.ndarray:
+    """ddq_max_i = share tau_max_i / (I_i + armature_i), the smallest over ``postures`` (the
+    description's stances), I_i the larger of the joint's inertia with the base welded and every
+    other joint locked (M_ii) and with the held contacts held and every other joint free
+    (1 / P_ii, P the feet-held inverse inertia of ``jump.constrained_inverse_inertia``): an arm's
+    joint moves its own links, a leg's the whole body pivoting on the feet."""
+    armature = joint_armature(robot.description.joints)
+    joints = slice(robot.base_nv, None)
+    limits = []
+    for q in postures:
+        terms = robot.terms(q)
+        inertia = np.maximum(np.diag(terms.M)[joints], 1.0 / np.diag(constrained_inverse_inertia(terms))[joints])
+        limits.append(TORQUE_SHARE * robot.tau_max / (inertia + armature))
+    return np.min(limits, axis=0)

@@ -1,6 +1,6 @@
 """The benchmark table of ``impactqp bench``: every tracked speed and accuracy figure.
 
-One module per family (``prediction``, ``controller``, ``simulation``, ``diagnosis``), each with
+One module per family (``prediction``, ``controller``, ``whole_body``, ``simulation``, ``diagnosis``), each with
 row helpers from ``base``. Goals are ratios within one run, printed in docs/benchmarks.md, never asserted
 in tests.
 """
@@ -21,6 +21,7 @@ FAMILIES: list[tuple[str, str, str]] = [
     # (row-name prefix, module, function returning the rows)
     ("predict.", "prediction", "rows"),
     ("controller.", "controller", "controller_rows"),  # with its peer.* rows
+    ("controller.cycle.g1", "whole_body", "rows"),  # the standing G1's, with pink's row of the same problem
     ("sim.closed_loop", "simulation", "closed_loop_benchmark_rows"),
     ("maxspeed.", "simulation", "max_speed_benchmark_rows"),
     ("diagnose.", "diagnosis", "rows"),

@@ -21,18 +21,12 @@
   towards the wall with the impact constraints always on; goal: p99 <= 2x controller.cycle p99);
 - controller.stage.<terms|tasks|constraints|solve|check>: one cycle split into its stages, on
   the states of the controller.cycle loop;
-- controller.cycle.g1: microseconds per ``ImpactAwareController.step`` of the standing G1 (parallel
-  stance, the right hand approaching a wall 10 cm ahead at 0.5 m/s, every task and constraint on,
-  model terms once per cycle, daqp), the same closed loop as controller.cycle; .proxqp the same
-  loop with proxqp updated and warm-started every cycle; floor.cycle.g1 and
-  ``controller.cycle.g1/floor.cycle.g1`` its floor and ratio, as floor.cycle;
-- peer.pink.cycle.g1: pink's ``solve_ik`` on the same G1 model (frame task on the hand's contact
-  frame + posture task + pink's configuration and velocity limits), its free-flyer left free
-  (pink has no feet), same loop;
 - controller.solvers.<backend>: the controller.cycle loop with each available QP backend, with
   ``.fallbacks`` (fallback cycles in that loop) and ``.speed_ratio`` (asked for 2 m/s at a fixed
   posture, the commanded contact speed it settles at over the crb closed-form maximum speed;
   1 means the QP reaches the closed form): the table the default solver is chosen from.
+
+The standing G1's rows are ``scenarios.bench.whole_body``'s.
 """
 
 from __future__ import annotations
@@ -52,7 +46,6 @@ from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import PandaModel, RobotModel
 from impactqp.controller.model.tool_postures import tool_posture
 from impactqp.controller.qp import available_backends
-from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.max_speed import Setting, approach_direction, closed_form_max_speed
 
 from .base import ALTERNATING_BLOCKS, alternating_blocks, blocks_row, missing_row, ratio_row, timing_row
@@ -60,7 +53,6 @@ from .base import ALTERNATING_BLOCKS, alternating_blocks, blocks_row, missing_ro
 CYCLES = 3000
 RESTART_EVERY = 500  # cycles; the loop restarts at the posture before reaching the wall
 WALL_GAP = 0.10  # m between the tool tip and the wall at the start
-G1_STANCE = "parallel"
 BENCH_FRICTION = 0.3  # mu of controller.cycle.friction4's rows
 
 
@@ -319,40 +311,6 @@ def stage_samples(robot: PandaModel, cycles: int = 1000) -> dict[str, np.ndarray
     return stages
 
 
-def g1_setup(robot: RobotModel, solver: str = "daqp") -> tuple:
-    """The G1's approach controller and its stance q0: the right hand 10 cm before a wall ahead
-    at 0.5 m/s."""
-    q0 = stance_posture(robot, robot.description.stances[G1_STANCE])
-    normal = np.array([-1.0, 0.0, 0.0])
-    surface = Surface(robot.terms(q0).contact_point - WALL_GAP * normal, normal)
-    config = ControllerConfig.approach(surface, 0.5, robot=robot.description.name, solver=solver)
-    return build_controller(config, robot, q0), q0
-
-
-def g1_cycle_samples(robot: RobotModel, solver: str = "daqp", cycles: int = CYCLES) -> np.ndarray:
-    """Seconds per ``step`` of the G1's closed approach loop (q, v <- q_cmd, v_cmd), restarted at
-    the stance every RESTART_EVERY cycles."""
-    return ClosedLoop(*g1_setup(robot, solver), robot.nv).run(cycles)[0]
-
-
-def pink_g1_cycle_samples(robot: RobotModel, solver: str, cycles: int = CYCLES) -> np.ndarray:
-    """Seconds per cycle of pink on the G1: frame task on the hand's contact frame + posture task
-    + limits, solve_ik with ``solver``, the same target 10 cm ahead."""
-    q0 = stance_posture(robot, robot.description.stances[G1_STANCE])
-    frame = robot.model.frames[robot.contact_frame_id].name
-    return pink_loop_samples(robot.model, q0, frame, solver, cycles)
-
-
-def g1_rows() -> list[dict]:
-    """controller.cycle.g1, its proxqp twin and pink's row on the same G1."""
-    g1 = RobotModel("g1")
-    return [
-        *cycle_and_floor_rows("controller.cycle.g1", "floor.cycle.g1", g1, lambda: g1_setup(g1)),
-        timing_row("controller.cycle.g1.proxqp", "us", g1_cycle_samples(g1, "proxqp"), 1e6),
-        fastest_solver_row("peer.pink.cycle.g1", lambda solver, cycles: pink_g1_cycle_samples(g1, solver, cycles)),
-    ]
-
-
 def controller_rows() -> list[dict]:
     robot = PandaModel()
     friction4 = {"controller.cycle.friction4": lambda: _approach_setup(robot, friction=BENCH_FRICTION)}
@@ -362,7 +320,6 @@ def controller_rows() -> list[dict]:
         controller_cycle_samples(other, cycles=300)  # warm-up
         rows.append(timing_row(f"controller.cycle.{name}", "us", controller_cycle_samples(other), 1e6))
     rows.append(fastest_solver_row("peer.pink.cycle", lambda solver, cycles: pink_cycle_samples(robot, solver, cycles)))
-    rows.extend(g1_rows())
     try:
         rows.append(fastest_solver_row("peer.mink.cycle", mink_cycle_samples))
     except ImportError as error:

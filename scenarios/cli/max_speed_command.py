@@ -4,8 +4,9 @@ robot (docs/max-speed.md, docs/floating-base.md).
 The options are checked, the search runs and its JSON report is printed, or the text made from
 that report. What differs between robots is data, read where it must be: a robot with a floating
 base (its description's ``base``) is searched per stance of its description
-(``scenarios.max_speed_search.search_stance``: closed form and simulated bisection, no QP; an
-option of the arm's search that has no meaning there is bad input when given), a fixed-base arm
+(``scenarios.max_speed_search.search_stance``: closed form and simulated bisection, the trials
+driven by its scripted arm or, ``--controller qp``, by the whole-body QP; an option of the arm's
+search that has no meaning there is bad input when given), a fixed-base arm
 per named posture on a wall (``scenarios.max_speed_search.MaxSpeedSearch``: closed form,
 QP-limited run and simulated bisection). With ``--friction`` an arm's answer is the closed form
 under the robust friction rows (``controller.model.max_speed.frictional_max_speed``: every
@@ -61,6 +62,7 @@ class MaxSpeedRequest:
     choice: RobotChoice
     friction: float | None = None
     tangential: str | None = None
+    controller: str = "scripted"
 
 
 def arm_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
@@ -84,29 +86,42 @@ def arm_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
     return search.run().to_json()
 
 
+QP_CHECKS = (0.9, 1.3)
+"""With ``--controller qp``, a trial asked for each of these factors of the crb closed form."""
+
+
 def stance_max_speed(request: MaxSpeedRequest) -> dict:
     """The JSON report of a floating-base robot's search at a stance of its description: its
-    ``robot``, the closed form of each predictor and ``robust`` (the smallest), the bisection,
-    and the contact duration used (the description's wall contact unless --impact-duration)."""
+    ``robot``, the closed form of each predictor and ``robust`` (the smallest), the bisection of
+    the trials driven by ``controller`` (the scripted arm, or the whole-body QP with one trial
+    asked for each of :data:`QP_CHECKS` times the closed form), and the contact duration used (the
+    description's wall contact unless --impact-duration). Several stances (comma-separated): one
+    such report per stance under ``stances``."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
     from impactqp.controller.model.robot import RobotModel
     from impactqp.scenarios.max_speed_search import search_stance
+    from impactqp.sim.trial_sources import SCRIPTED, QpCommand
 
     reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool", "friction", "tangential"])
     robot = request.choice.robot
-    stance = stance_names(robot, request.posture)[0]
+    stances = stance_names(robot, request.posture)
     c_r = restitution_coefficient(request.restitution, "--restitution")
     default_duration = click.get_current_context().get_parameter_source("impact_duration") == click.core.ParameterSource.DEFAULT
     duration = HAND_IMPACT_DURATION if default_duration else check_impact_duration(request.impact_duration, "--impact-duration")
-    result = search_stance(RobotModel(robot), stance, Setting("crb", c_r, impact_duration=duration),
-                           tolerance=request.tolerance)
-    report = {"robot": robot.name, **result.to_json()}
-    speeds = report["predicted_max_speed"]
-    robust = min(METHODS, key=lambda m: math.inf if speeds[m] is None else speeds[m])
-    speeds["robust"], report["binding"]["robust"] = speeds[robust], report["binding"][robust]
-    report["impact_duration"] = duration
-    return report
+    qp = request.controller == "qp"
+    model = RobotModel(robot)
+    reports = []
+    for stance in stances:
+        result = search_stance(model, stance, Setting("crb", c_r, impact_duration=duration), tolerance=request.tolerance,
+                               source=QpCommand() if qp else SCRIPTED, checks=QP_CHECKS if qp else ())
+        report = {"robot": robot.name, "controller": request.controller, **result.to_json()}
+        speeds = report["predicted_max_speed"]
+        robust = min(METHODS, key=lambda m: math.inf if speeds[m] is None else speeds[m])
+        speeds["robust"], report["binding"]["robust"] = speeds[robust], report["binding"][robust]
+        report["impact_duration"] = duration
+        reports.append(report)
+    return reports[0] if len(reports) == 1 else {"robot": robot.name, "controller": request.controller, "stances": reports}
 
 
 def frictional_arm_max_speed(request: MaxSpeedRequest) -> dict:
@@ -163,6 +178,8 @@ def run_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
     """Check the ``max-speed`` options and run the search of the chosen robot: its JSON report."""
     if request.choice.robot.floating:
         return stance_max_speed(request)
+    if request.controller != "scripted":
+        raise BadInputError("--controller chooses a standing robot's command source; an arm's search runs its QP always")
     if request.friction is not None:
         return frictional_arm_max_speed(request)
     if request.tangential is not None:
@@ -180,6 +197,8 @@ def max_speed_text(report: dict) -> str:
     robot = f" ({report['robot']})" if "robot" in report else ""
     if "friction" in report:
         return frictional_text(report)
+    if "stances" in report:
+        return "\n\n".join(max_speed_text(stance) for stance in report["stances"])
     constraints = f", jump constraints {report['jump_model']}" if "jump_model" in report else ""
     lines = [
         f"{report['posture']}{robot}: highest feasible contact speed (m/s){constraints}",
@@ -188,8 +207,10 @@ def max_speed_text(report: dict) -> str:
     for name, speed in report["predicted_max_speed"].items():
         lines.append(f"  {name:<12}{speed if speed is not None else math.inf:8.4f}  {binding_text(report['binding'][name])}")
     if "qp_limited_speed" not in report:
-        lines.append(f"{'simulated':<14}{report['simulated_max_speed']:8.4f}  commanded; contact "
+        driver = " by the QP" if report.get("controller") == "qp" else ""  # reports of the scripted arm may lack the key
+        lines.append(f"{'simulated':<14}{report['simulated_max_speed']:8.4f}  commanded{driver}; contact "
                      f"{report['simulated_contact_speed']:.4f}; failed first above: {report['simulated_failed_first'] or '-'}")
+        lines.extend(check_text(factor, e) for factor, e in report.get("checks", {}).items())
         return "\n".join(lines)
     lines.append(
         f"{'QP-limited':<14}{report['qp_limited_speed']:8.4f}  (asked 2 m/s; observed |dq|/dq_max "
@@ -206,6 +227,14 @@ def max_speed_text(report: dict) -> str:
             f"{e['max_torque_ratio']:14.3f}  {e['violated']}"
         )
     return "\n".join(lines)
+
+
+def check_text(factor: str, e: dict) -> str:
+    """One trial asked for ``factor`` times the crb closed form: asked and contact speed, the
+    binding impact rows, the failed criteria's onsets (ms from the contact) and whether it fell."""
+    onsets = ", ".join(f"{name} {1000 * t:+.0f} ms" for name, t in e["onsets"].items()) or "none"
+    return (f"  {factor}x crb: asked {e['reference_speed']:.4f}, contact {e['contact_speed']:.4f}; "
+            f"binding: {e['binding'] or '-'}; onsets: {onsets}; fell: {'yes' if e['fell'] else 'no'}")
 
 
 def frictional_text(report: dict) -> str:
@@ -239,18 +268,25 @@ def frictional_text(report: dict) -> str:
 @click.option("--tolerance", type=float, default=0.005, show_default=True, help="Bisection tolerance (m/s).")
 @click.option("--friction", type=float, help="mu in [0, 2]: the closed form under the robust friction rows (an arm's; no simulation).")
 @click.option("--tangential", help="With --friction: the tangential velocity VX,VY,VZ (m/s) of the sliding approach.")
+@click.option(
+    "--controller", type=click.Choice(["scripted", "qp"]), default="scripted", show_default=True,
+    help="A standing robot's trials: its scripted arm, or the whole-body QP (with trials at 0.9x and 1.3x the closed form).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (no progress bar).")
 @click.option("--figure", "figure_file", help="Plot the speed of each predictor and simulation, what binds it (.png, .pdf, .svg).")
 @robot_options(humanoid=True)
 def max_speed(posture_name, plant_file, as_json, figure_file, choice, **search):
     """Highest feasible contact speed: closed form, reached by the QP, and simulated (with
-    --robot g1: closed form and simulated bisection of a stance, no QP)."""
+    --robot g1: closed form and simulated bisection of one or more stances, the trials driven by
+    the scripted arm or, with --controller qp, the whole-body QP)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.impact_figure import check_figure_suffix
     from impactqp.scenarios.max_speed_figure import write_max_speed_figure
 
     if figure_file is not None:
         check_figure_suffix(output_file(figure_file, "--figure"))
+        if choice.robot.floating and "," in posture_name:
+            raise BadInputError("--figure draws one stance; give one --posture")
     report = run_max_speed(MaxSpeedRequest(posture=posture_name, plant=plant_file, choice=choice, **search),
                            show_progress(as_json))
     if figure_file is not None:

@@ -1,0 +1,104 @@
+"""The feet's wrenches at the impact's peak force in their friction cones and soles
+(constraints/foot_wrench.py): the rows against the closed form's foot slip and lift, and against a
+plain-numpy statement."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from reference.foot_wrench import reference_foot_wrench_rows
+from whole_body_states import NORMAL, approach_velocity, robot, standing_states, upright, wall_ahead
+
+from impactqp.constraints import ControlCycle, ExpectedImpact, FootWrenchLimit
+from impactqp.constraints.impact_model import ActivationRule
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
+from impactqp.controller.model.max_speed import HAND_IMPACT_DURATION, Setting, approach_direction, closed_form_max_speed
+from impactqp.controller.model.validation import BadInputError
+
+H = 0.0025
+
+
+def limit_at(q, method, duration=HAND_IMPACT_DURATION):
+    impact = ExpectedImpact(wall_ahead(q), method, rule=ActivationRule(always_active=True), held_contacts=True)
+    return FootWrenchLimit(impact, robot(), q, duration)
+
+
+def row_values(limit, q, v) -> np.ndarray:
+    """e . F / m of every row at dv = 0 (<= 0 where it holds)."""
+    model = robot()
+    rows = limit.compute(model.terms(q, v), ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), H))
+    return -rows.upper * H
+
+
+@settings(max_examples=15, deadline=None)
+@given(standing_states(), st.sampled_from(METHODS), st.floats(0.0, 2.0), st.integers(0, 2**31))
+def test_kernel_rows_are_the_reference_rows(state, method, speed, seed):
+    _, q, v = state
+    v = v + approach_velocity(q, speed)
+    limit = limit_at(q, method)
+    model = robot()
+    terms = model.terms(q, v)
+    rows = limit.compute(terms, ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), H))
+    C, upper = reference_foot_wrench_rows(limit, model, terms, H)
+    np.testing.assert_allclose(rows.C, C, atol=1e-9 * np.abs(C).max())
+    np.testing.assert_allclose(rows.upper, upper, atol=1e-9 * np.abs(upper).max())
+    assert np.all(rows.lower == -np.inf)
+
+
+@settings(max_examples=10, deadline=None)
+@given(standing_states(), st.sampled_from(METHODS), st.floats(0.0005, 0.02))
+def test_rows_and_the_closed_form_give_the_same_highest_speed(state, method, duration):
+    """Along the closed form's approach v = s d (the hand's arm alone, the body at rest): the slip
+    rows hold exactly up to the closed form's foot-slip speed and the sole rows up to its foot-lift
+    speed; at each of those speeds the binding row is tight (relative to the standing rows)."""
+    _, q, _ = state
+    model = robot()
+    terms = model.terms(q)
+    bounds = closed_form_max_speed(model, terms, NORMAL, Setting(method, impact_duration=duration)).bounds
+    d = approach_direction(model, terms, NORMAL)
+    limit = limit_at(q, method, duration)
+    slip = np.array([label.startswith("slip") for label in limit.labels])
+    scale = np.abs(row_values(limit, q, 0.0 * d)).max()
+    for criterion, rows in (("foot_slip", slip), ("foot_lift", ~slip)):
+        bound = bounds[criterion]
+        assert np.isfinite(bound.speed)
+        at = row_values(limit, q, bound.speed * d)[rows]
+        assert abs(at.max()) <= 1e-9 * scale
+        assert bound.where in np.array(limit.labels)[rows][int(np.argmax(at))]
+        assert np.all(row_values(limit, q, (1.0 - 1e-6) * bound.speed * d)[rows] < 0.0)
+        assert np.any(row_values(limit, q, (1.0 + 1e-6) * bound.speed * d)[rows] > 0.0)
+
+
+@settings(max_examples=15, deadline=None)
+@given(standing_states(), st.sampled_from(METHODS), st.floats(0.05, 3.0), st.integers(0, 2**31))
+def test_a_row_holds_whenever_the_cone_and_the_sole_hold(state, method, speed, seed):
+    """For any dv, a row of C dv <= u fails only if the predicted wrench leaves its friction cone
+    or its sole (the slip row is the cone's supporting plane): rows computed from the closed form's
+    wrenches (max_speed's cone and sole rows) at v' = v + dv h."""
+    _, q, v = state
+    model = robot()
+    v = v + approach_velocity(q, speed)
+    limit = limit_at(q, method)
+    rows = limit.compute(model.terms(q, v), ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), H))
+    dv = np.random.default_rng(seed).normal(scale=20.0, size=model.nv)
+    value = (rows.C @ dv - rows.upper) * H  # e . F(v + dv h) / m
+    at_next = row_values(limit, q, v + dv * H)  # the rows taken at v' itself: the cone and the sole exactly
+    slip = np.array([label.startswith("slip") for label in limit.labels])
+    np.testing.assert_allclose(value[~slip], at_next[~slip], atol=1e-9 * np.abs(at_next).max())
+    assert np.all(value[slip] <= at_next[slip] + 1e-9 * np.abs(at_next).max())
+
+
+def test_rows_are_unbounded_while_no_impact_is_coming():
+    model = robot()
+    q = upright()
+    limit = FootWrenchLimit(ExpectedImpact(wall_ahead(q, 0.8), held_contacts=True), model, q, HAND_IMPACT_DURATION)
+    rows = limit.compute(model.terms(q), ControlCycle(0.001, np.full(model.nv, -1.0), np.full(model.nv, 1.0), H))
+    assert limit.rows == 10 and np.all(rows.upper == np.inf) and np.all(rows.C == 0.0)
+
+
+def test_an_impact_without_held_contacts_or_a_duration_is_bad_input():
+    q = upright()
+    with pytest.raises(BadInputError):
+        FootWrenchLimit(ExpectedImpact(wall_ahead(q, 0.8)), robot(), q, HAND_IMPACT_DURATION)
+    with pytest.raises(BadInputError):
+        FootWrenchLimit(ExpectedImpact(wall_ahead(q, 0.8), held_contacts=True), robot(), q, 0.0)
