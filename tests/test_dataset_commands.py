@@ -298,3 +298,17 @@ def test_diagnose_reports_its_stages_in_order_and_quiet_silences_them(tmp_path, 
     verbose = runs["--verbose"][2].splitlines()
     assert any(line.startswith("impactqp: debug: diagnose: ") for line in verbose)
     assert [line for line in verbose if not line.startswith("impactqp: debug: ")] == lines
+
+
+def test_dq_step_quantises_the_generated_dq_and_comes_once(tmp_path, capsys):
+    """--dq-step sets the plant's sensor_velocity_step at every joint: the manifest declares it;
+    a plant that quantises already, given --dq-step as well, is one line of bad input."""
+    args = ("dataset", "generate", "--postures", "elbow_up", "--speeds", "0.1", "--dq-step", "0.004")
+    code, _, _ = run(capsys, *args[:2], tmp_path / "quantised", *args[2:], "--json")
+    assert code == 0
+    assert json.loads((tmp_path / "quantised" / "dataset.json").read_text())["encoder_step"] == [0.004] * JOINTS
+    plant = tmp_path / "plant.json"
+    plant.write_text(json.dumps({"sensor_velocity_step": [0.002] * JOINTS}))
+    code, out, err = run(capsys, *args[:2], tmp_path / "twice", *args[2:], "--plant", plant)
+    assert code == 2 and out == "" and err.count("\n") == 1 and "give the step once" in err, err
+    assert not (tmp_path / "twice").exists()

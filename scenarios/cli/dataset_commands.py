@@ -8,7 +8,7 @@ import sys
 
 import click
 
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import BadInputError, number_in_range
 from impactqp.scenarios.cli.arguments import (
     check_jobs,
     emit_json,
@@ -83,7 +83,8 @@ def validate_command(ctx, directory, as_json):
 @click.option("--noise-dq", type=float, default=0.0042, show_default=True, help="Encoder noise std on dq (rad/s).")
 @click.option("--noise-tau", type=float, default=0.05, show_default=True, help="Noise std on tau (N m).")
 @click.option("--dq-step", type=float, default=0.0, show_default=True,
-              help="Quantise the logged dq to this step, rad/s, as an encoder-based velocity (0: none).")
+              help="Quantise the logged dq to this step, rad/s, as an encoder-based velocity (0: none): "
+                   "the plant's sensor_velocity_step at every joint; the manifest declares it (encoder_step).")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--jobs", type=int, default=1, show_default=True)
 @click.option("--json", "as_json", is_flag=True)
@@ -97,9 +98,9 @@ def generate_command(out, postures, speeds, tangential, as_json, choice, **noise
 
     from impactqp.sim.generation import DatasetRequest, generate_dataset
 
-    plant_file, jobs = noise.pop("plant_file"), noise.pop("jobs")
+    plant_file, jobs, dq_step = noise.pop("plant_file"), noise.pop("jobs"), noise.pop("dq_step")
     output_directory(out, "OUT")
-    plant = load_plant(plant_file)  # None: the nominal plant
+    plant = quantised_plant(load_plant(plant_file), dq_step, len(choice.robot.joints))  # None: the nominal plant
     names = list(choice.check_postures(p.strip() for p in postures.split(","))) if postures else list(choice.robot.postures)
     speed_list = parse_list(speeds, "--speeds") if speeds is not None else None
     tangential_list = parse_list(tangential, "--tangential") if tangential is not None else []
@@ -124,6 +125,22 @@ def generate_command(out, postures, speeds, tangential, as_json, choice, **noise
         emit_json({"out": str(out), "trials": [e.to_dict() for e in entries]})
     else:
         click.echo(f"wrote {len(entries)} trial(s) to {out}")
+
+
+def quantised_plant(plant, dq_step: float, joints: int):
+    """``plant`` (None: the nominal one) with dq quantised to ``dq_step`` (rad/s, ``--dq-step``) at
+    every one of ``joints`` joints (``sensor_velocity_step``); ``plant`` itself for a step of 0.
+    A plant that quantises already, given a step as well, is bad input: the step comes once."""
+    from dataclasses import replace  # lazy: the command line loads what a command needs when it runs
+
+    from impactqp.sim.plant import RANGES, PlantParameters
+
+    if dq_step == 0.0:
+        return plant
+    number_in_range(dq_step, *RANGES["sensor_velocity_step"][:2], "the velocity quantisation step --dq-step", "rad/s")
+    if plant is not None and any(plant.sensor_velocity_step):
+        raise BadInputError("--dq-step: the plant quantises dq already (sensor_velocity_step); give the step once")
+    return replace(plant or PlantParameters(), sensor_velocity_step=(dq_step,) * joints)
 
 
 @dataset.command("import-franka")
