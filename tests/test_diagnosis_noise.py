@@ -79,15 +79,41 @@ def test_a_mostly_flat_signal_does_not_read_noise_free(seed, jumps, size):
     np.testing.assert_allclose(sample_variance(samples, np.zeros(1)), np.mean(second**2) / 6.0, rtol=1e-12)
 
 
+def standing_out(residuals) -> float:
+    """The residual above which a trial that misfits stands out: twice the median of all, or
+    4 robust standard deviations (1.4826 median absolute deviation) above it, the lower."""
+    median = np.median(residuals)
+    return min(2 * median, median + 4 * 1.4826 * np.median(np.abs(np.array(residuals) - median)))
+
+
 @given(st.lists(st.floats(0.0, FIT_LIMIT), min_size=1, max_size=20), st.floats(1.0, 100.0))
 def test_a_trial_stands_out_when_it_misfits_and_is_far_above_the_others(residuals, scale):
-    """Outliers are above the fit limit and twice the median; a trial far above well-fitting
-    trials is the only one named; one trial alone never stands out."""
+    """Outliers are above the fit limit and far above the others (``standing_out``); a trial far
+    above well-fitting trials is the only one named; one trial alone never stands out."""
     assert outlier_trials(residuals[:1]) == []
-    assert outlier_trials(residuals) == [k for k, r in sorted(enumerate(residuals), key=lambda x: -x[1])
-                                         if r > max(FIT_LIMIT, 2 * np.median(residuals))]
+    assert outlier_trials(residuals) == []  # all within the fit limit
     worst = 2 * FIT_LIMIT * scale
-    assert outlier_trials(residuals + [worst]) == ([len(residuals)] if worst > 2 * np.median(residuals + [worst]) else [])
+    assert outlier_trials(residuals + [worst]) == ([len(residuals)] if worst > standing_out(residuals + [worst]) else [])
+    if len(residuals) >= 3:  # the median and its deviation are the well-fitting trials'
+        assert outlier_trials(residuals + [worst]) == [len(residuals)]
+
+
+@settings(max_examples=50)
+@given(st.integers(0, 2**32 - 1), st.integers(5, 30), st.floats(FIT_LIMIT, 20.0), st.floats(1e-3, 0.2), st.floats(15.0, 100.0))
+def test_a_trial_apart_from_trials_that_all_misfit_stands_out(seed, n, level, spread, distance):
+    """Every trial misfits alike (a model that misses something everywhere: residuals ``level``
+    within +- ``spread``) and one lies ``distance`` spreads above them (beyond 4 robust standard
+    deviations: their absolute deviations are at most 2 spreads): it is named first, and every
+    trial above ``standing_out`` is named, worst first (before: only above twice the median, so
+    a trial at 10 against 8 for every other was absorbed)."""
+    rng = np.random.default_rng(seed)
+    residuals = list(level + spread * rng.uniform(-1.0, 1.0, n))
+    at = int(rng.integers(0, n + 1))
+    residuals.insert(at, level + spread * distance)
+    assert outlier_trials(residuals)[0] == at
+    assert outlier_trials([8.0 + 0.01 * k for k in range(10)] + [10.0]) == [10]
+    expected = [k for k, r in sorted(enumerate(residuals), key=lambda x: -x[1]) if r > max(FIT_LIMIT, standing_out(residuals))]
+    assert outlier_trials(residuals) == expected
 
 
 @given(st.lists(st.tuples(st.floats(-10, 10), st.floats(-10, 10)), min_size=1, max_size=5))

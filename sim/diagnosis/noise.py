@@ -52,6 +52,7 @@ BLOCKS = ("jump", "torque", "impulse", "duration", "trace")
 FIT_LIMIT = 3.0
 CHANNEL_LIMIT = 2.0 * FIT_LIMIT  # one joint's channel of a block: fewer residuals, a wider spread
 OUTLIER_FACTOR = 2.0  # a trial whose residual is this many times the trials' median (and misfits) stands out
+OUTLIER_SPREADS = 4.0  # ... or this many robust standard deviations above that median (``outlier_trials``)
 IMPULSE_FLOOR_SHARE = 0.005
 REPLAY_TORQUE_FACTOR = 2.5  # without repeats: the torque residual of a right model over the sensor scatter's
 REPLAY_TIMING_SAMPLES = 0.1  # the replay's contact moment is known to a tenth of a sample (its start state is noisy)
@@ -192,13 +193,16 @@ def quadratic_mean(errors) -> float:
     return float(np.sqrt(np.mean(errors**2))) if errors.size else 0.0
 
 
-
 def outlier_trials(residuals) -> list[int]:
     """Indices of the trials that stand out: a normalised residual (``fitting.trial_errors``)
-    above ``FIT_LIMIT`` and above ``OUTLIER_FACTOR`` times the median of all trials' (the model
-    fits the others; something happened in that trial alone). Worst first."""
+    above ``FIT_LIMIT`` (the trial misfits) and above the others': above ``OUTLIER_FACTOR`` times
+    the median of all trials' residuals, or ``OUTLIER_SPREADS`` robust standard deviations
+    (1.4826 times the median absolute deviation) above that median (a trial apart from the others
+    when every trial misfits alike). Something happened in that trial alone. Worst first."""
     residuals = np.asarray(residuals, float)
     if residuals.size < 2:
         return []
-    limit = max(FIT_LIMIT, OUTLIER_FACTOR * float(np.median(residuals)))
+    median = float(np.median(residuals))
+    spread = MAD_TO_STD * float(np.median(np.abs(residuals - median)))
+    limit = max(FIT_LIMIT, min(OUTLIER_FACTOR * median, median + OUTLIER_SPREADS * spread))
     return sorted(np.flatnonzero(residuals > limit).tolist(), key=lambda k: -residuals[k])
