@@ -23,8 +23,6 @@ from impactqp.scenarios.cli.arguments import (
 )
 from impactqp.scenarios.cli.stderr_log import LOGGER, show_progress
 
-log = logging.getLogger(__name__)
-
 
 @click.group()
 def dataset():
@@ -176,7 +174,8 @@ def import_franka_command(out, logs, surface_point, surface_normal, reference_sp
 @click.option("--json", "as_json", is_flag=True)
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write report.md and PNG figures here.")
 @click.option("--save-plant", type=click.Path(dir_okay=False),
-              help="Save the fitted plant (JSON) when causes are named; nothing is written otherwise.")
+              help="Save the fitted plant (JSON) when causes are named; otherwise nothing is written, and "
+                   "after the diagnosis's output the command ends with one line and exit code 2.")
 @click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Nominal plant to start from: a JSON file or a built-in name (identified_panda).")
 @click.option("--max-speed", "max_speed", is_flag=True,
               help="Also simulate the highest feasible contact speed per posture, nominal and extended plant.")
@@ -212,8 +211,6 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
         from dataclasses import replace
 
         replace(nominal.for_joints(len(result.choice.robot.joints)), **summary["parameters"]).to_json(save_plant)
-    elif save_plant:
-        log.info("--save-plant: nothing written to %s: no cause is named, the nominal plant stands", save_plant)
     if report_dir:
         from impactqp.scenarios.diagnosis_report import write_report
 
@@ -222,8 +219,10 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
             click.echo(f"report written to {path}")
     if as_json:
         emit_json(summary)
-        return
-    _print_diagnosis(result, summary, speeds)
+    else:
+        _print_diagnosis(result, summary, speeds)
+    if save_plant and not result.explained:
+        raise BadInputError(f"--save-plant: no cause named: no plant to save; nothing written to {save_plant}")
 
 
 def _diagnose_with_progress(directory, nominal, jobs: int, show: bool, max_trials: int):
@@ -261,6 +260,7 @@ def _print_diagnosis(result, summary: dict, speeds) -> None:
     predictors, the feasible speeds and the skipped trials."""
     # lazy: the command line loads what a command needs when it runs
     import statistics
+    import textwrap
 
     from impactqp.scenarios.diagnosis_report import trusted_speed_text
     from impactqp.scenarios.readable import boolean, number, parameters_text
@@ -282,6 +282,9 @@ def _print_diagnosis(result, summary: dict, speeds) -> None:
             f"trial residuals (noise units): median {statistics.median(r['residual'] for r in residuals):.2f}, "
             f"largest {worst['residual']:.2f} ({worst['id']}); outliers: {', '.join(summary['outlier_trials']) or 'none'}"
         )
+        outliers = set(summary["outlier_trials"])
+        listed = ", ".join(f"{r['id']} {r['residual']:.2f}{' (stands out)' if r['id'] in outliers else ''}" for r in residuals)
+        click.echo(textwrap.fill(listed, width=100, initial_indent="  ", subsequent_indent="  "))
     for k, step in enumerate(summary["steps"], start=1):
         taken = "selected" if step["selected"] else "taken" if step["accepted"] else "not taken"
         click.echo(
