@@ -158,6 +158,16 @@ def test_jittered_time_stamps_are_jitter_not_a_wrong_rate(dataset_logs, tmp_path
     assert not any("sampled every" in p or "missing" in p for p in problems), problems
 
 
+def test_one_late_stamp_is_jitter_named_with_its_row(dataset):
+    """Data row 50's stamp 0.3 periods late: the step into it is 1.3 periods, the step out 0.7;
+    both are jitter, the first after data row 49, the larger (equal: the first) there too."""
+    rewrite_times(dataset / "slow.csv", lambda t: t + 0.0003 * (np.arange(len(t)) == 49))
+    problems = validate(dataset)["slow"]
+    (message,) = problems
+    assert "jitter: 2 of " in message and "the first after data row 49 (t = 0.0480 s)" in message, message
+    assert "the largest (0.0003 s) after data row 49" in message, message
+
+
 def test_a_uniformly_wrong_rate_is_named_as_such(dataset):
     rewrite_times(dataset / "slow.csv", lambda t: 1.05 * t)
     problems = validate(dataset)["slow"]
