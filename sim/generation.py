@@ -11,9 +11,9 @@ tangential velocity is ``speed * t`` with ``t = normalise(n x e_z)`` (for the de
 n = -x, t = +y: the paper's v_y), or ``normalise(n x e_x)`` when n is vertical.
 
 What a real log holds, simulated: encoder-like Gaussian noise on dq (std ``noise_dq``, default
-0.0042 rad/s, the paper's repeat-to-repeat std) and on tau (``noise_tau``), and optionally the
-quantisation of dq to a step (``dq_step``: dq = step round(dq / step), after the noise, as an
-encoder-based velocity); repeat-to-repeat
+0.0042 rad/s, the paper's repeat-to-repeat std) and on tau (``noise_tau``), and the plant's
+quantisation of dq (``sensor_velocity_step``: ``sim.sensor.quantised_velocity``, after the noise,
+an encoder-based velocity; the manifest then declares that ``encoder_step``); repeat-to-repeat
 variation of the start posture (Gaussian, std 0.000954 rad, the paper's std of q) and of the
 start distance (+-1 mm). The force log (on the robot, world frame, physics rate) is kept
 noise-free. A plant with sensor keys (``sim.sensor``: delay, velocity scale and filter, torque
@@ -60,7 +60,7 @@ from .plant import PlantParameters
 from .process_pool import ProcessPool
 from .runner import DEFAULT_CONTROL_PERIOD, NORMAL, TrialSpec, run_approach
 from .scene import WALL_FRICTION, build_scene
-from .sensor import apply_sensor
+from .sensor import apply_sensor, quantised_velocity
 
 DEFAULT_SPEEDS = (0.08, 0.10, 0.12, 0.15, 0.18)
 TANGENTIAL_SERIES_NORMAL_SPEED = 0.12
@@ -78,10 +78,15 @@ STANDING_WALL = Surface(np.zeros(3), NORMAL, WALL_FRICTION)
 """The wall of the standing robot's datasets (module docstring)."""
 
 
-def dataset_header(surface: Surface, choice: RobotChoice = DEFAULT_CHOICE) -> DatasetHeader:
+def dataset_header(
+    surface: Surface, choice: RobotChoice = DEFAULT_CHOICE, plant: PlantParameters | None = None
+) -> DatasetHeader:
     """The manifest header of a simulated dataset: the robot and the tool of ``choice``, the
-    surface, the trial loop's control period."""
-    return DatasetHeader.of(choice, surface, DEFAULT_CONTROL_PERIOD)
+    surface, the trial loop's control period, and the encoder step of dq when ``plant``'s
+    sensor quantises it (``sensor_velocity_step``)."""
+    header = DatasetHeader.of(choice, surface, DEFAULT_CONTROL_PERIOD)
+    steps = () if plant is None else plant.for_joints(len(choice.robot.joints)).sensor_velocity_step
+    return replace(header, encoder_step=tuple(steps)) if any(s > 0.0 for s in steps) else header
 
 
 def tangential_direction(normal: np.ndarray) -> np.ndarray:
@@ -134,7 +139,6 @@ class TrialTask:
     noise_dq: float
     noise_tau: float
     choice: RobotChoice = DEFAULT_CHOICE
-    dq_step: float = 0.0
 
 
 def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
@@ -151,8 +155,7 @@ def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
     log = apply_sensor(log, task.plant, log.control_period)
     log.dq = log.dq + rng.normal(0.0, task.noise_dq, log.dq.shape)
     log.tau = log.tau + rng.normal(0.0, task.noise_tau, log.tau.shape)
-    if task.dq_step > 0.0:
-        log.dq = task.dq_step * np.round(log.dq / task.dq_step)
+    log.dq = quantised_velocity(log.dq, task.plant, robot.nv)
     entry = TrialEntry(
         id=planned.id,
         file=f"{planned.id}.csv",
@@ -170,8 +173,8 @@ class DatasetRequest:
     default the one the first posture faces; all named postures face the default wall), the
     postures (default: all), normal speeds (m/s, default ``DEFAULT_SPEEDS``), tangential speeds
     (m/s, at ``TANGENTIAL_SERIES_NORMAL_SPEED``), repeats per condition, the noise stds, the
-    seed of every random draw, the robot and the tool (recorded in the manifest), the
-    quantisation step of dq (rad/s, 0: none), and the most trials it may hold
+    seed of every random draw, the robot and the tool (recorded in the manifest), and the most
+    trials it may hold
     (``validation.trial_count``)."""
 
     plant: PlantParameters | None = None
@@ -184,7 +187,6 @@ class DatasetRequest:
     noise_tau: float = DEFAULT_NOISE_TAU
     seed: int = 0
     choice: RobotChoice = DEFAULT_CHOICE
-    dq_step: float = 0.0
     max_trials: int = MAX_TRIALS
 
 
@@ -209,7 +211,6 @@ def generate_dataset(
     surface = choice.posture(postures[0]).surface if request.surface is None else request.surface
     number_in_range(request.noise_dq, 0.0, MAX_NOISE_DQ, "the encoder noise std --noise-dq", "rad/s")
     number_in_range(request.noise_tau, 0.0, MAX_NOISE_TAU, "the torque noise std --noise-tau", "N m")
-    number_in_range(request.dq_step, 0.0, MAX_NOISE_DQ, "the velocity quantisation step --dq-step", "rad/s")
     speeds = list(DEFAULT_SPEEDS if request.speeds is None else request.speeds)
     whole_number(request.repeats, 1, MAX_REPEATS, "repeats")
     trial_count(
@@ -227,8 +228,8 @@ def generate_dataset(
         choice,
     )
     Path(out).mkdir(parents=True, exist_ok=True)
-    writer = DatasetWriter(out, dataset_header(surface, choice), expected_trials=len(specs))
-    tasks = [TrialTask(s, plant, surface, request.noise_dq, request.noise_tau, choice, request.dq_step) for s in specs]
+    writer = DatasetWriter(out, dataset_header(surface, choice, plant), expected_trials=len(specs))
+    tasks = [TrialTask(s, plant, surface, request.noise_dq, request.noise_tau, choice) for s in specs]
     entries = []
     with ProcessPool(min(jobs, max(len(tasks), 1))) as pool:
         for entry, log in pool.map(simulate_trial, tasks):

@@ -30,7 +30,9 @@ the physics: ``sensor_delay`` (control periods, dq and tau late), ``sensor_veloc
 (logged dq / true dq), ``sensor_torque_offset`` (N m per joint, added to tau) and
 ``sensor_velocity_filter`` (s, time constant of a first-order low-pass on dq) and
 ``sensor_joint_velocity_scale`` (one value per joint, logged dq / true dq per joint, on top of the
-global scale). The defaults are a perfect sensor.
+global scale) and ``sensor_velocity_step`` (rad/s per joint, 0: none: the logged dq rounded to a
+multiple of that step, an encoder-based velocity; applied after the encoder noise,
+``sim.sensor.quantised_velocity``). The defaults are a perfect sensor.
 
 The per-joint vectors (``PER_JOINT``) have one value per joint of the robot the plant is applied
 to; left empty, they hold the nominal value at every joint (``PlantParameters.for_joints``).
@@ -84,6 +86,7 @@ RANGES = {
     "sensor_torque_offset": (-20.0, 20.0, "N m"),
     "sensor_velocity_filter": (0.0, 0.1, "s"),
     "sensor_joint_velocity_scale": (0.5, 2.0, ""),
+    "sensor_velocity_step": (0.0, 0.1, "rad/s"),
 }
 """Physical ranges of the plant parameters (per entry of a vector): reflected rotor inertias and
 viscous damping well above a Panda's (the diagnosis fits up to 5 kg m^2 and 200 N m s/rad), dry
@@ -92,11 +95,12 @@ payload within the Panda's 3 kg rating plus margin (the fit's 5 kg) with its cen
 within half a metre of the tool tip, a Coulomb coefficient up to 2 (``postures.MAX_FRICTION``),
 a servo bandwidth up to 1000 rad/s (the 1 kHz loop); sensors up to 50 ms late, reading velocities
 between half and twice the truth, torques off by at most 20 N m (a Panda's small joints carry
-12 N m) and filtering dq with a time constant up to 0.1 s."""
+12 N m) and filtering dq with a time constant up to 0.1 s, and quantising dq to a step of at most 0.1 rad/s
+(one count of a coarse encoder per control period)."""
 
 PER_JOINT = {
     "armature": 0.0, "joint_damping": 0.0, "joint_friction": 0.0, "sensor_torque_offset": 0.0,
-    "sensor_joint_velocity_scale": 1.0,
+    "sensor_joint_velocity_scale": 1.0, "sensor_velocity_step": 0.0,
 }
 """The per-joint vectors and their nominal value at each joint."""
 
@@ -129,6 +133,7 @@ class PlantParameters:
     sensor_torque_offset: tuple[float, ...] = ()
     sensor_velocity_filter: float = 0.0
     sensor_joint_velocity_scale: tuple[float, ...] = ()
+    sensor_velocity_step: tuple[float, ...] = ()
     link_inertials: tuple = ()
 
     def __post_init__(self):
@@ -200,7 +205,7 @@ class PlantParameters:
         """The same plant with a perfect sensor: what the simulation itself needs."""
         return replace(
             self, sensor_delay=0.0, sensor_velocity_scale=1.0, sensor_torque_offset=(),
-            sensor_velocity_filter=0.0, sensor_joint_velocity_scale=(),
+            sensor_velocity_filter=0.0, sensor_joint_velocity_scale=(), sensor_velocity_step=(),
         )
 
     # ------------------------------------------------------------------ JSON

@@ -11,7 +11,11 @@ diagnosis's sensor causes apply them to a replay's output without simulating aga
   x(t - d T) by linear interpolation between samples, the first sample held before the log;
 - ``sensor_velocity_scale`` s and ``sensor_joint_velocity_scale`` s_j: the logged dq of joint j
   is s s_j times the (filtered, delayed) velocity (``velocity_scales``);
-- ``sensor_torque_offset`` b (N m per joint): the logged tau is the delayed torque plus b.
+- ``sensor_torque_offset`` b (N m per joint): the logged tau is the delayed torque plus b;
+- ``sensor_velocity_step`` q_j (rad/s per joint, 0: none): the logged dq of joint j is
+  q_j round(dq_j / q_j), an encoder-based velocity, rounded after the encoder noise
+  (``quantised_velocity``, which ``sim.generation`` applies once it has added the noise;
+  ``apply_sensor`` leaves it out, so a replay is never rounded).
 """
 
 from __future__ import annotations
@@ -75,3 +79,13 @@ def apply_sensor(log: TrialLog, plant, period: float) -> TrialLog:
     offset = np.asarray(plant.for_joints(joints).sensor_torque_offset)
     tau = delayed(np.asarray(log.tau, float), plant.sensor_delay) + offset
     return replace(log, dq=dq, tau=tau)
+
+
+def quantised_velocity(dq: np.ndarray, plant, joints: int) -> np.ndarray:
+    """dq (samples x ``joints``) as an encoder of ``plant.sensor_velocity_step`` logs it: each
+    joint's rounded to a multiple of its step (module docstring); a joint of step 0 unchanged."""
+    steps = np.asarray(plant.for_joints(joints).sensor_velocity_step, float)
+    if not np.any(steps > 0.0):
+        return dq
+    safe = np.where(steps > 0.0, steps, 1.0)
+    return np.where(steps > 0.0, safe * np.round(dq / safe), dq)

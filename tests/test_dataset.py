@@ -69,6 +69,18 @@ def test_an_unknown_friction_stays_out_of_the_manifest(tmp_path, dataset_logs):
     assert validate(tmp_path) == {"dataset": [], "fast": []}
 
 
+def test_a_declared_encoder_step_is_written_and_read_back(tmp_path, dataset_logs):
+    """The optional ``encoder_step`` (rad/s of dq per joint) round-trips; without it the header
+    declares none and the manifest has no such key."""
+    steps = tuple(0.001 * (j + 1) for j in range(JOINTS))
+    quantised = replace(DATASET_HEADER, encoder_step=steps)
+    DatasetWriter(tmp_path, quantised).add_trial(dataset_entry("fast", 0.15, dataset_logs[0.15]), dataset_logs[0.15])
+    assert json.loads((tmp_path / "dataset.json").read_text())["encoder_step"] == list(steps)
+    header = read_dataset(tmp_path).header
+    assert header.encoder_step == steps and header.to_dict() == quantised.to_dict()
+    assert DATASET_HEADER.encoder_step is None and "encoder_step" not in DATASET_HEADER.to_dict()
+
+
 def _rewrite_manifest(directory, edit):
     path = directory / "dataset.json"
     manifest = json.loads(path.read_text())

@@ -48,6 +48,25 @@ def test_validation_reports_broken_trials(dataset, damage, message):
     assert file_digests(dataset) == before
 
 
+@pytest.mark.parametrize("steps, message", [
+    ([0.004] * 6, r"encoder_step must be a list of 7 numbers"),
+    ([0.004] * 6 + [-0.001], r"encoder_step must be 7 steps of dq in \[0, 0.1\] rad/s"),
+    ([0.004] * 6 + [0.5], r"encoder_step must be 7 steps"),
+    ("0.004", r"encoder_step must be a list"),
+])
+def test_a_bad_encoder_step_is_a_problem_of_the_manifest(dataset, steps, message):
+    """The manifest's optional encoder_step: one step per joint, each in [0, 0.1] rad/s; anything
+    else is named (before: the key was ignored, 0 problems)."""
+    manifest = json.loads((dataset / "dataset.json").read_text())
+    manifest["encoder_step"] = [0.004] * 7
+    (dataset / "dataset.json").write_text(json.dumps(manifest))
+    assert validate(dataset) == {"dataset": [], "fast": [], "slow": []}
+    manifest["encoder_step"] = steps
+    (dataset / "dataset.json").write_text(json.dumps(manifest))
+    problems = validate(dataset)["dataset"]
+    assert len(problems) == 1 and re.search(message, problems[0]), problems
+
+
 def test_a_trial_file_that_is_a_symbolic_link_loop_is_reported(dataset):
     (dataset / "slow.csv").unlink()
     (dataset / "slow.csv").symlink_to(dataset / "slow.csv")
@@ -137,6 +156,16 @@ def test_jittered_time_stamps_are_jitter_not_a_wrong_rate(dataset_logs, tmp_path
     problems = validate(directory)["slow"]
     assert any("jitter" in p for p in problems), problems
     assert not any("sampled every" in p or "missing" in p for p in problems), problems
+
+
+def test_one_late_stamp_is_jitter_named_with_its_row(dataset):
+    """Data row 50's stamp 0.3 periods late: the step into it is 1.3 periods, the step out 0.7;
+    both are jitter, the first after data row 49, the larger (equal: the first) there too."""
+    rewrite_times(dataset / "slow.csv", lambda t: t + 0.0003 * (np.arange(len(t)) == 49))
+    problems = validate(dataset)["slow"]
+    (message,) = problems
+    assert "jitter: 2 of " in message and "the first after data row 49 (t = 0.0480 s)" in message, message
+    assert "the largest (0.0003 s) after data row 49" in message, message
 
 
 def test_a_uniformly_wrong_rate_is_named_as_such(dataset):

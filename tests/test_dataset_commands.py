@@ -146,16 +146,18 @@ def test_diagnose_without_a_manifest_is_a_clear_error(tmp_path, capsys):
 
 def test_diagnose_of_one_trial_prints_no_candidate_table(tmp_path, capsys):
     """One trial: the nominal replay's verdict, no cause and no empty candidate table; with no
-    cause named, --save-plant writes nothing and says so in one line, after the diagnosis's notes."""
+    cause named, --save-plant writes nothing and refuses in one line with exit code 2, after the
+    diagnosis's output (before: exit 0 and a note)."""
     from impactqp.sim.generation import DatasetRequest, generate_dataset
 
     generate_dataset(tmp_path / "data", DatasetRequest(postures=["elbow_up"], speeds=[0.1]))
     code, out, err = run(capsys, "diagnose", tmp_path / "data", "--save-plant", tmp_path / "plant.json")
-    assert code == 0 and out.startswith("One trial") and "causes: none" in out
+    assert code == 2 and out.startswith("One trial") and "causes: none" in out
     assert not (tmp_path / "plant.json").exists()
-    note = f"impactqp: --save-plant: nothing written to {tmp_path / 'plant.json'}: no cause is named, the nominal plant stands"
-    assert err.strip().splitlines()[-1] == note and err.count("nothing written") == 1
+    refusal = f"impactqp: error: --save-plant: no cause named: no plant to save; nothing written to {tmp_path / 'plant.json'}"
+    assert err.strip().splitlines()[-1] == refusal and err.count("nothing written") == 1
     assert "candidate" not in out and "predictors" in out
+    assert run(capsys, "diagnose", tmp_path / "data")[0] == 0  # without --save-plant: nothing refused
 
 
 def test_diagnose_text_is_readable(small_dataset, capsys, monkeypatch):
@@ -189,6 +191,7 @@ def test_diagnose_text_is_readable(small_dataset, capsys, monkeypatch):
     assert "diagnose" in err and "5/5" in err  # the progress bar, on stderr
     assert "explained: true" in out and "True" not in out
     assert "largest 4.80 (t0001); outliers: t0001" in out
+    assert "  t0000 1.10, t0001 4.80 (stands out), t0002 0.90\n" in out  # every trial's residual
     assert "armature (kg m^2): joints 1-4 = 1.2, joints 5-7 = 0.3" in out
     assert "step 1: path 1 add    armature" in out and "selected" in out  # every path's steps
     table = out.split("candidate")[1].splitlines()[1:4]
@@ -271,8 +274,9 @@ def test_progress_bars_stay_off_a_stream_that_is_not_a_terminal(tmp_path, capsys
 def test_diagnose_reports_its_stages_in_order_and_quiet_silences_them(tmp_path, capsys):
     """Progress on stderr while diagnose works: its five steps in order, each candidate model set
     of the search between the third and the fourth, each profile between the fourth and the
-    fifth, then the note of --save-plant; --quiet leaves stderr empty, --verbose adds debug
-    lines; stdout (--json) is byte-identical at the three levels."""
+    fifth, then the refusal of --save-plant (no cause named: exit code 2, one line); --quiet
+    leaves only that line, --verbose adds debug lines; stdout (--json) is byte-identical at the
+    three levels."""
     from impactqp.sim.diagnosis.pipeline import STEPS
     from impactqp.sim.generation import DatasetRequest, generate_dataset
 
@@ -281,7 +285,7 @@ def test_diagnose_reports_its_stages_in_order_and_quiet_silences_them(tmp_path, 
     for level in ("", "--quiet", "--verbose"):
         args = [level] if level else []
         runs[level] = run(capsys, *args, "diagnose", tmp_path / "data", "--json", "--save-plant", tmp_path / "p.json")
-        assert runs[level][0] == 0, runs[level][2]
+        assert runs[level][0] == 2, runs[level][2]
     assert runs[""][1] == runs["--quiet"][1] == runs["--verbose"][1] and json.loads(runs[""][1])["causes"] == []
     lines = runs[""][2].splitlines()
     assert all(line.startswith("impactqp: ") and "debug" not in line for line in lines)
@@ -293,8 +297,23 @@ def test_diagnose_reports_its_stages_in_order_and_quiet_silences_them(tmp_path, 
     assert steps[2] < candidates[0] and candidates[-1] < steps[3]
     profiles = [i for i, line in enumerate(lines) if line.startswith("impactqp: diagnose: profile ")]
     assert profiles and steps[3] < profiles[0] and profiles[-1] < steps[4]
-    assert lines[-1].startswith("impactqp: --save-plant: nothing written")
-    assert runs["--quiet"][2] == ""
+    refusal = "impactqp: error: --save-plant: no cause named: no plant to save"
+    assert lines[-1].startswith(refusal) and not any(line.startswith(refusal) for line in lines[:-1])
+    assert runs["--quiet"][2].splitlines() == lines[-1:]
     verbose = runs["--verbose"][2].splitlines()
     assert any(line.startswith("impactqp: debug: diagnose: ") for line in verbose)
     assert [line for line in verbose if not line.startswith("impactqp: debug: ")] == lines
+
+
+def test_dq_step_quantises_the_generated_dq_and_comes_once(tmp_path, capsys):
+    """--dq-step sets the plant's sensor_velocity_step at every joint: the manifest declares it;
+    a plant that quantises already, given --dq-step as well, is one line of bad input."""
+    args = ("dataset", "generate", "--postures", "elbow_up", "--speeds", "0.1", "--dq-step", "0.004")
+    code, _, _ = run(capsys, *args[:2], tmp_path / "quantised", *args[2:], "--json")
+    assert code == 0
+    assert json.loads((tmp_path / "quantised" / "dataset.json").read_text())["encoder_step"] == [0.004] * JOINTS
+    plant = tmp_path / "plant.json"
+    plant.write_text(json.dumps({"sensor_velocity_step": [0.002] * JOINTS}))
+    code, out, err = run(capsys, *args[:2], tmp_path / "twice", *args[2:], "--plant", plant)
+    assert code == 2 and out == "" and err.count("\n") == 1 and "give the step once" in err, err
+    assert not (tmp_path / "twice").exists()

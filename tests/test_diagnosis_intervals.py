@@ -86,3 +86,22 @@ def test_a_cause_is_supported_only_when_an_interval_excludes_its_nominal_value(v
     nominal = float(cause.nominal_theta(PlantParameters())[0])
     expected = not ((low is None or low <= nominal) and nominal <= value + above)
     assert excludes_nominal(model, [[[low, value + above]]], PlantParameters()) == [expected]
+
+
+def test_a_side_open_down_to_a_floor_at_or_above_the_nominal_reads_negligible():
+    """An armature open down to its fit's floor (1e-3 kg m^2 on a log scale; nominal 0) is
+    negligible, as a payload open down to 0 is: no trials are advised (before: "cannot bound
+    armature joints 1-4 below: more trials"). A servo gain open down to its floor, below the
+    nominal 5 rad/s, is a real open side with the trials that would settle it."""
+    from types import SimpleNamespace
+
+    from impactqp.sim.causes import ServoGainCause
+    from impactqp.sim.diagnosis.intervals import open_sides
+
+    armature, servo, payload = ArmatureCause(JOINTS), ServoGainCause(), PayloadCause()
+    model = FittedCauses((armature, servo, payload), (armature.u_bounds()[0], servo.u_bounds()[0],
+                                                    payload.to_u(np.array([0.0, 0.0, 0.0, -0.1]))))
+    intervals = [[(None, 0.01), (None, 0.02)], [(None, 3.0)], [(None, 0.2), (-0.1, 0.1), (-0.1, 0.1), (-0.3, 0.05)]]
+    sides = open_sides(model, intervals, [SimpleNamespace(reference_speed=0.1)], PlantParameters().for_joints(JOINTS))
+    assert [(o["cause"], o["negligible"], o["trials_needed"] == "") for o in sides] == [
+        ("armature", True, True), ("armature", True, True), ("servo_gain", False, False), ("payload", True, True)]

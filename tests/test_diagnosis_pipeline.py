@@ -87,3 +87,24 @@ def test_the_identified_panda_is_named_with_intervals_that_hold_or_called_unexpl
             assert (low is None or low <= value) and (high is None or value <= high), (p, value)
     else:
         assert "does not fit the data" in result["message"] and not result["fit"]["fits_noise"], result["message"]
+
+
+def test_a_trial_whose_log_went_wrong_is_named_not_absorbed(tmp_path):
+    """Six trials of the nominal plant; in one, every joint's velocity is logged 2 samples late
+    (a log that went wrong in that trial alone). The others fit; that trial is listed with its
+    residual, named in ``outlier_trials`` and in the message."""
+    from impactqp.sim.causes import ArmatureCause
+
+    generate_dataset(tmp_path, DatasetRequest(postures=["elbow_up", "elbow_left"], speeds=[0.1, 0.14, 0.18], seed=5))
+    path = tmp_path / "t0002.csv"
+    header = path.read_text().splitlines()[0]
+    table = np.loadtxt(path, delimiter=",", skiprows=1)
+    columns = [header.split(",").index(f"dq{j + 1}") for j in range(JOINTS)]
+    table[2:, columns] = table[:-2, columns].copy()
+    np.savetxt(path, table, delimiter=",", header=header, comments="", fmt="%.10g")
+    result = diagnose(tmp_path, causes=[ArmatureCause(JOINTS)]).summary()
+    residuals = {r["id"]: r["residual"] for r in result["trial_residuals"]}
+    assert list(residuals) == [f"t{k:04d}" for k in range(6)]
+    assert result["outlier_trials"] == ["t0002"], residuals
+    assert max(r for k, r in residuals.items() if k != "t0002") < residuals["t0002"] / 2
+    assert "Trial t0002 (" in result["message"] and "stands out" in result["message"]

@@ -71,6 +71,21 @@ def test_dataset_is_valid_and_holds_no_plant_parameters(tmp_path):
         assert log.force_t[touching[0]] == pytest.approx(START_DISTANCE / speed, rel=0.1)
 
 
+def test_a_quantising_sensor_logs_multiples_of_its_step_and_the_manifest_declares_it(tmp_path):
+    """A plant whose encoder quantises dq (``sensor_velocity_step``): every logged dq is a
+    multiple of its joint's step, and the manifest declares the steps (``encoder_step``); the
+    dataset is valid."""
+    steps = (0.004,) * (JOINTS - 1) + (0.0,)
+    generate_dataset(tmp_path, DatasetRequest(plant=PlantParameters(sensor_velocity_step=steps),
+                                              postures=["elbow_up"], speeds=[0.1]))
+    data = read_dataset(tmp_path)
+    assert data.header.encoder_step == steps
+    dq = data.trials[0].log.dq
+    np.testing.assert_allclose(dq[:, :-1] / 0.004, np.round(dq[:, :-1] / 0.004), atol=1e-6)
+    assert len(np.unique(dq[:, -1])) > len(dq) // 2  # the last joint's step is 0: not quantised
+    assert all(not v for v in validate(tmp_path).values())
+
+
 def test_noise_is_what_was_asked_for(tmp_path):
     """Same seed with and without noise: the difference has the requested standard deviations."""
     common = {"postures": ["elbow_left"], "speeds": [0.12], "seed": 4}

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from conftest import JOINTS
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.sim.plant import PlantParameterError, PlantParameters
-from impactqp.sim.sensor import apply_sensor, delayed, low_pass
+from impactqp.sim.sensor import apply_sensor, delayed, low_pass, quantised_velocity
 
 rows = st.integers(3, 40)
 
@@ -65,8 +65,27 @@ def test_the_joint_scales_multiply_the_global_one_per_joint(seed, n, scale, join
 @pytest.mark.parametrize(
     "key, value",
     [("sensor_delay", -1.0), ("sensor_delay", 51.0), ("sensor_velocity_scale", 0.4), ("sensor_velocity_filter", 0.2),
-     ("sensor_torque_offset", [21.0] + [0.0] * 6), ("sensor_joint_velocity_scale", [1.0] * 6 + [2.5])],
+     ("sensor_torque_offset", [21.0] + [0.0] * 6), ("sensor_joint_velocity_scale", [1.0] * 6 + [2.5]),
+     ("sensor_velocity_step", [0.0] * 6 + [0.2]), ("sensor_velocity_step", [-0.001] * 7)],
 )
 def test_sensor_keys_outside_their_physical_range_are_refused(key, value):
     with pytest.raises(PlantParameterError, match=key):
         PlantParameters(**{key: value})
+
+
+@given(st.integers(0, 2**32 - 1), rows, st.lists(st.sampled_from([0.0, 1e-3, 0.004, 0.05]), min_size=JOINTS, max_size=JOINTS))
+def test_an_encoder_rounds_each_joints_velocity_to_its_step_and_nothing_else(seed, n, steps):
+    """Each joint's dq becomes the multiple of its step nearest to it (within half a step); a
+    joint of step 0 is untouched; the step is a measurement's, so the replay's sensor
+    (``apply_sensor``) and the simulated physics (``physical``) leave it out."""
+    log = log_of(seed, n)
+    plant = PlantParameters(sensor_velocity_step=steps)
+    dq = quantised_velocity(log.dq, plant, JOINTS)
+    for j, step in enumerate(steps):
+        if step == 0.0:
+            np.testing.assert_array_equal(dq[:, j], log.dq[:, j])
+        else:
+            np.testing.assert_allclose(dq[:, j] / step, np.round(dq[:, j] / step), atol=1e-9)
+            assert np.all(np.abs(dq[:, j] - log.dq[:, j]) <= step / 2 * (1 + 1e-12))
+    assert apply_sensor(log, plant, 1e-3) is log and plant.physical() == PlantParameters()
+    assert quantised_velocity(log.dq, PlantParameters(), JOINTS) is log.dq

@@ -26,7 +26,8 @@ one CSV at the control rate with the columns ``t, q1..qn, dq1..dqn, tau1..taun, 
 a floating base's 13 columns after ``t``)
 (tau: measured joint torques, dq_cmd: commanded joint velocities) and optionally a force CSV
 ``t, fx, fy, fz`` (force on the robot at the contact, world frame, any rate). ``force_file``,
-``reference_tangential_velocity``, ``posture`` and ``impact_time`` are optional.
+``reference_tangential_velocity``, ``posture`` and ``impact_time`` are optional, and so is the
+manifest's ``encoder_step`` (rad/s per joint: the step to which the logged dq is quantised).
 
 A dataset never records plant parameters: they are simulation truth, not measurements.
 Every file is written atomically (temporary file + os.replace), and a writer never replaces an
@@ -75,6 +76,8 @@ DIRECTORY = "the dataset directory"
 """Where every file a manifest names must lie."""
 T = TypeVar("T")
 MANIFEST_KEYS = {"format", "robot", "tool", "surface", "control_period", "trials"}
+MAX_ENCODER_STEP = 0.1
+"""rad/s: the coarsest quantisation of dq a manifest may declare (``encoder_step``)."""
 TRIAL_KEYS = {"id", "file", "reference_normal_speed"}
 OPTIONAL_TRIAL_KEYS = {"force_file", "reference_tangential_velocity", "posture", "impact_time"}
 
@@ -135,13 +138,16 @@ class TrialEntry:
 class DatasetHeader:
     """Everything of the manifest but the trial list. ``friction_known`` is false when the data
     do not know the surface's friction coefficient (a real robot's log; the manifest leaves
-    ``surface.friction`` out and ``surface`` holds the default)."""
+    ``surface.friction`` out and ``surface`` holds the default). ``encoder_step``, when the
+    manifest declares it, is the step (rad/s) to which each joint's logged dq is quantised
+    (0: not quantised), one per joint."""
 
     tool: ToolDescription | ContactFrame
     surface: Surface
     control_period: float
     robot: str = "panda"
     friction_known: bool = True
+    encoder_step: tuple[float, ...] | None = None
 
     @classmethod
     def of(cls, choice: RobotChoice, surface: Surface, control_period: float) -> DatasetHeader:
@@ -169,6 +175,7 @@ class DatasetHeader:
                 **({"friction": self.surface.friction} if self.friction_known else {}),
             },
             "control_period": self.control_period,
+            **({"encoder_step": list(self.encoder_step)} if self.encoder_step is not None else {}),
         }
 
 
@@ -248,8 +255,23 @@ def parse_header(manifest: dict) -> DatasetHeader:
         raise DatasetError(f"surface: {error}") from None
     return DatasetHeader(
         tool=tool, surface=plane, control_period=period, robot=manifest["robot"],
-        friction_known=bool(friction),
+        friction_known=bool(friction), encoder_step=_encoder_step(manifest),
     )
+
+
+def _encoder_step(manifest: dict) -> tuple[float, ...] | None:
+    """The manifest's optional ``encoder_step``: one step per joint of its robot, each in
+    [0, ``MAX_ENCODER_STEP``] rad/s (0: that joint's dq is not quantised); None when absent."""
+    if "encoder_step" not in manifest:
+        return None
+    joints = len(robot_description(manifest["robot"]).joints)
+    steps = np.array(numbers(manifest["encoder_step"], joints, "encoder_step"))
+    if not np.all((steps >= 0.0) & (steps <= MAX_ENCODER_STEP)):
+        raise DatasetError(
+            f"encoder_step must be {joints} steps of dq in [0, {MAX_ENCODER_STEP:g}] rad/s (0: not quantised), "
+            f"got {[float(x) for x in steps]}"
+        )
+    return tuple(float(x) for x in steps)
 
 
 @_dataset_errors

@@ -98,7 +98,8 @@ def timing_problems(t: np.ndarray, control_period: float, name: str) -> list[str
     - **a wrong sampling rate**: the mean of the other steps differs from the period by more than
       :data:`RATE_SHARE` of it (a mean, not a median: a log whose steps alternate is read right);
     - **jitter**: regular steps further than :data:`JITTER_SHARE` of the period from their mean
-      (the time stamps wander, the rate is right).
+      (the time stamps wander, the rate is right), with the data rows after the first and the
+      largest.
     """
     steps = np.diff(t)
     gap = steps > GAP_STEPS * control_period
@@ -119,12 +120,15 @@ def timing_problems(t: np.ndarray, control_period: float, name: str) -> list[str
     if abs(period - control_period) > RATE_SHARE * control_period:
         problems.append(f"{name} is sampled every {period:.6g} s, the manifest says {control_period:.6g} s")
         return problems
-    off = np.abs(regular - period) > JITTER_SHARE * control_period
+    off = ~gap & (np.abs(steps - period) > JITTER_SHARE * control_period)
     if np.any(off):
-        worst = float(np.max(np.abs(regular - period)))
+        where = np.flatnonzero(off)
+        worst = int(where[np.argmax(np.abs(steps[where] - period))])
         problems.append(
-            f"{name}: the time stamps jitter: {int(np.sum(off))} of {len(regular)} steps differ from the "
-            f"{control_period:.6g} s period by more than {100 * JITTER_SHARE:.0f} % (at most {worst:.3g} s)"
+            f"{name}: the time stamps jitter: {len(where)} of {len(regular)} steps differ from the "
+            f"{control_period:.6g} s period by more than {100 * JITTER_SHARE:.0f} %, the first after data row "
+            f"{where[0] + 1} (t = {t[where[0]]:.4f} s), the largest ({abs(steps[worst] - period):.3g} s) after "
+            f"data row {worst + 1}"
         )
     return problems
 

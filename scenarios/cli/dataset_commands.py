@@ -8,7 +8,7 @@ import sys
 
 import click
 
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import BadInputError, number_in_range
 from impactqp.scenarios.cli.arguments import (
     check_jobs,
     emit_json,
@@ -22,8 +22,6 @@ from impactqp.scenarios.cli.arguments import (
     robot_options,
 )
 from impactqp.scenarios.cli.stderr_log import LOGGER, show_progress
-
-log = logging.getLogger(__name__)
 
 
 @click.group()
@@ -83,7 +81,8 @@ def validate_command(ctx, directory, as_json):
 @click.option("--noise-dq", type=float, default=0.0042, show_default=True, help="Encoder noise std on dq (rad/s).")
 @click.option("--noise-tau", type=float, default=0.05, show_default=True, help="Noise std on tau (N m).")
 @click.option("--dq-step", type=float, default=0.0, show_default=True,
-              help="Quantise the logged dq to this step, rad/s, as an encoder-based velocity (0: none).")
+              help="Quantise the logged dq to this step, rad/s, as an encoder-based velocity (0: none): "
+                   "the plant's sensor_velocity_step at every joint; the manifest declares it (encoder_step).")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--jobs", type=int, default=1, show_default=True)
 @click.option("--json", "as_json", is_flag=True)
@@ -97,9 +96,9 @@ def generate_command(out, postures, speeds, tangential, as_json, choice, **noise
 
     from impactqp.sim.generation import DatasetRequest, generate_dataset
 
-    plant_file, jobs = noise.pop("plant_file"), noise.pop("jobs")
+    plant_file, jobs, dq_step = noise.pop("plant_file"), noise.pop("jobs"), noise.pop("dq_step")
     output_directory(out, "OUT")
-    plant = load_plant(plant_file)  # None: the nominal plant
+    plant = quantised_plant(load_plant(plant_file), dq_step, len(choice.robot.joints))  # None: the nominal plant
     names = list(choice.check_postures(p.strip() for p in postures.split(","))) if postures else list(choice.robot.postures)
     speed_list = parse_list(speeds, "--speeds") if speeds is not None else None
     tangential_list = parse_list(tangential, "--tangential") if tangential is not None else []
@@ -124,6 +123,22 @@ def generate_command(out, postures, speeds, tangential, as_json, choice, **noise
         emit_json({"out": str(out), "trials": [e.to_dict() for e in entries]})
     else:
         click.echo(f"wrote {len(entries)} trial(s) to {out}")
+
+
+def quantised_plant(plant, dq_step: float, joints: int):
+    """``plant`` (None: the nominal one) with dq quantised to ``dq_step`` (rad/s, ``--dq-step``) at
+    every one of ``joints`` joints (``sensor_velocity_step``); ``plant`` itself for a step of 0.
+    A plant that quantises already, given a step as well, is bad input: the step comes once."""
+    from dataclasses import replace  # lazy: the command line loads what a command needs when it runs
+
+    from impactqp.sim.plant import RANGES, PlantParameters
+
+    if dq_step == 0.0:
+        return plant
+    number_in_range(dq_step, *RANGES["sensor_velocity_step"][:2], "the velocity quantisation step --dq-step", "rad/s")
+    if plant is not None and any(plant.sensor_velocity_step):
+        raise BadInputError("--dq-step: the plant quantises dq already (sensor_velocity_step); give the step once")
+    return replace(plant or PlantParameters(), sensor_velocity_step=(dq_step,) * joints)
 
 
 @dataset.command("import-franka")
@@ -159,7 +174,8 @@ def import_franka_command(out, logs, surface_point, surface_normal, reference_sp
 @click.option("--json", "as_json", is_flag=True)
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write report.md and PNG figures here.")
 @click.option("--save-plant", type=click.Path(dir_okay=False),
-              help="Save the fitted plant (JSON) when causes are named; nothing is written otherwise.")
+              help="Save the fitted plant (JSON) when causes are named; otherwise nothing is written, and "
+                   "after the diagnosis's output the command ends with one line and exit code 2.")
 @click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Nominal plant to start from: a JSON file or a built-in name (identified_panda).")
 @click.option("--max-speed", "max_speed", is_flag=True,
               help="Also simulate the highest feasible contact speed per posture, nominal and extended plant.")
@@ -195,8 +211,6 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
         from dataclasses import replace
 
         replace(nominal.for_joints(len(result.choice.robot.joints)), **summary["parameters"]).to_json(save_plant)
-    elif save_plant:
-        log.info("--save-plant: nothing written to %s: no cause is named, the nominal plant stands", save_plant)
     if report_dir:
         from impactqp.scenarios.diagnosis_report import write_report
 
@@ -205,8 +219,10 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
             click.echo(f"report written to {path}")
     if as_json:
         emit_json(summary)
-        return
-    _print_diagnosis(result, summary, speeds)
+    else:
+        _print_diagnosis(result, summary, speeds)
+    if save_plant and not result.explained:
+        raise BadInputError(f"--save-plant: no cause named: no plant to save; nothing written to {save_plant}")
 
 
 def _diagnose_with_progress(directory, nominal, jobs: int, show: bool, max_trials: int):
@@ -244,6 +260,7 @@ def _print_diagnosis(result, summary: dict, speeds) -> None:
     predictors, the feasible speeds and the skipped trials."""
     # lazy: the command line loads what a command needs when it runs
     import statistics
+    import textwrap
 
     from impactqp.scenarios.diagnosis_report import trusted_speed_text
     from impactqp.scenarios.readable import boolean, number, parameters_text
@@ -265,6 +282,9 @@ def _print_diagnosis(result, summary: dict, speeds) -> None:
             f"trial residuals (noise units): median {statistics.median(r['residual'] for r in residuals):.2f}, "
             f"largest {worst['residual']:.2f} ({worst['id']}); outliers: {', '.join(summary['outlier_trials']) or 'none'}"
         )
+        outliers = set(summary["outlier_trials"])
+        listed = ", ".join(f"{r['id']} {r['residual']:.2f}{' (stands out)' if r['id'] in outliers else ''}" for r in residuals)
+        click.echo(textwrap.fill(listed, width=100, initial_indent="  ", subsequent_indent="  "))
     for k, step in enumerate(summary["steps"], start=1):
         taken = "selected" if step["selected"] else "taken" if step["accepted"] else "not taken"
         click.echo(

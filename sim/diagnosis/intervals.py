@@ -289,14 +289,15 @@ def open_sides(model: FittedCauses, theta_intervals: list[list], trials: list[Me
                nominal: PlantParameters) -> list[dict]:
     """Every parameter the data leave open on a side, with the trials that would settle it
     (in terms of the normal speeds of ``trials``). A side open down to the parameter's floor
-    when the floor is its nominal value (no effect: an armature or a damping of 0) is
+    when the nominal value is at or below that floor (no effect: an armature or a damping of 0,
+    whose fit's floor is 0 or, on a log scale, the smallest effect it models) is
     ``negligible``: the data say the effect is at most the interval's other end, and more
     trials would not change that."""
     normal_speeds = np.array([t.reference_speed for t in trials])
     found = []
     for cause, u, intervals in zip(model.causes, model.u, theta_intervals):
         floor = cause.to_theta(cause.u_bounds()[0])
-        at_nominal = np.isclose(floor, cause.nominal_theta(nominal), rtol=1e-9, atol=1e-12)
+        at_nominal = floor >= cause.nominal_theta(nominal) - 1e-12
         for j, (low, high) in enumerate(intervals):
             for side, end, other in (("below", low, high), ("above", high, low)):
                 # what the data do tell: the closed end of the interval, else the fitted value

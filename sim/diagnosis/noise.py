@@ -10,7 +10,9 @@ dataset itself, never from a constant:
 - **sensor scatter**: the per-sample noise variance of dq and tau from the samples before the
   impact (second differences remove a smooth motion and leave 6 sigma^2 of white noise; a
   robust median, 1.4826 median |d2| / sqrt 6), at least q / sqrt 12 for a signal quantised to
-  a step q read from the data (a low-noise encoder: most second differences are 0), propagated through the block's averages: a jump
+  a step q (a low-noise encoder: most second differences are 0): the dataset's declared
+  ``encoder_step`` for dq, else the step common to every logged value of the joint over all
+  trials (``quantisation_step``), propagated through the block's averages: a jump
   is a mean of 2 POST_HALF_WIDTH + 1 samples minus a mean of PRE_SAMPLES, its std is
   sigma sqrt(1 / PRE_SAMPLES + 1 / (2 POST_HALF_WIDTH + 1)); the torque is a mean over its
   window, std sigma / sqrt(window), times ``REPLAY_TORQUE_FACTOR``: the replay's start
@@ -50,12 +52,15 @@ BLOCKS = ("jump", "torque", "impulse", "duration", "trace")
 FIT_LIMIT = 3.0
 CHANNEL_LIMIT = 2.0 * FIT_LIMIT  # one joint's channel of a block: fewer residuals, a wider spread
 OUTLIER_FACTOR = 2.0  # a trial whose residual is this many times the trials' median (and misfits) stands out
+OUTLIER_SPREADS = 4.0  # ... or this many robust standard deviations above that median (``outlier_trials``)
 IMPULSE_FLOOR_SHARE = 0.005
 REPLAY_TORQUE_FACTOR = 2.5  # without repeats: the torque residual of a right model over the sensor scatter's
 REPLAY_TIMING_SAMPLES = 0.1  # the replay's contact moment is known to a tenth of a sample (its start state is noisy)
 DURATION_FLOOR_SAMPLES = 4  # a duration's resolution: force-log samples (two threshold crossings, the replay's start)
 TINY = {"jump": 1e-5, "torque": 1e-4, "impulse": 1e-5, "duration": 1e-5, "trace": 1e-5}  # noise-free data: no 0 divisions
 MAD_TO_STD = 1.4826
+STEP_TOLERANCE = 1e-3  # a quantised signal's gaps are whole multiples of its step within this share of it
+STEP_RESOLUTION = 1e-9  # relative: gaps below this share of a signal's magnitude are rounding, not a step
 
 
 @dataclass(frozen=True)
@@ -71,26 +76,38 @@ class BlockNoise:
     trace: np.ndarray
 
 
-def sample_variance(samples: np.ndarray) -> np.ndarray:
+def sample_variance(samples: np.ndarray, step: np.ndarray) -> np.ndarray:
     """Per-column variance of the white noise on a smooth signal (module docstring), at least
-    the quantisation's (``quantisation_step`` q: q^2 / 12, the variance of a rounding error
-    spread evenly over one step, which a low-noise encoder's median second difference of 0
-    would otherwise hide); zeros for fewer than 3 samples."""
+    the quantisation's, step^2 / 12 (the variance of a rounding error spread evenly over one
+    ``step``, per column, 0: not quantised; ``quantisation_step``), which a low-noise encoder's
+    median second difference of 0 would otherwise hide. A column whose median |second
+    difference| is 0 but not every one (mostly flat) falls back to their mean square, 6 sigma^2:
+    the noise never reads 0 while the signal moves off its smooth path. Zeros for fewer than 3
+    samples."""
     if len(samples) < 3:
         return np.zeros(samples.shape[1])
     second = samples[2:] - 2.0 * samples[1:-1] + samples[:-2]
     scatter = (MAD_TO_STD * np.median(np.abs(second), axis=0)) ** 2 / 6.0
-    return np.maximum(scatter, quantisation_step(samples) ** 2 / 12.0)
+    scatter = np.where(scatter > 0.0, scatter, np.mean(second**2, axis=0) / 6.0)
+    return np.maximum(scatter, np.asarray(step, float) ** 2 / 12.0)
 
 
 def quantisation_step(samples: np.ndarray) -> np.ndarray:
-    """Per column, the smallest gap between two distinct values of the column: an encoder's step
-    when the signal is quantised, a rounding-level number (harmless as a floor) when it is not,
-    0 for a constant column."""
+    """Per column, the step common to its values: the smallest gap q between two distinct values
+    when every gap is a whole multiple of it (within ``STEP_TOLERANCE`` q), an encoder's step;
+    0 when the gaps share no step (a signal that is not quantised) or the column is constant.
+    Gaps below ``STEP_RESOLUTION`` of the column's largest magnitude are the same value written
+    twice (rounding), not a step."""
     steps = np.zeros(samples.shape[1])
     for j in range(samples.shape[1]):
-        gaps = np.diff(np.unique(samples[:, j]))
-        steps[j] = gaps.min() if gaps.size else 0.0
+        values = np.unique(samples[:, j])
+        gaps = np.diff(values)
+        gaps = gaps[gaps > STEP_RESOLUTION * np.max(np.abs(values), initial=0.0)]
+        if gaps.size == 0:
+            continue
+        multiples = gaps / gaps.min()
+        if np.all(np.abs(multiples - np.round(multiples)) <= STEP_TOLERANCE):
+            steps[j] = gaps.min()
     return steps
 
 
@@ -176,13 +193,16 @@ def quadratic_mean(errors) -> float:
     return float(np.sqrt(np.mean(errors**2))) if errors.size else 0.0
 
 
-
 def outlier_trials(residuals) -> list[int]:
     """Indices of the trials that stand out: a normalised residual (``fitting.trial_errors``)
-    above ``FIT_LIMIT`` and above ``OUTLIER_FACTOR`` times the median of all trials' (the model
-    fits the others; something happened in that trial alone). Worst first."""
+    above ``FIT_LIMIT`` (the trial misfits) and above the others': above ``OUTLIER_FACTOR`` times
+    the median of all trials' residuals, or ``OUTLIER_SPREADS`` robust standard deviations
+    (1.4826 times the median absolute deviation) above that median (a trial apart from the others
+    when every trial misfits alike). Something happened in that trial alone. Worst first."""
     residuals = np.asarray(residuals, float)
     if residuals.size < 2:
         return []
-    limit = max(FIT_LIMIT, OUTLIER_FACTOR * float(np.median(residuals)))
+    median = float(np.median(residuals))
+    spread = MAD_TO_STD * float(np.median(np.abs(residuals - median)))
+    limit = max(FIT_LIMIT, min(OUTLIER_FACTOR * median, median + OUTLIER_SPREADS * spread))
     return sorted(np.flatnonzero(residuals > limit).tolist(), key=lambda k: -residuals[k])

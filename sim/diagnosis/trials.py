@@ -4,7 +4,8 @@
    (``controller.measured.dataset_check.validate``); bad trials are skipped with their reasons. The
    impact is detected and the jump extracted with the same function as for simulated data
    (``controller.measured.impact.measure_impact``); the impulse is integrated where a force log
-   exists. The noise of every compared signal is read from the trials (``noise``).
+   exists. The noise of every compared signal is read from the trials (``noise``), with the
+   encoders' quantisation steps (``encoder_steps``).
 2. **Replay** (``replay``). Each trial is replayed in the simulation from the logged state
    ``REPLAY_LEAD`` control steps before the impact (q, and dq averaged over 5 samples against
    encoder noise), on the dataset's surface, with the logged ``dq_cmd`` driving the joint servo,
@@ -43,7 +44,7 @@ from impactqp.sim.trial_sources import CommandReplay
 from impactqp.sim.scene import Scene, build_scene
 from impactqp.sim.sensor import apply_sensor, delayed, velocity_scales
 
-from .noise import BlockNoise, estimate_noise, sample_variance
+from .noise import BlockNoise, estimate_noise, quantisation_step, sample_variance
 
 REPLAY_LEAD = 40
 REPLAY_TAIL = 30
@@ -158,6 +159,7 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
     skipped += [{"id": "dataset", "reason": p} for p in problems["dataset"]]
     trials = []
     period = dataset.header.control_period
+    dq_step, tau_step = encoder_steps(dataset)
     for trial in dataset.trials:
         log, entry = trial.log, trial.entry
         try:
@@ -200,7 +202,7 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
                 dq_log=log.dq[i0:i1].copy(),
                 tau_log=log.tau[i0:i1].copy(),
                 jump_samples=(impact.pre_index - i0, impact.post_index - i0),
-                scatter=(sample_variance(log.dq[:quiet]), sample_variance(log.tau[:quiet])),
+                scatter=(sample_variance(log.dq[:quiet], dq_step), sample_variance(log.tau[:quiet], tau_step)),
                 force_period=float(np.median(np.diff(log.force_t))) if len(log.force_t) > 1 else None,
             )
         )
@@ -208,6 +210,18 @@ def load_trials(directory: str | Path) -> tuple[list[MeasuredTrial], list[dict],
         noise = estimate_noise(trials)
         trials = [replace(t, noise=noise) for t in trials]
     return trials, skipped, ReplaySetting(dataset.header.surface, dataset.header.choice)
+
+
+def encoder_steps(dataset) -> tuple[np.ndarray, np.ndarray]:
+    """The quantisation steps of the logged dq and tau per joint (``noise.quantisation_step``):
+    dq's as the manifest declares it (``encoder_step``), else, as tau's, the step common to every
+    value the trials logged (0: not quantised)."""
+    logs = [trial.log for trial in dataset.trials]
+    if not logs:
+        return np.zeros(0), np.zeros(0)
+    declared = dataset.header.encoder_step
+    dq_step = np.array(declared) if declared is not None else quantisation_step(np.vstack([log.dq for log in logs]))
+    return dq_step, quantisation_step(np.vstack([log.tau for log in logs]))
 
 
 def replay_log(scene, trial: MeasuredTrial):
