@@ -26,9 +26,20 @@ kappa n^T W n: an edge impulse 1 / kappa times the frictionless one, the largest
 assume; the rows then ask more than that edge's own algebra, never less than its guarded
 impulse in the same direction (conservative, and finite).
 
-The **one-step preview** (mode ``slip``) keeps one edge, the one opposing the slip the next
-cycle will have: d = n - mu s, s the unit tangential contact velocity of dq (the impulse
-opposes slip), or d = n (frictionless) while the tangential speed is below :data:`SLIP_SPEED`.
+The **one-step preview** (mode ``slip``) keeps three edges, those of the cone's sector within
++-alpha (alpha = :data:`SLIP_SECTOR`) of the direction opposing the slip the next cycle will
+have, when that slip is certain to last through the impact; the whole cone (the 3-edge pyramid)
+when it is not. With v = J dq the contact velocity, u_n = n^T v, v_t its tangential part and
+s = v_t / |v_t|: during a slip du/dp = W (n - mu s(p)), so the normal approach slows at least at
+the rate c = n^T W n - mu |P W^T n| (P = I - n n^T) and the impact's normal impulse is at most
+p_max = (1 + sqrt(2) c_r) |u_n| / c (compression ends by |u_n| / c; the restitution phase, of
+either law with e = c_r, by sqrt(2) c_r |u_n| / c more), while the tangential velocity moves by
+at most D = (|P W n| + mu ||P W P||_F) p_max. **Certain** when |v_t| >= :data:`SLIP_SPEED`,
+c > 0 and D <= |v_t| sin(alpha): v_t then stays within an angle alpha of its start and never
+stops, so the impulse lies in the sector. Its edges are d_j = n - mu_a (cos(theta_j) s +
+sin(theta_j) (n x s)), theta_j in {-alpha, 0, alpha}, mu_a = mu / cos(alpha / 2): two segments
+circumscribing the sector's arc, as the pyramid circumscribes the cone. Otherwise the edges are
+the 3-edge pyramid's (mu_3 = 2 mu), which covers every impulse of the cone.
 """
 
 from __future__ import annotations
@@ -47,7 +58,7 @@ from .model_terms import ModelTerms
 from .validation import BadInputError
 
 FRICTION_ROW_MODES = ("pyramid", "slip")
-"""``pyramid``: every edge of the friction pyramid; ``slip``: the edge opposing the predicted slip."""
+"""``pyramid``: every edge of the friction pyramid; ``slip``: the sector opposing a certain slip (module docstring)."""
 MAX_ROW_FRICTION = 2.0
 """Largest friction coefficient of the rows (the surfaces' own bound, ``postures.MAX_FRICTION``)."""
 DEFAULT_EDGES, MIN_EDGES, MAX_EDGES = 4, 3, 16
@@ -55,7 +66,11 @@ DEFAULT_EDGES, MIN_EDGES, MAX_EDGES = 4, 3, 16
 EDGE_GUARD = 0.1
 """kappa: the rows' n^T W d_i is at least kappa n^T W n (module docstring, Guard)."""
 SLIP_SPEED = 1e-3
-"""m/s: below this tangential contact speed the preview mode's edge is the normal (no slip)."""
+"""m/s: below this tangential contact speed the preview's slip direction is uncertain (the whole cone)."""
+SLIP_SECTOR = math.pi / 6
+"""alpha: the half-angle of the preview's sector around the direction opposing the slip."""
+SLIP_EDGES = 3
+"""The preview's edges: the sector's three, or the 3-edge pyramid's when the slip is uncertain."""
 
 
 @dataclass(frozen=True)
@@ -63,7 +78,7 @@ class FrictionRows:
     """What the robust friction rows of an expected impact take: the Coulomb coefficient
     ``friction`` mu in [0, 2] (0: no friction rows, the frictionless rows alone), the number of
     pyramid ``edges`` k in [3, 16] and the ``mode``, "pyramid" (k edges) or "slip" (the one-step
-    preview's one edge)."""
+    preview's three: its sector or the 3-edge pyramid)."""
 
     friction: float = 0.0
     edges: int = DEFAULT_EDGES
@@ -80,10 +95,10 @@ class FrictionRows:
     @property
     def count(self) -> int:
         """The edges whose rows stack under the frictionless ones: 0 without friction, k for the
-        pyramid, 1 for the slip preview."""
+        pyramid, 3 for the slip preview."""
         if self.friction == 0.0:
             return 0
-        return int(self.edges) if self.mode == "pyramid" else 1
+        return int(self.edges) if self.mode == "pyramid" else SLIP_EDGES
 
 
 class EdgeMatrices(NamedTuple):
@@ -103,16 +118,19 @@ def pyramid_directions(normal: np.ndarray, friction: float, edges: int) -> np.nd
     return frame[:, 2] + friction / math.cos(math.pi / edges) * tangents
 
 
-def edge_directions(rows: FrictionRows, normal: np.ndarray, tangential_velocity: np.ndarray) -> np.ndarray:
-    """The edge directions of ``rows`` (rows.count x 3): the pyramid's, or the preview's one edge
-    opposing the tangential contact velocity ``tangential_velocity``; none without friction."""
+def edge_directions(rows: FrictionRows, normal: np.ndarray, velocity: np.ndarray, W: np.ndarray, restitution: float):
+    """The edge directions of ``rows`` (rows.count x 3): the pyramid's, or the preview's three
+    (its sector or the 3-edge pyramid, module docstring) at the contact velocity ``velocity``
+    with the inverse inertia ``W`` and the restitution c_r; none without friction."""
     if rows.count == 0:
         return np.empty((0, 3))
     if rows.mode == "pyramid":
         return pyramid_directions(normal, rows.friction, rows.edges)
-    direction = np.empty((1, 3))
-    slip_direction_into(np.eye(3), np.asarray(tangential_velocity, dtype=float), normal, rows.friction, direction[0])
-    return direction
+    normal = np.asarray(normal, dtype=float)
+    directions = pyramid_directions(normal, rows.friction, SLIP_EDGES)
+    slip_edges_into(np.asarray(velocity, dtype=float), np.asarray(W, dtype=float), normal, rows.friction, restitution,
+                    directions)
+    return directions
 
 
 def response_maps(model: JumpModel, terms: ModelTerms, normal: np.ndarray, restitution: float):
@@ -165,16 +183,49 @@ def edge_matrices_into(J, K, W, normal, directions, restitution, jump, torque):
 
 
 @njit(cache=True)
-def slip_direction_into(J, dq, normal, friction, direction):
-    """Kernel: the preview's edge d = n - mu s, s = v_t / |v_t| with v = J dq and
-    v_t = v - (n.v) n, or d = n while |v_t| < ``SLIP_SPEED``; written into ``direction`` (3)."""
-    v = np.zeros(3)
+def slip_edges_into(velocity, W, normal, friction, restitution, directions):
+    """Kernel: the preview's edges at the contact velocity ``velocity`` (3) into ``directions``
+    (3 x 3), which holds the 3-edge pyramid on entry: left so when the slip is uncertain, else
+    overwritten by the sector's d_j = n - mu_a (cos(theta_j) s + sin(theta_j) (n x s)) (module
+    docstring)."""
+    normal_speed = velocity[0] * normal[0] + velocity[1] * normal[1] + velocity[2] * normal[2]
+    v_t = np.empty(3)
     for a in range(3):
-        for j in range(J.shape[1]):
-            v[a] += J[a, j] * dq[j]
-    normal_speed = v[0] * normal[0] + v[1] * normal[1] + v[2] * normal[2]
+        v_t[a] = velocity[a] - normal_speed * normal[a]
+    speed = math.sqrt(v_t[0] * v_t[0] + v_t[1] * v_t[1] + v_t[2] * v_t[2])
+    if speed < SLIP_SPEED:
+        return
+    Wn = np.zeros(3)  # W n
+    Wtn = np.zeros(3)  # W^T n
     for a in range(3):
-        v[a] -= normal_speed * normal[a]
-    speed = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        for b in range(3):
+            Wn[a] += W[a, b] * normal[b]
+            Wtn[a] += W[b, a] * normal[b]
+    W_nn = Wn[0] * normal[0] + Wn[1] * normal[1] + Wn[2] * normal[2]
+    coupling_in = 0.0  # |P W^T n|
+    coupling_out = 0.0  # |P W n|
     for a in range(3):
-        direction[a] = normal[a] - (friction * v[a] / speed if speed >= SLIP_SPEED else 0.0)
+        coupling_in += (Wtn[a] - W_nn * normal[a]) ** 2
+        coupling_out += (Wn[a] - W_nn * normal[a]) ** 2
+    rate = W_nn - friction * math.sqrt(coupling_in)
+    if rate <= 0.0:
+        return
+    projected = 0.0  # ||P W P||_F^2
+    for a in range(3):
+        for b in range(3):
+            entry = W[a, b]
+            for c in range(3):
+                entry -= normal[a] * normal[c] * W[c, b] + W[a, c] * normal[c] * normal[b]
+            entry += normal[a] * W_nn * normal[b]
+            projected += entry * entry
+    impulse = (1.0 + math.sqrt(2.0) * restitution) * max(-normal_speed, 0.0) / rate
+    drift = (math.sqrt(coupling_out) + friction * math.sqrt(projected)) * impulse
+    if drift > speed * math.sin(SLIP_SECTOR):
+        return
+    radius = friction / math.cos(0.5 * SLIP_SECTOR)
+    s = v_t / speed
+    w = np.array([normal[1] * s[2] - normal[2] * s[1], normal[2] * s[0] - normal[0] * s[2], normal[0] * s[1] - normal[1] * s[0]])
+    for j in range(3):
+        angle = (j - 1) * SLIP_SECTOR
+        for a in range(3):
+            directions[j, a] = normal[a] - radius * (math.cos(angle) * s[a] + math.sin(angle) * w[a])
