@@ -44,10 +44,11 @@ from numba import njit
 
 from impactqp.controller.model.friction_pyramid import (
     EdgeMatrices,
+    Edges,
     FrictionRows,
     edge_directions,
-    edge_matrices_into,
-    response_maps,
+    edge_inverse_inertia,
+    fill_edge_matrices,
     slip_edges_into,
 )
 from impactqp.controller.model.jump import JumpMatrices, JumpModel, jump_model
@@ -141,10 +142,12 @@ class ExpectedImpact:
         self._stamp = 0  # ModelTerms.stamp of the cached matrices and activation
         self._matrices: JumpMatrices | None = None
         self._active = False
-        self._directions = edge_directions(friction, surface.normal, np.zeros(3), np.eye(3), 0.0)  # the preview's: per state
-        self._uncertain = self._directions.copy()  # the preview's edges while its slip is uncertain
+        directions = edge_directions(friction, surface.normal, np.zeros(3), np.eye(3), 0.0)  # the preview's: per state
+        self._uncertain = directions.copy()  # the preview's edges while its slip is uncertain
+        self._edge_set = Edges(directions, np.array(surface.normal, dtype=float), float(self.restitution))
         self._edge_count = friction.count
-        self._edges = EdgeMatrices(np.empty((0, 0, 0)), np.empty((0, 0, 0)))  # filled at the first state
+        self._edge_buffer = np.empty((2, 0, 0, 0))  # A_i and P_i, allocated at the first state
+        self._edges = EdgeMatrices.of(self._edge_buffer)
 
     @property
     def name(self) -> str:
@@ -190,14 +193,15 @@ class ExpectedImpact:
         """The edges' maps of this state into buffers allocated at the first fill (the preview's
         edge directions first, from this state's contact velocity)."""
         n = terms.J.shape[1]
-        if self._edges.jump.shape != (count := self._directions.shape[0], n, n):
-            self._edges = EdgeMatrices(np.empty((count, n, n)), np.empty((count, n, n)))
-        normal = self.surface.normal
-        K, W = response_maps(self.model, terms, normal, self.restitution)
+        edges = self._edge_set
+        if self._edge_buffer.shape != (2, count := edges.directions.shape[0], n, n):
+            self._edge_buffer = np.empty((2, count, n, n))
+            self._edges = EdgeMatrices.of(self._edge_buffer)
+        W = edge_inverse_inertia(self.model, terms)
         if self.friction.mode == "slip":
-            self._directions[:] = self._uncertain
-            slip_edges_into(terms.J @ terms.dq, W, normal, self.friction.friction, self.restitution, self._directions)
-        edge_matrices_into(terms.J, K, W, normal, self._directions, self.restitution, *self._edges)
+            edges.directions[:] = self._uncertain
+            slip_edges_into(terms.J @ terms.dq, W, edges.normal, self.friction.friction, edges.restitution, edges.directions)
+        fill_edge_matrices(self.model, terms, W, edges, self._edge_buffer)
 
     def _rule(self, normal_speed: float, normal_position: float) -> bool:
         """The rule from n.v and n.p (the distance is n.p - n.s)."""

@@ -138,24 +138,28 @@ def test_each_edge_block_is_the_post_impact_velocity_and_torque_of_its_edge_impu
 
 
 @settings(max_examples=60)
-@given(SEEDS, st.integers(1, 16), st.floats(0.0, 1.0), st.floats(0.0, 3.0))
-def test_compiled_edge_kernels_equal_the_numpy_reference(seed, edges, c_r, approach):
-    """Random J, K and W (the guard binds for some edges: W's tangential coupling is drawn up to
-    twice its normal entry), random directions; the preview's edges at random contact velocities
-    whose normal approach (``approach`` times the tangential speed, and slides below the slip
-    threshold) makes the slip certain or not."""
+@given(SEEDS, st.integers(1, 16), st.floats(0.0, 1.0), st.floats(0.0, 3.0), st.booleans())
+def test_compiled_edge_kernels_equal_the_numpy_reference(seed, edges, c_r, approach, classical):
+    """Random J, M^-1 and W (the guard binds for some edges: W's tangential coupling is drawn up to
+    twice its normal entry), random directions, K = M^-1 J^T (classical) or J^T (J J^T)^-1 W;
+    the preview's edges at random contact velocities whose normal approach (``approach`` times
+    the tangential speed, and slides below the slip threshold) makes the slip certain or not."""
     rng = np.random.default_rng(seed)
-    J, K = rng.normal(size=(3, JOINTS)), rng.normal(size=(JOINTS, 3))
+    J = rng.normal(size=(3, JOINTS))
+    JJt_inv = np.linalg.inv(J @ J.T)
+    B = rng.normal(size=(JOINTS, JOINTS))
+    M_inv = B @ B.T + 0.1 * np.eye(JOINTS)
     L = rng.normal(size=(3, 3))
     W = L @ L.T + 0.1 * np.eye(3)
+    K = M_inv @ J.T if classical else J.T @ JJt_inv @ W
     normal = rng.normal(size=3)
     normal /= np.linalg.norm(normal)
     directions = normal + rng.uniform(0.0, 2.0) * rng.normal(size=(edges, 3))
-    jump, torque = np.empty((edges, JOINTS, JOINTS)), np.empty((edges, JOINTS, JOINTS))
-    edge_matrices_into(J, K, W, normal, directions, c_r, jump, torque)
+    out = np.empty((2, edges, JOINTS, JOINTS))
+    edge_matrices_into(J, JJt_inv, M_inv if classical else np.empty((0, 0)), W, directions, normal, c_r, out)
     reference = reference_edge_matrices(J, K, W, normal, directions, c_r)
-    np.testing.assert_allclose(jump, reference.jump, rtol=1e-10, atol=1e-10)
-    np.testing.assert_allclose(torque, reference.torque, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(out[0], reference.jump, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(out[1], reference.torque, rtol=1e-10, atol=1e-10)
     tangent = np.cross(normal, rng.normal(size=3))
     speed = rng.choice([0.5 * SLIP_SPEED, rng.uniform(SLIP_SPEED, 1.0)])
     velocity = speed * tangent / np.linalg.norm(tangent) - approach * speed * normal

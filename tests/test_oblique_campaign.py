@@ -1,6 +1,6 @@
 """The robust friction rows against MuJoCo at the QP's own highest speed
 (``scenarios.oblique_campaign``, ``impactqp oblique --qp-speed``): the grid's trials, the two
-controllers of a trial, the command end to end and its bad input."""
+controllers of a trial, the command end to end (its bad input: ``tests/test_oblique.py``)."""
 
 import json
 
@@ -12,7 +12,6 @@ from impactqp.controller.model.friction_pyramid import FrictionRows
 from impactqp.controller.model.max_speed import Setting, frictional_max_speed
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.scenarios.cli import main
-from impactqp.scenarios.cli.exit_codes import EXIT_BAD_INPUT
 from impactqp.scenarios.oblique_campaign import QP_SPEED_GRIDS, QpSpeedGrid, qp_speed_grid_named, summary
 
 NORMAL = DEFAULT_WALL.normal
@@ -63,17 +62,6 @@ def test_the_small_campaign_runs_end_to_end_through_the_command(tmp_path, capsys
     assert report["summary"] == summary(report["rows"])
     text = (out / "qp-speed.md").read_text()
     assert text.startswith("# Oblique impacts at the QP's own highest speed: the panda") and text in capsys.readouterr().out
-
-
-@pytest.mark.parametrize("argv", [
-    ["--qp-speed", "--grid", "huge"], ["--qp-speed", "--robot", "g1"], ["--qp-speed", "--jump-model", "classical_normal"],
-    ["--qp-speed", "--jump-model", "nope"], ["--jump-model", "crb"],
-])
-def test_bad_input_of_the_campaign_is_one_line_and_exit_code_2(tmp_path, capsys, argv):
-    assert main(["oblique", "--out", str(tmp_path / "x"), *argv]) == EXIT_BAD_INPUT
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "Traceback" not in err
-    assert not (tmp_path / "x").exists()
 
 
 def test_the_named_grids_keep_their_trials_and_take_the_jump_model():

@@ -54,6 +54,7 @@ from numba import njit
 from . import validation
 from .frictional_impact import contact_frame
 from .jump import JumpModel, gm_inverse_inertia
+from .jump_kernels import welded_inverse_inertia
 from .model_terms import ModelTerms
 from .validation import BadInputError
 
@@ -101,12 +102,30 @@ class FrictionRows:
         return int(self.edges) if self.mode == "pyramid" else SLIP_EDGES
 
 
+class Edges(NamedTuple):
+    """The edges of one impact: their ``directions`` d_i (edges x 3), the unit ``normal`` n and
+    the restitution c_r."""
+
+    directions: np.ndarray
+    normal: np.ndarray
+    restitution: float
+
+
+NO_MATRIX = np.empty((0, 0))
+"""M^-1's place in ``edge_matrices_into`` for crb and gm, which do not read it (nor compute it)."""
+
+
 class EdgeMatrices(NamedTuple):
     """The edges' joint-space maps of one state: jump A_i (edges x nv x nv) and impulsive torque
     P_i (edges x nv x nv), dq_jump = A_i dq- and J^T iota_i = P_i dq-."""
 
     jump: np.ndarray
     torque: np.ndarray
+
+    @classmethod
+    def of(cls, buffer: np.ndarray) -> EdgeMatrices:
+        """The maps held in one buffer (2 x edges x nv x nv: the jumps, then the torques)."""
+        return cls(buffer[0], buffer[1])
 
 
 def pyramid_directions(normal: np.ndarray, friction: float, edges: int) -> np.ndarray:
@@ -145,20 +164,41 @@ def response_maps(model: JumpModel, terms: ModelTerms, normal: np.ndarray, resti
     return maps.K, (gm_inverse_inertia(terms) if maps.W is None else maps.W)
 
 
+def edge_inverse_inertia(model: JumpModel, terms: ModelTerms) -> np.ndarray:
+    """W the predictor's edge impulses act through, at a fixed-base state: W_crb (20) for crb
+    (compiled, ``welded_inverse_inertia``), W_gm = J M^-1 J^T (22) for gm and classical; the
+    per-cycle form of ``response_maps``' W, its checks done once by the caller."""
+    if model.name == "crb":
+        return welded_inverse_inertia(terms.contact_point, terms.com, terms.inertia_com, terms.mass)
+    return gm_inverse_inertia(terms)
+
+
+def fill_edge_matrices(model: JumpModel, terms: ModelTerms, W: np.ndarray, edges: Edges, out: np.ndarray) -> None:
+    """A_i and P_i of the ``edges`` (directions, normal, restitution) at this state into ``out``
+    (2 x edges x nv x nv: ``EdgeMatrices.of(out)``), for the predictor ``model`` whose inverse
+    inertia is ``W`` (compiled, ``edge_matrices_into``; K d_i = M^-1 J^T d_i for classical,
+    J^T (J J^T)^-1 W d_i for crb and gm)."""
+    M_inv = terms.M_inv if model.name == "classical" else NO_MATRIX
+    edge_matrices_into(terms.J, terms.JJt_inv, M_inv, W, edges.directions, edges.normal, edges.restitution, out)
+
+
 def edge_matrices(model: JumpModel, terms: ModelTerms, normal: np.ndarray, directions: np.ndarray, restitution: float):
     """A_i and P_i of every edge direction (rows of ``directions``) at this state, for the
-    predictor ``model`` (``EdgeMatrices``; compiled, ``edge_matrices_into``)."""
+    predictor ``model`` (``EdgeMatrices``; the checks of ``response_maps``, then
+    :func:`fill_edge_matrices`)."""
     n = terms.J.shape[1]
-    out = EdgeMatrices(np.empty((len(directions), n, n)), np.empty((len(directions), n, n)))
-    K, W = response_maps(model, terms, normal, restitution)
-    edge_matrices_into(terms.J, K, W, normal, directions, restitution, out.jump, out.torque)
-    return out
+    out = np.empty((2, len(directions), n, n))
+    W = response_maps(model, terms, normal, restitution)[1]
+    fill_edge_matrices(model, terms, W, Edges(np.asarray(directions, dtype=float), np.asarray(normal, dtype=float), restitution), out)
+    return EdgeMatrices.of(out)
 
 
 @njit(cache=True)
-def edge_matrices_into(J, K, W, normal, directions, restitution, jump, torque):
-    """Kernel: A_i = s_i (K d_i)(J^T n)^T and P_i = s_i (J^T d_i)(J^T n)^T with
-    s_i = -(1 + c_r) / max(n^T W d_i, kappa n^T W n), written into ``jump`` and ``torque``."""
+def edge_matrices_into(J, JJt_inv, M_inv, W, directions, normal, restitution, out):
+    """Kernel: A_i = s_i (K d_i)(J^T n)^T into out[0, i] and P_i = s_i (J^T d_i)(J^T n)^T into
+    out[1, i], s_i = -(1 + c_r) / max(n^T W d_i, kappa n^T W n), K d_i = M^-1 J^T d_i when
+    ``M_inv`` is given (classical; empty otherwise) or J^T (J J^T)^-1 W d_i."""
+    classical = M_inv.shape[0] > 0
     nv = J.shape[1]
     Jt_normal = np.zeros(nv)
     Wt_normal = np.zeros(3)
@@ -170,16 +210,32 @@ def edge_matrices_into(J, K, W, normal, directions, restitution, jump, torque):
     floor = EDGE_GUARD * (Wt_normal[0] * normal[0] + Wt_normal[1] * normal[1] + Wt_normal[2] * normal[2])
     Kd = np.empty(nv)
     Jtd = np.empty(nv)
+    Wd = np.empty(3)
+    y = np.empty(3)
     for e in range(directions.shape[0]):
         d = directions[e]
         s = -(1.0 + restitution) / max(Wt_normal[0] * d[0] + Wt_normal[1] * d[1] + Wt_normal[2] * d[2], floor)
         for i in range(nv):
-            Kd[i] = s * (K[i, 0] * d[0] + K[i, 1] * d[1] + K[i, 2] * d[2])
-            Jtd[i] = s * (J[0, i] * d[0] + J[1, i] * d[1] + J[2, i] * d[2])
+            Jtd[i] = J[0, i] * d[0] + J[1, i] * d[1] + J[2, i] * d[2]
+        if classical:
+            for i in range(nv):
+                total = 0.0
+                for j in range(nv):
+                    total += M_inv[i, j] * Jtd[j]
+                Kd[i] = s * total
+        else:
+            for a in range(3):
+                Wd[a] = W[a, 0] * d[0] + W[a, 1] * d[1] + W[a, 2] * d[2]
+            for a in range(3):
+                y[a] = JJt_inv[a, 0] * Wd[0] + JJt_inv[a, 1] * Wd[1] + JJt_inv[a, 2] * Wd[2]
+            for i in range(nv):
+                Kd[i] = s * (J[0, i] * y[0] + J[1, i] * y[1] + J[2, i] * y[2])
+        for i in range(nv):
+            Jtd[i] *= s
         for i in range(nv):
             for j in range(nv):
-                jump[e, i, j] = Kd[i] * Jt_normal[j]
-                torque[e, i, j] = Jtd[i] * Jt_normal[j]
+                out[0, e, i, j] = Kd[i] * Jt_normal[j]
+                out[1, e, i, j] = Jtd[i] * Jt_normal[j]
 
 
 @njit(cache=True)
