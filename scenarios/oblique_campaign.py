@@ -41,14 +41,15 @@ from impactqp.sim.process_pool import ProcessPool
 from impactqp.sim.runner import TrialSpec, run_approach
 from impactqp.sim.trial_sources import QpCommand
 
-from .max_speed_search import QP_REQUEST_SPEED, qp_start_distance
+from .max_speed_search import LOWEST_SPEED, QP_REQUEST_SPEED, qp_start_distance
 from .oblique import POSTURES, ObliqueTrials, fixed_base
 from .trial import ACCELERATION_ALLOWANCE, TrialRunner
 
 ROWS = ("robust", "normal")
 """The two controllers of every trial: with the robust friction rows, and with the normal-only rows."""
 DURATION_SPEED_SHARE = 0.5
-"""The trial's simulated time allows the approach at this share of the expected (closed-form) speed."""
+"""The trial's simulated time allows the approach at this share of the expected (closed-form) speed
+(at least ``max_speed_search.LOWEST_SPEED``)."""
 
 
 @dataclass(frozen=True)
@@ -126,7 +127,8 @@ class QpSpeedTrials(ObliqueTrials):
         spec = TrialSpec(trial.posture, q, QP_REQUEST_SPEED, tangential, jump_model=self.jump_model,
                          start_at_rest=True, start_distance=qp_start_distance(expected))
         source = QpCommand(method=self.jump_model, posture_weight=0.0, friction=friction)
-        duration = ACCELERATION_ALLOWANCE + spec.start_distance / (DURATION_SPEED_SHARE * expected) + spec.after_contact
+        approach = DURATION_SPEED_SHARE * max(expected, LOWEST_SPEED)
+        duration = ACCELERATION_ALLOWANCE + spec.start_distance / approach + spec.after_contact
         run = run_approach(scene, self.robot, spec, source, duration)
         result = TrialRunner(scene, self.robot, source).evaluate(spec, run.log, run.driver.controller.fallback_count)
         v_pre = self.robot.terms(result.impact.q_pre, check_limits=False).J @ result.impact.dq_pre
