@@ -20,7 +20,7 @@ Friction rows
 -------------
 With ``FrictionRows`` of friction mu > 0 (``controller.model.friction_pyramid``), the impact also
 carries the edges' maps A_i = K G_i J and P_i = J^T G_i J of the friction pyramid (or of the
-one-step preview's edge opposing the predicted slip), computed once per fill of the terms
+one-step preview's three: its sector or the 3-edge pyramid), computed once per fill of the terms
 (``edge_matrices``); the post-impact-velocity and impulsive-torque rows stack them under the
 frictionless ones. Fixed-base arms only; not with ``classical_normal``.
 
@@ -44,11 +44,12 @@ from numba import njit
 
 from impactqp.controller.model.friction_pyramid import (
     EdgeMatrices,
+    Edges,
     FrictionRows,
     edge_directions,
-    edge_matrices_into,
-    response_maps,
-    slip_direction_into,
+    edge_inverse_inertia,
+    fill_edge_matrices,
+    slip_edges_into,
 )
 from impactqp.controller.model.jump import JumpMatrices, JumpModel, jump_model
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
@@ -141,9 +142,12 @@ class ExpectedImpact:
         self._stamp = 0  # ModelTerms.stamp of the cached matrices and activation
         self._matrices: JumpMatrices | None = None
         self._active = False
-        self._directions = edge_directions(friction, surface.normal, np.zeros(3))  # the preview's: per state
+        directions = edge_directions(friction, surface.normal, np.zeros(3), np.eye(3), 0.0)  # the preview's: per state
+        self._uncertain = directions.copy()  # the preview's edges while its slip is uncertain
+        self._edge_set = Edges(directions, np.array(surface.normal, dtype=float), float(self.restitution))
         self._edge_count = friction.count
-        self._edges = EdgeMatrices(np.empty((0, 0, 0)), np.empty((0, 0, 0)))  # filled at the first state
+        self._edge_buffer = np.empty((2, 0, 0, 0))  # A_i and P_i, allocated at the first state
+        self._edges = EdgeMatrices.of(self._edge_buffer)
 
     @property
     def name(self) -> str:
@@ -187,15 +191,17 @@ class ExpectedImpact:
 
     def _fill_edges(self, terms) -> None:
         """The edges' maps of this state into buffers allocated at the first fill (the preview's
-        edge direction first, from this state's contact velocity)."""
+        edge directions first, from this state's contact velocity)."""
         n = terms.J.shape[1]
-        if self._edges.jump.shape != (count := self._directions.shape[0], n, n):
-            self._edges = EdgeMatrices(np.empty((count, n, n)), np.empty((count, n, n)))
-        normal = self.surface.normal
+        edges = self._edge_set
+        if self._edge_buffer.shape != (2, count := edges.directions.shape[0], n, n):
+            self._edge_buffer = np.empty((2, count, n, n))
+            self._edges = EdgeMatrices.of(self._edge_buffer)
+        W = edge_inverse_inertia(self.model, terms)
         if self.friction.mode == "slip":
-            slip_direction_into(terms.J, terms.dq, normal, self.friction.friction, self._directions[0])
-        K, W = response_maps(self.model, terms, normal, self.restitution)
-        edge_matrices_into(terms.J, K, W, normal, self._directions, self.restitution, *self._edges)
+            edges.directions[:] = self._uncertain
+            slip_edges_into(terms.J @ terms.dq, W, edges.normal, self.friction.friction, edges.restitution, edges.directions)
+        fill_edge_matrices(self.model, terms, W, edges, self._edge_buffer)
 
     def _rule(self, normal_speed: float, normal_position: float) -> bool:
         """The rule from n.v and n.p (the distance is n.p - n.s)."""

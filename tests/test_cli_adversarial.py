@@ -116,8 +116,10 @@ ROWS = [
      "the friction coefficient --friction must lie in [0, 10]"),
     (["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.15", "--friction", "0.3", "--method",
       "classical_normal"], None, 2, "classical_normal has no frictional form"),
-    (["predict", "--robot", "g1", "--posture", "parallel", "--normal", "-1,0,0", "--speed", "0.15", "--friction", "0.3"],
-     None, 2, "--friction does not apply to a robot with held contacts"),
+    (["predict", "--robot", "g1", "--posture", "parallel", "--normal", "-1,0,0", "--speed", "0.15", "--friction", "-0.3"],
+     None, 2, "the friction coefficient --friction must lie in [0, 10]"),
+    (["predict", "--robot", "g1", "--posture", "parallel", "--normal", "-1,0,0", "--speed", "0.15", "--friction", "0.3",
+      "--method", "classical_normal"], None, 2, "classical_normal model has no held-contact form"),
     # postures: no input but its options
     (["postures", "--bogus"], None, 2, "No such option"),
     # simulate

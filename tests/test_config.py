@@ -317,7 +317,7 @@ def documented_toml(page: str) -> str:
     return text.split("```toml\n", 1)[1].split("```", 1)[0]
 
 
-@pytest.mark.parametrize("rows, blocks", [("pyramid", 5), ("slip", 2)])
+@pytest.mark.parametrize("rows, blocks", [("pyramid", 5), ("slip", 4)])
 def test_the_documented_friction_rows_file_builds_the_stacked_rows(robot, tmp_path, rows, blocks):
     """The TOML example of docs/frictional-impacts.md loads, and its controller stacks one block of
     post-impact velocity and impulsive torque rows per edge under the frictionless block."""

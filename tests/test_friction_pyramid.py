@@ -7,19 +7,21 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-from reference.friction_pyramid import reference_edge_matrices, reference_slip_direction
+from reference.friction_pyramid import reference_edge_matrices, reference_slip_edges
 from scipy.optimize import linprog
 
 from conftest import JOINTS, random_state
 from impactqp.constraints import ActivationRule, ControlCycle, ExpectedImpact, ImpulsiveTorqueLimit, PostImpactVelocityLimit
 from impactqp.controller.model.friction_pyramid import (
     EDGE_GUARD,
+    SLIP_SECTOR,
     SLIP_SPEED,
     FrictionRows,
     edge_matrices_into,
     pyramid_directions,
-    slip_direction_into,
+    slip_edges_into,
 )
+from impactqp.controller.model.frictional_impact import frictional_impulse
 from impactqp.controller.model.jump import crb_inverse_inertia, gm_inverse_inertia
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.validation import BadInputError
@@ -136,29 +138,35 @@ def test_each_edge_block_is_the_post_impact_velocity_and_torque_of_its_edge_impu
 
 
 @settings(max_examples=60)
-@given(SEEDS, st.integers(1, 16), st.floats(0.0, 1.0), st.booleans())
-def test_compiled_edge_kernels_equal_the_numpy_reference(seed, edges, c_r, slow):
-    """Random J, K and W (the guard binds for some edges: W's tangential coupling is drawn up to
-    twice its normal entry), random directions; the preview's edge above and below the slip
-    threshold."""
+@given(SEEDS, st.integers(1, 16), st.floats(0.0, 1.0), st.floats(0.0, 3.0), st.booleans())
+def test_compiled_edge_kernels_equal_the_numpy_reference(seed, edges, c_r, approach, classical):
+    """Random J, M^-1 and W (the guard binds for some edges: W's tangential coupling is drawn up to
+    twice its normal entry), random directions, K = M^-1 J^T (classical) or J^T (J J^T)^-1 W;
+    the preview's edges at random contact velocities whose normal approach (``approach`` times
+    the tangential speed, and slides below the slip threshold) makes the slip certain or not."""
     rng = np.random.default_rng(seed)
-    J, K = rng.normal(size=(3, JOINTS)), rng.normal(size=(JOINTS, 3))
+    J = rng.normal(size=(3, JOINTS))
+    JJt_inv = np.linalg.inv(J @ J.T)
+    B = rng.normal(size=(JOINTS, JOINTS))
+    M_inv = B @ B.T + 0.1 * np.eye(JOINTS)
     L = rng.normal(size=(3, 3))
     W = L @ L.T + 0.1 * np.eye(3)
+    K = M_inv @ J.T if classical else J.T @ JJt_inv @ W
     normal = rng.normal(size=3)
     normal /= np.linalg.norm(normal)
     directions = normal + rng.uniform(0.0, 2.0) * rng.normal(size=(edges, 3))
-    jump, torque = np.empty((edges, JOINTS, JOINTS)), np.empty((edges, JOINTS, JOINTS))
-    edge_matrices_into(J, K, W, normal, directions, c_r, jump, torque)
+    out = np.empty((2, edges, JOINTS, JOINTS))
+    edge_matrices_into(J, JJt_inv, M_inv if classical else np.empty((0, 0)), W, directions, normal, c_r, out)
     reference = reference_edge_matrices(J, K, W, normal, directions, c_r)
-    np.testing.assert_allclose(jump, reference.jump, rtol=1e-10, atol=1e-10)
-    np.testing.assert_allclose(torque, reference.torque, rtol=1e-10, atol=1e-10)
-    dq = rng.normal(size=JOINTS)
-    if slow:
-        dq *= 0.5 * SLIP_SPEED / np.linalg.norm(J @ dq)
-    direction = np.empty(3)
-    slip_direction_into(J, dq, normal, 0.7, direction)
-    np.testing.assert_allclose(direction, reference_slip_direction(J, dq, normal, 0.7), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(out[0], reference.jump, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(out[1], reference.torque, rtol=1e-10, atol=1e-10)
+    tangent = np.cross(normal, rng.normal(size=3))
+    speed = rng.choice([0.5 * SLIP_SPEED, rng.uniform(SLIP_SPEED, 1.0)])
+    velocity = speed * tangent / np.linalg.norm(tangent) - approach * speed * normal
+    mu, uncertain = rng.uniform(0.0, 1.0), pyramid_directions(normal, 0.5, 3)
+    preview = uncertain.copy()
+    slip_edges_into(velocity, W, normal, mu, c_r, preview)
+    np.testing.assert_allclose(preview, reference_slip_edges(velocity, W, normal, mu, c_r, uncertain), rtol=1e-12, atol=1e-12)
 
 
 @settings(max_examples=25)
@@ -234,20 +242,53 @@ def test_the_feasible_accelerations_shrink_as_the_friction_grows(robot, seed, mo
 
 
 @pytest.mark.parametrize("model", ["crb", "gm"])
-def test_the_preview_edge_opposes_the_slip_and_is_frictionless_below_the_threshold(robot, model):
+def test_the_preview_rows_are_the_sector_opposing_a_certain_slip_and_the_whole_cone_otherwise(robot, model):
+    """A fast slide barely approaching the wall: certain, the rows are those of the sector's edges
+    n - mu / cos(alpha / 2) (cos(theta) s + sin(theta) n x s), theta = -alpha, 0, alpha; at rest,
+    and approaching fast, uncertain: the 3-edge pyramid's (mu_3 = 2 mu)."""
     rng = np.random.default_rng(3)
     terms, c = random_state(robot, rng, speed=0.3), wide_cycle(robot)
-    v = terms.J @ terms.dq
-    slip = (v - (NORMAL @ v) * NORMAL) / np.linalg.norm(v - (NORMAL @ v) * NORMAL)
-    C = raw_rows(PostImpactVelocityLimit(impact(terms, model, 0.4, mode="slip"), robot.dq_max), terms, c)[0]
+    tangent = np.array([0.0, 0.6, 0.8])
+    sliding = np.linalg.pinv(terms.J) @ (0.5 * tangent - 0.001 * NORMAL)
     K, W = response(terms, model)
     dq_pre = rng.uniform(-1.0, 1.0, JOINTS)
-    iota = edge_impulse(W, NORMAL - 0.4 * slip, terms.J @ dq_pre, 0.3)
-    np.testing.assert_allclose(C[JOINTS:] @ dq_pre, dq_pre + K @ iota, rtol=1e-8, atol=1e-8)
-    assert slip @ iota == pytest.approx(-0.4 * (NORMAL @ iota), rel=1e-12)  # friction opposes the slip
-    still = robot.terms(terms.q, np.zeros(JOINTS))
-    C = raw_rows(PostImpactVelocityLimit(impact(still, model, 0.4, mode="slip"), robot.dq_max), still, c)[0]
-    np.testing.assert_allclose(C[JOINTS:], C[:JOINTS], rtol=1e-12, atol=1e-12)
+    sector = [NORMAL - 0.4 / math.cos(SLIP_SECTOR / 2) * (math.cos(a) * tangent + math.sin(a) * np.cross(NORMAL, tangent))
+              for a in (-SLIP_SECTOR, 0.0, SLIP_SECTOR)]
+    for dq, directions in [(sliding, sector), (np.zeros(JOINTS), pyramid_directions(NORMAL, 0.4, 3)),
+                           (np.linalg.pinv(terms.J) @ (0.05 * tangent - 0.5 * NORMAL), pyramid_directions(NORMAL, 0.4, 3))]:
+        state = robot.terms(terms.q, dq)
+        C = raw_rows(PostImpactVelocityLimit(impact(state, model, 0.4, mode="slip"), robot.dq_max), state, c)[0]
+        assert C.shape[0] == 4 * JOINTS
+        for i, d in enumerate(directions):
+            iota = edge_impulse(W, d, terms.J @ dq_pre, 0.3)
+            np.testing.assert_allclose(C[(i + 1) * JOINTS:(i + 2) * JOINTS] @ dq_pre, dq_pre + K @ iota, rtol=1e-8, atol=1e-8)
+
+
+@settings(max_examples=200, deadline=None)
+@given(SEEDS, st.floats(0.02, 1.0), st.floats(0.0, 1.0), st.sampled_from(["energetic", "kinematic"]))
+def test_a_certain_slip_keeps_its_impulse_in_the_sector_its_rows_cover(seed, mu, c_r, law):
+    """Random W, normals and contact velocities: where the preview calls the slip certain, the
+    frictional impact (either law, e = c_r) slides throughout, and its impulse is a combination
+    of n and the sector's three edges with non-negative weights (the cone the rows cover: the
+    impulse of every vertex of that cone keeps the limits when the rows hold, as the rows are
+    linear in the impulse)."""
+    rng = np.random.default_rng(seed)
+    L = rng.normal(size=(3, 3))
+    W = L @ L.T + 0.1 * np.eye(3)
+    normal = rng.normal(size=3)
+    normal /= np.linalg.norm(normal)
+    tangent = np.cross(normal, rng.normal(size=3))
+    velocity = rng.uniform(0.01, 1.0) * tangent / np.linalg.norm(tangent) - rng.uniform(0.0, 0.3) * normal
+    uncertain = pyramid_directions(normal, mu, 3)
+    preview = uncertain.copy()
+    slip_edges_into(velocity, W, normal, mu, c_r, preview)
+    assume(not np.array_equal(preview, uncertain))
+    impact_3d = frictional_impulse(W, normal, velocity, mu, c_r, law)
+    assert impact_3d.mode == "slip"
+    # the impulse lies in the cone of n and the three edges when non-negative weights give it (an LP)
+    answer = linprog(np.zeros(4), A_eq=np.vstack([normal, preview]).T, b_eq=impact_3d.impulse, bounds=[(0.0, None)] * 4,
+                     method="highs")
+    assert answer.status == 0
 
 
 @pytest.mark.parametrize(

@@ -297,17 +297,20 @@ def test_friction_never_raises_the_highest_speed_and_the_bound_binds(robot, name
 
 @settings(max_examples=25)
 @given(st.sampled_from(FRICTION_POSTURES), st.sampled_from(["crb", "gm", "classical"]), st.floats(0.02, 1.0),
-       st.integers(3, 12), st.floats(-0.15, 0.15), st.floats(-0.15, 0.15), st.sampled_from(["energetic", "kinematic"]))
-def test_the_frictional_impulse_at_the_rows_speed_is_in_the_cone_and_keeps_the_limits(robot, name, method, mu, k, a, b, law):
+       st.integers(3, 12), st.floats(-0.15, 0.15), st.floats(-0.15, 0.15), st.sampled_from(["energetic", "kinematic"]),
+       st.sampled_from(["pyramid", "slip"]))
+def test_the_frictional_impulse_at_the_rows_speed_is_in_the_cone_and_keeps_the_limits(robot, name, method, mu, k, a, b, law, mode):
     """Without restitution, the rows, whose pyramid circumscribes the cone (mu / cos(pi / k)), cover
     the frictional impulse of any mode (docs/frictional-impacts.md: the impulse that ends
     compression along n + tau is a perspective image of tau, which maps the pyramid's section
     onto the hull of the edge impulses): at the rows' highest speed, ``frictional_impulse``'s
-    impulse lies in the cone and its post-impact velocity and impulsive torque keep the limits."""
+    impulse lies in the cone and its post-impact velocity and impulsive torque keep the limits.
+    The preview's rows too: its sector's edges circumscribe the sector's arc, where a certain slip
+    keeps the impulse, and its 3-edge pyramid the whole cone."""
     posture = PANDA.postures[name]
     normal, terms, setting = posture.surface.normal, robot.terms(posture.q), Setting(method, 0.0)
     tangential = tangential_of(normal, a, b)
-    rows = FrictionRows(mu, k)
+    rows = FrictionRows(mu, k, mode)
     v = frictional_max_speed(robot, terms, normal, tangential, setting, rows).max_speed.speed
     if not 0.0 < v < math.inf:
         return

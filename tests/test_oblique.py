@@ -198,7 +198,10 @@ def test_the_small_grid_runs_end_to_end_through_the_command(tmp_path, capsys, ro
     assert text.startswith(f"# Oblique impacts: the {robot}") and text in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("argv", [["--grid", "huge"], ["--robot", "g1"], ["--jobs", "0"]])
+@pytest.mark.parametrize("argv", [
+    ["--grid", "huge"], ["--robot", "g1"], ["--jobs", "0"], ["--jump-model", "crb"], ["--qp-speed", "--grid", "huge"],
+    ["--qp-speed", "--robot", "g1"], ["--qp-speed", "--jump-model", "classical_normal"], ["--qp-speed", "--jump-model", "nope"],
+])
 def test_bad_input_of_the_command_is_one_line_and_exit_code_2(tmp_path, capsys, argv):
     assert main(["oblique", "--out", str(tmp_path / "x"), *argv]) == EXIT_BAD_INPUT
     err = capsys.readouterr().err

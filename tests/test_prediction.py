@@ -98,3 +98,37 @@ def test_inverse_inertia_is_the_predictors_own_or_the_classical_j_minv_jt(method
     np.testing.assert_allclose(W, expected, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(W, W.T, atol=1e-10)
     assert np.all(np.linalg.eigvalsh(0.5 * (W + W.T)) > 0.0)
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.sampled_from(["parallel", "staggered"]), st.floats(0.02, 1.0), st.floats(0.0, 0.2), st.floats(0.0, 1.0),
+       st.sampled_from(["energetic", "kinematic"]))
+def test_a_frictional_prediction_on_held_contacts_keeps_the_feet_still_and_moves_the_contact_by_w_iota(
+        stance, mu, tangential, restitution, law):
+    """The standing G1 (feet held): each predictor's jump of the frictional impulse keeps the held
+    contacts still (Jf dv = 0), moves the hand's contact by W iota (the held-contact W of its
+    maps: the frictional law's post-impact velocity), the impulse lies in the cone, and with
+    mu = 0 CRB and GM give their frictionless (eq. 12) jumps."""
+    from conftest import g1_model
+    from impactqp.controller.model.humanoid_stance import stance_posture
+    from impactqp.controller.model.prediction import method_prediction
+
+    robot = g1_model()
+    terms = robot.terms(stance_posture(robot, robot.description.stances[stance]))
+    n = np.array([-1.0, 0.0, 0.0])
+    query = ImpactQuery.from_speed(terms.q, n, 0.5, [0.0, tangential, 0.0], restitution, mu, law)
+    for name in ("classical", "gm", "crb"):
+        pred, impact = method_prediction(name, terms, query)
+        W = inverse_inertia(name, terms, n, restitution)
+        scale = np.linalg.norm(W @ pred.impulse)
+        np.testing.assert_allclose(terms.held_jacobian @ pred.dq_jump, 0.0, atol=1e-9 * max(scale, 1.0))
+        np.testing.assert_allclose(terms.J @ pred.dq_jump, W @ pred.impulse, rtol=1e-8, atol=1e-10)
+        np.testing.assert_allclose(impact.post_velocity, query.pre_impact_velocity + W @ pred.impulse, rtol=1e-8, atol=1e-10)
+        normal = pred.impulse @ n
+        assert normal > 0 and np.linalg.norm(pred.impulse - normal * n) <= mu * normal * (1 + 1e-9)
+        np.testing.assert_allclose(pred.com_jump, terms.Jcom @ pred.dq_jump, rtol=1e-12, atol=1e-15)
+    frictionless = ImpactQuery.from_speed(terms.q, n, 0.5, None, restitution, 0.0)
+    for name in ("crb", "gm"):
+        plain = JUMP_MODELS[name].predict(terms, n, frictionless.pre_impact_velocity, restitution)
+        np.testing.assert_allclose(method_prediction(name, terms, frictionless)[0].dq_jump, plain.dq_jump,
+                                   rtol=1e-12, atol=1e-12)

@@ -81,3 +81,36 @@ def test_the_controller_jump_model_feeds_the_qp_limited_run_and_not_the_bisectio
     assert columns["simulated_max_speed"][0] == columns["simulated_max_speed"][1]
     crb, gm = columns["qp_limited_speed"]
     assert crb < gm
+
+
+def test_a_friction_cell_is_the_closed_form_under_the_robust_rows_and_friction_only_adds_rows(robot):
+    """With [friction]: each cell's friction columns are ``frictional_max_speed`` at its posture,
+    mu and sliding speed along t = normalise(n x e_z); at mu = 0 and v_t = 0 they are the
+    frictionless closed form of the same cell; at any mu, no faster than mu = 0 at the same v_t."""
+    from impactqp.controller.model.friction_pyramid import FrictionRows
+    from impactqp.controller.model.max_speed import frictional_max_speed
+
+    data = tomllib.loads(EXAMPLE)
+    data["grid"].update(origin=[0.6, 0.0, 0.7], size=[0.0, 0.0])
+    data["settings"].update(jump_models=["classical", "crb"])
+    data["friction"] = {"mu": [0.0, 0.2, 0.5], "tangential_speed": [0.0, 0.08], "pyramid_edges": 5}
+    config = parse_config(data)
+    columns = evaluate_cells(config, range(config.cell_count()))
+    rows = [dict(zip(columns, values)) for values in zip(*columns.values())]
+    assert len(rows) == 6 and all(r["reachable"] and not r["singular"] for r in rows)
+    by_key = {(r["friction"], r["tangential_speed"]): r for r in rows}
+    for row in rows:
+        cell = cell_settings(config, row["cell"])
+        assert (row["friction"], row["tangential_speed"]) == (cell["friction"], cell["tangential_speed"])
+        q = np.array([row[f"q{j}"] for j in range(1, 8)])
+        tangent = np.cross(cell["normal"], [0.0, 0.0, 1.0])
+        tangential = cell["tangential_speed"] * tangent / np.linalg.norm(tangent)
+        for name in config.jump_models:
+            answer = frictional_max_speed(robot, robot.terms(q), cell["normal"], tangential,
+                                          Setting(name, cell["restitution"], impact_duration=cell["impact_duration"]),
+                                          FrictionRows(cell["friction"], 5))
+            assert row[f"friction_speed_{name}"] == pytest.approx(answer.max_speed.speed, rel=1e-12)
+            assert (row[f"friction_block_{name}"], row[f"friction_mode_{name}"]) == (answer.block, answer.mode)
+            assert row[f"friction_speed_{name}"] <= by_key[(0.0, row["tangential_speed"])][f"friction_speed_{name}"] * (1 + 1e-12)
+            if row["friction"] == 0.0 and row["tangential_speed"] == 0.0:
+                assert row[f"friction_speed_{name}"] == pytest.approx(row[f"speed_{name}"], rel=1e-9)

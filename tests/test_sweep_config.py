@@ -2,6 +2,8 @@ import tomllib
 
 import time
 
+import numpy as np
+
 import pytest
 
 from impactqp.controller.model.validation import BadInputError
@@ -80,3 +82,54 @@ def test_a_malformed_file_is_bad_input(tmp_path):
     path.write_text("[grid\n")
     with pytest.raises(BadInputError, match="the sweep config .* is not valid TOML"):
         load_config(path)
+
+
+def friction_example(**table) -> dict:
+    data = example()
+    data["friction"] = {"mu": [0.1, 0.3], "tangential_speed": [0.0, 0.05, 0.1], "pyramid_edges": 4} | table
+    return data
+
+
+def test_the_friction_table_adds_two_axes_and_leaves_a_sweep_without_it_as_it_was():
+    plain = parse_config(example())
+    config = parse_config(friction_example())
+    assert config.cell_count() == plain.cell_count() * 2 * 3
+    keys = set(zip(*(axis.tolist() for axis in config.cell_axes(range(config.cell_count())))))
+    assert len(keys) == config.cell_count()
+    assert (config.friction, config.tangential_speed, config.pyramid_edges) == ((0.1, 0.3), (0.0, 0.05, 0.1), 4)
+    # without [friction]: the same cells in the same order, the same identity
+    assert plain.axes_shape()[-2:] == (1, 1)
+    assert [a.tolist() for a in plain.cell_axes(range(plain.cell_count()))][:5] == [
+        a.ravel().tolist() for a in np.indices(plain.axes_shape()[:5]).reshape(5, -1)]
+    assert "friction" not in plain.canonical_json() and "tangential_speed" not in plain.canonical_json()
+    assert config.canonical_json() != parse_config(friction_example(mu=[0.1, 0.4])).canonical_json()
+
+
+@pytest.mark.parametrize(
+    "table, message",
+    [
+        ({"mu": [2.5]}, "friction.mu[0]"),
+        ({"mu": [-0.1]}, "friction.mu[0]"),
+        ({"mu": []}, "friction.mu must be a non-empty list"),
+        ({"mu": [0.1, 0.1]}, "friction.mu lists a value twice"),
+        ({"pyramid_edges": 2}, "friction.pyramid_edges"),
+        ({"tangential_speed": [-0.01]}, "friction.tangential_speed[0]"),
+        ({"tangential_speed": [3.0]}, "friction.tangential_speed[0]"),
+        ({"tangential_speed": [0.1, 0.1]}, "friction.tangential_speed lists a value twice"),
+        ({"angle": 1.0}, "unknown key friction.angle"),
+    ],
+)
+def test_bad_friction_tables_are_refused_naming_the_key(table, message):
+    with pytest.raises(BadInputError, match=message.replace("[", r"\[").replace("]", r"\]")):
+        parse_config(friction_example(**table))
+
+
+def test_a_friction_sweep_refuses_the_normal_only_classical_model_and_a_missing_key():
+    data = friction_example()
+    data["settings"]["jump_models"] = ["classical_normal", "crb"]
+    with pytest.raises(BadInputError, match="classical_normal"):
+        parse_config(data)
+    data = friction_example()
+    del data["friction"]["pyramid_edges"]
+    with pytest.raises(BadInputError, match="missing key friction.pyramid_edges"):
+        parse_config(data)

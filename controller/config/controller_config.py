@@ -107,7 +107,8 @@ class ImpactConfig:
     friction cone and its sole (``FootWrenchLimit``, the closed form's foot slip and lift).
     ``friction`` mu in [0, 2] > 0 adds the robust friction rows of a fixed-base arm
     (docs/frictional-impacts.md): ``friction_rows`` "pyramid" (``pyramid_edges`` in [3, 16]
-    edges) or "slip" (the one-step preview's edge); 0 keeps the frictionless rows alone.
+    edges) or "slip" (the one-step preview's three: the sector of a certain slip, else the 3-edge
+    pyramid); 0 keeps the frictionless rows alone.
     """
 
     jump_model: str | None = "crb"

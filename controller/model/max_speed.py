@@ -357,16 +357,31 @@ def frictional_max_speed(
     """The highest normal contact speed of an arm's posture (``terms``) sliding at the tangential
     velocity ``tangential`` (orthogonal to the unit ``normal``) under the robust friction rows
     ``rows`` of the predictor ``setting.method`` (module docstring), and the mode of the
-    frictional impact (``frictional_impulse``, mu = rows.friction) at that speed."""
+    frictional impact (``frictional_impulse``, mu = rows.friction) at that speed. The preview's
+    edges (mode "slip") are those of the contact velocity at the answer: first of v_t alone, then,
+    when the slip is not certain at the speed found, the whole cone's (their speed is then the answer)."""
     if robot.description.held_contacts:
         raise BadInputError("the frictional maximum speed is an arm's; a robot on held contacts has none")
     normal = np.asarray(normal, dtype=float)
-    pinv6 = np.linalg.pinv(terms.J6)
+    W = response_maps(jump_model(setting.method), terms, normal, setting.restitution)[1]
+    directions = edge_directions(rows, normal, tangential, W, setting.restitution)
+    best, block = _rows_max_speed(robot, terms, normal, tangential, setting, directions)
+    if rows.mode == "slip" and 0.0 < best.speed < math.inf:
+        at_speed = edge_directions(rows, normal, tangential - best.speed * normal, W, setting.restitution)
+        if not np.array_equal(at_speed, directions):
+            best, block = _rows_max_speed(robot, terms, normal, tangential, setting, at_speed)
+    if not 0.0 < best.speed < math.inf:
+        return FrictionalMaxSpeed(best, block, "", math.nan)
+    impact = frictional_impulse(W, normal, tangential - best.speed * normal, rows.friction, setting.restitution)
+    return FrictionalMaxSpeed(best, block, impact.mode, impact.mu_bar)
+
+
+def _rows_max_speed(robot: RobotModel, terms, normal, tangential, setting: Setting, directions) -> tuple[MaxSpeed, str]:
+    """The closed form under the frictionless and the ``directions`` edge blocks, and its binding block."""
+    pinv6, model = np.linalg.pinv(terms.J6), jump_model(setting.method)
     d, d_t = pinv6 @ np.concatenate([-normal, np.zeros(3)]), pinv6 @ np.concatenate([tangential, np.zeros(3)])
-    model = jump_model(setting.method)
-    own = model.matrices(terms, normal, setting.restitution)
+    own, edges = model.matrices(terms, normal, setting.restitution), edge_matrices(model, terms, normal, directions, setting.restitution)
     blocks = {"frictionless": (own.jump_matrix, own.torque_matrix)}
-    edges = edge_matrices(model, terms, normal, edge_directions(rows, normal, tangential), setting.restitution)
     blocks |= {f"edge {i}": (A, P) for i, (A, P) in enumerate(zip(edges.jump, edges.torque))}
     torque_limit = robot.tau_max * setting.duration(robot.description)
     bounds = {"velocity_pre": affine_bound(robot, d_t, d, robot.dq_max)}
@@ -381,14 +396,7 @@ def frictional_max_speed(
                 bounds[criterion], block_of[criterion] = bound, name
     criterion = min(bounds, key=lambda c: bounds[c].speed)
     best = bounds[criterion]
-    if not 0.0 < best.speed < math.inf:
-        return FrictionalMaxSpeed(MaxSpeed(best.speed, criterion if best.speed == 0.0 else "", best.where, best.joint, bounds),
-                                  block_of[criterion], "", math.nan)
-    W = response_maps(model, terms, normal, setting.restitution)[1]
-    impact = frictional_impulse(W, normal, tangential - best.speed * normal, rows.friction, setting.restitution)
-    return FrictionalMaxSpeed(
-        MaxSpeed(best.speed, criterion, best.where, best.joint, bounds), block_of[criterion], impact.mode, impact.mu_bar
-    )
+    return MaxSpeed(best.speed, "" if best.speed == math.inf else criterion, best.where, best.joint, bounds), block_of[criterion]
 
 
 @dataclass(frozen=True)

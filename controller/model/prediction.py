@@ -11,6 +11,11 @@ friction, every predictor's inverse inertia W (the classical's: W_gm = J M^-1 J^
 frictional impulse, and the predictor's own map gives the jump (dq+ = dq- + J^+ W iota for CRB
 and GM, M^-1 J^T iota for the classical). ``classical_normal`` keeps only the normal part of the
 classical impulse, which a frictional impulse has no use for: it is left out with friction.
+
+A robot on held contacts (the standing G1, docs/floating-base.md) takes the same law with the
+W of its held-contact maps (W_gm = J P_f J^T for classical and GM, W_crb of the locked robot for
+CRB) and its own jump map (P_f J^T iota, or J# W iota), which keeps the held contacts still:
+:func:`method_prediction` serves both.
 """
 
 from __future__ import annotations
@@ -87,18 +92,31 @@ def predict_all(query: ImpactQuery, methods=METHODS, robot: PandaModel | None = 
         if not methods:
             raise BadInputError(f"--method classical_normal has no frictional form; choose from {', '.join(FRICTIONAL_METHODS)}")
     for name in methods:
-        model = JUMP_MODELS[name]
-        impact = None
-        if query.friction is not None:
-            W = inverse_inertia(name, terms, query.normal, query.restitution)
-            impact = frictional_impulse(W, query.normal, query.pre_impact_velocity, query.friction,
-                                        query.restitution, query.restitution_model)
-        pred = model.predict(terms, query.normal, query.pre_impact_velocity, query.restitution,
-                             None if impact is None else impact.impulse)
+        pred, impact = method_prediction(name, terms, query)
         entry = {"dq_jump": pred.dq_jump.tolist(), "impulse": pred.impulse.tolist()}
         if pred.W is not None:
             entry["W"] = pred.W.tolist()
-        if impact is not None:
-            entry.update(mode=impact.mode, mu_bar=impact.mu_bar, post_impact_contact_velocity=impact.post_velocity.tolist())
-        report["methods"][name] = entry
+        report["methods"][name] = entry | frictional_entry(impact)
     return report
+
+
+def method_prediction(name: str, terms, query: ImpactQuery):
+    """The predictor ``name``'s ``JumpPrediction`` at the state ``terms`` (a fixed base, or a
+    robot on held contacts: then also the held contacts' impulse and the CoM jump) and, for a
+    frictional ``query``, its ``FrictionalImpact`` (module docstring; None without friction)."""
+    impact = None
+    if query.friction is not None:
+        W = inverse_inertia(name, terms, query.normal, query.restitution)
+        impact = frictional_impulse(W, query.normal, query.pre_impact_velocity, query.friction,
+                                    query.restitution, query.restitution_model)
+    pred = JUMP_MODELS[name].predict(terms, query.normal, query.pre_impact_velocity, query.restitution,
+                                     None if impact is None else impact.impulse)
+    return pred, impact
+
+
+def frictional_entry(impact) -> dict:
+    """A report entry's frictional keys: the mode, mu_bar and the post-impact contact velocity
+    (none without friction)."""
+    if impact is None:
+        return {}
+    return {"mode": impact.mode, "mu_bar": impact.mu_bar, "post_impact_contact_velocity": impact.post_velocity.tolist()}

@@ -94,16 +94,15 @@ def predict(method, as_json, choice, **impact):
     methods = METHODS if method == "all" else (method,)
     friction = {"friction": impact.pop("friction"), "restitution_model": impact.pop("restitution_model")}
     if choice.robot.floating:
-        if friction["friction"] is not None:
-            raise BadInputError("--friction does not apply to a robot with held contacts yet (docs/frictional-impacts.md)")
-        report = stance_prediction(choice, impact.pop("posture_name"), impact.pop("q_text"), impact,
+        report = stance_prediction(choice, impact.pop("posture_name"), impact.pop("q_text"), impact | friction,
                                    None if method == "all" else methods)
         if as_json:
             emit_json(report)
             return
         click.echo(f"contact point = {fixed(report['contact_point'])} m, normal = {fixed(report['normal'])}")
         for name, res in report["methods"].items():
-            click.echo(f"{name:<10} impulse {fixed(res['impulse'])} N s   CoM jump {fixed(res['com_jump'])} m/s")
+            mode = f"   {res['mode']}, mu_bar {res['mu_bar']:.4f}" if "mode" in res else ""
+            click.echo(f"{name:<10} impulse {fixed(res['impulse'])} N s   CoM jump {fixed(res['com_jump'])} m/s{mode}")
         return
 
     if (impact["posture_name"] is None) == (impact["q_text"] is None):
@@ -139,10 +138,11 @@ def predict(method, as_json, choice, **impact):
 def stance_prediction(choice, posture: str | None, q_text: str | None, impact: dict, methods) -> dict:
     """The ``predict`` report of the floating-base robot of ``choice`` (feet held): per method
     (``methods``; None: classical, gm, crb) the jump dq_jump (nv: base twist, joints), impulse,
-    CoM jump and feet wrenches (JSON: the arm's keys where they mean the same)."""
+    CoM jump and feet wrenches (JSON: the arm's keys where they mean the same); with ``impact``'s
+    ``friction`` the frictional impulse of the held-contact W, its mode and mu_bar."""
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.controller.model.jump import predict as predict_jump
     from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as FLOATING_METHODS
+    from impactqp.controller.model.prediction import ImpactQuery, frictional_entry, method_prediction
     from impactqp.controller.model.robot import RobotModel
     from impactqp.controller.model.humanoid_stance import stance_posture
     from impactqp.controller.model.validation import approach_speed, tangential_velocity, unit_normal
@@ -160,20 +160,22 @@ def stance_prediction(choice, posture: str | None, q_text: str | None, impact: d
     tangential = (np.zeros(3) if impact["tangential_text"] is None
                   else tangential_velocity(parse_vector(impact["tangential_text"], 3, "--tangential"), normal, "--tangential"))
     c_r = restitution_coefficient(impact["restitution"], "--restitution")
-    v_minus = -speed * normal + tangential
+    query = ImpactQuery.from_speed(q, normal, speed, tangential, c_r, impact["friction"], impact["restitution_model"])
     terms = robot.terms(q)
     report = {
         "robot": choice.robot.name, "q": terms.q.tolist(), "contact_point": terms.contact_point.tolist(),
         "normal": normal.tolist(),
-        "pre_impact_velocity": v_minus.tolist(), "restitution": c_r, "cond_M": float(np.linalg.cond(terms.M)),
-        "methods": {},
+        "pre_impact_velocity": query.pre_impact_velocity.tolist(), "restitution": c_r,
+        "cond_M": float(np.linalg.cond(terms.M)), "methods": {},
     }
+    if query.friction is not None:
+        report["friction"], report["restitution_model"] = query.friction, query.restitution_model
     for method in FLOATING_METHODS if methods is None else methods:
-        jump = predict_jump(terms, method, normal, v_minus, c_r)
+        jump, frictional = method_prediction(method, terms, query)
         report["methods"][method] = {
             "dq_jump": jump.dq_jump.tolist(), "impulse": jump.impulse.tolist(), "com_jump": jump.com_jump.tolist(),
             "feet_impulse": jump.held_impulse.tolist(),
-        }
+        } | frictional_entry(frictional)
     return report
 
 

@@ -1,8 +1,9 @@
 """Evaluation of sweep cells: contact posture by inverse kinematics, conditioning, closed form,
 and with ``--simulate`` the simulated highest feasible speed.
 
-A cell is (point, normal, restitution, impact duration, controller jump model). The cells of a
-chunk are evaluated together, on the vectorised kinematics of ``controller.model.batch``:
+A cell is (point, normal, restitution, impact duration, controller jump model, and with a
+``[friction]`` table friction mu and tangential speed). The cells of a chunk are evaluated
+together, on the vectorised kinematics of ``controller.model.batch``:
 
 1. the contact posture of every distinct (point, normal) of the chunk, by the batched damped
    least squares of :func:`controller.model.inverse_kinematics.contact_postures` from the
@@ -12,7 +13,9 @@ chunk are evaluated together, on the vectorised kinematics of ``controller.model
    ``PandaModel.terms`` does;
 3. for every jump model, the closed-form highest feasible speed and what binds it
    (:func:`controller.model.max_speed.closed_form_max_speeds`, at each restitution and impact
-   duration of the chunk);
+   duration of the chunk); with ``[friction]``, also under the robust friction rows of the cell's
+   mu while the contact slides at its tangential speed along t = normalise(n x e_z)
+   (:func:`controller.model.max_speed.frictional_max_speed`, one cell at a time);
 4. with a :class:`Simulation`, one ``max-speed`` search per cell
    (:class:`scenarios.max_speed_search.MaxSpeedSearch` at the cell's posture, on the plane through
    its point with its normal, with the plant, the cell's restitution, impact duration and
@@ -34,11 +37,13 @@ import numpy as np
 from impactqp.controller.measured.impact import ImpactNotFoundError
 from impactqp.controller.model.batch import BatchKinematics
 from impactqp.controller.model.inverse_kinematics import UnreachableStartError, contact_postures
-from impactqp.controller.model.max_speed import CRITERIA, approach_directions, closed_form_max_speeds
+from impactqp.controller.model.friction_pyramid import FrictionRows
+from impactqp.controller.model.max_speed import CRITERIA, Setting, approach_directions, closed_form_max_speeds, frictional_max_speed
 from impactqp.controller.model.postures import DEFAULT_WALL, ImpactPosture, Surface
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.robot import SINGULAR_RATIO
 from impactqp.scenarios.max_speed_search import MaxSpeedSearch
+from impactqp.sim.generation import tangential_direction
 from impactqp.sim.plant import PlantParameters
 
 from .config import SweepConfig
@@ -69,14 +74,17 @@ def _kinematics(choice: RobotChoice) -> BatchKinematics:
 
 def cell_settings(config: SweepConfig, cell: int) -> dict:
     """The settings of cell index ``cell`` (the row-major order of ``SweepConfig.axes_shape``)."""
-    p, k, r, t, c = (int(i) for i in config.cell_axes(cell))
-    return {
+    p, k, r, t, c, f, g = (int(i) for i in config.cell_axes(cell))
+    settings = {
         "point": config.points()[p],
         "normal": np.asarray(config.normals[k]),
         "restitution": config.restitution[r],
         "impact_duration": config.impact_duration[t],
         "controller_jump_model": config.controller_jump_model[c],
     }
+    if config.friction:
+        settings |= {"friction": config.friction[f], "tangential_speed": config.tangential_speed[g]}
+    return settings
 
 
 @dataclass(frozen=True)
@@ -141,7 +149,7 @@ def evaluate_cells(config: SweepConfig, cells: range, simulation: Simulation | N
     """The columns of the rows of ``cells`` (a contiguous range of cell indices), in order."""
     kinematics = _kinematics(config.choice)
     cell = np.arange(cells.start, cells.stop)
-    p, k, r, t, c = config.cell_axes(cell)
+    p, k, r, t, c, f, g = config.cell_axes(cell)
     points = config.points()
     normals = np.asarray(config.normals, dtype=float)
     restitution = np.asarray(config.restitution)
@@ -187,10 +195,39 @@ def evaluate_cells(config: SweepConfig, cells: range, simulation: Simulation | N
     # 3. closed form of every model, for each (restitution, impact duration) of the chunk
     columns.update(_closed_forms(config, ClosedFormCells(terms, reached, regular, pairs, posture_of_cell, r, t)))
 
+    if config.friction:
+        columns["friction"] = np.asarray(config.friction)[f]
+        columns["tangential_speed"] = np.asarray(config.tangential_speed)[g]
+        columns.update(_frictional_closed_forms(config, columns, q, regular[posture_of_cell]))
+
     # 4. --simulate
     if simulation is not None:
         columns.update(_simulate(config, simulation, cell, columns, q, regular[posture_of_cell]))
     return columns
+
+
+def _frictional_closed_forms(config: SweepConfig, columns: dict, q: np.ndarray, regular: np.ndarray) -> dict[str, list]:
+    """Per jump model m: ``friction_speed_m`` (m/s), ``friction_criterion_m``, ``friction_joint_m``,
+    ``friction_block_m`` and ``friction_mode_m`` of ``frictional_max_speed`` in every regular cell
+    (NaN, "" and 0 elsewhere)."""
+    robot = _kinematics(config.choice).robot
+    out = {f"friction_{what}_{m}": [] for m in config.jump_models for what in ("speed", "criterion", "joint", "block", "mode")}
+    for i in range(q.shape[0]):
+        normal = np.array([columns["normal_x"][i], columns["normal_y"][i], columns["normal_z"][i]])
+        terms = robot.terms(q[i]) if regular[i] else None
+        tangential = float(columns["tangential_speed"][i]) * tangential_direction(normal)
+        rows = FrictionRows(float(columns["friction"][i]), config.pyramid_edges)
+        for m in config.jump_models:
+            answer = None
+            if terms is not None:
+                setting = Setting(m, float(columns["restitution"][i]), impact_duration=float(columns["impact_duration"][i]))
+                answer = frictional_max_speed(robot, terms, normal, tangential, setting, rows)
+            for what, value in (("speed", answer.max_speed.speed if answer else np.nan),
+                                ("criterion", answer.max_speed.criterion if answer else ""),
+                                ("joint", answer.max_speed.joint if answer else 0),
+                                ("block", answer.block if answer else ""), ("mode", answer.mode if answer else "")):
+                out[f"friction_{what}_{m}"].append(value)
+    return out
 
 
 def _simulate(config, simulation, cell, columns, q, regular) -> dict[str, list]:

@@ -1,8 +1,9 @@
 """The sweep configuration (TOML): a rectangle of contact points on a plane and the settings to vary.
 
 The grid is the product points x normals x restitution values x the controller settings
-(impact durations x controller jump models); every cell evaluates all the listed jump models in
-closed form. Every key is checked before any work starts: an unknown key, a malformed value, an
+(impact durations x controller jump models), and with the optional ``[friction]`` table x
+frictions mu x tangential speeds; every cell evaluates all the listed jump models in closed
+form (with ``[friction]`` also under the robust friction rows, docs/sweep.md). Every key is checked before any work starts: an unknown key, a malformed value, an
 empty grid or a spacing <= 0 raises :class:`BadInputError` (docs/sweep.md).
 """
 
@@ -16,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from impactqp.controller.model.friction_pyramid import DEFAULT_EDGES, FrictionRows
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.robot_description import PANDA
@@ -26,6 +28,7 @@ from impactqp.controller.model.validation import (
     finite_vector,
     impact_duration,
     non_empty_list,
+    number_in_range,
     positive,
     restitution,
     unit_normal,
@@ -73,6 +76,10 @@ SETTINGS_KEYS = {"normals", "restitution", "jump_models", "seed_posture"}
 CONTROLLER_KEYS = {"jump_model", "impact_duration"}
 SIMULATE_KEYS = {"tolerance"}
 TABLES = {"grid": GRID_KEYS, "settings": SETTINGS_KEYS, "controller": CONTROLLER_KEYS, "simulate": SIMULATE_KEYS}
+FRICTION_KEYS = {"mu", "tangential_speed", "pyramid_edges"}
+"""The optional ``[friction]`` table: the rows' mu and the sliding speeds (axes), the pyramid's edges."""
+MAX_TANGENTIAL_SPEED = 2.0
+"""m/s: the largest tangential speed of a friction sweep (the QP's request speed, ``max-speed``)."""
 MAX_CELLS = 10_000_000
 
 
@@ -90,6 +97,11 @@ class SweepConfig:
     controller_jump_model: tuple[str, ...]
     impact_duration: tuple[float, ...]
     tolerance: float
+    friction: tuple[float, ...] = ()
+    """mu of the robust friction rows (``[friction]``; empty: no friction axes nor columns)."""
+    tangential_speed: tuple[float, ...] = ()
+    """m/s: the contact's sliding speed along the surface tangent t = normalise(n x e_z)."""
+    pyramid_edges: int = DEFAULT_EDGES
     choice: RobotChoice = field(default=DEFAULT_CHOICE, compare=False)
     """The robot and the tool (``--robot``, ``--tool``), not a key of the file."""
 
@@ -97,6 +109,8 @@ class SweepConfig:
         """The configuration as sorted JSON: two configs are the same sweep when this is equal
         (the robot and the tool count when they are not the default Panda and impact tip)."""
         data = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "choice"}
+        if not self.friction:  # a sweep without [friction] keeps its identity
+            data = {name: value for name, value in data.items() if name not in FRICTION_FIELDS}
         if not self.choice.is_default:
             data |= {"robot": self.choice.robot.name, "tool": self.choice.tool.as_dict()}
         return json.dumps(data, sort_keys=True)
@@ -122,22 +136,26 @@ class SweepConfig:
         """Points along u and along v."""
         return tuple(int(np.floor(size / self.spacing + 1e-9)) + 1 for size in self.size)
 
-    def axes_shape(self) -> tuple[int, int, int, int, int]:
+    def axes_shape(self) -> tuple[int, ...]:
         """Lengths of the axes (points, normals, restitution, impact_duration, controller
-        jump model), slowest first: the cell index is their row-major (C-order) index."""
+        jump model, friction, tangential speed; the last two 1 without ``[friction]``), slowest
+        first: the cell index is their row-major (C-order) index."""
         nu, nv = self.grid_shape()
         return (
             nu * nv, len(self.normals), len(self.restitution), len(self.impact_duration),
-            len(self.controller_jump_model),
+            len(self.controller_jump_model), len(self.friction) or 1, len(self.tangential_speed) or 1,
         )
 
     def cell_count(self) -> int:
         return int(np.prod(self.axes_shape()))
 
     def cell_axes(self, cells: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Axis indices (point, normal, restitution, impact_duration, controller jump model) of
-        the cell indices ``cells``."""
+        """Axis indices (point, normal, restitution, impact_duration, controller jump model,
+        friction, tangential speed) of the cell indices ``cells``."""
         return np.unravel_index(np.asarray(cells), self.axes_shape())
+
+
+FRICTION_FIELDS = ("friction", "tangential_speed", "pyramid_edges")
 
 
 def _table(data: dict, name: str, keys: set[str]) -> dict:
@@ -155,7 +173,7 @@ def _table(data: dict, name: str, keys: set[str]) -> dict:
 
 def parse_config(data: dict) -> SweepConfig:
     """A validated :class:`SweepConfig` from the parsed TOML ``data``."""
-    unknown = sorted(set(data) - set(TABLES))
+    unknown = sorted(set(data) - set(TABLES) - {"friction"})
     if unknown:
         raise BadInputError(f"unknown key {unknown[0]} in the sweep config")
     grid, settings, controller, simulate = (_table(data, name, keys) for name, keys in TABLES.items())
@@ -215,9 +233,11 @@ def parse_config(data: dict) -> SweepConfig:
         controller_jump_model=tuple(controller_models),
         impact_duration=tuple(durations),
         tolerance=positive(simulate["tolerance"], "simulate.tolerance"),
+        **(_friction(_table(data, "friction", FRICTION_KEYS), models) if "friction" in data else {}),
     )
     points = [math.floor(side / spacing + 1e-9) + 1 if side / spacing < MAX_CELLS else MAX_CELLS + 1 for side in size.tolist()]
-    settings_count = len(normals) * len(restitutions) * len(durations) * len(controller_models)
+    settings_count = math.prod((len(normals), len(restitutions), len(durations), len(controller_models),
+                                len(config.friction) or 1, len(config.tangential_speed) or 1))
     cells = math.prod(points) * settings_count
     if cells > MAX_CELLS:
         shown = " x ".join(str(p) if p <= MAX_CELLS else f"over {MAX_CELLS:,}" for p in points)
@@ -226,6 +246,27 @@ def parse_config(data: dict) -> SweepConfig:
             f"{MAX_CELLS:,}: make grid.spacing coarser or the grid smaller"
         )
     return config
+
+
+def _friction(table: dict, models: list) -> dict:
+    """The checked ``[friction]`` table as the config's fields (docs/sweep.md, "Friction")."""
+    mus = []
+    for k, mu in enumerate(non_empty_list(table["mu"], "friction.mu")):
+        try:
+            mus.append(FrictionRows(mu, table["pyramid_edges"]).friction)
+        except BadInputError as error:
+            raise BadInputError(f"friction.mu[{k}] or friction.pyramid_edges: {error}") from None
+    speeds = [
+        number_in_range(v, 0.0, MAX_TANGENTIAL_SPEED, f"friction.tangential_speed[{k}]", "m/s")
+        for k, v in enumerate(non_empty_list(table["tangential_speed"], "friction.tangential_speed"))
+    ]
+    for name, values in (("friction.mu", mus), ("friction.tangential_speed", speeds)):
+        if len(set(values)) != len(values):
+            raise BadInputError(f"{name} lists a value twice")
+    if "classical_normal" in models:
+        raise BadInputError("the classical_normal model keeps the normal impulse only: it has no friction rows "
+                            "(settings.jump_models with [friction])")
+    return {"friction": tuple(mus), "tangential_speed": tuple(speeds), "pyramid_edges": int(table["pyramid_edges"])}
 
 
 def load_config(path: Path) -> SweepConfig:

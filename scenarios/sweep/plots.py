@@ -59,7 +59,8 @@ def normal_tag(normal) -> str:
 
 @dataclass(frozen=True)
 class Slice:
-    """The cells of one normal K, restitution R, impact duration T and controller jump model C."""
+    """The cells of one normal K, restitution R, impact duration T and controller jump model C (and
+    of a friction sweep the first mu and tangential speed: the drawn columns do not depend on them)."""
 
     config: SweepConfig
     columns: dict
@@ -70,7 +71,7 @@ class Slice:
 
     @property
     def cells(self) -> np.ndarray:
-        return np.arange(self.config.cell_count()).reshape(self.config.axes_shape())[:, self.k, self.r, self.t, self.c]
+        return np.arange(self.config.cell_count()).reshape(self.config.axes_shape())[:, self.k, self.r, self.t, self.c, 0, 0]
 
     def grid(self, name: str, dtype=float) -> np.ndarray:
         """Column ``name`` as a (v, u) image: row i is the i-th point along v."""

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from impactqp.controller.model.friction_pyramid import EDGE_GUARD, SLIP_SPEED, EdgeMatrices
+from impactqp.controller.model.friction_pyramid import EDGE_GUARD, SLIP_SECTOR, SLIP_SPEED, EdgeMatrices
 
 
 def reference_edge_impulse_maps(W, normal, directions, restitution) -> np.ndarray:
@@ -17,9 +17,20 @@ def reference_edge_matrices(J, K, W, normal, directions, restitution) -> EdgeMat
     return EdgeMatrices(K @ G @ J, J.T @ G @ J)
 
 
-def reference_slip_direction(J, dq, normal, friction) -> np.ndarray:
-    """``slip_direction_into``: n - mu v_t / |v_t| for v = J dq, or n below ``SLIP_SPEED``."""
-    v = J @ dq
-    v_t = v - (normal @ v) * normal
+def reference_slip_edges(velocity, W, normal, friction, restitution, uncertain) -> np.ndarray:
+    """``slip_edges_into``: the sector's edges n - mu / cos(alpha / 2) (cos(theta) s + sin(theta) n x s),
+    theta in (-alpha, 0, alpha), when the slip is certain, else ``uncertain`` (the 3-edge pyramid)."""
+    P = np.eye(3) - np.outer(normal, normal)
+    u_n, v_t = normal @ velocity, P @ velocity
     speed = np.linalg.norm(v_t)
-    return normal - friction * v_t / speed if speed >= SLIP_SPEED else normal.copy()
+    rate = normal @ W @ normal - friction * np.linalg.norm(P @ W.T @ normal)
+    if speed < SLIP_SPEED or rate <= 0.0:
+        return uncertain.copy()
+    impulse = (1.0 + np.sqrt(2.0) * restitution) * max(-u_n, 0.0) / rate
+    drift = (np.linalg.norm(P @ W @ normal) + friction * np.linalg.norm(P @ W @ P)) * impulse
+    if drift > speed * np.sin(SLIP_SECTOR):
+        return uncertain.copy()
+    s = v_t / speed
+    angles = SLIP_SECTOR * np.array([-1.0, 0.0, 1.0])
+    tangents = np.cos(angles)[:, None] * s + np.sin(angles)[:, None] * np.cross(normal, s)
+    return normal - friction / np.cos(SLIP_SECTOR / 2) * tangents
