@@ -33,7 +33,8 @@ import numpy as np
 from impactqp.constraints import jump_model_names
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.friction_pyramid import FrictionRows
-from impactqp.controller.model.max_speed import Setting, frictional_max_speed
+from impactqp.controller.model.frictional_max_speed import frictional_max_speed
+from impactqp.controller.model.max_speed import Setting
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.validation import BadInputError
 from impactqp.sim.generation import tangential_direction
@@ -75,7 +76,7 @@ class QpSpeedGrid:
 
     def trials(self, choice: RobotChoice) -> list[QpSpeedTrial]:
         robot = fixed_base(choice).model()
-        normal, trials = DEFAULT_WALL.normal, []
+        trials = []
         for name in tuple(choice.robot.postures)[: self.postures]:
             terms = robot.terms(choice.posture(name).q)
             for mu in self.frictions:

@@ -131,7 +131,7 @@ def frictional_arm_max_speed(request: MaxSpeedRequest) -> dict:
     the frictionless closed form."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.friction_pyramid import FrictionRows
-    from impactqp.controller.model.max_speed import frictional_max_speed
+    from impactqp.controller.model.frictional_max_speed import frictional_max_speed
     from impactqp.controller.model.validation import tangential_velocity
     from impactqp.scenarios.cli.arguments import parse_vector
 

@@ -38,7 +38,8 @@ from impactqp.controller.measured.impact import ImpactNotFoundError
 from impactqp.controller.model.batch import BatchKinematics
 from impactqp.controller.model.inverse_kinematics import UnreachableStartError, contact_postures
 from impactqp.controller.model.friction_pyramid import FrictionRows
-from impactqp.controller.model.max_speed import CRITERIA, Setting, approach_directions, closed_form_max_speeds, frictional_max_speed
+from impactqp.controller.model.frictional_max_speed import frictional_max_speed
+from impactqp.controller.model.max_speed import CRITERIA, Setting, approach_directions, closed_form_max_speeds
 from impactqp.controller.model.postures import DEFAULT_WALL, ImpactPosture, Surface
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.robot import SINGULAR_RATIO
