@@ -8,8 +8,10 @@ import pinocchio as pin
 import pytest
 from conftest import joint_positions
 from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_robot import SINGULAR_Q
 
+from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import InvalidStateError, SingularPostureError
 from impactqp.controller.model.validation import BadInputError
@@ -124,3 +126,26 @@ def check_one_compute_all_terms(robot, terms, q, dq):
     np.testing.assert_allclose(terms.dJcom_dq, Jcom_rate / (2 * eps), atol=1e-6)
     with pytest.raises(BadInputError, match="unknown frame"):
         terms.frame("torso")
+
+
+@settings(max_examples=20, deadline=None)
+@given(q=joint_positions(), dq=joint_positions(0.0), restitution=st.floats(0.0, 1.0))
+def test_a_cycle_buffer_gives_the_jump_maps_of_a_predictions_terms(robot, q, dq, restitution):
+    """The crb, gm and classical maps (A, P, G) of a controller's refilled buffer (its M^-1 from
+    the Cholesky factor of its own M) equal those of a prediction's terms at the same state
+    (M^-1 from ``computeMinverse``) to 1e-12 of their largest entry."""
+    dq = 0.1 * dq
+    try:
+        prediction = robot.terms(q, dq, check_limits=False)
+    except SingularPostureError:
+        return
+    buffer = robot.update_terms(robot.empty_terms(), q, dq, check_limits=False)
+    normal = np.array([-1.0, 0.0, 0.0])
+    for name in ("crb", "gm", "classical"):
+        expected = jump_model(name).unit_matrices(prediction, normal, restitution)
+        got = jump_model(name).unit_matrices(buffer, normal, restitution)
+        for field in ("jump_matrix", "torque_matrix", "impulse_map"):
+            reference = getattr(expected, field)
+            np.testing.assert_allclose(
+                getattr(got, field), reference, rtol=0, atol=1e-12 * np.abs(reference).max(), err_msg=f"{name} {field}"
+            )
