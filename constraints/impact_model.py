@@ -151,18 +151,21 @@ class ExpectedImpact:
 
     def matrices(self, terms) -> JumpMatrices:
         """A, P, G (and C) of this state (the normal and the restitution were checked once, above)."""
-        self._update(terms)
+        if terms.stamp != self._stamp:  # a new fill of the terms (read several times per cycle)
+            self._update(terms)
         return self._matrices
 
     def edge_matrices(self, terms) -> EdgeMatrices:
         """A_i and P_i of the friction rows' edges at this state (``friction.count`` of them;
         none without friction)."""
-        self._update(terms)
+        if terms.stamp != self._stamp:
+            self._update(terms)
         return self._edges
 
     def is_active(self, terms) -> bool:
         """The activation rule of the module docstring for this state."""
-        self._update(terms)
+        if terms.stamp != self._stamp:
+            self._update(terms)
         return self._active
 
     def shows_jump(self, J: np.ndarray, dq: np.ndarray, dq_cmd: np.ndarray) -> bool:
@@ -176,8 +179,7 @@ class ExpectedImpact:
         return commanded > self.rule.release_speed and -normal_motion(J, normal, point, dq)[0] < IMPACT_SPEED_DROP * commanded
 
     def _update(self, terms) -> None:
-        if terms.stamp == self._stamp:
-            return
+        """The matrices, edges and activation of the fill ``terms.stamp``."""
         normal = self.surface.normal
         self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
         if self._edge_count:
