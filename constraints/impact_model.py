@@ -50,8 +50,18 @@ from impactqp.controller.model.friction_pyramid import (
     response_maps,
     slip_direction_into,
 )
-from impactqp.controller.model.jump import JumpMatrices, JumpModel, jump_model
-from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
+from impactqp.controller.model.jump import (
+    CompositeRigidBodyJump,
+    GeneralizedMomentumJump,
+    JumpMatrices,
+    JumpModel,
+    jump_model,
+)
+from impactqp.controller.model.jump_kernels import (
+    HELD_CONTACT_METHODS,
+    crb_inverse_inertia_times,
+    rank_one_jump_matrices,
+)
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model import validation
 from impactqp.controller.model.validation import BadInputError
@@ -144,13 +154,19 @@ class ExpectedImpact:
         self._directions = edge_directions(friction, surface.normal, np.zeros(3))  # the preview's: per state
         self._edge_count = friction.count
         self._edges = EdgeMatrices(np.empty((0, 0, 0)), np.empty((0, 0, 0)))  # filled at the first state
+        # The normal-impulse models (gm, crb) of a fixed base write A, P and G into one buffer,
+        # allocated at the first fill (``_fill_rank_one``); the other forms return new matrices.
+        self._rank_one = isinstance(self.model, GeneralizedMomentumJump)
+        self._rank_one_matrices = JumpMatrices(np.empty((0, 0)), np.empty((0, 0)), np.empty((3, 3)), None)
 
     @property
     def name(self) -> str:
         return self.model.name
 
     def matrices(self, terms) -> JumpMatrices:
-        """A, P, G (and C) of this state (the normal and the restitution were checked once, above)."""
+        """A, P, G (and C) of this state (the normal and the restitution were checked once, above);
+        the arrays of a fixed base's gm or crb model are refilled in place at the next fill of the
+        terms (copy them to keep them)."""
         if terms.stamp != self._stamp:  # a new fill of the terms (read several times per cycle)
             self._update(terms)
         return self._matrices
@@ -181,11 +197,34 @@ class ExpectedImpact:
     def _update(self, terms) -> None:
         """The matrices, edges and activation of the fill ``terms.stamp``."""
         normal = self.surface.normal
-        self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
+        if self._rank_one and terms.held_jacobian.shape[0] == 0:
+            motion = self._fill_rank_one(terms)
+        else:
+            self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
+            motion = normal_motion(terms.J, normal, terms.contact_point, terms.dq)
         if self._edge_count:
             self._fill_edges(terms)
-        self._active = self.rule.always_active or self._rule(*normal_motion(terms.J, normal, terms.contact_point, terms.dq))
+        self._active = self.rule.always_active or self._rule(*motion)
         self._stamp = terms.stamp
+
+    def _fill_rank_one(self, terms) -> tuple[float, float]:
+        """A, P and G of a fixed base's gm or crb model (``GeneralizedMomentumJump
+        .fixed_base_matrices``, the rank-one products of ``jump``) written into the buffer, and
+        the activation rule's n.(J dq) and n.p, in one compiled call; the buffer is allocated at
+        the first fill."""
+        n = terms.J.shape[1]
+        matrices = self._rank_one_matrices
+        if matrices.jump_matrix.shape != (n, n):
+            matrices = JumpMatrices(np.empty((n, n)), np.empty((n, n)), np.empty((3, 3)), None)
+            self._rank_one_matrices = matrices
+        self._matrices = matrices
+        normal, restitution, out = self.surface.normal, self.restitution, matrices[:3]
+        if isinstance(self.model, CompositeRigidBodyJump):
+            rigid = (terms.contact_point, terms.com, terms.inertia_com, terms.mass)
+            return crb_cycle_update(rigid, terms.J, terms.JJt_inv, terms.dq, normal, restitution, out)
+        W_normal = self.model.inverse_inertia_times(terms, normal)
+        point = terms.contact_point
+        return rank_one_cycle_update(W_normal, terms.J, terms.JJt_inv, terms.dq, point, normal, restitution, out)
 
     def _fill_edges(self, terms) -> None:
         """The edges' maps of this state into buffers allocated at the first fill (the preview's
@@ -218,3 +257,22 @@ def normal_motion(J, normal, contact_point, dq):
         normal_speed += Jt_normal[j] * dq[j]
     normal_position = normal[0] * contact_point[0] + normal[1] * contact_point[1] + normal[2] * contact_point[2]
     return normal_speed, normal_position
+
+
+@njit(cache=True)
+def rank_one_cycle_update(W_normal, J, JJt_inv, dq, contact_point, normal, restitution, out):
+    """Kernel of a fixed base's gm or crb fill (``ExpectedImpact._fill_rank_one``): from W n,
+    A = s (J+ W n)(J^T n)^T, P = s (J^T n)(J^T n)^T and G = s n n^T, s = -(1+c_r) / (n^T W n)
+    (eq. (12), ``rank_one_jump_matrices``), into out = (A, P, G); returns n.(J dq) and n.p
+    (``normal_motion``)."""
+    rank_one_jump_matrices(J, JJt_inv, W_normal, normal, restitution, out[0], out[1], out[2])
+    return normal_motion(J, normal, contact_point, dq)
+
+
+@njit(cache=True)
+def crb_cycle_update(rigid, J, JJt_inv, dq, normal, restitution, out):
+    """Kernel: ``rank_one_cycle_update`` with W = W_crb, eq. (20), its W_crb n from
+    rigid = (contact point, centre of mass, inertia about it, mass) (``crb_inverse_inertia_times``)."""
+    contact_point, com, inertia_com, mass = rigid
+    W_normal = crb_inverse_inertia_times(contact_point, com, inertia_com, mass, normal)
+    return rank_one_cycle_update(W_normal, J, JJt_inv, dq, contact_point, normal, restitution, out)
