@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from impactqp.controller.model.classical_matrices import classical_jump_matrices
 from impactqp.controller.model.friction_pyramid import (
     EdgeMatrices,
     FrictionRows,
@@ -51,6 +52,7 @@ from impactqp.controller.model.friction_pyramid import (
     slip_direction_into,
 )
 from impactqp.controller.model.jump import (
+    ClassicalJump,
     CompositeRigidBodyJump,
     GeneralizedMomentumJump,
     JumpMatrices,
@@ -154,10 +156,11 @@ class ExpectedImpact:
         self._directions = edge_directions(friction, surface.normal, np.zeros(3))  # the preview's: per state
         self._edge_count = friction.count
         self._edges = EdgeMatrices(np.empty((0, 0, 0)), np.empty((0, 0, 0)))  # filled at the first state
-        # The normal-impulse models (gm, crb) of a fixed base write A, P and G into one buffer,
-        # allocated at the first fill (``_fill_rank_one``); the other forms return new matrices.
-        self._rank_one = isinstance(self.model, GeneralizedMomentumJump)
-        self._rank_one_matrices = JumpMatrices(np.empty((0, 0)), np.empty((0, 0)), np.empty((3, 3)), None)
+        # The crb, gm and classical models of a fixed base write A, P and G into one buffer,
+        # allocated at the first fill (``_fill_fixed_base``); the other forms return new matrices.
+        model = self.model
+        self._in_place = isinstance(model, GeneralizedMomentumJump) or type(model) is ClassicalJump
+        self._fixed_base_matrices = JumpMatrices(np.empty((0, 0)), np.empty((0, 0)), np.empty((3, 3)), None)
 
     @property
     def name(self) -> str:
@@ -197,8 +200,8 @@ class ExpectedImpact:
     def _update(self, terms) -> None:
         """The matrices, edges and activation of the fill ``terms.stamp``."""
         normal = self.surface.normal
-        if self._rank_one and terms.held_jacobian.shape[0] == 0:
-            motion = self._fill_rank_one(terms)
+        if self._in_place and terms.held_jacobian.shape[0] == 0:
+            motion = self._fill_fixed_base(terms)
         else:
             self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
             motion = normal_motion(terms.J, normal, terms.contact_point, terms.dq)
@@ -207,23 +210,25 @@ class ExpectedImpact:
         self._active = self.rule.always_active or self._rule(*motion)
         self._stamp = terms.stamp
 
-    def _fill_rank_one(self, terms) -> tuple[float, float]:
-        """A, P and G of a fixed base's gm or crb model (``GeneralizedMomentumJump
-        .fixed_base_matrices``, the rank-one products of ``jump``) written into the buffer, and
-        the activation rule's n.(J dq) and n.p, in one compiled call; the buffer is allocated at
-        the first fill."""
+    def _fill_fixed_base(self, terms) -> tuple[float, float]:
+        """A, P and G of a fixed base's crb, gm or classical model (their ``fixed_base_matrices``:
+        the rank-one products of ``jump`` or ``classical_jump_matrices``) written into the buffer,
+        and the activation rule's n.(J dq) and n.p, in one compiled call; the buffer is allocated
+        at the first fill."""
         n = terms.J.shape[1]
-        matrices = self._rank_one_matrices
+        matrices = self._fixed_base_matrices
         if matrices.jump_matrix.shape != (n, n):
             matrices = JumpMatrices(np.empty((n, n)), np.empty((n, n)), np.empty((3, 3)), None)
-            self._rank_one_matrices = matrices
+            self._fixed_base_matrices = matrices
         self._matrices = matrices
         normal, restitution, out = self.surface.normal, self.restitution, matrices[:3]
-        if isinstance(self.model, CompositeRigidBodyJump):
-            rigid = (terms.contact_point, terms.com, terms.inertia_com, terms.mass)
-            return crb_cycle_update(rigid, terms.J, terms.JJt_inv, terms.dq, normal, restitution, out)
-        W_normal = self.model.inverse_inertia_times(terms, normal)
         point = terms.contact_point
+        if isinstance(self.model, CompositeRigidBodyJump):
+            rigid = (point, terms.com, terms.inertia_com, terms.mass)
+            return crb_cycle_update(rigid, terms.J, terms.JJt_inv, terms.dq, normal, restitution, out)
+        if isinstance(self.model, ClassicalJump):
+            return classical_cycle_update(terms.M_inv, terms.J, terms.dq, point, normal, restitution, out)
+        W_normal = self.model.inverse_inertia_times(terms, normal)
         return rank_one_cycle_update(W_normal, terms.J, terms.JJt_inv, terms.dq, point, normal, restitution, out)
 
     def _fill_edges(self, terms) -> None:
@@ -261,7 +266,7 @@ def normal_motion(J, normal, contact_point, dq):
 
 @njit(cache=True)
 def rank_one_cycle_update(W_normal, J, JJt_inv, dq, contact_point, normal, restitution, out):
-    """Kernel of a fixed base's gm or crb fill (``ExpectedImpact._fill_rank_one``): from W n,
+    """Kernel of a fixed base's gm or crb fill (``ExpectedImpact._fill_fixed_base``): from W n,
     A = s (J+ W n)(J^T n)^T, P = s (J^T n)(J^T n)^T and G = s n n^T, s = -(1+c_r) / (n^T W n)
     (eq. (12), ``rank_one_jump_matrices``), into out = (A, P, G); returns n.(J dq) and n.p
     (``normal_motion``)."""
@@ -276,3 +281,12 @@ def crb_cycle_update(rigid, J, JJt_inv, dq, normal, restitution, out):
     contact_point, com, inertia_com, mass = rigid
     W_normal = crb_inverse_inertia_times(contact_point, com, inertia_com, mass, normal)
     return rank_one_cycle_update(W_normal, J, JJt_inv, dq, contact_point, normal, restitution, out)
+
+
+@njit(cache=True)
+def classical_cycle_update(M_inv, J, dq, contact_point, normal, restitution, out):
+    """Kernel of a fixed base's classical fill (``ExpectedImpact._fill_fixed_base``): A, P and
+    G of eqs. (5)-(6) (``classical_jump_matrices``) into out = (A, P, G); returns n.(J dq) and
+    n.p (``normal_motion``)."""
+    classical_jump_matrices(M_inv, J, restitution, out[0], out[1], out[2])
+    return normal_motion(J, normal, contact_point, dq)

@@ -13,7 +13,7 @@ from impactqp.constraints import (
 )
 from impactqp.controller.model.jump import JumpMatrices
 
-from .jump import reference_rank_one_jump_matrices
+from .jump import reference_classical_jump_matrices, reference_rank_one_jump_matrices
 
 
 def symmetric_rows_into(C, dq, limit, inv_h, active, lower, upper) -> None:
@@ -92,7 +92,12 @@ def reference_normal_motion(terms, normal) -> tuple[float, float]:
     return float((normal @ terms.J) @ terms.dq), float(normal @ terms.contact_point)
 
 
-def reference_rank_one_cycle_update(model, terms, normal, restitution) -> tuple[JumpMatrices, tuple[float, float]]:
-    """``rank_one_cycle_update`` and ``crb_cycle_update`` (a fixed base's gm or crb fill of an
-    expected impact) in plain numpy: the rank-one A, P and G, then n.(J dq) and n.p."""
-    return reference_rank_one_jump_matrices(model, terms, normal, restitution), reference_normal_motion(terms, normal)
+def reference_fixed_base_cycle_update(model, terms, normal, restitution) -> tuple[JumpMatrices, tuple[float, float]]:
+    """``crb_cycle_update``, ``rank_one_cycle_update`` and ``classical_cycle_update`` (a fixed
+    base's crb, gm or classical fill of an expected impact) in plain numpy: A, P and G, then
+    n.(J dq) and n.p."""
+    if model.name == "classical":
+        matrices = reference_classical_jump_matrices(terms, restitution)
+    else:
+        matrices = reference_rank_one_jump_matrices(model, terms, normal, restitution)
+    return matrices, reference_normal_motion(terms, normal)
