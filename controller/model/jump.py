@@ -43,9 +43,10 @@ This module is the one home of these maps and predictors: ``JumpModel`` gives th
 of any robot (``ModelTerms``; ``unit_maps`` and ``unit_matrices`` read the terms'
 ``held_jacobian``), :func:`predict` by a method's name, :func:`predict_from_terms` for N states
 of an arm at once (the batched terms of ``controller.model.batch``, leading axis N); the
-compiled kernels are in ``jump_kernels``. The held-contact ``unit_maps`` read M^-1 and take
-J# = N (J N)^+, equal to N J^T (J N J^T)^-1; the held-contact
-``unit_matrices`` (a controller's every cycle) read the terms' M^-1 in one compiled call.
+compiled kernels are in ``jump_kernels`` (the classical one in ``classical_matrices``). The
+held-contact ``unit_maps`` read M^-1 and take J# = N (J N)^+, equal to N J^T (J N J^T)^-1; the
+held-contact ``unit_matrices`` (a controller's every cycle) read the terms' M^-1 in one compiled
+call.
 """
 
 from __future__ import annotations
