@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from impactqp.controller.model.classical_matrices import classical_jump_matrices
 from impactqp.controller.model.friction_pyramid import (
     EdgeMatrices,
     Edges,
@@ -51,8 +52,19 @@ from impactqp.controller.model.friction_pyramid import (
     fill_edge_matrices,
     slip_edges_into,
 )
-from impactqp.controller.model.jump import JumpMatrices, JumpModel, jump_model
-from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
+from impactqp.controller.model.jump import (
+    ClassicalJump,
+    CompositeRigidBodyJump,
+    GeneralizedMomentumJump,
+    JumpMatrices,
+    JumpModel,
+    jump_model,
+)
+from impactqp.controller.model.jump_kernels import (
+    HELD_CONTACT_METHODS,
+    crb_inverse_inertia_times,
+    rank_one_jump_matrices,
+)
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model import validation
 from impactqp.controller.model.validation import BadInputError
@@ -148,25 +160,35 @@ class ExpectedImpact:
         self._edge_count = friction.count
         self._edge_buffer = np.empty((2, 0, 0, 0))  # A_i and P_i, allocated at the first state
         self._edges = EdgeMatrices.of(self._edge_buffer)
+        # The crb, gm and classical models of a fixed base write A, P and G into one buffer,
+        # allocated at the first fill (``_fill_fixed_base``); the other forms return new matrices.
+        model = self.model
+        self._in_place = isinstance(model, GeneralizedMomentumJump) or type(model) is ClassicalJump
+        self._fixed_base_matrices = JumpMatrices(np.empty((0, 0)), np.empty((0, 0)), np.empty((3, 3)), None)
 
     @property
     def name(self) -> str:
         return self.model.name
 
     def matrices(self, terms) -> JumpMatrices:
-        """A, P, G (and C) of this state (the normal and the restitution were checked once, above)."""
-        self._update(terms)
+        """A, P, G (and C) of this state (the normal and the restitution were checked once, above);
+        the arrays of a fixed base's gm or crb model are refilled in place at the next fill of the
+        terms (copy them to keep them)."""
+        if terms.stamp != self._stamp:  # a new fill of the terms (read several times per cycle)
+            self._update(terms)
         return self._matrices
 
     def edge_matrices(self, terms) -> EdgeMatrices:
         """A_i and P_i of the friction rows' edges at this state (``friction.count`` of them;
         none without friction)."""
-        self._update(terms)
+        if terms.stamp != self._stamp:
+            self._update(terms)
         return self._edges
 
     def is_active(self, terms) -> bool:
         """The activation rule of the module docstring for this state."""
-        self._update(terms)
+        if terms.stamp != self._stamp:
+            self._update(terms)
         return self._active
 
     def shows_jump(self, J: np.ndarray, dq: np.ndarray, dq_cmd: np.ndarray) -> bool:
@@ -180,14 +202,38 @@ class ExpectedImpact:
         return commanded > self.rule.release_speed and -normal_motion(J, normal, point, dq)[0] < IMPACT_SPEED_DROP * commanded
 
     def _update(self, terms) -> None:
-        if terms.stamp == self._stamp:
-            return
+        """The matrices, edges and activation of the fill ``terms.stamp``."""
         normal = self.surface.normal
-        self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
+        if self._in_place and terms.held_jacobian.shape[0] == 0:
+            motion = self._fill_fixed_base(terms)
+        else:
+            self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
+            motion = normal_motion(terms.J, normal, terms.contact_point, terms.dq)
         if self._edge_count:
             self._fill_edges(terms)
-        self._active = self.rule.always_active or self._rule(*normal_motion(terms.J, normal, terms.contact_point, terms.dq))
+        self._active = self.rule.always_active or self._rule(*motion)
         self._stamp = terms.stamp
+
+    def _fill_fixed_base(self, terms) -> tuple[float, float]:
+        """A, P and G of a fixed base's crb, gm or classical model (their ``fixed_base_matrices``:
+        the rank-one products of ``jump`` or ``classical_jump_matrices``) written into the buffer,
+        and the activation rule's n.(J dq) and n.p, in one compiled call; the buffer is allocated
+        at the first fill."""
+        n = terms.J.shape[1]
+        matrices = self._fixed_base_matrices
+        if matrices.jump_matrix.shape != (n, n):
+            matrices = JumpMatrices(np.empty((n, n)), np.empty((n, n)), np.empty((3, 3)), None)
+            self._fixed_base_matrices = matrices
+        self._matrices = matrices
+        normal, restitution, out = self.surface.normal, self.restitution, matrices[:3]
+        point = terms.contact_point
+        if isinstance(self.model, CompositeRigidBodyJump):
+            rigid = (point, terms.com, terms.inertia_com, terms.mass)
+            return crb_cycle_update(rigid, terms.J, terms.JJt_inv, terms.dq, normal, restitution, out)
+        if isinstance(self.model, ClassicalJump):
+            return classical_cycle_update(terms.M_inv, terms.J, terms.dq, point, normal, restitution, out)
+        W_normal = self.model.inverse_inertia_times(terms, normal)
+        return rank_one_cycle_update(W_normal, terms.J, terms.JJt_inv, terms.dq, point, normal, restitution, out)
 
     def _fill_edges(self, terms) -> None:
         """The edges' maps of this state into buffers allocated at the first fill (the preview's
@@ -222,3 +268,31 @@ def normal_motion(J, normal, contact_point, dq):
         normal_speed += Jt_normal[j] * dq[j]
     normal_position = normal[0] * contact_point[0] + normal[1] * contact_point[1] + normal[2] * contact_point[2]
     return normal_speed, normal_position
+
+
+@njit(cache=True)
+def rank_one_cycle_update(W_normal, J, JJt_inv, dq, contact_point, normal, restitution, out):
+    """Kernel of a fixed base's gm or crb fill (``ExpectedImpact._fill_fixed_base``): from W n,
+    A = s (J+ W n)(J^T n)^T, P = s (J^T n)(J^T n)^T and G = s n n^T, s = -(1+c_r) / (n^T W n)
+    (eq. (12), ``rank_one_jump_matrices``), into out = (A, P, G); returns n.(J dq) and n.p
+    (``normal_motion``)."""
+    rank_one_jump_matrices(J, JJt_inv, W_normal, normal, restitution, out[0], out[1], out[2])
+    return normal_motion(J, normal, contact_point, dq)
+
+
+@njit(cache=True)
+def crb_cycle_update(rigid, J, JJt_inv, dq, normal, restitution, out):
+    """Kernel: ``rank_one_cycle_update`` with W = W_crb, eq. (20), its W_crb n from
+    rigid = (contact point, centre of mass, inertia about it, mass) (``crb_inverse_inertia_times``)."""
+    contact_point, com, inertia_com, mass = rigid
+    W_normal = crb_inverse_inertia_times(contact_point, com, inertia_com, mass, normal)
+    return rank_one_cycle_update(W_normal, J, JJt_inv, dq, contact_point, normal, restitution, out)
+
+
+@njit(cache=True)
+def classical_cycle_update(M_inv, J, dq, contact_point, normal, restitution, out):
+    """Kernel of a fixed base's classical fill (``ExpectedImpact._fill_fixed_base``): A, P and
+    G of eqs. (5)-(6) (``classical_jump_matrices``) into out = (A, P, G); returns n.(J dq) and
+    n.p (``normal_motion``)."""
+    classical_jump_matrices(M_inv, J, restitution, out[0], out[1], out[2])
+    return normal_motion(J, normal, contact_point, dq)

@@ -5,7 +5,12 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from reference.constraints import reference_normal_motion, reference_recoverable, reference_rows
+from reference.constraints import (
+    reference_normal_motion,
+    reference_fixed_base_cycle_update,
+    reference_recoverable,
+    reference_rows,
+)
 from whole_body_states import NORMAL, approach_velocity, stance, standing_states, upright, wall_ahead
 from whole_body_states import robot as g1
 
@@ -20,7 +25,13 @@ from impactqp.constraints import (
     TorqueLimit,
     VelocityLimit,
 )
-from impactqp.constraints.impact_model import ActivationRule, normal_motion
+from impactqp.constraints.impact_model import (
+    ActivationRule,
+    classical_cycle_update,
+    crb_cycle_update,
+    normal_motion,
+    rank_one_cycle_update,
+)
 from impactqp.controller.model.friction_pyramid import FrictionRows
 from impactqp.controller.model.jump import predict
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
@@ -265,6 +276,54 @@ def test_compiled_activation_inputs_equal_the_numpy_reference(robot, seed):
     fast = normal_motion(terms.J, normal, terms.contact_point, terms.dq)
     reference = reference_normal_motion(terms, normal)
     np.testing.assert_allclose(fast, reference, rtol=1e-10, atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=SEEDS, name=st.sampled_from(["crb", "gm", "classical"]), restitution=st.floats(0.0, 1.0))
+def test_compiled_fixed_base_fill_equals_the_numpy_reference(robot, seed, name, restitution):
+    """The one-call fill of an arm's crb, gm or classical impact (A, P, G and the activation
+    rule's inputs) equals its numpy statement, to 1e-12 of each matrix's largest entry."""
+    rng = np.random.default_rng(seed)
+    terms = random_state(robot, rng)
+    normal = rng.normal(size=3)
+    normal /= np.linalg.norm(normal)
+    model = jump_model(name)
+    out = (np.empty((JOINTS, JOINTS)), np.empty((JOINTS, JOINTS)), np.empty((3, 3)))
+    J, dq, point = terms.J, terms.dq, terms.contact_point
+    if name == "crb":
+        rigid = (point, terms.com, terms.inertia_com, terms.mass)
+        motion = crb_cycle_update(rigid, J, terms.JJt_inv, dq, normal, restitution, out)
+    elif name == "gm":
+        W_normal = model.inverse_inertia_times(terms, normal)
+        motion = rank_one_cycle_update(W_normal, J, terms.JJt_inv, dq, point, normal, restitution, out)
+    else:
+        motion = classical_cycle_update(terms.M_inv, J, dq, point, normal, restitution, out)
+    matrices, reference_motion = reference_fixed_base_cycle_update(model, terms, normal, restitution)
+    for fast, reference in zip(out, matrices[:3]):
+        np.testing.assert_allclose(fast, reference, rtol=0.0, atol=1e-12 * np.abs(reference).max())
+    np.testing.assert_allclose(motion, reference_motion, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["crb", "gm", "classical", "classical_normal"])
+def test_arm_impact_matrices_are_those_of_each_fill_written_into_the_arrays_of_the_first(robot, name):
+    """At every new fill of the terms the expected impact's A, P and G are the model's of that
+    state; the crb, gm and classical models write them into the arrays of the first fill (no
+    allocation per cycle), classical_normal returns new ones."""
+    rng = np.random.default_rng(7)
+    impact = ExpectedImpact(surface_ahead(robot.terms(PANDA.postures["elbow_right"].q)), name, 0.2)
+    terms = robot.empty_terms()
+    first = None
+    for _ in range(3):
+        state = random_state(robot, rng)
+        robot.update_terms(terms, state.q, state.dq)
+        matrices = impact.matrices(terms)
+        expected = jump_model(name).unit_matrices(terms, impact.surface.normal, 0.2)
+        for got, reference in zip(matrices[:3], expected[:3]):
+            np.testing.assert_allclose(got, reference, rtol=0.0, atol=1e-12 * np.abs(reference).max())
+        if first is None:
+            first = matrices.jump_matrix
+        else:
+            assert (matrices.jump_matrix is first) == (name != "classical_normal")
 
 
 @pytest.mark.parametrize(

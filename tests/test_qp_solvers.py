@@ -89,3 +89,35 @@ def test_backends_solve_problems_of_any_size_alike(variables, rows, seed):
             answers.append(x)
     for x in answers[1:]:
         np.testing.assert_allclose(x, answers[0], atol=1e-4)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**31))
+def test_daqps_warm_started_workspace_solves_each_problem_like_a_fresh_solve(seed):
+    """One DaqpSolver refilled in place along a sequence of QPs (its workspace updated and
+    warm-started from the previous working set) gives, at every step, the optimum of a fresh
+    ``daqp.solve`` of that QP (to 1e-9, the optimum being unique), calls an empty row interval
+    infeasible, and solves the next QP after it."""
+    import daqp
+
+    from impactqp.controller.qp.problem import QpProblem
+
+    rng = np.random.default_rng(seed)
+    variables, rows = 7, 10
+    problem = QpProblem.empty(rows, variables)
+    solver = DaqpSolver(rows, variables)
+    for step in range(12):
+        A = rng.normal(size=(variables, variables))
+        point = rng.normal(size=variables)
+        C = rng.normal(size=(rows, variables))
+        problem.H[:], problem.g[:], problem.C[:] = A.T @ A + np.eye(variables), rng.normal(size=variables), C
+        problem.l[:], problem.u[:] = C @ point - rng.uniform(0.0, 1.0, rows), C @ point + rng.uniform(0.0, 1.0, rows)
+        problem.lb[:], problem.ub[:] = point - 1.0, point + 1.0
+        if step == 6:
+            problem.l[0], problem.u[0] = 1.0, -1.0  # l > u: no ddq can satisfy row 0
+            assert solver.solve(problem) == ("infeasible", None)
+            continue
+        status, x = solver.solve(problem)
+        fresh = daqp.solve(problem.H, problem.g, problem.C, problem.upper, problem.lower, np.zeros(variables + rows, np.int32))
+        assert status == "solved" and fresh[2] == 1
+        np.testing.assert_allclose(x, fresh[0], atol=1e-9)

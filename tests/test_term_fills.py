@@ -8,10 +8,12 @@ import pinocchio as pin
 import pytest
 from conftest import joint_positions
 from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_robot import SINGULAR_Q
 
+from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.robot import SingularPostureError
+from impactqp.controller.model.robot import InvalidStateError, SingularPostureError
 from impactqp.controller.model.validation import BadInputError
 
 
@@ -50,15 +52,43 @@ def test_closed_form_inverse_of_J_Jt(robot, q):
     np.testing.assert_allclose(terms.JJt_inv @ (terms.J @ terms.J.T), np.eye(3), atol=1e-8)
 
 
-def test_singularity_is_detected_by_refill_too(robot):
-    q = PANDA.postures["elbow_up"].q
-    for buffer in (robot.terms(q), robot.update_terms(robot.empty_terms(), q, np.zeros(robot.nv))):
-        stamp, before = buffer.stamp, {name: np.copy(getattr(buffer, name)) for name in ("M", "J6", "JJt_inv", "com")}
-        with pytest.raises(SingularPostureError):
-            robot.update_terms(buffer, SINGULAR_Q, np.zeros(robot.nv))
-        assert buffer.stamp == stamp  # a refused state leaves the buffer as it was
+REFUSED_STATES = {
+    "singular": (SINGULAR_Q, np.zeros(7), SingularPostureError, "singular"),
+    "non-finite": (PANDA.postures["elbow_up"].q, np.array([0.0, np.nan, 0, 0, 0, 0, 0]), InvalidStateError, "non-finite"),
+    "huge": (PANDA.postures["elbow_up"].q, np.array([0.0, 0, 1e300, 0, 0, 0, 0]), InvalidStateError, "too large"),
+    "outside limits": (PANDA.q_max + 0.1, np.zeros(7), InvalidStateError, "outside the joint limits"),
+}
+
+
+@pytest.mark.parametrize("case", REFUSED_STATES)
+def test_a_refused_state_leaves_the_buffer_as_it_was(robot, case):
+    """A singular posture, a non-finite or huge entry, a joint outside its limits: the refill
+    raises (naming why) and every field, those that view the buffer's Pinocchio data included,
+    keeps the previous state's value."""
+    q_bad, dq_bad, error, message = REFUSED_STATES[case]
+    q, dq = PANDA.postures["elbow_up"].q, np.full(robot.nv, 0.2)
+    names = ("q", "dq", "M", "h", "J6", "dJ6_dq", "JJt_inv", "com", "contact_point", "contact_rotation", "inertia_com")
+    for buffer in (robot.terms(q, dq), robot.update_terms(robot.empty_terms(), q, dq)):
+        stamp, before = buffer.stamp, {name: np.copy(getattr(buffer, name)) for name in names}
+        with pytest.raises(error, match=message):
+            robot.update_terms(buffer, q_bad, dq_bad)
+        assert buffer.stamp == stamp
         for name, value in before.items():
             np.testing.assert_array_equal(getattr(buffer, name), value, err_msg=name)
+        np.testing.assert_allclose(buffer.M_inv @ buffer.M, np.eye(robot.nv), atol=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(q=joint_positions(), dq=joint_positions(0.0))
+def test_a_cycle_buffers_inverse_inertia_is_computeMinverses(robot, q, dq):
+    """A refilled buffer's M^-1 (the Cholesky factor of its own M: ``pin.cholesky``) equals
+    Pinocchio's ``computeMinverse`` at q (both triangles) to 1e-12 of its largest entry, and is
+    the inverse of the buffer's M."""
+    buffer = robot.update_terms(robot.empty_terms(), q, 0.1 * dq, check_limits=False)
+    upper = pin.computeMinverse(robot.model, robot.model.createData(), q)
+    expected = np.triu(upper) + np.triu(upper, 1).T
+    np.testing.assert_allclose(buffer.M_inv, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+    np.testing.assert_allclose(buffer.M_inv @ buffer.M, np.eye(robot.nv), atol=1e-9)
 
 
 @settings(max_examples=10, deadline=None)
@@ -96,3 +126,26 @@ def check_one_compute_all_terms(robot, terms, q, dq):
     np.testing.assert_allclose(terms.dJcom_dq, Jcom_rate / (2 * eps), atol=1e-6)
     with pytest.raises(BadInputError, match="unknown frame"):
         terms.frame("torso")
+
+
+@settings(max_examples=20, deadline=None)
+@given(q=joint_positions(), dq=joint_positions(0.0), restitution=st.floats(0.0, 1.0))
+def test_a_cycle_buffer_gives_the_jump_maps_of_a_predictions_terms(robot, q, dq, restitution):
+    """The crb, gm and classical maps (A, P, G) of a controller's refilled buffer (its M^-1 from
+    the Cholesky factor of its own M) equal those of a prediction's terms at the same state
+    (M^-1 from ``computeMinverse``) to 1e-12 of their largest entry."""
+    dq = 0.1 * dq
+    try:
+        prediction = robot.terms(q, dq, check_limits=False)
+    except SingularPostureError:
+        return
+    buffer = robot.update_terms(robot.empty_terms(), q, dq, check_limits=False)
+    normal = np.array([-1.0, 0.0, 0.0])
+    for name in ("crb", "gm", "classical"):
+        expected = jump_model(name).unit_matrices(prediction, normal, restitution)
+        got = jump_model(name).unit_matrices(buffer, normal, restitution)
+        for field in ("jump_matrix", "torque_matrix", "impulse_map"):
+            reference = getattr(expected, field)
+            np.testing.assert_allclose(
+                getattr(got, field), reference, rtol=0, atol=1e-12 * np.abs(reference).max(), err_msg=f"{name} {field}"
+            )

@@ -43,9 +43,10 @@ This module is the one home of these maps and predictors: ``JumpModel`` gives th
 of any robot (``ModelTerms``; ``unit_maps`` and ``unit_matrices`` read the terms'
 ``held_jacobian``), :func:`predict` by a method's name, :func:`predict_from_terms` for N states
 of an arm at once (the batched terms of ``controller.model.batch``, leading axis N); the
-compiled kernels are in ``jump_kernels``. The held-contact ``unit_maps`` read M^-1 and take
-J# = N (J N)^+, equal to N J^T (J N J^T)^-1; the held-contact
-``unit_matrices`` (a controller's every cycle) read the terms' M^-1 in one compiled call.
+compiled kernels are in ``jump_kernels`` (the classical one in ``classical_matrices``). The
+held-contact ``unit_maps`` read M^-1 and take J# = N (J N)^+, equal to N J^T (J N J^T)^-1; the
+held-contact ``unit_matrices`` (a controller's every cycle) read the terms' M^-1 in one compiled
+call.
 """
 
 from __future__ import annotations
@@ -55,6 +56,7 @@ from typing import NamedTuple
 
 import numpy as np
 from . import validation
+from .classical_matrices import classical_jump_matrices
 from .jump_kernels import (
     HELD_CONTACT_METHODS,
     crb_inverse_inertia_times,
@@ -292,6 +294,13 @@ class ClassicalJump(JumpModel):
             -(1.0 + restitution) * np.linalg.inv(gm_inverse_inertia(terms)), joint_space_inverse_inertia_times_Jt(terms), None
         )
 
+    def fixed_base_matrices(self, terms, normal, restitution):
+        """A = M^-1 J^T G J, P = J^T G J and G in one compiled call (``classical_jump_matrices``)."""
+        n = terms.J.shape[1]
+        matrices = JumpMatrices(np.empty((n, n)), np.empty((n, n)), np.empty((3, 3)), None)
+        classical_jump_matrices(terms.M_inv, terms.J, restitution, *matrices[:3])
+        return matrices
+
 
 class ClassicalNormalJump(ClassicalJump):
     """Classical prediction keeping only the normal part n n^T iota_c of the impulse (5),
@@ -302,6 +311,8 @@ class ClassicalNormalJump(ClassicalJump):
     def fixed_base_maps(self, terms, normal, restitution):
         classical = super().fixed_base_maps(terms, normal, restitution)
         return JumpMaps(np.outer(normal, normal) @ classical.G, classical.K, None)
+
+    fixed_base_matrices = JumpModel.fixed_base_matrices  # A = K G J from its own G
 
 
 class GeneralizedMomentumJump(JumpModel):

@@ -73,7 +73,11 @@ class ModelTerms:
     the same pass, kept until the next fill. An arm's ``RobotModel.terms`` (a prediction from q)
     leaves M, h and dJ6_dq to a first read, a floating base's refill h and JJt_inv, which its
     whole-body QP does not read; a controller's ``update_terms`` of an arm fills every field
-    in place (``store_arm_terms``), in the buffer of ``RobotModel.empty_terms``.
+    of its buffer (``RobotModel.empty_terms``) at once.
+
+    ``cycle_data`` is the Pinocchio data of an arm's per-cycle buffer (None elsewhere): its
+    ``computeAllTerms`` writes M, h, com, contact_point and contact_rotation, which are views of
+    it (no copy), and its Cholesky factor of M gives M^-1 (``compute_inverse_inertia``).
 
     A controller refills one ModelTerms per cycle (``RobotModel.update_terms``); ``stamp``
     changes at every fill (and for a ``dataclasses.replace`` copy), so anything cached per
@@ -99,6 +103,7 @@ class ModelTerms:
     compute_body: Callable[[np.ndarray, np.ndarray], BodyTerms] | None = field(default=None, repr=False)
     compute_inverse_inertia: Callable[[np.ndarray], np.ndarray] | None = field(default=None, repr=False)
     fill_lazy: Callable[[ModelTerms, str], dict[str, np.ndarray]] | None = field(default=None, repr=False)
+    cycle_data: object = field(default=None, repr=False)
     stamp: int = field(init=False, repr=False)
     _derived: dict = field(init=False, repr=False)
 
@@ -132,8 +137,9 @@ class ModelTerms:
 
     @property
     def M_inv(self) -> np.ndarray:
-        """M^-1 (nv x nv), Pinocchio's ``computeMinverse``: the body terms' when a floating base
-        filled them, else computed alone on first use (``compute_inverse_inertia``)."""
+        """M^-1 (nv x nv): the body terms' (``computeMinverse``) when a floating base filled them,
+        else computed alone on first use (``compute_inverse_inertia``: ``computeMinverse`` at q,
+        or, for an arm's cycle buffer, the Cholesky factor of its M, ``pin.cholesky``)."""
         if self.body is not None:
             return self.body.M_inv
         return self.cached("M_inv", lambda: self.compute_inverse_inertia(self.q))
@@ -206,7 +212,11 @@ def symmetric_inverse3_into(S, out):
     return det
 
 
-ACCEPTED, NEAR_SINGULAR, OUTSIDE_LIMITS = 0, 1, 2
+ACCEPTED, NEAR_SINGULAR, OUTSIDE_LIMITS, NOT_FINITE = 0, 1, 2, 3
+MAX_STATE_ENTRY = 1e100
+"""Largest |q_i| (rad) or |dq_i| (rad/s) of a joint state: far above any robot's, far enough
+below the float range that the model's products of entries (kinetic energy, Coriolis terms)
+cannot overflow."""
 
 
 @njit(cache=True)
@@ -236,30 +246,27 @@ def contact_jacobian_status(J, q, q_min, q_max, check_limits, singular_ratio_squ
 
 
 @njit(cache=True)
-def store_arm_terms(outputs, targets, q, q_min, q_max, check_limits, singular_ratio_squared):
-    """Kernel of an arm's per-cycle refill: the checks of ``contact_jacobian_status`` on the
-    Jacobian of ``outputs``, then, when ACCEPTED only (a refused state leaves the targets as they
-    were), every output written into its preallocated target once. ``outputs`` = (M, h,
-    centre of mass, contact point, contact rotation: views of Pinocchio's data; J6, dJ6 dq,
-    inertia about the centre of mass), ``targets`` the same terms' arrays then (J J^T)^-1."""
-    M, h, com, point, rotation, J6, drift, inertia = outputs
-    M_out, h_out, com_out, point_out, rotation_out, J6_out, drift_out, inertia_out, JJt_inv_out = targets
-    JJt_inv = np.empty((3, 3))
+def arm_state_status(J6, q, dq, q_limits, check_limits, singular_ratio_squared, JJt_inv):
+    """Kernel of the checks of an arm's per-cycle refill, after its ``computeAllTerms``: NOT_FINITE
+    when sum |q_i| + sum |dq_i| exceeds MAX_STATE_ENTRY (nq + nv) (a NaN, an infinity or a huge
+    entry: ``check_state``'s test), else the status of ``contact_jacobian_status`` on the linear
+    rows of the contact frame's Jacobian ``J6`` (``q_limits``: the rows q_min, q_max); (J J^T)^-1
+    is written into ``JJt_inv`` only when ACCEPTED (a refused state leaves it as it was)."""
+    q_sum = 0.0
+    for j in range(q.shape[0]):
+        q_sum += abs(q[j])
+    dq_sum = 0.0
+    for j in range(dq.shape[0]):
+        dq_sum += abs(dq[j])
+    if not q_sum + dq_sum <= (q.shape[0] + dq.shape[0]) * MAX_STATE_ENTRY:
+        return NOT_FINITE
+    inverse = np.empty((3, 3))
     status = contact_jacobian_status(
-        np.ascontiguousarray(J6[:3]), q, q_min, q_max, check_limits, singular_ratio_squared, JJt_inv
+        np.ascontiguousarray(J6[:3]), q, q_limits[0], q_limits[1], check_limits, singular_ratio_squared, inverse
     )
-    if status != ACCEPTED:
-        return status
-    M_out[:, :] = M
-    h_out[:] = h
-    com_out[:] = com
-    point_out[:] = point
-    rotation_out[:, :] = rotation
-    J6_out[:, :] = J6
-    drift_out[:] = drift
-    inertia_out[:, :] = inertia
-    JJt_inv_out[:, :] = JJt_inv
-    return ACCEPTED
+    if status == ACCEPTED:
+        JJt_inv[:, :] = inverse
+    return status
 
 
 @njit(cache=True)

@@ -40,6 +40,7 @@ import pinocchio as pin
 
 # SINGULAR_RATIO and SingularPostureError are the model's: their home is the fills that check them
 from .term_fills import SINGULAR_RATIO, ModelTermFills, SingularPostureError  # noqa: F401
+from .model_terms import MAX_STATE_ENTRY
 from .robot_description import PANDA, RobotDescription, model_urdf, robot_description
 from .tool_description import TOOLS, ToolDescription, tool_description
 from .validation import BadInputError, all_finite
@@ -55,10 +56,6 @@ TOOL_RADIUS = TOOLS["impact_tip"].geometry.radius
 TOOL_CENTRE_OFFSET = float(TOOLS["impact_tip"].geometry.centre[2])
 TOOL_TIP_OFFSET = float(TOOLS["impact_tip"].contact_point[2])
 
-MAX_STATE_ENTRY = 1e100
-"""Largest |q_i| (rad) or |dq_i| (rad/s) of a joint state: far above any robot's, far enough
-below the float range that the model's products of entries (kinetic energy, Coriolis terms)
-cannot overflow."""
 # The Panda's datasheet limits (robot_description.PANDA, docs/robots.md).
 VELOCITY_LIMIT = PANDA.dq_max
 TORQUE_LIMIT = PANDA.tau_max

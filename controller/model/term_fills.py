@@ -6,9 +6,11 @@ pass (``pin.crba`` with ``Convention.WORLD``): the contact frame's Jacobian and 
 (J J^T)^-1 and the locked robot's mass, centre of mass and inertia about it, the subtree inertia
 ``data.oYcrb`` of the root joints (what the composite-rigid-body model (20) welds); M, h and the
 drift dJ6 dq are lazily filled fields (``ModelTerms.fill_lazy``), one ``computeAllTerms`` on
-their first read. A controller's cycle (``update_terms``) is one ``computeAllTerms`` whose
-outputs one kernel (``model_terms.store_arm_terms``) checks and writes into the preallocated
-buffer of ``empty_terms``. A floating base's fill is one pass of the algorithms its whole-body
+their first read. A controller's cycle (``update_terms``) is one ``computeAllTerms`` on the
+buffer's own data (``ModelTerms.cycle_data``, made by ``empty_terms``), whose M, h, centre of mass
+and contact placement the buffer's fields are views of; one kernel
+(``model_terms.arm_state_status``) checks the state; M^-1, when read, comes from the Cholesky
+factor of that M (``pin.cholesky``). A floating base's fill is one pass of the algorithms its whole-body
 QP needs, into its buffer; h and (J J^T)^-1, which that QP does not read, on first read.
 """
 
@@ -20,13 +22,14 @@ import pinocchio as pin
 from .model_terms import (
     ACCEPTED,
     NEAR_SINGULAR,
+    NOT_FINITE,
     OUTSIDE_LIMITS,
     BodyTerms,
     FrameState,
     ModelTerms,
+    arm_state_status,
     contact_jacobian_status,
     mirror_upper,
-    store_arm_terms,
     symmetric_inverse3_into,
 )
 from .validation import BadInputError
@@ -43,16 +46,14 @@ class ModelTermFills:
     """The fills of a robot model's ``ModelTerms`` (module docstring), for ``robot.RobotModel``:
     it reads the model's Pinocchio ``model`` and ``data``, sizes, limits, frame ids and
     ``check_state``; ``_prepare_fills`` (called once the model is built) makes the data the
-    lazily filled fields and M^-1 are computed on, and the views of ``data`` an arm's cycle reads."""
+    lazily filled fields and M^-1 are computed on."""
 
     def _prepare_fills(self) -> None:
         model = self.model
         self._body_data = model.createData()
         self._inverse_data = model.createData()
         self._root_joints = [j for j in range(1, model.njoints) if model.parents[j] == 0]
-        if not self.floating:  # views of the data that computeAllTerms refills in place
-            placement = self.data.oMf[self.contact_frame_id]
-            self._data_outputs = (self.data.M, self.data.nle, self.data.com[0], placement.translation, placement.rotation)
+        self._q_limits = np.stack([self.q_min, self.q_max])  # the rows of ``arm_state_status``
 
     def terms(self, q, dq=None, *, check_limits: bool | None = None) -> ModelTerms:
         """All model terms of the state (q, dq) (dq = 0 when None), in new arrays.
@@ -73,9 +74,13 @@ class ModelTermFills:
         """``terms(q, dq)`` written into an existing ModelTerms (a controller's per-cycle
         buffer: no new object; a floating base's arrays are refilled in place), with a new
         ``stamp``. Raises like ``terms``; a refused state leaves a floating base's as it was."""
-        q, dq = self.check_state(q, dq, check_limits=False)
         if self.base_nv:  # a floating base (an attribute: this runs every control cycle)
+            q, dq = self.check_state(q, dq, check_limits=False)
             return self._fill_floating(terms, q, dq, bool(check_limits))
+        q = np.asarray(q, dtype=float)
+        dq = self._zero_velocity if dq is None else np.asarray(dq, dtype=float)
+        if q.shape != (self.nq,) or dq.shape != (self.nv,):
+            self.check_state(q, dq, check_limits=False)  # raises, naming the wrong size
         return self._fill_fixed(terms, q, dq, check_limits is not False)
 
     def _prediction_terms(self, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
@@ -102,33 +107,64 @@ class ModelTermFills:
         )
 
     def _fill_fixed(self, terms: ModelTerms, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
-        """An arm's terms refilled in place by one ``computeAllTerms`` (a controller's cycle:
-        every field). dJ6/dt dq (world-aligned) is the frame's classical acceleration at ddq = 0,
-        which computeAllTerms leaves in the data; it fills both triangles of M. One kernel checks
-        the state and writes every output into the terms' own arrays (``store_arm_terms``)."""
-        model, data, fid = self.model, self.data, self.contact_frame_id
+        """An arm's terms refilled by one ``computeAllTerms`` on the buffer's own data (a
+        controller's cycle: every field). M, h, the centre of mass and the contact placement are
+        views of that data (``cycle_data``, made at the first refill of a buffer that has none);
+        J6, its drift dJ6/dt dq (world-aligned: the frame's classical acceleration at ddq = 0,
+        which computeAllTerms leaves in the data) and the inertia about the centre of mass are
+        Pinocchio's new arrays. One kernel checks the state (``arm_state_status``: finite,
+        contact Jacobian, limits); a refused state is computed back out of the data, so the
+        buffer stays as it was."""
+        data = terms.cycle_data if terms.cycle_data is not None else self._attach_cycle_data(terms)
+        model, fid = self.model, self.contact_frame_id
         pin.computeAllTerms(model, data, q, dq)
         pin.updateFramePlacement(model, data, fid)
+        J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+        status = arm_state_status(J6, q, dq, self._q_limits, check_limits, SINGULAR_RATIO**2, terms.JJt_inv)
+        if status != ACCEPTED:  # raises, or a near-singular J that the exact test clears: accept it
+            try:
+                self._refuse(J6[:3], q, dq, status, check_limits)
+            except BadInputError:
+                self._compute_cycle_data(data, terms.q, terms.dq)
+                raise
+            arm_state_status(J6, q, dq, self._q_limits, False, -np.inf, terms.JJt_inv)
         centroidal = data.Ig
-        outputs = (
-            *self._data_outputs, pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED),
-            pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector, centroidal.inertia,
-        )
-        targets = (
-            terms.M, terms.h, terms.com, terms.contact_point, terms.contact_rotation, terms.J6, terms.dJ6_dq,
-            terms.inertia_com, terms.JJt_inv,
-        )
-        status = store_arm_terms(outputs, targets, q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO**2)
-        if status != ACCEPTED:  # raises, or a near-singular J that the exact test clears: store it
-            self._refuse(outputs[5][:3], q, dq, status, check_limits)
-            store_arm_terms(outputs, targets, q, self.q_min, self.q_max, False, -np.inf)
-        terms.q, terms.dq, terms.mass = q, dq, float(centroidal.mass)
+        terms.J6, terms.J = J6, J6[:3]
+        terms.dJ6_dq = pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector
+        terms.inertia_com, terms.mass = centroidal.inertia, centroidal.mass
+        terms.q, terms.dq = q, dq
         return terms.refilled()
 
+    def _compute_cycle_data(self, data: pin.Data, q: np.ndarray, dq: np.ndarray) -> None:
+        """``computeAllTerms`` and the contact placement of (q, dq) in ``data``."""
+        pin.computeAllTerms(self.model, data, q, dq)
+        pin.updateFramePlacement(self.model, data, self.contact_frame_id)
+
+    def _attach_cycle_data(self, terms: ModelTerms) -> pin.Data:
+        """Give an arm's buffer a Pinocchio data of its own, computed at the buffer's state, and
+        make its M, h, centre of mass and contact placement views of that data's outputs (M's
+        transpose: computeAllTerms fills both triangles, and the transpose is row-major); its
+        M^-1 then comes from the Cholesky factor of that M."""
+        data = self.model.createData()
+        self._compute_cycle_data(data, terms.q, terms.dq)
+        placement = data.oMf[self.contact_frame_id]
+        terms.M, terms.h, terms.com = data.M.T, data.nle, data.com[0]
+        terms.contact_point, terms.contact_rotation = placement.translation, placement.rotation
+        terms.cycle_data = data
+        terms.compute_inverse_inertia = lambda q: self._cholesky_inverse_inertia(data)
+        return data
+
+    def _cholesky_inverse_inertia(self, data: pin.Data) -> np.ndarray:
+        """M^-1 of the M in ``data`` (both triangles) from its sparse Cholesky factor M = U D U^T
+        (``pin.cholesky.decompose``, then ``computeMinv``)."""
+        pin.cholesky.decompose(self.model, data)
+        return pin.cholesky.computeMinv(self.model, data)
+
     def _refuse(self, J: np.ndarray, q: np.ndarray, dq: np.ndarray, status: int, check_limits: bool) -> None:
-        """Raise for a state ``contact_jacobian_status`` did not accept: SingularPostureError when
-        the exact test confirms a near-singular J, InvalidStateError (naming the joint) when q
-        leaves its limits; a near-singular status that the exact test clears returns."""
+        """Raise for a state ``contact_jacobian_status`` (or ``arm_state_status``) did not
+        accept: InvalidStateError for a non-finite or huge entry, SingularPostureError when the
+        exact test confirms a near-singular J, InvalidStateError (naming the joint) when q leaves
+        its limits; a near-singular status that the exact test clears returns."""
         if status == NEAR_SINGULAR:
             eigenvalues = np.linalg.eigvalsh(J @ J.T)
             if not eigenvalues[0] >= (SINGULAR_RATIO**2) * eigenvalues[2]:
@@ -136,8 +172,8 @@ class ModelTermFills:
                     "singular contact Jacobian at this posture (singular values ratio "
                     f"{np.sqrt(max(eigenvalues[0], 0.0) / eigenvalues[2]):.1e})"
                 )
-        if status == OUTSIDE_LIMITS or check_limits:
-            self.check_state(q, dq, check_limits=True)  # raises, naming the joint, when outside
+        if status == NOT_FINITE or status == OUTSIDE_LIMITS or check_limits:
+            self.check_state(q, dq, check_limits=True)  # raises, naming the entry or the joint
 
     def _lazy_dynamics(self, terms: ModelTerms, name: str) -> dict[str, np.ndarray]:
         """The lazily filled fields of ``terms`` (``ModelTerms.fill_lazy``), on a data of their
@@ -162,17 +198,19 @@ class ModelTermFills:
         return M_inv
 
     def empty_terms(self) -> ModelTerms:
-        """A ModelTerms of unset arrays, for ``update_terms`` to fill in place (a controller's
-        per-cycle buffer); a floating base's h and (J J^T)^-1 on their first read
-        (``_lazy_dynamics``)."""
+        """A ModelTerms for ``update_terms`` to refill (a controller's per-cycle buffer): an arm's
+        with its own Pinocchio data (``_attach_cycle_data``) at the neutral configuration at rest,
+        the fields it does not view unset; a floating base's of unset arrays, its h and
+        (J J^T)^-1 on their first read (``_lazy_dynamics``)."""
         nv = self.nv
         J6 = np.empty((6, nv))
         if not self.floating:
-            return ModelTerms(
-                np.empty(self.nq), np.empty(nv), np.empty((nv, nv)), np.empty(nv), J6[:3], J6, np.empty(6),
-                np.empty((3, 3)), np.empty(3), np.empty((3, 3)), np.empty(3), 0.0, np.empty((3, 3)),
-                compute_body=self.body_terms, compute_inverse_inertia=self.inverse_inertia,
+            terms = ModelTerms(
+                pin.neutral(self.model), np.zeros(nv), None, None, J6[:3], J6, np.empty(6), np.empty((3, 3)),
+                None, None, None, 0.0, np.empty((3, 3)), compute_body=self.body_terms,
             )
+            self._attach_cycle_data(terms)
+            return terms
         held = 6 * len(self.held_frame_ids)
         frames = {
             name: FrameState(np.empty(3), np.empty((3, 3)), np.empty((6, nv)), np.empty(6)) for name in self.frame_ids

@@ -1,6 +1,7 @@
 """QP solver backends: each ``solve(problem) -> (status, x)`` on a ``QpProblem``.
 
-``daqp`` (the default) is called directly on the preallocated, stacked bounds. ``proxqp`` is
+``daqp`` (the default) works on the preallocated, stacked bounds in one workspace of its own,
+updated in place and warm-started every cycle. ``proxqp`` is
 proxsuite dense, initialised once and then updated and warm-started every cycle. Any other
 name goes through ``qpsolvers.solve_problem(..., solver=name)`` (one-shot, no warm start);
 ``"qpsolvers:proxqp"`` forces proxqp through qpsolvers. ``QuadprogSolver`` (Goldfarb-Idnani)
@@ -66,19 +67,32 @@ class ProxqpDenseSolver:
 
 
 class DaqpSolver:
-    """daqp called directly on the stacked bounds [lb; l] <= [x; C x] <= [ub; u]."""
+    """daqp on the stacked bounds [lb; l] <= [x; C x] <= [ub; u] through one workspace of its own
+    (``daqp.Model``, daqp's lowest Python entry): set up at the first solve of a problem, its
+    data updated in place at every later solve of the same problem, which starts from the
+    previous working set (warm start). A failed setup, update or solve makes the next solve
+    start afresh (a cold setup). daqp's exit flag -1 says infeasible: a failed setup or update
+    is an inconsistent box (lb > ub)."""
 
     name = "daqp"
 
     def __init__(self, rows: int, variables: int):
-        self._sense = np.zeros(variables + rows, dtype=np.int32)
+        self._sense = np.zeros(variables + rows, dtype=np.int32)  # daqp keeps its working set here
+        self._workspace = daqp.Model()
+        self._problem: QpProblem | None = None  # the problem the workspace is set up for
 
     def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
-        sense = self._sense
-        sense.fill(0)  # daqp writes the working set into it
-        x, _, exitflag, _ = daqp.solve(problem.H, problem.g, problem.C, problem.upper, problem.lower, sense)
-        if exitflag >= 1:
-            return SOLVED, x
+        if problem is self._problem:
+            exitflag = self._workspace.update(problem.H, problem.g, problem.C, problem.upper, problem.lower)
+        else:
+            self._sense.fill(0)
+            exitflag = self._workspace.setup(problem.H, problem.g, problem.C, problem.upper, problem.lower, self._sense)[0]
+            self._problem = problem
+        if exitflag >= 0:
+            x, _, exitflag, _ = self._workspace.solve()
+            if exitflag >= 1:
+                return SOLVED, x
+        self._problem = None
         return (INFEASIBLE if exitflag == -1 else FAILED), None
 
 

@@ -3,19 +3,24 @@
 - controller.cycle: microseconds per ``step`` in a kinematic closed loop (q, dq <- q_cmd,
   dq_cmd) approaching the default wall faster than the posture allows, every constraint on,
   the impact-aware ones active (goals: median <= 100 us, p99 <= 250 us), on the Panda;
-- controller.cycle.friction4: the same loop with the robust friction rows of a 4-edge pyramid
-  (mu = ``BENCH_FRICTION``; docs/frictional-impacts.md), timed in the same alternating blocks as
-  controller.cycle, and their ratio ``controller.cycle.friction4/controller.cycle`` (goal <= 1.3);
 - floor.cycle: the floor of that cycle at the same states: one ``computeAllTerms`` and a bare
   ``daqp.solve`` of the controller's own QP (the same H, g, C and stacked bounds, recorded along
-  the loop), timed in alternating blocks with controller.cycle (``base.alternating_blocks``),
-  and their ratio ``controller.cycle/floor.cycle`` block by block;
+  the loop);
+- controller.cycle.friction4: the same loop with the robust friction rows of a 4-edge pyramid
+  (mu = ``BENCH_FRICTION``; docs/frictional-impacts.md); controller.cycle.robust: the same loop
+  with the robust three-model impact rows (crb, gm and classical at once);
+- peer.pink.cycle: the same robot in pink's ``solve_ik`` (frame task + posture task +
+  configuration and velocity limits, velocity level); peer.mink.cycle: mink on the MuJoCo model
+  of our scene (frame task on the tool centre body + posture task + configuration and velocity
+  limits); each on its fastest solver in this run (``fastest_solver``: every installed one of
+  ``PEER_SOLVERS`` timed on a short block first);
+  all of these timed in alternating blocks in one process (``cycle_and_floor_rows``, with
+  ``base.alternating_blocks``), with the ratios controller.cycle/floor.cycle,
+  controller.cycle/peer.pink.cycle, controller.cycle/peer.mink.cycle,
+  controller.cycle.friction4/controller.cycle (goal <= 1.3) and
+  controller.cycle.robust/controller.cycle, block by block;
   controller.cycle.fr3 and controller.cycle.ur5 the same loop on the FR3 and on the UR5 (six
   joints, from its description file only), all with the impact tip;
-- peer.pink.cycle: the same robot in pink's ``solve_ik`` (frame task + posture task +
-  configuration and velocity limits, velocity level), measured in the same run;
-- peer.mink.cycle: mink on the MuJoCo model of our scene (frame task on the tool centre body +
-  posture task + configuration and velocity limits), same loop;
 - peer.tsid.cycle: TSID (compiled C++), or a row with a note when TSID is not installable;
 - controller.fallback_cycle: microseconds per ``step`` on random infeasible states (too fast
   towards the wall with the impact constraints always on; goal: p99 <= 2x controller.cycle p99);
@@ -56,14 +61,14 @@ WALL_GAP = 0.10  # m between the tool tip and the wall at the start
 BENCH_FRICTION = 0.3  # mu of controller.cycle.friction4's rows
 
 
-def _approach_setup(robot: PandaModel, solver: str | None = None, friction: float = 0.0):
+def _approach_setup(robot: PandaModel, solver: str | None = None, friction: float = 0.0, jump_model: str = "crb"):
     """The benchmark's approach controller (the configuration's default solver when None; the
-    robust friction rows of mu = ``friction`` when > 0), at the robot's default posture for its
-    tool."""
+    robust friction rows of mu = ``friction`` when > 0; the impact rows of ``jump_model``), at
+    the robot's default posture for its tool."""
     posture = tool_posture(robot, robot.description.default_posture)
     normal = posture.surface.normal
     surface = Surface(robot.contact_point(posture.q) - WALL_GAP * normal, normal)
-    config = ControllerConfig.approach(surface, speed=0.5, friction=friction)
+    config = ControllerConfig.approach(surface, speed=0.5, friction=friction, jump_model=jump_model)
     if solver is not None:
         config = replace(config, solver=solver)
     return build_controller(config, robot), posture.q
@@ -135,28 +140,36 @@ class CycleFloor:
 
 
 def cycle_and_floor_rows(
-    name: str, floor: str, robot: RobotModel, setup: Callable[[], tuple], variants: dict[str, Callable[[], tuple]] | None = None
+    name: str,
+    floor: str,
+    robot: RobotModel,
+    setup: Callable[[], tuple],
+    variants: dict[str, Callable[[], tuple]] | None = None,
+    peers: dict[str, tuple[Callable[[int], np.ndarray], str]] | None = None,
 ) -> list[dict]:
     """The rows ``name`` (us per ``step`` of the closed loop of ``setup()`` = (controller, q0)),
     ``floor`` (``CycleFloor`` at the states of the same loop, recorded by a twin controller) and
     their ratio, timed in alternating blocks of CYCLES // ALTERNATING_BLOCKS cycles after a
-    warm-up of both; each of ``variants`` (row name: its setup) is a closed loop timed in the same
-    blocks, with its ratio to ``name``."""
-    variants = variants or {}
+    warm-up of each; each of ``variants`` (row name: its setup) is a closed loop timed in the same
+    blocks, with its ratio to ``name``; each of ``peers`` (row name: (its loop's ``run``, seconds
+    per cycle of the next cycles; the row's note)) too, with the ratio of ``name`` to it."""
+    variants, peers = variants or {}, peers or {}
     states: list = []
     ClosedLoop(*setup(), robot.nv).run(CYCLES, states)
     loop, cycle_floor = ClosedLoop(*setup(), robot.nv), CycleFloor(robot, states)
     others = {variant: ClosedLoop(*make(), robot.nv) for variant, make in variants.items()}
-    for warm_up in (ClosedLoop(*setup(), robot.nv), *(ClosedLoop(*make(), robot.nv) for make in variants.values())):
-        warm_up.run(300)  # warm-up (numba kernels, caches)
-    cycle_floor.run(300)
+    runs = {name: lambda cycles: loop.run(cycles)[0], floor: cycle_floor.run}
+    runs |= {variant: (lambda cycles, other=other: other.run(cycles)[0]) for variant, other in others.items()}
+    runs |= {peer: run for peer, (run, _) in peers.items()}
+    for run in runs.values():
+        run(300)  # warm-up (numba kernels, caches)
     block = CYCLES // ALTERNATING_BLOCKS
-    timers = {name: lambda: loop.run(block)[0], floor: lambda: cycle_floor.run(block)}
-    timers |= {variant: (lambda other=other: other.run(block)[0]) for variant, other in others.items()}
-    blocks = alternating_blocks(timers)
+    blocks = alternating_blocks({row: (lambda run=run: run(block)) for row, run in runs.items()})
     rows = [blocks_row(name, "us", blocks[name], 1e6), blocks_row(floor, "us", blocks[floor], 1e6), ratio_row(name, floor, blocks)]
     for variant in variants:
         rows += [blocks_row(variant, "us", blocks[variant], 1e6), ratio_row(variant, name, blocks)]
+    for peer, (_, note) in peers.items():
+        rows += [{**blocks_row(peer, "us", blocks[peer], 1e6), "note": note}, ratio_row(name, peer, blocks)]
     return rows
 
 
@@ -181,27 +194,39 @@ PEER_SOLVERS = ("daqp", "proxqp", "quadprog")
 SOLVER_TRIAL_CYCLES = 300
 
 
-def fastest_solver_row(name: str, samples_of: Callable[[str, int], np.ndarray], cycles: int = CYCLES) -> dict:
-    """The row of a peer on its fastest solver in this run: each of ``PEER_SOLVERS`` installed
-    here times a short block (``samples_of(solver, cycles)``: seconds per cycle), the fastest
-    median times the full block; the row's note names it."""
+def fastest_solver(samples_of: Callable[[str, int], np.ndarray]) -> tuple[str, str]:
+    """A peer's fastest solver in this run, and the note that says so: each of ``PEER_SOLVERS``
+    installed here times a short block (``samples_of(solver, cycles)``: seconds per cycle), the
+    fastest median wins."""
     import qpsolvers
 
     candidates = [solver for solver in PEER_SOLVERS if solver in qpsolvers.available_solvers]
     trial = {solver: float(np.median(samples_of(solver, SOLVER_TRIAL_CYCLES))) for solver in candidates}
     best = min(trial, key=trial.get)
-    note = f"solver {best}: the fastest of {', '.join(candidates)} in this run"
+    timed = ", ".join(f"{solver} {1e6 * seconds:.1f} us" for solver, seconds in trial.items())
+    return best, f"solver {best}: the fastest in this run ({timed})"
+
+
+def fastest_solver_row(name: str, samples_of: Callable[[str, int], np.ndarray], cycles: int = CYCLES) -> dict:
+    """The row of a peer on its fastest solver in this run (``fastest_solver``), timed over
+    ``cycles``; the row's note names the solver."""
+    best, note = fastest_solver(samples_of)
     return {**timing_row(name, "us", samples_of(best, cycles), 1e6), "note": note}
 
 
-def pink_cycle_samples(robot: PandaModel, solver: str, cycles: int = CYCLES) -> np.ndarray:
-    """Seconds per cycle of pink: frame task + posture task + limits, solve_ik with ``solver``."""
-    return pink_loop_samples(robot.model, PANDA.postures["elbow_up"].q, "impact_tip", solver, cycles)
+def pink_cycle_loop(robot: PandaModel, solver: str) -> PeerLoop:
+    """pink's loop on the arm: frame task + posture task + limits, solve_ik with ``solver``."""
+    return pink_loop(robot.model, PANDA.postures["elbow_up"].q, "impact_tip", solver)
 
 
 def pink_loop_samples(model, q0: np.ndarray, frame: str, solver: str, cycles: int) -> np.ndarray:
-    """Seconds per cycle of pink's ``solve_ik`` (frame task on ``frame``, its target WALL_GAP
-    ahead along x, + posture task + pink's limits) from q0, restarted every RESTART_EVERY cycles."""
+    """Seconds per cycle of ``cycles`` cycles of a new ``pink_loop``."""
+    return pink_loop(model, q0, frame, solver).run(cycles)
+
+
+def pink_loop(model, q0: np.ndarray, frame: str, solver: str) -> PeerLoop:
+    """pink's ``solve_ik`` loop (frame task on ``frame``, its target WALL_GAP ahead along x, +
+    posture task + pink's limits) from q0."""
     import pink  # optional peer (the bench extra): loaded only for its rows
     from pink.tasks import FrameTask, PostureTask
 
@@ -213,29 +238,36 @@ def pink_loop_samples(model, q0: np.ndarray, frame: str, solver: str, cycles: in
     frame_task.set_target(target)
     posture_task.set_target(q0)
     tasks = [frame_task, posture_task]
-    return peer_loop_samples(
-        configuration, q0, lambda dt: pink.solve_ik(configuration, tasks, dt, solver=solver, safety_break=False), cycles
-    )
+    return PeerLoop(configuration, q0, lambda dt: pink.solve_ik(configuration, tasks, dt, solver=solver, safety_break=False))
 
 
-def peer_loop_samples(configuration, q0: np.ndarray, solve: Callable, cycles: int) -> np.ndarray:
-    """Seconds per cycle of a peer's differential-IK loop (pink's and mink's share its shape):
-    ``solve(dt)`` the velocity, integrated into ``configuration``, restarted at q0 every
-    RESTART_EVERY cycles."""
-    dt = 0.001
-    samples = np.empty(cycles)
-    for k in range(cycles):
-        if k % RESTART_EVERY == 0:
-            configuration.update(q0)
-        start = time.perf_counter()
-        configuration.integrate_inplace(solve(dt), dt)
-        samples[k] = time.perf_counter() - start
-    return samples
+class PeerLoop:
+    """A peer's differential-IK loop (pink's and mink's share its shape): ``solve(dt)`` the
+    velocity, integrated into ``configuration``, restarted at q0 every RESTART_EVERY cycles;
+    each ``run`` goes on from where the last one stopped."""
+
+    DT = 0.001
+
+    def __init__(self, configuration, q0: np.ndarray, solve: Callable):
+        self.configuration, self.q0, self.solve, self.cycle = configuration, q0, solve, 0
+
+    def run(self, cycles: int) -> np.ndarray:
+        """Seconds per cycle of the next ``cycles`` cycles."""
+        configuration, solve, dt = self.configuration, self.solve, self.DT
+        samples = np.empty(cycles)
+        for k in range(cycles):
+            if self.cycle % RESTART_EVERY == 0:
+                configuration.update(self.q0)
+            start = time.perf_counter()
+            configuration.integrate_inplace(solve(dt), dt)
+            samples[k] = time.perf_counter() - start
+            self.cycle += 1
+        return samples
 
 
-def mink_cycle_samples(solver: str, cycles: int = CYCLES) -> np.ndarray:
-    """Seconds per cycle of mink on the MuJoCo model of our scene: frame task + posture task +
-    configuration and velocity limits, solve_ik with ``solver``."""
+def mink_cycle_loop(solver: str) -> PeerLoop:
+    """mink's loop on the MuJoCo model of our scene: frame task + posture task + configuration
+    and velocity limits, solve_ik with ``solver``."""
     import mink  # optional peer (the bench extra): loaded only for its row
 
     model = build_scene().model
@@ -251,7 +283,22 @@ def mink_cycle_samples(solver: str, cycles: int = CYCLES) -> np.ndarray:
         mink.ConfigurationLimit(model),
         mink.VelocityLimit(model, {model.joint(i).name: 2.0 for i in range(model.njnt)}),
     ]
-    return peer_loop_samples(configuration, q0, lambda dt: mink.solve_ik(configuration, tasks, dt, solver, limits=limits), cycles)
+    return PeerLoop(configuration, q0, lambda dt: mink.solve_ik(configuration, tasks, dt, solver, limits=limits))
+
+
+def arm_peers(robot: PandaModel) -> tuple[dict[str, tuple[Callable[[int], np.ndarray], str]], list[dict]]:
+    """pink's and mink's loops on their fastest solver (``cycle_and_floor_rows``' ``peers``),
+    and a row with a note for a peer that is not installed."""
+    makers = {"peer.pink.cycle": lambda solver: pink_cycle_loop(robot, solver), "peer.mink.cycle": mink_cycle_loop}
+    peers, missing = {}, []
+    for name, make in makers.items():
+        try:
+            best, note = fastest_solver(lambda solver, cycles, make=make: make(solver).run(cycles))
+        except ImportError as error:
+            missing.append(missing_row(name, "us", f"{name.split('.')[1]} is not installed ({error})"))
+            continue
+        peers[name] = (make(best).run, note)
+    return peers, missing
 
 
 def fallback_cycle_samples(robot: PandaModel, cycles: int = 1000, seed: int = 0) -> np.ndarray:
@@ -313,17 +360,16 @@ def stage_samples(robot: PandaModel, cycles: int = 1000) -> dict[str, np.ndarray
 
 def controller_rows() -> list[dict]:
     robot = PandaModel()
-    friction4 = {"controller.cycle.friction4": lambda: _approach_setup(robot, friction=BENCH_FRICTION)}
-    rows = cycle_and_floor_rows("controller.cycle", "floor.cycle", robot, lambda: _approach_setup(robot), friction4)
+    variants = {
+        "controller.cycle.friction4": lambda: _approach_setup(robot, friction=BENCH_FRICTION),
+        "controller.cycle.robust": lambda: _approach_setup(robot, jump_model="robust"),
+    }
+    peers, rows = arm_peers(robot)
+    rows += cycle_and_floor_rows("controller.cycle", "floor.cycle", robot, lambda: _approach_setup(robot), variants, peers)
     for name in ("fr3", "ur5"):
         other = RobotModel(name)
         controller_cycle_samples(other, cycles=300)  # warm-up
         rows.append(timing_row(f"controller.cycle.{name}", "us", controller_cycle_samples(other), 1e6))
-    rows.append(fastest_solver_row("peer.pink.cycle", lambda solver, cycles: pink_cycle_samples(robot, solver, cycles)))
-    try:
-        rows.append(fastest_solver_row("peer.mink.cycle", mink_cycle_samples))
-    except ImportError as error:
-        rows.append(missing_row("peer.mink.cycle", "us", f"mink is not installed ({error})"))
     rows.append(missing_row(
         "peer.tsid.cycle", "us",
         "TSID cannot be installed beside our Pinocchio: tsid 1.10 needs libtsid 1.10, which PyPI has only as "

@@ -11,8 +11,9 @@
   equality constraints (pink's ``constraints``: frame tasks kept exactly), pink's configuration and
   velocity limits, the same loop on pink's fastest backend; pink is a velocity-level IK, so it has
   no impact, capture or foot-wrench rows, and no acceleration or jerk limits. The row's note gives
-  both problems' sizes (unknowns, equality and inequality rows, bounds), and
-  ``controller.cycle.g1/peer.pink.cycle.g1`` the ratio of the medians (goal <= 0.7, issue 33).
+  both problems' sizes (unknowns, equality and inequality rows, bounds); it is timed in the same
+  alternating blocks as controller.cycle.g1 and its floor, and
+  ``controller.cycle.g1/peer.pink.cycle.g1`` is the ratio of the blocks' medians (goal <= 0.7).
 """
 
 from __future__ import annotations
@@ -24,8 +25,8 @@ from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import RobotModel
 
-from .base import timing_row
-from .controller import CYCLES, WALL_GAP, ClosedLoop, cycle_and_floor_rows, fastest_solver_row, peer_loop_samples
+from .base import missing_row, timing_row
+from .controller import CYCLES, WALL_GAP, ClosedLoop, PeerLoop, cycle_and_floor_rows, fastest_solver
 
 G1_STANCE = "parallel"
 PINK_WEIGHTS = {"hand": 1.0, "com": 10.0, "torso": 10.0, "posture": 1e-4}
@@ -87,9 +88,9 @@ class PinkWholeBody:
         return f"pink: {problem.P.shape[0]} unknowns, {problem.A.shape[0]} equality rows, {problem.G.shape[0]} inequality rows"
 
 
-def pink_g1_cycle_samples(pink_problem: PinkWholeBody, solver: str, cycles: int = CYCLES) -> np.ndarray:
-    """Seconds per cycle of pink's whole-body problem with ``solver``, restarted at the stance."""
-    return peer_loop_samples(pink_problem.configuration, pink_problem.q0, lambda dt: pink_problem.solve(dt, solver), cycles)
+def pink_g1_loop(pink_problem: PinkWholeBody, solver: str) -> PeerLoop:
+    """pink's whole-body loop with ``solver``, restarted at the stance."""
+    return PeerLoop(pink_problem.configuration, pink_problem.q0, lambda dt: pink_problem.solve(dt, solver))
 
 
 def qp_sizes(controller) -> str:
@@ -101,23 +102,22 @@ def qp_sizes(controller) -> str:
 
 
 def rows() -> list[dict]:
-    """controller.cycle.g1 (with its floor and ratio), its proxqp twin, pink's row on the same
-    problem (its note: both problems' sizes) and the ratio of the two medians."""
+    """controller.cycle.g1 with its floor, pink's row on the same problem (its note: both
+    problems' sizes) and their ratios, timed in alternating blocks; the proxqp twin."""
     g1 = RobotModel("g1")
-    ours = cycle_and_floor_rows("controller.cycle.g1", "floor.cycle.g1", g1, lambda: g1_setup(g1))
-    controller, q0 = g1_setup(g1)
-    controller.reset(q0, np.zeros(g1.nv))
-    controller.step(q0, np.zeros(g1.nv))
-    pink_problem = PinkWholeBody(g1)
-    sizes = f"{qp_sizes(controller)}; {pink_problem.sizes()}"
-    pink_row = fastest_solver_row("peer.pink.cycle.g1", lambda solver, cycles: pink_g1_cycle_samples(pink_problem, solver, cycles))
-    pink_row["note"] = f"{pink_row['note']}; {sizes}"
-    cycle = next(r for r in ours if r["name"] == "controller.cycle.g1")
-    ratio = cycle["median"] / pink_row["median"]
+    peers, missing = {}, []
+    try:
+        pink_problem = PinkWholeBody(g1)
+    except ImportError as error:
+        missing.append(missing_row("peer.pink.cycle.g1", "us", f"pink is not installed ({error})"))
+    else:
+        controller, q0 = g1_setup(g1)
+        controller.reset(q0, np.zeros(g1.nv))
+        controller.step(q0, np.zeros(g1.nv))
+        best, note = fastest_solver(lambda solver, cycles: pink_g1_loop(pink_problem, solver).run(cycles))
+        peers["peer.pink.cycle.g1"] = (pink_g1_loop(pink_problem, best).run, f"{note}; {qp_sizes(controller)}; {pink_problem.sizes()}")
     return [
-        *ours,
+        *cycle_and_floor_rows("controller.cycle.g1", "floor.cycle.g1", g1, lambda: g1_setup(g1), peers=peers),
         timing_row("controller.cycle.g1.proxqp", "us", g1_cycle_samples(g1, "proxqp"), 1e6),
-        pink_row,
-        {"name": "controller.cycle.g1/peer.pink.cycle.g1", "unit": "ratio", "median": ratio, "p99": ratio,
-         "note": "medians of the same run; goal <= 0.7"},
+        *missing,
     ]

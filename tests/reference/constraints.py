@@ -1,6 +1,6 @@
 """Plain-numpy statements of the compiled constraint kernels (``constraints``): the rows each
-class's ``compute_into`` must write, the relaxation of ``ControlCycle.recoverable`` and the
-inputs of the activation rule."""
+class's ``compute_into`` must write, the relaxation of ``ControlCycle.recoverable``, the
+inputs of the activation rule and an arm's per-fill jump matrices of an expected impact."""
 
 import numpy as np
 
@@ -11,6 +11,9 @@ from impactqp.constraints import (
     TorqueLimit,
     VelocityLimit,
 )
+from impactqp.controller.model.jump import JumpMatrices
+
+from .jump import reference_classical_jump_matrices, reference_rank_one_jump_matrices
 
 
 def symmetric_rows_into(C, dq, limit, inv_h, active, lower, upper) -> None:
@@ -87,3 +90,14 @@ def reference_recoverable(cycle, C, lower, upper):
 def reference_normal_motion(terms, normal) -> tuple[float, float]:
     """The inputs of the activation rule, n.(J dq) and n.p, in plain numpy."""
     return float((normal @ terms.J) @ terms.dq), float(normal @ terms.contact_point)
+
+
+def reference_fixed_base_cycle_update(model, terms, normal, restitution) -> tuple[JumpMatrices, tuple[float, float]]:
+    """``crb_cycle_update``, ``rank_one_cycle_update`` and ``classical_cycle_update`` (a fixed
+    base's crb, gm or classical fill of an expected impact) in plain numpy: A, P and G, then
+    n.(J dq) and n.p."""
+    if model.name == "classical":
+        matrices = reference_classical_jump_matrices(terms, restitution)
+    else:
+        matrices = reference_rank_one_jump_matrices(model, terms, normal, restitution)
+    return matrices, reference_normal_motion(terms, normal)

@@ -45,3 +45,11 @@ def reference_rank_one_jump_matrices(model, terms, normal, restitution) -> JumpM
     return JumpMatrices(
         jump_direction[:, None] * Jt_normal, (s * Jt_normal)[:, None] * Jt_normal, s * np.outer(normal, normal), None
     )
+
+
+def reference_classical_jump_matrices(terms, restitution) -> JumpMatrices:
+    """``classical_jump_matrices`` in plain numpy: G = -(1+c_r) (J M^-1 J^T)^-1 (5)-(6),
+    A = M^-1 J^T G J and P = J^T G J."""
+    MinvJt = terms.M_inv @ terms.J.T
+    G = -(1.0 + restitution) * np.linalg.inv(terms.J @ MinvJt)
+    return JumpMatrices(MinvJt @ G @ terms.J, terms.J.T @ G @ terms.J, G, None)
