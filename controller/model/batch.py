@@ -5,8 +5,8 @@ Pinocchio works one state at a time; for N states the per-call Python overhead d
 evaluates, for N joint vectors at once with NumPy, the same terms as ``PandaModel.terms``: the
 contact Jacobian J, the joint-space inertia M = sum_k (Jv_k^T m_k Jv_k + Jw_k^T I_k Jw_k), the
 centre of mass, the moving mass and the locked-robot inertia about the centre of mass.
-:func:`predict_batch` hands them to the batched predictor of :mod:`controller.model.jump`
-(``predict_from_terms``), the one home of the jump maps; the CRB prediction of a predicted
+:func:`predict_batch` hands them to :func:`predict_from_terms`, the maps of
+:mod:`controller.model.jump`'s table for N states at once; the CRB prediction of a predicted
 impulse, which needs none of M, is one compiled loop over the states instead
 (``crb_prediction.CrbPredictor.predict_batch``).
 """
@@ -19,7 +19,8 @@ from functools import cached_property
 import numpy as np
 
 from .crb_prediction import CrbPredictor
-from .jump import predict_from_terms
+from . import validation
+from .jump import METHODS, crb_inverse_inertia
 from .robot import PandaModel
 from .validation import BadInputError
 
@@ -140,6 +141,56 @@ class BatchKinematics:
         return BatchTerms(
             J, contact, com, self.total_mass, inertia_com, axes, ps, link_com, I_world, self.masses
         )
+
+
+def predict_from_terms(
+    terms,
+    normals: np.ndarray,
+    pre_impact_velocities: np.ndarray,
+    restitution: float = 0.0,
+    method: str = "crb",
+    impulses: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Jumps (N, nv) and impulses (N, 3) of the predictor ``method`` for N states at once.
+
+    ``terms`` are batched model terms (``controller.model.batch.BatchTerms``: J (N, 3, nv),
+    contact point, centre of mass, mass, inertia about the centre of mass and M (N, nv, nv));
+    ``normals`` and ``pre_impact_velocities`` are (N, 3) or (3,) arrays (world frame); with
+    ``impulses`` (N, 3) the measured impulses replace the predicted ones. The maps are those of
+    the table of the module docstring, with M^-1 J^T by two triangular solves of the Cholesky
+    factor of M (no M at all for crb).
+    """
+    if method not in METHODS:
+        raise BadInputError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
+    N = terms.J.shape[0]
+    n = np.broadcast_to(validation.unit_normals(normals), (N, 3))
+    restitution = validation.restitution(restitution)
+    v = np.broadcast_to(np.asarray(pre_impact_velocities, float), (N, 3))
+    J, Jt = terms.J, np.swapaxes(terms.J, 1, 2)
+    if method == "crb":
+        W = crb_inverse_inertia(terms)
+    else:
+        L = np.linalg.cholesky(terms.M)
+        Y = np.linalg.solve(L, Jt)
+        MinvJt = np.linalg.solve(np.swapaxes(L, 1, 2), Y)  # M^-1 J^T by two triangular solves
+        W = J @ MinvJt
+    if impulses is None:
+        if method in ("classical", "classical_normal"):
+            impulse = -(1.0 + restitution) * np.linalg.solve(W, v[..., None])[..., 0]
+            if method == "classical_normal":
+                impulse = np.einsum("na,na->n", n, impulse)[:, None] * n
+        else:
+            nWn = np.einsum("na,nab,nb->n", n, W, n)
+            iota_n = -(1.0 + restitution) * np.einsum("na,na->n", n, v) / nWn
+            impulse = iota_n[:, None] * n
+    else:
+        impulse = np.broadcast_to(np.asarray(impulses, float), (N, 3))
+    if method in ("classical", "classical_normal"):
+        dq = (MinvJt @ impulse[..., None])[..., 0]
+    else:
+        Wi = (W @ impulse[..., None])[..., 0]
+        dq = (Jt @ np.linalg.solve(J @ Jt, Wi[..., None]))[..., 0]
+    return dq, np.array(impulse)
 
 
 def predict_batch(

@@ -41,8 +41,8 @@ contact, world axes about its frame), what keeps them still under iota.
 
 This module is the one home of these maps and predictors: ``JumpModel`` gives them for one state
 of any robot (``ModelTerms``; ``unit_maps`` and ``unit_matrices`` read the terms'
-``held_jacobian``), :func:`predict` by a method's name, :func:`predict_from_terms` for N states
-of an arm at once (the batched terms of ``controller.model.batch``, leading axis N); the
+``held_jacobian``), :func:`predict` by a method's name (the same maps for N states of an arm at once are
+``controller.model.batch.predict_from_terms``, on its batched terms, leading axis N); the
 compiled kernels are in ``jump_kernels`` (the classical one in ``classical_matrices``). The
 held-contact ``unit_maps`` read M^-1 and take J# = N (J N)^+, equal to N J^T (J N J^T)^-1; the
 held-contact ``unit_matrices`` (a controller's every cycle) read the terms' M^-1 in one compiled
@@ -406,54 +406,3 @@ def jump_from_impulse(terms: ModelTerms, impulse) -> np.ndarray:
     """dv = P_f J^T iota: the momentum law (held contacts kept still), fed a given (e.g.
     measured) impulse."""
     return joint_space_inverse_inertia_times_Jt(terms) @ np.asarray(impulse, dtype=float)
-
-
-def predict_from_terms(
-    terms,
-    normals: np.ndarray,
-    pre_impact_velocities: np.ndarray,
-    restitution: float = 0.0,
-    method: str = "crb",
-    impulses: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Jumps (N, nv) and impulses (N, 3) of the predictor ``method`` for N states at once.
-
-    ``terms`` are batched model terms (``controller.model.batch.BatchTerms``: J (N, 3, nv),
-    contact point, centre of mass, mass, inertia about the centre of mass and M (N, nv, nv));
-    ``normals`` and ``pre_impact_velocities`` are (N, 3) or (3,) arrays (world frame); with
-    ``impulses`` (N, 3) the measured impulses replace the predicted ones. The maps are those of
-    the table of the module docstring, with M^-1 J^T by two triangular solves of the Cholesky
-    factor of M (no M at all for crb).
-    """
-    if method not in METHODS:
-        raise BadInputError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
-    N = terms.J.shape[0]
-    n = np.broadcast_to(validation.unit_normals(normals), (N, 3))
-    restitution = validation.restitution(restitution)
-    v = np.broadcast_to(np.asarray(pre_impact_velocities, float), (N, 3))
-    J, Jt = terms.J, np.swapaxes(terms.J, 1, 2)
-    if method == "crb":
-        W = crb_inverse_inertia(terms)
-    else:
-        L = np.linalg.cholesky(terms.M)
-        Y = np.linalg.solve(L, Jt)
-        MinvJt = np.linalg.solve(np.swapaxes(L, 1, 2), Y)  # M^-1 J^T by two triangular solves
-        W = J @ MinvJt
-    if impulses is None:
-        if method in ("classical", "classical_normal"):
-            impulse = -(1.0 + restitution) * np.linalg.solve(W, v[..., None])[..., 0]
-            if method == "classical_normal":
-                impulse = np.einsum("na,na->n", n, impulse)[:, None] * n
-        else:
-            nWn = np.einsum("na,nab,nb->n", n, W, n)
-            iota_n = -(1.0 + restitution) * np.einsum("na,na->n", n, v) / nWn
-            impulse = iota_n[:, None] * n
-    else:
-        impulse = np.broadcast_to(np.asarray(impulses, float), (N, 3))
-    if method in ("classical", "classical_normal"):
-        dq = (MinvJt @ impulse[..., None])[..., 0]
-    else:
-        Wi = (W @ impulse[..., None])[..., 0]
-        dq = (Jt @ np.linalg.solve(J @ Jt, Wi[..., None]))[..., 0]
-    return dq, np.array(impulse)
-

@@ -48,10 +48,10 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from .batch import BatchTerms
+from .batch import BatchTerms, predict_from_terms
 from .capture import capturable_speeds, capture_region, row_steps
 from .humanoid_stance import convex_hull, edge_margins, edge_normals, support_polygon
-from .jump import predict, predict_from_terms
+from .jump import predict
 from .model_terms import ModelTerms
 from .robot import RobotModel
 from .robot_description import RobotDescription
