@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import t as student_t
 
+from impactqp.sim.causes import FixedParameters
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import map_in_processes
 
@@ -243,15 +244,56 @@ def parameter_intervals(model: FittedCauses, nominal, setting, trials, jobs: int
     return model, out
 
 
+def holds(value: float, interval) -> bool:
+    """Whether ``value`` lies in ``interval`` ([low, high], None for an open side)."""
+    low, high = interval
+    return (low is None or low <= value) and (high is None or value <= high)
+
+
+def without_spurious(model: FittedCauses, theta_intervals: list[list], nominal, setting, trials,
+                     jobs: int) -> tuple[FittedCauses, list[list]]:
+    """``model`` and its intervals (``parameter_intervals``) with every spurious parameter
+    dropped: in a cause of separate effects (``Cause.separable``: one per joint or joint group)
+    that moves the plant on evidence (a parameter's interval excludes its nominal value), each
+    parameter whose interval holds its nominal value is held there
+    (``causes.FixedParameters``), the others refitted and bounded again. The returned model has
+    the full causes (a dropped parameter at its nominal value) and a dropped parameter keeps
+    the interval that held its nominal value: what the data say of it (e.g. a damping of at
+    most its upper end). A cause none of whose intervals excludes its nominal value stays as
+    it is: it explains nothing (``excludes_nominal``)."""
+    held = []
+    for cause, intervals in zip(model.causes, theta_intervals):
+        values = cause.nominal_theta(nominal)
+        inside = [holds(v, interval) for v, interval in zip(values, intervals)]
+        spurious = cause.separable and not all(inside)
+        held.append({j: float(values[j]) for j, h in enumerate(inside) if h} if spurious else {})
+    if not any(held):
+        return model, theta_intervals
+    reduced = FittedCauses(
+        tuple(FixedParameters(c, h) if h else c for c, h in zip(model.causes, held)),
+        tuple(u[[j for j in range(len(u)) if j not in h]] for u, h in zip(model.u, held)),
+    )
+    reduced, reduced_intervals = parameter_intervals(reduced, nominal, setting, trials, jobs)
+    causes, u_all, out = [], [], []
+    for cause, before, fitted, u, intervals, h in zip(reduced.causes, theta_intervals, model.causes, reduced.u,
+                                                       reduced_intervals, held):
+        if h:
+            free = iter(intervals)
+            intervals = [before[j] if j in h else next(free) for j in range(len(before))]
+            cause, u = fitted, fitted.to_u(cause.full_theta(cause.to_theta(u)))
+        causes.append(cause)
+        u_all.append(u)
+        out.append(intervals)
+    return FittedCauses(tuple(causes), tuple(u_all)), out
+
+
 def excludes_nominal(model: FittedCauses, theta_intervals: list[list], nominal: PlantParameters) -> list[bool]:
     """Per cause of ``model``: whether the interval of at least one of its parameters excludes
     the parameter's nominal value (the cause moves the plant away from the nominal on evidence)."""
     found = []
     for cause, intervals in zip(model.causes, theta_intervals):
         values = cause.nominal_theta(nominal)
-        found.append(any(not (
-            (low is None or low <= v) and (high is None or v <= high)
-        ) for v, (low, high) in zip(values, intervals)))
+        found.append(any(not holds(v, interval) for v, interval in zip(values, intervals)))
     return found
 
 
