@@ -9,6 +9,7 @@ from conftest import JOINTS
 from impactqp.sim.causes import (
     CAUSE_NAMES,
     ArmatureCause,
+    FixedParameters,
     cause_named,
     JointDampingCause,
     JointVelocityScaleCause,
@@ -137,3 +138,23 @@ def test_the_joint_velocity_scale_refines_the_global_one_and_starts_where_it_end
     b = PlantParameters(**finer.overrides(theta))
     np.testing.assert_allclose(velocity_scales(a, JOINTS), velocity_scales(b, JOINTS))
     assert all(c.refined() is None for c in default_causes(JOINTS) if c.name != "velocity_scale")
+
+
+@given(st.lists(st.floats(0.7, 1.4), min_size=JOINTS, max_size=JOINTS), st.sets(st.integers(0, JOINTS - 1), max_size=JOINTS - 1))
+def test_held_parameters_stay_at_their_values_and_the_free_ones_round_trip(scales, held):
+    """Joint velocity scales with some held at 1: the plant gets the free ones as given and the
+    held ones at 1; theta reads back the free ones; bounds, labels and the grid are the free
+    ones' (every grid point of the cause, restricted)."""
+    cause = JointVelocityScaleCause(JOINTS)
+    fixed = FixedParameters(cause, {j: 1.0 for j in held})
+    free = [j for j in range(JOINTS) if j not in held]
+    theta = np.array(scales)[free]
+    expected = np.ones(JOINTS)
+    expected[free] = theta
+    plant = fixed.plant(PlantParameters(), fixed.to_u(theta))
+    assert np.allclose(velocity_scales(plant, JOINTS), expected)
+    assert np.allclose(fixed.theta_of(fixed.overrides(theta)), theta)
+    assert fixed.labels == tuple(cause.labels[j] for j in free) and fixed.name == cause.name
+    assert np.allclose(fixed.u_bounds(), np.array(cause.u_bounds())[:, free])
+    assert [len(u) for u in fixed.grid(PlantParameters())] == [len(free)] * len(cause.grid(PlantParameters()))
+    assert np.allclose(fixed.nominal_theta(PlantParameters()), 1.0)

@@ -25,6 +25,8 @@ FAMILIES: list[tuple[str, str, str]] = [
     ("sim.closed_loop", "simulation", "closed_loop_benchmark_rows"),
     ("maxspeed.", "simulation", "max_speed_benchmark_rows"),
     ("diagnose.", "diagnosis", "rows"),
+    ("diagnose.coverage", "diagnosis_coverage", "coverage_rows"),  # the intervals' calibration (long)
+    ("diagnose.false_explanations", "diagnosis_coverage", "false_explanation_rows"),
     ("loop.", "loop", "rows"),
     ("loop.franka_sim", "loop", "franka_sim_loop_rows"),  # one franky-sim run for both rows
     ("impact.", "loop", "detection_rows"),
@@ -44,8 +46,12 @@ def run_benchmarks(only: str = "") -> list[dict]:
         known = ", ".join(dict.fromkeys(prefix.rstrip(".") for prefix, _, _ in FAMILIES))
         raise BadInputError(f"--only {only!r} selects no benchmark row; the rows start with {known}")
     rows = []
+    # a prefix within a more specific family's (``--only diagnose.coverage``) runs that family only
+    within = [prefix for prefix, _, _ in FAMILIES if only.startswith(prefix)]
     for prefix, module, function in FAMILIES:
         if only and not (prefix.startswith(only) or only.startswith(prefix)):
+            continue
+        if only and any(len(other) > len(prefix) for other in within) and only.startswith(prefix):
             continue
         log.info("bench: running %s* ...", prefix)
         rows.extend(r for r in _family(module, function)() if _selected(r["name"], only, prefix))

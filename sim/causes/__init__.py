@@ -42,6 +42,7 @@ from impactqp.controller.model.validation import name_in
 from .cause import (
     GRID_POINTS,
     Cause,
+    FixedParameters,
     JointGroupCause,
     group_means,
     group_name,
@@ -67,7 +68,7 @@ from .sensor_causes import (
 )
 
 __all__ = [
-    "Cause", "JointGroupCause", "joint_groups", "group_name", "GRID_POINTS", "per_group", "group_means", "payload_com",
+    "Cause", "FixedParameters", "JointGroupCause", "joint_groups", "group_name", "GRID_POINTS", "per_group", "group_means", "payload_com",
     "ArmatureCause", "PayloadCause", "FrictionCause", "ContactCause", "JointDampingCause", "JointFrictionCause",
     "ServoGainCause",
     "DelayCause", "VelocityScaleCause", "JointVelocityScaleCause", "TorqueOffsetCause", "VelocityFilterCause",

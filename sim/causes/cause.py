@@ -63,6 +63,11 @@ class Cause:
     # and benchmarks that hide it in simulated data.
     realistic: tuple[tuple[float, ...], tuple[float, ...]] = ((), ())
     tangential_speeds_needed: tuple[float, ...] = ()
+    # Whether the parameters are separate effects of one kind (one per joint or joint group),
+    # each of which may be absent: one the data do not move from its nominal value is dropped
+    # (``diagnosis.intervals.without_spurious``). Not a payload's centre of mass or a contact's
+    # damping ratio: they qualify the cause's other parameters.
+    separable: bool = False
 
     def nominal_theta(self, nominal: PlantParameters) -> np.ndarray:
         raise NotImplementedError
@@ -117,6 +122,7 @@ class JointGroupCause(Cause):
     key: str = ""
     quantity: str = ""
     unit: str = ""
+    separable = True
 
     def __init__(self, joints: int):
         self.joints = joints
@@ -131,3 +137,39 @@ class JointGroupCause(Cause):
 
     def theta_of(self, overrides):
         return group_means(overrides[self.key])
+
+
+class FixedParameters(Cause):
+    """``cause`` with some of its parameters held at given values (``held``: index -> theta)
+    and only the others (``free``) fitted: a parameter the data do not move from its nominal
+    value is dropped from a fit this way (``diagnosis.intervals.without_spurious``)."""
+
+    def __init__(self, cause: Cause, held: dict[int, float]):
+        self.cause, self.held = cause, dict(held)
+        self.free = tuple(j for j in range(len(cause.labels)) if j not in self.held)
+        self.name = cause.name
+        self.labels, self.log_scale, self.lower, self.upper = (
+            tuple(values[j] for j in self.free) for values in (cause.labels, cause.log_scale, cause.lower, cause.upper)
+        )
+
+    def full_theta(self, theta: np.ndarray) -> np.ndarray:
+        """Every parameter of ``cause``: the free ones ``theta``, the held ones their values."""
+        full = np.zeros(len(self.cause.labels))
+        full[list(self.held)] = list(self.held.values())
+        full[list(self.free)] = theta
+        return full
+
+    def nominal_theta(self, nominal):
+        return self.cause.nominal_theta(nominal)[list(self.free)]
+
+    def grid(self, nominal):
+        return [self.to_u(self.cause.to_theta(u)[list(self.free)]) for u in self.cause.grid(nominal)]
+
+    def settling_trials(self, index, side, known, normal_speeds):
+        return self.cause.settling_trials(self.free[index], side, known, normal_speeds)
+
+    def overrides(self, theta):
+        return self.cause.overrides(self.full_theta(theta))
+
+    def theta_of(self, overrides):
+        return self.cause.theta_of(overrides)[list(self.free)]

@@ -57,6 +57,7 @@ class JointVelocityScaleCause(Cause):
     refinement of ``VelocityScaleCause`` (same name; the global scale folded into the joints' own)."""
 
     name = "velocity_scale"
+    separable = True
 
     def __init__(self, joints: int):
         self.joints = joints
@@ -84,6 +85,7 @@ class TorqueOffsetCause(Cause):
     """A constant bias of the logged torque, per joint (``joints`` of them)."""
 
     name = "torque_offset"
+    separable = True
 
     def __init__(self, joints: int):
         self.joints = joints

@@ -10,11 +10,12 @@ say which trials would settle it (``open_sides``). Method: ``docs/diagnosis.md``
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.stats import t as student_t
 
+from impactqp.sim.causes import FixedParameters
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import map_in_processes
 
@@ -25,7 +26,10 @@ log = logging.getLogger(__name__)
 
 CHI2_95 = 3.841  # 95 % quantile of chi^2 with 1 degree of freedom
 SCAN_FIRST_STEP = 1.0 / 40.0
-SCAN_BISECTIONS = 2
+SCAN_REFINEMENTS = 16  # samples that shrink a bracketed crossing, at most (every other one halves it)
+SCAN_RESOLUTION = 0.005  # a bracket this share of the parameter's range is fine enough
+SCAN_TOLERANCE = 0.05  # a sample whose excess is within 5 % of the threshold is the crossing
+FLAT_SHARE = 0.05  # a profile is flat where its cost is within 5 % of the 95 % region's rise of the fit
 JACOBIAN_STEP = 0.01
 POLISH_ITERATIONS = 3
 BOOTSTRAP_SAMPLES = 1000
@@ -130,51 +134,105 @@ class ScanTask:
     direction: np.ndarray
 
 
-def scan_side(task: ScanTask) -> float | None:
-    """Where the cost leaves the 95 % region along one parameter's profile path, on one side
-    (one process task).
-
-    From the fitted u, the parameter moves in steps that double (``SCAN_FIRST_STEP`` of its
-    range first) along ``direction`` (the others follow their linearised profile, clipped to
-    their bounds) until the cost exceeds ``threshold`` above the fitted cost; the crossing is
-    refined by ``SCAN_BISECTIONS`` bisections and a linear interpolation. Returns the theta of
-    the crossing, or None when the parameter reaches its bound inside the region (open side)."""
-    region, index, sign = task.region, task.index, task.sign
+def crossing_u(task: ScanTask) -> float | None:
+    """Where the cost's excess over the fitted cost reaches the region's threshold along one
+    parameter's profile path, on one side (one process task): ``profile_crossing``, the
+    others following their linearised profile (``direction``, clipped to their bounds). The
+    parameter's u there, or None when it reaches its bound first."""
+    region, index = task.region, task.index
     model, trials = region.model, list(region.trials)
     u0 = model.vector()
     lo, hi = model.bounds()
-    limit = hi[index] if sign > 0 else lo[index]
 
     def excess(x):
         u = np.clip(u0 + (x - u0[index]) * task.direction, lo, hi)
         return cost_of(model.with_vector(u).plant(region.nominal), region.setting, trials) - region.cost0
 
-    inside, inside_excess = u0[index], 0.0
-    step = SCAN_FIRST_STEP * (hi[index] - lo[index])
+    limit = hi[index] if task.sign > 0 else lo[index]
+    return profile_crossing(excess, u0[index], limit, hi[index] - lo[index], region.threshold)
+
+
+def scan_side(task: ScanTask) -> float | None:
+    """Where the cost leaves the 95 % region along one parameter's profile path, on one side
+    (one process task, ``crossing_u``): the theta of the crossing, or None when the parameter
+    reaches its bound inside the region (open side)."""
+    x = crossing_u(task)
+    if x is None:
+        return None
+    model, index = task.region.model, task.index
+    cause_index, local = parameter_owner(model, index)
+    u = model.u[cause_index].copy()
+    u[local] = x
+    return float(model.causes[cause_index].to_theta(u)[local])
+
+
+def profile_crossing(excess, start: float, limit: float, span: float, threshold: float) -> float | None:
+    """Where ``excess`` (the cost's rise above the fit along a profile, 0 at ``start``) first
+    reaches ``threshold`` between ``start`` and ``limit`` (the fit's bound), or None when it
+    stays below it there (an open side). ``span``: the parameter's range.
+
+    Steps that double (``SCAN_FIRST_STEP`` of the span first) bracket the crossing; the bracket
+    then shrinks until the excess at the interpolated point is within ``SCAN_TOLERANCE`` of the
+    threshold or the bracket within ``SCAN_RESOLUTION`` of the span (at most
+    ``SCAN_REFINEMENTS`` samples): the samples are in turn the straight line's crossing between
+    the bracket's ends (the midpoint when that falls in the bracket's outer tenths) and the
+    midpoint, so the bracket halves at least every other sample, and where the cost changes
+    slope (a friction profile flat down to the stick/slip kink and steep below it: a line drawn
+    across the kink puts the crossing at the flat end, a bound that excludes the truth) the
+    samples close in on the kink. The answer is the line's crossing in the last bracket: on a
+    smooth profile one or two samples confirm it, densely sampled only where the slope
+    changes."""
+    sign = 1.0 if limit >= start else -1.0
+    inside, inside_excess = start, 0.0
+    step = SCAN_FIRST_STEP * span
     while True:
-        x = u0[index] + sign * step
+        x = start + sign * step
         x = min(x, limit) if sign > 0 else max(x, limit)
         value = excess(x)
-        if value >= region.threshold:
+        if value >= threshold:
             outside, outside_excess = x, value
             break
         if x == limit:
             return None
         inside, inside_excess = x, max(value, 0.0)
         step *= 2.0
-    for _ in range(SCAN_BISECTIONS):
-        middle = 0.5 * (inside + outside)
+    for k in range(SCAN_REFINEMENTS):
+        fraction = (threshold - inside_excess) / max(outside_excess - inside_excess, 1e-12)
+        if abs(outside - inside) <= SCAN_RESOLUTION * span:
+            break
+        line = k % 2 == 0 and 0.1 <= fraction <= 0.9
+        middle = inside + (fraction if line else 0.5) * (outside - inside)
         value = excess(middle)
-        if value >= region.threshold:
+        if abs(value - threshold) <= SCAN_TOLERANCE * threshold:
+            return float(middle)
+        if value >= threshold:
             outside, outside_excess = middle, value
         else:
             inside, inside_excess = middle, max(value, 0.0)
-    fraction = (region.threshold - inside_excess) / max(outside_excess - inside_excess, 1e-12)
-    x = inside + fraction * (outside - inside)
-    cause_index, local = parameter_owner(model, index)
-    u = model.u[cause_index].copy()
-    u[local] = x
-    return float(model.causes[cause_index].to_theta(u)[local])
+    fraction = (threshold - inside_excess) / max(outside_excess - inside_excess, 1e-12)
+    return float(inside + fraction * (outside - inside))
+
+
+def at_flat_ends(region: ProfileRegion, tasks: list[ScanTask], ends: list, jobs: int) -> FittedCauses:
+    """The fit with every parameter open on one side only (``ends``: the profile scans'
+    crossings of ``tasks``, None for an open side) moved along its profile path to the near end
+    of the profile's flat part: where, towards the closed side, the cost first rises
+    ``FLAT_SHARE`` of the region's threshold above the fit. On a flat profile (friction where
+    every impact sticks: mu = 1.0 fits as well as 0.4) the fit stops anywhere on the flat part,
+    a value the data do not single out; the near end of the flat part is the one they do
+    (the smallest mu with which every impact sticks). The others follow the parameter's
+    profile path; the intervals are unchanged (the moved value lies inside them)."""
+    flat = replace(region, threshold=FLAT_SHARE * region.threshold)
+    moves = [replace(tasks[2 * i + (ends[2 * i] is None)], region=flat) for i in range(len(tasks) // 2)
+             if (ends[2 * i] is None) != (ends[2 * i + 1] is None)]
+    if not moves:
+        return region.model
+    u0 = region.model.vector()
+    u = u0.copy()
+    for task, x in zip(moves, map_in_processes(crossing_u, moves, jobs)):
+        if x is not None:
+            u += (x - u0[task.index]) * task.direction
+    return region.model.with_vector(np.clip(u, *region.model.bounds()))
 
 
 def parameter_owner(model: FittedCauses, index: int) -> tuple[int, int]:
@@ -221,6 +279,7 @@ def parameter_intervals(model: FittedCauses, nominal, setting, trials, jobs: int
 
     ends = map_in_processes(scan_side, tasks, jobs, done)
     boot = bootstrap_intervals(model, r, J, residual_sizes(trials))
+    model = at_flat_ends(region, tasks, ends, jobs)
     out, k = [], 0
     for cause, u in zip(model.causes, model.u):
         intervals = []
@@ -243,15 +302,56 @@ def parameter_intervals(model: FittedCauses, nominal, setting, trials, jobs: int
     return model, out
 
 
+def holds(value: float, interval) -> bool:
+    """Whether ``value`` lies in ``interval`` ([low, high], None for an open side)."""
+    low, high = interval
+    return (low is None or low <= value) and (high is None or value <= high)
+
+
+def without_spurious(model: FittedCauses, theta_intervals: list[list], nominal, setting, trials,
+                     jobs: int) -> tuple[FittedCauses, list[list]]:
+    """``model`` and its intervals (``parameter_intervals``) with every spurious parameter
+    dropped: in a cause of separate effects (``Cause.separable``: one per joint or joint group)
+    that moves the plant on evidence (a parameter's interval excludes its nominal value), each
+    parameter whose interval holds its nominal value is held there
+    (``causes.FixedParameters``), the others refitted and bounded again. The returned model has
+    the full causes (a dropped parameter at its nominal value) and a dropped parameter keeps
+    the interval that held its nominal value: what the data say of it (e.g. a damping of at
+    most its upper end). A cause none of whose intervals excludes its nominal value stays as
+    it is: it explains nothing (``excludes_nominal``)."""
+    held = []
+    for cause, intervals in zip(model.causes, theta_intervals):
+        values = cause.nominal_theta(nominal)
+        inside = [holds(v, interval) for v, interval in zip(values, intervals)]
+        spurious = cause.separable and not all(inside)
+        held.append({j: float(values[j]) for j, h in enumerate(inside) if h} if spurious else {})
+    if not any(held):
+        return model, theta_intervals
+    reduced = FittedCauses(
+        tuple(FixedParameters(c, h) if h else c for c, h in zip(model.causes, held)),
+        tuple(u[[j for j in range(len(u)) if j not in h]] for u, h in zip(model.u, held)),
+    )
+    reduced, reduced_intervals = parameter_intervals(reduced, nominal, setting, trials, jobs)
+    causes, u_all, out = [], [], []
+    for cause, before, fitted, u, intervals, h in zip(reduced.causes, theta_intervals, model.causes, reduced.u,
+                                                       reduced_intervals, held):
+        if h:
+            free = iter(intervals)
+            intervals = [before[j] if j in h else next(free) for j in range(len(before))]
+            cause, u = fitted, fitted.to_u(cause.full_theta(cause.to_theta(u)))
+        causes.append(cause)
+        u_all.append(u)
+        out.append(intervals)
+    return FittedCauses(tuple(causes), tuple(u_all)), out
+
+
 def excludes_nominal(model: FittedCauses, theta_intervals: list[list], nominal: PlantParameters) -> list[bool]:
     """Per cause of ``model``: whether the interval of at least one of its parameters excludes
     the parameter's nominal value (the cause moves the plant away from the nominal on evidence)."""
     found = []
     for cause, intervals in zip(model.causes, theta_intervals):
         values = cause.nominal_theta(nominal)
-        found.append(any(not (
-            (low is None or low <= v) and (high is None or v <= high)
-        ) for v, (low, high) in zip(values, intervals)))
+        found.append(any(not holds(v, interval) for v, interval in zip(values, intervals)))
     return found
 
 

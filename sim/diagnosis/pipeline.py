@@ -17,7 +17,7 @@ from impactqp.sim.plant import PlantParameters
 
 from .comparison import error_analysis, predictor_errors
 from .fitting import fit_report, jump_errors, trial_errors
-from .intervals import excludes_nominal, open_sides, override_intervals, parameter_intervals
+from .intervals import excludes_nominal, open_sides, override_intervals, parameter_intervals, without_spurious
 from .result import Diagnosis
 from .search import select_causes
 from .trials import load_trials, locate_jump_samples, replay_all
@@ -96,6 +96,8 @@ def diagnose(
     model = selection.model if selected else selection.best
     step(3, f" ({', '.join(c.name for c in model.causes) or 'no cause'})")
     model, theta_intervals = parameter_intervals(model, nominal, setting, trials, jobs)
+    if selected:  # a parameter the data do not move from its nominal value is dropped
+        model, theta_intervals = without_spurious(model, theta_intervals, nominal, setting, trials, jobs)
     extended_plant = model.plant(nominal)
     extended_features = replay_all(setting, extended_plant, trials)
     extended_jumps = np.array([f.detected_jump for f in extended_features])

@@ -10,8 +10,10 @@ trials)):
 - ``cross_validate_model``: a set of causes refitted jointly without each fold, each fold from
   a start fitted without it (an addition, a removal or a refinement of the search).
 
-A step gains ``STEP_GAIN`` over the error before it (``selection_step``); the causes must remove
-``EXPLAINED_GAIN`` of the nominal's excess over the noise floor (``gain_over_floor``). The rules
+A step gains ``STEP_GAIN`` over the error before it (``selection_step``); past the noise, the
+gain must also be significant (``significant_gain``: a paired one-sided t-test over trials);
+the causes must remove ``EXPLAINED_GAIN`` of the nominal's excess over the noise floor
+(``gain_over_floor``). The rules
 and their reasons: ``docs/diagnosis.md``.
 """
 
@@ -20,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import t as student_t
 
 from impactqp.sim.causes import Cause
 from impactqp.sim.plant import PlantParameters
@@ -32,6 +35,7 @@ from .trials import MeasuredTrial, ReplaySetting, replay_all
 EXPLAINED_GAIN = 0.20  # the causes must remove 20 % of the nominal's held-out excess over the noise floor
 NOISE_FLOOR = 1.0  # the normalised residual of a model that fits: the noise itself
 STEP_GAIN = 0.20  # every further cause by 20 % of the held-out error of the causes before it
+SIGNIFICANCE = 0.99  # one-sided level of the paired test a further cause passes past the noise
 MAX_FOLDS = 3
 FIT_MAX_EVALUATIONS = 20  # per fitted parameter, for the fit on all trials
 FOLD_MAX_EVALUATIONS = 10  # per fitted parameter, for each cross-validation fold
@@ -167,6 +171,19 @@ def cross_validate_model(task: ModelTask) -> dict:
 def relative_gain(error: float, reference: float) -> float:
     """1 - error / reference: the share of the ``reference`` error removed (0 without one)."""
     return 1.0 - error / reference if reference > 0 else 0.0
+
+
+def significant_gain(before: np.ndarray, after: np.ndarray) -> bool:
+    """Whether the held-out normalised residuals per trial ``after`` a step are significantly
+    below those ``before`` it: the paired one-sided t-test over trials of the differences of
+    their squares d_i = before_i^2 - after_i^2 (each trial's drop of its mean squared residual
+    in noise units), t = mean(d) sqrt(n) / sd(d) >= t_``SIGNIFICANCE``(n - 1). The trial is
+    the unit: a trial's residuals are correlated in time (its trace), trials are independent."""
+    d = np.asarray(before, float) ** 2 - np.asarray(after, float) ** 2
+    spread = d.std(ddof=1) if len(d) > 1 else 0.0
+    if spread == 0.0:
+        return bool(len(d) > 1 and d.mean() > 0.0)
+    return bool(d.mean() * np.sqrt(len(d)) / spread >= student_t.ppf(SIGNIFICANCE, len(d) - 1))
 
 
 def gain_over_floor(error: float, reference: float) -> float:
