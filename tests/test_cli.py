@@ -13,6 +13,7 @@ import pinocchio as pin
 import pytest
 
 from conftest import JOINTS, g1_model
+from process_watch import catches, console_script, mapped, runs
 from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.scenarios.cli import main
@@ -221,31 +222,13 @@ def test_the_entry_point_installs_its_handlers_before_any_heavy_import():
     assert proc.stdout.strip().splitlines()[-1] == "[]", proc.stdout
 
 
-def _caught_signals(pid: int) -> int:
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith("SigCgt:"):
-            return int(line.split()[1], 16)
-    return 0
-
-
-def _mapped(pid: int, name: str) -> bool:
-    return name in Path(f"/proc/{pid}/maps").read_text()
-
-
-def _started(pid: int, out: Path) -> bool:
-    """Whether the child already runs the command: between fork and exec it is a copy of the test
-    worker, with the worker's libraries mapped and whatever handlers the worker's extensions put in,
-    and a signal caught there is lost when exec replaces the image."""
-    return str(out) in Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace")
-
-
 # Moments of the start-up, each observed in the process rather than guessed from a clock: its
 # handlers are in (the earliest moment the contract covers: before, Python itself is starting),
 # numpy's or MuJoCo's library is being loaded, the output directory exists (trials are running).
 MOMENTS = {
-    "handlers": lambda pid, out: _started(pid, out) and _caught_signals(pid) & (1 << (signal.SIGTERM - 1)) != 0,
-    "numpy": lambda pid, out: _started(pid, out) and _mapped(pid, "numpy"),
-    "mujoco": lambda pid, out: _started(pid, out) and _mapped(pid, "mujoco"),
+    "handlers": lambda pid, out: runs(pid, str(out)) and catches(pid, signal.SIGTERM),
+    "numpy": lambda pid, out: runs(pid, str(out)) and mapped(pid, "numpy"),
+    "mujoco": lambda pid, out: runs(pid, str(out)) and mapped(pid, "mujoco"),
     "writing": lambda pid, out: out.exists(),
 }
 
@@ -255,10 +238,8 @@ MOMENTS = {
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_a_stop_signal_during_start_up_exits_130_without_a_traceback_or_partial_output(tmp_path, sig, moment):
     out = tmp_path / "d"
-    script = Path(sys.executable).with_name("impactqp")
-    command = [str(script)] if script.exists() else [sys.executable, "-m", "impactqp"]
     proc = subprocess.Popen(
-        [*command, "dataset", "generate", str(out), "--postures", "elbow_up", "--speeds", "0.08,0.1,0.12,0.15,0.18",
+        [*console_script(), "dataset", "generate", str(out), "--postures", "elbow_up", "--speeds", "0.08,0.1,0.12,0.15,0.18",
          "--repeats", "3", "--jobs", "1", "--json"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # not the test runner's disposition
