@@ -10,7 +10,10 @@ one-shot form for a list of tasks.
 Interruption: the workers ignore SIGINT, so a Ctrl-C in a terminal (sent to the whole process
 group) reaches this process alone. When an exception (``KeyboardInterrupt`` included) leaves the
 ``with`` block, the pending tasks are cancelled and the workers stopped at once instead of being
-waited for; the exception then goes on.
+waited for; the exception then goes on. Every signal is blocked while the workers are forked: a
+handler that raises (the command line's stop signals) would otherwise run inside the
+interpreter's fork callbacks, where the exception is printed and swallowed and a lock (the
+logging module's) stays held; the signal waits and is handled once the workers exist.
 """
 
 from __future__ import annotations
@@ -23,12 +26,12 @@ from typing import Any
 
 def _start_worker(initializer: Callable[..., None] | None, initargs: tuple) -> None:
     """Every worker: leave SIGINT to the parent, which stops the workers itself, and drop the
-    command line's SIGTERM and SIGHUP handlers (inherited by a forked worker), then run the
-    caller's initializer."""
+    command line's SIGTERM and SIGHUP handlers (inherited by a forked worker), then unblock the
+    signals (blocked while this worker was forked) and run the caller's initializer."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked while this worker started
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, signal.valid_signals())
     if initializer is not None:
         initializer(*initargs)
 
@@ -74,10 +77,10 @@ class ProcessPool:
         if not self._open:
             raise RuntimeError("use ProcessPool as a context manager")
         if self._executor is not None:
-            # the workers start as the tasks are submitted; SIGINT stays blocked meanwhile, so a
-            # Ctrl-C that reaches the whole process group before a new worker ignores it waits
-            # in this process (pending) instead of breaking that worker's start-up
-            previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+            # the workers are forked as the tasks are submitted; every signal stays blocked
+            # meanwhile (the module's docstring), so a stop signal waits in this process (pending)
+            # instead of breaking the fork's callbacks or a new worker's start-up
+            previous = signal.pthread_sigmask(signal.SIG_BLOCK, signal.valid_signals())
             try:
                 return self._executor.map(function, tasks)
             finally:

@@ -117,6 +117,40 @@ def test_ctrl_c_stops_the_workers_at_once_and_only_the_parent_reports_it(tmp_pat
     assert "Traceback" not in err
 
 
+SIGNAL_IN_THE_FORK = textwrap.dedent(
+    """
+    import os, signal, sys
+    from impactqp.sim.process_pool import map_in_processes
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    if __name__ == "__main__":
+        signal.signal(signal.SIGNAL_NAME, interrupt)  # as the command line's stop signals
+        # the signal comes right after a worker is forked, in the parent's fork callbacks
+        os.register_at_fork(after_in_parent=lambda: os.kill(os.getpid(), signal.SIGNAL_NAME))
+        try:
+            map_in_processes(abs, range(4), 2)
+        except KeyboardInterrupt:
+            print("interrupted", flush=True)
+            sys.exit(130)
+    """
+)
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP"])
+def test_a_stop_signal_while_the_workers_are_forked_is_handled_after_the_fork(tmp_path, sig):
+    """A stop signal whose handler raises, arriving while a worker is forked: it waits until the
+    workers exist, then ends the map as a KeyboardInterrupt; it is never raised (and swallowed,
+    printed as "Exception ignored") inside the interpreter's fork callbacks, where the logging
+    module's lock would stay held."""
+    script = tmp_path / "fork.py"
+    script.write_text(SIGNAL_IN_THE_FORK.replace("SIGNAL_NAME", sig))
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 130 and done.stdout == "interrupted\n", done.stderr
+    assert done.stderr == ""
+
+
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_progress_counts_every_result_as_it_arrives(jobs):
     """``progress(done, total)`` once per result, done rising 1..n: the callback is told each
