@@ -2,6 +2,7 @@
 --robot g1`` (a stance of the floating base) and what does not apply to the G1."""
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -474,6 +475,25 @@ def test_a_stop_signal_after_the_work_is_done_keeps_the_exit_code(sig):
     done = subprocess.run([sys.executable, "-c", script, "postures", "--json"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout) and done.stderr == ""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
+def test_a_stop_signal_while_main_puts_its_handlers_back_does_not_escape_it(capsys, monkeypatch, sig):
+    """A signal that comes once the command is done, while ``main`` cancels its redelivery timer
+    and puts the handlers back (its ``finally``): the exit code stands, no KeyboardInterrupt
+    escapes ``main`` (a traceback at the console) and no line is printed."""
+    real_setitimer = signal.setitimer
+    sent = []
+
+    def signal_then_setitimer(*args):
+        if not sent:
+            sent.append(sig)
+            os.kill(os.getpid(), sig)
+        return real_setitimer(*args)
+
+    monkeypatch.setattr(signal, "setitimer", signal_then_setitimer)
+    code, out, err = run(capsys, "postures", "--json")
+    assert sent == [sig] and code == 0 and json.loads(out) and err == ""
 
 
 def test_predict_g1_json(capsys):
