@@ -1,11 +1,13 @@
-"""Stop signals during ``impactqp run`` (``scenarios.run``): Ctrl-C, SIGTERM or SIGHUP brakes the
+"""Stop signals: during ``impactqp run`` (``scenarios.run``) Ctrl-C, SIGTERM or SIGHUP brakes the
 running loop to a stop instead of ending the process, so the log is kept and the robot stops
-within its limits."""
+within its limits; :func:`held_stop_signals` keeps them off a cleanup that must run to its end."""
 
 from __future__ import annotations
 
 import signal
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # light to import: the command line reads STOP_SIGNALS before anything heavy
@@ -18,15 +20,29 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 class StopSignals:
     """While active (in the main thread only: signal handlers can be set nowhere else), Ctrl-C,
     SIGTERM or SIGHUP asks the current ``loop`` to brake to a stop; a signal the parent set to be
-    ignored (``nohup``, a background job) stays ignored, as in the command line's ``main``."""
+    ignored (``nohup``, a background job) stays ignored, as in the command line's ``main``. A stop
+    that comes while no loop runs (before the first, between two) is kept: every loop set after
+    it is asked to stop at once (``stopped``)."""
 
     def __init__(self):
-        self.loop: ControlLoop | None = None
+        self._loop: ControlLoop | None = None
+        self.stopped = False
         self.previous: dict = {}
 
+    @property
+    def loop(self) -> ControlLoop | None:
+        return self._loop
+
+    @loop.setter
+    def loop(self, loop: ControlLoop | None) -> None:
+        self._loop = loop
+        if self.stopped and loop is not None:
+            loop.request_stop()
+
     def request_stop(self, *_) -> None:
-        if self.loop is not None:
-            self.loop.request_stop()
+        self.stopped = True
+        if self._loop is not None:
+            self._loop.request_stop()
 
     def __enter__(self) -> StopSignals:
         if threading.current_thread() is threading.main_thread():
@@ -40,3 +56,29 @@ class StopSignals:
     def __exit__(self, *exc) -> None:
         for sig, handler in self.previous.items():
             signal.signal(sig, handler)
+
+
+@contextmanager
+def held_stop_signals() -> Iterator[None]:
+    """While active (in the main thread; elsewhere it does nothing), a stop signal, and the
+    SIGALRM by which the command line raises a swallowed interruption again, is recorded instead
+    of handled; on leaving, the handlers are put back and each recorded signal is raised again,
+    so the interruption goes on once the block is done. For work that must not stop half-way:
+    starting or stopping a Ray cluster, whose processes would otherwise outlive the command."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came: list[int] = []
+    held = (*STOP_SIGNALS, signal.SIGALRM)
+    previous = {sig: signal.getsignal(sig) for sig in held}
+    for sig, handler in previous.items():
+        if callable(handler):  # a Python handler; the default action or an ignored signal stays
+            signal.signal(sig, lambda signum, frame: came.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            if callable(handler):
+                signal.signal(sig, handler)
+        for sig in dict.fromkeys(came):
+            signal.raise_signal(sig)

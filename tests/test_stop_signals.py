@@ -1,10 +1,13 @@
-"""``scenarios.stop_signals``: a stop signal during a run brakes the loop, and the handlers are
-restored after it."""
+"""``scenarios.stop_signals``: a stop signal during a run brakes the loop, one that comes between
+loops is kept, the handlers are restored after it; ``held_stop_signals`` defers a signal to the
+end of its block."""
 
 import os
 import signal
 
-from impactqp.scenarios.stop_signals import STOP_SIGNALS, StopSignals
+import pytest
+
+from impactqp.scenarios.stop_signals import STOP_SIGNALS, StopSignals, held_stop_signals
 
 
 def test_stop_signals_ask_the_loop_to_stop_and_leave_ignored_signals_ignored():
@@ -30,3 +33,51 @@ def test_stop_signals_ask_the_loop_to_stop_and_leave_ignored_signals_ignored():
     finally:
         for sig, handler in before.items():
             signal.signal(sig, handler)
+
+
+class Loop:
+    def __init__(self):
+        self.stops = 0
+
+    def request_stop(self):
+        self.stops += 1
+
+
+@pytest.mark.parametrize("sig", STOP_SIGNALS)
+def test_a_stop_before_the_first_loop_or_between_two_stops_every_later_loop(sig):
+    """A signal that comes while no loop runs (before the first, between the move to the start
+    and the session) is not lost: each loop set after it is asked to stop at once."""
+    with StopSignals() as signals:
+        os.kill(os.getpid(), sig)
+        signals.loop = first = Loop()
+        signals.loop = second = Loop()
+    assert signals.stopped and first.stops == 1 and second.stops == 1
+    with StopSignals() as quiet:
+        quiet.loop = untouched = Loop()
+    assert not quiet.stopped and untouched.stops == 0
+
+
+@pytest.mark.parametrize("sig", STOP_SIGNALS)
+def test_a_held_stop_signal_is_handled_after_the_block_not_inside_it(sig):
+    """Inside ``held_stop_signals`` the handler does not run (the block finishes); on leaving, the
+    handlers are the ones before and the signal reaches its own handler once."""
+    calls = []
+
+    def handler(signum, frame):
+        calls.append(signum)
+        raise KeyboardInterrupt
+
+    before = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
+    finished = False
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with held_stop_signals():
+                os.kill(os.getpid(), sig)
+                os.kill(os.getpid(), sig)
+                assert calls == []
+                finished = True
+        assert finished and calls == [sig]
+        assert all(signal.getsignal(s) is handler for s in STOP_SIGNALS)
+    finally:
+        for s, h in before.items():
+            signal.signal(s, h)
