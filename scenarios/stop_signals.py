@@ -1,13 +1,11 @@
 """Stop signals: during ``impactqp run`` (``scenarios.run``) Ctrl-C, SIGTERM or SIGHUP brakes the
 running loop to a stop instead of ending the process, so the log is kept and the robot stops
-within its limits; :func:`held_stop_signals` keeps them off a cleanup that must run to its end."""
+within its limits."""
 
 from __future__ import annotations
 
 import signal
 import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # light to import: the command line reads STOP_SIGNALS before anything heavy
@@ -57,28 +55,3 @@ class StopSignals:
         for sig, handler in self.previous.items():
             signal.signal(sig, handler)
 
-
-@contextmanager
-def held_stop_signals() -> Iterator[None]:
-    """While active (in the main thread; elsewhere it does nothing), a stop signal, and the
-    SIGALRM by which the command line raises a swallowed interruption again, is recorded instead
-    of handled; on leaving, the handlers are put back and each recorded signal is raised again,
-    so the interruption goes on once the block is done. For work that must not stop half-way:
-    starting or stopping a Ray cluster, whose processes would otherwise outlive the command."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    came: list[int] = []
-    held = (*STOP_SIGNALS, signal.SIGALRM)
-    previous = {sig: signal.getsignal(sig) for sig in held}
-    for sig, handler in previous.items():
-        if callable(handler):  # a Python handler; the default action or an ignored signal stays
-            signal.signal(sig, lambda signum, frame: came.append(signum))
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            if callable(handler):
-                signal.signal(sig, handler)
-        for sig in dict.fromkeys(came):
-            signal.raise_signal(sig)

@@ -13,15 +13,45 @@ group) reaches this process alone. When an exception (``KeyboardInterrupt`` incl
 waited for; the exception then goes on. Every signal is blocked while the workers are forked: a
 handler that raises (the command line's stop signals) would otherwise run inside the
 interpreter's fork callbacks, where the exception is printed and swallowed and a lock (the
-logging module's) stays held; the signal waits and is handled once the workers exist.
+logging module's) stays held; the signal waits and is handled once the workers exist. Stopping
+the workers runs under :func:`held_signals`: an interruption in the executor's shutdown leaves
+it half-closed, and the interpreter's exit then prints an "Exception ignored" traceback.
 """
 
 from __future__ import annotations
 
 import signal
+import threading
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 from typing import Any
+
+
+@contextmanager
+def held_signals() -> Iterator[None]:
+    """While active (in the main thread; elsewhere it does nothing), a signal with a Python
+    handler (the command line's stop signals and the SIGALRM by which it raises a swallowed
+    interruption again, Python's Ctrl-C) is recorded instead of handled; on leaving, the handlers
+    are put back and each recorded signal is raised again, so an interruption goes on once the
+    block is done. For work that must not stop half-way: stopping a pool's workers, starting or
+    stopping a Ray cluster, whose processes would otherwise outlive the command."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came: list[int] = []
+    previous = {}
+    for sig in signal.valid_signals():
+        handler = signal.getsignal(sig)
+        if callable(handler):
+            previous[sig] = signal.signal(sig, lambda signum, frame: came.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        for sig in dict.fromkeys(came):
+            signal.raise_signal(sig)
 
 
 def _start_worker(initializer: Callable[..., None] | None, initargs: tuple) -> None:
@@ -63,12 +93,13 @@ class ProcessPool:
         executor, self._executor = self._executor, None
         if executor is None:
             return
-        if exc_type is not None:
-            # stop the running tasks instead of waiting for them; ProcessPoolExecutor has no
-            # public way to do so before Python 3.14
-            for worker in list((executor._processes or {}).values()):
-                worker.kill()
-        executor.shutdown(wait=True, cancel_futures=True)
+        with held_signals():
+            if exc_type is not None:
+                # stop the running tasks instead of waiting for them; ProcessPoolExecutor has no
+                # public way to do so before Python 3.14
+                for worker in list((executor._processes or {}).values()):
+                    worker.kill()
+            executor.shutdown(wait=True, cancel_futures=True)
 
     def map(self, function: Callable[[Any], Any], tasks: Iterable) -> Iterator:
         """``function(task)`` for every task, lazily, in the order of ``tasks``. ``function`` must

@@ -11,7 +11,9 @@ import textwrap
 
 import pytest
 
-from impactqp.sim.process_pool import ProcessPool, map_in_processes
+from concurrent.futures import ProcessPoolExecutor
+
+from impactqp.sim.process_pool import ProcessPool, held_signals, map_in_processes
 
 _SETTING: object = None
 
@@ -158,3 +160,58 @@ def test_progress_counts_every_result_as_it_arrives(jobs):
     calls = []
     results = map_in_processes(_square, range(5), jobs, lambda done, total: calls.append((done, total)))
     assert results == [t * t for t in range(5)] and calls == [(k, 5) for k in range(1, 6)]
+
+
+STOP = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGALRM)
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+@pytest.mark.parametrize("sig", STOP)
+def test_a_held_signal_is_handled_after_the_block_not_inside_it(sig):
+    """Inside ``held_signals`` a Python handler does not run (the block finishes); on leaving,
+    the handlers are the ones before and the signal reaches its own handler once."""
+    calls = []
+
+    def handler(signum, frame):
+        calls.append(signum)
+        raise KeyboardInterrupt
+
+    before = {s: signal.signal(s, handler) for s in STOP}
+    finished = False
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with held_signals():
+                os.kill(os.getpid(), sig)
+                os.kill(os.getpid(), sig)
+                assert calls == []
+                finished = True
+        assert finished and calls == [sig]
+        assert all(signal.getsignal(s) is handler for s in STOP)
+    finally:
+        for s, h in before.items():
+            signal.signal(s, h)
+
+
+@pytest.mark.parametrize("failing", [False, True])
+def test_a_stop_signal_while_the_workers_are_stopped_comes_after_they_are(monkeypatch, failing):
+    """A stop signal at the start of the executor's shutdown (after a normal map or after a
+    failed task): it ends the map as a KeyboardInterrupt once the workers are stopped and the
+    executor closed, never half-way (workers left, a half-closed executor whose wake-up pipe
+    the interpreter's exit writes to: "Exception ignored ... Bad file descriptor")."""
+    real_shutdown = ProcessPoolExecutor.shutdown
+
+    def signal_then_shutdown(self, *args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        return real_shutdown(self, *args, **kwargs)
+
+    monkeypatch.setattr(ProcessPoolExecutor, "shutdown", signal_then_shutdown)
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            map_in_processes(_fail_on_three if failing else _square, range(6), 2)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert multiprocessing.active_children() == []

@@ -1,13 +1,12 @@
 """``scenarios.stop_signals``: a stop signal during a run brakes the loop, one that comes between
-loops is kept, the handlers are restored after it; ``held_stop_signals`` defers a signal to the
-end of its block."""
+loops is kept, and the handlers are restored after it."""
 
 import os
 import signal
 
 import pytest
 
-from impactqp.scenarios.stop_signals import STOP_SIGNALS, StopSignals, held_stop_signals
+from impactqp.scenarios.stop_signals import STOP_SIGNALS, StopSignals
 
 
 def test_stop_signals_ask_the_loop_to_stop_and_leave_ignored_signals_ignored():
@@ -55,29 +54,3 @@ def test_a_stop_before_the_first_loop_or_between_two_stops_every_later_loop(sig)
     with StopSignals() as quiet:
         quiet.loop = untouched = Loop()
     assert not quiet.stopped and untouched.stops == 0
-
-
-@pytest.mark.parametrize("sig", STOP_SIGNALS)
-def test_a_held_stop_signal_is_handled_after_the_block_not_inside_it(sig):
-    """Inside ``held_stop_signals`` the handler does not run (the block finishes); on leaving, the
-    handlers are the ones before and the signal reaches its own handler once."""
-    calls = []
-
-    def handler(signum, frame):
-        calls.append(signum)
-        raise KeyboardInterrupt
-
-    before = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
-    finished = False
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            with held_stop_signals():
-                os.kill(os.getpid(), sig)
-                os.kill(os.getpid(), sig)
-                assert calls == []
-                finished = True
-        assert finished and calls == [sig]
-        assert all(signal.getsignal(s) is handler for s in STOP_SIGNALS)
-    finally:
-        for s, h in before.items():
-            signal.signal(s, h)

@@ -16,8 +16,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from impactqp.controller.model.validation import BadInputError
-from impactqp.scenarios.stop_signals import held_stop_signals
-from impactqp.sim.process_pool import ProcessPool
+from impactqp.sim.process_pool import ProcessPool, held_signals
 
 from . import store
 from .cells import Simulation, evaluate_cells
@@ -136,7 +135,7 @@ class RayStarter:
         try:
             self.started.wait()
         finally:
-            with held_stop_signals():
+            with held_signals():
                 self.started.wait()
         if self.error is not None:
             raise self.error
@@ -147,7 +146,7 @@ class RayStarter:
 
         if self.thread.ident is None:  # never started
             return
-        with held_stop_signals():
+        with held_signals():
             self.started.wait()
             ray.shutdown()
             self.stopped.set()
