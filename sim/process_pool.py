@@ -10,10 +10,12 @@ one-shot form for a list of tasks.
 Interruption: the workers ignore SIGINT, so a Ctrl-C in a terminal (sent to the whole process
 group) reaches this process alone. When an exception (``KeyboardInterrupt`` included) leaves the
 ``with`` block, the pending tasks are cancelled and the workers stopped at once instead of being
-waited for; the exception then goes on. Every signal is blocked while the workers are forked: a
-handler that raises (the command line's stop signals) would otherwise run inside the
-interpreter's fork callbacks, where the exception is printed and swallowed and a lock (the
-logging module's) stays held; the signal waits and is handled once the workers exist. Stopping
+waited for; the exception then goes on. Every signal is held (:func:`held_signals`) and blocked
+while the workers are forked: a handler that raises (the command line's stop signals) would
+otherwise run inside the interpreter's fork callbacks, where the exception is printed and
+swallowed and a lock (the logging module's) stays held, or between a worker's start and its
+registration in the executor, which then never stops it; the signal waits and is handled once
+the workers exist. Stopping
 the workers runs under :func:`held_signals`: an interruption in the executor's shutdown leaves
 it half-closed, and the interpreter's exit then prints an "Exception ignored" traceback.
 """
@@ -108,14 +110,17 @@ class ProcessPool:
         if not self._open:
             raise RuntimeError("use ProcessPool as a context manager")
         if self._executor is not None:
-            # the workers are forked as the tasks are submitted; every signal stays blocked
-            # meanwhile (the module's docstring), so a stop signal waits in this process (pending)
-            # instead of breaking the fork's callbacks or a new worker's start-up
-            previous = signal.pthread_sigmask(signal.SIG_BLOCK, signal.valid_signals())
-            try:
-                return self._executor.map(function, tasks)
-            finally:
-                signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+            # the workers are forked as the tasks are submitted (the module's docstring): the
+            # signals are held, as another thread may take a signal whose handler then runs here
+            # (in the fork's callbacks, or between a worker's start and its registration, which
+            # would leave it unknown to the executor and alive after this process), and blocked,
+            # so that a new worker gets none before its own start-up has put its handlers in
+            with held_signals():
+                previous = signal.pthread_sigmask(signal.SIG_BLOCK, signal.valid_signals())
+                try:
+                    return self._executor.map(function, tasks)
+                finally:
+                    signal.pthread_sigmask(signal.SIG_SETMASK, previous)
         return map(function, tasks)
 
 

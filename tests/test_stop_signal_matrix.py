@@ -22,6 +22,7 @@ from typing import Callable
 
 import pytest
 
+from impactqp.scenarios.sweep.config import EXAMPLE
 from process_watch import WatchedCommand, catches, children, descendants, mapped, runs
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads the process state in /proc")
@@ -31,24 +32,18 @@ GRACE = 15.0
 """s the processes of a command may take to end after it has ended: 'a few seconds later'."""
 INTERRUPTED = "impactqp: interrupted"
 
-SWEEP_CONFIG = """\
-[grid]
-origin = [0.6, -0.05, 0.5]
-u = [0.0, 1.0, 0.0]
-v = [0.0, 0.0, 1.0]
-size = [0.1, 0.0]
-spacing = 0.1
-[settings]
-normals = [[-1.0, 0.0, 0.0]]
-restitution = [0.0]
-jump_models = ["crb"]
-seed_posture = "elbow_up"
-[controller]
-jump_model = ["crb"]
-impact_duration = [0.015]
-[simulate]
-tolerance = 0.05
-"""
+
+def _tiny_sweep() -> str:
+    """The example sweep cut down to two cells, searched at a coarse tolerance."""
+    text = EXAMPLE
+    for old, new in (("origin = [0.6, -0.2, 0.5]", "origin = [0.6, -0.05, 0.5]"), ("size = [0.4, 0.3]", "size = [0.1, 0.0]"),
+                     ('jump_models = ["gm", "crb"]', 'jump_models = ["crb"]'), ("tolerance = 0.005", "tolerance = 0.05")):
+        assert old in text
+        text = text.replace(old, new)
+    return text
+
+
+SWEEP_CONFIG = _tiny_sweep()
 
 
 @dataclass(frozen=True)
