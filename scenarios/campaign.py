@@ -52,10 +52,10 @@ from impactqp.controller.model.humanoid_stance import stance_posture  # noqa: E4
 from impactqp.controller.measured.atomic import write_text_atomic  # noqa: E402
 from impactqp.sim.generation import DEFAULT_SPEEDS, TANGENTIAL_SERIES_NORMAL_SPEED, tangential_direction  # noqa: E402
 from impactqp.controller.measured.dataset import DatasetHeader  # noqa: E402
-from impactqp.controller.measured.dataset_writer import DatasetWriter  # noqa: E402
+from impactqp.controller.measured.dataset_writer import DatasetWriter, check_room  # noqa: E402
 from impactqp.controller.model.robot_description import RobotDescription  # noqa: E402
 from impactqp.sim.plant import PlantParameters  # noqa: E402
-from impactqp.sim.generation import dataset_header  # noqa: E402
+from impactqp.sim.generation import dataset_bytes, dataset_header  # noqa: E402
 
 from impactqp.sim.runner import TrialSpec  # noqa: E402
 from impactqp.controller.model.robot import RobotModel  # noqa: E402
@@ -193,9 +193,11 @@ class Campaign:
 
     def run(self, out: str | Path) -> Table1:
         """Run every trial, adding each to the dataset in ``out`` as it comes, then write Table I's
-        files and figures there; an existing dataset of another header is refused first."""
+        files and figures there; an existing dataset of another header, or a folder that cannot be
+        written or lacks the room for the trials' estimated size (``check_room``), is refused first."""
         out = Path(out)
         tasks = self.trials.tasks(self.plan)
+        check_room(out, dataset_bytes(tasks, self.trials.choice.robot), f"the {counted(len(tasks), 'trial')}")
         writer = DatasetWriter(out, self.trials.header, expected_trials=len(tasks))
         results = []
         with closing(self.trials.results(tasks, self.jobs)) as running:  # its pool ends with the loop

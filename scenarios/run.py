@@ -285,9 +285,12 @@ def move_to_start(robot: RobotInterface, model: RobotModel, config: ControllerCo
     loop = ControlLoop(robot, move, CommandFilter.for_robot(model, config.dt), deadline=float("inf"))
     signals.loop = loop
     result = loop.run(move.duration)
-    if result.watchdog_trips or result.interrupted:
-        reason = result.watchdog_reason or "stop requested"
-        raise BadInputError(f"the move to the start posture ended early ({reason}); the robot braked to a stop")
+    if result.interrupted:  # a stop signal: the command is interrupted, not given bad input
+        raise KeyboardInterrupt
+    if result.watchdog_trips:
+        raise BadInputError(
+            f"the move to the start posture ended early ({result.watchdog_reason}); the robot braked to a stop"
+        )
     return {
         "duration": move.duration, "cycles": result.cycles, "final_error": move.final_error(result.log.q[-1]),
         "retreat": move.path.retreat, "clearance": move.path.clearance,

@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from impactqp.controller.measured.dataset import DatasetHeader, TrialEntry
-from impactqp.controller.measured.dataset_writer import DatasetWriter
+from impactqp.controller.measured.dataset_writer import DatasetWriter, check_room, trial_bytes
 from impactqp.controller.measured.trial_log import TrialLog
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
@@ -59,7 +59,7 @@ from impactqp.controller.model.validation import (
 from .plant import PlantParameters
 from .process_pool import ProcessPool
 from .runner import DEFAULT_CONTROL_PERIOD, NORMAL, TrialSpec, run_approach
-from .scene import WALL_FRICTION, build_scene
+from .scene import DEFAULT_TIMESTEP, WALL_FRICTION, build_scene
 from .sensor import apply_sensor, quantised_velocity
 
 DEFAULT_SPEEDS = (0.08, 0.10, 0.12, 0.15, 0.18)
@@ -167,6 +167,18 @@ def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
     return entry, log
 
 
+def dataset_bytes(specs: Sequence[TrialSpec], robot: RobotDescription) -> float:
+    """The estimated size of a dataset of the trials ``specs``, before any runs (for
+    ``dataset_writer.check_room``): each trial's nominal duration (its start distance at its
+    normal speed, then ``after_contact``) in control samples for its trial file and in physics
+    steps (``DEFAULT_TIMESTEP``) for its force file."""
+    total = 0.0
+    for spec in specs:
+        duration = spec.start_distance / spec.normal_speed + spec.after_contact
+        total += trial_bytes(robot, round(duration / DEFAULT_CONTROL_PERIOD), round(duration / DEFAULT_TIMESTEP))
+    return total
+
+
 @dataclass(frozen=True)
 class DatasetRequest:
     """What dataset to simulate: the plant that makes it (nominal by default), the surface (by
@@ -227,6 +239,7 @@ def generate_dataset(
         request.seed,
         choice,
     )
+    check_room(out, dataset_bytes([planned.spec for planned in specs], choice.robot), f"the {counted(len(specs), 'trial')}")
     Path(out).mkdir(parents=True, exist_ok=True)
     writer = DatasetWriter(out, dataset_header(surface, choice, plant), expected_trials=len(specs))
     tasks = [TrialTask(s, plant, surface, request.noise_dq, request.noise_tau, choice) for s in specs]

@@ -10,25 +10,60 @@ one-shot form for a list of tasks.
 Interruption: the workers ignore SIGINT, so a Ctrl-C in a terminal (sent to the whole process
 group) reaches this process alone. When an exception (``KeyboardInterrupt`` included) leaves the
 ``with`` block, the pending tasks are cancelled and the workers stopped at once instead of being
-waited for; the exception then goes on.
+waited for; the exception then goes on. Every signal is held (:func:`held_signals`) and blocked
+while the workers are forked: a handler that raises (the command line's stop signals) would
+otherwise run inside the interpreter's fork callbacks, where the exception is printed and
+swallowed and a lock (the logging module's) stays held, or between a worker's start and its
+registration in the executor, which then never stops it; the signal waits and is handled once
+the workers exist. Stopping
+the workers runs under :func:`held_signals`: an interruption in the executor's shutdown leaves
+it half-closed, and the interpreter's exit then prints an "Exception ignored" traceback.
 """
 
 from __future__ import annotations
 
 import signal
+import threading
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 from typing import Any
+
+
+@contextmanager
+def held_signals() -> Iterator[None]:
+    """While active (in the main thread; elsewhere it does nothing), a signal with a Python
+    handler (the command line's stop signals and the SIGALRM by which it raises a swallowed
+    interruption again, Python's Ctrl-C) is recorded instead of handled; on leaving, the handlers
+    are put back and each recorded signal is raised again, so an interruption goes on once the
+    block is done. For work that must not stop half-way: stopping a pool's workers, starting or
+    stopping a Ray cluster, whose processes would otherwise outlive the command."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came: list[int] = []
+    previous = {}
+    for sig in signal.valid_signals():
+        handler = signal.getsignal(sig)
+        if callable(handler):
+            previous[sig] = signal.signal(sig, lambda signum, frame: came.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        for sig in dict.fromkeys(came):
+            signal.raise_signal(sig)
 
 
 def _start_worker(initializer: Callable[..., None] | None, initargs: tuple) -> None:
     """Every worker: leave SIGINT to the parent, which stops the workers itself, and drop the
-    command line's SIGTERM and SIGHUP handlers (inherited by a forked worker), then run the
-    caller's initializer."""
+    command line's SIGTERM and SIGHUP handlers (inherited by a forked worker), then unblock the
+    signals (blocked while this worker was forked) and run the caller's initializer."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked while this worker started
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, signal.valid_signals())
     if initializer is not None:
         initializer(*initargs)
 
@@ -60,12 +95,13 @@ class ProcessPool:
         executor, self._executor = self._executor, None
         if executor is None:
             return
-        if exc_type is not None:
-            # stop the running tasks instead of waiting for them; ProcessPoolExecutor has no
-            # public way to do so before Python 3.14
-            for worker in list((executor._processes or {}).values()):
-                worker.kill()
-        executor.shutdown(wait=True, cancel_futures=True)
+        with held_signals():
+            if exc_type is not None:
+                # stop the running tasks instead of waiting for them; ProcessPoolExecutor has no
+                # public way to do so before Python 3.14
+                for worker in list((executor._processes or {}).values()):
+                    worker.kill()
+            executor.shutdown(wait=True, cancel_futures=True)
 
     def map(self, function: Callable[[Any], Any], tasks: Iterable) -> Iterator:
         """``function(task)`` for every task, lazily, in the order of ``tasks``. ``function`` must
@@ -74,14 +110,17 @@ class ProcessPool:
         if not self._open:
             raise RuntimeError("use ProcessPool as a context manager")
         if self._executor is not None:
-            # the workers start as the tasks are submitted; SIGINT stays blocked meanwhile, so a
-            # Ctrl-C that reaches the whole process group before a new worker ignores it waits
-            # in this process (pending) instead of breaking that worker's start-up
-            previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-            try:
-                return self._executor.map(function, tasks)
-            finally:
-                signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+            # the workers are forked as the tasks are submitted (the module's docstring): the
+            # signals are held, as another thread may take a signal whose handler then runs here
+            # (in the fork's callbacks, or between a worker's start and its registration, which
+            # would leave it unknown to the executor and alive after this process), and blocked,
+            # so that a new worker gets none before its own start-up has put its handlers in
+            with held_signals():
+                previous = signal.pthread_sigmask(signal.SIG_BLOCK, signal.valid_signals())
+                try:
+                    return self._executor.map(function, tasks)
+                finally:
+                    signal.pthread_sigmask(signal.SIG_SETMASK, previous)
         return map(function, tasks)
 
 

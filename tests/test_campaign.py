@@ -65,6 +65,24 @@ def test_a_plans_postures_are_the_robots():
     assert [s.posture for s in specs] == list(ROBOTS["ur5"].postures)
 
 
+def test_a_campaign_beyond_the_free_space_is_refused_before_its_first_trial(tmp_path, monkeypatch):
+    """The dataset's estimated size (``sim.generation.dataset_bytes`` of the plan's trials) with
+    the margin against the free space: refused before any trial runs, nothing written."""
+    import shutil
+
+    import impactqp.controller.measured.dataset_writer as dataset_writer
+    from impactqp.sim.generation import dataset_bytes
+
+    plan = CampaignPlan(("elbow_up",), (0.1, 0.15), ())
+    estimate = dataset_bytes(plan.specs(DEFAULT_WALL, RobotChoice()), PANDA)
+    usage = shutil.disk_usage(tmp_path)._replace(free=int(estimate))  # less than the margin asks
+    monkeypatch.setattr(dataset_writer.shutil, "disk_usage", lambda path: usage)
+    monkeypatch.setattr(CampaignTrials, "results", lambda *args: pytest.fail("a trial ran"))
+    with pytest.raises(BadInputError, match=f"the 2 trials need about .*{estimate / 1e6:.1f} MB estimated"):
+        Campaign(plan, CampaignTrials()).run(tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.fixture(scope="module")
 def campaign_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("campaign")

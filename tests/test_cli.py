@@ -2,6 +2,7 @@
 --robot g1`` (a stance of the floating base) and what does not apply to the G1."""
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -13,6 +14,7 @@ import pinocchio as pin
 import pytest
 
 from conftest import JOINTS, g1_model
+from process_watch import catches, console_script, mapped, runs
 from impactqp.controller.model.humanoid_stance import STANCES
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.scenarios.cli import main
@@ -221,31 +223,13 @@ def test_the_entry_point_installs_its_handlers_before_any_heavy_import():
     assert proc.stdout.strip().splitlines()[-1] == "[]", proc.stdout
 
 
-def _caught_signals(pid: int) -> int:
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith("SigCgt:"):
-            return int(line.split()[1], 16)
-    return 0
-
-
-def _mapped(pid: int, name: str) -> bool:
-    return name in Path(f"/proc/{pid}/maps").read_text()
-
-
-def _started(pid: int, out: Path) -> bool:
-    """Whether the child already runs the command: between fork and exec it is a copy of the test
-    worker, with the worker's libraries mapped and whatever handlers the worker's extensions put in,
-    and a signal caught there is lost when exec replaces the image."""
-    return str(out) in Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace")
-
-
 # Moments of the start-up, each observed in the process rather than guessed from a clock: its
 # handlers are in (the earliest moment the contract covers: before, Python itself is starting),
 # numpy's or MuJoCo's library is being loaded, the output directory exists (trials are running).
 MOMENTS = {
-    "handlers": lambda pid, out: _started(pid, out) and _caught_signals(pid) & (1 << (signal.SIGTERM - 1)) != 0,
-    "numpy": lambda pid, out: _started(pid, out) and _mapped(pid, "numpy"),
-    "mujoco": lambda pid, out: _started(pid, out) and _mapped(pid, "mujoco"),
+    "handlers": lambda pid, out: runs(pid, str(out)) and catches(pid, signal.SIGTERM),
+    "numpy": lambda pid, out: runs(pid, str(out)) and mapped(pid, "numpy"),
+    "mujoco": lambda pid, out: runs(pid, str(out)) and mapped(pid, "mujoco"),
     "writing": lambda pid, out: out.exists(),
 }
 
@@ -255,10 +239,8 @@ MOMENTS = {
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_a_stop_signal_during_start_up_exits_130_without_a_traceback_or_partial_output(tmp_path, sig, moment):
     out = tmp_path / "d"
-    script = Path(sys.executable).with_name("impactqp")
-    command = [str(script)] if script.exists() else [sys.executable, "-m", "impactqp"]
     proc = subprocess.Popen(
-        [*command, "dataset", "generate", str(out), "--postures", "elbow_up", "--speeds", "0.08,0.1,0.12,0.15,0.18",
+        [*console_script(), "dataset", "generate", str(out), "--postures", "elbow_up", "--speeds", "0.08,0.1,0.12,0.15,0.18",
          "--repeats", "3", "--jobs", "1", "--json"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # not the test runner's disposition
@@ -493,6 +475,25 @@ def test_a_stop_signal_after_the_work_is_done_keeps_the_exit_code(sig):
     done = subprocess.run([sys.executable, "-c", script, "postures", "--json"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout) and done.stderr == ""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
+def test_a_stop_signal_while_main_puts_its_handlers_back_does_not_escape_it(capsys, monkeypatch, sig):
+    """A signal that comes once the command is done, while ``main`` cancels its redelivery timer
+    and puts the handlers back (its ``finally``): the exit code stands, no KeyboardInterrupt
+    escapes ``main`` (a traceback at the console) and no line is printed."""
+    real_setitimer = signal.setitimer
+    sent = []
+
+    def signal_then_setitimer(*args):
+        if not sent:
+            sent.append(sig)
+            os.kill(os.getpid(), sig)
+        return real_setitimer(*args)
+
+    monkeypatch.setattr(signal, "setitimer", signal_then_setitimer)
+    code, out, err = run(capsys, "postures", "--json")
+    assert sent == [sig] and code == 0 and json.loads(out) and err == ""
 
 
 def test_predict_g1_json(capsys):

@@ -3,13 +3,21 @@
 from __future__ import annotations
 
 import shutil
+import subprocess
 
 import numpy as np
 import pytest
 
-from impactqp.controller.measured.dataset import DatasetError, DatasetHeader, TrialEntry
+from impactqp.controller.measured.dataset import FORCE_COLUMNS, DatasetError, DatasetHeader, TrialEntry
+from impactqp.controller.measured.dataset_robot import trial_columns
 from impactqp.controller.measured.dataset_check import validate
-from impactqp.controller.measured.dataset_writer import SPACE_MARGIN, DatasetWriter
+from impactqp.controller.measured.dataset_writer import (
+    BYTES_PER_NUMBER,
+    SPACE_MARGIN,
+    DatasetWriter,
+    check_room,
+    trial_bytes,
+)
 from impactqp.controller.model.postures import Surface
 
 from conftest import DATASET_HEADER, dataset_entry, file_digests
@@ -41,3 +49,47 @@ def test_a_writer_refuses_to_go_on_when_the_disk_cannot_hold_the_trials_to_come(
     with pytest.raises(DatasetError, match=f"the {left} left need about"):
         writer.add_trial(dataset_entry("fast", 0.15, log), log)
     assert validate(tmp_path / "full") == {"dataset": [], "fast": []}
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 1 MB tmpfs (skipped where mounting is not permitted), unmounted after the test."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(disk)], capture_output=True).returncode:
+        pytest.skip("cannot mount a tmpfs here")
+    yield disk
+    subprocess.run(["umount", str(disk)], check=True)
+
+
+def test_room_is_checked_against_the_margin_on_a_small_disk(small_disk):
+    """The folder (still to be made: judged by the disk it would be on) holds the estimate times
+    the margin or is refused, in one message naming it, the estimate and the free space; the
+    check leaves nothing behind."""
+    free = shutil.disk_usage(small_disk).free
+    check_room(small_disk / "a" / "b", 0.99 * free / SPACE_MARGIN, "the 3 trials")
+    with pytest.raises(DatasetError) as refused:
+        check_room(small_disk / "a" / "b", 1.01 * free / SPACE_MARGIN, "the 3 trials")
+    message = str(refused.value)
+    assert message.startswith(f"{small_disk / 'a' / 'b'}: the 3 trials need about")
+    assert f"{1.01 * free / SPACE_MARGIN / 1e6:.1f} MB estimated" in message and f"{free / 1e6:.1f} MB are free" in message
+    assert list(small_disk.iterdir()) == []
+
+
+def test_a_folder_that_cannot_be_written_is_refused(small_disk):
+    subprocess.run(["mount", "-o", "remount,ro", str(small_disk)], check=True)
+    with pytest.raises(DatasetError, match="cannot write there"):
+        check_room(small_disk / "d", 0.0, "the 1 trial")
+
+
+def test_the_estimate_of_a_trial_holds_its_files(tmp_path, dataset_logs):
+    """A trial's files are never larger than the estimate from their rows and the header lines:
+    every number written with %.10g, and its separator, fits in BYTES_PER_NUMBER."""
+    assert BYTES_PER_NUMBER >= len(f"{-1.234567891e-300:.10g},")
+    headers = len(",".join(trial_columns("panda"))) + len(",".join(FORCE_COLUMNS)) + 2
+    writer = DatasetWriter(tmp_path, DATASET_HEADER, expected_trials=2)
+    for speed, log in dataset_logs.items():
+        entry = dataset_entry(f"v{speed}", speed, log)
+        writer.add_trial(entry, log)
+        written = (tmp_path / entry.file).stat().st_size + (tmp_path / entry.force_file).stat().st_size
+        assert written <= trial_bytes("panda", len(log.t), len(log.force_t)) + headers

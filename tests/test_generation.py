@@ -13,9 +13,11 @@ from impactqp.controller.measured.dataset_check import validate
 from impactqp.controller.measured.impact import DEFAULT_FORCE_THRESHOLD, measure_impact
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import STANCES
+from impactqp.controller.measured.dataset_writer import SPACE_MARGIN, trial_bytes
 from impactqp.sim.generation import (
     START_DISTANCE,
     DatasetRequest,
+    dataset_bytes,
     generate_dataset,
     open_dataset,
     tangential_direction,
@@ -47,6 +49,32 @@ def test_trial_grid_and_tangential_direction():
 def test_bad_requests_are_rejected(tmp_path, kwargs, message):
     with pytest.raises(ValueError, match=message):
         generate_dataset(tmp_path, DatasetRequest(**{"postures": ["elbow_up"], "speeds": [0.1], **kwargs}))
+
+
+def test_a_dataset_beyond_the_free_space_is_refused_before_the_first_trial(tmp_path, monkeypatch):
+    """The estimate (every trial's nominal duration in samples, times the columns and the bytes of
+    a number) against the free space, read at its one place: refused before any trial runs, with
+    nothing written, in one message with the estimate and the free space; half the estimate is
+    refused, twice the estimate with the margin is accepted."""
+    import shutil
+
+    import impactqp.controller.measured.dataset_writer as dataset_writer
+
+    request = DatasetRequest(postures=["elbow_up"], speeds=[0.1, 0.15])
+    specs = trial_specs(["elbow_up"], [0.1, 0.15], [], 1, np.array([-1.0, 0.0, 0.0]), 0, request.choice)
+    estimate = dataset_bytes([planned.spec for planned in specs], request.choice.robot)
+    assert estimate > 2 * trial_bytes("panda", round(START_DISTANCE / 0.15 / DEFAULT_CONTROL_PERIOD), 0)
+    for free, accepted in ((estimate / 2, False), (2 * SPACE_MARGIN * estimate, True)):
+        usage = shutil.disk_usage(tmp_path)._replace(free=int(free))
+        monkeypatch.setattr(dataset_writer.shutil, "disk_usage", lambda path, usage=usage: usage)
+        if accepted:
+            assert len(generate_dataset(tmp_path / "fits", request)) == 2
+            continue
+        monkeypatch.setattr("impactqp.sim.generation.simulate_trial", lambda task: pytest.fail("a trial ran"))
+        with pytest.raises(DatasetError, match=f"the 2 trials need about .*{estimate / 1e6:.1f} MB estimated"):
+            generate_dataset(tmp_path / "full", request)
+        assert not (tmp_path / "full").exists()
+        monkeypatch.undo()
 
 
 def test_dataset_is_valid_and_holds_no_plant_parameters(tmp_path):

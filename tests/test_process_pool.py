@@ -11,7 +11,9 @@ import textwrap
 
 import pytest
 
-from impactqp.sim.process_pool import ProcessPool, map_in_processes
+from concurrent.futures import ProcessPoolExecutor
+
+from impactqp.sim.process_pool import ProcessPool, held_signals, map_in_processes
 
 _SETTING: object = None
 
@@ -117,6 +119,40 @@ def test_ctrl_c_stops_the_workers_at_once_and_only_the_parent_reports_it(tmp_pat
     assert "Traceback" not in err
 
 
+SIGNAL_IN_THE_FORK = textwrap.dedent(
+    """
+    import os, signal, sys
+    from impactqp.sim.process_pool import map_in_processes
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    if __name__ == "__main__":
+        signal.signal(signal.SIGNAL_NAME, interrupt)  # as the command line's stop signals
+        # the signal comes right after a worker is forked, in the parent's fork callbacks
+        os.register_at_fork(after_in_parent=lambda: os.kill(os.getpid(), signal.SIGNAL_NAME))
+        try:
+            map_in_processes(abs, range(4), 2)
+        except KeyboardInterrupt:
+            print("interrupted", flush=True)
+            sys.exit(130)
+    """
+)
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP"])
+def test_a_stop_signal_while_the_workers_are_forked_is_handled_after_the_fork(tmp_path, sig):
+    """A stop signal whose handler raises, arriving while a worker is forked: it waits until the
+    workers exist, then ends the map as a KeyboardInterrupt; it is never raised (and swallowed,
+    printed as "Exception ignored") inside the interpreter's fork callbacks, where the logging
+    module's lock would stay held."""
+    script = tmp_path / "fork.py"
+    script.write_text(SIGNAL_IN_THE_FORK.replace("SIGNAL_NAME", sig))
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 130 and done.stdout == "interrupted\n", done.stderr
+    assert done.stderr == ""
+
+
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_progress_counts_every_result_as_it_arrives(jobs):
     """``progress(done, total)`` once per result, done rising 1..n: the callback is told each
@@ -124,3 +160,58 @@ def test_progress_counts_every_result_as_it_arrives(jobs):
     calls = []
     results = map_in_processes(_square, range(5), jobs, lambda done, total: calls.append((done, total)))
     assert results == [t * t for t in range(5)] and calls == [(k, 5) for k in range(1, 6)]
+
+
+STOP = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGALRM)
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+@pytest.mark.parametrize("sig", STOP)
+def test_a_held_signal_is_handled_after_the_block_not_inside_it(sig):
+    """Inside ``held_signals`` a Python handler does not run (the block finishes); on leaving,
+    the handlers are the ones before and the signal reaches its own handler once."""
+    calls = []
+
+    def handler(signum, frame):
+        calls.append(signum)
+        raise KeyboardInterrupt
+
+    before = {s: signal.signal(s, handler) for s in STOP}
+    finished = False
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with held_signals():
+                os.kill(os.getpid(), sig)
+                os.kill(os.getpid(), sig)
+                assert calls == []
+                finished = True
+        assert finished and calls == [sig]
+        assert all(signal.getsignal(s) is handler for s in STOP)
+    finally:
+        for s, h in before.items():
+            signal.signal(s, h)
+
+
+@pytest.mark.parametrize("failing", [False, True])
+def test_a_stop_signal_while_the_workers_are_stopped_comes_after_they_are(monkeypatch, failing):
+    """A stop signal at the start of the executor's shutdown (after a normal map or after a
+    failed task): it ends the map as a KeyboardInterrupt once the workers are stopped and the
+    executor closed, never half-way (workers left, a half-closed executor whose wake-up pipe
+    the interpreter's exit writes to: "Exception ignored ... Bad file descriptor")."""
+    real_shutdown = ProcessPoolExecutor.shutdown
+
+    def signal_then_shutdown(self, *args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        return real_shutdown(self, *args, **kwargs)
+
+    monkeypatch.setattr(ProcessPoolExecutor, "shutdown", signal_then_shutdown)
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            map_in_processes(_fail_on_three if failing else _square, range(6), 2)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert multiprocessing.active_children() == []

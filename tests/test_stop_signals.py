@@ -1,8 +1,10 @@
-"""``scenarios.stop_signals``: a stop signal during a run brakes the loop, and the handlers are
-restored after it."""
+"""``scenarios.stop_signals``: a stop signal during a run brakes the loop, one that comes between
+loops is kept, and the handlers are restored after it."""
 
 import os
 import signal
+
+import pytest
 
 from impactqp.scenarios.stop_signals import STOP_SIGNALS, StopSignals
 
@@ -30,3 +32,25 @@ def test_stop_signals_ask_the_loop_to_stop_and_leave_ignored_signals_ignored():
     finally:
         for sig, handler in before.items():
             signal.signal(sig, handler)
+
+
+class Loop:
+    def __init__(self):
+        self.stops = 0
+
+    def request_stop(self):
+        self.stops += 1
+
+
+@pytest.mark.parametrize("sig", STOP_SIGNALS)
+def test_a_stop_before_the_first_loop_or_between_two_stops_every_later_loop(sig):
+    """A signal that comes while no loop runs (before the first, between the move to the start
+    and the session) is not lost: each loop set after it is asked to stop at once."""
+    with StopSignals() as signals:
+        os.kill(os.getpid(), sig)
+        signals.loop = first = Loop()
+        signals.loop = second = Loop()
+    assert signals.stopped and first.stops == 1 and second.stops == 1
+    with StopSignals() as quiet:
+        quiet.loop = untouched = Loop()
+    assert not quiet.stopped and untouched.stops == 0

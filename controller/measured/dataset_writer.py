@@ -6,6 +6,7 @@ from __future__ import annotations
 import io
 import json
 import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -26,8 +27,45 @@ from .dataset_robot import base_columns, trial_columns
 from .trial_log import TrialLog
 
 SPACE_MARGIN = 1.5
-"""The free space a dataset writer asks for, in units of the trials still to come at the size of
-the first one (a slower trial logs more samples)."""
+"""The free space asked for, in units of the estimated output: before the work, of its estimate
+(``trial_bytes``); after the first trial, of the trials still to come at the size of the first
+one (a slower trial logs more samples)."""
+BYTES_PER_NUMBER = 18
+"""Bytes of one number in a trial's CSV files: ``%.10g`` writes at most 17 characters (a sign,
+ten digits, a point, an exponent ``e-XX``), then a separator."""
+
+
+def trial_bytes(robot, samples: int, force_samples: int) -> int:
+    """The estimated size of one trial's files: ``samples`` rows of the trial file's columns
+    (``dataset_robot.trial_columns`` of ``robot``) and ``force_samples`` rows of the force file's,
+    ``BYTES_PER_NUMBER`` each."""
+    return BYTES_PER_NUMBER * (samples * len(trial_columns(robot)) + force_samples * len(FORCE_COLUMNS))
+
+
+def check_room(folder: str | Path, estimate: float, what: str) -> None:
+    """Refuse (DatasetError, one line naming the folder) an output folder that cannot be written
+    or whose file system has less than ``SPACE_MARGIN`` times ``estimate`` bytes free (``what``: the
+    output, a plural noun phrase of the message); a folder
+    still to be made is judged by the nearest one that exists. Writing is tried with a file that
+    has no name (nothing is left behind); the one place the free space is read."""
+    folder = Path(folder)
+    existing = folder.absolute()
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        return  # not a folder: the output's own checks name it
+    try:
+        with tempfile.TemporaryFile(dir=existing):
+            pass
+    except OSError as error:
+        raise DatasetError(f"{folder}: cannot write there ({error.strerror or error})") from None
+    needed = SPACE_MARGIN * estimate
+    free = shutil.disk_usage(existing).free
+    if free < needed:
+        raise DatasetError(
+            f"{folder}: {what} need about {needed / 1e6:.1f} MB ({estimate / 1e6:.1f} MB estimated, times "
+            f"{SPACE_MARGIN}) and {free / 1e6:.1f} MB are free: free some space or write elsewhere"
+        )
 
 
 class DatasetWriter:
@@ -88,16 +126,12 @@ class DatasetWriter:
         if self.written == 1:
             self._check_space(sum(len(text.encode()) for text in files.values()))
 
-    def _check_space(self, trial_bytes: int) -> None:
+    def _check_space(self, first_bytes: int) -> None:
         """Refuse (DatasetError) when the free space cannot hold the trials still to come."""
         left = self.expected_trials - self.written
-        needed = SPACE_MARGIN * trial_bytes * left
-        free = shutil.disk_usage(self.directory).free
-        if left > 0 and free < needed:
-            raise DatasetError(
-                f"{self.directory}: the first trial took {trial_bytes / 1e3:.0f} kB; the {left} left need about "
-                f"{needed / 1e6:.1f} MB and {free / 1e6:.1f} MB are free: free some space or write elsewhere"
-            )
+        if left > 0:
+            check_room(self.directory, first_bytes * left,
+                       f"the first trial took {first_bytes / 1e3:.0f} kB; the {left} left")
 
 
 def _csv(columns: list[str], table: np.ndarray) -> str:

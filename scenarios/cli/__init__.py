@@ -39,13 +39,15 @@ __all__ = ["main"]
 REDELIVERY_PERIOD = 0.05
 """s between re-raisings of a stop signal's KeyboardInterrupt until ``main`` catches it."""
 _interrupting = False  # a stop signal came and main has not caught its KeyboardInterrupt yet
+_finishing = False  # main is past its command (its last line, its handlers): no interruption any more
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; the exit code: 0 done, 1 internal error (or problems found by
     ``dataset validate``), 2 bad input, 3 a run a real robot would not have finished, 130 Ctrl-C."""
-    global _interrupting
+    global _interrupting, _finishing
     args = sys.argv[1:] if argv is None else list(argv)
+    _finishing = False
     # before anything else: cleanup (temporary files, the robot brake) runs on every stop signal,
     # and a signal during the imports below ends with exit code 130 too; a signal the parent set
     # to be ignored (nohup, a background job) stays ignored
@@ -62,14 +64,15 @@ def main(argv: list[str] | None = None) -> int:
                 return _report(exc, args)
             raise KeyboardInterrupt from None
     except KeyboardInterrupt:
-        _interrupting = False  # first, with no call before it: no re-raising from here on
+        # first, with no call before them: no interruption and no re-raising from here on
+        _finishing, _interrupting = True, False
         signal.setitimer(signal.ITIMER_REAL, 0.0)
         for sig in STOP_SIGNALS:  # a second signal must not interrupt the last line
             signal.signal(sig, signal.SIG_IGN)
         sys.stderr.write("impactqp: interrupted\n")
         return EXIT_INTERRUPTED
     finally:
-        _interrupting = False
+        _finishing, _interrupting = True, False  # a stop signal now would escape main as a traceback
         signal.setitimer(signal.ITIMER_REAL, 0.0)
         for sig, handler in previous.items():
             if argv is None and sig in STOP_SIGNALS:
@@ -137,6 +140,8 @@ def interrupted(exc: BaseException) -> bool:
 
 def _interrupt(signum, frame):
     global _interrupting
+    if _finishing:  # the command is over: its exit code stands
+        return
     _interrupting = True
     signal.setitimer(signal.ITIMER_REAL, REDELIVERY_PERIOD, REDELIVERY_PERIOD)
     raise KeyboardInterrupt

@@ -6,8 +6,9 @@ needs no shared file system and both backends write the same files.
 
 from __future__ import annotations
 
+import logging
 import os
-import signal
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -15,7 +16,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from impactqp.controller.model.validation import BadInputError
-from impactqp.sim.process_pool import ProcessPool
+from impactqp.sim.process_pool import ProcessPool, held_signals
 
 from . import store
 from .cells import Simulation, evaluate_cells
@@ -82,21 +83,15 @@ def _local(config: SweepConfig, simulation: Simulation | None, todo: list[int], 
 
 
 def _ray(config: SweepConfig, simulation: Simulation | None, todo: list[int], chunk_size: int, jobs: int):
-    """Yield (chunk, columns) as they finish on Ray: the cluster at RAY_ADDRESS, else a local Ray."""
+    """Yield (chunk, columns) as they finish on Ray: the cluster at RAY_ADDRESS, else a local Ray.
+    A Ray this function started is shut down however the function ends (a stop signal
+    included), never half-way: none of its processes outlives the command."""
     import ray  # optional dependency (the ray extra): loaded only for this backend
 
-    started = not ray.is_initialized()
-    if started:
-        # ray.init puts in a SIGTERM handler of its own (sys.exit), which would turn a stop signal
-        # into a plain exit code 15: the command line's handler stays in charge
-        sigterm_handler = signal.getsignal(signal.SIGTERM)
-        if os.environ.get("RAY_ADDRESS"):
-            ray.init(address=os.environ["RAY_ADDRESS"], log_to_driver=False)
-        else:
-            ray.init(num_cpus=jobs, include_dashboard=False, log_to_driver=False)
-        if sigterm_handler is not None:  # None: a handler set outside Python, which cannot be put back
-            signal.signal(signal.SIGTERM, sigterm_handler)
+    starter = None if ray.is_initialized() else RayStarter(jobs)
     try:
+        if starter is not None:
+            starter.start()
         remote = ray.remote(num_cpus=1)(_evaluate_chunk_parts)
         config_ref, simulation_ref = ray.put(config), ray.put(simulation)
         pending = [remote.remote(config_ref, simulation_ref, c, chunk_size) for c in todo]
@@ -104,8 +99,58 @@ def _ray(config: SweepConfig, simulation: Simulation | None, todo: list[int], ch
             ready, pending = ray.wait(pending, num_returns=1)
             yield ray.get(ready[0])
     finally:
-        if started:
+        if starter is not None:
+            starter.stop()
+
+
+class RayStarter:
+    """A Ray of this process, started and stopped whole: ``ray.init`` runs on a thread of its own,
+    waited for to its end even when a stop signal comes meanwhile (the signal goes on after it),
+    and the thread lives until ``stop`` has shut Ray down (Ray's processes die with the thread
+    that started them). Off the main thread, ``ray.init`` also leaves the command line's SIGTERM
+    handler in place (in the main thread it puts in its own, ``sys.exit``, which would turn a
+    stop signal into a plain exit code 15)."""
+
+    def __init__(self, jobs: int):
+        address = os.environ.get("RAY_ADDRESS")
+        options = {"address": address} if address else {"num_cpus": jobs, "include_dashboard": False}
+        # Ray's notes (the SIGTERM handler it did not set, its start) are no news to the user
+        self.options = options | {"log_to_driver": False, "logging_level": logging.ERROR}
+        self.started, self.stopped = threading.Event(), threading.Event()
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, name="ray-init", daemon=True)
+
+    def _run(self) -> None:
+        import ray
+
+        try:
+            ray.init(**self.options)
+        except BaseException as error:  # noqa: BLE001 - handed to the main thread
+            self.error = error
+        self.started.set()
+        self.stopped.wait()
+
+    def start(self) -> None:
+        self.thread.start()
+        try:
+            self.started.wait()
+        finally:
+            with held_signals():
+                self.started.wait()
+        if self.error is not None:
+            raise self.error
+
+    def stop(self) -> None:
+        """Shut Ray down (whole, whatever signal comes meanwhile) and end the thread."""
+        import ray
+
+        if self.thread.ident is None:  # never started
+            return
+        with held_signals():
+            self.started.wait()
             ray.shutdown()
+            self.stopped.set()
+            self.thread.join()
 
 
 @dataclass(frozen=True)
