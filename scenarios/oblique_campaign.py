@@ -6,7 +6,7 @@ Trials (:class:`QpSpeedGrid`): per fixed-base arm, tangential-to-normal speed ra
 0.25, 0.5, 0.75, 1} x wall frictions mu in {0.1, 0.3, 0.6} x the robot's first two named
 postures. The tangential velocity lies along the wall's tangent t = normalise(n x e_z)
 (``sim.generation``), v_t = r v_ref t, v_ref the closed form of the robust rows sliding at
-v_t = 0 (``max_speed.frictional_max_speed`` at the named posture, the smallest over the
+v_t = 0 (``friction_max_speed.frictional_max_speed`` at the named posture, the smallest over the
 controller's predictors): the approach's own ratio is measured, v_t- / v_c.
 
 Each trial runs twice on the scene whose wall has the trial's mu (``sim.scene``: the tool/wall
@@ -33,7 +33,7 @@ import numpy as np
 from impactqp.constraints import jump_model_names
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.friction_pyramid import FrictionRows
-from impactqp.controller.model.frictional_max_speed import frictional_max_speed
+from impactqp.controller.model.friction_max_speed import frictional_max_speed
 from impactqp.controller.model.max_speed import Setting
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.validation import BadInputError

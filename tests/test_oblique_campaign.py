@@ -9,7 +9,7 @@ import pytest
 
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.friction_pyramid import FrictionRows
-from impactqp.controller.model.frictional_max_speed import frictional_max_speed
+from impactqp.controller.model.friction_max_speed import frictional_max_speed
 from impactqp.controller.model.max_speed import Setting
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.scenarios.cli import main

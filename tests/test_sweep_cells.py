@@ -88,7 +88,7 @@ def test_a_friction_cell_is_the_closed_form_under_the_robust_rows_and_friction_o
     mu and sliding speed along t = normalise(n x e_z); at mu = 0 and v_t = 0 they are the
     frictionless closed form of the same cell; at any mu, no faster than mu = 0 at the same v_t."""
     from impactqp.controller.model.friction_pyramid import FrictionRows
-    from impactqp.controller.model.frictional_max_speed import frictional_max_speed
+    from impactqp.controller.model.friction_max_speed import frictional_max_speed
 
     data = tomllib.loads(EXAMPLE)
     data["grid"].update(origin=[0.6, 0.0, 0.7], size=[0.0, 0.0])

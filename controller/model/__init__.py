@@ -55,7 +55,7 @@ _EXPORTS = {
     "MaxSpeeds": "max_speed",
     "closed_form_max_speed": "max_speed",
     "closed_form_max_speeds": "max_speed",
-    "frictional_max_speed": "max_speed",
+    "frictional_max_speed": "friction_max_speed",
     # the standing humanoid
     "Stance": "robot_description",
     "STANCES": "humanoid_stance",

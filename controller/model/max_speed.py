@@ -36,7 +36,7 @@ The criteria are a list chosen by the robot's description (:func:`criteria_of`):
 :func:`closed_form_max_speeds` evaluates the arm's criteria for N postures at once on the batched
 terms and predictor of ``controller.model.jump`` (stacked pseudo-inverses, Cholesky solves with M).
 
-With friction, an arm's highest speed is ``frictional_max_speed``'s (its own module).
+With friction, an arm's highest speed is ``friction_max_speed.frictional_max_speed``.
 """
 
 from __future__ import annotations

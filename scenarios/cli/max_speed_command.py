@@ -9,7 +9,7 @@ driven by its scripted arm or, ``--controller qp``, by the whole-body QP; an opt
 search that has no meaning there is bad input when given), a fixed-base arm
 per named posture on a wall (``scenarios.max_speed_search.MaxSpeedSearch``: closed form,
 QP-limited run and simulated bisection). With ``--friction`` an arm's answer is the closed form
-under the robust friction rows (``controller.model.max_speed.frictional_max_speed``: every
+under the robust friction rows (``controller.model.friction_max_speed.frictional_max_speed``: every
 predictor at the posture, sliding at ``--tangential``), without simulation. Bad input ends with
 one line on stderr and exit code 2.
 """
@@ -131,7 +131,7 @@ def frictional_arm_max_speed(request: MaxSpeedRequest) -> dict:
     the frictionless closed form."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.friction_pyramid import FrictionRows
-    from impactqp.controller.model.frictional_max_speed import frictional_max_speed
+    from impactqp.controller.model.friction_max_speed import frictional_max_speed
     from impactqp.controller.model.validation import tangential_velocity
     from impactqp.scenarios.cli.arguments import parse_vector
 

@@ -15,7 +15,7 @@ together, on the vectorised kinematics of ``controller.model.batch``:
    (:func:`controller.model.max_speed.closed_form_max_speeds`, at each restitution and impact
    duration of the chunk); with ``[friction]``, also under the robust friction rows of the cell's
    mu while the contact slides at its tangential speed along t = normalise(n x e_z)
-   (:func:`controller.model.max_speed.frictional_max_speed`, one cell at a time);
+   (:func:`controller.model.friction_max_speed.frictional_max_speed`, one cell at a time);
 4. with a :class:`Simulation`, one ``max-speed`` search per cell
    (:class:`scenarios.max_speed_search.MaxSpeedSearch` at the cell's posture, on the plane through
    its point with its normal, with the plant, the cell's restitution, impact duration and
@@ -38,7 +38,7 @@ from impactqp.controller.measured.impact import ImpactNotFoundError
 from impactqp.controller.model.batch import BatchKinematics
 from impactqp.controller.model.inverse_kinematics import UnreachableStartError, contact_postures
 from impactqp.controller.model.friction_pyramid import FrictionRows
-from impactqp.controller.model.frictional_max_speed import frictional_max_speed
+from impactqp.controller.model.friction_max_speed import frictional_max_speed
 from impactqp.controller.model.max_speed import CRITERIA, Setting, approach_directions, closed_form_max_speeds
 from impactqp.controller.model.postures import DEFAULT_WALL, ImpactPosture, Surface
 from impactqp.controller.model.choice import RobotChoice

@@ -1,4 +1,4 @@
-"""An arm's highest speed under the robust friction rows (controller/model/frictional_max_speed.py;
+"""An arm's highest speed under the robust friction rows (controller/model/friction_max_speed.py;
 docs/frictional-impacts.md): the frictionless closed form at zero friction, never higher with
 friction, and the frictional impulse at the answer inside the cone and within the limits."""
 
@@ -13,7 +13,7 @@ from conftest import JOINTS, g1_model
 from impactqp.constraints import ExpectedImpact
 from impactqp.controller.model.friction_pyramid import FrictionRows, response_maps
 from impactqp.controller.model.frictional_impact import contact_frame, frictional_impulse
-from impactqp.controller.model.frictional_max_speed import frictional_max_speed
+from impactqp.controller.model.friction_max_speed import frictional_max_speed
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.max_speed import Setting, closed_form_max_speed
