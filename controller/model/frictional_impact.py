@@ -23,9 +23,10 @@ when u_n = -e u_n(0). Without friction (mu = 0, or no tangential velocity and W_
 linear in p and both give eq. (12): P = -(1 + e) (n^T v-) / (n^T W n) n.
 
 Phases of constant impulse direction (stick, reversal, no friction) are integrated in closed
-form; slip by a compiled fourth-order Runge-Kutta scheme over p (:data:`STEPS_PER_IMPULSE`
-steps per frictionless impulse), each event (slip stops, compression ends, restitution ends)
-located inside its step by bisection.
+form; slip over p by a compiled Dormand-Prince 5(4) pair with an adaptive step (each step's
+embedded error estimate below :data:`TOLERANCE` of the scales of u, P_t and the work; steps
+shorter near u_t = 0, :data:`NEAR_STOP_SHARE`), each event (slip stops, compression ends,
+restitution ends) located inside its step by bisection on the step's length.
 """
 
 from __future__ import annotations
@@ -40,21 +41,40 @@ from . import validation
 from .validation import BadInputError
 
 RESTITUTION_MODELS = ("energetic", "kinematic")
-STEPS_PER_IMPULSE = 2000
-"""Runge-Kutta steps along slip per frictionless impulse (1 + e) |u_n(0)| / W_nn."""
+TOLERANCE = 1e-12
+"""The largest error estimate of a slip step, per component of y relative to its scale: |u(0)|
+for u, the frictionless impulse (1 + e) |u_n(0)| / W_nn for P_t, their product for the work."""
+FIRST_STEP_SHARE = 0.01
+"""The first slip step of a phase, as a share of the frictionless impulse."""
 MAX_STEPS = 10**7
 STOP_SHARE = 1e-9
 """|u_t| below this share of the pre-impact speed is stopped (u_t = 0): above the integration's
 own error, so that a trajectory that reaches u_t = 0 is not read as one that passes close by."""
 BISECTIONS = 60
-NEAR_STOP_SHARE = 0.005
+"""Halvings of a step's length that locate an event inside it (to 2^-60 of the step)."""
+NEAR_STOP_SHARE = 0.05
 """Along slip, a step changes u_t by at most this share of |u_t|: the slip direction turns
-fast near u_t = 0, so the steps shrink there (geometrically, towards a stop)."""
+fast near u_t = 0, so the steps shrink there (geometrically, towards a stop), and a trajectory
+that passes close to u_t = 0 inside one step is not missed by the step's end points."""
 RAY_ANGLES = 720
 """Angles scanned for the invariant rays of the slip phase plane (each refined by bisection)."""
 
-# events of the slip kernel
+# events of the slip kernel, and what ends the phase besides a stop
 STOPPED, COMPRESSED, ENDED, NOT_ENDED = 0, 1, 2, 3
+COMPRESSING, ENERGETIC, KINEMATIC = 0, 1, 2
+# the Dormand-Prince 5(4) pair (Dormand and Prince 1980; Hairer, Norsett and Wanner, "Solving
+# ordinary differential equations I", Table II.5.2): the stage rows (the last one the
+# fifth-order answer) and the error weights E = b5 - b4 of the embedded fourth-order answer
+DP_A = np.array([
+    [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+    [1 / 5, 0.0, 0.0, 0.0, 0.0, 0.0],
+    [3 / 40, 9 / 40, 0.0, 0.0, 0.0, 0.0],
+    [44 / 45, -56 / 15, 32 / 9, 0.0, 0.0, 0.0],
+    [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729, 0.0, 0.0],
+    [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656, 0.0],
+    [35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84],
+])
+DP_ERROR = np.array([71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40])
 
 
 @dataclass(frozen=True)
@@ -147,8 +167,9 @@ def frictional_impulse(
     # y = (u_t1, u_t2, u_n, P_t1, P_t2, work of the normal impulse in the current phase of the
     # impact: compression, then restitution), p the normal impulse
     y, p = np.concatenate([u0, np.zeros(3)]), 0.0
-    stopped = STOP_SHARE * float(np.linalg.norm(u0))
-    h = (1.0 + e) * -u0[2] / Wc[2, 2] / STEPS_PER_IMPULSE
+    speed, impulse_scale = float(np.linalg.norm(u0)), (1.0 + e) * -u0[2] / Wc[2, 2]
+    stopped = STOP_SHARE * speed
+    scale = np.array([speed, speed, speed, impulse_scale, impulse_scale, speed * impulse_scale])
     mu_bar = float(np.linalg.norm(stick_direction(Wc)))
     if mu == 0.0:
         mode, direction = "frictionless", np.zeros(2)
@@ -169,7 +190,8 @@ def frictional_impulse(
             if compression is not None:
                 break  # the phase ran to the end of restitution (in closed form)
             continue
-        p, event = slip_phase(Wc, mu, y, p, h, stopped, target, energetic, compression is None)
+        ending = COMPRESSING if compression is None else ENERGETIC if energetic else KINEMATIC
+        p, event = slip_phase(Wc, mu, y, p, scale, stopped, target, ending)
         if event == ENDED:
             break
         if event == STOPPED:
@@ -231,76 +253,79 @@ def slip_rate(Wc, mu, y, out):
 
 
 @njit(cache=True)
-def rk4_step(Wc, mu, y, h, out) -> bool:
-    """One classical Runge-Kutta step of length h along slip, from y into out; returns whether
-    the step reaches u_t = 0 (a stage or its end whose tangential velocity points against the
-    start's: the slip direction is not defined there, out is not written, and ``slip_phase``
-    halves the step until it stops short of 0)."""
-    k1, k2, k3, k4, z = np.empty(6), np.empty(6), np.empty(6), np.empty(6), np.empty(6)
-    slip_rate(Wc, mu, y, k1)
+def dp_step(Wc, mu, y, h, out, stages, scale) -> float:
+    """One step of length h along slip by the Dormand-Prince 5(4) pair, from y into out (its
+    fifth-order answer; ``stages`` 7 x 6, the stage rates); returns the step's error estimate
+    max_i |h sum_j E_j k_ji| / scale_i (E = b5 - b4), or -1 when the step reaches u_t = 0: a
+    stage, or the end, whose tangential velocity points against the start's (the slip
+    direction is not defined there; ``slip_phase`` halves the step until it stops short of 0)."""
+    for s in range(7):
+        for i in range(6):
+            total = 0.0
+            for j in range(s):
+                total += DP_A[s, j] * stages[j, i]
+            out[i] = y[i] + h * total
+        if s > 0 and out[0] * y[0] + out[1] * y[1] <= 0.0:
+            return -1.0
+        slip_rate(Wc, mu, out, stages[s])
+    error = 0.0
     for i in range(6):
-        z[i] = y[i] + 0.5 * h * k1[i]
-    crossed = z[0] * y[0] + z[1] * y[1] <= 0.0
-    if not crossed:
-        slip_rate(Wc, mu, z, k2)
-        for i in range(6):
-            z[i] = y[i] + 0.5 * h * k2[i]
-        crossed = z[0] * y[0] + z[1] * y[1] <= 0.0
-    if not crossed:
-        slip_rate(Wc, mu, z, k3)
-        for i in range(6):
-            z[i] = y[i] + h * k3[i]
-        crossed = z[0] * y[0] + z[1] * y[1] <= 0.0
-    if not crossed:
-        slip_rate(Wc, mu, z, k4)
-        for i in range(6):
-            out[i] = y[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-        crossed = out[0] * y[0] + out[1] * y[1] <= 0.0
-    return crossed
+        total = 0.0
+        for j in range(7):
+            total += DP_ERROR[j] * stages[j, i]
+        error = max(error, abs(h * total) / scale[i])
+    return error
 
 
 @njit(cache=True)
-def slip_event(z, stopped, target, energetic, compressing) -> int:
+def slip_event(z, stopped, target, ending) -> int:
+    """The event reached at z: slip stopped (|u_t| <= ``stopped``), compression ended (u_n >= 0,
+    ``ending`` COMPRESSING), restitution ended (``ending`` ENERGETIC or KINEMATIC: the work or
+    u_n has reached ``target``), or none (NOT_ENDED)."""
     if math.sqrt(z[0] * z[0] + z[1] * z[1]) <= stopped:
         return STOPPED
-    if compressing:
+    if ending == COMPRESSING:
         return COMPRESSED if z[2] >= 0.0 else NOT_ENDED
-    return ENDED if restitution_ended(z, target, energetic) else NOT_ENDED
+    return ENDED if restitution_ended(z, target, ending == ENERGETIC) else NOT_ENDED
 
 
 @njit(cache=True)
-def slip_phase(Wc, mu, y, p, h, stopped, target, energetic, compressing):
-    """Advance y in place along slip, step by step (of at most h, and at most a change of
-    ``NEAR_STOP_SHARE`` |u_t| in u_t), up to the first event: slip stops (|u_t| below
-    ``stopped``), compression ends when ``compressing``, else restitution ends (both located by
-    bisection inside their step); returns the new p and the event."""
-    z, rate = np.empty(6), np.empty(6)
+def slip_phase(Wc, mu, y, p, scale, stopped, target, ending):
+    """Advance y in place along slip up to the first event of ``slip_event``, by Dormand-Prince
+    5(4) steps whose error estimate stays below ``TOLERANCE`` (relative to ``scale``, per
+    component of y: local extrapolation, the step adapted by the usual factor
+    0.9 (TOLERANCE / error)^(1/5)) and that change u_t by at most ``NEAR_STOP_SHARE`` |u_t|;
+    the event is located inside its step by bisection on the step's length. Returns the new p
+    and the event."""
+    z, rate, stages = np.empty(6), np.empty(6), np.empty((7, 6))
+    h = FIRST_STEP_SHARE * scale[3]
     for _ in range(MAX_STEPS):
         slip_rate(Wc, mu, y, rate)
         speed = math.sqrt(y[0] * y[0] + y[1] * y[1])
         change = math.sqrt(rate[0] * rate[0] + rate[1] * rate[1])
         step = min(h, NEAR_STOP_SHARE * speed / change) if change > 0.0 else h
-        while rk4_step(Wc, mu, y, step, z):
-            step *= 0.5
-        event = slip_event(z, stopped, target, energetic, compressing)
+        error = dp_step(Wc, mu, y, step, z, stages, scale)
+        if error < 0.0:
+            h = 0.5 * step
+            continue
+        h = step * min(5.0, 0.9 * (TOLERANCE / error) ** 0.2) if error > 0.0 else 5.0 * step
+        if error > TOLERANCE:
+            continue
+        event = slip_event(z, stopped, target, ending)
         if event == NOT_ENDED:
             y[:] = z
             p += step
             continue
-        if event == STOPPED:
-            y[:] = z
-            y[0], y[1] = 0.0, 0.0
-            return p + step, STOPPED
         low, high = 0.0, step
         for _ in range(BISECTIONS):
             middle = 0.5 * (low + high)
-            rk4_step(Wc, mu, y, middle, z)
-            if slip_event(z, stopped, target, energetic, compressing) == NOT_ENDED:
+            crossed = dp_step(Wc, mu, y, middle, z, stages, scale) < 0.0
+            if not crossed and slip_event(z, stopped, target, ending) == NOT_ENDED:
                 low = middle
             else:
                 high = middle
-        rk4_step(Wc, mu, y, high, z)
-        event = slip_event(z, stopped, target, energetic, compressing)
+        dp_step(Wc, mu, y, high, z, stages, scale)  # u_t stays above `stopped` up to low
+        event = slip_event(z, stopped, target, ending)
         y[:] = z
         if event == STOPPED:
             y[0], y[1] = 0.0, 0.0
