@@ -43,6 +43,26 @@ from impactqp.sim.plant import PlantParameters  # noqa: E402
 from .readable import boolean, number, parameters_text  # noqa: E402
 
 NEAR_ZERO_STDS = 3.0
+FIGURE_DPI = 110
+JUMPS_INCHES = (5.0, 4.0)
+"""The jumps figure's size per posture (one panel each), inches."""
+ERROR_VS_SPEED_INCHES = (6.0, 4.0)
+PREDICTOR_ERRORS_INCHES = (7.0, 4.0)
+PIXEL_BYTES = 4
+"""Bytes of a pixel before compression (RGBA): PNG stores a figure's pixels in fewer, plus a few
+dozen bytes of headers."""
+TEXT_BYTES = 65_536
+TEXT_BYTES_PER_TRIAL = 4096
+"""report.md, estimated: its fixed sections, and per trial its rows (residual, jumps, speeds)."""
+
+
+def report_bytes(postures: int, trials: int) -> float:
+    """An estimate of the size of ``write_report``'s files for a dataset of ``trials`` trials at
+    ``postures`` postures: each figure's pixels (its size in inches times FIGURE_DPI, in both
+    directions) at PIXEL_BYTES, and the text's TEXT_BYTES plus TEXT_BYTES_PER_TRIAL per trial."""
+    sizes = ((JUMPS_INCHES[0] * max(postures, 1), JUMPS_INCHES[1]), ERROR_VS_SPEED_INCHES, PREDICTOR_ERRORS_INCHES)
+    pixels = sum(width * height for width, height in sizes) * FIGURE_DPI**2
+    return PIXEL_BYTES * pixels + TEXT_BYTES + TEXT_BYTES_PER_TRIAL * trials
 
 
 @dataclass(frozen=True)
@@ -185,7 +205,7 @@ def absolute_errors(diagnosis: Diagnosis) -> dict[str, np.ndarray]:
 
 def save(fig, path: Path) -> None:
     fig.tight_layout()
-    fig.savefig(path, dpi=110, format="png")
+    fig.savefig(path, dpi=FIGURE_DPI, format="png")
     plt.close(fig)
 
 
@@ -193,7 +213,7 @@ def plot_jumps(diagnosis: Diagnosis, path: Path) -> None:
     postures = sorted({t.posture or "unknown" for t in diagnosis.trials})
     data = series(diagnosis)
     joints = np.arange(1, data["measured"].shape[1] + 1)
-    fig, axes = plt.subplots(1, len(postures), figsize=(5 * len(postures), 4.0), squeeze=False, sharey=True)
+    fig, axes = plt.subplots(1, len(postures), figsize=(JUMPS_INCHES[0] * len(postures), JUMPS_INCHES[1]), squeeze=False, sharey=True)
     for ax, posture in zip(axes[0], postures):
         rows = [i for i, t in enumerate(diagnosis.trials) if (t.posture or "unknown") == posture]
         for k, name in enumerate(("measured", "nominal sim", "extended sim")):
@@ -212,7 +232,7 @@ def plot_jumps(diagnosis: Diagnosis, path: Path) -> None:
 def plot_error_vs_speed(diagnosis: Diagnosis, path: Path) -> None:
     speeds = np.array([t.reference_speed for t in diagnosis.trials])
     levels = np.unique(speeds)
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=ERROR_VS_SPEED_INCHES)
     for name, errors in absolute_errors(diagnosis).items():
         average = errors.mean(axis=1)
         ax.plot(levels, [average[speeds == v].mean() for v in levels], "o-", label=name)
@@ -227,7 +247,7 @@ def plot_error_vs_speed(diagnosis: Diagnosis, path: Path) -> None:
 def plot_predictor_errors(diagnosis: Diagnosis, path: Path) -> None:
     errors = absolute_errors(diagnosis)
     joints = np.arange(1, next(iter(errors.values())).shape[1] + 1)
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = plt.subplots(figsize=PREDICTOR_ERRORS_INCHES)
     width = 0.8 / len(errors)
     for k, (name, error) in enumerate(errors.items()):
         ax.bar(joints + (k - len(errors) / 2 + 0.5) * width, error.mean(axis=0), width, label=name)

@@ -86,6 +86,25 @@ def test_diagnose_json_report_and_saved_plant(small_dataset, tmp_path, capsys):
     fitted = PlantParameters.from_json(tmp_path / "fitted.json")
     assert fitted.armature[0] == pytest.approx(0.5, rel=0.2)
     assert (tmp_path / "report" / "report.md").read_text().startswith("# Impact diagnosis")
+    from impactqp.scenarios.diagnosis_report import report_bytes
+
+    written = sum(path.stat().st_size for path in (tmp_path / "report").iterdir())
+    assert written <= report_bytes(2, result["trials"])  # the room asked for before the work is enough
+
+
+@pytest.mark.parametrize("option", ["--report", "--save-plant"])
+def test_diagnose_without_room_for_its_output_is_refused_before_the_work(small_dataset, tmp_path, capsys, monkeypatch, option):
+    """A file system without the room --report or --save-plant needs: one line naming the folder,
+    exit code 2, before the diagnosis starts (no stage note) and with nothing written."""
+    from impactqp.controller.measured import dataset_writer
+
+    full = shutil.disk_usage(tmp_path)._replace(free=0)
+    monkeypatch.setattr(dataset_writer.shutil, "disk_usage", lambda path: full)
+    target = tmp_path / ("report" if option == "--report" else "fitted.json")
+    code, out, err = run(capsys, "diagnose", small_dataset, option, target)
+    assert code == 2 and out == "" and err.strip().splitlines() == [err.strip()]
+    assert "MB are free" in err and "step" not in err
+    assert not target.exists()
 
 
 @pytest.mark.parametrize(

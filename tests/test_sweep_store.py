@@ -81,3 +81,41 @@ def test_chunks_carry_the_config_and_the_package_version(tmp_path):
     identity = json.loads(metadata[b"impactqp.sweep"])
     assert identity == {"config": json.loads(config.canonical_json()), "simulate": False, "plant": None}
     assert metadata[b"impactqp.version"].decode() == store.package_version()
+
+
+@pytest.mark.parametrize("simulate", [False, True])
+def test_the_room_estimate_bounds_the_chunks_written(tmp_path, simulate):
+    """``output_bytes`` is at least the size of the chunk files a sweep writes (the rows at their
+    uncompressed size): the check before the work asks for no less than the work needs.
+    Simulated, the cells are out of reach (recorded unreachable, no trial runs) but carry the
+    simulated columns."""
+    origin = [1.5, 0.0, 0.5] if simulate else DATA["grid"]["origin"]
+    config = parse_config(dict(DATA, grid=dict(DATA["grid"], origin=origin, size=[0.1, 0.1], spacing=0.05)))
+    simulation = Simulation() if simulate else None
+    summary = run_sweep(config, tmp_path, chunk_size=CHUNK, progress=False, plots=False, simulation=simulation)
+    written = sum(path.stat().st_size for path in tmp_path.glob("chunk-*.parquet"))
+    assert 0 < written <= store.output_bytes(config, simulation, summary.cells, summary.chunks)
+
+
+def test_a_disk_without_room_is_refused_before_any_cell(tmp_path, monkeypatch):
+    """Less free space than the margin times the estimate: one BadInputError naming the folder
+    and the estimate, and nothing written (the folder is not even made); on resume, only the
+    chunks still to write count."""
+    import shutil
+
+    from impactqp.controller.measured import dataset_writer
+
+    config = parse_config(dict(DATA, grid=dict(DATA["grid"], size=[0.1, 0.0], spacing=0.1)))
+    out = tmp_path / "sweep"
+    estimate = store.output_bytes(config, None, config.cell_count(), -(-config.cell_count() // CHUNK))
+    usage = shutil.disk_usage(tmp_path)._replace(free=int(estimate))  # less than the margin asks
+    with monkeypatch.context() as patch:
+        patch.setattr(dataset_writer.shutil, "disk_usage", lambda path: usage)
+        with pytest.raises(BadInputError, match=rf"{out}: the rows of {config.cell_count()} cells need about .* MB are free"):
+            run_sweep(config, out, chunk_size=CHUNK, progress=False, plots=False)
+    assert not out.exists()
+    run_sweep(config, out, chunk_size=CHUNK, progress=False, plots=False)
+    nothing_left = shutil.disk_usage(tmp_path)._replace(free=0)
+    monkeypatch.setattr(dataset_writer.shutil, "disk_usage", lambda path: nothing_left)
+    again = run_sweep(config, out, resume=True, chunk_size=CHUNK, progress=False, plots=False)  # nothing to write
+    assert again.chunks_skipped == again.chunks

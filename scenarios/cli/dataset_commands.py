@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import sys
+from pathlib import Path
 
 import click
 
@@ -199,6 +200,7 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, 
     if save_plant:
         output_file(save_plant, "--save-plant", inputs=(directory, plant_file))
     nominal = load_plant(plant_file) or PlantParameters()
+    _check_output_room(directory, report_dir, save_plant, nominal)
     result = _diagnose_with_progress(directory, nominal, jobs, show=show_progress(as_json), max_trials=max_trials)
     summary = result.summary()
     speeds = None
@@ -304,6 +306,30 @@ def _print_diagnosis(result, summary: dict, speeds) -> None:
         click.echo(trusted_speed_text(result, speeds))
     for s in summary["skipped"]:
         click.echo(f"skipped {s['id']}: {s['reason']}")
+
+
+def _check_output_room(directory, report_dir, save_plant, nominal) -> None:
+    """Before the diagnosis: room for ``--report``'s files (``diagnosis_report.report_bytes`` of
+    the manifest's postures and trials) and for ``--save-plant``'s (the nominal plant's JSON, at
+    twice its length: a fitted value prints longer), ``check_room``; a manifest that cannot be
+    read is left to the diagnosis to report."""
+    # lazy: the command line loads what a command needs when it runs
+    import json
+
+    from impactqp.controller.measured.dataset import MANIFEST, DatasetError, load_manifest
+    from impactqp.controller.measured.dataset_writer import check_room
+
+    if report_dir:
+        from impactqp.scenarios.diagnosis_report import report_bytes
+
+        try:
+            trials = load_manifest(Path(directory) / MANIFEST)["trials"]
+        except DatasetError:
+            return
+        postures = {trial.get("posture") for trial in trials if isinstance(trial, dict)}
+        check_room(report_dir, report_bytes(len(postures), len(trials)), "the report's files")
+    if save_plant:
+        check_room(Path(save_plant).absolute().parent, 2 * len(json.dumps(nominal.to_dict(), indent=2)), "the plant file")
 
 
 def _check_manifest_choice(directory, choice) -> None:

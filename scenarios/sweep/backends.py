@@ -185,12 +185,16 @@ def run_sweep(config: SweepConfig, out: Path, **options) -> SweepSummary:
         except ImportError:
             raise BadInputError("the ray backend needs Ray: pip install -e '.[ray]'") from None
     start = time.perf_counter()
-    store.prepare(out, config, simulation, resume, chunk_size)
-    sweep_identity = store.identity(config, simulation)
     n_cells = config.cell_count()
     n_chunks = -(-n_cells // chunk_size)
-    done = store.done_chunks(out, n_chunks)
+    if resume:  # the stored sweep is checked first, then the room for what is left of it
+        store.prepare(out, config, simulation, resume, chunk_size)
+    done = store.done_chunks(out, n_chunks) if resume else set()
     todo = [c for c in range(n_chunks) if c not in done]
+    store.check_output_room(out, config, simulation, {c: len(_chunk_cells(config, c, chunk_size)) for c in todo})
+    if not resume:
+        store.prepare(out, config, simulation, resume, chunk_size)
+    sweep_identity = store.identity(config, simulation)
     bar = tqdm(total=n_cells, initial=n_cells - sum(len(_chunk_cells(config, c, chunk_size)) for c in todo),
                unit="cell", disable=None if progress else True)
     evaluate = _ray if backend == "ray" else _local

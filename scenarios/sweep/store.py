@@ -19,12 +19,20 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from impactqp.controller.measured.atomic import write_atomic, write_text_atomic
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.measured.dataset_writer import check_room
+from impactqp.controller.model.validation import BadInputError, counted
 
-from .cells import Simulation
+from .cells import Simulation, evaluate_cells
 from .config import SweepConfig
 
 CONFIG_FILE = "sweep.json"
+CHUNK_FOOTER_BYTES = 16_384
+"""Bytes of a chunk file beyond its rows and the sweep's identity: Parquet's magic numbers and
+footer (the schema and each column chunk's statistics, a few hundred bytes per column)."""
+SIMULATED_ROW_BYTES = 48
+"""Bytes a row of ``--simulate`` adds: ``simulated_max_speed``, ``qp_limited_speed`` and
+``simulated_impacts`` (8 bytes each) and ``simulated_status`` (at most 11 characters and a 4-byte
+offset)."""
 
 
 def package_version() -> str:
@@ -43,6 +51,24 @@ def identity(config: SweepConfig, simulation: Simulation | None) -> dict:
     (all its parameters; None for the nominal plant)."""
     plant = None if simulation is None or simulation.plant is None else simulation.plant.to_dict()
     return {"config": json.loads(config.canonical_json()), "simulate": simulation is not None, "plant": plant}
+
+
+def output_bytes(config: SweepConfig, simulation: Simulation | None, cells: int, chunks: int) -> float:
+    """An estimate of the size of ``cells`` rows of ``config`` in ``chunks`` chunk files: the first
+    cell's closed-form row, evaluated, at its Arrow size (the data uncompressed; Parquet stores
+    it in fewer bytes), plus ``SIMULATED_ROW_BYTES`` per row with ``--simulate``, plus per chunk
+    the sweep's identity (its metadata) and ``CHUNK_FOOTER_BYTES``. The figures are not counted."""
+    row = pa.table(evaluate_cells(config, range(0, 1))).nbytes + (SIMULATED_ROW_BYTES if simulation is not None else 0)
+    per_chunk = len(json.dumps(identity(config, simulation))) + CHUNK_FOOTER_BYTES
+    return float(cells * row + chunks * per_chunk)
+
+
+def check_output_room(out: Path, config: SweepConfig, simulation: Simulation | None, todo: dict[int, int]) -> None:
+    """Refuse (one line, before any chunk is evaluated) an ``out`` that cannot be written or has no
+    room for the chunks still to write, ``todo`` (chunk: its number of cells): ``check_room`` of
+    ``output_bytes``."""
+    cells = sum(todo.values())
+    check_room(out, output_bytes(config, simulation, cells, len(todo)), f"the rows of {counted(cells, 'cell')}")
 
 
 def prepare(out: Path, config: SweepConfig, simulation: Simulation | None, resume: bool, chunk_size: int) -> None:
