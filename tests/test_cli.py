@@ -590,3 +590,55 @@ def test_every_default_output_folder_is_out_slash_the_command():
     assert set(defaults) == {("demo",), ("run",), ("campaign",), ("sweep",), ("oblique",), ("dataset", "generate")}
     for path, default in defaults.items():
         assert default == f"out/{path[-1]}", (path, default)
+
+
+def test_a_stop_signal_raised_where_python_cannot_propagate_it_is_no_message(capsys, monkeypatch):
+    """The handler's KeyboardInterrupt raised inside a weakref callback (as in importlib's module
+    locks) cannot propagate: Python hands it to ``sys.unraisablehook`` ("Exception ignored in
+    ..."). While ``main`` runs it is dropped there, and raised again until caught: exit 130, the
+    one line, nothing handed to the hook that was in place."""
+    import gc
+    import os
+    import time
+    import weakref
+
+    import impactqp.controller.model.prediction as prediction
+
+    unraisable = []
+    monkeypatch.setattr(sys, "unraisablehook", unraisable.append)
+
+    def interrupted_in_a_callback(*args, **kwargs):
+        class Held:
+            pass
+
+        held = Held()
+        reference = weakref.ref(held, lambda ref: (os.kill(os.getpid(), signal.SIGINT), time.sleep(1.0)))
+        del held
+        gc.collect()
+        time.sleep(5.0)  # the interrupt is raised again in here
+        return reference
+
+    monkeypatch.setattr(prediction, "predict_all", interrupted_in_a_callback)
+    code, out, err = run(capsys, "predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1")
+    assert code == EXIT_INTERRUPTED and err.strip() == "impactqp: interrupted" and out == ""
+    assert unraisable == [] and sys.unraisablehook == unraisable.append  # the caller's hook is back
+
+
+def test_a_stop_signal_once_the_json_result_is_out_leaves_the_exit_code(capsys, monkeypatch):
+    """The JSON on stdout is the command's result: a stop signal right after it (before the
+    command returns) neither turns the exit code into 130 nor prints a line."""
+    import os
+    import time
+
+    import impactqp.scenarios.cli.commands as commands
+
+    real = commands.emit_json
+
+    def then_a_signal(obj):
+        real(obj)
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.5)  # the handler runs in here
+
+    monkeypatch.setattr(commands, "emit_json", then_a_signal)
+    code, out, err = run(capsys, "postures", "--json")
+    assert code == 0 and json.loads(out) and err == ""

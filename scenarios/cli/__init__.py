@@ -28,6 +28,7 @@ import sys
 import traceback
 
 from impactqp.scenarios.stop_signals import STOP_SIGNALS
+from impactqp.scenarios.cli import command_result
 from impactqp.scenarios.cli.exit_codes import (
     EXIT_BAD_INPUT,
     EXIT_INTERNAL_ERROR,
@@ -48,10 +49,12 @@ def main(argv: list[str] | None = None) -> int:
     global _interrupting, _finishing
     args = sys.argv[1:] if argv is None else list(argv)
     _finishing = False
+    command_result.new_command()
     # before anything else: cleanup (temporary files, the robot brake) runs on every stop signal,
     # and a signal during the imports below ends with exit code 130 too; a signal the parent set
     # to be ignored (nohup, a background job) stays ignored
     previous = {sig: signal.getsignal(sig) for sig in (*STOP_SIGNALS, signal.SIGALRM)}
+    previous_hook, sys.unraisablehook = sys.unraisablehook, _drop_interruptions
     for sig, handler in previous.items():
         if handler is not signal.SIG_IGN:
             signal.signal(sig, _interrupt_again if sig == signal.SIGALRM else _interrupt)
@@ -74,6 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         _finishing, _interrupting = True, False  # a stop signal now would escape main as a traceback
         signal.setitimer(signal.ITIMER_REAL, 0.0)
+        sys.unraisablehook = previous_hook
         for sig, handler in previous.items():
             if argv is None and sig in STOP_SIGNALS:
                 # the console entry point: the work is done and its exit code stands; a stop
@@ -138,9 +142,18 @@ def interrupted(exc: BaseException) -> bool:
     return False
 
 
+def _drop_interruptions(unraisable) -> None:
+    """``sys.unraisablehook`` while ``main`` runs: a stop signal's KeyboardInterrupt raised where
+    Python cannot propagate it (a weakref callback, a finaliser: "Exception ignored in ...") is
+    dropped without a word, since the handler raises it again until ``main`` catches it
+    (``_interrupt_again``); anything else goes to Python's own hook."""
+    if not (_interrupting and isinstance(unraisable.exc_value, KeyboardInterrupt)):
+        sys.__unraisablehook__(unraisable)
+
+
 def _interrupt(signum, frame):
     global _interrupting
-    if _finishing:  # the command is over: its exit code stands
+    if _finishing or command_result.result_is_out():  # the command is over: its exit code stands
         return
     _interrupting = True
     signal.setitimer(signal.ITIMER_REAL, REDELIVERY_PERIOD, REDELIVERY_PERIOD)

@@ -17,6 +17,7 @@ import numpy as np
 
 from impactqp.controller.model.files import regular_file
 from impactqp.controller.model.validation import MAX_TRIALS, BadInputError
+from impactqp.scenarios.cli import command_result
 
 max_trials_option = click.option(
     "--max-trials", "max_trials", type=int, default=MAX_TRIALS, show_default=True,
@@ -55,8 +56,10 @@ def parse_list(text: str, what: str) -> list[float]:
 
 
 def emit_json(obj) -> None:
-    """Strict JSON on stdout: a non-finite number is an internal error, never printed as NaN."""
+    """Strict JSON on stdout: a non-finite number is an internal error, never printed as NaN.
+    The JSON is the command's result: once it is out, the work is done (``command_result``)."""
     click.echo(json.dumps(obj, indent=2, allow_nan=False))
+    command_result.result_written()
 
 
 def bar_progress(bar):

@@ -129,7 +129,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     from impactqp.scenarios.readable import fixed
     from impactqp.scenarios.impact_figure import ImpactLabel
 
-    out_dir, video_file = trial["out_dir"], trial["video_file"]
+    out_dir = trial["out_dir"]
     check_pictures(trial)
     posture = choice.posture(posture_name)
     approach_speed(speed, "--speed")
