@@ -642,3 +642,27 @@ def test_a_stop_signal_once_the_json_result_is_out_leaves_the_exit_code(capsys, 
     monkeypatch.setattr(commands, "emit_json", then_a_signal)
     code, out, err = run(capsys, "postures", "--json")
     assert code == 0 and json.loads(out) and err == ""
+
+
+def test_a_stop_signal_while_the_json_result_is_written_leaves_the_exit_code(capsys, monkeypatch):
+    """A stop signal that lands while the JSON result is being written (the signal matrix's
+    `run` case, SIGHUP as the JSON appeared) lets the write finish: the whole JSON, exit code 0,
+    no line."""
+    import os
+    import time
+
+    import click
+
+    real = click.echo
+    signalled = []
+
+    def a_signal_then_the_write(message=None, **kwargs):
+        if not signalled:
+            signalled.append(True)
+            os.kill(os.getpid(), signal.SIGHUP)
+            time.sleep(0.5)  # the handler runs in here, before the text is out
+        real(message, **kwargs)
+
+    monkeypatch.setattr(click, "echo", a_signal_then_the_write)
+    code, out, err = run(capsys, "postures", "--json")
+    assert signalled and code == 0 and json.loads(out) and err == ""

@@ -57,9 +57,12 @@ def parse_list(text: str, what: str) -> list[float]:
 
 def emit_json(obj) -> None:
     """Strict JSON on stdout: a non-finite number is an internal error, never printed as NaN.
-    The JSON is the command's result: once it is out, the work is done (``command_result``)."""
-    click.echo(json.dumps(obj, indent=2, allow_nan=False))
+    The JSON is the command's result: once it is being written, the work is done
+    (``command_result``), so that a stop signal in the middle of the write neither cuts it nor
+    turns the exit code into 130."""
+    text = json.dumps(obj, indent=2, allow_nan=False)
     command_result.result_written()
+    click.echo(text)
 
 
 def bar_progress(bar):

@@ -1,4 +1,5 @@
-"""Whether the running command's result is out: its JSON on stdout (``arguments.emit_json``).
+"""Whether the running command's result is out: its JSON on stdout, from the moment it starts
+to be written (``arguments.emit_json``).
 From then on the work is done, and ``main`` lets a stop signal leave the command's exit code as
 it is, as one that comes after ``main`` returns (docs/errors.md, "Stop signals")."""
 
