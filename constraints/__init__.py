@@ -3,9 +3,9 @@ every robot's (limits, expected impact and its rows), and those of a robot stand
 contacts (the held contacts' rows, the capture region, the feet's wrenches at the impact)."""
 
 from .acceleration_limit import AccelerationLimit
-from .capture_constraint import CaptureRegionLimit
+from .capture_constraint import CaptureRegionLimit, EdgeCaptureRegionLimit
 from .constraint import Constraint, ConstraintRows, ControlCycle
-from .foot_wrench import FootWrenchLimit
+from .foot_wrench import EdgeFootWrenchLimit, FootWrenchLimit
 from .held_contact import HeldContactRows
 from .impact_model import JUMP_MODEL_CHOICES, ActivationRule, ExpectedImpact, jump_model_names
 from .impulsive_torque import ImpulsiveTorqueLimit
@@ -30,5 +30,7 @@ __all__ = [
     "ImpulsiveTorqueLimit",
     "HeldContactRows",
     "CaptureRegionLimit",
+    "EdgeCaptureRegionLimit",
     "FootWrenchLimit",
+    "EdgeFootWrenchLimit",
 ]

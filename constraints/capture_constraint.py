@@ -13,6 +13,7 @@ from impactqp.controller.model.model_terms import ModelTerms
 
 from .constraint import Constraint, ControlCycle
 from .impact_model import ExpectedImpact
+from .vertex_blocks import VertexBlocks
 
 
 class CaptureRegionLimit(Constraint):
@@ -83,3 +84,29 @@ def capture_rows(maps, state, region, scale, C, upper):
     C[:] = product(normals, K)
     for k in range(C.shape[0]):
         upper[k] = (omega * (offsets[k] - normals[k, 0] * com[0] - normals[k, 1] * com[1]) - C[k] @ dq) * inv_h
+
+
+class EdgeCaptureRegionLimit(VertexBlocks, CaptureRegionLimit):
+    """The capture region's rows of :class:`CaptureRegionLimit` for the frictionless impulse,
+    then the same rows for each edge impulse of the impact's friction rows (``ExpectedImpact``
+    with ``FrictionRows``, docs/frictional-impacts.md): the post-impact CoM velocity of every
+    vertex of the friction-cone section the impulse may take,
+
+        dc+_i = Jcom v' + C G_i J v',    G_i = -(1 + c_r) d_i n^T / (n^T W d_i)
+
+    (``friction_pyramid.edge_impulse_maps``, with its guard), inside the capture region; being
+    linear in the impulse at a given v', the rows then hold for every convex combination of the
+    vertices. (1 + edges) x polygon edges rows; without friction, the rows of
+    :class:`CaptureRegionLimit` alone."""
+
+    def __init__(self, impact: ExpectedImpact, polygon: np.ndarray, ground_height: float = 0.0):
+        super().__init__(impact, polygon, ground_height)
+        self.stack_vertices()
+        self.name = f"capture_region_edges[{impact.name}]"
+
+    def vertex_rows_into(self, terms: ModelTerms, cycle: ControlCycle, impulse_map, C, upper) -> None:
+        omega = np.sqrt(GRAVITY / (terms.com[2] - self.ground_height))
+        capture_rows(
+            (terms.Jcom, terms.J6, self.impact.matrices(terms).com_map, impulse_map), (terms.com, terms.dq),
+            (self._normals, self._offsets), (omega, 1.0 / cycle.horizon), C, upper,
+        )

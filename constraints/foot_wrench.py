@@ -15,6 +15,7 @@ from impactqp.controller.model.validation import BadInputError
 
 from .constraint import Constraint, ControlCycle
 from .impact_model import ExpectedImpact
+from .vertex_blocks import VertexBlocks
 
 
 def standing_map(foot_positions: np.ndarray) -> np.ndarray:
@@ -150,3 +151,28 @@ def foot_wrench_rows(maps, state, feet, scale, C, upper):
             for i in range(6):
                 offset += world[i] * w[6 * k + i]
             upper[row] = (-offset / mass - C[row] @ dq) * inv_h
+
+
+class EdgeFootWrenchLimit(VertexBlocks, FootWrenchLimit):
+    """The feet's rows of :class:`FootWrenchLimit` for the frictionless impulse, then the same
+    rows for each edge impulse of the impact's friction rows (``ExpectedImpact`` with
+    ``FrictionRows``, docs/frictional-impacts.md): with iota_i = G_i J v' the held contacts'
+    impulsive wrenches lambda_i = -Z G_i J v' and every foot's wrench at the peak of each
+    vertex's force inside its cone and its sole (each vertex's own slip row: the cone's
+    supporting plane at that vertex's predicted wrench). (1 + edges) x the frictionless rows;
+    without friction, the rows of :class:`FootWrenchLimit` alone."""
+
+    def __init__(self, impact: ExpectedImpact, robot: RobotModel, q_start: np.ndarray, duration: float):
+        super().__init__(impact, robot, q_start, duration)
+        self.stack_vertices()
+        edges = impact.friction.count
+        self.labels = self.labels + tuple(f"edge {e}: {label}" for e in range(edges) for label in self.labels)
+        self.name = f"foot_wrench_edges[{impact.name}]"
+
+    def vertex_rows_into(self, terms, cycle: ControlCycle, impulse_map, C, upper) -> None:
+        foot_wrench_rows(
+            (terms.M_inv, np.ascontiguousarray(terms.J6[:3]), terms.held_jacobian, impulse_map),
+            (terms.dq, terms.com, terms.mass),
+            (self._rotations, self._standing, self._soles, self._friction),
+            (self.duration, 1.0 / cycle.horizon), C, upper,
+        )

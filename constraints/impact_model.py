@@ -22,7 +22,11 @@ With ``FrictionRows`` of friction mu > 0 (``controller.model.friction_pyramid``)
 carries the edges' maps A_i = K G_i J and P_i = J^T G_i J of the friction pyramid (or of the
 one-step preview's three: its sector or the 3-edge pyramid), computed once per fill of the terms
 (``edge_matrices``); the post-impact-velocity and impulsive-torque rows stack them under the
-frictionless ones. Fixed-base arms only; not with ``classical_normal``.
+frictionless ones. Not with ``classical_normal``. On held contacts (a humanoid's soles) the
+edges' maps are the predictor's held-contact ones (``friction_pyramid.held_edge_maps_into``),
+and the edge impulse maps G_i (``edge_impulse_maps``) feed the capture region's and the feet's
+rows of every edge (``capture_constraint.EdgeCaptureRegionLimit``,
+``foot_wrench.EdgeFootWrenchLimit``).
 
 Activation rule
 ---------------
@@ -50,6 +54,8 @@ from impactqp.controller.model.friction_pyramid import (
     edge_directions,
     edge_inverse_inertia,
     fill_edge_matrices,
+    held_edge_maps_into,
+    held_response_maps,
     slip_edges_into,
 )
 from impactqp.controller.model.jump import (
@@ -145,11 +151,8 @@ class ExpectedImpact:
             raise TypeError("rule must be an ActivationRule and friction a FrictionRows")
         self.rule = rule
         self.friction = friction
-        if friction.count and (self.held_contacts or jump_model_name == "classical_normal"):
-            raise BadInputError(
-                "friction rows are for fixed-base arms with the crb, gm or classical model, "
-                f"not {'held contacts' if self.held_contacts else 'classical_normal'}"
-            )
+        if friction.count and jump_model_name == "classical_normal":
+            raise BadInputError("friction rows are for the crb, gm or classical model, not classical_normal")
         self._surface_offset = float(surface.normal @ surface.point)  # n.s: distance = n.p - n.s
         self._stamp = 0  # ModelTerms.stamp of the cached matrices and activation
         self._matrices: JumpMatrices | None = None
@@ -160,6 +163,8 @@ class ExpectedImpact:
         self._edge_count = friction.count
         self._edge_buffer = np.empty((2, 0, 0, 0))  # A_i and P_i, allocated at the first state
         self._edges = EdgeMatrices.of(self._edge_buffer)
+        self._edge_impulses = np.empty((friction.count, 3, 3))  # G_i, on held contacts
+        self._edge_fill = self._fill_held_edges if self.held_contacts else self._fill_edges
         # The crb, gm and classical models of a fixed base write A, P and G into one buffer,
         # allocated at the first fill (``_fill_fixed_base``); the other forms return new matrices.
         model = self.model
@@ -184,6 +189,13 @@ class ExpectedImpact:
         if terms.stamp != self._stamp:
             self._update(terms)
         return self._edges
+
+    def edge_impulse_maps(self, terms) -> np.ndarray:
+        """G_i (edges x 3 x 3) of the friction rows' edges at this state on held contacts: the
+        edge impulses iota_i = G_i J dq- (``friction_pyramid.edge_impulse_maps``)."""
+        if terms.stamp != self._stamp:
+            self._update(terms)
+        return self._edge_impulses
 
     def is_active(self, terms) -> bool:
         """The activation rule of the module docstring for this state."""
@@ -210,7 +222,7 @@ class ExpectedImpact:
             self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
             motion = normal_motion(terms.J, normal, terms.contact_point, terms.dq)
         if self._edge_count:
-            self._fill_edges(terms)
+            self._edge_fill(terms)
         self._active = self.rule.always_active or self._rule(*motion)
         self._stamp = terms.stamp
 
@@ -248,6 +260,20 @@ class ExpectedImpact:
             edges.directions[:] = self._uncertain
             slip_edges_into(terms.J @ terms.dq, W, edges.normal, self.friction.friction, edges.restitution, edges.directions)
         fill_edge_matrices(self.model, terms, W, edges, self._edge_buffer)
+
+    def _fill_held_edges(self, terms) -> None:
+        """On held contacts: the edges' maps and impulse maps G_i of this state (the preview's
+        directions first), with the predictor's held-contact K and W."""
+        edges, nv = self._edge_set, terms.J.shape[1]
+        if self._edge_buffer.shape[-1] != nv:  # the first fill
+            self._edge_buffer = np.empty((2, self._edge_count, nv, nv))
+            self._edges = EdgeMatrices.of(self._edge_buffer)
+        response = held_response_maps(self.model, terms, edges.normal, edges.restitution)
+        if self.friction.mode == "slip":
+            edges.directions[:] = self._uncertain
+            slip_edges_into(terms.J @ terms.dq, response[1], edges.normal, self.friction.friction, edges.restitution,
+                            edges.directions)
+        held_edge_maps_into(response, terms.J, edges, self._edge_buffer, self._edge_impulses)
 
     def _rule(self, normal_speed: float, normal_position: float) -> bool:
         """The rule from n.v and n.p (the distance is n.p - n.s)."""

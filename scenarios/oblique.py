@@ -11,18 +11,18 @@ tool hits at the commanded velocity) on the scene whose wall has the trial's mu 
 the commanded velocity.
 
 Measured (``controller.measured.oblique_impact``): the impulse of the contact's compression and
-restitution, its tangential part p_t, the post-impact tangential contact velocity v_t+ and the
-simulated mode. Predicted, for CRB, GM and the classical law: ``frictional_impulse(W, n, v-, mu,
-e = 0)`` with the predictor's inverse inertia W (``controller.model.prediction.inverse_inertia``)
-at the pre-impact state (q-, dq-), v- = J(q-) dq-: p_t, v_t+ and the mode.
+restitution, its tangential part p_t, the post-impact tangential contact velocity v_t+, the
+least tangential speed along the impact and the observed mode. Predicted, for CRB, GM and the
+classical law: ``frictional_impulse(W, n, v-, mu, e = 0)`` with the predictor's inverse inertia
+W (``controller.model.prediction.inverse_inertia``) at the pre-impact state (q-, dq-),
+v- = J(q-) dq-: p_t, v_t+, the law's own mode (``law_mode``) and its least tangential speed.
 
 A predicted v_t+ **agrees** when |v_t+ predicted - v_t+ simulated| <= max(20 % |v_t+ simulated|,
-0.01 m/s); a predicted mode agrees when it is the simulated one. The law's mode says what the
-contact did during the impact (slip: never stopped, even if its direction turned); the simulated
-mode is read from v_t- and v_t+ alone (``oblique_impact.simulated_mode``). So each predictor's
-v_t+ is also classified by the simulation's own rule (its ``velocity_mode``). The summary gives,
-per predictor and series (grid, paper, all), the share (%) of trials whose mode agrees, whose
-v_t+ agrees and whose ``velocity_mode`` agrees.
+0.01 m/s). A predicted mode **agrees** when the law's path, read by the simulation's rule
+(``oblique_impact.observed_mode``: stopped when its least tangential speed is at most
+``STICK_SPEED``), gives the simulated mode; the law's own mode, at its own resolution, is kept
+beside it. The summary gives, per predictor and series (grid, paper, all), the share (%) of
+trials whose mode agrees, whose v_t+ agrees and whose law's own mode is the simulated one.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactqp.controller.measured.oblique_impact import measure_oblique_impact, simulated_mode, tangential_part
+from impactqp.controller.measured.oblique_impact import measure_oblique_impact, observed_mode, tangential_part
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.frictional_impact import frictional_impulse
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
@@ -137,6 +137,7 @@ class ObliqueTrials:
             "tangential_impulse": measured.tangential_impulse.tolist(),
             "post_tangential": measured.post_tangential.tolist(),
             "post_normal_speed": float(normal @ measured.post_velocity), "mode": measured.mode,
+            "least_tangential_speed": measured.least_tangential_speed,
             "end_rule": measured.end_rule, "window": (measured.end + 1 - measured.start) * step,
         }
         terms = self.robot.terms(measured.q_pre, measured.dq_pre, check_limits=False)
@@ -145,12 +146,13 @@ class ObliqueTrials:
             W = inverse_inertia(method, terms, normal, RESTITUTION)
             impact = frictional_impulse(W, normal, measured.pre_velocity, trial.friction, RESTITUTION)
             post = tangential_part(impact.post_velocity, normal)
+            mode = observed_mode(impact.least_tangential_speed, float(np.linalg.norm(post)))
             predicted[method] = {
                 "normal_impulse": float(normal @ impact.impulse),
                 "tangential_impulse": tangential_part(impact.impulse, normal).tolist(),
-                "post_tangential": post.tolist(), "mode": impact.mode, "mu_bar": impact.mu_bar,
-                "mode_agrees": impact.mode == measured.mode,
-                "velocity_mode": simulated_mode(measured.pre_tangential, post),
+                "post_tangential": post.tolist(), "mode": mode, "law_mode": impact.mode, "mu_bar": impact.mu_bar,
+                "least_tangential_speed": impact.least_tangential_speed,
+                "mode_agrees": mode == measured.mode,
                 "velocity_agrees": velocity_agrees(post, measured.post_tangential),
             }
         return {
@@ -168,7 +170,7 @@ def velocity_agrees(predicted: np.ndarray, simulated: np.ndarray) -> bool:
 
 def summary(rows: list[dict]) -> dict:
     """Per series (and "all") and predictor: trials, the share (%) whose mode agrees, whose v_t+
-    agrees and whose v_t+ classified by the simulation's rule agrees (module docstring)."""
+    agrees and whose law's own mode is the simulated one (module docstring)."""
     result = {}
     for series in (*SERIES, "all"):
         chosen = [r for r in rows if series in ("all", r["series"])]
@@ -179,8 +181,8 @@ def summary(rows: list[dict]) -> dict:
                 "trials": len(chosen),
                 "mode_agreement": 100.0 * np.mean([r["predicted"][method]["mode_agrees"] for r in chosen]),
                 "velocity_agreement": 100.0 * np.mean([r["predicted"][method]["velocity_agrees"] for r in chosen]),
-                "velocity_mode_agreement": 100.0 * np.mean(
-                    [r["predicted"][method]["velocity_mode"] == r["simulated"]["mode"] for r in chosen]),
+                "law_mode_agreement": 100.0 * np.mean(
+                    [r["predicted"][method]["law_mode"] == r["simulated"]["mode"] for r in chosen]),
             }
             for method in FRICTIONAL_METHODS
         }
@@ -214,31 +216,39 @@ def run_oblique_study(choice: RobotChoice, grid: ObliqueGrid, jobs: int = 1) -> 
 
 
 def markdown(report: dict) -> str:
-    """The report as Markdown: the summary, then one line per trial (speeds in mm/s, impulses in
-    mN s, |p_t| / p_n the tangential impulse's share of the normal one)."""
+    """The report as Markdown: the summary, then one line per trial (speeds in mm/s, |p_t| / p_n
+    the tangential impulse's share of the normal one, least: the least tangential speed along the
+    impact; a predicted mode the law's own differs from shows it after a slash; ✗: the mode, or
+    v_t+, does not agree)."""
     lines = [f"# Oblique impacts: the {report['robot']} against MuJoCo", "",
-             "| series | predictor | trials | mode agrees | v_t+ agrees | mode of v_t+ agrees |", "|---|---|---|---|---|---|"]
+             "| series | predictor | trials | mode agrees | v_t+ agrees | law's own mode agrees |", "|---|---|---|---|---|---|"]
     for series, methods in report["summary"].items():
         for method, s in methods.items():
             lines.append(f"| {series} | {method} | {s['trials']} | {s['mode_agreement']:.0f} % "
-                         f"| {s['velocity_agreement']:.0f} % | {s['velocity_mode_agreement']:.0f} % |")
+                         f"| {s['velocity_agreement']:.0f} % | {s['law_mode_agreement']:.0f} % |")
     methods = list(FRICTIONAL_METHODS)
-    lines += ["", "| series | posture | mu | v_t | sim mode | sim \\|p_t\\|/p_n | sim \\|v_t+\\| | "
-              + " | ".join(f"{m} mode | {m} \\|p_t\\|/p_n | {m} \\|v_t+\\|" for m in methods) + " |",
-              "|" + "---|" * (7 + 3 * len(methods))]
+    lines += ["", "| series | posture | mu | v_t | sim mode | sim least | sim \\|p_t\\|/p_n | sim \\|v_t+\\| | "
+              + " | ".join(f"{m} mode | {m} least | {m} \\|p_t\\|/p_n | {m} \\|v_t+\\|" for m in methods) + " |",
+              "|" + "---|" * (8 + 4 * len(methods))]
     for row in report["rows"]:
         sim = row["simulated"]
         cells = [row["series"], row["posture"], f"{row['friction']:g}", f"{1e3 * row['tangential_speed']:.0f}",
-                 sim["mode"], _share(sim), _speed(sim)]
+                 sim["mode"], _least(sim), _share(sim), _speed(sim)]
         for m in methods:
             p = row["predicted"][m]
-            cells += [p["mode"], _share(p), _speed(p)]
+            mode = p["mode"] if p["law_mode"] == p["mode"] else f"{p['mode']} / {p['law_mode']}"
+            cells += [mode + ("" if p["mode_agrees"] else " ✗"), _least(p), _share(p),
+                      _speed(p) + ("" if p["velocity_agrees"] else " ✗")]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
 def _share(entry: dict) -> str:
     return f"{np.linalg.norm(entry['tangential_impulse']) / entry['normal_impulse']:.3f}"
+
+
+def _least(entry: dict) -> str:
+    return f"{1e3 * entry['least_tangential_speed']:.1f}"
 
 
 def _speed(entry: dict) -> str:

@@ -4,13 +4,17 @@ plain-numpy statement."""
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from scipy.optimize import linprog
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from reference.foot_wrench import reference_foot_wrench_rows
-from whole_body_states import NORMAL, approach_velocity, robot, standing_states, upright, wall_ahead
+from whole_body_states import NORMAL, approach_velocity, robot, standing_states, upright, vertex_impulses, wall_ahead
 
 from impactqp.constraints import ControlCycle, ExpectedImpact, FootWrenchLimit
+from impactqp.constraints.foot_wrench import EdgeFootWrenchLimit
 from impactqp.constraints.impact_model import ActivationRule
+from impactqp.controller.model.friction_pyramid import FrictionRows, held_response_maps, pyramid_directions
+from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
 from impactqp.controller.model.max_speed import HAND_IMPACT_DURATION, Setting, approach_direction, closed_form_max_speed
 from impactqp.controller.model.validation import BadInputError
@@ -102,3 +106,60 @@ def test_an_impact_without_held_contacts_or_a_duration_is_bad_input():
         FootWrenchLimit(ExpectedImpact(wall_ahead(q, 0.8)), robot(), q, HAND_IMPACT_DURATION)
     with pytest.raises(BadInputError):
         FootWrenchLimit(ExpectedImpact(wall_ahead(q, 0.8), held_contacts=True), robot(), q, 0.0)
+
+
+@settings(max_examples=10, deadline=None)
+@given(standing_states(), st.sampled_from(METHODS), st.floats(0.0, 2.0), st.floats(0.05, 1.0), st.integers(3, 6))
+def test_edge_rows_are_the_reference_rows_of_every_vertex(state, method, speed, mu, edges):
+    """Block i: the plain-numpy rows with G the impulse map of the pyramid's edge i (the impulse
+    along d_i that ends compression, from W alone, per unit v-); the first block the frictionless
+    rows of FootWrenchLimit, bit for bit; without friction, those rows alone."""
+    _, q, v = state
+    v = v + approach_velocity(q, speed)
+    model = robot()
+    terms = model.terms(q, v)
+    rule = ActivationRule(always_active=True)
+    impact = ExpectedImpact(wall_ahead(q), method, rule=rule, held_contacts=True, friction=FrictionRows(mu, edges))
+    limit = EdgeFootWrenchLimit(impact, model, q, HAND_IMPACT_DURATION)
+    cycle = ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), H)
+    rows = limit.compute(terms, cycle)
+    today = limit_at(q, method)
+    expected = today.compute(terms, cycle)
+    block = today.rows
+    assert limit.rows == block * (1 + edges) and len(limit.labels) == limit.rows
+    assert np.array_equal(rows.C[:block], expected.C) and np.array_equal(rows.upper[:block], expected.upper)
+    W = held_response_maps(jump_model(method), terms, NORMAL, 0.0)[1]
+    for i, d in enumerate(pyramid_directions(NORMAL, mu, edges)):
+        G = np.outer(vertex_impulses(W, NORMAL, d[None])[0], NORMAL)  # iota_i = G v-, linear in n^T v-
+        C, upper = reference_foot_wrench_rows(limit, model, terms, H, impulse_map=G)
+        part = slice((i + 1) * block, (i + 2) * block)
+        np.testing.assert_allclose(rows.C[part], C, atol=1e-9 * np.abs(C).max())
+        np.testing.assert_allclose(rows.upper[part], upper, atol=1e-9 * np.abs(upper).max())
+    no_friction = ExpectedImpact(wall_ahead(q), method, rule=rule, held_contacts=True)
+    alone = EdgeFootWrenchLimit(no_friction, model, q, HAND_IMPACT_DURATION)
+    assert alone.rows == block and np.array_equal(alone.compute(terms, cycle).upper, expected.upper)
+
+
+@settings(max_examples=6, deadline=None)
+@given(standing_states(), st.sampled_from(METHODS), st.floats(0.05, 1.0), st.floats(0.05, 1.0))
+def test_at_a_solution_of_the_edge_rows_every_vertex_wrench_is_in_its_cone_and_sole(state, method, speed, mu):
+    """A dv that meets every row (a linear program's solution, |dv_i| <= 1e4): at v' = v + dv h
+    each foot's wrench at the peak of the frictionless impulse and of each edge impulse is inside
+    its cone and its sole (the plain-numpy rows taken at v' itself, whose slip row is the cone's
+    own |F_xy| - mu F_z there)."""
+    _, q, v = state
+    model = robot()
+    v = v + approach_velocity(q, speed)
+    rule = ActivationRule(always_active=True)
+    impact = ExpectedImpact(wall_ahead(q), method, rule=rule, held_contacts=True, friction=FrictionRows(mu))
+    limit = EdgeFootWrenchLimit(impact, model, q, HAND_IMPACT_DURATION)
+    rows = limit.compute(model.terms(q, v), ControlCycle(0.001, np.full(model.nv, -1e9), np.full(model.nv, 1e9), H))
+    solution = linprog(np.zeros(model.nv), A_ub=rows.C, b_ub=rows.upper, bounds=[(-1e4, 1e4)] * model.nv, method="highs")
+    assume(solution.status == 0)
+    terms = model.terms(q, v + solution.x * H)
+    W = held_response_maps(jump_model(method), terms, NORMAL, 0.0)[1]
+    maps = [None] + [np.outer(vertex_impulses(W, NORMAL, d[None])[0], NORMAL) for d in pyramid_directions(NORMAL, mu, 4)]
+    for G in maps:
+        _, upper = reference_foot_wrench_rows(limit, model, terms, H, impulse_map=G)
+        values = -upper * H  # e . F / m at v'
+        assert np.all(values <= 1e-7 * max(np.abs(values).max(), 1.0))

@@ -11,9 +11,12 @@ from reference.friction_pyramid import reference_edge_matrices, reference_slip_e
 from scipy.optimize import linprog
 
 from conftest import JOINTS, random_state
+from whole_body_states import approach_velocity, standing_states, vertex_impulses, wall_ahead
+from whole_body_states import robot as whole_body_robot
 from impactqp.constraints import ActivationRule, ControlCycle, ExpectedImpact, ImpulsiveTorqueLimit, PostImpactVelocityLimit
 from impactqp.controller.model.friction_pyramid import (
     EDGE_GUARD,
+    held_response_maps,
     SLIP_SECTOR,
     SLIP_SPEED,
     FrictionRows,
@@ -22,7 +25,8 @@ from impactqp.controller.model.friction_pyramid import (
     slip_edges_into,
 )
 from impactqp.controller.model.frictional_impact import frictional_impulse
-from impactqp.controller.model.jump import crb_inverse_inertia, gm_inverse_inertia
+from impactqp.controller.model.jump import crb_inverse_inertia, gm_inverse_inertia, jump_model
+from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.validation import BadInputError
 
@@ -307,9 +311,39 @@ def test_friction_rows_check_their_ranges(arguments, fragment):
         FrictionRows(*arguments)
 
 
-def test_friction_rows_are_refused_with_classical_normal_and_with_held_contacts(robot):
+def test_friction_rows_are_refused_with_classical_normal(robot):
     surface = Surface([0.5, 0.0, 0.5], NORMAL)
     with pytest.raises(BadInputError, match="classical_normal"):
         ExpectedImpact(surface, "classical_normal", friction=FrictionRows(0.2))
-    with pytest.raises(BadInputError, match="held contacts"):
-        ExpectedImpact(surface, "crb", held_contacts=True, friction=FrictionRows(0.2))
+
+
+@settings(max_examples=10, deadline=None)
+@given(standing_states(), st.sampled_from(HELD_CONTACT_METHODS), st.floats(0.05, 3.0), st.floats(0.05, 1.0),
+       st.integers(3, 6), st.sampled_from(["pyramid", "slip"]))
+def test_on_held_contacts_each_edge_is_the_predictors_jump_of_its_edge_impulse(state, model, speed, mu, k, mode):
+    """The standing G1: each edge's G_i J v-, A_i v- and P_i v- are the impulse along d_i that
+    ends compression (from the predictor's held-contact W), the predictor's own held-contact jump
+    of that impulse (``JumpModel.predict`` with it: the feet still) and J^T of it; the
+    post-impact-velocity rows stack the frictionless block (today's rows, bit for bit) and the
+    edges' blocks."""
+    _, q, v = state
+    g1 = whole_body_robot()
+    v = v + approach_velocity(q, speed)
+    terms = g1.terms(q, v)
+    rule = ActivationRule(always_active=True)
+    impact = ExpectedImpact(wall_ahead(q), model, rule=rule, held_contacts=True, friction=FrictionRows(mu, k, mode))
+    edges, impulses = impact.edge_matrices(terms), impact.edge_impulse_maps(terms)
+    v_minus = terms.J @ v
+    W = held_response_maps(jump_model(model), terms, NORMAL, 0.0)[1]
+    directions = pyramid_directions(NORMAL, mu, k) if mode == "pyramid" else impact._edge_set.directions
+    for i, iota in enumerate(vertex_impulses(W, v_minus, directions)):
+        np.testing.assert_allclose(impulses[i] @ v_minus, iota, rtol=1e-12, atol=1e-12 * np.abs(iota).max())
+        jump = jump_model(model).predict(terms, NORMAL, v_minus, impulse=iota).dq_jump
+        np.testing.assert_allclose(edges.jump[i] @ v, jump, atol=1e-9 * np.abs(jump).max())
+        np.testing.assert_allclose(edges.torque[i] @ v, terms.J.T @ iota, atol=1e-9 * np.abs(terms.J.T @ iota).max())
+    cycle = ControlCycle(DT, np.full(g1.nv, -1e9), np.full(g1.nv, 1e9), 0.002)
+    today = PostImpactVelocityLimit(ExpectedImpact(wall_ahead(q), model, rule=rule, held_contacts=True), g1.dq_max)
+    stacked = PostImpactVelocityLimit(impact, g1.dq_max)
+    expected, rows = today.compute(terms, cycle), stacked.compute(terms, cycle)
+    assert stacked.rows == today.rows * (1 + impact.friction.count)
+    assert np.array_equal(rows.C[:today.rows], expected.C) and np.array_equal(rows.upper[:today.rows], expected.upper)

@@ -77,6 +77,26 @@ def test_the_law_agrees_with_the_ode_solver_next_to_the_stick_coefficient(seed, 
         assert impact.mode == mode
 
 
+@settings(max_examples=150, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.0, 1.5), st.floats(0.0, 1.0), st.sampled_from(RESTITUTION_MODELS))
+def test_the_least_tangential_speed_is_that_of_the_ode_solvers_path(seed, mu, restitution, model):
+    """The smallest |u_t| along the impact: scipy's dense path's (refined by a scalar search)
+    within 0.1 % (the law reads it at its steps' ends; a step changes u_t by a chord of at most
+    5 % of |u_t|, which passes at most 1 - sqrt(1 - 0.025^2) = 0.03 % closer to 0), 0 to the
+    stop threshold once the contact stopped (stick, reversal), at most the start's and the end's
+    tangential speeds. Left out as above: mu within 0.1 % of mu_bar."""
+    W, n, v = random_case(seed)
+    impact = frictional_impulse(W, n, v, mu, restitution, model)
+    assume(abs(mu - impact.mu_bar) > 1e-3 * impact.mu_bar)
+    *_, least = reference_impact(W, n, v, mu, restitution, model, with_least_speed=True)
+    speed = np.linalg.norm(v)
+    assert impact.least_tangential_speed == pytest.approx(least, rel=1e-3, abs=1e-9 * speed)
+    tangential = [np.linalg.norm(x - (x @ n) * n) for x in (v, impact.post_velocity)]
+    assert impact.least_tangential_speed <= min(tangential) * (1 + 1e-12) + 1e-9 * speed
+    if impact.mode in ("stick", "reversal"):
+        assert impact.least_tangential_speed <= 1e-9 * speed
+
+
 @settings(max_examples=300)
 @given(st.integers(0, 2**32 - 1), st.floats(0.0, 1.5), st.floats(0.0, 1.0), st.sampled_from(RESTITUTION_MODELS))
 def test_every_impact_keeps_momentum_coulomb_and_its_restitution(seed, mu, restitution, model):

@@ -14,7 +14,8 @@ from impactqp.controller.measured.oblique_impact import (
     STICK_SPEED,
     impact_window,
     measure_oblique_impact,
-    simulated_mode,
+    observed_mode,
+    path_least_speed,
     tangential_part,
 )
 from impactqp.controller.model.choice import RobotChoice
@@ -115,6 +116,19 @@ def test_sliding_contact_uses_the_whole_cone_and_a_sticking_one_less(trials, sli
     assert np.linalg.norm(stuck.tangential_impulse) < 0.5 * 0.6 * stuck.normal_impulse
 
 
+def test_a_simulated_slide_that_turns_past_90_degrees_without_stopping_is_a_slip(trials, sticking):
+    """On `elbow_left` at mu = 0.1 the tangential velocity turns by more than 90 degrees during
+    the impact without coming near 0: a slip, as the law says (the former rule, v_t+ . v_t- < 0,
+    called it a reversal). The sticking trial's path comes to rest."""
+    log, _ = simulate(trials, 0.1, 0.5, "elbow_left")
+    m = measure_oblique_impact(log, trials.robot, NORMAL)
+    assert m.post_tangential @ m.pre_tangential < 0.0
+    assert STICK_SPEED < m.least_tangential_speed <= min(np.linalg.norm(m.pre_tangential), np.linalg.norm(m.post_tangential))
+    assert m.mode == "slip"
+    stuck = measure_oblique_impact(sticking[0], trials.robot, NORMAL)
+    assert stuck.least_tangential_speed <= STICK_SPEED
+
+
 def test_a_frictionless_wall_gives_no_tangential_impulse(trials, frictionless):
     m = measure_oblique_impact(frictionless[0], trials.robot, NORMAL)
     assert m.normal_impulse > 0.1
@@ -128,25 +142,42 @@ vectors = st.tuples(*[st.floats(-1.0, 1.0)] * 2).map(lambda v: np.array([0.0, v[
 
 
 @settings(max_examples=200, deadline=None)
-@given(vectors, vectors)
-def test_simulated_mode_follows_its_stated_rules(pre, post):
-    mode = simulated_mode(pre, post)
-    if np.linalg.norm(post) <= STICK_SPEED:
-        assert mode == "stick"
-    elif np.linalg.norm(pre) <= STICK_SPEED:
-        assert mode == "reversal"
+@given(st.floats(0.0, 0.01), st.floats(0.0, 0.01))
+def test_observed_mode_follows_its_stated_rules(least, post):
+    mode = observed_mode(least, max(least, post))
+    if least > STICK_SPEED:
+        assert mode == "slip"  # never stopped, however far its direction turned
     else:
-        cosine = pre @ post / (np.linalg.norm(pre) * np.linalg.norm(post))
-        assert mode == ("reversal" if cosine < 0.0 else "slip")  # turned by more than 90 degrees
+        assert mode == ("stick" if max(least, post) <= STICK_SPEED else "reversal")
 
 
-def test_simulated_mode_at_the_edges():
-    t = np.array([0.0, 1.0, 0.0])
-    assert simulated_mode(0.1 * t, 0.5 * STICK_SPEED * t) == "stick"
-    assert simulated_mode(0.1 * t, 2 * STICK_SPEED * t) == "slip"
-    assert simulated_mode(0.1 * t, -2 * STICK_SPEED * t) == "reversal"
-    assert simulated_mode(0.1 * t, 0.1 * np.array([0.0, 0.01, 1.0])) == "slip"  # turned by less than 90 degrees
-    assert simulated_mode(0.0 * t, 0.1 * t) == "reversal"
+def test_a_slide_that_turns_without_stopping_is_a_slip():
+    """The velocity turns by 180 degrees around 0 at 5 mm/s (the old rule, v_t+ . v_t- < 0, read
+    it as a reversal); a path through 0 stopped; one that starts at rest and slides off reversed."""
+    angles = np.linspace(0.0, np.pi, 50)
+    turning = 0.005 * np.column_stack([np.zeros(50), np.cos(angles), np.sin(angles)])
+    least = path_least_speed(turning)
+    assert least == pytest.approx(0.005 * np.cos(np.pi / 98), rel=1e-12)  # a chord's midpoint
+    assert observed_mode(least, 0.005) == "slip"
+    through = np.array([[0.0, 0.1, 0.0], [0.0, -0.1, 0.001]])
+    assert path_least_speed(through) == pytest.approx(0.1 * 0.001 / np.hypot(0.2, 0.001), rel=1e-12)
+    assert observed_mode(path_least_speed(through), 0.1) == "reversal"
+    assert observed_mode(path_least_speed(through[:1] * 0.001), 0.0001) == "stick"
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(vectors, min_size=1, max_size=6))
+def test_the_least_speed_of_a_path_is_no_more_than_any_of_its_points(points):
+    """The piecewise-linear path's distance to 0: at most each sample's norm, at least the
+    distance of every segment's densely sampled points less the sampling's chord."""
+    path = np.array(points)
+    least = path_least_speed(path)
+    assert least <= min(np.linalg.norm(path, axis=1)) + 1e-15
+    shares = np.linspace(0.0, 1.0, 1001)[:, None]
+    dense = [np.linalg.norm(a + shares * (b - a), axis=1).min() for a, b in zip(path[:-1], path[1:])]
+    spacing = max([np.linalg.norm(b - a) / 1000 for a, b in zip(path[:-1], path[1:])], default=0.0)
+    if dense:
+        assert min(dense) - spacing / 2 - 1e-15 <= least <= min(dense) + 1e-15
 
 
 def test_impact_window_ends_at_separation_or_at_the_first_force_minimum():

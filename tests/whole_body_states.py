@@ -76,3 +76,11 @@ def controller(name: str, gap: float = 0.05, speed: float = 0.3, method: str = "
     q = stance(name)
     config = ControllerConfig.approach(wall_ahead(q, gap), speed, robot="g1", jump_model=method, **options)
     return build_controller(config, robot(), q)
+
+
+def vertex_impulses(W: np.ndarray, v_minus: np.ndarray, directions: np.ndarray, restitution: float = 0.0) -> np.ndarray:
+    """Each edge d's impulse that ends compression, n^T (v- + W p d) = 0, times 1 + c_r (the
+    denominator n^T W d guarded at 0.1 n^T W n, the friction rows' EDGE_GUARD): rows of 3."""
+    n = NORMAL
+    denominators = np.maximum(directions @ (W.T @ n), 0.1 * (n @ W @ n))
+    return -(1.0 + restitution) * (n @ v_minus) / denominators[:, None] * directions

@@ -25,11 +25,21 @@ Post-impact contact velocity
     v+ = J(q_k) dq_k at the first control sample k at or after the end of step e, and its
     tangential part v_t+ = (I - n n^T) v+.
 
-Simulated mode (the rules of :func:`simulated_mode`)
-    stick when |v_t+| <= ``STICK_SPEED``; otherwise reversal when the pre-impact tangential
-    speed |v_t-| is at most ``STICK_SPEED`` (the contact had no sliding direction before the
-    impact: it slid off along a direction of its own, the model's reversal from u_t = 0) or when
-    v_t+ turned by more than 90 degrees from v_t- (v_t+ . v_t- < 0); slip otherwise.
+Least tangential speed
+    The smallest distance from 0 of the tangential contact velocity's path over the impact: the
+    piecewise-linear path through v_t = (I - n n^T) J(q_k) dq_k at the control samples k from
+    the pre-impact state's to the post-impact one's (the straight segment between two samples
+    included, :func:`path_least_speed`).
+
+Observed mode (:func:`observed_mode`, the rule of the simulation and of the law alike)
+    The contact **stopped** during the impact when its least tangential speed is at most
+    ``STICK_SPEED``: then stick when |v_t+| <= ``STICK_SPEED``, else reversal (it stopped, then
+    slid off along a direction of its own); slip when it never stopped, however far its
+    direction turned. The law's own mode (``FrictionalImpact.mode``) asks the same question,
+    "did the contact stop?", at the law's resolution (1e-9 |v-|); MuJoCo's soft friction creeps
+    at a fraction of a mm/s where a rigid contact sticks, so the simulation answers it at
+    ``STICK_SPEED``, and the law's path (its ``least_tangential_speed``) is read by the same
+    rule for the comparison (docs/frictional-impacts.md, "The contact mode's read-out").
 """
 
 from __future__ import annotations
@@ -38,13 +48,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from impactqp.controller.model.frictional_impact import segment_distance
 from impactqp.controller.model.robot import RobotModel
 
 from .impact import DEFAULT_FORCE_THRESHOLD, ImpactNotFoundError, measure_impact
 from .trial_log import TrialLog
 
 STICK_SPEED = 2e-3
-"""m/s: a post-impact tangential contact speed at most this is a stick."""
+"""m/s: a tangential contact speed at most this is a contact at rest (module docstring)."""
 MODES = ("slip", "stick", "reversal")
 
 
@@ -53,14 +64,20 @@ def tangential_part(vector: np.ndarray, normal: np.ndarray) -> np.ndarray:
     return vector - (normal @ vector) * normal
 
 
-def simulated_mode(pre_tangential: np.ndarray, post_tangential: np.ndarray, stick_speed: float = STICK_SPEED) -> str:
-    """The contact's mode from its tangential velocity before (v_t-) and after (v_t+) the impact
-    (module docstring): "stick", "reversal" or "slip"."""
-    if np.linalg.norm(post_tangential) <= stick_speed:
-        return "stick"
-    if np.linalg.norm(pre_tangential) <= stick_speed or float(post_tangential @ pre_tangential) < 0.0:
-        return "reversal"
-    return "slip"
+def observed_mode(least_speed: float, post_speed: float, stick_speed: float = STICK_SPEED) -> str:
+    """The contact's mode from the least tangential speed along the impact and the post-impact
+    one |v_t+| (module docstring, "Observed mode"): "stick", "reversal" or "slip"."""
+    if least_speed > stick_speed:
+        return "slip"
+    return "stick" if post_speed <= stick_speed else "reversal"
+
+
+def path_least_speed(tangential: np.ndarray) -> float:
+    """The smallest distance from 0 of the piecewise-linear path through the rows of
+    ``tangential`` (samples x 3; one row: its norm)."""
+    if len(tangential) == 1:
+        return float(np.linalg.norm(tangential[0]))
+    return min(segment_distance(a, b) for a, b in zip(tangential[:-1], tangential[1:]))
 
 
 @dataclass(frozen=True)
@@ -71,7 +88,8 @@ class ObliqueImpact:
     ``post_index``), the pre-impact joint state (``q_pre``, ``dq_pre``), the impulse on the robot
     (``impulse``, world frame), its normal and tangential parts, the contact velocities before
     and after (``pre_velocity``, ``post_velocity``: J dq, world frame), their tangential parts
-    v_t- and v_t+ and the simulated ``mode``."""
+    v_t- and v_t+, the least tangential speed along the impact (``least_tangential_speed``) and
+    the observed ``mode``."""
 
     start: int
     end: int
@@ -87,6 +105,7 @@ class ObliqueImpact:
     post_velocity: np.ndarray
     pre_tangential: np.ndarray
     post_tangential: np.ndarray
+    least_tangential_speed: float
     mode: str
 
 
@@ -123,10 +142,12 @@ def measure_oblique_impact(log: TrialLog, robot: RobotModel, normal: np.ndarray,
     pre_velocity = robot.terms(pre.q_pre).J @ pre.dq_pre
     post_velocity = robot.terms(log.q[post]).J @ log.dq[post]
     pre_tangential, post_tangential = tangential_part(pre_velocity, normal), tangential_part(post_velocity, normal)
+    path = [tangential_part(robot.terms(log.q[k]).J @ log.dq[k], normal) for k in range(pre.pre_index + 1, post)]
+    least = path_least_speed(np.array([pre_tangential, *path, post_tangential]))
     return ObliqueImpact(
         start=start, end=end, end_rule=rule, pre_index=pre.pre_index, post_index=post, q_pre=pre.q_pre,
         dq_pre=pre.dq_pre, impulse=impulse, normal_impulse=float(normal @ impulse),
         tangential_impulse=tangential_part(impulse, normal), pre_velocity=pre_velocity,
         post_velocity=post_velocity, pre_tangential=pre_tangential, post_tangential=post_tangential,
-        mode=simulated_mode(pre_tangential, post_tangential),
+        least_tangential_speed=least, mode=observed_mode(least, float(np.linalg.norm(post_tangential))),
     )

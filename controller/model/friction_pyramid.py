@@ -1,6 +1,6 @@
 """The robust friction rows' impulses: the edges of the friction pyramid and their jump maps
 (docs/frictional-impacts.md, "Robust rows"; the polyhedral form of Wang, Dehio, Tanguy,
-Kheddar, IJRR 2023), for a fixed-base arm.
+Kheddar, IJRR 2023), for a fixed-base arm and for a robot standing on held contacts.
 
 With Coulomb friction mu the impulse on the robot lies in the friction cone
 {|iota_t| <= mu iota_n}. Its pyramid of k edges is d_i = n + mu_k t_i, t_i = cos(2 pi i / k) t1 +
@@ -25,6 +25,12 @@ at zero. Where n^T W d_i <= kappa n^T W n (kappa = :data:`EDGE_GUARD`) the rows 
 kappa n^T W n: an edge impulse 1 / kappa times the frictionless one, the largest the rows
 assume; the rows then ask more than that edge's own algebra, never less than its guarded
 impulse in the same direction (conservative, and finite).
+
+**Held contacts** (a humanoid's soles, :func:`held_edge_maps_into`): the same edge impulses
+with the predictor's held-contact W and K (W_gm = J P_f J^T and K = P_f J^T for the classical
+law, J# W for gm and crb, ``jump``'s docstring); their maps A_i = K G_i J and P_i = J^T G_i J
+and the edge impulse maps G_i themselves, which the capture region's and the feet's rows of
+each edge take (``constraints.capture_constraint``, ``constraints.foot_wrench``).
 
 The **one-step preview** (mode ``slip``) keeps three edges, those of the cone's sector within
 +-alpha (alpha = :data:`SLIP_SECTOR`) of the direction opposing the slip the next cycle will
@@ -162,6 +168,34 @@ def response_maps(model: JumpModel, terms: ModelTerms, normal: np.ndarray, resti
         raise BadInputError("friction rows are for fixed-base arms; a robot on held contacts has none")
     maps = model.unit_maps(terms, normal, restitution)
     return maps.K, (gm_inverse_inertia(terms) if maps.W is None else maps.W)
+
+
+def held_response_maps(model: JumpModel, terms: ModelTerms, normal: np.ndarray, restitution: float):
+    """(K, W) of the predictor ``model`` at a state on held contacts: its held-contact
+    impulse-to-jump map and inverse inertia (W_gm = J P_f J^T for the classical law)."""
+    maps = model.unit_maps(terms, normal, restitution)
+    return maps.K, (gm_inverse_inertia(terms) if maps.W is None else maps.W)
+
+
+def edge_impulse_maps(W: np.ndarray, edges: Edges) -> np.ndarray:
+    """G_i = -(1 + c_r) d_i n^T / max(n^T W d_i, kappa n^T W n) (edges x 3 x 3): the edge
+    impulses iota_i = G_i v- (module docstring, with its guard)."""
+    normal, directions = edges.normal, edges.directions
+    Wt_normal = W.T @ normal
+    denominators = np.maximum(directions @ Wt_normal, EDGE_GUARD * (normal @ Wt_normal))
+    return -(1.0 + edges.restitution) * directions[:, :, None] * normal[None, None, :] / denominators[:, None, None]
+
+
+def held_edge_maps_into(response: tuple, J: np.ndarray, edges: Edges, out: np.ndarray, impulses: np.ndarray) -> None:
+    """On held contacts: A_i = K G_i J and P_i = J^T G_i J of the ``edges`` into ``out``
+    (2 x edges x nv x nv, ``EdgeMatrices.of(out)``) and G_i into ``impulses`` (edges x 3 x 3),
+    for the predictor's held-contact maps ``response`` = (K, W) (:func:`held_response_maps`) and
+    the contact Jacobian J."""
+    K, W = response
+    impulses[:] = edge_impulse_maps(W, edges)
+    GJ = impulses @ J
+    np.matmul(K, GJ, out=out[0])
+    np.matmul(J.T, GJ, out=out[1])
 
 
 def edge_inverse_inertia(model: JumpModel, terms: ModelTerms) -> np.ndarray:

@@ -82,14 +82,19 @@ class FrictionalImpact:
     """The answer of :func:`frictional_impulse`: the impulse on the robot ``impulse`` (3, in the
     frame of W), the contact velocity after the impact ``post_velocity``, the ``mode`` of the
     contact ("slip": slid throughout; "stick": stopped sliding and stuck; "reversal": stopped,
-    then slid along a new direction; "frictionless": mu = 0), the stick coefficient ``mu_bar``
-    and the normal impulse at the end of compression ``compression_impulse``."""
+    then slid along a new direction; "frictionless": mu = 0), the stick coefficient ``mu_bar``,
+    the normal impulse at the end of compression ``compression_impulse`` and the smallest
+    tangential contact speed |u_t| along the impact ``least_tangential_speed`` (0 once the slip
+    stops; along slip, at the start and the ends of the integration's steps, each of which
+    changes u_t by at most :data:`NEAR_STOP_SHARE` |u_t|; along a phase of constant impulse
+    direction, u_t is linear in p: the segment's distance to 0)."""
 
     impulse: np.ndarray
     post_velocity: np.ndarray
     mode: str
     mu_bar: float
     compression_impulse: float
+    least_tangential_speed: float
 
 
 def contact_frame(normal: np.ndarray) -> np.ndarray:
@@ -178,6 +183,7 @@ def frictional_impulse(
     else:
         mode, direction = after_stop(Wc, mu, mu_bar)
     compression, target = None, 0.0
+    least = math.hypot(u0[0], u0[1])
     while True:
         if compression is None and y[2] >= 0.0:
             compression = p
@@ -186,20 +192,32 @@ def frictional_impulse(
         if compression is not None and restitution_ended(y, target, energetic):
             break
         if direction is not None:
+            start = y[:2].copy()
             p = constant_direction_phase(y, p, Wc, direction, target, energetic, compression is None)
+            least = min(least, segment_distance(start, y[:2]))
             if compression is not None:
                 break  # the phase ran to the end of restitution (in closed form)
             continue
         ending = COMPRESSING if compression is None else ENERGETIC if energetic else KINEMATIC
-        p, event = slip_phase(Wc, mu, y, p, scale, stopped, target, ending)
+        p, event, slowest = slip_phase(Wc, mu, y, p, scale, stopped, target, ending)
+        least = min(least, slowest)
         if event == ENDED:
             break
         if event == STOPPED:
             y[:2] = 0.0
+            least = 0.0
             mode, direction = after_stop(Wc, mu, mu_bar)
     impulse = np.array([y[3], y[4], p])
     # v+ = v- + W P: the integrated u agrees to the stop threshold (u_t set to 0 at a stop)
-    return FrictionalImpact(R @ impulse, R @ (u0 + Wc @ impulse), mode, mu_bar, float(compression))
+    return FrictionalImpact(R @ impulse, R @ (u0 + Wc @ impulse), mode, mu_bar, float(compression), float(least))
+
+
+def segment_distance(start: np.ndarray, end: np.ndarray) -> float:
+    """The distance from 0 of the segment from ``start`` to ``end`` (vectors of equal size)."""
+    step = end - start
+    length = float(step @ step)
+    share = 0.0 if length == 0.0 else min(max(-float(start @ step) / length, 0.0), 1.0)
+    return float(np.linalg.norm(start + share * step))
 
 
 def after_stop(Wc: np.ndarray, mu: float, mu_bar: float) -> tuple[str, np.ndarray]:
@@ -295,10 +313,11 @@ def slip_phase(Wc, mu, y, p, scale, stopped, target, ending):
     5(4) steps whose error estimate stays below ``TOLERANCE`` (relative to ``scale``, per
     component of y: local extrapolation, the step adapted by the usual factor
     0.9 (TOLERANCE / error)^(1/5)) and that change u_t by at most ``NEAR_STOP_SHARE`` |u_t|;
-    the event is located inside its step by bisection on the step's length. Returns the new p
-    and the event."""
+    the event is located inside its step by bisection on the step's length. Returns the new p,
+    the event and the smallest |u_t| at the start and the ends of the steps."""
     z, rate, stages = np.empty(6), np.empty(6), np.empty((7, 6))
     h = FIRST_STEP_SHARE * scale[3]
+    least = math.sqrt(y[0] * y[0] + y[1] * y[1])
     for _ in range(MAX_STEPS):
         slip_rate(Wc, mu, y, rate)
         speed = math.sqrt(y[0] * y[0] + y[1] * y[1])
@@ -313,6 +332,7 @@ def slip_phase(Wc, mu, y, p, scale, stopped, target, ending):
             continue
         event = slip_event(z, stopped, target, ending)
         if event == NOT_ENDED:
+            least = min(least, math.sqrt(z[0] * z[0] + z[1] * z[1]))
             y[:] = z
             p += step
             continue
@@ -327,9 +347,10 @@ def slip_phase(Wc, mu, y, p, scale, stopped, target, ending):
         dp_step(Wc, mu, y, high, z, stages, scale)  # u_t stays above `stopped` up to low
         event = slip_event(z, stopped, target, ending)
         y[:] = z
+        least = min(least, math.sqrt(z[0] * z[0] + z[1] * z[1]))
         if event == STOPPED:
             y[0], y[1] = 0.0, 0.0
         elif event == COMPRESSED:
             y[2] = 0.0
-        return p + high, event
+        return p + high, event, least
     raise ArithmeticError("the frictional impact did not end within MAX_STEPS steps")

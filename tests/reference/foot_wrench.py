@@ -10,11 +10,12 @@ from impactqp.controller.model.humanoid_stance import convex_hull
 from impactqp.controller.model.max_speed import sole_rows
 
 
-def reference_foot_wrench_rows(limit: FootWrenchLimit, robot, terms, horizon: float):
+def reference_foot_wrench_rows(limit: FootWrenchLimit, robot, terms, horizon: float, impulse_map=None):
     """(C, upper) of the active rows at the state of ``terms``: L = -(Jf M^-1 Jf^T)^-1 Jf M^-1 J^T G J,
-    w the least-norm wrenches with Jf_base^T w = g_base, F = T w + L v in each foot's axes."""
+    w the least-norm wrenches with Jf_base^T w = g_base, F = T w + L v in each foot's axes; G the
+    impact's (or ``impulse_map``)."""
     M_inv, Jf, J = np.linalg.inv(terms.M), terms.held_jacobian, terms.J
-    G = limit.impact.matrices(terms).impulse_map
+    G = limit.impact.matrices(terms).impulse_map if impulse_map is None else impulse_map
     L = -np.linalg.solve(Jf @ M_inv @ Jf.T, Jf @ M_inv @ J.T) @ G @ J
     gravity = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), terms.q)
     w = limit.duration * (np.linalg.pinv(Jf[:, :robot.base_nv].T) @ gravity[:robot.base_nv])

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 from scipy.integrate import solve_ivp
-from scipy.optimize import brentq
+from scipy.optimize import brentq, minimize_scalar
 
 TOLERANCES = {"rtol": 1e-12, "atol": 1e-15}
 
@@ -40,8 +40,10 @@ def invariant_ray(Wc, mu):
     return best
 
 
-def reference_impact(W, n, v, mu, e, model):
-    """(impulse, post-impact velocity, mode) of the impact, every phase by ``solve_ivp``."""
+def reference_impact(W, n, v, mu, e, model, with_least_speed=False):
+    """(impulse, post-impact velocity, mode) of the impact, every phase by ``solve_ivp``; with
+    ``with_least_speed`` also the smallest tangential speed |u_t| along it (each phase's dense
+    output on a grid of 2,000 points, the grid's least refined by a bounded scalar search)."""
     n = np.asarray(n, float) / np.linalg.norm(n)
     R = frame(n)
     Wc = R.T @ W @ R
@@ -60,6 +62,7 @@ def reference_impact(W, n, v, mu, e, model):
     else:
         mode, rate_t = "reversal", -mu * invariant_ray(Wc, mu)
     compression, target = None, None
+    least = np.linalg.norm(u0[:2])
 
     def rhs(_, z, rate):
         if rate is None:
@@ -84,9 +87,11 @@ def reference_impact(W, n, v, mu, e, model):
             event.terminal = True
             events.append(event)
         solution = solve_ivp(rhs, (p, p + 20 * scale), y, method="DOP853", events=events, args=(rate_t,),
-                             max_step=scale / 100, **TOLERANCES)
+                             max_step=scale / 100, dense_output=with_least_speed, **TOLERANCES)
         fired = [k for k, times in enumerate(solution.t_events) if len(times)]
         k = min(fired, key=lambda k: solution.t_events[k][0])
+        if with_least_speed:
+            least = min(least, phase_least_speed(solution.sol, p, solution.t_events[k][0]))
         p, y = solution.t_events[k][0], solution.y_events[k][0].copy()
         if rate_t is None and k == 1:  # slip stopped
             y[:2] = 0.0
@@ -103,4 +108,17 @@ def reference_impact(W, n, v, mu, e, model):
                 break
             continue
         break
+    if with_least_speed:
+        return R @ np.array([y[3], y[4], p]), R @ y[:3], mode, least
     return R @ np.array([y[3], y[4], p]), R @ y[:3], mode
+
+
+def phase_least_speed(path, start, end):
+    """The least |u_t| of a dense ODE solution ``path`` over the normal impulse [start, end]."""
+    grid = np.linspace(start, end, 2001)
+    speeds = np.hypot(*path(grid)[:2])
+    k = int(np.argmin(speeds))
+    low, high = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+    refined = minimize_scalar(lambda x: np.hypot(*path(x)[:2]), bounds=(low, high), method="bounded",
+                              options={"xatol": 1e-14 * max(abs(end), 1e-300)})
+    return min(float(speeds[k]), float(refined.fun))
