@@ -315,6 +315,7 @@ def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: f
     the command source (``sim.trial_sources``: ``SCRIPTED``, or ``QpCommand``: the whole-body QP)."""
     dt = DEFAULT_CONTROL_PERIOD
     q0 = stance_posture(robot, stance) if q0 is None else q0
+    contact_posture = q0
     if gap is None:
         q0, gap = source.start_posture(robot, q0, NORMAL, speed)
     contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
@@ -326,7 +327,8 @@ def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: f
         int(round((SETTLE + source.approach_time(gap, speed)) / dt)), after=int(round(AFTER / dt)),
         stop_after=int(round(LATENCY / dt)), hold=source.holds_at_stop,
     )
-    start = TrialStart(robot, q0, np.zeros(robot.nv), wall, speed, settle=SETTLE, sink=SINK, control_period=dt)
+    start = TrialStart(robot, q0, np.zeros(robot.nv), wall, speed, settle=SETTLE, sink=SINK, control_period=dt,
+                       contact_posture=contact_posture)
     run = run_impact(plant, source, start, ending)
     touched = WallContact.of(run.record, plant, start)
     if touched is None:

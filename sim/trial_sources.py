@@ -29,7 +29,7 @@ on them for ``TrialStart.settle`` s, during which every source commands the join
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
@@ -64,7 +64,9 @@ class TrialStart:
     dq0) (Pinocchio convention), the wall (normal towards the robot), the commanded normal speed
     v_n (m/s) and tangential velocity v_t, the settling time (s) before the approach, how far
     (m) the plant starts below q0 (a robot standing on held contacts: its soft floor contact
-    carries the weight from the first step) and the control period (s)."""
+    carries the weight from the first step), the control period (s) and the posture the hand
+    should meet the wall in (a standing robot's stance, whose closed form is quoted, when the trial
+    starts from its run-up; None: q0)."""
 
     robot: RobotModel
     q0: np.ndarray
@@ -75,6 +77,7 @@ class TrialStart:
     settle: float = 0.0
     sink: float = 0.0
     control_period: float = 1e-3
+    contact_posture: np.ndarray | None = None
 
     def plant_start(self) -> np.ndarray:
         """The plant's start configuration: q0, ``sink`` m lower (unchanged without a sink)."""
@@ -248,13 +251,24 @@ class QpCommand:
         return start, float(moved) + SCRIPTED_GAP
 
     def config(self, start: TrialStart) -> ControllerConfig:
-        """The controller's configuration: the description's approach towards the start's wall."""
+        """The controller's configuration: the description's approach towards the start's wall;
+        with a ``contact_posture``, the hand's orientation target is the contact posture's (the
+        run-up turned the hand: held at the run-up's orientation, the arm reached the wall in
+        another posture than the stance's, where the foot rows bind lower; docs/whole-body-qp.md)."""
         options = {} if self.impact_duration is None else {"impact_duration": self.impact_duration}
-        return ControllerConfig.approach(
+        config = ControllerConfig.approach(
             start.surface, start.speed, tangential_velocity=start.tangential_velocity,
             robot=RobotChoice(start.robot.description).robot_setting, jump_model=self.method, solver=self.solver,
             restitution=self.restitution, posture_weight=self.posture_weight, friction=self.friction, **options,
         )
+        if start.contact_posture is None:
+            return config
+        rotation = start.robot.terms(start.contact_posture).contact_rotation
+        tasks = [
+            replace(t, params={**t.params, "target_rotation": rotation.tolist()}) if t.type == "contact_approach" else t
+            for t in config.tasks
+        ]
+        return replace(config, tasks=tasks)
 
     def start(self, start: TrialStart) -> QpDriver:
         """The driver of one trial: the controller of the start posture towards the start's wall."""

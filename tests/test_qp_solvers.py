@@ -6,12 +6,23 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from qp_states import NORMAL, approach_controller, random_feasible_state
 
-from conftest import JOINTS
+from conftest import JOINTS, g1_model
+from impactqp.controller.config import ControllerConfig, build_controller
+from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.max_speed import approach_direction
+from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.qp import available_backends
-from impactqp.controller.qp.solvers import DaqpSolver, QuadprogSolver, make_solver, verifier_for
+from impactqp.controller.qp.solvers import (
+    PROXQP_INNER_ITERATIONS,
+    PROXQP_OUTER_ITERATIONS,
+    DaqpSolver,
+    ProxqpDenseSolver,
+    QuadprogSolver,
+    make_solver,
+    verifier_for,
+)
 
 
 @pytest.mark.parametrize("posture", sorted(PANDA.postures))
@@ -121,3 +132,44 @@ def test_daqps_warm_started_workspace_solves_each_problem_like_a_fresh_solve(see
         fresh = daqp.solve(problem.H, problem.g, problem.C, problem.upper, problem.lower, np.zeros(variables + rows, np.int32))
         assert status == "solved" and fresh[2] == 1
         np.testing.assert_allclose(x, fresh[0], atol=1e-9)
+
+
+def g1_approach_problems(cycles: int = 600) -> list:
+    """The G1's whole-body QPs (a copy of each cycle's, with its status) along the closed loop of
+    its approach to a wall 10 cm ahead at 0.5 m/s (daqp driving), up to its first infeasible QP
+    (the hand past the wall) or ``cycles``."""
+    robot = g1_model()
+    q = stance_posture(robot, robot.description.stances["parallel"])
+    surface = Surface(robot.terms(q).contact_point - 0.10 * NORMAL, NORMAL)
+    controller = build_controller(ControllerConfig.approach(surface, 0.5, robot="g1"), robot, q)
+    v = np.zeros(robot.nv)
+    controller.reset(q, v)
+    problems = []
+    for _ in range(cycles):
+        command = controller.step(q, v)
+        problems.append((command.status, controller.problem.copy()))
+        if command.status == "fallback_infeasible":
+            break
+        q, v = command.q_cmd, command.dq_cmd
+    return problems
+
+
+def test_proxqp_and_daqp_agree_on_the_g1_whole_body_qp():
+    """Warm-started proxqp, fed the G1's QPs of one approach cycle after cycle, finds daqp's
+    optimum of each (35 unknowns, the feet's equality rows, the impact rows, accelerations boxed
+    from 3 to 3143 rad/s^2); on the first infeasible one it gives up within its iteration budget
+    (its outer iterations times its inner ones: 200 and 200 allowed 40,200, about 1 s, from a
+    warm start that hides the infeasibility), and daqp calls that QP infeasible."""
+    problems = g1_approach_problems()
+    assert problems[-1][0] == "fallback_infeasible" and all(s == "ok" for s, _ in problems[:-1])
+    rows, variables = problems[0][1].C.shape
+    proxqp, daqp_solver = ProxqpDenseSolver(rows, variables), DaqpSolver(rows, variables)
+    for status, problem in problems[:-1]:
+        solved, x = proxqp.solve(problem)
+        reference = daqp_solver.solve(problem)[1]
+        assert solved == "solved" and problem.violation(x) <= 1e-6
+        np.testing.assert_allclose(x, reference, atol=1e-4 * max(1.0, np.abs(reference).max()))
+    infeasible = problems[-1][1]
+    assert proxqp.solve(infeasible)[0] != "solved"
+    assert proxqp.qp.results.info.iter <= PROXQP_OUTER_ITERATIONS * (PROXQP_INNER_ITERATIONS + 1)
+    assert DaqpSolver(rows, variables).solve(infeasible)[0] == "infeasible"

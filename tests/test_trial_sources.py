@@ -13,6 +13,7 @@ from impactqp.controller.qp.command import Status
 from impactqp.scenarios.stance_check import StancePlant, trial_at_contact_speed
 from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD, LATENCY, NORMAL, SETTLE, SINK, run_impact_trial
 from impactqp.sim.trial_sources import CartesianApproachCommand, CommandReplay, QpCommand, TrialStart
+from impactqp.tasks import ContactApproachTask
 
 FOOT_ONSETS = {"foot_slip", "foot_lift"}
 
@@ -166,3 +167,23 @@ def test_the_qp_source_configures_the_description_s_approach_towards_the_start_s
     assert (config.impact.jump_model, config.impact.restitution, config.impact.impact_duration) == ("gm", 0.2, 0.01)
     assert config.robot == "panda"
     np.testing.assert_array_equal(config.surface.surface().normal, DEFAULT_WALL.normal)
+
+
+@pytest.mark.parametrize("stance", ["parallel", "close"])
+def test_from_its_run_up_the_qp_holds_the_hand_at_the_orientation_of_the_contact_posture(robot, stance):
+    """The run-up turns the hand (the arm moved back along J_arm^+ (-n), orientation free): the
+    approach's orientation target is the stance's hand rotation, not the one at the start, and
+    without a contact posture it is left to the reset (the start's)."""
+    stance_q = stance_posture(robot, STANCES[stance])
+    run_up, _ = QpCommand().start_posture(robot, stance_q, NORMAL, 1.0)
+    start = TrialStart(robot, run_up, np.zeros(robot.nv), DEFAULT_WALL, 1.0, contact_posture=stance_q)
+    controller = QpCommand().start(start).controller
+    controller.reset(run_up, np.zeros(robot.nv))
+    approach = next(t for t in controller.tasks if isinstance(t, ContactApproachTask))
+    np.testing.assert_allclose(approach.target_rotation, robot.terms(stance_q).contact_rotation, atol=1e-12)
+    turned = robot.terms(run_up).contact_rotation
+    assert np.linalg.norm(turned - robot.terms(stance_q).contact_rotation) > 1e-3  # the run-up did turn the hand
+    plain = QpCommand().start(TrialStart(robot, run_up, np.zeros(robot.nv), DEFAULT_WALL, 1.0)).controller
+    plain.reset(run_up, np.zeros(robot.nv))
+    plain_approach = next(t for t in plain.tasks if isinstance(t, ContactApproachTask))
+    np.testing.assert_allclose(plain_approach.target_rotation, turned, atol=1e-12)

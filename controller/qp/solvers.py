@@ -23,18 +23,30 @@ from .problem import QpProblem
 
 SOLVED, INFEASIBLE, FAILED = "solved", "infeasible", "failed"
 _PROXQP_INFINITY = 1e20
+PROXQP_OUTER_ITERATIONS = 20  # a feasible cycle of the arm or the G1 needs 3-9
+PROXQP_INNER_ITERATIONS = 10  # per outer iteration; a feasible cycle needs 1-3 on average
+_WARM_START = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+_COLD_START = proxsuite.proxqp.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
 
 
 class ProxqpDenseSolver:
-    """proxsuite dense QP, initialised once and then updated and warm-started every cycle."""
+    """proxsuite dense QP, initialised once and then updated and warm-started every cycle (from
+    the previous solution and multipliers, with proxqp's default proximal parameters mu: left to
+    proxqp, the mu of one cycle (down to 1e-8) start the next, and from them proxqp called
+    feasible G1 QPs primal infeasible after one iteration); a failure makes the next cycle start
+    cold from a fresh init."""
 
     name = "proxqp"
 
-    def __init__(self, rows: int, variables: int, tolerance: float = 1e-7, max_iterations: int = 200):
+    def __init__(self, rows: int, variables: int, tolerance: float = 1e-7):
         self.qp = proxsuite.proxqp.dense.QP(variables, 0, rows, True)
         settings = self.qp.settings
-        settings.max_iter = max_iterations  # bounded cycle time; a second solver confirms any failure
-        settings.max_iter_in = max_iterations
+        # Bounded cycle time: at most OUTER x (INNER + 1) inner iterations (a second solver
+        # confirms any failure). proxqp's max_iter counts outer (proximal) iterations, each of up
+        # to max_iter_in + 1 inner ones: 200 and 200 allowed 40,200, about 1 s on an infeasible G1
+        # QP that proxqp's own infeasibility test did not catch.
+        settings.max_iter = PROXQP_OUTER_ITERATIONS
+        settings.max_iter_in = PROXQP_INNER_ITERATIONS
         settings.eps_abs = tolerance
         settings.eps_rel = 0.0
         # Primal and dual residuals alone accept a warm start whose multipliers sit on bounds
@@ -43,7 +55,7 @@ class ProxqpDenseSolver:
         settings.eps_duality_gap_abs = tolerance
         settings.eps_duality_gap_rel = 0.0
         settings.verbose = False
-        settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+        self._mu_eq, self._mu_in = settings.default_mu_eq, settings.default_mu_in
         self.initialized = False
         self._l = np.zeros(rows)
         self._u = np.zeros(rows)
@@ -51,10 +63,13 @@ class ProxqpDenseSolver:
     def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
         l = np.maximum(problem.l, -_PROXQP_INFINITY, out=self._l)
         u = np.minimum(problem.u, _PROXQP_INFINITY, out=self._u)
+        data = (problem.H, problem.g, None, None, problem.C, l, u, problem.lb, problem.ub)
         if self.initialized:
-            self.qp.update(problem.H, problem.g, None, None, problem.C, l, u, problem.lb, problem.ub)
-        else:
-            self.qp.init(problem.H, problem.g, None, None, problem.C, l, u, problem.lb, problem.ub)
+            self.qp.update(*data, mu_eq=self._mu_eq, mu_in=self._mu_in)
+            self.qp.settings.initial_guess = _WARM_START
+        else:  # the first cycle, or the one after a failure: a cold start
+            self.qp.init(*data, mu_eq=self._mu_eq, mu_in=self._mu_in)
+            self.qp.settings.initial_guess = _COLD_START
             self.initialized = True
         self.qp.solve()
         status = self.qp.results.info.status
