@@ -32,7 +32,7 @@ WEIGHTS = {"feet": 10.0, "com": 10.0, "hand": 3.0, "hand_axis": 1.0, "posture": 
 DAMPING = 1e-3
 ITERATIONS = 200
 STANCES = ROBOTS["g1"].stances
-"""The G1's stances by name (its description's): parallel, wide, staggered, close, far."""
+"""The G1's stances by name (its description's): parallel, wide, staggered, close, far (flat) and step (the left foot on a step)."""
 
 
 def support_polygon(robot: RobotModel, q: np.ndarray) -> np.ndarray:
