@@ -5,7 +5,9 @@ to know of a robot: where its URDF and collision meshes are, whether its base is
 floating, its moving joints in order and their limits, the frames a tool may be fixed to, the
 gripper whose fingers the model locks, the robot's own contact point (a robot that carries no
 tool), the contacts it holds (the soles of a standing humanoid: polygon, depth, friction), and
-its named postures (an arm's impact postures) or stances (where a humanoid's feet stand).
+its named postures (an arm's impact postures) or stances (where a humanoid's feet stand). The
+held contacts and stances are read by ``held_contact_description``, the fields of a file checked
+by ``description_fields``.
 
 The built-in robots (:data:`ROBOTS`: ``panda``, ``fr3``, ``ur5``, ``g1``) are TOML files shipped
 with the package (``controller/model/robots/``); :func:`robot_description` takes one of their
