@@ -34,7 +34,10 @@ class CaptureRegionLimit(Constraint):
         nu_k . K_xy dv <= (omega b_k - nu_k . K_xy v) / h,    omega b_k = omega nu_k . (a_k - c).
 
     The edges' normals nu_k and offsets nu_k . a_k are the polygon's (``capture_region``, once);
-    omega = sqrt(g / (c_z - ground height)) and c follow the CoM every cycle.
+    omega = sqrt(g / (c_z - ground height)) and c follow the CoM every cycle. With non-coplanar
+    soles (a foot on a step) the polygon is ``capture.floor_support_polygon`` of the start posture:
+    the raised sole's corners projected from the start CoM onto the floor, fixed (the CoM moves
+    by centimetres before the impact; docs/floating-base.md, "Non-coplanar soles").
 
     Simplifications (docs/whole-body-qp.md): the linear-pendulum capture point (constant CoM
     height, no angular momentum); the feet held during the impulse; gm and crb impulses

@@ -265,11 +265,12 @@ def standing_backend(request: RunRequest) -> Backend:
         raise BadInputError("a floating-base robot runs its own preset on the nominal plant: --config and --plant do not apply")
     choice = request.choice
     model = choice.shared_model
-    stance = stance_posture(model, choice.robot.stances[request.posture or choice.robot.default_posture])
+    placement = choice.robot.stances[request.posture or choice.robot.default_posture]
+    stance = stance_posture(model, placement)
     contact = model.terms(stance).contact_point
     surface = Surface(contact + np.array([SIM_START_DISTANCE, 0.0, 0.0]), STANDING_NORMAL)
     config = controller_config(request, surface)
-    scene = build_humanoid_scene(model, wall_x=float(surface.point[0]))
+    scene = build_humanoid_scene(model, wall_x=float(surface.point[0]), stance=placement)
     start = stance.copy()
     start[2] -= SINK  # the soft floor carries the weight from the first step
     support = StandingSupport(model, scene.base_nq, scene.base_nv)

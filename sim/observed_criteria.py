@@ -33,8 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 from impactqp.controller.measured.trial_log import TrialLog
-from impactqp.controller.model.capture import capture_region
-from impactqp.controller.model.humanoid_stance import support_polygon
+from impactqp.controller.model.capture import support_capture_region, support_heights
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.robot_description import RobotDescription
 
@@ -156,11 +155,11 @@ class FootLift:
 def capture_margin(robot: RobotModel, q: np.ndarray, com_velocity: np.ndarray) -> float:
     """The capture point's smallest distance (m) inside the support polygon of the configuration q
     for the CoM velocity ``com_velocity`` (``controller.model.capture``; < 0: a step is needed);
-    -inf for a robot whose CoM is not above the ground (fallen: nothing captures it)."""
+    -inf for a robot whose CoM is not above its soles (fallen: nothing captures it)."""
     com = robot.terms(q).com
-    if com[2] <= 0.0:
+    if com[2] <= max(0.0, support_heights(robot, q).max()):
         return -np.inf
-    region = capture_region(support_polygon(robot, q), com)
+    region = support_capture_region(robot, q, com)
     return float(region.margins(com_velocity).min())
 
 

@@ -319,7 +319,7 @@ def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: f
     if gap is None:
         q0, gap = source.start_posture(robot, q0, NORMAL, speed)
     contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
-    scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature)
+    scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature, stance=stance)
     plant = servoed_plant(scene, robot, dt, gain)
     contact = robot.terms(q0).contact_point
     wall = Surface(np.array([scene.wall_x, contact[1], contact[2]]), NORMAL.copy())

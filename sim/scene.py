@@ -27,10 +27,12 @@ Added in code (``mujoco.MjSpec``, :func:`robot_spec`, :func:`add_contact_geometr
   pole along that frame's x axis is the contact point;
 - the wall: a MuJoCo plane through ``surface.point`` whose z axis is ``surface.normal``
   (the solid half-space lies behind the plane, away from the robot);
-- with held contacts (a standing robot's soles): a floor plane at z = 0;
+- with held contacts (a standing robot's soles): a floor plane at z = 0 and, for a stance that
+  puts a held contact on a raised surface (``Stance.heights``), a box (a step, :data:`STEP_SIZE`)
+  under that sole whose top is the surface;
 - explicit contact pairs: the contact geometry with the wall and, with held contacts, the sole
-  spheres (from the URDF) of each held contact's frame with the floor at that contact's
-  ``friction``. Every geom has contype = conaffinity = 0, so the pairs are the only contacts of
+  spheres (from the URDF) of each held contact's frame with the floor (and its step) at that
+  contact's ``friction``. Every geom has contype = conaffinity = 0, so the pairs are the only contacts of
   the scene; condim, friction, solref and solimp are set on the pairs and on their geoms;
 - the arm's plant (:func:`build_scene`): the drive armature, joint damping and, with a payload, a
   welded point-mass body ``payload`` on the hand (``sim.plant``).
@@ -76,7 +78,7 @@ from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.g1_actuators import joint_armature
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.controller.model.robot import TOOL_BODY
-from impactqp.controller.model.robot_description import RobotDescription, model_urdf, robot_description
+from impactqp.controller.model.robot_description import RobotDescription, Stance, model_urdf, robot_description
 from impactqp.controller.model.tool_description import Pad, ToolDescription, tool_description
 from impactqp.controller.model.validation import BadInputError, number_in_range, vector_in_range
 
@@ -100,6 +102,7 @@ STANDING_SOLREF = (0.005, 1.0)
 STANDING_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
 STANDING_WALL_HEIGHT = 1.0  # m: the standing robot's wall plane's centre above the floor
 STANDING_WALL_SIZE = 1.0  # m: that wall's half-size
+STEP_SIZE = (0.15, 0.08)  # m: a step's half-length (x) and half-width (y) about the sole's centre
 MAX_ARMATURE = 10.0  # kg m^2: the largest rotor inertia a joint may be given
 
 
@@ -391,13 +394,20 @@ def build_scene(
 @dataclass
 class HumanoidScene(MujocoScene):
     """The standing robot's scene, with the ids the trials need: its contact sphere ``hand_geom``,
-    the floor, the held contacts' bodies (``foot_bodies``) and ``soles``."""
+    the floor, the held contacts' bodies (``foot_bodies``), ``soles`` and the steps under raised
+    soles (``step_geoms``)."""
 
     wall_x: float
     hand_geom: int
     floor_geom: int
     foot_bodies: tuple[int, ...]
     soles: Soles
+    step_geoms: tuple[int, ...] = ()
+
+    @property
+    def ground_geoms(self) -> tuple[int, ...]:
+        """The geoms the soles stand on: the floor and the steps."""
+        return (self.floor_geom, *self.step_geoms)
 
 
 def plant_armature(robot: RobotModel, armature=None) -> np.ndarray:
@@ -411,12 +421,35 @@ def plant_armature(robot: RobotModel, armature=None) -> np.ndarray:
     return vector_in_range(armature, n, 0.0, MAX_ARMATURE, "armature", "kg m^2")
 
 
+def add_steps(spec, robot: RobotDescription, stance: Stance, contact: ContactParameters) -> tuple[str, ...]:
+    """A box under each held contact the stance raises (its top at the stance's height, centred
+    under the sole, half-sizes :data:`STEP_SIZE`) and the pairs of that sole's spheres with it;
+    the boxes' names."""
+    names = []
+    for k, c in enumerate(robot.held_contacts):
+        height = stance.height(k)
+        if height == 0.0:
+            continue
+        name = f"step_{c.label}"
+        centre = np.array(stance.feet[k]) + c.sole.mean(axis=0)
+        spec.worldbody.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=[*STEP_SIZE, height / 2.0],
+                                pos=[*centre, height / 2.0], rgba=[0.5, 0.45, 0.4, 1.0],
+                                **contact.geom(c.friction), **NO_COLLISION)
+        for geom in spec.body(c.frame).geoms:
+            if geom.type == mujoco.mjtGeom.mjGEOM_SPHERE:
+                spec.add_pair(geomname1=geom.name, geomname2=name, **contact.pair(c.friction))
+        names.append(name)
+    return tuple(names)
+
+
 def build_humanoid_scene(
-    robot: RobotModel, wall_x: float, *, timestep: float = STANDING_TIMESTEP, armature=None
+    robot: RobotModel, wall_x: float, *, timestep: float = STANDING_TIMESTEP, armature=None,
+    stance: Stance | None = None,
 ) -> HumanoidScene:
     """Compile the standing robot's scene with the wall plane at x = ``wall_x`` (normal -x, towards
     the robot); ``armature`` is the joints' rotor inertia (:func:`plant_armature`: default the G1's
-    actuators)."""
+    actuators); ``stance``: a box under each sole it raises (:func:`add_steps`; None: the floor
+    only)."""
     rotor = plant_armature(robot, armature)
     description = robot.description
     spec = robot_spec(description, None, timestep, robot.urdf_path)
@@ -424,6 +457,7 @@ def build_humanoid_scene(
     hand = add_contact_geometry(spec, description, None, contact)
     wall = Surface(np.array([wall_x, 0.0, STANDING_WALL_HEIGHT]), np.array([-1.0, 0.0, 0.0]), WALL_FRICTION)
     add_environment(spec, description, hand, Environment(wall, contact, wall_size=STANDING_WALL_SIZE, pair=""))
+    steps = () if stance is None else add_steps(spec, description, stance, contact)
     for joint in spec.joints:
         if joint.type == mujoco.mjtJoint.mjJNT_HINGE:
             joint.armature = float(rotor[robot.joint_names.index(joint.name)])
@@ -436,4 +470,5 @@ def build_humanoid_scene(
         wall_x=wall_x, hand_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, hand),
         floor_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR_GEOM),
         foot_bodies=feet, soles=Soles.of(model, feet, tuple(c.friction for c in description.held_contacts)),
+        step_geoms=tuple(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name) for name in steps),
     )

@@ -119,7 +119,7 @@ class ServoedPlant:
             self.clearance = scene.tool.geometry.bounding_radius + CLEARANCE_SPEED * control_period
             self.contact_geom, self.environment = scene.tool_geom, (scene.wall_geom,)
         else:
-            self.contact_geom, self.environment = scene.hand_geom, (scene.wall_geom, scene.floor_geom)
+            self.contact_geom, self.environment = scene.hand_geom, (scene.wall_geom, *scene.ground_geoms)
         self._contact_force = np.zeros(6)
 
     def reset(self, q0: np.ndarray, dq0: np.ndarray | None = None, servo_reference=None) -> None:

@@ -28,10 +28,11 @@ def humanoid() -> RobotModel:
 def test_stance_stands_flat_with_the_com_over_the_feet_and_the_hand_on_target(humanoid, name):
     stance = STANCES[name]
     q = stance_posture(humanoid, stance)
-    np.testing.assert_allclose(humanoid.sole_corners(q)[:, 2], 0.0, atol=1e-4)
+    heights = [stance.height(k) for k in range(len(stance.feet))]
+    np.testing.assert_allclose(humanoid.sole_corners(q)[:, 2], np.repeat(heights, 4), atol=1e-4)
     placements = humanoid.frame_placements(q)
-    for foot, xy in zip(humanoid.description.held_contacts, stance.feet, strict=True):
-        np.testing.assert_allclose(placements[foot.frame].translation, [*xy, foot.depth], atol=1e-3)
+    for foot, xy, height in zip(humanoid.description.held_contacts, stance.feet, heights, strict=True):
+        np.testing.assert_allclose(placements[foot.frame].translation, [*xy, height + foot.depth], atol=1e-3)
         np.testing.assert_allclose(placements[foot.frame].rotation, np.eye(3), atol=1e-3)
     contact = humanoid.contact_frame_name
     np.testing.assert_allclose(placements[contact].translation, stance.hand, atol=5e-3)
@@ -39,6 +40,15 @@ def test_stance_stands_flat_with_the_com_over_the_feet_and_the_hand_on_target(hu
     assert inside_polygon(humanoid.terms(q).com, support_polygon(humanoid, q)) > 0.03
     joints = q[humanoid.base_nq:]
     assert np.all((joints >= humanoid.q_min) & (joints <= humanoid.q_max))
+
+
+def test_the_step_stance_puts_the_left_sole_on_a_raised_surface(humanoid):
+    """The step stance's left sole stands on its 10 cm step and the right one on the floor."""
+    stance = STANCES["step"]
+    assert stance.heights == (0.10, 0.0) and not stance.coplanar
+    corners = humanoid.sole_corners(stance_posture(humanoid, stance))
+    np.testing.assert_allclose(corners[:4, 2], 0.10, atol=1e-4)
+    np.testing.assert_allclose(corners[4:, 2], 0.0, atol=1e-4)
 
 
 def test_an_unreachable_hand_is_bad_input(humanoid):

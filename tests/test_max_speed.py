@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from conftest import JOINTS
 from impactqp.controller.model.batch import BatchKinematics
-from impactqp.controller.model.capture import capturable_speeds, capture_region, max_capturable_speed
+from impactqp.controller.model.capture import GRAVITY, capturable_speeds, max_capturable_speed, support_capture_region
 from impactqp.controller.model.jump import predict
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import STANCES, convex_hull, inside_polygon, stance_posture, support_polygon
@@ -144,7 +144,7 @@ def g1():
     return RobotModel("g1")
 
 
-@pytest.fixture(scope="module", params=["parallel", "staggered"])
+@pytest.fixture(scope="module", params=["parallel", "staggered", "step"])
 def stance_q(request, g1):
     return stance_posture(g1, STANCES[request.param])
 
@@ -227,7 +227,7 @@ def test_more_friction_never_lowers_the_slip_bound(g1, stance_q):
 
 def test_capture_bound_is_the_capture_modules(g1, stance_q):
     terms = g1.terms(stance_q)
-    region = capture_region(support_polygon(g1, stance_q), terms.com)
+    region = support_capture_region(g1, stance_q, terms.com)
     v1 = terms.J @ approach_direction(g1, terms, NORMAL)
     result = closed_form_max_speed(g1, g1.terms(stance_q), NORMAL)
     assert result.bounds["capture"].speed == pytest.approx(max_capturable_speed(terms, region, "crb", NORMAL, v1))
@@ -238,3 +238,67 @@ def test_capture_bound_is_the_capture_modules(g1, stance_q):
 def test_zero_friction_is_bad_input(g1, stance_q):
     with pytest.raises(BadInputError):
         closed_form_max_speed(g1, g1.terms(stance_q), NORMAL, Setting(friction=0.0))
+
+
+def _criterion_margins(g1, q, speed, heights, setting=Setting()):
+    """Each criterion's smallest margin (>= 0: met, 0: tight) at the contact speed ``speed``, from
+    first principles: the predicted jump, the feet's wrenches F_k = T w_k + s lambda_k in the
+    foot's axes against the cone and the sole (the centre of pressure on the sole's plane), and
+    the capture point c + dc+ / omega (dc+ = (iota + the feet's impulsive forces) / m) against the soles' corners projected from the CoM onto the
+    floor (corner heights ``heights``)."""
+    terms = g1.terms(q)
+    d = approach_direction(g1, terms, NORMAL)
+    jump = predict(terms, setting.method, NORMAL, speed * (terms.J @ d))
+    joints = slice(g1.base_nv, None)
+    worst = np.maximum(np.abs(speed * d[joints]), np.abs((speed * d + jump.dq_jump)[joints])) / g1.dq_max
+    margins = {"joint_velocity": 1.0 - worst.max()}
+    T = setting.duration(g1.description)
+    wrenches = T * standing_wrenches(g1, terms) + jump.held_impulse
+    placements = g1.frame_placements(q)
+    slip, lift = np.inf, np.inf
+    for k, contact in enumerate(g1.description.held_contacts):
+        R = placements[contact.frame].rotation
+        f, tau = R.T @ wrenches[6 * k:6 * k + 3], R.T @ wrenches[6 * k + 3:6 * k + 6]
+        slip = min(slip, (contact.friction * f[2] - np.linalg.norm(f[:2])) / f[2])
+        cop = np.array([-contact.depth * f[0] - tau[1], tau[0] - contact.depth * f[1]]) / f[2]
+        lift = min(lift, inside_polygon(cop, convex_hull(contact.sole)))
+    margins.update(foot_slip=slip, foot_lift=lift)
+    com = terms.com
+    corners = g1.sole_corners(q)[:, :2]
+    projected = com[:2] + (com[2] / (com[2] - heights))[:, None] * (corners - com[:2])
+    # the CoM velocity jump from the momentum balance: the hand's and the feet's impulsive forces
+    com_jump = (jump.impulse + jump.held_impulse[0:3] + jump.held_impulse[6:9]) / terms.mass
+    capture_point = com[:2] + com_jump[:2] / np.sqrt(GRAVITY / com[2])
+    margins["capture"] = inside_polygon(capture_point, convex_hull(projected))
+    return margins
+
+
+@pytest.mark.parametrize("method", ["crb", "classical"])
+def test_on_the_step_every_criterion_holds_at_the_closed_form_speed_and_the_binding_one_is_tight(g1, method):
+    """The step stance (the left sole 10 cm up): at the closed form's speed every row holds and the
+    binding criterion's is at its limit; 1 % faster it fails."""
+    stance = STANCES["step"]
+    q = stance_posture(g1, stance)
+    heights = np.repeat(stance.heights, 4)
+    best = closed_form_max_speed(g1, g1.terms(q), NORMAL, Setting(method))
+    at = _criterion_margins(g1, q, best.speed, heights, Setting(method))
+    assert min(at.values()) >= -1e-6
+    assert at[best.criterion] == pytest.approx(0.0, abs=1e-6)
+    assert _criterion_margins(g1, q, 1.01 * best.speed, heights, Setting(method))[best.criterion] < 0.0
+
+
+@settings(max_examples=4, deadline=None)
+@given(st.floats(-math.pi, math.pi))
+def test_turning_the_whole_step_stance_about_the_vertical_keeps_the_highest_speed(g1, angle):
+    """Frame invariance: the robot and the wall turned together about z give the same bounds."""
+    import pinocchio as pin
+
+    q = stance_posture(g1, STANCES["step"])
+    turn = pin.SE3(pin.utils.rpyToMatrix(0.0, 0.0, angle), np.zeros(3))
+    turned = q.copy()
+    turned[:7] = pin.SE3ToXYZQUAT(turn * pin.XYZQUATToSE3(q[:7]))
+    one = closed_form_max_speed(g1, g1.terms(q), NORMAL)
+    other = closed_form_max_speed(g1, g1.terms(turned), turn.rotation @ NORMAL)
+    for criterion, bound in one.bounds.items():
+        assert other.bounds[criterion].speed == pytest.approx(bound.speed, rel=1e-9)
+    assert (other.criterion, other.where) == (one.criterion, one.where)

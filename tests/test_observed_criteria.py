@@ -99,6 +99,27 @@ def test_capture_margin_agrees_with_the_capture_region_on_constructed_velocities
     assert capture_margin(robot, q, np.zeros(3)) == pytest.approx(edge_margins(polygon, com[:2]).min())
 
 
+def test_on_the_step_the_capture_margin_is_the_capture_point_s_inside_the_projected_soles():
+    """With the left sole on the step the margin is x's distance inside the hull of the corners
+    projected from the CoM onto the floor (the raised ones by k = c_z / (c_z - h)), not inside the
+    soles' own hull."""
+    from impactqp.controller.model.humanoid_stance import convex_hull
+
+    robot = RobotModel("g1")
+    stance = STANCES["step"]
+    q = stance_posture(robot, stance)
+    com = robot.terms(q).com
+    corners = robot.sole_corners(q)[:, :2]
+    k = com[2] / (com[2] - np.repeat(stance.heights, 4))
+    projected = convex_hull(com[:2] + k[:, None] * (corners - com[:2]))
+    omega = np.sqrt(9.81 / com[2])
+    for point in ([com[0], projected[:, 1].max() - 0.01], [com[0], projected[:, 1].max() + 0.01], [0.5, 0.0]):
+        velocity = np.r_[omega * (np.array(point) - com[:2]), 0.0]
+        assert capture_margin(robot, q, velocity) == pytest.approx(edge_margins(projected, np.array(point)).min(), abs=1e-4)
+    inside_own = np.array([com[0], support_polygon(robot, q)[:, 1].max() + 0.005])  # beyond the soles, within the projection
+    assert capture_margin(robot, q, np.r_[omega * (inside_own - com[:2]), 0.0]) > 0.0
+
+
 def test_a_robot_whose_com_and_capture_point_left_its_feet_is_falling():
     """At the end of a trial the pelvis may still be high while the robot tips over. Standing
     with its CoM over its feet it is not falling, even swaying backwards fast (its capture point

@@ -340,3 +340,52 @@ def test_joint_friction_bounds_each_joints_torque_and_takes_the_motions_energy(f
     (start, end, most), (nominal_start, nominal_end, _) = energies["friction"], energies["nominal"]
     assert nominal_end == pytest.approx(nominal_start, rel=1e-3)
     assert 10.0 * abs(nominal_start - nominal_end) < start - end <= 1.05 * most
+
+
+@pytest.fixture(scope="module")
+def step_scene():
+    """The G1's step stance (its left sole on a 10 cm step), its posture and its scene."""
+    stance = STANCES["step"]
+    return stance, stance_posture(G1, stance), build_humanoid_scene(G1, wall_x=2.0, stance=stance)
+
+
+def test_a_raised_sole_stands_on_a_box_whose_top_is_its_surface(step_scene):
+    """One box per raised sole: its top at the stance's height, under the sole's corners, and
+    paired with that sole's spheres only; the flat stances' scenes have none."""
+    stance, q, scene = step_scene
+    model = scene.model
+    (box,) = scene.step_geoms
+    assert scene.ground_geoms == (scene.floor_geom, box)
+    top = model.geom_pos[box][2] + model.geom_size[box][2]
+    assert top == pytest.approx(stance.heights[0])
+    corners = G1.sole_corners(q)[:4]
+    assert np.all(np.abs(corners[:, :2] - model.geom_pos[box][:2]) < model.geom_size[box][:2])
+    pairs = [{int(model.pair_geom1[i]), int(model.pair_geom2[i])} for i in range(model.npair)]
+    assert set().union(*(p for p in pairs if box in p)) - {box} == set(scene.soles.spheres[0])
+    assert build_humanoid_scene(G1, wall_x=2.0, stance=STANCES["parallel"]).step_geoms == ()
+
+
+def test_the_g1_stands_still_on_the_step_for_a_second(step_scene):
+    """Under the standing servo the G1 stands 1 s on the step: neither foot frame moves by more
+    than 0.1 mm, the pelvis stays up and the robot comes to rest."""
+    from impactqp.sim.runner import SERVO_GAIN, SINK
+    from impactqp.sim.servo import StandingSupport
+    from impactqp.sim.sim_backend import SimRobot
+
+    _, q, scene = step_scene
+    start = q.copy()
+    start[2] -= SINK
+    robot = SimRobot(scene, start, np.zeros(G1.nv), 1e-3, paced=False, gain=SERVO_GAIN,
+                     standing=StandingSupport(G1, scene.base_nq, scene.base_nv))
+
+    def feet():
+        q_now, v_now = to_pinocchio(scene.data.qpos, scene.data.qvel, scene.base_nq)
+        placements = G1.frame_placements(q_now)
+        return np.array([placements[c.frame].translation for c in G1.description.held_contacts]), q_now, v_now
+
+    robot.hold(0.1)  # the soft floor takes the weight
+    before, _, _ = feet()
+    robot.hold(1.0)
+    after, q_end, v_end = feet()
+    assert np.abs(after - before).max() < 1e-4
+    assert q_end[2] > 0.9 * q[2] and np.abs(v_end).max() < 0.05

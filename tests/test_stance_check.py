@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from impactqp.controller.model.robot import RobotModel
-from impactqp.controller.model.max_speed import HELD_CONTACT_CRITERIA, Bound, MaxSpeed
+from impactqp.controller.model.max_speed import HELD_CONTACT_CRITERIA, Bound, MaxSpeed, Setting, closed_form_max_speed
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.scenarios.max_speed_search import StanceMaxSpeed, StancePlant
 from impactqp.scenarios.stance_check import (
@@ -19,6 +19,7 @@ from impactqp.scenarios.stance_check import (
     trial_at_contact_speed,
 )
 from impactqp.sim.observed_criteria import WITH_HELD_CONTACTS
+from impactqp.sim.runner import NORMAL
 
 FAILURES = tuple(c.name for c in WITH_HELD_CONTACTS)
 
@@ -75,3 +76,18 @@ def test_a_trial_reaches_the_asked_contact_speed():
     q = stance_posture(robot, STANCES["close"])
     trial = trial_at_contact_speed(robot, "close", q, 0.3, StancePlant())
     assert trial.contact_speed == pytest.approx(0.3, rel=0.02)
+
+
+def test_on_the_step_the_scripted_hand_stands_below_the_closed_form_and_lifts_a_foot_above_it():
+    """The step stance (the left sole on a 10 cm step): at 0.9x the crb closed form the trial has
+    no onset and no fall; at 1.1x the binding criterion (foot lift) fails."""
+    robot = RobotModel("g1")
+    q = stance_posture(robot, STANCES["step"])
+    best = closed_form_max_speed(robot, robot.terms(q), NORMAL, Setting("crb"))
+    assert best.criterion == "foot_lift"
+    below = trial_at_contact_speed(robot, "step", q, 0.9 * best.speed, StancePlant())
+    assert below.contact_speed == pytest.approx(0.9 * best.speed, rel=0.02)
+    assert below.feasible and not below.fell
+    above = trial_at_contact_speed(robot, "step", q, 1.1 * best.speed, StancePlant())
+    assert above.contact_speed == pytest.approx(1.1 * best.speed, rel=0.02)
+    assert "foot_lift" in above.failures

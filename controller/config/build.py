@@ -22,7 +22,8 @@ from impactqp.constraints import (
 )
 
 from ..model.friction_pyramid import FrictionRows
-from ..model.humanoid_stance import stance_posture, support_polygon
+from ..model.capture import floor_support_polygon
+from ..model.humanoid_stance import stance_posture
 from ..model.max_speed import Setting
 from ..model.robot import RobotModel
 from ..model.validation import BadInputError
@@ -106,8 +107,11 @@ def start_posture(robot: RobotModel, q_start=None):
 
 
 def support(robot: RobotModel, q_start=None):
-    """The support polygon of the robot's held contacts at ``q_start`` (default: its default stance)."""
-    return support_polygon(robot, start_posture(robot, q_start))
+    """The support polygon of the robot's held contacts at ``q_start`` (default: its default
+    stance) on the floor: the soles' hull, each corner of a raised sole projected from the CoM
+    (``capture.floor_support_polygon``)."""
+    q = start_posture(robot, q_start)
+    return floor_support_polygon(robot, q, robot.terms(q).com)
 
 
 def post_impact_config(config: ControllerConfig) -> ControllerConfig:

@@ -17,10 +17,25 @@ acting on the robot with both feet held changes the generalized velocity by P J^
 velocity v-, dc+ = dc- + C iota(v-) is linear in v-, and the highest capturable contact speed
 along an approach direction has a closed form (:func:`max_capturable_speed`).
 
+Non-coplanar soles (a foot on a step; docs/floating-base.md, "Non-coplanar soles"). With the
+contact force of every sole corner p_i directed at the CoM, f_i = l_i (c - p_i), l_i >= 0 (inside
+a horizontal sole's friction cone while |c_xy - p_i,xy| <= mu (c_z - p_i,z)), the moment about c
+vanishes and, at constant CoM height, c''_xy = omega^2 (c_xy - z) with omega^2 = g / c_z and
+
+    z = sum_i mu_i (c_xy + k_i (p_i,xy - c_xy)),   k_i = c_z / (c_z - p_i,z),   mu_i >= 0, sum mu_i = 1:
+
+the floor-plane ZMP ranges over the convex hull of the corners projected from the CoM onto the
+floor (:func:`floor_support_polygon`). Coplanar soles on the floor have k_i = 1: the polygon is
+the soles' hull and the region the one above. A sole's surface height is read from the posture
+(its corners' mean height; the floor's, 0, within :data:`FLOOR_TOLERANCE`).
+
 Simplifications: GM and CRB impulses are frictionless (along the normal, eq. 12), the classical
 one sticking (eq. 6); the feet are held during the impulse (their impulsive wrenches are not
 checked against friction or the soles); the capture point is the linear pendulum's (constant CoM
-height, no angular momentum).
+height, no angular momentum); with non-coplanar soles, the contact forces point at the CoM (an
+inner part of the contact wrench cone: no internal forces between the soles) and the projected
+polygon is taken at the CoM of the instant (as the CoM moves by dc, a raised sole's projected
+corners move by (1 - k_i) dc).
 """
 
 from __future__ import annotations
@@ -32,10 +47,13 @@ import numpy as np
 
 from .jump import constrained_inverse_inertia, predict
 from .model_terms import ModelTerms
-from .humanoid_stance import edge_margins, edge_normals
+from .humanoid_stance import convex_hull, edge_margins, edge_normals
+from .robot import RobotModel
 from .validation import BadInputError
 
 GRAVITY = 9.81
+FLOOR_TOLERANCE = 0.01
+"""m: a sole whose corners lie within this of the floor (z = 0) on average stands on the floor."""
 
 
 @dataclass(frozen=True)
@@ -66,6 +84,36 @@ def capture_region(polygon: np.ndarray, com: np.ndarray, ground_height: float = 
         raise BadInputError(f"the centre of mass must be above the ground, got height {height}")
     omega = math.sqrt(GRAVITY / height)
     return CaptureRegion(edge_normals(polygon) / omega, edge_margins(polygon, com), omega)
+
+
+def support_heights(robot: RobotModel, q: np.ndarray) -> np.ndarray:
+    """(held contacts,): the height of each sole's support surface in the posture q, its corners'
+    mean height, 0 (the floor) within :data:`FLOOR_TOLERANCE` of it."""
+    corners = robot.sole_corners(q)
+    sizes = [len(c.sole) for c in robot.description.held_contacts]
+    heights = np.array([part[:, 2].mean() for part in np.split(corners, np.cumsum(sizes)[:-1])])
+    heights[np.abs(heights) < FLOOR_TOLERANCE] = 0.0
+    return heights
+
+
+def floor_support_polygon(robot: RobotModel, q: np.ndarray, com: np.ndarray) -> np.ndarray:
+    """The counter-clockwise convex hull (k x 2) of every sole corner p projected from the CoM c
+    onto the floor, p_xy + (k - 1)(p_xy - c_xy) with k = c_z / (c_z - h) for the height h of the
+    corner's support surface (module docstring): the soles' hull when they all stand on the
+    floor (k = 1)."""
+    corners = robot.sole_corners(q)[:, :2]
+    com = np.asarray(com, dtype=float)
+    heights = np.repeat(support_heights(robot, q), [len(c.sole) for c in robot.description.held_contacts])
+    if not com[2] > heights.max():
+        raise BadInputError(f"the centre of mass ({com[2]:.3f} m high) must be above every sole")
+    scale = com[2] / (com[2] - heights) - 1.0
+    return convex_hull(corners + scale[:, None] * (corners - com[:2]))
+
+
+def support_capture_region(robot: RobotModel, q: np.ndarray, com: np.ndarray) -> CaptureRegion:
+    """The zero-step capture region of the soles of the posture q for the CoM at ``com``: the
+    capture point on the floor inside :func:`floor_support_polygon` (module docstring)."""
+    return capture_region(floor_support_polygon(robot, q, com), com)
 
 
 def com_jump_map(terms: ModelTerms) -> np.ndarray:

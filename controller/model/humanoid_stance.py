@@ -1,8 +1,8 @@
 """Standing postures of the floating-base G1 before a hand impact (docs/floating-base.md).
 
 A stance (``robot_description.Stance``: a description's ``stances``, :data:`STANCES` the G1's)
-places the sole of each held contact k flat on the ground (z = 0, the contact's frame ``depth``
-above it) with its frame at the horizontal position ``feet[k]``, the centre of mass over the
+places the sole of each held contact k flat on its support surface (z = ``stance.height(k)``:
+the floor, 0, or a step; the contact's frame ``depth`` above it) with its frame at the horizontal position ``feet[k]``, the centre of mass over the
 mean of the soles' centres (each frame's position moved along x by the mean x of its sole's
 corners) and the hand's contact point at a target with the forearm pointing forward (+x,
 towards the wall). The posture is found by damped
@@ -32,7 +32,7 @@ WEIGHTS = {"feet": 10.0, "com": 10.0, "hand": 3.0, "hand_axis": 1.0, "posture": 
 DAMPING = 1e-3
 ITERATIONS = 200
 STANCES = ROBOTS["g1"].stances
-"""The G1's stances by name (its description's): parallel, wide, staggered, close, far."""
+"""The G1's stances by name (its description's): parallel, wide, staggered, close, far (flat) and step (the left foot on a step)."""
 
 
 def support_polygon(robot: RobotModel, q: np.ndarray) -> np.ndarray:
@@ -91,8 +91,8 @@ def stance_posture(robot: RobotModel, stance: Stance) -> np.ndarray:
     contacts = robot.description.held_contacts
     if len(stance.feet) != len(contacts):
         raise BadInputError(f"stance {stance.name!r} places {len(stance.feet)} feet, the robot holds {len(contacts)} contacts")
-    feet = [(fid, pin.SE3(np.eye(3), np.array([*xy, c.depth])))
-            for fid, c, xy in zip(robot.held_frame_ids, contacts, stance.feet)]
+    feet = [(fid, pin.SE3(np.eye(3), np.array([*xy, stance.height(k) + c.depth])))
+            for k, (fid, c, xy) in enumerate(zip(robot.held_frame_ids, contacts, stance.feet))]
     centre = np.mean([[xy[0] + float(c.sole[:, 0].mean()), xy[1]] for c, xy in zip(contacts, stance.feet)], axis=0)
     hand_target = np.array(stance.hand)
     q = pin.neutral(model)

@@ -49,8 +49,8 @@ import numpy as np
 import pinocchio as pin
 
 from .batch import BatchTerms, predict_from_terms
-from .capture import capturable_speeds, capture_region, row_steps
-from .humanoid_stance import convex_hull, edge_margins, edge_normals, support_polygon
+from .capture import capturable_speeds, row_steps, support_capture_region
+from .humanoid_stance import convex_hull, edge_margins, edge_normals
 from .jump import predict
 from .model_terms import ModelTerms
 from .robot import RobotModel
@@ -262,7 +262,7 @@ def foot_lift(u: UnitImpact) -> Bound:
 
 def capture(u: UnitImpact) -> Bound:
     """The post-impact CoM velocity inside the zero-step capture region (smallest over the edges)."""
-    region = capture_region(support_polygon(u.robot, u.terms.q), u.terms.com)
+    region = support_capture_region(u.robot, u.terms.q, u.terms.com)
     edges = capturable_speeds(
         u.terms, region, u.setting.method, u.normal, u.terms.J @ u.direction, u.setting.restitution
     )

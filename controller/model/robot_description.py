@@ -5,7 +5,9 @@ to know of a robot: where its URDF and collision meshes are, whether its base is
 floating, its moving joints in order and their limits, the frames a tool may be fixed to, the
 gripper whose fingers the model locks, the robot's own contact point (a robot that carries no
 tool), the contacts it holds (the soles of a standing humanoid: polygon, depth, friction), and
-its named postures (an arm's impact postures) or stances (where a humanoid's feet stand).
+its named postures (an arm's impact postures) or stances (where a humanoid's feet stand). The
+held contacts and stances are read by ``held_contact_description``, the fields of a file checked
+by ``description_fields``.
 
 The built-in robots (:data:`ROBOTS`: ``panda``, ``fr3``, ``ur5``, ``g1``) are TOML files shipped
 with the package (``controller/model/robots/``); :func:`robot_description` takes one of their
@@ -30,7 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .description_fields import name_field, named_tables_field, names_field, table_field
 from .files import read_mapping, read_text
+from .held_contact_description import MAX_CONTACT_LENGTH, HeldContact, Stance, held_contacts_of, stances_of
 from .postures import DEFAULT_WALL, ImpactPosture
 from .tool_description import ToolDescription
 from .validation import BadInputError, finite_vector, number_in_range
@@ -47,11 +51,6 @@ ROBOT_KEYS = {
 }
 LIMIT_KEYS = ("q_min", "q_max", "dq_max", "ddq_max", "dddq_max", "tau_max")
 URDF_LIMITS = {"q_min": "lower", "q_max": "upper", "dq_max": "velocity", "tau_max": "effort"}
-MAX_JOINTS = 256
-"""The most moving joints a description may have (a humanoid has a few dozen)."""
-MAX_FRICTION = 5.0
-MAX_CONTACT_LENGTH = 1.0
-"""m: the farthest a robot's own contact point, a sole's corner or its depth lies from its frame."""
 BUILTIN_DIR = Path(__file__).parent / "robots"
 ROBOT_FILE_SUFFIXES = (".toml", ".json", ".yaml", ".yml")
 """The suffixes of a robot description file (``files.read_mapping`` reads each)."""
@@ -83,21 +82,6 @@ class FileSource:
 
 
 @dataclass(frozen=True, eq=False)
-class HeldContact:
-    """A contact the robot holds while it hits (a humanoid's sole on the ground): the frame it
-    is fixed to, the support polygon ``sole`` (k x 2, the frame's x-y plane, m) that lies
-    ``depth`` (m) below the frame along its -z axis, the Coulomb ``friction`` on the ground, and
-    the ``label`` that reports name it by (default: its name)."""
-
-    name: str
-    frame: str
-    sole: np.ndarray
-    depth: float
-    friction: float
-    label: str = ""
-
-
-@dataclass(frozen=True, eq=False)
 class RobotContact:
     """The robot's own contact point (a robot that carries no tool): frame ``name`` at
     ``offset`` (m) from ``frame``, with that frame's orientation; ``joints``, the joints that
@@ -107,16 +91,6 @@ class RobotContact:
     frame: str
     offset: np.ndarray
     joints: tuple[str, ...] = ()
-
-
-@dataclass(frozen=True, eq=False)
-class Stance:
-    """Where a standing robot's held contacts stand (``feet``: x, y of each contact's frame on
-    the ground, in the description's order) and where its contact point starts (``hand``)."""
-
-    name: str
-    feet: tuple[tuple[float, float], ...]
-    hand: tuple[float, float, float]
 
 
 def _read_only(values) -> np.ndarray:
@@ -200,43 +174,11 @@ class RobotDescription:
 
 
 # ---------------------------------------------------------------------- reading a description
-def _names(value, what: str) -> tuple[str, ...]:
-    if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
-        raise BadInputError(f"{what} must be a list of names")
-    if len(value) > MAX_JOINTS or len(set(value)) != len(value):
-        raise BadInputError(f"{what} must hold at most {MAX_JOINTS} distinct names")
-    return tuple(value)
-
-
-def _name(value, what: str) -> str:
-    if not isinstance(value, str) or not value:
-        raise BadInputError(f"{what} must be a non-empty name")
-    return value
-
-
-def _table(data: Mapping, key: str, keys: set[str], what: str) -> dict:
-    value = data.get(key, {})
-    if not isinstance(value, dict):
-        raise BadInputError(f"{what} [{key}] must be a table")
-    unknown = sorted(set(value) - keys)
-    if unknown:
-        raise BadInputError(f"{what} [{key}]: unknown keys {', '.join(unknown)}; known: {', '.join(sorted(keys))}")
-    return value
-
-
-def _named_tables(data: Mapping, key: str, robot: str) -> dict:
-    """``data[key]``: a table of named tables (postures, stances), empty when missing."""
-    value = data.get(key, {})
-    if not isinstance(value, dict) or not all(isinstance(v, dict) for v in value.values()):
-        raise BadInputError(f"the {robot} [{key}] must be a table of named tables")
-    return value
-
-
 def _source(value, key: str, base: Path | None) -> FileSource:
     if isinstance(value, str) and value:
         return FileSource(value, None, base)
     if isinstance(value, dict) and set(value) == {"package", "path"}:
-        return FileSource(_name(value["path"], f"{key}.path"), _name(value["package"], f"{key}.package"))
+        return FileSource(name_field(value["path"], f"{key}.path"), name_field(value["package"], f"{key}.package"))
     raise BadInputError(f"'{key}' must be a path or a table {{package = ..., path = ...}}")
 
 
@@ -284,48 +226,12 @@ def _limits(table: Mapping, joints: tuple[str, ...], urdf: dict | None, robot: s
 def _postures(table: Mapping, n: int, robot: str) -> dict[str, ImpactPosture]:
     postures = {}
     for name, entry in table.items():
-        entry = _table(table, name, {"q", "description"}, f"the {robot} posture")
+        entry = table_field(table, name, {"q", "description"}, f"the {robot} posture")
         if not isinstance(entry.get("description", ""), str):
             raise BadInputError(f"the {robot} posture {name} description must be text")
         q = _read_only(finite_vector(entry.get("q"), n, f"the {robot} posture {name} q"))
         postures[name] = ImpactPosture(name, q, entry.get("description", ""), DEFAULT_WALL)
     return postures
-
-
-def _held_contacts(entries, robot: str) -> tuple[HeldContact, ...]:
-    if not isinstance(entries, list):
-        raise BadInputError(f"the {robot} held_contacts must be a list of tables")
-    contacts = []
-    for entry in entries:
-        keys = {"name", "frame", "sole", "depth", "friction"}
-        if not isinstance(entry, dict) or not keys <= set(entry) <= keys | {"label"}:
-            raise BadInputError(f"each {robot} held contact needs exactly name, frame, sole, depth, friction (and a label)")
-        sole = np.array(entry["sole"], dtype=float) if isinstance(entry["sole"], list) else np.empty(0)
-        if sole.ndim != 2 or sole.shape[1] != 2 or len(sole) < 3 or not np.all(np.abs(sole) <= MAX_CONTACT_LENGTH):
-            raise BadInputError(f"the {robot} held contact {entry['name']!r}: sole must be 3 or more (x, y) corners within 1 m")
-        sole.flags.writeable = False
-        contacts.append(HeldContact(
-            _name(entry["name"], "a held contact's name"), _name(entry["frame"], "a held contact's frame"), sole,
-            number_in_range(entry["depth"], 0.0, MAX_CONTACT_LENGTH, "a sole's depth", "m"),
-            number_in_range(entry["friction"], 0.0, MAX_FRICTION, "a sole's friction", "", True),
-            _name(entry.get("label", entry["name"]), "a held contact's label"),
-        ))
-    return tuple(contacts)
-
-
-def _stances(table: Mapping, contacts: int, robot: str) -> dict[str, Stance]:
-    stances = {}
-    for name in table:
-        entry = _table(table, name, {"feet", "hand"}, f"the {robot} stance")
-        feet = entry.get("feet")
-        if not isinstance(feet, list) or len(feet) != contacts:
-            raise BadInputError(f"the {robot} stance {name}: feet must give (x, y) for each of the {contacts} held contacts")
-        stances[name] = Stance(
-            name,
-            tuple(tuple(finite_vector(f, 2, f"the {robot} stance {name} foot").tolist()) for f in feet),
-            tuple(finite_vector(entry.get("hand"), 3, f"the {robot} stance {name} hand").tolist()),
-        )
-    return stances
 
 
 def description_from_mapping(data: Mapping, base: Path | None = None, source: Path | None = None) -> RobotDescription:
@@ -334,7 +240,7 @@ def description_from_mapping(data: Mapping, base: Path | None = None, source: Pa
     unknown = sorted(set(data) - ROBOT_KEYS)
     if unknown:
         raise BadInputError(f"unknown robot description keys {', '.join(unknown)}; known: {', '.join(sorted(ROBOT_KEYS))}")
-    robot = _name(data.get("name"), "the robot's name")
+    robot = name_field(data.get("name"), "the robot's name")
     kind = data.get("base", "fixed")
     if kind not in BASES:
         raise BadInputError(f"the {robot} base must be one of {', '.join(BASES)}, got {kind!r}")
@@ -342,13 +248,13 @@ def description_from_mapping(data: Mapping, base: Path | None = None, source: Pa
         if key not in data:
             raise BadInputError(f"the {robot} description needs '{key}'")
     urdf, meshes = _source(data["urdf"], "urdf", base), _source(data["meshes"], "meshes", base)
-    hand = _table(data, "hand", {"frame", "finger_joints", "finger_links"}, f"the {robot}")
-    fingers = _names(hand.get("finger_joints", []), f"the {robot} finger_joints")
-    limit_table = _table(data, "limits", set(LIMIT_KEYS), f"the {robot}")
+    hand = table_field(data, "hand", {"frame", "finger_joints", "finger_links"}, f"the {robot}")
+    fingers = names_field(hand.get("finger_joints", []), f"the {robot} finger_joints")
+    limit_table = table_field(data, "limits", set(LIMIT_KEYS), f"the {robot}")
     urdf_joints = None
     if "joints" not in data or any(k not in limit_table for k in URDF_LIMITS):
         urdf_joints = _urdf_joints(read_text(urdf.resolve(robot), f"the {robot} URDF"), robot)
-    joints = _names(data["joints"], f"the {robot} joints") if "joints" in data else tuple(
+    joints = names_field(data["joints"], f"the {robot} joints") if "joints" in data else tuple(
         j for j in urdf_joints if j not in fingers
     )
     if not joints:
@@ -357,37 +263,37 @@ def description_from_mapping(data: Mapping, base: Path | None = None, source: Pa
         raise BadInputError(f"the {robot} URDF has no moving joints {', '.join(sorted(set(joints) - set(urdf_joints)))}")
     contact = None
     if "contact" in data:
-        entry = _table(data, "contact", {"name", "frame", "offset", "joints"}, f"the {robot}")
+        entry = table_field(data, "contact", {"name", "frame", "offset", "joints"}, f"the {robot}")
         offset = finite_vector(entry.get("offset", [0.0, 0.0, 0.0]), 3, f"the {robot} contact offset")
         if float(np.linalg.norm(offset)) > MAX_CONTACT_LENGTH:
             raise BadInputError(f"the {robot} contact offset must lie within {MAX_CONTACT_LENGTH:g} m of its frame")
-        moving = _names(entry.get("joints", []), f"the {robot} contact joints")
+        moving = names_field(entry.get("joints", []), f"the {robot} contact joints")
         if set(moving) - set(joints):
             raise BadInputError(f"the {robot} contact joints {', '.join(sorted(set(moving) - set(joints)))} are not its joints")
-        contact = RobotContact(_name(entry.get("name"), "the contact's name"), _name(entry.get("frame"), "the contact's frame"),
+        contact = RobotContact(name_field(entry.get("name"), "the contact's name"), name_field(entry.get("frame"), "the contact's frame"),
                                _read_only(offset), moving)
-    held = _held_contacts(data.get("held_contacts", []), robot)
-    postures = _postures(_named_tables(data, "postures", robot), len(joints), robot)
-    stances = _stances(_named_tables(data, "stances", robot), len(held), robot)
+    held = held_contacts_of(data.get("held_contacts", []), robot)
+    postures = _postures(named_tables_field(data, "postures", robot), len(joints), robot)
+    stances = stances_of(named_tables_field(data, "stances", robot), len(held), robot)
     named = postures if postures else stances
     default = data.get("default_posture", next(iter(named), ""))
     if named and default not in named:
         raise BadInputError(f"the {robot} default_posture {default!r} is not one of {', '.join(named)}")
-    tool_frames = _table(data, "tool_frames", {"hand", "flange"}, f"the {robot}")
+    tool_frames = table_field(data, "tool_frames", {"hand", "flange"}, f"the {robot}")
     frames = data.get("frames", {})
     if not isinstance(frames, Mapping):
         raise BadInputError(f"the {robot} [frames] must be a table of names to URDF frames")
-    nominal = _table(data, "nominal_posture", set(joints), f"the {robot}")
+    nominal = table_field(data, "nominal_posture", set(joints), f"the {robot}")
     nominal = {name: number_in_range(value, -2 * np.pi, 2 * np.pi, f"the {robot} nominal_posture {name}", "rad")
                for name, value in nominal.items()}
     return RobotDescription(
         name=robot, base=kind, urdf=urdf, meshes=meshes, joints=joints,
         **_limits(limit_table, joints, urdf_joints, robot),
-        tool_frames={k: _name(v, f"the {robot} tool frame {k}") for k, v in tool_frames.items()},
+        tool_frames={k: name_field(v, f"the {robot} tool frame {k}") for k, v in tool_frames.items()},
         hand_frame=str(hand.get("frame", "")), finger_joints=fingers,
-        finger_links=_names(hand.get("finger_links", []), f"the {robot} finger_links"),
+        finger_links=names_field(hand.get("finger_links", []), f"the {robot} finger_links"),
         contact=contact, held_contacts=held, postures=postures, stances=stances, default_posture=default,
-        frames={_name(k, f"the {robot} [frames] key"): _name(v, f"the {robot} frame {k}") for k, v in frames.items()},
+        frames={name_field(k, f"the {robot} [frames] key"): name_field(v, f"the {robot} frame {k}") for k, v in frames.items()},
         nominal_posture=nominal, source=source,
     )
 
