@@ -24,7 +24,9 @@ place (``RobotModel.update_terms``), the control cycle is advanced in place, tas
 constraints write into their own buffers, and the QP data live in two stacked bound vectors
 [box; rows] that the solver and the feasibility check read without copies. The jump matrices
 are computed once per cycle (``ExpectedImpact.matrices``) and shared by the impact constraints
-and the Command's prediction. The kernels are in ``cycle_kernels``.
+and the Command's prediction. The kernels are in ``cycle_kernels``; when every task and
+constraint has a kernel of the compiled cycle plan (``cycle_plan``), all their rows are written
+by one compiled call, else object by object (``_assemble``).
 
 Fallback (``fallback``): when the state is unusable (non-finite, outside the position or
 velocity limits, singular contact Jacobian), when the QP is infeasible, or when no solver

@@ -21,7 +21,8 @@ the task rows, the cost H = A^T W A, g = -A^T W b, the box bounds and their inte
 into the cycle's reachable accelerations, the general rows, and the relaxed rows relaxed to what
 that box reaches (``ControlCycle.recoverable``). The QP it writes is the generic assembly's, the
 same kernels on the same inputs; a controller with any other task or constraint (a user's
-class, a frame task, the held contacts' rows, friction rows) assembles generically.
+class or subclass, a frame or surface-offset task, the held contacts' rows) assembles
+generically.
 """
 
 from __future__ import annotations
@@ -132,16 +133,17 @@ class CyclePlan:
         False when the box bounds conflict."""
         if self._edits != (Task.parameter_edits, Constraint.parameter_edits):
             self.pack()
-        active, impacts = self._active, self.impacts
-        if impacts:
-            matrices = [impact.matrices(terms) for impact in impacts]
-            edges = [impact.edge_matrices(terms) for impact in impacts]
-            maps = (
-                tuple(m.jump_matrix for m in matrices), tuple(m.torque_matrix for m in matrices),
-                tuple(e.jump for e in edges), tuple(e.torque for e in edges), active,
-            )
-            for i, impact in enumerate(impacts):
+        active = self._active
+        if self.impacts:
+            jumps, torques, edge_jumps, edge_torques = [], [], [], []
+            for i, impact in enumerate(self.impacts):
+                matrices, edges = impact.matrices(terms), impact.edge_matrices(terms)
+                jumps.append(matrices.jump_matrix)
+                torques.append(matrices.torque_matrix)
+                edge_jumps.append(edges.jump)
+                edge_torques.append(edges.torque)
                 active[i] = impact.is_active(terms)
+            maps = (tuple(jumps), tuple(torques), tuple(edge_jumps), tuple(edge_torques), active)
         else:
             (matrix,), (edge,) = self._no_impact
             maps = ((matrix,), (matrix,), (edge,), (edge,), active)
