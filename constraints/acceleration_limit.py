@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from impactqp.controller.model.model_terms import ModelTerms
 
 from .constraint import Constraint, ControlCycle
@@ -18,6 +20,10 @@ class AccelerationLimit(Constraint):
 
     name = "joint_acceleration_limit"
     is_box = True
+
+    def kernel_parameters(self) -> np.ndarray:
+        """None: its bounds are the cycle's."""
+        return np.empty(0)
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         lower[:] = cycle.acceleration_lower

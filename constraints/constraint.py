@@ -99,7 +99,9 @@ class Constraint:
     A constraint writes its rows into arrays it is given (``compute_into``): a controller hands
     it views of the stacked QP data, so nothing is copied. Where a class has a compiled kernel
     (numba), ``compute_into`` calls it (its plain-numpy statement is in the tests,
-    ``tests/reference/constraints.py``). Box bounds are then clipped into the
+    ``tests/reference/constraints.py``), and its ``kernel_parameters`` give that kernel's
+    parameters in one flat array, the form a controller's compiled cycle plan reads
+    (``controller.qp.cycle_plan``). Box bounds are then clipped into the
     cycle's reachable accelerations (``ControlCycle.clip_to_reachable``) and the rows of a
     ``relaxed`` constraint, which the state may already violate, are relaxed to the largest
     correction the cycle allows (``ControlCycle.recoverable``); the controller does both for all
@@ -110,6 +112,14 @@ class Constraint:
     rows: int = 0
     is_box: bool = False
     relaxed: bool = False
+    parameter_edits = 0
+    """Assignments to the attributes of any constraint so far: a compiled cycle plan
+    (``controller.qp.cycle_plan``) packs its constraints' ``kernel_parameters`` again when it
+    changed (a parameter is set by assignment; an array changed in place is not seen)."""
+
+    def __setattr__(self, name: str, value) -> None:
+        object.__setattr__(self, name, value)
+        Constraint.parameter_edits += 1
 
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower: np.ndarray, upper: np.ndarray) -> None:
         """Write the raw rows of this state: C (rows x number of velocities; None for a box), lower

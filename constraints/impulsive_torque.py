@@ -51,6 +51,10 @@ class ImpulsiveTorqueLimit(Constraint):
         self._scaling = np.vstack([self.row_scale, self.row_scale * self.impulse_limit])  # s_i; s_i tau_max_i delta_t
         self.name = f"impulsive_torque[{impact.name}]"
 
+    def kernel_parameters(self) -> np.ndarray:
+        """The row scales s, then s tau_max delta_t (one per row of the frictionless block each)."""
+        return self._scaling.ravel()
+
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         if self._edges:
             self._stacked_rows_into(terms, cycle, C, lower, upper)

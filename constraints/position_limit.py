@@ -57,6 +57,13 @@ class PositionLimit(Constraint):
         self._braking_terms = np.vstack([half_step, half_step * half_step, 2.0 * self._braking])
         self._signed_limits = self._sign * self._limits - (0.125 * dt * dt) * self._braking
 
+    def kernel_parameters(self, dt: float) -> np.ndarray:
+        """The signed limits less a dt^2 / 8 (2 rows), then a dt / 2, (a dt / 2)^2 and 2 a (3
+        rows), row-major, at the period dt."""
+        if dt != self._dt:
+            self._constants(dt)
+        return np.concatenate([self._signed_limits.ravel(), self._braking_terms.ravel()])
+
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         dt = cycle.dt
         if dt != self._dt:

@@ -41,6 +41,10 @@ class PostImpactVelocityLimit(Constraint):
         self.rows = len(self.dq_max) * (1 + self._edges)
         self.name = f"post_impact_velocity[{impact.name}]"
 
+    def kernel_parameters(self) -> np.ndarray:
+        """dq_max (one per row of the frictionless block)."""
+        return self.dq_max.copy()
+
     def compute_into(self, terms, cycle: ControlCycle, C, lower, upper) -> None:
         if self._edges:
             self._stacked_rows_into(terms, cycle, C, lower, upper)

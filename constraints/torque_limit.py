@@ -23,6 +23,10 @@ class TorqueLimit(Constraint):
         self.tau_max = np.asarray(tau_max, dtype=float)
         self.rows = len(self.tau_max)
 
+    def kernel_parameters(self) -> np.ndarray:
+        """tau_max (one per row)."""
+        return self.tau_max.copy()
+
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         normalised_torque_rows(terms.M, terms.h, self.tau_max, C, lower, upper)
 

@@ -33,6 +33,10 @@ class VelocityLimit(Constraint):
         self.dq_max = np.asarray(dq_max, dtype=float)
         self.rows = len(self.dq_max)
 
+    def kernel_parameters(self) -> np.ndarray:
+        """dq_max (one per limited joint)."""
+        return self.dq_max.copy()
+
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         n = self.dq_max.shape[0]
         if lower.shape[0] == n:

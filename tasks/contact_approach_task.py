@@ -91,6 +91,13 @@ class ContactApproachTask(Task):
         if not self._rotation_configured:
             self.target_rotation = terms.contact_rotation.copy()
 
+    def kernel_parameters(self) -> np.ndarray:
+        """The basis (9, row-major), the twist gains (6), k_v v* (3), k_R, R* (9) and the weights (6)."""
+        return np.concatenate([
+            self.basis.ravel(), self._twist_gain, self._reference_acceleration, [self.orientation_stiffness],
+            self.target_rotation.ravel(), self.weight,
+        ])
+
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         surface_frame_approach_rows(
             terms.J6, terms.dq, terms.dJ6_dq, terms.contact_rotation, self.target_rotation, self.basis,

@@ -29,5 +29,9 @@ class DampingTask(Task):
         self.rows = int(variables)
         self.weight = np.full(self.rows, float(weight))
 
+    def kernel_parameters(self) -> np.ndarray:
+        """The gain, then the weights (rows)."""
+        return np.concatenate([[self.gain], self.weight])
+
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         joint_pd_rows(terms.dq, terms.dq, terms.dq, 0.0, self.gain, A, b)

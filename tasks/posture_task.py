@@ -40,6 +40,10 @@ class PostureTask(Task):
         if not self._target_configured:
             self.target = terms.q[-self.rows:].copy()
 
+    def kernel_parameters(self) -> np.ndarray:
+        """kp, kd, the target (rows) and the weights (rows)."""
+        return np.concatenate([[self.stiffness, self.damping], self.target, self.weight])
+
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         n = self.rows
         if A.shape[1] == n:

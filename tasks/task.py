@@ -36,12 +36,22 @@ class Task:
     A task writes its rows into arrays it is given (``compute_into``): a controller hands it
     views of the stacked task data, so nothing is copied; ``compute`` returns them in new
     arrays. Where a class has a compiled kernel (numba), ``compute_into`` calls it (its
-    plain-numpy statement is in the tests, ``tests/reference/tasks.py``).
+    plain-numpy statement is in the tests, ``tests/reference/tasks.py``), and its
+    ``kernel_parameters()`` give that kernel's parameters and the weights in one flat array, the
+    form a controller's compiled cycle plan reads (``controller.qp.cycle_plan``).
     """
 
     name: str = ""
     rows: int = 0
     weight: np.ndarray
+    parameter_edits = 0
+    """Assignments to the attributes of any task so far: a compiled cycle plan
+    (``controller.qp.cycle_plan``) packs its tasks' ``kernel_parameters`` again when it changed
+    (a parameter is set by assignment; an array changed in place is not seen)."""
+
+    def __setattr__(self, name: str, value) -> None:
+        object.__setattr__(self, name, value)
+        Task.parameter_edits += 1
 
     def reset(self, terms: ModelTerms) -> None:
         """Capture the targets that were left unspecified from the state ``terms``."""

@@ -1,5 +1,6 @@
 """The impact-aware QP: the controller of every robot, fixed or floating base (``controller``,
-its compiled kernels in ``cycle_kernels``), the problem and where each constraint's rows sit in
+its compiled kernels in ``cycle_kernels``, every task and constraint row in one compiled call in
+``cycle_plan``), the problem and where each constraint's rows sit in
 it (``problem``), the solver backends (``solvers``), the safe command and the conflicting
 constraints (``fallback``), and the ``Command`` it returns (``command``)."""
 

@@ -24,7 +24,9 @@ place (``RobotModel.update_terms``), the control cycle is advanced in place, tas
 constraints write into their own buffers, and the QP data live in two stacked bound vectors
 [box; rows] that the solver and the feasibility check read without copies. The jump matrices
 are computed once per cycle (``ExpectedImpact.matrices``) and shared by the impact constraints
-and the Command's prediction. The kernels are in ``cycle_kernels``.
+and the Command's prediction. The kernels are in ``cycle_kernels``; when every task and
+constraint has a kernel of the compiled cycle plan (``cycle_plan``), all their rows are written
+by one compiled call, else object by object (``_assemble``).
 
 Fallback (``fallback``): when the state is unusable (non-finite, outside the position or
 velocity limits, singular contact Jacobian), when the QP is infeasible, or when no solver
@@ -74,6 +76,7 @@ from impactqp.controller.model.validation import BadInputError
 from impactqp.tasks import Task
 
 from .command import Command, CommandMemory, Status, command_limits
+from .cycle_plan import CycleBuffers, CyclePlan
 from .cycle_kernels import first_outside, integrate_command, intersect_boxes, tight_constraints, weighted_least_squares
 from .fallback import bounded_conflict, brake, braking_command, irreducible_conflict, usable_state
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
@@ -170,6 +173,8 @@ class ImpactAwareController:
         # as the reachable accelerations, so that a row the state violates is relaxed to what
         # the box really allows (ControlCycle.recoverable): the arrays are the problem's own.
         self._row_cycle = ControlCycle(self.dt, p.lb, p.ub, horizon)
+        buffers = CycleBuffers(self._task_A, self._task_b, self._task_w[:, 0], p, self._box_bounds)
+        self._plan = CyclePlan.of(self.tasks, layout, buffers, self.dt)  # None: the generic assembly
 
     @property
     def box_constraints(self) -> tuple[Constraint, ...]:
@@ -294,8 +299,11 @@ class ImpactAwareController:
         return q_cmd
 
     def _assemble(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
-        """Fill the preallocated QP data from the tasks and constraints of this state; False
+        """Fill the preallocated QP data from the tasks and constraints of this state, in one
+        compiled call when every one has a kernel (``cycle_plan``), else object by object; False
         when the joint-space bounds conflict (lb > ub somewhere)."""
+        if self._plan is not None:
+            return self._plan.fill(terms, cycle)
         self._assemble_tasks(terms)
         return self._assemble_constraints(terms, cycle)
 

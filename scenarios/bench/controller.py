@@ -24,7 +24,7 @@
 - peer.tsid.cycle: TSID (compiled C++), or a row with a note when TSID is not installable;
 - controller.fallback_cycle: microseconds per ``step`` on random infeasible states (too fast
   towards the wall with the impact constraints always on; goal: p99 <= 2x controller.cycle p99);
-- controller.stage.<terms|tasks|constraints|solve|check>: one cycle split into its stages, on
+- controller.stage.<terms|rows|solve|check>: one cycle split into its stages, on
   the states of the controller.cycle loop;
 - controller.solvers.<backend>: the controller.cycle loop with each available QP backend, with
   ``.fallbacks`` (fallback cycles in that loop) and ``.speed_ratio`` (asked for 2 m/s at a fixed
@@ -329,10 +329,11 @@ def fallback_cycle_samples(robot: PandaModel, cycles: int = 1000, seed: int = 0)
 def stage_samples(robot: PandaModel, cycles: int = 1000) -> dict[str, np.ndarray]:
     """Seconds per stage of one cycle on the states of the controller.cycle loop: the stages
     of ``ImpactAwareController.step``, each timed on its own (terms: the model terms refilled;
-    tasks: task rows and cost; constraints: the control cycle and every bound and row; solve:
-    the QP solver; check: the feasibility check and the active constraints)."""
+    rows: the control cycle, the task rows and cost and every bound and row, the compiled cycle
+    plan's one call; solve: the QP solver; check: the feasibility check and the active
+    constraints)."""
     controller, q0 = _approach_setup(robot)
-    stages = {name: np.empty(cycles) for name in ("terms", "tasks", "constraints", "solve", "check")}
+    stages = {name: np.empty(cycles) for name in ("terms", "rows", "solve", "check")}
     q, dq = q0, np.zeros(robot.nv)
     controller.reset(q, dq)
     terms = robot.terms(q, dq)
@@ -340,18 +341,16 @@ def stage_samples(robot: PandaModel, cycles: int = 1000) -> dict[str, np.ndarray
         t0 = time.perf_counter()
         robot.update_terms(terms, q, dq)
         t1 = time.perf_counter()
-        controller._assemble_tasks(terms)
-        t2 = time.perf_counter()
         controller._cycle.advance(controller.memory.ddq, controller.ddq_max, controller._jerk_step)
-        controller._assemble_constraints(terms, controller._cycle)
-        t3 = time.perf_counter()
+        controller._assemble(terms, controller._cycle)
+        t2 = time.perf_counter()
         _, ddq = controller.solver.solve(controller.problem)
-        t4 = time.perf_counter()
+        t3 = time.perf_counter()
         if ddq is not None:
             controller._acceptable(ddq)
             controller._active_constraints(ddq)
-        t5 = time.perf_counter()
-        for name, elapsed in zip(stages, (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4)):
+        t4 = time.perf_counter()
+        for name, elapsed in zip(stages, (t1 - t0, t2 - t1, t3 - t2, t4 - t3)):
             stages[name][k] = elapsed
         command = controller.step(q, dq)
         q, dq = command.q_cmd, command.dq_cmd

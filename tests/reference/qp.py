@@ -1,9 +1,14 @@
 """Plain-numpy statements of the compiled kernels of the QP package (``controller.qp``): the
-feasibility check, the active constraints, the interval test and the braking command."""
+feasibility check, the active constraints, the interval test, the braking command and the
+compiled cycle plan."""
 
 import numpy as np
 
 from impactqp.constraints import ControlCycle
+
+from .constraints import reference_recoverable
+from .constraints import reference_rows as reference_constraint_rows
+from .tasks import reference_rows as reference_task_rows
 
 
 def reference_violation(problem, x) -> float:
@@ -60,3 +65,31 @@ def reference_braking_command(q, dq, previous_ddq, dt, ddq_max, dddq_max, robot)
     dq_cmd = np.clip(dq + ddq * dt, -robot.dq_max, robot.dq_max)
     q_cmd = np.clip(q + (0.5 * dt) * (dq + dq_cmd), robot.q_min, robot.q_max)
     return ddq, dq_cmd, q_cmd
+
+
+def reference_planned_qp(tasks, layout, terms, cycle: ControlCycle) -> tuple:
+    """``cycle_plan.planned_rows``: the QP of ``tasks`` and of the constraints of ``layout`` at
+    ``terms`` in plain numpy, (H, g, lb, ub, C, l, u, consistent): H = A^T W A and g = -A^T W b
+    over the stacked task rows; [lb, ub] the boxes intersected, then clipped into the cycle's
+    reachable interval; the general rows, the relaxed ones relaxed to what [lb, ub] reaches."""
+    n = terms.dq.shape[0]
+    A, b = np.zeros((0, n)), np.zeros(0)
+    weights = np.zeros(0)
+    for task in tasks:
+        A_task, b_task = np.empty((task.rows, n)), np.empty(task.rows)
+        reference_task_rows(task, terms, A_task, b_task)
+        A, b, weights = np.vstack([A, A_task]), np.concatenate([b, b_task]), np.concatenate([weights, task.weight])
+    H, g = A.T @ (weights[:, None] * A), -A.T @ (weights * b)
+    lb, ub = np.full(n, -np.inf), np.full(n, np.inf)
+    for constraint in layout.box_constraints:
+        lower, upper = np.empty(n), np.empty(n)
+        reference_constraint_rows(constraint, terms, cycle, None, lower, upper)
+        lb, ub = np.maximum(lb, lower), np.minimum(ub, upper)
+    reach_lower, reach_upper = cycle.acceleration_lower, cycle.acceleration_upper
+    lb, ub = np.clip(lb, reach_lower, reach_upper), np.clip(ub, reach_lower, reach_upper)
+    C, l, u = np.empty((layout.rows, n)), np.empty(layout.rows), np.empty(layout.rows)
+    for constraint, rows in zip(layout.row_constraints, layout.row_slices):
+        reference_constraint_rows(constraint, terms, cycle, C[rows], l[rows], u[rows])
+    first = layout.first_relaxed_row
+    reference_recoverable(ControlCycle(cycle.dt, lb, ub, cycle.horizon), C[first:], l[first:], u[first:])
+    return H, g, lb, ub, C, l, u, bool(np.all(lb <= ub))

@@ -1,0 +1,124 @@
+"""The compiled cycle plan (``controller.qp.cycle_plan``): the QP of its one compiled call is the
+generic assembly's (task by task, constraint by constraint) and its numpy twin's, on random
+states; the controllers it serves and those it leaves to the generic assembly."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from conftest import JOINTS
+from impactqp.controller.config import ControllerConfig, build_controller
+from impactqp.controller.qp import ImpactAwareController
+from impactqp.controller.qp.cycle_plan import KERNEL_KINDS
+from impactqp.controller.model.tool_postures import tool_posture
+from impactqp.constraints import AccelerationLimit
+from impactqp.tasks import DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
+from qp_states import surface_ahead
+from reference.qp import reference_planned_qp
+
+SETTINGS = {"crb": (0.0, False), "robust": (0.0, False), "friction4": (0.3, False), "always": (0.0, True)}
+
+
+def start(robot) -> np.ndarray:
+    return tool_posture(robot, robot.description.default_posture).q
+
+
+def setting_controller(robot, setting: str) -> ImpactAwareController:
+    """An approach controller with every limit on, the wall 5 cm ahead of the default posture:
+    the crb rows, the robust three-model rows, the crb rows with a 4-edge friction pyramid, or
+    the crb rows always active."""
+    friction, always = SETTINGS[setting]
+    q = start(robot)
+    config = ControllerConfig.approach(
+        surface_ahead(robot, q, 0.05), 0.5, jump_model="robust" if setting == "robust" else "crb",
+        friction=friction, always_active=always,
+    )
+    return build_controller(config, robot)
+
+
+def random_cycle(robot, controller, rng):
+    """The terms of a random state and the cycle after a random previous acceleration."""
+    q = robot.q_min + (robot.q_max - robot.q_min) * rng.uniform(0.1, 0.9, JOINTS)
+    dq = rng.uniform(-0.8, 0.8, JOINTS) * robot.dq_max
+    terms = robot.terms(q, dq, check_limits=False)
+    for task in controller.tasks:
+        task.reset(terms)
+    cycle = controller._cycle
+    cycle.advance(rng.uniform(-1.0, 1.0, JOINTS) * controller.ddq_max, controller.ddq_max, controller._jerk_step)
+    return terms, cycle
+
+
+def generic_qp(controller, terms, cycle) -> tuple:
+    """The QP of the generic assembly, copied."""
+    controller._assemble_tasks(terms)
+    consistent = controller._assemble_constraints(terms, cycle)
+    p = controller.problem
+    return p.H.copy(), p.g.copy(), p.lb.copy(), p.ub.copy(), p.C.copy(), p.l.copy(), p.u.copy(), consistent
+
+
+def planned_qp(controller, terms, cycle) -> tuple:
+    """The QP of the compiled plan, copied."""
+    consistent = controller._plan.fill(terms, cycle)
+    p = controller.problem
+    return p.H.copy(), p.g.copy(), p.lb.copy(), p.ub.copy(), p.C.copy(), p.l.copy(), p.u.copy(), consistent
+
+
+def assert_same_qp(first: tuple, second: tuple, tolerance: float) -> None:
+    assert first[-1] == second[-1]
+    for a, b in zip(first[:-1], second[:-1]):
+        assert np.array_equal(np.isinf(a), np.isinf(b))
+        finite = np.isfinite(a)
+        assert np.allclose(a[finite], b[finite], rtol=tolerance, atol=tolerance)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), setting=st.sampled_from(sorted(SETTINGS)))
+def test_the_plan_writes_the_generic_qp_and_its_numpy_twin(robot, seed, setting):
+    rng = np.random.default_rng(seed)
+    controller = setting_controller(robot, setting)
+    assert controller._plan is not None
+    terms, cycle = random_cycle(robot, controller, rng)
+    planned = planned_qp(controller, terms, cycle)
+    assert_same_qp(planned, generic_qp(controller, terms, cycle), 1e-12)
+    assert_same_qp(planned, reference_planned_qp(controller.tasks, controller.layout, terms, cycle), 1e-9)
+
+
+def test_an_assigned_parameter_reaches_the_plan(robot):
+    """A task's parameter set by assignment after the plan was packed is in the next cycle's QP."""
+    rng = np.random.default_rng(3)
+    controller = setting_controller(robot, "crb")
+    terms, cycle = random_cycle(robot, controller, rng)
+    before = planned_qp(controller, terms, cycle)
+    approach, posture = controller.tasks[0], controller.tasks[1]
+    approach.reference_velocity = np.array([0.1, -0.2, 0.3])
+    posture.weight = 10.0 * posture.weight
+    controller.constraints[-1].row_scale = controller.constraints[-1].row_scale  # any assignment repacks
+    after = planned_qp(controller, terms, cycle)
+    assert not np.allclose(before[1], after[1])
+    assert_same_qp(after, generic_qp(controller, terms, cycle), 1e-12)
+
+
+def test_commands_with_and_without_the_plan_are_equal(robot):
+    """The closed loop's commands, from the plan and from the generic assembly (same states)."""
+    planned, generic = (setting_controller(robot, "crb") for _ in range(2))
+    generic._plan = None
+    q, dq, active = start(robot), np.zeros(JOINTS), []
+    for _ in range(400):
+        command, reference = planned.step(q, dq), generic.step(q, dq)
+        assert command.status == reference.status
+        assert np.allclose(command.dq_cmd, reference.dq_cmd, rtol=0.0, atol=1e-12)
+        assert np.allclose(command.q_cmd, reference.q_cmd, rtol=0.0, atol=1e-12)
+        assert np.allclose(command.predicted_jump, reference.predicted_jump, rtol=0.0, atol=1e-12)
+        q, dq = command.q_cmd, command.dq_cmd
+        active.append(command.impact_constraints_active)
+    assert any(active)  # the impact rows were on in some cycles
+
+
+@pytest.mark.parametrize("task", [FrameTask(), SurfaceOffsetTask([-1.0, 0.0, 0.0], [0.5, 0.0, 0.5], 0.02)], ids=["frame", "offset"])
+def test_a_task_without_a_kernel_of_the_plan_leaves_the_generic_assembly(robot, task):
+    assert type(task) not in KERNEL_KINDS
+    controller = ImpactAwareController(robot, [task, DampingTask(JOINTS)], [AccelerationLimit()], 0.001)
+    assert controller._plan is None
+    planned = ImpactAwareController(robot, [PostureTask(joints=JOINTS), DampingTask(JOINTS)], [AccelerationLimit()], 0.001)
+    assert planned._plan is not None
