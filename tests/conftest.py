@@ -213,3 +213,37 @@ def g1_dataset(directory, seed: int = 0):
                        posture="parallel", impact_time=0.03)
     DatasetWriter(directory, G1_HEADER).add_trial(entry, log)
     return log
+
+
+FRANKA_COMMAND_PORT = 1337
+"""The TCP port libfranka (and so panda-python) connects to."""
+
+
+def reserved_robot_address(listen: bool) -> tuple[str, "socket.socket"]:
+    """A loopback address whose robot port this process holds: bound without SO_REUSEADDR, so
+    that no other socket (a franky-sim server of a parallel test, which takes the first free
+    127.x.y.z) can take it; not listening, a connection there is refused (no robot answers),
+    listening, it is accepted by this socket alone. Away from the addresses franky-sim tries
+    first."""
+    import socket
+
+    for last in range(1, 255):
+        address = f"127.0.9.{last}"
+        reserved = socket.socket()
+        try:
+            reserved.bind((address, FRANKA_COMMAND_PORT))
+        except OSError:
+            reserved.close()
+            continue
+        if listen:
+            reserved.listen(8)
+        return address, reserved
+    raise RuntimeError("no free loopback address for a robot port")
+
+
+@pytest.fixture
+def no_robot_address():
+    """A loopback address where no robot answers: a connection to the robot port is refused."""
+    address, reserved = reserved_robot_address(listen=False)
+    yield address
+    reserved.close()

@@ -5,6 +5,7 @@ reach the robot on connect in libfranka's order."""
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import reserved_robot_address
 
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.validation import BadInputError
@@ -87,15 +88,11 @@ def test_connect_sets_the_reflex_impedance_and_the_declared_load_or_names_what_w
 
 @pytest.fixture
 def silent_peer():
-    """A local server at 127.0.0.2:1337 (libfranka's port; not the address a franky-sim test
-    serves on) that accepts every connection and never answers."""
-    import socket
+    """A local server at a loopback address of its own, on libfranka's port (a franky-sim test
+    cannot take it), that accepts every connection and never answers."""
     import threading
 
-    server = socket.socket()
-    server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    server.bind(("127.0.0.2", 1337))
-    server.listen(8)
+    address, server = reserved_robot_address(listen=True)
     accepted = []
     running = threading.Event()
     running.set()
@@ -110,7 +107,7 @@ def silent_peer():
 
     thread = threading.Thread(target=accept, daemon=True)
     thread.start()
-    yield "127.0.0.2"
+    yield address
     running.clear()
     thread.join()
     for connection in accepted:
