@@ -10,7 +10,7 @@ from impactqp.controller.model.validation import tangential_velocity as tangenti
 from impactqp.controller.model.validation import MAX_CONTACT_SPEED, finite_array, number_in_range, task_gain
 from impactqp.controller.model.validation import unit_normal
 
-from .task import Task, critical_damping, rotation_log
+from .task import OrientationHold, Task, rotation_log
 
 
 class ContactApproachTask(Task):
@@ -25,7 +25,7 @@ class ContactApproachTask(Task):
 
     and the rows are J6 ddq = a* - dJ6 dq, expressed in the surface frame: one normal row
     weighted ``normal_weight``, two tangential rows weighted ``tangential_weight``, three
-    orientation rows weighted ``orientation_weight``. With strong tangential and orientation
+    orientation rows weighted ``orientation.weight`` (``OrientationHold``). With strong tangential and orientation
     weights the joint velocity stays close to dq = speed d, d = J6+ [-n; 0], the approach
     direction assumed by the closed-form maximum speed (docs/qp-constraints.md). The impact-aware
     constraints cap the normal speed the task actually gets.
@@ -40,22 +40,19 @@ class ContactApproachTask(Task):
         speed: float,
         tangential_velocity=(0.0, 0.0, 0.0),
         velocity_gain: float = 20.0,
-        orientation_stiffness: float = 100.0,
-        orientation_damping: float | None = None,
         normal_weight: float = 1.0,
         tangential_weight: float = 100.0,
-        orientation_weight: float = 100.0,
+        orientation: OrientationHold = OrientationHold(),
         target_rotation=None,
     ):
         normal = unit_normal(normal)
         tangential_velocity = tangential_velocity_along(tangential_velocity, normal)
         speed = number_in_range(speed, 0.0, MAX_CONTACT_SPEED, "the approach speed (along -n)", "m/s")
-        for label, value in (("velocity_gain", velocity_gain), ("orientation_stiffness", orientation_stiffness),
-                             ("normal_weight", normal_weight), ("tangential_weight", tangential_weight),
-                             ("orientation_weight", orientation_weight)):
+        for label, value in (("velocity_gain", velocity_gain), ("normal_weight", normal_weight),
+                             ("tangential_weight", tangential_weight)):
             task_gain(value, label)
-        if orientation_damping is not None:
-            task_gain(orientation_damping, "orientation_damping")
+        if not isinstance(orientation, OrientationHold):
+            raise TypeError("orientation must be an OrientationHold")
         self._reference = np.zeros(1, APPROACH_REFERENCE)  # what the kernel reads; the fields below view it
         # Surface frame: rows of `basis` are n, t1, t2 (world axes).
         t1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
@@ -67,12 +64,10 @@ class ContactApproachTask(Task):
         self.velocity_gain = float(velocity_gain)
         self._reference_acceleration = self._reference["reference_acceleration"][0]
         self.reference_velocity = -self.speed * normal + tangential_velocity
-        self.orientation_stiffness = orientation_stiffness
-        self.orientation_damping = (
-            critical_damping(orientation_stiffness) if orientation_damping is None else float(orientation_damping)
-        )
+        self.orientation_stiffness = orientation.stiffness
+        self.orientation_damping = orientation.damping_gain()
         self.weight = np.array(
-            [normal_weight, tangential_weight, tangential_weight] + [orientation_weight] * 3, dtype=float
+            [normal_weight, tangential_weight, tangential_weight] + [orientation.weight] * 3, dtype=float
         )
         self._target_rotation = None
         self.target_rotation = (
