@@ -153,6 +153,7 @@ class ExpectedImpact:
         self._surface_offset = float(surface.normal @ surface.point)  # n.s: distance = n.p - n.s
         self._stamp = 0  # ModelTerms.stamp of the cached matrices and activation
         self._matrices: JumpMatrices | None = None
+        self._views: JumpMatrices | None = None  # what ``matrices`` returns
         self._active = False
         directions = edge_directions(friction, surface.normal, np.zeros(3), np.eye(3), 0.0)  # the preview's: per state
         self._uncertain = directions.copy()  # the preview's edges while its slip is uncertain
@@ -177,6 +178,14 @@ class ExpectedImpact:
         read-only views of buffers that the next fill overwrites (copy them to keep them); the
         other forms are new arrays at each fill."""
         if terms.stamp != self._stamp:  # a new fill of the terms (read several times per cycle)
+            self._update(terms)
+        return self._views
+
+    def row_matrices(self, terms) -> JumpMatrices:
+        """``matrices`` as the arrays themselves, writable, for the compiled row kernels of the
+        constraints that read them within the cycle (a read-only array makes each compiled call's
+        dispatch slower)."""
+        if terms.stamp != self._stamp:
             self._update(terms)
         return self._matrices
 
@@ -209,7 +218,7 @@ class ExpectedImpact:
         if self._in_place and terms.held_jacobian.shape[0] == 0:
             motion = self._fill_fixed_base(terms)
         else:
-            self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
+            self._matrices = self._views = self.model.unit_matrices(terms, normal, self.restitution)
             motion = normal_motion(terms.J, normal, terms.contact_point, terms.dq)
         if self._edge_count:
             self._fill_edges(terms)
@@ -227,7 +236,7 @@ class ExpectedImpact:
             matrices = JumpMatrices(np.empty((n, n)), np.empty((n, n)), np.empty((3, 3)), None)
             self._fixed_base_matrices = matrices
             self._fixed_base_views = read_only_views(matrices)
-        self._matrices = self._fixed_base_views
+        self._matrices, self._views = matrices, self._fixed_base_views
         normal, restitution, out = self.surface.normal, self.restitution, matrices[:3]
         point = terms.contact_point
         if isinstance(self.model, CompositeRigidBodyJump):

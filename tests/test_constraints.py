@@ -352,6 +352,8 @@ def test_arm_impact_matrices_kept_past_the_next_fill_cannot_be_written_or_stay_a
     robot.update_terms(terms, state.q, state.dq)
     assert not np.allclose(impact.matrices(terms).jump_matrix, before[0])  # a fill of another state
     kept_arrays_are_read_only_or_unchanged(kept, before)
+    for rows, view in zip(impact.row_matrices(terms)[:3], impact.matrices(terms)[:3]):  # the arrays the rows read
+        np.testing.assert_array_equal(rows, view)
 
 
 @pytest.mark.parametrize("method", ["crb", "gm", "classical"])
