@@ -156,6 +156,7 @@ class ExpectedImpact:
         self._surface_offset = float(surface.normal @ surface.point)  # n.s: distance = n.p - n.s
         self._stamp = 0  # ModelTerms.stamp of the cached matrices and activation
         self._matrices: JumpMatrices | None = None
+        self._views: JumpMatrices | None = None  # what ``matrices`` returns
         self._active = False
         directions = edge_directions(friction, surface.normal, np.zeros(3), np.eye(3), 0.0)  # the preview's: per state
         self._uncertain = directions.copy()  # the preview's edges while its slip is uncertain
@@ -170,16 +171,26 @@ class ExpectedImpact:
         model = self.model
         self._in_place = isinstance(model, GeneralizedMomentumJump) or type(model) is ClassicalJump
         self._fixed_base_matrices = JumpMatrices(np.empty((0, 0)), np.empty((0, 0)), np.empty((3, 3)), None)
+        self._fixed_base_views = read_only_views(self._fixed_base_matrices)
 
     @property
     def name(self) -> str:
         return self.model.name
 
     def matrices(self, terms) -> JumpMatrices:
-        """A, P, G (and C) of this state (the normal and the restitution were checked once, above);
-        the arrays of a fixed base's gm or crb model are refilled in place at the next fill of the
-        terms (copy them to keep them)."""
+        """A, P, G (and C) of this state (the normal and the restitution were checked once, above),
+        valid until the next fill of the terms: a fixed base's crb, gm and classical matrices are
+        read-only views of buffers that the next fill overwrites (copy them to keep them); the
+        other forms are new arrays at each fill."""
         if terms.stamp != self._stamp:  # a new fill of the terms (read several times per cycle)
+            self._update(terms)
+        return self._views
+
+    def row_matrices(self, terms) -> JumpMatrices:
+        """``matrices`` as the arrays themselves, writable, for the compiled row kernels of the
+        constraints that read them within the cycle (a read-only array makes each compiled call's
+        dispatch slower)."""
+        if terms.stamp != self._stamp:
             self._update(terms)
         return self._matrices
 
@@ -219,7 +230,7 @@ class ExpectedImpact:
         if self._in_place and terms.held_jacobian.shape[0] == 0:
             motion = self._fill_fixed_base(terms)
         else:
-            self._matrices = self.model.unit_matrices(terms, normal, self.restitution)
+            self._matrices = self._views = self.model.unit_matrices(terms, normal, self.restitution)
             motion = normal_motion(terms.J, normal, terms.contact_point, terms.dq)
         if self._edge_count:
             self._edge_fill(terms)
@@ -236,7 +247,8 @@ class ExpectedImpact:
         if matrices.jump_matrix.shape != (n, n):
             matrices = JumpMatrices(np.empty((n, n)), np.empty((n, n)), np.empty((3, 3)), None)
             self._fixed_base_matrices = matrices
-        self._matrices = matrices
+            self._fixed_base_views = read_only_views(matrices)
+        self._matrices, self._views = matrices, self._fixed_base_views
         normal, restitution, out = self.surface.normal, self.restitution, matrices[:3]
         point = terms.contact_point
         if isinstance(self.model, CompositeRigidBodyJump):
@@ -282,6 +294,16 @@ class ExpectedImpact:
             return False
         distance = normal_position - self._surface_offset
         return distance <= max(rule.lookahead_distance, -normal_speed * rule.lookahead_time)
+
+
+def read_only_views(matrices: JumpMatrices) -> JumpMatrices:
+    """Views of A, P and G that cannot be written (the buffers behind them stay writable)."""
+    views = []
+    for array in matrices[:3]:
+        view = array.view()
+        view.flags.writeable = False
+        views.append(view)
+    return JumpMatrices(*views, None)
 
 
 @njit(cache=True)

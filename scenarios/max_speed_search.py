@@ -223,8 +223,25 @@ class SpeedBisection:
         return self.lo
 
 
+@dataclass(frozen=True)
+class QpSetting:
+    """The impact setting of the QP in a search's trials: its jump model (a key of
+    ``constraints.impact_model.JUMP_MODEL_CHOICES``), the restitution c_r and the impact duration
+    delta_t (s) of its rows; checked when made (bad input)."""
+
+    jump_model: str = "crb"
+    restitution: float = 0.0
+    impact_duration: float = DEFAULT_IMPACT_DURATION
+
+    def __post_init__(self):
+        jump_model_names(self.jump_model)
+        object.__setattr__(self, "restitution", restitution_coefficient(self.restitution))
+        object.__setattr__(self, "impact_duration", check_impact_duration(self.impact_duration))
+
+
 class MaxSpeedSearch:
-    """The three maximum speeds of one posture on one surface and plant (module docstring)."""
+    """The three maximum speeds of one posture on one surface and plant (module docstring), the
+    QP of the trials set by ``setting``."""
 
     def __init__(
         self,
@@ -232,23 +249,18 @@ class MaxSpeedSearch:
         surface: Surface,
         plant: PlantParameters | None = None,
         *,
-        jump_model: str = "crb",
-        restitution: float = 0.0,
-        impact_duration: float = DEFAULT_IMPACT_DURATION,
+        setting: QpSetting = QpSetting(),
         tolerance: float = DEFAULT_TOLERANCE,
         jobs: int = 1,
         progress: bool = False,
         choice: RobotChoice = DEFAULT_CHOICE,
     ):
-        jump_model_names(jump_model)
-        restitution = restitution_coefficient(restitution)
-        impact_duration = check_impact_duration(impact_duration)
         self.posture = posture
         self.surface = surface
         self.plant = plant
-        self.jump_model = jump_model
-        self.restitution = restitution
-        self.impact_duration = impact_duration
+        self.jump_model = setting.jump_model
+        self.restitution = setting.restitution
+        self.impact_duration = setting.impact_duration
         self.tolerance = tolerance
         self.jobs = jobs
         self.progress = progress

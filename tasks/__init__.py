@@ -6,9 +6,9 @@ from .damping_task import DampingTask
 from .frame_task import FrameTask
 from .posture_task import PostureTask
 from .surface_offset_task import SurfaceOffsetTask
-from .task import Task, TaskRows
+from .task import ORIENTATION_PARAMETERS, OrientationHold, Task, TaskRows
 
 __all__ = [
     "Task", "TaskRows", "FrameTask", "ContactApproachTask", "PostureTask", "DampingTask", "SurfaceOffsetTask",
-    "CentreOfMassTask",
+    "CentreOfMassTask", "OrientationHold", "ORIENTATION_PARAMETERS",
 ]

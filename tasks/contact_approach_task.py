@@ -10,7 +10,7 @@ from impactqp.controller.model.validation import tangential_velocity as tangenti
 from impactqp.controller.model.validation import MAX_CONTACT_SPEED, finite_array, number_in_range, task_gain
 from impactqp.controller.model.validation import unit_normal
 
-from .task import Task, critical_damping, rotation_log
+from .task import OrientationHold, Task, rotation_log
 
 
 class ContactApproachTask(Task):
@@ -25,7 +25,7 @@ class ContactApproachTask(Task):
 
     and the rows are J6 ddq = a* - dJ6 dq, expressed in the surface frame: one normal row
     weighted ``normal_weight``, two tangential rows weighted ``tangential_weight``, three
-    orientation rows weighted ``orientation_weight``. With strong tangential and orientation
+    orientation rows weighted ``orientation.weight`` (``OrientationHold``). With strong tangential and orientation
     weights the joint velocity stays close to dq = speed d, d = J6+ [-n; 0], the approach
     direction assumed by the closed-form maximum speed (docs/qp-constraints.md). The impact-aware
     constraints cap the normal speed the task actually gets.
@@ -40,41 +40,41 @@ class ContactApproachTask(Task):
         speed: float,
         tangential_velocity=(0.0, 0.0, 0.0),
         velocity_gain: float = 20.0,
-        orientation_stiffness: float = 100.0,
-        orientation_damping: float | None = None,
         normal_weight: float = 1.0,
         tangential_weight: float = 100.0,
-        orientation_weight: float = 100.0,
+        orientation: OrientationHold = OrientationHold(),
         target_rotation=None,
     ):
         normal = unit_normal(normal)
         tangential_velocity = tangential_velocity_along(tangential_velocity, normal)
         speed = number_in_range(speed, 0.0, MAX_CONTACT_SPEED, "the approach speed (along -n)", "m/s")
-        for label, value in (("velocity_gain", velocity_gain), ("orientation_stiffness", orientation_stiffness),
-                             ("normal_weight", normal_weight), ("tangential_weight", tangential_weight),
-                             ("orientation_weight", orientation_weight)):
+        for label, value in (("velocity_gain", velocity_gain), ("normal_weight", normal_weight),
+                             ("tangential_weight", tangential_weight)):
             task_gain(value, label)
-        if orientation_damping is not None:
-            task_gain(orientation_damping, "orientation_damping")
+        if not isinstance(orientation, OrientationHold):
+            raise TypeError("orientation must be an OrientationHold")
+        self._reference = np.zeros(1, APPROACH_REFERENCE)  # what the kernel reads; the fields below view it
         # Surface frame: rows of `basis` are n, t1, t2 (world axes).
         t1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
         t1 /= np.linalg.norm(t1)
-        self.basis = np.vstack([normal, t1, np.cross(normal, t1)])
+        self.basis = self._reference["basis"][0]
+        self.basis[:] = np.vstack([normal, t1, np.cross(normal, t1)])
         self.normal = normal
         self.speed = float(speed)
         self.velocity_gain = float(velocity_gain)
+        self._reference_acceleration = self._reference["reference_acceleration"][0]
         self.reference_velocity = -self.speed * normal + tangential_velocity
-        self.orientation_stiffness = float(orientation_stiffness)
-        self.orientation_damping = (
-            critical_damping(orientation_stiffness) if orientation_damping is None else float(orientation_damping)
-        )
+        self.orientation_stiffness = orientation.stiffness
+        self.orientation_damping = orientation.damping_gain()
         self.weight = np.array(
-            [normal_weight, tangential_weight, tangential_weight] + [orientation_weight] * 3, dtype=float
+            [normal_weight, tangential_weight, tangential_weight] + [orientation.weight] * 3, dtype=float
         )
+        self._target_rotation = None
         self.target_rotation = (
             None if target_rotation is None else finite_array(target_rotation, (3, 3), "target_rotation")
         )
-        self._twist_gain = np.repeat([-self.velocity_gain, -self.orientation_damping], 3)
+        self._twist_gain = self._reference["twist_gain"][0]
+        self._twist_gain[:] = np.repeat([-self.velocity_gain, -self.orientation_damping], 3)
         self._rotation_configured = self.target_rotation is not None
 
     @property
@@ -85,7 +85,29 @@ class ContactApproachTask(Task):
     @reference_velocity.setter
     def reference_velocity(self, value) -> None:
         self._reference_velocity = finite_array(value, (3,), "reference_velocity")
-        self._reference_acceleration = self.velocity_gain * self._reference_velocity
+        np.multiply(self.velocity_gain, self._reference_velocity, out=self._reference_acceleration)
+
+    @property
+    def orientation_stiffness(self) -> float:
+        """k_R (1/s^2)."""
+        return float(self._reference["orientation_stiffness"][0])
+
+    @orientation_stiffness.setter
+    def orientation_stiffness(self, value: float) -> None:
+        self._reference["orientation_stiffness"] = float(value)
+
+    @property
+    def target_rotation(self) -> np.ndarray | None:
+        """R* (world), None until given or captured at ``reset``."""
+        return self._target_rotation
+
+    @target_rotation.setter
+    def target_rotation(self, value) -> None:
+        if value is None:
+            self._target_rotation = None
+            return
+        self._target_rotation = self._reference["target_rotation"][0]
+        self._target_rotation[:] = value
 
     def reset(self, terms: ModelTerms) -> None:
         if not self._rotation_configured:
@@ -99,25 +121,36 @@ class ContactApproachTask(Task):
         ])
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        surface_frame_approach_rows(
-            terms.J6, terms.dq, terms.dJ6_dq, terms.contact_rotation, self.target_rotation, self.basis,
-            self._twist_gain, self._reference_acceleration, self.orientation_stiffness, A, b,
-        )
+        surface_frame_approach_rows(terms.J6, terms.dq, terms.dJ6_dq, terms.contact_rotation, self._reference, A, b)
+
+
+APPROACH_REFERENCE = np.dtype([
+    ("target_rotation", np.float64, (3, 3)),
+    ("basis", np.float64, (3, 3)),
+    ("twist_gain", np.float64, (6,)),
+    ("reference_acceleration", np.float64, (3,)),
+    ("orientation_stiffness", np.float64),
+])
+"""What ``ContactApproachTask`` asks of its contact frame, one record its kernel reads (a compiled
+kernel takes a record, not a dataclass): R* (world), the rows n, t1, t2 of the surface frame
+(world axes), the gain [-k_v] * 3 + [-d_R] * 3 on the frame's twist [v; w], k_v v* (world) and
+k_R."""
 
 
 @njit(cache=True)
-def surface_frame_approach_rows(
-    J6, dq, dJ6_dq, rotation, target_rotation, basis, twist_gain, reference_acceleration, orientation_stiffness, A, b
-):
+def surface_frame_approach_rows(J6, dq, dJ6_dq, rotation, reference, A, b):
     """Kernel of ``ContactApproachTask``: b = gain * (J6 dq) + [k_v v*; k_R log(R* R^T)] - dJ6 dq,
-    then the linear rows (of A = J6 and b) expressed in the surface frame (``basis``)."""
+    then the linear rows (of A = J6 and b) expressed in the surface frame; R = ``rotation``, the
+    rest ``reference[0]`` (an ``APPROACH_REFERENCE`` record)."""
+    record = reference[0]
+    basis, twist_gain, reference_acceleration = record.basis, record.twist_gain, record.reference_acceleration
     twist = J6 @ dq
     log = np.empty(3)
-    rotation_log(target_rotation, rotation, log)
+    rotation_log(record.target_rotation, rotation, log)
     linear = np.empty(3)
     for i in range(3):
         linear[i] = twist_gain[i] * twist[i] + reference_acceleration[i] - dJ6_dq[i]
-        b[3 + i] = twist_gain[3 + i] * twist[3 + i] + orientation_stiffness * log[i] - dJ6_dq[3 + i]
+        b[3 + i] = twist_gain[3 + i] * twist[3 + i] + record.orientation_stiffness * log[i] - dJ6_dq[3 + i]
     for i in range(3):
         b[i] = basis[i, 0] * linear[0] + basis[i, 1] * linear[1] + basis[i, 2] * linear[2]
         for j in range(J6.shape[1]):

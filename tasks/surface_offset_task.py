@@ -9,7 +9,7 @@ import numpy as np
 from impactqp.controller.model.model_terms import ModelTerms
 from impactqp.controller.model.validation import finite_vector, task_gain, number_in_range, unit_normal
 
-from .task import Task, critical_damping, rotation_error
+from .task import OrientationHold, Task, rotation_error
 
 MAX_OFFSET = 0.5
 """Largest |offset| (m): a retract or a hold depth beyond half a metre leaves the contact task."""
@@ -29,7 +29,7 @@ class SurfaceOffsetTask(Task):
         a_ang* = k_R log(R0 R^T) - d_R w
 
     and the rows are J6 ddq = a* - dJ6 dq (world axes; 3 position rows weighted
-    ``position_weight``, 3 orientation rows weighted ``orientation_weight``).
+    ``position_weight``, 3 orientation rows weighted ``orientation.weight``: ``OrientationHold``).
     """
 
     name = "surface_offset"
@@ -43,10 +43,8 @@ class SurfaceOffsetTask(Task):
         max_speed: float = 0.1,
         position_gain: float = 20.0,
         velocity_gain: float = 40.0,
-        orientation_stiffness: float = 100.0,
-        orientation_damping: float | None = None,
         position_weight: float = 1.0,
-        orientation_weight: float = 100.0,
+        orientation: OrientationHold = OrientationHold(),
     ):
         self.normal = unit_normal(normal)
         self.surface_point = finite_vector(surface_point, 3, "surface_point")
@@ -54,15 +52,11 @@ class SurfaceOffsetTask(Task):
         self.max_speed = task_gain(max_speed, "max_speed")
         self.position_gain = task_gain(position_gain, "position_gain")
         self.velocity_gain = task_gain(velocity_gain, "velocity_gain")
-        self.orientation_stiffness = task_gain(orientation_stiffness, "orientation_stiffness")
-        self.orientation_damping = (
-            critical_damping(orientation_stiffness)
-            if orientation_damping is None
-            else task_gain(orientation_damping, "orientation_damping")
-        )
-        self.weight = np.repeat(
-            [task_gain(position_weight, "position_weight"), task_gain(orientation_weight, "orientation_weight")], 3
-        )
+        if not isinstance(orientation, OrientationHold):
+            raise TypeError("orientation must be an OrientationHold")
+        self.orientation_stiffness = float(orientation.stiffness)
+        self.orientation_damping = orientation.damping_gain()
+        self.weight = np.repeat([task_gain(position_weight, "position_weight"), float(orientation.weight)], 3)
         self.target_position: np.ndarray | None = None
         self.target_rotation: np.ndarray | None = None
 

@@ -12,6 +12,7 @@ the state given to ``reset`` (the controller calls it at its first cycle and on 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import math
@@ -20,6 +21,7 @@ import numpy as np
 from numba import njit
 
 from impactqp.controller.model.model_terms import ModelTerms
+from impactqp.controller.model.validation import task_gain
 
 
 class TaskRows(NamedTuple):
@@ -76,6 +78,41 @@ def rotation_error(target: np.ndarray, rotation: np.ndarray) -> np.ndarray:
 
 def critical_damping(stiffness: float) -> float:
     return 2.0 * float(np.sqrt(stiffness))
+
+
+@dataclass(frozen=True)
+class OrientationHold:
+    """How a task on the contact frame holds its orientation: a_ang* = k_R log(R* R^T) - d_R w on
+    its three orientation rows, each weighted ``weight``; k_R = ``stiffness``, d_R = ``damping``
+    (None: critical damping 2 sqrt(k_R)). A configuration's task gives them as
+    ``orientation_stiffness``, ``orientation_damping`` and ``orientation_weight``
+    (:data:`ORIENTATION_PARAMETERS`)."""
+
+    stiffness: float = 100.0
+    damping: float | None = None
+    weight: float = 100.0
+
+    def __post_init__(self):
+        task_gain(self.stiffness, "orientation_stiffness")
+        if self.damping is not None:
+            task_gain(self.damping, "orientation_damping")
+        task_gain(self.weight, "orientation_weight")
+
+    def damping_gain(self) -> float:
+        """d_R."""
+        return critical_damping(self.stiffness) if self.damping is None else float(self.damping)
+
+    @classmethod
+    def taken_from(cls, parameters: dict) -> OrientationHold:
+        """The hold of a configuration's task ``parameters``: their ``ORIENTATION_PARAMETERS``
+        keys, taken out of the dict."""
+        return cls(**{name: parameters.pop(key) for key, name in ORIENTATION_PARAMETERS.items() if key in parameters})
+
+
+ORIENTATION_PARAMETERS = {
+    "orientation_stiffness": "stiffness", "orientation_damping": "damping", "orientation_weight": "weight",
+}
+"""A configuration's task parameter of each field of :class:`OrientationHold`."""
 
 
 @njit(cache=True)

@@ -1,5 +1,7 @@
-"""The command-line contract: JSON keys, readable tables, one-line errors with exit code 2; ``predict
---robot g1`` (a stance of the floating base) and what does not apply to the G1."""
+"""The command line's error boundary (``scenarios.cli.main``): bad input is one line with exit code
+2, an internal error exit code 1, a stop signal exit code 130 at any moment (and none once the
+work is done), the log levels, the installed entry point; every command runs for both arms, and
+what does not apply to the G1 is bad input."""
 
 import json
 import os
@@ -9,111 +11,12 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-import pinocchio as pin
 import pytest
 
-from conftest import JOINTS, g1_model
+from cli_checks import run
 from process_watch import catches, console_script, mapped, runs
-from impactqp.controller.model.humanoid_stance import STANCES
-from impactqp.controller.model.robot_description import PANDA
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.cli.exit_codes import EXIT_BAD_INPUT, EXIT_INTERRUPTED
-
-
-def run(capsys, *args):
-    code = main(list(args))
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def test_postures_json(capsys):
-    code, out, _ = run(capsys, "postures", "--json")
-    assert code == 0
-    rows = json.loads(out)
-    assert [r["name"] for r in rows] == list(PANDA.postures)
-    for r in rows:
-        assert {"name", "q", "contact_point", "normal"} <= set(r)
-        assert len(r["q"]) == JOINTS and len(r["contact_point"]) == 3
-        assert np.linalg.norm(r["normal"]) == pytest.approx(1.0)
-
-
-def test_predict_json_contract(capsys):
-    code, out, _ = run(
-        capsys, "predict", "--posture", "elbow_up", "--normal", "-2,0,0", "--speed", "0.15",
-        "--tangential", "0,0.05,0", "--restitution", "0.2", "--json",
-    )
-    assert code == 0
-    report = json.loads(out)
-    np.testing.assert_allclose(report["normal"], [-1, 0, 0])
-    np.testing.assert_allclose(report["pre_impact_velocity"], [0.15, 0.05, 0.0])
-    assert report["restitution"] == 0.2
-    assert set(report["methods"]) == {"classical", "classical_normal", "gm", "crb"}
-    assert np.array(report["methods"]["crb"]["W"]).shape == (3, 3)
-
-
-def test_predict_with_q_and_one_method(capsys):
-    q = ",".join(str(x) for x in PANDA.postures["elbow_left"].q)
-    code, out, _ = run(capsys, "predict", "--q", q, "--normal", "-1,0,0", "--speed", "0.1", "--method", "gm", "--json")
-    assert code == 0
-    assert list(json.loads(out)["methods"]) == ["gm"]
-
-
-def test_predict_table(capsys):
-    code, out, _ = run(capsys, "predict", "--posture", "elbow_right", "--normal", "-1,0,0", "--speed", "0.1")
-    assert code == 0
-    for name in ("classical", "classical_normal", "gm", "crb", "cond(M)"):
-        assert name in out
-    assert "e-0" not in out and "e+0" not in out
-
-
-@pytest.mark.parametrize(
-    "command", [["postures"], ["predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1"]]
-)
-def test_contact_points_are_written_with_four_decimals(capsys, command):
-    """The JSON keeps full precision; the text shows each coordinate to 0.1 mm, never 7.9491e-08."""
-    code, out, _ = run(capsys, *command, "--json")
-    points = [r["contact_point"] for r in (json.loads(out) if command == ["postures"] else [json.loads(out)])]
-    code, out, _ = run(capsys, *command)
-    assert code == 0
-    lines = [line for line in out.splitlines() if "contact point" in line]
-    assert len(lines) == len(points)
-    for line, point in zip(lines, points):
-        cells = line.split("[")[1].split("]")[0].split(", ")
-        assert all(len(cell.split(".")[1]) == 4 for cell in cells)
-        np.testing.assert_allclose([float(c) for c in cells], point, atol=0.5e-4)
-
-
-@pytest.mark.parametrize(
-    "args, message",
-    [
-        (["--q", "0,0,0,-1,0,1.5,nan"], "non-finite"),
-        (["--q", "0,0,0,-1,0,1.5"], f"{JOINTS} values"),
-        (["--q", "0,0,0,-5,0,1.5,0"], "outside the joint limits"),
-        (["--q", "-0.63343,3e-05,1.5708,-0.467,0.0,3.01097,2.8973"], "singular"),
-        (["--posture", "nowhere"], "unknown posture"),
-        (["--posture", "elbow_up", "--normal", "0,0,0"], "zero"),
-        (["--posture", "elbow_up", "--speed", "0"], r"\(0, 3\] m/s"),
-        (["--posture", "elbow_up", "--speed", "-0.1"], r"\(0, 3\] m/s"),
-        (["--posture", "elbow_up", "--restitution", "1.2"], r"\[0, 1\]"),
-        (["--posture", "elbow_up", "--tangential", "0.1,0,0"], "orthogonal"),
-        (["--normal", "-1,0,0", "--speed", "0.1"], "exactly one"),
-    ],
-)
-def test_bad_input_is_one_line_with_exit_code_2(capsys, args, message):
-    defaults = {"--normal": "-1,0,0", "--speed": "0.1"}
-    full = list(args)
-    for flag, value in defaults.items():
-        if flag not in full:
-            full += [flag, value]
-    code, out, err = run(capsys, "predict", *full)
-    assert code == 2
-    assert out == ""
-    assert len(err.strip().splitlines()) == 1
-    assert "Traceback" not in err
-    import re
-
-    assert re.search(message, err)
 
 
 def test_console_script_exit_code():
@@ -124,60 +27,6 @@ def test_console_script_exit_code():
     )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and "unknown posture" in proc.stderr
-
-
-def one_line_bad_input(code, out, err, fragment):
-    assert code == 2, err
-    assert "Traceback" not in err
-    assert len(err.strip().splitlines()) == 1
-    assert fragment in err
-
-
-def test_plant_that_is_a_directory_is_bad_input(capsys, tmp_path):
-    code, out, err = run(capsys, "max-speed", "--posture", "elbow_up", "--plant", str(tmp_path))
-    one_line_bad_input(code, out, err, "is a directory, not a file")
-
-
-def test_output_directory_that_is_a_file_is_bad_input(capsys, tmp_path):
-    existing = tmp_path / "taken"
-    existing.write_text("keep me")
-    code, out, err = run(capsys, "campaign", "--out", str(existing), "--speeds", "0.1", "--tangential", "none")
-    one_line_bad_input(code, out, err, "not a directory")
-    assert existing.read_text() == "keep me"
-
-
-
-@pytest.mark.parametrize(
-    "command",
-    [
-        ("campaign", "--out", "", "--speeds", "0.1", "--tangential", "none"),
-        ("campaign", "--out", "  ", "--speeds", "0.1", "--tangential", "none"),
-        ("dataset", "generate", "", "--speeds", "0.1"),
-        ("simulate", "--posture", "elbow_up", "--speed", "0.1", "--video", ""),
-        ("demo", "--out", ""),
-    ],
-    ids=["campaign", "campaign-blank", "generate", "video", "demo"],
-)
-def test_an_empty_output_path_is_bad_input_and_nothing_lands_in_the_working_directory(
-    capsys, tmp_path, monkeypatch, command
-):
-    monkeypatch.chdir(tmp_path)
-    code, out, err = run(capsys, *command)
-    one_line_bad_input(code, out, err, "is empty")
-    assert list(tmp_path.iterdir()) == []
-
-def test_output_under_a_file_is_bad_input(capsys, tmp_path):
-    existing = tmp_path / "file"
-    existing.write_text("x")
-    code, out, err = run(capsys, "dataset", "generate", str(existing / "sub"), "--speeds", "0.1")
-    one_line_bad_input(code, out, err, "not a directory")
-
-
-@pytest.mark.parametrize("speed", ["1e308", "50", "-1", "nan"])
-def test_speed_outside_the_physical_range_is_bad_input(capsys, speed):
-    code, out, err = run(capsys, "predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", speed, "--json")
-    one_line_bad_input(code, out, err, "m/s")
-    assert out == ""
 
 
 def test_an_internal_error_is_not_reported_as_bad_input(capsys, monkeypatch):
@@ -275,101 +124,6 @@ def test_a_stop_signal_that_an_extension_wrapped_is_still_an_interruption(capsys
     monkeypatch.setattr(prediction, "predict_all", wrapped)
     code, out, err = run(capsys, "predict", "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1")
     assert code == EXIT_INTERRUPTED and err.strip() == "impactqp: interrupted" and out == ""
-
-
-def test_the_progress_callback_drives_a_tqdm_bar():
-    """``bar_progress``: the demo's stage-2 bar follows generate_dataset's progress(done, total)."""
-    import io
-
-    from tqdm import tqdm
-
-    from impactqp.scenarios.cli.arguments import bar_progress
-
-    with tqdm(file=io.StringIO()) as bar:
-        progress = bar_progress(bar)
-        for done in (1, 2, 6):
-            progress(done, 6)
-            assert (bar.n, bar.total) == (done, 6)
-
-
-# ---------------------------------------------------------------------------- --robot / --tool
-def test_postures_and_predict_of_the_fr3(capsys):
-    """`postures --robot fr3` lists the FR3's named postures with their q and contact point;
-    `predict --robot fr3 --method gm` prints W = J M^-1 J^T (22) of the FR3's own model, which
-    is not the Panda's."""
-    from impactqp.controller.model.robot import RobotModel
-    from impactqp.controller.model.robot_description import ROBOTS
-
-    FR3 = ROBOTS["fr3"]
-
-    code, out, _ = run(capsys, "postures", "--robot", "fr3", "--json")
-    assert code == 0
-    rows = json.loads(out)
-    fr3 = RobotModel("fr3")
-    assert [r["name"] for r in rows] == list(FR3.postures)
-    for r in rows:
-        np.testing.assert_array_equal(r["q"], FR3.postures[r["name"]].q)
-        np.testing.assert_allclose(r["contact_point"], fr3.contact_point(r["q"]), atol=1e-12)
-    W = {}
-    for robot in ("panda", "fr3"):
-        code, out, _ = run(
-            capsys, "predict", "--robot", robot, "--posture", "elbow_up", "--normal", "-1,0,0", "--speed", "0.1",
-            "--method", "gm", "--json",
-        )
-        assert code == 0
-        W[robot] = np.array(json.loads(out)["methods"]["gm"]["W"])
-    terms = fr3.terms(FR3.postures["elbow_up"].q)
-    np.testing.assert_allclose(W["fr3"], terms.J @ np.linalg.solve(terms.M, terms.J.T), rtol=1e-9, atol=1e-12)
-    assert not np.allclose(W["fr3"], W["panda"], rtol=1e-3)
-
-
-def test_the_postures_of_another_tool_put_its_contact_point_on_the_wall(capsys):
-    code, out, _ = run(capsys, "postures", "--robot", "fr3", "--tool", "franka_hand", "--json")
-    assert code == 0
-    for r in json.loads(out):
-        assert r["contact_point"][0] == pytest.approx(0.6, abs=1e-4)  # the default wall x = 0.6 m
-
-
-def test_diagnose_refuses_a_robot_other_than_its_manifests(tmp_path, capsys):
-    from impactqp.sim.generation import DatasetRequest, generate_dataset
-
-    generate_dataset(tmp_path, DatasetRequest(postures=["elbow_up"], speeds=[0.1]))
-    code, out, err = run(capsys, "diagnose", str(tmp_path), "--robot", "fr3", "--tool", "franka_hand")
-    assert code == 2 and out == ""
-    assert "manifest (panda, impact_tip) differ from --robot/--tool (fr3, franka_hand)" in err
-
-
-
-def test_a_request_beyond_the_trial_limit_is_refused_with_its_count_before_any_work(tmp_path, capsys):
-    speeds = ",".join(f"{0.05 + 0.002 * i:.3f}" for i in range(50))  # 3 postures x 50 speeds x 100 repeats
-    code, out, err = run(capsys, "dataset", "generate", str(tmp_path / "big"), "--speeds", speeds, "--repeats", "100")
-    one_line_bad_input(code, out, err, "the dataset has 15,000 trials (3 postures x (50 speeds + 0 tangential) x 100 repeats), more than the limit of 1,000")
-    assert "--max-trials 15000" in err and not (tmp_path / "big").exists()
-    code, out, err = run(capsys, "campaign", "--out", str(tmp_path / "c"), "--postures", "elbow_up", "--speeds", "0.1,0.12", "--tangential", "none", "--max-trials", "1")
-    one_line_bad_input(code, out, err, "the campaign has 2 trials (1 posture x 2 speeds + 0 tangential), more than the limit of 1")
-    assert not (tmp_path / "c").exists()
-    code, out, err = run(capsys, "campaign", "--out", str(tmp_path / "c"), "--speeds", "0.1", "--max-trials", "0")
-    one_line_bad_input(code, out, err, "--max-trials must be a whole number >= 1")
-
-
-def test_diagnose_refuses_a_dataset_beyond_the_trial_limit_and_runs_within_it(tmp_path, capsys):
-    from impactqp.sim.generation import DatasetRequest, generate_dataset
-
-    generate_dataset(tmp_path, DatasetRequest(postures=["elbow_up"], speeds=[0.1, 0.12]))
-    code, out, err = run(capsys, "diagnose", str(tmp_path), "--max-trials", "1", "--json")
-    one_line_bad_input(code, out, err, "has 2 trials, more than the limit of 1")
-    code, out, err = run(capsys, "diagnose", str(tmp_path), "--max-trials", "2", "--json")
-    assert code == 0, err
-    assert json.loads(out)["trials"] == 2
-
-@pytest.mark.parametrize("args, message", [
-    (["--robot", "kuka"], "unknown robot 'kuka'; choose from panda, fr3, ur5, g1"),
-    (["--tool", "hammer"], "unknown tool 'hammer'"),
-    (["--tool", "absent.toml"], "the tool file absent.toml does not exist"),
-])
-def test_a_bad_robot_or_tool_is_one_line_and_exit_2(capsys, args, message):
-    code, out, err = run(capsys, "postures", *args)
-    assert code == 2 and out == "" and message in err and len(err.strip().splitlines()) == 1
 
 
 SWEEP_CONFIG = """\
@@ -496,33 +250,6 @@ def test_a_stop_signal_while_main_puts_its_handlers_back_does_not_escape_it(caps
     assert sent == [sig] and code == 0 and json.loads(out) and err == ""
 
 
-def test_predict_g1_json(capsys):
-    code, out, _ = run(capsys, "predict", "--robot", "g1", "--posture", "parallel", "--normal", "-1,0,0",
-                       "--speed", "0.3", "--json")
-    assert code == 0
-    report = json.loads(out)
-    assert {"q", "contact_point", "normal", "pre_impact_velocity", "restitution", "cond_M", "methods"} <= set(report)
-    assert set(report["methods"]) == {"classical", "gm", "crb"}
-    for entry in report["methods"].values():
-        assert len(entry["dq_jump"]) == g1_model().model.nv and len(entry["feet_impulse"]) == 12
-        assert np.asarray(entry["impulse"]) @ [-1.0, 0.0, 0.0] > 0.0
-
-
-def test_predict_g1_takes_a_configuration(capsys):
-    q = ",".join(f"{x:g}" for x in pin.neutral(g1_model().model))  # the base at the origin, upright
-    code, out, _ = run(capsys, "predict", "--robot", "g1", "--q", q, "--normal", "-1,0,0", "--speed", "0.2",
-                       "--method", "gm", "--json")
-    assert code == 0 and list(json.loads(out)["methods"]) == ["gm"]
-    zero = pin.neutral(g1_model().model)
-    zero[3:7] = 0.0  # no orientation at all
-    huge = pin.neutral(g1_model().model)
-    huge[10] = 1e308
-    for bad in (zero, huge):
-        code, out, err = run(capsys, "predict", "--robot", "g1", "--q", ",".join(f"{x:g}" for x in bad),
-                             "--normal", "-1,0,0", "--speed", "0.2")
-        assert code == EXIT_BAD_INPUT and out == "" and len(err.strip().splitlines()) == 1
-
-
 @pytest.mark.parametrize("args", [
     ("simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.2", "--wall-point", "1,0,0"),
     ("max-speed", "--robot", "g1", "--posture", "parallel", "--jump-model", "gm"),
@@ -538,10 +265,6 @@ def test_what_does_not_apply_to_the_g1_is_one_line_of_bad_input(capsys, args):
     code, out, err = run(capsys, *args)
     assert code == EXIT_BAD_INPUT
     assert err.count("\n") == 1 and err.startswith("impactqp: error:")
-
-
-def test_stances_are_the_g1_postures():
-    assert {"parallel", "wide", "staggered", "close", "far"} <= set(STANCES)
 
 
 def test_verbose_and_quiet_together_are_bad_input(capsys):
@@ -563,33 +286,6 @@ def test_bad_input_stays_one_line_at_every_level_and_the_log_is_removed_after(ca
     assert err.strip().splitlines()[-1].startswith("impactqp: error: unknown posture 'nope'")
     assert all(line.startswith("impactqp: debug: ") for line in err.strip().splitlines()[:-1])
     assert (list(logger.handlers), logger.level) == before
-
-
-def _commands(group, path=()):
-    """(name path, click command) of every command of the group, its subgroups' included."""
-    import click
-
-    for name, command in group.commands.items():
-        if isinstance(command, click.Group):
-            yield from _commands(command, (*path, name))
-        else:
-            yield (*path, name), command
-
-
-def test_every_default_output_folder_is_out_slash_the_command():
-    """One convention: a command that writes a folder by default writes ``out/<command>`` under
-    the current directory (read from the click parameters: --out, --log, an OUT argument)."""
-    from impactqp.scenarios.cli.commands import cli
-
-    defaults = {
-        path: str(param.default)
-        for path, command in _commands(cli)
-        for param in command.params
-        if param.name in ("out", "out_dir", "log") and isinstance(param.default, (str, Path))
-    }
-    assert set(defaults) == {("demo",), ("run",), ("campaign",), ("sweep",), ("oblique",), ("dataset", "generate")}
-    for path, default in defaults.items():
-        assert default == f"out/{path[-1]}", (path, default)
 
 
 def test_a_stop_signal_raised_where_python_cannot_propagate_it_is_no_message(capsys, monkeypatch):

@@ -205,6 +205,27 @@ def test_task_parameters_of_the_wrong_type_are_bad_input(robot):
             build_controller(ControllerConfig.from_dict({"tasks": [{"type": "damping", **params}]}), robot)
 
 
+
+@pytest.mark.parametrize("task", [
+    {"type": "contact_approach", "speed": 0.1},
+    {"type": "surface_offset", "offset": 0.05, "normal": [-1.0, 0.0, 0.0], "surface_point": [0.6, 0.0, 0.0]},
+])
+def test_a_tasks_orientation_parameters_are_its_orientation_hold(robot, task):
+    """``orientation_stiffness``, ``orientation_damping`` and ``orientation_weight`` of a task in
+    the file set its orientation rows: a_ang* = k_R log(R* R^T) - d_R w, weighted; each bad one,
+    or an ``orientation`` key, is bad input naming it."""
+    hold = {"orientation_stiffness": 80.0, "orientation_damping": 5.0, "orientation_weight": 3.0}
+    built = build_controller(ControllerConfig.from_dict({"tasks": [task | hold]}), robot).tasks[0]
+    assert (built.orientation_stiffness, built.orientation_damping) == (80.0, 5.0)
+    np.testing.assert_array_equal(built.weight[3:], [3.0, 3.0, 3.0])
+    default = build_controller(ControllerConfig.from_dict({"tasks": [task | {"orientation_stiffness": 64.0}]}), robot)
+    assert default.tasks[0].orientation_damping == 16.0  # 2 sqrt(k_R)
+    for key in hold:
+        with pytest.raises(BadInputError, match=key):
+            build_controller(ControllerConfig.from_dict({"tasks": [task | {key: -1.0}]}), robot)
+    with pytest.raises(BadInputError, match="orientation_stiffness, orientation_damping, orientation_weight"):
+        build_controller(ControllerConfig.from_dict({"tasks": [task | {"orientation": 1.0}]}), robot)
+
 def test_unsupported_file_type(tmp_path):
     (tmp_path / "c.json").write_text("{}")
     with pytest.raises(ValueError):

@@ -326,6 +326,45 @@ def test_arm_impact_matrices_are_those_of_each_fill_written_into_the_arrays_of_t
             assert (matrices.jump_matrix is first) == (name != "classical_normal")
 
 
+
+def kept_arrays_are_read_only_or_unchanged(kept, before) -> None:
+    """What a caller kept of ``matrices`` past the next fill: each array read-only, or as it was."""
+    for array, value in zip(kept, before):
+        if array.flags.writeable:
+            np.testing.assert_array_equal(array, value)
+        else:
+            with pytest.raises(ValueError, match="read-only"):
+                array[0, 0] = 1.0
+
+
+@pytest.mark.parametrize("name", ["crb", "gm", "classical", "classical_normal"])
+def test_arm_impact_matrices_kept_past_the_next_fill_cannot_be_written_or_stay_as_they_were(robot, name):
+    """``matrices`` is valid until the next fill of the terms: a kept A, P or G is either a
+    read-only view of the buffers that fill overwrites, or an array it leaves alone."""
+    rng = np.random.default_rng(11)
+    impact = ExpectedImpact(surface_ahead(robot.terms(PANDA.postures["elbow_right"].q)), name, 0.2)
+    terms = robot.empty_terms()
+    state = random_state(robot, rng)
+    robot.update_terms(terms, state.q, state.dq)
+    kept = impact.matrices(terms)[:3]
+    before = [array.copy() for array in kept]
+    state = random_state(robot, rng)
+    robot.update_terms(terms, state.q, state.dq)
+    assert not np.allclose(impact.matrices(terms).jump_matrix, before[0])  # a fill of another state
+    kept_arrays_are_read_only_or_unchanged(kept, before)
+    for rows, view in zip(impact.row_matrices(terms)[:3], impact.matrices(terms)[:3]):  # the arrays the rows read
+        np.testing.assert_array_equal(rows, view)
+
+
+@pytest.mark.parametrize("method", ["crb", "gm", "classical"])
+def test_g1_impact_matrices_kept_past_the_next_fill_cannot_be_written_or_stay_as_they_were(method):
+    q = stance("wide")
+    impact = ExpectedImpact(wall_ahead(q), method, restitution=0.3, held_contacts=True)
+    kept = impact.matrices(g1().terms(q, approach_velocity(q, 0.2)))
+    before = [array.copy() for array in kept]
+    impact.matrices(g1().terms(stance("parallel"), approach_velocity(q, 0.3)))
+    kept_arrays_are_read_only_or_unchanged(kept, before)
+
 @pytest.mark.parametrize(
     "keyword, value, fragment",
     [

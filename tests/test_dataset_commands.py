@@ -9,6 +9,7 @@ import pytest
 from impactqp.scenarios.cli import main
 from impactqp.sim.plant import PlantParameters
 
+from cli_checks import one_line_bad_input
 from conftest import JOINTS, g1_dataset
 
 
@@ -336,3 +337,30 @@ def test_dq_step_quantises_the_generated_dq_and_comes_once(tmp_path, capsys):
     code, out, err = run(capsys, *args[:2], tmp_path / "twice", *args[2:], "--plant", plant)
     assert code == 2 and out == "" and err.count("\n") == 1 and "give the step once" in err, err
     assert not (tmp_path / "twice").exists()
+
+
+def test_diagnose_refuses_a_robot_other_than_its_manifests(tmp_path, capsys):
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
+
+    generate_dataset(tmp_path, DatasetRequest(postures=["elbow_up"], speeds=[0.1]))
+    code, out, err = run(capsys, "diagnose", str(tmp_path), "--robot", "fr3", "--tool", "franka_hand")
+    assert code == 2 and out == ""
+    assert "manifest (panda, impact_tip) differ from --robot/--tool (fr3, franka_hand)" in err
+
+
+def test_a_dataset_beyond_the_trial_limit_is_refused_with_its_count_before_any_work(tmp_path, capsys):
+    speeds = ",".join(f"{0.05 + 0.002 * i:.3f}" for i in range(50))  # 3 postures x 50 speeds x 100 repeats
+    code, out, err = run(capsys, "dataset", "generate", str(tmp_path / "big"), "--speeds", speeds, "--repeats", "100")
+    one_line_bad_input(code, out, err, "the dataset has 15,000 trials (3 postures x (50 speeds + 0 tangential) x 100 repeats), more than the limit of 1,000")
+    assert "--max-trials 15000" in err and not (tmp_path / "big").exists()
+
+
+def test_diagnose_refuses_a_dataset_beyond_the_trial_limit_and_runs_within_it(tmp_path, capsys):
+    from impactqp.sim.generation import DatasetRequest, generate_dataset
+
+    generate_dataset(tmp_path, DatasetRequest(postures=["elbow_up"], speeds=[0.1, 0.12]))
+    code, out, err = run(capsys, "diagnose", str(tmp_path), "--max-trials", "1", "--json")
+    one_line_bad_input(code, out, err, "has 2 trials, more than the limit of 1")
+    code, out, err = run(capsys, "diagnose", str(tmp_path), "--max-trials", "2", "--json")
+    assert code == 0, err
+    assert json.loads(out)["trials"] == 2

@@ -18,6 +18,7 @@ from impactqp.scenarios.max_speed_search import (
     STANCE_MIN_TOLERANCE,
     Evaluation,
     MaxSpeedSearch,
+    QpSetting,
     SpeedBisection,
     approach_velocity_limit,
     search_stance,
@@ -87,7 +88,7 @@ def test_approach_velocity_limit_puts_one_joint_at_its_limit(robot):
 
 @pytest.fixture(scope="module")
 def report():
-    return MaxSpeedSearch(PANDA.postures["elbow_up"], DEFAULT_WALL, jump_model="crb", tolerance=0.02, jobs=2).run()
+    return MaxSpeedSearch(PANDA.postures["elbow_up"], DEFAULT_WALL, setting=QpSetting("crb"), tolerance=0.02, jobs=2).run()
 
 
 def test_qp_reaches_the_closed_form_maximum_speed(report, robot):
@@ -135,7 +136,7 @@ def test_report_json_keys(report):
 
 def test_bad_search_settings_are_rejected():
     with pytest.raises(ValueError, match="unknown jump model"):
-        MaxSpeedSearch(PANDA.postures["elbow_up"], DEFAULT_WALL, jump_model="magic")
+        QpSetting("magic")
     with pytest.raises(ValueError, match="tolerance"):
         SpeedBisection(0.02, 1.0, 0.0)
     with pytest.raises(BadInputError, match="tolerance"):
@@ -150,7 +151,7 @@ def test_a_max_speed_search_of_the_fr3_with_the_franka_hand_reaches_its_closed_f
 
     choice = RobotChoice.of("fr3", "franka_hand")
     posture = choice.posture("elbow_up")
-    report = MaxSpeedSearch(posture, DEFAULT_WALL, jump_model="crb", tolerance=0.05, jobs=2, choice=choice).run()
+    report = MaxSpeedSearch(posture, DEFAULT_WALL, setting=QpSetting("crb"), tolerance=0.05, jobs=2, choice=choice).run()
     data = report.to_json()
     robot = choice.model()
     terms = robot.terms(np.array(data["q_impact"]))

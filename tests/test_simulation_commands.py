@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cli_checks import one_line_bad_input
 from conftest import JOINTS, file_digests, g1_model
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.cli.exit_codes import EXIT_BAD_INPUT
@@ -344,3 +345,11 @@ def test_simulate_on_the_identified_panda_meets_its_friction(capsys):
         results[plant] = json.loads(stdout)
     assert results["identified_panda"]["contact_speed"] < results[None]["contact_speed"]
     assert results["identified_panda"]["dq_jump"] != results[None]["dq_jump"]
+
+
+def test_a_campaign_beyond_the_trial_limit_is_refused_with_its_count_before_any_work(tmp_path, capsys):
+    code, out, err = run(capsys, "campaign", "--out", str(tmp_path / "c"), "--postures", "elbow_up", "--speeds", "0.1,0.12", "--tangential", "none", "--max-trials", "1")
+    one_line_bad_input(code, out, err, "the campaign has 2 trials (1 posture x 2 speeds + 0 tangential), more than the limit of 1")
+    assert not (tmp_path / "c").exists()
+    code, out, err = run(capsys, "campaign", "--out", str(tmp_path / "c"), "--speeds", "0.1", "--max-trials", "0")
+    one_line_bad_input(code, out, err, "--max-trials must be a whole number >= 1")

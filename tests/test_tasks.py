@@ -11,7 +11,7 @@ from reference.tasks import reference_rows
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.tasks import CentreOfMassTask, ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
 from impactqp.controller.model.robot import SingularPostureError
-from impactqp.tasks.task import Task, rotation_error, rotation_log
+from impactqp.tasks.task import OrientationHold, Task, rotation_error, rotation_log
 
 
 @pytest.fixture(scope="module")
@@ -168,7 +168,7 @@ def test_compiled_task_rows_equal_the_numpy_reference(robot, seed):
     normal = rng.normal(size=3)
     normal /= np.linalg.norm(normal)
     tasks = [
-        ContactApproachTask(normal, 0.2, velocity_gain=15.0, orientation_stiffness=80.0),
+        ContactApproachTask(normal, 0.2, velocity_gain=15.0, orientation=OrientationHold(stiffness=80.0)),
         PostureTask(target=q + rng.uniform(-0.2, 0.2, JOINTS), stiffness=12.0),
         DampingTask(robot.nv, gain=2.0),
         FrameTask(terms.contact_point + 0.01, pin.exp3(rng.uniform(-1, 1, 3))),

@@ -28,6 +28,7 @@ from ..model.max_speed import Setting
 from ..model.robot import RobotModel
 from ..model.validation import BadInputError
 from ..qp import ImpactAwareController
+from impactqp.tasks import ORIENTATION_PARAMETERS, OrientationHold
 from .controller_config import TASK_TYPES, ControllerConfig, TaskConfig
 
 
@@ -53,6 +54,11 @@ def build_controller(config: ControllerConfig, robot: RobotModel | None = None, 
         elif task.type == "damping":
             params.setdefault("variables", robot.nv)
         kind = TASK_TYPES[task.type]
+        if "orientation" in inspect.signature(kind).parameters:  # its orientation_* parameters, one OrientationHold
+            if "orientation" in params:
+                raise BadInputError(f"bad parameters for the {task.type} task: orientation is given as "
+                                    f"{', '.join(ORIENTATION_PARAMETERS)}")
+            params["orientation"] = OrientationHold.taken_from(params)
         try:
             inspect.signature(kind).bind(**params)
         except TypeError as error:

@@ -183,11 +183,12 @@ def import_franka_command(out, logs, surface_point, surface_normal, reference_sp
 @click.option("--jobs", type=int, default=1, show_default=True)
 @max_trials_option
 @robot_options
-def diagnose(directory, as_json, report_dir, save_plant, plant_file, max_speed, jobs, max_trials, choice):
+def diagnose(directory, as_json, report_dir, save_plant, plant_file, choice, **work):
     """What the simulation gets wrong on measured impacts, why, and the model change that fixes it.
 
     The robot and the tool are the manifest's; a --robot/--tool other than the default that
     disagrees with them is bad input."""
+    max_speed, jobs, max_trials = work["max_speed"], work["jobs"], work["max_trials"]
 
     # lazy: the command line loads what a command needs when it runs
     from impactqp.sim.plant import PlantParameters

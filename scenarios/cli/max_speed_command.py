@@ -68,7 +68,7 @@ class MaxSpeedRequest:
 def arm_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
     """The JSON report of a fixed-base arm's search at a named posture on the wall."""
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.scenarios.max_speed_search import QP_START_DISTANCE, MaxSpeedSearch
+    from impactqp.scenarios.max_speed_search import QP_START_DISTANCE, MaxSpeedSearch, QpSetting
 
     choice, restitution, impact_duration, tolerance = request.choice, request.restitution, request.impact_duration, request.tolerance
     posture = choice.posture(request.posture)
@@ -79,9 +79,8 @@ def arm_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
     plant = load_plant(request.plant)
     check_reachable(choice, posture, surface, QP_START_DISTANCE)
     search = MaxSpeedSearch(
-        posture, surface, plant, jump_model=request.jump_model, restitution=restitution,
-        impact_duration=impact_duration, tolerance=tolerance, jobs=check_jobs(request.jobs), progress=progress,
-        choice=choice,
+        posture, surface, plant, setting=QpSetting(request.jump_model, restitution, impact_duration),
+        tolerance=tolerance, jobs=check_jobs(request.jobs), progress=progress, choice=choice,
     )
     return search.run().to_json()
 

@@ -315,10 +315,11 @@ def campaign_speeds(speeds_text, tangential_text, floating: bool) -> tuple[tuple
 @click.option("--json", "as_json", is_flag=True, help="Print Table I as JSON (no progress bar).")
 @max_trials_option
 @robot_options(humanoid=True)
-def campaign(postures_text, speeds_text, tangential_text, plant_file, jobs, out_dir, as_json, max_trials, choice):
+def campaign(postures_text, speeds_text, tangential_text, plant_file, out_dir, as_json, choice, **work):
     """The paper's campaign in simulation: dataset, Table I (table1.json, table1.md) and figures
     in --out (with --robot g1: stances x speeds of the standing G1, its dataset and Table I, no
     figures)."""
+    jobs, max_trials = work["jobs"], work["max_trials"]
     # lazy: the command line loads what a command needs when it runs
     from impactqp.scenarios.campaign import Campaign, CampaignPlan, CampaignTrials, check_postures
 

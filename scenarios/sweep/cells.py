@@ -43,7 +43,7 @@ from impactqp.controller.model.max_speed import CRITERIA, Setting, approach_dire
 from impactqp.controller.model.postures import DEFAULT_WALL, ImpactPosture, Surface
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.robot import SINGULAR_RATIO
-from impactqp.scenarios.max_speed_search import MaxSpeedSearch
+from impactqp.scenarios.max_speed_search import MaxSpeedSearch, QpSetting
 from impactqp.sim.generation import tangential_direction
 from impactqp.sim.plant import PlantParameters
 
@@ -241,8 +241,11 @@ def _simulate(config, simulation, cell, columns, q, regular) -> dict[str, list]:
             surface = Surface(point, normal, DEFAULT_WALL.friction)
             search = MaxSpeedSearch(
                 ImpactPosture(f"cell{cell[i]}", q[i].copy(), "sweep cell", surface), surface, simulation.plant,
-                jump_model=columns["controller_jump_model"][i], restitution=float(columns["restitution"][i]),
-                impact_duration=float(columns["impact_duration"][i]), tolerance=config.tolerance, choice=config.choice,
+                setting=QpSetting(
+                    columns["controller_jump_model"][i], float(columns["restitution"][i]),
+                    float(columns["impact_duration"][i]),
+                ),
+                tolerance=config.tolerance, choice=config.choice,
             )
             try:
                 report = search.run()
