@@ -75,6 +75,7 @@ from impactqp.tasks import Task
 
 from .command import Command, CommandMemory, Status, command_limits
 from .cycle_kernels import first_outside, integrate_command, intersect_boxes, tight_constraints, weighted_least_squares
+from .elastic_relaxation import ElasticRelaxation
 from .fallback import bounded_conflict, brake, braking_command, irreducible_conflict, usable_state
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
 from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
@@ -170,6 +171,9 @@ class ImpactAwareController:
         # as the reachable accelerations, so that a row the state violates is relaxed to what
         # the box really allows (ControlCycle.recoverable): the arrays are the problem's own.
         self._row_cycle = ControlCycle(self.dt, p.lb, p.ub, horizon)
+        # a floating base's relaxed rows, widened within its held contacts' rows when the QP is infeasible
+        relaxed = first < layout.rows
+        self._elastic = ElasticRelaxation(layout.rows, first, n) if self._floating and relaxed else None
 
     @property
     def box_constraints(self) -> tuple[Constraint, ...]:
@@ -236,6 +240,8 @@ class ImpactAwareController:
             return self._infeasible(q, dq, terms, "the joint-space bounds conflict")
 
         solved, ddq, solver_name = self._solve()
+        if solved == INFEASIBLE and self._elastic is not None and self._elastic.widen(self.problem):
+            solved, ddq, solver_name = self._solve()  # the relaxed rows widened within the held contacts' rows
         if solved == INFEASIBLE:
             return self._infeasible(q, dq, terms, f"the QP is infeasible (confirmed by {solver_name})")
         if solved != SOLVED:
