@@ -67,7 +67,7 @@ class ImpulsiveTorqueLimit(Constraint):
     def _stacked_rows_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         """The frictionless block, then one block per edge of the friction rows."""
         edge_scaled_impulse_rows(
-            self.impact.row_matrices(terms).torque_matrix, self.impact.edge_matrices(terms).torque, self._scaling,
+            (self.impact.row_matrices(terms).torque_matrix, self.impact.edge_matrices(terms).torque), self._scaling,
             terms.dq, 1.0 / cycle.horizon, self.impact.is_active(terms), C, lower, upper,
         )
 
@@ -84,9 +84,10 @@ def scaled_impulse_rows(torque_matrix, scaling, dq, inv_h, active, C, lower, upp
 
 
 @njit(cache=True)
-def edge_scaled_impulse_rows(torque_matrix, edge_torques, scaling, dq, inv_h, active, C, lower, upper):
+def edge_scaled_impulse_rows(maps, scaling, dq, inv_h, active, C, lower, upper):
     """Kernel: the rows of ``scaled_impulse_rows`` for P, then for each edge's P_i, one block of
-    joints rows each."""
+    joints rows each; ``maps`` = (P, the P_i stacked)."""
+    torque_matrix, edge_torques = maps
     rows = dq.shape[0]
     scaled_impulse_rows(torque_matrix, scaling, dq, inv_h, active, C[:rows], lower[:rows], upper[:rows])
     for e in range(edge_torques.shape[0]):

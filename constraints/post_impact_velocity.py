@@ -57,7 +57,7 @@ class PostImpactVelocityLimit(Constraint):
     def _stacked_rows_into(self, terms, cycle: ControlCycle, C, lower, upper) -> None:
         """The frictionless block, then one block per edge of the friction rows."""
         edge_post_impact_velocity_rows(
-            self.impact.row_matrices(terms).jump_matrix, self.impact.edge_matrices(terms).jump, terms.dq, self.dq_max,
+            (self.impact.row_matrices(terms).jump_matrix, self.impact.edge_matrices(terms).jump), terms.dq, self.dq_max,
             1.0 / cycle.horizon, self.impact.is_active(terms), C, lower, upper,
         )
 
@@ -75,9 +75,10 @@ def post_impact_velocity_rows(jump_matrix, dq, dq_max, inv_h, active, C, lower, 
 
 
 @njit(cache=True)
-def edge_post_impact_velocity_rows(jump_matrix, edge_jumps, dq, dq_max, inv_h, active, C, lower, upper):
+def edge_post_impact_velocity_rows(maps, dq, dq_max, inv_h, active, C, lower, upper):
     """Kernel: the rows of ``post_impact_velocity_rows`` for A, then for each edge's A_i, one
-    block of len(dq_max) rows each."""
+    block of len(dq_max) rows each; ``maps`` = (A, the A_i stacked)."""
+    jump_matrix, edge_jumps = maps
     rows = dq_max.shape[0]
     post_impact_velocity_rows(jump_matrix, dq, dq_max, inv_h, active, C[:rows], lower[:rows], upper[:rows])
     for e in range(edge_jumps.shape[0]):

@@ -38,7 +38,8 @@ from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.postures import Surface
 from impactqp.sim.runner import NORMAL as STANDING_NORMAL
 from impactqp.sim.runner import SERVO_GAIN, SETTLE, SINK
-from impactqp.sim.scene import build_humanoid_scene, build_scene
+from impactqp.sim.humanoid_scene import build_humanoid_scene
+from impactqp.sim.scene import build_scene
 from impactqp.sim.servo import StandingSupport
 from impactqp.sim.sim_backend import SimRobot
 

@@ -146,7 +146,7 @@ def arm_render_scene(robot: RobotDescription, tool: ToolDescription, surface: Su
 
 
 def humanoid_render_scene(robot: RobotDescription, joints: tuple[str, ...], wall_x: float, urdf_path=None) -> RenderScene:
-    """The render model of the standing robot's scene (``sim.scene.build_humanoid_scene``) with
+    """The render model of the standing robot's scene (``sim.humanoid_scene.build_humanoid_scene``) with
     the wall at x = ``wall_x``; ``joints`` are the model's joint names (after the free joint)."""
     spec = robot_spec(robot, None, DEFAULT_TIMESTEP, urdf_path)
     add_visual_meshes(spec, robot, read_text(urdf_path or robot.urdf_path(), f"the {robot.name} URDF"))

@@ -55,7 +55,7 @@ the robot's weight in the measured configuration (every control step: the weight
 the feet and their moments follow the posture, which the whole-body QP leans; wrenches of the
 start stance would leave the ankles a steady tracking error), gain :data:`SERVO_GAIN`. The torque
 each joint gets is clipped at its URDF effort limit (5-139 N m). Its plant: MuJoCo's G1 with the
-actuators' reflected rotor inertias by default (``armature``: ``sim.scene.plant_armature``; 0 for
+actuators' reflected rotor inertias by default (``armature``: ``sim.humanoid_scene.plant_armature``; 0 for
 the link-only plant). The servo's M_f includes them (MuJoCo's M does); the predictors do not (they
 keep the URDF model). Its measurement, predictions and failure criteria:
 ``sim.trial_result.held_contact_result``; its log (``TrialResult.log``) holds the trial as a robot
@@ -81,7 +81,8 @@ from impactqp.controller.model.validation import BadInputError, approach_speed, 
 from impactqp.controller.model.validation import impact_duration as check_impact_duration
 from impactqp.controller.model.validation import restitution as check_restitution
 
-from .scene import MujocoScene, Scene, build_humanoid_scene
+from .humanoid_scene import build_humanoid_scene
+from .scene import MujocoScene, Scene
 from .servo import StandingSupport
 from .trial_loop import FEEDBACK, CommandSource, Ending, LoopRecord, ServoedPlant, run_loop
 from .trial_result import TrialResult, WallContact, held_contact_result
@@ -311,7 +312,7 @@ def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: f
     the jump with the predictors (``sim.trial_result.held_contact_result``); ``gap`` (m) is the
     start distance of the contact point from the wall at q0 (None: the source's start posture and
     gap from q0, ``start_posture``: the scripted arm's 2 cm, the QP's run-up), ``armature`` the
-    plant's rotor inertia (``sim.scene.plant_armature``: None for the G1's actuators), ``source``
+    plant's rotor inertia (``sim.humanoid_scene.plant_armature``: None for the G1's actuators), ``source``
     the command source (``sim.trial_sources``: ``SCRIPTED``, or ``QpCommand``: the whole-body QP)."""
     dt = DEFAULT_CONTROL_PERIOD
     q0 = stance_posture(robot, stance) if q0 is None else q0

@@ -1,7 +1,7 @@
 """The MuJoCo scene of a robot: the same URDF and tool as Pinocchio, its contact geometry, a wall
 and, for a robot that stands on held contacts, a floor. One builder for every robot description
 (``controller.model.robot_description``); the fixed-base arm's scene is :func:`build_scene`, the
-standing robot's :func:`build_humanoid_scene` (both a :class:`MujocoScene`).
+standing robot's ``sim.humanoid_scene.build_humanoid_scene`` (both a :class:`MujocoScene`).
 
 The MuJoCo model is built in code from the URDF text that the Pinocchio model loads for a robot
 and a tool (``robot_description.model_urdf``: the Panda of example-robot-data, franka_description's
@@ -28,7 +28,7 @@ Added in code (``mujoco.MjSpec``, :func:`robot_spec`, :func:`add_contact_geometr
 - the wall: a MuJoCo plane through ``surface.point`` whose z axis is ``surface.normal``
   (the solid half-space lies behind the plane, away from the robot);
 - with held contacts (a standing robot's soles): a floor plane at z = 0 and, for a stance that
-  puts a held contact on a raised surface (``Stance.heights``), a box (a step, :data:`STEP_SIZE`)
+  puts a held contact on a raised surface (``Stance.heights``), a box (a step, ``sim.humanoid_scene.STEP_SIZE``)
   under that sole whose top is the surface;
 - explicit contact pairs: the contact geometry with the wall and, with held contacts, the sole
   spheres (from the URDF) of each held contact's frame with the floor (and its step) at that
@@ -54,14 +54,7 @@ solimp                (0.95, 0.99, 1 mm,     stiff (d -> 0.99) once the tool is 
                       0.5, 2)
 ====================  =====================  =================================================
 
-The standing robot (:func:`build_humanoid_scene`, docs/floating-base.md): its own contact sphere,
-a wall plane at x = ``wall_x`` facing it (normal -x), the floor and the sole pairs; timestep
-0.5 ms, solref :data:`STANDING_SOLREF`, solimp :data:`STANDING_SOLIMP`, the wall's friction
-:data:`WALL_FRICTION` (the paper's mu). Its joints carry the G1's reflected rotor inertias
-(``controller.model.g1_actuators``, MuJoCo's ``armature``: M -> M + diag(0, a)) unless told
-otherwise (:func:`plant_armature`): the URDF has none, and a geared robot's motors are a large
-part of what the hand's impact meets (the predictors keep the URDF model, the paper's reason R3);
-``armature=0`` gives the link-only plant.
+The standing robot's scene: ``sim.humanoid_scene``.
 """
 
 from __future__ import annotations
@@ -74,15 +67,12 @@ import mujoco
 import numpy as np
 
 from impactqp.controller.model.files import read_text
-from impactqp.controller.model.robot import RobotModel
-from impactqp.controller.model.g1_actuators import joint_armature
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.controller.model.robot import TOOL_BODY
-from impactqp.controller.model.robot_description import RobotDescription, Stance, model_urdf, robot_description
+from impactqp.controller.model.robot_description import RobotDescription, model_urdf, robot_description
 from impactqp.controller.model.tool_description import Pad, ToolDescription, tool_description
-from impactqp.controller.model.validation import BadInputError, number_in_range, vector_in_range
+from impactqp.controller.model.validation import BadInputError
 
-from .humanoid_feet import Soles
 from .plant import PlantParameters, apply_plant
 
 DEFAULT_TIMESTEP = 0.25e-3
@@ -96,14 +86,11 @@ FREE_JOINT = "floating_base"
 CONTACT_PAIR = "tool_wall"
 CONTACT_CONDIM = 3
 NO_COLLISION = dict(contype=0, conaffinity=0)  # every geom: only the explicit pairs collide
-STANDING_TIMESTEP = 0.5e-3
 WALL_FRICTION = 0.1123  # the paper's mu
 STANDING_SOLREF = (0.005, 1.0)
 STANDING_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
 STANDING_WALL_HEIGHT = 1.0  # m: the standing robot's wall plane's centre above the floor
 STANDING_WALL_SIZE = 1.0  # m: that wall's half-size
-STEP_SIZE = (0.15, 0.08)  # m: a step's half-length (x) and half-width (y) about the sole's centre
-MAX_ARMATURE = 10.0  # kg m^2: the largest rotor inertia a joint may be given
 
 
 def mujoco_urdf(
@@ -388,87 +375,4 @@ def build_scene(
         tool_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, contact_geom),
         robot=robot,
         tool=tool,
-    )
-
-
-@dataclass
-class HumanoidScene(MujocoScene):
-    """The standing robot's scene, with the ids the trials need: its contact sphere ``hand_geom``,
-    the floor, the held contacts' bodies (``foot_bodies``), ``soles`` and the steps under raised
-    soles (``step_geoms``)."""
-
-    wall_x: float
-    hand_geom: int
-    floor_geom: int
-    foot_bodies: tuple[int, ...]
-    soles: Soles
-    step_geoms: tuple[int, ...] = ()
-
-    @property
-    def ground_geoms(self) -> tuple[int, ...]:
-        """The geoms the soles stand on: the floor and the steps."""
-        return (self.floor_geom, *self.step_geoms)
-
-
-def plant_armature(robot: RobotModel, armature=None) -> np.ndarray:
-    """The rotor inertia (kg m^2) of each of the joints: the G1's actuators when ``armature`` is
-    None, else one number for every joint or one per joint (0: the link-only plant)."""
-    if armature is None:
-        return joint_armature(robot.joint_names)
-    n = len(robot.joint_names)
-    if np.ndim(armature) == 0:
-        return np.full(n, number_in_range(armature, 0.0, MAX_ARMATURE, "armature", "kg m^2"))
-    return vector_in_range(armature, n, 0.0, MAX_ARMATURE, "armature", "kg m^2")
-
-
-def add_steps(spec, robot: RobotDescription, stance: Stance, contact: ContactParameters) -> tuple[str, ...]:
-    """A box under each held contact the stance raises (its top at the stance's height, centred
-    under the sole, half-sizes :data:`STEP_SIZE`) and the pairs of that sole's spheres with it;
-    the boxes' names."""
-    names = []
-    for k, c in enumerate(robot.held_contacts):
-        height = stance.height(k)
-        if height == 0.0:
-            continue
-        name = f"step_{c.label}"
-        centre = np.array(stance.feet[k]) + c.sole.mean(axis=0)
-        spec.worldbody.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=[*STEP_SIZE, height / 2.0],
-                                pos=[*centre, height / 2.0], rgba=[0.5, 0.45, 0.4, 1.0],
-                                **contact.geom(c.friction), **NO_COLLISION)
-        for geom in spec.body(c.frame).geoms:
-            if geom.type == mujoco.mjtGeom.mjGEOM_SPHERE:
-                spec.add_pair(geomname1=geom.name, geomname2=name, **contact.pair(c.friction))
-        names.append(name)
-    return tuple(names)
-
-
-def build_humanoid_scene(
-    robot: RobotModel, wall_x: float, *, timestep: float = STANDING_TIMESTEP, armature=None,
-    stance: Stance | None = None,
-) -> HumanoidScene:
-    """Compile the standing robot's scene with the wall plane at x = ``wall_x`` (normal -x, towards
-    the robot); ``armature`` is the joints' rotor inertia (:func:`plant_armature`: default the G1's
-    actuators); ``stance``: a box under each sole it raises (:func:`add_steps`; None: the floor
-    only)."""
-    rotor = plant_armature(robot, armature)
-    description = robot.description
-    spec = robot_spec(description, None, timestep, robot.urdf_path)
-    contact = ContactParameters(WALL_FRICTION, STANDING_SOLREF, STANDING_SOLIMP)
-    hand = add_contact_geometry(spec, description, None, contact)
-    wall = Surface(np.array([wall_x, 0.0, STANDING_WALL_HEIGHT]), np.array([-1.0, 0.0, 0.0]), WALL_FRICTION)
-    add_environment(spec, description, hand, Environment(wall, contact, wall_size=STANDING_WALL_SIZE, pair=""))
-    steps = () if stance is None else add_steps(spec, description, stance, contact)
-    for joint in spec.joints:
-        if joint.type == mujoco.mjtJoint.mjJNT_HINGE:
-            joint.armature = float(rotor[robot.joint_names.index(joint.name)])
-    model = compile_spec(spec, description, robot.joint_names)
-    feet = tuple(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, c.frame) for c in description.held_contacts)
-    return HumanoidScene(
-        model=model, data=mujoco.MjData(model),
-        wall_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, WALL_GEOM),
-        base_nq=int(model.jnt_qposadr[1]), base_nv=int(model.jnt_dofadr[1]),  # the joints follow the free joint
-        wall_x=wall_x, hand_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, hand),
-        floor_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR_GEOM),
-        foot_bodies=feet, soles=Soles.of(model, feet, tuple(c.friction for c in description.held_contacts)),
-        step_geoms=tuple(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name) for name in steps),
     )

@@ -34,6 +34,7 @@ from typing import Protocol
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 
 from impactqp.controller.model.validation import BadInputError
 
@@ -67,28 +68,57 @@ class VelocityCommand:
     dq_cmd: np.ndarray
 
 
-FEEDBACK = ("commanded", "measured")
+FEEDBACK = ("commanded", "measured", "blended")
+BLEND_CROSSOVER = 10.0
+"""rad/s: the crossover frequency omega_c of the blended state (:class:`ControllerSource`)."""
 
 
 class ControllerSource:
-    """A controller (``step(q, dq) -> Command``) as a command source, given its own previous
-    command (q_cmd, dq_cmd) as the state (``feedback="commanded"``: a kinematic-controlled robot's
-    controller follows its own smooth command trajectory, docs/simulation.md) or the measured state
-    (``"measured"``; the first step always gets the measured state); the source's command is the
-    actuated joints' part of the controller's (a floating base's velocities come first). ``last``
-    is the controller's last Command."""
+    """A controller (``step(q, dq) -> Command``) as a command source, given as its state (the first
+    step always gets the measured state):
 
-    def __init__(self, controller, feedback: str):
+    - ``"commanded"``: its own previous command (q_cmd, dq_cmd) (a kinematic-controlled robot's
+      controller follows its own smooth command trajectory, docs/simulation.md); it never sees
+      the body sway;
+    - ``"measured"``: the measured state; through the servo's acceleration feed-forward
+      (dq_cmd_k - dq_cmd_{k-1}) / dt this loop feeds back the tracking error e = v_meas - v_cmd
+      with the gain 1 / dt (1000 /s), far above the servo's own damping 2 omega (80 /s on the G1),
+      and runs away (docs/whole-body-qp.md, "The state the QP is given");
+    - ``"blended"``: a complementary blend of the two, the command's integration corrected
+      towards the measurement,
+
+          x_k = x_cmd,k-1 (+) alpha (x_meas,k (-) x_cmd,k-1),     alpha = omega_c dt,
+
+      ((+), (-): Pinocchio's integrate and difference, a floating base's pose on its manifold): a
+      first-order filter that follows the command above the crossover omega_c and the measurement
+      below it (a constant offset decays as (1 - alpha)^k, time constant 1 / omega_c). The tracking
+      error reaches the servo's feed-forward with the gain omega_c instead of 1 / dt:
+      omega_c = ``crossover`` (:data:`BLEND_CROSSOVER`, 10 rad/s) stays below the servo's damping.
+
+    The source's command is the actuated joints' part of the controller's (a floating base's
+    velocities come first). ``last`` is the controller's last Command."""
+
+    def __init__(self, controller, feedback: str, crossover: float = BLEND_CROSSOVER):
         if feedback not in FEEDBACK:
             raise BadInputError(f"unknown feedback {feedback!r}; choose from {', '.join(FEEDBACK)}")
         self.controller, self.feedback = controller, feedback
         self.joints = slice(controller.robot.base_nv, None)
+        self.blend = crossover * controller.dt
         self.last = None
 
+    def state(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The state the controller is given (class docstring) from the measured state (q, dq)."""
+        last = self.last
+        if last is None or self.feedback == "measured":
+            return q, dq
+        if self.feedback == "commanded":
+            return last.q_cmd, last.dq_cmd
+        model, alpha = self.controller.robot.model, self.blend
+        q_blend = pin.integrate(model, last.q_cmd, alpha * pin.difference(model, last.q_cmd, q))
+        return q_blend, last.dq_cmd + alpha * (dq - last.dq_cmd)
+
     def step(self, q: np.ndarray, dq: np.ndarray) -> VelocityCommand:
-        if self.feedback == "commanded" and self.last is not None:
-            q, dq = self.last.q_cmd, self.last.dq_cmd
-        self.last = self.controller.step(q, dq)
+        self.last = self.controller.step(*self.state(q, dq))
         return VelocityCommand(self.last.dq_cmd[self.joints])
 
 

@@ -17,10 +17,13 @@ on them for ``TrialStart.settle`` s, during which every source commands the join
   robot's description, with the jump predictor of its impact rows; a standing robot's trial starts
   from its run-up, ``controller.model.run_up``): the controller is reset at the
   state measured when the settling ends (at once for a fixed base) and is given, every period, its
-  own previous command (``feedback="commanded"``, a kinematic-controlled robot's convention:
-  ``scenarios.trial`` says why) or the measured state; at the stop the hand's approach speed target
-  becomes 0 (``ContactApproachTask.reference_velocity``): the QP brakes within its acceleration and
-  jerk limits. Why the task target and not a second reset: a reset would re-capture the CoM, torso
+  own previous command (``feedback="commanded"``, the default: a kinematic-controlled robot's
+  convention, ``scenarios.trial`` says why), the measured state, or a blend of the two
+  (``"blended"``: ``sim.trial_loop.ControllerSource``); at the stop the hand's approach speed
+  target becomes 0 (``ContactApproachTask.reference_velocity``): the QP brakes within its
+  acceleration and jerk limits, and a standing robot's controller that sees its body (fed the
+  blended or measured state) turns to its balance (``controller.config.post_impact_balance``).
+  Why the task target and not a second reset: a reset would re-capture the CoM, torso
   and posture targets at the post-impact state and zero the controller's acceleration memory, a
   step of acceleration that skips the jerk limit. Each cycle's status, the impact rows' activity
   and the predicted post-impact velocity are kept in a :class:`QpRecord`;
@@ -36,6 +39,7 @@ import numpy as np
 
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.config.controller_config import FLOATING_BASE_APPROACH
+from impactqp.controller.config.post_impact_balance import balance_after_impact
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.max_speed import contact_joints
 from impactqp.controller.model.postures import Surface
@@ -330,8 +334,12 @@ class QpDriver:
         self._step = 0
 
     def stop(self) -> None:
-        """The hand's approach speed target becomes 0 (module docstring)."""
+        """The hand's approach speed target becomes 0 (module docstring); a standing robot's
+        controller that sees its body turns to its balance (``controller.config.post_impact_balance``:
+        fed its own command it would balance a body it does not see)."""
         self.approach.reference_velocity = np.zeros(3)
+        if self.source.feedback != "commanded":
+            balance_after_impact(self.controller)
 
     def step(self, q_pin: np.ndarray, v_pin: np.ndarray) -> VelocityCommand:
         step, self._step = self._step, self._step + 1

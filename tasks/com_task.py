@@ -30,8 +30,16 @@ class CentreOfMassTask(Task):
         self.damping = (
             critical_damping(self.stiffness) if damping is None else task_gain(damping, "centre-of-mass damping")
         )
-        weight = finite_vector(weight, 3, "centre-of-mass weight")
-        self.weight = np.array([task_gain(w, "centre-of-mass weight") for w in weight])
+        self.weight = axis_weights(weight)
+
+    def hold(self, target, stiffness: float, weight) -> None:
+        """A new target c*, stiffness kp (critically damped: kd = 2 sqrt(kp)) and weights, kept
+        by later resets."""
+        self.target = finite_vector(target, 3, "the centre-of-mass target")
+        self._target_configured = True
+        self.stiffness = task_gain(stiffness, "centre-of-mass stiffness")
+        self.damping = critical_damping(self.stiffness)
+        self.weight = axis_weights(weight)
 
     def error(self, terms: ModelTerms) -> np.ndarray:
         """e = c* - c."""
@@ -43,6 +51,12 @@ class CentreOfMassTask(Task):
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         com_rows(terms.Jcom, terms.dq, terms.com, terms.dJcom_dq, self.target, (self.stiffness, self.damping), A, b)
+
+
+def axis_weights(weight) -> np.ndarray:
+    """The task's three weights (x, y, z), each checked."""
+    weight = finite_vector(weight, 3, "centre-of-mass weight")
+    return np.array([task_gain(w, "centre-of-mass weight") for w in weight])
 
 
 @njit(cache=True)

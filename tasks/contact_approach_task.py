@@ -54,6 +54,7 @@ class ContactApproachTask(Task):
         if not isinstance(orientation, OrientationHold):
             raise TypeError("orientation must be an OrientationHold")
         self._reference = np.zeros(1, APPROACH_REFERENCE)  # what the kernel reads; the fields below view it
+        self._kernel_reference = self._reference.view(np.float64)  # the same numbers, flat
         # Surface frame: rows of `basis` are n, t1, t2 (world axes).
         t1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
         t1 /= np.linalg.norm(t1)
@@ -114,14 +115,11 @@ class ContactApproachTask(Task):
             self.target_rotation = terms.contact_rotation.copy()
 
     def kernel_parameters(self) -> np.ndarray:
-        """The basis (9, row-major), the twist gains (6), k_v v* (3), k_R, R* (9) and the weights (6)."""
-        return np.concatenate([
-            self.basis.ravel(), self._twist_gain, self._reference_acceleration, [self.orientation_stiffness],
-            self.target_rotation.ravel(), self.weight,
-        ])
+        """The kernel's reference (an ``APPROACH_REFERENCE`` record's numbers) and the weights (6)."""
+        return np.concatenate([self._kernel_reference, self.weight])
 
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        surface_frame_approach_rows(terms.J6, terms.dq, terms.dJ6_dq, terms.contact_rotation, self._reference, A, b)
+        surface_frame_approach_rows(terms.J6, terms.dq, terms.dJ6_dq, terms.contact_rotation, self._kernel_reference, A, b)
 
 
 APPROACH_REFERENCE = np.dtype([
@@ -134,23 +132,28 @@ APPROACH_REFERENCE = np.dtype([
 """What ``ContactApproachTask`` asks of its contact frame, one record its kernel reads (a compiled
 kernel takes a record, not a dataclass): R* (world), the rows n, t1, t2 of the surface frame
 (world axes), the gain [-k_v] * 3 + [-d_R] * 3 on the frame's twist [v; w], k_v v* (world) and
-k_R."""
+k_R. Its fields are float64 in this order with no padding: the kernel reads the record's numbers
+as one flat array of ``APPROACH_REFERENCE_SIZE``."""
+
+APPROACH_REFERENCE_SIZE = APPROACH_REFERENCE.itemsize // 8
+"""How many numbers an ``APPROACH_REFERENCE`` record holds."""
 
 
 @njit(cache=True)
 def surface_frame_approach_rows(J6, dq, dJ6_dq, rotation, reference, A, b):
     """Kernel of ``ContactApproachTask``: b = gain * (J6 dq) + [k_v v*; k_R log(R* R^T)] - dJ6 dq,
     then the linear rows (of A = J6 and b) expressed in the surface frame; R = ``rotation``, the
-    rest ``reference[0]`` (an ``APPROACH_REFERENCE`` record)."""
-    record = reference[0]
-    basis, twist_gain, reference_acceleration = record.basis, record.twist_gain, record.reference_acceleration
+    rest ``reference``: an ``APPROACH_REFERENCE`` record's numbers, flat (R*, basis, twist gain,
+    k_v v*, k_R)."""
+    target_rotation, basis = reference[0:9].reshape((3, 3)), reference[9:18].reshape((3, 3))
+    twist_gain, reference_acceleration, orientation_stiffness = reference[18:24], reference[24:27], reference[27]
     twist = J6 @ dq
     log = np.empty(3)
-    rotation_log(record.target_rotation, rotation, log)
+    rotation_log(target_rotation, rotation, log)
     linear = np.empty(3)
     for i in range(3):
         linear[i] = twist_gain[i] * twist[i] + reference_acceleration[i] - dJ6_dq[i]
-        b[3 + i] = twist_gain[3 + i] * twist[3 + i] + record.orientation_stiffness * log[i] - dJ6_dq[3 + i]
+        b[3 + i] = twist_gain[3 + i] * twist[3 + i] + orientation_stiffness * log[i] - dJ6_dq[3 + i]
     for i in range(3):
         b[i] = basis[i, 0] * linear[0] + basis[i, 1] * linear[1] + basis[i, 2] * linear[2]
         for j in range(J6.shape[1]):

@@ -46,3 +46,25 @@ def test_reset_captures_the_current_centre_of_mass_and_bad_gains_are_refused():
     for bad in ({"stiffness": -1.0}, {"weight": (1.0, 1.0)}, {"target": [0.0, np.nan, 0.0]}):
         with pytest.raises(BadInputError):
             CentreOfMassTask(**bad)
+
+
+@SETTINGS
+@given(standing_states(), st.floats(1.0, 2000.0))
+def test_a_held_target_is_kept_by_resets_and_asks_the_critically_damped_pd(state, kp):
+    """hold(c*, kp, w): the rows ask kp (c* - c) - 2 sqrt(kp) Jcom v - dJcom v; a reset keeps c*."""
+    _, q, v = state
+    terms = robot().terms(q, v)
+    task = CentreOfMassTask()
+    task.reset(terms)
+    target = terms.com + np.array([0.05, -0.02, 0.0])
+    task.hold(target, kp, [3.0, 3.0, 1.0])
+    task.reset(terms)
+    rows = task.compute(terms)
+    expected = kp * (target - terms.com) - 2 * np.sqrt(kp) * terms.Jcom @ v - terms.dJcom_dq
+    np.testing.assert_allclose(rows.b, expected, atol=1e-9)
+    np.testing.assert_array_equal(task.weight, [3.0, 3.0, 1.0])
+
+
+def test_a_held_target_must_be_finite():
+    with pytest.raises(BadInputError):
+        CentreOfMassTask().hold([np.nan, 0.0, 0.0], 100.0, [1.0, 1.0, 1.0])

@@ -139,3 +139,11 @@ def test_the_qp_driven_search_of_a_stance_holds_the_contact_speed_at_its_closed_
 def test_the_controller_option_is_a_standing_robot_s(capsys):
     code, _, err = run(capsys, "max-speed", "--posture", "elbow_up", "--controller", "qp")
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--controller" in err
+
+
+@pytest.mark.parametrize("robot", [[], ["--robot", "g1", "--posture", "parallel"]])
+def test_the_feedback_option_is_the_whole_body_qp_s(capsys, robot):
+    """--feedback chooses the state the standing robot's QP is given: without --controller qp (an
+    arm, or a stance driven by its scripted arm) it is one line of bad input."""
+    code, _, err = run(capsys, "max-speed", *(robot or ["--posture", "elbow_up"]), "--feedback", "blended")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--feedback" in err

@@ -175,16 +175,6 @@ MAX_PARAMETERS = 8
 not *args or **kwargs); past it, a small dataclass."""
 MAX_MODULE_LINES = 450
 """A module has at most this many lines; past it, it is split by idea."""
-OWNED_ELSEWHERE = {
-    "controller/model/robot_description.py",  # being split (461 lines)
-    "controller/qp/controller.py:__init__",
-    "controller/qp/controller.py:_emit",
-    "constraints/impulsive_torque.py:edge_scaled_impulse_rows",
-    "constraints/post_impact_velocity.py:edge_post_impact_velocity_rows",
-}
-"""Exceptions to the two rules above, in files whose change is under way elsewhere: remove each once it is fixed."""
-
-
 def package_modules() -> list[Path]:
     """Every module of every package pyproject.toml installs."""
     root = TESTS.parent
@@ -210,7 +200,7 @@ def test_no_function_takes_more_than_eight_parameters():
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
                 where = f"{path.relative_to(TESTS.parent)}:{getattr(node, 'name', 'lambda')}"
-                if len(parameters(node)) > MAX_PARAMETERS and where not in OWNED_ELSEWHERE:
+                if len(parameters(node)) > MAX_PARAMETERS:
                     over.append(where)
     assert over == []
 
@@ -220,4 +210,4 @@ def test_no_module_is_longer_than_450_lines():
         str(path.relative_to(TESTS.parent)) for path in package_modules()
         if len(path.read_text().splitlines()) > MAX_MODULE_LINES
     ]
-    assert sorted(set(long) - OWNED_ELSEWHERE) == []
+    assert sorted(long) == []

@@ -12,7 +12,8 @@ from conftest import ARMS, g1_model
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.sim.render_scene import arm_render_scene, humanoid_render_scene
-from impactqp.sim.scene import build_humanoid_scene, build_scene, from_pinocchio
+from impactqp.sim.humanoid_scene import build_humanoid_scene
+from impactqp.sim.scene import build_scene, from_pinocchio
 
 
 def body_positions(model, qpos):

@@ -24,15 +24,14 @@ from impactqp.sim.plant import PlantParameters
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.g1_actuators import joint_armature
 from impactqp.controller.model.validation import BadInputError
+from impactqp.sim.humanoid_scene import build_humanoid_scene, plant_armature
 from impactqp.sim.scene import (
     CONTACT_CONDIM,
     HAND_RADIUS,
     WALL_FRICTION,
-    build_humanoid_scene,
     build_scene,
     from_pinocchio,
     mujoco_urdf,
-    plant_armature,
     to_pinocchio,
 )
 

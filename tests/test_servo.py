@@ -12,7 +12,7 @@ from impactqp.controller.model.max_speed import standing_wrenches
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.robot import PandaModel
 from impactqp.sim.humanoid_feet import LOAD, lift_onset, slip_onset, sole_state
-from impactqp.sim.scene import build_humanoid_scene
+from impactqp.sim.humanoid_scene import build_humanoid_scene
 from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD, SERVO_GAIN, SETTLE, SINK
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.scene import build_scene

@@ -13,9 +13,10 @@ from impactqp.controller.model.robot import PandaModel
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.validation import BadInputError
 from impactqp.sim.trial_sources import CartesianApproachCommand
-from impactqp.sim.scene import build_humanoid_scene, build_scene
+from impactqp.sim.humanoid_scene import build_humanoid_scene
+from impactqp.sim.scene import build_scene
 from impactqp.sim.servo import StandingSupport
-from impactqp.sim.trial_loop import Ending, ServoedPlant, VelocityCommand, run_loop
+from impactqp.sim.trial_loop import BLEND_CROSSOVER, ControllerSource, Ending, ServoedPlant, VelocityCommand, run_loop
 
 ROBOT = PandaModel()
 GRAVITY = np.array([0.0, 0.0, -9.81])
@@ -133,3 +134,35 @@ def test_the_floor_impulse_balances_the_momentum_of_a_robot_standing_on_it(stand
     external = record.held.floor[:-1].sum(axis=0) + mass * GRAVITY * duration
     np.testing.assert_allclose(mass * (com_velocity[1] - com_velocity[0]), external, atol=0.02 * mass * 9.81 * duration)
     assert record.held.floor[:, 2].mean() == pytest.approx(mass * 9.81 * 1e-3, rel=0.05)
+
+
+class RecordingController:
+    """A controller that records the states it is given and commands a fixed (q_cmd, dq_cmd)."""
+
+    def __init__(self, robot, q_cmd, dq_cmd, dt=1e-3):
+        self.robot, self.dt, self.given = robot, dt, []
+        self.command = type("Command", (), {"q_cmd": q_cmd, "dq_cmd": dq_cmd})()
+
+    def step(self, q, dq):
+        self.given.append((np.array(q), np.array(dq)))
+        return self.command
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_blended_state_moves_from_the_command_towards_the_measurement_along_the_geodesic(seed):
+    """x = x_cmd (+) alpha (x_meas (-) x_cmd), alpha = omega_c dt: the base pose on its manifold
+    (a measured pose d away from the command along a constant twist gives the pose alpha d
+    along it), the velocities linearly; the first step gets the measured state itself."""
+    robot, rng = g1_model(), np.random.default_rng(seed)
+    q_cmd = pin.integrate(robot.model, stance_posture(robot, STANCES["parallel"]), 0.05 * rng.normal(size=robot.nv))
+    dq_cmd, dq_meas, d = rng.normal(size=robot.nv), rng.normal(size=robot.nv), 0.1 * rng.normal(size=robot.nv)
+    q_meas = pin.integrate(robot.model, q_cmd, d)
+    controller = RecordingController(robot, q_cmd, dq_cmd)
+    source = ControllerSource(controller, "blended")
+    source.step(q_meas, dq_meas)
+    source.step(q_meas, dq_meas)
+    alpha = BLEND_CROSSOVER * controller.dt
+    np.testing.assert_array_equal(controller.given[0][0], q_meas)
+    np.testing.assert_allclose(pin.difference(robot.model, q_cmd, controller.given[1][0]), alpha * d, atol=1e-12)
+    np.testing.assert_allclose(controller.given[1][1], (1 - alpha) * dq_cmd + alpha * dq_meas, atol=1e-12)
+    assert 0.0 < alpha < 1.0

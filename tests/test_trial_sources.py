@@ -4,18 +4,25 @@ replay; the whole-body QP driving the simulated G1's trial."""
 import numpy as np
 import pytest
 
-from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.controller.model.robot import PandaModel, RobotModel
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+from impactqp.controller.model.max_speed import closed_form_max_speed
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.qp.command import Status
 from impactqp.scenarios.stance_check import StancePlant, trial_at_contact_speed
-from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD, LATENCY, NORMAL, SETTLE, SINK, run_impact_trial
+from impactqp.sim.observed_criteria import capture_margin
+from impactqp.sim.runner import (
+    DEFAULT_CONTROL_PERIOD, LATENCY, NORMAL, SERVO_GAIN, SETTLE, SINK, run_impact_trial, run_source, servoed_plant,
+)
+from impactqp.sim.humanoid_scene import build_humanoid_scene
+from impactqp.sim.trial_loop import Ending
 from impactqp.sim.trial_sources import CartesianApproachCommand, CommandReplay, QpCommand, TrialStart
 from impactqp.tasks import ContactApproachTask
 
 FOOT_ONSETS = {"foot_slip", "foot_lift"}
+PUSH_STEP, PUSH_SPEED, PUSH_STEPS = 200, 0.1, 1300  # control step of the push, m/s it adds to the pelvis, steps of the trial
 
 
 @pytest.fixture(scope="module")
@@ -110,6 +117,104 @@ def test_the_measured_state_fed_to_the_standing_qp_gives_an_evaluated_trial_with
     trial = run_impact_trial(robot, STANCES["parallel"], 0.5, source=QpCommand(feedback="measured"))
     assert trial.record.statuses and Status.IMPACT_BRAKE not in trial.record.statuses
     assert np.isfinite(trial.max_velocity_ratio)
+
+
+class Pushed:
+    """A source that kicks the plant's pelvis forward (its free joint's x velocity, MuJoCo's world
+    frame) by PUSH_SPEED at control step PUSH_STEP, and keeps its QP's base x (its command's, from
+    the state it was given) at each step."""
+
+    def __init__(self, driver, data):
+        self.driver, self.data, self.k, self.estimates = driver, data, 0, []
+
+    def step(self, q, v):
+        if self.k == PUSH_STEP:
+            self.data.qvel[0] += PUSH_SPEED
+        self.k += 1
+        command = self.driver.step(q, v)
+        last = self.driver.source.last  # None while settling
+        self.estimates.append(q[0] if last is None else last.q_cmd[0])
+        return command
+
+
+def pushed_standing(robot, feedback):
+    """Quiet standing in the parallel stance (the hand's speed target 0, the wall 1 m away), a push
+    on the pelvis: the QP's base x estimate at each step and the CoM's margin inside the support
+    polygon (m) at each step after the push."""
+    q0 = stance_posture(robot, STANCES["parallel"])
+    contact = robot.terms(q0).contact_point
+    scene = build_humanoid_scene(robot, wall_x=float(contact[0]) + 1.0)
+    wall = Surface(np.array([scene.wall_x, contact[1], contact[2]]), NORMAL.copy())
+    start = TrialStart(robot, q0, np.zeros(robot.nv), wall, 0.3, settle=SETTLE, sink=SINK)
+    driver = QpCommand(feedback=feedback).start(start)
+    driver.stop()
+    pushed = Pushed(driver, scene.data)
+    run = run_source(servoed_plant(scene, robot, DEFAULT_CONTROL_PERIOD, SERVO_GAIN), pushed, Ending(PUSH_STEPS),
+                     (start.plant_start(), start.dq0), robot.dq_max)
+    margins = np.array([capture_margin(robot, q, np.zeros(3)) for q in run.record.q[PUSH_STEP:]])
+    return np.array(pushed.estimates), run.record, margins, driver.record
+
+
+@pytest.fixture(scope="module")
+def pushes(robot):
+    return {feedback: pushed_standing(robot, feedback) for feedback in ("commanded", "blended")}
+
+
+def test_a_push_on_the_pelvis_is_seen_by_the_blended_state_and_not_by_the_commanded_one(pushes):
+    """After the push the plant's pelvis moves forward; the blended state follows it, the commanded
+    state (the QP's own integration) does not."""
+    for feedback, moved in (("blended", True), ("commanded", False)):
+        estimates, record, _, _ = pushes[feedback]
+        plant_moved = record.q[-1, 0] - record.q[PUSH_STEP, 0]
+        estimate_moved = estimates[-1] - estimates[PUSH_STEP]
+        assert plant_moved > 0.0
+        assert (estimate_moved > 0.5 * plant_moved) == moved
+
+
+def test_the_blended_qp_brings_the_pushed_com_back_and_ends_better_than_the_commanded_one(pushes):
+    """Fed the blended state the QP stops the CoM's drift and brings it back towards the centre of
+    the support polygon within PUSH_STEPS; fed its own command the CoM keeps drifting further: the
+    smallest margin and the last are both worse, and no cycle of the blended QP is not OK."""
+    _, _, blended, record = pushes["blended"]
+    _, _, commanded, _ = pushes["commanded"]
+    assert blended[0] > 0.0 and blended.min() > 0.0 and record.not_ok == 0
+    assert blended[-1] > blended.min()  # it came back
+    assert blended.min() > commanded.min()
+    assert blended[-1] > commanded[-1]
+
+
+@pytest.fixture(scope="module")
+def close_stance_trial(robot):
+    """The close stance's QP-driven trial fed the blended state, asked for 0.9 times its closed
+    form (crb, the stance's posture)."""
+    stance = STANCES["close"]
+    limit = closed_form_max_speed(robot, robot.terms(stance_posture(robot, stance)), NORMAL).speed
+    return run_impact_trial(robot, stance, 0.9 * limit, source=QpCommand(feedback="blended"))
+
+
+def test_the_close_stance_stands_after_an_impact_at_nine_tenths_of_its_closed_form(robot, close_stance_trial):
+    """Fed its own command the QP never saw the body sway after the impact and this trial fell
+    0.4 s after it; fed the blended state, and balancing after the impact
+    (``controller.config.post_impact_balance``), it stands: no fall, the capture margin positive
+    at every step from the contact to the end, every cycle OK."""
+    trial = close_stance_trial
+    assert not trial.fell and trial.record.not_ok == 0
+    first = trial.impact.pre_index  # the last step before the wall contact
+    q, v = trial.held.q_log[first:], np.column_stack([trial.log.base[first:, robot.base_nq:], trial.log.dq[first:]])
+    margins = [capture_margin(robot, qk, robot.terms(qk).Jcom @ vk) for qk, vk in zip(q, v)]
+    assert min(margins) > 0.0
+
+
+def test_the_post_impact_com_velocity_decays(robot, close_stance_trial):
+    """The balance after the impact: the CoM's horizontal speed at the end of the trial is below
+    its speed just after the impact, and its speed along the wall's normal (the impulse's
+    direction) less than half of it."""
+    trial = close_stance_trial
+    q_end = trial.held.q_log[-1]
+    v_end = np.concatenate([trial.log.base[-1, robot.base_nq:], trial.log.dq[-1]])
+    after, end = trial.held.post_com_velocity, robot.terms(q_end).Jcom @ v_end
+    assert np.linalg.norm(end[:2]) < np.linalg.norm(after[:2])
+    assert abs(NORMAL @ end) < 0.5 * abs(NORMAL @ after)
 
 
 ARM = PandaModel()

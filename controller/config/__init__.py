@@ -1,7 +1,9 @@
 """Controller configuration: ``ControllerConfig`` (a dataclass, loadable from a TOML or YAML file,
-``controller_config``) and the controller it describes (``build_controller``, ``build``)."""
+``controller_config``), the controller it describes (``build_controller``, ``build``) and a
+standing robot's balance after the impact (``balance_after_impact``, ``post_impact_balance``)."""
 
 from .build import build_controller, post_impact_config
+from .post_impact_balance import balance_after_impact
 from .controller_config import (
     ApproachOptions,
     ControllerConfig,
@@ -14,5 +16,5 @@ from .controller_config import (
 
 __all__ = [
     "ApproachOptions", "ControllerConfig", "ImpactConfig", "LimitsConfig", "PostImpactConfig", "SurfaceConfig",
-    "TaskConfig", "build_controller", "post_impact_config",
+    "TaskConfig", "balance_after_impact", "build_controller", "post_impact_config",
 ]

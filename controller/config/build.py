@@ -100,7 +100,7 @@ def build_controller(config: ControllerConfig, robot: RobotModel | None = None, 
     prediction = models[0] if models else impact_model(impact.prediction_model, FrictionRows())
     return ImpactAwareController(
         robot, tasks, constraints, config.dt, config.solver, prediction,
-        acceleration_limit=ddq_max, jerk_limit=dddq_max,
+        joint_limits=(ddq_max, dddq_max),
     )
 
 

@@ -19,14 +19,11 @@ Solving (``solvers``): a solution is accepted only when it is finite and satisfi
 or inaccurate solve before the QP is declared infeasible, so the controller never brakes on
 one solver's false alarm (docs/qp-constraints.md, Solvers).
 
-Cycle time: everything a cycle touches is allocated once. The model terms are refilled in
-place (``RobotModel.update_terms``), the control cycle is advanced in place, tasks and
-constraints write into their own buffers, and the QP data live in two stacked bound vectors
-[box; rows] that the solver and the feasibility check read without copies. The jump matrices
-are computed once per cycle (``ExpectedImpact.matrices``) and shared by the impact constraints
-and the Command's prediction. The kernels are in ``cycle_kernels``; when every task and
-constraint has a kernel of the compiled cycle plan (``cycle_plan``), all their rows are written
-by one compiled call, else object by object (``_assemble``).
+Cycle time: everything a cycle touches is allocated once (the terms refilled in place, each task
+and constraint writing into its own buffers, the QP data in two stacked bound vectors [box; rows]
+read without copies); the jump matrices are computed once per cycle (``ExpectedImpact.matrices``).
+When every task and constraint has a kernel of the compiled cycle plan (``cycle_plan``), one
+compiled call writes all their rows, else they are written object by object (``_assemble``).
 
 Fallback (``fallback``): when the state is unusable (non-finite, outside the position or
 velocity limits, singular contact Jacobian), when the QP is infeasible, or when no solver
@@ -78,6 +75,7 @@ from impactqp.tasks import Task
 from .command import Command, CommandMemory, Status, command_limits
 from .cycle_plan import CycleBuffers, CyclePlan
 from .cycle_kernels import first_outside, integrate_command, intersect_boxes, tight_constraints, weighted_least_squares
+from .elastic_relaxation import ElasticRelaxation
 from .fallback import bounded_conflict, brake, braking_command, irreducible_conflict, usable_state
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
 from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
@@ -100,8 +98,8 @@ class ImpactAwareController:
     solver : "daqp" (default), "proxqp", or any qpsolvers backend name.
     impact : the expected impact used for ``Command.predicted_jump`` (None: no prediction).
     feasibility_tolerance : largest accepted row violation of a solution (acceleration units).
-    acceleration_limit, jerk_limit : the actuated joints' ddq_max and dddq_max (default: the
-        robot's description). ``ddq_max`` and ``dddq_max`` of the controller cover every
+    joint_limits : (ddq_max, dddq_max) of the actuated joints (default: the robot's
+        description's). ``ddq_max`` and ``dddq_max`` of the controller cover every
         velocity (a floating base's box first).
     """
 
@@ -114,8 +112,7 @@ class ImpactAwareController:
         solver: str = "daqp",
         impact: ExpectedImpact | None = None,
         feasibility_tolerance: float = 1e-6,
-        acceleration_limit: np.ndarray | None = None,
-        jerk_limit: np.ndarray | None = None,
+        joint_limits: tuple[np.ndarray, np.ndarray] | None = None,
     ):
         constraints = checked_constraints(tasks, constraints, dt)
         self.robot = robot
@@ -123,8 +120,9 @@ class ImpactAwareController:
         self.constraints = constraints
         self.layout = ConstraintLayout.of(constraints)
         self.dt = float(dt)
-        joint_ddq_max = robot.ddq_max if acceleration_limit is None else np.asarray(acceleration_limit, float)
-        joint_dddq_max = robot.dddq_max if jerk_limit is None else np.asarray(jerk_limit, float)
+        joint_ddq_max, joint_dddq_max = (
+            (robot.ddq_max, robot.dddq_max) if joint_limits is None else (np.asarray(j, float) for j in joint_limits)
+        )
         base = robot.base_nv
         self._floating = base > 0
         self._joint_coordinates = slice(robot.base_nq, None)  # the actuated joints' part of q
@@ -175,6 +173,9 @@ class ImpactAwareController:
         self._row_cycle = ControlCycle(self.dt, p.lb, p.ub, horizon)
         buffers = CycleBuffers(self._task_A, self._task_b, self._task_w[:, 0], p, self._box_bounds)
         self._plan = CyclePlan.of(self.tasks, layout, buffers, self.dt)  # None: the generic assembly
+        # a floating base's relaxed rows, widened within its held contacts' rows when the QP is infeasible
+        relaxed = first < layout.rows
+        self._elastic = ElasticRelaxation(layout.rows, first, n) if self._floating and relaxed else None
 
     @property
     def box_constraints(self) -> tuple[Constraint, ...]:
@@ -241,6 +242,8 @@ class ImpactAwareController:
             return self._infeasible(q, dq, terms, "the joint-space bounds conflict")
 
         solved, ddq, solver_name = self._solve()
+        if solved == INFEASIBLE and self._elastic is not None and self._elastic.widen(self.problem):
+            solved, ddq, solver_name = self._solve()  # the relaxed rows widened within the held contacts' rows
         if solved == INFEASIBLE:
             return self._infeasible(q, dq, terms, f"the QP is infeasible (confirmed by {solver_name})")
         if solved != SOLVED:
@@ -258,7 +261,7 @@ class ImpactAwareController:
             ddq = (dq_cmd - terms.dq) * (1.0 / self.dt)
             status = Status.VELOCITY_CLIPPED
             self.problem.violation(ddq)  # the gaps of the ddq actually commanded
-        return self._emit(terms, ddq, dq_cmd, q_cmd, status, self._active_constraints(ddq), [], solver_name)
+        return self._emit(terms, (ddq, dq_cmd, q_cmd), status, self._active_constraints(ddq), [], solver_name)
 
     # ------------------------------------------------------------------ one cycle
     def _impact_noticed(self, terms: ModelTerms) -> bool:
@@ -278,7 +281,7 @@ class ImpactAwareController:
             ddq, dq_cmd, q_cmd = self._held_brake(terms)
         else:
             ddq, dq_cmd, q_cmd = brake(memory.q_cmd, memory.dq_cmd, memory.ddq, self.dt, self._limits)
-        return self._emit(None, ddq, dq_cmd, q_cmd, Status.IMPACT_BRAKE, [], [], "", "braking after a noticed impact")
+        return self._emit(None, (ddq, dq_cmd, q_cmd), Status.IMPACT_BRAKE, [], [], "", "braking after a noticed impact")
 
     def _floating_integrate(self, terms: ModelTerms, ddq: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
         """A floating base's dq_cmd = dq + ddq dt, the joints' part clipped into their velocity
@@ -381,7 +384,7 @@ class ImpactAwareController:
         else:
             q, dq = usable_state(q, dq, self.memory, self.robot)
             ddq, dq_cmd, q_cmd = brake(q, dq, self.memory.ddq, self.dt, self._limits)
-        return self._emit(terms, ddq, dq_cmd, q_cmd, status, [], list(violated), "", message)
+        return self._emit(terms, (ddq, dq_cmd, q_cmd), status, [], list(violated), "", message)
 
     def _stand_in_terms(self, q, dq, message: str) -> ModelTerms:
         """The terms of an unusable floating-base state: the state itself when it has the right
@@ -411,9 +414,11 @@ class ImpactAwareController:
         np.clip(dq_cmd[joints], -robot.dq_max, robot.dq_max, out=dq_cmd[joints])
         return ddq, dq_cmd, self._floating_position(terms, dq_cmd)
 
-    def _emit(self, terms, ddq, dq_cmd, q_cmd, status, active, violated, solver, message="") -> Command:
-        """Record the command in the memory and package it with the impact prediction (the
-        matrices of this cycle, already computed for the impact constraints)."""
+    def _emit(self, terms, motion, status, active, violated, solver, message="") -> Command:
+        """Record the command ``motion`` = (ddq, dq_cmd, q_cmd) in the memory and package it with
+        the impact prediction (the matrices of this cycle, already computed for the impact
+        constraints)."""
+        ddq, dq_cmd, q_cmd = motion
         memory = self.memory
         memory.q_cmd, memory.dq_cmd, memory.ddq = q_cmd, dq_cmd, ddq
         if self.impact is not None and terms is not None:

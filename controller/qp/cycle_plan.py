@@ -44,7 +44,7 @@ from impactqp.constraints.torque_limit import normalised_torque_rows
 from impactqp.constraints.velocity_limit import symmetric_velocity_bounds
 from impactqp.controller.model.model_terms import ModelTerms
 from impactqp.tasks import ContactApproachTask, DampingTask, PostureTask, Task
-from impactqp.tasks.contact_approach_task import surface_frame_approach_rows
+from impactqp.tasks.contact_approach_task import APPROACH_REFERENCE_SIZE, surface_frame_approach_rows
 from impactqp.tasks.posture_task import joint_pd_rows
 
 from .cycle_kernels import intersect_boxes, weighted_least_squares
@@ -137,7 +137,7 @@ class CyclePlan:
         if self.impacts:
             jumps, torques, edge_jumps, edge_torques = [], [], [], []
             for i, impact in enumerate(self.impacts):
-                matrices, edges = impact.matrices(terms), impact.edge_matrices(terms)
+                matrices, edges = impact.row_matrices(terms), impact.edge_matrices(terms)
                 jumps.append(matrices.jump_matrix)
                 torques.append(matrices.torque_matrix)
                 edge_jumps.append(edges.jump)
@@ -191,12 +191,11 @@ def planned_rows(state, impacts, cycle, table, parameters, task_rows, qp, first_
         kind, first, rows, p = table[e, KIND], table[e, FIRST], table[e, ROWS], table[e, PARAMETERS]
         last = first + rows
         if kind == APPROACH:
+            reference_end = p + APPROACH_REFERENCE_SIZE
             surface_frame_approach_rows(
-                J6, dq, dJ6_dq, rotation, parameters[p + 19:p + 28].reshape((3, 3)),
-                parameters[p:p + 9].reshape((3, 3)), parameters[p + 9:p + 15], parameters[p + 15:p + 18],
-                parameters[p + 18], task_A[first:last], task_b[first:last],
+                J6, dq, dJ6_dq, rotation, parameters[p:reference_end], task_A[first:last], task_b[first:last]
             )
-            task_w[first:last] = parameters[p + 28:p + 34]
+            task_w[first:last] = parameters[reference_end:reference_end + 6]
         elif kind == POSTURE:
             task_A[first:last, :n - rows] = 0.0
             joint_pd_rows(
@@ -234,12 +233,12 @@ def planned_rows(state, impacts, cycle, table, parameters, task_rows, qp, first_
         elif kind == POST_IMPACT:  # a block of rows per map: A, then each edge's A_i
             block = rows // (1 + edge_jumps[i].shape[0])
             edge_post_impact_velocity_rows(
-                jumps[i], edge_jumps[i], dq, parameters[p:p + block], inv_h, active[i], C[first:last],
+                (jumps[i], edge_jumps[i]), dq, parameters[p:p + block], inv_h, active[i], C[first:last],
                 lower[n + first:n + last], upper[n + first:n + last],
             )
         elif kind == IMPULSIVE:  # P, then each edge's P_i
             edge_scaled_impulse_rows(
-                torques[i], edge_torques[i], parameters[p:p + 2 * n].reshape((2, n)), dq, inv_h, active[i],
+                (torques[i], edge_torques[i]), parameters[p:p + 2 * n].reshape((2, n)), dq, inv_h, active[i],
                 C[first:last], lower[n + first:n + last], upper[n + first:n + last],
             )
     relax_to_reachable(C[first_relaxed:], lower[n + first_relaxed:], upper[n + first_relaxed:], lower[:n], upper[:n])

@@ -63,6 +63,7 @@ class MaxSpeedRequest:
     friction: float | None = None
     tangential: str | None = None
     controller: str = "scripted"
+    feedback: str = "commanded"
 
 
 def arm_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
@@ -109,11 +110,13 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     default_duration = click.get_current_context().get_parameter_source("impact_duration") == click.core.ParameterSource.DEFAULT
     duration = HAND_IMPACT_DURATION if default_duration else check_impact_duration(request.impact_duration, "--impact-duration")
     qp = request.controller == "qp"
+    if not qp and request.feedback != "commanded":
+        raise BadInputError("--feedback chooses the state the whole-body QP is given: give --controller qp")
     model = RobotModel(robot)
     reports = []
     for stance in stances:
         result = search_stance(model, stance, Setting("crb", c_r, impact_duration=duration), tolerance=request.tolerance,
-                               source=QpCommand() if qp else SCRIPTED, checks=QP_CHECKS if qp else ())
+                               source=QpCommand(feedback=request.feedback) if qp else SCRIPTED, checks=QP_CHECKS if qp else ())
         report = {"robot": robot.name, "controller": request.controller, **result.to_json()}
         speeds = report["predicted_max_speed"]
         robust = min(METHODS, key=lambda m: math.inf if speeds[m] is None else speeds[m])
@@ -179,6 +182,8 @@ def run_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
         return stance_max_speed(request)
     if request.controller != "scripted":
         raise BadInputError("--controller chooses a standing robot's command source; an arm's search runs its QP always")
+    if request.feedback != "commanded":
+        raise BadInputError("--feedback chooses the state a standing robot's QP is given (with --controller qp)")
     if request.friction is not None:
         return frictional_arm_max_speed(request)
     if request.tangential is not None:
@@ -270,6 +275,10 @@ def frictional_text(report: dict) -> str:
 @click.option(
     "--controller", type=click.Choice(["scripted", "qp"]), default="scripted", show_default=True,
     help="A standing robot's trials: its scripted arm, or the whole-body QP (with trials at 0.9x and 1.3x the closed form).",
+)
+@click.option(
+    "--feedback", type=click.Choice(["commanded", "blended", "measured"]), default="commanded", show_default=True,
+    help="With --controller qp: the state the QP is given (its own command, a blend with the measurement, the measurement).",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (no progress bar).")
 @click.option("--figure", "figure_file", help="Plot the speed of each predictor and simulation, what binds it (.png, .pdf, .svg).")
