@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import mujoco
@@ -155,7 +156,16 @@ class ContactParameters:
 def robot_spec(robot: RobotDescription, tool: ToolDescription | None, timestep: float, urdf_path=None) -> mujoco.MjSpec:
     """The robot's MuJoCo spec (module docstring): the edited URDF, the physics options
     (``timestep``, implicitfast, elliptic cones), a free joint on the root link of a floating
-    base, and no geom colliding."""
+    base, and no geom colliding. A copy of the spec parsed once per description, tool, timestep
+    and URDF (``shared_robot_spec``), which the caller may edit."""
+    return shared_robot_spec(robot, tool, timestep, urdf_path).copy()
+
+
+@lru_cache(maxsize=16)
+def shared_robot_spec(robot: RobotDescription, tool: ToolDescription | None, timestep: float, urdf_path=None) -> mujoco.MjSpec:
+    """``robot_spec``'s spec, parsed once and never edited: writing the URDF and parsing it cost
+    as much as compiling the whole scene (a diagnosis builds one scene per fitted plant).
+    Descriptions are immutable and compared by identity."""
     spec = mujoco.MjSpec.from_string(mujoco_urdf(robot, tool, urdf_path))
     spec.option.timestep = timestep
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST

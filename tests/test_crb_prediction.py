@@ -105,10 +105,14 @@ def test_the_batch_is_the_single_prediction_row_by_row(name, seed, normal, cr):
     Q = np.array([posture(name, rng.uniform(0.0, 1.0, 7)) for _ in range(12)])
     velocities = rng.normal(size=(12, 3))
     jumps, impulses = fast.predict_batch(Q, 3.0 * normal, velocities, cr)
-    out = np.zeros((24, fast.robot.nv))[::2], np.zeros((12, 3))  # views, as of shared memory
+    # views of rows of larger arrays, as the bench's workers pass their rows of shared memory (the
+    # layout of its calls: a strided view would only compile a kernel no caller uses)
+    shared = np.zeros((24, fast.robot.nv)), np.zeros((24, 3))
+    out = shared[0][5:17], shared[1][5:17]
     assert fast.predict_batch(Q, 3.0 * normal, velocities, cr, out=out) is out
     np.testing.assert_array_equal(out[0], jumps)
     np.testing.assert_array_equal(out[1], impulses)
+    assert not np.any(shared[0][np.r_[:5, 17:24]]) and not np.any(shared[1][np.r_[:5, 17:24]])  # the other rows untouched
     for q, velocity, jump, impulse in zip(Q, velocities, jumps, impulses):
         try:
             single = fast.predict(q, normal, velocity, cr)

@@ -74,7 +74,7 @@ def test_validating_a_huge_manifest_reads_each_file_once_and_shows_progress(smal
 
 def test_diagnose_json_report_and_saved_plant(small_dataset, tmp_path, capsys):
     code, out, err = run(capsys, "diagnose", small_dataset, "--json", "--report", tmp_path / "report",
-                         "--save-plant", tmp_path / "fitted.json", "--jobs", "2")
+                         "--save-plant", tmp_path / "fitted.json", "--jobs", "2", "--causes", "armature,payload,joint_damping")
     assert code == 0 and all(line.startswith("impactqp: diagnose: ") for line in err.splitlines())  # notes, no bar
     result = json.loads(out)
     for key in ("cause", "explained", "parameters", "baseline_error", "extended_error", "gain", "candidates",
@@ -84,6 +84,7 @@ def test_diagnose_json_report_and_saved_plant(small_dataset, tmp_path, capsys):
     assert set(result["intervals"]) == set(result["parameters"])
     assert result["steps"][0] == {**result["steps"][0], "cause": "armature", "selected": True}
     assert set(result["predictors"]) == {"classical", "classical_normal", "gm", "crb"}
+    assert [c["cause"] for c in result["candidates"]] == ["armature", "payload", "joint_damping"]  # --causes
     fitted = PlantParameters.from_json(tmp_path / "fitted.json")
     assert fitted.armature[0] == pytest.approx(0.5, rel=0.2)
     assert (tmp_path / "report" / "report.md").read_text().startswith("# Impact diagnosis")
@@ -91,6 +92,35 @@ def test_diagnose_json_report_and_saved_plant(small_dataset, tmp_path, capsys):
 
     written = sum(path.stat().st_size for path in (tmp_path / "report").iterdir())
     assert written <= report_bytes(2, result["trials"])  # the room asked for before the work is enough
+
+
+def test_diagnose_reads_the_manifest_once_before_the_work(small_dataset, tmp_path, capsys, monkeypatch):
+    """The checks before the diagnosis (the manifest's robot and tool, the room for --report) and
+    the diagnosis's trial count share one read of the manifest; the work (the trials' loading)
+    is stopped at its start here. Before: three reads."""
+    from impactqp.controller.measured import dataset
+    from impactqp.controller.model.validation import BadInputError
+    from impactqp.sim.diagnosis import pipeline
+
+    reads = []
+    read_mapping = dataset.read_mapping
+    monkeypatch.setattr(dataset, "read_mapping", lambda path, *args: reads.append(path) or read_mapping(path, *args))
+
+    def stop(*args):
+        raise BadInputError("stopped at the work")
+
+    monkeypatch.setattr(pipeline, "_usable_trials", stop)
+    code, _, err = run(capsys, "diagnose", small_dataset, "--report", tmp_path / "report")
+    assert code == 2 and "stopped at the work" in err
+    assert reads == [small_dataset / "dataset.json"]
+
+
+@pytest.mark.parametrize("names, message", [("armature,gravity", "--causes: unknown cause 'gravity'; the candidates are "),
+                                           ("payload, payload", "--causes: a cause is named twice")])
+def test_unknown_or_repeated_causes_are_one_line_before_the_work(small_dataset, capsys, names, message):
+    code, out, err = run(capsys, "diagnose", small_dataset, "--causes", names)
+    assert code == 2 and out == "" and err.strip().splitlines() == [err.strip()]
+    assert message in err and "diagnose: step" not in err
 
 
 @pytest.mark.parametrize("option", ["--report", "--save-plant"])
@@ -296,7 +326,7 @@ def test_diagnose_reports_its_stages_in_order_and_quiet_silences_them(tmp_path, 
     of the search between the third and the fourth, each profile between the fourth and the
     fifth, then the refusal of --save-plant (no cause named: exit code 2, one line); --quiet
     leaves only that line, --verbose adds debug lines; stdout (--json) is byte-identical at the
-    three levels."""
+    three levels. Two candidates (--causes) are enough for the lines."""
     from impactqp.sim.diagnosis.pipeline import STEPS
     from impactqp.sim.generation import DatasetRequest, generate_dataset
 
@@ -304,7 +334,8 @@ def test_diagnose_reports_its_stages_in_order_and_quiet_silences_them(tmp_path, 
     runs = {}
     for level in ("", "--quiet", "--verbose"):
         args = [level] if level else []
-        runs[level] = run(capsys, *args, "diagnose", tmp_path / "data", "--json", "--save-plant", tmp_path / "p.json")
+        runs[level] = run(capsys, *args, "diagnose", tmp_path / "data", "--json", "--save-plant", tmp_path / "p.json",
+                          "--causes", "joint_damping,armature")
         assert runs[level][0] == 2, runs[level][2]
     assert runs[""][1] == runs["--quiet"][1] == runs["--verbose"][1] and json.loads(runs[""][1])["causes"] == []
     lines = runs[""][2].splitlines()
@@ -313,7 +344,7 @@ def test_diagnose_reports_its_stages_in_order_and_quiet_silences_them(tmp_path, 
              for k, step in enumerate(STEPS, start=1)]
     assert steps == sorted(steps) and steps[0] == 0
     candidates = [i for i, line in enumerate(lines) if line.startswith("impactqp: diagnose: candidate model ")]
-    assert len(candidates) > 1 and lines[candidates[-1]].split()[4] == f"{len(candidates)}/{len(candidates)}"
+    assert [lines[i].split()[4:] for i in candidates] == [["1/2", "armature"], ["2/2", "joint_damping"]]
     assert steps[2] < candidates[0] and candidates[-1] < steps[3]
     profiles = [i for i, line in enumerate(lines) if line.startswith("impactqp: diagnose: profile ")]
     assert profiles and steps[3] < profiles[0] and profiles[-1] < steps[4]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import click
@@ -180,6 +181,8 @@ def import_franka_command(out, logs, surface_point, surface_normal, reference_sp
 @click.option("--plant", "plant_file", type=click.Path(dir_okay=False), help="Nominal plant to start from: a JSON file or a built-in name (identified_panda).")
 @click.option("--max-speed", "max_speed", is_flag=True,
               help="Also simulate the highest feasible contact speed per posture, nominal and extended plant.")
+@click.option("--causes", "cause_names",
+              help="Comma-separated candidate causes the search considers (default: all; docs/diagnosis.md).")
 @click.option("--jobs", type=int, default=1, show_default=True)
 @max_trials_option
 @robot_options
@@ -195,14 +198,16 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, choice, **w
 
     input_directory(directory, "DIRECTORY")
     check_jobs(jobs)
-    _check_manifest_choice(directory, choice)
+    manifest = _readable_manifest(directory)
+    _check_manifest_choice(directory, manifest, choice)
     if report_dir:
         output_directory(report_dir, "--report", inputs=(directory, plant_file))
     if save_plant:
         output_file(save_plant, "--save-plant", inputs=(directory, plant_file))
     nominal = load_plant(plant_file) or PlantParameters()
-    _check_output_room(directory, report_dir, save_plant, nominal)
-    result = _diagnose_with_progress(directory, nominal, jobs, show=show_progress(as_json), max_trials=max_trials)
+    _check_output_room(manifest, report_dir, save_plant, nominal)
+    limits = DiagnosisLimits(jobs, max_trials, manifest, _candidate_causes(manifest, work["cause_names"]))
+    result = _diagnose_with_progress(directory, nominal, limits, show=show_progress(as_json))
     summary = result.summary()
     speeds = None
     if max_speed:
@@ -228,7 +233,18 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, choice, **w
         raise BadInputError(f"--save-plant: no cause named: no plant to save; nothing written to {save_plant}")
 
 
-def _diagnose_with_progress(directory, nominal, jobs: int, show: bool, max_trials: int):
+@dataclass(frozen=True)
+class DiagnosisLimits:
+    """How ``diagnose`` runs: its worker processes, its largest dataset, the manifest the command
+    line's checks read already (None: unreadable, the diagnosis reports it) and its candidates."""
+
+    jobs: int
+    max_trials: int
+    manifest: dict | None
+    causes: list | None  # the candidate causes (None: the defaults of the dataset's robot, surface and tool)
+
+
+def _diagnose_with_progress(directory, nominal, limits: DiagnosisLimits, show: bool):
     """The diagnosis of ``directory``, its steps on a progress bar (stderr, when it is a terminal
     and ``show``) above its notes (the stages, each model set of the search, each profile: the
     log's lines, written around the bar); the bar is wiped when an error ends the command, whose
@@ -248,7 +264,8 @@ def _diagnose_with_progress(directory, nominal, jobs: int, show: bool, max_trial
 
     try:
         with logging_redirect_tqdm([logging.getLogger(LOGGER)]):
-            result = run_diagnosis(directory, nominal=nominal, jobs=jobs, progress=progress, max_trials=max_trials)
+            result = run_diagnosis(directory, nominal=nominal, jobs=limits.jobs, progress=progress,
+                                   max_trials=limits.max_trials, manifest=limits.manifest, causes=limits.causes)
         bar.update(bar.total - bar.n)
     except BaseException:
         bar.leave = False
@@ -309,40 +326,75 @@ def _print_diagnosis(result, summary: dict, speeds) -> None:
         click.echo(f"skipped {s['id']}: {s['reason']}")
 
 
-def _check_output_room(directory, report_dir, save_plant, nominal) -> None:
+def _readable_manifest(directory) -> dict | None:
+    """The dataset's manifest, read once for the checks before the diagnosis and for the diagnosis
+    itself; None when it cannot be read (the diagnosis reports its problem)."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.controller.measured.dataset import MANIFEST, DatasetError, load_manifest
+
+    try:
+        return load_manifest(Path(directory) / MANIFEST)
+    except DatasetError:
+        return None
+
+
+def _candidate_causes(manifest: dict | None, text: str | None) -> list | None:
+    """The default candidate causes of the dataset's robot, surface and tool named by ``--causes``
+    (comma-separated, each once), in their default order; None without ``--causes`` or when the
+    manifest cannot be read (the diagnosis reports its problem)."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.controller.measured.dataset import DatasetError, parse_header
+    from impactqp.sim.causes import default_causes
+
+    if text is None or manifest is None:
+        return None
+    try:
+        header = parse_header(manifest)
+    except DatasetError:
+        return None
+    causes = default_causes(len(header.choice.robot.joints), header.surface.friction, header.choice.tool)
+    known = [c.name for c in causes]
+    names = [name.strip() for name in text.split(",")]
+    for name in names:
+        if name not in known:
+            raise BadInputError(f"--causes: unknown cause {name!r}; the candidates are {', '.join(known)}")
+    if len(set(names)) != len(names):
+        raise BadInputError(f"--causes: a cause is named twice in {text!r}")
+    return [c for c in causes if c.name in names]
+
+
+def _check_output_room(manifest: dict | None, report_dir, save_plant, nominal) -> None:
     """Before the diagnosis: room for ``--report``'s files (``diagnosis_report.report_bytes`` of
-    the manifest's postures and trials) and for ``--save-plant``'s (the nominal plant's JSON, at
+    the ``manifest``'s postures and trials) and for ``--save-plant``'s (the nominal plant's JSON, at
     twice its length: a fitted value prints longer), ``check_room``; a manifest that cannot be
-    read is left to the diagnosis to report."""
+    read (None) is left to the diagnosis to report."""
     # lazy: the command line loads what a command needs when it runs
     import json
 
-    from impactqp.controller.measured.dataset import MANIFEST, DatasetError, load_manifest
     from impactqp.controller.measured.dataset_writer import check_room
 
-    if report_dir:
+    if report_dir and manifest is not None:
         from impactqp.scenarios.diagnosis_report import report_bytes
 
-        try:
-            trials = load_manifest(Path(directory) / MANIFEST)["trials"]
-        except DatasetError:
-            return
+        trials = manifest["trials"]
         postures = {trial.get("posture") for trial in trials if isinstance(trial, dict)}
         check_room(report_dir, report_bytes(len(postures), len(trials)), "the report's files")
     if save_plant:
         check_room(Path(save_plant).absolute().parent, 2 * len(json.dumps(nominal.to_dict(), indent=2)), "the plant file")
 
 
-def _check_manifest_choice(directory, choice) -> None:
-    """Bad input when the manifest's robot has a floating base (the diagnosis replays an arm in its MuJoCo
+def _check_manifest_choice(directory, manifest: dict | None, choice) -> None:
+    """Bad input when the ``manifest``'s robot has a floating base (the diagnosis replays an arm in its MuJoCo
     scene), or when a non-default ``choice`` (--robot, --tool) differs from the manifest's."""
     # lazy: the command line loads what a command needs when it runs
-    from impactqp.controller.measured.dataset import DatasetError, read_header
+    from impactqp.controller.measured.dataset import DatasetError, parse_header
     from impactqp.controller.model.robot_description import robot_description
 
     try:
-        header = read_header(directory)
+        header = parse_header(manifest) if manifest is not None else None
     except DatasetError:
+        header = None
+    if header is None:
         return  # the diagnosis reports the manifest's own problem
     if robot_description(header.robot).floating:
         raise BadInputError(f"{directory} is a {robot_description(header.robot).name} dataset: diagnose replays and "

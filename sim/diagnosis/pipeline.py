@@ -63,14 +63,17 @@ def diagnose(
     jobs: int = 1,
     progress: Callable[[str], None] | None = None,
     max_trials: int = MAX_TRIALS,
+    manifest: dict | None = None,
 ) -> Diagnosis:
     """Measure, replay, compare, select the causes, bound their parameters (the steps:
     ``sim/diagnosis/__init__.py``). As each of ``STEPS`` begins, ``progress(step)`` is called
     and the step is logged (a note: INFO, with its counts; the first once the trials are loaded
     and checked: bad input stays its one line); the search and the intervals log each
     model set and profile as it is done (``search``, ``intervals``). A dataset of more than
-    ``max_trials`` trials is refused before any is read."""
-    trial_count(len(load_manifest(Path(directory) / MANIFEST)["trials"]), max_trials, f"the dataset {directory}")
+    ``max_trials`` trials is refused before any is read; ``manifest``: the dataset's manifest when
+    the caller read it already (the command line's checks), else it is read here."""
+    manifest = manifest if manifest is not None else load_manifest(Path(directory) / MANIFEST)
+    trial_count(len(manifest["trials"]), max_trials, f"the dataset {directory}")
 
     def step(index: int, counts: str = "") -> None:
         if progress is not None and index > 0:  # the first is announced before the loading

@@ -52,7 +52,7 @@ START_AVERAGE = 2  # dq at the replay start: mean of samples i0 - 2 .. i0 + 2 (w
 TORQUE_SETTLE = 10  # samples after the replay start before the torque window may begin
 TORQUE_WINDOW = 30  # mean tau over the 30 samples ending 2 samples before the pre-impact one
 TRACE_LENGTH = 16  # samples of the impact trace after the pre-impact one: the jump's rise (soft contact ~10 ms)
-REPLAY_CACHE_SIZE = 512
+REPLAY_CACHE_SIZE = 2048  # a 70-sample log holds about 30 kB: 60 MB at most per process
 _simulated: OrderedDict = OrderedDict()  # (surface, physical plant, trial) -> simulated log or None
 
 
