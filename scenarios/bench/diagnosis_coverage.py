@@ -43,11 +43,16 @@ COVERAGE_CASES = (
     (("armature", "payload"), ()),
     (("armature", "payload", "friction"), SLIDING),
 )
-# (name, plant overrides, generator options, causes left out of the candidates): effects no
-# candidate holds, nothing may explain them
+ENCODER_STEP = 0.004
+"""rad/s: the quantisation step of the out-of-family encoders (issue 32's real encoders)."""
+DELAYS = 4
+"""The most samples the out-of-family per-trial variable delay logs a trial's dq late."""
+# (name, plant overrides or a built-in plant, generator options, causes left out of the
+# candidates): effects no candidate holds, nothing may explain them
 OUTSIDE_CASES = (
-    ("quantised encoders", {}, {"dq_step": 0.004, "noise_dq": 0.0003}, ()),
+    ("quantised encoders", {"sensor_velocity_step": [ENCODER_STEP] * JOINTS}, {"noise_dq": 0.0003}, ()),
     ("joint Coulomb friction", {"joint_friction": [0.4] * 4 + [0.2] * 3}, {}, ("joint_friction",)),
+    ("per-trial variable delay", {}, {"velocity_delays": DELAYS}, ()),
     ("identified Panda", "identified_panda", {}, ()),
 )
 
