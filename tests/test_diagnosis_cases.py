@@ -1,13 +1,24 @@
 """Held-out cases of issue 32, end to end: a dataset generated with an effect, diagnosed, and
 what the diagnosis may say of it (sim/generation.py's effects, sim/diagnosis/ as a whole)."""
 
+import json
+
 import numpy as np
 
 from conftest import JOINTS
 from impactqp.controller.measured.dataset import read_dataset
-from impactqp.sim.causes import DelayCause, JointDampingCause, VelocityFilterCause
+from impactqp.scenarios.cli import main
+from impactqp.sim.causes import (
+    DelayCause,
+    FrictionCause,
+    JointDampingCause,
+    TorqueOffsetCause,
+    VelocityFilterCause,
+    realistic_hidden_effect,
+)
 from impactqp.sim.diagnosis import diagnose
 from impactqp.sim.generation import DatasetRequest, generate_dataset
+from impactqp.sim.plant import PlantParameters
 
 DELAYED = {"postures": ["elbow_up", "elbow_left"], "speeds": [0.1, 0.18], "repeats": 2, "seed": 6}
 
@@ -43,3 +54,29 @@ def test_a_per_trial_variable_delay_is_called_unexplained_with_its_misfit_named(
     assert "does not fit the data" in result["message"] and "times the noise" in result["message"], result["message"]
     assert all(delays[trial] > 0 for trial in result["outlier_trials"]), (result["outlier_trials"], delays)
 
+
+def test_friction_behind_torque_offsets_is_bounded_across_the_kink_and_saved_where_the_data_say(
+        tmp_path, monkeypatch, capsys):
+    """The issue's kink case: torque offsets on every joint and a wall friction of 0.37, with
+    tangential speeds (0.04 and 0.08 m/s at 0.12 m/s normal) at which every impact sticks. Every
+    mu above the stick/slip kink sticks as the truth does, so the profile cost is flat from the
+    kink (at or below 0.37) up to the fit's bound and rises steeply below it. ``diagnose
+    --save-plant`` (the candidates: the two hidden causes) names both; the friction interval
+    holds 0.37 (a line drawn once across the kink put its end above the truth); the saved mu is
+    one the data single out, the near end of the flat part, at or below the kink (not a point of
+    the flat part up to 1.5, where the fit may stop)."""
+    offsets, _ = realistic_hidden_effect("torque_offset", np.random.default_rng(1), JOINTS)
+    plant = PlantParameters(friction=0.37, **offsets)
+    request = DatasetRequest(plant=plant, postures=["elbow_up", "elbow_left"], speeds=[0.1, 0.18],
+                             tangential=[0.04, 0.08], seed=1)
+    generate_dataset(tmp_path / "data", request, jobs=2)
+    monkeypatch.setattr("impactqp.sim.diagnosis.pipeline.default_causes",
+                        lambda joints, *rest: [TorqueOffsetCause(joints), FrictionCause(*rest[:1])])
+    code = main(["diagnose", str(tmp_path / "data"), "--json", "--save-plant", str(tmp_path / "plant.json"), "--jobs", "2"])
+    result = json.loads(capsys.readouterr().out)
+    assert code == 0 and result["explained"] and sorted(result["causes"]) == ["friction", "torque_offset"], result["message"]
+    low, high = result["intervals"]["friction"]
+    assert low <= 0.37 and (high is None or 0.37 <= high), (low, high)
+    saved = PlantParameters.from_json(tmp_path / "plant.json").friction
+    assert saved == result["parameters"]["friction"]
+    assert low <= saved <= 0.37 + 0.05, (saved, low, high)
