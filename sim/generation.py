@@ -18,7 +18,11 @@ variation of the start posture (Gaussian, std 0.000954 rad, the paper's std of q
 start distance (+-1 mm). The force log (on the robot, world frame, physics rate) is kept
 noise-free. A plant with sensor keys (``sim.sensor``: delay, velocity scale and filter, torque
 offset) logs dq and tau through that faulty sensor before the noise is added: a dataset of a
-sensor fault. The plant parameters that produced the data are never written.
+sensor fault. A **per-trial variable delay** (``DatasetRequest.velocity_delays`` = m) logs each
+trial's dq d whole samples late, d drawn per trial, uniformly in 0..m, from the trial's seed
+(``sim.sensor.delayed``; tau on time): a log whose timing goes wrong by a different amount in
+every trial, which no sensor cause (one delay for the whole dataset, on dq and tau) holds. The
+plant parameters and the delays that produced the data are never written.
 
 One header for every simulated dataset (:func:`dataset_header`: the robot and the tool, the
 surface, the 1 ms control period). The standing robot's simulated trials (``sim.runner.run_impact_trial``,
@@ -60,7 +64,7 @@ from .plant import PlantParameters
 from .process_pool import ProcessPool
 from .runner import DEFAULT_CONTROL_PERIOD, NORMAL, TrialSpec, run_approach
 from .scene import DEFAULT_TIMESTEP, WALL_FRICTION, build_scene
-from .sensor import apply_sensor, quantised_velocity
+from .sensor import apply_sensor, delayed, quantised_velocity
 
 DEFAULT_SPEEDS = (0.08, 0.10, 0.12, 0.15, 0.18)
 TANGENTIAL_SERIES_NORMAL_SPEED = 0.12
@@ -74,6 +78,8 @@ MAX_REPEATS = 100
 """Repeats per condition: the paper repeats each impact a handful of times; 100 bounds the run."""
 MAX_NOISE_DQ, MAX_NOISE_TAU = 1.0, 10.0
 """rad/s and N m: noise far above a Panda's encoders (~0.004 rad/s) and torque sensors (~0.05 N m)."""
+MAX_VELOCITY_DELAY = 50
+"""Control periods: the most samples a per-trial variable delay of dq may draw (``sensor_delay``'s bound)."""
 STANDING_WALL = Surface(np.zeros(3), NORMAL, WALL_FRICTION)
 """The wall of the standing robot's datasets (module docstring)."""
 
@@ -131,7 +137,8 @@ def trial_specs(
 @dataclass(frozen=True)
 class TrialTask:
     """One trial to simulate (a process task): the planned trial, the plant and surface, the
-    noise stds on dq (rad/s) and tau (N m), and the robot and the tool."""
+    noise stds on dq (rad/s) and tau (N m), the robot and the tool, and the most samples its dq
+    may be logged late (``DatasetRequest.velocity_delays``)."""
 
     planned: PlannedTrial
     plant: PlantParameters
@@ -139,11 +146,12 @@ class TrialTask:
     noise_dq: float
     noise_tau: float
     choice: RobotChoice = DEFAULT_CHOICE
+    velocity_delays: int = 0
 
 
 def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
-    """Run one trial from a randomly perturbed start and add the measurement noise; returns
-    (entry, log)."""
+    """Run one trial from a randomly perturbed start, log dq late by the trial's drawn delay
+    (none unless ``task.velocity_delays``) and add the measurement noise; returns (entry, log)."""
     planned = task.planned
     rng = np.random.default_rng(planned.seed)
     robot = task.choice.model()
@@ -153,8 +161,11 @@ def simulate_trial(task: TrialTask) -> tuple[TrialEntry, TrialLog]:
     distance = spec.start_distance + rng.uniform(-START_DISTANCE_SPREAD, START_DISTANCE_SPREAD)
     log = run_approach(scene, robot, replace(spec, q_contact=q_contact, start_distance=distance)).log
     log = apply_sensor(log, task.plant, log.control_period)
-    log.dq = log.dq + rng.normal(0.0, task.noise_dq, log.dq.shape)
-    log.tau = log.tau + rng.normal(0.0, task.noise_tau, log.tau.shape)
+    noise_dq = rng.normal(0.0, task.noise_dq, log.dq.shape)
+    noise_tau = rng.normal(0.0, task.noise_tau, log.tau.shape)
+    delay = int(rng.integers(0, task.velocity_delays + 1)) if task.velocity_delays else 0
+    log.dq = delayed(np.asarray(log.dq, float), delay) + noise_dq
+    log.tau = log.tau + noise_tau
     log.dq = quantised_velocity(log.dq, task.plant, robot.nv)
     entry = TrialEntry(
         id=planned.id,
@@ -185,9 +196,9 @@ class DatasetRequest:
     default the one the first posture faces; all named postures face the default wall), the
     postures (default: all), normal speeds (m/s, default ``DEFAULT_SPEEDS``), tangential speeds
     (m/s, at ``TANGENTIAL_SERIES_NORMAL_SPEED``), repeats per condition, the noise stds, the
-    seed of every random draw, the robot and the tool (recorded in the manifest), and the most
-    trials it may hold
-    (``validation.trial_count``)."""
+    seed of every random draw, the robot and the tool (recorded in the manifest), the most
+    trials it may hold (``validation.trial_count``), and the per-trial variable delay: each
+    trial's dq logged 0..``velocity_delays`` whole samples late (module docstring; 0: none)."""
 
     plant: PlantParameters | None = None
     surface: Surface | None = None
@@ -200,6 +211,7 @@ class DatasetRequest:
     seed: int = 0
     choice: RobotChoice = DEFAULT_CHOICE
     max_trials: int = MAX_TRIALS
+    velocity_delays: int = 0
 
 
 def generate_dataset(
@@ -225,6 +237,7 @@ def generate_dataset(
     number_in_range(request.noise_tau, 0.0, MAX_NOISE_TAU, "the torque noise std --noise-tau", "N m")
     speeds = list(DEFAULT_SPEEDS if request.speeds is None else request.speeds)
     whole_number(request.repeats, 1, MAX_REPEATS, "repeats")
+    whole_number(request.velocity_delays, 0, MAX_VELOCITY_DELAY, "the per-trial delay of dq (samples)")
     trial_count(
         len(postures) * (len(speeds) + len(request.tangential)) * request.repeats, request.max_trials, "the dataset",
         f"{counted(len(postures), 'posture')} x ({counted(len(speeds), 'speed')} + {len(request.tangential)} tangential)"
@@ -242,7 +255,8 @@ def generate_dataset(
     check_room(out, dataset_bytes([planned.spec for planned in specs], choice.robot), f"the {counted(len(specs), 'trial')}")
     Path(out).mkdir(parents=True, exist_ok=True)
     writer = DatasetWriter(out, dataset_header(surface, choice, plant), expected_trials=len(specs))
-    tasks = [TrialTask(s, plant, surface, request.noise_dq, request.noise_tau, choice) for s in specs]
+    tasks = [TrialTask(s, plant, surface, request.noise_dq, request.noise_tau, choice, request.velocity_delays)
+             for s in specs]
     entries = []
     with ProcessPool(min(jobs, max(len(tasks), 1))) as pool:
         for entry, log in pool.map(simulate_trial, tasks):

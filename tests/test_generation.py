@@ -44,7 +44,8 @@ def test_trial_grid_and_tangential_direction():
 
 @pytest.mark.parametrize(
     "kwargs, message",
-    [({"postures": ["nowhere"]}, "unknown posture"), ({"speeds": [0.0]}, r"\(0, 3\] m/s"), ({"repeats": 0}, "repeats")],
+    [({"postures": ["nowhere"]}, "unknown posture"), ({"speeds": [0.0]}, r"\(0, 3\] m/s"), ({"repeats": 0}, "repeats"),
+     ({"velocity_delays": -1}, "per-trial delay"), ({"velocity_delays": 1.5}, "per-trial delay")],
 )
 def test_bad_requests_are_rejected(tmp_path, kwargs, message):
     with pytest.raises(ValueError, match=message):
@@ -124,6 +125,25 @@ def test_noise_is_what_was_asked_for(tmp_path):
     assert np.std(noisy.dq - clean.dq) == pytest.approx(0.0042, rel=0.1)
     assert np.std(noisy.tau - clean.tau) == pytest.approx(0.05, rel=0.1)
     np.testing.assert_array_equal(noisy.q, clean.q)
+
+
+def test_a_per_trial_variable_delay_logs_each_trials_dq_a_whole_number_of_samples_late(tmp_path):
+    """Same seed with and without ``velocity_delays`` = 4 (no dq noise, so the delay is read
+    exactly): each trial's dq is the undelayed one read d samples late, its first sample held
+    before, d in 0..4 drawn per trial and not the same for every trial; q and tau (its noise the
+    same draw) are the undelayed ones."""
+    common = {"postures": ["elbow_up", "elbow_left"], "speeds": [0.1, 0.18], "repeats": 2, "seed": 6, "noise_dq": 0.0}
+    generate_dataset(tmp_path / "on_time", DatasetRequest(**common), jobs=2)
+    generate_dataset(tmp_path / "late", DatasetRequest(velocity_delays=4, **common), jobs=2)
+    delays = []
+    for on_time, late in zip(read_dataset(tmp_path / "on_time").trials, read_dataset(tmp_path / "late").trials):
+        np.testing.assert_array_equal(late.log.q, on_time.log.q)
+        np.testing.assert_array_equal(late.log.tau, on_time.log.tau)
+        dq = on_time.log.dq
+        shifted = [d for d in range(5) if np.array_equal(late.log.dq, np.vstack([np.repeat(dq[:1], d, 0), dq[: len(dq) - d]]))]
+        assert len(shifted) == 1, shifted
+        delays += shifted
+    assert len(set(delays)) > 1, delays
 
 
 def test_generation_is_reproducible_on_any_number_of_jobs_and_never_overwrites(tmp_path):
