@@ -2,6 +2,7 @@ import functools
 import hashlib
 import os
 import signal
+import socket
 
 # MuJoCo picks its OpenGL backend when it is first imported (below): the offscreen one that
 # scenarios.video renders with, as the command line does (an explicit MUJOCO_GL wins).
@@ -219,14 +220,12 @@ FRANKA_COMMAND_PORT = 1337
 """The TCP port libfranka (and so panda-python) connects to."""
 
 
-def reserved_robot_address(listen: bool) -> tuple[str, "socket.socket"]:
+def reserved_robot_address(listen: bool) -> tuple[str, socket.socket]:
     """A loopback address whose robot port this process holds: bound without SO_REUSEADDR, so
     that no other socket (a franky-sim server of a parallel test, which takes the first free
     127.x.y.z) can take it; not listening, a connection there is refused (no robot answers),
     listening, it is accepted by this socket alone. Away from the addresses franky-sim tries
     first."""
-    import socket
-
     for last in range(1, 255):
         address = f"127.0.9.{last}"
         reserved = socket.socket()

@@ -25,7 +25,7 @@ from impactqp.controller.model.friction_pyramid import (
     slip_edges_into,
 )
 from impactqp.controller.model.frictional_impact import frictional_impulse
-from impactqp.controller.model.jump import crb_inverse_inertia, gm_inverse_inertia, jump_model
+from impactqp.controller.model.jump import crb_inverse_inertia, jump_model
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.validation import BadInputError

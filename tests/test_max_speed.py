@@ -15,7 +15,7 @@ from impactqp.controller.model.batch import BatchKinematics
 from impactqp.controller.model.capture import GRAVITY, capturable_speeds, max_capturable_speed, support_capture_region
 from impactqp.controller.model.jump import predict
 from impactqp.controller.model.robot import RobotModel
-from impactqp.controller.model.humanoid_stance import STANCES, convex_hull, inside_polygon, stance_posture, support_polygon
+from impactqp.controller.model.humanoid_stance import STANCES, convex_hull, inside_polygon, stance_posture
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.max_speed import (
     CRITERIA,
