@@ -145,8 +145,9 @@ def test_edge_rows_are_the_reference_rows_of_every_vertex(state, method, speed, 
 def test_at_a_solution_of_the_edge_rows_every_vertex_wrench_is_in_its_cone_and_sole(state, method, speed, mu):
     """A dv that meets every row (a linear program's solution, |dv_i| <= 1e4): at v' = v + dv h
     each foot's wrench at the peak of the frictionless impulse and of each edge impulse is inside
-    its cone and its sole (the plain-numpy rows taken at v' itself, whose slip row is the cone's
-    own |F_xy| - mu F_z there)."""
+    its cone and its sole: the plain-numpy rows at v' itself, the slip row the cone's supporting
+    plane u . F_xy - mu F_z with u the direction of F_xy at v, as the rows take it (linear in dv;
+    the cone itself, |F_xy| - mu F_z, only to first order where the direction turns)."""
     _, q, v = state
     model = robot()
     v = v + approach_velocity(q, speed)
@@ -160,6 +161,6 @@ def test_at_a_solution_of_the_edge_rows_every_vertex_wrench_is_in_its_cone_and_s
     W = held_response_maps(jump_model(method), terms, NORMAL, 0.0)[1]
     maps = [None] + [np.outer(vertex_impulses(W, NORMAL, d[None])[0], NORMAL) for d in pyramid_directions(NORMAL, mu, 4)]
     for G in maps:
-        _, upper = reference_foot_wrench_rows(limit, model, terms, H, impulse_map=G)
+        _, upper = reference_foot_wrench_rows(limit, model, terms, H, impulse_map=G, slip_dq=v)
         values = -upper * H  # e . F / m at v'
         assert np.all(values <= 1e-7 * max(np.abs(values).max(), 1.0))
