@@ -98,16 +98,12 @@ def diagnose(
     selected = bool(selection.model.causes)
     model = selection.model if selected else selection.best
     step(3, f" ({', '.join(c.name for c in model.causes) or 'no cause'})")
-    model, theta_intervals = parameter_intervals(model, nominal, setting, trials, jobs)
-    if selected:  # a parameter the data do not move from its nominal value is dropped
-        model, theta_intervals = without_spurious(model, theta_intervals, nominal, setting, trials, jobs)
+    model, theta_intervals = _bounded(model, selected, nominal, setting, trials, jobs)
     extended_plant = model.plant(nominal)
     extended_features = replay_all(setting, extended_plant, trials)
     extended_jumps = np.array([f.detected_jump for f in extended_features])
     fit = fit_report(extended_features, trials)
-    # the causes explain the gap only when their model fits the noise and every named cause's
-    # interval excludes its nominal value (else the data do not say it moved)
-    explained = selected and fit["fits_noise"] and all(excludes_nominal(model, theta_intervals, nominal))
+    explained = selected and _explains(model, theta_intervals, nominal, fit)
     steps = selection.steps if explained else [{**s, "selected": False} for s in selection.steps]
     step(4)
     predictors, predictors_measured_impulse, predictions = predictor_errors(trials, setting)
@@ -139,6 +135,21 @@ def diagnose(
         surface=setting.surface,
         choice=setting.choice,
     )
+
+
+def _bounded(model, selected: bool, nominal: PlantParameters, setting, trials, jobs: int):
+    """``model`` with its parameters' intervals; when it holds the selected causes, without the
+    parameters the data do not move from their nominal values."""
+    model, theta_intervals = parameter_intervals(model, nominal, setting, trials, jobs)
+    if selected:
+        model, theta_intervals = without_spurious(model, theta_intervals, nominal, setting, trials, jobs)
+    return model, theta_intervals
+
+
+def _explains(model, theta_intervals, nominal: PlantParameters, fit: dict) -> bool:
+    """Whether the selected causes explain the gap: their model fits the noise and every named
+    cause's interval excludes its nominal value (else the data do not say it moved)."""
+    return fit["fits_noise"] and all(excludes_nominal(model, theta_intervals, nominal))
 
 
 def nominal_diagnosis(trials, skipped, setting, nominal: PlantParameters, nominal_features) -> Diagnosis:
