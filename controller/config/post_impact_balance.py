@@ -5,8 +5,7 @@ At the impact the hand's impulse sets the whole body moving (the post-impact CoM
 ``docs/floating-base.md``). The approach's tasks keep the hand's task first (weight 100) and hold
 the CoM at its start with a soft PD (weight 10, k_p = 100 /s^2): fed the blended state
 (``sim.trial_loop.ControllerSource``) the QP sees the body move, but this CoM task hardly slows
-it (close stance at 0.9x its closed form: the CoM drifting at 0.15-0.19 m/s for the 0.4 s after
-the impact, the capture margin negative from 150 ms on). The balance phase changes targets and
+it. The balance phase changes targets and
 weights only (no reset: the acceleration memory and the jerk limit stay):
 
 - the CoM task's target moves, in x and y, to the centre of the support polygon (the mean of its
@@ -18,9 +17,8 @@ weights only (no reset: the acceleration memory and the jerk limit stay):
   :data:`HAND_SCALE`: it no longer competes with the balance; it is not retracted, because
   pulling the arm back is one more momentum the body must absorb while it is already moving.
 
-Measured on the close stance at 0.9x its closed form (crb, blended state): the CoM's horizontal
-speed falls from 0.15 to 0.05 m/s in the 0.4 s after the impact and the capture margin stays at
-20 mm or more (before: -31 mm at the end of the trial, falling).
+What it does on the close stance, measured: docs/whole-body-qp.md ("The state the QP is given,
+and the balance after the impact").
 """
 
 from __future__ import annotations
