@@ -217,10 +217,11 @@ def render_trial_video(render: RenderScene, trial, path: str | Path, frame_size=
 def render_scene_of(runner, trial) -> RenderScene:
     """The render model of the scene ``trial`` ran on with ``runner``
     (``scenarios.trial.TrialRunner``): an arm's, ``runner.scene``'s robot, tool and wall; a
-    standing robot's, its model and the trial's wall."""
+    standing robot's, its model, the trial's wall and the steps of the trial's stance."""
     if trial.held is not None:
         robot = runner.robot
-        return humanoid_render_scene(robot.description, tuple(robot.joint_names), trial.held.wall_x, robot.urdf_path)
+        stance = robot.description.stances.get(trial.posture)
+        return humanoid_render_scene(robot.description, tuple(robot.joint_names), trial.held.wall_x, robot.urdf_path, stance)
     scene = runner.scene
     return arm_render_scene(scene.robot, scene.tool, scene.surface)
 

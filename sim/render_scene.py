@@ -10,7 +10,8 @@ the UR5's collision STLs of example-robot-data, the FR3's of franka_description,
 stay as visual geoms of no collision, and a link whose URDF visual meshes MuJoCo can read (STL or
 OBJ files in the description's mesh directory: the G1's) shows those instead
 (:func:`add_visual_meshes`; the G1's collision elements are a few primitives and leave the
-pelvis and the waist bare). Its joints are the scene's, in the same order
+pelvis and the waist bare), and the boxes under the soles a stance raises (``sim.humanoid_scene.add_steps``,
+the simulated scene's own). Its joints are the scene's, in the same order
 (``sim.scene.compile_spec`` checks them), so its qpos layout equals the scene's and a trial's
 logged configurations replay on it. A skybox, a light and (for an arm) a floor plane are added
 for the eye; the plant (armature, damping, payload) is left out, it has no picture.
@@ -26,9 +27,10 @@ import numpy as np
 
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.files import read_text
-from impactqp.controller.model.robot_description import RobotDescription, model_urdf
+from impactqp.controller.model.robot_description import RobotDescription, Stance, model_urdf
 from impactqp.controller.model.tool_description import ToolDescription
 
+from .humanoid_scene import add_steps
 from .scene import (
     DEFAULT_TIMESTEP,
     FLOOR_GEOM,
@@ -145,11 +147,16 @@ def arm_render_scene(robot: RobotDescription, tool: ToolDescription, surface: Su
     return RenderScene(compile_spec(spec, robot, robot.joints), 0, robot, surface)
 
 
-def humanoid_render_scene(robot: RobotDescription, joints: tuple[str, ...], wall_x: float, urdf_path=None) -> RenderScene:
+def humanoid_render_scene(
+    robot: RobotDescription, joints: tuple[str, ...], wall_x: float, urdf_path=None, stance: Stance | None = None,
+) -> RenderScene:
     """The render model of the standing robot's scene (``sim.humanoid_scene.build_humanoid_scene``) with
-    the wall at x = ``wall_x``; ``joints`` are the model's joint names (after the free joint)."""
+    the wall at x = ``wall_x``; ``joints`` are the model's joint names (after the free joint);
+    ``stance``: a box under each sole it raises, as in the scene (None: the floor only)."""
     spec = robot_spec(robot, None, DEFAULT_TIMESTEP, urdf_path)
     add_visual_meshes(spec, robot, read_text(urdf_path or robot.urdf_path(), f"the {robot.name} URDF"))
+    if stance is not None:
+        add_steps(spec, robot, stance, SHOWN_CONTACT)
     hand = add_contact_geometry(spec, robot, None, SHOWN_CONTACT)
     surface = Surface(np.array([wall_x, 0.0, STANDING_WALL_HEIGHT]), np.array([-1.0, 0.0, 0.0]), WALL_FRICTION)
     add_environment(spec, robot, hand, Environment(surface, SHOWN_CONTACT, wall_size=STANDING_WALL_SIZE, pair=""))

@@ -72,3 +72,24 @@ def test_the_standing_robot_replays_on_its_render_model():
     shown = body_positions(render.model, render.qpos(q))
     for name, position in simulated.items():
         np.testing.assert_allclose(shown[name], position, atol=1e-12, err_msg=name)
+
+
+def test_the_render_model_draws_the_step_of_a_raised_sole():
+    """A stance that raises a sole stands it on a box in the scene (``add_steps``); the render model
+    draws the same box (name, place, size), of no collision, and no box for a flat stance."""
+    robot = g1_model()
+    stances = robot.description.stances
+    step = stances["step"]
+    scene = build_humanoid_scene(robot, 0.4, stance=step)
+    render = humanoid_render_scene(robot.description, tuple(robot.joint_names), 0.4, robot.urdf_path, step)
+    boxes = [g for g in range(render.model.ngeom) if render.model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX]
+    assert [render.model.geom(g).name for g in boxes] == [scene.model.geom(g).name for g in scene.step_geoms]
+    raised = [k for k in range(len(step.feet)) if step.height(k) > 0.0]
+    for g, k in zip(boxes, raised):
+        shown, simulated = render.model.geom(g), scene.model.geom(scene.step_geoms[raised.index(k)])
+        np.testing.assert_allclose(shown.pos, simulated.pos, atol=1e-12)
+        np.testing.assert_allclose(shown.size, simulated.size, atol=1e-12)
+        assert shown.pos[2] + shown.size[2] == pytest.approx(step.height(k))  # its top under the raised sole
+        assert shown.contype[0] == 0 and shown.conaffinity[0] == 0
+    flat = humanoid_render_scene(robot.description, tuple(robot.joint_names), 0.4, robot.urdf_path, stances["parallel"])
+    assert not any(flat.model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX for g in range(flat.model.ngeom))
