@@ -8,15 +8,20 @@ from scipy.optimize import linprog
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from reference.foot_wrench import reference_foot_wrench_rows
-from whole_body_states import NORMAL, approach_velocity, robot, standing_states, upright, vertex_impulses, wall_ahead
+from whole_body_states import (
+    NORMAL, approach_velocity, controller, robot, stance, standing_states, upright, vertex_impulses, wall_ahead,
+)
 
 from impactqp.constraints import ControlCycle, ExpectedImpact, FootWrenchLimit
 from impactqp.constraints.foot_wrench import EdgeFootWrenchLimit
 from impactqp.constraints.impact_model import ActivationRule
 from impactqp.controller.model.friction_pyramid import FrictionRows, held_response_maps, pyramid_directions
-from impactqp.controller.model.jump import jump_model
+from impactqp.controller.model.humanoid_stance import convex_hull, inside_polygon
+from impactqp.controller.model.jump import jump_model, predict
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
-from impactqp.controller.model.max_speed import HAND_IMPACT_DURATION, Setting, approach_direction, closed_form_max_speed
+from impactqp.controller.model.max_speed import (
+    HAND_IMPACT_DURATION, Setting, approach_direction, closed_form_max_speed, standing_wrenches,
+)
 from impactqp.controller.model.validation import BadInputError
 
 H = 0.0025
@@ -164,3 +169,34 @@ def test_at_a_solution_of_the_edge_rows_every_vertex_wrench_is_in_its_cone_and_s
         _, upper = reference_foot_wrench_rows(limit, model, terms, H, impulse_map=G, slip_dq=v)
         values = -upper * H  # e . F / m at v'
         assert np.all(values <= 1e-7 * max(np.abs(values).max(), 1.0))
+
+
+def test_on_the_step_the_raised_sole_s_wrench_stays_in_its_cone_and_sole_at_the_qp_solution():
+    """The step stance (the left sole on a 10 cm step): the hand at 0.95 of the closed form's speed,
+    asked for 2 m/s. The QP's solution dv binds a foot row, and at v' = v + dv h every foot's wrench
+    at the peak, F_k = T w_k + lambda_k(J v') (the predictor's impulsive wrench and the least-norm
+    wrenches carrying the weight, computed here without the constraint), stays in its friction
+    cone and its centre of pressure, found from the moments about the sole, in its sole."""
+    model = robot()
+    q = stance("step")
+    terms = model.terms(q)
+    placements = model.frame_placements(q)
+    contacts = model.description.held_contacts
+    assert placements[contacts[0].frame].translation[2] == pytest.approx(0.10 + contacts[0].depth, abs=1e-3)
+    bound = closed_form_max_speed(model, terms, NORMAL, Setting("crb")).speed
+    v = approach_velocity(q, 0.95 * bound)
+    limiter = controller("step", gap=0.02, speed=2.0)
+    limiter.reset(q, v)
+    command = limiter.step(q, v)
+    assert command.status == "ok" and "foot_wrench[crb]" in command.active_constraints
+    h = max(limiter.dt, float(np.max(model.ddq_max / model.dddq_max)))
+    v_next = v + command.ddq * h
+    impact = predict(model.terms(q, v_next), "crb", NORMAL, terms.J @ v_next)
+    peak = HAND_IMPACT_DURATION * standing_wrenches(model, terms) + impact.held_impulse
+    for k, contact in enumerate(contacts):
+        R = placements[contact.frame].rotation
+        f, tau = R.T @ peak[6 * k:6 * k + 3], R.T @ peak[6 * k + 3:6 * k + 6]
+        assert np.hypot(f[0], f[1]) <= contact.friction * f[2] * (1.0 + 1e-6)
+        tau_sole = tau + np.cross([0.0, 0.0, contact.depth], f)  # about the sole's point under the frame
+        centre = np.array([-tau_sole[1], tau_sole[0]]) / f[2]
+        assert inside_polygon(centre, convex_hull(contact.sole)) >= -1e-9
