@@ -6,12 +6,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from conftest import JOINTS
+from conftest import JOINTS, g1_model
+from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.max_speed import Setting, approach_direction, closed_form_max_speed
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.model.robot import RobotModel
+from impactqp.sim.runner import NORMAL
+from impactqp.sim.trial_sources import QpCommand
 from impactqp.scenarios.max_speed_search import (
     STANCE_HIGHEST_SPEED,
     STANCE_LOWEST_SPEED,
@@ -20,6 +23,7 @@ from impactqp.scenarios.max_speed_search import (
     MaxSpeedSearch,
     QpSetting,
     SpeedBisection,
+    StancePlant,
     approach_velocity_limit,
     search_stance,
 )
@@ -167,3 +171,16 @@ def test_a_max_speed_search_of_the_fr3_with_the_franka_hand_reaches_its_closed_f
 def test_unknown_stance_is_bad_input():
     with pytest.raises(BadInputError):
         search_stance(RobotModel("g1"), "kneeling")
+
+
+def test_the_qp_driven_step_stance_asked_for_nine_tenths_of_its_closed_form_reaches_it_and_stands():
+    """The step stance (the left sole on a 10 cm step), its trial driven by the whole-body QP
+    asked for 0.9 of the crb closed form: the contact speed within 10 % of the asked speed's share
+    (0.81 to 0.99 of the closed form), no measured failure (joint velocity, slip, lift, capture,
+    fall) and every QP cycle OK."""
+    robot = g1_model()
+    q = stance_posture(robot, robot.description.stances["step"])
+    limit = closed_form_max_speed(robot, robot.terms(q), NORMAL, Setting("crb")).speed
+    trial = StancePlant().trial(robot, "step", q, 0.9 * limit, source=QpCommand())
+    assert 0.81 * limit <= trial.contact_speed <= 0.99 * limit
+    assert trial.failures == () and trial.record.not_ok == 0
