@@ -147,3 +147,21 @@ def test_the_feedback_option_is_the_whole_body_qp_s(capsys, robot):
     arm, or a stance driven by its scripted arm) it is one line of bad input."""
     code, _, err = run(capsys, "max-speed", *(robot or ["--posture", "elbow_up"]), "--feedback", "blended")
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--feedback" in err
+
+
+@pytest.mark.parametrize("given", [[], ["--tolerance", "0.3"]])
+def test_a_stance_s_bisection_runs_to_its_own_tolerance_unless_one_is_given(capsys, monkeypatch, given):
+    """The standing robot's bisection on the commanded speed stops at ``STANCE_TOLERANCE`` (0.02
+    m/s) unless --tolerance is given (the arm's default, 0.005, would add two rounds of trials)."""
+    from impactqp.scenarios import max_speed_search
+
+    asked = []
+
+    def search(robot, stance, setting, tolerance, **options):
+        asked.append(tolerance)
+        raise max_speed_search.BadInputError("searched")
+
+    monkeypatch.setattr(max_speed_search, "search_stance", search)
+    code, _, err = run(capsys, "max-speed", "--robot", "g1", "--posture", "step", "--controller", "qp", *given)
+    assert code == 2 and "searched" in err
+    assert asked == [0.3 if given else max_speed_search.STANCE_TOLERANCE]

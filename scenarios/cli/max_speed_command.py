@@ -95,27 +95,28 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     ``robot``, the closed form of each predictor and ``robust`` (the smallest), the bisection of
     the trials driven by ``controller`` (the scripted arm, or the whole-body QP with one trial
     asked for each of :data:`QP_CHECKS` times the closed form), and the contact duration used (the
-    description's wall contact unless --impact-duration). Several stances (comma-separated): one
-    such report per stance under ``stances``."""
+    description's wall contact unless --impact-duration); the bisection's tolerance is
+    ``max_speed_search.STANCE_TOLERANCE`` on the commanded speed unless --tolerance. Several stances
+    (comma-separated): one such report per stance under ``stances``."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
     from impactqp.controller.model.robot import RobotModel
-    from impactqp.scenarios.max_speed_search import search_stance
+    from impactqp.scenarios.max_speed_search import STANCE_TOLERANCE, search_stance
     from impactqp.sim.trial_sources import SCRIPTED, QpCommand
 
     reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool", "friction", "tangential"])
     robot = request.choice.robot
     stances = stance_names(robot, request.posture)
     c_r = restitution_coefficient(request.restitution, "--restitution")
-    default_duration = click.get_current_context().get_parameter_source("impact_duration") == click.core.ParameterSource.DEFAULT
-    duration = HAND_IMPACT_DURATION if default_duration else check_impact_duration(request.impact_duration, "--impact-duration")
+    duration = check_impact_duration(request.impact_duration, "--impact-duration") if given("impact_duration") else HAND_IMPACT_DURATION
+    tolerance = request.tolerance if given("tolerance") else STANCE_TOLERANCE
     qp = request.controller == "qp"
     if not qp and request.feedback != "commanded":
         raise BadInputError("--feedback chooses the state the whole-body QP is given: give --controller qp")
     model = RobotModel(robot)
     reports = []
     for stance in stances:
-        result = search_stance(model, stance, Setting("crb", c_r, impact_duration=duration), tolerance=request.tolerance,
+        result = search_stance(model, stance, Setting("crb", c_r, impact_duration=duration), tolerance=tolerance,
                                source=QpCommand(feedback=request.feedback) if qp else SCRIPTED, checks=QP_CHECKS if qp else ())
         report = {"robot": robot.name, "controller": request.controller, **result.to_json()}
         speeds = report["predicted_max_speed"]
@@ -124,6 +125,11 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
         report["impact_duration"] = duration
         reports.append(report)
     return reports[0] if len(reports) == 1 else {"robot": robot.name, "controller": request.controller, "stances": reports}
+
+
+def given(option: str) -> bool:
+    """Whether the command line gave ``option`` (a parameter's name), rather than its default."""
+    return click.get_current_context().get_parameter_source(option) != click.core.ParameterSource.DEFAULT
 
 
 def frictional_arm_max_speed(request: MaxSpeedRequest) -> dict:
@@ -269,7 +275,8 @@ def frictional_text(report: dict) -> str:
 @wall_point_option
 @wall_normal_option
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
-@click.option("--tolerance", type=float, default=0.005, show_default=True, help="Bisection tolerance (m/s).")
+@click.option("--tolerance", type=float, default=0.005, show_default=True,
+              help="Bisection tolerance (m/s; a standing robot's: 0.02 on the commanded speed unless given).")
 @click.option("--friction", type=float, help="mu in [0, 2]: the closed form under the robust friction rows (an arm's; no simulation).")
 @click.option("--tangential", help="With --friction: the tangential velocity VX,VY,VZ (m/s) of the sliding approach.")
 @click.option(
