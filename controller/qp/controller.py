@@ -77,10 +77,10 @@ from .cycle_plan import CycleBuffers
 from .cycle_kernels import first_outside, integrate_command, intersect_boxes, tight_constraints, weighted_least_squares
 from .elastic_relaxation import ElasticRelaxation
 from .fallback import bounded_conflict, brake, braking_command, irreducible_conflict, usable_state
+from .held_elimination import held_elimination
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
 from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
 from .whole_body_plan import compiled_plan
-
 
 BRAKE = "brake"
 
@@ -133,7 +133,7 @@ class ImpactAwareController:
         self.impact = impact
         self.feasibility_tolerance = float(feasibility_tolerance)
         self._allocate()
-        self.solver = make_solver(solver, self.layout.rows, robot.nv)
+        self.solver = held_elimination(make_solver(solver, self.layout.rows, robot.nv), self.layout, robot)
         self.verifier = verifier_for(self.solver.name, self.layout.rows, robot.nv)
         self.fallback_count = 0
         self.memory = CommandMemory(None, np.zeros(robot.nv), np.zeros(robot.nv))
