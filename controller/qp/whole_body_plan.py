@@ -175,13 +175,13 @@ def body_general_rows(state, body_maps, active, horizon, table, parameters, qp):
     dq, J6, body = state
     Jcom, com, Jf, drift, M_inv, mass = body[0], body[2], body[3], body[4], body[5], body[6]
     com_maps, impulse_maps = body_maps
-    C, lower, upper = qp[5], qp[3], qp[4]
-    n = dq.shape[0]
+    C, row_lower, row_upper = qp[5], qp[3][dq.shape[0]:], qp[4][dq.shape[0]:]  # the general rows' bounds
     inv_h = 1.0 / horizon
     for e in range(table.shape[0]):
-        kind, first, rows, p, i = table[e, KIND], table[e, FIRST], table[e, ROWS], table[e, PARAMETERS], table[e, IMPACT]
-        last = first + rows
-        rows_C, rows_lower, rows_upper = C[first:last], lower[n + first:n + last], upper[n + first:n + last]
+        kind, p, i = table[e, KIND], table[e, PARAMETERS], table[e, IMPACT]
+        rows = table[e, ROWS]
+        span = slice(table[e, FIRST], table[e, FIRST] + rows)
+        rows_C, rows_lower, rows_upper = C[span], row_lower[span], row_upper[span]
         if kind == HELD:
             rows_C[:] = Jf
             rows_lower[:] = -drift

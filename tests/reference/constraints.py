@@ -4,10 +4,8 @@ inputs of the activation rule and an arm's per-fill jump matrices of an expected
 
 import numpy as np
 
+from impactqp.constraints import CaptureRegionLimit, FootWrenchLimit, HeldContactRows
 from impactqp.constraints import (
-    CaptureRegionLimit,
-    FootWrenchLimit,
-    HeldContactRows,
     ImpulsiveTorqueLimit,
     PositionLimit,
     PostImpactVelocityLimit,
