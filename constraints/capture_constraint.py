@@ -60,6 +60,10 @@ class CaptureRegionLimit(Constraint):
         self._normals = region.A * region.omega  # nu_k (k x 2)
         self._offsets = region.b + self._normals @ centre[:2]  # nu_k . a_k
 
+    def kernel_parameters(self) -> np.ndarray:
+        """The ground height, the edges' normals nu_k (row by row) and offsets nu_k . a_k."""
+        return np.concatenate([[self.ground_height], self._normals.ravel(), self._offsets])
+
     def compute_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         lower[:] = -np.inf
         if not self.impact.is_active(terms):

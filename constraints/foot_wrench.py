@@ -89,6 +89,14 @@ class FootWrenchLimit(Constraint):
         self.rows = len(self.labels)
         self.name = f"foot_wrench[{impact.name}]"
 
+    def kernel_parameters(self) -> np.ndarray:
+        """The number of feet k, the duration T, mu_k, the feet's rotations R_k, the standing map S
+        (6k x 6) and the soles' rows (k x edges x 6), each row by row."""
+        feet = len(self._friction)
+        return np.concatenate([
+            [feet, self.duration], self._friction, self._rotations.ravel(), self._standing.ravel(), self._soles.ravel(),
+        ])
+
     def compute_into(self, terms, cycle: ControlCycle, C, lower, upper) -> None:
         lower[:] = -np.inf
         if not self.impact.is_active(terms):

@@ -24,6 +24,10 @@ class HeldContactRows(Constraint):
     def __init__(self, rows: int):
         self.rows = rows
 
+    def kernel_parameters(self) -> np.ndarray:
+        """None: the rows are the terms' (a compiled cycle plan's kernel copies them)."""
+        return np.empty(0)
+
     def compute_into(self, terms, cycle: ControlCycle, C, lower, upper) -> None:
         C[:] = terms.held_jacobian
         np.negative(terms.held_drift, out=lower)

@@ -49,6 +49,10 @@ class CentreOfMassTask(Task):
         if not self._target_configured:
             self.target = terms.com.copy()
 
+    def kernel_parameters(self) -> np.ndarray:
+        """kp, kd, c* and the weights (3)."""
+        return np.concatenate([[self.stiffness, self.damping], self.target, self.weight])
+
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
         com_rows(terms.Jcom, terms.dq, terms.com, terms.dJcom_dq, self.target, (self.stiffness, self.damping), A, b)
 

@@ -4,11 +4,15 @@ terms carry, e.g. the humanoid's torso)."""
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from impactqp.controller.model.model_terms import ModelTerms
 from impactqp.controller.model.validation import finite_array, finite_vector, task_gain
 
-from .task import Task, critical_damping, rotation_error
+from .task import Task, critical_damping, rotation_log
+
+FRAME_PARAMETERS = 20
+"""The size of a frame task's ``kernel_parameters``: kp, kd, p* (3), R* (9, row by row), the weights (6)."""
 
 
 class FrameTask(Task):
@@ -54,23 +58,38 @@ class FrameTask(Task):
         )
         self._configured = (self.target_position is not None, self.target_rotation is not None)
 
-    def _state(self, terms: ModelTerms) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def frame_state(self, terms: ModelTerms) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(p, R, J6, dJ6 dq) of the task's frame."""
         if self.frame is None:
             return terms.contact_point, terms.contact_rotation, terms.J6, terms.dJ6_dq
         return terms.frame(self.frame)
 
     def reset(self, terms: ModelTerms) -> None:
-        position, rotation, _, _ = self._state(terms)
+        position, rotation, _, _ = self.frame_state(terms)
         if not self._configured[0]:
             self.target_position = position.copy()
         if not self._configured[1]:
             self.target_rotation = rotation.copy()
 
+    def kernel_parameters(self) -> np.ndarray:
+        """kp, kd, p*, R* (row by row) and the weights (6): ``FRAME_PARAMETERS`` values."""
+        return np.concatenate([[self.stiffness, self.damping], self.target_position, self.target_rotation.ravel(), self.weight])
+
     def compute_into(self, terms: ModelTerms, A: np.ndarray, b: np.ndarray) -> None:
-        position, rotation, J6, dJ6_dq = self._state(terms)
-        A[:] = J6
-        b[:3] = self.target_position - position
-        b[3:] = rotation_error(self.target_rotation, rotation)
-        b *= self.stiffness
-        b -= self.damping * (J6 @ terms.dq) + dJ6_dq
+        frame_rows(self.frame_state(terms), terms.dq, self.kernel_parameters()[:14], A, b)
+
+
+@njit(cache=True)
+def frame_rows(frame, dq, parameters, A, b):
+    """Kernel: A = J6 and b = kp [p* - p; log(R* R^T)] - kd J6 v - dJ6 v for frame = (p, R, J6,
+    dJ6 v) and parameters = (kp, kd, p*, R* row by row)."""
+    position, rotation, J6, drift = frame
+    kp, kd = parameters[0], parameters[1]
+    rotation_log(parameters[5:14].reshape((3, 3)), rotation, b[3:6])
+    for i in range(3):
+        b[i] = parameters[2 + i] - position[i]
+    rate = J6 @ dq  # the product and the sums of the numpy statement
+    for i in range(6):
+        b[i] *= kp
+        b[i] -= kd * rate[i] + drift[i]
+    A[:, :] = J6

@@ -3,14 +3,14 @@ generic assembly's (task by task, constraint by constraint) and its numpy twin's
 states; the controllers it serves and those it leaves to the generic assembly."""
 
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import JOINTS
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.qp import ImpactAwareController
-from impactqp.controller.qp.cycle_plan import KERNEL_KINDS
+from impactqp.controller.qp.cycle_plan import KERNEL_KINDS, CyclePlan
+from impactqp.controller.qp.whole_body_plan import WHOLE_BODY_KINDS, WholeBodyPlan
 from impactqp.controller.model.tool_postures import tool_posture
 from impactqp.constraints import AccelerationLimit
 from impactqp.tasks import DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
@@ -115,10 +115,17 @@ def test_commands_with_and_without_the_plan_are_equal(robot):
     assert any(active)  # the impact rows were on in some cycles
 
 
-@pytest.mark.parametrize("task", [FrameTask(), SurfaceOffsetTask([-1.0, 0.0, 0.0], [0.5, 0.0, 0.5], 0.02)], ids=["frame", "offset"])
-def test_a_task_without_a_kernel_of_the_plan_leaves_the_generic_assembly(robot, task):
-    assert type(task) not in KERNEL_KINDS
+def test_a_task_without_a_kernel_of_the_plan_leaves_the_generic_assembly(robot):
+    task = SurfaceOffsetTask([-1.0, 0.0, 0.0], [0.5, 0.0, 0.5], 0.02)
+    assert type(task) not in WHOLE_BODY_KINDS
     controller = ImpactAwareController(robot, [task, DampingTask(JOINTS)], [AccelerationLimit()], 0.001)
     assert controller._plan is None
     planned = ImpactAwareController(robot, [PostureTask(joints=JOINTS), DampingTask(JOINTS)], [AccelerationLimit()], 0.001)
-    assert planned._plan is not None
+    assert type(planned._plan) is CyclePlan
+
+
+def test_a_frame_task_takes_the_whole_body_plan(robot):
+    """A frame task has no kernel of the arm's plan: its controller takes the whole-body plan."""
+    assert FrameTask not in KERNEL_KINDS
+    controller = ImpactAwareController(robot, [FrameTask(), DampingTask(JOINTS)], [AccelerationLimit()], 0.001)
+    assert type(controller._plan) is WholeBodyPlan

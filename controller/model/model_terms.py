@@ -71,7 +71,7 @@ class ModelTerms:
     unset (None at construction, or ``refilled(pending=...)``); the first read of one calls
     ``fill_lazy(terms, name)``, the model's, which returns that field and the others computed in
     the same pass, kept until the next fill. An arm's ``RobotModel.terms`` (a prediction from q)
-    leaves M, h and dJ6_dq to a first read, a floating base's refill h and JJt_inv, which its
+    leaves M, h and dJ6_dq to a first read, a floating base's refill M, h and JJt_inv, which its
     whole-body QP does not read; a controller's ``update_terms`` of an arm fills every field
     of its buffer (``RobotModel.empty_terms``) at once.
 

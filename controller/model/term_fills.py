@@ -11,7 +11,7 @@ buffer's own data (``ModelTerms.cycle_data``, made by ``empty_terms``), whose M,
 and contact placement the buffer's fields are views of; one kernel
 (``model_terms.arm_state_status``) checks the state; M^-1, when read, comes from the Cholesky
 factor of that M (``pin.cholesky``). A floating base's fill is one pass of the algorithms its whole-body
-QP needs, into its buffer; h and (J J^T)^-1, which that QP does not read, on first read.
+QP needs, into its buffer; M, h and (J J^T)^-1, which that QP does not read, on first read.
 """
 
 from __future__ import annotations
@@ -177,14 +177,18 @@ class ModelTermFills:
 
     def _lazy_dynamics(self, terms: ModelTerms, name: str) -> dict[str, np.ndarray]:
         """The lazily filled fields of ``terms`` (``ModelTerms.fill_lazy``), on a data of their
-        own: an arm's M, h and dJ6 dq by one ``computeAllTerms``; a floating base's h by
-        ``nonLinearEffects`` or its (J J^T)^-1 by the adjugate."""
+        own: an arm's M, h and dJ6 dq by one ``computeAllTerms``; a floating base's M by ``crba``,
+        its h by ``nonLinearEffects`` or its (J J^T)^-1 by the adjugate."""
         model, data, q, dq = self.model, self._body_data, terms.q, terms.dq
         if name == "JJt_inv":
             JJt_inv = np.empty((3, 3))
             symmetric_inverse3_into(terms.J @ terms.J.T, JJt_inv)
             return {"JJt_inv": JJt_inv}
         if self.floating:
+            if name == "M":
+                M = np.empty((self.nv, self.nv))
+                mirror_upper(pin.crba(model, data, q), M)
+                return {"M": M}
             return {"h": pin.nonLinearEffects(model, data, q, dq).copy()}
         pin.computeAllTerms(model, data, q, dq)
         pin.updateFramePlacement(model, data, self.contact_frame_id)
@@ -200,7 +204,7 @@ class ModelTermFills:
     def empty_terms(self) -> ModelTerms:
         """A ModelTerms for ``update_terms`` to refill (a controller's per-cycle buffer): an arm's
         with its own Pinocchio data (``_attach_cycle_data``) at the neutral configuration at rest,
-        the fields it does not view unset; a floating base's of unset arrays, its h and
+        the fields it does not view unset; a floating base's of unset arrays, its M, h and
         (J J^T)^-1 on their first read (``_lazy_dynamics``)."""
         nv = self.nv
         J6 = np.empty((6, nv))
@@ -216,15 +220,16 @@ class ModelTermFills:
             name: FrameState(np.empty(3), np.empty((3, 3)), np.empty((6, nv)), np.empty(6)) for name in self.frame_ids
         }
         return ModelTerms(
-            np.empty(self.nq), np.empty(nv), np.empty((nv, nv)), None, J6[:3], J6, np.empty(6),
+            np.empty(self.nq), np.empty(nv), None, None, J6[:3], J6, np.empty(6),
             None, np.empty(3), np.empty((3, 3)), np.empty(3), 0.0, np.empty((3, 3)),
             np.empty((held, nv)), np.empty(held), BodyTerms(np.empty((nv, nv)), np.empty((3, nv)), np.empty(3), frames),
             fill_lazy=self._lazy_dynamics,
         )
 
     def _fill_floating(self, terms: ModelTerms, q: np.ndarray, v: np.ndarray, check_limits: bool) -> ModelTerms:
-        """One pass of Pinocchio's algorithms at (q, v), their results copied into ``terms``; h and
-        (J J^T)^-1, which the whole-body QP does not read, left to their first read."""
+        """One pass of Pinocchio's algorithms at (q, v), their results copied into ``terms``; M, h
+        and (J J^T)^-1, which the whole-body QP does not read (its rows read M^-1), left to their
+        first read."""
         if check_limits:
             self.check_state(q, v, check_limits=True)
         model, data, body = self.model, self.data, terms.body
@@ -241,11 +246,10 @@ class ModelTermFills:
         pin.centerOfMass(model, data, pin.ACCELERATION, True)  # of the kinematics above
         terms.com[:], body.dJcom_dq[:] = data.com[0], data.acom[0]
         body.Jcom[:] = pin.jacobianCenterOfMass(model, data, False)  # of the Jacobians and CoMs above
-        mirror_upper(pin.crba(model, data, q), terms.M)
         mirror_upper(pin.computeMinverse(model, data, q), body.M_inv)
         pin.ccrba(model, data, q, v)
         terms.mass, terms.inertia_com[:] = float(data.Ig.mass), data.Ig.inertia
-        return terms.refilled(pending=("h", "JJt_inv"))
+        return terms.refilled(pending=("M", "h", "JJt_inv"))
 
     def _frame_into(self, frame_id: int, J6, drift, position=None, rotation=None) -> None:
         """The frame's world-aligned Jacobian and drift (and its placement) after the forward

@@ -22,8 +22,8 @@ one solver's false alarm (docs/qp-constraints.md, Solvers).
 Cycle time: everything a cycle touches is allocated once (the terms refilled in place, each task
 and constraint writing into its own buffers, the QP data in two stacked bound vectors [box; rows]
 read without copies); the jump matrices are computed once per cycle (``ExpectedImpact.matrices``).
-When every task and constraint has a kernel of the compiled cycle plan (``cycle_plan``), one
-compiled call writes all their rows, else they are written object by object (``_assemble``).
+When every task and constraint has a kernel of a compiled cycle plan (``cycle_plan``, ``whole_body_plan``),
+one compiled call writes all their rows, else they are written object by object (``_assemble``).
 
 Fallback (``fallback``): when the state is unusable (non-finite, outside the position or
 velocity limits, singular contact Jacobian), when the QP is infeasible, or when no solver
@@ -73,13 +73,14 @@ from impactqp.controller.model.validation import BadInputError
 from impactqp.tasks import Task
 
 from .command import Command, CommandMemory, Status, command_limits
-from .cycle_plan import CycleBuffers, CyclePlan
+from .cycle_plan import CycleBuffers
 from .cycle_kernels import first_outside, integrate_command, intersect_boxes, tight_constraints, weighted_least_squares
 from .elastic_relaxation import ElasticRelaxation
 from .fallback import bounded_conflict, brake, braking_command, irreducible_conflict, usable_state
+from .held_elimination import held_elimination
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
 from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
-
+from .whole_body_plan import compiled_plan
 
 BRAKE = "brake"
 
@@ -132,7 +133,7 @@ class ImpactAwareController:
         self.impact = impact
         self.feasibility_tolerance = float(feasibility_tolerance)
         self._allocate()
-        self.solver = make_solver(solver, self.layout.rows, robot.nv)
+        self.solver = held_elimination(make_solver(solver, self.layout.rows, robot.nv), self.layout, robot)
         self.verifier = verifier_for(self.solver.name, self.layout.rows, robot.nv)
         self.fallback_count = 0
         self.memory = CommandMemory(None, np.zeros(robot.nv), np.zeros(robot.nv))
@@ -172,10 +173,9 @@ class ImpactAwareController:
         # the box really allows (ControlCycle.recoverable): the arrays are the problem's own.
         self._row_cycle = ControlCycle(self.dt, p.lb, p.ub, horizon)
         buffers = CycleBuffers(self._task_A, self._task_b, self._task_w[:, 0], p, self._box_bounds)
-        self._plan = CyclePlan.of(self.tasks, layout, buffers, self.dt)  # None: the generic assembly
+        self._plan = compiled_plan(self.tasks, layout, buffers, self.dt)  # None: the generic assembly
         # a floating base's relaxed rows, widened within its held contacts' rows when the QP is infeasible
-        relaxed = first < layout.rows
-        self._elastic = ElasticRelaxation(layout.rows, first, n) if self._floating and relaxed else None
+        self._elastic = ElasticRelaxation(layout.rows, first, n) if self._floating and first < layout.rows else None
 
     @property
     def box_constraints(self) -> tuple[Constraint, ...]:

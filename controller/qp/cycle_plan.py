@@ -78,7 +78,9 @@ class CycleBuffers:
 
 class CyclePlan:
     """The compiled plan of one controller's tasks and constraints (module docstring); ``of``
-    gives None when one of them has no kernel of the plan."""
+    gives None when one of them has no kernel of the plan (one of ``kinds``)."""
+
+    kinds = KERNEL_KINDS
 
     def __init__(self, objects: list, table: np.ndarray, impacts: list, buffers: CycleBuffers, dt: float, first_relaxed: int):
         self.objects, self.table, self.impacts, self.buffers, self.dt = objects, table, impacts, buffers, dt
@@ -95,7 +97,7 @@ class CyclePlan:
         ``layout``, or None when one of them has no kernel of the plan."""
         n = buffers.problem.H.shape[0]
         objects = [*tasks, *layout.box_constraints, *layout.row_constraints]
-        if not all(_planned(item, n) for item in objects):
+        if not all(_planned(cls.kinds.get(type(item)), item, n) for item in objects):
             return None
         impacts: list = []
         for constraint in layout.row_constraints:
@@ -105,14 +107,14 @@ class CyclePlan:
         table = np.zeros((len(objects), 5), dtype=np.int64)
         task_row = 0
         for line, task in zip(table, tasks):
-            line[KIND], line[FIRST], line[ROWS] = KERNEL_KINDS[type(task)], task_row, task.rows
+            line[KIND], line[FIRST], line[ROWS] = cls.kinds[type(task)], task_row, task.rows
             task_row += task.rows
         boxes = len(layout.box_constraints)
         for k, constraint in enumerate(layout.box_constraints):
             line = table[len(tasks) + k]
-            line[KIND], line[FIRST], line[ROWS] = KERNEL_KINDS[type(constraint)], k, constraint.rows or n
+            line[KIND], line[FIRST], line[ROWS] = cls.kinds[type(constraint)], k, constraint.rows or n
         for line, constraint, rows in zip(table[len(tasks) + boxes:], layout.row_constraints, layout.row_slices):
-            line[KIND], line[FIRST], line[ROWS] = KERNEL_KINDS[type(constraint)], rows.start, constraint.rows
+            line[KIND], line[FIRST], line[ROWS] = cls.kinds[type(constraint)], rows.start, constraint.rows
             impact = getattr(constraint, "impact", None)
             line[IMPACT] = next((i for i, known in enumerate(impacts) if known is impact), 0)
         return cls(objects, table, impacts, buffers, dt, layout.first_relaxed_row)
@@ -128,25 +130,29 @@ class CyclePlan:
         self.parameters = np.concatenate(packed) if packed else np.empty(0)
         self._edits = (Task.parameter_edits, Constraint.parameter_edits)
 
+    def _impact_maps(self, terms: ModelTerms) -> tuple:
+        """The kernels' ``impacts``: (A, P, the edges' A_i, the edges' P_i), one entry per expected
+        impact (zeros when there is none), and their activations at ``terms``."""
+        active = self._active
+        if not self.impacts:
+            (matrix,), (edge,) = self._no_impact
+            return (matrix,), (matrix,), (edge,), (edge,), active
+        jumps, torques, edge_jumps, edge_torques = [], [], [], []
+        for i, impact in enumerate(self.impacts):
+            matrices, edges = impact.row_matrices(terms), impact.edge_matrices(terms)
+            jumps.append(matrices.jump_matrix)
+            torques.append(matrices.torque_matrix)
+            edge_jumps.append(edges.jump)
+            edge_torques.append(edges.torque)
+            active[i] = impact.is_active(terms)
+        return tuple(jumps), tuple(torques), tuple(edge_jumps), tuple(edge_torques), active
+
     def fill(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
         """Every task and constraint row of this state into the buffers (one compiled call);
         False when the box bounds conflict."""
         if self._edits != (Task.parameter_edits, Constraint.parameter_edits):
             self.pack()
-        active = self._active
-        if self.impacts:
-            jumps, torques, edge_jumps, edge_torques = [], [], [], []
-            for i, impact in enumerate(self.impacts):
-                matrices, edges = impact.row_matrices(terms), impact.edge_matrices(terms)
-                jumps.append(matrices.jump_matrix)
-                torques.append(matrices.torque_matrix)
-                edge_jumps.append(edges.jump)
-                edge_torques.append(edges.torque)
-                active[i] = impact.is_active(terms)
-            maps = (tuple(jumps), tuple(torques), tuple(edge_jumps), tuple(edge_torques), active)
-        else:
-            (matrix,), (edge,) = self._no_impact
-            maps = ((matrix,), (matrix,), (edge,), (edge,), active)
+        maps = self._impact_maps(terms)
         b = self.buffers
         p = b.problem
         return planned_rows(
@@ -157,11 +163,12 @@ class CyclePlan:
         )
 
 
-def _planned(item, variables: int) -> bool:
-    """Whether the plan has a kernel for ``item`` among ``variables`` velocities: one of
-    ``KERNEL_KINDS`` (exactly), with torque and impulse rows on every velocity (the kernels'
-    shapes)."""
-    kind = KERNEL_KINDS.get(type(item))
+def _planned(kind: int | None, item, variables: int) -> bool:
+    """Whether a plan has a kernel for ``item`` of kernel kind ``kind`` (None: its class has
+    none) among ``variables`` velocities: torque and impulse rows on every velocity, damping rows
+    one per velocity (the kernels' shapes)."""
+    if kind == DAMPING:
+        return item.rows == variables
     if kind == TORQUE:
         return item.rows == variables
     if kind == IMPULSIVE:
@@ -180,13 +187,24 @@ def planned_rows(state, impacts, cycle, table, parameters, task_rows, qp, first_
     ``kernel_parameters``); then H = A^T W A, g = -A^T W b, the boxes intersected into
     [lb, ub] within the reachable interval, and the rows from ``first_relaxed`` on relaxed to
     what [lb, ub] reaches. False when the boxes conflict."""
-    q, dq, J6, dJ6_dq, rotation, M, h = state
-    jumps, torques, edge_jumps, edge_torques, active = impacts
-    reach_lower, reach_upper, horizon, dt = cycle
     task_A, task_b, task_w = task_rows
     H, g, box_bounds, lower, upper, C = qp
+    n = task_A.shape[1]
+    planned_task_rows(state, table, parameters, task_rows)
+    weighted_least_squares(task_A, task_b, task_w, H, g)
+    consistent = planned_boxes(state, cycle, table, parameters, box_bounds, lower, upper)
+    planned_general_rows(state, impacts, cycle[2], table, parameters, qp)
+    relax_to_reachable(C[first_relaxed:], lower[n + first_relaxed:], upper[n + first_relaxed:], lower[:n], upper[:n])
+    return consistent
+
+
+@njit(cache=True)
+def planned_task_rows(state, table, parameters, task_rows):
+    """Kernel: the rows of the approach, posture and damping tasks of ``table`` (the other lines
+    left as they are), for ``planned_rows``'s ``state`` and ``task_rows``."""
+    q, dq, J6, dJ6_dq, rotation = state[0], state[1], state[2], state[3], state[4]
+    task_A, task_b, task_w = task_rows
     n, joints = dq.shape[0], q.shape[0]
-    inv_h = 1.0 / horizon
     for e in range(table.shape[0]):
         kind, first, rows, p = table[e, KIND], table[e, FIRST], table[e, ROWS], table[e, PARAMETERS]
         last = first + rows
@@ -206,7 +224,17 @@ def planned_rows(state, impacts, cycle, table, parameters, task_rows, qp, first_
         elif kind == DAMPING:
             joint_pd_rows(dq, dq, dq, 0.0, parameters[p], task_A[first:last], task_b[first:last])
             task_w[first:last] = parameters[p + 1:p + 1 + rows]
-    weighted_least_squares(task_A, task_b, task_w, H, g)
+
+
+@njit(cache=True)
+def planned_boxes(state, cycle, table, parameters, box_bounds, lower, upper):
+    """Kernel: the bounds of the box constraints of ``table`` (acceleration, position and
+    velocity limits) into ``box_bounds``, then intersected into lower[:n], upper[:n] within the
+    reachable interval of ``cycle``; False when they conflict."""
+    q, dq = state[0], state[1]
+    reach_lower, reach_upper, horizon, dt = cycle
+    n, joints = dq.shape[0], q.shape[0]
+    inv_h = 1.0 / horizon
     for e in range(table.shape[0]):
         kind, k, rows, p = table[e, KIND], table[e, FIRST], table[e, ROWS], table[e, PARAMETERS]
         box_lower, box_upper = box_bounds[2 * k], box_bounds[2 * k + 1]
@@ -224,7 +252,18 @@ def planned_rows(state, impacts, cycle, table, parameters, task_rows, qp, first_
             box_lower[:n - rows] = -np.inf
             box_upper[:n - rows] = np.inf
             symmetric_velocity_bounds(dq[n - rows:], parameters[p:p + rows], inv_h, box_lower[n - rows:], box_upper[n - rows:])
-    consistent = intersect_boxes(box_bounds[0::2], box_bounds[1::2], reach_lower, reach_upper, lower[:n], upper[:n])
+    return intersect_boxes(box_bounds[0::2], box_bounds[1::2], reach_lower, reach_upper, lower[:n], upper[:n])
+
+
+@njit(cache=True)
+def planned_general_rows(state, impacts, horizon, table, parameters, qp):
+    """Kernel: the general rows of the torque, post-impact velocity and impulsive torque limits
+    of ``table`` (``planned_rows``'s ``state``, ``impacts`` and ``qp``; ``horizon``: h)."""
+    dq, M, h = state[1], state[5], state[6]
+    jumps, torques, edge_jumps, edge_torques, active = impacts
+    C, lower, upper = qp[5], qp[3], qp[4]
+    n = dq.shape[0]
+    inv_h = 1.0 / horizon
     for e in range(table.shape[0]):
         kind, first, rows, p, i = table[e, KIND], table[e, FIRST], table[e, ROWS], table[e, PARAMETERS], table[e, IMPACT]
         last = first + rows
@@ -241,5 +280,3 @@ def planned_rows(state, impacts, cycle, table, parameters, task_rows, qp, first_
                 (torques[i], edge_torques[i]), parameters[p:p + 2 * n].reshape((2, n)), dq, inv_h, active[i],
                 C[first:last], lower[n + first:n + last], upper[n + first:n + last],
             )
-    relax_to_reachable(C[first_relaxed:], lower[n + first_relaxed:], upper[n + first_relaxed:], lower[:n], upper[:n])
-    return consistent

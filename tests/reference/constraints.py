@@ -4,6 +4,7 @@ inputs of the activation rule and an arm's per-fill jump matrices of an expected
 
 import numpy as np
 
+from impactqp.constraints import CaptureRegionLimit, FootWrenchLimit, HeldContactRows
 from impactqp.constraints import (
     ImpulsiveTorqueLimit,
     PositionLimit,
@@ -11,6 +12,7 @@ from impactqp.constraints import (
     TorqueLimit,
     VelocityLimit,
 )
+from impactqp.controller.model.capture import GRAVITY
 from impactqp.controller.model.jump import JumpMatrices
 
 from .jump import reference_classical_jump_matrices, reference_rank_one_jump_matrices
@@ -30,13 +32,18 @@ def symmetric_rows_into(C, dq, limit, inv_h, active, lower, upper) -> None:
 
 
 def _position_rows(c: PositionLimit, terms, cycle, lower, upper) -> None:
+    """The bounds of the actuated joints (the last entries; a floating base's unbounded)."""
+    joints = c._limits.shape[1]
+    lower[:-joints], upper[:-joints] = -np.inf, np.inf
+    lower, upper = lower[-joints:], upper[-joints:]
+    q, dq = terms.q[-joints:], terms.dq[-joints:]
     dt = cycle.dt
     if dt != c._dt:
         c._constants(dt)
     half_step, half_step_squared, twice_braking = c._braking_terms
-    towards = c._sign * terms.dq  # velocity towards each limit
+    towards = c._sign * dq  # velocity towards each limit
     # d_e = max(sign (limit - q) - dt/2 sign dq - a dt^2/8, 0)
-    distance = np.maximum(c._signed_limits - c._sign * (terms.q + (0.5 * dt) * terms.dq), 0.0)
+    distance = np.maximum(c._signed_limits - c._sign * (q + (0.5 * dt) * dq), 0.0)
     allowed = np.sqrt(half_step_squared + twice_braking * distance)
     allowed -= half_step + towards
     allowed *= 1.0 / dt
@@ -50,9 +57,11 @@ def reference_rows(constraint, terms, cycle, C, lower, upper) -> None:
     inv_h = 1.0 / cycle.horizon
     if isinstance(constraint, PositionLimit):
         _position_rows(constraint, terms, cycle, lower, upper)
-    elif isinstance(constraint, VelocityLimit):
-        np.subtract(-inv_h * constraint.dq_max, inv_h * terms.dq, out=lower)
-        np.subtract(inv_h * constraint.dq_max, inv_h * terms.dq, out=upper)
+    elif isinstance(constraint, VelocityLimit):  # the actuated joints, a floating base's unbounded
+        joints = constraint.rows
+        lower[:-joints], upper[:-joints] = -np.inf, np.inf
+        np.subtract(-inv_h * constraint.dq_max, inv_h * terms.dq[-joints:], out=lower[-joints:])
+        np.subtract(inv_h * constraint.dq_max, inv_h * terms.dq[-joints:], out=upper[-joints:])
     elif isinstance(constraint, TorqueLimit):
         inv = 1.0 / np.diagonal(terms.M)
         np.multiply(terms.M, inv[:, None], out=C)
@@ -72,8 +81,50 @@ def reference_rows(constraint, terms, cycle, C, lower, upper) -> None:
         # s_i tau_max_i delta_t = dq_max_i
         scaled_limit = np.tile(constraint.row_scale * constraint.impulse_limit, len(torques))
         symmetric_rows_into(C, terms.dq, scaled_limit, inv_h, impact.is_active(terms), lower, upper)
+    elif type(constraint) is HeldContactRows:
+        C[:] = terms.held_jacobian
+        lower[:] = upper[:] = -terms.held_drift
+    elif type(constraint) in (CaptureRegionLimit, FootWrenchLimit):
+        lower.fill(-np.inf)
+        upper.fill(np.inf)
+        C[:] = 0.0
+        if constraint.impact.is_active(terms):
+            rows = _capture_rows if type(constraint) is CaptureRegionLimit else _foot_wrench_rows
+            C[:], upper[:] = rows(constraint, terms, inv_h)
     else:
         constraint.compute_into(terms, cycle, C, lower, upper)
+
+
+def _capture_rows(c: CaptureRegionLimit, terms, inv_h: float) -> tuple[np.ndarray, np.ndarray]:
+    """nu K_xy dv <= (omega nu . (a - c) - nu K_xy v) / h, K = Jcom + C G J."""
+    maps = c.impact.matrices(terms)
+    K = terms.Jcom + maps.com_map @ maps.impulse_map @ terms.J
+    rows = c._normals @ K[:2]
+    omega = np.sqrt(GRAVITY / (terms.com[2] - c.ground_height))
+    return rows, (omega * (c._offsets - c._normals @ terms.com[:2]) - rows @ terms.dq) * inv_h
+
+
+def _foot_wrench_rows(c: FootWrenchLimit, terms, inv_h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per foot k, for each row e of its axes (the slip row at this state's peak wrench, then the
+    sole's rows), with the world row E = diag(R_k, R_k) e: E . L_k dv / m <= (-T E . w_k / m - E . L_k v / m) / h,
+    L = -(Jf M^-1 Jf^T)^-1 Jf M^-1 J^T G J and w the standing map of the weight m g at c."""
+    Jf, M_inv, J, m = terms.held_jacobian, terms.M_inv, terms.J, terms.mass
+    L = -np.linalg.solve(Jf @ M_inv @ Jf.T, Jf @ M_inv @ J.T) @ c.impact.matrices(terms).impulse_map @ J
+    weight = m * GRAVITY
+    w = c.duration * c._standing @ np.array([0.0, 0.0, weight, terms.com[1] * weight, -terms.com[0] * weight, 0.0])
+    peak = w + L @ terms.dq
+    rows, upper = [], []
+    for k, R in enumerate(c._rotations):
+        block = slice(6 * k, 6 * k + 6)
+        tangential = (R.T @ peak[block][:3])[:2]
+        norm = np.linalg.norm(tangential)
+        u = tangential / norm if norm > 0.0 else np.array([1.0, 0.0])
+        for e in [np.array([u[0], u[1], -c._friction[k], 0.0, 0.0, 0.0]), *c._soles[k]]:
+            world = np.concatenate([R @ e[:3], R @ e[3:]])
+            row = world @ L[block] / m
+            rows.append(row)
+            upper.append((-(world @ w[block]) / m - row @ terms.dq) * inv_h)
+    return np.array(rows), np.array(upper)
 
 
 def reference_recoverable(cycle, C, lower, upper):

@@ -4,7 +4,7 @@
 import numpy as np
 import pinocchio as pin
 
-from impactqp.tasks import ContactApproachTask, DampingTask, PostureTask
+from impactqp.tasks import CentreOfMassTask, ContactApproachTask, DampingTask, FrameTask, PostureTask
 
 
 def reference_rows(task, terms, A, b) -> None:
@@ -19,9 +19,19 @@ def reference_rows(task, terms, A, b) -> None:
         b[:3] = task.basis @ b[:3]
         np.matmul(task.basis, terms.J6[:3], out=A[:3])
         A[3:] = terms.J6[3:]
-    elif isinstance(task, PostureTask):
-        A[:] = np.eye(A.shape[1])
-        np.subtract(task.stiffness * (task.target - terms.q), task.damping * terms.dq, out=b)
+    elif isinstance(task, PostureTask):  # the actuated joints: the last rows of q and dq
+        rows = task.rows
+        A[:] = np.eye(A.shape[1])[-rows:]
+        np.subtract(task.stiffness * (task.target - terms.q[-rows:]), task.damping * terms.dq[-rows:], out=b)
+    elif type(task) is FrameTask:
+        # b = kp [p* - p; log(R* R^T)] - kd J6 v - dJ6 v
+        position, rotation, J6, drift = task.frame_state(terms)
+        error = np.concatenate([task.target_position - position, pin.log3(task.target_rotation @ rotation.T)])
+        A[:] = J6
+        b[:] = task.stiffness * error - task.damping * (J6 @ terms.dq) - drift
+    elif isinstance(task, CentreOfMassTask):
+        A[:] = terms.Jcom
+        b[:] = task.stiffness * (task.target - terms.com) - task.damping * (terms.Jcom @ terms.dq) - terms.dJcom_dq
     elif isinstance(task, DampingTask):
         A[:] = np.eye(A.shape[1])
         np.multiply(-task.gain, terms.dq, out=b)

@@ -1,0 +1,215 @@
+"""daqp on a standing robot's QP with its held contacts' equality rows eliminated (docs/whole-body-qp.md,
+"Controller cycle").
+
+The QP min 1/2 x^T H x + g^T x over lb <= x <= ub, l <= C x <= u holds the held contacts' rows
+Jf x = d (``HeldContactRows``: d = -dJf v). Split the unknowns into e, the velocities of the
+joints that carry the held frames (a standing robot's legs: one 6-joint chain per foot, so Jf_e
+is square) and f, the others (the base's and the upper body's). Where Jf_e is invertible, the
+rows give x_e = E x_f + e0 with E = -Jf_e^-1 Jf_f and e0 = Jf_e^-1 d, and the QP is the same as
+
+    min 1/2 x_f^T H_r x_f + g_r^T x_f   over lb_f <= x_f <= ub_f, l - C_e e0 <= C_r x_f <= u - C_e e0,
+                                              lb_e - e0 <= E x_f <= ub_e - e0,
+    H_r = H_ff + H_fe E + E^T H_ef + E^T H_ee E,   g_r = g_f + E^T g_e + (H_fe + E^T H_ee) e0,
+    C_r = C_f + C_e E,
+
+with x_e = E x_f + e0 after: the same minimiser (an exact substitution), m - 12 unknowns instead
+of m, no equality row (the rows of e's bounds take the held rows' places, so the row count and
+order stay). daqp adds each equality row to its working set one iteration at a time; without
+them it solves the G1's QP in about half the time. The controller accepts the expanded x only
+when it satisfies the full QP (``ImpactAwareController._acceptable``); a singular Jf_e, or a
+reduced QP daqp does not solve, goes to daqp on the full QP.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from impactqp.constraints import HeldContactRows
+
+from .problem import QpProblem
+from .solvers import SOLVED, DaqpSolver
+
+
+def held_elimination(solver, layout, robot):
+    """``solver`` itself, or the daqp solver of the reduced QP (module docstring) when it is daqp
+    and the robot stands on held contacts whose rows each move one chain of as many joints."""
+    held = [rows for c, rows in zip(layout.row_constraints, layout.row_slices) if type(c) is HeldContactRows]
+    if solver.name != "daqp" or len(held) != 1:
+        return solver
+    eliminated = held_chain_velocities(robot)
+    if eliminated is None or len(eliminated) != held[0].stop - held[0].start:
+        return solver
+    return HeldEliminationDaqp(solver, held[0], eliminated, layout.rows, robot.nv)
+
+
+def held_chain_velocities(robot) -> np.ndarray | None:
+    """The velocity indices of the joints between the floating base and each held frame, in the
+    held frames' order, or None when a chain shares a joint with another or is not six joints."""
+    model = robot.model
+    indices: list[int] = []
+    for frame_id in robot.held_frame_ids:
+        chain = [j for j in model.supports[model.frames[frame_id].parentJoint] if model.parents[j] > 0]
+        columns = [model.joints[j].idx_v + k for j in chain for k in range(model.joints[j].nv)]
+        if len(columns) != 6 or set(columns) & set(indices):
+            return None
+        indices += columns
+    return np.array(indices, dtype=np.int64)
+
+
+class HeldEliminationDaqp:
+    """daqp (``DaqpSolver``, warm-started) on the reduced QP, the full QP's daqp the fallback."""
+
+    name = "daqp"
+
+    def __init__(self, full: DaqpSolver, held: slice, eliminated: np.ndarray, rows: int, variables: int):
+        self.full = full
+        self.held = np.array([held.start, held.stop], dtype=np.int64)
+        self.eliminated = eliminated
+        self.free = np.setdiff1d(np.arange(variables), eliminated)
+        self.reduced = QpProblem.empty(rows, len(self.free))
+        self.reduced_solver = DaqpSolver(rows, len(self.free))
+        self.substitution = np.zeros((len(eliminated), len(self.free) + 1))  # [E | e0]
+
+    def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
+        r = self.reduced
+        if not reduce_problem(
+            (problem.H, problem.g, problem.C, problem.lower, problem.upper), (self.held, self.eliminated, self.free),
+            self.substitution, (r.H, r.g, r.C, r.lower, r.upper),
+        ):  # Jf_e singular at this state
+            return self.full.solve(problem)
+        status, reduced_x = self.reduced_solver.solve(r)
+        if status != SOLVED:
+            return self.full.solve(problem)
+        x = np.empty(problem.H.shape[0])
+        expand_solution(reduced_x, self.substitution, self.eliminated, self.free, x)
+        return SOLVED, x
+
+
+@njit(cache=True)
+def reduce_problem(full, partition, substitution, reduced):
+    """Kernel: the reduced QP of the module docstring, for full = (H, g, C, [lb; l], [ub; u]),
+    partition = ((first, end) of the held rows in C, e, f), into substitution = [E | e0] and
+    reduced = (H_r, g_r, C_r, [lb_f; l_r], [ub_f; u_r]); False when a held contact's block of
+    Jf_e is singular. Jf_e is block diagonal (each held contact's 6 rows move its own chain,
+    ``held_chain_velocities``): one 6 x 6 solve per block. The products run over the columns of
+    [E | e0] that have a non-zero entry (a foot's chain moves with the base alone)."""
+    H, g, C, lower, upper = full
+    held, e, f = partition
+    Hr, gr, Cr, lower_r, upper_r = reduced
+    n, m, k = H.shape[0], f.shape[0], e.shape[0]
+    first, end = held[0], held[1]
+    for i in range(k):
+        for j in range(m):
+            substitution[i, j] = -C[first + i, f[j]]
+        substitution[i, m] = lower[n + first + i]
+    block = np.empty((6, 6))
+    for b in range(0, k, 6):
+        for i in range(6):
+            for j in range(6):
+                block[i, j] = C[first + b + i, e[b + j]]
+        if not solve_in_place(block, substitution[b:b + 6]):
+            return False
+    used = np.empty(m + 1, dtype=np.int64)  # the columns of [E | e0] with a non-zero entry
+    count = 0
+    for j in range(m + 1):
+        for a in range(k):
+            if substitution[a, j] != 0.0:
+                used[count] = j
+                count += 1
+                break
+    HE = np.zeros((n, m + 1))  # H[:, e] [E | e0]
+    for t in range(count):
+        j = used[t]
+        for a in range(k):
+            s = substitution[a, j]
+            for i in range(n):
+                HE[i, j] += H[i, e[a]] * s
+    for i in range(m):
+        gr[i] = g[f[i]] + HE[f[i], m]
+        lower_r[i], upper_r[i] = lower[f[i]], upper[f[i]]
+        for j in range(m):
+            Hr[i, j] = H[f[i], f[j]] + HE[f[i], j] + HE[f[j], i]
+    for t in range(count):  # + E^T H_ee E and E^T (g_e + H_ee e0): the rows i of E's used columns
+        i = used[t]
+        if i == m:
+            continue
+        for a in range(k):
+            s = substitution[a, i]
+            gr[i] += s * (g[e[a]] + HE[e[a], m])
+            for j in range(m):
+                Hr[i, j] += s * HE[e[a], j]
+    for r in range(C.shape[0]):
+        if first <= r < end:  # the held row's place: the bounds of one eliminated velocity
+            a = r - first
+            Cr[r, :] = substitution[a, :m]
+            lower_r[m + r] = lower[e[a]] - substitution[a, m]
+            upper_r[m + r] = upper[e[a]] - substitution[a, m]
+            continue
+        for j in range(m):
+            Cr[r, j] = C[r, f[j]]
+        shift = 0.0
+        for a in range(k):
+            c = C[r, e[a]]
+            if c == 0.0:
+                continue
+            for t in range(count):
+                j = used[t]
+                if j == m:
+                    shift += c * substitution[a, m]
+                else:
+                    Cr[r, j] += c * substitution[a, j]
+        lower_r[m + r] = lower[n + r] - shift
+        upper_r[m + r] = upper[n + r] - shift
+    return True
+
+
+@njit(cache=True)
+def solve_in_place(A, B):
+    """Kernel: B <- A^-1 B by Gaussian elimination with partial pivoting (A overwritten); False
+    when a pivot is below 1e-12 times A's largest entry (A singular for this purpose)."""
+    size = A.shape[0]
+    scale = 0.0
+    for i in range(size):
+        for j in range(size):
+            scale = max(scale, abs(A[i, j]))
+    for col in range(size):
+        pivot = col
+        for i in range(col + 1, size):
+            if abs(A[i, col]) > abs(A[pivot, col]):
+                pivot = i
+        if not abs(A[pivot, col]) > 1e-12 * scale:
+            return False
+        if pivot != col:
+            for j in range(size):
+                A[col, j], A[pivot, j] = A[pivot, j], A[col, j]
+            for j in range(B.shape[1]):
+                B[col, j], B[pivot, j] = B[pivot, j], B[col, j]
+        for i in range(col + 1, size):
+            factor = A[i, col] / A[col, col]
+            if factor == 0.0:
+                continue
+            for j in range(col, size):
+                A[i, j] -= factor * A[col, j]
+            for j in range(B.shape[1]):
+                B[i, j] -= factor * B[col, j]
+    for col in range(size - 1, -1, -1):
+        for j in range(B.shape[1]):
+            total = B[col, j]
+            for i in range(col + 1, size):
+                total -= A[col, i] * B[i, j]
+            B[col, j] = total / A[col, col]
+    return True
+
+
+@njit(cache=True)
+def expand_solution(reduced_x, substitution, e, f, x):
+    """Kernel: x_f = the reduced solution, x_e = E x_f + e0."""
+    m = f.shape[0]
+    for j in range(m):
+        x[f[j]] = reduced_x[j]
+    for a in range(e.shape[0]):
+        total = substitution[a, m]
+        for j in range(m):
+            total += substitution[a, j] * reduced_x[j]
+        x[e[a]] = total
