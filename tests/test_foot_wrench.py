@@ -71,6 +71,9 @@ def test_rows_and_the_closed_form_give_the_same_highest_speed(state, method, dur
     for criterion, rows in (("foot_slip", slip), ("foot_lift", ~slip)):
         bound = bounds[criterion]
         assert np.isfinite(bound.speed)
+        if bound.speed == 0.0:  # a posture that already fails it standing (its CoP out of a sole)
+            assert np.any(row_values(limit, q, 0.0 * d)[rows] > 0.0)
+            continue
         at = row_values(limit, q, bound.speed * d)[rows]
         assert abs(at.max()) <= 1e-9 * scale
         assert bound.where in np.array(limit.labels)[rows][int(np.argmax(at))]
