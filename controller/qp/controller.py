@@ -74,7 +74,9 @@ from impactqp.tasks import Task
 
 from .command import Command, CommandMemory, Status, command_limits
 from .cycle_plan import CycleBuffers, CyclePlan
-from .cycle_kernels import first_outside, integrate_command, intersect_boxes, tight_constraints, weighted_least_squares
+from .cycle_kernels import (
+    COMMAND_ROWS, first_outside, integrate_command, intersect_boxes, tight_constraints, weighted_least_squares,
+)
 from .elastic_relaxation import ElasticRelaxation
 from .fallback import bounded_conflict, brake, braking_command, irreducible_conflict, usable_state
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
@@ -163,6 +165,7 @@ class ImpactAwareController:
         self._relaxed_rows = (p.C[first:], p.l[first:], p.u[first:])
         self._terms = self.robot.empty_terms()  # refilled in place every cycle
         self._jerk_step = self.dddq_max * self.dt
+        self._no_jump = np.zeros((n, n))  # the jump matrix of a fixed base's command without an expected impact
         joints = self._joint_velocities
         self._limits = command_limits(self.robot, self.ddq_max[joints], self._jerk_step[joints])
         horizon = max(self.dt, float(np.max(self.ddq_max / self.dddq_max)))
@@ -254,14 +257,19 @@ class ImpactAwareController:
         # q_cmd = q (+) (dq + dq_cmd) dt / 2 within the position limits
         if self._floating:
             dq_cmd, q_cmd, clipped = self._floating_integrate(terms, ddq)
-        else:  # one compiled pass
-            dq_cmd, q_cmd = np.empty(robot.nv), np.empty(robot.nq)
-            clipped = integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, dq_cmd, q_cmd)
+            motion = (ddq, dq_cmd, q_cmd)
+        else:  # one compiled pass: the command and the impact prediction at dq_cmd
+            command = np.empty((COMMAND_ROWS, robot.nv))
+            jump_matrix = self._no_jump if self.impact is None else self.impact.row_matrices(terms).jump_matrix
+            clipped = integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, jump_matrix, command)
+            dq_cmd, q_cmd = command[0], command[1]
+            motion = (ddq, dq_cmd, q_cmd, command[2], command[3])
         if clipped:
             ddq = (dq_cmd - terms.dq) * (1.0 / self.dt)
             status = Status.VELOCITY_CLIPPED
             self.problem.violation(ddq)  # the gaps of the ddq actually commanded
-        return self._emit(terms, (ddq, dq_cmd, q_cmd), status, self._active_constraints(ddq), [], solver_name)
+            motion = (ddq, *motion[1:])
+        return self._emit(terms, motion, status, self._active_constraints(ddq), [], solver_name)
 
     # ------------------------------------------------------------------ one cycle
     def _impact_noticed(self, terms: ModelTerms) -> bool:
@@ -417,19 +425,22 @@ class ImpactAwareController:
     def _emit(self, terms, motion, status, active, violated, solver, message="") -> Command:
         """Record the command ``motion`` = (ddq, dq_cmd, q_cmd) in the memory and package it with
         the impact prediction (the matrices of this cycle, already computed for the impact
-        constraints)."""
-        ddq, dq_cmd, q_cmd = motion
+        constraints): the jump and the post-impact velocity at dq_cmd, when ``motion`` does not
+        bring them (a fixed base's ``integrate_command`` does)."""
+        ddq, dq_cmd, q_cmd, *prediction = motion
         memory = self.memory
         memory.q_cmd, memory.dq_cmd, memory.ddq = q_cmd, dq_cmd, ddq
-        if self.impact is not None and terms is not None:
+        impact_active = self.impact is not None and terms is not None and self.impact.is_active(terms)
+        if prediction:
+            jump, post_impact = prediction
+        elif self.impact is not None and terms is not None:
             jump = self.impact.matrices(terms).jump_matrix @ dq_cmd
-            impact_active = self.impact.is_active(terms)
+            post_impact = dq_cmd + jump
         else:
-            jump = np.zeros(self.robot.nv)
-            impact_active = False
+            jump, post_impact = np.zeros(self.robot.nv), dq_cmd.copy()
         self._impact_was_active = impact_active
         return Command(
-            ddq, dq_cmd, q_cmd, status, active, violated, jump, dq_cmd + jump, impact_active, solver, message,
+            ddq, dq_cmd, q_cmd, status, active, violated, jump, post_impact, impact_active, solver, message,
             self.phase,
         )
 

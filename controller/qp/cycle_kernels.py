@@ -58,21 +58,34 @@ def first_outside(values, limit):
     return -1
 
 
+COMMAND_ROWS = 4
+"""Rows of ``integrate_command``'s output: dq_cmd, q_cmd, the predicted jump and dq_cmd + the jump."""
+
+
 @njit(cache=True)
-def integrate_command(q, dq, ddq, dt, limits, dq_cmd, q_cmd):
-    """Kernel: dq_cmd = clip(dq + ddq dt, +-dq_max), q_cmd = clip(q + (dq + dq_cmd) dt / 2,
-    q_min, q_max) (``limits``: the stacked ``command_limits``); True when dq_cmd had to be
-    clipped."""
+def integrate_command(q, dq, ddq, dt, limits, jump_matrix, out):
+    """Kernel of a fixed base's command: out[0] = dq_cmd = clip(dq + ddq dt, +-dq_max), out[1] =
+    q_cmd = clip(q + (dq + dq_cmd) dt / 2, q_min, q_max) (``limits``: the stacked
+    ``command_limits``), out[2] = the predicted jump A dq_cmd of the jump matrix A at the
+    commanded velocity and out[3] = dq_cmd + A dq_cmd, the predicted post-impact velocity; True
+    when dq_cmd had to be clipped."""
     clipped = False
-    for i in range(q.shape[0]):
+    n = q.shape[0]
+    for i in range(n):
         v = dq[i] + ddq[i] * dt
         dq_max = limits[DQ_MAX, i]
         if v > dq_max:
             v, clipped = dq_max, True
         elif v < -dq_max:
             v, clipped = -dq_max, True
-        dq_cmd[i] = v
-        q_cmd[i] = min(max(q[i] + 0.5 * dt * (dq[i] + v), limits[Q_MIN, i]), limits[Q_MAX, i])
+        out[0, i] = v
+        out[1, i] = min(max(q[i] + 0.5 * dt * (dq[i] + v), limits[Q_MIN, i]), limits[Q_MAX, i])
+    for i in range(n):
+        jump = 0.0
+        for j in range(n):
+            jump += jump_matrix[i, j] * out[0, j]
+        out[2, i] = jump
+        out[3, i] = out[0, i] + jump
     return clipped
 
 
