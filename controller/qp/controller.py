@@ -75,7 +75,7 @@ from impactqp.tasks import Task
 from .command import Command, CommandMemory, Status, command_limits
 from .cycle_plan import CycleBuffers, CyclePlan
 from .cycle_kernels import (
-    COMMAND_ROWS, first_outside, integrate_command, intersect_boxes, tight_constraints, weighted_least_squares,
+    COMMAND_ROWS, checked_solution, first_outside, integrate_command, intersect_boxes, weighted_least_squares,
 )
 from .elastic_relaxation import ElasticRelaxation
 from .fallback import bounded_conflict, brake, braking_command, irreducible_conflict, usable_state
@@ -267,9 +267,9 @@ class ImpactAwareController:
         if clipped:
             ddq = (dq_cmd - terms.dq) * (1.0 / self.dt)
             status = Status.VELOCITY_CLIPPED
-            self.problem.violation(ddq)  # the gaps of the ddq actually commanded
+            self._checked(ddq)  # the gaps and the active constraints of the ddq actually commanded
             motion = (ddq, *motion[1:])
-        return self._emit(terms, motion, status, self._active_constraints(ddq), [], solver_name)
+        return self._emit(terms, motion, status, self._active_constraints(), [], solver_name)
 
     # ------------------------------------------------------------------ one cycle
     def _impact_noticed(self, terms: ModelTerms) -> bool:
@@ -364,15 +364,20 @@ class ImpactAwareController:
 
     def _acceptable(self, x: np.ndarray) -> bool:
         """A solution is used only when it is finite and satisfies every row and bound."""
-        return self.problem.violation(x) <= self.feasibility_tolerance
+        return self._checked(x) <= self.feasibility_tolerance
 
-    def _active_constraints(self, ddq: np.ndarray) -> list[str]:
-        """Names of the constraints with at least one row at a bound (the gaps of the
-        accepted solution's feasibility check; box constraints by their own, unclipped bounds)."""
-        p, flags = self.problem, self._active_flags
+    def _checked(self, x: np.ndarray) -> float:
+        """The largest violation of a row or bound by x, and the active constraints' flags of x
+        (a row within 10 x ``feasibility_tolerance`` of a bound; box constraints by their own,
+        unclipped bounds), in one compiled call."""
+        p = self.problem
         tolerance = self.feasibility_tolerance * 10.0
-        tight_constraints(ddq, self._box_bounds, p.lower_gap, p.upper_gap, self.layout.row_ends, tolerance, flags)
-        return [name for name, hit in zip(self.layout.flag_names, flags) if hit]
+        return checked_solution(p.C, x, p.bounds, p.gaps, self._box_bounds, self.layout.row_ends, tolerance, self._active_flags)
+
+    def _active_constraints(self) -> list[str]:
+        """Names of the constraints with at least one row at a bound at the commanded ddq (the
+        flags of its check, ``_checked``: when it was accepted, or clipped)."""
+        return [name for name, hit in zip(self.layout.flag_names, self._active_flags) if hit]
 
     # ------------------------------------------------------------------ fallback
     def _infeasible(self, q, dq, terms, message) -> Command:

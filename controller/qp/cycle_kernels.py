@@ -1,6 +1,7 @@
 """The compiled kernels of one control cycle (``controller.ImpactAwareController``), each with a
 plain-numpy twin in the tests: the QP cost of the stacked task rows, the intersection of the box
-constraints, the velocity-limit test, the integration of a fixed-base command and the active set."""
+constraints, the velocity-limit test, the integration of a fixed-base command with its impact
+prediction, and a solution's check with its active set."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from .command import DQ_MAX, Q_MAX, Q_MIN
+from .problem import stacked_violation
 
 
 @njit(cache=True)
@@ -90,10 +92,22 @@ def integrate_command(q, dq, ddq, dt, limits, jump_matrix, out):
 
 
 @njit(cache=True)
-def tight_constraints(x, box_bounds, lower_gap, upper_gap, row_ends, tol, flags):
+def checked_solution(C, x, bounds, gaps, box_bounds, row_ends, tol, flags):
+    """Kernel of a solution's check: ``stacked_violation`` of x in the QP of C and the stacked
+    ``bounds`` (its largest violation, returned; the gaps in ``gaps``), then
+    ``tight_constraints``' flags of x at ``tol``."""
+    violation = stacked_violation(C, x, bounds, gaps)
+    tight_constraints(x, box_bounds, gaps, row_ends, tol, flags)
+    return violation
+
+
+@njit(cache=True)
+def tight_constraints(x, box_bounds, gaps, row_ends, tol, flags):
     """Kernel: flags[k] for box k (bounds in rows 2k, 2k+1 of box_bounds) when x is within tol
     of one of its bounds, then flags of the general constraints (rows ending at row_ends) when
-    one of their rows has a gap <= tol."""
+    one of their rows has a gap <= tol (``gaps``: the rows lower_gap, upper_gap of
+    ``stacked_violation``)."""
+    lower_gap, upper_gap = gaps[0], gaps[1]
     boxes = box_bounds.shape[0] // 2
     n = x.shape[0]
     for k in range(boxes):
