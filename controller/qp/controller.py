@@ -74,9 +74,8 @@ from impactqp.tasks import Task
 
 from .command import Command, CommandMemory, Status, command_limits
 from .cycle_plan import CycleBuffers, CyclePlan
-from .cycle_kernels import (
-    COMMAND_ROWS, checked_solution, first_outside, integrate_command, intersect_boxes, weighted_least_squares,
-)
+from .cycle_kernels import COMMAND_ROWS, checked_solution, first_outside, integrate_command, intersect_boxes
+from .cycle_kernels import weighted_least_squares
 from .elastic_relaxation import ElasticRelaxation
 from .fallback import bounded_conflict, brake, braking_command, irreducible_conflict, usable_state
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
@@ -165,7 +164,7 @@ class ImpactAwareController:
         self._relaxed_rows = (p.C[first:], p.l[first:], p.u[first:])
         self._terms = self.robot.empty_terms()  # refilled in place every cycle
         self._jerk_step = self.dddq_max * self.dt
-        self._no_jump = np.zeros((n, n))  # the jump matrix of a fixed base's command without an expected impact
+        self._no_jump = np.zeros((n, n))  # a fixed base's jump matrix without an expected impact
         joints = self._joint_velocities
         self._limits = command_limits(self.robot, self.ddq_max[joints], self._jerk_step[joints])
         horizon = max(self.dt, float(np.max(self.ddq_max / self.dddq_max)))
@@ -262,10 +261,9 @@ class ImpactAwareController:
             command = np.empty((COMMAND_ROWS, robot.nv))
             jump_matrix = self._no_jump if self.impact is None else self.impact.row_matrices(terms).jump_matrix
             clipped = integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, jump_matrix, command)
-            dq_cmd, q_cmd = command[0], command[1]
-            motion = (ddq, dq_cmd, q_cmd, command[2], command[3])
+            motion = (ddq, *command)  # dq_cmd, q_cmd, the jump, the post-impact velocity
         if clipped:
-            ddq = (dq_cmd - terms.dq) * (1.0 / self.dt)
+            ddq = (motion[1] - terms.dq) * (1.0 / self.dt)
             status = Status.VELOCITY_CLIPPED
             self._checked(ddq)  # the gaps and the active constraints of the ddq actually commanded
             motion = (ddq, *motion[1:])
@@ -352,26 +350,20 @@ class ImpactAwareController:
             solved, x = self.solver.solve(problem)
         except Exception:  # a backend error must not stop the control loop
             solved, x = FAILED, None
-        if solved == SOLVED and self._acceptable(x):
+        if solved == SOLVED and self._checked(x) <= self.feasibility_tolerance:  # finite, every row and bound met
             return SOLVED, x, self.solver.name
         try:
             solved, x = self.verifier.solve(problem)
         except Exception:
             solved, x = FAILED, None
-        if solved == SOLVED and not self._acceptable(x):
+        if solved == SOLVED and not self._checked(x) <= self.feasibility_tolerance:
             solved, x = FAILED, None
         return solved, x, self.verifier.name
 
-    def _acceptable(self, x: np.ndarray) -> bool:
-        """A solution is used only when it is finite and satisfies every row and bound."""
-        return self._checked(x) <= self.feasibility_tolerance
-
     def _checked(self, x: np.ndarray) -> float:
-        """The largest violation of a row or bound by x, and the active constraints' flags of x
-        (a row within 10 x ``feasibility_tolerance`` of a bound; box constraints by their own,
-        unclipped bounds), in one compiled call."""
-        p = self.problem
-        tolerance = self.feasibility_tolerance * 10.0
+        """The largest violation of a row or bound by x, and in the same compiled call the active
+        constraints' flags of x (a row within 10 x ``feasibility_tolerance`` of a bound)."""
+        p, tolerance = self.problem, self.feasibility_tolerance * 10.0
         return checked_solution(p.C, x, p.bounds, p.gaps, self._box_bounds, self.layout.row_ends, tolerance, self._active_flags)
 
     def _active_constraints(self) -> list[str]:
@@ -428,10 +420,9 @@ class ImpactAwareController:
         return ddq, dq_cmd, self._floating_position(terms, dq_cmd)
 
     def _emit(self, terms, motion, status, active, violated, solver, message="") -> Command:
-        """Record the command ``motion`` = (ddq, dq_cmd, q_cmd) in the memory and package it with
-        the impact prediction (the matrices of this cycle, already computed for the impact
-        constraints): the jump and the post-impact velocity at dq_cmd, when ``motion`` does not
-        bring them (a fixed base's ``integrate_command`` does)."""
+        """Record the command ``motion`` = (ddq, dq_cmd, q_cmd[, jump, post-impact velocity]) in the
+        memory and package it with the impact prediction at dq_cmd (computed here when ``motion``
+        does not bring it, from the matrices of this cycle)."""
         ddq, dq_cmd, q_cmd, *prediction = motion
         memory = self.memory
         memory.q_cmd, memory.dq_cmd, memory.ddq = q_cmd, dq_cmd, ddq
