@@ -369,7 +369,7 @@ class ImpactAwareController:
     def _active_constraints(self) -> list[str]:
         """Names of the constraints with at least one row at a bound at the commanded ddq (the
         flags of its check, ``_checked``: when it was accepted, or clipped)."""
-        return [name for name, hit in zip(self.layout.flag_names, self._active_flags) if hit]
+        return [name for name, hit in zip(self.layout.flag_names, self._active_flags.tolist()) if hit]
 
     # ------------------------------------------------------------------ fallback
     def _infeasible(self, q, dq, terms, message) -> Command:
