@@ -177,8 +177,8 @@ def test_the_cycle_kernel_is_its_numpy_twin_and_pinocchios_frame_terms(robot, q,
         assert np.all(out == 7.0)
         return
     outputs = arm_cycle_outputs(out, robot.nv)
-    for array, twin in zip(outputs, expected[1:]):
-        np.testing.assert_allclose(array, twin, rtol=0, atol=1e-12)
+    for array, twin in zip(outputs, expected[1:]):  # (J J^T)^-1 grows near a singular posture: relative
+        np.testing.assert_allclose(array, twin, rtol=0, atol=1e-12 * max(1.0, np.abs(twin).max()))
     world_aligned = pin.LOCAL_WORLD_ALIGNED
     np.testing.assert_allclose(outputs[0], pin.getFrameJacobian(model, data, fid, world_aligned), rtol=0, atol=1e-12)
     drift = pin.getFrameClassicalAcceleration(model, data, fid, world_aligned).vector

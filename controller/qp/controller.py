@@ -255,19 +255,16 @@ class ImpactAwareController:
         # dq_cmd = dq + ddq dt (clipped only off the closed loop: see the docstring) and
         # q_cmd = q (+) (dq + dq_cmd) dt / 2 within the position limits
         if self._floating:
-            dq_cmd, q_cmd, clipped = self._floating_integrate(terms, ddq)
-            motion = (ddq, dq_cmd, q_cmd)
-        else:  # one compiled pass: the command and the impact prediction at dq_cmd
+            *command, clipped = self._floating_integrate(terms, ddq)
+        else:  # one compiled pass: the rows dq_cmd, q_cmd, the predicted jump and post-impact velocity
             command = np.empty((COMMAND_ROWS, robot.nv))
             jump_matrix = self._no_jump if self.impact is None else self.impact.row_matrices(terms).jump_matrix
             clipped = integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, jump_matrix, command)
-            motion = (ddq, *command)  # dq_cmd, q_cmd, the jump, the post-impact velocity
         if clipped:
-            ddq = (motion[1] - terms.dq) * (1.0 / self.dt)
+            ddq = (command[0] - terms.dq) * (1.0 / self.dt)
             status = Status.VELOCITY_CLIPPED
             self._checked(ddq)  # the gaps and the active constraints of the ddq actually commanded
-            motion = (ddq, *motion[1:])
-        return self._emit(terms, motion, status, self._active_constraints(), [], solver_name)
+        return self._emit(terms, (ddq, *command), status, self._active_constraints(), [], solver_name)
 
     # ------------------------------------------------------------------ one cycle
     def _impact_noticed(self, terms: ModelTerms) -> bool:
@@ -426,18 +423,13 @@ class ImpactAwareController:
         ddq, dq_cmd, q_cmd, *prediction = motion
         memory = self.memory
         memory.q_cmd, memory.dq_cmd, memory.ddq = q_cmd, dq_cmd, ddq
-        impact_active = self.impact is not None and terms is not None and self.impact.is_active(terms)
-        if prediction:
-            jump, post_impact = prediction
-        elif self.impact is not None and terms is not None:
-            jump = self.impact.matrices(terms).jump_matrix @ dq_cmd
-            post_impact = dq_cmd + jump
-        else:
-            jump, post_impact = np.zeros(self.robot.nv), dq_cmd.copy()
-        self._impact_was_active = impact_active
+        predicts = self.impact is not None and terms is not None
+        if not prediction:
+            jump = self.impact.matrices(terms).jump_matrix @ dq_cmd if predicts else np.zeros(self.robot.nv)
+            prediction = (jump, dq_cmd + jump)
+        self._impact_was_active = impact_active = predicts and self.impact.is_active(terms)
         return Command(
-            ddq, dq_cmd, q_cmd, status, active, violated, jump, post_impact, impact_active, solver, message,
-            self.phase,
+            ddq, dq_cmd, q_cmd, status, active, violated, *prediction, impact_active, solver, message, self.phase
         )
 
 
