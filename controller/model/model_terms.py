@@ -78,10 +78,11 @@ class ModelTerms:
     ``cycle_data`` is the Pinocchio data of an arm's per-cycle buffer (None elsewhere): its
     ``computeAllTerms`` writes M, h, com, contact_point and contact_rotation, which are views of
     it (no copy), and its Cholesky factor of M gives M^-1 (``compute_inverse_inertia``);
-    ``cycle_arrays`` = (``data.J``, ``data.dJ``, ``data.Ig``, out) are that data's world-frame
-    joint Jacobians, their time variation and its centroidal inertia, which J6, dJ6 dq, (J J^T)^-1
-    and the inertia about the centre of mass are computed from (``arm_cycle_terms``), and the
-    flat array that J6, dJ6 dq and (J J^T)^-1 are views of (``arm_cycle_outputs``).
+    ``cycle_arrays`` = (``data.J``, ``data.dJ``, ``data.Ig``, out, contact) are that data's
+    world-frame joint Jacobians, their time variation and its centroidal inertia, which J6,
+    dJ6 dq, (J J^T)^-1 and the inertia about the centre of mass are computed from
+    (``arm_cycle_terms``), the flat array that J6, dJ6 dq and (J J^T)^-1 are views of, and its
+    first part, ``contact_terms`` (``arm_cycle_outputs``).
 
     A controller refills one ModelTerms per cycle (``RobotModel.update_terms``); ``stamp``
     changes at every fill (and for a ``dataclasses.replace`` copy), so anything cached per
@@ -165,6 +166,16 @@ class ModelTerms:
         if name not in frames:
             raise BadInputError(f"unknown frame {name!r}; the robot's frames: {', '.join(frames) or 'none'}")
         return frames[name]
+
+    @property
+    def contact_terms(self) -> np.ndarray:
+        """J6, (J J^T)^-1 and the contact point p in one flat array (``contact_views``), what a
+        compiled kernel reads in one argument (a kernel's dispatch costs per argument): an arm's
+        cycle buffer's is a view of the array its kernel writes at every refill
+        (``arm_cycle_outputs``), other terms' is packed on first use, once per fill."""
+        if self.cycle_arrays is not None:
+            return self.cycle_arrays[4]
+        return self.cached("contact_terms", lambda: pack_contact_terms(self.J6, self.JJt_inv, self.contact_point))
 
     @property
     def J_pinv(self) -> np.ndarray:
@@ -256,10 +267,30 @@ def arm_cycle_checks(singular_ratio_squared: float, q_min: np.ndarray, q_max: np
     return np.concatenate([[singular_ratio_squared], q_min, q_max]).astype(float)
 
 
-def arm_cycle_outputs(out: np.ndarray, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The views (J6 (6 x nv), dJ6 dq (6), (J J^T)^-1 (3 x 3)) of the flat ``out`` of
-    ``arm_cycle_terms`` (6 nv + 15 values)."""
-    return out[:6 * nv].reshape(6, nv), out[6 * nv:6 * nv + 6], out[6 * nv + 6:].reshape(3, 3)
+CONTACT_TERMS_EXTRA = 12
+"""Values of ``contact_terms`` beyond J6's 6 nv: (J J^T)^-1 (9) and p (3)."""
+
+
+def pack_contact_terms(J6: np.ndarray, JJt_inv: np.ndarray, contact_point: np.ndarray) -> np.ndarray:
+    """[J6, (J J^T)^-1, p], row-major, in a new flat array (``ModelTerms.contact_terms``)."""
+    return np.concatenate((np.ravel(J6), np.ravel(JJt_inv), contact_point))
+
+
+@njit(cache=True)
+def contact_views(contact, nv):
+    """The views (J6 (6 x nv), (J J^T)^-1 (3 x 3), p (3)) of ``contact`` = [J6, (J J^T)^-1, p]
+    (``ModelTerms.contact_terms``, 6 nv + 12 values), for kernels and for Python alike."""
+    d = 6 * nv
+    return contact[:d].reshape(6, nv), contact[d:d + 9].reshape(3, 3), contact[d + 9:d + 12]
+
+
+def arm_cycle_outputs(out: np.ndarray, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The views (J6 (6 x nv), dJ6 dq (6), (J J^T)^-1 (3 x 3), contact terms (6 nv + 12)) of the
+    flat ``out`` = [J6, (J J^T)^-1, p, dJ6 dq] of ``arm_cycle_terms`` (6 nv + 18 values): its
+    first 6 nv + 12 are ``ModelTerms.contact_terms`` (``contact_views``)."""
+    contact = out[:6 * nv + CONTACT_TERMS_EXTRA]
+    J6, JJt_inv, _ = contact_views(contact, nv)
+    return J6, out[6 * nv + CONTACT_TERMS_EXTRA:], JJt_inv, contact
 
 
 @njit(cache=True)
@@ -271,8 +302,8 @@ def arm_cycle_terms(Jw, dJw, p, support, q, dq, checks, out):
     Jw (6 x nv) are Pinocchio's world-frame joint Jacobians (spatial velocities at the world
     origin, linear then angular: ``data.J``), dJw their time variation (``data.dJ``), p the
     contact point (world) and ``support`` the columns of the velocities that move the contact
-    frame; ``checks`` = [s^2, q_min, q_max] (``arm_cycle_checks``); ``out`` = [J6, dJ6 dq,
-    (J J^T)^-1] flat (``arm_cycle_outputs``). A point p of the body moves at v_p = v_O + w x p,
+    frame; ``checks`` = [s^2, q_min, q_max] (``arm_cycle_checks``); ``out`` = [J6, (J J^T)^-1,
+    p, dJ6 dq] flat (``arm_cycle_outputs``). A point p of the body moves at v_p = v_O + w x p,
     so on the support columns J6 = [Jw_lin + Jw_ang x p; Jw_ang] (zeros elsewhere) and, with
     (a_O, dw) = dJw dq at ddq = 0, dJ6 dq = [a_O + dw x p + w x v_p; dw] (the frame's classical
     acceleration). Returns NOT_FINITE when sum |q_i| + sum |dq_i| exceeds MAX_STATE_ENTRY
@@ -308,7 +339,7 @@ def arm_cycle_terms(Jw, dJw, p, support, q, dq, checks, out):
     for j in range(nq):
         if q[j] < checks[1 + j] or q[j] > checks[1 + nq + j]:
             return OUTSIDE_LIMITS
-    for i in range(6 * nv + 6):
+    for i in range(6 * nv):
         out[i] = 0.0
     vx = vy = vz = wx = wy = wz = ax = ay = az = bx = by = bz = 0.0
     for k in support:
@@ -331,16 +362,18 @@ def arm_cycle_terms(Jw, dJw, p, support, q, dq, checks, out):
         bz += dJw[5, k] * v
     vx, vy, vz = vx + wy * pz - wz * py, vy + wz * px - wx * pz, vz + wx * py - wy * px  # v_p
     d = 6 * nv
+    inv = 1.0 / det
+    D, E, F = (s00 * s22 - s02 * s02) * inv, (s01 * s02 - s00 * s12) * inv, (s00 * s11 - s01 * s01) * inv
+    A, B, C = A * inv, B * inv, C * inv
+    out[d], out[d + 1], out[d + 2] = A, B, C
+    out[d + 3], out[d + 4], out[d + 5] = B, D, E
+    out[d + 6], out[d + 7], out[d + 8] = C, E, F
+    out[d + 9], out[d + 10], out[d + 11] = px, py, pz
+    d += CONTACT_TERMS_EXTRA
     out[d] = ax + by * pz - bz * py + wy * vz - wz * vy
     out[d + 1] = ay + bz * px - bx * pz + wz * vx - wx * vz
     out[d + 2] = az + bx * py - by * px + wx * vy - wy * vx
     out[d + 3], out[d + 4], out[d + 5] = bx, by, bz
-    inv = 1.0 / det
-    D, E, F = (s00 * s22 - s02 * s02) * inv, (s01 * s02 - s00 * s12) * inv, (s00 * s11 - s01 * s01) * inv
-    A, B, C = A * inv, B * inv, C * inv
-    out[d + 6], out[d + 7], out[d + 8] = A, B, C
-    out[d + 9], out[d + 10], out[d + 11] = B, D, E
-    out[d + 12], out[d + 13], out[d + 14] = C, E, F
     return ACCEPTED
 
 

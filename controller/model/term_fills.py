@@ -9,10 +9,11 @@ drift dJ6 dq are lazily filled fields (``ModelTerms.fill_lazy``), one ``computeA
 their first read. A controller's cycle (``update_terms``) is one ``computeAllTerms`` on the
 buffer's own data (``ModelTerms.cycle_data``, made by ``empty_terms``), whose M, h, centre of mass
 and contact placement the buffer's fields are views of; one kernel
-(``model_terms.arm_cycle_terms``) writes the contact frame's Jacobian, its drift and (J J^T)^-1
-into the buffer from that data's joint Jacobians and checks the state; M^-1, when read, comes
-from the Cholesky factor of that M (``pin.cholesky``). A floating base's fill is one pass of the algorithms its whole-body
-QP needs, into its buffer; h and (J J^T)^-1, which that QP does not read, on first read.
+(``model_terms.arm_cycle_terms``) writes the contact frame's Jacobian, its drift, (J J^T)^-1
+and the contact point (``ModelTerms.contact_terms``) into the buffer from that data's joint
+Jacobians and checks the state; M^-1, when read, comes from the Cholesky factor of that M
+(``pin.cholesky``). A floating base's fill is one pass of the algorithms its whole-body QP
+needs, into its buffer; h and (J J^T)^-1, which that QP does not read, on first read.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from .model_terms import (
     arm_cycle_terms,
     contact_jacobian_status,
     mirror_upper,
+    pack_contact_terms,
     symmetric_inverse3_into,
 )
 from .validation import BadInputError
@@ -124,14 +126,14 @@ class ModelTermFills:
         controller's cycle: every field). M, h, the centre of mass and the contact placement are
         views of that data (``cycle_data``, made at the first refill of a buffer that has none);
         one kernel (``arm_cycle_terms``) writes J6, its drift dJ6/dt dq (world-aligned: the
-        frame's classical acceleration at ddq = 0) and (J J^T)^-1 into the buffer's arrays from
-        the data's joint Jacobians and checks the state (finite, contact Jacobian, limits); the
+        frame's classical acceleration at ddq = 0), (J J^T)^-1 and the contact point
+        (``contact_terms``) into the buffer's arrays from the data's joint Jacobians and checks the state (finite, contact Jacobian, limits); the
         inertia about the centre of mass is the data's centroidal one (a new array). A refused
         state is computed back out of the data, so the buffer stays as it was."""
         data = terms.cycle_data if terms.cycle_data is not None else self._attach_cycle_data(terms)
         pin.computeAllTerms(self.model, data, q, dq)
         pin.updateFramePlacement(self.model, data, self.contact_frame_id)
-        joint_jacobians, joint_jacobian_rates, centroidal, out = terms.cycle_arrays
+        joint_jacobians, joint_jacobian_rates, centroidal, out, _ = terms.cycle_arrays
         support, point = self._contact_support, terms.contact_point
         status = arm_cycle_terms(
             joint_jacobians, joint_jacobian_rates, point, support, q, dq, self._cycle_checks[check_limits], out
@@ -157,22 +159,23 @@ class ModelTermFills:
         """Give an arm's buffer a Pinocchio data of its own, computed at the buffer's state, and
         make its M, h, centre of mass and contact placement views of that data's outputs (M's
         transpose: computeAllTerms fills both triangles, and the transpose is row-major), its J6,
-        dJ6 dq and (J J^T)^-1 views of one array of its own (``arm_cycle_outputs``) holding their
-        present values, and its
-        mass the data's (a fixed base's moving mass, the same at every state); its M^-1 then comes
-        from the Cholesky factor of that M."""
+        dJ6 dq, (J J^T)^-1 and ``contact_terms`` views of one array of its own
+        (``arm_cycle_outputs``) holding their present values, and its mass the data's (a fixed
+        base's moving mass, the same at every state); its M^-1 then comes from the Cholesky
+        factor of that M."""
         drift = np.array(terms.dJ6_dq)  # first: a lazily filled drift's fill sets M and h too
         data = self.model.createData()
         self._compute_cycle_data(data, terms.q, terms.dq)
         placement = data.oMf[self.contact_frame_id]
         terms.M, terms.h, terms.com = data.M.T, data.nle, data.com[0]
         terms.contact_point, terms.contact_rotation = placement.translation, placement.rotation
-        out = np.empty(6 * self.nv + 15)
-        J6, dJ6_dq, JJt_inv = arm_cycle_outputs(out, self.nv)
-        J6[:], dJ6_dq[:], JJt_inv[:] = terms.J6, drift, terms.JJt_inv
+        out = np.empty(6 * self.nv + 18)
+        J6, dJ6_dq, JJt_inv, contact = arm_cycle_outputs(out, self.nv)
+        contact[:] = pack_contact_terms(terms.J6, terms.JJt_inv, terms.contact_point)
+        dJ6_dq[:] = drift
         terms.J6, terms.J, terms.dJ6_dq, terms.JJt_inv = J6, J6[:3], dJ6_dq, JJt_inv
         terms.mass = float(data.Ig.mass)
-        terms.cycle_data, terms.cycle_arrays = data, (data.J, data.dJ, data.Ig, out)
+        terms.cycle_data, terms.cycle_arrays = data, (data.J, data.dJ, data.Ig, out, contact)
         terms.compute_inverse_inertia = lambda q: self._cholesky_inverse_inertia(data)
         return data
 
