@@ -71,6 +71,7 @@ from impactqp.controller.model.jump_kernels import (
     crb_inverse_inertia_times,
     rank_one_jump_matrices,
 )
+from impactqp.controller.model.model_terms import contact_views
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model import validation
 from impactqp.controller.model.validation import BadInputError
@@ -170,8 +171,9 @@ class ExpectedImpact:
         # allocated at the first fill (``_fill_fixed_base``); the other forms return new matrices.
         model = self.model
         self._in_place = isinstance(model, GeneralizedMomentumJump) or type(model) is ClassicalJump
-        self._fixed_base_matrices = JumpMatrices(np.empty((0, 0)), np.empty((0, 0)), np.empty((3, 3)), None)
-        self._fixed_base_views = read_only_views(self._fixed_base_matrices)
+        self._impact = np.append(np.asarray(surface.normal, dtype=float), self.restitution)  # [n, c_r]
+        self._fixed_base_buffer = np.empty(0)
+        self._fixed_base_matrices = self._fixed_base_views = JumpMatrices(None, None, None, None)
 
     @property
     def name(self) -> str:
@@ -240,24 +242,22 @@ class ExpectedImpact:
     def _fill_fixed_base(self, terms) -> tuple[float, float]:
         """A, P and G of a fixed base's crb, gm or classical model (their ``fixed_base_matrices``:
         the rank-one products of ``jump`` or ``classical_jump_matrices``) written into the buffer,
-        and the activation rule's n.(J dq) and n.p, in one compiled call; the buffer is allocated
+        and the activation rule's n.(J dq) and n.p, in one compiled call of flat array arguments
+        (the terms' ``contact_terms``, [n, c_r], the buffer [A, P, G]); the buffer is allocated
         at the first fill."""
         n = terms.J.shape[1]
-        matrices = self._fixed_base_matrices
-        if matrices.jump_matrix.shape != (n, n):
-            matrices = JumpMatrices(np.empty((n, n)), np.empty((n, n)), np.empty((3, 3)), None)
-            self._fixed_base_matrices = matrices
-            self._fixed_base_views = read_only_views(matrices)
-        self._matrices, self._views = matrices, self._fixed_base_views
-        normal, restitution, out = self.surface.normal, self.restitution, matrices[:3]
-        point = terms.contact_point
+        out = self._fixed_base_buffer
+        if out.shape[0] != 2 * n * n + 9:
+            out = self._fixed_base_buffer = np.empty(2 * n * n + 9)
+            self._fixed_base_matrices = JumpMatrices(*fixed_base_matrix_views(out, n), None)
+            self._fixed_base_views = read_only_views(self._fixed_base_matrices)
+        self._matrices, self._views = self._fixed_base_matrices, self._fixed_base_views
+        contact, impact = terms.contact_terms, self._impact
         if isinstance(self.model, CompositeRigidBodyJump):
-            rigid = (point, terms.com, terms.inertia_com, terms.mass)
-            return crb_cycle_update(rigid, terms.J, terms.JJt_inv, terms.dq, normal, restitution, out)
+            return crb_cycle_update(contact, terms.com, terms.inertia_com, terms.mass, terms.dq, impact, out)
         if isinstance(self.model, ClassicalJump):
-            return classical_cycle_update(terms.M_inv, terms.J, terms.dq, point, normal, restitution, out)
-        W_normal = self.model.inverse_inertia_times(terms, normal)
-        return rank_one_cycle_update(W_normal, terms.J, terms.JJt_inv, terms.dq, point, normal, restitution, out)
+            return classical_cycle_update(terms.M_inv, contact, terms.dq, impact, out)
+        return gm_cycle_update(terms.M_inv, contact, terms.dq, impact, out)
 
     def _fill_edges(self, terms) -> None:
         """The edges' maps of this state into buffers allocated at the first fill (the preview's
@@ -319,28 +319,69 @@ def normal_motion(J, normal, contact_point, dq):
 
 
 @njit(cache=True)
-def rank_one_cycle_update(W_normal, J, JJt_inv, dq, contact_point, normal, restitution, out):
-    """Kernel of a fixed base's gm or crb fill (``ExpectedImpact._fill_fixed_base``): from W n,
-    A = s (J+ W n)(J^T n)^T, P = s (J^T n)(J^T n)^T and G = s n n^T, s = -(1+c_r) / (n^T W n)
-    (eq. (12), ``rank_one_jump_matrices``), into out = (A, P, G); returns n.(J dq) and n.p
-    (``normal_motion``)."""
-    rank_one_jump_matrices(J, JJt_inv, W_normal, normal, restitution, out[0], out[1], out[2])
+def fixed_base_matrix_views(out, n):
+    """The views (A (n x n), P (n x n), G (3 x 3)) of ``out`` = [A, P, G] flat, row-major
+    (2 n^2 + 9 values): the buffer of a fixed base's fill (``ExpectedImpact._fill_fixed_base``),
+    for its kernels and for Python alike."""
+    return out[:n * n].reshape(n, n), out[n * n:2 * n * n].reshape(n, n), out[2 * n * n:2 * n * n + 9].reshape(3, 3)
+
+
+@njit(cache=True)
+def rank_one_cycle_update(W_normal, contact, dq, impact, out):
+    """Kernel: the rank-one part of a fixed base's crb and gm fills (``crb_cycle_update``,
+    ``gm_cycle_update``): from W n, A = s (J+ W n)(J^T n)^T, P = s (J^T n)(J^T n)^T and G = s n n^T, s = -(1+c_r) / (n^T W n)
+    (eq. (12), ``rank_one_jump_matrices``), into out = [A, P, G] (``fixed_base_matrix_views``),
+    with J, (J J^T)^-1 and p from ``contact`` (``model_terms.contact_views``) and
+    impact = [n, c_r]; returns n.(J dq) and n.p (``normal_motion``)."""
+    nv = dq.shape[0]
+    J6, JJt_inv, contact_point = contact_views(contact, nv)
+    J, normal = J6[:3], impact[:3]
+    jump_matrix, torque_matrix, impulse_map = fixed_base_matrix_views(out, nv)
+    rank_one_jump_matrices(J, JJt_inv, W_normal, normal, impact[3], jump_matrix, torque_matrix, impulse_map)
     return normal_motion(J, normal, contact_point, dq)
 
 
 @njit(cache=True)
-def crb_cycle_update(rigid, J, JJt_inv, dq, normal, restitution, out):
-    """Kernel: ``rank_one_cycle_update`` with W = W_crb, eq. (20), its W_crb n from
-    rigid = (contact point, centre of mass, inertia about it, mass) (``crb_inverse_inertia_times``)."""
-    contact_point, com, inertia_com, mass = rigid
-    W_normal = crb_inverse_inertia_times(contact_point, com, inertia_com, mass, normal)
-    return rank_one_cycle_update(W_normal, J, JJt_inv, dq, contact_point, normal, restitution, out)
+def crb_cycle_update(contact, com, inertia_com, mass, dq, impact, out):
+    """Kernel: ``rank_one_cycle_update`` with W = W_crb, eq. (20), its W_crb n from the contact
+    point p (in ``contact``), the centre of mass, the inertia about it and the mass
+    (``crb_inverse_inertia_times``)."""
+    contact_point = contact_views(contact, dq.shape[0])[2]
+    W_normal = crb_inverse_inertia_times(contact_point, com, inertia_com, mass, impact[:3])
+    return rank_one_cycle_update(W_normal, contact, dq, impact, out)
 
 
 @njit(cache=True)
-def classical_cycle_update(M_inv, J, dq, contact_point, normal, restitution, out):
+def gm_cycle_update(M_inv, contact, dq, impact, out):
+    """Kernel: ``rank_one_cycle_update`` with W = W_gm = J M^-1 J^T, eq. (22), its
+    W_gm n = J (M^-1 (J^T n)) in plain loops (``GeneralizedMomentumJump.inverse_inertia_times``;
+    BLAS would cost more than the products at this size)."""
+    nv = dq.shape[0]
+    J6 = contact_views(contact, nv)[0]
+    n0, n1, n2 = impact[0], impact[1], impact[2]
+    Jt_normal = np.empty(nv)
+    for k in range(nv):
+        Jt_normal[k] = J6[0, k] * n0 + J6[1, k] * n1 + J6[2, k] * n2
+    W_normal = np.zeros(3)
+    for i in range(nv):
+        y = 0.0  # (M^-1 J^T n)_i
+        for k in range(nv):
+            y += M_inv[i, k] * Jt_normal[k]
+        W_normal[0] += J6[0, i] * y
+        W_normal[1] += J6[1, i] * y
+        W_normal[2] += J6[2, i] * y
+    return rank_one_cycle_update(W_normal, contact, dq, impact, out)
+
+
+@njit(cache=True)
+def classical_cycle_update(M_inv, contact, dq, impact, out):
     """Kernel of a fixed base's classical fill (``ExpectedImpact._fill_fixed_base``): A, P and
-    G of eqs. (5)-(6) (``classical_jump_matrices``) into out = (A, P, G); returns n.(J dq) and
-    n.p (``normal_motion``)."""
-    classical_jump_matrices(M_inv, J, restitution, out[0], out[1], out[2])
+    G of eqs. (5)-(6) (``classical_jump_matrices``) into out = [A, P, G], with J and p from
+    ``contact`` and impact = [n, c_r] (as ``rank_one_cycle_update``); returns n.(J dq) and n.p
+    (``normal_motion``)."""
+    nv = dq.shape[0]
+    J6, _, contact_point = contact_views(contact, nv)
+    J, normal = J6[:3], impact[:3]
+    jump_matrix, torque_matrix, impulse_map = fixed_base_matrix_views(out, nv)
+    classical_jump_matrices(M_inv, J, impact[3], jump_matrix, torque_matrix, impulse_map)
     return normal_motion(J, normal, contact_point, dq)

@@ -15,7 +15,7 @@ def test_bench_prediction_rows(capsys):
     names = {r["name"] for r in rows}
     assert names == {
         "predict.crb.single", "predict.crb.single.fr3", "predict.crb.single.ur5", "predict.crb.batch",
-        "predict.crb.batch.jobs1",
+        "predict.crb.batch.cpu", "predict.crb.batch.jobs1",
         "floor.pinocchio.all_terms", "predict.crb.single/floor.pinocchio.all_terms",
     }
     for r in rows:

@@ -29,8 +29,9 @@ from impactqp.constraints.impact_model import (
     ActivationRule,
     classical_cycle_update,
     crb_cycle_update,
+    fixed_base_matrix_views,
+    gm_cycle_update,
     normal_motion,
-    rank_one_cycle_update,
 )
 from impactqp.controller.model.friction_pyramid import FrictionRows
 from impactqp.controller.model.jump import predict
@@ -282,24 +283,26 @@ def test_compiled_activation_inputs_equal_the_numpy_reference(robot, seed):
 @given(seed=SEEDS, name=st.sampled_from(["crb", "gm", "classical"]), restitution=st.floats(0.0, 1.0))
 def test_compiled_fixed_base_fill_equals_the_numpy_reference(robot, seed, name, restitution):
     """The one-call fill of an arm's crb, gm or classical impact (A, P, G and the activation
-    rule's inputs) equals its numpy statement, to 1e-12 of each matrix's largest entry."""
+    rule's inputs), from the terms' flat ``contact_terms`` and [n, c_r] into one flat buffer
+    [A, P, G], equals its numpy statement, to 1e-12 of each matrix's largest entry; the buffer
+    holds A, P and G row-major, one after the other."""
     rng = np.random.default_rng(seed)
     terms = random_state(robot, rng)
     normal = rng.normal(size=3)
     normal /= np.linalg.norm(normal)
     model = jump_model(name)
-    out = (np.empty((JOINTS, JOINTS)), np.empty((JOINTS, JOINTS)), np.empty((3, 3)))
-    J, dq, point = terms.J, terms.dq, terms.contact_point
+    out = np.full(2 * JOINTS * JOINTS + 9, np.nan)
+    impact, contact, dq = np.append(normal, restitution), terms.contact_terms, terms.dq
     if name == "crb":
-        rigid = (point, terms.com, terms.inertia_com, terms.mass)
-        motion = crb_cycle_update(rigid, J, terms.JJt_inv, dq, normal, restitution, out)
+        motion = crb_cycle_update(contact, terms.com, terms.inertia_com, terms.mass, dq, impact, out)
     elif name == "gm":
-        W_normal = model.inverse_inertia_times(terms, normal)
-        motion = rank_one_cycle_update(W_normal, J, terms.JJt_inv, dq, point, normal, restitution, out)
+        motion = gm_cycle_update(terms.M_inv, contact, dq, impact, out)
     else:
-        motion = classical_cycle_update(terms.M_inv, J, dq, point, normal, restitution, out)
+        motion = classical_cycle_update(terms.M_inv, contact, dq, impact, out)
     matrices, reference_motion = reference_fixed_base_cycle_update(model, terms, normal, restitution)
-    for fast, reference in zip(out, matrices[:3]):
+    flat = np.concatenate([np.ravel(reference) for reference in matrices[:3]])
+    np.testing.assert_allclose(out, flat, rtol=0.0, atol=1e-12 * np.abs(flat).max())
+    for fast, reference in zip(fixed_base_matrix_views(out, JOINTS), matrices[:3]):
         np.testing.assert_allclose(fast, reference, rtol=0.0, atol=1e-12 * np.abs(reference).max())
     np.testing.assert_allclose(motion, reference_motion, rtol=1e-10, atol=1e-12)
 

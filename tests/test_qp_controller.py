@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 import whole_body_states as g1
 from qp_states import DT, NORMAL, approach_controller, random_feasible_state, surface_ahead
-from reference.qp import reference_active_constraints
+from reference.qp import reference_active_constraints, reference_integrate_command
 
 from conftest import JOINTS
 from impactqp.constraints import ControlCycle, jump_model_names
@@ -22,6 +22,8 @@ from impactqp.controller.model.max_speed import Setting, approach_direction, clo
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.qp import ImpactAwareController
+from impactqp.controller.qp.command import command_limits
+from impactqp.controller.qp.cycle_kernels import COMMAND_ROWS, integrate_command
 from impactqp.tasks import DampingTask, FrameTask, PostureTask
 
 
@@ -226,8 +228,9 @@ def test_stacked_qp_data_are_the_rows_of_every_task_and_constraint(robot, seed, 
 @settings(max_examples=20, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), jump=st.sampled_from(["crb", "gm", "robust"]))
 def test_compiled_active_set_equals_the_numpy_reference(robot, seed, jump):
-    """The active constraints of the cycle (compiled, from the gaps of the feasibility check)
-    agree with their plain-numpy statement, on the solution and on perturbed points around it."""
+    """The active constraints of the cycle (compiled, from the gaps of the feasibility check, in
+    one call with it) agree with their plain-numpy statement, on the solution and on perturbed
+    points around it; the check's violation is the problem's."""
     rng = np.random.default_rng(seed)
     q, dq = random_feasible_state(robot, rng, jump_model_names(jump), 0.0)
     controller = approach_controller(robot, q, jump=jump, solver="daqp")
@@ -235,9 +238,10 @@ def test_compiled_active_set_equals_the_numpy_reference(robot, seed, jump):
     problem = controller.problem
     tolerance = 10.0 * controller.feasibility_tolerance
     for x in (command.ddq, command.ddq + rng.normal(0.0, 1e-3, JOINTS), command.ddq + rng.normal(0.0, 1.0, JOINTS)):
-        problem.violation(x)
+        violation = controller._checked(x)
+        assert violation == problem.violation(x)
         expected = reference_active_constraints(controller.layout, controller._box_bounds, problem, tolerance, x)
-        assert controller._active_constraints(x) == expected
+        assert controller._active_constraints() == expected
 
 
 # ---------------------------------------------------------------- the standing G1
@@ -394,3 +398,22 @@ def test_a_measured_state_loop_brakes_after_the_impact_and_never_holds_a_limit(r
     assert contact <= braking * dt <= contact + 0.02  # noticed at the impact, not before
     steps = np.diff(commands[braking - 1:], axis=0) / dt
     assert np.all(np.abs(steps) <= model.ddq_max * (1.0 + 1e-9))
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), scale=st.sampled_from([0.1, 1.0, 50.0]))
+def test_a_fixed_bases_command_kernel_is_its_numpy_twin(robot, seed, scale):
+    """``integrate_command`` (dq_cmd and q_cmd within the limits, the predicted jump A dq_cmd and
+    the post-impact velocity at dq_cmd, in one pass) gives its plain-numpy twin's values, clipped
+    or not."""
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(robot.q_min, robot.q_max)
+    dq = rng.uniform(-1.0, 1.0, robot.nv) * robot.dq_max
+    ddq, A = scale * rng.normal(size=robot.nv) / DT, rng.normal(size=(robot.nv, robot.nv))
+    out = np.empty((COMMAND_ROWS, robot.nv))
+    limits = command_limits(robot, robot.ddq_max, robot.dddq_max * DT)
+    clipped = integrate_command(q, dq, ddq, DT, limits, A, out)
+    *expected, expected_clipped = reference_integrate_command(q, dq, ddq, DT, robot, A)
+    assert clipped == expected_clipped
+    for row, twin in zip(out, expected):
+        np.testing.assert_allclose(row, twin, rtol=1e-12, atol=1e-12)

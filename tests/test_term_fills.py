@@ -1,7 +1,8 @@
 """The fills of an arm's model terms (controller/model/term_fills.py): a prediction's terms (one
 world-frame CRBA pass, M, h and the drift on first read) and a controller's buffer refilled in
 place equal a plain ``computeAllTerms``; refills give a new state's terms and refuse singular
-states, leaving the buffer as it was."""
+states, leaving the buffer as it was; the refill's kernel (``model_terms.arm_cycle_terms``) is
+its numpy twin."""
 
 import numpy as np
 import pinocchio as pin
@@ -9,11 +10,14 @@ import pytest
 from conftest import joint_positions
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from reference.model_terms import reference_arm_cycle_terms
 from test_robot import SINGULAR_Q
 
 from impactqp.controller.model.jump import jump_model
+from impactqp.controller.model.model_terms import ACCEPTED, arm_cycle_checks, arm_cycle_outputs, arm_cycle_terms
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import InvalidStateError, SingularPostureError
+from impactqp.controller.model.term_fills import SINGULAR_RATIO_SQUARED
 from impactqp.controller.model.validation import BadInputError
 
 
@@ -34,7 +38,7 @@ def test_refilled_terms_equal_fresh_terms(robot, q_a, q_b):
     assert robot.update_terms(buffer, q_b, dq_b, check_limits=False) is buffer
     assert buffer.stamp != stamp
     for name in ("q", "dq", "M", "h", "J", "J6", "dJ6_dq", "JJt_inv", "contact_point", "contact_rotation",
-                 "com", "inertia_com"):
+                 "com", "inertia_com", "contact_terms"):
         np.testing.assert_allclose(getattr(buffer, name), getattr(fresh, name), rtol=1e-12, atol=1e-12)
     assert buffer.mass == fresh.mass
     np.testing.assert_allclose(buffer.J_pinv, np.linalg.pinv(fresh.J), atol=1e-9)
@@ -67,7 +71,8 @@ def test_a_refused_state_leaves_the_buffer_as_it_was(robot, case):
     keeps the previous state's value."""
     q_bad, dq_bad, error, message = REFUSED_STATES[case]
     q, dq = PANDA.postures["elbow_up"].q, np.full(robot.nv, 0.2)
-    names = ("q", "dq", "M", "h", "J6", "dJ6_dq", "JJt_inv", "com", "contact_point", "contact_rotation", "inertia_com")
+    names = ("q", "dq", "M", "h", "J6", "dJ6_dq", "JJt_inv", "com", "contact_point", "contact_rotation", "inertia_com",
+             "contact_terms")
     for buffer in (robot.terms(q, dq), robot.update_terms(robot.empty_terms(), q, dq)):
         stamp, before = buffer.stamp, {name: np.copy(getattr(buffer, name)) for name in names}
         with pytest.raises(error, match=message):
@@ -117,6 +122,8 @@ def check_one_compute_all_terms(robot, terms, q, dq):
     for name, value in expected.items():
         np.testing.assert_allclose(getattr(terms, name), value, rtol=0, atol=1e-12, err_msg=name)
     assert terms.mass == pytest.approx(data.Ig.mass, rel=1e-12)
+    packed = np.concatenate([terms.J6.ravel(), terms.JJt_inv.ravel(), terms.contact_point])  # [J6, (J J^T)^-1, p]
+    np.testing.assert_array_equal(terms.contact_terms, packed)
     assert terms.held_jacobian.shape == (0, robot.nv) and terms.held_drift.shape == (0,)
     np.testing.assert_allclose(terms.M_inv @ terms.M, np.eye(robot.nv), atol=1e-8)
     eps = 1e-6
@@ -149,3 +156,36 @@ def test_a_cycle_buffer_gives_the_jump_maps_of_a_predictions_terms(robot, q, dq,
             np.testing.assert_allclose(
                 getattr(got, field), reference, rtol=0, atol=1e-12 * np.abs(reference).max(), err_msg=f"{name} {field}"
             )
+
+
+@settings(max_examples=40, deadline=None)
+@given(q=joint_positions(), dq=joint_positions(0.0), scale=st.sampled_from([0.0, 0.3, np.nan, 1e300]), check=st.booleans())
+def test_the_cycle_kernel_is_its_numpy_twin_and_pinocchios_frame_terms(robot, q, dq, scale, check):
+    """``arm_cycle_terms`` (J6, its drift, (J J^T)^-1 and the contact terms [J6, (J J^T)^-1, p]
+    from the data's joint Jacobians) gives its plain-numpy twin's status and arrays, and writes
+    them only when it accepts the state;
+    accepted, they are Pinocchio's frame Jacobian, the frame's classical acceleration and the
+    inverse of J J^T."""
+    model, data, fid = robot.model, robot.model.createData(), robot.contact_frame_id
+    dq = scale * dq
+    pin.computeAllTerms(model, data, q, np.nan_to_num(dq))
+    pin.updateFramePlacement(model, data, fid)
+    world = (data.J, data.dJ, data.oMf[fid].translation, robot._contact_support)
+    unlimited = np.full(robot.nq, np.inf)
+    limits = (robot.q_min, robot.q_max) if check else (-unlimited, unlimited)
+    out = np.full(6 * robot.nv + 18, 7.0)
+    status = arm_cycle_terms(*world, q, dq, arm_cycle_checks(SINGULAR_RATIO_SQUARED, *limits), out)
+    expected = reference_arm_cycle_terms(world, (q, dq), (np.stack(limits), True, SINGULAR_RATIO_SQUARED))
+    assert status == expected[0]
+    if status != ACCEPTED:
+        assert np.all(out == 7.0)
+        return
+    outputs = arm_cycle_outputs(out, robot.nv)
+    for array, twin in zip(outputs, expected[1:]):  # (J J^T)^-1 grows near a singular posture: relative
+        np.testing.assert_allclose(array, twin, rtol=0, atol=1e-12 * max(1.0, np.abs(twin).max()))
+    assert not np.any(out == 7.0)  # every entry written
+    world_aligned = pin.LOCAL_WORLD_ALIGNED
+    np.testing.assert_allclose(outputs[0], pin.getFrameJacobian(model, data, fid, world_aligned), rtol=0, atol=1e-12)
+    drift = pin.getFrameClassicalAcceleration(model, data, fid, world_aligned).vector
+    np.testing.assert_allclose(outputs[1], drift, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(outputs[2] @ outputs[0][:3] @ outputs[0][:3].T, np.eye(3), atol=1e-8)

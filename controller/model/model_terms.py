@@ -77,7 +77,12 @@ class ModelTerms:
 
     ``cycle_data`` is the Pinocchio data of an arm's per-cycle buffer (None elsewhere): its
     ``computeAllTerms`` writes M, h, com, contact_point and contact_rotation, which are views of
-    it (no copy), and its Cholesky factor of M gives M^-1 (``compute_inverse_inertia``).
+    it (no copy), and its Cholesky factor of M gives M^-1 (``compute_inverse_inertia``);
+    ``cycle_arrays`` = (``data.J``, ``data.dJ``, ``data.Ig``, out, contact) are that data's
+    world-frame joint Jacobians, their time variation and its centroidal inertia, which J6,
+    dJ6 dq, (J J^T)^-1 and the inertia about the centre of mass are computed from
+    (``arm_cycle_terms``), the flat array that J6, dJ6 dq and (J J^T)^-1 are views of, and its
+    first part, ``contact_terms`` (``arm_cycle_outputs``).
 
     A controller refills one ModelTerms per cycle (``RobotModel.update_terms``); ``stamp``
     changes at every fill (and for a ``dataclasses.replace`` copy), so anything cached per
@@ -104,6 +109,7 @@ class ModelTerms:
     compute_inverse_inertia: Callable[[np.ndarray], np.ndarray] | None = field(default=None, repr=False)
     fill_lazy: Callable[[ModelTerms, str], dict[str, np.ndarray]] | None = field(default=None, repr=False)
     cycle_data: object = field(default=None, repr=False)
+    cycle_arrays: tuple | None = field(default=None, repr=False)
     stamp: int = field(init=False, repr=False)
     _derived: dict = field(init=False, repr=False)
 
@@ -160,6 +166,16 @@ class ModelTerms:
         if name not in frames:
             raise BadInputError(f"unknown frame {name!r}; the robot's frames: {', '.join(frames) or 'none'}")
         return frames[name]
+
+    @property
+    def contact_terms(self) -> np.ndarray:
+        """J6, (J J^T)^-1 and the contact point p in one flat array (``contact_views``), what a
+        compiled kernel reads in one argument (a kernel's dispatch costs per argument): an arm's
+        cycle buffer's is a view of the array its kernel writes at every refill
+        (``arm_cycle_outputs``), other terms' is packed on first use, once per fill."""
+        if self.cycle_arrays is not None:
+            return self.cycle_arrays[4]
+        return self.cached("contact_terms", lambda: pack_contact_terms(self.J6, self.JJt_inv, self.contact_point))
 
     @property
     def J_pinv(self) -> np.ndarray:
@@ -245,28 +261,120 @@ def contact_jacobian_status(J, q, q_min, q_max, check_limits, singular_ratio_squ
     return ACCEPTED
 
 
+def arm_cycle_checks(singular_ratio_squared: float, q_min: np.ndarray, q_max: np.ndarray) -> np.ndarray:
+    """The packed ``checks`` of ``arm_cycle_terms``: [s^2, q_min, q_max] (q_min = -inf and
+    q_max = inf leave the joint limits unchecked; s^2 = -inf accepts any contact Jacobian)."""
+    return np.concatenate([[singular_ratio_squared], q_min, q_max]).astype(float)
+
+
+CONTACT_TERMS_EXTRA = 12
+"""Values of ``contact_terms`` beyond J6's 6 nv: (J J^T)^-1 (9) and p (3)."""
+
+
+def pack_contact_terms(J6: np.ndarray, JJt_inv: np.ndarray, contact_point: np.ndarray) -> np.ndarray:
+    """[J6, (J J^T)^-1, p], row-major, in a new flat array (``ModelTerms.contact_terms``)."""
+    return np.concatenate((np.ravel(J6), np.ravel(JJt_inv), contact_point))
+
+
 @njit(cache=True)
-def arm_state_status(J6, q, dq, q_limits, check_limits, singular_ratio_squared, JJt_inv):
-    """Kernel of the checks of an arm's per-cycle refill, after its ``computeAllTerms``: NOT_FINITE
-    when sum |q_i| + sum |dq_i| exceeds MAX_STATE_ENTRY (nq + nv) (a NaN, an infinity or a huge
-    entry: ``check_state``'s test), else the status of ``contact_jacobian_status`` on the linear
-    rows of the contact frame's Jacobian ``J6`` (``q_limits``: the rows q_min, q_max); (J J^T)^-1
-    is written into ``JJt_inv`` only when ACCEPTED (a refused state leaves it as it was)."""
-    q_sum = 0.0
-    for j in range(q.shape[0]):
-        q_sum += abs(q[j])
-    dq_sum = 0.0
-    for j in range(dq.shape[0]):
-        dq_sum += abs(dq[j])
-    if not q_sum + dq_sum <= (q.shape[0] + dq.shape[0]) * MAX_STATE_ENTRY:
+def contact_views(contact, nv):
+    """The views (J6 (6 x nv), (J J^T)^-1 (3 x 3), p (3)) of ``contact`` = [J6, (J J^T)^-1, p]
+    (``ModelTerms.contact_terms``, 6 nv + 12 values), for kernels and for Python alike."""
+    d = 6 * nv
+    return contact[:d].reshape(6, nv), contact[d:d + 9].reshape(3, 3), contact[d + 9:d + 12]
+
+
+def arm_cycle_outputs(out: np.ndarray, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The views (J6 (6 x nv), dJ6 dq (6), (J J^T)^-1 (3 x 3), contact terms (6 nv + 12)) of the
+    flat ``out`` = [J6, (J J^T)^-1, p, dJ6 dq] of ``arm_cycle_terms`` (6 nv + 18 values): its
+    first 6 nv + 12 are ``ModelTerms.contact_terms`` (``contact_views``)."""
+    contact = out[:6 * nv + CONTACT_TERMS_EXTRA]
+    J6, JJt_inv, _ = contact_views(contact, nv)
+    return J6, out[6 * nv + CONTACT_TERMS_EXTRA:], JJt_inv, contact
+
+
+@njit(cache=True)
+def arm_cycle_terms(Jw, dJw, p, support, q, dq, checks, out):
+    """Kernel of an arm's per-cycle refill, after its ``computeAllTerms``: the contact frame's
+    world-aligned Jacobian J6, its drift dJ6 dq and (J J^T)^-1 from Pinocchio's own arrays, and
+    the state's status.
+
+    Jw (6 x nv) are Pinocchio's world-frame joint Jacobians (spatial velocities at the world
+    origin, linear then angular: ``data.J``), dJw their time variation (``data.dJ``), p the
+    contact point (world) and ``support`` the columns of the velocities that move the contact
+    frame; ``checks`` = [s^2, q_min, q_max] (``arm_cycle_checks``); ``out`` = [J6, (J J^T)^-1,
+    p, dJ6 dq] flat (``arm_cycle_outputs``). A point p of the body moves at v_p = v_O + w x p,
+    so on the support columns J6 = [Jw_lin + Jw_ang x p; Jw_ang] (zeros elsewhere) and, with
+    (a_O, dw) = dJw dq at ddq = 0, dJ6 dq = [a_O + dw x p + w x v_p; dw] (the frame's classical
+    acceleration). Returns NOT_FINITE when sum |q_i| + sum |dq_i| exceeds MAX_STATE_ENTRY
+    (nq + nv) (a NaN, an infinity or a huge entry: ``check_state``'s test), else NEAR_SINGULAR
+    when det(J J^T) < s^2 trace(J J^T)^3 (``contact_jacobian_status``'s bound), else
+    OUTSIDE_LIMITS when q leaves [q_min, q_max], else ACCEPTED; ``out`` is written only when
+    ACCEPTED (a refused state leaves it as it was). Plain loops, no allocation."""
+    nq, nv = q.shape[0], dq.shape[0]
+    total = 0.0
+    for j in range(nq):
+        total += abs(q[j])
+    for j in range(nv):
+        total += abs(dq[j])
+    if not total <= (nq + nv) * MAX_STATE_ENTRY:
         return NOT_FINITE
-    inverse = np.empty((3, 3))
-    status = contact_jacobian_status(
-        np.ascontiguousarray(J6[:3]), q, q_limits[0], q_limits[1], check_limits, singular_ratio_squared, inverse
-    )
-    if status == ACCEPTED:
-        JJt_inv[:, :] = inverse
-    return status
+    px, py, pz = p[0], p[1], p[2]
+    s00 = s01 = s02 = s11 = s12 = s22 = 0.0
+    for k in support:  # J J^T of the linear rows
+        x = Jw[0, k] + Jw[4, k] * pz - Jw[5, k] * py
+        y = Jw[1, k] + Jw[5, k] * px - Jw[3, k] * pz
+        z = Jw[2, k] + Jw[3, k] * py - Jw[4, k] * px
+        s00 += x * x
+        s01 += x * y
+        s02 += x * z
+        s11 += y * y
+        s12 += y * z
+        s22 += z * z
+    A, B, C = s11 * s22 - s12 * s12, s02 * s12 - s01 * s22, s01 * s12 - s02 * s11
+    det = s00 * A + s01 * B + s02 * C
+    trace = s00 + s11 + s22
+    if not det >= checks[0] * trace * trace * trace:
+        return NEAR_SINGULAR
+    for j in range(nq):
+        if q[j] < checks[1 + j] or q[j] > checks[1 + nq + j]:
+            return OUTSIDE_LIMITS
+    for i in range(6 * nv):
+        out[i] = 0.0
+    vx = vy = vz = wx = wy = wz = ax = ay = az = bx = by = bz = 0.0
+    for k in support:
+        out[k] = Jw[0, k] + Jw[4, k] * pz - Jw[5, k] * py
+        out[nv + k] = Jw[1, k] + Jw[5, k] * px - Jw[3, k] * pz
+        out[2 * nv + k] = Jw[2, k] + Jw[3, k] * py - Jw[4, k] * px
+        out[3 * nv + k], out[4 * nv + k], out[5 * nv + k] = Jw[3, k], Jw[4, k], Jw[5, k]
+        v = dq[k]
+        vx += Jw[0, k] * v
+        vy += Jw[1, k] * v
+        vz += Jw[2, k] * v
+        wx += Jw[3, k] * v
+        wy += Jw[4, k] * v
+        wz += Jw[5, k] * v
+        ax += dJw[0, k] * v
+        ay += dJw[1, k] * v
+        az += dJw[2, k] * v
+        bx += dJw[3, k] * v
+        by += dJw[4, k] * v
+        bz += dJw[5, k] * v
+    vx, vy, vz = vx + wy * pz - wz * py, vy + wz * px - wx * pz, vz + wx * py - wy * px  # v_p
+    d = 6 * nv
+    inv = 1.0 / det
+    D, E, F = (s00 * s22 - s02 * s02) * inv, (s01 * s02 - s00 * s12) * inv, (s00 * s11 - s01 * s01) * inv
+    A, B, C = A * inv, B * inv, C * inv
+    out[d], out[d + 1], out[d + 2] = A, B, C
+    out[d + 3], out[d + 4], out[d + 5] = B, D, E
+    out[d + 6], out[d + 7], out[d + 8] = C, E, F
+    out[d + 9], out[d + 10], out[d + 11] = px, py, pz
+    d += CONTACT_TERMS_EXTRA
+    out[d] = ax + by * pz - bz * py + wy * vz - wz * vy
+    out[d + 1] = ay + bz * px - bx * pz + wz * vx - wx * vz
+    out[d + 2] = az + bx * py - by * px + wx * vy - wy * vx
+    out[d + 3], out[d + 4], out[d + 5] = bx, by, bz
+    return ACCEPTED
 
 
 @njit(cache=True)

@@ -9,9 +9,11 @@ drift dJ6 dq are lazily filled fields (``ModelTerms.fill_lazy``), one ``computeA
 their first read. A controller's cycle (``update_terms``) is one ``computeAllTerms`` on the
 buffer's own data (``ModelTerms.cycle_data``, made by ``empty_terms``), whose M, h, centre of mass
 and contact placement the buffer's fields are views of; one kernel
-(``model_terms.arm_state_status``) checks the state; M^-1, when read, comes from the Cholesky
-factor of that M (``pin.cholesky``). A floating base's fill is one pass of the algorithms its whole-body
-QP needs, into its buffer; M, h and (J J^T)^-1, which that QP does not read, on first read.
+(``model_terms.arm_cycle_terms``) writes the contact frame's Jacobian, its drift, (J J^T)^-1
+and the contact point (``ModelTerms.contact_terms``) into the buffer from that data's joint
+Jacobians and checks the state; M^-1, when read, comes from the Cholesky factor of that M
+(``pin.cholesky``). A floating base's fill is one pass of the algorithms its whole-body QP
+needs, into its buffer; M, h and (J J^T)^-1, which that QP does not read, on first read.
 """
 
 from __future__ import annotations
@@ -27,15 +29,19 @@ from .model_terms import (
     BodyTerms,
     FrameState,
     ModelTerms,
-    arm_state_status,
+    arm_cycle_checks,
+    arm_cycle_outputs,
+    arm_cycle_terms,
     contact_jacobian_status,
     mirror_upper,
+    pack_contact_terms,
     symmetric_inverse3_into,
 )
 from .validation import BadInputError
 
 # The contact Jacobian counts as singular when sigma_min / sigma_max falls below this ratio.
 SINGULAR_RATIO = 1e-3
+SINGULAR_RATIO_SQUARED = SINGULAR_RATIO**2
 
 
 class SingularPostureError(BadInputError):
@@ -53,7 +59,16 @@ class ModelTermFills:
         self._body_data = model.createData()
         self._inverse_data = model.createData()
         self._root_joints = [j for j in range(1, model.njoints) if model.parents[j] == 0]
-        self._q_limits = np.stack([self.q_min, self.q_max])  # the rows of ``arm_state_status``
+        if not self.floating:  # the velocities that move the contact frame, and the checks of ``arm_cycle_terms``
+            joints = model.supports[model.frames[self.contact_frame_id].parentJoint]
+            columns = [c for j in joints[1:] for c in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)]
+            self._contact_support = np.array(columns, dtype=np.int64)
+            unlimited = np.full(self.nq, np.inf)
+            self._cycle_checks = {
+                True: arm_cycle_checks(SINGULAR_RATIO_SQUARED, self.q_min, self.q_max),
+                False: arm_cycle_checks(SINGULAR_RATIO_SQUARED, -unlimited, unlimited),
+                None: arm_cycle_checks(-np.inf, -unlimited, unlimited),  # accepts any state
+            }
 
     def terms(self, q, dq=None, *, check_limits: bool | None = None) -> ModelTerms:
         """All model terms of the state (q, dq) (dq = 0 when None), in new arrays.
@@ -93,7 +108,7 @@ class ModelTermFills:
         pin.updateFramePlacement(model, data, fid)
         J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
         JJt_inv = np.empty((3, 3))
-        status = contact_jacobian_status(J6[:3], q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO**2, JJt_inv)
+        status = contact_jacobian_status(J6[:3], q, self.q_min, self.q_max, check_limits, SINGULAR_RATIO_SQUARED, JJt_inv)
         if status != ACCEPTED:
             self._refuse(J6[:3], q, dq, status, check_limits)
         placement = data.oMf[fid]
@@ -110,28 +125,28 @@ class ModelTermFills:
         """An arm's terms refilled by one ``computeAllTerms`` on the buffer's own data (a
         controller's cycle: every field). M, h, the centre of mass and the contact placement are
         views of that data (``cycle_data``, made at the first refill of a buffer that has none);
-        J6, its drift dJ6/dt dq (world-aligned: the frame's classical acceleration at ddq = 0,
-        which computeAllTerms leaves in the data) and the inertia about the centre of mass are
-        Pinocchio's new arrays. One kernel checks the state (``arm_state_status``: finite,
-        contact Jacobian, limits); a refused state is computed back out of the data, so the
-        buffer stays as it was."""
+        one kernel (``arm_cycle_terms``) writes J6, its drift dJ6/dt dq (world-aligned: the
+        frame's classical acceleration at ddq = 0), (J J^T)^-1 and the contact point
+        (``contact_terms``) into the buffer's arrays from the data's joint Jacobians and checks the state (finite, contact Jacobian, limits); the
+        inertia about the centre of mass is the data's centroidal one (a new array). A refused
+        state is computed back out of the data, so the buffer stays as it was."""
         data = terms.cycle_data if terms.cycle_data is not None else self._attach_cycle_data(terms)
-        model, fid = self.model, self.contact_frame_id
-        pin.computeAllTerms(model, data, q, dq)
-        pin.updateFramePlacement(model, data, fid)
-        J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-        status = arm_state_status(J6, q, dq, self._q_limits, check_limits, SINGULAR_RATIO**2, terms.JJt_inv)
+        pin.computeAllTerms(self.model, data, q, dq)
+        pin.updateFramePlacement(self.model, data, self.contact_frame_id)
+        joint_jacobians, joint_jacobian_rates, centroidal, out, _ = terms.cycle_arrays
+        support, point = self._contact_support, terms.contact_point
+        status = arm_cycle_terms(
+            joint_jacobians, joint_jacobian_rates, point, support, q, dq, self._cycle_checks[check_limits], out
+        )
         if status != ACCEPTED:  # raises, or a near-singular J that the exact test clears: accept it
             try:
-                self._refuse(J6[:3], q, dq, status, check_limits)
+                J = pin.getFrameJacobian(self.model, data, self.contact_frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
+                self._refuse(J, q, dq, status, check_limits)
             except BadInputError:
                 self._compute_cycle_data(data, terms.q, terms.dq)
                 raise
-            arm_state_status(J6, q, dq, self._q_limits, False, -np.inf, terms.JJt_inv)
-        centroidal = data.Ig
-        terms.J6, terms.J = J6, J6[:3]
-        terms.dJ6_dq = pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector
-        terms.inertia_com, terms.mass = centroidal.inertia, centroidal.mass
+            arm_cycle_terms(joint_jacobians, joint_jacobian_rates, point, support, q, dq, self._cycle_checks[None], out)
+        terms.inertia_com = centroidal.inertia
         terms.q, terms.dq = q, dq
         return terms.refilled()
 
@@ -143,14 +158,24 @@ class ModelTermFills:
     def _attach_cycle_data(self, terms: ModelTerms) -> pin.Data:
         """Give an arm's buffer a Pinocchio data of its own, computed at the buffer's state, and
         make its M, h, centre of mass and contact placement views of that data's outputs (M's
-        transpose: computeAllTerms fills both triangles, and the transpose is row-major); its
-        M^-1 then comes from the Cholesky factor of that M."""
+        transpose: computeAllTerms fills both triangles, and the transpose is row-major), its J6,
+        dJ6 dq, (J J^T)^-1 and ``contact_terms`` views of one array of its own
+        (``arm_cycle_outputs``) holding their present values, and its mass the data's (a fixed
+        base's moving mass, the same at every state); its M^-1 then comes from the Cholesky
+        factor of that M."""
+        drift = np.array(terms.dJ6_dq)  # first: a lazily filled drift's fill sets M and h too
         data = self.model.createData()
         self._compute_cycle_data(data, terms.q, terms.dq)
         placement = data.oMf[self.contact_frame_id]
         terms.M, terms.h, terms.com = data.M.T, data.nle, data.com[0]
         terms.contact_point, terms.contact_rotation = placement.translation, placement.rotation
-        terms.cycle_data = data
+        out = np.empty(6 * self.nv + 18)
+        J6, dJ6_dq, JJt_inv, contact = arm_cycle_outputs(out, self.nv)
+        contact[:] = pack_contact_terms(terms.J6, terms.JJt_inv, terms.contact_point)
+        dJ6_dq[:] = drift
+        terms.J6, terms.J, terms.dJ6_dq, terms.JJt_inv = J6, J6[:3], dJ6_dq, JJt_inv
+        terms.mass = float(data.Ig.mass)
+        terms.cycle_data, terms.cycle_arrays = data, (data.J, data.dJ, data.Ig, out, contact)
         terms.compute_inverse_inertia = lambda q: self._cholesky_inverse_inertia(data)
         return data
 
@@ -161,7 +186,7 @@ class ModelTermFills:
         return pin.cholesky.computeMinv(self.model, data)
 
     def _refuse(self, J: np.ndarray, q: np.ndarray, dq: np.ndarray, status: int, check_limits: bool) -> None:
-        """Raise for a state ``contact_jacobian_status`` (or ``arm_state_status``) did not
+        """Raise for a state ``contact_jacobian_status`` (or ``arm_cycle_terms``) did not
         accept: InvalidStateError for a non-finite or huge entry, SingularPostureError when the
         exact test confirms a near-singular J, InvalidStateError (naming the joint) when q leaves
         its limits; a near-singular status that the exact test clears returns."""

@@ -74,7 +74,8 @@ from impactqp.tasks import Task
 
 from .command import Command, CommandMemory, Status, command_limits
 from .cycle_plan import CycleBuffers
-from .cycle_kernels import first_outside, integrate_command, intersect_boxes, tight_constraints, weighted_least_squares
+from .cycle_kernels import COMMAND_ROWS, checked_solution, first_outside, integrate_command, intersect_boxes
+from .cycle_kernels import weighted_least_squares
 from .elastic_relaxation import ElasticRelaxation
 from .fallback import bounded_conflict, brake, braking_command, irreducible_conflict, usable_state
 from .held_elimination import held_elimination
@@ -164,6 +165,7 @@ class ImpactAwareController:
         self._relaxed_rows = (p.C[first:], p.l[first:], p.u[first:])
         self._terms = self.robot.empty_terms()  # refilled in place every cycle
         self._jerk_step = self.dddq_max * self.dt
+        self._no_jump = np.zeros((n, n))  # a fixed base's jump matrix without an expected impact
         joints = self._joint_velocities
         self._limits = command_limits(self.robot, self.ddq_max[joints], self._jerk_step[joints])
         horizon = max(self.dt, float(np.max(self.ddq_max / self.dddq_max)))
@@ -253,15 +255,16 @@ class ImpactAwareController:
         # dq_cmd = dq + ddq dt (clipped only off the closed loop: see the docstring) and
         # q_cmd = q (+) (dq + dq_cmd) dt / 2 within the position limits
         if self._floating:
-            dq_cmd, q_cmd, clipped = self._floating_integrate(terms, ddq)
-        else:  # one compiled pass
-            dq_cmd, q_cmd = np.empty(robot.nv), np.empty(robot.nq)
-            clipped = integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, dq_cmd, q_cmd)
+            *command, clipped = self._floating_integrate(terms, ddq)
+        else:  # one compiled pass: the rows dq_cmd, q_cmd, the predicted jump and post-impact velocity
+            command = np.empty((COMMAND_ROWS, robot.nv))
+            jump_matrix = self._no_jump if self.impact is None else self.impact.row_matrices(terms).jump_matrix
+            clipped = integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, jump_matrix, command)
         if clipped:
-            ddq = (dq_cmd - terms.dq) * (1.0 / self.dt)
+            ddq = (command[0] - terms.dq) * (1.0 / self.dt)
             status = Status.VELOCITY_CLIPPED
-            self.problem.violation(ddq)  # the gaps of the ddq actually commanded
-        return self._emit(terms, (ddq, dq_cmd, q_cmd), status, self._active_constraints(ddq), [], solver_name)
+            self._checked(ddq)  # the gaps and the active constraints of the ddq actually commanded
+        return self._emit(terms, (ddq, *command), status, self._active_constraints(), [], solver_name)
 
     # ------------------------------------------------------------------ one cycle
     def _impact_noticed(self, terms: ModelTerms) -> bool:
@@ -344,27 +347,26 @@ class ImpactAwareController:
             solved, x = self.solver.solve(problem)
         except Exception:  # a backend error must not stop the control loop
             solved, x = FAILED, None
-        if solved == SOLVED and self._acceptable(x):
+        if solved == SOLVED and self._checked(x) <= self.feasibility_tolerance:  # finite, every row and bound met
             return SOLVED, x, self.solver.name
         try:
             solved, x = self.verifier.solve(problem)
         except Exception:
             solved, x = FAILED, None
-        if solved == SOLVED and not self._acceptable(x):
+        if solved == SOLVED and not self._checked(x) <= self.feasibility_tolerance:
             solved, x = FAILED, None
         return solved, x, self.verifier.name
 
-    def _acceptable(self, x: np.ndarray) -> bool:
-        """A solution is used only when it is finite and satisfies every row and bound."""
-        return self.problem.violation(x) <= self.feasibility_tolerance
+    def _checked(self, x: np.ndarray) -> float:
+        """The largest violation of a row or bound by x, and in the same compiled call the active
+        constraints' flags of x (a row within 10 x ``feasibility_tolerance`` of a bound)."""
+        p, tolerance = self.problem, self.feasibility_tolerance * 10.0
+        return checked_solution(p.C, x, p.bounds, p.gaps, self._box_bounds, self.layout.row_ends, tolerance, self._active_flags)
 
-    def _active_constraints(self, ddq: np.ndarray) -> list[str]:
-        """Names of the constraints with at least one row at a bound (the gaps of the
-        accepted solution's feasibility check; box constraints by their own, unclipped bounds)."""
-        p, flags = self.problem, self._active_flags
-        tolerance = self.feasibility_tolerance * 10.0
-        tight_constraints(ddq, self._box_bounds, p.lower_gap, p.upper_gap, self.layout.row_ends, tolerance, flags)
-        return [name for name, hit in zip(self.layout.flag_names, flags) if hit]
+    def _active_constraints(self) -> list[str]:
+        """Names of the constraints with at least one row at a bound at the commanded ddq (the
+        flags of its check, ``_checked``: when it was accepted, or clipped)."""
+        return [name for name, hit in zip(self.layout.flag_names, self._active_flags.tolist()) if hit]
 
     # ------------------------------------------------------------------ fallback
     def _infeasible(self, q, dq, terms, message) -> Command:
@@ -415,22 +417,19 @@ class ImpactAwareController:
         return ddq, dq_cmd, self._floating_position(terms, dq_cmd)
 
     def _emit(self, terms, motion, status, active, violated, solver, message="") -> Command:
-        """Record the command ``motion`` = (ddq, dq_cmd, q_cmd) in the memory and package it with
-        the impact prediction (the matrices of this cycle, already computed for the impact
-        constraints)."""
-        ddq, dq_cmd, q_cmd = motion
+        """Record the command ``motion`` = (ddq, dq_cmd, q_cmd[, jump, post-impact velocity]) in the
+        memory and package it with the impact prediction at dq_cmd (computed here when ``motion``
+        does not bring it, from the matrices of this cycle)."""
+        ddq, dq_cmd, q_cmd, *prediction = motion
         memory = self.memory
         memory.q_cmd, memory.dq_cmd, memory.ddq = q_cmd, dq_cmd, ddq
-        if self.impact is not None and terms is not None:
-            jump = self.impact.matrices(terms).jump_matrix @ dq_cmd
-            impact_active = self.impact.is_active(terms)
-        else:
-            jump = np.zeros(self.robot.nv)
-            impact_active = False
-        self._impact_was_active = impact_active
+        predicts = self.impact is not None and terms is not None
+        if not prediction:
+            jump = self.impact.matrices(terms).jump_matrix @ dq_cmd if predicts else np.zeros(self.robot.nv)
+            prediction = (jump, dq_cmd + jump)
+        self._impact_was_active = impact_active = predicts and self.impact.is_active(terms)
         return Command(
-            ddq, dq_cmd, q_cmd, status, active, violated, jump, dq_cmd + jump, impact_active, solver, message,
-            self.phase,
+            ddq, dq_cmd, q_cmd, status, active, violated, *prediction, impact_active, solver, message, self.phase
         )
 
 

@@ -1,6 +1,7 @@
 """The compiled kernels of one control cycle (``controller.ImpactAwareController``), each with a
 plain-numpy twin in the tests: the QP cost of the stacked task rows, the intersection of the box
-constraints, the velocity-limit test, the integration of a fixed-base command and the active set."""
+constraints, the velocity-limit test, the integration of a fixed-base command with its impact
+prediction, and a solution's check with its active set."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from .command import DQ_MAX, Q_MAX, Q_MIN
+from .problem import stacked_violation
 
 
 @njit(cache=True)
@@ -58,29 +60,54 @@ def first_outside(values, limit):
     return -1
 
 
+COMMAND_ROWS = 4
+"""Rows of ``integrate_command``'s output: dq_cmd, q_cmd, the predicted jump and dq_cmd + the jump."""
+
+
 @njit(cache=True)
-def integrate_command(q, dq, ddq, dt, limits, dq_cmd, q_cmd):
-    """Kernel: dq_cmd = clip(dq + ddq dt, +-dq_max), q_cmd = clip(q + (dq + dq_cmd) dt / 2,
-    q_min, q_max) (``limits``: the stacked ``command_limits``); True when dq_cmd had to be
-    clipped."""
+def integrate_command(q, dq, ddq, dt, limits, jump_matrix, out):
+    """Kernel of a fixed base's command: out[0] = dq_cmd = clip(dq + ddq dt, +-dq_max), out[1] =
+    q_cmd = clip(q + (dq + dq_cmd) dt / 2, q_min, q_max) (``limits``: the stacked
+    ``command_limits``), out[2] = the predicted jump A dq_cmd of the jump matrix A at the
+    commanded velocity and out[3] = dq_cmd + A dq_cmd, the predicted post-impact velocity; True
+    when dq_cmd had to be clipped."""
     clipped = False
-    for i in range(q.shape[0]):
+    n = q.shape[0]
+    for i in range(n):
         v = dq[i] + ddq[i] * dt
         dq_max = limits[DQ_MAX, i]
         if v > dq_max:
             v, clipped = dq_max, True
         elif v < -dq_max:
             v, clipped = -dq_max, True
-        dq_cmd[i] = v
-        q_cmd[i] = min(max(q[i] + 0.5 * dt * (dq[i] + v), limits[Q_MIN, i]), limits[Q_MAX, i])
+        out[0, i] = v
+        out[1, i] = min(max(q[i] + 0.5 * dt * (dq[i] + v), limits[Q_MIN, i]), limits[Q_MAX, i])
+    for i in range(n):
+        jump = 0.0
+        for j in range(n):
+            jump += jump_matrix[i, j] * out[0, j]
+        out[2, i] = jump
+        out[3, i] = out[0, i] + jump
     return clipped
 
 
 @njit(cache=True)
-def tight_constraints(x, box_bounds, lower_gap, upper_gap, row_ends, tol, flags):
+def checked_solution(C, x, bounds, gaps, box_bounds, row_ends, tol, flags):
+    """Kernel of a solution's check: ``stacked_violation`` of x in the QP of C and the stacked
+    ``bounds`` (its largest violation, returned; the gaps in ``gaps``), then
+    ``tight_constraints``' flags of x at ``tol``."""
+    violation = stacked_violation(C, x, bounds, gaps)
+    tight_constraints(x, box_bounds, gaps, row_ends, tol, flags)
+    return violation
+
+
+@njit(cache=True)
+def tight_constraints(x, box_bounds, gaps, row_ends, tol, flags):
     """Kernel: flags[k] for box k (bounds in rows 2k, 2k+1 of box_bounds) when x is within tol
     of one of its bounds, then flags of the general constraints (rows ending at row_ends) when
-    one of their rows has a gap <= tol."""
+    one of their rows has a gap <= tol (``gaps``: the rows lower_gap, upper_gap of
+    ``stacked_violation``)."""
+    lower_gap, upper_gap = gaps[0], gaps[1]
     boxes = box_bounds.shape[0] // 2
     n = x.shape[0]
     for k in range(boxes):

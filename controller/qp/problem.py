@@ -25,17 +25,20 @@ class QpProblem:
     """Preallocated QP data: cost 1/2 x^T H x + g^T x, box lb <= x <= ub, rows l <= C x <= u.
 
     The bounds live in two stacked vectors ``lower`` = [lb; l] and ``upper`` = [ub; u] (lb, l,
-    ub and u are views of them), the layout daqp reads directly; infinite entries are unbounded.
+    ub and u are views of them), the layout daqp reads directly, themselves the rows of one
+    array ``bounds``; infinite entries are unbounded. ``gaps`` holds the rows ``lower_gap`` and
+    ``upper_gap`` of the last ``violation``.
     """
 
     def __init__(self, H, g, C, l, u, lb, ub):
         rows, n = C.shape[0], H.shape[0]
         self.H, self.g, self.C = H, g, C
-        self.lower, self.upper = np.concatenate([lb, l]), np.concatenate([ub, u])
+        self.bounds = np.stack([np.concatenate([lb, l]), np.concatenate([ub, u])])
+        self.lower, self.upper = self.bounds
         self.lb, self.l = self.lower[:n], self.lower[n:]
         self.ub, self.u = self.upper[:n], self.upper[n:]
-        self.lower_gap = np.zeros(n + rows)  # [x; C x] - lower, of the last ``violation``
-        self.upper_gap = np.zeros(n + rows)  # upper - [x; C x]
+        self.gaps = np.zeros((2, n + rows))
+        self.lower_gap, self.upper_gap = self.gaps  # [x; C x] - lower and upper - [x; C x]
 
     @classmethod
     def empty(cls, rows: int, variables: int) -> QpProblem:
@@ -50,7 +53,7 @@ class QpProblem:
     def violation(self, x: np.ndarray) -> float:
         """Largest violation of a bound or row by x (0 when x is feasible, inf when x is not
         finite); the gaps to the bounds stay in ``lower_gap`` and ``upper_gap``."""
-        return stacked_violation(self.C, x, self.lower, self.upper, self.lower_gap, self.upper_gap)
+        return stacked_violation(self.C, x, self.bounds, self.gaps)
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,9 +108,12 @@ def consecutive_slices(sizes: list[int]) -> tuple[slice, ...]:
 
 
 @njit(cache=True)
-def stacked_violation(C, x, lower, upper, lower_gap, upper_gap):
-    """Kernel of ``QpProblem.violation``: with z = [x; C x], lower_gap = z - lower and
-    upper_gap = upper - z; the largest violation max(0, -min gaps), inf for a non-finite x."""
+def stacked_violation(C, x, bounds, gaps):
+    """Kernel of ``QpProblem.violation``: with z = [x; C x] and ``bounds`` = [lower; upper], the
+    rows of ``gaps`` lower_gap = z - lower and upper_gap = upper - z; the largest violation
+    max(0, -min gaps), inf for a non-finite x."""
+    lower, upper = bounds[0], bounds[1]
+    lower_gap, upper_gap = gaps[0], gaps[1]
     n = x.shape[0]
     worst = 0.0
     for i in range(n + C.shape[0]):

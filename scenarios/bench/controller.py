@@ -347,8 +347,8 @@ def stage_samples(robot: PandaModel, cycles: int = 1000) -> dict[str, np.ndarray
         _, ddq = controller.solver.solve(controller.problem)
         t3 = time.perf_counter()
         if ddq is not None:
-            controller._acceptable(ddq)
-            controller._active_constraints(ddq)
+            controller._checked(ddq)
+            controller._active_constraints()
         t4 = time.perf_counter()
         for name, elapsed in zip(stages, (t1 - t0, t2 - t1, t3 - t2, t4 - t3)):
             stages[name][k] = elapsed

@@ -5,13 +5,16 @@ the UR5, all with the impact tip); ``floor.pinocchio.all_terms`` (one ``computeA
 the floor of a prediction from q) and the ratio ``predict.crb.single/floor.pinocchio.all_terms``
 block by block (``base.ratio_row``); ``predict.crb.batch`` (predictions per second of
 ``CrbPredictor.predict_batch``, 100,000 states in shared memory split over 2 worker processes,
-one compiled loop each writing its rows in place) and ``predict.crb.batch.jobs1`` (the same in
+one compiled loop each writing its rows in place), ``predict.crb.batch.cpu`` (the same batch over
+the workers' CPU time: BATCH / (their CPU seconds / BATCH_JOBS), the rate the run would reach on
+dedicated cores, whatever else the machine runs) and ``predict.crb.batch.jobs1`` (the same in
 one process)."""
 
 from __future__ import annotations
 
 import os
 import tempfile
+import time
 from collections.abc import Callable
 from contextlib import ExitStack
 
@@ -55,18 +58,38 @@ def _start_batch_worker(robot_name: str, folder: str) -> None:
     _WORKER.update({name: np.load(os.path.join(folder, f"{name}.npy"), mmap_mode="r+") for name in BATCH_ARRAYS})
 
 
-def _predict_rows(task: tuple[int, int, np.ndarray, np.ndarray]) -> None:
+def _predict_rows(task: tuple[int, int, np.ndarray, np.ndarray]) -> float:
     """The batch's rows [start, stop) for the normal n and the velocity v-, predicted into the
-    mapped jumps and impulses."""
+    mapped jumps and impulses; the CPU seconds this process spent on them."""
     start, stop, normal, velocity = task
     Q, jumps, impulses = (_WORKER[name] for name in BATCH_ARRAYS)
+    cpu = time.process_time()
     _WORKER["crb"].predict_batch(Q[start:stop], normal, velocity, 0.0, out=(jumps[start:stop], impulses[start:stop]))
+    return time.process_time() - cpu
+
+
+class BatchTimer:
+    """The timer of one pool's batch (``alternating_blocks``): each call maps the tasks
+    BATCH_REPEATS times and returns the wall seconds of each; ``cpu`` keeps, per batch, the
+    workers' CPU seconds over the number of workers (the batch's time on dedicated cores)."""
+
+    def __init__(self, pool: ProcessPool, tasks: list):
+        self.pool, self.tasks, self.cpu = pool, tasks, []
+
+    def __call__(self) -> np.ndarray:
+        samples = np.empty(BATCH_REPEATS)
+        for k in range(BATCH_REPEATS):
+            start = time.perf_counter()
+            cpu = sum(self.pool.map(_predict_rows, self.tasks))
+            samples[k] = time.perf_counter() - start
+            self.cpu.append(cpu / len(self.tasks))
+        return samples
 
 
 def batch_timers(robot: RobotModel, folder: str, stack: ExitStack, impact: tuple[np.ndarray, np.ndarray]) -> dict:
-    """The timers of ``predict.crb.batch`` (BATCH_JOBS worker processes) and ``.jobs1`` (this
-    process): BATCH random states in shared memory (``folder``), each worker predicting its
-    share of the rows in one compiled loop; warmed up."""
+    """The timers (``BatchTimer``) of ``predict.crb.batch`` (BATCH_JOBS worker processes) and
+    ``.jobs1`` (this process): BATCH random states in shared memory (``folder``), each worker
+    predicting its share of the rows in one compiled loop; warmed up."""
     Q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (BATCH, robot.nq))
     shapes = {"Q": Q.shape, "jumps": (BATCH, robot.nv), "impulses": (BATCH, 3)}
     for name in BATCH_ARRAYS:
@@ -77,7 +100,7 @@ def batch_timers(robot: RobotModel, folder: str, stack: ExitStack, impact: tuple
         bounds = np.linspace(0, BATCH, jobs + 1).astype(int)
         tasks = [(int(a), int(b), *impact) for a, b in zip(bounds[:-1], bounds[1:])]
         list(pool.map(_predict_rows, tasks))  # warm up
-        timers[name] = (lambda pool, tasks: lambda: time_calls(lambda: list(pool.map(_predict_rows, tasks)), BATCH_REPEATS))(pool, tasks)
+        timers[name] = BatchTimer(pool, tasks)
     return timers
 
 
@@ -101,5 +124,7 @@ def rows() -> list[dict]:
         rate_row(name, "predictions/s", BATCH, np.concatenate(samples)) if name.startswith("predict.crb.batch")
         else blocks_row(name, "us", samples, 1e6) for name, samples in blocks.items()
     ]
+    cpu = timers["predict.crb.batch"].cpu
+    rows.insert(-1, rate_row("predict.crb.batch.cpu", "predictions/s", BATCH, np.array(cpu)))
     rows.append(ratio_row("predict.crb.single", "floor.pinocchio.all_terms", blocks))
     return rows

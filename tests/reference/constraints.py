@@ -144,9 +144,9 @@ def reference_normal_motion(terms, normal) -> tuple[float, float]:
 
 
 def reference_fixed_base_cycle_update(model, terms, normal, restitution) -> tuple[JumpMatrices, tuple[float, float]]:
-    """``crb_cycle_update``, ``rank_one_cycle_update`` and ``classical_cycle_update`` (a fixed
-    base's crb, gm or classical fill of an expected impact) in plain numpy: A, P and G, then
-    n.(J dq) and n.p."""
+    """``crb_cycle_update``, ``gm_cycle_update`` and ``classical_cycle_update`` (a fixed base's
+    crb, gm or classical fill of an expected impact) in plain numpy: A, P and G, then n.(J dq)
+    and n.p."""
     if model.name == "classical":
         matrices = reference_classical_jump_matrices(terms, restitution)
     else:

@@ -93,3 +93,13 @@ def reference_planned_qp(tasks, layout, terms, cycle: ControlCycle) -> tuple:
     first = layout.first_relaxed_row
     reference_recoverable(ControlCycle(cycle.dt, lb, ub, cycle.horizon), C[first:], l[first:], u[first:])
     return H, g, lb, ub, C, l, u, bool(np.all(lb <= ub))
+
+
+def reference_integrate_command(q, dq, ddq, dt, robot, jump_matrix):
+    """``cycle_kernels.integrate_command``: dq_cmd, q_cmd, the jump A dq_cmd, dq_cmd + A dq_cmd and
+    whether dq_cmd was clipped."""
+    free = dq + ddq * dt
+    dq_cmd = np.clip(free, -robot.dq_max, robot.dq_max)
+    q_cmd = np.clip(q + (0.5 * dt) * (dq + dq_cmd), robot.q_min, robot.q_max)
+    jump = jump_matrix @ dq_cmd
+    return dq_cmd, q_cmd, jump, dq_cmd + jump, bool(np.any(dq_cmd != free))
