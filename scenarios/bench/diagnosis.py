@@ -14,6 +14,7 @@ import numpy as np
 from impactqp.controller.model.choice import DEFAULT_CHOICE
 from impactqp.sim.causes import CAUSE_NAMES, cause_named, default_causes, realistic_hidden_effect
 from impactqp.sim.diagnosis import diagnose
+from impactqp.sim.diagnosis.calibration import covered
 from impactqp.sim.generation import DatasetRequest, generate_dataset
 from impactqp.sim.plant import PlantParameters
 
@@ -43,30 +44,22 @@ def scaled_error(cause, fitted: np.ndarray, truth: np.ndarray) -> np.ndarray:
     return np.abs(fitted - truth) / np.maximum(np.abs(truth), 0.1 * span)
 
 
-def inside(value: float, interval) -> bool:
-    low, high = interval
-    return (low is None or low <= value) and (high is None or value <= high)
-
-
 def accuracy_of(case: tuple[str, ...], result: dict, overrides: dict) -> tuple[bool, list[float], list[bool]]:
     """Named right (the selected causes are exactly the hidden ones), the scaled error of every
-    hidden parameter (inf when its cause was missed) and whether each lies in its interval."""
+    hidden parameter (inf when its cause was missed) and whether each lies in its interval
+    (``calibration.covered``)."""
     named = sorted(result["causes"]) == sorted(case)
-    errors, covered = [], []
-    for name in case:
-        cause = cause_named(name, JOINTS)
-        truth = cause.theta_of(overrides)
-        if name not in result["causes"]:
-            errors += [float("inf")] * len(truth)
-            covered += [False] * len(truth)
+    hidden = [cause_named(name, JOINTS) for name in case]
+    held = covered(hidden, result, overrides)
+    errors = []
+    for cause in hidden:
+        if cause.name not in result["causes"]:
+            errors += [float("inf")] * len(held[cause.name])
             continue
-        intervals = [p["interval"] for p in result["parameter_intervals"] if p["cause"] == name]
-        if len(intervals) != len(truth) and cause.refined() is not None:  # the search refined it
+        if len(held[cause.name]) != len(cause.labels):  # ``covered`` read it through its refinement
             cause = cause.refined()
-            truth = cause.theta_of(overrides)
-        errors += scaled_error(cause, cause.theta_of(result["parameters"]), truth).tolist()
-        covered += [inside(v, i) for v, i in zip(truth, intervals)]
-    return named, errors, covered
+        errors += scaled_error(cause, cause.theta_of(result["parameters"]), cause.theta_of(overrides)).tolist()
+    return named, errors, [h for cause in hidden for h in held[cause.name]]
 
 
 def hidden_dataset(directory: Path, case: tuple[str, ...], rng: np.random.Generator, seed: int) -> dict:
