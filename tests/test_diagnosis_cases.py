@@ -21,14 +21,16 @@ from impactqp.sim.generation import DatasetRequest, generate_dataset
 from impactqp.sim.plant import PlantParameters
 
 DELAYED = {"postures": ["elbow_up", "elbow_left"], "speeds": [0.1, 0.18], "repeats": 2, "seed": 6}
+BENCH_DELAYED = {"postures": ["elbow_up", "elbow_left", "elbow_right"], "speeds": [0.1, 0.18], "seed": 202}
+"""The out-of-family delay case of the bench (``scenarios/bench/diagnosis_coverage.py``)."""
 
 
-def drawn_delays(tmp_path) -> dict[str, int]:
-    """Each trial's delay of dq in the datasets of ``DELAYED`` with ``velocity_delays`` = 4, read
+def drawn_delays(tmp_path, dataset: dict = DELAYED) -> dict[str, int]:
+    """Each trial's delay of dq in the datasets of ``dataset`` with ``velocity_delays`` = 4, read
     exactly from two noise-free twins (the delay is drawn after the noise, whatever its std)."""
     twins = {}
     for name, delays in (("on_time", 0), ("late", 4)):
-        generate_dataset(tmp_path / name, DatasetRequest(velocity_delays=delays, noise_dq=0.0, **DELAYED), jobs=2)
+        generate_dataset(tmp_path / name, DatasetRequest(velocity_delays=delays, noise_dq=0.0, **dataset), jobs=2)
         twins[name] = read_dataset(tmp_path / name).trials
     found = {}
     for on_time, late in zip(twins["on_time"], twins["late"]):
@@ -54,6 +56,26 @@ def test_a_per_trial_variable_delay_is_called_unexplained_with_its_misfit_named(
     worst = result["fit"]["worst_channel"]["channel"]  # the misfit named: the worst joint's channel at least
     assert "does not fit the data" in result["message"] and worst in result["message"], result["message"]
     assert all(delays[trial] > 0 for trial in result["outlier_trials"]), (result["outlier_trials"], delays)
+    assert not result["timing"]["consistent"] and "timings differ" in result["message"]
+
+
+def test_a_per_trial_delay_that_one_filter_fits_on_average_is_refused_by_the_trials_timings(tmp_path):
+    """The bench's out-of-family delay case (3 postures x 2 speeds, one trial each, dq logged
+    0-4 samples late per trial), with the candidate that came closest: one velocity filter fits
+    every block (before the timing test it was refused only by one joint's channel, 6.7 against
+    6). Each trial's measured velocities lag the best model's replay by its own delay, up to a
+    shift all trials share and the replay's timing (a physics step): the homogeneity test refuses
+    one timing for all trials, by far, and the message says so."""
+    delays = drawn_delays(tmp_path, BENCH_DELAYED)
+    generate_dataset(tmp_path / "data", DatasetRequest(velocity_delays=4, **BENCH_DELAYED), jobs=2)
+    result = diagnose(tmp_path / "data", causes=[VelocityFilterCause()], jobs=2).summary()
+    assert not result["explained"] and result["causes"] == [] and result["parameters"] == {}, result["message"]
+    timing = result["timing"]
+    assert not timing["consistent"] and timing["p_value"] < 1e-6, timing
+    assert "timings differ" in result["message"], result["message"]
+    lags = np.array([delays[t["id"]] for t in result["trial_residuals"]], float)
+    shifts = np.array(timing["shifts"])
+    assert np.ptp(lags) > 0 and np.allclose(shifts - shifts.mean(), lags - lags.mean(), atol=1.0), (shifts, lags)
 
 
 def test_friction_behind_torque_offsets_is_bounded_across_the_kink_and_saved_where_the_data_say(

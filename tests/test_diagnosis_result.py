@@ -19,7 +19,7 @@ SUMMARY_KEYS = {
     "cause", "causes", "explained", "parameters", "intervals", "parameter_intervals", "open_sides", "steps",
     "baseline_error", "extended_error", "gain", "candidates", "trials", "skipped", "predictors",
     "predictors_measured_impulse", "analysis", "message", "gain_over_floor", "fit", "nominal_fit",
-    "best_model", "trial_residuals", "outlier_trials",
+    "best_model", "trial_residuals", "outlier_trials", "timing",
 }
 FITS = {"jump": 1.1, "torque": 0.9, "impulse": 0.5, "duration": 0.4, "fits_noise": True}
 
@@ -73,8 +73,12 @@ def test_the_message_names_the_causes_their_intervals_and_what_is_open():
     text = diagnosis(False, 0.01, 0.009, [side], nominal_fit=misfit).message()
     assert text.startswith("No candidate cause explains the gap: the best one, 'friction'")
     assert f"threshold {100 * EXPLAINED_GAIN:.0f} %" in text and "cannot bound" not in text
-    text = diagnosis(False, 0.01, 0.009, [side]).message()
+    needless = diagnosis(False, 0.01, 0.009, [side])
+    needless.candidates = [{"cause": "friction", "gain": 0.016}, {"cause": "payload", "gain": -0.2}]
+    text = needless.message()
     assert text.startswith("No candidate cause is needed: the nominal simulation already matches the data")
+    # a share of the excess over the floor above its threshold (near the floor) is not the reason: the gain is
+    assert "lowers the held-out residual by 2 % (a cause needs 20 %)" in text
 
 
 @given(st.sampled_from(["jump", "torque", "impulse", "duration"]), st.floats(FIT_LIMIT * 1.01, 1e3))
@@ -116,3 +120,20 @@ def test_a_trial_that_stands_out_is_named_in_the_summary_and_the_message(residua
     assert [r["residual"] for r in summary["trial_residuals"]] == residuals
     assert f"Trial {name} ({outlier:.1f}) stands out" in summary["message"]
     assert "stands out" not in diagnosis(True, 0.01, 0.002, [], residuals=[r for r in residuals if r != outlier]).message()
+
+
+def test_differing_timings_are_said_with_the_trials_that_lag_least_and_most():
+    """A best model that fits the noise on average but not each trial's timing
+    (``timing.timing_test`` refused): the message says so, names the trials of the least and the
+    largest lag and the test's numbers, and does not blame the intervals; consistent timings
+    add nothing."""
+    result = diagnosis(False, 0.1, 0.05, [], nominal_fit={**FITS, "jump": 5.0, "fits_noise": False},
+                       residuals=(1.0, 1.2, 1.1))
+    result.gain_over_floor = 0.9
+    assert "timings differ" not in result.message()
+    result.timing = {"shifts": [0.1, 3.0, None], "stds": [0.25, 0.25, None], "statistic": 69.1, "dof": 1,
+                     "p_value": 1e-16, "consistent": False}
+    message = result.message()
+    assert "not each trial's timing" in message and "nominal value" not in message
+    assert "0.1 (t0) to 3.0 samples (t1)" in message and "chi-square 69.1 on 1 degrees of freedom" in message
+    assert result.summary()["timing"] == result.timing

@@ -24,7 +24,8 @@ FAMILIES: list[tuple[str, str, str]] = [
     ("controller.cycle.g1", "whole_body", "rows"),  # the standing G1's, with pink's row of the same problem
     ("sim.closed_loop", "simulation", "closed_loop_benchmark_rows"),
     ("maxspeed.", "simulation", "max_speed_benchmark_rows"),
-    ("diagnose.", "diagnosis", "rows"),
+    ("diagnose.30_trials", "diagnosis", "thirty_trial_rows"),
+    ("diagnose.accuracy", "diagnosis", "accuracy_rows"),
     ("diagnose.coverage", "diagnosis_coverage", "coverage_rows"),  # the intervals' calibration (long)
     ("diagnose.false_explanations", "diagnosis_coverage", "false_explanation_rows"),
     ("loop.", "loop", "rows"),

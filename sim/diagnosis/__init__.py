@@ -14,6 +14,8 @@ The steps of ``diagnose`` (``pipeline``), one module each:
    refinements, backward removals) on the held-out normalised residual over trials.
 6. **Bound the parameters** (``intervals``): profile-likelihood and bootstrap 95 % intervals,
    open sides and the trials that would settle them.
+7. **One timing** (``timing``): the causes are named only when the final model's replays line up
+   with every trial at one shift, up to the replay's own timing (a homogeneity test).
 
 The result and its report (``result``): ``Diagnosis.summary()`` is the JSON of
 ``impactqp diagnose --json``. Method and JSON keys: ``docs/diagnosis.md``.

@@ -20,6 +20,7 @@ from .fitting import fit_report, jump_errors, trial_errors
 from .intervals import excludes_nominal, open_sides, override_intervals, parameter_intervals, without_spurious
 from .result import Diagnosis
 from .search import select_causes
+from .timing import timing_test
 from .trials import load_trials, locate_jump_samples, replay_all
 
 
@@ -103,7 +104,8 @@ def diagnose(
     extended_features = replay_all(setting, extended_plant, trials)
     extended_jumps = np.array([f.detected_jump for f in extended_features])
     fit = fit_report(extended_features, trials)
-    explained = selected and _explains(model, theta_intervals, nominal, fit)
+    timing = timing_test(extended_features, trials)
+    explained = selected and _explains(model, theta_intervals, nominal, fit, timing)
     steps = selection.steps if explained else [{**s, "selected": False} for s in selection.steps]
     step(4)
     predictors, predictors_measured_impulse, predictions = predictor_errors(trials, setting)
@@ -131,6 +133,7 @@ def diagnose(
         fit=fit,
         nominal_fit=fit_report(nominal_features, trials),
         trial_residuals=trial_errors(extended_features, trials),
+        timing=timing,
         extended_plant=extended_plant,
         surface=setting.surface,
         choice=setting.choice,
@@ -146,10 +149,11 @@ def _bounded(model, selected: bool, nominal: PlantParameters, setting, trials, j
     return model, theta_intervals
 
 
-def _explains(model, theta_intervals, nominal: PlantParameters, fit: dict) -> bool:
-    """Whether the selected causes explain the gap: their model fits the noise and every named
+def _explains(model, theta_intervals, nominal: PlantParameters, fit: dict, timing: dict) -> bool:
+    """Whether the selected causes explain the gap: their model fits the noise, holds one timing
+    for every trial (``timing.timing_test``: every cause is one for all trials) and every named
     cause's interval excludes its nominal value (else the data do not say it moved)."""
-    return fit["fits_noise"] and all(excludes_nominal(model, theta_intervals, nominal))
+    return fit["fits_noise"] and timing["consistent"] and all(excludes_nominal(model, theta_intervals, nominal))
 
 
 def nominal_diagnosis(trials, skipped, setting, nominal: PlantParameters, nominal_features) -> Diagnosis:
@@ -166,5 +170,6 @@ def nominal_diagnosis(trials, skipped, setting, nominal: PlantParameters, nomina
         predictors_measured_impulse=predictors_measured_impulse, predictions=predictions,
         analysis=error_analysis(trials, jumps), causes=[], steps=[], intervals={}, parameter_intervals=[],
         open_sides=[], extended_error=float(np.mean(errors)), gain_over_floor=0.0, fit=fit, nominal_fit=fit,
-        trial_residuals=trial_errors(nominal_features, trials), extended_plant=nominal, surface=setting.surface, choice=setting.choice,
+        trial_residuals=trial_errors(nominal_features, trials), timing=timing_test(nominal_features, trials),
+        extended_plant=nominal, surface=setting.surface, choice=setting.choice,
     )

@@ -13,7 +13,7 @@ from impactqp.sim.plant import PlantParameters
 
 from .intervals import open_side_text
 from .noise import BLOCKS, CHANNEL_LIMIT, FIT_LIMIT, channel_misfits, misfit_blocks, outlier_trials
-from .selection import EXPLAINED_GAIN, relative_gain
+from .selection import EXPLAINED_GAIN, STEP_GAIN, relative_gain
 from .trials import MeasuredTrial
 
 
@@ -50,6 +50,7 @@ class Diagnosis:
     fit: dict
     nominal_fit: dict
     trial_residuals: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    timing: dict = field(default_factory=lambda: {"consistent": True})  # ``timing.timing_test`` of the final model
 
     def outliers(self) -> list[str]:
         """The ids of the trials that stand out from the others (``noise.outlier_trials``), worst first."""
@@ -88,6 +89,7 @@ class Diagnosis:
                 {"id": t.id, "residual": float(r)} for t, r in zip(self.trials, self.trial_residuals)
             ],
             "outlier_trials": self.outliers(),
+            "timing": self.timing,
             "skipped": self.skipped,
             "predictors": self.predictors,
             "predictors_measured_impulse": self.predictors_measured_impulse,
@@ -99,7 +101,7 @@ class Diagnosis:
         if len(self.trials) == 1:
             return self.single_trial_message()
         text = self.explained_message() if self.explained else self.unexplained_message()
-        return text + self.outlier_text()
+        return text + self.timing_text() + self.outlier_text()
 
     def outlier_text(self) -> str:
         """A sentence naming the trials that stand out (empty when none does)."""
@@ -112,6 +114,23 @@ class Diagnosis:
             f" {'Trial' if len(outliers) == 1 else 'Trials'} {named} stand{'s' if len(outliers) == 1 else ''} out: "
             f"residual in noise units against a median of {median:.1f} over the trials; look at "
             f"{'its log' if len(outliers) == 1 else 'their logs'} (JSON key trial_residuals)."
+        )
+
+    def timing_text(self) -> str:
+        """A sentence when the trials' timings differ (``timing.timing_test``; empty otherwise):
+        the shifts that line each trial's replayed velocity trace up with the measured one, and
+        the test that refuses one timing for all trials."""
+        timing = self.timing
+        if timing["consistent"]:
+            return ""
+        shifts = [(t.id, s) for t, s in zip(self.trials, timing["shifts"]) if s is not None]
+        low, high = min(shifts, key=lambda x: x[1]), max(shifts, key=lambda x: x[1])
+        return (
+            f" The trials' timings differ: the measured velocities lag the replay's by {low[1]:.1f} ({low[0]}) to "
+            f"{high[1]:.1f} samples ({high[0]}), more than the replay's own timing allows (homogeneity test: "
+            f"chi-square {timing['statistic']:.1f} on {timing['dof']} degrees of freedom, p = {timing['p_value']:.2g}); "
+            "every candidate cause is one for all trials: look for a delay that changes from trial to trial "
+            "(the logs' clocks, dropped or repeated samples; JSON key timing)."
         )
 
     def explained_message(self) -> str:
@@ -146,14 +165,17 @@ class Diagnosis:
     def unexplained_message(self) -> str:
         """Plain words when nothing explains the gap: the data fit the nominal within the noise
         (whatever the best model found does), or the best model found still misfits (which
-        block, by how much), or the causes remove too little of the excess over the noise floor."""
+        block, by how much), or misses the trials' timings (``timing_text`` follows), or the
+        causes remove too little of the excess over the noise floor."""
         model = " + ".join(f"'{name}'" for name in self.model_causes())
         if self.nominal_fit["fits_noise"]:
+            gain = max((c["gain"] for c in self.candidates), default=0.0)
             return (
                 "No candidate cause is needed: the nominal simulation already matches the data within the noise "
-                f"({fit_text(self.nominal_fit)}); the best candidate, {model}, removes "
+                f"({fit_text(self.nominal_fit)}); the best candidate, {model}, lowers the held-out residual by "
+                f"{100 * gain:.0f} % (a cause needs {100 * STEP_GAIN:.0f} %) and removes "
                 f"{100 * self.gain_over_floor:.0f} % of the excess over the noise floor "
-                f"(threshold {100 * EXPLAINED_GAIN:.0f} %)."
+                f"(the causes need {100 * EXPLAINED_GAIN:.0f} %)."
             )
         misfits = misfit_blocks(self.fit)
         if misfits or channel_misfits(self.fit):
@@ -161,6 +183,11 @@ class Diagnosis:
                 f"No candidate cause explains the gap, and the best model found ({model}) does not fit the "
                 f"data: {misfit_text(self.fit)}. Something outside the candidate causes is at work, e.g. in "
                 f"{where_misfit(self.fit)}; its fitted values mean nothing."
+            )
+        if self.fit["fits_noise"] and not self.timing["consistent"]:
+            return (
+                f"No candidate cause explains the gap: the best model found ({model}) matches the data within the "
+                f"noise on average ({fit_text(self.fit)}), but not each trial's timing."
             )
         if self.fit["fits_noise"] and self.gain_over_floor >= EXPLAINED_GAIN:
             return (
