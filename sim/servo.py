@@ -57,7 +57,7 @@ from impactqp.controller.model.max_speed import standing_wrenches
 
 from .scene import to_pinocchio
 
-ANKLE_BANDWIDTH = 1.0
+ANKLE_BANDWIDTH = 0.5
 """rad/s: omega_a, the bandwidth of the ankles' PD on the body's pendulum (module docstring)."""
 
 
@@ -104,7 +104,6 @@ class StandingSupport:
         model, robot = self.robot.model, self.robot
         _, ids, axes, data = self.ankles
         q = to_pinocchio(qpos, np.zeros(model.nv), self.base_nq)[0]
-        pin.forwardKinematics(model, data, q)
         com = pin.centerOfMass(model, data, q, False)
         mass = data.mass[0]
         inertias = np.empty(len(ids))
