@@ -53,7 +53,8 @@ the joints, tau = M_f (ddq_ref + w^2 e + 2 w de) + h_j - tau_feet, with M_f the 
 with the base floating and tau_feet the joint torques of the least-norm foot wrenches that carry
 the robot's weight in the measured configuration (every control step: the weight's share between
 the feet and their moments follow the posture, which the whole-body QP leans; wrenches of the
-start stance would leave the ankles a steady tracking error), gain :data:`SERVO_GAIN`. The torque
+start stance would leave the ankles a steady tracking error), gain :data:`SERVO_GAIN`, and at the
+ankles the PD of the body's pendulum about them (``sim.servo``, "The ankles carry the body"). The torque
 each joint gets is clipped at its URDF effort limit (5-139 N m). Its plant: MuJoCo's G1 with the
 actuators' reflected rotor inertias by default (``armature``: ``sim.humanoid_scene.plant_armature``; 0 for
 the link-only plant). The servo's M_f includes them (MuJoCo's M does); the predictors do not (they

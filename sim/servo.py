@@ -24,19 +24,41 @@ critically damped with bandwidth omega. The torque of the joints:
 
 With no base (base_nv = 0) and no held contacts the second law, unclipped, is the first: M_f = M,
 tau_held = 0.
+
+**The ankles carry the body.** At a held contact's ankle (the joints of its chain within the
+sole's ``depth`` of the contact frame: the G1's ankle pitch and roll) M_f is the foot's inertia,
+but with the sole on the ground the ankle's torque turns the whole body about the ankle's axis;
+and tau_held carries the weight wherever the CoM is: with M_f alone the body is in neutral balance
+about its ankles (a push or an impact's momentum is stopped only by what the other joints do).
+Each ankle joint i gets the PD of the body's pendulum about its axis a_i through the joint's
+anchor p_i, on the servo's own errors:
+
+    tau_i += I_i (omega_a^2 (q_ref,i - q_i) + 2 omega_a (dq_ref,i - dq_i)),
+    I_i = m |(c - p_i) - ((c - p_i) . a_i) a_i|^2 / n_held,
+
+m the robot's mass, c its CoM, n_held the held contacts that share the body (the point-mass
+inertia of the body about the axis, the centroidal inertia left out), critically damped at the
+bandwidth omega_a = :data:`ANKLE_BANDWIDTH`, below the body's own pendulum frequency
+sqrt(g / (c_z - p_z)) (about 4 rad/s): the ankle's damping acts during the impact too, and a
+stiffer one lifts a heel.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.max_speed import standing_wrenches
 
 from .scene import to_pinocchio
+
+ANKLE_BANDWIDTH = 0.5
+"""rad/s: omega_a, the bandwidth of the ankles' PD on the body's pendulum (module docstring)."""
 
 
 @dataclass(frozen=True)
@@ -54,6 +76,44 @@ class StandingSupport:
         carrying the robot's weight in the configuration qpos (module docstring)."""
         terms = self.robot.terms(to_pinocchio(qpos, qvel, self.base_nq)[0])
         return terms.held_jacobian[:, self.robot.base_nv:].T @ standing_wrenches(self.robot, terms)
+
+    @cached_property
+    def ankles(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, pin.Data]:
+        """The ankle joints (module docstring): their indices among the joints, their Pinocchio
+        joint ids and axes (in their own frames), and a Pinocchio data of their own; found at the
+        model's neutral posture."""
+        model = self.robot.model
+        data = model.createData()
+        neutral = pin.neutral(model)
+        pin.framesForwardKinematics(model, data, neutral)
+        pin.computeJointJacobians(model, data, neutral)
+        joints = []
+        for contact in self.robot.description.held_contacts:
+            frame = model.getFrameId(contact.frame)
+            anchor, joint = data.oMf[frame].translation, model.frames[frame].parentJoint
+            while joint > 0 and np.linalg.norm(data.oMi[joint].translation - anchor) <= contact.depth:
+                joints.append(joint)
+                joint = model.parents[joint]
+        columns = [model.idx_vs[j] for j in joints]
+        axes = np.array([pin.getJointJacobian(model, data, j, pin.LOCAL)[3:, c] for j, c in zip(joints, columns)])
+        return np.array(columns, dtype=int) - self.robot.base_nv, np.array(joints, dtype=int), axes, data
+
+    def ankle_inertias(self, qpos: np.ndarray) -> np.ndarray:
+        """I_i of each ankle joint (in the order of :attr:`ankles`): the body's point-mass
+        inertia about the joint's axis, shared by the held contacts (module docstring)."""
+        model, robot = self.robot.model, self.robot
+        _, ids, axes, data = self.ankles
+        q = to_pinocchio(qpos, np.zeros(model.nv), self.base_nq)[0]
+        com = pin.centerOfMass(model, data, q, False)
+        mass = data.mass[0]
+        inertias = np.empty(len(ids))
+        for k, joint in enumerate(ids):
+            placement = data.oMi[int(joint)]
+            axis = placement.rotation @ axes[k]
+            lever = com - placement.translation
+            lever -= (lever @ axis) * axis
+            inertias[k] = mass * (lever @ lever)
+        return inertias / len(robot.description.held_contacts)
 
 
 class ComputedTorqueServo:
@@ -97,22 +157,28 @@ class ComputedTorqueServo:
         acceleration = self._acceleration
         acceleration[:] = (dq_cmd - self.dq_ref) / dt
         position_error = self.q_ref - data.qpos[self.coordinates]
-        acceleration += self.kp * position_error + self.kd * (self.dq_ref - data.qvel[self.joints])
+        velocity_error = self.dq_ref - data.qvel[self.joints]
+        acceleration += self.kp * position_error + self.kd * velocity_error
         if self.standing is None:
             mujoco.mj_mulM(self.model, data, self._torque, acceleration)
             self._torque += data.qfrc_bias
         else:
-            self._standing_torque(acceleration)
+            self._standing_torque(acceleration, position_error, velocity_error)
         self.q_ref += 0.5 * dt * (self.dq_ref + dq_cmd)
         self.dq_ref[:] = dq_cmd
         return self._torque
 
-    def _standing_torque(self, acceleration: np.ndarray) -> None:
-        """tau = M_f a + h_j - tau_held, clipped at the effort limits (module docstring)."""
-        base, joints, data = self.base, self.joints, self.data
+    def _standing_torque(self, acceleration: np.ndarray, position_error: np.ndarray, velocity_error: np.ndarray) -> None:
+        """tau = M_f a + h_j - tau_held, plus the ankles' PD on the body's pendulum, clipped at
+        the effort limits (module docstring)."""
+        base, joints, data, standing = self.base, self.joints, self.data, self.standing
         mujoco.mj_fullM(self.model, data, self._M)
         M = self._M
         free_base = M[joints, joints] - M[joints, base] @ np.linalg.solve(M[base, base], M[base, joints])
-        tau = free_base @ acceleration + data.qfrc_bias[joints] - self.standing.torques(data.qpos, data.qvel)
+        tau = free_base @ acceleration + data.qfrc_bias[joints] - standing.torques(data.qpos, data.qvel)
+        ankles, omega = standing.ankles[0], ANKLE_BANDWIDTH
+        tau[ankles] += standing.ankle_inertias(data.qpos) * (
+            omega * omega * position_error[ankles] + 2.0 * omega * velocity_error[ankles]
+        )
         tau_max = self.standing.robot.tau_max
         np.clip(tau, -tau_max, tau_max, out=self._torque)

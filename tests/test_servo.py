@@ -16,7 +16,7 @@ from impactqp.sim.humanoid_scene import build_humanoid_scene
 from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD, SERVO_GAIN, SETTLE, SINK
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.scene import build_scene
-from impactqp.sim.servo import ComputedTorqueServo, StandingSupport
+from impactqp.sim.servo import ANKLE_BANDWIDTH, ComputedTorqueServo, StandingSupport
 
 ARM = PandaModel()
 ARMATURE = np.linspace(0.1, 0.4, ARM.nv)
@@ -118,7 +118,8 @@ def test_the_standing_g1_shows_no_foot_onset(stance):
 
 def test_a_held_servo_only_damps_the_joints():
     """After ``hold`` the reference is the measured joint positions at rest: with a zero command the
-    servo asks M_f (-2 w dq) of acceleration, no feed-forward and no position error."""
+    servo asks M_f (-2 w dq) of acceleration, no feed-forward and no position error; the ankles
+    add their pendulum's damping, I_i (-2 omega_a dq_i)."""
     robot = RobotModel("g1")
     q = stance_posture(robot, STANCES["parallel"])
     scene = build_humanoid_scene(robot, wall_x=2.0)
@@ -136,6 +137,8 @@ def test_a_held_servo_only_damps_the_joints():
     free_base = M[joints, joints] - M[joints, base] @ np.linalg.solve(M[base, base], M[base, joints])
     held = servo.standing.torques(scene.data.qpos, scene.data.qvel)
     expected = free_base @ (-2.0 * SERVO_GAIN * scene.data.qvel[joints]) + scene.data.qfrc_bias[joints] - held
+    ankles = servo.standing.ankles[0]
+    expected[ankles] -= 2.0 * ANKLE_BANDWIDTH * servo.standing.ankle_inertias(scene.data.qpos) * scene.data.qvel[joints][ankles]
     tau = servo.torque(np.zeros(robot.n_joints), DEFAULT_CONTROL_PERIOD)
     np.testing.assert_allclose(tau, np.clip(expected, -robot.tau_max, robot.tau_max), rtol=1e-9, atol=1e-9)
 
@@ -156,3 +159,28 @@ def test_the_standing_torques_hold_any_posture_in_equilibrium():
     residual = terms.held_jacobian.T @ standing_wrenches(robot, terms) - gravity
     residual[robot.base_nv:] += tau
     np.testing.assert_allclose(residual, 0.0, atol=1e-6 * np.abs(gravity).max())
+
+
+@pytest.mark.parametrize("stance", ["parallel", "step"])
+def test_the_ankles_carry_the_body_s_pendulum_inertia(stance):
+    """The ankle joints are those of each held contact's chain whose anchor lies within the sole's
+    depth of its frame (the G1's ankle pitch and roll); each one's inertia is the robot's mass at
+    the CoM's distance from the joint's axis, shared by the two feet: m |a x (c - p)|^2 / 2, the
+    axis a the joint's column of the world-aligned angular Jacobian."""
+    robot = RobotModel("g1")
+    q = stance_posture(robot, STANCES[stance])
+    scene = build_humanoid_scene(robot, wall_x=2.0, stance=STANCES[stance])
+    scene.set_state(q)
+    support = StandingSupport(robot, scene.base_nq, scene.base_nv)
+    names = {robot.joint_names[i] for i in support.ankles[0]}
+    assert names == {f"{side}_ankle_{axis}_joint" for side in ("left", "right") for axis in ("pitch", "roll")}
+    model, data = robot.model, robot.model.createData()
+    pin.computeJointJacobians(model, data, q)
+    com = pin.centerOfMass(model, data, q)
+    mass = sum(inertia.mass for inertia in model.inertias)
+    expected = []
+    for i in support.ankles[0]:
+        joint = model.getJointId(robot.joint_names[i])
+        axis = pin.getJointJacobian(model, data, joint, pin.LOCAL_WORLD_ALIGNED)[3:, robot.base_nv + i]
+        expected.append(mass * np.linalg.norm(np.cross(axis, com - data.oMi[joint].translation)) ** 2 / 2)
+    np.testing.assert_allclose(support.ankle_inertias(scene.data.qpos), expected, rtol=1e-9)
