@@ -14,9 +14,11 @@ $(BIN)/impactqp: pyproject.toml
 demo: $(BIN)/impactqp
 	$(BIN)/impactqp demo
 
+# --dist worksteal: a worker that has run its share takes tests queued on the other (the default
+# schedule leaves the last tests sent to one worker there while the other waits).
 test: $(BIN)/impactqp
 	$(BIN)/lint-imports
-	$(BIN)/python -m pytest -n 2 tests
+	$(BIN)/python -m pytest -n 2 --dist worksteal tests
 
 bench: $(BIN)/impactqp
 	$(BIN)/impactqp bench

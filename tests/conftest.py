@@ -8,10 +8,15 @@ import socket
 # scenarios.video renders with, as the command line does (an explicit MUJOCO_GL wins).
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+import compile_once
 import numpy as np
 import pytest
 from hypothesis import settings
 from hypothesis import strategies as st
+
+# Before any kernel module is imported: the test processes (both pytest-xdist workers, the pools
+# they start) compile each numba kernel signature once between them, not once each.
+compile_once.install()
 
 from impactqp.controller.measured.dataset import DatasetHeader, TrialEntry
 from impactqp.controller.measured.dataset_writer import DatasetWriter
