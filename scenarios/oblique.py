@@ -8,7 +8,8 @@ tangential velocity lies along the surface tangent t = normalise(n x e_z) of ``s
 Each trial: the plain Cartesian approach (``sim.trial_sources.CartesianApproach``: no QP, the
 tool hits at the commanded velocity) on the scene whose wall has the trial's mu (the Surface's
 ``friction``: MuJoCo's tool/wall pair, elliptic cone, condim 3), started 2 cm before the wall at
-the commanded velocity.
+the commanded velocity, on the default plant or another (``sim.plant``: e.g. a joint impedance
+servo, ``servo_stiffness``; docs/frictional-impacts.md, "Whose W the simulated arm has").
 
 Measured (``controller.measured.oblique_impact``): the impulse of the contact's compression and
 restitution, its tangential part p_t, the post-impact tangential contact velocity v_t+, the
