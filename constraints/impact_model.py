@@ -164,7 +164,7 @@ class ExpectedImpact:
         self._edge_set = Edges(directions, np.array(surface.normal, dtype=float), float(self.restitution))
         self._edge_count = friction.count
         self._edge_buffer = np.empty((2, 0, 0, 0))  # A_i and P_i, allocated at the first state
-        self._edges = EdgeMatrices.of(self._edge_buffer)
+        self._edges, self._edge_views = edge_maps_of(self._edge_buffer)
         self._edge_impulses = np.empty((friction.count, 3, 3))  # G_i, on held contacts
         self._edge_fill = self._fill_held_edges if self.held_contacts else self._fill_edges
         # The crb, gm and classical models of a fixed base write A, P and G into one buffer,
@@ -198,7 +198,15 @@ class ExpectedImpact:
 
     def edge_matrices(self, terms) -> EdgeMatrices:
         """A_i and P_i of the friction rows' edges at this state (``friction.count`` of them;
-        none without friction)."""
+        none without friction), valid until the next fill of the terms: read-only views of the
+        buffer that the next fill overwrites (copy them to keep them), as ``matrices``."""
+        if terms.stamp != self._stamp:
+            self._update(terms)
+        return self._edge_views
+
+    def edge_row_matrices(self, terms) -> EdgeMatrices:
+        """``edge_matrices`` as the buffer itself, writable, for the compiled row kernels that read
+        it within the cycle (as ``row_matrices``)."""
         if terms.stamp != self._stamp:
             self._update(terms)
         return self._edges
@@ -266,7 +274,7 @@ class ExpectedImpact:
         edges = self._edge_set
         if self._edge_buffer.shape != (2, count := edges.directions.shape[0], n, n):
             self._edge_buffer = np.empty((2, count, n, n))
-            self._edges = EdgeMatrices.of(self._edge_buffer)
+            self._edges, self._edge_views = edge_maps_of(self._edge_buffer)
         W = edge_inverse_inertia(self.model, terms)
         if self.friction.mode == "slip":
             edges.directions[:] = self._uncertain
@@ -279,7 +287,7 @@ class ExpectedImpact:
         edges, nv = self._edge_set, terms.J.shape[1]
         if self._edge_buffer.shape[-1] != nv:  # the first fill
             self._edge_buffer = np.empty((2, self._edge_count, nv, nv))
-            self._edges = EdgeMatrices.of(self._edge_buffer)
+            self._edges, self._edge_views = edge_maps_of(self._edge_buffer)
         response = held_response_maps(self.model, terms, edges.normal, edges.restitution)
         if self.friction.mode == "slip":
             edges.directions[:] = self._uncertain
@@ -304,6 +312,13 @@ def read_only_views(matrices: JumpMatrices) -> JumpMatrices:
         view.flags.writeable = False
         views.append(view)
     return JumpMatrices(*views, None)
+
+
+def edge_maps_of(buffer: np.ndarray) -> tuple[EdgeMatrices, EdgeMatrices]:
+    """The edges' maps in ``buffer`` (2 x edges x nv x nv), writable, and read-only views of them."""
+    view = buffer.view()
+    view.flags.writeable = False
+    return EdgeMatrices.of(buffer), EdgeMatrices.of(view)
 
 
 @njit(cache=True)

@@ -67,7 +67,7 @@ class ImpulsiveTorqueLimit(Constraint):
     def _stacked_rows_into(self, terms: ModelTerms, cycle: ControlCycle, C, lower, upper) -> None:
         """The frictionless block, then one block per edge of the friction rows."""
         edge_scaled_impulse_rows(
-            (self.impact.row_matrices(terms).torque_matrix, self.impact.edge_matrices(terms).torque), self._scaling,
+            (self.impact.row_matrices(terms).torque_matrix, self.impact.edge_row_matrices(terms).torque), self._scaling,
             terms.dq, 1.0 / cycle.horizon, self.impact.is_active(terms), C, lower, upper,
         )
 

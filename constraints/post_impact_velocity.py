@@ -57,7 +57,7 @@ class PostImpactVelocityLimit(Constraint):
     def _stacked_rows_into(self, terms, cycle: ControlCycle, C, lower, upper) -> None:
         """The frictionless block, then one block per edge of the friction rows."""
         edge_post_impact_velocity_rows(
-            (self.impact.row_matrices(terms).jump_matrix, self.impact.edge_matrices(terms).jump), terms.dq, self.dq_max,
+            (self.impact.row_matrices(terms).jump_matrix, self.impact.edge_row_matrices(terms).jump), terms.dq, self.dq_max,
             1.0 / cycle.horizon, self.impact.is_active(terms), C, lower, upper,
         )
 

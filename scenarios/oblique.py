@@ -8,7 +8,8 @@ tangential velocity lies along the surface tangent t = normalise(n x e_z) of ``s
 Each trial: the plain Cartesian approach (``sim.trial_sources.CartesianApproach``: no QP, the
 tool hits at the commanded velocity) on the scene whose wall has the trial's mu (the Surface's
 ``friction``: MuJoCo's tool/wall pair, elliptic cone, condim 3), started 2 cm before the wall at
-the commanded velocity.
+the commanded velocity, on the default plant or another (``sim.plant``: e.g. a joint impedance
+servo, ``servo_stiffness``; docs/frictional-impacts.md, "Whose W the simulated arm has").
 
 Measured (``controller.measured.oblique_impact``): the impulse of the contact's compression and
 restitution, its tangential part p_t, the post-impact tangential contact velocity v_t+, the
@@ -38,6 +39,7 @@ from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.controller.model.prediction import FRICTIONAL_METHODS, inverse_inertia
 from impactqp.controller.model.validation import BadInputError
 from impactqp.sim.generation import tangential_direction
+from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import ProcessPool
 from impactqp.sim.runner import TrialSpec, run_approach
 from impactqp.sim.scene import Scene, build_scene
@@ -111,17 +113,18 @@ def fixed_base(choice: RobotChoice) -> RobotChoice:
 
 
 class ObliqueTrials:
-    """Runs :class:`ObliqueTrial` trials of ``choice``'s arm: one scene per wall friction (built
-    on first use), each trial measured and predicted as a JSON-ready row (:meth:`run`)."""
+    """Runs :class:`ObliqueTrial` trials of ``choice``'s arm on ``plant`` (None: the default
+    plant): one scene per wall friction (built on first use), each trial measured and predicted
+    as a JSON-ready row (:meth:`run`)."""
 
-    def __init__(self, choice: RobotChoice):
-        self.choice, self.robot = fixed_base(choice), choice.model()
+    def __init__(self, choice: RobotChoice, plant: PlantParameters | None = None):
+        self.choice, self.robot, self.plant = fixed_base(choice), choice.model(), plant
         self.scenes: dict[float, Scene] = {}
 
     def scene(self, friction: float) -> Scene:
         if friction not in self.scenes:
             surface = Surface(DEFAULT_WALL.point, DEFAULT_WALL.normal, friction)
-            self.scenes[friction] = build_scene(surface, robot=self.choice.robot, tool=self.choice.tool)
+            self.scenes[friction] = build_scene(surface, self.plant, robot=self.choice.robot, tool=self.choice.tool)
         return self.scenes[friction]
 
     def run(self, trial: ObliqueTrial) -> dict:
@@ -169,11 +172,14 @@ def velocity_agrees(predicted: np.ndarray, simulated: np.ndarray) -> bool:
 
 
 def summary(rows: list[dict]) -> dict:
-    """Per series (and "all") and predictor: trials, the share (%) whose mode agrees, whose v_t+
-    agrees and whose law's own mode is the simulated one (module docstring)."""
+    """Per series (and "all", and the grid per wall friction: "mu = 0.1", ...) and predictor:
+    trials, the share (%) whose mode agrees, whose v_t+ agrees and whose law's own mode is the
+    simulated one (module docstring)."""
+    groups = {series: [r for r in rows if series in ("all", r["series"])] for series in (*SERIES, "all")}
+    for mu in sorted({r["friction"] for r in rows if r["series"] == "grid"}):
+        groups[f"mu = {mu:g}"] = [r for r in rows if r["series"] == "grid" and r["friction"] == mu]
     result = {}
-    for series in (*SERIES, "all"):
-        chosen = [r for r in rows if series in ("all", r["series"])]
+    for series, chosen in groups.items():
         if not chosen:
             continue
         result[series] = {
@@ -193,26 +199,36 @@ def summary(rows: list[dict]) -> dict:
 _WORKER: ObliqueTrials | None = None
 
 
-def _init_worker(choice: RobotChoice) -> None:
+def _init_worker(choice: RobotChoice, plant: PlantParameters | None) -> None:
     global _WORKER
-    _WORKER = ObliqueTrials(choice)
+    _WORKER = ObliqueTrials(choice, plant)
 
 
 def _run_in_worker(trial: ObliqueTrial) -> dict:
     return _WORKER.run(trial)
 
 
-def run_oblique_study(choice: RobotChoice, grid: ObliqueGrid, jobs: int = 1) -> dict:
-    """The study of ``choice``'s arm over ``grid`` on ``jobs`` processes: its JSON report
-    (robot, tool, rules, rows in the order of the grid's trials, summary)."""
+def run_oblique_study(choice: RobotChoice, grid: ObliqueGrid, jobs: int = 1, plant: PlantParameters | None = None) -> dict:
+    """The study of ``choice``'s arm on ``plant`` (None: the default plant) over ``grid`` on
+    ``jobs`` processes: its JSON report (robot, tool, the plant's servo, rules, rows in the order
+    of the grid's trials, summary)."""
     trials = grid.trials(fixed_base(choice))
-    with ProcessPool(jobs, _init_worker, (choice,)) as pool:
+    with ProcessPool(jobs, _init_worker, (choice, plant)) as pool:
         rows = list(pool.map(_run_in_worker, trials))
     return {
-        "robot": choice.robot.name, "tool": choice.tool.name, "normal": DEFAULT_WALL.normal.tolist(),
+        "robot": choice.robot.name, "tool": choice.tool.name, "servo": servo_name(plant),
+        "normal": DEFAULT_WALL.normal.tolist(),
         "restitution": RESTITUTION, "velocity_share": VELOCITY_SHARE, "velocity_floor": VELOCITY_FLOOR,
         "rows": rows, "summary": summary(rows),
     }
+
+
+def servo_name(plant: PlantParameters | None) -> str:
+    """The servo of ``plant`` in words: its joint impedance or its computed-torque bandwidth."""
+    plant = PlantParameters() if plant is None else plant
+    if plant.servo_stiffness:
+        return "joint impedance K = " + ", ".join(f"{k:g}" for k in plant.servo_stiffness) + " N m/rad"
+    return f"computed torque, {plant.servo_gain:g} rad/s"
 
 
 def markdown(report: dict) -> str:
@@ -220,7 +236,7 @@ def markdown(report: dict) -> str:
     the tangential impulse's share of the normal one, least: the least tangential speed along the
     impact; a predicted mode the law's own differs from shows it after a slash; ✗: the mode, or
     v_t+, does not agree)."""
-    lines = [f"# Oblique impacts: the {report['robot']} against MuJoCo", "",
+    lines = [f"# Oblique impacts: the {report['robot']} against MuJoCo (servo: {report['servo']})", "",
              "| series | predictor | trials | mode agrees | v_t+ agrees | law's own mode agrees |", "|---|---|---|---|---|---|"]
     for series, methods in report["summary"].items():
         for method, s in methods.items():

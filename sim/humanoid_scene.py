@@ -2,7 +2,7 @@
 with the same parts as the arm's (``sim.scene``): its own contact sphere, a wall plane at
 x = ``wall_x`` facing it (normal -x), the floor and the sole pairs, and a box under each sole a
 stance raises (:func:`add_steps`); timestep 0.5 ms, solref ``STANDING_SOLREF``, solimp
-``STANDING_SOLIMP``, the wall's friction ``WALL_FRICTION`` (the paper's mu). Its joints carry the
+``STANDING_SOLIMP``, the wall's friction ``WALL_FRICTION`` (the paper's mu) unless told otherwise. Its joints carry the
 G1's reflected rotor inertias (``controller.model.g1_actuators``, MuJoCo's ``armature``:
 M -> M + diag(0, a)) unless told otherwise (:func:`plant_armature`): the URDF has none, and a
 geared robot's motors are a large part of what the hand's impact meets (the predictors keep the
@@ -87,19 +87,20 @@ def add_steps(spec, robot: RobotDescription, stance: Stance, contact: ContactPar
 
 def build_humanoid_scene(
     robot: RobotModel, wall_x: float, *, timestep: float = STANDING_TIMESTEP, armature=None,
-    stance: Stance | None = None,
+    stance: Stance | None = None, wall_friction: float = WALL_FRICTION,
 ) -> HumanoidScene:
     """Compile the standing robot's scene with the wall plane at x = ``wall_x`` (normal -x, towards
-    the robot); ``armature`` is the joints' rotor inertia (:func:`plant_armature`: default the G1's
-    actuators); ``stance``: a box under each sole it raises (:func:`add_steps`; None: the floor
-    only)."""
+    the robot) of Coulomb coefficient ``wall_friction`` (the hand/wall pair's); ``armature`` is the
+    joints' rotor inertia (:func:`plant_armature`: default the G1's actuators); ``stance``: a box
+    under each sole it raises (:func:`add_steps`; None: the floor only)."""
     rotor = plant_armature(robot, armature)
     description = robot.description
     spec = robot_spec(description, None, timestep, robot.urdf_path)
     contact = ContactParameters(WALL_FRICTION, STANDING_SOLREF, STANDING_SOLIMP)
-    hand = add_contact_geometry(spec, description, None, contact)
-    wall = Surface(np.array([wall_x, 0.0, STANDING_WALL_HEIGHT]), np.array([-1.0, 0.0, 0.0]), WALL_FRICTION)
-    add_environment(spec, description, hand, Environment(wall, contact, wall_size=STANDING_WALL_SIZE, pair=""))
+    wall_contact = ContactParameters(wall_friction, STANDING_SOLREF, STANDING_SOLIMP)
+    hand = add_contact_geometry(spec, description, None, wall_contact)
+    wall = Surface(np.array([wall_x, 0.0, STANDING_WALL_HEIGHT]), np.array([-1.0, 0.0, 0.0]), wall_friction)
+    add_environment(spec, description, hand, Environment(wall, wall_contact, wall_size=STANDING_WALL_SIZE, pair=""))
     steps = () if stance is None else add_steps(spec, description, stance, contact)
     for joint in spec.joints:
         if joint.type == mujoco.mjtJoint.mjJNT_HINGE:

@@ -20,6 +20,8 @@ friction            Coulomb friction of the tool/wall pair; None: the surface's 
 contact_solref      MuJoCo solref (time constant s, damping ratio) of the tool/wall pair
 contact_solimp      MuJoCo solimp (dmin, dmax, width m, midpoint, power) of the pair
 servo_gain          bandwidth omega (rad/s) of the computed-torque joint servo (``sim.servo``)
+servo_stiffness     per joint (N m/rad), empty by default: a joint impedance servo instead,
+                    K e + D de with D critically damped (``sim.servo.JointImpedanceServo``)
 link_inertials      per named link, its mass m (kg), centre of mass c (m, link frame) and
                     inertia about c (kg m^2: Ixx, Iyy, Izz, Ixy, Ixz, Iyz): replace the URDF's
                     inertial (an identified model's links)
@@ -81,6 +83,7 @@ RANGES = {
     "payload_com": (-0.5, 0.5, "m"),
     "friction": (0.0, 2.0, ""),
     "servo_gain": (0.1, 1000.0, "rad/s"),
+    "servo_stiffness": (1.0, 1e5, "N m/rad"),
     "sensor_delay": (0.0, 50.0, "control periods"),
     "sensor_velocity_scale": (0.5, 2.0, ""),
     "sensor_torque_offset": (-20.0, 20.0, "N m"),
@@ -93,7 +96,8 @@ viscous damping well above a Panda's (the diagnosis fits up to 5 kg m^2 and 200 
 joint friction up to the torque of a Panda's small joints (12 N m) and more, a
 payload within the Panda's 3 kg rating plus margin (the fit's 5 kg) with its centre of mass
 within half a metre of the tool tip, a Coulomb coefficient up to 2 (``postures.MAX_FRICTION``),
-a servo bandwidth up to 1000 rad/s (the 1 kHz loop); sensors up to 50 ms late, reading velocities
+a servo bandwidth up to 1000 rad/s (the 1 kHz loop), a joint stiffness up to 1e5 N m/rad (a
+Franka's default joint impedance is 2000 to 3000 N m/rad); sensors up to 50 ms late, reading velocities
 between half and twice the truth, torques off by at most 20 N m (a Panda's small joints carry
 12 N m) and filtering dq with a time constant up to 0.1 s, and quantising dq to a step of at most 0.1 rad/s
 (one count of a coarse encoder per control period)."""
@@ -128,6 +132,7 @@ class PlantParameters:
     contact_solref: tuple[float, ...] = DEFAULT_SOLREF
     contact_solimp: tuple[float, ...] = DEFAULT_SOLIMP
     servo_gain: float = DEFAULT_SERVO_GAIN
+    servo_stiffness: tuple[float, ...] = ()
     sensor_delay: float = 0.0
     sensor_velocity_scale: float = 1.0
     sensor_torque_offset: tuple[float, ...] = ()
@@ -184,6 +189,7 @@ class PlantParameters:
             )
         set_("contact_solimp", solimp)
         set_("servo_gain", scalar("servo_gain"))
+        set_("servo_stiffness", vector("servo_stiffness", None))
         set_("link_inertials", link_inertials(self.link_inertials))
         for name in ("sensor_delay", "sensor_velocity_scale", "sensor_velocity_filter"):
             set_(name, scalar(name))
@@ -199,6 +205,8 @@ class PlantParameters:
                 filled[name] = (nominal,) * joints
             elif len(values) != joints:
                 raise PlantParameterError(f"{name} must be {joints} numbers, got shape ({len(values)},)")
+        if self.servo_stiffness and len(self.servo_stiffness) != joints:
+            raise PlantParameterError(f"servo_stiffness must be {joints} numbers, got shape ({len(self.servo_stiffness)},)")
         return replace(self, **filled) if filled else self
 
     def physical(self) -> "PlantParameters":

@@ -83,7 +83,7 @@ from impactqp.controller.model.validation import impact_duration as check_impact
 from impactqp.controller.model.validation import restitution as check_restitution
 
 from .humanoid_scene import build_humanoid_scene
-from .scene import MujocoScene, Scene
+from .scene import WALL_FRICTION, MujocoScene, Scene
 from .servo import StandingSupport
 from .trial_loop import FEEDBACK, CommandSource, Ending, LoopRecord, ServoedPlant, run_loop
 from .trial_result import TrialResult, WallContact, held_contact_result
@@ -306,6 +306,14 @@ def run_approach(
     return replace(run, log=log.truncated(log.force_t[touching[0]] + spec.after_contact))
 
 
+def standing_wall_friction(source: TrialSource) -> float:
+    """The standing scene's wall friction for ``source``: the mu of a QP's friction rows when it
+    has them (the wall the rows are for, as ``simulate --friction`` sets an arm's wall), else the
+    paper's ``WALL_FRICTION``."""
+    friction = getattr(source, "friction", 0.0)
+    return friction if friction > 0.0 else WALL_FRICTION
+
+
 def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: float = SERVO_GAIN,
                      armature=None, q0: np.ndarray | None = None, gap: float | None = None,
                      source: TrialSource = SCRIPTED) -> TrialResult:
@@ -321,7 +329,8 @@ def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: f
     if gap is None:
         q0, gap = source.start_posture(robot, q0, NORMAL, speed)
     contact0 = robot.frame_placements(q0)[robot.model.frames[robot.contact_frame_id].name].translation
-    scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature, stance=stance)
+    scene = build_humanoid_scene(robot, wall_x=float(contact0[0]) + gap, armature=armature, stance=stance,
+                                 wall_friction=standing_wall_friction(source))
     plant = servoed_plant(scene, robot, dt, gain)
     contact = robot.terms(q0).contact_point
     wall = Surface(np.array([scene.wall_x, contact[1], contact[2]]), NORMAL.copy())

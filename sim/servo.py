@@ -41,6 +41,16 @@ inertia of the body about the axis, the centroidal inertia left out), critically
 bandwidth omega_a = :data:`ANKLE_BANDWIDTH`, below the body's own pendulum frequency
 sqrt(g / (c_z - p_z)) (about 4 rad/s): the ankle's damping acts during the impact too, and a
 stiffer one lifts a heel.
+
+A fixed-base arm may take a **joint impedance** instead (:class:`JointImpedanceServo`, the plant's
+``servo_stiffness``): the same reference and feed-forward, a diagonal feedback of stiffness K_i
+(N m/rad per joint), critically damped at the current state, D_i = 2 sqrt(K_i M_ii(q)):
+
+    tau_k = M(q_k) ddq_ref_k + K (q_ref_k - q_k) + D (dq_ref_k - dq_k) + h(q_k, dq_k).
+
+The computed-torque feedback M (omega^2 e + 2 omega de) is the joint stiffness omega^2 M, which
+pushes back along M^-1's directions only; a diagonal K (a real arm's joint impedance, e.g. a
+Franka's default 2000 to 3000 N m/rad) holds each joint by its own stiffness.
 """
 
 from __future__ import annotations
@@ -182,3 +192,39 @@ class ComputedTorqueServo:
         )
         tau_max = self.standing.robot.tau_max
         np.clip(tau, -tau_max, tau_max, out=self._torque)
+
+
+class JointImpedanceServo(ComputedTorqueServo):
+    """The joint impedance of the module docstring on a fixed-base arm's MuJoCo ``model`` and
+    ``data``: stiffness ``stiffness`` (N m/rad, one per joint), critically damped. A drive's joint
+    controller runs faster than the 1 kHz command: the torque is recomputed at every physics step
+    (``torque_at``) on the period's reference, q_ref(s) = q_ref_k + s dq_ref_k + s^2 ddq_ref_k / 2
+    (held for the whole period, the feedback of this stiffness on a rigid arm without rotor
+    inertia is unstable at 1 kHz against the wall)."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, stiffness):
+        super().__init__(model, data, 0.0)
+        self.stiffness = np.asarray(stiffness, dtype=float)
+        self._period = (self.q_ref.copy(), self.dq_ref.copy())  # the reference at the period's start
+
+    def torque(self, dq_cmd: np.ndarray, dt: float) -> np.ndarray:
+        """The joints' torque at the start of a period for the state in ``data`` (after
+        ``mj_step1``); advances the reference to the period's end. Returns the servo's buffer:
+        copy it to keep it."""
+        self._period = (self.q_ref.copy(), self.dq_ref.copy())
+        self._acceleration[:] = (dq_cmd - self.dq_ref) / dt
+        self.q_ref += 0.5 * dt * (self.dq_ref + dq_cmd)
+        self.dq_ref[:] = dq_cmd
+        return self.torque_at(0.0)
+
+    def torque_at(self, elapsed: float) -> np.ndarray:
+        """The torque ``elapsed`` s into the period that the last :meth:`torque` began, for the
+        state in ``data`` (after ``mj_step1``): M ddq_ref + K e + D de + h."""
+        data, (q_start, dq_start), acceleration = self.data, self._period, self._acceleration
+        mujoco.mj_mulM(self.model, data, self._torque, acceleration)
+        mujoco.mj_fullM(self.model, data, self._M)
+        damping = 2.0 * np.sqrt(self.stiffness * np.diag(self._M))
+        q_ref = q_start + elapsed * dq_start + 0.5 * elapsed**2 * acceleration
+        dq_ref = dq_start + elapsed * acceleration
+        self._torque += self.stiffness * (q_ref - data.qpos) + damping * (dq_ref - data.qvel) + data.qfrc_bias
+        return self._torque

@@ -10,7 +10,7 @@ At control step k (t_k = k dt):
    velocity (the arm's Cartesian approach, a replay or the QP; the standing robot's scripted arm
    or whole-body QP);
 3. the servo (``sim.servo.ComputedTorqueServo``, with ``StandingSupport`` for a floating base held
-   by its contacts) turns it into joint torques, held constant over the period (zero-order hold);
+   by its contacts; an arm's ``JointImpedanceServo`` when its plant sets ``servo_stiffness``) turns it into joint torques, held constant over the period (zero-order hold);
 4. MuJoCo advances ``dt / timestep`` substeps; the wall's contact force on the robot is logged at
    every substep (zero, without a per-substep Python loop, while a fixed-base arm's tool is too
    far from the wall to touch it within the period even at 5 m/s) and, with held contacts, the
@@ -40,7 +40,7 @@ from impactqp.controller.model.validation import BadInputError
 
 from .humanoid_feet import HeldContactLog
 from .scene import MujocoScene, to_pinocchio
-from .servo import ComputedTorqueServo, StandingSupport
+from .servo import ComputedTorqueServo, JointImpedanceServo, StandingSupport
 
 CLEARANCE_SPEED = 5.0
 
@@ -140,8 +140,12 @@ class ServoedPlant:
         self.scene = scene
         self.control_period = control_period
         self.substeps = substeps
-        gain = scene.plant.servo_gain if gain is None else gain
-        self.servo = ComputedTorqueServo(scene.model, scene.data, gain, standing)
+        stiffness = scene.plant.servo_stiffness if standing is None else ()
+        if stiffness:  # the arm's joint impedance (``sim.plant``'s servo_stiffness)
+            self.servo = JointImpedanceServo(scene.model, scene.data, stiffness)
+        else:
+            gain = scene.plant.servo_gain if gain is None else gain
+            self.servo = ComputedTorqueServo(scene.model, scene.data, gain, standing)
         self.standing = standing
         if standing is None:
             # centre-to-wall distance beyond which the tool cannot touch the wall within one period
@@ -168,6 +172,8 @@ class ServoedPlant:
         to keep it); ``held`` None: the held contacts are not recorded."""
         if self.standing is not None:
             return self._advance_standing(dq_cmd, force, held)
+        if isinstance(self.servo, JointImpedanceServo):
+            return self._advance_impedance(dq_cmd, force)
         scene = self.scene
         model, data, tool = scene.model, scene.data, self.contact_geom
         mujoco.mj_step1(model, data)
@@ -183,6 +189,19 @@ class ServoedPlant:
                 mujoco.mj_step(model, data)
             self._contact_forces(force[i])
         return torque
+
+    def _advance_impedance(self, dq_cmd: np.ndarray, force: np.ndarray) -> np.ndarray:
+        """One period of an arm under its joint impedance, the torque recomputed at every
+        physics step (``JointImpedanceServo.torque_at``); returns the period's first torque."""
+        model, data, servo, h = self.scene.model, self.scene.data, self.servo, self.scene.timestep
+        first = None
+        for i in range(self.substeps):
+            mujoco.mj_step1(model, data)
+            data.qfrc_applied[:] = servo.torque(dq_cmd, self.control_period) if i == 0 else servo.torque_at(i * h)
+            first = data.qfrc_applied.copy() if i == 0 else first
+            mujoco.mj_step2(model, data)
+            self._contact_forces(force[i])
+        return first
 
     def _advance_standing(self, dq_cmd: np.ndarray, force: np.ndarray, held: HeldContactLog) -> np.ndarray:
         """One period of a robot held by its contacts (the servo before the first physics step)."""

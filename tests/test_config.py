@@ -174,8 +174,6 @@ def test_bad_configurations_are_rejected_with_a_value_error(robot, data):
         ({"impact": {"friction": 0.3, "pyramid_edges": 17}}, "impact.pyramid_edges"),
         ({"impact": {"friction_rows": "cone"}}, "impact.friction_rows"),
         ({"impact": {"friction": 0.3, "jump_model": "classical_normal"}}, "impact.friction"),
-        ({"robot": "g1", "limits": {"torque": False}, "impact": {"impulsive_torque": False, "friction": 0.3}},
-         "impact.friction"),
     ],
 )
 def test_bad_values_are_bad_input_that_names_the_key(data, fragment):
@@ -318,6 +316,44 @@ def test_torque_rows_on_a_floating_base_are_bad_input_that_names_the_key(key):
     data[section][name] = True
     with pytest.raises(BadInputError, match=key.replace(".", r"\.")):
         ControllerConfig.from_dict(data)
+
+
+@pytest.mark.parametrize("method", ["crb", "classical"])
+def test_the_g1s_friction_rows_are_built_and_hold_at_the_qps_solution_over_a_closed_loop_approach(method):
+    """``impact.friction`` on a robot standing on held contacts: the post-impact velocity rows of
+    every edge, and every vertex's capture-region and feet rows (``EdgeCaptureRegionLimit``,
+    ``EdgeFootWrenchLimit``), (1 + edges) blocks each; over a closed-loop approach every row the
+    state does not already violate holds at each cycle's solution."""
+    import whole_body_states as g1
+
+    q = g1.stance("parallel")
+    data = {"robot": "g1", "limits": {"torque": False},
+            "impact": {"jump_model": method, "impulsive_torque": False, "friction": 0.3, "always_active": True},
+            "surface": {"point": g1.wall_ahead(q, 0.1).point.tolist(), "normal": g1.NORMAL.tolist(), "friction": 0.3},
+            "tasks": ControllerConfig.approach(g1.wall_ahead(q, 0.1), 0.3, robot="g1").to_dict()["tasks"]}
+    config = ControllerConfig.from_dict(data)
+    controller = build_controller(config, g1.robot(), q)
+    frictionless = build_controller(ControllerConfig.from_dict({**data, "impact": {**data["impact"], "friction": 0.0}}),
+                                    g1.robot(), q)
+    rows = {type(x).__name__: x.rows for x in controller.constraints if x.relaxed}
+    plain = {type(x).__name__: x.rows for x in frictionless.constraints if x.relaxed}
+    assert rows == {"PostImpactVelocityLimit": 5 * plain["PostImpactVelocityLimit"],
+                    "EdgeCaptureRegionLimit": 5 * plain["CaptureRegionLimit"],
+                    "EdgeFootWrenchLimit": 5 * plain["FootWrenchLimit"]}
+    v = np.zeros(g1.robot().nv)
+    controller.reset(q, v)
+    for _ in range(40):
+        command = controller.step(q, v)
+        assert not command.is_fallback, command.message
+        terms = g1.robot().terms(q, v)
+        for constraint in (x for x in controller.constraints if x.relaxed):
+            C, lower, upper = np.zeros((constraint.rows, g1.robot().nv)), np.zeros(constraint.rows), np.zeros(constraint.rows)
+            constraint.compute_into(terms, controller._row_cycle, C, lower, upper)
+            kept = (lower <= 0.0) & (upper >= 0.0)  # rows the state does not already violate
+            assert np.all((C @ command.ddq)[kept] <= upper[kept] + 1e-6), constraint.name
+            assert np.all((C @ command.ddq)[kept] >= lower[kept] - 1e-6), constraint.name
+        q, v = command.q_cmd, command.dq_cmd
+    assert -g1.NORMAL @ g1.robot().terms(q, v).J @ v > 0.01  # it approached
 
 
 def test_the_floating_base_after_the_impact_keeps_its_torso_task():

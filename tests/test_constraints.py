@@ -368,6 +368,40 @@ def test_g1_impact_matrices_kept_past_the_next_fill_cannot_be_written_or_stay_as
     impact.matrices(g1().terms(stance("parallel"), approach_velocity(q, 0.3)))
     kept_arrays_are_read_only_or_unchanged(kept, before)
 
+
+@pytest.mark.parametrize("name, mode", [("crb", "pyramid"), ("gm", "slip"), ("classical", "pyramid")])
+def test_arm_edge_matrices_kept_past_the_next_fill_cannot_be_written(robot, name, mode):
+    """``edge_matrices`` is valid until the next fill, as ``matrices``: a kept A_i or P_i is a
+    read-only view of the buffer that fill overwrites; the rows read the buffer itself."""
+    rng = np.random.default_rng(13)
+    impact = ExpectedImpact(surface_ahead(robot.terms(PANDA.postures["elbow_right"].q)), name, 0.2,
+                            friction=FrictionRows(0.4, 4, mode))
+    terms = robot.empty_terms()
+    state = random_state(robot, rng)
+    robot.update_terms(terms, state.q, state.dq)
+    kept = impact.edge_matrices(terms)
+    before = [array.copy() for array in kept]
+    state = random_state(robot, rng)
+    robot.update_terms(terms, state.q, state.dq)
+    assert not np.allclose(impact.edge_matrices(terms).jump, before[0])  # a fill of another state
+    for array in kept:
+        with pytest.raises(ValueError, match="read-only"):
+            array[0, 0, 0] = 1.0
+    for rows, view in zip(impact.edge_row_matrices(terms), impact.edge_matrices(terms)):
+        assert rows.flags.writeable
+        np.testing.assert_array_equal(rows, view)
+
+
+@pytest.mark.parametrize("method", ["crb", "gm", "classical"])
+def test_g1_edge_matrices_kept_past_the_next_fill_cannot_be_written(method):
+    q = stance("wide")
+    impact = ExpectedImpact(wall_ahead(q), method, restitution=0.3, held_contacts=True, friction=FrictionRows(0.3, 4))
+    kept = impact.edge_matrices(g1().terms(q, approach_velocity(q, 0.2)))
+    impact.edge_matrices(g1().terms(stance("parallel"), approach_velocity(q, 0.3)))
+    for array in kept:
+        with pytest.raises(ValueError, match="read-only"):
+            array[0, 0, 0] = 1.0
+
 @pytest.mark.parametrize(
     "keyword, value, fragment",
     [

@@ -207,13 +207,16 @@ def test_velocity_agreement_is_20_percent_or_a_centimetre_per_second():
 
 
 # ---------------------------------------------------------------------------- the command
-@pytest.mark.parametrize(("robot", "tool"), [("panda", "impact_tip"), ("fr3", "franka_hand")])
-def test_the_small_grid_runs_end_to_end_through_the_command(tmp_path, capsys, robot, tool):
+@pytest.mark.parametrize(("robot", "tool", "servo"), [
+    ("panda", "impact_tip", ["--servo-stiffness", "3000,3000,3000,2500,2500,2000,2000"]), ("fr3", "franka_hand", []),
+])
+def test_the_small_grid_runs_end_to_end_through_the_command(tmp_path, capsys, robot, tool, servo):
     out = tmp_path / "oblique"
-    argv = ["oblique", "--robot", robot, "--tool", tool, "--grid", "small", "--jobs", "1", "--out", str(out)]
+    argv = ["oblique", "--robot", robot, "--tool", tool, "--grid", "small", "--jobs", "1", "--out", str(out), *servo]
     assert main(argv) == 0
     report = json.loads((out / "oblique.json").read_text())
     assert report["robot"] == robot and report["tool"] == tool
+    assert report["servo"].startswith("joint impedance K = 3000" if servo else "computed torque")
     assert len(report["rows"]) == len(GRIDS["small"].trials(RobotChoice.of(robot, tool)))
     for row in report["rows"]:
         simulated = row["simulated"]
@@ -232,6 +235,9 @@ def test_the_small_grid_runs_end_to_end_through_the_command(tmp_path, capsys, ro
 @pytest.mark.parametrize("argv", [
     ["--grid", "huge"], ["--robot", "g1"], ["--jobs", "0"], ["--jump-model", "crb"], ["--qp-speed", "--grid", "huge"],
     ["--qp-speed", "--robot", "g1"], ["--qp-speed", "--jump-model", "classical_normal"], ["--qp-speed", "--jump-model", "nope"],
+    ["--inverse-inertia", "--qp-speed"], ["--inverse-inertia", "--grid", "small"], ["--inverse-inertia", "--robot", "g1"],
+    ["--servo-stiffness", "3000,3000"], ["--servo-stiffness", "0,0,0,0,0,0,0"], ["--servo-stiffness", "stiff"],
+    ["--qp-speed", "--servo-stiffness", "3000,3000,3000,2500,2500,2000,2000"],
 ])
 def test_bad_input_of_the_command_is_one_line_and_exit_code_2(tmp_path, capsys, argv):
     assert main(["oblique", "--out", str(tmp_path / "x"), *argv]) == EXIT_BAD_INPUT

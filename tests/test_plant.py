@@ -59,6 +59,7 @@ def test_partial_file_keeps_the_defaults(tmp_path):
         ({"payload_com": [0.0, 0.0, 5.0]}, r"payload_com\[2\]"),
         ({"friction": 1e9}, r"friction must lie in \[0, 2\], got 1000000000.0"),
         ({"servo_gain": 1e9}, "servo_gain"),
+        ({"servo_stiffness": [0.0] * JOINTS}, r"servo_stiffness\[0\] must lie in \[1, 100000\] N m/rad"),
         ({"contact_solref": [100.0, 1.0]}, "time constant in"),
         ({"joint_friction": [-0.1] * JOINTS}, r"joint_friction\[0\] must lie in \[0, 50\] N m"),
         ({"link_inertials": {"panda_link3": [1.0] * 9}}, "must be 10 numbers"),
@@ -86,6 +87,9 @@ def test_a_per_joint_vector_needs_one_value_per_joint_of_the_robot(tmp_path):
     with pytest.raises(PlantParameterError, match=f"armature must be {JOINTS} numbers"):
         build_scene(plant=plant)
     assert PlantParameters().for_joints(JOINTS).armature == (0.0,) * JOINTS  # nominal at every joint
+    with pytest.raises(PlantParameterError, match=f"servo_stiffness must be {JOINTS} numbers"):
+        build_scene(plant=PlantParameters(servo_stiffness=(3000.0,) * (JOINTS - 1)))
+    assert PlantParameters().for_joints(JOINTS).servo_stiffness == ()  # none: the computed-torque servo
 
 
 def test_unreadable_files_are_plant_parameter_errors(tmp_path):

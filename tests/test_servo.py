@@ -16,7 +16,8 @@ from impactqp.sim.humanoid_scene import build_humanoid_scene
 from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD, SERVO_GAIN, SETTLE, SINK
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.scene import build_scene
-from impactqp.sim.servo import ANKLE_BANDWIDTH, ComputedTorqueServo, StandingSupport
+from impactqp.sim.servo import ANKLE_BANDWIDTH, ComputedTorqueServo, JointImpedanceServo, StandingSupport
+from impactqp.sim.trial_loop import ServoedPlant
 
 ARM = PandaModel()
 ARMATURE = np.linspace(0.1, 0.4, ARM.nv)
@@ -80,6 +81,41 @@ def test_the_arm_servo_starts_at_the_state_and_holds_it():
     servo.hold()
     np.testing.assert_array_equal(servo.q_ref, q)
     np.testing.assert_array_equal(servo.dq_ref, np.zeros(ARM.nv))
+
+
+@settings(max_examples=25, deadline=None)
+@given(arm_states(), st.lists(st.floats(10.0, 5000.0), min_size=ARM.nv, max_size=ARM.nv))
+def test_the_joint_impedance_servo_is_the_feed_forward_plus_a_critically_damped_diagonal_feedback(state, stiffness):
+    """Away from its reference the joint impedance asks tau = (M + diag(armature)) ddq_ref + K e +
+    D de + h, D_i = 2 sqrt(K_i M_ii) with M_ii the diagonal of the plant's inertia (rotor
+    included): Pinocchio's RNEA of ddq_ref, plus the joint-wise spring and damper; within the
+    period, on the reference moved at the period's constant acceleration."""
+    q, dq, offset = state
+    K = np.asarray(stiffness)
+    ARM_SCENE.set_state(q, dq)
+    servo = JointImpedanceServo(ARM_SCENE.model, ARM_SCENE.data, K)
+    q_ref, dq_ref, dq_cmd = q + 0.01 * offset, dq - 0.05 * offset, dq + 0.02 * offset
+    servo.reset(q_ref, dq_ref)
+    tau = servo.torque(dq_cmd, DT).copy()
+    ddq_ref = (dq_cmd - dq_ref) / DT
+    M = pin.crba(ARM.model, ARM.model.createData(), q) + np.diag(ARMATURE)
+    D = 2.0 * np.sqrt(K * np.diag(M))
+    expected = (pin.rnea(ARM.model, ARM.model.createData(), q, dq, ddq_ref) + ARMATURE * ddq_ref
+                + K * (q_ref - q) + D * (dq_ref - dq))
+    np.testing.assert_allclose(tau, expected, atol=1e-8 * max(1.0, np.abs(expected).max()))
+    np.testing.assert_allclose(servo.q_ref, q_ref + 0.5 * DT * (dq_ref + dq_cmd), atol=1e-15)
+    np.testing.assert_array_equal(servo.dq_ref, dq_cmd)
+    elapsed = 0.4 * DT  # within the period: the reference moves at the period's acceleration
+    q_at, dq_at = q_ref + elapsed * dq_ref + 0.5 * elapsed**2 * ddq_ref, dq_ref + elapsed * ddq_ref
+    expected = (pin.rnea(ARM.model, ARM.model.createData(), q, dq, ddq_ref) + ARMATURE * ddq_ref
+                + K * (q_at - q) + D * (dq_at - dq))
+    np.testing.assert_allclose(servo.torque_at(elapsed), expected, atol=1e-8 * max(1.0, np.abs(expected).max()))
+
+
+def test_a_plant_with_a_joint_stiffness_runs_the_joint_impedance_servo():
+    stiff = build_scene(plant=PlantParameters(servo_stiffness=(3000.0,) * ARM.nv))
+    assert isinstance(ServoedPlant(stiff, DEFAULT_CONTROL_PERIOD).servo, JointImpedanceServo)
+    assert type(ServoedPlant(ARM_SCENE, DEFAULT_CONTROL_PERIOD).servo) is ComputedTorqueServo
 
 
 # ---------------------------------------------------------------------- floating base: the standing G1

@@ -144,12 +144,16 @@ def plant_files(tmp_path_factory):
         (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--friction", "0.3", "--no-jump-constraint"], "--no-jump-constraint"),
         (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--friction", "0.3", "--jump-model", "classical_normal"],
          "classical_normal"),
-        (["simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.1", "--friction", "0.3"], "--friction does not apply"),
+        (["simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.1", "--friction", "0.3"], "give --controller qp"),
+        (["simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.1", "--controller", "qp", "--friction", "3"],
+         r"--friction: .*\[0, 2\]"),
         (["max-speed", "--posture", "elbow_up", "--friction", "-1"], r"--friction: .*\[0, 2\]"),
         (["max-speed", "--posture", "elbow_up", "--tangential", "0,0.1,0"], "give --friction too"),
         (["max-speed", "--posture", "elbow_up", "--friction", "0.3", "--tangential", "0.1,0,0"], "orthogonal"),
         (["max-speed", "--posture", "elbow_up", "--friction", "0.3", "--jobs", "2"], "--jobs"),
-        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3"], "--friction does not apply"),
+        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3"], "give --controller qp"),
+        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3", "--tangential", "0,0.1,0"],
+         "--tangential does not apply"),
     ],
 )
 def test_bad_input_is_one_line_with_exit_code_2(capsys, plant_files, args, message):
@@ -272,6 +276,16 @@ def test_simulate_g1_driven_by_the_whole_body_qp(capsys):
     code, text, _ = run(capsys, "simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.2",
                         "--controller", "qp")
     assert code == 0 and "whole-body QP (crb)" in text
+
+
+def test_simulate_g1_with_the_friction_rows_of_the_whole_body_qp(capsys):
+    """``--friction`` with the whole-body QP: its robust friction rows of that mu, on a wall of that mu."""
+    code, out, _ = run(capsys, "simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.2",
+                       "--controller", "qp", "--friction", "0.3", "--json")
+    assert code == 0
+    report = json.loads(out)
+    assert report["controller"] == "qp" and report["friction"] == 0.3 and report["cycles_not_ok"] >= 0
+    assert report["contact_speed"] > 0.0
 
 
 def test_campaign_g1_json_and_files(capsys, tmp_path):

@@ -10,6 +10,8 @@ from impactqp.constraints import (
     AccelerationLimit,
     ActivationRule,
     CaptureRegionLimit,
+    EdgeCaptureRegionLimit,
+    EdgeFootWrenchLimit,
     ExpectedImpact,
     FootWrenchLimit,
     HeldContactRows,
@@ -38,7 +40,9 @@ def build_controller(config: ControllerConfig, robot: RobotModel | None = None, 
     (``HeldContactRows``) and, with ``impact.capture_region``, the capture region of its support
     polygon at ``q_start`` (default: the posture of its description's default stance); with
     ``impact.foot_wrench``, the feet's rows at the impact (``FootWrenchLimit``, the feet as at
-    ``q_start``, the closed form's equivalent contact duration)."""
+    ``q_start``, the closed form's equivalent contact duration); with ``impact.friction`` > 0, the
+    same rows for every vertex of the friction pyramid (``EdgeCaptureRegionLimit``,
+    ``EdgeFootWrenchLimit``)."""
     robot = config.choice.model() if robot is None else robot
     surface = config.surface.surface()
     limits, impact = config.limits, config.impact
@@ -88,15 +92,17 @@ def build_controller(config: ControllerConfig, robot: RobotModel | None = None, 
     models = [impact_model(name, impact.friction_setting()) for name in jump_model_names(impact.jump_model)] if impact.jump_model else []
     polygon = support(robot, q_start) if held_contacts and impact.capture_region and models else None
     feet_start = start_posture(robot, q_start) if held_contacts and impact.foot_wrench and models else None
+    edges = impact.friction_setting().count > 0  # every vertex's capture and feet rows
+    capture_rows, feet_rows = (EdgeCaptureRegionLimit, EdgeFootWrenchLimit) if edges else (CaptureRegionLimit, FootWrenchLimit)
     for model in models:
         if impact.post_impact_velocity:
             constraints.append(PostImpactVelocityLimit(model, dq_max))
         if impact.impulsive_torque:
             constraints.append(ImpulsiveTorqueLimit(model, tau_max, dq_max, impact.impact_duration))
         if polygon is not None:
-            constraints.append(CaptureRegionLimit(model, polygon))
+            constraints.append(capture_rows(model, polygon))
         if feet_start is not None:
-            constraints.append(FootWrenchLimit(model, robot, feet_start, Setting().duration(robot.description)))
+            constraints.append(feet_rows(model, robot, feet_start, Setting().duration(robot.description)))
     prediction = models[0] if models else impact_model(impact.prediction_model, FrictionRows())
     return ImpactAwareController(
         robot, tasks, constraints, config.dt, config.solver, prediction,

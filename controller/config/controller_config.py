@@ -105,10 +105,11 @@ class ImpactConfig:
     predicted post-impact centre-of-mass velocity stays capturable (``CaptureRegionLimit``);
     ``foot_wrench``: there, each held contact's wrench at the impact's peak force stays in its
     friction cone and its sole (``FootWrenchLimit``, the closed form's foot slip and lift).
-    ``friction`` mu in [0, 2] > 0 adds the robust friction rows of a fixed-base arm
-    (docs/frictional-impacts.md): ``friction_rows`` "pyramid" (``pyramid_edges`` in [3, 16]
-    edges) or "slip" (the one-step preview's three: the sector of a certain slip, else the 3-edge
-    pyramid); 0 keeps the frictionless rows alone.
+    ``friction`` mu in [0, 2] > 0 adds the robust friction rows (docs/frictional-impacts.md):
+    ``friction_rows`` "pyramid" (``pyramid_edges`` in [3, 16] edges) or "slip" (the one-step
+    preview's three: the sector of a certain slip, else the 3-edge pyramid); on held contacts
+    the capture region's and the feet's rows of every edge too (``EdgeCaptureRegionLimit``,
+    ``EdgeFootWrenchLimit``); 0 keeps the frictionless rows alone.
     """
 
     jump_model: str | None = "crb"
@@ -214,7 +215,7 @@ class SurfaceConfig:
 @dataclass(frozen=True)
 class ApproachOptions:
     """The settings of ``ControllerConfig.approach`` beyond the surface and the speed: the robot
-    (a name or a robot file), the approach, the impact model (``friction`` > 0: an arm's robust
+    (a name or a robot file), the approach, the impact model (``friction`` > 0: the robust
     friction rows, the pyramid's default edges), the solver and period, and the task weights (``posture_weight`` None: 1e-2 for a fixed base, 1e-4 for a floating base, whose
     centre of mass and torso orientation are held with ``com_weight`` and ``torso_weight``)."""
 
@@ -281,11 +282,6 @@ class ControllerConfig:
             raise BadInputError(
                 f"{key}: the {choice.robot.name} has a floating base, whose joint torques depend on its contact "
                 f"wrenches, which the QP does not carry; set {key} = false"
-            )
-        if choice.robot.held_contacts and self.impact.friction > 0.0:
-            raise BadInputError(
-                f"impact.friction: the friction rows are for fixed-base arms; the {choice.robot.name} stands on held "
-                "contacts; set impact.friction = 0"
             )
         self.__dict__["_choice"] = (key, choice)
         return choice

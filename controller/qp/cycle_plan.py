@@ -139,7 +139,7 @@ class CyclePlan:
             return (matrix,), (matrix,), (edge,), (edge,), active
         jumps, torques, edge_jumps, edge_torques = [], [], [], []
         for i, impact in enumerate(self.impacts):
-            matrices, edges = impact.row_matrices(terms), impact.edge_matrices(terms)
+            matrices, edges = impact.row_matrices(terms), impact.edge_row_matrices(terms)
             jumps.append(matrices.jump_matrix)
             torques.append(matrices.torque_matrix)
             edge_jumps.append(edges.jump)

@@ -40,6 +40,7 @@ from impactqp.scenarios.cli.stderr_log import show_progress
 from impactqp.scenarios.cli.simulation_commands import (
     check_reachable,
     plant_option,
+    rows_friction,
     wall,
     wall_normal_option,
     wall_point_option,
@@ -96,7 +97,9 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     the trials driven by ``controller`` (the scripted arm, or the whole-body QP with one trial
     asked for each of :data:`QP_CHECKS` times the closed form), and the contact duration used (the
     description's wall contact unless --impact-duration); the bisection's tolerance is
-    ``max_speed_search.STANCE_TOLERANCE`` on the commanded speed unless --tolerance. Several stances
+    ``max_speed_search.STANCE_TOLERANCE`` on the commanded speed unless --tolerance. With --friction
+    (the QP's only), the QP's robust friction rows of that mu on a wall of that mu in every trial
+    (``trials_friction``); the closed form stays frictionless (``friction_max_speed`` is an arm's). Several stances
     (comma-separated): one such report per stance under ``stances``."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
@@ -104,7 +107,7 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     from impactqp.scenarios.max_speed_search import STANCE_TOLERANCE, search_stance
     from impactqp.sim.trial_sources import SCRIPTED, QpCommand
 
-    reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool", "friction", "tangential"])
+    reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool", "tangential"])
     robot = request.choice.robot
     stances = stance_names(robot, request.posture)
     c_r = restitution_coefficient(request.restitution, "--restitution")
@@ -113,12 +116,18 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     qp = request.controller == "qp"
     if not qp and request.feedback != "commanded":
         raise BadInputError("--feedback chooses the state the whole-body QP is given: give --controller qp")
+    if not qp and request.friction is not None:
+        raise BadInputError("--friction sets the whole-body QP's friction rows: give --controller qp")
+    friction = 0.0 if request.friction is None else rows_friction(request.friction)
     model = RobotModel(robot)
     reports = []
     for stance in stances:
         result = search_stance(model, stance, Setting("crb", c_r, impact_duration=duration), tolerance=tolerance,
-                               source=QpCommand(feedback=request.feedback) if qp else SCRIPTED, checks=QP_CHECKS if qp else ())
+                               source=QpCommand(feedback=request.feedback, friction=friction) if qp else SCRIPTED,
+                               checks=QP_CHECKS if qp else ())
         report = {"robot": robot.name, "controller": request.controller, **result.to_json()}
+        if request.friction is not None:
+            report["trials_friction"] = friction
         speeds = report["predicted_max_speed"]
         robust = min(METHODS, key=lambda m: math.inf if speeds[m] is None else speeds[m])
         speeds["robust"], report["binding"]["robust"] = speeds[robust], report["binding"][robust]
@@ -218,6 +227,8 @@ def max_speed_text(report: dict) -> str:
         lines.append(f"  {name:<12}{speed if speed is not None else math.inf:8.4f}  {binding_text(report['binding'][name])}")
     if "qp_limited_speed" not in report:
         driver = " by the QP" if report.get("controller") == "qp" else ""  # reports of the scripted arm may lack the key
+        if "trials_friction" in report:
+            driver += f" with friction rows, mu = {report['trials_friction']:g} (the closed form: frictionless)"
         lines.append(f"{'simulated':<14}{report['simulated_max_speed']:8.4f}  commanded{driver}; contact "
                      f"{report['simulated_contact_speed']:.4f}; failed first above: {report['simulated_failed_first'] or '-'}")
         lines.extend(check_text(factor, e) for factor, e in report.get("checks", {}).items())

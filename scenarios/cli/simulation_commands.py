@@ -110,8 +110,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     controller = trial.pop("controller")
     friction = trial.pop("friction")
     if choice.robot.floating:
-        reject_options(["friction"])
-        report, written = stance_trial(choice, posture_name, speed, trial, controller or "scripted")
+        report, written = stance_trial(choice, posture_name, speed, trial, controller or "scripted", friction)
         if as_json:
             emit_json(report)
         else:
@@ -178,17 +177,22 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
         click.echo(f"trial {spec.trial_id} written to {out_dir}")
 
 
-def frictional_wall(surface: Surface, friction: float, plant, no_rows: bool, jump_model: str) -> Surface:
-    """``surface`` with the friction of ``--friction`` (the rows' mu, ``FrictionRows``' range),
-    checked against the other options: a plant file that sets the wall's friction too, or a
-    model without friction rows (classical_normal; none with --no-jump-constraint), is bad input."""
+def rows_friction(friction: float) -> float:
+    """The mu of --friction, in the friction rows' range (``FrictionRows``)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.friction_pyramid import FrictionRows
 
     try:
-        mu = FrictionRows(friction).friction
+        return FrictionRows(friction).friction
     except BadInputError as error:
         raise BadInputError(f"--friction: {error}") from None
+
+
+def frictional_wall(surface: Surface, friction: float, plant, no_rows: bool, jump_model: str) -> Surface:
+    """``surface`` with the friction of ``--friction`` (the rows' mu, ``FrictionRows``' range),
+    checked against the other options: a plant file that sets the wall's friction too, or a
+    model without friction rows (classical_normal; none with --no-jump-constraint), is bad input."""
+    mu = rows_friction(friction)
     if plant is not None and plant.friction is not None:
         raise BadInputError("--friction and the plant's 'friction' both set the wall's friction; give one")
     if no_rows:
@@ -199,14 +203,17 @@ def frictional_wall(surface: Surface, friction: float, plant, no_rows: bool, jum
 
 
 def stance_trial(
-    choice: RobotChoice, posture: str, speed: float, files: dict, controller: str = "scripted"
+    choice: RobotChoice, posture: str, speed: float, files: dict, controller: str = "scripted",
+    friction: float | None = None,
 ) -> tuple[dict, str | None]:
     """One trial of the floating-base robot of ``choice`` (``scenarios.trial.TrialRunner``, the
     standing trial of ``sim.runner.run_impact_trial``) driven by the
     scripted command or (``controller="qp"``) the whole-body QP with the ``--jump-model``
-    predictor (crb, gm or classical), optionally rendered to a GIF (``files["video_file"]``) and
-    added to the G1 dataset in ``files["out_dir"]``; its JSON (with the QP: ``controller`` and
-    ``cycles_not_ok`` added) and the id of the trial written (None without ``out_dir``)."""
+    predictor (crb, gm or classical) and, with ``friction`` (--friction), its robust friction rows
+    of that mu on a wall of that mu (``sim.runner.standing_wall_friction``), optionally rendered
+    to a GIF (``files["video_file"]``) and added to the G1 dataset in ``files["out_dir"]``; its
+    JSON (with the QP: ``controller``, ``cycles_not_ok`` and ``friction`` added) and the id of
+    the trial written (None without ``out_dir``)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
     from impactqp.scenarios.campaign import posture_of
@@ -225,7 +232,9 @@ def stance_trial(
         method = click.get_current_context().params["jump_model"]
         if method not in METHODS:
             raise BadInputError(f"--jump-model {method} is not a floating-base predictor; choose from {', '.join(METHODS)}")
-        source = QpCommand(method=method)
+        source = QpCommand(method=method, friction=0.0 if friction is None else rows_friction(friction))
+    elif friction is not None:
+        raise BadInputError("--friction sets the whole-body QP's friction rows: give --controller qp")
     stance = stance_names(choice.robot, posture)[0]
     approach_speed(speed, "--speed")
     dataset = None if out_dir is None else open_dataset(output_directory(out_dir, "--out"), choice.robot)
@@ -235,7 +244,8 @@ def stance_trial(
     write_pictures(runner, trial, files, ImpactLabel(choice.robot, "its hand", stance))
     report = trial.to_json(choice.robot.name)
     if controller == "qp":
-        report.update(controller="qp", jump_model=source.method, cycles_not_ok=trial.record.not_ok)
+        report.update(controller="qp", jump_model=source.method, cycles_not_ok=trial.record.not_ok,
+                      friction=source.friction)
     return report, written
 
 

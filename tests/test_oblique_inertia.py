@@ -1,0 +1,71 @@
+"""The simulated plant's inverse inertia at the contact (scenarios/oblique_inertia.py): identities
+of the rigid multibody and of its servos, from first principles."""
+
+import json
+
+import numpy as np
+import pytest
+
+from impactqp.controller.model.choice import RobotChoice
+from impactqp.controller.model.jump import gm_inverse_inertia
+from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.scenarios.cli import main
+from impactqp.scenarios.oblique import POSTURES
+from impactqp.scenarios.oblique_inertia import (
+    FRANKA_JOINT_STIFFNESS,
+    PULSE_DURATIONS,
+    SERVOS,
+    HeldArm,
+    describe,
+    servos,
+)
+from impactqp.sim.plant import PlantParameters
+
+CHOICE = RobotChoice.of("panda", "impact_tip")
+
+
+@pytest.fixture(scope="module")
+def posture():
+    q = CHOICE.posture("elbow_right").q
+    return q, gm_inverse_inertia(CHOICE.model().terms(q))
+
+
+@pytest.mark.parametrize("gain", [5.0, 500.0])
+def test_a_pulse_within_one_control_period_meets_the_free_joints(posture, gain):
+    """The computed-torque servo's torque is held over each 1 ms control period: a pulse inside
+    one period meets the rigid multibody with its joints free, whose inverse inertia at the
+    contact is J M^-1 J^T (MuJoCo's M is Pinocchio's), whatever the gain."""
+    q, W_gm = posture
+    W = HeldArm(CHOICE, PlantParameters(servo_gain=gain)).inverse_inertia(q, 0.001)
+    np.testing.assert_allclose(W, W_gm, atol=2e-3 * np.abs(W_gm).max())
+
+
+def test_a_computed_torque_servo_only_scales_the_free_joints_inverse_inertia(posture):
+    """The computed-torque feedback M (omega^2 e + 2 omega de) pushes back along M^-1 J^T iota only:
+    over a longer pulse W_sim = c W_gm with 0 < c < 1, so its stick coefficient is W_gm's."""
+    q, W_gm = posture
+    W = HeldArm(CHOICE, PlantParameters(servo_gain=50.0)).inverse_inertia(q, 0.015)
+    c = np.sum(W * W_gm) / np.sum(W_gm * W_gm)
+    assert 0.0 < c < 1.0
+    np.testing.assert_allclose(W, c * W_gm, atol=2e-2 * np.abs(W_gm).max())
+    assert describe(W, DEFAULT_WALL.normal)["mu_bar"] == pytest.approx(describe(W_gm, DEFAULT_WALL.normal)["mu_bar"], rel=2e-2)
+
+
+def test_the_servos_of_the_study():
+    assert list(servos(7)) == list(SERVOS)
+    assert servos(7)[SERVOS[3]].servo_stiffness == FRANKA_JOINT_STIFFNESS
+    assert list(servos(6)) == list(SERVOS[:3])  # Franka's impedance has seven joints
+
+
+def test_the_command_writes_the_study(tmp_path, capsys):
+    """``oblique --inverse-inertia``: its JSON and Markdown, per posture the predictors' rows and
+    one per servo and pulse."""
+    out = tmp_path / "w"
+    assert main(["oblique", "--inverse-inertia", "--out", str(out)]) == 0
+    report = json.loads((out / "inverse-inertia.json").read_text())
+    assert [row["posture"] for row in report["rows"]] == list(CHOICE.robot.postures)[:POSTURES]
+    for row in report["rows"]:
+        assert [(e["servo"], e["duration"]) for e in row["simulated"]] == [
+            (servo, duration) for servo in SERVOS for duration in PULSE_DURATIONS]
+        assert row["gm"]["mu_bar"] > 0.0 and row["crb"]["mu_bar"] > 0.0
+    assert (out / "inverse-inertia.md").read_text() in capsys.readouterr().out
