@@ -3,7 +3,8 @@
 Every candidate alone is cross-validated first (``selection.cross_validate_cause``; a cause
 with a refinement, ``Cause.refined``, also refined); the best ``MAX_BRANCHES`` first steps that
 gain ``STEP_GAIN`` each start a path, the next one only while no path so far is settled: it
-fits the noise (``noise.fits_noise``) with every channel within ``FIT_LIMIT`` (``settled``).
+fits the noise (``noise.fits_noise``) with every channel within ``FIT_LIMIT`` (``settled``);
+when none gains, the best that gain at all start one path together (``masked_path``).
 Along a path, while its model is not settled, each forward step screens every remaining
 candidate by a short local fit next to the chosen causes (``selection.screen_cause``),
 cross-validates the ``MAX_SCREENED`` best jointly with them, and those with a refinement (the
