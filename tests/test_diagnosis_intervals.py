@@ -129,6 +129,30 @@ def test_bootstrap_intervals_hold_the_fit_and_stay_within_the_bounds(seed):
     assert np.all(u <= intervals[:, 1]) and np.all(intervals[:, 1] <= hi)
 
 
+@settings(max_examples=10, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(2, 6))
+def test_a_bootstrap_resample_of_trials_that_do_not_move_a_parameter_widens_nothing(seed, sliding):
+    """Friction seen only in ``sliding`` of 8 trials (the others' Jacobian column is rounding,
+    1e-11): each sliding trial k alone fits mu* - e_k (its residuals J_k e_k), so every
+    resample that determines mu fits a weighted mean of the drawn -e_k, and the interval stays
+    within the t-widened hull of the e_k. A resample of non-sliding trials alone (a few in
+    1000) steps 1e10 to a bound of the fit: the interval reached across the nominal mu (issue
+    32's friction seeds, [0.077, 0.542] for a fit of 0.310 +- 0.001)."""
+    rng = np.random.default_rng(seed)
+    model = FittedCauses().plus(FrictionCause(), np.array([0.31]))
+    sizes = [40] * 8
+    J = 1e-11 * rng.normal(size=(sum(sizes), 1))
+    r = rng.normal(size=sum(sizes))
+    e = 1e-3 * rng.normal(size=sliding)
+    for k in range(sliding):
+        rows = slice(40 * (8 - sliding + k), 40 * (8 - sliding + k + 1))
+        J[rows, 0] = 1000.0 * rng.uniform(0.5, 2.0, size=40)
+        r[rows] = J[rows, 0] * e[k]
+    low, high = bootstrap_intervals(model, r, J, sizes)[0]
+    reach = 3.0 * np.max(np.abs(e))  # t_0.975(7) sqrt(8 / 7) = 2.52 times a spread within the hull
+    assert 0.31 - reach <= low <= 0.31 <= high <= 0.31 + reach
+
+
 @given(st.floats(0.0, 1.5), st.floats(0.0, 0.5), st.floats(0.0, 0.5), st.booleans())
 def test_a_cause_is_supported_only_when_an_interval_excludes_its_nominal_value(value, below, above, open_low):
     """Friction about ``value``: supported exactly when the nominal coefficient lies outside

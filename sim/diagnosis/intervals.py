@@ -34,6 +34,7 @@ JACOBIAN_STEP = 0.01
 POLISH_ITERATIONS = 3
 BOOTSTRAP_SAMPLES = 1000
 BOOTSTRAP_SEED = 0
+IDENTIFIED_SHARE = 1e-3  # a resample keeping less of the trials' smallest scaled singular value leaves one undetermined
 
 
 def residual_jacobian(model: FittedCauses, nominal, setting, trials) -> tuple[np.ndarray, np.ndarray]:
@@ -82,20 +83,40 @@ def bootstrap_intervals(model: FittedCauses, r: np.ndarray, J: np.ndarray, sizes
     u* +- t_0.975(n - p) sqrt(n / (n - 1)) sd(u_b), n trials and p parameters: with a dozen
     trials the bootstrap spread underestimates the sampling spread, and the Student quantile
     and the n / (n - 1) factor are the small-sample corrections of a trial-clustered standard
-    error."""
+    error.
+
+    A resample that does not determine the parameters is left out: the smallest singular value
+    of its Jacobian rows, each column scaled by its norm over all trials
+    (``smallest_scaled_singular_value``), below ``IDENTIFIED_SHARE`` of all trials' (a resample
+    of as many trials has about theirs). One that drew only trials insensitive to a parameter
+    (friction from impacts without a tangential speed: the Jacobian's column there is
+    finite-difference rounding, 1e-11) has no estimate of it, and its Gauss-Newton step (1e10)
+    would land on a bound of the fit and widen the interval across the nominal value."""
     rng = np.random.default_rng(BOOTSTRAP_SEED)
     edges = np.concatenate([[0], np.cumsum(sizes)])
     blocks = [np.arange(a, b) for a, b in zip(edges[:-1], edges[1:])]
     lo, hi = model.bounds()
     u0 = model.vector()
     samples = np.empty((BOOTSTRAP_SAMPLES, len(u0)))
+    kept = np.empty(BOOTSTRAP_SAMPLES, bool)
+    scale = np.where(np.linalg.norm(J, axis=0) > 0.0, np.linalg.norm(J, axis=0), 1.0)
+    floor = IDENTIFIED_SHARE * smallest_scaled_singular_value(J, scale)
     for b in range(BOOTSTRAP_SAMPLES):
         rows = np.concatenate([blocks[i] for i in rng.integers(0, len(blocks), len(blocks))])
+        kept[b] = smallest_scaled_singular_value(J[rows], scale) >= floor
         samples[b] = np.clip(u0 - np.linalg.lstsq(J[rows], r[rows], rcond=None)[0], lo, hi)
+    samples = samples[kept] if kept.any() else u0[None, :]
     n = len(blocks)
     half = student_t.ppf(0.975, max(n - len(u0), 1)) * np.sqrt(n / max(n - 1, 1)) * samples.std(axis=0)
     low, high = np.percentile(samples, [2.5, 97.5], axis=0)
     return np.stack([np.maximum(np.minimum(low, u0 - half), lo), np.minimum(np.maximum(high, u0 + half), hi)], axis=1)
+
+
+def smallest_scaled_singular_value(J: np.ndarray, scale: np.ndarray) -> float:
+    """The smallest singular value of ``J`` with each column divided by ``scale`` (its norm over
+    all residuals): how well the rows of ``J`` determine the least determined combination of
+    the parameters, in units of each parameter's whole sensitivity."""
+    return float(np.linalg.svd(J / scale, compute_uv=False)[-1])
 
 
 def profile_direction(J: np.ndarray, index: int) -> np.ndarray:

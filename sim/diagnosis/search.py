@@ -3,7 +3,8 @@
 Every candidate alone is cross-validated first (``selection.cross_validate_cause``; a cause
 with a refinement, ``Cause.refined``, also refined); the best ``MAX_BRANCHES`` first steps that
 gain ``STEP_GAIN`` each start a path, the next one only while no path so far is settled: it
-fits the noise (``noise.fits_noise``) with every channel within ``FIT_LIMIT`` (``settled``).
+fits the noise (``noise.fits_noise``) with every channel within ``FIT_LIMIT`` (``settled``);
+when none gains, the best that gain at all start one path together (``masked_path``).
 Along a path, while its model is not settled, each forward step screens every remaining
 candidate by a short local fit next to the chosen causes (``selection.screen_cause``),
 cross-validates the ``MAX_SCREENED`` best jointly with them, and those with a refinement (the
@@ -346,6 +347,38 @@ def refined_first(search: Search, start: Branch, cause: Cause, result: dict) -> 
                    "heldout": model["heldout"], "heldout_jump": model["heldout_jump"]}
 
 
+def masked_path(search: Search, start: Branch, causes: list[Cause], results: list[dict],
+                step: dict) -> tuple[bool, Branch] | None:
+    """When no candidate alone gains ``STEP_GAIN`` (``causes`` and their first-step
+    cross-validations ``results``, best first; ``step``, the best one's rejected first step):
+    hidden causes that are each large mask one another, so each alone fits little and a
+    forward step from one of them is no better (armature, payload and friction hidden at once:
+    3 %, 16 % and 13 % held out alone; the payload fit alone absorbs a part of the others, and
+    next to it no candidate gains). The ``MAX_CAUSES`` best that gain at all start one path
+    together, each from its fit alone (on all trials and in each fold; from there the joint
+    fit reaches the three), cross-validated jointly, then a backward step and ``follow``. The
+    path (its ``fits_noise`` and end) is kept when its k causes gain at least ``STEP_GAIN``
+    each on average over the nominal, 1 - E / E_0 >= 1 - (1 - STEP_GAIN)^k; None otherwise,
+    and with fewer than two that gain."""
+    chosen = [(c, r) for c, r in zip(causes, results)
+              if relative_gain(quadratic_mean(r["heldout"]), start.error) > 0.0][:MAX_CAUSES]
+    if len(chosen) < 2 or search.budget <= 0:
+        return None
+    together = FittedCauses(tuple(c for c, _ in chosen), tuple(r["u"] for _, r in chosen))
+    folds = tuple(FittedCauses(together.causes, tuple(r["u_folds"][k] for _, r in chosen))
+                  for k in range(len(start.folds)))
+    task = ModelTask(together, folds, search.nominal, search.setting, tuple(search.trials))
+    [result] = search.run(cross_validate_model, [task], "path 1 model", [model_label(together)])
+    error = quadratic_mean(result["heldout"])
+    gain = relative_gain(error, start.error)
+    added = [search_step("add", c.name, error, gain, True, 0) for c in together.causes]
+    branch = as_branch(replace(start, steps=[step] + added[:-1]), result, added[-1])
+    branch, fits, _ = follow(search, backward(search, branch, 0), 0)
+    if relative_gain(branch.error, start.error) < 1.0 - (1.0 - STEP_GAIN) ** len(branch.model.causes):
+        return None
+    return fits, branch
+
+
 def select_causes(
     causes: list[Cause], nominal: PlantParameters, setting: ReplaySetting, trials, baseline: tuple, jobs: int
 ) -> Selection:
@@ -363,8 +396,9 @@ def select_causes(
         gain = relative_gain(errors[i], start.error)
         step = search_step("add", causes[i].name, errors[i], gain, gain >= STEP_GAIN, len(paths))
         if gain < STEP_GAIN or done:
-            if not paths:  # nothing gains: the nominal path, its rejected first step
-                paths.append((False, replace(start, steps=[step])))
+            if not paths:  # nothing gains alone: causes that mask each other, else the nominal path
+                paths.append(masked_path(search, start, [causes[k] for k in order], [results[k] for k in order], step)
+                             or (False, replace(start, steps=[step])))
             break
         branch, fits, done = follow(search, first_added(start, causes[i], results[i], step), len(paths))
         paths.append((fits, branch))
