@@ -339,8 +339,7 @@ def arm_cycle_terms(Jw, dJw, p, support, q, dq, checks, out):
     for j in range(nq):
         if q[j] < checks[1 + j] or q[j] > checks[1 + nq + j]:
             return OUTSIDE_LIMITS
-    for i in range(6 * nv):
-        out[i] = 0.0
+    out[: 6 * nv] = 0.0
     vx = vy = vz = wx = wy = wz = ax = ay = az = bx = by = bz = 0.0
     for k in support:
         out[k] = Jw[0, k] + Jw[4, k] * pz - Jw[5, k] * py

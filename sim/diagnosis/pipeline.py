@@ -102,9 +102,7 @@ def diagnose(
     model, theta_intervals = _bounded(model, selected, nominal, setting, trials, jobs)
     extended_plant = model.plant(nominal)
     extended_features = replay_all(setting, extended_plant, trials)
-    extended_jumps = np.array([f.detected_jump for f in extended_features])
-    fit = fit_report(extended_features, trials)
-    timing = timing_test(extended_features, trials)
+    fit, timing = fit_report(extended_features, trials), timing_test(extended_features, trials)
     explained = selected and _explains(model, theta_intervals, nominal, fit, timing)
     steps = selection.steps if explained else [{**s, "selected": False} for s in selection.steps]
     step(4)
@@ -113,7 +111,7 @@ def diagnose(
         trials=trials,
         skipped=skipped,
         nominal_jumps=nominal_jumps,
-        extended_jumps=extended_jumps,
+        extended_jumps=np.array([f.detected_jump for f in extended_features]),
         baseline_errors=baseline_errors,
         candidates=selection.candidates,
         cause=model.causes[0].name,
