@@ -21,11 +21,9 @@ the replay up with the measurement is the same in every trial within those two e
   replay's timing, one error for the whole trace: the replay touches the wall at one of its
   physics steps, which its noisy start state (a mean of noisy velocities) moves by a step or
   two, so tau = one physics step, ``sim.scene.DEFAULT_TIMESTEP`` / the control period (0.25
-  sample at 1 kHz). The right model's shifts, about their dataset's mean, fall on whole physics
-  steps (0, +-0.25, +-0.5 sample): standard deviation 0.20 sample, at most 0.70, over 108
-  trials of 10 simulated datasets (nominal, armature, friction with sliding, a sensor delay and
-  a velocity filter, each replayed in its true plant; one run). A trial whose replayed velocity
-  does not change (no slope) has no shift.
+  sample at 1 kHz): a right model's shifts, about their dataset's mean, fall on whole physics
+  steps (their measured spread: docs/diagnosis.md, "One timing for every trial"). A trial
+  whose replayed velocity does not change (no slope) has no shift.
 - **Test** (Cochran's homogeneity test): the weighted mean s = sum(s_i / v_i) / sum(1 / v_i) and
   Q = sum (s_i - s)^2 / v_i, chi-square with n - 1 degrees of freedom when every trial has one
   timing; the timings differ when P(chi2_{n-1} >= Q) < ``TIMING_LEVEL``. The trial is the unit
