@@ -352,9 +352,9 @@ def masked_path(search: Search, start: Branch, causes: list[Cause], results: lis
     """When no candidate alone gains ``STEP_GAIN`` (``causes`` and their first-step
     cross-validations ``results``, best first; ``step``, the best one's rejected first step):
     hidden causes that are each large mask one another, so each alone fits little and a
-    forward step from one of them is no better (armature, payload and friction hidden at once:
-    3 %, 16 % and 13 % held out alone; the payload fit alone absorbs a part of the others, and
-    next to it no candidate gains). The ``MAX_CAUSES`` best that gain at all start one path
+    forward step from one of them is no better (e.g. armature, payload and friction hidden at
+    once: the payload fit alone absorbs a part of the others, and next to it no candidate gains;
+    the measured case: docs/diagnosis.md, "The search over sets of causes"). The ``MAX_CAUSES`` best that gain at all start one path
     together, each from its fit alone (on all trials and in each fold; from there the joint
     fit reaches the three), cross-validated jointly, then a backward step and ``follow``. The
     path (its ``fits_noise`` and end) is kept when its k causes gain at least ``STEP_GAIN``
