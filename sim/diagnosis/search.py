@@ -354,9 +354,10 @@ def masked_path(search: Search, start: Branch, causes: list[Cause], results: lis
     hidden causes that are each large mask one another, so each alone fits little and a
     forward step from one of them is no better (e.g. armature, payload and friction hidden at
     once: the payload fit alone absorbs a part of the others, and next to it no candidate gains;
-    the measured case: docs/diagnosis.md, "The search over sets of causes"). The ``MAX_CAUSES`` best that gain at all start one path
-    together, each from its fit alone (on all trials and in each fold; from there the joint
-    fit reaches the three), cross-validated jointly, then a backward step and ``follow``. The
+    the measured case: docs/diagnosis.md, "The search over sets of causes"). The
+    ``MAX_CAUSES`` best that gain at all start one path together, each from its fit alone (on
+    all trials and in each fold; from there the joint fit reaches the three), cross-validated
+    jointly, then a backward step and ``follow``. The
     path (its ``fits_noise`` and end) is kept when its k causes gain at least ``STEP_GAIN``
     each on average over the nominal, 1 - E / E_0 >= 1 - (1 - STEP_GAIN)^k; None otherwise,
     and with fewer than two that gain."""
