@@ -90,7 +90,10 @@ def capture_rows(maps, state, region, scale, C, upper):
     K = Jcom[:2] + product(product(com_map[:2], impulse_map), J6[:3])
     C[:] = product(normals, K)
     for k in range(C.shape[0]):
-        upper[k] = (omega * (offsets[k] - normals[k, 0] * com[0] - normals[k, 1] * com[1]) - C[k] @ dq) * inv_h
+        speed = 0.0  # C v, in a loop: a BLAS call costs more at this size
+        for j in range(dq.shape[0]):
+            speed += C[k, j] * dq[j]
+        upper[k] = (omega * (offsets[k] - normals[k, 0] * com[0] - normals[k, 1] * com[1]) - speed) * inv_h
 
 
 class EdgeCaptureRegionLimit(VertexBlocks, CaptureRegionLimit):

@@ -8,7 +8,7 @@ from numba import njit
 
 from impactqp.controller.model.capture import GRAVITY
 from impactqp.controller.model.humanoid_stance import convex_hull
-from impactqp.controller.model.jump_kernels import product, product_t
+from impactqp.controller.model.jump_kernels import product
 from impactqp.controller.model.max_speed import sole_rows
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.validation import BadInputError
@@ -103,9 +103,9 @@ class FootWrenchLimit(Constraint):
             C[:] = 0.0
             upper[:] = np.inf
             return
-        maps = self.impact.matrices(terms)
+        impact = self.impact
         foot_wrench_rows(
-            (terms.M_inv, np.ascontiguousarray(terms.J6[:3]), terms.held_jacobian, maps.impulse_map),
+            (impact.held_impulse_map(terms), np.ascontiguousarray(terms.J6[:3]), impact.row_matrices(terms).impulse_map),
             (terms.dq, terms.com, terms.mass),
             (self._rotations, self._standing, self._soles, self._friction),
             (self.duration, 1.0 / cycle.horizon), C, upper,
@@ -114,20 +114,19 @@ class FootWrenchLimit(Constraint):
 
 @njit(cache=True)
 def foot_wrench_rows(maps, state, feet, scale, C, upper):
-    """Kernel: the rows of :class:`FootWrenchLimit` (its docstring), for maps = (M^-1, J, Jf, G),
-    state = (v, c, m), feet = (R_k, the standing map S, the soles' rows on the local wrench, mu_k)
-    and scale = (T, 1 / h); per foot the slip row, then its sole's rows."""
-    M_inv, J, Jf, G = maps
+    """Kernel: the rows of :class:`FootWrenchLimit` (its docstring), for maps = (Z, J, G) with
+    Z = (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T (``ExpectedImpact.held_impulse_map``, computed with the
+    jump maps), state = (v, c, m), feet = (R_k, the standing map S, the soles' rows on the local
+    wrench, mu_k) and scale = (T, 1 / h); per foot the slip row, then its sole's rows."""
+    Z, J, G = maps
     dq, com, mass = state
     rotations, standing, soles, friction = feet
     duration, inv_h = scale
-    Yf = product(Jf, M_inv)
-    Z = np.linalg.solve(product_t(Yf, Jf), product_t(Yf, J))  # (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T
     L = -product(product(Z, G), J)
     weight = mass * GRAVITY
     gravity_wrench = np.array([0.0, 0.0, weight, com[1] * weight, -com[0] * weight, 0.0])
-    w = duration * (standing @ gravity_wrench)  # T w
-    peak = w + L @ dq  # F at dv = 0
+    w = duration * product(standing, gravity_wrench.reshape((6, 1)))[:, 0]  # T w
+    peak = w + product(L, dq.reshape((-1, 1)))[:, 0]  # F at dv = 0
     per_foot = 1 + soles.shape[1]
     local = np.empty(6)
     world = np.empty(6)
@@ -150,15 +149,15 @@ def foot_wrench_rows(maps, state, feet, scale, C, upper):
                 world[i] = R[i, 0] * local[0] + R[i, 1] * local[1] + R[i, 2] * local[2]
                 world[3 + i] = R[i, 0] * local[3] + R[i, 1] * local[4] + R[i, 2] * local[5]
             row = k * per_foot + r
-            offset = 0.0
+            offset = 0.0  # e . F_k at dv = 0 (T w_k + L_k v): upper = -e . F_k / (m h)
+            for i in range(6):
+                offset += world[i] * peak[6 * k + i]
             for j in range(C.shape[1]):
                 total = 0.0
                 for i in range(6):
                     total += world[i] * L[6 * k + i, j]
                 C[row, j] = total / mass
-            for i in range(6):
-                offset += world[i] * w[6 * k + i]
-            upper[row] = (-offset / mass - C[row] @ dq) * inv_h
+            upper[row] = -offset / mass * inv_h
 
 
 class EdgeFootWrenchLimit(VertexBlocks, FootWrenchLimit):
@@ -179,7 +178,7 @@ class EdgeFootWrenchLimit(VertexBlocks, FootWrenchLimit):
 
     def vertex_rows_into(self, terms, cycle: ControlCycle, impulse_map, C, upper) -> None:
         foot_wrench_rows(
-            (terms.M_inv, np.ascontiguousarray(terms.J6[:3]), terms.held_jacobian, impulse_map),
+            (self.impact.held_impulse_map(terms), np.ascontiguousarray(terms.J6[:3]), impulse_map),
             (terms.dq, terms.com, terms.mass),
             (self._rotations, self._standing, self._soles, self._friction),
             (self.duration, 1.0 / cycle.horizon), C, upper,

@@ -69,6 +69,7 @@ from impactqp.controller.model.jump import (
 from impactqp.controller.model.jump_kernels import (
     HELD_CONTACT_METHODS,
     crb_inverse_inertia_times,
+    held_contact_maps_into,
     rank_one_jump_matrices,
 )
 from impactqp.controller.model.model_terms import contact_views
@@ -174,6 +175,10 @@ class ExpectedImpact:
         self._impact = np.append(np.asarray(surface.normal, dtype=float), self.restitution)  # [n, c_r]
         self._fixed_base_buffer = np.empty(0)
         self._fixed_base_matrices = self._fixed_base_views = JumpMatrices(None, None, None, None)
+        # On held contacts: A, P, G, C and the held contacts' impulse map Z, allocated at the first fill
+        self._held_method = HELD_CONTACT_METHODS.index(jump_model_name) if jump_model_name in HELD_CONTACT_METHODS else -1
+        self._held_buffers: tuple = ()
+        self._held_matrices = self._held_views = self._fixed_base_matrices
 
     @property
     def name(self) -> str:
@@ -181,9 +186,9 @@ class ExpectedImpact:
 
     def matrices(self, terms) -> JumpMatrices:
         """A, P, G (and C) of this state (the normal and the restitution were checked once, above),
-        valid until the next fill of the terms: a fixed base's crb, gm and classical matrices are
-        read-only views of buffers that the next fill overwrites (copy them to keep them); the
-        other forms are new arrays at each fill."""
+        valid until the next fill of the terms: the crb, gm and classical matrices (of a fixed
+        base, or on held contacts) are read-only views of buffers that the next fill overwrites
+        (copy them to keep them); the other forms are new arrays at each fill."""
         if terms.stamp != self._stamp:  # a new fill of the terms (read several times per cycle)
             self._update(terms)
         return self._views
@@ -218,6 +223,15 @@ class ExpectedImpact:
             self._update(terms)
         return self._edge_impulses
 
+    def held_impulse_map(self, terms) -> np.ndarray:
+        """Z = (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T (6 rows per held contact x 3) of this state on held
+        contacts: the held contacts' impulsive wrenches lambda = -Z iota (``jump.held_impulse``),
+        computed with the jump maps (``jump_kernels.held_contact_maps_into``); valid until the next
+        fill of the terms, as ``row_matrices``."""
+        if terms.stamp != self._stamp:
+            self._update(terms)
+        return self._held_buffers[4]
+
     def is_active(self, terms) -> bool:
         """The activation rule of the module docstring for this state."""
         if terms.stamp != self._stamp:
@@ -240,7 +254,10 @@ class ExpectedImpact:
         if self._in_place and terms.held_jacobian.shape[0] == 0:
             motion = self._fill_fixed_base(terms)
         else:
-            self._matrices = self._views = self.model.unit_matrices(terms, normal, self.restitution)
+            if terms.held_jacobian.shape[0] and self._held_method >= 0:
+                self._fill_held(terms)
+            else:
+                self._matrices = self._views = self.model.unit_matrices(terms, normal, self.restitution)
             motion = normal_motion(terms.J, normal, terms.contact_point, terms.dq)
         if self._edge_count:
             self._edge_fill(terms)
@@ -266,6 +283,22 @@ class ExpectedImpact:
         if isinstance(self.model, ClassicalJump):
             return classical_cycle_update(terms.M_inv, contact, terms.dq, impact, out)
         return gm_cycle_update(terms.M_inv, contact, terms.dq, impact, out)
+
+    def _fill_held(self, terms) -> None:
+        """On held contacts: A, P, G, C of the crb, gm or classical model and the held contacts'
+        impulse map Z written into buffers allocated at the first fill (or when the sizes change),
+        in one compiled call (``jump_kernels.held_contact_maps_into``)."""
+        nv, held = terms.J.shape[1], terms.held_jacobian.shape[0]
+        if not self._held_buffers or self._held_buffers[4].shape[0] != held or self._held_buffers[0].shape[0] != nv:
+            self._held_buffers = (np.empty((nv, nv)), np.empty((nv, nv)), np.empty((3, 3)), np.empty((3, 3)), np.empty((held, 3)))
+            self._held_matrices = JumpMatrices(*self._held_buffers[:4])
+            self._held_views = JumpMatrices(*(read_only(array) for array in self._held_buffers[:4]))
+        self._matrices, self._views = self._held_matrices, self._held_views
+        rigid = (terms.contact_point, terms.com, terms.inertia_com, terms.mass)
+        held_contact_maps_into(
+            (terms.M_inv, terms.J6, terms.held_jacobian, terms.Jcom), rigid, self._held_method,
+            (self._impact[:3], self._impact[3]), self._held_buffers,
+        )
 
     def _fill_edges(self, terms) -> None:
         """The edges' maps of this state into buffers allocated at the first fill (the preview's
@@ -306,19 +339,19 @@ class ExpectedImpact:
 
 def read_only_views(matrices: JumpMatrices) -> JumpMatrices:
     """Views of A, P and G that cannot be written (the buffers behind them stay writable)."""
-    views = []
-    for array in matrices[:3]:
-        view = array.view()
-        view.flags.writeable = False
-        views.append(view)
-    return JumpMatrices(*views, None)
+    return JumpMatrices(*(read_only(array) for array in matrices[:3]), None)
+
+
+def read_only(array: np.ndarray) -> np.ndarray:
+    """A view of ``array`` that cannot be written (the array itself stays writable)."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
 
 
 def edge_maps_of(buffer: np.ndarray) -> tuple[EdgeMatrices, EdgeMatrices]:
     """The edges' maps in ``buffer`` (2 x edges x nv x nv), writable, and read-only views of them."""
-    view = buffer.view()
-    view.flags.writeable = False
-    return EdgeMatrices.of(buffer), EdgeMatrices.of(view)
+    return EdgeMatrices.of(buffer), EdgeMatrices.of(read_only(buffer))
 
 
 @njit(cache=True)

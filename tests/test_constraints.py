@@ -34,7 +34,7 @@ from impactqp.constraints.impact_model import (
     normal_motion,
 )
 from impactqp.controller.model.friction_pyramid import FrictionRows
-from impactqp.controller.model.jump import predict
+from impactqp.controller.model.jump import held_impulse, predict
 from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
 from impactqp.controller.model.jump import jump_model
 from impactqp.controller.model.max_speed import approach_direction
@@ -469,7 +469,27 @@ def test_g1_maps_are_the_held_contact_predictors_of_the_state_computed_once_per_
     maps = impact.matrices(terms)
     assert impact.matrices(terms) is maps
     np.testing.assert_allclose(maps.jump_matrix, jump_model(method).unit_matrices(terms, NORMAL, 0.3).jump_matrix)
-    assert impact.matrices(g1().terms(q)) is not maps
+    other = g1().terms(stance("parallel"), approach_velocity(q, 0.3))
+    for new, own in zip(impact.matrices(other), jump_model(method).unit_matrices(other, NORMAL, 0.3)):
+        np.testing.assert_allclose(new, own)
+
+
+@settings(max_examples=10, deadline=None)
+@given(standing_states(max_speed=1.0), st.sampled_from(HELD_CONTACT_METHODS), st.integers(0, 2**31))
+def test_g1_held_impulse_map_keeps_the_feet_still_under_any_impulse(state, method, seed):
+    """With lambda = -Z iota the held contacts' impulsive wrenches, the velocity change
+    M^-1 (J^T iota + Jf^T lambda) leaves the feet still (Jf dv = 0) for any impulse iota, and
+    lambda is ``jump.held_impulse``'s (M from crba, not the kernel's M^-1)."""
+    _, q, v = state
+    terms = g1().terms(q, v)
+    impact = ExpectedImpact(wall_ahead(q), method, held_contacts=True)
+    Z, Jf = impact.held_impulse_map(terms), terms.held_jacobian
+    assert Z.shape == (Jf.shape[0], 3)
+    impulse = np.random.default_rng(seed).normal(size=3)
+    wrenches = -Z @ impulse
+    dv = np.linalg.solve(terms.M, terms.J.T @ impulse + Jf.T @ wrenches)
+    np.testing.assert_allclose(Jf @ dv, 0.0, atol=1e-9 * (1.0 + np.abs(dv).max()))
+    np.testing.assert_allclose(wrenches, held_impulse(terms, impulse), rtol=1e-8, atol=1e-9 * (1.0 + np.abs(wrenches).max()))
 
 
 @pytest.mark.parametrize("name", ["robust", "classical_normal", "unknown"])

@@ -146,41 +146,96 @@ def rank_one_jump_matrices(J, JJt_inv, W_normal, normal, restitution, jump_matri
 
 @njit(cache=True)
 def held_contact_maps(M_inv, J6, Jf, Jcom, rigid, method, normal, c_r):
+    """Kernel: (A, P, G, C) of ``held_contact_maps_into`` in new arrays."""
+    n = J6.shape[1]
+    out = (np.empty((n, n)), np.empty((n, n)), np.empty((3, 3)), np.empty((3, 3)), np.empty((Jf.shape[0], 3)))
+    held_contact_maps_into((M_inv, J6, Jf, Jcom), rigid, method, (normal, c_r), out)
+    return out[0], out[1], out[2], out[3]
+
+
+@njit(cache=True)
+def held_contact_maps_into(terms, rigid, method, impact, out):
     """Kernel: (A = K G J, P = J^T G J, G, C = Jcom P_f J^T) (module docstring) of the method
-    ``HELD_CONTACT_METHODS[method]``, rigid = (contact point, CoM, centroidal inertia, mass) for
-    W_crb (20, ``welded_inverse_inertia``):
+    ``HELD_CONTACT_METHODS[method]`` and the held contacts' impulse map Z, written into
+    out = (A, P, G, C, Z), for terms = (M^-1, J6, Jf, Jcom), rigid = (contact point, CoM,
+    centroidal inertia, mass) for W_crb (20, ``welded_inverse_inertia``) and impact = (n, c_r):
 
         classical  (5)-(6)           G = -(1 + c_r) W_gm^-1,                  K = P_f J^T
         gm         (12), (22)-(23)   G = -(1 + c_r) n n^T / (n^T W_gm n),     K = J# W_gm
         crb        (12), (20)-(21)   G = -(1 + c_r) n n^T / (n^T W_crb n),    K = J# W_crb
 
-    Never forms P_f: with Y = [Jf; J] M^-1 (M^-1 symmetric), (P_f J^T)^T = Y_J - Z^T Y_f,
-    Z = (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T; with no held contact (Jf of no rows), (P_f J^T)^T = Y_J
-    and (N J^T)^T = J."""
+    Never forms P_f: with Y_f = Jf M^-1 and Y_J = J M^-1 (M^-1 symmetric),
+    Z = (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T = (Jf Y_f^T)^-1 Jf Y_J^T, the held contacts' impulsive
+    wrenches lambda = -Z iota (``jump.held_impulse``), and (P_f J^T)^T = Y_J - Z^T Y_f;
+    (N J^T)^T = J - ((Jf Jf^T)^-1 Jf J^T)^T Jf. The normal-impulse models' A and P are rank one
+    (12): A = s (K n)(J^T n)^T, P = s (J^T n)(J^T n)^T, s = -(1 + c_r) / (n^T W n), with
+    K n = (N J^T) (J N J^T)^-1 W n. With no held contact (Jf of no rows), (P_f J^T)^T = Y_J,
+    (N J^T)^T = J and Z has no rows. The products skip Jf's and J's zero entries (a foot's row
+    moves the base and one leg) and run along rows (``product``); ValueError when Jf M^-1 Jf^T
+    or Jf Jf^T is singular (``solve_in_place``)."""
+    M_inv, J6, Jf, Jcom = terms
+    normal, c_r = impact
+    A, P, G, C, Z = out
     J = np.ascontiguousarray(J6[:3])
-    YJ = product(J, M_inv)
-    PJt_T = YJ
-    NJt_T = J
+    PJt_T = product(J, M_inv)  # Y_J, then (P_f J^T)^T
+    NJt_T = J.copy()
     if Jf.shape[0] > 0:
         Yf = product(Jf, M_inv)
-        Z = np.linalg.solve(product_t(Jf, Yf), product_t(Jf, YJ))
-        PJt_T = YJ - product(np.ascontiguousarray(Z.T), Yf)
-        # (N J^T)^T = J - (Jf J^T)^T (Jf Jf^T)^-1 Jf
-        NJt_T = J - product(np.ascontiguousarray(np.linalg.solve(product_t(Jf, Jf), product_t(Jf, J)).T), Jf)
-    W = product_t(J, PJt_T)
-    W = np.ascontiguousarray(0.5 * (W + W.T))
+        Z[:] = product(Jf, np.ascontiguousarray(PJt_T.T))
+        held_solve(product(Jf, np.ascontiguousarray(Yf.T)), Z)
+        subtract_t_product(Z, Yf, PJt_T)
+        JfJt = product(Jf, np.ascontiguousarray(J.T))
+        held_solve(product(Jf, np.ascontiguousarray(Jf.T)), JfJt)
+        subtract_t_product(JfJt, Jf, NJt_T)
+    C[:] = product_t(Jcom, PJt_T)
     if method == CLASSICAL:
-        G = np.ascontiguousarray(-(1.0 + c_r) * np.linalg.inv(W))
-        K_T = PJt_T
-    else:
-        if method == CRB:
-            W = welded_inverse_inertia(*rigid)
-        G = (-(1.0 + c_r) / np.sum(np.outer(normal, normal) * W)) * np.outer(normal, normal)
-        # K^T = ((J N J^T)^-1 W)^T (N J^T)^T
-        K_T = product(np.ascontiguousarray(np.linalg.solve(product_t(J, NJt_T), W).T), NJt_T)
-    GJ = product(G, J)
-    A = product(np.ascontiguousarray(K_T.T), GJ)
-    return A, product(np.ascontiguousarray(J.T), GJ), G, product_t(Jcom, PJt_T)
+        symmetric_inverse3_into(symmetric_part(product_t(J, PJt_T)), G)
+        G *= -(1.0 + c_r)
+        GJ = product(G, J)
+        for i in range(J.shape[1]):
+            for j in range(J.shape[1]):
+                A[i, j] = PJt_T[0, i] * GJ[0, j] + PJt_T[1, i] * GJ[1, j] + PJt_T[2, i] * GJ[2, j]
+                P[i, j] = J[0, i] * GJ[0, j] + J[1, i] * GJ[1, j] + J[2, i] * GJ[2, j]
+        return
+    W = welded_inverse_inertia(*rigid) if method == CRB else symmetric_part(product_t(J, PJt_T))
+    JNJt_inv = np.empty((3, 3))
+    symmetric_inverse3_into(symmetric_part(product_t(J, NJt_T)), JNJt_inv)
+    Wn = product(W, normal.reshape((3, 1)))
+    s = -(1.0 + c_r) / (normal[0] * Wn[0, 0] + normal[1] * Wn[1, 0] + normal[2] * Wn[2, 0])
+    for i in range(3):
+        for j in range(3):
+            G[i, j] = s * normal[i] * normal[j]
+    y = product(JNJt_inv, Wn)[:, 0]
+    Jt_normal = product(normal.reshape((1, 3)), J)[0]
+    for i in range(J.shape[1]):
+        direction = s * (NJt_T[0, i] * y[0] + NJt_T[1, i] * y[1] + NJt_T[2, i] * y[2])  # s (K n)_i
+        torque = s * Jt_normal[i]
+        for j in range(J.shape[1]):
+            A[i, j] = direction * Jt_normal[j]
+            P[i, j] = torque * Jt_normal[j]
+
+
+@njit(cache=True)
+def held_solve(S, B):
+    """Kernel: B <- S^-1 B (``solve_in_place``, S overwritten); ValueError when S is singular."""
+    if not solve_in_place(S, B):
+        raise ValueError("the held contacts' Jacobian is singular at this state")
+
+
+@njit(cache=True)
+def subtract_t_product(X, Y, out):
+    """Kernel: out -= X^T Y in plain loops (X: k x r, Y: k x n, out: r x n)."""
+    for a in range(X.shape[0]):
+        for r in range(X.shape[1]):
+            x = X[a, r]
+            for j in range(Y.shape[1]):
+                out[r, j] -= x * Y[a, j]
+
+
+@njit(cache=True)
+def symmetric_part(S):
+    """Kernel: (S + S^T) / 2 in a new array."""
+    return 0.5 * (S + S.T)
 
 
 @njit(cache=True)
@@ -210,3 +265,41 @@ def product_t(A, B):
                 total += A[i, k] * B[j, k]
             out[i, j] = total
     return out
+
+
+@njit(cache=True)
+def solve_in_place(A, B):
+    """Kernel: B <- A^-1 B by Gaussian elimination with partial pivoting (A overwritten); False
+    when a pivot is below 1e-12 times A's largest entry (A singular for this purpose)."""
+    size = A.shape[0]
+    scale = 0.0
+    for i in range(size):
+        for j in range(size):
+            scale = max(scale, abs(A[i, j]))
+    for col in range(size):
+        pivot = col
+        for i in range(col + 1, size):
+            if abs(A[i, col]) > abs(A[pivot, col]):
+                pivot = i
+        if not abs(A[pivot, col]) > 1e-12 * scale:
+            return False
+        if pivot != col:
+            for j in range(size):
+                A[col, j], A[pivot, j] = A[pivot, j], A[col, j]
+            for j in range(B.shape[1]):
+                B[col, j], B[pivot, j] = B[pivot, j], B[col, j]
+        for i in range(col + 1, size):
+            factor = A[i, col] / A[col, col]
+            if factor == 0.0:
+                continue
+            for j in range(col, size):
+                A[i, j] -= factor * A[col, j]
+            for j in range(B.shape[1]):
+                B[i, j] -= factor * B[col, j]
+    for col in range(size - 1, -1, -1):
+        for j in range(B.shape[1]):
+            total = B[col, j]
+            for i in range(col + 1, size):
+                total -= A[col, i] * B[i, j]
+            B[col, j] = total / A[col, col]
+    return True

@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 
 from impactqp.constraints import HeldContactRows
+from impactqp.controller.model.jump_kernels import solve_in_place
 
 from .problem import QpProblem
 from .solvers import SOLVED, DaqpSolver
@@ -161,44 +162,6 @@ def reduce_problem(full, partition, substitution, reduced):
                     Cr[r, j] += c * substitution[a, j]
         lower_r[m + r] = lower[n + r] - shift
         upper_r[m + r] = upper[n + r] - shift
-    return True
-
-
-@njit(cache=True)
-def solve_in_place(A, B):
-    """Kernel: B <- A^-1 B by Gaussian elimination with partial pivoting (A overwritten); False
-    when a pivot is below 1e-12 times A's largest entry (A singular for this purpose)."""
-    size = A.shape[0]
-    scale = 0.0
-    for i in range(size):
-        for j in range(size):
-            scale = max(scale, abs(A[i, j]))
-    for col in range(size):
-        pivot = col
-        for i in range(col + 1, size):
-            if abs(A[i, col]) > abs(A[pivot, col]):
-                pivot = i
-        if not abs(A[pivot, col]) > 1e-12 * scale:
-            return False
-        if pivot != col:
-            for j in range(size):
-                A[col, j], A[pivot, j] = A[pivot, j], A[col, j]
-            for j in range(B.shape[1]):
-                B[col, j], B[pivot, j] = B[pivot, j], B[col, j]
-        for i in range(col + 1, size):
-            factor = A[i, col] / A[col, col]
-            if factor == 0.0:
-                continue
-            for j in range(col, size):
-                A[i, j] -= factor * A[col, j]
-            for j in range(B.shape[1]):
-                B[i, j] -= factor * B[col, j]
-    for col in range(size - 1, -1, -1):
-        for j in range(B.shape[1]):
-            total = B[col, j]
-            for i in range(col + 1, size):
-                total -= A[col, i] * B[i, j]
-            B[col, j] = total / A[col, col]
     return True
 
 

@@ -8,13 +8,14 @@ and frame tasks, the held contacts' equality rows, the capture region and the fe
 the impact (frictionless: the edge variants keep the generic assembly). Its table and packed
 parameters are the arm plan's (a frame task's line holds the index of its frame in the column of
 the expected impact); ``fill`` gathers each frame task's frame (position, rotation, J6, dJ6 v:
-``FrameTask.frame_state``) into stacked arrays, the expected impacts' maps (A, P, the edges', G
-and C) and activations, and calls ``whole_body_rows``: the arm plan's kernels on their lines,
+``FrameTask.frame_state``) into stacked arrays, the expected impacts' maps (A, P, the edges', G,
+C and the held contacts' impulse map Z, computed once with the jump maps) and activations, and calls ``whole_body_rows``: the arm plan's kernels on their lines,
 each class's own kernel on its lines (``com_rows``, ``frame_rows``, ``capture_rows``,
 ``foot_wrench_rows``; the held contacts' rows C = Jf, l = u = -dJf v), then the cost, the boxes and
 the relaxed rows as ``cycle_plan.planned_rows``. The QP it writes is the generic assembly's: the
 same kernels on the same inputs. The model terms a line does not need are not read (a floating
-base's h, and M unless a torque limit asks for it, stay unfilled).
+base's h, and M unless a torque limit asks for it, stay unfilled; the rows read M^-1 only
+through the impacts' maps).
 """
 
 from __future__ import annotations
@@ -79,8 +80,8 @@ class WholeBodyPlan(CyclePlan):
         plan.frame_tasks = frame_tasks
         plan.frames = (np.zeros((count, 3)), np.zeros((count, 3, 3)), np.zeros((count, 6, n)), np.zeros((count, 6)))
         kinds = set(plan.table[:, KIND].tolist())
-        plan.reads = (TORQUE in kinds, bool(kinds & set(BODY_KINDS)), FOOT_WRENCH in kinds)
-        plan.placeholders = (np.zeros((n, n)), np.zeros(n), np.zeros((3, n)), np.zeros(3), np.zeros((3, 3)))
+        plan.reads = (TORQUE in kinds, bool(kinds & set(BODY_KINDS)))
+        plan.placeholders = (np.zeros((n, n)), np.zeros(n), np.zeros((3, n)), np.zeros(3), np.zeros((3, 3)), np.zeros((0, 3)))
         return plan
 
     def fill(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
@@ -89,47 +90,50 @@ class WholeBodyPlan(CyclePlan):
         if self._edits != (Task.parameter_edits, Constraint.parameter_edits):
             self.pack()
         maps = self._impact_maps(terms)
-        com_maps, impulse_maps = self._body_maps(terms)
+        body_maps = self._body_maps(terms)
         positions, rotations, jacobians, drifts = self.frames
         for f, task in enumerate(self.frame_tasks):
             position, rotation, J6, drift = task.frame_state(terms)
             positions[f], rotations[f], jacobians[f], drifts[f] = position, rotation, J6, drift
-        square, vector, Jcom, point, M_inv = self.placeholders
-        torque, body, foot = self.reads
+        square, vector, Jcom, point = self.placeholders[:4]
+        torque, body = self.reads
         state = (terms.q, terms.dq, terms.J6, terms.dJ6_dq, terms.contact_rotation,
                  terms.M if torque else square, terms.h if torque else vector)
         body_terms = (
             terms.Jcom if body else Jcom, terms.dJcom_dq if body else point, terms.com if body else point,
-            terms.held_jacobian, terms.held_drift, terms.M_inv if foot else square, terms.mass,
+            terms.held_jacobian, terms.held_drift, terms.mass,
         )
         b = self.buffers
         p = b.problem
         return whole_body_rows(
-            (state, body_terms, self.frames), (maps, (com_maps, impulse_maps)),
+            (state, body_terms, self.frames), (maps, body_maps),
             (cycle.acceleration_lower, cycle.acceleration_upper, cycle.horizon, cycle.dt),
             (self.table, self.parameters, self.first_relaxed), (b.task_A, b.task_b, b.task_w),
             (p.H, p.g, b.box_bounds, p.lower, p.upper, p.C),
         )
 
-    def _body_maps(self, terms: ModelTerms) -> tuple[tuple, tuple]:
-        """Each expected impact's centre-of-mass map C (zeros without held contacts) and impulse map G."""
-        zeros = self.placeholders[4]
+    def _body_maps(self, terms: ModelTerms) -> tuple[tuple, tuple, tuple]:
+        """Each expected impact's centre-of-mass map C, impulse map G and held contacts' impulse
+        map Z (without held contacts: zeros, and Z of no rows)."""
+        zeros, no_rows = self.placeholders[4], self.placeholders[5]
         if not self.impacts:
-            return (zeros,), (zeros,)
-        com_maps, impulse_maps = [], []
+            return (zeros,), (zeros,), (no_rows,)
+        com_maps, impulse_maps, held_maps = [], [], []
         for impact in self.impacts:
             matrices = impact.row_matrices(terms)
-            com_maps.append(zeros if matrices.com_map is None else matrices.com_map)
+            held = matrices.com_map is not None
+            com_maps.append(matrices.com_map if held else zeros)
             impulse_maps.append(matrices.impulse_map)
-        return tuple(com_maps), tuple(impulse_maps)
+            held_maps.append(impact.held_impulse_map(terms) if held else no_rows)
+        return tuple(com_maps), tuple(impulse_maps), tuple(held_maps)
 
 
 @njit(cache=True)
 def whole_body_rows(inputs, maps, cycle, plan, task_rows, qp):
     """Kernel of ``WholeBodyPlan.fill``: ``cycle_plan.planned_rows`` with the lines of the
     whole-body kinds, for inputs = (``planned_rows``' state, body, frames), body = (Jcom, dJcom v,
-    c, Jf, dJf v, M^-1, m), frames = the frame tasks' stacked (p, R, J6, dJ6 v), maps =
-    (``planned_rows``' impacts, (each impact's C, each impact's G)) and plan = (table,
+    c, Jf, dJf v, m), frames = the frame tasks' stacked (p, R, J6, dJ6 v), maps =
+    (``planned_rows``' impacts, (each impact's C, G and Z)) and plan = (table,
     parameters, first relaxed row)."""
     state, body, frames = inputs
     impacts, body_maps = maps
@@ -173,8 +177,8 @@ def body_general_rows(state, body_maps, active, horizon, table, parameters, qp):
     feet's wrench rows of ``table`` (unbounded while their impact is not active), for
     ``state`` = (v, J6, ``whole_body_rows``'s body)."""
     dq, J6, body = state
-    Jcom, com, Jf, drift, M_inv, mass = body[0], body[2], body[3], body[4], body[5], body[6]
-    com_maps, impulse_maps = body_maps
+    Jcom, com, Jf, drift, mass = body[0], body[2], body[3], body[4], body[5]
+    com_maps, impulse_maps, held_maps = body_maps
     C, row_lower, row_upper = qp[5], qp[3][dq.shape[0]:], qp[4][dq.shape[0]:]  # the general rows' bounds
     inv_h = 1.0 / horizon
     for e in range(table.shape[0]):
@@ -210,7 +214,7 @@ def body_general_rows(state, body_maps, active, horizon, table, parameters, qp):
             start += 36 * feet
             soles = parameters[start:start + 6 * feet * edges].reshape((feet, edges, 6))
             foot_wrench_rows(
-                (M_inv, np.ascontiguousarray(J6[:3]), Jf, impulse_maps[i]), (dq, com, mass),
+                (held_maps[i], np.ascontiguousarray(J6[:3]), impulse_maps[i]), (dq, com, mass),
                 (rotations, standing, soles, parameters[p + 2:p + 2 + feet]), (parameters[p + 1], inv_h),
                 rows_C, rows_upper,
             )
