@@ -94,7 +94,8 @@ def reduce_problem(full, partition, substitution, reduced):
     reduced = (H_r, g_r, C_r, [lb_f; l_r], [ub_f; u_r]); False when a held contact's block of
     Jf_e is singular. Jf_e is block diagonal (each held contact's 6 rows move its own chain,
     ``held_chain_velocities``): one 6 x 6 solve per block. The products run over the columns of
-    [E | e0] that have a non-zero entry (a foot's chain moves with the base alone)."""
+    [E | e0] that have a non-zero entry (a foot's chain moves with the base alone), along the
+    rows of H (symmetric: H[:, e] = H[e, :]^T) and of C."""
     H, g, C, lower, upper = full
     held, e, f = partition
     Hr, gr, Cr, lower_r, upper_r = reduced
@@ -119,27 +120,48 @@ def reduce_problem(full, partition, substitution, reduced):
                 used[count] = j
                 count += 1
                 break
-    HE = np.zeros((n, m + 1))  # H[:, e] [E | e0]
+    S = np.empty((k, count))  # [E | e0] on its used columns
+    for a in range(k):
+        for t in range(count):
+            S[a, t] = substitution[a, used[t]]
+    HE = np.zeros((count, n))  # (H[:, e] [E | e0])^T on the used columns, row by row (H symmetric)
     for t in range(count):
-        j = used[t]
         for a in range(k):
-            s = substitution[a, j]
-            for i in range(n):
-                HE[i, j] += H[i, e[a]] * s
+            s = S[a, t]
+            if s != 0.0:
+                for i in range(n):
+                    HE[t, i] += s * H[e[a], i]
+    last = count - 1 if count and used[count - 1] == m else count  # the used columns of E (without e0)
+    HEe = np.empty((k, count))  # H_ee [E | e0] on the used columns
+    for a in range(k):
+        for t in range(count):
+            HEe[a, t] = HE[t, e[a]]
     for i in range(m):
-        gr[i] = g[f[i]] + HE[f[i], m]
         lower_r[i], upper_r[i] = lower[f[i]], upper[f[i]]
+        gr[i] = g[f[i]]
         for j in range(m):
-            Hr[i, j] = H[f[i], f[j]] + HE[f[i], j] + HE[f[j], i]
-    for t in range(count):  # + E^T H_ee E and E^T (g_e + H_ee e0): the rows i of E's used columns
+            Hr[i, j] = H[f[i], f[j]]
+    for t in range(count):  # + H_fe E + E^T H_ef, and H_fe e0 in g_r
+        j = used[t]
+        for i in range(m):
+            value = HE[t, f[i]]
+            if j == m:
+                gr[i] += value
+            else:
+                Hr[i, j] += value
+                Hr[j, i] += value
+    for t in range(last):  # + E^T H_ee E and E^T (g_e + H_ee e0): the rows i of E's used columns
         i = used[t]
-        if i == m:
-            continue
         for a in range(k):
-            s = substitution[a, i]
-            gr[i] += s * (g[e[a]] + HE[e[a], m])
-            for j in range(m):
-                Hr[i, j] += s * HE[e[a], j]
+            s = S[a, t]
+            if s == 0.0:
+                continue
+            gr[i] += s * g[e[a]]
+            if last < count:
+                gr[i] += s * HEe[a, last]
+            for u in range(last):
+                Hr[i, used[u]] += s * HEe[a, u]
+    products = np.empty(count)  # C[r, e] [E | e0] on the used columns
     for r in range(C.shape[0]):
         if first <= r < end:  # the held row's place: the bounds of one eliminated velocity
             a = r - first
@@ -149,17 +171,15 @@ def reduce_problem(full, partition, substitution, reduced):
             continue
         for j in range(m):
             Cr[r, j] = C[r, f[j]]
-        shift = 0.0
+        products[:] = 0.0
         for a in range(k):
             c = C[r, e[a]]
-            if c == 0.0:
-                continue
-            for t in range(count):
-                j = used[t]
-                if j == m:
-                    shift += c * substitution[a, m]
-                else:
-                    Cr[r, j] += c * substitution[a, j]
+            if c != 0.0:
+                for t in range(count):
+                    products[t] += c * S[a, t]
+        for t in range(last):
+            Cr[r, used[t]] += products[t]
+        shift = products[last] if last < count else 0.0
         lower_r[m + r] = lower[n + r] - shift
         upper_r[m + r] = upper[n + r] - shift
     return True
