@@ -103,9 +103,9 @@ class FootWrenchLimit(Constraint):
             C[:] = 0.0
             upper[:] = np.inf
             return
-        impact = self.impact
+        impact, J = self.impact, np.ascontiguousarray(terms.J6[:3])
         foot_wrench_rows(
-            (impact.held_impulse_map(terms), np.ascontiguousarray(terms.J6[:3]), impact.row_matrices(terms).impulse_map),
+            (impact.held_impulse_map(terms), J, impact.row_matrices(terms).impulse_map),
             (terms.dq, terms.com, terms.mass),
             (self._rotations, self._standing, self._soles, self._friction),
             (self.duration, 1.0 / cycle.horizon), C, upper,

@@ -176,8 +176,9 @@ class ExpectedImpact:
         self._fixed_base_buffer = np.empty(0)
         self._fixed_base_matrices = self._fixed_base_views = JumpMatrices(None, None, None, None)
         # On held contacts: A, P, G, C and the held contacts' impulse map Z, allocated at the first fill
-        self._held_method = HELD_CONTACT_METHODS.index(jump_model_name) if jump_model_name in HELD_CONTACT_METHODS else -1
-        self._held_buffers: tuple = ()
+        held_method = jump_model_name in HELD_CONTACT_METHODS
+        self._held_method = HELD_CONTACT_METHODS.index(jump_model_name) if held_method else -1
+        self._held_buffers: tuple = (None, None, None, None, np.empty((0, 3)))
         self._held_matrices = self._held_views = self._fixed_base_matrices
 
     @property
@@ -224,10 +225,10 @@ class ExpectedImpact:
         return self._edge_impulses
 
     def held_impulse_map(self, terms) -> np.ndarray:
-        """Z = (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T (6 rows per held contact x 3) of this state on held
-        contacts: the held contacts' impulsive wrenches lambda = -Z iota (``jump.held_impulse``),
-        computed with the jump maps (``jump_kernels.held_contact_maps_into``); valid until the next
-        fill of the terms, as ``row_matrices``."""
+        """Z = (Jf M^-1 Jf^T)^-1 Jf M^-1 J^T (6 rows per held contact x 3) of this state: the held
+        contacts' impulsive wrenches lambda = -Z iota (``jump.held_impulse``), computed with the
+        jump maps (``jump_kernels.held_contact_maps_into``; no rows without held contacts); valid
+        until the next fill of the terms, as ``row_matrices``."""
         if terms.stamp != self._stamp:
             self._update(terms)
         return self._held_buffers[4]
@@ -289,8 +290,10 @@ class ExpectedImpact:
         impulse map Z written into buffers allocated at the first fill (or when the sizes change),
         in one compiled call (``jump_kernels.held_contact_maps_into``)."""
         nv, held = terms.J.shape[1], terms.held_jacobian.shape[0]
-        if not self._held_buffers or self._held_buffers[4].shape[0] != held or self._held_buffers[0].shape[0] != nv:
-            self._held_buffers = (np.empty((nv, nv)), np.empty((nv, nv)), np.empty((3, 3)), np.empty((3, 3)), np.empty((held, 3)))
+        jump_matrix, held_impulses = self._held_buffers[0], self._held_buffers[4]
+        if jump_matrix is None or jump_matrix.shape[0] != nv or held_impulses.shape[0] != held:
+            square, small = (nv, nv), (3, 3)
+            self._held_buffers = (np.empty(square), np.empty(square), np.empty(small), np.empty(small), np.empty((held, 3)))
             self._held_matrices = JumpMatrices(*self._held_buffers[:4])
             self._held_views = JumpMatrices(*(read_only(array) for array in self._held_buffers[:4]))
         self._matrices, self._views = self._held_matrices, self._held_views

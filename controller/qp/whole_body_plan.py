@@ -9,13 +9,14 @@ the impact (frictionless: the edge variants keep the generic assembly). Its tabl
 parameters are the arm plan's (a frame task's line holds the index of its frame in the column of
 the expected impact); ``fill`` gathers each frame task's frame (position, rotation, J6, dJ6 v:
 ``FrameTask.frame_state``) into stacked arrays, the expected impacts' maps (A, P, the edges', G,
-C and the held contacts' impulse map Z, computed once with the jump maps) and activations, and calls ``whole_body_rows``: the arm plan's kernels on their lines,
-each class's own kernel on its lines (``com_rows``, ``frame_rows``, ``capture_rows``,
-``foot_wrench_rows``; the held contacts' rows C = Jf, l = u = -dJf v), then the cost, the boxes and
-the relaxed rows as ``cycle_plan.planned_rows``. The QP it writes is the generic assembly's: the
-same kernels on the same inputs. The model terms a line does not need are not read (a floating
-base's h, and M unless a torque limit asks for it, stay unfilled; the rows read M^-1 only
-through the impacts' maps).
+C and the held contacts' impulse map Z, computed once with the jump maps) and activations, and
+calls ``whole_body_rows``: the arm plan's kernels on their lines, each class's own kernel on its
+lines (``com_rows``, ``frame_rows``, ``capture_rows``, ``foot_wrench_rows``; the held contacts'
+rows C = Jf, l = u = -dJf v), then the cost, the boxes and the relaxed rows as
+``cycle_plan.planned_rows``. The QP it writes is the generic assembly's: the same kernels on the
+same inputs. The model terms a line does not need are not read (a floating base's h, and M
+unless a torque limit asks for it, stay unfilled; the rows read M^-1 only through the impacts'
+maps).
 """
 
 from __future__ import annotations
@@ -81,7 +82,9 @@ class WholeBodyPlan(CyclePlan):
         plan.frames = (np.zeros((count, 3)), np.zeros((count, 3, 3)), np.zeros((count, 6, n)), np.zeros((count, 6)))
         kinds = set(plan.table[:, KIND].tolist())
         plan.reads = (TORQUE in kinds, bool(kinds & set(BODY_KINDS)))
-        plan.placeholders = (np.zeros((n, n)), np.zeros(n), np.zeros((3, n)), np.zeros(3), np.zeros((3, 3)), np.zeros((0, 3)))
+        plan.placeholders = (
+            np.zeros((n, n)), np.zeros(n), np.zeros((3, n)), np.zeros(3), np.zeros((3, 3)), np.zeros((0, 3)),
+        )
         return plan
 
     def fill(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
@@ -121,10 +124,9 @@ class WholeBodyPlan(CyclePlan):
         com_maps, impulse_maps, held_maps = [], [], []
         for impact in self.impacts:
             matrices = impact.row_matrices(terms)
-            held = matrices.com_map is not None
-            com_maps.append(matrices.com_map if held else zeros)
+            com_maps.append(zeros if matrices.com_map is None else matrices.com_map)
             impulse_maps.append(matrices.impulse_map)
-            held_maps.append(impact.held_impulse_map(terms) if held else no_rows)
+            held_maps.append(impact.held_impulse_map(terms))
         return tuple(com_maps), tuple(impulse_maps), tuple(held_maps)
 
 
