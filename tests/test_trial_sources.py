@@ -309,6 +309,12 @@ def test_fed_its_own_command_the_close_stance_balances_after_the_impact_and_stan
     assert not trial.fell and trial.record.not_ok == 0 and not trial.failures
 
 
-def test_the_balance_feedback_is_checked():
+def test_the_balance_feedback_is_checked_and_given_at_the_stop_to_a_standing_robot_only(robot):
     with pytest.raises(BadInputError):
         QpCommand(balance_feedback="predicted")
+    arm_q0 = ARM.description.postures["elbow_up"].q
+    for model, q0 in ((robot, stance_posture(robot, STANCES["parallel"])), (ARM, arm_q0)):
+        driver = QpCommand().start(TrialStart(model, q0, np.zeros(model.nv), DEFAULT_WALL, 0.2))
+        assert driver.source.feedback == "commanded"
+        driver.stop()
+        assert driver.source.feedback == ("blended" if model is robot else "commanded")
