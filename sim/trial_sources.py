@@ -329,7 +329,9 @@ class QpRecord:
 class QpDriver:
     """One trial of :class:`QpCommand`, a stopping command source (``sim.trial_loop``): zero
     commands during the settling (``settle`` s), then the controller, reset at its first cycle at
-    the measured state; ``step(q, v)`` -> the joints' dq_cmd at the source's control step."""
+    the measured state and given the state of ``feedback`` (the approach's, the balance's: from
+    the stop on, a standing robot); ``step(q, v)`` -> the joints' dq_cmd at the source's control
+    step."""
 
     def __init__(self, controller, feedback: tuple[str, str], settle: float = 0.0, control_period: float = 1e-3):
         (approach, self.balance_feedback), self.controller = feedback, controller
