@@ -21,8 +21,10 @@ on them for ``TrialStart.settle`` s, during which every source commands the join
   convention, ``scenarios.trial`` says why), the measured state, or a blend of the two
   (``"blended"``: ``sim.trial_loop.ControllerSource``); at the stop the hand's approach speed
   target becomes 0 (``ContactApproachTask.reference_velocity``): the QP brakes within its
-  acceleration and jerk limits, and a standing robot's controller that sees its body (fed the
-  blended or measured state) turns to its balance (``controller.config.post_impact_balance``).
+  acceleration and jerk limits, and a standing robot's controller is given from then on the
+  state of ``balance_feedback`` (the blended state by default: fed its own command it would not
+  see the body the impact set moving, and the close stance fell 0.4 s after its impact) and, when
+  that state sees its body, turns to its balance (``controller.config.post_impact_balance``).
   Why the task target and not a second reset: a reset would re-capture the CoM, torso
   and posture targets at the post-impact state and zero the controller's acceleration memory, a
   step of acceleration that skips the jerk limit. Each cycle's status, the impact rows' activity
@@ -215,7 +217,8 @@ CARTESIAN = CartesianApproach()
 class QpCommand:
     """The robot's default controller as a trial's command source (module docstring): the jump
     predictor of its impact rows (``method``: a jump model, None without the rows), the QP solver,
-    which state it is given (``feedback``), the start gap of a standing robot's trial (m), and the
+    which state it is given during the approach (``feedback``) and, a standing robot, from the
+    stop on (``balance_feedback``), the start gap of a standing robot's trial (m), and the
     approach options c_r, delta_t, the posture task's weight (None: the preset's) and the friction
     mu of an arm's robust friction rows (0: none; docs/frictional-impacts.md). A standing robot's
     trial starts from its run-up (``gap`` None, :meth:`start_posture`) or ``gap`` m from the wall at
@@ -224,6 +227,7 @@ class QpCommand:
     method: str | None = "crb"
     solver: str = "daqp"
     feedback: str = "commanded"
+    balance_feedback: str = "blended"
     gap: float | None = None
     restitution: float = 0.0
     impact_duration: float | None = None
@@ -234,8 +238,9 @@ class QpCommand:
     holds_at_stop = False  # the QP brakes the joints itself (its acceleration and jerk limits)
 
     def __post_init__(self):
-        if self.feedback not in FEEDBACK:
-            raise BadInputError(f"unknown feedback {self.feedback!r}; choose from {', '.join(FEEDBACK)}")
+        for feedback in (self.feedback, self.balance_feedback):
+            if feedback not in FEEDBACK:
+                raise BadInputError(f"unknown feedback {feedback!r}; choose from {', '.join(FEEDBACK)}")
 
     def approach_time(self, gap: float, speed: float) -> float:
         """s allowed from the end of the settling to the first wall contact: three times the gap
@@ -277,7 +282,7 @@ class QpCommand:
     def start(self, start: TrialStart) -> QpDriver:
         """The driver of one trial: the controller of the start posture towards the start's wall."""
         controller = build_controller(self.config(start), start.robot, start.q0)
-        return QpDriver(controller, self.feedback, start.settle, start.control_period)
+        return QpDriver(controller, (self.feedback, self.balance_feedback), start.settle, start.control_period)
 
 
 @dataclass
@@ -324,10 +329,13 @@ class QpRecord:
 class QpDriver:
     """One trial of :class:`QpCommand`, a stopping command source (``sim.trial_loop``): zero
     commands during the settling (``settle`` s), then the controller, reset at its first cycle at
-    the measured state; ``step(q, v)`` -> the joints' dq_cmd at the source's control step."""
+    the measured state and given the state of ``feedback`` (the approach's, the balance's: from
+    the stop on, a standing robot); ``step(q, v)`` -> the joints' dq_cmd at the source's control
+    step."""
 
-    def __init__(self, controller, feedback: str, settle: float = 0.0, control_period: float = 1e-3):
-        self.controller, self.source = controller, ControllerSource(controller, feedback)
+    def __init__(self, controller, feedback: tuple[str, str], settle: float = 0.0, control_period: float = 1e-3):
+        (approach, self.balance_feedback), self.controller = feedback, controller
+        self.source = ControllerSource(controller, approach)
         self.approach = next(t for t in controller.tasks if isinstance(t, ContactApproachTask))
         self.settle, self.period = settle, control_period
         self.record = QpRecord()
@@ -335,10 +343,15 @@ class QpDriver:
 
     def stop(self) -> None:
         """The hand's approach speed target becomes 0 (module docstring); a standing robot's
-        controller that sees its body turns to its balance (``controller.config.post_impact_balance``:
-        fed its own command it would balance a body it does not see)."""
+        controller is given the balance's state from now on (``QpCommand.balance_feedback``) and,
+        when that state sees its body (blended or measured), turns to its balance
+        (``controller.config.post_impact_balance``: fed its own command it would balance a body it
+        does not see)."""
         self.approach.reference_velocity = np.zeros(3)
-        if self.source.feedback != "commanded":
+        if not self.controller.robot.description.held_contacts:
+            return
+        self.source.feedback = self.balance_feedback
+        if self.balance_feedback != "commanded":
             balance_after_impact(self.controller)
 
     def step(self, q_pin: np.ndarray, v_pin: np.ndarray) -> VelocityCommand:

@@ -32,8 +32,9 @@ def robot():
 
 @pytest.fixture(scope="module")
 def trial(robot):
-    """A moderate asked speed (0.3 m/s) in the parallel stance."""
-    return run_impact_trial(robot, STANCES["parallel"], 0.3, source=QpCommand())
+    """A moderate asked speed (0.3 m/s) in the parallel stance, the QP fed its own command also
+    after the stop (``balance_feedback``: it brakes and does not balance)."""
+    return run_impact_trial(robot, STANCES["parallel"], 0.3, source=QpCommand(balance_feedback="commanded"))
 
 
 def test_the_qp_drives_the_hand_to_the_wall_and_the_robot_stands(trial):
@@ -146,7 +147,7 @@ def pushed_standing(robot, feedback):
     scene = build_humanoid_scene(robot, wall_x=float(contact[0]) + 1.0)
     wall = Surface(np.array([scene.wall_x, contact[1], contact[2]]), NORMAL.copy())
     start = TrialStart(robot, q0, np.zeros(robot.nv), wall, 0.3, settle=SETTLE, sink=SINK)
-    driver = QpCommand(feedback=feedback).start(start)
+    driver = QpCommand(feedback=feedback, balance_feedback=feedback).start(start)
     driver.stop()
     pushed = Pushed(driver, scene.data)
     run = run_source(servoed_plant(scene, robot, DEFAULT_CONTROL_PERIOD, SERVO_GAIN), pushed, Ending(PUSH_STEPS),
@@ -294,3 +295,26 @@ def test_from_its_run_up_the_qp_holds_the_hand_at_the_orientation_of_the_contact
     plain.reset(run_up, np.zeros(robot.nv))
     plain_approach = next(t for t in plain.tasks if isinstance(t, ContactApproachTask))
     np.testing.assert_allclose(plain_approach.target_rotation, turned, atol=1e-12)
+
+
+def test_fed_its_own_command_the_close_stance_balances_after_the_impact_and_stands(robot):
+    """Fed its own command during the approach, the QP did not see its body after the impact and
+    the close stance asked for 0.9 times its closed form fell 0.4 s after the contact; from the
+    stop on it is given the blended state (``QpCommand.balance_feedback``) and balances
+    (``controller.config.post_impact_balance``): it stands, no onset, every cycle OK."""
+    stance = STANCES["close"]
+    limit = closed_form_max_speed(robot, robot.terms(stance_posture(robot, stance)), NORMAL).speed
+    trial = run_impact_trial(robot, stance, 0.9 * limit, source=QpCommand())
+    assert trial.contact_speed > 0.8 * limit
+    assert not trial.fell and trial.record.not_ok == 0 and not trial.failures
+
+
+def test_the_balance_feedback_is_checked_and_given_at_the_stop_to_a_standing_robot_only(robot):
+    with pytest.raises(BadInputError):
+        QpCommand(balance_feedback="predicted")
+    arm_q0 = ARM.description.postures["elbow_up"].q
+    for model, q0 in ((robot, stance_posture(robot, STANCES["parallel"])), (ARM, arm_q0)):
+        driver = QpCommand().start(TrialStart(model, q0, np.zeros(model.nv), DEFAULT_WALL, 0.2))
+        assert driver.source.feedback == "commanded"
+        driver.stop()
+        assert driver.source.feedback == ("blended" if model is robot else "commanded")
