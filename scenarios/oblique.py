@@ -7,7 +7,9 @@ Trials (:class:`ObliqueGrid`): the grid v_t / v_n in {0, 0.25, 0.5, 0.75, 1} x m
 tangential velocity lies along the surface tangent t = normalise(n x e_z) of ``sim.generation``.
 Each trial: the plain Cartesian approach (``sim.trial_sources.CartesianApproach``: no QP, the
 tool hits at the commanded velocity) on the scene whose wall has the trial's mu (the Surface's
-``friction``: MuJoCo's tool/wall pair, elliptic cone, condim 3), started 2 cm before the wall at
+``friction``: MuJoCo's tool/wall pair, elliptic cone, condim 3; MuJoCo's noslip post-processing
+on, ``sim.scene.NOSLIP_ITERATIONS``, so that a contact inside its cone sticks instead of
+creeping), started 2 cm before the wall at
 the commanded velocity, on the default plant or another (``sim.plant``: e.g. a joint impedance
 servo, ``servo_stiffness``; docs/frictional-impacts.md, "Whose W the simulated arm has").
 
@@ -42,7 +44,7 @@ from impactqp.sim.generation import tangential_direction
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import ProcessPool
 from impactqp.sim.runner import TrialSpec, run_approach
-from impactqp.sim.scene import Scene, build_scene
+from impactqp.sim.scene import NOSLIP_ITERATIONS, Scene, build_scene
 from impactqp.sim.trial_sources import CARTESIAN
 
 from .campaign import PAPER_TANGENTIAL_SPEEDS, TANGENTIAL_NORMAL_SPEED
@@ -124,7 +126,8 @@ class ObliqueTrials:
     def scene(self, friction: float) -> Scene:
         if friction not in self.scenes:
             surface = Surface(DEFAULT_WALL.point, DEFAULT_WALL.normal, friction)
-            self.scenes[friction] = build_scene(surface, self.plant, robot=self.choice.robot, tool=self.choice.tool)
+            self.scenes[friction] = build_scene(surface, self.plant, robot=self.choice.robot, tool=self.choice.tool,
+                                                noslip_iterations=NOSLIP_ITERATIONS)
         return self.scenes[friction]
 
     def run(self, trial: ObliqueTrial) -> dict:
