@@ -18,7 +18,9 @@ restitution, its tangential part p_t, the post-impact tangential contact velocit
 least tangential speed along the impact and the observed mode. Predicted, for CRB, GM and the
 classical law: ``frictional_impulse(W, n, v-, mu, e = 0)`` with the predictor's inverse inertia
 W (``controller.model.prediction.inverse_inertia``) at the pre-impact state (q-, dq-),
-v- = J(q-) dq-: p_t, v_t+, the law's own mode (``law_mode``) and its least tangential speed.
+v- = J(q-) dq-: p_t, v_t+, the law's own mode (``law_mode``) and its least tangential speed
+(:func:`law_row`). ``impactqp oblique`` adds the reference row "plant", the same law with the
+simulated plant's own W (``scenarios.oblique_inertia.with_plant_row``).
 
 A predicted v_t+ **agrees** when |v_t+ predicted - v_t+ simulated| <= max(20 % |v_t+ simulated|,
 0.01 m/s). A predicted mode **agrees** when the law's path, read by the simulation's rule
@@ -147,25 +149,34 @@ class ObliqueTrials:
             "end_rule": measured.end_rule, "window": (measured.end + 1 - measured.start) * step,
         }
         terms = self.robot.terms(measured.q_pre, measured.dq_pre, check_limits=False)
-        predicted = {}
-        for method in FRICTIONAL_METHODS:
-            W = inverse_inertia(method, terms, normal, RESTITUTION)
-            impact = frictional_impulse(W, normal, measured.pre_velocity, trial.friction, RESTITUTION)
-            post = tangential_part(impact.post_velocity, normal)
-            mode = observed_mode(impact.least_tangential_speed, float(np.linalg.norm(post)))
-            predicted[method] = {
-                "normal_impulse": float(normal @ impact.impulse),
-                "tangential_impulse": tangential_part(impact.impulse, normal).tolist(),
-                "post_tangential": post.tolist(), "mode": mode, "law_mode": impact.mode, "mu_bar": impact.mu_bar,
-                "least_tangential_speed": impact.least_tangential_speed,
-                "mode_agrees": mode == measured.mode,
-                "velocity_agrees": velocity_agrees(post, measured.post_tangential),
-            }
+        predicted = {
+            method: law_row(inverse_inertia(method, terms, normal, RESTITUTION), measured.pre_velocity, trial.friction,
+                            simulated)
+            for method in FRICTIONAL_METHODS
+        }
         return {
             "series": trial.series, "posture": trial.posture, "normal_speed": trial.normal_speed,
             "tangential_speed": trial.tangential_speed, "friction": trial.friction,
             "simulated": simulated, "predicted": predicted,
         }
+
+
+def law_row(W: np.ndarray, pre_velocity: np.ndarray, friction: float, simulated: dict) -> dict:
+    """The frictional law with inverse inertia ``W`` at the wall (``frictional_impulse``, e =
+    ``RESTITUTION``) from the pre-impact contact velocity v-, read as the simulation is
+    (``observed_mode``) and against the ``simulated`` row's mode and v_t+ (module docstring)."""
+    normal = DEFAULT_WALL.normal
+    impact = frictional_impulse(W, normal, pre_velocity, friction, RESTITUTION)
+    post = tangential_part(impact.post_velocity, normal)
+    mode = observed_mode(impact.least_tangential_speed, float(np.linalg.norm(post)))
+    return {
+        "normal_impulse": float(normal @ impact.impulse),
+        "tangential_impulse": tangential_part(impact.impulse, normal).tolist(),
+        "post_tangential": post.tolist(), "mode": mode, "law_mode": impact.mode, "mu_bar": impact.mu_bar,
+        "least_tangential_speed": impact.least_tangential_speed,
+        "mode_agrees": mode == simulated["mode"],
+        "velocity_agrees": velocity_agrees(post, np.asarray(simulated["post_tangential"])),
+    }
 
 
 def velocity_agrees(predicted: np.ndarray, simulated: np.ndarray) -> bool:
@@ -178,6 +189,7 @@ def summary(rows: list[dict]) -> dict:
     """Per series (and "all", and the grid per wall friction: "mu = 0.1", ...) and predictor:
     trials, the share (%) whose mode agrees, whose v_t+ agrees and whose law's own mode is the
     simulated one (module docstring)."""
+    methods = list(rows[0]["predicted"]) if rows else []
     groups = {series: [r for r in rows if series in ("all", r["series"])] for series in (*SERIES, "all")}
     for mu in sorted({r["friction"] for r in rows if r["series"] == "grid"}):
         groups[f"mu = {mu:g}"] = [r for r in rows if r["series"] == "grid" and r["friction"] == mu]
@@ -193,7 +205,7 @@ def summary(rows: list[dict]) -> dict:
                 "law_mode_agreement": 100.0 * np.mean(
                     [r["predicted"][method]["law_mode"] == r["simulated"]["mode"] for r in chosen]),
             }
-            for method in FRICTIONAL_METHODS
+            for method in methods
         }
     return result
 
@@ -245,7 +257,7 @@ def markdown(report: dict) -> str:
         for method, s in methods.items():
             lines.append(f"| {series} | {method} | {s['trials']} | {s['mode_agreement']:.0f} % "
                          f"| {s['velocity_agreement']:.0f} % | {s['law_mode_agreement']:.0f} % |")
-    methods = list(FRICTIONAL_METHODS)
+    methods = list(report["rows"][0]["predicted"]) if report["rows"] else []
     lines += ["", "| series | posture | mu | v_t | sim mode | sim least | sim \\|p_t\\|/p_n | sim \\|v_t+\\| | "
               + " | ".join(f"{m} mode | {m} least | {m} \\|p_t\\|/p_n | {m} \\|v_t+\\|" for m in methods) + " |",
               "|" + "---|" * (8 + 4 * len(methods))]

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from impactqp.controller.model.choice import RobotChoice
+from impactqp.controller.model.frictional_impact import frictional_impulse
 from impactqp.controller.model.jump import gm_inverse_inertia
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.scenarios.cli import main
@@ -15,9 +16,11 @@ from impactqp.scenarios.oblique_inertia import (
     FRANKA_JOINT_STIFFNESS,
     PULSE_DURATIONS,
     SERVOS,
+    PLANT_PULSE,
     HeldArm,
     describe,
     servos,
+    with_plant_row,
 )
 from impactqp.sim.plant import PlantParameters
 
@@ -49,6 +52,24 @@ def test_a_computed_torque_servo_only_scales_the_free_joints_inverse_inertia(pos
     assert 0.0 < c < 1.0
     np.testing.assert_allclose(W, c * W_gm, atol=2e-2 * np.abs(W_gm).max())
     assert describe(W, DEFAULT_WALL.normal)["mu_bar"] == pytest.approx(describe(W_gm, DEFAULT_WALL.normal)["mu_bar"], rel=2e-2)
+
+
+def test_the_plant_row_is_the_law_with_the_plants_own_inverse_inertia(posture):
+    """On the default plant W_sim = c W_gm over the pulse (above): a contact that sticks (mu =
+    0.6 above W_gm's mu_bar) stops fully, P = -W_sim^-1 v-, so the plant row's normal impulse is
+    W_gm's over c, and its mode the stick of the simulated row."""
+    q, W_gm = posture
+    W = HeldArm(CHOICE, PlantParameters()).inverse_inertia(q, PLANT_PULSE)
+    c = np.sum(W * W_gm) / np.sum(W_gm * W_gm)
+    simulated = {"pre_tangential": [0.0, 0.03, 0.0], "contact_speed": 0.12, "mode": "stick", "post_tangential": [0.0] * 3}
+    row = {"series": "grid", "posture": "elbow_right", "friction": 0.6, "simulated": simulated, "predicted": {}}
+    report = with_plant_row({"rows": [row]}, CHOICE, None)
+    plant = report["rows"][0]["predicted"]["plant"]
+    normal = DEFAULT_WALL.normal
+    free = frictional_impulse(W_gm, normal, np.array([0.0, 0.03, 0.0]) - 0.12 * normal, 0.6, 0.0)
+    assert plant["mode"] == "stick" and plant["mode_agrees"] and plant["velocity_agrees"]
+    assert plant["normal_impulse"] == pytest.approx(normal @ free.impulse / c, rel=2e-2)
+    assert report["plant_pulse"] == PLANT_PULSE and report["summary"]["all"]["plant"]["mode_agreement"] == 100.0
 
 
 def test_the_servos_of_the_study():
