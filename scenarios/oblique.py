@@ -19,8 +19,12 @@ least tangential speed along the impact and the observed mode. Predicted, for CR
 classical law: ``frictional_impulse(W, n, v-, mu, e = 0)`` with the predictor's inverse inertia
 W (``controller.model.prediction.inverse_inertia``) at the pre-impact state (q-, dq-),
 v- = J(q-) dq-: p_t, v_t+, the law's own mode (``law_mode``) and its least tangential speed
-(:func:`law_row`). ``impactqp oblique`` adds the reference row "plant", the same law with the
-simulated plant's own W (``scenarios.oblique_inertia.with_plant_row``).
+(:func:`law_row`). On a plant with a joint impedance (``servo_stiffness``) a fourth predictor,
+"impedance": the law with the held arm's W_K(T) from the model
+(``controller.model.impedance_inverse_inertia``: the arm linearised at q-, held by the plant's
+stiffness K, critically damped, over a half-sine pulse of T = ``IMPACT_DURATION``).
+``impactqp oblique`` adds the reference row "plant", the same law with the simulated plant's own
+W over the same pulse (``scenarios.oblique_inertia.with_plant_row``).
 
 A predicted v_t+ **agrees** when |v_t+ predicted - v_t+ simulated| <= max(20 % |v_t+ simulated|,
 0.01 m/s). A predicted mode **agrees** when the law's path, read by the simulation's rule
@@ -39,6 +43,7 @@ import numpy as np
 from impactqp.controller.measured.oblique_impact import measure_oblique_impact, observed_mode, tangential_part
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.frictional_impact import frictional_impulse
+from impactqp.controller.model.impedance_inverse_inertia import impedance_inverse_inertia
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.controller.model.prediction import FRICTIONAL_METHODS, inverse_inertia
 from impactqp.controller.model.validation import BadInputError
@@ -58,6 +63,10 @@ VELOCITY_FLOOR = 0.01
 """m/s: a predicted v_t+ agrees within max(VELOCITY_SHARE |v_t+ simulated|, VELOCITY_FLOOR)."""
 RESTITUTION = 0.0
 """The predictions' restitution e (energetic): MuJoCo's contact pair is critically damped."""
+IMPACT_DURATION = 0.015
+"""s: T, the pulse over which a held arm's W is taken, the "impedance" row's (module docstring) and
+the reference row "plant"'s: as long as the study's impacts (windows of 10 to 20 ms,
+docs/frictional-impacts.md)."""
 POSTURES = 2
 """The grid's postures: the robot's first named ones."""
 SERIES = ("grid", "paper")
@@ -154,6 +163,10 @@ class ObliqueTrials:
                             simulated)
             for method in FRICTIONAL_METHODS
         }
+        stiffness = () if self.plant is None else self.plant.servo_stiffness
+        if stiffness:
+            W = impedance_inverse_inertia(terms, stiffness, IMPACT_DURATION)
+            predicted["impedance"] = law_row(W, measured.pre_velocity, trial.friction, simulated)
         return {
             "series": trial.series, "posture": trial.posture, "normal_speed": trial.normal_speed,
             "tangential_speed": trial.tangential_speed, "friction": trial.friction,

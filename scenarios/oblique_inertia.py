@@ -35,8 +35,8 @@ Reported per posture, servo and tau: n^T W n, the stick coefficient mu_bar = |W_
 (Frobenius) to W_gm and to W_crb, beside W_gm's and W_crb's own n^T W n and mu_bar.
 
 The oblique study's reference row "plant" (:func:`with_plant_row`, ``impactqp oblique``) is the
-frictional law with this W of the study's own plant over ``PLANT_PULSE``: what the law gives with
-the W the plant has over the impact (docs/frictional-impacts.md, "What v_t+ misses").
+frictional law with this W of the study's own plant over ``oblique.IMPACT_DURATION``: what the
+law gives with the W the plant has over the impact (docs/frictional-impacts.md, "What v_t+ misses").
 """
 
 from __future__ import annotations
@@ -54,15 +54,12 @@ from impactqp.sim.scene import build_scene
 from impactqp.sim.servo import JointImpedanceServo
 from impactqp.sim.trial_loop import ServoedPlant
 
-from .oblique import POSTURES, fixed_base, law_row, summary
+from .oblique import IMPACT_DURATION, POSTURES, fixed_base, law_row, summary
 
 PULSE_IMPULSE = 1e-3
 """N s: each pulse's impulse (small: the plant's response is linear in it)."""
 PULSE_DURATIONS = (0.001, 0.007, 0.015)
 """s: a 1 ms pulse (a hard contact), the scene's contact time constant and its impacts' length."""
-PLANT_PULSE = 0.015
-"""s: the pulse of the oblique study's reference row "plant" (:func:`with_plant_row`): as long as
-its impacts (windows of 10 to 20 ms, docs/frictional-impacts.md)."""
 FRANKA_JOINT_STIFFNESS = (3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0)
 """N m/rad: libfranka's default joint impedance (``setDefaultBehavior``, module docstring)."""
 SERVOS = ("computed-torque 5 rad/s", "computed-torque 50 rad/s", "computed-torque 500 rad/s", "Franka joint impedance")
@@ -127,13 +124,13 @@ class HeldArm:
 def with_plant_row(report: dict, choice: RobotChoice, plant: PlantParameters | None) -> dict:
     """The report of ``scenarios.oblique.run_oblique_study`` on ``plant`` (None: the default
     plant) with one more row per trial, "plant": the same frictional law with the simulated
-    plant's own W, measured at the trial's posture at rest over ``PLANT_PULSE``
+    plant's own W, measured at the trial's posture at rest over ``IMPACT_DURATION``
     (:meth:`HeldArm.inverse_inertia`), from the measured v- and read as the predictors are; and
     its summary again. A reference, not a predictor: what the law gives with the W the plant has
     over the impact, so that a predictor's miss splits into its W's share and the rest."""
     arm = HeldArm(choice, PlantParameters() if plant is None else plant)
     postures = {row["posture"] for row in report["rows"]}
-    plant_W = {name: arm.inverse_inertia(choice.posture(name).q, PLANT_PULSE) for name in sorted(postures)}
+    plant_W = {name: arm.inverse_inertia(choice.posture(name).q, IMPACT_DURATION) for name in sorted(postures)}
     normal = DEFAULT_WALL.normal
     rows = []
     for row in report["rows"]:
@@ -141,7 +138,7 @@ def with_plant_row(report: dict, choice: RobotChoice, plant: PlantParameters | N
         pre_velocity = np.asarray(simulated["pre_tangential"]) - simulated["contact_speed"] * normal
         plant_row = law_row(plant_W[row["posture"]], pre_velocity, row["friction"], simulated)
         rows.append({**row, "predicted": {**row["predicted"], "plant": plant_row}})
-    return {**report, "plant_pulse": PLANT_PULSE, "rows": rows, "summary": summary(rows)}
+    return {**report, "plant_pulse": IMPACT_DURATION, "rows": rows, "summary": summary(rows)}
 
 
 def describe(W: np.ndarray, normal: np.ndarray) -> dict:

@@ -254,9 +254,9 @@ def test_the_small_grid_runs_end_to_end_through_the_command(tmp_path, capsys, ro
         assert simulated["mode"] in ("slip", "stick", "reversal")
         p_n, p_t = simulated["normal_impulse"], np.linalg.norm(simulated["tangential_impulse"])
         assert p_t <= row["friction"] * p_n * (1 + 1e-9)
-        assert set(row["predicted"]) == {"classical", "gm", "crb", "plant"}
-    if servo:  # the joint impedance's v_t+ is the law's with the plant's own W, not with CRB's
-        assert all(r["predicted"]["plant"]["velocity_agrees"] for r in report["rows"])
+        assert set(row["predicted"]) == {"classical", "gm", "crb", "plant"} | ({"impedance"} if servo else set())
+    if servo:  # the joint impedance's v_t+ is the law's with the held arm's W (the plant's, the model's), not CRB's
+        assert all(r["predicted"][m]["velocity_agrees"] for r in report["rows"] for m in ("plant", "impedance"))
         assert not any(r["predicted"]["crb"]["velocity_agrees"] for r in report["rows"])
     summary = report["summary"]["all"]
     for method, s in summary.items():
