@@ -7,7 +7,9 @@ Trials (:class:`ObliqueGrid`): the grid v_t / v_n in {0, 0.25, 0.5, 0.75, 1} x m
 tangential velocity lies along the surface tangent t = normalise(n x e_z) of ``sim.generation``.
 Each trial: the plain Cartesian approach (``sim.trial_sources.CartesianApproach``: no QP, the
 tool hits at the commanded velocity) on the scene whose wall has the trial's mu (the Surface's
-``friction``: MuJoCo's tool/wall pair, elliptic cone, condim 3), started 2 cm before the wall at
+``friction``: MuJoCo's tool/wall pair, elliptic cone, condim 3; MuJoCo's noslip post-processing
+on, ``sim.scene.NOSLIP_ITERATIONS``, so that a contact inside its cone sticks instead of
+creeping), started 2 cm before the wall at
 the commanded velocity, on the default plant or another (``sim.plant``: e.g. a joint impedance
 servo, ``servo_stiffness``; docs/frictional-impacts.md, "Whose W the simulated arm has").
 
@@ -16,7 +18,13 @@ restitution, its tangential part p_t, the post-impact tangential contact velocit
 least tangential speed along the impact and the observed mode. Predicted, for CRB, GM and the
 classical law: ``frictional_impulse(W, n, v-, mu, e = 0)`` with the predictor's inverse inertia
 W (``controller.model.prediction.inverse_inertia``) at the pre-impact state (q-, dq-),
-v- = J(q-) dq-: p_t, v_t+, the law's own mode (``law_mode``) and its least tangential speed.
+v- = J(q-) dq-: p_t, v_t+, the law's own mode (``law_mode``) and its least tangential speed
+(:func:`law_row`). On a plant with a joint impedance (``servo_stiffness``) a fourth predictor,
+"impedance": the law with the held arm's W_K(T) from the model
+(``controller.model.impedance_inverse_inertia``: the arm linearised at q-, held by the plant's
+stiffness K, critically damped, over a half-sine pulse of T = ``IMPACT_DURATION``).
+``impactqp oblique`` adds the reference row "plant", the same law with the simulated plant's own
+W over the same pulse (``scenarios.oblique_inertia.with_plant_row``).
 
 A predicted v_t+ **agrees** when |v_t+ predicted - v_t+ simulated| <= max(20 % |v_t+ simulated|,
 0.01 m/s). A predicted mode **agrees** when the law's path, read by the simulation's rule
@@ -35,6 +43,7 @@ import numpy as np
 from impactqp.controller.measured.oblique_impact import measure_oblique_impact, observed_mode, tangential_part
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.frictional_impact import frictional_impulse
+from impactqp.controller.model.impedance_inverse_inertia import impedance_inverse_inertia
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.controller.model.prediction import FRICTIONAL_METHODS, inverse_inertia
 from impactqp.controller.model.validation import BadInputError
@@ -42,7 +51,7 @@ from impactqp.sim.generation import tangential_direction
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import ProcessPool
 from impactqp.sim.runner import TrialSpec, run_approach
-from impactqp.sim.scene import Scene, build_scene
+from impactqp.sim.scene import NOSLIP_ITERATIONS, Scene, build_scene
 from impactqp.sim.trial_sources import CARTESIAN
 
 from .campaign import PAPER_TANGENTIAL_SPEEDS, TANGENTIAL_NORMAL_SPEED
@@ -54,6 +63,10 @@ VELOCITY_FLOOR = 0.01
 """m/s: a predicted v_t+ agrees within max(VELOCITY_SHARE |v_t+ simulated|, VELOCITY_FLOOR)."""
 RESTITUTION = 0.0
 """The predictions' restitution e (energetic): MuJoCo's contact pair is critically damped."""
+IMPACT_DURATION = 0.015
+"""s: T, the pulse over which a held arm's W is taken, the "impedance" row's (module docstring) and
+the reference row "plant"'s: as long as the study's impacts (windows of 10 to 20 ms,
+docs/frictional-impacts.md)."""
 POSTURES = 2
 """The grid's postures: the robot's first named ones."""
 SERIES = ("grid", "paper")
@@ -124,7 +137,8 @@ class ObliqueTrials:
     def scene(self, friction: float) -> Scene:
         if friction not in self.scenes:
             surface = Surface(DEFAULT_WALL.point, DEFAULT_WALL.normal, friction)
-            self.scenes[friction] = build_scene(surface, self.plant, robot=self.choice.robot, tool=self.choice.tool)
+            self.scenes[friction] = build_scene(surface, self.plant, robot=self.choice.robot, tool=self.choice.tool,
+                                                noslip_iterations=NOSLIP_ITERATIONS)
         return self.scenes[friction]
 
     def run(self, trial: ObliqueTrial) -> dict:
@@ -144,25 +158,38 @@ class ObliqueTrials:
             "end_rule": measured.end_rule, "window": (measured.end + 1 - measured.start) * step,
         }
         terms = self.robot.terms(measured.q_pre, measured.dq_pre, check_limits=False)
-        predicted = {}
-        for method in FRICTIONAL_METHODS:
-            W = inverse_inertia(method, terms, normal, RESTITUTION)
-            impact = frictional_impulse(W, normal, measured.pre_velocity, trial.friction, RESTITUTION)
-            post = tangential_part(impact.post_velocity, normal)
-            mode = observed_mode(impact.least_tangential_speed, float(np.linalg.norm(post)))
-            predicted[method] = {
-                "normal_impulse": float(normal @ impact.impulse),
-                "tangential_impulse": tangential_part(impact.impulse, normal).tolist(),
-                "post_tangential": post.tolist(), "mode": mode, "law_mode": impact.mode, "mu_bar": impact.mu_bar,
-                "least_tangential_speed": impact.least_tangential_speed,
-                "mode_agrees": mode == measured.mode,
-                "velocity_agrees": velocity_agrees(post, measured.post_tangential),
-            }
+        predicted = {
+            method: law_row(inverse_inertia(method, terms, normal, RESTITUTION), measured.pre_velocity, trial.friction,
+                            simulated)
+            for method in FRICTIONAL_METHODS
+        }
+        stiffness = () if self.plant is None else self.plant.servo_stiffness
+        if stiffness:
+            W = impedance_inverse_inertia(terms, stiffness, IMPACT_DURATION)
+            predicted["impedance"] = law_row(W, measured.pre_velocity, trial.friction, simulated)
         return {
             "series": trial.series, "posture": trial.posture, "normal_speed": trial.normal_speed,
             "tangential_speed": trial.tangential_speed, "friction": trial.friction,
             "simulated": simulated, "predicted": predicted,
         }
+
+
+def law_row(W: np.ndarray, pre_velocity: np.ndarray, friction: float, simulated: dict) -> dict:
+    """The frictional law with inverse inertia ``W`` at the wall (``frictional_impulse``, e =
+    ``RESTITUTION``) from the pre-impact contact velocity v-, read as the simulation is
+    (``observed_mode``) and against the ``simulated`` row's mode and v_t+ (module docstring)."""
+    normal = DEFAULT_WALL.normal
+    impact = frictional_impulse(W, normal, pre_velocity, friction, RESTITUTION)
+    post = tangential_part(impact.post_velocity, normal)
+    mode = observed_mode(impact.least_tangential_speed, float(np.linalg.norm(post)))
+    return {
+        "normal_impulse": float(normal @ impact.impulse),
+        "tangential_impulse": tangential_part(impact.impulse, normal).tolist(),
+        "post_tangential": post.tolist(), "mode": mode, "law_mode": impact.mode, "mu_bar": impact.mu_bar,
+        "least_tangential_speed": impact.least_tangential_speed,
+        "mode_agrees": mode == simulated["mode"],
+        "velocity_agrees": velocity_agrees(post, np.asarray(simulated["post_tangential"])),
+    }
 
 
 def velocity_agrees(predicted: np.ndarray, simulated: np.ndarray) -> bool:
@@ -175,6 +202,7 @@ def summary(rows: list[dict]) -> dict:
     """Per series (and "all", and the grid per wall friction: "mu = 0.1", ...) and predictor:
     trials, the share (%) whose mode agrees, whose v_t+ agrees and whose law's own mode is the
     simulated one (module docstring)."""
+    methods = list(rows[0]["predicted"]) if rows else []
     groups = {series: [r for r in rows if series in ("all", r["series"])] for series in (*SERIES, "all")}
     for mu in sorted({r["friction"] for r in rows if r["series"] == "grid"}):
         groups[f"mu = {mu:g}"] = [r for r in rows if r["series"] == "grid" and r["friction"] == mu]
@@ -190,7 +218,7 @@ def summary(rows: list[dict]) -> dict:
                 "law_mode_agreement": 100.0 * np.mean(
                     [r["predicted"][method]["law_mode"] == r["simulated"]["mode"] for r in chosen]),
             }
-            for method in FRICTIONAL_METHODS
+            for method in methods
         }
     return result
 
@@ -242,7 +270,7 @@ def markdown(report: dict) -> str:
         for method, s in methods.items():
             lines.append(f"| {series} | {method} | {s['trials']} | {s['mode_agreement']:.0f} % "
                          f"| {s['velocity_agreement']:.0f} % | {s['law_mode_agreement']:.0f} % |")
-    methods = list(FRICTIONAL_METHODS)
+    methods = list(report["rows"][0]["predicted"]) if report["rows"] else []
     lines += ["", "| series | posture | mu | v_t | sim mode | sim least | sim \\|p_t\\|/p_n | sim \\|v_t+\\| | "
               + " | ".join(f"{m} mode | {m} least | {m} \\|p_t\\|/p_n | {m} \\|v_t+\\|" for m in methods) + " |",
               "|" + "---|" * (8 + 4 * len(methods))]

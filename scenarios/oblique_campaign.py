@@ -10,7 +10,7 @@ v_t = 0 (``friction_max_speed.frictional_max_speed`` at the named posture, the s
 controller's predictors): the approach's own ratio is measured, v_t- / v_c.
 
 Each trial runs twice on the scene whose wall has the trial's mu (``sim.scene``: the tool/wall
-pair, elliptic cone, condim 3), each the QP-limited run of ``scenarios.max_speed_search``: the
+pair, elliptic cone, condim 3; noslip on, the oblique study's scene, ``ObliqueTrials.scene``), each the QP-limited run of ``scenarios.max_speed_search``: the
 arm starts at rest ``qp_start_distance`` from the wall and its QP (``sim.trial_sources.QpCommand``,
 posture weight 0, the commanded state) is asked for a normal speed of ``QP_REQUEST_SPEED``
 (2 m/s) plus v_t: the impact rows cap the normal speed at the QP's own highest one.

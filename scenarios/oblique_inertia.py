@@ -33,6 +33,10 @@ Servos (:data:`SERVOS`), every one holding the posture, run as the simulated tri
 Reported per posture, servo and tau: n^T W n, the stick coefficient mu_bar = |W_tt^-1 W_tn|
 (Stronge eq. 4.12, the seed paper's Sec. VI-B) and the relative distance ||W_sim - W|| / ||W||
 (Frobenius) to W_gm and to W_crb, beside W_gm's and W_crb's own n^T W n and mu_bar.
+
+The oblique study's reference row "plant" (:func:`with_plant_row`, ``impactqp oblique``) is the
+frictional law with this W of the study's own plant over ``oblique.IMPACT_DURATION``: what the
+law gives with the W the plant has over the impact (docs/frictional-impacts.md, "What v_t+ misses").
 """
 
 from __future__ import annotations
@@ -50,7 +54,7 @@ from impactqp.sim.scene import build_scene
 from impactqp.sim.servo import JointImpedanceServo
 from impactqp.sim.trial_loop import ServoedPlant
 
-from .oblique import POSTURES, fixed_base
+from .oblique import IMPACT_DURATION, POSTURES, fixed_base, law_row, summary
 
 PULSE_IMPULSE = 1e-3
 """N s: each pulse's impulse (small: the plant's response is linear in it)."""
@@ -115,6 +119,26 @@ class HeldArm:
         columns = [J @ (self.response(q, PULSE_IMPULSE * frame[:, k], duration) - held) / PULSE_IMPULSE
                    for k in range(3)]
         return np.column_stack(columns) @ frame.T  # from the contact frame's impulses to world axes
+
+
+def with_plant_row(report: dict, choice: RobotChoice, plant: PlantParameters | None) -> dict:
+    """The report of ``scenarios.oblique.run_oblique_study`` on ``plant`` (None: the default
+    plant) with one more row per trial, "plant": the same frictional law with the simulated
+    plant's own W, measured at the trial's posture at rest over ``IMPACT_DURATION``
+    (:meth:`HeldArm.inverse_inertia`), from the measured v- and read as the predictors are; and
+    its summary again. A reference, not a predictor: what the law gives with the W the plant has
+    over the impact, so that a predictor's miss splits into its W's share and the rest."""
+    arm = HeldArm(choice, PlantParameters() if plant is None else plant)
+    postures = {row["posture"] for row in report["rows"]}
+    plant_W = {name: arm.inverse_inertia(choice.posture(name).q, IMPACT_DURATION) for name in sorted(postures)}
+    normal = DEFAULT_WALL.normal
+    rows = []
+    for row in report["rows"]:
+        simulated = row["simulated"]
+        pre_velocity = np.asarray(simulated["pre_tangential"]) - simulated["contact_speed"] * normal
+        plant_row = law_row(plant_W[row["posture"]], pre_velocity, row["friction"], simulated)
+        rows.append({**row, "predicted": {**row["predicted"], "plant": plant_row}})
+    return {**report, "plant_pulse": IMPACT_DURATION, "rows": rows, "summary": summary(rows)}
 
 
 def describe(W: np.ndarray, normal: np.ndarray) -> dict:

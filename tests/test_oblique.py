@@ -19,12 +19,14 @@ from impactqp.controller.measured.oblique_impact import (
     tangential_part,
 )
 from impactqp.controller.model.choice import RobotChoice
-from impactqp.controller.model.postures import DEFAULT_WALL
+from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.cli.exit_codes import EXIT_BAD_INPUT
 from impactqp.scenarios.oblique import GRIDS, ObliqueTrials, velocity_agrees
 from impactqp.sim.generation import tangential_direction
+from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import TrialSpec, run_approach
+from impactqp.sim.scene import NOSLIP_ITERATIONS, build_scene
 from impactqp.sim.trial_sources import CARTESIAN
 
 NORMAL = DEFAULT_WALL.normal
@@ -137,6 +139,35 @@ def test_a_frictionless_wall_gives_no_tangential_impulse(trials, frictionless):
     assert np.linalg.norm(m.post_tangential) > np.linalg.norm(m.pre_tangential)
 
 
+FRANKA_STIFFNESS = (3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0)
+"""N m/rad: a Franka's default joint impedance (libfranka's examples)."""
+
+
+def stiff_run(friction, ratio, noslip_iterations):
+    """One Panda ``elbow_right`` trial on the Franka joint impedance (v_t = ratio v_n), its wall's
+    scene with ``noslip_iterations``: the measured impact."""
+    stiff = ObliqueTrials(RobotChoice.of("panda"), PlantParameters(servo_stiffness=FRANKA_STIFFNESS))
+    surface = Surface(DEFAULT_WALL.point, NORMAL, friction)
+    stiff.scenes[friction] = build_scene(surface, stiff.plant, noslip_iterations=noslip_iterations)
+    log, _ = simulate(stiff, friction, ratio)
+    return measure_oblique_impact(log, stiff.robot, NORMAL)
+
+
+def test_noslip_reads_a_pressed_stick_as_stick_and_leaves_a_slide_as_it_was():
+    """The stiff servo presses the tool into a wall of mu = 0.6 with |p_t| / p_n inside the cone:
+    Coulomb's contact sticks. MuJoCo's soft friction creeps above STICK_SPEED (a "slip"); with the
+    study's noslip it stops. At mu = 0.1 the contact slides on the cone, and noslip leaves its v_t+
+    (within 0.5 mm/s)."""
+    creeping, held = (stiff_run(0.6, 0.5, n) for n in (0, NOSLIP_ITERATIONS))
+    for m in (creeping, held):
+        assert np.linalg.norm(m.tangential_impulse) < 0.9 * 0.6 * m.normal_impulse
+    assert creeping.least_tangential_speed > STICK_SPEED and creeping.mode == "slip"
+    assert held.mode == "stick"
+    soft, slid = (stiff_run(0.1, 1.0, n) for n in (0, NOSLIP_ITERATIONS))
+    assert soft.mode == slid.mode == "slip"
+    assert np.linalg.norm(slid.post_tangential - soft.post_tangential) < 5e-4
+
+
 # ---------------------------------------------------------------------------- the rules
 vectors = st.tuples(*[st.floats(-1.0, 1.0)] * 2).map(lambda v: np.array([0.0, v[0], v[1]]))
 
@@ -223,7 +254,10 @@ def test_the_small_grid_runs_end_to_end_through_the_command(tmp_path, capsys, ro
         assert simulated["mode"] in ("slip", "stick", "reversal")
         p_n, p_t = simulated["normal_impulse"], np.linalg.norm(simulated["tangential_impulse"])
         assert p_t <= row["friction"] * p_n * (1 + 1e-9)
-        assert set(row["predicted"]) == {"classical", "gm", "crb"}
+        assert set(row["predicted"]) == {"classical", "gm", "crb", "plant"} | ({"impedance"} if servo else set())
+    if servo:  # the joint impedance's v_t+ is the law's with the held arm's W (the plant's, the model's), not CRB's
+        assert all(r["predicted"][m]["velocity_agrees"] for r in report["rows"] for m in ("plant", "impedance"))
+        assert not any(r["predicted"]["crb"]["velocity_agrees"] for r in report["rows"])
     summary = report["summary"]["all"]
     for method, s in summary.items():
         agreed = sum(r["predicted"][method]["mode_agrees"] for r in report["rows"])

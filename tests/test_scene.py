@@ -19,11 +19,14 @@ from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import TOOL_CENTRE_OFFSET, TOOL_RADIUS, PandaModel, RobotModel
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.tool_description import TOOLS, Sphere
+from impactqp.controller.model.validation import BadInputError
 from impactqp.sim.plant import PlantParameters
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.sim.humanoid_scene import build_humanoid_scene
+from impactqp.sim.generation import tangential_direction
 from impactqp.sim.scene import (
     CONTACT_CONDIM,
+    NOSLIP_ITERATIONS,
     build_scene,
     from_pinocchio,
     mujoco_urdf,
@@ -111,6 +114,46 @@ def test_bad_timestep_is_rejected(timestep):
 def test_contact_time_constant_below_two_timesteps_is_rejected():
     with pytest.raises(ValueError, match="twice the timestep"):
         build_scene(plant=PlantParameters(contact_solref=(0.0004, 1.0)))
+
+
+def pressed_tangential_speeds(share: float, noslip_iterations: int, steps: int = 100) -> np.ndarray:
+    """The tool at ``elbow_right`` on a wall of mu = 0.6, pressed by 20 N along -n and
+    share x mu x 20 N along the wall's tangent, gravity and Coriolis compensated (the applied joint
+    torque h + J^T f at every step): the contact's tangential speed after each 0.25 ms step."""
+    normal = DEFAULT_WALL.normal
+    scene = build_scene(Surface(DEFAULT_WALL.point, normal, 0.6), noslip_iterations=noslip_iterations)
+    scene.set_state(PANDA.postures["elbow_right"].q)
+    force = -20.0 * normal + share * 0.6 * 20.0 * tangential_direction(normal)
+    speeds = []
+    for _ in range(steps):
+        J = ROBOT.terms(scene.data.qpos.copy()).J
+        scene.data.qfrc_applied[:] = scene.data.qfrc_bias + J.T @ force
+        mujoco.mj_step(scene.model, scene.data)
+        assert scene.data.ncon == 1  # the tool stays on the wall
+        v = ROBOT.terms(scene.data.qpos.copy()).J @ scene.data.qvel
+        speeds.append(np.linalg.norm(v - (normal @ v) * normal))
+    return np.array(speeds)
+
+
+@pytest.mark.parametrize("share", [0.5, -0.5])
+def test_noslip_holds_a_contact_pressed_inside_its_cone(share):
+    """Coulomb: a contact whose tangential force is inside the cone (half of mu f_n, either way
+    along the tangent) sticks. MuJoCo's soft friction lets it creep (a tenth of a mm/s here);
+    noslip holds it still (a slide is left alone: ``tests/test_oblique.py``)."""
+    soft, noslip = (pressed_tangential_speeds(share, n) for n in (0, NOSLIP_ITERATIONS))
+    assert soft[-1] > 1e-4
+    assert noslip.max() < 1e-6
+
+
+def test_the_scenes_noslip_is_mujocos_default_unless_asked():
+    assert SCENE.model.opt.noslip_iterations == 0
+    assert build_scene(noslip_iterations=NOSLIP_ITERATIONS).model.opt.noslip_iterations == NOSLIP_ITERATIONS
+
+
+@pytest.mark.parametrize("iterations", [-1, 1.5, True, 10**6])
+def test_bad_noslip_iterations_are_rejected(iterations):
+    with pytest.raises(BadInputError, match="noslip_iterations"):
+        build_scene(noslip_iterations=iterations)
 
 
 # ---------------------------------------------------------------- every robot with every tool

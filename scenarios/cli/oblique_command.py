@@ -76,13 +76,15 @@ def oblique(choice, as_json, **options):
         report, files = run_qp_speed_campaign(choice, grid, check_jobs(jobs)), QP_SPEED_FILES
     else:
         from impactqp.scenarios.oblique import grid_named, markdown, run_oblique_study
+        from impactqp.scenarios.oblique_inertia import with_plant_row
 
         if jump_model is not None:
             raise BadInputError("--jump-model chooses the rows of --qp-speed; give --qp-speed too")
         grid = grid_named(grid_name)
         plant = None if stiffness_text is None else servo_plant(stiffness_text, len(choice.robot.joints))
         out = output_directory(out_dir, "--out")
-        report, files = run_oblique_study(choice, grid, check_jobs(jobs), plant), FILES
+        report = with_plant_row(run_oblique_study(choice, grid, check_jobs(jobs), plant), choice, plant)
+        files = FILES
     text = markdown(report)
     write_text_atomic(Path(out) / files[0], json.dumps(report, indent=2, allow_nan=False) + "\n")
     write_text_atomic(Path(out) / files[1], text)
