@@ -226,7 +226,7 @@ class ImpactAwareController:
         except (BadInputError, TypeError, ValueError) as error:  # not a state of this robot
             return self._fallback(q, dq, Status.FALLBACK_INVALID_STATE, ["finite_state"], str(error))
         terms = self._terms
-        if self._impact_was_active and not self._floating and self._impact_noticed(terms):
+        if self._impact_was_active and not self._floating and self._impact_noticed(terms, dq):
             self.braking = True
             return self._impact_brake()
         joint_velocities = terms.dq[self._joint_velocities] if self._floating else terms.dq
@@ -267,11 +267,12 @@ class ImpactAwareController:
         return self._emit(terms, (ddq, *command), status, self._active_constraints(), [], solver_name)
 
     # ------------------------------------------------------------------ one cycle
-    def _impact_noticed(self, terms: ModelTerms) -> bool:
+    def _impact_noticed(self, terms: ModelTerms, dq: np.ndarray) -> bool:
         """Whether this state shows an impact (module docstring: impact brake); a state that is the
-        previous command itself (a loop fed its own command) never does."""
+        previous command itself (``dq``, the step's argument, is the previous dq_cmd: a loop fed its
+        own command) never does."""
         impact, memory = self.impact, self.memory
-        if impact is None or memory.q_cmd is None or terms.dq is memory.dq_cmd:
+        if impact is None or memory.q_cmd is None or dq is memory.dq_cmd:
             return False
         return impact.shows_jump(terms.J, terms.dq, memory.dq_cmd)
 
