@@ -16,10 +16,11 @@ from hypothesis import strategies as st
 from conftest import JOINTS
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.qp import ImpactAwareController
-from impactqp.controller.qp.cycle_plan import KERNEL_KINDS, CyclePlan, planned_rows
+from impactqp.controller.qp.cycle_plan import KERNEL_KINDS, CycleBuffers, CyclePlan, planned_rows
 from impactqp.controller.qp.whole_body_plan import WHOLE_BODY_KINDS, WholeBodyPlan
 from impactqp.controller.model.tool_postures import tool_posture
-from impactqp.constraints import AccelerationLimit
+from impactqp.constraints import AccelerationLimit, ExpectedImpact, PostImpactVelocityLimit
+from impactqp.controller.model.friction_pyramid import FrictionRows
 from impactqp.tasks import DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
 from qp_states import surface_ahead
 from reference.qp import reference_planned_qp
@@ -195,3 +196,34 @@ def test_each_kernel_of_the_arms_cycles_has_one_compiled_signature():
     reached = {name: count for name, count in kernels.items() if count}
     assert "impactqp.controller.qp.cycle_plan.planned_rows" in reached
     assert {name: count for name, count in reached.items() if count != 1} == {}
+
+
+def test_the_cycle_buffers_are_views_tiling_one_array():
+    """``CycleBuffers.empty``'s arrays (and its QP's) are views of its one array, each entry of it
+    in exactly one of them, in ``cycle_buffer_views``' order."""
+    n, task_rows, rows, boxes = 4, 5, 3, 2
+    buffers = CycleBuffers.empty(n, task_rows, rows, boxes)
+    p = buffers.problem
+    views = [np.stack([buffers.reachable_lower, buffers.reachable_upper]), buffers.task_A, buffers.task_b, buffers.task_w,
+             p.H, p.g, p.C, p.bounds, buffers.box_bounds]
+    shapes = [(2, n), (task_rows, n), (task_rows,), (task_rows,), (n, n), (n,), (rows, n), (2, n + rows), (2 * boxes, n)]
+    assert [view.shape for view in views] == shapes
+    for k, view in enumerate(views[1:], start=1):
+        view[...] = k
+    buffers.reachable_lower[:], buffers.reachable_upper[:] = 0.0, 0.0
+    expected = np.concatenate([np.full(int(np.prod(shape)), float(k)) for k, shape in enumerate(shapes)])
+    np.testing.assert_array_equal(buffers.data, expected)
+    assert np.shares_memory(p.lower, buffers.data) and np.shares_memory(p.lb, buffers.data)
+
+
+def test_impacts_of_different_friction_rows_leave_the_generic_assembly(robot):
+    """The plan stacks its impacts' edges in one array: impacts with different numbers of edges
+    (none and a 4-edge pyramid) leave the generic assembly; the first alone takes the plan."""
+    q = start(robot)
+    surface = surface_ahead(robot, q, 0.05)
+    impacts = [ExpectedImpact(surface, "crb"), ExpectedImpact(surface, "gm", friction=FrictionRows(0.3))]
+    rows = [PostImpactVelocityLimit(impact, robot.dq_max) for impact in impacts]
+    controller = ImpactAwareController(robot, [PostureTask(joints=JOINTS), DampingTask(JOINTS)], rows, 0.001)
+    assert controller._plan is None
+    same = ImpactAwareController(robot, [PostureTask(joints=JOINTS), DampingTask(JOINTS)], rows[:1], 0.001)
+    assert type(same._plan) is CyclePlan
