@@ -169,11 +169,12 @@ class ExpectedImpact:
         self._edge_impulses = np.empty((friction.count, 3, 3))  # G_i, on held contacts
         self._edge_fill = self._fill_held_edges if self.held_contacts else self._fill_edges
         # The crb, gm and classical models of a fixed base write A, P and G into one buffer,
-        # allocated at the first fill (``_fill_fixed_base``); the other forms return new matrices.
+        # allocated at the first fill (``_fill_fixed_base``) or a plan's (``fill_stacked``); the
+        # other forms return new matrices.
         model = self.model
         self._in_place = isinstance(model, GeneralizedMomentumJump) or type(model) is ClassicalJump
         self._impact = np.append(np.asarray(surface.normal, dtype=float), self.restitution)  # [n, c_r]
-        self._fixed_base_buffer = np.empty(0)
+        self._map_buffer = np.empty(0)
         self._fixed_base_matrices = self._fixed_base_views = JumpMatrices(None, None, None, None)
         # On held contacts: A, P, G, C and the held contacts' impulse map Z, allocated at the first fill
         held_method = jump_model_name in HELD_CONTACT_METHODS
@@ -239,6 +240,27 @@ class ExpectedImpact:
             self._update(terms)
         return self._active
 
+    def fill_stacked(self, terms, maps: np.ndarray, edges: np.ndarray) -> bool:
+        """This state's A, P, G in ``maps`` (flat [A, P, G]: ``fixed_base_matrix_views``, at
+        least 2 n^2 + 9 values) and its edges' A_i, P_i in ``edges`` (2 x edges x n x n): one
+        impact's rows of a compiled plan's stacked buffers; its activation. The first call with
+        new buffers makes them this impact's own (a fixed base's crb, gm and classical fills and
+        the edges' fills write into them, no copy); the other forms' new matrices are copied in."""
+        if maps is not self._map_buffer or edges is not self._edge_buffer:
+            n = edges.shape[-1]
+            self._map_buffer, self._edge_buffer = maps, edges
+            self._fixed_base_matrices = JumpMatrices(*fixed_base_matrix_views(maps, n), None)
+            self._fixed_base_views = read_only_views(self._fixed_base_matrices)
+            self._edges, self._edge_views = edge_maps_of(edges)
+            self._stamp = 0  # refilled into them now
+        if terms.stamp != self._stamp:
+            self._update(terms)
+            matrices = self._matrices
+            if matrices is not self._fixed_base_matrices:  # a form that returns new matrices
+                self._fixed_base_matrices.jump_matrix[:] = matrices.jump_matrix
+                self._fixed_base_matrices.torque_matrix[:] = matrices.torque_matrix
+        return self._active
+
     def shows_jump(self, J: np.ndarray, dq: np.ndarray, dq_cmd: np.ndarray) -> bool:
         """Whether the velocity dq shows the impact's jump against the command dq_cmd (both at the
         contact Jacobian J): the commanded speed towards the surface, -n.(J dq_cmd), is above the
@@ -272,9 +294,9 @@ class ExpectedImpact:
         (the terms' ``contact_terms``, [n, c_r], the buffer [A, P, G]); the buffer is allocated
         at the first fill."""
         n = terms.J.shape[1]
-        out = self._fixed_base_buffer
-        if out.shape[0] != 2 * n * n + 9:
-            out = self._fixed_base_buffer = np.empty(2 * n * n + 9)
+        out = self._map_buffer
+        if out.shape[0] < 2 * n * n + 9:
+            out = self._map_buffer = np.empty(2 * n * n + 9)
             self._fixed_base_matrices = JumpMatrices(*fixed_base_matrix_views(out, n), None)
             self._fixed_base_views = read_only_views(self._fixed_base_matrices)
         self._matrices, self._views = self._fixed_base_matrices, self._fixed_base_views

@@ -12,7 +12,7 @@ from reference.crb_prediction import reference_crb_state
 from test_jump import welded_arm_inverse_inertia
 from test_robot import SINGULAR_Q
 
-from impactqp.controller.model.crb_prediction import CrbPredictor, KinematicTree, crb_state, scratch
+from impactqp.controller.model.crb_prediction import CrbPredictor, KinematicTree, crb_batch, crb_state, scratch
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.robot import InvalidStateError, RobotModel, SingularPostureError
 from impactqp.controller.model.validation import BadInputError
@@ -120,6 +120,23 @@ def test_the_batch_is_the_single_prediction_row_by_row(name, seed, normal, cr):
             continue
         np.testing.assert_allclose(jump, single.dq_jump, rtol=0.0, atol=1e-12 * max(1.0, np.abs(single.dq_jump).max()))
         np.testing.assert_allclose(impulse, single.impulse, rtol=0.0, atol=1e-12 * max(1.0, np.abs(single.impulse).max()))
+
+
+def test_the_batch_compiles_one_signature_whatever_the_layout_of_its_inputs():
+    """Read-only, column-major, broadcast or single-row inputs reach ``crb_batch`` as writable
+    row-major copies: one compiled signature, and the same predictions."""
+    fast = predictor("panda")
+    Q = np.array([posture("panda", np.full(7, u)) for u in (0.3, 0.5, 0.7)])
+    normal, velocities = np.array([0.0, 0.0, 1.0]), np.array([[0.0, 0.1, -0.4]] * 3)
+    expected = fast.predict_batch(Q, normal, velocities)
+    read_only = [array.copy() for array in (Q, np.tile(normal, (3, 1)), velocities)]
+    for array in read_only:
+        array.flags.writeable = False
+    for arguments in (read_only, (np.asfortranarray(Q), normal, velocities[0]), (Q[:1], normal[None], velocities[:1])):
+        jumps, impulses = fast.predict_batch(*arguments)
+        np.testing.assert_array_equal(jumps, expected[0][:len(jumps)])
+        np.testing.assert_array_equal(impulses, expected[1][:len(jumps)])
+    assert len(crb_batch.signatures) == 1
 
 
 @pytest.mark.parametrize(

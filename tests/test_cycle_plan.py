@@ -1,6 +1,13 @@
 """The compiled cycle plan (``controller.qp.cycle_plan``): the QP of its one compiled call is the
 generic assembly's (task by task, constraint by constraint) and its numpy twin's, on random
-states; the controllers it serves and those it leaves to the generic assembly."""
+states; the controllers it serves and those it leaves to the generic assembly; one compiled
+signature of each kernel of an arm's cycle, whatever the robot and the number of impacts."""
+
+import json
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
 
 import numpy as np
 from hypothesis import given, settings
@@ -9,10 +16,11 @@ from hypothesis import strategies as st
 from conftest import JOINTS
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.qp import ImpactAwareController
-from impactqp.controller.qp.cycle_plan import KERNEL_KINDS, CyclePlan
+from impactqp.controller.qp.cycle_plan import KERNEL_KINDS, CycleBuffers, CyclePlan, planned_rows
 from impactqp.controller.qp.whole_body_plan import WHOLE_BODY_KINDS, WholeBodyPlan
 from impactqp.controller.model.tool_postures import tool_posture
-from impactqp.constraints import AccelerationLimit
+from impactqp.constraints import AccelerationLimit, ExpectedImpact, PostImpactVelocityLimit
+from impactqp.controller.model.friction_pyramid import FrictionRows
 from impactqp.tasks import DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
 from qp_states import surface_ahead
 from reference.qp import reference_planned_qp
@@ -129,3 +137,93 @@ def test_a_frame_task_takes_the_whole_body_plan(robot):
     assert FrameTask not in KERNEL_KINDS
     controller = ImpactAwareController(robot, [FrameTask(), DampingTask(JOINTS)], [AccelerationLimit()], 0.001)
     assert type(controller._plan) is WholeBodyPlan
+
+
+def test_one_and_three_impact_models_share_the_plans_compiled_signature(robot):
+    """The plan's call is of flat arrays only: controllers with one (crb) and three (robust)
+    expected impacts, with and without friction rows, run the same compiled ``planned_rows``."""
+    for setting in ("crb", "robust", "friction4"):
+        controller = setting_controller(robot, setting)
+        q, dq = start(robot), np.zeros(JOINTS)
+        for _ in range(3):
+            command = controller.step(q, dq)
+            q, dq = command.q_cmd, command.dq_cmd
+    assert len(planned_rows.signatures) == 1
+
+
+ARM_CYCLES = textwrap.dedent(
+    """
+    import json, sys
+    sys.path[:0] = sys.argv[1:2]
+    import compile_once
+    compile_once.install()
+    import numpy as np
+    from numba.core.registry import CPUDispatcher
+    from impactqp.controller.config import ControllerConfig, build_controller
+    from impactqp.controller.model.postures import Surface
+    from impactqp.controller.model.robot import RobotModel
+    from impactqp.controller.model.tool_postures import tool_posture
+
+    for name in ("panda", "fr3", "ur5"):
+        robot = RobotModel(name)
+        posture = tool_posture(robot, robot.description.default_posture)
+        normal = posture.surface.normal
+        surface = Surface(robot.contact_point(posture.q) - 0.05 * normal, normal)
+        for options in ({}, {"jump_model": "robust"}, {"friction": 0.3}, {"always_active": True}):
+            controller = build_controller(ControllerConfig.approach(surface, 0.5, **options), robot)
+            q, dq = posture.q, None  # the description's read-only posture, at rest
+            for _ in range(20):
+                command = controller.step(q, dq)
+                q, dq = command.q_cmd, command.dq_cmd
+    kernels = {
+        f"{module.__name__}.{name}": len(kernel.signatures)
+        for module in list(sys.modules.values()) if getattr(module, "__name__", "").startswith("impactqp")
+        for name, kernel in vars(module).items()
+        if isinstance(kernel, CPUDispatcher) and kernel.py_func.__module__ == module.__name__
+    }
+    print(json.dumps(kernels))
+    """
+)
+
+
+def test_each_kernel_of_the_arms_cycles_has_one_compiled_signature():
+    """In a fresh process, the cycles of the three arms (crb, robust, friction rows, always
+    active; from a read-only posture at rest, then their own commands) compile each kernel they
+    reach once: the same argument types whatever the robot, the caller's arrays or the impacts."""
+    tests = str(Path(__file__).parent)
+    child = subprocess.run([sys.executable, "-c", ARM_CYCLES, tests], capture_output=True, text=True, check=True)
+    kernels = json.loads(child.stdout.splitlines()[-1])
+    reached = {name: count for name, count in kernels.items() if count}
+    assert "impactqp.controller.qp.cycle_plan.planned_rows" in reached
+    assert {name: count for name, count in reached.items() if count != 1} == {}
+
+
+def test_the_cycle_buffers_are_views_tiling_one_array():
+    """``CycleBuffers.empty``'s arrays (and its QP's) are views of its one array, each entry of it
+    in exactly one of them, in ``cycle_buffer_views``' order."""
+    n, task_rows, rows, boxes = 4, 5, 3, 2
+    buffers = CycleBuffers.empty(n, task_rows, rows, boxes)
+    p = buffers.problem
+    views = [np.stack([buffers.reachable_lower, buffers.reachable_upper]), buffers.task_A, buffers.task_b, buffers.task_w,
+             p.H, p.g, p.C, p.bounds, buffers.box_bounds]
+    shapes = [(2, n), (task_rows, n), (task_rows,), (task_rows,), (n, n), (n,), (rows, n), (2, n + rows), (2 * boxes, n)]
+    assert [view.shape for view in views] == shapes
+    for k, view in enumerate(views[1:], start=1):
+        view[...] = k
+    buffers.reachable_lower[:], buffers.reachable_upper[:] = 0.0, 0.0
+    expected = np.concatenate([np.full(int(np.prod(shape)), float(k)) for k, shape in enumerate(shapes)])
+    np.testing.assert_array_equal(buffers.data, expected)
+    assert np.shares_memory(p.lower, buffers.data) and np.shares_memory(p.lb, buffers.data)
+
+
+def test_impacts_of_different_friction_rows_leave_the_generic_assembly(robot):
+    """The plan stacks its impacts' edges in one array: impacts with different numbers of edges
+    (none and a 4-edge pyramid) leave the generic assembly; the first alone takes the plan."""
+    q = start(robot)
+    surface = surface_ahead(robot, q, 0.05)
+    impacts = [ExpectedImpact(surface, "crb"), ExpectedImpact(surface, "gm", friction=FrictionRows(0.3))]
+    rows = [PostImpactVelocityLimit(impact, robot.dq_max) for impact in impacts]
+    controller = ImpactAwareController(robot, [PostureTask(joints=JOINTS), DampingTask(JOINTS)], rows, 0.001)
+    assert controller._plan is None
+    same = ImpactAwareController(robot, [PostureTask(joints=JOINTS), DampingTask(JOINTS)], rows[:1], 0.001)
+    assert type(same._plan) is CyclePlan

@@ -14,10 +14,11 @@ from reference.model_terms import reference_arm_cycle_terms
 from test_robot import SINGULAR_Q
 
 from impactqp.controller.model.jump import jump_model
-from impactqp.controller.model.model_terms import ACCEPTED, arm_cycle_checks, arm_cycle_outputs, arm_cycle_terms
+from impactqp.controller.model.model_terms import ACCEPTED, ARM_STATE_EXTRA, arm_cycle_checks, arm_cycle_terms, arm_state_views
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import InvalidStateError, SingularPostureError
 from impactqp.controller.model.term_fills import SINGULAR_RATIO_SQUARED
+from impactqp.controller.model.tool_postures import tool_posture
 from impactqp.controller.model.validation import BadInputError
 
 
@@ -38,11 +39,29 @@ def test_refilled_terms_equal_fresh_terms(robot, q_a, q_b):
     assert robot.update_terms(buffer, q_b, dq_b, check_limits=False) is buffer
     assert buffer.stamp != stamp
     for name in ("q", "dq", "M", "h", "J", "J6", "dJ6_dq", "JJt_inv", "contact_point", "contact_rotation",
-                 "com", "inertia_com", "contact_terms"):
+                 "com", "inertia_com", "contact_terms", "arm_state"):
         np.testing.assert_allclose(getattr(buffer, name), getattr(fresh, name), rtol=1e-12, atol=1e-12)
     assert buffer.mass == fresh.mass
     np.testing.assert_allclose(buffer.J_pinv, np.linalg.pinv(fresh.J), atol=1e-9)
     assert buffer.cond_M == pytest.approx(np.linalg.cond(fresh.M))
+
+
+def test_a_refill_copies_the_callers_state_into_the_buffer(robot):
+    """A cycle buffer's q, dq and contact rotation are its own writable row-major arrays, the
+    same at every refill, whatever the caller passed (read-only, strided): what the compiled
+    kernels read, one signature each."""
+    buffer = robot.empty_terms()
+    arrays = (buffer.arm_state, buffer.q, buffer.dq, buffer.contact_rotation)
+    q = np.repeat(tool_posture(robot, robot.description.default_posture).q, 2)[::2]  # a strided view
+    dq = np.full(robot.nv, 0.1)
+    q.flags.writeable = dq.flags.writeable = False
+    robot.update_terms(buffer, q, dq)
+    fresh = robot.terms(q, dq)
+    assert all(now is before for now, before in zip((buffer.arm_state, buffer.q, buffer.dq, buffer.contact_rotation), arrays))
+    for array in arrays:
+        assert array.flags.writeable and array.flags.c_contiguous
+    for name in ("q", "dq", "contact_rotation"):
+        np.testing.assert_array_equal(getattr(buffer, name), getattr(fresh, name))
 
 
 @settings(max_examples=50, deadline=None)
@@ -161,31 +180,31 @@ def test_a_cycle_buffer_gives_the_jump_maps_of_a_predictions_terms(robot, q, dq,
 @settings(max_examples=40, deadline=None)
 @given(q=joint_positions(), dq=joint_positions(0.0), scale=st.sampled_from([0.0, 0.3, np.nan, 1e300]), check=st.booleans())
 def test_the_cycle_kernel_is_its_numpy_twin_and_pinocchios_frame_terms(robot, q, dq, scale, check):
-    """``arm_cycle_terms`` (J6, its drift, (J J^T)^-1 and the contact terms [J6, (J J^T)^-1, p]
-    from the data's joint Jacobians) gives its plain-numpy twin's status and arrays, and writes
-    them only when it accepts the state;
-    accepted, they are Pinocchio's frame Jacobian, the frame's classical acceleration and the
-    inverse of J J^T."""
+    """``arm_cycle_terms`` (J6, (J J^T)^-1, p, its drift, dq, R and q, from the data's joint
+    Jacobians and placement) gives its plain-numpy twin's status and arrays, and writes them only
+    when it accepts the state; accepted, they are Pinocchio's frame Jacobian, the frame's
+    classical acceleration and the inverse of J J^T."""
     model, data, fid = robot.model, robot.model.createData(), robot.contact_frame_id
     dq = scale * dq
     pin.computeAllTerms(model, data, q, np.nan_to_num(dq))
     pin.updateFramePlacement(model, data, fid)
-    world = (data.J, data.dJ, data.oMf[fid].translation, robot._contact_support)
+    placement = data.oMf[fid]
+    world, support = (data.J, data.dJ, placement.translation, placement.rotation), robot._contact_support
     unlimited = np.full(robot.nq, np.inf)
     limits = (robot.q_min, robot.q_max) if check else (-unlimited, unlimited)
-    out = np.full(6 * robot.nv + 18, 7.0)
-    status = arm_cycle_terms(*world, q, dq, arm_cycle_checks(SINGULAR_RATIO_SQUARED, *limits), out)
-    expected = reference_arm_cycle_terms(world, (q, dq), (np.stack(limits), True, SINGULAR_RATIO_SQUARED))
+    out = np.full(7 * robot.nv + robot.nq + ARM_STATE_EXTRA, 7.0)
+    status = arm_cycle_terms(*world, q, dq, arm_cycle_checks(SINGULAR_RATIO_SQUARED, *limits, support), out)
+    expected = reference_arm_cycle_terms((*world, support), (q, dq), (np.stack(limits), True, SINGULAR_RATIO_SQUARED))
     assert status == expected[0]
     if status != ACCEPTED:
         assert np.all(out == 7.0)
         return
-    outputs = arm_cycle_outputs(out, robot.nv)
+    outputs = arm_state_views(out, robot.nv)  # J6, (J J^T)^-1, p, drift, dq, R, q
     for array, twin in zip(outputs, expected[1:]):  # (J J^T)^-1 grows near a singular posture: relative
         np.testing.assert_allclose(array, twin, rtol=0, atol=1e-12 * max(1.0, np.abs(twin).max()))
     assert not np.any(out == 7.0)  # every entry written
     world_aligned = pin.LOCAL_WORLD_ALIGNED
     np.testing.assert_allclose(outputs[0], pin.getFrameJacobian(model, data, fid, world_aligned), rtol=0, atol=1e-12)
     drift = pin.getFrameClassicalAcceleration(model, data, fid, world_aligned).vector
-    np.testing.assert_allclose(outputs[1], drift, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(outputs[2] @ outputs[0][:3] @ outputs[0][:3].T, np.eye(3), atol=1e-8)
+    np.testing.assert_allclose(outputs[3], drift, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(outputs[1] @ outputs[0][:3] @ outputs[0][:3].T, np.eye(3), atol=1e-8)

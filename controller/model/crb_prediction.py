@@ -283,8 +283,10 @@ class CrbPredictor:
         if not np.all(np.isfinite(Q)):
             raise BadInputError("Q contains a non-finite value")
         N = Q.shape[0]
-        normals = np.ascontiguousarray(np.broadcast_to(validation.unit_normals(normals), (N, 3)))
-        velocities = np.ascontiguousarray(np.broadcast_to(np.asarray(pre_impact_velocities, dtype=float), (N, 3)))
+        # Writable row-major copies where needed (a broadcast is read-only): one compiled signature.
+        Q = np.require(Q, requirements="CW")
+        normals = np.require(np.broadcast_to(validation.unit_normals(normals), (N, 3)), requirements="CW")
+        velocities = np.require(np.broadcast_to(np.asarray(pre_impact_velocities, dtype=float), (N, 3)), requirements="CW")
         outputs = (np.empty((N, self._q_shape[0])), np.empty((N, 3))) if out is None else out
         for output in outputs:
             output[:] = np.nan  # the rows of a J with a non-finite entry stay NaN

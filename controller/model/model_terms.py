@@ -76,13 +76,16 @@ class ModelTerms:
     of its buffer (``RobotModel.empty_terms``) at once.
 
     ``cycle_data`` is the Pinocchio data of an arm's per-cycle buffer (None elsewhere): its
-    ``computeAllTerms`` writes M, h, com, contact_point and contact_rotation, which are views of
-    it (no copy), and its Cholesky factor of M gives M^-1 (``compute_inverse_inertia``);
-    ``cycle_arrays`` = (``data.J``, ``data.dJ``, ``data.Ig``, out, contact) are that data's
-    world-frame joint Jacobians, their time variation and its centroidal inertia, which J6,
-    dJ6 dq, (J J^T)^-1 and the inertia about the centre of mass are computed from
-    (``arm_cycle_terms``), the flat array that J6, dJ6 dq and (J J^T)^-1 are views of, and its
-    first part, ``contact_terms`` (``arm_cycle_outputs``).
+    ``computeAllTerms`` writes M, h, com and contact_point, which are views of it (no copy), and
+    its Cholesky factor of M gives M^-1 (``compute_inverse_inertia``); ``cycle_arrays`` =
+    ((``data.J``, ``data.dJ``, p, R), ``data.Ig``, incoming, state, contact) are that data's
+    world-frame joint Jacobians, their time variation, the contact frame's placement (views of
+    the data) and its centroidal inertia, which J6, dJ6 dq, (J J^T)^-1 and the inertia about the
+    centre of mass are computed from (``arm_cycle_terms``), the [q; dq] buffer a caller's
+    read-only or strided state is copied into (the kernels read writable row-major arrays: one
+    compiled signature each), the flat array that J6, dJ6 dq, (J J^T)^-1, dq, the contact
+    rotation and q are views of (``arm_state``, ``arm_state_views``), and its first part,
+    ``contact_terms``.
 
     A controller refills one ModelTerms per cycle (``RobotModel.update_terms``); ``stamp``
     changes at every fill (and for a ``dataclasses.replace`` copy), so anything cached per
@@ -172,10 +175,22 @@ class ModelTerms:
         """J6, (J J^T)^-1 and the contact point p in one flat array (``contact_views``), what a
         compiled kernel reads in one argument (a kernel's dispatch costs per argument): an arm's
         cycle buffer's is a view of the array its kernel writes at every refill
-        (``arm_cycle_outputs``), other terms' is packed on first use, once per fill."""
+        (``arm_state``), other terms' is packed on first use, once per fill."""
         if self.cycle_arrays is not None:
             return self.cycle_arrays[4]
         return self.cached("contact_terms", lambda: pack_contact_terms(self.J6, self.JJt_inv, self.contact_point))
+
+    @property
+    def arm_state(self) -> np.ndarray:
+        """[J6, (J J^T)^-1, p, dJ6 dq, dq, R, q] in one flat array (``arm_state_views``), what
+        the compiled cycle plan reads of an arm's state in one argument: an arm's cycle buffer's
+        is the array its kernel writes at every refill, other terms' is packed on first use,
+        once per fill."""
+        if self.cycle_arrays is not None:
+            return self.cycle_arrays[3]
+        return self.cached("arm_state", lambda: np.concatenate(
+            (self.contact_terms, self.dJ6_dq, self.dq, np.ravel(self.contact_rotation), self.q)
+        ))
 
     @property
     def J_pinv(self) -> np.ndarray:
@@ -261,10 +276,11 @@ def contact_jacobian_status(J, q, q_min, q_max, check_limits, singular_ratio_squ
     return ACCEPTED
 
 
-def arm_cycle_checks(singular_ratio_squared: float, q_min: np.ndarray, q_max: np.ndarray) -> np.ndarray:
-    """The packed ``checks`` of ``arm_cycle_terms``: [s^2, q_min, q_max] (q_min = -inf and
-    q_max = inf leave the joint limits unchecked; s^2 = -inf accepts any contact Jacobian)."""
-    return np.concatenate([[singular_ratio_squared], q_min, q_max]).astype(float)
+def arm_cycle_checks(singular_ratio_squared: float, q_min: np.ndarray, q_max: np.ndarray, support: np.ndarray) -> np.ndarray:
+    """The packed ``checks`` of ``arm_cycle_terms``, the arm's constants: [s^2, q_min, q_max,
+    the support columns] (q_min = -inf and q_max = inf leave the joint limits unchecked;
+    s^2 = -inf accepts any contact Jacobian; the columns as floats, exact)."""
+    return np.concatenate([[singular_ratio_squared], q_min, q_max, support]).astype(float)
 
 
 CONTACT_TERMS_EXTRA = 12
@@ -284,34 +300,45 @@ def contact_views(contact, nv):
     return contact[:d].reshape(6, nv), contact[d:d + 9].reshape(3, 3), contact[d + 9:d + 12]
 
 
-def arm_cycle_outputs(out: np.ndarray, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The views (J6 (6 x nv), dJ6 dq (6), (J J^T)^-1 (3 x 3), contact terms (6 nv + 12)) of the
-    flat ``out`` = [J6, (J J^T)^-1, p, dJ6 dq] of ``arm_cycle_terms`` (6 nv + 18 values): its
-    first 6 nv + 12 are ``ModelTerms.contact_terms`` (``contact_views``)."""
-    contact = out[:6 * nv + CONTACT_TERMS_EXTRA]
-    J6, JJt_inv, _ = contact_views(contact, nv)
-    return J6, out[6 * nv + CONTACT_TERMS_EXTRA:], JJt_inv, contact
+ARM_STATE_EXTRA = CONTACT_TERMS_EXTRA + 15
+"""Values of an arm's cycle state beyond J6's 6 nv, dq's nv and q's nq: (J J^T)^-1 (9), p (3),
+dJ6 dq (6) and R (9) (``arm_state_views``)."""
 
 
 @njit(cache=True)
-def arm_cycle_terms(Jw, dJw, p, support, q, dq, checks, out):
+def arm_state_views(state, nv):
+    """The views (J6 (6 x nv), (J J^T)^-1 (3 x 3), p (3), dJ6 dq (6), dq (nv), R (3 x 3,
+    row-major), q (the rest)) of an arm's cycle state = [J6, (J J^T)^-1, p, dJ6 dq, dq, R, q]
+    flat (``arm_cycle_terms``' ``out``, ``ModelTerms.arm_state``): its first 6 nv + 12 values
+    are ``ModelTerms.contact_terms`` (``contact_views``)."""
+    d = 6 * nv + CONTACT_TERMS_EXTRA
+    J6, JJt_inv, p = contact_views(state[:d], nv)
+    rotation = state[d + 6 + nv:d + 15 + nv].reshape(3, 3)
+    return J6, JJt_inv, p, state[d:d + 6], state[d + 6:d + 6 + nv], rotation, state[d + 15 + nv:]
+
+
+@njit(cache=True)
+def arm_cycle_terms(Jw, dJw, p, rotation, q, dq, checks, out):
     """Kernel of an arm's per-cycle refill, after its ``computeAllTerms``: the contact frame's
-    world-aligned Jacobian J6, its drift dJ6 dq and (J J^T)^-1 from Pinocchio's own arrays, and
-    the state's status.
+    world-aligned Jacobian J6, its drift dJ6 dq and (J J^T)^-1 from Pinocchio's own arrays, the
+    state and the contact rotation copied beside them, and the state's status.
 
     Jw (6 x nv) are Pinocchio's world-frame joint Jacobians (spatial velocities at the world
-    origin, linear then angular: ``data.J``), dJw their time variation (``data.dJ``), p the
-    contact point (world) and ``support`` the columns of the velocities that move the contact
-    frame; ``checks`` = [s^2, q_min, q_max] (``arm_cycle_checks``); ``out`` = [J6, (J J^T)^-1,
-    p, dJ6 dq] flat (``arm_cycle_outputs``). A point p of the body moves at v_p = v_O + w x p,
-    so on the support columns J6 = [Jw_lin + Jw_ang x p; Jw_ang] (zeros elsewhere) and, with
-    (a_O, dw) = dJw dq at ddq = 0, dJ6 dq = [a_O + dw x p + w x v_p; dw] (the frame's classical
-    acceleration). Returns NOT_FINITE when sum |q_i| + sum |dq_i| exceeds MAX_STATE_ENTRY
-    (nq + nv) (a NaN, an infinity or a huge entry: ``check_state``'s test), else NEAR_SINGULAR
-    when det(J J^T) < s^2 trace(J J^T)^3 (``contact_jacobian_status``'s bound), else
-    OUTSIDE_LIMITS when q leaves [q_min, q_max], else ACCEPTED; ``out`` is written only when
-    ACCEPTED (a refused state leaves it as it was). Plain loops, no allocation."""
+    origin, linear then angular: ``data.J``), dJw their time variation (``data.dJ``), p and
+    ``rotation`` the contact frame's placement (world; Pinocchio's column-major R), (q, dq) the
+    state (writable row-major arrays: one compiled signature); ``checks`` = [s^2, q_min, q_max,
+    the support columns] (``arm_cycle_checks``: the columns of the velocities that move the
+    contact frame); ``out`` = [J6, (J J^T)^-1, p, dJ6 dq, dq, R, q] flat (``arm_state_views``,
+    R row-major). A point p of the body moves at v_p = v_O + w x p, so on the support columns
+    J6 = [Jw_lin + Jw_ang x p; Jw_ang] (zeros elsewhere) and, with (a_O, dw) = dJw dq at
+    ddq = 0, dJ6 dq = [a_O + dw x p + w x v_p; dw] (the frame's classical acceleration).
+    Returns NOT_FINITE when sum |q_i| + sum |dq_i| exceeds MAX_STATE_ENTRY (nq + nv) (a NaN, an
+    infinity or a huge entry: ``check_state``'s test), else NEAR_SINGULAR when det(J J^T) <
+    s^2 trace(J J^T)^3 (``contact_jacobian_status``'s bound), else OUTSIDE_LIMITS when q leaves
+    [q_min, q_max], else ACCEPTED; ``out`` is written only when ACCEPTED (a refused state
+    leaves it as it was). Plain loops, no allocation."""
     nq, nv = q.shape[0], dq.shape[0]
+    support = checks[1 + 2 * nq:]
     total = 0.0
     for j in range(nq):
         total += abs(q[j])
@@ -321,7 +348,8 @@ def arm_cycle_terms(Jw, dJw, p, support, q, dq, checks, out):
         return NOT_FINITE
     px, py, pz = p[0], p[1], p[2]
     s00 = s01 = s02 = s11 = s12 = s22 = 0.0
-    for k in support:  # J J^T of the linear rows
+    for c in range(support.shape[0]):  # J J^T of the linear rows
+        k = int(support[c])
         x = Jw[0, k] + Jw[4, k] * pz - Jw[5, k] * py
         y = Jw[1, k] + Jw[5, k] * px - Jw[3, k] * pz
         z = Jw[2, k] + Jw[3, k] * py - Jw[4, k] * px
@@ -341,7 +369,8 @@ def arm_cycle_terms(Jw, dJw, p, support, q, dq, checks, out):
             return OUTSIDE_LIMITS
     out[: 6 * nv] = 0.0
     vx = vy = vz = wx = wy = wz = ax = ay = az = bx = by = bz = 0.0
-    for k in support:
+    for c in range(support.shape[0]):
+        k = int(support[c])
         out[k] = Jw[0, k] + Jw[4, k] * pz - Jw[5, k] * py
         out[nv + k] = Jw[1, k] + Jw[5, k] * px - Jw[3, k] * pz
         out[2 * nv + k] = Jw[2, k] + Jw[3, k] * py - Jw[4, k] * px
@@ -373,6 +402,13 @@ def arm_cycle_terms(Jw, dJw, p, support, q, dq, checks, out):
     out[d + 1] = ay + bz * px - bx * pz + wz * vx - wx * vz
     out[d + 2] = az + bx * py - by * px + wx * vy - wy * vx
     out[d + 3], out[d + 4], out[d + 5] = bx, by, bz
+    d += 6
+    out[d:d + nv] = dq
+    d += nv
+    for i in range(3):
+        for j in range(3):
+            out[d + 3 * i + j] = rotation[i, j]
+    out[d + 9:] = q
     return ACCEPTED
 
 

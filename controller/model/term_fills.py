@@ -8,11 +8,11 @@ pass (``pin.crba`` with ``Convention.WORLD``): the contact frame's Jacobian and 
 drift dJ6 dq are lazily filled fields (``ModelTerms.fill_lazy``), one ``computeAllTerms`` on
 their first read. A controller's cycle (``update_terms``) is one ``computeAllTerms`` on the
 buffer's own data (``ModelTerms.cycle_data``, made by ``empty_terms``), whose M, h, centre of mass
-and contact placement the buffer's fields are views of; one kernel
-(``model_terms.arm_cycle_terms``) writes the contact frame's Jacobian, its drift, (J J^T)^-1
-and the contact point (``ModelTerms.contact_terms``) into the buffer from that data's joint
-Jacobians and checks the state; M^-1, when read, comes from the Cholesky factor of that M
-(``pin.cholesky``). A floating base's fill is one pass of the algorithms its whole-body QP
+and contact point the buffer's fields are views of; one kernel (``model_terms.arm_cycle_terms``)
+writes the contact frame's Jacobian, its drift, (J J^T)^-1, the contact point
+(``ModelTerms.contact_terms``), the state and the contact rotation into the buffer
+(``ModelTerms.arm_state``) from that data's joint Jacobians and checks the state; M^-1, when
+read, comes from the Cholesky factor of that M (``pin.cholesky``). A floating base's fill is one pass of the algorithms its whole-body QP
 needs, into its buffer; M, h and (J J^T)^-1, which that QP does not read, on first read.
 """
 
@@ -23,6 +23,8 @@ import pinocchio as pin
 
 from .model_terms import (
     ACCEPTED,
+    ARM_STATE_EXTRA,
+    CONTACT_TERMS_EXTRA,
     NEAR_SINGULAR,
     NOT_FINITE,
     OUTSIDE_LIMITS,
@@ -30,8 +32,8 @@ from .model_terms import (
     FrameState,
     ModelTerms,
     arm_cycle_checks,
-    arm_cycle_outputs,
     arm_cycle_terms,
+    arm_state_views,
     contact_jacobian_status,
     mirror_upper,
     pack_contact_terms,
@@ -64,10 +66,11 @@ class ModelTermFills:
             columns = [c for j in joints[1:] for c in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)]
             self._contact_support = np.array(columns, dtype=np.int64)
             unlimited = np.full(self.nq, np.inf)
+            support = self._contact_support
             self._cycle_checks = {
-                True: arm_cycle_checks(SINGULAR_RATIO_SQUARED, self.q_min, self.q_max),
-                False: arm_cycle_checks(SINGULAR_RATIO_SQUARED, -unlimited, unlimited),
-                None: arm_cycle_checks(-np.inf, -unlimited, unlimited),  # accepts any state
+                True: arm_cycle_checks(SINGULAR_RATIO_SQUARED, self.q_min, self.q_max, support),
+                False: arm_cycle_checks(SINGULAR_RATIO_SQUARED, -unlimited, unlimited, support),
+                None: arm_cycle_checks(-np.inf, -unlimited, unlimited, support),  # accepts any state
             }
 
     def terms(self, q, dq=None, *, check_limits: bool | None = None) -> ModelTerms:
@@ -123,21 +126,24 @@ class ModelTermFills:
 
     def _fill_fixed(self, terms: ModelTerms, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
         """An arm's terms refilled by one ``computeAllTerms`` on the buffer's own data (a
-        controller's cycle: every field). M, h, the centre of mass and the contact placement are
+        controller's cycle: every field). M, h, the centre of mass and the contact point are
         views of that data (``cycle_data``, made at the first refill of a buffer that has none);
-        one kernel (``arm_cycle_terms``) writes J6, its drift dJ6/dt dq (world-aligned: the
-        frame's classical acceleration at ddq = 0), (J J^T)^-1 and the contact point
-        (``contact_terms``) into the buffer's arrays from the data's joint Jacobians and checks the state (finite, contact Jacobian, limits); the
-        inertia about the centre of mass is the data's centroidal one (a new array). A refused
-        state is computed back out of the data, so the buffer stays as it was."""
+        (q, dq) is copied into the buffer's [q; dq] when the caller's are not writable row-major
+        arrays (the kernels then see one type of array, one compiled signature), and one kernel
+        (``arm_cycle_terms``) writes J6, its drift dJ6/dt dq (world-aligned: the frame's
+        classical acceleration at ddq = 0), (J J^T)^-1, the contact terms, dq, the contact
+        rotation and q into the buffer's state array from the data's joint Jacobians and checks
+        the state (finite, contact Jacobian, limits); the inertia about the centre of mass is the data's centroidal one (a new
+        array). A refused state is computed back out of the data, so the buffer stays as it
+        was."""
         data = terms.cycle_data if terms.cycle_data is not None else self._attach_cycle_data(terms)
+        world, centroidal, incoming, out, _ = terms.cycle_arrays
+        if not (q.flags.writeable and dq.flags.writeable and q.flags.c_contiguous and dq.flags.c_contiguous):
+            incoming[:self.nq], incoming[self.nq:] = q, dq  # the kernels read writable row-major arrays
+            q, dq = incoming[:self.nq], incoming[self.nq:]
         pin.computeAllTerms(self.model, data, q, dq)
         pin.updateFramePlacement(self.model, data, self.contact_frame_id)
-        joint_jacobians, joint_jacobian_rates, centroidal, out, _ = terms.cycle_arrays
-        support, point = self._contact_support, terms.contact_point
-        status = arm_cycle_terms(
-            joint_jacobians, joint_jacobian_rates, point, support, q, dq, self._cycle_checks[check_limits], out
-        )
+        status = arm_cycle_terms(*world, q, dq, self._cycle_checks[check_limits], out)
         if status != ACCEPTED:  # raises, or a near-singular J that the exact test clears: accept it
             try:
                 J = pin.getFrameJacobian(self.model, data, self.contact_frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
@@ -145,9 +151,8 @@ class ModelTermFills:
             except BadInputError:
                 self._compute_cycle_data(data, terms.q, terms.dq)
                 raise
-            arm_cycle_terms(joint_jacobians, joint_jacobian_rates, point, support, q, dq, self._cycle_checks[None], out)
+            arm_cycle_terms(*world, q, dq, self._cycle_checks[None], out)
         terms.inertia_com = centroidal.inertia
-        terms.q, terms.dq = q, dq
         return terms.refilled()
 
     def _compute_cycle_data(self, data: pin.Data, q: np.ndarray, dq: np.ndarray) -> None:
@@ -157,25 +162,29 @@ class ModelTermFills:
 
     def _attach_cycle_data(self, terms: ModelTerms) -> pin.Data:
         """Give an arm's buffer a Pinocchio data of its own, computed at the buffer's state, and
-        make its M, h, centre of mass and contact placement views of that data's outputs (M's
+        make its M, h, centre of mass and contact point views of that data's outputs (M's
         transpose: computeAllTerms fills both triangles, and the transpose is row-major), its J6,
-        dJ6 dq, (J J^T)^-1 and ``contact_terms`` views of one array of its own
-        (``arm_cycle_outputs``) holding their present values, and its mass the data's (a fixed
-        base's moving mass, the same at every state); its M^-1 then comes from the Cholesky
-        factor of that M."""
+        dJ6 dq, (J J^T)^-1, ``contact_terms``, dq, contact rotation and q views of one array of
+        its own (``arm_state_views``) holding their present values, and its mass the data's (a
+        fixed base's moving mass, the same at every state); its M^-1 then comes from the
+        Cholesky factor of that M."""
         drift = np.array(terms.dJ6_dq)  # first: a lazily filled drift's fill sets M and h too
         data = self.model.createData()
         self._compute_cycle_data(data, terms.q, terms.dq)
         placement = data.oMf[self.contact_frame_id]
-        terms.M, terms.h, terms.com = data.M.T, data.nle, data.com[0]
-        terms.contact_point, terms.contact_rotation = placement.translation, placement.rotation
-        out = np.empty(6 * self.nv + 18)
-        J6, dJ6_dq, JJt_inv, contact = arm_cycle_outputs(out, self.nv)
+        terms.M, terms.h, terms.com, terms.contact_point = data.M.T, data.nle, data.com[0], placement.translation
+        nq, nv = self.nq, self.nv
+        out = np.empty(6 * nv + ARM_STATE_EXTRA + nv + nq)
+        J6, JJt_inv, _, dJ6_dq, dq, rotation, q = arm_state_views(out, nv)
+        contact = out[:6 * nv + CONTACT_TERMS_EXTRA]
         contact[:] = pack_contact_terms(terms.J6, terms.JJt_inv, terms.contact_point)
-        dJ6_dq[:] = drift
+        dJ6_dq[:], dq[:], rotation[:], q[:] = drift, terms.dq, placement.rotation, terms.q
         terms.J6, terms.J, terms.dJ6_dq, terms.JJt_inv = J6, J6[:3], dJ6_dq, JJt_inv
+        terms.q, terms.dq, terms.contact_rotation = q, dq, rotation
         terms.mass = float(data.Ig.mass)
-        terms.cycle_data, terms.cycle_arrays = data, (data.J, data.dJ, data.Ig, out, contact)
+        incoming = np.empty(nq + nv)
+        world = (data.J, data.dJ, placement.translation, placement.rotation)
+        terms.cycle_data, terms.cycle_arrays = data, (world, data.Ig, incoming, out, contact)
         terms.compute_inverse_inertia = lambda q: self._cholesky_inverse_inertia(data)
         return data
 

@@ -149,15 +149,14 @@ class ImpactAwareController:
         layout, n = self.layout, self.robot.nv
         task_slices = consecutive_slices([t.rows for t in self.tasks])
         n_task_rows = sum(t.rows for t in self.tasks)
-        self._task_A = np.zeros((n_task_rows, n))
-        self._task_b = np.zeros(n_task_rows)
-        self._task_w = np.zeros((n_task_rows, 1))
+        buffers = CycleBuffers.empty(n, n_task_rows, layout.rows, len(layout.box_constraints))
+        self._task_A, self._task_b, self._task_w = buffers.task_A, buffers.task_b, buffers.task_w
         self._task_views = [
-            (task, self._task_A[s], self._task_b[s], self._task_w[s, 0]) for task, s in zip(self.tasks, task_slices)
+            (task, self._task_A[s], self._task_b[s], self._task_w[s]) for task, s in zip(self.tasks, task_slices)
         ]
         self._active_flags = layout.empty_flags()
-        self.problem = p = QpProblem.empty(layout.rows, n)
-        self._box_bounds = layout.empty_box_bounds(n)  # rows 2k and 2k + 1: the bounds of box k
+        self.problem = p = buffers.problem
+        self._box_bounds = buffers.box_bounds  # rows 2k and 2k + 1: the bounds of box k
         self._box_lower = self._box_bounds[0::2]
         self._box_upper = self._box_bounds[1::2]
         self._row_views = [(c, p.C[s], p.l[s], p.u[s]) for c, s in zip(layout.row_constraints, layout.row_slices)]
@@ -169,12 +168,11 @@ class ImpactAwareController:
         joints = self._joint_velocities
         self._limits = command_limits(self.robot, self.ddq_max[joints], self._jerk_step[joints])
         horizon = max(self.dt, float(np.max(self.ddq_max / self.dddq_max)))
-        self._cycle = ControlCycle(self.dt, np.zeros(n), np.zeros(n), horizon)
+        self._cycle = ControlCycle(self.dt, buffers.reachable_lower, buffers.reachable_upper, horizon)
         # General rows see the joint-space box of the cycle (all box constraints intersected)
         # as the reachable accelerations, so that a row the state violates is relaxed to what
         # the box really allows (ControlCycle.recoverable): the arrays are the problem's own.
         self._row_cycle = ControlCycle(self.dt, p.lb, p.ub, horizon)
-        buffers = CycleBuffers(self._task_A, self._task_b, self._task_w[:, 0], p, self._box_bounds)
         self._plan = compiled_plan(self.tasks, layout, buffers, self.dt)  # None: the generic assembly
         # a floating base's relaxed rows, widened within its held contacts' rows when the QP is infeasible
         self._elastic = ElasticRelaxation(layout.rows, first, n) if self._floating and first < layout.rows else None
@@ -226,7 +224,7 @@ class ImpactAwareController:
         except (BadInputError, TypeError, ValueError) as error:  # not a state of this robot
             return self._fallback(q, dq, Status.FALLBACK_INVALID_STATE, ["finite_state"], str(error))
         terms = self._terms
-        if self._impact_was_active and not self._floating and self._impact_noticed(terms):
+        if self._impact_was_active and not self._floating and self._impact_noticed(terms, dq):
             self.braking = True
             return self._impact_brake()
         joint_velocities = terms.dq[self._joint_velocities] if self._floating else terms.dq
@@ -267,11 +265,12 @@ class ImpactAwareController:
         return self._emit(terms, (ddq, *command), status, self._active_constraints(), [], solver_name)
 
     # ------------------------------------------------------------------ one cycle
-    def _impact_noticed(self, terms: ModelTerms) -> bool:
+    def _impact_noticed(self, terms: ModelTerms, dq: np.ndarray) -> bool:
         """Whether this state shows an impact (module docstring: impact brake); a state that is the
-        previous command itself (a loop fed its own command) never does."""
+        previous command itself (``dq``, the step's argument, is the previous dq_cmd: a loop fed its
+        own command) never does."""
         impact, memory = self.impact, self.memory
-        if impact is None or memory.q_cmd is None or terms.dq is memory.dq_cmd:
+        if impact is None or memory.q_cmd is None or dq is memory.dq_cmd:
             return False
         return impact.shows_jump(terms.J, terms.dq, memory.dq_cmd)
 
@@ -318,7 +317,7 @@ class ImpactAwareController:
         for task, A, b, w in self._task_views:
             task.compute_into(terms, A, b)
             w[:] = task.weight
-        weighted_least_squares(self._task_A, self._task_b, self._task_w[:, 0], self.problem.H, self.problem.g)
+        weighted_least_squares(self._task_A, self._task_b, self._task_w, self.problem.H, self.problem.g)
 
     def _assemble_constraints(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
         """Bounds: the box constraints intersected and clipped into the cycle's reachable

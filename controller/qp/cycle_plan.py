@@ -10,13 +10,21 @@ construction:
 - a table, one line per object: its kernel's kind, its first row (a task's in the stacked task
   rows, a general constraint's in C; a box's index in the box bounds), its number of rows, the
   offset of its parameters in one packed array, and the index of its expected impact;
-- the packed parameters: each object's ``kernel_parameters()`` (gains, targets, weights,
-  limits) one after the other, packed again only when a task's or a constraint's attribute was
+- the packed parameters: h, dt and the first relaxed row (``HEAD``), then each object's
+  ``kernel_parameters()`` (gains, targets, weights, limits) one after the other, packed again only when a task's or a constraint's attribute was
   assigned since (``Task.parameter_edits``, ``Constraint.parameter_edits``), not per cycle.
 
-At each cycle ``fill`` reads the jump matrices and the activation of each expected impact (once
-per fill of the model terms, shared with the Command's prediction) and makes one call of
-``planned_rows``, which runs the classes' own kernels on their slices of the stacked buffers:
+At each cycle ``fill`` has each expected impact write its jump matrices into the plan's
+stacked buffers (``ExpectedImpact.fill_stacked``: the fixed base's fills write there directly,
+once per fill of the model terms, shared with the Command's prediction) and makes one call of
+``planned_rows`` on flat arrays only (numba types each argument at every call, a tuple element
+by element; an array's type does not depend on its shape, so one compiled signature serves
+every number of impacts and every robot), seven of them: the arm's state in one array
+(``ModelTerms.arm_state``), M, h, the expected impacts' rows (their maps and activations), the
+table, the parameters (h, dt, the first relaxed row and the buffers' sizes at their head) and
+the controller's buffers (``CycleBuffers``: the reachable accelerations, the task rows, the QP
+and the box bounds, views of one array). It runs the classes' own kernels on their slices of the
+stacked buffers:
 the task rows, the cost H = A^T W A, g = -A^T W b, the box bounds and their intersection clipped
 into the cycle's reachable accelerations, the general rows, and the relaxed rows relaxed to what
 that box reaches (``ControlCycle.recoverable``). The QP it writes is the generic assembly's, the
@@ -42,7 +50,7 @@ from impactqp.constraints.position_limit import braking_bounds
 from impactqp.constraints.post_impact_velocity import edge_post_impact_velocity_rows
 from impactqp.constraints.torque_limit import normalised_torque_rows
 from impactqp.constraints.velocity_limit import symmetric_velocity_bounds
-from impactqp.controller.model.model_terms import ModelTerms
+from impactqp.controller.model.model_terms import ModelTerms, arm_state_views
 from impactqp.tasks import ContactApproachTask, DampingTask, PostureTask, Task
 from impactqp.tasks.contact_approach_task import APPROACH_REFERENCE_SIZE, surface_frame_approach_rows
 from impactqp.tasks.posture_task import joint_pd_rows
@@ -62,18 +70,52 @@ KERNEL_KINDS = {
 """The classes with a kernel of the plan (exactly these classes: a subclass may change the rows)."""
 
 KIND, FIRST, ROWS, PARAMETERS, IMPACT = range(5)  # the columns of the plan's table
+HORIZON, DT, FIRST_RELAXED, TASK_ROWS, GENERAL_ROWS, BOXES = range(6)  # the head of the packed parameters
+HEAD = 6
 
 
 @dataclass(frozen=True, eq=False)
 class CycleBuffers:
-    """The controller's preallocated arrays the plan writes: the stacked task rows A, b and
-    their weights w (one per row), the QP, and the box bounds (rows 2k and 2k + 1: box k)."""
+    """The controller's preallocated arrays the plan writes, views of one flat array ``data``
+    (``cycle_buffer_views``: the plan's kernel reads them in one argument): the reachable
+    accelerations (the controller's ``ControlCycle`` holds their two rows), the stacked task
+    rows A, b and their weights w (one per row), the QP (``QpProblem.over`` its H, g, C and
+    bounds) and the box bounds (rows 2k and 2k + 1: box k)."""
 
+    data: np.ndarray
+    reachable_lower: np.ndarray
+    reachable_upper: np.ndarray
     task_A: np.ndarray
     task_b: np.ndarray
     task_w: np.ndarray
     problem: QpProblem
     box_bounds: np.ndarray
+
+    @classmethod
+    def empty(cls, variables: int, task_rows: int, rows: int, boxes: int) -> CycleBuffers:
+        """Zeros for ``task_rows`` task rows, ``rows`` general rows and ``boxes`` box
+        constraints in ``variables`` unknowns."""
+        n = variables
+        data = np.zeros(n * (2 + task_rows + n + 1 + rows + 2 * boxes) + 2 * task_rows + 2 * (n + rows))
+        reachable, task_A, task_b, task_w, H, g, C, bounds, box_bounds = cycle_buffer_views(data, n, task_rows, rows, boxes)
+        return cls(data, reachable[0], reachable[1], task_A, task_b, task_w, QpProblem.over(H, g, C, bounds), box_bounds)
+
+
+@njit(cache=True)
+def cycle_buffer_views(data, n, task_rows, rows, boxes):
+    """The views (reachable lower and upper accelerations (2 x n), task A (task_rows x n), b,
+    w, H (n x n), g, C (rows x n), bounds [[lb; l], [ub; u]] (2 x (n + rows)), box bounds
+    (2 boxes x n)) of ``data``, one after the other (``CycleBuffers``), for kernels and for
+    Python alike."""
+    sizes = (2 * n, task_rows * n, task_rows, task_rows, n * n, n, rows * n, 2 * (n + rows), 2 * boxes * n)
+    ends = np.cumsum(np.array(sizes))
+    starts = ends - np.array(sizes)
+    return (
+        data[starts[0]:ends[0]].reshape(2, n), data[starts[1]:ends[1]].reshape(task_rows, n),
+        data[starts[2]:ends[2]], data[starts[3]:ends[3]], data[starts[4]:ends[4]].reshape(n, n),
+        data[starts[5]:ends[5]], data[starts[6]:ends[6]].reshape(rows, n),
+        data[starts[7]:ends[7]].reshape(2, n + rows), data[starts[8]:ends[8]].reshape(2 * boxes, n),
+    )
 
 
 class CyclePlan:
@@ -86,10 +128,13 @@ class CyclePlan:
         self.objects, self.table, self.impacts, self.buffers, self.dt = objects, table, impacts, buffers, dt
         self.first_relaxed = first_relaxed  # the first relaxed row of C
         n = buffers.problem.H.shape[0]
-        self.parameters = np.empty(0)
+        self.parameters = np.empty(HEAD)
         self._edits = (-1, -1)  # the parameter edits of the last packing
-        self._active = np.zeros(max(len(impacts), 1), dtype=np.bool_)
-        self._no_impact = ((np.zeros((n, n)),), (np.zeros((0, n, n)),))  # a plan without impact rows: A or P; edges
+        edges = impacts[0].friction.count if impacts else 0
+        # impact i's [A, P, G] (3 n^2, ``impact_model.fixed_base_matrix_views``), its edges' A_i, P_i
+        # (2 x edges x n x n) and its activation, in row i
+        self.impacts_data = np.zeros((max(len(impacts), 1), (3 + 2 * edges) * n * n + 1))
+        self._impact_rows = [(row[:3 * n * n], row[3 * n * n:-1].reshape(2, edges, n, n)) for row in self.impacts_data]
 
     @classmethod
     def of(cls, tasks: list[Task], layout: ConstraintLayout, buffers: CycleBuffers, dt: float) -> CyclePlan | None:
@@ -104,6 +149,8 @@ class CyclePlan:
             impact = getattr(constraint, "impact", None)
             if impact is not None and not any(impact is known for known in impacts):
                 impacts.append(impact)
+        if n < 3 or len({impact.friction.count for impact in impacts}) > 1:  # the stacks' shapes (``__init__``)
+            return None
         table = np.zeros((len(objects), 5), dtype=np.int64)
         task_row = 0
         for line, task in zip(table, tasks):
@@ -120,47 +167,40 @@ class CyclePlan:
         return cls(objects, table, impacts, buffers, dt, layout.first_relaxed_row)
 
     def pack(self) -> None:
-        """The objects' ``kernel_parameters`` into the packed array and their offsets into the table."""
+        """The objects' ``kernel_parameters`` into the packed array (after its ``HEAD``) and their
+        offsets into the table."""
         packed = [
             item.kernel_parameters(self.dt) if isinstance(item, PositionLimit) else item.kernel_parameters()
             for item in self.objects
         ]
         sizes = np.array([len(values) for values in packed], dtype=np.int64)
-        self.table[:, PARAMETERS] = np.cumsum(sizes) - sizes
-        self.parameters = np.concatenate(packed) if packed else np.empty(0)
+        self.table[:, PARAMETERS] = HEAD + np.cumsum(sizes) - sizes
+        self.parameters = np.concatenate([np.zeros(HEAD), *packed])
+        b = self.buffers
+        head = (self.first_relaxed, b.task_A.shape[0], b.problem.C.shape[0], b.box_bounds.shape[0] // 2)
+        self.parameters[FIRST_RELAXED:HEAD] = head
         self._edits = (Task.parameter_edits, Constraint.parameter_edits)
 
-    def _impact_maps(self, terms: ModelTerms) -> tuple:
-        """The kernels' ``impacts``: (A, P, the edges' A_i, the edges' P_i), one entry per expected
-        impact (zeros when there is none), and their activations at ``terms``."""
-        active = self._active
-        if not self.impacts:
-            (matrix,), (edge,) = self._no_impact
-            return (matrix,), (matrix,), (edge,), (edge,), active
-        jumps, torques, edge_jumps, edge_torques = [], [], [], []
+    def _impact_maps(self, terms: ModelTerms) -> np.ndarray:
+        """The kernels' ``impacts`` at ``terms`` (zeros when there is none): row i holds the
+        expected impact i's [A, P, G], its edges' A_i and P_i, written by the impact
+        (``ExpectedImpact.fill_stacked``), and its activation (1 or 0), last."""
+        data = self.impacts_data
         for i, impact in enumerate(self.impacts):
-            matrices, edges = impact.row_matrices(terms), impact.edge_row_matrices(terms)
-            jumps.append(matrices.jump_matrix)
-            torques.append(matrices.torque_matrix)
-            edge_jumps.append(edges.jump)
-            edge_torques.append(edges.torque)
-            active[i] = impact.is_active(terms)
-        return tuple(jumps), tuple(torques), tuple(edge_jumps), tuple(edge_torques), active
+            maps, edges = self._impact_rows[i]
+            data[i, -1] = impact.fill_stacked(terms, maps, edges)
+        return data
 
     def fill(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
         """Every task and constraint row of this state into the buffers (one compiled call);
         False when the box bounds conflict."""
         if self._edits != (Task.parameter_edits, Constraint.parameter_edits):
             self.pack()
-        maps = self._impact_maps(terms)
-        b = self.buffers
-        p = b.problem
-        return planned_rows(
-            (terms.q, terms.dq, terms.J6, terms.dJ6_dq, terms.contact_rotation, terms.M, terms.h), maps,
-            (cycle.acceleration_lower, cycle.acceleration_upper, cycle.horizon, cycle.dt),
-            self.table, self.parameters, (b.task_A, b.task_b, b.task_w),
-            (p.H, p.g, b.box_bounds, p.lower, p.upper, p.C), self.first_relaxed,
-        )
+        impacts, parameters, b = self._impact_maps(terms), self.parameters, self.buffers
+        parameters[HORIZON], parameters[DT] = cycle.horizon, cycle.dt
+        if cycle.acceleration_lower is not b.reachable_lower or cycle.acceleration_upper is not b.reachable_upper:
+            b.reachable_lower[:], b.reachable_upper[:] = cycle.acceleration_lower, cycle.acceleration_upper
+        return planned_rows(terms.arm_state, terms.M, terms.h, impacts, self.table, parameters, b.data)
 
 
 def _planned(kind: int | None, item, variables: int) -> bool:
@@ -177,23 +217,30 @@ def _planned(kind: int | None, item, variables: int) -> bool:
 
 
 @njit(cache=True)
-def planned_rows(state, impacts, cycle, table, parameters, task_rows, qp, first_relaxed):
-    """Kernel of ``CyclePlan.fill``: ``state`` = (q, dq, J6, dJ6 dq, R, M, h), ``impacts`` = (the
-    jump matrices A, the torque maps P, the edges' A_i, the edges' P_i, the activations), one
-    entry per expected impact, ``cycle`` = (the
-    reachable lower and upper accelerations, the horizon h, dt), ``task_rows`` = (A, b, w),
-    ``qp`` = (H, g, the box bounds, [lb; l], [ub; u], C). Each line of ``table`` runs its class's
-    kernel on its slice with its ``parameters`` (the layouts of the classes'
-    ``kernel_parameters``); then H = A^T W A, g = -A^T W b, the boxes intersected into
-    [lb, ub] within the reachable interval, and the rows from ``first_relaxed`` on relaxed to
-    what [lb, ub] reaches. False when the boxes conflict."""
-    task_A, task_b, task_w = task_rows
-    H, g, box_bounds, lower, upper, C = qp
-    n = task_A.shape[1]
-    planned_task_rows(state, table, parameters, task_rows)
+def planned_rows(state, M, h, impacts, table, parameters, data):
+    """Kernel of ``CyclePlan.fill``, of flat arrays only (numba types a tuple argument element
+    by element at every call): ``state`` = the arm's [J6, (J J^T)^-1, p, dJ6 dq, dq, R, q]
+    (``model_terms.arm_state_views``), M, h; ``impacts`` = the expected impacts' rows
+    (``CyclePlan._impact_maps``); ``parameters`` = [h, dt, the first relaxed row, the task rows,
+    the general rows, the boxes, the lines' parameters]; ``data`` = the reachable accelerations,
+    the task rows A, b, w, the QP H, g, C, [[lb; l], [ub; u]] and the box bounds
+    (``cycle_buffer_views``). Each line of ``table`` runs its class's kernel on its slice with
+    its parameters (the layouts of the classes' ``kernel_parameters``); then H = A^T W A,
+    g = -A^T W b, the boxes intersected into [lb, ub] within the reachable interval, and the
+    rows from the first relaxed one on relaxed to what [lb, ub] reaches. False when the boxes
+    conflict."""
+    n = M.shape[0]
+    J6, _, _, dJ6_dq, dq, rotation, q = arm_state_views(state, n)
+    sizes = int(parameters[TASK_ROWS]), int(parameters[GENERAL_ROWS]), int(parameters[BOXES])
+    reachable, task_A, task_b, task_w, H, g, C, bounds, box_bounds = cycle_buffer_views(data, n, *sizes)
+    lower, upper = bounds[0], bounds[1]
+    first_relaxed = int(parameters[FIRST_RELAXED])
+    inputs = (q, dq, J6, dJ6_dq, rotation, M, h)
+    cycle = (reachable[0], reachable[1], parameters[HORIZON], parameters[DT])
+    planned_task_rows(inputs, table, parameters, (task_A, task_b, task_w))
     weighted_least_squares(task_A, task_b, task_w, H, g)
-    consistent = planned_boxes(state, cycle, table, parameters, box_bounds, lower, upper)
-    planned_general_rows(state, impacts, cycle[2], table, parameters, qp)
+    consistent = planned_boxes(inputs, cycle, table, parameters, box_bounds, lower, upper)
+    planned_general_rows(inputs, impacts, parameters[HORIZON], table, parameters, (H, g, box_bounds, lower, upper, C))
     relax_to_reachable(C[first_relaxed:], lower[n + first_relaxed:], upper[n + first_relaxed:], lower[:n], upper[:n])
     return consistent
 
@@ -201,7 +248,7 @@ def planned_rows(state, impacts, cycle, table, parameters, task_rows, qp, first_
 @njit(cache=True)
 def planned_task_rows(state, table, parameters, task_rows):
     """Kernel: the rows of the approach, posture and damping tasks of ``table`` (the other lines
-    left as they are), for ``planned_rows``'s ``state`` and ``task_rows``."""
+    left as they are), for ``state`` = (q, dq, J6, dJ6 dq, R, M, h) and ``task_rows`` = (A, b, w)."""
     q, dq, J6, dJ6_dq, rotation = state[0], state[1], state[2], state[3], state[4]
     task_A, task_b, task_w = task_rows
     n, joints = dq.shape[0], q.shape[0]
@@ -258,25 +305,33 @@ def planned_boxes(state, cycle, table, parameters, box_bounds, lower, upper):
 @njit(cache=True)
 def planned_general_rows(state, impacts, horizon, table, parameters, qp):
     """Kernel: the general rows of the torque, post-impact velocity and impulsive torque limits
-    of ``table`` (``planned_rows``'s ``state``, ``impacts`` and ``qp``; ``horizon``: h)."""
+    of ``table``, for ``planned_task_rows``' ``state``, ``impacts`` (``planned_rows``': row i
+    = [A, P, G (in n^2 values), the edges' A_i and P_i, the activation]), ``horizon`` h and
+    ``qp`` = (H, g, the box bounds, [lb; l], [ub; u], C)."""
     dq, M, h = state[1], state[5], state[6]
-    jumps, torques, edge_jumps, edge_torques, active = impacts
     C, lower, upper = qp[5], qp[3], qp[4]
     n = dq.shape[0]
+    square = n * n
+    edges = ((impacts.shape[1] - 1) // square - 3) // 2  # (3 + 2 edges) n^2 + 1 values a row
     inv_h = 1.0 / horizon
     for e in range(table.shape[0]):
         kind, first, rows, p, i = table[e, KIND], table[e, FIRST], table[e, ROWS], table[e, PARAMETERS], table[e, IMPACT]
         last = first + rows
         if kind == TORQUE:
             normalised_torque_rows(M, h, parameters[p:p + rows], C[first:last], lower[n + first:n + last], upper[n + first:n + last])
-        elif kind == POST_IMPACT:  # a block of rows per map: A, then each edge's A_i
-            block = rows // (1 + edge_jumps[i].shape[0])
+            continue
+        if kind != POST_IMPACT and kind != IMPULSIVE:
+            continue
+        row = impacts[i]
+        edge_maps = row[3 * square:3 * square + 2 * edges * square].reshape(2, edges, n, n)
+        active = row[row.shape[0] - 1] != 0.0
+        if kind == POST_IMPACT:  # a block of rows per map: A, then each edge's A_i
             edge_post_impact_velocity_rows(
-                (jumps[i], edge_jumps[i]), dq, parameters[p:p + block], inv_h, active[i], C[first:last],
-                lower[n + first:n + last], upper[n + first:n + last],
-            )
-        elif kind == IMPULSIVE:  # P, then each edge's P_i
-            edge_scaled_impulse_rows(
-                (torques[i], edge_torques[i]), parameters[p:p + 2 * n].reshape((2, n)), dq, inv_h, active[i],
+                (row[:square].reshape(n, n), edge_maps[0]), dq, parameters[p:p + rows // (1 + edges)], inv_h, active,
                 C[first:last], lower[n + first:n + last], upper[n + first:n + last],
+            )
+        else:  # P, then each edge's P_i
+            edge_scaled_impulse_rows(
+                (row[square:2 * square].reshape(n, n), edge_maps[1]), parameters[p:p + 2 * n].reshape((2, n)), dq, inv_h,
+                active, C[first:last], lower[n + first:n + last], upper[n + first:n + last],
             )

@@ -31,10 +31,20 @@ class QpProblem:
     """
 
     def __init__(self, H, g, C, l, u, lb, ub):
+        self._hold(H, g, C, np.stack([np.concatenate([lb, l]), np.concatenate([ub, u])]))
+
+    @classmethod
+    def over(cls, H, g, C, bounds) -> QpProblem:
+        """The QP whose data are these arrays themselves, no copy (views of a caller's buffer:
+        ``cycle_plan.CycleBuffers``), ``bounds`` = [[lb; l], [ub; u]]."""
+        problem = cls.__new__(cls)
+        problem._hold(H, g, C, bounds)
+        return problem
+
+    def _hold(self, H, g, C, bounds) -> None:
         rows, n = C.shape[0], H.shape[0]
-        self.H, self.g, self.C = H, g, C
-        self.bounds = np.stack([np.concatenate([lb, l]), np.concatenate([ub, u])])
-        self.lower, self.upper = self.bounds
+        self.H, self.g, self.C, self.bounds = H, g, C, bounds
+        self.lower, self.upper = bounds
         self.lb, self.l = self.lower[:n], self.lower[n:]
         self.ub, self.u = self.upper[:n], self.upper[n:]
         self.gaps = np.zeros((2, n + rows))

@@ -148,7 +148,7 @@ def whole_body_rows(inputs, maps, cycle, plan, task_rows, qp):
     weighted_least_squares(task_A, task_b, task_w, H, g)
     consistent = planned_boxes(state, cycle, table, parameters, box_bounds, lower, upper)
     planned_general_rows(state, impacts, cycle[2], table, parameters, qp)
-    body_general_rows((state[1], state[2], body), body_maps, impacts[4], cycle[2], table, parameters, qp)
+    body_general_rows((state[1], state[2], body), body_maps, impacts[:, -1], cycle[2], table, parameters, qp)
     relax_to_reachable(C[first_relaxed:], lower[n + first_relaxed:], upper[n + first_relaxed:], lower[:n], upper[:n])
     return consistent
 
