@@ -9,17 +9,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from conftest import JOINTS, g1_model
+from conftest import JOINTS
+from whole_body_states import NORMAL, criterion_margins, standing_states, vertex_impulses
+from whole_body_states import robot as g1_robot
 from impactqp.constraints import ExpectedImpact
-from impactqp.controller.model.friction_pyramid import FrictionRows, response_maps
+from impactqp.controller.model.friction_pyramid import FrictionRows, held_response_maps, pyramid_directions, response_maps
 from impactqp.controller.model.frictional_impact import contact_frame, frictional_impulse
 from impactqp.controller.model.friction_max_speed import frictional_max_speed
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.jump import JUMP_MODELS
-from impactqp.controller.model.max_speed import Setting, closed_form_max_speed
+from impactqp.controller.model.max_speed import HAND_IMPACT_DURATION, Setting, closed_form_max_speed
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.model.validation import BadInputError
 
 FRICTION_POSTURES = list(PANDA.postures)
 
@@ -108,8 +109,77 @@ def test_the_frictional_closed_form_reports_the_contact_mode(robot):
     assert sticking.mode == "stick"
 
 
-def test_the_frictional_closed_form_is_an_arms():
-    g1 = g1_model()
-    terms = g1.terms(stance_posture(g1, STANCES["parallel"]))
-    with pytest.raises(BadInputError, match="held contacts"):
-        frictional_max_speed(g1, terms, np.array([-1.0, 0.0, 0.0]), np.zeros(3), Setting(), FrictionRows(0.2))
+HELD_METHODS = ["crb", "gm", "classical"]
+STANCE_NAMES = sorted(STANCES)
+
+
+@settings(max_examples=12, deadline=None)
+@given(standing_states(), st.sampled_from(HELD_METHODS), st.sampled_from([0.0, 0.4]), st.floats(-0.2, 0.2))
+def test_on_held_contacts_zero_friction_is_the_frictionless_closed_form(state, method, restitution, slide):
+    """Random standing postures: mu = 0 gives the frictionless closed form (every criterion's
+    bound) to 1e-12; for crb and gm, whose frictionless impulse is along n, a vanishing mu too,
+    and a slide along the wall changes their feet and capture bounds by nothing (their impulse
+    does not see it)."""
+    _, q, _ = state
+    g1, setting = g1_robot(), Setting(method, restitution)
+    terms = g1.terms(q)
+    frictionless = closed_form_max_speed(g1, terms, NORMAL, setting)
+    zero = frictional_max_speed(g1, terms, NORMAL, np.zeros(3), setting, FrictionRows(0.0))
+    assert (zero.max_speed.criterion, zero.max_speed.where) == (frictionless.criterion, frictionless.where)
+    for criterion, bound in frictionless.bounds.items():
+        assert zero.max_speed.bounds[criterion].speed == pytest.approx(bound.speed, rel=1e-12, abs=0.0)
+    if method == "classical":
+        return
+    vanishing = frictional_max_speed(g1, terms, NORMAL, np.zeros(3), setting, FrictionRows(1e-13))
+    assert vanishing.max_speed.speed == pytest.approx(frictionless.speed, rel=1e-10)
+    sliding = frictional_max_speed(g1, terms, NORMAL, np.array([0.0, slide, 0.0]), setting, FrictionRows(0.0))
+    for criterion in ("foot_slip", "foot_lift", "capture"):
+        assert sliding.max_speed.bounds[criterion].speed == pytest.approx(frictionless.bounds[criterion].speed, rel=1e-9)
+
+
+def vertex_margins(q, method, speed, mu, edges, slide, heights):
+    """Each criterion's smallest margin over the vertices of the cone's section at the normal speed
+    ``speed`` sliding at (0, slide, 0), from first principles (``criterion_margins``): the
+    predictor's own impulse and each edge's, the impulse along d_i = n + mu_k t_i that ends
+    compression (``vertex_impulses``), with the predictor's held-contact W and jump map."""
+    g1 = g1_robot()
+    terms = g1.terms(q)
+    model = JUMP_MODELS[method]
+    arm = g1.base_nv + np.array([g1.joint_index(j) for j in g1.description.contact.joints])
+    dq_pre = np.zeros(g1.nv)
+    dq_pre[arm] = np.linalg.pinv(terms.J[:, arm]) @ np.array([speed, slide, 0.0])  # -speed n + slide e_y
+    v_minus = terms.J @ dq_pre
+    W = held_response_maps(model, terms, NORMAL, 0.0)[1]
+    impulses = [model.predict(terms, NORMAL, v_minus).impulse, *vertex_impulses(W, v_minus, pyramid_directions(NORMAL, mu, edges))]
+    margins = {}
+    for impulse in impulses:
+        jump = model.predict(terms, NORMAL, None, impulse=impulse)
+        for criterion, margin in criterion_margins(q, dq_pre, jump, heights, HAND_IMPACT_DURATION).items():
+            margins[criterion] = min(margins.get(criterion, np.inf), margin)
+    return margins
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.sampled_from(STANCE_NAMES), st.sampled_from(HELD_METHODS), st.floats(0.05, 1.0), st.integers(3, 8),
+       st.sampled_from([0.0, 0.1]))
+def test_on_held_contacts_every_vertex_meets_every_criterion_at_the_answer_and_the_binding_one_is_tight(
+    name, method, mu, edges, slide
+):
+    """At the frictional closed form's speed every vertex's joint velocities, feet (cone and sole)
+    and capture point hold, the binding criterion is tight on one vertex, and 1 % faster it fails;
+    friction never raises the frictionless closed form (at the same slide)."""
+    g1, stance = g1_robot(), STANCES[name]
+    q = stance_posture(g1, stance)
+    heights = np.repeat([stance.height(k) for k in range(len(stance.feet))], 4)
+    terms = g1.terms(q)
+    tangential = np.array([0.0, slide, 0.0])
+    answer = frictional_max_speed(g1, terms, NORMAL, tangential, Setting(method), FrictionRows(mu, edges))
+    without = frictional_max_speed(g1, terms, NORMAL, tangential, Setting(method), FrictionRows(0.0))
+    v = answer.max_speed.speed
+    assert 0.0 < v <= without.max_speed.speed * (1 + 1e-12)
+    at = vertex_margins(q, method, v, mu, edges, slide, heights)
+    assert min(at.values()) >= -1e-6
+    assert at[answer.max_speed.criterion] == pytest.approx(0.0, abs=1e-6)
+    assert vertex_margins(q, method, 1.01 * v, mu, edges, slide, heights)[answer.max_speed.criterion] < 0.0
+    assert answer.block in ("frictionless", *(f"edge {i}" for i in range(edges)))
+    assert answer.mode in ("slip", "stick", "reversal")
