@@ -102,6 +102,37 @@ def test_max_speed_with_friction_is_the_closed_form_of_the_robust_friction_rows(
     assert code == 0 and "robust friction rows" in text and f"{speeds['crb']:8.4f}" in text
 
 
+def test_g1_max_speed_with_friction_is_the_closed_form_of_its_stances(capsys):
+    """--robot g1 --friction without --controller qp: per stance the closed form under the robust
+    friction rows (``friction_max_speed``, no simulation), each predictor at most its frictionless
+    closed form (mu = 0), which is ``max_speed``'s, and what binds it: a held-contact criterion or a
+    joint, on one vertex."""
+    from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+    from impactqp.controller.model.max_speed import Setting, closed_form_max_speed
+    from impactqp.controller.model.robot import RobotModel
+
+    code, stdout, _ = run(capsys, "max-speed", "--robot", "g1", "--posture", "parallel,step", "--friction", "0.3",
+                          "--tangential", "0,0.1,0", "--json")
+    assert code == 0
+    reports = json.loads(stdout)["stances"]
+    assert [r["posture"] for r in reports] == ["parallel", "step"]
+    g1 = RobotModel("g1")
+    for report in reports:
+        assert (report["friction"], report["pyramid_edges"], report["tangential"]) == (0.3, 4, [0.0, 0.1, 0.0])
+        speeds, without = report["predicted_max_speed"], report["frictionless_max_speed"]
+        assert speeds["robust"] == min(speeds[m] for m in ("classical", "gm", "crb"))
+        assert all(0.0 < speeds[m] <= without[m] for m in speeds)
+        for method, binding in report["binding"].items():
+            assert binding["criterion"] in {"joint_velocity", "foot_slip", "foot_lift", "capture"}
+            assert binding["block"] in {"frictionless", "edge 0", "edge 1", "edge 2", "edge 3"}
+            assert binding["mode"] in {"slip", "stick", "reversal"}
+        q = stance_posture(g1, STANCES[report["posture"]])
+        frictionless = closed_form_max_speed(g1, g1.terms(q), [-1.0, 0.0, 0.0], Setting("crb"))
+        assert without["crb"] == pytest.approx(frictionless.speed, rel=1e-12)  # crb's impulse does not see the slide
+    code, text, _ = run(capsys, "max-speed", "--robot", "g1", "--posture", "step", "--friction", "0.3")
+    assert code == 0 and text.startswith("step (g1): highest normal contact speed") and "no friction" in text
+
+
 def test_a_figure_of_another_format_is_refused_before_the_search(capsys, monkeypatch, tmp_path):
     from impactqp.scenarios.cli import max_speed_command
 

@@ -151,9 +151,12 @@ def plant_files(tmp_path_factory):
         (["max-speed", "--posture", "elbow_up", "--tangential", "0,0.1,0"], "give --friction too"),
         (["max-speed", "--posture", "elbow_up", "--friction", "0.3", "--tangential", "0.1,0,0"], "orthogonal"),
         (["max-speed", "--posture", "elbow_up", "--friction", "0.3", "--jobs", "2"], "--jobs"),
-        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3"], "give --controller qp"),
-        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3", "--tangential", "0,0.1,0"],
-         "--tangential does not apply"),
+        (["max-speed", "--robot", "g1", "--posture", "parallel", "--tangential", "0,0.1,0"], "give --friction too"),
+        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3", "--tangential", "0.1,0,0"],
+         "orthogonal"),
+        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3", "--jobs", "2"], "--jobs"),
+        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3", "--controller", "qp",
+          "--tangential", "0,0.1,0"], "--tangential does not apply"),
     ],
 )
 def test_bad_input_is_one_line_with_exit_code_2(capsys, plant_files, args, message):
