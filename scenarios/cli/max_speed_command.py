@@ -118,7 +118,7 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     qp = request.controller == "qp"
     if not qp and request.feedback != "commanded":
         raise BadInputError("--feedback chooses the state the whole-body QP is given: give --controller qp")
-    friction = 0.0 if request.friction is None else rows_friction(request.friction)
+    friction = None if request.friction is None else rows_friction(request.friction)
     model = RobotModel(robot)
     reports = []
     for stance in stances:
