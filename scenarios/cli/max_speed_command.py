@@ -11,7 +11,8 @@ per named posture on a wall (``scenarios.max_speed_search.MaxSpeedSearch``: clos
 QP-limited run and simulated bisection). With ``--friction`` the answer is the closed form under
 the robust friction rows (``controller.model.friction_max_speed.frictional_max_speed``: every
 predictor at the posture or stance, sliding at ``--tangential``), without simulation; a standing
-robot's ``--controller qp --friction`` instead runs its simulated search with the QP's friction rows.
+robot's ``--controller qp --friction`` instead runs its simulated search with the QP's friction rows,
+its checks asked at factors of crb's closed form under those rows.
 Bad input ends with one line on stderr and exit code 2.
 """
 
@@ -96,17 +97,18 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     """The JSON report of a floating-base robot's search at a stance of its description: its
     ``robot``, the closed form of each predictor and ``robust`` (the smallest), the bisection of
     the trials driven by ``controller`` (the scripted arm, or the whole-body QP with one trial
-    asked for each of :data:`QP_CHECKS` times the closed form), and the contact duration used (the
-    description's wall contact unless --impact-duration); the bisection's tolerance is
-    ``max_speed_search.STANCE_TOLERANCE`` on the commanded speed unless --tolerance. With --friction
-    (with --controller qp; without it the closed form with friction, :func:`frictional_max_speed_report`),
-    the QP's robust friction rows of that mu on a wall of that mu in every trial
-    (``trials_friction``); the closed form beside them stays frictionless. Several stances
-    (comma-separated): one such report per stance under ``stances``."""
+    asked for each of :data:`QP_CHECKS` times the closed form ``checks_reference``,
+    :func:`checks_reference`), and the contact duration used (the description's wall contact unless
+    --impact-duration); the bisection's tolerance is ``max_speed_search.STANCE_TOLERANCE`` on the
+    commanded speed unless --tolerance. With --friction (with --controller qp; without it the closed
+    form with friction, :func:`frictional_max_speed_report`), the QP's robust friction rows of that mu
+    on a wall of that mu in every trial (``trials_friction``), and the checks' reference is crb's
+    closed form under those rows; the per-predictor closed form beside them stays frictionless.
+    Several stances (comma-separated): one such report per stance under ``stances``."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
     from impactqp.controller.model.robot import RobotModel
-    from impactqp.scenarios.max_speed_search import STANCE_TOLERANCE, search_stance
+    from impactqp.scenarios.max_speed_search import STANCE_TOLERANCE, SpeedChecks, search_stance
     from impactqp.sim.trial_sources import SCRIPTED, QpCommand
 
     reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool", "tangential"])
@@ -121,19 +123,46 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     friction = None if request.friction is None else rows_friction(request.friction)
     model = RobotModel(robot)
     reports = []
+    setting = Setting("crb", c_r, impact_duration=duration)
     for stance in stances:
-        result = search_stance(model, stance, Setting("crb", c_r, impact_duration=duration), tolerance=tolerance,
+        reference = checks_reference(model, stance, setting, friction) if qp and friction is not None else None
+        checks = SpeedChecks(QP_CHECKS, None if reference is None else reference["speed"]) if qp else SpeedChecks()
+        result = search_stance(model, stance, setting, tolerance=tolerance,
                                source=QpCommand(feedback=request.feedback, friction=friction) if qp else SCRIPTED,
-                               checks=QP_CHECKS if qp else ())
+                               checks=checks)
         report = {"robot": robot.name, "controller": request.controller, **result.to_json()}
         if request.friction is not None:
             report["trials_friction"] = friction
+        if qp:
+            report["checks_reference"] = reference or {
+                "closed_form": "frictionless", "method": "crb", "speed": report["predicted_max_speed"]["crb"],
+                **report["binding"]["crb"],
+            }
         speeds = report["predicted_max_speed"]
         robust = min(METHODS, key=lambda m: math.inf if speeds[m] is None else speeds[m])
         speeds["robust"], report["binding"]["robust"] = speeds[robust], report["binding"][robust]
         report["impact_duration"] = duration
         reports.append(report)
     return reports[0] if len(reports) == 1 else {"robot": robot.name, "controller": request.controller, "stances": reports}
+
+
+def checks_reference(model, stance: str, setting: Setting, friction: float) -> dict:
+    """The closed form that a standing robot's QP-driven checks are factors of, with friction rows of
+    mu = ``friction`` in its trials: crb's under the robust friction rows of that mu at the stance,
+    the hand approaching along the wall's normal with no slide (one call of
+    ``friction_max_speed.frictional_max_speed``), its speed (None when unbounded), what binds it and
+    the block."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.controller.model.friction_max_speed import frictional_max_speed
+    from impactqp.controller.model.friction_pyramid import FrictionRows
+    from impactqp.controller.model.humanoid_stance import stance_posture
+    from impactqp.sim.runner import NORMAL
+
+    q = stance_posture(model, model.description.stances[stance])
+    answer = frictional_max_speed(model, model.terms(q), NORMAL, np.zeros(3), setting, FrictionRows(friction))
+    speed = answer.max_speed
+    return {"closed_form": "frictional", "method": setting.method, "friction": friction, "speed": finite(speed.speed),
+            "criterion": speed.criterion, "where": speed.where, "block": answer.block}
 
 
 def given(option: str) -> bool:
@@ -261,7 +290,9 @@ def max_speed_text(report: dict) -> str:
     if "qp_limited_speed" not in report:
         driver = " by the QP" if report.get("controller") == "qp" else ""  # reports of the scripted arm may lack the key
         if "trials_friction" in report:
-            driver += f" with friction rows, mu = {report['trials_friction']:g} (the closed form: frictionless)"
+            driver += f" with friction rows, mu = {report['trials_friction']:g}"
+        if "checks_reference" in report:
+            lines.append(reference_text(report["checks_reference"]))
         lines.append(f"{'simulated':<14}{report['simulated_max_speed']:8.4f}  commanded{driver}; contact "
                      f"{report['simulated_contact_speed']:.4f}; failed first above: {report['simulated_failed_first'] or '-'}")
         lines.extend(check_text(factor, e) for factor, e in report.get("checks", {}).items())
@@ -283,9 +314,23 @@ def max_speed_text(report: dict) -> str:
     return "\n".join(lines)
 
 
+def reference_text(reference: dict) -> str:
+    """The closed form a report's checks are factors of: which one (frictional: mu), its speed and
+    what binds it."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.max_speed_search import binding_text
+
+    name = f"{reference['method']}, mu {reference['friction']:g}" if reference["closed_form"] == "frictional" else reference["method"]
+    block = f", {reference['block']}" if reference.get("block") else ""
+    speed = reference["speed"] if reference["speed"] is not None else math.inf
+    return (f"  {name:<12}{speed:8.4f}  {binding_text(reference)}{block}: "
+            f"the checks' reference, the {reference['closed_form']} closed form")
+
+
 def check_text(factor: str, e: dict) -> str:
-    """One trial asked for ``factor`` times the crb closed form: asked and contact speed, the
-    binding impact rows, the failed criteria's onsets (ms from the contact) and whether it fell."""
+    """One trial asked for ``factor`` times the checks' reference (crb's closed form, frictional with
+    --friction: :func:`reference_text`): asked and contact speed, the binding impact rows, the
+    failed criteria's onsets (ms from the contact) and whether it fell."""
     onsets = ", ".join(f"{name} {1000 * t:+.0f} ms" for name, t in e["onsets"].items()) or "none"
     return (f"  {factor}x crb: asked {e['reference_speed']:.4f}, contact {e['contact_speed']:.4f}; "
             f"binding: {e['binding'] or '-'}; onsets: {onsets}; fell: {'yes' if e['fell'] else 'no'}")
