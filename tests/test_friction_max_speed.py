@@ -6,10 +6,9 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from conftest import JOINTS
 from whole_body_states import NORMAL, criterion_margins, standing_states, vertex_impulses
 from whole_body_states import robot as g1_robot
 from impactqp.constraints import ExpectedImpact
@@ -42,33 +41,76 @@ def test_zero_friction_without_sliding_is_the_frictionless_closed_form(robot, na
     assert zero.block in ("frictionless", "")
 
 
-@settings(max_examples=20)
-@given(st.sampled_from(FRICTION_POSTURES), st.sampled_from(["crb", "gm", "classical"]), st.floats(0.01, 2.0),
-       st.integers(3, 16), st.floats(-0.2, 0.2), st.floats(-0.2, 0.2), st.sampled_from(["pyramid", "slip"]))
-def test_friction_never_raises_the_highest_speed_and_the_bound_binds(robot, name, method, mu, k, a, b, mode):
-    """Friction adds rows: its highest speed is at most the frictionless one at the same
-    tangential velocity, and at that speed every row holds with one at its limit."""
-    posture = PANDA.postures[name]
-    normal, terms, setting = posture.surface.normal, robot.terms(posture.q), Setting(method, 0.2)
-    tangential = tangential_of(normal, a, b)
-    without = frictional_max_speed(robot, terms, normal, tangential, setting, FrictionRows(0.0))
-    answer = frictional_max_speed(robot, terms, normal, tangential, setting, FrictionRows(mu, k, mode))
-    v = answer.max_speed.speed
-    assert v <= without.max_speed.speed * (1 + 1e-12)
-    if not 0.0 < v < math.inf:
-        return
+def rows_at(robot, posture, method, rows, tangential, v):
+    """The QP's impact rows at the approach dq- moving the contact at v_t - v n, as
+    ``ExpectedImpact`` builds them from that state (the preview reads its edges from dq): the
+    largest ratio of a row to its limit (the pre- and post-impact velocities and the impulsive
+    torque of the frictionless and every edge impulse) and a copy of the edges' maps."""
+    normal, setting = posture.surface.normal, Setting(method, 0.2)
+    terms = robot.terms(posture.q)
     dq_pre = np.linalg.pinv(terms.J6) @ np.concatenate([tangential - v * normal, np.zeros(3)])
-    rows = ExpectedImpact(Surface(terms.contact_point, normal), method, 0.2, friction=FrictionRows(mu, k, mode))
-    frozen = robot.terms(posture.q, dq_pre if mode == "slip" else np.zeros(JOINTS))  # the preview reads dq
-    edges = rows.edge_matrices(frozen)
-    own = rows.matrices(frozen)
-    worst = 0.0
+    impact = ExpectedImpact(Surface(terms.contact_point, normal), method, 0.2, friction=rows)
+    frozen = robot.terms(posture.q, dq_pre)
+    edges, own = impact.edge_matrices(frozen), impact.matrices(frozen)
+    worst = np.max(np.abs(dq_pre) / robot.dq_max)
     for A, P in [(own.jump_matrix, own.torque_matrix), *zip(edges.jump, edges.torque)]:
         worst = max(worst, np.max(np.abs(dq_pre + A @ dq_pre) / robot.dq_max),
                     np.max(np.abs(P @ dq_pre) / setting.duration(robot.description) / robot.tau_max))
-    worst = max(worst, np.max(np.abs(dq_pre) / robot.dq_max))
-    assert worst == pytest.approx(1.0, rel=1e-9)
+    return worst, np.array(edges.jump)
 
+
+@settings(max_examples=20)
+@given(st.sampled_from(FRICTION_POSTURES), st.sampled_from(["crb", "gm", "classical"]), st.floats(0.01, 2.0),
+       st.integers(3, 16), st.floats(-0.2, 0.2), st.floats(-0.2, 0.2), st.sampled_from(["pyramid", "slip"]))
+# the 3-edge pyramid's rows bind at 0.0101 m/s, below 0.0134, the highest speed of a certain slip, where the sector's hold
+@example(name="elbow_left", method="crb", mu=0.5, k=3, a=0.0, b=0.1875, mode="slip")
+def test_friction_never_raises_the_highest_speed_and_the_rows_hold_up_to_it(robot, name, method, mu, k, a, b, mode):
+    """Friction adds rows: its highest speed v is at most the frictionless one at the same
+    tangential velocity. It is the highest speed up to which the QP's rows, as built at each
+    speed, hold: they hold at every slower speed (the preview's edges are read from that speed's
+    dq-) and fail just faster. Where the rows just slower and just faster have the same edges
+    (the rows are then one set of affine functions of v), one of them is at its limit at v; where
+    the preview's edges change there (its slip certain below, not above), the faster rows fail."""
+    posture = PANDA.postures[name]
+    normal, terms, setting = posture.surface.normal, robot.terms(posture.q), Setting(method, 0.2)
+    tangential = tangential_of(normal, a, b)
+    rows = FrictionRows(mu, k, mode)
+    without = frictional_max_speed(robot, terms, normal, tangential, setting, FrictionRows(0.0))
+    v = frictional_max_speed(robot, terms, normal, tangential, setting, rows).max_speed.speed
+    assert v <= without.max_speed.speed * (1 + 1e-12)
+    if not 0.0 < v < math.inf:
+        return
+    for factor in (0.0, 0.25, 0.5, 0.75):
+        assert rows_at(robot, posture, method, rows, tangential, factor * v)[0] <= 1.0 + 1e-9
+    (below, below_edges), (above, above_edges) = (rows_at(robot, posture, method, rows, tangential, (1 + e) * v)
+                                                  for e in (-1e-9, 1e-9))
+    assert below <= 1.0 + 1e-9
+    if np.linalg.norm(above_edges - below_edges) <= 1e-9 * np.linalg.norm(below_edges):  # the same edges
+        assert rows_at(robot, posture, method, rows, tangential, v)[0] == pytest.approx(1.0, rel=1e-9)
+    else:
+        assert above > 1.0
+
+
+
+def test_where_the_pyramid_binds_below_the_certain_slip_the_preview_answers_that_speed(robot):
+    """``elbow_left``, crb, mu = 0.5, sliding at 0.1875 m/s along t2: the preview's rows are the
+    sector's while its slip is certain and the 3-edge pyramid's above (the pyramid rows of k = 3:
+    mu_3 = mu / cos(pi / 3) = 2 mu); those bind at a lower speed than the highest speed of a certain
+    slip, so the answer is that speed: just slower the rows are the sector's and hold with none at
+    its limit, just faster they are the pyramid's and fail."""
+    posture = PANDA.postures["elbow_left"]
+    normal, terms, setting = posture.surface.normal, robot.terms(posture.q), Setting("crb", 0.2)
+    tangential, preview, pyramid = tangential_of(normal, 0.0, 0.1875), FrictionRows(0.5, 3, "slip"), FrictionRows(0.5, 3)
+    answer = frictional_max_speed(robot, terms, normal, tangential, setting, preview)
+    v = answer.max_speed.speed
+    assert answer.max_speed.criterion == "certain_slip"
+    assert frictional_max_speed(robot, terms, normal, tangential, setting, pyramid).max_speed.speed < v
+    (below, below_edges), (above, above_edges) = (rows_at(robot, posture, "crb", preview, tangential, (1 + e) * v)
+                                                  for e in (-1e-9, 1e-9))
+    pyramid_edges = rows_at(robot, posture, "crb", pyramid, tangential, v)[1]
+    np.testing.assert_allclose(above_edges, pyramid_edges, rtol=1e-12, atol=1e-12 * np.max(np.abs(pyramid_edges)))
+    assert not np.allclose(below_edges, pyramid_edges)
+    assert below < 0.5 and above > 1.0
 
 @settings(max_examples=25)
 @given(st.sampled_from(FRICTION_POSTURES), st.sampled_from(["crb", "gm", "classical"]), st.floats(0.02, 1.0),

@@ -15,6 +15,13 @@ interval [0, v_max]; the smallest end over the blocks is the answer, and its blo
   joint velocity, foot slip, foot lift, capture) on each vertex's impulse, its jump (the predictor's
   held-contact K iota_i) and the held contacts' impulsive wrenches (``jump.held_impulse``).
 
+With the one-step preview's rows (mode "slip") the edges depend on v: the sector's while the slip
+of v_t - v n is certain, v <= v_c (:func:`_certain_slip_speed`), the 3-edge pyramid's
+above. The answer is the highest speed up to which the rows, as the QP builds them at each speed,
+hold: v_s, the sector's blocks' answer, when v_s <= v_c; else v_p, the pyramid's, when v_p > v_c;
+else v_c itself (criterion ``certain_slip``): the sector's rows hold up to it, no row at its limit,
+and the pyramid's fail at every faster speed.
+
 The frictionless criteria and their closed form are ``max_speed``'s; the rows of the QP that
 these bound are ``constraints.post_impact_velocity``, ``constraints.capture_constraint`` and
 ``constraints.foot_wrench`` (their edge classes).
@@ -28,7 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .friction_pyramid import (
-    Edges, FrictionRows, edge_directions, edge_impulse_maps, edge_matrices, held_response_maps, response_maps,
+    SLIP_EDGES, Edges, FrictionRows, edge_directions, edge_impulse_maps, edge_matrices, held_response_maps,
+    pyramid_directions, response_maps, slip_edges_into,
 )
 from .frictional_impact import frictional_impulse
 from .jump import jump_model
@@ -39,12 +47,17 @@ from .max_speed import (
 from .robot import RobotModel
 
 
+CERTAIN_SLIP = "certain_slip"
+"""The criterion of an answer at v_c, the highest speed of the preview's certain slip (module docstring)."""
+
+
 @dataclass(frozen=True)
 class FrictionalMaxSpeed:
     """:func:`frictional_max_speed`'s answer: the highest normal speed and what binds it
-    (``MaxSpeed``; its bounds the smallest over the blocks), the binding block ("frictionless" or
-    "edge i"), and the contact's ``mode`` per ``frictional_impulse`` at that speed with the
-    stick coefficient ``mu_bar`` ("" and nan when the speed is 0 or unbounded)."""
+    (``MaxSpeed``; its bounds the smallest over the blocks of the rows at that speed), the binding
+    block ("frictionless" or "edge i"; at v_c, criterion :data:`CERTAIN_SLIP`, the pyramid's block
+    that fails above it), and the contact's ``mode`` per ``frictional_impulse`` at that speed with
+    the stick coefficient ``mu_bar`` ("" and nan when the speed is 0 or unbounded)."""
 
     max_speed: MaxSpeed
     block: str
@@ -60,23 +73,56 @@ def frictional_max_speed(
     ``rows`` of the predictor ``setting.method`` (module docstring: an arm's joint criteria, or the
     criteria of a robot on held contacts, per vertex), and the mode of the frictional impact
     (``frictional_impulse``, mu = rows.friction, the predictor's W) at that speed. The preview's
-    edges (mode "slip") are those of the contact velocity at the answer: first of v_t alone, then,
-    when the slip is not certain at the speed found, the whole cone's (their speed is then the answer)."""
+    edges (mode "slip") are those the QP takes at each speed: the sector's up to v_c, the 3-edge
+    pyramid's above (module docstring)."""
     normal = np.asarray(normal, dtype=float)
     held = bool(robot.description.held_contacts)
     maps = held_response_maps if held else response_maps
     W = maps(jump_model(setting.method), terms, normal, setting.restitution)[1]
     blocks = _held_blocks_max_speed if held else _rows_max_speed
-    directions = edge_directions(rows, normal, tangential, W, setting.restitution)
-    best, block = blocks(robot, terms, normal, tangential, setting, directions)
-    if rows.mode == "slip" and 0.0 < best.speed < math.inf:
-        at_speed = edge_directions(rows, normal, tangential - best.speed * normal, W, setting.restitution)
-        if not np.array_equal(at_speed, directions):
-            best, block = blocks(robot, terms, normal, tangential, setting, at_speed)
+    mu, c_r = rows.friction, setting.restitution
+    best, block = blocks(robot, terms, normal, tangential, setting, edge_directions(rows, normal, tangential, W, c_r))
+    if rows.mode == "slip" and rows.count and 0.0 < best.speed < math.inf and (
+        _slip_is_certain(mu, normal, tangential, W, c_r)
+        and not _slip_is_certain(mu, normal, tangential - best.speed * normal, W, c_r)
+    ):  # the sector's rows at v = 0 answered a speed where the QP takes the pyramid's
+        switch = _certain_slip_speed(mu, normal, tangential, W, c_r, best.speed)
+        sector = best
+        best, block = blocks(robot, terms, normal, tangential, setting, pyramid_directions(normal, mu, SLIP_EDGES))
+        if best.speed <= switch:
+            best = MaxSpeed(switch, CERTAIN_SLIP, "", 0, sector.bounds | {CERTAIN_SLIP: Bound(switch)})
     if not 0.0 < best.speed < math.inf:
         return FrictionalMaxSpeed(best, block, "", math.nan)
-    impact = frictional_impulse(W, normal, tangential - best.speed * normal, rows.friction, setting.restitution)
+    impact = frictional_impulse(W, normal, tangential - best.speed * normal, mu, c_r)
     return FrictionalMaxSpeed(best, block, impact.mode, impact.mu_bar)
+
+
+def _slip_is_certain(friction: float, normal: np.ndarray, velocity: np.ndarray, W: np.ndarray, restitution: float) -> bool:
+    """Whether the preview's slip at the contact velocity ``velocity`` is certain with the friction
+    mu, the inverse inertia ``W`` and the restitution c_r: its edges are the sector's, not the
+    3-edge pyramid's that ``friction_pyramid.slip_edges_into`` leaves when it is not."""
+    uncertain = pyramid_directions(normal, friction, SLIP_EDGES)
+    directions = uncertain.copy()
+    slip_edges_into(np.asarray(velocity, dtype=float), np.asarray(W, dtype=float), normal, float(friction),
+                    float(restitution), directions)
+    return not np.array_equal(directions, uncertain)
+
+
+def _certain_slip_speed(friction: float, normal: np.ndarray, tangential: np.ndarray, W: np.ndarray, restitution: float,
+                        uncertain_speed: float) -> float:
+    """v_c: the highest normal speed v at which the preview's slip at the contact velocity v_t - v n
+    (``tangential`` v_t) is certain (:func:`_slip_is_certain`), given that it is at v = 0 and is
+    not at ``uncertain_speed``. Of the preview's test only the bound on the tangential drift D
+    depends on v, in proportion to p_max and so to |u_n| = v (``friction_pyramid``'s docstring):
+    the certain speeds are the interval [0, v_c], and v_c is found by bisection on the test
+    itself, to the last bit."""
+    low, high = 0.0, float(uncertain_speed)
+    while low < (middle := 0.5 * (low + high)) < high:
+        if _slip_is_certain(friction, normal, tangential - middle * normal, W, restitution):
+            low = middle
+        else:
+            high = middle
+    return low
 
 
 def smallest_over_blocks(blocks: dict[str, dict[str, Bound]]) -> tuple[MaxSpeed, str]:
