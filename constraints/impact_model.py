@@ -167,6 +167,8 @@ class ExpectedImpact:
         self._edge_buffer = np.empty((2, 0, 0, 0))  # A_i and P_i, allocated at the first state
         self._edges, self._edge_views = edge_maps_of(self._edge_buffer)
         self._edge_impulses = np.empty((friction.count, 3, 3))  # G_i, on held contacts
+        self._edge_impulse_views = self._edge_impulses.view()  # what ``edge_impulse_maps`` returns
+        self._edge_impulse_views.flags.writeable = False
         self._edge_fill = self._fill_held_edges if self.held_contacts else self._fill_edges
         # The crb, gm and classical models of a fixed base write A, P and G into one buffer,
         # allocated at the first fill (``_fill_fixed_base``) or a plan's (``fill_stacked``); the
@@ -220,7 +222,16 @@ class ExpectedImpact:
 
     def edge_impulse_maps(self, terms) -> np.ndarray:
         """G_i (edges x 3 x 3) of the friction rows' edges at this state on held contacts: the
-        edge impulses iota_i = G_i J dq- (``friction_pyramid.edge_impulse_maps``)."""
+        edge impulses iota_i = G_i J dq- (``friction_pyramid.edge_impulse_maps``), valid until the
+        next fill of the terms: a read-only view of the buffer that the next fill overwrites (copy
+        it to keep it), as ``edge_matrices``."""
+        if terms.stamp != self._stamp:
+            self._update(terms)
+        return self._edge_impulse_views
+
+    def edge_row_impulse_maps(self, terms) -> np.ndarray:
+        """``edge_impulse_maps`` as the buffer itself, writable, for the compiled row kernels that
+        read it within the cycle (as ``row_matrices``)."""
         if terms.stamp != self._stamp:
             self._update(terms)
         return self._edge_impulses

@@ -1,7 +1,7 @@
 """The rows of an impact-aware constraint for every vertex of the friction cone's section that the
 impulse may take (docs/frictional-impacts.md, "Robust rows on held contacts"): the frictionless
 impulse's rows, then the same rows for each edge impulse iota_i = G_i J v' of the impact's
-friction rows (``ExpectedImpact.edge_impulse_maps``)."""
+friction rows (``ExpectedImpact.edge_impulse_maps``; the kernels read ``edge_row_impulse_maps``, the writable buffer)."""
 
 from __future__ import annotations
 
@@ -32,6 +32,6 @@ class VertexBlocks:
             C[block:] = 0.0
             upper[block:] = np.inf
             return
-        for e, impulse_map in enumerate(self.impact.edge_impulse_maps(terms)):
+        for e, impulse_map in enumerate(self.impact.edge_row_impulse_maps(terms)):
             rows = slice((e + 1) * block, (e + 2) * block)
             self.vertex_rows_into(terms, cycle, impulse_map, C[rows], upper[rows])

@@ -387,7 +387,7 @@ class StanceMaxSpeed:
     simulated_contact: float  # its measured contact speed (m/s)
     failed_first: str  # what failed first at the lowest infeasible commanded speed ("" if none)
     evaluations: list = field(default_factory=list)
-    checks: dict = field(default_factory=dict)  # factor of the crb closed form -> StanceEvaluation at that asked speed
+    checks: dict = field(default_factory=dict)  # factor of the checks' reference -> StanceEvaluation at that asked speed
 
     def to_json(self) -> dict:
         return {
@@ -414,13 +414,24 @@ def predicted_speeds(robot: RobotModel, q: np.ndarray, setting: Setting, methods
     }
 
 
+@dataclass(frozen=True)
+class SpeedChecks:
+    """The trials a stance search asks for besides its bisection: one at each of ``factors`` times
+    ``reference`` (m/s: a closed form the caller took at the stance, as the frictional one of
+    ``friction_max_speed.frictional_max_speed``; None: the stance's frictionless crb closed form)."""
+
+    factors: tuple = ()
+    reference: float | None = None
+
+
 def search_stance(
     robot: RobotModel, stance: str, setting: Setting = Setting(), plant: StancePlant = StancePlant(),
-    tolerance: float = STANCE_TOLERANCE, methods=("classical", "gm", "crb"), source=SCRIPTED, checks=(),
+    tolerance: float = STANCE_TOLERANCE, methods=("classical", "gm", "crb"), source=SCRIPTED,
+    checks: SpeedChecks = SpeedChecks(),
 ) -> StanceMaxSpeed:
     """The closed-form speeds of ``methods`` and the simulated bisection of one stance, its trials
-    driven by ``source`` (``sim.trial_sources``: ``SCRIPTED`` or ``QpCommand``), and one trial asked
-    for each factor of ``checks`` times the crb closed form (``methods`` must hold crb then)."""
+    driven by ``source`` (``sim.trial_sources``: ``SCRIPTED`` or ``QpCommand``), and the trials of
+    ``checks`` (:class:`SpeedChecks`; ``methods`` must hold crb when it has no reference)."""
     stances = robot.description.stances
     if stance not in stances:
         raise BadInputError(f"unknown stance {stance!r}; known: {', '.join(stances)}")
@@ -434,5 +445,6 @@ def search_stance(
     contact = max(feasible, key=lambda e: e.reference_speed).contact_speed if feasible else 0.0
     first = min(failed, key=lambda e: e.reference_speed).first_failure if failed else ""
     predicted = predicted_speeds(robot, q, setting, methods)
-    checked = {factor: StanceEvaluation.of(run(factor * predicted["crb"].speed)) for factor in checks}
+    reference = predicted["crb"].speed if checks.reference is None else checks.reference
+    checked = {factor: StanceEvaluation.of(run(factor * reference)) for factor in checks.factors}
     return StanceMaxSpeed(stance, q, predicted, best, contact, first, evaluations, checked)

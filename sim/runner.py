@@ -307,11 +307,11 @@ def run_approach(
 
 
 def standing_wall_friction(source: TrialSource) -> float:
-    """The standing scene's wall friction for ``source``: the mu of a QP's friction rows when it
-    has them (the wall the rows are for, as ``simulate --friction`` sets an arm's wall), else the
-    paper's ``WALL_FRICTION``."""
-    friction = getattr(source, "friction", 0.0)
-    return friction if friction > 0.0 else WALL_FRICTION
+    """The standing scene's wall friction for ``source``: the mu its QP's friction rows were given
+    (the wall the rows are for, as ``simulate --friction`` sets an arm's wall; 0: no rows and a
+    frictionless wall), else the paper's ``WALL_FRICTION``."""
+    friction = getattr(source, "friction", None)
+    return WALL_FRICTION if friction is None else friction
 
 
 def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: float = SERVO_GAIN,

@@ -220,7 +220,8 @@ class QpCommand:
     which state it is given during the approach (``feedback``) and, a standing robot, from the
     stop on (``balance_feedback``), the start gap of a standing robot's trial (m), and the
     approach options c_r, delta_t, the posture task's weight (None: the preset's) and the friction
-    mu of an arm's robust friction rows (0: none; docs/frictional-impacts.md). A standing robot's
+    mu of the robust friction rows (None or 0: none; docs/frictional-impacts.md), which a standing
+    robot's wall takes too (None: the paper's mu, ``sim.runner.standing_wall_friction``). A standing robot's
     trial starts from its run-up (``gap`` None, :meth:`start_posture`) or ``gap`` m from the wall at
     the stance's posture."""
 
@@ -232,7 +233,7 @@ class QpCommand:
     restitution: float = 0.0
     impact_duration: float | None = None
     posture_weight: float | None = None
-    friction: float = 0.0
+    friction: float | None = None
     name = "qp"
     tracks_speed = True  # the hand's task asks the speed itself; the QP's rows and limits may cap it
     holds_at_stop = False  # the QP brakes the joints itself (its acceleration and jerk limits)
@@ -268,7 +269,8 @@ class QpCommand:
         config = ControllerConfig.approach(
             start.surface, start.speed, tangential_velocity=start.tangential_velocity,
             robot=RobotChoice(start.robot.description).robot_setting, jump_model=self.method, solver=self.solver,
-            restitution=self.restitution, posture_weight=self.posture_weight, friction=self.friction, **options,
+            restitution=self.restitution, posture_weight=self.posture_weight,
+            friction=0.0 if self.friction is None else self.friction, **options,
         )
         if start.contact_posture is None:
             return config

@@ -402,6 +402,27 @@ def test_g1_edge_matrices_kept_past_the_next_fill_cannot_be_written(method):
         with pytest.raises(ValueError, match="read-only"):
             array[0, 0, 0] = 1.0
 
+
+@pytest.mark.parametrize("method, mode", [("crb", "pyramid"), ("gm", "slip"), ("classical", "pyramid")])
+def test_g1_edge_impulse_maps_kept_past_the_next_fill_cannot_be_written(method, mode):
+    """``edge_impulse_maps`` is valid until the next fill, as ``edge_matrices``: a kept G_i is a
+    read-only view of the buffer that fill overwrites (it shows the new state's maps); the rows
+    read the buffer itself, writable."""
+    q = stance("wide")
+    impact = ExpectedImpact(wall_ahead(q), method, restitution=0.3, held_contacts=True, friction=FrictionRows(0.3, 4, mode))
+    kept = impact.edge_impulse_maps(g1().terms(q, approach_velocity(q, 0.2)))
+    before = kept.copy()
+    with pytest.raises(ValueError, match="read-only"):
+        kept[0, 0, 0] = 1.0
+    impact.edge_impulse_maps(g1().terms(stance("parallel"), approach_velocity(stance("parallel"), 0.3)))
+    assert not np.array_equal(kept, before)  # the buffer holds the new fill's maps
+    with pytest.raises(ValueError, match="read-only"):
+        kept[0, 0, 0] = 1.0
+    rows = impact.edge_row_impulse_maps(g1().terms(stance("parallel"), approach_velocity(stance("parallel"), 0.3)))
+    assert rows.flags.writeable
+    np.testing.assert_array_equal(rows, kept)
+
+
 @pytest.mark.parametrize(
     "keyword, value, fragment",
     [

@@ -15,6 +15,7 @@ from whole_body_states import (
 from impactqp.constraints import ControlCycle, ExpectedImpact, FootWrenchLimit
 from impactqp.constraints.foot_wrench import EdgeFootWrenchLimit
 from impactqp.constraints.impact_model import ActivationRule
+from impactqp.controller.model.friction_max_speed import frictional_max_speed
 from impactqp.controller.model.friction_pyramid import FrictionRows, held_response_maps, pyramid_directions
 from impactqp.controller.model.humanoid_stance import convex_hull, inside_polygon
 from impactqp.controller.model.jump import jump_model, predict
@@ -79,6 +80,41 @@ def test_rows_and_the_closed_form_give_the_same_highest_speed(state, method, dur
         assert bound.where in np.array(limit.labels)[rows][int(np.argmax(at))]
         assert np.all(row_values(limit, q, (1.0 - 1e-6) * bound.speed * d)[rows] < 0.0)
         assert np.any(row_values(limit, q, (1.0 + 1e-6) * bound.speed * d)[rows] > 0.0)
+
+
+@settings(max_examples=8, deadline=None)
+@given(standing_states(), st.sampled_from(METHODS), st.floats(0.05, 1.0), st.integers(3, 6))
+def test_edge_rows_and_the_frictional_closed_form_give_the_same_highest_speed(state, method, mu, edges):
+    """With the friction rows of mu (k edges), along the closed form's approach v = s d: every
+    vertex's slip rows hold up to the frictional closed form's foot-slip speed and its sole rows up
+    to its foot-lift speed (``friction_max_speed``, the smallest over the vertices), and at each of
+    those speeds the binding row, of the vertex and foot it names, is tight."""
+    _, q, _ = state
+    model = robot()
+    terms = model.terms(q)
+    answer = frictional_max_speed(model, terms, NORMAL, np.zeros(3), Setting(method), FrictionRows(mu, edges))
+    d = approach_direction(model, terms, NORMAL)
+    impact = ExpectedImpact(wall_ahead(q), method, rule=ActivationRule(always_active=True), held_contacts=True,
+                            friction=FrictionRows(mu, edges))
+    limit = EdgeFootWrenchLimit(impact, model, q, HAND_IMPACT_DURATION)
+    labels = np.array(limit.labels)
+    slip = np.array(["slip" in label for label in labels])
+    scale = np.abs(row_values(limit, q, 0.0 * d)).max()
+    for criterion, rows in (("foot_slip", slip), ("foot_lift", ~slip)):
+        bound = answer.max_speed.bounds[criterion]
+        assert np.isfinite(bound.speed)
+        if bound.speed == 0.0:  # a posture that already fails it standing
+            assert np.any(row_values(limit, q, 0.0 * d)[rows] > 0.0)
+            continue
+        at = row_values(limit, q, bound.speed * d)[rows]
+        assert abs(at.max()) <= 1e-9 * scale
+        assert bound.where in labels[rows][int(np.argmax(at))]
+        assert np.all(row_values(limit, q, (1.0 - 1e-6) * bound.speed * d)[rows] < 0.0)
+        assert np.any(row_values(limit, q, (1.0 + 1e-6) * bound.speed * d)[rows] > 0.0)
+    binding = answer.max_speed
+    if binding.criterion in ("foot_slip", "foot_lift") and answer.block.startswith("edge"):
+        at = row_values(limit, q, binding.speed * d)
+        assert labels[int(np.argmax(at))].startswith(f"{answer.block}: ")
 
 
 @settings(max_examples=15, deadline=None)

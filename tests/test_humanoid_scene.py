@@ -13,6 +13,8 @@ from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.model.g1_actuators import joint_armature
 from impactqp.sim.humanoid_scene import build_humanoid_scene, plant_armature
+from impactqp.sim.runner import standing_wall_friction
+from impactqp.sim.trial_sources import SCRIPTED, QpCommand
 from impactqp.sim.scene import HAND_RADIUS, WALL_FRICTION, to_pinocchio
 
 G1 = RobotModel("g1")
@@ -106,6 +108,28 @@ def test_the_feet_stand_on_the_floor_and_only_the_pairs_collide(setup):
             assert model.geom_bodyid[g] == scene.foot_bodies[k]
             assert pairs[frozenset((g, scene.floor_geom))] == robot.description.held_contacts[k].friction
 
+
+
+
+def wall_pair_friction(scene) -> float:
+    """The sliding friction of the scene's hand/wall contact pair (MuJoCo's model)."""
+    model = scene.model
+    for i in range(model.npair):
+        if {int(model.pair_geom1[i]), int(model.pair_geom2[i])} == {scene.hand_geom, scene.wall_geom}:
+            return float(model.pair_friction[i][0])
+    raise AssertionError("no hand/wall pair")
+
+
+@pytest.mark.parametrize(
+    "source, mu",
+    [(SCRIPTED, WALL_FRICTION), (QpCommand(), WALL_FRICTION), (QpCommand(friction=0.3), 0.3), (QpCommand(friction=0.0), 0.0)],
+)
+def test_the_wall_takes_the_friction_the_qp_rows_were_given(source, mu):
+    """The standing trial's wall (``sim.runner.standing_wall_friction``): the mu of the QP's friction
+    rows when it was given one, 0 included (``simulate --robot g1 --controller qp --friction 0``: a
+    frictionless wall, as an arm's), else the paper's."""
+    scene = build_humanoid_scene(G1, wall_x=0.6, armature=0.0, wall_friction=standing_wall_friction(source))
+    assert wall_pair_friction(scene) == mu
 
 
 @pytest.fixture(scope="module")

@@ -11,8 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import JOINTS
+from whole_body_states import criterion_margins
 from impactqp.controller.model.batch import BatchKinematics
-from impactqp.controller.model.capture import GRAVITY, capturable_speeds, max_capturable_speed, support_capture_region
+from impactqp.controller.model.capture import capturable_speeds, max_capturable_speed, support_capture_region
 from impactqp.controller.model.jump import predict
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import STANCES, convex_hull, inside_polygon, stance_posture
@@ -241,36 +242,12 @@ def test_zero_friction_is_bad_input(g1, stance_q):
 
 
 def _criterion_margins(g1, q, speed, heights, setting=Setting()):
-    """Each criterion's smallest margin (>= 0: met, 0: tight) at the contact speed ``speed``, from
-    first principles: the predicted jump, the feet's wrenches F_k = T w_k + s lambda_k in the
-    foot's axes against the cone and the sole (the centre of pressure on the sole's plane), and
-    the capture point c + dc+ / omega (dc+ = (iota + the feet's impulsive forces) / m) against the soles' corners projected from the CoM onto the
-    floor (corner heights ``heights``)."""
+    """Each criterion's smallest margin at the contact speed ``speed`` along the closed form's
+    approach, with the predictor's own impulse (``whole_body_states.criterion_margins``)."""
     terms = g1.terms(q)
-    d = approach_direction(g1, terms, NORMAL)
-    jump = predict(terms, setting.method, NORMAL, speed * (terms.J @ d))
-    joints = slice(g1.base_nv, None)
-    worst = np.maximum(np.abs(speed * d[joints]), np.abs((speed * d + jump.dq_jump)[joints])) / g1.dq_max
-    margins = {"joint_velocity": 1.0 - worst.max()}
-    T = setting.duration(g1.description)
-    wrenches = T * standing_wrenches(g1, terms) + jump.held_impulse
-    placements = g1.frame_placements(q)
-    slip, lift = np.inf, np.inf
-    for k, contact in enumerate(g1.description.held_contacts):
-        R = placements[contact.frame].rotation
-        f, tau = R.T @ wrenches[6 * k:6 * k + 3], R.T @ wrenches[6 * k + 3:6 * k + 6]
-        slip = min(slip, (contact.friction * f[2] - np.linalg.norm(f[:2])) / f[2])
-        cop = np.array([-contact.depth * f[0] - tau[1], tau[0] - contact.depth * f[1]]) / f[2]
-        lift = min(lift, inside_polygon(cop, convex_hull(contact.sole)))
-    margins.update(foot_slip=slip, foot_lift=lift)
-    com = terms.com
-    corners = g1.sole_corners(q)[:, :2]
-    projected = com[:2] + (com[2] / (com[2] - heights))[:, None] * (corners - com[:2])
-    # the CoM velocity jump from the momentum balance: the hand's and the feet's impulsive forces
-    com_jump = (jump.impulse + jump.held_impulse[0:3] + jump.held_impulse[6:9]) / terms.mass
-    capture_point = com[:2] + com_jump[:2] / np.sqrt(GRAVITY / com[2])
-    margins["capture"] = inside_polygon(capture_point, convex_hull(projected))
-    return margins
+    dq_pre = speed * approach_direction(g1, terms, NORMAL)
+    jump = predict(terms, setting.method, NORMAL, terms.J @ dq_pre)
+    return criterion_margins(q, dq_pre, jump, heights, setting.duration(g1.description))
 
 
 @pytest.mark.parametrize("method", ["crb", "classical"])

@@ -4,6 +4,7 @@ arm's and the G1's JSON contracts, and the text made from the report."""
 import json
 import math
 
+import numpy as np
 import pytest
 
 from impactqp.scenarios.cli import main
@@ -100,6 +101,94 @@ def test_max_speed_with_friction_is_the_closed_form_of_the_robust_friction_rows(
         assert binding["mode"] in {"slip", "stick", "reversal"}
     code, text, _ = run(capsys, "max-speed", "--posture", "elbow_up", "--friction", "0.3", "--tangential", "0,0.05,0")
     assert code == 0 and "robust friction rows" in text and f"{speeds['crb']:8.4f}" in text
+
+
+def test_g1_max_speed_with_friction_is_the_closed_form_of_its_stances(capsys):
+    """--robot g1 --friction without --controller qp: per stance the closed form under the robust
+    friction rows (``friction_max_speed``, no simulation), each predictor at most its frictionless
+    closed form (mu = 0), which is ``max_speed``'s, and what binds it: a held-contact criterion or a
+    joint, on one vertex."""
+    from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+    from impactqp.controller.model.max_speed import Setting, closed_form_max_speed
+    from impactqp.controller.model.robot import RobotModel
+
+    code, stdout, _ = run(capsys, "max-speed", "--robot", "g1", "--posture", "parallel,step", "--friction", "0.3",
+                          "--tangential", "0,0.1,0", "--json")
+    assert code == 0
+    reports = json.loads(stdout)["stances"]
+    assert [r["posture"] for r in reports] == ["parallel", "step"]
+    g1 = RobotModel("g1")
+    for report in reports:
+        assert (report["friction"], report["pyramid_edges"], report["tangential"]) == (0.3, 4, [0.0, 0.1, 0.0])
+        speeds, without = report["predicted_max_speed"], report["frictionless_max_speed"]
+        assert speeds["robust"] == min(speeds[m] for m in ("classical", "gm", "crb"))
+        assert all(0.0 < speeds[m] <= without[m] for m in speeds)
+        for method, binding in report["binding"].items():
+            assert binding["criterion"] in {"joint_velocity", "foot_slip", "foot_lift", "capture"}
+            assert binding["block"] in {"frictionless", "edge 0", "edge 1", "edge 2", "edge 3"}
+            assert binding["mode"] in {"slip", "stick", "reversal"}
+        q = stance_posture(g1, STANCES[report["posture"]])
+        frictionless = closed_form_max_speed(g1, g1.terms(q), [-1.0, 0.0, 0.0], Setting("crb"))
+        assert without["crb"] == pytest.approx(frictionless.speed, rel=1e-12)  # crb's impulse does not see the slide
+    code, text, _ = run(capsys, "max-speed", "--robot", "g1", "--posture", "step", "--friction", "0.3")
+    assert code == 0 and text.startswith("step (g1): highest normal contact speed") and "no friction" in text
+
+
+@pytest.mark.parametrize(("stances", "friction"), [("parallel", "0.3"), ("wide,step", "0.6"), ("parallel", None)])
+def test_the_qp_driven_search_with_friction_checks_against_the_frictional_closed_form(capsys, monkeypatch, stances, friction):
+    """--controller qp --friction MU: per stance the checks are asked at QP_CHECKS times crb's closed
+    form under the robust friction rows of mu = MU at that stance (``frictional_max_speed``, no slide),
+    and the report (``checks_reference``) and its text name that closed form; without --friction the
+    reference is the frictionless crb closed form (the search's own)."""
+    from impactqp.controller.model.friction_max_speed import frictional_max_speed
+    from impactqp.controller.model.friction_pyramid import FrictionRows
+    from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+    from impactqp.controller.model.max_speed import Setting
+    from impactqp.controller.model.robot import RobotModel
+    from impactqp.scenarios import max_speed_search
+    from impactqp.scenarios.cli.max_speed_command import QP_CHECKS
+
+    asked = {}
+
+    def search(robot, stance, setting, tolerance, source, checks):
+        """Records the checks and the trials' rows; one feasible trial per asked speed."""
+        asked[stance] = (checks, source.friction)
+        q = stance_posture(robot, robot.description.stances[stance])
+        predicted = max_speed_search.predicted_speeds(robot, q, setting, ("classical", "gm", "crb"))
+        reference = predicted["crb"].speed if checks.reference is None else checks.reference
+
+        def trial(speed):
+            return max_speed_search.StanceEvaluation(speed, speed, 0.5, 0.0, 0.0, False, "")
+
+        return max_speed_search.StanceMaxSpeed(stance, q, predicted, 1.0, 1.0, "", [trial(1.0)],
+                                               {f: trial(f * reference) for f in checks.factors})
+
+    monkeypatch.setattr(max_speed_search, "search_stance", search)
+    given = ["--friction", friction] if friction else []
+    code, out, _ = run(capsys, "max-speed", "--robot", "g1", "--controller", "qp", "--posture", stances, *given, "--json")
+    assert code == 0
+    data = json.loads(out)
+    reports = data.get("stances", [data])
+    assert [r["posture"] for r in reports] == stances.split(",") == list(asked)
+    g1 = RobotModel("g1")
+    for report in reports:
+        checks, rows = asked[report["posture"]]
+        assert checks.factors == QP_CHECKS
+        reference = report["checks_reference"]
+        if friction is None:
+            assert checks.reference is None and rows is None
+            assert reference["closed_form"] == "frictionless" and reference["speed"] == report["predicted_max_speed"]["crb"]
+            continue
+        q = stance_posture(g1, STANCES[report["posture"]])
+        expected = frictional_max_speed(g1, g1.terms(q), [-1.0, 0.0, 0.0], np.zeros(3), Setting("crb"), FrictionRows(float(friction)))
+        assert rows == float(friction) and checks.reference == pytest.approx(expected.max_speed.speed, rel=1e-12)
+        assert reference == {"closed_form": "frictional", "method": "crb", "friction": float(friction),
+                             "speed": checks.reference, "criterion": expected.max_speed.criterion,
+                             "where": expected.max_speed.where, "block": expected.block}
+        lines = max_speed_text(report).splitlines()
+        assert lines[-4].startswith(f"  {'crb, mu ' + friction:<12}{checks.reference:8.4f}  ")
+        assert lines[-4].endswith("the frictional closed form")
+        assert "commanded by the QP with friction rows" in lines[-3]
 
 
 def test_a_figure_of_another_format_is_refused_before_the_search(capsys, monkeypatch, tmp_path):

@@ -1,6 +1,8 @@
 """Maximum feasible speed: the parallel bisection (the arm's and the G1's) on a known threshold,
 a G1 stance the description does not have, and one real search in closed loop (the QP reaches the closed-form maximum; the bracket of the simulation is sound)."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -23,6 +25,7 @@ from impactqp.scenarios.max_speed_search import (
     MaxSpeedSearch,
     QpSetting,
     SpeedBisection,
+    SpeedChecks,
     StancePlant,
     approach_velocity_limit,
     search_stance,
@@ -171,6 +174,36 @@ def test_a_max_speed_search_of_the_fr3_with_the_franka_hand_reaches_its_closed_f
 def test_unknown_stance_is_bad_input():
     with pytest.raises(BadInputError):
         search_stance(RobotModel("g1"), "kneeling")
+
+
+class ThresholdPlant:
+    """A stance plant whose trial fails above ``threshold`` (m/s commanded) and records every
+    commanded speed; the trial's record is no QP's."""
+
+    def __init__(self, threshold: float):
+        self.threshold, self.asked = threshold, []
+
+    def trial(self, robot, stance, q, speed, source):
+        self.asked.append(speed)
+        failed = "foot_lift" if speed > self.threshold else ""
+        held = SimpleNamespace(foot_slip=0.0, foot_lift=float(bool(failed)))
+        return SimpleNamespace(normal_speed=speed, contact_speed=0.9 * speed, max_velocity_ratio=0.5, held=held, fell=False,
+                               first_failure=failed, failure_times={failed: 0.001} if failed else {}, record=None)
+
+
+@pytest.mark.parametrize("reference", [None, 0.4])
+def test_a_stance_search_asks_its_checks_at_factors_of_the_reference_it_is_given(reference):
+    """``SpeedChecks(factors, reference)``: after the bisection, one trial asked at each factor times
+    the reference given (a closed form the caller took, as the frictional one), or times the
+    stance's frictionless crb closed form when none is given; the bisection does not depend on it."""
+    robot = g1_model()
+    plant = ThresholdPlant(0.6)
+    result = search_stance(robot, "parallel", plant=plant, tolerance=0.1, checks=SpeedChecks((0.9, 1.3), reference))
+    expected = result.predicted["crb"].speed if reference is None else reference
+    assert plant.asked[-2:] == [0.9 * expected, 1.3 * expected]
+    assert {f: e.reference_speed for f, e in result.checks.items()} == {0.9: 0.9 * expected, 1.3: 1.3 * expected}
+    assert result.simulated_reference <= 0.6 < result.simulated_reference + 0.1
+    assert all(e.violated == (e.reference_speed > 0.6) for e in result.checks.values())
 
 
 def test_the_qp_driven_step_stance_asked_for_nine_tenths_of_its_closed_form_reaches_it_and_stands():

@@ -151,9 +151,12 @@ def plant_files(tmp_path_factory):
         (["max-speed", "--posture", "elbow_up", "--tangential", "0,0.1,0"], "give --friction too"),
         (["max-speed", "--posture", "elbow_up", "--friction", "0.3", "--tangential", "0.1,0,0"], "orthogonal"),
         (["max-speed", "--posture", "elbow_up", "--friction", "0.3", "--jobs", "2"], "--jobs"),
-        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3"], "give --controller qp"),
-        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3", "--tangential", "0,0.1,0"],
-         "--tangential does not apply"),
+        (["max-speed", "--robot", "g1", "--posture", "parallel", "--tangential", "0,0.1,0"], "give --friction too"),
+        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3", "--tangential", "0.1,0,0"],
+         "orthogonal"),
+        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3", "--jobs", "2"], "--jobs"),
+        (["max-speed", "--robot", "g1", "--posture", "parallel", "--friction", "0.3", "--controller", "qp",
+          "--tangential", "0,0.1,0"], "--tangential does not apply"),
     ],
 )
 def test_bad_input_is_one_line_with_exit_code_2(capsys, plant_files, args, message):
@@ -286,6 +289,28 @@ def test_simulate_g1_with_the_friction_rows_of_the_whole_body_qp(capsys):
     report = json.loads(out)
     assert report["controller"] == "qp" and report["friction"] == 0.3 and report["cycles_not_ok"] >= 0
     assert report["contact_speed"] > 0.0
+
+
+def test_simulate_g1_with_zero_friction_gives_the_wall_no_friction(capsys, monkeypatch):
+    """``--friction 0`` with the whole-body QP: no friction rows and a frictionless wall, as an
+    arm's (the scene the trial runs on, read from MuJoCo's hand/wall pair)."""
+    from impactqp.sim import runner
+
+    seen = []
+    build = runner.build_humanoid_scene
+
+    def scene(*args, **kwargs):
+        built = build(*args, **kwargs)
+        model = built.model
+        seen.extend(float(model.pair_friction[i][0]) for i in range(model.npair)
+                    if {int(model.pair_geom1[i]), int(model.pair_geom2[i])} == {built.hand_geom, built.wall_geom})
+        return built
+
+    monkeypatch.setattr(runner, "build_humanoid_scene", scene)
+    code, out, _ = run(capsys, "simulate", "--robot", "g1", "--posture", "parallel", "--speed", "0.2",
+                       "--controller", "qp", "--friction", "0", "--json")
+    assert code == 0 and json.loads(out)["friction"] == 0.0
+    assert seen == [0.0]
 
 
 def test_campaign_g1_json_and_files(capsys, tmp_path):

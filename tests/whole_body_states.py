@@ -8,7 +8,9 @@ import pinocchio as pin
 from hypothesis import strategies as st
 from reference.whole_body import feet_held_pinv
 
-from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
+from impactqp.controller.model.capture import GRAVITY
+from impactqp.controller.model.humanoid_stance import STANCES, convex_hull, inside_polygon, stance_posture
+from impactqp.controller.model.max_speed import standing_wrenches
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.config import ControllerConfig, build_controller
@@ -84,3 +86,36 @@ def vertex_impulses(W: np.ndarray, v_minus: np.ndarray, directions: np.ndarray, 
     n = NORMAL
     denominators = np.maximum(directions @ (W.T @ n), 0.1 * (n @ W @ n))
     return -(1.0 + restitution) * (n @ v_minus) / denominators[:, None] * directions
+
+
+def criterion_margins(q: np.ndarray, dq_pre: np.ndarray, jump, heights: np.ndarray, duration: float) -> dict:
+    """Each closed-form criterion's smallest margin (>= 0: met, 0: tight) for the pre-impact
+    velocity ``dq_pre`` and a predicted impact ``jump`` (``JumpPrediction``: its jump, hand impulse
+    and the feet's impulsive wrenches), from first principles: the joint velocities before and
+    after; the feet's wrenches F_k = T w_k + lambda_k (T = ``duration``) in the foot's axes against
+    the cone and the sole (the centre of pressure on the sole's plane); and the capture point
+    c + dc+ / omega (dc+ = (iota + the feet's impulsive forces) / m) against the soles' corners
+    projected from the CoM onto the floor (corner heights ``heights``)."""
+    g1 = robot()
+    terms = g1.terms(q)
+    joints = slice(g1.base_nv, None)
+    worst = np.maximum(np.abs(dq_pre[joints]), np.abs((dq_pre + jump.dq_jump)[joints])) / g1.dq_max
+    margins = {"joint_velocity": 1.0 - worst.max()}
+    wrenches = duration * standing_wrenches(g1, terms) + jump.held_impulse
+    placements = g1.frame_placements(q)
+    slip, lift = np.inf, np.inf
+    for k, contact in enumerate(g1.description.held_contacts):
+        R = placements[contact.frame].rotation
+        f, tau = R.T @ wrenches[6 * k:6 * k + 3], R.T @ wrenches[6 * k + 3:6 * k + 6]
+        slip = min(slip, (contact.friction * f[2] - np.linalg.norm(f[:2])) / f[2])
+        cop = np.array([-contact.depth * f[0] - tau[1], tau[0] - contact.depth * f[1]]) / f[2]
+        lift = min(lift, inside_polygon(cop, convex_hull(contact.sole)))
+    margins.update(foot_slip=slip, foot_lift=lift)
+    com = terms.com
+    corners = g1.sole_corners(q)[:, :2]
+    projected = com[:2] + (com[2] / (com[2] - heights))[:, None] * (corners - com[:2])
+    # the CoM velocity jump from the momentum balance: the hand's and the feet's impulsive forces
+    com_jump = (jump.impulse + jump.held_impulse[0:3] + jump.held_impulse[6:9]) / terms.mass
+    capture_point = com[:2] + com_jump[:2] / np.sqrt(GRAVITY / com[2])
+    margins["capture"] = inside_polygon(capture_point, convex_hull(projected))
+    return margins

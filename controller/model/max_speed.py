@@ -44,12 +44,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
 
 from .batch import BatchTerms, predict_from_terms
-from .capture import capturable_speeds, row_steps, support_capture_region
+from .capture import com_jump_map, row_steps, support_capture_region
 from .humanoid_stance import convex_hull, edge_margins, edge_normals
 from .jump import predict
 from .model_terms import ModelTerms
@@ -112,11 +113,24 @@ class MaxSpeed:
         }
 
 
+class ImpactPart(NamedTuple):
+    """The part of an approach that does not scale with the normal speed v (a slide along the
+    surface, ``friction_max_speed``): its joint velocity d_t (nv), jump (nv), contact impulse (3)
+    and the held contacts' impulsive wrenches (6 each)."""
+
+    direction: np.ndarray
+    jump: np.ndarray
+    impulse: np.ndarray
+    held_impulse: np.ndarray
+
+
 @dataclass(frozen=True)
 class UnitImpact:
     """The approach of one posture at unit speed and what the predictor gives for it: d (nv),
     the jump dv (nv), the contact impulse iota (3) and the held contacts' impulsive wrenches
-    lambda (6 each, world axes about each frame; none without held contacts)."""
+    lambda (6 each, world axes about each frame; none without held contacts); with a ``start``
+    (:class:`ImpactPart`; None: the approach from rest) each quantity is start + v (unit's), affine
+    in the normal speed v, and the criteria bound that affine path."""
 
     robot: RobotModel
     terms: ModelTerms
@@ -126,6 +140,7 @@ class UnitImpact:
     jump: np.ndarray
     impulse: np.ndarray
     held_impulse: np.ndarray
+    start: ImpactPart | None = None
 
     @property
     def joints(self) -> slice:
@@ -144,12 +159,18 @@ def approach_direction(robot: RobotModel, terms, normal) -> np.ndarray:
     """d (nv): the joint velocity per unit approach speed along -n (module docstring): J6+ [-n; 0]
     for an arm, J_arm+ (-n) on the joints that move the contact (its description's
     ``contact.joints``; every joint when it names none) and zero elsewhere with held contacts."""
-    normal = np.asarray(normal, dtype=float)
+    return contact_motion(robot, terms, -np.asarray(normal, dtype=float))
+
+
+def contact_motion(robot: RobotModel, terms, velocity: np.ndarray) -> np.ndarray:
+    """The joint velocity (nv) that moves the contact point at ``velocity`` (3) without turning
+    it: J6+ [velocity; 0] for an arm, J_arm+ velocity on the contact's joints with held contacts
+    (:func:`approach_direction`)."""
     if not robot.description.held_contacts:
-        return np.linalg.pinv(terms.J6) @ np.concatenate([-normal, np.zeros(3)])
+        return np.linalg.pinv(terms.J6) @ np.concatenate([velocity, np.zeros(3)])
     arm = robot.base_nv + np.array([robot.joint_index(j) for j in contact_joints(robot.description)])
     d = np.zeros(terms.M.shape[0])
-    d[arm] = np.linalg.pinv(terms.J[:, arm]) @ -normal
+    d[arm] = np.linalg.pinv(terms.J[:, arm]) @ velocity
     return d
 
 
@@ -190,6 +211,27 @@ def joint_velocity_ratio(u: UnitImpact) -> np.ndarray:
     return np.maximum(np.abs(d), np.abs(post)) / u.robot.dq_max
 
 
+def affine_bound(robot: RobotModel, start: np.ndarray, slope: np.ndarray, limit: np.ndarray) -> Bound:
+    """The largest v >= 0 with |start + v slope| <= limit on every joint (0 when v = 0 already
+    violates it), at the joint that gives it."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speeds = np.where(slope > 0.0, (limit - start) / slope, np.where(slope < 0.0, (limit + start) / -slope, np.inf))
+    speeds = np.where(np.abs(start) > limit, 0.0, speeds)
+    i = int(np.argmin(speeds))
+    return Bound(float(speeds[i]), robot.description.joints[i], i + 1) if math.isfinite(speeds[i]) else Bound(math.inf)
+
+
+def joint_velocity(u: UnitImpact) -> Bound:
+    """Every joint's velocity before and after the impact within its limit: 1 / the largest
+    :func:`joint_velocity_ratio` from rest, else the smaller :func:`affine_bound` of dq- and dq+."""
+    if u.start is None:
+        return joint_bound(u.robot, joint_velocity_ratio(u))
+    s, joints, limit = u.start, u.joints, u.robot.dq_max
+    pre = affine_bound(u.robot, s.direction[joints], u.direction[joints], limit)
+    post = affine_bound(u.robot, (s.direction + s.jump)[joints], (u.direction + u.jump)[joints], limit)
+    return min(pre, post, key=lambda b: b.speed)
+
+
 def standing_wrenches(robot: RobotModel, terms: ModelTerms) -> np.ndarray:
     """w (6 per held contact): the least-norm foot wrenches with Jf_base^T w = g_base, the ground
     carrying the weight."""
@@ -222,8 +264,11 @@ def sole_rows(sole: np.ndarray, depth: float, impulse: np.ndarray) -> np.ndarray
 
 
 def foot_wrenches(u: UnitImpact) -> list:
-    """(foot, held contact, T w_k, lambda_k) of every held contact, the wrenches in the foot's axes."""
+    """(foot, held contact, T w_k, lambda_k) of every held contact, the wrenches in the foot's axes
+    (T w_k plus the start's impulsive wrench with a ``start``)."""
     standing = u.setting.duration(u.robot.description) * standing_wrenches(u.robot, u.terms)
+    if u.start is not None:
+        standing = standing + u.start.held_impulse
     placements = u.robot.frame_placements(u.terms.q)
     feet = []
     for k, contact in enumerate(u.robot.description.held_contacts):
@@ -261,11 +306,14 @@ def foot_lift(u: UnitImpact) -> Bound:
 
 
 def capture(u: UnitImpact) -> Bound:
-    """The post-impact CoM velocity inside the zero-step capture region (smallest over the edges)."""
+    """The post-impact CoM velocity dc+ = C iota (the pre-impact one taken as zero:
+    ``capture.capturable_speeds``) inside the zero-step capture region (smallest over the edges)."""
     region = support_capture_region(u.robot, u.terms.q, u.terms.com)
-    edges = capturable_speeds(
-        u.terms, region, u.setting.method, u.normal, u.terms.J @ u.direction, u.setting.restitution
-    )
+    C = com_jump_map(u.terms)
+    offset = -region.margins(np.zeros(2))
+    if u.start is not None:
+        offset = offset + region.A @ (C @ u.start.impulse)[:2]
+    edges = row_steps(offset, region.A @ (C @ u.impulse)[:2])
     edge = int(np.argmin(edges))
     speed = float(edges[edge])
     return Bound(speed, f"edge {edge}" if math.isfinite(speed) else "")
@@ -284,7 +332,7 @@ JOINT_RATIOS = {
 """The per-joint ratios of an arm's criteria (module docstring)."""
 CRITERIA_WITHOUT_HELD_CONTACTS = {name: joint_criterion(ratio) for name, ratio in JOINT_RATIOS.items()}
 CRITERIA_WITH_HELD_CONTACTS = {
-    "joint_velocity": joint_criterion(joint_velocity_ratio),
+    "joint_velocity": joint_velocity,
     "foot_slip": foot_slip,
     "foot_lift": foot_lift,
     "capture": capture,

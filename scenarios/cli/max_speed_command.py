@@ -8,16 +8,18 @@ base (its description's ``base``) is searched per stance of its description
 driven by its scripted arm or, ``--controller qp``, by the whole-body QP; an option of the arm's
 search that has no meaning there is bad input when given), a fixed-base arm
 per named posture on a wall (``scenarios.max_speed_search.MaxSpeedSearch``: closed form,
-QP-limited run and simulated bisection). With ``--friction`` an arm's answer is the closed form
-under the robust friction rows (``controller.model.friction_max_speed.frictional_max_speed``: every
-predictor at the posture, sliding at ``--tangential``), without simulation. Bad input ends with
-one line on stderr and exit code 2.
+QP-limited run and simulated bisection). With ``--friction`` the answer is the closed form under
+the robust friction rows (``controller.model.friction_max_speed.frictional_max_speed``: every
+predictor at the posture or stance, sliding at ``--tangential``), without simulation; a standing
+robot's ``--controller qp --friction`` instead runs its simulated search with the QP's friction rows,
+its checks asked at factors of crb's closed form under those rows.
+Bad input ends with one line on stderr and exit code 2.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import click
 import numpy as np
@@ -95,16 +97,18 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     """The JSON report of a floating-base robot's search at a stance of its description: its
     ``robot``, the closed form of each predictor and ``robust`` (the smallest), the bisection of
     the trials driven by ``controller`` (the scripted arm, or the whole-body QP with one trial
-    asked for each of :data:`QP_CHECKS` times the closed form), and the contact duration used (the
-    description's wall contact unless --impact-duration); the bisection's tolerance is
-    ``max_speed_search.STANCE_TOLERANCE`` on the commanded speed unless --tolerance. With --friction
-    (the QP's only), the QP's robust friction rows of that mu on a wall of that mu in every trial
-    (``trials_friction``); the closed form stays frictionless (``friction_max_speed`` is an arm's). Several stances
-    (comma-separated): one such report per stance under ``stances``."""
+    asked for each of :data:`QP_CHECKS` times the closed form ``checks_reference``,
+    :func:`checks_reference`), and the contact duration used (the description's wall contact unless
+    --impact-duration); the bisection's tolerance is ``max_speed_search.STANCE_TOLERANCE`` on the
+    commanded speed unless --tolerance. With --friction (with --controller qp; without it the closed
+    form with friction, :func:`frictional_max_speed_report`), the QP's robust friction rows of that mu
+    on a wall of that mu in every trial (``trials_friction``), and the checks' reference is crb's
+    closed form under those rows; the per-predictor closed form beside them stays frictionless.
+    Several stances (comma-separated): one such report per stance under ``stances``."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS as METHODS
     from impactqp.controller.model.robot import RobotModel
-    from impactqp.scenarios.max_speed_search import STANCE_TOLERANCE, search_stance
+    from impactqp.scenarios.max_speed_search import STANCE_TOLERANCE, SpeedChecks, search_stance
     from impactqp.sim.trial_sources import SCRIPTED, QpCommand
 
     reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tool", "tangential"])
@@ -116,18 +120,24 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     qp = request.controller == "qp"
     if not qp and request.feedback != "commanded":
         raise BadInputError("--feedback chooses the state the whole-body QP is given: give --controller qp")
-    if not qp and request.friction is not None:
-        raise BadInputError("--friction sets the whole-body QP's friction rows: give --controller qp")
-    friction = 0.0 if request.friction is None else rows_friction(request.friction)
+    friction = None if request.friction is None else rows_friction(request.friction)
     model = RobotModel(robot)
     reports = []
+    setting = Setting("crb", c_r, impact_duration=duration)
     for stance in stances:
-        result = search_stance(model, stance, Setting("crb", c_r, impact_duration=duration), tolerance=tolerance,
+        reference = checks_reference(model, stance, setting, friction) if qp and friction is not None else None
+        checks = SpeedChecks(QP_CHECKS, None if reference is None else reference["speed"]) if qp else SpeedChecks()
+        result = search_stance(model, stance, setting, tolerance=tolerance,
                                source=QpCommand(feedback=request.feedback, friction=friction) if qp else SCRIPTED,
-                               checks=QP_CHECKS if qp else ())
+                               checks=checks)
         report = {"robot": robot.name, "controller": request.controller, **result.to_json()}
         if request.friction is not None:
             report["trials_friction"] = friction
+        if qp:
+            report["checks_reference"] = reference or {
+                "closed_form": "frictionless", "method": "crb", "speed": report["predicted_max_speed"]["crb"],
+                **report["binding"]["crb"],
+            }
         speeds = report["predicted_max_speed"]
         robust = min(METHODS, key=lambda m: math.inf if speeds[m] is None else speeds[m])
         speeds["robust"], report["binding"]["robust"] = speeds[robust], report["binding"][robust]
@@ -136,51 +146,101 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     return reports[0] if len(reports) == 1 else {"robot": robot.name, "controller": request.controller, "stances": reports}
 
 
+def checks_reference(model, stance: str, setting: Setting, friction: float) -> dict:
+    """The closed form that a standing robot's QP-driven checks are factors of, with friction rows of
+    mu = ``friction`` in its trials: crb's under the robust friction rows of that mu at the stance,
+    the hand approaching along the wall's normal with no slide (one call of
+    ``friction_max_speed.frictional_max_speed``), its speed (None when unbounded), what binds it and
+    the block."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.controller.model.friction_max_speed import frictional_max_speed
+    from impactqp.controller.model.friction_pyramid import FrictionRows
+    from impactqp.controller.model.humanoid_stance import stance_posture
+    from impactqp.sim.runner import NORMAL
+
+    q = stance_posture(model, model.description.stances[stance])
+    answer = frictional_max_speed(model, model.terms(q), NORMAL, np.zeros(3), setting, FrictionRows(friction))
+    speed = answer.max_speed
+    return {"closed_form": "frictional", "method": setting.method, "friction": friction, "speed": finite(speed.speed),
+            "criterion": speed.criterion, "where": speed.where, "block": answer.block}
+
+
 def given(option: str) -> bool:
     """Whether the command line gave ``option`` (a parameter's name), rather than its default."""
     return click.get_current_context().get_parameter_source(option) != click.core.ParameterSource.DEFAULT
 
 
-def frictional_arm_max_speed(request: MaxSpeedRequest) -> dict:
-    """The JSON report of an arm's closed form under the robust friction rows (``--friction``,
-    4-edge pyramid) at a named posture, sliding at ``--tangential``: per predictor and ``robust``
-    (the smallest) the speed, what binds it, the block and the frictional impact's mode, beside
-    the frictionless closed form."""
+FRICTION_METHODS = ("crb", "gm", "classical")
+"""The predictors of the closed form under the robust friction rows (``--friction``)."""
+
+
+def frictional_max_speed_report(request: MaxSpeedRequest) -> dict:
+    """The JSON report of the closed form under the robust friction rows (``--friction``, 4-edge
+    pyramid), no simulation: an arm's at a named posture on its wall, a floating-base robot's at
+    each stance (comma-separated; the wall ahead, normal -x, T the wall contact's unless
+    --impact-duration), sliding at ``--tangential`` (:func:`frictional_posture_report`)."""
     # lazy: the command line loads what a command needs when it runs
     from impactqp.controller.model.friction_pyramid import FrictionRows
-    from impactqp.controller.model.friction_max_speed import frictional_max_speed
+    from impactqp.controller.model.humanoid_stance import stance_posture
     from impactqp.controller.model.validation import tangential_velocity
     from impactqp.scenarios.cli.arguments import parse_vector
+    from impactqp.sim.runner import NORMAL
 
-    reject_options(["jump_model", "plant_file", "wall_point", "jobs", "tolerance"])
+    robot = request.choice.robot
+    if robot.floating:
+        reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tolerance", "tool"])
+        duration = check_impact_duration(request.impact_duration, "--impact-duration") if given("impact_duration") else HAND_IMPACT_DURATION
+        normal = NORMAL
+    else:
+        reject_options(["jump_model", "plant_file", "wall_point", "jobs", "tolerance"])
+        duration = check_impact_duration(request.impact_duration, "--impact-duration")
+        normal = wall(None, request.wall_normal).normal
     try:
         rows = FrictionRows(request.friction)
     except BadInputError as error:
         raise BadInputError(f"--friction: {error}") from None
     c_r = restitution_coefficient(request.restitution, "--restitution")
-    setting_of = {"restitution": c_r, "impact_duration": check_impact_duration(request.impact_duration, "--impact-duration")}
-    normal = wall(None, request.wall_normal).normal
     tangential = np.zeros(3) if request.tangential is None else tangential_velocity(
         parse_vector(request.tangential, 3, "--tangential"), normal, "--tangential")
-    posture = request.choice.posture(request.posture)
-    robot = request.choice.shared_model
-    terms = robot.terms(posture.q)
+    model = request.choice.shared_model
+    if robot.floating:
+        postures = [(name, stance_posture(model, robot.stances[name])) for name in stance_names(robot, request.posture)]
+    else:
+        posture = request.choice.posture(request.posture)
+        postures = [(posture.name, posture.q)]
+    reports = [
+        {"posture": name, "robot": robot.name, "friction": rows.friction, "pyramid_edges": rows.edges,
+         "tangential": tangential.tolist(), "normal": normal.tolist(), "restitution": c_r, "impact_duration": duration,
+         **frictional_posture_report(model, model.terms(q), (normal, tangential), Setting(restitution=c_r, impact_duration=duration), rows)}
+        for name, q in postures
+    ]
+    return reports[0] if len(reports) == 1 else {"robot": robot.name, "friction": rows.friction, "stances": reports}
+
+
+def frictional_posture_report(model, terms, motion: tuple, setting: Setting, rows) -> dict:
+    """Per predictor of :data:`FRICTION_METHODS` and ``robust`` (the smallest) the closed form under
+    ``rows`` at the posture of ``terms`` for the contact motion (normal, tangential velocity)
+    (``friction_max_speed.frictional_max_speed``): the speed, what binds it (criterion, where, joint,
+    block) and the frictional impact's mode, beside the frictionless closed form (mu = 0)."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.controller.model.friction_pyramid import FrictionRows
+    from impactqp.controller.model.friction_max_speed import frictional_max_speed
+
+    normal, tangential = motion
     answers = {}
-    for method in ("crb", "gm", "classical"):
-        setting = Setting(method, **setting_of)
+    for method in FRICTION_METHODS:
+        own = replace(setting, method=method)
         answers[method] = (
-            frictional_max_speed(robot, terms, normal, tangential, setting, rows),
-            frictional_max_speed(robot, terms, normal, tangential, setting, FrictionRows()),
+            frictional_max_speed(model, terms, normal, tangential, own, rows),
+            frictional_max_speed(model, terms, normal, tangential, own, FrictionRows()),
         )
     answers["robust"] = min(answers.values(), key=lambda pair: pair[0].max_speed.speed)
     return {
-        "posture": posture.name, "robot": request.choice.robot.name, "friction": rows.friction,
-        "pyramid_edges": rows.edges, "tangential": tangential.tolist(), "normal": normal.tolist(), "restitution": c_r,
         "predicted_max_speed": {m: finite(a.max_speed.speed) for m, (a, _) in answers.items()},
         "frictionless_max_speed": {m: finite(b.max_speed.speed) for m, (_, b) in answers.items()},
         "binding": {
-            m: {"criterion": a.max_speed.criterion, "joint": a.max_speed.joint, "block": a.block, "mode": a.mode,
-                "mu_bar": finite(a.mu_bar)}
+            m: {"criterion": a.max_speed.criterion, "where": a.max_speed.where, "joint": a.max_speed.joint,
+                "block": a.block, "mode": a.mode, "mu_bar": finite(a.mu_bar)}
             for m, (a, _) in answers.items()
         },
     }
@@ -193,16 +253,18 @@ def finite(x: float) -> float | None:
 
 def run_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
     """Check the ``max-speed`` options and run the search of the chosen robot: its JSON report."""
+    if request.tangential is not None and request.friction is None:
+        raise BadInputError("--tangential is the sliding of the closed form with --friction; give --friction too")
     if request.choice.robot.floating:
+        if request.friction is not None and request.controller != "qp":
+            return frictional_max_speed_report(request)
         return stance_max_speed(request)
     if request.controller != "scripted":
         raise BadInputError("--controller chooses a standing robot's command source; an arm's search runs its QP always")
     if request.feedback != "commanded":
         raise BadInputError("--feedback chooses the state a standing robot's QP is given (with --controller qp)")
     if request.friction is not None:
-        return frictional_arm_max_speed(request)
-    if request.tangential is not None:
-        raise BadInputError("--tangential is the sliding of the closed form with --friction; give --friction too")
+        return frictional_max_speed_report(request)
     return arm_max_speed(request, progress)
 
 
@@ -214,10 +276,10 @@ def max_speed_text(report: dict) -> str:
     from impactqp.scenarios.max_speed_search import binding_text
 
     robot = f" ({report['robot']})" if "robot" in report else ""
-    if "friction" in report:
-        return frictional_text(report)
     if "stances" in report:
         return "\n\n".join(max_speed_text(stance) for stance in report["stances"])
+    if "friction" in report:
+        return frictional_text(report)
     constraints = f", jump constraints {report['jump_model']}" if "jump_model" in report else ""
     lines = [
         f"{report['posture']}{robot}: highest feasible contact speed (m/s){constraints}",
@@ -228,7 +290,9 @@ def max_speed_text(report: dict) -> str:
     if "qp_limited_speed" not in report:
         driver = " by the QP" if report.get("controller") == "qp" else ""  # reports of the scripted arm may lack the key
         if "trials_friction" in report:
-            driver += f" with friction rows, mu = {report['trials_friction']:g} (the closed form: frictionless)"
+            driver += f" with friction rows, mu = {report['trials_friction']:g}"
+        if "checks_reference" in report:
+            lines.append(reference_text(report["checks_reference"]))
         lines.append(f"{'simulated':<14}{report['simulated_max_speed']:8.4f}  commanded{driver}; contact "
                      f"{report['simulated_contact_speed']:.4f}; failed first above: {report['simulated_failed_first'] or '-'}")
         lines.extend(check_text(factor, e) for factor, e in report.get("checks", {}).items())
@@ -250,9 +314,23 @@ def max_speed_text(report: dict) -> str:
     return "\n".join(lines)
 
 
+def reference_text(reference: dict) -> str:
+    """The closed form a report's checks are factors of: which one (frictional: mu), its speed and
+    what binds it."""
+    # lazy: the command line loads what a command needs when it runs
+    from impactqp.scenarios.max_speed_search import binding_text
+
+    name = f"{reference['method']}, mu {reference['friction']:g}" if reference["closed_form"] == "frictional" else reference["method"]
+    block = f", {reference['block']}" if reference.get("block") else ""
+    speed = reference["speed"] if reference["speed"] is not None else math.inf
+    return (f"  {name:<12}{speed:8.4f}  {binding_text(reference)}{block}: "
+            f"the checks' reference, the {reference['closed_form']} closed form")
+
+
 def check_text(factor: str, e: dict) -> str:
-    """One trial asked for ``factor`` times the crb closed form: asked and contact speed, the
-    binding impact rows, the failed criteria's onsets (ms from the contact) and whether it fell."""
+    """One trial asked for ``factor`` times the checks' reference (crb's closed form, frictional with
+    --friction: :func:`reference_text`): asked and contact speed, the binding impact rows, the
+    failed criteria's onsets (ms from the contact) and whether it fell."""
     onsets = ", ".join(f"{name} {1000 * t:+.0f} ms" for name, t in e["onsets"].items()) or "none"
     return (f"  {factor}x crb: asked {e['reference_speed']:.4f}, contact {e['contact_speed']:.4f}; "
             f"binding: {e['binding'] or '-'}; onsets: {onsets}; fell: {'yes' if e['fell'] else 'no'}")
@@ -269,7 +347,7 @@ def frictional_text(report: dict) -> str:
         b, without = report["binding"][name], report["frictionless_max_speed"][name]
         lines.append(
             f"  {name:<12}{speed if speed is not None else math.inf:8.4f}{without if without is not None else math.inf:13.4f}  "
-            f"{b['criterion']}, joint {b['joint']}, {b['block']}; contact {b['mode'] or '-'}"
+            f"{b['criterion']} ({b['where']}), {b['block'] or '-'}; contact {b['mode'] or '-'}"
         )
     return "\n".join(lines)
 
@@ -288,7 +366,9 @@ def frictional_text(report: dict) -> str:
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
 @click.option("--tolerance", type=float, default=0.005, show_default=True,
               help="Bisection tolerance (m/s; a standing robot's: 0.02 on the commanded speed unless given).")
-@click.option("--friction", type=float, help="mu in [0, 2]: the closed form under the robust friction rows (an arm's; no simulation).")
+@click.option("--friction", type=float,
+              help="mu in [0, 2]: the closed form under the robust friction rows (no simulation; a standing robot's "
+                   "--controller qp: its trials with the QP's friction rows).")
 @click.option("--tangential", help="With --friction: the tangential velocity VX,VY,VZ (m/s) of the sliding approach.")
 @click.option(
     "--controller", type=click.Choice(["scripted", "qp"]), default="scripted", show_default=True,

@@ -232,7 +232,7 @@ def stance_trial(
         method = click.get_current_context().params["jump_model"]
         if method not in METHODS:
             raise BadInputError(f"--jump-model {method} is not a floating-base predictor; choose from {', '.join(METHODS)}")
-        source = QpCommand(method=method, friction=0.0 if friction is None else rows_friction(friction))
+        source = QpCommand(method=method, friction=None if friction is None else rows_friction(friction))
     elif friction is not None:
         raise BadInputError("--friction sets the whole-body QP's friction rows: give --controller qp")
     stance = stance_names(choice.robot, posture)[0]
