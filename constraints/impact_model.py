@@ -167,8 +167,7 @@ class ExpectedImpact:
         self._edge_buffer = np.empty((2, 0, 0, 0))  # A_i and P_i, allocated at the first state
         self._edges, self._edge_views = edge_maps_of(self._edge_buffer)
         self._edge_impulses = np.empty((friction.count, 3, 3))  # G_i, on held contacts
-        self._edge_impulse_views = self._edge_impulses.view()  # what ``edge_impulse_maps`` returns
-        self._edge_impulse_views.flags.writeable = False
+        self._edge_impulse_views = read_only(self._edge_impulses)  # what ``edge_impulse_maps`` returns
         self._edge_fill = self._fill_held_edges if self.held_contacts else self._fill_edges
         # The crb, gm and classical models of a fixed base write A, P and G into one buffer,
         # allocated at the first fill (``_fill_fixed_base``) or a plan's (``fill_stacked``); the

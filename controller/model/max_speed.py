@@ -214,7 +214,7 @@ def joint_velocity_ratio(u: UnitImpact) -> np.ndarray:
 def affine_bound(robot: RobotModel, start: np.ndarray, slope: np.ndarray, limit: np.ndarray) -> Bound:
     """The largest v >= 0 with |start + v slope| <= limit on every joint (0 when v = 0 already
     violates it), at the joint that gives it."""
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         speeds = np.where(slope > 0.0, (limit - start) / slope, np.where(slope < 0.0, (limit + start) / -slope, np.inf))
     speeds = np.where(np.abs(start) > limit, 0.0, speeds)
     i = int(np.argmin(speeds))
