@@ -33,13 +33,7 @@ def floating_state_status(q, v, base_nq, quaternion_tolerance, q_out, v_out):
     MAX_STATE_ENTRY (nq + nv) (a NaN, an infinity or a huge entry: ``check_state``'s test),
     else NOT_UNIT_QUATERNION when | |q[3:base_nq]| - 1 | exceeds the tolerance, else ACCEPTED
     with q and v copied into ``q_out`` and ``v_out`` (a refused state writes nothing)."""
-    nq, nv = q.shape[0], v.shape[0]
-    total = 0.0
-    for j in range(nq):
-        total += abs(q[j])
-    for j in range(nv):
-        total += abs(v[j])
-    if not total <= (nq + nv) * MAX_STATE_ENTRY:
+    if not absolute_sum(q) + absolute_sum(v) <= (q.shape[0] + v.shape[0]) * MAX_STATE_ENTRY:
         return NOT_FINITE
     squared = 0.0
     for j in range(3, base_nq):
@@ -49,6 +43,15 @@ def floating_state_status(q, v, base_nq, quaternion_tolerance, q_out, v_out):
     q_out[:] = q
     v_out[:] = v
     return ACCEPTED
+
+
+@njit(cache=True)
+def absolute_sum(values):
+    """Kernel: sum |values_i| (NaN when one is NaN)."""
+    total = 0.0
+    for x in values:
+        total += abs(x)
+    return total
 
 
 @njit(cache=True)

@@ -13,7 +13,8 @@ and contact placement the buffer's fields are views of; one kernel
 and the contact point (``ModelTerms.contact_terms``) into the buffer from that data's joint
 Jacobians and checks the state; M^-1, when read, comes from the Cholesky factor of that M
 (``pin.cholesky``). A floating base's fill is one pass of the algorithms its whole-body QP
-needs, into its buffer; M, h and (J J^T)^-1, which that QP does not read, on first read.
+needs, into its buffer (its state's check and its frames by the kernels of
+``floating_kernels``); M, h and (J J^T)^-1, which that QP does not read, on first read.
 """
 
 from __future__ import annotations
