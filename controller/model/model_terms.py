@@ -87,6 +87,11 @@ class ModelTerms:
     rotation and q are views of (``arm_state``, ``arm_state_views``), and its first part,
     ``contact_terms``.
 
+    ``frame_arrays`` = (J6, dJ6 dq, p, R) stacked over a floating base's frames (its contact
+    frame, its held contacts, its named frames, in this order: F x 6 x nv, F x 6, F x 3,
+    F x 3 x 3) are the arrays its fill writes (``floating_kernels.floating_frames_into``), of
+    which the buffer's contact, held-contact and frame fields are views (None elsewhere).
+
     A controller refills one ModelTerms per cycle (``RobotModel.update_terms``); ``stamp``
     changes at every fill (and for a ``dataclasses.replace`` copy), so anything cached per
     state keys on it. The derived quantities below are computed on first use, once per fill.
@@ -113,6 +118,7 @@ class ModelTerms:
     fill_lazy: Callable[[ModelTerms, str], dict[str, np.ndarray]] | None = field(default=None, repr=False)
     cycle_data: object = field(default=None, repr=False)
     cycle_arrays: tuple | None = field(default=None, repr=False)
+    frame_arrays: tuple | None = field(default=None, repr=False)
     stamp: int = field(init=False, repr=False)
     _derived: dict = field(init=False, repr=False)
 

@@ -40,6 +40,7 @@ import pinocchio as pin
 
 # SINGULAR_RATIO and SingularPostureError are the model's: their home is the fills that check them
 from .term_fills import SINGULAR_RATIO, ModelTermFills, SingularPostureError  # noqa: F401
+from .floating_kernels import QUATERNION_TOLERANCE
 from .model_terms import MAX_STATE_ENTRY
 from .robot_description import PANDA, RobotDescription, model_urdf, robot_description
 from .tool_description import TOOLS, ToolDescription, tool_description
@@ -61,8 +62,6 @@ VELOCITY_LIMIT = PANDA.dq_max
 TORQUE_LIMIT = PANDA.tau_max
 ACCELERATION_LIMIT = PANDA.ddq_max
 JERK_LIMIT = PANDA.dddq_max
-QUATERNION_TOLERANCE = 1e-3
-"""Largest | |quaternion| - 1 | of a floating base's orientation in a state (typed to a few digits)."""
 BASE_ACCELERATION_LIMIT = 100.0
 """m/s^2 and rad/s^2: a generous box on a floating base's acceleration (the held contacts set it)."""
 

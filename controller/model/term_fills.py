@@ -12,8 +12,10 @@ and contact point the buffer's fields are views of; one kernel (``model_terms.ar
 writes the contact frame's Jacobian, its drift, (J J^T)^-1, the contact point
 (``ModelTerms.contact_terms``), the state and the contact rotation into the buffer
 (``ModelTerms.arm_state``) from that data's joint Jacobians and checks the state; M^-1, when
-read, comes from the Cholesky factor of that M (``pin.cholesky``). A floating base's fill is one pass of the algorithms its whole-body QP
-needs, into its buffer; M, h and (J J^T)^-1, which that QP does not read, on first read.
+read, comes from the Cholesky factor of that M (``pin.cholesky``). A floating base's fill is one
+pass of the algorithms its whole-body QP needs, into its buffer (its state's check and its frames
+by the kernels of ``floating_kernels``); M, h and (J J^T)^-1, which that QP does not read, on
+first read.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from .model_terms import (
     pack_contact_terms,
     symmetric_inverse3_into,
 )
+from .floating_kernels import QUATERNION_TOLERANCE, floating_frame_arrays, floating_frames_into, floating_state_status
 from .validation import BadInputError
 
 # The contact Jacobian counts as singular when sigma_min / sigma_max falls below this ratio.
@@ -61,6 +64,8 @@ class ModelTermFills:
         self._body_data = model.createData()
         self._inverse_data = model.createData()
         self._root_joints = [j for j in range(1, model.njoints) if model.parents[j] == 0]
+        if self.floating:
+            self._prepare_floating_frames()
         if not self.floating:  # the velocities that move the contact frame, and the checks of ``arm_cycle_terms``
             joints = model.supports[model.frames[self.contact_frame_id].parentJoint]
             columns = [c for j in joints[1:] for c in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)]
@@ -92,13 +97,12 @@ class ModelTermFills:
         """``terms(q, dq)`` written into an existing ModelTerms (a controller's per-cycle
         buffer: no new object; a floating base's arrays are refilled in place), with a new
         ``stamp``. Raises like ``terms``; a refused state leaves a floating base's as it was."""
-        if self.base_nv:  # a floating base (an attribute: this runs every control cycle)
-            q, dq = self.check_state(q, dq, check_limits=False)
-            return self._fill_floating(terms, q, dq, bool(check_limits))
         q = np.asarray(q, dtype=float)
         dq = self._zero_velocity if dq is None else np.asarray(dq, dtype=float)
         if q.shape != (self.nq,) or dq.shape != (self.nv,):
             self.check_state(q, dq, check_limits=False)  # raises, naming the wrong size
+        if self.base_nv:  # a floating base (an attribute: this runs every control cycle)
+            return self._fill_floating(terms, q, dq, bool(check_limits))
         return self._fill_fixed(terms, q, dq, check_limits is not False)
 
     def _prediction_terms(self, q: np.ndarray, dq: np.ndarray, check_limits: bool) -> ModelTerms:
@@ -249,34 +253,63 @@ class ModelTermFills:
             )
             self._attach_cycle_data(terms)
             return terms
-        held = 6 * len(self.held_frame_ids)
+        count, held = 1 + len(self.held_frame_ids), len(self.held_frame_ids)
+        stacked = J6s, drifts, positions, rotations = floating_frame_arrays(count + len(self.frame_ids), nv)
         frames = {
-            name: FrameState(np.empty(3), np.empty((3, 3)), np.empty((6, nv)), np.empty(6)) for name in self.frame_ids
+            name: FrameState(positions[k], rotations[k], J6s[k], drifts[k])
+            for k, name in enumerate(self.frame_ids, start=count)
         }
         return ModelTerms(
-            np.empty(self.nq), np.empty(nv), None, None, J6[:3], J6, np.empty(6),
-            None, np.empty(3), np.empty((3, 3)), np.empty(3), 0.0, np.empty((3, 3)),
-            np.empty((held, nv)), np.empty(held), BodyTerms(np.empty((nv, nv)), np.empty((3, nv)), np.empty(3), frames),
-            fill_lazy=self._lazy_dynamics,
+            np.empty(self.nq), np.empty(nv), None, None, J6s[0, :3], J6s[0], drifts[0],
+            None, positions[0], rotations[0], np.empty(3), 0.0, np.empty((3, 3)),
+            J6s[1:count].reshape(6 * held, nv), drifts[1:count].reshape(6 * held),
+            BodyTerms(np.empty((nv, nv)), np.empty((3, nv)), np.empty(3), frames),
+            fill_lazy=self._lazy_dynamics, frame_arrays=stacked,
         )
 
+    def _prepare_floating_frames(self) -> None:
+        """The fixed inputs of a floating base's ``floating_frames_into``, for its contact frame,
+        its held contacts and its named frames (``ModelTerms.frame_arrays``' order): each frame's
+        joint's placement, twist and acceleration (views of the model's data, which its fill's
+        kinematics rewrite in place), its placement in that joint's axes, and the velocities
+        that move that joint."""
+        model, data = self.model, self.data
+        frame_ids = [self.contact_frame_id, *self.held_frame_ids, *self.frame_ids.values()]
+        local = np.empty((len(frame_ids), 4, 3))
+        support = np.zeros((len(frame_ids), self.nv), dtype=np.uint8)
+        joints = []
+        for f, frame_id in enumerate(frame_ids):
+            frame = model.frames[frame_id]
+            i = frame.parentJoint
+            local[f, :3], local[f, 3] = frame.placement.rotation, frame.placement.translation
+            for j in model.supports[i][1:]:
+                support[f, model.joints[j].idx_v:model.joints[j].idx_v + model.joints[j].nv] = 1
+            placement, twist, acceleration = data.oMi[i], data.v[i], data.a[i]
+            joints.append((
+                placement.rotation, placement.translation, twist.linear, twist.angular,
+                acceleration.linear, acceleration.angular,
+            ))
+        self._floating_frames = tuple(joints), (local, support)
+
     def _fill_floating(self, terms: ModelTerms, q: np.ndarray, v: np.ndarray, check_limits: bool) -> ModelTerms:
-        """One pass of Pinocchio's algorithms at (q, v), their results copied into ``terms``; M, h
-        and (J J^T)^-1, which the whole-body QP does not read (its rows read M^-1), left to their
-        first read."""
+        """One pass of Pinocchio's algorithms at (q, v) (float arrays of the model's sizes) into
+        ``terms``: the state checked and copied by ``floating_state_status``, the kinematics at
+        ddq = 0 and the joints' world Jacobians, the frames written from them by
+        ``floating_frames_into`` (no new array), the centre of mass, its Jacobian and drift,
+        M^-1, and the mass and the inertia about the centre of mass (the centroidal inertia of
+        ``ccrba``). M, h and (J J^T)^-1, which the whole-body QP does not read (its rows read
+        M^-1), are left to their first read. A refused state leaves ``terms`` as it was."""
         if check_limits:
             self.check_state(q, v, check_limits=True)
+        if floating_state_status(q, v, self.base_nq, QUATERNION_TOLERANCE, terms.q, terms.dq) != ACCEPTED:
+            q, v = self.check_state(q, v, check_limits=False)  # raises, naming the entry
+            terms.q[:], terms.dq[:] = q, v
         model, data, body = self.model, self.data, terms.body
-        terms.q[:], terms.dq[:] = q, v
+        q, v = terms.q, terms.dq
         pin.forwardKinematics(model, data, q, v, self._zero_velocity)
         pin.computeJointJacobians(model, data)
-        pin.updateFramePlacements(model, data)
-        self._frame_into(self.contact_frame_id, terms.J6, terms.dJ6_dq, terms.contact_point, terms.contact_rotation)
-        for k, frame_id in enumerate(self.held_frame_ids):
-            self._frame_into(frame_id, terms.held_jacobian[6 * k:6 * k + 6], terms.held_drift[6 * k:6 * k + 6])
-        for name, frame_id in self.frame_ids.items():
-            frame = body.frames[name]
-            self._frame_into(frame_id, frame.J6, frame.dJ6_dq, frame.position, frame.rotation)
+        joints, frames = self._floating_frames
+        floating_frames_into(data.J, joints, frames, terms.frame_arrays)
         pin.centerOfMass(model, data, pin.ACCELERATION, True)  # of the kinematics above
         terms.com[:], body.dJcom_dq[:] = data.com[0], data.acom[0]
         body.Jcom[:] = pin.jacobianCenterOfMass(model, data, False)  # of the Jacobians and CoMs above
@@ -284,16 +317,6 @@ class ModelTermFills:
         pin.ccrba(model, data, q, v)
         terms.mass, terms.inertia_com[:] = float(data.Ig.mass), data.Ig.inertia
         return terms.refilled(pending=("M", "h", "JJt_inv"))
-
-    def _frame_into(self, frame_id: int, J6, drift, position=None, rotation=None) -> None:
-        """The frame's world-aligned Jacobian and drift (and its placement) after the forward
-        kinematics of ``_fill_floating``, copied into the given arrays."""
-        world = pin.LOCAL_WORLD_ALIGNED
-        J6[:] = pin.getFrameJacobian(self.model, self.data, frame_id, world)
-        drift[:] = pin.getFrameClassicalAcceleration(self.model, self.data, frame_id, world).vector
-        if position is not None:
-            placement = self.data.oMf[frame_id]
-            position[:], rotation[:] = placement.translation, placement.rotation
 
     def body_terms(self, q: np.ndarray, dq: np.ndarray) -> BodyTerms:
         """M^-1, Jcom, dJcom dq and the named frames of the state (q, dq) (``BodyTerms``), on a

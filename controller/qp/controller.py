@@ -78,6 +78,7 @@ from .cycle_kernels import COMMAND_ROWS, checked_solution, first_outside, integr
 from .cycle_kernels import weighted_least_squares
 from .elastic_relaxation import ElasticRelaxation
 from .fallback import bounded_conflict, brake, braking_command, irreducible_conflict, usable_state
+from .floating_command import floating_velocity_command, joint_positions_within
 from .held_elimination import held_elimination
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
 from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
@@ -286,21 +287,21 @@ class ImpactAwareController:
         return self._emit(None, (ddq, dq_cmd, q_cmd), Status.IMPACT_BRAKE, [], [], "", "braking after a noticed impact")
 
     def _floating_integrate(self, terms: ModelTerms, ddq: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
-        """A floating base's dq_cmd = dq + ddq dt, the joints' part clipped into their velocity
-        limits, and q_cmd = q (+) (dq + dq_cmd) dt / 2, the joints' part within their position
-        limits; and whether dq_cmd was clipped (a fixed base: ``integrate_command``, compiled)."""
-        dq_cmd = terms.dq + ddq * self.dt
-        joints, dq_max = dq_cmd[self._joint_velocities], self.robot.dq_max
-        clipped = first_outside(joints, dq_max) >= 0
-        if clipped:
-            np.clip(joints, -dq_max, dq_max, out=joints)
-        return dq_cmd, self._floating_position(terms, dq_cmd), clipped
+        """A floating base's dq_cmd = dq + ddq dt (the joints' part within their velocity limits),
+        q_cmd = q (+) (dq + dq_cmd) dt / 2 (``_configuration_step``) and whether dq_cmd was
+        clipped (``floating_command``'s kernels; a fixed base: ``integrate_command``)."""
+        command = np.empty((2, terms.dq.shape[0]))
+        clipped = floating_velocity_command(terms.dq, ddq, self.dt, self._limits, command)
+        return command[0], self._configuration_step(terms.q, command[1]), clipped
 
     def _floating_position(self, terms: ModelTerms, dq_cmd: np.ndarray) -> np.ndarray:
         """q (+) (dq + dq_cmd) dt / 2 on the configuration manifold, the joints within their limits."""
-        q_cmd = pin.integrate(self.robot.model, terms.q, 0.5 * self.dt * (terms.dq + dq_cmd))
-        joints = q_cmd[self._joint_coordinates]
-        np.clip(joints, self.robot.q_min, self.robot.q_max, out=joints)
+        return self._configuration_step(terms.q, 0.5 * self.dt * (terms.dq + dq_cmd))
+
+    def _configuration_step(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
+        """q (+) step (``pin.integrate``), the joints' coordinates within their limits."""
+        q_cmd = pin.integrate(self.robot.model, q, step)
+        joint_positions_within(q_cmd, self._limits)
         return q_cmd
 
     def _assemble(self, terms: ModelTerms, cycle: ControlCycle) -> bool:

@@ -6,9 +6,10 @@ a standing robot's tasks and constraints, every row of one cycle in ONE compiled
 ``KERNEL_KINDS`` (those keep the arm's plan, whose call reads fewer arrays): the centre-of-mass
 and frame tasks, the held contacts' equality rows, the capture region and the feet's wrenches at
 the impact (frictionless: the edge variants keep the generic assembly). Its table and packed
-parameters are the arm plan's (a frame task's line holds the index of its frame in the column of
-the expected impact); ``fill`` gathers each frame task's frame (position, rotation, J6, dJ6 v:
-``FrameTask.frame_state``) into stacked arrays, the expected impacts' maps (A, P, the edges', G,
+parameters are the arm plan's (a frame task's line holds its index among the frame tasks in the
+column of the expected impact); ``fill`` passes the frame tasks' frames (position, rotation, J6,
+dJ6 v: ``FrameTask.frame_state``) stacked (a floating base's buffer's own stacked frame arrays,
+else copies), the expected impacts' maps (A, P, the edges', G,
 C and the held contacts' impulse map Z, computed once with the jump maps) and activations, and
 calls ``whole_body_rows``: the arm plan's kernels on their lines, each class's own kernel on its
 lines (``com_rows``, ``frame_rows``, ``capture_rows``, ``foot_wrench_rows``; the held contacts'
@@ -79,7 +80,10 @@ class WholeBodyPlan(CyclePlan):
             plan.table[tasks.index(task), IMPACT] = f
         n, count = buffers.problem.H.shape[0], max(len(frame_tasks), 1)
         plan.frame_tasks = frame_tasks
-        plan.frames = (np.zeros((count, 3)), np.zeros((count, 3, 3)), np.zeros((count, 6, n)), np.zeros((count, 6)))
+        plan.frames = (
+            np.zeros((count, 3)), np.zeros((count, 3, 3)), np.zeros((count, 6, n)), np.zeros((count, 6)), np.arange(count),
+        )
+        plan.stacked = (None, None, np.arange(count))
         kinds = set(plan.table[:, KIND].tolist())
         plan.reads = (TORQUE in kinds, bool(kinds & set(BODY_KINDS)))
         plan.placeholders = (
@@ -94,10 +98,7 @@ class WholeBodyPlan(CyclePlan):
             self.pack()
         maps = self._impact_maps(terms)
         body_maps = self._body_maps(terms)
-        positions, rotations, jacobians, drifts = self.frames
-        for f, task in enumerate(self.frame_tasks):
-            position, rotation, J6, drift = task.frame_state(terms)
-            positions[f], rotations[f], jacobians[f], drifts[f] = position, rotation, J6, drift
+        frames = self._frames(terms)
         square, vector, Jcom, point = self.placeholders[:4]
         torque, body = self.reads
         state = (terms.q, terms.dq, terms.J6, terms.dJ6_dq, terms.contact_rotation,
@@ -109,11 +110,35 @@ class WholeBodyPlan(CyclePlan):
         b = self.buffers
         p = b.problem
         return whole_body_rows(
-            (state, body_terms, self.frames), (maps, body_maps),
+            (state, body_terms, frames), (maps, body_maps),
             (cycle.acceleration_lower, cycle.acceleration_upper, cycle.horizon, cycle.dt),
             (self.table, self.parameters, self.first_relaxed), (b.task_A, b.task_b, b.task_w),
             (p.H, p.g, b.box_bounds, p.lower, p.upper, p.C),
         )
+
+    def _frames(self, terms: ModelTerms) -> tuple:
+        """The frame tasks' frames as the rows' kernel reads them, (p, R, J6, dJ6 v, index): a
+        floating base's stacked frame arrays (``ModelTerms.frame_arrays``: its contact frame,
+        held contacts, then named frames), task f's frame at ``index[f]`` of them (found once
+        per buffer and frame names); else each task's ``frame_state`` copied into the plan's own
+        arrays, task f's at f."""
+        stacked = terms.frame_arrays
+        if stacked is None:
+            positions, rotations, jacobians, drifts, _ = self.frames
+            for f, task in enumerate(self.frame_tasks):
+                positions[f], rotations[f], jacobians[f], drifts[f] = task.frame_state(terms)
+            return self.frames
+        source, names, index = self.stacked
+        tasks_frames = [task.frame for task in self.frame_tasks]
+        if source is not stacked or names != tasks_frames:
+            for task in self.frame_tasks:
+                task.frame_state(terms)  # raises for a frame the robot does not name
+            named = list(terms.body.frames)
+            first = len(stacked[0]) - len(named)  # the named frames follow the contact and held ones
+            index = np.array([0 if name is None else first + named.index(name) for name in tasks_frames] or [0])
+            self.stacked = stacked, tasks_frames, index
+        J6, drifts, positions, rotations = stacked
+        return positions, rotations, J6, drifts, index
 
     def _body_maps(self, terms: ModelTerms) -> tuple[tuple, tuple, tuple]:
         """Each expected impact's centre-of-mass map C, impulse map G and held contacts' impulse
@@ -134,7 +159,7 @@ class WholeBodyPlan(CyclePlan):
 def whole_body_rows(inputs, maps, cycle, plan, task_rows, qp):
     """Kernel of ``WholeBodyPlan.fill``: ``cycle_plan.planned_rows`` with the lines of the
     whole-body kinds, for inputs = (``planned_rows``' state, body, frames), body = (Jcom, dJcom v,
-    c, Jf, dJf v, m), frames = the frame tasks' stacked (p, R, J6, dJ6 v), maps =
+    c, Jf, dJf v, m), frames = the frames' stacked (p, R, J6, dJ6 v, index) (``_frames``), maps =
     (``planned_rows``' impacts, (each impact's C, G and Z)) and plan = (table,
     parameters, first relaxed row)."""
     state, body, frames = inputs
@@ -156,9 +181,10 @@ def whole_body_rows(inputs, maps, cycle, plan, task_rows, qp):
 @njit(cache=True)
 def body_task_rows(dq, body, frames, table, parameters, task_rows):
     """Kernel: the rows of the centre-of-mass and frame tasks of ``table`` (parameters: kp, kd,
-    the target, the weights; a frame task's line holds its frame's index in ``frames``)."""
+    the target, the weights; a frame task's line holds its index f, its frame is at
+    ``index[f]`` of ``frames`` = (p, R, J6, dJ6 v, index))."""
     Jcom, dJcom_dq, com = body[0], body[1], body[2]
-    positions, rotations, jacobians, drifts = frames
+    positions, rotations, jacobians, drifts, index = frames
     task_A, task_b, task_w = task_rows
     for e in range(table.shape[0]):
         kind, first, rows, p, f = table[e, KIND], table[e, FIRST], table[e, ROWS], table[e, PARAMETERS], table[e, IMPACT]
@@ -168,7 +194,8 @@ def body_task_rows(dq, body, frames, table, parameters, task_rows):
             com_rows(Jcom, dq, com, dJcom_dq, parameters[p + 2:p + 5], gains, task_A[first:last], task_b[first:last])
             task_w[first:last] = parameters[p + 5:p + 8]
         elif kind == FRAME:
-            frame = (positions[f], rotations[f], jacobians[f], drifts[f])
+            k = index[f]
+            frame = (positions[k], rotations[k], jacobians[k], drifts[k])
             frame_rows(frame, dq, parameters[p:p + FRAME_OFFSET], task_A[first:last], task_b[first:last])
             task_w[first:last] = parameters[p + FRAME_OFFSET:p + FRAME_PARAMETERS]
 
