@@ -353,18 +353,7 @@ def arm_cycle_terms(Jw, dJw, p, rotation, q, dq, checks, out):
     if not total <= (nq + nv) * MAX_STATE_ENTRY:
         return NOT_FINITE
     px, py, pz = p[0], p[1], p[2]
-    s00 = s01 = s02 = s11 = s12 = s22 = 0.0
-    for c in range(support.shape[0]):  # J J^T of the linear rows
-        k = int(support[c])
-        x = Jw[0, k] + Jw[4, k] * pz - Jw[5, k] * py
-        y = Jw[1, k] + Jw[5, k] * px - Jw[3, k] * pz
-        z = Jw[2, k] + Jw[3, k] * py - Jw[4, k] * px
-        s00 += x * x
-        s01 += x * y
-        s02 += x * z
-        s11 += y * y
-        s12 += y * z
-        s22 += z * z
+    s00, s01, s02, s11, s12, s22 = linear_gram(Jw, p, support)
     A, B, C = s11 * s22 - s12 * s12, s02 * s12 - s01 * s22, s01 * s12 - s02 * s11
     det = s00 * A + s01 * B + s02 * C
     trace = s00 + s11 + s22
@@ -416,6 +405,26 @@ def arm_cycle_terms(Jw, dJw, p, rotation, q, dq, checks, out):
             out[d + 3 * i + j] = rotation[i, j]
     out[d + 9:] = q
     return ACCEPTED
+
+
+@njit(cache=True)
+def linear_gram(Jw, p, support):
+    """Kernel of ``arm_cycle_terms``: the upper triangle (s00, s01, s02, s11, s12, s22) of J J^T,
+    J = Jw_lin + Jw_ang x p the linear rows of the contact frame's Jacobian on the support columns."""
+    px, py, pz = p[0], p[1], p[2]
+    s00 = s01 = s02 = s11 = s12 = s22 = 0.0
+    for c in range(support.shape[0]):
+        k = int(support[c])
+        x = Jw[0, k] + Jw[4, k] * pz - Jw[5, k] * py
+        y = Jw[1, k] + Jw[5, k] * px - Jw[3, k] * pz
+        z = Jw[2, k] + Jw[3, k] * py - Jw[4, k] * px
+        s00 += x * x
+        s01 += x * y
+        s02 += x * z
+        s11 += y * y
+        s12 += y * z
+        s22 += z * z
+    return s00, s01, s02, s11, s12, s22
 
 
 @njit(cache=True)

@@ -131,7 +131,7 @@ class CyclePlan:
         self.parameters = np.empty(HEAD)
         self._edits = (-1, -1)  # the parameter edits of the last packing
         edges = impacts[0].friction.count if impacts else 0
-        # impact i's [A, P, G] (3 n^2, ``impact_model.fixed_base_matrix_views``), its edges' A_i, P_i
+        # impact i's [A, P, G] (3 n^2, ``impact_cycle_kernels.fixed_base_matrix_views``), its edges' A_i, P_i
         # (2 x edges x n x n) and its activation, in row i
         self.impacts_data = np.zeros((max(len(impacts), 1), (3 + 2 * edges) * n * n + 1))
         self._impact_rows = [(row[:3 * n * n], row[3 * n * n:-1].reshape(2, edges, n, n)) for row in self.impacts_data]

@@ -101,17 +101,8 @@ def reduce_problem(full, partition, substitution, reduced):
     Hr, gr, Cr, lower_r, upper_r = reduced
     n, m, k = H.shape[0], f.shape[0], e.shape[0]
     first, end = held[0], held[1]
-    for i in range(k):
-        for j in range(m):
-            substitution[i, j] = -C[first + i, f[j]]
-        substitution[i, m] = lower[n + first + i]
-    block = np.empty((6, 6))
-    for b in range(0, k, 6):
-        for i in range(6):
-            for j in range(6):
-                block[i, j] = C[first + b + i, e[b + j]]
-        if not solve_in_place(block, substitution[b:b + 6]):
-            return False
+    if not held_substitution(C, lower[n + first:n + end], partition, substitution):
+        return False
     used = np.empty(m + 1, dtype=np.int64)  # the columns of [E | e0] with a non-zero entry
     count = 0
     for j in range(m + 1):
@@ -161,6 +152,43 @@ def reduce_problem(full, partition, substitution, reduced):
                 gr[i] += s * HEe[a, last]
             for u in range(last):
                 Hr[i, used[u]] += s * HEe[a, u]
+    reduced_rows(full, partition, (substitution, S, used[:count], last), reduced)
+    return True
+
+
+@njit(cache=True)
+def held_substitution(C, held_lower, partition, substitution):
+    """Kernel of ``reduce_problem``: [E | e0] (k x (m + 1)) with Jf_e [E | e0] = [-Jf_f | e0's
+    right side] (the held rows' C[:, f] and their equality bound ``held_lower``), one 6 x 6
+    solve per held contact's block of Jf_e; False when a block is singular."""
+    held, e, f = partition
+    first, m, k = held[0], f.shape[0], e.shape[0]
+    for i in range(k):
+        for j in range(m):
+            substitution[i, j] = -C[first + i, f[j]]
+        substitution[i, m] = held_lower[i]
+    block = np.empty((6, 6))
+    for b in range(0, k, 6):
+        for i in range(6):
+            for j in range(6):
+                block[i, j] = C[first + b + i, e[b + j]]
+        if not solve_in_place(block, substitution[b:b + 6]):
+            return False
+    return True
+
+
+@njit(cache=True)
+def reduced_rows(full, partition, columns, reduced):
+    """Kernel of ``reduce_problem``: the reduced QP's constraint rows C_r and their bounds, for
+    columns = ([E | e0], its used columns S, their indices, the number of them that are E's): a
+    held row's place takes the bounds of one eliminated velocity, every other row r gets
+    C[r, f] + C[r, e] E and its bounds shifted by C[r, e] e0."""
+    C, lower, upper = full[2], full[3], full[4]
+    held, e, f = partition
+    substitution, S, used, last = columns
+    Cr, lower_r, upper_r = reduced[2], reduced[3], reduced[4]
+    n, m, k, count = full[0].shape[0], f.shape[0], e.shape[0], used.shape[0]
+    first, end = held[0], held[1]
     products = np.empty(count)  # C[r, e] [E | e0] on the used columns
     for r in range(C.shape[0]):
         if first <= r < end:  # the held row's place: the bounds of one eliminated velocity
@@ -182,7 +210,6 @@ def reduce_problem(full, partition, substitution, reduced):
         shift = products[last] if last < count else 0.0
         lower_r[m + r] = lower[n + r] - shift
         upper_r[m + r] = upper[n + r] - shift
-    return True
 
 
 @njit(cache=True)

@@ -1,0 +1,96 @@
+"""The per-cycle kernels of a fixed base's expected impact (``impact_model.ExpectedImpact``):
+the crb, gm and classical jump matrices A, P and G (docs/qp-constraints.md: A = dq+/dq- - I,
+P the impulsive torque map, G the impulse map; eqs. (12), (20), (21)) written into one
+preallocated buffer out = [A, P, G] from the cycle's flat arrays (``ModelTerms.contact_terms``),
+and the contact's normal motion that the activation rule reads.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from impactqp.controller.model.classical_matrices import classical_jump_matrices
+from impactqp.controller.model.jump_kernels import crb_inverse_inertia_times, rank_one_jump_matrices
+from impactqp.controller.model.model_terms import contact_views
+
+
+@njit(cache=True)
+def normal_motion(J, normal, contact_point, dq):
+    """Kernel: the normal contact speed n.(J dq) = (J^T n).dq and the normal position n.p, the
+    inputs of the activation rule."""
+    Jt_normal = normal @ J
+    normal_speed = 0.0
+    for j in range(J.shape[1]):
+        normal_speed += Jt_normal[j] * dq[j]
+    normal_position = normal[0] * contact_point[0] + normal[1] * contact_point[1] + normal[2] * contact_point[2]
+    return normal_speed, normal_position
+
+
+@njit(cache=True)
+def fixed_base_matrix_views(out, n):
+    """The views (A (n x n), P (n x n), G (3 x 3)) of ``out`` = [A, P, G] flat, row-major
+    (2 n^2 + 9 values): the buffer of a fixed base's fill (``ExpectedImpact._fill_fixed_base``),
+    for its kernels and for Python alike."""
+    return out[:n * n].reshape(n, n), out[n * n:2 * n * n].reshape(n, n), out[2 * n * n:2 * n * n + 9].reshape(3, 3)
+
+
+@njit(cache=True)
+def rank_one_cycle_update(W_normal, contact, dq, impact, out):
+    """Kernel: the rank-one part of a fixed base's crb and gm fills (``crb_cycle_update``,
+    ``gm_cycle_update``): from W n, A = s (J+ W n)(J^T n)^T, P = s (J^T n)(J^T n)^T and G = s n n^T, s = -(1+c_r) / (n^T W n)
+    (eq. (12), ``rank_one_jump_matrices``), into out = [A, P, G] (``fixed_base_matrix_views``),
+    with J, (J J^T)^-1 and p from ``contact`` (``model_terms.contact_views``) and
+    impact = [n, c_r]; returns n.(J dq) and n.p (``normal_motion``)."""
+    nv = dq.shape[0]
+    J6, JJt_inv, contact_point = contact_views(contact, nv)
+    J, normal = J6[:3], impact[:3]
+    jump_matrix, torque_matrix, impulse_map = fixed_base_matrix_views(out, nv)
+    rank_one_jump_matrices(J, JJt_inv, W_normal, normal, impact[3], jump_matrix, torque_matrix, impulse_map)
+    return normal_motion(J, normal, contact_point, dq)
+
+
+@njit(cache=True)
+def crb_cycle_update(contact, com, inertia_com, mass, dq, impact, out):
+    """Kernel: ``rank_one_cycle_update`` with W = W_crb, eq. (20), its W_crb n from the contact
+    point p (in ``contact``), the centre of mass, the inertia about it and the mass
+    (``crb_inverse_inertia_times``)."""
+    contact_point = contact_views(contact, dq.shape[0])[2]
+    W_normal = crb_inverse_inertia_times(contact_point, com, inertia_com, mass, impact[:3])
+    return rank_one_cycle_update(W_normal, contact, dq, impact, out)
+
+
+@njit(cache=True)
+def gm_cycle_update(M_inv, contact, dq, impact, out):
+    """Kernel: ``rank_one_cycle_update`` with W = W_gm = J M^-1 J^T, eq. (22), its
+    W_gm n = J (M^-1 (J^T n)) in plain loops (``GeneralizedMomentumJump.inverse_inertia_times``;
+    BLAS would cost more than the products at this size)."""
+    nv = dq.shape[0]
+    J6 = contact_views(contact, nv)[0]
+    n0, n1, n2 = impact[0], impact[1], impact[2]
+    Jt_normal = np.empty(nv)
+    for k in range(nv):
+        Jt_normal[k] = J6[0, k] * n0 + J6[1, k] * n1 + J6[2, k] * n2
+    W_normal = np.zeros(3)
+    for i in range(nv):
+        y = 0.0  # (M^-1 J^T n)_i
+        for k in range(nv):
+            y += M_inv[i, k] * Jt_normal[k]
+        W_normal[0] += J6[0, i] * y
+        W_normal[1] += J6[1, i] * y
+        W_normal[2] += J6[2, i] * y
+    return rank_one_cycle_update(W_normal, contact, dq, impact, out)
+
+
+@njit(cache=True)
+def classical_cycle_update(M_inv, contact, dq, impact, out):
+    """Kernel of a fixed base's classical fill (``ExpectedImpact._fill_fixed_base``): A, P and
+    G of eqs. (5)-(6) (``classical_jump_matrices``) into out = [A, P, G], with J and p from
+    ``contact`` and impact = [n, c_r] (as ``rank_one_cycle_update``); returns n.(J dq) and n.p
+    (``normal_motion``)."""
+    nv = dq.shape[0]
+    J6, _, contact_point = contact_views(contact, nv)
+    J, normal = J6[:3], impact[:3]
+    jump_matrix, torque_matrix, impulse_map = fixed_base_matrix_views(out, nv)
+    classical_jump_matrices(M_inv, J, impact[3], jump_matrix, torque_matrix, impulse_map)
+    return normal_motion(J, normal, contact_point, dq)
