@@ -22,8 +22,9 @@ on them for ``TrialStart.settle`` s, during which every source commands the join
   (``"blended"``: ``sim.trial_loop.ControllerSource``); at the stop the hand's approach speed
   target becomes 0 (``ContactApproachTask.reference_velocity``): the QP brakes within its
   acceleration and jerk limits, and a standing robot's controller is given from then on the
-  state of ``balance_feedback`` (the blended state by default: fed its own command it would not
-  see the body the impact set moving, and the close stance fell 0.4 s after its impact) and, when
+  state of ``balance_feedback`` (None: the approach's own state, or the blended one when the
+  approach is fed its own command, which would not see the body the impact set moving: the
+  close stance fell 0.4 s after its impact) and, when
   that state sees its body, turns to its balance (``controller.config.post_impact_balance``).
   Why the task target and not a second reset: a reset would re-capture the CoM, torso
   and posture targets at the post-impact state and zero the controller's acceleration memory, a
@@ -228,7 +229,7 @@ class QpCommand:
     method: str | None = "crb"
     solver: str = "daqp"
     feedback: str = "commanded"
-    balance_feedback: str = "blended"
+    balance_feedback: str | None = None
     gap: float | None = None
     restitution: float = 0.0
     impact_duration: float | None = None
@@ -239,7 +240,7 @@ class QpCommand:
     holds_at_stop = False  # the QP brakes the joints itself (its acceleration and jerk limits)
 
     def __post_init__(self):
-        for feedback in (self.feedback, self.balance_feedback):
+        for feedback in (self.feedback, self.balance_feedback or self.feedback):
             if feedback not in FEEDBACK:
                 raise BadInputError(f"unknown feedback {feedback!r}; choose from {', '.join(FEEDBACK)}")
 
@@ -284,7 +285,8 @@ class QpCommand:
     def start(self, start: TrialStart) -> QpDriver:
         """The driver of one trial: the controller of the start posture towards the start's wall."""
         controller = build_controller(self.config(start), start.robot, start.q0)
-        return QpDriver(controller, (self.feedback, self.balance_feedback), start.settle, start.control_period)
+        balance = self.balance_feedback or ("blended" if self.feedback == "commanded" else self.feedback)
+        return QpDriver(controller, (self.feedback, balance), start.settle, start.control_period)
 
 
 @dataclass
