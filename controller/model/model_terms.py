@@ -341,8 +341,7 @@ def arm_cycle_terms(Jw, dJw, p, rotation, q, dq, checks, out):
     Returns NOT_FINITE when sum |q_i| + sum |dq_i| exceeds MAX_STATE_ENTRY (nq + nv) (a NaN, an
     infinity or a huge entry: ``check_state``'s test), else NEAR_SINGULAR when det(J J^T) <
     s^2 trace(J J^T)^3 (``contact_jacobian_status``'s bound), else OUTSIDE_LIMITS when q leaves
-    [q_min, q_max], else ACCEPTED; ``out`` is written only when ACCEPTED (a refused state
-    leaves it as it was). Plain loops, no allocation."""
+    [q_min, q_max], else ACCEPTED, the only case that writes ``out``. Plain loops, no allocation."""
     nq, nv = q.shape[0], dq.shape[0]
     support = checks[1 + 2 * nq:]
     total = 0.0
