@@ -64,6 +64,7 @@ import pinocchio as pin
 
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.max_speed import standing_wrenches
+from impactqp.controller.model.impedance_inverse_inertia import critical_damping
 
 from .scene import to_pinocchio
 
@@ -223,7 +224,7 @@ class JointImpedanceServo(ComputedTorqueServo):
         data, (q_start, dq_start), acceleration = self.data, self._period, self._acceleration
         mujoco.mj_mulM(self.model, data, self._torque, acceleration)
         mujoco.mj_fullM(self.model, data, self._M)
-        damping = 2.0 * np.sqrt(self.stiffness * np.diag(self._M))
+        damping = critical_damping(self.stiffness, self._M)
         q_ref = q_start + elapsed * dq_start + 0.5 * elapsed**2 * acceleration
         dq_ref = dq_start + elapsed * acceleration
         self._torque += self.stiffness * (q_ref - data.qpos) + damping * (dq_ref - data.qvel) + data.qfrc_bias
