@@ -306,6 +306,15 @@ def run_approach(
     return replace(run, log=log.truncated(log.force_t[touching[0]] + spec.after_contact))
 
 
+class WallNotReachedError(RuntimeError):
+    """A standing trial whose hand never touched the wall; ``run``: what it recorded
+    (``TrialRun``: the loop's record and the driver's, a QP's statuses among it)."""
+
+    def __init__(self, message: str, run: TrialRun):
+        super().__init__(message)
+        self.run = run
+
+
 def standing_wall_friction(source: TrialSource) -> float:
     """The standing scene's wall friction for ``source``: the mu its QP's friction rows were given
     (the wall the rows are for, as ``simulate --friction`` sets an arm's wall; 0: no rows and a
@@ -343,7 +352,7 @@ def run_impact_trial(robot: RobotModel, stance: Stance, speed: float, *, gain: f
     run = run_impact(plant, source, start, ending)
     touched = WallContact.of(run.record, plant, start)
     if touched is None:
-        raise RuntimeError(
-            f"the hand never reached the wall (stance {stance.name}, {speed} m/s, {source.name} command)"
+        raise WallNotReachedError(
+            f"the hand never reached the wall (stance {stance.name}, {speed} m/s, {source.name} command)", run
         )
     return held_contact_result(stance.name, start, touched, run, source.name)

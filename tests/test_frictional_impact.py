@@ -36,7 +36,7 @@ def test_without_friction_the_impulse_is_eq_12(seed, restitution, model):
     assert impact.mode == "frictionless"
 
 
-@settings(max_examples=1000)
+@settings(max_examples=200)
 @given(st.integers(0, 2**32 - 1), st.floats(0.02, 1.5), st.floats(0.0, 1.0), st.sampled_from(RESTITUTION_MODELS))
 def test_the_law_agrees_with_a_generic_ode_solver(seed, mu, restitution, model):
     """The same equations integrated by scipy's DOP853 with its own event location: impulse

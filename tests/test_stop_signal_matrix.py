@@ -138,7 +138,7 @@ COMMANDS = {
         _ray_started, "_raylet", _sweep_left,
     ),
     "diagnose": LongCommand(
-        ("diagnose", "{dataset}", "--report", "{out}", "--json"),
+        ("diagnose", "{dataset}", "--causes", "armature,payload", "--report", "{out}", "--json"),
         _said("step 3/5"), "mujoco", _report_left,
     ),
     "run": LongCommand(
