@@ -36,7 +36,12 @@ last free step) is taken but not answered, since the client's next read finds th
 waiting. So from the motion's second command on, exactly one command and one state are in
 flight: a run depends on its cycles, not on wall-clock time (only the state time between a
 motion's first cycles can jump by the free steps, at rest). ``--stop-after-commands`` counts
-every command of the run's motions.
+every command of the run's motions. When no command answering the newest state has come for
+``LOCKSTEP_PATIENCE`` s, the server steps and sends a state anyway, as the robot's own clock
+would: on a loaded machine a run stalled there (the client's 1 s receive timeout, seen twice
+in the test suite's franky-sim runs) without telling whether a datagram was lost or a command
+answered a state the client had not seen; the client then reads the newer state, as libfranka
+does on a robot.
 """
 
 from __future__ import annotations
@@ -64,6 +69,9 @@ USAGE = (
 )
 START_GUARD = 600.0  # s: the longest wait for a server to listen before it counts as hung
 FREE_PERIOD = 1e-3  # s: franky-sim's own step period while no command is awaited
+LOCKSTEP_PATIENCE = 0.25
+"""s the lockstep waits for a command answering its newest state before it steps on its own
+clock, as the robot would (below libfranka's 1 s receive timeout)."""
 WALL_HALF_SIZE = 1.0
 WALL_HALF_THICKNESS = 0.05
 HAND_BODY = "robot0_hand"
@@ -234,14 +242,16 @@ def serve_in_lockstep(server, stop_after_commands: int | None) -> None:
     ``stop_after_commands``-th motion command: paced free steps (franky-sim's 1 ms period) while
     no motion runs and at a motion's start, then, from the motion's first command until its
     ``motion_finished`` command, one step and one state per command that answers the newest
-    state (module docstring)."""
+    state (module docstring), or after ``LOCKSTEP_PATIENCE`` s without one."""
     robot_server = server.robot_servers[0]
     commands = CommandCount(robot_server)
     lockstep = False
     while True:
         tick = time.monotonic()
+        waited = False
         if lockstep:  # the command arrives on franky-sim's UDP socket, a closed connection on TCP
-            select.select([robot_server._FrankaServer__udp_socket, robot_server._tcp_socket], [], [])
+            sockets = [robot_server._FrankaServer__udp_socket, robot_server._tcp_socket]
+            waited = not select.select(sockets, [], [], LOCKSTEP_PATIENCE)[0]
         before = commands.count
         robot_server.process_commands()
         command = commands.count > before
@@ -250,7 +260,7 @@ def serve_in_lockstep(server, stop_after_commands: int | None) -> None:
             return
         moving = robot_server.current_motion_id > 0
         lockstep = moving and (lockstep or command)
-        if lockstep and not (command and answers_newest_state(robot_server)):
+        if lockstep and not waited and not (command and answers_newest_state(robot_server)):
             continue  # nothing to answer: woken without a command, or the command of an older state
         server.sim.step()
         robot_server.send_state()
