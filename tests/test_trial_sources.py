@@ -112,11 +112,11 @@ def test_a_body_the_qp_leans_stays_over_its_feet(robot):
     assert not trial.fell
 
 
-def test_the_measured_state_fed_to_the_standing_qp_gives_an_evaluated_trial_without_the_impact_brake(robot):
-    """The G1's controller fed its measured state: the trial runs and is evaluated; the impact
-    brake (a fixed base's: the standing servo's lag would set it off before any contact) never
-    engages. Fed the measured state, the standing QP turns infeasible during the approach (issue
-    33), and whether the hand still reaches the wall depends on rounding (it does on some
+def test_the_measured_state_fed_to_the_standing_qp_never_sets_off_the_impact_brake(robot):
+    """The G1's controller fed its measured state: the impact brake (a fixed base's: the standing
+    servo's lag would set it off before any contact) never engages; a trial that reaches the wall
+    is evaluated. Fed the measured state, the standing QP turns infeasible during the approach
+    (issue 33), and whether the hand still reaches the wall depends on rounding (it does on some
     machines, not on others): the brake is checked on the record either way."""
     try:
         trial = run_impact_trial(robot, STANCES["parallel"], 0.5, source=QpCommand(feedback="measured"))
