@@ -17,8 +17,8 @@ SMALL = {"postures": ["elbow_up", "elbow_left"], "speeds": [0.1, 0.18], "repeats
 def test_a_sensor_fault_is_named_against_plant_causes_with_the_truth_inside(tmp_path, name, overrides):
     """The sensor fault competes with plant causes that could mimic it (damping lags like a
     delay, armature loads the torques); it alone is named, fits the noise, and every true value
-    lies within its interval. (A torque offset per joint, seven profiled parameters, is the
-    bench's ``diagnose.accuracy.torque_offset`` row.)"""
+    lies within its interval. (A torque offset per joint, seven profiled parameters, is a case of
+    the bench's ``diagnose.accuracy`` rows, ``hidden_cases``.)"""
     generate_dataset(tmp_path, DatasetRequest(plant=PlantParameters(**overrides), seed=4, **SMALL))
     candidates = [ArmatureCause(JOINTS), JointDampingCause(JOINTS), cause_named(name, JOINTS)]
     result = diagnose(tmp_path, causes=candidates, jobs=2).summary()
