@@ -36,11 +36,13 @@ def test_without_friction_the_impulse_is_eq_12(seed, restitution, model):
     assert impact.mode == "frictionless"
 
 
-@settings(max_examples=200)
-@given(st.integers(0, 2**32 - 1), st.floats(0.02, 1.5), st.floats(0.0, 1.0), st.sampled_from(RESTITUTION_MODELS))
-def test_the_law_agrees_with_a_generic_ode_solver(seed, mu, restitution, model):
-    """The same equations integrated by scipy's DOP853 with its own event location: impulse
-    within 1e-6 (relative to its size), the same contact mode. Left out: mu within 0.1 % of the
+@pytest.mark.parametrize("model", RESTITUTION_MODELS)
+@settings(max_examples=500)
+@given(st.integers(0, 2**32 - 1), st.floats(0.02, 1.5), st.floats(0.0, 1.0))
+def test_the_law_agrees_with_a_generic_ode_solver(model, seed, mu, restitution):
+    """The same equations integrated by scipy's DOP853 with its own event location, on 1,000
+    random cases (500 per restitution model): impulse within 1e-6 (relative to its size), the
+    same contact mode. Left out: mu within 0.1 % of the
     stick coefficient mu_bar, the boundary between stick and slip, where a slip slows towards
     rest at a rate proportional to mu - mu_bar and the answer hangs on the direction of a
     vanishing tangential velocity (a case at 0.006 % from it differed by 3e-5 between two

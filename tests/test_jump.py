@@ -512,3 +512,18 @@ def test_g1_bad_predictor_input_is_refused():
         predict(terms, "crb", np.zeros(3), v)
     with pytest.raises(BadInputError):
         predict(terms, "crb", n, [np.nan, 0.0, 0.0])
+
+
+@pytest.mark.parametrize("method", HELD_CONTACT_METHODS)
+def test_held_contacts_that_lose_rank_at_a_state_are_a_singular_posture(method):
+    """Held contacts whose stacked Jacobian loses rank at a state (here the left foot's six rows
+    held twice: Jf M^-1 Jf^T singular) give SingularPostureError from the compiled maps and from
+    ``predict``, not a solver's error."""
+    terms = g1().terms(upright())
+    Jf = terms.held_jacobian
+    twice = dataclasses.replace(terms, held_jacobian=np.vstack([Jf, Jf[:6]]), held_drift=np.concatenate([terms.held_drift, terms.held_drift[:6]]))
+    normal = np.array([-1.0, 0.0, 0.0])
+    with pytest.raises(SingularPostureError, match="held contacts' Jacobian is singular"):
+        jump_model(method).unit_matrices(twice, normal, 0.0)
+    with pytest.raises(SingularPostureError, match="held contacts' Jacobian is singular"):
+        predict(twice, method, normal, np.array([0.2, 0.0, 0.0]))

@@ -1,6 +1,7 @@
 """The robot model: fingers locked, real inertials, contact tool, limits, postures; every robot
 with every tool."""
 
+import re
 import xml.etree.ElementTree as ET
 from dataclasses import replace
 from pathlib import Path
@@ -8,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from cli_checks import one_line_bad_input, run
 from conftest import ARMS, joint_positions
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -370,3 +372,23 @@ def test_sole_corners_follow_the_feet():
     left, right = g1.held_frames
     assert placements[left].translation[1] > placements[right].translation[1]  # left is +y
     assert RobotModel("panda").sole_corners(PANDA.postures["elbow_up"].q).shape == (0, 3)
+
+
+def test_held_contacts_on_one_rigid_body_are_bad_input(tmp_path, capsys):
+    """A third held contact on the left foot's frame makes the stacked held Jacobian rank 12 of
+    18 at every state (Jf M^-1 Jf^T, which the held-contact maps invert, singular): the model
+    refuses the description with one line of bad input, in the library and on the command line."""
+    g1 = ROBOTS["g1"]
+    heel = replace(g1.held_contacts[0], name="left_heel")
+    with pytest.raises(BadInputError, match=r"left_foot, right_foot, left_heel\) cannot be held independently: .* rank 12 of 18"):
+        RobotModel(replace(g1, held_contacts=(*g1.held_contacts, heel)))
+    text = g1.source.read_text()
+    text = text.replace("[stances.", '[[held_contacts]]\nname = "left_heel"\nframe = "left_ankle_roll_link"\n'
+                        'sole = [[-0.05, 0.025], [-0.05, -0.025], [0.05, 0.0]]\ndepth = 0.035\nfriction = 1.0\n\n[stances.', 1)
+    for feet in set(re.findall(r"^feet = (\[\[.*\]\])$", text, flags=re.MULTILINE)):
+        text = text.replace(f"feet = {feet}", f"feet = {feet[:-1]}, {feet[1:feet.index(']') + 1]}]")
+    text = re.sub(r"^heights = \[(.*?),(.*)\]$", r"heights = [\1,\2, \1]", text, flags=re.MULTILINE)
+    path = tmp_path / "g1_heel.toml"
+    path.write_text(text)
+    code, out, err = run(capsys, "max-speed", "--robot", str(path), "--posture", "parallel")
+    one_line_bad_input(code, out, err, "cannot be held independently")

@@ -66,6 +66,7 @@ from .jump_kernels import (
     rank_one_jump_matrices,
 )
 from .model_terms import ModelTerms
+from .term_fills import SingularPostureError
 from .validation import BadInputError, finite_vector, unit_normal
 
 METHODS = ("classical", "classical_normal", "gm", "crb")
@@ -108,7 +109,7 @@ def constrained_inverse_inertia(terms: ModelTerms) -> np.ndarray:
         if terms.held_jacobian.shape[0] == 0:
             return Mi
         MiJf = held_inverse_inertia_times_Jf_t(terms)
-        P = Mi - MiJf @ np.linalg.solve(terms.held_jacobian @ MiJf, MiJf.T)
+        P = Mi - MiJf @ held_gram_solve(terms.held_jacobian @ MiJf, MiJf.T)
         return 0.5 * (P + P.T)
 
     return terms.cached("P", build)
@@ -140,7 +141,16 @@ def held_impulse(terms: ModelTerms, impulse: np.ndarray) -> np.ndarray:
     if terms.held_jacobian.shape[0] == 0:
         return np.zeros(0)
     MiJf = held_inverse_inertia_times_Jf_t(terms)
-    return -np.linalg.solve(terms.held_jacobian @ MiJf, MiJf.T @ (terms.J.T @ impulse))
+    return -held_gram_solve(terms.held_jacobian @ MiJf, MiJf.T @ (terms.J.T @ impulse))
+
+
+def held_gram_solve(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """(Jf M^-1 Jf^T)^-1 rhs for gram = Jf M^-1 Jf^T; SingularPostureError when it is singular
+    (the held contacts' Jacobian loses rank at this state)."""
+    try:
+        return np.linalg.solve(gram, rhs)
+    except np.linalg.LinAlgError:
+        raise SingularPostureError("the held contacts' Jacobian is singular at this state") from None
 
 
 def gm_inverse_inertia(terms: ModelTerms) -> np.ndarray:

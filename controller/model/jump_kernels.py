@@ -24,6 +24,7 @@ import numpy as np
 from numba import njit
 
 from .model_terms import symmetric_inverse3_into
+from .term_fills import SingularPostureError
 
 HELD_CONTACT_METHODS = ("classical", "gm", "crb")
 """The predictors with held contacts, in the order of ``held_contact_maps``' method codes."""
@@ -171,7 +172,7 @@ def held_contact_maps_into(terms, rigid, method, impact, out):
     (12): A = s (K n)(J^T n)^T, P = s (J^T n)(J^T n)^T, s = -(1 + c_r) / (n^T W n), with
     K n = (N J^T) (J N J^T)^-1 W n. With no held contact (Jf of no rows), (P_f J^T)^T = Y_J,
     (N J^T)^T = J and Z has no rows. The products skip Jf's and J's zero entries (a foot's row
-    moves the base and one leg) and run along rows (``product``); ValueError when Jf M^-1 Jf^T
+    moves the base and one leg) and run along rows (``product``); SingularPostureError when Jf M^-1 Jf^T
     or Jf Jf^T is singular (``solve_in_place``)."""
     M_inv, J6, Jf, Jcom = terms
     normal, c_r = impact
@@ -217,9 +218,10 @@ def held_contact_maps_into(terms, rigid, method, impact, out):
 
 @njit(cache=True)
 def held_solve(S, B):
-    """Kernel: B <- S^-1 B (``solve_in_place``, S overwritten); ValueError when S is singular."""
+    """Kernel: B <- S^-1 B (``solve_in_place``, S overwritten); SingularPostureError when S is
+    singular."""
     if not solve_in_place(S, B):
-        raise ValueError("the held contacts' Jacobian is singular at this state")
+        raise SingularPostureError("the held contacts' Jacobian is singular at this state")
 
 
 @njit(cache=True)

@@ -64,6 +64,9 @@ ACCELERATION_LIMIT = PANDA.ddq_max
 JERK_LIMIT = PANDA.dddq_max
 BASE_ACCELERATION_LIMIT = 100.0
 """m/s^2 and rad/s^2: a generous box on a floating base's acceleration (the held contacts set it)."""
+HELD_RANK_RATIO = 1e-8
+"""The held contacts' stacked Jacobian has full rank while sigma_min / sigma_max stays above this
+ratio: a numerical rank, far below any conditioning a real posture gives."""
 
 
 class InvalidStateError(BadInputError):
@@ -145,6 +148,7 @@ class RobotModel(ModelTermFills):
         if missing:
             raise BadInputError(f"the {description.name} URDF has no frame {', '.join(missing)}")
         self.held_frame_ids = tuple(model.getFrameId(name) for name in self.held_frames)
+        check_held_contacts_independent(model, self.held_frame_ids, description)
         self.frame_ids = {name: model.getFrameId(frame) for name, frame in description.frames.items()}
         self.q_min = description.q_min.copy()
         self.q_max = description.q_max.copy()
@@ -305,3 +309,31 @@ class RobotModel(ModelTermFills):
 
 PandaModel = RobotModel
 """The historical name: ``PandaModel()`` is the default robot (the Panda) with the default tool."""
+
+
+def check_held_contacts_independent(model: pin.Model, frame_ids: tuple[int, ...], description: RobotDescription) -> None:
+    """BadInputError when the held contacts cannot be held independently: their stacked 6-D
+    Jacobian Jf (6 k x nv) is rank deficient at a generic posture (the joints drawn uniformly
+    inside their limits by a fixed generator, the base at its origin), so Jf M^-1 Jf^T, which
+    every held-contact jump map (eq. 22-23) and the whole-body QP invert, is singular at every
+    state: two held contacts on one rigid body, or a held contact whose frame no velocity moves
+    in some direction. A rank lost only at particular postures is not this check's."""
+    if not frame_ids:
+        return
+    q = pin.neutral(model)
+    nq = model.nq
+    low = np.where(np.isfinite(description.q_min), description.q_min, -math.pi)
+    high = np.where(np.isfinite(description.q_max), description.q_max, math.pi)
+    q[nq - len(low):] = np.random.default_rng(0).uniform(low, high)
+    data = model.createData()
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacements(model, data)
+    Jf = np.vstack([pin.getFrameJacobian(model, data, f, pin.LOCAL) for f in frame_ids])
+    singular_values = np.linalg.svd(Jf, compute_uv=False)
+    if singular_values[-1] <= HELD_RANK_RATIO * singular_values[0]:
+        rank = int(np.sum(singular_values > HELD_RANK_RATIO * singular_values[0]))
+        names = ", ".join(contact.name for contact in description.held_contacts)
+        raise BadInputError(
+            f"the {description.name} held contacts ({names}) cannot be held independently: their stacked "
+            f"Jacobian has rank {rank} of {Jf.shape[0]} (two on one rigid body?)"
+        )

@@ -66,10 +66,14 @@ def reference_impact(W, n, v, mu, e, model, with_least_speed=False):
 
     def rhs(_, z, rate):
         if rate is None:
-            s = z[:2] / np.linalg.norm(z[:2])
-            rate = -mu * s
-        force = np.array([rate[0], rate[1], 1.0])
-        return np.concatenate([Wc @ force, rate, [z[2]]])
+            speed = math.hypot(z[0], z[1])
+            r0, r1 = -mu * z[0] / speed, -mu * z[1] / speed
+        else:
+            r0, r1 = rate
+        out = np.empty(6)
+        out[:3] = Wc[:, 0] * r0 + Wc[:, 1] * r1 + Wc[:, 2]
+        out[3], out[4], out[5] = r0, r1, z[2]
+        return out
 
     for _ in range(6):
         events = []
@@ -81,7 +85,7 @@ def reference_impact(W, n, v, mu, e, model, with_least_speed=False):
             return z[5] - target if model == "energetic" else z[2] - target
 
         def stop(_, z, *args):
-            return np.linalg.norm(z[:2]) - stopped
+            return math.hypot(z[0], z[1]) - stopped
 
         for event in (compressed if compression is None else ended,) + ((stop,) if rate_t is None else ()):
             event.terminal = True
