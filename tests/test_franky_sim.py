@@ -10,6 +10,7 @@ shows the servers' output.
 """
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -31,7 +32,7 @@ from impactqp.controller.runtime.session import OBSERVER, ImpactSession
 from impactqp.controller.runtime.start_move import START_CLEARANCE
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.run import IMPACT_LEAD, RunRequest, log_header, start_posture, write_log
-from impactqp.sim.franky_sim import FrankySimServer
+from impactqp.sim.franky_sim import FREE_PERIOD, LOCKSTEP_PATIENCE, FrankySimServer
 
 pytest.importorskip("pylibfranka", reason="pylibfranka is not installed: pip install -e '.[franka]'")
 pytest.importorskip("franky_sim", reason="franky-sim is not installed: pip install -e '.[test]'")
@@ -130,6 +131,29 @@ def test_a_lost_connection_ends_the_run_in_one_line_and_keeps_the_log(franky_sim
     assert len(trial.log) == LOST_AT - 1 and np.allclose(trial.log.q, result.log.q[:-2], rtol=1e-9, atol=1e-12)
     problems = validate(tmp_path / "lost")
     assert not any("NaN" in problem for problems_of in problems.values() for problem in problems_of)
+
+
+def test_a_client_that_misses_its_cycles_reads_the_newer_state_the_lockstep_sent_on_its_own(franky_sim, model):
+    """A client that stops answering during a motion (here for 4 x ``LOCKSTEP_PATIENCE``) does not
+    stall the lockstep: the server steps and sends states on its own clock, as a robot would, so
+    the client's next read returns a newer state (libfranka keeps the newest) instead of its 1 s
+    receive timeout, and the motion then goes on in lockstep and finishes."""
+    q0 = approach_start(model, POSTURE.q, POSTURE.surface, START_DISTANCE)
+    robot = FrankaRobot.connect(franky_sim(q0).hostname, realtime=False, model=model)
+    zero = np.zeros(model.nv)
+    before = robot.start()
+    robot.write(zero)
+    answered = robot.read()
+    robot.write(zero)
+    time.sleep(4 * LOCKSTEP_PATIENCE)  # a missed stretch: no read, no command
+    after = robot.read()
+    assert answered.t > before.t and after.t >= answered.t + 2 * FREE_PERIOD - 1e-9
+    times = [after.t]
+    for _ in range(5):
+        robot.write(zero)
+        times.append(robot.read().t)
+    assert np.all(np.diff(times) > 0.0)
+    robot.stop()
 
 
 def contact_distance_at(log_file, t, model) -> float:
