@@ -26,6 +26,7 @@ FAMILIES: list[tuple[str, str, str]] = [
     ("maxspeed.", "simulation", "max_speed_benchmark_rows"),
     ("diagnose.30_trials", "diagnosis", "thirty_trial_rows"),
     ("diagnose.accuracy", "diagnosis", "accuracy_rows"),
+    ("diagnose.cases", "diagnosis_cases", "case_rows"),  # fixed multi-cause diagnoses, minutes each
     ("diagnose.coverage", "diagnosis_coverage", "coverage_rows"),  # the intervals' calibration (long)
     ("diagnose.false_explanations", "diagnosis_coverage", "false_explanation_rows"),
     ("loop.", "loop", "rows"),
