@@ -55,7 +55,7 @@ from impactqp.controller.model.max_speed import (
 )
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import stance_posture
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import MAX_CONTACT_SPEED, BadInputError
 from impactqp.sim.runner import NORMAL, SERVO_GAIN, run_impact_trial
 from impactqp.sim.trial_result import TrialResult
 from impactqp.sim.trial_sources import SCRIPTED, QpRecord
@@ -277,7 +277,12 @@ class MaxSpeedSearch:
         q, normal = self.posture.q, self.surface.normal
         # at the named posture: only to size the QP run's run-up
         predicted = predicted_max_speeds(self.robot, q, normal, self.restitution, self.impact_duration)
-        highest = APPROACH_LIMIT_FRACTION * approach_velocity_limit(self.robot, q, normal)
+        highest = min(APPROACH_LIMIT_FRACTION * approach_velocity_limit(self.robot, q, normal), MAX_CONTACT_SPEED)
+        if not highest > LOWEST_SPEED:
+            raise BadInputError(
+                f"at {self.posture.name} the approach reaches a joint velocity limit at {highest:.3g} m/s, below the "
+                f"search's lowest speed {LOWEST_SPEED} m/s"
+            )
         bisection = SpeedBisection(LOWEST_SPEED, highest, self.tolerance)
         target = min(predicted[name].speed for name in jump_model_names(self.jump_model))
         qp_spec = self.spec(

@@ -171,3 +171,15 @@ def test_a_g1_dataset_is_no_arm_choice(tmp_path):
     header = read_dataset(tmp_path).header
     with pytest.raises(DatasetError, match="g1 dataset"):
         header.choice
+
+
+@pytest.mark.parametrize("impact_time", [float("nan"), float("inf"), -0.5])
+def test_an_impact_time_that_is_no_time_in_the_log_is_refused(tmp_path, dataset_logs, impact_time):
+    """A trial's declared ``impact_time`` must be a finite time >= 0 s (NaN compared false with
+    every bound and passed before)."""
+    writer = DatasetWriter(tmp_path, DATASET_HEADER)
+    writer.add_trial(TrialEntry("fast", "fast.csv", 0.15), dataset_logs[0.15])
+    _rewrite_manifest(tmp_path, lambda m: m["trials"][0].__setitem__("impact_time", impact_time))
+    with pytest.raises(DatasetError, match="impact_time must be a finite time >= 0 s") as error:
+        read_dataset(tmp_path)
+    assert "\n" not in str(error.value)

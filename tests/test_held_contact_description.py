@@ -2,7 +2,15 @@
 
 import pytest
 
-from impactqp.controller.model.held_contact_description import MAX_SURFACE_HEIGHT, Stance, stances_of
+from impactqp.controller.model.held_contact_description import (
+    MAX_SURFACE_HEIGHT,
+    MIN_SOLE_AREA,
+    Stance,
+    convex_hull,
+    held_contacts_of,
+    polygon_area,
+    stances_of,
+)
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError
 
@@ -34,3 +42,37 @@ def test_bad_heights_are_one_line_of_bad_input(heights, message):
     with pytest.raises(BadInputError, match=message) as error:
         stances_of(table, 2, "robot")
     assert "\n" not in str(error.value)
+
+
+SOLE = [[-0.05, 0.025], [-0.05, -0.025], [0.12, 0.03], [0.12, -0.03]]
+
+
+def held_contact(sole):
+    return [{"name": "foot", "frame": "ankle", "sole": sole, "depth": 0.03, "friction": 1.0}]
+
+
+@pytest.mark.parametrize("sole, message", [
+    ([[0.0, 0.0], [0.1], [0.0, 0.1]], "sole must be 3 or more"),
+    ([[0.0, 0.0], ["a", "b"], [0.0, 0.1]], "sole must be 3 or more"),
+    ([[True, False], [0.0, 0.1], [0.1, 0.0]], "sole must be 3 or more"),
+    ([[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]], "enclose no area"),
+    ([[0.0, 0.0], [0.05, 0.05], [0.1, 0.1]], "enclose no area"),
+    ([[0.0, 0.0], [1e-300, 0.0], [0.0, 1e-300]], "enclose no area"),
+])
+def test_a_sole_that_is_no_polygon_is_one_line_of_bad_input(sole, message):
+    """Ragged or non-numeric corners, booleans, and corners whose convex hull covers less than
+    MIN_SOLE_AREA (coincident, collinear, tiny): refused when the description is read (the
+    support polygon's edge normals divide by the edges' lengths)."""
+    with pytest.raises(BadInputError, match=message) as error:
+        held_contacts_of(held_contact(sole), "robot")
+    assert "\n" not in str(error.value)
+
+
+def test_a_sole_s_area_is_its_convex_hull_s_in_any_corner_order():
+    """The shoelace area of the hull: the built-in sole's corners (given crossed, not around the
+    polygon) enclose 0.17 x 0.05 plus the two triangles of the wider toe."""
+    (contact,) = held_contacts_of(held_contact(SOLE), "robot")
+    expected = 0.17 * 0.05 + 2 * 0.5 * 0.17 * 0.005
+    assert polygon_area(convex_hull(contact.sole)) == pytest.approx(expected, rel=1e-12)
+    assert polygon_area(convex_hull(contact.sole[::-1])) == pytest.approx(expected, rel=1e-12)
+    assert expected > MIN_SOLE_AREA

@@ -8,7 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from cli_checks import one_line_bad_input, run
 from conftest import JOINTS, g1_model
+from test_robot_description import _user_arm
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.max_speed import Setting, approach_direction, closed_form_max_speed
 from impactqp.controller.model.postures import DEFAULT_WALL
@@ -217,3 +219,12 @@ def test_the_qp_driven_step_stance_asked_for_nine_tenths_of_its_closed_form_reac
     trial = StancePlant().trial(robot, "step", q, 0.9 * limit, source=QpCommand())
     assert 0.81 * limit <= trial.contact_speed <= 0.99 * limit
     assert trial.failures == () and trial.record.not_ok == 0
+
+
+def test_an_approach_that_reaches_a_velocity_limit_below_the_lowest_speed_is_one_line_of_bad_input(tmp_path, capsys):
+    """An arm whose joint velocity limits (0.01 rad/s, the least a description takes) stop the
+    approach below the search's lowest speed: nothing to bisect, one line of bad input (the
+    bracket's width once gave a NaN number of rounds)."""
+    path = _user_arm(tmp_path, limits={"ddq_max": 15.0, "dddq_max": 7500.0, "dq_max": 0.01})
+    code, out, err = run(capsys, "max-speed", "--robot", str(path), "--posture", "elbow_up")
+    one_line_bad_input(code, out, err, "below the search's lowest speed 0.02 m/s")

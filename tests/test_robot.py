@@ -392,3 +392,36 @@ def test_held_contacts_on_one_rigid_body_are_bad_input(tmp_path, capsys):
     path.write_text(text)
     code, out, err = run(capsys, "max-speed", "--robot", str(path), "--posture", "parallel")
     one_line_bad_input(code, out, err, "cannot be held independently")
+
+
+def _my_arm(folder, urdf_edit=None, **changes):
+    """The UR5 described as a user's arm in ``folder`` (``test_robot_description._user_arm``),
+    its URDF text edited by ``urdf_edit`` = (old, new)."""
+    from test_robot_description import _user_arm
+
+    path = _user_arm(folder, **changes)
+    if urdf_edit is not None:
+        urdf = folder / "my_arm.urdf"
+        text = urdf.read_text()
+        assert urdf_edit[0] in text
+        urdf.write_text(text.replace(*urdf_edit))
+    return path
+
+
+@pytest.mark.parametrize("urdf_edit, changes, message", [
+    (('<mass value="3.7"/>', '<mass value="0"/>'), {}, "gives no positive mass to what the joint shoulder_pan_joint moves"),
+    (('<parent link="base_link"/>', '<parent link="nowhere"/>'), {}, "is not a robot model Pinocchio reads: "),
+    (('name="shoulder_pan_joint"', ""), {}, "is not a robot model Pinocchio reads: "),
+    (None, {"tool_frames": {"hand": "no_such_frame", "flange": "tool0"}}, "has no frame no_such_frame (its tool frame)"),
+    (None, {"tool_frames": {"hand": "base_link", "flange": "tool0"}}, "tool frame base_link is on the fixed base"),
+])
+def test_a_model_its_urdf_or_tool_frame_cannot_give_is_one_line_of_bad_input(tmp_path, capfd, urdf_edit, changes, message):
+    """A URDF that Pinocchio's parser refuses (its urdfdom messages, written by C++ on the
+    process's stderr, kept off it), a link the joints move without a mass, a tool frame missing
+    from the URDF or on the fixed base (no joint moves the contact: J = 0): one line of bad input
+    on the command line, nothing else on stderr."""
+    path = _my_arm(tmp_path, urdf_edit, **changes)
+    with pytest.raises(BadInputError, match=re.escape(message)):
+        RobotModel(path)
+    code, out, err = run(capfd, "postures", "--robot", str(path))
+    one_line_bad_input(code, out, err, message.split(":")[0].split(" (")[0])

@@ -218,6 +218,9 @@ def test_a_users_own_arm_loads_from_its_file(tmp_path):
     ({"limits": {}}, "needs ddq_max"),
     ({"limits": {"ddq_max": [1.0, 2.0], "dddq_max": 1.0}}, "ddq_max must be 6 numbers"),
     ({"limits": {"ddq_max": -1.0, "dddq_max": 1.0}}, "ddq_max must be > 0"),
+    ({"limits": {"ddq_max": 1e6, "dddq_max": 7500.0}}, r"ddq_max must lie in \[0.1, 100000\] rad/s\^2 .* got 1e\+06"),
+    ({"limits": {"ddq_max": 15.0, "dddq_max": 7500.0, "tau_max": 1e-3}}, r"tau_max must lie in \[0.1, 100000\] N m"),
+    ({"limits": {"ddq_max": 15.0, "dddq_max": 7500.0, "dq_max": 1e308}}, r"dq_max must lie in \[0.01, 100\] rad/s"),
     ({"base": "wheeled"}, "base must be one of fixed, floating"),
     ({"urdf": None}, "needs 'urdf'"),
     ({"urdf": "missing.urdf"}, "does not exist"),
@@ -262,3 +265,23 @@ def test_bad_standing_robot_data_are_one_line(edit, message):
     edit(data)
     with pytest.raises(BadInputError, match=message):
         description_from_mapping(data)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (('lower="-6.28318530718"', 'lower="abc"'), "lower limit of joint shoulder_pan_joint is not a number: 'abc'"),
+    (('ixx="0.00443333156"', 'ixx="-1"'), r"inertia of link .* is not a rigid body's \(principal moments -1"),
+    (('izz="0.0072"', 'izz="0.1"'), r"A \+ B >= C"),
+    (('izz="0.0072"', 'izz="nan"'), "is not finite"),
+])
+def test_a_urdf_with_a_bad_number_is_one_line_of_bad_input(tmp_path, edit, message):
+    """A limit that is not a number, a link inertia no rigid body has (a negative principal
+    moment, moments against the triangle inequality, NaN): bad input when the model loads, not
+    an error of Pinocchio's parser or of the MuJoCo scene's compiler later."""
+    path = _user_arm(tmp_path)
+    urdf = tmp_path / "my_arm.urdf"
+    text = urdf.read_text()
+    assert edit[0] in text
+    urdf.write_text(text.replace(edit[0], edit[1], 1))
+    with pytest.raises(BadInputError, match=message) as error:
+        RobotModel(path)
+    assert "\n" not in str(error.value)

@@ -14,7 +14,15 @@ from reference.model_terms import reference_arm_cycle_terms
 from test_robot import SINGULAR_Q
 
 from impactqp.controller.model.jump import jump_model
-from impactqp.controller.model.model_terms import ACCEPTED, ARM_STATE_EXTRA, arm_cycle_checks, arm_cycle_terms, arm_state_views
+from impactqp.controller.model.model_terms import (
+    ACCEPTED,
+    ARM_STATE_EXTRA,
+    NEAR_SINGULAR,
+    arm_cycle_checks,
+    arm_cycle_terms,
+    arm_state_views,
+    contact_jacobian_status,
+)
 from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.robot import InvalidStateError, SingularPostureError
 from impactqp.controller.model.term_fills import SINGULAR_RATIO_SQUARED
@@ -208,3 +216,13 @@ def test_the_cycle_kernel_is_its_numpy_twin_and_pinocchios_frame_terms(robot, q,
     drift = pin.getFrameClassicalAcceleration(model, data, fid, world_aligned).vector
     np.testing.assert_allclose(outputs[3], drift, rtol=0, atol=1e-12)
     np.testing.assert_allclose(outputs[1] @ outputs[0][:3] @ outputs[0][:3].T, np.eye(3), atol=1e-8)
+
+
+def test_a_contact_jacobian_of_zeros_is_singular(robot):
+    """J = 0 (a contact no joint moves): det(J J^T) = 0 met the bound ratio^2 trace^3 = 0 and was
+    accepted; it is near-singular for the kernel and singular for the exact test."""
+    q, J = robot.description.postures["elbow_up"].q, np.zeros((3, robot.nv))
+    status = contact_jacobian_status(J, q, robot.q_min, robot.q_max, True, SINGULAR_RATIO_SQUARED, np.empty((3, 3)))
+    assert status == NEAR_SINGULAR
+    with pytest.raises(SingularPostureError, match="singular contact Jacobian"):
+        robot._refuse(J, q, np.zeros(robot.nv), status, True)

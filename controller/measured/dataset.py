@@ -298,6 +298,10 @@ def parse_entry(entry: dict) -> TrialEntry:
         if not all(np.isfinite(tangential)):
             raise DatasetError(f"{label}: reference_tangential_velocity must be finite")
     impact_time = entry.get("impact_time")
+    if impact_time is not None:
+        impact_time = number(impact_time, f"{label}: impact_time")
+        if not 0.0 <= impact_time < float("inf"):
+            raise DatasetError(f"{label}: impact_time must be a finite time >= 0 s, got {impact_time}")
     posture = entry.get("posture")
     force_file = entry.get("force_file")
     return TrialEntry(
@@ -307,7 +311,7 @@ def parse_entry(entry: dict) -> TrialEntry:
         force_file=None if force_file is None else file_inside(force_file, f"{label}: force_file", DIRECTORY),
         reference_tangential_velocity=tangential,
         posture=None if posture is None else non_empty_string(posture, f"{label}: posture"),
-        impact_time=None if impact_time is None else number(impact_time, f"{label}: impact_time"),
+        impact_time=impact_time,
     )
 
 

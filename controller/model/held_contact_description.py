@@ -20,6 +20,8 @@ from .validation import BadInputError, finite_vector, number_in_range
 MAX_FRICTION = 5.0
 MAX_CONTACT_LENGTH = 1.0
 """m: the farthest a robot's own contact point, a sole's corner or its depth lies from its frame."""
+MIN_SOLE_AREA = 1e-6
+"""m^2: the least area a sole's convex hull covers (a 1 mm square)."""
 MAX_SURFACE_HEIGHT = 0.5
 """m: the highest support surface (a step) a stance may put a held contact on."""
 
@@ -69,9 +71,14 @@ def held_contacts_of(entries, robot: str) -> tuple[HeldContact, ...]:
         keys = {"name", "frame", "sole", "depth", "friction"}
         if not isinstance(entry, dict) or not keys <= set(entry) <= keys | {"label"}:
             raise BadInputError(f"each {robot} held contact needs exactly name, frame, sole, depth, friction (and a label)")
-        sole = np.array(entry["sole"], dtype=float) if isinstance(entry["sole"], list) else np.empty(0)
+        sole = sole_of(entry["sole"])
         if sole.ndim != 2 or sole.shape[1] != 2 or len(sole) < 3 or not np.all(np.abs(sole) <= MAX_CONTACT_LENGTH):
             raise BadInputError(f"the {robot} held contact {entry['name']!r}: sole must be 3 or more (x, y) corners within 1 m")
+        if polygon_area(convex_hull(sole)) < MIN_SOLE_AREA:
+            raise BadInputError(
+                f"the {robot} held contact {entry['name']!r}: the sole's corners enclose no area (their convex hull "
+                f"must cover at least {MIN_SOLE_AREA:g} m^2)"
+            )
         sole.flags.writeable = False
         contacts.append(HeldContact(
             name_field(entry["name"], "a held contact's name"), name_field(entry["frame"], "a held contact's frame"), sole,
@@ -80,6 +87,26 @@ def held_contacts_of(entries, robot: str) -> tuple[HeldContact, ...]:
             name_field(entry.get("label", entry["name"]), "a held contact's label"),
         ))
     return tuple(contacts)
+
+
+def sole_of(corners) -> np.ndarray:
+    """A sole's corners as a float array (empty when they are not a list of lists of numbers)."""
+    if not isinstance(corners, list) or not all(
+        isinstance(c, list) and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in c) for c in corners
+    ):
+        return np.empty(0)
+    try:
+        return np.array(corners, dtype=float)
+    except ValueError:  # ragged corners
+        return np.empty(0)
+
+
+def polygon_area(polygon: np.ndarray) -> float:
+    """The area of the counter-clockwise polygon (k x 2), 0 for fewer than 3 corners (shoelace)."""
+    if len(polygon) < 3:
+        return 0.0
+    x, y = polygon[:, 0], polygon[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
 
 def stances_of(table: Mapping, contacts: int, robot: str) -> dict[str, Stance]:
@@ -102,3 +129,23 @@ def stances_of(table: Mapping, contacts: int, robot: str) -> dict[str, Stance]:
             heights,
         )
     return stances
+
+
+def cross2(a, b) -> float:
+    """The z component of the cross product of two planar vectors."""
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
+def convex_hull(points: np.ndarray) -> np.ndarray:
+    """Monotone-chain convex hull of 2-D points, counter-clockwise."""
+    pts = sorted(map(tuple, np.asarray(points, dtype=float)))
+
+    def half(seq):
+        chain = []
+        for p in seq:
+            while len(chain) >= 2 and cross2(np.subtract(chain[-1], chain[-2]), np.subtract(p, chain[-2])) <= 0:
+                chain.pop()
+            chain.append(p)
+        return chain[:-1]
+
+    return np.array(half(pts) + half(pts[::-1]))

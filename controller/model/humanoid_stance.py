@@ -26,6 +26,7 @@ import pinocchio as pin
 
 from .robot import RobotModel
 from .robot_description import ROBOTS, Stance
+from .held_contact_description import convex_hull, cross2  # noqa: F401 (a sole's geometry: its home)
 from .validation import BadInputError
 
 WEIGHTS = {"feet": 10.0, "com": 10.0, "hand": 3.0, "hand_axis": 1.0, "posture": 0.05}
@@ -39,26 +40,6 @@ def support_polygon(robot: RobotModel, q: np.ndarray) -> np.ndarray:
     """Convex hull (counter-clockwise, k x 2) of both soles' corners, from the posture q."""
     points = robot.sole_corners(q)[:, :2]
     return convex_hull(points)
-
-
-def cross2(a, b) -> float:
-    """The z component of the cross product of two planar vectors."""
-    return float(a[0] * b[1] - a[1] * b[0])
-
-
-def convex_hull(points: np.ndarray) -> np.ndarray:
-    """Monotone-chain convex hull of 2-D points, counter-clockwise."""
-    pts = sorted(map(tuple, np.asarray(points, dtype=float)))
-
-    def half(seq):
-        chain = []
-        for p in seq:
-            while len(chain) >= 2 and cross2(np.subtract(chain[-1], chain[-2]), np.subtract(p, chain[-2])) <= 0:
-                chain.pop()
-            chain.append(p)
-        return chain[:-1]
-
-    return np.array(half(pts) + half(pts[::-1]))
 
 
 def edge_normals(polygon: np.ndarray) -> np.ndarray:

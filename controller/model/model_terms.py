@@ -259,7 +259,7 @@ cannot overflow."""
 @njit(cache=True)
 def contact_jacobian_status(J, q, q_min, q_max, check_limits, singular_ratio_squared, JJt_inv):
     """Kernel of the per-state checks: (J J^T)^-1 by its adjugate into ``JJt_inv``, then
-    NEAR_SINGULAR when det(J J^T) < ratio^2 trace^3 (with eigenvalues l1 <= l2 <= l3 of J J^T,
+    NEAR_SINGULAR when J = 0 or det(J J^T) < ratio^2 trace^3 (with eigenvalues l1 <= l2 <= l3 of J J^T,
     the squared singular values of J, l1 / l3 >= det / trace^3: only then is the exact test
     needed), else OUTSIDE_LIMITS when ``check_limits`` and q leaves [q_min, q_max], else
     ACCEPTED. J J^T in plain loops: a 3 x 3 product is cheaper than a BLAS call, which may
@@ -273,7 +273,7 @@ def contact_jacobian_status(J, q, q_min, q_max, check_limits, singular_ratio_squ
             S[i, j] = S[j, i] = total
     det = symmetric_inverse3_into(S, JJt_inv)
     trace = S[0, 0] + S[1, 1] + S[2, 2]
-    if not det >= singular_ratio_squared * trace * trace * trace:
+    if not (trace > 0.0 and det >= singular_ratio_squared * trace * trace * trace):  # J = 0 too
         return NEAR_SINGULAR
     if check_limits:
         for j in range(q.shape[0]):
@@ -339,7 +339,7 @@ def arm_cycle_terms(Jw, dJw, p, rotation, q, dq, checks, out):
     J6 = [Jw_lin + Jw_ang x p; Jw_ang] (zeros elsewhere) and, with (a_O, dw) = dJw dq at
     ddq = 0, dJ6 dq = [a_O + dw x p + w x v_p; dw] (the frame's classical acceleration).
     Returns NOT_FINITE when sum |q_i| + sum |dq_i| exceeds MAX_STATE_ENTRY (nq + nv) (a NaN, an
-    infinity or a huge entry: ``check_state``'s test), else NEAR_SINGULAR when det(J J^T) <
+    infinity or a huge entry: ``check_state``'s test), else NEAR_SINGULAR when J = 0 or det(J J^T) <
     s^2 trace(J J^T)^3 (``contact_jacobian_status``'s bound), else OUTSIDE_LIMITS when q leaves
     [q_min, q_max], else ACCEPTED, the only case that writes ``out``. Plain loops, no allocation."""
     nq, nv = q.shape[0], dq.shape[0]
@@ -356,7 +356,7 @@ def arm_cycle_terms(Jw, dJw, p, rotation, q, dq, checks, out):
     A, B, C = s11 * s22 - s12 * s12, s02 * s12 - s01 * s22, s01 * s12 - s02 * s11
     det = s00 * A + s01 * B + s02 * C
     trace = s00 + s11 + s22
-    if not det >= checks[0] * trace * trace * trace:
+    if not (trace > 0.0 and det >= checks[0] * trace * trace * trace):  # J = 0 too
         return NEAR_SINGULAR
     for j in range(nq):
         if q[j] < checks[1 + j] or q[j] > checks[1 + nq + j]:

@@ -32,7 +32,9 @@ of radius :data:`TOOL_RADIUS` whose centre sits on the hand's z axis (the axis o
 from __future__ import annotations
 
 import math
-
+import os
+import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +44,8 @@ import pinocchio as pin
 from .term_fills import SINGULAR_RATIO, ModelTermFills, SingularPostureError  # noqa: F401
 from .floating_kernels import QUATERNION_TOLERANCE
 from .model_terms import MAX_STATE_ENTRY
-from .robot_description import PANDA, RobotDescription, model_urdf, robot_description
+from .files import read_text
+from .robot_description import PANDA, RobotDescription, check_link_inertias, model_urdf, robot_description
 from .tool_description import TOOLS, ToolDescription, tool_description
 from .validation import BadInputError, all_finite
 
@@ -172,8 +175,15 @@ class RobotModel(ModelTermFills):
             model.jointPlacements[1] = base_placement * model.jointPlacements[1]
         masses = np.array([model.inertias[i].mass for i in range(1, model.njoints)])
         if not np.all(masses > 0.0):
-            raise RuntimeError(f"the {self.description.name} model has links without mass: {masses}")
-        mount = model.getFrameId(self.description.frame_of(self.tool))
+            moving = [model.names[i] for i in range(1, model.njoints) if not masses[i - 1] > 0.0]
+            what = f"the joint {moving[0]} moves" if len(moving) == 1 else f"the joints {', '.join(moving)} move"
+            raise BadInputError(f"the {self.description.name} URDF gives no positive mass to what {what}")
+        mount_name = self.description.frame_of(self.tool)
+        if not model.existFrame(mount_name):
+            raise BadInputError(f"the {self.description.name} URDF has no frame {mount_name} (its tool frame)")
+        mount = model.getFrameId(mount_name)
+        if model.frames[mount].parentJoint == 0:
+            raise BadInputError(f"the {self.description.name} tool frame {mount_name} is on the fixed base: no joint moves it")
         mount_frame = model.frames[mount]
         if self.tool.mass > 0.0:
             model.appendBodyToJoint(mount_frame.parentJoint, self.tool.spatial_inertia, mount_frame.placement)
@@ -197,7 +207,7 @@ class RobotModel(ModelTermFills):
 
     def _arm(self, finger_opening: float) -> pin.Model:
         """The arm of ``model_urdf`` (hand removed when the tool replaces it), fingers locked."""
-        full = pin.buildModelFromXML(model_urdf(self.description, self.tool, self.urdf_path))
+        full = parsed_urdf(self.description.name, pin.buildModelFromXML, model_urdf(self.description, self.tool, self.urdf_path))
         q_full = pin.neutral(full)
         locked = []
         for name in self.description.finger_joints:
@@ -212,7 +222,8 @@ class RobotModel(ModelTermFills):
         description = self.description
         if description.contact is None or not description.held_contacts:
             raise BadInputError(f"the floating-base {description.name} needs a contact and held contacts in its description")
-        model = pin.buildModelFromUrdf(str(self.urdf_path), pin.JointModelFreeFlyer())
+        check_link_inertias(read_text(self.urdf_path, f"the {description.name} URDF"), description.name)
+        model = parsed_urdf(description.name, pin.buildModelFromUrdf, str(self.urdf_path), pin.JointModelFreeFlyer())
         contact = description.contact
         if not model.existFrame(contact.frame):
             raise BadInputError(f"the {description.name} URDF has no frame {contact.frame}")
@@ -337,3 +348,24 @@ def check_held_contacts_independent(model: pin.Model, frame_ids: tuple[int, ...]
             f"the {description.name} held contacts ({names}) cannot be held independently: their stacked "
             f"Jacobian has rank {rank} of {Jf.shape[0]} (two on one rigid body?)"
         )
+
+
+def parsed_urdf(robot: str, build, *args) -> pin.Model:
+    """``build(*args)`` (Pinocchio's URDF parser), BadInputError when it refuses the URDF: its
+    first message (urdfdom's, which the C++ parser writes on the process's stderr, caught here so
+    that a refused file stays one line) or its error's."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as captured:
+        os.dup2(captured.fileno(), 2)
+        try:
+            return build(*args)
+        except (RuntimeError, ValueError) as error:
+            reason = str(error)
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        captured.seek(0)
+        lines = [line.strip() for line in captured.read().decode(errors="replace").splitlines() if line.strip()]
+    reason = next((line for line in lines if line.lower().startswith("error")), reason).removeprefix("Error:").strip()
+    raise BadInputError(f"the {robot} URDF is not a robot model Pinocchio reads: {reason}")

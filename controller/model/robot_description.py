@@ -51,6 +51,16 @@ ROBOT_KEYS = {
 }
 LIMIT_KEYS = ("q_min", "q_max", "dq_max", "ddq_max", "dddq_max", "tau_max")
 URDF_LIMITS = {"q_min": "lower", "q_max": "upper", "dq_max": "velocity", "tau_max": "effort"}
+LIMIT_RANGES = {
+    "dq_max": (0.01, 100.0, "rad/s"),
+    "ddq_max": (0.1, 1e5, "rad/s^2"),
+    "dddq_max": (1.0, 1e8, "rad/s^3"),
+    "tau_max": (0.1, 1e5, "N m"),
+}
+"""The range of each rate and torque limit (low, high, unit; a prismatic joint's in m and N):
+wide around any robot's (a Franka's 2.6 rad/s, 15 rad/s^2, 7500 rad/s^3 and 87 N m; the G1's
+ankle, 3 rad/s^2), narrow enough to refuse a value in other units or one that no approach or
+search can use (a speed of 1e-3 rad/s, a torque of 1e308 N m)."""
 BUILTIN_DIR = Path(__file__).parent / "robots"
 ROBOT_FILE_SUFFIXES = (".toml", ".json", ".yaml", ".yml")
 """The suffixes of a robot description file (``files.read_mapping`` reads each)."""
@@ -198,6 +208,39 @@ def _urdf_joints(urdf_text: str, robot: str) -> dict[str, dict[str, float]]:
     return joints
 
 
+def urdf_number(text: str, what: str) -> float:
+    """A URDF attribute's number; BadInputError naming ``what`` when it is not one."""
+    try:
+        return float(text)
+    except ValueError:
+        raise BadInputError(f"{what} is not a number: {text!r}") from None
+
+
+def check_link_inertias(urdf_text: str, robot: str) -> None:
+    """BadInputError for a link whose ``<inertia>`` is not a physical rotational inertia: an entry
+    that is not a finite number, a negative principal moment, or principal moments A <= B <= C
+    with A + B < C (the triangle inequality every rigid body's moments keep, which MuJoCo's
+    scene also demands of the file's inertias as they are)."""
+    root = ET.fromstring(urdf_text)
+    for link in root.iter("link"):
+        inertia = link.find("inertial/inertia")
+        if inertia is None:
+            continue
+        name = link.get("name")
+        entries = [urdf_number(inertia.get(k, "0"), f"the {robot} URDF's {k} of link {name}")
+                   for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")]
+        if not np.all(np.isfinite(entries)):
+            raise BadInputError(f"the {robot} URDF's inertia of link {name} is not finite")
+        xx, xy, xz, yy, yz, zz = entries
+        moments = np.linalg.eigvalsh(np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]))
+        slack = 1e-9 * max(float(moments[2]), 0.0)
+        if moments[0] < -slack or moments[0] + moments[1] < moments[2] - slack:
+            raise BadInputError(
+                f"the {robot} URDF's inertia of link {name} is not a rigid body's (principal moments "
+                f"{', '.join(f'{m:.4g}' for m in moments)} kg m^2: each must be >= 0 and A + B >= C)"
+            )
+
+
 def _limits(table: Mapping, joints: tuple[str, ...], urdf: dict | None, robot: str) -> dict[str, np.ndarray]:
     """The six limit arrays: each from the file (a number for every joint or one per joint) or,
     for position, velocity and torque, from the URDF (``urdf``: its joints' limit attributes)."""
@@ -211,13 +254,19 @@ def _limits(table: Mapping, joints: tuple[str, ...], urdf: dict | None, robot: s
             texts = [urdf[j][attribute] for j in joints]
             if None in texts:
                 raise BadInputError(f"the {robot} URDF gives no {attribute} limit for every joint: set {key}")
-            value = [float(t) for t in texts]
+            value = [urdf_number(t, f"the {robot} URDF's {attribute} limit of joint {j}") for t, j in zip(texts, joints)]
         if isinstance(value, (int, float)) and not isinstance(value, bool):
             value = [value] * len(joints)
         limits[key] = _read_only(finite_vector(value, len(joints), f"the {robot} limit {key}"))
-    for key in ("dq_max", "ddq_max", "dddq_max", "tau_max"):
+    for key, (low, high, unit) in LIMIT_RANGES.items():
         if not np.all(limits[key] > 0.0):
             raise BadInputError(f"the {robot} limit {key} must be > 0 for every joint")
+        outside = [j for j, x in zip(joints, limits[key]) if not low <= x <= high]
+        if outside:
+            raise BadInputError(
+                f"the {robot} limit {key} must lie in [{low:g}, {high:g}] {unit} for every joint (a robot's, in SI "
+                f"units), got {limits[key][joints.index(outside[0])]:g} for {outside[0]}"
+            )
     if not np.all(limits["q_min"] < limits["q_max"]):
         raise BadInputError(f"the {robot} limits need q_min < q_max for every joint")
     return limits
@@ -352,6 +401,8 @@ def model_urdf(robot: RobotDescription, tool: ToolDescription, urdf_path: str | 
     inertial, visual and collision elements (the link stays: its frame is the ``"hand"`` frame)."""
     path = Path(urdf_path) if urdf_path is not None else robot.urdf_path()
     text = read_text(path, f"the {robot.name} URDF")
+    _urdf_joints(text, robot.name)  # valid XML, or one line of bad input
+    check_link_inertias(text, robot.name)
     if not tool.replaces_hand:
         return text
     root = ET.fromstring(text)

@@ -205,10 +205,10 @@ class ModelTermFills:
         its limits; a near-singular status that the exact test clears returns."""
         if status == NEAR_SINGULAR:
             eigenvalues = np.linalg.eigvalsh(J @ J.T)
-            if not eigenvalues[0] >= (SINGULAR_RATIO**2) * eigenvalues[2]:
+            if not (eigenvalues[2] > 0.0 and eigenvalues[0] >= (SINGULAR_RATIO**2) * eigenvalues[2]):
                 raise SingularPostureError(
                     "singular contact Jacobian at this posture (singular values ratio "
-                    f"{np.sqrt(max(eigenvalues[0], 0.0) / eigenvalues[2]):.1e})"
+                    f"{np.sqrt(max(eigenvalues[0], 0.0) / max(eigenvalues[2], np.finfo(float).tiny)):.1e})"
                 )
         if status == NOT_FINITE or status == OUTSIDE_LIMITS or check_limits:
             self.check_state(q, dq, check_limits=True)  # raises, naming the entry or the joint
