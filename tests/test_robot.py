@@ -425,3 +425,13 @@ def test_a_model_its_urdf_or_tool_frame_cannot_give_is_one_line_of_bad_input(tmp
         RobotModel(path)
     code, out, err = run(capfd, "postures", "--robot", str(path))
     one_line_bad_input(code, out, err, message.split(":")[0].split(" (")[0])
+
+
+def test_contact_joints_that_cannot_move_the_contact_point_are_bad_input():
+    """A standing robot whose contact joints (those its approach moves, the held contacts still)
+    are one knee cannot move its hand along a wall's normal: refused when the model loads (its
+    scripted approach never reached the wall, an internal error)."""
+    g1 = ROBOTS["g1"]
+    knee = replace(g1, contact=replace(g1.contact, joints=("left_knee_joint",)))
+    with pytest.raises(BadInputError, match=r"contact joints \(left_knee_joint\) cannot move its contact point"):
+        RobotModel(knee)

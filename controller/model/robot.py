@@ -152,6 +152,8 @@ class RobotModel(ModelTermFills):
             raise BadInputError(f"the {description.name} URDF has no frame {', '.join(missing)}")
         self.held_frame_ids = tuple(model.getFrameId(name) for name in self.held_frames)
         check_held_contacts_independent(model, self.held_frame_ids, description)
+        if description.floating:
+            check_contact_joints_move_the_contact(model, self.contact_frame_id, description)
         self.frame_ids = {name: model.getFrameId(frame) for name, frame in description.frames.items()}
         self.q_min = description.q_min.copy()
         self.q_max = description.q_max.copy()
@@ -322,22 +324,45 @@ PandaModel = RobotModel
 """The historical name: ``PandaModel()`` is the default robot (the Panda) with the default tool."""
 
 
+def generic_posture(model: pin.Model, description: RobotDescription) -> np.ndarray:
+    """A posture without special alignment: the joints drawn uniformly inside their limits (within
+    +-pi where a limit is infinite) by a fixed generator, the base at its origin."""
+    q = pin.neutral(model)
+    low = np.where(np.isfinite(description.q_min), description.q_min, -math.pi)
+    high = np.where(np.isfinite(description.q_max), description.q_max, math.pi)
+    q[model.nq - len(low):] = np.random.default_rng(0).uniform(low, high)
+    return q
+
+
+def check_contact_joints_move_the_contact(model: pin.Model, frame_id: int, description: RobotDescription) -> None:
+    """BadInputError when a standing robot's contact joints (``contact.joints``: the arm its
+    approach moves while the held contacts stay) cannot move its contact point in every
+    direction at a generic posture (``generic_posture``): no approach along a wall's normal."""
+    names = description.contact.joints if description.contact.joints else description.joints
+    data = model.createData()
+    pin.computeJointJacobians(model, data, generic_posture(model, description))
+    pin.updateFramePlacements(model, data)
+    J = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
+    columns = [model.joints[model.getJointId(name)].idx_v for name in names]
+    singular_values = np.linalg.svd(J[:, columns], compute_uv=False)
+    if len(columns) < 3 or singular_values[2] <= HELD_RANK_RATIO * singular_values[0]:
+        raise BadInputError(
+            f"the {description.name} contact joints ({', '.join(names)}) cannot move its contact point "
+            f"{description.contact.frame} in every direction"
+        )
+
+
 def check_held_contacts_independent(model: pin.Model, frame_ids: tuple[int, ...], description: RobotDescription) -> None:
     """BadInputError when the held contacts cannot be held independently: their stacked 6-D
-    Jacobian Jf (6 k x nv) is rank deficient at a generic posture (the joints drawn uniformly
-    inside their limits by a fixed generator, the base at its origin), so Jf M^-1 Jf^T, which
+    Jacobian Jf (6 k x nv) is rank deficient at a generic posture (``generic_posture``), so
+    Jf M^-1 Jf^T, which
     every held-contact jump map (eq. 22-23) and the whole-body QP invert, is singular at every
     state: two held contacts on one rigid body, or a held contact whose frame no velocity moves
     in some direction. A rank lost only at particular postures is not this check's."""
     if not frame_ids:
         return
-    q = pin.neutral(model)
-    nq = model.nq
-    low = np.where(np.isfinite(description.q_min), description.q_min, -math.pi)
-    high = np.where(np.isfinite(description.q_max), description.q_max, math.pi)
-    q[nq - len(low):] = np.random.default_rng(0).uniform(low, high)
     data = model.createData()
-    pin.computeJointJacobians(model, data, q)
+    pin.computeJointJacobians(model, data, generic_posture(model, description))
     pin.updateFramePlacements(model, data)
     Jf = np.vstack([pin.getFrameJacobian(model, data, f, pin.LOCAL) for f in frame_ids])
     singular_values = np.linalg.svd(Jf, compute_uv=False)
