@@ -183,3 +183,15 @@ def test_an_impact_time_that_is_no_time_in_the_log_is_refused(tmp_path, dataset_
     with pytest.raises(DatasetError, match="impact_time must be a finite time >= 0 s") as error:
         read_dataset(tmp_path)
     assert "\n" not in str(error.value)
+
+
+def test_a_tangential_velocity_off_the_wall_s_plane_is_refused(tmp_path, dataset_logs):
+    """``reference_tangential_velocity`` is the approach's velocity in the wall's plane: one with a
+    component along the normal (here all of it) is refused by reading and by ``validate``."""
+    writer = DatasetWriter(tmp_path, DATASET_HEADER)
+    writer.add_trial(TrialEntry("fast", "fast.csv", 0.15), dataset_logs[0.15])
+    along = DATASET_HEADER.surface.normal * 0.05
+    _rewrite_manifest(tmp_path, lambda m: m["trials"][0].__setitem__("reference_tangential_velocity", along.tolist()))
+    with pytest.raises(DatasetError, match="must lie in the wall's plane, its component along the normal is 0.05 m/s"):
+        read_dataset(tmp_path)
+    assert any("wall's plane" in p for p in validate(tmp_path)["dataset"])

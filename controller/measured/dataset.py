@@ -79,6 +79,8 @@ MANIFEST_KEYS = {"format", "robot", "tool", "surface", "control_period", "trials
 MAX_ENCODER_STEP = 0.1
 """rad/s: the coarsest quantisation of dq a manifest may declare (``encoder_step``)."""
 TRIAL_KEYS = {"id", "file", "reference_normal_speed"}
+IN_PLANE_TOLERANCE = 1e-6
+"""m/s per m/s: the largest component along the wall's normal a tangential velocity may have."""
 OPTIONAL_TRIAL_KEYS = {"force_file", "reference_tangential_velocity", "posture", "impact_time"}
 
 
@@ -210,14 +212,14 @@ def load_manifest(path: Path) -> dict:
     return manifest
 
 
-def _dataset_errors(parse: Callable[[dict], T]) -> Callable[[dict], T]:
+def _dataset_errors(parse: Callable[..., T]) -> Callable[..., T]:
     """``parse`` with the bad input of the shared validators raised as :class:`DatasetError`
     (``validate`` reports a dataset's problems, it does not stop at them)."""
 
     @functools.wraps(parse)
-    def parse_dataset(value: dict) -> T:
+    def parse_dataset(value: dict, *context) -> T:
         try:
-            return parse(value)
+            return parse(value, *context)
         except DatasetError:
             raise
         except BadInputError as error:
@@ -275,8 +277,10 @@ def _encoder_step(manifest: dict) -> tuple[float, ...] | None:
 
 
 @_dataset_errors
-def parse_entry(entry: dict) -> TrialEntry:
-    """One trial of the manifest, every value type-checked; messages name the trial and the key."""
+def parse_entry(entry: dict, normal: np.ndarray | None = None) -> TrialEntry:
+    """One trial of the manifest, every value type-checked; messages name the trial and the key.
+    With the wall's ``normal``, a ``reference_tangential_velocity`` must lie in the wall's plane
+    (its component along the normal at most ``IN_PLANE_TOLERANCE``)."""
     if not isinstance(entry, dict):
         raise DatasetError(f"a trial entry must be an object, got a {type(entry).__name__}")
     trial_id = entry.get("id")
@@ -297,6 +301,12 @@ def parse_entry(entry: dict) -> TrialEntry:
         tangential = numbers(tangential, 3, f"{label}: reference_tangential_velocity")
         if not all(np.isfinite(tangential)):
             raise DatasetError(f"{label}: reference_tangential_velocity must be finite")
+        along = 0.0 if normal is None else float(np.dot(tangential, normal))
+        if abs(along) > IN_PLANE_TOLERANCE * max(1.0, float(np.linalg.norm(tangential))):
+            raise DatasetError(
+                f"{label}: reference_tangential_velocity must lie in the wall's plane, its component along the "
+                f"normal is {along:.4g} m/s (the normal speed is reference_normal_speed)"
+            )
     impact_time = entry.get("impact_time")
     if impact_time is not None:
         impact_time = number(impact_time, f"{label}: impact_time")
@@ -391,7 +401,7 @@ def read_dataset(
     trials = []
     for raw in manifest["trials"]:
         try:
-            entry = parse_entry(raw)
+            entry = parse_entry(raw, header.surface.normal)
         except DatasetError:
             if strict:
                 raise

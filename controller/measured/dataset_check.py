@@ -69,7 +69,7 @@ def validate(directory: str | Path, progress=None) -> dict[str, list[str]]:
         if progress:
             progress(index, total)
         try:
-            entry = parse_entry(raw)
+            entry = parse_entry(raw, header.surface.normal)
         except (DatasetError, TypeError, ValueError) as error:
             problems["dataset"].append(f"trial entry {index}: {error}")
             continue
