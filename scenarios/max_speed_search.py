@@ -56,7 +56,7 @@ from impactqp.controller.model.max_speed import (
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.validation import MAX_CONTACT_SPEED, BadInputError
-from impactqp.sim.runner import NORMAL, SERVO_GAIN, run_impact_trial
+from impactqp.sim.runner import NORMAL, SERVO_GAIN, WallNotReachedError, run_impact_trial
 from impactqp.sim.trial_result import TrialResult
 from impactqp.sim.trial_sources import SCRIPTED, QpRecord
 from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
@@ -345,6 +345,10 @@ class StancePlant:
         )
 
 
+WALL_NOT_REACHED = "wall not reached"
+"""The failure of a standing trial whose hand never touched the wall."""
+
+
 @dataclass(frozen=True)
 class StanceEvaluation:
     """One simulated trial of the search: commanded and contact speed (m/s), what failed, each
@@ -367,6 +371,15 @@ class StanceEvaluation:
         binding = ", ".join(record.binding(trial.impact.pre_index)) if isinstance(record, QpRecord) else ""
         return cls(trial.normal_speed, trial.contact_speed, trial.max_velocity_ratio, trial.held.foot_slip, trial.held.foot_lift,
                    trial.fell, trial.first_failure, trial.failure_times, binding)
+
+    @classmethod
+    def of_speed(cls, run: Callable[[float], TrialResult], speed: float) -> StanceEvaluation:
+        """The evaluation of ``run(speed)``, or, when the hand never reached the wall (a robot whose
+        torques cannot bring it there at that speed), a failed one: no contact, ``WALL_NOT_REACHED``."""
+        try:
+            return cls.of(run(speed))
+        except WallNotReachedError:
+            return cls(speed, 0.0, 0.0, 0.0, 0.0, False, WALL_NOT_REACHED)
 
     @property
     def violated(self) -> bool:
@@ -443,7 +456,7 @@ def search_stance(
     q = stance_posture(robot, stances[stance])
     run = partial(plant.trial, robot, stance, q, source=source)
     bisection = SpeedBisection(STANCE_LOWEST_SPEED, STANCE_HIGHEST_SPEED, tolerance, STANCE_MIN_TOLERANCE)
-    best = bisection.search(lambda speeds: [StanceEvaluation.of(run(speed)) for speed in speeds])
+    best = bisection.search(lambda speeds: [StanceEvaluation.of_speed(run, speed) for speed in speeds])
     evaluations = bisection.evaluations
     feasible = [e for e in evaluations if not e.violated and e.reference_speed <= best]
     failed = [e for e in evaluations if e.violated]
@@ -451,5 +464,5 @@ def search_stance(
     first = min(failed, key=lambda e: e.reference_speed).first_failure if failed else ""
     predicted = predicted_speeds(robot, q, setting, methods)
     reference = predicted["crb"].speed if checks.reference is None else checks.reference
-    checked = {factor: StanceEvaluation.of(run(factor * reference)) for factor in checks.factors}
+    checked = {factor: StanceEvaluation.of_speed(run, factor * reference) for factor in checks.factors}
     return StanceMaxSpeed(stance, q, predicted, best, contact, first, evaluations, checked)
