@@ -7,7 +7,7 @@ import numpy as np
 from numba import njit
 
 from impactqp.controller.model.capture import GRAVITY
-from impactqp.controller.model.humanoid_stance import convex_hull
+from impactqp.controller.model.held_contact_description import convex_hull
 from impactqp.controller.model.jump_kernels import product
 from impactqp.controller.model.max_speed import sole_rows
 from impactqp.controller.model.robot import RobotModel

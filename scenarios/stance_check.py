@@ -30,7 +30,8 @@ from impactqp.sim.runner import NORMAL  # noqa: E402
 from impactqp.sim.trial_result import TrialResult  # noqa: E402
 from impactqp.sim.trial_sources import SCRIPTED  # noqa: E402
 
-from .max_speed_search import STANCE_HIGHEST_SPEED, STANCE_LOWEST_SPEED, StanceMaxSpeed, StancePlant  # noqa: E402
+from .max_speed_search import STANCE_HIGHEST_SPEED, STANCE_LOWEST_SPEED, StancePlant  # noqa: E402
+from .stance_evaluation import StanceMaxSpeed  # noqa: E402
 
 BELOW = (0.5, 0.8, 0.95)
 ABOVE = (1.2, 1.3, 1.4)

@@ -34,7 +34,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from impactqp.controller.model.humanoid_stance import convex_hull, edge_margins
+from impactqp.controller.model.held_contact_description import convex_hull
+from impactqp.controller.model.humanoid_stance import edge_margins
 
 LOAD, CONE, MARGIN, SPEED = range(4)
 CONE_TOLERANCE = 1e-3

@@ -40,20 +40,3 @@ def test_an_only_prefix_that_selects_no_row_is_bad_input(capsys):
     captured = capsys.readouterr()
     assert captured.out == "" and len(captured.err.strip().splitlines()) == 1
     assert "--only 'nonsense' selects no benchmark row" in captured.err and "predict" in captured.err
-
-
-def test_the_fixed_diagnosis_cases_hide_plants_of_the_robot_and_name_known_causes():
-    """Each ``diagnose.cases`` case (its diagnosis takes minutes: a bench row) hides a valid plant
-    of the datasets' robot, names causes the diagnosis knows, and diagnoses among candidates
-    that include them."""
-    from impactqp.scenarios.bench.diagnosis_cases import fixed_cases
-    from impactqp.sim.causes import CAUSE_NAMES
-    from impactqp.sim.generation import DatasetRequest
-    from impactqp.sim.plant import PlantParameters
-
-    cases = fixed_cases()
-    assert len({case.name for case in cases}) == len(cases)
-    for case in cases:
-        DatasetRequest(plant=PlantParameters(**case.truth), **case.request)
-        assert set(case.causes) <= set(CAUSE_NAMES)
-        assert not case.candidates or set(case.causes) <= {c.name for c in case.candidates}

@@ -6,10 +6,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from impactqp.controller.model.robot import RobotModel
+from impactqp.controller.model.held_contact_description import cross2
 from impactqp.controller.model.humanoid_stance import (
     STANCES,
     convex_hull,
-    cross2,
     edge_margins,
     inside_polygon,
     stance_posture,

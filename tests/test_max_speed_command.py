@@ -145,7 +145,7 @@ def test_the_qp_driven_search_with_friction_checks_against_the_frictional_closed
     from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
     from impactqp.controller.model.max_speed import Setting
     from impactqp.controller.model.robot import RobotModel
-    from impactqp.scenarios import max_speed_search
+    from impactqp.scenarios import max_speed_search, stance_evaluation
     from impactqp.scenarios.cli.max_speed_command import QP_CHECKS
 
     asked = {}
@@ -158,9 +158,9 @@ def test_the_qp_driven_search_with_friction_checks_against_the_frictional_closed
         reference = predicted["crb"].speed if checks.reference is None else checks.reference
 
         def trial(speed):
-            return max_speed_search.StanceEvaluation(speed, speed, 0.5, 0.0, 0.0, False, "")
+            return stance_evaluation.StanceEvaluation(speed, speed, 0.5, 0.0, 0.0, False, "")
 
-        return max_speed_search.StanceMaxSpeed(stance, q, predicted, 1.0, 1.0, "", [trial(1.0)],
+        return stance_evaluation.StanceMaxSpeed(stance, q, predicted, 1.0, 1.0, "", [trial(1.0)],
                                                {f: trial(f * reference) for f in checks.factors})
 
     monkeypatch.setattr(max_speed_search, "search_stance", search)

@@ -1,8 +1,6 @@
 """Maximum feasible speed: the parallel bisection (the arm's and the G1's) on a known threshold,
 a G1 stance the description does not have, and one real search in closed loop (the QP reaches the closed-form maximum; the bracket of the simulation is sound)."""
 
-import dataclasses
-from functools import partial
 from types import SimpleNamespace
 
 import numpy as np
@@ -16,11 +14,11 @@ from test_robot_description import _user_arm
 from impactqp.controller.model.humanoid_stance import stance_posture
 from impactqp.controller.model.max_speed import Setting, approach_direction, closed_form_max_speed
 from impactqp.controller.model.postures import DEFAULT_WALL
-from impactqp.controller.model.robot_description import PANDA, ROBOTS
+from impactqp.controller.model.robot_description import PANDA
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.model.robot import RobotModel
 from impactqp.sim.runner import NORMAL
-from impactqp.sim.trial_sources import SCRIPTED, QpCommand
+from impactqp.sim.trial_sources import QpCommand
 from impactqp.scenarios.max_speed_search import (
     STANCE_HIGHEST_SPEED,
     STANCE_LOWEST_SPEED,
@@ -30,8 +28,6 @@ from impactqp.scenarios.max_speed_search import (
     QpSetting,
     SpeedBisection,
     SpeedChecks,
-    WALL_NOT_REACHED,
-    StanceEvaluation,
     StancePlant,
     approach_velocity_limit,
     search_stance,
@@ -232,17 +228,3 @@ def test_an_approach_that_reaches_a_velocity_limit_below_the_lowest_speed_is_one
     path = _user_arm(tmp_path, limits={"ddq_max": 15.0, "dddq_max": 7500.0, "dq_max": 0.01})
     code, out, err = run(capsys, "max-speed", "--robot", str(path), "--posture", "elbow_up")
     one_line_bad_input(code, out, err, "below the search's lowest speed 0.02 m/s")
-
-
-def test_a_stance_trial_whose_hand_never_reaches_the_wall_is_a_failed_evaluation():
-    """The G1 with every torque limit at 0.1 N m (the least a description takes) cannot bring its
-    hand to the wall at the search's highest speed: the trial is a failed evaluation named
-    ``WALL_NOT_REACHED`` (no contact), which the bisection counts as any failure; it was an
-    internal error."""
-    g1 = ROBOTS["g1"]
-    weak = RobotModel(dataclasses.replace(g1, tau_max=np.full(len(g1.joints), 0.1)))
-    q = stance_posture(weak, g1.stances["parallel"])
-    run = partial(StancePlant().trial, weak, "parallel", q, source=SCRIPTED)
-    evaluation = StanceEvaluation.of_speed(run, STANCE_HIGHEST_SPEED)
-    assert evaluation.violated and evaluation.first_failure == WALL_NOT_REACHED
-    assert evaluation.contact_speed == 0.0 and evaluation.reference_speed == STANCE_HIGHEST_SPEED

@@ -10,7 +10,8 @@ import pytest
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.max_speed import HELD_CONTACT_CRITERIA, Bound, MaxSpeed, Setting, closed_form_max_speed
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
-from impactqp.scenarios.max_speed_search import StanceMaxSpeed, StancePlant
+from impactqp.scenarios.max_speed_search import StancePlant
+from impactqp.scenarios.stance_evaluation import StanceMaxSpeed
 from impactqp.scenarios.stance_check import (
     CRITERION_OF,
     CheckRow,

@@ -26,7 +26,7 @@ import pinocchio as pin
 
 from .robot import RobotModel
 from .robot_description import ROBOTS, Stance
-from .held_contact_description import convex_hull, cross2  # noqa: F401 (a sole's geometry: its home)
+from .held_contact_description import convex_hull
 from .validation import BadInputError
 
 WEIGHTS = {"feet": 10.0, "com": 10.0, "hand": 3.0, "hand_axis": 1.0, "posture": 0.05}

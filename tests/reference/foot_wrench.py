@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 
 from impactqp.constraints.foot_wrench import FootWrenchLimit
-from impactqp.controller.model.humanoid_stance import convex_hull
+from impactqp.controller.model.held_contact_description import convex_hull
 from impactqp.controller.model.max_speed import sole_rows
 
 
