@@ -69,9 +69,11 @@ USAGE = (
 )
 START_GUARD = 600.0  # s: the longest wait for a server to listen before it counts as hung
 FREE_PERIOD = 1e-3  # s: franky-sim's own step period while no command is awaited
-LOCKSTEP_PATIENCE = 0.25
+LOCKSTEP_PATIENCE = 0.5
 """s the lockstep waits for a command answering its newest state before it steps on its own
-clock, as the robot would (below libfranka's 1 s receive timeout)."""
+clock, as the robot would: half of libfranka's 1 s receive timeout, so that a stalled exchange
+is resolved with time to spare while a client slowed by a loaded machine (a step it takes, a
+sample the log then misses, which ``dataset validate`` reports) has half a second."""
 WALL_HALF_SIZE = 1.0
 WALL_HALF_THICKNESS = 0.05
 HAND_BODY = "robot0_hand"
