@@ -55,12 +55,18 @@ def main(argv: list[str] | None = None) -> int:
     # to be ignored (nohup, a background job) stays ignored
     previous = {sig: signal.getsignal(sig) for sig in (*STOP_SIGNALS, signal.SIGALRM)}
     previous_hook, sys.unraisablehook = sys.unraisablehook, _drop_interruptions
-    for sig, handler in previous.items():
-        if handler is not signal.SIG_IGN:
-            signal.signal(sig, _interrupt_again if sig == signal.SIGALRM else _interrupt)
     _interrupting = False
+    # the handlers go in with the signals blocked, as one step: a signal sent once one of them is
+    # in (as a parent watching them sees) waits for the others and then meets this try
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, previous)
     try:
         try:
+            try:
+                for sig, handler in previous.items():
+                    if handler is not signal.SIG_IGN:
+                        signal.signal(sig, _interrupt_again if sig == signal.SIGALRM else _interrupt)
+            finally:
+                signal.pthread_sigmask(signal.SIG_SETMASK, mask)
             return _run(args)
         except Exception as exc:  # noqa: BLE001 - the boundary
             if not interrupted(exc):
