@@ -355,10 +355,10 @@ def check_contact_joints_move_the_contact(model: pin.Model, frame_id: int, descr
 def check_held_contacts_independent(model: pin.Model, frame_ids: tuple[int, ...], description: RobotDescription) -> None:
     """BadInputError when the held contacts cannot be held independently: their stacked 6-D
     Jacobian Jf (6 k x nv) is rank deficient at a generic posture (``generic_posture``), so
-    Jf M^-1 Jf^T, which
-    every held-contact jump map (eq. 22-23) and the whole-body QP invert, is singular at every
-    state: two held contacts on one rigid body, or a held contact whose frame no velocity moves
-    in some direction. A rank lost only at particular postures is not this check's."""
+    Jf M^-1 Jf^T, which every held-contact jump map (eq. 22-23) and the whole-body QP invert, is
+    singular at every state: two held contacts on one rigid body, more held rows than velocities,
+    or a held contact whose frame no velocity moves in some direction. A rank lost only at
+    particular postures is not this check's."""
     if not frame_ids:
         return
     data = model.createData()
@@ -366,7 +366,7 @@ def check_held_contacts_independent(model: pin.Model, frame_ids: tuple[int, ...]
     pin.updateFramePlacements(model, data)
     Jf = np.vstack([pin.getFrameJacobian(model, data, f, pin.LOCAL) for f in frame_ids])
     singular_values = np.linalg.svd(Jf, compute_uv=False)
-    if singular_values[-1] <= HELD_RANK_RATIO * singular_values[0]:
+    if len(singular_values) < Jf.shape[0] or singular_values[-1] <= HELD_RANK_RATIO * singular_values[0]:
         rank = int(np.sum(singular_values > HELD_RANK_RATIO * singular_values[0]))
         names = ", ".join(contact.name for contact in description.held_contacts)
         raise BadInputError(
