@@ -37,7 +37,7 @@ from .files import read_mapping, read_text
 from .held_contact_description import MAX_CONTACT_LENGTH, HeldContact, Stance, held_contacts_of, stances_of
 from .postures import DEFAULT_WALL, ImpactPosture
 from .tool_description import ToolDescription
-from .validation import BadInputError, finite_vector, number_in_range
+from .validation import BadInputError, finite_vector, number_in_range, rigid_body_moments
 
 __all__ = [
     "HeldContact", "PANDA", "RobotContact", "RobotDescription", "ROBOTS", "Stance", "load_robot_description",
@@ -234,7 +234,7 @@ def check_link_inertias(urdf_text: str, robot: str) -> None:
         xx, xy, xz, yy, yz, zz = entries
         moments = np.linalg.eigvalsh(np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]))
         slack = 1e-9 * max(float(moments[2]), 0.0)
-        if moments[0] < -slack or moments[0] + moments[1] < moments[2] - slack:
+        if not rigid_body_moments(moments, slack):
             raise BadInputError(
                 f"the {robot} URDF's inertia of link {name} is not a rigid body's (principal moments "
                 f"{', '.join(f'{m:.4g}' for m in moments)} kg m^2: each must be >= 0 and A + B >= C)"

@@ -33,7 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 from .files import read_mapping
-from .validation import BadInputError, boolean, finite_vector, name_in, number_in_range, unit_normal
+from .validation import BadInputError, boolean, finite_vector, name_in, number_in_range, rigid_body_moments, unit_normal
 
 FRAMES = ("hand", "flange")
 SHAPES = ("sphere", "pad")
@@ -157,7 +157,7 @@ def _inertia(value, mass: float) -> np.ndarray:
     if np.abs(I - I.T).max() > INERTIA_TOLERANCE:
         raise BadInputError("the tool inertia must be symmetric")
     moments = np.linalg.eigvalsh((I + I.T) / 2.0)
-    if moments[0] < -INERTIA_TOLERANCE or moments[2] > moments[0] + moments[1] + INERTIA_TOLERANCE:
+    if not rigid_body_moments(moments, INERTIA_TOLERANCE):
         raise BadInputError(
             f"the tool inertia's principal moments {moments.tolist()} are not a rigid body's "
             "(each must be >= 0 and at most the sum of the other two)"

@@ -306,3 +306,9 @@ def tangential_velocity(velocity, normal: np.ndarray, what: str = "the tangentia
             f"{what} must be orthogonal to the normal: its component along the normal is {along:.3g} m/s"
         )
     return v_t
+
+
+def rigid_body_moments(moments, slack: float) -> bool:
+    """Whether principal moments A <= B <= C (kg m^2) are a rigid body's within ``slack``: each
+    >= 0 and C at most A + B (the triangle inequality)."""
+    return bool(moments[0] >= -slack and moments[2] <= moments[0] + moments[1] + slack)
