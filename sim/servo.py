@@ -61,15 +61,46 @@ from functools import cached_property
 import mujoco
 import numpy as np
 import pinocchio as pin
+from numba import njit
 
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.max_speed import standing_wrenches
-from impactqp.controller.model.impedance_inverse_inertia import critical_damping
 
 from .scene import to_pinocchio
 
 ANKLE_BANDWIDTH = 0.5
 """rad/s: omega_a, the bandwidth of the ankles' PD on the body's pendulum (module docstring)."""
+
+
+@njit(cache=True)
+def reference_step(dq_cmd, q, dq, dt, kp, kd, reference, errors):
+    """Kernel of one period's reference (module docstring): the errors e = q_ref - q (row 0 of
+    ``errors``) and de = dq_ref - dq (row 1), the acceleration a = ddq_ref + kp e + kd de (row 2),
+    then the reference (rows 0 and 1 of ``reference``: q_ref, dq_ref) advanced to the period's
+    end under dq_cmd."""
+    half = 0.5 * dt
+    for i in range(q.shape[0]):
+        e = reference[0, i] - q[i]
+        de = reference[1, i] - dq[i]
+        errors[0, i] = e
+        errors[1, i] = de
+        errors[2, i] = (dq_cmd[i] - reference[1, i]) / dt + (kp * e + kd * de)
+        reference[0, i] += half * (reference[1, i] + dq_cmd[i])
+        reference[1, i] = dq_cmd[i]
+
+
+@njit(cache=True)
+def impedance_torque(stiffness, M, period, elapsed, q, dq, bias, torque):
+    """Kernel of the joint impedance's torque ``elapsed`` s into the period (module docstring):
+    adds K (q_ref - q) + D (dq_ref - dq) + h to ``torque`` (which holds M ddq_ref), the reference
+    q_ref = q_0 + s dq_0 + s^2 ddq_ref / 2, dq_ref = dq_0 + s ddq_ref (``period``'s rows: q_0,
+    dq_0 at the period's start and ddq_ref), D_i = 2 sqrt(K_i M_ii)."""
+    quadratic = 0.5 * elapsed**2
+    for i in range(q.shape[0]):
+        damping = 2.0 * np.sqrt(stiffness[i] * M[i, i])
+        q_ref = period[0, i] + elapsed * period[1, i] + quadratic * period[2, i]
+        dq_ref = period[1, i] + elapsed * period[2, i]
+        torque[i] += stiffness[i] * (q_ref - q[i]) + damping * (dq_ref - dq[i]) + bias[i]
 
 
 @dataclass(frozen=True)
@@ -144,39 +175,44 @@ class ComputedTorqueServo:
         base_nq, base_nv = (standing.base_nq, standing.base_nv) if standing is not None else (0, 0)
         self.coordinates = slice(base_nq, None)  # the joints' part of qpos
         self.base, self.joints = slice(base_nv), slice(base_nv, None)  # the base's and the joints' qvel
-        self.q_ref = data.qpos[self.coordinates].copy()
-        self.dq_ref = data.qvel[self.joints].copy()
         n = model.nv - base_nv
-        self._acceleration = np.zeros(n)
+        self._reference = np.empty((2, n))  # q_ref, dq_ref
+        self._errors = np.zeros((3, n))  # e, de, the acceleration a
         self._torque = np.zeros(n)
         self._M = np.empty((model.nv, model.nv))
+        self.reset(data.qpos[self.coordinates], data.qvel[self.joints])
+
+    @property
+    def q_ref(self) -> np.ndarray:
+        """The reference's joint positions (a view of the servo's buffer)."""
+        return self._reference[0]
+
+    @property
+    def dq_ref(self) -> np.ndarray:
+        """The reference's joint velocities (a view of the servo's buffer)."""
+        return self._reference[1]
 
     def reset(self, q: np.ndarray, dq: np.ndarray) -> None:
         """The reference at the joint state (q, dq)."""
-        self.q_ref = np.array(q, dtype=float)
-        self.dq_ref = np.array(dq, dtype=float)
+        self._reference[0] = q
+        self._reference[1] = dq
 
     def hold(self) -> None:
         """Re-anchor the reference at the measured joint positions, at rest: from now on the servo
         holds the joints where they are and only damps their velocities."""
-        self.reset(self.data.qpos[self.coordinates], np.zeros_like(self.dq_ref))
+        self.reset(self.data.qpos[self.coordinates], 0.0)
 
     def torque(self, dq_cmd: np.ndarray, dt: float) -> np.ndarray:
         """The joints' torque for the state in ``data`` (after ``mj_step1``); advances the
         reference. Returns the servo's buffer: copy it to keep it."""
-        data = self.data
-        acceleration = self._acceleration
-        acceleration[:] = (dq_cmd - self.dq_ref) / dt
-        position_error = self.q_ref - data.qpos[self.coordinates]
-        velocity_error = self.dq_ref - data.qvel[self.joints]
-        acceleration += self.kp * position_error + self.kd * velocity_error
+        data, errors = self.data, self._errors
+        reference_step(dq_cmd, data.qpos[self.coordinates], data.qvel[self.joints], dt, self.kp, self.kd,
+                       self._reference, errors)
         if self.standing is None:
-            mujoco.mj_mulM(self.model, data, self._torque, acceleration)
+            mujoco.mj_mulM(self.model, data, self._torque, errors[2])
             self._torque += data.qfrc_bias
         else:
-            self._standing_torque(acceleration, position_error, velocity_error)
-        self.q_ref += 0.5 * dt * (self.dq_ref + dq_cmd)
-        self.dq_ref[:] = dq_cmd
+            self._standing_torque(errors[2], errors[0], errors[1])
         return self._torque
 
     def _standing_torque(self, acceleration: np.ndarray, position_error: np.ndarray, velocity_error: np.ndarray) -> None:
@@ -206,26 +242,24 @@ class JointImpedanceServo(ComputedTorqueServo):
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, stiffness):
         super().__init__(model, data, 0.0)
         self.stiffness = np.asarray(stiffness, dtype=float)
-        self._period = (self.q_ref.copy(), self.dq_ref.copy())  # the reference at the period's start
+        self._period = np.zeros((3, len(self.stiffness)))  # q_ref, dq_ref at the period's start; ddq_ref
 
     def torque(self, dq_cmd: np.ndarray, dt: float) -> np.ndarray:
         """The joints' torque at the start of a period for the state in ``data`` (after
         ``mj_step1``); advances the reference to the period's end. Returns the servo's buffer:
         copy it to keep it."""
-        self._period = (self.q_ref.copy(), self.dq_ref.copy())
-        self._acceleration[:] = (dq_cmd - self.dq_ref) / dt
-        self.q_ref += 0.5 * dt * (self.dq_ref + dq_cmd)
-        self.dq_ref[:] = dq_cmd
+        period, data = self._period, self.data
+        period[:2] = self._reference
+        # the gains are 0: the acceleration is the reference's, ddq_ref
+        reference_step(dq_cmd, data.qpos, data.qvel, dt, 0.0, 0.0, self._reference, self._errors)
+        period[2] = self._errors[2]
         return self.torque_at(0.0)
 
     def torque_at(self, elapsed: float) -> np.ndarray:
         """The torque ``elapsed`` s into the period that the last :meth:`torque` began, for the
         state in ``data`` (after ``mj_step1``): M ddq_ref + K e + D de + h."""
-        data, (q_start, dq_start), acceleration = self.data, self._period, self._acceleration
-        mujoco.mj_mulM(self.model, data, self._torque, acceleration)
+        data, period = self.data, self._period
+        mujoco.mj_mulM(self.model, data, self._torque, period[2])
         mujoco.mj_fullM(self.model, data, self._M)
-        damping = critical_damping(self.stiffness, self._M)
-        q_ref = q_start + elapsed * dq_start + 0.5 * elapsed**2 * acceleration
-        dq_ref = dq_start + elapsed * acceleration
-        self._torque += self.stiffness * (q_ref - data.qpos) + damping * (dq_ref - data.qvel) + data.qfrc_bias
+        impedance_torque(self.stiffness, self._M, period, elapsed, data.qpos, data.qvel, data.qfrc_bias, self._torque)
         return self._torque

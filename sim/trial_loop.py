@@ -38,6 +38,7 @@ import pinocchio as pin
 
 from impactqp.controller.model.validation import BadInputError
 
+from .contact_force import ContactForces
 from .humanoid_feet import HeldContactLog
 from .scene import MujocoScene, to_pinocchio
 from .servo import ComputedTorqueServo, JointImpedanceServo, StandingSupport
@@ -149,12 +150,15 @@ class ServoedPlant:
         self.standing = standing
         if standing is None:
             # centre-to-wall distance beyond which the tool cannot touch the wall within one period
-            # (at up to CLEARANCE_SPEED m/s)
-            self.clearance = scene.tool.geometry.bounding_radius + CLEARANCE_SPEED * control_period
-            self.contact_geom, self.environment = scene.tool_geom, (scene.wall_geom,)
+            # (at up to CLEARANCE_SPEED m/s): the wall's normal n and the clearance plus n . point,
+            # the bound of n . p for a centre p
+            clearance = scene.tool.geometry.bounding_radius + CLEARANCE_SPEED * control_period
+            self._wall_normal = scene.surface.normal
+            self._wall_bound = clearance + float(scene.surface.normal @ scene.surface.point)
+            self.contact_geom, environment = scene.tool_geom, (scene.wall_geom,)
         else:
-            self.contact_geom, self.environment = scene.hand_geom, (scene.wall_geom, *scene.ground_geoms)
-        self._contact_force = np.zeros(6)
+            self.contact_geom, environment = scene.hand_geom, (scene.wall_geom, *scene.ground_geoms)
+        self.contact_forces = ContactForces(scene.model, scene.data, environment)
 
     def reset(self, q0: np.ndarray, dq0: np.ndarray | None = None, servo_reference=None) -> None:
         """Put the plant at the Pinocchio state (q0, dq0) (None: at rest); the servo reference at
@@ -180,58 +184,43 @@ class ServoedPlant:
         torque = self.servo.torque(dq_cmd, self.control_period)
         data.qfrc_applied[:] = torque
         mujoco.mj_step2(model, data)
-        if scene.surface.signed_distance(data.geom_xpos[tool]) > self.clearance:
+        if float(self._wall_normal @ data.geom_xpos[tool]) > self._wall_bound:
             # the tool cannot reach the wall within this period: no contact force to log
             mujoco.mj_step(model, data, self.substeps - 1)
             return torque
+        add = self.contact_forces.add
         for i in range(self.substeps):
             if i > 0:
                 mujoco.mj_step(model, data)
-            self._contact_forces(force[i])
+            add(force[i])
         return torque
 
     def _advance_impedance(self, dq_cmd: np.ndarray, force: np.ndarray) -> np.ndarray:
         """One period of an arm under its joint impedance, the torque recomputed at every
         physics step (``JointImpedanceServo.torque_at``); returns the period's first torque."""
         model, data, servo, h = self.scene.model, self.scene.data, self.servo, self.scene.timestep
+        add = self.contact_forces.add
         first = None
         for i in range(self.substeps):
             mujoco.mj_step1(model, data)
             data.qfrc_applied[:] = servo.torque(dq_cmd, self.control_period) if i == 0 else servo.torque_at(i * h)
             first = data.qfrc_applied.copy() if i == 0 else first
             mujoco.mj_step2(model, data)
-            self._contact_forces(force[i])
+            add(force[i])
         return first
 
     def _advance_standing(self, dq_cmd: np.ndarray, force: np.ndarray, held: HeldContactLog) -> np.ndarray:
         """One period of a robot held by its contacts (the servo before the first physics step)."""
-        model, data = self.scene.model, self.scene.data
+        model, data, add = self.scene.model, self.scene.data, self.contact_forces.add
         torque = self.servo.torque(dq_cmd, self.control_period)
         for i in range(self.substeps):
             data.qfrc_applied[self.standing.base_nv:] = torque
             mujoco.mj_step(model, data)
-            floor = self._contact_forces(force[i], np.zeros(3))
+            floor = np.zeros(3)
+            add(force[i], floor)
             if held is not None:
                 held.add_substep(floor, model.opt.timestep)
         return torque
-
-    def _contact_forces(self, wall: np.ndarray, floor: np.ndarray | None = None) -> np.ndarray | None:
-        """Adds the wall's contact force on the robot (world frame) of the current physics step to
-        ``wall`` and, with held contacts, the floor's to ``floor`` (returned)."""
-        model, data, environment = self.scene.model, self.scene.data, self.environment
-        wrench = self._contact_force
-        for c in range(data.ncon):
-            contact = data.contact[c]
-            mujoco.mj_contactForce(model, data, c, wrench)
-            # wrench[:3] is in the contact frame; +normal pushes geom2 away from geom1; the
-            # environment (wall or floor) is geom1 or geom2 of the pair
-            on_geom2 = contact.frame.reshape(3, 3).T @ wrench[:3]
-            on_robot = on_geom2 if contact.geom1 in environment else -on_geom2
-            if floor is None or environment[0] in (contact.geom1, contact.geom2):
-                wall += on_robot
-            else:
-                floor += on_robot
-        return floor
 
 
 @dataclass(frozen=True)
@@ -294,12 +283,12 @@ def run_loop(plant: ServoedPlant, source: CommandSource, ending: Ending) -> Loop
             if ending.hold:
                 plant.servo.hold()
         command = np.asarray(command_of(q[k].copy(), dq[k].copy()).dq_cmd, dtype=float)
-        if command.shape != (joints,) or not np.all(np.isfinite(command)):
+        if command.shape != (joints,) or not np.isfinite(command).all():
             raise ValueError(f"control step {k}: dq_cmd must be {joints} finite values, got {command}")
         dq_cmd[k] = command
         rows_k = force[k * substeps:(k + 1) * substeps]
         tau[k] = advance(command, rows_k, held)
-        if watch and first_contact is None and np.any(rows_k != 0.0):
+        if watch and first_contact is None and rows_k.any():
             first_contact = k
             stop_at = k + ending.stop_after if ending.stop_after is not None else None
             end = k + ending.after

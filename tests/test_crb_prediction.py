@@ -118,8 +118,11 @@ def test_the_batch_is_the_single_prediction_row_by_row(name, seed, normal, cr):
             single = fast.predict(q, normal, velocity, cr)
         except SingularPostureError:
             continue
-        np.testing.assert_allclose(jump, single.dq_jump, rtol=0.0, atol=1e-12 * max(1.0, np.abs(single.dq_jump).max()))
-        np.testing.assert_allclose(impulse, single.impulse, rtol=0.0, atol=1e-12 * max(1.0, np.abs(single.impulse).max()))
+        # the two round differently near a singularity (the single prediction then takes the general
+        # path): their difference grows with the rounding of (J J^T)^-1, eps cond(J)^2
+        relative = max(1e-12, 100.0 * np.finfo(float).eps * np.linalg.cond(fast.robot.terms(q).J) ** 2)
+        np.testing.assert_allclose(jump, single.dq_jump, rtol=0.0, atol=relative * max(1.0, np.abs(single.dq_jump).max()))
+        np.testing.assert_allclose(impulse, single.impulse, rtol=0.0, atol=relative * max(1.0, np.abs(single.impulse).max()))
 
 
 def test_the_batch_compiles_one_signature_whatever_the_layout_of_its_inputs():
