@@ -24,6 +24,20 @@ from numba import njit
 
 
 @njit(cache=True)
+def contact_frame_force(efc_force, address, dim, c):
+    """The force (normal, first tangential, second tangential) of contact c in its contact frame
+    (module docstring): zero outside the solver, the tangential ones zero for condim 1."""
+    first = address[c]
+    if first < 0:
+        return 0.0, 0.0, 0.0
+    rows = min(dim[c], 3)
+    normal = efc_force[first]
+    t1 = efc_force[first + 1] if rows > 1 else 0.0
+    t2 = efc_force[first + 2] if rows > 2 else 0.0
+    return normal, t1, t2
+
+
+@njit(cache=True)
 def contact_force_sums(efc_force, address, dim, frame, geom, environment, wall, floor):
     """Kernel: adds the force on the robot of each contact (module docstring) to ``wall``, or, when
     ``floor`` is not empty, to ``floor`` for a contact that does not touch ``environment[0]`` (the wall);
@@ -31,13 +45,7 @@ def contact_force_sums(efc_force, address, dim, frame, geom, environment, wall, 
     the robot, its geom2, along +f_2)."""
     split = floor.shape[0] > 0
     for c in range(address.shape[0]):
-        first = address[c]
-        if first < 0:
-            continue
-        rows = min(dim[c], 3)
-        normal = efc_force[first]
-        t1 = efc_force[first + 1] if rows > 1 else 0.0
-        t2 = efc_force[first + 2] if rows > 2 else 0.0
+        normal, t1, t2 = contact_frame_force(efc_force, address, dim, c)
         geom1, geom2 = geom[c, 0], geom[c, 1]
         sign = -1.0
         for g in environment:
@@ -46,6 +54,14 @@ def contact_force_sums(efc_force, address, dim, frame, geom, environment, wall, 
         target = floor if split and geom1 != environment[0] and geom2 != environment[0] else wall
         for j in range(3):
             target[j] += sign * (frame[c, j] * normal + frame[c, 3 + j] * t1 + frame[c, 6 + j] * t2)
+
+
+@njit(cache=True)
+def contact_frame_forces(efc_force, address, dim, forces):
+    """Kernel: row c of ``forces`` (ncon x 3) the force of contact c in its contact frame
+    (:func:`contact_frame_force`)."""
+    for c in range(address.shape[0]):
+        forces[c, 0], forces[c, 1], forces[c, 2] = contact_frame_force(efc_force, address, dim, c)
 
 
 class ContactForces:

@@ -33,9 +33,12 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from numba import njit
 
 from impactqp.controller.model.held_contact_description import convex_hull
-from impactqp.controller.model.humanoid_stance import edge_margins
+from impactqp.controller.model.humanoid_stance import edge_normals
+
+from .contact_force import contact_frame_forces
 
 LOAD, CONE, MARGIN, SPEED = range(4)
 CONE_TOLERANCE = 1e-3
@@ -46,14 +49,17 @@ LIFT_MARGIN = 1e-3  # m
 @dataclass(frozen=True)
 class Soles:
     """The feet of a scene: body ids, their sphere geoms, sole polygons (foot axes) and each
-    foot's mu, and which foot each sphere geom belongs to (``foot_of``, read at every physics
-    step)."""
+    foot's mu; for the compiled state (:func:`sole_state`), the foot of each geom of the model
+    (``foot_index``, -1: not a sole sphere) and each sole's edges (``edges``, feet x k x 4: an
+    edge's first vertex and its unit outward normal, a sole with fewer edges padded with copies
+    of its first)."""
 
     bodies: tuple[int, ...]
     spheres: tuple[tuple[int, ...], ...]
     polygons: tuple[np.ndarray, ...]
     friction: tuple[float, ...]
-    foot_of: dict
+    foot_index: np.ndarray
+    edges: np.ndarray
 
     @classmethod
     def of(cls, model: mujoco.MjModel, bodies, friction) -> Soles:
@@ -64,38 +70,82 @@ class Soles:
             for b in bodies
         )
         polygons = tuple(convex_hull(model.geom_pos[list(s), :2]) for s in spheres)
-        foot_of = {g: k for k, foot in enumerate(spheres) for g in foot}
+        foot_index = np.full(model.ngeom, -1, dtype=np.int64)
+        for k, foot in enumerate(spheres):
+            foot_index[list(foot)] = k
+        edges = np.empty((len(polygons), max(len(p) for p in polygons), 4))
+        for k, polygon in enumerate(polygons):
+            table = np.hstack([polygon, edge_normals(polygon)])
+            edges[k] = table[0]  # the padding: copies of the first edge
+            edges[k, :len(polygon)] = table
         mu = tuple(float(f) for f in np.broadcast_to(np.asarray(friction, dtype=float), (len(spheres),)))
-        return cls(tuple(bodies), spheres, polygons, mu, foot_of)
+        return cls(tuple(bodies), spheres, polygons, mu, foot_index, edges)
+
+
+ROTATION, POSITION, CENTRE, TWIST, FRICTION, FOOT_COLUMNS = 0, 9, 12, 15, 21, 22
+"""The columns of a foot's row in :func:`sole_states`: its body's rotation (row-major), position,
+centre of mass, velocity (angular, then linear, world axes, at the centre of mass) and mu."""
+
+
+@njit(cache=True)
+def sole_states(forces, frame, pos, geom, foot_index, feet, edges, state):
+    """Kernel of :func:`sole_state` (module docstring): ``forces`` each contact's force in its
+    contact frame (ncon x 3), ``frame``, ``pos`` and ``geom`` MuJoCo's contacts' frames,
+    positions and geom pairs, ``feet`` one row per foot (``FOOT_COLUMNS``); writes ``state``
+    (feet x 4)."""
+    n = feet.shape[0]
+    total = np.zeros((n, 6))  # per foot: the force (world), the normal force's moment (foot axes), the speed
+    for c in range(forces.shape[0]):
+        k = foot_index[geom[c, 0]]
+        if k < 0:
+            k = foot_index[geom[c, 1]]
+        if k < 0:
+            continue
+        normal, t1, t2 = forces[c, 0], forces[c, 1], forces[c, 2]
+        f = np.empty(3)
+        for j in range(3):
+            f[j] = frame[c, j] * normal + frame[c, 3 + j] * t1 + frame[c, 6 + j] * t2
+        sign = 1.0 if f[2] >= 0.0 else -1.0
+        for j in range(3):
+            total[k, j] += sign * f[j]
+        for i in range(2):  # the contact point in the foot's axes
+            local = 0.0
+            for j in range(3):
+                local += feet[k, ROTATION + 3 * j + i] * (pos[c, j] - feet[k, POSITION + j])
+            total[k, 3 + i] += normal * local
+        r = pos[c] - feet[k, CENTRE:CENTRE + 3]
+        w, v = feet[k, TWIST:TWIST + 3], feet[k, TWIST + 3:TWIST + 6]
+        vx = v[0] + (w[1] * r[2] - w[2] * r[1])
+        vy = v[1] + (w[2] * r[0] - w[0] * r[2])
+        total[k, 5] = max(total[k, 5], np.sqrt(vx * vx + vy * vy))
+    for k in range(n):
+        load = total[k, 2]
+        state[k, LOAD], state[k, CONE], state[k, MARGIN], state[k, SPEED] = load, 0.0, -np.inf, total[k, 5]
+        if load > 0.0:
+            state[k, CONE] = np.sqrt(total[k, 0] ** 2 + total[k, 1] ** 2) / (feet[k, FRICTION] * load)
+            x, y = total[k, 3] / load, total[k, 4] / load
+            margin = np.inf
+            for e in range(edges.shape[1]):
+                margin = min(margin, edges[k, e, 2] * (edges[k, e, 0] - x) + edges[k, e, 3] * (edges[k, e, 1] - y))
+            state[k, MARGIN] = margin
 
 
 def sole_state(model: mujoco.MjModel, data: mujoco.MjData, soles: Soles) -> np.ndarray:
     """(feet, 4): load, cone, margin and speed of each foot now (module docstring)."""
     n = len(soles.bodies)
-    force, moment, speed = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros(n)
-    wrench, twist = np.zeros(6), np.zeros((n, 6))
-    for k, body in enumerate(soles.bodies):
-        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, twist[k], 0)
-    for c in range(data.ncon):
-        contact = data.contact[c]
-        k = soles.foot_of.get(contact.geom1, soles.foot_of.get(contact.geom2))
-        if k is None:
-            continue
-        mujoco.mj_contactForce(model, data, c, wrench)
-        f = contact.frame.reshape(3, 3).T @ wrench[:3]
-        force[k] += f if f[2] >= 0.0 else -f
-        body = soles.bodies[k]
-        local = data.xmat[body].reshape(3, 3).T @ (contact.pos - data.xpos[body])
-        moment[k] += wrench[0] * local[:2]
-        point = twist[k, 3:] + np.cross(twist[k, :3], contact.pos - data.xipos[body])
-        speed[k] = max(speed[k], float(np.linalg.norm(point[:2])))
-    state = np.zeros((n, 4))
-    for k in range(n):
-        load = force[k, 2]
-        state[k] = load, 0.0, -np.inf, speed[k]
-        if load > 0.0:
-            state[k, CONE] = np.linalg.norm(force[k, :2]) / (soles.friction[k] * load)
-            state[k, MARGIN] = edge_margins(soles.polygons[k], moment[k] / load).min()
+    feet = np.empty((n, FOOT_COLUMNS))
+    bodies = list(soles.bodies)
+    feet[:, ROTATION:POSITION] = data.xmat[bodies]
+    feet[:, POSITION:CENTRE] = data.xpos[bodies]
+    feet[:, CENTRE:TWIST] = data.xipos[bodies]
+    for k, body in enumerate(bodies):
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, feet[k, TWIST:FRICTION], 0)
+    feet[:, FRICTION] = soles.friction
+    contact = data.contact
+    forces = np.empty((data.ncon, 3))
+    contact_frame_forces(data.efc_force, contact.efc_address, contact.dim, forces)
+    state = np.empty((n, 4))
+    sole_states(forces, contact.frame, contact.pos, contact.geom, soles.foot_index, feet, soles.edges, state)
     return state
 
 

@@ -40,6 +40,38 @@ def tiny_scene():
     return model, mujoco.MjData(model), Soles.of(model, (body,), MU)
 
 
+def reference_sole_state(model, data, soles):
+    """The sole states of the module docstring, contact by contact from MuJoCo's own
+    ``mj_contactForce`` and numpy: the plain twin of the compiled ``sole_state``."""
+    n = len(soles.bodies)
+    force, moment, speed = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros(n)
+    wrench, twist = np.zeros(6), np.zeros((n, 6))
+    foot_of = {g: k for k, foot in enumerate(soles.spheres) for g in foot}
+    for k, body in enumerate(soles.bodies):
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, twist[k], 0)
+    for c in range(data.ncon):
+        contact = data.contact[c]
+        k = foot_of.get(contact.geom1, foot_of.get(contact.geom2))
+        if k is None:
+            continue
+        mujoco.mj_contactForce(model, data, c, wrench)
+        f = contact.frame.reshape(3, 3).T @ wrench[:3]
+        force[k] += f if f[2] >= 0.0 else -f
+        body = soles.bodies[k]
+        local = data.xmat[body].reshape(3, 3).T @ (contact.pos - data.xpos[body])
+        moment[k] += wrench[0] * local[:2]
+        point = twist[k, 3:] + np.cross(twist[k, :3], contact.pos - data.xipos[body])
+        speed[k] = max(speed[k], float(np.linalg.norm(point[:2])))
+    state = np.zeros((n, 4))
+    for k in range(n):
+        load = force[k, 2]
+        state[k] = load, 0.0, -np.inf, speed[k]
+        if load > 0.0:
+            state[k, CONE] = np.linalg.norm(force[k, :2]) / (soles.friction[k] * load)
+            state[k, MARGIN] = edge_margins(soles.polygons[k], moment[k] / load).min()
+    return state
+
+
 def run(wrench, seconds, settle=0.2):
     """Stand for ``settle`` s, then apply ``wrench`` (force, moment at the body's centre of mass):
     the sole states after the settling, worst per 1 ms."""
@@ -49,6 +81,7 @@ def run(wrench, seconds, settle=0.2):
         data.xfrc_applied[1] = wrench if k * model.opt.timestep >= settle else 0.0
         mujoco.mj_step(model, data)
         now = sole_state(model, data, soles)
+        np.testing.assert_allclose(now, reference_sole_state(model, data, soles), rtol=1e-12, atol=1e-12)
         step = now if step is None else worst(step, now)
         if k % 2 == 1:
             if k * model.opt.timestep >= settle:
@@ -99,3 +132,23 @@ def test_a_sole_pushed_beyond_the_friction_cone_slides():
     assert onset.any()
     assert states[np.argmax(onset):, 0, CONE].min() >= 1.0 - 1e-3 or states[-1, 0, SPEED] > SLIP_SPEED
     assert states[-1, 0, SPEED] > SLIP_SPEED
+
+
+def test_soles_of_different_sizes_share_one_edge_table():
+    """A three-sphere sole beside a four-sphere one: the triangle's rows are padded with its first
+    edge, so each sole's least margin over its rows is its polygon's."""
+    feet = [((0.0, 0.0), (0.1, 0.0), (0.0, 0.05)), CORNERS]
+    bodies = "".join(
+        f'<body name="f{k}" pos="{k} 0 0.1"><freejoint/>'
+        + "".join(f'<geom type="sphere" size="0.005" pos="{x} {y} 0"/>' for x, y in spheres) + "</body>"
+        for k, spheres in enumerate(feet))
+    model = mujoco.MjModel.from_xml_string(f"<mujoco><worldbody>{bodies}</worldbody></mujoco>")
+    soles = Soles.of(model, (1, 2), MU)
+    assert soles.edges.shape == (2, 4, 4) and [len(p) for p in soles.polygons] == [3, 4]
+    assert set(soles.foot_index.tolist()) == {0, 1} and np.bincount(soles.foot_index).tolist() == [3, 4]
+    rng = np.random.default_rng(0)
+    for k, polygon in enumerate(soles.polygons):
+        for point in rng.uniform(-0.1, 0.15, (20, 2)):
+            rows = soles.edges[k]
+            margins = np.einsum("ij,ij->i", rows[:, 2:], rows[:, :2] - point)
+            assert margins.min() == pytest.approx(edge_margins(polygon, point).min(), abs=1e-15)
