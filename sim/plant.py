@@ -210,11 +210,15 @@ class PlantParameters:
         return replace(self, **filled) if filled else self
 
     def physical(self) -> "PlantParameters":
-        """The same plant with a perfect sensor: what the simulation itself needs."""
-        return replace(
-            self, sensor_delay=0.0, sensor_velocity_scale=1.0, sensor_torque_offset=(),
-            sensor_velocity_filter=0.0, sensor_joint_velocity_scale=(), sensor_velocity_step=(),
+        """The same plant with a perfect sensor: what the simulation itself needs (this plant
+        itself when its sensor is perfect already)."""
+        perfect = dict(
+            sensor_delay=0.0, sensor_velocity_scale=1.0, sensor_torque_offset=(), sensor_velocity_filter=0.0,
+            sensor_joint_velocity_scale=(), sensor_velocity_step=(),
         )
+        if all(getattr(self, name) == value for name, value in perfect.items()):
+            return self
+        return replace(self, **perfect)
 
     # ------------------------------------------------------------------ JSON
     @classmethod

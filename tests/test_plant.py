@@ -194,3 +194,11 @@ def test_the_identified_panda_is_a_built_in_plant_of_joint_friction():
     np.testing.assert_array_equal(build_scene(plant=plant).model.dof_frictionloss[:JOINTS], plant.joint_friction)
     with pytest.raises(PlantParameterError, match="no built-in plant 'ideal'; built-in: identified_panda"):
         PlantParameters.named("ideal")
+
+
+def test_the_physical_plant_keeps_the_physics_and_drops_the_sensor():
+    faulty = PlantParameters(armature=(0.1,) * 7, sensor_delay=2.0, sensor_velocity_scale=1.1,
+                             sensor_torque_offset=(0.5,) * 7, sensor_velocity_step=(0.004,) * 7)
+    physical = faulty.physical()
+    assert physical == PlantParameters(armature=(0.1,) * 7)
+    assert physical.physical() == physical
