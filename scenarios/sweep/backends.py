@@ -88,10 +88,8 @@ def _ray(config: SweepConfig, simulation: Simulation | None, todo: list[int], ch
     included), never half-way: none of its processes outlives the command."""
     import ray  # optional dependency (the ray extra): loaded only for this backend
 
-    starter = None if ray.is_initialized() else RayStarter(jobs)
+    starter = None if ray.is_initialized() else RayStarter.running(jobs)
     try:
-        if starter is not None:
-            starter.start()
         remote = ray.remote(num_cpus=1)(_evaluate_chunk_parts)
         config_ref, simulation_ref = ray.put(config), ray.put(simulation)
         pending = [remote.remote(config_ref, simulation_ref, c, chunk_size) for c in todo]
@@ -103,6 +101,12 @@ def _ray(config: SweepConfig, simulation: Simulation | None, todo: list[int], ch
             starter.stop()
 
 
+RAY_STARTS = 3
+"""Attempts at starting a local Ray whose node times out during its start (``RayStarter.running``)."""
+RAY_START_TIMEOUT = "timed out during startup"
+"""Ray's words when its node did not register within its fixed wait (30 s): an overloaded machine."""
+
+
 class RayStarter:
     """A Ray of this process, started and stopped whole: ``ray.init`` runs on a thread of its own,
     waited for to its end even when a stop signal comes meanwhile (the signal goes on after it),
@@ -110,6 +114,25 @@ class RayStarter:
     that started them). Off the main thread, ``ray.init`` also leaves the command line's SIGTERM
     handler in place (in the main thread it puts in its own, ``sys.exit``, which would turn a
     stop signal into a plain exit code 15)."""
+
+    @classmethod
+    def running(cls, jobs: int) -> RayStarter:
+        """A started Ray of ``jobs`` CPUs. Ray gives its node a fixed 30 s to register, which a
+        machine whose cores are busy can overrun; such a start is stopped (its processes end
+        with its thread) and tried again, up to ``RAY_STARTS`` times, then one line of error."""
+        for attempt in range(1, RAY_STARTS + 1):
+            starter = cls(jobs)
+            try:
+                starter.start()
+            except BaseException as error:
+                starter.stop()
+                if not isinstance(error, Exception) or RAY_START_TIMEOUT not in str(error):
+                    raise
+                if attempt == RAY_STARTS:
+                    raise BadInputError(f"Ray did not start in {RAY_STARTS} attempts ({error}); "
+                                        "the machine may be overloaded") from None
+                continue
+            return starter
 
     def __init__(self, jobs: int):
         address = os.environ.get("RAY_ADDRESS")
