@@ -54,7 +54,7 @@ from impactqp.controller.model.choice import DEFAULT_CHOICE, RobotChoice
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import PandaModel, RobotModel
 from impactqp.constraints import jump_model_names
-from impactqp.controller.measured.impact import measure_impact
+from impactqp.controller.measured.impact import ImpactNotFoundError, measure_impact
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import ProcessPool
 from impactqp.controller.measured.trial_log import TrialLog
@@ -135,8 +135,14 @@ class TrialRunner:
         return self.evaluate(spec, run.log, run.driver.controller.fallback_count, source.name)
 
     def evaluate(self, spec: TrialSpec, log: TrialLog, fallback_count: int = 0, source: str = "qp") -> TrialResult:
-        """The observed criteria and the predictions of the module docstring."""
+        """The observed criteria and the predictions of the module docstring, from a simulated
+        ``log`` (``ImpactNotFoundError`` when its tool never touched the wall)."""
         robot, normal = self.robot, self.surface.normal
+        if not log.force.any():  # no impact to look for in the torques: say what the trial did
+            raise ImpactNotFoundError(
+                f"the tool never touched the wall: the simulated trial lasted {log.t[-1]:.3f} s from "
+                f"{spec.start_distance:.3f} m in front of it at a commanded {spec.normal_speed:.3f} m/s"
+            )
         impact = measure_impact(log)
         terms = robot.terms(impact.q_pre, impact.dq_pre, check_limits=False)
         v_pre = terms.J @ impact.dq_pre

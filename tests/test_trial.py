@@ -8,7 +8,7 @@ from conftest import JOINTS
 from impactqp.controller.model.jump import JUMP_MODELS, METHODS
 from impactqp.controller.model.postures import DEFAULT_WALL
 from impactqp.controller.model.robot_description import PANDA
-from impactqp.controller.measured.impact import measure_impact
+from impactqp.controller.measured.impact import ImpactNotFoundError, measure_impact
 from impactqp.sim.runner import OBSERVATION_WINDOW, TrialSpec, run_approach
 from impactqp.scenarios.trial import TrialPool, TrialRunner
 
@@ -105,3 +105,14 @@ def test_pool_of_two_processes_gives_the_same_trials(result):
         results = list(pool.map(specs))
     assert [r.trial_id for r in results] == [s.trial_id for s in specs]
     np.testing.assert_array_equal(results[0].log.dq, result.log.dq)
+
+
+def test_a_trial_whose_tool_never_touches_the_wall_says_so(runner):
+    """Cut short before the contact (a third of the time the approach needs at its speed), a trial
+    has no impact, and the error says what the trial did, not what the torque residual did not."""
+    spec = TrialSpec(POSTURE, Q, 0.15)
+    run = run_approach(runner.scene, runner.robot, spec, runner.source_of(spec), spec.start_distance / 0.15 / 3)
+    assert not run.log.force.any()
+    with pytest.raises(ImpactNotFoundError, match=rf"never touched the wall: the simulated trial lasted 0\.\d+ s from "
+                                                  rf"{spec.start_distance:.3f} m in front of it at a commanded 0\.150 m/s"):
+        runner.evaluate(spec, run.log)
