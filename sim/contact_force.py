@@ -12,7 +12,7 @@ a positive normal force pushes geom2 away from geom1, so the force on geom2 in t
     f_2 = R^T f_c,     R = frame (3 x 3, row-major),
 
 and the force on the robot is f_2 when geom1 is the environment's, -f_2 otherwise.
-:func:`add_contact_forces` does this for every contact in one compiled call; the tests compare it
+:func:`contact_force_sums` does this for every contact in one compiled call; the tests compare it
 with MuJoCo's own ``mj_contactForce``, contact by contact.
 """
 
@@ -38,6 +38,15 @@ def contact_frame_force(efc_force, address, dim, c):
 
 
 @njit(cache=True)
+def to_world(frame, c, normal, t1, t2):
+    """The force (normal, t1, t2) of contact c in its contact frame, on its geom2 in the world
+    frame: f_2 = R^T f_c (module docstring)."""
+    return (frame[c, 0] * normal + frame[c, 3] * t1 + frame[c, 6] * t2,
+            frame[c, 1] * normal + frame[c, 4] * t1 + frame[c, 7] * t2,
+            frame[c, 2] * normal + frame[c, 5] * t1 + frame[c, 8] * t2)
+
+
+@njit(cache=True)
 def contact_force_sums(efc_force, address, dim, frame, geom, environment, wall, floor):
     """Kernel: adds the force on the robot of each contact (module docstring) to ``wall``, or, when
     ``floor`` is not empty, to ``floor`` for a contact that does not touch ``environment[0]`` (the wall);
@@ -46,14 +55,16 @@ def contact_force_sums(efc_force, address, dim, frame, geom, environment, wall, 
     split = floor.shape[0] > 0
     for c in range(address.shape[0]):
         normal, t1, t2 = contact_frame_force(efc_force, address, dim, c)
+        fx, fy, fz = to_world(frame, c, normal, t1, t2)
         geom1, geom2 = geom[c, 0], geom[c, 1]
         sign = -1.0
         for g in environment:
             if g == geom1:
                 sign = 1.0
         target = floor if split and geom1 != environment[0] and geom2 != environment[0] else wall
-        for j in range(3):
-            target[j] += sign * (frame[c, j] * normal + frame[c, 3 + j] * t1 + frame[c, 6 + j] * t2)
+        target[0] += sign * fx
+        target[1] += sign * fy
+        target[2] += sign * fz
 
 
 @njit(cache=True)

@@ -38,7 +38,7 @@ from numba import njit
 from impactqp.controller.model.held_contact_description import convex_hull
 from impactqp.controller.model.humanoid_stance import edge_normals
 
-from .contact_force import contact_frame_forces
+from .contact_force import contact_frame_forces, to_world
 
 LOAD, CONE, MARGIN, SPEED = range(4)
 CONE_TOLERANCE = 1e-3
@@ -49,7 +49,7 @@ LIFT_MARGIN = 1e-3  # m
 @dataclass(frozen=True)
 class Soles:
     """The feet of a scene: body ids, their sphere geoms, sole polygons (foot axes) and each
-    foot's mu; for the compiled state (:func:`sole_state`), the foot of each geom of the model
+    foot's mu; for the compiled state (:func:`sole_states`), the foot of each geom of the model
     (``foot_index``, -1: not a sole sphere) and each sole's edges (``edges``, feet x k x 4: an
     edge's first vertex and its unit outward normal, a sole with fewer edges padded with copies
     of its first)."""
@@ -89,7 +89,7 @@ centre of mass, velocity (angular, then linear, world axes, at the centre of mas
 
 @njit(cache=True)
 def sole_states(forces, frame, pos, geom, foot_index, feet, edges, state):
-    """Kernel of :func:`sole_state` (module docstring): ``forces`` each contact's force in its
+    """Kernel of :class:`SoleSensor` (module docstring): ``forces`` each contact's force in its
     contact frame (ncon x 3), ``frame``, ``pos`` and ``geom`` MuJoCo's contacts' frames,
     positions and geom pairs, ``feet`` one row per foot (``FOOT_COLUMNS``); writes ``state``
     (feet x 4)."""
@@ -102,12 +102,11 @@ def sole_states(forces, frame, pos, geom, foot_index, feet, edges, state):
         if k < 0:
             continue
         normal, t1, t2 = forces[c, 0], forces[c, 1], forces[c, 2]
-        f = np.empty(3)
-        for j in range(3):
-            f[j] = frame[c, j] * normal + frame[c, 3 + j] * t1 + frame[c, 6 + j] * t2
-        sign = 1.0 if f[2] >= 0.0 else -1.0
-        for j in range(3):
-            total[k, j] += sign * f[j]
+        fx, fy, fz = to_world(frame, c, normal, t1, t2)
+        sign = 1.0 if fz >= 0.0 else -1.0
+        total[k, 0] += sign * fx
+        total[k, 1] += sign * fy
+        total[k, 2] += sign * fz
         for i in range(2):  # the contact point in the foot's axes
             local = 0.0
             for j in range(3):
@@ -130,30 +129,47 @@ def sole_states(forces, frame, pos, geom, foot_index, feet, edges, state):
             state[k, MARGIN] = margin
 
 
-def sole_state(model: mujoco.MjModel, data: mujoco.MjData, soles: Soles) -> np.ndarray:
-    """(feet, 4): load, cone, margin and speed of each foot now (module docstring)."""
-    n = len(soles.bodies)
-    feet = np.empty((n, FOOT_COLUMNS))
-    bodies = list(soles.bodies)
-    feet[:, ROTATION:POSITION] = data.xmat[bodies]
-    feet[:, POSITION:CENTRE] = data.xpos[bodies]
-    feet[:, CENTRE:TWIST] = data.xipos[bodies]
-    for k, body in enumerate(bodies):
-        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, feet[k, TWIST:FRICTION], 0)
-    feet[:, FRICTION] = soles.friction
-    contact = data.contact
-    forces = np.empty((data.ncon, 3))
-    contact_frame_forces(data.efc_force, contact.efc_address, contact.dim, forces)
-    state = np.empty((n, 4))
-    sole_states(forces, contact.frame, contact.pos, contact.geom, soles.foot_index, feet, soles.edges, state)
-    return state
+class SoleSensor:
+    """The soles' states of a scene (module docstring), read after each physics step into
+    buffers allocated once."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, soles: Soles):
+        self.model, self.data, self.soles = model, data, soles
+        n = len(soles.bodies)
+        self._bodies = list(soles.bodies)
+        self._feet = np.empty((n, FOOT_COLUMNS))
+        self._feet[:, FRICTION] = soles.friction
+        self._forces = np.empty((0, 3))
+        self.state = np.empty((n, 4))
+
+    def read(self) -> np.ndarray:
+        """(feet, 4): load, cone, margin and speed of each foot now; ``state``, overwritten by
+        the next read."""
+        model, data, feet = self.model, self.data, self._feet
+        feet[:, ROTATION:POSITION] = data.xmat[self._bodies]
+        feet[:, POSITION:CENTRE] = data.xpos[self._bodies]
+        feet[:, CENTRE:TWIST] = data.xipos[self._bodies]
+        for k, body in enumerate(self._bodies):
+            mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, feet[k, TWIST:FRICTION], 0)
+        if self._forces.shape[0] < data.ncon:
+            self._forces = np.empty((2 * data.ncon, 3))
+        forces = self._forces[:data.ncon]
+        contact = data.contact
+        contact_frame_forces(data.efc_force, contact.efc_address, contact.dim, forces)
+        sole_states(forces, contact.frame, contact.pos, contact.geom, self.soles.foot_index, feet,
+                    self.soles.edges, self.state)
+        return self.state
 
 
-def worst(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Two sole states combined worst-first: smallest load and margin, largest cone and speed."""
-    out = np.maximum(a, b)
-    out[:, [LOAD, MARGIN]] = np.minimum(a, b)[:, [LOAD, MARGIN]]
-    return out
+@njit(cache=True)
+def worst(into, now):
+    """Kernel: two sole states combined worst-first into ``into``: smallest load and margin,
+    largest cone and speed."""
+    for k in range(into.shape[0]):
+        into[k, LOAD] = min(into[k, LOAD], now[k, LOAD])
+        into[k, CONE] = max(into[k, CONE], now[k, CONE])
+        into[k, MARGIN] = min(into[k, MARGIN], now[k, MARGIN])
+        into[k, SPEED] = max(into[k, SPEED], now[k, SPEED])
 
 
 class HeldContactLog:
@@ -164,6 +180,8 @@ class HeldContactLog:
 
     def __init__(self, scene, floor: np.ndarray, feet: np.ndarray, soles: np.ndarray):
         self.scene, self.floor, self.feet, self.soles = scene, floor, feet, soles
+        self._sensor = SoleSensor(scene.model, scene.data, scene.soles)
+        self._bodies = list(scene.foot_bodies)
         self._step = 0
         self._first = True
 
@@ -176,14 +194,17 @@ class HeldContactLog:
     def add_state(self, k: int) -> None:
         """Start control step k: the held contacts' frame positions now."""
         self._step, self._first = k, True
-        self.feet[k] = self.scene.data.xpos[list(self.scene.foot_bodies)]
+        self.feet[k] = self.scene.data.xpos[self._bodies]
 
     def add_substep(self, floor_force: np.ndarray, timestep: float) -> None:
         """A physics step of the current control step: the floor's force on the robot, the soles."""
-        scene, k = self.scene, self._step
+        k = self._step
         self.floor[k] += floor_force * timestep
-        now = sole_state(scene.model, scene.data, scene.soles)
-        self.soles[k] = now if self._first else worst(self.soles[k], now)
+        now = self._sensor.read()
+        if self._first:
+            self.soles[k] = now
+        else:
+            worst(self.soles[k], now)
         self._first = False
 
     def truncated(self, steps: int) -> HeldContactLog:

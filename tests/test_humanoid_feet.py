@@ -16,7 +16,7 @@ from impactqp.sim.humanoid_feet import (
     Soles,
     lift_onset,
     slip_onset,
-    sole_state,
+    SoleSensor,
     worst,
 )
 
@@ -42,7 +42,7 @@ def tiny_scene():
 
 def reference_sole_state(model, data, soles):
     """The sole states of the module docstring, contact by contact from MuJoCo's own
-    ``mj_contactForce`` and numpy: the plain twin of the compiled ``sole_state``."""
+    ``mj_contactForce`` and numpy: the plain twin of the compiled ``SoleSensor``."""
     n = len(soles.bodies)
     force, moment, speed = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros(n)
     wrench, twist = np.zeros(6), np.zeros((n, 6))
@@ -76,13 +76,21 @@ def run(wrench, seconds, settle=0.2):
     """Stand for ``settle`` s, then apply ``wrench`` (force, moment at the body's centre of mass):
     the sole states after the settling, worst per 1 ms."""
     model, data, soles = tiny_scene()
+    sensor = SoleSensor(model, data, soles)
     states, step = [], None
     for k in range(int(round((settle + seconds) / model.opt.timestep))):
         data.xfrc_applied[1] = wrench if k * model.opt.timestep >= settle else 0.0
         mujoco.mj_step(model, data)
-        now = sole_state(model, data, soles)
-        np.testing.assert_allclose(now, reference_sole_state(model, data, soles), rtol=1e-12, atol=1e-12)
-        step = now if step is None else worst(step, now)
+        now = sensor.read()
+        reference = reference_sole_state(model, data, soles)
+        np.testing.assert_allclose(now, reference, rtol=1e-12, atol=1e-12)
+        if step is None:
+            step = now.copy()
+        else:
+            before = step.copy()
+            worst(step, now)
+            np.testing.assert_array_equal(step[:, [LOAD, MARGIN]], np.minimum(before, now)[:, [LOAD, MARGIN]])
+            np.testing.assert_array_equal(step[:, [CONE, SPEED]], np.maximum(before, now)[:, [CONE, SPEED]])
         if k % 2 == 1:
             if k * model.opt.timestep >= settle:
                 states.append(step)

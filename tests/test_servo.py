@@ -11,7 +11,7 @@ from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.max_speed import standing_wrenches
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
 from impactqp.controller.model.robot import PandaModel
-from impactqp.sim.humanoid_feet import LOAD, lift_onset, slip_onset, sole_state
+from impactqp.sim.humanoid_feet import LOAD, SoleSensor, lift_onset, slip_onset
 from impactqp.sim.humanoid_scene import build_humanoid_scene
 from impactqp.sim.runner import DEFAULT_CONTROL_PERIOD, SERVO_GAIN, SETTLE, SINK
 from impactqp.sim.plant import PlantParameters
@@ -140,13 +140,14 @@ def test_the_standing_g1_shows_no_foot_onset(stance):
     start[2] -= SINK
     scene.set_state(start)
     servo = standing_servo(scene, robot)
+    sensor = SoleSensor(scene.model, scene.data, scene.soles)
     states = []
     for k in range(300):
         scene.data.qfrc_applied[scene.base_nv:] = servo.torque(np.zeros(robot.n_joints), DEFAULT_CONTROL_PERIOD)
         for _ in range(2):
             mujoco.mj_step(scene.model, scene.data)
         if k * DEFAULT_CONTROL_PERIOD >= SETTLE:
-            states.append(sole_state(scene.model, scene.data, scene.soles))
+            states.append(sensor.read().copy())
     states = np.array(states)
     assert np.all(states[..., LOAD] > 0.0)
     assert not slip_onset(states).any() and not lift_onset(states).any()
