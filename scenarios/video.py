@@ -64,6 +64,10 @@ FRAMES_PER_SECOND = 25
 VIDEO_SUFFIXES = (".gif",)
 OVERLAY_METHOD = "crb"
 SHOULDER = np.array([0.0, 0.0, 0.45])  # m: a point above an arm's base the camera keeps in view
+OFFSCREEN_SAMPLES = 0
+"""Multisampling of the offscreen frames (``visual/quality/offsamples``, MuJoCo's default 4): off,
+since a software renderer (Mesa's llvmpipe behind EGL on a machine without a GPU) spends more
+than half of each frame on it, and a GIF's 256 colours hide the jagged edges it smooths."""
 
 
 def offscreen_backend_problem() -> str | None:
@@ -191,6 +195,7 @@ def render_frames(render: RenderScene, trial, camera: mujoco.MjvCamera, samples,
 
     configurations = configurations_of(trial)
     model, data = render.model, mujoco.MjData(render.model)
+    model.vis.quality.offsamples = OFFSCREEN_SAMPLES
     height, width = frame_size
     frames = []
     with mujoco.Renderer(model, height, width) as renderer:

@@ -91,7 +91,7 @@ def reference_impact(W, n, v, mu, e, model, with_least_speed=False):
             event.terminal = True
             events.append(event)
         solution = solve_ivp(rhs, (p, p + 20 * scale), y, method="DOP853", events=events, args=(rate_t,),
-                             max_step=scale / 100, dense_output=with_least_speed, **TOLERANCES)
+                             max_step=scale / 10, dense_output=with_least_speed, **TOLERANCES)
         fired = [k for k, times in enumerate(solution.t_events) if len(times)]
         k = min(fired, key=lambda k: solution.t_events[k][0])
         if with_least_speed:
