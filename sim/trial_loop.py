@@ -35,6 +35,7 @@ from typing import Protocol
 import mujoco
 import numpy as np
 import pinocchio as pin
+from numba import njit
 
 from impactqp.controller.model.validation import BadInputError
 
@@ -44,6 +45,26 @@ from .scene import MujocoScene, to_pinocchio
 from .servo import ComputedTorqueServo, JointImpedanceServo, StandingSupport
 
 CLEARANCE_SPEED = 5.0
+
+
+@njit(cache=True)
+def all_finite(x) -> bool:
+    """Whether every entry of the vector x is finite (one compiled pass: a tenth of
+    ``np.isfinite(x).all()`` on a joint vector, in the loop's every period)."""
+    for value in x:
+        if not np.isfinite(value):
+            return False
+    return True
+
+
+@njit(cache=True)
+def any_nonzero(rows) -> bool:
+    """Whether any entry of the 2-D array ``rows`` is not zero (``rows.any()``, compiled)."""
+    for i in range(rows.shape[0]):
+        for j in range(rows.shape[1]):
+            if rows[i, j] != 0.0:
+                return True
+    return False
 
 
 class JointVelocityCommand(Protocol):
@@ -153,7 +174,7 @@ class ServoedPlant:
             # (at up to CLEARANCE_SPEED m/s): the wall's normal n and the clearance plus n . point,
             # the bound of n . p for a centre p
             clearance = scene.tool.geometry.bounding_radius + CLEARANCE_SPEED * control_period
-            self._wall_normal = scene.surface.normal
+            self._wall_normal = tuple(float(x) for x in scene.surface.normal)
             self._wall_bound = clearance + float(scene.surface.normal @ scene.surface.point)
             self.contact_geom, environment = scene.tool_geom, (scene.wall_geom,)
         else:
@@ -184,7 +205,8 @@ class ServoedPlant:
         torque = self.servo.torque(dq_cmd, self.control_period)
         data.qfrc_applied[:] = torque
         mujoco.mj_step2(model, data)
-        if float(self._wall_normal @ data.geom_xpos[tool]) > self._wall_bound:
+        (n0, n1, n2), (x, y, z) = self._wall_normal, data.geom_xpos[tool].tolist()
+        if n0 * x + n1 * y + n2 * z > self._wall_bound:
             # the tool cannot reach the wall within this period: no contact force to log
             mujoco.mj_step(model, data, self.substeps - 1)
             return torque
@@ -192,7 +214,8 @@ class ServoedPlant:
         for i in range(self.substeps):
             if i > 0:
                 mujoco.mj_step(model, data)
-            add(force[i])
+            if data.ncon:
+                add(force[i])
         return torque
 
     def _advance_impedance(self, dq_cmd: np.ndarray, force: np.ndarray) -> np.ndarray:
@@ -206,7 +229,8 @@ class ServoedPlant:
             data.qfrc_applied[:] = servo.torque(dq_cmd, self.control_period) if i == 0 else servo.torque_at(i * h)
             first = data.qfrc_applied.copy() if i == 0 else first
             mujoco.mj_step2(model, data)
-            add(force[i])
+            if data.ncon:
+                add(force[i])
         return first
 
     def _advance_standing(self, dq_cmd: np.ndarray, force: np.ndarray, held: HeldContactLog) -> np.ndarray:
@@ -283,12 +307,12 @@ def run_loop(plant: ServoedPlant, source: CommandSource, ending: Ending) -> Loop
             if ending.hold:
                 plant.servo.hold()
         command = np.asarray(command_of(q[k].copy(), dq[k].copy()).dq_cmd, dtype=float)
-        if command.shape != (joints,) or not np.isfinite(command).all():
+        if command.shape != (joints,) or not all_finite(command):
             raise ValueError(f"control step {k}: dq_cmd must be {joints} finite values, got {command}")
         dq_cmd[k] = command
         rows_k = force[k * substeps:(k + 1) * substeps]
         tau[k] = advance(command, rows_k, held)
-        if watch and first_contact is None and rows_k.any():
+        if watch and first_contact is None and any_nonzero(rows_k):
             first_contact = k
             stop_at = k + ending.stop_after if ending.stop_after is not None else None
             end = k + ending.after

@@ -4,6 +4,9 @@ a fixed-base arm and of a robot on held contacts, and the servoed plant's period
 import numpy as np
 import pinocchio as pin
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from conftest import JOINTS, g1_model
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
@@ -16,7 +19,16 @@ from impactqp.sim.trial_sources import CartesianApproachCommand
 from impactqp.sim.humanoid_scene import build_humanoid_scene
 from impactqp.sim.scene import build_scene
 from impactqp.sim.servo import StandingSupport
-from impactqp.sim.trial_loop import BLEND_CROSSOVER, ControllerSource, Ending, ServoedPlant, VelocityCommand, run_loop
+from impactqp.sim.trial_loop import (
+    BLEND_CROSSOVER,
+    ControllerSource,
+    Ending,
+    ServoedPlant,
+    VelocityCommand,
+    all_finite,
+    any_nonzero,
+    run_loop,
+)
 
 ROBOT = PandaModel()
 GRAVITY = np.array([0.0, 0.0, -9.81])
@@ -88,6 +100,30 @@ def test_a_command_of_the_wrong_size_is_an_error():
 
     with pytest.raises(ValueError, match=f"{JOINTS} finite values"):
         run_loop(plant, Short(), Ending(3))
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_a_non_finite_command_is_an_error(bad):
+    scene = build_scene()
+    plant = ServoedPlant(scene, 1e-3)
+    plant.reset(PANDA.postures["elbow_up"].q, np.zeros(JOINTS))
+
+    class NonFinite:
+        def step(self, q, dq):
+            command = np.zeros(JOINTS)
+            command[-1] = bad
+            return VelocityCommand(command)
+
+    with pytest.raises(ValueError, match=f"{JOINTS} finite values"):
+        run_loop(plant, NonFinite(), Ending(3))
+
+
+@settings(max_examples=200)
+@given(arrays(np.float64, st.integers(0, 9), elements=st.sampled_from([0.0, -0.0, 1e-300, -2.5, np.nan, np.inf, -np.inf])))
+def test_the_compiled_checks_are_numpys(x):
+    assert all_finite(x) == bool(np.isfinite(x).all())
+    rows = np.resize(x, (len(x) // 3, 3)) if len(x) >= 3 else np.zeros((0, 3))
+    assert any_nonzero(rows) == bool(rows.any())
 
 
 def test_a_period_that_is_not_a_whole_number_of_timesteps_is_bad_input():
