@@ -211,14 +211,18 @@ class PlantParameters:
 
     def physical(self) -> "PlantParameters":
         """The same plant with a perfect sensor: what the simulation itself needs (this plant
-        itself when its sensor is perfect already)."""
-        perfect = dict(
-            sensor_delay=0.0, sensor_velocity_scale=1.0, sensor_torque_offset=(), sensor_velocity_filter=0.0,
-            sensor_joint_velocity_scale=(), sensor_velocity_step=(),
-        )
-        if all(getattr(self, name) == value for name, value in perfect.items()):
-            return self
-        return replace(self, **perfect)
+        itself when its sensor is perfect already). Made once per plant: a diagnosis asks it
+        for every trial of every replay."""
+        made = self.__dict__.get("_physical")
+        if made is None:
+            perfect = dict(
+                sensor_delay=0.0, sensor_velocity_scale=1.0, sensor_torque_offset=(), sensor_velocity_filter=0.0,
+                sensor_joint_velocity_scale=(), sensor_velocity_step=(),
+            )
+            same = all(getattr(self, name) == value for name, value in perfect.items())
+            made = self if same else replace(self, **perfect)
+            object.__setattr__(self, "_physical", made)  # not a field: equality and hash ignore it
+        return made
 
     # ------------------------------------------------------------------ JSON
     @classmethod

@@ -1,6 +1,7 @@
 """Plant parameters: validated JSON overrides that change the MuJoCo physics as expected."""
 
 import json
+import pickle
 
 import numpy as np
 import pinocchio as pin
@@ -201,4 +202,7 @@ def test_the_physical_plant_keeps_the_physics_and_drops_the_sensor():
                              sensor_torque_offset=(0.5,) * 7, sensor_velocity_step=(0.004,) * 7)
     physical = faulty.physical()
     assert physical == PlantParameters(armature=(0.1,) * 7)
-    assert physical.physical() == physical
+    assert physical.physical() is physical and faulty.physical() is physical  # made once
+    assert faulty != physical and hash(physical) == hash(PlantParameters(armature=(0.1,) * 7))
+    again = pickle.loads(pickle.dumps(faulty))  # the way to a diagnosis' worker processes
+    assert again == faulty and again.physical() == physical
