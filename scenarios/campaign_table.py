@@ -31,7 +31,6 @@ from impactqp.controller.model.jump_kernels import HELD_CONTACT_METHODS
 from impactqp.controller.model.robot_description import RobotDescription
 from impactqp.sim.trial_result import TrialResult
 
-from .campaign_figures import CampaignFigures
 
 HELD_CONTACT_PREDICTORS = (*HELD_CONTACT_METHODS, "momentum")
 """The predictors a robot with held contacts' table shows: its methods and the momentum law."""
@@ -207,8 +206,12 @@ class Table1:
 
     def write_figures(self, out: Path, subject: str = "") -> list[Path]:
         """The figures (``scenarios.campaign_figures``, their titles naming ``subject``: the robot
-        and its tool) of a layout with figures, else none."""
-        return CampaignFigures(self, subject).write(out) if self.figures else []
+        and its tool) of a layout with figures, else none (matplotlib loads only then)."""
+        if not self.figures:
+            return []
+        from .campaign_figures import CampaignFigures
+
+        return CampaignFigures(self, subject).write(out)
 
     def text(self) -> str:
         """The table as text: a Markdown table or aligned text, as its layout says (errors in rad/s)."""

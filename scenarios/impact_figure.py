@@ -10,6 +10,8 @@ range holds the velocities, the predictions and the limits when the limits are w
 :data:`LIMIT_IN_VIEW` times the largest velocity; otherwise the limit lines stay drawn outside
 the range and the panel says "limit +-X off scale". The title names the robot, the tool, the
 posture and the speeds. Written atomically (``scenarios.campaign_figures.save_figure``).
+Matplotlib (1 s to import) loads only when a figure is drawn: a trial's command imports this
+module for its labels and its suffix check.
 """
 
 from __future__ import annotations
@@ -17,15 +19,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from impactqp.controller.model.validation import BadInputError  # noqa: E402
-
-from .campaign_figures import save_figure  # noqa: E402
+from impactqp.controller.model.validation import BadInputError
 
 BEFORE_MS = 30.0
 AFTER_MS = 60.0
@@ -70,6 +66,8 @@ def shown_joints(trial, dq_max: np.ndarray) -> list[int]:
 
 def velocity_figure(trial, label: ImpactLabel):
     """The figure of the module docstring for ``trial`` (``sim.trial_result.TrialResult``)."""
+    from .campaign_figures import plt
+
     robot = label.robot
     t_ms = (trial.log.t - trial.impact.t_contact_start) * 1e3
     window = (t_ms >= -BEFORE_MS) & (t_ms <= AFTER_MS)
@@ -120,5 +118,7 @@ def _y_range(values: np.ndarray, limit: float) -> tuple[float, float]:
 
 def write_velocity_figure(trial, label: ImpactLabel, path: str | Path) -> Path:
     """Write :func:`velocity_figure` to ``path`` (format by suffix), atomically."""
+    from .campaign_figures import save_figure
+
     path = check_figure_suffix(path)
     return save_figure(velocity_figure(trial, label), path)
