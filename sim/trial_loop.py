@@ -49,8 +49,8 @@ CLEARANCE_SPEED = 5.0
 
 @njit(cache=True)
 def all_finite(x) -> bool:
-    """Whether every entry of the vector x is finite (one compiled pass: a tenth of
-    ``np.isfinite(x).all()`` on a joint vector, in the loop's every period)."""
+    """Whether every entry of the vector x is finite (``np.isfinite(x).all()`` in one compiled
+    pass, without its temporary array: the loop asks it every period)."""
     for value in x:
         if not np.isfinite(value):
             return False
