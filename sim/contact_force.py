@@ -87,6 +87,14 @@ class ContactForces:
         self.environment = np.array(environment, dtype=np.int64)
         self._no_floor = np.zeros(0)
 
+    def prepare(self) -> None:
+        """Load (or compile) the kernel now, on no contact (``ServoedPlant.prepare``)."""
+        data, contact = self.data, self.data.contact
+        rows = slice(0, 0)
+        for floor in (self._no_floor, np.zeros(3)):
+            contact_force_sums(data.efc_force[rows], contact.efc_address[rows], contact.dim[rows], contact.frame[rows],
+                               contact.geom[rows], self.environment, np.zeros(3), floor)
+
     def add(self, wall: np.ndarray, floor: np.ndarray | None = None) -> None:
         """Adds the current step's force on the robot to ``wall``; given ``floor``, the contacts
         that do not touch the wall go to ``floor`` instead."""

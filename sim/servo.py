@@ -192,6 +192,14 @@ class ComputedTorqueServo:
         """The reference's joint velocities (a view of the servo's buffer)."""
         return self._reference[1]
 
+    def prepare(self) -> None:
+        """Load (or compile) the servo's kernels now, on copies of its buffers: a kernel's first
+        call loads it from numba's cache, milliseconds that must not fall into a real-time
+        period. The servo's state is left as it was."""
+        data, reference = self.data, self._reference.copy()
+        reference_step(reference[1].copy(), data.qpos[self.coordinates], data.qvel[self.joints], 1.0, self.kp,
+                       self.kd, reference, self._errors.copy())
+
     def reset(self, q: np.ndarray, dq: np.ndarray) -> None:
         """The reference at the joint state (q, dq)."""
         self._reference[0] = q
@@ -254,6 +262,12 @@ class JointImpedanceServo(ComputedTorqueServo):
         reference_step(dq_cmd, data.qpos, data.qvel, dt, 0.0, 0.0, self._reference, self._errors)
         period[2] = self._errors[2]
         return self.torque_at(0.0)
+
+    def prepare(self) -> None:
+        super().prepare()
+        data = self.data
+        impedance_torque(self.stiffness, self._M, self._period.copy(), 0.0, data.qpos, data.qvel, data.qfrc_bias,
+                         self._torque.copy())
 
     def torque_at(self, elapsed: float) -> np.ndarray:
         """The torque ``elapsed`` s into the period that the last :meth:`torque` began, for the

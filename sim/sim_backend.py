@@ -35,6 +35,7 @@ class SimRobot(RobotInterface):
     ):
         self.plant = ServoedPlant(scene, period, gain=gain, standing=standing)
         self.plant.reset(np.asarray(q0, float), np.asarray(dq0, float))
+        self.plant.prepare()  # before real time
         self.scene = scene
         self.period = float(period)
         self.paced = paced

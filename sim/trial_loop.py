@@ -37,7 +37,7 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import BadInputError, all_finite
 
 from .contact_force import ContactForces
 from .humanoid_feet import HeldContactLog
@@ -45,16 +45,6 @@ from .scene import MujocoScene, to_pinocchio
 from .servo import ComputedTorqueServo, JointImpedanceServo, StandingSupport
 
 CLEARANCE_SPEED = 5.0
-
-
-@njit(cache=True)
-def all_finite(x) -> bool:
-    """Whether every entry of the vector x is finite (``np.isfinite(x).all()`` in one compiled
-    pass, without its temporary array: the loop asks it every period)."""
-    for value in x:
-        if not np.isfinite(value):
-            return False
-    return True
 
 
 @njit(cache=True)
@@ -180,6 +170,14 @@ class ServoedPlant:
         else:
             self.contact_geom, environment = scene.hand_geom, (scene.wall_geom, *scene.ground_geoms)
         self.contact_forces = ContactForces(scene.model, scene.data, environment)
+
+    def prepare(self) -> None:
+        """Load (or compile) the compiled kernels of a period now, the plant's state left as it
+        was: the first call of each loads it from numba's cache (or compiles it), milliseconds
+        that, on a real-time backend (``sim.sim_backend.SimRobot``), would fall into its first
+        period or its first contact's."""
+        self.servo.prepare()
+        self.contact_forces.prepare()
 
     def reset(self, q0: np.ndarray, dq0: np.ndarray | None = None, servo_reference=None) -> None:
         """Put the plant at the Pinocchio state (q0, dq0) (None: at rest); the servo reference at

@@ -6,7 +6,7 @@ from hypothesis import strategies as st
 
 from conftest import JOINTS
 from impactqp.controller.model.robot import ACCELERATION_LIMIT, JERK_LIMIT, VELOCITY_LIMIT
-from impactqp.controller.runtime.command_filter import CommandFilter
+from impactqp.controller.runtime.command_filter import CommandFilter, acceleration_for
 
 DT = 1e-3
 TOL = 1e-9
@@ -78,8 +78,53 @@ def test_brake_from_full_speed_stops_within_the_limits():
 def test_velocity_change_and_its_inverse_agree():
     command_filter = make_filter()
     a = np.linspace(-3.0, 3.0, 61)[:, None] * ACCELERATION_LIMIT
-    assert np.allclose(command_filter.acceleration_for(command_filter.velocity_change(a)), a, rtol=1e-12, atol=1e-9)
+    change = command_filter.velocity_change(a)
+    inverse = np.array([[acceleration_for(c, s, DT) for c, s in zip(row, command_filter.jerk_step)] for row in change])
+    assert np.allclose(inverse, a, rtol=1e-12, atol=1e-9)
     # g(a) = dt (a + (a - s) + ...) directly for one value
     s = JERK_LIMIT * DT
     a1 = 2.5 * s
     assert np.allclose(command_filter.velocity_change(a1), DT * (a1 + (a1 - s) + (a1 - 2 * s)))
+
+
+class NumpyFilter:
+    """The filter of the module docstring in numpy, all joints at once: the plain twin of the
+    compiled ``filter_step``."""
+
+    def __init__(self, start):
+        self.dq, self.ddq = np.array(start, float), np.zeros(JOINTS)
+        self.s = JERK_LIMIT * DT
+
+    def inverse(self, change):
+        budget = np.abs(change) / DT
+        m = np.floor(0.5 * (np.sqrt(1.0 + 8.0 * budget / self.s) - 1.0))
+        return np.sign(change) * (budget + 0.5 * self.s * m * (m + 1.0)) / (m + 1.0)
+
+    def __call__(self, target):
+        target = target if np.all(np.isfinite(target)) else np.zeros(JOINTS)
+        dq, ddq, v = self.dq, self.ddq, VELOCITY_LIMIT
+        lower = np.maximum(-ACCELERATION_LIMIT, ddq - self.s)
+        upper = np.minimum(ACCELERATION_LIMIT, ddq + self.s)
+        velocity_lower = np.maximum(-self.inverse(v + dq), (-v - dq) / DT)
+        velocity_upper = np.minimum(self.inverse(v - dq), (v - dq) / DT)
+        lower, upper = np.clip(velocity_lower, lower, upper), np.clip(velocity_upper, lower, upper)
+        a = np.clip(self.inverse(target - dq), lower, upper)
+        self.dq, self.ddq = dq + a * DT, a
+        return self.dq.copy()
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.floats(-1.0, 1.0), min_size=JOINTS, max_size=JOINTS), requests)
+def test_the_compiled_filter_is_its_numpy_twin_bit_for_bit(fraction, sequence):
+    start = np.array(fraction) * VELOCITY_LIMIT
+    command_filter, twin = make_filter(), NumpyFilter(start)
+    command_filter.reset(start)
+    for request in sequence:
+        np.testing.assert_array_equal(command_filter(np.array(request)), twin(np.array(request)))
+        np.testing.assert_array_equal(command_filter.ddq, twin.ddq)
+
+
+def test_a_request_of_the_wrong_size_is_a_request_to_stop():
+    command_filter, twin = make_filter(), NumpyFilter(0.5 * VELOCITY_LIMIT)
+    command_filter.reset(0.5 * VELOCITY_LIMIT)
+    np.testing.assert_array_equal(command_filter(np.ones(JOINTS + 1)), twin(np.zeros(JOINTS)))

@@ -25,7 +25,6 @@ from impactqp.sim.trial_loop import (
     Ending,
     ServoedPlant,
     VelocityCommand,
-    all_finite,
     any_nonzero,
     run_loop,
 )
@@ -120,8 +119,7 @@ def test_a_non_finite_command_is_an_error(bad):
 
 @settings(max_examples=200)
 @given(arrays(np.float64, st.integers(0, 9), elements=st.sampled_from([0.0, -0.0, 1e-300, -2.5, np.nan, np.inf, -np.inf])))
-def test_the_compiled_checks_are_numpys(x):
-    assert all_finite(x) == bool(np.isfinite(x).all())
+def test_the_compiled_check_is_numpys(x):
     rows = np.resize(x, (len(x) // 3, 3)) if len(x) >= 3 else np.zeros((0, 3))
     assert any_nonzero(rows) == bool(rows.any())
 

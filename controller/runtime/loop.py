@@ -43,7 +43,7 @@ import numpy as np
 
 from impactqp.controller.measured.dataset_robot import BASE_COLUMNS
 from impactqp.controller.measured.trial_log import TrialLog
-from impactqp.controller.model.validation import BadInputError
+from impactqp.controller.model.validation import BadInputError, all_finite
 
 from .command_filter import CommandFilter
 from .interface import RobotInterface, RobotState
@@ -87,7 +87,7 @@ class Watchdog:
             self.trip(f"malformed state: {problem}")
             return False
         parts = [state.q, state.dq, state.tau] + [x for x in (state.tau_ext, state.base) if x is not None]
-        finite = all(np.all(np.isfinite(x)) for x in parts) and math.isfinite(state.t)
+        finite = all_finite(*parts) and math.isfinite(state.t)
         if not finite:
             self.trip(f"non-finite state at t = {state.t}")
         elif state.t <= self._last_t:
