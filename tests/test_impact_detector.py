@@ -40,6 +40,25 @@ def gravity_hold(robot):
     return lambda q, dq: pin.computeGeneralizedGravity(robot.model, data, q) + np.array([3, -2, 1, 2, 0.5, 0.3, 0.2])
 
 
+@settings(max_examples=50)
+@given(st.integers(0, 2**32 - 1))
+def test_the_observers_momentum_is_m_dq_and_its_drift_c_transpose_dq_minus_g(robot, seed):
+    """p = M(q) dq (the mass matrix of CRBA, both triangles) and C(q, dq)^T dq - g(q), at random
+    states: the observer forms neither M nor M dq directly."""
+    rng = np.random.default_rng(seed)
+    model, data = robot.model, robot.model.createData()
+    q = rng.uniform(model.lowerPositionLimit, model.upperPositionLimit)
+    dq = rng.uniform(-2.0, 2.0, robot.nv)
+    observer = MomentumObserver(robot, DT)
+    p = observer._momentum_and_drift(q, dq)
+    M = pin.crba(model, data, q)
+    M = np.triu(M) + np.triu(M, 1).T
+    C = pin.computeCoriolisMatrix(model, data, q, dq)
+    np.testing.assert_allclose(p, M @ dq, rtol=0, atol=1e-12 * (1 + np.abs(M).max() * np.abs(dq).max()))
+    drift = C.T @ dq - pin.computeGeneralizedGravity(model, data, q)
+    np.testing.assert_allclose(observer._drift, drift, rtol=0, atol=1e-12 * (1 + np.abs(drift).max()))
+
+
 def run_observer(robot, tau_ext, steps):
     observer = MomentumObserver(robot, DT)
     tau = gravity_hold(robot)

@@ -60,6 +60,7 @@ class MomentumObserver:
         self._p0 = np.zeros(robot.nv)
         self._integral = np.zeros(robot.nv)
         self._drift = np.zeros(robot.nv)  # C^T dq - g of the previous sample
+        self._gravity, self._zero = np.zeros(robot.nv), np.zeros(robot.nv)
         self._started = False
 
     @property
@@ -68,13 +69,14 @@ class MomentumObserver:
         return int(np.ceil(OBSERVER_SETTLE / (self.gain * self.dt)))
 
     def _momentum_and_drift(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """p = M(q) dq, as RNEA's torque at zero velocity and acceleration dq less gravity
+        (M dq + g - g: no mass matrix formed), and the drift C^T dq - g into ``_drift``."""
         model, data = self.model, self.data
-        M = pin.crba(model, data, q)
-        M = np.triu(M) + np.triu(M, 1).T
+        g = self._gravity
+        g[:] = pin.computeGeneralizedGravity(model, data, q)
         C = pin.computeCoriolisMatrix(model, data, q, dq)
-        g = pin.computeGeneralizedGravity(model, data, q)
         np.subtract(C.T @ dq, g, out=self._drift)
-        return M @ dq
+        return pin.rnea(model, data, q, self._zero, dq) - g
 
     def reset(self, q, dq) -> None:
         self._p0 = self._momentum_and_drift(np.asarray(q, float), np.asarray(dq, float))
