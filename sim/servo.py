@@ -64,7 +64,7 @@ import pinocchio as pin
 from numba import njit
 
 from impactqp.controller.model.robot import RobotModel
-from impactqp.controller.model.max_speed import standing_wrenches
+from impactqp.controller.model.max_speed import weight_wrenches
 
 from .scene import to_pinocchio
 
@@ -116,8 +116,9 @@ class StandingSupport:
     def torques(self, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
         """tau_held (one per joint): the joint torques of the least-norm held-contact wrenches
         carrying the robot's weight in the configuration qpos (module docstring)."""
-        terms = self.robot.terms(to_pinocchio(qpos, qvel, self.base_nq)[0])
-        return terms.held_jacobian[:, self.robot.base_nv:].T @ standing_wrenches(self.robot, terms)
+        q = to_pinocchio(qpos, qvel, self.base_nq)[0]
+        held_jacobian = self.robot.held_jacobian(q)  # the kinematics alone: this runs every period
+        return held_jacobian[:, self.robot.base_nv:].T @ weight_wrenches(self.robot, q, held_jacobian)
 
     @cached_property
     def ankles(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, pin.Data]:

@@ -226,3 +226,27 @@ def test_a_contact_jacobian_of_zeros_is_singular(robot):
     assert status == NEAR_SINGULAR
     with pytest.raises(SingularPostureError, match="singular contact Jacobian"):
         robot._refuse(J, q, np.zeros(robot.nv), status, True)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_a_floating_bases_held_jacobian_alone_is_its_terms(seed):
+    """``held_jacobian(q)`` (the kinematics alone, a standing plant's every period) is
+    ``terms(q).held_jacobian`` bit for bit, at random configurations of the G1 in any order, and
+    Pinocchio's world-aligned frame Jacobians of the held contacts."""
+    from conftest import g1_model
+
+    g1 = g1_model()
+    rng = np.random.default_rng(seed)
+    model, data = g1.model, g1.model.createData()
+    for _ in range(3):
+        q = pin.neutral(model)
+        q[:3] = rng.uniform(-1.0, 1.0, 3)
+        q[3:7] = pin.Quaternion(*rng.normal(size=4)).normalized().coeffs()
+        q[7:] = rng.uniform(model.lowerPositionLimit[7:], model.upperPositionLimit[7:])
+        np.testing.assert_array_equal(g1.held_jacobian(q), g1.terms(q).held_jacobian)
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        frames = [model.getFrameId(c.frame) for c in g1.description.held_contacts]
+        expected = np.vstack([pin.getFrameJacobian(model, data, f, pin.LOCAL_WORLD_ALIGNED) for f in frames])
+        np.testing.assert_allclose(g1.held_jacobian(q), expected, rtol=0, atol=1e-12)

@@ -234,10 +234,16 @@ def joint_velocity(u: UnitImpact) -> Bound:
 
 def standing_wrenches(robot: RobotModel, terms: ModelTerms) -> np.ndarray:
     """w (6 per held contact): the least-norm foot wrenches with Jf_base^T w = g_base, the ground
-    carrying the weight."""
-    gravity = pin.computeGeneralizedGravity(robot.model, robot.data, terms.q)
+    carrying the weight (:func:`weight_wrenches` at the terms' state)."""
+    return weight_wrenches(robot, terms.q, terms.held_jacobian)
+
+
+def weight_wrenches(robot: RobotModel, q: np.ndarray, held_jacobian: np.ndarray) -> np.ndarray:
+    """The least-norm held-contact wrenches w with Jf_base^T w = g_base at the configuration q,
+    Jf = ``held_jacobian``: the ground carrying the weight."""
+    gravity = pin.computeGeneralizedGravity(robot.model, robot.data, q)
     base = slice(robot.base_nv)
-    return np.linalg.pinv(terms.held_jacobian[:, base].T) @ gravity[base]
+    return np.linalg.pinv(held_jacobian[:, base].T) @ gravity[base]
 
 
 def cone_step(force0: np.ndarray, force1: np.ndarray, mu: float) -> float:

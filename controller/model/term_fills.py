@@ -64,6 +64,7 @@ class ModelTermFills:
         self._body_data = model.createData()
         self._inverse_data = model.createData()
         self._root_joints = [j for j in range(1, model.njoints) if model.parents[j] == 0]
+        self._held_buffer: ModelTerms | None = None  # ``held_jacobian``'s
         if self.floating:
             self._prepare_floating_frames()
         if not self.floating:  # the velocities that move the contact frame, and the checks of ``arm_cycle_terms``
@@ -266,6 +267,21 @@ class ModelTermFills:
             BodyTerms(np.empty((nv, nv)), np.empty((3, nv)), np.empty(3), frames),
             fill_lazy=self._lazy_dynamics, frame_arrays=stacked,
         )
+
+    def held_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """A floating base's held contacts' Jacobian Jf at the configuration q: ``terms(q)``'s
+        ``held_jacobian``, by the same kinematics and kernel (``floating_frames_into``), without
+        the rest of the terms (M^-1, the centroidal inertia). A view of a buffer of its own that
+        the next call overwrites; q is trusted (a simulated plant's)."""
+        buffer = self._held_buffer
+        if buffer is None:
+            buffer = self._held_buffer = self.empty_terms()
+        model, data = self.model, self.data
+        pin.forwardKinematics(model, data, q, self._zero_velocity, self._zero_velocity)
+        pin.computeJointJacobians(model, data)
+        joints, frames = self._floating_frames
+        floating_frames_into(data.J, joints, frames, buffer.frame_arrays)
+        return buffer.held_jacobian
 
     def _prepare_floating_frames(self) -> None:
         """The fixed inputs of a floating base's ``floating_frames_into``, for its contact frame,
