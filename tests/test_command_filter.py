@@ -128,3 +128,19 @@ def test_a_request_of_the_wrong_size_is_a_request_to_stop():
     command_filter, twin = make_filter(), NumpyFilter(0.5 * VELOCITY_LIMIT)
     command_filter.reset(0.5 * VELOCITY_LIMIT)
     np.testing.assert_array_equal(command_filter(np.ones(JOINTS + 1)), twin(np.zeros(JOINTS)))
+
+
+def test_a_read_only_or_strided_request_is_filtered_by_the_kernel_reset_loaded():
+    """A request that is a read-only or a strided view (a command's array) is copied into the
+    one array type that ``reset`` loaded the kernel for: no compile in a control period."""
+    from impactqp.controller.runtime.command_filter import filter_step
+
+    command_filter, twin = make_filter(), NumpyFilter(np.zeros(JOINTS))
+    command_filter.reset(np.zeros(JOINTS))
+    signatures = len(filter_step.signatures)
+    read_only = np.full(JOINTS, 0.1)
+    read_only.flags.writeable = False
+    strided = np.full(2 * JOINTS, -0.1)[::2]
+    for request in (read_only, strided):
+        np.testing.assert_array_equal(command_filter(request), twin(np.array(request)))
+    assert len(filter_step.signatures) == signatures

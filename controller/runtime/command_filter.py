@@ -122,8 +122,9 @@ class CommandFilter:
 
     def __call__(self, dq_desired) -> np.ndarray:
         """The next command (a new array) for the requested velocity ``dq_desired`` (a request of
-        the wrong size is a request to stop)."""
-        target = np.asarray(dq_desired, dtype=float)
+        the wrong size is a request to stop). The request is copied into a new writable array:
+        the kernel then sees one type of array, the one ``reset`` loaded it for."""
+        target = np.array(dq_desired, dtype=float)
         if target.shape != self.state[0].shape:
             target = np.zeros(self.state.shape[1])
         filter_step(target, self.state, self.limits, self.dt)
