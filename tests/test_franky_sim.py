@@ -10,6 +10,7 @@ shows the servers' output.
 """
 
 import json
+import os
 import time
 
 import numpy as np
@@ -82,7 +83,10 @@ def session_loop(robot, model):
 def test_the_session_detects_the_wall_retracts_and_logs_through_the_franka_protocol(franky_sim, model, tmp_path, capsys):
     q0 = approach_start(model, POSTURE.q, POSTURE.surface, START_DISTANCE)
     server = franky_sim(q0)
+    own = (os.sched_getscheduler(0), os.sched_getparam(0))
     robot = FrankaRobot.connect(server.hostname, realtime=False, model=model)
+    # libfranka raised this thread to real time when it opened the robot: given back at once
+    assert (os.sched_getscheduler(0), os.sched_getparam(0)) == own
     assert robot.check_model(model) <= RobotConfig().max_model_difference
     config, loop = session_loop(robot, model)
     run_log = RunLog(str(tmp_path / "log"), log_header(config))
@@ -99,6 +103,7 @@ def test_the_session_detects_the_wall_retracts_and_logs_through_the_franka_proto
     assert np.all(distance[:detected] > -WALL_TOLERANCE)  # no earlier contact went unnoticed
     assert distance[-1] > distance[detected] + WALL_TOLERANCE  # retracted
     assert 0.5 * SPEED < session.contact_speed() <= SPEED * 1.05
+    assert (os.sched_getscheduler(0), os.sched_getparam(0)) == own  # the motion's ended: this thread's own again
     t_contact = server.contact_time()  # the server's first wall contact, on the states' clock
     assert t_contact is not None and t_contact <= session.detector.t_detect <= t_contact + WINDOW_AFTER
     write_log(run_log, RunRequest(backend="franka", choice=RobotChoice.of(ROBOT, "impact_tip"), robot_ip=server.hostname, speed=SPEED), config, result)

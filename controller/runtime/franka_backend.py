@@ -88,10 +88,12 @@ class FrankaRobot(LibfrankaRobot):
         return state_from_franka(state)
 
     def start(self) -> RobotState:
+        self.scheduling.motion_started()
         try:
             self.control = self.robot.start_joint_velocity_control(self.franka.ControllerMode.JointImpedance)
             state, _ = self.control.readOnce()
         except self.errors as error:
+            self.scheduling.motion_ended()
             raise BadInputError(f"the robot refused joint-velocity control: {error}") from None
         return state_from_franka(state)
 
@@ -100,10 +102,13 @@ class FrankaRobot(LibfrankaRobot):
 
     def stop(self) -> None:
         """Finish the motion (the loop brought the command to zero first)."""
-        if self.control is not None:
-            state, _ = self.control.readOnce()
-            self.control.writeOnce(franka_command(self.franka, np.zeros(len(state.dq)), finished=True))
-            self.control = None
+        try:
+            if self.control is not None:
+                state, _ = self.control.readOnce()
+                self.control.writeOnce(franka_command(self.franka, np.zeros(len(state.dq)), finished=True))
+                self.control = None
+        finally:
+            self.scheduling.motion_ended()
 
     def failed(self, error: BaseException) -> None:
         self.control = None  # libfranka ended the motion

@@ -19,6 +19,7 @@ read covers (``Duration`` of ``readOnce``, one period when no packet was missed)
 
 from __future__ import annotations
 
+import os
 import select
 import subprocess
 import sys
@@ -141,6 +142,38 @@ def _prints_within(child: subprocess.Popen, expected: str, limit: float) -> bool
     return False
 
 
+class ThreadScheduling:
+    """The calling thread's scheduling around libfranka. Opening a ``Robot`` raises the calling
+    thread to the highest real-time priority (SCHED_FIFO 99, wherever the system allows it, with
+    ``RealtimeConfig.kIgnore`` too) and nothing lowers it again: a process that goes on after its
+    run (a script that diagnoses its log, a test worker) would keep a real-time thread that takes
+    a whole core from every other process whenever it computes. So the thread is given its own
+    scheduling back right after the robot is opened (``opened``), libfranka's for each motion
+    (``motion_started``) and its own again when the motion ends (``motion_ended``)."""
+
+    def __init__(self):
+        self.own: tuple[int, os.sched_param] | None = None
+        self.motion: tuple[int, os.sched_param] | None = None
+
+    def opened(self, open_robot):
+        """``open_robot()`` (libfranka's constructor), the thread's scheduling kept around it."""
+        if not hasattr(os, "sched_getscheduler"):
+            return open_robot()
+        self.own = (os.sched_getscheduler(0), os.sched_getparam(0))
+        robot = open_robot()
+        self.motion = (os.sched_getscheduler(0), os.sched_getparam(0))
+        self.motion_ended()
+        return robot
+
+    def motion_started(self) -> None:
+        if self.motion is not None:
+            os.sched_setscheduler(0, *self.motion)
+
+    def motion_ended(self) -> None:
+        if self.own is not None:
+            os.sched_setscheduler(0, *self.own)
+
+
 class LibfrankaRobot(RobotInterface):
     """A connected libfranka ``Robot``: ``robot`` (the bindings' object), ``errors`` (the
     bindings' exception classes), ``reflex_errors`` (those a motion aborted by a reflex raises)
@@ -162,6 +195,7 @@ class LibfrankaRobot(RobotInterface):
         self.model_difference: float | None = None
         self.load: Load | None = None
         self.collision: CollisionThresholds | None = None
+        self.scheduling = ThreadScheduling()  # ``connect``'s: libfranka's for a motion, the thread's own between
 
     BINDINGS_MODULE = ""  # the module whose ``Robot(ip, RealtimeConfig.kIgnore)`` the probe opens
 
@@ -182,7 +216,9 @@ class LibfrankaRobot(RobotInterface):
         bindings = cls.bindings()
         answers_within(cls.BINDINGS_MODULE, ip, ANSWER_TIMEOUT)
         config = bindings.RealtimeConfig.kEnforce if realtime else bindings.RealtimeConfig.kIgnore
-        connected = cls(cls.open(bindings, ip, config, realtime), bindings, settings)
+        scheduling = ThreadScheduling()
+        connected = cls(scheduling.opened(lambda: cls.open(bindings, ip, config, realtime)), bindings, settings)
+        connected.scheduling = scheduling
         connected.configure(ip, RobotModel(cls.ROBOT) if model is None else model, thresholds)
         return connected
 
@@ -241,7 +277,9 @@ class LibfrankaRobot(RobotInterface):
 
     def failed(self, error: BaseException) -> None:
         """After a reflex: name it from the robot's errors and, when ``automatic_error_recovery``
-        is set, clear the robot's error state."""
+        is set, clear the robot's error state. The motion has ended: the thread's scheduling is
+        put back."""
+        self.scheduling.motion_ended()
         if not isinstance(error, self.reflex_errors):
             return
         try:

@@ -76,4 +76,8 @@ class PandaRobot(LibfrankaRobot):
             command = libfranka.JointVelocities([float(x) for x in np.asarray(dq_cmd)])
             return libfranka.motion_finished(command) if over else command
 
-        self.robot.control_joint_velocity(callback, libfranka.ControllerMode.kJointImpedance, False, NO_FILTER)
+        self.scheduling.motion_started()
+        try:
+            self.robot.control_joint_velocity(callback, libfranka.ControllerMode.kJointImpedance, False, NO_FILTER)
+        finally:
+            self.scheduling.motion_ended()
