@@ -40,10 +40,13 @@ def trial_residuals(f: ReplayFeatures, trial: MeasuredTrial) -> np.ndarray:
     return np.concatenate(list(residual_blocks(f, trial).values()))
 
 
-def residual_blocks(f: ReplayFeatures, trial: MeasuredTrial) -> dict[str, np.ndarray]:
+def residual_blocks(f: ReplayFeatures, trial: MeasuredTrial, spread: dict | None = None) -> dict[str, np.ndarray]:
     """The residuals of one replay in noise units per block: jump and torque (one per joint), then
     with force data impulse (3) and duration (1), and the impact trace (TRACE_LENGTH x 2 per joint, each
-    sample over its own std, ``noise.trace_std``)."""
+    sample over its own std, ``noise.trace_std``). With the trial's ``spread``
+    (``start_spread.start_spread``: block -> the replay's start spread s_i per residual), each
+    residual is divided by max(1, s_i) too: its std where the replay's start moves it more than
+    the noise does."""
     noise = trial.noise
     blocks = {"jump": (f.jump - trial.reference) / noise.jump, "torque": (f.torque - trial.torque) / noise.torque}
     if trial.impulse is not None:  # a replay without a force contact counts as a zero impulse
@@ -52,19 +55,26 @@ def residual_blocks(f: ReplayFeatures, trial: MeasuredTrial) -> dict[str, np.nda
         blocks["duration"] = np.array([(duration - trial.duration) / noise.duration])
     reference = trial.reference_trace
     blocks["trace"] = ((f.trace - reference) / trace_std(reference, noise.trace)).ravel()
+    if spread:
+        blocks = {name: value / np.maximum(spread.get(name, 0.0), 1.0) for name, value in blocks.items()}
     return blocks
 
 
-def trial_errors(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> np.ndarray:
-    """The normalised residual of each trial: root mean square of its residuals in noise units."""
-    return np.array([np.sqrt(np.mean(trial_residuals(f, t) ** 2)) for f, t in zip(features, trials)])
+def trial_errors(features: list[ReplayFeatures], trials: list[MeasuredTrial], spreads: list[dict] | None = None) -> np.ndarray:
+    """The normalised residual of each trial: root mean square of its residuals in noise units
+    (``residual_blocks``, with each trial's start spread of ``spreads`` when given)."""
+    spreads = spreads or [None] * len(trials)
+    return np.array([np.sqrt(np.mean(np.concatenate(list(residual_blocks(f, t, s).values())) ** 2))
+                     for f, t, s in zip(features, trials, spreads)])
 
 
-def fit_report(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> dict:
+def fit_report(features: list[ReplayFeatures], trials: list[MeasuredTrial], spreads: list[dict] | None = None) -> dict:
     """The normalised residual (root mean square in noise units over the trials) of every block
-    (``residual_blocks``; impulse and duration only with force data) and whether all are within
-    the noise (``noise.fits_noise``): the JSON ``fit`` and ``nominal_fit``."""
-    rows = [residual_blocks(f, t) for f, t in zip(features, trials)]
+    (``residual_blocks``, with each trial's start spread of ``spreads`` when given; impulse and
+    duration only with force data) and whether all are within the noise (``noise.fits_noise``):
+    the JSON ``fit`` and ``nominal_fit``."""
+    spreads = spreads or [None] * len(trials)
+    rows = [residual_blocks(f, t, s) for f, t, s in zip(features, trials, spreads)]
     report = {}
     for block in BLOCKS:
         values = [r[block] for r in rows if block in r]

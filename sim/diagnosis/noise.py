@@ -37,7 +37,8 @@ mean square of its residuals in noise units over the trials, and of a channel (o
 or torque, one joint's velocity or torque trace) the same over that channel's residuals; a model
 fits the noise when every block's is at most ``FIT_LIMIT`` and every channel's at most
 ``CHANNEL_LIMIT`` (a model with the right causes reads about 1 to 2: the replay's
-start state carries its own noise).
+start state carries its own noise). Where a replay is far more sensitive to its start than
+that, the fit test divides each residual by its start spread too (``start_spread``).
 """
 
 from __future__ import annotations

@@ -20,6 +20,7 @@ from .fitting import fit_report, jump_errors, trial_errors
 from .intervals import excludes_nominal, open_sides, override_intervals, parameter_intervals, without_spurious
 from .result import Diagnosis
 from .search import select_causes
+from .start_spread import start_spread
 from .timing import timing_test
 from .trials import load_trials, locate_jump_samples, replay_all
 
@@ -102,7 +103,8 @@ def diagnose(
     model, theta_intervals = _bounded(model, selected, nominal, setting, trials, jobs)
     extended_plant = model.plant(nominal)
     extended_features = replay_all(setting, extended_plant, trials)
-    fit, timing = fit_report(extended_features, trials), timing_test(extended_features, trials)
+    spreads = start_spread(setting, extended_plant, trials)
+    fit, timing = fit_report(extended_features, trials, spreads), timing_test(extended_features, trials)
     explained = selected and _explains(model, theta_intervals, nominal, fit, timing)
     steps = selection.steps if explained else [{**s, "selected": False} for s in selection.steps]
     step(4)
@@ -129,8 +131,8 @@ def diagnose(
         extended_error=float(np.mean(selection.heldout_jump_errors)),
         gain_over_floor=selection.gain_over_floor,
         fit=fit,
-        nominal_fit=fit_report(nominal_features, trials),
-        trial_residuals=trial_errors(extended_features, trials),
+        nominal_fit=fit_report(nominal_features, trials, start_spread(setting, nominal, trials)),
+        trial_residuals=trial_errors(extended_features, trials, spreads),
         timing=timing,
         extended_plant=extended_plant,
         surface=setting.surface,
@@ -160,7 +162,8 @@ def nominal_diagnosis(trials, skipped, setting, nominal: PlantParameters, nomina
     out (cross-validation), which takes two."""
     jumps = np.array([f.detected_jump for f in nominal_features])
     errors = jump_errors(nominal_features, trials)
-    fit = fit_report(nominal_features, trials)
+    spreads = start_spread(setting, nominal, trials)
+    fit = fit_report(nominal_features, trials, spreads)
     predictors, predictors_measured_impulse, predictions = predictor_errors(trials, setting)
     return Diagnosis(
         trials=trials, skipped=skipped, nominal_jumps=jumps, extended_jumps=jumps, baseline_errors=errors,
@@ -168,6 +171,6 @@ def nominal_diagnosis(trials, skipped, setting, nominal: PlantParameters, nomina
         predictors_measured_impulse=predictors_measured_impulse, predictions=predictions,
         analysis=error_analysis(trials, jumps), causes=[], steps=[], intervals={}, parameter_intervals=[],
         open_sides=[], extended_error=float(np.mean(errors)), gain_over_floor=0.0, fit=fit, nominal_fit=fit,
-        trial_residuals=trial_errors(nominal_features, trials), timing=timing_test(nominal_features, trials),
+        trial_residuals=trial_errors(nominal_features, trials, spreads), timing=timing_test(nominal_features, trials),
         extended_plant=nominal, surface=setting.surface, choice=setting.choice,
     )

@@ -49,6 +49,7 @@ from .selection import (
     screen_cause,
     significant_gain,
 )
+from .start_spread import start_spread
 from .trials import ReplaySetting, replay_all
 
 log = logging.getLogger(__name__)
@@ -124,7 +125,9 @@ class Search:
         if not branch.model.causes:
             return branch, False, False
         model = gauss_newton_polish(branch.model, self.nominal, self.setting, self.trials)[0]
-        report = fit_report(replay_all(self.setting, model.plant(self.nominal), self.trials), self.trials)
+        plant = model.plant(self.nominal)
+        spreads = start_spread(self.setting, plant, self.trials)
+        report = fit_report(replay_all(self.setting, plant, self.trials), self.trials, spreads)
         return replace(branch, model=model), report["fits_noise"], settled(report)
 
 
