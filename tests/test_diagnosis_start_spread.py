@@ -108,3 +108,15 @@ def test_the_true_plant_of_a_slip_that_ends_inside_the_impact_fits_with_its_star
     assert largest > 5.0  # the sliding trial's start moves its jump by many noise units
     for block in ("jump", "torque", "impulse", "duration", "trace"):
         assert counted[block] <= plain[block] + 1e-12
+
+
+def test_the_spread_on_two_processes_is_the_spread_on_one(sliding):
+    """The trials split over two processes (a diagnosis's ``--jobs 2``) give the same spreads, in
+    the trials' order."""
+    trials, setting, truth = sliding
+    one, two = start_spread(setting, truth, trials[:3], jobs=1), start_spread(setting, truth, trials[:3], jobs=2)
+    assert len(one) == len(two) == 3
+    for a, b in zip(one, two):
+        assert a.keys() == b.keys()
+        for name in a:
+            np.testing.assert_array_equal(a[name], b[name])

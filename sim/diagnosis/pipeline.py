@@ -103,7 +103,7 @@ def diagnose(
     model, theta_intervals = _bounded(model, selected, nominal, setting, trials, jobs)
     extended_plant = model.plant(nominal)
     extended_features = replay_all(setting, extended_plant, trials)
-    spreads = start_spread(setting, extended_plant, trials)
+    spreads = start_spread(setting, extended_plant, trials, jobs)
     fit, timing = fit_report(extended_features, trials, spreads), timing_test(extended_features, trials)
     explained = selected and _explains(model, theta_intervals, nominal, fit, timing)
     steps = selection.steps if explained else [{**s, "selected": False} for s in selection.steps]
@@ -131,7 +131,7 @@ def diagnose(
         extended_error=float(np.mean(selection.heldout_jump_errors)),
         gain_over_floor=selection.gain_over_floor,
         fit=fit,
-        nominal_fit=fit_report(nominal_features, trials, start_spread(setting, nominal, trials)),
+        nominal_fit=fit_report(nominal_features, trials, start_spread(setting, nominal, trials, jobs)),
         trial_residuals=trial_errors(extended_features, trials, spreads),
         timing=timing,
         extended_plant=extended_plant,

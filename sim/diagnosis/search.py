@@ -126,7 +126,7 @@ class Search:
             return branch, False, False
         model = gauss_newton_polish(branch.model, self.nominal, self.setting, self.trials)[0]
         plant = model.plant(self.nominal)
-        spreads = start_spread(self.setting, plant, self.trials)
+        spreads = start_spread(self.setting, plant, self.trials, self.jobs)
         report = fit_report(replay_all(self.setting, plant, self.trials), self.trials, spreads)
         return replace(branch, model=model), report["fits_noise"], settled(report)
 

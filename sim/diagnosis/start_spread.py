@@ -15,24 +15,26 @@ std of that error, by central differences over the joints:
 
     s_i^2 = sum_j ((r_i(dq0 + d_j e_j) - r_i(dq0 - d_j e_j)) / 2)^2,   d_j = sigma_j / sqrt(START_SAMPLES),
 
-two replays per joint and trial. Before the contact (the torque) the replay is smooth in its
-start and s_i is its first-order std; what the contact follows is only piecewise smooth (the
-replay touches the wall at one of its physics steps), and there s_i is a secant over one std of
-the start error, which also catches a kink within that std. The noise model's own terms (``noise``) already hold a start
-error of the usual size (the torque's ``REPLAY_TORQUE_FACTOR``, the trace's timing term: a right
-model reads 1 to 2 noise units, and the limits of the fit test are set on that), so a residual's
-std becomes max(1, s_i) noise units (``fitting.residual_blocks`` with a spread): it grows only where the replay is more
-sensitive to its start than the noise itself, never below the calibrated noise. A perturbed
-replay that is unstable adds nothing (its joint's difference is not a start error).
+two replays per joint and trial (the trials split over the diagnosis's processes). Before the
+contact (the torque) the replay is smooth in its start and s_i is its first-order std; what the
+contact follows is only piecewise smooth (the replay touches the wall at one of its physics steps),
+and there s_i is a secant over one std of the start error, which also catches a kink within that
+std. The noise model's own terms (``noise``) already hold a start error of the usual size (the
+torque's ``REPLAY_TORQUE_FACTOR``, the trace's timing term: a right model reads 1 to 2 noise units,
+and the limits of the fit test are set on that), so a residual's std becomes max(1, s_i) noise units
+(``fitting.residual_blocks`` with a spread): it grows only where the replay is more sensitive to its
+start than the noise itself, never below the calibrated noise. A perturbed replay that is unstable
+adds nothing (its joint's difference is not a start error).
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from impactqp.sim.plant import PlantParameters
+from impactqp.sim.process_pool import map_in_processes
 from impactqp.sim.sensor import apply_sensor
 
 from .fitting import residual_blocks
@@ -42,9 +44,27 @@ START_SAMPLES = 2 * START_AVERAGE + 1
 """The logged samples averaged into a replay's start velocity (``trials.START_AVERAGE``)."""
 
 
-def start_spread(setting: ReplaySetting, plant: PlantParameters, trials: list[MeasuredTrial]) -> list[dict]:
+@dataclass(frozen=True)
+class SpreadTask:
+    """The start spreads of some trials replayed in one plant (a process task)."""
+
+    setting: ReplaySetting
+    plant: PlantParameters
+    trials: tuple[MeasuredTrial, ...]
+
+
+def start_spread(setting: ReplaySetting, plant: PlantParameters, trials: list[MeasuredTrial], jobs: int = 1) -> list[dict]:
     """Per trial, the start spread of every residual block (``fitting.residual_blocks``: block ->
-    array of s_i, noise units; module docstring) of the replays of ``trials`` in ``plant``."""
+    array of s_i, noise units; module docstring) of the replays of ``trials`` in ``plant``, the
+    trials split into ``jobs`` runs of consecutive trials, each on its own process."""
+    chunks = [tuple(chunk) for chunk in np.array_split(np.arange(len(trials)), max(min(jobs, len(trials)), 1))]
+    tasks = [SpreadTask(setting, plant, tuple(trials[k] for k in chunk)) for chunk in chunks]
+    return [spread for spreads in map_in_processes(trial_spreads, tasks, len(tasks)) for spread in spreads]
+
+
+def trial_spreads(task: SpreadTask) -> list[dict]:
+    """The start spread of each of ``task``'s trials (``start_spread``), one scene for all."""
+    setting, plant = task.setting, task.plant
     scene = []
 
     def scene_of():
@@ -59,7 +79,7 @@ def start_spread(setting: ReplaySetting, plant: PlantParameters, trials: list[Me
         return residual_blocks(replay(apply_sensor(log, plant, trial.control_period), trial), trial)
 
     spreads = []
-    for trial in trials:
+    for trial in task.trials:
         steps = np.sqrt(np.asarray(trial.scatter[0], float) / START_SAMPLES)
         squares: dict = {}
         for j in np.flatnonzero(steps > 0.0):
@@ -72,4 +92,3 @@ def start_spread(setting: ReplaySetting, plant: PlantParameters, trials: list[Me
                 squares[name] = squares.get(name, 0.0) + (0.5 * (plus[name] - minus[name])) ** 2
         spreads.append({name: np.sqrt(value) for name, value in squares.items()})
     return spreads
-
