@@ -10,6 +10,9 @@ reported 95 % intervals (``calibration.covered``; a cause not named holds none o
   forward selection missed (every default candidate);
 - ``masked_triple``: the three large enough that none alone gains a step held out (the coverage
   study's draw of seed 6005; the three hidden causes are the only candidates);
+- ``one_gains_triple``: the three again, where the payload alone just gains a step held out and
+  no forward step from it does, so the path from it ends without fitting the noise (the
+  coverage study's draw of seed 6009; the three hidden causes are the only candidates);
 - ``second_cause``: joint damping on the first four joints and one joint's velocity logged 5 %
   too large, which damping alone fits to the noise in every block but not on that joint's
   channel (damping and the velocity scale the candidates).
@@ -66,6 +69,13 @@ def fixed_cases() -> list[FixedCase]:
             {"armature": per_group((1.25, 0.06), JOINTS), "payload_mass": 1.14, "payload_com": [0.016, -0.012, -0.027],
              "friction": 0.62},
             {**small, "tangential": [0.3, 0.6], "seed": 6005},
+            (ArmatureCause(JOINTS), PayloadCause(), FrictionCause()),
+        ),
+        FixedCase(
+            "one_gains_triple", ("armature", "friction", "payload"),
+            {"armature": per_group((1.4976, 0.2209), JOINTS), "payload_mass": 1.4475,
+             "payload_com": [0.0006, -0.0046, -0.0343], "friction": 0.5217},
+            {**small, "tangential": [0.3, 0.6], "seed": 6009},
             (ArmatureCause(JOINTS), PayloadCause(), FrictionCause()),
         ),
         FixedCase(

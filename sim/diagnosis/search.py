@@ -1,24 +1,25 @@
 """Which causes explain the gap: a bounded search over sets of causes (``select_causes``).
 
-Every candidate alone is cross-validated first (``selection.cross_validate_cause``; a cause
-with a refinement, ``Cause.refined``, also refined); the best ``MAX_BRANCHES`` first steps that
-gain ``STEP_GAIN`` each start a path, the next one only while no path so far is settled: it
-fits the noise (``noise.fits_noise``) with every channel within ``FIT_LIMIT`` (``settled``);
-when none gains, the best that gain at all start one path together (``masked_path``).
-Along a path, while its model is not settled, each forward step screens every remaining
-candidate by a short local fit next to the chosen causes (``selection.screen_cause``),
-cross-validates the ``MAX_SCREENED`` best jointly with them, and those with a refinement (the
-velocity scale per joint) refined too, by Gauss-Newton from their nominal values; it adds the best one when it gains ``STEP_GAIN``, and, once the model fits the noise
-(a channel beyond ``FIT_LIMIT`` left), only when that gain is also significant
-(``selection.significant_gain``); an added cause with a refinement is then tried refined,
-kept when that gains ``STEP_GAIN``; then each earlier
-cause is tried out (a backward step) and the one that gains least is removed when it no
-longer gains ``STEP_GAIN`` over the others. A path also stops when no step gains, at
-``MAX_CAUSES`` causes, after ``MAX_PATH_STEPS`` accepted steps or when the search has spent
-``MAX_CROSS_VALIDATIONS``. The kept path is the one that fits the noise with the lowest
-held-out error (else the lowest); its causes are selected when they remove ``EXPLAINED_GAIN``
-of the nominal's excess over the noise floor. Every step of every path is reported
-(``steps``). Rules and caps: ``docs/diagnosis.md``.
+Every candidate alone is cross-validated first (``selection.cross_validate_cause``; a cause with a
+refinement, ``Cause.refined``, also refined); the best ``MAX_BRANCHES`` first steps that gain
+``STEP_GAIN`` each start a path, the next one only while no path so far is settled: it fits the
+noise (``noise.fits_noise``) with every channel within ``FIT_LIMIT`` (``settled``); when none gains,
+or when the paths from those that gain end without fitting the noise, the best that gain at all
+start one path together (``masked_path``). Along a path, while its model is not settled, each
+forward step screens every remaining candidate by a short local fit next to the chosen causes
+(``selection.screen_cause``), cross-validates the ``MAX_SCREENED`` best jointly with them, and those
+with a refinement (the velocity scale per joint) refined too, by Gauss-Newton from their nominal
+values; it adds the best one when it gains ``STEP_GAIN``, and, once the model fits the noise (a
+channel beyond ``FIT_LIMIT`` left), only when that gain is also significant
+(``selection.significant_gain``); an added cause with a refinement is then tried refined, kept when
+that gains ``STEP_GAIN``; then each earlier cause is tried out (a backward step) and the one that
+gains least is removed when it no longer gains ``STEP_GAIN`` over the others; when the model without
+it fits better held out than with it, it is added back once from that model's fits (``readded``). A
+path also stops when no step gains, at ``MAX_CAUSES`` causes, after ``MAX_PATH_STEPS`` accepted
+steps or when the search has spent ``MAX_CROSS_VALIDATIONS``. The kept path is the one that fits the
+noise with the lowest held-out error (else the lowest); its causes are selected when they remove
+``EXPLAINED_GAIN`` of the nominal's excess over the noise floor. Every step of every path is
+reported (``steps``). Rules and caps: ``docs/diagnosis.md``.
 """
 
 from __future__ import annotations
@@ -32,11 +33,12 @@ from impactqp.sim.causes import Cause
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.process_pool import map_in_processes
 
-from .fitting import FittedCauses, fit_report, trial_errors
+from .fitting import FittedCauses, best_start, fit_report, trial_errors
 from .intervals import gauss_newton_polish
 from .noise import FIT_LIMIT, quadratic_mean
 from .selection import (
     EXPLAINED_GAIN,
+    SCREEN_GRID_STRIDE,
     STEP_GAIN,
     CandidateTask,
     ModelTask,
@@ -132,11 +134,10 @@ class Search:
 
 
 def settled(report: dict) -> bool:
-    """Whether a fit (``fitting.fit_report``) leaves nothing for a further cause: it fits the
-    noise and its worst channel, one joint's part of a block, is within ``FIT_LIMIT`` too (a
-    block's limit; the right model's worst channel reads about 1.3-2.2). A model that fits the
-    noise with one channel beyond it may hide a second cause of that joint behind the blocks'
-    means (joint 6's velocity scale behind joint damping: ``docs/diagnosis.md``)."""
+    """Whether a fit (``fitting.fit_report``) leaves nothing for a further cause: it fits the noise
+    and its worst channel, one joint's part of a block, is within ``FIT_LIMIT`` too (a block's
+    limit): one channel beyond it may hide a second cause of that joint behind the blocks' means
+    (joint 6's velocity scale behind joint damping: ``docs/diagnosis.md``)."""
     return bool(report["fits_noise"] and report["worst_channel"]["value"] <= FIT_LIMIT)
 
 
@@ -156,8 +157,7 @@ def search_step(action: str, cause: str, heldout_error: float, gain: float, acce
 
 
 def first_added(branch: Branch, cause: Cause, result: dict, step: dict) -> Branch:
-    """The nominal ``branch`` after its first step: ``cause`` alone, its cross-validation
-    ``result`` (``cross_validate_cause``)."""
+    """The nominal ``branch`` after its first step: ``cause`` alone, cross-validated (``result``)."""
     folds = [FittedCauses((cause,), (u,)) for u in result["u_folds"]]
     model = FittedCauses((cause,), (result["u"],))
     heldout, heldout_jump = result["heldout"], result["heldout_jump"]
@@ -165,17 +165,16 @@ def first_added(branch: Branch, cause: Cause, result: dict, step: dict) -> Branc
 
 
 def last_first(model: FittedCauses) -> FittedCauses:
-    """``model`` with its first cause (a candidate fitted first) moved to the end: the causes
-    in the order they were chosen (they touch distinct plant keys, so the plant is the same)."""
+    """``model`` with its first cause (a candidate fitted first) moved to the end: the causes in
+    the order chosen (they touch distinct plant keys: the same plant)."""
     return FittedCauses(model.causes[1:] + model.causes[:1], model.u[1:] + model.u[:1])
 
 
 def forward(search: Search, branch: Branch, path: int, past_noise: bool) -> Branch | None:
-    """One forward step: screen, cross-validate the best ``MAX_SCREENED`` jointly with the
-    chosen causes and those with a refinement refined too (``refined_tasks``), add the
-    best when it gains ``STEP_GAIN`` and, ``past_noise`` (the model fits the noise already),
-    when its gain is significant too (None otherwise, the rejected step recorded on
-    ``branch``)."""
+    """One forward step: screen, cross-validate the best ``MAX_SCREENED`` jointly with the chosen
+    causes and those with a refinement refined too (``refined_tasks``), add the best when it gains
+    ``STEP_GAIN`` and, ``past_noise`` (the model fits the noise already), when its gain is
+    significant too (None otherwise, the rejected step recorded on ``branch``)."""
     pool = [c for c in search.causes if c.name not in branch.names()
             and branch.names() | {c.name} not in branch.visited]
     if not pool or search.budget <= 0:
@@ -288,7 +287,31 @@ def backward(search: Search, branch: Branch, path: int) -> Branch:
         branch.steps.extend(steps)
         return branch
     branch.steps.extend(s for i, s in enumerate(steps) if i != best)
-    return as_branch(branch, results[best], steps[best])
+    reduced = as_branch(branch, results[best], steps[best])
+    if errors[best] < branch.error:  # fewer causes fit better held out: the larger set's fit was stuck
+        return readded(search, reduced, branch.model.causes[earlier[best]], path)
+    return reduced
+
+
+def readded(search: Search, branch: Branch, cause: Cause, path: int) -> Branch:
+    """``cause``, just removed because the model without it fits better held out (a set can fit no
+    worse than its subset: its fit had stopped far from its best), added back once from
+    ``branch``'s fits (from its best grid point, ``ModelTask.added``), cross-validated jointly;
+    taken when it gains ``STEP_GAIN`` over ``branch``, else ``branch`` with the try recorded."""
+    if search.budget <= 0:
+        return branch
+    base = branch.model.plant(search.nominal)
+    index, points, _ = best_start(cause, base, search.setting, search.trials, stride=SCREEN_GRID_STRIDE)
+    start = FittedCauses((cause,) + branch.model.causes, (points[index],) + branch.model.u)
+    task = ModelTask(start, tuple(branch.folds), search.nominal, search.setting, tuple(search.trials), cause)
+    [result] = search.run(cross_validate_model, [task], f"path {path + 1} model again", [model_label(start)])
+    gain = relative_gain(quadratic_mean(result["heldout"]), branch.error)
+    step = search_step("add", cause.name, quadratic_mean(result["heldout"]), gain, gain >= STEP_GAIN, path)
+    if gain < STEP_GAIN:
+        branch.steps.append(step)
+        return branch
+    result = {**result, "model": last_first(result["model"]), "folds": [last_first(f) for f in result["folds"]]}
+    return as_branch(branch, result, step)
 
 
 def follow(search: Search, branch: Branch, path: int) -> tuple[Branch, bool, bool]:
@@ -351,19 +374,16 @@ def refined_first(search: Search, start: Branch, cause: Cause, result: dict) -> 
 
 
 def masked_path(search: Search, start: Branch, causes: list[Cause], results: list[dict],
-                step: dict) -> tuple[bool, Branch] | None:
-    """When no candidate alone gains ``STEP_GAIN`` (``causes`` and their first-step
-    cross-validations ``results``, best first; ``step``, the best one's rejected first step):
-    hidden causes that are each large mask one another, so each alone fits little and a
-    forward step from one of them is no better (e.g. armature, payload and friction hidden at
-    once: the payload fit alone absorbs a part of the others, and next to it no candidate gains;
-    the measured case: docs/diagnosis.md, "The search over sets of causes"). The
-    ``MAX_CAUSES`` best that gain at all start one path together, each from its fit alone (on
-    all trials and in each fold; from there the joint fit reaches the three), cross-validated
-    jointly, then a backward step and ``follow``. The
-    path (its ``fits_noise`` and end) is kept when its k causes gain at least ``STEP_GAIN``
-    each on average over the nominal, 1 - E / E_0 >= 1 - (1 - STEP_GAIN)^k; None otherwise,
-    and with fewer than two that gain."""
+                steps: list[dict], path: int) -> tuple[bool, Branch] | None:
+    """Path number ``path`` when no candidate alone gains ``STEP_GAIN``, or when the paths from
+    those that gain end without fitting the noise (``causes``, their first-step cross-validations
+    ``results``, best first; ``steps``: the path's record before it): large hidden causes mask one
+    another, so each alone fits little (docs/diagnosis.md, "Causes that mask each other"). The
+    ``MAX_CAUSES`` best that gain at all start one path together, each from its fit alone (on all
+    trials and in each fold), cross-validated jointly, then a backward step and ``follow``. The
+    path (its ``fits_noise`` and end) is kept when its k causes gain at least ``STEP_GAIN`` each on
+    average over the nominal, 1 - E / E_0 >= 1 - (1 - STEP_GAIN)^k; None otherwise, and with fewer
+    than two that gain."""
     chosen = [(c, r) for c, r in zip(causes, results)
               if relative_gain(quadratic_mean(r["heldout"]), start.error) > 0.0][:MAX_CAUSES]
     if len(chosen) < 2 or search.budget <= 0:
@@ -372,12 +392,12 @@ def masked_path(search: Search, start: Branch, causes: list[Cause], results: lis
     folds = tuple(FittedCauses(together.causes, tuple(r["u_folds"][k] for _, r in chosen))
                   for k in range(len(start.folds)))
     task = ModelTask(together, folds, search.nominal, search.setting, tuple(search.trials))
-    [result] = search.run(cross_validate_model, [task], "path 1 model", [model_label(together)])
+    [result] = search.run(cross_validate_model, [task], f"path {path + 1} model", [model_label(together)])
     error = quadratic_mean(result["heldout"])
     gain = relative_gain(error, start.error)
-    added = [search_step("add", c.name, error, gain, True, 0) for c in together.causes]
-    branch = as_branch(replace(start, steps=[step] + added[:-1]), result, added[-1])
-    branch, fits, _ = follow(search, backward(search, branch, 0), 0)
+    added = [search_step("add", c.name, error, gain, True, path) for c in together.causes]
+    branch = as_branch(replace(start, steps=steps + added[:-1]), result, added[-1])
+    branch, fits, _ = follow(search, backward(search, branch, path), path)
     if relative_gain(branch.error, start.error) < 1.0 - (1.0 - STEP_GAIN) ** len(branch.model.causes):
         return None
     return fits, branch
@@ -394,18 +414,25 @@ def select_causes(
     causes, results, candidates = first_steps(search, start)
     errors = [c["heldout_error"] for c in candidates]
     order = [int(i) for i in np.argsort(errors, kind="stable")]
+    ranked, ranked_results = [causes[k] for k in order], [results[k] for k in order]
     paths: list[tuple[bool, Branch]] = []
     done = False  # a path so far is settled
+    masked_tried = False
     for i in order[:MAX_BRANCHES]:
         gain = relative_gain(errors[i], start.error)
         step = search_step("add", causes[i].name, errors[i], gain, gain >= STEP_GAIN, len(paths))
         if gain < STEP_GAIN or done:
             if not paths:  # nothing gains alone: causes that mask each other, else the nominal path
-                paths.append(masked_path(search, start, [causes[k] for k in order], [results[k] for k in order], step)
+                paths.append(masked_path(search, start, ranked, ranked_results, [step], 0)
                              or (False, replace(start, steps=[step])))
+                masked_tried = True
             break
         branch, fits, done = follow(search, first_added(start, causes[i], results[i], step), len(paths))
         paths.append((fits, branch))
+    if not masked_tried and not any(fits for fits, _ in paths):  # one just gained alone, the others masked
+        masked = masked_path(search, start, ranked, ranked_results, [], len(paths))
+        if masked is not None:
+            paths.append(masked)
     kept = min(range(len(paths)), key=lambda p: (not paths[p][0], paths[p][1].error))
     chosen = paths[kept][1]
     floor_gain = gain_over_floor(chosen.error, start.error)
