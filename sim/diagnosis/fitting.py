@@ -34,10 +34,10 @@ def residuals(features: list[ReplayFeatures], trials: list[MeasuredTrial]) -> np
     return np.concatenate([trial_residuals(f, trial) for f, trial in zip(features, trials)])
 
 
-def trial_residuals(f: ReplayFeatures, trial: MeasuredTrial) -> np.ndarray:
-    """The residuals of one replay in noise units, its blocks (``residual_blocks``) in the
-    order of ``noise.BLOCKS``."""
-    return np.concatenate(list(residual_blocks(f, trial).values()))
+def trial_residuals(f: ReplayFeatures, trial: MeasuredTrial, spread: dict | None = None) -> np.ndarray:
+    """The residuals of one replay in noise units, its blocks (``residual_blocks``, with the
+    trial's start ``spread`` when given) in the order of ``noise.BLOCKS``."""
+    return np.concatenate(list(residual_blocks(f, trial, spread).values()))
 
 
 def residual_blocks(f: ReplayFeatures, trial: MeasuredTrial, spread: dict | None = None) -> dict[str, np.ndarray]:
@@ -64,8 +64,7 @@ def trial_errors(features: list[ReplayFeatures], trials: list[MeasuredTrial], sp
     """The normalised residual of each trial: root mean square of its residuals in noise units
     (``residual_blocks``, with each trial's start spread of ``spreads`` when given)."""
     spreads = spreads or [None] * len(trials)
-    return np.array([np.sqrt(np.mean(np.concatenate(list(residual_blocks(f, t, s).values())) ** 2))
-                     for f, t, s in zip(features, trials, spreads)])
+    return np.array([np.sqrt(np.mean(trial_residuals(f, t, s) ** 2)) for f, t, s in zip(features, trials, spreads)])
 
 
 def fit_report(features: list[ReplayFeatures], trials: list[MeasuredTrial], spreads: list[dict] | None = None) -> dict:

@@ -88,12 +88,12 @@ def diagnose(
     step(0, f" ({len(trials)} usable, {len(skipped)} skipped)")
     step(1, f" ({len(trials)} trial(s))")
     trials = locate_jump_samples(trials, setting, nominal)
+    if len(trials) == 1:
+        step(4, " (one trial: no cause is selected)")
+        return nominal_diagnosis(trials, skipped, setting, nominal)
     nominal_features = replay_all(setting, nominal, trials)
     nominal_jumps = np.array([f.detected_jump for f in nominal_features])
     baseline_errors = jump_errors(nominal_features, trials)
-    if len(trials) == 1:
-        step(4, " (one trial: no cause is selected)")
-        return nominal_diagnosis(trials, skipped, setting, nominal, nominal_features)
     baseline = (trial_errors(nominal_features, trials), baseline_errors)
     step(2, f" ({len(causes)} candidate causes)")
     selection = select_causes(causes, nominal, setting, trials, baseline, jobs)
@@ -102,9 +102,7 @@ def diagnose(
     step(3, f" ({', '.join(c.name for c in model.causes) or 'no cause'})")
     model, theta_intervals = _bounded(model, selected, nominal, setting, trials, jobs)
     extended_plant = model.plant(nominal)
-    extended_features = replay_all(setting, extended_plant, trials)
-    spreads = start_spread(setting, extended_plant, trials, jobs)
-    fit, timing = fit_report(extended_features, trials, spreads), timing_test(extended_features, trials)
+    extended_features, spreads, fit, timing = model_fit(setting, extended_plant, trials, jobs)
     explained = selected and _explains(model, theta_intervals, nominal, fit, timing)
     steps = selection.steps if explained else [{**s, "selected": False} for s in selection.steps]
     step(4)
@@ -149,6 +147,15 @@ def _bounded(model, selected: bool, nominal: PlantParameters, setting, trials, j
     return model, theta_intervals
 
 
+def model_fit(setting, plant: PlantParameters, trials, jobs: int = 1) -> tuple[list, list[dict], dict, dict]:
+    """How ``plant`` stands against ``trials``: its replays, their start spreads
+    (``start_spread``), the fit test against the noise with them (``fitting.fit_report``) and the
+    timing test (``timing.timing_test``)."""
+    features = replay_all(setting, plant, trials)
+    spreads = start_spread(setting, plant, trials, jobs)
+    return features, spreads, fit_report(features, trials, spreads), timing_test(features, trials)
+
+
 def _explains(model, theta_intervals, nominal: PlantParameters, fit: dict, timing: dict) -> bool:
     """Whether the selected causes explain the gap: their model fits the noise, holds one timing
     for every trial (``timing.timing_test``: every cause is one for all trials) and every named
@@ -156,14 +163,13 @@ def _explains(model, theta_intervals, nominal: PlantParameters, fit: dict, timin
     return fit["fits_noise"] and timing["consistent"] and all(excludes_nominal(model, theta_intervals, nominal))
 
 
-def nominal_diagnosis(trials, skipped, setting, nominal: PlantParameters, nominal_features) -> Diagnosis:
+def nominal_diagnosis(trials, skipped, setting, nominal: PlantParameters) -> Diagnosis:
     """The diagnosis of a single trial (one ``impactqp run`` on a robot): its nominal replay, its
     fit against the noise and the predictors' errors, and no cause: their selection holds trials
     out (cross-validation), which takes two."""
+    nominal_features, spreads, fit, timing = model_fit(setting, nominal, trials)
     jumps = np.array([f.detected_jump for f in nominal_features])
     errors = jump_errors(nominal_features, trials)
-    spreads = start_spread(setting, nominal, trials)
-    fit = fit_report(nominal_features, trials, spreads)
     predictors, predictors_measured_impulse, predictions = predictor_errors(trials, setting)
     return Diagnosis(
         trials=trials, skipped=skipped, nominal_jumps=jumps, extended_jumps=jumps, baseline_errors=errors,
@@ -171,6 +177,6 @@ def nominal_diagnosis(trials, skipped, setting, nominal: PlantParameters, nomina
         predictors_measured_impulse=predictors_measured_impulse, predictions=predictions,
         analysis=error_analysis(trials, jumps), causes=[], steps=[], intervals={}, parameter_intervals=[],
         open_sides=[], extended_error=float(np.mean(errors)), gain_over_floor=0.0, fit=fit, nominal_fit=fit,
-        trial_residuals=trial_errors(nominal_features, trials, spreads), timing=timing_test(nominal_features, trials),
+        trial_residuals=trial_errors(nominal_features, trials, spreads), timing=timing,
         extended_plant=nominal, surface=setting.surface, choice=setting.choice,
     )
