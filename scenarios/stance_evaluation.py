@@ -22,7 +22,8 @@ WALL_NOT_REACHED = "wall not reached"
 class StanceEvaluation:
     """One simulated trial of the search: commanded and contact speed (m/s), what failed, each
     failed criterion's onset (s from the first contact) and, with the QP in the loop, the impact
-    rows tight just before the contact (``QpRecord.binding``; "" without the QP)."""
+    rows tight just before the contact (``QpRecord.binding``; "" without the QP) and the number of
+    its cycles not OK (``QpRecord.not_ok``; 0 without the QP)."""
 
     reference_speed: float
     contact_speed: float
@@ -33,13 +34,15 @@ class StanceEvaluation:
     first_failure: str
     onsets: dict = field(default_factory=dict)
     binding: str = ""
+    not_ok: int = 0
 
     @classmethod
     def of(cls, trial: TrialResult) -> StanceEvaluation:
         record = trial.record
-        binding = ", ".join(record.binding(trial.impact.pre_index)) if isinstance(record, QpRecord) else ""
+        qp = isinstance(record, QpRecord)
+        binding = ", ".join(record.binding(trial.impact.pre_index)) if qp else ""
         return cls(trial.normal_speed, trial.contact_speed, trial.max_velocity_ratio, trial.held.foot_slip, trial.held.foot_lift,
-                   trial.fell, trial.first_failure, trial.failure_times, binding)
+                   trial.fell, trial.first_failure, trial.failure_times, binding, record.not_ok if qp else 0)
 
     @classmethod
     def of_speed(cls, run: Callable[[float], TrialResult], speed: float) -> StanceEvaluation:
@@ -59,7 +62,7 @@ class StanceEvaluation:
             "reference_speed": self.reference_speed, "contact_speed": self.contact_speed,
             "max_velocity_ratio": self.max_velocity_ratio, "foot_slip": self.foot_slip,
             "foot_lift": self.foot_lift, "fell": self.fell, "first_failure": self.first_failure,
-            "violated": self.violated, "onsets": self.onsets, "binding": self.binding,
+            "violated": self.violated, "onsets": self.onsets, "binding": self.binding, "not_ok": self.not_ok,
         }
 
 

@@ -17,9 +17,11 @@ on them for ``TrialStart.settle`` s, during which every source commands the join
   robot's description, with the jump predictor of its impact rows; a standing robot's trial starts
   from its run-up, ``controller.model.run_up``): the controller is reset at the
   state measured when the settling ends (at once for a fixed base) and is given, every period, its
-  own previous command (``feedback="commanded"``, the default: a kinematic-controlled robot's
+  own previous command (``feedback="commanded"``, a fixed-base arm's default: a kinematic-controlled robot's
   convention, ``scenarios.trial`` says why), the measured state, or a blend of the two
-  (``"blended"``: ``sim.trial_loop.ControllerSource``); at the stop the hand's approach speed
+  (``"blended"``: ``sim.trial_loop.ControllerSource``; a standing robot's default: fed its own
+  command its QP believes its centre of mass millimetres from the plant's, where the foot rows
+  bind up to 12 % lower, docs/whole-body-qp.md); at the stop the hand's approach speed
   target becomes 0 (``ContactApproachTask.reference_velocity``): the QP brakes within its
   acceleration and jerk limits, and a standing robot's controller is given from then on the
   state of ``balance_feedback`` (None: the approach's own state, or the blended one when the
@@ -44,7 +46,7 @@ from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.controller.config.controller_config import FLOATING_BASE_APPROACH
 from impactqp.controller.config.post_impact_balance import balance_after_impact
 from impactqp.controller.model.choice import RobotChoice
-from impactqp.controller.model.max_speed import contact_joints
+from impactqp.controller.model.max_speed import Setting, closed_form_max_speed, contact_joints
 from impactqp.controller.model.postures import Surface
 from impactqp.controller.model.robot import RobotModel
 from impactqp.controller.model.run_up import run_up_distance, run_up_posture
@@ -218,30 +220,33 @@ CARTESIAN = CartesianApproach()
 class QpCommand:
     """The robot's default controller as a trial's command source (module docstring): the jump
     predictor of its impact rows (``method``: a jump model, None without the rows), the QP solver,
-    which state it is given during the approach (``feedback``) and, a standing robot, from the
-    stop on (``balance_feedback``), the start gap of a standing robot's trial (m), and the
+    which state it is given during the approach (``feedback``; None: "blended" for a robot with
+    held contacts, else "commanded") and, a standing robot, from the stop on (``balance_feedback``), the start gap of a standing robot's trial (m), and the
     approach options c_r, delta_t, the posture task's weight (None: the preset's) and the friction
     mu of the robust friction rows (None or 0: none; docs/frictional-impacts.md), which a standing
     robot's wall takes too (None: the paper's mu, ``sim.runner.standing_wall_friction``). A standing robot's
     trial starts from its run-up (``gap`` None, :meth:`start_posture`) or ``gap`` m from the wall at
-    the stance's posture."""
+    the stance's posture. ``governor``: with the impact rows on and the contact posture known, the
+    hand's speed target is capped at this share of the closed form's highest speed there
+    (:meth:`governed_speed`; None: the asked speed)."""
 
     method: str | None = "crb"
     solver: str = "daqp"
-    feedback: str = "commanded"
+    feedback: str | None = None
     balance_feedback: str | None = None
     gap: float | None = None
     restitution: float = 0.0
     impact_duration: float | None = None
     posture_weight: float | None = None
     friction: float | None = None
+    governor: float | None = 1.0
     name = "qp"
     tracks_speed = True  # the hand's task asks the speed itself; the QP's rows and limits may cap it
     holds_at_stop = False  # the QP brakes the joints itself (its acceleration and jerk limits)
 
     def __post_init__(self):
-        for feedback in (self.feedback, self.balance_feedback or self.feedback):
-            if feedback not in FEEDBACK:
+        for feedback in (self.feedback, self.balance_feedback):
+            if feedback is not None and feedback not in FEEDBACK:
                 raise BadInputError(f"unknown feedback {feedback!r}; choose from {', '.join(FEEDBACK)}")
 
     def approach_time(self, gap: float, speed: float) -> float:
@@ -250,25 +255,48 @@ class QpCommand:
         source's ramp and lag margin."""
         return 3 * gap / speed + speed / HAND_ACCELERATION + RAMP + LAG
 
+    def governed_speed(self, robot: RobotModel, contact_posture: np.ndarray | None, normal: np.ndarray, speed: float) -> float:
+        """The hand's speed target (m/s) for the asked ``speed``: a reference governor that keeps
+        the approach from accelerating past what its impact rows will allow at the wall,
+
+            v* = min(v, governor v_max(q_c)),
+
+        v_max(q_c) the closed form's highest speed at the contact posture q_c
+        (``max_speed.closed_form_max_speed``, the rows' own predictor, restitution and impact
+        duration: along the approach its rows hold exactly up to it). The rows bound the command
+        one jerk horizon ahead; asked above v_max the command runs up faster than the rows will
+        allow and brakes when they tighten, and a plant that lags the command's braking meets the
+        wall faster than the rows allow (docs/whole-body-qp.md, "A reference governor"). The
+        asked speed without the rows, the contact posture or a ``governor``."""
+        if self.governor is None or self.method is None or contact_posture is None:
+            return speed
+        setting = Setting(self.method, self.restitution, impact_duration=self.impact_duration)
+        bound = closed_form_max_speed(robot, robot.terms(contact_posture), normal, setting).speed
+        return min(speed, self.governor * bound)
+
     def start_posture(self, robot: RobotModel, q: np.ndarray, normal: np.ndarray, speed: float) -> tuple[np.ndarray, float]:
         """The trial's start posture and gap (m) from a stance's posture q: the run-up
         (``controller.model.run_up``: the hand moved back along the normal n far enough for the
-        hand's task to reach ``speed``), the wall :data:`SCRIPTED_GAP` beyond the stance's hand, so
-        that the hand meets it in the stance's posture; with a ``gap``, q itself and that gap."""
+        hand's task to reach the governed ``speed``) and the wall at the stance's hand, so that the
+        hand meets it in the stance's posture, the one whose closed form is quoted and governs (the
+        wall 2 cm beyond it, the scripted arm's gap, met the arm 2 cm past it, where the closed form
+        is up to 16 % lower: docs/whole-body-qp.md); with a ``gap``, q itself and that gap."""
         if self.gap is not None:
             return q, self.gap
+        speed = self.governed_speed(robot, q, normal, speed)
         start = run_up_posture(robot, q, normal, run_up_distance(speed, FLOATING_BASE_APPROACH["velocity_gain"]))
         moved = (robot.terms(start).contact_point - robot.terms(q).contact_point) @ normal
-        return start, float(moved) + SCRIPTED_GAP
+        return start, float(moved)
 
     def config(self, start: TrialStart) -> ControllerConfig:
-        """The controller's configuration: the description's approach towards the start's wall;
-        with a ``contact_posture``, the hand's orientation target is the contact posture's (the
+        """The controller's configuration: the description's approach towards the start's wall at
+        the governed speed (:meth:`governed_speed`); with a ``contact_posture``, the hand's orientation target is the contact posture's (the
         run-up turned the hand: held at the run-up's orientation, the arm reached the wall in
         another posture than the stance's, where the foot rows bind lower; docs/whole-body-qp.md)."""
         options = {} if self.impact_duration is None else {"impact_duration": self.impact_duration}
+        speed = self.governed_speed(start.robot, start.contact_posture, start.surface.normal, start.speed)
         config = ControllerConfig.approach(
-            start.surface, start.speed, tangential_velocity=start.tangential_velocity,
+            start.surface, speed, tangential_velocity=start.tangential_velocity,
             robot=RobotChoice(start.robot.description).robot_setting, jump_model=self.method, solver=self.solver,
             restitution=self.restitution, posture_weight=self.posture_weight,
             friction=0.0 if self.friction is None else self.friction, **options,
@@ -285,8 +313,9 @@ class QpCommand:
     def start(self, start: TrialStart) -> QpDriver:
         """The driver of one trial: the controller of the start posture towards the start's wall."""
         controller = build_controller(self.config(start), start.robot, start.q0)
-        balance = self.balance_feedback or ("blended" if self.feedback == "commanded" else self.feedback)
-        return QpDriver(controller, (self.feedback, balance), start.settle, start.control_period)
+        approach = self.feedback or ("blended" if start.robot.description.held_contacts else "commanded")
+        balance = self.balance_feedback or ("blended" if approach == "commanded" else approach)
+        return QpDriver(controller, (approach, balance), start.settle, start.control_period)
 
 
 @dataclass

@@ -216,7 +216,7 @@ def test_the_qp_driven_search_of_a_stance_holds_the_contact_speed_at_its_closed_
     for factor, check in report["checks"].items():
         assert check["reference_speed"] == pytest.approx(float(factor) * closed_form)
     above = report["checks"]["1.3"]
-    assert above["contact_speed"] <= closed_form
+    assert above["contact_speed"] <= closed_form and above["not_ok"] == 0
     assert above["binding"] and all(name.split("[")[0] in {"post_impact_velocity", "capture_region", "foot_wrench"}
                                     for name in above["binding"].split(", "))
     lines = max_speed_text(report).splitlines()
@@ -236,6 +236,36 @@ def test_the_feedback_option_is_the_whole_body_qp_s(capsys, robot):
     arm, or a stance driven by its scripted arm) it is one line of bad input."""
     code, _, err = run(capsys, "max-speed", *(robot or ["--posture", "elbow_up"]), "--feedback", "blended")
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--feedback" in err
+
+
+@pytest.mark.parametrize("given", [
+    ["--posture", "elbow_up", "--governor", "0.9"],
+    ["--robot", "g1", "--posture", "parallel", "--governor", "0.9"],
+    ["--robot", "g1", "--posture", "parallel", "--controller", "qp", "--governor", "0"],
+    ["--robot", "g1", "--posture", "parallel", "--controller", "qp", "--governor", "nan"],
+    ["--robot", "g1", "--posture", "parallel", "--controller", "qp", "--governor", "fast"],
+])
+def test_the_governor_option_is_the_whole_body_qp_s_and_a_positive_share(capsys, given):
+    """--governor caps the standing robot's QP speed target: without --controller qp, or not 'off'
+    nor a finite share > 0, it is one line of bad input."""
+    code, out, err = run(capsys, "max-speed", *given)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "--governor" in err
+
+
+@pytest.mark.parametrize("share, expected", [("off", None), ("1.0", 1.0), ("0.95", 0.95)])
+def test_the_governor_reaches_the_qp_of_every_trial(capsys, monkeypatch, share, expected):
+    from impactqp.scenarios import max_speed_search
+
+    sources = []
+
+    def search(robot, stance, setting, tolerance, source, **options):
+        sources.append(source)
+        raise max_speed_search.BadInputError("searched")
+
+    monkeypatch.setattr(max_speed_search, "search_stance", search)
+    code, _, err = run(capsys, "max-speed", "--robot", "g1", "--posture", "step", "--controller", "qp", "--governor", share)
+    assert code == 2 and "searched" in err
+    assert [s.governor for s in sources] == [expected]
 
 
 @pytest.mark.parametrize("given", [[], ["--tolerance", "0.3"]])

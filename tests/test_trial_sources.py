@@ -1,13 +1,15 @@
 """The command sources of a trial (sim/trial_sources.py): the arm's Cartesian approach and
 replay; the whole-body QP driving the simulated G1's trial."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.controller.model.robot import PandaModel, RobotModel
 from impactqp.controller.model.humanoid_stance import STANCES, stance_posture
-from impactqp.controller.model.max_speed import closed_form_max_speed
+from impactqp.controller.model.max_speed import Setting, closed_form_max_speed
 from impactqp.controller.model.robot_description import ROBOTS
 from impactqp.controller.model.validation import BadInputError
 from impactqp.controller.qp.command import Status
@@ -35,7 +37,7 @@ def robot():
 def trial(robot):
     """A moderate asked speed (0.3 m/s) in the parallel stance, the QP fed its own command also
     after the stop (``balance_feedback``: it brakes and does not balance)."""
-    return run_impact_trial(robot, STANCES["parallel"], 0.3, source=QpCommand(balance_feedback="commanded"))
+    return run_impact_trial(robot, STANCES["parallel"], 0.3, source=QpCommand(feedback="commanded", balance_feedback="commanded"))
 
 
 def test_the_qp_drives_the_hand_to_the_wall_and_the_robot_stands(trial):
@@ -285,6 +287,55 @@ def test_the_qp_source_configures_the_description_s_approach_towards_the_start_s
     np.testing.assert_array_equal(config.surface.surface().normal, DEFAULT_WALL.normal)
 
 
+@pytest.mark.parametrize("stance", ["parallel", "far", "step"])
+def test_the_governor_caps_the_hand_s_target_at_the_closed_form_of_the_contact_posture(robot, stance):
+    """Asked above the closed form's highest speed at the contact posture (the impact rows'
+    predictor, restitution and duration), the approach's speed target and its run-up are those of
+    that speed times the governor; asked below it, without a contact posture, without impact rows
+    or without a governor, the asked speed's."""
+    stance_q = stance_posture(robot, STANCES[stance])
+    setting = Setting("gm", 0.1, impact_duration=0.005)
+    limit = closed_form_max_speed(robot, robot.terms(stance_q), NORMAL, setting).speed
+    source = QpCommand(method="gm", restitution=0.1, impact_duration=0.005, governor=0.95)
+
+    def target(source, speed, contact_posture=stance_q):
+        start = TrialStart(robot, stance_q, np.zeros(robot.nv), DEFAULT_WALL, speed, contact_posture=contact_posture)
+        return next(t for t in source.config(start).tasks if t.type == "contact_approach").params["speed"]
+
+    assert target(source, 2.0 * limit) == pytest.approx(0.95 * limit, rel=1e-12)
+    assert target(source, 0.9 * limit) == 0.9 * limit
+    assert target(source, 2.0 * limit, None) == 2.0 * limit
+    assert target(replace(source, governor=None), 2.0 * limit) == 2.0 * limit
+    assert target(replace(source, method=None), 2.0 * limit) == 2.0 * limit
+    governed, _ = source.start_posture(robot, stance_q, NORMAL, 2.0 * limit)
+    asked, _ = replace(source, governor=None).start_posture(robot, stance_q, NORMAL, 0.95 * limit)
+    np.testing.assert_array_equal(governed, asked)
+
+
+@pytest.mark.parametrize("stance", ["parallel", "step"])
+def test_the_wall_of_a_run_up_trial_is_where_the_stance_s_hand_is(robot, stance):
+    """The run-up's gap puts the wall at the stance's contact point along the normal: the hand
+    meets it in the stance's posture, the closed form's."""
+    stance_q = stance_posture(robot, STANCES[stance])
+    for speed in (0.3, 1.2):
+        run_up, gap = QpCommand().start_posture(robot, stance_q, NORMAL, speed)
+        assert gap > 0.0
+        wall = robot.terms(run_up).contact_point - gap * NORMAL
+        assert wall @ NORMAL == pytest.approx(robot.terms(stance_q).contact_point @ NORMAL, abs=1e-12)
+
+
+def test_asked_twice_its_closed_form_the_qp_meets_the_wall_within_ten_percent_below_it_and_stands(robot):
+    """The far stance: the QP's rows at the posture it leans into allow more than the stance's
+    closed form, and ungoverned, asked 1.3 times it, the hand met the wall 1.29 times as fast.
+    Governed, asked twice the closed form, the contact is at most the closed form and within 10 %
+    of it, no onset, every cycle OK, standing."""
+    stance = STANCES["far"]
+    limit = closed_form_max_speed(robot, robot.terms(stance_posture(robot, stance)), NORMAL).speed
+    trial = run_impact_trial(robot, stance, 2.0 * limit, source=QpCommand())
+    assert 0.9 * limit <= trial.contact_speed <= limit
+    assert not trial.fell and trial.record.not_ok == 0 and not trial.failures
+
+
 @pytest.mark.parametrize("stance", ["parallel", "close"])
 def test_from_its_run_up_the_qp_holds_the_hand_at_the_orientation_of_the_contact_posture(robot, stance):
     """The run-up turns the hand (the arm moved back along J_arm^+ (-n), orientation free): the
@@ -312,7 +363,7 @@ def test_fed_its_own_command_the_close_stance_balances_after_the_impact_and_stan
     (``controller.config.post_impact_balance``): it stands, no onset, every cycle OK."""
     stance = STANCES["close"]
     limit = closed_form_max_speed(robot, robot.terms(stance_posture(robot, stance)), NORMAL).speed
-    trial = run_impact_trial(robot, stance, 0.9 * limit, source=QpCommand())
+    trial = run_impact_trial(robot, stance, 0.9 * limit, source=QpCommand(feedback="commanded"))
     assert trial.contact_speed > 0.8 * limit
     assert not trial.fell and trial.record.not_ok == 0 and not trial.failures
 
@@ -322,7 +373,16 @@ def test_the_balance_feedback_is_checked_and_given_at_the_stop_to_a_standing_rob
         QpCommand(balance_feedback="predicted")
     arm_q0 = ARM.description.postures["elbow_up"].q
     for model, q0 in ((robot, stance_posture(robot, STANCES["parallel"])), (ARM, arm_q0)):
-        driver = QpCommand().start(TrialStart(model, q0, np.zeros(model.nv), DEFAULT_WALL, 0.2))
+        driver = QpCommand(feedback="commanded").start(TrialStart(model, q0, np.zeros(model.nv), DEFAULT_WALL, 0.2))
         assert driver.source.feedback == "commanded"
         driver.stop()
         assert driver.source.feedback == ("blended" if model is robot else "commanded")
+
+
+def test_the_default_feedback_is_the_blend_for_a_standing_robot_and_the_command_for_an_arm(robot):
+    arm_q0 = ARM.description.postures["elbow_up"].q
+    for model, q0, expected in ((robot, stance_posture(robot, STANCES["parallel"]), "blended"), (ARM, arm_q0, "commanded")):
+        driver = QpCommand().start(TrialStart(model, q0, np.zeros(model.nv), DEFAULT_WALL, 0.2))
+        assert driver.source.feedback == expected
+        driver.stop()
+        assert driver.source.feedback == expected

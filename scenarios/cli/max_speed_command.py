@@ -66,7 +66,8 @@ class MaxSpeedRequest:
     friction: float | None = None
     tangential: str | None = None
     controller: str = "scripted"
-    feedback: str = "commanded"
+    feedback: str | None = None
+    governor: str = "1.0"
 
 
 def arm_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
@@ -118,8 +119,11 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
     duration = check_impact_duration(request.impact_duration, "--impact-duration") if given("impact_duration") else HAND_IMPACT_DURATION
     tolerance = request.tolerance if given("tolerance") else STANCE_TOLERANCE
     qp = request.controller == "qp"
-    if not qp and request.feedback != "commanded":
+    if not qp and request.feedback is not None:
         raise BadInputError("--feedback chooses the state the whole-body QP is given: give --controller qp")
+    if not qp and given("governor"):
+        raise BadInputError("--governor caps the whole-body QP's speed target: give --controller qp")
+    governor = governor_share(request.governor)
     friction = None if request.friction is None else rows_friction(request.friction)
     model = RobotModel(robot)
     reports = []
@@ -128,7 +132,7 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
         reference = checks_reference(model, stance, setting, friction) if qp and friction is not None else None
         checks = SpeedChecks(QP_CHECKS, None if reference is None else reference["speed"]) if qp else SpeedChecks()
         result = search_stance(model, stance, setting, tolerance=tolerance,
-                               source=QpCommand(feedback=request.feedback, friction=friction) if qp else SCRIPTED,
+                               source=QpCommand(feedback=request.feedback, friction=friction, governor=governor) if qp else SCRIPTED,
                                checks=checks)
         report = {"robot": robot.name, "controller": request.controller, **result.to_json()}
         if request.friction is not None:
@@ -144,6 +148,20 @@ def stance_max_speed(request: MaxSpeedRequest) -> dict:
         report["impact_duration"] = duration
         reports.append(report)
     return reports[0] if len(reports) == 1 else {"robot": robot.name, "controller": request.controller, "stances": reports}
+
+
+def governor_share(text: str) -> float | None:
+    """--governor: "off" (None), or the share (> 0) of the closed form at the contact posture that
+    caps the QP's speed target (``sim.trial_sources.QpCommand.governed_speed``)."""
+    if text == "off":
+        return None
+    try:
+        share = float(text)
+    except ValueError:
+        share = math.nan
+    if not (share > 0.0 and math.isfinite(share)):
+        raise BadInputError(f"--governor must be 'off' or a share > 0 of the closed form, got {text!r}")
+    return share
 
 
 def checks_reference(model, stance: str, setting: Setting, friction: float) -> dict:
@@ -261,8 +279,10 @@ def run_max_speed(request: MaxSpeedRequest, progress: bool) -> dict:
         return stance_max_speed(request)
     if request.controller != "scripted":
         raise BadInputError("--controller chooses a standing robot's command source; an arm's search runs its QP always")
-    if request.feedback != "commanded":
+    if request.feedback is not None:
         raise BadInputError("--feedback chooses the state a standing robot's QP is given (with --controller qp)")
+    if given("governor"):
+        raise BadInputError("--governor caps a standing robot's QP speed target (with --controller qp)")
     if request.friction is not None:
         return frictional_max_speed_report(request)
     return arm_max_speed(request, progress)
@@ -330,10 +350,11 @@ def reference_text(reference: dict) -> str:
 def check_text(factor: str, e: dict) -> str:
     """One trial asked for ``factor`` times the checks' reference (crb's closed form, frictional with
     --friction: :func:`reference_text`): asked and contact speed, the binding impact rows, the
-    failed criteria's onsets (ms from the contact) and whether it fell."""
+    failed criteria's onsets (ms from the contact), whether it fell and the QP's cycles not OK."""
     onsets = ", ".join(f"{name} {1000 * t:+.0f} ms" for name, t in e["onsets"].items()) or "none"
     return (f"  {factor}x crb: asked {e['reference_speed']:.4f}, contact {e['contact_speed']:.4f}; "
-            f"binding: {e['binding'] or '-'}; onsets: {onsets}; fell: {'yes' if e['fell'] else 'no'}")
+            f"binding: {e['binding'] or '-'}; onsets: {onsets}; fell: {'yes' if e['fell'] else 'no'}; "
+            f"cycles not OK: {e['not_ok']}")
 
 
 def frictional_text(report: dict) -> str:
@@ -375,8 +396,13 @@ def frictional_text(report: dict) -> str:
     help="A standing robot's trials: its scripted arm, or the whole-body QP (with trials at 0.9x and 1.3x the closed form).",
 )
 @click.option(
-    "--feedback", type=click.Choice(["commanded", "blended", "measured"]), default="commanded", show_default=True,
-    help="With --controller qp: the state the QP is given (its own command, a blend with the measurement, the measurement).",
+    "--feedback", type=click.Choice(["commanded", "blended", "measured"]),
+    help="With --controller qp: the state the QP is given (its own command, a blend with the measurement, the measurement; "
+         "default: blended).",
+)
+@click.option(
+    "--governor", default="1.0", show_default=True,
+    help="With --controller qp: the hand's speed target capped at this share of the closed form at the stance ('off': the asked speed).",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (no progress bar).")
 @click.option("--figure", "figure_file", help="Plot the speed of each predictor and simulation, what binds it (.png, .pdf, .svg).")
