@@ -121,6 +121,7 @@ class ActivationRule:
 IMPACT_SPEED_DROP = 0.5
 """An impact shows when the measured speed of the contact point towards the surface falls below
 this fraction of the commanded one (``ExpectedImpact.shows_jump``)."""
+RELEASED, FOLLOWING, DROPPED = 0, 1, 2  # ``ExpectedImpact.speed_tracking``'s answers
 
 class ExpectedImpact:
     """An expected impact on ``surface`` predicted with one jump model: the jump matrices of a
@@ -277,9 +278,17 @@ class ExpectedImpact:
         release speed and the measured one, -n.(J dq), below ``IMPACT_SPEED_DROP`` times it (the
         predicted jump takes it to -c_r times itself within the contact's few milliseconds; a
         joint servo's tracking error is far smaller)."""
+        return self.speed_tracking(J, dq, dq_cmd) == DROPPED
+
+    def speed_tracking(self, J: np.ndarray, dq: np.ndarray, dq_cmd: np.ndarray) -> int:
+        """How the measured speed towards the surface follows the commanded one (``shows_jump``):
+        :data:`RELEASED` (the command below the release speed), :data:`DROPPED` (the measured
+        below ``IMPACT_SPEED_DROP`` times the commanded) or :data:`FOLLOWING`."""
         normal, point = self.surface.normal, self.surface.point
         commanded = -normal_motion(J, normal, point, dq_cmd)[0]
-        return commanded > self.rule.release_speed and -normal_motion(J, normal, point, dq)[0] < IMPACT_SPEED_DROP * commanded
+        if not commanded > self.rule.release_speed:
+            return RELEASED
+        return DROPPED if -normal_motion(J, normal, point, dq)[0] < IMPACT_SPEED_DROP * commanded else FOLLOWING
 
     def _update(self, terms) -> None:
         """The matrices, edges and activation of the fill ``terms.stamp``."""

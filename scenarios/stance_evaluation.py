@@ -22,8 +22,9 @@ WALL_NOT_REACHED = "wall not reached"
 class StanceEvaluation:
     """One simulated trial of the search: commanded and contact speed (m/s), what failed, each
     failed criterion's onset (s from the first contact) and, with the QP in the loop, the impact
-    rows tight just before the contact (``QpRecord.binding``; "" without the QP) and the number of
-    its cycles not OK (``QpRecord.not_ok``; 0 without the QP)."""
+    rows tight just before the contact (``QpRecord.binding``; "" without the QP), the number of
+    its cycles not OK (``QpRecord.not_ok``; 0 without the QP) and the hand's speed target
+    (``QpRecord.speed_target``, the governed asked speed; None without the QP)."""
 
     reference_speed: float
     contact_speed: float
@@ -35,6 +36,7 @@ class StanceEvaluation:
     onsets: dict = field(default_factory=dict)
     binding: str = ""
     not_ok: int = 0
+    speed_target: float | None = None
 
     @classmethod
     def of(cls, trial: TrialResult) -> StanceEvaluation:
@@ -42,7 +44,8 @@ class StanceEvaluation:
         qp = isinstance(record, QpRecord)
         binding = ", ".join(record.binding(trial.impact.pre_index)) if qp else ""
         return cls(trial.normal_speed, trial.contact_speed, trial.max_velocity_ratio, trial.held.foot_slip, trial.held.foot_lift,
-                   trial.fell, trial.first_failure, trial.failure_times, binding, record.not_ok if qp else 0)
+                   trial.fell, trial.first_failure, trial.failure_times, binding, record.not_ok if qp else 0,
+                   record.speed_target if qp else None)
 
     @classmethod
     def of_speed(cls, run: Callable[[float], TrialResult], speed: float) -> StanceEvaluation:
@@ -63,6 +66,7 @@ class StanceEvaluation:
             "max_velocity_ratio": self.max_velocity_ratio, "foot_slip": self.foot_slip,
             "foot_lift": self.foot_lift, "fell": self.fell, "first_failure": self.first_failure,
             "violated": self.violated, "onsets": self.onsets, "binding": self.binding, "not_ok": self.not_ok,
+            "speed_target": self.speed_target,
         }
 
 

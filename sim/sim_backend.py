@@ -1,12 +1,17 @@
 """The ``sim`` backend: the MuJoCo plant (``sim``) behind the robot interface.
 
-One ``write`` advances the plant by one period as the trial loop does
+One ``write`` gives the plant the command of one period, which it runs as the trial loop does
 (``sim.trial_loop.ServoedPlant``): the computed-torque joint servo turns the command into a torque
 held over the period, MuJoCo runs its substeps, and the contact force on the tool is logged at
-every substep. ``read`` returns the state at the start of the next period; its ``tau`` is the
-torque that acted over the previous period (the last measured joint torque of a robot). Paced,
-``read`` waits for the wall-clock time t0 + k period, t0 the time of ``start`` (sleep, then spin
-for the last ``SPIN_TIME``); unpaced, it returns at once.
+every substep. The period runs at the next ``read`` (or ``stop``, ``force_log``), not inside
+``write``: a real robot moves while its controller computes, so the loop's cycle time (``read``
+returning to ``write`` returning, its deadline) is the controller's and not the simulated robot's
+physics (a standing G1's period, servo and contacts, costs about as much as its controller).
+``read`` returns the state at the start of the next period; its ``tau`` is the torque that acted
+over the previous period (the last measured joint torque of a robot). Paced, ``read`` then waits
+for the wall-clock time t0 + k period, t0 the time of ``start`` (sleep, then spin for the last
+``SPIN_TIME``): a plant slower than real time is caught up, never skipped; unpaced, it returns at
+once.
 """
 
 from __future__ import annotations
@@ -44,8 +49,10 @@ class SimRobot(RobotInterface):
         self.steps = 0
         self._force: list[np.ndarray] = []
         self._start: float | None = None
+        self._pending: np.ndarray | None = None  # the command written and not yet run
 
     def read(self) -> RobotState:
+        self._run_pending()
         if self.paced:
             now = time.perf_counter()
             if self._start is None:
@@ -74,11 +81,23 @@ class SimRobot(RobotInterface):
         self._start = time.perf_counter() - self.steps * self.period
 
     def write(self, dq_cmd: np.ndarray) -> None:
+        self._run_pending()
+        self._pending = np.array(dq_cmd, dtype=float)
+
+    def stop(self) -> None:
+        self._run_pending()
+
+    def _run_pending(self) -> None:
+        """The period of the last written command, once (module docstring)."""
+        if self._pending is None:
+            return
+        command, self._pending = self._pending, None
         force = np.zeros((self.plant.substeps, 3))
-        self.tau = self.plant.advance(np.asarray(dq_cmd, float), force).copy()
+        self.tau = self.plant.advance(command, force).copy()
         self._force.append(force)
         self.steps += 1
 
     def force_log(self) -> tuple[np.ndarray, np.ndarray]:
+        self._run_pending()
         force = np.concatenate(self._force) if self._force else np.zeros((0, 3))
         return np.arange(len(force)) * self.scene.timestep, force

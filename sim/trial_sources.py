@@ -221,11 +221,12 @@ class QpCommand:
     """The robot's default controller as a trial's command source (module docstring): the jump
     predictor of its impact rows (``method``: a jump model, None without the rows), the QP solver,
     which state it is given during the approach (``feedback``; None: "blended" for a robot with
-    held contacts, else "commanded") and, a standing robot, from the stop on (``balance_feedback``), the start gap of a standing robot's trial (m), and the
-    approach options c_r, delta_t, the posture task's weight (None: the preset's) and the friction
-    mu of the robust friction rows (None or 0: none; docs/frictional-impacts.md), which a standing
-    robot's wall takes too (None: the paper's mu, ``sim.runner.standing_wall_friction``). A standing robot's
-    trial starts from its run-up (``gap`` None, :meth:`start_posture`) or ``gap`` m from the wall at
+    held contacts, else "commanded") and, a standing robot, from the stop on
+    (``balance_feedback``), the start gap of a standing robot's trial (m), and the approach
+    options c_r, delta_t, the posture task's weight (None: the preset's) and the friction mu of
+    the robust friction rows (None or 0: none; docs/frictional-impacts.md), which a standing
+    robot's wall takes too (None: the paper's mu, ``sim.runner.standing_wall_friction``). A
+    standing robot's trial starts from its run-up (``gap`` None, :meth:`start_posture`) or ``gap`` m from the wall at
     the stance's posture. ``governor``: with the impact rows on and the contact posture known, the
     hand's speed target is capped at this share of the closed form's highest speed there
     (:meth:`governed_speed`; None: the asked speed)."""
@@ -266,8 +267,9 @@ class QpCommand:
         duration: along the approach its rows hold exactly up to it). The rows bound the command
         one jerk horizon ahead; asked above v_max the command runs up faster than the rows will
         allow and brakes when they tighten, and a plant that lags the command's braking meets the
-        wall faster than the rows allow (docs/whole-body-qp.md, "A reference governor"). The
-        asked speed without the rows, the contact posture or a ``governor``."""
+        wall faster than the rows allow (docs/whole-body-qp.md, "The wall at the stance's hand, the
+        governor and the blend"). The asked speed without the rows, the contact posture or a
+        ``governor``."""
         if self.governor is None or self.method is None or contact_posture is None:
             return speed
         setting = Setting(self.method, self.restitution, impact_duration=self.impact_duration)
@@ -323,6 +325,7 @@ class QpRecord:
     """What the QP did at each control step after the settling (``steps`` from its first cycle)."""
 
     first_step: int = 0  # the trial's control step of the QP's first cycle
+    speed_target: float = 0.0  # m/s: the hand's approach speed target (the governed asked speed)
     statuses: list = field(default_factory=list)  # Status of each cycle
     impact_rows_active: list = field(default_factory=list)  # a post-impact velocity row tight at the solution
     capture_rows_active: list = field(default_factory=list)  # a capture-region row tight at the solution
@@ -371,7 +374,7 @@ class QpDriver:
         self.source = ControllerSource(controller, approach)
         self.approach = next(t for t in controller.tasks if isinstance(t, ContactApproachTask))
         self.settle, self.period = settle, control_period
-        self.record = QpRecord()
+        self.record = QpRecord(speed_target=self.approach.speed)
         self._step = 0
 
     def stop(self) -> None:

@@ -162,3 +162,65 @@ def test_detector_ignores_a_non_finite_residual():
     detector = ImpactDetector(JOINTS)
     assert not detector.update(0.0, np.full(JOINTS, np.nan))
     assert not detector.detected
+
+
+@pytest.fixture(scope="module")
+def standing_approach():
+    """The G1's approach controller at its parallel stance, the wall 5 cm ahead of the hand, 0.8
+    m/s asked, and its state."""
+    from impactqp.controller.config import ControllerConfig, build_controller
+    from impactqp.controller.model.humanoid_stance import stance_posture
+    from impactqp.controller.model.postures import Surface
+    from impactqp.controller.model.robot import RobotModel
+
+    g1 = RobotModel("g1")
+    q0 = stance_posture(g1, g1.description.stances["parallel"])
+    normal = np.array([-1.0, 0.0, 0.0])
+    surface = Surface(g1.terms(q0).contact_point - 0.05 * normal, normal)
+    controller = build_controller(ControllerConfig.approach(surface, 0.8, robot="g1"), g1, q0)
+    return g1, controller, q0
+
+
+def commanded_run(controller, q0, cycles):
+    """The controller fed its own command from rest for ``cycles`` cycles: its Commands."""
+    controller.reset(q0, np.zeros(len(q0) - 1))
+    q, dq, commands = q0, np.zeros(len(q0) - 1), []
+    for _ in range(cycles):
+        commands.append(controller.step(q, dq))
+        q, dq = commands[-1].q_cmd, commands[-1].dq_cmd
+    return commands
+
+
+def test_a_body_that_has_not_yet_followed_its_command_is_no_impact(standing_approach):
+    """While the approach starts, the commanded hand speed runs ahead of a body still at rest:
+    the velocity rule alone (the measured speed below half the commanded) holds there, but the
+    measured speed never followed the command, so nothing dropped and nothing is detected."""
+    from impactqp.controller.runtime.impact_detector import VelocityJumpDetector
+
+    g1, controller, q0 = standing_approach
+    detector = VelocityJumpDetector(g1, controller.impact)
+    rest = np.zeros(g1.nv)
+    commands = commanded_run(controller, q0, 30)
+    rule = [controller.impact.shows_jump(g1.terms(q0).J, rest, c.dq_cmd) for c in commands]
+    assert any(rule) and all(c.impact_constraints_active for c in commands)
+    assert not any(detector.update(0.001 * k, q0, rest, c) for k, c in enumerate(commands))
+
+
+@pytest.mark.parametrize("drop_at", [5, 20])
+def test_a_drop_of_the_followed_speed_is_detected_once_at_its_sample(standing_approach, drop_at):
+    """The measured velocity follows the command, then the contact takes the hand's speed
+    towards the wall to zero (c_r = 0): detected at that sample and only there."""
+    from impactqp.controller.runtime.impact_detector import VelocityJumpDetector
+
+    g1, controller, q0 = standing_approach
+    detector = VelocityJumpDetector(g1, controller.impact)
+    commands = commanded_run(controller, q0, 30)
+    seen = []
+    for k in range(1, len(commands)):
+        q, dq = commands[k - 1].q_cmd, commands[k - 1].dq_cmd
+        if k >= drop_at:
+            J = g1.terms(q).J
+            dq = dq - np.linalg.pinv(J) @ (J @ dq)  # the contact point's velocity taken to zero
+        seen.append(detector.update(0.001 * k, q, dq, commands[k - 1]))
+    assert seen.index(True) == drop_at - 1 and sum(seen) == 1
+    assert detector.detected and detector.t_detect == pytest.approx(0.001 * drop_at)

@@ -205,8 +205,9 @@ def test_a_figure_of_another_format_is_refused_before_the_search(capsys, monkeyp
 
 def test_the_qp_driven_search_of_a_stance_holds_the_contact_speed_at_its_closed_form(capsys):
     """--controller qp: the trials are the whole-body QP's; asked for 1.3 times the closed form,
-    the QP holds the contact speed at or below it, its impact rows tight before the contact; the
-    text gives each check's asked and contact speed, binding rows, onsets and fall."""
+    the QP's governor caps the hand's target at it and the QP holds the contact speed at or below
+    it, its impact rows tight before the contact; the text gives each check's asked speed (and
+    target when capped), contact speed, binding rows, onsets and fall."""
     code, out, _ = run(capsys, "max-speed", "--robot", "g1", "--controller", "qp", "--posture", "close",
                        "--tolerance", "0.4", "--json")
     assert code == 0
@@ -217,11 +218,14 @@ def test_the_qp_driven_search_of_a_stance_holds_the_contact_speed_at_its_closed_
         assert check["reference_speed"] == pytest.approx(float(factor) * closed_form)
     above = report["checks"]["1.3"]
     assert above["contact_speed"] <= closed_form and above["not_ok"] == 0
+    assert report["checks"]["0.9"]["speed_target"] == pytest.approx(0.9 * closed_form, rel=1e-12)
+    assert above["speed_target"] == pytest.approx(closed_form, rel=1e-12)  # the governor's cap
     assert above["binding"] and all(name.split("[")[0] in {"post_impact_velocity", "capture_region", "foot_wrench"}
                                     for name in above["binding"].split(", "))
     lines = max_speed_text(report).splitlines()
     assert "commanded by the QP" in lines[-3]
-    assert lines[-1].startswith(f"  1.3x crb: asked {above['reference_speed']:.4f}, contact {above['contact_speed']:.4f}; "
+    assert lines[-1].startswith(f"  1.3x crb: asked {above['reference_speed']:.4f} (target {above['speed_target']:.4f}), "
+                                f"contact {above['contact_speed']:.4f}; "
                                 f"binding: {above['binding']}; onsets: ")
 
 

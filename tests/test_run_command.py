@@ -268,6 +268,30 @@ def test_the_standing_g1_runs_on_the_sim_backend_detects_its_impact_and_stays_up
     assert np.all(np.abs(log["base_qx"]) < 0.1) and np.all(np.abs(log["base_qy"]) < 0.1)
 
 
+def test_the_standing_g1_s_start_is_no_impact_and_its_contact_is_one(tmp_path, capsys):
+    """Asked 0.4 m/s, the approach's start was read as the impact 2 ms into the run (the
+    command's hand speed ran ahead of a body that had not yet followed it) and the robot never
+    reached the wall; now the impact is detected at the wall's first contact, and the robot
+    stands through it (its pelvis pitches back: docs/robot-loop.md)."""
+    from impactqp.controller.model.humanoid_stance import edge_margins, support_polygon
+    from impactqp.controller.model.robot import RobotModel
+
+    code = main(["run", "--robot", "g1", "--backend", "sim", "--unpaced", "--speed", "0.4", "--duration", "0.7",
+                 "--log", str(tmp_path), "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 0 and report["watchdog_trips"] == 0
+    assert report["impact"]["detected"] and 0.0 <= report["impact"]["detection_latency_ms"] <= 5.0
+    assert report["impact"]["contact_speed"] > 0.1
+    # it stands: its centre of mass stays over its feet, at its height, to the end of the run
+    g1, log = RobotModel("g1"), np.genfromtxt(tmp_path / "run0000.csv", delimiter=",", names=True)
+    base = ["base_x", "base_y", "base_z", "base_qx", "base_qy", "base_qz", "base_qw"]
+    joints = [f"q{i + 1}" for i in range(g1.n_joints)]
+    postures = [np.array([row[name] for name in base + joints]) for row in log[::50]]
+    coms = [g1.terms(q, check_limits=False).com for q in postures]
+    assert all(np.all(edge_margins(support_polygon(g1, q), com) > 0.0) for q, com in zip(postures, coms))
+    assert all(com[2] > 0.95 * coms[0][2] for com in coms)
+
+
 @pytest.mark.parametrize("args, message", [
     (["--backend", "replay", "--dataset", "DIR"], "runs on --backend sim only"),
     (["--backend", "sim", "--plant", "PLANT"], "--config and --plant do not apply"),

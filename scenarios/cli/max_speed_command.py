@@ -350,9 +350,12 @@ def reference_text(reference: dict) -> str:
 def check_text(factor: str, e: dict) -> str:
     """One trial asked for ``factor`` times the checks' reference (crb's closed form, frictional with
     --friction: :func:`reference_text`): asked and contact speed, the binding impact rows, the
-    failed criteria's onsets (ms from the contact), whether it fell and the QP's cycles not OK."""
+    failed criteria's onsets (ms from the contact), whether it fell and the QP's cycles not OK
+    (the asked speed followed by the QP's target when its governor capped it)."""
     onsets = ", ".join(f"{name} {1000 * t:+.0f} ms" for name, t in e["onsets"].items()) or "none"
-    return (f"  {factor}x crb: asked {e['reference_speed']:.4f}, contact {e['contact_speed']:.4f}; "
+    target = e["speed_target"]
+    governed = f" (target {target:.4f})" if target is not None and target < e["reference_speed"] else ""
+    return (f"  {factor}x crb: asked {e['reference_speed']:.4f}{governed}, contact {e['contact_speed']:.4f}; "
             f"binding: {e['binding'] or '-'}; onsets: {onsets}; fell: {'yes' if e['fell'] else 'no'}; "
             f"cycles not OK: {e['not_ok']}")
 
