@@ -123,6 +123,7 @@ IMPACT_SPEED_DROP = 0.5
 this fraction of the commanded one (``ExpectedImpact.shows_jump``)."""
 RELEASED, FOLLOWING, DROPPED = 0, 1, 2  # ``ExpectedImpact.speed_tracking``'s answers
 
+
 class ExpectedImpact:
     """An expected impact on ``surface`` predicted with one jump model: the jump matrices of a
     state and whether the impact-aware rows apply to it (the activation rule), both computed
