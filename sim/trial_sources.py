@@ -226,10 +226,10 @@ class QpCommand:
     options c_r, delta_t, the posture task's weight (None: the preset's) and the friction mu of
     the robust friction rows (None or 0: none; docs/frictional-impacts.md), which a standing
     robot's wall takes too (None: the paper's mu, ``sim.runner.standing_wall_friction``). A
-    standing robot's trial starts from its run-up (``gap`` None, :meth:`start_posture`) or ``gap`` m from the wall at
-    the stance's posture. ``governor``: with the impact rows on and the contact posture known, the
-    hand's speed target is capped at this share of the closed form's highest speed there
-    (:meth:`governed_speed`; None: the asked speed)."""
+    standing robot's trial starts from its run-up (``gap`` None, :meth:`start_posture`) or ``gap``
+    m from the wall at the stance's posture. ``governor``: with the impact rows on and the contact
+    posture known, the hand's speed target is capped at this share of the closed form's highest
+    speed there (:meth:`governed_speed`; None: the asked speed)."""
 
     method: str | None = "crb"
     solver: str = "daqp"
@@ -292,9 +292,10 @@ class QpCommand:
 
     def config(self, start: TrialStart) -> ControllerConfig:
         """The controller's configuration: the description's approach towards the start's wall at
-        the governed speed (:meth:`governed_speed`); with a ``contact_posture``, the hand's orientation target is the contact posture's (the
-        run-up turned the hand: held at the run-up's orientation, the arm reached the wall in
-        another posture than the stance's, where the foot rows bind lower; docs/whole-body-qp.md)."""
+        the governed speed (:meth:`governed_speed`); with a ``contact_posture``, the hand's
+        orientation target is the contact posture's (the run-up turned the hand: held at the
+        run-up's orientation, the arm reached the wall in another posture than the stance's, where
+        the foot rows bind lower; docs/whole-body-qp.md)."""
         options = {} if self.impact_duration is None else {"impact_duration": self.impact_duration}
         speed = self.governed_speed(start.robot, start.contact_posture, start.surface.normal, start.speed)
         config = ControllerConfig.approach(
