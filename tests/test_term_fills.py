@@ -250,3 +250,33 @@ def test_a_floating_bases_held_jacobian_alone_is_its_terms(seed):
         frames = [model.getFrameId(c.frame) for c in g1.description.held_contacts]
         expected = np.vstack([pin.getFrameJacobian(model, data, f, pin.LOCAL_WORLD_ALIGNED) for f in frames])
         np.testing.assert_allclose(g1.held_jacobian(q), expected, rtol=0, atol=1e-12)
+
+
+@settings(max_examples=10, deadline=None)
+@given(arm_q=joint_positions(), seed=st.integers(0, 2**32 - 1))
+def test_the_pinocchio_pass_alone_gives_what_a_refill_reads(robot, arm_q, seed):
+    """``pinocchio_pass`` (what the bench's cycle floor times) runs every Pinocchio algorithm a
+    refill reads: on a data of its own at a random state, its M^-1 (upper triangle, mirrored),
+    centre of mass, its acceleration and Jacobian and the centroidal inertia are the G1's refilled
+    terms' bit for bit; on the Panda, its ``computeAllTerms`` gives the refill's M and h."""
+    from conftest import g1_model
+
+    rng = np.random.default_rng(seed)
+    g1 = g1_model()
+    q = pin.neutral(g1.model)
+    q[3:7] = pin.Quaternion(*rng.normal(size=4)).normalized().coeffs()
+    q[g1.base_nq:] = rng.uniform(g1.q_min, g1.q_max)
+    for subject, state in ((g1, q), (robot, arm_q)):
+        dq = rng.normal(size=subject.nv)
+        terms = subject.update_terms(subject.empty_terms(), state, dq)
+        data = subject.model.createData()
+        subject.pinocchio_pass(data, state, dq)
+        if subject.base_nv:
+            np.testing.assert_array_equal(terms.body.M_inv, np.triu(data.Minv) + np.triu(data.Minv, 1).T)
+            np.testing.assert_array_equal(terms.com, data.com[0])
+            np.testing.assert_array_equal(terms.dJcom_dq, data.acom[0])
+            np.testing.assert_array_equal(terms.Jcom, data.Jcom)
+            np.testing.assert_array_equal(terms.inertia_com, data.Ig.inertia)
+        else:
+            np.testing.assert_array_equal(terms.M, data.M)
+            np.testing.assert_array_equal(terms.h, data.nle)

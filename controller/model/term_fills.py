@@ -146,24 +146,38 @@ class ModelTermFills:
         if not (q.flags.writeable and dq.flags.writeable and q.flags.c_contiguous and dq.flags.c_contiguous):
             incoming[:self.nq], incoming[self.nq:] = q, dq  # the kernels read writable row-major arrays
             q, dq = incoming[:self.nq], incoming[self.nq:]
-        pin.computeAllTerms(self.model, data, q, dq)
-        pin.updateFramePlacement(self.model, data, self.contact_frame_id)
+        self.pinocchio_pass(data, q, dq)
         status = arm_cycle_terms(*world, q, dq, self._cycle_checks[check_limits], out)
         if status != ACCEPTED:  # raises, or a near-singular J that the exact test clears: accept it
             try:
                 J = pin.getFrameJacobian(self.model, data, self.contact_frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
                 self._refuse(J, q, dq, status, check_limits)
             except BadInputError:
-                self._compute_cycle_data(data, terms.q, terms.dq)
+                self.pinocchio_pass(data, terms.q, terms.dq)
                 raise
             arm_cycle_terms(*world, q, dq, self._cycle_checks[None], out)
         terms.inertia_com = centroidal.inertia
         return terms.refilled()
 
-    def _compute_cycle_data(self, data: pin.Data, q: np.ndarray, dq: np.ndarray) -> None:
-        """``computeAllTerms`` and the contact placement of (q, dq) in ``data``."""
-        pin.computeAllTerms(self.model, data, q, dq)
-        pin.updateFramePlacement(self.model, data, self.contact_frame_id)
+    def pinocchio_pass(self, data: pin.Data, q: np.ndarray, dq: np.ndarray) -> None:
+        """The Pinocchio algorithms of one cycle's terms at (q, dq), on ``data`` (``update_terms``
+        runs them on its data, then reads it; the bench's cycle floor times them alone): an arm's
+        ``computeAllTerms`` and its contact frame's placement; a floating base's kinematics at
+        ddq = 0 and its joints' world Jacobians, the centre of mass with its acceleration and its
+        Jacobian, M^-1 (``computeMinverse``, its upper triangle) and the centroidal inertia
+        (``ccrba``). None of them changes what an earlier one wrote, but the centre of mass, which
+        ``ccrba`` writes again (the same to rounding)."""
+        model = self.model
+        if not self.base_nv:
+            pin.computeAllTerms(model, data, q, dq)
+            pin.updateFramePlacement(model, data, self.contact_frame_id)
+            return
+        pin.forwardKinematics(model, data, q, dq, self._zero_velocity)
+        pin.computeJointJacobians(model, data)
+        pin.centerOfMass(model, data, pin.ACCELERATION, True)  # of the kinematics above
+        pin.jacobianCenterOfMass(model, data, False)  # of the Jacobians and centres of mass above
+        pin.computeMinverse(model, data, q)
+        pin.ccrba(model, data, q, dq)
 
     def _attach_cycle_data(self, terms: ModelTerms) -> pin.Data:
         """Give an arm's buffer a Pinocchio data of its own, computed at the buffer's state, and
@@ -175,7 +189,7 @@ class ModelTermFills:
         Cholesky factor of that M."""
         drift = np.array(terms.dJ6_dq)  # first: a lazily filled drift's fill sets M and h too
         data = self.model.createData()
-        self._compute_cycle_data(data, terms.q, terms.dq)
+        self.pinocchio_pass(data, terms.q, terms.dq)
         placement = data.oMf[self.contact_frame_id]
         terms.M, terms.h, terms.com, terms.contact_point = data.M.T, data.nle, data.com[0], placement.translation
         nq, nv = self.nq, self.nv
@@ -288,7 +302,8 @@ class ModelTermFills:
         its held contacts and its named frames (``ModelTerms.frame_arrays``' order): each frame's
         joint's placement, twist and acceleration (views of the model's data, which its fill's
         kinematics rewrite in place), its placement in that joint's axes, and the velocities
-        that move that joint."""
+        that move that joint; and views of the data's centre of mass, its acceleration and the
+        centroidal inertia, which ``pinocchio_pass`` rewrites in place too."""
         model, data = self.model, self.data
         frame_ids = [self.contact_frame_id, *self.held_frame_ids, *self.frame_ids.values()]
         local = np.empty((len(frame_ids), 4, 3))
@@ -306,6 +321,7 @@ class ModelTermFills:
                 acceleration.linear, acceleration.angular,
             ))
         self._floating_frames = tuple(joints), (local, support)
+        self._floating_outputs = data.com[0], data.acom[0], data.Ig  # views of what the pass rewrites in place
 
     def _fill_floating(self, terms: ModelTerms, q: np.ndarray, v: np.ndarray, check_limits: bool) -> ModelTerms:
         """One pass of Pinocchio's algorithms at (q, v) (float arrays of the model's sizes) into
@@ -320,18 +336,14 @@ class ModelTermFills:
         if floating_state_status(q, v, self.base_nq, QUATERNION_TOLERANCE, terms.q, terms.dq) != ACCEPTED:
             q, v = self.check_state(q, v, check_limits=False)  # raises, naming the entry
             terms.q[:], terms.dq[:] = q, v
-        model, data, body = self.model, self.data, terms.body
-        q, v = terms.q, terms.dq
-        pin.forwardKinematics(model, data, q, v, self._zero_velocity)
-        pin.computeJointJacobians(model, data)
+        data, body = self.data, terms.body
+        self.pinocchio_pass(data, terms.q, terms.dq)
         joints, frames = self._floating_frames
         floating_frames_into(data.J, joints, frames, terms.frame_arrays)
-        pin.centerOfMass(model, data, pin.ACCELERATION, True)  # of the kinematics above
-        terms.com[:], body.dJcom_dq[:] = data.com[0], data.acom[0]
-        body.Jcom[:] = pin.jacobianCenterOfMass(model, data, False)  # of the Jacobians and CoMs above
-        mirror_upper(pin.computeMinverse(model, data, q), body.M_inv)
-        pin.ccrba(model, data, q, v)
-        terms.mass, terms.inertia_com[:] = float(data.Ig.mass), data.Ig.inertia
+        com, com_acceleration, centroidal = self._floating_outputs
+        terms.com[:], body.dJcom_dq[:], body.Jcom[:] = com, com_acceleration, data.Jcom
+        mirror_upper(data.Minv, body.M_inv)
+        terms.mass, terms.inertia_com[:] = centroidal.mass, centroidal.inertia
         return terms.refilled(pending=("M", "h", "JJt_inv"))
 
     def body_terms(self, q: np.ndarray, dq: np.ndarray) -> BodyTerms:

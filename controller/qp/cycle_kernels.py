@@ -14,21 +14,32 @@ from .problem import stacked_violation
 
 @njit(cache=True)
 def weighted_least_squares(A, b, w, H, g):
-    """Kernel: H = A^T diag(w) A and g = -A^T diag(w) b, the QP cost of the stacked task rows
-    (the zero entries of the rows skipped: posture and damping rows have one entry each)."""
+    """Kernel: H = A^T diag(w) A and g = -A^T diag(w) b, the QP cost of the stacked task rows.
+
+    Each row adds w_r a_r a_r^T over its non-zero columns only (gathered first): a posture or
+    damping row has one entry, a frame's row only the velocities of its chain; the sums run
+    row by row as the dense product's, so H and g are the same to rounding."""
     rows, n = A.shape
-    for i in range(n):
-        g[i] = 0.0
-        for j in range(n):
-            H[i, j] = 0.0
+    H[:, :] = 0.0
+    g[:] = 0.0
+    columns = np.empty(n, dtype=np.int64)
+    values = np.empty(n)
     for r in range(rows):
+        weight = w[r]
+        if weight == 0.0:
+            continue
+        count = 0
         for i in range(n):
-            wa = w[r] * A[r, i]
-            if wa == 0.0:
-                continue
-            g[i] -= wa * b[r]
-            for j in range(i, n):
-                H[i, j] += wa * A[r, j]
+            if A[r, i] != 0.0:
+                columns[count] = i
+                values[count] = A[r, i]
+                count += 1
+        target = b[r]
+        for s in range(count):
+            i, wa = columns[s], weight * values[s]
+            g[i] -= wa * target
+            for t in range(s, count):
+                H[i, columns[t]] += wa * values[t]
     for i in range(n):
         for j in range(i):
             H[i, j] = H[j, i]

@@ -3,9 +3,10 @@
 - controller.cycle: microseconds per ``step`` in a kinematic closed loop (q, dq <- q_cmd,
   dq_cmd) approaching the default wall faster than the posture allows, every constraint on,
   the impact-aware ones active (goals: median <= 100 us, p99 <= 250 us), on the Panda;
-- floor.cycle: the floor of that cycle at the same states: one ``computeAllTerms`` and a bare
-  ``daqp.solve`` of the controller's own QP (the same H, g, C and stacked bounds, recorded along
-  the loop);
+- floor.cycle: the floor of that cycle at the same states: the Pinocchio algorithms of its model
+  terms (``RobotModel.pinocchio_pass``: an arm's ``computeAllTerms`` and contact placement) and a
+  bare ``daqp.solve`` of the controller's own QP (the same H, g, C and stacked bounds, recorded
+  along the loop);
 - controller.cycle.friction4: the same loop with the robust friction rows of a 4-edge pyramid
   (mu = ``BENCH_FRICTION``; docs/frictional-impacts.md); controller.cycle.robust: the same loop
   with the robust three-model impact rows (crb, gm and classical at once);
@@ -42,7 +43,6 @@ from dataclasses import replace
 
 import daqp
 import numpy as np
-import pinocchio as pin
 
 from impactqp.controller.config import ControllerConfig, build_controller
 from impactqp.sim.scene import build_scene
@@ -115,24 +115,25 @@ class ClosedLoop:
 
 
 class CycleFloor:
-    """The floor of a controller's cycle at recorded states (``ClosedLoop.run``'s ``record``): one
-    ``computeAllTerms`` of the robot and one bare ``daqp.solve`` of the controller's QP, the
-    same H, g, C and stacked bounds; each ``run`` times the next states, in a ring."""
+    """The floor of a controller's cycle at recorded states (``ClosedLoop.run``'s ``record``): the
+    Pinocchio algorithms of the robot's model terms (``pinocchio_pass``, on a data of its own) and
+    one bare ``daqp.solve`` of the controller's QP, the same H, g, C and stacked bounds; each
+    ``run`` times the next states, in a ring."""
 
     def __init__(self, robot: RobotModel, states: list):
-        self.model, self.data, self.states, self.next = robot.model, robot.model.createData(), states, 0
+        self.robot, self.data, self.states, self.next = robot, robot.model.createData(), states, 0
         rows, n = states[0][2].C.shape
         self.sense = np.zeros(n + rows, dtype=np.int32)
 
     def run(self, cycles: int) -> np.ndarray:
         """Seconds per floor cycle of the next ``cycles`` recorded states."""
         samples = np.empty(cycles)
-        model, data, sense = self.model, self.data, self.sense
+        dynamics, data, sense = self.robot.pinocchio_pass, self.data, self.sense
         for k in range(cycles):
             q, v, problem = self.states[self.next]
             self.next = (self.next + 1) % len(self.states)
             start = time.perf_counter()
-            pin.computeAllTerms(model, data, q, v)
+            dynamics(data, q, v)
             sense.fill(0)
             daqp.solve(problem.H, problem.g, problem.C, problem.upper, problem.lower, sense)
             samples[k] = time.perf_counter() - start
