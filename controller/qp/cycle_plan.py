@@ -194,13 +194,21 @@ class CyclePlan:
     def fill(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
         """Every task and constraint row of this state into the buffers (one compiled call);
         False when the box bounds conflict."""
+        parameters = self._cycle_parameters(cycle)
+        impacts = self._impact_maps(terms)
+        return planned_rows(terms.arm_state, terms.M, terms.h, impacts, self.table, parameters, self.buffers.data)
+
+    def _cycle_parameters(self, cycle: ControlCycle) -> np.ndarray:
+        """The packed parameters (packed again when a task's or a constraint's attribute was
+        assigned since) with this cycle's horizon and dt in their head, its reachable
+        accelerations in the buffers (where the controller's ``ControlCycle`` already keeps them)."""
         if self._edits != (Task.parameter_edits, Constraint.parameter_edits):
             self.pack()
-        impacts, parameters, b = self._impact_maps(terms), self.parameters, self.buffers
+        parameters, b = self.parameters, self.buffers
         parameters[HORIZON], parameters[DT] = cycle.horizon, cycle.dt
         if cycle.acceleration_lower is not b.reachable_lower or cycle.acceleration_upper is not b.reachable_upper:
             b.reachable_lower[:], b.reachable_upper[:] = cycle.acceleration_lower, cycle.acceleration_upper
-        return planned_rows(terms.arm_state, terms.M, terms.h, impacts, self.table, parameters, b.data)
+        return parameters
 
 
 def _planned(kind: int | None, item, variables: int) -> bool:

@@ -25,20 +25,20 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from impactqp.constraints import CaptureRegionLimit, Constraint, ControlCycle, FootWrenchLimit, HeldContactRows
+from impactqp.constraints import CaptureRegionLimit, ControlCycle, FootWrenchLimit, HeldContactRows
 from impactqp.constraints.capture_constraint import capture_rows
 from impactqp.constraints.constraint import relax_to_reachable
 from impactqp.constraints.foot_wrench import foot_wrench_rows
 from impactqp.controller.model.capture import GRAVITY
 from impactqp.controller.model.model_terms import ModelTerms
-from impactqp.tasks import CentreOfMassTask, FrameTask, Task
+from impactqp.tasks import CentreOfMassTask, FrameTask
 from impactqp.tasks.com_task import com_rows
 from impactqp.tasks.frame_task import FRAME_PARAMETERS, frame_rows
 
 from .cycle_kernels import weighted_least_squares
 from .cycle_plan import (
-    FIRST, IMPACT, KERNEL_KINDS, KIND, PARAMETERS, ROWS, TORQUE, CyclePlan, planned_boxes, planned_general_rows,
-    planned_task_rows,
+    BOXES, DT, FIRST, FIRST_RELAXED, GENERAL_ROWS, HORIZON, IMPACT, KERNEL_KINDS, KIND, PARAMETERS, ROWS, TASK_ROWS,
+    TORQUE, CyclePlan, cycle_buffer_views, planned_boxes, planned_general_rows, planned_task_rows,
 )
 
 COM, FRAME = 4, 5
@@ -94,8 +94,7 @@ class WholeBodyPlan(CyclePlan):
     def fill(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
         """Every task and constraint row of this state into the buffers (one compiled call);
         False when the box bounds conflict."""
-        if self._edits != (Task.parameter_edits, Constraint.parameter_edits):
-            self.pack()
+        parameters = self._cycle_parameters(cycle)
         maps = self._impact_maps(terms)
         body_maps = self._body_maps(terms)
         frames = self._frames(terms)
@@ -107,14 +106,7 @@ class WholeBodyPlan(CyclePlan):
             terms.Jcom if body else Jcom, terms.dJcom_dq if body else point, terms.com if body else point,
             terms.held_jacobian, terms.held_drift, terms.mass,
         )
-        b = self.buffers
-        p = b.problem
-        return whole_body_rows(
-            (state, body_terms, frames), (maps, body_maps),
-            (cycle.acceleration_lower, cycle.acceleration_upper, cycle.horizon, cycle.dt),
-            (self.table, self.parameters, self.first_relaxed), (b.task_A, b.task_b, b.task_w),
-            (p.H, p.g, b.box_bounds, p.lower, p.upper, p.C),
-        )
+        return whole_body_rows((state, body_terms, frames), (maps, body_maps), self.table, parameters, self.buffers.data)
 
     def _frames(self, terms: ModelTerms) -> tuple:
         """The frame tasks' frames as the rows' kernel reads them, (p, R, J6, dJ6 v, index): a
@@ -156,24 +148,26 @@ class WholeBodyPlan(CyclePlan):
 
 
 @njit(cache=True)
-def whole_body_rows(inputs, maps, cycle, plan, task_rows, qp):
+def whole_body_rows(inputs, maps, table, parameters, data):
     """Kernel of ``WholeBodyPlan.fill``: ``cycle_plan.planned_rows`` with the lines of the
     whole-body kinds, for inputs = (``planned_rows``' state, body, frames), body = (Jcom, dJcom v,
     c, Jf, dJf v, m), frames = the frames' stacked (p, R, J6, dJ6 v, index) (``_frames``), maps =
-    (``planned_rows``' impacts, (each impact's C, G and Z)) and plan = (table,
-    parameters, first relaxed row)."""
+    (``planned_rows``' impacts, (each impact's C, G and Z)), and ``table``, ``parameters`` and
+    ``data`` (the controller's buffers, ``cycle_buffer_views``) as ``planned_rows``'."""
     state, body, frames = inputs
     impacts, body_maps = maps
-    table, parameters, first_relaxed = plan
-    task_A, task_b, task_w = task_rows
-    H, g, box_bounds, lower, upper, C = qp
-    n = task_A.shape[1]
+    n = state[1].shape[0]
+    sizes = int(parameters[TASK_ROWS]), int(parameters[GENERAL_ROWS]), int(parameters[BOXES])
+    reachable, task_A, task_b, task_w, H, g, C, bounds, box_bounds = cycle_buffer_views(data, n, *sizes)
+    lower, upper = bounds[0], bounds[1]
+    first_relaxed, horizon = int(parameters[FIRST_RELAXED]), parameters[HORIZON]
+    task_rows, qp = (task_A, task_b, task_w), (H, g, box_bounds, lower, upper, C)
     planned_task_rows(state, table, parameters, task_rows)
     body_task_rows(state[1], body, frames, table, parameters, task_rows)
     weighted_least_squares(task_A, task_b, task_w, H, g)
-    consistent = planned_boxes(state, cycle, table, parameters, box_bounds, lower, upper)
-    planned_general_rows(state, impacts, cycle[2], table, parameters, qp)
-    body_general_rows((state[1], state[2], body), body_maps, impacts[:, -1], cycle[2], table, parameters, qp)
+    consistent = planned_boxes(state, (reachable[0], reachable[1], horizon, parameters[DT]), table, parameters, box_bounds, lower, upper)
+    planned_general_rows(state, impacts, horizon, table, parameters, qp)
+    body_general_rows((state[1], state[2], body), body_maps, impacts[:, -1], horizon, table, parameters, qp)
     relax_to_reachable(C[first_relaxed:], lower[n + first_relaxed:], upper[n + first_relaxed:], lower[:n], upper[:n])
     return consistent
 
