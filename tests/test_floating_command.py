@@ -25,14 +25,21 @@ def g1_limits():
     dq=arrays(float, 35, elements=st.floats(-30, 30)),
     ddq=arrays(float, 35, elements=st.floats(-3e4, 3e4)),
     dt=st.sampled_from([1e-3, 2e-3, 1e-2]),
+    seed=st.integers(0, 2**32 - 1),
 )
-def test_the_velocity_command_is_its_numpy_twin(dq, ddq, dt):
-    out = np.full((2, 35), np.nan)
-    clipped = floating_velocity_command(dq, ddq, dt, g1_limits(), out)
-    dq_cmd, half_step, expected = reference_velocity_command(dq, ddq, dt, g1_limits())
+def test_the_velocity_command_is_its_numpy_twin(dq, ddq, dt, seed):
+    """dq_cmd and the half step bit for bit; the predicted jump A dq_cmd and post-impact velocity
+    dq_cmd + A dq_cmd of a random jump matrix to rounding."""
+    jump_matrix = np.random.default_rng(seed).normal(size=(35, 35))
+    out = np.full((4, 35), np.nan)
+    clipped = floating_velocity_command(dq, ddq, dt, g1_limits(), jump_matrix, out)
+    dq_cmd, half_step, jump, expected = reference_velocity_command(dq, ddq, dt, g1_limits(), jump_matrix)
     assert clipped == expected
     np.testing.assert_array_equal(out[0], dq_cmd)
     np.testing.assert_array_equal(out[1], half_step)
+    scale = np.abs(jump_matrix) @ np.abs(dq_cmd)
+    np.testing.assert_array_less(np.abs(out[2] - jump), 1e-13 * (1.0 + scale))
+    np.testing.assert_array_less(np.abs(out[3] - (dq_cmd + out[2])), 1e-13 * (1.0 + np.abs(dq_cmd + out[2])))
 
 
 @settings(max_examples=60, deadline=None)

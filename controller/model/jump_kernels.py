@@ -173,7 +173,7 @@ def held_contact_maps_into(terms, rigid, method, impact, out):
     K n = (N J^T) (J N J^T)^-1 W n. With no held contact (Jf of no rows), (P_f J^T)^T = Y_J,
     (N J^T)^T = J and Z has no rows. The products skip Jf's and J's zero entries (a foot's row
     moves the base and one leg) and run along rows (``product``); SingularPostureError when Jf M^-1 Jf^T
-    or Jf Jf^T is singular (``solve_in_place``)."""
+    or Jf Jf^T is singular (``held_solve``)."""
     M_inv, J6, Jf, Jcom = terms
     normal, c_r = impact
     A, P, G, C, Z = out
@@ -218,10 +218,47 @@ def held_contact_maps_into(terms, rigid, method, impact, out):
 
 @njit(cache=True)
 def held_solve(S, B):
-    """Kernel: B <- S^-1 B (``solve_in_place``, S overwritten); SingularPostureError when S is
-    singular."""
-    if not solve_in_place(S, B):
+    """Kernel: B <- S^-1 B for a symmetric positive-definite S (Jf M^-1 Jf^T or Jf Jf^T:
+    ``cholesky_solve_in_place``, S overwritten); SingularPostureError when S is singular."""
+    if not cholesky_solve_in_place(S, B):
         raise SingularPostureError("the held contacts' Jacobian is singular at this state")
+
+
+@njit(cache=True)
+def cholesky_solve_in_place(S, B):
+    """Kernel: B <- S^-1 B for a symmetric S by its Cholesky factor S = L L^T (L written over
+    S's lower triangle, its upper triangle read only on the diagonal), then forward and back
+    substitution; False when a pivot L_jj^2 is not above 1e-12 times S's largest diagonal entry
+    (S singular, or not positive definite, for this purpose)."""
+    size = S.shape[0]
+    scale = 0.0
+    for i in range(size):
+        scale = max(scale, abs(S[i, i]))
+    for j in range(size):
+        pivot = S[j, j]
+        for k in range(j):
+            pivot -= S[j, k] * S[j, k]
+        if not pivot > 1e-12 * scale:
+            return False
+        pivot = np.sqrt(pivot)
+        S[j, j] = pivot
+        for i in range(j + 1, size):
+            total = S[i, j]
+            for k in range(j):
+                total -= S[i, k] * S[j, k]
+            S[i, j] = total / pivot
+    for c in range(B.shape[1]):
+        for i in range(size):  # L y = b
+            total = B[i, c]
+            for k in range(i):
+                total -= S[i, k] * B[k, c]
+            B[i, c] = total / S[i, i]
+        for i in range(size - 1, -1, -1):  # L^T x = y
+            total = B[i, c]
+            for k in range(i + 1, size):
+                total -= S[k, i] * B[k, c]
+            B[i, c] = total / S[i, i]
+    return True
 
 
 @njit(cache=True)

@@ -165,7 +165,7 @@ class ImpactAwareController:
         self._relaxed_rows = (p.C[first:], p.l[first:], p.u[first:])
         self._terms = self.robot.empty_terms()  # refilled in place every cycle
         self._jerk_step = self.dddq_max * self.dt
-        self._no_jump = np.zeros((n, n))  # a fixed base's jump matrix without an expected impact
+        self._no_jump = np.zeros((n, n))  # the jump matrix without an expected impact
         joints = self._joint_velocities
         self._limits = command_limits(self.robot, self.ddq_max[joints], self._jerk_step[joints])
         horizon = max(self.dt, float(np.max(self.ddq_max / self.dddq_max)))
@@ -253,11 +253,13 @@ class ImpactAwareController:
         status = Status.OK
         # dq_cmd = dq + ddq dt (clipped only off the closed loop: see the docstring) and
         # q_cmd = q (+) (dq + dq_cmd) dt / 2 within the position limits
+        # one compiled pass: dq_cmd, q_cmd (a floating base's on its manifold), the predicted jump
+        # and post-impact velocity
+        jump_matrix = self._no_jump if self.impact is None else self.impact.row_matrices(terms).jump_matrix
         if self._floating:
-            *command, clipped = self._floating_integrate(terms, ddq)
-        else:  # one compiled pass: the rows dq_cmd, q_cmd, the predicted jump and post-impact velocity
+            *command, clipped = self._floating_integrate(terms, ddq, jump_matrix)
+        else:
             command = np.empty((COMMAND_ROWS, robot.nv))
-            jump_matrix = self._no_jump if self.impact is None else self.impact.row_matrices(terms).jump_matrix
             clipped = integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, jump_matrix, command)
         if clipped:
             ddq = (command[0] - terms.dq) * (1.0 / self.dt)
@@ -286,13 +288,14 @@ class ImpactAwareController:
             ddq, dq_cmd, q_cmd = brake(memory.q_cmd, memory.dq_cmd, memory.ddq, self.dt, self._limits)
         return self._emit(None, (ddq, dq_cmd, q_cmd), Status.IMPACT_BRAKE, [], [], "", "braking after a noticed impact")
 
-    def _floating_integrate(self, terms: ModelTerms, ddq: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+    def _floating_integrate(self, terms: ModelTerms, ddq: np.ndarray, jump_matrix: np.ndarray) -> tuple:
         """A floating base's dq_cmd = dq + ddq dt (the joints' part within their velocity limits),
-        q_cmd = q (+) (dq + dq_cmd) dt / 2 (``_configuration_step``) and whether dq_cmd was
-        clipped (``floating_command``'s kernels; a fixed base: ``integrate_command``)."""
-        command = np.empty((2, terms.dq.shape[0]))
-        clipped = floating_velocity_command(terms.dq, ddq, self.dt, self._limits, command)
-        return command[0], self._configuration_step(terms.q, command[1]), clipped
+        q_cmd = q (+) (dq + dq_cmd) dt / 2 (``_configuration_step``), the predicted jump A dq_cmd
+        of the jump matrix A, the predicted post-impact velocity and whether dq_cmd was clipped
+        (``floating_command``'s kernels; a fixed base: ``integrate_command``)."""
+        command = np.empty((COMMAND_ROWS, terms.dq.shape[0]))
+        clipped = floating_velocity_command(terms.dq, ddq, self.dt, self._limits, jump_matrix, command)
+        return command[0], self._configuration_step(terms.q, command[1]), command[2], command[3], clipped
 
     def _floating_position(self, terms: ModelTerms, dq_cmd: np.ndarray) -> np.ndarray:
         """q (+) (dq + dq_cmd) dt / 2 on the configuration manifold, the joints within their limits."""

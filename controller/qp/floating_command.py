@@ -1,5 +1,6 @@
 """The compiled kernels of a floating base's command (``ImpactAwareController``'s G1 step):
-dq_cmd = dq + ddq dt with the joints' part within their velocity limits, the half step
+dq_cmd = dq + ddq dt with the joints' part within their velocity limits and its impact
+prediction, the half step
 (dq + dq_cmd) dt / 2 that ``pin.integrate`` takes q along (q_cmd = q (+) (dq + dq_cmd) dt / 2 on
 the configuration manifold: the free flyer's part is not a sum), and the joints' part of q_cmd
 within their position limits. ``limits`` are the joints' stacked ``command.command_limits``
@@ -13,12 +14,16 @@ from .command import DQ_MAX, Q_MAX, Q_MIN
 
 
 @njit(cache=True)
-def floating_velocity_command(dq, ddq, dt, limits, out):
+def floating_velocity_command(dq, ddq, dt, limits, jump_matrix, out):
     """Kernel: out[0] = dq_cmd = dq + ddq dt, each joint's rate clipped to +-dq_max (the base's
-    twist is not), out[1] = (dq + dq_cmd) dt / 2; True when a joint's rate was clipped."""
+    twist is not), out[1] = (dq + dq_cmd) dt / 2, out[2] = the predicted jump A dq_cmd of the
+    jump matrix A at the commanded velocity and out[3] = dq_cmd + A dq_cmd, the predicted
+    post-impact velocity (``cycle_kernels.integrate_command``'s last rows); True when a joint's
+    rate was clipped."""
     clipped = False
-    base = dq.shape[0] - limits.shape[1]
-    for i in range(dq.shape[0]):
+    n = dq.shape[0]
+    base = n - limits.shape[1]
+    for i in range(n):
         v = dq[i] + ddq[i] * dt
         if i >= base:
             dq_max = limits[DQ_MAX, i - base]
@@ -28,6 +33,12 @@ def floating_velocity_command(dq, ddq, dt, limits, out):
                 v, clipped = -dq_max, True
         out[0, i] = v
         out[1, i] = 0.5 * dt * (dq[i] + v)
+    for i in range(n):
+        jump = 0.0
+        for j in range(n):
+            jump += jump_matrix[i, j] * out[0, j]
+        out[2, i] = jump
+        out[3, i] = out[0, i] + jump
     return clipped
 
 
