@@ -253,8 +253,7 @@ class ImpactAwareController:
         status = Status.OK
         # dq_cmd = dq + ddq dt (clipped only off the closed loop: see the docstring) and
         # q_cmd = q (+) (dq + dq_cmd) dt / 2 within the position limits
-        # one compiled pass: dq_cmd, q_cmd (a floating base's on its manifold), the predicted jump
-        # and post-impact velocity
+        # one compiled pass: dq_cmd, q_cmd (on a floating base's manifold), the predicted jump and post-impact velocity
         jump_matrix = self._no_jump if self.impact is None else self.impact.row_matrices(terms).jump_matrix
         if self._floating:
             *command, clipped = self._floating_integrate(terms, ddq, jump_matrix)
@@ -289,10 +288,9 @@ class ImpactAwareController:
         return self._emit(None, (ddq, dq_cmd, q_cmd), Status.IMPACT_BRAKE, [], [], "", "braking after a noticed impact")
 
     def _floating_integrate(self, terms: ModelTerms, ddq: np.ndarray, jump_matrix: np.ndarray) -> tuple:
-        """A floating base's dq_cmd = dq + ddq dt (the joints' part within their velocity limits),
-        q_cmd = q (+) (dq + dq_cmd) dt / 2 (``_configuration_step``), the predicted jump A dq_cmd
-        of the jump matrix A, the predicted post-impact velocity and whether dq_cmd was clipped
-        (``floating_command``'s kernels; a fixed base: ``integrate_command``)."""
+        """A floating base's dq_cmd = dq + ddq dt (joints within their velocity limits), q_cmd = q (+)
+        (dq + dq_cmd) dt / 2 (``_configuration_step``), the jump A dq_cmd, the post-impact velocity
+        and whether dq_cmd was clipped (``floating_command``; a fixed base: ``integrate_command``)."""
         command = np.empty((COMMAND_ROWS, terms.dq.shape[0]))
         clipped = floating_velocity_command(terms.dq, ddq, self.dt, self._limits, jump_matrix, command)
         return command[0], self._configuration_step(terms.q, command[1]), command[2], command[3], clipped
