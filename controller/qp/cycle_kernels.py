@@ -93,13 +93,22 @@ def integrate_command(q, dq, ddq, dt, limits, jump_matrix, out):
             v, clipped = -dq_max, True
         out[0, i] = v
         out[1, i] = min(max(q[i] + 0.5 * dt * (dq[i] + v), limits[Q_MIN, i]), limits[Q_MAX, i])
+    predicted_jump_rows(jump_matrix, out)
+    return clipped
+
+
+@njit(cache=True, inline="always")
+def predicted_jump_rows(jump_matrix, out):
+    """Kernel: out[2] = A dq_cmd, the predicted jump of the jump matrix A at the commanded velocity
+    out[0], and out[3] = dq_cmd + A dq_cmd, the predicted post-impact velocity (the last rows of
+    a command's kernel, fixed or floating base)."""
+    n = out.shape[1]
     for i in range(n):
         jump = 0.0
         for j in range(n):
             jump += jump_matrix[i, j] * out[0, j]
         out[2, i] = jump
         out[3, i] = out[0, i] + jump
-    return clipped
 
 
 @njit(cache=True)

@@ -11,6 +11,7 @@ from __future__ import annotations
 from numba import njit
 
 from .command import DQ_MAX, Q_MAX, Q_MIN
+from .cycle_kernels import predicted_jump_rows
 
 
 @njit(cache=True)
@@ -18,7 +19,7 @@ def floating_velocity_command(dq, ddq, dt, limits, jump_matrix, out):
     """Kernel: out[0] = dq_cmd = dq + ddq dt, each joint's rate clipped to +-dq_max (the base's
     twist is not), out[1] = (dq + dq_cmd) dt / 2, out[2] = the predicted jump A dq_cmd of the
     jump matrix A at the commanded velocity and out[3] = dq_cmd + A dq_cmd, the predicted
-    post-impact velocity (``cycle_kernels.integrate_command``'s last rows); True when a joint's
+    post-impact velocity (``cycle_kernels.predicted_jump_rows``); True when a joint's
     rate was clipped."""
     clipped = False
     n = dq.shape[0]
@@ -33,12 +34,7 @@ def floating_velocity_command(dq, ddq, dt, limits, jump_matrix, out):
                 v, clipped = -dq_max, True
         out[0, i] = v
         out[1, i] = 0.5 * dt * (dq[i] + v)
-    for i in range(n):
-        jump = 0.0
-        for j in range(n):
-            jump += jump_matrix[i, j] * out[0, j]
-        out[2, i] = jump
-        out[3, i] = out[0, i] + jump
+    predicted_jump_rows(jump_matrix, out)
     return clipped
 
 
