@@ -152,14 +152,14 @@ class ImpactAwareController:
         n_task_rows = sum(t.rows for t in self.tasks)
         buffers = CycleBuffers.empty(n, n_task_rows, layout.rows, len(layout.box_constraints))
         self._task_A, self._task_b, self._task_w = buffers.task_A, buffers.task_b, buffers.task_w
+        self._gathered = np.full(n_task_rows, -1, dtype=np.int64)  # every task row's columns gathered
         self._task_views = [
             (task, self._task_A[s], self._task_b[s], self._task_w[s]) for task, s in zip(self.tasks, task_slices)
         ]
         self._active_flags = layout.empty_flags()
         self.problem = p = buffers.problem
         self._box_bounds = buffers.box_bounds  # rows 2k and 2k + 1: the bounds of box k
-        self._box_lower = self._box_bounds[0::2]
-        self._box_upper = self._box_bounds[1::2]
+        self._box_lower, self._box_upper = self._box_bounds[0::2], self._box_bounds[1::2]
         self._row_views = [(c, p.C[s], p.l[s], p.u[s]) for c, s in zip(layout.row_constraints, layout.row_slices)]
         first = layout.first_relaxed_row
         self._relaxed_rows = (p.C[first:], p.l[first:], p.u[first:])
@@ -319,7 +319,7 @@ class ImpactAwareController:
         for task, A, b, w in self._task_views:
             task.compute_into(terms, A, b)
             w[:] = task.weight
-        weighted_least_squares(self._task_A, self._task_b, self._task_w, self.problem.H, self.problem.g)
+        weighted_least_squares(self._task_A, self._task_b, self._task_w, self._gathered, self.problem.H, self.problem.g)
 
     def _assemble_constraints(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
         """Bounds: the box constraints intersected and clipped into the cycle's reachable

@@ -13,33 +13,41 @@ from .problem import stacked_violation
 
 
 @njit(cache=True)
-def weighted_least_squares(A, b, w, H, g):
+def weighted_least_squares(A, b, w, columns, H, g):
     """Kernel: H = A^T diag(w) A and g = -A^T diag(w) b, the QP cost of the stacked task rows.
 
-    Each row adds w_r a_r a_r^T over its non-zero columns only (gathered first): a posture or
-    damping row has one entry, a frame's row only the velocities of its chain; the sums run
-    row by row as the dense product's, so H and g are the same to rounding."""
+    Each row adds w_r a_r a_r^T over its non-zero columns only: the one column ``columns[r]``
+    when it is >= 0 (a posture or damping row, whose one entry the plan knows:
+    ``cycle_plan.single_entry_columns``), else the non-zero columns gathered from the row (a
+    frame's row has the velocities of its chain). The sums run row by row as the dense
+    product's, so H and g are the same to rounding."""
     rows, n = A.shape
     H[:, :] = 0.0
     g[:] = 0.0
-    columns = np.empty(n, dtype=np.int64)
+    gathered = np.empty(n, dtype=np.int64)
     values = np.empty(n)
     for r in range(rows):
         weight = w[r]
         if weight == 0.0:
             continue
+        if columns[r] >= 0:
+            c = columns[r]
+            wa = weight * A[r, c]
+            g[c] -= wa * b[r]
+            H[c, c] += wa * A[r, c]
+            continue
         count = 0
         for i in range(n):
             if A[r, i] != 0.0:
-                columns[count] = i
+                gathered[count] = i
                 values[count] = A[r, i]
                 count += 1
         target = b[r]
         for s in range(count):
-            i, wa = columns[s], weight * values[s]
+            i, wa = gathered[s], weight * values[s]
             g[i] -= wa * target
             for t in range(s, count):
-                H[i, columns[t]] += wa * values[t]
+                H[i, gathered[t]] += wa * values[t]
     for i in range(n):
         for j in range(i):
             H[i, j] = H[j, i]

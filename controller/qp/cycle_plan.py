@@ -246,11 +246,26 @@ def planned_rows(state, M, h, impacts, table, parameters, data):
     inputs = (q, dq, J6, dJ6_dq, rotation, M, h)
     cycle = (reachable[0], reachable[1], parameters[HORIZON], parameters[DT])
     planned_task_rows(inputs, table, parameters, (task_A, task_b, task_w))
-    weighted_least_squares(task_A, task_b, task_w, H, g)
+    weighted_least_squares(task_A, task_b, task_w, single_entry_columns(table, sizes[0], n), H, g)
     consistent = planned_boxes(inputs, cycle, table, parameters, box_bounds, lower, upper)
     planned_general_rows(inputs, impacts, parameters[HORIZON], table, parameters, (H, g, box_bounds, lower, upper, C))
     relax_to_reachable(C[first_relaxed:], lower[n + first_relaxed:], upper[n + first_relaxed:], lower[:n], upper[:n])
     return consistent
+
+
+@njit(cache=True)
+def single_entry_columns(table, task_rows, n):
+    """Kernel: for each of the ``task_rows`` stacked task rows of ``table``, the column of its one
+    entry when it is a posture row (A = [0 I], the last rows of n velocities) or a damping row
+    (A = I), else -1 (``weighted_least_squares``' ``columns``)."""
+    columns = np.full(task_rows, -1, dtype=np.int64)
+    for e in range(table.shape[0]):
+        kind, first, rows = table[e, KIND], table[e, FIRST], table[e, ROWS]
+        if kind == POSTURE or kind == DAMPING:
+            offset = n - rows if kind == POSTURE else 0
+            for j in range(rows):
+                columns[first + j] = offset + j
+    return columns
 
 
 @njit(cache=True)

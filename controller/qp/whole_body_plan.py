@@ -38,7 +38,7 @@ from impactqp.tasks.frame_task import FRAME_PARAMETERS, frame_rows
 from .cycle_kernels import weighted_least_squares
 from .cycle_plan import (
     BOXES, DT, FIRST, FIRST_RELAXED, GENERAL_ROWS, HORIZON, IMPACT, KERNEL_KINDS, KIND, PARAMETERS, ROWS, TASK_ROWS,
-    TORQUE, CyclePlan, cycle_buffer_views, planned_boxes, planned_general_rows, planned_task_rows,
+    TORQUE, CyclePlan, cycle_buffer_views, planned_boxes, planned_general_rows, planned_task_rows, single_entry_columns,
 )
 
 COM, FRAME = 4, 5
@@ -164,7 +164,7 @@ def whole_body_rows(inputs, maps, table, parameters, data):
     task_rows, qp = (task_A, task_b, task_w), (H, g, box_bounds, lower, upper, C)
     planned_task_rows(state, table, parameters, task_rows)
     body_task_rows(state[1], body, frames, table, parameters, task_rows)
-    weighted_least_squares(task_A, task_b, task_w, H, g)
+    weighted_least_squares(task_A, task_b, task_w, single_entry_columns(table, sizes[0], n), H, g)
     consistent = planned_boxes(state, (reachable[0], reachable[1], horizon, parameters[DT]), table, parameters, box_bounds, lower, upper)
     planned_general_rows(state, impacts, horizon, table, parameters, qp)
     body_general_rows((state[1], state[2], body), body_maps, impacts[:, -1], horizon, table, parameters, qp)
