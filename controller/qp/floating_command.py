@@ -1,10 +1,10 @@
 """The compiled kernels of a floating base's command (``ImpactAwareController``'s G1 step):
 dq_cmd = dq + ddq dt with the joints' part within their velocity limits and its impact
-prediction, the half step
-(dq + dq_cmd) dt / 2 that ``pin.integrate`` takes q along (q_cmd = q (+) (dq + dq_cmd) dt / 2 on
-the configuration manifold: the free flyer's part is not a sum), and the joints' part of q_cmd
-within their position limits. ``limits`` are the joints' stacked ``command.command_limits``
-(one column per joint): the joints are the last columns of dq and the last coordinates of q."""
+prediction, the half step (dq + dq_cmd) dt / 2 that ``pin.integrate`` takes q along (q_cmd =
+q (+) (dq + dq_cmd) dt / 2 on the configuration manifold: the free flyer's part is not a sum),
+and the joints' part of q_cmd within their position limits. ``limits`` are the joints' stacked
+``command.command_limits`` (one column per joint): the joints are the last columns of dq and the
+last coordinates of q."""
 
 from __future__ import annotations
 
