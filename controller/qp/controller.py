@@ -64,7 +64,6 @@ says it is a fallback.)
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 
 from impactqp.constraints import AccelerationLimit, Constraint, ControlCycle, ExpectedImpact
 from impactqp.controller.model.model_terms import ModelTerms
@@ -77,11 +76,12 @@ from .cycle_plan import CycleBuffers
 from .cycle_kernels import COMMAND_ROWS, checked_solution, first_outside, integrate_command, intersect_boxes
 from .cycle_kernels import weighted_least_squares
 from .elastic_relaxation import ElasticRelaxation
-from .fallback import bounded_conflict, brake, braking_command, irreducible_conflict, usable_state
-from .floating_command import floating_velocity_command, joint_positions_within
+from .fallback import bounded_conflict, brake, irreducible_conflict, usable_state
+from .floating_command import floating_command, held_brake
 from .held_elimination import held_elimination
 from .problem import ConstraintLayout, QpProblem, consecutive_slices
-from .solvers import FAILED, INFEASIBLE, SOLVED, make_solver, verifier_for
+from .solved_command import SolvedCommand
+from .solvers import FAILED, INFEASIBLE, SOLVED, DaqpSolver, make_solver, verifier_for
 from .whole_body_plan import compiled_plan
 
 BRAKE = "brake"
@@ -128,7 +128,6 @@ class ImpactAwareController:
         )
         base = robot.base_nv
         self._floating = base > 0
-        self._joint_coordinates = slice(robot.base_nq, None)  # the actuated joints' part of q
         self._joint_velocities = slice(base, None)  # and of dq
         self.ddq_max = np.concatenate([np.full(base, BASE_ACCELERATION_LIMIT), joint_ddq_max])
         self.dddq_max = np.concatenate([np.full(base, np.inf), joint_dddq_max])
@@ -137,6 +136,9 @@ class ImpactAwareController:
         self._allocate()
         self.solver = held_elimination(make_solver(solver, self.layout.rows, robot.nv), self.layout, robot)
         self.verifier = verifier_for(self.solver.name, self.layout.rows, robot.nv)
+        self._solved_command = None if self._floating or not isinstance(self.solver, DaqpSolver) else SolvedCommand(
+            self.solver, self._buffers, self.layout.row_ends, self._active_flags, self._limits
+        )
         self.fallback_count = 0
         self.memory = CommandMemory(None, np.zeros(robot.nv), np.zeros(robot.nv))
         self._targets_set = False
@@ -157,7 +159,8 @@ class ImpactAwareController:
             (task, self._task_A[s], self._task_b[s], self._task_w[s]) for task, s in zip(self.tasks, task_slices)
         ]
         self._active_flags = layout.empty_flags()
-        self.problem = p = buffers.problem
+        self._buffers, self.problem = buffers, buffers.problem
+        p = self.problem
         self._box_bounds = buffers.box_bounds  # rows 2k and 2k + 1: the bounds of box k
         self._box_lower, self._box_upper = self._box_bounds[0::2], self._box_bounds[1::2]
         self._row_views = [(c, p.C[s], p.l[s], p.u[s]) for c, s in zip(layout.row_constraints, layout.row_slices)]
@@ -242,31 +245,40 @@ class ImpactAwareController:
         if not self._assemble(terms, self._cycle):
             return self._infeasible(q, dq, terms, "the joint-space bounds conflict")
 
-        solved, ddq, solver_name = self._solve()
+        # dq_cmd = dq + ddq dt (clipped only off the closed loop: see the docstring) and
+        # q_cmd = q (+) (dq + dq_cmd) dt / 2 within the position limits
+        # one compiled pass: dq_cmd, q_cmd (on a floating base's manifold), the predicted jump and post-impact velocity
+        jump_matrix = self._no_jump if self.impact is None else self.impact.row_matrices(terms).jump_matrix
+        answer = None  # daqp's, when the compiled end of the cycle could not accept it
+        if self._solved_command is not None:  # a fixed base on daqp: solve, check and command in one call
+            accepted, answer = self._solved_command.run(terms, jump_matrix, self.dt, self.feasibility_tolerance)
+            if accepted is not None:
+                return self._commanded(terms, *accepted, self.solver.name)
+        solved, ddq, solver_name = self._solve(answer)
         if solved == INFEASIBLE and self._elastic is not None and self._elastic.widen(self.problem):
             solved, ddq, solver_name = self._solve()  # the relaxed rows widened within the held contacts' rows
         if solved == INFEASIBLE:
             return self._infeasible(q, dq, terms, f"the QP is infeasible (confirmed by {solver_name})")
         if solved != SOLVED:
             return self._fallback(q, dq, Status.FALLBACK_SOLVER_ERROR, [], "no solver found a solution", terms)
-
-        status = Status.OK
-        # dq_cmd = dq + ddq dt (clipped only off the closed loop: see the docstring) and
-        # q_cmd = q (+) (dq + dq_cmd) dt / 2 within the position limits
-        # one compiled pass: dq_cmd, q_cmd (on a floating base's manifold), the predicted jump and post-impact velocity
-        jump_matrix = self._no_jump if self.impact is None else self.impact.row_matrices(terms).jump_matrix
         if self._floating:
-            *command, clipped = self._floating_integrate(terms, ddq, jump_matrix)
+            *command, clipped = floating_command(robot.model, terms, ddq, self.dt, self._limits, jump_matrix)
         else:
             command = np.empty((COMMAND_ROWS, robot.nv))
             clipped = integrate_command(terms.q, terms.dq, ddq, self.dt, self._limits, jump_matrix, command)
+        return self._commanded(terms, ddq, command, clipped, solver_name)
+
+    # ------------------------------------------------------------------ one cycle
+    def _commanded(self, terms: ModelTerms, ddq: np.ndarray, command, clipped: bool, solver_name: str) -> Command:
+        """The Command of a solved cycle: ddq and the command's rows (dq_cmd, q_cmd, the jump, the
+        post-impact velocity), ddq made consistent with a clipped dq_cmd."""
+        status = Status.OK
         if clipped:
             ddq = (command[0] - terms.dq) * (1.0 / self.dt)
             status = Status.VELOCITY_CLIPPED
             self._checked(ddq)  # the gaps and the active constraints of the ddq actually commanded
         return self._emit(terms, (ddq, *command), status, self._active_constraints(), [], solver_name)
 
-    # ------------------------------------------------------------------ one cycle
     def _impact_noticed(self, terms: ModelTerms, dq: np.ndarray) -> bool:
         """Whether this state shows an impact (module docstring: impact brake); a state that is the
         previous command itself (``dq``, the step's argument, is the previous dq_cmd: a loop fed its
@@ -282,28 +294,10 @@ class ImpactAwareController:
         self.phase = BRAKE
         if self._floating:
             terms = self.robot.terms(memory.q_cmd, memory.dq_cmd, check_limits=False)
-            ddq, dq_cmd, q_cmd = self._held_brake(terms)
+            ddq, dq_cmd, q_cmd = held_brake(self.robot, terms, memory.ddq, self.dt, self._limits)
         else:
             ddq, dq_cmd, q_cmd = brake(memory.q_cmd, memory.dq_cmd, memory.ddq, self.dt, self._limits)
         return self._emit(None, (ddq, dq_cmd, q_cmd), Status.IMPACT_BRAKE, [], [], "", "braking after a noticed impact")
-
-    def _floating_integrate(self, terms: ModelTerms, ddq: np.ndarray, jump_matrix: np.ndarray) -> tuple:
-        """A floating base's dq_cmd = dq + ddq dt (joints within their velocity limits), q_cmd = q (+)
-        (dq + dq_cmd) dt / 2 (``_configuration_step``), the jump A dq_cmd, the post-impact velocity
-        and whether dq_cmd was clipped (``floating_command``; a fixed base: ``integrate_command``)."""
-        command = np.empty((COMMAND_ROWS, terms.dq.shape[0]))
-        clipped = floating_velocity_command(terms.dq, ddq, self.dt, self._limits, jump_matrix, command)
-        return command[0], self._configuration_step(terms.q, command[1]), command[2], command[3], clipped
-
-    def _floating_position(self, terms: ModelTerms, dq_cmd: np.ndarray) -> np.ndarray:
-        """q (+) (dq + dq_cmd) dt / 2 on the configuration manifold, the joints within their limits."""
-        return self._configuration_step(terms.q, 0.5 * self.dt * (terms.dq + dq_cmd))
-
-    def _configuration_step(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
-        """q (+) step (``pin.integrate``), the joints' coordinates within their limits."""
-        q_cmd = pin.integrate(self.robot.model, q, step)
-        joint_positions_within(q_cmd, self._limits)
-        return q_cmd
 
     def _assemble(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
         """Fill the preallocated QP data from the tasks and constraints of this state, in one
@@ -340,12 +334,13 @@ class ImpactAwareController:
         row_cycle.recoverable(*self._relaxed_rows)
         return consistent
 
-    def _solve(self) -> tuple[str, np.ndarray | None, str]:
-        """Solve with the chosen solver; a second solver confirms any failure or inaccurate
-        answer. Returns (status, ddq, name of the solver whose answer counts)."""
+    def _solve(self, answer: tuple | None = None) -> tuple[str, np.ndarray | None, str]:
+        """Solve with the chosen solver (its ``answer`` (status, x) when already had); a second
+        solver confirms any failure or inaccurate answer. Returns (status, ddq, name of the
+        solver whose answer counts)."""
         problem = self.problem
         try:
-            solved, x = self.solver.solve(problem)
+            solved, x = self.solver.solve(problem) if answer is None else answer
         except Exception:  # a backend error must not stop the control loop
             solved, x = FAILED, None
         if solved == SOLVED and self._checked(x) <= self.feasibility_tolerance:  # finite, every row and bound met
@@ -383,7 +378,7 @@ class ImpactAwareController:
         self.fallback_count += 1
         if self._floating:
             terms = terms if terms is not None else self._stand_in_terms(q, dq, message)
-            ddq, dq_cmd, q_cmd = self._held_brake(terms)
+            ddq, dq_cmd, q_cmd = held_brake(self.robot, terms, self.memory.ddq, self.dt, self._limits)
         else:
             q, dq = usable_state(q, dq, self.memory, self.robot)
             ddq, dq_cmd, q_cmd = brake(q, dq, self.memory.ddq, self.dt, self._limits)
@@ -400,22 +395,6 @@ class ImpactAwareController:
         if self.memory.q_cmd is None:
             raise BadInputError(f"no command yet to stand in for an unusable state: {message}")
         return self.robot.terms(self.memory.q_cmd, self.memory.dq_cmd, check_limits=False)
-
-    def _held_brake(self, terms: ModelTerms) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The joints' brake with a still base, projected onto the held contacts' rows:
-        ddq = ddq_b - Jf^T (Jf Jf^T)^-1 (Jf ddq_b + dJf dq); dq_cmd and q_cmd from it."""
-        joints, robot = self._joint_velocities, self.robot
-        ddq, dq_cmd = np.zeros(robot.nv), np.empty(robot.nv)
-        braking_command(
-            terms.q[self._joint_coordinates], terms.dq[joints], self.memory.ddq[joints], self.dt, self._limits,
-            ddq[joints], dq_cmd[joints], np.empty(robot.n_joints),
-        )
-        Jf = terms.held_jacobian
-        if Jf.shape[0]:
-            ddq -= Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ ddq + terms.held_drift)
-        dq_cmd = terms.dq + ddq * self.dt
-        np.clip(dq_cmd[joints], -robot.dq_max, robot.dq_max, out=dq_cmd[joints])
-        return ddq, dq_cmd, self._floating_position(terms, dq_cmd)
 
     def _emit(self, terms, motion, status, active, violated, solver, message="") -> Command:
         """Record the command ``motion`` = (ddq, dq_cmd, q_cmd[, jump, post-impact velocity]) in the

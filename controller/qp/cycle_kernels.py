@@ -154,3 +154,4 @@ def tight_constraints(x, box_bounds, gaps, row_ends, tol, flags):
                 break
         flags[boxes + c] = hit
         start = row_ends[c]
+

@@ -1,17 +1,62 @@
-"""The compiled kernels of a floating base's command (``ImpactAwareController``'s G1 step):
+"""A floating base's command (``ImpactAwareController``'s G1 step) and its compiled kernels:
 dq_cmd = dq + ddq dt with the joints' part within their velocity limits and its impact
 prediction, the half step (dq + dq_cmd) dt / 2 that ``pin.integrate`` takes q along (q_cmd =
 q (+) (dq + dq_cmd) dt / 2 on the configuration manifold: the free flyer's part is not a sum),
 and the joints' part of q_cmd within their position limits. ``limits`` are the joints' stacked
 ``command.command_limits`` (one column per joint): the joints are the last columns of dq and the
-last coordinates of q."""
+last coordinates of q. The brake of a floating base's fallback (``held_brake``) keeps its held
+contacts' rows.
+"""
 
 from __future__ import annotations
 
+import numpy as np
+import pinocchio as pin
 from numba import njit
 
+from impactqp.controller.model.model_terms import ModelTerms
+from impactqp.controller.model.robot import RobotModel
+
 from .command import DQ_MAX, Q_MAX, Q_MIN
-from .cycle_kernels import predicted_jump_rows
+from .cycle_kernels import COMMAND_ROWS, predicted_jump_rows
+from .fallback import braking_command
+
+
+def floating_command(model: pin.Model, terms: ModelTerms, ddq: np.ndarray, dt: float, limits: np.ndarray,
+                     jump_matrix: np.ndarray) -> tuple:
+    """(dq_cmd = dq + ddq dt (joints within their velocity limits), q_cmd = q (+) (dq + dq_cmd) dt / 2
+    (``configuration_step``), the jump A dq_cmd, the post-impact velocity, whether dq_cmd was
+    clipped) at the terms' state (``floating_velocity_command``; a fixed base:
+    ``cycle_kernels.integrate_command``)."""
+    command = np.empty((COMMAND_ROWS, terms.dq.shape[0]))
+    clipped = floating_velocity_command(terms.dq, ddq, dt, limits, jump_matrix, command)
+    return command[0], configuration_step(model, terms.q, command[1], limits), command[2], command[3], clipped
+
+
+def configuration_step(model: pin.Model, q: np.ndarray, step: np.ndarray, limits: np.ndarray) -> np.ndarray:
+    """q (+) step (``pin.integrate``), the joints' coordinates within their limits."""
+    q_cmd = pin.integrate(model, q, step)
+    joint_positions_within(q_cmd, limits)
+    return q_cmd
+
+
+def held_brake(robot: RobotModel, terms: ModelTerms, previous_ddq: np.ndarray, dt: float, limits: np.ndarray) -> tuple:
+    """(ddq, dq_cmd, q_cmd) of the joints' brake (``fallback.braking_command``, from the previous
+    command's ``previous_ddq``) with a still base, projected onto the held contacts' rows by the
+    least-norm change ddq = ddq_b - Jf^T (Jf Jf^T)^-1 (Jf ddq_b + dJf dq); q_cmd = q (+) (dq +
+    dq_cmd) dt / 2."""
+    joints = slice(robot.base_nv, None)
+    ddq, dq_cmd = np.zeros(robot.nv), np.empty(robot.nv)
+    braking_command(
+        terms.q[robot.base_nq:], terms.dq[joints], previous_ddq[joints], dt, limits, ddq[joints], dq_cmd[joints],
+        np.empty(robot.n_joints),
+    )
+    Jf = terms.held_jacobian
+    if Jf.shape[0]:
+        ddq -= Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ ddq + terms.held_drift)
+    dq_cmd = terms.dq + ddq * dt
+    np.clip(dq_cmd[joints], -robot.dq_max, robot.dq_max, out=dq_cmd[joints])
+    return ddq, dq_cmd, configuration_step(robot.model, terms.q, 0.5 * dt * (terms.dq + dq_cmd), limits)
 
 
 @njit(cache=True)

@@ -26,12 +26,14 @@ class QpProblem:
 
     The bounds live in two stacked vectors ``lower`` = [lb; l] and ``upper`` = [ub; u] (lb, l,
     ub and u are views of them), the layout daqp reads directly, themselves the rows of one
-    array ``bounds``; infinite entries are unbounded. ``gaps`` holds the rows ``lower_gap`` and
+    array ``bounds``; infinite entries are unbounded. Its arrays are C-contiguous float64 (daqp
+    reads them in place, ``daqp_api``). ``gaps`` holds the rows ``lower_gap`` and
     ``upper_gap`` of the last ``violation``.
     """
 
     def __init__(self, H, g, C, l, u, lb, ub):
-        self._hold(H, g, C, np.stack([np.concatenate([lb, l]), np.concatenate([ub, u])]))
+        H, g, C = (np.ascontiguousarray(a, dtype=float) for a in (H, g, C))  # what daqp reads in place
+        self._hold(H, g, C, np.stack([np.concatenate([lb, l]), np.concatenate([ub, u])]).astype(float))
 
     @classmethod
     def over(cls, H, g, C, bounds) -> QpProblem:

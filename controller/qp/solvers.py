@@ -11,7 +11,6 @@ Solvers).
 
 from __future__ import annotations
 
-import daqp
 import numpy as np
 import proxsuite
 import qpsolvers
@@ -19,6 +18,7 @@ import quadprog
 
 from impactqp.controller.model.validation import BadInputError
 
+from .daqp_api import DaqpWorkspace
 from .problem import QpProblem
 
 SOLVED, INFEASIBLE, FAILED = "solved", "infeasible", "failed"
@@ -83,30 +83,37 @@ class ProxqpDenseSolver:
 
 class DaqpSolver:
     """daqp on the stacked bounds [lb; l] <= [x; C x] <= [ub; u] through one workspace of its own
-    (``daqp.Model``, daqp's lowest Python entry): set up at the first solve of a problem, its
-    data updated in place at every later solve of the same problem, which starts from the
-    previous working set (warm start). A failed setup, update or solve makes the next solve
-    start afresh (a cold setup). daqp's exit flag -1 says infeasible: a failed setup or update
-    is an inconsistent box (lb > ub)."""
+    (``daqp_api.DaqpWorkspace``: daqp's C functions, the problem's arrays read in place): set up
+    at the first solve of a problem, its data updated at every later solve of the same problem,
+    which starts from the previous working set (warm start). A failed setup, update or solve
+    makes the next solve start afresh (a cold setup). daqp's exit flag -1 says infeasible: a
+    failed setup or update is an inconsistent box (lb > ub)."""
 
     name = "daqp"
 
     def __init__(self, rows: int, variables: int):
-        self._sense = np.zeros(variables + rows, dtype=np.int32)  # daqp keeps its working set here
-        self._workspace = daqp.Model()
+        self._workspace = DaqpWorkspace(rows, variables)
         self._problem: QpProblem | None = None  # the problem the workspace is set up for
+
+    def workspace_for(self, problem: QpProblem) -> DaqpWorkspace | None:
+        """The workspace when it is set up for ``problem`` (a compiled caller may then solve in it:
+        ``solved_command.SolvedCommand``), else None."""
+        return self._workspace if problem is self._problem else None
+
+    def forget(self) -> None:
+        """Start the next solve afresh (a compiled caller's solve failed)."""
+        self._problem = None
 
     def solve(self, problem: QpProblem) -> tuple[str, np.ndarray | None]:
         if problem is self._problem:
-            exitflag = self._workspace.update(problem.H, problem.g, problem.C, problem.upper, problem.lower)
+            exitflag, x = self._workspace.solve()
         else:
-            self._sense.fill(0)
-            exitflag = self._workspace.setup(problem.H, problem.g, problem.C, problem.upper, problem.lower, self._sense)[0]
+            exitflag = self._workspace.setup(problem)
             self._problem = problem
-        if exitflag >= 0:
-            x, _, exitflag, _ = self._workspace.solve()
-            if exitflag >= 1:
-                return SOLVED, x
+            if exitflag >= 0:
+                exitflag, x = self._workspace.solve()
+        if exitflag >= 1:
+            return SOLVED, x
         self._problem = None
         return (INFEASIBLE if exitflag == -1 else FAILED), None
 

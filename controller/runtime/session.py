@@ -76,11 +76,13 @@ class ImpactSession:
         self.residual_source = OBSERVER
 
     def start(self, state: RobotState) -> None:
-        """Reset at the first state; one discarded step of each controller first, so that the
-        solvers' set-up does not fall into the first control cycles."""
+        """Reset at the first state; two discarded steps of each controller first, so that the
+        solvers' set-up and the first call of each compiled kernel (the second step's: a solve in
+        the set-up workspace) do not fall into the first control cycles."""
         q, dq = self.generalized(state)
         for controller in (self.post_impact, self.approach):
             controller.reset(q, dq)
+            controller.step(q, dq)
             controller.step(q, dq)
             controller.reset(q, dq)
             controller.fallback_count = 0
