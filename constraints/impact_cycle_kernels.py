@@ -2,7 +2,8 @@
 the crb, gm and classical jump matrices A, P and G (docs/qp-constraints.md: A = dq+/dq- - I,
 P the impulsive torque map, G the impulse map; eqs. (12), (20), (21)) written into one
 preallocated buffer out = [A, P, G] from the cycle's flat arrays (``ModelTerms.contact_terms``),
-and the contact's normal motion that the activation rule reads.
+and the contact's normal motion that the activation rule reads; the rule itself
+(``activation``) and a compiled plan's update of its crb impacts (``crb_stacked_updates``).
 """
 
 from __future__ import annotations
@@ -94,3 +95,35 @@ def classical_cycle_update(M_inv, contact, dq, impact, out):
     jump_matrix, torque_matrix, impulse_map = fixed_base_matrix_views(out, nv)
     classical_jump_matrices(M_inv, J, impact[3], jump_matrix, torque_matrix, impulse_map)
     return normal_motion(J, normal, contact_point, dq)
+
+
+RULE_VALUES = 9
+"""An impact's rule values (``ExpectedImpact.rule_values``): n (3), c_r, always_active (1 or 0),
+release_speed, lookahead_distance, lookahead_time and n.s (the surface's offset along n)."""
+ALWAYS_ACTIVE, RELEASE_SPEED, LOOKAHEAD_DISTANCE, LOOKAHEAD_TIME, SURFACE_OFFSET = range(4, 9)
+
+
+@njit(cache=True)
+def activation(rule, normal_speed, normal_position):
+    """Kernel: the activation rule (``impact_model``'s module docstring) of the rule values ``rule``
+    at the contact's n.(J dq) and n.p: always, or the contact not leaving (n.v <= release_speed)
+    and the surface near (n.p - n.s <= max(lookahead_distance, -n.v lookahead_time))."""
+    if rule[ALWAYS_ACTIVE] != 0.0:
+        return True
+    if normal_speed > rule[RELEASE_SPEED]:
+        return False
+    return normal_position - rule[SURFACE_OFFSET] <= max(rule[LOOKAHEAD_DISTANCE], -normal_speed * rule[LOOKAHEAD_TIME])
+
+
+@njit(cache=True)
+def crb_stacked_updates(contact, dq, rigid, rules, impacts):
+    """Kernel: each crb impact i of a compiled plan (``cycle_plan``) updated in its row of
+    ``impacts``: [A, P, G] by ``crb_cycle_update`` (its first 2 n^2 + 9 values) and its activation
+    (1 or 0, the last value), from the arm's ``contact`` terms, dq, ``rigid`` = [centre of mass,
+    inertia about it (row-major), mass] of the locked robot and its rule values ``rules[i]``."""
+    n = dq.shape[0]
+    com, inertia, mass = rigid[:3], rigid[3:12].reshape((3, 3)), rigid[12]
+    for i in range(rules.shape[0]):
+        rule, row = rules[i], impacts[i]
+        normal_speed, normal_position = crb_cycle_update(contact, com, inertia, mass, dq, rule[:4], row[:2 * n * n + 9])
+        row[row.shape[0] - 1] = 1.0 if activation(rule, normal_speed, normal_position) else 0.0

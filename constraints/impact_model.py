@@ -70,6 +70,7 @@ from impactqp.controller.model import validation
 from impactqp.controller.model.validation import BadInputError
 
 from .impact_cycle_kernels import (
+    activation,
     classical_cycle_update,
     crb_cycle_update,
     fixed_base_matrix_views,
@@ -153,11 +154,12 @@ class ExpectedImpact:
         self.restitution = validation.restitution(restitution)
         if not isinstance(rule, ActivationRule) or not isinstance(friction, FrictionRows):
             raise TypeError("rule must be an ActivationRule and friction a FrictionRows")
-        self.rule = rule
         self.friction = friction
         if friction.count and jump_model_name == "classical_normal":
             raise BadInputError("friction rows are for the crb, gm or classical model, not classical_normal")
         self._surface_offset = float(surface.normal @ surface.point)  # n.s: distance = n.p - n.s
+        self._impact = np.append(np.asarray(surface.normal, dtype=float), self.restitution)  # [n, c_r]
+        self.rule = rule  # and its values (``rule_values``)
         self._stamp = 0  # ModelTerms.stamp of the cached matrices and activation
         self._matrices: JumpMatrices | None = None
         self._views: JumpMatrices | None = None  # what ``matrices`` returns
@@ -176,7 +178,6 @@ class ExpectedImpact:
         # other forms return new matrices.
         model = self.model
         self._in_place = isinstance(model, GeneralizedMomentumJump) or type(model) is ClassicalJump
-        self._impact = np.append(np.asarray(surface.normal, dtype=float), self.restitution)  # [n, c_r]
         self._map_buffer = np.empty(0)
         self._fixed_base_matrices = self._fixed_base_views = JumpMatrices(None, None, None, None)
         # On held contacts: A, P, G, C and the held contacts' impulse map Z, allocated at the first fill
@@ -185,9 +186,35 @@ class ExpectedImpact:
         self._held_buffers: tuple = (None, None, None, None, np.empty((0, 3)))
         self._held_matrices = self._held_views = self._fixed_base_matrices
 
+    rule_edits = 0
+    """Assignments to any impact's ``rule`` so far: a compiled plan that reads the rule values packs
+    them again when it changed (``cycle_plan``)."""
+
+    @property
+    def rule(self) -> ActivationRule:
+        return self._rule_object
+
+    @rule.setter
+    def rule(self, rule: ActivationRule) -> None:
+        if not isinstance(rule, ActivationRule):
+            raise TypeError("rule must be an ActivationRule")
+        self._rule_object = rule
+        self.rule_values = np.concatenate([self._impact, [
+            float(rule.always_active), rule.release_speed, rule.lookahead_distance, rule.lookahead_time,
+            self._surface_offset,
+        ]])  # ``impact_cycle_kernels.RULE_VALUES``: what the compiled rule reads
+        ExpectedImpact.rule_edits += 1
+
     @property
     def name(self) -> str:
         return self.model.name
+
+    @property
+    def plan_updates_it(self) -> bool:
+        """Whether a compiled plan updates this impact in its own kernel (``crb_stacked_updates``): the
+        crb model of a fixed base without friction rows; the plan then tells it so
+        (``adopt_stacked``)."""
+        return type(self.model) is CompositeRigidBodyJump and not self.held_contacts and not self._edge_count
 
     def matrices(self, terms) -> JumpMatrices:
         """A, P, G (and C) of this state (the normal and the restitution were checked once, above),
@@ -258,13 +285,7 @@ class ExpectedImpact:
         impact's rows of a compiled plan's stacked buffers; its activation. The first call with
         new buffers makes them this impact's own (a fixed base's crb, gm and classical fills and
         the edges' fills write into them, no copy); the other forms' new matrices are copied in."""
-        if maps is not self._map_buffer or edges is not self._edge_buffer:
-            n = edges.shape[-1]
-            self._map_buffer, self._edge_buffer = maps, edges
-            self._fixed_base_matrices = JumpMatrices(*fixed_base_matrix_views(maps, n), None)
-            self._fixed_base_views = read_only_views(self._fixed_base_matrices)
-            self._edges, self._edge_views = edge_maps_of(edges)
-            self._stamp = 0  # refilled into them now
+        self.own_stacked(maps, edges)
         if terms.stamp != self._stamp:
             self._update(terms)
             matrices = self._matrices
@@ -272,6 +293,25 @@ class ExpectedImpact:
                 self._fixed_base_matrices.jump_matrix[:] = matrices.jump_matrix
                 self._fixed_base_matrices.torque_matrix[:] = matrices.torque_matrix
         return self._active
+
+    def own_stacked(self, maps: np.ndarray, edges: np.ndarray) -> None:
+        """Make a compiled plan's stacked buffers (``fill_stacked``'s) this impact's own, unless they
+        are already: its fixed-base and edge fills write into them from then on."""
+        if maps is not self._map_buffer or edges is not self._edge_buffer:
+            n = edges.shape[-1]
+            self._map_buffer, self._edge_buffer = maps, edges
+            self._fixed_base_matrices = JumpMatrices(*fixed_base_matrix_views(maps, n), None)
+            self._fixed_base_views = read_only_views(self._fixed_base_matrices)
+            self._edges, self._edge_views = edge_maps_of(edges)
+            self._stamp = 0  # refilled into them now
+
+    def adopt_stacked(self, terms, active: bool, maps: np.ndarray, edges: np.ndarray) -> None:
+        """A compiled plan's kernel (``crb_stacked_updates``) wrote the terms' A, P and G into its
+        stacked buffers ``maps`` (and ``edges``), made this impact's own (``own_stacked``), and found
+        its activation ``active``."""
+        self.own_stacked(maps, edges)
+        self._matrices, self._views = self._fixed_base_matrices, self._fixed_base_views
+        self._active, self._stamp = active, terms.stamp
 
     def shows_jump(self, J: np.ndarray, dq: np.ndarray, dq_cmd: np.ndarray) -> bool:
         """Whether the velocity dq shows the impact's jump against the command dq_cmd (both at the
@@ -304,7 +344,7 @@ class ExpectedImpact:
             motion = normal_motion(terms.J, normal, terms.contact_point, terms.dq)
         if self._edge_count:
             self._edge_fill(terms)
-        self._active = self.rule.always_active or self._rule(*motion)
+        self._active = activation(self.rule_values, *motion)
         self._stamp = terms.stamp
 
     def _fill_fixed_base(self, terms) -> tuple[float, float]:
@@ -372,14 +412,6 @@ class ExpectedImpact:
             slip_edges_into(terms.J @ terms.dq, response[1], edges.normal, self.friction.friction, edges.restitution,
                             edges.directions)
         held_edge_maps_into(response, terms.J, edges, self._edge_buffer, self._edge_impulses)
-
-    def _rule(self, normal_speed: float, normal_position: float) -> bool:
-        """The rule from n.v and n.p (the distance is n.p - n.s)."""
-        rule = self.rule
-        if normal_speed > rule.release_speed:
-            return False
-        distance = normal_position - self._surface_offset
-        return distance <= max(rule.lookahead_distance, -normal_speed * rule.lookahead_time)
 
 
 def read_only_views(matrices: JumpMatrices) -> JumpMatrices:

@@ -227,3 +227,33 @@ def test_impacts_of_different_friction_rows_leave_the_generic_assembly(robot):
     assert controller._plan is None
     same = ImpactAwareController(robot, [PostureTask(joints=JOINTS), DampingTask(JOINTS)], rows[:1], 0.001)
     assert type(same._plan) is CyclePlan
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), setting=st.sampled_from(["crb", "always"]))
+def test_the_plan_updates_its_crb_impact_as_the_impact_itself_would(robot, seed, setting):
+    """The plan's kernel updates its crb impact (``crb_stacked_updates``): after its fill the
+    impact's A, P, G and activation are, bit for bit, those a twin impact (same surface, model and
+    rule) computes itself at the same terms; an impact's rule assigned later reaches the next fill."""
+    rng = np.random.default_rng(seed)
+    controller = setting_controller(robot, setting)
+    plan, impact = controller._plan, controller.impact
+    assert plan.updates_impacts
+    terms, cycle = random_cycle(robot, controller, rng)
+    twin = ExpectedImpact(impact.surface, impact.name, impact.restitution, impact.rule)
+    plan.fill(terms, cycle)
+    for ours, theirs in zip(impact.matrices(terms)[:3], twin.matrices(terms)[:3]):
+        np.testing.assert_array_equal(ours, theirs)
+    assert impact.is_active(terms) == twin.is_active(terms)
+    impact.rule = type(impact.rule)(always_active=not impact.rule.always_active, lookahead_distance=0.0, lookahead_time=0.0)
+    twin.rule = impact.rule
+    terms = robot.terms(terms.q, terms.dq, check_limits=False)  # a new fill of the same state
+    plan.fill(terms, cycle)
+    assert impact.is_active(terms) == twin.is_active(terms)
+
+
+def test_plans_of_gm_classical_or_friction_rows_leave_the_impacts_to_update_themselves(robot):
+    """Only crb impacts of a fixed base without friction rows are updated by the plan's kernel."""
+    for setting in ("robust", "friction4"):
+        plan = setting_controller(robot, setting)._plan
+        assert plan is None or not plan.updates_impacts

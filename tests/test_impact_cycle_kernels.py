@@ -8,8 +8,11 @@ from reference.constraints import reference_fixed_base_cycle_update, reference_n
 
 from conftest import JOINTS, random_state
 from impactqp.constraints.impact_cycle_kernels import (
+    RULE_VALUES,
+    activation,
     classical_cycle_update,
     crb_cycle_update,
+    crb_stacked_updates,
     fixed_base_matrix_views,
     gm_cycle_update,
     normal_motion,
@@ -58,3 +61,39 @@ def test_compiled_fixed_base_fill_equals_the_numpy_reference(robot, seed, name, 
     for fast, reference in zip(fixed_base_matrix_views(out, JOINTS), matrices[:3]):
         np.testing.assert_allclose(fast, reference, rtol=0.0, atol=1e-12 * np.abs(reference).max())
     np.testing.assert_allclose(motion, reference_motion, rtol=1e-10, atol=1e-12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    always=st.booleans(), release=st.floats(0.0, 1.0), distance=st.floats(0.0, 1.0), time=st.floats(0.0, 10.0),
+    offset=st.floats(-1.0, 1.0), speed=st.floats(-2.0, 2.0), position=st.floats(-2.0, 2.0),
+)
+def test_the_compiled_activation_rule_is_the_rule_of_the_docstring(always, release, distance, time, offset, speed,
+                                                                   position):
+    """On when always active, else when the contact does not leave (n.v <= release speed) and the
+    surface is near (n.p - n.s within the look-ahead distance, or within the look-ahead time at -n.v)."""
+    rule = np.array([0.0, 0.0, 1.0, 0.0, float(always), release, distance, time, offset])
+    near = position - offset <= distance or position - offset <= -speed * time
+    assert activation(rule, speed, position) == (always or (speed <= release and near))
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=SEEDS, impacts=st.integers(1, 3))
+def test_a_plans_crb_updates_are_each_impacts_own_fill(robot, seed, impacts):
+    """``crb_stacked_updates`` writes, for each of several impacts (normals, restitutions, rules),
+    its row [A, P, G, ..., activation] as ``crb_cycle_update`` and ``activation`` do alone, bit for bit."""
+    rng = np.random.default_rng(seed)
+    terms = random_state(robot, rng)
+    rules = np.empty((impacts, RULE_VALUES))
+    for rule in rules:
+        normal = rng.normal(size=3)
+        rule[:3], rule[3] = normal / np.linalg.norm(normal), rng.uniform(0.0, 1.0)
+        rule[4:] = rng.random() < 0.3, rng.uniform(0.0, 0.1), rng.uniform(0.0, 0.2), rng.uniform(0.0, 1.0), rng.normal()
+    rigid = np.concatenate([terms.com, np.ravel(terms.inertia_com), [terms.mass]])
+    rows = np.full((impacts, 3 * JOINTS * JOINTS + 1), np.nan)
+    crb_stacked_updates(terms.contact_terms, terms.dq, rigid, rules, rows)
+    for rule, row in zip(rules, rows):
+        out = np.empty(2 * JOINTS * JOINTS + 9)
+        motion = crb_cycle_update(terms.contact_terms, terms.com, terms.inertia_com, terms.mass, terms.dq, rule[:4], out)
+        np.testing.assert_array_equal(row[:out.shape[0]], out)
+        assert row[-1] == float(activation(rule, *motion))

@@ -24,6 +24,8 @@ and constraint writing into its own buffers, the QP data in two stacked bound ve
 read without copies); the jump matrices are computed once per cycle (``ExpectedImpact.matrices``).
 When every task and constraint has a kernel of a compiled cycle plan (``cycle_plan``, ``whole_body_plan``),
 one compiled call writes all their rows, else they are written object by object (``_assemble``).
+On a fixed base on daqp, the solve, the solution's check and the command are one more compiled
+call (``solved_command``); what it cannot accept takes the path below.
 
 Fallback (``fallback``): when the state is unusable (non-finite, outside the position or
 velocity limits, singular contact Jacobian), when the QP is infeasible, or when no solver

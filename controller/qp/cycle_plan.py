@@ -16,15 +16,19 @@ construction:
 
 At each cycle ``fill`` has each expected impact write its jump matrices into the plan's
 stacked buffers (``ExpectedImpact.fill_stacked``: the fixed base's fills write there directly,
-once per fill of the model terms, shared with the Command's prediction) and makes one call of
-``planned_rows`` on flat arrays only (numba types each argument at every call, a tuple element
-by element; an array's type does not depend on its shape, so one compiled signature serves
-every number of impacts and every robot), seven of them: the arm's state in one array
+once per fill of the model terms, shared with the Command's prediction), or, when every impact
+is a fixed base's crb impact without friction rows (``ExpectedImpact.plan_updates_it``), lets
+the kernel update them (``crb_stacked_updates``: A, P, G and the activation, from their rule
+values packed after the parameters) and tells each impact (``adopt_stacked``). It makes one
+call of ``planned_rows`` on flat arrays only (numba types each argument at every call, a tuple
+element by element; an array's type does not depend on its shape, so one compiled signature
+serves every number of impacts and every robot), eight of them: the arm's state in one array
 (``ModelTerms.arm_state``), M, h, the expected impacts' rows (their maps and activations), the
-table, the parameters (h, dt, the first relaxed row and the buffers' sizes at their head) and
-the controller's buffers (``CycleBuffers``: the reachable accelerations, the task rows, the QP
-and the box bounds, views of one array). It runs the classes' own kernels on their slices of the
-stacked buffers:
+table, the parameters (h, dt, the first relaxed row, the buffers' sizes and the number of
+impacts the kernel updates at their head), the controller's buffers (``CycleBuffers``: the
+reachable accelerations, the task rows, the QP and the box bounds, views of one array) and the
+locked robot's centre of mass, inertia about it and mass (what the crb update reads). It runs the
+classes' own kernels on their slices of the stacked buffers:
 the task rows, the cost H = A^T W A, g = -A^T W b, the box bounds and their intersection clipped
 into the cycle's reachable accelerations, the general rows, and the relaxed rows relaxed to what
 that box reaches (``ControlCycle.recoverable``). The QP it writes is the generic assembly's, the
@@ -45,12 +49,14 @@ from impactqp.constraints import (
     TorqueLimit, VelocityLimit,
 )
 from impactqp.constraints.constraint import relax_to_reachable
+from impactqp.constraints.impact_cycle_kernels import RULE_VALUES, crb_stacked_updates
+from impactqp.constraints.impact_model import ExpectedImpact
 from impactqp.constraints.impulsive_torque import edge_scaled_impulse_rows
 from impactqp.constraints.position_limit import braking_bounds
 from impactqp.constraints.post_impact_velocity import edge_post_impact_velocity_rows
 from impactqp.constraints.torque_limit import normalised_torque_rows
 from impactqp.constraints.velocity_limit import symmetric_velocity_bounds
-from impactqp.controller.model.model_terms import ModelTerms, arm_state_views
+from impactqp.controller.model.model_terms import CONTACT_TERMS_EXTRA, ModelTerms, arm_state_views
 from impactqp.tasks import ContactApproachTask, DampingTask, PostureTask, Task
 from impactqp.tasks.contact_approach_task import APPROACH_REFERENCE_SIZE, surface_frame_approach_rows
 from impactqp.tasks.posture_task import joint_pd_rows
@@ -70,8 +76,8 @@ KERNEL_KINDS = {
 """The classes with a kernel of the plan (exactly these classes: a subclass may change the rows)."""
 
 KIND, FIRST, ROWS, PARAMETERS, IMPACT = range(5)  # the columns of the plan's table
-HORIZON, DT, FIRST_RELAXED, TASK_ROWS, GENERAL_ROWS, BOXES = range(6)  # the head of the packed parameters
-HEAD = 6
+HORIZON, DT, FIRST_RELAXED, TASK_ROWS, GENERAL_ROWS, BOXES, RULES = range(7)  # the head of the packed parameters
+HEAD = 7
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,6 +141,11 @@ class CyclePlan:
         # (2 x edges x n x n) and its activation, in row i
         self.impacts_data = np.zeros((max(len(impacts), 1), (3 + 2 * edges) * n * n + 1))
         self._impact_rows = [(row[:3 * n * n], row[3 * n * n:-1].reshape(2, edges, n, n)) for row in self.impacts_data]
+        # When the kernel updates the impacts itself (all crb, ``ExpectedImpact.plan_updates_it``): the
+        # locked robot's [centre of mass, inertia about it, mass] of each cycle, its kernel's input
+        self.updates_impacts = bool(impacts) and all(impact.plan_updates_it for impact in impacts)
+        self.rigid = np.zeros(13)
+        self._rigid_com, self._rigid_inertia = self.rigid[:3], self.rigid[3:12].reshape(3, 3)
 
     @classmethod
     def of(cls, tasks: list[Task], layout: ConstraintLayout, buffers: CycleBuffers, dt: float) -> CyclePlan | None:
@@ -175,11 +186,12 @@ class CyclePlan:
         ]
         sizes = np.array([len(values) for values in packed], dtype=np.int64)
         self.table[:, PARAMETERS] = HEAD + np.cumsum(sizes) - sizes
-        self.parameters = np.concatenate([np.zeros(HEAD), *packed])
+        rules = [impact.rule_values for impact in self.impacts] if self.updates_impacts else []
+        self.parameters = np.concatenate([np.zeros(HEAD), *packed, *rules])  # the impacts' rule values last
         b = self.buffers
-        head = (self.first_relaxed, b.task_A.shape[0], b.problem.C.shape[0], b.box_bounds.shape[0] // 2)
+        head = (self.first_relaxed, b.task_A.shape[0], b.problem.C.shape[0], b.box_bounds.shape[0] // 2, len(rules))
         self.parameters[FIRST_RELAXED:HEAD] = head
-        self._edits = (Task.parameter_edits, Constraint.parameter_edits)
+        self._edits = (Task.parameter_edits, Constraint.parameter_edits, ExpectedImpact.rule_edits)
 
     def _impact_maps(self, terms: ModelTerms) -> np.ndarray:
         """The kernels' ``impacts`` at ``terms`` (zeros when there is none): row i holds the
@@ -192,17 +204,25 @@ class CyclePlan:
         return data
 
     def fill(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
-        """Every task and constraint row of this state into the buffers (one compiled call);
-        False when the box bounds conflict."""
-        parameters = self._cycle_parameters(cycle)
-        impacts = self._impact_maps(terms)
-        return planned_rows(terms.arm_state, terms.M, terms.h, impacts, self.table, parameters, self.buffers.data)
+        """Every task and constraint row of this state into the buffers (one compiled call, which
+        also updates the expected impacts when they are all crb: ``updates_impacts``); False when
+        the box bounds conflict."""
+        parameters, data = self._cycle_parameters(cycle), self.buffers.data
+        if not self.updates_impacts:
+            impacts = self._impact_maps(terms)
+            return planned_rows(terms.arm_state, terms.M, terms.h, impacts, self.table, parameters, data, self.rigid)
+        self._rigid_com[:], self._rigid_inertia[:], self.rigid[12] = terms.com, terms.inertia_com, terms.mass
+        impacts = self.impacts_data
+        consistent = planned_rows(terms.arm_state, terms.M, terms.h, impacts, self.table, parameters, data, self.rigid)
+        for impact, (maps, edges), row in zip(self.impacts, self._impact_rows, impacts):
+            impact.adopt_stacked(terms, row[-1] != 0.0, maps, edges)
+        return consistent
 
     def _cycle_parameters(self, cycle: ControlCycle) -> np.ndarray:
         """The packed parameters (packed again when a task's or a constraint's attribute was
         assigned since) with this cycle's horizon and dt in their head, its reachable
         accelerations in the buffers (where the controller's ``ControlCycle`` already keeps them)."""
-        if self._edits != (Task.parameter_edits, Constraint.parameter_edits):
+        if self._edits != (Task.parameter_edits, Constraint.parameter_edits, ExpectedImpact.rule_edits):
             self.pack()
         parameters, b = self.parameters, self.buffers
         parameters[HORIZON], parameters[DT] = cycle.horizon, cycle.dt
@@ -225,14 +245,17 @@ def _planned(kind: int | None, item, variables: int) -> bool:
 
 
 @njit(cache=True)
-def planned_rows(state, M, h, impacts, table, parameters, data):
+def planned_rows(state, M, h, impacts, table, parameters, data, rigid):
     """Kernel of ``CyclePlan.fill``, of flat arrays only (numba types a tuple argument element
     by element at every call): ``state`` = the arm's [J6, (J J^T)^-1, p, dJ6 dq, dq, R, q]
     (``model_terms.arm_state_views``), M, h; ``impacts`` = the expected impacts' rows
     (``CyclePlan._impact_maps``); ``parameters`` = [h, dt, the first relaxed row, the task rows,
-    the general rows, the boxes, the lines' parameters]; ``data`` = the reachable accelerations,
+    the general rows, the boxes, the number of impacts the kernel updates, the lines' parameters,
+    those impacts' rule values]; ``data`` = the reachable accelerations,
     the task rows A, b, w, the QP H, g, C, [[lb; l], [ub; u]] and the box bounds
-    (``cycle_buffer_views``). Each line of ``table`` runs its class's kernel on its slice with
+    (``cycle_buffer_views``); ``rigid`` = the locked robot's [centre of mass, inertia, mass] when
+    the kernel updates the impacts first (``crb_stacked_updates``). Each line of ``table`` runs its
+    class's kernel on its slice with
     its parameters (the layouts of the classes' ``kernel_parameters``); then H = A^T W A,
     g = -A^T W b, the boxes intersected into [lb, ub] within the reachable interval, and the
     rows from the first relaxed one on relaxed to what [lb, ub] reaches. False when the boxes
@@ -243,6 +266,10 @@ def planned_rows(state, M, h, impacts, table, parameters, data):
     reachable, task_A, task_b, task_w, H, g, C, bounds, box_bounds = cycle_buffer_views(data, n, *sizes)
     lower, upper = bounds[0], bounds[1]
     first_relaxed = int(parameters[FIRST_RELAXED])
+    rules = int(parameters[RULES])
+    if rules:
+        rule_values = parameters[parameters.shape[0] - rules * RULE_VALUES:].reshape((rules, RULE_VALUES))
+        crb_stacked_updates(state[:6 * n + CONTACT_TERMS_EXTRA], dq, rigid, rule_values, impacts)
     inputs = (q, dq, J6, dJ6_dq, rotation, M, h)
     cycle = (reachable[0], reachable[1], parameters[HORIZON], parameters[DT])
     planned_task_rows(inputs, table, parameters, (task_A, task_b, task_w))
