@@ -12,7 +12,8 @@ import numpy as np
 from numba import njit
 
 from impactqp.controller.model.classical_matrices import classical_jump_matrices
-from impactqp.controller.model.jump_kernels import crb_inverse_inertia_times, rank_one_jump_matrices
+from impactqp.controller.model.friction_pyramid import edge_matrices_into
+from impactqp.controller.model.jump_kernels import crb_inverse_inertia_times, rank_one_jump_matrices, welded_inverse_inertia
 from impactqp.controller.model.model_terms import contact_views
 
 
@@ -118,12 +119,24 @@ def activation(rule, normal_speed, normal_position):
 @njit(cache=True)
 def crb_stacked_updates(contact, dq, rigid, rules, impacts):
     """Kernel: each crb impact i of a compiled plan (``cycle_plan``) updated in its row of
-    ``impacts``: [A, P, G] by ``crb_cycle_update`` (its first 2 n^2 + 9 values) and its activation
-    (1 or 0, the last value), from the arm's ``contact`` terms, dq, ``rigid`` = [centre of mass,
-    inertia about it (row-major), mass] of the locked robot and its rule values ``rules[i]``."""
+    ``impacts`` = [A, P, G (in 3 n^2 values), its edges' A_i and P_i (2 x edges x n^2), its
+    activation]: A, P, G by ``crb_cycle_update``, the edges' maps by ``edge_matrices_into`` with
+    W_crb (``welded_inverse_inertia``), as the impact's own fills do, and the activation (1 or 0),
+    from the arm's ``contact`` terms, dq, ``rigid`` = [centre of mass, inertia about it
+    (row-major), mass] of the locked robot and the impact's ``ExpectedImpact.plan_values`` (rules[i]:
+    its rule values, then its edges' directions)."""
     n = dq.shape[0]
+    square = n * n
+    edges = ((impacts.shape[1] - 1) // square - 3) // 2
     com, inertia, mass = rigid[:3], rigid[3:12].reshape((3, 3)), rigid[12]
+    J6, JJt_inv, contact_point = contact_views(contact, n)
+    no_matrix = np.empty((0, 0))  # M^-1's place: crb does not read it
     for i in range(rules.shape[0]):
         rule, row = rules[i], impacts[i]
-        normal_speed, normal_position = crb_cycle_update(contact, com, inertia, mass, dq, rule[:4], row[:2 * n * n + 9])
+        normal_speed, normal_position = crb_cycle_update(contact, com, inertia, mass, dq, rule[:4], row[:2 * square + 9])
+        if edges:
+            W = welded_inverse_inertia(contact_point, com, inertia, mass)
+            directions = rule[RULE_VALUES:RULE_VALUES + 3 * edges].reshape((edges, 3))
+            edge_maps = row[3 * square:3 * square + 2 * edges * square].reshape((2, edges, n, n))
+            edge_matrices_into(J6[:3], JJt_inv, no_matrix, W, directions, rule[:3], rule[3], edge_maps)
         row[row.shape[0] - 1] = 1.0 if activation(rule, normal_speed, normal_position) else 0.0

@@ -212,9 +212,15 @@ class ExpectedImpact:
     @property
     def plan_updates_it(self) -> bool:
         """Whether a compiled plan updates this impact in its own kernel (``crb_stacked_updates``): the
-        crb model of a fixed base without friction rows; the plan then tells it so
-        (``adopt_stacked``)."""
-        return type(self.model) is CompositeRigidBodyJump and not self.held_contacts and not self._edge_count
+        crb model of a fixed base, without friction rows or with a pyramid's (whose edge directions
+        do not change); the plan then tells it so (``adopt_stacked``)."""
+        edges_fixed = not self._edge_count or self.friction.mode == "pyramid"
+        return type(self.model) is CompositeRigidBodyJump and not self.held_contacts and edges_fixed
+
+    def plan_values(self) -> np.ndarray:
+        """What a compiled plan's kernel reads of this impact (``crb_stacked_updates``): its rule
+        values, then its edges' directions (edges x 3, row by row)."""
+        return np.concatenate([self.rule_values, np.ravel(self._edge_set.directions)])
 
     def matrices(self, terms) -> JumpMatrices:
         """A, P, G (and C) of this state (the normal and the restitution were checked once, above),

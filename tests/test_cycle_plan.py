@@ -230,20 +230,24 @@ def test_impacts_of_different_friction_rows_leave_the_generic_assembly(robot):
 
 
 @settings(max_examples=20, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), setting=st.sampled_from(["crb", "always"]))
+@given(seed=st.integers(0, 2**32 - 1), setting=st.sampled_from(["crb", "always", "friction4"]))
 def test_the_plan_updates_its_crb_impact_as_the_impact_itself_would(robot, seed, setting):
     """The plan's kernel updates its crb impact (``crb_stacked_updates``): after its fill the
-    impact's A, P, G and activation are, bit for bit, those a twin impact (same surface, model and
-    rule) computes itself at the same terms; an impact's rule assigned later reaches the next fill."""
+    impact's A, P, G, its friction pyramid's edge maps and its activation are, bit for bit, those
+    a twin impact (same surface, model, rule and friction rows) computes itself at the same
+    terms; an impact's rule assigned later reaches the next fill."""
     rng = np.random.default_rng(seed)
     controller = setting_controller(robot, setting)
     plan, impact = controller._plan, controller.impact
     assert plan.updates_impacts
     terms, cycle = random_cycle(robot, controller, rng)
-    twin = ExpectedImpact(impact.surface, impact.name, impact.restitution, impact.rule)
+    twin = ExpectedImpact(impact.surface, impact.name, impact.restitution, impact.rule, friction=impact.friction)
     plan.fill(terms, cycle)
     for ours, theirs in zip(impact.matrices(terms)[:3], twin.matrices(terms)[:3]):
         np.testing.assert_array_equal(ours, theirs)
+    if impact.friction.count:
+        for ours, theirs in zip(impact.edge_matrices(terms), twin.edge_matrices(terms)):
+            np.testing.assert_array_equal(ours, theirs)
     assert impact.is_active(terms) == twin.is_active(terms)
     impact.rule = type(impact.rule)(always_active=not impact.rule.always_active, lookahead_distance=0.0, lookahead_time=0.0)
     twin.rule = impact.rule
@@ -252,8 +256,12 @@ def test_the_plan_updates_its_crb_impact_as_the_impact_itself_would(robot, seed,
     assert impact.is_active(terms) == twin.is_active(terms)
 
 
-def test_plans_of_gm_classical_or_friction_rows_leave_the_impacts_to_update_themselves(robot):
-    """Only crb impacts of a fixed base without friction rows are updated by the plan's kernel."""
-    for setting in ("robust", "friction4"):
-        plan = setting_controller(robot, setting)._plan
-        assert plan is None or not plan.updates_impacts
+def test_plans_of_gm_classical_or_slip_preview_rows_leave_the_impacts_to_update_themselves(robot):
+    """Only crb impacts of a fixed base, without friction rows or with a pyramid's, are updated by
+    the plan's kernel: not the robust rows' gm and classical ones, nor a one-step preview's (its
+    edges follow the slip)."""
+    assert not setting_controller(robot, "robust")._plan.updates_impacts
+    surface = surface_ahead(robot, start(robot), 0.05)
+    assert ExpectedImpact(surface, "crb", friction=FrictionRows(0.3, mode="pyramid")).plan_updates_it
+    assert not ExpectedImpact(surface, "crb", friction=FrictionRows(0.3, mode="slip")).plan_updates_it
+    assert not ExpectedImpact(surface, "gm").plan_updates_it

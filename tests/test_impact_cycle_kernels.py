@@ -17,7 +17,9 @@ from impactqp.constraints.impact_cycle_kernels import (
     gm_cycle_update,
     normal_motion,
 )
+from impactqp.controller.model.friction_pyramid import edge_matrices_into
 from impactqp.controller.model.jump import jump_model
+from impactqp.controller.model.jump_kernels import welded_inverse_inertia
 
 SEEDS = st.integers(0, 2**32 - 1)
 
@@ -78,22 +80,30 @@ def test_the_compiled_activation_rule_is_the_rule_of_the_docstring(always, relea
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=SEEDS, impacts=st.integers(1, 3))
-def test_a_plans_crb_updates_are_each_impacts_own_fill(robot, seed, impacts):
-    """``crb_stacked_updates`` writes, for each of several impacts (normals, restitutions, rules),
-    its row [A, P, G, ..., activation] as ``crb_cycle_update`` and ``activation`` do alone, bit for bit."""
+@given(seed=SEEDS, impacts=st.integers(1, 3), edges=st.sampled_from([0, 3, 4, 8]))
+def test_a_plans_crb_updates_are_each_impacts_own_fill(robot, seed, impacts, edges):
+    """``crb_stacked_updates`` writes, for each of several impacts (normals, restitutions, rules,
+    edge directions), its row [A, P, G, the edges' A_i and P_i, activation] as ``crb_cycle_update``,
+    ``edge_matrices_into`` with W_crb and ``activation`` do alone, bit for bit."""
     rng = np.random.default_rng(seed)
     terms = random_state(robot, rng)
-    rules = np.empty((impacts, RULE_VALUES))
+    rules = np.empty((impacts, RULE_VALUES + 3 * edges))
     for rule in rules:
         normal = rng.normal(size=3)
         rule[:3], rule[3] = normal / np.linalg.norm(normal), rng.uniform(0.0, 1.0)
-        rule[4:] = rng.random() < 0.3, rng.uniform(0.0, 0.1), rng.uniform(0.0, 0.2), rng.uniform(0.0, 1.0), rng.normal()
+        rule[4:9] = rng.random() < 0.3, rng.uniform(0.0, 0.1), rng.uniform(0.0, 0.2), rng.uniform(0.0, 1.0), rng.normal()
+        directions = rng.normal(size=(edges, 3))
+        rule[9:] = np.ravel(directions / np.linalg.norm(directions, axis=1, keepdims=True)) if edges else []
     rigid = np.concatenate([terms.com, np.ravel(terms.inertia_com), [terms.mass]])
-    rows = np.full((impacts, 3 * JOINTS * JOINTS + 1), np.nan)
+    square = JOINTS * JOINTS
+    rows = np.full((impacts, (3 + 2 * edges) * square + 1), np.nan)
     crb_stacked_updates(terms.contact_terms, terms.dq, rigid, rules, rows)
+    W = welded_inverse_inertia(terms.contact_point, terms.com, terms.inertia_com, terms.mass)
     for rule, row in zip(rules, rows):
-        out = np.empty(2 * JOINTS * JOINTS + 9)
+        out = np.empty(2 * square + 9)
         motion = crb_cycle_update(terms.contact_terms, terms.com, terms.inertia_com, terms.mass, terms.dq, rule[:4], out)
         np.testing.assert_array_equal(row[:out.shape[0]], out)
+        edge_maps = np.empty((2, edges, JOINTS, JOINTS))
+        edge_matrices_into(terms.J, terms.JJt_inv, np.empty((0, 0)), W, rule[9:].reshape(edges, 3), rule[:3], rule[3], edge_maps)
+        np.testing.assert_array_equal(row[3 * square:-1], np.ravel(edge_maps))
         assert row[-1] == float(activation(rule, *motion))

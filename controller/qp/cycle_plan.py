@@ -17,9 +17,10 @@ construction:
 At each cycle ``fill`` has each expected impact write its jump matrices into the plan's
 stacked buffers (``ExpectedImpact.fill_stacked``: the fixed base's fills write there directly,
 once per fill of the model terms, shared with the Command's prediction), or, when every impact
-is a fixed base's crb impact without friction rows (``ExpectedImpact.plan_updates_it``), lets
-the kernel update them (``crb_stacked_updates``: A, P, G and the activation, from their rule
-values packed after the parameters) and tells each impact (``adopt_stacked``). It makes one
+is a fixed base's crb impact, without friction rows or with a pyramid's
+(``ExpectedImpact.plan_updates_it``), lets the kernel update them (``crb_stacked_updates``: A, P,
+G, the edges' maps and the activation, from their rule values and edge directions packed after
+the parameters) and tells each impact (``adopt_stacked``). It makes one
 call of ``planned_rows`` on flat arrays only (numba types each argument at every call, a tuple
 element by element; an array's type does not depend on its shape, so one compiled signature
 serves every number of impacts and every robot), eight of them: the arm's state in one array
@@ -186,7 +187,7 @@ class CyclePlan:
         ]
         sizes = np.array([len(values) for values in packed], dtype=np.int64)
         self.table[:, PARAMETERS] = HEAD + np.cumsum(sizes) - sizes
-        rules = [impact.rule_values for impact in self.impacts] if self.updates_impacts else []
+        rules = [impact.plan_values() for impact in self.impacts] if self.updates_impacts else []
         self.parameters = np.concatenate([np.zeros(HEAD), *packed, *rules])  # the impacts' rule values last
         b = self.buffers
         head = (self.first_relaxed, b.task_A.shape[0], b.problem.C.shape[0], b.box_bounds.shape[0] // 2, len(rules))
@@ -251,7 +252,7 @@ def planned_rows(state, M, h, impacts, table, parameters, data, rigid):
     (``model_terms.arm_state_views``), M, h; ``impacts`` = the expected impacts' rows
     (``CyclePlan._impact_maps``); ``parameters`` = [h, dt, the first relaxed row, the task rows,
     the general rows, the boxes, the number of impacts the kernel updates, the lines' parameters,
-    those impacts' rule values]; ``data`` = the reachable accelerations,
+    those impacts' ``plan_values``]; ``data`` = the reachable accelerations,
     the task rows A, b, w, the QP H, g, C, [[lb; l], [ub; u]] and the box bounds
     (``cycle_buffer_views``); ``rigid`` = the locked robot's [centre of mass, inertia, mass] when
     the kernel updates the impacts first (``crb_stacked_updates``). Each line of ``table`` runs its
@@ -267,8 +268,9 @@ def planned_rows(state, M, h, impacts, table, parameters, data, rigid):
     lower, upper = bounds[0], bounds[1]
     first_relaxed = int(parameters[FIRST_RELAXED])
     rules = int(parameters[RULES])
-    if rules:
-        rule_values = parameters[parameters.shape[0] - rules * RULE_VALUES:].reshape((rules, RULE_VALUES))
+    if rules:  # each impact's rule values and its edges' directions
+        size = RULE_VALUES + 3 * (((impacts.shape[1] - 1) // (n * n) - 3) // 2)
+        rule_values = parameters[parameters.shape[0] - rules * size:].reshape((rules, size))
         crb_stacked_updates(state[:6 * n + CONTACT_TERMS_EXTRA], dq, rigid, rule_values, impacts)
     inputs = (q, dq, J6, dJ6_dq, rotation, M, h)
     cycle = (reachable[0], reachable[1], parameters[HORIZON], parameters[DT])
