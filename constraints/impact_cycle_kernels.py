@@ -20,11 +20,10 @@ from impactqp.controller.model.model_terms import contact_views
 @njit(cache=True)
 def normal_motion(J, normal, contact_point, dq):
     """Kernel: the normal contact speed n.(J dq) = (J^T n).dq and the normal position n.p, the
-    inputs of the activation rule."""
-    Jt_normal = normal @ J
+    inputs of the activation rule (plain loops: no BLAS call at this size)."""
     normal_speed = 0.0
     for j in range(J.shape[1]):
-        normal_speed += Jt_normal[j] * dq[j]
+        normal_speed += (normal[0] * J[0, j] + normal[1] * J[1, j] + normal[2] * J[2, j]) * dq[j]
     normal_position = normal[0] * contact_point[0] + normal[1] * contact_point[1] + normal[2] * contact_point[2]
     return normal_speed, normal_position
 

@@ -147,7 +147,10 @@ def surface_frame_approach_rows(J6, dq, dJ6_dq, rotation, reference, A, b):
     k_v v*, k_R)."""
     target_rotation, basis = reference[0:9].reshape((3, 3)), reference[9:18].reshape((3, 3))
     twist_gain, reference_acceleration, orientation_stiffness = reference[18:24], reference[24:27], reference[27]
-    twist = J6 @ dq
+    twist = np.zeros(6)  # J6 dq in plain loops (no BLAS call at this size)
+    for i in range(6):
+        for j in range(dq.shape[0]):
+            twist[i] += J6[i, j] * dq[j]
     log = np.empty(3)
     rotation_log(target_rotation, rotation, log)
     linear = np.empty(3)

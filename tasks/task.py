@@ -124,7 +124,10 @@ def rotation_log(target, rotation, out):
     near the identity. Near theta = pi, where v vanishes, the axis comes from
     (R + R^T) / 2 - c I = (1 - c) a a^T (its largest diagonal entry), signed along v.
     """
-    R = target @ rotation.T
+    R = np.empty((3, 3))  # R* R^T in plain loops (a BLAS call from compiled code costs more at 3 x 3)
+    for i in range(3):
+        for j in range(3):
+            R[i, j] = target[i, 0] * rotation[j, 0] + target[i, 1] * rotation[j, 1] + target[i, 2] * rotation[j, 2]
     c = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)
     vx, vy, vz = R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]
     s = 0.5 * math.sqrt(vx * vx + vy * vy + vz * vz)

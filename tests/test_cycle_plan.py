@@ -233,9 +233,10 @@ def test_impacts_of_different_friction_rows_leave_the_generic_assembly(robot):
 @given(seed=st.integers(0, 2**32 - 1), setting=st.sampled_from(["crb", "always", "friction4"]))
 def test_the_plan_updates_its_crb_impact_as_the_impact_itself_would(robot, seed, setting):
     """The plan's kernel updates its crb impact (``crb_stacked_updates``): after its fill the
-    impact's A, P, G, its friction pyramid's edge maps and its activation are, bit for bit, those
-    a twin impact (same surface, model, rule and friction rows) computes itself at the same
-    terms; an impact's rule assigned later reaches the next fill."""
+    impact's A, P, G, its friction pyramid's edge maps (to 1e-12 of their largest entry: the same
+    kernels, compiled into different callers) and its activation are those a twin impact (same
+    surface, model, rule and friction rows) computes itself at the same terms; an impact's rule
+    assigned later reaches the next fill."""
     rng = np.random.default_rng(seed)
     controller = setting_controller(robot, setting)
     plan, impact = controller._plan, controller.impact
@@ -243,11 +244,11 @@ def test_the_plan_updates_its_crb_impact_as_the_impact_itself_would(robot, seed,
     terms, cycle = random_cycle(robot, controller, rng)
     twin = ExpectedImpact(impact.surface, impact.name, impact.restitution, impact.rule, friction=impact.friction)
     plan.fill(terms, cycle)
-    for ours, theirs in zip(impact.matrices(terms)[:3], twin.matrices(terms)[:3]):
-        np.testing.assert_array_equal(ours, theirs)
+    pairs = list(zip(impact.matrices(terms)[:3], twin.matrices(terms)[:3]))
     if impact.friction.count:
-        for ours, theirs in zip(impact.edge_matrices(terms), twin.edge_matrices(terms)):
-            np.testing.assert_array_equal(ours, theirs)
+        pairs += list(zip(impact.edge_matrices(terms), twin.edge_matrices(terms)))
+    for ours, theirs in pairs:
+        np.testing.assert_allclose(ours, theirs, rtol=0.0, atol=1e-12 * np.abs(theirs).max())
     assert impact.is_active(terms) == twin.is_active(terms)
     impact.rule = type(impact.rule)(always_active=not impact.rule.always_active, lookahead_distance=0.0, lookahead_time=0.0)
     twin.rule = impact.rule

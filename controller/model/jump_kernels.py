@@ -131,13 +131,19 @@ def crb_jump(rigid, J, JJt_inv, impact, outputs):
 def rank_one_jump_matrices(J, JJt_inv, W_normal, normal, restitution, jump_matrix, torque_matrix, impulse_map):
     """Kernel of ``GeneralizedMomentumJump.fixed_base_matrices``: A = s (J^T (J J^T)^-1 W n)(J^T n)^T,
     P = s (J^T n)(J^T n)^T and G = s n n^T with s = -(1+c_r) / (n^T W n), written into the three
-    matrices."""
+    matrices. Plain loops: at these sizes a BLAS call from compiled code costs more than its
+    arithmetic."""
     s = -(1.0 + restitution) / (normal[0] * W_normal[0] + normal[1] * W_normal[1] + normal[2] * W_normal[2])
-    y = JJt_inv @ (s * W_normal)
-    direction = J.T @ y
-    Jt_normal = normal @ J
-    for i in range(J.shape[1]):
-        for j in range(J.shape[1]):
+    y0 = s * (JJt_inv[0, 0] * W_normal[0] + JJt_inv[0, 1] * W_normal[1] + JJt_inv[0, 2] * W_normal[2])
+    y1 = s * (JJt_inv[1, 0] * W_normal[0] + JJt_inv[1, 1] * W_normal[1] + JJt_inv[1, 2] * W_normal[2])
+    y2 = s * (JJt_inv[2, 0] * W_normal[0] + JJt_inv[2, 1] * W_normal[1] + JJt_inv[2, 2] * W_normal[2])
+    nv = J.shape[1]
+    direction, Jt_normal = np.empty(nv), np.empty(nv)  # J^T (J J^T)^-1 s W n and J^T n
+    for k in range(nv):
+        direction[k] = J[0, k] * y0 + J[1, k] * y1 + J[2, k] * y2
+        Jt_normal[k] = normal[0] * J[0, k] + normal[1] * J[1, k] + normal[2] * J[2, k]
+    for i in range(nv):
+        for j in range(nv):
             jump_matrix[i, j] = direction[i] * Jt_normal[j]
             torque_matrix[i, j] = s * Jt_normal[i] * Jt_normal[j]
     for i in range(3):

@@ -87,6 +87,7 @@ from .solvers import FAILED, INFEASIBLE, SOLVED, DaqpSolver, make_solver, verifi
 from .whole_body_plan import compiled_plan
 
 BRAKE = "brake"
+ACTIVE_PATTERNS = 256  # patterns of the active constraints' flags whose names are kept
 
 
 class ImpactAwareController:
@@ -161,6 +162,7 @@ class ImpactAwareController:
             (task, self._task_A[s], self._task_b[s], self._task_w[s]) for task, s in zip(self.tasks, task_slices)
         ]
         self._active_flags = layout.empty_flags()
+        self._active_names: dict[bytes, list[str]] = {}  # the names of each pattern of the flags seen
         self._buffers, self.problem = buffers, buffers.problem
         p = self.problem
         self._box_bounds = buffers.box_bounds  # rows 2k and 2k + 1: the bounds of box k
@@ -279,7 +281,8 @@ class ImpactAwareController:
             ddq = (command[0] - terms.dq) * (1.0 / self.dt)
             status = Status.VELOCITY_CLIPPED
             self._checked(ddq)  # the gaps and the active constraints of the ddq actually commanded
-        return self._emit(terms, (ddq, *command), status, self._active_constraints(), [], solver_name)
+        motion = (ddq, command[0], command[1], command[2], command[3])
+        return self._emit(terms, motion, status, self._active_constraints(), [], solver_name)
 
     def _impact_noticed(self, terms: ModelTerms, dq: np.ndarray) -> bool:
         """Whether this state shows an impact (module docstring: impact brake); a state that is the
@@ -364,7 +367,13 @@ class ImpactAwareController:
     def _active_constraints(self) -> list[str]:
         """Names of the constraints with at least one row at a bound at the commanded ddq (the
         flags of its check, ``_checked``: when it was accepted, or clipped)."""
-        return [name for name, hit in zip(self.layout.flag_names, self._active_flags.tolist()) if hit]
+        key = self._active_flags.tobytes()  # a few patterns recur along a loop: their lists are kept
+        names = self._active_names.get(key)
+        if names is None:
+            if len(self._active_names) >= ACTIVE_PATTERNS:
+                self._active_names.clear()
+            names = self._active_names[key] = [n for n, hit in zip(self.layout.flag_names, self._active_flags.tolist()) if hit]
+        return names.copy()
 
     # ------------------------------------------------------------------ fallback
     def _infeasible(self, q, dq, terms, message) -> Command:
