@@ -47,7 +47,7 @@ def test_refilled_terms_equal_fresh_terms(robot, q_a, q_b):
     assert robot.update_terms(buffer, q_b, dq_b, check_limits=False) is buffer
     assert buffer.stamp != stamp
     for name in ("q", "dq", "M", "h", "J", "J6", "dJ6_dq", "JJt_inv", "contact_point", "contact_rotation",
-                 "com", "inertia_com", "contact_terms", "arm_state"):
+                 "com", "inertia_com", "contact_terms", "arm_state", "locked_body"):
         np.testing.assert_allclose(getattr(buffer, name), getattr(fresh, name), rtol=1e-12, atol=1e-12)
     assert buffer.mass == fresh.mass
     np.testing.assert_allclose(buffer.J_pinv, np.linalg.pinv(fresh.J), atol=1e-9)
@@ -99,7 +99,7 @@ def test_a_refused_state_leaves_the_buffer_as_it_was(robot, case):
     q_bad, dq_bad, error, message = REFUSED_STATES[case]
     q, dq = PANDA.postures["elbow_up"].q, np.full(robot.nv, 0.2)
     names = ("q", "dq", "M", "h", "J6", "dJ6_dq", "JJt_inv", "com", "contact_point", "contact_rotation", "inertia_com",
-             "contact_terms")
+             "contact_terms", "locked_body")
     for buffer in (robot.terms(q, dq), robot.update_terms(robot.empty_terms(), q, dq)):
         stamp, before = buffer.stamp, {name: np.copy(getattr(buffer, name)) for name in names}
         with pytest.raises(error, match=message):

@@ -84,8 +84,9 @@ class ModelTerms:
     centre of mass are computed from (``arm_cycle_terms``), the [q; dq] buffer a caller's
     read-only or strided state is copied into (the kernels read writable row-major arrays: one
     compiled signature each), the flat array that J6, dJ6 dq, (J J^T)^-1, dq, the contact
-    rotation and q are views of (``arm_state``, ``arm_state_views``), and its first part,
-    ``contact_terms``.
+    rotation and q are views of (``arm_state``, ``arm_state_views``), its first part,
+    ``contact_terms``, and the locked robot's [com, inertia_com, mass] (``locked_body``, the
+    inertia about the centre of mass a view of it).
 
     ``frame_arrays`` = (J6, dJ6 dq, p, R) stacked over a floating base's frames (its contact
     frame, its held contacts, its named frames, in this order: F x 6 x nv, F x 6, F x 3,
@@ -185,6 +186,15 @@ class ModelTerms:
         if self.cycle_arrays is not None:
             return self.cycle_arrays[4]
         return self.cached("contact_terms", lambda: pack_contact_terms(self.J6, self.JJt_inv, self.contact_point))
+
+    @property
+    def locked_body(self) -> np.ndarray:
+        """[com, inertia_com (row-major), mass] of the locked robot in one flat array, what the
+        compiled crb update reads in one argument: an arm's cycle buffer's is refilled with the
+        terms, other terms' is packed on first use, once per fill."""
+        if self.cycle_arrays is not None:
+            return self.cycle_arrays[5]
+        return self.cached("locked_body", lambda: np.concatenate((self.com, np.ravel(self.inertia_com), [self.mass])))
 
     @property
     def arm_state(self) -> np.ndarray:

@@ -142,7 +142,7 @@ class ModelTermFills:
         array). A refused state is computed back out of the data, so the buffer stays as it
         was."""
         data = terms.cycle_data if terms.cycle_data is not None else self._attach_cycle_data(terms)
-        world, centroidal, incoming, out, _ = terms.cycle_arrays
+        world, centroidal, incoming, out, _, locked = terms.cycle_arrays
         if not (q.flags.writeable and dq.flags.writeable and q.flags.c_contiguous and dq.flags.c_contiguous):
             incoming[:self.nq], incoming[self.nq:] = q, dq  # the kernels read writable row-major arrays
             q, dq = incoming[:self.nq], incoming[self.nq:]
@@ -156,7 +156,7 @@ class ModelTermFills:
                 self.pinocchio_pass(data, terms.q, terms.dq)
                 raise
             arm_cycle_terms(*world, q, dq, self._cycle_checks[None], out)
-        terms.inertia_com = centroidal.inertia
+        locked[:3], terms.inertia_com[:] = terms.com, centroidal.inertia  # the locked body's [com, inertia, mass]
         return terms.refilled()
 
     def pinocchio_pass(self, data: pin.Data, q: np.ndarray, dq: np.ndarray) -> None:
@@ -184,9 +184,10 @@ class ModelTermFills:
         make its M, h, centre of mass and contact point views of that data's outputs (M's
         transpose: computeAllTerms fills both triangles, and the transpose is row-major), its J6,
         dJ6 dq, (J J^T)^-1, ``contact_terms``, dq, contact rotation and q views of one array of
-        its own (``arm_state_views``) holding their present values, and its mass the data's (a
-        fixed base's moving mass, the same at every state); its M^-1 then comes from the
-        Cholesky factor of that M."""
+        its own (``arm_state_views``) holding their present values, its locked body's [com,
+        inertia, mass] one more (``ModelTerms.locked_body``, the inertia a view of it), and its
+        mass the data's (a fixed base's moving mass, the same at every state); its M^-1 then
+        comes from the Cholesky factor of that M."""
         drift = np.array(terms.dJ6_dq)  # first: a lazily filled drift's fill sets M and h too
         data = self.model.createData()
         self.pinocchio_pass(data, terms.q, terms.dq)
@@ -203,7 +204,9 @@ class ModelTermFills:
         terms.mass = float(data.Ig.mass)
         incoming = np.empty(nq + nv)
         world = (data.J, data.dJ, placement.translation, placement.rotation)
-        terms.cycle_data, terms.cycle_arrays = data, (world, data.Ig, incoming, out, contact)
+        locked = np.concatenate((terms.com, np.ravel(data.Ig.inertia), [terms.mass]))
+        terms.inertia_com = locked[3:12].reshape(3, 3)
+        terms.cycle_data, terms.cycle_arrays = data, (world, data.Ig, incoming, out, contact, locked)
         terms.compute_inverse_inertia = lambda q: self._cholesky_inverse_inertia(data)
         return data
 

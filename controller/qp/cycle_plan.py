@@ -28,7 +28,8 @@ serves every number of impacts and every robot), eight of them: the arm's state 
 table, the parameters (h, dt, the first relaxed row, the buffers' sizes and the number of
 impacts the kernel updates at their head), the controller's buffers (``CycleBuffers``: the
 reachable accelerations, the task rows, the QP and the box bounds, views of one array) and the
-locked robot's centre of mass, inertia about it and mass (what the crb update reads). It runs the
+locked robot's centre of mass, inertia about it and mass (``ModelTerms.locked_body``, what the
+crb update reads). It runs the
 classes' own kernels on their slices of the stacked buffers:
 the task rows, the cost H = A^T W A, g = -A^T W b, the box bounds and their intersection clipped
 into the cycle's reachable accelerations, the general rows, and the relaxed rows relaxed to what
@@ -142,11 +143,8 @@ class CyclePlan:
         # (2 x edges x n x n) and its activation, in row i
         self.impacts_data = np.zeros((max(len(impacts), 1), (3 + 2 * edges) * n * n + 1))
         self._impact_rows = [(row[:3 * n * n], row[3 * n * n:-1].reshape(2, edges, n, n)) for row in self.impacts_data]
-        # When the kernel updates the impacts itself (all crb, ``ExpectedImpact.plan_updates_it``): the
-        # locked robot's [centre of mass, inertia about it, mass] of each cycle, its kernel's input
+        # Whether the kernel updates the impacts itself (all crb: ``ExpectedImpact.plan_updates_it``)
         self.updates_impacts = bool(impacts) and all(impact.plan_updates_it for impact in impacts)
-        self.rigid = np.zeros(13)
-        self._rigid_com, self._rigid_inertia = self.rigid[:3], self.rigid[3:12].reshape(3, 3)
 
     @classmethod
     def of(cls, tasks: list[Task], layout: ConstraintLayout, buffers: CycleBuffers, dt: float) -> CyclePlan | None:
@@ -208,13 +206,12 @@ class CyclePlan:
         """Every task and constraint row of this state into the buffers (one compiled call, which
         also updates the expected impacts when they are all crb: ``updates_impacts``); False when
         the box bounds conflict."""
-        parameters, data = self._cycle_parameters(cycle), self.buffers.data
+        parameters, data, locked = self._cycle_parameters(cycle), self.buffers.data, terms.locked_body
         if not self.updates_impacts:
             impacts = self._impact_maps(terms)
-            return planned_rows(terms.arm_state, terms.M, terms.h, impacts, self.table, parameters, data, self.rigid)
-        self._rigid_com[:], self._rigid_inertia[:], self.rigid[12] = terms.com, terms.inertia_com, terms.mass
+            return planned_rows(terms.arm_state, terms.M, terms.h, impacts, self.table, parameters, data, locked)
         impacts = self.impacts_data
-        consistent = planned_rows(terms.arm_state, terms.M, terms.h, impacts, self.table, parameters, data, self.rigid)
+        consistent = planned_rows(terms.arm_state, terms.M, terms.h, impacts, self.table, parameters, data, locked)
         for impact, (maps, edges), row in zip(self.impacts, self._impact_rows, impacts):
             impact.adopt_stacked(terms, row[-1] != 0.0, maps, edges)
         return consistent
@@ -246,7 +243,7 @@ def _planned(kind: int | None, item, variables: int) -> bool:
 
 
 @njit(cache=True)
-def planned_rows(state, M, h, impacts, table, parameters, data, rigid):
+def planned_rows(state, M, h, impacts, table, parameters, data, locked):
     """Kernel of ``CyclePlan.fill``, of flat arrays only (numba types a tuple argument element
     by element at every call): ``state`` = the arm's [J6, (J J^T)^-1, p, dJ6 dq, dq, R, q]
     (``model_terms.arm_state_views``), M, h; ``impacts`` = the expected impacts' rows
@@ -254,8 +251,8 @@ def planned_rows(state, M, h, impacts, table, parameters, data, rigid):
     the general rows, the boxes, the number of impacts the kernel updates, the lines' parameters,
     those impacts' ``plan_values``]; ``data`` = the reachable accelerations,
     the task rows A, b, w, the QP H, g, C, [[lb; l], [ub; u]] and the box bounds
-    (``cycle_buffer_views``); ``rigid`` = the locked robot's [centre of mass, inertia, mass] when
-    the kernel updates the impacts first (``crb_stacked_updates``). Each line of ``table`` runs its
+    (``cycle_buffer_views``); ``locked`` = the locked robot's [centre of mass, inertia, mass]
+    (``ModelTerms.locked_body``) when the kernel updates the impacts first (``crb_stacked_updates``). Each line of ``table`` runs its
     class's kernel on its slice with
     its parameters (the layouts of the classes' ``kernel_parameters``); then H = A^T W A,
     g = -A^T W b, the boxes intersected into [lb, ub] within the reachable interval, and the
@@ -271,7 +268,7 @@ def planned_rows(state, M, h, impacts, table, parameters, data, rigid):
     if rules:  # each impact's rule values and its edges' directions
         size = RULE_VALUES + 3 * (((impacts.shape[1] - 1) // (n * n) - 3) // 2)
         rule_values = parameters[parameters.shape[0] - rules * size:].reshape((rules, size))
-        crb_stacked_updates(state[:6 * n + CONTACT_TERMS_EXTRA], dq, rigid, rule_values, impacts)
+        crb_stacked_updates(state[:6 * n + CONTACT_TERMS_EXTRA], dq, locked, rule_values, impacts)
     inputs = (q, dq, J6, dJ6_dq, rotation, M, h)
     cycle = (reachable[0], reachable[1], parameters[HORIZON], parameters[DT])
     planned_task_rows(inputs, table, parameters, (task_A, task_b, task_w))
