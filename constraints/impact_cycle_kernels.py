@@ -3,7 +3,7 @@ the crb, gm and classical jump matrices A, P and G (docs/qp-constraints.md: A = 
 P the impulsive torque map, G the impulse map; eqs. (12), (20), (21)) written into one
 preallocated buffer out = [A, P, G] from the cycle's flat arrays (``ModelTerms.contact_terms``),
 and the contact's normal motion that the activation rule reads; the rule itself
-(``activation``) and a compiled plan's update of its crb impacts (``crb_stacked_updates``).
+(``activation``) and a compiled plan's update of its impacts (``stacked_updates``).
 """
 
 from __future__ import annotations
@@ -13,7 +13,12 @@ from numba import njit
 
 from impactqp.controller.model.classical_matrices import classical_jump_matrices
 from impactqp.controller.model.friction_pyramid import edge_matrices_into
-from impactqp.controller.model.jump_kernels import crb_inverse_inertia_times, rank_one_jump_matrices, welded_inverse_inertia
+from impactqp.controller.model.jump_kernels import (
+    cholesky_solve_in_place,
+    crb_inverse_inertia_times,
+    rank_one_jump_matrices,
+    welded_inverse_inertia,
+)
 from impactqp.controller.model.model_terms import contact_views
 
 
@@ -97,10 +102,12 @@ def classical_cycle_update(M_inv, contact, dq, impact, out):
     return normal_motion(J, normal, contact_point, dq)
 
 
-RULE_VALUES = 9
+RULE_VALUES = 10
 """An impact's rule values (``ExpectedImpact.rule_values``): n (3), c_r, always_active (1 or 0),
-release_speed, lookahead_distance, lookahead_time and n.s (the surface's offset along n)."""
-ALWAYS_ACTIVE, RELEASE_SPEED, LOOKAHEAD_DISTANCE, LOOKAHEAD_TIME, SURFACE_OFFSET = range(4, 9)
+release_speed, lookahead_distance, lookahead_time, n.s (the surface's offset along n) and its
+model (``CRB``, ``GM`` or ``CLASSICAL``)."""
+ALWAYS_ACTIVE, RELEASE_SPEED, LOOKAHEAD_DISTANCE, LOOKAHEAD_TIME, SURFACE_OFFSET, MODEL = range(4, 10)
+CRB, GM, CLASSICAL = range(3)
 
 
 @njit(cache=True)
@@ -116,26 +123,73 @@ def activation(rule, normal_speed, normal_position):
 
 
 @njit(cache=True)
-def crb_stacked_updates(contact, dq, rigid, rules, impacts):
-    """Kernel: each crb impact i of a compiled plan (``cycle_plan``) updated in its row of
+def stacked_updates(contact, dq, locked, M, rules, impacts):
+    """Kernel: each fixed-base impact i of a compiled plan (``cycle_plan``) updated in its row of
     ``impacts`` = [A, P, G (in 3 n^2 values), its edges' A_i and P_i (2 x edges x n^2), its
-    activation]: A, P, G by ``crb_cycle_update``, the edges' maps by ``edge_matrices_into`` with
-    W_crb (``welded_inverse_inertia``), as the impact's own fills do, and the activation (1 or 0),
-    from the arm's ``contact`` terms, dq, ``rigid`` = [centre of mass, inertia about it
-    (row-major), mass] of the locked robot and the impact's ``ExpectedImpact.plan_values`` (rules[i]:
-    its rule values, then its edges' directions)."""
+    activation], as the impact's own fills do: A, P, G by its model's kernel (``crb_cycle_update``,
+    ``gm_cycle_update`` or ``classical_cycle_update``), the edges' maps by ``edge_matrices_into``
+    with its model's W (W_crb, ``welded_inverse_inertia``; else W_gm = J M^-1 J^T), and the
+    activation (1 or 0); from the arm's ``contact`` terms, dq, ``locked`` = [centre of mass,
+    inertia about it (row-major), mass] of the locked robot, M (its inverse by Cholesky, once,
+    when a gm or classical impact needs it; NaN when M is not positive definite, which the
+    solution's check then refuses) and the impacts' ``ExpectedImpact.plan_values`` (rules[i]: its
+    rule values, then its edges' directions)."""
     n = dq.shape[0]
     square = n * n
     edges = ((impacts.shape[1] - 1) // square - 3) // 2
-    com, inertia, mass = rigid[:3], rigid[3:12].reshape((3, 3)), rigid[12]
+    com, inertia, mass = locked[:3], locked[3:12].reshape((3, 3)), locked[12]
     J6, JJt_inv, contact_point = contact_views(contact, n)
-    no_matrix = np.empty((0, 0))  # M^-1's place: crb does not read it
+    J = J6[:3]
+    no_matrix = np.empty((0, 0))  # M^-1's place when no model reads it
+    M_inv = no_matrix
     for i in range(rules.shape[0]):
         rule, row = rules[i], impacts[i]
-        normal_speed, normal_position = crb_cycle_update(contact, com, inertia, mass, dq, rule[:4], row[:2 * square + 9])
+        model, maps = int(rule[MODEL]), row[:2 * square + 9]
+        if model != CRB and M_inv.shape[0] == 0:
+            M_inv = symmetric_positive_inverse(M)
+        if model == CRB:
+            normal_speed, normal_position = crb_cycle_update(contact, com, inertia, mass, dq, rule[:4], maps)
+        elif model == GM:
+            normal_speed, normal_position = gm_cycle_update(M_inv, contact, dq, rule[:4], maps)
+        else:
+            normal_speed, normal_position = classical_cycle_update(M_inv, contact, dq, rule[:4], maps)
         if edges:
-            W = welded_inverse_inertia(contact_point, com, inertia, mass)
+            W = welded_inverse_inertia(contact_point, com, inertia, mass) if model == CRB else gm_contact_inverse_inertia(M_inv, J)
             directions = rule[RULE_VALUES:RULE_VALUES + 3 * edges].reshape((edges, 3))
             edge_maps = row[3 * square:3 * square + 2 * edges * square].reshape((2, edges, n, n))
-            edge_matrices_into(J6[:3], JJt_inv, no_matrix, W, directions, rule[:3], rule[3], edge_maps)
+            edge_matrices_into(J, JJt_inv, M_inv if model == CLASSICAL else no_matrix, W, directions, rule[:3], rule[3],
+                               edge_maps)
         row[row.shape[0] - 1] = 1.0 if activation(rule, normal_speed, normal_position) else 0.0
+
+
+@njit(cache=True)
+def symmetric_positive_inverse(S):
+    """Kernel: S^-1 of a symmetric positive definite S by its Cholesky factor
+    (``cholesky_solve_in_place`` on the identity), in a new array; NaN when S is not positive
+    definite."""
+    n = S.shape[0]
+    factor, inverse = S.copy(), np.eye(n)
+    if not cholesky_solve_in_place(factor, inverse):
+        inverse[:, :] = np.nan
+    return inverse
+
+
+@njit(cache=True)
+def gm_contact_inverse_inertia(M_inv, J):
+    """Kernel: W_gm = J M^-1 J^T (22) at the contact, symmetrized (``jump.gm_inverse_inertia``'s
+    statement for a fixed base), in plain loops."""
+    n = J.shape[1]
+    W = np.empty((3, 3))
+    for a in range(3):
+        for b in range(3):
+            total = 0.0
+            for k in range(n):
+                y = 0.0  # (M^-1 J^T)_kb
+                for j in range(n):
+                    y += M_inv[k, j] * J[b, j]
+                total += J[a, k] * y
+            W[a, b] = total
+    for a in range(3):
+        for b in range(a):
+            W[a, b] = W[b, a] = 0.5 * (W[a, b] + W[b, a])
+    return W

@@ -70,6 +70,9 @@ from impactqp.controller.model import validation
 from impactqp.controller.model.validation import BadInputError
 
 from .impact_cycle_kernels import (
+    CLASSICAL,
+    CRB,
+    GM,
     activation,
     classical_cycle_update,
     crb_cycle_update,
@@ -199,10 +202,12 @@ class ExpectedImpact:
         if not isinstance(rule, ActivationRule):
             raise TypeError("rule must be an ActivationRule")
         self._rule_object = rule
+        model = self.model
+        kind = CRB if isinstance(model, CompositeRigidBodyJump) else CLASSICAL if type(model) is ClassicalJump else GM
         self.rule_values = np.concatenate([self._impact, [
             float(rule.always_active), rule.release_speed, rule.lookahead_distance, rule.lookahead_time,
-            self._surface_offset,
-        ]])  # ``impact_cycle_kernels.RULE_VALUES``: what the compiled rule reads
+            self._surface_offset, kind,
+        ]])  # ``impact_cycle_kernels.RULE_VALUES``: what the compiled rule and a plan's update read
         ExpectedImpact.rule_edits += 1
 
     @property
@@ -211,14 +216,14 @@ class ExpectedImpact:
 
     @property
     def plan_updates_it(self) -> bool:
-        """Whether a compiled plan updates this impact in its own kernel (``crb_stacked_updates``): the
-        crb model of a fixed base, without friction rows or with a pyramid's (whose edge directions
-        do not change); the plan then tells it so (``adopt_stacked``)."""
+        """Whether a compiled plan updates this impact in its own kernel (``stacked_updates``): the
+        crb, gm or classical model of a fixed base, without friction rows or with a pyramid's (whose
+        edge directions do not change); the plan then tells it so (``adopt_stacked``)."""
         edges_fixed = not self._edge_count or self.friction.mode == "pyramid"
-        return type(self.model) is CompositeRigidBodyJump and not self.held_contacts and edges_fixed
+        return self._in_place and not self.held_contacts and edges_fixed
 
     def plan_values(self) -> np.ndarray:
-        """What a compiled plan's kernel reads of this impact (``crb_stacked_updates``): its rule
+        """What a compiled plan's kernel reads of this impact (``stacked_updates``): its rule
         values, then its edges' directions (edges x 3, row by row)."""
         return np.concatenate([self.rule_values, np.ravel(self._edge_set.directions)])
 
@@ -312,7 +317,7 @@ class ExpectedImpact:
             self._stamp = 0  # refilled into them now
 
     def adopt_stacked(self, terms, active: bool, maps: np.ndarray, edges: np.ndarray) -> None:
-        """A compiled plan's kernel (``crb_stacked_updates``) wrote the terms' A, P and G into its
+        """A compiled plan's kernel (``stacked_updates``) wrote the terms' A, P and G into its
         stacked buffers ``maps`` (and ``edges``), made this impact's own (``own_stacked``), and found
         its activation ``active``."""
         self.own_stacked(maps, edges)

@@ -230,26 +230,28 @@ def test_impacts_of_different_friction_rows_leave_the_generic_assembly(robot):
 
 
 @settings(max_examples=20, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), setting=st.sampled_from(["crb", "always", "friction4"]))
-def test_the_plan_updates_its_crb_impact_as_the_impact_itself_would(robot, seed, setting):
-    """The plan's kernel updates its crb impact (``crb_stacked_updates``): after its fill the
-    impact's A, P, G, its friction pyramid's edge maps (to 1e-12 of their largest entry: the same
-    kernels, compiled into different callers) and its activation are those a twin impact (same
-    surface, model, rule and friction rows) computes itself at the same terms; an impact's rule
-    assigned later reaches the next fill."""
+@given(seed=st.integers(0, 2**32 - 1), setting=st.sampled_from(["crb", "always", "friction4", "robust"]))
+def test_the_plan_updates_its_impacts_as_they_would_themselves(robot, seed, setting):
+    """The plan's kernel updates its impacts (``stacked_updates``): after its fill each impact's
+    A, P, G, its friction pyramid's edge maps (to 1e-12 of their largest entry: the same kernels
+    compiled into different callers, M^-1 by another Cholesky) and its activation are those a twin
+    impact (same surface, model, rule and friction rows) computes itself at the same terms; an
+    impact's rule assigned later reaches the next fill."""
     rng = np.random.default_rng(seed)
     controller = setting_controller(robot, setting)
-    plan, impact = controller._plan, controller.impact
+    plan = controller._plan
     assert plan.updates_impacts
     terms, cycle = random_cycle(robot, controller, rng)
-    twin = ExpectedImpact(impact.surface, impact.name, impact.restitution, impact.rule, friction=impact.friction)
+    twins = [ExpectedImpact(i.surface, i.name, i.restitution, i.rule, friction=i.friction) for i in plan.impacts]
     plan.fill(terms, cycle)
-    pairs = list(zip(impact.matrices(terms)[:3], twin.matrices(terms)[:3]))
-    if impact.friction.count:
-        pairs += list(zip(impact.edge_matrices(terms), twin.edge_matrices(terms)))
-    for ours, theirs in pairs:
-        np.testing.assert_allclose(ours, theirs, rtol=0.0, atol=1e-12 * np.abs(theirs).max())
-    assert impact.is_active(terms) == twin.is_active(terms)
+    for impact, twin in zip(plan.impacts, twins):
+        pairs = list(zip(impact.matrices(terms)[:3], twin.matrices(terms)[:3]))
+        if impact.friction.count:
+            pairs += list(zip(impact.edge_matrices(terms), twin.edge_matrices(terms)))
+        for ours, theirs in pairs:
+            np.testing.assert_allclose(ours, theirs, rtol=0.0, atol=1e-12 * np.abs(theirs).max())
+        assert impact.is_active(terms) == twin.is_active(terms)
+    impact, twin = plan.impacts[0], twins[0]
     impact.rule = type(impact.rule)(always_active=not impact.rule.always_active, lookahead_distance=0.0, lookahead_time=0.0)
     twin.rule = impact.rule
     terms = robot.terms(terms.q, terms.dq, check_limits=False)  # a new fill of the same state
@@ -257,12 +259,12 @@ def test_the_plan_updates_its_crb_impact_as_the_impact_itself_would(robot, seed,
     assert impact.is_active(terms) == twin.is_active(terms)
 
 
-def test_plans_of_gm_classical_or_slip_preview_rows_leave_the_impacts_to_update_themselves(robot):
-    """Only crb impacts of a fixed base, without friction rows or with a pyramid's, are updated by
-    the plan's kernel: not the robust rows' gm and classical ones, nor a one-step preview's (its
-    edges follow the slip)."""
-    assert not setting_controller(robot, "robust")._plan.updates_impacts
+def test_a_slip_preview_or_a_closed_form_model_leaves_the_impacts_to_update_themselves(robot):
+    """The plan's kernel updates the crb, gm and classical impacts of a fixed base, without
+    friction rows or with a pyramid's; not a one-step preview's (its edges follow the slip) nor
+    the classical_normal model's."""
     surface = surface_ahead(robot, start(robot), 0.05)
-    assert ExpectedImpact(surface, "crb", friction=FrictionRows(0.3, mode="pyramid")).plan_updates_it
+    for name in ("crb", "gm", "classical"):
+        assert ExpectedImpact(surface, name, friction=FrictionRows(0.3, mode="pyramid")).plan_updates_it
     assert not ExpectedImpact(surface, "crb", friction=FrictionRows(0.3, mode="slip")).plan_updates_it
-    assert not ExpectedImpact(surface, "gm").plan_updates_it
+    assert not ExpectedImpact(surface, "classical_normal").plan_updates_it

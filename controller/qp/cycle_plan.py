@@ -17,8 +17,8 @@ construction:
 At each cycle ``fill`` has each expected impact write its jump matrices into the plan's
 stacked buffers (``ExpectedImpact.fill_stacked``: the fixed base's fills write there directly,
 once per fill of the model terms, shared with the Command's prediction), or, when every impact
-is a fixed base's crb impact, without friction rows or with a pyramid's
-(``ExpectedImpact.plan_updates_it``), lets the kernel update them (``crb_stacked_updates``: A, P,
+is a fixed base's crb, gm or classical impact, without friction rows or with a pyramid's
+(``ExpectedImpact.plan_updates_it``), lets the kernel update them (``stacked_updates``: A, P,
 G, the edges' maps and the activation, from their rule values and edge directions packed after
 the parameters) and tells each impact (``adopt_stacked``). It makes one
 call of ``planned_rows`` on flat arrays only (numba types each argument at every call, a tuple
@@ -29,7 +29,7 @@ table, the parameters (h, dt, the first relaxed row, the buffers' sizes and the 
 impacts the kernel updates at their head), the controller's buffers (``CycleBuffers``: the
 reachable accelerations, the task rows, the QP and the box bounds, views of one array) and the
 locked robot's centre of mass, inertia about it and mass (``ModelTerms.locked_body``, what the
-crb update reads). It runs the
+crb update reads; the gm and classical ones read M). It runs the
 classes' own kernels on their slices of the stacked buffers:
 the task rows, the cost H = A^T W A, g = -A^T W b, the box bounds and their intersection clipped
 into the cycle's reachable accelerations, the general rows, and the relaxed rows relaxed to what
@@ -51,7 +51,7 @@ from impactqp.constraints import (
     TorqueLimit, VelocityLimit,
 )
 from impactqp.constraints.constraint import relax_to_reachable
-from impactqp.constraints.impact_cycle_kernels import RULE_VALUES, crb_stacked_updates
+from impactqp.constraints.impact_cycle_kernels import RULE_VALUES, stacked_updates
 from impactqp.constraints.impact_model import ExpectedImpact
 from impactqp.constraints.impulsive_torque import edge_scaled_impulse_rows
 from impactqp.constraints.position_limit import braking_bounds
@@ -143,7 +143,7 @@ class CyclePlan:
         # (2 x edges x n x n) and its activation, in row i
         self.impacts_data = np.zeros((max(len(impacts), 1), (3 + 2 * edges) * n * n + 1))
         self._impact_rows = [(row[:3 * n * n], row[3 * n * n:-1].reshape(2, edges, n, n)) for row in self.impacts_data]
-        # Whether the kernel updates the impacts itself (all crb: ``ExpectedImpact.plan_updates_it``)
+        # Whether the kernel updates the impacts itself (``ExpectedImpact.plan_updates_it``)
         self.updates_impacts = bool(impacts) and all(impact.plan_updates_it for impact in impacts)
 
     @classmethod
@@ -204,7 +204,7 @@ class CyclePlan:
 
     def fill(self, terms: ModelTerms, cycle: ControlCycle) -> bool:
         """Every task and constraint row of this state into the buffers (one compiled call, which
-        also updates the expected impacts when they are all crb: ``updates_impacts``); False when
+        also updates the expected impacts when it can update them all: ``updates_impacts``); False when
         the box bounds conflict."""
         parameters, data, locked = self._cycle_parameters(cycle), self.buffers.data, terms.locked_body
         if not self.updates_impacts:
@@ -252,9 +252,9 @@ def planned_rows(state, M, h, impacts, table, parameters, data, locked):
     those impacts' ``plan_values``]; ``data`` = the reachable accelerations,
     the task rows A, b, w, the QP H, g, C, [[lb; l], [ub; u]] and the box bounds
     (``cycle_buffer_views``); ``locked`` = the locked robot's [centre of mass, inertia, mass]
-    (``ModelTerms.locked_body``) when the kernel updates the impacts first (``crb_stacked_updates``). Each line of ``table`` runs its
-    class's kernel on its slice with
-    its parameters (the layouts of the classes' ``kernel_parameters``); then H = A^T W A,
+    (``ModelTerms.locked_body``), read when the kernel updates the impacts first
+    (``stacked_updates``). Each line of ``table`` runs its class's kernel on its slice with its
+    parameters (the layouts of the classes' ``kernel_parameters``); then H = A^T W A,
     g = -A^T W b, the boxes intersected into [lb, ub] within the reachable interval, and the
     rows from the first relaxed one on relaxed to what [lb, ub] reaches. False when the boxes
     conflict."""
@@ -268,7 +268,7 @@ def planned_rows(state, M, h, impacts, table, parameters, data, locked):
     if rules:  # each impact's rule values and its edges' directions
         size = RULE_VALUES + 3 * (((impacts.shape[1] - 1) // (n * n) - 3) // 2)
         rule_values = parameters[parameters.shape[0] - rules * size:].reshape((rules, size))
-        crb_stacked_updates(state[:6 * n + CONTACT_TERMS_EXTRA], dq, locked, rule_values, impacts)
+        stacked_updates(state[:6 * n + CONTACT_TERMS_EXTRA], dq, locked, M, rule_values, impacts)
     inputs = (q, dq, J6, dJ6_dq, rotation, M, h)
     cycle = (reachable[0], reachable[1], parameters[HORIZON], parameters[DT])
     planned_task_rows(inputs, table, parameters, (task_A, task_b, task_w))
