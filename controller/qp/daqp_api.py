@@ -117,10 +117,17 @@ def workspace_solve(words, x):
     return low - (1 << 32) if low >= (1 << 31) else low  # the signed 32-bit flag
 
 
-def _release(memory: np.ndarray) -> None:
-    """Free the arrays of the workspace held in ``memory`` (numpy's, zeros before any setup)."""
-    _LIBRARY.free_daqp_workspace(memory.ctypes.data)
-    _LIBRARY.free_daqp_ldp(memory.ctypes.data)
+def _release(memory: np.ndarray, address: int) -> None:
+    """Free the arrays of the workspace held in ``memory`` (numpy's, zeros before any setup) at
+    ``address`` (``memory`` is an argument so that a finalizer keeps it alive until then)."""
+    assert _address(memory) == address
+    _LIBRARY.free_daqp_workspace(address)
+    _LIBRARY.free_daqp_ldp(address)
+
+
+def _address(array: np.ndarray) -> int:
+    """The address of an array's data (``ndarray.ctypes`` builds an object at each read: slower)."""
+    return array.__array_interface__["data"][0]
 
 
 class DaqpWorkspace:
@@ -138,15 +145,15 @@ class DaqpWorkspace:
     def __init__(self, rows: int, variables: int):
         self.rows, self.variables = rows, variables
         self._memory = np.zeros(WORKSPACE_BYTES, dtype=np.uint8)
-        self._work = self._memory.ctypes.data
-        weakref.finalize(self, _release, self._memory)
+        self._work = _address(self._memory)
+        weakref.finalize(self, _release, self._memory, self._work)
         self.solution = np.zeros(variables)
         self._lam = np.zeros(variables + rows)
         self._sense = np.zeros(variables + rows, dtype=np.intc)  # a cold start's: every constraint inactive
         self._qp = DaqpProblem(variables, variables + rows, variables)
         self.words = np.zeros(ADDRESSES + ctypes.sizeof(DaqpResult) // 8, dtype=np.int64)
         self._result = DaqpResult.from_buffer(self.words, ADDRESSES * 8)
-        self._result.x, self._result.lam = self.solution.ctypes.data, self._lam.ctypes.data
+        self._result.x, self._result.lam = _address(self.solution), _address(self._lam)
         self.words[:ADDRESSES] = self._work, ctypes.addressof(self._qp), ctypes.addressof(self._result)
         self._qp_pointer = ctypes.byref(self._qp)
         self._setup_time = _double(0.0)
@@ -159,13 +166,13 @@ class DaqpWorkspace:
         arrays = (problem.H, problem.g, problem.C, problem.upper, problem.lower)
         if problem.C.shape != (self.rows, self.variables) or not all(_in_place(a) for a in arrays):
             raise ValueError(f"daqp reads C-contiguous float64 arrays of {self.rows} rows in {self.variables} unknowns")
-        _release(self._memory)
+        _release(self._memory, self._work)
         self._memory.fill(0)
         self._ready = False
         qp = self._qp
-        qp.H, qp.f, qp.A, qp.bupper, qp.blower = (a.ctypes.data for a in arrays)
+        qp.H, qp.f, qp.A, qp.bupper, qp.blower = (_address(a) for a in arrays)
         self._sense.fill(0)
-        qp.sense = self._sense.ctypes.data
+        qp.sense = _address(self._sense)
         self._held = arrays
         flag = _LIBRARY.setup_daqp_main(self._qp_pointer, self._work, ctypes.byref(self._setup_time), 0)
         if flag >= 0:
