@@ -12,7 +12,9 @@ from reference.crb_prediction import reference_crb_state
 from test_jump import welded_arm_inverse_inertia
 from test_robot import SINGULAR_Q
 
-from impactqp.controller.model.crb_prediction import CrbPredictor, KinematicTree, crb_batch, crb_state, scratch
+from impactqp.controller.model.crb_prediction import (
+    CrbPredictor, KinematicTree, crb_batch, crb_state, pack_tree, scratch, unpacked_tree,
+)
 from impactqp.controller.model.jump import JUMP_MODELS
 from impactqp.controller.model.robot import InvalidStateError, RobotModel, SingularPostureError
 from impactqp.controller.model.validation import BadInputError
@@ -178,3 +180,15 @@ def test_a_singular_posture_is_refused_and_the_batch_checks_its_inputs():
 def test_a_floating_base_has_no_compiled_pass():
     with pytest.raises(ValueError, match="fixed-base"):
         KinematicTree(RobotModel("g1"))
+
+
+def test_the_packed_tree_unpacks_to_the_tree():
+    """``pack_tree``'s one array (what ``predict``'s kernel reads in one argument) gives back each
+    field of the tree, for robots of different sizes and contact joints."""
+    for name in ("panda", "ur5"):
+        tree = CrbPredictor(RobotModel(name)).tree
+        unpacked = unpacked_tree(pack_tree(tree))
+        np.testing.assert_array_equal(unpacked[0], tree[0])
+        assert unpacked[1] == tree[1] and unpacked[5] == tree[5]
+        for ours, theirs in zip(unpacked[2:5], tree[2:5]):
+            np.testing.assert_array_equal(ours, theirs)

@@ -240,6 +240,32 @@ def checked_crb_prediction(tree, q, normal, velocity, restitution, outputs):
     return crb_prediction(tree, q, (unit, velocity, restitution), outputs, True, scratch(tree[0].shape[0]))
 
 
+def pack_tree(tree: tuple) -> np.ndarray:
+    """``CrbPredictor``'s tree (joint table, contact joint, contact translation, q_min, q_max,
+    squared singular ratio) in one flat array (``unpacked_tree``): [rows, nq, contact joint, squared
+    ratio, contact translation, q_min, q_max, the joint table row by row]. numba types a tuple
+    argument element by element at every call, an array at once."""
+    joints, contact_joint, translation, q_min, q_max, ratio = tree
+    head = [joints.shape[0], q_min.shape[0], contact_joint, ratio]
+    return np.concatenate([head, translation, q_min, q_max, joints.ravel()]).astype(float)
+
+
+@njit(cache=True)
+def unpacked_tree(packed):
+    """Kernel: the tree of ``pack_tree``'s array, as views of it."""
+    rows, nq = int(packed[0]), int(packed[1])
+    limits_end = 7 + 2 * nq
+    joints = packed[limits_end:limits_end + rows * COLUMNS].reshape((rows, COLUMNS))
+    return joints, int(packed[2]), packed[4:7], packed[7:7 + nq], packed[7 + nq:limits_end], packed[3]
+
+
+@njit(cache=True)
+def packed_crb_prediction(packed, q, normal, velocity, restitution, jump, impulse, W):
+    """Kernel of ``CrbPredictor.predict``: ``checked_crb_prediction`` of the tree packed in one
+    array (``pack_tree``) into jump, impulse and W."""
+    return checked_crb_prediction(unpacked_tree(packed), q, normal, velocity, restitution, (jump, impulse, W))
+
+
 @njit(cache=True)
 def crb_batch(tree, Q, normals, velocities, restitution, outputs):
     """Kernel of ``CrbPredictor.predict_batch``: ``crb_prediction`` without the limit check
@@ -261,6 +287,7 @@ class CrbPredictor:
         self.tree = (tree.joints, tree.contact_joint, tree.contact_translation, tree.q_min, tree.q_max,
                      SINGULAR_RATIO**2)
         self.unchecked_tree = self.tree[:5] + (-np.inf,)  # every finite J accepted: the batch's
+        self.packed_tree = pack_tree(self.tree)  # ``predict``'s, one argument
         self._q_shape = (robot.nq,)
 
     def predict(self, q, normal, pre_impact_velocity, restitution: float = 0.0) -> JumpPrediction:
@@ -268,9 +295,9 @@ class CrbPredictor:
         restitution)``, the same numbers and the same bad input, from one compiled call."""
         arrays = np.asarray(q, dtype=float), np.asarray(normal, dtype=float), np.asarray(pre_impact_velocity, dtype=float)
         if arrays[0].shape == self._q_shape and arrays[1].shape == arrays[2].shape == (3,) and type(restitution) in (float, int, np.float64):
-            outputs = np.empty(self._q_shape), np.empty(3), np.empty((3, 3))
-            if checked_crb_prediction(self.tree, *arrays, float(restitution), outputs) == ACCEPTED:
-                return JumpPrediction("crb", *outputs)
+            jump, impulse, W = np.empty(self._q_shape), np.empty(3), np.empty((3, 3))
+            if packed_crb_prediction(self.packed_tree, *arrays, float(restitution), jump, impulse, W) == ACCEPTED:
+                return JumpPrediction("crb", jump, impulse, W)
         return JUMP_MODELS["crb"].predict(self.robot.terms(q), normal, pre_impact_velocity, restitution)
 
     def predict_batch(self, Q, normals, pre_impact_velocities, restitution: float = 0.0, out=None) -> tuple[np.ndarray, np.ndarray]:
