@@ -22,8 +22,12 @@ v- = J(q-) dq-: p_t, v_t+, the law's own mode (``law_mode``) and its least tange
 (:func:`law_row`). On a plant with a joint impedance (``servo_stiffness``) a fourth predictor,
 "impedance": the law with the held arm's W_K(T) from the model
 (``controller.model.impedance_inverse_inertia``: the arm linearised at q-, held by the plant's
-stiffness K, critically damped, over a half-sine pulse of T = ``IMPACT_DURATION``).
-``impactqp oblique`` adds the reference row "plant", the same law with the simulated plant's own
+stiffness K, critically damped, over a half-sine pulse of T = ``IMPACT_DURATION``); and two
+more: "press", the steady press of the held arm whose command goes on into the wall
+(``controller.model.press_slide``, at q-, under the trial's commanded contact velocity), and
+"held", the impedance row with v_t+ the press's where the simulated contact was still closed when
+v_t+ was read (a window not ended by a separation: the regime is read from the simulation, not
+predicted; :func:`held_row`). ``impactqp oblique`` adds the reference row "plant", the same law with the simulated plant's own
 W over the same pulse (``scenarios.oblique_inertia.with_plant_row``).
 
 A predicted v_t+ **agrees** when |v_t+ predicted - v_t+ simulated| <= max(20 % |v_t+ simulated|,
@@ -46,6 +50,7 @@ from impactqp.controller.model.frictional_impact import frictional_impulse
 from impactqp.controller.model.impedance_inverse_inertia import impedance_inverse_inertia
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.controller.model.prediction import FRICTIONAL_METHODS, inverse_inertia
+from impactqp.controller.model.press_slide import contact_compliance, press_slide
 from impactqp.controller.model.validation import BadInputError
 from impactqp.sim.generation import tangential_direction
 from impactqp.sim.plant import PlantParameters
@@ -167,6 +172,9 @@ class ObliqueTrials:
         if stiffness:
             W = impedance_inverse_inertia(terms, stiffness, IMPACT_DURATION)
             predicted["impedance"] = law_row(W, measured.pre_velocity, trial.friction, simulated)
+            commanded = tangential - trial.normal_speed * normal
+            predicted["press"] = press_row(contact_compliance(terms, stiffness), commanded, trial.friction, simulated)
+            predicted["held"] = held_row(predicted["impedance"], predicted["press"], simulated)
         return {
             "series": trial.series, "posture": trial.posture, "normal_speed": trial.normal_speed,
             "tangential_speed": trial.tangential_speed, "friction": trial.friction,
@@ -190,6 +198,36 @@ def law_row(W: np.ndarray, pre_velocity: np.ndarray, friction: float, simulated:
         "mode_agrees": mode == simulated["mode"],
         "velocity_agrees": velocity_agrees(post, np.asarray(simulated["post_tangential"])),
     }
+
+
+def press_row(compliance: np.ndarray, commanded: np.ndarray, friction: float, simulated: dict) -> dict:
+    """The steady press (``press_slide``) of the contact of ``compliance`` under the trial's
+    commanded contact velocity, as a predictor's row against the ``simulated`` one: its mode
+    (a slide read as "slip"), its tangential velocity as v_t+, its force rate's normal and
+    tangential parts in the place of the impulse's (|p_t| / p_n: the press's force share)."""
+    normal = DEFAULT_WALL.normal
+    press = press_slide(compliance, normal, commanded, friction)
+    mode = "slip" if press.mode == "slide" else press.mode
+    post = press.tangential_velocity
+    return {
+        "normal_impulse": float(normal @ press.force_rate),
+        "tangential_impulse": tangential_part(press.force_rate, normal).tolist(),
+        "post_tangential": post.tolist(), "mode": mode, "law_mode": mode, "mu_bar": None,
+        "least_tangential_speed": float(np.linalg.norm(post)), "mode_agrees": mode == simulated["mode"],
+        "velocity_agrees": velocity_agrees(post, np.asarray(simulated["post_tangential"])),
+    }
+
+
+def held_row(impact: dict, press: dict, simulated: dict) -> dict:
+    """The held arm's row: the ``impact`` law's (its mode, impulse and v_t+), with v_t+ the
+    ``press``'s where the simulated contact was still closed when v_t+ was read (its window ended
+    at a force minimum or at the log's end, not at a separation: the tool pressed on the wall, as
+    the press has it; module docstring)."""
+    if simulated["end_rule"] == "separation":
+        return {**impact, "post_from": "impact"}
+    post = np.asarray(press["post_tangential"])
+    return {**impact, "post_from": "press", "post_tangential": post.tolist(),
+            "velocity_agrees": velocity_agrees(post, np.asarray(simulated["post_tangential"]))}
 
 
 def velocity_agrees(predicted: np.ndarray, simulated: np.ndarray) -> bool:

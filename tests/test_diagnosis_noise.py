@@ -86,10 +86,11 @@ def standing_out(residuals) -> float:
     return min(2 * median, median + 4 * 1.4826 * np.median(np.abs(np.array(residuals) - median)))
 
 
-@given(st.lists(st.floats(0.0, FIT_LIMIT), min_size=1, max_size=20), st.floats(1.0, 100.0))
+@given(st.lists(st.floats(0.0, FIT_LIMIT), min_size=1, max_size=20), st.floats(1.0, 100.0, exclude_min=True))
 def test_a_trial_stands_out_when_it_misfits_and_is_far_above_the_others(residuals, scale):
     """Outliers are above the fit limit and far above the others (``standing_out``); a trial far
-    above well-fitting trials is the only one named; one trial alone never stands out."""
+    above well-fitting trials (more than twice the fit limit: the median of the well-fitting ones
+    may sit at the limit itself) is the only one named; one trial alone never stands out."""
     assert outlier_trials(residuals[:1]) == []
     assert outlier_trials(residuals) == []  # all within the fit limit
     worst = 2 * FIT_LIMIT * scale

@@ -22,7 +22,7 @@ from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.scenarios.cli import main
 from impactqp.scenarios.cli.exit_codes import EXIT_BAD_INPUT
-from impactqp.scenarios.oblique import GRIDS, ObliqueTrials, velocity_agrees
+from impactqp.scenarios.oblique import GRIDS, ObliqueTrials, held_row, velocity_agrees
 from impactqp.sim.generation import tangential_direction
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import TrialSpec, run_approach
@@ -211,11 +211,15 @@ def test_the_least_speed_of_a_path_is_no_more_than_any_of_its_points(points):
         assert min(dense) - spacing / 2 - 1e-15 <= least <= min(dense) + 1e-15
 
 
-def test_impact_window_ends_at_separation_or_at_the_first_force_minimum():
+def test_impact_window_ends_at_separation_at_the_first_force_minimum_or_at_the_log_s_end():
     rising_then_falling = np.array([0.0, 0.0, 5.0, 9.0, 7.0, 3.0, 0.5, 0.0])
     assert impact_window(rising_then_falling) == (2, 6, "separation")
     pressing = np.array([0.0, 8.0, 6.0, 4.0, 3.0, 3.5, 5.0])
     assert impact_window(pressing) == (1, 4, "force minimum")
+    growing = np.array([0.0, 4.0, 6.0, 5.5, 5.8, 6.5, 7.0])  # a dip too shallow to end on, then the press
+    assert impact_window(growing) == (1, 3, "force minimum")
+    press = np.array([0.0, 4.0, 6.0, 6.5, 7.0, 7.5])  # the force never falls: no minimum in the log
+    assert impact_window(press) == (1, 5, "log end")
 
 
 def test_tangential_part_is_orthogonal_to_the_normal_and_keeps_the_rest():
@@ -237,6 +241,20 @@ def test_velocity_agreement_is_20_percent_or_a_centimetre_per_second():
     assert not velocity_agrees(0.121 * t, 0.1 * t)
 
 
+def test_the_held_row_reads_v_t_from_the_press_where_the_contact_was_still_closed():
+    """The held row is the impact law's, its v_t+ the press's where the simulated window did not
+    end at a separation, each agreement judged against the simulated v_t+."""
+    t = tangential_direction(NORMAL)
+    impact = {"mode": "slip", "law_mode": "slip", "post_tangential": (0.13 * t).tolist(), "velocity_agrees": False}
+    press = {"mode": "slip", "law_mode": "slip", "post_tangential": (0.06 * t).tolist(), "velocity_agrees": True}
+    for rule, post, agrees in (("log end", 0.06, True), ("force minimum", 0.06, True), ("separation", 0.13, False)):
+        simulated = {"end_rule": rule, "post_tangential": (0.064 * t).tolist(), "mode": "slip"}
+        held = held_row(impact, press, simulated)
+        np.testing.assert_allclose(held["post_tangential"], post * t)
+        assert held["velocity_agrees"] is agrees and held["mode"] == "slip"
+        assert held["post_from"] == ("impact" if rule == "separation" else "press")
+
+
 # ---------------------------------------------------------------------------- the command
 @pytest.mark.parametrize(("robot", "tool", "servo"), [
     ("panda", "impact_tip", ["--servo-stiffness", "3000,3000,3000,2500,2500,2000,2000"]), ("fr3", "franka_hand", []),
@@ -254,7 +272,7 @@ def test_the_small_grid_runs_end_to_end_through_the_command(tmp_path, capsys, ro
         assert simulated["mode"] in ("slip", "stick", "reversal")
         p_n, p_t = simulated["normal_impulse"], np.linalg.norm(simulated["tangential_impulse"])
         assert p_t <= row["friction"] * p_n * (1 + 1e-9)
-        assert set(row["predicted"]) == {"classical", "gm", "crb", "plant"} | ({"impedance"} if servo else set())
+        assert set(row["predicted"]) == {"classical", "gm", "crb", "plant"} | ({"impedance", "press", "held"} if servo else set())
     if servo:  # the joint impedance's v_t+ is the law's with the held arm's W (the plant's, the model's), not CRB's
         assert all(r["predicted"][m]["velocity_agrees"] for r in report["rows"] for m in ("plant", "impedance"))
         assert not any(r["predicted"]["crb"]["velocity_agrees"] for r in report["rows"])

@@ -15,7 +15,10 @@ Impact window
     (e): the first step, at or after the normal force f_n = n^T f has peaked, where f_n is back to
     at most ``force_threshold`` ("separation") or stops decreasing ("force minimum": f_n(e+1) >=
     f_n(e); an arm whose command keeps pressing into the wall never separates, its normal force
-    decays to a first local minimum and grows again with the servo's push).
+    decays to a first local minimum and grows again with the servo's push). A force that has
+    neither fallen to the threshold nor stopped decreasing by the log's last step ends the
+    window there ("log end": the contact turned into a press without a minimum the log shows,
+    the post-impact state read at the log's end is the press's).
 
 Impulse
     iota = h sum_{k=s}^{e} f_k (the exact integral of the piecewise-constant samples), split into
@@ -83,8 +86,8 @@ def path_least_speed(tangential: np.ndarray) -> float:
 @dataclass(frozen=True)
 class ObliqueImpact:
     """The measured oblique impact of one trial (module docstring): the physics steps of the
-    window (``start``, ``end``, inclusive) and its end rule (``end_rule``: "separation" or "force
-    minimum"), the control samples of the pre- and post-impact states (``pre_index``,
+    window (``start``, ``end``, inclusive) and its end rule (``end_rule``: "separation", "force
+    minimum" or "log end"), the control samples of the pre- and post-impact states (``pre_index``,
     ``post_index``), the pre-impact joint state (``q_pre``, ``dq_pre``), the impulse on the robot
     (``impulse``, world frame), its normal and tangential parts, the contact velocities before
     and after (``pre_velocity``, ``post_velocity``: J dq, world frame), their tangential parts
@@ -121,8 +124,9 @@ def impact_window(normal_force: np.ndarray, threshold: float = DEFAULT_FORCE_THR
         k += 1  # to the peak
     while k < last and threshold < normal_force[k] and normal_force[k + 1] < normal_force[k]:
         k += 1
-    rule = "separation" if normal_force[k] <= threshold else "force minimum"
-    return start, k, rule
+    if normal_force[k] <= threshold:
+        return start, k, "separation"
+    return start, k, "force minimum" if k < last else "log end"
 
 
 def measure_oblique_impact(log: TrialLog, robot: RobotModel, normal: np.ndarray,
