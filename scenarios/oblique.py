@@ -27,8 +27,8 @@ more: "press", the steady press of the held arm whose command goes on into the w
 (``controller.model.press_slide``, at q-, under the trial's commanded contact velocity), and
 "held", the impedance row with v_t+ the press's where the simulated contact was still closed when
 v_t+ was read (a window not ended by a separation: the regime is read from the simulation, not
-predicted; :func:`held_row`). ``impactqp oblique`` adds the reference row "plant", the same law with the simulated plant's own
-W over the same pulse (``scenarios.oblique_inertia.with_plant_row``).
+predicted; :func:`held_row`). ``impactqp oblique`` adds the reference row "plant", the same law
+with the simulated plant's own W over the same pulse (``scenarios.oblique_inertia.with_plant_row``).
 
 A predicted v_t+ **agrees** when |v_t+ predicted - v_t+ simulated| <= max(20 % |v_t+ simulated|,
 0.01 m/s). A predicted mode **agrees** when the law's path, read by the simulation's rule
@@ -204,14 +204,14 @@ def press_row(compliance: np.ndarray, commanded: np.ndarray, friction: float, si
     """The steady press (``press_slide``) of the contact of ``compliance`` under the trial's
     commanded contact velocity, as a predictor's row against the ``simulated`` one: its mode
     (a slide read as "slip"), its tangential velocity as v_t+, its force rate's normal and
-    tangential parts in the place of the impulse's (|p_t| / p_n: the press's force share)."""
+    tangential parts (N/s; where a law's row has its impulse's)."""
     normal = DEFAULT_WALL.normal
     press = press_slide(compliance, normal, commanded, friction)
     mode = "slip" if press.mode == "slide" else press.mode
-    post = press.tangential_velocity
+    post = press.velocity  # tangential: the press stays on the wall
     return {
-        "normal_impulse": float(normal @ press.force_rate),
-        "tangential_impulse": tangential_part(press.force_rate, normal).tolist(),
+        "normal_force_rate": float(normal @ press.force_rate),
+        "tangential_force_rate": tangential_part(press.force_rate, normal).tolist(),
         "post_tangential": post.tolist(), "mode": mode, "law_mode": mode, "mu_bar": None,
         "least_tangential_speed": float(np.linalg.norm(post)), "mode_agrees": mode == simulated["mode"],
         "velocity_agrees": velocity_agrees(post, np.asarray(simulated["post_tangential"])),
@@ -299,7 +299,7 @@ def servo_name(plant: PlantParameters | None) -> str:
 
 def markdown(report: dict) -> str:
     """The report as Markdown: the summary, then one line per trial (speeds in mm/s, |p_t| / p_n
-    the tangential impulse's share of the normal one, least: the least tangential speed along the
+    the tangential impulse's share of the normal one (a press's: its force rate's), least: the least tangential speed along the
     impact; a predicted mode the law's own differs from shows it after a slash; ✗: the mode, or
     v_t+, does not agree)."""
     lines = [f"# Oblique impacts: the {report['robot']} against MuJoCo (servo: {report['servo']})", "",
@@ -326,7 +326,9 @@ def markdown(report: dict) -> str:
 
 
 def _share(entry: dict) -> str:
-    return f"{np.linalg.norm(entry['tangential_impulse']) / entry['normal_impulse']:.3f}"
+    """|p_t| / p_n, or a press's |f'_t| / f'_n."""
+    part = "impulse" if "normal_impulse" in entry else "force_rate"
+    return f"{np.linalg.norm(entry[f'tangential_{part}']) / entry[f'normal_{part}']:.3f}"
 
 
 def _least(entry: dict) -> str:

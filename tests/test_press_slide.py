@@ -68,7 +68,7 @@ def test_the_press_balances_the_rates_stays_on_the_surface_and_obeys_coulomb(q, 
     else:
         s = press.direction
         np.testing.assert_allclose(rate_t, -mu * rate_n * s, atol=1e-9 * scale(press))
-        v_t = press.tangential_velocity
+        v_t = press.velocity
         assert s @ v_t > 0.0 and abs(n @ s) < 1e-12
         assert np.linalg.norm(np.cross(s, v_t)) <= 1e-6 * np.linalg.norm(v_t) + 1e-12 * speed
 
@@ -155,7 +155,7 @@ def test_mujocos_impedance_held_arm_presses_as_the_model_says(friction, ratio):
     velocities = np.array([tangential_part(study.robot.terms(q).J @ dq, normal) for q, dq in zip(log.q[late], log.dq[late])])
     simulated = velocities.mean(axis=0)
     tolerance = max(0.2 * np.linalg.norm(simulated), 2e-3)
-    assert np.linalg.norm(press.tangential_velocity - simulated) <= tolerance
+    assert np.linalg.norm(press.velocity - simulated) <= tolerance
     pressing = log.force_t >= log.force_t[-1] - 0.02
     slope = np.polyfit(log.force_t[pressing], log.force[pressing] @ normal, 1)[0]
     assert abs(normal @ press.force_rate - slope) <= 0.2 * slope

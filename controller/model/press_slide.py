@@ -45,7 +45,6 @@ from .impedance_inverse_inertia import joint_impedance
 from .model_terms import ModelTerms
 from .validation import BadInputError
 
-PRESS_MODES = ("stick", "slide")
 SLIDE_ANGLES = 4 * RAY_ANGLES
 """The directions scanned for a slide's sign changes (a quarter of a degree apart: two slides
 closer than that, near the stick's boundary, can be missed)."""
@@ -54,13 +53,12 @@ closer than that, near the stick's boundary, can be missed)."""
 @dataclass(frozen=True)
 class PressSlide:
     """The steady press of the module docstring (world frame): its ``mode`` ("stick" or
-    "slide"), the contact velocity ``velocity`` (v, n^T v = 0; its tangential part
-    ``tangential_velocity``; zero for a stick), the surface's force rate on the robot
-    ``force_rate`` (f', N/s) and the slide's unit direction ``direction`` (zero for a stick)."""
+    "slide"), the contact velocity ``velocity`` (v, tangential: n^T v = 0; zero for a stick), the
+    surface's force rate on the robot ``force_rate`` (f', N/s) and the slide's unit direction
+    ``direction`` (zero for a stick)."""
 
     mode: str
     velocity: np.ndarray
-    tangential_velocity: np.ndarray
     force_rate: np.ndarray
     direction: np.ndarray
 
@@ -92,15 +90,13 @@ def press_slide(compliance: np.ndarray, normal, reference_velocity, friction: fl
         raise BadInputError(f"a press needs the reference moving into the surface: n^T v_ref = {a[2]:.6g} m/s must be < 0")
     held = np.linalg.solve(Cc, -a)  # f' of a stick, contact frame
     if held[2] > 0.0 and math.hypot(held[0], held[1]) <= mu * held[2]:
-        zero = np.zeros(3)
-        return PressSlide("stick", zero, zero.copy(), R @ held, zero.copy())
+        return PressSlide("stick", np.zeros(3), R @ held, np.zeros(3))
     s = slide_direction(Cc, a, mu)
     rate = -a[2] / (Cc[2, 2] - mu * Cc[2, :2] @ s)
     force_rate = rate * np.array([-mu * s[0], -mu * s[1], 1.0])
     u = a + Cc @ force_rate
     u[2] = 0.0  # n^T v = 0 by the choice of f'_n; exactly
-    velocity = R @ u
-    return PressSlide("slide", velocity, velocity.copy(), R @ force_rate, R @ np.array([s[0], s[1], 0.0]))
+    return PressSlide("slide", R @ u, R @ force_rate, R @ np.array([s[0], s[1], 0.0]))
 
 
 def slide_direction(Cc: np.ndarray, a: np.ndarray, mu: float) -> np.ndarray:
