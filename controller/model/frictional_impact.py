@@ -122,13 +122,25 @@ def reversal_direction(Wc: np.ndarray, mu: float) -> np.ndarray:
         g = Wc[:2, 2] - mu * Wc[:2, :2] @ s
         return s[0] * g[1] - s[1] * g[0], float(s @ g)
 
-    angles = np.linspace(0.0, 2.0 * math.pi, RAY_ANGLES + 1)
-    crosses = [ray(a)[0] for a in angles]
+    best = fastest_ray(ray, RAY_ANGLES)
+    if best is None:
+        raise ArithmeticError("no invariant slip ray leaves the origin: W is not an inverse inertia")
+    return best
+
+
+def fastest_ray(ray, angles: int) -> np.ndarray | None:
+    """The unit s(theta) = (cos theta, sin theta) of the fastest invariant ray of a planar map:
+    ``ray(theta)`` gives (s x g, s . g) for the map's value g along s. Each sign change of s x g
+    between ``angles`` evenly spaced angles is refined by BISECTIONS bisections; of the rays found,
+    the one with the largest s . g > 0. None when there is none. A side where ``ray`` gives NaN
+    (no ray there) has no sign change."""
+    thetas = np.linspace(0.0, 2.0 * math.pi, angles + 1)
+    crosses = [ray(theta)[0] for theta in thetas]
     best, best_rate = None, 0.0
-    for k in range(RAY_ANGLES):
-        if crosses[k] * crosses[k + 1] > 0.0:
+    for k in range(angles):
+        if not crosses[k] * crosses[k + 1] <= 0.0:
             continue
-        low, high = angles[k], angles[k + 1]
+        low, high = thetas[k], thetas[k + 1]
         for _ in range(BISECTIONS):
             middle = 0.5 * (low + high)
             if ray(low)[0] * ray(middle)[0] <= 0.0:
@@ -138,9 +150,7 @@ def reversal_direction(Wc: np.ndarray, mu: float) -> np.ndarray:
         rate = ray(0.5 * (low + high))[1]
         if rate > best_rate:
             best, best_rate = 0.5 * (low + high), rate
-    if best is None:
-        raise ArithmeticError("no invariant slip ray leaves the origin: W is not an inverse inertia")
-    return np.array([math.cos(best), math.sin(best)])
+    return None if best is None else np.array([math.cos(best), math.sin(best)])
 
 
 def frictional_impulse(

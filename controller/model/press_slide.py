@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import validation
-from .frictional_impact import BISECTIONS, RAY_ANGLES, contact_frame
+from .frictional_impact import RAY_ANGLES, contact_frame, fastest_ray
 from .impedance_inverse_inertia import joint_impedance
 from .model_terms import ModelTerms
 from .validation import BadInputError
@@ -113,22 +113,7 @@ def slide_direction(Cc: np.ndarray, a: np.ndarray, mu: float) -> np.ndarray:
         v_t = a[:2] + rate * (Cc[:2, 2] - mu * Cc[:2, :2] @ s)
         return s[0] * v_t[1] - s[1] * v_t[0], float(s @ v_t)
 
-    angles = np.linspace(0.0, 2.0 * math.pi, SLIDE_ANGLES + 1)
-    crosses = [ray(theta)[0] for theta in angles]
-    best, best_speed = None, 0.0
-    for k in range(SLIDE_ANGLES):
-        if not crosses[k] * crosses[k + 1] <= 0.0:  # no sign change, or a side without a pressing force
-            continue
-        low, high = angles[k], angles[k + 1]
-        for _ in range(BISECTIONS):
-            middle = 0.5 * (low + high)
-            if ray(low)[0] * ray(middle)[0] <= 0.0:
-                high = middle
-            else:
-                low = middle
-        speed = ray(0.5 * (low + high))[1]
-        if speed > best_speed:
-            best, best_speed = 0.5 * (low + high), speed
+    best = fastest_ray(ray, SLIDE_ANGLES)
     if best is None:
         raise ArithmeticError(f"no steady press: no stick, and no slide among {SLIDE_ANGLES} directions")
-    return np.array([math.cos(best), math.sin(best)])
+    return best
