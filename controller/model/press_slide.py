@@ -28,8 +28,9 @@ of those with lambda > 0 and f'_n > 0, the one with the largest lambda. The stic
 it holds. Coulomb's rate problem need not have one solution: in a few random states in a
 thousand (large mu, soft joints), a stick and a slide both hold, or two slides do; the model then
 takes the stick, else the faster slide, where the arm's dynamics (which this quasi-static model
-leaves out) decides which one it reaches. With mu = 0 the force grows along n only; with v_ref along -n the slide is the coupling's,
-C's tangential response to the normal force, the press's counterpart of a reversal from rest.
+leaves out) decides which one it reaches. With mu = 0 the force grows along n only; with v_ref
+along -n the slide is the coupling's, C's tangential response to the normal force, the press's
+counterpart of a reversal from rest.
 """
 
 from __future__ import annotations
