@@ -8,7 +8,7 @@ from numba import njit
 from impactqp.controller.model.model_terms import ModelTerms
 from impactqp.controller.model.validation import tangential_velocity as tangential_velocity_along
 from impactqp.controller.model.validation import MAX_CONTACT_SPEED, finite_array, number_in_range, task_gain
-from impactqp.controller.model.validation import unit_normal
+from impactqp.controller.model.validation import rotation_matrix, unit_normal
 
 from .task import OrientationHold, Task, rotation_log
 
@@ -72,7 +72,7 @@ class ContactApproachTask(Task):
         )
         self._target_rotation = None
         self.target_rotation = (
-            None if target_rotation is None else finite_array(target_rotation, (3, 3), "target_rotation")
+            None if target_rotation is None else rotation_matrix(target_rotation, "target_rotation")
         )
         self._twist_gain = self._reference["twist_gain"][0]
         self._twist_gain[:] = np.repeat([-self.velocity_gain, -self.orientation_damping], 3)

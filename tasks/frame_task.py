@@ -7,7 +7,7 @@ import numpy as np
 from numba import njit
 
 from impactqp.controller.model.model_terms import ModelTerms
-from impactqp.controller.model.validation import finite_array, finite_vector, task_gain
+from impactqp.controller.model.validation import finite_vector, rotation_matrix, task_gain
 
 from .task import Task, critical_damping, rotation_log
 
@@ -49,7 +49,7 @@ class FrameTask(Task):
             None if target_position is None else finite_vector(target_position, 3, "target_position")
         )
         self.target_rotation = (
-            None if target_rotation is None else finite_array(target_rotation, (3, 3), "target_rotation")
+            None if target_rotation is None else rotation_matrix(target_rotation, "target_rotation")
         )
         self.stiffness = task_gain(stiffness, "frame stiffness")
         self.damping = critical_damping(self.stiffness) if damping is None else task_gain(damping, "frame damping")

@@ -84,6 +84,27 @@ def test_batch_refuses_bad_normals_and_restitution_like_the_single_state_predict
             predict_batch(kinematics, q, [1.0, 0, 0], [-0.1, 0, 0], restitution, "gm")
 
 
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize(
+    "argument, value, match",
+    [
+        ("velocities", [np.nan, 0.0, 0.0], "pre-impact velocities must be finite"),
+        ("velocities", np.zeros((3, 3)), r"pre-impact velocities must be \(3,\) or \(2, 3\)"),
+        ("velocities", ["a", "b", "c"], "pre-impact velocities must hold real numbers"),
+        ("normals", [[1.0, 0.0, 0.0]] * 3, r"normals must be \(3,\) or \(2, 3\)"),
+        ("impulses", [np.inf, 0.0, 0.0], "impulses must be finite"),
+        ("impulses", [1.0, 0.0], r"impulses must be \(3,\) or \(2, 3\)"),
+        ("Q", np.full((2, JOINTS), 0.1 + 0.1j), "Q must hold real numbers"),
+        ("Q", np.full((2, JOINTS), np.nan), "Q contains a non-finite value"),
+    ],
+)
+def test_every_batch_input_is_checked_before_any_prediction(kinematics, method, argument, value, match):
+    inputs = {"Q": np.zeros((2, JOINTS)), "normals": [1.0, 0.0, 0.0], "velocities": [-0.1, 0.0, 0.0], "impulses": None}
+    inputs[argument] = value
+    with pytest.raises(BadInputError, match=match):
+        predict_batch(kinematics, inputs["Q"], inputs["normals"], inputs["velocities"], 0.0, method, inputs["impulses"])
+
+
 def test_rows_of_batch_terms_equal_the_terms_of_those_states(robot):
     """Selecting states from evaluated terms gives what evaluating those states gives."""
     kinematics = BatchKinematics(robot)

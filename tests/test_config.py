@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import JOINTS
+from conftest import JOINTS, g1_model
 from impactqp.controller.config import ControllerConfig, TaskConfig, build_controller, post_impact_config
 from impactqp.controller.model.postures import DEFAULT_WALL, Surface
 from impactqp.controller.model.robot_description import PANDA
@@ -174,6 +174,15 @@ def test_bad_configurations_are_rejected_with_a_value_error(robot, data):
         ({"impact": {"friction": 0.3, "pyramid_edges": 17}}, "impact.pyramid_edges"),
         ({"impact": {"friction_rows": "cone"}}, "impact.friction_rows"),
         ({"impact": {"friction": 0.3, "jump_model": "classical_normal"}}, "impact.friction"),
+        ({"tasks": [{"type": "damping", "gian": 1.0}]}, "tasks[0]: bad parameters for the damping task"),
+        ({"tasks": [{"type": "damping", "gain": -1.0}]}, "tasks[0]: damping gain must lie in"),
+        ({"tasks": [{"type": "damping"}, {"type": "contact_approach", "speed": "fast"}]}, "tasks[1]: the approach speed"),
+        ({"tasks": [{"type": "damping"}, {"type": "contact_approach", "speed": -0.1}]}, "tasks[1]: the approach speed"),
+        ({"tasks": [{"type": "frame", "weight": float("inf")}]}, "tasks[0]: bad parameters for the frame task"),
+        ({"tasks": [{"type": "frame", "target_rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 2]]}]},
+         "tasks[0]: target_rotation must be a rotation matrix"),
+        ({"tasks": [{"type": "frame", "target_rotation": [[1, 0, 0], [0, 1, 0], [0, 0, -1]]}]},
+         "tasks[0]: target_rotation must be a rotation matrix"),
     ],
 )
 def test_bad_values_are_bad_input_that_names_the_key(data, fragment):
@@ -195,6 +204,19 @@ def test_bad_files_are_bad_input_that_names_the_file(tmp_path, name, content, fr
     with pytest.raises(BadInputError) as caught:
         ControllerConfig.from_file(path)
     assert fragment in str(caught.value) and str(path) in str(caught.value)
+
+
+def test_build_controller_refuses_what_is_not_a_configuration_or_a_model_of_its_kind_of_base(robot):
+    config = ControllerConfig.approach(DEFAULT_WALL, 0.3, robot="panda")
+    with pytest.raises(BadInputError, match="needs a ControllerConfig"):
+        build_controller(config.to_dict(), robot)
+    with pytest.raises(BadInputError, match="must be a RobotModel"):
+        build_controller(config, "panda")
+    with pytest.raises(BadInputError, match="a fixed-base arm's .* and the model a floating-base robot's"):
+        build_controller(config, g1_model())
+    for speed in ("0.3", True, np.array([0.3])):
+        with pytest.raises(BadInputError, match="the approach speed must be a number"):
+            ControllerConfig.approach(DEFAULT_WALL, speed, robot="panda")
 
 
 def test_task_parameters_of_the_wrong_type_are_bad_input(robot):

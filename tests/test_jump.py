@@ -157,6 +157,16 @@ def test_measured_impulse_variant_reproduces_the_prediction(robot, q, n, s):
         np.testing.assert_allclose(fed.dq_jump, own.dq_jump, atol=1e-12)
 
 
+@pytest.mark.parametrize("impulse, match", [([np.nan, 0.0, 0.0], "finite"), ([1.0, 0.0], "3 numbers"), ("abc", "real numbers")])
+def test_a_given_impulse_that_is_not_three_finite_numbers_is_bad_input(robot, impulse, match):
+    terms = robot.terms(PANDA.postures["elbow_up"].q)
+    for model in JUMP_MODELS.values():
+        with pytest.raises(BadInputError, match=match):
+            model.predict(terms, [-1.0, 0.0, 0.0], None, 0.0, impulse=impulse)
+    with pytest.raises(BadInputError, match=match):
+        jump_from_impulse(terms, impulse)
+
+
 @SETTINGS
 @given(q=joint_positions(), n=unit_vectors(), s=unit_vectors())
 def test_jump_matrix_maps_pre_impact_joint_velocity(robot, q, n, s):

@@ -74,6 +74,46 @@ def test_approach_translates_without_rotating(robot):
     np.testing.assert_allclose(twist, np.concatenate([-p.surface.normal, np.zeros(3)]), atol=1e-10)
 
 
+@settings(max_examples=20, deadline=None)
+@given(scale=st.floats(1e-3, 1e3), name=st.sampled_from(list(PANDA.postures)))
+def test_the_speed_does_not_depend_on_the_length_of_the_normal(robot, scale, name):
+    p = PANDA.postures[name]
+    terms = robot.terms(p.q)
+    unit = closed_form_max_speed(robot, terms, p.surface.normal, Setting("crb"))
+    scaled = closed_form_max_speed(robot, terms, scale * p.surface.normal, Setting("crb"))
+    assert scaled.speed == pytest.approx(unit.speed, rel=1e-12) and scaled.criterion == unit.criterion
+
+
+@pytest.mark.parametrize(
+    "normal, setting, match",
+    [
+        ([-1.0, 0.0], Setting(), "normal"),
+        ([0.0, 0.0, 0.0], Setting(), "normal"),
+        ([np.nan, 0.0, 1.0], Setting(), "normal"),
+    ],
+)
+def test_a_bad_normal_is_bad_input(robot, normal, setting, match):
+    terms = robot.terms(PANDA.postures["elbow_up"].q)
+    with pytest.raises(BadInputError, match=match):
+        closed_form_max_speed(robot, terms, normal, setting)
+
+
+@pytest.mark.parametrize(
+    "options, match",
+    [
+        ({"restitution": 1.5}, "restitution"),
+        ({"restitution": float("nan")}, "restitution"),
+        ({"impact_duration": 1e9}, "impact duration"),
+        ({"impact_duration": 0.0}, "impact duration"),
+        ({"friction": -0.1}, "friction"),
+        ({"friction": float("inf")}, "friction"),
+    ],
+)
+def test_a_setting_out_of_its_ranges_is_bad_input(options, match):
+    with pytest.raises(BadInputError, match=match):
+        Setting(**options)
+
+
 def test_longer_impacts_allow_higher_speeds(robot):
     p = PANDA.postures["elbow_up"]
     terms = robot.terms(p.q)

@@ -2,6 +2,7 @@
 constraints it names, and its compiled kernels against their numpy statements."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from conftest import JOINTS
@@ -36,6 +37,17 @@ def test_nan_state_gives_the_fallback(robot):
     assert_safe_fallback(robot, fresh, fresh.step(q, [np.nan] * JOINTS), "fallback_invalid_state")
     assert_safe_fallback(robot, fresh, fresh.step([1.0, 2.0], None), "fallback_invalid_state")
     assert fresh.fallback_count == 2
+
+
+@pytest.mark.parametrize("kind", [complex, bool, str])
+def test_a_state_of_complex_numbers_booleans_or_text_gives_the_fallback_without_a_warning(robot, kind, recwarn):
+    q = PANDA.postures["elbow_up"].q
+    controller = approach_controller(robot, q)
+    first = controller.step(q, np.zeros(JOINTS))
+    command = controller.step(q.astype(kind), np.zeros(JOINTS))
+    assert_safe_fallback(robot, controller, command, "fallback_invalid_state", first.ddq)
+    assert "q must hold real numbers" in command.message
+    assert not recwarn.list
 
 
 def test_state_outside_the_limits_gives_the_fallback(robot):

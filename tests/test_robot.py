@@ -414,6 +414,7 @@ def _my_arm(folder, urdf_edit=None, **changes):
     (('name="shoulder_pan_joint"', ""), {}, "is not a robot model Pinocchio reads: "),
     (None, {"tool_frames": {"hand": "no_such_frame", "flange": "tool0"}}, "has no frame no_such_frame (its tool frame)"),
     (None, {"tool_frames": {"hand": "base_link", "flange": "tool0"}}, "tool frame base_link is on the fixed base"),
+    (('<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>'), {}, "gives a joint-space inertia that is not finite and positive definite"),
 ])
 def test_a_model_its_urdf_or_tool_frame_cannot_give_is_one_line_of_bad_input(tmp_path, capfd, urdf_edit, changes, message):
     """A URDF that Pinocchio's parser refuses (its urdfdom messages, written by C++ on the
@@ -425,6 +426,21 @@ def test_a_model_its_urdf_or_tool_frame_cannot_give_is_one_line_of_bad_input(tmp
         RobotModel(path)
     code, out, err = run(capfd, "postures", "--robot", str(path))
     one_line_bad_input(code, out, err, message.split(":")[0].split(" (")[0])
+
+
+@pytest.mark.parametrize("bad, match", [(np.nan, "non-finite"), ("a", "real numbers"), (None, "must have")])
+def test_frames_of_a_bad_state_are_bad_input(bad, match):
+    for robot in (RobotModel("panda"), RobotModel("g1")):
+        q = np.full(robot.nq - 1, 0.0) if bad is None else np.full(robot.nq, bad, dtype=object)
+        for method in (robot.frame_placements, robot.contact_jacobian6, robot.sole_corners):
+            with pytest.raises(InvalidStateError, match=match):
+                method(q)
+
+
+@pytest.mark.parametrize("opening", [float("nan"), -0.01, 5.0])
+def test_a_finger_opening_outside_the_fingers_limits_is_bad_input(opening):
+    with pytest.raises(BadInputError, match="the finger opening must lie in"):
+        RobotModel("panda", finger_opening=opening)
 
 
 def test_contact_joints_that_cannot_move_the_contact_point_are_bad_input():

@@ -72,6 +72,33 @@ def test_a_refill_copies_the_callers_state_into_the_buffer(robot):
         np.testing.assert_array_equal(getattr(buffer, name), getattr(fresh, name))
 
 
+@settings(max_examples=20, deadline=None)
+@given(q_a=joint_positions(), q_b=joint_positions())
+def test_new_terms_keep_their_state_when_the_caller_reuses_its_arrays(robot, q_a, q_b):
+    """The terms' q and dq are their own: M, h and M^-1, filled at their first read, are those
+    of the state given, even when the caller has written another state into its arrays since."""
+    q, dq = q_a.copy(), np.full(robot.nv, 0.2)
+    try:
+        terms, expected = robot.terms(q, dq), robot.terms(q_a.copy(), np.full(robot.nv, 0.2))
+    except SingularPostureError:
+        return
+    q[:], dq[:] = q_b, -0.5
+    assert not np.shares_memory(terms.q, q) and not np.shares_memory(terms.dq, dq)
+    for name in ("M", "h", "M_inv"):
+        np.testing.assert_array_equal(getattr(terms, name), getattr(expected, name))
+
+
+@pytest.mark.parametrize("bad", [np.full(7, 0.1 + 0.1j), np.ones(7, dtype=bool), ["a"] * 7, [0.1] * 6 + [1j]])
+def test_a_state_of_complex_numbers_booleans_or_text_is_refused_without_a_warning(robot, bad, recwarn):
+    """Numpy would drop an imaginary part with a warning and read booleans as 0 and 1 radians."""
+    q = np.resize(np.asarray(bad), robot.nq) if isinstance(bad, np.ndarray) else (bad * robot.nq)[:robot.nq]
+    with pytest.raises(InvalidStateError, match="q must hold real numbers"):
+        robot.terms(q)
+    with pytest.raises(InvalidStateError, match="q must hold real numbers"):
+        robot.update_terms(robot.empty_terms(), q, np.zeros(robot.nv))
+    assert not recwarn.list
+
+
 @settings(max_examples=50, deadline=None)
 @given(q=joint_positions())
 def test_closed_form_inverse_of_J_Jt(robot, q):

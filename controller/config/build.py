@@ -3,7 +3,6 @@ impact (``post_impact_config``)."""
 
 from __future__ import annotations
 
-import inspect
 from dataclasses import replace
 
 from impactqp.constraints import (
@@ -30,44 +29,36 @@ from ..model.max_speed import Setting
 from ..model.robot import RobotModel
 from ..model.validation import BadInputError
 from ..qp import ImpactAwareController
-from impactqp.tasks import ORIENTATION_PARAMETERS, OrientationHold
-from .controller_config import TASK_TYPES, ControllerConfig, TaskConfig
+from .controller_config import ControllerConfig, TaskConfig, task_of
 
 
 def build_controller(config: ControllerConfig, robot: RobotModel | None = None, q_start=None) -> ImpactAwareController:
     """The controller described by ``config`` (a fresh model of the configuration's robot and
-    tool when ``robot`` is None). A robot standing on held contacts gets their rows
+    tool when ``robot`` is None; a given model of another arm takes the arm's configuration, a
+    model that does not share the configuration robot's kind of base is bad input). A robot standing on held contacts gets their rows
     (``HeldContactRows``) and, with ``impact.capture_region``, the capture region of its support
     polygon at ``q_start`` (default: the posture of its description's default stance); with
     ``impact.foot_wrench``, the feet's rows at the impact (``FootWrenchLimit``, the feet as at
     ``q_start``, the closed form's equivalent contact duration); with ``impact.friction`` > 0, the
     same rows for every vertex of the friction pyramid (``EdgeCaptureRegionLimit``,
     ``EdgeFootWrenchLimit``)."""
-    robot = config.choice.model() if robot is None else robot
+    if not isinstance(config, ControllerConfig):
+        raise BadInputError(f"build_controller needs a ControllerConfig, got a {type(config).__name__}")
+    if robot is None:
+        robot = config.choice.model()
+    elif not isinstance(robot, RobotModel):
+        raise BadInputError(f"build_controller's robot must be a RobotModel, got a {type(robot).__name__}")
+    elif robot.floating != config.choice.robot.floating:  # an arm's tasks and rows would not hold a standing robot
+        kinds = {True: "a floating-base robot's", False: "a fixed-base arm's"}
+        raise BadInputError(
+            f"the configuration is {kinds[config.choice.robot.floating]} ({config.choice.robot.name}) and the model "
+            f"{kinds[robot.floating]} ({robot.description.name}): give a model of the configuration's robot, or none"
+        )
     surface = config.surface.surface()
     limits, impact = config.limits, config.impact
     held_contacts = len(robot.description.held_contacts)
 
-    tasks = []
-    for task in config.tasks:
-        params = dict(task.params)
-        if task.type == "contact_approach":
-            params.setdefault("normal", surface.normal)
-        elif task.type == "posture":
-            params.setdefault("joints", robot.n_joints)
-        elif task.type == "damping":
-            params.setdefault("variables", robot.nv)
-        kind = TASK_TYPES[task.type]
-        if "orientation" in inspect.signature(kind).parameters:  # its orientation_* parameters, one OrientationHold
-            if "orientation" in params:
-                raise BadInputError(f"bad parameters for the {task.type} task: orientation is given as "
-                                    f"{', '.join(ORIENTATION_PARAMETERS)}")
-            params["orientation"] = OrientationHold.taken_from(params)
-        try:
-            inspect.signature(kind).bind(**params)
-        except TypeError as error:
-            raise BadInputError(f"bad parameters for the {task.type} task: {error}") from None
-        tasks.append(kind(**params))
+    tasks = [task_of(task, surface.normal, robot.description, robot.nv) for task in config.tasks]
 
     dq_max = robot.dq_max * limits.velocity_scale
     tau_max = robot.tau_max * limits.torque_scale

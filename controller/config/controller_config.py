@@ -10,12 +10,16 @@ The file format is documented in docs/configuration.md.
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
+import pinocchio as pin
+
 from impactqp.constraints import JUMP_MODEL_CHOICES
 from impactqp.constraints.impact_model import MAX_LOOKAHEAD_DISTANCE, MAX_LOOKAHEAD_TIME
-from impactqp.tasks import CentreOfMassTask, ContactApproachTask, DampingTask, FrameTask, PostureTask, SurfaceOffsetTask
+from impactqp.tasks import ORIENTATION_PARAMETERS, CentreOfMassTask, ContactApproachTask, DampingTask, FrameTask, OrientationHold
+from impactqp.tasks import PostureTask, SurfaceOffsetTask
 
 from ..model.files import read_mapping
 from ..model.friction_pyramid import DEFAULT_EDGES, FrictionRows
@@ -23,7 +27,7 @@ from ..model.jump import METHODS
 from ..model.max_speed import DEFAULT_IMPACT_DURATION
 from ..model.postures import DEFAULT_WALL, Surface
 from ..model.choice import DEFAULT_ROBOT, DEFAULT_TOOL, RobotChoice
-from ..model.robot_description import robot_description
+from ..model.robot_description import RobotDescription, robot_description
 from ..model.tool_description import TOOLS, tool_from_dict
 from ..model import validation
 from ..model.validation import BadInputError
@@ -51,6 +55,31 @@ class TaskConfig:
 
     def __post_init__(self):
         validation.name_in(self.type, TASK_TYPES, "task type")
+
+
+def task_of(task: TaskConfig, normal, description: RobotDescription, nv: int):
+    """The task ``task`` describes for a robot of ``description`` with ``nv`` velocities, its
+    robot-given parameters filled in where the configuration leaves them out: the contact
+    approach's surface ``normal``, the posture's joint count, the damping's velocity count, and a
+    task on the contact frame's ``orientation_*`` parameters as one ``OrientationHold``.
+    BadInputError naming the parameter or value the task refuses."""
+    params = dict(task.params)
+    defaults = {"contact_approach": ("normal", normal), "posture": ("joints", len(description.joints)),
+                "damping": ("variables", nv)}
+    if task.type in defaults:
+        params.setdefault(*defaults[task.type])
+    kind = TASK_TYPES[task.type]
+    signature = inspect.signature(kind)
+    if "orientation" in signature.parameters:  # its orientation_* parameters, one OrientationHold
+        if "orientation" in params:
+            raise BadInputError(f"bad parameters for the {task.type} task: orientation is given as "
+                                f"{', '.join(ORIENTATION_PARAMETERS)}")
+        params["orientation"] = OrientationHold.taken_from(params)
+    try:
+        signature.bind(**params)
+    except TypeError as error:
+        raise BadInputError(f"bad parameters for the {task.type} task: {error}") from None
+    return kind(**params)
 
 
 MIN_DT, MAX_DT = 1e-4, 0.01
@@ -260,6 +289,19 @@ class ControllerConfig:
         if self.libfranka != RobotConfig():  # a [libfranka] table given: one value per joint of this robot
             self.libfranka.check_joints(len(choice.robot.joints))
 
+    def check_tasks(self) -> None:
+        """Every task built once for the robot (``task_of``; ``from_dict`` and ``from_file``, as
+        soon as the file is read; ``build_controller`` builds them again): a bad parameter or value
+        is bad input naming the task (``tasks[i]``)."""
+        description = self.choice.robot
+        nv = len(description.joints) + (pin.JointModelFreeFlyer().nv if description.floating else 0)
+        normal = self.surface.surface().normal
+        for index, task in enumerate(self.tasks):
+            try:
+                task_of(task, normal, description, nv)
+            except BadInputError as error:
+                raise BadInputError(f"tasks[{index}]: {error}") from None
+
     @property
     def choice(self) -> RobotChoice:
         """The robot and the tool: ``robot`` by name or robot file, ``tool`` by built-in name, file
@@ -308,7 +350,8 @@ class ControllerConfig:
         floating = robot_description(o.robot).floating
         approach = TaskConfig(
             "contact_approach",
-            {"speed": float(speed), "tangential_velocity": [float(v) for v in o.tangential_velocity],
+            {"speed": validation.number(speed, "the approach speed"),
+             "tangential_velocity": validation.finite_vector(o.tangential_velocity, 3, "the tangential velocity").tolist(),
              **(FLOATING_BASE_APPROACH if floating else {})},
         )
         balance = [
@@ -357,7 +400,9 @@ class ControllerConfig:
             "libfranka": RobotConfig,
         }
         parsed = {name: _section(kind, data.pop(name, None), name) for name, kind in sections.items()}
-        return cls(tasks=parsed_tasks, **parsed, **data)
+        config = cls(tasks=parsed_tasks, **parsed, **data)
+        config.check_tasks()
+        return config
 
     @classmethod
     def from_file(cls, path: str | Path) -> ControllerConfig:

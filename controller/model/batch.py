@@ -163,9 +163,9 @@ def predict_from_terms(
     if method not in METHODS:
         raise BadInputError(f"unknown method {method!r}; choose from {', '.join(METHODS)}")
     N = terms.J.shape[0]
-    n = np.broadcast_to(validation.unit_normals(normals), (N, 3))
+    n = validation.vector_rows(validation.unit_normals(normals), N, "the surface normals")
     restitution = validation.restitution(restitution)
-    v = np.broadcast_to(np.asarray(pre_impact_velocities, float), (N, 3))
+    v = validation.vector_rows(pre_impact_velocities, N, "the pre-impact velocities")
     J, Jt = terms.J, np.swapaxes(terms.J, 1, 2)
     if method == "crb":
         W = crb_inverse_inertia(terms)
@@ -184,7 +184,7 @@ def predict_from_terms(
             iota_n = -(1.0 + restitution) * np.einsum("na,na->n", n, v) / nWn
             impulse = iota_n[:, None] * n
     else:
-        impulse = np.broadcast_to(np.asarray(impulses, float), (N, 3))
+        impulse = validation.vector_rows(impulses, N, "the impulses")
     if method in ("classical", "classical_normal"):
         dq = (MinvJt @ impulse[..., None])[..., 0]
     else:
@@ -209,4 +209,5 @@ def predict_batch(
     """
     if method == "crb" and impulses is None:
         return kinematics.crb.predict_batch(Q, normals, pre_impact_velocities, restitution)
+    Q = validation.state_rows(Q, kinematics.robot.nq, "Q")
     return predict_from_terms(kinematics.terms(Q), normals, pre_impact_velocities, restitution, method, impulses)

@@ -36,7 +36,7 @@ from .jump import JUMP_MODELS, JumpPrediction
 from .jump_kernels import crb_jump
 from .model_terms import ACCEPTED, contact_jacobian_status
 from .term_fills import SINGULAR_RATIO
-from .validation import NORMAL_MIN_NORM, BadInputError
+from .validation import NORMAL_MIN_NORM
 
 REVOLUTE, PRISMATIC = 0, 1
 JOINT_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
@@ -304,16 +304,12 @@ class CrbPredictor:
         """Jumps (N, nv) and impulses (N, 3) of N states (``batch.predict_batch`` with "crb"):
         Q (N, nv), normals and velocities (N, 3) or (3,), one compiled loop (``crb_batch``),
         written into ``out`` = (jumps, impulses) when given (e.g. views of shared memory)."""
-        Q = np.asarray(Q, dtype=float)
-        if Q.ndim != 2 or Q.shape[1] != self._q_shape[0]:
-            raise BadInputError(f"Q must have shape (N, {self._q_shape[0]}), got {Q.shape}")
-        if not np.all(np.isfinite(Q)):
-            raise BadInputError("Q contains a non-finite value")
+        Q = validation.state_rows(Q, self._q_shape[0], "Q")
         N = Q.shape[0]
         # Writable row-major copies where needed (a broadcast is read-only): one compiled signature.
         Q = np.require(Q, requirements="CW")
-        normals = np.require(np.broadcast_to(validation.unit_normals(normals), (N, 3)), requirements="CW")
-        velocities = np.require(np.broadcast_to(np.asarray(pre_impact_velocities, dtype=float), (N, 3)), requirements="CW")
+        normals = np.require(validation.vector_rows(validation.unit_normals(normals), N, "the surface normals"), requirements="CW")
+        velocities = np.require(validation.vector_rows(pre_impact_velocities, N, "the pre-impact velocities"), requirements="CW")
         outputs = (np.empty((N, self._q_shape[0])), np.empty((N, 3))) if out is None else out
         for output in outputs:
             output[:] = np.nan  # the rows of a J with a non-finite entry stay NaN

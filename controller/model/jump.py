@@ -279,7 +279,7 @@ class JumpModel:
         if impulse is None:
             impulse = maps.G @ validation.finite_vector(pre_impact_velocity, 3, "the pre-impact contact velocity")
         else:
-            impulse = np.asarray(impulse, dtype=float)
+            impulse = finite_vector(impulse, 3, "the impulse")
         dq_jump = maps.K @ impulse
         if terms.held_jacobian.shape[0] == 0:
             return JumpPrediction(self.name, dq_jump, impulse, maps.W)
@@ -415,4 +415,4 @@ def predict(terms: ModelTerms, method: str, normal, pre_impact_velocity, restitu
 def jump_from_impulse(terms: ModelTerms, impulse) -> np.ndarray:
     """dv = P_f J^T iota: the momentum law (held contacts kept still), fed a given (e.g.
     measured) impulse."""
-    return joint_space_inverse_inertia_times_Jt(terms) @ np.asarray(impulse, dtype=float)
+    return joint_space_inverse_inertia_times_Jt(terms) @ finite_vector(impulse, 3, "the impulse")

@@ -56,7 +56,7 @@ from .jump import predict
 from .model_terms import ModelTerms
 from .robot import RobotModel
 from .robot_description import RobotDescription
-from .validation import BadInputError
+from .validation import impact_duration, positive, restitution, unit_normal
 
 DEFAULT_IMPACT_DURATION = 0.015  # s: delta_t of an arm's impact
 HAND_IMPACT_DURATION = 0.0034  # s: T, the wall contact's equivalent duration (impulse / peak force; the simulated wall's) of a robot with held contacts
@@ -73,6 +73,15 @@ class Setting:
     restitution: float = 0.0
     friction: float | None = None
     impact_duration: float | None = None
+
+    def __post_init__(self):
+        """BadInputError for a restitution outside [0, 1], a friction that is not > 0 or an
+        impact duration outside its range (``validation.impact_duration``)."""
+        restitution(self.restitution)
+        if self.friction is not None:
+            positive(self.friction, "the foot friction")
+        if self.impact_duration is not None:
+            impact_duration(self.impact_duration)
 
     def duration(self, robot: RobotDescription) -> float:
         """delta_t (T): the setting's, else the robot's."""
@@ -365,9 +374,7 @@ def closed_form_max_speed(
     """The highest contact speed of the posture of ``terms`` (``robot.terms(q)``) against the
     surface ``normal`` (towards the robot) that meets every criterion of the robot
     (:func:`criteria_of`), and what binds (module docstring)."""
-    if (setting.friction is not None and not setting.friction > 0.0) or not setting.duration(robot.description) > 0.0:
-        raise BadInputError("the foot friction and the impact duration must be > 0")
-    unit = unit_impact(robot, terms, np.asarray(normal, dtype=float), setting)
+    unit = unit_impact(robot, terms, unit_normal(normal), setting)
     bounds = {name: criterion(unit) for name, criterion in criteria_of(robot.description).items()}
     criterion = min(bounds, key=lambda c: bounds[c].speed)
     best = bounds[criterion]

@@ -47,7 +47,7 @@ from .model_terms import MAX_STATE_ENTRY
 from .files import read_text
 from .robot_description import PANDA, RobotDescription, check_link_inertias, model_urdf, robot_description
 from .tool_description import TOOLS, ToolDescription, tool_description
-from .validation import BadInputError, all_finite
+from .validation import BadInputError, all_finite, number_in_range, real_array
 
 CONTACT_FRAME = "impact_tip"
 TOOL_BODY = "tool"
@@ -163,6 +163,7 @@ class RobotModel(ModelTermFills):
         self.dddq_max = description.dddq_max.copy()
         self._zero_velocity = np.zeros(self.nv)
         self._zero_velocity.flags.writeable = False
+        check_inertia_matrix(model, description)
         self._prepare_fills()
 
     @property
@@ -215,7 +216,9 @@ class RobotModel(ModelTermFills):
         for name in self.description.finger_joints:
             if full.existJointName(name):
                 jid = full.getJointId(name)
-                q_full[full.joints[jid].idx_q] = finger_opening
+                i = full.joints[jid].idx_q
+                number_in_range(finger_opening, full.lowerPositionLimit[i], full.upperPositionLimit[i], "the finger opening", "m")
+                q_full[i] = finger_opening
                 locked.append(jid)
         return pin.buildReducedModel(full, locked, q_full)
 
@@ -249,8 +252,8 @@ class RobotModel(ModelTermFills):
         wrong sizes, a non-finite or huge entry, a floating base's quaternion that is not a unit
         one, or (``check_limits``) an actuated joint outside its position limits (a floating
         base's coordinates are not limited)."""
-        q = np.asarray(q, dtype=float)
-        dq = self._zero_velocity if dq is None else np.asarray(dq, dtype=float)
+        q = real_array(q, "q", InvalidStateError)
+        dq = self._zero_velocity if dq is None else real_array(dq, "dq", InvalidStateError)
         if q.shape != (self.nq,) or dq.shape != (self.nv,):
             name, size, shape = ("q", self.nq, q.shape) if q.shape != (self.nq,) else ("dq", self.nv, dq.shape)
             raise InvalidStateError(f"{name} must have {size} values, got shape {shape}")
@@ -304,8 +307,10 @@ class RobotModel(ModelTermFills):
         )
 
     def frame_placements(self, q) -> dict[str, pin.SE3]:
-        """World placements of the contact frame and the held contacts' frames."""
-        pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
+        """World placements of the contact frame and the held contacts' frames; InvalidStateError
+        for a q that is not a state (``check_state``; the limits are not checked)."""
+        q, _ = self.check_state(q, check_limits=False)
+        pin.framesForwardKinematics(self.model, self.data, q)
         ids = {self.contact_frame_name: self.contact_frame_id, **dict(zip(self.held_frames, self.held_frame_ids))}
         return {name: self.data.oMf[i].copy() for name, i in ids.items()}
 
@@ -332,6 +337,23 @@ def generic_posture(model: pin.Model, description: RobotDescription) -> np.ndarr
     high = np.where(np.isfinite(description.q_max), description.q_max, math.pi)
     q[model.nq - len(low):] = np.random.default_rng(0).uniform(low, high)
     return q
+
+
+def check_inertia_matrix(model: pin.Model, description: RobotDescription) -> None:
+    """BadInputError when the joint-space inertia M at a generic posture (``generic_posture``) is
+    not finite, or not positive definite: a joint axis of zero length (which Pinocchio normalises
+    into NaN), or a joint that moves no inertia. Every predictor and the QP need M^-1."""
+    M = pin.crba(model, model.createData(), generic_posture(model, description))
+    M = np.triu(M) + np.triu(M, 1).T
+    try:
+        if not all_finite(M.ravel()):
+            raise np.linalg.LinAlgError
+        np.linalg.cholesky(M)
+    except np.linalg.LinAlgError:
+        raise BadInputError(
+            f"the {description.name} URDF gives a joint-space inertia that is not finite and positive definite "
+            "(a joint axis of zero length, or a joint that moves no inertia?)"
+        ) from None
 
 
 def check_contact_joints_move_the_contact(model: pin.Model, frame_id: int, description: RobotDescription) -> None:

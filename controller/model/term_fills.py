@@ -90,6 +90,7 @@ class ModelTermFills:
         robot's raise :class:`InvalidStateError` for a bad or out-of-limit state.
         """
         q, dq = self.check_state(q, dq, check_limits=False)
+        q, dq = q.copy(), dq.copy()  # the terms' own: M, h and M^-1 are filled later from them
         if self.floating:
             return self._fill_floating(self.empty_terms(), q, dq, bool(check_limits))
         return self._prediction_terms(q, dq, check_limits is not False)
@@ -98,9 +99,9 @@ class ModelTermFills:
         """``terms(q, dq)`` written into an existing ModelTerms (a controller's per-cycle
         buffer: no new object; a floating base's arrays are refilled in place), with a new
         ``stamp``. Raises like ``terms``; a refused state leaves a floating base's as it was."""
-        q = np.asarray(q, dtype=float)
-        dq = self._zero_velocity if dq is None else np.asarray(dq, dtype=float)
-        if q.shape != (self.nq,) or dq.shape != (self.nv,):
+        if type(q) is not np.ndarray or type(dq) is not np.ndarray or q.dtype.char != "d" or dq.dtype.char != "d":
+            q, dq = self.check_state(q, dq, check_limits=False)  # to convert into floats, or not numbers
+        elif q.shape != (self.nq,) or dq.shape != (self.nv,):
             self.check_state(q, dq, check_limits=False)  # raises, naming the wrong size
         if self.base_nv:  # a floating base (an attribute: this runs every control cycle)
             return self._fill_floating(terms, q, dq, bool(check_limits))

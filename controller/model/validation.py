@@ -55,15 +55,31 @@ def all_finite(*vectors: np.ndarray) -> bool:
     )
 
 
+def real_array(value, what: str, error: type[BadInputError] = BadInputError) -> np.ndarray:
+    """``value`` as a float array (no copy when it is one), or ``error`` naming ``what``: a
+    boolean is not a number (as in :func:`number_in_range`), a complex number is not a real one
+    (numpy would drop its imaginary part with a warning), and neither is a text ("0.1")."""
+    try:
+        kind = np.asarray(value).dtype.kind
+        if _holds_boolean(value) or kind in "bcUSV":
+            raise TypeError(kind)
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise error(f"{what} must hold real numbers, got {short_repr(value)}") from None
+
+
+def short_repr(value) -> str:
+    """``repr(value)`` cut to 60 characters (a message quotes the beginning of a long value)."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def finite_vector(value, size: int | None, what: str) -> np.ndarray:
     """``value`` as a finite float vector of ``size`` entries (any size when None); a boolean is
     not a number (as in :func:`number_in_range`)."""
     if _holds_boolean(value):
         raise BadInputError(f"{what} must be a vector of numbers, got {value!r}")
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise BadInputError(f"{what} must be a vector of numbers") from exc
+    array = real_array(value, what)
     if array.ndim != 1 or (size is not None and array.shape[0] != size):
         expected = f"{size} numbers" if size is not None else "a flat list of numbers"
         raise BadInputError(f"{what} must be {expected}, got shape {array.shape}")
@@ -81,12 +97,9 @@ def _holds_boolean(value) -> bool:
 
 def finite_array(value, shape: tuple[int, ...], what: str) -> np.ndarray:
     """``value`` as a finite float array of ``shape`` (a matrix; a vector is :func:`finite_vector`)."""
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise BadInputError(f"{what} must be {shape} finite values, got {value!r}") from None
+    array = real_array(value, what)
     if array.shape != shape or not np.all(np.isfinite(array)):
-        raise BadInputError(f"{what} must be {shape} finite values, got {value!r}")
+        raise BadInputError(f"{what} must be {shape} finite values, got {short_repr(value)}")
     return array
 
 
@@ -97,6 +110,20 @@ def vector_in_range(value, size: int, low: float, high: float, what: str, unit: 
     for i, x in enumerate(array.tolist()):
         number_in_range(x, low, high, f"{what}[{i}]", unit)
     return array
+
+
+ROTATION_TOLERANCE = 1e-6
+"""Largest entry of R^T R - I accepted for a rotation matrix given as numbers (a file's nine
+numbers at about seven digits)."""
+
+
+def rotation_matrix(value, what: str) -> np.ndarray:
+    """``value`` as a rotation matrix: 3 x 3 finite numbers with R^T R = I (to
+    ROTATION_TOLERANCE) and det R = +1 (not a reflection)."""
+    R = finite_array(value, (3, 3), what)
+    if np.abs(R.T @ R - np.eye(3)).max() > ROTATION_TOLERANCE or np.linalg.det(R) < 0.0:
+        raise BadInputError(f"{what} must be a rotation matrix (R^T R = I, det R = 1), got {R.tolist()}")
+    return R
 
 
 def positive_vector(value, size: int, what: str, high: float | None = None) -> np.ndarray:
@@ -259,6 +286,27 @@ def file_inside(value, what: str, directory: str) -> str:
     if path.is_absolute() or ".." in path.parts or name.startswith("~"):
         raise BadInputError(f"{what} must name a file inside {directory}")
     return name
+
+
+def vector_rows(value, rows: int, what: str) -> np.ndarray:
+    """A (3,) vector or ``rows`` vectors (rows, 3) of finite numbers as (rows, 3) (one vector
+    broadcast to every row, read-only)."""
+    array = real_array(value, what)
+    if array.shape not in ((3,), (rows, 3)):
+        raise BadInputError(f"{what} must be (3,) or ({rows}, 3), got shape {array.shape}")
+    if not all_finite(array.ravel()):
+        raise BadInputError(f"{what} must be finite")
+    return np.broadcast_to(array, (rows, 3))
+
+
+def state_rows(value, size: int, what: str) -> np.ndarray:
+    """A batch of states (N, size) of finite numbers."""
+    array = real_array(value, what)
+    if array.ndim != 2 or array.shape[1] != size:
+        raise BadInputError(f"{what} must have shape (N, {size}), got {array.shape}")
+    if not all_finite(array.ravel()):
+        raise BadInputError(f"{what} contains a non-finite value")
+    return array
 
 
 def name_in(value, choices, what: str) -> str:

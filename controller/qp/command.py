@@ -78,8 +78,11 @@ def command_limits(robot: PandaModel, ddq_max: np.ndarray, jerk_step: np.ndarray
 
 @dataclass
 class CommandMemory:
-    """The previous command, for continuity (jerk limits) and for unusable states."""
+    """The previous command, for continuity (jerk limits) and for unusable states: copies of
+    what the caller was given, which it may change. ``sent_dq_cmd`` is the dq_cmd array the
+    caller was given (a loop that feeds it back is recognised by identity)."""
 
     q_cmd: np.ndarray | None
     dq_cmd: np.ndarray
     ddq: np.ndarray
+    sent_dq_cmd: np.ndarray | None = None

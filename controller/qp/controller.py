@@ -289,7 +289,7 @@ class ImpactAwareController:
         previous command itself (``dq``, the step's argument, is the previous dq_cmd: a loop fed its
         own command) never does."""
         impact, memory = self.impact, self.memory
-        if impact is None or memory.q_cmd is None or dq is memory.dq_cmd:
+        if impact is None or memory.q_cmd is None or dq is memory.sent_dq_cmd:
             return False
         return impact.shows_jump(terms.J, terms.dq, memory.dq_cmd)
 
@@ -413,10 +413,16 @@ class ImpactAwareController:
         does not bring it, from the matrices of this cycle)."""
         ddq, dq_cmd, q_cmd, *prediction = motion
         memory = self.memory
-        memory.q_cmd, memory.dq_cmd, memory.ddq = q_cmd, dq_cmd, ddq
+        memory.q_cmd, memory.dq_cmd, memory.ddq = q_cmd.copy(), dq_cmd.copy(), ddq.copy()
+        memory.sent_dq_cmd = dq_cmd
         predicts = self.impact is not None and terms is not None
         if not prediction:
-            jump = self.impact.matrices(terms).jump_matrix @ dq_cmd if predicts else np.zeros(self.robot.nv)
+            jump = np.zeros(self.robot.nv)
+            try:
+                if predicts:
+                    jump = self.impact.matrices(terms).jump_matrix @ dq_cmd
+            except SingularPostureError as error:  # a fallback's state where the jump has no prediction
+                predicts, message = False, f"{message}; no jump prediction: {error}"
             prediction = (jump, dq_cmd + jump)
         self._impact_was_active = impact_active = predicts and self.impact.is_active(terms)
         return Command(

@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 from impactqp.controller.model.robot import PandaModel
-from impactqp.controller.model.validation import all_finite
+from impactqp.controller.model.validation import BadInputError, all_finite, real_array
 
 from .command import DDQ_MAX, DQ_MAX, JERK_STEP, Q_MAX, Q_MIN, CommandMemory
 from .problem import ConstraintLayout, QpProblem
@@ -33,9 +33,9 @@ from .solvers import SOLVED, DaqpSolver
 def usable_state(q, dq, memory: CommandMemory, robot: PandaModel) -> tuple[np.ndarray, np.ndarray]:
     """(q, dq) if finite with the right shapes, else the previous command (module docstring)."""
     try:
-        q = np.asarray(q, dtype=float).reshape(robot.nq)
-        dq = np.asarray(dq, dtype=float).reshape(robot.nv)
-    except (TypeError, ValueError):
+        q = real_array(q, "q").reshape(robot.nq)
+        dq = real_array(dq, "dq").reshape(robot.nv)
+    except (BadInputError, ValueError):
         q, dq = np.full(robot.nq, np.nan), np.full(robot.nv, np.nan)
     if all_finite(q, dq):
         return q, dq

@@ -43,9 +43,13 @@ def configuration_step(model: pin.Model, q: np.ndarray, step: np.ndarray, limits
 def held_brake(robot: RobotModel, terms: ModelTerms, previous_ddq: np.ndarray, dt: float, limits: np.ndarray) -> tuple:
     """(ddq, dq_cmd, q_cmd) of the joints' brake (``fallback.braking_command``, from the previous
     command's ``previous_ddq``) with a still base, projected onto the held contacts' rows by the
-    least-norm change ddq = ddq_b - Jf^T (Jf Jf^T)^-1 (Jf ddq_b + dJf dq); q_cmd = q (+) (dq +
-    dq_cmd) dt / 2."""
-    joints = slice(robot.base_nv, None)
+    least-norm change ddq = ddq_b - Jf^T (Jf Jf^T)^+ (Jf ddq_b + dJf dq) (a pseudo-inverse: a
+    stretched leg makes Jf rank deficient). The base's twist of dq_cmd is then the one that keeps
+    the held contacts still at the joints' clipped rates, Jf_base v_base = -Jf_joints dq_joints in
+    the least-squares sense (Jf_base stacks each contact's adjoint, of full rank), so that a state
+    the brake cannot follow (joints measured beyond their velocity limits, cycle after cycle)
+    builds up no base velocity; ddq = (dq_cmd - dq) / dt. q_cmd = q (+) (dq + dq_cmd) dt / 2."""
+    base, joints = slice(0, robot.base_nv), slice(robot.base_nv, None)
     ddq, dq_cmd = np.zeros(robot.nv), np.empty(robot.nv)
     braking_command(
         terms.q[robot.base_nq:], terms.dq[joints], previous_ddq[joints], dt, limits, ddq[joints], dq_cmd[joints],
@@ -53,9 +57,12 @@ def held_brake(robot: RobotModel, terms: ModelTerms, previous_ddq: np.ndarray, d
     )
     Jf = terms.held_jacobian
     if Jf.shape[0]:
-        ddq -= Jf.T @ np.linalg.solve(Jf @ Jf.T, Jf @ ddq + terms.held_drift)
+        ddq -= Jf.T @ np.linalg.lstsq(Jf @ Jf.T, Jf @ ddq + terms.held_drift, rcond=None)[0]
     dq_cmd = terms.dq + ddq * dt
     np.clip(dq_cmd[joints], -robot.dq_max, robot.dq_max, out=dq_cmd[joints])
+    if Jf.shape[0]:
+        dq_cmd[base] = np.linalg.lstsq(Jf[:, base], -Jf[:, joints] @ dq_cmd[joints], rcond=None)[0]
+    ddq = (dq_cmd - terms.dq) * (1.0 / dt)  # the acceleration commanded, clips and base twist included
     return ddq, dq_cmd, configuration_step(robot.model, terms.q, 0.5 * dt * (terms.dq + dq_cmd), limits)
 
 
