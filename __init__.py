@@ -14,7 +14,33 @@ the QP or MuJoCo. The layers of the package are listed in docs/layout.md; each s
 names of its own layer.
 """
 
-from impactqp.lazy_exports import lazy_exports as _lazy_exports
+import os as _os
+
+
+def _numba_cache_dir() -> None:
+    """Point numba's cache of compiled kernels (``cache=True``) at the temporary directory when
+    neither of its own places can be written: beside the sources (``__pycache__``) and the user's
+    cache directory (``$XDG_CACHE_HOME`` or ``~/.cache``, then ``numba``), as for a read-only
+    install run by a user without a home, where numba refuses to load a kernel at all. A
+    ``NUMBA_CACHE_DIR`` already set is kept."""
+    import tempfile
+
+    if "NUMBA_CACHE_DIR" in _os.environ:
+        return
+    user_cache = _os.environ.get("XDG_CACHE_HOME") or _os.path.expanduser("~/.cache")
+    for place in (_os.path.join(_os.path.dirname(__file__), "__pycache__"), _os.path.join(user_cache, "numba")):
+        try:
+            _os.makedirs(place, exist_ok=True)
+            tempfile.TemporaryFile(dir=place).close()
+            return
+        except OSError:
+            continue
+    _os.environ["NUMBA_CACHE_DIR"] = _os.path.join(tempfile.gettempdir(), f"impactqp-numba-{_os.getuid()}")
+
+
+_numba_cache_dir()
+
+from impactqp.lazy_exports import lazy_exports as _lazy_exports  # noqa: E402
 
 _MODEL = "impactqp.controller.model"
 _QP = "impactqp.controller.qp"

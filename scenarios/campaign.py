@@ -69,8 +69,10 @@ from .trial import TrialPool  # noqa: E402
 from impactqp.controller.model.validation import (  # noqa: E402
     MAX_TRIALS,
     BadInputError,
-    approach_speed,
     counted,
+    distinct_names,
+    simulated_speed,
+    tangential_speed,
     trial_count,
 )
 
@@ -91,6 +93,7 @@ def check_postures(robot: RobotDescription, names) -> tuple[str, ...]:
     """``names`` (None: every named posture of ``robot``) as a tuple, each checked."""
     known = named_postures(robot)
     names = tuple(known) if names is None else tuple(names)
+    distinct_names(names, "the postures")
     for name in names:
         if name not in known:
             raise BadInputError(f"unknown posture {name!r} for the {robot.name}; known: {', '.join(known)}")
@@ -123,9 +126,9 @@ class CampaignPlan:
         if not self.speeds:
             raise BadInputError("the campaign needs at least one speed")
         for v in self.speeds:
-            approach_speed(v, "every normal speed")
+            simulated_speed(v, "every normal speed")
         for v in self.tangential_speeds:
-            approach_speed(abs(v) if v else 1.0, "every tangential speed")
+            tangential_speed(v, "every tangential speed")
 
     def specs(self, surface: Surface, choice: RobotChoice = DEFAULT_CHOICE) -> list[TrialSpec]:
         """The trials, at ``choice``'s named postures (:func:`posture_of`); bad input for a

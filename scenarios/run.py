@@ -191,6 +191,10 @@ def check_request(request: RunRequest) -> None:
         raise BadInputError(f"--backend {request.backend} needs --robot-ip IP")
     if request.backend == "replay" and not request.dataset:
         raise BadInputError("--backend replay needs --dataset DIR (and optionally --trial ID)")
+    for option, value, backend in (("--plant", request.plant_file, "sim"), ("--dataset", request.dataset, "replay"),
+                                   ("--trial", request.trial, "replay")):
+        if value is not None and request.backend != backend:
+            raise BadInputError(f"{option} applies to --backend {backend} only, not {request.backend}")
 
 
 def start_posture(request: RunRequest, model: RobotModel, config: ControllerConfig) -> np.ndarray:

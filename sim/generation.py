@@ -53,9 +53,10 @@ from impactqp.controller.model.robot_description import ROBOTS, RobotDescription
 from impactqp.controller.model.validation import (
     MAX_TRIALS,
     BadInputError,
-    approach_speed,
     counted,
     number_in_range,
+    simulated_speed,
+    tangential_speed,
     trial_count,
     whole_number,
 )
@@ -117,8 +118,10 @@ def trial_specs(
 ) -> list[PlannedTrial]:
     whole_number(repeats, 1, MAX_REPEATS, "repeats")
     whole_number(seed, 0, None, "the seed --seed")
+    for v in speeds:
+        simulated_speed(v, "every normal speed")
     for v in tangential:
-        approach_speed(abs(v) if v else 1.0, "every tangential speed")
+        tangential_speed(v, "every tangential speed")
     t = tangential_direction(normal)
     conditions = [(p, v, np.zeros(3)) for p in postures for v in speeds]
     conditions += [(p, TANGENTIAL_SERIES_NORMAL_SPEED, vt * t) for p in postures for vt in tangential]

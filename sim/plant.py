@@ -249,7 +249,7 @@ class PlantParameters:
         values = read_mapping(path, "plant parameter file", "json", PlantParameterError)
         try:
             return cls.from_dict(values)
-        except PlantParameterError as error:
+        except BadInputError as error:  # the plant's own checks and the shared ones (a vector's length)
             raise PlantParameterError(f"{path}: {error}") from None
 
     @classmethod

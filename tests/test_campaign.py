@@ -49,7 +49,7 @@ def test_default_plan_is_the_papers():
     "changes, message",
     [
         ({"postures": ()}, "at least one posture"),
-        ({"speeds": (0.1, 0.0)}, r"\(0, 3\] m/s"),
+        ({"speeds": (0.1, 0.0)}, r"\[0.001, 3\] m/s"),
         ({"speeds": ()}, "at least one speed"),
     ],
 )

@@ -93,6 +93,13 @@ def replace_by_directory_new(name: str):
     return mutate
 
 
+def make_fifo(name: str):
+    def mutate(directory: Path) -> None:
+        os.mkfifo(directory / name)
+
+    return mutate
+
+
 def nested_manifest(directory: Path) -> None:
     (directory / "dataset.json").write_text("[" * 100_000 + "]" * 100_000)
 
@@ -123,7 +130,7 @@ ROWS = [
     # postures: no input but its options
     (["postures", "--bogus"], None, 2, "No such option"),
     # simulate
-    (["simulate", "--posture", "elbow_up", "--speed", "1e9"], None, 2, "(0, 3] m/s"),
+    (["simulate", "--posture", "elbow_up", "--speed", "1e9"], None, 2, "[0.001, 3] m/s"),
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "{tmp}"], None, 2, "is a directory, not a file"),
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--plant", "identified_pnda"], None, 2,
      "no built-in plant 'identified_pnda'; built-in: identified_panda"),
@@ -140,7 +147,7 @@ ROWS = [
     (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--wall-point", "1e308,1e308,0"], None, 2,
      "must lie within 10 m of the robot's base"),
     # campaign
-    (["campaign", "--speeds", "50"], None, 2, "(0, 3] m/s"),
+    (["campaign", "--speeds", "50"], None, 2, "[0.001, 3] m/s"),
     (["campaign", "--out", "{data}/dataset.json", "--speeds", "0.1"], None, 2, "not a directory"),
     (["campaign", "--postures", "nowhere"], None, 2, "unknown posture"),
     # max-speed
@@ -168,7 +175,7 @@ ROWS = [
     (["dataset", "validate", "{bad}"], nested_manifest, 1, "nested too deeply"),
     (["dataset", "validate", "{data}/t0000.csv"], None, 2, "is a file"),
     # dataset generate
-    (["dataset", "generate", "{tmp}/out", "--speeds", "50"], None, 2, "(0, 3] m/s"),
+    (["dataset", "generate", "{tmp}/out", "--speeds", "50"], None, 2, "[0.001, 3] m/s"),
     (["dataset", "generate", "{data}/t0000.csv", "--speeds", "0.1"], None, 2, "is a file"),
     (["dataset", "generate", "{tmp}/out", "--speeds", "0.1", "--repeats", "1000000"], None, 2,
      "repeats must be a whole number in [1, 100]"),
@@ -192,6 +199,8 @@ ROWS = [
     (["run", "--backend", "replay", "--dataset", "{bad}", "--log", "{tmp}/log"],
      manifest_edit(lambda m: m["tool"].__setitem__("contact_point", [0.0, 0.0, 0.2])), 2,
      "must lie on the contact surface"),
+    (["run", "--backend", "replay", "--dataset", "{bad}", "--log", "{tmp}/log"], shift_joint(5.0), 2,
+     "t0000.csv: q1 = 5.0000 rad at data row"),
     (["run", "--backend", "replay", "--dataset", "{bad}", "--log", "{tmp}/log", "--robot", "fr3"], None, 2,
      "differ from --robot/--tool (fr3, impact_tip)"),
     (["diagnose", "{data}", "--save-plant", "{tmp}"], None, 2, "is a directory"),
@@ -214,6 +223,9 @@ ROWS = [
     (["run", "--speed", "1e9", "--log", "{tmp}/log"], None, 2, "(0, 3] m/s"),
     (["run", "--duration", "1e9", "--log", "{tmp}/log"], None, 2, "--duration must lie in (0, 60] s"),
     (["run", "--log", "{data}/t0000.csv"], None, 2, "--log"),
+    (["run", "--backend", "replay", "--dataset", "{data}", "--plant", "identified_panda", "--log", "{tmp}/log"], None,
+     2, "--plant applies to --backend sim only, not replay"),
+    (["run", "--dataset", "{data}", "--log", "{tmp}/log"], None, 2, "--dataset applies to --backend replay only, not sim"),
     # sweep and import-franka: the output directory is checked before any work
     (["sweep", "{bad}/c.toml", "--out", "{tmp}/s"], write("c.toml", b"\xff\xfe"), 2, "not a UTF-8 text file"),
     (["sweep", "{bad}/c.toml", "--out", "{tmp}/s", "--jobs", "1000000"], write("c.toml", SWEEP_EXAMPLE), 2,
@@ -233,6 +245,31 @@ ROWS = [
       "--surface-normal", "-1,0,0"], None, 2, "which is not a directory"),
     # demo
     (["demo", "--out", "{data}/dataset.json"], None, 2, "not a directory"),
+    # an output path that is empty (the working directory) or a special file (which a write would replace)
+    (["sweep", "{bad}/c.toml", "--out", ""], write("c.toml", SWEEP_EXAMPLE), 2, "--out is empty"),
+    (["run", "--log", ""], None, 2, "--log is empty"),
+    (["diagnose", "{data}", "--report", ""], None, 2, "--report is empty"),
+    (["diagnose", "{data}", "--save-plant", ""], None, 2, "--save-plant is empty"),
+    (["diagnose", "{data}", "--save-plant", "{bad}/plant.json"], make_fifo("plant.json"), 2, "is a special file"),
+    (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--figure", "{bad}/f.png"], make_fifo("f.png"), 2,
+     "is a special file"),
+    (["max-speed", "--posture", "elbow_up", "--figure", "{bad}/f.png"], make_fifo("f.png"), 2, "is a special file"),
+    # max-speed --friction is a closed form: options of the simulated search do not apply to it
+    (["max-speed", "--posture", "elbow_up", "--friction", "0.3", "--tolerance", "0.05"], None, 2,
+     "--tolerance does not apply to --friction"),
+    (["max-speed", "--posture", "elbow_up", "--friction", "nan", "--tolerance", "0.05"], None, 2,
+     "--friction: the friction of the impact rows must lie in [0, 2], got nan"),
+    # a simulated approach slower than a trial can take, repeated or out-of-range conditions
+    (["simulate", "--posture", "elbow_up", "--speed", "1e-5"], None, 2, "[0.001, 3] m/s"),
+    (["simulate", "--posture", "elbow_up", "--speed", "1e-300"], None, 2, "[0.001, 3] m/s"),
+    (["campaign", "--postures", "elbow_up,elbow_up", "--speeds", "0.1", "--out", "{tmp}/c"], None, 2,
+     "the postures repeat elbow_up"),
+    (["campaign", "--postures", "elbow_up", "--speeds", "0.1", "--tangential", "0.05,0.05", "--out", "{tmp}/c"], None,
+     2, "--tangential repeats 0.05"),
+    (["dataset", "generate", "{tmp}/out", "--postures", "elbow_up,elbow_up", "--speeds", "0.1"], None, 2,
+     "the postures repeat elbow_up"),
+    (["dataset", "generate", "{tmp}/out", "--postures", "elbow_up", "--speeds", "0.1", "--tangential", "-5"], None, 2,
+     "every tangential speed must lie in [-3, 3] m/s"),
 ]
 
 

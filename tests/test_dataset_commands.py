@@ -1,6 +1,7 @@
 """`impactqp dataset validate|generate` and `impactqp diagnose` on the command line."""
 
 import json
+import os
 import shutil
 from collections import Counter
 
@@ -144,7 +145,7 @@ def test_diagnose_without_room_for_its_output_is_refused_before_the_work(small_d
         (["diagnose", "/nonexistent/dataset"], "not a directory"),
         (["dataset", "validate", "/nonexistent/dataset"], "not a directory"),
         (["dataset", "generate", "OUT", "--postures", "nowhere"], "unknown posture"),
-        (["dataset", "generate", "OUT", "--speeds", "0.1,-1"], "(0, 3] m/s"),
+        (["dataset", "generate", "OUT", "--speeds", "0.1,-1"], "[0.001, 3] m/s"),
         (["dataset", "generate", "OUT", "--speeds", ""], "--speeds is empty"),
         (["dataset", "generate", "OUT", "--speeds", "0.1,0.12,0.1"], "--speeds repeats 0.1"),
         (["dataset", "generate", "OUT", "--speeds", ",".join(str(0.05 + k * 1e-4) for k in range(101))], "at most 100"),
@@ -272,6 +273,24 @@ def test_a_fifo_in_place_of_a_trial_csv_is_a_problem_not_a_hang(small_dataset, t
     assert code == 1 and err == ""
     problems = json.loads(out)["problems"]["t0001"]
     assert any("not a regular file" in p for p in problems)
+
+
+@pytest.mark.parametrize("make, reason", [
+    (lambda path: path.write_bytes(bytes(range(128, 256)) * 40), "is not a UTF-8 text file"),
+    (os.mkfifo, "is not a regular file (a FIFO, a socket or a device)"),
+])
+def test_generating_into_a_dataset_whose_trial_file_is_not_text_is_bad_input(small_dataset, tmp_path, make, reason):
+    """An existing trial file that is binary data or a FIFO (a read would wait on it): one line
+    naming it, exit code 2, before any trial is made; the dataset is left as it was."""
+    data = tmp_path / "data"
+    shutil.copytree(small_dataset, data)
+    (data / "t0000.csv").unlink()
+    make(data / "t0000.csv")
+    before = {p.name: p.read_bytes() for p in data.iterdir() if p.is_file()}
+    code, out, err = run_guarded("dataset", "generate", data, "--postures", "elbow_up", "--speeds", "0.1")
+    one_line_bad_input(code, out, err, f"the trial file {data / 't0000.csv'} {reason}")
+    assert {p.name: p.read_bytes() for p in data.iterdir() if p.is_file()} == before
+    assert sorted(p.name for p in data.iterdir()) == sorted(p.name for p in small_dataset.iterdir())
 
 
 def test_a_fifo_given_to_import_franka_is_bad_input(tmp_path):

@@ -93,3 +93,66 @@ def test_the_estimate_of_a_trial_holds_its_files(tmp_path, dataset_logs):
         writer.add_trial(entry, log)
         written = (tmp_path / entry.file).stat().st_size + (tmp_path / entry.force_file).stat().st_size
         assert written <= trial_bytes("panda", len(log.t), len(log.force_t)) + headers
+
+
+def _binary(path):
+    path.write_bytes(bytes(range(256)) * 20)  # 0x80 and on: no UTF-8 text
+
+
+def _device(path):
+    path.symlink_to("/dev/null")  # a device: read, it would look like an empty file
+
+
+def _directory(path):
+    path.mkdir()
+
+
+UNREADABLE_TRIAL_FILES = [
+    (_binary, "is not a UTF-8 text file"),
+    (_device, "is not a regular file (a FIFO, a socket or a device)"),
+    (_directory, "is a directory, not a file"),
+]
+"""Files that cannot be a trial's text, and what the refusal says of each (a FIFO, which a read
+would wait on: tests/test_dataset_commands.py, in a process of its own)."""
+
+
+def _regular_files(directory):
+    """The bytes of the regular files of ``directory`` and the kind of every other entry, by name."""
+    return {p.name: p.read_bytes() if p.is_file() and not p.is_symlink() else (p.is_symlink(), p.is_dir())
+            for p in sorted(directory.iterdir())}
+
+
+@pytest.mark.parametrize(("make", "reason"), UNREADABLE_TRIAL_FILES[1:])
+def test_a_trial_file_of_the_manifest_that_is_not_a_file_is_refused_on_opening(dataset, dataset_logs, make, reason):
+    """The manifest names fast.csv: opening the dataset refuses it when it is not a regular file
+    (its kind, from one stat: no file is read), naming it, before any trial is added, and the
+    dataset is left as it was; a regular file's text is read when a trial is compared with it."""
+    (dataset / "fast.csv").unlink()
+    make(dataset / "fast.csv")
+    before = _regular_files(dataset)
+    with pytest.raises(DatasetError) as refused:
+        DatasetWriter(dataset, DATASET_HEADER)
+    assert str(refused.value) == f"the trial file {dataset / 'fast.csv'} {reason}"
+    assert _regular_files(dataset) == before
+
+
+@pytest.mark.parametrize(("make", "reason"), UNREADABLE_TRIAL_FILES)
+def test_a_file_in_the_way_of_a_new_trial_that_is_not_text_is_refused(dataset, dataset_logs, make, reason):
+    """A file the manifest does not name, where a new trial would be written: refused naming it,
+    nothing written."""
+    writer = DatasetWriter(dataset, DATASET_HEADER)
+    make(dataset / "new.csv")
+    before = _regular_files(dataset)
+    with pytest.raises(DatasetError) as refused:
+        writer.add_trial(TrialEntry("new", "new.csv", 0.15), dataset_logs[0.15])
+    assert str(refused.value) == f"the trial file {dataset / 'new.csv'} {reason}"
+    assert _regular_files(dataset) == before and [e.id for e in writer.entries] == ["fast", "slow"]
+
+
+def test_a_trial_missing_from_its_dataset_is_not_refused_on_opening(dataset, dataset_logs):
+    """A trial file the manifest names but that is gone is not read: the writer opens, and the
+    trial of that id with its data is refused as other data (nothing to compare it with)."""
+    (dataset / "fast.csv").unlink()
+    writer = DatasetWriter(dataset, DATASET_HEADER)
+    with pytest.raises(DatasetError, match="already exists .* with other data"):
+        writer.add_trial(dataset_entry("fast", 0.15, dataset_logs[0.15]), dataset_logs[0.15])

@@ -88,6 +88,10 @@ def test_a_file_above_the_size_bound_is_bad_input(tmp_path, monkeypatch):
     ("c.yaml", b"x: " + b"[" * 100_000 + b"]" * 100_000, None, "nested too deeply"),
     ("c.json", b"[" * 100_000 + b"]" * 100_000, None, "nested too deeply"),
     ("c.txt", b"{}", None, "unsupported file type"),
+    ("c.yaml", b"dt: 0.001\ndt: 0.002\n", None, "not valid YAML: the key 'dt' is given twice"),
+    ("c.yaml", b"impact:\n  jump_model: crb\n  jump_model: gm\n", None, "the key 'jump_model' is given twice"),
+    ("c.json", b'{"mass": 0.5, "frame": "hand", "mass": 1.0}', None, "not valid JSON: the key 'mass' is given twice"),
+    ("c.json", b'{"a": {"b": 1, "b": 2}}', None, "the key 'b' is given twice"),
 ])
 def test_bad_content_is_one_line_that_names_the_file(tmp_path, name, content, syntax, fragment):
     path = tmp_path / name

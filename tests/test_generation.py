@@ -44,7 +44,7 @@ def test_trial_grid_and_tangential_direction():
 
 @pytest.mark.parametrize(
     "kwargs, message",
-    [({"postures": ["nowhere"]}, "unknown posture"), ({"speeds": [0.0]}, r"\(0, 3\] m/s"), ({"repeats": 0}, "repeats"),
+    [({"postures": ["nowhere"]}, "unknown posture"), ({"speeds": [0.0]}, r"\[0.001, 3\] m/s"), ({"repeats": 0}, "repeats"),
      ({"velocity_delays": -1}, "per-trial delay"), ({"velocity_delays": 1.5}, "per-trial delay")],
 )
 def test_bad_requests_are_rejected(tmp_path, kwargs, message):

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import ast
 import importlib
+import os
 import pkgutil
+import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import grimp
@@ -74,6 +77,31 @@ def test_import_impactqp_alone_loads_no_numpy_pinocchio_or_mujoco():
     code = "import sys, impactqp\nprint(sorted(m for m in ('numpy', 'pinocchio', 'mujoco') if m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0 or shutil.which("setpriv") is None,
+                    reason="needs root and setpriv to run as a user who can write neither the checkout nor a home")
+def test_a_user_who_cannot_write_the_install_nor_a_home_runs_the_compiled_kernels():
+    """numba caches a kernel beside its source or in the user's cache directory and refuses to
+    load it when neither can be written; the package then caches in the temporary directory."""
+    cache = Path(tempfile.mkdtemp(prefix="impactqp-cache-test-"))  # not under pytest's folders, which only root enters
+    cache.chmod(0o777)
+    try:
+        _run_as_nobody(cache)
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
+
+
+def _run_as_nobody(cache: Path) -> None:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")} | {"HOME": "/nonexistent", "TMPDIR": str(cache)}
+    env.pop("XDG_CACHE_HOME", None)
+    script = "from impactqp import RobotModel, JUMP_MODELS; r = RobotModel(); t = r.terms(r.description.postures['elbow_up'].q); print(JUMP_MODELS['gm'].predict(t, [-1, 0, 0], [0.1, 0, 0]).dq_jump[0])"
+    done = subprocess.run(
+        ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", sys.executable, "-c", script],
+        env=env, capture_output=True, text=True, timeout=600,
+    )
+    assert done.returncode == 0, done.stderr
+    assert list(cache.glob("impactqp-numba-65534/**/*.nbi"))
 
 
 def test_only_impactqp_is_importable_outside_the_checkout(tmp_path):

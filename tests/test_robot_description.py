@@ -228,6 +228,8 @@ def test_a_users_own_arm_loads_from_its_file(tmp_path):
     ({"wheels": 4}, "unknown robot description keys wheels"),
     ({"default_posture": "elbow_sideways"}, "default_posture 'elbow_sideways'"),
     ({"postures": {"up": {"q": [0.0, 1.0]}}}, "posture up q must be 6 numbers"),
+    ({"postures": {"up": {"q": [0.0, -1.6, 1.6, 0.0, 1.5, 100.0]}}, "default_posture": "up"},
+     r"posture up: wrist_3_joint = 100.0000 rad lies outside its limits \[-6.2832, 6.2832\]"),
 ])
 def test_a_bad_robot_file_is_one_line_of_bad_input(tmp_path, changes, message):
     path = _user_arm(tmp_path, **changes)

@@ -16,6 +16,8 @@ from impactqp.scenarios.trial import TrialRunner
 from impactqp.sim.plant import PlantParameters
 from impactqp.sim.runner import TrialSpec
 
+from cli_checks import one_line_bad_input, run
+
 
 def example_with(tmp_path, replacements=()) -> str:
     text = EXAMPLE
@@ -131,3 +133,59 @@ def test_a_second_run_into_the_same_directory_needs_resume(tmp_path, capsys):
     assert "--resume" in capsys.readouterr().err
     assert main(["sweep", config, "--out", out, "--resume", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["chunks_skipped"] == 1
+
+
+def _truncate(path, other):
+    path.write_bytes(path.read_bytes()[:3000])  # the rows' start, no footer
+
+
+def _directory(path, other):
+    path.unlink()
+    path.mkdir()
+
+
+def _foreign(path, other):
+    path.write_bytes(other.read_bytes())  # the first chunk of a sweep of another restitution
+
+
+@pytest.mark.parametrize("spoil, message", [
+    (_truncate, "is not a Parquet file; remove it and --resume to write it again"),
+    (_directory, "is a directory, not a file"),
+    (_foreign, "holds the rows of another sweep (its config, --simulate or --plant); remove it and --resume"),
+])
+def test_resuming_over_a_spoilt_chunk_is_one_line_naming_it(tmp_path, capsys, spoil, message):
+    """A chunk on disk that is not a whole Parquet file of this sweep: one line of bad input naming
+    it and what is wrong, before any cell; the directory is left as it was."""
+    config = example_with(tmp_path, [("size = [0.4, 0.3]", "size = [0.1, 0.1]")])
+    (tmp_path / "other").mkdir()
+    other = example_with(tmp_path / "other",
+                         [("size = [0.4, 0.3]", "size = [0.1, 0.1]"), ("restitution = [0.0]", "restitution = [0.1]")])
+    out, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    assert main(["sweep", config, "--out", str(out), "--json"]) == 0
+    assert main(["sweep", other, "--out", str(elsewhere), "--json"]) == 0
+    capsys.readouterr()
+    chunk = store.chunk_path(out, 0)
+    spoil(chunk, store.chunk_path(elsewhere, 0))
+    before = {p.name: p.read_bytes() if p.is_file() else None for p in out.iterdir()}
+    code, stdout, err = run(capsys, "sweep", config, "--out", str(out), "--resume", "--json")
+    one_line_bad_input(code, stdout, err, f"the sweep chunk {chunk} {message}")
+    assert {p.name: p.read_bytes() if p.is_file() else None for p in out.iterdir()} == before
+
+
+def test_resuming_over_a_fifo_chunk_is_one_line_naming_it(tmp_path, capsys):
+    """A FIFO is never opened (a read would wait for a writer): the command runs in its own
+    interpreter, so that a regression fails at the guard instead of hanging the suite."""
+    import os
+    import subprocess
+    import sys
+
+    config = example_with(tmp_path, [("size = [0.4, 0.3]", "size = [0.1, 0.1]")])
+    out = tmp_path / "out"
+    assert main(["sweep", config, "--out", str(out), "--json"]) == 0
+    chunk = store.chunk_path(out, 0)
+    chunk.unlink()
+    os.mkfifo(chunk)
+    done = subprocess.run([sys.executable, "-m", "impactqp", "sweep", config, "--out", str(out), "--resume"],
+                          capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL)
+    one_line_bad_input(done.returncode, done.stdout, done.stderr,
+                       f"the sweep chunk {chunk} is not a regular file (a FIFO, a socket or a device)")

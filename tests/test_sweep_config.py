@@ -61,7 +61,7 @@ def test_every_line_of_the_example_that_sets_a_key_follows_a_comment():
         (lambda d: d["controller"].update(jump_model=["nope"]), "controller.jump_model"),
         (lambda d: d["controller"].update(impact_duration=[0.0]), "controller.impact_duration[0]"),
         (lambda d: d["controller"].update(impact_duration=[0.01, 0.01]), "twice"),
-        (lambda d: d["simulate"].update(tolerance=0.0), "simulate.tolerance must be > 0"),
+        (lambda d: d["simulate"].update(tolerance=0.0), "simulate.tolerance must lie in [0.0001, 0.5] m/s, got 0.0"),
         (lambda d: d.pop("simulate"), r"needs a [simulate] table"),
         (lambda d: d["grid"].update(size=[10.0, 10.0], spacing=0.001), "more than 10,000,000"),
         (lambda d: d["grid"].update(size=[1e300, 0.1], spacing=1e-300), "more than 10,000,000"),
@@ -133,3 +133,49 @@ def test_a_friction_sweep_refuses_the_normal_only_classical_model_and_a_missing_
     del data["friction"]["pyramid_edges"]
     with pytest.raises(BadInputError, match="missing key friction.pyramid_edges"):
         parse_config(data)
+
+
+@pytest.mark.parametrize("table, key, values, message", [
+    ("settings", "restitution", [0.0, 0.3, 0.0], "settings.restitution[0] and settings.restitution[2] are equal"),
+    ("settings", "restitution", [0.0, -0.0], "settings.restitution[0] and settings.restitution[1] are equal"),
+    ("settings", "normals", [[-1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]], "settings.normals[0] and settings.normals[1] are one"),
+    ("settings", "normals", [[-1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [-2.0, 0.0, 0.0]],
+     "settings.normals[0] and settings.normals[2] are one direction (normals are normalised)"),
+    ("settings", "normals", [[-1.0, 0.1, 0.0], [-3.0, 0.3, 0.0]], "settings.normals[0] and settings.normals[1] are one"),
+    ("settings", "jump_models", ["gm", "crb", "gm"], "settings.jump_models[0] and settings.jump_models[2] are equal"),
+    ("controller", "jump_model", ["crb", "crb"], "controller.jump_model[0] and controller.jump_model[1] are equal"),
+])
+def test_a_value_listed_twice_is_refused_naming_the_key_and_its_entries(table, key, values, message):
+    """Every list of the config is an axis or a set of models: a repeat would duplicate cells or
+    columns. Normals compare as directions (normalised: -2 e_x is -e_x, and 3 (-1, 0.1, 0) is
+    (-1, 0.1, 0) up to rounding); 0.0 and -0.0 are one restitution."""
+    data = example()
+    data[table][key] = values
+    with pytest.raises(BadInputError) as refused:
+        parse_config(data)
+    assert str(refused.value).startswith(f"{table}.{key} lists a value twice: ")
+    assert message in str(refused.value)
+
+
+def test_distinct_normals_close_to_one_another_are_two_axes_values():
+    """Directions 1e-6 rad apart are not a repeat: only rounding-level differences are."""
+    data = example()
+    data["settings"]["normals"] = [[-1.0, 0.0, 0.0], [-1.0, 1e-6, 0.0]]
+    assert len(parse_config(data).normals) == 2
+
+
+@pytest.mark.parametrize("tolerance", [0.0, 0.99e-4, 0.51, -0.005, True, "0.005"])
+def test_a_tolerance_outside_the_range_of_max_speed_is_refused_naming_the_key(tolerance):
+    """The bisection tolerance of docs/errors.md, 0.1 mm/s to 0.5 m/s: what ``max-speed
+    --tolerance`` accepts, whether or not the sweep simulates."""
+    data = example()
+    data["simulate"]["tolerance"] = tolerance
+    with pytest.raises(BadInputError, match=r"^simulate\.tolerance must (lie|be a number) in \[0\.0001, 0\.5\] m/s"):
+        parse_config(data)
+
+
+@pytest.mark.parametrize("tolerance", [1e-4, 0.5])
+def test_the_ends_of_the_tolerance_range_are_accepted(tolerance):
+    data = example()
+    data["simulate"]["tolerance"] = tolerance
+    assert parse_config(data).tolerance == tolerance

@@ -119,3 +119,62 @@ def test_a_disk_without_room_is_refused_before_any_cell(tmp_path, monkeypatch):
     monkeypatch.setattr(dataset_writer.shutil, "disk_usage", lambda path: nothing_left)
     again = run_sweep(config, out, resume=True, chunk_size=CHUNK, progress=False, plots=False)  # nothing to write
     assert again.chunks_skipped == again.chunks
+
+
+def test_a_chunk_that_is_not_a_parquet_file_of_the_sweep_is_refused_naming_it(tmp_path):
+    """Reading the rows (``read_table``) and checking a chunk on resume (``check_chunk``): a
+    truncated chunk is not a Parquet file; a Parquet file without the sweep's identity, or with
+    another's, holds the rows of another sweep; the sweep's own chunk passes."""
+    import pyarrow as pa
+
+    config = parse_config(dict(DATA, grid=dict(DATA["grid"], size=[0.1, 0.0], spacing=0.1)))
+    run_sweep(config, tmp_path, chunk_size=CHUNK, progress=False, plots=False)
+    ours, chunk = store.identity(config, None), store.chunk_path(tmp_path, 0)
+    store.check_chunk(chunk, ours)
+    with pytest.raises(BadInputError) as refused:
+        store.check_chunk(chunk, store.identity(config, Simulation()))
+    assert str(refused.value) == (f"the sweep chunk {chunk} holds the rows of another sweep (its config, "
+                                  "--simulate or --plant); remove it and --resume to write it again")
+    pq.write_table(pa.table({"cell": [0]}), chunk)
+    with pytest.raises(BadInputError, match="holds the rows of another sweep"):
+        store.check_chunk(chunk, ours)
+    chunk.write_bytes(chunk.read_bytes()[:-8])  # no footer
+    not_parquet = f"the sweep chunk {chunk} is not a Parquet file; remove it and --resume to write it again"
+    for refuse in (lambda: store.check_chunk(chunk, ours), lambda: store.read_table(tmp_path)):
+        with pytest.raises(BadInputError) as refused:
+            refuse()
+        assert str(refused.value) == not_parquet
+
+
+@pytest.mark.parametrize("record, message", [
+    (bytes(range(128, 256)), "is not a UTF-8 text file"),
+    (b'{"config": ', "is not valid JSON"),
+])
+def test_resume_refuses_a_spoilt_sweep_record_naming_it(tmp_path, record, message):
+    config = parse_config(dict(DATA, grid=dict(DATA["grid"], size=[0.1, 0.0], spacing=0.1)))
+    run_sweep(config, tmp_path, chunk_size=CHUNK, progress=False, plots=False)
+    (tmp_path / store.CONFIG_FILE).write_bytes(record)
+    with pytest.raises(BadInputError, match=f"^the sweep record {tmp_path / store.CONFIG_FILE} {message}"):
+        run_sweep(config, tmp_path, resume=True, chunk_size=CHUNK, progress=False, plots=False)
+
+
+def test_resume_checks_the_chunks_without_a_record_and_keeps_a_folder_named_like_a_temporary_chunk(tmp_path):
+    """A chunk on disk is skipped on resume, so it is checked even when ``sweep.json`` is gone
+    (nothing is written then); a folder named like a killed chunk's temporary file is not one and
+    stays, while the temporary file itself is removed."""
+    config = parse_config(dict(DATA, grid=dict(DATA["grid"], size=[0.1, 0.0], spacing=0.1)))
+    run_sweep(config, tmp_path, chunk_size=CHUNK, progress=False, plots=False)
+    chunk = store.chunk_path(tmp_path, 0)
+    whole = chunk.read_bytes()
+    (tmp_path / store.CONFIG_FILE).unlink()
+    chunk.write_bytes(whole[:100])
+    with pytest.raises(BadInputError, match=f"^the sweep chunk {chunk} is not a Parquet file"):
+        run_sweep(config, tmp_path, resume=True, chunk_size=CHUNK, progress=False, plots=False)
+    assert not (tmp_path / store.CONFIG_FILE).exists()
+    chunk.write_bytes(whole)
+    (tmp_path / ".chunk-000000.parquet.0123456789abcdef.parquet").write_bytes(whole[:100])
+    (tmp_path / ".chunk-folder").mkdir()
+    summary = run_sweep(config, tmp_path, resume=True, chunk_size=CHUNK, progress=False, plots=False)
+    assert summary.chunks_skipped == summary.chunks == 1  # written again: sweep.json, the record the next needs
+    run_sweep(config, tmp_path, resume=True, chunk_size=CHUNK, progress=False, plots=False)
+    assert [p.name for p in tmp_path.glob(".*")] == [".chunk-folder"]

@@ -10,6 +10,7 @@ process umask.
 
 from __future__ import annotations
 
+import errno
 import os
 import secrets
 from collections.abc import Callable
@@ -26,8 +27,11 @@ def write_atomic(path: Path, write: Callable[[Path], None]) -> Path:
     """Let ``write`` fill a temporary file in the same directory as ``path``, flush it to disk
     and move it onto ``path`` with os.replace; on any error or interruption the temporary file is
     removed and ``path`` is left as it was. An OSError that names no file (a full disk, a file
-    size limit) is raised again naming ``path``."""
+    size limit) is raised again naming ``path``; a ``path`` that exists and is not a regular file
+    (a directory, a FIFO, a device) is never replaced: IsADirectoryError."""
     path = Path(path)
+    if path.exists() and not path.is_file():
+        raise IsADirectoryError(errno.EISDIR, "not a regular file: a write would replace it", str(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp: Path | None = None
     try:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from impactqp.controller.model.robot_description import robot_description
+from impactqp.controller.model.robot_description import RobotDescription, robot_description
 
 from .dataset import (
     MANIFEST,
@@ -145,6 +145,19 @@ def _trial_problems(entry: TrialEntry, log_problems: list[str], impact_start: fl
     return problems
 
 
+def joint_limit_problem(q: np.ndarray, robot: RobotDescription, file: str) -> str | None:
+    """The first logged joint position (rows of ``q``) outside the robot's limits, beyond
+    POSITION_TOLERANCE, as one line naming ``file``; None when every one lies inside."""
+    outside = (q < robot.q_min - POSITION_TOLERANCE) | (q > robot.q_max + POSITION_TOLERANCE)
+    if not np.any(outside):
+        return None
+    row, joint = (int(i) for i in np.argwhere(outside)[0])
+    return (
+        f"{file}: q{joint + 1} = {q[row, joint]:.4f} rad at data row {row + 1} lies outside "
+        f"the joint limits [{robot.q_min[joint]:.4f}, {robot.q_max[joint]:.4f}]"
+    )
+
+
 def _log_problems(directory: Path, entry: TrialEntry, header: DatasetHeader) -> tuple[list[str], float | None]:
     """The problems of the files of ``entry`` (its CSV and force CSV), checked against the
     header's robot and control period, and the start of the impact found in them (None when none
@@ -156,14 +169,9 @@ def _log_problems(directory: Path, entry: TrialEntry, header: DatasetHeader) -> 
     problems = []
     control_period = header.control_period
     robot = robot_description(header.robot)
-    outside = (log.q < robot.q_min - POSITION_TOLERANCE) | (log.q > robot.q_max + POSITION_TOLERANCE)
-    if np.any(outside):
-        row, joint = (int(i) for i in np.argwhere(outside)[0])
-        problems.append(
-            f"{entry.file}: q{joint + 1} = {log.q[row, joint]:.4f} rad at data row {row + 1} lies outside "
-            f"the joint limits [{robot.q_min[joint]:.4f}, {robot.q_max[joint]:.4f}]"
-        )
-        return problems, None
+    outside = joint_limit_problem(log.q, robot, entry.file)
+    if outside is not None:
+        return [outside], None
     quaternion = quaternion_problem(log.base, entry.file) if robot.floating else None
     if quaternion is not None:
         return [quaternion], None

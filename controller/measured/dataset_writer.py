@@ -1,5 +1,9 @@
 """Writing an impact dataset (the format: ``dataset``): trials are added one by one, each file
-atomically, the manifest rewritten after each; nothing different is ever overwritten."""
+atomically, the manifest rewritten after each; nothing different is ever overwritten.
+
+An existing file the writer compares a trial with is read by ``files.read_text``: one that is
+not a regular UTF-8 text file of at most ``files.MAX_FILE_BYTES`` (a directory, a FIFO, a device,
+binary data) is refused naming it, never opened when it could block or have no end."""
 
 from __future__ import annotations
 
@@ -11,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from impactqp.controller.model.files import read_text, regular_file
 from impactqp.controller.model.robot_description import robot_description
 
 from .atomic import write_text_atomic
@@ -71,9 +76,12 @@ def check_room(folder: str | Path, estimate: float, what: str) -> None:
 class DatasetWriter:
     """Adds trials to a dataset directory, rewriting the manifest atomically after each one.
 
-    Opening an existing dataset with a different header, or adding a trial whose id exists with
-    different data, raises :class:`DatasetError` (nothing is overwritten silently); adding an
-    identical trial again is a no-op.
+    Opening an existing dataset with a different header, or one of whose trial files (those its
+    manifest names and that exist) is not a regular file, or adding a trial whose id or file exists
+    with different data or cannot be read as text (module docstring), raises
+    :class:`DatasetError` (nothing is overwritten silently); adding an identical trial again is a
+    no-op. The kinds of the trial files are checked when the writer opens the dataset, before any
+    trial is made.
 
     Space: a writer told how many trials are coming (``expected_trials``) measures the first
     one it writes and refuses to go on when the disk cannot hold the others
@@ -96,6 +104,10 @@ class DatasetWriter:
                     f"({existing}); refusing to overwrite it"
                 )
             self.entries = [parse_entry(e) for e in manifest["trials"]]
+            for entry in self.entries:  # a stat each, none read: a dataset of many trials opens at once
+                for name in filter(None, (entry.file, entry.force_file)):
+                    if (self.directory / name).exists():
+                        regular_file(self.directory / name, "the trial file", DatasetError)
 
     def add_trial(self, entry: TrialEntry, log: TrialLog) -> None:
         files = {entry.file: _trial_csv(log, self.header.robot)}
@@ -106,8 +118,7 @@ class DatasetWriter:
         known = {e.id: e for e in self.entries}
         if entry.id in known:
             same = known[entry.id] == entry and all(
-                (self.directory / name).exists() and (self.directory / name).read_text() == text
-                for name, text in files.items()
+                _existing_text(self.directory / name) == text for name, text in files.items()
             )
             if same:
                 return
@@ -115,7 +126,7 @@ class DatasetWriter:
         used = {e.file for e in self.entries} | {e.force_file for e in self.entries if e.force_file}
         for name, text in files.items():
             path = self.directory / name
-            if name in used or (path.exists() and path.read_text() != text):
+            if name in used or _existing_text(path) not in (None, text):
                 raise DatasetError(f"{path} already exists with other data; refusing to overwrite it")
         for name, text in files.items():
             write_text_atomic(self.directory / name, text)
@@ -132,6 +143,14 @@ class DatasetWriter:
         if left > 0:
             check_room(self.directory, first_bytes * left,
                        f"the first trial took {first_bytes / 1e3:.0f} kB; the {left} left")
+
+
+def _existing_text(path: Path) -> str | None:
+    """The text of the trial file ``path``, None when there is none (a dangling link included);
+    DatasetError naming it when it is not a regular UTF-8 text file (``files.read_text``)."""
+    if not path.exists():
+        return None
+    return read_text(path, "the trial file", DatasetError)
 
 
 def _csv(columns: list[str], table: np.ndarray) -> str:

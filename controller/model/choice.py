@@ -22,6 +22,7 @@ from .robot import RobotModel
 from .robot_description import PANDA, ROBOTS, RobotDescription, robot_description
 from .tool_description import TOOLS, ToolDescription, tool_description
 from .tool_postures import tool_posture
+from . import validation
 from .validation import BadInputError
 
 DEFAULT_ROBOT = PANDA.name
@@ -117,8 +118,9 @@ class RobotChoice:
         return self.postures[name]
 
     def check_postures(self, names) -> tuple[str, ...]:
-        """``names`` as a tuple after checking each is a named posture of the robot."""
+        """``names`` as a tuple after checking each is a named posture of the robot, once."""
         names = tuple(names)
+        validation.distinct_names(names, "the postures")
         for name in names:
             if name not in self.robot.postures:
                 raise BadInputError(

@@ -6,8 +6,9 @@ blocks the reader), a file larger than ``MAX_FILE_BYTES``, text that is not UTF-
 mark is accepted), a syntax error, nesting deeper than the parser's recursion allows, a document
 that is not a table of keys and values, an integer beyond ``MAX_INTEGER`` (no physical quantity,
 count or seed of ours is one: checked before any conversion, so a number of thousands of digits is
-one line, not an overflow), or a YAML alias (an alias repeats a node: nested aliases expand a
-small file into gigabytes).
+one line, not an overflow), a YAML alias (an alias repeats a node: nested aliases expand a
+small file into gigabytes), or a key given twice in one table (TOML refuses it itself; JSON and
+YAML parsers would keep the last value silently).
 """
 
 from __future__ import annotations
@@ -38,13 +39,36 @@ MAX_INTEGER_DIGITS = len(str(MAX_INTEGER))
 
 
 class _NoAliasLoader(yaml.SafeLoader):
-    """PyYAML's safe loader without aliases (module docstring)."""
+    """PyYAML's safe loader without aliases and without a key given twice in one mapping (module
+    docstring)."""
 
     def compose_node(self, parent, index):
         if self.check_event(yaml.AliasEvent):
             event = self.peek_event()
             raise yaml.composer.ComposerError(None, None, "YAML aliases (*name) are not accepted", event.start_mark)
         return super().compose_node(parent, index)
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if isinstance(key, (str, int, float, bool)) and key in seen:
+                raise yaml.constructor.ConstructorError(None, None, f"the key {key!r} is given twice", key_node.start_mark)
+            seen.add(key) if isinstance(key, (str, int, float, bool)) else None
+        return super().construct_mapping(node, deep)
+
+
+class _RepeatedKeyError(ValueError):
+    """A JSON object that gives one key twice."""
+
+
+def _json_object(pairs: list) -> dict:
+    """A JSON object; _RepeatedKeyError when a key is given twice (json would keep the last one)."""
+    keys = [key for key, _ in pairs]
+    repeated = sorted({key for key in keys if keys.count(key) > 1})
+    if repeated:
+        raise _RepeatedKeyError(f"the key {repeated[0]!r} is given twice")
+    return dict(pairs)
 
 
 def _json_integer(text: str) -> int:
@@ -119,7 +143,7 @@ def read_mapping(
     text = read_text(path, what, error)
     try:
         if syntax == "json":
-            value = json.loads(text, parse_int=_json_integer)
+            value = json.loads(text, parse_int=_json_integer, object_pairs_hook=_json_object)
         elif syntax == "toml":
             value = tomllib.loads(text)
         else:
@@ -127,7 +151,7 @@ def read_mapping(
             value = {} if value is None else value
     except RecursionError:
         raise error(f"{what} {path} is nested too deeply") from None
-    except _PARSE_ERRORS as failure:
+    except (*_PARSE_ERRORS, _RepeatedKeyError) as failure:
         raise error(f"{what} {path} is not valid {syntax.upper()}: {' '.join(str(failure).split())}") from None
     except ValueError as failure:  # an integer of thousands of digits (Python's int() limit)
         raise error(f"{what} {path} holds a number too large to read: {' '.join(str(failure).split())}") from None

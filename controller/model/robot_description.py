@@ -272,6 +272,18 @@ def _limits(table: Mapping, joints: tuple[str, ...], urdf: dict | None, robot: s
     return limits
 
 
+def _postures_within(postures: Mapping[str, ImpactPosture], joints: tuple[str, ...], limits: dict, robot: str) -> None:
+    """BadInputError naming the first posture with a joint outside its position limits."""
+    for name, posture in postures.items():
+        outside = np.flatnonzero((posture.q < limits["q_min"]) | (posture.q > limits["q_max"]))
+        if outside.size:
+            i = int(outside[0])
+            raise BadInputError(
+                f"the {robot} posture {name}: {joints[i]} = {posture.q[i]:.4f} rad lies outside its limits "
+                f"[{limits['q_min'][i]:.4f}, {limits['q_max'][i]:.4f}]"
+            )
+
+
 def _postures(table: Mapping, n: int, robot: str) -> dict[str, ImpactPosture]:
     postures = {}
     for name, entry in table.items():
@@ -335,9 +347,11 @@ def description_from_mapping(data: Mapping, base: Path | None = None, source: Pa
     nominal = table_field(data, "nominal_posture", set(joints), f"the {robot}")
     nominal = {name: number_in_range(value, -2 * np.pi, 2 * np.pi, f"the {robot} nominal_posture {name}", "rad")
                for name, value in nominal.items()}
+    limits = _limits(limit_table, joints, urdf_joints, robot)
+    _postures_within(postures, joints, limits, robot)
     return RobotDescription(
         name=robot, base=kind, urdf=urdf, meshes=meshes, joints=joints,
-        **_limits(limit_table, joints, urdf_joints, robot),
+        **limits,
         tool_frames={k: name_field(v, f"the {robot} tool frame {k}") for k, v in tool_frames.items()},
         hand_frame=str(hand.get("frame", "")), finger_joints=fingers,
         finger_links=names_field(hand.get("finger_links", []), f"the {robot} finger_links"),
@@ -350,7 +364,11 @@ def description_from_mapping(data: Mapping, base: Path | None = None, source: Pa
 def load_robot_description(path: str | Path) -> RobotDescription:
     """The robot described in the TOML, JSON or YAML file ``path`` (module docstring)."""
     path = Path(path).absolute()
-    return description_from_mapping(read_mapping(path, "the robot description"), path.parent, path)
+    data = read_mapping(path, "the robot description")
+    try:
+        return description_from_mapping(data, path.parent, path)
+    except BadInputError as error:  # the message names the file, whatever key or value it is about
+        raise BadInputError(f"the robot description {path}: {error}") from None
 
 
 BUILTIN_ORDER = ("panda", "fr3", "ur5", "g1")

@@ -326,6 +326,31 @@ def approach_speed(value, what: str = "the approach speed") -> float:
     return number_in_range(value, 0.0, MAX_CONTACT_SPEED, what, "m/s", low_open=True)
 
 
+def tangential_speed(value, what: str = "the tangential speed") -> float:
+    """A signed speed (m/s) along a tangential direction of the surface: its magnitude at most
+    MAX_CONTACT_SPEED (its sign picks the direction; 0 is an approach along the normal)."""
+    return number_in_range(value, -MAX_CONTACT_SPEED, MAX_CONTACT_SPEED, what, "m/s")
+
+
+def distinct_names(names, what: str) -> None:
+    """BadInputError when a name of ``names`` is listed more than once (each names one condition)."""
+    repeated = sorted({n for n in names if list(names).count(n) > 1})
+    if repeated:
+        raise BadInputError(f"{what} repeat {', '.join(map(str, repeated))}")
+
+
+MIN_SIMULATED_SPEED = 1e-3
+"""m/s: the slowest approach a simulated trial takes. A trial allows its approach a few times
+gap / speed of simulated time (unbounded as the speed goes to 0), and a slower impact stays
+below the joint-torque residual's detection threshold."""
+
+
+def simulated_speed(value, what: str = "the approach speed") -> float:
+    """An approach speed (m/s) that a simulated trial can reach the wall at: in
+    [MIN_SIMULATED_SPEED, MAX_CONTACT_SPEED]."""
+    return number_in_range(value, MIN_SIMULATED_SPEED, MAX_CONTACT_SPEED, what, "m/s")
+
+
 MIN_IMPACT_DURATION, MAX_IMPACT_DURATION = 1e-3, 0.1
 """s: an impact lasts at least one 1 kHz control period and far less than 0.1 s (the paper's
 impacts last about 15 ms, 25 ms at most)."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from impactqp.controller.measured.dataset import DatasetError, DatasetTrial, read_dataset
+from impactqp.controller.measured.dataset_check import joint_limit_problem
 from impactqp.controller.model.robot_description import robot_description
 from impactqp.controller.model.validation import BadInputError
 
@@ -16,8 +17,9 @@ from .interface import RobotInterface, RobotState
 
 
 def load_trial(directory, trial_id: str | None) -> tuple[DatasetTrial, object]:
-    """(trial, dataset header) of ``trial_id`` (the first trial when None); bad input otherwise.
-    The header's robot and tool (``DatasetHeader.choice``) are what the replay models."""
+    """(trial, dataset header) of ``trial_id`` (the first trial when None); bad input otherwise,
+    and for a trial whose joint positions leave the robot's limits (as ``dataset validate``
+    finds them). The header's robot and tool (``DatasetHeader.choice``) are what the replay models."""
     try:
         dataset = read_dataset(directory)
     except DatasetError as error:
@@ -31,13 +33,14 @@ def load_trial(directory, trial_id: str | None) -> tuple[DatasetTrial, object]:
                             "backend plays the logs of fixed-base arms")
     if not dataset.trials:
         raise BadInputError(f"replay dataset {directory} holds no trial")
-    if trial_id is None:
-        return dataset.trials[0], dataset.header
-    for trial in dataset.trials:
-        if trial.entry.id == trial_id:
-            return trial, dataset.header
-    known = ", ".join(t.entry.id for t in dataset.trials)
-    raise BadInputError(f"replay trial {trial_id!r} is not in {directory}; its trials: {known}")
+    chosen = dataset.trials[0] if trial_id is None else next((t for t in dataset.trials if t.entry.id == trial_id), None)
+    if chosen is None:
+        known = ", ".join(t.entry.id for t in dataset.trials)
+        raise BadInputError(f"replay trial {trial_id!r} is not in {directory}; its trials: {known}")
+    outside = joint_limit_problem(chosen.log.q, robot, chosen.entry.file)  # no robot reaches such a state
+    if outside is not None:
+        raise BadInputError(f"replay dataset {directory}: {outside}")
+    return chosen, dataset.header
 
 
 class ReplayRobot(RobotInterface):

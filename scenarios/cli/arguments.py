@@ -140,12 +140,14 @@ def _given_path(path: str, what: str, kind: str) -> Path:
 
 
 def output_file(path: str, what: str, inputs=()) -> Path:
-    """A file that can be written atomically: not a directory, in a writable directory, not one of
-    ``inputs`` nor an existing file inside an input directory."""
+    """A file that can be written atomically: not a directory nor a special file, in a writable
+    directory, not one of ``inputs`` nor an existing file inside an input directory."""
     p = _given_path(path, what, "file")
     _not_an_input(p, what, inputs)
     if p.is_dir():
         raise BadInputError(f"{what}: {path} is a directory")
+    if p.exists() and not p.is_file():  # an atomic write would replace the FIFO or device itself
+        raise BadInputError(f"{what}: {path} is a special file (a FIFO, a device or a socket), not a file to write")
     _writable_parent(p, what)
     return p
 
@@ -238,14 +240,17 @@ def robot_options(command=None, *, humanoid: bool = False):
     return click.option("--robot", default="panda", show_default=True, help=robot_help(humanoid))(with_choice)
 
 
-def reject_options(names) -> None:
-    """Bad input when one of the options ``names`` (click parameter names), which do not apply to a
-    floating-base robot, was given."""
+FLOATING_BASE = "a floating-base robot (docs/floating-base.md)"
+
+
+def reject_options(names, where: str = FLOATING_BASE) -> None:
+    """Bad input when one of the options ``names`` (click parameter names), which do not apply
+    ``where`` (by default: to a floating-base robot), was given."""
     ctx = click.get_current_context()
     for name in names:
         if ctx.get_parameter_source(name) not in (None, click.core.ParameterSource.DEFAULT):
             option = next(p for p in ctx.command.params if p.name == name).opts[0]
-            raise BadInputError(f"{option} does not apply to --robot g1 (docs/floating-base.md)")
+            raise BadInputError(f"{option} does not apply to {where}")
 
 
 def stance_names(robot, text: str | None) -> tuple[str, ...]:

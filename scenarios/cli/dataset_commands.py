@@ -200,9 +200,9 @@ def diagnose(directory, as_json, report_dir, save_plant, plant_file, choice, **w
     check_jobs(jobs)
     manifest = _readable_manifest(directory)
     _check_manifest_choice(directory, manifest, choice)
-    if report_dir:
+    if report_dir is not None:  # an empty one is refused, not ignored
         output_directory(report_dir, "--report", inputs=(directory, plant_file))
-    if save_plant:
+    if save_plant is not None:
         output_file(save_plant, "--save-plant", inputs=(directory, plant_file))
     nominal = load_plant(plant_file) or PlantParameters()
     _check_output_room(manifest, report_dir, save_plant, nominal)

@@ -204,19 +204,20 @@ def frictional_max_speed_report(request: MaxSpeedRequest) -> dict:
     from impactqp.scenarios.cli.arguments import parse_vector
     from impactqp.sim.runner import NORMAL
 
-    robot = request.choice.robot
-    if robot.floating:
-        reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tolerance", "tool"])
-        duration = check_impact_duration(request.impact_duration, "--impact-duration") if given("impact_duration") else HAND_IMPACT_DURATION
-        normal = NORMAL
-    else:
-        reject_options(["jump_model", "plant_file", "wall_point", "jobs", "tolerance"])
-        duration = check_impact_duration(request.impact_duration, "--impact-duration")
-        normal = wall(None, request.wall_normal).normal
     try:
         rows = FrictionRows(request.friction)
     except BadInputError as error:
         raise BadInputError(f"--friction: {error}") from None
+    robot = request.choice.robot
+    closed_form = "--friction (the closed form under the friction rows, no simulation; docs/frictional-impacts.md)"
+    if robot.floating:
+        reject_options(["jump_model", "plant_file", "wall_point", "wall_normal", "jobs", "tolerance", "tool"], closed_form)
+        duration = check_impact_duration(request.impact_duration, "--impact-duration") if given("impact_duration") else HAND_IMPACT_DURATION
+        normal = NORMAL
+    else:
+        reject_options(["jump_model", "plant_file", "wall_point", "jobs", "tolerance"], closed_form)
+        duration = check_impact_duration(request.impact_duration, "--impact-duration")
+        normal = wall(None, request.wall_normal).normal
     c_r = restitution_coefficient(request.restitution, "--restitution")
     tangential = np.zeros(3) if request.tangential is None else tangential_velocity(
         parse_vector(request.tangential, 3, "--tangential"), normal, "--tangential")

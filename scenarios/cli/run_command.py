@@ -6,7 +6,7 @@ import logging
 
 import click
 
-from impactqp.scenarios.cli.arguments import emit_json, robot_options
+from impactqp.scenarios.cli.arguments import emit_json, output_directory, robot_options
 from impactqp.scenarios.cli.exit_codes import EXIT_INTERRUPTED, EXIT_ROBOT_WOULD_STOP
 
 
@@ -43,6 +43,7 @@ def run_command(realtime: str, as_json: bool, choice, **options):
     the overruns would have stopped a real robot."""
     from impactqp.scenarios.run import RunRequest, run  # lazy: the command line loads an experiment when it runs
 
+    output_directory(options["log"], "--log")  # an empty --log would log nothing, silently
     request = RunRequest(realtime=realtime == "enforce", choice=choice, **options)
     report, result = run(request, say=lambda line: click.echo(f"impactqp: {line}", err=True))
     if as_json:

@@ -29,7 +29,7 @@ from impactqp.constraints import JUMP_MODEL_CHOICES
 from impactqp.controller.model.choice import RobotChoice
 from impactqp.controller.model.postures import DEFAULT_WALL, ImpactPosture, Surface
 from impactqp.controller.model.validation import BadInputError, tangential_velocity, unit_normal
-from impactqp.controller.model.validation import approach_speed
+from impactqp.controller.model.validation import simulated_speed
 from impactqp.scenarios.cli.arguments import (
     check_jobs,
     emit_json,
@@ -131,7 +131,7 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     out_dir = trial["out_dir"]
     check_pictures(trial)
     posture = choice.posture(posture_name)
-    approach_speed(speed, "--speed")
+    simulated_speed(speed, "--speed")
     surface = wall(trial["wall_point"], trial["wall_normal"])
     tangential = (
         np.zeros(3) if tangential_text is None
@@ -236,7 +236,7 @@ def stance_trial(
     elif friction is not None:
         raise BadInputError("--friction sets the whole-body QP's friction rows: give --controller qp")
     stance = stance_names(choice.robot, posture)[0]
-    approach_speed(speed, "--speed")
+    simulated_speed(speed, "--speed")
     dataset = None if out_dir is None else open_dataset(output_directory(out_dir, "--out"), choice.robot)
     runner = TrialRunner.build(DEFAULT_WALL, None, choice, source)
     trial = runner.run(TrialSpec(stance, posture_of(choice, stance), speed))
@@ -304,12 +304,12 @@ def campaign_speeds(speeds_text, tangential_text, floating: bool) -> tuple[tuple
     default = STANCE_SPEEDS if floating else PAPER_SPEEDS
     speeds = default if speeds_text is None else tuple(parse_list(speeds_text, "--speeds"))
     for v in speeds:
-        approach_speed(v, "every speed of --speeds")
+        simulated_speed(v, "every speed of --speeds")
     if floating or (tangential_text is not None and tangential_text.strip().lower() == "none"):
         return speeds, ()
     if tangential_text is None:
         return speeds, PAPER_TANGENTIAL_SPEEDS
-    return speeds, tuple(parse_vector(tangential_text, None, "--tangential").tolist())
+    return speeds, tuple(parse_list(tangential_text, "--tangential"))
 
 
 @click.command()

@@ -17,7 +17,7 @@ from impactqp.scenarios.cli.stderr_log import show_progress
 @click.option("--backend", type=click.Choice(["local", "ray"]), default="local", show_default=True,
               help="local: a process pool; ray: the cluster at RAY_ADDRESS, else a local Ray.")
 @click.option("--jobs", type=int, default=1, show_default=True, help="Worker processes.")
-@click.option("--out", type=click.Path(path_type=Path), default=Path("out/sweep"), show_default=True)
+@click.option("--out", default="out/sweep", show_default=True, help="Output directory (Parquet chunks, sweep.json, figures).")
 @click.option("--resume", is_flag=True, help="Skip the chunks already in --out (same config, --simulate, --plant).")
 @click.option("--simulate", is_flag=True,
               help="Also search each cell's simulated highest feasible speed (the bisection of max-speed).")
@@ -38,8 +38,8 @@ def sweep(config_path, example, as_json, choice, **run):
     from impactqp.scenarios.sweep.backends import run_sweep
     from impactqp.scenarios.sweep.cells import Simulation
 
-    out, simulate, plant_file = run["out"], run["simulate"], run["plant_file"]
-    output_directory(str(out), "--out")
+    simulate, plant_file = run["simulate"], run["plant_file"]
+    out = output_directory(run["out"], "--out")
     check_jobs(run["jobs"])
     config = replace(load_config(config_path), choice=choice)
     if plant_file is not None and not simulate:

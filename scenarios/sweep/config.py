@@ -4,7 +4,8 @@ The grid is the product points x normals x restitution values x the controller s
 (impact durations x controller jump models), and with the optional ``[friction]`` table x
 frictions mu x tangential speeds; every cell evaluates all the listed jump models in closed
 form (with ``[friction]`` also under the robust friction rows, docs/sweep.md). Every key is checked before any work starts: an unknown key, a malformed value, an
-empty grid or a spacing <= 0 raises :class:`BadInputError` (docs/sweep.md).
+empty grid, a spacing <= 0, a value out of its range or a value listed twice (two normals of one
+direction included) raises :class:`BadInputError` (docs/sweep.md).
 """
 
 from __future__ import annotations
@@ -67,7 +68,7 @@ jump_model = ["crb"]
 impact_duration = [0.015]
 
 [simulate]
-# Bisection tolerance (m/s) of the simulated highest feasible speed (--simulate only), > 0.
+# Bisection tolerance (m/s) of the simulated highest feasible speed (--simulate only), in [0.0001, 0.5].
 tolerance = 0.005
 """
 
@@ -81,6 +82,9 @@ FRICTION_KEYS = {"mu", "tangential_speed", "pyramid_edges"}
 MAX_TANGENTIAL_SPEED = 2.0
 """m/s: the largest tangential speed of a friction sweep (the QP's request speed, ``max-speed``)."""
 MAX_CELLS = 10_000_000
+NORMAL_DECIMALS = 9
+"""Two of ``settings.normals`` whose unit vectors agree in every component to this many decimals
+are one direction (listed twice): they differ by rounding only."""
 
 
 @dataclass(frozen=True)
@@ -190,18 +194,20 @@ def parse_config(data: dict) -> SweepConfig:
         tuple(unit_normal(n, f"settings.normals[{k}]").tolist())
         for k, n in enumerate(non_empty_list(settings["normals"], "settings.normals"))
     ]
+    _listed_once("settings.normals", [tuple(round(x, NORMAL_DECIMALS) for x in n) for n in normals],
+                 "are one direction (normals are normalised)")
     restitutions = [
         restitution(c, f"settings.restitution[{k}]")
         for k, c in enumerate(non_empty_list(settings["restitution"], "settings.restitution"))
     ]
+    _listed_once("settings.restitution", restitutions)
     models = non_empty_list(settings["jump_models"], "settings.jump_models")
     for name in models:
         if name not in JUMP_MODELS:
             raise BadInputError(
                 f"unknown jump model {name!r} in settings.jump_models; choose from {', '.join(JUMP_MODELS)}"
             )
-    if len(set(models)) != len(models):
-        raise BadInputError("settings.jump_models lists a model twice")
+    _listed_once("settings.jump_models", models)
     seed = settings["seed_posture"]
     if seed not in PANDA.postures:
         raise BadInputError(
@@ -217,9 +223,8 @@ def parse_config(data: dict) -> SweepConfig:
         impact_duration(value, f"controller.impact_duration[{k}]")
         for k, value in enumerate(non_empty_list(controller["impact_duration"], "controller.impact_duration"))
     ]
-    for name, values in (("controller.jump_model", controller_models), ("controller.impact_duration", durations)):
-        if len(set(values)) != len(values):
-            raise BadInputError(f"{name} lists a value twice")
+    _listed_once("controller.jump_model", controller_models)
+    _listed_once("controller.impact_duration", durations)
     config = SweepConfig(
         origin=tuple(origin.tolist()),
         u=tuple(u.tolist()),
@@ -232,7 +237,7 @@ def parse_config(data: dict) -> SweepConfig:
         seed_posture=seed,
         controller_jump_model=tuple(controller_models),
         impact_duration=tuple(durations),
-        tolerance=positive(simulate["tolerance"], "simulate.tolerance"),
+        tolerance=_bisection_tolerance(simulate["tolerance"]),
         **(_friction(_table(data, "friction", FRICTION_KEYS), models) if "friction" in data else {}),
     )
     points = [math.floor(side / spacing + 1e-9) + 1 if side / spacing < MAX_CELLS else MAX_CELLS + 1 for side in size.tolist()]
@@ -248,6 +253,24 @@ def parse_config(data: dict) -> SweepConfig:
     return config
 
 
+def _listed_once(key: str, values: list, same: str = "are equal") -> None:
+    """Refuse (naming ``key`` and the two entries) a list of the config that holds a value twice;
+    values compare as Python numbers and strings do (0.0 and -0.0 are one value)."""
+    first: dict = {}
+    for k, value in enumerate(values):
+        if value in first:
+            raise BadInputError(f"{key} lists a value twice: {key}[{first[value]}] and {key}[{k}] {same}")
+        first[value] = k
+
+
+def _bisection_tolerance(value) -> float:
+    """``simulate.tolerance`` in the range ``max-speed --tolerance`` accepts (m/s): the bounds of
+    ``max_speed_search``, whose bisection takes it."""
+    from impactqp.scenarios.max_speed_search import MAX_TOLERANCE, MIN_TOLERANCE  # loads the simulation: not at import
+
+    return number_in_range(value, MIN_TOLERANCE, MAX_TOLERANCE, "simulate.tolerance", "m/s")
+
+
 def _friction(table: dict, models: list) -> dict:
     """The checked ``[friction]`` table as the config's fields (docs/sweep.md, "Friction")."""
     mus = []
@@ -260,9 +283,8 @@ def _friction(table: dict, models: list) -> dict:
         number_in_range(v, 0.0, MAX_TANGENTIAL_SPEED, f"friction.tangential_speed[{k}]", "m/s")
         for k, v in enumerate(non_empty_list(table["tangential_speed"], "friction.tangential_speed"))
     ]
-    for name, values in (("friction.mu", mus), ("friction.tangential_speed", speeds)):
-        if len(set(values)) != len(values):
-            raise BadInputError(f"{name} lists a value twice")
+    _listed_once("friction.mu", mus)
+    _listed_once("friction.tangential_speed", speeds)
     if "classical_normal" in models:
         raise BadInputError("the classical_normal model keeps the normal impulse only: it has no friction rows "
                             "(settings.jump_models with [friction])")
