@@ -180,12 +180,18 @@ def approach_velocity_limit(robot: PandaModel, q: np.ndarray, normal: np.ndarray
     return float(1.0 / np.max(np.abs(d) / robot.dq_max))
 
 
+def bisection_tolerance(value, what: str, smallest: float = MIN_TOLERANCE) -> float:
+    """A bisection tolerance (m/s) in [smallest, MAX_TOLERANCE]: ``max-speed --tolerance``'s and a
+    sweep's ``simulate.tolerance``."""
+    return number_in_range(value, smallest, MAX_TOLERANCE, what, "m/s")
+
+
 class SpeedBisection:
     """The bracket [lo, hi] of the parallel bisection of the module docstring (``smallest``: the
     least tolerance accepted, m/s)."""
 
     def __init__(self, lo: float, hi: float, tolerance: float, smallest: float = MIN_TOLERANCE):
-        tolerance = number_in_range(tolerance, smallest, MAX_TOLERANCE, "the bisection tolerance", "m/s")
+        tolerance = bisection_tolerance(tolerance, "the bisection tolerance", smallest)
         self.lo, self.hi, self.tolerance = lo, hi, tolerance
         self.evaluations: list = []
 

@@ -260,6 +260,8 @@ ROWS = [
     (["max-speed", "--posture", "elbow_up", "--friction", "nan", "--tolerance", "0.05"], None, 2,
      "--friction: the friction of the impact rows must lie in [0, 2], got nan"),
     # a simulated approach slower than a trial can take, repeated or out-of-range conditions
+    (["simulate", "--posture", "elbow_up", "--speed", "0.1", "--out", "{bad}"], replace_by_directory("t0000.csv"), 2,
+     "t0000.csv is a directory, not a file"),
     (["simulate", "--posture", "elbow_up", "--speed", "1e-5"], None, 2, "[0.001, 3] m/s"),
     (["simulate", "--posture", "elbow_up", "--speed", "1e-300"], None, 2, "[0.001, 3] m/s"),
     (["campaign", "--postures", "elbow_up,elbow_up", "--speeds", "0.1", "--out", "{tmp}/c"], None, 2,

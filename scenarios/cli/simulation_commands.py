@@ -140,8 +140,9 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     plant = load_plant(plant_file)
     if friction is not None:
         surface = frictional_wall(surface, friction, plant, trial["no_jump_constraint"], trial["jump_model"])
-    if out_dir is not None:
-        output_directory(out_dir, "--out")
+    writer = None
+    if out_dir is not None:  # an existing dataset of another header, or with files in the way: refused before the trial
+        writer = DatasetWriter(output_directory(out_dir, "--out"), dataset_header(surface, choice))
     check_reachable(choice, posture, surface, SIMULATE_START_DISTANCE)
 
     spec = TrialSpec(
@@ -153,8 +154,8 @@ def simulate(posture_name, speed, tangential_text, plant_file, as_json, choice, 
     if friction is not None and spec.jump_model is not None:
         runner.source = replace(runner.source_of(spec), friction=surface.friction)
     result = runner.run(spec)
-    if out_dir is not None:
-        DatasetWriter(out_dir, dataset_header(surface, choice)).add_trial(*result.dataset_trial())
+    if writer is not None:
+        writer.add_trial(*result.dataset_trial())
     write_pictures(runner, result, trial, ImpactLabel(choice.robot, choice.tool.name, posture.name))
     report = result.to_json()
     if as_json:

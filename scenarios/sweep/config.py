@@ -264,11 +264,11 @@ def _listed_once(key: str, values: list, same: str = "are equal") -> None:
 
 
 def _bisection_tolerance(value) -> float:
-    """``simulate.tolerance`` in the range ``max-speed --tolerance`` accepts (m/s): the bounds of
-    ``max_speed_search``, whose bisection takes it."""
-    from impactqp.scenarios.max_speed_search import MAX_TOLERANCE, MIN_TOLERANCE  # loads the simulation: not at import
+    """``simulate.tolerance``, checked as ``max-speed --tolerance`` (``max_speed_search``, whose
+    bisection takes it)."""
+    from impactqp.scenarios.max_speed_search import bisection_tolerance  # loads the simulation: not at import
 
-    return number_in_range(value, MIN_TOLERANCE, MAX_TOLERANCE, "simulate.tolerance", "m/s")
+    return bisection_tolerance(value, "simulate.tolerance")
 
 
 def _friction(table: dict, models: list) -> dict:
