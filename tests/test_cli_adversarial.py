@@ -218,6 +218,7 @@ ROWS = [
     (["run", "--config", "{bad}/c.yaml", "--log", "{tmp}/log"],
      write("c.yaml", "x: " + "[" * 100_000 + "]" * 100_000), 2, "nested too deeply"),
     (["run", "--config", "{tmp}", "--log", "{tmp}/log"], None, 2, "unsupported configuration file"),
+    (["oblique", "--qp-speed", "--jump-model", "", "--out", "{tmp}/o"], None, 2, "jump model"),
     (["run", "--config", "{bad}/c.toml", "--log", "{tmp}/log"], replace_by_directory_new("c.toml"), 2,
      "is a directory"),
     (["run", "--speed", "1e9", "--log", "{tmp}/log"], None, 2, "(0, 3] m/s"),

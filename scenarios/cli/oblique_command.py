@@ -70,7 +70,7 @@ def oblique(choice, as_json, **options):
         from impactqp.scenarios.oblique import fixed_base
         from impactqp.scenarios.oblique_campaign import markdown, qp_speed_grid_named, run_qp_speed_campaign
 
-        grid = qp_speed_grid_named(grid_name, jump_model or QP_SPEED_JUMP_MODEL)
+        grid = qp_speed_grid_named(grid_name, QP_SPEED_JUMP_MODEL if jump_model is None else jump_model)
         fixed_base(choice)
         out = output_directory(out_dir, "--out")
         report, files = run_qp_speed_campaign(choice, grid, check_jobs(jobs)), QP_SPEED_FILES
