@@ -118,9 +118,15 @@ class ProcessPool:
             with held_signals():
                 previous = signal.pthread_sigmask(signal.SIG_BLOCK, signal.valid_signals())
                 try:
-                    return self._executor.map(function, tasks)
+                    futures = [self._executor.submit(function, task) for task in tasks]
                 finally:
                     signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+            # Not ``executor.map``: its iterator cancels the futures left when it is closed, from
+            # this thread, while the executor's own thread may be failing them after __exit__
+            # killed the workers; a future cancelled in between makes that thread raise
+            # InvalidStateError and print a traceback (Python before 3.12). The futures left are
+            # cancelled by ``shutdown(cancel_futures=True)``, in the executor's thread.
+            return (future.result() for future in futures)
         return map(function, tasks)
 
 
