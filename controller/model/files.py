@@ -21,7 +21,7 @@ from pathlib import Path
 
 import yaml
 
-from .validation import BadInputError
+from .validation import BadInputError, repeated
 
 MAX_FILE_BYTES = 256 * 2**20
 """Largest file read (bytes): far above any configuration or manifest of ours (a manifest entry
@@ -52,9 +52,11 @@ class _NoAliasLoader(yaml.SafeLoader):
         seen = set()
         for key_node, _ in node.value:
             key = self.construct_object(key_node, deep=True)
-            if isinstance(key, (str, int, float, bool)) and key in seen:
+            if not isinstance(key, (str, int, float, bool)):  # a key made of a list or a table is not compared
+                continue
+            if key in seen:
                 raise yaml.constructor.ConstructorError(None, None, f"the key {key!r} is given twice", key_node.start_mark)
-            seen.add(key) if isinstance(key, (str, int, float, bool)) else None
+            seen.add(key)
         return super().construct_mapping(node, deep)
 
 
@@ -64,10 +66,9 @@ class _RepeatedKeyError(ValueError):
 
 def _json_object(pairs: list) -> dict:
     """A JSON object; _RepeatedKeyError when a key is given twice (json would keep the last one)."""
-    keys = [key for key, _ in pairs]
-    repeated = sorted({key for key in keys if keys.count(key) > 1})
-    if repeated:
-        raise _RepeatedKeyError(f"the key {repeated[0]!r} is given twice")
+    twice = repeated(key for key, _ in pairs)
+    if twice:
+        raise _RepeatedKeyError(f"the key {twice[0]!r} is given twice")
     return dict(pairs)
 
 

@@ -60,10 +60,10 @@ def real_array(value, what: str, error: type[BadInputError] = BadInputError) -> 
     boolean is not a number (as in :func:`number_in_range`), a complex number is not a real one
     (numpy would drop its imaginary part with a warning), and neither is a text ("0.1")."""
     try:
-        kind = np.asarray(value).dtype.kind
-        if _holds_boolean(value) or kind in "bcUSV":
-            raise TypeError(kind)
-        return np.asarray(value, dtype=float)
+        array = np.asarray(value)
+        if _holds_boolean(value) or array.dtype.kind in "bcUSV":
+            raise TypeError(array.dtype.kind)
+        return array.astype(float, copy=False)
     except (TypeError, ValueError):
         raise error(f"{what} must hold real numbers, got {short_repr(value)}") from None
 
@@ -332,11 +332,17 @@ def tangential_speed(value, what: str = "the tangential speed") -> float:
     return number_in_range(value, -MAX_CONTACT_SPEED, MAX_CONTACT_SPEED, what, "m/s")
 
 
+def repeated(values) -> list:
+    """The values listed more than once in ``values``, sorted (each once)."""
+    values = list(values)
+    return sorted({v for v in values if values.count(v) > 1})
+
+
 def distinct_names(names, what: str) -> None:
     """BadInputError when a name of ``names`` is listed more than once (each names one condition)."""
-    repeated = sorted({n for n in names if list(names).count(n) > 1})
-    if repeated:
-        raise BadInputError(f"{what} repeat {', '.join(map(str, repeated))}")
+    twice = repeated(names)
+    if twice:
+        raise BadInputError(f"{what} repeat {', '.join(map(str, twice))}")
 
 
 MIN_SIMULATED_SPEED = 1e-3

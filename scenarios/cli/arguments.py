@@ -16,7 +16,7 @@ import click
 import numpy as np
 
 from impactqp.controller.model.files import regular_file
-from impactqp.controller.model.validation import MAX_TRIALS, BadInputError
+from impactqp.controller.model.validation import MAX_TRIALS, BadInputError, repeated
 from impactqp.scenarios.cli import command_result
 
 max_trials_option = click.option(
@@ -49,9 +49,9 @@ def parse_list(text: str, what: str) -> list[float]:
     values = parse_vector(text, None, what).tolist()
     if len(values) > MAX_LIST_ENTRIES:
         raise BadInputError(f"{what} has {len(values)} values; at most {MAX_LIST_ENTRIES}")
-    repeated = sorted({v for v in values if values.count(v) > 1})
-    if repeated:
-        raise BadInputError(f"{what} repeats {', '.join(f'{v:g}' for v in repeated)}")
+    twice = repeated(values)
+    if twice:
+        raise BadInputError(f"{what} repeats {', '.join(f'{v:g}' for v in twice)}")
     return values
 
 
